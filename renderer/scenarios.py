@@ -1,0 +1,110 @@
+"""The thesis's test scenes (chapter IV.B): scenarios 1, 2 and 3 for any n.
+
+All sphere centres lie so that every sphere is inside the cube [-20, 20]³.
+The plane is at (0, -20, 0) with normal (0, 1, 0); the camera at (0, 0, 100)
+looks at the origin; one white point light at (0, 40, 0); materials of
+Table 4.1.
+
+Material assignment (the thesis does not say): sphere ``i`` is transparent
+when ``i % 4 == 3`` and red otherwise, so a quarter of the spheres refract;
+the plane is red. The assignment depends only on the index, so any scene of
+the same n has the same mix.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .scene import Camera, Light, Material, Plane, Scene, SceneError
+
+CUBE_HALF = 20.0
+# Edge of each of scenario 2's eight corner cubes.
+CORNER_CUBE_EDGE = 8.0
+SCREEN_WIDTH, SCREEN_HEIGHT = 640, 1088
+
+RED = Material(color=(0.9, 0.3, 0.3), ambient=0.30, diffuse=0.30, specular=0.10, shininess=40.0,
+               reflective=0.30, transmissive=0.0, ior=1.0)
+TRANSPARENT = Material(color=(1.0, 1.0, 1.0), ambient=0.10, diffuse=0.10, specular=0.10, shininess=50.0,
+                       reflective=0.0, transmissive=0.70, ior=0.95)
+TABLE_4_1 = (RED, TRANSPARENT)
+
+
+def grid_centers(n: int, radius: float) -> np.ndarray:
+    """Scenario 1: n centres evenly spaced across the cube.
+
+    A k×k×k grid of cell centres with k = ceil(cbrt(n)); when n < k³, n of the
+    k³ cells are taken at evenly spaced positions in x-fastest order.
+    """
+    if n == 0:
+        return np.zeros((0, 3))
+    k = max(1, math.ceil(round(n ** (1.0 / 3.0), 9)))
+    while k ** 3 < n:
+        k += 1
+    half = CUBE_HALF - radius
+    if k == 1:
+        axis = np.zeros(1)
+    else:
+        cell = 2.0 * CUBE_HALF / k
+        axis = -CUBE_HALF + cell * (np.arange(k) + 0.5)
+        axis = np.clip(axis, -half, half) if half > 0 else np.zeros(k)
+    z, y, x = np.meshgrid(axis, axis, axis, indexing="ij")
+    pts = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    if n < len(pts):
+        pick = np.floor(np.arange(n) * (len(pts) / n)).astype(np.int64)
+        pts = pts[pick]
+    return pts
+
+
+def corner_centers(n: int, radius: float, rng: np.random.Generator) -> np.ndarray:
+    """Scenario 2: n centres at random inside eight small cubes at the corners.
+
+    Corner ``c`` (bits of c pick the sign of x, y, z) gets ``n // 8`` spheres,
+    the first ``n % 8`` corners one more. Centres are uniform in the corner cube
+    shrunk by the radius, so each sphere lies inside the corner cube.
+    """
+    per = np.full(8, n // 8)
+    per[: n % 8] += 1
+    lo = CUBE_HALF - CORNER_CUBE_EDGE + radius
+    hi = CUBE_HALF - radius
+    if hi < lo:  # radius larger than half a corner cube: centre them
+        lo = hi = CUBE_HALF - CORNER_CUBE_EDGE / 2
+    out = []
+    for c in range(8):
+        sign = np.array([1.0 if c & 1 else -1.0, 1.0 if c & 2 else -1.0, 1.0 if c & 4 else -1.0])
+        out.append(sign * rng.uniform(lo, hi, size=(per[c], 3)))
+    return np.concatenate(out) if out else np.zeros((0, 3))
+
+
+def scenario(number: int, n: int, seed: int = 0, radius: float = 1.0) -> Scene:
+    """Scenario 1, 2 or 3 of the thesis with n spheres of the given radius.
+
+    Scenario 3 is n // 2 spheres as scenario 1 followed by n - n // 2 as
+    scenario 2. ``seed`` drives the random placement (scenarios 2 and 3).
+    """
+    if number not in (1, 2, 3):
+        raise SceneError("scenario", f"must be 1, 2 or 3, got {number!r}")
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 0 <= n <= Scene.MAX_SPHERES:
+        raise SceneError("n", f"must be an integer in 0 … {Scene.MAX_SPHERES}, got {n!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise SceneError("seed", f"must be a non-negative integer, got {seed!r}")
+    if not (isinstance(radius, (int, float)) and math.isfinite(radius) and 0 < radius <= CUBE_HALF):
+        raise SceneError("radius", f"must be a number in (0, {CUBE_HALF}], got {radius!r}")
+    rng = np.random.default_rng(seed)
+    if number == 1:
+        centers = grid_centers(n, radius)
+    elif number == 2:
+        centers = corner_centers(n, radius, rng)
+    else:
+        centers = np.concatenate([grid_centers(n // 2, radius), corner_centers(n - n // 2, radius, rng)])
+    materials = (np.arange(n) % 4 == 3).astype(np.int32)
+    return Scene(
+        camera=Camera(position=(0.0, 0.0, 100.0), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y=60.0),
+        lights=(Light(position=(0.0, 40.0, 0.0), color=(1.0, 1.0, 1.0)),),
+        materials=TABLE_4_1,
+        sphere_centers=centers,
+        sphere_radii=np.full(n, float(radius)),
+        sphere_materials=materials,
+        planes=(Plane(point=(0.0, -CUBE_HALF, 0.0), normal=(0.0, 1.0, 0.0), material=0),),
+    )

@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Installs what pocketray needs on a fresh Debian machine. Idempotent and quick
+# when nothing changed (a stamp of pyproject.toml's hash skips pip).
+#  - Mesa's EGL + llvmpipe for headless OpenGL (when libEGL is missing)
+#  - Chromium for the browser tests, redis-server for the scale-out tests
+#  - a virtual environment .venv with the project and its test extras
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+need_apt=()
+ldconfig -p | grep -q 'libEGL.so.1' || need_apt+=(libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1)
+ldconfig -p | grep -q 'libEGL_mesa' || need_apt+=(libegl-mesa0 libgl1-mesa-dri)
+command -v chromium >/dev/null || need_apt+=(chromium)
+command -v redis-server >/dev/null || need_apt+=(redis-server)
+if [ ${#need_apt[@]} -gt 0 ]; then
+  SUDO=""; [ "$(id -u)" = 0 ] || SUDO="sudo"
+  echo "bootstrap: installing system packages: ${need_apt[*]}" >&2
+  $SUDO apt-get update -q >/dev/null
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q "${need_apt[@]}" >/dev/null
+fi
+
+[ -x .venv/bin/python ] || python3 -m venv .venv
+stamp=$(sha256sum pyproject.toml | cut -c1-16)
+if [ "$(cat .bootstrap-stamp 2>/dev/null || true)" != "$stamp" ]; then
+  echo "bootstrap: installing Python packages into .venv" >&2
+  .venv/bin/python -m pip install -q --upgrade pip >/dev/null
+  .venv/bin/python -m pip install -q -e '.[test]'
+  echo "$stamp" > .bootstrap-stamp
+fi
