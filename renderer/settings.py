@@ -7,7 +7,9 @@ from typing import Any
 
 from .scene import SceneError
 
-METHODS = ("bih", "bruteforce")
+from .methods import METHODS as _METHOD_REGISTRY
+
+METHODS = tuple(_METHOD_REGISTRY)
 MODES = ("color", "depth", "primid", "normal", "recursion", "heat")
 FORMATS = ("png", "jpeg", "npy")
 

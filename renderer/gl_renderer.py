@@ -1,0 +1,173 @@
+"""The moderngl renderer: one frame = rebuild → upload → draw → read back.
+
+A ``GLRenderer`` owns one OpenGL context. A context is not thread-safe: call a
+renderer from the thread that created it only (the server runs all renders on
+one dedicated thread).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import moderngl
+import numpy as np
+
+from . import gpu_layout
+from .methods import METHODS
+from .result import RenderResult
+from .scene import Scene
+from .settings import RenderSettings
+
+SHADER_DIR = Path(__file__).resolve().parent.parent / "shaders"
+HEADER_MARK = "//@HEADER@"
+
+
+class GLUnavailable(RuntimeError):
+    """No OpenGL context could be created (no EGL / Mesa on this machine)."""
+
+
+def create_context() -> moderngl.Context:
+    """A headless OpenGL ≥ 3.3 context through EGL (Mesa's llvmpipe without a GPU)."""
+    try:
+        return moderngl.create_standalone_context(backend="egl")
+    except Exception as egl_error:  # pragma: no cover - depends on the machine
+        try:
+            return moderngl.create_standalone_context()
+        except Exception:
+            raise GLUnavailable(f"cannot create an OpenGL context: {egl_error}") from egl_error
+
+
+def shader_source(method_define: str, mode: str, extra_defines: tuple[str, ...] = ()) -> str:
+    """The fragment shader of one variant: layout header and defines after ``#version``.
+
+    The same assembly serves moderngl and the browser (WebGL2).
+    """
+    src = (SHADER_DIR / "raytrace.frag").read_text()
+    defines = [f"#define {method_define}", f"#define MODE_{mode.upper()}", *(f"#define {d}" for d in extra_defines)]
+    header = gpu_layout.glsl_header() + "\n".join(defines) + "\n"
+    return src.replace(HEADER_MARK, header)
+
+
+def vertex_source() -> str:
+    return (SHADER_DIR / "fullscreen.vert").read_text()
+
+
+class GLRenderer:
+    """Renders scenes with the GLSL ES 3.00 tracer. Programs are cached per variant."""
+
+    def __init__(self, ctx: moderngl.Context | None = None,
+                 max_texture_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH):
+        self.ctx = ctx or create_context()
+        self.max_texture_width = min(max_texture_width, self.ctx.info["GL_MAX_TEXTURE_SIZE"])
+        self._programs: dict[tuple, moderngl.Program] = {}
+        self._vaos: dict[tuple, moderngl.VertexArray] = {}
+        self._fbos: dict[tuple[int, int], moderngl.Framebuffer] = {}
+        quad = np.array([-1, -1, 1, -1, 1, 1, -1, -1, 1, 1, -1, 1], dtype=np.float32)
+        self._quad = self.ctx.buffer(quad.tobytes())
+
+    @property
+    def info(self) -> dict[str, str]:
+        return {"renderer": self.ctx.info["GL_RENDERER"], "version": self.ctx.info["GL_VERSION"]}
+
+    def program(self, method_define: str, mode: str) -> tuple[moderngl.Program, moderngl.VertexArray]:
+        key = (method_define, mode)
+        if key not in self._programs:
+            prog = self.ctx.program(vertex_shader=vertex_source(),
+                                    fragment_shader=shader_source(method_define, mode))
+            self._programs[key] = prog
+            self._vaos[key] = self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
+        return self._programs[key], self._vaos[key]
+
+    def _framebuffer(self, width: int, height: int) -> moderngl.Framebuffer:
+        key = (width, height)
+        if key not in self._fbos:
+            if len(self._fbos) > 8:  # bound the cache: release the oldest size
+                old = self._fbos.pop(next(iter(self._fbos)))
+                for att in old.color_attachments:
+                    att.release()
+                old.release()
+            attachments = [self.ctx.texture((width, height), 4, dtype="f4") for _ in range(2)]
+            self._fbos[key] = self.ctx.framebuffer(color_attachments=attachments)
+        return self._fbos[key]
+
+    def _upload(self, prog: moderngl.Program, packed: gpu_layout.PackedScene, units: dict[str, int],
+                textures: list[moderngl.Texture]) -> None:
+        for name, tex in packed.textures.items():
+            gl_tex = self.ctx.texture(tex.size, tex.components, tex.data.tobytes(), dtype=tex.dtype)
+            # Integer textures are incomplete with LINEAR filtering; texelFetch ignores it otherwise.
+            gl_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            unit = len(textures)
+            gl_tex.use(unit)
+            textures.append(gl_tex)
+            if name in prog:
+                prog[name].value = unit
+            units[name] = unit
+        for name, value in packed.uniforms.items():
+            if name in prog:
+                prog[name].value = value
+
+    def render(self, scene: Scene, settings: RenderSettings) -> RenderResult:
+        """Trace one frame. Timings in ms: build, upload, trace, read, total."""
+        t_start = time.perf_counter()
+        method = METHODS[settings.method]
+        prepared = method.prepare(scene, settings.max_prims, settings.max_tree_depth, self.max_texture_width)
+        t_built = time.perf_counter()
+
+        prog, vao = self.program(prepared.define, settings.mode)
+        primitives = gpu_layout.pack_primitives(scene, self.max_texture_width)
+        textures: list[moderngl.Texture] = []
+        units: dict[str, int] = {}
+        try:
+            self._upload(prog, primitives, units, textures)
+            self._upload(prog, prepared.packed, units, textures)
+            # Samplers the variant declares but this method does not fill get a dummy texture.
+            for name in ("u_spheres", "u_sphere_mat", "u_materials", "u_nodes", "u_indices"):
+                if name in prog and name not in units:
+                    dummy = self.ctx.texture((1, 1), 1, np.zeros(1, np.uint32).tobytes(), dtype="u4")
+                    dummy.filter = (moderngl.NEAREST, moderngl.NEAREST)
+                    dummy.use(len(textures))
+                    prog[name].value = len(textures)
+                    textures.append(dummy)
+            self._set_camera(prog, scene, settings)
+            if "u_max_recursion_depth" in prog:
+                prog["u_max_recursion_depth"].value = settings.max_recursion_depth
+            fbo = self._framebuffer(settings.width, settings.height)
+            fbo.use()
+            self.ctx.finish()
+            t_uploaded = time.perf_counter()
+            vao.render(moderngl.TRIANGLES)
+            self.ctx.finish()
+            t_traced = time.perf_counter()
+            w, h = settings.width, settings.height
+            img = np.frombuffer(fbo.read(components=4, dtype="f4", attachment=0), np.float32).reshape(h, w, 4)[::-1]
+            hit = np.frombuffer(fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(h, w, 4)[::-1]
+        finally:
+            for t in textures:
+                t.release()
+        primid = img[..., 3].astype(np.int32)
+        depth = np.where(primid >= 0, hit[..., 3], np.float32(np.inf)).astype(np.float32)
+        t_end = time.perf_counter()
+        ms = lambda a, b: (b - a) * 1e3  # noqa: E731
+        timings = {"build": prepared.build_ms, "upload": ms(t_built, t_uploaded) , "trace": ms(t_uploaded, t_traced),
+                   "read": ms(t_traced, t_end), "total": ms(t_start, t_end)}
+        return RenderResult(image=np.ascontiguousarray(img[..., :3]), depth=depth, primid=primid,
+                            normal=np.ascontiguousarray(hit[..., :3]), mode=settings.mode,
+                            timings=timings, stats=prepared.stats)
+
+    @staticmethod
+    def _set_camera(prog: moderngl.Program, scene: Scene, settings: RenderSettings) -> None:
+        cam = scene.camera
+        right, up, forward = cam.basis()
+        s = math.tan(math.radians(cam.fov_y) / 2.0)
+        values = {
+            "u_cam_pos": tuple(cam.position), "u_cam_right": tuple(right), "u_cam_up": tuple(up),
+            "u_cam_forward": tuple(forward),
+            "u_half_extent": (s * settings.width / settings.height, s),
+            "u_resolution": (float(settings.width), float(settings.height)),
+            "u_target_distance": float(np.linalg.norm(np.subtract(cam.target, cam.position))),
+        }
+        for name, value in values.items():
+            if name in prog:
+                prog[name].value = value

@@ -1,0 +1,59 @@
+"""Acceleration methods behind one interface.
+
+A method turns a scene into what the GPU tracer needs for it: the shader
+variant's define, its textures and uniforms (through the shared layout of
+:mod:`gpu_layout`), and statistics. ``prepare`` runs on every request: the
+thesis rebuilds its BIH for every frame, and so do we.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from . import gpu_layout
+from .bih import build_for_spheres
+from .scene import Scene
+
+
+@dataclass
+class PreparedMethod:
+    """One request's acceleration data: shader define, GPU data, statistics."""
+    define: str
+    packed: gpu_layout.PackedScene
+    build_ms: float
+    stats: dict[str, Any] = field(default_factory=dict)
+
+
+class AccelerationMethod(Protocol):
+    name: str
+
+    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
+                max_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH) -> PreparedMethod: ...
+
+
+class BruteForce:
+    """Every ray tests every sphere (the thesis's "BF" series)."""
+    name = "bruteforce"
+
+    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
+                max_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH) -> PreparedMethod:
+        return PreparedMethod("METHOD_BRUTEFORCE", gpu_layout.PackedScene({}), 0.0,
+                              {"method": self.name, "primitives": scene.n_spheres})
+
+
+class BoundingIntervalHierarchy:
+    """The thesis's BIH (listings 3.3–3.5), rebuilt per request."""
+    name = "bih"
+
+    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
+                max_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH) -> PreparedMethod:
+        t0 = time.perf_counter()
+        bih = build_for_spheres(scene.sphere_centers, scene.sphere_radii, max_prims, max_tree_depth)
+        build_ms = (time.perf_counter() - t0) * 1e3
+        return PreparedMethod("METHOD_BIH", gpu_layout.pack_bih(bih, max_width), build_ms,
+                              {"method": self.name, **bih.stats.to_json()})
+
+
+METHODS: dict[str, AccelerationMethod] = {m.name: m for m in (BoundingIntervalHierarchy(), BruteForce())}
