@@ -39,13 +39,15 @@ def create_context() -> moderngl.Context:
             raise GLUnavailable(f"cannot create an OpenGL context: {egl_error}") from egl_error
 
 
-def shader_source(method_define: str, mode: str, extra_defines: tuple[str, ...] = ()) -> str:
+def shader_source(method_define: str, mode: str, max_recursion_depth: int,
+                  extra_defines: tuple[str, ...] = ()) -> str:
     """The fragment shader of one variant: layout header and defines after ``#version``.
 
     The same assembly serves moderngl and the browser (WebGL2).
     """
     src = (SHADER_DIR / "raytrace.frag").read_text()
-    defines = [f"#define {method_define}", f"#define MODE_{mode.upper()}", *(f"#define {d}" for d in extra_defines)]
+    defines = [f"#define {method_define}", f"#define MODE_{mode.upper()}",
+               f"#define MAX_RECURSION_DEPTH {int(max_recursion_depth)}", *(f"#define {d}" for d in extra_defines)]
     header = gpu_layout.glsl_header() + "\n".join(defines) + "\n"
     return src.replace(HEADER_MARK, header)
 
@@ -71,11 +73,13 @@ class GLRenderer:
     def info(self) -> dict[str, str]:
         return {"renderer": self.ctx.info["GL_RENDERER"], "version": self.ctx.info["GL_VERSION"]}
 
-    def program(self, method_define: str, mode: str) -> tuple[moderngl.Program, moderngl.VertexArray]:
-        key = (method_define, mode)
+    def program(self, method_define: str, mode: str, max_recursion_depth: int
+                ) -> tuple[moderngl.Program, moderngl.VertexArray]:
+        """The compiled variant (cached): method × mode × recursion depth."""
+        key = (method_define, mode, max_recursion_depth)
         if key not in self._programs:
             prog = self.ctx.program(vertex_shader=vertex_source(),
-                                    fragment_shader=shader_source(method_define, mode))
+                                    fragment_shader=shader_source(method_define, mode, max_recursion_depth))
             self._programs[key] = prog
             self._vaos[key] = self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
         return self._programs[key], self._vaos[key]
@@ -115,7 +119,7 @@ class GLRenderer:
         prepared = method.prepare(scene, settings.max_prims, settings.max_tree_depth, self.max_texture_width)
         t_built = time.perf_counter()
 
-        prog, vao = self.program(prepared.define, settings.mode)
+        prog, vao = self.program(prepared.define, settings.mode, settings.max_recursion_depth)
         primitives = gpu_layout.pack_primitives(scene, self.max_texture_width)
         textures: list[moderngl.Texture] = []
         units: dict[str, int] = {}
@@ -131,8 +135,6 @@ class GLRenderer:
                     prog[name].value = len(textures)
                     textures.append(dummy)
             self._set_camera(prog, scene, settings)
-            if "u_max_recursion_depth" in prog:
-                prog["u_max_recursion_depth"].value = settings.max_recursion_depth
             fbo = self._framebuffer(settings.width, settings.height)
             fbo.use()
             self.ctx.finish()

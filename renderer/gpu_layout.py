@@ -60,13 +60,17 @@ class PackedTexture:
 def wrap_rows(elements: np.ndarray, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedTexture:
     """Wrap ``elements`` (count, components) into rows of at most ``max_width``.
 
-    An empty array becomes a single zero texel (textures cannot be empty).
+    The width is a power of two (the shader addresses texel ``(i & (w-1), i >> log2 w)``),
+    ``max_width`` is rounded down to one. An empty array becomes a single zero
+    texel (textures cannot be empty). Arrays that share an index (spheres and
+    their materials) get the same width because the width depends on the count only.
     """
     elements = np.asarray(elements)
     if elements.ndim == 1:
         elements = elements[:, None]
     count, comps = elements.shape
-    width = max(1, min(count, max_width))
+    max_width = 1 << (int(max_width).bit_length() - 1)
+    width = min(1 << max(0, (count - 1).bit_length()), max_width)
     height = max(1, -(-count // width))
     if height > max_width:
         raise ValueError(f"{count} elements do not fit a {max_width}×{max_width} texture")

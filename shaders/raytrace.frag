@@ -36,7 +36,6 @@ uniform vec3 u_cam_forward;
 uniform vec2 u_half_extent;             // (tan(fov_y/2)·W/H, tan(fov_y/2))
 uniform vec2 u_resolution;              // (W, H)
 uniform float u_target_distance;        // |target − position|, for the depth image
-uniform int u_max_recursion_depth;      // 1 = primary rays only
 
 layout(location = 0) out vec4 o_image;  // rgb = mode image, a = primary id (−1 miss)
 layout(location = 1) out vec4 o_hit;    // xyz = outward normal, w = primary t (−1 miss)
@@ -44,10 +43,17 @@ layout(location = 1) out vec4 o_hit;    // xyz = outward normal, w = primary t (
 const float BIG = 3.0e38;               // "no hit yet"; finite on purpose (no inf literals in ES)
 const int NO_PRIM = -1;
 
-ivec2 texel(int i, int width) { return ivec2(i % width, i / width); }
+// Texture rows are a power of two wide (gpu_layout.wrap_rows), so element i
+// is texel (i & mask, i >> shift): integer division per fetch costs llvmpipe
+// half of a brute-force frame. The shifts are read once per fragment.
+int g_sphere_shift, g_node_shift, g_index_shift, g_mat_shift;
+
+int row_shift(ivec2 size) { return int(log2(float(size.x)) + 0.5); }  // exact: a power of two
+
+ivec2 texel(int i, int shift) { return ivec2(i & ((1 << shift) - 1), i >> shift); }
 
 vec4 fetch_sphere(int id) {
-    return texelFetch(u_spheres, texel(id, textureSize(u_spheres, 0).x), 0);
+    return texelFetch(u_spheres, texel(id, g_sphere_shift), 0);
 }
 
 // Ray–sphere intersection (docs/SHADING.md). |d| = 1. The discriminant is
@@ -88,10 +94,16 @@ struct Hit {
 };
 
 // Counters for the heat mode (Fig. 4.3): nodes visited, gaps, sphere tests.
+// Compiled in only for that mode.
+#ifdef MODE_HEAT
 ivec3 g_counters = ivec3(0);
+#define COUNT(c) g_counters.c += 1
+#else
+#define COUNT(c)
+#endif
 
 void test_sphere(Query q, int id, inout Hit h) {
-    g_counters.z += 1;
+    COUNT(z);
     if (id == q.skip) return;
     float t = intersect_sphere(q.o, q.d, fetch_sphere(id), id == q.far_id);
     if (closer(t, id, h.t, h.id)) { h.t = t; h.id = id; }
@@ -124,8 +136,6 @@ bool clip_box(vec3 o, vec3 d, out float t0, out float t1) {
 void traverse_bih(Query q, inout Hit h) {
     float t0, t1;
     if (u_num_spheres == 0 || !clip_box(q.o, q.d, t0, t1)) return;
-    int node_width = textureSize(u_nodes, 0).x;
-    int index_width = textureSize(u_indices, 0).x;
     int st_node[BIH_STACK_SIZE];
     float st_a[BIH_STACK_SIZE];
     float st_b[BIH_STACK_SIZE];
@@ -138,13 +148,13 @@ void traverse_bih(Query q, inout Hit h) {
         float b = st_b[sp];
         if (a > h.t) continue;
         while (true) {
-            g_counters.x += 1;
-            uvec3 w = texelFetch(u_nodes, texel(node, node_width), 0).xyz;
+            COUNT(x);
+            uvec3 w = texelFetch(u_nodes, texel(node, g_node_shift), 0).xyz;
             if ((w.x & BIH_LEAF_TAG) == BIH_LEAF_TAG) {
                 int offset = int(w.y);
                 int end = offset + int(w.z);
                 for (int i = offset; i < end; i++) {
-                    int id = int(texelFetch(u_indices, texel(i, index_width), 0).x);
+                    int id = int(texelFetch(u_indices, texel(i, g_index_shift), 0).x);
                     test_sphere(q, id, h);
                     if (q.any_hit && h.t < q.t_max) return;
                 }
@@ -176,7 +186,7 @@ void traverse_bih(Query q, inout Hit h) {
             }
             bool near_ok = near_a <= near_b;
             bool far_ok = far_a <= far_b;
-            if (!near_ok && !far_ok) { g_counters.y += 1; break; }  // the empty gap
+            if (!near_ok && !far_ok) { COUNT(y); break; }  // the empty gap
             near_ok = near_ok && near_a <= h.t;
             far_ok = far_ok && far_a <= h.t;
             if (near_ok) {
@@ -224,10 +234,9 @@ struct Material {
 };
 
 Material fetch_material(int m) {
-    int width = textureSize(u_materials, 0).x;
-    vec4 a = texelFetch(u_materials, texel(m * MATERIAL_TEXELS, width), 0);
-    vec4 b = texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 1, width), 0);
-    vec4 c = texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 2, width), 0);
+    vec4 a = texelFetch(u_materials, texel(m * MATERIAL_TEXELS, g_mat_shift), 0);
+    vec4 b = texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 1, g_mat_shift), 0);
+    vec4 c = texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 2, g_mat_shift), 0);
     return Material(a.rgb, a.a, b.x, b.y, b.z, b.w, c.x, c.y);
 }
 
@@ -250,6 +259,19 @@ vec3 recursion_colour(int level) {
     return vec3(0.0);
 }
 
+// Compile-time shape of the variant (llvmpipe and mobile GPUs pay for code
+// that is only masked off, so what a frame cannot use is not compiled in):
+// MAX_RECURSION_DEPTH (1 … 8) sizes the task stack; modes other than colour
+// and recursion trace the primary ray only.
+#if !defined(MODE_COLOR) && !defined(MODE_RECURSION)
+#undef MAX_RECURSION_DEPTH
+#define MAX_RECURSION_DEPTH 1
+#define PRIMARY_ONLY
+#endif
+// Depth-first evaluation of the ray tree leaves at most one pending sibling
+// per level, plus the two children of the deepest node.
+#define MAX_TASKS (MAX_RECURSION_DEPTH + 1)
+
 struct Task {
     vec3 o;
     vec3 d;
@@ -259,9 +281,54 @@ struct Task {
     int far_id;
 };
 
-#define MAX_TASKS 9
+struct Surface {
+    vec3 p;
+    vec3 n;   // outward unit normal
+    int mat;
+};
+
+Surface surface_at(vec3 o, vec3 d, Hit h) {
+    Surface s;
+    s.p = o + h.t * d;
+    if (h.id < u_num_spheres) {
+        vec4 sp = fetch_sphere(h.id);
+        s.n = normalize((s.p - sp.xyz) / sp.w);
+        s.mat = int(texelFetch(u_sphere_mat, texel(h.id, g_sphere_shift), 0).x);
+    } else {
+        s.n = normalize(u_plane_normal[h.id - u_num_spheres]);
+        s.mat = u_plane_mat[h.id - u_num_spheres];
+    }
+    return s;
+}
+
+// Phong with shadow rays: ambient + Σ lights (diffuse + specular).
+vec3 local_shading(vec3 d, Hit h, Surface s, Material m) {
+    vec3 nf = dot(d, s.n) < 0.0 ? s.n : -s.n;
+    vec3 local = m.ambient * m.color;
+    for (int li = 0; li < MAX_LIGHTS; li++) {
+        if (li >= u_num_lights) break;
+        vec3 to_light = u_light_pos[li] - s.p;
+        float dist = length(to_light);
+        vec3 l = to_light / dist;
+        float cos_l = dot(nf, l);
+        if (!(cos_l > 0.0)) continue;
+        int skip, far_id;
+        exclusion(h.id, s.n, l, skip, far_id);
+        Hit sh = intersect_scene(Query(s.p, l, skip, far_id, dist, true));
+        if (sh.id != NO_PRIM) continue;
+        vec3 r = 2.0 * cos_l * nf - l;
+        float x = dot(r, -d);
+        float spec = x > 0.0 ? pow(x, m.shininess) : 0.0;
+        local += u_light_color[li] * (m.diffuse * cos_l * m.color + m.specular * spec);
+    }
+    return local;
+}
 
 void main() {
+    g_sphere_shift = row_shift(textureSize(u_spheres, 0));
+    g_node_shift = row_shift(textureSize(u_nodes, 0));
+    g_index_shift = row_shift(textureSize(u_indices, 0));
+    g_mat_shift = row_shift(textureSize(u_materials, 0));
     // gl_FragCoord.y grows upwards; image row 0 is the top row.
     float px = gl_FragCoord.x;
     float row = u_resolution.y - gl_FragCoord.y;
@@ -269,89 +336,62 @@ void main() {
     float v = (1.0 - 2.0 * row / u_resolution.y) * u_half_extent.y;
     vec3 dir = normalize(u_cam_forward + u * u_cam_right + v * u_cam_up);
 
-#if defined(MODE_COLOR) || defined(MODE_RECURSION)
-    int max_level = u_max_recursion_depth;
-#else
-    int max_level = 1;
-#endif
-
-    Task tasks[MAX_TASKS];
-    tasks[0] = Task(u_cam_pos, dir, 1.0, 1, NO_PRIM, NO_PRIM);
-    int n_tasks = 1;
     vec3 colour = vec3(0.0);
     int deepest = 0;
     float primary_t = -1.0;
     int primary_id = NO_PRIM;
     vec3 primary_n = vec3(0.0);
 
-    while (n_tasks > 0) {
-        n_tasks--;
-        Task k = tasks[n_tasks];
-        Hit h = intersect_scene(Query(k.o, k.d, k.skip, k.far_id, BIG, false));
-        if (h.id == NO_PRIM) continue;
-        vec3 p = k.o + h.t * k.d;
-        vec3 n;
-        int mat;
-        if (h.id < u_num_spheres) {
-            vec4 s = fetch_sphere(h.id);
-            n = (p - s.xyz) / s.w;
-            mat = int(texelFetch(u_sphere_mat, texel(h.id, textureSize(u_sphere_mat, 0).x), 0).x);
-        } else {
-            n = u_plane_normal[h.id - u_num_spheres];
-            mat = u_plane_mat[h.id - u_num_spheres];
-        }
-        n = normalize(n);
-        if (k.level == 1) { primary_t = h.t; primary_id = h.id; primary_n = n; }
-        deepest = max(deepest, k.level);
-        if (max_level == 1 && k.level == 1) {
-#if !defined(MODE_COLOR)
-            break;
+    Hit h0 = intersect_scene(Query(u_cam_pos, dir, NO_PRIM, NO_PRIM, BIG, false));
+    if (h0.id != NO_PRIM) {
+        Surface s0 = surface_at(u_cam_pos, dir, h0);
+        primary_t = h0.t; primary_id = h0.id; primary_n = s0.n; deepest = 1;
+#ifndef PRIMARY_ONLY
+        Task tasks[MAX_TASKS];
+        tasks[0] = Task(u_cam_pos, dir, 1.0, 1, NO_PRIM, NO_PRIM);
+        int n_tasks = 1;
+        bool first = true;
+        while (n_tasks > 0) {
+            n_tasks--;
+            Task k = tasks[n_tasks];
+            Hit h = h0;
+            Surface s = s0;
+            if (!first) {
+                h = intersect_scene(Query(k.o, k.d, k.skip, k.far_id, BIG, false));
+                if (h.id == NO_PRIM) continue;
+                s = surface_at(k.o, k.d, h);
+            }
+            first = false;
+            deepest = max(deepest, k.level);
+            Material m = fetch_material(s.mat);
+            colour += k.weight * local_shading(k.d, h, s, m);
+#if MAX_RECURSION_DEPTH > 1
+            if (k.level < MAX_RECURSION_DEPTH) {
+                vec3 n = s.n;
+                if (m.reflective > 0.0) {
+                    vec3 r = k.d - 2.0 * dot(k.d, n) * n;
+                    int skip, far_id;
+                    exclusion(h.id, n, r, skip, far_id);
+                    tasks[n_tasks] = Task(s.p, r, k.weight * m.reflective, k.level + 1, skip, far_id);
+                    n_tasks++;
+                }
+                if (m.transmissive > 0.0) {
+                    bool entering = dot(k.d, n) < 0.0;
+                    float eta = entering ? 1.0 / m.ior : m.ior;
+                    vec3 nn = entering ? n : -n;
+                    float cos_i = -dot(k.d, nn);
+                    float kk = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+                    vec3 t_dir = kk < 0.0 ? k.d - 2.0 * dot(k.d, nn) * nn      // total internal reflection
+                                          : normalize(eta * k.d + (eta * cos_i - sqrt(kk)) * nn);
+                    int skip, far_id;
+                    exclusion(h.id, n, t_dir, skip, far_id);
+                    tasks[n_tasks] = Task(s.p, t_dir, k.weight * m.transmissive, k.level + 1, skip, far_id);
+                    n_tasks++;
+                }
+            }
 #endif
         }
-        Material m = fetch_material(mat);
-        vec3 nf = dot(k.d, n) < 0.0 ? n : -n;
-
-        vec3 local = m.ambient * m.color;
-        for (int li = 0; li < MAX_LIGHTS; li++) {
-            if (li >= u_num_lights) break;
-            vec3 to_light = u_light_pos[li] - p;
-            float dist = length(to_light);
-            vec3 l = to_light / dist;
-            float cos_l = dot(nf, l);
-            if (!(cos_l > 0.0)) continue;
-            int skip, far_id;
-            exclusion(h.id, n, l, skip, far_id);
-            Hit sh = intersect_scene(Query(p, l, skip, far_id, dist, true));
-            if (sh.id != NO_PRIM) continue;
-            vec3 r = 2.0 * cos_l * nf - l;
-            float x = dot(r, -k.d);
-            float spec = x > 0.0 ? pow(x, m.shininess) : 0.0;
-            local += u_light_color[li] * (m.diffuse * cos_l * m.color + m.specular * spec);
-        }
-        colour += k.weight * local;
-
-        if (k.level < max_level) {
-            if (m.reflective > 0.0) {
-                vec3 r = k.d - 2.0 * dot(k.d, n) * n;
-                int skip, far_id;
-                exclusion(h.id, n, r, skip, far_id);
-                tasks[n_tasks] = Task(p, r, k.weight * m.reflective, k.level + 1, skip, far_id);
-                n_tasks++;
-            }
-            if (m.transmissive > 0.0) {
-                bool entering = dot(k.d, n) < 0.0;
-                float eta = entering ? 1.0 / m.ior : m.ior;
-                vec3 nn = entering ? n : -n;
-                float cos_i = -dot(k.d, nn);
-                float kk = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
-                vec3 t_dir = kk < 0.0 ? k.d - 2.0 * dot(k.d, nn) * nn      // total internal reflection
-                                      : normalize(eta * k.d + (eta * cos_i - sqrt(kk)) * nn);
-                int skip, far_id;
-                exclusion(h.id, n, t_dir, skip, far_id);
-                tasks[n_tasks] = Task(p, t_dir, k.weight * m.transmissive, k.level + 1, skip, far_id);
-                n_tasks++;
-            }
-        }
+#endif
     }
 
     vec3 image;

@@ -1,0 +1,319 @@
+"""CPU BIH traversal in float64, vectorised over rays (docs/SHADING.md).
+
+This is the reference for what the shader's ``traverse_bih`` does, including
+the heat-mode counters. All rays run in lockstep: every *step* each live ray
+either pops an entry off its own explicit stack or visits one node, so the
+Python loop runs over steps (about the number of nodes the busiest ray
+visits), never over rays.
+
+What it implements, exactly as SHADING.md's "BIH traversal" pseudo-code:
+
+- slab test against the global AABB, intersected with ``[0, inf)``; an axis
+  with ``d = ±0`` misses when ``o`` is outside the slab and constrains nothing
+  otherwise (no ``(bound - o) / 0``);
+- at an inner node with ``d[axis] > 0`` the left child is near, valid on
+  ``[a, min(b, tL)]``, the right one far, valid on ``[max(a, tR), b]``; with
+  ``d[axis] < 0`` the roles swap; with ``d[axis] = ±0`` the left child is valid
+  on ``[a, b]`` when ``o[axis] <= clip_left`` and the right one when
+  ``o[axis] >= clip_right`` (left is then taken as "near", as in the shader);
+  ``tL``/``tR`` are computed in float64 from the node's float32 clip values;
+- an interval ``[lo, hi]`` is valid when ``lo <= hi``; neither child valid is
+  one pass through the empty gap (``gaps += 1``); a valid child whose ``lo``
+  exceeds the best hit so far is dropped; with both left, the far one is
+  pushed with its own interval; a popped entry whose ``a`` exceeds the best
+  hit is skipped (not counted as visited);
+- a leaf tests the spheres ``indices[offset .. offset + count)``
+  (``tests += count``, ignored spheres included, as in the shader);
+- nearest hit with ``t > 0``; exactly equal ``t`` goes to the lower id.
+
+Sphere intersection (shared with :func:`brute_force`, so both give bitwise
+the same ``t``): ``b = dot(o - c, d)``, ``h² = r² - |(o - c) - b d|²``, roots
+``-b ∓ h``, first root ``> 0``. Secondary-ray rules: ``ignore[i]`` is a sphere
+ray ``i`` does not see at all, ``far_only[i]`` one for which only the far root
+``-b + h`` counts (``-1`` = none).
+
+Exactness against brute force: the intervals only prune, and pruning is safe
+when every float64 sphere lies inside its float32 AABB (see
+``tests/test_bih.py`` and the note there on ``sphere_aabbs``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import bih_layout as L
+from .bih import BIH
+
+__all__ = ["TraversalResult", "traverse", "brute_force", "sphere_t"]
+
+# Pairs (ray, sphere) evaluated at once by brute_force.
+_BRUTE_CHUNK = 1 << 21
+
+
+@dataclass
+class TraversalResult:
+    t: np.ndarray              # float64 (R,), inf on a miss
+    prim: np.ndarray           # int64 (R,), sphere id or -1
+    nodes_visited: np.ndarray  # int64 (R,)
+    gaps: np.ndarray           # int64 (R,)
+    tests: np.ndarray          # int64 (R,)
+
+
+def sphere_t(o: np.ndarray, d: np.ndarray, c: np.ndarray, r: np.ndarray, ids: np.ndarray,
+             ignore: np.ndarray, far_only: np.ndarray) -> np.ndarray:
+    """t of the first accepted hit of ray ``(o, d)`` with sphere ``(c, r)``, inf if none.
+
+    ``o, d, c`` are tuples/lists of three broadcastable float64 arrays (x, y, z
+    components), ``r`` and ``ids`` broadcast with them, ``ignore``/``far_only``
+    are the per-ray ids. The arithmetic is written out component by component
+    so that any broadcast shape gives bitwise the same result.
+    """
+    px, py, pz = o[0] - c[0], o[1] - c[1], o[2] - c[2]
+    b = px * d[0] + py * d[1] + pz * d[2]
+    fx, fy, fz = px - b * d[0], py - b * d[1], pz - b * d[2]
+    h2 = r * r - (fx * fx + fy * fy + fz * fz)
+    hit = h2 >= 0.0
+    h = np.sqrt(np.where(hit, h2, 0.0))
+    t_near = -b - h
+    t_far = -b + h
+    far_t = np.where(t_far > 0.0, t_far, np.inf)
+    t = np.where(t_near > 0.0, t_near, far_t)
+    t = np.where(ids == far_only, far_t, t)
+    return np.where(hit & (ids != ignore), t, np.inf)
+
+
+def _prepare(centers, radii, origins, dirs, ignore, far_only):
+    c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
+    r = np.asarray(radii, dtype=np.float64).reshape(-1)
+    o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
+    d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
+    if len(c) != len(r):
+        raise ValueError(f"{len(c)} centres but {len(r)} radii")
+    if len(o) != len(d):
+        raise ValueError(f"{len(o)} origins but {len(d)} directions")
+    n_rays = len(o)
+
+    def ids(x, name):
+        if x is None:
+            return np.full(n_rays, -1, dtype=np.int64)
+        x = np.asarray(x, dtype=np.int64).reshape(-1)
+        if len(x) != n_rays:
+            raise ValueError(f"{name}: expected {n_rays} ids, got {len(x)}")
+        return x
+
+    return c, r, o, d, ids(ignore, "ignore"), ids(far_only, "far_only")
+
+
+def brute_force(centers, radii, origins, dirs, ignore=None, far_only=None) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest sphere hit of every ray over all spheres: ``(t, prim)``.
+
+    ``t`` float64 (inf on a miss), ``prim`` int64 (-1 on a miss); exactly
+    equal ``t`` goes to the lower id.
+    """
+    c, r, o, d, ign, far = _prepare(centers, radii, origins, dirs, ignore, far_only)
+    n_rays, n = len(o), len(c)
+    t_best = np.full(n_rays, np.inf)
+    prim = np.full(n_rays, -1, dtype=np.int64)
+    if n == 0 or n_rays == 0:
+        return t_best, prim
+    ids = np.arange(n, dtype=np.int64)[None, :]
+    cc = (c[None, :, 0], c[None, :, 1], c[None, :, 2])
+    rr = r[None, :]
+    step = max(1, _BRUTE_CHUNK // n)
+    for s in range(0, n_rays, step):
+        e = min(n_rays, s + step)
+        oo = (o[s:e, 0:1], o[s:e, 1:2], o[s:e, 2:3])
+        dd = (d[s:e, 0:1], d[s:e, 1:2], d[s:e, 2:3])
+        t = sphere_t(oo, dd, cc, rr, ids, ign[s:e, None], far[s:e, None])
+        k = np.argmin(t, axis=1)          # first minimum: the lower id on ties
+        tk = t[np.arange(e - s), k]
+        t_best[s:e] = tk
+        prim[s:e] = np.where(np.isfinite(tk), k, -1)
+    return t_best, prim
+
+
+def _clip_global(box: np.ndarray, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Slab test against the global AABB intersected with [0, inf): (hit, t0, t1)."""
+    lo = box[0].astype(np.float64)
+    hi = box[1].astype(np.float64)
+    n_rays = len(o)
+    t0 = np.zeros(n_rays)
+    t1 = np.full(n_rays, np.inf)
+    ok = np.ones(n_rays, dtype=bool)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for a in range(3):
+            oa, da = o[:, a], d[:, a]
+            zero = da == 0.0                      # +0 and -0
+            ok &= ~(zero & ((oa < lo[a]) | (oa > hi[a])))
+            ta = (lo[a] - oa) / da
+            tb = (hi[a] - oa) / da
+            near = np.where(da > 0.0, ta, tb)
+            far = np.where(da > 0.0, tb, ta)
+            t0 = np.where(zero, t0, np.maximum(t0, near))
+            t1 = np.where(zero, t1, np.minimum(t1, far))
+    ok &= t0 <= t1
+    return ok, t0, t1
+
+
+def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarray, dirs: np.ndarray,
+             ignore: np.ndarray | None = None, far_only: np.ndarray | None = None) -> TraversalResult:
+    """Nearest sphere hit of every ray through ``bih`` (built over these spheres).
+
+    Returns the same ``(t, prim)`` as :func:`brute_force` plus the heat-mode
+    counters of SHADING.md. ``centers``/``radii`` are the float64 spheres the
+    hierarchy was built for (primitive ``i`` of the build is sphere ``i``).
+    """
+    c, r, o, d, ign, far = _prepare(centers, radii, origins, dirs, ignore, far_only)
+    n_rays = len(o)
+    best_t = np.full(n_rays, np.inf)
+    best_p = np.full(n_rays, -1, dtype=np.int64)
+    visited = np.zeros(n_rays, dtype=np.int64)
+    gaps = np.zeros(n_rays, dtype=np.int64)
+    tests = np.zeros(n_rays, dtype=np.int64)
+    result = TraversalResult(best_t, best_p, visited, gaps, tests)
+    n = len(c)
+    if n == 0 or n_rays == 0:
+        return result
+    if len(bih.indices) != n:
+        raise ValueError(f"BIH built over {len(bih.indices)} primitives, got {n} spheres")
+
+    # Decoded node table.
+    w0 = bih.nodes[:, 0]
+    leaf_of = L.is_leaf(w0)
+    axis_of = np.where(leaf_of, 0, L.axis_of(w0))
+    left_of = L.left_child(w0)
+    cl32, cr32 = L.clips(bih.nodes)
+    clip_l = cl32.astype(np.float64)
+    clip_r = cr32.astype(np.float64)
+    offset_of = bih.nodes[:, 1].astype(np.int64)
+    count_of = bih.nodes[:, 2].astype(np.int64)
+    indices = bih.indices.astype(np.int64)
+    cx, cy, cz = c[:, 0], c[:, 1], c[:, 2]
+
+    hit_box, t0, t1 = _clip_global(bih.global_aabb, o, d)
+
+    # Per-ray explicit stacks; the current node lives outside the stack.
+    depth = int(max(bih.max_tree_depth, int(bih.node_depths.max(initial=1))))
+    cap = depth + 1
+    st_node = np.zeros((n_rays, cap), dtype=np.int64)
+    st_a = np.zeros((n_rays, cap))
+    st_b = np.zeros((n_rays, cap))
+    sp = np.zeros(n_rays, dtype=np.int64)
+    cur = np.zeros(n_rays, dtype=np.int64)
+    cur_a = np.zeros(n_rays)
+    cur_b = np.zeros(n_rays)
+    has_cur = np.zeros(n_rays, dtype=bool)
+
+    # stack = [(root, t0, t1)] for the rays that hit the global box.
+    live = np.flatnonzero(hit_box)
+    st_node[live, 0] = 0
+    st_a[live, 0] = t0[live]
+    st_b[live, 0] = t1[live]
+    sp[live] = 1
+
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        while len(live):
+            # Pop until every live ray has a node or an empty stack; a popped
+            # entry that starts beyond the best hit is skipped.
+            need = live[~has_cur[live] & (sp[live] > 0)]
+            while len(need):
+                sp[need] -= 1
+                s = sp[need]
+                a = st_a[need, s]
+                ok = a <= best_t[need]
+                got = need[ok]
+                cur[got] = st_node[got, s[ok]]
+                cur_a[got] = a[ok]
+                cur_b[got] = st_b[got, s[ok]]
+                has_cur[got] = True
+                need = need[~ok]
+                need = need[sp[need] > 0]
+            live = live[has_cur[live]]
+            if not len(live):
+                break
+
+            visited[live] += 1
+            node = cur[live]
+            is_leaf = leaf_of[node]
+
+            # Leaves: test their spheres, keep the nearest (lower id on ties).
+            lr = live[is_leaf]
+            if len(lr):
+                ln = node[is_leaf]
+                cnt = count_of[ln]
+                tests[lr] += cnt
+                has_cur[lr] = False
+                total = int(cnt.sum())
+                if total:
+                    ray = np.repeat(lr, cnt)
+                    starts = np.cumsum(cnt) - cnt
+                    pos = np.repeat(offset_of[ln] - starts, cnt) + np.arange(total, dtype=np.int64)
+                    pid = indices[pos]
+                    t = sphere_t((o[ray, 0], o[ray, 1], o[ray, 2]), (d[ray, 0], d[ray, 1], d[ray, 2]),
+                                 (cx[pid], cy[pid], cz[pid]), r[pid], pid, ign[ray], far[ray])
+                    order = np.lexsort((pid, t, ray))
+                    ray_s = ray[order]
+                    first = np.ones(total, dtype=bool)
+                    first[1:] = ray_s[1:] != ray_s[:-1]
+                    sel = order[first]
+                    rr, tt, pp = ray[sel], t[sel], pid[sel]
+                    bt, bp = best_t[rr], best_p[rr]
+                    better = np.isfinite(tt) & ((tt < bt) | ((tt == bt) & (pp < bp)))
+                    best_t[rr[better]] = tt[better]
+                    best_p[rr[better]] = pp[better]
+
+            # Inner nodes: per-child intervals.
+            ir = live[~is_leaf]
+            if len(ir):
+                nd = node[~is_leaf]
+                ax = axis_of[nd]
+                oa = o[ir, ax]
+                da = d[ir, ax]
+                a = cur_a[ir]
+                b = cur_b[ir]
+                cl = clip_l[nd]
+                cr = clip_r[nd]
+                lc = left_of[nd]
+                t_l = (cl - oa) / da
+                t_r = (cr - oa) / da
+                pos_d = da > 0.0
+                zero = da == 0.0
+                near_node = np.where(pos_d, lc, lc + 1)
+                far_node = np.where(pos_d, lc + 1, lc)
+                near_hi = np.minimum(b, np.where(pos_d, t_l, t_r))
+                far_lo = np.maximum(a, np.where(pos_d, t_r, t_l))
+                near_ok = np.where(zero, oa <= cl, a <= near_hi)
+                far_ok = np.where(zero, oa >= cr, far_lo <= b)
+                near_hi = np.where(zero, b, near_hi)
+                far_lo = np.where(zero, a, far_lo)
+
+                gap = ~near_ok & ~far_ok
+                gaps[ir[gap]] += 1
+                bt = best_t[ir]
+                near_ok &= a <= bt
+                far_ok &= far_lo <= bt
+
+                both = near_ok & far_ok
+                pr = ir[both]
+                ps = sp[pr]
+                if len(pr) and int(ps.max()) >= cap:
+                    raise RuntimeError("BIH traversal stack overflow (tree deeper than max_tree_depth?)")
+                st_node[pr, ps] = far_node[both]
+                st_a[pr, ps] = far_lo[both]
+                st_b[pr, ps] = b[both]
+                sp[pr] += 1
+
+                go_near = near_ok
+                go_far = ~near_ok & far_ok
+                gn, gf = ir[go_near], ir[go_far]
+                cur[gn] = near_node[go_near]
+                cur_b[gn] = near_hi[go_near]           # cur_a stays a
+                cur[gf] = far_node[go_far]
+                cur_a[gf] = far_lo[go_far]             # cur_b stays b
+                has_cur[ir[~(go_near | go_far)]] = False
+
+            live = live[has_cur[live] | (sp[live] > 0)]
+
+    return result

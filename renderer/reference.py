@@ -1,0 +1,545 @@
+"""Float64 NumPy reference ray tracer: the ground truth the GPU tracer is tested against.
+
+It implements ``docs/SHADING.md`` literally and independently of the shader:
+
+- primary rays, row 0 = top row, pixel index ``y * W + x`` (row-major);
+- brute force over every sphere and plane, nearest ``t > 0``, ties to the lower id;
+- secondary rays start exactly at the hit point, self-intersection excluded by the
+  primitive-exclusion / far-root rule (no epsilon anywhere);
+- Whitted/Phong shading with one shadow ray per light per hit, reflection and
+  refraction up to ``settings.max_recursion_depth`` levels (1 = primary only);
+- every output mode of SHADING.md.
+
+Units: world units for positions and ``t`` (distance along a unit direction), colours
+are linear RGB. All geometry is float64; only the returned arrays are float32/int32.
+
+Structure. The recursive ray tree is evaluated iteratively: a :class:`RayBatch` is
+one generation (recursion level) of rays for some pixels, each ray carrying the pixel
+it contributes to and its weight (the product of ``kr``/``kt`` along its path), so
+``colour(pixel) = Σ weight · local`` over all rays of the tree. Batches are processed
+depth first from a stack, and are never larger than ``chunk_rays``, so memory stays
+bounded however deep the tree. Intersection works on tiles of rays × spheres; a cheap
+conservative cull (BLAS products, with a rigorous rounding margin) picks the few
+candidate pairs, and only those go through the robust quadratic.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .result import RenderResult
+from .scene import Camera, Scene
+from .settings import RenderSettings
+
+_EPS = float(np.finfo(np.float64).eps)
+# Rays intersected together (one reduction); bounds the candidate lists.
+_RAY_TILE = 1024
+# Ray × sphere pairs per cull tile: ~6 float64 temporaries of this size (≈ 2 MiB each).
+_PAIR_BUDGET = 1 << 18
+
+# Fig. 4.2f colours of the `recursion` mode, index = level (0 = primary miss: black).
+RECURSION_COLORS = np.array([
+    (0.0, 0.0, 0.0),
+    (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0), (1.0, 1.0, 0.0),
+    (1.0, 0.0, 1.0), (0.0, 1.0, 1.0), (1.0, 1.0, 1.0), (1.0, 0.5, 0.0),
+], dtype=np.float64)
+# Per-id colour multipliers of the `primid` mode.
+PRIMID_FACTORS = np.array([0.6180340, 0.7548777, 0.5698403], dtype=np.float64)
+
+
+# --------------------------------------------------------------------------- rays
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot product of two (k, 3) arrays."""
+    return np.einsum("ij,ij->i", a, b)
+
+
+def _pixel_rays(camera: Camera, width: int, height: int, pix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Primary rays of the pixels with row-major indices ``pix`` (SHADING.md § Primary rays)."""
+    right, up, forward = camera.basis()
+    x = (pix % width).astype(np.float64)
+    y = (pix // width).astype(np.float64)
+    s = np.tan(np.radians(camera.fov_y) / 2.0)
+    u = (2.0 * (x + 0.5) / width - 1.0) * s * width / height
+    v = (1.0 - 2.0 * (y + 0.5) / height) * s   # row 0 is the top row: v > 0
+    d = forward[None, :] + u[:, None] * right[None, :] + v[:, None] * up[None, :]
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    o = np.broadcast_to(np.array(camera.position, dtype=np.float64), d.shape).copy()
+    return o, d
+
+
+def primary_rays(camera: Camera, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+    """float64 origins (H*W, 3) and unit directions (H*W, 3), row-major, row 0 = top (SHADING.md).
+
+    Ray ``y * W + x`` goes through the centre of pixel column ``x``, row ``y``.
+    """
+    return _pixel_rays(camera, width, height, np.arange(width * height, dtype=np.int64))
+
+
+def reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Mirror directions ``d − 2 dot(d, n) n`` row-wise; not renormalised (as SHADING.md)."""
+    return d - 2.0 * _dot(d, n)[:, None] * n
+
+
+def transmitted_directions(d: np.ndarray, normal: np.ndarray, ior: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Transmitted directions (SHADING.md § Secondary rays) and the total-internal-reflection mask.
+
+    ``d`` unit incoming directions (k, 3), ``normal`` the outward normals N (k, 3), ``ior``
+    (k,) inside relative to outside. Entering (``dot(d, N) < 0``): η = 1/ior, n = N; else
+    η = ior, n = −N. Under total internal reflection the ray is the mirror of ``d`` about n.
+    """
+    entering = _dot(d, normal) < 0.0
+    eta = np.where(entering, 1.0 / ior, ior)
+    n = np.where(entering[:, None], normal, -normal)
+    cos_i = -_dot(d, n)
+    k = 1.0 - eta * eta * (1.0 - cos_i * cos_i)
+    tir = k < 0.0
+    t = eta[:, None] * d + (eta * cos_i - np.sqrt(np.maximum(k, 0.0)))[:, None] * n
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    out = np.where(tir[:, None], reflect(d, n), t)
+    return out, tir
+
+
+# ----------------------------------------------------------------------- geometry
+
+@dataclass(frozen=True)
+class _Geometry:
+    """The scene flattened into float64 arrays, indexed by primitive / material id."""
+    n: int                      # spheres; ids 0 … n−1, planes n …
+    centers: np.ndarray         # (n, 3)
+    centers_t: np.ndarray       # (3, n) contiguous, for the cull's matrix products
+    cc: np.ndarray              # (n,) |c|²
+    r2: np.ndarray              # (n,) r²
+    radii: np.ndarray           # (n,)
+    extent: float               # max |c| + max r: bounds the cull's rounding error
+    plane_points: np.ndarray    # (P, 3)
+    plane_normals: np.ndarray   # (P, 3) unit
+    prim_material: np.ndarray   # (n + P,) material index of each primitive
+    color: np.ndarray           # (M, 3) material tables …
+    ka: np.ndarray
+    kd: np.ndarray
+    ks: np.ndarray
+    shininess: np.ndarray
+    kr: np.ndarray
+    kt: np.ndarray
+    ior: np.ndarray
+    light_pos: np.ndarray       # (L, 3)
+    light_col: np.ndarray       # (L, 3)
+
+    @staticmethod
+    def of(scene: Scene) -> "_Geometry":
+        c = np.asarray(scene.sphere_centers, dtype=np.float64).reshape(-1, 3)
+        r = np.asarray(scene.sphere_radii, dtype=np.float64).reshape(-1)
+        mats = scene.materials
+        extent = float(np.sqrt(_dot(c, c).max()) + r.max()) if len(r) else 0.0
+        return _Geometry(
+            n=len(r), centers=c, centers_t=np.ascontiguousarray(c.T), cc=_dot(c, c), r2=r * r, radii=r,
+            extent=extent,
+            plane_points=np.array([p.point for p in scene.planes], dtype=np.float64).reshape(-1, 3),
+            plane_normals=np.array([p.normal for p in scene.planes], dtype=np.float64).reshape(-1, 3),
+            prim_material=np.concatenate([np.asarray(scene.sphere_materials, dtype=np.int64),
+                                          np.array([p.material for p in scene.planes], dtype=np.int64)]),
+            color=np.array([m.color for m in mats], dtype=np.float64).reshape(-1, 3),
+            ka=np.array([m.ambient for m in mats]), kd=np.array([m.diffuse for m in mats]),
+            ks=np.array([m.specular for m in mats]), shininess=np.array([m.shininess for m in mats]),
+            kr=np.array([m.reflective for m in mats]), kt=np.array([m.transmissive for m in mats]),
+            ior=np.array([m.ior for m in mats]),
+            light_pos=np.array([l.position for l in scene.lights], dtype=np.float64).reshape(-1, 3),
+            light_col=np.array([l.color for l in scene.lights], dtype=np.float64).reshape(-1, 3),
+        )
+
+    def normals(self, prim: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """Outward normals N at points ``p`` of primitives ``prim``: sphere (p − c)/r, plane its normal."""
+        sph = prim < self.n
+        out = np.empty_like(p)
+        i = prim[sph]
+        out[sph] = (p[sph] - self.centers[i]) / self.radii[i][:, None]
+        out[~sph] = self.plane_normals[prim[~sph] - self.n]
+        return out
+
+
+# ------------------------------------------------------------------- intersection
+
+_NO_PAIRS = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
+
+
+def sphere_t(o: np.ndarray, d: np.ndarray, c: np.ndarray, r2: np.ndarray) -> np.ndarray:
+    """Nearest root ``t > 0`` of each ray (o, d) with each sphere (c, r²) row-wise; ``inf`` if none.
+
+    Robust quadratic: ``b = dot(o − c, d)``, ``h² = r² − |(o − c) − b d|²`` (no b² − c
+    cancellation). Roots are ``−b ± h``; the one of larger magnitude is computed directly
+    and the other from the product of the roots ``c = |o − c|² − r²``, so a root close
+    to 0 (origin near the surface) keeps its relative precision.
+    """
+    oc = o - c
+    b = _dot(oc, d)
+    e = oc - b[:, None] * d
+    h2 = r2 - _dot(e, e)
+    hit = h2 >= 0.0
+    h = np.sqrt(np.where(hit, h2, 0.0))
+    cq = _dot(oc, oc) - r2
+    ahead = b < 0.0
+    big = np.where(ahead, -b + h, -b - h)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        small = np.where(big != 0.0, cq / np.where(big != 0.0, big, 1.0), 0.0)
+    t_near = np.where(ahead, small, big)
+    t_far = np.where(ahead, big, small)
+    t = np.where(t_near > 0.0, t_near, np.where(t_far > 0.0, t_far, np.inf))
+    return np.where(hit, t, np.inf)
+
+
+def sphere_far_t(o: np.ndarray, d: np.ndarray, c: np.ndarray, r2: np.ndarray) -> np.ndarray:
+    """Far root ``−b + √(b² − c)`` only (a ray entering its source sphere); ``inf`` if not > 0.
+
+    The origin lies on the sphere and d points inwards, so the root exists; a slightly
+    negative h² from rounding (grazing ray) is clamped to 0 instead of losing the hit.
+    """
+    oc = o - c
+    b = _dot(oc, d)
+    e = oc - b[:, None] * d
+    t = -b + np.sqrt(np.maximum(r2 - _dot(e, e), 0.0))
+    return np.where(t > 0.0, t, np.inf)
+
+
+def _sphere_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(ray, t, sphere id) of every sphere hit with t > 0, the source sphere excluded.
+
+    The cull evaluates ``h² ≈ r² − (|o|² − 2 o·c + |c|²) + (o·d − c·d)²`` with matrix
+    products (cheap, cancellation-prone) and keeps pairs with ``h² ≥ −tol``. ``tol``
+    bounds the rounding error of that expression and of the robust one, plus the
+    difference between the two when |d| ≠ 1 (reflected rays are not renormalised), so
+    no pair the robust test would accept is lost.
+    """
+    if g.n == 0 or len(o) == 0:
+        return _NO_PAIRS
+    od, oo, dd = _dot(o, d), _dot(o, o), _dot(d, d)
+    scale = (float(np.sqrt(oo.max())) + g.extent) ** 2 * float(dd.max())
+    tol = (64.0 * _EPS + 4.0 * float(np.abs(1.0 - dd).max())) * scale
+    tile = max(1, _PAIR_BUDGET // len(o))
+    rays, sph = [], []
+    for s0 in range(0, g.n, tile):
+        s1 = min(g.n, s0 + tile)
+        ct = g.centers_t[:, s0:s1]
+        # einsum, not `@`: a K = 3 BLAS product is slow and multi-threaded (contention).
+        h2 = np.einsum("ik,kj->ij", d, ct)
+        np.subtract(od[:, None], h2, out=h2)   # b = o·d − c·d
+        h2 *= h2                               # b²
+        q = np.einsum("ik,kj->ij", o, ct)      # |o − c|² = |o|² − 2 o·c + |c|²
+        q *= -2.0
+        q += oo[:, None]
+        q += g.cc[None, s0:s1]
+        h2 -= q
+        h2 += g.r2[None, s0:s1]
+        ri, si = np.nonzero(h2 >= -tol)
+        rays.append(ri)
+        sph.append(si + s0)
+    ri, si = np.concatenate(rays), np.concatenate(sph)
+    keep = si != src[ri]        # the source sphere is handled by the exclusion rule
+    ri, si = ri[keep], si[keep]
+    t = sphere_t(o[ri], d[ri], g.centers[si], g.r2[si])
+    ok = np.isfinite(t)
+    return ri[ok], t[ok], si[ok]
+
+
+def _far_root_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray, far_only: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(ray, t, id) of the far-side hit of the source sphere for rays entering it."""
+    ri = np.nonzero(far_only)[0]
+    if len(ri) == 0:
+        return _NO_PAIRS
+    si = src[ri]
+    t = sphere_far_t(o[ri], d[ri], g.centers[si], g.r2[si])
+    ok = np.isfinite(t)
+    return ri[ok], t[ok], si[ok]
+
+
+def _plane_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(ray, t, id) of every plane hit with t > 0; a ray leaving a plane ignores it."""
+    rays, ts, ids = [], [], []
+    for j in range(len(g.plane_normals)):
+        nrm = g.plane_normals[j]
+        denom = np.einsum("ij,j->i", d, nrm)
+        num = np.einsum("ij,j->i", g.plane_points[j][None, :] - o, nrm)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = num / denom
+        ok = (denom != 0.0) & (t > 0.0) & np.isfinite(t) & (src != g.n + j)
+        ri = np.nonzero(ok)[0]
+        rays.append(ri)
+        ts.append(t[ri])
+        ids.append(np.full(len(ri), g.n + j, dtype=np.int64))
+    if not rays:
+        return _NO_PAIRS
+    return np.concatenate(rays), np.concatenate(ts), np.concatenate(ids)
+
+
+def _reduce_nearest(count: int, rays: np.ndarray, ts: np.ndarray, ids: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Per ray the smallest t; among exactly equal t the lowest id. (inf, −1) without candidates."""
+    t = np.full(count, np.inf)
+    np.minimum.at(t, rays, ts)
+    at_min = ts == t[rays]
+    best = np.full(count, np.iinfo(np.int64).max, dtype=np.int64)
+    np.minimum.at(best, rays[at_min], ids[at_min])
+    best[np.isinf(t)] = -1
+    return t, best
+
+
+def nearest_hit(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray, far_only: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest hit of each ray: (t float64, primitive id int64), (inf, −1) on a miss.
+
+    ``src`` is the primitive each ray leaves (−1 for primary rays) and ``far_only`` is
+    True where that primitive is a sphere the ray enters (``dot(d, N) < 0``): for it only
+    the far root counts. Any other source primitive is ignored (SHADING.md, no epsilon).
+    """
+    t_out = np.full(len(o), np.inf)
+    id_out = np.full(len(o), -1, dtype=np.int64)
+    for a in range(0, len(o), _RAY_TILE):
+        sl = slice(a, min(len(o), a + _RAY_TILE))
+        parts = [_sphere_candidates(g, o[sl], d[sl], src[sl]),
+                 _far_root_candidates(g, o[sl], d[sl], src[sl], far_only[sl]),
+                 _plane_candidates(g, o[sl], d[sl], src[sl])]
+        rays, ts, ids = (np.concatenate([p[k] for p in parts]) for k in range(3))
+        t_out[sl], id_out[sl] = _reduce_nearest(sl.stop - sl.start, rays, ts, ids)
+    return t_out, id_out
+
+
+def trace_rays(scene: Scene, origins: np.ndarray, dirs: np.ndarray, src: np.ndarray | None = None,
+               far_only: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest hits (t float64, id int64; inf/−1 on a miss) of arbitrary rays in ``scene``.
+
+    ``dirs`` should be unit vectors (t is then a distance). Without ``src`` the rays are
+    camera-like (no source primitive); see :func:`nearest_hit` for ``src``/``far_only``.
+    """
+    o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
+    d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
+    src = np.full(len(o), -1, np.int64) if src is None else np.asarray(src, dtype=np.int64).reshape(-1)
+    far_only = np.zeros(len(o), bool) if far_only is None else np.asarray(far_only, dtype=bool).reshape(-1)
+    return nearest_hit(_Geometry.of(scene), o, d, src, far_only)
+
+
+# ------------------------------------------------------------------------ shading
+
+def local_colour(g: _Geometry, p: np.ndarray, d: np.ndarray, normal: np.ndarray, prim: np.ndarray
+                 ) -> np.ndarray:
+    """Phong ``local`` term of SHADING.md at hits (p, prim) of rays with direction d, (k, 3).
+
+    One shadow ray per light from exactly ``p``; every primitive blocks light fully.
+    """
+    mat = g.prim_material[prim]
+    c = g.color[mat]
+    local = g.ka[mat][:, None] * c
+    facing = np.where((_dot(d, normal) < 0.0)[:, None], normal, -normal)   # Nf
+    is_sphere = prim < g.n
+    for lp, lc in zip(g.light_pos, g.light_col):
+        to_light = lp[None, :] - p
+        dist = np.linalg.norm(to_light, axis=1)
+        # A light exactly at p has no direction: it contributes nothing (avoids 0/0).
+        with np.errstate(divide="ignore", invalid="ignore"):
+            l = to_light / dist[:, None]
+            cos = _dot(facing, l)
+        idx = np.nonzero((dist > 0.0) & (cos > 0.0))[0]
+        if len(idx) == 0:
+            continue
+        li = l[idx]
+        far = is_sphere[idx] & (_dot(li, normal[idx]) < 0.0)
+        t_s, _ = nearest_hit(g, p[idx], li, prim[idx], far)
+        idx = idx[~(t_s < dist[idx])]
+        li, ci, fi, m = l[idx], cos[idx], facing[idx], mat[idx]
+        r = 2.0 * ci[:, None] * fi - li
+        x = -_dot(r, d[idx])
+        spec = np.where(x > 0.0, np.power(np.where(x > 0.0, x, 1.0), g.shininess[m]), 0.0)
+        local[idx] += lc[None, :] * (g.kd[m][:, None] * ci[:, None] * c[idx] + (g.ks[m] * spec)[:, None])
+    return local
+
+
+# ---------------------------------------------------------------------- ray tree
+
+@dataclass
+class RayBatch:
+    """One generation of rays: all at recursion ``level`` (primary = 1).
+
+    ``pix`` row-major pixel index each ray contributes to, ``weight`` (k, 3) the product
+    of kr/kt along its path, ``src`` the primitive it leaves (−1: camera), ``far_only``
+    whether it enters that source sphere (far-root rule).
+    """
+    origins: np.ndarray
+    dirs: np.ndarray
+    pix: np.ndarray
+    weight: np.ndarray
+    level: int
+    src: np.ndarray
+    far_only: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.pix)
+
+    def split(self, size: int) -> list["RayBatch"]:
+        """Pieces of at most ``size`` rays (memory bound)."""
+        return [RayBatch(self.origins[a:a + size], self.dirs[a:a + size], self.pix[a:a + size],
+                         self.weight[a:a + size], self.level, self.src[a:a + size], self.far_only[a:a + size])
+                for a in range(0, len(self), size)]
+
+
+@dataclass
+class _Frame:
+    """Per-pixel accumulators (flat, row-major)."""
+    colour: np.ndarray     # (P, 3) float64 Whitted sum
+    depth: np.ndarray      # (P,) t of the primary hit
+    primid: np.ndarray     # (P,)
+    normal: np.ndarray     # (P, 3)
+    deepest: np.ndarray    # (P,) deepest level whose ray hit something (0: primary miss)
+
+    @staticmethod
+    def empty(pixels: int) -> "_Frame":
+        return _Frame(np.zeros((pixels, 3)), np.full(pixels, np.inf), np.full(pixels, -1, dtype=np.int64),
+                      np.zeros((pixels, 3)), np.zeros(pixels, dtype=np.int64))
+
+
+def _secondary_rays(g: _Geometry, batch: RayBatch, hit: np.ndarray, p: np.ndarray, normal: np.ndarray,
+                    prim: np.ndarray) -> RayBatch | None:
+    """Reflected (kr > 0) and transmitted (kt > 0) children of the hits ``hit`` of ``batch``."""
+    mat = g.prim_material[prim]
+    kr, kt = g.kr[mat], g.kt[mat]
+    d, w = batch.dirs[hit], batch.weight[hit]
+    r_sel = np.nonzero(kr > 0.0)[0]
+    t_sel = np.nonzero(kt > 0.0)[0]
+    if len(r_sel) + len(t_sel) == 0:
+        return None
+    t_dirs, _ = transmitted_directions(d[t_sel], normal[t_sel], g.ior[mat[t_sel]])
+    sel = np.concatenate([r_sel, t_sel])
+    dirs = np.concatenate([reflect(d[r_sel], normal[r_sel]), t_dirs])
+    weight = w[sel] * np.concatenate([kr[r_sel], kt[t_sel]])[:, None]
+    src = prim[sel]
+    far_only = (src < g.n) & (_dot(dirs, normal[sel]) < 0.0)
+    return RayBatch(p[sel], dirs, batch.pix[hit][sel], weight, batch.level + 1, src, far_only)
+
+
+def _trace_batch(g: _Geometry, batch: RayBatch, frame: _Frame, max_level: int, shade: bool) -> RayBatch | None:
+    """Trace one generation: record primary data, add weighted local colour, return children."""
+    t, prim = nearest_hit(g, batch.origins, batch.dirs, batch.src, batch.far_only)
+    hit = np.nonzero(prim >= 0)[0]
+    if len(hit) == 0:
+        return None      # a miss is black: nothing to add
+    prim_h, pix_h = prim[hit], batch.pix[hit]
+    p = batch.origins[hit] + t[hit, None] * batch.dirs[hit]
+    normal = g.normals(prim_h, p)
+    frame.deepest[pix_h] = np.maximum(frame.deepest[pix_h], batch.level)
+    if batch.level == 1:     # primary rays: one per pixel
+        frame.depth[pix_h] = t[hit]
+        frame.primid[pix_h] = prim_h
+        frame.normal[pix_h] = normal
+    if shade:
+        local = local_colour(g, p, batch.dirs[hit], normal, prim_h)
+        np.add.at(frame.colour, pix_h, batch.weight[hit] * local)
+    if batch.level >= max_level:
+        return None      # the deepest level returns `local` only
+    return _secondary_rays(g, batch, hit, p, normal, prim_h)
+
+
+def _trace_pixels(g: _Geometry, camera: Camera, settings: RenderSettings, frame: _Frame,
+                  chunk_rays: int, max_level: int, shade: bool) -> None:
+    """Evaluate the ray trees of all pixels, one chunk of primary rays at a time, depth first."""
+    w, h = settings.width, settings.height
+    for a in range(0, w * h, chunk_rays):
+        pix = np.arange(a, min(w * h, a + chunk_rays), dtype=np.int64)
+        o, d = _pixel_rays(camera, w, h, pix)
+        stack = [RayBatch(o, d, pix, np.ones((len(pix), 3)), 1, np.full(len(pix), -1, dtype=np.int64),
+                          np.zeros(len(pix), dtype=bool))]
+        while stack:
+            child = _trace_batch(g, stack.pop(), frame, max_level, shade)
+            if child is not None:
+                stack.extend(child.split(chunk_rays))
+
+
+# ------------------------------------------------------------------------- modes
+
+def heat_counts(scene: Scene, settings: RenderSettings, o: np.ndarray, d: np.ndarray, chunk_rays: int = 4096
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(nodes visited, gaps, sphere tests) per primary ray for ``settings.method``.
+
+    Brute force tests every sphere and visits no node. ``bih`` counts come from the BIH
+    traversal of SHADING.md (``renderer.bih_traverse``, imported only here).
+    """
+    n_rays = len(o)
+    if settings.method == "bruteforce":
+        return (np.zeros(n_rays, np.int64), np.zeros(n_rays, np.int64),
+                np.full(n_rays, scene.n_spheres, dtype=np.int64))
+    from renderer.bih import build_for_spheres
+    from renderer.bih_traverse import traverse
+    bih = build_for_spheres(scene.sphere_centers, scene.sphere_radii, settings.max_prims, settings.max_tree_depth)
+    nodes, gaps, tests = [], [], []
+    for a in range(0, n_rays, chunk_rays):
+        res = traverse(bih, scene.sphere_centers, scene.sphere_radii, o[a:a + chunk_rays], d[a:a + chunk_rays])
+        nodes.append(np.asarray(res.nodes_visited))
+        gaps.append(np.asarray(res.gaps))
+        tests.append(np.asarray(res.tests))
+    return np.concatenate(nodes), np.concatenate(gaps), np.concatenate(tests)
+
+
+def heat_image(nodes: np.ndarray, gaps: np.ndarray, tests: np.ndarray) -> np.ndarray:
+    """Fig. 4.3 colours (k, 3): red 0.05·tests, green 0.2·gaps, blue 0.2·nodes, each clamped to 1."""
+    return np.minimum(np.stack([0.05 * tests, 0.2 * gaps, 0.2 * nodes], axis=1).astype(np.float64), 1.0)
+
+
+def primid_colours(primid: np.ndarray) -> np.ndarray:
+    """``fract(id · (0.6180340, 0.7548777, 0.5698403)) · 0.8 + 0.2``, black where id = −1 (k, 3)."""
+    x = primid.astype(np.float64)[:, None] * PRIMID_FACTORS[None, :]
+    col = (x - np.floor(x)) * 0.8 + 0.2
+    return np.where((primid >= 0)[:, None], col, 0.0)
+
+
+def _mode_image(scene: Scene, settings: RenderSettings, frame: _Frame, chunk_rays: int) -> np.ndarray:
+    """The flat (P, 3) float64 image the render mode shows (SHADING.md § Output modes)."""
+    mode = settings.mode
+    hit = (frame.primid >= 0)[:, None]
+    if mode == "color":
+        return np.clip(frame.colour, 0.0, 1.0)
+    if mode == "depth":
+        dist = float(np.linalg.norm(np.subtract(scene.camera.target, scene.camera.position)))
+        with np.errstate(invalid="ignore"):
+            g = np.where(np.isfinite(frame.depth), dist / (dist + frame.depth), 0.0)
+        return np.repeat(g[:, None], 3, axis=1)
+    if mode == "primid":
+        return primid_colours(frame.primid)
+    if mode == "normal":
+        return np.where(hit, 0.5 * (frame.normal + 1.0), 0.0)
+    if mode == "recursion":
+        return RECURSION_COLORS[frame.deepest]
+    if mode == "heat":
+        o, d = primary_rays(scene.camera, settings.width, settings.height)
+        return heat_image(*heat_counts(scene, settings, o, d, chunk_rays))
+    raise ValueError(f"unknown mode {mode!r}")
+
+
+def render_reference(scene: Scene, settings: RenderSettings, *, chunk_rays: int = 4096) -> RenderResult:
+    """Render ``scene`` with the float64 reference tracer (SHADING.md), whatever ``settings.method``.
+
+    ``chunk_rays`` bounds the rays traced together (memory ∝ chunk_rays × recursion depth).
+    depth/primid/normal always describe the primary hit; the Whitted tree is only traced
+    in the modes that need it (color, recursion). ``method`` only changes the heat image.
+    """
+    start = time.perf_counter()
+    chunk_rays = max(1, int(chunk_rays))
+    w, h = settings.width, settings.height
+    g = _Geometry.of(scene)
+    frame = _Frame.empty(w * h)
+    whitted = settings.mode in ("color", "recursion")
+    max_level = settings.max_recursion_depth if whitted else 1
+    _trace_pixels(g, scene.camera, settings, frame, chunk_rays, max_level, shade=settings.mode == "color")
+    image = _mode_image(scene, settings, frame, chunk_rays)
+    trace_ms = (time.perf_counter() - start) * 1e3
+    return RenderResult(
+        image=image.reshape(h, w, 3).astype(np.float32),
+        depth=frame.depth.reshape(h, w).astype(np.float32),
+        primid=frame.primid.reshape(h, w).astype(np.int32),
+        normal=frame.normal.reshape(h, w, 3).astype(np.float32),
+        mode=settings.mode,
+        timings={"trace": trace_ms},
+        stats=None,
+    )
