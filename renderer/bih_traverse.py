@@ -280,8 +280,8 @@ def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarr
                 t_r = (cr - oa) / da
                 pos_d = da > 0.0
                 zero = da == 0.0
-                near_node = np.where(pos_d, lc, lc + 1)
-                far_node = np.where(pos_d, lc + 1, lc)
+                near_node = np.where(pos_d | zero, lc, lc + 1)
+                far_node = np.where(pos_d | zero, lc + 1, lc)
                 near_hi = np.minimum(b, np.where(pos_d, t_l, t_r))
                 far_lo = np.maximum(a, np.where(pos_d, t_r, t_l))
                 near_ok = np.where(zero, oa <= cl, a <= near_hi)
