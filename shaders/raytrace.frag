@@ -268,8 +268,13 @@ vec3 recursion_colour(int level) {
 #define MAX_RECURSION_DEPTH 1
 #define PRIMARY_ONLY
 #endif
-// Depth-first evaluation of the ray tree leaves at most one pending sibling
-// per level, plus the two children of the deepest node.
+// The ray tree is evaluated depth-first from an explicit stack of radiance
+// rays (GLSL has no recursion): one pending sibling per level plus the
+// deepest node's two children. Shadow rays are traced by the same loop, one
+// light per iteration, from the shading state of the current hit kept in
+// scalars: the frame has a single call of intersect_scene, because every call
+// site inlines another copy of the traversal and llvmpipe also executes code
+// that is masked off, and small private arrays stay in registers.
 #define MAX_TASKS (MAX_RECURSION_DEPTH + 1)
 
 struct Task {
@@ -301,29 +306,6 @@ Surface surface_at(vec3 o, vec3 d, Hit h) {
     return s;
 }
 
-// Phong with shadow rays: ambient + Σ lights (diffuse + specular).
-vec3 local_shading(vec3 d, Hit h, Surface s, Material m) {
-    vec3 nf = dot(d, s.n) < 0.0 ? s.n : -s.n;
-    vec3 local = m.ambient * m.color;
-    for (int li = 0; li < MAX_LIGHTS; li++) {
-        if (li >= u_num_lights) break;
-        vec3 to_light = u_light_pos[li] - s.p;
-        float dist = length(to_light);
-        vec3 l = to_light / dist;
-        float cos_l = dot(nf, l);
-        if (!(cos_l > 0.0)) continue;
-        int skip, far_id;
-        exclusion(h.id, s.n, l, skip, far_id);
-        Hit sh = intersect_scene(Query(s.p, l, skip, far_id, dist, true));
-        if (sh.id != NO_PRIM) continue;
-        vec3 r = 2.0 * cos_l * nf - l;
-        float x = dot(r, -d);
-        float spec = x > 0.0 ? pow(x, m.shininess) : 0.0;
-        local += u_light_color[li] * (m.diffuse * cos_l * m.color + m.specular * spec);
-    }
-    return local;
-}
-
 void main() {
     g_sphere_shift = row_shift(textureSize(u_spheres, 0));
     g_node_shift = row_shift(textureSize(u_nodes, 0));
@@ -342,57 +324,104 @@ void main() {
     int primary_id = NO_PRIM;
     vec3 primary_n = vec3(0.0);
 
+#ifdef PRIMARY_ONLY
     Hit h0 = intersect_scene(Query(u_cam_pos, dir, NO_PRIM, NO_PRIM, BIG, false));
     if (h0.id != NO_PRIM) {
         Surface s0 = surface_at(u_cam_pos, dir, h0);
         primary_t = h0.t; primary_id = h0.id; primary_n = s0.n; deepest = 1;
-#ifndef PRIMARY_ONLY
-        Task tasks[MAX_TASKS];
-        tasks[0] = Task(u_cam_pos, dir, 1.0, 1, NO_PRIM, NO_PRIM);
-        int n_tasks = 1;
-        bool first = true;
-        while (n_tasks > 0) {
-            n_tasks--;
-            Task k = tasks[n_tasks];
-            Hit h = h0;
-            Surface s = s0;
-            if (!first) {
-                h = intersect_scene(Query(k.o, k.d, k.skip, k.far_id, BIG, false));
-                if (h.id == NO_PRIM) continue;
-                s = surface_at(k.o, k.d, h);
+    }
+#else
+    Task tasks[MAX_TASKS];
+    tasks[0] = Task(u_cam_pos, dir, 1.0, 1, NO_PRIM, NO_PRIM);
+    int n_tasks = 1;
+    // Shading state of the current hit; light >= 0 while its shadow rays run.
+    int light = -1;
+    Task k;
+    Hit h;
+    Surface s;
+    Material m;
+    vec3 nf;
+    vec3 contrib = vec3(0.0);
+    while (true) {
+        Query q;
+        if (light >= 0) {
+            // The next light that faces the surface: its shadow ray.
+            vec3 l = vec3(0.0);
+            float dist = 0.0;
+            for (; light < MAX_LIGHTS; light++) {
+                if (light >= u_num_lights) { light = MAX_LIGHTS; break; }
+                vec3 to_light = u_light_pos[light] - s.p;
+                dist = length(to_light);
+                l = to_light / dist;
+                float cos_l = dot(nf, l);
+                if (cos_l > 0.0) {
+                    vec3 r = 2.0 * cos_l * nf - l;
+                    float x = dot(r, -k.d);
+                    float spec = x > 0.0 ? pow(x, m.shininess) : 0.0;
+                    contrib = k.weight * u_light_color[light] * (m.diffuse * cos_l * m.color + m.specular * spec);
+                    break;
+                }
             }
-            first = false;
-            deepest = max(deepest, k.level);
-            Material m = fetch_material(s.mat);
-            colour += k.weight * local_shading(k.d, h, s, m);
+            if (light >= MAX_LIGHTS) {
+                light = -1;
 #if MAX_RECURSION_DEPTH > 1
-            if (k.level < MAX_RECURSION_DEPTH) {
-                vec3 n = s.n;
-                if (m.reflective > 0.0) {
-                    vec3 r = k.d - 2.0 * dot(k.d, n) * n;
-                    int skip, far_id;
-                    exclusion(h.id, n, r, skip, far_id);
-                    tasks[n_tasks] = Task(s.p, r, k.weight * m.reflective, k.level + 1, skip, far_id);
-                    n_tasks++;
+                // All lights done: spawn the reflected and transmitted rays.
+                if (k.level < MAX_RECURSION_DEPTH) {
+                    vec3 n = s.n;
+                    if (m.reflective > 0.0) {
+                        vec3 r = k.d - 2.0 * dot(k.d, n) * n;
+                        int skip, far_id;
+                        exclusion(h.id, n, r, skip, far_id);
+                        tasks[n_tasks] = Task(s.p, r, k.weight * m.reflective, k.level + 1, skip, far_id);
+                        n_tasks++;
+                    }
+                    if (m.transmissive > 0.0) {
+                        bool entering = dot(k.d, n) < 0.0;
+                        float eta = entering ? 1.0 / m.ior : m.ior;
+                        vec3 nn = entering ? n : -n;
+                        float cos_i = -dot(k.d, nn);
+                        float kk = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+                        vec3 t_dir = kk < 0.0 ? k.d - 2.0 * dot(k.d, nn) * nn      // total internal reflection
+                                              : normalize(eta * k.d + (eta * cos_i - sqrt(kk)) * nn);
+                        int skip, far_id;
+                        exclusion(h.id, n, t_dir, skip, far_id);
+                        tasks[n_tasks] = Task(s.p, t_dir, k.weight * m.transmissive, k.level + 1, skip, far_id);
+                        n_tasks++;
+                    }
                 }
-                if (m.transmissive > 0.0) {
-                    bool entering = dot(k.d, n) < 0.0;
-                    float eta = entering ? 1.0 / m.ior : m.ior;
-                    vec3 nn = entering ? n : -n;
-                    float cos_i = -dot(k.d, nn);
-                    float kk = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
-                    vec3 t_dir = kk < 0.0 ? k.d - 2.0 * dot(k.d, nn) * nn      // total internal reflection
-                                          : normalize(eta * k.d + (eta * cos_i - sqrt(kk)) * nn);
-                    int skip, far_id;
-                    exclusion(h.id, n, t_dir, skip, far_id);
-                    tasks[n_tasks] = Task(s.p, t_dir, k.weight * m.transmissive, k.level + 1, skip, far_id);
-                    n_tasks++;
-                }
-            }
 #endif
+                continue;
+            }
+            int skip, far_id;
+            exclusion(h.id, s.n, l, skip, far_id);
+            q = Query(s.p, l, skip, far_id, dist, true);
+        } else {
+            if (n_tasks == 0) break;
+            n_tasks--;
+            k = tasks[n_tasks];
+            q = Query(k.o, k.d, k.skip, k.far_id, BIG, false);
         }
+        Hit hq = intersect_scene(q);
+        if (q.any_hit) {
+            if (hq.id == NO_PRIM) colour += contrib;   // the light is visible
+            light++;
+            continue;
+        }
+        if (hq.id == NO_PRIM) continue;
+        h = hq;
+        s = surface_at(k.o, k.d, h);
+        if (k.level == 1) { primary_t = h.t; primary_id = h.id; primary_n = s.n; }
+        deepest = max(deepest, k.level);
+        m = fetch_material(s.mat);
+        nf = dot(k.d, s.n) < 0.0 ? s.n : -s.n;
+#ifdef MODE_COLOR
+        colour += k.weight * m.ambient * m.color;   // Phong's ambient term
+        light = 0;
+#else
+        light = MAX_LIGHTS;   // the recursion image needs no shadow rays
 #endif
     }
+#endif
 
     vec3 image;
 #if defined(MODE_COLOR)
