@@ -82,7 +82,7 @@ class BIH:
     nodes: uint32 (count, 3) in the layout of :mod:`bih_layout`, root at 0.
     indices: int32 (n,), the sorted primitive-index array leaves point into.
     global_aabb: float32 (2, 3) min and max; for n = 0 min = +inf, max = -inf.
-    leaf_depths: int32 per node (0 for inner nodes); depths count the root as 1.
+    node_depths: int32 depth of every node, inner and leaf; the root is depth 1.
     """
     nodes: np.ndarray
     indices: np.ndarray
@@ -94,11 +94,18 @@ class BIH:
 
 
 def sphere_aabbs(centers: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """float32 AABBs of spheres as the GPU stores them, rounded outwards."""
-    c = np.asarray(centers, dtype=np.float32).reshape(-1, 3)
-    r = np.asarray(radii, dtype=np.float32).reshape(-1, 1)
-    lo = np.nextafter(c - r, np.float32(-np.inf))
-    hi = np.nextafter(c + r, np.float32(np.inf))
+    """float32 AABBs, rounded outwards, that hold each sphere in both precisions.
+
+    The GPU sees the sphere rounded to float32, the reference tracer and the
+    CPU traversal see it in float64; the two differ by up to one float32 step
+    when a centre is not representable, so the box bounds the union of both.
+    """
+    c64 = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
+    r64 = np.asarray(radii, dtype=np.float64).reshape(-1, 1)
+    c32, r32 = c64.astype(np.float32), r64.astype(np.float32)
+    down, up = np.float32(-np.inf), np.float32(np.inf)
+    lo = np.minimum(np.nextafter(c32 - r32, down), np.nextafter((c64 - r64).astype(np.float32), down))
+    hi = np.maximum(np.nextafter(c32 + r32, up), np.nextafter((c64 + r64).astype(np.float32), up))
     return lo, hi
 
 

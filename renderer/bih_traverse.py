@@ -194,9 +194,10 @@ def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarr
 
     hit_box, t0, t1 = _clip_global(bih.global_aabb, o, d)
 
-    # Per-ray explicit stacks; the current node lives outside the stack.
-    depth = int(max(bih.max_tree_depth, int(bih.node_depths.max(initial=1))))
-    cap = depth + 1
+    # Per-ray explicit stacks; the current node lives outside the stack. A ray
+    # pushes at most one far child per level of its current path, so the
+    # tree's actual depth (<= max_tree_depth) + 1 entries always suffice.
+    cap = int(min(bih.max_tree_depth, int(bih.node_depths.max(initial=1)))) + 1
     st_node = np.zeros((n_rays, cap), dtype=np.int64)
     st_a = np.zeros((n_rays, cap))
     st_b = np.zeros((n_rays, cap))
