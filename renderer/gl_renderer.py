@@ -15,7 +15,8 @@ import moderngl
 import numpy as np
 
 from . import gpu_layout
-from .methods import METHODS
+from .features import GENERIC, scene_features
+from .methods import METHODS, resolve_method
 from .result import RenderResult
 from .scene import Scene
 from .settings import RenderSettings
@@ -73,13 +74,13 @@ class GLRenderer:
     def info(self) -> dict[str, str]:
         return {"renderer": self.ctx.info["GL_RENDERER"], "version": self.ctx.info["GL_VERSION"]}
 
-    def program(self, method_define: str, mode: str, max_recursion_depth: int
+    def program(self, method_define: str, mode: str, max_recursion_depth: int, features: tuple[str, ...] = ()
                 ) -> tuple[moderngl.Program, moderngl.VertexArray]:
-        """The compiled variant (cached): method × mode × recursion depth."""
-        key = (method_define, mode, max_recursion_depth)
+        """The compiled variant, cached by method × mode × recursion depth × feature set."""
+        key = (method_define, mode, max_recursion_depth, features)
         if key not in self._programs:
             prog = self.ctx.program(vertex_shader=vertex_source(),
-                                    fragment_shader=shader_source(method_define, mode, max_recursion_depth))
+                                    fragment_shader=shader_source(method_define, mode, max_recursion_depth, features))
             self._programs[key] = prog
             self._vaos[key] = self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
         return self._programs[key], self._vaos[key]
@@ -113,61 +114,81 @@ class GLRenderer:
                 prog[name].value = value
 
     def render(self, scene: Scene, settings: RenderSettings) -> RenderResult:
-        """Trace one frame. Timings in ms: build, upload, trace, read, total."""
+        """Trace one frame. Timings in ms: build, upload, trace, read, total.
+
+        ``stats`` holds the acceleration structure's statistics plus the
+        concrete ``method``, the ``recursion_depth`` traced and the shader
+        ``features`` removed for this scene.
+        """
         t_start = time.perf_counter()
-        method = METHODS[settings.method]
-        prepared = method.prepare(scene, settings.max_prims, settings.max_tree_depth, self.max_texture_width)
+        method_name = resolve_method(settings.method, scene.n_spheres)
+        prepared = METHODS[method_name].prepare(scene, settings.max_prims, settings.max_tree_depth,
+                                                self.max_texture_width)
         t_built = time.perf_counter()
 
-        prog, vao = self.program(prepared.define, settings.mode, settings.max_recursion_depth)
-        primitives = gpu_layout.pack_primitives(scene, self.max_texture_width)
+        features = scene_features(scene) if settings.specialize else GENERIC
+        depth = features.recursion_depth(settings.max_recursion_depth)
+        prog, vao = self.program(prepared.define, settings.mode, depth, features.defines())
+        k = settings.supersampling
+        w, h = settings.width * k, settings.height * k
         textures: list[moderngl.Texture] = []
-        units: dict[str, int] = {}
         try:
-            self._upload(prog, primitives, units, textures)
+            units: dict[str, int] = {}
+            self._upload(prog, gpu_layout.pack_primitives(scene, self.max_texture_width), units, textures)
             self._upload(prog, prepared.packed, units, textures)
-            # Samplers the variant declares but this method does not fill get a dummy texture.
-            for name in ("u_spheres", "u_sphere_mat", "u_materials", "u_nodes", "u_indices"):
-                if name in prog and name not in units:
-                    dummy = self.ctx.texture((1, 1), 1, np.zeros(1, np.uint32).tobytes(), dtype="u4")
-                    dummy.filter = (moderngl.NEAREST, moderngl.NEAREST)
-                    dummy.use(len(textures))
-                    prog[name].value = len(textures)
-                    textures.append(dummy)
-            self._set_camera(prog, scene, settings)
-            fbo = self._framebuffer(settings.width, settings.height)
+            self._bind_dummies(prog, units, textures)
+            self._set_camera(prog, scene, w, h)
+            if "u_min_weight" in prog:
+                prog["u_min_weight"].value = float(settings.min_weight)
+            fbo = self._framebuffer(w, h)
             fbo.use()
             self.ctx.finish()
             t_uploaded = time.perf_counter()
             vao.render(moderngl.TRIANGLES)
             self.ctx.finish()
             t_traced = time.perf_counter()
-            w, h = settings.width, settings.height
             img = np.frombuffer(fbo.read(components=4, dtype="f4", attachment=0), np.float32).reshape(h, w, 4)[::-1]
             hit = np.frombuffer(fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(h, w, 4)[::-1]
         finally:
             for t in textures:
                 t.release()
+        colour = img[..., :3]
+        if k > 1:
+            # Box filter over the k×k sub-pixels; ids and depth from the one nearest the centre.
+            colour = colour.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
+            img, hit = img[k // 2::k, k // 2::k], hit[k // 2::k, k // 2::k]
         primid = img[..., 3].astype(np.int32)
-        depth = np.where(primid >= 0, hit[..., 3], np.float32(np.inf)).astype(np.float32)
+        depth_t = np.where(primid >= 0, hit[..., 3], np.float32(np.inf)).astype(np.float32)
         t_end = time.perf_counter()
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
-        timings = {"build": prepared.build_ms, "upload": ms(t_built, t_uploaded) , "trace": ms(t_uploaded, t_traced),
+        timings = {"build": prepared.build_ms, "upload": ms(t_built, t_uploaded), "trace": ms(t_uploaded, t_traced),
                    "read": ms(t_traced, t_end), "total": ms(t_start, t_end)}
-        return RenderResult(image=np.ascontiguousarray(img[..., :3]), depth=depth, primid=primid,
+        stats = {**prepared.stats, "method": method_name, "recursion_depth": depth,
+                 "features_removed": list(features.defines())}
+        return RenderResult(image=np.ascontiguousarray(colour, dtype=np.float32), depth=depth_t, primid=primid,
                             normal=np.ascontiguousarray(hit[..., :3]), mode=settings.mode,
-                            timings=timings, stats=prepared.stats)
+                            timings=timings, stats=stats)
+
+    def _bind_dummies(self, prog: moderngl.Program, units: dict[str, int], textures: list[moderngl.Texture]) -> None:
+        """Samplers the variant declares but this method does not fill get a 1×1 texture."""
+        for name in ("u_spheres", "u_sphere_mat", "u_materials", "u_nodes", "u_indices"):
+            if name in prog and name not in units:
+                dummy = self.ctx.texture((1, 1), 1, np.zeros(1, np.uint32).tobytes(), dtype="u4")
+                dummy.filter = (moderngl.NEAREST, moderngl.NEAREST)
+                dummy.use(len(textures))
+                prog[name].value = len(textures)
+                textures.append(dummy)
 
     @staticmethod
-    def _set_camera(prog: moderngl.Program, scene: Scene, settings: RenderSettings) -> None:
+    def _set_camera(prog: moderngl.Program, scene: Scene, width: int, height: int) -> None:
         cam = scene.camera
         right, up, forward = cam.basis()
         s = math.tan(math.radians(cam.fov_y) / 2.0)
         values = {
             "u_cam_pos": tuple(cam.position), "u_cam_right": tuple(right), "u_cam_up": tuple(up),
             "u_cam_forward": tuple(forward),
-            "u_half_extent": (s * settings.width / settings.height, s),
-            "u_resolution": (float(settings.width), float(settings.height)),
+            "u_half_extent": (s * width / height, s),
+            "u_resolution": (float(width), float(height)),
             "u_target_distance": float(np.linalg.norm(np.subtract(cam.target, cam.position))),
         }
         for name, value in values.items():

@@ -57,3 +57,15 @@ class BoundingIntervalHierarchy:
 
 
 METHODS: dict[str, AccelerationMethod] = {m.name: m for m in (BoundingIntervalHierarchy(), BruteForce())}
+
+AUTO_METHOD = "auto"
+# Below this many spheres brute force traces a frame faster than the BIH
+# (bench/experiments: crossover per scenario; the smallest is taken).
+AUTO_CROSSOVER_N = 16
+
+
+def resolve_method(name: str, n_spheres: int) -> str:
+    """The concrete method for a request: ``auto`` → brute force below the crossover."""
+    if name != AUTO_METHOD:
+        return name
+    return BruteForce.name if n_spheres < AUTO_CROSSOVER_N else BoundingIntervalHierarchy.name

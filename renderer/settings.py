@@ -7,9 +7,10 @@ from typing import Any
 
 from .scene import SceneError
 
-from .methods import METHODS as _METHOD_REGISTRY
+from .methods import AUTO_METHOD, METHODS as _METHOD_REGISTRY
 
-METHODS = tuple(_METHOD_REGISTRY)
+# "auto" picks brute force below the measured crossover n, BIH above it.
+METHODS = (*_METHOD_REGISTRY, AUTO_METHOD)
 MODES = ("color", "depth", "primid", "normal", "recursion", "heat")
 FORMATS = ("png", "jpeg", "npy")
 
@@ -18,6 +19,7 @@ FORMATS = ("png", "jpeg", "npy")
 MAX_TREE_DEPTH_LIMIT = 64
 MAX_RECURSION_DEPTH_LIMIT = 8
 MAX_IMAGE_SIDE = 4096
+SAMPLES_PER_PIXEL = (1, 4, 9, 16)
 
 
 @dataclass(frozen=True)
@@ -29,6 +31,14 @@ class RenderSettings:
     (depth counts the root as 1, as Table 4.2). max_recursion_depth: 1 = primary
     rays only (the thesis's Fig. 4.4), each reflected or transmitted ray is one
     more level. format: encoding of the HTTP response.
+    samples_per_pixel: 1, 4, 9 or 16 — the frame is traced at √s times the
+    resolution and box-filtered (stratified supersampling); depth, primid and
+    normal come from the sub-pixel nearest the pixel centre.
+    min_weight: ε ≥ 0; a reflected or transmitted ray whose path weight (the
+    product of kr/kt along its path) is below ε is not traced.
+    specialize: compile the shader with only the features the scene uses and
+    clamp the recursion depth to what its materials can use (exact: the image
+    does not change); False renders with the generic variant.
     """
     width: int = 640
     height: int = 1088
@@ -38,6 +48,9 @@ class RenderSettings:
     max_tree_depth: int = MAX_TREE_DEPTH_LIMIT
     max_recursion_depth: int = 5
     format: str = "png"
+    samples_per_pixel: int = 1
+    min_weight: float = 0.0
+    specialize: bool = True
 
     def __post_init__(self) -> None:
         def integer(name: str, lo: int, hi: int) -> None:
@@ -51,9 +64,25 @@ class RenderSettings:
         integer("max_prims", 1, 1 << 24)
         integer("max_tree_depth", 1, MAX_TREE_DEPTH_LIMIT)
         integer("max_recursion_depth", 1, MAX_RECURSION_DEPTH_LIMIT)
+        if self.samples_per_pixel not in SAMPLES_PER_PIXEL or isinstance(self.samples_per_pixel, bool):
+            raise SceneError("samples_per_pixel", f"must be one of {SAMPLES_PER_PIXEL}, got {self.samples_per_pixel!r}")
+        k = self.supersampling
+        if max(self.width, self.height) * k > MAX_IMAGE_SIDE:
+            raise SceneError("samples_per_pixel", f"{self.width}×{self.height} at {self.samples_per_pixel} samples "
+                             f"needs {self.width * k}×{self.height * k}, over the {MAX_IMAGE_SIDE} limit")
+        w = self.min_weight
+        if isinstance(w, bool) or not isinstance(w, (int, float)) or not (0.0 <= float(w) <= 1.0):
+            raise SceneError("min_weight", f"must be a number in [0, 1], got {w!r}")
+        if not isinstance(self.specialize, bool):
+            raise SceneError("specialize", f"expected true or false, got {self.specialize!r}")
         for name, allowed in (("method", METHODS), ("mode", MODES), ("format", FORMATS)):
             if getattr(self, name) not in allowed:
                 raise SceneError(name, f"unknown {name} {getattr(self, name)!r}; one of {', '.join(allowed)}")
+
+    @property
+    def supersampling(self) -> int:
+        """Sub-pixels per side: √samples_per_pixel."""
+        return {1: 1, 4: 2, 9: 3, 16: 4}.get(self.samples_per_pixel, 1)
 
     def with_(self, **kw: Any) -> "RenderSettings":
         return replace(self, **kw)

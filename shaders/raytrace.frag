@@ -36,6 +36,7 @@ uniform vec3 u_cam_forward;
 uniform vec2 u_half_extent;             // (tan(fov_y/2)·W/H, tan(fov_y/2))
 uniform vec2 u_resolution;              // (W, H)
 uniform float u_target_distance;        // |target − position|, for the depth image
+uniform float u_min_weight;             // ε: secondary rays of smaller path weight are not traced
 
 layout(location = 0) out vec4 o_image;  // rgb = mode image, a = primary id (−1 miss)
 layout(location = 1) out vec4 o_hit;    // xyz = outward normal, w = primary t (−1 miss)
@@ -368,14 +369,17 @@ void main() {
                 // All lights done: spawn the reflected and transmitted rays.
                 if (k.level < MAX_RECURSION_DEPTH) {
                     vec3 n = s.n;
-                    if (m.reflective > 0.0) {
+#ifndef NO_REFLECTION
+                    if (m.reflective > 0.0 && k.weight * m.reflective >= u_min_weight) {
                         vec3 r = k.d - 2.0 * dot(k.d, n) * n;
                         int skip, far_id;
                         exclusion(h.id, n, r, skip, far_id);
                         tasks[n_tasks] = Task(s.p, r, k.weight * m.reflective, k.level + 1, skip, far_id);
                         n_tasks++;
                     }
-                    if (m.transmissive > 0.0) {
+#endif
+#ifndef NO_TRANSMISSION
+                    if (m.transmissive > 0.0 && k.weight * m.transmissive >= u_min_weight) {
                         bool entering = dot(k.d, n) < 0.0;
                         float eta = entering ? 1.0 / m.ior : m.ior;
                         vec3 nn = entering ? n : -n;
@@ -388,6 +392,7 @@ void main() {
                         tasks[n_tasks] = Task(s.p, t_dir, k.weight * m.transmissive, k.level + 1, skip, far_id);
                         n_tasks++;
                     }
+#endif
                 }
 #endif
                 continue;
@@ -416,7 +421,11 @@ void main() {
         nf = dot(k.d, s.n) < 0.0 ? s.n : -s.n;
 #ifdef MODE_COLOR
         colour += k.weight * m.ambient * m.color;   // Phong's ambient term
+#ifdef NO_LIGHTS
+        light = MAX_LIGHTS;
+#else
         light = 0;
+#endif
 #else
         light = MAX_LIGHTS;   // the recursion image needs no shadow rays
 #endif

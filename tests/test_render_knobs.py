@@ -1,0 +1,99 @@
+"""Knobs that trade speed for accuracy or specialise the shader (issue 5).
+
+Specialisation must be exact (primid identical, colour PSNR ≥ 50 dB against
+the generic variant); supersampling must equal the reference traced at the
+higher resolution and box-filtered; the weight cut-off at ε = 0 changes nothing.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from renderer.features import scene_features
+from renderer.methods import AUTO_CROSSOVER_N, resolve_method
+from renderer.reference import render_reference
+from renderer.scenarios import TABLE_4_1, scenario
+from renderer.scene import Material, Scene, SceneError
+from renderer.settings import RenderSettings
+
+W, H = 96, 160
+
+
+def psnr(a: np.ndarray, b: np.ndarray) -> float:
+    mse = np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2)
+    return float("inf") if mse == 0 else 10 * np.log10(255.0 ** 2 / mse)
+
+
+def diffuse_only(n: int) -> Scene:
+    s = scenario(3, n)
+    matte = Material(color=(0.2, 0.6, 0.9), ambient=0.2, diffuse=0.7, specular=0.1, shininess=20,
+                     reflective=0.0, transmissive=0.0)
+    return Scene(s.camera, s.lights, (matte,), s.sphere_centers, s.sphere_radii,
+                 np.zeros(s.n_spheres, np.int32), tuple(p.__class__(p.point, p.normal, 0) for p in s.planes))
+
+
+SCENES = {"diffuse-only": lambda: diffuse_only(64), "16 spheres": lambda: scenario(2, 16),
+          "scenario 3": lambda: scenario(3, 256)}
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_specialised_variant_is_exact(gl_renderer, name):
+    scene = SCENES[name]()
+    s = RenderSettings(width=W, height=H, max_recursion_depth=5)
+    special = gl_renderer.render(scene, s)
+    generic = gl_renderer.render(scene, s.with_(specialize=False))
+    assert (special.primid == generic.primid).all()
+    assert psnr(special.image_u8(), generic.image_u8()) >= 50.0
+    if name == "diffuse-only":
+        assert special.stats["recursion_depth"] == 1
+        assert set(special.stats["features_removed"]) == {"NO_REFLECTION", "NO_TRANSMISSION"}
+    assert generic.stats["features_removed"] == [] and generic.stats["recursion_depth"] == 5
+
+
+def test_scene_features_follow_used_materials():
+    s = scenario(1, 3)  # spheres 0..2 are red (i % 4 != 3): no transmissive sphere
+    f = scene_features(s)
+    assert f.reflection and not f.transmission and f.lights
+    assert scene_features(scenario(1, 4)).transmission
+    no_light = Scene(s.camera, (), TABLE_4_1, s.sphere_centers, s.sphere_radii, s.sphere_materials, s.planes)
+    assert "NO_LIGHTS" in scene_features(no_light).defines()
+
+
+def test_auto_method_uses_crossover():
+    assert resolve_method("auto", AUTO_CROSSOVER_N - 1) == "bruteforce"
+    assert resolve_method("auto", AUTO_CROSSOVER_N) == "bih"
+    assert resolve_method("bih", 1) == "bih"
+
+
+def test_supersampling_matches_reference_box_filter(gl_renderer):
+    scene = scenario(2, 64)
+    s = RenderSettings(width=48, height=80, max_recursion_depth=3, samples_per_pixel=4)
+    gpu = gl_renderer.render(scene, s)
+    big = render_reference(scene, s.with_(width=96, height=160, samples_per_pixel=1))
+    expect = np.clip(big.image, 0, 1).reshape(80, 2, 48, 2, 3).mean(axis=(1, 3))
+    expect_u8 = np.floor(expect * 255 + 0.5).astype(np.uint8)
+    assert gpu.image.shape == (80, 48, 3)
+    assert psnr(gpu.image_u8(), expect_u8) >= 40.0
+    assert (gpu.primid == big.primid[1::2, 1::2]).mean() >= 0.999
+
+
+def test_weight_cutoff(gl_renderer):
+    scene = scenario(3, 64)
+    s = RenderSettings(width=W, height=H, max_recursion_depth=5)
+    base = gl_renderer.render(scene, s).image_u8()
+    assert (gl_renderer.render(scene, s.with_(min_weight=0.0)).image_u8() == base).all()
+    # kr, kt < 1: ε = 1 cuts every secondary ray, which is the depth-1 image.
+    cut = gl_renderer.render(scene, s.with_(min_weight=1.0)).image_u8()
+    primary = gl_renderer.render(scene, s.with_(max_recursion_depth=1)).image_u8()
+    assert psnr(cut, primary) >= 60.0 and psnr(cut, base) < 60.0
+
+
+@pytest.mark.parametrize("kw,field", [({"samples_per_pixel": 3}, "samples_per_pixel"),
+                                      ({"width": 4096, "samples_per_pixel": 4}, "samples_per_pixel"),
+                                      ({"min_weight": -0.1}, "min_weight"), ({"min_weight": float("nan")}, "min_weight"),
+                                      ({"specialize": "yes"}, "specialize"), ({"method": "kd"}, "method")])
+def test_knob_validation(kw, field):
+    with pytest.raises(SceneError) as e:
+        RenderSettings(**kw)
+    assert e.value.field == field
