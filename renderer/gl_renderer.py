@@ -23,6 +23,7 @@ from .settings import RenderSettings
 
 SHADER_DIR = Path(__file__).resolve().parent.parent / "shaders"
 HEADER_MARK = "//@HEADER@"
+METHOD_MARK = "//@METHOD@"
 
 
 class GLUnavailable(RuntimeError):
@@ -40,17 +41,20 @@ def create_context() -> moderngl.Context:
             raise GLUnavailable(f"cannot create an OpenGL context: {egl_error}") from egl_error
 
 
-def shader_source(method_define: str, mode: str, max_recursion_depth: int,
+def shader_source(method: str, mode: str, max_recursion_depth: int,
                   extra_defines: tuple[str, ...] = ()) -> str:
-    """The fragment shader of one variant: layout header and defines after ``#version``.
+    """The fragment shader of one variant.
 
-    The same assembly serves moderngl and the browser (WebGL2).
+    ``raytrace.frag`` with the layout header and the variant's defines after
+    ``#version`` and the method's ``method_<name>.glsl`` spliced in at
+    ``//@METHOD@``. The same assembly serves moderngl and the browser (WebGL2).
     """
     src = (SHADER_DIR / "raytrace.frag").read_text()
-    defines = [f"#define {method_define}", f"#define MODE_{mode.upper()}",
+    method_src = (SHADER_DIR / f"method_{method}.glsl").read_text()
+    defines = [f"#define METHOD_{method.upper()}", f"#define MODE_{mode.upper()}",
                f"#define MAX_RECURSION_DEPTH {int(max_recursion_depth)}", *(f"#define {d}" for d in extra_defines)]
     header = gpu_layout.glsl_header() + "\n".join(defines) + "\n"
-    return src.replace(HEADER_MARK, header)
+    return src.replace(HEADER_MARK, header).replace(METHOD_MARK, method_src)
 
 
 def vertex_source() -> str:
@@ -74,13 +78,13 @@ class GLRenderer:
     def info(self) -> dict[str, str]:
         return {"renderer": self.ctx.info["GL_RENDERER"], "version": self.ctx.info["GL_VERSION"]}
 
-    def program(self, method_define: str, mode: str, max_recursion_depth: int, features: tuple[str, ...] = ()
+    def program(self, method: str, mode: str, max_recursion_depth: int, features: tuple[str, ...] = ()
                 ) -> tuple[moderngl.Program, moderngl.VertexArray]:
         """The compiled variant, cached by method × mode × recursion depth × feature set."""
-        key = (method_define, mode, max_recursion_depth, features)
+        key = (method, mode, max_recursion_depth, features)
         if key not in self._programs:
             prog = self.ctx.program(vertex_shader=vertex_source(),
-                                    fragment_shader=shader_source(method_define, mode, max_recursion_depth, features))
+                                    fragment_shader=shader_source(method, mode, max_recursion_depth, features))
             self._programs[key] = prog
             self._vaos[key] = self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
         return self._programs[key], self._vaos[key]
@@ -122,13 +126,16 @@ class GLRenderer:
         """
         t_start = time.perf_counter()
         method_name = resolve_method(settings.method, scene.n_spheres)
-        prepared = METHODS[method_name].prepare(scene, settings.max_prims, settings.max_tree_depth,
+        method = METHODS[method_name]
+        if hasattr(method, "render_frame"):  # multi-pass methods draw the frame themselves
+            return method.render_frame(self, scene, settings)
+        prepared = method.prepare(scene, settings.max_prims, settings.max_tree_depth,
                                                 self.max_texture_width)
         t_built = time.perf_counter()
 
         features = scene_features(scene) if settings.specialize else GENERIC
         depth = features.recursion_depth(settings.max_recursion_depth)
-        prog, vao = self.program(prepared.define, settings.mode, depth, features.defines())
+        prog, vao = self.program(method_name, settings.mode, depth, features.defines())
         k = settings.supersampling
         w, h = settings.width * k, settings.height * k
         textures: list[moderngl.Texture] = []
@@ -171,7 +178,7 @@ class GLRenderer:
 
     def _bind_dummies(self, prog: moderngl.Program, units: dict[str, int], textures: list[moderngl.Texture]) -> None:
         """Samplers the variant declares but this method does not fill get a 1×1 texture."""
-        for name in ("u_spheres", "u_sphere_mat", "u_materials", "u_nodes", "u_indices"):
+        for name in ("u_spheres", "u_sphere_mat", "u_materials"):
             if name in prog and name not in units:
                 dummy = self.ctx.texture((1, 1), 1, np.zeros(1, np.uint32).tobytes(), dtype="u4")
                 dummy.filter = (moderngl.NEAREST, moderngl.NEAREST)

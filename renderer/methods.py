@@ -1,8 +1,10 @@
 """Acceleration methods behind one interface.
 
-A method turns a scene into what the GPU tracer needs for it: the shader
-variant's define, its textures and uniforms (through the shared layout of
-:mod:`gpu_layout`), and statistics. ``prepare`` runs on every request: the
+A method turns a scene into what the GPU tracer needs for it: its textures
+and uniforms (through the shared layout of :mod:`gpu_layout`) and statistics.
+Its GLSL lives in ``shaders/method_<name>.glsl`` (``method_init()`` and
+``intersect_spheres()``), spliced into ``raytrace.frag`` by the host; the
+variant gets ``#define METHOD_<NAME>``. ``prepare`` runs on every request: the
 thesis rebuilds its BIH for every frame, and so do we.
 """
 
@@ -19,14 +21,20 @@ from .scene import Scene
 
 @dataclass
 class PreparedMethod:
-    """One request's acceleration data: shader define, GPU data, statistics."""
-    define: str
+    """One request's acceleration data: GPU data, build time (ms), statistics."""
     packed: gpu_layout.PackedScene
     build_ms: float
     stats: dict[str, Any] = field(default_factory=dict)
 
 
 class AccelerationMethod(Protocol):
+    """A method of tracing the spheres.
+
+    Single-pass methods implement ``prepare`` and a ``shaders/method_<name>.glsl``.
+    A multi-pass method (one that draws primitives over ray textures, say)
+    may instead define ``render_frame(renderer, scene, settings) -> RenderResult``;
+    ``GLRenderer.render`` then hands it the whole frame.
+    """
     name: str
 
     def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
@@ -39,7 +47,7 @@ class BruteForce:
 
     def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
                 max_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH) -> PreparedMethod:
-        return PreparedMethod("METHOD_BRUTEFORCE", gpu_layout.PackedScene({}), 0.0,
+        return PreparedMethod(gpu_layout.PackedScene({}), 0.0,
                               {"method": self.name, "primitives": scene.n_spheres})
 
 
@@ -52,7 +60,7 @@ class BoundingIntervalHierarchy:
         t0 = time.perf_counter()
         bih = build_for_spheres(scene.sphere_centers, scene.sphere_radii, max_prims, max_tree_depth)
         build_ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod("METHOD_BIH", gpu_layout.pack_bih(bih, max_width), build_ms,
+        return PreparedMethod(gpu_layout.pack_bih(bih, max_width), build_ms,
                               {"method": self.name, **bih.stats.to_json()})
 
 

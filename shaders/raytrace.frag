@@ -1,6 +1,8 @@
 #version 300 es
 // pocketray's Whitted ray tracer (thesis listing 3.1) with BIH traversal
-// (listing 3.5, corrected as SPEC.md describes) or brute force.
+// (listing 3.5, corrected as SPEC.md describes) or another method: the host
+// splices the method's shaders/method_<name>.glsl in at the METHOD mark; it
+// defines method_init() (called once per fragment) and intersect_spheres().
 // The conventions (rays, self-intersection, shading, modes) are those of
 // docs/SHADING.md; the texture layout is renderer/gpu_layout.py, whose
 // constants and the variant's METHOD_* / MODE_* defines are inserted by the
@@ -15,8 +17,6 @@ precision highp usampler2D;
 uniform highp sampler2D u_spheres;      // (centre.xyz, radius) per sphere id
 uniform highp usampler2D u_sphere_mat;  // material index per sphere id
 uniform highp sampler2D u_materials;    // MATERIAL_TEXELS texels per material
-uniform highp usampler2D u_nodes;       // BIH nodes (bih_layout)
-uniform highp usampler2D u_indices;     // BIH sorted primitive indices
 
 uniform int u_num_spheres;
 uniform int u_num_planes;
@@ -26,8 +26,6 @@ uniform int u_plane_mat[MAX_PLANES];
 uniform int u_num_lights;
 uniform vec3 u_light_pos[MAX_LIGHTS];
 uniform vec3 u_light_color[MAX_LIGHTS];
-uniform vec3 u_box_min;                 // BIH global AABB
-uniform vec3 u_box_max;
 
 uniform vec3 u_cam_pos;
 uniform vec3 u_cam_right;
@@ -47,7 +45,7 @@ const int NO_PRIM = -1;
 // Texture rows are a power of two wide (gpu_layout.wrap_rows), so element i
 // is texel (i & mask, i >> shift): integer division per fetch costs llvmpipe
 // half of a brute-force frame. The shifts are read once per fragment.
-int g_sphere_shift, g_node_shift, g_index_shift, g_mat_shift;
+int g_sphere_shift, g_mat_shift;
 
 int row_shift(ivec2 size) { return int(log2(float(size.x)) + 0.5); }  // exact: a power of two
 
@@ -110,100 +108,7 @@ void test_sphere(Query q, int id, inout Hit h) {
     if (closer(t, id, h.t, h.id)) { h.t = t; h.id = id; }
 }
 
-#ifdef METHOD_BIH
-// Slab test against the global AABB, clipped to [0, ∞). A zero direction
-// component is handled explicitly: (bound − o) / 0 would give ±inf or NaN.
-bool clip_box(vec3 o, vec3 d, out float t0, out float t1) {
-    t0 = 0.0;
-    t1 = BIG;
-    for (int a = 0; a < 3; a++) {
-        if (d[a] == 0.0) {
-            if (o[a] < u_box_min[a] || o[a] > u_box_max[a]) return false;
-        } else {
-            float ta = (u_box_min[a] - o[a]) / d[a];
-            float tb = (u_box_max[a] - o[a]) / d[a];
-            t0 = max(t0, min(ta, tb));
-            t1 = min(t1, max(ta, tb));
-        }
-    }
-    return t0 <= t1;
-}
-
-// Listing 3.5 with the corrections of SPEC.md: the near child depends on the
-// sign of d[axis]; each child gets its own interval; the far child is pushed
-// with its interval and dropped on pop when it starts beyond the best hit.
-// The stack has one entry per tree level, and the build never makes a tree
-// deeper than BIH_STACK_SIZE, so it cannot overflow.
-void traverse_bih(Query q, inout Hit h) {
-    float t0, t1;
-    if (u_num_spheres == 0 || !clip_box(q.o, q.d, t0, t1)) return;
-    int st_node[BIH_STACK_SIZE];
-    float st_a[BIH_STACK_SIZE];
-    float st_b[BIH_STACK_SIZE];
-    int sp = 0;
-    st_node[0] = 0; st_a[0] = t0; st_b[0] = t1; sp = 1;
-    while (sp > 0) {
-        sp--;
-        int node = st_node[sp];
-        float a = st_a[sp];
-        float b = st_b[sp];
-        if (a > h.t) continue;
-        while (true) {
-            COUNT(x);
-            uvec3 w = texelFetch(u_nodes, texel(node, g_node_shift), 0).xyz;
-            if ((w.x & BIH_LEAF_TAG) == BIH_LEAF_TAG) {
-                int offset = int(w.y);
-                int end = offset + int(w.z);
-                for (int i = offset; i < end; i++) {
-                    int id = int(texelFetch(u_indices, texel(i, g_index_shift), 0).x);
-                    test_sphere(q, id, h);
-                    if (q.any_hit && h.t < q.t_max) return;
-                }
-                break;
-            }
-            int axis = int(w.x >> BIH_AXIS_SHIFT);
-            int left = int(w.x & BIH_CHILD_MASK);
-            float clip_l = uintBitsToFloat(w.y);
-            float clip_r = uintBitsToFloat(w.z);
-            float o = q.o[axis];
-            float dd = q.d[axis];
-            int near_node, far_node;
-            float near_a, near_b, far_a, far_b;
-            if (dd == 0.0) {
-                // Parallel to the planes: each child is all or nothing.
-                near_node = left; far_node = left + 1;
-                near_a = a; near_b = o <= clip_l ? b : -BIG;
-                far_a = a;  far_b = o >= clip_r ? b : -BIG;
-            } else {
-                float t_l = (clip_l - o) / dd;
-                float t_r = (clip_r - o) / dd;
-                if (dd > 0.0) {
-                    near_node = left;     near_a = a;          near_b = min(b, t_l);
-                    far_node = left + 1;  far_a = max(a, t_r); far_b = b;
-                } else {
-                    near_node = left + 1; near_a = a;          near_b = min(b, t_r);
-                    far_node = left;      far_a = max(a, t_l); far_b = b;
-                }
-            }
-            bool near_ok = near_a <= near_b;
-            bool far_ok = far_a <= far_b;
-            if (!near_ok && !far_ok) { COUNT(y); break; }  // the empty gap
-            near_ok = near_ok && near_a <= h.t;
-            far_ok = far_ok && far_a <= h.t;
-            if (near_ok) {
-                if (far_ok) {
-                    st_node[sp] = far_node; st_a[sp] = far_a; st_b[sp] = far_b; sp++;
-                }
-                node = near_node; a = near_a; b = near_b;
-            } else if (far_ok) {
-                node = far_node; a = far_a; b = far_b;
-            } else {
-                break;
-            }
-        }
-    }
-}
-#endif
+//@METHOD@
 
 Hit intersect_scene(Query q) {
     Hit h = Hit(q.t_max, NO_PRIM);
@@ -218,14 +123,7 @@ Hit intersect_scene(Query q) {
         if (t > 0.0 && closer(t, id, h.t, h.id)) { h.t = t; h.id = id; }
     }
     if (q.any_hit && h.id != NO_PRIM) return h;
-#ifdef METHOD_BIH
-    traverse_bih(q, h);
-#else
-    for (int i = 0; i < u_num_spheres; i++) {
-        test_sphere(q, i, h);
-        if (q.any_hit && h.id != NO_PRIM) return h;
-    }
-#endif
+    intersect_spheres(q, h);   // the method's traversal (shaders/method_*.glsl)
     return h;
 }
 
@@ -309,8 +207,7 @@ Surface surface_at(vec3 o, vec3 d, Hit h) {
 
 void main() {
     g_sphere_shift = row_shift(textureSize(u_spheres, 0));
-    g_node_shift = row_shift(textureSize(u_nodes, 0));
-    g_index_shift = row_shift(textureSize(u_indices, 0));
+    method_init();
     g_mat_shift = row_shift(textureSize(u_materials, 0));
     // gl_FragCoord.y grows upwards; image row 0 is the top row.
     float px = gl_FragCoord.x;
