@@ -196,7 +196,12 @@ Surface surface_at(vec3 o, vec3 d, Hit h) {
     s.p = o + h.t * d;
     if (h.id < u_num_spheres) {
         vec4 sp = fetch_sphere(h.id);
-        s.n = normalize((s.p - sp.xyz) / sp.w);
+        // From the centre's offset (o − c) + t·d, not from p − c: far from the origin
+        // p is rounded to float32's spacing there (0.0625 at 1e6), which can exceed
+        // the radius and even make p − c zero (a NaN normal); o − c is exact there.
+        vec3 rel = (o - sp.xyz) + h.t * d;
+        float len = length(rel);
+        s.n = len > 0.0 ? rel / len : -d;   // len = 0 only where float32 cannot resolve the sphere
         s.mat = int(texelFetch(u_sphere_mat, texel(h.id, g_sphere_shift), 0).x);
     } else {
         s.n = normalize(u_plane_normal[h.id - u_num_spheres]);

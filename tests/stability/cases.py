@@ -1,0 +1,675 @@
+"""The stability catalogue: adversarial scenes and cameras, defined in one place.
+
+Each :class:`Case` builds a :class:`~renderer.scene.Scene` and says what it
+attacks. ``test_catalogue.py`` runs every case through the GPU tracer with every
+method of ``renderer.methods.METHODS`` and through the float64 reference, and
+``docs/STABILITY.md`` is written from the results.
+
+Images are small (49 × 81 by default) so the whole catalogue runs in well under
+two minutes on two CPU cores. Both sides are **odd**: the centre column and the
+centre row of an image go exactly through ``u = 0`` / ``v = 0``, so with an
+axis-aligned camera those primary rays have direction components that are
+exactly ±0 — rays parallel to split planes, where ``(clip − o) / d`` would be
+±inf or NaN.
+
+Thresholds are the issue's (primid agreement ≥ 99.9 %, depth 1e-4 relative where
+the ids agree, colour PSNR ≥ 35 dB). They apply twice: against the reference of the
+scene as given (float64) and against the reference of the scene *as float32 stores
+it* (:func:`float32_inputs`), which separates input quantization from the tracer's
+own arithmetic. A case that cannot reach one pins the measured figure and says why
+in ``why`` / ``depth_why`` / ``psnr_why`` / ``f32_why``; a lower threshold without a
+reason is refused by ``Case.__post_init__``.
+
+``max_prims`` defaults to 1 (the deepest trees, the most traversal steps); the
+thesis-like scenes use its 8.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from renderer.bih import build_for_spheres
+from renderer import bih_layout as L
+from renderer.scenarios import RED, TRANSPARENT, scenario
+from renderer.scene import Camera, Light, Material, Plane, Scene
+
+PRIMID_AGREEMENT = 0.999
+DEPTH_REL = 1e-4
+PSNR_MIN = 35.0
+W, H = 49, 81
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    what_can_go_wrong: str
+    build: Callable[[], Scene]
+    width: int = W
+    height: int = H
+    max_prims: int = 1          # deepest trees, most traversal steps; thesis-like scenes use 8
+    max_tree_depth: int = 64
+    max_recursion_depth: int = 5
+    min_primid_agreement: float = PRIMID_AGREEMENT
+    why: str = ""
+    max_depth_rel: float = DEPTH_REL
+    depth_why: str = ""
+    colour_psnr_min: float | None = PSNR_MIN
+    psnr_why: str = ""
+    # The same three figures against the reference of ``float32_inputs(scene)`` (the
+    # scene as the GPU stores it): strict unless pinned here, with ``f32_why``.
+    f32_min_primid_agreement: float = PRIMID_AGREEMENT
+    f32_max_depth_rel: float = DEPTH_REL
+    f32_colour_psnr_min: float | None = PSNR_MIN
+    f32_why: str = ""
+    # BIH only: the built tree must reach at least this depth (stats depth_max).
+    min_tree_depth: int | None = None
+    # Extra checks: f(scene, reference_result, gpu_result, method) -> list of failure messages.
+    checks: tuple[Callable, ...] = field(default_factory=tuple)
+    # Facts about the case for the report (e.g. how many rays have ±0 components).
+    facts: Callable[[Scene], str] | None = None
+    # What the figures mean, for the report.
+    note: str = ""
+
+    def __post_init__(self) -> None:
+        if self.min_primid_agreement < PRIMID_AGREEMENT and not self.why:
+            raise ValueError(f"{self.name}: a primid threshold below {PRIMID_AGREEMENT} needs a reason")
+        if self.max_depth_rel > DEPTH_REL and not self.depth_why:
+            raise ValueError(f"{self.name}: a depth tolerance above {DEPTH_REL} needs a reason")
+        if self.colour_psnr_min is not None and self.colour_psnr_min < PSNR_MIN and not self.psnr_why:
+            raise ValueError(f"{self.name}: a PSNR threshold below {PSNR_MIN} dB needs a reason")
+        relaxed = (self.f32_min_primid_agreement < PRIMID_AGREEMENT or self.f32_max_depth_rel > DEPTH_REL
+                   or (self.f32_colour_psnr_min is not None and self.f32_colour_psnr_min < PSNR_MIN))
+        if relaxed and not self.f32_why:
+            raise ValueError(f"{self.name}: a relaxed float32-input threshold needs a reason")
+
+
+# --------------------------------------------------------------------------- materials
+
+MIRROR = Material(color=(0.8, 0.8, 0.8), ambient=0.05, diffuse=0.1, specular=0.2, shininess=60.0,
+                  reflective=0.9, transmissive=0.0, ior=1.0)
+WALL_MIRROR = Material(color=(0.5, 0.7, 0.9), ambient=0.05, diffuse=0.2, specular=0.1, shininess=20.0,
+                       reflective=1.0, transmissive=0.0, ior=1.0)
+MATTE = Material(color=(0.3, 0.8, 0.4), ambient=0.2, diffuse=0.7, specular=0.3, shininess=30.0,
+                 reflective=0.0, transmissive=0.0, ior=1.0)
+HALF_GLASS = Material(color=(1.0, 1.0, 1.0), ambient=0.02, diffuse=0.05, specular=0.2, shininess=80.0,
+                      reflective=0.5, transmissive=0.5, ior=1.5)
+
+
+def glass(ior: float, kt: float = 0.8, kr: float = 0.1) -> Material:
+    return Material(color=(1.0, 1.0, 1.0), ambient=0.05, diffuse=0.05, specular=0.2, shininess=60.0,
+                    reflective=kr, transmissive=kt, ior=ior)
+
+
+FLOOR = Plane(point=(0.0, -20.0, 0.0), normal=(0.0, 1.0, 0.0), material=0)
+LIGHT = Light(position=(0.0, 40.0, 0.0), color=(1.0, 1.0, 1.0))
+
+
+def make_scene(camera: Camera, centers, radii, mats, materials=(RED, TRANSPARENT, MATTE),
+               planes=(FLOOR,), lights=(LIGHT,)) -> Scene:
+    centers = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
+    radii = np.broadcast_to(np.asarray(radii, dtype=np.float64), (len(centers),))
+    mats = np.broadcast_to(np.asarray(mats, dtype=np.int32), (len(centers),))
+    return Scene(camera, tuple(lights), tuple(materials), centers, radii, mats, tuple(planes))
+
+
+def transformed(scene: Scene, scale: float = 1.0, offset=(0.0, 0.0, 0.0)) -> Scene:
+    """Every position scaled by ``scale`` then shifted by ``offset``; radii scaled."""
+    off = np.asarray(offset, dtype=np.float64)
+    f = lambda p: tuple((np.asarray(p, dtype=np.float64) * scale + off).tolist())  # noqa: E731
+    cam = scene.camera
+    camera = Camera(f(cam.position), f(cam.target), cam.up, cam.fov_y)
+    lights = tuple(Light(f(l.position), l.color) for l in scene.lights)
+    planes = tuple(Plane(f(p.point), p.normal, p.material) for p in scene.planes)
+    return Scene(camera, lights, scene.materials, scene.sphere_centers * scale + off,
+                 scene.sphere_radii * scale, scene.sphere_materials, planes)
+
+
+def float32_inputs(scene: Scene) -> Scene:
+    """The scene as the GPU receives it: every coordinate, radius and material value
+    rounded to float32. The camera *position* is rounded and the target moved with it,
+    so the viewing basis stays the float64 one the renderer computes on the host."""
+    f32 = lambda v: tuple(np.asarray(v, dtype=np.float32).astype(np.float64).tolist())  # noqa: E731
+    cam = scene.camera
+    pos = np.asarray(f32(cam.position))
+    tgt = np.asarray(cam.target) + (pos - np.asarray(cam.position))
+    camera = Camera(tuple(pos.tolist()), tuple(tgt.tolist()), cam.up, cam.fov_y)
+    mats = tuple(Material(f32(m.color), *(float(np.float32(getattr(m, k))) for k in
+                          ("ambient", "diffuse", "specular", "shininess", "reflective", "transmissive", "ior")))
+                 for m in scene.materials)
+    return Scene(camera, tuple(Light(f32(l.position), f32(l.color)) for l in scene.lights), mats,
+                 scene.sphere_centers.astype(np.float32).astype(np.float64),
+                 scene.sphere_radii.astype(np.float32).astype(np.float64), scene.sphere_materials,
+                 tuple(Plane(f32(p.point), f32(p.normal), p.material) for p in scene.planes))
+
+
+def same_scene(a: Scene, b: Scene) -> bool:
+    return a.to_json() == b.to_json()
+
+
+# ------------------------------------------------------------------------------ scenes
+
+def axis_grid_spheres() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """5 × 5 × 5 grid at −16, −8, 0, 8, 16 (centres on every axis through 0), radius 1.5."""
+    ax = np.array([-16.0, -8.0, 0.0, 8.0, 16.0])
+    z, y, x = np.meshgrid(ax, ax, ax, indexing="ij")
+    c = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    mats = np.arange(len(c)) % 3        # red, glass (ior 0.95), matte
+    return c, np.full(len(c), 1.5), mats
+
+
+def axis_scene(camera: Camera) -> Scene:
+    c, r, m = axis_grid_spheres()
+    return make_scene(camera, c, r, m)
+
+
+AXIS_CAMERAS = {
+    "-z": Camera((0.0, 0.0, 100.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0),
+    "+z": Camera((0.0, 0.0, -100.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0),
+    "-x": Camera((100.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0),
+    "+x": Camera((-100.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0),
+    "-y": Camera((0.0, 100.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, -1.0), 40.0),
+    # from between the floor (y = −20) and the grid (y ≥ −17.5), looking up
+    "+y": Camera((0.0, -19.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 100.0),
+}
+
+
+def zero_components(scene: Scene, width: int = W, height: int = H) -> str:
+    """How many of the reference's primary rays have direction components exactly +0 / −0."""
+    from renderer.reference import primary_rays
+    _, d = primary_rays(scene.camera, width, height)
+    parts = []
+    for a, name in enumerate("xyz"):
+        z = d[:, a] == 0.0
+        neg = int((z & np.signbit(d[:, a])).sum())
+        if z.any():
+            parts.append(f"d.{name}: {int(z.sum()) - neg} × +0, {neg} × −0")
+    return ("zero direction components in the reference's primary rays: "
+            + ("; ".join(parts) if parts else "none"))
+
+
+def root_clip(scene_spheres, max_prims: int, which: str, depth: int = 1) -> tuple[int, float]:
+    """(axis, clip value) of the first inner node at ``depth`` (root = 1) of the BIH the
+    case will build: a camera placed exactly on it starts its rays on a clip plane."""
+    c, r = scene_spheres
+    bih = build_for_spheres(c, r, max_prims=max_prims)
+    w0 = bih.nodes[:, 0]
+    inner = np.flatnonzero(~L.is_leaf(w0) & (bih.node_depths == depth))
+    k = int(inner[0])
+    cl, cr = L.clips(bih.nodes)
+    value = cl[k] if which == "left" else cr[k]
+    return int(L.axis_of(w0[k:k + 1])[0]), float(value)
+
+
+def clip_plane_scene(which: str, depth: int, inside: bool) -> Scene:
+    """The axis grid, camera position exactly on a clip plane of the BIH (max_prims 1),
+    looking along another axis so the centre row/column is parallel to that plane."""
+    c, r, m = axis_grid_spheres()
+    axis, value = root_clip((c, r), 1, which, depth)
+    view = (axis + 2) % 3                       # look along another axis
+    pos = np.zeros(3)
+    pos[axis] = value
+    pos[view] = 3.5 if inside else 100.0        # inside the global box: between grid layers
+    tgt = pos.copy()
+    tgt[view] = -100.0                          # exactly along −view: d[axis] = 0 on the centre line
+    up = np.zeros(3)
+    up[(view + 1) % 3] = 1.0
+    cam = Camera(tuple(pos.tolist()), tuple(tgt.tolist()), tuple(up.tolist()), 100.0 if inside else 40.0)
+    return make_scene(cam, c, r, m)
+
+
+def geometric_series(n: int = 80) -> Scene:
+    """Centres 20·2^−i·(1, 0.5, 0.25), radii 0.2·20·2^−i: every split peels off one
+    sphere, the maximally unbalanced BIH; 80 spheres reach the 64-level limit."""
+    i = np.arange(n)
+    s = 20.0 * 0.5 ** i
+    c = np.stack([s, 0.5 * s, 0.25 * s], axis=1)
+    r = 0.2 * s
+    # looking from the far side of the accumulation point (the origin): the centre
+    # ray passes right by the tiny spheres and traverses the whole depth
+    cam = Camera((-40.0, -12.0, -25.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 50.0)
+    return make_scene(cam, c, r, i % 3)
+
+
+def room_planes(half: float, material: int) -> tuple[Plane, ...]:
+    """Six planes bounding the cube [−half, half]³, normals pointing inwards."""
+    out = []
+    for a in range(3):
+        for s in (-1.0, 1.0):
+            p = [0.0, 0.0, 0.0]
+            n = [0.0, 0.0, 0.0]
+            p[a] = s * half
+            n[a] = -s
+            out.append(Plane(tuple(p), tuple(n), material))
+    return tuple(out)
+
+
+def mirror_room(glass_spheres: bool, seams: bool = False) -> Scene:
+    planes = room_planes(30.0, 0)
+    c = np.array([[-10.0, -10.0, -10.0], [10.0, -12.0, 0.0], [0.0, 8.0, -15.0], [-12.0, 10.0, 12.0],
+                  [14.0, 14.0, -14.0], [0.0, -25.0, 5.0]])
+    r = np.array([6.0, 5.0, 7.0, 4.0, 3.0, 5.0])
+    m = np.full(len(c), 2 if glass_spheres else 1)
+    if seams:   # 33 × 33, fov 90°: columns 7 and 25 have u = ∓30/55 exactly
+        cam = Camera((0.0, 0.0, 25.0), (0.0, 0.0, -30.0), (0.0, 1.0, 0.0), 90.0)
+    else:
+        cam = Camera((0.37, 0.21, 24.3), (-3.1, -1.7, -30.0), (0.0, 1.0, 0.0), 90.0)
+    return make_scene(cam, c, r, m, materials=(WALL_MIRROR, MIRROR, HALF_GLASS), planes=planes,
+                      lights=(Light((5.0, 25.0, 10.0), (1.0, 1.0, 1.0)),))
+
+
+def refraction_scene(ior: float) -> Scene:
+    """A big glass sphere before a wall of coloured spheres and the floor."""
+    ax = np.array([-18.0, -9.0, 0.0, 9.0, 18.0])
+    y, x = np.meshgrid(ax, ax, indexing="ij")
+    back = np.stack([x.ravel(), y.ravel(), np.full(x.size, -25.0)], axis=1)
+    c = np.concatenate([[[0.0, 0.0, 0.0]], back, [[0.0, -16.0, 8.0]]])
+    r = np.concatenate([[9.0], np.full(len(back), 3.5), [4.0]])
+    m = np.concatenate([[3], np.arange(len(back)) % 2 * 2, [0]])
+    cam = Camera((3.0, 6.0, 55.0), (0.0, -2.0, 0.0), (0.0, 1.0, 0.0), 45.0)
+    return make_scene(cam, c, r, m, materials=(RED, TRANSPARENT, MATTE, glass(ior)))
+
+
+def nested_scene() -> Scene:
+    """Concentric glass shells (ior 1.5, 0.95, 2.4), an off-centre inner sphere and a red core."""
+    c = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [2.5, 1.0, 1.0], [0.0, 0.0, 0.0],
+                  [-15.0, -10.0, -30.0], [15.0, 5.0, -30.0]])
+    r = np.array([12.0, 8.0, 5.0, 1.5, 1.0, 8.0, 8.0])
+    m = np.array([3, 4, 5, 3, 0, 2, 0])
+    cam = Camera((0.0, 4.0, 45.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 45.0)
+    return make_scene(cam, c, r, m, materials=(RED, TRANSPARENT, MATTE, glass(1.5), glass(0.95), glass(2.4)))
+
+
+def inside_glass() -> Scene:
+    """Camera inside a glass sphere (ior 1.5) off its centre: most rays leave at
+    oblique angles, beyond the critical angle 41.8° many are totally reflected."""
+    ring = np.array([[25.0 * np.cos(a), 6.0 * np.sin(3 * a), 25.0 * np.sin(a)]
+                     for a in np.linspace(0, 2 * np.pi, 12, endpoint=False)])
+    c = np.concatenate([[[0.0, 0.0, 0.0]], ring])
+    r = np.concatenate([[12.0], np.full(len(ring), 4.0)])
+    m = np.concatenate([[3], np.arange(len(ring)) % 2 * 2])
+    cam = Camera((5.0, 2.0, 4.0), (-20.0, -6.0, -10.0), (0.0, 1.0, 0.0), 90.0)
+    return make_scene(cam, c, r, m, materials=(RED, TRANSPARENT, MATTE, glass(1.5, kt=0.85, kr=0.1)))
+
+
+def light_leak_room() -> Scene:
+    """A closed room of six planes with the light outside it (above the ceiling):
+    nothing inside may receive direct light. A sphere rests exactly on the floor
+    (tangent) and two spheres touch each other; the camera is inside."""
+    planes = room_planes(20.0, 2)
+    c = np.array([[0.0, -15.0, 0.0], [-8.0, -12.0, -6.0], [-2.0, -12.0, -6.0], [8.0, 5.0, -10.0]])
+    r = np.array([5.0, 3.0, 3.0, 4.0])        # 0 touches the floor, 1 and 2 touch each other
+    m = np.array([0, 2, 0, 1])
+    cam = Camera((3.0, 2.0, 18.0), (-1.0, -8.0, -10.0), (0.0, 1.0, 0.0), 80.0)
+    return make_scene(cam, c, r, m, materials=(RED, TRANSPARENT, MATTE), planes=planes,
+                      lights=(Light((5.0, 35.0, 3.0), (1.0, 1.0, 1.0)),))
+
+
+def no_direct_light(scene, ref, gpu, method) -> list[str]:
+    """With the light outside the closed room no point inside may be lit: the GPU frame
+    must equal the reference of the same room with no light at all (ambient and its
+    reflections only), and nowhere be brighter than the reference."""
+    from renderer.reference import render_reference
+    from renderer.settings import RenderSettings
+    h, w = gpu.primid.shape
+    dark = render_reference(Scene(scene.camera, (), scene.materials, scene.sphere_centers, scene.sphere_radii,
+                                  scene.sphere_materials, scene.planes),
+                            RenderSettings(width=w, height=h, max_recursion_depth=5, max_prims=1))
+    out = []
+    if not np.array_equal(ref.image_u8(), dark.image_u8()):
+        out.append("the reference itself lets light into the closed room")
+    img = gpu.image.astype(np.float64)
+    leak = img.sum(axis=2) > dark.image.sum(axis=2) + 2.0 / 255.0
+    if leak.any():
+        out.append(f"{int(leak.sum())} pixels brighter than the unlit room (light leaking)")
+    return out
+
+
+def _tiny_at(offset: float) -> Scene:
+    """27 spheres of radius 1e-3 on a 3×3×3 grid of spacing 4e-3, seen from 0.03 away.
+
+    The camera position and target are float32-representable at any offset (multiples
+    of 0.0625), so the GPU's camera is exact; the sphere centres, the light and the
+    plane are not (fractional offsets), so at 1e6 float32 moves them by up to 0.031.
+    """
+    p = np.array([offset + 0.25, offset + 0.5, offset + 0.75])
+    look = np.array([-0.125, -0.1875, -1.0])
+    mid = p + 0.03 * look / np.linalg.norm(look)
+    ax = np.array([-4e-3, 0.0, 4e-3])
+    z, y, x = np.meshgrid(ax, ax, ax, indexing="ij")
+    c = mid + np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    cam = Camera(tuple(p.tolist()), tuple((p + look).tolist()), (0.0, 1.0, 0.0), 40.0)
+    plane = Plane(tuple((mid + [0.0, -0.008, 0.0]).tolist()), (0.0, 1.0, 0.0), 0)
+    light = Light(tuple((mid + [0.01, 0.05, 0.02]).tolist()), (1.0, 1.0, 1.0))
+    return make_scene(cam, c, 1e-3, np.arange(27) % 3, planes=(plane,), lights=(light,))
+
+
+def _camera_on_plane() -> Scene:
+    """Camera exactly on the floor plane looking along it: t = 0 / dot(d, n) = ±0 for
+    every ray (never > 0), and the centre row has dot(d, n) = 0 exactly."""
+    c, r, m = axis_grid_spheres()
+    cam = Camera((0.0, -20.0, 60.0), (0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 60.0)
+    return make_scene(cam, c, r, m)
+
+
+def _light_on_surface() -> Scene:
+    """Lights exactly on the floor and exactly on a sphere's surface, each straight below
+    a camera ray: the hit point is the light (dist = 0, l = 0/0), or the light lies in the
+    surface's tangent plane (cos = 0)."""
+    c = np.array([[10.0, -12.0, 0.0], [-10.0, -10.0, -5.0]])
+    r = np.array([4.0, 6.0])
+    cam = Camera((0.0, 60.0, 0.0), (0.0, -20.0, 0.0), (0.0, 0.0, -1.0), 60.0)
+    lights = (Light((0.0, -20.0, 0.0), (1.0, 1.0, 1.0)),        # on the floor, under the centre pixel
+              Light((10.0, -8.0, 0.0), (0.6, 0.6, 0.6)),        # the top of sphere 0
+              Light((0.0, 40.0, 0.0), (0.5, 0.5, 0.5)))
+    return make_scene(cam, c, r, [0, 2], lights=lights)
+
+
+def _fov(fov: float) -> Scene:
+    """An oblique camera with an extreme field of view on the axis grid, aimed at a point
+    of the silhouette of the sphere at the origin (radius 1.5)."""
+    cam = np.array([37.0, 23.0, 81.0])
+    w = -cam / np.linalg.norm(cam)
+    side = np.cross(w, [0.0, 1.0, 0.0])
+    side /= np.linalg.norm(side)
+    dist = np.linalg.norm(cam)
+    # the tangent point: at angle asin(r / dist) off the axis to the centre
+    a = np.arcsin(1.5 / dist)
+    target = cam + (np.cos(a) * w + np.sin(a) * side) * np.sqrt(dist ** 2 - 1.5 ** 2)
+    return axis_scene(Camera(tuple(cam.tolist()), tuple(target.tolist()), (0.0, 1.0, 0.0), fov))
+
+
+def float32_centre_ray(scene: Scene) -> str:
+    """Which spheres the centre pixel's ray hits when its float64 direction is moved by up
+    to ±3 float32 ulps per component (the GPU computes it in float32)."""
+    from renderer.reference import trace_rays
+    _, _, fwd = scene.camera.basis()
+    base = fwd.astype(np.float32)
+    dirs = []
+    for steps in np.ndindex(7, 7, 7):
+        v = base.copy()
+        for a, n in enumerate(np.array(steps) - 3):
+            for _ in range(abs(int(n))):
+                v[a] = np.nextafter(v[a], np.float32(np.inf if n > 0 else -np.inf))
+        dirs.append(v.astype(np.float64))
+    d = np.array(dirs)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    o = np.broadcast_to(np.asarray(scene.camera.position, dtype=np.float64), d.shape)
+    _, ids = trace_rays(scene, o, d)
+    _, id64 = trace_rays(scene, o[:1], fwd[None, :])
+    hit = ids[ids >= 0]
+    return (f"centre ray (it passes ~1e-6 from the accumulation point): the float64 direction hits "
+            f"{int(id64[0])}; of the {len(d)} float32 directions within ±3 ulps per component, {len(hit)} hit "
+            f"one of spheres {int(hit.min())}…{int(hit.max())} (radii ~1e-6): which one the GPU sees is "
+            "float32 rounding of the direction" if len(hit) else "centre ray: no float32 neighbour hits")
+
+
+def _grid_shifted(offset: float) -> Scene:
+    return transformed(scenario(2, 64, seed=3), offset=(offset, -offset, offset))
+
+
+def _scaled(k: float) -> Scene:
+    return transformed(scenario(1, 64), scale=k)
+
+
+def _one_centre() -> Scene:
+    n = 256
+    cam = Camera((3.0, 4.0, 30.0), (1.25, -0.5, 2.0), (0.0, 1.0, 0.0), 40.0)
+    return make_scene(cam, np.broadcast_to([1.25, -0.5, 2.0], (n, 3)), 4.0, np.arange(n) % 3)
+
+
+def _concentric() -> Scene:
+    n = 64
+    cam = Camera((3.0, 4.0, 50.0), (1.25, -0.5, 2.0), (0.0, 1.0, 0.0), 40.0)
+    return make_scene(cam, np.broadcast_to([1.25, -0.5, 2.0], (n, 3)), np.linspace(12.0, 0.25, n),
+                      np.where(np.arange(n) < n - 1, 3, 0), materials=(RED, TRANSPARENT, MATTE, glass(1.2, 0.9, 0.0)))
+
+
+def _duplicates() -> Scene:
+    s = scenario(1, 64)
+    c = np.concatenate([s.sphere_centers, s.sphere_centers])
+    r = np.concatenate([s.sphere_radii, s.sphere_radii])
+    m = np.concatenate([np.zeros(64, np.int32), np.full(64, 1, np.int32)])   # copies differ in material
+    return Scene(s.camera, s.lights, s.materials, c, r, m, s.planes)
+
+
+def _overlapping() -> Scene:
+    rng = np.random.default_rng(7)
+    c = rng.normal(0.0, 3.0, (300, 3))
+    r = rng.uniform(1.0, 4.0, 300)
+    cam = Camera((0.0, 10.0, 60.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0)
+    return make_scene(cam, c, r, rng.integers(0, 3, 300))
+
+
+def _spanning() -> Scene:
+    s = scenario(2, 64, seed=1, radius=1.5)
+    c = np.concatenate([[[0.0, 0.0, 0.0]], s.sphere_centers])
+    r = np.concatenate([[20.0], s.sphere_radii])
+    m = np.concatenate([[1], s.sphere_materials])
+    cam = Camera((30.0, 25.0, 70.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 50.0)
+    return Scene(cam, s.lights, s.materials, c, r, m, s.planes)
+
+
+def _one_sphere() -> Scene:
+    cam = Camera((0.0, 0.0, 30.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 60.0)
+    return make_scene(cam, [[0.0, 0.0, 0.0]], 8.0, 0)
+
+
+def _no_spheres(with_plane: bool) -> Scene:
+    cam = Camera((0.0, 5.0, 50.0), (0.0, -10.0, 0.0), (0.0, 1.0, 0.0), 60.0)
+    return make_scene(cam, np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32),
+                      planes=(FLOOR,) if with_plane else ())
+
+
+def _inside_box() -> Scene:
+    cam = Camera((0.3, 0.2, 4.0), (3.0, 2.0, -20.0), (0.0, 1.0, 0.0), 90.0)
+    return axis_scene(cam)
+
+
+def _inside_opaque_sphere() -> Scene:
+    c, r, m = axis_grid_spheres()
+    r = r.copy()
+    centre = int(np.flatnonzero((c == 0.0).all(axis=1))[0])
+    r[centre] = 5.0                                  # the camera sits inside this one (red)
+    m = m.copy()
+    m[centre] = 0
+    cam = Camera((1.0, 0.5, 0.25), (0.0, 0.0, -20.0), (0.0, 1.0, 0.0), 100.0)
+    return make_scene(cam, c, r, m)
+
+
+def _huge_among_unit() -> Scene:
+    s = scenario(1, 64)
+    c = np.concatenate([s.sphere_centers, [[0.0, -1015.0, 0.0]]])
+    r = np.concatenate([s.sphere_radii, [1000.0]])
+    m = np.concatenate([s.sphere_materials, [0]])
+    cam = Camera((0.0, 30.0, 90.0), (0.0, -10.0, 0.0), (0.0, 1.0, 0.0), 60.0)
+    return Scene(cam, s.lights, s.materials, c, r, m, s.planes)
+
+
+def _near_axis(tiny: float) -> Scene:
+    """Camera looking down −z with the target off-axis by ``tiny``: components of ~1e-20
+    (crossings at t ~ 1e21) or float32 denormals (~1e-38), which a GPU may flush to 0.
+    With ``tiny`` < 0 the centre row points down by |tiny| and meets the floor at
+    t = 20 / |tiny|."""
+    return axis_scene(Camera((0.0, 0.0, 100.0), (tiny * 100.0, tiny * 100.0, 0.0), (0.0, 1.0, 0.0), 40.0))
+
+
+# ----------------------------------------------------------------- pins and their checks
+
+_BEYOND_FLOAT32 = (
+    "measured 99.647 % (14 px): the pixels of the centre row that see the floor at t ≈ 2e39 > 3.4e38, the "
+    "largest float32; the GPU cannot represent that distance (and llvmpipe flushes the 1e-38 denormal "
+    "direction component to 0, so its ray is parallel to the floor) and reports a miss, the float64 reference "
+    "a hit. The same camera at 1e-37 (t ≈ 2e38, near_axis_1e-37_down) agrees on every pixel.")
+_TINY_AT_1E6 = (
+    "measured 0.93 % agreement, depth error 0.97, 16.2 dB: float32's spacing at 1e6 is 0.0625, 62 times the "
+    "radius; the GPU's sphere centres move by up to 0.031 (31 radii), so it renders another scene (one "
+    "sphere lands on the camera). Against the float32-input scene every strict threshold holds.")
+_SEAMS = (
+    "measured 97.888 % (23 px, every one a tie) and 20.0 dB: pixel columns 7, 25 and rows 7, 25 hit an edge "
+    "of the room exactly, where two walls are at the same t in exact arithmetic; float32 and float64 "
+    "rounding break the tie differently (the lower-id rule needs exactly equal t), and with kr = 1 walls "
+    "the whole ray tree of such a pixel differs. The same room from a generic camera (mirror_room_depth8) "
+    "meets every strict threshold.")
+
+
+_ZOOM = (
+    "measured 99.597 % (16 px, all on the silhouette): the pixel pitch is 2.2e-7 rad, 2e-5 world units at "
+    "t ≈ 92; float32 resolves the direction to ~6e-8 rad and the sphere test's offset f = oc − b·d to "
+    "~93·6e-8 ≈ 5.6e-6, together ~0.5 px, so the GPU's silhouette is jagged by one pixel where the "
+    "reference's is straight. Not a traversal error: bih and bruteforce give the same ids.")
+_COINCIDENT = (
+    "why the colour is not exact although every id agrees: a secondary ray leaving sphere i starts exactly "
+    "on the coincident spheres j ≠ i, whose near root is 0 in exact arithmetic; SHADING.md's exclusion rule "
+    "only covers the source primitive, so the rounded sign of that root decides whether j is hit at t ≈ 0 — "
+    "independently in float32 and float64. The reference is as far from itself under a one-ulp camera move "
+    "(≈ 36 dB, measured while writing this case); a convention for coincident primitives would be needed to "
+    "do better.")
+
+
+def only_centre_row_misses(scene, ref, gpu, method) -> list[str]:
+    bad = np.argwhere(gpu.primid != ref.primid)
+    rows = set(bad[:, 0].tolist())
+    if rows - {scene_height_centre(gpu)}:
+        return [f"ids differ outside the centre row (rows {sorted(rows)})"]
+    if (gpu.primid[tuple(bad.T)] != -1).any() or (ref.primid[tuple(bad.T)] != scene.n_spheres).any():
+        return ["a centre-row disagreement is not 'GPU miss, reference floor'"]
+    return []
+
+
+def scene_height_centre(result) -> int:
+    return result.primid.shape[0] // 2
+
+
+def only_ties(scene, ref, gpu, method) -> list[str]:
+    """Every pixel whose id differs has the same depth on both sides (two surfaces at one t)."""
+    diff = (gpu.primid != ref.primid)
+    both = diff & (gpu.primid >= 0) & (ref.primid >= 0)
+    rel = np.abs(gpu.depth.astype(np.float64)[diff] - ref.depth[diff]) / ref.depth[diff]
+    if not (both == diff).all() or not (rel <= 1e-5).all():
+        return [f"{int(diff.sum())} px differ in id and not all of them are ties"]
+    return []
+
+
+# -------------------------------------------------------------------------------- cases
+
+CASES: list[Case] = []
+
+
+def _add(*cases: Case) -> None:
+    CASES.extend(cases)
+
+
+for _dir, _cam in AXIS_CAMERAS.items():
+    _add(Case(f"axis_down_{_dir}",
+              f"camera exactly down {_dir[0]}{_dir[1]}; the centre column/row has d components exactly 0, "
+              "parallel to split planes: (clip − o)/d = ±inf or NaN",
+              (lambda cam=_cam: axis_scene(cam)), facts=zero_components))
+
+_add(
+    Case("signed_zero_+z", "target (−0, −0, 0): forward = (−0, −0, 1), so the centre column mixes d.x = +0 and "
+         "d.x = −0; a sign test instead of a zero test would pick the wrong near child",
+         lambda: axis_scene(Camera((0.0, 0.0, -100.0), (-0.0, -0.0, 0.0), (0.0, 1.0, 0.0), 40.0)),
+         facts=zero_components),
+    Case("near_axis_1e-20", "direction components ~1e-20: plane crossings at t ~ 1e21, intervals of huge magnitude",
+         lambda: _near_axis(1e-20), facts=zero_components),
+    Case("near_axis_denormal", "direction components ~1e-38, float32 denormals the GPU may flush to 0 "
+         "(the zero test and the division must then agree)",
+         lambda: _near_axis(1e-38), facts=zero_components),
+    Case("near_axis_1e-37_down", "the centre row points down by ~1e-37: the floor is met at t ≈ 2e38, "
+         "just inside float32's range (and below the shader's 3e38 'no hit' sentinel)",
+         lambda: _near_axis(-1e-37), facts=zero_components),
+    Case("near_axis_denormal_down", "the centre row points down by ~1e-38: the floor is met at t ≈ 2e39, "
+         "beyond float32's range", lambda: _near_axis(-1e-38), facts=zero_components,
+         min_primid_agreement=0.996, f32_min_primid_agreement=0.996,
+         why=_BEYOND_FLOAT32, f32_why=_BEYOND_FLOAT32, checks=(only_centre_row_misses,)),
+    Case("camera_on_plane", "camera exactly on the floor plane, looking along it: t = 0/dot(d, n) is ±0 "
+         "(never a hit), the centre row has dot(d, n) = 0", _camera_on_plane, facts=zero_components),
+    Case("origin_on_clip_left", "camera origin exactly on the root's clip_left, rays parallel to it on the "
+         "centre line: tL = 0/d = ±0, and o == clip in the parallel test",
+         lambda: clip_plane_scene("left", 1, False), facts=zero_components),
+    Case("origin_on_clip_right", "as above on clip_right", lambda: clip_plane_scene("right", 1, False),
+         facts=zero_components),
+    Case("origin_on_inner_clip_inside_box", "camera inside the global box, exactly on a depth-3 node's clip plane",
+         lambda: clip_plane_scene("left", 3, True), facts=zero_components),
+    Case("camera_inside_box", "camera inside the global AABB: t0 = 0, the root interval starts at the origin",
+         _inside_box),
+    Case("camera_inside_sphere", "camera inside an opaque sphere: every primary ray must take the far root; "
+         "shadow rays start inside", _inside_opaque_sphere),
+    # degenerate distributions
+    Case("all_one_centre", "256 identical spheres at one centre: the build never separates them "
+         "(listing 3.4 loops forever); ties must go to the lowest id", _one_centre, note=_COINCIDENT),
+    Case("concentric_64", "64 spheres at one centre, radii 0.25 … 12, glass: a forced leaf of nested shells",
+         _concentric),
+    Case("duplicate_pairs", "every sphere twice (same centre and radius, other material): bitwise equal t, "
+         "ties to the lower id", _duplicates, note=_COINCIDENT),
+    Case("many_overlapping", "300 heavily overlapping spheres: AABBs straddle every split, empty gaps are rare",
+         _overlapping, max_prims=8),
+    Case("sphere_spans_box", "one sphere as large as the global box among small ones: a primitive that "
+         "straddles every split plane", _spanning),
+    Case("one_sphere", "a single sphere: the root is a leaf", _one_sphere),
+    Case("root_leaf_max_prims", "125 spheres, max_prims ≥ n: the whole scene in the root leaf",
+         lambda: axis_scene(AXIS_CAMERAS["-z"]), max_prims=1 << 24),
+    Case("max_tree_depth_1", "max_tree_depth = 1: the root is a leaf however many primitives",
+         lambda: axis_scene(AXIS_CAMERAS["-x"]), max_tree_depth=1),
+    Case("no_spheres", "empty scene: global box (+inf, −inf), no nodes to fetch", lambda: _no_spheres(False)),
+    Case("only_plane", "no spheres, only the plane: BIH empty, planes still shaded and shadowed",
+         lambda: _no_spheres(True)),
+    # scales
+    Case("offset_1e4", "all coordinates offset by 1e4 (float32 spacing 1e-3)", lambda: _grid_shifted(1e4), max_prims=8),
+    Case("offset_1e6", "all coordinates offset by 1e6 (float32 spacing 0.0625 at 1e6: centres and hit points "
+         "are rounded by up to 3 % of a unit radius)", lambda: _grid_shifted(1e6), max_prims=8,
+         max_depth_rel=2e-3, depth_why="measured 1.4e-3: float32 moves the random sphere centres by up to "
+         "0.031 (half the spacing 0.0625 at 1e6), which shifts t by up to ~0.1 near a silhouette (t ≈ 80); "
+         "against the float32-input scene the depth error is below 1e-6 and every strict threshold holds."),
+    Case("radius_1e-3_at_1e6", "radius 1e-3 at coordinates 1e6: float32 spacing there is 0.0625, 62 radii; "
+         "hit points and normals from them are meaningless", lambda: _tiny_at(1e6),
+         min_primid_agreement=0.009, max_depth_rel=1.0, colour_psnr_min=15.0,
+         why=_TINY_AT_1E6, depth_why=_TINY_AT_1E6, psnr_why=_TINY_AT_1E6),
+    Case("radius_1e-3_near_origin", "the same 1e-3 spheres near the origin, seen from 0.03",
+         lambda: _tiny_at(0.0)),
+    Case("radius_1e-3_thesis", "the thesis's memory test (Fig. 4.5): 1024 spheres of radius 1e-3, far below "
+         "a pixel", lambda: scenario(2, 1024, radius=1e-3)),
+    Case("scale_1e-3", "the whole scene scaled by 1e-3 (radius 1e-3, camera at 0.1): secondary rays at tiny scale",
+         lambda: _scaled(1e-3), max_prims=8),
+    Case("scale_1e3", "the whole scene scaled by 1e3 (radius 1e3, camera at 1e5)", lambda: _scaled(1e3), max_prims=8),
+    Case("radius_1e3_among_unit", "a radius-1e3 sphere cutting the floor under unit spheres: mixed scales, "
+         "one AABB 1000× the others", _huge_among_unit, max_prims=8),
+    Case("geometric_series_depth64", "positions in a geometric series: a maximally unbalanced tree at the "
+         "shader's 64-entry stack limit; the centre ray traverses every level",
+         geometric_series, max_tree_depth=64, min_tree_depth=40, facts=float32_centre_ray),
+    Case("fov_179", "field of view 179°: tan(89.5°) = 115, rays up to 89.5° off the axis", lambda: _fov(179.0)),
+    Case("fov_1e-3", "field of view 0.001° on a sphere's silhouette: neighbouring pixel rays differ by 2e-7 "
+         "rad, a few float32 ulps of the direction", lambda: _fov(1e-3),
+         min_primid_agreement=0.995, f32_min_primid_agreement=0.995, why=_ZOOM, f32_why=_ZOOM),
+    # secondary rays
+    Case("light_on_surface", "lights exactly on the floor and on a sphere, under camera rays: dist = 0 "
+         "(l = 0/0) and cos = 0 at the light", _light_on_surface),
+    Case("light_leak_room", "a closed room, light outside: a shadow ray must never escape through the walls, "
+         "the seams, or a sphere resting exactly on the floor", light_leak_room,
+         checks=(no_direct_light,)),
+    # refraction
+    *[Case(f"refraction_ior_{ior:g}", f"glass sphere with ior {ior:g}"
+           + {0.95: " (the thesis's): η > 1 on entry, total internal reflection from outside",
+              1.0: ": the transmitted ray continues straight through both surfaces",
+              1.5: ": ordinary glass", 2.4: ": diamond, critical angle 24.6°, much TIR inside"}[ior],
+           (lambda ior=ior: refraction_scene(ior)), max_recursion_depth=6)
+      for ior in (0.95, 1.0, 1.5, 2.4)],
+    Case("tir_inside_glass", "camera inside a glass sphere: rays leave it (η = ior), beyond 41.8° they are "
+         "totally reflected and must take the far root again", inside_glass, max_recursion_depth=6),
+    Case("nested_spheres", "concentric glass shells of different ior with an off-centre inner sphere",
+         nested_scene, max_recursion_depth=8),
+    # bounded work
+    Case("mirror_room_exact_seams_depth8", "the mirror room seen so that whole pixel columns and rows hit the "
+         "room's edges exactly (u = ±30/55): two walls at the same t", lambda: mirror_room(False, seams=True),
+         width=33, height=33, max_recursion_depth=8,
+         min_primid_agreement=0.975, colour_psnr_min=19.0, f32_min_primid_agreement=0.975,
+         f32_colour_psnr_min=19.0, why=_SEAMS, psnr_why=_SEAMS, f32_why=_SEAMS, checks=(only_ties,)),
+    Case("mirror_room_depth8", "six perfect-mirror walls and mirror spheres, recursion depth 8: bounded work, "
+         "no hang", lambda: mirror_room(False), width=33, height=33, max_recursion_depth=8),
+    Case("glass_mirror_room_depth8", "mirror walls with half-mirror half-glass spheres: a full binary ray tree "
+         "(255 rays per pixel) at depth 8", lambda: mirror_room(True), width=33, height=33,
+         max_recursion_depth=8),
+)
