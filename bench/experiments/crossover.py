@@ -1,0 +1,138 @@
+"""Beyond the thesis: the n below which brute force beats the BIH, per scenario.
+
+Whole frames (build + upload + trace + read back) at 640 × 1088 with the BIH at the
+default ``MAX_PRIMS`` against brute force, at recursion depth 1 (the thesis's Fig. 4.4
+setting) and 5 (the service's default). The crossover is where the BIH's frame time drops
+below brute force's for good, interpolated in log n between the two measured sizes around
+it. The value for ``renderer.methods.AUTO_CROSSOVER_N`` is the threshold ``c`` ("brute
+force when n < c") that loses least over every measured case.
+"""
+
+from __future__ import annotations
+
+import math
+
+from renderer import methods as _methods
+from renderer.scenarios import scenario
+
+from .common import Context, default_settings, log_axis, md_table, method_names, plt
+
+NAME = "crossover"
+TITLE = "Crossover — where brute force beats the BIH"
+
+NS = (1, 2, 4, 8, 12, 16, 24, 32, 48, 64, 96, 128)
+NS_QUICK = (1, 4, 16, 64)
+DEPTHS = (1, 5)
+SIZE = (640, 1088)
+SIZE_QUICK = (64, 108)
+
+
+def crossover(ns, bf, bih) -> tuple[float, str]:
+    """(n, text): the n from which the BIH is faster than brute force for every larger measured n."""
+    faster = [b < f for f, b in zip(bf, bih)]
+    if all(faster):
+        return ns[0], f"≤ {ns[0]:,} (the BIH is faster at every n measured)"
+    if not faster[-1]:
+        return math.inf, f"> {ns[-1]:,} (brute force is faster up to the largest n measured)"
+    i = max(k for k, ok in enumerate(faster) if not ok) + 1   # first index of the final all-faster run
+    # Interpolate log(bih / bf) = 0 between ns[i-1] and ns[i] in log n.
+    r0 = math.log(bih[i - 1] / bf[i - 1])
+    r1 = math.log(bih[i] / bf[i])
+    x0, x1 = math.log(ns[i - 1]), math.log(ns[i])
+    x = x0 + (x1 - x0) * r0 / (r0 - r1) if r0 != r1 else x1
+    n = math.exp(x)
+    return n, f"≈ {n:.1f} (between {ns[i - 1]:,} and {ns[i]:,})"
+
+
+def best_threshold(ns, cases: list[tuple[list[float], list[float]]]) -> tuple[int, dict[int, float]]:
+    """The c minimising Σ (time of the choice "BF if n < c else BIH") / (best time) − 1 over all cases."""
+    candidates = sorted(set(ns) | {ns[-1] + 1})
+    regret = {}
+    for c in candidates:
+        loss = 0.0
+        for bf, bih in cases:
+            for n, f, b in zip(ns, bf, bih):
+                chosen = f if n < c else b
+                loss += chosen / min(f, b) - 1.0
+        regret[c] = loss
+    best = min(candidates, key=lambda c: (round(regret[c], 9), c))
+    return best, regret
+
+
+def run(ctx: Context) -> str:
+    ns = NS_QUICK if ctx.quick else NS
+    w, h = SIZE_QUICK if ctx.quick else SIZE
+    base = default_settings().with_(width=w, height=h, mode="color")
+    mp = base.max_prims
+    # Brute force against the BIH, plus the names that choose between them (auto).
+    extra = [m for m in method_names(dispatchers=True) if m not in method_names()]
+    methods = ["bruteforce", "bih"] + extra
+    times: dict[tuple[str, int, int, int], float] = {}
+    raw = {}
+    jobs = [(m, d, sc, n) for d in DEPTHS for sc in (1, 2, 3) for n in ns for m in methods]
+    for m, d, sc, n in ctx.bar(jobs, desc="crossover"):
+        s = scenario(sc, n, seed=0, radius=1.0)
+        t = ctx.time_render(s, base.with_(method=m, max_recursion_depth=d))
+        times[(m, d, sc, n)] = t.total.median
+        raw[f"{m}/{d}/{sc}/{n}"] = t.to_json()
+
+    rows, cases, xs = [], [], {}
+    for d in DEPTHS:
+        for sc in (1, 2, 3):
+            bf = [times[("bruteforce", d, sc, n)] for n in ns]
+            bih = [times[("bih", d, sc, n)] for n in ns]
+            cases.append((bf, bih))
+            x, txt = crossover(ns, bf, bih)
+            xs[(d, sc)] = x
+            rows.append([str(sc), str(d), txt] + [f"{f / b:.2f}" for f, b in zip(bf, bih)])
+    table = md_table(["scenario", "depth", "crossover n"] + [f"BF/BIH n = {n}" for n in ns], rows,
+                     "rrl" + "r" * len(ns))
+    c, regret = best_threshold(ns, cases)
+    current = getattr(_methods, "AUTO_CROSSOVER_N", None)
+    ctx.note(f"crossover: AUTO_CROSSOVER_N = {c}  # renderer/methods.py: brute force when n < {c} "
+             f"(current: {current})")
+
+    pyplot = plt()
+    fig, axes = pyplot.subplots(1, 3, figsize=(15, 4.6), sharey=True, layout="constrained")
+    for j, sc in enumerate((1, 2, 3)):
+        ax = axes[j]
+        for d, ls in zip(DEPTHS, ("-", "--")):
+            for m in methods:
+                ax.plot(ns, [times[(m, d, sc, n)] for n in ns], ls=ls if m != "auto" else ":", marker=".",
+                        color={"bruteforce": "black", "bih": "tab:blue"}.get(m), label=f"{m}, depth {d}")
+            if math.isfinite(xs[(d, sc)]):
+                ax.axvline(xs[(d, sc)], color="tab:red", ls=ls, alpha=0.6)
+        ax.axvline(c, color="tab:green", lw=2, alpha=0.5, label=f"chosen AUTO_CROSSOVER_N = {c}")
+        ax.set_xscale("log", base=2)
+        log_axis(ax, "y")
+        ax.set_title(f"scenario {sc}")
+        ax.set_xlabel("spheres n")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel(f"frame time (ms) at {w} × {h}")
+    axes[-1].legend(fontsize=7)
+    fig.suptitle(f"Brute force against BIH (MAX_PRIMS {mp}); red lines: crossover per depth")
+    img = ctx.savefig(fig, "crossover", "Frame time of brute force and BIH at small n, with the crossover")
+    path = ctx.save_data(NAME, {"size": [w, h], "ns": ns, "max_prims": mp, "points": raw,
+                                "crossover": {f"{d}/{sc}": x for (d, sc), x in xs.items()},
+                                "auto_crossover_n": c, "regret": regret})
+
+    reg = ", ".join(f"{k}: {v:.2f}" for k, v in regret.items())
+    return f"""## {TITLE}
+
+Whole-frame time (build + upload + trace + read back) at {w} × {h}, colour, spheres of radius 1,
+brute force against the BIH with `MAX_PRIMS` {mp}, at recursion depth 1 and 5. The table gives the
+crossover and the ratio BF time / BIH time per n (> 1: the BIH is faster).
+
+{img}
+
+{table}
+
+{ctx.caption(capped=True)}
+
+**`AUTO_CROSSOVER_N = {c}`** (brute force when n < {c}): of the thresholds tried, the one whose choice
+costs least over all {len(cases)} scenario × depth series, the cost being Σ (time of the choice / time of
+the faster method − 1) over every measured n. Cost per threshold: {reg}. Value in the code when this ran:
+`{current}`.
+
+Raw data: [`{path}`]({path}).
+"""

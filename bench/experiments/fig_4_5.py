@@ -1,0 +1,103 @@
+"""Fig. 4.5: BIH memory (bytes) against n = 1,024 / 2,048 / 4,096, radius 0.001, MAX_PRIMS 1…16.
+
+Memory as the thesis counts it: nodes (12 bytes each) + the sorted index array (4 bytes
+per primitive) + the global AABB (24 bytes) — ``BIHStats.bytes``. Deterministic: one
+build per point, no timing.
+"""
+
+from __future__ import annotations
+
+from renderer.bih import build_for_spheres
+from renderer.scenarios import scenario
+
+from .common import Context, md_table, plt
+
+NAME = "fig_4_5"
+TITLE = "Fig. 4.5 — BIH memory against n (radius 0.001)"
+
+NS = (1024, 2048, 4096)
+MAX_PRIMS = (1, 2, 4, 8, 16)
+RADIUS = 0.001
+
+THESIS = {
+    "highest": ("BIH 1, scenario 2, 4,096 spheres", "little over 150 kB"),
+    "lowest": ("BIH 16, scenario 3, 1,024 spheres", "slightly less than 6.2 kB"),
+    "max_reduction": (82.5, "scenario 2, 1,024 spheres"),
+    "min_reduction": (73.99, "scenario 1, 2,048 spheres"),
+    "largest_scenario": 2, "smallest_scenario": 1,
+}
+
+
+def run(ctx: Context) -> str:
+    jobs = [(sc, n, mp) for sc in (1, 2, 3) for n in NS for mp in MAX_PRIMS]
+    mem: dict[tuple[int, int, int], int] = {}
+    scenes = {}
+    for sc, n, mp in ctx.bar(jobs, desc="Fig 4.5"):
+        s = scenes.setdefault((sc, n), scenario(sc, n, seed=0, radius=RADIUS))
+        mem[(sc, n, mp)] = int(build_for_spheres(s.sphere_centers, s.sphere_radii, mp).stats.bytes)
+
+    red = {(sc, n): 100.0 * (1 - mem[(sc, n, MAX_PRIMS[-1])] / mem[(sc, n, 1)]) for sc in (1, 2, 3) for n in NS}
+    rows = []
+    for sc in (1, 2, 3):
+        for n in NS:
+            rows.append([str(sc), f"{n:,}"] + [f"{mem[(sc, n, mp)]:,}" for mp in MAX_PRIMS] + [f"{red[(sc, n)]:.2f} %"])
+    table = md_table(["scenario", "n"] + [f"BIH {mp}" for mp in MAX_PRIMS] + ["BIH 16 saves vs BIH 1"], rows)
+
+    hi = max(mem, key=mem.get)
+    lo = min(mem, key=mem.get)
+    rmax = max(red, key=red.get)
+    rmin = min(red, key=red.get)
+    per_sc = {sc: sum(v for k, v in mem.items() if k[0] == sc) for sc in (1, 2, 3)}
+    comp = md_table(["", "thesis (Fig. 4.5)", "ours"], [
+        ["highest memory", f"{THESIS['highest'][1]} ({THESIS['highest'][0]})",
+         f"{mem[hi]:,} B = {mem[hi] / 1000:.1f} kB (BIH {hi[2]}, scenario {hi[0]}, {hi[1]:,} spheres)"],
+        ["lowest memory", f"{THESIS['lowest'][1]} ({THESIS['lowest'][0]})",
+         f"{mem[lo]:,} B = {mem[lo] / 1000:.2f} kB (BIH {lo[2]}, scenario {lo[0]}, {lo[1]:,} spheres)"],
+        ["largest saving of BIH 16 vs BIH 1", f"{THESIS['max_reduction'][0]} % ({THESIS['max_reduction'][1]})",
+         f"{red[rmax]:.2f} % (scenario {rmax[0]}, {rmax[1]:,} spheres)"],
+        ["smallest saving of BIH 16 vs BIH 1", f"{THESIS['min_reduction'][0]} % ({THESIS['min_reduction'][1]})",
+         f"{red[rmin]:.2f} % (scenario {rmin[0]}, {rmin[1]:,} spheres)"],
+        ["scenario using most / least memory overall",
+         f"{THESIS['largest_scenario']} / {THESIS['smallest_scenario']}",
+         f"{max(per_sc, key=per_sc.get)} / {min(per_sc, key=per_sc.get)}"],
+    ], "lll")
+
+    pyplot = plt()
+    fig, axes = pyplot.subplots(1, 3, figsize=(15, 4.4), sharey=True, layout="constrained")
+    import numpy as np
+    x = np.arange(len(NS))
+    wbar = 0.8 / len(MAX_PRIMS)
+    for j, sc in enumerate((1, 2, 3)):
+        ax = axes[j]
+        for i, mp in enumerate(MAX_PRIMS):
+            ax.bar(x + (i - (len(MAX_PRIMS) - 1) / 2) * wbar, [mem[(sc, n, mp)] / 1000 for n in NS], wbar,
+                   label=f"BIH {mp}")
+        ax.set_xticks(x, [f"{n:,}" for n in NS])
+        ax.set_title(f"scenario {sc}")
+        ax.set_xlabel("spheres n")
+        ax.grid(True, axis="y", alpha=0.3)
+    axes[0].set_ylabel("kB (nodes + indices + global AABB)")
+    axes[-1].legend()
+    fig.suptitle(f"Fig. 4.5 reproduced: BIH memory, radius {RADIUS:g}")
+    img = ctx.savefig(fig, "fig_4_5_memory", "BIH memory against n per MAX_PRIMS")
+    path = ctx.save_data(NAME, {"radius": RADIUS, "bytes": {f"{sc}/{n}/{mp}": v for (sc, n, mp), v in mem.items()}})
+
+    return f"""## {TITLE}
+
+Bytes of the BIH as the thesis counts them: nodes × 12 + primitives × 4 (index array) + 24
+(global AABB), spheres of radius {RADIUS:g}. A build is deterministic, so each point is one build.
+
+{img}
+
+{table}
+
+{ctx.caption(1, '')} (Memory does not depend on the machine.)
+
+**Thesis against ours:**
+
+{comp}
+
+{ctx.caption(1, '')} (Thesis column: as quoted.)
+
+Raw data: [`{path}`]({path}).
+"""

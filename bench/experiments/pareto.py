@@ -1,0 +1,357 @@
+"""Speed against accuracy: every knob that trades one for the other, with the Pareto front.
+
+Reference image: the float64 reference tracer at recursion depth 8 with 4 × 4
+supersampling (rendered at 4W × 4H, clamped, box-filtered), cached on disk. Knobs:
+
+- recursion depth 1 … 8;
+- rendering at ½ and ¼ of the resolution, upscaled bilinearly (the upscaling is timed);
+- samples per pixel 1 and 4 (``RenderSettings.samples_per_pixel``);
+- the weight cut-off ε (``RenderSettings.min_weight``): secondary rays whose path weight
+  is below ε are not traced.
+
+Time to image = wall time of the whole frame (build, upload, trace, read back, upscale),
+median of the runs with min–max spread. Error against the reference: PSNR, max absolute
+error, SSIM (scikit-image). Methods and BIH parameters do not change the image: they are
+rendered at one knob setting to show the same error at different times.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from renderer import reference as _reference_module
+from renderer.reference import render_reference
+from renderer.scenarios import scenario
+
+from .common import (Context, box_down, cached_array, default_settings, details, fmt_db, has_setting, log_axis,
+                     max_abs, md_table, method_names, plt, psnr, ssim, upscale)
+
+NAME = "pareto"
+TITLE = "Speed against accuracy — the Pareto front"
+
+N = 256
+N_QUICK = 16
+SIZE = (640, 1088)
+SIZE_QUICK = (64, 108)
+REF_DEPTH = 8
+REF_SS = 4
+SCALES = (1, 2, 4)                 # render at 1/s of the resolution, then upscale
+SPPS = (1, 4)
+EPSILONS = (0.003, 0.01, 0.03, 0.1, 0.3)
+# Recommendation rules (stated in the section). Quality = worst scenario, time = mean of the scenarios.
+# "interactive": the fastest setting at most this much worse than the baseline frame (the
+# service's previous default: depth 5, full resolution, 1 spp, no cut-off).
+BASELINE = dict(depth=5, scale=1, spp=1, eps=0.0)
+INTERACTIVE_MAX_PSNR_LOSS_DB = 1.0
+INTERACTIVE_MAX_SSIM_LOSS = 0.01
+# "still": the fastest setting within this of the best worst-scenario PSNR measured.
+STILL_WITHIN_DB = 0.5
+EXACT_AT = dict(depth=5, scale=1, spp=1, eps=0.0)   # where methods / MAX_PRIMS are compared
+EXACT_MAX_PRIMS = (1, 4, 8, 16)
+
+
+@dataclasses.dataclass(frozen=True)
+class Knobs:
+    depth: int
+    scale: int = 1
+    spp: int = 1
+    eps: float = 0.0
+
+    @property
+    def label(self) -> str:
+        parts = [f"depth {self.depth}"]
+        if self.scale != 1:
+            parts.append(f"1/{self.scale} res")
+        if self.spp != 1:
+            parts.append(f"{self.spp} spp")
+        if self.eps:
+            parts.append(f"ε {self.eps:g}")
+        return ", ".join(parts)
+
+    @property
+    def family(self) -> str:
+        if self.eps:
+            return "weight cut-off ε"
+        if self.scale != 1:
+            return f"1/{self.scale} resolution" + (f", {self.spp} spp" if self.spp != 1 else "")
+        if self.spp != 1:
+            return f"{self.spp} spp"
+        return "recursion depth"
+
+
+def knob_grid(quick: bool) -> list[Knobs]:
+    spps = SPPS if has_setting("samples_per_pixel") else (1,)
+    eps = EPSILONS if has_setting("min_weight") else ()
+    if quick:
+        depths_main, depths_other = (1, 2, BASELINE["depth"], 8), (1, 8)
+        eps = eps[-1:] if eps else ()
+        scales = (1, 2)
+    else:
+        depths_main, depths_other = tuple(range(1, 9)), (1, 2, 3, 5, 8)
+        scales = SCALES
+    grid = [Knobs(d) for d in depths_main]
+    for sc in scales:
+        for spp in spps:
+            if (sc, spp) != (1, 1):
+                grid += [Knobs(d, sc, spp) for d in depths_other]
+    for spp in spps:
+        grid += [Knobs(max(depths_main), 1, spp, e) for e in eps]
+    return list(dict.fromkeys(grid))
+
+
+def reference_image(sc: int, n: int, w: int, h: int) -> np.ndarray:
+    key = {"what": "pareto reference", "scenario": sc, "n": n, "seed": 0, "radius": 1.0, "w": w, "h": h,
+           "depth": REF_DEPTH, "ss": REF_SS}
+    src = [Path(_reference_module.__file__), Path(_reference_module.__file__).parent / "scenarios.py"]
+
+    def compute():
+        scene = scenario(sc, n, seed=0, radius=1.0)
+        st = default_settings().with_(width=w * REF_SS, height=h * REF_SS, mode="color",
+                                      max_recursion_depth=REF_DEPTH, method="bruteforce")
+        big = render_reference(scene, st).image
+        return {"image": box_down(big, REF_SS).astype(np.float32)}
+    return cached_array(key, compute, src)["image"]
+
+
+def to_u8(img: np.ndarray) -> np.ndarray:
+    """The service's 8-bit image of a float image (RenderResult.image_u8's rounding)."""
+    return np.floor(np.clip(img, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+
+
+def pareto_front(points: list[tuple[float, float]]) -> list[int]:
+    """Indices of the points no other point beats in both time (lower) and quality (higher)."""
+    order = sorted(range(len(points)), key=lambda i: (points[i][0], -points[i][1]))
+    front, best = [], -math.inf
+    for i in order:
+        if points[i][1] > best:
+            front.append(i)
+            best = points[i][1]
+    return front
+
+
+def run(ctx: Context) -> str:
+    n = N_QUICK if ctx.quick else N
+    w, h = SIZE_QUICK if ctx.quick else SIZE
+    grid = knob_grid(ctx.quick)
+    base = default_settings().with_(width=w, height=h, mode="color")
+    scs = (1, 2, 3)
+
+    refs = {}
+    for sc in ctx.bar(scs, desc="pareto: float64 references"):
+        refs[sc] = reference_image(sc, n, w, h)
+
+    def settings_for(k: Knobs, **over):
+        kw = dict(width=max(1, w // k.scale), height=max(1, h // k.scale), max_recursion_depth=k.depth)
+        if has_setting("samples_per_pixel"):
+            kw["samples_per_pixel"] = k.spp
+        if has_setting("min_weight"):
+            kw["min_weight"] = k.eps
+        kw.update(over)
+        return base.with_(**kw)
+
+    def post_for(k: Knobs):
+        if k.scale == 1:
+            return lambda res: res.image
+        return lambda res: upscale(res.image, w, h)
+
+    results: dict[tuple[int, Knobs], dict] = {}
+    jobs = [(sc, k) for sc in scs for k in grid]
+    for sc, k in ctx.bar(jobs, desc="pareto: knobs"):
+        scene = scenario(sc, n, seed=0, radius=1.0)
+        t = ctx.time_render(scene, settings_for(k), post=post_for(k), budget_s=None)
+        img = t.result
+        results[(sc, k)] = {"time": t.total, "psnr": psnr(refs[sc], img), "ssim": ssim(refs[sc], img),
+                            "max_abs": max_abs(refs[sc], img)}
+
+    # Methods and MAX_PRIMS at one knob setting: same image, different time.
+    ek = Knobs(**EXACT_AT)
+    exact_variants = []
+    for m in method_names(dispatchers=True):
+        if m == "bih":
+            exact_variants += [(f"bih, MAX_PRIMS {mp}", dict(method="bih", max_prims=mp)) for mp in EXACT_MAX_PRIMS]
+        else:
+            exact_variants.append((m, dict(method=m)))
+    exact: dict[tuple[int, str], dict] = {}
+    for sc in ctx.bar(scs, desc="pareto: methods"):
+        scene = scenario(sc, n, seed=0, radius=1.0)
+        first_img = None
+        for label, over in exact_variants:
+            if not ctx.within_budget(scene, settings_for(ek, **over), f"{label}, scenario {sc}"):
+                continue
+            t = ctx.time_render(scene, settings_for(ek, **over), post=post_for(ek), budget_s=None)
+            img = t.result
+            if first_img is None:
+                first_img = img
+            exact[(sc, label)] = {"time": t.total, "psnr": psnr(refs[sc], img), "ssim": ssim(refs[sc], img),
+                                  "max_abs": max_abs(refs[sc], img),
+                                  "max_diff_vs_first": float(np.max(np.abs(img.astype(np.float64) - first_img))),
+                                  "u8_identical": bool(np.array_equal(to_u8(img), to_u8(first_img)))}
+
+    # ---- recommendation over all scenarios: worst PSNR / SSIM, mean time
+    agg = {}
+    for k in grid:
+        agg[k] = {"time": float(np.mean([results[(sc, k)]["time"].median for sc in scs])),
+                  "psnr": min(results[(sc, k)]["psnr"] for sc in scs),
+                  "ssim": min(results[(sc, k)]["ssim"] for sc in scs)}
+    best_psnr = max(v["psnr"] for v in agg.values())
+    still_ok = [k for k in grid if agg[k]["psnr"] >= best_psnr - STILL_WITHIN_DB]
+    still = min(still_ok, key=lambda k: agg[k]["time"])
+    baseline = Knobs(**BASELINE)
+    b = agg[baseline]
+    inter_ok = [k for k in grid if agg[k]["psnr"] >= b["psnr"] - INTERACTIVE_MAX_PSNR_LOSS_DB
+                and agg[k]["ssim"] >= b["ssim"] - INTERACTIVE_MAX_SSIM_LOSS]  # the baseline itself qualifies
+    interactive = min(inter_ok, key=lambda k: agg[k]["time"])
+    inter_rule = (f"the fastest setting at most {INTERACTIVE_MAX_PSNR_LOSS_DB:g} dB PSNR and "
+                  f"{INTERACTIVE_MAX_SSIM_LOSS:g} SSIM below the baseline frame ({baseline.label}, full resolution, "
+                  f"1 spp: {b['time']:,.1f} ms, worst PSNR {fmt_db(b['psnr'])} dB, worst SSIM {b['ssim']:.4f})")
+
+    def as_settings(k: Knobs) -> dict:
+        d = {"max_recursion_depth": k.depth}
+        if has_setting("samples_per_pixel"):
+            d["samples_per_pixel"] = k.spp
+        if has_setting("min_weight"):
+            d["min_weight"] = k.eps
+        d["resolution_scale"] = f"1/{k.scale}" if k.scale != 1 else "1"
+        return d
+    recommended = {"interactive": as_settings(interactive), "still": as_settings(still)}
+    ctx.note(f"pareto: interactive = {json.dumps(recommended['interactive'])}; "
+             f"still = {json.dumps(recommended['still'])}")
+
+    # ---- chart
+    pyplot = plt()
+    fig, axes = pyplot.subplots(2, 3, figsize=(16, 9), sharex="col", layout="constrained")
+    families = list(dict.fromkeys(k.family for k in grid))
+    cmap = pyplot.get_cmap("tab10")
+    col = {f: cmap(i % 10) for i, f in enumerate(families)}
+    for j, sc in enumerate(scs):
+        for row, metric in enumerate(("psnr", "ssim")):
+            ax = axes[row, j]
+            pts = [(results[(sc, k)]["time"].median, results[(sc, k)][metric]) for k in grid]
+            finite = [(x, y if math.isfinite(y) else 100.0) for x, y in pts]
+            for fam in families:
+                idx = [i for i, k in enumerate(grid) if k.family == fam]
+                ax.scatter([finite[i][0] for i in idx], [finite[i][1] for i in idx], s=22, color=col[fam], label=fam)
+            front = pareto_front(finite)
+            fx = [finite[i][0] for i in front]
+            fy = [finite[i][1] for i in front]
+            ax.step(fx, fy, where="post", color="black", lw=1.2, alpha=0.7, label="Pareto front")
+            ax.scatter(fx, fy, s=70, facecolors="none", edgecolors="black")
+            # methods / MAX_PRIMS: same error, other times
+            labs = [lab for lab, _ in exact_variants if (sc, lab) in exact]
+            ex = [(exact[(sc, lab)]["time"].median, exact[(sc, lab)][metric]) for lab in labs]
+            ax.scatter([x for x, _ in ex], [y if math.isfinite(y) else 100.0 for _, y in ex], marker="*", s=90,
+                       color="crimson", zorder=5, label=f"methods / MAX_PRIMS at {ek.label}")
+            ax.plot([min(x for x, _ in ex), max(x for x, _ in ex)], [ex[0][1]] * 2, color="crimson", lw=0.8)
+            for lab, (x, y) in zip(labs, ex):
+                ax.annotate(lab.replace("bih, MAX_PRIMS ", "BIH "), (x, y), fontsize=6, rotation=30,
+                            xytext=(2, 4), textcoords="offset points", color="crimson")
+            for k, mk in ((interactive, "interactive"), (still, "still")):
+                ax.annotate(mk, (results[(sc, k)]["time"].median, results[(sc, k)][metric]), fontsize=8,
+                            xytext=(-10, -16), textcoords="offset points", weight="bold")
+            log_axis(ax, "x")
+            ax.grid(True, which="both", alpha=0.3)
+            if row == 0:
+                ax.set_title(f"scenario {sc}, n = {n}")
+            else:
+                ax.set_xlabel("time to image (ms, median)")
+            if j == 0:
+                ax.set_ylabel({"psnr": "PSNR vs reference (dB)", "ssim": "SSIM vs reference"}[metric])
+    axes[0, -1].legend(fontsize=7, loc="lower right")
+    fig.suptitle(f"Error against time, {w} × {h}; reference: float64, depth {REF_DEPTH}, "
+                 f"{REF_SS}×{REF_SS} supersampling")
+    img = ctx.savefig(fig, "pareto", "Error against time to image with the Pareto front, per scenario")
+
+    # ---- tables
+    front_rows = []
+    per_sc_fronts = {sc: {grid[i] for i in pareto_front([(results[(sc, k)]["time"].median,
+                                                          results[(sc, k)]["psnr"]) for k in grid])} for sc in scs}
+    agg_front = {grid[i] for i in pareto_front([(agg[k]["time"], agg[k]["psnr"]) for k in grid])}
+    for k in sorted(agg_front, key=lambda k: agg[k]["time"]):
+        mark = " **(interactive)**" if k == interactive else (" **(still)**" if k == still else "")
+        front_rows.append([k.label + mark, f"{agg[k]['time']:,.1f}", fmt_db(agg[k]["psnr"]), f"{agg[k]['ssim']:.4f}",
+                           ", ".join(str(sc) for sc in scs if k in per_sc_fronts[sc]) or "—"])
+    front_table = md_table(["setting", "mean time (ms)", "worst PSNR (dB)", "worst SSIM",
+                            "on the front of scenario"], front_rows, "lrrrl")
+    all_tables = []
+    for sc in scs:
+        rows = []
+        for k in sorted(grid, key=lambda k: results[(sc, k)]["time"].median):
+            r = results[(sc, k)]
+            rows.append([k.label + (" ◆" if k in per_sc_fronts[sc] else ""), r["time"].fmt(1), fmt_db(r["psnr"]),
+                         f"{r['max_abs']:.4f}", f"{r['ssim']:.4f}"])
+        all_tables.append(details(f"Scenario {sc}: all {len(grid)} settings (◆ = on this scenario's Pareto front)",
+                                  md_table(["setting", "time ms", "PSNR dB", "max abs err", "SSIM"], rows,
+                                           "lrrrr") + "\n\n" + ctx.caption()))
+    ex_rows = []
+    for sc in scs:
+        for lab, _ in exact_variants:
+            if (sc, lab) not in exact:
+                ex_rows.append([str(sc), lab, "not measured (see below)", "", "", "", "", ""])
+                continue
+            e = exact[(sc, lab)]
+            ex_rows.append([str(sc), lab, e["time"].fmt(1), fmt_db(e["psnr"]), f"{e['max_abs']:.4f}",
+                            f"{e['ssim']:.4f}", f"{e['max_diff_vs_first']:.2e}", "yes" if e["u8_identical"] else "**no**"])
+    ex_table = md_table(["scenario", "method", "time ms", "PSNR dB", "max abs err", "SSIM",
+                         f"max |Δ| vs {exact_variants[0][0]}", "same 8-bit image"], ex_rows, "rlrrrrrc")
+    by_sc = {sc: [v for (s2, _), v in exact.items() if s2 == sc] for sc in scs}
+    spread = max(max(v["psnr"] for v in by_sc[sc]) - min(v["psnr"] for v in by_sc[sc]) for sc in scs)
+    tspread = max(max(v["time"].median for v in by_sc[sc]) / min(v["time"].median for v in by_sc[sc]) for sc in scs)
+    same_image = all(v["max_diff_vs_first"] == 0.0 for v in exact.values())
+    same_u8 = all(v["u8_identical"] for v in exact.values())
+    skipped_md = ctx.skipped_md()
+
+    missing = [name for name in ("samples_per_pixel", "min_weight") if not has_setting(name)]
+    missing_txt = (f"\n\n**Not measured:** RenderSettings of this build has no {', '.join(f'`{m}`' for m in missing)}."
+                   if missing else "")
+    path = ctx.save_data(NAME, {
+        "size": [w, h], "n": n, "reference": {"depth": REF_DEPTH, "ss": REF_SS},
+        "results": {f"{sc}/{k.label}": {**v, "knobs": dataclasses.asdict(k)} for (sc, k), v in results.items()},
+        "exact": {f"{sc}/{lab}": v for (sc, lab), v in exact.items()},
+        "recommended": recommended})
+    return f"""## {TITLE}
+
+Thesis scenarios 1–3 with n = {n} spheres of radius 1 at {w} × {h}, colour. Reference: the float64
+reference tracer at recursion depth {REF_DEPTH} with {REF_SS} × {REF_SS} supersampling (box filter). Every
+setting is a combination of the knobs: recursion depth; ½ or ¼ resolution upscaled bilinearly (upscale
+timed); samples per pixel; the weight cut-off ε (`min_weight`). Other settings at the defaults
+(method `{base.method}`, `MAX_PRIMS` {base.max_prims}). Time to image = whole frame, wall clock.{missing_txt}
+
+{img}
+
+**Pareto front over the three scenarios** (mean time, worst-scenario PSNR / SSIM):
+
+{front_table}
+
+{ctx.caption()}
+
+**Recommended defaults** (from the table above; the rules are fixed in `bench/experiments/pareto.py`):
+
+- *interactive*: **{interactive.label}** — {inter_rule}: {agg[interactive]['time']:,.1f} ms mean,
+  worst PSNR {fmt_db(agg[interactive]['psnr'])} dB, worst SSIM {agg[interactive]['ssim']:.4f}.
+- *still*: **{still.label}** — the fastest setting within {STILL_WITHIN_DB:g} dB of the best worst-scenario
+  PSNR measured ({fmt_db(best_psnr)} dB): {agg[still]['time']:,.1f} ms mean, worst PSNR
+  {fmt_db(agg[still]['psnr'])} dB, worst SSIM {agg[still]['ssim']:.4f}.
+
+```json
+{json.dumps(recommended, indent=2)}
+```
+
+**Exact knobs land on the same error.** Methods and `MAX_PRIMS` at {ek.label} (red stars on the chart):
+the PSNR differs by at most {spread:.2e} dB between them in any scenario while the time differs up to
+{tspread:.2f}×; the float images are {'bit-identical' if same_image else 'not all bit-identical'}, the 8-bit
+images {'identical' if same_u8 else 'NOT all identical'} (last two columns).
+
+{ex_table}
+
+{ctx.caption()}
+
+{skipped_md}
+
+{chr(10).join(t + chr(10) for t in all_tables)}
+Raw data: [`{path}`]({path}).
+"""

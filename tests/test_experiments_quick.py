@@ -1,0 +1,89 @@
+"""Smoke test of the experiments: ``bench/experiments.py --quick`` writes RESULTS.md and its charts.
+
+The quick mode renders tiny images with few sizes and one run, so its numbers mean
+nothing; what is tested is that every experiment runs and writes its section, tables
+(with the machine, GL renderer and runs under them) and charts. Needs OpenGL (fails
+without it, like every GL test).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+SECTIONS = {  # experiment name → heading start
+    "table_4_2": "## Table 4.2",
+    "fig_4_4": "## Fig. 4.4",
+    "fig_4_5": "## Fig. 4.5",
+    "scaling": "## Scaling",
+    "crossover": "## Crossover",
+    "peers": "## Peers",
+    "pareto": "## Speed against accuracy",
+    "specialize": "## Model no more than the scene needs",
+}
+FIGURES = ("table_4_2_leaves", "fig_4_4_fps", "fig_4_5_memory", "scaling_loglog", "crossover", "pareto")
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("experiments")
+    env = dict(os.environ, POCKETRAY_BENCH_CACHE=str(out / "cache"))
+    proc = subprocess.run([sys.executable, str(ROOT / "bench" / "experiments.py"), "--quick", "--out", str(out),
+                           "--no-progress"], cwd=ROOT, env=env, capture_output=True, text=True, timeout=240)
+    return out, proc
+
+
+def test_quick_run_succeeds(quick_run):
+    out, proc = quick_run
+    assert proc.returncode == 0, f"stdout:\n{proc.stdout[-4000:]}\nstderr:\n{proc.stderr[-4000:]}"
+    assert "values measured for the code" in proc.stdout
+    assert "AUTO_CROSSOVER_N = " in proc.stdout
+
+
+def test_results_markdown_has_every_section(quick_run):
+    out, _ = quick_run
+    md = (out / "RESULTS.md").read_text()
+    assert "Quick smoke run" in md
+    for name, heading in SECTIONS.items():
+        assert f"<!-- BEGIN {name} -->" in md and f"<!-- END {name} -->" in md, name
+        section = md.split(f"<!-- BEGIN {name} -->")[1].split(f"<!-- END {name} -->")[0]
+        assert section.strip().startswith(heading), (name, section[:200])
+        assert "This experiment failed" not in section, section
+    assert "| OpenGL renderer |" in md and "| machine |" in md
+
+
+def test_every_table_states_machine_gl_and_runs(quick_run):
+    out, _ = quick_run
+    md = (out / "RESULTS.md").read_text()
+    for name in SECTIONS:
+        section = md.split(f"<!-- BEGIN {name} -->")[1].split(f"<!-- END {name} -->")[0]
+        if name == "peers" and "peers not installed" in section:
+            continue  # optional dependency group: the section says how to install it
+        tables = len(re.findall(r"^\|[-:|]+\|$", section, re.M))
+        captions = len(re.findall(r"^\*Machine: .+ GL: .+ Runs: .+\*", section, re.M))
+        assert tables >= 1, name
+        assert captions >= tables, f"{name}: {tables} tables but {captions} machine/GL/runs captions"
+
+
+def test_charts_written(quick_run):
+    out, _ = quick_run
+    md = (out / "RESULTS.md").read_text()
+    for name in FIGURES:
+        png = out / "figures" / f"{name}.png"
+        assert png.exists(), png
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", png
+        assert f"(figures/{name}.png)" in md, name
+    for data in ("table_4_2", "fig_4_4", "fig_4_5", "scaling", "crossover", "pareto", "specialize"):
+        assert (out / "figures" / f"{data}.json").exists(), data
+
+
+def test_table_4_2_scenario_1_matches_the_thesis(quick_run):
+    out, _ = quick_run
+    md = (out / "RESULTS.md").read_text()
+    assert "MAX_PRIMS 1: identical" in md and "MAX_PRIMS 8: identical" in md
