@@ -64,7 +64,9 @@ class BoundingIntervalHierarchy:
                               {"method": self.name, **bih.stats.to_json()})
 
 
-METHODS: dict[str, AccelerationMethod] = {m.name: m for m in (BoundingIntervalHierarchy(), BruteForce())}
+from .ray_engine import HierarchicalRayEngine, RayEngine  # noqa: E402  (multi-pass methods, issue #8)
+METHODS: dict[str, AccelerationMethod] = {m.name: m for m in (BoundingIntervalHierarchy(), BruteForce(), RayEngine(),
+                                                               HierarchicalRayEngine())}
 
 AUTO_METHOD = "auto"
 # Below this many spheres brute force traces a frame faster than the BIH

@@ -11,7 +11,7 @@ from .methods import AUTO_METHOD, METHODS as _METHOD_REGISTRY
 
 # "auto" picks brute force below the measured crossover n, BIH above it.
 METHODS = (*_METHOD_REGISTRY, AUTO_METHOD)
-MODES = ("color", "depth", "primid", "normal", "recursion", "heat")
+MODES = ("color", "depth", "primid", "normal", "recursion", "heat", "cones")
 FORMATS = ("png", "jpeg", "npy")
 
 # The GPU traversal stack holds one entry per tree level; a tree deeper than

@@ -1,0 +1,901 @@
+"""Multi-pass ray tracing: the ray engine and the hierarchical ray engine (issue #8).
+
+Both are methods of :mod:`renderer.methods` (``rayengine``, ``hre``) that draw the
+frame themselves (``render_frame``): rays live in float textures, primitives are drawn
+over them, and the Whitted shading of ``docs/SHADING.md`` runs as full-screen passes.
+
+**Ray engine** (Carr et al. 2002, as Szécsi §2.1 restates it). A *layer* is one set of
+rays, one per pixel, in two RGBA32F textures the size of the render target: origin and
+exclusion code, direction and path weight (weight 0 = no live ray). To intersect a
+layer, every primitive is drawn once over the whole target (an instanced full-screen
+quad, instance = primitive id: spheres, then planes). Its fragment shader intersects the
+pixel's ray with that primitive and writes ``depth_of(t)`` — the bits of ``t`` with the
+exponent shifted, exact and monotonic — into a 32-bit float depth buffer
+(``DEPTH32F_STENCIL8``), and ``(t, id)`` into an RG target; the depth test "less" keeps
+the nearest hit, and because instances are drawn in id order, exactly equal ``t`` keep
+the lower id. No tree, no CPU work per ray.
+
+**Hierarchical ray engine** (Szécsi 2006, §3–§5). The target is split into tiles of
+``tile_size``² rays (16 by default; the target is padded to whole tiles, padding texels
+hold no ray). Per layer, a shader pass builds one enclosing cone per tile with the
+incremental algorithm of §4 (``shaders/rayengine_cones.frag``, mirrored in NumPy in
+:mod:`renderer.hre_cones`), certified conservative in float32; the small cone texture is
+read back and becomes a vertex buffer of the tiles that hold live rays. Each primitive
+is then drawn as one point of the tile's size per tile (instanced: instance = primitive),
+and the vertex shader moves the point out of view when the primitive's enclosing sphere
+cannot meet the tile's cone (the inequality at the end of §4, with margins: when in
+doubt, draw). Planes have no enclosing sphere and are drawn over every live tile.
+
+**Generations and layers.** A generation is one recursion level. Whitted rays branch
+(reflected and transmitted), so a generation is held as *layers*, one per branch path:
+the shading pass of a layer writes its reflected rays into one new layer and its
+transmitted rays into another. Layers are traced depth first from a stack (at most
+``depth + 1`` alive, the memory of a ``W×H`` ray pair each), the transmitted child
+first. Per layer: a mask pass, (hre: the cones), the nearest-hit pass, a surface pass
+(hit point, normal), per light a shadow generation (any hit, the rays from the surfaces
+to the light; hre: their own cones), and the shading pass, which adds the weighted local
+colour into the frame (additive blending) and spawns the children. Layers without a live
+ray are skipped (an occlusion query on the mask pass counts them).
+
+**Stencil (§5).** One stencil bit per generation: the mask pass of a generation-``g``
+layer sets bit ``g − 1`` where the layer holds a live ray (a ray spawned by a hit of the
+parent layer: terminated paths — misses, materials without ``kr``/``kt``, the last
+level — never get it), and every later pass of that layer tests it. 8 stencil bits cover
+``MAX_RECURSION_DEPTH_LIMIT`` = 8 generations; with fewer bits (``stencil_bits``), the
+generations beyond run without stencil exclusion, as §5 allows ("further iterations are
+possible without excluding further terminated paths"); the shaders' own test of the
+weight keeps the image exact either way, and ``stats["stencil_fallback_levels"]`` says it.
+
+**Modes.** ``color`` and ``recursion`` trace the ray tree (``recursion`` without lights
+or shadows, reading each layer's hits back); ``depth``, ``primid``, ``normal`` the
+primary layer only. ``heat``: red = 0.05 × spheres drawn over the pixel for its primary
+ray (every sphere for ``rayengine``; the spheres whose cone test passed for the pixel's
+tile for ``hre``), green and blue 0 (there are no nodes or gaps). ``cones`` (``hre``
+only; :class:`SceneError` for ``rayengine``): the cone of each tile of the first layer
+of generation ``max_recursion_depth`` in tracing order (the transmitted-first path, the
+paper's refraction path), grey ``1 − φ/(π/2)`` (brighter = narrower, Szécsi's Fig. 4),
+black where the tile holds no live ray, dark red where no useful cone exists.
+
+**Timings** (ms): ``build`` = the cone passes, their read-back and the tile buffers
+(0 for ``rayengine``), ``upload`` = scene textures and ray targets, ``trace`` = every
+other pass, ``read`` = reading the frame back, ``total``.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import moderngl
+import numpy as np
+
+from . import gpu_layout, hre_cones
+from .features import GENERIC, scene_features
+from .result import RenderResult
+from .scene import Scene, SceneError
+
+if TYPE_CHECKING:  # settings imports methods, which imports this module
+    from .settings import RenderSettings
+
+SHADER_DIR = Path(__file__).resolve().parent.parent / "shaders"
+DEFAULT_TILE_SIZE = 16
+MAX_TILE_SIZE = 64          # point sprites of this size; llvmpipe allows 255, GLES guarantees 1 (checked)
+MIN_TILE_SIZE = 2
+COUNT_LIMIT = 1 << 20       # (tile, sphere) pairs per pass up to which hre's stats mirror its culling
+
+# --------------------------------------------------------------------------- raw GL
+
+GL_FRAMEBUFFER = 0x8D40
+GL_RENDERBUFFER = 0x8D41
+GL_DEPTH_STENCIL_ATTACHMENT = 0x821A
+GL_STENCIL_ATTACHMENT = 0x8D20
+GL_DEPTH32F_STENCIL8 = 0x8CAD
+GL_FRAMEBUFFER_COMPLETE = 0x8CD5
+GL_FRAMEBUFFER_ATTACHMENT_STENCIL_SIZE = 0x8217
+GL_STENCIL_TEST = 0x0B90
+GL_STENCIL_BUFFER_BIT = 0x0400
+GL_DEPTH_BUFFER_BIT = 0x0100
+GL_ALWAYS, GL_EQUAL = 0x0207, 0x0202
+GL_KEEP, GL_REPLACE = 0x1E00, 0x1E01
+GL_ALIASED_POINT_SIZE_RANGE = 0x846E
+
+
+class _RawGL:
+    """The few GL calls moderngl does not wrap: stencil state and a depth-stencil renderbuffer.
+
+    They act on the context current in this thread (the renderer's); moderngl does not
+    cache any of this state.
+    """
+
+    def __init__(self) -> None:
+        lib = None
+        for name in ("libOpenGL.so.0", "libGL.so.1", "libGL.so"):
+            try:
+                lib = ctypes.CDLL(name)
+                break
+            except OSError:
+                continue
+        if lib is None:  # pragma: no cover - depends on the machine
+            raise RuntimeError("cannot load libOpenGL / libGL for stencil state")
+        self.lib = lib
+        u, i = ctypes.c_uint, ctypes.c_int
+        sig = {
+            "glEnable": [u], "glDisable": [u], "glStencilFunc": [u, i, u], "glStencilOp": [u, u, u],
+            "glStencilMask": [u], "glClearStencil": [i], "glClear": [u], "glClearDepth": [ctypes.c_double],
+            "glGenRenderbuffers": [i, ctypes.POINTER(u)], "glDeleteRenderbuffers": [i, ctypes.POINTER(u)],
+            "glBindRenderbuffer": [u, u], "glRenderbufferStorage": [u, u, i, i],
+            "glBindFramebuffer": [u, u], "glFramebufferRenderbuffer": [u, u, u, u],
+            "glCheckFramebufferStatus": [u], "glGetIntegerv": [u, ctypes.POINTER(i)],
+            "glGetFramebufferAttachmentParameteriv": [u, u, u, ctypes.POINTER(i)],
+            "glDepthMask": [ctypes.c_ubyte],
+        }
+        for name, args in sig.items():
+            fn = getattr(lib, name)
+            fn.argtypes = args
+            fn.restype = u if name == "glCheckFramebufferStatus" else None
+            setattr(self, name, fn)
+
+    def renderbuffer(self, width: int, height: int) -> int:
+        rb = ctypes.c_uint(0)
+        self.glGenRenderbuffers(1, ctypes.byref(rb))
+        self.glBindRenderbuffer(GL_RENDERBUFFER, rb.value)
+        self.glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH32F_STENCIL8, width, height)
+        return rb.value
+
+    def delete_renderbuffer(self, rb: int) -> None:
+        r = ctypes.c_uint(rb)
+        self.glDeleteRenderbuffers(1, ctypes.byref(r))
+
+    def attach(self, fbo: moderngl.Framebuffer, rb: int) -> None:
+        self.glBindFramebuffer(GL_FRAMEBUFFER, fbo.glo)
+        self.glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER, rb)
+        status = self.glCheckFramebufferStatus(GL_FRAMEBUFFER)
+        if status != GL_FRAMEBUFFER_COMPLETE:
+            raise RuntimeError(f"ray-engine framebuffer incomplete (0x{status:x})")
+
+    def stencil_bits(self, fbo: moderngl.Framebuffer) -> int:
+        v = ctypes.c_int(0)
+        self.glBindFramebuffer(GL_FRAMEBUFFER, fbo.glo)
+        self.glGetFramebufferAttachmentParameteriv(GL_FRAMEBUFFER, GL_STENCIL_ATTACHMENT,
+                                                   GL_FRAMEBUFFER_ATTACHMENT_STENCIL_SIZE, ctypes.byref(v))
+        return int(v.value)
+
+    def point_size_max(self) -> float:
+        v = (ctypes.c_float * 2)()
+        self.lib.glGetFloatv.argtypes = [ctypes.c_uint, ctypes.POINTER(ctypes.c_float)]
+        self.lib.glGetFloatv(GL_ALIASED_POINT_SIZE_RANGE, v)
+        return float(v[1])
+
+    # stencil states --------------------------------------------------------------
+    def stencil_off(self) -> None:
+        self.glDisable(GL_STENCIL_TEST)
+        self.glStencilMask(0xFF)
+
+    def stencil_test(self, bit: int) -> None:
+        """Pass where ``bit`` is set; write nothing. ``bit`` 0: no test."""
+        if not bit:
+            self.stencil_off()
+            return
+        self.glEnable(GL_STENCIL_TEST)
+        self.glStencilFunc(GL_EQUAL, bit, bit)
+        self.glStencilOp(GL_KEEP, GL_KEEP, GL_KEEP)
+        self.glStencilMask(0)
+
+    def stencil_mark(self, bit: int) -> None:
+        """Clear ``bit`` everywhere (the bound framebuffer), then set it where fragments pass."""
+        self.glEnable(GL_STENCIL_TEST)
+        self.glStencilMask(bit)
+        self.glClearStencil(0)
+        self.glClear(GL_STENCIL_BUFFER_BIT)
+        self.glStencilFunc(GL_ALWAYS, 0xFF, 0xFF)
+        self.glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE)
+
+    def clear_depth(self) -> None:
+        self.glDepthMask(1)
+        self.glClearDepth(1.0)
+        self.glClear(GL_DEPTH_BUFFER_BIT)
+
+
+_RAW: _RawGL | None = None
+
+
+def raw_gl() -> _RawGL:
+    global _RAW
+    if _RAW is None:
+        _RAW = _RawGL()
+    return _RAW
+
+
+# ------------------------------------------------------------------------ programs
+
+def shader_source(name: str, defines: tuple[str, ...] = ()) -> str:
+    """``#version``, the shared layout header, the defines, the common part, then ``name``."""
+    return ("#version 300 es\n" + gpu_layout.glsl_header() + "".join(f"#define {d}\n" for d in defines)
+            + (SHADER_DIR / "rayengine_common.glsl").read_text() + (SHADER_DIR / name).read_text())
+
+
+FULLSCREEN = np.array([-1, -1, 1, -1, 1, 1, -1, -1, 1, 1, -1, 1], dtype=np.float32)
+
+
+class _Programs:
+    """Compiled programs of one context, by (vertex, fragment, defines)."""
+
+    def __init__(self, ctx: moderngl.Context):
+        self.ctx = ctx
+        self.progs: dict[tuple, moderngl.Program] = {}
+        self.quad = ctx.buffer(FULLSCREEN.tobytes())
+        self.quad_vaos: dict[tuple, moderngl.VertexArray] = {}
+
+    def get(self, vert: str, frag: str, defines: tuple[str, ...]) -> moderngl.Program:
+        key = (vert, frag, defines)
+        if key not in self.progs:
+            vs = (SHADER_DIR / vert).read_text() if vert == "fullscreen.vert" else shader_source(vert, defines)
+            self.progs[key] = self.ctx.program(vertex_shader=vs, fragment_shader=shader_source(frag, defines))
+        return self.progs[key]
+
+    def fullscreen(self, frag: str, defines: tuple[str, ...]) -> tuple[moderngl.Program, moderngl.VertexArray]:
+        key = (frag, defines)
+        prog = self.get("fullscreen.vert", frag, defines)
+        if key not in self.quad_vaos:
+            self.quad_vaos[key] = self.ctx.vertex_array(prog, [(self.quad, "2f", "a_position")])
+        return prog, self.quad_vaos[key]
+
+
+_PROGRAMS: dict[int, _Programs] = {}
+
+
+def programs(ctx: moderngl.Context) -> _Programs:
+    key = id(ctx)
+    if key not in _PROGRAMS or _PROGRAMS[key].ctx is not ctx:
+        _PROGRAMS[key] = _Programs(ctx)
+    return _PROGRAMS[key]
+
+
+# ------------------------------------------------------------------------ targets
+
+class _Targets:
+    """The frame's textures on one padded size: shared depth-stencil, hit, surface,
+    blocked, colour targets, and a pool of ray layers."""
+
+    def __init__(self, ctx: moderngl.Context, width: int, height: int):
+        self.ctx, self.size = ctx, (width, height)
+        self.gl = raw_gl()
+        self.rb = self.gl.renderbuffer(width, height)
+        tex = lambda: self._tex(width, height)  # noqa: E731
+        self.hit, self.surf0, self.surf1, self.blocked0, self.blocked1, self.colour = (tex() for _ in range(6))
+        self.fbo_hit = self._fbo([self.hit], depth=True)
+        self.fbo_surf = self._fbo([self.surf0, self.surf1])
+        self.fbo_blocked = [self._fbo([self.blocked0]), self._fbo([self.blocked1])]
+        self.stencil_bits = self.gl.stencil_bits(self.fbo_hit)
+        self.pool: list[tuple[moderngl.Texture, moderngl.Texture]] = []
+        self.all_layers: list[tuple[moderngl.Texture, moderngl.Texture]] = []
+        self.fbos: list[moderngl.Framebuffer] = [self.fbo_hit, self.fbo_surf, *self.fbo_blocked]
+        self.shade_fbos: dict[tuple[int, ...], moderngl.Framebuffer] = {}
+        self.layer_fbos: dict[int, moderngl.Framebuffer] = {}
+
+    def _tex(self, w: int, h: int) -> moderngl.Texture:
+        t = self.ctx.texture((w, h), 4, dtype="f4")
+        t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        return t
+
+    def _fbo(self, colour: list, depth: bool = False) -> moderngl.Framebuffer:
+        fbo = self.ctx.framebuffer(color_attachments=colour)
+        self.gl.attach(fbo, self.rb)
+        fbo.depth_mask = depth
+        return fbo
+
+    def layer(self) -> tuple[moderngl.Texture, moderngl.Texture]:
+        if self.pool:
+            return self.pool.pop()
+        pair = (self._tex(*self.size), self._tex(*self.size))
+        self.all_layers.append(pair)
+        return pair
+
+    def release(self, pair) -> None:
+        self.pool.append(pair)
+
+    def layer_fbo(self, pair) -> moderngl.Framebuffer:
+        """Framebuffer writing a layer (primary rays; clearing)."""
+        key = pair[0].glo
+        if key not in self.layer_fbos:
+            self.layer_fbos[key] = self._fbo(list(pair))
+        return self.layer_fbos[key]
+
+    def shade_fbo(self, refl, trans) -> moderngl.Framebuffer:
+        key = (refl[0].glo, trans[0].glo)
+        if key not in self.shade_fbos:
+            self.shade_fbos[key] = self._fbo([self.colour, refl[0], refl[1], trans[0], trans[1]])
+        return self.shade_fbos[key]
+
+    def release_all(self) -> None:
+        for f in [*self.fbos, *self.shade_fbos.values(), *self.layer_fbos.values()]:
+            f.release()
+        for t in (self.hit, self.surf0, self.surf1, self.blocked0, self.blocked1, self.colour):
+            t.release()
+        for a, b in self.all_layers:
+            a.release()
+            b.release()
+        self.gl.delete_renderbuffer(self.rb)
+
+
+_TARGETS: dict[int, _Targets] = {}
+
+
+def targets(ctx: moderngl.Context, width: int, height: int) -> _Targets:
+    """One cached set per context (the last size); a new size releases the old set."""
+    key = id(ctx)
+    cur = _TARGETS.get(key)
+    if cur is not None and cur.ctx is ctx and cur.size == (width, height):
+        return cur
+    if cur is not None and cur.ctx is ctx:
+        cur.release_all()
+    _TARGETS[key] = _Targets(ctx, width, height)
+    return _TARGETS[key]
+
+
+# --------------------------------------------------------------------------- frame
+
+@dataclass
+class _Layer:
+    rays: tuple[moderngl.Texture, moderngl.Texture]
+    level: int
+    branch: str     # path of branches from the primary layer, e.g. "TTR"
+
+
+@dataclass
+class FrameLog:
+    """What a frame did (``stats``), and per layer what the tests inspect when ``keep`` is set."""
+    layers: int = 0
+    layers_skipped: int = 0
+    passes: int = 0
+    tiles_drawn: int = 0            # (tile, primitive) pairs drawn, hre
+    tiles_total: int = 0            # (tile, primitive) pairs a full draw would have
+    stencil_fallback_levels: int = 0
+    uncounted_passes: int = 0       # hre passes too large for the cull statistics
+    keep: bool = False
+    records: list[dict] = field(default_factory=list)
+
+
+class RayEngine:
+    """Carr et al.'s ray engine: every primitive drawn over every ray (see the module doc)."""
+    name = "rayengine"
+    hierarchical = False
+    stencil_bits = 8        # bits used, one per generation (§5); fewer: fallback beyond them
+
+    # -- the method interface ------------------------------------------------------
+    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
+                max_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH):
+        """No structure to build: the ray engines need no tree (minimal data for the interface)."""
+        from .methods import PreparedMethod
+        return PreparedMethod(gpu_layout.PackedScene({}), 0.0,
+                              {"method": self.name, "primitives": scene.n_primitives, "multi_pass": True})
+
+    def check(self, settings: "RenderSettings") -> None:
+        if settings.mode == "cones" and not self.hierarchical:
+            raise SceneError("mode", "mode 'cones' shows the hierarchical ray engine's cones: use method 'hre'")
+
+    def tile(self, settings=None) -> int:
+        return 1
+
+    def render_frame(self, renderer, scene: Scene, settings: "RenderSettings", *,
+                     log: FrameLog | None = None) -> RenderResult:
+        """Trace one frame (``GLRenderer.render`` hands it here)."""
+        self.check(settings)
+        t_start = time.perf_counter()
+        ctx: moderngl.Context = renderer.ctx
+        log = log if log is not None else FrameLog()
+        ts = self.tile(settings)
+        k = settings.supersampling
+        w, h = settings.width * k, settings.height * k
+        wp, hp = -(-w // ts) * ts, -(-h // ts) * ts
+        features = scene_features(scene) if settings.specialize else GENERIC
+        mode = settings.mode
+        whitted = mode in ("color", "recursion", "cones")
+        max_level = features.recursion_depth(settings.max_recursion_depth) if whitted else 1
+        if mode == "cones":
+            max_level = settings.max_recursion_depth
+        gl = raw_gl()
+        tg = targets(ctx, wp, hp)
+        progs = programs(ctx)
+        frame = _FrameRun(self, ctx, gl, tg, progs, scene, settings, (w, h), ts, max_level, log)
+        textures: list[moderngl.Texture] = []
+        try:
+            frame.upload(renderer.max_texture_width, textures)
+            t_up = time.perf_counter()
+            frame.run()
+            t_traced = time.perf_counter()
+            out = frame.read_back()
+        finally:
+            for t in [*textures, *frame.buffers]:
+                t.release()
+            ctx.enable_only(moderngl.NOTHING)
+            gl.stencil_off()
+            ctx.blend_func = moderngl.DEFAULT_BLENDING
+        t_end = time.perf_counter()
+        colour, primid, depth_t, normal, image = out
+        if k > 1:
+            colour = colour.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
+            image = image.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
+            primid, depth_t, normal = (a[k // 2::k, k // 2::k] for a in (primid, depth_t, normal))
+        if mode == "color":
+            image = colour
+        ms = lambda a, b: (b - a) * 1e3  # noqa: E731
+        timings = {"build": frame.build_ms, "upload": ms(t_start, t_up),
+                   "trace": ms(t_up, t_traced) - frame.build_ms - frame.stats_ms, "read": ms(t_traced, t_end),
+                   "total": ms(t_start, t_end) - frame.stats_ms}
+        if self.hierarchical:
+            timings["stats"] = frame.stats_ms
+        stats = {"method": self.name, "recursion_depth": max_level, "features_removed": list(features.defines()),
+                 "primitives": scene.n_primitives, "layers": log.layers, "layers_skipped": log.layers_skipped,
+                 "passes": log.passes, "stencil_bits": min(self.stencil_bits, tg.stencil_bits),
+                 "stencil_fallback_levels": log.stencil_fallback_levels}
+        if self.hierarchical:
+            stats.update({"tile_size": ts, "tile_prims_drawn": log.tiles_drawn, "tile_prims_total": log.tiles_total,
+                          "cull_fraction": 1.0 - log.tiles_drawn / log.tiles_total if log.tiles_total else 0.0,
+                          "cull_uncounted_passes": log.uncounted_passes})
+        return RenderResult(image=np.ascontiguousarray(image, dtype=np.float32), depth=depth_t, primid=primid,
+                            normal=np.ascontiguousarray(normal, dtype=np.float32), mode=mode,
+                            timings=timings, stats=stats)
+
+
+class HierarchicalRayEngine(RayEngine):
+    """Szécsi's hierarchical ray engine: tiles of rays, one cone each, culled in the vertex shader."""
+    name = "hre"
+    hierarchical = True
+    tile_size = DEFAULT_TILE_SIZE
+
+    def tile(self, settings=None) -> int:
+        """The tile side: ``settings.tile_size`` when RenderSettings has that knob, else this instance's."""
+        ts = getattr(settings, "tile_size", None)
+        ts = self.tile_size if ts is None else ts
+        if isinstance(ts, bool) or not isinstance(ts, (int, np.integer)):
+            raise SceneError("tile_size", f"expected an integer, got {ts!r}")
+        if not MIN_TILE_SIZE <= ts <= MAX_TILE_SIZE:
+            raise SceneError("tile_size", f"must be in {MIN_TILE_SIZE} … {MAX_TILE_SIZE} (a point sprite's "
+                                          f"side), got {ts}; images that it does not divide are padded")
+        return int(ts)
+
+
+# ------------------------------------------------------------------------- one run
+
+class _FrameRun:
+    """The passes of one frame."""
+
+    def __init__(self, method: RayEngine, ctx, gl: _RawGL, tg: _Targets, progs: _Programs, scene: Scene,
+                 settings, size: tuple[int, int], ts: int, max_level: int, log: FrameLog):
+        self.m, self.ctx, self.gl, self.tg, self.progs = method, ctx, gl, tg, progs
+        self.scene, self.settings, self.size, self.ts, self.max_level, self.log = \
+            scene, settings, size, ts, max_level, log
+        self.hre = method.hierarchical
+        self.mode = settings.mode
+        self.n_prims = scene.n_primitives
+        self.bits = min(method.stencil_bits, tg.stencil_bits, 8)
+        self.build_ms = 0.0
+        self.stats_ms = 0.0
+        self.uniforms: dict[str, Any] = {}
+        self.units: dict[str, int] = {}
+        self.primary: dict[str, np.ndarray] = {}
+        self.deepest = np.zeros((tg.size[1], tg.size[0]), np.int32) if self.mode == "recursion" else None
+        self.cone_image: np.ndarray | None = None
+        self.buffers: list[moderngl.Buffer] = []
+        self.heat: np.ndarray | None = None
+        if self.hre:
+            wp, hp = tg.size
+            self.tiles_xy = (wp // ts, hp // ts)
+            self.cone_targets = [ctx.texture(self.tiles_xy, 4, dtype="f4") for _ in range(2)]
+            self.cone_fbo = ctx.framebuffer(color_attachments=self.cone_targets)
+            self.buffers.extend([self.cone_fbo, *self.cone_targets])
+            if ts > gl.point_size_max():
+                raise SceneError("tile_size", f"tile size {ts} exceeds this GPU's largest point ({gl.point_size_max():g})")
+
+    # -- setup ----------------------------------------------------------------------
+    def upload(self, max_width: int, textures: list) -> None:
+        packed = gpu_layout.pack_primitives(self.scene, max_width)
+        for name, tex in packed.textures.items():
+            t = self.ctx.texture(tex.size, tex.components, tex.data.tobytes(), dtype=tex.dtype)
+            t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            unit = len(textures)
+            t.use(unit)
+            textures.append(t)
+            self.units[name] = unit
+        self.uniforms.update(packed.uniforms)
+        cam = self.scene.camera
+        right, up, forward = cam.basis()
+        s = math.tan(math.radians(cam.fov_y) / 2.0)
+        w, h = self.size
+        self.uniforms.update({
+            "u_cam_pos": tuple(cam.position), "u_cam_right": tuple(right), "u_cam_up": tuple(up),
+            "u_cam_forward": tuple(forward), "u_half_extent": (s * w / h, s), "u_resolution": (float(w), float(h)),
+            "u_max_level": self.max_level, "u_min_weight": float(self.settings.min_weight),
+            "u_shade": 1 if self.mode == "color" else 0, "u_tile_size": float(self.ts),
+            "u_target": (float(self.tg.size[0]), float(self.tg.size[1])),
+        })
+        self.n_units = len(textures)
+
+    def _bind(self, prog: moderngl.Program, samplers: dict[str, moderngl.Texture], **uniforms) -> None:
+        for name, unit in self.units.items():
+            if name in prog:
+                prog[name].value = unit
+        for i, (name, tex) in enumerate(samplers.items()):
+            unit = self.n_units + i
+            tex.use(unit)
+            if name in prog:
+                prog[name].value = unit
+        for name, value in {**self.uniforms, **uniforms}.items():
+            if name in prog:
+                prog[name].value = value
+
+    def _stencil_bit(self, level: int) -> int:
+        if level > self.bits:
+            return 0
+        return 1 << (level - 1)
+
+    # -- passes ----------------------------------------------------------------------
+    def _fullscreen(self, fbo, frag_define: str, samplers: dict, **uniforms):
+        prog, vao = self.progs.fullscreen("rayengine_pass.frag", (frag_define,))
+        self._bind(prog, samplers, **uniforms)
+        fbo.use()
+        vao.render(moderngl.TRIANGLES)
+        self.log.passes += 1
+
+    def _primary(self, layer: _Layer) -> None:
+        fbo = self.tg.layer_fbo(layer.rays)
+        self.ctx.enable_only(moderngl.NOTHING)
+        self.gl.stencil_off()
+        fbo.use()
+        fbo.clear(0.0, 0.0, 0.0, 0.0)
+        self._fullscreen(fbo, "PASS_PRIMARY", {})
+
+    def _mask(self, layer: _Layer, bit: int) -> int:
+        """Set the generation's stencil bit where the layer holds a live ray; count them."""
+        fbo = self.tg.fbo_hit
+        self.ctx.enable_only(moderngl.NOTHING)
+        fbo.color_mask = (False, False, False, False)
+        fbo.use()
+        query = self.ctx.query(samples=True)
+        if bit:
+            self.gl.stencil_mark(bit)
+        else:
+            self.gl.stencil_off()
+        with query:
+            self._fullscreen(fbo, "PASS_MASK", {"u_ray_d": layer.rays[1]})
+        fbo.color_mask = (True, True, True, True)
+        live = int(query.samples)
+
+        return live
+
+    def _cones(self, layer: _Layer | None, light: int = -1):
+        """Cone pass (§4) + read-back → (cones, tile vertices, vertex buffer of the live tiles)."""
+        t0 = time.perf_counter()
+        defines = (f"TILE {self.ts}",) + (("SHADOW",) if light >= 0 else ())
+        prog, vao = self.progs.fullscreen("rayengine_cones.frag", defines)
+        samplers = ({"u_surf0": self.tg.surf0, "u_surf1": self.tg.surf1} if light >= 0
+                    else {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1]})
+        self._bind(prog, samplers, u_light=max(light, 0))
+        self.ctx.enable_only(moderngl.NOTHING)
+        self.gl.stencil_off()
+        self.cone_fbo.use()
+        vao.render(moderngl.TRIANGLES)
+        self.log.passes += 1
+        tx, ty = self.tiles_xy
+        c0 = np.frombuffer(self.cone_fbo.read(components=4, dtype="f4", attachment=0), np.float32).reshape(ty, tx, 4)
+        c1 = np.frombuffer(self.cone_fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(ty, tx, 4)
+        cones = np.concatenate([c0, c1], axis=2).reshape(-1, 8)
+        live = np.flatnonzero(cones[:, 3] != hre_cones.NO_RAYS)
+        jy, ix = np.divmod(live, tx)
+        verts = np.concatenate([np.stack([ix * self.ts, jy * self.ts], axis=1).astype(np.float32),
+                                cones[live]], axis=1).astype(np.float32)
+        buf = self.ctx.buffer(verts.tobytes()) if len(live) else None
+        if buf is not None:
+            self.buffers.append(buf)
+        self.build_ms += (time.perf_counter() - t0) * 1e3
+        return cones, verts, buf
+
+    def _prim_defines(self, shadow: bool, count: bool = False) -> tuple[str, ...]:
+        d = ("HRE",) if self.hre else ()
+        return d + (("ANY_HIT",) if shadow else ()) + (("COUNT",) if count else ())
+
+    def _draw_prims(self, prog: moderngl.Program, tiles=None) -> None:
+        """Draw every primitive (instance = id) over the whole target (rayengine) or as one
+        point per live tile (hre)."""
+        n = self.n_prims
+        if n == 0:
+            return
+        if self.hre:
+            _, verts, buf = tiles
+            if buf is None:
+                return
+            self.log.tiles_total += len(verts) * n
+            vao = self.ctx.vertex_array(prog, [(buf, "2f 4f 4f", "a_tile", "a_cone0", "a_cone1")], skip_errors=True)
+            self.ctx.point_size = float(self.ts)
+            vao.render(moderngl.POINTS, instances=n)
+            vao.release()
+        else:
+            key = ("quad", prog.glo)
+            if key not in self.progs.quad_vaos:
+                self.progs.quad_vaos[key] = self.ctx.vertex_array(prog, [(self.progs.quad, "2f", "a_position")])
+            self.progs.quad_vaos[key].render(moderngl.TRIANGLES, instances=n)
+        self.log.passes += 1
+
+    def _intersect(self, layer: _Layer, bit: int, tiles) -> None:
+        fbo = self.tg.fbo_hit
+        self.ctx.enable_only(moderngl.NOTHING)
+        self.gl.stencil_off()
+        fbo.use()
+        fbo.clear(0.0, -1.0, 0.0, 0.0)
+        self.gl.clear_depth()
+        prog = self.progs.get("rayengine_prim.vert", "rayengine_prim.frag", self._prim_defines(False))
+        self._bind(prog, {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1]})
+        self.ctx.enable_only(moderngl.DEPTH_TEST)
+        self.ctx.depth_func = "<"
+        fbo.depth_mask = True
+        fbo.use()
+        self.gl.stencil_test(bit)
+        self._draw_prims(prog, tiles)
+        fbo.depth_mask = False
+
+    def _surface(self, layer: _Layer, bit: int) -> None:
+        fbo = self.tg.fbo_surf
+        self.ctx.enable_only(moderngl.NOTHING)
+        self.gl.stencil_off()
+        fbo.use()
+        fbo.clear(0.0, 0.0, 0.0, -1.0)
+        self.gl.stencil_test(bit)
+        self._fullscreen(fbo, "PASS_SURFACE", {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1],
+                                                "u_hit": self.tg.hit})
+
+    def _shadows(self, bit: int) -> None:
+        for f in self.tg.fbo_blocked:
+            self.ctx.enable_only(moderngl.NOTHING)
+            self.gl.stencil_off()
+            f.use()
+            f.clear(0.0, 0.0, 0.0, 0.0)
+        for light in range(len(self.scene.lights)):
+            tiles = self._cones(None, light) if self.hre else None
+            if self.hre:
+                self._record("shadow", light, tiles)
+                self.log.tiles_drawn += self._count_drawn(tiles)
+            fbo = self.tg.fbo_blocked[light // 4]
+            prog = self.progs.get("rayengine_prim.vert", "rayengine_prim.frag", self._prim_defines(True))
+            self._bind(prog, {"u_surf0": self.tg.surf0, "u_surf1": self.tg.surf1}, u_light=light)
+            self.ctx.enable_only(moderngl.NOTHING)
+            c = light % 4
+            fbo.color_mask = tuple(i == c for i in range(4))
+            fbo.use()
+            self.gl.stencil_test(bit)
+            self._draw_prims(prog, tiles)
+            fbo.color_mask = (True, True, True, True)
+
+    def _shade(self, layer: _Layer, bit: int) -> tuple[_Layer, _Layer]:
+        refl, trans = self.tg.layer(), self.tg.layer()
+        self.ctx.enable_only(moderngl.NOTHING)
+        self.gl.stencil_off()
+        for pair in (refl, trans):
+            f = self.tg.layer_fbo(pair)
+            f.use()
+            f.clear(0.0, 0.0, 0.0, 0.0)
+        fbo = self.tg.shade_fbo(refl, trans)
+        fbo.use()
+        self.ctx.enable_only(moderngl.BLEND)
+        self.ctx.blend_func = (moderngl.ONE, moderngl.ONE)
+        self.ctx.blend_equation = moderngl.FUNC_ADD
+        self.gl.stencil_test(bit)
+        self._fullscreen(fbo, "PASS_SHADE", {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1], "u_hit": self.tg.hit,
+                                              "u_surf0": self.tg.surf0, "u_surf1": self.tg.surf1,
+                                              "u_blocked0": self.tg.blocked0, "u_blocked1": self.tg.blocked1},
+                         u_level=layer.level)
+        self.ctx.enable_only(moderngl.NOTHING)
+        return (_Layer(refl, layer.level + 1, layer.branch + "R"), _Layer(trans, layer.level + 1, layer.branch + "T"))
+
+    def _heat(self, layer: _Layer, bit: int, tiles) -> None:
+        fbo = self.tg.fbo_surf   # reuse surf0 as the counter
+        self.ctx.enable_only(moderngl.NOTHING)
+        self.gl.stencil_off()
+        fbo.use()
+        fbo.clear(0.0, 0.0, 0.0, 0.0)
+        prog = self.progs.get("rayengine_prim.vert", "rayengine_prim.frag", self._prim_defines(False, count=True))
+        self._bind(prog, {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1]})
+        self.ctx.enable_only(moderngl.BLEND)
+        self.ctx.blend_func = (moderngl.ONE, moderngl.ONE)
+        self.gl.stencil_test(bit)
+        self._draw_prims(prog, tiles)
+        self.ctx.enable_only(moderngl.NOTHING)
+        self.heat = self._read(self.tg.surf0)[..., 0].copy()
+
+    def _read(self, tex: moderngl.Texture) -> np.ndarray:
+        wp, hp = self.tg.size
+        return np.frombuffer(tex.read(), np.float32).reshape(hp, wp, 4)
+
+    def _record(self, kind: str, light: int, tiles, layer: _Layer | None = None) -> None:
+        """Keep what the tests check: rays, cones, tile vertices (only when log.keep)."""
+        if not self.log.keep:
+            return
+        rec = {"kind": kind, "light": light, "level": layer.level if layer else None,
+               "branch": layer.branch if layer else None, "verts": tiles[1] if tiles else None,
+               "cones": tiles[0] if tiles else None}
+        if kind == "radiance":
+            rec["ray_o"], rec["ray_d"] = self._read(layer.rays[0]).copy(), self._read(layer.rays[1]).copy()
+        else:
+            rec["surf0"], rec["surf1"] = self._read(self.tg.surf0).copy(), self._read(self.tg.surf1).copy()
+        self.log.records.append(rec)
+
+    # -- the frame ----------------------------------------------------------------------
+    def run(self) -> None:
+        tg = self.tg
+        self.ctx.enable_only(moderngl.NOTHING)
+        self.gl.stencil_off()
+        tg.fbo_hit.use()
+        self.gl.glStencilMask(0xFF)
+        self.gl.glClearStencil(0)
+        self.gl.glClear(GL_STENCIL_BUFFER_BIT)
+        colour_fbo = self.ctx.framebuffer(color_attachments=[tg.colour])
+        colour_fbo.use()
+        colour_fbo.clear(0.0, 0.0, 0.0, 0.0)
+        colour_fbo.release()
+        first = _Layer(tg.layer(), 1, "")
+        self._primary(first)
+        stack = [first]
+        need_cones_at = self.max_level if self.mode == "cones" else None
+        while stack:
+            layer = stack.pop()
+            bit = self._stencil_bit(layer.level)
+            if bit == 0:
+                self.log.stencil_fallback_levels = max(self.log.stencil_fallback_levels, layer.level - self.bits)
+            live = self._mask(layer, bit)
+            if live == 0:
+                self.log.layers_skipped += 1
+                tg.release(layer.rays)
+                continue
+            self.log.layers += 1
+            tiles = None
+            if self.hre:
+                tiles = self._cones(layer)
+                self._record("radiance", -1, tiles, layer)
+                self.log.tiles_drawn += self._count_drawn(tiles)
+                if need_cones_at is not None and layer.level == need_cones_at:
+                    self.cone_image = self._cone_picture(tiles[0])
+                    tg.release(layer.rays)
+                    for rest in stack:
+                        tg.release(rest.rays)
+                    break
+            if self.mode == "heat":
+                self._heat(layer, bit, tiles)
+            self._intersect(layer, bit, tiles)
+            if self.deepest is not None:
+                ids = self._read(tg.hit)[..., 1]
+                self.deepest = np.where(ids >= 0, np.maximum(self.deepest, layer.level), self.deepest)
+            self._surface(layer, bit)
+            if layer.level == 1:
+                self.primary = {"hit": self._read(tg.hit).copy(), "surf1": self._read(tg.surf1).copy()}
+            if self.mode in ("color", "recursion", "cones"):
+                if self.mode == "color" and len(self.scene.lights):
+                    self._shadows(bit)
+                if self.mode == "color" or layer.level < self.max_level:
+                    refl, trans = self._shade(layer, bit)
+                    if layer.level < self.max_level:
+                        stack.extend([refl, trans])     # transmitted first (popped first)
+                    else:
+                        tg.release(refl.rays)
+                        tg.release(trans.rays)
+            tg.release(layer.rays)
+
+    def _count_drawn(self, tiles) -> int:
+        """(tile, primitive) pairs that the vertex shader will draw: the float64 mirror of its
+        test (statistics only; the GPU decides). Passes of more than ``COUNT_LIMIT`` pairs
+        count as fully drawn (the mirror would cost more than the pass); its time is
+        reported as ``timings["stats"]`` and left out of ``trace``."""
+        _, verts, buf = tiles
+        if buf is None or self.n_prims == 0:
+            return 0
+        if len(verts) * self.scene.n_spheres > COUNT_LIMIT:
+            self.log.uncounted_passes += 1
+            return len(verts) * self.n_prims
+        t0 = time.perf_counter()
+        try:
+            return self._count_drawn_now(verts)
+        finally:
+            self.stats_ms += (time.perf_counter() - t0) * 1e3
+
+    def _count_drawn_now(self, verts) -> int:
+        n = self.scene.n_spheres
+        cones = verts[:, 2:10].astype(np.float64)
+        drawn = len(verts) * (self.n_prims - n)   # planes: always
+        if n:
+            step = max(1, (1 << 18) // max(1, n))
+            for a in range(0, len(cones), step):
+                miss = hre_cones.cone_misses_sphere(cones[a:a + step], self.scene.sphere_centers, self.scene.sphere_radii)
+                drawn += int((~miss).sum())
+        return drawn
+
+    def _cone_picture(self, cones: np.ndarray) -> np.ndarray:
+        tx, ty = self.tiles_xy
+        phi = cones[:, 3].reshape(ty, tx)
+        grey = np.clip(1.0 - phi / (np.pi / 2), 0.0, 1.0)
+        img = np.repeat(grey[..., None], 3, axis=2)
+        img[phi == hre_cones.NO_RAYS] = 0.0
+        img[phi == hre_cones.NO_CULL] = (0.25, 0.0, 0.0)
+        return np.repeat(np.repeat(img, self.ts, axis=0), self.ts, axis=1)
+
+    def read_back(self):
+        w, h = self.size
+        mode = self.mode
+        colour = self._read(self.tg.colour)[:h, :w, :3][::-1].astype(np.float32)
+        if self.primary:
+            hit = self.primary["hit"][:h, :w][::-1]
+            surf1 = self.primary["surf1"][:h, :w][::-1]
+            primid = hit[..., 1].astype(np.int32)
+            depth = np.where(primid >= 0, hit[..., 0], np.float32(np.inf)).astype(np.float32)
+            normal = np.where((primid >= 0)[..., None], surf1[..., :3], 0.0).astype(np.float32)
+        else:
+            primid = np.full((h, w), -1, np.int32)
+            depth = np.full((h, w), np.inf, np.float32)
+            normal = np.zeros((h, w, 3), np.float32)
+        hit = primid >= 0
+        if mode == "color":
+            image = colour
+        elif mode == "depth":
+            d = float(np.linalg.norm(np.subtract(self.scene.camera.target, self.scene.camera.position)))
+            g = np.where(hit, np.float32(d) / (np.float32(d) + depth), 0.0)
+            image = np.repeat(g[..., None], 3, axis=2)
+        elif mode == "primid":
+            x = primid.astype(np.float64)[..., None] * np.array([0.6180340, 0.7548777, 0.5698403])
+            image = np.where(hit[..., None], (x - np.floor(x)) * 0.8 + 0.2, 0.0)
+        elif mode == "normal":
+            image = np.where(hit[..., None], 0.5 * (normal + 1.0), 0.0)
+        elif mode == "recursion":
+            from .reference import RECURSION_COLORS
+            image = RECURSION_COLORS[self.deepest[:h, :w][::-1]]
+        elif mode == "heat":
+            tests = self.heat[:h, :w][::-1] if self.heat is not None else np.zeros((h, w))
+            image = np.stack([np.minimum(0.05 * tests, 1.0), np.zeros_like(tests), np.zeros_like(tests)], axis=2)
+        elif mode == "cones":
+            image = (self.cone_image[:h, :w][::-1] if self.cone_image is not None else np.zeros((h, w, 3)))
+        else:
+            raise SceneError("mode", f"unknown mode {mode!r}")
+        return colour, primid, depth, normal, np.asarray(image, dtype=np.float32)
+
+
+
+
+
+def cull_matrix(ctx: moderngl.Context, scene: Scene, verts: np.ndarray, max_width: int = 4096) -> np.ndarray:
+    """The vertex shader's decision for each (tile, primitive): bool (tiles, n_primitives), True = drawn.
+
+    ``verts`` are the tile vertices of a hre pass (``FrameLog.records[i]["verts"]``); the
+    same ``cone_misses_sphere`` runs in the same vertex shader, only the point goes to
+    pixel (primitive, tile) of a small target instead of over the tile (for tests).
+    """
+    n, tiles = scene.n_primitives, len(verts)
+    if n == 0 or tiles == 0:
+        return np.zeros((tiles, n), bool)
+    progs = programs(ctx)
+    prog = progs.get("rayengine_prim.vert", "rayengine_prim.frag", ("CULL_MATRIX",))
+    packed = gpu_layout.pack_primitives(scene, max_width)
+    tex = packed.textures["u_spheres"]
+    t = ctx.texture(tex.size, tex.components, tex.data.tobytes(), dtype=tex.dtype)
+    t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    t.use(0)
+    prog["u_spheres"].value = 0
+    for name, value in {**packed.uniforms, "u_matrix_size": (float(n), float(tiles))}.items():
+        if name in prog:
+            prog[name].value = value
+    target = ctx.texture((n, tiles), 4, dtype="f4")
+    fbo = ctx.framebuffer(color_attachments=[target])
+    buf = ctx.buffer(np.ascontiguousarray(verts, dtype=np.float32).tobytes())
+    vao = ctx.vertex_array(prog, [(buf, "2f 4f 4f", "a_tile", "a_cone0", "a_cone1")], skip_errors=True)
+    try:
+        ctx.enable_only(moderngl.NOTHING)
+        raw_gl().stencil_off()
+        fbo.use()
+        fbo.clear(0.0, 0.0, 0.0, 0.0)
+        ctx.point_size = 1.0
+        vao.render(moderngl.POINTS, instances=n)
+        out = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(tiles, n, 4)[..., 0] > 0.5
+    finally:
+        for o in (vao, buf, fbo, target, t):
+            o.release()
+    return out
