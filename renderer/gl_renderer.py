@@ -18,8 +18,11 @@ from . import gpu_layout
 from .features import GENERIC, scene_features
 from .methods import METHODS, resolve_method
 from .result import RenderResult
-from .scene import Scene
+from .scene import Scene, SceneError
 from .settings import RenderSettings
+
+# Modes raytrace.frag implements ("cones" belongs to the hierarchical ray engine).
+SINGLE_PASS_MODES = ("color", "depth", "primid", "normal", "recursion", "heat")
 
 SHADER_DIR = Path(__file__).resolve().parent.parent / "shaders"
 HEADER_MARK = "//@HEADER@"
@@ -129,6 +132,8 @@ class GLRenderer:
         method = METHODS[method_name]
         if hasattr(method, "render_frame"):  # multi-pass methods draw the frame themselves
             return method.render_frame(self, scene, settings)
+        if settings.mode not in SINGLE_PASS_MODES:
+            raise SceneError("mode", f"mode {settings.mode!r} is not available with method {method_name!r}")
         prepared = method.prepare(scene, settings.max_prims, settings.max_tree_depth,
                                                 self.max_texture_width)
         t_built = time.perf_counter()

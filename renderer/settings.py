@@ -36,6 +36,7 @@ class RenderSettings:
     normal come from the sub-pixel nearest the pixel centre.
     min_weight: ε ≥ 0; a reflected or transmitted ray whose path weight (the
     product of kr/kt along its path) is below ε is not traced.
+    tile_size: tile edge in pixels of the hierarchical ray engine (hre), 2 … 64.
     specialize: compile the shader with only the features the scene uses and
     clamp the recursion depth to what its materials can use (exact: the image
     does not change); False renders with the generic variant.
@@ -51,6 +52,7 @@ class RenderSettings:
     samples_per_pixel: int = 1
     min_weight: float = 0.0
     specialize: bool = True
+    tile_size: int = 16
 
     def __post_init__(self) -> None:
         def integer(name: str, lo: int, hi: int) -> None:
@@ -64,6 +66,7 @@ class RenderSettings:
         integer("max_prims", 1, 1 << 24)
         integer("max_tree_depth", 1, MAX_TREE_DEPTH_LIMIT)
         integer("max_recursion_depth", 1, MAX_RECURSION_DEPTH_LIMIT)
+        integer("tile_size", 2, 64)
         if self.samples_per_pixel not in SAMPLES_PER_PIXEL or isinstance(self.samples_per_pixel, bool):
             raise SceneError("samples_per_pixel", f"must be one of {SAMPLES_PER_PIXEL}, got {self.samples_per_pixel!r}")
         k = self.supersampling
