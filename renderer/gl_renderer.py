@@ -15,6 +15,7 @@ import moderngl
 import numpy as np
 
 from . import gpu_layout
+from .gl_context import GLUnavailable, create_context  # noqa: F401  (re-exported)
 from .features import GENERIC, scene_features
 from .methods import METHODS, resolve_method
 from .result import RenderResult
@@ -27,21 +28,6 @@ SINGLE_PASS_MODES = ("color", "depth", "primid", "normal", "recursion", "heat")
 SHADER_DIR = Path(__file__).resolve().parent.parent / "shaders"
 HEADER_MARK = "//@HEADER@"
 METHOD_MARK = "//@METHOD@"
-
-
-class GLUnavailable(RuntimeError):
-    """No OpenGL context could be created (no EGL / Mesa on this machine)."""
-
-
-def create_context() -> moderngl.Context:
-    """A headless OpenGL ≥ 3.3 context through EGL (Mesa's llvmpipe without a GPU)."""
-    try:
-        return moderngl.create_standalone_context(backend="egl")
-    except Exception as egl_error:  # pragma: no cover - depends on the machine
-        try:
-            return moderngl.create_standalone_context()
-        except Exception:
-            raise GLUnavailable(f"cannot create an OpenGL context: {egl_error}") from egl_error
 
 
 def shader_source(method: str, mode: str, max_recursion_depth: int,

@@ -1,0 +1,259 @@
+"""Gesture → frame latency of the render service (issue: benchmark in bench/).
+
+For scenario 3 with 4,096 spheres (radius 1), JPEG frames at 640 × 1088 and
+320 × 544, with 1 and 4 concurrent clients (each its own session), every client
+sends pan gestures with ``?frame=1`` (one round trip: the answer is the new
+frame) back to back. Reported per configuration: client-side latency p50 / p95
+(ms), frames/s per client and in total, and the share of the mean latency spent
+in each stage the server reports in ``Server-Timing`` (queue, build, upload,
+trace, read, encode; "other" = HTTP, session store, scene lookup).
+
+Then, at 320 × 544 with one client, the transports for one gesture → frame:
+two round trips (POST gesture, then GET frame), one round trip (POST
+gesture?frame=1), and a WebSocket (only when a WebSocket library is importable
+by the server; ``pip install websockets``).
+
+Usage::
+
+    .venv/bin/python bench/latency.py                # starts its own server process
+    .venv/bin/python bench/latency.py --url http://127.0.0.1:8000
+    .venv/bin/python bench/latency.py --frames 10 --depth 3 --n 4096
+
+Target of the issue: ≥ 10 frames/s for one client at 320 × 544, depth 3.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import httpx
+
+ROOT = Path(__file__).resolve().parent.parent
+STAGES = ("queue", "build", "upload", "trace", "read", "encode")
+
+
+def server_timing(header: str) -> dict[str, float]:
+    out = {}
+    for m in re.finditer(r"([\w-]+)(?:;[^,]*?)?;dur=([\d.]+)", header or ""):
+        out[m.group(1)] = float(m.group(2))
+    return out
+
+
+def pct(values: list[float], q: float) -> float:
+    v = sorted(values)
+    if not v:
+        return float("nan")
+    k = (len(v) - 1) * q
+    lo, hi = int(k), min(int(k) + 1, len(v) - 1)
+    return v[lo] + (v[hi] - v[lo]) * (k - lo)
+
+
+class Server:
+    """A ``python -m server`` child on a free port with a temporary SQLite file."""
+
+    def __init__(self, queue_size: int):
+        self.tmp = tempfile.TemporaryDirectory()
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            port = s.getsockname()[1]
+        self.url = f"http://127.0.0.1:{port}"
+        env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
+        env.update(POCKETRAY_PORT=str(port), POCKETRAY_HOST="127.0.0.1", POCKETRAY_LOG_LEVEL="warning",
+                   POCKETRAY_SQLITE_PATH=str(Path(self.tmp.name) / "bench.sqlite3"),
+                   POCKETRAY_QUEUE_SIZE=str(queue_size))
+        self.log = open(Path(self.tmp.name) / "server.log", "wb")
+        self.proc = subprocess.Popen([sys.executable, "-m", "server"], cwd=ROOT, env=env,
+                                     stdout=self.log, stderr=subprocess.STDOUT)
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
+                raise SystemExit(f"server exited: {(Path(self.tmp.name) / 'server.log').read_text()[-2000:]}")
+            try:
+                if httpx.get(self.url + "/api/ready", timeout=2).status_code == 200:
+                    return
+            except httpx.HTTPError:
+                pass
+            time.sleep(0.2)
+        raise SystemExit("server did not become ready")
+
+    def close(self) -> None:
+        self.proc.terminate()
+        self.proc.wait(timeout=30)
+        self.log.close()
+        self.tmp.cleanup()
+
+
+def new_session(c: httpx.Client, n: int, depth: int, w: int, h: int) -> str:
+    r = c.post("/api/sessions", json={"scenario": 3, "n": n, "seed": 0, "radius": 1.0,
+                                      "settings": {"width": w, "height": h, "max_recursion_depth": depth,
+                                                   "format": "jpeg", "quality": 85}})
+    r.raise_for_status()
+    return r.json()["id"]
+
+
+def run_clients(url: str, clients: int, frames: int, n: int, depth: int, w: int, h: int) -> dict:
+    """``clients`` threads, each its own session, ``frames`` gesture?frame=1 each."""
+    samples: list[tuple[float, dict[str, float]]] = []
+    errors: list[str] = []
+    lock = threading.Lock()
+    params = {"frame": 1, "width": w, "height": h, "format": "jpeg", "max_recursion_depth": depth}
+
+    def client(i: int) -> None:
+        with httpx.Client(base_url=url, timeout=300) as c:
+            sid = new_session(c, n, depth, w, h)
+            c.get(f"/api/sessions/{sid}/frame", params={k: v for k, v in params.items() if k != "frame"})  # warm
+            barrier.wait()
+            for k in range(frames):
+                g = {"type": "pan", "dx": 6.0 if k % 2 == 0 else -6.0, "dy": 0.0}
+                t0 = time.perf_counter()
+                r = c.post(f"/api/sessions/{sid}/gesture", params=params, json=g)
+                dt = (time.perf_counter() - t0) * 1e3
+                if r.status_code != 200:
+                    with lock:
+                        errors.append(f"{r.status_code} {r.text[:100]}")
+                    time.sleep(float(r.headers.get("retry-after", "1")))
+                    continue
+                with lock:
+                    samples.append((dt, server_timing(r.headers.get("server-timing", ""))))
+    barrier = threading.Barrier(clients + 1)
+    threads = [threading.Thread(target=client, args=(i,)) for i in range(clients)]
+    for t in threads:
+        t.start()
+    barrier.wait()
+    t_start = time.perf_counter()
+    for t in threads:
+        t.join()
+    wall = time.perf_counter() - t_start
+    lat = [s[0] for s in samples]
+    mean_lat = statistics.fmean(lat) if lat else float("nan")
+    shares = {k: statistics.fmean(s[1].get(k, 0.0) for s in samples) / mean_lat * 100 for k in STAGES} \
+        if samples else {}
+    if shares:
+        shares["other"] = 100.0 - sum(shares.values())
+    return {"size": f"{w}×{h}", "clients": clients, "frames": len(lat), "errors": len(errors),
+            "p50": pct(lat, 0.5), "p95": pct(lat, 0.95), "fps_client": 1000.0 / mean_lat if lat else 0.0,
+            "fps_total": len(lat) / wall if wall > 0 else 0.0, "shares": shares,
+            "server_total_p50": pct([s[1].get("total", 0.0) for s in samples], 0.5)}
+
+
+def transports(url: str, frames: int, n: int, depth: int, w: int, h: int) -> list[dict]:
+    """p50/p95 of one gesture → frame by three transports (one client, 320 × 544)."""
+    out = []
+    params = {"width": w, "height": h, "format": "jpeg", "max_recursion_depth": depth}
+    with httpx.Client(base_url=url, timeout=300) as c:
+        sid = new_session(c, n, depth, w, h)
+        c.get(f"/api/sessions/{sid}/frame", params=params)  # warm-up (shader variant)
+
+        def measure(name: str, once) -> None:
+            lat, overhead = [], []
+            for k in range(frames):
+                g = {"type": "pan", "dx": 6.0 if k % 2 == 0 else -6.0, "dy": 0.0}
+                t0 = time.perf_counter()
+                server_total = once(g)
+                dt = (time.perf_counter() - t0) * 1e3
+                lat.append(dt)
+                overhead.append(dt - server_total)
+            out.append({"transport": name, "p50": pct(lat, 0.5), "p95": pct(lat, 0.95),
+                        "overhead_p50": pct(overhead, 0.5)})
+
+        def two_trips(g) -> float:
+            c.post(f"/api/sessions/{sid}/gesture", json=g).raise_for_status()
+            r = c.get(f"/api/sessions/{sid}/frame", params=params)
+            r.raise_for_status()
+            return server_timing(r.headers["server-timing"])["total"]
+
+        def one_trip(g) -> float:
+            r = c.post(f"/api/sessions/{sid}/gesture", params={"frame": 1, **params}, json=g)
+            r.raise_for_status()
+            return server_timing(r.headers["server-timing"])["total"]
+
+        measure("HTTP: POST gesture + GET frame (2 round trips)", two_trips)
+        measure("HTTP: POST gesture?frame=1 (1 round trip)", one_trip)
+        try:
+            from websockets.sync.client import connect
+        except ImportError:
+            out.append({"transport": "WebSocket", "skipped": "no `websockets` package here"})
+            return out
+        ws_url = url.replace("http://", "ws://") + f"/api/sessions/{sid}/ws"
+        try:
+            ws = connect(ws_url, max_size=None, open_timeout=10)
+        except Exception as e:  # the server has no WebSocket implementation
+            out.append({"transport": "WebSocket", "skipped": f"server refused the upgrade ({e})"})
+            return out
+        with ws:
+            def over_ws(g) -> float:
+                ws.send(json.dumps({**g, "frame": params}))
+                meta = json.loads(ws.recv())
+                if "status" in meta:
+                    raise RuntimeError(meta)
+                ws.recv()  # the frame
+                return meta["timings"]["total"]
+            measure("WebSocket: gesture message → meta + frame", over_ws)
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--url", help="an already running service (default: start one)")
+    ap.add_argument("--n", type=int, default=4096, help="spheres (scenario 3)")
+    ap.add_argument("--depth", type=int, default=3, help="max_recursion_depth")
+    ap.add_argument("--frames", type=int, default=12, help="gestures per client at 320×544 (half at 640×1088)")
+    ap.add_argument("--no-transports", action="store_true", help="skip the transport comparison")
+    args = ap.parse_args()
+
+    server = None if args.url else Server(queue_size=8)
+    url = args.url or server.url
+    try:
+        info = httpx.get(url + "/api/ready", timeout=10).json()
+        print(f"# gesture → frame latency — scenario 3, n = {args.n}, radius 1, max_recursion_depth = "
+              f"{args.depth}, JPEG q85, BIH max_prims 8")
+        print(f"# GL: {info.get('gl_renderer')} | {info.get('gl_version')} | CPUs: {os.cpu_count()} | "
+              f"load avg before: {os.getloadavg()[0]:.2f}")
+        print()
+        print("| size | clients | frames | p50 ms | p95 ms | fps/client | fps total | "
+              + " | ".join(f"{s} %" for s in (*STAGES, "other")) + " |")
+        print("|---|---|---|---|---|---|---|" + "---|" * (len(STAGES) + 1))
+        results = []
+        for w, h, frames in ((640, 1088, max(2, args.frames // 2)), (320, 544, args.frames)):
+            for clients in (1, 4):
+                per_client = frames if clients == 1 else max(2, frames // 2)
+                r = run_clients(url, clients, per_client, args.n, args.depth, w, h)
+                results.append(r)
+                shed = f" (+{r['errors']} 503)" if r["errors"] else ""
+                print(f"| {r['size']} | {clients} | {r['frames']}{shed} "
+                      f"| {r['p50']:.0f} | {r['p95']:.0f} | {r['fps_client']:.2f} | {r['fps_total']:.2f} | "
+                      + " | ".join(f"{r['shares'].get(s, 0):.1f}" for s in (*STAGES, "other")) + " |",
+                      flush=True)
+        one = next(r for r in results if r["size"] == "320×544" and r["clients"] == 1)
+        verdict = "met" if one["fps_client"] >= 10 else "NOT met"
+        print()
+        print(f"Target ≥ 10 frames/s, one client, 320×544, depth {args.depth}: "
+              f"{one['fps_client']:.2f} fps → {verdict}")
+        if not args.no_transports:
+            print()
+            print("| transport (320×544, 1 client) | p50 ms | p95 ms | p50 latency − server total, ms |")
+            print("|---|---|---|---|")
+            for t in transports(url, max(6, args.frames), args.n, args.depth, 320, 544):
+                if "skipped" in t:
+                    print(f"| {t['transport']} | — | — | skipped: {t['skipped']} |")
+                else:
+                    print(f"| {t['transport']} | {t['p50']:.0f} | {t['p95']:.0f} | {t['overhead_p50']:.1f} |")
+        print(f"\n# load avg after: {os.getloadavg()[0]:.2f}")
+    finally:
+        if server:
+            server.close()
+
+
+if __name__ == "__main__":
+    main()

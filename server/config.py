@@ -1,0 +1,96 @@
+"""Service configuration: environment variables with the prefix ``POCKETRAY_``.
+
+Every field below is read from ``POCKETRAY_<FIELD>`` (case-insensitive), e.g.
+``POCKETRAY_PORT=9000`` or ``POCKETRAY_STATE_BACKEND=redis``. docs/API.md lists
+them with their meaning; the defaults run the service embedded (SQLite file,
+one process) on 127.0.0.1:8000.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import Field, model_validator
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+class ServerConfig(BaseSettings):
+    """Settings of one server process (all units in the field names or docs)."""
+
+    model_config = SettingsConfigDict(env_prefix="POCKETRAY_", extra="ignore", frozen=True)
+
+    # --- network ------------------------------------------------------------
+    host: str = Field("127.0.0.1", description="interface uvicorn binds to")
+    port: int = Field(8000, ge=0, le=65535, description="TCP port (0 = any free port)")
+    log_level: str = Field("info", description="uvicorn log level")
+
+    # --- state (the Model) ----------------------------------------------------
+    state_backend: Literal["sqlite", "redis"] = Field(
+        "sqlite", description="where sessions live: an embedded SQLite file, or Redis shared by processes")
+    sqlite_path: Path = Field(REPO_ROOT / "var" / "sessions.sqlite3", description="SQLite file (sqlite backend)")
+    redis_url: str = Field("redis://127.0.0.1:6379/0", description="Redis URL (redis backend)")
+    redis_prefix: str = Field("pocketray:", description="key prefix in Redis")
+    session_ttl_s: float = Field(24 * 3600.0, gt=0, description="a session expires after this idle time, seconds")
+
+    # --- the GL thread and its queue -------------------------------------------
+    queue_size: int = Field(8, ge=1, le=1024,
+                            description="renders admitted at once (running + waiting); beyond it: 503")
+    render_timeout_s: float = Field(120.0, gt=0, description="longest wait for an admitted render, seconds")
+    warmup: bool = Field(True, description="render a tiny scene at start-up (compiles the default shader)")
+
+    # --- per-request caps on work -----------------------------------------------
+    max_work: int = Field(640 * 1088 * 8, ge=1,
+                          description="cap on width × height × max_recursion_depth of one render")
+    max_spheres: int = Field(1 << 21, ge=0, le=1 << 21, description="cap on the spheres of one scene")
+    max_bruteforce_work: int = Field(
+        640 * 1088 * 512, ge=1,
+        description="cap on width × height × max_recursion_depth × spheres for method=bruteforce "
+                    "(every ray tests every sphere)")
+    max_body_bytes: int = Field(16 * 1024 * 1024, ge=1024, description="largest request body, bytes (else 413)")
+
+    # --- gestures ---------------------------------------------------------------
+    min_target_distance: float = Field(1e-3, gt=0,
+                                       description="pinch never brings the camera closer to its target, world units")
+
+    default_render: dict[str, Any] = Field(
+        default_factory=dict,
+        description="JSON object overriding the render defaults of new sessions and of POST /api/render "
+                    "(renderer.settings.RenderSettings: width 640, height 1088, method bih, mode color, "
+                    "max_prims 8, max_tree_depth 64, max_recursion_depth 5, format png; quality)")
+
+    # --- encoding ---------------------------------------------------------------
+    png_compress_level: int = Field(1, ge=0, le=9, description="zlib level of PNG frames (1 = fast)")
+    default_jpeg_quality: int = Field(85, ge=1, le=100, description="JPEG quality when a request names none")
+
+    # --- static files ------------------------------------------------------------
+    client_dir: Path = Field(REPO_ROOT / "client_web", description="served at / (created when missing)")
+    shader_dir: Path = Field(REPO_ROOT / "shaders", description="served read-only at /shaders/")
+
+    @model_validator(mode="after")
+    def _check(self) -> "ServerConfig":
+        if self.state_backend == "redis" and not self.redis_url:
+            raise ValueError("redis_url: required when state_backend is redis")
+        from renderer.scene import SceneError
+        from renderer.settings import RenderSettings
+
+        d = self.default_settings()
+        try:
+            RenderSettings(**{k: v for k, v in d.items() if k != "quality"})
+        except (SceneError, TypeError) as e:
+            raise ValueError(f"default_render: {e}") from None
+        if not (isinstance(d["quality"], int) and 1 <= d["quality"] <= 100):
+            raise ValueError("default_render: quality must be an integer 1 … 100")
+        work = d["width"] * d["height"] * d["max_recursion_depth"]
+        if work > self.max_work:
+            raise ValueError(f"default_render: width × height × max_recursion_depth = {work} exceeds "
+                             f"max_work = {self.max_work}")
+        return self
+
+    def default_settings(self) -> dict[str, Any]:
+        """Render defaults of new sessions: RenderSettings' defaults, quality, default_render."""
+        from renderer.settings import RenderSettings
+
+        return {**RenderSettings().to_json(), "quality": self.default_jpeg_quality, **self.default_render}

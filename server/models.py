@@ -1,0 +1,243 @@
+"""The API contract: typed request and response bodies (pydantic).
+
+Field constraints here are what one field can say on its own (ranges, finite
+numbers, enums); they become the OpenAPI schema. What needs several fields
+(``camera.target`` ≠ ``camera.position``, ``up`` not parallel to the view,
+material indices in range, the work caps of :mod:`server.config`) is checked by
+the renderer's own validation and answered with the same 422 shape.
+
+Units: coordinates and radii in world units; ``fov_y`` in degrees; image sizes
+and ``dx``/``dy`` in pixels.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from renderer.scene import MAX_COORDINATE, Scene
+from renderer.settings import (FORMATS, MAX_IMAGE_SIDE, MAX_RECURSION_DEPTH_LIMIT, MAX_TREE_DEPTH_LIMIT,
+                               METHODS, MODES)
+
+MethodName = Literal[METHODS]  # type: ignore[valid-type]
+ModeName = Literal[MODES]  # type: ignore[valid-type]
+FormatName = Literal[FORMATS]  # type: ignore[valid-type]
+
+
+class Strict(BaseModel):
+    """Unknown fields are errors; NaN and ±inf are rejected everywhere."""
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
+Vec3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3, description="[x, y, z], world units")]
+Unit = Annotated[float, Field(ge=0.0, le=1.0)]
+Rgb = Annotated[list[Unit], Field(min_length=3, max_length=3, description="RGB, each 0 … 1")]
+Intensity = Annotated[list[Annotated[float, Field(ge=0.0, le=1e3)]],
+                      Field(min_length=3, max_length=3, description="RGB intensity, each 0 … 1000")]
+MaterialIndex = Annotated[int, Field(ge=0, lt=Scene.MAX_MATERIALS, description="index into materials")]
+
+
+# ---- scene (SPEC's JSON) ----------------------------------------------------------
+class CameraModel(Strict):
+    """Pinhole camera. ``target`` must differ from ``position``; ``up`` must be non-zero
+    and not parallel to the viewing direction."""
+    position: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 100.0])
+    target: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    up: Vec3 = Field(default_factory=lambda: [0.0, 1.0, 0.0])
+    fov_y: float = Field(60.0, gt=0.0, lt=180.0, description="vertical field of view, degrees, in (0, 180)")
+
+
+class LightModel(Strict):
+    """Point light."""
+    position: Vec3 = Field(default_factory=lambda: [0.0, 40.0, 0.0])
+    color: Intensity = Field(default_factory=lambda: [1.0, 1.0, 1.0])
+
+
+class MaterialModel(Strict):
+    """Whitted/Phong material (thesis Table 4.1)."""
+    color: Rgb = Field(default_factory=lambda: [0.9, 0.3, 0.3])
+    ambient: Unit = 0.3
+    diffuse: Unit = 0.3
+    specular: Unit = 0.1
+    shininess: float = Field(40.0, ge=0.0, le=1e4, description="Phong exponent")
+    reflective: Unit = 0.3
+    transmissive: Unit = 0.0
+    ior: float = Field(1.0, gt=0.0, le=10.0, description="refraction index inside / outside")
+
+
+class SphereModel(Strict):
+    center: Vec3
+    radius: float = Field(gt=0.0, le=MAX_COORDINATE, description="world units, > 0")
+    material: MaterialIndex = 0
+
+
+class PlaneModel(Strict):
+    point: Vec3 = Field(default_factory=lambda: [0.0, -20.0, 0.0])
+    normal: Vec3 = Field(default_factory=lambda: [0.0, 1.0, 0.0], description="non-zero; normalised by the server")
+    material: MaterialIndex = 0
+
+
+class SceneModel(Strict):
+    """A whole scene (SPEC). Material indices must be < len(materials)."""
+    camera: CameraModel = Field(default_factory=CameraModel)
+    lights: list[LightModel] = Field(default_factory=list, max_length=Scene.MAX_LIGHTS)
+    materials: list[MaterialModel] = Field(min_length=1, max_length=Scene.MAX_MATERIALS)
+    spheres: list[SphereModel] = Field(default_factory=list, max_length=Scene.MAX_SPHERES)
+    planes: list[PlaneModel] = Field(default_factory=list, max_length=Scene.MAX_PLANES)
+
+
+# ---- render settings ----------------------------------------------------------
+Side = Annotated[int, Field(ge=1, le=MAX_IMAGE_SIDE, description="pixels, 1 … 4096")]
+Quality = Annotated[int, Field(ge=1, le=100, description="JPEG quality 1 … 100 (ignored by png and npy)")]
+MaxPrims = Annotated[int, Field(ge=1, le=1 << 24, description="BIH leaf size limit")]
+TreeDepth = Annotated[int, Field(ge=1, le=MAX_TREE_DEPTH_LIMIT, description="BIH depth limit (root = 1)")]
+RecursionDepth = Annotated[int, Field(ge=1, le=MAX_RECURSION_DEPTH_LIMIT,
+                                      description="1 = primary rays only; each reflection/refraction +1")]
+
+
+class SettingsPatch(Strict):
+    """Some render settings; the ones left out (or null) keep their value."""
+    width: Side | None = None
+    height: Side | None = None
+    method: MethodName | None = None
+    mode: ModeName | None = None
+    max_prims: MaxPrims | None = None
+    max_tree_depth: TreeDepth | None = None
+    max_recursion_depth: RecursionDepth | None = None
+    format: FormatName | None = None
+    quality: Quality | None = None
+
+    def given(self) -> dict[str, Any]:
+        return {k: v for k, v in self.model_dump().items() if v is not None}
+
+
+class FullSettings(BaseModel):
+    """All render settings of a session (SPEC's render-settings JSON plus ``quality``)."""
+    width: int
+    height: int
+    method: str
+    mode: str
+    max_prims: int
+    max_tree_depth: int
+    max_recursion_depth: int
+    format: str
+    quality: int
+
+
+class SettingsOut(FullSettings):
+    version: int
+
+
+# ---- sessions -------------------------------------------------------------------
+class SessionCreate(Strict):
+    """Either a thesis scenario (``scenario`` and ``n``; ``seed``, ``radius`` optional)
+    or a full ``scene``; optionally the session's first render settings."""
+    scenario: Literal[1, 2, 3] | None = Field(None, description="thesis scenario 1, 2 or 3")
+    n: int | None = Field(None, ge=0, le=Scene.MAX_SPHERES, description="number of spheres")
+    seed: int | None = Field(None, ge=0, le=2 ** 32 - 1, description="random placement seed (default 0)")
+    radius: float | None = Field(None, gt=0.0, le=20.0, description="sphere radius, world units (default 1)")
+    scene: SceneModel | None = None
+    settings: SettingsPatch | None = None
+
+
+class SceneInfo(BaseModel):
+    n_spheres: int
+    n_planes: int
+    scenario: int | None = None
+    n: int | None = None
+    seed: int | None = None
+    radius: float | None = None
+
+
+class SessionOut(BaseModel):
+    id: str = Field(description="session token (192 random bits, URL-safe)")
+    version: int = Field(description="bumped by every change")
+    settings: FullSettings
+    scene_info: SceneInfo
+    camera: CameraModel
+
+
+class VersionOut(BaseModel):
+    version: int
+
+
+class CameraOut(BaseModel):
+    version: int
+    camera: CameraModel
+
+
+# ---- gestures (the Controller) ------------------------------------------------------
+class PanGesture(Strict):
+    """One finger dragged by (dx, dy) screen pixels, right/down positive: the scene
+    follows the finger at the target's distance."""
+    type: Literal["pan"]
+    dx: float = Field(ge=-1e6, le=1e6, description="pixels, right positive")
+    dy: float = Field(ge=-1e6, le=1e6, description="pixels, down positive")
+    viewport_height: float | None = Field(
+        None, gt=0.0, le=1e5,
+        description="height in the same pixels as dx/dy of the view showing the frame; "
+                    "default: the frame's height")
+
+
+class PinchGesture(Strict):
+    """Two fingers: ``scale`` = new distance / old distance. > 1 (spread) moves the camera
+    forward to distance / scale, < 1 back; it never reaches the target."""
+    type: Literal["pinch"]
+    scale: float = Field(ge=1e-3, le=1e3, description="finger distance ratio")
+
+
+class ResetGesture(Strict):
+    """Back to the camera the scene was created (or last replaced) with."""
+    type: Literal["reset"]
+
+
+Gesture = Annotated[Union[PanGesture, PinchGesture, ResetGesture], Field(discriminator="type")]
+
+
+# ---- stateless render ------------------------------------------------------------------
+class RenderRequest(Strict):
+    scene: SceneModel
+    settings: SettingsPatch = Field(default_factory=SettingsPatch)
+
+
+# ---- service ----------------------------------------------------------------------------
+class ErrorOut(BaseModel):
+    detail: str
+
+
+class HealthOut(BaseModel):
+    status: Literal["ok"]
+
+
+class ReadyOut(BaseModel):
+    ready: bool
+    gl_renderer: str | None = None
+    gl_version: str | None = None
+    detail: str | None = None
+
+
+class LimitsOut(BaseModel):
+    max_work: int
+    max_bruteforce_work: int
+    max_spheres: int
+    max_body_bytes: int
+    max_image_side: int
+    queue_size: int
+    session_ttl_s: float
+
+
+class InfoOut(BaseModel):
+    methods: list[str]
+    modes: list[str]
+    formats: list[str]
+    limits: LimitsOut
+    state_backend: str
+
+
+class StatsOut(BaseModel):
+    """Statistics of the last build; the fields beyond ``method`` depend on the method
+    (bih: renderer.bih.BIHStats — primitives, inner_nodes, leaves, depth_max, …)."""
+    model_config = ConfigDict(extra="allow")
+    method: str

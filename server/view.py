@@ -1,0 +1,102 @@
+"""The View's HTTP side: encode a RenderResult and describe it in headers.
+
+Formats (SPEC): ``png`` and ``jpeg`` carry what the render mode shows as 8-bit
+RGB; ``npy`` is one ``.npy`` array (colour uint8 H×W×3, depth float32 H×W with
+inf on a miss, primid int32 H×W with −1 on a miss, normal float32 H×W×3).
+
+Headers of every frame:
+
+- ``Server-Timing``: ``queue``, ``build``, ``upload``, ``trace``, ``read``,
+  ``encode``, ``total`` as ``name;dur=<ms>`` (total = admission to encoded bytes);
+- ``X-Session-Version`` (frames of a session), ``X-Method``, ``X-Stats``
+  (compact JSON of the main BIH statistics), and ``Access-Control-Expose-Headers``.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from PIL import Image
+
+from renderer.result import RenderResult
+
+MEDIA_TYPES = {"png": "image/png", "jpeg": "image/jpeg", "npy": "application/octet-stream"}
+TIMING_NAMES = ("queue", "build", "upload", "trace", "read", "encode", "total")
+STATS_HEADER_KEYS = ("method", "primitives", "inner_nodes", "leaves", "depth_max", "optimized_nodes",
+                     "forced_leaves", "build_ms")
+EXPOSED = ("Server-Timing", "X-Session-Version", "X-Method", "X-Stats", "Retry-After")
+
+
+@dataclass
+class Frame:
+    """Encoded image plus what the headers say about it. Timings in ms."""
+    body: bytes
+    media_type: str
+    method: str
+    timings: dict[str, float]
+    stats: dict[str, Any] | None
+    version: int | None = None
+    width: int = 0
+    height: int = 0
+
+
+def encode(result: RenderResult, fmt: str, quality: int, png_level: int = 1) -> tuple[bytes, float]:
+    """(bytes, encode ms) of ``result`` in ``fmt`` (png | jpeg | npy); quality 1 … 100 for jpeg."""
+    t0 = time.perf_counter()
+    buf = io.BytesIO()
+    if fmt == "npy":
+        np.save(buf, np.ascontiguousarray(result.array()), allow_pickle=False)
+    else:
+        img = Image.fromarray(result.image_u8(), "RGB")
+        if fmt == "jpeg":
+            img.save(buf, format="JPEG", quality=int(quality))
+        else:
+            img.save(buf, format="PNG", compress_level=int(png_level))
+    return buf.getvalue(), (time.perf_counter() - t0) * 1e3
+
+
+def server_timing(timings: dict[str, float]) -> str:
+    return ", ".join(f"{k};dur={timings[k]:.2f}" for k in TIMING_NAMES if k in timings)
+
+
+def stats_header(stats: dict[str, Any] | None) -> str:
+    picked = {k: (round(v, 3) if isinstance(v, float) else v) for k, v in (stats or {}).items()
+              if k in STATS_HEADER_KEYS}
+    return json.dumps(picked, separators=(",", ":"))
+
+
+def frame_headers(frame: Frame) -> dict[str, str]:
+    headers = {
+        "Server-Timing": server_timing(frame.timings),
+        "X-Method": frame.method,
+        "X-Stats": stats_header(frame.stats),
+        "Cache-Control": "no-store",
+        "Access-Control-Expose-Headers": ", ".join(EXPOSED),
+    }
+    if frame.version is not None:
+        headers["X-Session-Version"] = str(frame.version)
+    return headers
+
+
+FRAME_RESPONSE_DOC: dict[str, Any] = {
+    "description": "the frame: PNG, JPEG, or one .npy array (format=npy)",
+    "content": {
+        "image/png": {"schema": {"type": "string", "format": "binary"}},
+        "image/jpeg": {"schema": {"type": "string", "format": "binary"}},
+        "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
+    },
+    "headers": {
+        "Server-Timing": {"description": "queue, build, upload, trace, read, encode, total as name;dur=ms",
+                          "schema": {"type": "string"}},
+        "X-Method": {"description": "acceleration method used", "schema": {"type": "string"}},
+        "X-Stats": {"description": "compact JSON: method, primitives, inner_nodes, leaves, depth_max, …",
+                    "schema": {"type": "string"}},
+        "X-Session-Version": {"description": "session version the frame shows (session frames only)",
+                              "schema": {"type": "string"}},
+    },
+}

@@ -1,0 +1,113 @@
+"""Helpers of the server tests (imported by conftest.py and the test modules)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Callable
+
+import httpx
+import pytest
+
+from server.config import ServerConfig
+
+ROOT = Path(__file__).resolve().parents[2]
+
+# Small caps for tests: renders of at most 96×128 pixels at depth 2 (or 64×96 at 4).
+SMALL = {"width": 48, "height": 64, "max_recursion_depth": 2}
+TEST_CAPS = dict(max_work=96 * 128 * 2, max_spheres=4096, max_bruteforce_work=64 * 96 * 64 * 2,
+                 queue_size=4, max_body_bytes=256 * 1024, default_render=SMALL)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def make_config(tmp: Path, **overrides) -> ServerConfig:
+    kw = dict(TEST_CAPS, sqlite_path=tmp / "sessions.sqlite3")
+    kw.update(overrides)
+    return ServerConfig(**kw)
+
+
+def wait_ready(get: Callable[[str], httpx.Response], timeout_s: float = 60.0) -> dict:
+    """Wait for /api/ready; fail (never skip) when GL does not come up."""
+    deadline = time.monotonic() + timeout_s
+    last = None
+    while time.monotonic() < deadline:
+        r = get("/api/ready")
+        last = r
+        if r.status_code == 200:
+            return r.json()
+        body = r.json()
+        if body.get("detail", "").startswith(("OpenGL unavailable", "warm-up render failed")):
+            break
+        time.sleep(0.1)
+    pytest.fail(f"the service never became ready (OpenGL is required): {last.text if last else 'no answer'}")
+
+
+def new_session(client, **body) -> dict:
+    payload = {"scenario": 3, "n": 64, "seed": 1, "radius": 1.0, "settings": dict(SMALL)}
+    payload.update(body)
+    r = client.post("/api/sessions", json=payload)
+    assert r.status_code == 201, r.text
+    return r.json()
+
+
+class ServerProcess:
+    """One ``python -m server`` child process."""
+
+    def __init__(self, env: dict[str, str], log_path: Path):
+        self.port = int(env["POCKETRAY_PORT"])
+        self.url = f"http://127.0.0.1:{self.port}"
+        self.env = env
+        self.log_path = log_path
+        self.proc: subprocess.Popen | None = None
+
+    def start(self, timeout_s: float = 60.0) -> "ServerProcess":
+        self.log = open(self.log_path, "ab")
+        self.proc = subprocess.Popen([sys.executable, "-m", "server"], cwd=ROOT, env=self.env,
+                                     stdout=self.log, stderr=subprocess.STDOUT)
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
+                pytest.fail(f"server exited with {self.proc.returncode}: {self.log_path.read_text()[-3000:]}")
+            try:
+                if httpx.get(self.url + "/api/health", timeout=1.0).status_code == 200:
+                    return self
+            except httpx.HTTPError:
+                pass
+            time.sleep(0.1)
+        pytest.fail(f"server did not answer /api/health: {self.log_path.read_text()[-3000:]}")
+
+    def wait_ready(self) -> dict:
+        return wait_ready(lambda p: httpx.get(self.url + p, timeout=5.0))
+
+    def kill(self, sig: int = signal.SIGKILL) -> None:
+        if self.proc and self.proc.poll() is None:
+            self.proc.send_signal(sig)
+            try:
+                self.proc.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        if getattr(self, "log", None):
+            self.log.close()
+
+
+def server_env(sqlite_path: Path, port: int | None = None, **settings) -> dict[str, str]:
+    """The environment of a test server process: TEST_CAPS plus ``settings`` as POCKETRAY_*."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
+    conf = {**TEST_CAPS, "sqlite_path": str(sqlite_path), "log_level": "warning", **settings}
+    env.update({f"POCKETRAY_{k.upper()}": json.dumps(v) if isinstance(v, dict) else str(v)
+                for k, v in conf.items()})
+    env["POCKETRAY_PORT"] = str(port or free_port())
+    env["POCKETRAY_HOST"] = "127.0.0.1"
+    return env
