@@ -1,0 +1,226 @@
+// The render service's HTTP API: fetch with retries, back-off, Retry-After, and
+// the session kept in localStorage (a reload or a server restart resumes the scene).
+//
+// Failures are of two kinds:
+//  - transient (network error, timeout, 502/503/504): retried without end, with
+//    exponential back-off (503: wait what Retry-After says). onStatus reports
+//    {state: 'offline' | 'busy', attempt, delayMs, message} before each wait and
+//    {state: 'online'} once a request gets through again.
+//  - final (4xx, other 5xx): an ApiError with the status and the server's detail.
+
+export class ApiError extends Error {
+  constructor(status, detail, path) {
+    super(`${status} ${typeof detail === 'string' ? detail : JSON.stringify(detail)}`);
+    this.name = 'ApiError';
+    this.status = status;
+    this.detail = detail;
+    this.path = path;
+  }
+}
+
+export const BACKOFF = Object.freeze({ baseMs: 500, maxMs: 10000, factor: 2, jitter: 0.2 });
+export const RETRY_AFTER_MAX_MS = 30000;
+export const REQUEST_TIMEOUT_MS = 60000;
+
+// Delay before retry number `attempt` (1-based).
+export function backoffDelay(attempt, rand = Math.random, b = BACKOFF) {
+  const d = Math.min(b.maxMs, b.baseMs * b.factor ** (attempt - 1));
+  return Math.round(d * (1 - b.jitter + 2 * b.jitter * rand()));
+}
+
+// Retry-After: delta seconds or an HTTP date; null when absent or unreadable.
+export function parseRetryAfter(value, now = Date.now()) {
+  if (value == null || value === '') return null;
+  const s = Number(value);
+  let ms;
+  if (Number.isFinite(s)) ms = s * 1000;
+  else {
+    const t = Date.parse(value);
+    if (Number.isNaN(t)) return null;
+    ms = t - now;
+  }
+  return Math.max(0, Math.min(RETRY_AFTER_MAX_MS, ms));
+}
+
+// Server-Timing: "build;dur=1.2, upload;dur=0.3, trace;desc=x;dur=4" → {build: 1.2, …}
+export function parseServerTiming(header) {
+  const out = {};
+  if (!header) return out;
+  for (const entry of header.split(',')) {
+    const [name, ...params] = entry.trim().split(';');
+    if (!name) continue;
+    for (const p of params) {
+      const [k, v] = p.trim().split('=');
+      if (k === 'dur') out[name.trim()] = Number(v);
+    }
+  }
+  return out;
+}
+
+function query(params) {
+  const q = new URLSearchParams();
+  for (const [k, v] of Object.entries(params || {})) if (v !== undefined && v !== null && v !== '') q.set(k, v);
+  const s = q.toString();
+  return s ? `?${s}` : '';
+}
+
+export class Api {
+  constructor({ base = '', onStatus = () => {}, fetchImpl = null, timeoutMs = REQUEST_TIMEOUT_MS } = {}) {
+    this.base = base;
+    this.onStatus = onStatus;
+    this.fetch = fetchImpl || ((...a) => window.fetch(...a));
+    this.timeoutMs = timeoutMs;
+    this.offline = false;
+    this._wake = null;
+  }
+
+  // Cut the current back-off wait short ("Retry now").
+  retryNow() {
+    if (this._wake) this._wake();
+  }
+
+  _sleep(ms) {
+    return new Promise((resolve) => {
+      const t = setTimeout(done, ms);
+      const self = this;
+      function done() {
+        clearTimeout(t);
+        if (self._wake === done) self._wake = null;
+        resolve();
+      }
+      this._wake = done;
+    });
+  }
+
+  // One request, retried while the failure is transient. Returns the Response (ok).
+  async request(method, path, { body, params, headers = {} } = {}) {
+    const url = this.base + path + query(params);
+    const init = { method, headers: { ...headers }, cache: 'no-store' };
+    if (body !== undefined) {
+      init.body = JSON.stringify(body);
+      init.headers['Content-Type'] = 'application/json';
+    }
+    for (let attempt = 1; ; attempt++) {
+      let res = null, failure = null;
+      const ctl = new AbortController();
+      const timer = setTimeout(() => ctl.abort(), this.timeoutMs);
+      try {
+        res = await this.fetch(url, { ...init, signal: ctl.signal });
+      } catch (e) {
+        failure = e.name === 'AbortError' ? 'The render service did not answer in time' : 'Cannot reach the render service';
+      } finally {
+        clearTimeout(timer);
+      }
+      if (res && res.status === 503) {
+        const wait = parseRetryAfter(res.headers.get('Retry-After')) ?? backoffDelay(attempt);
+        this.onStatus({ state: 'busy', attempt, delayMs: wait, message: 'The render service is busy' });
+        await this._sleep(wait);
+        continue;
+      }
+      if (res && (res.status === 502 || res.status === 504)) failure = `The render service is unavailable (${res.status})`;
+      if (failure) {
+        this.offline = true;
+        const wait = backoffDelay(attempt);
+        this.onStatus({ state: 'offline', attempt, delayMs: wait, message: failure });
+        await this._sleep(wait);
+        continue;
+      }
+      if (this.offline || attempt > 1) {
+        this.offline = false;
+        this.onStatus({ state: 'online' });
+      }
+      if (!res.ok) {
+        let detail = res.statusText;
+        try {
+          const j = await res.json();
+          detail = j.detail ?? j;
+        } catch { /* not JSON */ }
+        throw new ApiError(res.status, detail, path);
+      }
+      return res;
+    }
+  }
+
+  async json(method, path, opts) {
+    const res = await this.request(method, path, opts);
+    return res.status === 204 ? null : res.json();
+  }
+
+  // ---- endpoints -------------------------------------------------------------
+  createSession(scene, settings) {
+    const body = { ...scene };
+    if (settings && Object.keys(settings).length) body.settings = settings;
+    return this.json('POST', '/api/sessions', { body });
+  }
+
+  getSession(id) {
+    return this.json('GET', `/api/sessions/${encodeURIComponent(id)}`);
+  }
+
+  patchSettings(id, partial) {
+    return this.json('PATCH', `/api/sessions/${encodeURIComponent(id)}/settings`, { body: partial });
+  }
+
+  // A gesture; with frameParams the answer is the new frame (one round trip).
+  async gesture(id, gesture, frameParams = null) {
+    const path = `/api/sessions/${encodeURIComponent(id)}/gesture`;
+    if (!frameParams) return this.json('POST', path, { body: gesture });
+    const res = await this.request('POST', path, { body: gesture, params: { frame: 1, ...frameParams } });
+    return readFrame(res);
+  }
+
+  async frame(id, params) {
+    const res = await this.request('GET', `/api/sessions/${encodeURIComponent(id)}/frame`, { params });
+    return readFrame(res);
+  }
+
+  // What the server offers (GET /api/info: methods, modes, formats, limits), or null.
+  async info() {
+    try {
+      const res = await this.fetch(this.base + '/api/info', { cache: 'no-store' });
+      return res.ok ? await res.json() : null;
+    } catch {
+      return null;
+    }
+  }
+}
+
+async function readFrame(res) {
+  const blob = await res.blob();
+  let stats = null;
+  try {
+    stats = JSON.parse(res.headers.get('X-Stats') || 'null');
+  } catch { /* ignore */ }
+  const v = res.headers.get('X-Session-Version');
+  return {
+    blob,
+    version: v === null ? null : Number(v),
+    method: res.headers.get('X-Method'),
+    timing: parseServerTiming(res.headers.get('Server-Timing')),
+    stats,
+    contentType: res.headers.get('Content-Type'),
+  };
+}
+
+// ---- the session, kept across reloads and server restarts ---------------------
+const STORE_KEY = 'pocketray.session';
+
+export function loadStoredSession(storage = window.localStorage) {
+  try {
+    return JSON.parse(storage.getItem(STORE_KEY) || 'null');
+  } catch {
+    return null;
+  }
+}
+
+export function storeSession(session, storage = window.localStorage) {
+  try {
+    storage.setItem(STORE_KEY, JSON.stringify(session));
+  } catch { /* private mode: the session lasts as long as the page */ }
+}
+
+// Same scene? (the scene parameters that were asked for, against the session's scene_info)
+export function sameScene(wanted, info) {
+  if (!info) return false;
+  return ['scenario', 'n', 'seed', 'radius'].every((k) => wanted[k] === undefined || Number(wanted[k]) === Number(info[k]));
+}

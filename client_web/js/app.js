@@ -1,0 +1,355 @@
+// Wiring: the View of the thesis's MVC. Gestures go to the service (the
+// Controller updates the Model's camera) and the frame it renders comes back.
+//
+// Test hook: window.pocketray exposes what tests observe (frameCount,
+// lastFrameVersion, lastFrame, sessionId, errors, notices, status, idle, …).
+
+import { Api, ApiError, loadStoredSession, storeSession, sameScene } from './api.js';
+import { attach } from './gestures.js';
+import { FrameScheduler } from './frames.js';
+import { Overlay } from './overlay.js';
+import {
+  DEFAULT_SCENE, FALLBACK_METHODS, RENDER_KEYS, SettingsPanel, fitResolution, loadClientSettings,
+  parseResolution, previewSize, readUrlParams, saveClientSettings,
+} from './settings.js';
+
+const $ = (sel) => document.querySelector(sel);
+const canvas = $('#view');
+const ctx = canvas.getContext('2d');
+const stage = $('#stage');
+
+const url = readUrlParams(location.search);
+const state = {
+  sessionId: null,
+  scene: { ...DEFAULT_SCENE },
+  render: null,                 // the session's full settings (from the server)
+  client: { ...loadClientSettings(), ...url.client },
+  methods: [...FALLBACK_METHODS],
+};
+
+// ---- test hook --------------------------------------------------------------------
+const hook = {
+  frameCount: 0,
+  lastFrameVersion: null,
+  lastFrame: null,
+  sessionId: null,
+  errors: [],
+  notices: [],
+  log: [],                      // the last frames shown: level, size, content type, version
+  status: 'starting',
+  state,
+  get idle() { return scheduler.idle && hook.status === 'ready'; },
+  get requests() { return scheduler.requests; },
+  get dropped() { return scheduler.dropped; },
+};
+window.pocketray = hook;
+
+// ---- notices and the error banner ----------------------------------------------------
+function notice(text, kind = 'info', ms = 6000) {
+  hook.notices.push({ text, kind });
+  const p = document.createElement('p');
+  p.textContent = text;
+  p.className = kind;
+  $('#notice').append(p);
+  setTimeout(() => p.remove(), ms);
+}
+
+function recordError(e, what) {
+  const entry = { what, status: e instanceof ApiError ? e.status : null, message: describe(e) };
+  hook.errors.push(entry);
+  notice(entry.message, 'error', 8000);
+}
+
+function describe(e) {
+  if (!(e instanceof ApiError)) return `Something went wrong: ${e.message || e}`;
+  const d = e.detail;
+  if (Array.isArray(d)) {  // FastAPI validation errors
+    return `Not accepted: ${d.map((x) => x.msg || JSON.stringify(x)).join('; ')}`;
+  }
+  return e.status === 422 ? `Not accepted: ${d}` : `The service answered ${e.status}: ${d}`;
+}
+
+const banner = $('#banner');
+let bannerTimer = null;
+function onStatus(s) {
+  clearInterval(bannerTimer);
+  if (s.state === 'online') {
+    if (!banner.hidden && hook.status === 'offline') notice('Connected to the render service again.');
+    banner.hidden = true;
+    hook.status = state.render ? 'ready' : 'starting';
+    return;
+  }
+  hook.status = s.state;  // 'offline' | 'busy'
+  banner.hidden = false;
+  banner.classList.toggle('busy', s.state === 'busy');
+  const until = performance.now() + s.delayMs;
+  const msg = banner.querySelector('[data-message]');
+  const paint = () => {
+    const left = Math.max(0, Math.ceil((until - performance.now()) / 1000));
+    msg.textContent = `${s.message}. Retrying in ${left} s${s.attempt > 1 ? ` (attempt ${s.attempt})` : ''}…`;
+  };
+  paint();
+  bannerTimer = setInterval(paint, 250);
+}
+
+const api = new Api({ onStatus });
+banner.querySelector('[data-retry]').addEventListener('click', () => api.retryNow());
+window.addEventListener('online', () => api.retryNow());
+
+// ---- frames -------------------------------------------------------------------------
+function frameParams(level) {
+  const r = state.render, c = state.client;
+  if (level === 'full') {
+    const p = { width: r.width, height: r.height, format: c.fullFormat };
+    if (c.fullFormat === 'jpeg') p.quality = c.fullQuality;
+    return p;
+  }
+  const { width, height } = previewSize(r.width, r.height, c.previewScale);
+  const p = { width, height, format: c.previewFormat };
+  if (c.previewFormat === 'jpeg') p.quality = c.previewQuality;
+  return p;
+}
+
+// Where the frame is drawn inside the stage (object-fit: contain), CSS pixels.
+function displayedSize() {
+  const cw = stage.clientWidth || window.innerWidth, ch = stage.clientHeight || window.innerHeight;
+  const a = state.render ? state.render.width / state.render.height : cw / ch;
+  return cw / ch > a ? { width: ch * a, height: ch } : { width: cw, height: cw / a };
+}
+
+let activity = 0, activityTimer = null;
+async function timed(fn) {
+  const t0 = performance.now();
+  if (activity++ === 0) activityTimer = setTimeout(() => $('#activity').classList.add('on'), 250);
+  try {
+    const frame = await fn();
+    if (frame && frame.blob) frame.t0 = t0;
+    return frame;
+  } finally {
+    if (--activity === 0) {
+      clearTimeout(activityTimer);
+      $('#activity').classList.remove('on');
+    }
+  }
+}
+
+const transport = {
+  gesture(op, level) {
+    const body = op.type === 'pan' ? { ...op, viewport_height: displayedSize().height } : op;
+    return timed(() => api.gesture(state.sessionId, body, level ? frameParams(level) : null));
+  },
+  frame(level) {
+    return timed(() => api.frame(state.sessionId, frameParams(level)));
+  },
+  refineNeeded() {
+    const c = state.client;
+    return c.previewScale < 1 || c.previewFormat !== c.fullFormat;
+  },
+};
+
+async function display(frame, level) {
+  const bitmap = await createImageBitmap(frame.blob);
+  if (canvas.width !== bitmap.width || canvas.height !== bitmap.height) {
+    canvas.width = bitmap.width;
+    canvas.height = bitmap.height;
+  }
+  ctx.drawImage(bitmap, 0, 0);
+  bitmap.close?.();
+  const clientMs = performance.now() - frame.t0;
+  hook.frameCount++;
+  hook.lastFrameVersion = frame.version;
+  hook.lastFrame = {
+    level, width: canvas.width, height: canvas.height, version: frame.version,
+    contentType: frame.contentType, method: frame.method, timing: frame.timing, stats: frame.stats, clientMs,
+  };
+  hook.log.push({ level, width: canvas.width, height: canvas.height, contentType: frame.contentType, version: frame.version });
+  if (hook.log.length > 100) hook.log.shift();
+  canvas.setAttribute('aria-label',
+    `Ray-traced scene: scenario ${state.scene.scenario}, ${state.scene.n} spheres, ${state.render.mode} mode`);
+  overlay.frame({
+    level, width: canvas.width, height: canvas.height, clientMs, timing: frame.timing, stats: frame.stats,
+    method: frame.method, n: state.scene.n_spheres ?? state.scene.n, version: frame.version,
+  });
+}
+
+const scheduler = new FrameScheduler({
+  transport,
+  display,
+  refineDelayMs: state.client.refineDelayMs,
+  onError(e, what) {
+    if (e instanceof ApiError && e.status === 404 && state.sessionId) {  // the session expired
+      replaceExpiredSession();
+      return;
+    }
+    recordError(e, what);
+  },
+});
+
+// ---- the session --------------------------------------------------------------------
+function adopt(s) {
+  state.sessionId = s.id;
+  hook.sessionId = s.id;
+  const info = s.scene_info || {};
+  state.scene = {
+    scenario: info.scenario ?? state.scene.scenario, n: info.n ?? info.n_spheres ?? state.scene.n,
+    seed: info.seed ?? state.scene.seed, radius: info.radius ?? state.scene.radius, n_spheres: info.n_spheres,
+  };
+  state.render = pickRender(s.settings);
+  storeSession({ id: s.id, scene: { scenario: state.scene.scenario, n: state.scene.n, seed: state.scene.seed, radius: state.scene.radius } });
+  scheduler.resetVersions();
+  panel.show(state);
+}
+
+function pickRender(settings) {
+  const r = {};
+  for (const k of [...RENDER_KEYS, 'format', 'quality']) if (settings[k] !== undefined) r[k] = settings[k];
+  return r;
+}
+
+function sceneBody(scene) {
+  return { scenario: scene.scenario, n: scene.n, seed: scene.seed, radius: scene.radius };
+}
+
+// Full resolution the client wants now ('fit' follows the screen).
+function wantedSize() {
+  const c = state.client;
+  if (c.resolution === 'fit') {
+    return fitResolution(stage.clientWidth || window.innerWidth, stage.clientHeight || window.innerHeight,
+      window.devicePixelRatio || 1, c.maxFitSide);
+  }
+  return parseResolution(c.resolution);  // null for 'custom': keep the session's
+}
+
+// Render settings to apply on top of the session's: URL parameters and the resolution.
+function wantedRender(current) {
+  const want = { ...url.render };
+  const size = wantedSize();
+  if (size) Object.assign(want, size);
+  const diff = {};
+  for (const [k, v] of Object.entries(want)) if (!current || current[k] !== v) diff[k] = v;
+  return diff;
+}
+
+let replacing = false;
+function replaceExpiredSession() {
+  if (replacing) return;
+  replacing = true;
+  scheduler.dropPending();
+  scheduler.enqueue(async () => {
+    const s = await api.createSession(sceneBody(state.scene), state.render);
+    adopt(s);
+    notice('The session had expired; a new one was started with the same scene (the camera is reset).', 'warn');
+  }).then(() => scheduler.invalidate(), () => {}).finally(() => { replacing = false; });
+}
+
+async function start() {
+  const stored = loadStoredSession();
+  let s = null, expired = false;
+  if (stored && stored.id) {
+    try {
+      s = await api.getSession(stored.id);
+      if (Object.keys(url.scene).length && !sameScene(url.scene, s.scene_info)) s = null;  // a link to another scene
+    } catch (e) {
+      if (!(e instanceof ApiError && e.status === 404)) throw e;
+      expired = true;
+    }
+  }
+  if (!s) {
+    const scene = { ...DEFAULT_SCENE, ...(stored && stored.scene), ...url.scene };
+    try {
+      s = await api.createSession(sceneBody(scene), wantedRender(null));
+    } catch (e) {
+      if (!(e instanceof ApiError && e.status === 422)) throw e;
+      recordError(e, 'start');  // e.g. a link with parameters the service refuses
+      notice('Starting the default scene instead.', 'warn');
+      s = await api.createSession(sceneBody(DEFAULT_SCENE), wantedSize() || {});
+    }
+    if (expired) notice('Your previous session had expired; a new one was started with the same scene.', 'warn');
+    adopt(s);
+  } else {
+    adopt(s);
+    const diff = wantedRender(state.render);
+    if (Object.keys(diff).length) adopt({ ...s, settings: await patch(diff) });
+  }
+  hook.status = 'ready';
+}
+
+async function patch(partial) {
+  const r = await api.patchSettings(state.sessionId, partial);
+  return r.settings ?? r;  // SettingsOut: the full settings plus version, flat
+}
+
+// ---- settings ------------------------------------------------------------------------
+function applyRender(partial) {
+  scheduler.enqueue(async () => {
+    state.render = pickRender(await patch(partial));
+    panel.show(state);
+  }).then(() => scheduler.invalidate(), () => panel.show(state));
+}
+
+const panel = new SettingsPanel($('#settings'), $('#settings-toggle'), {
+  onScene(scene) {
+    scheduler.dropPending();
+    scheduler.enqueue(async () => {
+      const s = await api.createSession(sceneBody(scene), state.render);
+      adopt(s);
+    }).then(() => scheduler.invalidate(), () => panel.show(state));
+  },
+  onRender: applyRender,
+  onClient(partial) {
+    state.client = { ...state.client, ...partial };
+    saveClientSettings(state.client);
+    scheduler.refineDelayMs = state.client.refineDelayMs;
+    if ('resolution' in partial) {
+      const size = wantedSize();
+      if (size && (size.width !== state.render.width || size.height !== state.render.height)) applyRender(size);
+    }
+    panel.show(state);
+  },
+});
+
+const overlay = new Overlay($('#overlay'), $('#overlay-toggle'));
+if (url.client.overlay !== undefined) overlay.setHidden(!url.client.overlay);
+
+// 'fit' follows the screen: rotate the phone, resize the window.
+let resizeTimer = null;
+window.addEventListener('resize', () => {
+  clearTimeout(resizeTimer);
+  resizeTimer = setTimeout(() => {
+    if (!state.render || state.client.resolution !== 'fit') return;
+    const size = wantedSize();
+    if (size.width !== state.render.width || size.height !== state.render.height) applyRender(size);
+  }, 300);
+});
+
+// ---- gestures ----------------------------------------------------------------------
+attach(canvas, {
+  onPan: (dx, dy) => state.render && scheduler.gesture({ type: 'pan', dx, dy }),
+  onPinch: (scale) => state.render && scheduler.gesture({ type: 'pinch', scale }),
+  onReset: () => state.render && scheduler.gesture({ type: 'reset' }),
+  onWheel: (scale) => state.render && scheduler.gesture({ type: 'pinch', scale }),
+  onKey: (g) => state.render && scheduler.gesture(g),
+});
+$('#reset-button').addEventListener('click', () => state.render && scheduler.gesture({ type: 'reset' }));
+
+// ---- go ------------------------------------------------------------------------------
+// What this service offers: its method and mode lists, and limits for the form.
+api.info().then((info) => {
+  hook.info = info;
+  if (!info) return;
+  if (Array.isArray(info.methods) && info.methods.length) {
+    state.methods = info.methods;
+    panel.setMethods(info.methods);
+  }
+  if (Array.isArray(info.modes) && info.modes.length) panel.setModes(info.modes);
+  if (info.limits) panel.setLimits(info.limits);
+  if (state.render) panel.show(state);
+});
+
+scheduler.enqueue(start).then(
+  () => scheduler.invalidate(),
+  (e) => {
+    hook.status = 'failed';
+    recordError(e, 'start');
+  },
+);

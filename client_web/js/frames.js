@@ -1,0 +1,214 @@
+// Latest-wins frame scheduling.
+//
+//  - At most one request in flight per client (gestures, frames, settings and
+//    session changes all go through here, in order).
+//  - Gestures that arrive while one is in flight are merged: pan dx/dy add up,
+//    pinch scales multiply, a reset discards what came before it. When the
+//    request returns, the merged gesture goes as one (one request per gesture
+//    type that accumulated; only the last one asks for the frame).
+//  - While the finger moves, frames come at the *preview* level (reduced
+//    resolution, jpeg); `refineDelayMs` after the last gesture one *full* frame
+//    (full resolution, png) replaces it.
+//  - A frame is shown only when it is newer than the one on screen: a higher
+//    request sequence number and a session version not lower than the shown one.
+//
+// No DOM and no fetch here: `transport` does the I/O, so this is unit-testable.
+//   transport.gesture(op, level|null) → frame (level given) or anything (null)
+//   transport.frame(level)            → frame            level: 'preview' | 'full'
+//   transport.refineNeeded()          → false when both levels are the same (optional)
+//   display(frame, level)             → shows it (may be async)
+//   onError(error, what)              → what: 'gesture' | 'frame' | 'task'
+// A frame is {version, ...anything display needs}.
+
+export function emptyGesture() {
+  return { reset: false, scale: 1, dx: 0, dy: 0 };
+}
+
+// Merge one gesture into an accumulated one (in place); returns it.
+export function mergeGesture(acc, g) {
+  if (g.type === 'reset') {
+    acc.reset = true;
+    acc.scale = 1;
+    acc.dx = 0;
+    acc.dy = 0;
+  } else if (g.type === 'pinch') {
+    if (Number.isFinite(g.scale) && g.scale > 0) acc.scale *= g.scale;
+  } else if (g.type === 'pan') {
+    acc.dx += g.dx || 0;
+    acc.dy += g.dy || 0;
+  }
+  return acc;
+}
+
+// The requests an accumulated gesture needs, in order (reset, pinch, pan).
+export function gestureOps(acc, eps = 1e-6) {
+  const ops = [];
+  if (acc.reset) ops.push({ type: 'reset' });
+  if (Math.abs(acc.scale - 1) > eps) ops.push({ type: 'pinch', scale: acc.scale });
+  if (Math.abs(acc.dx) > eps || Math.abs(acc.dy) > eps) ops.push({ type: 'pan', dx: acc.dx, dy: acc.dy });
+  return ops;
+}
+
+export class FrameScheduler {
+  constructor({ transport, display, onError = () => {}, onIdle = () => {}, refineDelayMs = 200, timers = null }) {
+    this.transport = transport;
+    this.display = display;
+    this.onError = onError;
+    this.onIdle = onIdle;
+    this.refineDelayMs = refineDelayMs;
+    this.timers = timers || {
+      set: (fn, ms) => setTimeout(fn, ms),
+      clear: (t) => clearTimeout(t),
+      now: () => performance.now(),
+    };
+    this.pending = null;        // merged gestures not yet sent
+    this.tasks = [];            // queued exclusive jobs (settings, sessions)
+    this.needFull = false;      // a full frame is due
+    this.inFlight = false;
+    this.refineTimer = null;
+    this.lastGestureAt = -Infinity;
+    this.seq = 0;               // sequence number of the last request made
+    this.shownSeq = 0;          // … of the frame on screen
+    this.shownVersion = null;   // session version of the frame on screen
+    this.shownLevel = null;
+    this.dropped = 0;           // late frames not shown
+    this.requests = 0;
+    this.paused = false;
+  }
+
+  get idle() {
+    return !this.inFlight && !this.pending && this.tasks.length === 0 && !this.needFull && this.refineTimer === null;
+  }
+
+  // A gesture from the user: {type: 'pan', dx, dy} | {type: 'pinch', scale} | {type: 'reset'}.
+  gesture(g) {
+    this.pending = mergeGesture(this.pending || emptyGesture(), g);
+    if (gestureOps(this.pending).length === 0) this.pending = null;
+    this.lastGestureAt = this.timers.now();
+    this._cancelRefine();
+    this._pump();
+  }
+
+  // The image on screen is out of date (settings changed, new session): render a full frame.
+  invalidate() {
+    this.needFull = true;
+    this._cancelRefine();
+    this._pump();
+  }
+
+  // Run `fn` (async) when nothing else is in flight, before any later frame.
+  // Resolves with fn's result (or rejects with its error, also given to onError).
+  enqueue(fn) {
+    return new Promise((resolve, reject) => {
+      this.tasks.push({ fn, resolve, reject });
+      this._pump();
+    });
+  }
+
+  // A new session: its versions start over, so forget the shown version.
+  resetVersions() {
+    this.shownVersion = null;
+  }
+
+  // Drop the gestures not sent yet (e.g. their session is gone).
+  dropPending() {
+    this.pending = null;
+  }
+
+  pause() {
+    this.paused = true;
+  }
+
+  resume() {
+    this.paused = false;
+    this._pump();
+  }
+
+  _cancelRefine() {
+    if (this.refineTimer !== null) {
+      this.timers.clear(this.refineTimer);
+      this.refineTimer = null;
+    }
+  }
+
+  _scheduleRefine() {
+    this._cancelRefine();
+    if (this.transport.refineNeeded && !this.transport.refineNeeded()) return;
+    const wait = Math.max(0, this.refineDelayMs - (this.timers.now() - this.lastGestureAt));
+    this.refineTimer = this.timers.set(() => {
+      this.refineTimer = null;
+      this.needFull = true;
+      this._pump();
+    }, wait);
+  }
+
+  // Show `frame` if it is newer than the one on screen. Returns whether it was shown.
+  async _offer(frame, seq, level) {
+    if (seq <= this.shownSeq ||
+        (frame.version != null && this.shownVersion != null && frame.version < this.shownVersion)) {
+      this.dropped++;
+      return false;
+    }
+    this.shownSeq = seq;
+    if (frame.version != null) this.shownVersion = frame.version;
+    this.shownLevel = level;
+    await this.display(frame, level);
+    return true;
+  }
+
+  async _pump() {
+    if (this.inFlight || this.paused) return;
+    if (this.tasks.length) {
+      const { fn, resolve, reject } = this.tasks.shift();
+      this.inFlight = true;
+      try {
+        resolve(await fn());
+      } catch (e) {
+        this.onError(e, 'task');
+        reject(e);
+      } finally {
+        this.inFlight = false;
+      }
+      return this._pump();
+    }
+    if (this.pending) {
+      const ops = gestureOps(this.pending);
+      this.pending = null;
+      this.needFull = false;  // the refine after this gesture will bring the full frame
+      this.inFlight = true;
+      const seq = ++this.seq;
+      try {
+        let frame = null;
+        for (let i = 0; i < ops.length; i++) {
+          const last = i === ops.length - 1;
+          this.requests++;
+          const r = await this.transport.gesture(ops[i], last ? 'preview' : null);
+          if (last) frame = r;
+        }
+        if (frame) await this._offer(frame, seq, 'preview');
+      } catch (e) {
+        this.onError(e, 'gesture');
+      } finally {
+        this.inFlight = false;
+      }
+      if (!this.pending) this._scheduleRefine();
+      return this._pump();
+    }
+    if (this.needFull) {
+      this.needFull = false;
+      this.inFlight = true;
+      const seq = ++this.seq;
+      try {
+        this.requests++;
+        const frame = await this.transport.frame('full');
+        await this._offer(frame, seq, 'full');
+      } catch (e) {
+        this.onError(e, 'frame');
+      } finally {
+        this.inFlight = false;
+      }
+      return this._pump();
+    }
+    if (this.idle) this.onIdle();
+  }
+}
