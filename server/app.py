@@ -68,11 +68,17 @@ def frame_query(
     max_recursion_depth: Annotated[int | None, Query(ge=1, le=8)] = None,
     format: Annotated[FormatName | None, Query()] = None,
     quality: Annotated[int | None, Query(ge=1, le=100, description="JPEG quality")] = None,
+    samples_per_pixel: Annotated[int | None, Query(ge=1, le=16, description="1, 4, 9 or 16: supersampling")] = None,
+    min_weight: Annotated[float | None, Query(ge=0.0, le=1.0, allow_inf_nan=False,
+                                              description="ε cut-off of secondary rays")] = None,
+    specialize: Annotated[bool | None, Query(description="scene-specialised shader variant")] = None,
+    tile_size: Annotated[int | None, Query(ge=2, le=64, description="hre tile edge")] = None,
 ) -> dict[str, Any]:
     """Frame parameters of the query; missing ones come from the session's defaults."""
     given = {"width": width, "height": height, "method": method, "mode": mode, "max_prims": max_prims,
              "max_tree_depth": max_tree_depth, "max_recursion_depth": max_recursion_depth, "format": format,
-             "quality": quality}
+             "quality": quality, "samples_per_pixel": samples_per_pixel, "min_weight": min_weight,
+             "specialize": specialize, "tile_size": tile_size}
     return {k: v for k, v in given.items() if v is not None}
 
 

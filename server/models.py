@@ -95,6 +95,11 @@ MaxPrims = Annotated[int, Field(ge=1, le=1 << 24, description="BIH leaf size lim
 TreeDepth = Annotated[int, Field(ge=1, le=MAX_TREE_DEPTH_LIMIT, description="BIH depth limit (root = 1)")]
 RecursionDepth = Annotated[int, Field(ge=1, le=MAX_RECURSION_DEPTH_LIMIT,
                                       description="1 = primary rays only; each reflection/refraction +1")]
+SamplesPerPixel = Annotated[Literal[1, 4, 9, 16], Field(description="stratified supersampling: traced at √s× "
+                                                                    "the resolution and box-filtered")]
+MinWeight = Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False,
+                                   description="ε: reflected/refracted rays of smaller path weight are not traced")]
+TileSize = Annotated[int, Field(ge=2, le=64, description="hre's tile edge in pixels")]
 
 
 class SettingsPatch(Strict):
@@ -108,6 +113,10 @@ class SettingsPatch(Strict):
     max_recursion_depth: RecursionDepth | None = None
     format: FormatName | None = None
     quality: Quality | None = None
+    samples_per_pixel: SamplesPerPixel | None = None
+    min_weight: MinWeight | None = None
+    specialize: bool | None = Field(None, description="shader variant with only the scene's features (exact)")
+    tile_size: TileSize | None = None
 
     def given(self) -> dict[str, Any]:
         return {k: v for k, v in self.model_dump().items() if v is not None}
@@ -124,6 +133,10 @@ class FullSettings(BaseModel):
     max_recursion_depth: int
     format: str
     quality: int
+    samples_per_pixel: int = 1
+    min_weight: float = 0.0
+    specialize: bool = True
+    tile_size: int = 16
 
 
 class SettingsOut(FullSettings):

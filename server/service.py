@@ -85,7 +85,12 @@ class SessionService:
     """The Model's operations plus the renders of the View, for one process."""
 
     SETTING_KEYS = ("width", "height", "method", "mode", "max_prims", "max_tree_depth",
-                    "max_recursion_depth", "format")
+                    "max_recursion_depth", "format", "samples_per_pixel", "min_weight", "specialize", "tile_size")
+
+    @classmethod
+    def render_settings(cls, settings: dict[str, Any]) -> RenderSettings:
+        """RenderSettings of a stored settings dict (keys a session predates take their defaults)."""
+        return RenderSettings(**{k: settings[k] for k in cls.SETTING_KEYS if k in settings})
 
     def __init__(self, config: ServerConfig, store: SessionStore, worker: GLWorker,
                  cache: SceneCache | None = None):
@@ -104,7 +109,7 @@ class SessionService:
         """``base`` updated by ``patch``, validated by RenderSettings (InputError at ``where``)."""
         merged = {**base, **patch}
         try:
-            RenderSettings(**{k: merged[k] for k in self.SETTING_KEYS})
+            self.render_settings(merged)
         except SceneError as e:
             raise relocate(e, where) from None
         return merged
@@ -112,12 +117,13 @@ class SessionService:
     def check_work(self, settings: dict[str, Any], n_spheres: int, where: str) -> None:
         """The per-request caps (POCKETRAY_MAX_WORK, POCKETRAY_MAX_BRUTEFORCE_WORK)."""
         w, h, d = settings["width"], settings["height"], settings["max_recursion_depth"]
-        work = w * h * d
+        spp = settings.get("samples_per_pixel", 1)
+        work = w * h * d * spp
         if work > self.config.max_work:
             raise InputError((where, "width"),
-                             f"width × height × max_recursion_depth = {w} × {h} × {d} = {work} exceeds the "
-                             f"limit {self.config.max_work} (POCKETRAY_MAX_WORK); lower width, height or "
-                             f"max_recursion_depth")
+                             f"width × height × max_recursion_depth × samples_per_pixel = {w} × {h} × {d} × {spp} "
+                             f"= {work} exceeds the limit {self.config.max_work} (POCKETRAY_MAX_WORK); lower width, "
+                             f"height, max_recursion_depth or samples_per_pixel")
         method = resolve_method(settings["method"], n_spheres)
         if method in EVERY_SPHERE_METHODS:
             bf = work * max(1, n_spheres)
@@ -129,7 +135,7 @@ class SessionService:
         check = getattr(METHODS.get(method), "check", None)  # a method's own limits (e.g. which modes)
         if check is not None:
             try:
-                check(RenderSettings(**{k: settings[k] for k in self.SETTING_KEYS}))
+                check(self.render_settings(settings))
             except SceneError as e:
                 raise relocate(e, where) from None
 
@@ -279,7 +285,7 @@ class SessionService:
     def render(self, ticket: Ticket, scene: Scene, settings: dict[str, Any], *,
                session: SessionState | None = None) -> Frame:
         """Render on the GL thread (with ``ticket``), encode here. Timings in ms."""
-        rs = RenderSettings(**{k: settings[k] for k in self.SETTING_KEYS})
+        rs = self.render_settings(settings)
         t_admit = time.perf_counter()
         started: list[float] = []
 

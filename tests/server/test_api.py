@@ -16,7 +16,7 @@ from pocketray_server_support import SMALL, new_session
 
 SESSION_KEYS = {"id", "version", "settings", "scene_info", "camera"}
 SETTING_KEYS = {"width", "height", "method", "mode", "max_prims", "max_tree_depth", "max_recursion_depth",
-                "format", "quality"}
+                "format", "quality", "samples_per_pixel", "min_weight", "specialize", "tile_size"}
 
 
 def timing(header: str) -> dict[str, float]:
@@ -265,3 +265,21 @@ def test_websocket_gesture_to_frame(ready_client):
         err = json.loads(ws.receive_text())
         assert err["status"] == 422 and "scale" in err["detail"]
     assert c.get(f"/api/sessions/{sid}").json()["version"] == 2
+
+
+def test_render_knobs_through_the_api(client):
+    """samples_per_pixel, min_weight, specialize and tile_size are settings like the others."""
+    sid = client.post("/api/sessions", json={"scenario": 2, "n": 16}).json()["id"]
+    r = client.patch(f"/api/sessions/{sid}/settings",
+                     json={"samples_per_pixel": 4, "min_weight": 0.05, "specialize": False, "tile_size": 8})
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert (body["samples_per_pixel"], body["min_weight"], body["specialize"], body["tile_size"]) == (4, 0.05, False, 8)
+    frame = client.get(f"/api/sessions/{sid}/frame", params={"width": 24, "height": 40, "format": "npy",
+                                                             "samples_per_pixel": 4})
+    assert frame.status_code == 200, frame.text
+    for bad, field in [({"samples_per_pixel": 3}, "samples_per_pixel"), ({"min_weight": 2}, "min_weight"),
+                       ({"tile_size": 1}, "tile_size")]:
+        r = client.patch(f"/api/sessions/{sid}/settings", json=bad)
+        assert r.status_code == 422 and field in r.text
+    assert client.get(f"/api/sessions/{sid}").json()["settings"]["samples_per_pixel"] == 4
