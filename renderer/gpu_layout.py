@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import bih_layout
+from . import bih_layout, bvh_layout, kdtree_layout
 from .scene import Scene
 
 DEFAULT_TEXTURE_WIDTH = 4096  # WebGL2 guarantees 2048; most phones have 4096
@@ -139,4 +139,38 @@ def glsl_header() -> str:
             f"#define MAX_LIGHTS {MAX_LIGHTS}\n"
             f"#define MATERIAL_TEXELS {MATERIAL_TEXELS}\n"
             f"#define BIH_STACK_SIZE {BIH_STACK_SIZE}\n"
-            + bih_layout.glsl_defines())
+            + bih_layout.glsl_defines() + bvh_layout.glsl_defines() + kdtree_layout.glsl_defines())
+
+
+def pack_bvh(bvh, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
+    """The BVH's nodes (two RGBA32UI texels each, see ``bvh_layout``) and its index array."""
+    return PackedScene(
+        textures={"u_bvh_nodes": wrap_rows(bvh.texels(), max_width),
+                  "u_bvh_indices": wrap_rows(bvh.indices.astype(np.uint32), max_width)})
+
+
+def pack_kdtree(kd, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
+    """The kd-tree's nodes (RG32UI, see ``kdtree_layout``), compacted index array and global box."""
+    return PackedScene(
+        textures={"u_kd_nodes": wrap_rows(kd.words(), max_width),
+                  "u_kd_indices": wrap_rows(kd.indices.astype(np.uint32), max_width)},
+        uniforms={"u_kd_box_min": tuple(float(x) for x in kd.global_box[0]),
+                  "u_kd_box_max": tuple(float(x) for x in kd.global_box[1])})
+
+
+def pack_twolevel(kd, kd_ids: np.ndarray, bvh, bvh_ids: np.ndarray,
+                  max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
+    """Two levels: the kd-tree over the spheres ``kd_ids`` and the BVH over ``bvh_ids``.
+
+    Each structure was built over its subset (primitive ``i`` = scene sphere ``ids[i]``);
+    their index arrays are mapped to scene ids here, so the shader sees scene ids only.
+    """
+    kd_ids = np.asarray(kd_ids, dtype=np.int64)
+    bvh_ids = np.asarray(bvh_ids, dtype=np.int64)
+    kd_part = pack_kdtree(kd, max_width)
+    kd_part.textures["u_kd_indices"] = wrap_rows(kd_ids[kd.indices].astype(np.uint32), max_width)
+    bvh_part = pack_bvh(bvh, max_width)
+    bvh_part.textures["u_bvh_indices"] = wrap_rows(bvh_ids[bvh.indices].astype(np.uint32), max_width)
+    return PackedScene(textures={**kd_part.textures, **bvh_part.textures},
+                       uniforms={**kd_part.uniforms, "u_kd_count": int(len(kd_ids)),
+                                 "u_bvh_count": int(len(bvh_ids))})

@@ -65,8 +65,12 @@ class BoundingIntervalHierarchy:
 
 
 from .ray_engine import HierarchicalRayEngine, RayEngine  # noqa: E402  (multi-pass methods, issue #8)
+from .bvh import BVHMethod  # noqa: E402  (issue #9)
+from .kdtree import KdTreeMethod  # noqa: E402  (issue #9)
+from .animation import TwoLevelMethod  # noqa: E402  (issue #9)
 METHODS: dict[str, AccelerationMethod] = {m.name: m for m in (BoundingIntervalHierarchy(), BruteForce(), RayEngine(),
-                                                               HierarchicalRayEngine())}
+                                                               HierarchicalRayEngine(), BVHMethod(),
+                                                               KdTreeMethod(), TwoLevelMethod())}
 
 AUTO_METHOD = "auto"
 # Below this many spheres brute force traces a frame faster than the BIH

@@ -1,0 +1,331 @@
+"""Dynamic scenes (issue #9): Reiter's Figures 5.11, 5.4 and 5.6 for spheres.
+
+1. **Updating schemes (Fig. 5.11).** A BART-Museum-like animation (``renderer.animation.museum``:
+   n moving spheres in a static room of 576 spheres and the floor) is played for ``FRAMES``
+   frames at 25 frames/s, for each kind of motion, with the thesis's BIH rebuilt every frame
+   and a BVH rebuilt, refitted or selectively rebuilt (+30 %). The BVH/BIH update runs on every
+   frame; every ``RENDER_EVERY``-th frame is also traced (primid mode, "simple colour coding")
+   with the tree of that frame. Frame time = update + upload/trace/read-back (mean over the
+   traced frames). From the same data: the n from which updating beats rebuilding the BIH
+   for every request, per kind of motion.
+2. **Cost-scaling termination (Fig. 5.4).** The kd-tree with leaf costs scaled down
+   exponentially with depth (scale s at the maximal depth) against the plain SAH
+   criterion (s = 1): trace time, build time and tree bytes, relative to s = 1.
+3. **Two levels (Fig. 5.6).** The Museum with 4096 moving spheres, BVH only (all spheres in
+   one BVH, selective rebuild) against BVH + kd-tree (static spheres in a kd-tree built once,
+   moving ones in the BVH), in four shading configurations, summed over an animation.
+
+Standalone: ``python bench/experiments/dynamic.py [--quick] [--out DIR]``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+import time
+from pathlib import Path
+
+if __name__ == "__main__":  # standalone: make the repository root importable
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+import numpy as np  # noqa: E402
+
+from bench.experiments.common import Context, log_axis, md_table, plt  # noqa: E402
+from renderer.animation import AnimatedScene, AnimationSettings, museum, pose, render_frame  # noqa: E402
+from renderer.bih import sphere_aabbs  # noqa: E402
+from renderer.kdtree import build_kdtree  # noqa: E402
+from renderer.methods import METHODS  # noqa: E402
+from renderer.scenarios import scenario  # noqa: E402
+from renderer.settings import RenderSettings  # noqa: E402
+
+NAME = "dynamic"
+TITLE = "Dynamic scenes — BVH updates, cost-scaling kd-tree, two levels (Reiter Figs. 5.11, 5.4, 5.6)"
+
+FPS = 25.0
+KINDS = ("rigid", "deformable", "incoherent", "incoherent_appear")
+KIND_TEXT = {"rigid": "rigid groups", "deformable": "deformable (travelling wave)",
+             "incoherent": "incoherent, fixed count (respawning)",
+             "incoherent_appear": "incoherent, appearing/disappearing (20 % absent)"}
+SCHEMES = (("BIH rebuild (thesis)", "bih", "rebuild"), ("BVH rebuild", "bvh", "rebuild"),
+           ("BVH refit", "bvh", "refit"), ("BVH selective +30 %", "bvh", "selective"))
+NS, NS_QUICK = (256, 1024, 4096, 16384, 65536), (256, 1024)
+FRAMES, FRAMES_QUICK = 100, 6
+RENDER_EVERY, RENDER_EVERY_QUICK = 10, 3
+SIZE, SIZE_QUICK = (256, 256), (48, 48)
+COST_SCALES = (1.0, 0.9, 0.75, 0.5, 0.25, 0.1)
+MAX_PRIMS = 4
+
+
+def make_anim(kind: str, n: int) -> AnimatedScene:
+    base = "incoherent" if kind.startswith("incoherent") else kind
+    return museum(n, base, seed=1, absent=0.2 if kind == "incoherent_appear" else 0.0)
+
+
+def render_prepared(renderer, scene, settings: RenderSettings, prepared):
+    """Render with an already prepared method (its build/update is not repeated)."""
+    name = settings.method
+    method = METHODS[name]
+
+    class _Prepared:
+        def __init__(self) -> None:
+            self.name = name
+
+        def prepare(self, *a, **kw):
+            return prepared
+
+    METHODS[name] = _Prepared()
+    try:
+        return renderer.render(scene, settings)
+    finally:
+        METHODS[name] = method
+
+
+# ------------------------------------------------------------------ Fig. 5.11
+
+def play(ctx: Context, anim: AnimatedScene, method: str, scheme: str, frames: int, every: int,
+         settings: RenderSettings) -> dict:
+    key = ("dynamic", id(anim), method, scheme, time.perf_counter())
+    impl = METHODS[method]
+    upd, trace, sah = [], [], []
+    for f in range(frames):
+        frame = pose(anim, f / FPS)
+        if method == "bvh":
+            prepared = impl.prepare(frame.scene, MAX_PRIMS, 64, ctx.renderer.max_texture_width,
+                                    update=scheme, key=key)
+            sah.append(prepared.stats["sah_cost"])
+        else:
+            prepared = impl.prepare(frame.scene, MAX_PRIMS, 64, ctx.renderer.max_texture_width)
+        upd.append(prepared.build_ms)
+        if (f + 1) % every == 0:
+            res = render_prepared(ctx.renderer, frame.scene, settings.with_(method=method), prepared)
+            trace.append(res.timings["upload"] + res.timings["trace"] + res.timings["read"])
+    # frame 0 builds from scratch for every scheme: the means are over the following frames
+    u, t = float(np.mean(upd[1:] if len(upd) > 1 else upd)), float(np.mean(trace))
+    return {"update_ms": u, "trace_ms": t, "frame_ms": u + t, "update_samples": upd, "trace_samples": trace,
+            "sah": sah, "frames": frames}
+
+
+def crossover_n(ns, ours, theirs) -> tuple[float, str]:
+    """The n from which ``ours`` < ``theirs`` at every larger measured n (interpolated in log n)."""
+    faster = [a < b for a, b in zip(ours, theirs)]
+    if all(faster):
+        return ns[0], f"≤ {ns[0]:,}"
+    if not faster[-1]:
+        return math.inf, f"> {ns[-1]:,} (never within the measured n)"
+    i = max(k for k, ok in enumerate(faster) if not ok) + 1
+    r0, r1 = math.log(ours[i - 1] / theirs[i - 1]), math.log(ours[i] / theirs[i])
+    x0, x1 = math.log(ns[i - 1]), math.log(ns[i])
+    x = x0 + (x1 - x0) * r0 / (r0 - r1) if r0 != r1 else x1
+    return math.exp(x), f"≈ {math.exp(x):,.0f}"
+
+
+def fig_5_11(ctx: Context) -> tuple[str, dict]:
+    ns = getattr(ctx, "dynamic_ns", None) or (NS_QUICK if ctx.quick else NS)
+    frames = getattr(ctx, "dynamic_frames", None) or (FRAMES_QUICK if ctx.quick else FRAMES)
+    every = RENDER_EVERY_QUICK if ctx.quick else RENDER_EVERY
+    w, h = SIZE_QUICK if ctx.quick else SIZE
+    settings = RenderSettings(width=w, height=h, mode="primid", max_recursion_depth=1, max_prims=MAX_PRIMS)
+    data: dict = {}
+    jobs = [(k, n, s) for k in KINDS for n in ns for s in SCHEMES]
+    for kind, n, (label, method, scheme) in ctx.bar(jobs, desc="fig 5.11"):
+        anim = make_anim(kind, n)
+        data[(kind, n, label)] = play(ctx, anim, method, scheme, frames, every, settings)
+    pyplot = plt()
+    fig, axes = pyplot.subplots(1, len(KINDS), figsize=(4.4 * len(KINDS), 4.2), sharey=True)
+    for ax, kind in zip(axes, KINDS):
+        for label, _, _ in SCHEMES:
+            ys = [data[(kind, n, label)]["frame_ms"] for n in ns]
+            ax.plot(ns, ys, marker="o", label=label)
+            ax.plot(ns, [data[(kind, n, label)]["update_ms"] for n in ns], ls=":", color=ax.lines[-1].get_color(),
+                    alpha=0.7)
+        ax.set_xscale("log", base=2)
+        log_axis(ax, "y")
+        ax.set_title(KIND_TEXT[kind], fontsize=9)
+        ax.set_xlabel("moving spheres n")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel("ms per frame (solid: update + trace; dotted: update)")
+    axes[-1].legend(fontsize=7)
+    img = ctx.savefig(fig, "dynamic_fig_5_11", "Frame time per updating scheme and n, per kind of motion")
+    tables = []
+    cross_rows = []
+    for kind in KINDS:
+        rows = []
+        for n in ns:
+            row = [f"{n:,}"]
+            for label, _, _ in SCHEMES:
+                d = data[(kind, n, label)]
+                row.append(f"{d['frame_ms']:,.1f} ({100 * d['update_ms'] / d['frame_ms']:.0f} %)")
+            rows.append(row)
+        tables.append(f"**{KIND_TEXT[kind]}** — mean ms per frame (share of the update):\n\n"
+                      + md_table(["moving n"] + [s[0] for s in SCHEMES], rows))
+        bih = [data[(kind, n, SCHEMES[0][0])]["frame_ms"] for n in ns]
+        cells = [KIND_TEXT[kind]]
+        for label in (SCHEMES[2][0], SCHEMES[3][0]):
+            _, txt = crossover_n(ns, [data[(kind, n, label)]["frame_ms"] for n in ns], bih)
+            cells.append(txt)
+        cross_rows.append(cells)
+    cross = md_table(["kind of motion", "refit beats BIH rebuild from n", "selective beats BIH rebuild from n"],
+                     cross_rows, "lll")
+    raw = {f"{k}/{n}/{lab}": v for (k, n, lab), v in data.items()}
+    frag = f"""### Updating schemes (Reiter Fig. 5.11)
+
+Museum-like animation, {frames} frames at {FPS:g} frames/s, primid mode (colour coding of the visible
+sphere) at {w} × {h}, recursion depth 1, `MAX_PRIMS` {MAX_PRIMS}; the update runs on every frame, the
+trace on every {every}th (with that frame's tree). Means exclude frame 0, where every scheme builds from
+scratch. The static room (576 spheres) is in the same tree as the moving spheres.
+
+{img}
+
+{chr(10).join(t + chr(10) for t in tables)}
+**Where updating beats the thesis's rebuild-every-request** (frame time of the BVH scheme below the
+BIH rebuild's at that n and every larger measured n):
+
+{cross}
+
+{ctx.caption(1, what="")}
+"""
+    return frag, raw
+
+
+# ------------------------------------------------------------------- Fig. 5.4
+
+def fig_5_4(ctx: Context) -> tuple[str, dict]:
+    n = 512 if ctx.quick else 4096
+    w, h = SIZE_QUICK if ctx.quick else SIZE
+    scenes = [(f"scenario {sc}, n = {n:,}", scenario(sc, n)) for sc in (1, 2, 3)]
+    mus = museum(n, "deformable").scene
+    scenes.append((f"Museum room + {n:,} sculpture spheres (rest pose)", mus))
+    settings = RenderSettings(width=w, height=h, mode="color", max_recursion_depth=1, method="kdtree")
+    kd_method = METHODS["kdtree"]
+    saved = kd_method.cost_scale
+    raw, rows = {}, []
+    try:
+        for name, scene in ctx.bar(scenes, desc="fig 5.4"):
+            lo, hi = sphere_aabbs(scene.sphere_centers, scene.sphere_radii)
+            base = None
+            for s in COST_SCALES:
+                builds = []
+                for _ in range(ctx.runs):
+                    kd = build_kdtree(lo, hi, cost_scale=s)
+                    builds.append(kd.stats.build_ms)
+                kd_method.cost_scale = s
+                t = ctx.time_render(scene, settings)
+                rec = {"build_ms": float(np.median(builds)), "trace_ms": t.stages["trace"].median,
+                       "bytes": kd.stats.bytes, "nodes": kd.stats.nodes, "depth": kd.stats.depth_max,
+                       "refs_per_prim": kd.stats.refs_per_prim, "sah": kd.stats.sah_cost}
+                raw[f"{name}/{s}"] = rec
+                if base is None:
+                    base = rec
+                rows.append([name if s == COST_SCALES[0] else "", f"{s:g}",
+                             f"{rec['trace_ms']:,.1f} ({rec['trace_ms'] / base['trace_ms']:.2f})",
+                             f"{rec['build_ms']:,.1f} ({rec['build_ms'] / base['build_ms']:.2f})",
+                             f"{rec['bytes']:,} ({rec['bytes'] / base['bytes']:.2f})",
+                             f"{rec['nodes']:,}", str(rec["depth"]), f"{rec['refs_per_prim']:.2f}"])
+    finally:
+        kd_method.cost_scale = saved
+    table = md_table(["scene", "scale s at max. depth", "trace ms (rel.)", "build ms (rel.)", "bytes (rel.)",
+                      "nodes", "depth", "refs / sphere"], rows, "lrrrrrrr")
+    pyplot = plt()
+    fig, axes = pyplot.subplots(1, 3, figsize=(13, 3.8), sharex=True)
+    for (name, _) in scenes:
+        for ax, key in zip(axes, ("trace_ms", "build_ms", "bytes")):
+            b = raw[f"{name}/{COST_SCALES[0]}"][key]
+            ax.plot(COST_SCALES, [raw[f"{name}/{s}"][key] / b for s in COST_SCALES], marker="o", label=name)
+    for ax, t in zip(axes, ("trace time", "build time", "tree bytes")):
+        ax.set_xscale("log")
+        ax.invert_xaxis()
+        ax.set_title(f"{t} relative to plain SAH")
+        ax.set_xlabel("leaf-cost scale at the maximal depth")
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=7)
+    img = ctx.savefig(fig, "dynamic_fig_5_4", "kd-tree cost-scaling criterion against plain SAH")
+    frag = f"""### Cost-scaling termination criterion (Reiter Fig. 5.4)
+
+SAH kd-tree, leaf cost scaled by s^((depth − 1)/(D − 1)) (D = min(64, 8 + 1.3 log₂ n)); s = 1 is the plain
+SAH criterion, to which the values in brackets are relative. Trace: colour, recursion depth 1, {w} × {h}.
+
+{img}
+
+{table}
+
+{ctx.caption()}
+"""
+    return frag, raw
+
+
+# ------------------------------------------------------------------- Fig. 5.6
+
+def fig_5_6(ctx: Context) -> tuple[str, dict]:
+    n = 256 if ctx.quick else 4096
+    frames = 3 if ctx.quick else 25
+    w, h = (48, 36) if ctx.quick else (320, 240)
+    anim = museum(n, "mixed", seed=2)
+    dark = AnimatedScene(dataclasses.replace(anim.scene, lights=()), anim.motions)
+    configs = [("a) primary rays only (no light: ambient)", dark, 1), ("b) with shadows", anim, 1),
+               ("c) reflection and refraction (no light)", dark, 3), ("d) all effects", anim, 3)]
+    raw, rows = {}, []
+    for label, a, depth in ctx.bar(configs, desc="fig 5.6"):
+        totals = {}
+        for method in ("bvh", "twolevel"):
+            s = RenderSettings(width=w, height=h, mode="color", max_recursion_depth=depth, method=method,
+                               max_prims=MAX_PRIMS)
+            key = ("fig56", label, method, time.perf_counter())
+            render_frame(ctx.renderer, a, s, AnimationSettings(time=0.0, update="selective"), key=key)  # warm-up
+            t0 = time.perf_counter()
+            for f in range(frames):
+                render_frame(ctx.renderer, a, s, AnimationSettings(time=f / FPS, update="selective"), key=key)
+            totals[method] = (time.perf_counter() - t0) * 1e3
+        raw[label] = totals
+        rows.append([label, f"{totals['bvh']:,.0f}", f"{totals['twolevel']:,.0f}",
+                     f"{100 * (totals['bvh'] / totals['twolevel'] - 1):+.1f} %"])
+    table = md_table(["configuration", "BVH only (ms)", "BVH + kd-tree (ms)", "speed-up"], rows, "lrrr")
+    frag = f"""### Two levels: static spheres in a kd-tree (Reiter Fig. 5.6)
+
+Museum with {n:,} moving spheres (a third each rigid, deformable, incoherent), {frames} frames at
+{FPS:g} frames/s plus one untimed warm-up frame, {w} × {h}, total wall time (pose + update + upload +
+trace + read back). "BVH only": every sphere in one BVH, selective rebuild; "BVH + kd-tree": the 576
+static spheres in a kd-tree built once, the moving ones in a BVH with selective rebuild. Our shader has
+no unshadowed diffuse term, so Reiter's "diffuse" row becomes primary rays with ambient shading only
+(the light removed), and his "reflections and refractions" row the same with recursion depth 3.
+
+{table}
+
+{ctx.caption(1, what="")}
+"""
+    return frag, raw
+
+
+def run(ctx: Context) -> str:
+    parts, raw = [], {}
+    only = getattr(ctx, "dynamic_only", None)
+    for name, fn in (("fig_5_11", fig_5_11), ("fig_5_4", fig_5_4), ("fig_5_6", fig_5_6)):
+        if only and name not in only:
+            continue
+        frag, data = fn(ctx)
+        parts.append(frag)
+        raw[name] = data
+    path = ctx.save_data(NAME, raw)
+    return f"## {TITLE}\n\n" + "\n".join(parts) + f"\nRaw data: [`{path}`]({path}).\n"
+
+
+if __name__ == "__main__":
+    import argparse
+    import tempfile
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--runs", type=int, default=None)
+    ap.add_argument("--ns", default="", help="comma-separated moving-sphere counts for Fig. 5.11 (default: all)")
+    ap.add_argument("--frames", type=int, default=None, help="frames per animation for Fig. 5.11")
+    ap.add_argument("--only", default="", help="comma-separated parts: fig_5_11, fig_5_4, fig_5_6")
+    a = ap.parse_args()
+    out = a.out or Path(tempfile.mkdtemp(prefix="pocketray-dynamic-"))
+    ctx = Context(quick=a.quick, out=out, runs=a.runs or (1 if a.quick else 3), progress=False)
+    ctx.dynamic_ns = tuple(int(x) for x in a.ns.split(",") if x.strip()) or None
+    ctx.dynamic_frames = a.frames
+    ctx.dynamic_only = tuple(x.strip() for x in a.only.split(",") if x.strip()) or None
+    text = run(ctx)
+    (out / "dynamic.md").write_text(text)
+    print(text)
+    print(f"\nwrote {out / 'dynamic.md'} and {out / 'figures'}/")

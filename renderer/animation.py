@@ -1,0 +1,608 @@
+"""Animated scenes (issue #9): motion models, posing at a time, a BART-Museum-like generator,
+animation settings, and the two-level method (static spheres in a kd-tree, moving ones in a BVH).
+
+Motion models, after Reiter §2.4.1 (Wald et al.'s classes):
+
+- :class:`RigidGroup` — hierarchical motion: a group of spheres moves as one body,
+  rotating about an axis through a pivot and oscillating along a vector;
+- :class:`Deformable` — coherent local motion with a fixed topology: every sphere is
+  displaced by a travelling wave of its rest position, so neighbours move alike;
+- :class:`Incoherent` — each sphere flies on its own straight line inside a box
+  (reflected at its walls) and respawns at a random place every ``lifetime``
+  seconds; with ``absent > 0`` it also *disappears* for that fraction of each
+  lifetime (the scene's sphere count changes, which forces a rebuild).
+
+A motion covers a contiguous range of sphere ids ``first … first + count − 1``; ranges
+of different motions must not overlap; spheres no motion covers are static.
+:func:`pose` evaluates all motions at a time ``t ≥ 0`` and returns the posed
+:class:`~renderer.scene.Scene` (absent spheres removed, so later ids shift down) together
+with, per posed sphere, its id in the animated scene and whether it moves.
+
+Validation follows the scene model: every bad value raises :class:`SceneError` whose
+``field`` names the JSON path (``motions[2].amplitude``, ``time``, ``update``), and
+nothing is applied before everything is valid. A motion is rejected when it could
+move a sphere beyond ``MAX_COORDINATE`` or produce a non-finite number at any time.
+
+JSON: a scene JSON (SPEC) may carry ``"motions": [...]``; :func:`animated_scene_from_json`
+reads it. Each motion is an object with ``kind`` (``rigid`` | ``deformable`` |
+``incoherent``), ``first``, ``count`` and the fields of its class below.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
+
+import numpy as np
+
+from .scene import MAX_COORDINATE, Camera, Light, Material, Plane, Scene, SceneError
+
+UPDATE_SCHEMES = ("rebuild", "refit", "selective")
+DEFAULT_THRESHOLD = 0.30
+MAX_TIME = 1.0e6
+
+
+def _num(v: Any, where: str, lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise SceneError(where, f"expected a number, got {type(v).__name__}")
+    x = float(v)
+    if not math.isfinite(x):
+        raise SceneError(where, f"must be a finite number, got {x}")
+    if lo is not None and (x < lo or (lo_open and x == lo)):
+        raise SceneError(where, f"must be {'>' if lo_open else '>='} {lo:g}, got {x:g}")
+    if hi is not None and x > hi:
+        raise SceneError(where, f"must be <= {hi:g}, got {x:g}")
+    return x
+
+
+def _int(v: Any, where: str, lo: int, hi: int) -> int:
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+        raise SceneError(where, f"expected an integer, got {v!r}")
+    if not lo <= int(v) <= hi:
+        raise SceneError(where, f"must be in {lo} … {hi}, got {v}")
+    return int(v)
+
+
+def _vec(v: Any, where: str, bound: float = MAX_COORDINATE) -> tuple[float, float, float]:
+    if not isinstance(v, (list, tuple, np.ndarray)) or len(v) != 3:
+        raise SceneError(where, "expected a list of 3 numbers")
+    return tuple(_num(x, f"{where}[{i}]", -bound, bound) for i, x in enumerate(v))  # type: ignore[return-value]
+
+
+def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    a = axis / np.linalg.norm(axis)
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * (k @ k)
+
+
+def _splitmix(x: np.ndarray) -> np.ndarray:
+    """SplitMix64 finaliser, vectorised (uint64 in, uint64 out)."""
+    with np.errstate(over="ignore"):
+        x = (x + np.uint64(0x9E3779B97F4A7C15)).astype(np.uint64)
+        x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        return x ^ (x >> np.uint64(31))
+
+
+def _uniform(seed: int, i: np.ndarray, k: np.ndarray, salt: int) -> np.ndarray:
+    """Deterministic uniforms in [0, 1) from (seed, sphere, cycle, salt)."""
+    with np.errstate(over="ignore"):
+        h = _splitmix(np.uint64(seed) * np.uint64(0x100000001B3) + np.uint64(salt))
+        h = _splitmix(h ^ i.astype(np.uint64))
+        h = _splitmix(h ^ (k.astype(np.int64).astype(np.uint64) * np.uint64(0x9E3779B1)))
+    return (h >> np.uint64(11)).astype(np.float64) / float(1 << 53)
+
+
+# ------------------------------------------------------------------------ motions
+
+@dataclass(frozen=True)
+class RigidGroup:
+    """Spheres ``first … first+count−1`` move as one rigid body.
+
+    centre(t) = pivot + R(axis, angular_velocity · t) (c₀ − pivot) + amplitude · sin(2π t / period)
+    """
+    first: int
+    count: int
+    pivot: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    axis: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    angular_velocity: float = 0.5
+    amplitude: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    period: float = 4.0
+    kind = "rigid"
+
+    def validate(self, where: str) -> "RigidGroup":
+        axis = _vec(self.axis, f"{where}.axis")
+        if not math.sqrt(sum(a * a for a in axis)) > 1e-12:
+            raise SceneError(f"{where}.axis", "must be a non-zero vector")
+        return replace(self, pivot=_vec(self.pivot, f"{where}.pivot"), axis=axis,
+                       angular_velocity=_num(self.angular_velocity, f"{where}.angular_velocity", -1e3, 1e3),
+                       amplitude=_vec(self.amplitude, f"{where}.amplitude"),
+                       period=_num(self.period, f"{where}.period", 0.0, 1e6, lo_open=True))
+
+    def reach(self, c0: np.ndarray) -> float:
+        """The largest coordinate magnitude any sphere centre can take."""
+        p = np.asarray(self.pivot)
+        r = float(np.linalg.norm(c0 - p, axis=1).max(initial=0.0))
+        return float(np.abs(p).max() + r + np.linalg.norm(self.amplitude))
+
+    def centers(self, c0: np.ndarray, t: float, ids: np.ndarray) -> np.ndarray:
+        p = np.asarray(self.pivot)
+        rot = _rotation(np.asarray(self.axis, dtype=np.float64), self.angular_velocity * t)
+        return p + (c0 - p) @ rot.T + np.asarray(self.amplitude) * math.sin(2 * math.pi * t / self.period)
+
+    def alive(self, t: float, ids: np.ndarray) -> np.ndarray:
+        return np.ones(len(ids), dtype=bool)
+
+
+@dataclass(frozen=True)
+class Deformable:
+    """Coherent local motion: a travelling wave displaces each sphere by at most ``amplitude`` per axis.
+
+    centre(t) = c₀ + amplitude · (sin(k(y₀+z₀) − ωt), sin(k(z₀+x₀) − ωt + 2.1), sin(k(x₀+y₀) − ωt + 4.2)),
+    k = 2π / wavelength, ω = k · speed.
+    """
+    first: int
+    count: int
+    amplitude: float = 1.0
+    wavelength: float = 10.0
+    speed: float = 4.0
+    kind = "deformable"
+
+    def validate(self, where: str) -> "Deformable":
+        return replace(self, amplitude=_num(self.amplitude, f"{where}.amplitude", 0.0, MAX_COORDINATE),
+                       wavelength=_num(self.wavelength, f"{where}.wavelength", 0.0, 1e9, lo_open=True),
+                       speed=_num(self.speed, f"{where}.speed", -1e6, 1e6))
+
+    def reach(self, c0: np.ndarray) -> float:
+        return float(np.abs(c0).max(initial=0.0) + self.amplitude)
+
+    def centers(self, c0: np.ndarray, t: float, ids: np.ndarray) -> np.ndarray:
+        k = 2 * math.pi / self.wavelength
+        w = k * self.speed * t
+        x, y, z = c0[:, 0], c0[:, 1], c0[:, 2]
+        d = np.stack([np.sin(k * (y + z) - w), np.sin(k * (z + x) - w + 2.1), np.sin(k * (x + y) - w + 4.2)], axis=1)
+        return c0 + self.amplitude * d
+
+    def alive(self, t: float, ids: np.ndarray) -> np.ndarray:
+        return np.ones(len(ids), dtype=bool)
+
+
+@dataclass(frozen=True)
+class Incoherent:
+    """Each sphere flies alone inside ``[box_min, box_max]`` (reflected at the walls) at ``speed``,
+    respawning at a random place and direction every ``lifetime`` seconds (its own phase);
+    for the last ``absent`` fraction of each lifetime it is gone from the scene.
+    The first lifetime starts at the sphere's rest position."""
+    first: int
+    count: int
+    box_min: tuple[float, float, float] = (-15.0, -15.0, -15.0)
+    box_max: tuple[float, float, float] = (15.0, 15.0, 15.0)
+    speed: float = 5.0
+    lifetime: float = 2.0
+    absent: float = 0.0
+    seed: int = 0
+    kind = "incoherent"
+
+    def validate(self, where: str) -> "Incoherent":
+        lo = _vec(self.box_min, f"{where}.box_min")
+        hi = _vec(self.box_max, f"{where}.box_max")
+        for a in range(3):
+            if not lo[a] < hi[a]:
+                raise SceneError(f"{where}.box_max[{a}]", f"must be > box_min[{a}] ({lo[a]:g}), got {hi[a]:g}")
+        return replace(self, box_min=lo, box_max=hi, speed=_num(self.speed, f"{where}.speed", 0.0, 1e6),
+                       lifetime=_num(self.lifetime, f"{where}.lifetime", 0.0, 1e6, lo_open=True),
+                       absent=_num(self.absent, f"{where}.absent", 0.0, 0.95),
+                       seed=_int(self.seed, f"{where}.seed", 0, 2 ** 63 - 1))
+
+    def reach(self, c0: np.ndarray) -> float:
+        return float(max(np.abs(self.box_min).max(), np.abs(self.box_max).max()))
+
+    def centers(self, c0: np.ndarray, t: float, ids: np.ndarray) -> np.ndarray:
+        lo, hi = np.asarray(self.box_min), np.asarray(self.box_max)
+        phase = _uniform(self.seed, ids, np.zeros(len(ids)), 1) * self.lifetime
+        u = t + phase
+        cycle = np.floor(u / self.lifetime)
+        tau = np.where(cycle == 0, t, u - cycle * self.lifetime)       # time since this lifetime began
+        start = lo + (hi - lo) * np.stack([_uniform(self.seed, ids, cycle, 2 + a) for a in range(3)], axis=1)
+        start = np.where((cycle == 0)[:, None], c0, start)
+        g = np.stack([_uniform(self.seed, ids, cycle, 5 + a) for a in range(3)], axis=1)
+        v = np.stack([np.sqrt(-2 * np.log(1 - g[:, 0])) * np.cos(2 * math.pi * g[:, 1]),
+                      np.sqrt(-2 * np.log(1 - g[:, 0])) * np.sin(2 * math.pi * g[:, 1]),
+                      2 * g[:, 2] - 1], axis=1)
+        v = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12) * self.speed
+        x = start + v * tau[:, None]
+        size = hi - lo
+        w = np.mod(x - lo, 2 * size)                                   # reflect at the walls
+        return lo + np.where(w <= size, w, 2 * size - w)
+
+    def alive(self, t: float, ids: np.ndarray) -> np.ndarray:
+        if self.absent <= 0:
+            return np.ones(len(ids), dtype=bool)
+        phase = _uniform(self.seed, ids, np.zeros(len(ids)), 1) * self.lifetime
+        u = t + phase
+        tau = u - np.floor(u / self.lifetime) * self.lifetime
+        return tau < (1.0 - self.absent) * self.lifetime
+
+
+MOTION_KINDS = {"rigid": RigidGroup, "deformable": Deformable, "incoherent": Incoherent}
+Motion = RigidGroup | Deformable | Incoherent
+
+
+def motion_to_json(m: Motion) -> dict:
+    d = {"kind": m.kind}
+    for f in fields(m):
+        v = getattr(m, f.name)
+        d[f.name] = list(v) if isinstance(v, tuple) else v
+    return d
+
+
+def motion_from_json(d: Any, where: str) -> Motion:
+    if not isinstance(d, dict):
+        raise SceneError(where, "expected an object")
+    kind = d.get("kind")
+    if kind not in MOTION_KINDS:
+        raise SceneError(f"{where}.kind", f"unknown motion kind {kind!r}; one of {', '.join(MOTION_KINDS)}")
+    cls = MOTION_KINDS[kind]
+    names = {f.name for f in fields(cls)}
+    unknown = set(d) - names - {"kind"}
+    if unknown:
+        raise SceneError(f"{where}.{sorted(unknown)[0]}", f"unknown field (allowed: kind, {', '.join(sorted(names))})")
+    for req in ("first", "count"):
+        if req not in d:
+            raise SceneError(f"{where}.{req}", "field required")
+    kw = {k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items() if k != "kind"}
+    return cls(**kw)
+
+
+# ------------------------------------------------------------------ animated scene
+
+@dataclass(frozen=True)
+class AnimatedScene:
+    """A scene (rest pose) and the motions of some of its spheres; validated on construction."""
+    scene: Scene
+    motions: tuple = ()
+
+    def __post_init__(self) -> None:
+        n = self.scene.n_spheres
+        out = []
+        covered = np.zeros(n, dtype=bool)
+        for i, m in enumerate(self.motions):
+            where = f"motions[{i}]"
+            if not isinstance(m, (RigidGroup, Deformable, Incoherent)):
+                raise SceneError(where, "expected a motion")
+            first = _int(m.first, f"{where}.first", 0, max(n - 1, 0))
+            _int(m.count, f"{where}.count", 0, n - first)
+            m = m.validate(where)
+            sl = slice(m.first, m.first + m.count)
+            if covered[sl].any():
+                raise SceneError(f"{where}.first", "the sphere range overlaps another motion's")
+            covered[sl] = True
+            reach = m.reach(self.scene.sphere_centers[sl]) + float(self.scene.sphere_radii[sl].max(initial=0.0))
+            if not reach <= MAX_COORDINATE:
+                raise SceneError(where, f"would move spheres to coordinates of {reach:.3g}, beyond ±{MAX_COORDINATE:g}")
+            out.append(m)
+        object.__setattr__(self, "motions", tuple(out))
+        covered.setflags(write=False)
+        object.__setattr__(self, "_moving", covered)
+
+    @property
+    def moving(self) -> np.ndarray:
+        """bool (n,): spheres some motion covers."""
+        return self._moving  # type: ignore[attr-defined]
+
+    def to_json(self) -> dict:
+        d = self.scene.to_json()
+        d["motions"] = [motion_to_json(m) for m in self.motions]
+        return d
+
+
+def animated_scene_from_json(d: Any) -> AnimatedScene:
+    """Scene JSON with an optional ``motions`` list → :class:`AnimatedScene` (SceneError on bad input)."""
+    if not isinstance(d, dict):
+        raise SceneError("scene", "expected an object")
+    rest = {k: v for k, v in d.items() if k != "motions"}
+    scene = Scene.from_json(rest)
+    raw = d.get("motions", [])
+    if not isinstance(raw, (list, tuple)):
+        raise SceneError("motions", "expected a list")
+    motions = []
+    for i, m in enumerate(raw):
+        try:
+            motions.append(motion_from_json(m, f"motions[{i}]"))
+        except TypeError as e:
+            raise SceneError(f"motions[{i}]", str(e)) from None
+    return AnimatedScene(scene, tuple(motions))
+
+
+@dataclass
+class PosedFrame:
+    """A posed scene, the animated-scene id of each of its spheres, and which of them move."""
+    scene: Scene
+    ids: np.ndarray
+    moving: np.ndarray
+    time: float
+    pose_ms: float
+
+
+def pose(anim: AnimatedScene, t: float) -> PosedFrame:
+    """The scene at time ``t`` (seconds, ≥ 0)."""
+    t0 = _time.perf_counter()
+    t = _num(t, "time", 0.0, MAX_TIME)
+    base = anim.scene
+    c = base.sphere_centers.copy()
+    alive = np.ones(base.n_spheres, dtype=bool)
+    for m in anim.motions:
+        sl = slice(m.first, m.first + m.count)
+        ids = np.arange(m.first, m.first + m.count, dtype=np.int64)
+        c[sl] = m.centers(base.sphere_centers[sl], t, ids)
+        alive[sl] = m.alive(t, ids)
+    keep = np.flatnonzero(alive)
+    scene = Scene(base.camera, base.lights, base.materials, c[keep], base.sphere_radii[keep],
+                  base.sphere_materials[keep], base.planes)
+    return PosedFrame(scene, keep, anim.moving[keep], t, (_time.perf_counter() - t0) * 1e3)
+
+
+@dataclass(frozen=True)
+class AnimationSettings:
+    """Per-request animation settings (to be merged into RenderSettings by the lead).
+
+    time: seconds (≥ 0) at which the animated scene is posed. update: how the BVH
+    follows the motion from the previous frame of the same animation — ``rebuild``
+    (every frame, as the thesis), ``refit``, or ``selective`` (rebuild the subtrees
+    whose SAH split cost grew by more than ``threshold``, 0.30 = +30 %).
+    """
+    time: float = 0.0
+    update: str = "rebuild"
+    threshold: float = DEFAULT_THRESHOLD
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "time", _num(self.time, "time", 0.0, MAX_TIME))
+        if self.update not in UPDATE_SCHEMES:
+            raise SceneError("update", f"unknown update scheme {self.update!r}; one of {', '.join(UPDATE_SCHEMES)}")
+        object.__setattr__(self, "threshold", _num(self.threshold, "threshold", 0.0, 100.0))
+
+    @staticmethod
+    def from_json(d: Any) -> "AnimationSettings":
+        if not isinstance(d, dict):
+            raise SceneError("settings", "expected an object")
+        names = {f.name for f in fields(AnimationSettings)}
+        return AnimationSettings(**{k: d[k] for k in names if k in d})
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+# ---------------------------------------------------------------- Museum generator
+
+WALL = Material(color=(0.75, 0.72, 0.65), ambient=0.25, diffuse=0.6, specular=0.05, shininess=10.0,
+                reflective=0.15, transmissive=0.0, ior=1.0)
+SCULPTURE = Material(color=(0.9, 0.3, 0.3), ambient=0.30, diffuse=0.30, specular=0.10, shininess=40.0,
+                     reflective=0.30, transmissive=0.0, ior=1.0)
+GLASS = Material(color=(1.0, 1.0, 1.0), ambient=0.10, diffuse=0.10, specular=0.10, shininess=50.0,
+                 reflective=0.0, transmissive=0.70, ior=0.95)
+MUSEUM_KINDS = ("rigid", "deformable", "incoherent", "mixed")
+
+
+def museum_static(seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The static room: a back wall and two side walls of spheres and six pillars (576 spheres)."""
+    out_c, out_r = [], []
+    u = np.linspace(-18.0, 18.0, 12)
+    v = np.linspace(-18.0, 18.0, 12)
+    uu, vv = np.meshgrid(u, v)
+    out_c.append(np.stack([uu.ravel(), vv.ravel(), np.full(uu.size, -22.0)], axis=1))     # back wall
+    out_c.append(np.stack([np.full(uu.size, -22.0), vv.ravel(), uu.ravel()], axis=1))     # left wall
+    out_c.append(np.stack([np.full(uu.size, 22.0), vv.ravel(), uu.ravel()], axis=1))      # right wall
+    out_r.append(np.full(3 * uu.size, 1.6))
+    for x in (-14.0, 14.0):                                                              # pillars
+        for z in (-12.0, 0.0, 12.0):
+            y = np.linspace(-19.0, 19.0, 24)
+            out_c.append(np.stack([np.full(24, x), y, np.full(24, z)], axis=1))
+            out_r.append(np.full(24, 0.9))
+    return np.concatenate(out_c), np.concatenate(out_r)
+
+
+def museum(n_moving: int, kind: str = "deformable", seed: int = 0, absent: float = 0.2) -> AnimatedScene:
+    """A BART-Museum-like scene: ``n_moving`` animated spheres (a sculpture in a ball of
+    radius 8 above the floor's centre) in a static room of 576 spheres and the floor plane.
+
+    ``kind``: ``rigid`` (four groups spinning about different axes and bobbing),
+    ``deformable`` (one travelling wave), ``incoherent`` (every sphere flies and respawns,
+    absent for the fraction ``absent`` of each lifetime: 0 keeps the count fixed) or
+    ``mixed`` (a third of each). Static spheres come first
+    (ids 0 … 575), the moving ones after them.
+    """
+    if kind not in MUSEUM_KINDS:
+        raise SceneError("kind", f"unknown motion kind {kind!r}; one of {', '.join(MUSEUM_KINDS)}")
+    n_moving = _int(n_moving, "n", 0, Scene.MAX_SPHERES - 1024)
+    rng = np.random.default_rng(seed)
+    sc, sr = museum_static(seed)
+    ns = len(sc)
+    centre = np.array([0.0, -4.0, 0.0])
+    g = rng.normal(size=(n_moving, 3))
+    g /= np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-12)
+    mc = centre + g * (8.0 * rng.uniform(0, 1, (n_moving, 1)) ** (1 / 3))
+    mr = np.full(n_moving, float(np.clip(5.0 / max(n_moving, 1) ** (1 / 3), 0.03, 1.5)))
+    c = np.concatenate([sc, mc])
+    r = np.concatenate([sr, mr])
+    mats = np.concatenate([np.zeros(ns, np.int32), np.where(np.arange(n_moving) % 4 == 3, 2, 1).astype(np.int32)])
+    scene = Scene(camera=Camera((0.0, 6.0, 62.0), (0.0, -3.0, 0.0), (0.0, 1.0, 0.0), 55.0),
+                  lights=(Light((0.0, 40.0, 20.0), (1.0, 1.0, 1.0)),),
+                  materials=(WALL, SCULPTURE, GLASS), sphere_centers=c, sphere_radii=r, sphere_materials=mats,
+                  planes=(Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),))
+
+    def rigid(first: int, count: int) -> list:
+        out, q = [], max(count // 4, 1)
+        axes = [(0.0, 1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0), (1.0, 1.0, 0.0)]
+        for j in range(4):
+            a = first + j * q
+            b = first + count if j == 3 else min(first + (j + 1) * q, first + count)
+            if b > a:
+                out.append(RigidGroup(a, b - a, pivot=tuple(centre), axis=axes[j], angular_velocity=0.6 + 0.3 * j,
+                                      amplitude=(2.0 * (j - 1.5), 1.5, 0.0), period=3.0 + j))
+        return out
+
+    def deformable(first: int, count: int) -> list:
+        return [Deformable(first, count, amplitude=1.5, wavelength=9.0, speed=4.0)] if count else []
+
+    def incoherent(first: int, count: int) -> list:
+        return [Incoherent(first, count, box_min=(-12.0, -16.0, -10.0), box_max=(12.0, 8.0, 10.0), speed=6.0,
+                           lifetime=2.5, absent=absent, seed=seed)] if count else []
+
+    makers = {"rigid": rigid, "deformable": deformable, "incoherent": incoherent}
+    if kind == "mixed":
+        t = n_moving // 3
+        motions = rigid(ns, t) + deformable(ns + t, t) + incoherent(ns + 2 * t, n_moving - 2 * t)
+    else:
+        motions = makers[kind](ns, n_moving)
+    return AnimatedScene(scene, tuple(motions))
+
+
+# ---------------------------------------------------------------- two-level method
+
+class TwoLevelMethod:
+    """Method ``twolevel`` (Reiter §3.2.2, Figure 5.6): the static spheres in an SAH kd-tree,
+    built once per distinct static set and cached; the moving ones in a BVH updated per frame
+    with the chosen scheme. Every ray traverses both and keeps the nearer hit
+    (``shaders/method_twolevel.glsl``: kd-tree first, its hit then bounds the BVH).
+
+    ``moving`` is a bool mask over the scene's spheres (from :func:`pose`); without it every
+    sphere counts as static (a plain scene has no motion).
+    """
+    name = "twolevel"
+    CACHE_SLOTS = 8
+
+    def __init__(self) -> None:
+        from .bvh import BVHMethod
+        self._bvh = BVHMethod()
+        self._kd: dict = {}
+
+    def _static_tree(self, scene: Scene, static_ids: np.ndarray, max_tree_depth: int, key):
+        from .kdtree import DEFAULT_COST_SCALE, build_for_spheres
+        c = scene.sphere_centers[static_ids]
+        r = scene.sphere_radii[static_ids]
+        sig = (key, max_tree_depth, len(static_ids), hash(static_ids.tobytes()), hash(c.tobytes()), hash(r.tobytes()))
+        hit = self._kd.pop(sig, None)
+        if hit is None:
+            hit = build_for_spheres(c, r, max_tree_depth, DEFAULT_COST_SCALE)
+            fresh = True
+        else:
+            fresh = False
+        self._kd[sig] = hit
+        while len(self._kd) > self.CACHE_SLOTS:
+            self._kd.pop(next(iter(self._kd)))
+        return hit, fresh
+
+    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int, max_width: int = 4096,
+                update: str = "rebuild", key=None, moving: np.ndarray | None = None,
+                threshold: float = DEFAULT_THRESHOLD):
+        from . import gpu_layout
+        from .bvh import build_for_spheres as build_bvh_for_spheres
+        from .methods import PreparedMethod
+        t0 = _time.perf_counter()
+        n = scene.n_spheres
+        mv = np.zeros(n, dtype=bool) if moving is None else np.asarray(moving, dtype=bool).reshape(-1)
+        if len(mv) != n:
+            raise ValueError(f"moving mask has {len(mv)} entries for {n} spheres")
+        static_ids = np.flatnonzero(~mv)
+        moving_ids = np.flatnonzero(mv)
+        kd, fresh = self._static_tree(scene, static_ids, max_tree_depth, key)
+        t1 = _time.perf_counter()
+        sub = Scene(scene.camera, scene.lights, scene.materials, scene.sphere_centers[moving_ids],
+                    scene.sphere_radii[moving_ids], scene.sphere_materials[moving_ids], scene.planes)
+        if update == "rebuild":
+            bvh = build_bvh_for_spheres(sub.sphere_centers, sub.sphere_radii, max_prims, max_tree_depth)
+        else:
+            bvh = self._bvh.build(sub, max_prims, max_tree_depth, update, key, threshold)
+        t2 = _time.perf_counter()
+        packed = gpu_layout.pack_twolevel(kd, static_ids, bvh, moving_ids, max_width)
+        stats = {"method": self.name, "static": int(len(static_ids)), "moving": int(len(moving_ids)),
+                 "kd_build_ms": (t1 - t0) * 1e3 if fresh else 0.0, "kd_cached": not fresh,
+                 "bvh_update_ms": (t2 - t1) * 1e3, "scheme": bvh.stats.scheme,
+                 "kd": kd.stats.to_json(), "bvh": bvh.stats.to_json(),
+                 "bytes": kd.stats.bytes + bvh.stats.bytes}
+        return PreparedMethod(packed, (t2 - t0) * 1e3, stats)
+
+
+def twolevel_shader_source() -> str:
+    """``shaders/method_twolevel.glsl``: the BVH and kd-tree traversals plus the two-level entry points.
+
+    Generated from ``method_bvh.glsl`` and ``method_kdtree.glsl`` (``python -m renderer.animation
+    --write-shader`` rewrites the file; a test checks that it is current).
+    """
+    from pathlib import Path
+    d = Path(__file__).resolve().parent.parent / "shaders"
+    bvh = (d / "method_bvh.glsl").read_text()
+    kd = (d / "method_kdtree.glsl").read_text()
+    return ("// Method \"twolevel\" (Reiter §3.2.2): static spheres in a kd-tree, moving ones in a BVH;\n"
+            "// every ray traverses both and keeps the nearer hit. GENERATED by\n"
+            "// `python -m renderer.animation --write-shader` from method_bvh.glsl and\n"
+            "// method_kdtree.glsl: edit those, not this file.\n\n"
+            "#define BVH_NO_METHOD_INIT\n#define KD_NO_METHOD_INIT\n\n"
+            "uniform int u_bvh_count;   // spheres in the BVH (moving)\n"
+            "uniform int u_kd_count;    // spheres in the kd-tree (static)\n\n"
+            "// ---- method_bvh.glsl ----\n" + bvh +
+            "\n// ---- method_kdtree.glsl ----\n" + kd +
+            "\n// ---- two levels ----\n"
+            "void method_init() { bvh_init(); kd_init(); }\n\n"
+            "void intersect_spheres(Query q, inout Hit h) {\n"
+            "    if (u_kd_count > 0) kd_intersect(q, h);          // static geometry first: its hit bounds the BVH\n"
+            "    if (q.any_hit && h.t < q.t_max) return;\n"
+            "    if (u_bvh_count > 0) bvh_intersect(q, h);\n"
+            "}\n")
+
+
+# ------------------------------------------------------------------- rendering
+
+def render_frame(renderer, anim: AnimatedScene, settings, anim_settings: AnimationSettings, key=None):
+    """Pose ``anim`` at ``anim_settings.time`` and render it with ``renderer`` (a GLRenderer).
+
+    Methods that can update between frames (``bvh``, ``twolevel``) get the update scheme,
+    the animation ``key`` and (``twolevel``) the moving mask; the others rebuild as usual.
+    ``timings['pose']`` and ``timings['update']`` (= the method's build/update time) are added.
+
+    NOTE for the lead: ``GLRenderer.render`` calls ``prepare(scene, max_prims, max_tree_depth,
+    max_width)`` only; until it forwards ``update``/``key``/``moving``, this helper passes them
+    by standing a wrapper in for the method in ``METHODS`` for the duration of the call
+    (renders run on one thread).
+    """
+    from .methods import METHODS, resolve_method
+    frame = pose(anim, anim_settings.time)
+    name = resolve_method(settings.method, frame.scene.n_spheres)
+    method = METHODS[name]
+    extra: dict = {}
+    if name in ("bvh", "twolevel"):
+        extra = {"update": anim_settings.update, "key": key, "threshold": anim_settings.threshold}
+        if name == "twolevel":
+            extra["moving"] = frame.moving
+
+    class _WithOptions:
+        def __init__(self) -> None:
+            self.name = name
+
+        def prepare(self, scene, max_prims, max_tree_depth, max_width=4096):
+            return method.prepare(scene, max_prims, max_tree_depth, max_width, **extra)
+
+    if extra:
+        METHODS[name] = _WithOptions()
+    try:
+        res = renderer.render(frame.scene, settings)
+    finally:
+        METHODS[name] = method
+    res.timings["pose"] = frame.pose_ms
+    res.timings["update"] = res.timings.get("build", 0.0)
+    if res.stats is not None:
+        res.stats["time"] = frame.time
+        res.stats["n_spheres"] = frame.scene.n_spheres
+        res.stats["update_scheme"] = anim_settings.update if extra else "rebuild"
+    return res
+
+
+if __name__ == "__main__":  # pragma: no cover
+    import sys
+    from pathlib import Path
+    if "--write-shader" in sys.argv:
+        out = Path(__file__).resolve().parent.parent / "shaders" / "method_twolevel.glsl"
+        out.write_text(twolevel_shader_source())
+        print(f"wrote {out}")
