@@ -30,6 +30,7 @@ from renderer.scene import SceneError
 from renderer.settings import FORMATS, MAX_IMAGE_SIDE, METHODS, MODES, RenderSettings
 
 from .body_limit import BodyLimit
+from . import device
 from .config import ServerConfig
 from .gl_worker import GLNotReady, GLWorker, QueueFull
 from .models import (CameraModel, CameraOut, ErrorOut, FormatName, FullSettings, Gesture, HealthOut, InfoOut,
@@ -367,6 +368,7 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
     app.add_exception_handler(redis.RedisError, _store_unavailable)
     app.add_exception_handler(Exception, _internal)
     app.include_router(router)
+    app.include_router(device.router)  # on-device rendering (issue #10): server/device.py
     config.client_dir.mkdir(parents=True, exist_ok=True)
     if config.shader_dir.is_dir():
         app.mount("/shaders", StaticFiles(directory=config.shader_dir), name="shaders")

@@ -8,6 +8,7 @@ import { Api, ApiError, loadStoredSession, storeSession, sameScene } from './api
 import { attach } from './gestures.js';
 import { FrameScheduler } from './frames.js';
 import { Overlay } from './overlay.js';
+import { DeviceView } from './device.js';
 import {
   DEFAULT_SCENE, FALLBACK_METHODS, RENDER_KEYS, SettingsPanel, fitResolution, loadClientSettings,
   parseResolution, previewSize, readUrlParams, saveClientSettings,
@@ -38,7 +39,7 @@ const hook = {
   log: [],                      // the last frames shown: level, size, content type, version
   status: 'starting',
   state,
-  get idle() { return scheduler.idle && hook.status === 'ready'; },
+  get idle() { return scheduler.idle && device.idle && hook.status === 'ready'; },
   get requests() { return scheduler.requests; },
   get dropped() { return scheduler.dropped; },
 };
@@ -133,42 +134,63 @@ async function timed(fn) {
   }
 }
 
+const deviceMode = () => state.client.renderer === 'device';
+
 const transport = {
   gesture(op, level) {
     const body = op.type === 'pan' ? { ...op, viewport_height: displayedSize().height } : op;
+    if (deviceMode()) {  // the device draws; the server's Model follows (JSON answer, no frame)
+      const seq = device.localSeq;
+      return timed(() => api.gesture(state.sessionId, body, null)).then((r) => {
+        if (level && !scheduler.pending) device.serverCamera(r, seq);
+        return null;
+      });
+    }
     return timed(() => api.gesture(state.sessionId, body, level ? frameParams(level) : null));
   },
-  frame(level) {
+  async frame(level) {
+    if (deviceMode()) {
+      try {
+        return await device.frame(level);
+      } catch (e) {
+        if (e instanceof ApiError && e.status === 404) throw e;  // the session expired: handled as ever
+        fallBackToServer(e instanceof ApiError ? describe(e) : (e.message || String(e)), false);  // frame below
+      }
+    }
     return timed(() => api.frame(state.sessionId, frameParams(level)));
   },
   refineNeeded() {
+    if (deviceMode()) return false;
     const c = state.client;
     return c.previewScale < 1 || c.previewFormat !== c.fullFormat;
   },
 };
 
 async function display(frame, level) {
-  const bitmap = await createImageBitmap(frame.blob);
+  const bitmap = frame.image || await createImageBitmap(frame.blob);  // image: the device's canvas
   if (canvas.width !== bitmap.width || canvas.height !== bitmap.height) {
     canvas.width = bitmap.width;
     canvas.height = bitmap.height;
   }
   ctx.drawImage(bitmap, 0, 0);
-  bitmap.close?.();
+  if (!frame.image) bitmap.close?.();
   const clientMs = performance.now() - frame.t0;
+  const renderer = frame.renderer || 'server';
+  const renderedBy = renderer === 'device' ? `device (${frame.rendererInfo})` : `server (${hook.serverRenderer || 'OpenGL'})`;
   hook.frameCount++;
   hook.lastFrameVersion = frame.version;
   hook.lastFrame = {
     level, width: canvas.width, height: canvas.height, version: frame.version,
     contentType: frame.contentType, method: frame.method, timing: frame.timing, stats: frame.stats, clientMs,
+    renderer, renderedBy,
   };
-  hook.log.push({ level, width: canvas.width, height: canvas.height, contentType: frame.contentType, version: frame.version });
+  hook.log.push({ level, width: canvas.width, height: canvas.height, contentType: frame.contentType, version: frame.version, renderer });
   if (hook.log.length > 100) hook.log.shift();
   canvas.setAttribute('aria-label',
     `Ray-traced scene: scenario ${state.scene.scenario}, ${state.scene.n} spheres, ${state.render.mode} mode`);
   overlay.frame({
     level, width: canvas.width, height: canvas.height, clientMs, timing: frame.timing, stats: frame.stats,
-    method: frame.method, n: state.scene.n_spheres ?? state.scene.n, version: frame.version,
+    method: frame.method, n: state.scene.n_spheres ?? state.scene.n, version: frame.version, renderedBy,
   });
 }
 
@@ -300,6 +322,7 @@ const panel = new SettingsPanel($('#settings'), $('#settings-toggle'), {
     state.client = { ...state.client, ...partial };
     saveClientSettings(state.client);
     scheduler.refineDelayMs = state.client.refineDelayMs;
+    if ('renderer' in partial) setRenderer(partial.renderer);
     if ('resolution' in partial) {
       const size = wantedSize();
       if (size && (size.width !== state.render.width || size.height !== state.render.height)) applyRender(size);
@@ -322,15 +345,61 @@ window.addEventListener('resize', () => {
   }, 300);
 });
 
-// ---- gestures ----------------------------------------------------------------------
-attach(canvas, {
-  onPan: (dx, dy) => state.render && scheduler.gesture({ type: 'pan', dx, dy }),
-  onPinch: (scale) => state.render && scheduler.gesture({ type: 'pinch', scale }),
-  onReset: () => state.render && scheduler.gesture({ type: 'reset' }),
-  onWheel: (scale) => state.render && scheduler.gesture({ type: 'pinch', scale }),
-  onKey: (g) => state.render && scheduler.gesture(g),
+// ---- device mode (issue #10): the same tracer in this browser's WebGL2 -------------------
+const device = new DeviceView({
+  api,
+  getState: () => state,
+  viewportHeight: () => displayedSize().height,
+  display,
+  onFallback: fallBackToServer,
 });
-$('#reset-button').addEventListener('click', () => state.render && scheduler.gesture({ type: 'reset' }));
+hook.device = {
+  renderOnce: (params) => device.renderOnce(params),
+  bench: (params) => device.bench(params),
+  probe: () => device.probe(),
+  get camera() { return device.camera; },
+  get fallback() { return hook.deviceFallback ?? null; },
+};
+
+// Where the device cannot run the tracer: server mode, with a visible notice.
+function fallBackToServer(reason, redraw = true) {
+  device.stop();
+  hook.deviceFallback = reason;
+  state.client = { ...state.client, renderer: 'server' };
+  notice(`Rendering on the server: this device cannot (${reason}).`, 'warn', 10000);
+  $('#f-renderer').value = 'server';   // also while focused (panel.show leaves focused controls alone)
+  panel.show(state);
+  if (redraw && state.render) scheduler.invalidate();
+}
+
+function setRenderer(which) {
+  if (which === 'device') {
+    const p = device.probe();
+    if (!p.ok) return fallBackToServer(p.reason);
+  } else {
+    device.stop();
+  }
+  if (state.render) scheduler.invalidate();
+}
+
+fetch('/api/ready', { cache: 'no-store' }).then((r) => r.json())
+  .then((j) => { hook.serverRenderer = j.gl_renderer || null; }, () => {});
+
+// ---- gestures ----------------------------------------------------------------------
+// In device mode the local camera moves at once (display rate); the server's Model always follows.
+function userGesture(g) {
+  if (!state.render) return;
+  if (deviceMode()) device.gesture(g);
+  scheduler.gesture(g);
+}
+attach(canvas, {
+  onPan: (dx, dy) => userGesture({ type: 'pan', dx, dy }),
+  onPinch: (scale) => userGesture({ type: 'pinch', scale }),
+  onReset: () => userGesture({ type: 'reset' }),
+  onWheel: (scale) => userGesture({ type: 'pinch', scale }),
+  onKey: (g) => userGesture(g),
+});
+$('#reset-button').addEventListener('click', () => userGesture({ type: 'reset' }));
 
 // ---- go ------------------------------------------------------------------------------
 // What this service offers: its method and mode lists, and limits for the form.

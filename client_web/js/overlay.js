@@ -62,7 +62,8 @@ export class Overlay {
     return f == null ? '–' : f.toFixed(1);
   }
 
-  // info: {level, width, height, clientMs, timing: {build, upload, trace, encode, total}, stats, method, n, version}
+  // info: {level, width, height, clientMs, timing: {build, upload, trace, encode, total}, stats, method, n, version,
+  //        renderedBy: 'server (<GL renderer>)' | 'device (WebGL2 <renderer>)'}
   frame(info) {
     this.meter.tick(performance.now());
     const t = info.timing || {};
@@ -85,5 +86,8 @@ export class Overlay {
     this._set('n', info.n != null ? String(info.n) : '–');
     this._set('res', `${info.width}×${info.height} ${info.level === 'full' ? 'full' : 'preview'}`);
     this._set('version', info.version != null ? String(info.version) : '–');
+    const by = info.renderedBy || '–';   // long GPU names are cut here; the whole one is the title
+    this._set('renderer', by.length > 34 ? `${by.slice(0, 33)}…)` : by);
+    if (this.fields.renderer) this.fields.renderer.title = by;
   }
 }

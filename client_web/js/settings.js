@@ -42,6 +42,7 @@ export const DEFAULT_CLIENT = Object.freeze({
   fullQuality: 90,
   refineDelayMs: 200,      // full frame this long after the last gesture
   maxFitSide: 1088,        // 'fit': the long side at most this many pixels
+  renderer: 'server',      // 'server' | 'device' (the same tracer in WebGL2, issue #10)
 });
 export const RENDER_KEYS = Object.freeze(['method', 'mode', 'max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height']);
 const INT_KEYS = new Set(['scenario', 'n', 'seed', 'max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height']);
@@ -79,6 +80,7 @@ export function readUrlParams(search) {
   if (q.has('preview_quality') && f('preview_quality') >= 1) client.previewQuality = Math.min(100, Math.round(f('preview_quality')));
   if (q.has('refine_ms') && f('refine_ms') >= 0) client.refineDelayMs = f('refine_ms');
   if (q.has('overlay')) client.overlay = q.get('overlay') !== '0';
+  if (['server', 'device'].includes(q.get('renderer'))) client.renderer = q.get('renderer');
   return { scene, render, client };
 }
 
@@ -184,6 +186,7 @@ export class SettingsPanel {
     set('previewFormat', client.previewFormat);
     set('previewQuality', client.previewQuality);
     set('refineDelayMs', client.refineDelayMs);
+    set('renderer', client.renderer);
   }
 
   _customVisible() {
@@ -227,6 +230,8 @@ export class SettingsPanel {
       this.cb.onClient({ previewQuality: int() });
     } else if (name === 'refineDelayMs') {
       this.cb.onClient({ refineDelayMs: int() });
+    } else if (name === 'renderer') {
+      this.cb.onClient({ renderer: v });
     }
   }
 }

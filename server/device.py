@@ -1,0 +1,335 @@
+"""On-device rendering (issue #10): what a browser needs to run the very same tracer.
+
+Two endpoints; the browser client's ``client_web/js/device.js`` uses both.
+
+``GET /api/sessions/{id}/device-data``
+    The session's scene and the chosen method's acceleration data, packed by
+    :mod:`renderer.gpu_layout` — the one layout the moderngl renderer uploads
+    too — wrapped to the device's ``max_texture_size`` (a power of two; many
+    phones: 4,096). The tree is built for this request, as for every frame.
+    Query: ``method``, ``max_prims``, ``max_tree_depth``, ``mode``,
+    ``max_recursion_depth`` (missing: the session's), ``max_texture_size``
+    (default 4096), ``float_textures`` (default true: the device can render
+    to RGBA32F, WebGL2's ``EXT_color_buffer_float``; false → 422, the tracer
+    cannot run there). Multi-pass methods (``rayengine``, ``hre``) draw several
+    passes on the server and are a 422, as are scenes whose arrays do not fit
+    the device's textures.
+
+``GET /api/shader``
+    The fragment shader of one variant exactly as the server compiles it
+    (:func:`renderer.gl_renderer.shader_source`: ``raytrace.frag`` + the layout
+    header + the variant's defines + ``method_<name>.glsl``), or with
+    ``stage=vertex`` the vertex shader; ``text/plain``. Query: ``method``,
+    ``mode``, ``max_recursion_depth``, ``features`` (comma-separated ``NO_*``
+    defines of :mod:`renderer.features`). The device-data header names the
+    variant (its ``shader`` entry, with a ready ``url``).
+
+Binary format of device-data (all integers little-endian)::
+
+    offset 0   4 bytes   magic b"PRDD"
+    offset 4   uint32    format version (1)
+    offset 8   uint32    H = length of the JSON header in bytes
+    offset 12  H bytes   JSON header, UTF-8
+               padding   zero bytes up to a multiple of 16
+               …         texture data; each texture at its own ``offset``
+                         (from the start of the blob, a multiple of 16)
+
+The JSON header::
+
+    {"format": "pocketray-device-data", "format_version": 1,
+     "session": {"id", "version", "scene_rev"},
+     "method": "bih",                       # auto resolved
+     "settings": {"mode", "max_prims", "max_tree_depth", "max_recursion_depth", "width", "height"},
+     "shader": {"method", "mode", "max_recursion_depth", "features": ["NO_TRANSMISSION", …], "url"},
+     "max_texture_size": 4096,              # the power of two the textures were wrapped to
+     "camera": {...}, "home_camera": {...}, # SPEC camera JSON (current, and the reset one)
+     "uniforms": {"u_num_spheres": 64, "u_plane_point": [[0, -20, 0], …], …,
+                  "u_cam_pos": [...], "u_cam_right": [...], "u_cam_up": [...], "u_cam_forward": [...],
+                  "u_target_distance": 100.0, "u_min_weight": 0.0, "u_box_min": [...], …},
+     "textures": [{"name": "u_spheres", "width", "height", "components": 4, "dtype": "f4",
+                   "internal_format": "RGBA32F", "offset", "nbytes"}, …],
+     "stats": {...}, "build_ms": 1.2, "pack_ms": 0.3, "nbytes": …}
+
+``uniforms`` are every uniform of :func:`gpu_layout.pack_primitives` and of the
+method's ``prepare(...).packed`` (fixed-length arrays as lists), plus the camera
+terms that do not depend on the image size (``u_half_extent`` and
+``u_resolution`` do; the device sets them, as ``GLRenderer._set_camera`` does).
+Each texture is ``height × width × components`` elements of ``dtype`` (``f4``:
+float32, ``u4``: uint32), row 0 first — exactly ``PackedTexture.data``; the
+device uploads them with NEAREST filtering, as the server does. The response's
+headers: ``X-Session-Version``, ``X-Method``, ``X-Stats``, ``Server-Timing``
+(``build``, ``pack``, ``total``).
+
+The pack is NumPy only (no GL), so it runs in FastAPI's thread pool, not on the
+GL thread; it still takes a slot of the render queue while it runs, so a busy
+service answers 503 + ``Retry-After`` here as everywhere.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+import time
+from typing import Annotated, Any
+from urllib.parse import urlencode
+
+import numpy as np
+from fastapi import APIRouter, Depends, Path, Query, Response
+from fastapi.responses import PlainTextResponse
+from starlette.requests import HTTPConnection
+
+from renderer import gpu_layout
+from renderer.features import scene_features
+from renderer.gl_renderer import SHADER_DIR, SINGLE_PASS_MODES, shader_source, vertex_source
+from renderer.methods import METHODS, resolve_method
+from renderer.scene import Camera
+from renderer.settings import MAX_RECURSION_DEPTH_LIMIT, MAX_TREE_DEPTH_LIMIT
+
+from .models import ErrorOut, MethodName, ModeName
+from .service import InputError, SessionService
+from .view import EXPOSED, stats_header
+
+MAGIC = b"PRDD"
+FORMAT_VERSION = 1
+ALIGN = 16
+FEATURE_DEFINES = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS")  # renderer.features, in its order
+DEFAULT_MAX_TEXTURE_SIZE = gpu_layout.DEFAULT_TEXTURE_WIDTH
+
+# GL internal format of a PackedTexture by (dtype, components): what WebGL2 and moderngl create.
+INTERNAL_FORMATS = {("f4", 1): "R32F", ("f4", 2): "RG32F", ("f4", 3): "RGB32F", ("f4", 4): "RGBA32F",
+                    ("u4", 1): "R32UI", ("u4", 2): "RG32UI", ("u4", 3): "RGB32UI", ("u4", 4): "RGBA32UI"}
+
+
+def _service(conn: HTTPConnection) -> SessionService:
+    return conn.app.state.service
+
+
+ServiceDep = Annotated[SessionService, Depends(_service)]
+SessionId = Annotated[str, Path(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_-]+$",
+                                description="session token from POST /api/sessions")]
+
+_ERRORS = {404: {"model": ErrorOut, "description": "no such session (unknown, deleted or expired)"},
+           503: {"model": ErrorOut, "description": "render queue full or session store not available; "
+                                                   "see Retry-After",
+                 "headers": {"Retry-After": {"description": "seconds", "schema": {"type": "string"}}}}}
+_DATA_DOC: dict[str, Any] = {
+    "description": "the packed scene and acceleration data (binary; format in server/device.py)",
+    "content": {"application/octet-stream": {"schema": {"type": "string", "format": "binary"}}},
+    "headers": {
+        "X-Session-Version": {"description": "the session version the data shows", "schema": {"type": "string"}},
+        "X-Method": {"description": "acceleration method packed", "schema": {"type": "string"}},
+        "X-Stats": {"description": "compact JSON of the build's statistics", "schema": {"type": "string"}},
+        "Server-Timing": {"description": "build, pack, total as name;dur=ms", "schema": {"type": "string"}},
+    },
+}
+_SHADER_DOC: dict[str, Any] = {"description": "GLSL ES 3.00 source",
+                               "content": {"text/plain": {"schema": {"type": "string"}}}}
+
+router = APIRouter(prefix="/api", tags=["device"])
+
+
+# ---- the variant and the pack ----------------------------------------------------------------
+def single_pass_method(name: str, where: tuple[str, ...]) -> Any:
+    """The method object, or a 422 when it cannot run in one fragment-shader pass on a device."""
+    method = METHODS.get(name)
+    if method is None:
+        raise InputError(where, f"unknown method {name!r}")
+    if hasattr(method, "render_frame") or not hasattr(method, "prepare") or \
+            not (SHADER_DIR / f"method_{name}.glsl").is_file():
+        able = ", ".join(device_methods())
+        raise InputError(where, f"method {name!r} draws several passes on the server and cannot run on the "
+                                f"device; device mode supports {able} (or use server mode)")
+    return method
+
+
+def device_methods() -> list[str]:
+    """Methods whose whole frame is one pass of raytrace.frag (what a browser can run)."""
+    return [n for n, m in METHODS.items()
+            if not hasattr(m, "render_frame") and (SHADER_DIR / f"method_{n}.glsl").is_file()]
+
+
+def parse_features(features: str | None) -> tuple[str, ...]:
+    """``"NO_LIGHTS,NO_REFLECTION"`` → the defines in renderer.features' order (422 for others)."""
+    given = [f.strip() for f in (features or "").split(",") if f.strip()]
+    for f in given:
+        if f not in FEATURE_DEFINES:
+            raise InputError(("query", "features"), f"unknown feature {f!r}; any of {', '.join(FEATURE_DEFINES)}")
+    return tuple(f for f in FEATURE_DEFINES if f in given)
+
+
+def shader_url(method: str, mode: str, depth: int, features: tuple[str, ...]) -> str:
+    q = {"method": method, "mode": mode, "max_recursion_depth": depth}
+    if features:
+        q["features"] = ",".join(features)
+    return "/api/shader?" + urlencode(q)
+
+
+def camera_uniforms(camera: Camera) -> dict[str, Any]:
+    """The camera terms of ``GLRenderer._set_camera`` that do not depend on the image size."""
+    right, up, forward = camera.basis()
+    return {"u_cam_pos": [float(x) for x in camera.position], "u_cam_right": right.tolist(),
+            "u_cam_up": up.tolist(), "u_cam_forward": forward.tolist(),
+            "u_target_distance": float(np.linalg.norm(np.subtract(camera.target, camera.position)))}
+
+
+def _jsonable(v: Any) -> Any:
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, (np.integer, bool)):
+        return int(v)
+    if isinstance(v, (np.floating, float)):
+        return float(v)
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    return v
+
+
+def encode_blob(header: dict[str, Any], textures: dict[str, gpu_layout.PackedTexture]) -> bytes:
+    """Magic, version, header length, JSON header (with the textures' offsets), aligned texture bytes."""
+    entries, chunks = [], []
+    for name, tex in textures.items():
+        data = np.ascontiguousarray(tex.data, dtype="<f4" if tex.dtype == "f4" else "<u4")
+        w, h = tex.size
+        entries.append({"name": name, "width": w, "height": h, "components": tex.components, "dtype": tex.dtype,
+                        "internal_format": INTERNAL_FORMATS[(tex.dtype, tex.components)],
+                        "offset": 0, "nbytes": int(data.nbytes)})
+        chunks.append(data.tobytes())
+    # The offsets depend on the header's length, which depends on the offsets' digits: iterate.
+    head = b""
+    for _ in range(4):
+        start = _align(12 + len(head))
+        pos = start
+        for e, c in zip(entries, chunks):
+            e["offset"] = pos
+            pos = _align(pos + len(c))
+        new = json.dumps({**header, "textures": entries, "nbytes": pos}, separators=(",", ":")).encode()
+        if new == head:
+            break
+        head = new
+    out = bytearray(MAGIC + struct.pack("<II", FORMAT_VERSION, len(head)) + head)
+    for e, c in zip(entries, chunks):
+        out.extend(b"\0" * (e["offset"] - len(out)))
+        out.extend(c)
+    out.extend(b"\0" * (_align(len(out)) - len(out)))
+    return bytes(out)
+
+
+def decode_blob(blob: bytes) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """The header and the textures as (height, width, components) arrays (for tests and tools)."""
+    if blob[:4] != MAGIC:
+        raise ValueError("not pocketray device data")
+    version, n = struct.unpack_from("<II", blob, 4)
+    if version != FORMAT_VERSION:
+        raise ValueError(f"device-data format {version}, expected {FORMAT_VERSION}")
+    header = json.loads(blob[12:12 + n])
+    arrays = {}
+    for t in header["textures"]:
+        a = np.frombuffer(blob, dtype="<f4" if t["dtype"] == "f4" else "<u4",
+                          count=t["height"] * t["width"] * t["components"], offset=t["offset"])
+        arrays[t["name"]] = a.reshape(t["height"], t["width"], t["components"])
+    return header, arrays
+
+
+def _align(n: int) -> int:
+    return -(-n // ALIGN) * ALIGN
+
+
+# ---- routes ----------------------------------------------------------------------------------
+@router.get("/sessions/{session_id}/device-data", response_class=Response,
+            responses={200: _DATA_DOC, **_ERRORS},
+            summary="The session's scene and acceleration data packed for a device (WebGL2)")
+def device_data(
+    session_id: SessionId, service: ServiceDep,
+    method: Annotated[MethodName | None, Query(description="default: the session's")] = None,
+    mode: Annotated[ModeName | None, Query(description="names the shader variant; default: the session's")] = None,
+    max_prims: Annotated[int | None, Query(ge=1, le=1 << 24)] = None,
+    max_tree_depth: Annotated[int | None, Query(ge=1, le=MAX_TREE_DEPTH_LIMIT)] = None,
+    max_recursion_depth: Annotated[int | None, Query(ge=1, le=MAX_RECURSION_DEPTH_LIMIT)] = None,
+    max_texture_size: Annotated[int, Query(ge=1, le=1 << 16,
+                                           description="the device's MAX_TEXTURE_SIZE")] = DEFAULT_MAX_TEXTURE_SIZE,
+    float_textures: Annotated[bool, Query(description="the device renders to RGBA32F "
+                                                      "(WebGL2: EXT_color_buffer_float)")] = True,
+) -> Response:
+    t0 = time.perf_counter()
+    if not float_textures:
+        raise InputError(("query", "float_textures"),
+                         "the tracer reads RGBA32F textures and writes two RGBA32F targets (WebGL2 needs "
+                         "EXT_color_buffer_float); this device cannot run it: use server mode")
+    state = service.get(session_id)
+    patch = {k: v for k, v in (("method", method), ("mode", mode), ("max_prims", max_prims),
+                               ("max_tree_depth", max_tree_depth),
+                               ("max_recursion_depth", max_recursion_depth)) if v is not None}
+    settings = service.merge_settings(state.settings, patch, "query")
+    n = state.scene_info.get("n_spheres", 0)
+    method_name = resolve_method(settings["method"], n)
+    meth = single_pass_method(method_name, ("query", "method"))
+    if settings["mode"] not in SINGLE_PASS_MODES:
+        raise InputError(("query", "mode"), f"mode {settings['mode']!r} is not a mode of the one-pass tracer; "
+                                            f"one of {', '.join(SINGLE_PASS_MODES)}")
+    width = 1 << (int(max_texture_size).bit_length() - 1)
+    with service.admit():  # a queue slot for back-pressure; the work is NumPy, on this thread
+        scene = service.scene(state)
+        t_built0 = time.perf_counter()
+        try:
+            prepared = meth.prepare(scene, settings["max_prims"], settings["max_tree_depth"], width)
+            t_built = time.perf_counter()
+            prims = gpu_layout.pack_primitives(scene, width)
+        except ValueError as e:
+            raise InputError(("query", "max_texture_size"),
+                             f"the scene does not fit this device's textures ({e}); use server mode") from None
+    features = scene_features(scene)
+    depth = features.recursion_depth(settings["max_recursion_depth"])
+    defines = features.defines()
+    uniforms = {k: _jsonable(v) for k, v in {**prims.uniforms, **prepared.packed.uniforms}.items()}
+    uniforms.update(camera_uniforms(scene.camera))
+    uniforms["u_min_weight"] = 0.0
+    stats = {**prepared.stats, "method": method_name, "recursion_depth": depth,
+             "features_removed": list(defines)}
+    t_packed = time.perf_counter()
+    header = {
+        "format": "pocketray-device-data", "format_version": FORMAT_VERSION,
+        "session": {"id": state.id, "version": state.version, "scene_rev": state.scene_rev},
+        "method": method_name,
+        "settings": {k: settings[k] for k in ("mode", "max_prims", "max_tree_depth", "max_recursion_depth",
+                                              "width", "height")},
+        "shader": {"method": method_name, "mode": settings["mode"], "max_recursion_depth": depth,
+                   "features": list(defines), "url": shader_url(method_name, settings["mode"], depth, defines)},
+        "max_texture_size": width,
+        "camera": state.camera, "home_camera": state.home_camera,
+        "uniforms": uniforms,
+        "stats": _jsonable_stats(stats), "build_ms": prepared.build_ms,
+        "pack_ms": ((t_packed - t_built0) * 1e3 - prepared.build_ms),
+    }
+    blob = encode_blob(header, {**prims.textures, **prepared.packed.textures})
+    total = (time.perf_counter() - t0) * 1e3
+    timing = f"build;dur={prepared.build_ms:.2f}, pack;dur={header['pack_ms']:.2f}, total;dur={total:.2f}"
+    return Response(content=blob, media_type="application/octet-stream", headers={
+        "X-Session-Version": str(state.version), "X-Method": method_name, "X-Stats": stats_header(stats),
+        "Server-Timing": timing, "Cache-Control": "no-store",
+        "Access-Control-Expose-Headers": ", ".join(EXPOSED)})
+
+
+def _jsonable_stats(stats: dict[str, Any]) -> dict[str, Any]:
+    return json.loads(json.dumps(stats, default=_jsonable))
+
+
+@router.get("/shader", response_class=PlainTextResponse, responses={200: _SHADER_DOC},
+            summary="The tracer's GLSL ES 3.00 source of one variant, as the server compiles it")
+def shader(
+    method: Annotated[MethodName, Query()] = "bih",
+    mode: Annotated[ModeName, Query()] = "color",
+    max_recursion_depth: Annotated[int, Query(ge=1, le=MAX_RECURSION_DEPTH_LIMIT)] = 5,
+    features: Annotated[str | None, Query(max_length=200, description="comma-separated: "
+                                          + ", ".join(FEATURE_DEFINES))] = None,
+    stage: Annotated[str, Query(pattern="^(fragment|vertex)$")] = "fragment",
+) -> PlainTextResponse:
+    if stage == "vertex":
+        return PlainTextResponse(vertex_source(), headers={"Cache-Control": "no-cache"})
+    if method == "auto":
+        raise InputError(("query", "method"), "name a concrete method (auto is resolved per scene by device-data)")
+    single_pass_method(method, ("query", "method"))
+    if mode not in SINGLE_PASS_MODES:
+        raise InputError(("query", "mode"), f"mode {mode!r} is not a mode of the one-pass tracer; "
+                                            f"one of {', '.join(SINGLE_PASS_MODES)}")
+    src = shader_source(method, mode, max_recursion_depth, parse_features(features))
+    return PlainTextResponse(src, headers={"Cache-Control": "no-cache"})

@@ -1,0 +1,265 @@
+"""Device mode (issue #10): the server's tracer run by the browser in WebGL2.
+
+One shader, one tree layout, two GL implementations (the server's Mesa llvmpipe
+through moderngl, Chromium's ANGLE on SwiftShader here), checked against each other:
+primary ids equal on ≥ 99.9 % of pixels and colour PSNR ≥ 35 dB at recursion depth 5,
+for the three scenarios at n = 64 and 1,024, BIH and brute force; the shader compiles
+with an empty info log; the client falls back to server mode, visibly, without WebGL2;
+the overlay says which side rendered; gestures in device mode reach the server's Model.
+
+Chromium gets WebGL2 without a GPU through SwiftShader. Nothing here skips: without
+WebGL2 (or the float render targets the tracer needs) the tests fail.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import math
+import urllib.request
+
+import numpy as np
+import pytest
+
+from browser_support import CHROMIUM, CHROMIUM_ARGS, FAILED_LOAD, MOBILE, Client, http_json
+
+# WebGL2 in headless Chromium without a GPU: ANGLE on SwiftShader (explicit, so that a
+# Chromium that stops falling back to it by itself still gets it).
+GL_ARGS = [*CHROMIUM_ARGS, "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+W, H = 64, 108
+DEPTH = 5
+SMALL = "scenario=1&n=64&seed=1&radius=1&width=96&height=160&max_recursion_depth=2&preview_scale=1&refine_ms=0"
+
+
+@pytest.fixture(scope="module")
+def gl_browser(browser):
+    """A second Chromium of the same Playwright (one sync Playwright per process), with the GL flags."""
+    try:
+        b = browser.browser_type.launch(executable_path=CHROMIUM, args=GL_ARGS, headless=True)
+    except Exception as e:
+        pytest.fail(f"Chromium could not start from {CHROMIUM} with {GL_ARGS}: {e}")
+    yield b
+    b.close()
+
+
+@pytest.fixture(scope="module")
+def device_page(gl_browser, server):
+    """A client page (server mode) whose device renderer renders any session by id."""
+    ctx = gl_browser.new_context(**MOBILE)
+    c = Client(server, ctx, ctx.new_page())
+    c.open("scenario=1&n=64&seed=1&radius=1&width=32&height=32&max_recursion_depth=1")
+    probe = c.page.evaluate("() => window.pocketray.device.probe()")
+    assert probe["ok"], f"no WebGL2 for the tracer in this Chromium ({GL_ARGS}): {probe}"
+    yield c
+    ctx.close()
+
+
+@pytest.fixture(scope="module")
+def sessions(server):
+    made = {}
+
+    def get(scenario: int, n: int) -> str:
+        if (scenario, n) not in made:
+            made[scenario, n] = http_json("POST", f"{server.base}/api/sessions",
+                                          {"scenario": scenario, "n": n, "seed": 1, "radius": 1.0})["id"]
+        return made[scenario, n]
+    return get
+
+
+def server_array(server, sid: str, **q) -> np.ndarray:
+    query = "&".join(f"{k}={v}" for k, v in {"format": "npy", **q}.items())
+    with urllib.request.urlopen(f"{server.base}/api/sessions/{sid}/frame?{query}", timeout=120) as r:
+        return np.load(io.BytesIO(r.read()), allow_pickle=False)
+
+
+def device_render(c: Client, **params) -> dict:
+    r = c.page.evaluate("(p) => window.pocketray.device.renderOnce(p)", params)
+    h, w = r["height"], r["width"]
+    r["primid"] = np.frombuffer(base64.b64decode(r["primid"]), np.int32).reshape(h, w)
+    r["colour"] = np.frombuffer(base64.b64decode(r["colour"]), np.uint8).reshape(h, w, 3)
+    return r
+
+
+def psnr(a: np.ndarray, b: np.ndarray) -> float:
+    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
+    return math.inf if mse == 0 else 10 * math.log10(255.0 ** 2 / mse)
+
+
+@pytest.mark.parametrize("method", ["bih", "bruteforce"])
+@pytest.mark.parametrize("n", [64, 1024])
+@pytest.mark.parametrize("scenario", [1, 2, 3])
+def test_device_image_equals_the_servers(device_page, server, sessions, scenario, n, method):
+    sid = sessions(scenario, n)
+    common = dict(width=W, height=H, method=method, max_recursion_depth=DEPTH)
+    dev = device_render(device_page, session=sid, mode="primid", **common)
+    assert dev["infoLog"] == {"vertex": "", "fragment": "", "program": ""}, dev["infoLog"]
+    assert dev["renderer"].startswith("WebGL2 ")
+    srv = server_array(server, sid, mode="primid", **common)
+    assert srv.shape == dev["primid"].shape == (H, W)
+    same = float(np.mean(srv == dev["primid"]))
+    assert same >= 0.999, f"primary ids agree on {same:.4%} only"
+    assert (srv >= 0).mean() > 0.01       # the frame shows something
+
+    dev = device_render(device_page, session=sid, mode="color", **common)
+    assert dev["infoLog"] == {"vertex": "", "fragment": "", "program": ""}, dev["infoLog"]
+    srv = server_array(server, sid, mode="color", **common)
+    assert psnr(dev["colour"], srv) >= 35.0, psnr(dev["colour"], srv)
+    assert device_page.errors() == []
+
+
+def test_one_layout_small_textures_and_the_javascript_camera(device_page, server, sessions):
+    """A device with MAX_TEXTURE_SIZE 32: narrower rows, the same picture; the JS basis is the server's."""
+    sid = sessions(3, 1024)
+    dev = device_render(device_page, session=sid, mode="primid", width=W, height=H, method="bih",
+                        max_texture_size=32)
+    sizes = {t["name"]: (t["width"], t["height"], t["internal_format"]) for t in dev["textures"]}
+    assert sizes["u_spheres"] == (32, 32, "RGBA32F") and sizes["u_sphere_mat"] == (32, 32, "R32UI")
+    assert sizes["u_nodes"][0] <= 32 and sizes["u_nodes"][2] == "RGB32UI"
+    srv = server_array(server, sid, mode="primid", width=W, height=H, method="bih")
+    assert np.mean(srv == dev["primid"]) >= 0.999
+    u = dev["serverUniforms"]
+    for js, py in (("right", "u_cam_right"), ("up", "u_cam_up"), ("forward", "u_cam_forward")):
+        assert np.allclose(dev["basis"][js], u[py], rtol=0, atol=1e-15), (js, dev["basis"][js], u[py])
+
+
+def test_controller_port_matches_the_server(device_page):
+    """device.js's pan / pinch are server/controller.py's (the local camera moves as the Model's)."""
+    from renderer.scene import Camera
+    from server import controller
+
+    cam = {"position": [3.0, -2.0, 80.0], "target": [1.0, 0.5, -4.0], "up": [0.1, 1.0, 0.0], "fov_y": 50.0}
+    got = device_page.page.evaluate("""async (cam) => { const d = await import('/js/device.js');
+        return [d.panCamera(cam, 37.5, -12.25, 640), d.pinchCamera(cam, 1.7), d.pinchCamera(cam, 0.3),
+                d.pinchCamera(cam, 1e9)]; }""", cam)
+    c = Camera.from_json(cam)
+    want = [controller.pan(c, 37.5, -12.25, 640.0), controller.pinch(c, 1.7), controller.pinch(c, 0.3),
+            controller.pinch(c, 1e9)]
+    for g, w in zip(got, want):
+        assert np.allclose(g["position"], w.position, rtol=1e-14, atol=1e-12), (g, w)
+        assert np.allclose(g["target"], w.target, rtol=1e-14, atol=1e-12), (g, w)
+
+
+def test_device_mode_in_the_client(gl_browser, server):
+    """Device mode draws locally (the overlay says so), a drag moves the server's camera too, and
+    switching back to server mode shows the same view."""
+    ctx = gl_browser.new_context(**MOBILE)
+    try:
+        c = Client(server, ctx, ctx.new_page())
+        c.open(SMALL + "&renderer=device&mode=color")
+        last = c.hook("lastFrame")
+        assert last["renderer"] == "device" and last["renderedBy"].startswith("device (WebGL2 "), last
+        shown = c.page.locator('#overlay [data-field="renderer"]')
+        assert shown.get_attribute("title") == last["renderedBy"] and shown.text_content().startswith("device (WebGL2")
+
+        cam0, n0 = c.camera(), c.frame_count
+        box = c.page.locator("#view").bounding_box()
+        x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+        m = c.page.mouse
+        m.move(x, y)
+        m.down()
+        for k in range(1, 6):
+            m.move(x + 8 * k, y + 3 * k)
+        m.up()
+        c.wait_idle(min_frames=n0 + 1)
+        log = c.hook("log")[n0:]
+        assert log and all(f["renderer"] == "device" for f in log), log
+        cam1 = c.camera()
+        assert not np.allclose(cam1["position"], cam0["position"])           # the Model followed
+        local = c.page.evaluate("() => window.pocketray.device.camera")
+        assert np.allclose(local["position"], cam1["position"], rtol=0, atol=1e-9), (local, cam1)
+
+        n1 = c.frame_count                                    # a setting changes: the data comes again
+        c.page.click("#settings-toggle")
+        c.page.select_option("#f-method", "bruteforce")
+        c.wait_idle(min_frames=n1 + 1)
+        last = c.hook("lastFrame")
+        assert (last["renderer"], last["method"]) == ("device", "bruteforce"), last
+        shown_device = canvas_rgb(c)
+
+        n1 = c.frame_count
+        c.page.select_option("#f-renderer", "server")
+        c.wait_idle(min_frames=n1 + 1)
+        last = c.hook("lastFrame")
+        assert last["renderer"] == "server" and last["renderedBy"].startswith("server ("), last
+        shown = c.page.locator('#overlay [data-field="renderer"]')
+        assert shown.get_attribute("title") == last["renderedBy"] and shown.text_content().startswith("server (")
+        assert c.camera() == cam1                                           # nothing moved on switching
+        shown_server = canvas_rgb(c)
+        assert shown_server.shape == shown_device.shape
+        assert psnr(shown_device, shown_server) >= 35.0                     # the same view, both sides
+
+        assert c.errors() == [] and c.hook("errors") == []
+
+        # Back to the device; a method that needs several passes cannot run there: server, with a notice.
+        n2 = c.frame_count
+        c.page.select_option("#f-renderer", "device")
+        c.wait_idle(min_frames=n2 + 1)
+        assert c.hook("lastFrame.renderer") == "device"
+        n3 = c.frame_count
+        c.page.select_option("#f-method", "rayengine")
+        c.wait_idle(min_frames=n3 + 1)
+        last = c.hook("lastFrame")
+        assert (last["renderer"], last["method"]) == ("server", "rayengine"), last
+        assert "several passes" in c.hook("device.fallback")
+        assert c.page.input_value("#f-renderer") == "server"
+        assert c.errors(allow=(FAILED_LOAD,)) == [] and c.hook("errors") == []   # the 422 is the fallback's cause
+    finally:
+        ctx.close()
+
+
+def canvas_rgb(c: Client) -> np.ndarray:
+    w, h, data = c.page.evaluate("""() => { const cv = document.getElementById('view');
+        const d = cv.getContext('2d').getImageData(0, 0, cv.width, cv.height).data;
+        let s = ''; for (let i = 0; i < d.length; i += 0x8000) s += String.fromCharCode(...d.subarray(i, i + 0x8000));
+        return [cv.width, cv.height, btoa(s)]; }""")
+    return np.frombuffer(base64.b64decode(data), np.uint8).reshape(h, w, 4)[..., :3]
+
+
+def test_without_webgl2_the_client_falls_back_to_the_server(open_client):
+    c = open_client("mobile", SMALL + "&renderer=device&webgl2=0")
+    last = c.hook("lastFrame")
+    assert last["renderer"] == "server", last
+    notices = [n["text"] for n in c.hook("notices")]
+    assert any("server" in t and "WebGL2" in t for t in notices), notices
+    assert c.page.locator("#notice").inner_text().count("WebGL2") >= 1       # visible
+    assert c.hook("state.client.renderer") == "server"
+    assert c.page.input_value("#f-renderer") == "server"
+    assert c.errors() == []
+
+
+def test_device_data_is_the_gpu_layout_and_refuses_what_a_device_cannot_run(server, sessions):
+    """The blob holds gpu_layout's arrays bit for bit; multi-pass methods, tiny textures and
+    devices without float targets get a 422 that says why; the shader is the server's text."""
+    from renderer import gpu_layout
+    from renderer.gl_renderer import shader_source
+    from renderer.methods import METHODS
+    from renderer.scenarios import scenario
+    from server.device import decode_blob
+
+    sid = sessions(2, 64)
+    with urllib.request.urlopen(f"{server.base}/api/sessions/{sid}/device-data?max_texture_size=64&method=bih",
+                                timeout=60) as r:
+        assert r.headers["X-Session-Version"] == "1" and r.headers["X-Method"] == "bih"
+        header, arrays = decode_blob(r.read())
+    scene = scenario(2, 64, 1, 1.0)
+    want = {**gpu_layout.pack_primitives(scene, 64).textures,
+            **METHODS["bih"].prepare(scene, 8, 64, 64).packed.textures}
+    assert set(arrays) == set(want)
+    for name, tex in want.items():
+        assert np.array_equal(arrays[name], tex.data), name
+    assert header["uniforms"]["u_num_spheres"] == 64 and header["camera"]["position"] == [0.0, 0.0, 100.0]
+
+    with urllib.request.urlopen(f"{server.base}{header['shader']['url']}", timeout=30) as r:
+        assert r.read().decode() == shader_source("bih", header["shader"]["mode"],
+                                                  header["shader"]["max_recursion_depth"],
+                                                  tuple(header["shader"]["features"]))
+    for query, field, words in (("method=rayengine", "method", "several passes"),
+                                ("max_texture_size=4", "max_texture_size", "does not fit"),
+                                ("float_textures=false", "float_textures", "EXT_color_buffer_float")):
+        try:
+            urllib.request.urlopen(f"{server.base}/api/sessions/{sid}/device-data?{query}", timeout=30)
+            raise AssertionError(f"{query} was accepted")
+        except urllib.error.HTTPError as e:
+            assert e.code == 422, query
+            detail = __import__("json").loads(e.read())["detail"][0]
+            assert detail["loc"] == ["query", field] and words in detail["msg"], detail
