@@ -105,5 +105,9 @@ def test_service_answers_while_the_gl_thread_traces(ready_client):
             t0 = time.perf_counter()
             assert c.get("/api/health").status_code == 200
             waits.append(time.perf_counter() - t0)
-        job.result()
-    assert waits and max(waits) < 0.5, f"health answered after {max(waits):.3f} s while tracing"
+        trace_s = job.result().timings["trace"] / 1e3
+    # Relative to the frame, so a loaded machine does not matter: with the GIL held
+    # through glFinish one health call waits out the whole trace; released, many
+    # answer during it, each in a small part of the trace time.
+    assert len(waits) >= 3, f"only {len(waits)} health answers during a {trace_s:.2f} s trace"
+    assert max(waits) < 0.25 * trace_s, f"health answered after {max(waits):.3f} s during a {trace_s:.2f} s trace"
