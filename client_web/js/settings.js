@@ -7,11 +7,15 @@
 
 // Used when the server does not offer its list (GET /api/methods).
 export const FALLBACK_METHODS = Object.freeze(['bih', 'bruteforce']);
-export const METHOD_LABELS = Object.freeze({ bih: 'BIH', bruteforce: 'Brute force' });
+export const METHOD_LABELS = Object.freeze({
+  bih: 'BIH (thesis)', bruteforce: 'Brute force', auto: 'Auto (brute force below the crossover, else BIH)',
+  rayengine: 'Ray engine (Carr)', hre: 'Hierarchical ray engine (Szécsi)', bvh: 'BVH (binned SAH)',
+  kdtree: 'kd-tree (SAH)', twolevel: 'Two levels (kd-tree + BVH)',
+});
 export const MODES = Object.freeze(['color', 'depth', 'primid', 'normal', 'recursion', 'heat']);
 export const MODE_LABELS = Object.freeze({
   color: 'Colour (Whitted)', depth: 'Depth', primid: 'Primitive id', normal: 'Normal',
-  recursion: 'Recursion depth (Fig. 4.2f)', heat: 'Traversal heat (Fig. 4.3)',
+  recursion: 'Recursion depth (Fig. 4.2f)', heat: 'Traversal heat (Fig. 4.3)', cones: 'Tile cones (hre only)',
 });
 export const SCENARIOS = Object.freeze([
   { value: 1, label: '1 — grid' },
