@@ -28,6 +28,7 @@ SINGLE_PASS_MODES = ("color", "depth", "primid", "normal", "recursion", "heat")
 SHADER_DIR = Path(__file__).resolve().parent.parent / "shaders"
 HEADER_MARK = "//@HEADER@"
 METHOD_MARK = "//@METHOD@"
+INCLUDE_MARK = "//@INCLUDE "   # a line "//@INCLUDE method_bvh.glsl" in a method file inlines that file
 
 
 def shader_source(method: str, mode: str, max_recursion_depth: int,
@@ -39,11 +40,23 @@ def shader_source(method: str, mode: str, max_recursion_depth: int,
     ``//@METHOD@``. The same assembly serves moderngl and the browser (WebGL2).
     """
     src = (SHADER_DIR / "raytrace.frag").read_text()
-    method_src = (SHADER_DIR / f"method_{method}.glsl").read_text()
+    method_src = _with_includes((SHADER_DIR / f"method_{method}.glsl").read_text())
     defines = [f"#define METHOD_{method.upper()}", f"#define MODE_{mode.upper()}",
                f"#define MAX_RECURSION_DEPTH {int(max_recursion_depth)}", *(f"#define {d}" for d in extra_defines)]
     header = gpu_layout.glsl_header() + "\n".join(defines) + "\n"
     return src.replace(HEADER_MARK, header).replace(METHOD_MARK, method_src)
+
+
+def _with_includes(text: str) -> str:
+    """Inline ``//@INCLUDE file`` lines (one level: a method built from other methods)."""
+    lines = []
+    for line in text.splitlines(keepends=True):
+        if line.startswith(INCLUDE_MARK):
+            name = line[len(INCLUDE_MARK):].strip()
+            lines.append(f"// ---- {name} ----\n" + (SHADER_DIR / name).read_text() + "\n")
+        else:
+            lines.append(line)
+    return "".join(lines)
 
 
 def vertex_source() -> str:

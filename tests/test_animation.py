@@ -7,7 +7,7 @@
   disappear and reappear);
 - every frame of a test animation of each kind, traced by ``bvh`` with refit and with
   selective rebuild and by ``twolevel``, gives the brute-force ids on ≥ 99.99 % of pixels;
-- ``shaders/method_twolevel.glsl`` is the current concatenation of the two methods.
+- the two-level shader inlines the BVH and kd-tree traversals (one copy of each).
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from renderer.animation import (AnimationSettings, animated_scene_from_json, museum, pose, render_frame,
-                                twolevel_shader_source)
+from renderer.animation import AnimationSettings, animated_scene_from_json, museum, pose, render_frame
+from renderer.gl_renderer import shader_source
 from renderer.scenarios import scenario
 from renderer.scene import SceneError
 from renderer.settings import RenderSettings
@@ -124,8 +124,12 @@ def test_incoherent_spheres_stay_in_their_box_and_come_and_go():
     assert {pose(fixed, t).scene.n_spheres for t in (0.0, 1.0, 3.3)} == {fixed.scene.n_spheres}
 
 
-def test_twolevel_shader_is_current():
-    assert (ROOT / "shaders" / "method_twolevel.glsl").read_text() == twolevel_shader_source()
+def test_twolevel_shader_inlines_both_traversals():
+    src = shader_source("twolevel", "color", 1)
+    for name in ("method_bvh.glsl", "method_kdtree.glsl"):
+        body = (ROOT / "shaders" / name).read_text()
+        assert src.count(body) == 1
+    assert "//@INCLUDE" not in src
 
 
 FRAMES = [0.0, 0.4, 0.8, 1.2, 1.6, 2.0]
