@@ -1,5 +1,5 @@
 // Method "bih": the thesis's Bounding Interval Hierarchy (listing 3.5).
-// Spliced into raytrace.frag at //@METHOD@; defines intersect_spheres().
+// Spliced into raytrace.frag at its METHOD mark; defines intersect_spheres().
 // Node layout: renderer/bih_layout.py (BIH_* constants in the header).
 
 uniform highp usampler2D u_nodes;       // BIH nodes (bih_layout)
@@ -14,24 +14,6 @@ void method_init() {
     g_index_shift = row_shift(textureSize(u_indices, 0));
 }
 
-// Slab test against the global AABB, clipped to [0, ∞). A zero direction
-// component is handled explicitly: (bound − o) / 0 would give ±inf or NaN.
-bool clip_box(vec3 o, vec3 d, out float t0, out float t1) {
-    t0 = 0.0;
-    t1 = BIG;
-    for (int a = 0; a < 3; a++) {
-        if (d[a] == 0.0) {
-            if (o[a] < u_box_min[a] || o[a] > u_box_max[a]) return false;
-        } else {
-            float ta = (u_box_min[a] - o[a]) / d[a];
-            float tb = (u_box_max[a] - o[a]) / d[a];
-            t0 = max(t0, min(ta, tb));
-            t1 = min(t1, max(ta, tb));
-        }
-    }
-    return t0 <= t1;
-}
-
 // Listing 3.5 with the corrections of SPEC.md: the near child depends on the
 // sign of d[axis]; each child gets its own interval; the far child is pushed
 // with its interval and dropped on pop when it starts beyond the best hit.
@@ -39,7 +21,7 @@ bool clip_box(vec3 o, vec3 d, out float t0, out float t1) {
 // deeper than BIH_STACK_SIZE, so it cannot overflow.
 void intersect_spheres(Query q, inout Hit h) {
     float t0, t1;
-    if (u_num_spheres == 0 || !clip_box(q.o, q.d, t0, t1)) return;
+    if (u_num_spheres == 0 || !slab_interval(q.o, q.d, u_box_min, u_box_max, t0, t1) || !(t0 <= t1)) return;
     int st_node[BIH_STACK_SIZE];
     float st_a[BIH_STACK_SIZE];
     float st_b[BIH_STACK_SIZE];

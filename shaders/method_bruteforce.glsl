@@ -1,5 +1,5 @@
 // Method "bruteforce": every ray tests every sphere (the thesis's "BF").
-// Spliced into raytrace.frag at //@METHOD@; defines intersect_spheres().
+// Spliced into raytrace.frag at its METHOD mark; defines intersect_spheres().
 
 void method_init() {}
 

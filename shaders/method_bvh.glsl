@@ -1,6 +1,6 @@
 // Method "bvh": binned-SAH bounding volume hierarchy with Reiter's ordered
 // traversal (near mask per direction octant, listing 4.13), stack-based.
-// Spliced into raytrace.frag at //@METHOD@; defines intersect_spheres().
+// Spliced into raytrace.frag at its METHOD mark; defines intersect_spheres().
 // Node layout: renderer/bvh_layout.py (two RGBA32UI texels per node).
 
 // Layout constants (BVH_*) come from renderer/bvh_layout.py via the host header.

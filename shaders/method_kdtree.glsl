@@ -1,5 +1,5 @@
 // Method "kdtree": SAH kd-tree (Reiter §4.3), front-to-back stack traversal
-// with early exit. Spliced into raytrace.frag at //@METHOD@; defines
+// with early exit. Spliced into raytrace.frag at its METHOD mark; defines
 // intersect_spheres(). Node layout: renderer/kdtree_layout.py (RG32UI).
 
 // Layout constants (KD_*) come from renderer/kdtree_layout.py via the host header.
@@ -16,22 +16,9 @@ void kd_init() {
     g_kd_index_shift = row_shift(textureSize(u_kd_indices, 0));
 }
 
-// Slab test against the root voxel, clipped to [0, ∞), with zero direction
-// components handled explicitly (no (bound − o) / 0).
+// The root voxel's interval (slab_interval), with the layout's slack.
 bool kd_clip(vec3 o, vec3 d, out float t0, out float t1) {
-    t0 = 0.0;
-    t1 = BIG;
-    for (int a = 0; a < 3; a++) {
-        if (d[a] == 0.0) {
-            if (o[a] < u_kd_box_min[a] || o[a] > u_kd_box_max[a]) return false;
-        } else {
-            float ta = (u_kd_box_min[a] - o[a]) / d[a];
-            float tb = (u_kd_box_max[a] - o[a]) / d[a];
-            t0 = max(t0, min(ta, tb));
-            t1 = min(t1, max(ta, tb));
-        }
-    }
-    return t0 <= t1 * KD_T_SLACK;
+    return slab_interval(o, d, u_kd_box_min, u_kd_box_max, t0, t1) && t0 <= t1 * KD_T_SLACK;
 }
 
 // Front-to-back traversal: at an inner node the child on the origin's side of

@@ -108,6 +108,26 @@ void test_sphere(Query q, int id, inout Hit h) {
     if (closer(t, id, h.t, h.id)) { h.t = t; h.id = id; }
 }
 
+// Slab test of a ray against an axis-aligned box, clipped to [0, ∞): entry
+// and exit distances t0, t1. A zero direction component is handled
+// explicitly, since (bound − o) / 0 gives ±inf or NaN. False when the ray runs
+// parallel to a slab outside it; otherwise the caller compares t0 with t1.
+bool slab_interval(vec3 o, vec3 d, vec3 bmin, vec3 bmax, out float t0, out float t1) {
+    t0 = 0.0;
+    t1 = BIG;
+    for (int a = 0; a < 3; a++) {
+        if (d[a] == 0.0) {
+            if (o[a] < bmin[a] || o[a] > bmax[a]) return false;
+        } else {
+            float ta = (bmin[a] - o[a]) / d[a];
+            float tb = (bmax[a] - o[a]) / d[a];
+            t0 = max(t0, min(ta, tb));
+            t1 = min(t1, max(ta, tb));
+        }
+    }
+    return true;
+}
+
 //@METHOD@
 
 Hit intersect_scene(Query q) {
