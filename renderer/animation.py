@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from .scene import MAX_COORDINATE, Camera, Light, Material, Plane, Scene, SceneError
+from .scene import MAX_COORDINATE, Camera, Light, Material, Plane, Scene, SceneError, finite_number, finite_vec3
 
 UPDATE_SCHEMES = ("rebuild", "refit", "selective")
 DEFAULT_THRESHOLD = 0.30
@@ -45,16 +45,8 @@ MAX_TIME = 1.0e6
 
 
 def _num(v: Any, where: str, lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-        raise SceneError(where, f"expected a number, got {type(v).__name__}")
-    x = float(v)
-    if not math.isfinite(x):
-        raise SceneError(where, f"must be a finite number, got {x}")
-    if lo is not None and (x < lo or (lo_open and x == lo)):
-        raise SceneError(where, f"must be {'>' if lo_open else '>='} {lo:g}, got {x:g}")
-    if hi is not None and x > hi:
-        raise SceneError(where, f"must be <= {hi:g}, got {x:g}")
-    return x
+    """A finite number in [lo, hi] (renderer.scene's validation, positional bounds)."""
+    return finite_number(v, where, lo=lo, hi=hi, lo_open=lo_open)
 
 
 def _int(v: Any, where: str, lo: int, hi: int) -> int:
@@ -66,9 +58,7 @@ def _int(v: Any, where: str, lo: int, hi: int) -> int:
 
 
 def _vec(v: Any, where: str, bound: float = MAX_COORDINATE) -> tuple[float, float, float]:
-    if not isinstance(v, (list, tuple, np.ndarray)) or len(v) != 3:
-        raise SceneError(where, "expected a list of 3 numbers")
-    return tuple(_num(x, f"{where}[{i}]", -bound, bound) for i, x in enumerate(v))  # type: ignore[return-value]
+    return finite_vec3(v, where, bound=bound)
 
 
 def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:

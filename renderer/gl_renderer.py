@@ -63,6 +63,25 @@ def vertex_source() -> str:
     return (SHADER_DIR / "fullscreen.vert").read_text()
 
 
+def upload_textures(ctx: moderngl.Context, packed: gpu_layout.PackedScene,
+                    textures: list[moderngl.Texture]) -> dict[str, int]:
+    """Create the packed textures and bind them to the next free units.
+
+    Appends them to ``textures`` (the caller releases them after the frame) and
+    returns sampler name → texture unit.
+    """
+    units = {}
+    for name, tex in packed.textures.items():
+        gl_tex = ctx.texture(tex.size, tex.components, tex.data.tobytes(), dtype=tex.dtype)
+        # Integer textures are incomplete with LINEAR filtering; texelFetch ignores it otherwise.
+        gl_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        unit = len(textures)
+        gl_tex.use(unit)
+        textures.append(gl_tex)
+        units[name] = unit
+    return units
+
+
 class GLRenderer:
     """Renders scenes with the GLSL ES 3.00 tracer. Programs are cached per variant."""
 
@@ -105,13 +124,7 @@ class GLRenderer:
 
     def _upload(self, prog: moderngl.Program, packed: gpu_layout.PackedScene, units: dict[str, int],
                 textures: list[moderngl.Texture]) -> None:
-        for name, tex in packed.textures.items():
-            gl_tex = self.ctx.texture(tex.size, tex.components, tex.data.tobytes(), dtype=tex.dtype)
-            # Integer textures are incomplete with LINEAR filtering; texelFetch ignores it otherwise.
-            gl_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            unit = len(textures)
-            gl_tex.use(unit)
-            textures.append(gl_tex)
+        for name, unit in upload_textures(self.ctx, packed, textures).items():
             if name in prog:
                 prog[name].value = unit
             units[name] = unit

@@ -82,7 +82,6 @@ if TYPE_CHECKING:  # settings imports methods, which imports this module
     from .settings import RenderSettings
 
 SHADER_DIR = Path(__file__).resolve().parent.parent / "shaders"
-DEFAULT_TILE_SIZE = 16
 MAX_TILE_SIZE = 64          # point sprites of this size; llvmpipe allows 255, GLES guarantees 1 (checked)
 MIN_TILE_SIZE = 2
 COUNT_LIMIT = 1 << 20       # (tile, sphere) pairs per pass up to which hre's stats mirror its culling
@@ -446,12 +445,10 @@ class HierarchicalRayEngine(RayEngine):
     """Szécsi's hierarchical ray engine: tiles of rays, one cone each, culled in the vertex shader."""
     name = "hre"
     hierarchical = True
-    tile_size = DEFAULT_TILE_SIZE
 
-    def tile(self, settings=None) -> int:
-        """The tile side: ``settings.tile_size`` when RenderSettings has that knob, else this instance's."""
-        ts = getattr(settings, "tile_size", None)
-        ts = self.tile_size if ts is None else ts
+    def tile(self, settings) -> int:
+        """The tile side, ``settings.tile_size`` (checked again: the GPU bounds it by its point size)."""
+        ts = settings.tile_size
         if isinstance(ts, bool) or not isinstance(ts, (int, np.integer)):
             raise SceneError("tile_size", f"expected an integer, got {ts!r}")
         if not MIN_TILE_SIZE <= ts <= MAX_TILE_SIZE:
@@ -494,14 +491,9 @@ class _FrameRun:
 
     # -- setup ----------------------------------------------------------------------
     def upload(self, max_width: int, textures: list) -> None:
+        from .gl_renderer import upload_textures  # lazy: gl_renderer imports methods, which imports us
         packed = gpu_layout.pack_primitives(self.scene, max_width)
-        for name, tex in packed.textures.items():
-            t = self.ctx.texture(tex.size, tex.components, tex.data.tobytes(), dtype=tex.dtype)
-            t.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            unit = len(textures)
-            t.use(unit)
-            textures.append(t)
-            self.units[name] = unit
+        self.units.update(upload_textures(self.ctx, packed, textures))
         self.uniforms.update(packed.uniforms)
         cam = self.scene.camera
         right, up, forward = cam.basis()

@@ -35,7 +35,7 @@ class SceneError(ValueError):
         self.message = message
 
 
-def _number(value: Any, where: str, *, lo: float | None = None, hi: float | None = None,
+def finite_number(value: Any, where: str, *, lo: float | None = None, hi: float | None = None,
             lo_open: bool = False, hi_open: bool = False) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
         raise SceneError(where, f"expected a number, got {type(value).__name__}")
@@ -49,10 +49,10 @@ def _number(value: Any, where: str, *, lo: float | None = None, hi: float | None
     return x
 
 
-def _vec3(value: Any, where: str, *, bound: float = MAX_COORDINATE) -> Vec3:
+def finite_vec3(value: Any, where: str, *, bound: float = MAX_COORDINATE) -> Vec3:
     if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != 3:
         raise SceneError(where, "expected a list of 3 numbers")
-    return tuple(_number(v, f"{where}[{i}]", lo=-bound, hi=bound) for i, v in enumerate(value))  # type: ignore[return-value]
+    return tuple(finite_number(v, f"{where}[{i}]", lo=-bound, hi=bound) for i, v in enumerate(value))  # type: ignore[return-value]
 
 
 def _norm(v: Vec3) -> float:
@@ -74,10 +74,10 @@ class Camera:
     fov_y: float = 60.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "position", _vec3(self.position, "camera.position"))
-        object.__setattr__(self, "target", _vec3(self.target, "camera.target"))
-        object.__setattr__(self, "up", _vec3(self.up, "camera.up"))
-        object.__setattr__(self, "fov_y", _number(self.fov_y, "camera.fov_y", lo=0.0, hi=180.0,
+        object.__setattr__(self, "position", finite_vec3(self.position, "camera.position"))
+        object.__setattr__(self, "target", finite_vec3(self.target, "camera.target"))
+        object.__setattr__(self, "up", finite_vec3(self.up, "camera.up"))
+        object.__setattr__(self, "fov_y", finite_number(self.fov_y, "camera.fov_y", lo=0.0, hi=180.0,
                                                   lo_open=True, hi_open=True))
         _unit(self.up, "camera.up")
         fwd = tuple(t - p for t, p in zip(self.target, self.position))
@@ -117,10 +117,10 @@ class Light:
     color: Vec3 = (1.0, 1.0, 1.0)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "position", _vec3(self.position, "position"))
-        col = _vec3(self.color, "color")
+        object.__setattr__(self, "position", finite_vec3(self.position, "position"))
+        col = finite_vec3(self.color, "color")
         for i, c in enumerate(col):
-            _number(c, f"color[{i}]", lo=0.0, hi=1e3)
+            finite_number(c, f"color[{i}]", lo=0.0, hi=1e3)
         object.__setattr__(self, "color", col)
 
     def to_json(self) -> dict:
@@ -149,14 +149,14 @@ class Material:
     ior: float = 1.0
 
     def __post_init__(self) -> None:
-        col = _vec3(self.color, "color")
+        col = finite_vec3(self.color, "color")
         for i, c in enumerate(col):
-            _number(c, f"color[{i}]", lo=0.0, hi=1.0)
+            finite_number(c, f"color[{i}]", lo=0.0, hi=1.0)
         object.__setattr__(self, "color", col)
         for name in ("ambient", "diffuse", "specular", "reflective", "transmissive"):
-            object.__setattr__(self, name, _number(getattr(self, name), name, lo=0.0, hi=1.0))
-        object.__setattr__(self, "shininess", _number(self.shininess, "shininess", lo=0.0, hi=1e4))
-        object.__setattr__(self, "ior", _number(self.ior, "ior", lo=0.0, hi=10.0, lo_open=True))
+            object.__setattr__(self, name, finite_number(getattr(self, name), name, lo=0.0, hi=1.0))
+        object.__setattr__(self, "shininess", finite_number(self.shininess, "shininess", lo=0.0, hi=1e4))
+        object.__setattr__(self, "ior", finite_number(self.ior, "ior", lo=0.0, hi=10.0, lo_open=True))
 
     def to_json(self) -> dict:
         return {"color": list(self.color), "ambient": self.ambient, "diffuse": self.diffuse,
@@ -177,8 +177,8 @@ class Plane:
     material: int = 0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "point", _vec3(self.point, "point"))
-        object.__setattr__(self, "normal", _unit(_vec3(self.normal, "normal"), "normal"))
+        object.__setattr__(self, "point", finite_vec3(self.point, "point"))
+        object.__setattr__(self, "normal", _unit(finite_vec3(self.normal, "normal"), "normal"))
 
     def to_json(self) -> dict:
         return {"point": list(self.point), "normal": list(self.normal), "material": self.material}
@@ -314,8 +314,8 @@ class Scene:
             for k in ("center", "radius"):
                 if k not in s:
                     raise SceneError(f"spheres[{i}].{k}", "field required")
-            centers[i] = _vec3(s["center"], f"spheres[{i}].center")
-            radii[i] = _number(s["radius"], f"spheres[{i}].radius", lo=0.0, lo_open=True, hi=MAX_COORDINATE)
+            centers[i] = finite_vec3(s["center"], f"spheres[{i}].center")
+            radii[i] = finite_number(s["radius"], f"spheres[{i}].radius", lo=0.0, lo_open=True, hi=MAX_COORDINATE)
             mats[i] = _material_index(s.get("material", 0), f"spheres[{i}].material", max(len(materials), 1))
         planes = []
         for i, p in enumerate(_list(d.get("planes", []), "planes")):

@@ -179,10 +179,9 @@ def _any_hit(o, d, c, r):
 def hre_log(gl_renderer):
     """One hre frame that keeps its rays and cones: scenario 3, 64 spheres, depth 4, tiles of 8."""
     eng = HierarchicalRayEngine()
-    eng.tile_size = 8
     scene = scenario(3, 64)
     log = FrameLog(keep=True)
-    s = RenderSettings(width=48, height=80, method="hre", max_recursion_depth=4)
+    s = RenderSettings(width=48, height=80, method="hre", max_recursion_depth=4, tile_size=8)
     res = eng.render_frame(gl_renderer, scene, s, log=log)
     return scene, log, res
 
@@ -255,11 +254,9 @@ def test_culled_tiles_hold_no_hit(gl_renderer, hre_log):
 # ------------------------------------------------------------------------ settings and modes
 
 @pytest.mark.parametrize("bad", [0, 1, -3, 65, 2.5, True, "16"])
-def test_bad_tile_size_is_a_clear_error(gl_renderer, bad):
-    eng = HierarchicalRayEngine()
-    eng.tile_size = bad
+def test_bad_tile_size_is_a_clear_error(bad):
     with pytest.raises(SceneError) as e:
-        eng.render_frame(gl_renderer, scenario(1, 8), RenderSettings(width=16, height=16, method="hre"))
+        RenderSettings(width=16, height=16, method="hre", tile_size=bad)
     assert e.value.field == "tile_size"
 
 
@@ -268,9 +265,7 @@ def test_tile_sizes_that_do_not_divide_the_image_are_padded(gl_renderer):
     s = RenderSettings(width=49, height=81, method="hre", max_recursion_depth=3)
     bf = gl_renderer.render(scene, s.with_(method="bruteforce"))
     for ts in (8, 12, 32):
-        eng = HierarchicalRayEngine()
-        eng.tile_size = ts
-        got = eng.render_frame(gl_renderer, scene, s)
+        got = gl_renderer.render(scene, s.with_(tile_size=ts))
         assert got.image.shape == (81, 49, 3) and got.stats["tile_size"] == ts
         assert (got.primid == bf.primid).mean() >= 0.9999 and psnr(got.image_u8(), bf.image_u8()) >= 50.0
 

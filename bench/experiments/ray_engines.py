@@ -33,7 +33,6 @@ ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from renderer.ray_engine import HierarchicalRayEngine  # noqa: E402
 from renderer.scenarios import TRANSPARENT  # noqa: E402
 from renderer.scene import Camera, Light, Scene  # noqa: E402
 from renderer.settings import RenderSettings  # noqa: E402
@@ -78,13 +77,6 @@ def _settings(method: str, w: int, h: int, **kw) -> RenderSettings:
                           **kw)
 
 
-def _with_tile(ts: int):
-    """Render through a hierarchical ray engine of tile size ``ts`` (the registry's keeps 16)."""
-    eng = HierarchicalRayEngine()
-    eng.tile_size = ts
-    return eng
-
-
 def measure_fps(ctx, sizes, ns, budget_s: float) -> dict:
     out: dict = {}
     for w, h in sizes:
@@ -115,12 +107,11 @@ def tile_sweep(ctx, size, ns, budget_s: float) -> dict:
     for n in ns:
         scene = filled_view(n, w, h)
         for ts in TILES:
-            eng = _with_tile(ts)
-            s = _settings("hre", w, h)
-            eng.render_frame(r, scene, s)   # warm-up (compiles the TILE variant of the cone pass)
+            s = _settings("hre", w, h, tile_size=ts)
+            r.render(scene, s)   # warm-up (compiles the TILE variant of the cone pass)
             samples = []
             for _ in range(max(1, ctx.runs)):
-                res = eng.render_frame(r, scene, s)
+                res = r.render(scene, s)
                 samples.append(res.timings["total"])
                 if sum(samples) > budget_s * 1e3:
                     break
