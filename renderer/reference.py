@@ -442,10 +442,9 @@ def _trace_batch(g: _Geometry, batch: RayBatch, frame: _Frame, max_level: int, s
     return _secondary_rays(g, batch, hit, p, normal, prim_h)
 
 
-def _trace_pixels(g: _Geometry, camera: Camera, settings: RenderSettings, frame: _Frame,
+def _trace_pixels(g: _Geometry, camera: Camera, w: int, h: int, frame: _Frame,
                   chunk_rays: int, max_level: int, shade: bool) -> None:
-    """Evaluate the ray trees of all pixels, one chunk of primary rays at a time, depth first."""
-    w, h = settings.width, settings.height
+    """Evaluate the ray trees of all w × h pixels, one chunk of primary rays at a time, depth first."""
     for a in range(0, w * h, chunk_rays):
         pix = np.arange(a, min(w * h, a + chunk_rays), dtype=np.int64)
         o, d = _pixel_rays(camera, w, h, pix)
@@ -494,7 +493,8 @@ def primid_colours(primid: np.ndarray) -> np.ndarray:
     return np.where((primid >= 0)[:, None], col, 0.0)
 
 
-def _mode_image(scene: Scene, settings: RenderSettings, frame: _Frame, chunk_rays: int) -> np.ndarray:
+def _mode_image(scene: Scene, settings: RenderSettings, frame: _Frame, chunk_rays: int, w: int, h: int
+                ) -> np.ndarray:
     """The flat (P, 3) float64 image the render mode shows (SHADING.md § Output modes)."""
     mode = settings.mode
     hit = (frame.primid >= 0)[:, None]
@@ -512,33 +512,49 @@ def _mode_image(scene: Scene, settings: RenderSettings, frame: _Frame, chunk_ray
     if mode == "recursion":
         return RECURSION_COLORS[frame.deepest]
     if mode == "heat":
-        o, d = primary_rays(scene.camera, settings.width, settings.height)
+        o, d = primary_rays(scene.camera, w, h)
         return heat_image(*heat_counts(scene, settings, o, d, chunk_rays))
     raise ValueError(f"unknown mode {mode!r}")
 
 
-def render_reference(scene: Scene, settings: RenderSettings, *, chunk_rays: int = 4096) -> RenderResult:
+def render_reference(scene: Scene, settings: RenderSettings, *, chunk_rays: int = 4096,
+                     supersample: int | None = None) -> RenderResult:
     """Render ``scene`` with the float64 reference tracer (SHADING.md), whatever ``settings.method``.
 
     ``chunk_rays`` bounds the rays traced together (memory ∝ chunk_rays × recursion depth).
     depth/primid/normal always describe the primary hit; the Whitted tree is only traced
     in the modes that need it (color, recursion). ``method`` only changes the heat image.
+    Supersampling as the GPU does it: ``k × k`` sub-pixels per pixel (``k`` =
+    ``supersample``, else √``settings.samples_per_pixel``), the image box-filtered,
+    depth/primid/normal from the sub-pixel nearest the centre. ``supersample`` is not
+    bound by the GPU's 4,096-pixel texture side (a reference may be larger).
     """
     start = time.perf_counter()
     chunk_rays = max(1, int(chunk_rays))
+    k = int(supersample) if supersample is not None else settings.supersampling
+    if k < 1:
+        raise ValueError(f"supersample must be >= 1, got {k}")
     w, h = settings.width, settings.height
+    W, H = w * k, h * k
     g = _Geometry.of(scene)
-    frame = _Frame.empty(w * h)
+    frame = _Frame.empty(W * H)
     whitted = settings.mode in ("color", "recursion")
     max_level = settings.max_recursion_depth if whitted else 1
-    _trace_pixels(g, scene.camera, settings, frame, chunk_rays, max_level, shade=settings.mode == "color")
-    image = _mode_image(scene, settings, frame, chunk_rays)
+    _trace_pixels(g, scene.camera, W, H, frame, chunk_rays, max_level, shade=settings.mode == "color")
+    image = _mode_image(scene, settings, frame, chunk_rays, W, H).reshape(H, W, 3)
+    depth = frame.depth.reshape(H, W)
+    primid = frame.primid.reshape(H, W)
+    normal = frame.normal.reshape(H, W, 3)
+    if k > 1:
+        image = image.reshape(h, k, w, k, 3).mean(axis=(1, 3))
+        c = k // 2
+        depth, primid, normal = depth[c::k, c::k], primid[c::k, c::k], normal[c::k, c::k]
     trace_ms = (time.perf_counter() - start) * 1e3
     return RenderResult(
-        image=image.reshape(h, w, 3).astype(np.float32),
-        depth=frame.depth.reshape(h, w).astype(np.float32),
-        primid=frame.primid.reshape(h, w).astype(np.int32),
-        normal=frame.normal.reshape(h, w, 3).astype(np.float32),
+        image=np.ascontiguousarray(image, dtype=np.float32),
+        depth=np.ascontiguousarray(depth, dtype=np.float32),
+        primid=np.ascontiguousarray(primid, dtype=np.int32),
+        normal=np.ascontiguousarray(normal, dtype=np.float32),
         mode=settings.mode,
         timings={"trace": trace_ms},
         stats=None,

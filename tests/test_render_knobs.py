@@ -76,6 +76,10 @@ def test_supersampling_matches_reference_box_filter(gl_renderer):
     assert gpu.image.shape == (80, 48, 3)
     assert psnr(gpu.image_u8(), expect_u8) >= 40.0
     assert (gpu.primid == big.primid[1::2, 1::2]).mean() >= 0.999
+    # The reference supersamples the same way.
+    ref = render_reference(scene, s)
+    assert ref.image.shape == (80, 48, 3) and (ref.image_u8() == expect_u8).all()
+    assert (ref.primid == big.primid[1::2, 1::2]).all()
 
 
 def test_weight_cutoff(gl_renderer):
