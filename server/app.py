@@ -33,6 +33,8 @@ from .body_limit import BodyLimit
 from . import device
 from .config import ServerConfig
 from .gl_worker import GLNotReady, GLWorker, QueueFull
+from renderer.profiles import PROFILES
+
 from .models import (CameraModel, CameraOut, ErrorOut, FormatName, FullSettings, Gesture, HealthOut, InfoOut,
                      LimitsOut, MethodName, ModeName, ReadyOut, RenderRequest, SceneInfo, SceneModel, SessionCreate,
                      SessionOut, SettingsOut, SettingsPatch, StatsOut, VersionOut)
@@ -213,6 +215,7 @@ def ready(worker: Annotated[GLWorker, Depends(get_worker)], service: ServiceDep)
 def info(service: ServiceDep) -> InfoOut:
     c = service.config
     return InfoOut(methods=list(METHODS), modes=list(MODES), formats=list(FORMATS), state_backend=c.state_backend,
+                   profiles=PROFILES,
                    limits=LimitsOut(max_work=c.max_work, max_bruteforce_work=c.max_bruteforce_work,
                                     max_spheres=c.max_spheres, max_body_bytes=c.max_body_bytes,
                                     max_image_side=MAX_IMAGE_SIDE, queue_size=c.queue_size,

@@ -247,6 +247,9 @@ class InfoOut(BaseModel):
     formats: list[str]
     limits: LimitsOut
     state_backend: str
+    profiles: dict[str, dict[str, Any]] = Field(
+        default_factory=dict, description="render profiles measured by the Pareto experiment: 'still' (the "
+                                          "session default) and 'interactive' (frames during a gesture)")
 
 
 class StatsOut(BaseModel):

@@ -108,6 +108,14 @@ function frameParams(level) {
   const { width, height } = previewSize(r.width, r.height, c.previewScale);
   const p = { width, height, format: c.previewFormat };
   if (c.previewFormat === 'jpeg') p.quality = c.previewQuality;
+  // The service's measured "interactive" profile (GET /api/info): cheaper rays while the finger moves.
+  const fast = state.profiles && state.profiles.interactive;
+  if (fast) {
+    for (const k of ['max_recursion_depth', 'samples_per_pixel', 'min_weight']) {
+      if (fast[k] === undefined) continue;
+      p[k] = k === 'max_recursion_depth' ? Math.min(fast[k], r.max_recursion_depth || fast[k]) : fast[k];
+    }
+  }
   return p;
 }
 
@@ -411,6 +419,7 @@ api.info().then((info) => {
     panel.setMethods(info.methods);
   }
   if (Array.isArray(info.modes) && info.modes.length) panel.setModes(info.modes);
+  if (info.profiles && typeof info.profiles === 'object') state.profiles = info.profiles;
   if (info.limits) panel.setLimits(info.limits);
   if (state.render) panel.show(state);
 });

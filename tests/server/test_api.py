@@ -283,3 +283,13 @@ def test_render_knobs_through_the_api(client):
         r = client.patch(f"/api/sessions/{sid}/settings", json=bad)
         assert r.status_code == 422 and field in r.text
     assert client.get(f"/api/sessions/{sid}").json()["settings"]["samples_per_pixel"] == 4
+
+
+def test_info_hands_out_the_measured_profiles_and_sessions_default_to_still(client):
+    from renderer.profiles import INTERACTIVE, STILL
+
+    info = client.get("/api/info").json()
+    assert info["profiles"] == {"interactive": INTERACTIVE, "still": STILL}
+    s = client.post("/api/sessions", json={"scenario": 1, "n": 8}).json()["settings"]
+    for k in ("max_recursion_depth", "samples_per_pixel", "min_weight"):
+        assert s[k] == STILL[k], k
