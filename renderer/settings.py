@@ -8,7 +8,6 @@ from typing import Any
 from .scene import SceneError
 
 from .methods import AUTO_METHOD, METHODS as _METHOD_REGISTRY
-from .profiles import STILL
 
 # "auto" picks brute force below the measured crossover n, BIH above it.
 METHODS = (*_METHOD_REGISTRY, AUTO_METHOD)
@@ -48,11 +47,10 @@ class RenderSettings:
     mode: str = "color"
     max_prims: int = 8
     max_tree_depth: int = MAX_TREE_DEPTH_LIMIT
-    # The "still" profile measured by bench/experiments/pareto.py (renderer/profiles.py).
-    max_recursion_depth: int = STILL["max_recursion_depth"]
+    max_recursion_depth: int = 5
     format: str = "png"
-    samples_per_pixel: int = STILL["samples_per_pixel"]
-    min_weight: float = STILL["min_weight"]
+    samples_per_pixel: int = 1
+    min_weight: float = 0.0
     specialize: bool = True
     tile_size: int = 16
 
