@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from .scenarios import RED, TRANSPARENT
 from .scene import MAX_COORDINATE, Camera, Light, Material, Plane, Scene, SceneError, finite_number, finite_vec3
 
 UPDATE_SCHEMES = ("rebuild", "refit", "selective")
@@ -368,10 +369,7 @@ class AnimationSettings:
 
 WALL = Material(color=(0.75, 0.72, 0.65), ambient=0.25, diffuse=0.6, specular=0.05, shininess=10.0,
                 reflective=0.15, transmissive=0.0, ior=1.0)
-SCULPTURE = Material(color=(0.9, 0.3, 0.3), ambient=0.30, diffuse=0.30, specular=0.10, shininess=40.0,
-                     reflective=0.30, transmissive=0.0, ior=1.0)
-GLASS = Material(color=(1.0, 1.0, 1.0), ambient=0.10, diffuse=0.10, specular=0.10, shininess=50.0,
-                 reflective=0.0, transmissive=0.70, ior=0.95)
+SCULPTURE, GLASS = RED, TRANSPARENT   # Table 4.1's materials (renderer.scenarios)
 MUSEUM_KINDS = ("rigid", "deformable", "incoherent", "mixed")
 
 

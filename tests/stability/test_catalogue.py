@@ -148,27 +148,26 @@ def _cell(row: dict) -> str:
     return s
 
 
+def _pinned_figures(agreement: float, depth_rel: float, psnr: float | None) -> list[str]:
+    """The thresholds of one reference that are looser than the defaults, as text."""
+    figures = []
+    if agreement < PRIMID_AGREEMENT:
+        figures.append(f"primid ≥ {100 * agreement:.2f} %")
+    if depth_rel > DEPTH_REL:
+        figures.append(f"depth ≤ {depth_rel:.0e} rel.")
+    if psnr is not None and psnr < PSNR_MIN:
+        figures.append(f"PSNR ≥ {psnr:g} dB")
+    return figures
+
+
 def _pins(case: Case) -> list[str]:
     out = []
-    if case.min_primid_agreement < PRIMID_AGREEMENT or case.max_depth_rel > DEPTH_REL or (
-            case.colour_psnr_min is not None and case.colour_psnr_min < PSNR_MIN):
-        figures = []
-        if case.min_primid_agreement < PRIMID_AGREEMENT:
-            figures.append(f"primid ≥ {100 * case.min_primid_agreement:.2f} %")
-        if case.max_depth_rel > DEPTH_REL:
-            figures.append(f"depth ≤ {case.max_depth_rel:.0e} rel.")
-        if case.colour_psnr_min is not None and case.colour_psnr_min < PSNR_MIN:
-            figures.append(f"PSNR ≥ {case.colour_psnr_min:g} dB")
+    figures = _pinned_figures(case.min_primid_agreement, case.max_depth_rel, case.colour_psnr_min)
+    if figures:
         whys = " ".join(dict.fromkeys(w for w in (case.why, case.depth_why, case.psnr_why) if w))
         out.append(f"pinned against the float64 scene ({', '.join(figures)}): {whys}")
     if case.f32_why:
-        figures = []
-        if case.f32_min_primid_agreement < PRIMID_AGREEMENT:
-            figures.append(f"primid ≥ {100 * case.f32_min_primid_agreement:.2f} %")
-        if case.f32_max_depth_rel > DEPTH_REL:
-            figures.append(f"depth ≤ {case.f32_max_depth_rel:.0e} rel.")
-        if case.f32_colour_psnr_min is not None and case.f32_colour_psnr_min < PSNR_MIN:
-            figures.append(f"PSNR ≥ {case.f32_colour_psnr_min:g} dB")
+        figures = _pinned_figures(case.f32_min_primid_agreement, case.f32_max_depth_rel, case.f32_colour_psnr_min)
         same = case.f32_why in (case.why, case.depth_why, case.psnr_why)
         out.append(f"pinned against the float32-input scene ({', '.join(figures)}): "
                    + ("the same reason." if same else case.f32_why))
