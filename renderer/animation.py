@@ -1,5 +1,10 @@
-"""Animated scenes (issue #9): motion models, posing at a time, a BART-Museum-like generator,
-animation settings, and the two-level method (static spheres in a kd-tree, moving ones in a BVH).
+"""Animated scenes (issue #9): motion models, posing at a time and a BART-Museum-like generator;
+the two-level method that suits them lives in :mod:`renderer.twolevel`.
+
+A frame of an animation is rendered by handing :class:`AnimatedScene` to
+``GLRenderer.render`` with the settings ``time``, ``update`` and ``update_threshold``
+(:class:`~renderer.settings.RenderSettings`): the renderer poses the scene and asks
+the method to update its tree (:mod:`renderer.tree_update`).
 
 Motion models, after Reiter §2.4.1 (Wald et al.'s classes):
 
@@ -19,7 +24,7 @@ of different motions must not overlap; spheres no motion covers are static.
 with, per posed sphere, its id in the animated scene and whether it moves.
 
 Validation follows the scene model: every bad value raises :class:`SceneError` whose
-``field`` names the JSON path (``motions[2].amplitude``, ``time``, ``update``), and
+``field`` names the JSON path (``motions[2].amplitude``, ``time``), and
 nothing is applied before everything is valid. A motion is rejected when it could
 move a sphere beyond ``MAX_COORDINATE`` or produce a non-finite number at any time.
 
@@ -32,7 +37,7 @@ from __future__ import annotations
 
 import math
 import time as _time
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -40,9 +45,7 @@ import numpy as np
 from .scenarios import RED, TRANSPARENT
 from .scene import MAX_COORDINATE, Camera, Light, Material, Plane, Scene, SceneError, finite_number, finite_vec3
 
-UPDATE_SCHEMES = ("rebuild", "refit", "selective")
-DEFAULT_THRESHOLD = 0.30
-MAX_TIME = 1.0e6
+MAX_TIME = 1.0e6   # seconds: the largest time a scene can be posed at
 
 
 def _num(v: Any, where: str, lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> float:
@@ -283,6 +286,23 @@ class AnimatedScene:
         """bool (n,): spheres some motion covers."""
         return self._moving  # type: ignore[attr-defined]
 
+    @property
+    def camera(self) -> Camera:
+        return self.scene.camera
+
+    @property
+    def n_spheres(self) -> int:
+        """Spheres at rest (a pose may hide some)."""
+        return self.scene.n_spheres
+
+    def with_camera(self, camera: Camera) -> "AnimatedScene":
+        """The same animation seen through ``camera`` (the motions are not validated again)."""
+        seen = object.__new__(AnimatedScene)
+        object.__setattr__(seen, "scene", self.scene.with_camera(camera))
+        object.__setattr__(seen, "motions", self.motions)
+        object.__setattr__(seen, "_moving", self._moving)  # type: ignore[attr-defined]
+        return seen
+
     def to_json(self) -> dict:
         d = self.scene.to_json()
         d["motions"] = [motion_to_json(m) for m in self.motions]
@@ -333,36 +353,6 @@ def pose(anim: AnimatedScene, t: float) -> PosedFrame:
     scene = Scene(base.camera, base.lights, base.materials, c[keep], base.sphere_radii[keep],
                   base.sphere_materials[keep], base.planes)
     return PosedFrame(scene, keep, anim.moving[keep], t, (_time.perf_counter() - t0) * 1e3)
-
-
-@dataclass(frozen=True)
-class AnimationSettings:
-    """Per-request animation settings (to be merged into RenderSettings by the lead).
-
-    time: seconds (≥ 0) at which the animated scene is posed. update: how the BVH
-    follows the motion from the previous frame of the same animation — ``rebuild``
-    (every frame, as the thesis), ``refit``, or ``selective`` (rebuild the subtrees
-    whose SAH split cost grew by more than ``threshold``, 0.30 = +30 %).
-    """
-    time: float = 0.0
-    update: str = "rebuild"
-    threshold: float = DEFAULT_THRESHOLD
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "time", _num(self.time, "time", 0.0, MAX_TIME))
-        if self.update not in UPDATE_SCHEMES:
-            raise SceneError("update", f"unknown update scheme {self.update!r}; one of {', '.join(UPDATE_SCHEMES)}")
-        object.__setattr__(self, "threshold", _num(self.threshold, "threshold", 0.0, 100.0))
-
-    @staticmethod
-    def from_json(d: Any) -> "AnimationSettings":
-        if not isinstance(d, dict):
-            raise SceneError("settings", "expected an object")
-        names = {f.name for f in fields(AnimationSettings)}
-        return AnimationSettings(**{k: d[k] for k in names if k in d})
-
-    def to_json(self) -> dict:
-        return asdict(self)
 
 
 # ---------------------------------------------------------------- Museum generator
@@ -445,115 +435,3 @@ def museum(n_moving: int, kind: str = "deformable", seed: int = 0, absent: float
     else:
         motions = makers[kind](ns, n_moving)
     return AnimatedScene(scene, tuple(motions))
-
-
-# ---------------------------------------------------------------- two-level method
-
-class TwoLevelMethod:
-    """Method ``twolevel`` (Reiter §3.2.2, Figure 5.6): the static spheres in an SAH kd-tree,
-    built once per distinct static set and cached; the moving ones in a BVH updated per frame
-    with the chosen scheme. Every ray traverses both and keeps the nearer hit
-    (``shaders/method_twolevel.glsl``: kd-tree first, its hit then bounds the BVH).
-
-    ``moving`` is a bool mask over the scene's spheres (from :func:`pose`); without it every
-    sphere counts as static (a plain scene has no motion).
-    """
-    name = "twolevel"
-    CACHE_SLOTS = 8
-
-    def __init__(self) -> None:
-        from .bvh import BVHMethod
-        self._bvh = BVHMethod()
-        self._kd: dict = {}
-
-    def _static_tree(self, scene: Scene, static_ids: np.ndarray, max_tree_depth: int, key):
-        from .kdtree import DEFAULT_COST_SCALE, build_for_spheres
-        c = scene.sphere_centers[static_ids]
-        r = scene.sphere_radii[static_ids]
-        sig = (key, max_tree_depth, len(static_ids), hash(static_ids.tobytes()), hash(c.tobytes()), hash(r.tobytes()))
-        hit = self._kd.pop(sig, None)
-        if hit is None:
-            hit = build_for_spheres(c, r, max_tree_depth, DEFAULT_COST_SCALE)
-            fresh = True
-        else:
-            fresh = False
-        self._kd[sig] = hit
-        while len(self._kd) > self.CACHE_SLOTS:
-            self._kd.pop(next(iter(self._kd)))
-        return hit, fresh
-
-    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int, max_width: int = 4096,
-                update: str = "rebuild", key=None, moving: np.ndarray | None = None,
-                threshold: float = DEFAULT_THRESHOLD):
-        from . import gpu_layout
-        from .bvh import build_for_spheres as build_bvh_for_spheres
-        from .methods import PreparedMethod
-        t0 = _time.perf_counter()
-        n = scene.n_spheres
-        mv = np.zeros(n, dtype=bool) if moving is None else np.asarray(moving, dtype=bool).reshape(-1)
-        if len(mv) != n:
-            raise ValueError(f"moving mask has {len(mv)} entries for {n} spheres")
-        static_ids = np.flatnonzero(~mv)
-        moving_ids = np.flatnonzero(mv)
-        kd, fresh = self._static_tree(scene, static_ids, max_tree_depth, key)
-        t1 = _time.perf_counter()
-        sub = Scene(scene.camera, scene.lights, scene.materials, scene.sphere_centers[moving_ids],
-                    scene.sphere_radii[moving_ids], scene.sphere_materials[moving_ids], scene.planes)
-        if update == "rebuild":
-            bvh = build_bvh_for_spheres(sub.sphere_centers, sub.sphere_radii, max_prims, max_tree_depth)
-        else:
-            bvh = self._bvh.build(sub, max_prims, max_tree_depth, update, key, threshold)
-        t2 = _time.perf_counter()
-        packed = gpu_layout.pack_twolevel(kd, static_ids, bvh, moving_ids, max_width)
-        stats = {"method": self.name, "static": int(len(static_ids)), "moving": int(len(moving_ids)),
-                 "kd_build_ms": (t1 - t0) * 1e3 if fresh else 0.0, "kd_cached": not fresh,
-                 "bvh_update_ms": (t2 - t1) * 1e3, "scheme": bvh.stats.scheme,
-                 "kd": kd.stats.to_json(), "bvh": bvh.stats.to_json(),
-                 "bytes": kd.stats.bytes + bvh.stats.bytes}
-        return PreparedMethod(packed, (t2 - t0) * 1e3, stats)
-
-
-# ------------------------------------------------------------------- rendering
-
-def render_frame(renderer, anim: AnimatedScene, settings, anim_settings: AnimationSettings, key=None):
-    """Pose ``anim`` at ``anim_settings.time`` and render it with ``renderer`` (a GLRenderer).
-
-    Methods that can update between frames (``bvh``, ``twolevel``) get the update scheme,
-    the animation ``key`` and (``twolevel``) the moving mask; the others rebuild as usual.
-    ``timings['pose']`` and ``timings['update']`` (= the method's build/update time) are added.
-
-    NOTE for the lead: ``GLRenderer.render`` calls ``prepare(scene, max_prims, max_tree_depth,
-    max_width)`` only; until it forwards ``update``/``key``/``moving``, this helper passes them
-    by standing a wrapper in for the method in ``METHODS`` for the duration of the call
-    (renders run on one thread).
-    """
-    from .methods import METHODS, resolve_method
-    frame = pose(anim, anim_settings.time)
-    name = resolve_method(settings.method, frame.scene.n_spheres)
-    method = METHODS[name]
-    extra: dict = {}
-    if name in ("bvh", "twolevel"):
-        extra = {"update": anim_settings.update, "key": key, "threshold": anim_settings.threshold}
-        if name == "twolevel":
-            extra["moving"] = frame.moving
-
-    class _WithOptions:
-        def __init__(self) -> None:
-            self.name = name
-
-        def prepare(self, scene, max_prims, max_tree_depth, max_width=4096):
-            return method.prepare(scene, max_prims, max_tree_depth, max_width, **extra)
-
-    if extra:
-        METHODS[name] = _WithOptions()
-    try:
-        res = renderer.render(frame.scene, settings)
-    finally:
-        METHODS[name] = method
-    res.timings["pose"] = frame.pose_ms
-    res.timings["update"] = res.timings.get("build", 0.0)
-    if res.stats is not None:
-        res.stats["time"] = frame.time
-        res.stats["n_spheres"] = frame.scene.n_spheres
-        res.stats["update_scheme"] = anim_settings.update if extra else "rebuild"
-    return res

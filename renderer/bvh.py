@@ -50,12 +50,11 @@ import numpy as np
 
 from . import bvh_layout as L
 from .bih import sphere_aabbs
+from .tree_update import DEFAULT_THRESHOLD, REBUILD, UPDATE_SCHEMES, TreeUpdate
 
 BINS = 16
 C_TRAV = 1.0
 C_ISECT = 1.0
-DEFAULT_THRESHOLD = 0.30
-UPDATE_SCHEMES = ("rebuild", "refit", "selective")
 
 
 @dataclass
@@ -644,11 +643,11 @@ class BVHUpdater:
 class BVHMethod:
     """Method ``bvh``: the BVH of this module, traced by ``shaders/method_bvh.glsl``.
 
-    ``prepare`` rebuilds per request by default, like the thesis's BIH. With
-    ``update="refit"`` or ``"selective"`` the BVH of the previous frame with the same
-    ``key`` (an animation or session id; one shared slot when None) is updated
-    instead, as long as the sphere count and build limits are unchanged. The last
-    ``CACHE_SLOTS`` keys are kept.
+    ``prepare`` rebuilds per request by default, like the thesis's BIH. With the
+    :class:`~renderer.tree_update.TreeUpdate` scheme ``refit`` or ``selective`` the BVH
+    of the previous frame with the same ``key`` (an animation or session; one shared
+    slot when None) is updated instead, as long as the sphere count and build limits
+    are unchanged. The last ``CACHE_SLOTS`` keys are kept.
     """
     name = "bvh"
     CACHE_SLOTS = 8
@@ -664,20 +663,17 @@ class BVHMethod:
             self._updaters.pop(next(iter(self._updaters)))
         return up
 
-    def build(self, scene, max_prims: int, max_tree_depth: int, update: str = "rebuild", key=None,
-              threshold: float = DEFAULT_THRESHOLD) -> BVH:
-        if update not in UPDATE_SCHEMES:
-            raise ValueError(f"unknown update scheme {update!r}; one of {', '.join(UPDATE_SCHEMES)}")
-        if update == "rebuild":
+    def build(self, scene, max_prims: int, max_tree_depth: int, update: TreeUpdate = REBUILD) -> BVH:
+        if update.scheme == "rebuild":
             return build_for_spheres(scene.sphere_centers, scene.sphere_radii, max_prims, max_tree_depth)
-        return self.updater(key, max_prims, max_tree_depth, threshold).update(
-            scene.sphere_centers, scene.sphere_radii, update)
+        return self.updater(update.key, max_prims, max_tree_depth, update.threshold).update(
+            scene.sphere_centers, scene.sphere_radii, update.scheme)
 
     def prepare(self, scene, max_prims: int, max_tree_depth: int, max_width: int = 4096,
-                update: str = "rebuild", key=None, threshold: float = DEFAULT_THRESHOLD):
+                update: TreeUpdate = REBUILD):
         from . import gpu_layout
         from .methods import PreparedMethod
         t0 = time.perf_counter()
-        bvh = self.build(scene, max_prims, max_tree_depth, update, key, threshold)
+        bvh = self.build(scene, max_prims, max_tree_depth, update)
         ms = (time.perf_counter() - t0) * 1e3
         return PreparedMethod(gpu_layout.pack_bvh(bvh, max_width), ms, {"method": self.name, **bvh.stats.to_json()})

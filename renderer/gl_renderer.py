@@ -15,12 +15,14 @@ import moderngl
 import numpy as np
 
 from . import gpu_layout
+from .animation import AnimatedScene, pose
 from .gl_context import GLUnavailable, create_context  # noqa: F401  (re-exported)
 from .features import GENERIC, scene_features
-from .methods import METHODS, resolve_method
+from .methods import METHODS, PreparedMethod, resolve_method
 from .result import RenderResult
 from .scene import Scene, SceneError
 from .settings import RenderSettings
+from .tree_update import TreeUpdate
 
 # Modes raytrace.frag implements ("cones" belongs to the hierarchical ray engine).
 SINGLE_PASS_MODES = ("color", "depth", "primid", "normal", "recursion", "heat")
@@ -132,13 +134,39 @@ class GLRenderer:
             if name in prog:
                 prog[name].value = value
 
-    def render(self, scene: Scene, settings: RenderSettings) -> RenderResult:
+    def render(self, scene: Scene | AnimatedScene, settings: RenderSettings, *, key=None,
+               prepared: PreparedMethod | None = None) -> RenderResult:
         """Trace one frame. Timings in ms: build, upload, trace, read, total.
 
+        An :class:`AnimatedScene` is first posed at ``settings.time`` (timing ``pose``);
+        a method that keeps its tree between frames then follows the motion with
+        ``settings.update`` from the previous frame rendered with the same ``key``
+        (the animation: a session and its scene revision), and timing ``update`` is
+        the time it took — for every other method the same as ``build``.
+        ``prepared``: acceleration data made beforehand (``method.prepare``) to render
+        with instead of preparing here (``build`` is then its time).
+
         ``stats`` holds the acceleration structure's statistics plus the
-        concrete ``method``, the ``recursion_depth`` traced and the shader
-        ``features`` removed for this scene.
+        concrete ``method``, the ``recursion_depth`` traced, the shader
+        ``features`` removed for this scene and, when animated, the ``time``.
         """
+        t_start = time.perf_counter()
+        moving = None
+        pose_ms = None
+        if isinstance(scene, AnimatedScene):
+            frame = pose(scene, settings.time)
+            scene, moving, pose_ms = frame.scene, frame.moving, frame.pose_ms
+        result = self._render_posed(scene, settings, TreeUpdate(settings.update, settings.update_threshold,
+                                                                key, moving), prepared)
+        if pose_ms is not None:
+            result.timings["pose"] = pose_ms
+            result.timings["total"] = (time.perf_counter() - t_start) * 1e3
+            if result.stats is not None:
+                result.stats["time"] = settings.time
+        return result
+
+    def _render_posed(self, scene: Scene, settings: RenderSettings, update: TreeUpdate,
+                      prepared: PreparedMethod | None) -> RenderResult:
         t_start = time.perf_counter()
         method_name = resolve_method(settings.method, scene.n_spheres)
         method = METHODS[method_name]
@@ -146,8 +174,9 @@ class GLRenderer:
             return method.render_frame(self, scene, settings)
         if settings.mode not in SINGLE_PASS_MODES:
             raise SceneError("mode", f"mode {settings.mode!r} is not available with method {method_name!r}")
-        prepared = method.prepare(scene, settings.max_prims, settings.max_tree_depth,
-                                                self.max_texture_width)
+        if prepared is None:
+            prepared = method.prepare(scene, settings.max_prims, settings.max_tree_depth,
+                                      self.max_texture_width, update)
         t_built = time.perf_counter()
 
         features = scene_features(scene) if settings.specialize else GENERIC
@@ -185,10 +214,10 @@ class GLRenderer:
         depth_t = np.where(primid >= 0, hit[..., 3], np.float32(np.inf)).astype(np.float32)
         t_end = time.perf_counter()
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
-        timings = {"build": prepared.build_ms, "upload": ms(t_built, t_uploaded), "trace": ms(t_uploaded, t_traced),
+        timings = {"build": prepared.build_ms, "update": prepared.build_ms, "upload": ms(t_built, t_uploaded), "trace": ms(t_uploaded, t_traced),
                    "read": ms(t_traced, t_end), "total": ms(t_start, t_end)}
         stats = {**prepared.stats, "method": method_name, "recursion_depth": depth,
-                 "features_removed": list(features.defines())}
+                 "features_removed": list(features.defines()), "n_spheres": scene.n_spheres}
         return RenderResult(image=np.ascontiguousarray(colour, dtype=np.float32), depth=depth_t, primid=primid,
                             normal=np.ascontiguousarray(hit[..., :3]), mode=settings.mode,
                             timings=timings, stats=stats)

@@ -40,6 +40,7 @@ import numpy as np
 
 from . import kdtree_layout as L
 from .bih import sphere_aabbs
+from .tree_update import REBUILD, TreeUpdate
 
 C_TRAV = 1.0
 C_ISECT = 1.0
@@ -438,7 +439,9 @@ class KdTreeMethod:
     name = "kdtree"
     cost_scale = DEFAULT_COST_SCALE
 
-    def prepare(self, scene, max_prims: int, max_tree_depth: int, max_width: int = 4096):
+    def prepare(self, scene, max_prims: int, max_tree_depth: int, max_width: int = 4096,
+                update: TreeUpdate = REBUILD):
+        """Builds a fresh tree every frame: a kd-tree is not refitted (``update`` is ignored)."""
         from . import gpu_layout
         from .methods import PreparedMethod
         t0 = time.perf_counter()

@@ -5,7 +5,9 @@ and uniforms (through the shared layout of :mod:`gpu_layout`) and statistics.
 Its GLSL lives in ``shaders/method_<name>.glsl`` (``method_init()`` and
 ``intersect_spheres()``), spliced into ``raytrace.frag`` by the host; the
 variant gets ``#define METHOD_<NAME>``. ``prepare`` runs on every request: the
-thesis rebuilds its BIH for every frame, and so do we.
+thesis rebuilds its BIH for every frame, and so do we — except where a frame of an
+animation asks a method that keeps its tree to update it instead
+(:mod:`renderer.tree_update`).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from typing import Any, Protocol
 from . import gpu_layout
 from .bih import build_for_spheres
 from .scene import Scene
+from .tree_update import REBUILD, TreeUpdate
 
 
 @dataclass
@@ -38,7 +41,10 @@ class AccelerationMethod(Protocol):
     name: str
 
     def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
-                max_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH) -> PreparedMethod: ...
+                max_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH,
+                update: TreeUpdate = REBUILD) -> PreparedMethod:
+        """The frame's acceleration data for the posed ``scene``; ``update`` says whether and
+        how the previous frame's tree of the same animation may be updated instead."""
 
 
 class BruteForce:
@@ -46,7 +52,8 @@ class BruteForce:
     name = "bruteforce"
 
     def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
-                max_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH) -> PreparedMethod:
+                max_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH,
+                update: TreeUpdate = REBUILD) -> PreparedMethod:
         return PreparedMethod(gpu_layout.PackedScene({}), 0.0,
                               {"method": self.name, "primitives": scene.n_spheres})
 
@@ -56,7 +63,8 @@ class BoundingIntervalHierarchy:
     name = "bih"
 
     def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
-                max_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH) -> PreparedMethod:
+                max_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH,
+                update: TreeUpdate = REBUILD) -> PreparedMethod:
         t0 = time.perf_counter()
         bih = build_for_spheres(scene.sphere_centers, scene.sphere_radii, max_prims, max_tree_depth)
         build_ms = (time.perf_counter() - t0) * 1e3
@@ -67,7 +75,7 @@ class BoundingIntervalHierarchy:
 from .ray_engine import HierarchicalRayEngine, RayEngine  # noqa: E402  (multi-pass methods, issue #8)
 from .bvh import BVHMethod  # noqa: E402  (issue #9)
 from .kdtree import KdTreeMethod  # noqa: E402  (issue #9)
-from .animation import TwoLevelMethod  # noqa: E402  (issue #9)
+from .twolevel import TwoLevelMethod  # noqa: E402  (issue #9)
 METHODS: dict[str, AccelerationMethod] = {m.name: m for m in (BoundingIntervalHierarchy(), BruteForce(), RayEngine(),
                                                                HierarchicalRayEngine(), BVHMethod(),
                                                                KdTreeMethod(), TwoLevelMethod())}

@@ -6,8 +6,9 @@ knob that trades one for the other, and names the fastest setting that keeps
 quality (docs/RESULTS.md, "Speed against accuracy": scenarios 1–3, 256 spheres,
 320 × 544, 5 runs). ``/api/info`` hands both to the client, which asks for
 ``INTERACTIVE`` frames while a finger moves (depth capped at the session's).
-``STILL`` is published but not yet the session default: the device renderer
-does not supersample, so its frames would no longer match the server's.
+``STILL`` is the service's default for new sessions (``server.config``): the
+frames a session shows at rest. Frames traced on the device (WebGL2) use the
+session's depth but trace every ray at one sample per pixel.
 
 ``resolution_scale``: the frame is rendered at 1/scale of the requested
 resolution and upscaled by the client.

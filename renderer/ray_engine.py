@@ -367,7 +367,7 @@ class RayEngine:
 
     # -- the method interface ------------------------------------------------------
     def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
-                max_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH):
+                max_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH, update=None):
         """No structure to build: the ray engines need no tree (minimal data for the interface)."""
         from .methods import PreparedMethod
         return PreparedMethod(gpu_layout.PackedScene({}), 0.0,

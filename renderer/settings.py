@@ -7,7 +7,9 @@ from typing import Any
 
 from .scene import SceneError
 
+from .animation import MAX_TIME
 from .methods import AUTO_METHOD, METHODS as _METHOD_REGISTRY
+from .tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
 
 # "auto" picks brute force below the measured crossover n, BIH above it.
 METHODS = (*_METHOD_REGISTRY, AUTO_METHOD)
@@ -40,6 +42,11 @@ class RenderSettings:
     specialize: compile the shader with only the features the scene uses and
     clamp the recursion depth to what its materials can use (exact: the image
     does not change); False renders with the generic variant.
+    time: seconds (0 … 1e6) at which an animated scene is posed (ignored by a static one).
+    update: how a method that keeps its tree between frames of an animation follows the
+    motion — ``rebuild`` (every frame, the thesis's way), ``refit`` or ``selective``
+    (rebuild the subtrees whose SAH cost grew by more than ``update_threshold``, a
+    fraction: 0.3 = +30 %); see :mod:`renderer.tree_update`.
     """
     width: int = 640
     height: int = 1088
@@ -53,6 +60,9 @@ class RenderSettings:
     min_weight: float = 0.0
     specialize: bool = True
     tile_size: int = 16
+    time: float = 0.0
+    update: str = "rebuild"
+    update_threshold: float = DEFAULT_THRESHOLD
 
     def __post_init__(self) -> None:
         def integer(name: str, lo: int, hi: int) -> None:
@@ -61,6 +71,12 @@ class RenderSettings:
                 raise SceneError(name, f"expected an integer, got {v!r}")
             if not lo <= v <= hi:
                 raise SceneError(name, f"must be in {lo} … {hi}, got {v}")
+
+        def number(name: str, lo: float, hi: float) -> None:
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo <= float(v) <= hi):
+                raise SceneError(name, f"must be a number in [{lo:g}, {hi:g}], got {v!r}")
+
         integer("width", 1, MAX_IMAGE_SIDE)
         integer("height", 1, MAX_IMAGE_SIDE)
         integer("max_prims", 1, 1 << 24)
@@ -73,12 +89,12 @@ class RenderSettings:
         if max(self.width, self.height) * k > MAX_IMAGE_SIDE:
             raise SceneError("samples_per_pixel", f"{self.width}×{self.height} at {self.samples_per_pixel} samples "
                              f"needs {self.width * k}×{self.height * k}, over the {MAX_IMAGE_SIDE} limit")
-        w = self.min_weight
-        if isinstance(w, bool) or not isinstance(w, (int, float)) or not (0.0 <= float(w) <= 1.0):
-            raise SceneError("min_weight", f"must be a number in [0, 1], got {w!r}")
+        number("min_weight", 0.0, 1.0)
+        number("time", 0.0, MAX_TIME)
+        number("update_threshold", 0.0, 100.0)
         if not isinstance(self.specialize, bool):
             raise SceneError("specialize", f"expected true or false, got {self.specialize!r}")
-        for name, allowed in (("method", METHODS), ("mode", MODES), ("format", FORMATS)):
+        for name, allowed in (("method", METHODS), ("mode", MODES), ("format", FORMATS), ("update", UPDATE_SCHEMES)):
             if getattr(self, name) not in allowed:
                 raise SceneError(name, f"unknown {name} {getattr(self, name)!r}; one of {', '.join(allowed)}")
 

@@ -32,12 +32,13 @@ if __name__ == "__main__":  # standalone: make the repository root importable
 import numpy as np  # noqa: E402
 
 from bench.experiments.common import Context, log_axis, md_table, plt  # noqa: E402
-from renderer.animation import AnimatedScene, AnimationSettings, museum, pose, render_frame  # noqa: E402
+from renderer.animation import AnimatedScene, museum, pose  # noqa: E402
 from renderer.bih import sphere_aabbs  # noqa: E402
 from renderer.kdtree import build_kdtree  # noqa: E402
 from renderer.methods import METHODS  # noqa: E402
 from renderer.scenarios import scenario  # noqa: E402
 from renderer.settings import RenderSettings  # noqa: E402
+from renderer.tree_update import TreeUpdate  # noqa: E402
 
 NAME = "dynamic"
 TITLE = "Dynamic scenes — BVH updates, cost-scaling kd-tree, two levels (Reiter Figs. 5.11, 5.4, 5.6)"
@@ -62,25 +63,6 @@ def make_anim(kind: str, n: int) -> AnimatedScene:
     return museum(n, base, seed=1, absent=0.2 if kind == "incoherent_appear" else 0.0)
 
 
-def render_prepared(renderer, scene, settings: RenderSettings, prepared):
-    """Render with an already prepared method (its build/update is not repeated)."""
-    name = settings.method
-    method = METHODS[name]
-
-    class _Prepared:
-        def __init__(self) -> None:
-            self.name = name
-
-        def prepare(self, *a, **kw):
-            return prepared
-
-    METHODS[name] = _Prepared()
-    try:
-        return renderer.render(scene, settings)
-    finally:
-        METHODS[name] = method
-
-
 # ------------------------------------------------------------------ Fig. 5.11
 
 def play(ctx: Context, anim: AnimatedScene, method: str, scheme: str, frames: int, every: int,
@@ -92,13 +74,13 @@ def play(ctx: Context, anim: AnimatedScene, method: str, scheme: str, frames: in
         frame = pose(anim, f / FPS)
         if method == "bvh":
             prepared = impl.prepare(frame.scene, MAX_PRIMS, 64, ctx.renderer.max_texture_width,
-                                    update=scheme, key=key)
+                                    TreeUpdate(scheme, key=key))
             sah.append(prepared.stats["sah_cost"])
         else:
             prepared = impl.prepare(frame.scene, MAX_PRIMS, 64, ctx.renderer.max_texture_width)
         upd.append(prepared.build_ms)
         if (f + 1) % every == 0:
-            res = render_prepared(ctx.renderer, frame.scene, settings.with_(method=method), prepared)
+            res = ctx.renderer.render(frame.scene, settings.with_(method=method), prepared=prepared)
             trace.append(res.timings["upload"] + res.timings["trace"] + res.timings["read"])
     # frame 0 builds from scratch for every scheme: the means are over the following frames
     u, t = float(np.mean(upd[1:] if len(upd) > 1 else upd)), float(np.mean(trace))
@@ -271,10 +253,10 @@ def fig_5_6(ctx: Context) -> tuple[str, dict]:
             s = RenderSettings(width=w, height=h, mode="color", max_recursion_depth=depth, method=method,
                                max_prims=MAX_PRIMS)
             key = ("fig56", label, method, time.perf_counter())
-            render_frame(ctx.renderer, a, s, AnimationSettings(time=0.0, update="selective"), key=key)  # warm-up
+            ctx.renderer.render(a, s.with_(time=0.0, update="selective"), key=key)  # warm-up
             t0 = time.perf_counter()
             for f in range(frames):
-                render_frame(ctx.renderer, a, s, AnimationSettings(time=f / FPS, update="selective"), key=key)
+                ctx.renderer.render(a, s.with_(time=f / FPS, update="selective"), key=key)
             totals[method] = (time.perf_counter() - t0) * 1e3
         raw[label] = totals
         rows.append([label, f"{totals['bvh']:,.0f}", f"{totals['twolevel']:,.0f}",
