@@ -25,8 +25,10 @@ from pydantic import TypeAdapter, ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.requests import HTTPConnection, Request
 
+from renderer.animation import MAX_TIME, MUSEUM_KINDS
 from renderer.scenarios import scenario
 from renderer.scene import SceneError
+from renderer.tree_update import UPDATE_SCHEMES
 from renderer.settings import FORMATS, MAX_IMAGE_SIDE, METHODS, MODES, RenderSettings
 
 from .body_limit import BodyLimit
@@ -37,7 +39,7 @@ from renderer.profiles import PROFILES
 
 from .models import (CameraModel, CameraOut, ErrorOut, FormatName, FullSettings, Gesture, HealthOut, InfoOut,
                      LimitsOut, MethodName, ModeName, ReadyOut, RenderRequest, SceneInfo, SceneModel, SessionCreate,
-                     SessionOut, SettingsOut, SettingsPatch, StatsOut, VersionOut)
+                     SessionOut, SettingsOut, SettingsPatch, StatsOut, UpdateScheme, VersionOut)
 from .scenes import scene_json_chunks
 from .service import InputError, NotFound, RenderTimeout, SessionService, field_path
 from .store import SessionState, open_store
@@ -76,12 +78,19 @@ def frame_query(
                                               description="ε cut-off of secondary rays")] = None,
     specialize: Annotated[bool | None, Query(description="scene-specialised shader variant")] = None,
     tile_size: Annotated[int | None, Query(ge=2, le=64, description="hre tile edge")] = None,
+    time: Annotated[float | None, Query(ge=0.0, le=MAX_TIME, allow_inf_nan=False,
+                                        description="seconds: the pose of an animated scene")] = None,
+    update: Annotated[UpdateScheme | None, Query(description="rebuild, refit or selective: how bvh/twolevel "
+                                                             "follow the motion from this session's last frame")] = None,
+    update_threshold: Annotated[float | None, Query(ge=0.0, le=100.0, allow_inf_nan=False,
+                                                    description="selective: SAH cost growth, 0.3 = +30 %")] = None,
 ) -> dict[str, Any]:
     """Frame parameters of the query; missing ones come from the session's defaults."""
     given = {"width": width, "height": height, "method": method, "mode": mode, "max_prims": max_prims,
              "max_tree_depth": max_tree_depth, "max_recursion_depth": max_recursion_depth, "format": format,
              "quality": quality, "samples_per_pixel": samples_per_pixel, "min_weight": min_weight,
-             "specialize": specialize, "tile_size": tile_size}
+             "specialize": specialize, "tile_size": tile_size, "time": time, "update": update,
+             "update_threshold": update_threshold}
     return {k: v for k, v in given.items() if v is not None}
 
 
@@ -111,7 +120,7 @@ router = APIRouter(prefix="/api")
 
 
 @router.post("/sessions", status_code=201, response_model=SessionOut, responses={**ERR_413, **ERR_503},
-             summary="Create a session from a thesis scenario or a full scene")
+             summary="Create a session from a thesis scenario, an animated museum or a full scene")
 def create_session(body: SessionCreate, service: ServiceDep) -> SessionOut:
     return _session_out(service.create(body))
 
@@ -181,9 +190,12 @@ def session_frame(session_id: SessionId, service: ServiceDep, params: FrameQuery
 def session_stats(session_id: SessionId, service: ServiceDep,
                   method: Annotated[MethodName | None, Query()] = None,
                   max_prims: Annotated[int | None, Query(ge=1, le=1 << 24)] = None,
-                  max_tree_depth: Annotated[int | None, Query(ge=1, le=64)] = None) -> Any:
+                  max_tree_depth: Annotated[int | None, Query(ge=1, le=64)] = None,
+                  time: Annotated[float | None, Query(ge=0.0, le=MAX_TIME, allow_inf_nan=False,
+                                                      description="an animated scene's pose, seconds")] = None
+                  ) -> Any:
     patch = {k: v for k, v in (("method", method), ("max_prims", max_prims),
-                               ("max_tree_depth", max_tree_depth)) if v is not None}
+                               ("max_tree_depth", max_tree_depth), ("time", time)) if v is not None}
     return JSONResponse(service.stats(session_id, patch))
 
 
@@ -215,7 +227,7 @@ def ready(worker: Annotated[GLWorker, Depends(get_worker)], service: ServiceDep)
 def info(service: ServiceDep) -> InfoOut:
     c = service.config
     return InfoOut(methods=list(METHODS), modes=list(MODES), formats=list(FORMATS), state_backend=c.state_backend,
-                   profiles=PROFILES,
+                   profiles=PROFILES, update_schemes=list(UPDATE_SCHEMES), museum_kinds=list(MUSEUM_KINDS),
                    limits=LimitsOut(max_work=c.max_work, max_bruteforce_work=c.max_bruteforce_work,
                                     max_spheres=c.max_spheres, max_body_bytes=c.max_body_bytes,
                                     max_image_side=MAX_IMAGE_SIDE, queue_size=c.queue_size,

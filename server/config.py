@@ -42,8 +42,10 @@ class ServerConfig(BaseSettings):
     warmup: bool = Field(True, description="render a tiny scene at start-up (compiles the default shader)")
 
     # --- per-request caps on work -----------------------------------------------
-    max_work: int = Field(640 * 1088 * 8, ge=1,
-                          description="cap on width × height × max_recursion_depth of one render")
+    max_work: int = Field(1088 * 1088 * 8 * 4, ge=1,
+                          description="cap on width × height × max_recursion_depth × samples_per_pixel of one "
+                                      "render (default: the 'still' profile — depth 8, 4 spp — on a "
+                                      "1088 × 1088 frame, the client's largest 'fit' size)")
     max_spheres: int = Field(1 << 21, ge=0, le=1 << 21, description="cap on the spheres of one scene")
     max_bruteforce_work: int = Field(
         640 * 1088 * 512, ge=1,
@@ -59,7 +61,8 @@ class ServerConfig(BaseSettings):
         default_factory=dict,
         description="JSON object overriding the render defaults of new sessions and of POST /api/render "
                     "(renderer.settings.RenderSettings: width 640, height 1088, method bih, mode color, "
-                    "max_prims 8, max_tree_depth 64, max_recursion_depth 5, format png; quality)")
+                    "max_prims 8, max_tree_depth 64, format png; then the measured 'still' profile of "
+                    "renderer.profiles: max_recursion_depth 8, samples_per_pixel 4, min_weight 0.03; quality)")
 
     # --- encoding ---------------------------------------------------------------
     png_compress_level: int = Field(1, ge=0, le=9, description="zlib level of PNG frames (1 = fast)")
@@ -83,14 +86,19 @@ class ServerConfig(BaseSettings):
             raise ValueError(f"default_render: {e}") from None
         if not (isinstance(d["quality"], int) and 1 <= d["quality"] <= 100):
             raise ValueError("default_render: quality must be an integer 1 … 100")
-        work = d["width"] * d["height"] * d["max_recursion_depth"]
+        work = d["width"] * d["height"] * d["max_recursion_depth"] * d["samples_per_pixel"]
         if work > self.max_work:
-            raise ValueError(f"default_render: width × height × max_recursion_depth = {work} exceeds "
-                             f"max_work = {self.max_work}")
+            raise ValueError(f"default_render: width × height × max_recursion_depth × samples_per_pixel = {work} "
+                             f"exceeds max_work = {self.max_work}")
         return self
 
     def default_settings(self) -> dict[str, Any]:
-        """Render defaults of new sessions: RenderSettings' defaults, quality, default_render."""
+        """Render defaults of new sessions: RenderSettings' defaults, the 'still' profile the
+        speed-against-accuracy experiment recommends (a session's frames are its still frames;
+        the client asks for the 'interactive' profile while a finger moves), quality, and
+        ``default_render`` last."""
+        from renderer.profiles import STILL
         from renderer.settings import RenderSettings
 
-        return {**RenderSettings().to_json(), "quality": self.default_jpeg_quality, **self.default_render}
+        still = {k: v for k, v in STILL.items() if k in RenderSettings.__dataclass_fields__}
+        return {**RenderSettings().to_json(), **still, "quality": self.default_jpeg_quality, **self.default_render}

@@ -79,6 +79,7 @@ from fastapi.responses import PlainTextResponse
 from starlette.requests import HTTPConnection
 
 from renderer import gpu_layout
+from renderer.animation import MAX_TIME
 from renderer.features import scene_features
 from renderer.gl_renderer import SHADER_DIR, SINGLE_PASS_MODES, shader_source, vertex_source
 from renderer.methods import METHODS, resolve_method
@@ -245,6 +246,9 @@ def device_data(
     max_prims: Annotated[int | None, Query(ge=1, le=1 << 24)] = None,
     max_tree_depth: Annotated[int | None, Query(ge=1, le=MAX_TREE_DEPTH_LIMIT)] = None,
     max_recursion_depth: Annotated[int | None, Query(ge=1, le=MAX_RECURSION_DEPTH_LIMIT)] = None,
+    time_s: Annotated[float | None, Query(alias="time", ge=0.0, le=MAX_TIME, allow_inf_nan=False,
+                                          description="seconds: an animated scene's pose; default: the session's")
+                      ] = None,
     max_texture_size: Annotated[int, Query(ge=1, le=1 << 16,
                                            description="the device's MAX_TEXTURE_SIZE")] = DEFAULT_MAX_TEXTURE_SIZE,
     float_textures: Annotated[bool, Query(description="the device renders to RGBA32F "
@@ -258,7 +262,7 @@ def device_data(
     state = service.get(session_id)
     patch = {k: v for k, v in (("method", method), ("mode", mode), ("max_prims", max_prims),
                                ("max_tree_depth", max_tree_depth),
-                               ("max_recursion_depth", max_recursion_depth)) if v is not None}
+                               ("max_recursion_depth", max_recursion_depth), ("time", time_s)) if v is not None}
     settings = service.merge_settings(state.settings, patch, "query")
     n = state.scene_info.get("n_spheres", 0)
     method_name = resolve_method(settings["method"], n)
@@ -268,10 +272,12 @@ def device_data(
                                             f"one of {', '.join(SINGLE_PASS_MODES)}")
     width = 1 << (int(max_texture_size).bit_length() - 1)
     with service.admit():  # a queue slot for back-pressure; the work is NumPy, on this thread
-        scene = service.scene(state)
+        # An animated scene is posed here; the tree is rebuilt (updates between frames
+        # belong to the GL thread's renders, whose tree caches are not shared with this thread).
+        scene, update = service.posed(service.scene(state), settings)
         t_built0 = time.perf_counter()
         try:
-            prepared = meth.prepare(scene, settings["max_prims"], settings["max_tree_depth"], width)
+            prepared = meth.prepare(scene, settings["max_prims"], settings["max_tree_depth"], width, update)
             t_built = time.perf_counter()
             prims = gpu_layout.pack_primitives(scene, width)
         except ValueError as e:
@@ -290,7 +296,7 @@ def device_data(
         "format": "pocketray-device-data", "format_version": FORMAT_VERSION,
         "session": {"id": state.id, "version": state.version, "scene_rev": state.scene_rev},
         "method": method_name,
-        "settings": {k: settings[k] for k in ("mode", "max_prims", "max_tree_depth", "max_recursion_depth",
+        "settings": {k: settings[k] for k in ("mode", "max_prims", "max_tree_depth", "max_recursion_depth", "time",
                                               "width", "height")},
         "shader": {"method": method_name, "mode": settings["mode"], "max_recursion_depth": depth,
                    "features": list(defines), "url": shader_url(method_name, settings["mode"], depth, defines)},

@@ -16,13 +16,17 @@ from typing import Annotated, Any, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from renderer.animation import MAX_TIME, MUSEUM_KINDS
 from renderer.scene import MAX_COORDINATE, Scene
 from renderer.settings import (FORMATS, MAX_IMAGE_SIDE, MAX_RECURSION_DEPTH_LIMIT, MAX_TREE_DEPTH_LIMIT,
                                METHODS, MODES)
+from renderer.tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
 
 MethodName = Literal[METHODS]  # type: ignore[valid-type]
 ModeName = Literal[MODES]  # type: ignore[valid-type]
 FormatName = Literal[FORMATS]  # type: ignore[valid-type]
+UpdateScheme = Literal[UPDATE_SCHEMES]  # type: ignore[valid-type]
+MuseumKind = Literal[MUSEUM_KINDS]  # type: ignore[valid-type]
 
 
 class Strict(BaseModel):
@@ -79,13 +83,60 @@ class PlaneModel(Strict):
     material: MaterialIndex = 0
 
 
+# ---- motion (issue #9; renderer.animation) ------------------------------------------
+SphereIndex = Annotated[int, Field(ge=0, lt=Scene.MAX_SPHERES, description="id of the first sphere moved")]
+SphereCount = Annotated[int, Field(ge=0, le=Scene.MAX_SPHERES, description="number of spheres moved")]
+
+
+class RigidMotion(Strict):
+    """Spheres ``first … first+count−1`` move as one rigid body: centre(t) = pivot +
+    R(axis, angular_velocity·t)(c₀ − pivot) + amplitude·sin(2πt / period)."""
+    kind: Literal["rigid"]
+    first: SphereIndex
+    count: SphereCount
+    pivot: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    axis: Vec3 = Field(default_factory=lambda: [0.0, 1.0, 0.0], description="non-zero")
+    angular_velocity: float = Field(0.5, ge=-1e3, le=1e3, description="radians per second")
+    amplitude: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="oscillation, world units")
+    period: float = Field(4.0, gt=0.0, le=1e6, description="seconds")
+
+
+class DeformableMotion(Strict):
+    """Coherent local motion: a travelling wave moves each sphere by at most ``amplitude`` per axis."""
+    kind: Literal["deformable"]
+    first: SphereIndex
+    count: SphereCount
+    amplitude: float = Field(1.0, ge=0.0, le=MAX_COORDINATE, description="world units")
+    wavelength: float = Field(10.0, gt=0.0, le=1e9, description="world units")
+    speed: float = Field(4.0, ge=-1e6, le=1e6, description="world units per second")
+
+
+class IncoherentMotion(Strict):
+    """Every sphere flies alone inside [box_min, box_max] and respawns every ``lifetime`` seconds;
+    for the last ``absent`` fraction of each lifetime it is gone (spheres appear and disappear)."""
+    kind: Literal["incoherent"]
+    first: SphereIndex
+    count: SphereCount
+    box_min: Vec3 = Field(default_factory=lambda: [-15.0, -15.0, -15.0])
+    box_max: Vec3 = Field(default_factory=lambda: [15.0, 15.0, 15.0], description="> box_min on every axis")
+    speed: float = Field(5.0, ge=0.0, le=1e6, description="world units per second")
+    lifetime: float = Field(2.0, gt=0.0, le=1e6, description="seconds")
+    absent: float = Field(0.0, ge=0.0, le=0.95, description="fraction of each lifetime a sphere is gone")
+    seed: int = Field(0, ge=0, le=2 ** 63 - 1)
+
+
+Motion = Annotated[Union[RigidMotion, DeformableMotion, IncoherentMotion], Field(discriminator="kind")]
+
+
 class SceneModel(Strict):
-    """A whole scene (SPEC). Material indices must be < len(materials)."""
+    """A whole scene (SPEC). Material indices must be < len(materials). ``motions`` (optional)
+    animate sphere ranges that must not overlap; the render setting ``time`` poses the scene."""
     camera: CameraModel = Field(default_factory=CameraModel)
     lights: list[LightModel] = Field(default_factory=list, max_length=Scene.MAX_LIGHTS)
     materials: list[MaterialModel] = Field(min_length=1, max_length=Scene.MAX_MATERIALS)
     spheres: list[SphereModel] = Field(default_factory=list, max_length=Scene.MAX_SPHERES)
     planes: list[PlaneModel] = Field(default_factory=list, max_length=Scene.MAX_PLANES)
+    motions: list[Motion] = Field(default_factory=list, max_length=1024)
 
 
 # ---- render settings ----------------------------------------------------------
@@ -100,6 +151,10 @@ SamplesPerPixel = Annotated[Literal[1, 4, 9, 16], Field(description="stratified 
 MinWeight = Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False,
                                    description="ε: reflected/refracted rays of smaller path weight are not traced")]
 TileSize = Annotated[int, Field(ge=2, le=64, description="hre's tile edge in pixels")]
+Time = Annotated[float, Field(ge=0.0, le=MAX_TIME, allow_inf_nan=False,
+                              description="seconds: the time an animated scene is posed at")]
+UpdateThreshold = Annotated[float, Field(ge=0.0, le=100.0, allow_inf_nan=False,
+                                         description="selective rebuild: SAH cost growth, 0.3 = +30 %")]
 
 
 class SettingsPatch(Strict):
@@ -117,6 +172,10 @@ class SettingsPatch(Strict):
     min_weight: MinWeight | None = None
     specialize: bool | None = Field(None, description="shader variant with only the scene's features (exact)")
     tile_size: TileSize | None = None
+    time: Time | None = None
+    update: UpdateScheme | None = Field(None, description="how bvh/twolevel follow the motion between frames: "
+                                                          "rebuild, refit or selective")
+    update_threshold: UpdateThreshold | None = None
 
     def given(self) -> dict[str, Any]:
         return {k: v for k, v in self.model_dump().items() if v is not None}
@@ -137,6 +196,9 @@ class FullSettings(BaseModel):
     min_weight: float = 0.0
     specialize: bool = True
     tile_size: int = 16
+    time: float = 0.0
+    update: str = "rebuild"
+    update_threshold: float = DEFAULT_THRESHOLD
 
 
 class SettingsOut(FullSettings):
@@ -144,24 +206,37 @@ class SettingsOut(FullSettings):
 
 
 # ---- sessions -------------------------------------------------------------------
+class MuseumRecipe(Strict):
+    """Reiter's BART-Museum analogue (renderer.animation.museum): ``n`` moving spheres in a
+    static room of 576 spheres and the floor."""
+    n: int = Field(ge=0, le=Scene.MAX_SPHERES - 1024, description="moving spheres")
+    kind: MuseumKind = Field("deformable", description="rigid, deformable, incoherent or mixed (a third each)")
+    seed: int = Field(0, ge=0, le=2 ** 32 - 1)
+    absent: float = Field(0.2, ge=0.0, le=0.95, description="incoherent spheres: fraction of a lifetime gone")
+
+
 class SessionCreate(Strict):
-    """Either a thesis scenario (``scenario`` and ``n``; ``seed``, ``radius`` optional)
-    or a full ``scene``; optionally the session's first render settings."""
+    """Either a thesis scenario (``scenario`` and ``n``; ``seed``, ``radius`` optional),
+    an animated ``museum``, or a full ``scene``; optionally the session's first render settings."""
     scenario: Literal[1, 2, 3] | None = Field(None, description="thesis scenario 1, 2 or 3")
     n: int | None = Field(None, ge=0, le=Scene.MAX_SPHERES, description="number of spheres")
     seed: int | None = Field(None, ge=0, le=2 ** 32 - 1, description="random placement seed (default 0)")
     radius: float | None = Field(None, gt=0.0, le=20.0, description="sphere radius, world units (default 1)")
+    museum: MuseumRecipe | None = None
     scene: SceneModel | None = None
     settings: SettingsPatch | None = None
 
 
 class SceneInfo(BaseModel):
-    n_spheres: int
+    n_spheres: int = Field(description="spheres of the scene at rest (an animation may hide some)")
     n_planes: int
     scenario: int | None = None
     n: int | None = None
     seed: int | None = None
     radius: float | None = None
+    animated: bool = False
+    n_moving: int = Field(0, description="spheres some motion moves")
+    museum: MuseumRecipe | None = None
 
 
 class SessionOut(BaseModel):
@@ -247,6 +322,8 @@ class InfoOut(BaseModel):
     formats: list[str]
     limits: LimitsOut
     state_backend: str
+    update_schemes: list[str] = Field(default_factory=list, description="values of the setting 'update'")
+    museum_kinds: list[str] = Field(default_factory=list, description="motions of POST /api/sessions {museum}")
     profiles: dict[str, dict[str, Any]] = Field(
         default_factory=dict, description="render profiles measured by the Pareto experiment: 'still' (the "
                                           "session default) and 'interactive' (frames during a gesture)")

@@ -3,9 +3,13 @@
 A session's scene is stored as a *source*, not re-serialised for every change:
 
 - a thesis scenario is its recipe ``{"scenario", "n", "seed", "radius"}`` (a few
-  bytes; ``renderer.scenarios.scenario`` is deterministic);
-- an uploaded scene is its small parts as JSON plus the sphere arrays, in one
-  compressed ``.npz``.
+  bytes; ``renderer.scenarios.scenario`` is deterministic), and an animated Museum
+  its recipe ``{"museum": {"n", "kind", "seed", "absent"}}``;
+- an uploaded scene is its small parts (and motions) as JSON plus the sphere arrays,
+  in one compressed ``.npz``.
+
+An animated scene (one with motions) is an :class:`~renderer.animation.AnimatedScene`;
+``SessionScene`` is either kind. The renderer poses it at the frame's ``time``.
 
 The camera is not part of the source (it lives in the session state), so a
 gesture never rewrites the scene. ``SceneCache`` keeps recently used scenes per
@@ -23,6 +27,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
+from renderer.animation import AnimatedScene, motion_from_json, motion_to_json, museum
 from renderer.scenarios import scenario
 from renderer.scene import Camera, Scene, SceneError
 
@@ -31,19 +36,34 @@ from .models import CameraModel, SceneModel
 _RECIPE = b"R"
 _ARRAYS = b"A"
 
+SessionScene = Scene | AnimatedScene
 
-def scene_from_model(model: SceneModel, where: str = "scene") -> Scene:
-    """A validated Scene from a request body (SceneError names the JSON field)."""
-    small = model.model_dump(exclude={"spheres"})
+
+def scene_from_model(model: SceneModel, where: str = "scene") -> SessionScene:
+    """A validated Scene — an AnimatedScene when it has motions — from a request body
+    (SceneError names the JSON field)."""
+    small = model.model_dump(exclude={"spheres", "motions"})
     try:
         base = Scene.from_json(small)
         n = len(model.spheres)
         centers = np.array([s.center for s in model.spheres], dtype=np.float64).reshape(n, 3)
         radii = np.array([s.radius for s in model.spheres], dtype=np.float64).reshape(n)
         mats = np.array([s.material for s in model.spheres], dtype=np.int64).reshape(n)
-        return Scene(base.camera, base.lights, base.materials, centers, radii, mats, base.planes)
+        scene = Scene(base.camera, base.lights, base.materials, centers, radii, mats, base.planes)
+        return with_motions(scene, [m.model_dump() for m in model.motions])
     except SceneError as e:
-        raise SceneError(f"{where}.{e.field}", e.message) from None
+        raise SceneError(f"{where}.{e.field}" if where else e.field, e.message) from None
+
+
+def with_motions(scene: Scene, motions: list[dict]) -> SessionScene:
+    """``scene`` animated by the motions' JSON (SceneError ``motions[i].<field>``); no motions: ``scene``."""
+    if not motions:
+        return scene
+    return AnimatedScene(scene, tuple(motion_from_json(m, f"motions[{i}]") for i, m in enumerate(motions)))
+
+
+def museum_source(n: int, kind: str, seed: int, absent: float) -> bytes:
+    return _RECIPE + json.dumps({"museum": {"n": n, "kind": kind, "seed": seed, "absent": absent}}).encode()
 
 
 def camera_from_model(model: CameraModel, where: str = "camera") -> Camera:
@@ -55,38 +75,50 @@ def scenario_source(number: int, n: int, seed: int, radius: float) -> bytes:
     return _RECIPE + json.dumps({"scenario": number, "n": n, "seed": seed, "radius": radius}).encode()
 
 
-def scene_source(scene: Scene) -> bytes:
-    """Lights, materials and planes as JSON, spheres as arrays (compressed npz)."""
+def scene_source(scene: SessionScene) -> bytes:
+    """Lights, materials, planes and motions as JSON, spheres as arrays (compressed npz)."""
+    motions = [motion_to_json(m) for m in scene.motions] if isinstance(scene, AnimatedScene) else []
+    if isinstance(scene, AnimatedScene):
+        scene = scene.scene
     small = {"lights": [x.to_json() for x in scene.lights], "materials": [m.to_json() for m in scene.materials],
-             "planes": [p.to_json() for p in scene.planes]}
+             "planes": [p.to_json() for p in scene.planes], "motions": motions}
     buf = io.BytesIO()
     np.savez_compressed(buf, meta=np.frombuffer(json.dumps(small).encode(), dtype=np.uint8),
                         centers=scene.sphere_centers, radii=scene.sphere_radii, materials=scene.sphere_materials)
     return _ARRAYS + buf.getvalue()
 
 
-def load_source(source: bytes, camera: Camera) -> Scene:
-    """The Scene a source describes, seen through ``camera``."""
+def load_source(source: bytes, camera: Camera) -> SessionScene:
+    """The scene a source describes, seen through ``camera``."""
     kind, body = source[:1], source[1:]
     if kind == _RECIPE:
         r = json.loads(body)
+        if "museum" in r:
+            return museum(**r["museum"]).with_camera(camera)
         return scenario(r["scenario"], r["n"], r["seed"], r["radius"]).with_camera(camera)
     if kind == _ARRAYS:
         with np.load(io.BytesIO(body), allow_pickle=False) as z:
             small = json.loads(z["meta"].tobytes())
+            motions = small.pop("motions", [])
             base = Scene.from_json({**small, "camera": camera.to_json()})
-            return Scene(camera, base.lights, base.materials, z["centers"], z["radii"], z["materials"], base.planes)
+            scene = Scene(camera, base.lights, base.materials, z["centers"], z["radii"], z["materials"], base.planes)
+            return with_motions(scene, motions)
     raise ValueError("unknown scene source")
 
 
-def scene_json_chunks(scene: Scene, spheres_per_chunk: int = 20000) -> Iterator[bytes]:
+def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> Iterator[bytes]:
     """The SPEC JSON of ``scene`` (exactly ``json.dumps(scene.to_json())``, compact) in
-    pieces, so that a scene of 2^21 spheres is sent without building it in memory."""
+    pieces, so that a scene of 2^21 spheres is sent without building it in memory.
+    An animated scene is its rest pose plus ``motions``."""
     def dumps(obj: Any) -> str:
         return json.dumps(obj, separators=(",", ":"), allow_nan=False)
+    tail = ""
+    if isinstance(scene, AnimatedScene):
+        tail = ',"motions":' + dumps([motion_to_json(m) for m in scene.motions])
+        scene = scene.scene
     head = scene.to_json() if scene.n_spheres == 0 else None
     if head is not None:
-        yield dumps(head).encode()
+        yield (dumps(head)[:-1] + tail + "}").encode()
         return
     small = {"camera": scene.camera.to_json(), "lights": [x.to_json() for x in scene.lights],
              "materials": [m.to_json() for m in scene.materials]}
@@ -99,11 +131,14 @@ def scene_json_chunks(scene: Scene, spheres_per_chunk: int = 20000) -> Iterator[
                     scene.sphere_materials[start:stop].tolist())]
         text = dumps(part)[1:-1]
         yield ((text if start == 0 else "," + text)).encode()
-    yield ('],"planes":' + dumps([p.to_json() for p in scene.planes]) + "}").encode()
+    yield ('],"planes":' + dumps([p.to_json() for p in scene.planes]) + tail + "}").encode()
 
 
-def scene_info(scene: Scene, recipe: dict[str, Any] | None = None) -> dict[str, Any]:
-    info: dict[str, Any] = {"n_spheres": scene.n_spheres, "n_planes": len(scene.planes)}
+def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dict[str, Any]:
+    rest = scene.scene if isinstance(scene, AnimatedScene) else scene
+    info: dict[str, Any] = {"n_spheres": rest.n_spheres, "n_planes": len(rest.planes)}
+    if isinstance(scene, AnimatedScene):
+        info.update(animated=True, n_moving=int(scene.moving.sum()))
     if recipe:
         info.update(recipe)
     return info
@@ -117,17 +152,17 @@ class SceneCache:
 
     def __init__(self, max_spheres: int = 8 << 20):
         self.max_spheres = max_spheres
-        self._items: OrderedDict[tuple[str, str], Scene] = OrderedDict()
+        self._items: OrderedDict[tuple[str, str], SessionScene] = OrderedDict()
         self._lock = threading.Lock()
 
-    def get(self, key: tuple[str, str]) -> Scene | None:
+    def get(self, key: tuple[str, str]) -> SessionScene | None:
         with self._lock:
             scene = self._items.get(key)
             if scene is not None:
                 self._items.move_to_end(key)
             return scene
 
-    def put(self, key: tuple[str, str], scene: Scene) -> None:
+    def put(self, key: tuple[str, str], scene: SessionScene) -> None:
         with self._lock:
             self._items[key] = scene
             self._items.move_to_end(key)

@@ -21,17 +21,19 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import replace
 from typing import Any, Iterable, NamedTuple
 
+from renderer.animation import AnimatedScene, museum, pose
 from renderer.methods import METHODS, resolve_method
 from renderer.scenarios import scenario
 from renderer.scene import Camera, Scene, SceneError
 from renderer.settings import RenderSettings
+from renderer.tree_update import TreeUpdate
 
 from . import controller
 from .config import ServerConfig
 from .gl_worker import GLWorker, QueueFull, Ticket
 from .models import (PanGesture, PinchGesture, ResetGesture, SceneModel, SessionCreate, SettingsPatch)
-from .scenes import (SceneCache, camera_from_model, load_source, scenario_source, scene_from_model,
-                     scene_info, scene_source)
+from .scenes import (SceneCache, SessionScene, camera_from_model, load_source, museum_source, scenario_source,
+                     scene_from_model, scene_info, scene_source)
 from .store import SessionState, SessionStore
 from .view import MEDIA_TYPES, Frame, encode
 
@@ -79,13 +81,15 @@ class StatsKey(NamedTuple):
     method: str
     max_prims: int
     max_tree_depth: int
+    time: float          # an animated scene's pose (0 for a static one)
 
 
 class SessionService:
     """The Model's operations plus the renders of the View, for one process."""
 
     SETTING_KEYS = ("width", "height", "method", "mode", "max_prims", "max_tree_depth",
-                    "max_recursion_depth", "format", "samples_per_pixel", "min_weight", "specialize", "tile_size")
+                    "max_recursion_depth", "format", "samples_per_pixel", "min_weight", "specialize", "tile_size",
+                    "time", "update", "update_threshold")
 
     @classmethod
     def render_settings(cls, settings: dict[str, Any]) -> RenderSettings:
@@ -144,7 +148,7 @@ class SessionService:
             raise InputError(loc, f"at most {self.config.max_spheres} spheres per scene "
                                   f"(POCKETRAY_MAX_SPHERES), got {n}")
 
-    def checked_scene(self, model: SceneModel, loc: tuple[str, ...]) -> Scene:
+    def checked_scene(self, model: SceneModel, loc: tuple[str, ...]) -> SessionScene:
         self.check_spheres(len(model.spheres), (*loc, "spheres"))
         try:
             return scene_from_model(model, ".".join(loc[1:]) if len(loc) > 1 else "")
@@ -154,10 +158,19 @@ class SessionService:
     # ---- sessions (the Model) -----------------------------------------------------------
     def create(self, body: SessionCreate) -> SessionState:
         recipe_given = [k for k in ("scenario", "n", "seed", "radius") if getattr(body, k) is not None]
-        if body.scene is not None and recipe_given:
-            raise InputError(("body", recipe_given[0]),
-                             "give either a scenario (scenario, n, seed, radius) or a scene, not both")
-        if body.scene is None:
+        sources = [k for k, given in (("scenario", bool(recipe_given)), ("museum", body.museum is not None),
+                                      ("scene", body.scene is not None)) if given]
+        if len(sources) > 1:
+            where = recipe_given[0] if recipe_given else sources[1]
+            raise InputError(("body", where), "give one of a scenario (scenario, n, seed, radius), a museum "
+                                              f"or a scene, not {' and '.join(sources)}")
+        if body.museum is not None:
+            m = body.museum
+            self.check_spheres(m.n + 1024, ("body", "museum", "n"))
+            scene = museum(m.n, m.kind, m.seed, m.absent)
+            recipe = {"museum": m.model_dump()}
+            source = museum_source(m.n, m.kind, m.seed, m.absent)
+        elif body.scene is None:
             if body.scenario is None:
                 raise InputError(("body", "scenario"), "required: a scenario 1, 2 or 3 with n, or a full scene")
             if body.n is None:
@@ -202,8 +215,8 @@ class SessionService:
             raise NotFound(session_id)
         self.cache.drop_session(session_id)
 
-    def scene(self, state: SessionState) -> Scene:
-        """The session's scene seen through its current camera (cached per process)."""
+    def scene(self, state: SessionState) -> SessionScene:
+        """The session's scene (animated or not) seen through its current camera (cached per process)."""
         camera = Camera.from_json(state.camera)
         base = self.cache.get((state.id, state.scene_rev))
         if base is None:
@@ -215,6 +228,8 @@ class SessionService:
             self.cache.put((state.id, rev), base)
         if base.camera == camera:
             return base
+        if isinstance(base, AnimatedScene):
+            return base.with_camera(camera)
         seen = copy.copy(base)  # arrays shared, already validated; only the camera differs
         object.__setattr__(seen, "camera", camera)
         return seen
@@ -282,30 +297,39 @@ class SessionService:
         self.check_work(merged, state.scene_info.get("n_spheres", 0), "query")
         return merged
 
-    def render(self, ticket: Ticket, scene: Scene, settings: dict[str, Any], *,
+    def render(self, ticket: Ticket, scene: SessionScene, settings: dict[str, Any], *,
                session: SessionState | None = None) -> Frame:
-        """Render on the GL thread (with ``ticket``), encode here. Timings in ms."""
+        """Render on the GL thread (with ``ticket``), encode here. Timings in ms.
+
+        A session's frames are one animation (key: session and scene revision), so ``bvh``
+        and ``twolevel`` can refit the tree of its previous frame. A stateless render has
+        no previous frame: it always rebuilds.
+        """
         rs = self.render_settings(settings)
+        key = (session.id, session.scene_rev) if session is not None else None
+        if session is None:
+            rs = rs.with_(update="rebuild")
         t_admit = time.perf_counter()
         started: list[float] = []
 
         def job(renderer):
             started.append(time.perf_counter())
-            return renderer.render(scene, rs)
+            return renderer.render(scene, rs, key=key)
         try:
             result = ticket.run(job, self.config.render_timeout_s)
         except FutureTimeout:
             raise RenderTimeout(f"render: not done within {self.config.render_timeout_s:g} s") from None
-        method = resolve_method(rs.method, scene.n_spheres)
+        method = result.stats.get("method") if result.stats else resolve_method(rs.method, scene.n_spheres)
         body, encode_ms = encode(result, rs.format, settings.get("quality", self.config.default_jpeg_quality),
                                  self.config.png_compress_level)
         t_end = time.perf_counter()
         timings = {"queue": ((started[0] if started else t_admit) - t_admit) * 1e3,
-                   **{k: float(v) for k, v in result.timings.items() if k in ("build", "upload", "trace", "read")},
+                   **{k: float(v) for k, v in result.timings.items()
+                      if k in ("pose", "update", "build", "upload", "trace", "read")},
                    "encode": encode_ms, "total": (t_end - t_admit) * 1e3}
         if session is not None and result.stats:
             self._remember_stats(StatsKey(session.id, session.scene_rev, method, rs.max_prims,
-                                          rs.max_tree_depth), result.stats)
+                                          rs.max_tree_depth, self._pose_time(scene, rs.time)), result.stats)
         return Frame(body=body, media_type=MEDIA_TYPES[rs.format], method=method, timings=timings,
                      stats=result.stats, version=session.version if session else None,
                      width=rs.width, height=rs.height)
@@ -332,6 +356,19 @@ class SessionService:
         with self.admit() as ticket:
             return self.render(ticket, scene, settings)
 
+    @staticmethod
+    def _pose_time(scene: SessionScene, t: float) -> float:
+        return float(t) if isinstance(scene, AnimatedScene) else 0.0
+
+    @staticmethod
+    def posed(scene: SessionScene, settings: dict[str, Any]) -> tuple[Scene, TreeUpdate]:
+        """The scene posed at the settings' ``time`` and a rebuild request that knows which
+        spheres move (for a method's ``prepare`` outside a render: stats, device data)."""
+        if not isinstance(scene, AnimatedScene):
+            return scene, TreeUpdate()
+        frame = pose(scene, settings.get("time", 0.0))
+        return frame.scene, TreeUpdate(moving=frame.moving)
+
     # ---- statistics -----------------------------------------------------------------------
     def _remember_stats(self, key: StatsKey, stats: dict) -> None:
         with self._stats_lock:
@@ -346,17 +383,19 @@ class SessionService:
         state = self.get(session_id)
         settings = self.merge_settings(state.settings, patch, "query")
         method_name = resolve_method(settings["method"], state.scene_info.get("n_spheres", 0))
-        key = StatsKey(state.id, state.scene_rev, method_name, settings["max_prims"], settings["max_tree_depth"])
+        scene = self.scene(state)
+        key = StatsKey(state.id, state.scene_rev, method_name, settings["max_prims"], settings["max_tree_depth"],
+                       self._pose_time(scene, settings["time"]))
         with self._stats_lock:
             cached = self._stats.get(key)
         if cached is not None:
             return cached
-        scene = self.scene(state)
         method = METHODS[method_name]
 
         def job(renderer):
-            return method.prepare(scene, settings["max_prims"], settings["max_tree_depth"],
-                                  renderer.max_texture_width).stats
+            posed, update = self.posed(scene, settings)
+            return method.prepare(posed, settings["max_prims"], settings["max_tree_depth"],
+                                  renderer.max_texture_width, update).stats
         with self.admit() as ticket:
             try:
                 stats = ticket.run(job, self.config.render_timeout_s)

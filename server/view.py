@@ -6,8 +6,11 @@ inf on a miss, primid int32 H×W with −1 on a miss, normal float32 H×W×3).
 
 Headers of every frame:
 
-- ``Server-Timing``: ``queue``, ``build``, ``upload``, ``trace``, ``read``,
-  ``encode``, ``total`` as ``name;dur=<ms>`` (total = admission to encoded bytes);
+- ``Server-Timing``: ``queue``, ``pose`` (animated scenes), ``update``, ``build``,
+  ``upload``, ``trace``, ``read``, ``encode``, ``total`` as ``name;dur=<ms>`` (total =
+  admission to encoded bytes). ``update`` is the time the method took to follow the
+  frame — rebuild, refit or selective rebuild, per the ``update`` setting — and equals
+  ``build`` (kept for clients that read it);
 - ``X-Session-Version`` (frames of a session), ``X-Method``, ``X-Stats``
   (compact JSON of the main BIH statistics), and ``Access-Control-Expose-Headers``.
 """
@@ -26,9 +29,9 @@ from PIL import Image
 from renderer.result import RenderResult
 
 MEDIA_TYPES = {"png": "image/png", "jpeg": "image/jpeg", "npy": "application/octet-stream"}
-TIMING_NAMES = ("queue", "build", "upload", "trace", "read", "encode", "total")
-STATS_HEADER_KEYS = ("method", "primitives", "inner_nodes", "leaves", "depth_max", "optimized_nodes",
-                     "forced_leaves", "build_ms")
+TIMING_NAMES = ("queue", "pose", "update", "build", "upload", "trace", "read", "encode", "total")
+STATS_HEADER_KEYS = ("method", "time", "scheme", "n_spheres", "primitives", "inner_nodes", "leaves", "depth_max",
+                     "optimized_nodes", "forced_leaves", "build_ms")
 EXPOSED = ("Server-Timing", "X-Session-Version", "X-Method", "X-Stats", "Retry-After")
 
 
@@ -91,7 +94,7 @@ FRAME_RESPONSE_DOC: dict[str, Any] = {
         "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
     },
     "headers": {
-        "Server-Timing": {"description": "queue, build, upload, trace, read, encode, total as name;dur=ms",
+        "Server-Timing": {"description": "queue, pose, update, build, upload, trace, read, encode, total as name;dur=ms",
                           "schema": {"type": "string"}},
         "X-Method": {"description": "acceleration method used", "schema": {"type": "string"}},
         "X-Stats": {"description": "compact JSON: method, primitives, inner_nodes, leaves, depth_max, …",

@@ -16,7 +16,8 @@ from pocketray_server_support import SMALL, new_session
 
 SESSION_KEYS = {"id", "version", "settings", "scene_info", "camera"}
 SETTING_KEYS = {"width", "height", "method", "mode", "max_prims", "max_tree_depth", "max_recursion_depth",
-                "format", "quality", "samples_per_pixel", "min_weight", "specialize", "tile_size"}
+                "format", "quality", "samples_per_pixel", "min_weight", "specialize", "tile_size", "time", "update",
+                "update_threshold"}
 
 
 def timing(header: str) -> dict[str, float]:
@@ -52,7 +53,8 @@ def test_create_from_scenario_and_read(client):
     assert s["version"] == 1
     assert set(s["settings"]) == SETTING_KEYS
     assert s["settings"]["width"] == SMALL["width"]
-    assert s["scene_info"] == {"n_spheres": 100, "n_planes": 1, "scenario": 3, "n": 100, "seed": 7, "radius": 0.5}
+    assert s["scene_info"] == {"n_spheres": 100, "n_planes": 1, "scenario": 3, "n": 100, "seed": 7, "radius": 0.5,
+                               "animated": False, "n_moving": 0, "museum": None}
     got = client.get(f"/api/sessions/{s['id']}").json()
     assert got["camera"] == {"position": [0.0, 0.0, 100.0], "target": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0],
                              "fov_y": 60.0}
@@ -293,3 +295,19 @@ def test_info_hands_out_the_measured_profiles(client):
     assert info["profiles"] == {"interactive": INTERACTIVE, "still": STILL}
     for name, profile in info["profiles"].items():  # each is a valid set of render settings
         RenderSettings(**{k: v for k, v in profile.items() if k != "resolution_scale"})
+
+
+def test_new_sessions_default_to_the_still_profile(tmp_path):
+    """Without default_render, a session's settings are RenderSettings' plus the measured 'still'
+    profile, and the default work cap admits it at the client's largest 'fit' frame."""
+    from renderer.profiles import STILL
+    from server.config import ServerConfig
+
+    config = ServerConfig(sqlite_path=tmp_path / "s.db")
+    d = config.default_settings()
+    for k in ("max_recursion_depth", "samples_per_pixel", "min_weight"):
+        assert d[k] == STILL[k], k
+    assert 1088 * 1088 * d["max_recursion_depth"] * d["samples_per_pixel"] <= config.max_work
+    # default_render still overrides the profile.
+    pinned = ServerConfig(sqlite_path=tmp_path / "t.db", default_render={"samples_per_pixel": 1})
+    assert pinned.default_settings()["samples_per_pixel"] == 1
