@@ -222,5 +222,10 @@ export function storeSession(session, storage = window.localStorage) {
 // Same scene? (the scene parameters that were asked for, against the session's scene_info)
 export function sameScene(wanted, info) {
   if (!info) return false;
+  if (wanted.scenario === 'museum' || info.museum) {
+    const m = info.museum;
+    return !!m && wanted.scenario === 'museum' && (wanted.n === undefined || Number(wanted.n) === m.n) &&
+      (wanted.seed === undefined || Number(wanted.seed) === m.seed) && (wanted.motion === undefined || wanted.motion === m.kind);
+  }
   return ['scenario', 'n', 'seed', 'radius'].every((k) => wanted[k] === undefined || Number(wanted[k]) === Number(info[k]));
 }

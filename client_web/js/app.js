@@ -26,6 +26,9 @@ const state = {
   render: null,                 // the session's full settings (from the server)
   client: { ...loadClientSettings(), ...url.client },
   methods: [...FALLBACK_METHODS],
+  // An animated scene's clock (seconds of scene time): frames are posed at `time`;
+  // while playing, time = time0 + wall-clock seconds since clock0.
+  anim: { animated: false, playing: false, time: 0, time0: 0, clock0: 0 },
 };
 
 // ---- test hook --------------------------------------------------------------------
@@ -97,16 +100,46 @@ const api = new Api({ onStatus });
 banner.querySelector('[data-retry]').addEventListener('click', () => api.retryNow());
 window.addEventListener('online', () => api.retryNow());
 
+// ---- the animation clock ---------------------------------------------------------------
+// The scene time of the next frame (ms resolution), kept in state.anim.time.
+function animTime() {
+  const a = state.anim;
+  if (a.playing) a.time = Math.round((a.time0 + (performance.now() - a.clock0) / 1000) * 1000) / 1000;
+  return a.time;
+}
+
+const playButton = $('#play-button');
+function setPlaying(playing) {
+  const a = state.anim;
+  if (playing && !a.animated) return;
+  if (playing && !a.playing) {
+    a.time0 = a.time;
+    a.clock0 = performance.now();
+  } else if (!playing && a.playing) {
+    animTime();
+  }
+  a.playing = playing;
+  playButton.setAttribute('aria-pressed', String(playing));
+  const label = playing ? 'Pause the animation' : 'Play the animation';
+  playButton.setAttribute('aria-label', label);
+  playButton.title = label;
+  playButton.querySelector('[data-icon="play"]').hidden = playing;
+  playButton.querySelector('[data-icon="pause"]').hidden = !playing;
+  if (playing && state.render) scheduler.animate();
+}
+playButton.addEventListener('click', () => setPlaying(!state.anim.playing));
+
 // ---- frames -------------------------------------------------------------------------
 function frameParams(level) {
   const r = state.render, c = state.client;
+  const timed = state.anim.animated ? { time: animTime() } : {};
   if (level === 'full') {
-    const p = { width: r.width, height: r.height, format: c.fullFormat };
+    const p = { width: r.width, height: r.height, format: c.fullFormat, ...timed };
     if (c.fullFormat === 'jpeg') p.quality = c.fullQuality;
     return p;
   }
   const { width, height } = previewSize(r.width, r.height, c.previewScale);
-  const p = { width, height, format: c.previewFormat };
+  const p = { width, height, format: c.previewFormat, ...timed };
   if (c.previewFormat === 'jpeg') p.quality = c.previewQuality;
   // The service's measured "interactive" profile (GET /api/info): cheaper rays while the finger moves.
   const fast = state.profiles && state.profiles.interactive;
@@ -158,6 +191,7 @@ const transport = {
   },
   async frame(level) {
     if (deviceMode()) {
+      if (state.anim.animated) animTime();   // the device's data is posed at state.anim.time
       try {
         return await device.frame(level);
       } catch (e) {
@@ -194,12 +228,17 @@ async function display(frame, level) {
   };
   hook.log.push({ level, width: canvas.width, height: canvas.height, contentType: frame.contentType, version: frame.version, renderer });
   if (hook.log.length > 100) hook.log.shift();
-  canvas.setAttribute('aria-label',
-    `Ray-traced scene: scenario ${state.scene.scenario}, ${state.scene.n} spheres, ${state.render.mode} mode`);
+  const shownTime = frame.stats && Number.isFinite(frame.stats.time) ? frame.stats.time : null;
+  hook.lastFrame.time = shownTime;
+  canvas.setAttribute('aria-label', state.scene.scenario === 'museum'
+    ? `Ray-traced animated museum: ${state.scene.n} moving spheres (${state.scene.motion}), ${state.render.mode} mode`
+    : `Ray-traced scene: scenario ${state.scene.scenario}, ${state.scene.n} spheres, ${state.render.mode} mode`);
   overlay.frame({
     level, width: canvas.width, height: canvas.height, clientMs, timing: frame.timing, stats: frame.stats,
-    method: frame.method, n: state.scene.n_spheres ?? state.scene.n, version: frame.version, renderedBy,
+    method: frame.method, n: frame.stats?.n_spheres ?? state.scene.n_spheres ?? state.scene.n, version: frame.version,
+    renderedBy, time: state.anim.animated ? shownTime : null, playing: state.anim.playing,
   });
+  if (state.anim.playing) scheduler.animate();   // the next frame as soon as this one is shown
 }
 
 const scheduler = new FrameScheduler({
@@ -220,12 +259,21 @@ function adopt(s) {
   state.sessionId = s.id;
   hook.sessionId = s.id;
   const info = s.scene_info || {};
+  const museum = info.museum || null;
   state.scene = {
-    scenario: info.scenario ?? state.scene.scenario, n: info.n ?? info.n_spheres ?? state.scene.n,
-    seed: info.seed ?? state.scene.seed, radius: info.radius ?? state.scene.radius, n_spheres: info.n_spheres,
+    scenario: museum ? 'museum' : info.scenario ?? state.scene.scenario,
+    n: museum ? museum.n : info.n ?? info.n_spheres ?? state.scene.n,
+    seed: museum ? museum.seed : info.seed ?? state.scene.seed, radius: info.radius ?? state.scene.radius,
+    motion: museum ? museum.kind : state.scene.motion, n_spheres: info.n_spheres, animated: !!info.animated,
   };
   state.render = pickRender(s.settings);
-  storeSession({ id: s.id, scene: { scenario: state.scene.scenario, n: state.scene.n, seed: state.scene.seed, radius: state.scene.radius } });
+  const anim = state.anim;
+  if (anim.animated !== !!info.animated || !info.animated) setPlaying(false);
+  anim.animated = !!info.animated;
+  anim.time = Number.isFinite(s.settings?.time) ? s.settings.time : 0;
+  playButton.hidden = !anim.animated;
+  document.querySelector('[data-animated]').hidden = !anim.animated;
+  storeSession({ id: s.id, scene: sceneBodyKeys(state.scene) });
   scheduler.resetVersions();
   panel.show(state);
 }
@@ -236,7 +284,18 @@ function pickRender(settings) {
   return r;
 }
 
+// What identifies a scene the client can ask for again (kept with the session in localStorage).
+function sceneBodyKeys(scene) {
+  const k = { scenario: scene.scenario, n: scene.n, seed: scene.seed, radius: scene.radius };
+  if (scene.scenario === 'museum') k.motion = scene.motion;
+  return k;
+}
+
+// POST /api/sessions body: a thesis scenario or the animated museum.
 function sceneBody(scene) {
+  if (scene.scenario === 'museum') {
+    return { museum: { n: scene.n, kind: scene.motion || 'deformable', seed: scene.seed || 0 } };
+  }
   return { scenario: scene.scenario, n: scene.n, seed: scene.seed, radius: scene.radius };
 }
 

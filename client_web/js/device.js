@@ -439,8 +439,10 @@ export class DeviceView {
 
   _dataKey(s, params) {
     const r = { ...s.render, ...params };
+    // An animated scene's data is posed by the server at the frame's time: a new time is new data.
+    const t = params.time ?? (s.anim && s.anim.animated ? s.anim.time : '');
     return [params.session ?? s.sessionId, r.method, r.mode, r.max_prims, r.max_tree_depth, r.max_recursion_depth,
-      params.max_texture_size ?? this.renderer.maxTextureSize].join('|');
+      params.max_texture_size ?? this.renderer.maxTextureSize, t].join('|');
   }
 
   // Fetch (when the key changed), upload and compile. `params` override the session's settings.
@@ -461,6 +463,8 @@ export class DeviceView {
         const v = params[k] ?? s.render[k];
         if (v !== undefined && v !== null) q[k] = v;
       }
+      const t = params.time ?? (s.anim && s.anim.animated ? s.anim.time : undefined);
+      if (t !== undefined) q.time = t;
       const res = await this.api.request('GET', `/api/sessions/${encodeURIComponent(session)}/device-data`, { params: q });
       const parsed = parseDeviceData(await res.arrayBuffer());
       const t1 = performance.now();

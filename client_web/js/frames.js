@@ -9,6 +9,9 @@
 //  - While the finger moves, frames come at the *preview* level (reduced
 //    resolution, jpeg); `refineDelayMs` after the last gesture one *full* frame
 //    (full resolution, png) replaces it.
+//  - While an animation plays, `animate()` asks for its next frame at the preview
+//    level (gestures still go first); the full frame follows `refineDelayMs`
+//    after the last one, when the animation is paused.
 //  - A frame is shown only when it is newer than the one on screen: a higher
 //    request sequence number and a session version not lower than the shown one.
 //
@@ -64,6 +67,7 @@ export class FrameScheduler {
     this.pending = null;        // merged gestures not yet sent
     this.tasks = [];            // queued exclusive jobs (settings, sessions)
     this.needFull = false;      // a full frame is due
+    this.needAnimation = false; // the next frame of a playing animation is due
     this.inFlight = false;
     this.refineTimer = null;
     this.lastGestureAt = -Infinity;
@@ -77,7 +81,8 @@ export class FrameScheduler {
   }
 
   get idle() {
-    return !this.inFlight && !this.pending && this.tasks.length === 0 && !this.needFull && this.refineTimer === null;
+    return !this.inFlight && !this.pending && this.tasks.length === 0 && !this.needFull && !this.needAnimation &&
+      this.refineTimer === null;
   }
 
   // A gesture from the user: {type: 'pan', dx, dy} | {type: 'pinch', scale} | {type: 'reset'}.
@@ -92,6 +97,14 @@ export class FrameScheduler {
   // The image on screen is out of date (settings changed, new session): render a full frame.
   invalidate() {
     this.needFull = true;
+    this._cancelRefine();
+    this._pump();
+  }
+
+  // A playing animation's next frame is due (preview level; the scene moved, not the camera).
+  animate() {
+    this.needAnimation = true;
+    this.lastGestureAt = this.timers.now();
     this._cancelRefine();
     this._pump();
   }
@@ -191,7 +204,23 @@ export class FrameScheduler {
       } finally {
         this.inFlight = false;
       }
-      if (!this.pending) this._scheduleRefine();
+      if (!this.pending && !this.needAnimation) this._scheduleRefine();
+      return this._pump();
+    }
+    if (this.needAnimation) {
+      this.needAnimation = false;
+      this.inFlight = true;
+      const seq = ++this.seq;
+      try {
+        this.requests++;
+        const frame = await this.transport.frame('preview');
+        await this._offer(frame, seq, 'preview');
+      } catch (e) {
+        this.onError(e, 'frame');
+      } finally {
+        this.inFlight = false;
+      }
+      if (!this.pending && !this.needAnimation) this._scheduleRefine();
       return this._pump();
     }
     if (this.needFull) {

@@ -1,5 +1,5 @@
 // The statistics overlay: frames/s, time to image (client total and the
-// server's build / upload / trace / encode from Server-Timing), BIH nodes and
+// server's update (build) / upload / trace / encode from Server-Timing), BIH nodes and
 // depth, method, n. The user can hide it; the choice is remembered.
 
 const HIDDEN_KEY = 'pocketray.overlayHidden';
@@ -62,7 +62,8 @@ export class Overlay {
     return f == null ? '–' : f.toFixed(1);
   }
 
-  // info: {level, width, height, clientMs, timing: {build, upload, trace, encode, total}, stats, method, n, version,
+  // info: {level, width, height, clientMs, timing: {update, build, upload, trace, encode, total}, stats, method, n,
+  //        version, time (an animation's scene time, s, or null), playing,
   //        renderedBy: 'server (<GL renderer>)' | 'device (WebGL2 <renderer>)'}
   frame(info) {
     this.meter.tick(performance.now());
@@ -70,7 +71,7 @@ export class Overlay {
     const s = info.stats || {};
     this._set('fps', this._fpsText());
     this._set('time', `${fmtMs(info.clientMs)} ms`);
-    this._set('build', fmtMs(t.build));
+    this._set('build', fmtMs(t.update ?? t.build));   // rebuild, refit or selective rebuild: the method's update
     this._set('upload', fmtMs(t.upload));
     this._set('trace', fmtMs(t.trace));
     this._set('encode', fmtMs(t.encode));
@@ -86,6 +87,7 @@ export class Overlay {
     this._set('n', info.n != null ? String(info.n) : '–');
     this._set('res', `${info.width}×${info.height} ${info.level === 'full' ? 'full' : 'preview'}`);
     this._set('version', info.version != null ? String(info.version) : '–');
+    this._set('anim', info.time != null ? `${info.time.toFixed(2)} s${info.playing ? ' ▶' : ''}` : '–');
     const by = info.renderedBy || '–';   // long GPU names are cut here; the whole one is the title
     this._set('renderer', by.length > 34 ? `${by.slice(0, 33)}…)` : by);
     if (this.fields.renderer) this.fields.renderer.title = by;

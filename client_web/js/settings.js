@@ -21,6 +21,20 @@ export const SCENARIOS = Object.freeze([
   { value: 1, label: '1 — grid' },
   { value: 2, label: '2 — eight corner clusters' },
   { value: 3, label: '3 — half grid, half clusters' },
+  { value: 'museum', label: 'Museum — animated (Reiter)' },
+]);
+// Motions of the animated museum (POST /api/sessions {museum: {n, kind}}); GET /api/info lists them too.
+export const MUSEUM_KINDS = Object.freeze([
+  { value: 'deformable', label: 'Deformable (a travelling wave)' },
+  { value: 'rigid', label: 'Rigid groups' },
+  { value: 'incoherent', label: 'Incoherent (spheres appear and vanish)' },
+  { value: 'mixed', label: 'Mixed (a third each)' },
+]);
+// How bvh and twolevel follow an animation from one frame to the next (Reiter §3).
+export const UPDATE_SCHEMES = Object.freeze([
+  { value: 'rebuild', label: 'Rebuild every frame (thesis)' },
+  { value: 'refit', label: 'Refit the tree' },
+  { value: 'selective', label: 'Selective rebuild (+30 %)' },
 ]);
 export const RESOLUTIONS = Object.freeze([
   { value: 'fit', label: 'Fit the screen' },
@@ -36,7 +50,7 @@ export const PREVIEW_SCALES = Object.freeze([
   { value: 0.25, label: '¼' },
 ]);
 
-export const DEFAULT_SCENE = Object.freeze({ scenario: 1, n: 512, seed: 1, radius: 1 });
+export const DEFAULT_SCENE = Object.freeze({ scenario: 1, n: 512, seed: 1, radius: 1, motion: 'deformable' });
 export const DEFAULT_CLIENT = Object.freeze({
   resolution: 'fit',       // 'fit' | 'WxH' | 'custom'
   previewScale: 0.5,       // preview resolution = full × this, while a gesture goes on
@@ -48,7 +62,8 @@ export const DEFAULT_CLIENT = Object.freeze({
   maxFitSide: 1088,        // 'fit': the long side at most this many pixels
   renderer: 'server',      // 'server' | 'device' (the same tracer in WebGL2, issue #10)
 });
-export const RENDER_KEYS = Object.freeze(['method', 'mode', 'max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height']);
+export const RENDER_KEYS = Object.freeze(['method', 'mode', 'max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height',
+  'update']);
 const INT_KEYS = new Set(['scenario', 'n', 'seed', 'max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height']);
 
 const CLIENT_KEY = 'pocketray.client';
@@ -73,6 +88,9 @@ export function readUrlParams(search) {
   const scene = {}, render = {}, client = {};
   const num = (k) => (INT_KEYS.has(k) ? parseInt(q.get(k), 10) : parseFloat(q.get(k)));
   for (const k of ['scenario', 'n', 'seed', 'radius']) if (q.has(k) && Number.isFinite(num(k))) scene[k] = num(k);
+  if (q.get('scenario') === 'museum') scene.scenario = 'museum';
+  if (MUSEUM_KINDS.some((m) => m.value === q.get('motion'))) scene.motion = q.get('motion');
+  if (UPDATE_SCHEMES.some((m) => m.value === q.get('update'))) render.update = q.get('update');
   for (const k of ['max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height']) {
     if (q.has(k) && Number.isFinite(num(k))) render[k] = num(k);
   }
@@ -127,6 +145,8 @@ export class SettingsPanel {
     this.form = root.querySelector('form');
     this.el = (name) => this.form.elements.namedItem(name);
     fillSelect(this.el('scenario'), SCENARIOS);
+    fillSelect(this.el('motion'), MUSEUM_KINDS);
+    fillSelect(this.el('update'), UPDATE_SCHEMES);
     fillSelect(this.el('method'), FALLBACK_METHODS, (m) => METHOD_LABELS[m] || m);
     fillSelect(this.el('mode'), MODES, (m) => MODE_LABELS[m] || m);
     fillSelect(this.el('resolution'), RESOLUTIONS);
@@ -172,8 +192,9 @@ export class SettingsPanel {
       const el = this.el(name);
       if (el && v !== undefined && v !== null && document.activeElement !== el) el.value = String(v);
     };
-    for (const k of ['scenario', 'n', 'seed', 'radius']) set(k, scene[k]);
-    for (const k of ['method', 'mode', 'max_prims', 'max_tree_depth', 'max_recursion_depth']) set(k, render[k]);
+    for (const k of ['scenario', 'n', 'seed', 'radius', 'motion']) set(k, scene[k]);
+    this._museumVisible();
+    for (const k of ['method', 'mode', 'max_prims', 'max_tree_depth', 'max_recursion_depth', 'update']) set(k, render[k]);
     const known = RESOLUTIONS.some((r) => r.value === client.resolution);
     set('resolution', known ? client.resolution : 'custom');
     set('width', render.width);
@@ -193,6 +214,11 @@ export class SettingsPanel {
     set('renderer', client.renderer);
   }
 
+  _museumVisible() {
+    const museum = this.el('scenario').value === 'museum';
+    for (const el of this.root.querySelectorAll('[data-museum]')) el.hidden = !museum;
+  }
+
   _customVisible() {
     const custom = this.el('resolution').value === 'custom';
     for (const el of this.root.querySelectorAll('[data-custom-resolution]')) el.hidden = !custom;
@@ -206,13 +232,14 @@ export class SettingsPanel {
     }
     const v = target.value;
     const int = () => parseInt(v, 10);
-    if (['scenario', 'n', 'seed', 'radius'].includes(name)) {
+    if (['scenario', 'n', 'seed', 'radius', 'motion'].includes(name)) {
       const f = this.form.elements;
+      this._museumVisible();
       this.cb.onScene({
-        scenario: parseInt(f.scenario.value, 10), n: parseInt(f.n.value, 10),
-        seed: parseInt(f.seed.value, 10), radius: parseFloat(f.radius.value),
+        scenario: f.scenario.value === 'museum' ? 'museum' : parseInt(f.scenario.value, 10), n: parseInt(f.n.value, 10),
+        seed: parseInt(f.seed.value, 10), radius: parseFloat(f.radius.value), motion: f.motion.value,
       });
-    } else if (['method', 'mode'].includes(name)) {
+    } else if (['method', 'mode', 'update'].includes(name)) {
       this.cb.onRender({ [name]: v });
     } else if (['max_prims', 'max_tree_depth', 'max_recursion_depth'].includes(name)) {
       this.cb.onRender({ [name]: int() });

@@ -61,7 +61,10 @@ class Server:
 
     def start(self) -> None:
         env = {**os.environ, "POCKETRAY_PORT": str(self.port), "POCKETRAY_HOST": "127.0.0.1",
-               "POCKETRAY_SQLITE_PATH": str(self.tmp / "s.db"), "POCKETRAY_LOG_LEVEL": "warning"}
+               "POCKETRAY_SQLITE_PATH": str(self.tmp / "s.db"), "POCKETRAY_LOG_LEVEL": "warning",
+               # One sample, no cut-off: the client's frames stay comparable with the device's and cheap
+               # (the service's own default is the 'still' profile, tested in tests/server).
+               "POCKETRAY_DEFAULT_RENDER": '{"samples_per_pixel": 1, "min_weight": 0.0}'}
         log = open(self.log_path, "ab")
         self.proc = subprocess.Popen([_python(), "-m", "server"], cwd=REPO, env=env,
                                      stdout=log, stderr=subprocess.STDOUT)
