@@ -246,6 +246,7 @@ const scheduler = new FrameScheduler({
   display,
   refineDelayMs: state.client.refineDelayMs,
   onError(e, what) {
+    if (state.anim.playing && what !== 'gesture') setPlaying(false);   // a failed frame stops the animation
     if (e instanceof ApiError && e.status === 404 && state.sessionId) {  // the session expired
       replaceExpiredSession();
       return;
