@@ -181,20 +181,26 @@ def machine_info() -> dict[str, str]:
 
 
 def revision() -> str:
-    """The checked-out commit, read from .git without running git."""
+    """The checked-out commit, read from .git without running git (a worktree's .git is a
+    file naming its git directory; branches may live in the common directory's refs)."""
     try:
-        head = (ROOT / ".git" / "HEAD").read_text().strip()
+        git = ROOT / ".git"
+        if git.is_file():                                   # a linked worktree
+            git = (ROOT / git.read_text().split("gitdir:", 1)[1].strip()).resolve()
+        common = (git / (git / "commondir").read_text().strip()).resolve() if (git / "commondir").exists() else git
+        head = (git / "HEAD").read_text().strip()
         if head.startswith("ref: "):
-            ref = ROOT / ".git" / head[5:]
-            if ref.exists():
-                return ref.read_text().strip()[:12]
-            packed = ROOT / ".git" / "packed-refs"
+            for base in (git, common):
+                ref = base / head[5:]
+                if ref.exists():
+                    return ref.read_text().strip()[:12]
+            packed = common / "packed-refs"
             for line in packed.read_text().splitlines() if packed.exists() else []:
                 if line.endswith(head[5:]):
                     return line.split()[0][:12]
             return "unknown"
         return head[:12]
-    except OSError:
+    except (OSError, IndexError):
         return "unknown"
 
 
