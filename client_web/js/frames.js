@@ -169,6 +169,21 @@ export class FrameScheduler {
     return true;
   }
 
+  // One frame at `level` (transport.frame), shown if it is still the newest.
+  async _frame(level) {
+    this.inFlight = true;
+    const seq = ++this.seq;
+    try {
+      this.requests++;
+      const frame = await this.transport.frame(level);
+      await this._offer(frame, seq, level);
+    } catch (e) {
+      this.onError(e, 'frame');
+    } finally {
+      this.inFlight = false;
+    }
+  }
+
   async _pump() {
     if (this.inFlight || this.paused) return;
     if (this.tasks.length) {
@@ -209,33 +224,13 @@ export class FrameScheduler {
     }
     if (this.needAnimation) {
       this.needAnimation = false;
-      this.inFlight = true;
-      const seq = ++this.seq;
-      try {
-        this.requests++;
-        const frame = await this.transport.frame('preview');
-        await this._offer(frame, seq, 'preview');
-      } catch (e) {
-        this.onError(e, 'frame');
-      } finally {
-        this.inFlight = false;
-      }
+      await this._frame('preview');
       if (!this.pending && !this.needAnimation) this._scheduleRefine();
       return this._pump();
     }
     if (this.needFull) {
       this.needFull = false;
-      this.inFlight = true;
-      const seq = ++this.seq;
-      try {
-        this.requests++;
-        const frame = await this.transport.frame('full');
-        await this._offer(frame, seq, 'full');
-      } catch (e) {
-        this.onError(e, 'frame');
-      } finally {
-        this.inFlight = false;
-      }
+      await this._frame('full');
       return this._pump();
     }
     if (this.idle) this.onIdle();

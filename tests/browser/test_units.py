@@ -96,6 +96,24 @@ async () => {
     sch.gesture({type: 'pinch', scale: 2});
     release(); await tick(); await t; await tick();
     eq('task between gestures', [order, calls[calls.length - 1]], [['task'], ['gesture', {type: 'pinch', scale: 2}, 'preview']]);
+    // Animation: animate() asks for preview frames one at a time; no refine while it plays; the
+    // full frame comes refineDelayMs after the last animation frame.
+    release(); await tick(); await tick();
+    timers = [];
+    const before = calls.length;
+    sch.animate();
+    sch.animate();                                    // already due: still one request
+    eq('animation frame at the preview level', [calls.length - before, calls[calls.length - 1]], [1, ['frame', 'preview']]);
+    sch.animate();                                    // the next one is due while this is in flight
+    release(); await tick(); await tick();
+    eq('next animation frame follows, no refine meanwhile', [calls.length - before, calls[calls.length - 1], timers.length],
+       [2, ['frame', 'preview'], 0]);
+    release(); await tick(); await tick();
+    eq('paused: the refine is scheduled', timers.length, 1);
+    now += 200; runTimers(); await tick();
+    eq('full frame after the last animation frame', calls[calls.length - 1], ['frame', 'full']);
+    release(); await tick(); await tick();
+    eq('idle after the animation', sch.idle, true);
   }
 
   // --- api helpers ---
@@ -127,6 +145,12 @@ async () => {
   const u = s.readUrlParams('?scenario=2&n=128&width=320&height=544&preview_scale=0.25&mode=heat');
   eq('url params', u, {scene: {scenario: 2, n: 128}, render: {width: 320, height: 544, mode: 'heat'},
                        client: {resolution: '320x544', previewScale: 0.25}});
+  const m = s.readUrlParams('?scenario=museum&n=256&motion=rigid&update=refit');
+  eq('museum url params', [m.scene, m.render], [{n: 256, scenario: 'museum', motion: 'rigid'}, {update: 'refit'}]);
+  const museumInfo = {n_spheres: 832, museum: {n: 256, kind: 'rigid', seed: 0, absent: 0.2}, animated: true};
+  out['same museum'] = a.sameScene({scenario: 'museum', n: 256, motion: 'rigid'}, museumInfo) &&
+    !a.sameScene({scenario: 'museum', n: 256, motion: 'deformable'}, museumInfo) &&
+    !a.sameScene({scenario: 1, n: 256}, museumInfo) && !a.sameScene({scenario: 'museum', n: 256}, {scenario: 1, n: 256});
   return out;
 }
 """
