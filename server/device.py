@@ -296,8 +296,9 @@ def device_data(
         "format": "pocketray-device-data", "format_version": FORMAT_VERSION,
         "session": {"id": state.id, "version": state.version, "scene_rev": state.scene_rev},
         "method": method_name,
-        "settings": {k: settings[k] for k in ("mode", "max_prims", "max_tree_depth", "max_recursion_depth", "time",
-                                              "width", "height")},
+        "settings": {**{k: settings[k] for k in ("mode", "max_prims", "max_tree_depth", "max_recursion_depth",
+                                                 "width", "height")},
+                     "time": settings.get("time", 0.0)},   # sessions stored before animation have no time
         "shader": {"method": method_name, "mode": settings["mode"], "max_recursion_depth": depth,
                    "features": list(defines), "url": shader_url(method_name, settings["mode"], depth, defines)},
         "max_texture_size": width,

@@ -385,7 +385,7 @@ class SessionService:
         method_name = resolve_method(settings["method"], state.scene_info.get("n_spheres", 0))
         scene = self.scene(state)
         key = StatsKey(state.id, state.scene_rev, method_name, settings["max_prims"], settings["max_tree_depth"],
-                       self._pose_time(scene, settings["time"]))
+                       self._pose_time(scene, settings.get("time", 0.0)))
         with self._stats_lock:
             cached = self._stats.get(key)
         if cached is not None:

@@ -173,3 +173,20 @@ def test_stats_and_device_data_pose_the_scene(ready_client):
     header, _ = decode_blob(r.content)
     assert header["settings"]["time"] == 1.7
     assert header["stats"]["primitives"] == pose(museum(32, "incoherent", seed=2), 1.7).scene.n_spheres
+
+
+def test_sessions_stored_before_animation_still_work(ready_client):
+    """A session whose stored settings predate time/update (an older process wrote it) renders,
+    builds statistics and packs device data with the defaults."""
+    import dataclasses
+
+    c = ready_client
+    sid = c.post("/api/sessions", json={"scenario": 1, "n": 8, "settings": SMALL}).json()["id"]
+    new_keys = ("time", "update", "update_threshold")
+    c.app.state.service.store.update(sid, lambda old: dataclasses.replace(
+        old, settings={k: v for k, v in old.settings.items() if k not in new_keys}))
+    s = c.get(f"/api/sessions/{sid}").json()["settings"]
+    assert (s["time"], s["update"]) == (0.0, "rebuild")
+    assert c.get(f"/api/sessions/{sid}/stats").status_code == 200
+    assert c.get(f"/api/sessions/{sid}/device-data").status_code == 200
+    assert c.get(f"/api/sessions/{sid}/frame", params={"format": "npy"}).status_code == 200
