@@ -381,6 +381,9 @@ def museum_static(seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(out_c), np.concatenate(out_r)
 
 
+MUSEUM_ROOM_SPHERES = len(museum_static()[0])   # 576
+
+
 def museum(n_moving: int, kind: str = "deformable", seed: int = 0, absent: float = 0.2) -> AnimatedScene:
     """A BART-Museum-like scene: ``n_moving`` animated spheres (a sculpture in a ball of
     radius 8 above the floor's centre) in a static room of 576 spheres and the floor plane.

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import time
 from pathlib import Path
+from typing import Hashable
 
 import moderngl
 import numpy as np
@@ -134,7 +135,7 @@ class GLRenderer:
             if name in prog:
                 prog[name].value = value
 
-    def render(self, scene: Scene | AnimatedScene, settings: RenderSettings, *, key=None,
+    def render(self, scene: Scene | AnimatedScene, settings: RenderSettings, *, key: Hashable | None = None,
                prepared: PreparedMethod | None = None) -> RenderResult:
         """Trace one frame. Timings in ms: build, upload, trace, read, total.
 
@@ -214,8 +215,9 @@ class GLRenderer:
         depth_t = np.where(primid >= 0, hit[..., 3], np.float32(np.inf)).astype(np.float32)
         t_end = time.perf_counter()
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
-        timings = {"build": prepared.build_ms, "update": prepared.build_ms, "upload": ms(t_built, t_uploaded), "trace": ms(t_uploaded, t_traced),
-                   "read": ms(t_traced, t_end), "total": ms(t_start, t_end)}
+        # "update" is the method's build or update (rebuild, refit, selective): the same time as "build".
+        timings = {"build": prepared.build_ms, "update": prepared.build_ms, "upload": ms(t_built, t_uploaded),
+                   "trace": ms(t_uploaded, t_traced), "read": ms(t_traced, t_end), "total": ms(t_start, t_end)}
         stats = {**prepared.stats, "method": method_name, "recursion_depth": depth,
                  "features_removed": list(features.defines()), "n_spheres": scene.n_spheres}
         return RenderResult(image=np.ascontiguousarray(colour, dtype=np.float32), depth=depth_t, primid=primid,

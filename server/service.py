@@ -21,7 +21,7 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import replace
 from typing import Any, Iterable, NamedTuple
 
-from renderer.animation import AnimatedScene, museum, pose
+from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum, pose
 from renderer.methods import METHODS, resolve_method
 from renderer.scenarios import scenario
 from renderer.scene import Camera, Scene, SceneError
@@ -166,7 +166,7 @@ class SessionService:
                                               f"or a scene, not {' and '.join(sources)}")
         if body.museum is not None:
             m = body.museum
-            self.check_spheres(m.n + 1024, ("body", "museum", "n"))
+            self.check_spheres(m.n + MUSEUM_ROOM_SPHERES, ("body", "museum", "n"))
             scene = museum(m.n, m.kind, m.seed, m.absent)
             recipe = {"museum": m.model_dump()}
             source = museum_source(m.n, m.kind, m.seed, m.absent)
