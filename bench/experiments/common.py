@@ -98,12 +98,13 @@ class Stat:
         return {"median": self.median, "min": self.lo, "max": self.hi, "samples": self.samples}
 
 
-def measure(fn: Callable[[], Any], runs: int, warmup: int = 1, budget_s: float | None = None
-            ) -> tuple[Stat, Any]:
+def measure(fn: Callable[[], Any], runs: int, warmup: int = 1, budget_s: float | None = None,
+            on_result: Callable[[Any], None] | None = None) -> tuple[Stat, Any]:
     """Wall time of ``fn`` in ms over ``runs`` calls after ``warmup`` untimed ones.
 
     With ``budget_s`` the runs stop early once that much time was spent timing
     (at least one run is always kept): the number of runs is ``Stat.runs``.
+    ``on_result`` sees the result of every timed call, outside the timed interval.
     """
     last = None
     for _ in range(warmup):
@@ -115,10 +116,31 @@ def measure(fn: Callable[[], Any], runs: int, warmup: int = 1, budget_s: float |
         last = fn()
         dt = time.perf_counter() - t0
         samples.append(dt * 1e3)
+        if on_result is not None:
+            on_result(last)
         spent += dt
         if budget_s is not None and spent > budget_s:
             break
     return Stat(samples), last
+
+
+def crossover_n(ns: Sequence[int], ours: Sequence[float], theirs: Sequence[float]) -> tuple[float, int]:
+    """The n from which ``ours`` < ``theirs`` at every larger measured n: ``(n, i)``.
+
+    ``i`` is the first index of the final run where ours is smaller; n interpolates
+    log(ours / theirs) = 0 between ``ns[i-1]`` and ``ns[i]`` in log n. ``i = 0``: ours is
+    smaller everywhere (n = ns[0]); ``i = len(ns)``: not at the largest n (n = inf).
+    """
+    faster = [a < b for a, b in zip(ours, theirs)]
+    if all(faster):
+        return float(ns[0]), 0
+    if not faster[-1]:
+        return math.inf, len(ns)
+    i = max(k for k, ok in enumerate(faster) if not ok) + 1
+    r0, r1 = math.log(ours[i - 1] / theirs[i - 1]), math.log(ours[i] / theirs[i])
+    x0, x1 = math.log(ns[i - 1]), math.log(ns[i])
+    x = x0 + (x1 - x0) * r0 / (r0 - r1) if r0 != r1 else x1
+    return math.exp(x), i
 
 
 @dataclasses.dataclass
@@ -362,26 +384,17 @@ class Context:
             res = r.render(scene, settings)
             return post(res) if post else res
 
-        last = None
-        for i in range(warmup):
+        if warmup > 0:  # the first warm-up frame is timed on its own: it compiles new variants
             t0 = time.perf_counter()
-            last = frame()
-            if i == 0:
-                first = (time.perf_counter() - t0) * 1e3
-        samples: list[float] = []
-        spent = 0.0
-        for _ in range(max(1, runs)):
-            t0 = time.perf_counter()
-            last = frame()
-            dt = time.perf_counter() - t0
-            samples.append(dt * 1e3)
+            frame()
+            first = (time.perf_counter() - t0) * 1e3
+
+        def record(last: Any) -> None:
             res = last[0] if isinstance(last, tuple) else last
             for k, v in getattr(res, "timings", {}).items():
                 stages.setdefault(k, []).append(float(v))
-            spent += dt
-            if budget_s is not None and spent > budget_s:
-                break
-        return RenderTiming(Stat(samples), {k: Stat(v) for k, v in stages.items()}, last, first)
+        total, last = measure(frame, runs, warmup=max(0, warmup - 1), budget_s=budget_s, on_result=record)
+        return RenderTiming(total, {k: Stat(v) for k, v in stages.items()}, last, first)
 
 
 def _json_default(o: Any) -> Any:

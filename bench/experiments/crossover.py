@@ -15,7 +15,7 @@ import math
 from renderer import methods as _methods
 from renderer.scenarios import scenario
 
-from .common import Context, default_settings, log_axis, md_table, method_names, plt
+from .common import Context, crossover_n, default_settings, log_axis, md_table, method_names, plt
 
 NAME = "crossover"
 TITLE = "Crossover — where brute force beats the BIH"
@@ -29,18 +29,11 @@ SIZE_QUICK = (64, 108)
 
 def crossover(ns, bf, bih) -> tuple[float, str]:
     """(n, text): the n from which the BIH is faster than brute force for every larger measured n."""
-    faster = [b < f for f, b in zip(bf, bih)]
-    if all(faster):
-        return ns[0], f"≤ {ns[0]:,} (the BIH is faster at every n measured)"
-    if not faster[-1]:
-        return math.inf, f"> {ns[-1]:,} (brute force is faster up to the largest n measured)"
-    i = max(k for k, ok in enumerate(faster) if not ok) + 1   # first index of the final all-faster run
-    # Interpolate log(bih / bf) = 0 between ns[i-1] and ns[i] in log n.
-    r0 = math.log(bih[i - 1] / bf[i - 1])
-    r1 = math.log(bih[i] / bf[i])
-    x0, x1 = math.log(ns[i - 1]), math.log(ns[i])
-    x = x0 + (x1 - x0) * r0 / (r0 - r1) if r0 != r1 else x1
-    n = math.exp(x)
+    n, i = crossover_n(ns, bih, bf)
+    if i == 0:
+        return n, f"≤ {ns[0]:,} (the BIH is faster at every n measured)"
+    if i == len(ns):
+        return n, f"> {ns[-1]:,} (brute force is faster up to the largest n measured)"
     return n, f"≈ {n:.1f} (between {ns[i - 1]:,} and {ns[i]:,})"
 
 

@@ -21,7 +21,6 @@ Standalone: ``python bench/experiments/dynamic.py [--quick] [--out DIR]``.
 from __future__ import annotations
 
 import dataclasses
-import math
 import sys
 import time
 from pathlib import Path
@@ -31,7 +30,7 @@ if __name__ == "__main__":  # standalone: make the repository root importable
 
 import numpy as np  # noqa: E402
 
-from bench.experiments.common import Context, Stat, log_axis, md_table, plt  # noqa: E402
+from bench.experiments.common import Context, Stat, crossover_n, log_axis, md_table, plt  # noqa: E402
 from renderer.animation import AnimatedScene, museum, pose  # noqa: E402
 from renderer.bih import sphere_aabbs  # noqa: E402
 from renderer.kdtree import build_kdtree  # noqa: E402
@@ -93,18 +92,14 @@ def play(ctx: Context, anim: AnimatedScene, method: str, scheme: str, frames: in
             "sah": sah, "frames": len(upd)}
 
 
-def crossover_n(ns, ours, theirs) -> tuple[float, str]:
-    """The n from which ``ours`` < ``theirs`` at every larger measured n (interpolated in log n)."""
-    faster = [a < b for a, b in zip(ours, theirs)]
-    if all(faster):
-        return ns[0], f"≤ {ns[0]:,}"
-    if not faster[-1]:
-        return math.inf, f"> {ns[-1]:,} (never within the measured n)"
-    i = max(k for k, ok in enumerate(faster) if not ok) + 1
-    r0, r1 = math.log(ours[i - 1] / theirs[i - 1]), math.log(ours[i] / theirs[i])
-    x0, x1 = math.log(ns[i - 1]), math.log(ns[i])
-    x = x0 + (x1 - x0) * r0 / (r0 - r1) if r0 != r1 else x1
-    return math.exp(x), f"≈ {math.exp(x):,.0f}"
+def crossover_text(ns, ours, theirs) -> str:
+    """Where ``ours`` < ``theirs`` at every larger measured n (common.crossover_n), as table text."""
+    n, i = crossover_n(ns, ours, theirs)
+    if i == 0:
+        return f"≤ {ns[0]:,}"
+    if i == len(ns):
+        return f"> {ns[-1]:,} (never within the measured n)"
+    return f"≈ {n:,.0f}"
 
 
 def fig_5_11(ctx: Context) -> tuple[str, dict]:
@@ -153,7 +148,7 @@ def fig_5_11(ctx: Context) -> tuple[str, dict]:
         bih = [data[(kind, n, SCHEMES[0][0])]["frame_ms"] for n in ns]
         cells = [KIND_TEXT[kind]]
         for label in (SCHEMES[2][0], SCHEMES[3][0]):
-            _, txt = crossover_n(ns, [data[(kind, n, label)]["frame_ms"] for n in ns], bih)
+            txt = crossover_text(ns, [data[(kind, n, label)]["frame_ms"] for n in ns], bih)
             cells.append(txt)
         cross_rows.append(cells)
     cross = md_table(["kind of motion", "refit beats BIH rebuild from n", "selective beats BIH rebuild from n"],
