@@ -13,6 +13,7 @@ Conventions (SPEC):
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 from typing import Any, Sequence
@@ -285,8 +286,13 @@ class Scene:
         return self.n_spheres + len(self.planes)
 
     def with_camera(self, camera: Camera) -> "Scene":
-        return Scene(camera, self.lights, self.materials, self.sphere_centers, self.sphere_radii,
-                     self.sphere_materials, self.planes)
+        """The same scene seen through ``camera`` (a validated Camera): everything else is shared,
+        already validated and read-only, so nothing is checked again (O(1), not O(n))."""
+        if not isinstance(camera, Camera):
+            raise SceneError("camera", f"expected a Camera, got {type(camera).__name__}")
+        seen = copy.copy(self)
+        object.__setattr__(seen, "camera", camera)
+        return seen
 
     # ---- JSON (SPEC schema) -------------------------------------------------
     def to_json(self) -> dict:

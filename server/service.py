@@ -11,7 +11,6 @@ the gesture is applied, so a full queue (503) leaves the camera where it was.
 
 from __future__ import annotations
 
-import copy
 import re
 import secrets
 import threading
@@ -226,13 +225,7 @@ class SessionService:
             rev, source = got
             base = load_source(source, camera)
             self.cache.put((state.id, rev), base)
-        if base.camera == camera:
-            return base
-        if isinstance(base, AnimatedScene):
-            return base.with_camera(camera)
-        seen = copy.copy(base)  # arrays shared, already validated; only the camera differs
-        object.__setattr__(seen, "camera", camera)
-        return seen
+        return base if base.camera == camera else base.with_camera(camera)
 
     def replace_scene(self, session_id: str, model: SceneModel) -> SessionState:
         scene = self.checked_scene(model, ("body",))
