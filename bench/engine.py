@@ -24,8 +24,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from renderer.bih import build_for_spheres  # noqa: E402
-from renderer.gl_renderer import GLRenderer  # noqa: E402
+from renderer.accel.bih import build_for_spheres  # noqa: E402
+from renderer.gl.renderer import GLRenderer  # noqa: E402
 from renderer.scenarios import scenario  # noqa: E402
 from renderer.settings import RenderSettings  # noqa: E402
 

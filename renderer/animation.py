@@ -45,7 +45,7 @@ import numpy as np
 from .scenarios import RED, TRANSPARENT
 from .scene import MAX_COORDINATE, Camera, Light, Material, Plane, Scene, SceneError, finite_number, finite_vec3
 
-MAX_TIME = 1.0e6   # seconds: the largest time a scene can be posed at
+from .limits import MAX_TIME  # noqa: E402,F401  (seconds: the largest time a scene can be posed at)
 
 
 def _num(v: Any, where: str, lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> float:

@@ -17,29 +17,28 @@ u_sphere_mat    R32UI     sphere id   material index
 u_materials     RGBA32F   3 per mat.  (r, g, b, ambient), (diffuse, specular,
                                       shininess, reflective), (transmissive,
                                       ior, 0, 0)
-u_nodes         RGB32UI   node        BIH node words (see bih_layout)
-u_indices       R32UI     slot        sorted primitive-index array
 ==============  ========  ==========  ==========================================
 
 Planes and lights are few and go in uniform arrays (``MAX_PLANES``,
-``MAX_LIGHTS``).
+``MAX_LIGHTS``); the camera's uniforms are :func:`camera_uniforms`. Each method
+packs its own structure with the layout beside its build
+(``renderer/accel/<method>_layout.py``) through :func:`wrap_rows`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import math
+
 import numpy as np
 
-from . import bih_layout, bvh_layout, kdtree_layout
-from .scene import Scene
+from .limits import DEFAULT_TEXTURE_WIDTH, MAX_LIGHTS, MAX_PLANES, MAX_TREE_DEPTH
+from .scene import Camera, Scene
 
-DEFAULT_TEXTURE_WIDTH = 4096  # WebGL2 guarantees 2048; most phones have 4096
-MAX_PLANES = Scene.MAX_PLANES
-MAX_LIGHTS = Scene.MAX_LIGHTS
 MATERIAL_TEXELS = 3
-# One traversal-stack entry per tree level (settings.MAX_TREE_DEPTH_LIMIT).
-BIH_STACK_SIZE = 64
+# One traversal-stack entry per tree level: a tree is never deeper than MAX_TREE_DEPTH.
+BIH_STACK_SIZE = MAX_TREE_DEPTH
 
 
 @dataclass
@@ -124,53 +123,28 @@ def _fixed(items: list, length: int, filler) -> list:
     return [tuple(x) if isinstance(x, tuple) else x for x in items] + [filler] * (length - len(items))
 
 
-def pack_bih(bih, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
-    """The BIH's node array, index array and global AABB."""
-    return PackedScene(
-        textures={"u_nodes": wrap_rows(bih.nodes, max_width),
-                  "u_indices": wrap_rows(bih.indices.astype(np.uint32), max_width)},
-        uniforms={"u_box_min": tuple(float(x) for x in bih.global_aabb[0]),
-                  "u_box_max": tuple(float(x) for x in bih.global_aabb[1])})
+def camera_uniforms(camera: Camera, width: int, height: int) -> dict[str, object]:
+    """The camera's uniforms for a ``width × height`` render target (pixels).
+
+    The ray through pixel centre (x, y), row 0 at the top, is
+    ``normalize(forward + u·right + v·up)`` with ``u = (2x/W − 1)·half_extent.x`` and
+    ``v = (1 − 2y/H)·half_extent.y`` (``docs/SHADING.md``); the shader, the ray engines
+    and the device client all take these numbers from here.
+    """
+    right, up, forward = camera.basis()
+    s = math.tan(math.radians(camera.fov_y) / 2.0)
+    return {
+        "u_cam_pos": tuple(camera.position), "u_cam_right": tuple(right), "u_cam_up": tuple(up),
+        "u_cam_forward": tuple(forward),
+        "u_half_extent": (s * width / height, s),
+        "u_resolution": (float(width), float(height)),
+        "u_target_distance": float(np.linalg.norm(np.subtract(camera.target, camera.position))),
+    }
 
 
 def glsl_header() -> str:
-    """Layout constants for the shader (inserted after ``#version``)."""
+    """The tracer's own layout constants (inserted after ``#version``, before each method's)."""
     return (f"#define MAX_PLANES {MAX_PLANES}\n"
             f"#define MAX_LIGHTS {MAX_LIGHTS}\n"
             f"#define MATERIAL_TEXELS {MATERIAL_TEXELS}\n"
-            f"#define BIH_STACK_SIZE {BIH_STACK_SIZE}\n"
-            + bih_layout.glsl_defines() + bvh_layout.glsl_defines() + kdtree_layout.glsl_defines())
-
-
-def pack_bvh(bvh, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
-    """The BVH's nodes (two RGBA32UI texels each, see ``bvh_layout``) and its index array."""
-    return PackedScene(
-        textures={"u_bvh_nodes": wrap_rows(bvh.texels(), max_width),
-                  "u_bvh_indices": wrap_rows(bvh.indices.astype(np.uint32), max_width)})
-
-
-def pack_kdtree(kd, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
-    """The kd-tree's nodes (RG32UI, see ``kdtree_layout``), compacted index array and global box."""
-    return PackedScene(
-        textures={"u_kd_nodes": wrap_rows(kd.words(), max_width),
-                  "u_kd_indices": wrap_rows(kd.indices.astype(np.uint32), max_width)},
-        uniforms={"u_kd_box_min": tuple(float(x) for x in kd.global_box[0]),
-                  "u_kd_box_max": tuple(float(x) for x in kd.global_box[1])})
-
-
-def pack_twolevel(kd, kd_ids: np.ndarray, bvh, bvh_ids: np.ndarray,
-                  max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
-    """Two levels: the kd-tree over the spheres ``kd_ids`` and the BVH over ``bvh_ids``.
-
-    Each structure was built over its subset (primitive ``i`` = scene sphere ``ids[i]``);
-    their index arrays are mapped to scene ids here, so the shader sees scene ids only.
-    """
-    kd_ids = np.asarray(kd_ids, dtype=np.int64)
-    bvh_ids = np.asarray(bvh_ids, dtype=np.int64)
-    kd_part = pack_kdtree(kd, max_width)
-    kd_part.textures["u_kd_indices"] = wrap_rows(kd_ids[kd.indices].astype(np.uint32), max_width)
-    bvh_part = pack_bvh(bvh, max_width)
-    bvh_part.textures["u_bvh_indices"] = wrap_rows(bvh_ids[bvh.indices].astype(np.uint32), max_width)
-    return PackedScene(textures={**kd_part.textures, **bvh_part.textures},
-                       uniforms={**kd_part.uniforms, "u_kd_count": int(len(kd_ids)),
-                                 "u_bvh_count": int(len(bvh_ids))})
+            f"#define BIH_STACK_SIZE {BIH_STACK_SIZE}\n")

@@ -30,6 +30,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .accel.bih import build_for_spheres
+from .accel.bih_traverse import traverse
+from .modes import RECURSION_COLORS, depth_grey, heat_image, primid_colours  # noqa: F401  (re-exported)
 from .result import RenderResult
 from .scene import Camera, Scene
 from .settings import RenderSettings
@@ -40,14 +43,6 @@ _RAY_TILE = 1024
 # Ray × sphere pairs per cull tile: ~6 float64 temporaries of this size (≈ 2 MiB each).
 _PAIR_BUDGET = 1 << 18
 
-# Fig. 4.2f colours of the `recursion` mode, index = level (0 = primary miss: black).
-RECURSION_COLORS = np.array([
-    (0.0, 0.0, 0.0),
-    (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0), (1.0, 1.0, 0.0),
-    (1.0, 0.0, 1.0), (0.0, 1.0, 1.0), (1.0, 1.0, 1.0), (1.0, 0.5, 0.0),
-], dtype=np.float64)
-# Per-id colour multipliers of the `primid` mode.
-PRIMID_FACTORS = np.array([0.6180340, 0.7548777, 0.5698403], dtype=np.float64)
 
 
 # --------------------------------------------------------------------------- rays
@@ -463,14 +458,13 @@ def heat_counts(scene: Scene, settings: RenderSettings, o: np.ndarray, d: np.nda
     """(nodes visited, gaps, sphere tests) per primary ray for ``settings.method``.
 
     Brute force tests every sphere and visits no node. ``bih`` counts come from the BIH
-    traversal of SHADING.md (``renderer.bih_traverse``, imported only here).
+    traversal of docs/SHADING.md (:mod:`renderer.accel.bih_traverse`, the CPU mirror of the
+    shader's).
     """
     n_rays = len(o)
     if settings.method == "bruteforce":
         return (np.zeros(n_rays, np.int64), np.zeros(n_rays, np.int64),
                 np.full(n_rays, scene.n_spheres, dtype=np.int64))
-    from renderer.bih import build_for_spheres
-    from renderer.bih_traverse import traverse
     bih = build_for_spheres(scene.sphere_centers, scene.sphere_radii, settings.max_prims, settings.max_tree_depth)
     nodes, gaps, tests = [], [], []
     for a in range(0, n_rays, chunk_rays):
@@ -479,18 +473,6 @@ def heat_counts(scene: Scene, settings: RenderSettings, o: np.ndarray, d: np.nda
         gaps.append(np.asarray(res.gaps))
         tests.append(np.asarray(res.tests))
     return np.concatenate(nodes), np.concatenate(gaps), np.concatenate(tests)
-
-
-def heat_image(nodes: np.ndarray, gaps: np.ndarray, tests: np.ndarray) -> np.ndarray:
-    """Fig. 4.3 colours (k, 3): red 0.05·tests, green 0.2·gaps, blue 0.2·nodes, each clamped to 1."""
-    return np.minimum(np.stack([0.05 * tests, 0.2 * gaps, 0.2 * nodes], axis=1).astype(np.float64), 1.0)
-
-
-def primid_colours(primid: np.ndarray) -> np.ndarray:
-    """``fract(id · (0.6180340, 0.7548777, 0.5698403)) · 0.8 + 0.2``, black where id = −1 (k, 3)."""
-    x = primid.astype(np.float64)[:, None] * PRIMID_FACTORS[None, :]
-    col = (x - np.floor(x)) * 0.8 + 0.2
-    return np.where((primid >= 0)[:, None], col, 0.0)
 
 
 def _mode_image(scene: Scene, settings: RenderSettings, frame: _Frame, chunk_rays: int, w: int, h: int
@@ -502,9 +484,7 @@ def _mode_image(scene: Scene, settings: RenderSettings, frame: _Frame, chunk_ray
         return np.clip(frame.colour, 0.0, 1.0)
     if mode == "depth":
         dist = float(np.linalg.norm(np.subtract(scene.camera.target, scene.camera.position)))
-        with np.errstate(invalid="ignore"):
-            g = np.where(np.isfinite(frame.depth), dist / (dist + frame.depth), 0.0)
-        return np.repeat(g[:, None], 3, axis=1)
+        return np.repeat(depth_grey(frame.depth, dist)[:, None], 3, axis=1)
     if mode == "primid":
         return primid_colours(frame.primid)
     if mode == "normal":

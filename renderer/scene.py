@@ -23,8 +23,8 @@ import numpy as np
 Vec3 = tuple[float, float, float]
 
 # Largest coordinate magnitude accepted. float32 (the GPU's precision) has
-# 24 bits of mantissa: beyond 1e7 a unit sphere cannot be represented at all.
-MAX_COORDINATE = 1.0e7
+from . import limits
+from .limits import MAX_COORDINATE  # noqa: F401  (re-exported: the scene's bound)
 
 
 class SceneError(ValueError):
@@ -228,10 +228,10 @@ class Scene:
     planes: tuple[Plane, ...] = field(default_factory=tuple)
 
     # Upper bounds that keep one scene from exhausting the service.
-    MAX_SPHERES = 1 << 21
-    MAX_PLANES = 8
-    MAX_LIGHTS = 8
-    MAX_MATERIALS = 256
+    MAX_SPHERES = limits.MAX_SPHERES
+    MAX_PLANES = limits.MAX_PLANES
+    MAX_LIGHTS = limits.MAX_LIGHTS
+    MAX_MATERIALS = limits.MAX_MATERIALS
 
     def __post_init__(self) -> None:
         if not self.materials:

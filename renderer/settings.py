@@ -1,27 +1,24 @@
-"""Render settings (SPEC's render-settings JSON), validated on construction."""
+"""Render settings (the render-settings JSON of ``docs/FORMATS.md``), validated on construction."""
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
+from . import limits
+from .limits import MAX_IMAGE_SIDE, MAX_TIME, SAMPLES_PER_PIXEL
+from .methods import AUTO_METHOD, METHODS as _METHOD_REGISTRY, capabilities
+from .modes import MODES
 from .scene import SceneError
-
-from .animation import MAX_TIME
-from .methods import AUTO_METHOD, METHODS as _METHOD_REGISTRY
 from .tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
 
 # "auto" picks brute force below the measured crossover n, BIH above it.
 METHODS = (*_METHOD_REGISTRY, AUTO_METHOD)
-MODES = ("color", "depth", "primid", "normal", "recursion", "heat", "cones")
 FORMATS = ("png", "jpeg", "npy")
 
-# The GPU traversal stack holds one entry per tree level; a tree deeper than
-# this cannot be built, so a traversal can never overflow (see bih_layout).
-MAX_TREE_DEPTH_LIMIT = 64
-MAX_RECURSION_DEPTH_LIMIT = 8
-MAX_IMAGE_SIDE = 4096
-SAMPLES_PER_PIXEL = (1, 4, 9, 16)
+# Kept under these names for the settings' users; the bounds live in renderer.limits.
+MAX_TREE_DEPTH_LIMIT = limits.MAX_TREE_DEPTH
+MAX_RECURSION_DEPTH_LIMIT = limits.MAX_RECURSION_DEPTH
 
 
 @dataclass(frozen=True)
@@ -38,7 +35,8 @@ class RenderSettings:
     normal come from the sub-pixel nearest the pixel centre.
     min_weight: ε ≥ 0; a reflected or transmitted ray whose path weight (the
     product of kr/kt along its path) is below ε is not traced.
-    tile_size: tile edge in pixels of the hierarchical ray engine (hre), 2 … 64.
+    tile_size: tile edge in pixels of the hierarchical ray engine (hre), ``limits.MIN_TILE_SIZE`` …
+    ``limits.MAX_TILE_SIZE`` (images it does not divide are padded).
     specialize: compile the shader with only the features the scene uses and
     clamp the recursion depth to what its materials can use (exact: the image
     does not change); False renders with the generic variant.
@@ -59,7 +57,7 @@ class RenderSettings:
     samples_per_pixel: int = 1
     min_weight: float = 0.0
     specialize: bool = True
-    tile_size: int = 16
+    tile_size: int = limits.DEFAULT_TILE_SIZE
     time: float = 0.0
     update: str = "rebuild"
     update_threshold: float = DEFAULT_THRESHOLD
@@ -79,24 +77,34 @@ class RenderSettings:
 
         integer("width", 1, MAX_IMAGE_SIDE)
         integer("height", 1, MAX_IMAGE_SIDE)
-        integer("max_prims", 1, 1 << 24)
-        integer("max_tree_depth", 1, MAX_TREE_DEPTH_LIMIT)
-        integer("max_recursion_depth", 1, MAX_RECURSION_DEPTH_LIMIT)
-        integer("tile_size", 2, 64)
+        integer("max_prims", 1, limits.MAX_PRIMS)
+        integer("max_tree_depth", 1, limits.MAX_TREE_DEPTH)
+        integer("max_recursion_depth", 1, limits.MAX_RECURSION_DEPTH)
+        integer("tile_size", limits.MIN_TILE_SIZE, limits.MAX_TILE_SIZE)
         if self.samples_per_pixel not in SAMPLES_PER_PIXEL or isinstance(self.samples_per_pixel, bool):
             raise SceneError("samples_per_pixel", f"must be one of {SAMPLES_PER_PIXEL}, got {self.samples_per_pixel!r}")
         k = self.supersampling
         if max(self.width, self.height) * k > MAX_IMAGE_SIDE:
             raise SceneError("samples_per_pixel", f"{self.width}×{self.height} at {self.samples_per_pixel} samples "
                              f"needs {self.width * k}×{self.height * k}, over the {MAX_IMAGE_SIDE} limit")
-        number("min_weight", 0.0, 1.0)
+        number("min_weight", *limits.MIN_WEIGHT_RANGE)
         number("time", 0.0, MAX_TIME)
-        number("update_threshold", 0.0, 100.0)
+        number("update_threshold", *limits.UPDATE_THRESHOLD_RANGE)
         if not isinstance(self.specialize, bool):
             raise SceneError("specialize", f"expected true or false, got {self.specialize!r}")
         for name, allowed in (("method", METHODS), ("mode", MODES), ("format", FORMATS), ("update", UPDATE_SCHEMES)):
             if getattr(self, name) not in allowed:
                 raise SceneError(name, f"unknown {name} {getattr(self, name)!r}; one of {', '.join(allowed)}")
+        self.check_method()
+
+    def check_method(self, n_spheres: int = 0) -> None:
+        """The method can draw the mode (``auto`` resolved for ``n_spheres``): no frame of
+        these settings is refused later for a combination known now."""
+        able = capabilities(self.method, n_spheres).modes
+        if self.mode not in able:
+            hint = " (it shows the hierarchical ray engine's cones: use method 'hre')" if self.mode == "cones" else \
+                f"; its modes: {', '.join(able)}"
+            raise SceneError("mode", f"mode {self.mode!r} is not available with method {self.method!r}{hint}")
 
     @property
     def supersampling(self) -> int:

@@ -1,3 +1,75 @@
-"""Shader text (transitional: the assemblers still live with their GL users)."""
-from .gl_renderer import shader_source as tracer_source, vertex_source  # noqa: F401
-from .ray_engine import shader_source as pass_source  # noqa: F401
+"""Shader text, and only text: the one assembler for the tracer and every ray-engine pass.
+
+The tracer of a variant is ``raytrace.frag`` with the layout header and the variant's
+defines after ``#version`` (at ``//@HEADER@``) and the method's traversal
+(``shaders/<capabilities.shader>``) spliced in at ``//@METHOD@``. A ray-engine pass is
+``#version``, the same header, the pass's defines, ``rayengine_common.glsl`` and the
+pass's own file. The same text serves moderngl and the browser (WebGL2, ``GET
+/api/shader``); nothing here touches OpenGL.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+from . import gpu_layout
+from .accel import bih_layout, bvh_layout, kdtree_layout
+from .methods import METHODS
+
+SHADER_DIR = Path(__file__).resolve().parent.parent / "shaders"
+HEADER_MARK = "//@HEADER@"
+METHOD_MARK = "//@METHOD@"
+INCLUDE_MARK = "//@INCLUDE "   # a line "//@INCLUDE method_bvh.glsl" in a method file inlines that file
+
+
+@lru_cache(maxsize=None)
+def read(name: str) -> str:
+    """The text of ``shaders/<name>`` (read once per process)."""
+    return (SHADER_DIR / name).read_text()
+
+
+def layout_header() -> str:
+    """Every layout's constants as ``#define`` lines: the tracer's, then each method's."""
+    return gpu_layout.glsl_header() + bih_layout.glsl_defines() + bvh_layout.glsl_defines() \
+        + kdtree_layout.glsl_defines()
+
+
+def method_shader(method: str) -> str:
+    """The file name of a single-pass method's traversal (ValueError for others)."""
+    m = METHODS.get(method)
+    if m is None or m.capabilities.shader is None:
+        raise ValueError(f"method {method!r} has no one-pass traversal shader")
+    return m.capabilities.shader
+
+
+def tracer_source(method: str, mode: str, max_recursion_depth: int, extra_defines: tuple[str, ...] = ()) -> str:
+    """The fragment shader of one variant: method × mode × recursion depth × feature defines."""
+    defines = [f"#define METHOD_{method.upper()}", f"#define MODE_{mode.upper()}",
+               f"#define MAX_RECURSION_DEPTH {int(max_recursion_depth)}", *(f"#define {d}" for d in extra_defines)]
+    header = layout_header() + "\n".join(defines) + "\n"
+    method_src = _with_includes(read(method_shader(method)))
+    return read("raytrace.frag").replace(HEADER_MARK, header).replace(METHOD_MARK, method_src)
+
+
+def _with_includes(text: str) -> str:
+    """Inline ``//@INCLUDE file`` lines (one level: a method built from other methods)."""
+    lines = []
+    for line in text.splitlines(keepends=True):
+        if line.startswith(INCLUDE_MARK):
+            name = line[len(INCLUDE_MARK):].strip()
+            lines.append(f"// ---- {name} ----\n" + read(name) + "\n")
+        else:
+            lines.append(line)
+    return "".join(lines)
+
+
+def vertex_source() -> str:
+    """The full-screen quad's vertex shader (the tracer and the ray engines' full-screen passes)."""
+    return read("fullscreen.vert")
+
+
+def pass_source(name: str, defines: tuple[str, ...] = ()) -> str:
+    """A ray-engine shader: ``#version``, the layout header, the defines, the common part, then ``name``."""
+    return ("#version 300 es\n" + layout_header() + "".join(f"#define {d}\n" for d in defines)
+            + read("rayengine_common.glsl") + read(name))

@@ -17,7 +17,7 @@ Two endpoints; the browser client's ``client_web/js/device.js`` uses both.
 
 ``GET /api/shader``
     The fragment shader of one variant exactly as the server compiles it
-    (:func:`renderer.gl_renderer.shader_source`: ``raytrace.frag`` + the layout
+    (:func:`renderer.shader_source.tracer_source`: ``raytrace.frag`` + the layout
     header + the variant's defines + ``method_<name>.glsl``), or with
     ``stage=vertex`` the vertex shader; ``text/plain``. Query: ``method``,
     ``mode``, ``max_recursion_depth``, ``features`` (comma-separated ``NO_*``
@@ -53,7 +53,7 @@ The JSON header::
 ``uniforms`` are every uniform of :func:`gpu_layout.pack_primitives` and of the
 method's ``prepare(...).packed`` (fixed-length arrays as lists), plus the camera
 terms that do not depend on the image size (``u_half_extent`` and
-``u_resolution`` do; the device sets them, as ``GLRenderer._set_camera`` does).
+``u_resolution`` do; the device sets them, as ``gpu_layout.camera_uniforms`` computes them).
 Each texture is ``height × width × components`` elements of ``dtype`` (``f4``:
 float32, ``u4``: uint32), row 0 first — exactly ``PackedTexture.data``; the
 device uploads them with NEAREST filtering, as the server does. The response's
@@ -81,8 +81,9 @@ from starlette.requests import HTTPConnection
 from renderer import gpu_layout
 from renderer.animation import MAX_TIME
 from renderer.features import scene_features
-from renderer.gl_renderer import SHADER_DIR, SINGLE_PASS_MODES, shader_source, vertex_source
 from renderer.methods import METHODS, resolve_method
+from renderer.modes import SINGLE_PASS_MODES
+from renderer.shader_source import tracer_source as shader_source, vertex_source
 from renderer.scene import Camera
 from renderer.settings import MAX_RECURSION_DEPTH_LIMIT, MAX_TREE_DEPTH_LIMIT
 
@@ -135,8 +136,7 @@ def single_pass_method(name: str, where: tuple[str, ...]) -> Any:
     method = METHODS.get(name)
     if method is None:
         raise InputError(where, f"unknown method {name!r}")
-    if hasattr(method, "render_frame") or not hasattr(method, "prepare") or \
-            not (SHADER_DIR / f"method_{name}.glsl").is_file():
+    if not method.capabilities.device:
         able = ", ".join(device_methods())
         raise InputError(where, f"method {name!r} draws several passes on the server and cannot run on the "
                                 f"device; device mode supports {able} (or use server mode)")
@@ -145,8 +145,7 @@ def single_pass_method(name: str, where: tuple[str, ...]) -> Any:
 
 def device_methods() -> list[str]:
     """Methods whose whole frame is one pass of raytrace.frag (what a browser can run)."""
-    return [n for n, m in METHODS.items()
-            if not hasattr(m, "render_frame") and (SHADER_DIR / f"method_{n}.glsl").is_file()]
+    return [n for n, m in METHODS.items() if m.capabilities.device]
 
 
 def parse_features(features: str | None) -> tuple[str, ...]:
@@ -166,11 +165,10 @@ def shader_url(method: str, mode: str, depth: int, features: tuple[str, ...]) ->
 
 
 def camera_uniforms(camera: Camera) -> dict[str, Any]:
-    """The camera terms of ``GLRenderer._set_camera`` that do not depend on the image size."""
-    right, up, forward = camera.basis()
-    return {"u_cam_pos": [float(x) for x in camera.position], "u_cam_right": right.tolist(),
-            "u_cam_up": up.tolist(), "u_cam_forward": forward.tolist(),
-            "u_target_distance": float(np.linalg.norm(np.subtract(camera.target, camera.position)))}
+    """The camera terms of :func:`renderer.gpu_layout.camera_uniforms` that do not depend on
+    the image size (the device sets ``u_half_extent`` and ``u_resolution`` per frame)."""
+    return {k: _jsonable(v) for k, v in gpu_layout.camera_uniforms(camera, 1, 1).items()
+            if k not in ("u_half_extent", "u_resolution")}
 
 
 def _jsonable(v: Any) -> Any:

@@ -25,10 +25,10 @@ T = TypeVar("T")
 def default_renderer() -> Any:
     """The service's renderer: GLRenderer on a headless context.
 
-    Its ``finish()`` releases the GIL (renderer.gl_context), so HTTP handling,
+    Its ``finish()`` releases the GIL (renderer.gl.context), so HTTP handling,
     /api/health and 503 answers go on while the GL thread waits for a frame.
     """
-    from renderer.gl_renderer import GLRenderer
+    from renderer.gl.renderer import GLRenderer
 
     return GLRenderer()
 

@@ -331,6 +331,6 @@ class InfoOut(BaseModel):
 
 class StatsOut(BaseModel):
     """Statistics of the last build; the fields beyond ``method`` depend on the method
-    (bih: renderer.bih.BIHStats — primitives, inner_nodes, leaves, depth_max, …)."""
+    (bih: renderer.accel.bih.BIHStats — primitives, inner_nodes, leaves, depth_max, …)."""
     model_config = ConfigDict(extra="allow")
     method: str

@@ -21,7 +21,7 @@ from dataclasses import replace
 from typing import Any, Iterable, NamedTuple
 
 from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum, pose
-from renderer.methods import METHODS, resolve_method
+from renderer.methods import METHODS, capabilities, resolve_method
 from renderer.scenarios import scenario
 from renderer.scene import Camera, Scene, SceneError
 from renderer.settings import RenderSettings
@@ -35,9 +35,6 @@ from .scenes import (SceneCache, SessionScene, camera_from_model, load_source, m
                      scene_from_model, scene_info, scene_source)
 from .store import SessionState, SessionStore
 from .view import MEDIA_TYPES, Frame, encode
-
-# Methods without a hierarchy over the primitives: their cost grows with pixels × spheres.
-EVERY_SPHERE_METHODS = frozenset({"bruteforce", "rayengine", "hre"})
 
 _PATH_TOKEN = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
 
@@ -128,19 +125,17 @@ class SessionService:
                              f"= {work} exceeds the limit {self.config.max_work} (POCKETRAY_MAX_WORK); lower width, "
                              f"height, max_recursion_depth or samples_per_pixel")
         method = resolve_method(settings["method"], n_spheres)
-        if method in EVERY_SPHERE_METHODS:
+        if capabilities(method).tests_every_sphere:  # no hierarchy: the cost grows with pixels × spheres
             bf = work * max(1, n_spheres)
             if bf > self.config.max_bruteforce_work:
                 raise InputError((where, "method"),
                                  f"method={method} tests every sphere: width × height × max_recursion_depth × "
                                  f"spheres = {bf} exceeds the limit {self.config.max_bruteforce_work} "
                                  f"(POCKETRAY_MAX_BRUTEFORCE_WORK); use method=bih or a smaller image")
-        check = getattr(METHODS.get(method), "check", None)  # a method's own limits (e.g. which modes)
-        if check is not None:
-            try:
-                check(self.render_settings(settings))
-            except SceneError as e:
-                raise relocate(e, where) from None
+        try:
+            self.render_settings(settings).check_method(n_spheres)  # the modes the method can draw
+        except SceneError as e:
+            raise relocate(e, where) from None
 
     def check_spheres(self, n: int, loc: tuple[str | int, ...]) -> None:
         if n > self.config.max_spheres:

@@ -8,7 +8,7 @@ import pytest
 @pytest.fixture(scope="session")
 def gl_renderer():
     """One GLRenderer for the whole run (the context is owned by the main thread)."""
-    from renderer.gl_renderer import GLRenderer, GLUnavailable
+    from renderer.gl.renderer import GLRenderer, GLUnavailable
 
     try:
         return GLRenderer()

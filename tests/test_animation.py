@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from renderer.animation import animated_scene_from_json, museum, pose
-from renderer.gl_renderer import shader_source
+from renderer.shader_source import tracer_source as shader_source
 from renderer.scenarios import scenario
 from renderer.scene import SceneError
 from renderer.settings import RenderSettings

@@ -1,4 +1,4 @@
-"""BIH build (renderer.bih) and CPU traversal (renderer.bih_traverse).
+"""BIH build (renderer.accel.bih) and CPU traversal (renderer.accel.bih_traverse).
 
 - Table 4.2, scenario 1, bit-exact;
 - structural invariants of the build over random and degenerate scenes;
@@ -22,9 +22,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from renderer import bih_layout as L
-from renderer.bih import build_bih, build_for_spheres, sphere_aabbs
-from renderer.bih_traverse import brute_force, traverse
+from renderer.accel import bih_layout as L
+from renderer.accel.bih import build_bih, build_for_spheres, sphere_aabbs
+from renderer.accel.bih_traverse import brute_force, traverse
 from renderer.scenarios import scenario
 
 HYP = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])

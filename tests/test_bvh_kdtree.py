@@ -23,15 +23,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from renderer.gl_renderer import shader_source
+from renderer.shader_source import tracer_source as shader_source
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from renderer import bvh_layout, kdtree_layout
-from renderer.bih import sphere_aabbs
-from renderer.bvh import (BVHUpdater, build_bvh, near_masks, refit, selective_rebuild,
+from renderer.accel import bvh_layout, kdtree_layout
+from renderer.accel.bih import sphere_aabbs
+from renderer.accel.bvh import (BVHUpdater, build_bvh, near_masks, refit, selective_rebuild,
                           split_costs)
-from renderer.kdtree import build_kdtree
+from renderer.accel.kdtree import build_kdtree
 from renderer.methods import METHODS
 from renderer.reference import render_reference
 from renderer.scenarios import scenario

@@ -20,9 +20,10 @@ import math
 import numpy as np
 import pytest
 
-from renderer import hre_cones
+from renderer.accel import hre_cones
 from renderer.methods import METHODS
-from renderer.ray_engine import FrameLog, HierarchicalRayEngine, RayEngine, cull_matrix
+from renderer.accel.ray_engine import HierarchicalRayEngine, RayEngine
+from renderer.gl.ray_engine import FrameLog
 from renderer.reference import render_reference
 from renderer.scenarios import scenario
 from renderer.scene import SceneError
@@ -182,7 +183,7 @@ def hre_log(gl_renderer):
     scene = scenario(3, 64)
     log = FrameLog(keep=True)
     s = RenderSettings(width=48, height=80, method="hre", max_recursion_depth=4, tile_size=8)
-    res = eng.render_frame(gl_renderer, scene, s, log=log)
+    res = gl_renderer.ray_engine.render_frame(eng, scene, s, log=log)
     return scene, log, res
 
 
@@ -233,7 +234,7 @@ def test_culled_tiles_hold_no_hit(gl_renderer, hre_log):
         verts = rec["verts"]
         if verts is None or len(verts) == 0:
             continue
-        drawn = cull_matrix(gl_renderer.ctx, scene, verts)
+        drawn = gl_renderer.ray_engine.cull_matrix(scene, verts)
         o, d, live, _ = _record_rays(rec, scene)
         ts = 8
         for ti, tile in enumerate(verts):
@@ -276,7 +277,7 @@ def test_fewer_stencil_bits_fall_back_exactly(gl_renderer):
     full = gl_renderer.render(scene, s)
     eng = RayEngine()
     eng.stencil_bits = 2
-    few = eng.render_frame(gl_renderer, scene, s)
+    few = gl_renderer.ray_engine.render_frame(eng, scene, s)
     assert few.stats["stencil_fallback_levels"] == 3 and full.stats["stencil_fallback_levels"] == 0
     np.testing.assert_array_equal(few.primid, full.primid)
     assert psnr(few.image_u8(), full.image_u8()) >= 60.0

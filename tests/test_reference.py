@@ -387,8 +387,8 @@ def test_heat_bruteforce_is_red_by_sphere_count():
 
 
 def test_heat_bih_uses_traversal_counts():
-    from renderer import bih_traverse as bt
-    from renderer.bih import build_for_spheres
+    from renderer.accel import bih_traverse as bt
+    from renderer.accel.bih import build_for_spheres
     scene = scenario(2, 200, seed=1)
     s = settings(40, 64, mode="heat", method="bih", max_prims=4)
     res = render_reference(scene, s)

@@ -264,7 +264,7 @@ class Context:
     @property
     def renderer(self):
         if self._renderer is None:
-            from renderer.gl_renderer import GLRenderer
+            from renderer.gl.renderer import GLRenderer
             self._renderer = GLRenderer()
         return self._renderer
 

@@ -32,8 +32,8 @@ import numpy as np  # noqa: E402
 
 from bench.experiments.common import Context, Stat, crossover_n, log_axis, md_table, plt  # noqa: E402
 from renderer.animation import AnimatedScene, museum, pose  # noqa: E402
-from renderer.bih import sphere_aabbs  # noqa: E402
-from renderer.kdtree import build_kdtree  # noqa: E402
+from renderer.accel.bih import sphere_aabbs  # noqa: E402
+from renderer.accel.kdtree import build_kdtree  # noqa: E402
 from renderer.methods import METHODS  # noqa: E402
 from renderer.scenarios import scenario  # noqa: E402
 from renderer.settings import RenderSettings  # noqa: E402

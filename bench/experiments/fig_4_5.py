@@ -7,7 +7,7 @@ build per point, no timing.
 
 from __future__ import annotations
 
-from renderer.bih import build_for_spheres
+from renderer.accel.bih import build_for_spheres
 from renderer.scenarios import scenario
 
 from .common import Context, md_table, plt

@@ -30,8 +30,8 @@ import time
 
 import numpy as np
 
-from renderer.bih import build_for_spheres
-from renderer.bih_traverse import traverse
+from renderer.accel.bih import build_for_spheres
+from renderer.accel.bih_traverse import traverse
 from renderer.reference import primary_rays, render_reference
 from renderer.scenarios import scenario
 

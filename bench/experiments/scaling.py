@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from renderer.bih import build_for_spheres
+from renderer.accel.bih import build_for_spheres
 from renderer.scenarios import scenario
 
 from .common import Context, Stat, default_settings, fit_power, md_table, measure, method_names, plt

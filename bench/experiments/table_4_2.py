@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from renderer.bih import build_for_spheres
+from renderer.accel.bih import build_for_spheres
 from renderer.scenarios import scenario
 
 from .common import Context, fmt_num, md_table, measure, plt

@@ -231,7 +231,7 @@ def test_device_data_is_the_gpu_layout_and_refuses_what_a_device_cannot_run(serv
     """The blob holds gpu_layout's arrays bit for bit; multi-pass methods, tiny textures and
     devices without float targets get a 422 that says why; the shader is the server's text."""
     from renderer import gpu_layout
-    from renderer.gl_renderer import shader_source
+    from renderer.shader_source import tracer_source as shader_source
     from renderer.methods import METHODS
     from renderer.scenarios import scenario
     from server.device import decode_blob

@@ -31,8 +31,8 @@ from typing import Callable
 
 import numpy as np
 
-from renderer.bih import build_for_spheres
-from renderer import bih_layout as L
+from renderer.accel.bih import build_for_spheres
+from renderer.accel import bih_layout as L
 from renderer.scenarios import RED, TRANSPARENT, scenario
 from renderer.scene import Camera, Light, Material, Plane, Scene
 

@@ -29,13 +29,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, PackedScene, wrap_rows
+from ..limits import MAX_TREE_DEPTH
+
 INNER_FLAG = 1 << 31
 COUNT_MASK = INNER_FLAG - 1
 NEAR_MASK_BITS = 0xFF
 TEXELS_PER_NODE = 2
 NODE_BYTES = 32
-# One stack entry per tree level: settings.MAX_TREE_DEPTH_LIMIT.
-STACK_SIZE = 64
+# One stack entry per tree level.
+STACK_SIZE = MAX_TREE_DEPTH
 # Relative slack of the box tests (shader and CPU checks): an entry distance is
 # compared as t0 <= t_best * T_SLACK, an exit as t1 * T_SLACK >= t0. It only
 # makes the culling conservative against float32 rounding (it never prunes).
@@ -80,3 +83,10 @@ def glsl_defines() -> str:
             f"#define BVH_STACK_SIZE {STACK_SIZE}\n"
             f"#define BVH_T_SLACK {T_SLACK!r}\n"
             f"#define BVH_DIR_EPS {DIR_EPS!r}\n")
+
+
+def pack_bvh(bvh, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
+    """The BVH's nodes (two RGBA32UI texels each, see above) and its index array."""
+    return PackedScene(
+        textures={"u_bvh_nodes": wrap_rows(bvh.texels(), max_width),
+                  "u_bvh_indices": wrap_rows(bvh.indices.astype(np.uint32), max_width)})

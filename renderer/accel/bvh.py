@@ -48,9 +48,11 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from ..limits import DEFAULT_TEXTURE_WIDTH
+from ..tree_update import DEFAULT_THRESHOLD, REBUILD, UPDATE_SCHEMES, TreeUpdate
 from . import bvh_layout as L
-from .bih import sphere_aabbs
-from .tree_update import DEFAULT_THRESHOLD, REBUILD, UPDATE_SCHEMES, TreeUpdate
+from .base import Capabilities, PreparedMethod
+from .primitives import sphere_aabbs
 
 BINS = 16
 C_TRAV = 1.0
@@ -650,6 +652,7 @@ class BVHMethod:
     are unchanged. The last ``CACHE_SLOTS`` keys are kept.
     """
     name = "bvh"
+    capabilities = Capabilities(shader="method_bvh.glsl", update_schemes=UPDATE_SCHEMES)
     CACHE_SLOTS = 8
 
     def __init__(self) -> None:
@@ -669,11 +672,9 @@ class BVHMethod:
         return self.updater(update.key, max_prims, max_tree_depth, update.threshold).update(
             scene.sphere_centers, scene.sphere_radii, update.scheme)
 
-    def prepare(self, scene, max_prims: int, max_tree_depth: int, max_width: int = 4096,
-                update: TreeUpdate = REBUILD):
-        from . import gpu_layout
-        from .methods import PreparedMethod
+    def prepare(self, scene, max_prims: int, max_tree_depth: int, max_width: int = DEFAULT_TEXTURE_WIDTH,
+                update: TreeUpdate = REBUILD) -> PreparedMethod:
         t0 = time.perf_counter()
         bvh = self.build(scene, max_prims, max_tree_depth, update)
         ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod(gpu_layout.pack_bvh(bvh, max_width), ms, {"method": self.name, **bvh.stats.to_json()})
+        return PreparedMethod(L.pack_bvh(bvh, max_width), ms, {"method": self.name, **bvh.stats.to_json()})

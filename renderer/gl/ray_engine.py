@@ -1,7 +1,8 @@
 """Multi-pass ray tracing: the ray engine and the hierarchical ray engine (issue #8).
 
-Both are methods of :mod:`renderer.methods` (``rayengine``, ``hre``) that draw the
-frame themselves (``render_frame``): rays live in float textures, primitives are drawn
+Both are methods of :mod:`renderer.accel.ray_engine` (``rayengine``, ``hre``) whose
+capabilities say ``multi_pass``: the GL renderer hands their frames to
+:class:`RayEnginePasses` (one per renderer, holding its programs and targets). Rays live in float textures, primitives are drawn
 over them, and the Whitted shading of ``docs/SHADING.md`` runs as full-screen passes.
 
 **Ray engine** (Carr et al. 2002, as Szécsi §2.1 restates it). A *layer* is one set of
@@ -19,7 +20,7 @@ the lower id. No tree, no CPU work per ray.
 ``tile_size``² rays (16 by default; the target is padded to whole tiles, padding texels
 hold no ray). Per layer, a shader pass builds one enclosing cone per tile with the
 incremental algorithm of §4 (``shaders/rayengine_cones.frag``, mirrored in NumPy in
-:mod:`renderer.hre_cones`), certified conservative in float32; the small cone texture is
+:mod:`renderer.accel.hre_cones`), certified conservative in float32; the small cone texture is
 read back and becomes a vertex buffer of the tiles that hold live rays. Each primitive
 is then drawn as one point of the tile's size per tile (instanced: instance = primitive),
 and the vertex shader moves the point out of view when the primitive's enclosing sphere
@@ -63,162 +64,33 @@ other pass, ``read`` = reading the frame back, ``total``.
 
 from __future__ import annotations
 
-import ctypes
-import math
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import moderngl
 import numpy as np
 
-from . import gpu_layout, hre_cones
-from .features import GENERIC, scene_features
-from .result import RenderResult
-from .scene import Scene, SceneError
+from .. import gpu_layout
+from ..accel import hre_cones
+from ..accel.ray_engine import RayEngine
+from ..features import GENERIC, scene_features
+from ..limits import DEFAULT_TEXTURE_WIDTH, STENCIL_BITS
+from ..modes import RECURSION_COLORS, depth_grey, primid_colours
+from ..result import RenderResult
+from ..scene import Scene, SceneError
+from ..shader_source import pass_source, vertex_source
+from .raw_gl import GL_STENCIL_BUFFER_BIT, RawGL
+from .textures import upload_textures
 
-if TYPE_CHECKING:  # settings imports methods, which imports this module
-    from .settings import RenderSettings
+if TYPE_CHECKING:
+    from ..settings import RenderSettings
 
-SHADER_DIR = Path(__file__).resolve().parent.parent / "shaders"
-MAX_TILE_SIZE = 64          # point sprites of this size; llvmpipe allows 255, GLES guarantees 1 (checked)
-MIN_TILE_SIZE = 2
 COUNT_LIMIT = 1 << 20       # (tile, sphere) pairs per pass up to which hre's stats mirror its culling
-
-# --------------------------------------------------------------------------- raw GL
-
-GL_FRAMEBUFFER = 0x8D40
-GL_RENDERBUFFER = 0x8D41
-GL_DEPTH_STENCIL_ATTACHMENT = 0x821A
-GL_STENCIL_ATTACHMENT = 0x8D20
-GL_DEPTH32F_STENCIL8 = 0x8CAD
-GL_FRAMEBUFFER_COMPLETE = 0x8CD5
-GL_FRAMEBUFFER_ATTACHMENT_STENCIL_SIZE = 0x8217
-GL_STENCIL_TEST = 0x0B90
-GL_STENCIL_BUFFER_BIT = 0x0400
-GL_DEPTH_BUFFER_BIT = 0x0100
-GL_ALWAYS, GL_EQUAL = 0x0207, 0x0202
-GL_KEEP, GL_REPLACE = 0x1E00, 0x1E01
-GL_ALIASED_POINT_SIZE_RANGE = 0x846E
-
-
-class _RawGL:
-    """The few GL calls moderngl does not wrap: stencil state and a depth-stencil renderbuffer.
-
-    They act on the context current in this thread (the renderer's); moderngl does not
-    cache any of this state.
-    """
-
-    def __init__(self) -> None:
-        lib = None
-        for name in ("libOpenGL.so.0", "libGL.so.1", "libGL.so"):
-            try:
-                lib = ctypes.CDLL(name)
-                break
-            except OSError:
-                continue
-        if lib is None:  # pragma: no cover - depends on the machine
-            raise RuntimeError("cannot load libOpenGL / libGL for stencil state")
-        self.lib = lib
-        u, i = ctypes.c_uint, ctypes.c_int
-        sig = {
-            "glEnable": [u], "glDisable": [u], "glStencilFunc": [u, i, u], "glStencilOp": [u, u, u],
-            "glStencilMask": [u], "glClearStencil": [i], "glClear": [u], "glClearDepth": [ctypes.c_double],
-            "glGenRenderbuffers": [i, ctypes.POINTER(u)], "glDeleteRenderbuffers": [i, ctypes.POINTER(u)],
-            "glBindRenderbuffer": [u, u], "glRenderbufferStorage": [u, u, i, i],
-            "glBindFramebuffer": [u, u], "glFramebufferRenderbuffer": [u, u, u, u],
-            "glCheckFramebufferStatus": [u], "glGetIntegerv": [u, ctypes.POINTER(i)],
-            "glGetFramebufferAttachmentParameteriv": [u, u, u, ctypes.POINTER(i)],
-            "glDepthMask": [ctypes.c_ubyte],
-        }
-        for name, args in sig.items():
-            fn = getattr(lib, name)
-            fn.argtypes = args
-            fn.restype = u if name == "glCheckFramebufferStatus" else None
-            setattr(self, name, fn)
-
-    def renderbuffer(self, width: int, height: int) -> int:
-        rb = ctypes.c_uint(0)
-        self.glGenRenderbuffers(1, ctypes.byref(rb))
-        self.glBindRenderbuffer(GL_RENDERBUFFER, rb.value)
-        self.glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH32F_STENCIL8, width, height)
-        return rb.value
-
-    def delete_renderbuffer(self, rb: int) -> None:
-        r = ctypes.c_uint(rb)
-        self.glDeleteRenderbuffers(1, ctypes.byref(r))
-
-    def attach(self, fbo: moderngl.Framebuffer, rb: int) -> None:
-        self.glBindFramebuffer(GL_FRAMEBUFFER, fbo.glo)
-        self.glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER, rb)
-        status = self.glCheckFramebufferStatus(GL_FRAMEBUFFER)
-        if status != GL_FRAMEBUFFER_COMPLETE:
-            raise RuntimeError(f"ray-engine framebuffer incomplete (0x{status:x})")
-
-    def stencil_bits(self, fbo: moderngl.Framebuffer) -> int:
-        v = ctypes.c_int(0)
-        self.glBindFramebuffer(GL_FRAMEBUFFER, fbo.glo)
-        self.glGetFramebufferAttachmentParameteriv(GL_FRAMEBUFFER, GL_STENCIL_ATTACHMENT,
-                                                   GL_FRAMEBUFFER_ATTACHMENT_STENCIL_SIZE, ctypes.byref(v))
-        return int(v.value)
-
-    def point_size_max(self) -> float:
-        v = (ctypes.c_float * 2)()
-        self.lib.glGetFloatv.argtypes = [ctypes.c_uint, ctypes.POINTER(ctypes.c_float)]
-        self.lib.glGetFloatv(GL_ALIASED_POINT_SIZE_RANGE, v)
-        return float(v[1])
-
-    # stencil states --------------------------------------------------------------
-    def stencil_off(self) -> None:
-        self.glDisable(GL_STENCIL_TEST)
-        self.glStencilMask(0xFF)
-
-    def stencil_test(self, bit: int) -> None:
-        """Pass where ``bit`` is set; write nothing. ``bit`` 0: no test."""
-        if not bit:
-            self.stencil_off()
-            return
-        self.glEnable(GL_STENCIL_TEST)
-        self.glStencilFunc(GL_EQUAL, bit, bit)
-        self.glStencilOp(GL_KEEP, GL_KEEP, GL_KEEP)
-        self.glStencilMask(0)
-
-    def stencil_mark(self, bit: int) -> None:
-        """Clear ``bit`` everywhere (the bound framebuffer), then set it where fragments pass."""
-        self.glEnable(GL_STENCIL_TEST)
-        self.glStencilMask(bit)
-        self.glClearStencil(0)
-        self.glClear(GL_STENCIL_BUFFER_BIT)
-        self.glStencilFunc(GL_ALWAYS, 0xFF, 0xFF)
-        self.glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE)
-
-    def clear_depth(self) -> None:
-        self.glDepthMask(1)
-        self.glClearDepth(1.0)
-        self.glClear(GL_DEPTH_BUFFER_BIT)
-
-
-_RAW: _RawGL | None = None
-
-
-def raw_gl() -> _RawGL:
-    global _RAW
-    if _RAW is None:
-        _RAW = _RawGL()
-    return _RAW
+FULLSCREEN = np.array([-1, -1, 1, -1, 1, 1, -1, -1, 1, 1, -1, 1], dtype=np.float32)
 
 
 # ------------------------------------------------------------------------ programs
-
-def shader_source(name: str, defines: tuple[str, ...] = ()) -> str:
-    """``#version``, the shared layout header, the defines, the common part, then ``name``."""
-    return ("#version 300 es\n" + gpu_layout.glsl_header() + "".join(f"#define {d}\n" for d in defines)
-            + (SHADER_DIR / "rayengine_common.glsl").read_text() + (SHADER_DIR / name).read_text())
-
-
-FULLSCREEN = np.array([-1, -1, 1, -1, 1, 1, -1, -1, 1, 1, -1, 1], dtype=np.float32)
-
 
 class _Programs:
     """Compiled programs of one context, by (vertex, fragment, defines)."""
@@ -232,8 +104,8 @@ class _Programs:
     def get(self, vert: str, frag: str, defines: tuple[str, ...]) -> moderngl.Program:
         key = (vert, frag, defines)
         if key not in self.progs:
-            vs = (SHADER_DIR / vert).read_text() if vert == "fullscreen.vert" else shader_source(vert, defines)
-            self.progs[key] = self.ctx.program(vertex_shader=vs, fragment_shader=shader_source(frag, defines))
+            vs = vertex_source() if vert == "fullscreen.vert" else pass_source(vert, defines)
+            self.progs[key] = self.ctx.program(vertex_shader=vs, fragment_shader=pass_source(frag, defines))
         return self.progs[key]
 
     def fullscreen(self, frag: str, defines: tuple[str, ...]) -> tuple[moderngl.Program, moderngl.VertexArray]:
@@ -244,25 +116,15 @@ class _Programs:
         return prog, self.quad_vaos[key]
 
 
-_PROGRAMS: dict[int, _Programs] = {}
-
-
-def programs(ctx: moderngl.Context) -> _Programs:
-    key = id(ctx)
-    if key not in _PROGRAMS or _PROGRAMS[key].ctx is not ctx:
-        _PROGRAMS[key] = _Programs(ctx)
-    return _PROGRAMS[key]
-
-
 # ------------------------------------------------------------------------ targets
 
 class _Targets:
     """The frame's textures on one padded size: shared depth-stencil, hit, surface,
     blocked, colour targets, and a pool of ray layers."""
 
-    def __init__(self, ctx: moderngl.Context, width: int, height: int):
+    def __init__(self, ctx: moderngl.Context, gl: RawGL, width: int, height: int):
         self.ctx, self.size = ctx, (width, height)
-        self.gl = raw_gl()
+        self.gl = gl
         self.rb = self.gl.renderbuffer(width, height)
         tex = lambda: self._tex(width, height)  # noqa: E731
         self.hit, self.surf0, self.surf1, self.blocked0, self.blocked1, self.colour = (tex() for _ in range(6))
@@ -321,21 +183,6 @@ class _Targets:
         self.gl.delete_renderbuffer(self.rb)
 
 
-_TARGETS: dict[int, _Targets] = {}
-
-
-def targets(ctx: moderngl.Context, width: int, height: int) -> _Targets:
-    """One cached set per context (the last size); a new size releases the old set."""
-    key = id(ctx)
-    cur = _TARGETS.get(key)
-    if cur is not None and cur.ctx is ctx and cur.size == (width, height):
-        return cur
-    if cur is not None and cur.ctx is ctx:
-        cur.release_all()
-    _TARGETS[key] = _Targets(ctx, width, height)
-    return _TARGETS[key]
-
-
 # --------------------------------------------------------------------------- frame
 
 @dataclass
@@ -359,35 +206,34 @@ class FrameLog:
     records: list[dict] = field(default_factory=list)
 
 
-class RayEngine:
-    """Carr et al.'s ray engine: every primitive drawn over every ray (see the module doc)."""
-    name = "rayengine"
-    hierarchical = False
-    stencil_bits = 8        # bits used, one per generation (§5); fewer: fallback beyond them
+# ------------------------------------------------------------------------ the passes
 
-    # -- the method interface ------------------------------------------------------
-    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
-                max_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH, update=None):
-        """No structure to build: the ray engines need no tree (minimal data for the interface)."""
-        from .methods import PreparedMethod
-        return PreparedMethod(gpu_layout.PackedScene({}), 0.0,
-                              {"method": self.name, "primitives": scene.n_primitives, "multi_pass": True})
+class RayEnginePasses:
+    """The ray engines' GL side of one renderer: its raw GL calls, compiled programs and
+    the render targets of the last frame size (a new size releases the old set)."""
 
-    def check(self, settings: "RenderSettings") -> None:
-        if settings.mode == "cones" and not self.hierarchical:
-            raise SceneError("mode", "mode 'cones' shows the hierarchical ray engine's cones: use method 'hre'")
+    def __init__(self, ctx: moderngl.Context, max_texture_width: int = DEFAULT_TEXTURE_WIDTH):
+        self.ctx = ctx
+        self.max_texture_width = max_texture_width
+        self.gl = RawGL()
+        self.programs = _Programs(ctx)
+        self._targets: _Targets | None = None
 
-    def tile(self, settings=None) -> int:
-        return 1
+    def targets(self, width: int, height: int) -> _Targets:
+        if self._targets is not None and self._targets.size == (width, height):
+            return self._targets
+        if self._targets is not None:
+            self._targets.release_all()
+        self._targets = _Targets(self.ctx, self.gl, width, height)
+        return self._targets
 
-    def render_frame(self, renderer, scene: Scene, settings: "RenderSettings", *,
+    def render_frame(self, method: RayEngine, scene: Scene, settings: "RenderSettings", *,
                      log: FrameLog | None = None) -> RenderResult:
-        """Trace one frame (``GLRenderer.render`` hands it here)."""
-        self.check(settings)
+        """Trace one frame of ``method`` (``GLRenderer.render`` hands multi-pass methods here)."""
         t_start = time.perf_counter()
-        ctx: moderngl.Context = renderer.ctx
+        ctx = self.ctx
         log = log if log is not None else FrameLog()
-        ts = self.tile(settings)
+        ts = method.tile(settings.tile_size)
         k = settings.supersampling
         w, h = settings.width * k, settings.height * k
         wp, hp = -(-w // ts) * ts, -(-h // ts) * ts
@@ -397,13 +243,12 @@ class RayEngine:
         max_level = features.recursion_depth(settings.max_recursion_depth) if whitted else 1
         if mode == "cones":
             max_level = settings.max_recursion_depth
-        gl = raw_gl()
-        tg = targets(ctx, wp, hp)
-        progs = programs(ctx)
-        frame = _FrameRun(self, ctx, gl, tg, progs, scene, settings, (w, h), ts, max_level, log)
+        gl = self.gl
+        tg = self.targets(wp, hp)
+        frame = _FrameRun(method, ctx, gl, tg, self.programs, scene, settings, (w, h), ts, max_level, log)
         textures: list[moderngl.Texture] = []
         try:
-            frame.upload(renderer.max_texture_width, textures)
+            frame.upload(self.max_texture_width, textures)
             t_up = time.perf_counter()
             frame.run()
             t_traced = time.perf_counter()
@@ -426,13 +271,13 @@ class RayEngine:
         timings = {"build": frame.build_ms, "upload": ms(t_start, t_up),
                    "trace": ms(t_up, t_traced) - frame.build_ms - frame.stats_ms, "read": ms(t_traced, t_end),
                    "total": ms(t_start, t_end) - frame.stats_ms}
-        if self.hierarchical:
+        if method.hierarchical:
             timings["stats"] = frame.stats_ms
-        stats = {"method": self.name, "recursion_depth": max_level, "features_removed": list(features.defines()),
+        stats = {"method": method.name, "recursion_depth": max_level, "features_removed": list(features.defines()),
                  "primitives": scene.n_primitives, "layers": log.layers, "layers_skipped": log.layers_skipped,
-                 "passes": log.passes, "stencil_bits": min(self.stencil_bits, tg.stencil_bits),
+                 "passes": log.passes, "stencil_bits": min(method.stencil_bits, tg.stencil_bits),
                  "stencil_fallback_levels": log.stencil_fallback_levels}
-        if self.hierarchical:
+        if method.hierarchical:
             stats.update({"tile_size": ts, "tile_prims_drawn": log.tiles_drawn, "tile_prims_total": log.tiles_total,
                           "cull_fraction": 1.0 - log.tiles_drawn / log.tiles_total if log.tiles_total else 0.0,
                           "cull_uncounted_passes": log.uncounted_passes})
@@ -440,21 +285,48 @@ class RayEngine:
                             normal=np.ascontiguousarray(normal, dtype=np.float32), mode=mode,
                             timings=timings, stats=stats)
 
+    def cull_matrix(self, scene: Scene, verts: np.ndarray) -> np.ndarray:
+        """The vertex shader's decision for each (tile, primitive): bool (tiles, n_primitives), True = drawn.
 
-class HierarchicalRayEngine(RayEngine):
-    """Szécsi's hierarchical ray engine: tiles of rays, one cone each, culled in the vertex shader."""
-    name = "hre"
-    hierarchical = True
+        ``verts`` are the tile vertices of a hre pass (``FrameLog.records[i]["verts"]``); the
+        same ``cone_misses_sphere`` runs in the same vertex shader, only the point goes to
+        pixel (primitive, tile) of a small target instead of over the tile (for tests).
+        """
+        n, tiles = scene.n_primitives, len(verts)
+        if n == 0 or tiles == 0:
+            return np.zeros((tiles, n), bool)
+        ctx = self.ctx
+        prog = self.programs.get("rayengine_prim.vert", "rayengine_prim.frag", ("CULL_MATRIX",))
+        packed = gpu_layout.pack_primitives(scene, self.max_texture_width)
+        tex = packed.textures["u_spheres"]
+        t = ctx.texture(tex.size, tex.components, tex.data.tobytes(), dtype=tex.dtype)
+        t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        t.use(0)
+        prog["u_spheres"].value = 0
+        for name, value in {**packed.uniforms, "u_matrix_size": (float(n), float(tiles))}.items():
+            if name in prog:
+                prog[name].value = value
+        target = ctx.texture((n, tiles), 4, dtype="f4")
+        fbo = ctx.framebuffer(color_attachments=[target])
+        buf = ctx.buffer(np.ascontiguousarray(verts, dtype=np.float32).tobytes())
+        vao = ctx.vertex_array(prog, [(buf, "2f 4f 4f", "a_tile", "a_cone0", "a_cone1")], skip_errors=True)
+        try:
+            ctx.enable_only(moderngl.NOTHING)
+            self.gl.stencil_off()
+            fbo.use()
+            fbo.clear(0.0, 0.0, 0.0, 0.0)
+            ctx.point_size = 1.0
+            vao.render(moderngl.POINTS, instances=n)
+            out = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(tiles, n, 4)[..., 0] > 0.5
+        finally:
+            for o in (vao, buf, fbo, target, t):
+                o.release()
+        return out
 
-    def tile(self, settings) -> int:
-        """The tile side, ``settings.tile_size`` (checked again: the GPU bounds it by its point size)."""
-        ts = settings.tile_size
-        if isinstance(ts, bool) or not isinstance(ts, (int, np.integer)):
-            raise SceneError("tile_size", f"expected an integer, got {ts!r}")
-        if not MIN_TILE_SIZE <= ts <= MAX_TILE_SIZE:
-            raise SceneError("tile_size", f"must be in {MIN_TILE_SIZE} … {MAX_TILE_SIZE} (a point sprite's "
-                                          f"side), got {ts}; images that it does not divide are padded")
-        return int(ts)
+    def release(self) -> None:
+        if self._targets is not None:
+            self._targets.release_all()
+            self._targets = None
 
 
 # ------------------------------------------------------------------------- one run
@@ -462,7 +334,7 @@ class HierarchicalRayEngine(RayEngine):
 class _FrameRun:
     """The passes of one frame."""
 
-    def __init__(self, method: RayEngine, ctx, gl: _RawGL, tg: _Targets, progs: _Programs, scene: Scene,
+    def __init__(self, method: RayEngine, ctx, gl: RawGL, tg: _Targets, progs: _Programs, scene: Scene,
                  settings, size: tuple[int, int], ts: int, max_level: int, log: FrameLog):
         self.m, self.ctx, self.gl, self.tg, self.progs = method, ctx, gl, tg, progs
         self.scene, self.settings, self.size, self.ts, self.max_level, self.log = \
@@ -470,7 +342,7 @@ class _FrameRun:
         self.hre = method.hierarchical
         self.mode = settings.mode
         self.n_prims = scene.n_primitives
-        self.bits = min(method.stencil_bits, tg.stencil_bits, 8)
+        self.bits = min(method.stencil_bits, tg.stencil_bits, STENCIL_BITS)
         self.build_ms = 0.0
         self.stats_ms = 0.0
         self.uniforms: dict[str, Any] = {}
@@ -491,17 +363,11 @@ class _FrameRun:
 
     # -- setup ----------------------------------------------------------------------
     def upload(self, max_width: int, textures: list) -> None:
-        from .gl_renderer import upload_textures  # lazy: gl_renderer imports methods, which imports us
         packed = gpu_layout.pack_primitives(self.scene, max_width)
         self.units.update(upload_textures(self.ctx, packed, textures))
         self.uniforms.update(packed.uniforms)
-        cam = self.scene.camera
-        right, up, forward = cam.basis()
-        s = math.tan(math.radians(cam.fov_y) / 2.0)
-        w, h = self.size
+        self.uniforms.update(gpu_layout.camera_uniforms(self.scene.camera, *self.size))
         self.uniforms.update({
-            "u_cam_pos": tuple(cam.position), "u_cam_right": tuple(right), "u_cam_up": tuple(up),
-            "u_cam_forward": tuple(forward), "u_half_extent": (s * w / h, s), "u_resolution": (float(w), float(h)),
             "u_max_level": self.max_level, "u_min_weight": float(self.settings.min_weight),
             "u_shade": 1 if self.mode == "color" else 0, "u_tile_size": float(self.ts),
             "u_target": (float(self.tg.size[0]), float(self.tg.size[1])),
@@ -830,16 +696,13 @@ class _FrameRun:
         if mode == "color":
             image = colour
         elif mode == "depth":
-            d = float(np.linalg.norm(np.subtract(self.scene.camera.target, self.scene.camera.position)))
-            g = np.where(hit, np.float32(d) / (np.float32(d) + depth), 0.0)
-            image = np.repeat(g[..., None], 3, axis=2)
+            d = np.float32(np.linalg.norm(np.subtract(self.scene.camera.target, self.scene.camera.position)))
+            image = np.repeat(depth_grey(depth, d)[..., None], 3, axis=2)
         elif mode == "primid":
-            x = primid.astype(np.float64)[..., None] * np.array([0.6180340, 0.7548777, 0.5698403])
-            image = np.where(hit[..., None], (x - np.floor(x)) * 0.8 + 0.2, 0.0)
+            image = primid_colours(primid)
         elif mode == "normal":
             image = np.where(hit[..., None], 0.5 * (normal + 1.0), 0.0)
         elif mode == "recursion":
-            from .reference import RECURSION_COLORS
             image = RECURSION_COLORS[self.deepest[:h, :w][::-1]]
         elif mode == "heat":
             tests = self.heat[:h, :w][::-1] if self.heat is not None else np.zeros((h, w))
@@ -849,45 +712,3 @@ class _FrameRun:
         else:
             raise SceneError("mode", f"unknown mode {mode!r}")
         return colour, primid, depth, normal, np.asarray(image, dtype=np.float32)
-
-
-
-
-
-def cull_matrix(ctx: moderngl.Context, scene: Scene, verts: np.ndarray, max_width: int = 4096) -> np.ndarray:
-    """The vertex shader's decision for each (tile, primitive): bool (tiles, n_primitives), True = drawn.
-
-    ``verts`` are the tile vertices of a hre pass (``FrameLog.records[i]["verts"]``); the
-    same ``cone_misses_sphere`` runs in the same vertex shader, only the point goes to
-    pixel (primitive, tile) of a small target instead of over the tile (for tests).
-    """
-    n, tiles = scene.n_primitives, len(verts)
-    if n == 0 or tiles == 0:
-        return np.zeros((tiles, n), bool)
-    progs = programs(ctx)
-    prog = progs.get("rayengine_prim.vert", "rayengine_prim.frag", ("CULL_MATRIX",))
-    packed = gpu_layout.pack_primitives(scene, max_width)
-    tex = packed.textures["u_spheres"]
-    t = ctx.texture(tex.size, tex.components, tex.data.tobytes(), dtype=tex.dtype)
-    t.filter = (moderngl.NEAREST, moderngl.NEAREST)
-    t.use(0)
-    prog["u_spheres"].value = 0
-    for name, value in {**packed.uniforms, "u_matrix_size": (float(n), float(tiles))}.items():
-        if name in prog:
-            prog[name].value = value
-    target = ctx.texture((n, tiles), 4, dtype="f4")
-    fbo = ctx.framebuffer(color_attachments=[target])
-    buf = ctx.buffer(np.ascontiguousarray(verts, dtype=np.float32).tobytes())
-    vao = ctx.vertex_array(prog, [(buf, "2f 4f 4f", "a_tile", "a_cone0", "a_cone1")], skip_errors=True)
-    try:
-        ctx.enable_only(moderngl.NOTHING)
-        raw_gl().stencil_off()
-        fbo.use()
-        fbo.clear(0.0, 0.0, 0.0, 0.0)
-        ctx.point_size = 1.0
-        vao.render(moderngl.POINTS, instances=n)
-        out = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(tiles, n, 4)[..., 0] > 0.5
-    finally:
-        for o in (vao, buf, fbo, target, t):
-            o.release()
-    return out

@@ -6,11 +6,14 @@ import time
 
 import numpy as np
 
-from . import gpu_layout
+from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, PackedScene, wrap_rows
+from ..scene import Scene
+from ..tree_update import REBUILD, UPDATE_SCHEMES, TreeUpdate
+from .base import Capabilities, PreparedMethod
 from .bvh import BVHMethod
+from .bvh_layout import pack_bvh
 from .kdtree import DEFAULT_COST_SCALE, build_for_spheres
-from .scene import Scene
-from .tree_update import REBUILD, TreeUpdate
+from .kdtree_layout import pack_kdtree
 
 
 class TwoLevelMethod:
@@ -23,6 +26,7 @@ class TwoLevelMethod:
     it every sphere counts as static (a plain scene has no motion).
     """
     name = "twolevel"
+    capabilities = Capabilities(shader="method_twolevel.glsl", update_schemes=UPDATE_SCHEMES)
     CACHE_SLOTS = 8
 
     def __init__(self) -> None:
@@ -44,9 +48,8 @@ class TwoLevelMethod:
             self._kd.pop(next(iter(self._kd)))
         return hit, fresh
 
-    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int, max_width: int = 4096,
-                update: TreeUpdate = REBUILD):
-        from .methods import PreparedMethod  # deferred: renderer.methods imports this module
+    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int, max_width: int = DEFAULT_TEXTURE_WIDTH,
+                update: TreeUpdate = REBUILD) -> PreparedMethod:
         t0 = time.perf_counter()
         n = scene.n_spheres
         mv = np.zeros(n, dtype=bool) if update.moving is None else np.asarray(update.moving, dtype=bool).reshape(-1)
@@ -60,10 +63,28 @@ class TwoLevelMethod:
                     scene.sphere_radii[moving_ids], scene.sphere_materials[moving_ids], scene.planes)
         bvh = self._bvh.build(sub, max_prims, max_tree_depth, update)
         t2 = time.perf_counter()
-        packed = gpu_layout.pack_twolevel(kd, static_ids, bvh, moving_ids, max_width)
+        packed = pack_twolevel(kd, static_ids, bvh, moving_ids, max_width)
         stats = {"method": self.name, "static": int(len(static_ids)), "moving": int(len(moving_ids)),
                  "kd_build_ms": (t1 - t0) * 1e3 if fresh else 0.0, "kd_cached": not fresh,
                  "bvh_update_ms": (t2 - t1) * 1e3, "scheme": bvh.stats.scheme,
                  "kd": kd.stats.to_json(), "bvh": bvh.stats.to_json(),
                  "bytes": kd.stats.bytes + bvh.stats.bytes}
         return PreparedMethod(packed, (t2 - t0) * 1e3, stats)
+
+
+def pack_twolevel(kd, kd_ids: np.ndarray, bvh, bvh_ids: np.ndarray,
+                  max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
+    """Two levels: the kd-tree over the spheres ``kd_ids`` and the BVH over ``bvh_ids``.
+
+    Each structure was built over its subset (primitive ``i`` = scene sphere ``ids[i]``);
+    their index arrays are mapped to scene ids here, so the shader sees scene ids only.
+    """
+    kd_ids = np.asarray(kd_ids, dtype=np.int64)
+    bvh_ids = np.asarray(bvh_ids, dtype=np.int64)
+    kd_part = pack_kdtree(kd, max_width)
+    kd_part.textures["u_kd_indices"] = wrap_rows(kd_ids[kd.indices].astype(np.uint32), max_width)
+    bvh_part = pack_bvh(bvh, max_width)
+    bvh_part.textures["u_bvh_indices"] = wrap_rows(bvh_ids[bvh.indices].astype(np.uint32), max_width)
+    return PackedScene(textures={**kd_part.textures, **bvh_part.textures},
+                       uniforms={**kd_part.uniforms, "u_kd_count": int(len(kd_ids)),
+                                 "u_bvh_count": int(len(bvh_ids))})

@@ -7,89 +7,32 @@ one dedicated thread).
 
 from __future__ import annotations
 
-import math
 import time
-from pathlib import Path
 from typing import Hashable
 
 import moderngl
 import numpy as np
 
-from . import gpu_layout
-from .animation import AnimatedScene, pose
-from .gl_context import GLUnavailable, create_context  # noqa: F401  (re-exported)
-from .features import GENERIC, scene_features
-from .methods import METHODS, PreparedMethod, resolve_method
-from .result import RenderResult
-from .scene import Scene, SceneError
-from .settings import RenderSettings
-from .tree_update import TreeUpdate
-
-# Modes raytrace.frag implements ("cones" belongs to the hierarchical ray engine).
-SINGLE_PASS_MODES = ("color", "depth", "primid", "normal", "recursion", "heat")
-
-SHADER_DIR = Path(__file__).resolve().parent.parent / "shaders"
-HEADER_MARK = "//@HEADER@"
-METHOD_MARK = "//@METHOD@"
-INCLUDE_MARK = "//@INCLUDE "   # a line "//@INCLUDE method_bvh.glsl" in a method file inlines that file
-
-
-def shader_source(method: str, mode: str, max_recursion_depth: int,
-                  extra_defines: tuple[str, ...] = ()) -> str:
-    """The fragment shader of one variant.
-
-    ``raytrace.frag`` with the layout header and the variant's defines after
-    ``#version`` and the method's ``method_<name>.glsl`` spliced in at
-    ``//@METHOD@``. The same assembly serves moderngl and the browser (WebGL2).
-    """
-    src = (SHADER_DIR / "raytrace.frag").read_text()
-    method_src = _with_includes((SHADER_DIR / f"method_{method}.glsl").read_text())
-    defines = [f"#define METHOD_{method.upper()}", f"#define MODE_{mode.upper()}",
-               f"#define MAX_RECURSION_DEPTH {int(max_recursion_depth)}", *(f"#define {d}" for d in extra_defines)]
-    header = gpu_layout.glsl_header() + "\n".join(defines) + "\n"
-    return src.replace(HEADER_MARK, header).replace(METHOD_MARK, method_src)
-
-
-def _with_includes(text: str) -> str:
-    """Inline ``//@INCLUDE file`` lines (one level: a method built from other methods)."""
-    lines = []
-    for line in text.splitlines(keepends=True):
-        if line.startswith(INCLUDE_MARK):
-            name = line[len(INCLUDE_MARK):].strip()
-            lines.append(f"// ---- {name} ----\n" + (SHADER_DIR / name).read_text() + "\n")
-        else:
-            lines.append(line)
-    return "".join(lines)
-
-
-def vertex_source() -> str:
-    return (SHADER_DIR / "fullscreen.vert").read_text()
-
-
-def upload_textures(ctx: moderngl.Context, packed: gpu_layout.PackedScene,
-                    textures: list[moderngl.Texture]) -> dict[str, int]:
-    """Create the packed textures and bind them to the next free units.
-
-    Appends them to ``textures`` (the caller releases them after the frame) and
-    returns sampler name → texture unit.
-    """
-    units = {}
-    for name, tex in packed.textures.items():
-        gl_tex = ctx.texture(tex.size, tex.components, tex.data.tobytes(), dtype=tex.dtype)
-        # Integer textures are incomplete with LINEAR filtering; texelFetch ignores it otherwise.
-        gl_tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        unit = len(textures)
-        gl_tex.use(unit)
-        textures.append(gl_tex)
-        units[name] = unit
-    return units
+from .. import gpu_layout
+from ..animation import AnimatedScene, pose
+from ..features import GENERIC, scene_features
+from ..limits import DEFAULT_TEXTURE_WIDTH
+from ..methods import METHODS, PreparedMethod, resolve_method
+from ..result import RenderResult
+from ..scene import Scene, SceneError
+from ..settings import RenderSettings
+from ..shader_source import tracer_source, vertex_source
+from ..tree_update import TreeUpdate
+from .context import GLUnavailable, create_context  # noqa: F401  (re-exported)
+from .ray_engine import RayEnginePasses
+from .textures import upload_textures
 
 
 class GLRenderer:
     """Renders scenes with the GLSL ES 3.00 tracer. Programs are cached per variant."""
 
     def __init__(self, ctx: moderngl.Context | None = None,
-                 max_texture_width: int = gpu_layout.DEFAULT_TEXTURE_WIDTH):
+                 max_texture_width: int = DEFAULT_TEXTURE_WIDTH):
         self.ctx = ctx or create_context()
         self.max_texture_width = min(max_texture_width, self.ctx.info["GL_MAX_TEXTURE_SIZE"])
         self._programs: dict[tuple, moderngl.Program] = {}
@@ -97,6 +40,14 @@ class GLRenderer:
         self._fbos: dict[tuple[int, int], moderngl.Framebuffer] = {}
         quad = np.array([-1, -1, 1, -1, 1, 1, -1, -1, 1, 1, -1, 1], dtype=np.float32)
         self._quad = self.ctx.buffer(quad.tobytes())
+        self._ray_engine: RayEnginePasses | None = None
+
+    @property
+    def ray_engine(self) -> RayEnginePasses:
+        """The passes of the multi-pass methods (made on first use: their programs and targets)."""
+        if self._ray_engine is None:
+            self._ray_engine = RayEnginePasses(self.ctx, self.max_texture_width)
+        return self._ray_engine
 
     @property
     def info(self) -> dict[str, str]:
@@ -108,7 +59,7 @@ class GLRenderer:
         key = (method, mode, max_recursion_depth, features)
         if key not in self._programs:
             prog = self.ctx.program(vertex_shader=vertex_source(),
-                                    fragment_shader=shader_source(method, mode, max_recursion_depth, features))
+                                    fragment_shader=tracer_source(method, mode, max_recursion_depth, features))
             self._programs[key] = prog
             self._vaos[key] = self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
         return self._programs[key], self._vaos[key]
@@ -171,9 +122,9 @@ class GLRenderer:
         t_start = time.perf_counter()
         method_name = resolve_method(settings.method, scene.n_spheres)
         method = METHODS[method_name]
-        if hasattr(method, "render_frame"):  # multi-pass methods draw the frame themselves
-            return method.render_frame(self, scene, settings)
-        if settings.mode not in SINGLE_PASS_MODES:
+        if method.capabilities.multi_pass:  # the ray engines draw the frame in passes of their own
+            return self.ray_engine.render_frame(method, scene, settings)
+        if settings.mode not in method.capabilities.modes:
             raise SceneError("mode", f"mode {settings.mode!r} is not available with method {method_name!r}")
         if prepared is None:
             prepared = method.prepare(scene, settings.max_prims, settings.max_tree_depth,
@@ -191,7 +142,9 @@ class GLRenderer:
             self._upload(prog, gpu_layout.pack_primitives(scene, self.max_texture_width), units, textures)
             self._upload(prog, prepared.packed, units, textures)
             self._bind_dummies(prog, units, textures)
-            self._set_camera(prog, scene, w, h)
+            for name, value in gpu_layout.camera_uniforms(scene.camera, w, h).items():
+                if name in prog:
+                    prog[name].value = value
             if "u_min_weight" in prog:
                 prog["u_min_weight"].value = float(settings.min_weight)
             fbo = self._framebuffer(w, h)
@@ -233,19 +186,3 @@ class GLRenderer:
                 dummy.use(len(textures))
                 prog[name].value = len(textures)
                 textures.append(dummy)
-
-    @staticmethod
-    def _set_camera(prog: moderngl.Program, scene: Scene, width: int, height: int) -> None:
-        cam = scene.camera
-        right, up, forward = cam.basis()
-        s = math.tan(math.radians(cam.fov_y) / 2.0)
-        values = {
-            "u_cam_pos": tuple(cam.position), "u_cam_right": tuple(right), "u_cam_up": tuple(up),
-            "u_cam_forward": tuple(forward),
-            "u_half_extent": (s * width / height, s),
-            "u_resolution": (float(width), float(height)),
-            "u_target_distance": float(np.linalg.norm(np.subtract(cam.target, cam.position))),
-        }
-        for name, value in values.items():
-            if name in prog:
-                prog[name].value = value

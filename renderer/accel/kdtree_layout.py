@@ -21,13 +21,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, PackedScene, wrap_rows
+from ..limits import MAX_TREE_DEPTH
+
 AXIS_SHIFT = 30
 LEAF_TAG = 3 << AXIS_SHIFT
 LOW_MASK = (1 << AXIS_SHIFT) - 1
 NODE_BYTES = 8
 MAX_NODES = 1 << AXIS_SHIFT
 # One stack entry per level; the build never makes a deeper tree.
-STACK_SIZE = 64
+STACK_SIZE = MAX_TREE_DEPTH
 # Relative slack (shader and checks): interval comparisons that decide which
 # children to visit, pruning of popped entries and the early exit are made
 # conservative against float32 rounding by this factor (they only add work).
@@ -65,3 +68,12 @@ def glsl_defines() -> str:
             f"#define KD_LOW_MASK {LOW_MASK}u\n"
             f"#define KD_STACK_SIZE {STACK_SIZE}\n"
             f"#define KD_T_SLACK {T_SLACK!r}\n")
+
+
+def pack_kdtree(kd, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
+    """The kd-tree's nodes (RG32UI, see above), compacted index array and global box."""
+    return PackedScene(
+        textures={"u_kd_nodes": wrap_rows(kd.words(), max_width),
+                  "u_kd_indices": wrap_rows(kd.indices.astype(np.uint32), max_width)},
+        uniforms={"u_kd_box_min": tuple(float(x) for x in kd.global_box[0]),
+                  "u_kd_box_max": tuple(float(x) for x in kd.global_box[1])})

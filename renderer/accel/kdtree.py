@@ -38,9 +38,11 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from ..limits import DEFAULT_TEXTURE_WIDTH
+from ..tree_update import REBUILD, TreeUpdate
 from . import kdtree_layout as L
-from .bih import sphere_aabbs
-from .tree_update import REBUILD, TreeUpdate
+from .base import Capabilities, PreparedMethod
+from .primitives import sphere_aabbs
 
 C_TRAV = 1.0
 C_ISECT = 1.0
@@ -437,14 +439,13 @@ class KdTreeMethod:
     """Method ``kdtree``: the SAH kd-tree of this module (cost scaling on), rebuilt per request,
     traced by ``shaders/method_kdtree.glsl``. ``max_prims`` is not used: the SAH decides."""
     name = "kdtree"
+    capabilities = Capabilities(shader="method_kdtree.glsl")
     cost_scale = DEFAULT_COST_SCALE
 
-    def prepare(self, scene, max_prims: int, max_tree_depth: int, max_width: int = 4096,
-                update: TreeUpdate = REBUILD):
+    def prepare(self, scene, max_prims: int, max_tree_depth: int, max_width: int = DEFAULT_TEXTURE_WIDTH,
+                update: TreeUpdate = REBUILD) -> PreparedMethod:
         """Builds a fresh tree every frame: a kd-tree is not refitted (``update`` is ignored)."""
-        from . import gpu_layout
-        from .methods import PreparedMethod
         t0 = time.perf_counter()
         kd = build_for_spheres(scene.sphere_centers, scene.sphere_radii, max_tree_depth, self.cost_scale)
         ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod(gpu_layout.pack_kdtree(kd, max_width), ms, {"method": self.name, **kd.stats.to_json()})
+        return PreparedMethod(L.pack_kdtree(kd, max_width), ms, {"method": self.name, **kd.stats.to_json()})

@@ -37,12 +37,17 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .. import limits
+from ..limits import MAX_RETRIES, MAX_TREE_DEPTH
+from ..scene import Scene
+from ..tree_update import REBUILD, TreeUpdate
 from . import bih_layout as L
+from .base import Capabilities, PreparedMethod
+from .primitives import sphere_aabbs
 
 OPTIMIZED_NODE_FACTOR = np.float32(1.3)
-# Retries (optimized-node shrinks and one-sided halvings) allowed per node
-# before it becomes a leaf. float32 halving exhausts its precision long before.
-MAX_RETRIES = 64
+# MAX_RETRIES (limits): retries (optimized-node shrinks and one-sided halvings) allowed
+# per node before it becomes a leaf. float32 halving exhausts its precision long before.
 
 
 @dataclass
@@ -93,23 +98,8 @@ class BIH:
     stats: BIHStats
 
 
-def sphere_aabbs(centers: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """float32 AABBs, rounded outwards, that hold each sphere in both precisions.
-
-    The GPU sees the sphere rounded to float32, the reference tracer and the
-    CPU traversal see it in float64; the two differ by up to one float32 step
-    when a centre is not representable, so the box bounds the union of both.
-    """
-    c64 = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
-    r64 = np.asarray(radii, dtype=np.float64).reshape(-1, 1)
-    c32, r32 = c64.astype(np.float32), r64.astype(np.float32)
-    down, up = np.float32(-np.inf), np.float32(np.inf)
-    lo = np.minimum(np.nextafter(c32 - r32, down), np.nextafter((c64 - r64).astype(np.float32), down))
-    hi = np.maximum(np.nextafter(c32 + r32, up), np.nextafter((c64 + r64).astype(np.float32), up))
-    return lo, hi
-
-
-def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8, max_tree_depth: int = 64) -> BIH:
+def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
+              max_tree_depth: int = MAX_TREE_DEPTH) -> BIH:
     """Build a BIH over primitives given by float32 AABBs ``(n, 3)``.
 
     Returns the node array, the sorted index array, the global AABB and the
@@ -118,8 +108,8 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8, ma
     t0 = time.perf_counter()
     if max_prims < 1:
         raise ValueError("max_prims must be >= 1")
-    if not 1 <= max_tree_depth <= 64:
-        raise ValueError("max_tree_depth must be in 1 … 64")
+    if not 1 <= max_tree_depth <= MAX_TREE_DEPTH:
+        raise ValueError(f"max_tree_depth must be in 1 … {MAX_TREE_DEPTH}")
     pmin = np.ascontiguousarray(aabb_min, dtype=np.float32).reshape(-1, 3)
     pmax = np.ascontiguousarray(aabb_max, dtype=np.float32).reshape(-1, 3)
     n = len(pmin)
@@ -274,7 +264,22 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8, ma
                max_prims=max_prims, max_tree_depth=max_tree_depth, stats=stats)
 
 
-def build_for_spheres(centers: np.ndarray, radii: np.ndarray, max_prims: int = 8, max_tree_depth: int = 64) -> BIH:
+def build_for_spheres(centers: np.ndarray, radii: np.ndarray, max_prims: int = 8,
+                      max_tree_depth: int = MAX_TREE_DEPTH) -> BIH:
     """Listing 3.3: sphere AABBs, the global AABB, then the subdivision."""
     lo, hi = sphere_aabbs(centers, radii)
     return build_bih(lo, hi, max_prims=max_prims, max_tree_depth=max_tree_depth)
+
+
+class BoundingIntervalHierarchy:
+    """Method ``bih``: the thesis's BIH (listings 3.3–3.5), rebuilt per request and traced
+    by ``shaders/method_bih.glsl``."""
+    name = "bih"
+    capabilities = Capabilities(shader="method_bih.glsl")
+
+    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
+                max_width: int = limits.DEFAULT_TEXTURE_WIDTH, update: TreeUpdate = REBUILD) -> PreparedMethod:
+        t0 = time.perf_counter()
+        bih = build_for_spheres(scene.sphere_centers, scene.sphere_radii, max_prims, max_tree_depth)
+        build_ms = (time.perf_counter() - t0) * 1e3
+        return PreparedMethod(L.pack_bih(bih, max_width), build_ms, {"method": self.name, **bih.stats.to_json()})

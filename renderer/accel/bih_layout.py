@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, PackedScene, wrap_rows
+
 AXIS_SHIFT = 30
 LEAF_TAG = 3 << AXIS_SHIFT          # both high bits set
 CHILD_MASK = (1 << AXIS_SHIFT) - 1  # low 30 bits
@@ -62,3 +64,12 @@ def glsl_defines() -> str:
     return (f"#define BIH_AXIS_SHIFT {AXIS_SHIFT}u\n"
             f"#define BIH_LEAF_TAG {LEAF_TAG}u\n"
             f"#define BIH_CHILD_MASK {CHILD_MASK}u\n")
+
+
+def pack_bih(bih, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
+    """The BIH's node array, index array and global AABB."""
+    return PackedScene(
+        textures={"u_nodes": wrap_rows(bih.nodes, max_width),
+                  "u_indices": wrap_rows(bih.indices.astype(np.uint32), max_width)},
+        uniforms={"u_box_min": tuple(float(x) for x in bih.global_aabb[0]),
+                  "u_box_max": tuple(float(x) for x in bih.global_aabb[1])})

@@ -1,0 +1,68 @@
+"""The interface every acceleration method implements, and what a method declares of itself.
+
+A method turns a posed scene into what the GPU tracer needs for it — its textures and
+uniforms, packed with the layout beside its build (``accel/<method>_layout.py``), and
+statistics — in ``prepare``, which runs for every frame: the thesis rebuilds its BIH
+per request, and so do we, except where a frame of an animation asks a method that keeps
+its tree to update it (:mod:`renderer.tree_update`).
+
+Nothing here imports OpenGL: a single-pass method's traversal is GLSL
+(``shaders/<capabilities.shader>``, spliced into ``raytrace.frag``); a multi-pass
+method's passes are run by :mod:`renderer.gl.ray_engine`, which the GL renderer finds
+from ``capabilities.multi_pass``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from .. import gpu_layout
+from ..limits import DEFAULT_TEXTURE_WIDTH
+from ..modes import SINGLE_PASS_MODES
+from ..scene import Scene
+from ..tree_update import REBUILD, TreeUpdate
+
+
+@dataclass
+class PreparedMethod:
+    """One request's acceleration data: GPU data, build time (ms), statistics."""
+    packed: gpu_layout.PackedScene
+    build_ms: float
+    stats: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Capabilities:
+    """What a method is, so that nobody has to find out by trying.
+
+    multi_pass: the frame is drawn as several GL passes (the ray engines) instead of one
+    pass of ``raytrace.frag``; such a method cannot run on a device (WebGL2 client).
+    shader: the GLSL file of a single-pass method's traversal (``shaders/``), defining
+    ``method_init()`` and ``intersect_spheres()``.
+    modes: the render modes it can draw.
+    tests_every_sphere: no hierarchy over the primitives — a frame costs rays × spheres.
+    update_schemes: how it can follow an animation from its previous frame
+    (:data:`renderer.tree_update.UPDATE_SCHEMES`); ``("rebuild",)`` = always rebuilds.
+    """
+    multi_pass: bool = False
+    shader: str | None = None
+    modes: tuple[str, ...] = SINGLE_PASS_MODES
+    tests_every_sphere: bool = False
+    update_schemes: tuple[str, ...] = ("rebuild",)
+
+    @property
+    def device(self) -> bool:
+        """Whether a browser can trace it (one pass of the shared shader)."""
+        return not self.multi_pass and self.shader is not None
+
+
+class AccelerationMethod(Protocol):
+    """A method of tracing the spheres: a name, its capabilities and ``prepare``."""
+    name: str
+    capabilities: Capabilities
+
+    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
+                max_width: int = DEFAULT_TEXTURE_WIDTH, update: TreeUpdate = REBUILD) -> PreparedMethod:
+        """The frame's acceleration data for the posed ``scene``; ``update`` says whether and
+        how the previous frame's tree of the same animation may be updated instead."""

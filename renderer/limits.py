@@ -1,0 +1,54 @@
+"""Every limit of the engine, once. Everything else (settings, the API's schema, the
+shaders' stack sizes, the scene's validation, the docs' tables) takes its bound from here.
+
+Why each bound is what it is:
+
+- ``MAX_TREE_DEPTH`` is the traversal stack of every tree method's shader: one stack
+  entry per tree level. A build never makes a deeper tree, so no traversal can overflow;
+  raising it costs every fragment that many more registers (``docs/SHADING.md``).
+- ``MAX_RECURSION_DEPTH`` bounds the Whitted ray tree (the shader's task stack holds one
+  entry per level plus one), and the ray engines spend one stencil bit per generation:
+  8 bits of stencil cover exactly these 8 levels.
+- ``MAX_IMAGE_SIDE`` is a render target's side *after* supersampling (so a frame of
+  ``width × √samples_per_pixel`` must fit too); GL guarantees 4,096 on this machine
+  and on most phones.
+- The hierarchical ray engine draws one point sprite per tile: its side is at most
+  ``MAX_TILE_SIZE`` pixels (llvmpipe allows 255; the device's own bound is checked at
+  run time).
+"""
+
+from __future__ import annotations
+
+# ---- trees ---------------------------------------------------------------------------------
+MAX_TREE_DEPTH = 64            # levels (the root counts as 1) = entries of the traversal stack
+MAX_PRIMS = 1 << 24            # largest leaf-size limit a build accepts
+MAX_RETRIES = 64               # BIH: retries (box halvings / shrinks) of one node before it is a leaf
+
+# ---- frames --------------------------------------------------------------------------------
+MAX_IMAGE_SIDE = 4096          # pixels, of the render target (after supersampling)
+MAX_RECURSION_DEPTH = 8        # levels of the ray tree; 1 = primary rays only
+SAMPLES_PER_PIXEL = (1, 4, 9, 16)   # stratified supersampling: √s × √s sub-pixels
+MIN_WEIGHT_RANGE = (0.0, 1.0)  # ε cut-off of secondary rays
+MIN_TILE_SIZE = 2              # hre: tile side in pixels
+MAX_TILE_SIZE = 64
+DEFAULT_TILE_SIZE = 16
+JPEG_QUALITY_RANGE = (1, 100)
+
+# ---- animation -----------------------------------------------------------------------------
+MAX_TIME = 1.0e6               # seconds: the largest time a scene can be posed at
+UPDATE_THRESHOLD_RANGE = (0.0, 100.0)   # selective rebuild: cost growth, 0.3 = +30 %
+
+# ---- scenes --------------------------------------------------------------------------------
+# 24 bits of mantissa: beyond 1e7 a unit sphere cannot be represented at all.
+MAX_COORDINATE = 1.0e7
+MAX_SPHERES = 1 << 21
+MAX_PLANES = 8
+MAX_LIGHTS = 8
+MAX_MATERIALS = 256
+MAX_MOTIONS = 1024
+
+# ---- GPU data ------------------------------------------------------------------------------
+DEFAULT_TEXTURE_WIDTH = 4096   # texture rows; WebGL2 guarantees 2048, most phones have 4096
+STENCIL_BITS = 8               # ray engines: one stencil bit per generation (≥ MAX_RECURSION_DEPTH)
+
+assert STENCIL_BITS >= MAX_RECURSION_DEPTH
