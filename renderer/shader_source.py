@@ -14,7 +14,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from . import gpu_layout
-from .accel import bih_layout, bvh_layout, kdtree_layout
+from .gpu_layout import Binding, Variant
 from .methods import METHODS
 
 SHADER_DIR = Path(__file__).resolve().parent.parent / "shaders"
@@ -29,12 +29,6 @@ def read(name: str) -> str:
     return (SHADER_DIR / name).read_text()
 
 
-def layout_header() -> str:
-    """Every layout's constants as ``#define`` lines: the tracer's, then each method's."""
-    return gpu_layout.glsl_header() + bih_layout.glsl_defines() + bvh_layout.glsl_defines() \
-        + kdtree_layout.glsl_defines()
-
-
 def method_shader(method: str) -> str:
     """The file name of a single-pass method's traversal (ValueError for others)."""
     m = METHODS.get(method)
@@ -43,13 +37,31 @@ def method_shader(method: str) -> str:
     return m.capabilities.shader
 
 
+def tracer_bindings(variant: Variant) -> list[Binding]:
+    """The textures and uniforms the variant's shader declares and reads: the scene's and
+    the camera's it needs (:meth:`Variant.reads`), then every one of its method's."""
+    return [b for b in (*gpu_layout.TRACER_BINDINGS, *METHODS[variant.method].bindings) if variant.reads(b.group)]
+
+
+@lru_cache(maxsize=None)
+def known_bindings() -> frozenset[str]:
+    """Every binding name a layout declares: the tracer's and every method's."""
+    return frozenset(b.name for b in (*gpu_layout.TRACER_BINDINGS, *(b for m in METHODS.values() for b in m.bindings)))
+
+
+def tracer_header(variant: Variant) -> str:
+    """Layout constants, the variant's defines and its bindings' declarations."""
+    defines = [f"METHOD_{variant.method.upper()}", f"MODE_{variant.mode.upper()}",
+               f"MAX_RECURSION_DEPTH {int(variant.depth)}", *variant.features, *variant.defines()]
+    return (gpu_layout.glsl_header() + METHODS[variant.method].glsl_defines()
+            + "".join(f"#define {d}\n" for d in defines) + gpu_layout.declarations(tracer_bindings(variant)))
+
+
 def tracer_source(method: str, mode: str, max_recursion_depth: int, extra_defines: tuple[str, ...] = ()) -> str:
     """The fragment shader of one variant: method × mode × recursion depth × feature defines."""
-    defines = [f"#define METHOD_{method.upper()}", f"#define MODE_{mode.upper()}",
-               f"#define MAX_RECURSION_DEPTH {int(max_recursion_depth)}", *(f"#define {d}" for d in extra_defines)]
-    header = layout_header() + "\n".join(defines) + "\n"
+    variant = Variant(method, mode, int(max_recursion_depth), tuple(extra_defines))
     method_src = _with_includes(read(method_shader(method)))
-    return read("raytrace.frag").replace(HEADER_MARK, header).replace(METHOD_MARK, method_src)
+    return read("raytrace.frag").replace(HEADER_MARK, tracer_header(variant)).replace(METHOD_MARK, method_src)
 
 
 def _with_includes(text: str) -> str:
@@ -70,6 +82,8 @@ def vertex_source() -> str:
 
 
 def pass_source(name: str, defines: tuple[str, ...] = ()) -> str:
-    """A ray-engine shader: ``#version``, the layout header, the defines, the common part, then ``name``."""
-    return ("#version 300 es\n" + layout_header() + "".join(f"#define {d}\n" for d in defines)
-            + read("rayengine_common.glsl") + read(name))
+    """A ray-engine shader: ``#version``, the layout constants, the defines, the scene's
+    declarations, the common part, then ``name``. (The passes' own ray textures and
+    uniforms are declared in their files and bound by :mod:`renderer.gl.ray_engine`.)"""
+    return ("#version 300 es\n" + gpu_layout.glsl_header() + "".join(f"#define {d}\n" for d in defines)
+            + gpu_layout.declarations(gpu_layout.RAY_ENGINE_BINDINGS) + read("rayengine_common.glsl") + read(name))

@@ -1,11 +1,7 @@
 // Method "bih": the thesis's Bounding Interval Hierarchy (listing 3.5).
 // Spliced into raytrace.frag at its METHOD mark; defines intersect_spheres().
-// Node layout: renderer/bih_layout.py (BIH_* constants in the header).
-
-uniform highp usampler2D u_nodes;       // BIH nodes (bih_layout)
-uniform highp usampler2D u_indices;     // BIH sorted primitive indices
-uniform vec3 u_box_min;                 // BIH global AABB
-uniform vec3 u_box_max;
+// Node layout and bindings (u_nodes, u_indices, u_box_min/max): renderer/accel/bih_layout.py
+// (BIH_* constants and the declarations in the header).
 
 int g_node_shift, g_index_shift;
 
@@ -14,7 +10,7 @@ void method_init() {
     g_index_shift = row_shift(textureSize(u_indices, 0));
 }
 
-// Listing 3.5 with the corrections of SPEC.md: the near child depends on the
+// Listing 3.5 with the corrections of docs/THESIS.md: the near child depends on the
 // sign of d[axis]; each child gets its own interval; the far child is pushed
 // with its interval and dropped on pop when it starts beyond the best hit.
 // The stack has one entry per tree level, and the build never makes a tree

@@ -1,12 +1,10 @@
 // Method "bvh": binned-SAH bounding volume hierarchy with Reiter's ordered
 // traversal (near mask per direction octant, listing 4.13), stack-based.
 // Spliced into raytrace.frag at its METHOD mark; defines intersect_spheres().
-// Node layout: renderer/bvh_layout.py (two RGBA32UI texels per node).
+// Node layout: renderer/accel/bvh_layout.py (two RGBA32UI texels per node).
 
-// Layout constants (BVH_*) come from renderer/bvh_layout.py via the host header.
-
-uniform highp usampler2D u_bvh_nodes;     // 2 texels per node (bvh_layout)
-uniform highp usampler2D u_bvh_indices;   // primitive ids in leaf order
+// Layout constants (BVH_*) and the bindings (u_bvh_nodes, u_bvh_indices) come from
+// renderer/accel/bvh_layout.py via the host header.
 
 int g_bvh_node_shift, g_bvh_index_shift;
 

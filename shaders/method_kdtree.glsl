@@ -1,13 +1,9 @@
 // Method "kdtree": SAH kd-tree (Reiter §4.3), front-to-back stack traversal
 // with early exit. Spliced into raytrace.frag at its METHOD mark; defines
-// intersect_spheres(). Node layout: renderer/kdtree_layout.py (RG32UI).
+// intersect_spheres(). Node layout: renderer/accel/kdtree_layout.py (RG32UI).
 
-// Layout constants (KD_*) come from renderer/kdtree_layout.py via the host header.
-
-uniform highp usampler2D u_kd_nodes;    // kd-tree nodes (kdtree_layout)
-uniform highp usampler2D u_kd_indices;  // compacted primitive index array
-uniform vec3 u_kd_box_min;              // the root's voxel
-uniform vec3 u_kd_box_max;
+// Layout constants (KD_*) and the bindings (u_kd_nodes, u_kd_indices, u_kd_box_min/max)
+// come from renderer/accel/kdtree_layout.py via the host header.
 
 int g_kd_node_shift, g_kd_index_shift;
 

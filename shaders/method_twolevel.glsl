@@ -1,12 +1,10 @@
 // Method "twolevel" (Reiter §3.2.2): static spheres in a kd-tree, moving ones in a BVH;
 // every ray traverses both and keeps the nearer hit. The two traversals are the
-// methods' own files, inlined by the host (renderer/gl_renderer.py, INCLUDE lines).
+// methods' own files, inlined by the host (renderer/shader_source.py, INCLUDE lines).
+// Bindings (both trees', u_bvh_count, u_kd_count): renderer/accel/twolevel.py.
 
 #define BVH_NO_METHOD_INIT
 #define KD_NO_METHOD_INIT
-
-uniform int u_bvh_count;   // spheres in the BVH (moving)
-uniform int u_kd_count;    // spheres in the kd-tree (static)
 
 //@INCLUDE method_bvh.glsl
 //@INCLUDE method_kdtree.glsl

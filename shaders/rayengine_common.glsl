@@ -1,7 +1,8 @@
 // Shared part of the ray-engine shaders (methods "rayengine" and "hre",
-// renderer/ray_engine.py). The host puts "#version 300 es", the layout
-// header of renderer/gpu_layout.py and the pass's defines before this file,
-// and the pass's own shader after it.
+// renderer/gl/ray_engine.py). The host (renderer/shader_source.py) puts
+// "#version 300 es", the layout header with the declarations of the scene's
+// textures and uniforms (renderer/gpu_layout.py) and the pass's defines before
+// this file, and the pass's own shader after it.
 //
 // The scene is read exactly as shaders/raytrace.frag reads it (same textures
 // and uniforms, packed once by gpu_layout.pack_primitives), and the
@@ -18,19 +19,6 @@ precision highp float;
 precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
-
-uniform highp sampler2D u_spheres;      // (centre.xyz, radius) per sphere id
-uniform highp usampler2D u_sphere_mat;  // material index per sphere id
-uniform highp sampler2D u_materials;    // MATERIAL_TEXELS texels per material
-
-uniform int u_num_spheres;
-uniform int u_num_planes;
-uniform vec3 u_plane_point[MAX_PLANES];
-uniform vec3 u_plane_normal[MAX_PLANES];
-uniform int u_plane_mat[MAX_PLANES];
-uniform int u_num_lights;
-uniform vec3 u_light_pos[MAX_LIGHTS];
-uniform vec3 u_light_color[MAX_LIGHTS];
 
 const float BIG = 3.0e38;               // raytrace.frag's "no hit": a hit needs 0 < t < BIG
 const int NO_PRIM = -1;

@@ -14,16 +14,11 @@ uniform highp sampler2D u_surf1;
 uniform highp sampler2D u_blocked0;    // lights 0–3 (channel = light % 4): 1 = shadowed
 uniform highp sampler2D u_blocked1;    // lights 4–7
 
-uniform vec3 u_cam_pos;
-uniform vec3 u_cam_right;
-uniform vec3 u_cam_up;
-uniform vec3 u_cam_forward;
-uniform vec2 u_half_extent;
-uniform vec2 u_resolution;             // image size W, H (the target may be padded)
+// The camera (u_cam_*, u_half_extent, u_resolution = the image's W × H; the target
+// may be padded) and u_min_weight are declared in the header (renderer/gpu_layout.py).
 uniform int u_level;                   // generation of these rays (primary = 1)
 uniform int u_max_level;               // recursion depth traced
 uniform int u_shade;                   // 1: colour (lights); 0: only the next rays
-uniform float u_min_weight;
 
 #if defined(PASS_SURFACE)
 layout(location = 0) out vec4 o_surf0;

@@ -1,40 +1,20 @@
 #version 300 es
 // pocketray's Whitted ray tracer (thesis listing 3.1) with BIH traversal
-// (listing 3.5, corrected as SPEC.md describes) or another method: the host
-// splices the method's shaders/method_<name>.glsl in at the METHOD mark; it
-// defines method_init() (called once per fragment) and intersect_spheres().
-// The conventions (rays, self-intersection, shading, modes) are those of
-// docs/SHADING.md; the texture layout is renderer/gpu_layout.py, whose
-// constants and the variant's METHOD_* / MODE_* defines are inserted by the
-// host after the #version line. Valid GLSL ES 3.00, for WebGL2 too.
+// (listing 3.5, corrected as docs/THESIS.md describes) or another method: the
+// host splices the method's traversal (shaders/method_<name>.glsl) in at the
+// METHOD mark; it defines method_init() (called once per fragment) and
+// intersect_spheres(). The conventions (rays, self-intersection, shading,
+// modes) are those of docs/SHADING.md. The host inserts at the HEADER mark the
+// layout constants, the variant's METHOD_* / MODE_* / READS_* defines and the
+// declarations of every texture and uniform the variant reads, generated from
+// renderer/gpu_layout.py and the method's layout module, so each name is
+// written once. Valid GLSL ES 3.00, for WebGL2 too.
 precision highp float;
 precision highp int;
 precision highp sampler2D;
 precision highp usampler2D;
 
 //@HEADER@
-
-uniform highp sampler2D u_spheres;      // (centre.xyz, radius) per sphere id
-uniform highp usampler2D u_sphere_mat;  // material index per sphere id
-uniform highp sampler2D u_materials;    // MATERIAL_TEXELS texels per material
-
-uniform int u_num_spheres;
-uniform int u_num_planes;
-uniform vec3 u_plane_point[MAX_PLANES];
-uniform vec3 u_plane_normal[MAX_PLANES];
-uniform int u_plane_mat[MAX_PLANES];
-uniform int u_num_lights;
-uniform vec3 u_light_pos[MAX_LIGHTS];
-uniform vec3 u_light_color[MAX_LIGHTS];
-
-uniform vec3 u_cam_pos;
-uniform vec3 u_cam_right;
-uniform vec3 u_cam_up;
-uniform vec3 u_cam_forward;
-uniform vec2 u_half_extent;             // (tan(fov_y/2)·W/H, tan(fov_y/2))
-uniform vec2 u_resolution;              // (W, H)
-uniform float u_target_distance;        // |target − position|, for the depth image
-uniform float u_min_weight;             // ε: secondary rays of smaller path weight are not traced
 
 layout(location = 0) out vec4 o_image;  // rgb = mode image, a = primary id (−1 miss)
 layout(location = 1) out vec4 o_hit;    // xyz = outward normal, w = primary t (−1 miss)
@@ -152,12 +132,14 @@ struct Material {
     float ambient, diffuse, specular, shininess, reflective, transmissive, ior;
 };
 
+#ifdef READS_MATERIALS
 Material fetch_material(int m) {
     vec4 a = texelFetch(u_materials, texel(m * MATERIAL_TEXELS, g_mat_shift), 0);
     vec4 b = texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 1, g_mat_shift), 0);
     vec4 c = texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 2, g_mat_shift), 0);
     return Material(a.rgb, a.a, b.x, b.y, b.z, b.w, c.x, c.y);
 }
+#endif
 
 // The ray leaving a hit on primitive `id` with outward normal n: which
 // primitive it ignores and for which sphere only the far root counts.
@@ -222,10 +204,14 @@ Surface surface_at(vec3 o, vec3 d, Hit h) {
         vec3 rel = (o - sp.xyz) + h.t * d;
         float len = length(rel);
         s.n = len > 0.0 ? rel / len : -d;   // len = 0 only where float32 cannot resolve the sphere
+#ifdef READS_MATERIALS
         s.mat = int(texelFetch(u_sphere_mat, texel(h.id, g_sphere_shift), 0).x);
+#endif
     } else {
         s.n = normalize(u_plane_normal[h.id - u_num_spheres]);
+#ifdef READS_MATERIALS
         s.mat = u_plane_mat[h.id - u_num_spheres];
+#endif
     }
     return s;
 }
@@ -233,7 +219,9 @@ Surface surface_at(vec3 o, vec3 d, Hit h) {
 void main() {
     g_sphere_shift = row_shift(textureSize(u_spheres, 0));
     method_init();
+#ifdef READS_MATERIALS
     g_mat_shift = row_shift(textureSize(u_materials, 0));
+#endif
     // gl_FragCoord.y grows upwards; image row 0 is the top row.
     float px = gl_FragCoord.x;
     float row = u_resolution.y - gl_FragCoord.y;
@@ -268,6 +256,7 @@ void main() {
     while (true) {
         Query q;
         if (light >= 0) {
+#ifdef READS_LIGHTS
             // The next light that faces the surface: its shadow ray.
             vec3 l = vec3(0.0);
             float dist = 0.0;
@@ -285,6 +274,9 @@ void main() {
                     break;
                 }
             }
+#else
+            light = MAX_LIGHTS;   // no light in this variant: straight to the spawned rays
+#endif
             if (light >= MAX_LIGHTS) {
                 light = -1;
 #if MAX_RECURSION_DEPTH > 1
@@ -319,9 +311,11 @@ void main() {
 #endif
                 continue;
             }
+#ifdef READS_LIGHTS
             int skip, far_id;
             exclusion(h.id, s.n, l, skip, far_id);
             q = Query(s.p, l, skip, far_id, dist, true);
+#endif
         } else {
             if (n_tasks == 0) break;
             n_tasks--;
@@ -339,7 +333,9 @@ void main() {
         s = surface_at(k.o, k.d, h);
         if (k.level == 1) { primary_t = h.t; primary_id = h.id; primary_n = s.n; }
         deepest = max(deepest, k.level);
+#ifdef READS_MATERIALS
         m = fetch_material(s.mat);
+#endif
         nf = dot(k.d, s.n) < 0.0 ? s.n : -s.n;
 #ifdef MODE_COLOR
         colour += k.weight * m.ambient * m.color;   // Phong's ambient term

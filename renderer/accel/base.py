@@ -32,6 +32,15 @@ class PreparedMethod:
     stats: dict[str, Any] = field(default_factory=dict)
 
 
+class NoLayout:
+    """Mixin of methods without a layout of their own (no bindings, no defines)."""
+    bindings: tuple[gpu_layout.Binding, ...] = ()
+
+    @staticmethod
+    def glsl_defines() -> str:
+        return ""
+
+
 @dataclass(frozen=True)
 class Capabilities:
     """What a method is, so that nobody has to find out by trying.
@@ -58,9 +67,15 @@ class Capabilities:
 
 
 class AccelerationMethod(Protocol):
-    """A method of tracing the spheres: a name, its capabilities and ``prepare``."""
+    """A method of tracing the spheres: a name, its capabilities, the GPU bindings and layout
+    constants its traversal reads (declared into the shader header from here), and ``prepare``."""
     name: str
     capabilities: Capabilities
+    bindings: tuple[gpu_layout.Binding, ...]
+
+    @staticmethod
+    def glsl_defines() -> str:
+        """The method's layout constants as ``#define`` lines ("" when it has none)."""
 
     def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
                 max_width: int = DEFAULT_TEXTURE_WIDTH, update: TreeUpdate = REBUILD) -> PreparedMethod:

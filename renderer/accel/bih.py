@@ -276,6 +276,8 @@ class BoundingIntervalHierarchy:
     by ``shaders/method_bih.glsl``."""
     name = "bih"
     capabilities = Capabilities(shader="method_bih.glsl")
+    bindings = L.BINDINGS
+    glsl_defines = staticmethod(L.glsl_defines)
 
     def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
                 max_width: int = limits.DEFAULT_TEXTURE_WIDTH, update: TreeUpdate = REBUILD) -> PreparedMethod:

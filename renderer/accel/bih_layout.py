@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, PackedScene, wrap_rows
+from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
+from ..limits import MAX_TREE_DEPTH
 
 AXIS_SHIFT = 30
 LEAF_TAG = 3 << AXIS_SHIFT          # both high bits set
@@ -34,6 +35,14 @@ NODE_WORDS = 3
 
 # Largest node count the 30-bit child index can address.
 MAX_NODES = 1 << AXIS_SHIFT
+# One traversal-stack entry per tree level: a tree is never deeper than MAX_TREE_DEPTH.
+STACK_SIZE = MAX_TREE_DEPTH
+
+NODES = Binding("u_nodes", "highp usampler2D", "BIH nodes (bih_layout)")
+INDICES = Binding("u_indices", "highp usampler2D", "BIH sorted primitive indices")
+BOX_MIN = Binding("u_box_min", "highp vec3", "BIH global AABB")
+BOX_MAX = Binding("u_box_max", "highp vec3")
+BINDINGS = (NODES, INDICES, BOX_MIN, BOX_MAX)
 
 
 def empty_nodes(count: int) -> np.ndarray:
@@ -61,7 +70,8 @@ def clips(nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def glsl_defines() -> str:
     """The layout as GLSL ES 3.00 ``#define`` lines (shared with the shader)."""
-    return (f"#define BIH_AXIS_SHIFT {AXIS_SHIFT}u\n"
+    return (f"#define BIH_STACK_SIZE {STACK_SIZE}\n"
+            f"#define BIH_AXIS_SHIFT {AXIS_SHIFT}u\n"
             f"#define BIH_LEAF_TAG {LEAF_TAG}u\n"
             f"#define BIH_CHILD_MASK {CHILD_MASK}u\n")
 
@@ -69,7 +79,7 @@ def glsl_defines() -> str:
 def pack_bih(bih, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
     """The BIH's node array, index array and global AABB."""
     return PackedScene(
-        textures={"u_nodes": wrap_rows(bih.nodes, max_width),
-                  "u_indices": wrap_rows(bih.indices.astype(np.uint32), max_width)},
-        uniforms={"u_box_min": tuple(float(x) for x in bih.global_aabb[0]),
-                  "u_box_max": tuple(float(x) for x in bih.global_aabb[1])})
+        textures={NODES.name: wrap_rows(bih.nodes, max_width),
+                  INDICES.name: wrap_rows(bih.indices.astype(np.uint32), max_width)},
+        uniforms={BOX_MIN.name: tuple(float(x) for x in bih.global_aabb[0]),
+                  BOX_MAX.name: tuple(float(x) for x in bih.global_aabb[1])})

@@ -9,10 +9,10 @@ from .. import gpu_layout
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..scene import Scene
 from ..tree_update import REBUILD, TreeUpdate
-from .base import Capabilities, PreparedMethod
+from .base import Capabilities, NoLayout, PreparedMethod
 
 
-class BruteForce:
+class BruteForce(NoLayout):
     name = "bruteforce"
     capabilities = Capabilities(shader="method_bruteforce.glsl", tests_every_sphere=True)
 

@@ -653,6 +653,8 @@ class BVHMethod:
     """
     name = "bvh"
     capabilities = Capabilities(shader="method_bvh.glsl", update_schemes=UPDATE_SCHEMES)
+    bindings = L.BINDINGS
+    glsl_defines = staticmethod(L.glsl_defines)
     CACHE_SLOTS = 8
 
     def __init__(self) -> None:

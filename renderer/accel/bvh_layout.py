@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, PackedScene, wrap_rows
+from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
 from ..limits import MAX_TREE_DEPTH
 
 INNER_FLAG = 1 << 31
@@ -48,6 +48,10 @@ T_SLACK = 1.00001
 # 0 · inf = NaN (a ray parallel to a slab outside it gets a huge, finite entry
 # distance: conservative).
 DIR_EPS = 1e-30
+
+NODES = Binding("u_bvh_nodes", "highp usampler2D", "2 texels per node (bvh_layout)")
+INDICES = Binding("u_bvh_indices", "highp usampler2D", "primitive ids in leaf order")
+BINDINGS = (NODES, INDICES)
 
 
 def pack_nodes(bmin: np.ndarray, bmax: np.ndarray, left: np.ndarray, first: np.ndarray,
@@ -88,5 +92,5 @@ def glsl_defines() -> str:
 def pack_bvh(bvh, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
     """The BVH's nodes (two RGBA32UI texels each, see above) and its index array."""
     return PackedScene(
-        textures={"u_bvh_nodes": wrap_rows(bvh.texels(), max_width),
-                  "u_bvh_indices": wrap_rows(bvh.indices.astype(np.uint32), max_width)})
+        textures={NODES.name: wrap_rows(bvh.texels(), max_width),
+                  INDICES.name: wrap_rows(bvh.indices.astype(np.uint32), max_width)})

@@ -440,6 +440,8 @@ class KdTreeMethod:
     traced by ``shaders/method_kdtree.glsl``. ``max_prims`` is not used: the SAH decides."""
     name = "kdtree"
     capabilities = Capabilities(shader="method_kdtree.glsl")
+    bindings = L.BINDINGS
+    glsl_defines = staticmethod(L.glsl_defines)
     cost_scale = DEFAULT_COST_SCALE
 
     def prepare(self, scene, max_prims: int, max_tree_depth: int, max_width: int = DEFAULT_TEXTURE_WIDTH,

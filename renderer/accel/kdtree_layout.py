@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, PackedScene, wrap_rows
+from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
 from ..limits import MAX_TREE_DEPTH
 
 AXIS_SHIFT = 30
@@ -35,6 +35,12 @@ STACK_SIZE = MAX_TREE_DEPTH
 # children to visit, pruning of popped entries and the early exit are made
 # conservative against float32 rounding by this factor (they only add work).
 T_SLACK = 1.00001
+
+NODES = Binding("u_kd_nodes", "highp usampler2D", "kd-tree nodes (kdtree_layout)")
+INDICES = Binding("u_kd_indices", "highp usampler2D", "compacted primitive index array")
+BOX_MIN = Binding("u_kd_box_min", "highp vec3", "the root's voxel")
+BOX_MAX = Binding("u_kd_box_max", "highp vec3")
+BINDINGS = (NODES, INDICES, BOX_MIN, BOX_MAX)
 
 
 def pack_nodes(axis: np.ndarray, left: np.ndarray, split: np.ndarray, count: np.ndarray,
@@ -73,7 +79,7 @@ def glsl_defines() -> str:
 def pack_kdtree(kd, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
     """The kd-tree's nodes (RG32UI, see above), compacted index array and global box."""
     return PackedScene(
-        textures={"u_kd_nodes": wrap_rows(kd.words(), max_width),
-                  "u_kd_indices": wrap_rows(kd.indices.astype(np.uint32), max_width)},
-        uniforms={"u_kd_box_min": tuple(float(x) for x in kd.global_box[0]),
-                  "u_kd_box_max": tuple(float(x) for x in kd.global_box[1])})
+        textures={NODES.name: wrap_rows(kd.words(), max_width),
+                  INDICES.name: wrap_rows(kd.indices.astype(np.uint32), max_width)},
+        uniforms={BOX_MIN.name: tuple(float(x) for x in kd.global_box[0]),
+                  BOX_MAX.name: tuple(float(x) for x in kd.global_box[1])})

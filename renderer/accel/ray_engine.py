@@ -15,10 +15,10 @@ from ..limits import DEFAULT_TEXTURE_WIDTH, STENCIL_BITS
 from ..modes import MODES, SINGLE_PASS_MODES
 from ..scene import Scene
 from ..tree_update import REBUILD, TreeUpdate
-from .base import Capabilities, PreparedMethod
+from .base import Capabilities, NoLayout, PreparedMethod
 
 
-class RayEngine:
+class RayEngine(NoLayout):
     """Carr et al.'s ray engine: every primitive drawn over every ray."""
     name = "rayengine"
     hierarchical = False

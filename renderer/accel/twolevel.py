@@ -6,14 +6,18 @@ import time
 
 import numpy as np
 
-from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, PackedScene, wrap_rows
+from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
 from ..scene import Scene
 from ..tree_update import REBUILD, UPDATE_SCHEMES, TreeUpdate
 from .base import Capabilities, PreparedMethod
 from .bvh import BVHMethod
+from . import bvh_layout, kdtree_layout
 from .bvh_layout import pack_bvh
 from .kdtree import DEFAULT_COST_SCALE, build_for_spheres
 from .kdtree_layout import pack_kdtree
+
+KD_COUNT = Binding("u_kd_count", "highp int", "spheres in the kd-tree (static)")
+BVH_COUNT = Binding("u_bvh_count", "highp int", "spheres in the BVH (moving)")
 
 
 class TwoLevelMethod:
@@ -27,6 +31,11 @@ class TwoLevelMethod:
     """
     name = "twolevel"
     capabilities = Capabilities(shader="method_twolevel.glsl", update_schemes=UPDATE_SCHEMES)
+    bindings = (*kdtree_layout.BINDINGS, *bvh_layout.BINDINGS, KD_COUNT, BVH_COUNT)
+
+    @staticmethod
+    def glsl_defines() -> str:
+        return bvh_layout.glsl_defines() + kdtree_layout.glsl_defines()
     CACHE_SLOTS = 8
 
     def __init__(self) -> None:
@@ -82,9 +91,9 @@ def pack_twolevel(kd, kd_ids: np.ndarray, bvh, bvh_ids: np.ndarray,
     kd_ids = np.asarray(kd_ids, dtype=np.int64)
     bvh_ids = np.asarray(bvh_ids, dtype=np.int64)
     kd_part = pack_kdtree(kd, max_width)
-    kd_part.textures["u_kd_indices"] = wrap_rows(kd_ids[kd.indices].astype(np.uint32), max_width)
+    kd_part.textures[kdtree_layout.INDICES.name] = wrap_rows(kd_ids[kd.indices].astype(np.uint32), max_width)
     bvh_part = pack_bvh(bvh, max_width)
-    bvh_part.textures["u_bvh_indices"] = wrap_rows(bvh_ids[bvh.indices].astype(np.uint32), max_width)
+    bvh_part.textures[bvh_layout.INDICES.name] = wrap_rows(bvh_ids[bvh.indices].astype(np.uint32), max_width)
     return PackedScene(textures={**kd_part.textures, **bvh_part.textures},
-                       uniforms={**kd_part.uniforms, "u_kd_count": int(len(kd_ids)),
-                                 "u_bvh_count": int(len(bvh_ids))})
+                       uniforms={**kd_part.uniforms, KD_COUNT.name: int(len(kd_ids)),
+                                 BVH_COUNT.name: int(len(bvh_ids))})

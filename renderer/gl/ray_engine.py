@@ -100,9 +100,11 @@ class _Programs:
         self.progs: dict[tuple, moderngl.Program] = {}
         self.quad = ctx.buffer(FULLSCREEN.tobytes())
         self.quad_vaos: dict[tuple, moderngl.VertexArray] = {}
+        self.used: set[tuple] = set()     # keys of the programs the current frame asked for
 
     def get(self, vert: str, frag: str, defines: tuple[str, ...]) -> moderngl.Program:
         key = (vert, frag, defines)
+        self.used.add(key)
         if key not in self.progs:
             vs = vertex_source() if vert == "fullscreen.vert" else pass_source(vert, defines)
             self.progs[key] = self.ctx.program(vertex_shader=vs, fragment_shader=pass_source(frag, defines))
@@ -218,6 +220,7 @@ class RayEnginePasses:
         self.gl = RawGL()
         self.programs = _Programs(ctx)
         self._targets: _Targets | None = None
+        self.last_bound: set[str] = set()
 
     def targets(self, width: int, height: int) -> _Targets:
         if self._targets is not None and self._targets.size == (width, height):
@@ -249,6 +252,8 @@ class RayEnginePasses:
         textures: list[moderngl.Texture] = []
         try:
             frame.upload(self.max_texture_width, textures)
+            self.last_bound = frame.bound     # what the frame uploads (tests compare it with the programs)
+            self.programs.used.clear()
             t_up = time.perf_counter()
             frame.run()
             t_traced = time.perf_counter()
@@ -347,6 +352,7 @@ class _FrameRun:
         self.stats_ms = 0.0
         self.uniforms: dict[str, Any] = {}
         self.units: dict[str, int] = {}
+        self.bound: set[str] = set()      # scene bindings uploaded for this frame
         self.primary: dict[str, np.ndarray] = {}
         self.deepest = np.zeros((tg.size[1], tg.size[0]), np.int32) if self.mode == "recursion" else None
         self.cone_image: np.ndarray | None = None
@@ -362,10 +368,24 @@ class _FrameRun:
                 raise SceneError("tile_size", f"tile size {ts} exceeds this GPU's largest point ({gl.point_size_max():g})")
 
     # -- setup ----------------------------------------------------------------------
+    def scene_bindings(self) -> list[gpu_layout.Binding]:
+        """The scene's textures and uniforms this frame's passes read: the geometry whenever
+        a primitive pass runs (not for the cones of the primary layer alone), materials
+        and lights whenever a shading pass runs (every colour frame; a recursion or cones
+        frame that spawns rays). The pass programs are shared by the modes (``u_shade``
+        selects at run time), so this is per frame, not per program."""
+        geometry = not (self.mode == "cones" and self.max_level == 1)
+        shades = self.mode == "color" or (self.mode in ("recursion", "cones") and self.max_level > 1)
+        reads = {"always": geometry, "materials": shades, "lights": shades}
+        return [b for b in gpu_layout.RAY_ENGINE_SCENE_BINDINGS if reads[b.group]]
+
     def upload(self, max_width: int, textures: list) -> None:
         packed = gpu_layout.pack_primitives(self.scene, max_width)
-        self.units.update(upload_textures(self.ctx, packed, textures))
-        self.uniforms.update(packed.uniforms)
+        wanted = {b.name for b in self.scene_bindings()}
+        self.units.update(upload_textures(self.ctx, gpu_layout.PackedScene(
+            {n: t for n, t in packed.textures.items() if n in wanted}), textures))
+        self.uniforms.update({n: v for n, v in packed.uniforms.items() if n in wanted})
+        self.bound = wanted
         self.uniforms.update(gpu_layout.camera_uniforms(self.scene.camera, *self.size))
         self.uniforms.update({
             "u_max_level": self.max_level, "u_min_weight": float(self.settings.min_weight),

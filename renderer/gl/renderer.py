@@ -21,7 +21,8 @@ from ..methods import METHODS, PreparedMethod, resolve_method
 from ..result import RenderResult
 from ..scene import Scene, SceneError
 from ..settings import RenderSettings
-from ..shader_source import tracer_source, vertex_source
+from ..gpu_layout import PackedScene, Variant
+from ..shader_source import known_bindings, tracer_bindings, tracer_source, vertex_source
 from ..tree_update import TreeUpdate
 from .context import GLUnavailable, create_context  # noqa: F401  (re-exported)
 from .ray_engine import RayEnginePasses
@@ -76,13 +77,33 @@ class GLRenderer:
             self._fbos[key] = self.ctx.framebuffer(color_attachments=attachments)
         return self._fbos[key]
 
-    def _upload(self, prog: moderngl.Program, packed: gpu_layout.PackedScene, units: dict[str, int],
-                textures: list[moderngl.Texture]) -> None:
-        for name, unit in upload_textures(self.ctx, packed, textures).items():
+    def _bind(self, prog: moderngl.Program, variant: Variant, parts: list[PackedScene],
+              textures: list[moderngl.Texture]) -> None:
+        """Upload and bind exactly the textures and uniforms the variant declares.
+
+        Every packed name must be a binding some layout declares (KeyError otherwise: a
+        misspelt name is an error, never skipped); those the variant does not read are not
+        uploaded; a binding it reads that nothing packed is an error too. A declared binding
+        the compiler found unused is not an active uniform: nothing to set (the test of the
+        bindings checks that on this driver every declared one is active).
+        """
+        known = known_bindings()
+        declared = {b.name for b in tracer_bindings(variant)}
+        tex, uni = {}, {}
+        for part in parts:
+            for name in (*part.textures, *part.uniforms):
+                if name not in known:
+                    raise KeyError(f"{name!r} is packed but no layout declares it (renderer/gpu_layout.py, "
+                                   f"renderer/accel/*_layout.py)")
+            tex.update((n, t) for n, t in part.textures.items() if n in declared)
+            uni.update((n, v) for n, v in part.uniforms.items() if n in declared)
+        missing = declared - set(tex) - set(uni)
+        if missing:
+            raise KeyError(f"the {variant.method} shader reads {sorted(missing)} but nothing packed them")
+        for name, unit in upload_textures(self.ctx, PackedScene(tex), textures).items():
             if name in prog:
                 prog[name].value = unit
-            units[name] = unit
-        for name, value in packed.uniforms.items():
+        for name, value in uni.items():
             if name in prog:
                 prog[name].value = value
 
@@ -134,19 +155,15 @@ class GLRenderer:
         features = scene_features(scene) if settings.specialize else GENERIC
         depth = features.recursion_depth(settings.max_recursion_depth)
         prog, vao = self.program(method_name, settings.mode, depth, features.defines())
+        variant = Variant(method_name, settings.mode, depth, features.defines())
         k = settings.supersampling
         w, h = settings.width * k, settings.height * k
         textures: list[moderngl.Texture] = []
         try:
-            units: dict[str, int] = {}
-            self._upload(prog, gpu_layout.pack_primitives(scene, self.max_texture_width), units, textures)
-            self._upload(prog, prepared.packed, units, textures)
-            self._bind_dummies(prog, units, textures)
-            for name, value in gpu_layout.camera_uniforms(scene.camera, w, h).items():
-                if name in prog:
-                    prog[name].value = value
-            if "u_min_weight" in prog:
-                prog["u_min_weight"].value = float(settings.min_weight)
+            frame = PackedScene({}, {**gpu_layout.camera_uniforms(scene.camera, w, h),
+                                     gpu_layout.MIN_WEIGHT.name: float(settings.min_weight)})
+            self._bind(prog, variant, [gpu_layout.pack_primitives(scene, self.max_texture_width), prepared.packed,
+                                       frame], textures)
             fbo = self._framebuffer(w, h)
             fbo.use()
             self.ctx.finish()
@@ -176,13 +193,3 @@ class GLRenderer:
         return RenderResult(image=np.ascontiguousarray(colour, dtype=np.float32), depth=depth_t, primid=primid,
                             normal=np.ascontiguousarray(hit[..., :3]), mode=settings.mode,
                             timings=timings, stats=stats)
-
-    def _bind_dummies(self, prog: moderngl.Program, units: dict[str, int], textures: list[moderngl.Texture]) -> None:
-        """Samplers the variant declares but this method does not fill get a 1×1 texture."""
-        for name in ("u_spheres", "u_sphere_mat", "u_materials"):
-            if name in prog and name not in units:
-                dummy = self.ctx.texture((1, 1), 1, np.zeros(1, np.uint32).tobytes(), dtype="u4")
-                dummy.filter = (moderngl.NEAREST, moderngl.NEAREST)
-                dummy.use(len(textures))
-                prog[name].value = len(textures)
-                textures.append(dummy)

@@ -1,0 +1,82 @@
+"""Every GPU name once: what is packed for a shader variant is what the variant reads.
+
+The shader header declares a variant's textures and uniforms from the layout constants
+(renderer/gpu_layout.py, renderer/accel/*_layout.py) and the renderer uploads exactly
+those. Here, for every method and mode, each uploaded texture or uniform must be an
+*active* uniform of the compiled program: a binding packed for nothing, or declared
+under a name the shader does not use, fails.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import pytest
+
+from renderer import gpu_layout
+from renderer.gpu_layout import Variant
+from renderer.methods import METHODS
+from renderer.modes import SINGLE_PASS_MODES
+from renderer.scenarios import scenario
+from renderer.settings import RenderSettings
+from renderer.shader_source import known_bindings, tracer_bindings
+
+FEATURES = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS")
+FEATURE_SETS = [tuple(f for f, on in zip(FEATURES, bits) if on) for bits in itertools.product((0, 1), repeat=3)]
+ONE_PASS = [name for name, m in METHODS.items() if not m.capabilities.multi_pass]
+MULTI_PASS = [name for name, m in METHODS.items() if m.capabilities.multi_pass]
+
+
+def active(prog) -> set[str]:
+    return {name.split("[")[0] for name in prog}
+
+
+@pytest.mark.parametrize("method", ONE_PASS)
+@pytest.mark.parametrize("mode", SINGLE_PASS_MODES)
+def test_every_declared_binding_of_every_variant_is_active(gl_renderer, method, mode):
+    for depth, features in itertools.product((1, 2, 8), FEATURE_SETS):
+        variant = Variant(method, mode, depth, features)
+        prog, _ = gl_renderer.program(method, mode, depth, features)
+        declared = {b.name for b in tracer_bindings(variant)}
+        assert declared <= active(prog), (variant, sorted(declared - active(prog)))
+        assert active(prog) & known_bindings() <= declared, variant
+
+
+@pytest.mark.parametrize("method", ONE_PASS)
+def test_what_a_method_packs_is_what_its_shader_declares(method):
+    packed = METHODS[method].prepare(scenario(3, 64), 8, 64).packed
+    names = set(packed.textures) | set(packed.uniforms)
+    assert names == {b.name for b in METHODS[method].bindings}
+    prims = gpu_layout.pack_primitives(scenario(3, 64))
+    assert set(prims.textures) | set(prims.uniforms) == {b.name for b in gpu_layout.SCENE_BINDINGS}
+
+
+def test_a_misspelt_packed_name_is_an_error(gl_renderer, monkeypatch):
+    """The renderer refuses a packed name no layout declares instead of skipping it."""
+    real = gpu_layout.pack_primitives
+
+    def misspelt(scene, max_width=gpu_layout.DEFAULT_TEXTURE_WIDTH):
+        packed = real(scene, max_width)
+        packed.uniforms["u_num_sphere"] = packed.uniforms.pop("u_num_spheres")
+        return packed
+    monkeypatch.setattr(gpu_layout, "pack_primitives", misspelt)
+    with pytest.raises(KeyError, match="u_num_sphere"):
+        gl_renderer.render(scenario(1, 8), RenderSettings(width=8, height=8, method="bruteforce"))
+
+
+@pytest.mark.parametrize("method", MULTI_PASS)
+@pytest.mark.parametrize("mode", ["color", "depth", "primid", "normal", "recursion", "heat", "cones"])
+@pytest.mark.parametrize("depth", [1, 3])
+def test_ray_engine_frames_upload_only_what_their_passes_read(gl_renderer, method, mode, depth):
+    if mode not in METHODS[method].capabilities.modes:
+        return
+    passes = gl_renderer.ray_engine
+    gl_renderer.render(scenario(3, 64), RenderSettings(width=32, height=32, method=method, mode=mode,
+                                                       max_recursion_depth=depth))
+    used = set().union(*(active(passes.programs.progs[k]) for k in passes.programs.used))
+    declared = {b.name for b in gpu_layout.RAY_ENGINE_BINDINGS}
+    assert used & known_bindings() <= declared
+    bound = passes.last_bound
+    assert bound <= used, (method, mode, depth, sorted(bound - used))
+    # Only the cones of the primary layer need no scene data at all.
+    assert bool(bound) == (mode != "cones" or depth > 1)
