@@ -28,7 +28,7 @@ Validation follows the scene model: every bad value raises :class:`SceneError` w
 nothing is applied before everything is valid. A motion is rejected when it could
 move a sphere beyond ``MAX_COORDINATE`` or produce a non-finite number at any time.
 
-JSON: a scene JSON (SPEC) may carry ``"motions": [...]``; :func:`animated_scene_from_json`
+JSON: a scene JSON (docs/FORMATS.md) may carry ``"motions": [...]``; :func:`animated_scene_from_json`
 reads it. Each motion is an object with ``kind`` (``rigid`` | ``deformable`` |
 ``incoherent``), ``first``, ``count`` and the fields of its class below.
 """
@@ -42,10 +42,10 @@ from typing import Any
 
 import numpy as np
 
+from .limits import MAX_TIME  # noqa: F401  (re-exported: seconds, the largest time a scene can be posed at)
 from .scenarios import RED, TRANSPARENT
 from .scene import MAX_COORDINATE, Camera, Light, Material, Plane, Scene, SceneError, finite_number, finite_vec3
 
-from .limits import MAX_TIME  # noqa: E402,F401  (seconds: the largest time a scene can be posed at)
 
 
 def _num(v: Any, where: str, lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> float:

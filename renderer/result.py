@@ -33,7 +33,7 @@ class RenderResult:
         return np.floor(np.clip(self.image, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
 
     def array(self) -> np.ndarray:
-        """The array of SPEC's ``format=npy`` for this result's mode."""
+        """The ``format=npy`` array of this result's mode (docs/FORMATS.md)."""
         if self.mode == "depth":
             return self.depth.astype(np.float32)
         if self.mode == "primid":

@@ -1,11 +1,11 @@
 """The scene model: camera, point lights, materials, spheres and planes.
 
-One contract for renderer, server, client and tests: the JSON schema of
-``shared/SPEC.md``. Everything is validated on construction, so a ``Scene``
+One contract for renderer, server, client and tests: the scene JSON of
+``docs/FORMATS.md``. Everything is validated on construction, so a ``Scene``
 that exists is renderable; a bad value raises :class:`SceneError` whose
 ``field`` names the offending JSON path (the server turns it into a 422).
 
-Conventions (SPEC):
+Conventions (docs/FORMATS.md):
 - right-handed world, the camera is a pinhole at ``position`` looking at
   ``target``; ``fov_y`` is the vertical field of view in degrees;
 - primitive ids: spheres ``0 … n-1`` in scene order, planes follow; -1 = no hit.
@@ -20,11 +20,11 @@ from typing import Any, Sequence
 
 import numpy as np
 
-Vec3 = tuple[float, float, float]
-
-# Largest coordinate magnitude accepted. float32 (the GPU's precision) has
 from . import limits
-from .limits import MAX_COORDINATE  # noqa: F401  (re-exported: the scene's bound)
+# Largest coordinate magnitude accepted (float32 resolves a unit sphere up to it; limits.py).
+from .limits import MAX_COORDINATE  # noqa: F401  (re-exported)
+
+Vec3 = tuple[float, float, float]
 
 
 class SceneError(ValueError):
@@ -294,7 +294,7 @@ class Scene:
         object.__setattr__(seen, "camera", camera)
         return seen
 
-    # ---- JSON (SPEC schema) -------------------------------------------------
+    # ---- JSON (docs/FORMATS.md) -------------------------------------------------
     def to_json(self) -> dict:
         spheres = [{"center": c, "radius": r, "material": m} for c, r, m in
                    zip(self.sphere_centers.tolist(), self.sphere_radii.tolist(), self.sphere_materials.tolist())]

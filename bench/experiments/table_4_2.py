@@ -122,7 +122,7 @@ median of {ctx.runs} run(s), beside the thesis's iPhone 5s means.
 - Scenario 1 against the thesis: {exact[0]}; {exact[1]}.
 - Leaves = inner nodes + 1 in every configuration here: {'yes' if inner_plus_one else 'NO'}. The thesis's
   scenarios 2 and 3 break that identity (and report empty leaves), so only scenario 1 can match bit for bit
-  (SPEC, "Counting depth"); for 2 and 3 the table puts ours beside theirs.
+  (docs/THESIS.md, "Counting depth"); for 2 and 3 the table puts ours beside theirs.
 - Build time MAX_PRIMS 8 / MAX_PRIMS 1, scenario 1: ours {build_sc1:.2f}×, the thesis's
   {THESIS[(1, 8)]['build_ms'] / THESIS[(1, 1)]['build_ms']:.2f}×.
 

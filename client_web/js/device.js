@@ -255,7 +255,7 @@ export class DeviceRenderer {
     return this.targets;
   }
 
-  // Trace one frame of `width × height` with the compiled `prog` and `camera` (SPEC JSON),
+  // Trace one frame of `width × height` with the compiled `prog` and `camera` (the scene JSON's camera, docs/FORMATS.md),
   // then show it on this.canvas. → timings {trace, display} in ms.
   render(prog, width, height, camera) {
     const gl = this.gl;
@@ -410,7 +410,7 @@ export class DeviceView {
     this.unavailable = null;       // the reason, once probed unsuccessfully
     this.key = null;               // what the loaded data is for
     this.loading = null;           // {key, promise}
-    this.camera = null;            // the local camera (SPEC JSON)
+    this.camera = null;            // the local camera (camera JSON, docs/FORMATS.md)
     this.home = null;
     this.version = null;           // the session version the local camera builds on
     this.localSeq = 0;             // local gestures so far

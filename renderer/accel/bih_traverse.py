@@ -1,6 +1,6 @@
 """CPU BIH traversal in float64, vectorised over rays (docs/SHADING.md).
 
-This is the reference for what the shader's ``traverse_bih`` does, including
+This is the reference for what the shader's ``intersect_spheres`` (``shaders/method_bih.glsl``) does, including
 the heat-mode counters. All rays run in lockstep: every *step* each live ray
 either pops an entry off its own explicit stack or visits one node, so the
 Python loop runs over steps (about the number of nodes the busiest ray

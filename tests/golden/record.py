@@ -23,8 +23,11 @@ import numpy as np
 
 RECORD = Path(__file__).with_name("record.json")
 
-SINGLE_PASS = ("bih", "bruteforce", "bvh", "kdtree", "twolevel")
-MODES = ("color", "depth", "primid", "normal", "recursion", "heat")
+from renderer.methods import METHODS  # noqa: E402
+from renderer.modes import SINGLE_PASS_MODES as MODES  # noqa: E402
+
+# Every method with a one-pass traversal: a new method adds its variants to the record.
+SINGLE_PASS = tuple(name for name, m in METHODS.items() if m.capabilities.shader)
 FEATURES = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS")
 
 
@@ -90,7 +93,6 @@ def _packed_sha(packed) -> str:
 
 def device_data() -> dict[str, str]:
     from renderer import gpu_layout
-    from renderer.methods import METHODS
     from renderer.scenarios import scenario
     out = {}
     for number, n, width in itertools.product((1, 2, 3), (64, 1024), (4096, 256)):
