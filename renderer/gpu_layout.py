@@ -127,7 +127,12 @@ TARGET_DISTANCE = Binding("u_target_distance", "highp float", "|target − posit
 CAMERA_BINDINGS = (CAM_POS, CAM_RIGHT, CAM_UP, CAM_FORWARD, HALF_EXTENT, RESOLUTION, TARGET_DISTANCE)
 MIN_WEIGHT = Binding("u_min_weight", "highp float", "ε: secondary rays of smaller path weight are not traced",
                      group="min_weight")
-TRACER_BINDINGS = (*SCENE_BINDINGS, *CAMERA_BINDINGS, MIN_WEIGHT)
+# A frame is traced in passes: the pixel centres (scale 1, offset 0.5), then for supersampled
+# images one pass per sub-pixel (sx, sy) of the √s-times finer grid (scale √s, offset s + 0.5).
+PASS_SCALE = Binding("u_pass_scale", "highp float", "sub-pixels per pixel side of this pass's grid")
+PASS_OFFSET = Binding("u_pass_offset", "highp vec2", "(sx, sy) + 0.5: the sub-pixel this pass traces")
+PASS_BINDINGS = (PASS_SCALE, PASS_OFFSET)
+TRACER_BINDINGS = (*SCENE_BINDINGS, *CAMERA_BINDINGS, *PASS_BINDINGS, MIN_WEIGHT)
 # The ray engines draw planes as instances after the spheres (the instance count carries the
 # number of primitives), so they never read u_num_planes; their depth image is made on the CPU.
 RAY_ENGINE_SCENE_BINDINGS = tuple(b for b in SCENE_BINDINGS if b is not NUM_PLANES)
@@ -239,6 +244,14 @@ def camera_uniforms(camera: Camera, width: int, height: int) -> dict[str, object
         RESOLUTION.name: (float(width), float(height)),
         TARGET_DISTANCE.name: float(np.linalg.norm(np.subtract(camera.target, camera.position))),
     }
+
+
+def pass_uniforms(scale: int = 1, sub: tuple[int, int] = (0, 0)) -> dict[str, object]:
+    """The pass uniforms: the pixel centres (scale 1), or sub-pixel ``sub`` = (sx, sy) of a
+    ``scale × scale`` grid per pixel (sy counts from the bottom, as GL's rows do)."""
+    if scale == 1:
+        return {PASS_SCALE.name: 1.0, PASS_OFFSET.name: (0.5, 0.5)}
+    return {PASS_SCALE.name: float(scale), PASS_OFFSET.name: (sub[0] + 0.5, sub[1] + 0.5)}
 
 
 def glsl_header() -> str:

@@ -32,7 +32,7 @@ import numpy as np
 
 from .accel.bih import build_for_spheres
 from .accel.bih_traverse import traverse
-from .modes import RECURSION_COLORS, depth_grey, heat_image, primid_colours  # noqa: F401  (re-exported)
+from .modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, heat_image, primid_colours  # noqa: F401
 from .result import RenderResult
 from .scene import Camera, Scene
 from .settings import RenderSettings
@@ -502,12 +502,14 @@ def render_reference(scene: Scene, settings: RenderSettings, *, chunk_rays: int 
     """Render ``scene`` with the float64 reference tracer (SHADING.md), whatever ``settings.method``.
 
     ``chunk_rays`` bounds the rays traced together (memory ∝ chunk_rays × recursion depth).
-    depth/primid/normal always describe the primary hit; the Whitted tree is only traced
-    in the modes that need it (color, recursion). ``method`` only changes the heat image.
-    Supersampling as the GPU does it: ``k × k`` sub-pixels per pixel (``k`` =
-    ``supersample``, else √``settings.samples_per_pixel``), the image box-filtered,
-    depth/primid/normal from the sub-pixel nearest the centre. ``supersample`` is not
-    bound by the GPU's 4,096-pixel texture side (a reference may be larger).
+    depth/primid/normal always describe the primary hit through the pixel centre; the
+    Whitted tree is only traced in the modes that need it (color, recursion). ``method``
+    only changes the heat image. Supersampling (docs/FORMATS.md): the images that are
+    averaged (color, recursion, heat) are the mean of ``k × k`` sub-pixels per pixel
+    (``k`` = ``supersample``, else √``settings.samples_per_pixel``); depth, primid and
+    normal — their arrays, and their images in those modes — come from one ray through
+    each pixel centre. ``supersample`` is not bound by the GPU's 4,096-pixel texture side
+    (a reference may be larger).
     """
     start = time.perf_counter()
     chunk_rays = max(1, int(chunk_rays))
@@ -515,20 +517,24 @@ def render_reference(scene: Scene, settings: RenderSettings, *, chunk_rays: int 
     if k < 1:
         raise ValueError(f"supersample must be >= 1, got {k}")
     w, h = settings.width, settings.height
-    W, H = w * k, h * k
     g = _Geometry.of(scene)
-    frame = _Frame.empty(W * H)
+    averaged = settings.mode in AVERAGED_MODES
     whitted = settings.mode in ("color", "recursion")
     max_level = settings.max_recursion_depth if whitted else 1
-    _trace_pixels(g, scene.camera, W, H, frame, chunk_rays, max_level, shade=settings.mode == "color")
-    image = _mode_image(scene, settings, frame, chunk_rays, W, H).reshape(H, W, 3)
-    depth = frame.depth.reshape(H, W)
-    primid = frame.primid.reshape(H, W)
-    normal = frame.normal.reshape(H, W, 3)
-    if k > 1:
-        image = image.reshape(h, k, w, k, 3).mean(axis=(1, 3))
-        c = k // 2
-        depth, primid, normal = depth[c::k, c::k], primid[c::k, c::k], normal[c::k, c::k]
+    # The pixel centres: every mode's arrays, and the whole image of the modes not averaged.
+    centre = _Frame.empty(w * h)
+    _trace_pixels(g, scene.camera, w, h, centre, chunk_rays, 1 if averaged and k > 1 else max_level,
+                  shade=settings.mode == "color" and not (averaged and k > 1))
+    depth = centre.depth.reshape(h, w)
+    primid = centre.primid.reshape(h, w)
+    normal = centre.normal.reshape(h, w, 3)
+    if averaged and k > 1:
+        W, H = w * k, h * k
+        grid = _Frame.empty(W * H)
+        _trace_pixels(g, scene.camera, W, H, grid, chunk_rays, max_level, shade=settings.mode == "color")
+        image = _mode_image(scene, settings, grid, chunk_rays, W, H).reshape(h, k, w, k, 3).mean(axis=(1, 3))
+    else:
+        image = _mode_image(scene, settings, centre, chunk_rays, w, h).reshape(h, w, 3)
     trace_ms = (time.perf_counter() - start) * 1e3
     return RenderResult(
         image=np.ascontiguousarray(image, dtype=np.float32),

@@ -9,6 +9,7 @@
 // of view when the primitive's enclosing sphere cannot meet the cone.
 // CULL_MATRIX (tests): the same decision written to pixel (primitive, tile).
 flat out int v_id;
+uniform int u_instance_base;    // id of instance 0: a pass may draw its primitives in batches, in id order
 
 #if defined(HRE) || defined(CULL_MATRIX)
 in vec2 a_tile;     // tile's lower-left texel
@@ -27,7 +28,7 @@ in vec2 a_position;
 #endif
 
 void main() {
-    int id = gl_InstanceID;
+    int id = u_instance_base + gl_InstanceID;
     v_id = id;
 #if defined(CULL_MATRIX)
     vec2 c = (vec2(float(id), float(gl_VertexID)) + 0.5) / u_matrix_size * 2.0 - 1.0;

@@ -222,9 +222,13 @@ void main() {
 #ifdef READS_MATERIALS
     g_mat_shift = row_shift(textureSize(u_materials, 0));
 #endif
+    // The point of the frame's sample grid (u_resolution) this fragment traces: a pass
+    // traces one sub-pixel of every pixel (renderer/gpu_layout.py, PASS_BINDINGS); the
+    // pixel-centre pass has scale 1 and offset 0.5, so px is gl_FragCoord.x itself. Every
+    // term is a small integer or half: exact, so a pass equals one draw of the whole grid.
     // gl_FragCoord.y grows upwards; image row 0 is the top row.
-    float px = gl_FragCoord.x;
-    float row = u_resolution.y - gl_FragCoord.y;
+    float px = (gl_FragCoord.x - 0.5) * u_pass_scale + u_pass_offset.x;
+    float row = u_resolution.y - ((gl_FragCoord.y - 0.5) * u_pass_scale + u_pass_offset.y);
     float u = (2.0 * px / u_resolution.x - 1.0) * u_half_extent.x;
     float v = (1.0 - 2.0 * row / u_resolution.y) * u_half_extent.y;
     vec3 dir = normalize(u_cam_forward + u * u_cam_right + v * u_cam_up);

@@ -75,11 +75,27 @@ def test_supersampling_matches_reference_box_filter(gl_renderer):
     expect_u8 = np.floor(expect * 255 + 0.5).astype(np.uint8)
     assert gpu.image.shape == (80, 48, 3)
     assert psnr(gpu.image_u8(), expect_u8) >= 40.0
-    assert (gpu.primid == big.primid[1::2, 1::2]).mean() >= 0.999
+    # The ids are those of the rays through the pixel centres (docs/FORMATS.md), not of a sub-pixel.
+    centre = render_reference(scene, s.with_(samples_per_pixel=1, mode="primid"))
+    assert (gpu.primid == centre.primid).mean() >= 0.999
+    assert (gpu.primid != big.primid[1::2, 1::2]).any(), "a sub-pixel's id is not the centre's everywhere"
     # The reference supersamples the same way.
     ref = render_reference(scene, s)
     assert ref.image.shape == (80, 48, 3) and (ref.image_u8() == expect_u8).all()
-    assert (ref.primid == big.primid[1::2, 1::2]).all()
+    assert (ref.primid == centre.primid).all()
+
+
+@pytest.mark.parametrize("mode", ["depth", "primid", "normal"])
+def test_data_modes_trace_the_pixel_centres_whatever_the_samples(gl_renderer, mode):
+    """depth, primid and normal are one ray through each pixel centre at any samples_per_pixel."""
+    scene = scenario(3, 64)
+    s = RenderSettings(width=48, height=80, mode=mode, samples_per_pixel=4)
+    one = gl_renderer.render(scene, s.with_(samples_per_pixel=1))
+    four = gl_renderer.render(scene, s)
+    for field in ("image", "depth", "primid", "normal"):
+        np.testing.assert_array_equal(getattr(four, field), getattr(one, field))
+    ref = render_reference(scene, s)
+    assert (ref.primid == four.primid).mean() >= 0.999
 
 
 def test_weight_cutoff(gl_renderer):

@@ -378,14 +378,17 @@ function setUniform(gl, u, value) {
   gl[`uniform${fn}`](u.loc, arr);
 }
 
-// GLRenderer._set_camera, in float64 until the upload.
-export function cameraUniforms(camera, width, height) {
+// renderer/gpu_layout.py's camera_uniforms and pass_uniforms, in float64 until the upload:
+// the camera for a width × height grid, and the pass through the pixel centres (scale 1,
+// offset 0.5) unless a sub-pixel pass of a scale × scale grid is asked for.
+export function cameraUniforms(camera, width, height, scale = 1, sub = [0, 0]) {
   const { right, up, forward } = cameraBasis(camera);
   const s = Math.tan(radians(camera.fov_y) / 2.0);
   return {
     u_cam_pos: camera.position, u_cam_right: right, u_cam_up: up, u_cam_forward: forward,
     u_half_extent: [s * width / height, s], u_resolution: [width, height],
     u_target_distance: targetDistance(camera),
+    u_pass_scale: scale, u_pass_offset: scale === 1 ? [0.5, 0.5] : [sub[0] + 0.5, sub[1] + 0.5],
   };
 }
 

@@ -75,6 +75,8 @@ class BIHStats:
     rounds: int
     build_ms: float
     bytes: int
+    sah_nodes: float = 0.0
+    sah_tests: float = 0.0
 
     def to_json(self) -> dict:
         return asdict(self)
@@ -139,7 +141,15 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
     optimized = one_sided = forced = rounds = 0
     leaf_slots: list[np.ndarray] = []
 
+    # Surface areas for the cost model (renderer/cost.py): Σ over inner nodes of their box's
+    # area, Σ over leaves of area × primitives; relative to the root's, the expected node
+    # visits and primitive tests of a ray through the root box (the SAH's terms).
+    area_inner = 0.0
+    area_leaf_prims = 0.0
+
     def make_leaves(mask: np.ndarray) -> None:
+        nonlocal area_leaf_prims
+        area_leaf_prims += float((_half_area(bmin[mask], bmax[mask]) * (hi[mask] - lo[mask])).sum())
         s = slot[mask]
         nodes[s, 0] = np.uint32(L.LEAF_TAG)
         nodes[s, 1] = lo[mask].astype(np.uint32)
@@ -205,6 +215,7 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
         sp = np.flatnonzero(do_split)
         m = len(sp)
         if m:
+            area_inner += float(_half_area(bmin[sp], bmax[sp]).sum())
             neg = np.float32(-np.inf)
             pos_inf = np.float32(np.inf)
             clip_l = np.maximum.reduceat(np.where(left, emax, neg), starts)[sp]
@@ -259,9 +270,25 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
         prims_per_leaf_max=float(counts.max()),
         depth_min=int(depths.min()), depth_avg=float(depths.mean()), depth_max=int(depths.max()),
         leaf_histogram=hist, optimized_nodes=optimized, one_sided_retries=one_sided, forced_leaves=forced,
-        rounds=rounds, build_ms=build_ms, bytes=int(next_slot * L.NODE_BYTES + n * 4 + 24))
+        rounds=rounds, build_ms=build_ms, bytes=int(next_slot * L.NODE_BYTES + n * 4 + 24),
+        **_expected_work(area_inner, area_leaf_prims, gbox, n))
     return BIH(nodes=nodes, indices=indices, global_aabb=gbox.astype(np.float32), node_depths=node_depth,
                max_prims=max_prims, max_tree_depth=max_tree_depth, stats=stats)
+
+
+def _half_area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    d = np.maximum(hi.astype(np.float64) - lo.astype(np.float64), 0.0)
+    return d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0]
+
+
+def _expected_work(area_inner: float, area_leaf_prims: float, gbox: np.ndarray, n: int) -> dict[str, float]:
+    """``sah_nodes``, ``sah_tests``: node visits and primitive tests a ray through the root box
+    can expect (areas relative to the root's). A root of no area (all primitives at one
+    point) is one leaf of n tests."""
+    root = float(_half_area(gbox[0], gbox[1])) if n else 0.0
+    if not root > 0:
+        return {"sah_nodes": 0.0, "sah_tests": float(n)}
+    return {"sah_nodes": area_inner / root, "sah_tests": area_leaf_prims / root}
 
 
 def build_for_spheres(centers: np.ndarray, radii: np.ndarray, max_prims: int = 8,

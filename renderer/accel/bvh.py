@@ -78,6 +78,8 @@ class BVHStats:
     prims_per_leaf_avg: float
     prims_per_leaf_max: int
     sah_cost: float
+    sah_nodes: float
+    sah_tests: float
     median_splits: int
     depth_limited_leaves: int
     scheme: str
@@ -397,6 +399,19 @@ def sah_cost(bvh: BVH) -> float:
     return float((C_TRAV * a[inner].sum() + C_ISECT * (a[~inner] * bvh.count[~inner]).sum()) / root)
 
 
+def expected_work(bvh: BVH) -> dict[str, float]:
+    """The SAH's two terms apart (renderer/cost.py): node visits and primitive tests a ray
+    through the root box can expect."""
+    if bvh.n_primitives == 0:
+        return {"sah_nodes": 0.0, "sah_tests": 0.0}
+    a = _half_area(bvh.bmin, bvh.bmax)
+    root = a[0]
+    if not root > 0:
+        return {"sah_nodes": 0.0, "sah_tests": float(bvh.n_primitives)}
+    inner = bvh.left >= 0
+    return {"sah_nodes": float(a[inner].sum() / root), "sah_tests": float((a[~inner] * bvh.count[~inner]).sum() / root)}
+
+
 def _sorted_orders(cen: np.ndarray, pos_lo: np.ndarray, pos_hi: np.ndarray, prims: np.ndarray,
                    n: int) -> np.ndarray:
     """(3, n) orders: within each range [pos_lo, pos_hi), ``prims`` of that range sorted by centroid per axis."""
@@ -430,7 +445,7 @@ def _stats(bvh: BVH, scheme: str, counters: dict, rebuilt: tuple[int, int], buil
         primitives=bvh.n_primitives, nodes=bvh.n_nodes, inner_nodes=int((~leaf).sum()), leaves=int(leaf.sum()),
         depth_max=int(bvh.depth.max(initial=1)), depth_avg=float(depths.mean()) if len(depths) else 0.0,
         prims_per_leaf_avg=float(counts.mean()) if len(counts) else 0.0,
-        prims_per_leaf_max=int(counts.max(initial=0)), sah_cost=sah_cost(bvh),
+        prims_per_leaf_max=int(counts.max(initial=0)), sah_cost=sah_cost(bvh), **expected_work(bvh),
         median_splits=int(counters.get("median_splits", 0)),
         depth_limited_leaves=int(counters.get("depth_limited_leaves", 0)), scheme=scheme,
         rebuilt_subtrees=rebuilt[0], rebuilt_primitives=rebuilt[1], build_ms=build_ms, update_ms=update_ms,

@@ -82,6 +82,8 @@ class KdStats:
     refs_per_prim: float
     prims_per_leaf_avg: float
     sah_cost: float
+    sah_nodes: float
+    sah_tests: float
     rounds: int
     blowup_stops: int
     build_ms: float
@@ -416,6 +418,9 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
     area = vd[:, 0] * vd[:, 1] + vd[:, 1] * vd[:, 2] + vd[:, 2] * vd[:, 0]
     sah = float((C_TRAV * area[~leaf].sum() + C_ISECT * (area[leaf] * count[leaf]).sum()) / area[0]) \
         if n and area[0] > 0 else float(C_ISECT * n)
+    # The SAH's terms apart, for the cost model (renderer/cost.py).
+    sah_nodes = float(area[~leaf].sum() / area[0]) if n and area[0] > 0 else 0.0
+    sah_tests = float((area[leaf] * count[leaf]).sum() / area[0]) if n and area[0] > 0 else float(n)
     nonempty = leaf & (count > 0)
     build_ms = (time.perf_counter() - t_start) * 1e3
     kd.stats = KdStats(
@@ -424,6 +429,7 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
         depth_avg=float(ndepth[leaf].mean()) if leaf.any() else 1.0, max_depth=D, cost_scale=float(cost_scale),
         references=references, indices=len(indices), refs_per_prim=references / n if n else 0.0,
         prims_per_leaf_avg=float(count[nonempty].mean()) if nonempty.any() else 0.0, sah_cost=sah,
+        sah_nodes=sah_nodes, sah_tests=sah_tests,
         rounds=rounds, blowup_stops=blowup, build_ms=build_ms, compaction_ms=compaction_ms,
         bytes=int(m * L.NODE_BYTES + len(indices) * 4 + 24))
     return kd

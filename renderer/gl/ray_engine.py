@@ -66,7 +66,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Iterator
 
 import moderngl
 import numpy as np
@@ -76,7 +76,7 @@ from ..accel import hre_cones
 from ..accel.ray_engine import RayEngine
 from ..features import GENERIC, scene_features
 from ..limits import DEFAULT_TEXTURE_WIDTH, STENCIL_BITS
-from ..modes import RECURSION_COLORS, depth_grey, primid_colours
+from ..modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, primid_colours
 from ..result import RenderResult
 from ..scene import Scene, SceneError
 from ..shader_source import pass_source, vertex_source
@@ -211,84 +211,38 @@ class FrameLog:
 # ------------------------------------------------------------------------ the passes
 
 class RayEnginePasses:
-    """The ray engines' GL side of one renderer: its raw GL calls, compiled programs and
-    the render targets of the last frame size (a new size releases the old set)."""
+    """The ray engines' GL side of one renderer: its raw GL calls, compiled programs and a
+    pool of render targets (a frame in flight holds its own; one free set is kept)."""
 
     def __init__(self, ctx: moderngl.Context, max_texture_width: int = DEFAULT_TEXTURE_WIDTH):
         self.ctx = ctx
         self.max_texture_width = max_texture_width
         self.gl = RawGL()
         self.programs = _Programs(ctx)
-        self._targets: _Targets | None = None
+        self._free: list[_Targets] = []
         self.last_bound: set[str] = set()
 
-    def targets(self, width: int, height: int) -> _Targets:
-        if self._targets is not None and self._targets.size == (width, height):
-            return self._targets
-        if self._targets is not None:
-            self._targets.release_all()
-        self._targets = _Targets(self.ctx, self.gl, width, height)
-        return self._targets
+    def acquire_targets(self, width: int, height: int) -> _Targets:
+        for i, t in enumerate(self._free):
+            if t.size == (width, height):
+                return self._free.pop(i)
+        return _Targets(self.ctx, self.gl, width, height)
+
+    def release_targets(self, targets: _Targets) -> None:
+        self._free.append(targets)
+        while len(self._free) > 1:   # keep the most recent set: most frames repeat a size
+            self._free.pop(0).release_all()
+
+    def begin(self, method: RayEngine, scene: Scene, settings: "RenderSettings", *,
+              log: FrameLog | None = None, batch: int | None = None) -> "RayEngineFrame":
+        """A frame of ``method``, uploaded, to be traced slice by slice; ``batch`` primitives
+        per draw call (None: each pass in one draw)."""
+        return RayEngineFrame(self, method, scene, settings, log=log, batch=batch)
 
     def render_frame(self, method: RayEngine, scene: Scene, settings: "RenderSettings", *,
                      log: FrameLog | None = None) -> RenderResult:
         """Trace one frame of ``method`` (``GLRenderer.render`` hands multi-pass methods here)."""
-        t_start = time.perf_counter()
-        ctx = self.ctx
-        log = log if log is not None else FrameLog()
-        ts = method.tile(settings.tile_size)
-        k = settings.supersampling
-        w, h = settings.width * k, settings.height * k
-        wp, hp = -(-w // ts) * ts, -(-h // ts) * ts
-        features = scene_features(scene) if settings.specialize else GENERIC
-        mode = settings.mode
-        whitted = mode in ("color", "recursion", "cones")
-        max_level = features.recursion_depth(settings.max_recursion_depth) if whitted else 1
-        if mode == "cones":
-            max_level = settings.max_recursion_depth
-        gl = self.gl
-        tg = self.targets(wp, hp)
-        frame = _FrameRun(method, ctx, gl, tg, self.programs, scene, settings, (w, h), ts, max_level, log)
-        textures: list[moderngl.Texture] = []
-        try:
-            frame.upload(self.max_texture_width, textures)
-            self.last_bound = frame.bound     # what the frame uploads (tests compare it with the programs)
-            self.programs.used.clear()
-            t_up = time.perf_counter()
-            frame.run()
-            t_traced = time.perf_counter()
-            out = frame.read_back()
-        finally:
-            for t in [*textures, *frame.buffers]:
-                t.release()
-            ctx.enable_only(moderngl.NOTHING)
-            gl.stencil_off()
-            ctx.blend_func = moderngl.DEFAULT_BLENDING
-        t_end = time.perf_counter()
-        colour, primid, depth_t, normal, image = out
-        if k > 1:
-            colour = colour.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
-            image = image.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
-            primid, depth_t, normal = (a[k // 2::k, k // 2::k] for a in (primid, depth_t, normal))
-        if mode == "color":
-            image = colour
-        ms = lambda a, b: (b - a) * 1e3  # noqa: E731
-        timings = {"build": frame.build_ms, "upload": ms(t_start, t_up),
-                   "trace": ms(t_up, t_traced) - frame.build_ms - frame.stats_ms, "read": ms(t_traced, t_end),
-                   "total": ms(t_start, t_end) - frame.stats_ms}
-        if method.hierarchical:
-            timings["stats"] = frame.stats_ms
-        stats = {"method": method.name, "recursion_depth": max_level, "features_removed": list(features.defines()),
-                 "primitives": scene.n_primitives, "layers": log.layers, "layers_skipped": log.layers_skipped,
-                 "passes": log.passes, "stencil_bits": min(method.stencil_bits, tg.stencil_bits),
-                 "stencil_fallback_levels": log.stencil_fallback_levels}
-        if method.hierarchical:
-            stats.update({"tile_size": ts, "tile_prims_drawn": log.tiles_drawn, "tile_prims_total": log.tiles_total,
-                          "cull_fraction": 1.0 - log.tiles_drawn / log.tiles_total if log.tiles_total else 0.0,
-                          "cull_uncounted_passes": log.uncounted_passes})
-        return RenderResult(image=np.ascontiguousarray(image, dtype=np.float32), depth=depth_t, primid=primid,
-                            normal=np.ascontiguousarray(normal, dtype=np.float32), mode=mode,
-                            timings=timings, stats=stats)
+        return self.begin(method, scene, settings, log=log).run()
 
     def cull_matrix(self, scene: Scene, verts: np.ndarray) -> np.ndarray:
         """The vertex shader's decision for each (tile, primitive): bool (tiles, n_primitives), True = drawn.
@@ -329,9 +283,153 @@ class RayEnginePasses:
         return out
 
     def release(self) -> None:
-        if self._targets is not None:
-            self._targets.release_all()
-            self._targets = None
+        while self._free:
+            self._free.pop().release_all()
+
+
+class RayEngineFrame:
+    """A ray-engine frame traced slice by slice: :meth:`step` runs one pass, or one batch of
+    a primitive pass, then ``glFinish``, and leaves the GL state neutral for other frames.
+
+    Modes that are not averaged (depth, primid, normal) trace one ray through each pixel
+    centre whatever ``samples_per_pixel`` says (docs/FORMATS.md); averaged ones trace the
+    √s × √s sub-pixels and box-filter them, and their depth, primid and normal arrays
+    come from a primary-only frame through the pixel centres, traced first (``centre``).
+    """
+
+    def __init__(self, passes: RayEnginePasses, method: RayEngine, scene: Scene, settings: "RenderSettings", *,
+                 log: FrameLog | None = None, batch: int | None = None):
+        self.t_start = time.perf_counter()
+        self.passes, self.method, self.scene, self.settings = passes, method, scene, settings
+        self.ctx, self.gl = passes.ctx, passes.gl
+        self.log = log if log is not None else FrameLog()
+        self.ts = method.tile(settings.tile_size)
+        self.k = settings.supersampling if settings.mode in AVERAGED_MODES else 1
+        w, h = settings.width * self.k, settings.height * self.k
+        wp, hp = -(-w // self.ts) * self.ts, -(-h // self.ts) * self.ts
+        self.features = scene_features(scene) if settings.specialize else GENERIC
+        mode = settings.mode
+        whitted = mode in ("color", "recursion", "cones")
+        max_level = self.features.recursion_depth(settings.max_recursion_depth) if whitted else 1
+        if mode == "cones":
+            max_level = settings.max_recursion_depth
+        self.max_level = max_level
+        self.tg = passes.acquire_targets(wp, hp)
+        self.textures: list[moderngl.Texture] = []
+        self.slices = 0
+        self._result: RenderResult | None = None
+        self.centre: RayEngineFrame | None = None
+        try:
+            if self.k > 1:
+                self.centre = RayEngineFrame(passes, method, scene, settings.with_(
+                    mode="primid", samples_per_pixel=1, max_recursion_depth=1), batch=batch)
+            self.frame = _FrameRun(method, self.ctx, self.gl, self.tg, passes.programs, scene, settings, (w, h),
+                                   self.ts, max_level, self.log)
+            self.frame.batch = batch
+            self.frame.upload(passes.max_texture_width, self.textures)
+        except BaseException:
+            self.release()
+            raise
+        passes.last_bound = self.frame.bound     # what the frame uploads (tests compare it with the programs)
+        passes.programs.used.clear()
+        self.t_up = time.perf_counter()
+        self._neutral()
+        self._gen = self.frame.run()
+
+    @property
+    def done(self) -> bool:
+        return self._result is not None
+
+    @property
+    def preview(self) -> RenderResult | None:
+        return None
+
+    def _neutral(self) -> None:
+        """The GL state the one-pass tracer's slices expect: no tests, no blending."""
+        self.ctx.enable_only(moderngl.NOTHING)
+        self.gl.stencil_off()
+        self.ctx.blend_func = moderngl.DEFAULT_BLENDING
+
+    def step(self) -> bool:
+        if self.done:
+            return True
+        if self.centre is not None and not self.centre.done:
+            self.centre.step()
+            self.slices += 1
+            return False
+        try:
+            try:
+                next(self._gen)
+                finished = False
+            except StopIteration:
+                finished = True
+            self.ctx.finish()
+            self.slices += 1
+            if finished:
+                self._result = self._compose()
+        except BaseException:
+            self.release()
+            raise
+        finally:
+            self._neutral()
+        if finished:
+            self.release()
+        return self.done
+
+    def run(self) -> RenderResult:
+        while not self.step():
+            pass
+        return self.result()
+
+    def result(self) -> RenderResult:
+        if self._result is None:
+            raise RuntimeError("the frame is not complete")
+        return self._result
+
+    def release(self) -> None:
+        if self.centre is not None:
+            self.centre.release()
+        for t in [*self.textures, *self.frame.buffers] if hasattr(self, "frame") else self.textures:
+            t.release()
+        self.textures = []
+        if hasattr(self, "frame"):
+            self.frame.buffers = []
+        if self.tg is not None:
+            self.passes.release_targets(self.tg)
+            self.tg = None
+
+    def _compose(self) -> RenderResult:
+        t_traced = time.perf_counter()
+        frame, settings, method, k = self.frame, self.settings, self.method, self.k
+        colour, primid, depth_t, normal, image = frame.read_back()
+        t_end = time.perf_counter()
+        if k > 1:
+            colour = colour.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
+            image = image.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
+            centre = self.centre.result()     # the arrays through the pixel centres
+            primid, depth_t, normal = centre.primid, centre.depth, centre.normal
+        if settings.mode == "color":
+            image = colour
+        ms = lambda a, b: (b - a) * 1e3  # noqa: E731
+        timings = {"build": frame.build_ms, "upload": ms(self.t_start, self.t_up),
+                   "trace": ms(self.t_up, t_traced) - frame.build_ms - frame.stats_ms, "read": ms(t_traced, t_end),
+                   "total": ms(self.t_start, t_end) - frame.stats_ms}
+        log = self.log
+        if method.hierarchical:
+            timings["stats"] = frame.stats_ms
+        stats = {"method": method.name, "recursion_depth": self.max_level,
+                 "features_removed": list(self.features.defines()),
+                 "primitives": self.scene.n_primitives, "layers": log.layers, "layers_skipped": log.layers_skipped,
+                 "passes": log.passes, "stencil_bits": min(method.stencil_bits, self.tg.stencil_bits),
+                 "stencil_fallback_levels": log.stencil_fallback_levels, "slices": self.slices}
+        if method.hierarchical:
+            stats.update({"tile_size": self.ts, "tile_prims_drawn": log.tiles_drawn,
+                          "tile_prims_total": log.tiles_total,
+                          "cull_fraction": 1.0 - log.tiles_drawn / log.tiles_total if log.tiles_total else 0.0,
+                          "cull_uncounted_passes": log.uncounted_passes})
+        return RenderResult(image=np.ascontiguousarray(image, dtype=np.float32), depth=depth_t, primid=primid,
+                            normal=np.ascontiguousarray(normal, dtype=np.float32), mode=settings.mode,
+                            timings=timings, stats=stats)
 
 
 # ------------------------------------------------------------------------- one run
@@ -357,6 +455,8 @@ class _FrameRun:
         self.deepest = np.zeros((tg.size[1], tg.size[0]), np.int32) if self.mode == "recursion" else None
         self.cone_image: np.ndarray | None = None
         self.buffers: list[moderngl.Buffer] = []
+        self.batch: int | None = None     # primitives per draw call (None: all in one)
+        self.scene_textures: list[moderngl.Texture] = []
         self.heat: np.ndarray | None = None
         if self.hre:
             wp, hp = tg.size
@@ -384,6 +484,7 @@ class _FrameRun:
         wanted = {b.name for b in self.scene_bindings()}
         self.units.update(upload_textures(self.ctx, gpu_layout.PackedScene(
             {n: t for n, t in packed.textures.items() if n in wanted}), textures))
+        self.scene_textures = list(textures)
         self.uniforms.update({n: v for n, v in packed.uniforms.items() if n in wanted})
         self.bound = wanted
         self.uniforms.update(gpu_layout.camera_uniforms(self.scene.camera, *self.size))
@@ -395,6 +496,8 @@ class _FrameRun:
         self.n_units = len(textures)
 
     def _bind(self, prog: moderngl.Program, samplers: dict[str, moderngl.Texture], **uniforms) -> None:
+        for unit, tex in enumerate(self.scene_textures):   # another frame's slice may have used the units
+            tex.use(unit)
         for name, unit in self.units.items():
             if name in prog:
                 prog[name].value = unit
@@ -477,9 +580,13 @@ class _FrameRun:
         d = ("HRE",) if self.hre else ()
         return d + (("ANY_HIT",) if shadow else ()) + (("COUNT",) if count else ())
 
-    def _draw_prims(self, prog: moderngl.Program, tiles=None) -> None:
+    def _draw_prims(self, prog: moderngl.Program, tiles, setup) -> Iterator[None]:
         """Draw every primitive (instance = id) over the whole target (rayengine) or as one
-        point per live tile (hre)."""
+        point per live tile (hre), in batches of ``self.batch`` instances in id order (the
+        depth test keeps the nearest hit and, drawn in id order, the lower id of equal t, as
+        one draw does), yielding after each batch: a slice. ``setup()`` (re)establishes the
+        pass's GL state and bindings before each batch, since another frame's slice may run
+        in between."""
         n = self.n_prims
         if n == 0:
             return
@@ -489,17 +596,25 @@ class _FrameRun:
                 return
             self.log.tiles_total += len(verts) * n
             vao = self.ctx.vertex_array(prog, [(buf, "2f 4f 4f", "a_tile", "a_cone0", "a_cone1")], skip_errors=True)
-            self.ctx.point_size = float(self.ts)
-            vao.render(moderngl.POINTS, instances=n)
-            vao.release()
+            self.buffers.append(vao)
+            mode = moderngl.POINTS
         else:
             key = ("quad", prog.glo)
             if key not in self.progs.quad_vaos:
                 self.progs.quad_vaos[key] = self.ctx.vertex_array(prog, [(self.progs.quad, "2f", "a_position")])
-            self.progs.quad_vaos[key].render(moderngl.TRIANGLES, instances=n)
+            vao = self.progs.quad_vaos[key]
+            mode = moderngl.TRIANGLES
+        batch = max(1, int(self.batch or n))
+        for first in range(0, n, batch):
+            setup()
+            if self.hre:
+                self.ctx.point_size = float(self.ts)
+            prog["u_instance_base"].value = first
+            vao.render(mode, instances=min(batch, n - first))
+            yield
         self.log.passes += 1
 
-    def _intersect(self, layer: _Layer, bit: int, tiles) -> None:
+    def _intersect(self, layer: _Layer, bit: int, tiles) -> Iterator[None]:
         fbo = self.tg.fbo_hit
         self.ctx.enable_only(moderngl.NOTHING)
         self.gl.stencil_off()
@@ -507,13 +622,15 @@ class _FrameRun:
         fbo.clear(0.0, -1.0, 0.0, 0.0)
         self.gl.clear_depth()
         prog = self.progs.get("rayengine_prim.vert", "rayengine_prim.frag", self._prim_defines(False))
-        self._bind(prog, {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1]})
-        self.ctx.enable_only(moderngl.DEPTH_TEST)
-        self.ctx.depth_func = "<"
-        fbo.depth_mask = True
-        fbo.use()
-        self.gl.stencil_test(bit)
-        self._draw_prims(prog, tiles)
+
+        def setup() -> None:
+            self._bind(prog, {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1]})
+            self.ctx.enable_only(moderngl.DEPTH_TEST)
+            self.ctx.depth_func = "<"
+            fbo.depth_mask = True
+            fbo.use()
+            self.gl.stencil_test(bit)
+        yield from self._draw_prims(prog, tiles, setup)
         fbo.depth_mask = False
 
     def _surface(self, layer: _Layer, bit: int) -> None:
@@ -526,7 +643,7 @@ class _FrameRun:
         self._fullscreen(fbo, "PASS_SURFACE", {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1],
                                                 "u_hit": self.tg.hit})
 
-    def _shadows(self, bit: int) -> None:
+    def _shadows(self, bit: int) -> Iterator[None]:
         for f in self.tg.fbo_blocked:
             self.ctx.enable_only(moderngl.NOTHING)
             self.gl.stencil_off()
@@ -535,18 +652,21 @@ class _FrameRun:
         for light in range(len(self.scene.lights)):
             tiles = self._cones(None, light) if self.hre else None
             if self.hre:
+                yield
                 self._record("shadow", light, tiles)
                 self.log.tiles_drawn += self._count_drawn(tiles)
             fbo = self.tg.fbo_blocked[light // 4]
             prog = self.progs.get("rayengine_prim.vert", "rayengine_prim.frag", self._prim_defines(True))
-            self._bind(prog, {"u_surf0": self.tg.surf0, "u_surf1": self.tg.surf1}, u_light=light)
-            self.ctx.enable_only(moderngl.NOTHING)
-            c = light % 4
-            fbo.color_mask = tuple(i == c for i in range(4))
-            fbo.use()
-            self.gl.stencil_test(bit)
-            self._draw_prims(prog, tiles)
+
+            def setup(prog=prog, fbo=fbo, light=light) -> None:
+                self._bind(prog, {"u_surf0": self.tg.surf0, "u_surf1": self.tg.surf1}, u_light=light)
+                self.ctx.enable_only(moderngl.NOTHING)
+                fbo.color_mask = tuple(i == light % 4 for i in range(4))
+                fbo.use()
+                self.gl.stencil_test(bit)
+            yield from self._draw_prims(prog, tiles, setup)
             fbo.color_mask = (True, True, True, True)
+            yield
 
     def _shade(self, layer: _Layer, bit: int) -> tuple[_Layer, _Layer]:
         refl, trans = self.tg.layer(), self.tg.layer()
@@ -569,18 +689,21 @@ class _FrameRun:
         self.ctx.enable_only(moderngl.NOTHING)
         return (_Layer(refl, layer.level + 1, layer.branch + "R"), _Layer(trans, layer.level + 1, layer.branch + "T"))
 
-    def _heat(self, layer: _Layer, bit: int, tiles) -> None:
+    def _heat(self, layer: _Layer, bit: int, tiles) -> Iterator[None]:
         fbo = self.tg.fbo_surf   # reuse surf0 as the counter
         self.ctx.enable_only(moderngl.NOTHING)
         self.gl.stencil_off()
         fbo.use()
         fbo.clear(0.0, 0.0, 0.0, 0.0)
         prog = self.progs.get("rayengine_prim.vert", "rayengine_prim.frag", self._prim_defines(False, count=True))
-        self._bind(prog, {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1]})
-        self.ctx.enable_only(moderngl.BLEND)
-        self.ctx.blend_func = (moderngl.ONE, moderngl.ONE)
-        self.gl.stencil_test(bit)
-        self._draw_prims(prog, tiles)
+
+        def setup() -> None:
+            self._bind(prog, {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1]})
+            fbo.use()
+            self.ctx.enable_only(moderngl.BLEND)
+            self.ctx.blend_func = (moderngl.ONE, moderngl.ONE)
+            self.gl.stencil_test(bit)
+        yield from self._draw_prims(prog, tiles, setup)
         self.ctx.enable_only(moderngl.NOTHING)
         self.heat = self._read(self.tg.surf0)[..., 0].copy()
 
@@ -602,7 +725,9 @@ class _FrameRun:
         self.log.records.append(rec)
 
     # -- the frame ----------------------------------------------------------------------
-    def run(self) -> None:
+    def run(self) -> Iterator[None]:
+        """The frame's passes, yielding after each one (and after each batch of primitives):
+        the slices of :class:`RayEngineFrame`."""
         tg = self.tg
         self.ctx.enable_only(moderngl.NOTHING)
         self.gl.stencil_off()
@@ -616,6 +741,7 @@ class _FrameRun:
         colour_fbo.release()
         first = _Layer(tg.layer(), 1, "")
         self._primary(first)
+        yield
         stack = [first]
         need_cones_at = self.max_level if self.mode == "cones" else None
         while stack:
@@ -624,6 +750,7 @@ class _FrameRun:
             if bit == 0:
                 self.log.stencil_fallback_levels = max(self.log.stencil_fallback_levels, layer.level - self.bits)
             live = self._mask(layer, bit)
+            yield
             if live == 0:
                 self.log.layers_skipped += 1
                 tg.release(layer.rays)
@@ -632,6 +759,7 @@ class _FrameRun:
             tiles = None
             if self.hre:
                 tiles = self._cones(layer)
+                yield
                 self._record("radiance", -1, tiles, layer)
                 self.log.tiles_drawn += self._count_drawn(tiles)
                 if need_cones_at is not None and layer.level == need_cones_at:
@@ -641,19 +769,21 @@ class _FrameRun:
                         tg.release(rest.rays)
                     break
             if self.mode == "heat":
-                self._heat(layer, bit, tiles)
-            self._intersect(layer, bit, tiles)
+                yield from self._heat(layer, bit, tiles)
+            yield from self._intersect(layer, bit, tiles)
             if self.deepest is not None:
                 ids = self._read(tg.hit)[..., 1]
                 self.deepest = np.where(ids >= 0, np.maximum(self.deepest, layer.level), self.deepest)
             self._surface(layer, bit)
+            yield
             if layer.level == 1:
                 self.primary = {"hit": self._read(tg.hit).copy(), "surf1": self._read(tg.surf1).copy()}
             if self.mode in ("color", "recursion", "cones"):
                 if self.mode == "color" and len(self.scene.lights):
-                    self._shadows(bit)
+                    yield from self._shadows(bit)
                 if self.mode == "color" or layer.level < self.max_level:
                     refl, trans = self._shade(layer, bit)
+                    yield
                     if layer.level < self.max_level:
                         stack.extend([refl, trans])     # transmitted first (popped first)
                     else:

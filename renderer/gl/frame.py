@@ -1,0 +1,271 @@
+"""One frame of the one-pass tracer as a sequence of slices of GPU work.
+
+A frame is traced in *passes* and each pass in *bands* of rows; one band is one draw call
+with a scissor rectangle, followed by ``glFinish``: a *slice*. Between slices the GL
+thread may trace another frame's slice, or drop this frame (cancellation), so no frame
+holds the thread for longer than one slice.
+
+Passes (docs/FORMATS.md, "Camera and pixels"):
+
+1. the **pixel centres**: one ray per pixel, ``W × H``. It gives the depth, primid and
+   normal arrays of every mode, the whole image of the modes that are not averaged
+   (depth, primid, normal) and of every frame at one sample per pixel, and the *preview*
+   of a supersampled frame (:attr:`TracerFrame.preview`);
+2. for a supersampled image (colour, recursion, heat at ``samples_per_pixel`` = k² > 1):
+   one pass per sub-pixel ``(sx, sy)`` of the ``kW × kH`` grid, each ``W × H``. Their
+   results are interleaved into the full grid and box-filtered exactly as one draw of
+   the whole grid was (the shader's sub-pixel arithmetic is exact), so the final image is
+   bit for bit the one a single ``kW × kH`` draw gives.
+
+Uniforms and texture units are program state, and frames of the same variant share a
+program, so every slice binds its own frame's before drawing.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import moderngl
+import numpy as np
+
+from .. import gpu_layout
+from ..gpu_layout import PackedScene, Variant
+from ..methods import PreparedMethod
+from ..modes import AVERAGED_MODES
+from ..result import RenderResult
+from ..scene import Scene
+from ..shader_source import known_bindings, tracer_bindings
+from .textures import upload_textures
+
+if TYPE_CHECKING:
+    from ..settings import RenderSettings
+
+
+
+@dataclass(frozen=True)
+class Pass:
+    """One pass: the pixel centres (``sub`` None) or one sub-pixel of a ``scale``² grid."""
+    scale: int
+    sub: tuple[int, int] | None
+
+    @property
+    def name(self) -> str:
+        return "centre" if self.sub is None else f"sample {self.sub[0]},{self.sub[1]}"
+
+
+def plan_passes(mode: str, k: int) -> list[Pass]:
+    """The passes of a frame of ``mode`` at k × k samples per pixel (sy from the bottom)."""
+    passes = [Pass(1, None)]
+    if k > 1 and mode in AVERAGED_MODES:
+        passes += [Pass(k, (sx, sy)) for sy in range(k) for sx in range(k)]
+    return passes
+
+
+class TracerFrame:
+    """A frame of the one-pass tracer, traced slice by slice (:meth:`step`).
+
+    ``renderer``: the :class:`~renderer.gl.renderer.GLRenderer` that owns the context, the
+    programs and the target pool. ``band_rows``: rows of one band (None: each pass in one
+    draw). ``one_shot``: trace a
+    supersampled image the way it was before passes existed — one draw of the whole
+    ``kW × kH`` grid, ids from its middle sub-pixel — for tests and benchmarks that
+    compare against it.
+    """
+
+    def __init__(self, renderer, scene: Scene, settings: "RenderSettings", variant: Variant,
+                 prepared: PreparedMethod, stats: dict, *, band_rows: int | None = None, one_shot: bool = False,
+                 t_start: float | None = None):
+        self.renderer, self.ctx = renderer, renderer.ctx
+        self.scene, self.settings, self.variant, self.prepared = scene, settings, variant, prepared
+        self.stats = stats
+        self.t_start = t_start if t_start is not None else time.perf_counter()
+        self.k = settings.supersampling
+        self.one_shot = one_shot and self.k > 1
+        self.width, self.height = settings.width, settings.height
+        self.passes = [Pass(self.k, None)] if self.one_shot else plan_passes(settings.mode, self.k)
+        self.band_rows = band_rows
+        self.prog, self.vao = renderer.program(variant.method, variant.mode, variant.depth, variant.features)
+        self.textures: list[moderngl.Texture] = []
+        self.fbo: moderngl.Framebuffer | None = None
+        self.timings = {"build": prepared.build_ms, "update": prepared.build_ms, "upload": 0.0, "trace": 0.0,
+                        "read": 0.0}
+        self.slices = 0
+        self._pass_index = 0
+        self._row = 0
+        self._centre: tuple[np.ndarray, np.ndarray] | None = None   # image, hit of the centre pass (GL rows)
+        self._grid: np.ndarray | None = None                          # kH × kW × 4 sub-pixel images (GL rows)
+        self._preview: RenderResult | None = None
+        self._result: RenderResult | None = None
+        self._upload()
+
+    # ---- set-up ------------------------------------------------------------------------------
+    def _upload(self) -> None:
+        """Upload exactly what the variant declares (see :func:`check_bindings`) and take a target."""
+        t0 = time.perf_counter()
+        parts = [gpu_layout.pack_primitives(self.scene, self.renderer.max_texture_width), self.prepared.packed,
+                 PackedScene({}, {gpu_layout.MIN_WEIGHT.name: float(self.settings.min_weight)})]
+        tex, self.uniforms = check_bindings(self.variant, parts)
+        self.units = upload_textures(self.ctx, PackedScene(tex), self.textures)
+        w, h = self._target_size()
+        self.fbo = self.renderer.targets.acquire(w, h)
+        self.ctx.finish()
+        self.timings["upload"] = (time.perf_counter() - t0) * 1e3
+
+    def _target_size(self) -> tuple[int, int]:
+        return (self.width * self.k, self.height * self.k) if self.one_shot else (self.width, self.height)
+
+    def _bind(self, p: Pass) -> None:
+        """This frame's textures, uniforms and the pass's camera terms onto the shared program."""
+        prog = self.prog
+        for unit, tex in enumerate(self.textures):
+            tex.use(unit)
+        for name, unit in self.units.items():
+            if name in prog:
+                prog[name].value = unit
+        if self.one_shot:     # the whole k × k grid in one draw: each fragment is one sub-pixel
+            grid, pass_terms = self._target_size(), gpu_layout.pass_uniforms(1)
+        else:
+            grid = (self.width * p.scale, self.height * p.scale)
+            pass_terms = gpu_layout.pass_uniforms(p.scale, p.sub or (0, 0))
+        camera = gpu_layout.camera_uniforms(self.scene.camera, *grid)
+        for name, value in {**self.uniforms, **camera, **pass_terms}.items():
+            if name in prog:
+                prog[name].value = value
+
+    # ---- slices ------------------------------------------------------------------------------
+    @property
+    def done(self) -> bool:
+        return self._result is not None
+
+    @property
+    def pixels_total(self) -> int:
+        """Fragments the frame shades in all (its passes' areas)."""
+        w, h = self._target_size()
+        return w * h * len(self.passes)
+
+    @property
+    def pixels_left(self) -> int:
+        if self.done:
+            return 0
+        w, h = self._target_size()
+        return w * h * (len(self.passes) - self._pass_index) - w * self._row
+
+    def step(self) -> bool:
+        """Trace the next band (one draw + glFinish); True when the frame is complete."""
+        if self.done:
+            return True
+        p = self.passes[self._pass_index]
+        w, h = self._target_size()
+        rows = h - self._row if self.band_rows is None else min(max(1, int(self.band_rows)), h - self._row)
+        t0 = time.perf_counter()
+        self._bind(p)
+        self.fbo.scissor = (0, self._row, w, rows) if rows < h else None
+        self.fbo.use()
+        self.vao.render(moderngl.TRIANGLES)
+        self.ctx.finish()
+        self.timings["trace"] += (time.perf_counter() - t0) * 1e3
+        self.slices += 1
+        self._row += rows
+        if self._row >= h:
+            self._finish_pass(p)
+            self._row = 0
+            self._pass_index += 1
+            if self._pass_index == len(self.passes):
+                self._result = self._compose()
+                self.release()
+        return self.done
+
+    def run(self) -> RenderResult:
+        """Every remaining slice, then the result."""
+        while not self.step():
+            pass
+        return self.result()
+
+    def _finish_pass(self, p: Pass) -> None:
+        t0 = time.perf_counter()
+        w, h = self._target_size()
+        self.fbo.scissor = None
+        img = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=0), np.float32).reshape(h, w, 4)
+        if p.sub is None:
+            hit = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(h, w, 4)
+            self._centre = (img, hit)
+            if len(self.passes) > 1:
+                self._preview = self._result_of(img[::-1], hit[::-1], img[::-1][..., :3], final=False)
+        else:
+            if self._grid is None:
+                self._grid = np.empty((h * p.scale, w * p.scale, 4), np.float32)
+            sx, sy = p.sub
+            self._grid[sy::p.scale, sx::p.scale] = img
+        self.timings["read"] += (time.perf_counter() - t0) * 1e3
+
+    # ---- results -----------------------------------------------------------------------------
+    def _compose(self) -> RenderResult:
+        img, hit = self._centre
+        img, hit = img[::-1], hit[::-1]          # image row 0 at the top
+        k, W, H = self.k, self.width, self.height
+        if self.one_shot:                        # the old way: ids from the middle sub-pixel
+            colour = img[..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
+            img, hit = img[k // 2::k, k // 2::k], hit[k // 2::k, k // 2::k]
+        elif self._grid is not None:             # the box filter over the sub-pixel passes
+            colour = self._grid[::-1][..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
+        else:
+            colour = img[..., :3]
+        return self._result_of(img, hit, colour, final=True)
+
+    def _result_of(self, img: np.ndarray, hit: np.ndarray, colour: np.ndarray, final: bool) -> RenderResult:
+        primid = img[..., 3].astype(np.int32)
+        depth_t = np.where(primid >= 0, hit[..., 3], np.float32(np.inf)).astype(np.float32)
+        timings = {**self.timings, "total": (time.perf_counter() - self.t_start) * 1e3}
+        stats = {**self.stats, "tracer_passes": len(self.passes), "slices": self.slices}
+        if not final:
+            stats["preview"] = True
+        return RenderResult(image=np.ascontiguousarray(colour, dtype=np.float32), depth=depth_t, primid=primid,
+                            normal=np.ascontiguousarray(hit[..., :3]), mode=self.settings.mode,
+                            timings=timings, stats=stats)
+
+    @property
+    def preview(self) -> RenderResult | None:
+        """The pixel-centre image of a frame with more passes to come, once it exists."""
+        return self._preview
+
+    def result(self) -> RenderResult:
+        if self._result is None:
+            raise RuntimeError("the frame is not complete")
+        return self._result
+
+    def release(self) -> None:
+        """Give the GPU memory back (at the end, or when the frame is cancelled)."""
+        for t in self.textures:
+            t.release()
+        self.textures = []
+        if self.fbo is not None:
+            self.fbo.scissor = None
+            self.renderer.targets.release(self.fbo)
+            self.fbo = None
+
+
+def check_bindings(variant: Variant, parts: list[PackedScene]) -> tuple[dict, dict]:
+    """The textures and uniforms of ``parts`` that ``variant`` declares.
+
+    Every packed name must be a binding some layout declares (KeyError otherwise: a
+    misspelt name is an error, never skipped); those the variant does not read are left
+    out; a binding it reads that nothing packed is an error too. (The camera and pass
+    uniforms are set per pass.)
+    """
+    known = known_bindings()
+    per_pass = {b.name for b in (*gpu_layout.CAMERA_BINDINGS, *gpu_layout.PASS_BINDINGS)}
+    declared = {b.name for b in tracer_bindings(variant)} - per_pass
+    tex, uni = {}, {}
+    for part in parts:
+        for name in (*part.textures, *part.uniforms):
+            if name not in known:
+                raise KeyError(f"{name!r} is packed but no layout declares it (renderer/gpu_layout.py, "
+                               f"renderer/accel/*_layout.py)")
+        tex.update((n, t) for n, t in part.textures.items() if n in declared)
+        uni.update((n, v) for n, v in part.uniforms.items() if n in declared)
+    missing = declared - set(tex) - set(uni)
+    if missing:
+        raise KeyError(f"the {variant.method} shader reads {sorted(missing)} but nothing packed them")
+    return tex, uni

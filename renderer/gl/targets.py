@@ -1,0 +1,81 @@
+"""Render targets of the tracer, reused between frames and bounded in bytes.
+
+A target is a framebuffer with two RGBA32F attachments (the mode image with the primary
+id, and the primary normal with t). Frames in flight each hold their own (frames of the
+same size may be traced in turns, slice by slice), so the pool hands out a free one of
+the size asked for or makes one. Free targets are kept for reuse as long as all targets
+together stay within ``max_bytes``; beyond it the least recently released free ones are
+released. Targets in use are never taken away: how many frames are in flight at once is
+bounded by the service's admission (POCKETRAY_QUEUE_SIZE), so the memory of busy targets
+is bounded by that times the largest accepted frame.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+
+import moderngl
+
+BYTES_PER_PIXEL = 2 * 4 * 4   # two RGBA32F attachments
+
+
+class TargetPool:
+    """Framebuffers by size. ``acquire`` → use → ``release``."""
+
+    def __init__(self, ctx: moderngl.Context, max_bytes: int):
+        self.ctx = ctx
+        self.max_bytes = int(max_bytes)
+        self._free: OrderedDict[int, tuple[tuple[int, int], moderngl.Framebuffer]] = OrderedDict()
+        self._busy: dict[int, tuple[tuple[int, int], moderngl.Framebuffer]] = {}
+
+    @staticmethod
+    def nbytes_of(width: int, height: int) -> int:
+        return int(width) * int(height) * BYTES_PER_PIXEL
+
+    @property
+    def nbytes(self) -> int:
+        """GPU memory of every target this pool holds (free and busy)."""
+        return sum(self.nbytes_of(*size) for size, _ in (*self._free.values(), *self._busy.values()))
+
+    @property
+    def sizes(self) -> list[tuple[int, int]]:
+        return [size for size, _ in (*self._free.values(), *self._busy.values())]
+
+    def acquire(self, width: int, height: int) -> moderngl.Framebuffer:
+        size = (int(width), int(height))
+        for key, (s, fbo) in self._free.items():
+            if s == size:
+                del self._free[key]
+                self._busy[key] = (s, fbo)
+                return fbo
+        self._trim(extra=self.nbytes_of(*size))
+        attachments = [self.ctx.texture(size, 4, dtype="f4") for _ in range(2)]
+        fbo = self.ctx.framebuffer(color_attachments=attachments)
+        self._busy[fbo.glo] = (size, fbo)
+        return fbo
+
+    def release(self, fbo: moderngl.Framebuffer) -> None:
+        entry = self._busy.pop(fbo.glo, None)
+        if entry is None:
+            return
+        self._free[fbo.glo] = entry
+        self._trim()
+
+    def _trim(self, extra: int = 0) -> None:
+        """Release free targets, least recently used first, until the pool (plus ``extra``
+        bytes about to be made) fits ``max_bytes`` or nothing free is left."""
+        while self._free and self.nbytes + extra > self.max_bytes:
+            _, (_, fbo) = self._free.popitem(last=False)
+            _release(fbo)
+
+    def clear(self) -> None:
+        for _, fbo in (*self._free.values(), *self._busy.values()):
+            _release(fbo)
+        self._free.clear()
+        self._busy.clear()
+
+
+def _release(fbo: moderngl.Framebuffer) -> None:
+    for att in fbo.color_attachments:
+        att.release()
+    fbo.release()
