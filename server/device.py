@@ -24,41 +24,7 @@ Two endpoints; the browser client's ``client_web/js/device.js`` uses both.
     defines of :mod:`renderer.features`). The device-data header names the
     variant (its ``shader`` entry, with a ready ``url``).
 
-Binary format of device-data (all integers little-endian)::
-
-    offset 0   4 bytes   magic b"PRDD"
-    offset 4   uint32    format version (1)
-    offset 8   uint32    H = length of the JSON header in bytes
-    offset 12  H bytes   JSON header, UTF-8
-               padding   zero bytes up to a multiple of 16
-               …         texture data; each texture at its own ``offset``
-                         (from the start of the blob, a multiple of 16)
-
-The JSON header::
-
-    {"format": "pocketray-device-data", "format_version": 1,
-     "session": {"id", "version", "scene_rev"},
-     "method": "bih",                       # auto resolved
-     "settings": {"mode", "max_prims", "max_tree_depth", "max_recursion_depth", "width", "height"},
-     "shader": {"method", "mode", "max_recursion_depth", "features": ["NO_TRANSMISSION", …], "url"},
-     "max_texture_size": 4096,              # the power of two the textures were wrapped to
-     "camera": {...}, "home_camera": {...}, # SPEC camera JSON (current, and the reset one)
-     "uniforms": {"u_num_spheres": 64, "u_plane_point": [[0, -20, 0], …], …,
-                  "u_cam_pos": [...], "u_cam_right": [...], "u_cam_up": [...], "u_cam_forward": [...],
-                  "u_target_distance": 100.0, "u_min_weight": 0.0, "u_box_min": [...], …},
-     "textures": [{"name": "u_spheres", "width", "height", "components": 4, "dtype": "f4",
-                   "internal_format": "RGBA32F", "offset", "nbytes"}, …],
-     "stats": {...}, "build_ms": 1.2, "pack_ms": 0.3, "nbytes": …}
-
-``uniforms`` are every uniform of :func:`gpu_layout.pack_primitives` and of the
-method's ``prepare(...).packed`` (fixed-length arrays as lists), plus the camera
-terms that do not depend on the image size (``u_half_extent`` and
-``u_resolution`` do; the device sets them, as ``gpu_layout.camera_uniforms`` computes them).
-Each texture is ``height × width × components`` elements of ``dtype`` (``f4``:
-float32, ``u4``: uint32), row 0 first — exactly ``PackedTexture.data``; the
-device uploads them with NEAREST filtering, as the server does. The response's
-headers: ``X-Session-Version``, ``X-Method``, ``X-Stats``, ``Server-Timing``
-(``build``, ``pack``, ``total``).
+The blob's format is :mod:`server.device_data`'s.
 
 The pack is NumPy only (no GL), so it runs in FastAPI's thread pool, not on the
 GL thread; it still takes a slot of the render queue while it runs, so a busy
@@ -67,13 +33,10 @@ service answers 503 + ``Retry-After`` here as everywhere.
 
 from __future__ import annotations
 
-import json
-import struct
 import time
 from typing import Annotated, Any
 from urllib.parse import urlencode
 
-import numpy as np
 from fastapi import APIRouter, Depends, Path, Query, Response
 from fastapi.responses import PlainTextResponse
 from starlette.requests import HTTPConnection
@@ -84,22 +47,13 @@ from renderer.features import scene_features
 from renderer.methods import METHODS, resolve_method
 from renderer.modes import SINGLE_PASS_MODES
 from renderer.shader_source import tracer_source as shader_source, vertex_source
-from renderer.scene import Camera
 from renderer.settings import MAX_RECURSION_DEPTH_LIMIT, MAX_TREE_DEPTH_LIMIT
 
+from .device_data import (DEFAULT_MAX_TEXTURE_SIZE, FEATURE_DEFINES, FORMAT_VERSION, camera_uniforms, encode_blob,
+                          jsonable as _jsonable, jsonable_stats as _jsonable_stats)
 from .models import ErrorOut, MethodName, ModeName
 from .service import InputError, SessionService
 from .view import EXPOSED, stats_header
-
-MAGIC = b"PRDD"
-FORMAT_VERSION = 1
-ALIGN = 16
-FEATURE_DEFINES = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS")  # renderer.features, in its order
-DEFAULT_MAX_TEXTURE_SIZE = gpu_layout.DEFAULT_TEXTURE_WIDTH
-
-# GL internal format of a PackedTexture by (dtype, components): what WebGL2 and moderngl create.
-INTERNAL_FORMATS = {("f4", 1): "R32F", ("f4", 2): "RG32F", ("f4", 3): "RGB32F", ("f4", 4): "RGBA32F",
-                    ("u4", 1): "R32UI", ("u4", 2): "RG32UI", ("u4", 3): "RGB32UI", ("u4", 4): "RGBA32UI"}
 
 
 def _service(conn: HTTPConnection) -> SessionService:
@@ -115,7 +69,7 @@ _ERRORS = {404: {"model": ErrorOut, "description": "no such session (unknown, de
                                                    "see Retry-After",
                  "headers": {"Retry-After": {"description": "seconds", "schema": {"type": "string"}}}}}
 _DATA_DOC: dict[str, Any] = {
-    "description": "the packed scene and acceleration data (binary; format in server/device.py)",
+    "description": "the packed scene and acceleration data (binary; format in server/device_data.py)",
     "content": {"application/octet-stream": {"schema": {"type": "string", "format": "binary"}}},
     "headers": {
         "X-Session-Version": {"description": "the session version the data shows", "schema": {"type": "string"}},
@@ -162,75 +116,6 @@ def shader_url(method: str, mode: str, depth: int, features: tuple[str, ...]) ->
     if features:
         q["features"] = ",".join(features)
     return "/api/shader?" + urlencode(q)
-
-
-def camera_uniforms(camera: Camera) -> dict[str, Any]:
-    """The camera terms of :func:`renderer.gpu_layout.camera_uniforms` that do not depend on
-    the image size (the device sets ``u_half_extent`` and ``u_resolution`` per frame)."""
-    return {k: _jsonable(v) for k, v in gpu_layout.camera_uniforms(camera, 1, 1).items()
-            if k not in ("u_half_extent", "u_resolution")}
-
-
-def _jsonable(v: Any) -> Any:
-    if isinstance(v, (list, tuple)):
-        return [_jsonable(x) for x in v]
-    if isinstance(v, (np.integer, bool)):
-        return int(v)
-    if isinstance(v, (np.floating, float)):
-        return float(v)
-    if isinstance(v, np.ndarray):
-        return v.tolist()
-    return v
-
-
-def encode_blob(header: dict[str, Any], textures: dict[str, gpu_layout.PackedTexture]) -> bytes:
-    """Magic, version, header length, JSON header (with the textures' offsets), aligned texture bytes."""
-    entries, chunks = [], []
-    for name, tex in textures.items():
-        data = np.ascontiguousarray(tex.data, dtype="<f4" if tex.dtype == "f4" else "<u4")
-        w, h = tex.size
-        entries.append({"name": name, "width": w, "height": h, "components": tex.components, "dtype": tex.dtype,
-                        "internal_format": INTERNAL_FORMATS[(tex.dtype, tex.components)],
-                        "offset": 0, "nbytes": int(data.nbytes)})
-        chunks.append(data.tobytes())
-    # The offsets depend on the header's length, which depends on the offsets' digits: iterate.
-    head = b""
-    for _ in range(4):
-        start = _align(12 + len(head))
-        pos = start
-        for e, c in zip(entries, chunks):
-            e["offset"] = pos
-            pos = _align(pos + len(c))
-        new = json.dumps({**header, "textures": entries, "nbytes": pos}, separators=(",", ":")).encode()
-        if new == head:
-            break
-        head = new
-    out = bytearray(MAGIC + struct.pack("<II", FORMAT_VERSION, len(head)) + head)
-    for e, c in zip(entries, chunks):
-        out.extend(b"\0" * (e["offset"] - len(out)))
-        out.extend(c)
-    out.extend(b"\0" * (_align(len(out)) - len(out)))
-    return bytes(out)
-
-
-def decode_blob(blob: bytes) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """The header and the textures as (height, width, components) arrays (for tests and tools)."""
-    if blob[:4] != MAGIC:
-        raise ValueError("not pocketray device data")
-    version, n = struct.unpack_from("<II", blob, 4)
-    if version != FORMAT_VERSION:
-        raise ValueError(f"device-data format {version}, expected {FORMAT_VERSION}")
-    header = json.loads(blob[12:12 + n])
-    arrays = {}
-    for t in header["textures"]:
-        a = np.frombuffer(blob, dtype="<f4" if t["dtype"] == "f4" else "<u4",
-                          count=t["height"] * t["width"] * t["components"], offset=t["offset"])
-        arrays[t["name"]] = a.reshape(t["height"], t["width"], t["components"])
-    return header, arrays
-
-
-def _align(n: int) -> int:
-    return -(-n // ALIGN) * ALIGN
 
 
 # ---- routes ----------------------------------------------------------------------------------
@@ -312,10 +197,6 @@ def device_data(
         "X-Session-Version": str(state.version), "X-Method": method_name, "X-Stats": stats_header(stats),
         "Server-Timing": timing, "Cache-Control": "no-store",
         "Access-Control-Expose-Headers": ", ".join(EXPOSED)})
-
-
-def _jsonable_stats(stats: dict[str, Any]) -> dict[str, Any]:
-    return json.loads(json.dumps(stats, default=_jsonable))
 
 
 @router.get("/shader", response_class=PlainTextResponse, responses={200: _SHADER_DOC},
