@@ -172,8 +172,8 @@ def _handle(request: Request, exc: Exception) -> Response:
 
 
 def install(app: FastAPI) -> None:
-    """Answer every exception type of the table with its row (Starlette picks a handler by
-    the exception's class hierarchy, the table by its order: each type is its own row's)."""
+    """One handler for every exception type of the table. It looks the row up itself, so which
+    of the types Starlette matched (it goes by the class hierarchy) does not matter."""
     for row in ERROR_TABLE:
         for exc_type in row.types:
             app.add_exception_handler(exc_type, _handle)

@@ -27,7 +27,6 @@ with warnings.catch_warnings():  # as in conftest.py: the TestClient still speak
 from pocketray_server_support import SMALL, new_session
 from renderer.scene import SceneError
 from server.api import errors
-from server.gl_worker import GLNotReady
 from server.service import RenderTimeout
 
 UNKNOWN_SESSION = "no-such-session"
