@@ -14,7 +14,12 @@ from typing import Any, Literal
 from pydantic import Field, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from renderer.limits import JPEG_QUALITY_RANGE, MAX_SPHERES, MAX_TREE_DEPTH
+from renderer.profiles import STILL
+
 REPO_ROOT = Path(__file__).resolve().parent.parent
+FIT_SIDE = 1088   # pixels: the side of the browser client's largest 'fit' frame
+QUALITY_MIN, QUALITY_MAX = JPEG_QUALITY_RANGE
 
 
 class ServerConfig(BaseSettings):
@@ -42,11 +47,12 @@ class ServerConfig(BaseSettings):
     warmup: bool = Field(True, description="render a tiny scene at start-up (compiles the default shader)")
 
     # --- per-request caps on work -----------------------------------------------
-    max_work: int = Field(1088 * 1088 * 8 * 4, ge=1,
+    max_work: int = Field(FIT_SIDE * FIT_SIDE * STILL["max_recursion_depth"] * STILL["samples_per_pixel"], ge=1,
                           description="cap on width × height × max_recursion_depth × samples_per_pixel of one "
-                                      "render (default: the 'still' profile — depth 8, 4 spp — on a "
-                                      "1088 × 1088 frame, the client's largest 'fit' size)")
-    max_spheres: int = Field(1 << 21, ge=0, le=1 << 21, description="cap on the spheres of one scene")
+                                      f"render (default: the 'still' profile — depth {STILL['max_recursion_depth']}, "
+                                      f"{STILL['samples_per_pixel']} spp — on a {FIT_SIDE} × {FIT_SIDE} frame, the "
+                                      "client's largest 'fit' size)")
+    max_spheres: int = Field(MAX_SPHERES, ge=0, le=MAX_SPHERES, description="cap on the spheres of one scene")
     max_bruteforce_work: int = Field(
         640 * 1088 * 512, ge=1,
         description="cap on width × height × max_recursion_depth × spheres for method=bruteforce "
@@ -61,12 +67,14 @@ class ServerConfig(BaseSettings):
         default_factory=dict,
         description="JSON object overriding the render defaults of new sessions and of POST /api/render "
                     "(renderer.settings.RenderSettings: width 640, height 1088, method bih, mode color, "
-                    "max_prims 8, max_tree_depth 64, format png; then the measured 'still' profile of "
-                    "renderer.profiles: max_recursion_depth 8, samples_per_pixel 4, min_weight 0.03; quality)")
+                    f"max_prims 8, max_tree_depth {MAX_TREE_DEPTH}, format png; then the measured 'still' profile "
+                    f"of renderer.profiles: max_recursion_depth {STILL['max_recursion_depth']}, samples_per_pixel "
+                    f"{STILL['samples_per_pixel']}, min_weight {STILL['min_weight']}; quality)")
 
     # --- encoding ---------------------------------------------------------------
     png_compress_level: int = Field(1, ge=0, le=9, description="zlib level of PNG frames (1 = fast)")
-    default_jpeg_quality: int = Field(85, ge=1, le=100, description="JPEG quality when a request names none")
+    default_jpeg_quality: int = Field(85, ge=QUALITY_MIN, le=QUALITY_MAX,
+                                      description="JPEG quality when a request names none")
 
     # --- static files ------------------------------------------------------------
     client_dir: Path = Field(REPO_ROOT / "client_web", description="served at / (created when missing)")
@@ -84,8 +92,8 @@ class ServerConfig(BaseSettings):
             RenderSettings(**{k: v for k, v in d.items() if k != "quality"})
         except (SceneError, TypeError) as e:
             raise ValueError(f"default_render: {e}") from None
-        if not (isinstance(d["quality"], int) and 1 <= d["quality"] <= 100):
-            raise ValueError("default_render: quality must be an integer 1 … 100")
+        if not (isinstance(d["quality"], int) and QUALITY_MIN <= d["quality"] <= QUALITY_MAX):
+            raise ValueError(f"default_render: quality must be an integer {QUALITY_MIN} … {QUALITY_MAX}")
         work = d["width"] * d["height"] * d["max_recursion_depth"] * d["samples_per_pixel"]
         if work > self.max_work:
             raise ValueError(f"default_render: width × height × max_recursion_depth × samples_per_pixel = {work} "
@@ -97,7 +105,6 @@ class ServerConfig(BaseSettings):
         speed-against-accuracy experiment recommends (a session's frames are its still frames;
         the client asks for the 'interactive' profile while a finger moves), quality, and
         ``default_render`` last."""
-        from renderer.profiles import STILL
         from renderer.settings import RenderSettings
 
         still = {k: v for k, v in STILL.items() if k in RenderSettings.__dataclass_fields__}

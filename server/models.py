@@ -1,7 +1,10 @@
-"""The API contract: typed request and response bodies (pydantic).
+"""The API contract: typed request bodies, query parameters and responses (pydantic).
 
 Field constraints here are what one field can say on its own (ranges, finite
-numbers, enums); they become the OpenAPI schema. What needs several fields
+numbers, enums); they become the OpenAPI schema, and every bound is the engine's
+(:mod:`renderer.limits`). A query takes the same fields as the body it stands for:
+the frame query *is* the settings patch (:class:`RenderParams`), and the stats and
+device-data queries are made of the same field types. What needs several fields
 (``camera.target`` ≠ ``camera.position``, ``up`` not parallel to the view,
 material indices in range, the work caps of :mod:`server.config`) is checked by
 the renderer's own validation and answered with the same 422 shape.
@@ -12,21 +15,54 @@ and ``dx``/``dy`` in pixels.
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal, Union, get_args
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
+from pydantic.fields import FieldInfo
 
-from renderer.animation import MAX_TIME, MUSEUM_KINDS
-from renderer.scene import MAX_COORDINATE, Scene
-from renderer.settings import (FORMATS, MAX_IMAGE_SIDE, MAX_RECURSION_DEPTH_LIMIT, MAX_TREE_DEPTH_LIMIT,
-                               METHODS, MODES)
+from renderer.animation import MUSEUM_KINDS
+from renderer.limits import (DEFAULT_TILE_SIZE, JPEG_QUALITY_RANGE, MAX_COORDINATE, MAX_IMAGE_SIDE, MAX_LIGHTS,
+                             MAX_MATERIALS, MAX_MOTIONS, MAX_PLANES, MAX_PRIMS, MAX_RECURSION_DEPTH, MAX_SPHERES,
+                             MAX_TILE_SIZE, MAX_TIME, MAX_TREE_DEPTH, MIN_TILE_SIZE, MIN_WEIGHT_RANGE,
+                             SAMPLES_PER_PIXEL, UPDATE_THRESHOLD_RANGE)
+from renderer.scenarios import CUBE_HALF
+from renderer.settings import FORMATS, METHODS, MODES, RenderSettings
 from renderer.tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
+
+from .device_data import DEFAULT_MAX_TEXTURE_SIZE, FEATURE_DEFINES
 
 MethodName = Literal[METHODS]  # type: ignore[valid-type]
 ModeName = Literal[MODES]  # type: ignore[valid-type]
 FormatName = Literal[FORMATS]  # type: ignore[valid-type]
 UpdateScheme = Literal[UPDATE_SCHEMES]  # type: ignore[valid-type]
 MuseumKind = Literal[MUSEUM_KINDS]  # type: ignore[valid-type]
+
+# ---- bounds the renderer checks with literals of its own ------------------------------------
+# renderer/scene.py, renderer/animation.py and renderer/scenarios.py validate these values
+# but renderer.limits does not hold them yet; they are spelled once here, to move there.
+MAX_LIGHT_INTENSITY = 1e3          # per RGB channel (scene.Light)
+MAX_SHININESS = 1e4                # Phong exponent (scene.Material)
+MAX_IOR = 10.0                     # refraction index (scene.Material)
+MAX_ANGULAR_VELOCITY = 1e3         # radians per second (animation.RigidGroup)
+MAX_PERIOD = 1e6                   # seconds (animation.RigidGroup)
+MAX_WAVELENGTH = 1e9               # world units (animation.Deformable)
+MAX_SPEED = 1e6                    # world units per second (animation.Deformable, Incoherent)
+MAX_LIFETIME = 1e6                 # seconds (animation.Incoherent)
+MAX_ABSENT = 0.95                  # fraction of a lifetime (animation.Incoherent, museum)
+MAX_MOTION_SEED = 2 ** 63 - 1      # animation.Incoherent
+MAX_MUSEUM_MOVING = MAX_SPHERES - 1024   # animation.museum: room for the static 576 and more
+
+# The API's own bounds: a 32-bit placement seed (the renderer takes any non-negative one), and
+# the largest MAX_TEXTURE_SIZE a device may report for its device data (GPUs report ≤ 32,768).
+MAX_SEED = 2 ** 32 - 1
+MAX_DEVICE_TEXTURE_SIZE = 1 << 16
+
+
+def optional(tp: Any) -> Any:
+    """``tp | None`` (left out: keep the current value) with ``tp``'s description on the
+    field itself, where OpenAPI looks for a query parameter's description."""
+    info = next((m for m in get_args(tp)[1:] if isinstance(m, FieldInfo)), None)
+    return Annotated[tp | None, Field(description=info.description if info else None)]
 
 
 class Strict(BaseModel):
@@ -38,12 +74,13 @@ Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
 Vec3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3, description="[x, y, z], world units")]
 Unit = Annotated[float, Field(ge=0.0, le=1.0)]
 Rgb = Annotated[list[Unit], Field(min_length=3, max_length=3, description="RGB, each 0 … 1")]
-Intensity = Annotated[list[Annotated[float, Field(ge=0.0, le=1e3)]],
-                      Field(min_length=3, max_length=3, description="RGB intensity, each 0 … 1000")]
-MaterialIndex = Annotated[int, Field(ge=0, lt=Scene.MAX_MATERIALS, description="index into materials")]
+Intensity = Annotated[list[Annotated[float, Field(ge=0.0, le=MAX_LIGHT_INTENSITY)]],
+                      Field(min_length=3, max_length=3,
+                            description=f"RGB intensity, each 0 … {MAX_LIGHT_INTENSITY:g}")]
+MaterialIndex = Annotated[int, Field(ge=0, lt=MAX_MATERIALS, description="index into materials")]
 
 
-# ---- scene (SPEC's JSON) ----------------------------------------------------------
+# ---- scene (the scene JSON of docs/FORMATS.md) --------------------------------------------
 class CameraModel(Strict):
     """Pinhole camera. ``target`` must differ from ``position``; ``up`` must be non-zero
     and not parallel to the viewing direction."""
@@ -65,10 +102,10 @@ class MaterialModel(Strict):
     ambient: Unit = 0.3
     diffuse: Unit = 0.3
     specular: Unit = 0.1
-    shininess: float = Field(40.0, ge=0.0, le=1e4, description="Phong exponent")
+    shininess: float = Field(40.0, ge=0.0, le=MAX_SHININESS, description="Phong exponent")
     reflective: Unit = 0.3
     transmissive: Unit = 0.0
-    ior: float = Field(1.0, gt=0.0, le=10.0, description="refraction index inside / outside")
+    ior: float = Field(1.0, gt=0.0, le=MAX_IOR, description="refraction index inside / outside")
 
 
 class SphereModel(Strict):
@@ -84,8 +121,8 @@ class PlaneModel(Strict):
 
 
 # ---- motion (issue #9; renderer.animation) ------------------------------------------
-SphereIndex = Annotated[int, Field(ge=0, lt=Scene.MAX_SPHERES, description="id of the first sphere moved")]
-SphereCount = Annotated[int, Field(ge=0, le=Scene.MAX_SPHERES, description="number of spheres moved")]
+SphereIndex = Annotated[int, Field(ge=0, lt=MAX_SPHERES, description="id of the first sphere moved")]
+SphereCount = Annotated[int, Field(ge=0, le=MAX_SPHERES, description="number of spheres moved")]
 
 
 class RigidMotion(Strict):
@@ -96,9 +133,10 @@ class RigidMotion(Strict):
     count: SphereCount
     pivot: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     axis: Vec3 = Field(default_factory=lambda: [0.0, 1.0, 0.0], description="non-zero")
-    angular_velocity: float = Field(0.5, ge=-1e3, le=1e3, description="radians per second")
+    angular_velocity: float = Field(0.5, ge=-MAX_ANGULAR_VELOCITY, le=MAX_ANGULAR_VELOCITY,
+                                    description="radians per second")
     amplitude: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="oscillation, world units")
-    period: float = Field(4.0, gt=0.0, le=1e6, description="seconds")
+    period: float = Field(4.0, gt=0.0, le=MAX_PERIOD, description="seconds")
 
 
 class DeformableMotion(Strict):
@@ -107,8 +145,8 @@ class DeformableMotion(Strict):
     first: SphereIndex
     count: SphereCount
     amplitude: float = Field(1.0, ge=0.0, le=MAX_COORDINATE, description="world units")
-    wavelength: float = Field(10.0, gt=0.0, le=1e9, description="world units")
-    speed: float = Field(4.0, ge=-1e6, le=1e6, description="world units per second")
+    wavelength: float = Field(10.0, gt=0.0, le=MAX_WAVELENGTH, description="world units")
+    speed: float = Field(4.0, ge=-MAX_SPEED, le=MAX_SPEED, description="world units per second")
 
 
 class IncoherentMotion(Strict):
@@ -119,70 +157,160 @@ class IncoherentMotion(Strict):
     count: SphereCount
     box_min: Vec3 = Field(default_factory=lambda: [-15.0, -15.0, -15.0])
     box_max: Vec3 = Field(default_factory=lambda: [15.0, 15.0, 15.0], description="> box_min on every axis")
-    speed: float = Field(5.0, ge=0.0, le=1e6, description="world units per second")
-    lifetime: float = Field(2.0, gt=0.0, le=1e6, description="seconds")
-    absent: float = Field(0.0, ge=0.0, le=0.95, description="fraction of each lifetime a sphere is gone")
-    seed: int = Field(0, ge=0, le=2 ** 63 - 1)
+    speed: float = Field(5.0, ge=0.0, le=MAX_SPEED, description="world units per second")
+    lifetime: float = Field(2.0, gt=0.0, le=MAX_LIFETIME, description="seconds")
+    absent: float = Field(0.0, ge=0.0, le=MAX_ABSENT, description="fraction of each lifetime a sphere is gone")
+    seed: int = Field(0, ge=0, le=MAX_MOTION_SEED)
 
 
 Motion = Annotated[Union[RigidMotion, DeformableMotion, IncoherentMotion], Field(discriminator="kind")]
 
 
 class SceneModel(Strict):
-    """A whole scene (SPEC). Material indices must be < len(materials). ``motions`` (optional)
+    """A whole scene (docs/FORMATS.md). Material indices must be < len(materials). ``motions`` (optional)
     animate sphere ranges that must not overlap; the render setting ``time`` poses the scene."""
     camera: CameraModel = Field(default_factory=CameraModel)
-    lights: list[LightModel] = Field(default_factory=list, max_length=Scene.MAX_LIGHTS)
-    materials: list[MaterialModel] = Field(min_length=1, max_length=Scene.MAX_MATERIALS)
-    spheres: list[SphereModel] = Field(default_factory=list, max_length=Scene.MAX_SPHERES)
-    planes: list[PlaneModel] = Field(default_factory=list, max_length=Scene.MAX_PLANES)
-    motions: list[Motion] = Field(default_factory=list, max_length=1024)
+    lights: list[LightModel] = Field(default_factory=list, max_length=MAX_LIGHTS)
+    materials: list[MaterialModel] = Field(min_length=1, max_length=MAX_MATERIALS)
+    spheres: list[SphereModel] = Field(default_factory=list, max_length=MAX_SPHERES)
+    planes: list[PlaneModel] = Field(default_factory=list, max_length=MAX_PLANES)
+    motions: list[Motion] = Field(default_factory=list, max_length=MAX_MOTIONS)
 
 
 # ---- render settings ----------------------------------------------------------
-Side = Annotated[int, Field(ge=1, le=MAX_IMAGE_SIDE, description="pixels, 1 … 4096")]
-Quality = Annotated[int, Field(ge=1, le=100, description="JPEG quality 1 … 100 (ignored by png and npy)")]
-MaxPrims = Annotated[int, Field(ge=1, le=1 << 24, description="BIH leaf size limit")]
-TreeDepth = Annotated[int, Field(ge=1, le=MAX_TREE_DEPTH_LIMIT, description="BIH depth limit (root = 1)")]
-RecursionDepth = Annotated[int, Field(ge=1, le=MAX_RECURSION_DEPTH_LIMIT,
+Side = Annotated[int, Field(ge=1, le=MAX_IMAGE_SIDE, description=f"pixels, 1 … {MAX_IMAGE_SIDE}")]
+Quality = Annotated[int, Field(ge=JPEG_QUALITY_RANGE[0], le=JPEG_QUALITY_RANGE[1],
+                               description=f"JPEG quality {JPEG_QUALITY_RANGE[0]} … {JPEG_QUALITY_RANGE[1]} "
+                                           "(ignored by png and npy)")]
+MaxPrims = Annotated[int, Field(ge=1, le=MAX_PRIMS, description="BIH leaf size limit")]
+TreeDepth = Annotated[int, Field(ge=1, le=MAX_TREE_DEPTH, description="BIH depth limit (root = 1)")]
+RecursionDepth = Annotated[int, Field(ge=1, le=MAX_RECURSION_DEPTH,
                                       description="1 = primary rays only; each reflection/refraction +1")]
-SamplesPerPixel = Annotated[Literal[1, 4, 9, 16], Field(description="stratified supersampling: traced at √s× "
-                                                                    "the resolution and box-filtered")]
-MinWeight = Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False,
+SamplesPerPixel = Annotated[Literal[SAMPLES_PER_PIXEL],  # type: ignore[valid-type]
+                            Field(description="stratified supersampling: traced at √s× the resolution and "
+                                              "box-filtered")]
+MinWeight = Annotated[float, Field(ge=MIN_WEIGHT_RANGE[0], le=MIN_WEIGHT_RANGE[1], allow_inf_nan=False,
                                    description="ε: reflected/refracted rays of smaller path weight are not traced")]
-TileSize = Annotated[int, Field(ge=2, le=64, description="hre's tile edge in pixels")]
+TileSize = Annotated[int, Field(ge=MIN_TILE_SIZE, le=MAX_TILE_SIZE, description="hre's tile edge in pixels")]
 Time = Annotated[float, Field(ge=0.0, le=MAX_TIME, allow_inf_nan=False,
                               description="seconds: the time an animated scene is posed at")]
-UpdateThreshold = Annotated[float, Field(ge=0.0, le=100.0, allow_inf_nan=False,
+UpdateThreshold = Annotated[float, Field(ge=UPDATE_THRESHOLD_RANGE[0], le=UPDATE_THRESHOLD_RANGE[1],
+                                         allow_inf_nan=False,
                                          description="selective rebuild: SAH cost growth, 0.3 = +30 %")]
+Method = Annotated[MethodName, Field(description="acceleration method; auto: brute force below the measured "
+                                                "crossover, bih above it")]
+Mode = Annotated[ModeName, Field(description="what the image shows (docs/SHADING.md)")]
+Format = Annotated[FormatName, Field(description="encoding of the frame: png, jpeg or npy (one array)")]
+Specialize = Annotated[bool, Field(description="shader variant with only the scene's features (exact)")]
+Update = Annotated[UpdateScheme, Field(description="how bvh/twolevel follow the motion between frames: "
+                                                   "rebuild, refit or selective")]
 
 
-class SettingsPatch(Strict):
+class RenderParams(BaseModel):
+    """Render settings a request names; the ones left out (or null) keep their value.
+
+    Declared once for the body (:class:`SettingsPatch`) and the query of a frame
+    (:class:`FrameQuery`)."""
+    model_config = ConfigDict(allow_inf_nan=False)
+
+    width: optional(Side) = None
+    height: optional(Side) = None
+    method: optional(Method) = None
+    mode: optional(Mode) = None
+    max_prims: optional(MaxPrims) = None
+    max_tree_depth: optional(TreeDepth) = None
+    max_recursion_depth: optional(RecursionDepth) = None
+    format: optional(Format) = None
+    quality: optional(Quality) = None
+    samples_per_pixel: optional(SamplesPerPixel) = None
+    min_weight: optional(MinWeight) = None
+    specialize: optional(Specialize) = None
+    tile_size: optional(TileSize) = None
+    time: optional(Time) = None
+    update: optional(Update) = None
+    update_threshold: optional(UpdateThreshold) = None
+
+    def given(self) -> dict[str, Any]:
+        """The settings named, as a patch of a session's settings."""
+        return {k: v for k in RenderParams.model_fields if (v := getattr(self, k)) is not None}
+
+
+class SettingsPatch(RenderParams):
     """Some render settings; the ones left out (or null) keep their value."""
-    width: Side | None = None
-    height: Side | None = None
-    method: MethodName | None = None
-    mode: ModeName | None = None
-    max_prims: MaxPrims | None = None
-    max_tree_depth: TreeDepth | None = None
-    max_recursion_depth: RecursionDepth | None = None
-    format: FormatName | None = None
-    quality: Quality | None = None
-    samples_per_pixel: SamplesPerPixel | None = None
-    min_weight: MinWeight | None = None
-    specialize: bool | None = Field(None, description="shader variant with only the scene's features (exact)")
-    tile_size: TileSize | None = None
-    time: Time | None = None
-    update: UpdateScheme | None = Field(None, description="how bvh/twolevel follow the motion between frames: "
-                                                          "rebuild, refit or selective")
-    update_threshold: UpdateThreshold | None = None
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+# ---- query parameters ---------------------------------------------------------------
+class QueryModel(BaseModel):
+    """Query parameters: unknown ones are ignored (links may carry the client's own); no NaN or ±inf."""
+    model_config = ConfigDict(extra="ignore", allow_inf_nan=False)
+
+
+_INT = TypeAdapter(int)
+
+
+class FrameQuery(RenderParams, QueryModel):
+    """A frame's render settings in the query; missing ones come from the session's."""
+    model_config = ConfigDict(extra="ignore", allow_inf_nan=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _literal_ints_from_text(cls, data: Any) -> Any:
+        """A query's values are text. pydantic reads "4" as an int field's 4 but not as an int
+        Literal's, so samples_per_pixel is read as an integer first (and then checked as the set)."""
+        if isinstance(data, dict) and isinstance(data.get("samples_per_pixel"), str):
+            try:
+                return {**data, "samples_per_pixel": _INT.validate_python(data["samples_per_pixel"])}
+            except ValidationError:
+                pass  # not a number: the Literal's error names the allowed values
+        return data
+
+
+class GestureQuery(FrameQuery):
+    """A gesture's query: ``frame`` asks for the new frame, rendered with the other parameters."""
+    frame: bool = Field(False, description="answer with the new frame (image) instead of JSON")
+
+
+class StatsQuery(QueryModel):
+    """The build whose statistics are asked for; missing parameters: the session's."""
+    method: optional(Method) = None
+    max_prims: optional(MaxPrims) = None
+    max_tree_depth: optional(TreeDepth) = None
+    time: optional(Time) = None
 
     def given(self) -> dict[str, Any]:
         return {k: v for k, v in self.model_dump().items() if v is not None}
 
 
+class DeviceDataQuery(QueryModel):
+    """What the device-data is packed for; the settings left out are the session's."""
+    method: MethodName | None = Field(None, description="default: the session's")
+    mode: ModeName | None = Field(None, description="names the shader variant; default: the session's")
+    max_prims: optional(MaxPrims) = None
+    max_tree_depth: optional(TreeDepth) = None
+    max_recursion_depth: optional(RecursionDepth) = None
+    time: optional(Time) = None
+    max_texture_size: int = Field(DEFAULT_MAX_TEXTURE_SIZE, ge=1, le=MAX_DEVICE_TEXTURE_SIZE,
+                                  description="the device's MAX_TEXTURE_SIZE")
+    float_textures: bool = Field(True, description="the device renders to RGBA32F (WebGL2: EXT_color_buffer_float)")
+
+    def given(self) -> dict[str, Any]:
+        """The render settings named (not the device's own parameters)."""
+        return {k: v for k in ("method", "mode", "max_prims", "max_tree_depth", "max_recursion_depth", "time")
+                if (v := getattr(self, k)) is not None}
+
+
+class ShaderQuery(QueryModel):
+    """The shader variant asked for."""
+    method: Method = "bih"
+    mode: Mode = "color"
+    max_recursion_depth: RecursionDepth = RenderSettings.max_recursion_depth
+    features: str | None = Field(None, max_length=200, description="comma-separated: " + ", ".join(FEATURE_DEFINES))
+    stage: str = Field("fragment", pattern="^(fragment|vertex)$", description="fragment (the tracer) or vertex")
+
+
 class FullSettings(BaseModel):
-    """All render settings of a session (SPEC's render-settings JSON plus ``quality``)."""
+    """All render settings of a session (the render-settings JSON of docs/FORMATS.md plus ``quality``)."""
     width: int
     height: int
     method: str
@@ -195,7 +323,7 @@ class FullSettings(BaseModel):
     samples_per_pixel: int = 1
     min_weight: float = 0.0
     specialize: bool = True
-    tile_size: int = 16
+    tile_size: int = DEFAULT_TILE_SIZE
     time: float = 0.0
     update: str = "rebuild"
     update_threshold: float = DEFAULT_THRESHOLD
@@ -209,19 +337,19 @@ class SettingsOut(FullSettings):
 class MuseumRecipe(Strict):
     """Reiter's BART-Museum analogue (renderer.animation.museum): ``n`` moving spheres in a
     static room of 576 spheres and the floor."""
-    n: int = Field(ge=0, le=Scene.MAX_SPHERES - 1024, description="moving spheres")
+    n: int = Field(ge=0, le=MAX_MUSEUM_MOVING, description="moving spheres")
     kind: MuseumKind = Field("deformable", description="rigid, deformable, incoherent or mixed (a third each)")
-    seed: int = Field(0, ge=0, le=2 ** 32 - 1)
-    absent: float = Field(0.2, ge=0.0, le=0.95, description="incoherent spheres: fraction of a lifetime gone")
+    seed: int = Field(0, ge=0, le=MAX_SEED)
+    absent: float = Field(0.2, ge=0.0, le=MAX_ABSENT, description="incoherent spheres: fraction of a lifetime gone")
 
 
 class SessionCreate(Strict):
     """Either a thesis scenario (``scenario`` and ``n``; ``seed``, ``radius`` optional),
     an animated ``museum``, or a full ``scene``; optionally the session's first render settings."""
     scenario: Literal[1, 2, 3] | None = Field(None, description="thesis scenario 1, 2 or 3")
-    n: int | None = Field(None, ge=0, le=Scene.MAX_SPHERES, description="number of spheres")
-    seed: int | None = Field(None, ge=0, le=2 ** 32 - 1, description="random placement seed (default 0)")
-    radius: float | None = Field(None, gt=0.0, le=20.0, description="sphere radius, world units (default 1)")
+    n: int | None = Field(None, ge=0, le=MAX_SPHERES, description="number of spheres")
+    seed: int | None = Field(None, ge=0, le=MAX_SEED, description="random placement seed (default 0)")
+    radius: float | None = Field(None, gt=0.0, le=CUBE_HALF, description="sphere radius, world units (default 1)")
     museum: MuseumRecipe | None = None
     scene: SceneModel | None = None
     settings: SettingsPatch | None = None

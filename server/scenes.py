@@ -107,7 +107,7 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
 
 
 def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> Iterator[bytes]:
-    """The SPEC JSON of ``scene`` (exactly ``json.dumps(scene.to_json())``, compact) in
+    """The scene JSON (docs/FORMATS.md) of ``scene`` (exactly ``json.dumps(scene.to_json())``, compact) in
     pieces, so that a scene of 2^21 spheres is sent without building it in memory.
     An animated scene is its rest pose plus ``motions``."""
     def dumps(obj: Any) -> str:

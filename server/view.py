@@ -1,6 +1,6 @@
 """The View's HTTP side: encode a RenderResult and describe it in headers.
 
-Formats (SPEC): ``png`` and ``jpeg`` carry what the render mode shows as 8-bit
+Formats (docs/FORMATS.md): ``png`` and ``jpeg`` carry what the render mode shows as 8-bit
 RGB; ``npy`` is one ``.npy`` array (colour uint8 H×W×3, depth float32 H×W with
 inf on a miss, primid int32 H×W with −1 on a miss, normal float32 H×W×3).
 

@@ -1,10 +1,10 @@
 // On-device rendering (issue #10): the server's tracer, run by this browser in WebGL2.
 //
 // One shader, one tree layout: the fragment shader is the text the server compiles
-// (GET /api/shader, assembled by renderer.gl_renderer.shader_source), the textures
+// (GET /api/shader, assembled by renderer.shader_source.tracer_source), the textures
 // and uniforms are what renderer.gpu_layout packs for moderngl, delivered as one
 // binary blob (GET /api/sessions/{id}/device-data; its format is documented in
-// server/device.py). The tree is still built by the server, per request.
+// server/device_data.py). The tree is still built by the server, per request.
 //
 //  - DeviceRenderer: WebGL2 context on an offscreen canvas; uploads the blob's
 //    textures (RGBA32F → RGBA32F/FLOAT, R32UI → R32UI/RED_INTEGER, RGB32UI →

@@ -5,7 +5,7 @@
 // so changing them makes a new session; render settings are PATCHed onto the
 // session; the preview/refine levels live in the client (localStorage).
 
-// Used when the server does not offer its list (GET /api/info).
+// Used when the server does not offer its list (GET /api/info: methods).
 export const FALLBACK_METHODS = Object.freeze(['bih', 'bruteforce']);
 export const METHOD_LABELS = Object.freeze({
   bih: 'BIH (thesis)', bruteforce: 'Brute force', auto: 'Auto (brute force below the crossover, else BIH)',

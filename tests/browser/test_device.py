@@ -234,7 +234,7 @@ def test_device_data_is_the_gpu_layout_and_refuses_what_a_device_cannot_run(serv
     from renderer.shader_source import tracer_source as shader_source
     from renderer.methods import METHODS
     from renderer.scenarios import scenario
-    from server.device import decode_blob
+    from server.device_data import decode_blob
 
     sid = sessions(2, 64)
     with urllib.request.urlopen(f"{server.base}/api/sessions/{sid}/device-data?max_texture_size=64&method=bih",

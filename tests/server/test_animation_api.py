@@ -11,7 +11,7 @@ import pytest
 
 from renderer.animation import museum, pose
 from renderer.scenarios import scenario
-from server.device import decode_blob
+from server.device_data import decode_blob
 from server.scenes import load_source, scene_source
 
 from pocketray_server_support import SMALL, make_config, wait_ready

@@ -1,0 +1,194 @@
+"""Every error answer of the API, in one table: exception → (status, detail, headers).
+
+The HTTP exception handlers (:func:`install`) and the WebSocket route
+(:mod:`server.api.routes.ws`) both answer from :func:`answer`, so an error reads the
+same over either transport: over HTTP as the status, ``{"detail": …}`` and its headers;
+over the WebSocket as one text message ``{"status", "detail"}`` plus ``"retry_after"``
+(seconds) where HTTP sends ``Retry-After``.
+
+- 422: bad input. ``detail`` is a list of ``{"loc", "msg", "type"}``, ``msg`` starting with
+  the field's path (``camera.fov_y: …``): pydantic's errors, the renderer's ``SceneError``
+  (with its field) and bodies that are not even JSON (FastAPI would say 400).
+- 404: no such session. 503 + ``Retry-After``: queue full, GL unavailable, render timed
+  out, session store not answering — never a 500 for load. 500: a bug (logged).
+"""
+
+from __future__ import annotations
+
+import logging
+import sqlite3
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import redis
+from fastapi import FastAPI
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from fastapi.utils import is_body_allowed_for_status_code
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.requests import Request
+from starlette.responses import Response
+
+from renderer.scene import SceneError
+
+from ..config import ServerConfig
+from ..gl_worker import GLNotReady, QueueFull
+from ..models import ErrorOut
+from ..service import InputError, NotFound, RenderTimeout, field_path
+
+log = logging.getLogger("pocketray.server")
+
+NOT_FOUND = ("session: no session with this id (unknown, deleted, or expired after POCKETRAY_SESSION_TTL_S "
+             "seconds idle); create one with POST /api/sessions")
+# FastAPI's words for a body it could not read at all (bytes that are not UTF-8 text).
+BODY_UNREADABLE = "There was an error parsing the body"
+GL_RETRY_AFTER_S = 5      # a GL context that failed, or a render that timed out: try again later
+STORE_RETRY_AFTER_S = 1   # the session store is usually back within a second (locked, reconnecting)
+
+
+@dataclass(frozen=True)
+class ErrorAnswer:
+    """One error answer: HTTP status, the ``detail`` of the body, HTTP headers."""
+    status: int
+    detail: Any
+    headers: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def retry_after_s(self) -> int | None:
+        """Seconds until a retry may succeed (the ``Retry-After`` header), if the answer says."""
+        value = self.headers.get("Retry-After")
+        return int(value) if value is not None else None
+
+    def http(self) -> Response:
+        """The HTTP response: ``{"detail": …}`` (no body where the status allows none)."""
+        if not is_body_allowed_for_status_code(self.status):
+            return Response(status_code=self.status, headers=self.headers)
+        return JSONResponse({"detail": self.detail}, status_code=self.status, headers=self.headers)
+
+    def ws_message(self) -> dict[str, Any]:
+        """The WebSocket message: ``{"status", "detail"}`` and ``"retry_after"`` (s) where HTTP has Retry-After."""
+        message: dict[str, Any] = {"status": self.status, "detail": self.detail}
+        if self.retry_after_s is not None:
+            message["retry_after"] = self.retry_after_s
+        return message
+
+
+# ---- the answers ------------------------------------------------------------------------------
+def _loc_label(loc: list) -> str:
+    """``["body", "scene", "spheres", 3, "radius"]`` → ``scene.spheres[3].radius``."""
+    inner = loc[1:] if loc and loc[0] in ("body", "query", "path", "header") else loc
+    out = ""
+    for part in inner:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out or (str(loc[0]) if loc else "body")
+
+
+def _invalid(loc: list, msg: str, type_: str) -> ErrorAnswer:
+    return ErrorAnswer(422, [{"loc": loc, "msg": msg, "type": type_}])
+
+
+def _validation(exc: RequestValidationError, config: ServerConfig) -> ErrorAnswer:
+    errors = []
+    for e in exc.errors():
+        loc = [x if isinstance(x, (int, str)) else str(x) for x in e.get("loc", ())]
+        msg = str(e.get("msg", "invalid value"))
+        errors.append({"loc": loc, "msg": f"{_loc_label(loc)}: {msg}", "type": str(e.get("type", "value_error"))})
+    return ErrorAnswer(422, errors)
+
+
+def _http(exc: StarletteHTTPException, config: ServerConfig) -> ErrorAnswer:
+    """A body that is not even JSON (FastAPI says 400) is bad input like any other: 422.
+    Other HTTP errors (no such route, method not allowed) stay as Starlette made them."""
+    if exc.status_code == 400:
+        return _invalid(["body"], f"body: not valid UTF-8 JSON ({exc.detail})", "json_invalid")
+    return ErrorAnswer(exc.status_code, exc.detail, dict(exc.headers or {}))
+
+
+def _scene(exc: SceneError, config: ServerConfig) -> ErrorAnswer:
+    loc = list(exc.loc) if isinstance(exc, InputError) else ["body", *field_path(exc.field)]
+    return _invalid(loc, f"{exc.field}: {exc.message}", "value_error")
+
+
+def _not_found(exc: NotFound, config: ServerConfig) -> ErrorAnswer:
+    return ErrorAnswer(404, NOT_FOUND)
+
+
+def _queue_full(exc: QueueFull, config: ServerConfig) -> ErrorAnswer:
+    return ErrorAnswer(503, f"render queue full ({config.queue_size} admitted, POCKETRAY_QUEUE_SIZE); "
+                            f"retry after {exc.retry_after_s} s", {"Retry-After": str(exc.retry_after_s)})
+
+
+def _gl_unavailable(exc: Exception, config: ServerConfig) -> ErrorAnswer:
+    return ErrorAnswer(503, f"gl: {exc}", {"Retry-After": str(GL_RETRY_AFTER_S)})
+
+
+def _store_unavailable(exc: Exception, config: ServerConfig) -> ErrorAnswer:
+    log.error("state backend error: %s", exc)
+    return ErrorAnswer(503, f"state: the session store is not answering ({type(exc).__name__}); retry",
+                       {"Retry-After": str(STORE_RETRY_AFTER_S)})
+
+
+def _internal(exc: Exception, config: ServerConfig) -> ErrorAnswer:
+    return ErrorAnswer(500, f"internal error ({type(exc).__name__}); see the server log")
+
+
+@dataclass(frozen=True)
+class ErrorRow:
+    """Exceptions of ``types`` are answered by ``answer(exc, config)``."""
+    name: str
+    types: tuple[type[Exception], ...]
+    answer: Callable[[Any, ServerConfig], ErrorAnswer]
+
+
+# First match wins: the catch-all Exception is last.
+ERROR_TABLE: tuple[ErrorRow, ...] = (
+    ErrorRow("validation", (RequestValidationError,), _validation),
+    ErrorRow("unreadable_body", (StarletteHTTPException,), _http),
+    ErrorRow("scene", (SceneError,), _scene),   # InputError is a SceneError that knows its loc
+    ErrorRow("not_found", (NotFound,), _not_found),
+    ErrorRow("queue_full", (QueueFull,), _queue_full),
+    ErrorRow("gl_unavailable", (GLNotReady, RenderTimeout), _gl_unavailable),
+    ErrorRow("store_unavailable", (sqlite3.OperationalError, redis.RedisError), _store_unavailable),
+    ErrorRow("internal", (Exception,), _internal),
+)
+
+
+def row_of(exc: BaseException) -> ErrorRow:
+    """The table's row for ``exc``."""
+    return next(row for row in ERROR_TABLE if isinstance(exc, row.types))
+
+
+def answer(exc: Exception, config: ServerConfig, where: str) -> ErrorAnswer:
+    """The answer to ``exc`` raised while serving ``where`` (``"GET /api/…"``, ``"WS /api/…"``)."""
+    row = row_of(exc)
+    if row.name == "internal":
+        log.exception("unexpected error in %s", where, exc_info=exc)
+    return row.answer(exc, config)
+
+
+# ---- HTTP ---------------------------------------------------------------------------------
+def _handle(request: Request, exc: Exception) -> Response:
+    return answer(exc, request.app.state.config, f"{request.method} {request.url.path}").http()
+
+
+def install(app: FastAPI) -> None:
+    """One handler for every exception type of the table. It looks the row up itself, so which
+    of the types Starlette matched (it goes by the class hierarchy) does not matter."""
+    for row in ERROR_TABLE:
+        for exc_type in row.types:
+            app.add_exception_handler(exc_type, _handle)
+
+
+# ---- OpenAPI: the error answers a route documents ---------------------------------------------
+_RETRY_AFTER_DOC = {"Retry-After": {"description": "seconds", "schema": {"type": "string"}}}
+ERROR_DOCS: dict[int, dict[str, Any]] = {
+    404: {"model": ErrorOut, "description": "no such session (unknown, deleted or expired)"},
+    413: {"model": ErrorOut, "description": "request body too large (POCKETRAY_MAX_BODY_BYTES)"},
+    503: {"model": ErrorOut, "description": "render queue full, GL or session store not available; "
+                                            "see Retry-After", "headers": _RETRY_AFTER_DOC},
+}
+
+
+def documented(*statuses: int) -> dict[int | str, dict[str, Any]]:
+    """``responses=`` of a route that can answer these error statuses."""
+    return {s: ERROR_DOCS[s] for s in statuses}

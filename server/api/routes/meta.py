@@ -1,0 +1,50 @@
+"""The service itself: liveness, readiness (GL context and warm-up frame), and what it offers."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter
+from fastapi.responses import JSONResponse
+
+from renderer.animation import MUSEUM_KINDS
+from renderer.limits import MAX_IMAGE_SIDE
+from renderer.profiles import PROFILES
+from renderer.settings import FORMATS, METHODS, MODES
+from renderer.tree_update import UPDATE_SCHEMES
+
+from ...models import HealthOut, InfoOut, LimitsOut, ReadyOut
+from ..deps import ServiceDep, WorkerDep
+
+router = APIRouter()
+
+READY_RETRY_AFTER_S = 1   # the warm-up frame takes about a second on llvmpipe
+
+
+@router.get("/health", response_model=HealthOut, summary="Liveness")
+def health() -> HealthOut:
+    return HealthOut(status="ok")
+
+
+@router.get("/ready", response_model=ReadyOut, responses={503: {"model": ReadyOut, "description": "not ready"}},
+            summary="Readiness: GL context created and warm-up render done")
+def ready(worker: WorkerDep, service: ServiceDep) -> Any:
+    info = worker.info or {}
+    out = ReadyOut(ready=worker.ready.is_set() and service.store.ping(),
+                   gl_renderer=info.get("renderer"), gl_version=info.get("version"))
+    if out.ready:
+        return out
+    out.detail = worker.error or ("state backend not answering" if worker.ready.is_set() else
+                                  "starting: creating the GL context and rendering the warm-up frame")
+    return JSONResponse(out.model_dump(), status_code=503, headers={"Retry-After": str(READY_RETRY_AFTER_S)})
+
+
+@router.get("/info", response_model=InfoOut, summary="Methods, modes, formats and limits of this service")
+def info(service: ServiceDep) -> InfoOut:
+    c = service.config
+    return InfoOut(methods=list(METHODS), modes=list(MODES), formats=list(FORMATS), state_backend=c.state_backend,
+                   profiles=PROFILES, update_schemes=list(UPDATE_SCHEMES), museum_kinds=list(MUSEUM_KINDS),
+                   limits=LimitsOut(max_work=c.max_work, max_bruteforce_work=c.max_bruteforce_work,
+                                    max_spheres=c.max_spheres, max_body_bytes=c.max_body_bytes,
+                                    max_image_side=MAX_IMAGE_SIDE, queue_size=c.queue_size,
+                                    session_ttl_s=c.session_ttl_s))

@@ -1,0 +1,74 @@
+"""Sessions (the Model): create, read, delete; their scene, camera and render defaults."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Body, Response
+from fastapi.responses import StreamingResponse
+
+from ...models import (CameraModel, CameraOut, FullSettings, SceneInfo, SceneModel, SessionCreate, SessionOut,
+                       SettingsOut, SettingsPatch, VersionOut)
+from ...scenes import scene_json_chunks
+from ...store import SessionState
+from ..deps import ServiceDep, SessionId
+from ..errors import documented
+
+router = APIRouter()
+
+ERR_SESSION = documented(404, 503)
+ERR_SESSION_BODY = documented(404, 413, 503)
+
+
+def session_out(state: SessionState) -> SessionOut:
+    """The API's view of a stored session."""
+    return SessionOut(id=state.id, version=state.version, settings=FullSettings(**state.settings),
+                      scene_info=SceneInfo(**state.scene_info), camera=CameraModel(**state.camera))
+
+
+@router.post("/sessions", status_code=201, response_model=SessionOut, responses=documented(413, 503),
+             summary="Create a session from a thesis scenario, an animated museum or a full scene")
+def create_session(body: SessionCreate, service: ServiceDep) -> SessionOut:
+    return session_out(service.create(body))
+
+
+@router.get("/sessions/{session_id}", response_model=SessionOut, responses=ERR_SESSION,
+            summary="A session: version, render defaults, scene info, camera")
+def read_session(session_id: SessionId, service: ServiceDep) -> SessionOut:
+    return session_out(service.get(session_id))
+
+
+@router.delete("/sessions/{session_id}", status_code=204, response_class=Response, responses=ERR_SESSION,
+               summary="Delete a session")
+def delete_session(session_id: SessionId, service: ServiceDep) -> Response:
+    service.delete(session_id)
+    return Response(status_code=204)
+
+
+@router.get("/sessions/{session_id}/scene", response_model=SceneModel, responses=ERR_SESSION,
+            summary="The session's scene (scene JSON of docs/FORMATS.md) with its current camera")
+def read_scene(session_id: SessionId, service: ServiceDep) -> Response:
+    # Streamed: a scene of 2^21 spheres is never one JSON string in memory.
+    state = service.get(session_id)
+    return StreamingResponse(scene_json_chunks(service.scene(state)), media_type="application/json")
+
+
+@router.put("/sessions/{session_id}/scene", response_model=VersionOut, responses=ERR_SESSION_BODY,
+            summary="Replace the scene (its camera becomes the current and the reset camera)")
+def replace_scene(session_id: SessionId, scene: Annotated[SceneModel, Body()], service: ServiceDep) -> VersionOut:
+    return VersionOut(version=service.replace_scene(session_id, scene).version)
+
+
+@router.put("/sessions/{session_id}/camera", response_model=CameraOut, responses=ERR_SESSION_BODY,
+            summary="Set the camera")
+def set_camera(session_id: SessionId, camera: Annotated[CameraModel, Body()], service: ServiceDep) -> CameraOut:
+    state = service.set_camera(session_id, camera)
+    return CameraOut(version=state.version, camera=CameraModel(**state.camera))
+
+
+@router.patch("/sessions/{session_id}/settings", response_model=SettingsOut, responses=ERR_SESSION_BODY,
+              summary="Change render defaults (all of them or some)")
+def patch_settings(session_id: SessionId, patch: Annotated[SettingsPatch, Body()],
+                   service: ServiceDep) -> SettingsOut:
+    state = service.patch_settings(session_id, patch)
+    return SettingsOut(**state.settings, version=state.version)

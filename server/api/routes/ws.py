@@ -1,0 +1,102 @@
+"""Gestures in, frames out, on one WebSocket (measured against ?frame=1, see docs/API.md).
+
+Client → a text (or UTF-8 binary) JSON message: a gesture (``{"type": "pan", "dx", "dy"}``
+…, or ``{"type": "frame"}`` for a frame without a gesture) with an optional
+``"frame": {settings}`` — the settings ``POST …/gesture?frame=1`` takes in its query.
+Server → text JSON ``{"version", "camera", "timings", "stats", "media_type"}`` then the
+frame as one binary message; on an error one text JSON ``{"status", "detail"}`` (and
+``"retry_after"``, seconds, where HTTP sends Retry-After) — the very answer the HTTP
+route gives (:mod:`server.api.errors`), and the connection stays open.
+
+A message is read and validated as FastAPI reads a request: its JSON as the body
+(``loc`` ``["body", …]``), its ``"frame"`` settings as the query (``["query", …]``), all
+errors of both in one 422.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+from fastapi.concurrency import run_in_threadpool
+from fastapi.exceptions import RequestValidationError
+from pydantic import TypeAdapter, ValidationError
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from ...models import Gesture, SettingsPatch
+from ...service import SessionService
+from ...view import Frame
+from .. import errors
+from ..deps import ServiceDep
+
+router = APIRouter()
+
+_gesture_adapter = TypeAdapter(Gesture)
+_patch_adapter = TypeAdapter(SettingsPatch)
+
+
+def parse_json(data: str | bytes) -> Any:
+    """The message's JSON, failing as FastAPI fails on a request body: not JSON → its
+    ``json_invalid`` validation error; bytes that are not even text → its 400."""
+    try:
+        return json.loads(data)
+    except json.JSONDecodeError as e:
+        raise RequestValidationError([{"type": "json_invalid", "loc": ("body", e.pos), "msg": "JSON decode error",
+                                       "input": {}, "ctx": {"error": e.msg}}]) from None
+    except UnicodeDecodeError:
+        raise StarletteHTTPException(400, errors.BODY_UNREADABLE) from None
+
+
+def _validated(adapter: TypeAdapter, value: Any, where: str, problems: list[dict[str, Any]]) -> Any:
+    """``value`` validated, or None with its errors (located at ``where``) added to ``problems``."""
+    try:
+        return adapter.validate_python(value)
+    except ValidationError as e:
+        problems.extend({**err, "loc": (where, *err["loc"])} for err in e.errors())
+        return None
+
+
+async def answer_message(service: SessionService, session_id: str, data: str | bytes) -> tuple[Frame, dict]:
+    """The frame one message asks for and the session's camera after it."""
+    msg = parse_json(data)
+    frame_settings = (msg.pop("frame", None) if isinstance(msg, dict) else None) or {}
+    problems: list[dict[str, Any]] = []
+    patch = _validated(_patch_adapter, frame_settings, "query", problems)
+    only_frame = isinstance(msg, dict) and msg.get("type") == "frame"
+    gesture = None if only_frame else _validated(_gesture_adapter, msg, "body", problems)
+    if problems:
+        raise RequestValidationError(problems)
+    if only_frame:
+        frame = await run_in_threadpool(service.session_frame, session_id, patch.given())
+    else:
+        frame = await run_in_threadpool(service.gesture_frame, session_id, gesture, patch.given())
+    state = await run_in_threadpool(service.get, session_id)
+    return frame, state.camera
+
+
+@router.websocket("/sessions/{session_id}/ws")
+async def session_socket(websocket: WebSocket, session_id: str, service: ServiceDep) -> None:
+    """One connection: each message is answered by a frame or by one error message."""
+    await websocket.accept()
+    config = websocket.app.state.config
+    where = f"WS {websocket.url.path}"
+    try:
+        while True:
+            message = await websocket.receive()
+            if message["type"] == "websocket.disconnect":
+                return
+            data = message.get("text")
+            if data is None:
+                data = message.get("bytes") or b""
+            try:
+                frame, camera = await answer_message(service, session_id, data)
+            except Exception as exc:   # every failure is a row of the error table, as over HTTP
+                await websocket.send_text(json.dumps(errors.answer(exc, config, where).ws_message()))
+                continue
+            await websocket.send_text(json.dumps({
+                "version": frame.version, "camera": camera, "timings": frame.timings,
+                "stats": frame.stats, "media_type": frame.media_type}))
+            await websocket.send_bytes(frame.body)
+    except WebSocketDisconnect:
+        return

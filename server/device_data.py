@@ -1,0 +1,142 @@
+"""The device-data format (issue #10): what a browser receives to run the very same tracer.
+
+``GET /api/sessions/{id}/device-data`` (:mod:`server.api.routes.device`) answers one blob
+of this format: the session's scene and the chosen method's acceleration data, packed by
+:mod:`renderer.gpu_layout` — the one layout the moderngl renderer uploads too — wrapped
+to the device's ``max_texture_size`` (a power of two; many phones: 4,096).
+
+Binary format (all integers little-endian)::
+
+    offset 0   4 bytes   magic b"PRDD"
+    offset 4   uint32    format version (1)
+    offset 8   uint32    H = length of the JSON header in bytes
+    offset 12  H bytes   JSON header, UTF-8
+               padding   zero bytes up to a multiple of 16
+               …         texture data; each texture at its own ``offset``
+                         (from the start of the blob, a multiple of 16)
+
+The JSON header::
+
+    {"format": "pocketray-device-data", "format_version": 1,
+     "session": {"id", "version", "scene_rev"},
+     "method": "bih",                       # auto resolved
+     "settings": {"mode", "max_prims", "max_tree_depth", "max_recursion_depth", "width", "height", "time"},
+     "shader": {"method", "mode", "max_recursion_depth", "features": ["NO_TRANSMISSION", …], "url"},
+     "max_texture_size": 4096,              # the power of two the textures were wrapped to
+     "camera": {...}, "home_camera": {...}, # camera JSON of docs/FORMATS.md (current, and the reset one)
+     "uniforms": {"u_num_spheres": 64, "u_plane_point": [[0, -20, 0], …], …,
+                  "u_cam_pos": [...], "u_cam_right": [...], "u_cam_up": [...], "u_cam_forward": [...],
+                  "u_target_distance": 100.0, "u_min_weight": 0.0, "u_box_min": [...], …},
+     "textures": [{"name": "u_spheres", "width", "height", "components": 4, "dtype": "f4",
+                   "internal_format": "RGBA32F", "offset", "nbytes"}, …],
+     "stats": {...}, "build_ms": 1.2, "pack_ms": 0.3, "nbytes": …}
+
+``uniforms`` are every uniform of :func:`gpu_layout.pack_primitives` and of the
+method's ``prepare(...).packed`` (fixed-length arrays as lists), plus the camera
+terms that do not depend on the image size (:func:`camera_uniforms`; ``u_half_extent``
+and ``u_resolution`` do, and the device sets them as ``gpu_layout.camera_uniforms``
+computes them). Each texture is ``height × width × components`` elements of ``dtype``
+(``f4``: float32, ``u4``: uint32), row 0 first — exactly ``PackedTexture.data``; the
+device uploads them with NEAREST filtering, as the server does.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from typing import Any
+
+import numpy as np
+
+from renderer import gpu_layout
+from renderer.limits import DEFAULT_TEXTURE_WIDTH
+from renderer.scene import Camera
+
+MAGIC = b"PRDD"
+FORMAT_VERSION = 1
+ALIGN = 16                     # bytes: every texture starts at a multiple of this
+HEADER_START = 12              # bytes: magic, version, header length
+DEFAULT_MAX_TEXTURE_SIZE = DEFAULT_TEXTURE_WIDTH
+# The shader variant's feature defines (renderer.features, in its order); the renderer does
+# not export the list, so it is spelled here.
+FEATURE_DEFINES = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS")
+
+# GL internal format of a PackedTexture by (dtype, components): what WebGL2 and moderngl create.
+INTERNAL_FORMATS = {("f4", 1): "R32F", ("f4", 2): "RG32F", ("f4", 3): "RGB32F", ("f4", 4): "RGBA32F",
+                    ("u4", 1): "R32UI", ("u4", 2): "RG32UI", ("u4", 3): "RGB32UI", ("u4", 4): "RGBA32UI"}
+
+
+def camera_uniforms(camera: Camera) -> dict[str, Any]:
+    """The camera terms of :func:`renderer.gpu_layout.camera_uniforms` that do not depend on
+    the image size (the device sets ``u_half_extent`` and ``u_resolution`` per frame)."""
+    return {k: jsonable(v) for k, v in gpu_layout.camera_uniforms(camera, 1, 1).items()
+            if k not in ("u_half_extent", "u_resolution")}
+
+
+def jsonable(v: Any) -> Any:
+    """``v`` with NumPy scalars and arrays (also inside lists) as plain JSON numbers and lists."""
+    if isinstance(v, (list, tuple)):
+        return [jsonable(x) for x in v]
+    if isinstance(v, (np.integer, bool)):
+        return int(v)
+    if isinstance(v, (np.floating, float)):
+        return float(v)
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    return v
+
+
+def jsonable_stats(stats: dict[str, Any]) -> dict[str, Any]:
+    """A build's statistics (nested, NumPy values and all) as plain JSON."""
+    return json.loads(json.dumps(stats, default=jsonable))
+
+
+def encode_blob(header: dict[str, Any], textures: dict[str, gpu_layout.PackedTexture]) -> bytes:
+    """Magic, version, header length, JSON header (with the textures' offsets), aligned texture bytes."""
+    entries, chunks = [], []
+    for name, tex in textures.items():
+        data = np.ascontiguousarray(tex.data, dtype="<f4" if tex.dtype == "f4" else "<u4")
+        w, h = tex.size
+        entries.append({"name": name, "width": w, "height": h, "components": tex.components, "dtype": tex.dtype,
+                        "internal_format": INTERNAL_FORMATS[(tex.dtype, tex.components)],
+                        "offset": 0, "nbytes": int(data.nbytes)})
+        chunks.append(data.tobytes())
+    # The offsets depend on the header's length, which depends on the offsets' digits: iterate.
+    head = b""
+    for _ in range(4):
+        start = _align(HEADER_START + len(head))
+        pos = start
+        for e, c in zip(entries, chunks):
+            e["offset"] = pos
+            pos = _align(pos + len(c))
+        new = json.dumps({**header, "textures": entries, "nbytes": pos}, separators=(",", ":")).encode()
+        if new == head:
+            break
+        head = new
+    out = bytearray(MAGIC + struct.pack("<II", FORMAT_VERSION, len(head)) + head)
+    for e, c in zip(entries, chunks):
+        out.extend(b"\0" * (e["offset"] - len(out)))
+        out.extend(c)
+    out.extend(b"\0" * (_align(len(out)) - len(out)))
+    return bytes(out)
+
+
+def decode_blob(blob: bytes) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """The header and the textures as (height, width, components) arrays (for tests and tools)."""
+    if blob[:4] != MAGIC:
+        raise ValueError("not pocketray device data")
+    version, n = struct.unpack_from("<II", blob, 4)
+    if version != FORMAT_VERSION:
+        raise ValueError(f"device-data format {version}, expected {FORMAT_VERSION}")
+    header = json.loads(blob[HEADER_START:HEADER_START + n])
+    arrays = {}
+    for t in header["textures"]:
+        a = np.frombuffer(blob, dtype="<f4" if t["dtype"] == "f4" else "<u4",
+                          count=t["height"] * t["width"] * t["components"], offset=t["offset"])
+        arrays[t["name"]] = a.reshape(t["height"], t["width"], t["components"])
+    return header, arrays
+
+
+def _align(n: int) -> int:
+    """``n`` bytes rounded up to a multiple of ALIGN."""
+    return -(-n // ALIGN) * ALIGN
