@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from . import limits
 from .limits import MAX_TIME  # noqa: F401  (re-exported: seconds, the largest time a scene can be posed at)
 from .scenarios import RED, TRANSPARENT
 from .scene import MAX_COORDINATE, Camera, Light, Material, Plane, Scene, SceneError, finite_number, finite_vec3
@@ -111,9 +112,10 @@ class RigidGroup:
         if not math.sqrt(sum(a * a for a in axis)) > 1e-12:
             raise SceneError(f"{where}.axis", "must be a non-zero vector")
         return replace(self, pivot=_vec(self.pivot, f"{where}.pivot"), axis=axis,
-                       angular_velocity=_num(self.angular_velocity, f"{where}.angular_velocity", -1e3, 1e3),
+                       angular_velocity=_num(self.angular_velocity, f"{where}.angular_velocity",
+                                              -limits.MAX_ANGULAR_VELOCITY, limits.MAX_ANGULAR_VELOCITY),
                        amplitude=_vec(self.amplitude, f"{where}.amplitude"),
-                       period=_num(self.period, f"{where}.period", 0.0, 1e6, lo_open=True))
+                       period=_num(self.period, f"{where}.period", 0.0, limits.MAX_PERIOD, lo_open=True))
 
     def reach(self, c0: np.ndarray) -> float:
         """The largest coordinate magnitude any sphere centre can take."""
@@ -146,8 +148,8 @@ class Deformable:
 
     def validate(self, where: str) -> "Deformable":
         return replace(self, amplitude=_num(self.amplitude, f"{where}.amplitude", 0.0, MAX_COORDINATE),
-                       wavelength=_num(self.wavelength, f"{where}.wavelength", 0.0, 1e9, lo_open=True),
-                       speed=_num(self.speed, f"{where}.speed", -1e6, 1e6))
+                       wavelength=_num(self.wavelength, f"{where}.wavelength", 0.0, limits.MAX_WAVELENGTH, lo_open=True),
+                       speed=_num(self.speed, f"{where}.speed", -limits.MAX_SPEED, limits.MAX_SPEED))
 
     def reach(self, c0: np.ndarray) -> float:
         return float(np.abs(c0).max(initial=0.0) + self.amplitude)
@@ -185,10 +187,10 @@ class Incoherent:
         for a in range(3):
             if not lo[a] < hi[a]:
                 raise SceneError(f"{where}.box_max[{a}]", f"must be > box_min[{a}] ({lo[a]:g}), got {hi[a]:g}")
-        return replace(self, box_min=lo, box_max=hi, speed=_num(self.speed, f"{where}.speed", 0.0, 1e6),
-                       lifetime=_num(self.lifetime, f"{where}.lifetime", 0.0, 1e6, lo_open=True),
-                       absent=_num(self.absent, f"{where}.absent", 0.0, 0.95),
-                       seed=_int(self.seed, f"{where}.seed", 0, 2 ** 63 - 1))
+        return replace(self, box_min=lo, box_max=hi, speed=_num(self.speed, f"{where}.speed", 0.0, limits.MAX_SPEED),
+                       lifetime=_num(self.lifetime, f"{where}.lifetime", 0.0, limits.MAX_LIFETIME, lo_open=True),
+                       absent=_num(self.absent, f"{where}.absent", 0.0, limits.MAX_ABSENT),
+                       seed=_int(self.seed, f"{where}.seed", 0, limits.MAX_MOTION_SEED))
 
     def reach(self, c0: np.ndarray) -> float:
         return float(max(np.abs(self.box_min).max(), np.abs(self.box_max).max()))
@@ -396,7 +398,7 @@ def museum(n_moving: int, kind: str = "deformable", seed: int = 0, absent: float
     """
     if kind not in MUSEUM_KINDS:
         raise SceneError("kind", f"unknown motion kind {kind!r}; one of {', '.join(MUSEUM_KINDS)}")
-    n_moving = _int(n_moving, "n", 0, Scene.MAX_SPHERES - 1024)
+    n_moving = _int(n_moving, "n", 0, limits.MAX_MUSEUM_MOVING)
     rng = np.random.default_rng(seed)
     sc, sr = museum_static(seed)
     ns = len(sc)

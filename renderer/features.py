@@ -15,6 +15,10 @@ import numpy as np
 from .scene import Scene
 
 
+# The defines a specialised shader variant may carry, in the order they are emitted.
+FEATURE_DEFINES = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS")
+
+
 @dataclass(frozen=True)
 class SceneFeatures:
     reflection: bool

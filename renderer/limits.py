@@ -37,6 +37,13 @@ JPEG_QUALITY_RANGE = (1, 100)
 # ---- animation -----------------------------------------------------------------------------
 MAX_TIME = 1.0e6               # seconds: the largest time a scene can be posed at
 UPDATE_THRESHOLD_RANGE = (0.0, 100.0)   # selective rebuild: cost growth, 0.3 = +30 %
+MAX_ANGULAR_VELOCITY = 1e3     # radians per second (rigid motion)
+MAX_PERIOD = 1e6               # seconds (rigid motion's oscillation)
+MAX_WAVELENGTH = 1e9           # world units (deformable motion)
+MAX_SPEED = 1e6                # world units per second (deformable, incoherent motion)
+MAX_LIFETIME = 1e6             # seconds (incoherent motion)
+MAX_ABSENT = 0.95              # fraction of a lifetime a sphere is gone (incoherent motion)
+MAX_MOTION_SEED = 2 ** 63 - 1
 
 # ---- scenes --------------------------------------------------------------------------------
 # 24 bits of mantissa: beyond 1e7 a unit sphere cannot be represented at all.
@@ -46,9 +53,14 @@ MAX_PLANES = 8
 MAX_LIGHTS = 8
 MAX_MATERIALS = 256
 MAX_MOTIONS = 1024
+MAX_LIGHT_INTENSITY = 1e3      # per RGB channel
+MAX_SHININESS = 1e4            # Phong exponent
+MAX_IOR = 10.0                 # refraction index
+MAX_MUSEUM_MOVING = MAX_SPHERES - 1024   # the Museum's moving spheres: room for its static room
 
 # ---- GPU data ------------------------------------------------------------------------------
 DEFAULT_TEXTURE_WIDTH = 4096   # texture rows; WebGL2 guarantees 2048, most phones have 4096
+MAX_DEVICE_TEXTURE_SIZE = 1 << 16   # the largest MAX_TEXTURE_SIZE a device may report (GPUs: ≤ 32,768)
 STENCIL_BITS = 8               # ray engines: one stencil bit per generation (≥ MAX_RECURSION_DEPTH)
 
 assert STENCIL_BITS >= MAX_RECURSION_DEPTH

@@ -121,7 +121,7 @@ class Light:
         object.__setattr__(self, "position", finite_vec3(self.position, "position"))
         col = finite_vec3(self.color, "color")
         for i, c in enumerate(col):
-            finite_number(c, f"color[{i}]", lo=0.0, hi=1e3)
+            finite_number(c, f"color[{i}]", lo=0.0, hi=limits.MAX_LIGHT_INTENSITY)
         object.__setattr__(self, "color", col)
 
     def to_json(self) -> dict:
@@ -156,8 +156,8 @@ class Material:
         object.__setattr__(self, "color", col)
         for name in ("ambient", "diffuse", "specular", "reflective", "transmissive"):
             object.__setattr__(self, name, finite_number(getattr(self, name), name, lo=0.0, hi=1.0))
-        object.__setattr__(self, "shininess", finite_number(self.shininess, "shininess", lo=0.0, hi=1e4))
-        object.__setattr__(self, "ior", finite_number(self.ior, "ior", lo=0.0, hi=10.0, lo_open=True))
+        object.__setattr__(self, "shininess", finite_number(self.shininess, "shininess", lo=0.0, hi=limits.MAX_SHININESS))
+        object.__setattr__(self, "ior", finite_number(self.ior, "ior", lo=0.0, hi=limits.MAX_IOR, lo_open=True))
 
     def to_json(self) -> dict:
         return {"color": list(self.color), "ambient": self.ambient, "diffuse": self.diffuse,

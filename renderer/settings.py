@@ -16,10 +16,6 @@ from .tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
 METHODS = (*_METHOD_REGISTRY, AUTO_METHOD)
 FORMATS = ("png", "jpeg", "npy")
 
-# Kept under these names for the settings' users; the bounds live in renderer.limits.
-MAX_TREE_DEPTH_LIMIT = limits.MAX_TREE_DEPTH
-MAX_RECURSION_DEPTH_LIMIT = limits.MAX_RECURSION_DEPTH
-
 
 @dataclass(frozen=True)
 class RenderSettings:
@@ -51,7 +47,7 @@ class RenderSettings:
     method: str = "bih"
     mode: str = "color"
     max_prims: int = 8
-    max_tree_depth: int = MAX_TREE_DEPTH_LIMIT
+    max_tree_depth: int = limits.MAX_TREE_DEPTH
     max_recursion_depth: int = 5
     format: str = "png"
     samples_per_pixel: int = 1

@@ -49,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from renderer import gpu_layout
+from renderer.features import FEATURE_DEFINES  # noqa: F401  (the shader variant's feature defines, in order)
 from renderer.limits import DEFAULT_TEXTURE_WIDTH
 from renderer.scene import Camera
 
@@ -57,9 +58,6 @@ FORMAT_VERSION = 1
 ALIGN = 16                     # bytes: every texture starts at a multiple of this
 HEADER_START = 12              # bytes: magic, version, header length
 DEFAULT_MAX_TEXTURE_SIZE = DEFAULT_TEXTURE_WIDTH
-# The shader variant's feature defines (renderer.features, in its order); the renderer does
-# not export the list, so it is spelled here.
-FEATURE_DEFINES = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS")
 
 # GL internal format of a PackedTexture by (dtype, components): what WebGL2 and moderngl create.
 INTERNAL_FORMATS = {("f4", 1): "R32F", ("f4", 2): "RG32F", ("f4", 3): "RGB32F", ("f4", 4): "RGBA32F",

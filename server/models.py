@@ -21,9 +21,11 @@ from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError,
 from pydantic.fields import FieldInfo
 
 from renderer.animation import MUSEUM_KINDS
-from renderer.limits import (DEFAULT_TILE_SIZE, JPEG_QUALITY_RANGE, MAX_COORDINATE, MAX_IMAGE_SIDE, MAX_LIGHTS,
-                             MAX_MATERIALS, MAX_MOTIONS, MAX_PLANES, MAX_PRIMS, MAX_RECURSION_DEPTH, MAX_SPHERES,
-                             MAX_TILE_SIZE, MAX_TIME, MAX_TREE_DEPTH, MIN_TILE_SIZE, MIN_WEIGHT_RANGE,
+from renderer.limits import (DEFAULT_TILE_SIZE, JPEG_QUALITY_RANGE, MAX_ABSENT, MAX_ANGULAR_VELOCITY, MAX_COORDINATE,
+                             MAX_DEVICE_TEXTURE_SIZE, MAX_IMAGE_SIDE, MAX_IOR, MAX_LIFETIME, MAX_LIGHT_INTENSITY,
+                             MAX_LIGHTS, MAX_MATERIALS, MAX_MOTION_SEED, MAX_MOTIONS, MAX_MUSEUM_MOVING, MAX_PERIOD,
+                             MAX_PLANES, MAX_PRIMS, MAX_RECURSION_DEPTH, MAX_SHININESS, MAX_SPEED, MAX_SPHERES,
+                             MAX_TILE_SIZE, MAX_TIME, MAX_TREE_DEPTH, MAX_WAVELENGTH, MIN_TILE_SIZE, MIN_WEIGHT_RANGE,
                              SAMPLES_PER_PIXEL, UPDATE_THRESHOLD_RANGE)
 from renderer.scenarios import CUBE_HALF
 from renderer.settings import FORMATS, METHODS, MODES, RenderSettings
@@ -37,25 +39,8 @@ FormatName = Literal[FORMATS]  # type: ignore[valid-type]
 UpdateScheme = Literal[UPDATE_SCHEMES]  # type: ignore[valid-type]
 MuseumKind = Literal[MUSEUM_KINDS]  # type: ignore[valid-type]
 
-# ---- bounds the renderer checks with literals of its own ------------------------------------
-# renderer/scene.py, renderer/animation.py and renderer/scenarios.py validate these values
-# but renderer.limits does not hold them yet; they are spelled once here, to move there.
-MAX_LIGHT_INTENSITY = 1e3          # per RGB channel (scene.Light)
-MAX_SHININESS = 1e4                # Phong exponent (scene.Material)
-MAX_IOR = 10.0                     # refraction index (scene.Material)
-MAX_ANGULAR_VELOCITY = 1e3         # radians per second (animation.RigidGroup)
-MAX_PERIOD = 1e6                   # seconds (animation.RigidGroup)
-MAX_WAVELENGTH = 1e9               # world units (animation.Deformable)
-MAX_SPEED = 1e6                    # world units per second (animation.Deformable, Incoherent)
-MAX_LIFETIME = 1e6                 # seconds (animation.Incoherent)
-MAX_ABSENT = 0.95                  # fraction of a lifetime (animation.Incoherent, museum)
-MAX_MOTION_SEED = 2 ** 63 - 1      # animation.Incoherent
-MAX_MUSEUM_MOVING = MAX_SPHERES - 1024   # animation.museum: room for the static 576 and more
-
-# The API's own bounds: a 32-bit placement seed (the renderer takes any non-negative one), and
-# the largest MAX_TEXTURE_SIZE a device may report for its device data (GPUs report ≤ 32,768).
+# The API's own bound: a 32-bit placement seed (the renderer takes any non-negative one).
 MAX_SEED = 2 ** 32 - 1
-MAX_DEVICE_TEXTURE_SIZE = 1 << 16
 
 
 def optional(tp: Any) -> Any:

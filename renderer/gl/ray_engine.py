@@ -42,7 +42,7 @@ ray are skipped (an occlusion query on the mask pass counts them).
 layer sets bit ``g − 1`` where the layer holds a live ray (a ray spawned by a hit of the
 parent layer: terminated paths — misses, materials without ``kr``/``kt``, the last
 level — never get it), and every later pass of that layer tests it. 8 stencil bits cover
-``MAX_RECURSION_DEPTH_LIMIT`` = 8 generations; with fewer bits (``stencil_bits``), the
+``limits.MAX_RECURSION_DEPTH`` = 8 generations; with fewer bits (``stencil_bits``), the
 generations beyond run without stencil exclusion, as §5 allows ("further iterations are
 possible without excluding further terminated paths"); the shaders' own test of the
 weight keeps the image exact either way, and ``stats["stencil_fallback_levels"]`` says it.
