@@ -173,7 +173,7 @@ def wrap_rows(elements: np.ndarray, max_width: int = DEFAULT_TEXTURE_WIDTH) -> P
         elements = elements[:, None]
     count, comps = elements.shape
     max_width = 1 << (int(max_width).bit_length() - 1)
-    width = min(1 << max(0, (count - 1).bit_length()), max_width)
+    width = min(1 << max(0, count - 1).bit_length(), max_width)   # count 0 → one texel
     height = max(1, -(-count // width))
     if height > max_width:
         raise ValueError(f"{count} elements do not fit a {max_width}×{max_width} texture")
