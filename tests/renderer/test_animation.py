@@ -12,8 +12,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -22,8 +20,7 @@ from renderer.shader_source import tracer_source as shader_source
 from renderer.scenarios import scenario
 from renderer.scene import SceneError
 from renderer.settings import RenderSettings
-
-ROOT = Path(__file__).resolve().parent.parent
+from tests.helpers import ROOT
 
 
 def base_json(n: int = 16) -> dict:

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import re
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -37,8 +36,8 @@ from renderer.reference import render_reference
 from renderer.scenarios import scenario
 from renderer.scene import Scene
 from renderer.settings import RenderSettings
+from tests.helpers import ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
 HYP = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 W, H = 96, 160
 
