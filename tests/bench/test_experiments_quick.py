@@ -17,6 +17,8 @@ import pytest
 
 from tests.helpers import ROOT
 
+pytestmark = pytest.mark.gl  # bench/experiments.py renders in a subprocess: no fixture says so
+
 SECTIONS = {  # experiment name → heading start
     "table_4_2": "## Table 4.2",
     "fig_4_4": "## Fig. 4.4",
