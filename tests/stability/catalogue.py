@@ -1,6 +1,11 @@
 """The stability catalogue: every case of ``cases.py`` × every method of
 ``renderer.methods.METHODS``, through the GPU tracer and the float64 reference.
 
+:func:`evaluate` runs one (case, method) and returns its row of the report and its
+failures; ``test_catalogue.py`` asserts there are none, and ``write.py`` (``./dev
+stability``) runs them all and writes ``docs/STABILITY.md`` with :func:`render_doc`. Tests
+only assert: nothing here writes a file.
+
 Per case and method:
 
 - the build terminates and the render finishes within a bound (a hang guard: a
@@ -15,9 +20,6 @@ Per case and method:
 - the methods against each other: identical ids (the BIH only prunes; the sphere
   test and the tie rule are shared), compared when both ran in this session;
 - the case's own checks (tree depth, no light leaking, ties only …).
-
-A module fixture collects one row per (case, method) and, when the catalogue ran in
-full, writes ``docs/STABILITY.md``; a partial run (``-k``) leaves it alone.
 """
 
 from __future__ import annotations
@@ -26,22 +28,16 @@ import contextlib
 import math
 import platform
 import signal
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
-import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
-
-from renderer.methods import METHODS  # noqa: E402
-from renderer.reference import render_reference  # noqa: E402
-from renderer.settings import RenderSettings  # noqa: E402
-from tests.stability.cases import (CASES, DEPTH_REL, PRIMID_AGREEMENT, PSNR_MIN, Case,  # noqa: E402
-                                   float32_inputs, same_scene)
+from renderer.methods import METHODS
+from renderer.reference import render_reference
+from renderer.settings import RenderSettings
+from tests.helpers import ROOT, psnr
+from tests.stability.cases import (CASES, DEPTH_REL, PRIMID_AGREEMENT, PSNR_MIN, Case, float32_inputs,
+                                   same_scene)
 
 DOC = ROOT / "docs" / "STABILITY.md"
 BUILD_BOUND_S = 10.0     # the BIH build of any catalogue scene
@@ -67,11 +63,6 @@ def deadline(seconds: float, what: str):
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, old)
-
-
-def psnr(a: np.ndarray, b: np.ndarray) -> float:
-    mse = np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2)
-    return math.inf if mse == 0 else 10.0 * math.log10(255.0 ** 2 / mse)
 
 
 def compare(gpu, ref) -> dict:
@@ -121,14 +112,6 @@ def prepared(case: Case) -> dict:
 # ------------------------------------------------------------------------- report
 
 EXPECTED = [(c.name, m) for c in CASES for m in METHODS]
-
-
-@pytest.fixture(scope="module")
-def report(gl_renderer):
-    rows: dict[tuple[str, str], dict] = {}
-    yield rows
-    if all(k in rows for k in EXPECTED):
-        DOC.write_text(render_doc(rows, gl_renderer.info))
 
 
 def _fmt_psnr(p: float) -> str:
@@ -187,8 +170,8 @@ def render_doc(rows: dict, gl_info: dict) -> str:
     lines = [
         "# Stability catalogue",
         "",
-        "Written by `tests/stability/test_catalogue.py` when the whole catalogue runs",
-        "(`.venv/bin/python -m pytest tests/stability -q`); do not edit by hand.",
+        "Written by `./dev stability` (`tests/stability/write.py`, which runs the whole",
+        "catalogue of `tests/stability/test_catalogue.py`); do not edit by hand.",
         "Every case of `tests/stability/cases.py` is rendered by the GLSL tracer with every",
         "method of `renderer.methods.METHODS` and by the float64 reference (`renderer/reference.py`).",
         "",
@@ -251,11 +234,14 @@ def render_doc(rows: dict, gl_info: dict) -> str:
     return "\n".join(lines)
 
 
-# -------------------------------------------------------------------------- tests
+# ------------------------------------------------------------------------ one case
 
-@pytest.mark.parametrize("case,method", [(c, m) for c in CASES for m in METHODS],
-                         ids=[f"{c.name}-{m}" for c in CASES for m in METHODS])
-def test_case(gl_renderer, report, case: Case, method: str):
+def evaluate(gl_renderer, case: Case, method: str) -> tuple[dict, list[str]]:
+    """Run one (case, method): its report row (``row["ok"]``, figures, notes) and failures.
+
+    Methods are compared with the ones already evaluated for the same case in this process
+    (the ids must be identical), so the report's order (``EXPECTED``) compares them all.
+    """
     data = prepared(case)
     scene, ref64, ref32 = data["scene"], data["ref64"], data["ref32"]
     failures: list[str] = []
@@ -263,7 +249,6 @@ def test_case(gl_renderer, report, case: Case, method: str):
     row = {"ok": False, "exact_inputs": data["exact_inputs"], "facts": data["facts"], "notes": notes,
            "render_ms": float("nan"), "f64": {"agreement": 0.0, "depth_rel": math.inf, "psnr": 0.0},
            "f32": {"agreement": 0.0, "depth_rel": math.inf, "psnr": 0.0}}
-    report[(case.name, method)] = row
     try:
         # the build on its own, under a deadline: listing 3.4 loops forever on degenerate input
         t0 = time.perf_counter()
@@ -332,4 +317,4 @@ def test_case(gl_renderer, report, case: Case, method: str):
         failures.append(str(e))
     row["ok"] = not failures
     notes += [f"FAILED: {f}" for f in failures]
-    assert not failures, f"{case.name} / {method}:\n  " + "\n  ".join(failures)
+    return row, failures
