@@ -3,11 +3,11 @@
 - exactness: primid equal to the brute-force fragment tracer on ≥ 99.99 % of pixels and
   colour PSNR ≥ 50 dB, for the three scenarios at n = 64 and 1,024, recursion depth 1
   and 5; the same figures against the float64 reference;
-- the cone construction (renderer/hre_cones.py) against a brute-force check that every
-  ray of a tile lies in its cone, and the GPU's cones against the GPU's own rays;
+- the GPU's cones against the GPU's own rays (the NumPy construction,
+  renderer/accel/hre_cones.py, is tested in tests/renderer/accel/test_hre_cones.py);
 - a culled (tile, sphere) pair never holds a hit that brute force finds (every live ray
   of the tile, every root t > 0, the vertex shader's own decision);
-- bad tile sizes, the stencil fallback, the other modes.
+- tile sizes that do not divide the image, the stencil fallback, the other modes.
 
 Images are small (n = 1,024 at 40 × 64) so the file stays well under two minutes on two
 cores: every pass draws every primitive over the target, the ray engine's whole point.
@@ -15,26 +15,20 @@ cores: every pass draws every primitive over the target, the ray engine's whole 
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
 from renderer.accel import hre_cones
-from renderer.methods import METHODS
 from renderer.accel.ray_engine import HierarchicalRayEngine, RayEngine
 from renderer.gl.ray_engine import FrameLog
 from renderer.reference import render_reference
 from renderer.scenarios import scenario
 from renderer.scene import SceneError
 from renderer.settings import RenderSettings
+from tests.helpers import psnr
+from tests.renderer.accel.support import any_hit, check_contained
 
 ENGINES = ("rayengine", "hre")
-
-
-def psnr(a: np.ndarray, b: np.ndarray) -> float:
-    mse = np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2)
-    return math.inf if mse == 0 else 10.0 * math.log10(255.0 ** 2 / mse)
 
 
 def size_for(n: int) -> tuple[int, int]:
@@ -75,103 +69,6 @@ def test_reference_agreement_of_bruteforce_is_the_bar(gl_renderer):
     ref = render_reference(scene, s)
     assert (got.primid == ref.primid).mean() >= 0.9999
     assert psnr(got.image_u8(), ref.image_u8()) >= 50.0
-
-
-# ------------------------------------------------------------------------ cones (Python)
-
-def _coherent_tiles(rng, n_tiles: int, k: int):
-    """Tiles of camera rays, of their reflections off a sphere, and of converging shadow rays."""
-    o = np.zeros((n_tiles, k, 3))
-    d = np.zeros((n_tiles, k, 3))
-    for t in range(n_tiles):
-        kind = t % 3
-        base = rng.normal(size=3)
-        base /= np.linalg.norm(base)
-        jitter = rng.normal(scale=0.01, size=(k, 3))
-        dirs = base + jitter
-        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-        if kind == 0:      # one origin (a camera)
-            o[t] = rng.normal(scale=50, size=3)
-            d[t] = dirs
-        elif kind == 1:    # reflections: origins on a sphere patch, directions mirrored
-            c = rng.normal(scale=20, size=3)
-            nrm = -base + rng.normal(scale=0.02, size=(k, 3))
-            nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
-            o[t] = c + 3.0 * nrm
-            d[t] = dirs - 2.0 * np.einsum("ij,ij->i", dirs, nrm)[:, None] * nrm
-        else:              # shadow rays towards a light from a surface patch
-            light = rng.normal(scale=40, size=3)
-            o[t] = rng.normal(scale=2, size=3) + rng.normal(scale=0.3, size=(k, 3))
-            v = light - o[t]
-            d[t] = v / np.linalg.norm(v, axis=1, keepdims=True)
-    return o, d
-
-
-def _check_contained(o, d, live, cones, scale_points=(0.0, 1e-3, 0.1, 1.0, 10.0, 100.0, 1e4)):
-    """Brute force: points p + s·r of every live ray lie within the slack of their tile's cone."""
-    for t in range(len(cones)):
-        a, phi, x, slack = cones[t, 0:3], cones[t, 3], cones[t, 4:7], cones[t, 7]
-        if not live[t].any():
-            assert phi == hre_cones.NO_RAYS
-            continue
-        if phi < 0:
-            continue   # no cull: nothing is promised
-        p = o[t][live[t]]
-        r = d[t][live[t]]
-        pts = (p[:, None, :] + np.asarray(scale_points)[None, :, None] * r[:, None, :]).reshape(-1, 3)
-        dist = hre_cones.distance_to_cone(pts, a, x, phi)
-        tol = slack * 1.001 + 1e-9 * (np.linalg.norm(pts, axis=1) + np.linalg.norm(a))
-        assert (dist <= tol).all(), f"tile {t}: a ray leaves its cone by {(dist - tol).max():.3e}"
-
-
-def test_python_cones_hold_every_ray():
-    rng = np.random.default_rng(1)
-    k = 64
-    o, d = _coherent_tiles(rng, 60, k)
-    live = rng.random((60, k)) < 0.8
-    live[5] = False                          # an empty tile
-    cones = hre_cones.build_cones(o, d, live)
-    _check_contained(o, d, live, cones)
-    useful = cones[:, 3] >= 0
-    assert useful.sum() >= 50, "coherent tiles should get useful cones"
-    assert np.median(cones[useful, 3]) < 0.2, "coherent tiles should get narrow cones"
-    # incoherent rays: either a cone that holds them, or an honest "no cull"
-    o2 = rng.normal(scale=10, size=(20, k, 3))
-    d2 = rng.normal(size=(20, k, 3))
-    d2 /= np.linalg.norm(d2, axis=2, keepdims=True)
-    cones2 = hre_cones.build_cones(o2, d2, np.ones((20, k), bool))
-    _check_contained(o2, d2, np.ones((20, k), bool), cones2)
-    assert (cones2[:, 3] == hre_cones.NO_CULL).all()
-    # parallel rays with different origins (a zero-angle cone must open before it moves)
-    o3 = np.zeros((1, k, 3))
-    o3[0, :, 0] = np.arange(k)
-    d3 = np.tile([0.0, 0.0, -1.0], (1, k, 1))
-    cones3 = hre_cones.build_cones(o3, d3, np.ones((1, k), bool))
-    _check_contained(o3, d3, np.ones((1, k), bool), cones3)
-
-
-def test_python_cull_test_is_conservative():
-    """No sphere that a ray of the tile hits is culled by the float64 test of the shader."""
-    rng = np.random.default_rng(2)
-    k = 64
-    o, d = _coherent_tiles(rng, 30, k)
-    live = np.ones((30, k), bool)
-    cones = hre_cones.build_cones(o, d, live)
-    centers = rng.normal(scale=40, size=(400, 3))
-    radii = rng.uniform(0.5, 6.0, 400)
-    miss = hre_cones.cone_misses_sphere(cones, centers, radii)
-    assert miss.any(), "some spheres should be culled"
-    for t, s in zip(*np.nonzero(miss)):
-        assert not _any_hit(o[t], d[t], centers[s], radii[s]).any()
-
-
-def _any_hit(o, d, c, r):
-    """Rays (k, 3) that meet the sphere at some t > 0 (float64, either root)."""
-    oc = o - c
-    b = np.einsum("ij,ij->i", oc, d)
-    f = oc - b[:, None] * d
-    h2 = r * r - np.einsum("ij,ij->i", f, f)
-    return (h2 >= 0.0) & (-b + np.sqrt(np.maximum(h2, 0.0)) > 0.0)
 
 
 # ------------------------------------------------------------------------ cones (GPU)
@@ -221,7 +118,7 @@ def test_gpu_cones_hold_their_rays(hre_log):
             cones = cones.copy()
             cones[:, 7] += 1e-4
             cones[:, 3] = np.where(cones[:, 3] >= 0, cones[:, 3] + 1e-5, cones[:, 3])
-        _check_contained(to, td, tl, cones, scale_points=(0.0, 0.5, 5.0, 50.0, 500.0))
+        check_contained(to, td, tl, cones, scale_points=(0.0, 0.5, 5.0, 50.0, 500.0))
         assert ((cones[:, 3] == hre_cones.NO_RAYS) == ~tl.any(axis=1)).all()
 
 
@@ -246,19 +143,13 @@ def test_culled_tiles_hold_no_hit(gl_renderer, hre_log):
             ro, rd = o[sl][lv], d[sl][lv]
             for s in np.flatnonzero(~drawn[ti, :scene.n_spheres]):
                 culled_total += 1
-                hits = _any_hit(ro, rd, scene.sphere_centers[s], scene.sphere_radii[s])
+                hits = any_hit(ro, rd, scene.sphere_centers[s], scene.sphere_radii[s])
                 assert not hits.any(), f"{rec['kind']} pass, tile {ti}: culled sphere {s} is hit"
         assert drawn[:, scene.n_spheres:].all(), "planes are never culled"
     assert culled_total > 1000, "the test should see many culled pairs"
 
 
 # ------------------------------------------------------------------------ settings and modes
-
-@pytest.mark.parametrize("bad", [0, 1, -3, 65, 2.5, True, "16"])
-def test_bad_tile_size_is_a_clear_error(bad):
-    with pytest.raises(SceneError) as e:
-        RenderSettings(width=16, height=16, method="hre", tile_size=bad)
-    assert e.value.field == "tile_size"
 
 
 def test_tile_sizes_that_do_not_divide_the_image_are_padded(gl_renderer):
@@ -315,14 +206,6 @@ def test_cones_mode(gl_renderer):
     assert images[4].mean() < images[1].mean()
     with pytest.raises(SceneError):
         gl_renderer.render(scene, s.with_(method="rayengine"))
-
-
-def test_registered_like_the_other_methods():
-    for name in ENGINES:
-        assert name in METHODS
-        prep = METHODS[name].prepare(scenario(1, 8), 8, 64)
-        assert prep.stats["method"] == name
-    assert RenderSettings(method="hre").method == "hre"
 
 
 def test_supersampling_and_min_weight_as_the_fragment_tracer(gl_renderer):

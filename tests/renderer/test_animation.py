@@ -1,42 +1,26 @@
-"""Animated scenes (issue #9): motion models, validation, and exactness frame after frame.
+"""Animated scenes (issue #9, renderer.animation): motion models and validation.
 
-- bad input names its field (negative time, unknown scheme, non-finite or out-of-range
-  motion, overlapping ranges) and nothing is applied;
+- bad input names its field (bad motions, overlapping ranges, negative time) and nothing
+  is applied (the animation settings' own checks are in ``test_settings.py``);
 - the three kinds of motion behave as stated (rigid bodies keep their distances,
   deformation is bounded and continuous, incoherent spheres stay in their box and
-  disappear and reappear);
-- every frame of a test animation of each kind, traced by ``bvh`` with refit and with
-  selective rebuild and by ``twolevel``, gives the brute-force ids on ≥ 99.99 % of pixels;
-- the two-level shader inlines the BVH and kd-tree traversals (one copy of each).
+  disappear and reappear).
+
+Exactness frame after frame on the GPU is in ``tests/renderer/gl/test_renderer.py``.
 """
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from renderer.animation import animated_scene_from_json, museum, pose
-from renderer.shader_source import tracer_source as shader_source
 from renderer.scenarios import scenario
 from renderer.scene import SceneError
-from renderer.settings import RenderSettings
-
-ROOT = Path(__file__).resolve().parent.parent
 
 
 def base_json(n: int = 16) -> dict:
     return scenario(1, n).to_json()
-
-
-@pytest.mark.parametrize("kw,field", [({"time": -1.0}, "time"), ({"time": float("nan")}, "time"),
-                                      ({"time": 2e6}, "time"), ({"update": "sometimes"}, "update"),
-                                      ({"update_threshold": -0.1}, "update_threshold")])
-def test_bad_settings_name_the_field(kw, field):
-    with pytest.raises(SceneError) as e:
-        RenderSettings(**kw)
-    assert e.value.field == field
 
 
 @pytest.mark.parametrize("motion,field", [
@@ -123,35 +107,3 @@ def test_incoherent_spheres_stay_in_their_box_and_come_and_go():
     assert len(counts) > 1, "spheres appear and disappear"
     fixed = museum(50, "incoherent", absent=0.0)
     assert {pose(fixed, t).scene.n_spheres for t in (0.0, 1.0, 3.3)} == {fixed.scene.n_spheres}
-
-
-def test_twolevel_shader_inlines_both_traversals():
-    src = shader_source("twolevel", "color", 1)
-    for name in ("method_bvh.glsl", "method_kdtree.glsl"):
-        body = (ROOT / "shaders" / name).read_text()
-        assert src.count(body) == 1
-    assert "//@INCLUDE" not in src
-
-
-FRAMES = [0.0, 0.4, 0.8, 1.2, 1.6, 2.0]
-
-
-@pytest.mark.parametrize("kind", ["rigid", "deformable", "incoherent"])
-def test_every_frame_matches_brute_force(gl_renderer, kind):
-    anim = museum(64, kind, seed=3)
-    base = RenderSettings(width=64, height=96, max_recursion_depth=3, max_prims=4)
-    variants = [("bvh", "refit"), ("bvh", "selective"), ("twolevel", "selective")]
-    for t in FRAMES:
-        bf = gl_renderer.render(anim, base.with_(method="bruteforce", time=t))
-        assert (bf.primid >= 0).mean() > 0.5
-        for method, scheme in variants:
-            g = gl_renderer.render(anim, base.with_(method=method, time=t, update=scheme),
-                                   key=("test", kind, method, scheme))
-            agree = (g.primid == bf.primid).mean()
-            assert agree >= 0.9999, f"{kind} t={t} {method}/{scheme}: ids agree on {agree:.6f}"
-            assert np.isfinite(g.image).all()
-            assert g.stats["time"] == t and "update" in g.timings and "pose" in g.timings
-            scheme_used = (g.stats["bvh"] if method == "twolevel" else g.stats)["scheme"]
-            assert scheme_used.startswith(scheme), scheme_used
-        if kind != "incoherent" and t > 0:
-            assert g.stats["kd_cached"], "the static kd-tree is built once"

@@ -3,6 +3,9 @@
 Specialisation must be exact (primid identical, colour PSNR ≥ 50 dB against
 the generic variant); supersampling must equal the reference traced at the
 higher resolution and box-filtered; the weight cut-off at ε = 0 changes nothing.
+What the knobs' CPU halves decide is tested beside them: the scene features in
+``tests/renderer/test_features.py``, ``auto`` in ``test_methods.py``, validation in
+``test_settings.py``.
 """
 
 from __future__ import annotations
@@ -10,19 +13,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from renderer.features import scene_features
-from renderer.methods import AUTO_CROSSOVER_N, resolve_method
 from renderer.reference import render_reference
-from renderer.scenarios import TABLE_4_1, scenario
-from renderer.scene import Material, Scene, SceneError
+from renderer.scenarios import scenario
+from renderer.scene import Material, Scene
 from renderer.settings import RenderSettings
+from tests.helpers import psnr
 
 W, H = 96, 160
-
-
-def psnr(a: np.ndarray, b: np.ndarray) -> float:
-    mse = np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2)
-    return float("inf") if mse == 0 else 10 * np.log10(255.0 ** 2 / mse)
 
 
 def diffuse_only(n: int) -> Scene:
@@ -49,21 +46,6 @@ def test_specialised_variant_is_exact(gl_renderer, name):
         assert special.stats["recursion_depth"] == 1
         assert set(special.stats["features_removed"]) == {"NO_REFLECTION", "NO_TRANSMISSION"}
     assert generic.stats["features_removed"] == [] and generic.stats["recursion_depth"] == 5
-
-
-def test_scene_features_follow_used_materials():
-    s = scenario(1, 3)  # spheres 0..2 are red (i % 4 != 3): no transmissive sphere
-    f = scene_features(s)
-    assert f.reflection and not f.transmission and f.lights
-    assert scene_features(scenario(1, 4)).transmission
-    no_light = Scene(s.camera, (), TABLE_4_1, s.sphere_centers, s.sphere_radii, s.sphere_materials, s.planes)
-    assert "NO_LIGHTS" in scene_features(no_light).defines()
-
-
-def test_auto_method_uses_crossover():
-    assert resolve_method("auto", AUTO_CROSSOVER_N - 1) == "bruteforce"
-    assert resolve_method("auto", AUTO_CROSSOVER_N) == "bih"
-    assert resolve_method("bih", 1) == "bih"
 
 
 def test_supersampling_matches_reference_box_filter(gl_renderer):
@@ -107,13 +89,3 @@ def test_weight_cutoff(gl_renderer):
     cut = gl_renderer.render(scene, s.with_(min_weight=1.0)).image_u8()
     primary = gl_renderer.render(scene, s.with_(max_recursion_depth=1)).image_u8()
     assert psnr(cut, primary) >= 60.0 and psnr(cut, base) < 60.0
-
-
-@pytest.mark.parametrize("kw,field", [({"samples_per_pixel": 3}, "samples_per_pixel"),
-                                      ({"width": 4096, "samples_per_pixel": 4}, "samples_per_pixel"),
-                                      ({"min_weight": -0.1}, "min_weight"), ({"min_weight": float("nan")}, "min_weight"),
-                                      ({"specialize": "yes"}, "specialize"), ({"method": "kd"}, "method")])
-def test_knob_validation(kw, field):
-    with pytest.raises(SceneError) as e:
-        RenderSettings(**kw)
-    assert e.value.field == field

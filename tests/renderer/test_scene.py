@@ -1,16 +1,16 @@
-"""Scene model and settings: SPEC's JSON in and out, validation messages that name the field."""
+"""Scene model (renderer.scene): SPEC's JSON in and out, validation messages that name the field.
+
+Render settings are tested in ``test_settings.py``, the generated scenarios in ``test_scenarios.py``.
+"""
 
 from __future__ import annotations
 
 import json
 import math
 
-import numpy as np
 import pytest
 
-from renderer.scenarios import scenario
 from renderer.scene import Scene, SceneError
-from renderer.settings import RenderSettings
 
 SPEC_EXAMPLE = {
     "camera": {"position": [0, 0, 100], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 60},
@@ -29,18 +29,6 @@ def test_spec_example_round_trips():
     assert Scene.from_json(out).to_json() == out
     assert out["spheres"] == [{"center": [0.0, 0.0, 0.0], "radius": 1.0, "material": 0}]
     assert out["camera"]["fov_y"] == 60.0 and scene.n_primitives == 2
-
-
-def test_scenario_round_trips_and_is_inside_the_cube():
-    s = scenario(3, 100, seed=7)
-    again = Scene.from_json(s.to_json())
-    np.testing.assert_array_equal(again.sphere_centers, s.sphere_centers)
-    lo = s.sphere_centers - s.sphere_radii[:, None]
-    hi = s.sphere_centers + s.sphere_radii[:, None]
-    assert lo.min() >= -20 and hi.max() <= 20
-    np.testing.assert_array_equal(scenario(2, 64, seed=3).sphere_centers, scenario(2, 64, seed=3).sphere_centers)
-    assert not np.array_equal(scenario(2, 64, seed=3).sphere_centers, scenario(2, 64, seed=4).sphere_centers)
-    assert len(scenario(1, 4096).sphere_centers) == 4096 and len(np.unique(scenario(1, 4096).sphere_centers, axis=0)) == 4096
 
 
 def bad(path: list, value):
@@ -73,25 +61,3 @@ def test_validation_names_the_field(path, value, field):
         Scene.from_json(bad(path, value))
     assert e.value.field == field, str(e.value)
     assert field in str(e.value)
-
-
-def test_settings_validation_and_json():
-    s = RenderSettings.from_json({"width": 320, "height": 544, "mode": "heat"})
-    assert RenderSettings.from_json(s.to_json()) == s
-    for kw, field in [({"width": 0}, "width"), ({"height": 4097}, "height"), ({"mode": "x"}, "mode"),
-                      ({"format": "gif"}, "format"), ({"max_tree_depth": 65}, "max_tree_depth"),
-                      ({"max_recursion_depth": 9}, "max_recursion_depth"), ({"width": True}, "width")]:
-        with pytest.raises(SceneError) as e:
-            RenderSettings(**kw)
-        assert e.value.field == field
-    with pytest.raises(SceneError) as e:
-        RenderSettings.from_json({"widht": 3})
-    assert e.value.field == "widht"
-
-
-def test_scenario_arguments_are_validated():
-    for kw, field in [({"number": 4, "n": 8}, "scenario"), ({"number": 1, "n": -1}, "n"),
-                      ({"number": 1, "n": 8, "radius": 0.0}, "radius"), ({"number": 1, "n": 8, "seed": -2}, "seed")]:
-        with pytest.raises(SceneError) as e:
-            scenario(**kw)
-        assert e.value.field == field

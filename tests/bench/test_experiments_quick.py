@@ -12,11 +12,13 @@ import os
 import re
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+from tests.helpers import ROOT
+
+pytestmark = pytest.mark.gl  # bench/experiments.py renders in a subprocess: no fixture says so
+
 SECTIONS = {  # experiment name → heading start
     "table_4_2": "## Table 4.2",
     "fig_4_4": "## Fig. 4.4",

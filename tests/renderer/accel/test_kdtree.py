@@ -1,0 +1,113 @@
+"""Method ``kdtree`` (issue #9, renderer.accel.kdtree): tree invariants, cost scaling, compaction.
+
+Property tests (hypothesis) over random and degenerate scenes: every primitive that
+straddles a plane is in both children, every primitive whose box meets a leaf's voxel is
+in that leaf (so every primitive is reachable), the GPU words (renderer.accel.kdtree_layout)
+say the same. The GPU renders of the method are in ``tests/renderer/gl/test_renderer.py``.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from renderer.accel import kdtree_layout
+from renderer.accel.bih import sphere_aabbs
+from renderer.accel.kdtree import build_kdtree
+from renderer.scenarios import scenario
+from tests.helpers import HYP
+from tests.renderer.accel.support import sphere_sets
+
+def kd_node_sets(kd) -> list[set]:
+    """The primitives below every node (union of its leaves' lists)."""
+    m = kd.n_nodes
+    sets: list[set] = [set() for _ in range(m)]
+    order = np.argsort(-kd.depth, kind="stable")
+    for i in order:
+        if kd.axis[i] < 0:
+            sets[i] = set(kd.leaf_prims(i).tolist())
+        else:
+            sets[i] = sets[kd.left[i]] | sets[kd.left[i] + 1]
+    return sets
+
+
+def check_kdtree(kd, lo: np.ndarray, hi: np.ndarray, max_tree_depth: int) -> None:
+    n = len(lo)
+    m = kd.n_nodes
+    assert kd.depth.max(initial=1) <= min(max_tree_depth, kd.max_depth) <= kdtree_layout.STACK_SIZE
+    inner = np.flatnonzero(kd.axis >= 0)
+    li = kd.left[inner]
+    seen = np.zeros(m, np.int64)
+    seen[0] = 1
+    seen[li] += 1
+    seen[li + 1] += 1
+    assert (seen == 1).all()
+    ax = kd.axis[inner]
+    rows = np.arange(len(inner))
+    # children voxels: the parent's split at the plane, which lies strictly inside it
+    assert (kd.vmin[inner, :][rows, ax] < kd.split[inner]).all() and (kd.split[inner] < kd.vmax[inner][rows, ax]).all()
+    exp_lmax = kd.vmax[inner].copy()
+    exp_lmax[rows, ax] = kd.split[inner]
+    exp_rmin = kd.vmin[inner].copy()
+    exp_rmin[rows, ax] = kd.split[inner]
+    np.testing.assert_array_equal(kd.vmin[li], kd.vmin[inner])
+    np.testing.assert_array_equal(kd.vmax[li], exp_lmax)
+    np.testing.assert_array_equal(kd.vmin[li + 1], exp_rmin)
+    np.testing.assert_array_equal(kd.vmax[li + 1], kd.vmax[inner])
+    leaves = np.flatnonzero(kd.axis < 0)
+    for l in leaves:
+        p = kd.leaf_prims(l)
+        assert (np.diff(p) > 0).all(), "leaf lists are sorted, without repeats"
+        assert kd.offset[l] + kd.count[l] <= len(kd.indices)
+    sets = kd_node_sets(kd)
+    if n:
+        assert sets[0] == set(range(n)), "every primitive reachable"
+        # completeness: a primitive whose box meets a leaf's open voxel is in that leaf
+        for l in leaves:
+            meets = np.flatnonzero(((lo < kd.vmax[l]) & (hi > kd.vmin[l])).all(axis=1))
+            assert set(meets.tolist()) <= sets[l], f"leaf {l} misses primitives of its voxel"
+        # a straddler is in both children
+        for i in inner:
+            a, p = kd.axis[i], kd.split[i]
+            straddle = {j for j in sets[i] if lo[j, a] < p < hi[j, a]}
+            assert straddle <= sets[kd.left[i]] and straddle <= sets[kd.left[i] + 1]
+    u = kdtree_layout.unpack_nodes(kd.words())
+    np.testing.assert_array_equal(u["axis"], kd.axis)
+    np.testing.assert_array_equal(u["left"][inner], kd.left[inner])
+    np.testing.assert_array_equal(u["split"][inner], kd.split[inner])
+    np.testing.assert_array_equal(u["count"][leaves], kd.count[leaves])
+    np.testing.assert_array_equal(u["offset"][leaves], kd.offset[leaves])
+
+
+@settings(max_examples=40, **HYP)
+@given(sphere_sets(max_n=90), st.integers(1, 64), st.sampled_from([1.0, 0.9, 0.5, 0.1]),
+       st.sampled_from([0, 4, 1000]))
+def test_kdtree_invariants(spheres, max_tree_depth, cost_scale, window):
+    c, r = spheres
+    lo, hi = sphere_aabbs(c, r)
+    kd = build_kdtree(lo, hi, max_tree_depth=max_tree_depth, cost_scale=cost_scale, compaction_window=window)
+    check_kdtree(kd, lo, hi, max_tree_depth)
+    assert kd.stats.references >= len(lo)
+    assert kd.stats.indices <= kd.stats.references
+
+
+def test_kdtree_cost_scaling_makes_smaller_trees_and_compaction_shares_lists():
+    s = scenario(3, 1024)
+    lo, hi = sphere_aabbs(s.sphere_centers, s.sphere_radii)
+    plain = build_kdtree(lo, hi, cost_scale=1.0)
+    scaled = build_kdtree(lo, hi, cost_scale=0.5)
+    assert scaled.stats.nodes < plain.stats.nodes and scaled.stats.bytes < plain.stats.bytes
+    assert scaled.stats.sah_cost >= plain.stats.sah_cost * 0.999
+    loose = build_kdtree(lo, hi, cost_scale=1.0, compaction_window=0)
+    assert plain.stats.indices <= loose.stats.indices == loose.stats.references
+
+
+def test_kdtree_terminates_on_degenerate_input():
+    same = np.zeros((2000, 3))
+    t0 = time.perf_counter()
+    kd = build_kdtree(*sphere_aabbs(same, np.linspace(0.5, 4, 2000)), cost_scale=1.0)
+    assert time.perf_counter() - t0 < 10.0
+    assert kd.stats.references <= 64 * 2000 + 1024

@@ -1,0 +1,62 @@
+"""Method ``twolevel`` (renderer.accel.twolevel), without a GPU: the static spheres go to the
+kd-tree, the moving ones to the BVH, the packed index arrays hold scene ids, and the
+static kd-tree is built once per static set. That every frame renders the brute-force
+ids is tested on the GPU in ``tests/renderer/gl/test_renderer.py``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from renderer.accel.twolevel import TwoLevelMethod
+from renderer.animation import museum, pose
+from renderer.scene import Scene
+from renderer.tree_update import TreeUpdate
+
+
+@pytest.mark.parametrize("kind", ["rigid", "deformable", "incoherent"])
+def test_static_spheres_in_the_kd_tree_moving_ones_in_the_bvh(kind):
+    frame = pose(museum(48, kind, seed=1), 0.7)
+    scene, moving = frame.scene, frame.moving
+    prep = TwoLevelMethod().prepare(scene, 4, 64, update=TreeUpdate(scheme="refit", key="t", moving=moving))
+    static_ids, moving_ids = set(np.flatnonzero(~moving).tolist()), set(np.flatnonzero(moving).tolist())
+    assert static_ids and moving_ids
+    assert prep.stats["static"] == len(static_ids) and prep.stats["moving"] == len(moving_ids)
+    u = prep.packed.uniforms
+    assert (u["u_kd_count"], u["u_bvh_count"]) == (len(static_ids), len(moving_ids))
+    # the BVH holds each moving sphere exactly once, as its scene id
+    bvh = prep.packed.textures["u_bvh_indices"].data.reshape(-1)[:len(moving_ids)]
+    assert sorted(bvh.tolist()) == sorted(moving_ids)
+    # the kd-tree may list a sphere in several leaves, but only static ones, and all of them
+    kd = set(prep.packed.textures["u_kd_indices"].data.reshape(-1).tolist())
+    assert static_ids <= kd and kd <= static_ids | {0}, "kd indices are static scene ids (0 pads the last row)"
+    assert prep.stats["bytes"] == prep.stats["kd"]["bytes"] + prep.stats["bvh"]["bytes"]
+
+
+def test_the_static_tree_is_built_once_per_static_set():
+    anim = museum(32, "rigid", seed=2)
+    method = TwoLevelMethod()
+    cached = []
+    for t in (0.0, 0.5, 1.0):
+        f = pose(anim, t)
+        prep = method.prepare(f.scene, 4, 64, update=TreeUpdate(scheme="refit", key="anim", moving=f.moving))
+        cached.append(prep.stats["kd_cached"])
+    assert cached == [False, True, True], "the static spheres did not move: one kd-tree build"
+    # another animation (key) or a static sphere that moved: a build of its own
+    again = method.prepare(f.scene, 4, 64, update=TreeUpdate(scheme="refit", key="other", moving=f.moving))
+    assert again.stats["kd_cached"] is False
+    c = f.scene.sphere_centers.copy()
+    c[np.flatnonzero(~f.moving)[0]] += 0.5
+    moved = Scene(f.scene.camera, f.scene.lights, f.scene.materials, c, f.scene.sphere_radii,
+                  f.scene.sphere_materials, f.scene.planes)
+    prep = method.prepare(moved, 4, 64, update=TreeUpdate(scheme="refit", key="anim", moving=f.moving))
+    assert prep.stats["kd_cached"] is False
+
+
+def test_a_plain_scene_is_all_static_and_a_bad_mask_is_refused():
+    scene = pose(museum(16, "rigid"), 0.0).scene
+    prep = TwoLevelMethod().prepare(scene, 4, 64)
+    assert (prep.stats["static"], prep.stats["moving"]) == (scene.n_spheres, 0)
+    with pytest.raises(ValueError, match="moving mask"):
+        TwoLevelMethod().prepare(scene, 4, 64, update=TreeUpdate(moving=np.zeros(scene.n_spheres + 1, bool)))

@@ -1,0 +1,204 @@
+"""What the GPU reads (renderer.gpu_layout), checked without a GPU.
+
+- ``wrap_rows``: element i at texel (i % w, i // w), widths a power of two and no wider
+  than needed, ``max_width`` rounded down to a power of two, the same width for arrays of
+  the same count (spheres and their materials share an index), one zero texel for an
+  empty array, an error beyond max_width², the dtype codes;
+- ``pack_primitives``: the sphere, material (3 texels each) and sphere-material textures,
+  and the plane and light uniform arrays padded to the length the shader declares;
+- ``camera_uniforms``: an orthonormal basis looking at the target, half extent
+  tan(fov/2)·(W/H, 1).
+
+The shader reads these layouts through the same module, so a test here that had to change
+would also change ``tests/golden/record.json``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from renderer.gpu_layout import (MATERIAL_TEXELS, PackedTexture, camera_uniforms, glsl_header,
+                                 pack_primitives, wrap_rows)
+from renderer.limits import DEFAULT_TEXTURE_WIDTH, MAX_LIGHTS, MAX_PLANES, MAX_TREE_DEPTH
+from renderer.scene import Camera, Light, Material, Plane, Scene
+
+
+def elements(count: int, comps: int = 4, dtype=np.float32) -> np.ndarray:
+    """Distinct, non-zero rows: element i is (i + 1, i + 1.25, …), so padding (zeros) shows."""
+    return (np.arange(count)[:, None] + 1 + 0.25 * np.arange(comps)[None, :]).astype(dtype)
+
+
+def texel(tex: PackedTexture, i: int) -> np.ndarray:
+    """Element i as the shader addresses it: texel (i % w, i / w), i.e. data[row = i // w, column = i % w]."""
+    w, _ = tex.size
+    return tex.data[i // w, i % w]
+
+
+# ------------------------------------------------------------------------------- wrap_rows
+
+@pytest.mark.parametrize("count,max_width", [(c, w) for c in (1, 2, 3, 7, 8, 9, 63, 64, 65, 100, 1000)
+                                             for w in (1, 4, 16, 64, 4096) if c <= w * w])
+def test_element_i_is_texel_i_mod_w_i_div_w(count, max_width):
+    e = elements(count)
+    tex = wrap_rows(e, max_width)
+    w, h = tex.size
+    assert tex.data.shape == (h, w, 4) and tex.components == 4
+    assert w * h >= count and h == -(-count // w)
+    for i in range(count):
+        np.testing.assert_array_equal(texel(tex, i), e[i])
+    # the rest of the last row is zero padding
+    assert (tex.data.reshape(-1, 4)[count:] == 0).all()
+
+
+@pytest.mark.parametrize("count", [1, 2, 3, 5, 31, 32, 33, 4095, 4096, 4097, 100_000])
+def test_width_is_the_smallest_power_of_two_that_holds_a_row(count):
+    tex = wrap_rows(elements(count, 1), DEFAULT_TEXTURE_WIDTH)
+    w, h = tex.size
+    assert w & (w - 1) == 0, f"width {w} is not a power of two"
+    smallest = 1
+    while smallest < count:
+        smallest *= 2
+    assert w == min(DEFAULT_TEXTURE_WIDTH, smallest)
+    if count <= DEFAULT_TEXTURE_WIDTH:
+        assert h == 1 and (count == 0 or w < 2 * count), "one row, no wider than the next power of two"
+    else:
+        assert w == DEFAULT_TEXTURE_WIDTH and h == -(-count // w)
+
+
+@pytest.mark.parametrize("max_width,effective", [(1, 1), (2, 2), (3, 2), (100, 64), (128, 128),
+                                                 (4095, 2048), (4096, 4096), (5000, 4096)])
+def test_max_width_is_rounded_down_to_a_power_of_two(max_width, effective):
+    rows = min(effective, 4)          # enough elements for full rows, within effective²
+    tex = wrap_rows(elements(effective * rows, 1), max_width)
+    assert tex.size == (effective, rows)
+
+
+def test_arrays_of_the_same_count_get_the_same_width():
+    """Spheres (4 floats) and their materials (1 uint) share an index: same texel, same i."""
+    for count in (1, 5, 64, 65, 3000):
+        for max_width in (8, 64, 4096):
+            if count > max_width ** 2:
+                continue
+            a = wrap_rows(elements(count, 4, np.float32), max_width)
+            b = wrap_rows(elements(count, 1, np.uint32), max_width)
+            c = wrap_rows(elements(count, 2, np.float32)[:, 0], max_width)   # 1-D
+            assert a.size == b.size == c.size, (count, max_width)
+
+
+@pytest.mark.parametrize("shape,dtype", [((0, 4), np.float32), ((0,), np.uint32), ((0, 1), np.uint32)],
+                         ids=["rgba-f4", "1d-u4", "r-u4"])
+def test_an_empty_array_is_a_single_zero_texel(shape, dtype):
+    tex = wrap_rows(np.zeros(shape, dtype))   # textures cannot be empty
+    comps = shape[1] if len(shape) > 1 else 1
+    assert tex.size == (1, 1) and tex.data.shape == (1, 1, comps)
+    assert (tex.data == 0).all() and tex.data.dtype == dtype
+
+
+@pytest.mark.parametrize("max_width", [1, 16, 20, 64])
+def test_more_than_max_width_squared_elements_is_an_error(max_width):
+    side = 1 << (max_width.bit_length() - 1)      # what max_width is rounded down to
+    full = wrap_rows(elements(side * side, 1), max_width)
+    assert full.size == (side, side)
+    with pytest.raises(ValueError, match=f"{side * side + 1} elements do not fit a {side}×{side} texture"):
+        wrap_rows(elements(side * side + 1, 1), max_width)
+
+
+def test_dtype_codes_and_one_dimensional_input():
+    f = wrap_rows(np.array([1.5, 2.5], np.float32))
+    u = wrap_rows(np.array([7, 8, 9], np.uint32))
+    assert (f.dtype, f.data.dtype, f.components) == ("f4", np.float32, 1)
+    assert (u.dtype, u.data.dtype, u.components) == ("u4", np.uint32, 1)
+    assert f.data[0, :, 0].tolist() == [1.5, 2.5] and u.data[0, :, 0].tolist() == [7, 8, 9, 0]
+
+
+# -------------------------------------------------------------------------- pack_primitives
+
+def small_scene() -> Scene:
+    mats = (Material(color=(0.1, 0.2, 0.3), ambient=0.4, diffuse=0.5, specular=0.6, shininess=7.0,
+                     reflective=0.8, transmissive=0.0, ior=1.0),
+            Material(color=(0.9, 0.8, 0.7), ambient=0.05, diffuse=0.25, specular=0.125, shininess=64.0,
+                     reflective=0.0, transmissive=0.75, ior=1.5))
+    centers = np.array([[1.0, 2.0, 3.0], [-4.0, 5.5, -6.0], [0.0, 0.0, 1e6], [7.0, -8.0, 9.0], [0.5, 0.5, 0.5]])
+    return Scene(Camera(), (Light((0.0, 40.0, 0.0), (1.0, 0.5, 0.25)), Light((3.0, 4.0, 5.0), (0.2, 0.2, 0.2))),
+                 mats, centers, np.array([1.0, 0.5, 2.0, 0.25, 3.0]), np.array([1, 0, 1, 1, 0]),
+                 (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 1), Plane((0.0, 0.0, -50.0), (0.0, 0.0, 2.0), 0)))
+
+
+def test_pack_primitives_textures():
+    scene = small_scene()
+    packed = pack_primitives(scene, max_width=4)
+    t = packed.textures
+    assert set(t) == {"u_spheres", "u_sphere_mat", "u_materials"}
+    assert (t["u_spheres"].dtype, t["u_sphere_mat"].dtype, t["u_materials"].dtype) == ("f4", "u4", "f4")
+    assert t["u_spheres"].size == t["u_sphere_mat"].size == (4, 2)   # 5 spheres, rows of 4
+    for i in range(scene.n_spheres):
+        np.testing.assert_array_equal(texel(t["u_spheres"], i),
+                                      np.float32([*scene.sphere_centers[i], scene.sphere_radii[i]]))
+        assert texel(t["u_sphere_mat"], i).tolist() == [int(scene.sphere_materials[i])]
+    assert MATERIAL_TEXELS == 3
+    for k, m in enumerate(scene.materials):
+        got = [texel(t["u_materials"], MATERIAL_TEXELS * k + j).tolist() for j in range(MATERIAL_TEXELS)]
+        want = [[*m.color, m.ambient], [m.diffuse, m.specular, m.shininess, m.reflective],
+                [m.transmissive, m.ior, 0.0, 0.0]]
+        np.testing.assert_array_equal(np.float32(got), np.float32(want))
+    assert packed.nbytes == sum(x.data.nbytes for x in t.values())
+
+
+def test_pack_primitives_uniforms_are_padded_to_the_shader_arrays():
+    scene = small_scene()
+    u = pack_primitives(scene).uniforms
+    assert (u["u_num_spheres"], u["u_num_planes"], u["u_num_lights"]) == (5, 2, 2)
+    for name in ("u_plane_point", "u_plane_normal", "u_plane_mat"):
+        assert len(u[name]) == MAX_PLANES, name
+    for name in ("u_light_pos", "u_light_color"):
+        assert len(u[name]) == MAX_LIGHTS, name
+    assert u["u_plane_point"] == [(0.0, -20.0, 0.0), (0.0, 0.0, -50.0)] + [(0.0, 0.0, 0.0)] * (MAX_PLANES - 2)
+    # normals arrive unit length (the scene normalises them); the padding is a valid normal too
+    assert u["u_plane_normal"] == [(0.0, 1.0, 0.0), (0.0, 0.0, 1.0)] + [(0.0, 1.0, 0.0)] * (MAX_PLANES - 2)
+    assert u["u_plane_mat"] == [1, 0] + [0] * (MAX_PLANES - 2)
+    assert u["u_light_pos"] == [(0.0, 40.0, 0.0), (3.0, 4.0, 5.0)] + [(0.0, 0.0, 0.0)] * (MAX_LIGHTS - 2)
+    assert u["u_light_color"] == [(1.0, 0.5, 0.25), (0.2, 0.2, 0.2)] + [(0.0, 0.0, 0.0)] * (MAX_LIGHTS - 2)
+
+
+def test_pack_primitives_of_a_scene_without_spheres_planes_or_lights():
+    scene = Scene(Camera(), (), (Material(),), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32))
+    packed = pack_primitives(scene)
+    spheres, mats = packed.textures["u_spheres"], packed.textures["u_sphere_mat"]
+    assert spheres.size == mats.size and spheres.data.size > 0     # textures cannot be empty
+    assert (spheres.data == 0).all() and (mats.data == 0).all()
+    u = packed.uniforms
+    assert (u["u_num_spheres"], u["u_num_planes"], u["u_num_lights"]) == (0, 0, 0)
+    assert len(u["u_plane_point"]) == MAX_PLANES and len(u["u_light_pos"]) == MAX_LIGHTS
+
+
+# ------------------------------------------------------------------------- camera_uniforms
+
+@pytest.mark.parametrize("position,target,up,fov", [
+    ((0.0, 0.0, 100.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 60.0),
+    ((3.0, -7.0, 12.0), (-1.0, 2.0, 0.5), (0.0, 0.0, 1.0), 35.0),
+    ((1e6, 1e6, 1e6), (1e6 + 1.0, 1e6 - 2.0, 1e6 + 0.5), (0.3, 1.0, -0.2), 110.0),
+])
+@pytest.mark.parametrize("width,height", [(320, 544), (640, 480), (1, 1)])
+def test_camera_uniforms(position, target, up, fov, width, height):
+    u = camera_uniforms(Camera(position=position, target=target, up=up, fov_y=fov), width, height)
+    right, cup, forward = (np.array(u[k]) for k in ("u_cam_right", "u_cam_up", "u_cam_forward"))
+    basis = np.stack([right, cup, forward])
+    np.testing.assert_allclose(basis @ basis.T, np.eye(3), atol=1e-12)       # orthonormal
+    to_target = np.subtract(target, position)
+    np.testing.assert_allclose(forward, to_target / np.linalg.norm(to_target), atol=1e-12)
+    assert cup @ np.array(up) > 0, "the image's up is on the side of the camera's up"
+    np.testing.assert_allclose(np.cross(right, cup), -forward, atol=1e-12)   # right-handed, looking down −z
+    s = math.tan(math.radians(fov) / 2)
+    assert u["u_half_extent"] == pytest.approx((s * width / height, s), rel=1e-15)
+    assert u["u_resolution"] == (float(width), float(height))
+    assert u["u_cam_pos"] == tuple(float(x) for x in position)
+    assert u["u_target_distance"] == pytest.approx(float(np.linalg.norm(to_target)), rel=1e-12)
+
+
+def test_glsl_header_states_the_tracers_constants():
+    header = glsl_header().splitlines()
+    assert header == [f"#define MAX_PLANES {MAX_PLANES}", f"#define MAX_LIGHTS {MAX_LIGHTS}",
+                      f"#define MATERIAL_TEXELS {MATERIAL_TEXELS}", f"#define BIH_STACK_SIZE {MAX_TREE_DEPTH}"]

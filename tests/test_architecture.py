@@ -1,0 +1,299 @@
+"""The import rules of the layers (issue #14), read from the source with ``ast``.
+
+- no import cycle among the modules of ``renderer/`` and ``server/``;
+- only ``renderer/gl/`` and the server's GL worker import ``moderngl`` / ``glcontext``;
+- with ``moderngl`` and ``glcontext`` made unimportable, every ``renderer`` module
+  outside ``renderer/gl/`` still imports (run in a fresh interpreter);
+- the core does not import ``renderer.accel``, and ``renderer.accel`` never imports
+  ``renderer.methods``, ``renderer.settings`` or ``renderer.gl`` — directly or through
+  another module (a core module that imported ``renderer.settings`` would depend on every
+  method through the registry), the chain is printed.
+
+Every import counts, wherever it is written: at module level, inside a function (a lazy
+import still runs, and still ties the layers together) and under ``if TYPE_CHECKING:``
+(a type-only dependency is still a dependency of the layer). Relative imports are resolved
+against the importing module's package; ``from pkg import name`` depends on the submodule
+``pkg.name`` when there is one and on ``pkg`` (its ``__init__``) otherwise. The implicit
+import of the parent packages (``import a.b.c`` runs ``a/__init__.py`` and
+``a/b/__init__.py`` first) is not an edge: a package that imports its own submodules
+would otherwise always close a cycle, and Python resolves that order by itself.
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import subprocess
+import sys
+import textwrap
+from dataclasses import dataclass
+from fnmatch import fnmatchcase
+from functools import lru_cache
+from pathlib import Path
+
+from tests.helpers import ROOT
+
+PACKAGES = ("renderer", "server")
+GL_LIBRARIES = ("moderngl", "glcontext")
+# Who may import the GL libraries: the GL package, and the server's GL worker (the one
+# thread that owns the context) under whatever sub-package the server keeps it in.
+GL_ALLOWED = ("renderer.gl", "renderer.gl.*", "server.gl_worker", "server.*.gl_worker")
+# The core modules that may name the methods (the registry, the shader assembly, the
+# settings' method validation and the reference tracer's BIH heat mode).
+CORE_MAY_IMPORT_ACCEL = {"renderer.methods", "renderer.shader_source", "renderer.settings",
+                         "renderer.reference"}
+ACCEL_MUST_NOT_IMPORT = ("renderer.methods", "renderer.settings", "renderer.gl")
+
+
+@dataclass(frozen=True)
+class Import:
+    target: str   # the module depended on (internal: a module of the graph; external: as written)
+    line: int
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+@lru_cache(maxsize=None)
+def modules() -> dict[str, Path]:
+    found = {module_name(p): p for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))}
+    assert found, "no module found: the test reads the wrong directory"
+    return found
+
+
+def _package_of(name: str) -> str:
+    """The package a module's relative imports start from."""
+    return name if modules()[name].name == "__init__.py" else name.rpartition(".")[0]
+
+
+def _resolve(package: str, node: ast.ImportFrom) -> str:
+    if not node.level:
+        return node.module or ""
+    base = package.split(".")
+    if node.level > 1:
+        base = base[: len(base) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _literal_import(node: ast.Call) -> str | None:
+    """``importlib.import_module("x")`` / ``__import__("x")`` with a literal name."""
+    f = node.func
+    called = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else None
+    if called in ("import_module", "__import__") and node.args and isinstance(node.args[0], ast.Constant) \
+            and isinstance(node.args[0].value, str):
+        return node.args[0].value
+    return None
+
+
+def read_imports(source: str, package: str, known) -> list[Import]:
+    """Every import of a module's source, anywhere in its body (``ast.walk`` enters
+    functions, classes and ``if TYPE_CHECKING:`` blocks alike); ``package`` is the one its
+    relative imports start from, ``known`` the modules that exist."""
+    out: list[Import] = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            out += [Import(a.name, node.lineno) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = _resolve(package, node)
+            for a in node.names:
+                sub = f"{base}.{a.name}"
+                out.append(Import(sub if sub in known else base, node.lineno))
+        elif isinstance(node, ast.Call) and (target := _literal_import(node)):
+            out.append(Import(target, node.lineno))
+    return out
+
+
+@lru_cache(maxsize=None)
+def imports_of(name: str) -> tuple[Import, ...]:
+    return tuple(read_imports(modules()[name].read_text(), _package_of(name), modules()))
+
+
+def internal_edges() -> dict[str, set[str]]:
+    """module → the modules of renderer/ and server/ it imports (itself excluded)."""
+    known = modules()
+    graph: dict[str, set[str]] = {}
+    for name in known:
+        deps = set()
+        for imp in imports_of(name):
+            target = imp.target
+            # ``import a.b.c`` names a.b.c; a name beyond the last module (a.b.c.attr) cannot
+            # be written with ``import``, but strip to the longest known module to be safe
+            while target and target not in known:
+                target = target.rpartition(".")[0]
+            if target and target != name:
+                deps.add(target)
+        graph[name] = deps
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One cycle as [a, b, …, a], or None (iterative DFS, white/grey/black)."""
+    colour = dict.fromkeys(graph, 0)
+    for start in sorted(graph):
+        if colour[start]:
+            continue
+        path, stack = [start], [iter(sorted(graph[start]))]
+        colour[start] = 1
+        while stack:
+            nxt = next(stack[-1], None)
+            if nxt is None:
+                colour[path.pop()] = 2
+                stack.pop()
+            elif colour[nxt] == 1:
+                return path[path.index(nxt):] + [nxt]
+            elif colour[nxt] == 0:
+                colour[nxt] = 1
+                path.append(nxt)
+                stack.append(iter(sorted(graph[nxt])))
+    return None
+
+
+def _where(name: str, imp: Import) -> str:
+    return f"{modules()[name].relative_to(ROOT)}:{imp.line} imports {imp.target}"
+
+
+def _in(name: str, prefix: str) -> bool:
+    return name == prefix or name.startswith(prefix + ".")
+
+
+# --------------------------------------------------------------------------- the graph itself
+
+def test_the_graph_sees_relative_lazy_and_type_checking_imports():
+    """The reader finds what the rules depend on (else every rule below passes vacuously)."""
+    g = internal_edges()
+    assert "renderer.gl.context" in g["renderer.gl"], "from .context import … in renderer/gl/__init__.py"
+    assert "renderer.accel.bvh_layout" in g["renderer.accel.bvh"], "from . import bvh_layout"
+    assert "renderer.gpu_layout" in g["renderer.accel.base"], "from .. import gpu_layout"
+    assert "renderer.gl.renderer" in g["server.gl_worker"], "the GL worker's import inside a function"
+    gl_engine = {imp.target for imp in imports_of("renderer.gl.ray_engine")}
+    assert "moderngl" in gl_engine
+    assert sum(len(v) for v in g.values()) > 50
+
+
+def test_reader_resolves_relative_lazy_and_type_checking_imports():
+    source = textwrap.dedent("""
+        from typing import TYPE_CHECKING
+        from . import sub
+        from .pkg import name, mod
+        from .. import top
+        import a.b as c
+        if TYPE_CHECKING:
+            from x.y import Z
+        def f():
+            import moderngl
+            importlib.import_module("glcontext")
+    """)
+    known = {"p", "p.q", "p.q.sub", "p.q.pkg", "p.q.pkg.mod", "p.top"}
+    got = {i.target for i in read_imports(source, "p.q", known)}
+    assert got == {"typing", "p.q.sub", "p.q.pkg", "p.q.pkg.mod", "p.top", "a.b", "x.y", "moderngl", "glcontext"}
+
+
+def test_find_cycle_reports_the_cycle():
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+# ------------------------------------------------------------------------------------- rules
+
+def test_no_import_cycle():
+    cycle = find_cycle(internal_edges())
+    assert cycle is None, "import cycle: " + " → ".join(cycle)
+
+
+def test_only_the_gl_layer_imports_moderngl():
+    offenders, importers = [], set()
+    for name in modules():
+        for imp in imports_of(name):
+            if imp.target.split(".")[0] in GL_LIBRARIES:
+                importers.add(name)
+                if not any(fnmatchcase(name, pat) for pat in GL_ALLOWED):
+                    offenders.append(_where(name, imp))
+    assert "renderer.gl.context" in importers, "the rule must see the GL layer's own imports"
+    assert not offenders, "GL imported outside renderer/gl/ and the GL worker:\n" + "\n".join(offenders)
+
+
+def chain_to(graph: dict[str, set[str]], start: str, forbidden) -> list[str] | None:
+    """The shortest import chain [start, …, m] to a module m with forbidden(m), or None."""
+    parent, queue = {start: None}, [start]
+    for here in queue:
+        for dep in sorted(graph[here]):
+            if dep in parent:
+                continue
+            parent[dep] = here
+            if forbidden(dep):
+                chain = [dep]
+                while chain[-1] != start:
+                    chain.append(parent[chain[-1]])
+                return chain[::-1]
+            queue.append(dep)
+    return None
+
+
+def _offending_chains(sources, forbidden) -> list[str]:
+    g = internal_edges()
+    chains = (chain_to(g, name, forbidden) for name in sorted(sources))
+    return [" → ".join(c) for c in chains if c]
+
+
+def test_core_does_not_import_accel():
+    core = [n for n in modules() if _in(n, "renderer") and not _in(n, "renderer.accel")
+            and not _in(n, "renderer.gl") and n not in CORE_MAY_IMPORT_ACCEL]
+    assert "renderer.scene" in core and "renderer.gpu_layout" in core
+    chains = _offending_chains(core, lambda m: _in(m, "renderer.accel"))
+    assert not chains, "the core imports renderer.accel:\n" + "\n".join(chains)
+
+
+def test_accel_does_not_import_registry_settings_or_gl():
+    accel = [n for n in modules() if _in(n, "renderer.accel")]
+    assert "renderer.accel.bih" in accel
+    chains = _offending_chains(accel, lambda m: any(_in(m, up) for up in ACCEL_MUST_NOT_IMPORT))
+    assert not chains, "renderer.accel reaches up a layer:\n" + "\n".join(chains)
+
+
+def test_chain_to_finds_the_shortest_chain():
+    g = {"a": {"b", "c"}, "b": {"x"}, "c": {"d"}, "d": {"x"}, "x": set()}
+    assert chain_to(g, "a", lambda m: m == "x") == ["a", "b", "x"]
+    assert chain_to(g, "c", lambda m: m == "b") is None
+
+
+BLOCK_GL = textwrap.dedent("""
+    import importlib, importlib.abc, json, sys, traceback
+    sys.path.insert(0, sys.argv[1])
+    BLOCKED = {blocked!r}
+
+    class NoGL(importlib.abc.MetaPathFinder):
+        def find_spec(self, name, path=None, target=None):
+            if name.split(".")[0] in BLOCKED:
+                raise ImportError(f"{{name}} is blocked: this module must not need OpenGL")
+            return None
+
+    sys.meta_path.insert(0, NoGL())
+    try:
+        import moderngl  # noqa: F401  (the blocker must work, or the test proves nothing)
+        blocked = False
+    except ImportError:
+        blocked = True
+    failures = {{}}
+    for name in json.loads(sys.argv[2]):
+        try:
+            importlib.import_module(name)
+        except Exception:
+            failures[name] = traceback.format_exc(limit=-3)
+    print(json.dumps({{"blocked": blocked, "failures": failures,
+                      "gl_loaded": sorted(m for m in sys.modules if m.split(".")[0] in BLOCKED)}}))
+""").format(blocked=GL_LIBRARIES)
+
+
+def test_gl_free_modules_import_without_moderngl():
+    gl_free = sorted(n for n in modules() if _in(n, "renderer") and not _in(n, "renderer.gl"))
+    assert "renderer.accel.bih" in gl_free and "renderer.reference" in gl_free
+    proc = subprocess.run([sys.executable, "-c", BLOCK_GL, str(ROOT), json.dumps(gl_free)],
+                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout.splitlines()[-1])
+    assert out["blocked"], "the meta-path blocker did not stop `import moderngl`"
+    assert not out["failures"], "need OpenGL although outside renderer/gl/:\n" + "\n".join(
+        f"{k}:\n{v}" for k, v in out["failures"].items())
+    assert out["gl_loaded"] == []
