@@ -201,4 +201,9 @@ def test_camera_uniforms(position, target, up, fov, width, height):
 def test_glsl_header_states_the_tracers_constants():
     header = glsl_header().splitlines()
     assert header == [f"#define MAX_PLANES {MAX_PLANES}", f"#define MAX_LIGHTS {MAX_LIGHTS}",
-                      f"#define MATERIAL_TEXELS {MATERIAL_TEXELS}", f"#define BIH_STACK_SIZE {MAX_TREE_DEPTH}"]
+                      f"#define MATERIAL_TEXELS {MATERIAL_TEXELS}"]
+    # Each traversal stack is one entry per tree level, stated by its method's layout.
+    from renderer.accel import bih_layout, bvh_layout, kdtree_layout
+    assert f"#define BIH_STACK_SIZE {MAX_TREE_DEPTH}" in bih_layout.glsl_defines().splitlines()
+    assert f"#define BVH_STACK_SIZE {MAX_TREE_DEPTH}" in bvh_layout.glsl_defines().splitlines()
+    assert f"#define KD_STACK_SIZE {MAX_TREE_DEPTH}" in kdtree_layout.glsl_defines().splitlines()
