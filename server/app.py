@@ -24,7 +24,7 @@ from . import api
 from .api import errors
 from .body_limit import BodyLimit
 from .config import ServerConfig
-from .gl_worker import GLWorker
+from .gl_worker import GLWorker, default_renderer
 from .service import SessionService
 from .store import open_store
 
@@ -45,7 +45,9 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         store = open_store(config)
-        worker = GLWorker(config.queue_size, warmup=warmup_render if config.warmup else None)
+        worker = GLWorker(config.queue_size, warmup=warmup_render if config.warmup else None,
+                          renderer_factory=lambda: default_renderer(config.max_target_bytes),
+                          render_timeout_s=config.render_timeout_s)
         worker.start()
         app.state.config = config
         app.state.store = store

@@ -53,10 +53,18 @@ class ServerConfig(BaseSettings):
                                       f"{STILL['samples_per_pixel']} spp — on a {FIT_SIDE} × {FIT_SIDE} frame, the "
                                       "client's largest 'fit' size)")
     max_spheres: int = Field(MAX_SPHERES, ge=0, le=MAX_SPHERES, description="cap on the spheres of one scene")
-    max_bruteforce_work: int = Field(
-        640 * 1088 * 512, ge=1,
-        description="cap on width × height × max_recursion_depth × spheres for method=bruteforce "
-                    "(every ray tests every sphere)")
+    max_frame_cost: float = Field(
+        10_000.0, gt=0,
+        description="cap on the estimated GL time of one frame, milliseconds of the reference machine "
+                    "(renderer/cost.py; docs/API.md, 'Cost of a frame'): a frame estimated above it is refused "
+                    "with 422 naming the setting to change and its largest accepted value")
+    slice_ms: float = Field(
+        40.0, gt=0, le=10_000,
+        description="estimated GL time of one slice of a frame, milliseconds: the GL thread takes slices "
+                    "round-robin from the sessions' frames (bench/latency.py measures the trade-off)")
+    max_target_bytes: int = Field(256 << 20, ge=0,
+                                  description="render targets kept for reuse on the GPU, bytes (frames in flight "
+                                              "hold their own)")
     max_body_bytes: int = Field(16 * 1024 * 1024, ge=1024, description="largest request body, bytes (else 413)")
 
     # --- gestures ---------------------------------------------------------------

@@ -237,6 +237,9 @@ _INT = TypeAdapter(int)
 class FrameQuery(RenderParams, QueryModel):
     """A frame's render settings in the query; missing ones come from the session's."""
     model_config = ConfigDict(extra="ignore", allow_inf_nan=False)
+    progressive: bool = Field(False, description="answer multipart/mixed: first the preview (the pixel centres "
+                                                 "of a supersampled frame) as soon as it exists, then the final "
+                                                 "image (docs/API.md, 'Progressive frames')")
 
     @model_validator(mode="before")
     @classmethod
@@ -421,7 +424,8 @@ class ReadyOut(BaseModel):
 
 class LimitsOut(BaseModel):
     max_work: int
-    max_bruteforce_work: int
+    max_frame_cost: float = Field(description="ms of estimated GL time a frame may cost (POCKETRAY_MAX_FRAME_COST)")
+    slice_ms: float = Field(description="ms of estimated GL time of one slice (POCKETRAY_SLICE_MS)")
     max_spheres: int
     max_body_bytes: int
     max_image_side: int

@@ -4,9 +4,16 @@ Every operation first checks its whole input (pydantic did the per-field part;
 here the renderer's own validation and the work caps of
 :class:`server.config.ServerConfig`), then hands one ``mutate`` function to the
 store, which applies it in a single transaction and bumps the version. A
-rejected request therefore changes nothing. Renders go through the GL worker's
-bounded queue; a frame that follows a gesture takes its queue slot *before*
-the gesture is applied, so a full queue (503) leaves the camera where it was.
+rejected request therefore changes nothing.
+
+A frame is planned on the request's thread — the scene posed, the method's structure
+built, the frame's cost estimated (:mod:`renderer.prepare`, :mod:`renderer.cost`); over
+``POCKETRAY_MAX_FRAME_COST`` it is a 422 — then admitted to the GL worker's bounded queue
+(503 when full) and traced there in slices. A newer frame of a session supersedes its
+older ones (latest wins). A gesture with ``frame=1`` is rendered with its new camera
+*before* it is committed, and committed only when the frame is ready and the session has
+not changed meanwhile: a refused, failed, timed-out or cancelled frame leaves the session
+as it was (docs/API.md, "Gestures with a frame").
 """
 
 from __future__ import annotations
@@ -21,7 +28,10 @@ from dataclasses import replace
 from typing import Any, Iterable, NamedTuple
 
 from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum, pose
+from renderer.cost import largest_accepted
+from renderer.limits import DEFAULT_TEXTURE_WIDTH
 from renderer.methods import METHODS, capabilities, resolve_method
+from renderer.prepare import PreparedFrame, band_rows, batch_size, prepare_frame
 from renderer.scenarios import scenario
 from renderer.scene import Camera, Scene, SceneError
 from renderer.settings import RenderSettings
@@ -29,7 +39,7 @@ from renderer.tree_update import TreeUpdate
 
 from . import controller
 from .config import ServerConfig
-from .gl_worker import GLWorker, QueueFull, Ticket
+from .gl_worker import FrameCancelled, FrameHandle, GLWorker, QueueFull, Ticket
 from .models import (PanGesture, PinchGesture, ResetGesture, SceneModel, SessionCreate, SettingsPatch)
 from .scenes import (SceneCache, SessionScene, camera_from_model, load_source, museum_source, scenario_source,
                      scene_from_model, scene_info, scene_source)
@@ -68,6 +78,15 @@ class NotFound(Exception):
 
 class RenderTimeout(Exception):
     """An admitted render did not finish within ``render_timeout_s``."""
+
+    def __init__(self, message: str, retry_after_s: int = 5):
+        super().__init__(message)
+        self.retry_after_s = retry_after_s
+
+
+class Superseded(Exception):
+    """A frame stopped because the session asked for a newer one (latest wins), its client
+    went away, or the session changed before a gesture's frame could be committed."""
 
 
 class StatsKey(NamedTuple):
@@ -115,7 +134,8 @@ class SessionService:
         return merged
 
     def check_work(self, settings: dict[str, Any], n_spheres: int, where: str) -> None:
-        """The per-request caps (POCKETRAY_MAX_WORK, POCKETRAY_MAX_BRUTEFORCE_WORK)."""
+        """The caps that need no build: POCKETRAY_MAX_WORK, and the modes the method can draw.
+        (The cost of a frame, POCKETRAY_MAX_FRAME_COST, is checked by :meth:`plan`.)"""
         w, h, d = settings["width"], settings["height"], settings["max_recursion_depth"]
         spp = settings.get("samples_per_pixel", 1)
         work = w * h * d * spp
@@ -124,14 +144,6 @@ class SessionService:
                              f"width × height × max_recursion_depth × samples_per_pixel = {w} × {h} × {d} × {spp} "
                              f"= {work} exceeds the limit {self.config.max_work} (POCKETRAY_MAX_WORK); lower width, "
                              f"height, max_recursion_depth or samples_per_pixel")
-        method = resolve_method(settings["method"], n_spheres)
-        if capabilities(method).tests_every_sphere:  # no hierarchy: the cost grows with pixels × spheres
-            bf = work * max(1, n_spheres)
-            if bf > self.config.max_bruteforce_work:
-                raise InputError((where, "method"),
-                                 f"method={method} tests every sphere: width × height × max_recursion_depth × "
-                                 f"spheres = {bf} exceeds the limit {self.config.max_bruteforce_work} "
-                                 f"(POCKETRAY_MAX_BRUTEFORCE_WORK); use method=bih or a smaller image")
         try:
             self.render_settings(settings).check_method(n_spheres)  # the modes the method can draw
         except SceneError as e:
@@ -184,6 +196,7 @@ class SessionService:
         patch = body.settings.given() if body.settings else {}
         settings = self.merge_settings(self.default_settings(), patch, "body")
         self.check_work(settings, scene.n_spheres, "body")
+        self.plan(scene, settings, "body")       # a session no frame could render is refused now
         camera = scene.camera.to_json()
         state = SessionState(id=secrets.token_urlsafe(24), version=1, camera=camera, home_camera=camera,
                              settings=settings, scene_info=scene_info(scene, recipe),
@@ -243,37 +256,42 @@ class SessionService:
         return self._update(session_id, lambda old: replace(old, camera=camera.to_json()))
 
     def patch_settings(self, session_id: str, patch: SettingsPatch) -> SessionState:
+        """Change render defaults; settings no frame could render (over the frame cost cap
+        included, which needs a build) are refused before anything changes."""
         given = patch.given()
+        state = self.get(session_id)
+        checked = self.merge_settings(state.settings, given, "body")
+        self.check_work(checked, state.scene_info.get("n_spheres", 0), "body")
+        self.plan(self.scene(state), checked, "body")
 
         def mutate(old: SessionState) -> SessionState:
             merged = self.merge_settings(old.settings, given, "body")
             self.check_work(merged, old.scene_info.get("n_spheres", 0), "body")
+            if merged != checked:            # another change came between: check what is stored now
+                self.plan(self.scene(old), merged, "body")
             return replace(old, settings=merged)
         return self._update(session_id, mutate)
 
-    def gesture(self, session_id: str, gesture: PanGesture | PinchGesture | ResetGesture,
-                frame_patch: dict[str, Any] | None = None) -> SessionState:
-        """Apply a gesture; with ``frame_patch`` its settings are checked first (nothing
-        changes when the frame that should follow could not be rendered)."""
-        def mutate(old: SessionState) -> SessionState:
-            if frame_patch is not None:
-                merged = self.merge_settings(old.settings, frame_patch, "query")
-                self.check_work(merged, old.scene_info.get("n_spheres", 0), "query")
-            cam = Camera.from_json(old.camera)
-            try:
-                if isinstance(gesture, PanGesture):
-                    height = gesture.viewport_height or (frame_patch or {}).get("height") or old.settings["height"]
-                    new = controller.pan(cam, gesture.dx, gesture.dy, float(height))
-                elif isinstance(gesture, PinchGesture):
-                    new = controller.pinch(cam, gesture.scale, self.config.min_target_distance)
-                else:
-                    new = controller.reset(Camera.from_json(old.home_camera))
-            except SceneError as e:
-                field = {"pan": "dx", "pinch": "scale", "reset": "type"}[gesture.type]
-                raise InputError(("body", field), f"the {gesture.type} would move the camera out of range "
-                                                  f"({e.field}: {e.message})") from None
-            return replace(old, camera=new.to_json())
-        return self._update(session_id, mutate)
+    def moved_camera(self, old: SessionState, gesture: PanGesture | PinchGesture | ResetGesture,
+                     frame_patch: dict[str, Any] | None = None) -> Camera:
+        """The camera after ``gesture`` (InputError naming the gesture's field when the move
+        would leave the coordinate range)."""
+        cam = Camera.from_json(old.camera)
+        try:
+            if isinstance(gesture, PanGesture):
+                height = gesture.viewport_height or (frame_patch or {}).get("height") or old.settings["height"]
+                return controller.pan(cam, gesture.dx, gesture.dy, float(height))
+            if isinstance(gesture, PinchGesture):
+                return controller.pinch(cam, gesture.scale, self.config.min_target_distance)
+            return controller.reset(Camera.from_json(old.home_camera))
+        except SceneError as e:
+            field = {"pan": "dx", "pinch": "scale", "reset": "type"}[gesture.type]
+            raise InputError(("body", field), f"the {gesture.type} would move the camera out of range "
+                                              f"({e.field}: {e.message})") from None
+
+    def gesture(self, session_id: str, gesture: PanGesture | PinchGesture | ResetGesture) -> SessionState:
+        """Apply a gesture (no frame)."""
+        return self._update(session_id, lambda old: replace(old, camera=self.moved_camera(old, gesture).to_json()))
 
     # ---- renders (the View) -------------------------------------------------------------
     def admit(self) -> Ticket:
@@ -285,64 +303,205 @@ class SessionService:
         self.check_work(merged, state.scene_info.get("n_spheres", 0), "query")
         return merged
 
-    def render(self, ticket: Ticket, scene: SessionScene, settings: dict[str, Any], *,
-               session: SessionState | None = None) -> Frame:
-        """Render on the GL thread (with ``ticket``), encode here. Timings in ms.
+    @property
+    def max_texture_width(self) -> int:
+        renderer = self.worker.renderer
+        return getattr(renderer, "max_texture_width", DEFAULT_TEXTURE_WIDTH)
+
+    def plan(self, scene: SessionScene, settings: dict[str, Any], where: str, *,
+             key: Any = None) -> PreparedFrame:
+        """Pose, build and estimate the frame on this thread; 422 when its estimated cost is
+        over POCKETRAY_MAX_FRAME_COST, naming the setting to change and its accepted value."""
+        rs = self.render_settings(settings)
+        if key is None:
+            rs = rs.with_(update="rebuild")      # no animation to follow: never touch a kept tree
+        try:
+            frame = prepare_frame(scene, rs, key=key, max_width=self.max_texture_width)
+        except SceneError as e:
+            raise relocate(e, where) from None
+        limit = self.config.max_frame_cost
+        if frame.cost.ms > limit:
+            raise InputError(*self._too_costly(frame, where, limit))
+        return frame
+
+    def _too_costly(self, frame: PreparedFrame, where: str, limit: float) -> tuple[tuple, str]:
+        """Where to point and what to say of a frame estimated over the cost cap."""
+        s, c = frame.settings, frame.cost
+        head = (f"this frame is estimated at {c.ms:,.0f} ms of GL time, over the limit of {limit:,.0f} ms "
+                f"(POCKETRAY_MAX_FRAME_COST; {c.passes} pass(es) of {c.pixels:,} pixels, "
+                f"{c.rays_per_pixel:.1f} rays per pixel, {c.tests_per_ray:,.0f} sphere tests per ray)")
+        n = frame.scene.n_spheres
+        if c.degenerate:
+            field = "max_prims" if s.max_prims >= max(2, n // 4) else "max_tree_depth"
+            return ((where, field), f"{head}: the {frame.method} tree is (nearly) one leaf of {n:,} spheres — "
+                                    f"a smaller max_prims (≤ 16) or a larger max_tree_depth (≥ "
+                                    f"{max(2, n.bit_length())}) builds a real hierarchy")
+        if capabilities(frame.method).tests_every_sphere:
+            return ((where, "method"), f"{head}: method {frame.method} tests every sphere on every ray; "
+                                       f"use method=bih (a hierarchy) or a smaller frame")
+        best = largest_accepted(frame.method, frame.stats, frame.scene, s, limit, multi_pass=frame.multi_pass)
+        options = [f"{k} ≤ {v}" for k, v in best.items() if v is not None and v != getattr(s, k)]
+        field = next((k for k in ("width", "samples_per_pixel", "max_recursion_depth", "height")
+                      if best.get(k) is not None and best[k] != getattr(s, k)), "width")
+        largest = best.get(field)
+        say = f"{field}: at most {largest}" if largest is not None else f"{field}: no value fits"
+        return ((where, field), f"{head}; {say} at these settings" + (f" (or {', '.join(o for o in options if not o.startswith(field))})"
+                                                                      if len(options) > 1 else ""))
+
+    def start_frame(self, frame: PreparedFrame, *, session: SessionState | None) -> FrameHandle:
+        """Admit the planned frame (503 when full), supersede the session's older frames, and
+        hand it to the GL thread to be traced in slices."""
+        ticket = self.admit()
+        if session is not None:
+            for older in self.worker.in_flight(session.id):   # latest wins
+                older.cancel("superseded")
+        s = frame.settings
+        rows = band_rows(frame.cost, self.config.slice_ms, s.width, s.height)
+        batch = batch_size(frame.cost, self.config.slice_ms, frame.scene.n_primitives)
+
+        def start(renderer):
+            return renderer.start(frame, band_rows=rows, batch=batch)
+        return ticket.frame(start, session=session.id if session is not None else None, cost_ms=frame.cost.ms)
+
+    def wait(self, handle: FrameHandle, t_admit: float, *, preview: bool = False,
+             cancel: threading.Event | None = None):
+        """The frame's result (or, with ``preview``, its first image: None when there is none),
+        within what is left of the render timeout; ``cancel`` (set when the client goes
+        away) stops it."""
+        deadline = t_admit + self.config.render_timeout_s
+        while True:
+            left = deadline - time.perf_counter()
+            if left <= 0:
+                handle.cancel("timeout")
+                raise RenderTimeout(f"render: not done within {self.config.render_timeout_s:g} s",
+                                    self.worker.retry_after())
+            if cancel is not None and cancel.is_set():
+                handle.cancel("disconnected")
+            if handle.poll(preview, min(0.25, left)):
+                if preview and handle.preview_result() is not None:
+                    return handle.preview_result()
+                try:
+                    result = handle.result()
+                except FrameCancelled as e:
+                    raise self._cancelled(e) from None
+                return None if preview else result
+
+    def _cancelled(self, e: FrameCancelled) -> Exception:
+        if e.reason == "timeout":
+            return RenderTimeout(f"render: not done within {self.config.render_timeout_s:g} s",
+                                 self.worker.retry_after())
+        if e.reason == "shutdown":
+            from .gl_worker import GLNotReady
+            return GLNotReady("the service is shutting down")
+        return Superseded(f"frame: stopped, {e.reason} (a newer frame of this session, or the client went away)")
+
+    def encode_frame(self, result, frame: PreparedFrame, settings: dict[str, Any], t_admit: float,
+                     t_started: float | None, *, version: int | None, final: bool = True) -> Frame:
+        rs = frame.settings
+        body, encode_ms = encode(result, rs.format, settings.get("quality", self.config.default_jpeg_quality),
+                                 self.config.png_compress_level)
+        t_end = time.perf_counter()
+        timings = {"queue": ((t_started or t_admit) - t_admit) * 1e3,
+                   **{k: float(v) for k, v in result.timings.items()
+                      if k in ("pose", "update", "build", "upload", "trace", "read")},
+                   "encode": encode_ms, "total": (t_end - t_admit) * 1e3}
+        if frame.pose_ms is not None:
+            timings["pose"] = frame.pose_ms
+        return Frame(body=body, media_type=MEDIA_TYPES[rs.format], method=frame.method, timings=timings,
+                     stats=result.stats, version=version, width=rs.width, height=rs.height, final=final)
+
+    def render(self, scene: SessionScene, settings: dict[str, Any], *, session: SessionState | None = None,
+               where: str = "query", cancel: threading.Event | None = None) -> Frame:
+        """Plan, admit, trace and encode one frame (the final image). Timings in ms.
 
         A session's frames are one animation (key: session and scene revision), so ``bvh``
         and ``twolevel`` can refit the tree of its previous frame. A stateless render has
         no previous frame: it always rebuilds.
         """
-        rs = self.render_settings(settings)
-        key = (session.id, session.scene_rev) if session is not None else None
-        if session is None:
-            rs = rs.with_(update="rebuild")
+        return self.frames(scene, settings, session=session, where=where, cancel=cancel, progressive=False)[-1]
+
+    def frames(self, scene: SessionScene, settings: dict[str, Any], *, session: SessionState | None = None,
+               where: str = "query", cancel: threading.Event | None = None, progressive: bool = True,
+               commit=None) -> list[Frame]:
+        """The frame's images in order — the preview (a supersampled frame's pixel-centre
+        pass) when ``progressive`` and there is one, then the final image — as an iterator
+        (:meth:`iter_frames`) collected here. ``commit(result)`` runs when the final image is
+        ready and returns the session version to report."""
+        return list(self.iter_frames(scene, settings, session=session, where=where, cancel=cancel,
+                                     progressive=progressive, commit=commit))
+
+    def iter_frames(self, scene: SessionScene, settings: dict[str, Any], *, session: SessionState | None = None,
+                    where: str = "query", cancel: threading.Event | None = None, progressive: bool = True,
+                    commit=None):
         t_admit = time.perf_counter()
-        started: list[float] = []
-
-        def job(renderer):
-            started.append(time.perf_counter())
-            return renderer.render(scene, rs, key=key)
+        key = (session.id, session.scene_rev) if session is not None else None
+        frame = self.plan(scene, settings, where, key=key)
+        handle = self.start_frame(frame, session=session)
+        version = session.version if session is not None else None
         try:
-            result = ticket.run(job, self.config.render_timeout_s)
-        except FutureTimeout:
-            raise RenderTimeout(f"render: not done within {self.config.render_timeout_s:g} s") from None
-        method = result.stats.get("method") if result.stats else resolve_method(rs.method, scene.n_spheres)
-        body, encode_ms = encode(result, rs.format, settings.get("quality", self.config.default_jpeg_quality),
-                                 self.config.png_compress_level)
-        t_end = time.perf_counter()
-        timings = {"queue": ((started[0] if started else t_admit) - t_admit) * 1e3,
-                   **{k: float(v) for k, v in result.timings.items()
-                      if k in ("pose", "update", "build", "upload", "trace", "read")},
-                   "encode": encode_ms, "total": (t_end - t_admit) * 1e3}
+            if progressive:
+                first = self.wait(handle, t_admit, preview=True, cancel=cancel)
+                if first is not None:
+                    yield self.encode_frame(first, frame, settings, t_admit, handle.started_at, version=version,
+                                            final=False)
+            result = self.wait(handle, t_admit, cancel=cancel)
+        except BaseException:
+            handle.cancel("disconnected")
+            raise
+        if commit is not None:
+            version = commit(result)
         if session is not None and result.stats:
-            self._remember_stats(StatsKey(session.id, session.scene_rev, method, rs.max_prims,
+            rs = frame.settings
+            self._remember_stats(StatsKey(session.id, session.scene_rev, frame.method, rs.max_prims,
                                           rs.max_tree_depth, self._pose_time(scene, rs.time)), result.stats)
-        return Frame(body=body, media_type=MEDIA_TYPES[rs.format], method=method, timings=timings,
-                     stats=result.stats, version=session.version if session else None,
-                     width=rs.width, height=rs.height)
+        yield self.encode_frame(result, frame, settings, t_admit, handle.started_at, version=version)
 
-    def session_frame(self, session_id: str, patch: dict[str, Any]) -> Frame:
+    def session_frame(self, session_id: str, patch: dict[str, Any], *, cancel: threading.Event | None = None,
+                      progressive: bool = False) -> Frame | list[Frame]:
+        """The session's current view (the final image; with ``progressive`` every image)."""
         state = self.get(session_id)
         settings = self.frame_settings(state, patch)
-        with self.admit() as ticket:
-            return self.render(ticket, self.scene(state), settings, session=state)
+        out = self.frames(self.scene(state), settings, session=state, cancel=cancel, progressive=progressive)
+        return out if progressive else out[-1]
 
-    def gesture_frame(self, session_id: str, gesture, patch: dict[str, Any]) -> Frame:
-        """One round trip: take a queue slot, apply the gesture, render the new view."""
+    def iter_session_frame(self, session_id: str, patch: dict[str, Any], *, cancel: threading.Event | None = None):
         state = self.get(session_id)
-        self.frame_settings(state, patch)  # 422 before anything else
-        with self.admit() as ticket:      # 503 before anything changes
-            state = self.gesture(session_id, gesture, frame_patch=patch)
-            settings = self.frame_settings(state, patch)
-            return self.render(ticket, self.scene(state), settings, session=state)
+        settings = self.frame_settings(state, patch)
+        return self.iter_frames(self.scene(state), settings, session=state, cancel=cancel)
 
-    def render_stateless(self, scene_model: SceneModel, patch: dict[str, Any]) -> Frame:
+    def iter_gesture_frame(self, session_id: str, gesture, patch: dict[str, Any], *,
+                           cancel: threading.Event | None = None, progressive: bool = True):
+        """A gesture answered with its new frame: rendered with the new camera first, the
+        gesture committed when the final image is ready (and only if the session is still
+        the version it was computed from; else 409 and nothing changes)."""
+        state = self.get(session_id)
+        settings = self.frame_settings(state, patch)            # 422 before anything else
+        camera = self.moved_camera(state, gesture, patch)       # 422 for a move out of range
+        view = self.scene(state)
+        view = view if view.camera == camera else view.with_camera(camera)
+        moved = replace(state, camera=camera.to_json())
+
+        def commit(_result) -> int:
+            def mutate(old: SessionState) -> SessionState:
+                if old.version != state.version:
+                    raise Superseded(f"session: changed while the frame was traced (version {state.version} → "
+                                     f"{old.version}); the gesture was not applied — send it again")
+                return replace(old, camera=moved.camera)
+            return self._update(session_id, mutate).version
+        return self.iter_frames(view, settings, session=state, cancel=cancel, progressive=progressive,
+                                commit=commit)
+
+    def gesture_frame(self, session_id: str, gesture, patch: dict[str, Any], *,
+                      cancel: threading.Event | None = None) -> Frame:
+        """One round trip: the gesture's frame, and the gesture committed with it."""
+        return list(self.iter_gesture_frame(session_id, gesture, patch, cancel=cancel, progressive=False))[-1]
+
+    def render_stateless(self, scene_model: SceneModel, patch: dict[str, Any], *,
+                         cancel: threading.Event | None = None) -> Frame:
         scene = self.checked_scene(scene_model, ("body", "scene"))
         settings = self.merge_settings(self.default_settings(), patch, "body")
         self.check_work(settings, scene.n_spheres, "body")
-        with self.admit() as ticket:
-            return self.render(ticket, scene, settings)
+        return self.render(scene, settings, where="body", cancel=cancel)
 
     @staticmethod
     def _pose_time(scene: SessionScene, t: float) -> float:

@@ -12,7 +12,8 @@ Headers of every frame:
   frame — rebuild, refit or selective rebuild, per the ``update`` setting — and equals
   ``build`` (kept for clients that read it);
 - ``X-Session-Version`` (frames of a session), ``X-Method``, ``X-Stats``
-  (compact JSON of the main BIH statistics), and ``Access-Control-Expose-Headers``.
+  (compact JSON of the main BIH statistics), ``X-Frame-Part`` (``preview`` or ``final``:
+  the parts of a progressive frame, docs/API.md) and ``Access-Control-Expose-Headers``.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ MEDIA_TYPES = {"png": "image/png", "jpeg": "image/jpeg", "npy": "application/oct
 TIMING_NAMES = ("queue", "pose", "update", "build", "upload", "trace", "read", "encode", "total")
 STATS_HEADER_KEYS = ("method", "time", "scheme", "n_spheres", "primitives", "inner_nodes", "leaves", "depth_max",
                      "optimized_nodes", "forced_leaves", "build_ms")
-EXPOSED = ("Server-Timing", "X-Session-Version", "X-Method", "X-Stats", "Retry-After")
+EXPOSED = ("Server-Timing", "X-Session-Version", "X-Method", "X-Stats", "X-Frame-Part", "Retry-After")
 
 
 @dataclass
@@ -46,6 +47,7 @@ class Frame:
     version: int | None = None
     width: int = 0
     height: int = 0
+    final: bool = True       # False: the preview of a progressive frame, the final image follows
 
 
 def encode(result: RenderResult, fmt: str, quality: int, png_level: int = 1) -> tuple[bytes, float]:
@@ -83,6 +85,7 @@ def frame_headers(frame: Frame) -> dict[str, str]:
     }
     if frame.version is not None:
         headers["X-Session-Version"] = str(frame.version)
+    headers["X-Frame-Part"] = "final" if frame.final else "preview"
     return headers
 
 
@@ -92,6 +95,8 @@ FRAME_RESPONSE_DOC: dict[str, Any] = {
         "image/png": {"schema": {"type": "string", "format": "binary"}},
         "image/jpeg": {"schema": {"type": "string", "format": "binary"}},
         "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
+        "multipart/mixed": {"schema": {"type": "string", "format": "binary"},
+                            "description": "progressive=1: the preview part, then the final part"},
     },
     "headers": {
         "Server-Timing": {"description": "queue, pose, update, build, upload, trace, read, encode, total as name;dur=ms",

@@ -39,9 +39,10 @@ GL_LIBRARIES = ("moderngl", "glcontext")
 # thread that owns the context) under whatever sub-package the server keeps it in.
 GL_ALLOWED = ("renderer.gl", "renderer.gl.*", "server.gl_worker", "server.*.gl_worker")
 # The core modules that may name the methods (the registry, the shader assembly, the
-# settings' method validation and the reference tracer's BIH heat mode).
+# settings' method validation, the reference tracer's BIH heat mode, and a frame's
+# preparation — pose, build, cost — through the registry).
 CORE_MAY_IMPORT_ACCEL = {"renderer.methods", "renderer.shader_source", "renderer.settings",
-                         "renderer.reference"}
+                         "renderer.reference", "renderer.prepare"}
 ACCEL_MUST_NOT_IMPORT = ("renderer.methods", "renderer.settings", "renderer.gl")
 
 

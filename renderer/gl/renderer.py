@@ -13,10 +13,11 @@ from typing import Hashable
 import moderngl
 import numpy as np
 
-from ..animation import AnimatedScene, pose
+from ..animation import AnimatedScene
 from ..features import GENERIC, scene_features
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..methods import METHODS, PreparedMethod, resolve_method
+from ..prepare import PreparedFrame, prepare_frame
 from ..result import RenderResult
 from ..scene import Scene, SceneError
 from ..gpu_layout import Variant
@@ -83,26 +84,23 @@ class GLRenderer:
         ``features`` removed for this scene and, when animated, the ``time``.
         """
         t_start = time.perf_counter()
-        moving = None
-        pose_ms = None
-        if isinstance(scene, AnimatedScene):
-            frame = pose(scene, settings.time)
-            scene, moving, pose_ms = frame.scene, frame.moving, frame.pose_ms
-        result = self._render_posed(scene, settings, TreeUpdate(settings.update, settings.update_threshold,
-                                                                key, moving), prepared)
-        if pose_ms is not None:
-            result.timings["pose"] = pose_ms
-            result.timings["total"] = (time.perf_counter() - t_start) * 1e3
-            if result.stats is not None:
-                result.stats["time"] = settings.time
-        return result
+        if prepared is not None:      # the caller built it: trace with it (a static scene)
+            return self.begin(scene, settings, prepared=prepared).run()
+        frame = self.start(prepare_frame(scene, settings, key=key, max_width=self.max_texture_width),
+                           t_start=t_start)
+        return frame.run()
 
-    def _render_posed(self, scene: Scene, settings: RenderSettings, update: TreeUpdate,
-                      prepared: PreparedMethod | None) -> RenderResult:
-        method = METHODS[resolve_method(settings.method, scene.n_spheres)]
-        if method.capabilities.multi_pass:  # the ray engines draw the frame in passes of their own
-            return self.ray_engine.render_frame(method, scene, settings)
-        return self.begin(scene, settings, update=update, prepared=prepared).run()
+    def start(self, frame: PreparedFrame, *, band_rows: int | None = None, batch: int | None = None,
+              t_start: float | None = None) -> "StartedFrame":
+        """A prepared frame (:func:`renderer.prepare.prepare_frame`) uploaded and ready to be
+        traced slice by slice: bands of ``band_rows`` rows (the tracer) or batches of
+        ``batch`` primitives (the ray engines)."""
+        t_start = t_start if t_start is not None else time.perf_counter()
+        if frame.multi_pass:
+            inner = self.ray_engine.begin(METHODS[frame.method], frame.scene, frame.settings, batch=batch)
+        else:
+            inner = self.begin(frame.scene, frame.settings, prepared=frame.prepared, band_rows=band_rows)
+        return StartedFrame(inner, frame, t_start)
 
     def begin(self, scene: Scene, settings: RenderSettings, *, update: TreeUpdate = TreeUpdate(),
               prepared: PreparedMethod | None = None, band_rows: int | None = None,
@@ -127,3 +125,53 @@ class GLRenderer:
                  "features_removed": list(features.defines()), "n_spheres": scene.n_spheres}
         return TracerFrame(self, scene, settings, variant, prepared, stats, band_rows=band_rows,
                            one_shot=one_shot, t_start=t_start)
+
+
+class StartedFrame:
+    """A frame of either kind in flight, whose results also say how it was posed and what
+    it was estimated to cost (``pose`` timing, ``time`` and ``cost`` in the statistics)."""
+
+    def __init__(self, inner, frame: PreparedFrame, t_start: float):
+        self.inner, self.frame, self.t_start = inner, frame, t_start
+
+    def step(self) -> bool:
+        return self.inner.step()
+
+    @property
+    def done(self) -> bool:
+        return self.inner.done
+
+    @property
+    def pixels_total(self) -> int:
+        return getattr(self.inner, "pixels_total", 0)
+
+    @property
+    def pixels_left(self) -> int:
+        return getattr(self.inner, "pixels_left", 0)
+
+    def _annotate(self, result: RenderResult | None) -> RenderResult | None:
+        if result is None:
+            return None
+        if self.frame.pose_ms is not None:
+            result.timings["pose"] = self.frame.pose_ms
+            result.timings["total"] = (time.perf_counter() - self.t_start) * 1e3
+            if result.stats is not None:
+                result.stats["time"] = self.frame.settings.time
+        if result.stats is not None:
+            result.stats["cost"] = self.frame.cost.to_json()
+        return result
+
+    @property
+    def preview(self) -> RenderResult | None:
+        return self._annotate(self.inner.preview)
+
+    def result(self) -> RenderResult:
+        return self._annotate(self.inner.result())
+
+    def run(self) -> RenderResult:
+        while not self.step():
+            pass
+        return self.result()
+
+    def release(self) -> None:
+        self.inner.release()

@@ -9,8 +9,11 @@ over the WebSocket as one text message ``{"status", "detail"}`` plus ``"retry_af
 - 422: bad input. ``detail`` is a list of ``{"loc", "msg", "type"}``, ``msg`` starting with
   the field's path (``camera.fov_y: …``): pydantic's errors, the renderer's ``SceneError``
   (with its field) and bodies that are not even JSON (FastAPI would say 400).
-- 404: no such session. 503 + ``Retry-After``: queue full, GL unavailable, render timed
-  out, session store not answering — never a 500 for load. 500: a bug (logged).
+- 404: no such session. 409: the frame was superseded (a newer frame of the session,
+  latest wins) or the session changed under a gesture's frame: nothing was committed.
+  503 + ``Retry-After``: queue full, GL unavailable, render timed out (Retry-After = the
+  work queued ahead), session store not answering — never a 500 for load. 500: a bug
+  (logged).
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ from renderer.scene import SceneError
 from ..config import ServerConfig
 from ..gl_worker import GLNotReady, QueueFull
 from ..models import ErrorOut
-from ..service import InputError, NotFound, RenderTimeout, field_path
+from ..service import InputError, NotFound, RenderTimeout, Superseded, field_path
 
 log = logging.getLogger("pocketray.server")
 
@@ -122,6 +125,16 @@ def _gl_unavailable(exc: Exception, config: ServerConfig) -> ErrorAnswer:
     return ErrorAnswer(503, f"gl: {exc}", {"Retry-After": str(GL_RETRY_AFTER_S)})
 
 
+def _timeout(exc: RenderTimeout, config: ServerConfig) -> ErrorAnswer:
+    """A render that did not finish in POCKETRAY_RENDER_TIMEOUT_S: it was stopped and nothing
+    was committed; Retry-After is the work queued ahead."""
+    return ErrorAnswer(503, f"gl: {exc}; nothing was changed", {"Retry-After": str(exc.retry_after_s)})
+
+
+def _superseded(exc: Superseded, config: ServerConfig) -> ErrorAnswer:
+    return ErrorAnswer(409, str(exc))
+
+
 def _store_unavailable(exc: Exception, config: ServerConfig) -> ErrorAnswer:
     log.error("state backend error: %s", exc)
     return ErrorAnswer(503, f"state: the session store is not answering ({type(exc).__name__}); retry",
@@ -147,7 +160,9 @@ ERROR_TABLE: tuple[ErrorRow, ...] = (
     ErrorRow("scene", (SceneError,), _scene),   # InputError is a SceneError that knows its loc
     ErrorRow("not_found", (NotFound,), _not_found),
     ErrorRow("queue_full", (QueueFull,), _queue_full),
-    ErrorRow("gl_unavailable", (GLNotReady, RenderTimeout), _gl_unavailable),
+    ErrorRow("timeout", (RenderTimeout,), _timeout),
+    ErrorRow("gl_unavailable", (GLNotReady,), _gl_unavailable),
+    ErrorRow("superseded", (Superseded,), _superseded),
     ErrorRow("store_unavailable", (sqlite3.OperationalError, redis.RedisError), _store_unavailable),
     ErrorRow("internal", (Exception,), _internal),
 )
@@ -183,6 +198,8 @@ def install(app: FastAPI) -> None:
 _RETRY_AFTER_DOC = {"Retry-After": {"description": "seconds", "schema": {"type": "string"}}}
 ERROR_DOCS: dict[int, dict[str, Any]] = {
     404: {"model": ErrorOut, "description": "no such session (unknown, deleted or expired)"},
+    409: {"model": ErrorOut, "description": "the frame was superseded by a newer frame of this session (latest "
+                                            "wins), or the session changed before a gesture could be committed"},
     413: {"model": ErrorOut, "description": "request body too large (POCKETRAY_MAX_BODY_BYTES)"},
     503: {"model": ErrorOut, "description": "render queue full, GL or session store not available; "
                                             "see Retry-After", "headers": _RETRY_AFTER_DOC},

@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[2]
 # Small caps for tests: renders of at most 96×128 pixels at depth 2 (or 64×96 at 4).
 # One sample per pixel and no cut-off (not the service's "still" default): frames comparable with references.
 SMALL = {"width": 48, "height": 64, "max_recursion_depth": 2, "samples_per_pixel": 1, "min_weight": 0.0}
-TEST_CAPS = dict(max_work=96 * 128 * 2, max_spheres=4096, max_bruteforce_work=64 * 96 * 64 * 2,
+TEST_CAPS = dict(max_work=96 * 128 * 2, max_spheres=4096, max_frame_cost=2_000.0,
                  queue_size=4, max_body_bytes=256 * 1024, default_render=SMALL)
 
 

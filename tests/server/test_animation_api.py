@@ -27,7 +27,7 @@ def client(tmp_path_factory):
         warnings.simplefilter("ignore")
         from fastapi.testclient import TestClient
     from server.app import create_app
-    with TestClient(create_app(make_config(tmp_path_factory.mktemp("anim"), max_bruteforce_work=10 ** 8))) as c:
+    with TestClient(create_app(make_config(tmp_path_factory.mktemp("anim"), max_frame_cost=10 ** 6))) as c:
         yield c
 
 

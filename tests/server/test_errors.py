@@ -27,7 +27,7 @@ with warnings.catch_warnings():  # as in conftest.py: the TestClient still speak
 from pocketray_server_support import SMALL, new_session
 from renderer.scene import SceneError
 from server.api import errors
-from server.service import RenderTimeout
+from server.service import RenderTimeout, Superseded
 
 UNKNOWN_SESSION = "no-such-session"
 PINCH = {"type": "pinch", "scale": 2}
@@ -61,7 +61,8 @@ CASES = {
     "unknown session": Case("not_found", 404, session=UNKNOWN_SESSION),
     "queue full": Case("queue_full", 503, full_queue=True),
     "no GL context": Case("gl_unavailable", 503, gl_error="OpenGL unavailable: no EGL display (test)"),
-    "render timed out": Case("gl_unavailable", 503, raises=RenderTimeout("render: not done within 120 s")),
+    "render timed out": Case("timeout", 503, raises=RenderTimeout("render: not done within 120 s", 7)),
+    "frame superseded": Case("superseded", 409, raises=Superseded("frame: stopped, superseded")),
     "sqlite locked": Case("store_unavailable", 503, raises=sqlite3.OperationalError("database is locked")),
     "redis gone": Case("store_unavailable", 503, raises=redis.ConnectionError("Connection refused")),
     "a bug": Case("internal", 500, raises=RuntimeError("a bug")),

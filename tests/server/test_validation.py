@@ -100,7 +100,7 @@ SESSION_CASES = [
     ("patch", "settings", {"json": {"quality": 0}}, "quality"),
     ("patch", "settings", {"json": {"max_recursion_depth": 9}}, "max_recursion_depth"),
     ("patch", "settings", {"json": {"width": 96, "height": 128, "max_recursion_depth": 3}}, "max_recursion_depth"),
-    ("patch", "settings", {"json": {"method": "bruteforce", "width": 96, "height": 128}}, "method"),
+    ("patch", "settings", {"json": {"method": "rayengine", "mode": "cones"}}, "mode"),
     ("post", "gesture", {"json": {"type": "pinch", "scale": 0}}, "scale"),
     ("post", "gesture", {"json": {"type": "pinch", "scale": -2}}, "scale"),
     ("post", "gesture", raw('{"type": "pinch", "scale": NaN}'), "scale"),

@@ -1,19 +1,31 @@
 """Frames (the View) and what the Controller's gestures ask for: a gesture (optionally
-answered with the new frame), a session's frame, its build statistics, a stateless render."""
+answered with the new frame), a session's frame, its build statistics, a stateless render.
+
+Frame routes run the service on a worker thread and watch the connection meanwhile: a
+client that goes away cancels its frame between slices (docs/API.md, "Cancellation").
+With ``progressive=1`` the answer is ``multipart/mixed``: the preview part as soon as it
+exists, then the final part (docs/API.md, "Progressive frames").
+"""
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+import asyncio
+import secrets
+import threading
+from typing import Annotated, Any, Callable, Iterator
 
-from fastapi import APIRouter, Body, Query, Response
-from fastapi.responses import JSONResponse
+from fastapi import APIRouter, Body, Query, Request, Response
+from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import JSONResponse, StreamingResponse
 
-from ...models import CameraModel, CameraOut, Gesture, GestureQuery, RenderRequest, StatsOut, StatsQuery
+from ...models import (CameraModel, CameraOut, FrameQuery, Gesture, GestureQuery, RenderRequest, StatsOut,
+                       StatsQuery)
 from ...view import FRAME_RESPONSE_DOC, Frame, frame_headers
-from ..deps import FrameParams, ServiceDep, SessionId
+from ..deps import ServiceDep, SessionId
 from ..errors import documented
 
 router = APIRouter()
+WATCH_S = 0.1      # how often a waiting route looks whether its client is still there
 
 
 def frame_response(frame: Frame) -> Response:
@@ -21,23 +33,82 @@ def frame_response(frame: Frame) -> Response:
     return Response(content=frame.body, media_type=frame.media_type, headers=frame_headers(frame))
 
 
+async def watched(request: Request, cancel: threading.Event, work: Any) -> Any:
+    """Await ``work`` (a future of a worker thread) while watching the connection: when the
+    client disconnects (or this request is cancelled) ``cancel`` is set, so the frame stops
+    between slices."""
+    task = asyncio.ensure_future(work)
+    try:
+        while True:
+            done, _ = await asyncio.wait({task}, timeout=WATCH_S)
+            if done:
+                return task.result()
+            if await request.is_disconnected():
+                cancel.set()
+    except asyncio.CancelledError:
+        cancel.set()
+        raise
+
+
+async def cancellable(request: Request, fn: Callable[..., Any], *args: Any) -> Any:
+    """``fn(*args, cancel=event)`` on a worker thread, watched (:func:`watched`)."""
+    cancel = threading.Event()
+    return await watched(request, cancel, run_in_threadpool(fn, *args, cancel=cancel))
+
+
+async def progressive_response(request: Request, start: Callable[..., Iterator[Frame]], *args: Any) -> Response:
+    """The parts of a progressive frame as ``multipart/mixed``, each with the frame headers
+    (Content-Type, Server-Timing, X-Frame-Part, …). An error before the first part is an
+    ordinary error answer; the first part starts the stream."""
+    cancel = threading.Event()
+    parts = start(*args, cancel=cancel)           # a generator: nothing has run yet
+    first = await watched(request, cancel, run_in_threadpool(next, parts))
+    boundary = "pocketray-" + secrets.token_hex(8)
+
+    def encode(frame: Frame) -> bytes:
+        head = {"Content-Type": frame.media_type, "Content-Length": str(len(frame.body)), **frame_headers(frame)}
+        lines = "".join(f"{k}: {v}\r\n" for k, v in head.items())
+        return f"--{boundary}\r\n{lines}\r\n".encode() + frame.body + b"\r\n"
+
+    async def body():
+        try:
+            yield encode(first)
+            while True:
+                frame = await watched(request, cancel, run_in_threadpool(next, parts, None))
+                if frame is None:
+                    break
+                yield encode(frame)
+            yield f"--{boundary}--\r\n".encode()
+        except BaseException:
+            cancel.set()                          # the client went away mid-stream: stop the frame
+            raise
+    headers = {k: v for k, v in frame_headers(first).items()
+               if k in ("Access-Control-Expose-Headers", "Cache-Control", "X-Method")}
+    return StreamingResponse(body(), media_type=f"multipart/mixed; boundary={boundary}", headers=headers)
+
+
 @router.post("/sessions/{session_id}/gesture", response_model=CameraOut,
-             responses={200: FRAME_RESPONSE_DOC, **documented(404, 413, 503)},
+             responses={200: FRAME_RESPONSE_DOC, **documented(404, 409, 413, 503)},
              summary="Apply pan / pinch / reset; with ?frame=1 answer with the new frame")
-def gesture(session_id: SessionId, body: Annotated[Gesture, Body()], service: ServiceDep,
-            query: Annotated[GestureQuery, Query()]) -> Any:
+async def gesture(request: Request, session_id: SessionId, body: Annotated[Gesture, Body()], service: ServiceDep,
+                  query: Annotated[GestureQuery, Query()]) -> Any:
     # The frame parameters are validated even without ?frame=1, as they always were.
+    if query.frame and query.progressive:
+        return await progressive_response(request, service.iter_gesture_frame, session_id, body, query.given())
     if query.frame:
-        return frame_response(service.gesture_frame(session_id, body, query.given()))
-    state = service.gesture(session_id, body)
+        return frame_response(await cancellable(request, service.gesture_frame, session_id, body, query.given()))
+    state = await run_in_threadpool(service.gesture, session_id, body)
     return CameraOut(version=state.version, camera=CameraModel(**state.camera))
 
 
 @router.get("/sessions/{session_id}/frame", response_class=Response,
-            responses={200: FRAME_RESPONSE_DOC, **documented(404, 503)},
+            responses={200: FRAME_RESPONSE_DOC, **documented(404, 409, 503)},
             summary="Render the session's current view")
-def session_frame(session_id: SessionId, service: ServiceDep, params: FrameParams) -> Response:
-    return frame_response(service.session_frame(session_id, params))
+async def session_frame(request: Request, session_id: SessionId, service: ServiceDep,
+                        query: Annotated[FrameQuery, Query()]) -> Response:
+    if query.progressive:
+        return await progressive_response(request, service.iter_session_frame, session_id, query.given())
+    return frame_response(await cancellable(request, service.session_frame, session_id, query.given()))
 
 
 @router.get("/sessions/{session_id}/stats", response_model=StatsOut, responses=documented(404, 503),
@@ -48,5 +119,5 @@ def session_stats(session_id: SessionId, service: ServiceDep, query: Annotated[S
 
 @router.post("/render", response_class=Response, responses={200: FRAME_RESPONSE_DOC, **documented(413, 503)},
              summary="Stateless render of a scene with settings (docs/FORMATS.md)")
-def render(body: RenderRequest, service: ServiceDep) -> Response:
-    return frame_response(service.render_stateless(body.scene, body.settings.given()))
+async def render(request: Request, body: RenderRequest, service: ServiceDep) -> Response:
+    return frame_response(await cancellable(request, service.render_stateless, body.scene, body.settings.given()))

@@ -30,13 +30,22 @@ def health() -> HealthOut:
             summary="Readiness: GL context created and warm-up render done")
 def ready(worker: WorkerDep, service: ServiceDep) -> Any:
     info = worker.info or {}
-    out = ReadyOut(ready=worker.ready.is_set() and service.store.ping(),
+    saturated = worker.saturated
+    out = ReadyOut(ready=worker.ready.is_set() and not worker.closing and not saturated and service.store.ping(),
                    gl_renderer=info.get("renderer"), gl_version=info.get("version"))
     if out.ready:
         return out
-    out.detail = worker.error or ("state backend not answering" if worker.ready.is_set() else
-                                  "starting: creating the GL context and rendering the warm-up frame")
-    return JSONResponse(out.model_dump(), status_code=503, headers={"Retry-After": str(READY_RETRY_AFTER_S)})
+    retry = READY_RETRY_AFTER_S
+    if worker.closing:
+        out.detail = "shutting down"
+    elif saturated:             # the work queued ahead is more than a render may wait
+        retry = worker.retry_after()
+        out.detail = (f"saturated: {worker.queued_ms() / 1e3:,.1f} s of GL work queued, over the render timeout "
+                      f"of {worker.render_timeout_s:g} s (POCKETRAY_RENDER_TIMEOUT_S)")
+    else:
+        out.detail = worker.error or ("state backend not answering" if worker.ready.is_set() else
+                                      "starting: creating the GL context and rendering the warm-up frame")
+    return JSONResponse(out.model_dump(), status_code=503, headers={"Retry-After": str(retry)})
 
 
 @router.get("/info", response_model=InfoOut, summary="Methods, modes, formats and limits of this service")
@@ -44,7 +53,7 @@ def info(service: ServiceDep) -> InfoOut:
     c = service.config
     return InfoOut(methods=list(METHODS), modes=list(MODES), formats=list(FORMATS), state_backend=c.state_backend,
                    profiles=PROFILES, update_schemes=list(UPDATE_SCHEMES), museum_kinds=list(MUSEUM_KINDS),
-                   limits=LimitsOut(max_work=c.max_work, max_bruteforce_work=c.max_bruteforce_work,
+                   limits=LimitsOut(max_work=c.max_work, max_frame_cost=c.max_frame_cost, slice_ms=c.slice_ms,
                                     max_spheres=c.max_spheres, max_body_bytes=c.max_body_bytes,
                                     max_image_side=MAX_IMAGE_SIDE, queue_size=c.queue_size,
                                     session_ttl_s=c.session_ttl_s))
