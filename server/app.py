@@ -41,7 +41,7 @@ from .models import (CameraModel, CameraOut, ErrorOut, FormatName, FullSettings,
                      LimitsOut, MethodName, ModeName, ReadyOut, RenderRequest, SceneInfo, SceneModel, SessionCreate,
                      SessionOut, SettingsOut, SettingsPatch, StatsOut, UpdateScheme, VersionOut)
 from .scenes import scene_json_chunks
-from .service import InputError, NotFound, RenderTimeout, SessionService, field_path
+from .service import InputError, NotFound, RenderTimeout, SessionService, field_path, info_extras
 from .store import SessionState, open_store
 from .view import FRAME_RESPONSE_DOC, Frame, frame_headers
 
@@ -228,6 +228,7 @@ def info(service: ServiceDep) -> InfoOut:
     c = service.config
     return InfoOut(methods=list(METHODS), modes=list(MODES), formats=list(FORMATS), state_backend=c.state_backend,
                    profiles=PROFILES, update_schemes=list(UPDATE_SCHEMES), museum_kinds=list(MUSEUM_KINDS),
+                   **info_extras(c),
                    limits=LimitsOut(max_work=c.max_work, max_bruteforce_work=c.max_bruteforce_work,
                                     max_spheres=c.max_spheres, max_body_bytes=c.max_body_bytes,
                                     max_image_side=MAX_IMAGE_SIDE, queue_size=c.queue_size,

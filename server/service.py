@@ -21,7 +21,8 @@ from dataclasses import replace
 from typing import Any, Iterable, NamedTuple
 
 from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum, pose
-from renderer.methods import METHODS, capabilities, resolve_method
+from renderer.limits import SAMPLES_PER_PIXEL
+from renderer.methods import AUTO_METHOD, METHODS, capabilities, resolve_method
 from renderer.scenarios import scenario
 from renderer.scene import Camera, Scene, SceneError
 from renderer.settings import RenderSettings
@@ -30,7 +31,8 @@ from renderer.tree_update import TreeUpdate
 from . import controller
 from .config import ServerConfig
 from .gl_worker import GLWorker, QueueFull, Ticket
-from .models import (PanGesture, PinchGesture, ResetGesture, SceneModel, SessionCreate, SettingsPatch)
+from .models import (OrbitGesture, PanGesture, PinchGesture, ResetGesture, SceneModel, SessionCreate,
+                     SettingsPatch)
 from .scenes import (SceneCache, SessionScene, camera_from_model, load_source, museum_source, scenario_source,
                      scene_from_model, scene_info, scene_source)
 from .store import SessionState, SessionStore
@@ -62,12 +64,50 @@ def relocate(e: SceneError, where: str) -> InputError:
     return InputError((where, *field_path(e.field)), e.message)
 
 
+# Methods whose builder takes max_tree_depth but decides its leaves itself (kdtree: the SAH).
+IGNORES_MAX_PRIMS = frozenset({"kdtree"})
+
+
+def method_settings(name: str) -> dict[str, Any]:
+    """What a client needs to show only the settings that apply to method ``name``: the
+    settings its build or passes read, its modes, its update schemes and whether a
+    browser can trace it (``auto`` answers for the BIH it picks above the crossover)."""
+    method = METHODS[resolve_method(name, 1 << 30)]
+    caps = method.capabilities
+    used = []
+    if not caps.tests_every_sphere:                    # a hierarchy: leaf size and depth limits
+        used += [k for k in ("max_prims", "max_tree_depth") if not (k == "max_prims" and method.name in
+                                                                    IGNORES_MAX_PRIMS)]
+    if caps.multi_pass and getattr(method, "hierarchical", False):
+        used.append("tile_size")                       # hre's tiles of rays
+    if len(caps.update_schemes) > 1:
+        used.append("update")
+    return {"settings": used, "modes": list(caps.modes), "update_schemes": list(caps.update_schemes),
+            "device": caps.device, "auto": name == AUTO_METHOD}
+
+
+def info_extras(config: ServerConfig) -> dict[str, Any]:
+    """The parts of GET /api/info a client's settings form needs beyond the lists and limits."""
+    from renderer.settings import METHODS as NAMES
+    return {"samples_per_pixel": list(SAMPLES_PER_PIXEL), "render_timeout_s": config.render_timeout_s,
+            "method_settings": {name: method_settings(name) for name in NAMES}}
+
+
 class NotFound(Exception):
     """No such session (never existed, deleted, or expired)."""
 
 
 class RenderTimeout(Exception):
     """An admitted render did not finish within ``render_timeout_s``."""
+
+
+def too_heavy(n_spheres: int, rs: RenderSettings, timeout_s: float) -> InputError:
+    """422 for a frame that ran out of time on the GL thread by itself (not waiting in the queue)."""
+    return InputError(("scene", "n"),
+                      f"a frame of this scene ({n_spheres:,} spheres) at {rs.width} × {rs.height} pixels, "
+                      f"{rs.samples_per_pixel} samples per pixel and recursion depth {rs.max_recursion_depth} did "
+                      f"not finish within {timeout_s:g} s (POCKETRAY_RENDER_TIMEOUT_S); lower n, the resolution, "
+                      f"samples_per_pixel or max_recursion_depth")
 
 
 class StatsKey(NamedTuple):
@@ -251,7 +291,7 @@ class SessionService:
             return replace(old, settings=merged)
         return self._update(session_id, mutate)
 
-    def gesture(self, session_id: str, gesture: PanGesture | PinchGesture | ResetGesture,
+    def gesture(self, session_id: str, gesture: PanGesture | PinchGesture | OrbitGesture | ResetGesture,
                 frame_patch: dict[str, Any] | None = None) -> SessionState:
         """Apply a gesture; with ``frame_patch`` its settings are checked first (nothing
         changes when the frame that should follow could not be rendered)."""
@@ -266,10 +306,12 @@ class SessionService:
                     new = controller.pan(cam, gesture.dx, gesture.dy, float(height))
                 elif isinstance(gesture, PinchGesture):
                     new = controller.pinch(cam, gesture.scale, self.config.min_target_distance)
+                elif isinstance(gesture, OrbitGesture):
+                    new = controller.orbit(cam, gesture.yaw, gesture.pitch)
                 else:
                     new = controller.reset(Camera.from_json(old.home_camera))
             except SceneError as e:
-                field = {"pan": "dx", "pinch": "scale", "reset": "type"}[gesture.type]
+                field = {"pan": "dx", "pinch": "scale", "orbit": "yaw", "reset": "type"}[gesture.type]
                 raise InputError(("body", field), f"the {gesture.type} would move the camera out of range "
                                                   f"({e.field}: {e.message})") from None
             return replace(old, camera=new.to_json())
@@ -306,6 +348,9 @@ class SessionService:
         try:
             result = ticket.run(job, self.config.render_timeout_s)
         except FutureTimeout:
+            if started and time.perf_counter() - started[0] >= self.config.render_timeout_s / 2:
+                # The frame itself, not the queue before it, took the time: asking again cannot help.
+                raise too_heavy(scene.n_spheres, rs, self.config.render_timeout_s) from None
             raise RenderTimeout(f"render: not done within {self.config.render_timeout_s:g} s") from None
         method = result.stats.get("method") if result.stats else resolve_method(rs.method, scene.n_spheres)
         body, encode_ms = encode(result, rs.format, settings.get("quality", self.config.default_jpeg_quality),

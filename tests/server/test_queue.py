@@ -111,3 +111,34 @@ def test_service_answers_while_the_gl_thread_traces(ready_client):
     # answer during it, each in a small part of the trace time.
     assert len(waits) >= 3, f"only {len(waits)} health answers during a {trace_s:.2f} s trace"
     assert max(waits) < 0.25 * trace_s, f"health answered after {max(waits):.3f} s during a {trace_s:.2f} s trace"
+
+
+class SlowRenderer(FakeRenderer):
+    """Renders nothing, slowly: a frame too heavy for the service's time limit."""
+
+    def render(self, scene, settings, key=None):
+        time.sleep(2.0)
+        raise AssertionError("the request should have been answered before this frame finished")
+
+
+def test_a_frame_too_heavy_by_itself_is_422_and_one_stuck_behind_another_is_503(tmp_path):
+    """A frame that alone outlasts render_timeout_s gets 422 naming n (asking again cannot help);
+    one that spent the time waiting for the GL thread gets the transient 503."""
+    from renderer.scenarios import scenario
+    from server.config import ServerConfig
+    from server.service import InputError, RenderTimeout, SessionService
+
+    w = GLWorker(queue_size=4, renderer_factory=SlowRenderer)
+    w.start().result(5)
+    service = SessionService(ServerConfig(sqlite_path=tmp_path / "s.db", render_timeout_s=0.4), store=None, worker=w)
+    settings = {**service.default_settings(), "width": 64, "height": 48}
+    scene = scenario(1, 27, 0, 1.0)
+    with w.admit() as t, pytest.raises(InputError) as e:
+        service.render(t, scene, settings)
+    assert e.value.loc == ("scene", "n") and e.value.field == "scene.n"
+    for words in ("27 spheres", "64 × 48", "did not finish within 0.4 s", "lower n"):
+        assert words in e.value.message, e.value.message
+    # The GL thread is still busy with that frame: the next one waits for it and runs out of time queued.
+    with w.admit() as t, pytest.raises(RenderTimeout):
+        service.render(t, scene, settings)
+    w.close()
