@@ -337,6 +337,7 @@ class MethodSettingsOut(BaseModel):
     modes: list[str]
     update_schemes: list[str]
     device: bool = Field(description="a browser can trace it (device mode)")
+    tests_every_sphere: bool = Field(False, description="no hierarchy: POCKETRAY_MAX_BRUTEFORCE_WORK applies")
     auto: bool = Field(False, description="resolved per scene: brute force below the crossover, else bih")
 
 
@@ -355,6 +356,8 @@ class InfoOut(BaseModel):
                                          "a frame's longest side × √samples must stay ≤ limits.max_image_side")
     render_timeout_s: float | None = Field(None, description="longest a frame may take; a frame that alone "
                                            "takes longer is answered with 422 (scene.n)")
+    museum_room_spheres: int | None = Field(None, description="static spheres of the museum's room; they count "
+                                            "against limits.max_spheres with its n moving ones")
     method_settings: dict[str, MethodSettingsOut] = Field(default_factory=dict,
                                                           description="per method: the settings that apply")
 

@@ -83,13 +83,14 @@ def method_settings(name: str) -> dict[str, Any]:
     if len(caps.update_schemes) > 1:
         used.append("update")
     return {"settings": used, "modes": list(caps.modes), "update_schemes": list(caps.update_schemes),
-            "device": caps.device, "auto": name == AUTO_METHOD}
+            "device": caps.device, "tests_every_sphere": caps.tests_every_sphere, "auto": name == AUTO_METHOD}
 
 
 def info_extras(config: ServerConfig) -> dict[str, Any]:
     """The parts of GET /api/info a client's settings form needs beyond the lists and limits."""
     from renderer.settings import METHODS as NAMES
     return {"samples_per_pixel": list(SAMPLES_PER_PIXEL), "render_timeout_s": config.render_timeout_s,
+            "museum_room_spheres": MUSEUM_ROOM_SPHERES,
             "method_settings": {name: method_settings(name) for name in NAMES}}
 
 

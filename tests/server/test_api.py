@@ -53,7 +53,9 @@ def test_health_ready_info(ready_client):
     assert ms["bruteforce"]["settings"] == [] and ms["rayengine"]["settings"] == []
     assert ms["hre"]["settings"] == ["tile_size"] and ms["hre"]["device"] is False and "cones" in ms["hre"]["modes"]
     assert ms["auto"]["auto"] is True and ms["auto"]["settings"] == ms["bih"]["settings"]
+    assert ms["bruteforce"]["tests_every_sphere"] and not ms["bih"]["tests_every_sphere"]
     assert info["samples_per_pixel"] == [1, 4, 9, 16] and info["render_timeout_s"] > 0
+    assert info["museum_room_spheres"] == 576
 
 
 def test_create_from_scenario_and_read(client):
