@@ -129,9 +129,16 @@ export class SettingsPanel {
     this._layout();
   }
 
-  // Visibility, bounds and offered options, for what the form shows now.
+  // Visibility, bounds and offered options, for what the form shows now (a choice made in the
+  // form counts at once, before the service has answered it; refused values do not).
   _layout() {
-    const ctx = this._ctx({ scene: this._formScene() });
+    const render = {};
+    for (const k of ['method', 'mode', ...RENDER_INT]) {
+      const el = this.el(k);
+      if (!el || this.invalid.has(k) || el.value === '') continue;
+      render[k] = RENDER_INT.includes(k) ? Number(el.value) : el.value;
+    }
+    const ctx = this._ctx({ scene: this._formScene(), render });
     for (const wrap of this.root.querySelectorAll('.field[data-setting]')) {
       const name = wrap.dataset.setting;
       let show = applies(name, ctx);
@@ -265,10 +272,10 @@ export class SettingsPanel {
     const scene = this._formScene();
     const ctx = this._ctx({ scene });
     this._layout();
+    let bad = false;
     for (const k of ['n', 'seed', 'radius']) {
-      if (!applies(k, ctx)) continue;
-      if (this._problem(k, this.el(k).value, ctx)) return;
+      if (applies(k, ctx) && this._problem(k, this.el(k).value, ctx)) bad = true;
     }
-    this.cb.onScene(scene);
+    if (!bad) this.cb.onScene(scene);
   }
 }
