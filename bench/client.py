@@ -169,6 +169,8 @@ def main() -> None:
     ap.add_argument("--client-dir", help="serve this client folder instead of client_web/")
     ap.add_argument("--url", help="an already running service (its own client)")
     ap.add_argument("--skip-device", action="store_true", help="only the chrome share")
+    ap.add_argument("--device-query", default="scenario=1&n=512&renderer=device",
+                    help="the page of the drag (the session's defaults: fit resolution, the still profile)")
     args = ap.parse_args()
 
     from playwright.sync_api import sync_playwright
@@ -185,11 +187,12 @@ def main() -> None:
                 "landscape, scenario 1": chrome_share(browser, url, LANDSCAPE, f"scenario=1&n=64&{LAYOUT_QUERY}"),
             }
             if not args.skip_device:
-                out["device_drag"] = device_latency(browser, url, "scenario=1&n=512&renderer=device")
+                out["device_drag"] = device_latency(browser, url, args.device_query)
             browser.close()
     finally:
         if server:
             server.close()
+    out["load_average"] = os.getloadavg()
     print(json.dumps(out, indent=2))
 
 

@@ -81,6 +81,12 @@ export function toBase64(typed) {
 }
 
 const nextAnimationFrame = () => new Promise((resolve) => requestAnimationFrame(() => resolve()));
+// A task of its own, without waiting for the display's next frame (benchmarks compare the two).
+const nextTask = () => new Promise((resolve) => {
+  const ch = new MessageChannel();
+  ch.port1.onmessage = () => resolve();
+  ch.port2.postMessage(null);
+});
 
 // ---- device mode ---------------------------------------------------------------------------
 // options: api (api.js Api), getState() → {sessionId, render, client, profiles, anim},
@@ -402,27 +408,32 @@ export class DeviceView {
   }
 
   // renderOnce({width, height, samples_per_pixel, min_weight, method, mode, max_prims, max_tree_depth,
-  // max_recursion_depth, max_texture_size, session}) renders the session's current (server) camera
-  // in bands, as a live frame is traced, and reads it back (session: another session's id; default
-  // the page's). → {width, height, primid: base64 Int32 H×W, colour: base64 uint8 H×W×3, infoLog,
+  // max_recursion_depth, max_texture_size, session, band_ms, between}) renders the session's current
+  // (server) camera in bands, as a live frame is traced, and reads it back (session: another
+  // session's id; default the page's; band_ms: the bands' budget; between: 'frame' (the next
+  // animation frame, as live frames) or 'task' — for benchmarks). → {width, height, primid: base64 Int32 H×W, colour: base64 uint8 H×W×3, infoLog,
   //   renderer, textures, shader, camera, basis, bands, …}
   async renderOnce(params = {}) {
     const p = this.probe();
     if (!p.ok) throw new Error(p.reason);
-    const { width, height, samples_per_pixel: spp = 1, min_weight: eps = 0, ...rest } = params;
+    const { width, height, samples_per_pixel: spp = 1, min_weight: eps = 0, band_ms: bandMs, between = 'frame', ...rest } = params;
     this.stop();
     this.key = null;                       // the live view reloads its own data afterwards
     await this.ensure(rest);
+    const planner = bandMs ? new BandPlanner({ budgetMs: bandMs }) : this.planner;
+    const wait = between === 'task' ? nextTask : nextAnimationFrame;
+    const t0 = performance.now();
     const camera = this.renderer.header.camera;
     const k = subpixels(spp, width, height, this.renderer.maxTextureSize);
     const uniforms = { ...cameraUniforms(camera, width * k, height * k), u_min_weight: eps };
     const trace = this.renderer.beginTrace(this.prog, { width, height, k, uniforms });
     while (trace.rowsDone < trace.th) {
-      const rows = this.planner.rows(trace.tw, trace.th - trace.rowsDone);
-      this.planner.record(rows * trace.tw, this.renderer.traceBand(trace, rows));
-      if (trace.rowsDone < trace.th) await nextAnimationFrame();
+      const rows = planner.rows(trace.tw, trace.th - trace.rowsDone);
+      planner.record(rows * trace.tw, this.renderer.traceBand(trace, rows));
+      if (trace.rowsDone < trace.th) await wait();
     }
     this.renderer.finishTrace(trace);
+    const ms = { total: performance.now() - t0, trace: trace.traceMs };
     const rb = this.renderer.readback();
     this.key = null;
     const h = this.renderer.header;
@@ -430,7 +441,7 @@ export class DeviceView {
       width: rb.width, height: rb.height, primid: toBase64(rb.primid), colour: toBase64(rb.colour),
       infoLog: this.prog.logs, renderer: `WebGL2 ${this.renderer.rendererName}`, textures: h.textures.map(
         ({ name, width: w, height: hh, internal_format }) => ({ name, width: w, height: hh, internal_format })),
-      shader: h.shader, camera, basis: cameraBasis(camera), serverUniforms: h.uniforms, bands: trace.bands,
+      shader: h.shader, camera, basis: cameraBasis(camera), serverUniforms: h.uniforms, bands: trace.bands, ms,
       subpixels: k, maxTextureSize: this.renderer.maxTextureSize,
     };
   }
