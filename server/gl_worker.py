@@ -294,7 +294,8 @@ class GLWorker:
     def in_flight(self, session: Hashable) -> list[FrameHandle]:
         """The frames of ``session`` admitted and not finished (for latest-wins)."""
         with self._lock:
-            return [h for h in [*self._starting, *self._frames.get(session, ())] if h.reason is None]
+            starting = [h for h in self._starting if h.session == session]
+            return [h for h in [*starting, *self._frames.get(session, ())] if h.reason is None]
 
     # ---- the thread ----------------------------------------------------------------------------
     def _main(self) -> None:

@@ -392,12 +392,26 @@ class PinchGesture(Strict):
     scale: float = Field(ge=1e-3, le=1e3, description="finger distance ratio")
 
 
+MAX_ORBIT_DEG = 360.0
+
+
+class OrbitGesture(Strict):
+    """Turn the camera about its target (the distance stays): ``yaw`` degrees about the
+    camera's ``up`` vector, ``pitch`` degrees about its ``right`` vector (right-handed: yaw > 0
+    moves the camera to its right, pitch > 0 moves it down). Pitch is clamped so that the
+    view never passes over the up vector."""
+    type: Literal["orbit"]
+    yaw: float = Field(0.0, ge=-MAX_ORBIT_DEG, le=MAX_ORBIT_DEG, description="degrees about up, −360 … 360")
+    pitch: float = Field(0.0, ge=-MAX_ORBIT_DEG, le=MAX_ORBIT_DEG,
+                         description="degrees about right, −360 … 360 (clamped short of the poles)")
+
+
 class ResetGesture(Strict):
     """Back to the camera the scene was created (or last replaced) with."""
     type: Literal["reset"]
 
 
-Gesture = Annotated[Union[PanGesture, PinchGesture, ResetGesture], Field(discriminator="type")]
+Gesture = Annotated[Union[PanGesture, PinchGesture, OrbitGesture, ResetGesture], Field(discriminator="type")]
 
 
 # ---- stateless render ------------------------------------------------------------------
@@ -433,6 +447,17 @@ class LimitsOut(BaseModel):
     session_ttl_s: float
 
 
+class MethodSettingsOut(BaseModel):
+    """Which settings a method reads, so that a client shows only those (server.service.method_settings)."""
+    settings: list[str] = Field(description="settings its build or passes read: max_prims, max_tree_depth, "
+                                            "tile_size, update")
+    modes: list[str]
+    update_schemes: list[str]
+    device: bool = Field(description="a browser can trace it (device mode)")
+    tests_every_sphere: bool = Field(False, description="no hierarchy: POCKETRAY_MAX_BRUTEFORCE_WORK applies")
+    auto: bool = Field(False, description="resolved per scene: brute force below the crossover, else bih")
+
+
 class InfoOut(BaseModel):
     methods: list[str]
     modes: list[str]
@@ -444,6 +469,14 @@ class InfoOut(BaseModel):
     profiles: dict[str, dict[str, Any]] = Field(
         default_factory=dict, description="render profiles measured by the Pareto experiment: 'still' (the "
                                           "session default) and 'interactive' (frames during a gesture)")
+    samples_per_pixel: list[int] = Field(default_factory=list, description="values of samples_per_pixel; "
+                                         "a frame's longest side × √samples must stay ≤ limits.max_image_side")
+    render_timeout_s: float | None = Field(None, description="longest a frame may take; a frame that alone "
+                                           "takes longer is answered with 422 (scene.n)")
+    museum_room_spheres: int | None = Field(None, description="static spheres of the museum's room; they count "
+                                            "against limits.max_spheres with its n moving ones")
+    method_settings: dict[str, MethodSettingsOut] = Field(default_factory=dict,
+                                                          description="per method: the settings that apply")
 
 
 class StatsOut(BaseModel):

@@ -29,8 +29,8 @@ from typing import Any, Iterable, NamedTuple
 
 from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum, pose
 from renderer.cost import largest_accepted
-from renderer.limits import DEFAULT_TEXTURE_WIDTH
-from renderer.methods import METHODS, capabilities, resolve_method
+from renderer.limits import DEFAULT_TEXTURE_WIDTH, SAMPLES_PER_PIXEL
+from renderer.methods import AUTO_METHOD, METHODS, capabilities, resolve_method
 from renderer.prepare import PreparedFrame, band_rows, batch_size, prepare_frame
 from renderer.scenarios import scenario
 from renderer.scene import Camera, Scene, SceneError
@@ -40,7 +40,8 @@ from renderer.tree_update import TreeUpdate
 from . import controller
 from .config import ServerConfig
 from .gl_worker import FrameCancelled, FrameHandle, GLWorker, QueueFull, Ticket
-from .models import (PanGesture, PinchGesture, ResetGesture, SceneModel, SessionCreate, SettingsPatch)
+from .models import (OrbitGesture, PanGesture, PinchGesture, ResetGesture, SceneModel, SessionCreate,
+                     SettingsPatch)
 from .scenes import (SceneCache, SessionScene, camera_from_model, load_source, museum_source, scenario_source,
                      scene_from_model, scene_info, scene_source)
 from .store import SessionState, SessionStore
@@ -70,6 +71,23 @@ def relocate(e: SceneError, where: str) -> InputError:
     if isinstance(e, InputError):
         return e
     return InputError((where, *field_path(e.field)), e.message)
+
+
+def method_settings(name: str) -> dict[str, Any]:
+    """What a client needs to show only the settings that apply to method ``name``: the
+    settings its build or passes read, its modes, its update schemes and whether a
+    browser can trace it (``auto`` answers for the BIH it picks above the crossover)."""
+    caps = METHODS[resolve_method(name, 1 << 30)].capabilities
+    return {"settings": list(caps.settings), "modes": list(caps.modes), "update_schemes": list(caps.update_schemes),
+            "device": caps.device, "tests_every_sphere": caps.tests_every_sphere, "auto": name == AUTO_METHOD}
+
+
+def info_extras(config: ServerConfig) -> dict[str, Any]:
+    """The parts of GET /api/info a client's settings form needs beyond the lists and limits."""
+    from renderer.settings import METHODS as NAMES
+    return {"samples_per_pixel": list(SAMPLES_PER_PIXEL), "render_timeout_s": config.render_timeout_s,
+            "museum_room_spheres": MUSEUM_ROOM_SPHERES,
+            "method_settings": {name: method_settings(name) for name in NAMES}}
 
 
 class NotFound(Exception):
@@ -196,7 +214,9 @@ class SessionService:
         patch = body.settings.given() if body.settings else {}
         settings = self.merge_settings(self.default_settings(), patch, "body")
         self.check_work(settings, scene.n_spheres, "body")
-        self.plan(scene, settings, "body")       # a session no frame could render is refused now
+        # A session no frame could render is refused now (the sphere count named where it was asked for).
+        n_field = ("body", "museum", "n") if body.museum is not None else ("body", "n") if recipe else None
+        self.plan(scene, settings, "body", n_field=n_field)
         camera = scene.camera.to_json()
         state = SessionState(id=secrets.token_urlsafe(24), version=1, camera=camera, home_camera=camera,
                              settings=settings, scene_info=scene_info(scene, recipe),
@@ -272,7 +292,7 @@ class SessionService:
             return replace(old, settings=merged)
         return self._update(session_id, mutate)
 
-    def moved_camera(self, old: SessionState, gesture: PanGesture | PinchGesture | ResetGesture,
+    def moved_camera(self, old: SessionState, gesture: PanGesture | PinchGesture | OrbitGesture | ResetGesture,
                      frame_patch: dict[str, Any] | None = None) -> Camera:
         """The camera after ``gesture`` (InputError naming the gesture's field when the move
         would leave the coordinate range)."""
@@ -283,13 +303,16 @@ class SessionService:
                 return controller.pan(cam, gesture.dx, gesture.dy, float(height))
             if isinstance(gesture, PinchGesture):
                 return controller.pinch(cam, gesture.scale, self.config.min_target_distance)
+            if isinstance(gesture, OrbitGesture):
+                return controller.orbit(cam, gesture.yaw, gesture.pitch)
             return controller.reset(Camera.from_json(old.home_camera))
         except SceneError as e:
-            field = {"pan": "dx", "pinch": "scale", "reset": "type"}[gesture.type]
+            field = {"pan": "dx", "pinch": "scale", "orbit": "yaw", "reset": "type"}[gesture.type]
             raise InputError(("body", field), f"the {gesture.type} would move the camera out of range "
                                               f"({e.field}: {e.message})") from None
 
-    def gesture(self, session_id: str, gesture: PanGesture | PinchGesture | ResetGesture) -> SessionState:
+    def gesture(self, session_id: str, gesture: PanGesture | PinchGesture | OrbitGesture | ResetGesture
+                ) -> SessionState:
         """Apply a gesture (no frame)."""
         return self._update(session_id, lambda old: replace(old, camera=self.moved_camera(old, gesture).to_json()))
 
@@ -309,9 +332,11 @@ class SessionService:
         return getattr(renderer, "max_texture_width", DEFAULT_TEXTURE_WIDTH)
 
     def plan(self, scene: SessionScene, settings: dict[str, Any], where: str, *,
-             key: Any = None) -> PreparedFrame:
+             key: Any = None, n_field: tuple | None = None) -> PreparedFrame:
         """Pose, build and estimate the frame on this thread; 422 when its estimated cost is
-        over POCKETRAY_MAX_FRAME_COST, naming the setting to change and its accepted value."""
+        over POCKETRAY_MAX_FRAME_COST, naming the setting to change and its accepted value
+        (``n_field``: where the request names the sphere count, when it does: a scene whose
+        spheres crowd every ray is refused there)."""
         rs = self.render_settings(settings)
         if key is None:
             rs = rs.with_(update="rebuild")      # no animation to follow: never touch a kept tree
@@ -321,16 +346,23 @@ class SessionService:
             raise relocate(e, where) from None
         limit = self.config.max_frame_cost
         if frame.cost.ms > limit:
-            raise InputError(*self._too_costly(frame, where, limit))
+            raise InputError(*self._too_costly(frame, where, limit, n_field))
         return frame
 
-    def _too_costly(self, frame: PreparedFrame, where: str, limit: float) -> tuple[tuple, str]:
+    # A ray through a good hierarchy tests a few dozen spheres; this many means they crowd it.
+    CROWDED_TESTS = 1000
+
+    def _too_costly(self, frame: PreparedFrame, where: str, limit: float,
+                    n_field: tuple | None = None) -> tuple[tuple, str]:
         """Where to point and what to say of a frame estimated over the cost cap."""
         s, c = frame.settings, frame.cost
-        head = (f"this frame is estimated at {c.ms:,.0f} ms of GL time, over the limit of {limit:,.0f} ms "
-                f"(POCKETRAY_MAX_FRAME_COST; {c.passes} pass(es) of {c.pixels:,} pixels, "
-                f"{c.rays_per_pixel:.1f} rays per pixel, {c.tests_per_ray:,.0f} sphere tests per ray)")
         n = frame.scene.n_spheres
+        head = (f"this frame of {n:,} spheres is estimated at {c.ms:,.0f} ms of GL time, over the limit of "
+                f"{limit:,.0f} ms (POCKETRAY_MAX_FRAME_COST; {c.passes} pass(es) of {c.pixels:,} pixels, "
+                f"{c.rays_per_pixel:.1f} rays per pixel, {c.tests_per_ray:,.0f} sphere tests per ray)")
+        if n_field is not None and not c.degenerate and c.tests_per_ray > self.CROWDED_TESTS:
+            return (n_field, f"{head}: the spheres crowd every ray even through the hierarchy; lower n "
+                             f"(or the radius), the resolution, samples_per_pixel or max_recursion_depth")
         if c.degenerate:
             field = "max_prims" if s.max_prims >= max(2, n // 4) else "max_tree_depth"
             return ((where, field), f"{head}: the {frame.method} tree is (nearly) one leaf of {n:,} spheres — "

@@ -8,10 +8,15 @@ import { Api, ApiError, loadStoredSession, storeSession, sameScene } from './api
 import { attach } from './gestures.js';
 import { FrameScheduler } from './frames.js';
 import { Overlay } from './overlay.js';
+import { Legend } from './legend.js';
+import { Hint } from './hint.js';
+import { Banner, Notices } from './notices.js';
+import { explain } from './messages.js';
 import { DeviceView } from './device.js';
+import { SettingsPanel } from './panel.js';
 import {
-  DEFAULT_SCENE, FALLBACK_METHODS, RENDER_KEYS, SettingsPanel, fitResolution, loadClientSettings,
-  parseResolution, previewSize, readUrlParams, saveClientSettings,
+  DEFAULT_SCENE, FALLBACK_METHODS, RENDER_KEYS, fitResolution, loadClientSettings, parseResolution, previewSize,
+  readUrlParams, saveClientSettings,
 } from './settings.js';
 
 const $ = (sel) => document.querySelector(sel);
@@ -19,17 +24,25 @@ const canvas = $('#view');
 const ctx = canvas.getContext('2d');
 const stage = $('#stage');
 
+// A one-finger orbit drag turns the camera this many degrees per height of the frame on screen.
+const ORBIT_DEGREES_PER_VIEW = 180;
+
 const url = readUrlParams(location.search);
 const state = {
   sessionId: null,
+  session: null,                // the adopted SessionOut (to go back to when a new scene is refused)
   scene: { ...DEFAULT_SCENE },
   render: null,                 // the session's full settings (from the server)
-  client: { ...loadClientSettings(), ...url.client },
+  client: { dragMode: 'pan', ...loadClientSettings(), ...url.client },
   methods: [...FALLBACK_METHODS],
+  profiles: null,
   // An animated scene's clock (seconds of scene time): frames are posed at `time`;
   // while playing, time = time0 + wall-clock seconds since clock0.
   anim: { animated: false, playing: false, time: 0, time0: 0, clock0: 0 },
 };
+// A new scene whose first frame has not been shown yet: {prev: SessionOut, id}. If the service
+// refuses to render it (422, e.g. too heavy), the client goes back to the previous session.
+let pendingScene = null;
 
 // ---- test hook --------------------------------------------------------------------
 const hook = {
@@ -49,55 +62,31 @@ const hook = {
 window.pocketray = hook;
 
 // ---- notices and the error banner ----------------------------------------------------
-function notice(text, kind = 'info', ms = 6000) {
-  hook.notices.push({ text, kind });
-  const p = document.createElement('p');
-  p.textContent = text;
-  p.className = kind;
-  $('#notice').append(p);
-  setTimeout(() => p.remove(), ms);
-}
+const notices = new Notices($('#notice'), (n) => hook.notices.push(n));
+const notice = (text, kind, ms) => notices.show(text, kind, ms);
 
+// A refusal goes next to the field that caused it when the sheet shows it, else to a notice.
 function recordError(e, what) {
-  const entry = { what, status: e instanceof ApiError ? e.status : null, message: describe(e) };
+  const ex = explain(e);
+  const entry = { what, status: ex.status, message: ex.text, field: ex.field };
   hook.errors.push(entry);
-  notice(entry.message, 'error', 8000);
+  entry.inline = panel.refused(ex);
+  if (!entry.inline) notice(ex.text, 'error', 8000);
 }
 
-function describe(e) {
-  if (!(e instanceof ApiError)) return `Something went wrong: ${e.message || e}`;
-  const d = e.detail;
-  if (Array.isArray(d)) {  // FastAPI validation errors
-    return `Not accepted: ${d.map((x) => x.msg || JSON.stringify(x)).join('; ')}`;
-  }
-  return e.status === 422 ? `Not accepted: ${d}` : `The service answered ${e.status}: ${d}`;
-}
-
-const banner = $('#banner');
-let bannerTimer = null;
+const banner = new Banner($('#banner'), { onRetry: () => api.retryNow() });
 function onStatus(s) {
-  clearInterval(bannerTimer);
   if (s.state === 'online') {
-    if (!banner.hidden && hook.status === 'offline') notice('Connected to the render service again.');
-    banner.hidden = true;
+    if (banner.shown && hook.status === 'offline') notice('Connected to the render service again.');
+    banner.hide();
     hook.status = state.render ? 'ready' : 'starting';
     return;
   }
   hook.status = s.state;  // 'offline' | 'busy'
-  banner.hidden = false;
-  banner.classList.toggle('busy', s.state === 'busy');
-  const until = performance.now() + s.delayMs;
-  const msg = banner.querySelector('[data-message]');
-  const paint = () => {
-    const left = Math.max(0, Math.ceil((until - performance.now()) / 1000));
-    msg.textContent = `${s.message}. Retrying in ${left} s${s.attempt > 1 ? ` (attempt ${s.attempt})` : ''}…`;
-  };
-  paint();
-  bannerTimer = setInterval(paint, 250);
+  banner.show(s);
 }
 
 const api = new Api({ onStatus });
-banner.querySelector('[data-retry]').addEventListener('click', () => api.retryNow());
 window.addEventListener('online', () => api.retryNow());
 
 // ---- the animation clock ---------------------------------------------------------------
@@ -119,15 +108,20 @@ function setPlaying(playing) {
     animTime();
   }
   a.playing = playing;
+  // The icon (style.css, by aria-pressed) and the label say what a press does next.
   playButton.setAttribute('aria-pressed', String(playing));
   const label = playing ? 'Pause the animation' : 'Play the animation';
   playButton.setAttribute('aria-label', label);
-  playButton.title = label;
-  playButton.querySelector('[data-icon="play"]').hidden = playing;
-  playButton.querySelector('[data-icon="pause"]').hidden = !playing;
+  playButton.title = `${label} (space)`;
+  playButton.querySelector('[data-label]').textContent = playing ? 'Pause' : 'Play';
   if (playing && state.render) scheduler.animate();
 }
 playButton.addEventListener('click', () => setPlaying(!state.anim.playing));
+window.addEventListener('keydown', (e) => {
+  if (e.key !== ' ' || !state.anim.animated || e.target.closest?.('input, select, textarea, button, [data-no-gesture-keys]')) return;
+  e.preventDefault();
+  setPlaying(!state.anim.playing);
+});
 
 // ---- frames -------------------------------------------------------------------------
 function frameParams(level) {
@@ -152,6 +146,17 @@ function frameParams(level) {
   return p;
 }
 
+// What a frame asked for now will show: the overlay and the legend describe the frame on
+// screen with it, not the settings of a request still on its way.
+function requestMeta(level) {
+  const r = state.render, fast = level === 'full' ? null : state.profiles && state.profiles.interactive;
+  return {
+    sessionId: state.sessionId, n: state.scene.n_spheres ?? state.scene.n, mode: r.mode, method: r.method,
+    samples: (fast && fast.samples_per_pixel) ?? r.samples_per_pixel ?? 1, minWeight: (fast && fast.min_weight) ?? r.min_weight,
+    scenario: state.scene.scenario, motion: state.scene.motion,
+  };
+}
+
 // Where the frame is drawn inside the stage (object-fit: contain), CSS pixels.
 function displayedSize() {
   const cw = stage.clientWidth || window.innerWidth, ch = stage.clientHeight || window.innerHeight;
@@ -160,12 +165,15 @@ function displayedSize() {
 }
 
 let activity = 0, activityTimer = null;
-async function timed(fn) {
+async function timed(fn, meta) {
   const t0 = performance.now();
   if (activity++ === 0) activityTimer = setTimeout(() => $('#activity').classList.add('on'), 250);
   try {
     const frame = await fn();
-    if (frame && frame.blob) frame.t0 = t0;
+    if (frame && frame.blob) {
+      frame.t0 = t0;
+      frame.meta = meta;
+    }
     return frame;
   } finally {
     if (--activity === 0) {
@@ -187,7 +195,8 @@ const transport = {
         return null;
       });
     }
-    return timed(() => api.gesture(state.sessionId, body, level ? frameParams(level) : null));
+    const meta = level ? requestMeta(level) : null;
+    return timed(() => api.gesture(state.sessionId, body, level ? frameParams(level) : null), meta);
   },
   async frame(level) {
     if (deviceMode()) {
@@ -196,10 +205,11 @@ const transport = {
         return await device.frame(level);
       } catch (e) {
         if (e instanceof ApiError && e.status === 404) throw e;  // the session expired: handled as ever
-        fallBackToServer(e instanceof ApiError ? describe(e) : (e.message || String(e)), false);  // frame below
+        fallBackToServer(e instanceof ApiError ? explain(e).text : (e.message || String(e)), false);  // frame below
       }
     }
-    return timed(() => api.frame(state.sessionId, frameParams(level)));
+    const meta = requestMeta(level);
+    return timed(() => api.frame(state.sessionId, frameParams(level)), meta);
   },
   refineNeeded() {
     if (deviceMode()) return false;
@@ -207,6 +217,8 @@ const transport = {
     return c.previewScale < 1 || c.previewFormat !== c.fullFormat;
   },
 };
+
+const legend = new Legend($('#legend'));
 
 async function display(frame, level) {
   const bitmap = frame.image || await createImageBitmap(frame.blob);  // image: the device's canvas
@@ -216,27 +228,36 @@ async function display(frame, level) {
   }
   ctx.drawImage(bitmap, 0, 0);
   if (!frame.image) bitmap.close?.();
+  const meta = frame.meta || {};
+  if (pendingScene && meta.sessionId === pendingScene.id) pendingScene = null;   // the new scene is on screen
   const clientMs = performance.now() - frame.t0;
   const renderer = frame.renderer || 'server';
   const renderedBy = renderer === 'device' ? `device (${frame.rendererInfo})` : `server (${hook.serverRenderer || 'OpenGL'})`;
+  const n = frame.stats?.n_spheres ?? meta.n;
+  const method = frame.method || meta.method;
   hook.frameCount++;
   hook.lastFrameVersion = frame.version;
   hook.lastFrame = {
     level, width: canvas.width, height: canvas.height, version: frame.version,
-    contentType: frame.contentType, method: frame.method, timing: frame.timing, stats: frame.stats, clientMs,
-    renderer, renderedBy,
+    contentType: frame.contentType, method, timing: frame.timing, stats: frame.stats, clientMs,
+    renderer, renderedBy, n, mode: meta.mode, samples: meta.samples, camera: frame.camera ?? null,
   };
-  hook.log.push({ level, width: canvas.width, height: canvas.height, contentType: frame.contentType, version: frame.version, renderer });
+  hook.log.push({
+    level, width: canvas.width, height: canvas.height, contentType: frame.contentType, version: frame.version, renderer,
+    camera: frame.camera ?? null,
+  });
   if (hook.log.length > 100) hook.log.shift();
   const shownTime = frame.stats && Number.isFinite(frame.stats.time) ? frame.stats.time : null;
   hook.lastFrame.time = shownTime;
-  canvas.setAttribute('aria-label', state.scene.scenario === 'museum'
-    ? `Ray-traced animated museum: ${state.scene.n} moving spheres (${state.scene.motion}), ${state.render.mode} mode`
-    : `Ray-traced scene: scenario ${state.scene.scenario}, ${state.scene.n} spheres, ${state.render.mode} mode`);
+  const mode = meta.mode || state.render.mode;
+  canvas.setAttribute('aria-label', meta.scenario === 'museum'
+    ? `Ray-traced animated museum: ${n} spheres (${meta.motion}), ${mode} mode`
+    : `Ray-traced scene: scenario ${meta.scenario ?? state.scene.scenario}, ${n} spheres, ${mode} mode`);
+  legend.show(mode === 'recursion' || mode === 'heat' ? mode : null);
   overlay.frame({
     level, width: canvas.width, height: canvas.height, clientMs, timing: frame.timing, stats: frame.stats,
-    method: frame.method, n: frame.stats?.n_spheres ?? state.scene.n_spheres ?? state.scene.n, version: frame.version,
-    renderedBy, time: state.anim.animated ? shownTime : null, playing: state.anim.playing,
+    method, n, version: frame.version, renderedBy, renderer, samples: meta.samples, minWeight: meta.minWeight,
+    time: state.anim.animated ? shownTime : null, playing: state.anim.playing,
   });
   if (state.anim.playing) scheduler.animate();   // the next frame as soon as this one is shown
 }
@@ -251,6 +272,15 @@ const scheduler = new FrameScheduler({
       replaceExpiredSession();
       return;
     }
+    if (pendingScene && e instanceof ApiError && e.status === 422 && what === 'frame') {
+      // The service will not render the new scene (too heavy, …): say why, next to n, and stay
+      // with the scene on screen — its session still exists.
+      const { prev } = pendingScene;
+      pendingScene = null;
+      recordError(e, what);
+      if (prev) adopt(prev);
+      return;
+    }
     recordError(e, what);
   },
 });
@@ -258,6 +288,7 @@ const scheduler = new FrameScheduler({
 // ---- the session --------------------------------------------------------------------
 function adopt(s) {
   state.sessionId = s.id;
+  state.session = s;
   hook.sessionId = s.id;
   const info = s.scene_info || {};
   const museum = info.museum || null;
@@ -372,7 +403,9 @@ async function patch(partial) {
 // ---- settings ------------------------------------------------------------------------
 function applyRender(partial) {
   scheduler.enqueue(async () => {
-    state.render = pickRender(await patch(partial));
+    const settings = await patch(partial);
+    state.render = pickRender(settings);
+    state.session = { ...state.session, settings };
     panel.show(state);
   }).then(() => scheduler.invalidate(), () => panel.show(state));
 }
@@ -381,8 +414,10 @@ const panel = new SettingsPanel($('#settings'), $('#settings-toggle'), {
   onScene(scene) {
     scheduler.dropPending();
     scheduler.enqueue(async () => {
+      const prev = state.session;
       const s = await api.createSession(sceneBody(scene), state.render);
       adopt(s);
+      pendingScene = { prev, id: s.id };
     }).then(() => scheduler.invalidate(), () => panel.show(state));
   },
   onRender: applyRender,
@@ -401,6 +436,8 @@ const panel = new SettingsPanel($('#settings'), $('#settings-toggle'), {
 
 const overlay = new Overlay($('#overlay'), $('#overlay-toggle'));
 if (url.client.overlay !== undefined) overlay.setHidden(!url.client.overlay);
+const hint = new Hint($('#hint'));
+hook.hint = hint;
 
 // 'fit' follows the screen: rotate the phone, resize the window.
 let resizeTimer = null;
@@ -413,7 +450,7 @@ window.addEventListener('resize', () => {
   }, 300);
 });
 
-// ---- device mode (issue #10): the same tracer in this browser's WebGL2 -------------------
+// ---- device mode (issues #10, #19): the same tracer in this browser's WebGL2 --------------
 const device = new DeviceView({
   api,
   getState: () => state,
@@ -427,6 +464,8 @@ hook.device = {
   probe: () => device.probe(),
   get camera() { return device.camera; },
   get fallback() { return hook.deviceFallback ?? null; },
+  get counts() { return { ...device.counts }; },
+  get job() { return device.job && { level: device.job.level, rowsDone: device.job.rowsDone, rowsTotal: device.job.rowsTotal }; },
 };
 
 // Where the device cannot run the tracer: server mode, with a visible notice.
@@ -456,12 +495,23 @@ fetch('/api/ready', { cache: 'no-store' }).then((r) => r.json())
 // ---- gestures ----------------------------------------------------------------------
 // In device mode the local camera moves at once (display rate); the server's Model always follows.
 function userGesture(g) {
+  hint.dismiss();   // they found out
   if (!state.render) return;
   if (deviceMode()) device.gesture(g);
   scheduler.gesture(g);
 }
-attach(canvas, {
+// A drag in orbit mode: "grab the scene" — dragging right turns the scene right (the camera
+// left about its target), dragging down turns it down (the camera up).
+function orbitDrag(dx, dy) {
+  const k = ORBIT_DEGREES_PER_VIEW / displayedSize().height;
+  userGesture({ type: 'orbit', yaw: -dx * k, pitch: -dy * k });
+}
+const gestures = attach(canvas, {
+  onStart: () => hint.dismiss(),
   onPan: (dx, dy) => userGesture({ type: 'pan', dx, dy }),
+  onOrbitDrag: orbitDrag,
+  // Two fingers turning clockwise turn the scene as if the near floor followed the lower finger.
+  onTwist: (deg) => userGesture({ type: 'orbit', yaw: deg, pitch: 0 }),
   onPinch: (scale) => userGesture({ type: 'pinch', scale }),
   onReset: () => userGesture({ type: 'reset' }),
   onWheel: (scale) => userGesture({ type: 'pinch', scale }),
@@ -469,19 +519,29 @@ attach(canvas, {
 });
 $('#reset-button').addEventListener('click', () => userGesture({ type: 'reset' }));
 
+const orbitButton = $('#orbit-toggle');
+function setDragMode(mode) {
+  state.client = { ...state.client, dragMode: mode };
+  gestures.recognizer.dragMode = mode;
+  orbitButton.setAttribute('aria-pressed', String(mode === 'orbit'));
+  document.body.classList.toggle('orbit-mode', mode === 'orbit');
+}
+orbitButton.addEventListener('click', () => {
+  setDragMode(state.client.dragMode === 'orbit' ? 'pan' : 'orbit');
+  saveClientSettings(state.client);
+});
+setDragMode(state.client.dragMode === 'orbit' ? 'orbit' : 'pan');
+
 // ---- go ------------------------------------------------------------------------------
 // What this service offers: its method and mode lists, and limits for the form.
 api.info().then((info) => {
   hook.info = info;
   if (!info) return;
-  if (Array.isArray(info.methods) && info.methods.length) {
-    state.methods = info.methods;
-    panel.setMethods(info.methods);
-  }
-  if (Array.isArray(info.modes) && info.modes.length) panel.setModes(info.modes);
+  if (Array.isArray(info.methods) && info.methods.length) state.methods = info.methods;
   if (info.profiles && typeof info.profiles === 'object') state.profiles = info.profiles;
-  if (info.limits) panel.setLimits(info.limits);
-  if (state.render) panel.show(state);
+  // A frame may take up to the service's own limit (then it answers 422 itself): wait that long.
+  if (info.render_timeout_s > 0) api.timeoutMs = Math.max(api.timeoutMs, (info.render_timeout_s + 15) * 1000);
+  panel.setInfo(info);
 });
 
 scheduler.enqueue(start).then(

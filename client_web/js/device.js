@@ -1,89 +1,36 @@
-// On-device rendering (issue #10): the server's tracer, run by this browser in WebGL2.
+// Device mode (issues #10, #19): the server's tracer, run by this browser in WebGL2.
 //
 // One shader, one tree layout: the fragment shader is the text the server compiles
-// (GET /api/shader, assembled by renderer.shader_source.tracer_source), the textures
-// and uniforms are what renderer.gpu_layout packs for moderngl, delivered as one
-// binary blob (GET /api/sessions/{id}/device-data; its format is documented in
-// server/device_data.py). The tree is still built by the server, per request.
+// (GET /api/shader), the textures and uniforms are what renderer.gpu_layout packs for
+// moderngl, delivered as one binary blob (GET /api/sessions/{id}/device-data, format in
+// server/device_data.py). The tree is still built by the server, per data request.
 //
-//  - DeviceRenderer: WebGL2 context on an offscreen canvas; uploads the blob's
-//    textures (RGBA32F → RGBA32F/FLOAT, R32UI → R32UI/RED_INTEGER, RGB32UI →
-//    RGB32UI/RGB_INTEGER, …; NEAREST), sets the uniforms by the types the linked
-//    program reports, draws two triangles into two RGBA32F targets (location 0:
-//    rgb image + primary id, location 1: normal + t), then copies location 0,
-//    clamped, to its canvas for display. readback() gives ids and uint8 colour
-//    exactly as the server's npy frames (row 0 = top).
-//  - DeviceView: the device mode of the client. Gestures move a local camera at
-//    display rate (the Controller's math of server/controller.py, ported below)
-//    and still go to the server's Model through the app's FrameScheduler (one
-//    request in flight, merged: the throttle), so switching back to server mode
-//    shows the same view. When the session or its render settings change the data
-//    is fetched again. Anything missing (WebGL2, EXT_color_buffer_float, a texture
-//    size the scene needs, a method that needs several passes) → the app falls
-//    back to server mode with a notice.
+// DeviceView, the device mode of the client:
+//  - gestures move a local camera at once (camera.js: server/controller.py's math) and
+//    still go to the server's Model through the app's FrameScheduler, so switching back
+//    to server mode shows the same view;
+//  - frames are traced in bands of rows, one band per requestAnimationFrame callback
+//    (bands.js sizes them), so touch input waits at most one band; a gesture during a
+//    frame cancels it and a frame of the new view starts (latest wins; see cancelsFrame);
+//  - a frame is traced as the server traces it at the same profile: full frames with the
+//    session's samples_per_pixel (√s × √s sub-pixels, box-filtered; ids from the centre
+//    one) and ε cut-off (min_weight), preview frames with the service's 'interactive'
+//    profile at the preview scale, as the server's previews;
+//  - anything missing (WebGL2, EXT_color_buffer_float, a texture size the scene needs, a
+//    method that needs several passes) → the app falls back to server mode with a notice.
 //
-// Test/URL flag: ?webgl2=0 makes the probe behave as if getContext('webgl2')
-// returned null (to exercise the fallback).
+// Test/URL flag: ?webgl2=0 makes the probe behave as if getContext('webgl2') returned null.
 
+import { BandPlanner, cancelsFrame } from './bands.js';
+import { applyGesture, cameraBasis, targetDistance } from './camera.js';
+import { DeviceRenderer, DeviceUnavailable } from './device_gl.js';
 import { previewSize } from './settings.js';
 
-export const MIN_TARGET_DISTANCE = 1e-3;   // POCKETRAY_MIN_TARGET_DISTANCE's default
-export const MAX_COORDINATE = 1e7;         // renderer.scene.MAX_COORDINATE
+// The camera math lives in camera.js; these names stay importable from here (tests, tools).
+export { applyGesture, cameraBasis, orbitCamera, panCamera, pinchCamera, targetDistance } from './camera.js';
+export { DeviceRenderer, DeviceUnavailable } from './device_gl.js';
 
-// ---- the Controller (server/controller.py), float64 like the server -------------------
-const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-const norm = (a) => Math.sqrt(dot(a, a));
-const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
-const radians = (deg) => deg * (Math.PI / 180);   // as CPython's math.radians
-
-// Camera.basis(): (right, true_up, forward), orthonormal.
-export function cameraBasis(cam) {
-  const d = sub(cam.target, cam.position);
-  const n = norm(d);
-  const forward = d.map((x) => x / n);
-  const r = cross(forward, cam.up);
-  const rn = norm(r);
-  const right = r.map((x) => x / rn);
-  return { right, up: cross(right, forward), forward };
-}
-
-export function targetDistance(cam) {
-  return norm(sub(cam.target, cam.position));
-}
-
-function inRange(cam) {
-  return [...cam.position, ...cam.target].every((x) => Number.isFinite(x) && Math.abs(x) <= MAX_COORDINATE);
-}
-
-// controller.pan: camera and target move by (−dx·right + dy·up)·world_per_pixel.
-export function panCamera(cam, dx, dy, viewportHeight) {
-  const { right, up } = cameraBasis(cam);
-  const k = 2.0 * targetDistance(cam) * Math.tan(radians(cam.fov_y) / 2.0) / viewportHeight;
-  const delta = [0, 1, 2].map((i) => (-dx * right[i] + dy * up[i]) * k);
-  return {
-    ...cam, position: cam.position.map((x, i) => x + delta[i]), target: cam.target.map((x, i) => x + delta[i]),
-  };
-}
-
-// controller.pinch: along the view axis to distance d / scale (never closer than minDistance).
-export function pinchCamera(cam, scale, minDistance = MIN_TARGET_DISTANCE) {
-  const offset = sub(cam.position, cam.target);
-  const distance = norm(offset);
-  let nd = distance / scale;
-  if (scale > 1) nd = Math.max(nd, Math.min(distance, minDistance));
-  return { ...cam, position: cam.target.map((t, i) => t + offset[i] * (nd / distance)) };
-}
-
-// A gesture ({type: pan|pinch|reset}) applied to `cam`; out-of-range results leave it as it was
-// (the server answers those with 422 and changes nothing).
-export function applyGesture(cam, g, { viewportHeight, home }) {
-  let out = cam;
-  if (g.type === 'pan') out = panCamera(cam, g.dx || 0, g.dy || 0, viewportHeight);
-  else if (g.type === 'pinch' && g.scale > 0 && Number.isFinite(g.scale)) out = pinchCamera(cam, g.scale);
-  else if (g.type === 'reset' && home) out = structuredClone(home);
-  return inRange(out) ? out : cam;
-}
+const SUBPIXELS = Object.freeze({ 1: 1, 4: 2, 9: 3, 16: 4 });   // samples per pixel → sub-pixels per side
 
 // ---- the blob ------------------------------------------------------------------------------
 const MAGIC = 'PRDD';
@@ -106,290 +53,29 @@ export function parseDeviceData(buffer) {
   return { header, textures };
 }
 
-// ---- WebGL2 -----------------------------------------------------------------------------
-function simulatedNoWebGL2() {
-  try {
-    return new URLSearchParams(location.search).get('webgl2') === '0';
-  } catch {
-    return false;
-  }
-}
+// renderer/gpu_layout.py's camera_uniforms and pass_uniforms, in float64 until the upload. width
+// and height are the traced size: the sub-pixels' grid when supersampling, traced in one pass
+// (scale 1, offset 0.5: every fragment one grid point, as the server's one-shot draw).
+// renderer/modes.py's AVERAGED_MODES: the images that are the mean of their sub-pixels.
+const AVERAGED_MODES = Object.freeze(['color', 'recursion', 'heat', 'cones']);
 
-const DISPLAY_VS = `#version 300 es
-in vec2 a_position;
-void main() { gl_Position = vec4(a_position, 0.0, 1.0); }`;
-// Location 0 of the tracer, clamped to [0, 1], onto the canvas (same orientation: both bottom-up).
-const DISPLAY_FS = `#version 300 es
-precision highp float;
-precision highp sampler2D;
-uniform highp sampler2D u_image;
-out vec4 o_colour;
-void main() { o_colour = vec4(clamp(texelFetch(u_image, ivec2(gl_FragCoord.xy), 0).rgb, 0.0, 1.0), 1.0); }`;
-
-export class DeviceUnavailable extends Error {}
-
-export class DeviceRenderer {
-  // Throws DeviceUnavailable (with a message for the notice) when this browser cannot run the tracer.
-  constructor() {
-    this.canvas = document.createElement('canvas');
-    this.canvas.width = 1;
-    this.canvas.height = 1;
-    const gl = simulatedNoWebGL2() ? null : this.canvas.getContext('webgl2', {
-      preserveDrawingBuffer: true, antialias: false, depth: false, stencil: false, alpha: false,
-      powerPreference: 'high-performance',
-    });
-    if (!gl) throw new DeviceUnavailable('this browser offers no WebGL2');
-    this.gl = gl;
-    this.colorBufferFloat = !!gl.getExtension('EXT_color_buffer_float');
-    if (!this.colorBufferFloat) {
-      throw new DeviceUnavailable('WebGL2 here cannot render to 32-bit float textures (EXT_color_buffer_float)');
-    }
-    const dbg = gl.getExtension('WEBGL_debug_renderer_info');
-    this.rendererName = String(gl.getParameter(dbg ? dbg.UNMASKED_RENDERER_WEBGL : gl.RENDERER));
-    this.maxTextureSize = gl.getParameter(gl.MAX_TEXTURE_SIZE);
-    this.lost = false;
-    this.canvas.addEventListener('webglcontextlost', (e) => { e.preventDefault(); this.lost = true; });
-    this.programs = new Map();     // fragment source → {program, uniforms, logs}
-    this.textures = [];            // [{name, tex, kind}]
-    this.header = null;
-    this.targets = null;           // {width, height, fbo, tex: [t0, t1]}
-    const quad = new Float32Array([-1, -1, 1, -1, 1, 1, -1, -1, 1, 1, -1, 1]);
-    this.vao = gl.createVertexArray();
-    gl.bindVertexArray(this.vao);
-    const buf = gl.createBuffer();
-    gl.bindBuffer(gl.ARRAY_BUFFER, buf);
-    gl.bufferData(gl.ARRAY_BUFFER, quad, gl.STATIC_DRAW);
-    gl.enableVertexAttribArray(0);
-    gl.vertexAttribPointer(0, 2, gl.FLOAT, false, 0, 0);
-    gl.bindVertexArray(null);
-    this.display = this.program(DISPLAY_VS, DISPLAY_FS);
-  }
-
-  get info() {
-    return { renderer: this.rendererName, maxTextureSize: this.maxTextureSize, colorBufferFloat: this.colorBufferFloat };
-  }
-
-  // Compile and link (cached by source). → {program, uniforms: name → {loc, type, size}, logs}
-  program(vsSrc, fsSrc) {
-    const key = vsSrc + '\u0000' + fsSrc;
-    if (this.programs.has(key)) return this.programs.get(key);
-    const gl = this.gl;
-    const shader = (type, src) => {
-      const s = gl.createShader(type);
-      gl.shaderSource(s, src);
-      gl.compileShader(s);
-      return s;
-    };
-    const vs = shader(gl.VERTEX_SHADER, vsSrc), fs = shader(gl.FRAGMENT_SHADER, fsSrc);
-    const p = gl.createProgram();
-    gl.attachShader(p, vs);
-    gl.attachShader(p, fs);
-    gl.bindAttribLocation(p, 0, 'a_position');
-    gl.linkProgram(p);
-    const logs = {
-      vertex: gl.getShaderInfoLog(vs) || '', fragment: gl.getShaderInfoLog(fs) || '', program: gl.getProgramInfoLog(p) || '',
-    };
-    if (!gl.getProgramParameter(p, gl.LINK_STATUS)) {
-      const why = logs.fragment || logs.vertex || logs.program || 'unknown reason';
-      throw new DeviceUnavailable(`the tracer's shader does not compile on this device: ${why.slice(0, 300)}`);
-    }
-    const uniforms = new Map();
-    const n = gl.getProgramParameter(p, gl.ACTIVE_UNIFORMS);
-    for (let i = 0; i < n; i++) {
-      const u = gl.getActiveUniform(p, i);
-      uniforms.set(u.name.replace(/\[0\]$/, ''), { loc: gl.getUniformLocation(p, u.name), type: u.type, size: u.size });
-    }
-    const entry = { program: p, uniforms, logs };
-    this.programs.set(key, entry);
-    return entry;
-  }
-
-  // Upload a parsed blob's textures (replacing the previous ones) and keep its uniforms.
-  load(parsed) {
-    const gl = this.gl;
-    for (const t of this.textures) gl.deleteTexture(t.tex);
-    this.textures = [];
-    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
-    for (const t of parsed.textures) {
-      const fmt = textureFormat(gl, t.dtype, t.components);
-      const tex = gl.createTexture();
-      gl.bindTexture(gl.TEXTURE_2D, tex);
-      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
-      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
-      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
-      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
-      gl.texImage2D(gl.TEXTURE_2D, 0, fmt.internal, t.width, t.height, 0, fmt.format, fmt.type, t.data);
-      this.textures.push({ name: t.name, tex, integer: t.dtype === 'u4' });
-    }
-    gl.bindTexture(gl.TEXTURE_2D, null);
-    this.header = parsed.header;
-    const err = gl.getError();
-    if (err !== gl.NO_ERROR) throw new DeviceUnavailable(`texture upload failed (GL error 0x${err.toString(16)})`);
-  }
-
-  _targets(width, height) {
-    const gl = this.gl;
-    if (this.targets && this.targets.width === width && this.targets.height === height) return this.targets;
-    if (this.targets) {
-      gl.deleteFramebuffer(this.targets.fbo);
-      this.targets.tex.forEach((t) => gl.deleteTexture(t));
-    }
-    const fbo = gl.createFramebuffer();
-    gl.bindFramebuffer(gl.FRAMEBUFFER, fbo);
-    const tex = [0, 1].map((i) => {
-      const t = gl.createTexture();
-      gl.bindTexture(gl.TEXTURE_2D, t);
-      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
-      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
-      gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA32F, width, height);
-      gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0 + i, gl.TEXTURE_2D, t, 0);
-      return t;
-    });
-    gl.bindTexture(gl.TEXTURE_2D, null);
-    gl.drawBuffers([gl.COLOR_ATTACHMENT0, gl.COLOR_ATTACHMENT1]);
-    const status = gl.checkFramebufferStatus(gl.FRAMEBUFFER);
-    if (status !== gl.FRAMEBUFFER_COMPLETE) {
-      throw new DeviceUnavailable(`two RGBA32F render targets are not supported here (0x${status.toString(16)})`);
-    }
-    this.targets = { width, height, fbo, tex };
-    return this.targets;
-  }
-
-  // Trace one frame of `width × height` with the compiled `prog` and `camera` (the scene JSON's camera, docs/FORMATS.md),
-  // then show it on this.canvas. → timings {trace, display} in ms.
-  render(prog, width, height, camera) {
-    const gl = this.gl;
-    if (this.lost || gl.isContextLost()) throw new DeviceUnavailable('the WebGL2 context was lost');
-    const t0 = performance.now();
-    const tg = this._targets(width, height);
-    gl.bindFramebuffer(gl.FRAMEBUFFER, tg.fbo);
-    gl.viewport(0, 0, width, height);
-    gl.useProgram(prog.program);
-    // Textures: one unit each; samplers the data does not fill get a 1×1 dummy of their kind.
-    let unit = 0;
-    const bound = new Set();
-    for (const t of this.textures) {
-      const u = prog.uniforms.get(t.name);
-      if (!u) continue;
-      gl.activeTexture(gl.TEXTURE0 + unit);
-      gl.bindTexture(gl.TEXTURE_2D, t.tex);
-      gl.uniform1i(u.loc, unit++);
-      bound.add(t.name);
-    }
-    for (const [name, u] of prog.uniforms) {
-      if (bound.has(name) || !isSampler(gl, u.type)) continue;
-      gl.activeTexture(gl.TEXTURE0 + unit);
-      gl.bindTexture(gl.TEXTURE_2D, this._dummy(u.type));
-      gl.uniform1i(u.loc, unit++);
-    }
-    const values = { ...this.header.uniforms, ...cameraUniforms(camera, width, height) };
-    for (const [name, value] of Object.entries(values)) {
-      const u = prog.uniforms.get(name);
-      if (u && !isSampler(gl, u.type)) setUniform(gl, u, value);
-    }
-    gl.bindVertexArray(this.vao);
-    gl.drawArrays(gl.TRIANGLES, 0, 6);
-    // Wait for the trace: a one-pixel read-back is a true sync point (finish() may not be).
-    gl.readBuffer(gl.COLOR_ATTACHMENT0);
-    gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.FLOAT, new Float32Array(4));
-    const t1 = performance.now();
-    // Display: location 0, clamped, onto the canvas (drawn by the app onto the visible one).
-    if (this.canvas.width !== width || this.canvas.height !== height) {
-      this.canvas.width = width;
-      this.canvas.height = height;
-    }
-    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
-    gl.viewport(0, 0, width, height);
-    gl.useProgram(this.display.program);
-    gl.activeTexture(gl.TEXTURE0 + unit);
-    gl.bindTexture(gl.TEXTURE_2D, tg.tex[0]);
-    gl.uniform1i(this.display.uniforms.get('u_image').loc, unit);
-    gl.drawArrays(gl.TRIANGLES, 0, 6);
-    gl.bindTexture(gl.TEXTURE_2D, null);
-    gl.bindVertexArray(null);
-    return { trace: t1 - t0, display: performance.now() - t1 };
-  }
-
-  // The last frame's targets, as the server's npy arrays: primid Int32Array (H×W, −1 miss),
-  // colour Uint8Array (H×W×3, floor(255·clamp(c)+0.5)), row 0 = top.
-  readback() {
-    const gl = this.gl, { width: w, height: h, fbo } = this.targets;
-    const px = new Float32Array(w * h * 4);
-    gl.bindFramebuffer(gl.FRAMEBUFFER, fbo);
-    gl.readBuffer(gl.COLOR_ATTACHMENT0);
-    gl.readPixels(0, 0, w, h, gl.RGBA, gl.FLOAT, px);
-    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
-    const primid = new Int32Array(w * h), colour = new Uint8Array(w * h * 3);
-    for (let y = 0; y < h; y++) {
-      const src = (h - 1 - y) * w;   // GL row 0 is the bottom
-      for (let x = 0; x < w; x++) {
-        const i = (src + x) * 4, o = y * w + x;
-        primid[o] = px[i + 3] | 0;
-        for (let c = 0; c < 3; c++) colour[o * 3 + c] = Math.floor(255 * Math.min(1, Math.max(0, px[i + c])) + 0.5);
-      }
-    }
-    return { width: w, height: h, primid, colour };
-  }
-
-  _dummy(type) {
-    const gl = this.gl;
-    this._dummies = this._dummies || new Map();
-    if (this._dummies.has(type)) return this._dummies.get(type);
-    const t = gl.createTexture();
-    gl.bindTexture(gl.TEXTURE_2D, t);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
-    const [internal, format, kind, data] =
-      type === gl.UNSIGNED_INT_SAMPLER_2D ? [gl.R32UI, gl.RED_INTEGER, gl.UNSIGNED_INT, new Uint32Array(1)]
-        : type === gl.INT_SAMPLER_2D ? [gl.R32I, gl.RED_INTEGER, gl.INT, new Int32Array(1)]
-          : [gl.RGBA32F, gl.RGBA, gl.FLOAT, new Float32Array(4)];
-    gl.texImage2D(gl.TEXTURE_2D, 0, internal, 1, 1, 0, format, kind, data);
-    this._dummies.set(type, t);
-    return t;
-  }
-}
-
-// gpu_layout's (dtype, components) → WebGL2's (internal format, format, type).
-function textureFormat(gl, dtype, components) {
-  const f = dtype === 'f4';
-  const internal = f ? [gl.R32F, gl.RG32F, gl.RGB32F, gl.RGBA32F] : [gl.R32UI, gl.RG32UI, gl.RGB32UI, gl.RGBA32UI];
-  const format = f ? [gl.RED, gl.RG, gl.RGB, gl.RGBA] : [gl.RED_INTEGER, gl.RG_INTEGER, gl.RGB_INTEGER, gl.RGBA_INTEGER];
-  return { internal: internal[components - 1], format: format[components - 1], type: f ? gl.FLOAT : gl.UNSIGNED_INT };
-}
-
-function isSampler(gl, type) {
-  return type === gl.SAMPLER_2D || type === gl.UNSIGNED_INT_SAMPLER_2D || type === gl.INT_SAMPLER_2D;
-}
-
-// A uniform's value (number or nested lists) by the type the program reports.
-function setUniform(gl, u, value) {
-  const flat = [value].flat(3).map(Number);
-  const T = {
-    [gl.FLOAT]: ['1fv', 1], [gl.FLOAT_VEC2]: ['2fv', 2], [gl.FLOAT_VEC3]: ['3fv', 3], [gl.FLOAT_VEC4]: ['4fv', 4],
-    [gl.INT]: ['1iv', 1], [gl.INT_VEC2]: ['2iv', 2], [gl.INT_VEC3]: ['3iv', 3], [gl.INT_VEC4]: ['4iv', 4],
-    [gl.BOOL]: ['1iv', 1], [gl.UNSIGNED_INT]: ['1uiv', 1], [gl.UNSIGNED_INT_VEC2]: ['2uiv', 2],
-    [gl.UNSIGNED_INT_VEC3]: ['3uiv', 3], [gl.UNSIGNED_INT_VEC4]: ['4uiv', 4],
-  }[u.type];
-  if (!T) return;
-  const [fn, n] = T;
-  const data = flat.slice(0, n * u.size);
-  if (data.length < n) return;
-  const arr = fn.endsWith('fv') ? new Float32Array(data) : fn.endsWith('uiv') ? new Uint32Array(data) : new Int32Array(data);
-  gl[`uniform${fn}`](u.loc, arr);
-}
-
-// renderer/gpu_layout.py's camera_uniforms and pass_uniforms, in float64 until the upload:
-// the camera for a width × height grid, and the pass through the pixel centres (scale 1,
-// offset 0.5) unless a sub-pixel pass of a scale × scale grid is asked for.
-export function cameraUniforms(camera, width, height, scale = 1, sub = [0, 0]) {
+export function cameraUniforms(camera, width, height) {
   const { right, up, forward } = cameraBasis(camera);
-  const s = Math.tan(radians(camera.fov_y) / 2.0);
+  const s = Math.tan(camera.fov_y * (Math.PI / 180) / 2.0);
   return {
     u_cam_pos: camera.position, u_cam_right: right, u_cam_up: up, u_cam_forward: forward,
     u_half_extent: [s * width / height, s], u_resolution: [width, height],
     u_target_distance: targetDistance(camera),
-    u_pass_scale: scale, u_pass_offset: scale === 1 ? [0.5, 0.5] : [sub[0] + 0.5, sub[1] + 0.5],
+    u_pass_scale: 1, u_pass_offset: [0.5, 0.5],
   };
+}
+
+// Sub-pixels per side for `samples` per pixel, fewer when the traced frame would not fit
+// the device's textures (the server refuses beyond its own limit instead).
+export function subpixels(samples, width, height, maxTextureSize = Infinity) {
+  let k = SUBPIXELS[samples] || 1;
+  while (k > 1 && k * Math.max(width, height) > maxTextureSize) k--;
+  return k;
 }
 
 export function toBase64(typed) {
@@ -399,9 +85,17 @@ export function toBase64(typed) {
   return btoa(s);
 }
 
+const nextAnimationFrame = () => new Promise((resolve) => requestAnimationFrame(() => resolve()));
+// A task of its own, without waiting for the display's next frame (benchmarks compare the two).
+const nextTask = () => new Promise((resolve) => {
+  const ch = new MessageChannel();
+  ch.port1.onmessage = () => resolve();
+  ch.port2.postMessage(null);
+});
+
 // ---- device mode ---------------------------------------------------------------------------
-// options: api (api.js Api), getState() → {sessionId, render, client}, viewportHeight(),
-//          display(frame, level) (the app's), onFallback(message) (switch to server mode).
+// options: api (api.js Api), getState() → {sessionId, render, client, profiles, anim},
+//          viewportHeight(), display(frame, level) (the app's), onFallback(message).
 export class DeviceView {
   constructor({ api, getState, viewportHeight, display, onFallback }) {
     this.api = api;
@@ -413,15 +107,19 @@ export class DeviceView {
     this.unavailable = null;       // the reason, once probed unsuccessfully
     this.key = null;               // what the loaded data is for
     this.loading = null;           // {key, promise}
-    this.camera = null;            // the local camera (camera JSON, docs/FORMATS.md)
+    this.camera = null;            // the local camera (SPEC JSON)
     this.home = null;
     this.version = null;           // the session version the local camera builds on
     this.localSeq = 0;             // local gestures so far
     this.raf = null;
     this.refineTimer = null;
     this.lastGestureAt = -Infinity;
-    this.busy = false;
+    this.pendingInputAt = null;    // the first gesture not yet on screen (performance.now())
+    this.job = null;               // the frame being traced, band by band
+    this.jobSeq = 0;
+    this.planner = new BandPlanner();
     this.dataMs = { build: null, upload: null, fetch: null };
+    this.counts = { traced: 0, cancelled: 0, bands: 0, lastBands: 0, lastRows: 0 };
   }
 
   // Can this browser run the tracer? {ok, reason?, renderer?, maxTextureSize?, colorBufferFloat?}
@@ -437,7 +135,7 @@ export class DeviceView {
   }
 
   get idle() {
-    return !this.raf && this.refineTimer === null && !this.loading && !this.busy;
+    return !this.raf && this.refineTimer === null && !this.loading && !this.job;
   }
 
   _dataKey(s, params) {
@@ -472,18 +170,19 @@ export class DeviceView {
       const parsed = parseDeviceData(await res.arrayBuffer());
       const t1 = performance.now();
       const h = parsed.header;
-      const [fs, vs] = await Promise.all([
-        this._text(h.shader.url),
-        this._text('/api/shader?stage=vertex'),
-      ]);
+      const [fs, vs] = await Promise.all([this._text(h.shader.url), this._text('/api/shader?stage=vertex')]);
       const t2 = performance.now();
+      if (this.job) this._cancel(this.job);   // its textures are about to be replaced
       const prog = this.renderer.program(vs, fs);
       this.renderer.load(parsed);
+      this.planner.reset();
       this.dataMs = { build: h.build_ms, fetch: t1 - t0, upload: performance.now() - t2 };
       this.prog = prog;
       this.key = key;
       this.stats = h.stats;
       this.method = h.method;
+      this.mode = h.shader.mode;
+      this.n = h.uniforms.u_num_spheres;
       this.home = h.home_camera;
       // The data's camera is the server's: adopt it unless local gestures happened meanwhile.
       if (sessionChanged || !this.camera || this.localSeq === seqAtStart) {
@@ -504,31 +203,113 @@ export class DeviceView {
     return res.text();
   }
 
-  _size(level) {
-    const { render, client } = this.getState();
-    return level === 'full' ? { width: render.width, height: render.height }
+  // What a level traces: size, sub-pixels and ε — the server's frames at the same profile.
+  _profile(level) {
+    const { render, client, profiles } = this.getState();
+    const fast = (profiles && profiles.interactive) || {};
+    const full = level === 'full';
+    const { width, height } = full ? { width: render.width, height: render.height }
       : previewSize(render.width, render.height, client.previewScale);
+    const samples = full ? render.samples_per_pixel ?? 1 : fast.samples_per_pixel ?? render.samples_per_pixel ?? 1;
+    const minWeight = full ? render.min_weight ?? 0 : fast.min_weight ?? render.min_weight ?? 0;
+    // depth, primid and normal are one ray through each pixel centre at any samples per pixel
+    // (docs/FORMATS.md); the averaged images trace the sub-pixels.
+    const averaged = AVERAGED_MODES.includes(render.mode);
+    const k = averaged ? subpixels(samples, width, height, this.renderer.maxTextureSize) : 1;
+    return { width, height, k, samples: k * k, minWeight };
   }
 
-  // Render the local camera now at `level` (the app's transport.frame in device mode). → a frame
-  // for the app's display: {image: canvas, renderer: 'device', …}.
+  // Whether a preview differs from the full frame (else gestures trace full frames directly).
+  previewDiffers() {
+    const a = this._profile('preview'), b = this._profile('full');
+    return a.width !== b.width || a.k !== b.k || a.minWeight !== b.minWeight;
+  }
+
+  // Render the local camera at `level` (the app's transport.frame in device mode). → a frame
+  // for the app's display ({image: canvas, renderer: 'device', …}), or null when a gesture
+  // cancelled it (the gesture's own frame follows).
   async frame(level = 'full') {
     const p = this.probe();
     if (!p.ok) throw new DeviceUnavailable(p.reason);
+    const t0 = performance.now();
     await this.ensure();
-    return this._render(level);
+    return this._start(level, t0);
   }
 
-  _render(level) {
-    const t0 = performance.now();
-    const { width, height } = this._size(level);
-    const fresh = this.dataMs;
+  // Start tracing a frame of the local camera (cancelling the one in progress). → Promise.
+  _start(level, t0) {
+    if (this.job) this._cancel(this.job);
+    const p = this._profile(level);
+    const uniforms = { ...cameraUniforms(this.camera, p.width * p.k, p.height * p.k), u_min_weight: p.minWeight };
+    const trace = this.renderer.beginTrace(this.prog, { width: p.width, height: p.height, k: p.k, uniforms });
+    const inputAt = this.pendingInputAt;
+    this.pendingInputAt = null;
+    const data = this.dataMs;
     this.dataMs = { build: null, upload: null, fetch: null };   // reported once, with the frame after a load
-    const ms = this.renderer.render(this.prog, width, height, this.camera);
+    const job = {
+      id: ++this.jobSeq, level, trace, profile: p, camera: this.camera, version: this.version, data,
+      t0: inputAt ?? t0, inputAt, rowsDone: 0, rowsTotal: trace.rowsTotal, done: false, cancelled: false, raf: null,
+    };
+    job.promise = new Promise((resolve, reject) => { job.resolve = resolve; job.reject = reject; });
+    this.job = job;
+    this._band(job);   // the first band now; the others one per animation frame
+    return job.promise;
+  }
+
+  _band(job) {
+    job.raf = null;
+    if (job.done) return;
+    try {
+      const t = job.trace;
+      const rows = this.planner.rows(t.tw, t.th - t.rowsDone);
+      const ms = this.renderer.traceBand(t, rows);
+      this.planner.record(rows * t.tw, ms);
+      this.counts.bands++;
+      this.counts.lastRows = Math.max(this.counts.lastRows, rows);
+      job.rowsDone = t.rowsDoneTotal;
+      if (!t.done) {
+        job.raf = requestAnimationFrame(() => this._band(job));
+        return;
+      }
+      const displayMs = this.renderer.finishTrace(t);
+      job.done = true;
+      if (this.job === job) this.job = null;
+      this.counts.traced++;
+      this.counts.lastBands = t.bands;
+      job.resolve(this._frameOf(job, displayMs));
+    } catch (e) {
+      job.done = true;
+      if (this.job === job) this.job = null;
+      job.reject(e);
+    }
+  }
+
+  _cancel(job) {
+    if (job.done) return;
+    job.done = job.cancelled = true;
+    if (job.raf !== null) cancelAnimationFrame(job.raf);
+    if (this.job === job) this.job = null;
+    this.counts.cancelled++;
+    // Its gestures are not on screen yet: the next frame answers for them.
+    if (job.inputAt !== null) this.pendingInputAt = Math.min(job.inputAt, this.pendingInputAt ?? Infinity);
+    if (job.data.fetch !== null && this.dataMs.fetch === null) this.dataMs = job.data;   // … and its data's timings
+    job.resolve(null);
+  }
+
+  _frameOf(job, displayMs) {
+    const t = job.trace, p = job.profile;
     return {
       image: this.renderer.canvas, renderer: 'device', rendererInfo: `WebGL2 ${this.renderer.rendererName}`,
-      version: this.version, method: this.method, stats: this.stats, contentType: 'webgl2', t0,
-      timing: { build: fresh.build, upload: fresh.upload, trace: ms.trace, read: ms.display, network: fresh.fetch },
+      version: job.version, method: this.method, stats: this.stats, contentType: 'webgl2', t0: job.t0,
+      camera: job.camera,
+      meta: {
+        sessionId: this.key ? this.key.split('|')[0] : null, n: this.n, mode: this.mode, method: this.method,
+        samples: p.samples, minWeight: p.minWeight,
+      },
+      timing: {
+        build: job.data.build, upload: job.data.upload, network: job.data.fetch,
+        trace: t.traceMs, bands: t.bands, display: displayMs,
+      },
     };
   }
 
@@ -538,9 +319,10 @@ export class DeviceView {
     this.camera = applyGesture(this.camera, g, { viewportHeight: this.viewportHeight(), home: this.home });
     this.localSeq++;
     this.lastGestureAt = performance.now();
+    if (this.pendingInputAt === null) this.pendingInputAt = this.lastGestureAt;
+    if (cancelsFrame(this.job)) this._cancel(this.job);
     this._cancelRefine();
-    const { client } = this.getState();
-    this._schedule(client.previewScale < 1 ? 'preview' : 'full');
+    this._schedule(this.previewDiffers() ? 'preview' : 'full');
   }
 
   // The server's answer to the last gesture request of a batch ({version, camera}). With no
@@ -562,19 +344,18 @@ export class DeviceView {
     this.raf = null;
     const level = this.level || 'full';
     this.level = null;
-    if (this.busy) return this._schedule(level);   // the previous frame is still being shown
-    this.busy = true;
+    if (this.job || this.loading) return this._schedule(level);   // a frame past half-way finishes first
+    let frame;
     try {
       await this.ensure();   // at once when the data is current
-      await this.displayFrame(this._render(level), level);
+      frame = await this._start(level, performance.now());
+      if (frame) await this.displayFrame(frame, level);
     } catch (e) {
       if (e && e.status === 404) return;   // the session expired: the app's scheduler handles it
       this.onFallback(e.message || String(e));
       return;
-    } finally {
-      this.busy = false;
     }
-    if (level === 'preview') this._scheduleRefine();
+    if (frame && level === 'preview' && !this.raf) this._scheduleRefine();
   }
 
   _cancelRefine() {
@@ -592,29 +373,34 @@ export class DeviceView {
     }, wait);
   }
 
-  // Leaving device mode: nothing scheduled any more.
+  // Leaving device mode: nothing scheduled or traced any more.
   stop() {
     this._cancelRefine();
     if (this.raf) cancelAnimationFrame(this.raf);
     this.raf = null;
     this.level = null;
+    if (this.job) this._cancel(this.job);
   }
 
   // ---- test and benchmark hooks: window.pocketray.device -------------------------------------
-  // bench({session, width, height, frames, budgetMs, method, mode, …}): load once, then render the
-  // server camera `frames` times (within budgetMs). → {load, first, times} in ms; each time is
-  // one trace (waited for with a one-pixel read-back) plus the display pass.
+  // bench({session, width, height, frames, budgetMs, samples_per_pixel, min_weight, method, mode, …}):
+  // load once, then render the server camera `frames` times (within budgetMs), each frame in one
+  // band. → {load, first, times} in ms; each time is one trace (waited for with a one-pixel
+  // read-back) plus the resolve and display passes.
   async bench(params = {}) {
     const p = this.probe();
     if (!p.ok) throw new Error(p.reason);
-    const { width, height, frames = 5, budgetMs = 20000, ...rest } = params;
+    const { width, height, frames = 5, budgetMs = 20000, samples_per_pixel: spp = 1, min_weight: eps = 0, ...rest } = params;
+    this.stop();
     this.key = null;
     const t0 = performance.now();
     await this.ensure(rest);
     const load = { total: performance.now() - t0, ...this.dataMs };
     const camera = this.renderer.header.camera;
+    const k = subpixels(spp, width, height, this.renderer.maxTextureSize);
+    const uniforms = { ...cameraUniforms(camera, width * k, height * k), u_min_weight: eps };
     const one = () => {
-      const ms = this.renderer.render(this.prog, width, height, camera);
+      const ms = this.renderer.render(this.prog, { width, height, k, uniforms });
       return ms.trace + ms.display;
     };
     const first = one();           // some drivers compile lazily, at the first draw
@@ -629,20 +415,33 @@ export class DeviceView {
     return { load, first, times, renderer: this.renderer.rendererName };
   }
 
-  // ---- test hook: window.pocketray.device ----------------------------------------------------
-  // renderOnce({width, height, method, mode, max_prims, max_tree_depth, max_recursion_depth,
-  // max_texture_size, session}) renders the session's current (server) camera and reads it back
-  // (session: another session's id; default the page's).
-  // → {width, height, primid: base64 Int32 H×W, colour: base64 uint8 H×W×3, infoLog, renderer,
-  //    textures, shader, camera, basis, ms}
+  // renderOnce({width, height, samples_per_pixel, min_weight, method, mode, max_prims, max_tree_depth,
+  // max_recursion_depth, max_texture_size, session, band_ms, between}) renders the session's current
+  // (server) camera in bands, as a live frame is traced, and reads it back (session: another
+  // session's id; default the page's; band_ms: the bands' budget; between: 'frame' (the next
+  // animation frame, as live frames) or 'task' — for benchmarks). → {width, height, primid: base64 Int32 H×W, colour: base64 uint8 H×W×3, infoLog,
+  //   renderer, textures, shader, camera, basis, bands, …}
   async renderOnce(params = {}) {
     const p = this.probe();
     if (!p.ok) throw new Error(p.reason);
-    const { width, height, ...rest } = params;
+    const { width, height, samples_per_pixel: spp = 1, min_weight: eps = 0, band_ms: bandMs, between = 'frame', ...rest } = params;
+    this.stop();
     this.key = null;                       // the live view reloads its own data afterwards
     await this.ensure(rest);
+    const planner = bandMs ? new BandPlanner({ budgetMs: bandMs }) : this.planner;
+    const wait = between === 'task' ? nextTask : nextAnimationFrame;
+    const t0 = performance.now();
     const camera = this.renderer.header.camera;
-    const ms = this.renderer.render(this.prog, width, height, camera);
+    const k = subpixels(spp, width, height, this.renderer.maxTextureSize);
+    const uniforms = { ...cameraUniforms(camera, width * k, height * k), u_min_weight: eps };
+    const trace = this.renderer.beginTrace(this.prog, { width, height, k, uniforms });
+    while (!trace.done) {
+      const rows = planner.rows(trace.tw, trace.th - trace.rowsDone);
+      planner.record(rows * trace.tw, this.renderer.traceBand(trace, rows));
+      if (!trace.done) await wait();
+    }
+    this.renderer.finishTrace(trace);
+    const ms = { total: performance.now() - t0, trace: trace.traceMs };
     const rb = this.renderer.readback();
     this.key = null;
     const h = this.renderer.header;
@@ -650,8 +449,8 @@ export class DeviceView {
       width: rb.width, height: rb.height, primid: toBase64(rb.primid), colour: toBase64(rb.colour),
       infoLog: this.prog.logs, renderer: `WebGL2 ${this.renderer.rendererName}`, textures: h.textures.map(
         ({ name, width: w, height: hh, internal_format }) => ({ name, width: w, height: hh, internal_format })),
-      shader: h.shader, camera, basis: cameraBasis(camera), serverUniforms: h.uniforms, ms,
-      maxTextureSize: this.renderer.maxTextureSize,
+      shader: h.shader, camera, basis: cameraBasis(camera), serverUniforms: h.uniforms, bands: trace.bands, ms,
+      subpixels: k, maxTextureSize: this.renderer.maxTextureSize,
     };
   }
 }

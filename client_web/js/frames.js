@@ -3,7 +3,7 @@
 //  - At most one request in flight per client (gestures, frames, settings and
 //    session changes all go through here, in order).
 //  - Gestures that arrive while one is in flight are merged: pan dx/dy add up,
-//    pinch scales multiply, a reset discards what came before it. When the
+//    pinch scales multiply, orbit yaw/pitch add up, a reset discards what came before it. When the
 //    request returns, the merged gesture goes as one (one request per gesture
 //    type that accumulated; only the last one asks for the frame).
 //  - While the finger moves, frames come at the *preview* level (reduced
@@ -24,7 +24,7 @@
 // A frame is {version, ...anything display needs}.
 
 export function emptyGesture() {
-  return { reset: false, scale: 1, dx: 0, dy: 0 };
+  return { reset: false, scale: 1, dx: 0, dy: 0, yaw: 0, pitch: 0 };
 }
 
 // Merge one gesture into an accumulated one (in place); returns it.
@@ -34,19 +34,27 @@ export function mergeGesture(acc, g) {
     acc.scale = 1;
     acc.dx = 0;
     acc.dy = 0;
+    acc.yaw = 0;
+    acc.pitch = 0;
   } else if (g.type === 'pinch') {
     if (Number.isFinite(g.scale) && g.scale > 0) acc.scale *= g.scale;
   } else if (g.type === 'pan') {
     acc.dx += g.dx || 0;
     acc.dy += g.dy || 0;
+  } else if (g.type === 'orbit') {
+    if (Number.isFinite(g.yaw)) acc.yaw += g.yaw;
+    if (Number.isFinite(g.pitch)) acc.pitch += g.pitch;
   }
   return acc;
 }
 
-// The requests an accumulated gesture needs, in order (reset, pinch, pan).
+// The requests an accumulated gesture needs, in order (reset, orbit, pinch, pan). Yaw goes
+// modulo a turn and pitch within ±180° (the service takes ±360° and clamps pitch at the poles).
 export function gestureOps(acc, eps = 1e-6) {
   const ops = [];
   if (acc.reset) ops.push({ type: 'reset' });
+  const yaw = ((acc.yaw % 360) + 540) % 360 - 180, pitch = Math.max(-180, Math.min(180, acc.pitch));
+  if (Math.abs(yaw) > eps || Math.abs(pitch) > eps) ops.push({ type: 'orbit', yaw, pitch });
   if (Math.abs(acc.scale - 1) > eps) ops.push({ type: 'pinch', scale: acc.scale });
   if (Math.abs(acc.dx) > eps || Math.abs(acc.dy) > eps) ops.push({ type: 'pan', dx: acc.dx, dy: acc.dy });
   return ops;
@@ -85,7 +93,8 @@ export class FrameScheduler {
       this.refineTimer === null;
   }
 
-  // A gesture from the user: {type: 'pan', dx, dy} | {type: 'pinch', scale} | {type: 'reset'}.
+  // A gesture from the user: {type: 'pan', dx, dy} | {type: 'pinch', scale} | {type: 'orbit', yaw, pitch}
+  // | {type: 'reset'}.
   gesture(g) {
     this.pending = mergeGesture(this.pending || emptyGesture(), g);
     if (gestureOps(this.pending).length === 0) this.pending = null;
@@ -176,7 +185,7 @@ export class FrameScheduler {
     try {
       this.requests++;
       const frame = await this.transport.frame(level);
-      await this._offer(frame, seq, level);
+      if (frame) await this._offer(frame, seq, level);   // null: cancelled by a gesture (device mode)
     } catch (e) {
       this.onError(e, 'frame');
     } finally {
@@ -213,7 +222,7 @@ export class FrameScheduler {
           const r = await this.transport.gesture(ops[i], last ? 'preview' : null);
           if (last) frame = r;
         }
-        if (frame) await this._offer(frame, seq, 'preview');
+        if (frame) await this._offer(frame, seq, 'preview');   // null: nothing to show (device mode)
       } catch (e) {
         this.onError(e, 'gesture');
       } finally {

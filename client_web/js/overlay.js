@@ -1,8 +1,12 @@
-// The statistics overlay: frames/s, time to image (client total and the
-// server's update (build) / upload / trace / encode from Server-Timing), BIH nodes and
-// depth, method, n. The user can hide it; the choice is remembered.
+// The statistics overlay: one line (frames/s · time to image) that a tap opens into the
+// details — who rendered, the time split (server: update / upload / trace / encode /
+// queue+read / network from Server-Timing; device: update / upload / trace in bands /
+// display / data fetch), the tree, method, n, frame size, samples. Everything describes
+// the frame on screen (app.js passes what that frame was rendered with), never the
+// request still on its way. The user can hide it; both choices are remembered.
 
 const HIDDEN_KEY = 'pocketray.overlayHidden';
+const EXPANDED_KEY = 'pocketray.overlayExpanded';
 
 // Frames per second over the frames shown in the last `windowMs`.
 export class FpsMeter {
@@ -23,22 +27,37 @@ export class FpsMeter {
   }
 }
 
-const fmtMs = (v) => (v == null || !Number.isFinite(v) ? '–' : v < 10 ? v.toFixed(1) : Math.round(v).toString());
+export const fmtMs = (v) => (v == null || !Number.isFinite(v) ? '–' : v < 10 ? v.toFixed(1) : Math.round(v).toString());
+
+function remembered(key) {
+  try {
+    return localStorage.getItem(key) === '1';
+  } catch {
+    return false;
+  }
+}
+
+function remember(key, on) {
+  try {
+    localStorage.setItem(key, on ? '1' : '0');
+  } catch { /* private mode */ }
+}
 
 export class Overlay {
   constructor(root, toggleButton) {
     this.root = root;
     this.toggle = toggleButton;
+    this.summary = root.querySelector('#overlay-summary');
+    this.details = root.querySelector('#overlay-details');
     this.meter = new FpsMeter();
     this.fields = {};
+    this.lastMs = null;
     for (const el of root.querySelectorAll('[data-field]')) this.fields[el.dataset.field] = el;
-    let hidden = false;
-    try {
-      hidden = localStorage.getItem(HIDDEN_KEY) === '1';
-    } catch { /* ignore */ }
-    this.setHidden(hidden);
+    this.setHidden(remembered(HIDDEN_KEY));
+    this.setExpanded(remembered(EXPANDED_KEY));
     toggleButton.addEventListener('click', () => this.setHidden(!this.hidden));
-    this._timer = setInterval(() => this._set('fps', this._fpsText()), 500);
+    this.summary.addEventListener('click', () => this.setExpanded(!this.expanded));
+    this._timer = setInterval(() => this._tickFps(), 500);
   }
 
   setHidden(hidden) {
@@ -47,9 +66,16 @@ export class Overlay {
     this.toggle.setAttribute('aria-pressed', String(!hidden));
     this.toggle.setAttribute('aria-label', hidden ? 'Show statistics' : 'Hide statistics');
     this.toggle.title = hidden ? 'Show statistics' : 'Hide statistics';
-    try {
-      localStorage.setItem(HIDDEN_KEY, hidden ? '1' : '0');
-    } catch { /* ignore */ }
+    remember(HIDDEN_KEY, hidden);
+  }
+
+  // Compact (one line) or with the details.
+  setExpanded(expanded) {
+    this.expanded = expanded;
+    this.details.hidden = !expanded;
+    this.summary.setAttribute('aria-expanded', String(expanded));
+    this.summary.title = expanded ? 'Statistics: tap to fold' : 'Statistics: tap for details';
+    remember(EXPANDED_KEY, expanded);
   }
 
   _set(name, text) {
@@ -62,34 +88,51 @@ export class Overlay {
     return f == null ? '–' : f.toFixed(1);
   }
 
-  // info: {level, width, height, clientMs, timing: {update, build, upload, trace, encode, total}, stats, method, n,
-  //        version, time (an animation's scene time, s, or null), playing,
+  _tickFps() {
+    this._set('fps', this._fpsText());
+    this._set('summary', `${this._fpsText()} fps · ${fmtMs(this.lastMs)} ms`);
+  }
+
+  // info: {level, width, height, clientMs, timing, stats, method, n, version, samples, minWeight,
+  //        time (an animation's scene time, s, or null), playing, renderer: 'server' | 'device',
   //        renderedBy: 'server (<GL renderer>)' | 'device (WebGL2 <renderer>)'}
   frame(info) {
     this.meter.tick(performance.now());
     const t = info.timing || {};
     const s = info.stats || {};
-    this._set('fps', this._fpsText());
+    const device = info.renderer === 'device';
+    this.lastMs = info.clientMs;
+    for (const row of this.details.querySelectorAll('[data-for]')) row.hidden = row.dataset.for !== (device ? 'device' : 'server');
+    this._tickFps();
     this._set('time', `${fmtMs(info.clientMs)} ms`);
     this._set('build', fmtMs(t.update ?? t.build));   // rebuild, refit or selective rebuild: the method's update
     this._set('upload', fmtMs(t.upload));
     this._set('trace', fmtMs(t.trace));
-    this._set('encode', fmtMs(t.encode));
-    const parts = ['build', 'upload', 'trace', 'encode'].map((k) => t[k]).filter(Number.isFinite);
-    this._set('other', t.total != null ? fmtMs(Math.max(0, t.total - parts.reduce((x, y) => x + y, 0))) : '–');
-    const net = info.clientMs != null && t.total != null ? Math.max(0, info.clientMs - t.total) : null;
-    this._set('network', fmtMs(net));
-    const nodes = s.inner_nodes != null || s.leaves != null
-      ? `${s.inner_nodes ?? '–'} + ${s.leaves ?? '–'}` : '–';
+    if (device) {
+      this._set('bands', t.bands != null ? String(t.bands) : '–');
+      this._set('display', fmtMs(t.display));
+      this._set('network', fmtMs(t.network));   // the data's fetch (with the server's build)
+    } else {
+      this._set('encode', fmtMs(t.encode));
+      const parts = ['build', 'upload', 'trace', 'encode'].map((k) => t[k]).filter(Number.isFinite);
+      this._set('other', t.total != null ? fmtMs(Math.max(0, t.total - parts.reduce((x, y) => x + y, 0))) : '–');
+      const net = info.clientMs != null && t.total != null ? Math.max(0, info.clientMs - t.total) : null;
+      this._set('network', fmtMs(net));
+    }
+    const netLabel = this.details.querySelector('[data-label="network"]');
+    if (netLabel) netLabel.textContent = device ? 'data fetch' : 'network';
+    const nodes = s.inner_nodes != null || s.leaves != null ? `${s.inner_nodes ?? '–'} + ${s.leaves ?? '–'}` : '–';
     this._set('nodes', nodes);
     this._set('depth', s.depth_max != null ? String(s.depth_max) : '–');
     this._set('method', info.method || s.method || '–');
     this._set('n', info.n != null ? String(info.n) : '–');
     this._set('res', `${info.width}×${info.height} ${info.level === 'full' ? 'full' : 'preview'}`);
+    this._set('samples', info.samples != null
+      ? `${info.samples} spp${info.minWeight != null ? `, ε ${info.minWeight}` : ''}` : '–');
     this._set('version', info.version != null ? String(info.version) : '–');
     this._set('anim', info.time != null ? `${info.time.toFixed(2)} s${info.playing ? ' ▶' : ''}` : '–');
-    const by = info.renderedBy || '–';   // long GPU names are cut here; the whole one is the title
-    this._set('renderer', by.length > 34 ? `${by.slice(0, 33)}…)` : by);
+    const by = info.renderedBy || '–';   // one line; the whole name is the title
+    this._set('renderer', by);
     if (this.fields.renderer) this.fields.renderer.title = by;
   }
 }

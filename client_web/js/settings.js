@@ -1,5 +1,6 @@
-// Settings: the lists the client offers (kept here, in one place), URL
-// parameters, the client-side levels (preview / full), and the settings panel.
+// Settings: the lists and labels the client offers (kept here, in one place), URL
+// parameters and the client-side levels (preview / full). The panel is panel.js; the
+// form's limits are limits.js.
 //
 // Scene parameters (scenario, n, seed, radius) are fixed when a session is made,
 // so changing them makes a new session; render settings are PATCHed onto the
@@ -43,6 +44,13 @@ export const RESOLUTIONS = Object.freeze([
   { value: '1280x720', label: '1280 × 720' },
   { value: 'custom', label: 'Custom…' },
 ]);
+// Samples per pixel (GET /api/info lists the service's); 4 is the 'still' profile's.
+export const SAMPLES = Object.freeze([
+  { value: 1, label: '1 — fastest' },
+  { value: 4, label: '4 — smooth edges (still)' },
+  { value: 9, label: '9' },
+  { value: 16, label: '16 — finest' },
+]);
 export const PREVIEW_SCALES = Object.freeze([
   { value: 1, label: 'Full (no preview)' },
   { value: 0.5, label: '½' },
@@ -51,6 +59,19 @@ export const PREVIEW_SCALES = Object.freeze([
 ]);
 
 export const DEFAULT_SCENE = Object.freeze({ scenario: 1, n: 512, seed: 1, radius: 1, motion: 'deformable' });
+// The museum's n counts moving spheres, on top of its room's 576: a thesis n of thousands would
+// make a crowd (and a first frame of many seconds), so each kind keeps its own n.
+export const DEFAULT_MUSEUM_N = 64;
+
+// The panel's words for each setting: every message the client shows names settings by these.
+export const FIELD_LABELS = Object.freeze({
+  scenario: 'Scenario', motion: 'Motion', n: 'Spheres (n)', seed: 'Seed', radius: 'Radius',
+  renderer: 'Rendered by', method: 'Method', mode: 'Mode', samples_per_pixel: 'Quality (samples per pixel)',
+  max_recursion_depth: 'Recursion depth', max_prims: 'Max primitives per leaf', max_tree_depth: 'Max tree depth',
+  tile_size: 'Tile size', update: 'Between animation frames', resolution: 'Full resolution', width: 'Width',
+  height: 'Height', previewScale: 'While moving (preview)', previewFormat: 'Preview format',
+  previewQuality: 'Preview JPEG quality', refineDelayMs: 'Refine after (ms)',
+});
 export const DEFAULT_CLIENT = Object.freeze({
   resolution: 'fit',       // 'fit' | 'WxH' | 'custom'
   previewScale: 0.5,       // preview resolution = full × this, while a gesture goes on
@@ -63,8 +84,9 @@ export const DEFAULT_CLIENT = Object.freeze({
   renderer: 'server',      // 'server' | 'device' (the same tracer in WebGL2, issue #10)
 });
 export const RENDER_KEYS = Object.freeze(['method', 'mode', 'max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height',
-  'update']);
-const INT_KEYS = new Set(['scenario', 'n', 'seed', 'max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height']);
+  'update', 'samples_per_pixel', 'min_weight', 'tile_size']);
+const INT_KEYS = new Set(['scenario', 'n', 'seed', 'max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height',
+  'samples_per_pixel', 'tile_size']);
 
 const CLIENT_KEY = 'pocketray.client';
 
@@ -91,7 +113,7 @@ export function readUrlParams(search) {
   if (q.get('scenario') === 'museum') scene.scenario = 'museum';
   if (MUSEUM_KINDS.some((m) => m.value === q.get('motion'))) scene.motion = q.get('motion');
   if (UPDATE_SCHEMES.some((m) => m.value === q.get('update'))) render.update = q.get('update');
-  for (const k of ['max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height']) {
+  for (const k of ['max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height', 'samples_per_pixel', 'tile_size']) {
     if (q.has(k) && Number.isFinite(num(k))) render[k] = num(k);
   }
   for (const k of ['method', 'mode']) if (q.get(k)) render[k] = q.get(k);
@@ -122,147 +144,4 @@ export function parseResolution(value) {
 export function previewSize(width, height, scale) {
   const s = scale > 0 && scale <= 1 ? scale : 1;
   return { width: Math.max(8, Math.round(width * s)), height: Math.max(8, Math.round(height * s)) };
-}
-
-function fillSelect(select, items, labelOf = (v) => v) {
-  const cur = select.value;
-  select.replaceChildren(...items.map((it) => {
-    const o = document.createElement('option');
-    const value = typeof it === 'object' ? it.value : it;
-    o.value = String(value);
-    o.textContent = typeof it === 'object' ? it.label : labelOf(it);
-    return o;
-  }));
-  if (cur) select.value = cur;
-}
-
-// The panel. callbacks: onScene(scene), onRender(partial), onClient(partial).
-export class SettingsPanel {
-  constructor(root, openButton, callbacks) {
-    this.root = root;
-    this.openButton = openButton;
-    this.cb = callbacks;
-    this.form = root.querySelector('form');
-    this.el = (name) => this.form.elements.namedItem(name);
-    fillSelect(this.el('scenario'), SCENARIOS);
-    fillSelect(this.el('motion'), MUSEUM_KINDS);
-    fillSelect(this.el('update'), UPDATE_SCHEMES);
-    fillSelect(this.el('method'), FALLBACK_METHODS, (m) => METHOD_LABELS[m] || m);
-    fillSelect(this.el('mode'), MODES, (m) => MODE_LABELS[m] || m);
-    fillSelect(this.el('resolution'), RESOLUTIONS);
-    fillSelect(this.el('previewScale'), PREVIEW_SCALES);
-
-    openButton.addEventListener('click', () => this.setOpen(!this.open));
-    root.querySelector('[data-close]').addEventListener('click', () => this.setOpen(false));
-    root.addEventListener('keydown', (e) => {
-      if (e.key === 'Escape') this.setOpen(false);
-    });
-    this.form.addEventListener('submit', (e) => e.preventDefault());
-    this.form.addEventListener('change', (e) => this._changed(e.target));
-    this.setOpen(false);
-  }
-
-  setOpen(open) {
-    this.open = open;
-    this.root.hidden = !open;
-    this.openButton.setAttribute('aria-expanded', String(open));
-    if (open) this.el('scenario').focus({ preventScroll: true });
-  }
-
-  setMethods(list) {
-    fillSelect(this.el('method'), list, (m) => METHOD_LABELS[m] || m);
-  }
-
-  setModes(list) {
-    fillSelect(this.el('mode'), list, (m) => MODE_LABELS[m] || m);
-  }
-
-  // The service's limits (GET /api/info) as the form's bounds.
-  setLimits(limits) {
-    if (limits.max_spheres) this.el('n').max = String(limits.max_spheres);
-    if (limits.max_image_side) {
-      this.el('width').max = String(limits.max_image_side);
-      this.el('height').max = String(limits.max_image_side);
-    }
-  }
-
-  // Show the current state: {scene, render, client}.
-  show({ scene, render, client }) {
-    const set = (name, v) => {
-      const el = this.el(name);
-      if (el && v !== undefined && v !== null && document.activeElement !== el) el.value = String(v);
-    };
-    for (const k of ['scenario', 'n', 'seed', 'radius', 'motion']) set(k, scene[k]);
-    this._museumVisible();
-    for (const k of ['method', 'mode', 'max_prims', 'max_tree_depth', 'max_recursion_depth', 'update']) set(k, render[k]);
-    const known = RESOLUTIONS.some((r) => r.value === client.resolution);
-    set('resolution', known ? client.resolution : 'custom');
-    set('width', render.width);
-    set('height', render.height);
-    this._customVisible();
-    const scale = PREVIEW_SCALES.find((p) => Math.abs(p.value - client.previewScale) < 1e-6);
-    if (!scale) {
-      const o = document.createElement('option');
-      o.value = String(client.previewScale);
-      o.textContent = `×${client.previewScale}`;
-      this.el('previewScale').append(o);
-    }
-    set('previewScale', scale ? scale.value : client.previewScale);
-    set('previewFormat', client.previewFormat);
-    set('previewQuality', client.previewQuality);
-    set('refineDelayMs', client.refineDelayMs);
-    set('renderer', client.renderer);
-  }
-
-  _museumVisible() {
-    const museum = this.el('scenario').value === 'museum';
-    for (const el of this.root.querySelectorAll('[data-museum]')) el.hidden = !museum;
-  }
-
-  _customVisible() {
-    const custom = this.el('resolution').value === 'custom';
-    for (const el of this.root.querySelectorAll('[data-custom-resolution]')) el.hidden = !custom;
-  }
-
-  _changed(target) {
-    const name = target.name;
-    if (!name || !target.checkValidity()) {
-      target.reportValidity?.();
-      return;
-    }
-    const v = target.value;
-    const int = () => parseInt(v, 10);
-    if (['scenario', 'n', 'seed', 'radius', 'motion'].includes(name)) {
-      const f = this.form.elements;
-      this._museumVisible();
-      this.cb.onScene({
-        scenario: f.scenario.value === 'museum' ? 'museum' : parseInt(f.scenario.value, 10), n: parseInt(f.n.value, 10),
-        seed: parseInt(f.seed.value, 10), radius: parseFloat(f.radius.value), motion: f.motion.value,
-      });
-    } else if (['method', 'mode', 'update'].includes(name)) {
-      this.cb.onRender({ [name]: v });
-    } else if (['max_prims', 'max_tree_depth', 'max_recursion_depth'].includes(name)) {
-      this.cb.onRender({ [name]: int() });
-    } else if (name === 'resolution') {
-      this._customVisible();
-      if (v === 'custom') {
-        this.cb.onClient({ resolution: 'custom' });
-      } else {
-        this.cb.onClient({ resolution: v });
-      }
-    } else if (name === 'width' || name === 'height') {
-      this.cb.onClient({ resolution: 'custom' });
-      this.cb.onRender({ [name]: int() });
-    } else if (name === 'previewScale') {
-      this.cb.onClient({ previewScale: parseFloat(v) });
-    } else if (name === 'previewFormat') {
-      this.cb.onClient({ previewFormat: v });
-    } else if (name === 'previewQuality') {
-      this.cb.onClient({ previewQuality: int() });
-    } else if (name === 'refineDelayMs') {
-      this.cb.onClient({ refineDelayMs: int() });
-    } else if (name === 'renderer') {
-      this.cb.onClient({ renderer: v });
-    }
-  }
 }

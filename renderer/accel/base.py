@@ -53,12 +53,15 @@ class Capabilities:
     tests_every_sphere: no hierarchy over the primitives — a frame costs rays × spheres.
     update_schemes: how it can follow an animation from its previous frame
     (:data:`renderer.tree_update.UPDATE_SCHEMES`); ``("rebuild",)`` = always rebuilds.
+    settings: the render settings its build or passes read (``max_prims``,
+    ``max_tree_depth``, ``tile_size``, ``update``…): a client shows only these.
     """
     multi_pass: bool = False
     shader: str | None = None
     modes: tuple[str, ...] = SINGLE_PASS_MODES
     tests_every_sphere: bool = False
     update_schemes: tuple[str, ...] = ("rebuild",)
+    settings: tuple[str, ...] = ()
 
     @property
     def device(self) -> bool:

@@ -667,7 +667,8 @@ class BVHMethod:
     are unchanged. The last ``CACHE_SLOTS`` keys are kept.
     """
     name = "bvh"
-    capabilities = Capabilities(shader="method_bvh.glsl", update_schemes=UPDATE_SCHEMES)
+    capabilities = Capabilities(shader="method_bvh.glsl", update_schemes=UPDATE_SCHEMES,
+                                settings=("max_prims", "max_tree_depth", "update"))
     bindings = L.BINDINGS
     glsl_defines = staticmethod(L.glsl_defines)
     CACHE_SLOTS = 8

@@ -445,7 +445,7 @@ class KdTreeMethod:
     """Method ``kdtree``: the SAH kd-tree of this module (cost scaling on), rebuilt per request,
     traced by ``shaders/method_kdtree.glsl``. ``max_prims`` is not used: the SAH decides."""
     name = "kdtree"
-    capabilities = Capabilities(shader="method_kdtree.glsl")
+    capabilities = Capabilities(shader="method_kdtree.glsl", settings=("max_tree_depth",))   # the SAH decides leaves
     bindings = L.BINDINGS
     glsl_defines = staticmethod(L.glsl_defines)
     cost_scale = DEFAULT_COST_SCALE

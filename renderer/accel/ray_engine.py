@@ -41,7 +41,7 @@ class HierarchicalRayEngine(RayEngine):
     Its ``cones`` mode shows the cones."""
     name = "hre"
     hierarchical = True
-    capabilities = Capabilities(multi_pass=True, modes=MODES, tests_every_sphere=True)
+    capabilities = Capabilities(multi_pass=True, modes=MODES, tests_every_sphere=True, settings=("tile_size",))
 
     def tile(self, tile_size: int) -> int:
         """The tile side, the ``tile_size`` setting (the settings bound it by ``limits``; the

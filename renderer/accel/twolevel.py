@@ -30,7 +30,8 @@ class TwoLevelMethod:
     it every sphere counts as static (a plain scene has no motion).
     """
     name = "twolevel"
-    capabilities = Capabilities(shader="method_twolevel.glsl", update_schemes=UPDATE_SCHEMES)
+    capabilities = Capabilities(shader="method_twolevel.glsl", update_schemes=UPDATE_SCHEMES,
+                                settings=("max_prims", "max_tree_depth", "update"))
     bindings = (*kdtree_layout.BINDINGS, *bvh_layout.BINDINGS, KD_COUNT, BVH_COUNT)
 
     @staticmethod

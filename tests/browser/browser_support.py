@@ -111,6 +111,46 @@ class Server:
 
 MOBILE = dict(viewport={"width": 360, "height": 640}, device_scale_factor=1, is_mobile=True, has_touch=True)
 DESKTOP = dict(viewport={"width": 960, "height": 640}, device_scale_factor=1)
+# The layouts of issue #19: a phone upright and on its side (390 × 844 CSS px at 3 device pixels
+# per CSS pixel), and a desktop window.
+PORTRAIT = dict(viewport={"width": 390, "height": 844}, device_scale_factor=3, is_mobile=True, has_touch=True)
+LANDSCAPE = dict(viewport={"width": 844, "height": 390}, device_scale_factor=3, is_mobile=True, has_touch=True)
+WIDE = dict(viewport={"width": 1280, "height": 800}, device_scale_factor=1)
+PROFILES = {"mobile": MOBILE, "desktop": DESKTOP, "portrait": PORTRAIT, "landscape": LANDSCAPE, "wide": WIDE}
+
+
+class Touch:
+    """Touch input through CDP's Input.dispatchTouchEvent (not synthetic DOM events)."""
+
+    def __init__(self, page):
+        self.cdp = page.context.new_cdp_session(page)
+
+    def send(self, kind: str, points) -> None:
+        self.cdp.send("Input.dispatchTouchEvent", {
+            "type": kind,
+            "touchPoints": [{"x": x, "y": y, "id": i, "radiusX": 5, "radiusY": 5, "force": 1}
+                            for i, (x, y) in enumerate(points)],
+        })
+
+    def gesture(self, starts, ends, steps: int = 8) -> None:
+        """Fingers from `starts` to `ends` (lists of (x, y)), in `steps` moves, then lifted."""
+        self.send("touchStart", starts)
+        for k in range(1, steps + 1):
+            a = k / steps
+            self.send("touchMove", [(x0 + (x1 - x0) * a, y0 + (y1 - y0) * a)
+                                    for (x0, y0), (x1, y1) in zip(starts, ends)])
+        self.send("touchEnd", [])
+
+    def path(self, frames) -> None:
+        """Fingers through `frames` (a list of point lists, the first is where they go down), then lifted."""
+        self.send("touchStart", frames[0])
+        for pts in frames[1:]:
+            self.send("touchMove", pts)
+        self.send("touchEnd", [])
+
+    def tap(self, x: float, y: float) -> None:
+        self.send("touchStart", [(x, y)])
+        self.send("touchEnd", [])
 
 
 class Client:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from browser_support import ARTIFACTS, CHROMIUM, CHROMIUM_ARGS, DESKTOP, FAST_QUERY, MOBILE, Client, Server
+from browser_support import ARTIFACTS, CHROMIUM, CHROMIUM_ARGS, FAST_QUERY, PROFILES, Client, Server
 
 
 @pytest.fixture(scope="session")
@@ -50,7 +50,7 @@ def open_client(browser, server):
     contexts = []
 
     def make(kind: str = "mobile", query: str | None = FAST_QUERY) -> Client:
-        ctx = browser.new_context(**(MOBILE if kind == "mobile" else DESKTOP))
+        ctx = browser.new_context(**PROFILES[kind])
         contexts.append(ctx)
         c = Client(server, ctx, ctx.new_page())
         if query is not None:

@@ -19,9 +19,13 @@ def test_play_pause_poses_frames_at_advancing_times(open_client, server):
     assert p.get_attribute("#play-button", "aria-pressed") == "false"
     assert c.hook("lastFrame.time") == 0
 
+    icon = lambda: p.evaluate("""() => ['.icon-play', '.icon-pause'].map((s) =>
+        getComputedStyle(document.querySelector('#play-button ' + s)).display !== 'none')""")   # noqa: E731
+    assert icon() == [True, False] and p.text_content("#play-button .label") == "Play"
     n0 = c.frame_count
     p.click("#play-button")
     assert p.get_attribute("#play-button", "aria-pressed") == "true"
+    assert icon() == [False, True] and p.text_content("#play-button .label") == "Pause"   # ❚❚ while playing
     p.wait_for_function(f"() => window.pocketray.frameCount >= {n0 + 4}", timeout=60_000)
     t_a = c.hook("lastFrame.time")
     p.wait_for_function(f"() => window.pocketray.lastFrame.time > {t_a}", timeout=30_000)
@@ -35,6 +39,7 @@ def test_play_pause_poses_frames_at_advancing_times(open_client, server):
 
     p.click("#play-button")                                 # pause
     assert p.get_attribute("#play-button", "aria-pressed") == "false"
+    assert icon() == [True, False]
     c.wait_idle()
     t_paused = c.hook("lastFrame.time")
     assert c.hook("lastFrame.level") == "full"              # the full frame after the last one
@@ -66,4 +71,25 @@ def test_update_scheme_from_the_settings_panel(open_client, server):
     assert not p.is_visible("#f-motion")
     assert not p.is_visible("#play-button")
     assert server.session(c.hook("sessionId"))["scene_info"]["scenario"] == 2
+    assert c.errors() == []
+
+
+def test_the_museum_keeps_its_own_n(open_client, server):
+    """Scenario 2 with 4,096 spheres, then the museum: its own n (moving spheres), not 4,096 of them;
+    back to scenario 2: the 4,096 again."""
+    c = open_client("desktop", "scenario=2&n=4096&seed=1&radius=1&width=96&height=128&max_recursion_depth=1")
+    p = c.page
+    p.click("#settings-toggle")
+    assert p.input_value("#f-n") == "4096"
+    n0 = c.frame_count
+    p.select_option("#f-scenario", "museum")
+    c.wait_idle(min_frames=n0 + 1)
+    info = server.session(c.hook("sessionId"))["scene_info"]
+    assert info["museum"]["n"] == 64 and info["n_moving"] <= 64 and p.input_value("#f-n") == "64"
+    assert p.text_content('label[for="f-n"]') == "Moving spheres (n)"
+    n1 = c.frame_count
+    p.select_option("#f-scenario", "2")
+    c.wait_idle(min_frames=n1 + 1)
+    info = server.session(c.hook("sessionId"))["scene_info"]
+    assert (info["scenario"], info["n"]) == (2, 4096) and p.input_value("#f-n") == "4096"
     assert c.errors() == []

@@ -21,7 +21,7 @@ import urllib.request
 import numpy as np
 import pytest
 
-from browser_support import CHROMIUM, CHROMIUM_ARGS, FAILED_LOAD, MOBILE, Client, http_json
+from browser_support import CHROMIUM, CHROMIUM_ARGS, FAILED_LOAD, MOBILE, Client, Touch, http_json
 
 # WebGL2 in headless Chromium without a GPU: ANGLE on SwiftShader (explicit, so that a
 # Chromium that stops falling back to it by itself still gets it).
@@ -263,3 +263,85 @@ def test_device_data_is_the_gpu_layout_and_refuses_what_a_device_cannot_run(serv
             assert e.code == 422, query
             detail = __import__("json").loads(e.read())["detail"][0]
             assert detail["loc"] == ["query", field] and words in detail["msg"], detail
+
+
+def test_orbit_port_matches_the_server(device_page):
+    """device.js's orbit is server/controller.py's, pole clamping included."""
+    from renderer.scene import Camera
+    from server import controller
+
+    cams = [{"position": [3.0, -2.0, 80.0], "target": [1.0, 0.5, -4.0], "up": [0.1, 1.0, 0.0], "fov_y": 50.0},
+            {"position": [0.0, 100.0, 1.0], "target": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0], "fov_y": 60.0}]
+    turns = [(37.5, -12.25), (-200.0, 0.0), (0.0, 170.0), (15.0, -95.0), (360.0, 360.0)]
+    got = device_page.page.evaluate("""async ([cams, turns]) => { const d = await import('/js/device.js');
+        return cams.map((c) => turns.map(([y, p]) => d.orbitCamera(c, y, p))); }""", [cams, turns])
+    for cam, row in zip(cams, got):
+        c = Camera.from_json(cam)
+        for (yaw, pitch), g in zip(turns, row):
+            w = controller.orbit(c, yaw, pitch)
+            assert np.allclose(g["position"], w.position, rtol=1e-12, atol=1e-11), (cam, yaw, pitch, g, w)
+            assert g["target"] == list(w.target) and g["up"] == list(w.up)
+
+
+@pytest.mark.parametrize("scenario,n", [(1, 64), (3, 1024)])
+def test_device_frames_agree_with_the_server_at_the_still_profile(device_page, server, sessions, scenario, n):
+    """The still profile (renderer/profiles.py: depth 8, 4 samples per pixel, ε 0.03) on both sides:
+    the device traces 2 × 2 sub-pixels in bands, box-filters them and takes ids from the centre one,
+    as the server does."""
+    from renderer.profiles import STILL
+
+    sid = sessions(scenario, n)
+    still = {k: STILL[k] for k in ("max_recursion_depth", "samples_per_pixel", "min_weight")}
+    common = dict(width=W, height=H, method="bih", **still)
+    dev = device_render(device_page, session=sid, mode="primid", **common)
+    assert dev["subpixels"] == 2 and dev["bands"] > 1, (dev["subpixels"], dev["bands"])
+    srv = server_array(server, sid, mode="primid", **common)
+    assert np.mean(srv == dev["primid"]) >= 0.999
+    dev = device_render(device_page, session=sid, mode="color", **common)
+    srv = server_array(server, sid, mode="color", **common)
+    assert psnr(dev["colour"], srv) >= 35.0, psnr(dev["colour"], srv)
+    # Supersampling did something: one sample per pixel is another image (edges are not smoothed).
+    one = device_render(device_page, session=sid, mode="color", **{**common, "samples_per_pixel": 1})
+    assert psnr(one["colour"], srv) < psnr(dev["colour"], srv)
+    assert device_page.errors() == []
+
+
+KEEP_UP = ("scenario=3&n=256&seed=1&radius=1&width=192&height=320&max_recursion_depth=3&samples_per_pixel=4"
+           "&preview_scale=0.5&refine_ms=0&renderer=device&mode=color")
+
+
+def test_device_mode_keeps_up_with_the_fingers(gl_browser, server):
+    """A full frame is traced in bands, so a drag made while it is traced reaches the page at once:
+    it cancels that frame (never shown: latest wins) and the frames after it show the new view.
+    The overlay's rows describe the device's frames."""
+    ctx = gl_browser.new_context(**MOBILE)
+    try:
+        c = Client(server, ctx, ctx.new_page())
+        c.open(KEEP_UP)
+        assert c.hook("lastFrame.renderer") == "device"
+        assert c.hook("device.counts.lastBands") > 1                  # a full frame takes several bands
+        p = c.page
+        p.focus("#view")
+        p.keyboard.press("ArrowLeft")                                 # a preview, then at once the full frame
+        p.wait_for_function("() => { const j = window.pocketray.device.job; return j && j.level === 'full' && j.rowsDone > 0; }",
+                            timeout=60_000)
+        before = c.hook("device.counts")
+        old = c.page.evaluate("() => window.pocketray.device.camera")
+        n0 = c.frame_count
+        Touch(p).gesture([(150, 300)], [(200, 300)], steps=6)         # while that frame is being traced
+        c.wait_idle(min_frames=n0 + 1)
+        after = c.hook("device.counts")
+        assert after["cancelled"] > before["cancelled"], (before, after)
+        shown = c.hook("log")[-(c.frame_count - n0):]
+        assert all(f["camera"] and not np.allclose(f["camera"]["position"], old["position"]) for f in shown), shown
+        last = c.hook("lastFrame")
+        assert last["level"] == "full" and last["samples"] == 4
+        local = p.evaluate("() => window.pocketray.device.camera")
+        assert np.allclose(last["camera"]["position"], local["position"]) and np.allclose(c.camera()["position"], local["position"])
+        field = lambda name: p.text_content(f'#overlay [data-field="{name}"]')   # noqa: E731
+        for name in ("time", "trace", "bands", "display", "samples", "n", "method"):
+            assert field(name) not in ("", "–"), name
+        assert field("samples").startswith("4 spp") and int(field("bands")) > 1
+        assert c.errors() == [] and c.hook("errors") == []
+    finally:
+        ctx.close()

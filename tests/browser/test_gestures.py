@@ -13,36 +13,9 @@ import math
 
 import numpy as np
 
-from browser_support import basis, distance, moved
+from browser_support import Touch, basis, distance, moved
 
 HOME = {"position": [0.0, 0.0, 100.0], "target": [0.0, 0.0, 0.0]}
-
-
-class Touch:
-    """Touch input through CDP's Input.dispatchTouchEvent (not synthetic DOM events)."""
-
-    def __init__(self, page):
-        self.cdp = page.context.new_cdp_session(page)
-
-    def send(self, kind: str, points) -> None:
-        self.cdp.send("Input.dispatchTouchEvent", {
-            "type": kind,
-            "touchPoints": [{"x": x, "y": y, "id": i, "radiusX": 5, "radiusY": 5, "force": 1}
-                            for i, (x, y) in enumerate(points)],
-        })
-
-    def gesture(self, starts, ends, steps: int = 8) -> None:
-        """Fingers from `starts` to `ends` (lists of (x, y)), in `steps` moves, then lifted."""
-        self.send("touchStart", starts)
-        for k in range(1, steps + 1):
-            a = k / steps
-            self.send("touchMove", [(x0 + (x1 - x0) * a, y0 + (y1 - y0) * a)
-                                    for (x0, y0), (x1, y1) in zip(starts, ends)])
-        self.send("touchEnd", [])
-
-    def tap(self, x: float, y: float) -> None:
-        self.send("touchStart", [(x, y)])
-        self.send("touchEnd", [])
 
 
 def world_per_css_px(client, cam) -> float:

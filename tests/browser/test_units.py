@@ -1,4 +1,5 @@
-"""The client's pure modules (gestures.js, frames.js, api.js, settings.js), run in Chromium.
+"""The client's pure modules (gestures.js, frames.js, api.js, settings.js, camera.js, bands.js,
+limits.js, messages.js), run in Chromium.
 
 No server round trips: the modules are imported as they are served, and fed with
 fake pointers, a fake transport and fake timers.
@@ -12,6 +13,10 @@ async () => {
   const f = await import('/js/frames.js');
   const a = await import('/js/api.js');
   const s = await import('/js/settings.js');
+  const cam = await import('/js/camera.js');
+  const b = await import('/js/bands.js');
+  const lim = await import('/js/limits.js');
+  const msg = await import('/js/messages.js');
   const out = {};
   const eq = (name, got, want) => { out[name] = JSON.stringify(got) === JSON.stringify(want) ? true : {got, want}; };
   const near = (x, y, e = 1e-9) => Math.abs(x - y) <= e;
@@ -151,6 +156,108 @@ async () => {
   out['same museum'] = a.sameScene({scenario: 'museum', n: 256, motion: 'rigid'}, museumInfo) &&
     !a.sameScene({scenario: 'museum', n: 256, motion: 'deformable'}, museumInfo) &&
     !a.sameScene({scenario: 1, n: 256}, museumInfo) && !a.sameScene({scenario: 'museum', n: 256}, {scenario: 1, n: 256});
+
+  // --- gestures: twist orbits (after its slop), orbit drags, shift + arrows ---
+  {
+    const ev = [];
+    const r = new g.GestureRecognizer({
+      onPan: (dx, dy) => ev.push(['pan', dx, dy]), onOrbitDrag: (dx, dy) => ev.push(['orbit', dx, dy]),
+      onPinch: (k) => ev.push(['pinch', k]), onTwist: (d) => ev.push(['twist', Math.round(d * 1e6) / 1e6]),
+    });
+    // Two fingers 100 px apart turning about their midpoint: 2°, then to 10°, then to 25° (clockwise on screen).
+    const at = (deg) => { const a = deg * Math.PI / 180; return [[200 - 50 * Math.cos(a), 300 - 50 * Math.sin(a)], [200 + 50 * Math.cos(a), 300 + 50 * Math.sin(a)]]; };
+    r.down(1, ...at(0)[0], 0); r.down(2, ...at(0)[1], 0);
+    for (const deg of [2, 10, 25]) { const [p1, p2] = at(deg); r.move(1, ...p1, 1); r.move(2, ...p2, 1); }
+    r.up(1, undefined, undefined, 2); r.up(2, undefined, undefined, 2);
+    const twists = ev.filter((e) => e[0] === 'twist');
+    out['twist: nothing inside the slop, then the whole turn'] = twists.length >= 2 &&
+      near(twists.reduce((acc, e) => acc + e[1], 0), 25, 1e-6) && twists[0][1] >= 4;
+    out['twist: the pinches of a turn at one distance cancel out'] =
+      near(ev.filter((e) => e[0] === 'pinch').reduce((acc, e) => acc * e[1], 1), 1, 1e-9);
+    eq('turn folds angles', [g.turn(10, 350), g.turn(350, 10), g.turn(180, -180)], [20, -20, 0]);
+    ev.length = 0;
+    r.dragMode = 'orbit';
+    r.down(1, 100, 100, 10); r.move(1, 110, 100, 20); r.move(1, 120, 104, 30); r.up(1, 120, 104, 40);
+    eq('orbit mode: one finger orbits', ev, [['orbit', 10, 0], ['orbit', 10, 4]]);
+    ev.length = 0;
+    r.dragMode = 'pan';
+    r.down(1, 100, 100, 10, {orbit: true}); r.move(1, 110, 100, 20); r.up(1, 110, 100, 30);
+    eq('a right-button / shift drag orbits in pan mode', ev, [['orbit', 10, 0]]);
+    eq('shift + arrows orbit, other keys as ever', ['ArrowRight', 'ArrowUp', '+'].map((k) => g.keyGesture(k, 10, true)),
+      [{type: 'orbit', yaw: 5, pitch: 0}, {type: 'orbit', yaw: 0, pitch: -5}, {type: 'pinch', scale: 1.25}]);
+  }
+
+  // --- frames: orbits merge ---
+  {
+    const acc = f.emptyGesture();
+    [{type: 'orbit', yaw: 200, pitch: 10}, {type: 'pan', dx: 1, dy: 0}, {type: 'orbit', yaw: 100, pitch: 250}]
+      .forEach((x) => f.mergeGesture(acc, x));
+    eq('merge: orbits add (yaw modulo a turn, pitch within ±180°)', f.gestureOps(acc),
+       [{type: 'orbit', yaw: -60, pitch: 180}, {type: 'pan', dx: 1, dy: 0}]);
+  }
+
+  // --- camera.js: orbit keeps target and distance, never flips ---
+  {
+    const c0 = {position: [0, 0, 100], target: [0, 0, 0], up: [0, 1, 0], fov_y: 60};
+    const c1 = cam.orbitCamera(c0, 90, 0);
+    out['orbit: yaw 90° moves the camera to its right'] = near(c1.position[0], 100, 1e-9) && near(c1.position[2], 0, 1e-9);
+    const c2 = cam.orbitCamera(c0, 0, 500);
+    out['orbit: pitch clamped short of the pole'] = near(cam.polarAngle(c2), 180 - cam.MIN_POLAR_DEG, 1e-9) &&
+      near(cam.targetDistance(c2), 100, 1e-9) && c2.target.every((x) => x === 0);
+    out['applyGesture: orbit'] = near(cam.applyGesture(c0, {type: 'orbit', yaw: 90, pitch: 0}, {viewportHeight: 100}).position[0], 100, 1e-9);
+  }
+
+  // --- bands.js: bands near the budget; which frames a gesture cancels ---
+  {
+    const pl = new b.BandPlanner({budgetMs: 20, firstRows: 4});
+    const first = pl.rows(100, 500);
+    pl.record(first * 100, 8);                   // 4 rows × 100 px in 8 ms: 0.02 ms/px
+    eq('bands: first band small, then sized to the budget', [first, pl.rows(100, 500), pl.rows(100, 3), pl.rows(100, 0)], [4, 10, 3, 0]);
+    pl.record(1000, 100);                        // 10× slower now: the estimate follows (smoothed)
+    out['bands: slower pixels, fewer rows'] = pl.rows(100, 500) < 10 && pl.rows(100, 500) >= 1;
+    eq('gestures cancel full frames and previews short of half-way',
+       [b.cancelsFrame({level: 'full', rowsDone: 90, rowsTotal: 100}), b.cancelsFrame({level: 'preview', rowsDone: 10, rowsTotal: 100}),
+        b.cancelsFrame({level: 'preview', rowsDone: 60, rowsTotal: 100}), b.cancelsFrame(null)], [true, true, false, false]);
+  }
+
+  // --- limits.js: the form refuses what the service would, naming the range ---
+  {
+    const info = {limits: {max_image_side: 4096, max_spheres: 2097152, max_work: 1088 * 1088 * 8 * 4, max_bruteforce_work: 640 * 1088 * 512},
+                  method_settings: {bih: {settings: ['max_prims', 'max_tree_depth'], modes: ['color', 'heat'], tests_every_sphere: false},
+                                    kdtree: {settings: ['max_tree_depth'], modes: null, tests_every_sphere: false},
+                                    bvh: {settings: ['max_prims', 'max_tree_depth', 'update'], modes: null, tests_every_sphere: false},
+                                    hre: {settings: ['tile_size'], modes: null, tests_every_sphere: true},
+                                    bruteforce: {settings: [], modes: null, tests_every_sphere: true}},
+                  museum_room_spheres: 576};
+    const ctx = (render = {}, scene = {}, extra = {}) => ({info, scene: {scenario: 1, n: 512, ...scene},
+      render: {width: 503, height: 1088, samples_per_pixel: 4, max_recursion_depth: 8, method: 'bih', mode: 'color', ...render}, ...extra});
+    eq('width at 4 spp: ≤ 4096 / 2', lim.range('width', ctx({height: 100})).max, 2048);
+    out['width 4096 at 4 spp is refused, naming the range and the samples'] =
+      /Width: a whole number 8 … 2,048 at 4 samples per pixel/.test(lim.check('width', 4096, ctx({width: 4096, height: 100})));
+    out['depth 99 refused with its range'] = /Recursion depth: a whole number 1 … /.test(lim.check('max_recursion_depth', 99, ctx({max_recursion_depth: 99})));
+    out['n = 0 refused'] = /Spheres \(n\): a whole number 1 … 2,097,152/.test(lim.check('n', 0, ctx({}, {n: 0})));
+    out['museum n: the room counts'] = lim.range('n', ctx({}, {scenario: 'museum', n: 10})).max === 2097152 - 1024 && lim.range('n', ctx({}, {scenario: 'museum'})).min === 0;
+    eq('samples allowed at 503 × 1088, depth 8', lim.samplesAllowed(ctx()), [1, 4]);
+    out['brute force over its cap is refused at the method'] = /tests every sphere/.test(lim.check('method', 'bruteforce', ctx({method: 'bruteforce'})));
+    eq('what applies', [
+      lim.applies('update', ctx()), lim.applies('update', ctx({method: 'bvh'}, {}, {animated: true})),
+      lim.applies('max_prims', ctx({method: 'kdtree'})), lim.applies('max_tree_depth', ctx({method: 'kdtree'})),
+      lim.applies('tile_size', ctx()), lim.applies('tile_size', ctx({method: 'hre'})),
+      lim.applies('radius', ctx({}, {scenario: 'museum'})), lim.applies('previewFormat', ctx({}, {}, {renderer: 'device'}))],
+      [false, true, false, true, false, true, false, false]);
+    eq('valid values pass', [lim.check('width', 320, ctx({width: 320})), lim.check('n', 64, ctx({}, {n: 64})),
+      lim.check('samples_per_pixel', 4, ctx())], [null, null, null]);
+  }
+
+  // --- messages.js: the service's 422s in the panel's words ---
+  {
+    const e = {status: 422, detail: [{loc: ['body', 'width'], msg: 'width: width × height × max_recursion_depth × samples_per_pixel = 1 exceeds the limit 2 (POCKETRAY_MAX_WORK); lower width, height, max_recursion_depth or samples_per_pixel'}]};
+    const x = msg.explain(e);
+    out['422 → its field, in the panel\'s words'] = x.field === 'width' && x.text.startsWith('Width: width × height × recursion depth × samples per pixel')
+      && !/samples_per_pixel|max_recursion_depth|POCKETRAY_/.test(x.text);
+    eq('loc → field', [msg.fieldOf(['scene', 'n']), msg.fieldOf(['body', 'museum', 'n']), msg.fieldOf(['query', 'samples_per_pixel']), msg.fieldOf(['body'])],
+       ['n', 'n', 'samples_per_pixel', null]);
+  }
   return out;
 }
 """
@@ -162,4 +269,4 @@ def test_pure_modules(open_client):
     results = c.page.evaluate(UNIT_TESTS)
     failed = {k: v for k, v in results.items() if v is not True}
     assert failed == {}, failed
-    assert len(results) >= 25
+    assert len(results) >= 50

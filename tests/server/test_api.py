@@ -44,6 +44,18 @@ def test_health_ready_info(ready_client):
     assert body["ready"] is True and body["gl_renderer"] and body["gl_version"]
     info = c.get("/api/info").json()
     assert "bih" in info["methods"] and info["limits"]["max_work"] == 96 * 128 * 2
+    # What the client's form needs to show only the settings that apply (issue #19).
+    ms = info["method_settings"]
+    assert set(ms) == set(info["methods"])
+    assert ms["bih"]["settings"] == ["max_prims", "max_tree_depth"] and ms["bih"]["device"] is True
+    assert ms["kdtree"]["settings"] == ["max_tree_depth"]                   # the SAH decides the leaves
+    assert ms["bvh"]["settings"] == ["max_prims", "max_tree_depth", "update"]
+    assert ms["bruteforce"]["settings"] == [] and ms["rayengine"]["settings"] == []
+    assert ms["hre"]["settings"] == ["tile_size"] and ms["hre"]["device"] is False and "cones" in ms["hre"]["modes"]
+    assert ms["auto"]["auto"] is True and ms["auto"]["settings"] == ms["bih"]["settings"]
+    assert ms["bruteforce"]["tests_every_sphere"] and not ms["bih"]["tests_every_sphere"]
+    assert info["samples_per_pixel"] == [1, 4, 9, 16] and info["render_timeout_s"] > 0
+    assert info["museum_room_spheres"] == 576
 
 
 def test_create_from_scenario_and_read(client):
@@ -115,6 +127,25 @@ def test_gestures_json(client):
     r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "reset"})
     assert r.json() == {"version": 5, "camera": {"position": [0.0, 0.0, 100.0], "target": [0.0, 0.0, 0.0],
                                                  "up": [0.0, 1.0, 0.0], "fov_y": 60.0}}
+
+
+def test_orbit_gesture_turns_the_camera_about_its_target(client):
+    sid = new_session(client)["id"]
+    r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "orbit", "yaw": 90, "pitch": 0})
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert body["version"] == 2
+    assert body["camera"]["position"] == pytest.approx([100.0, 0.0, 0.0], abs=1e-9)   # to the camera's right
+    assert body["camera"]["target"] == [0.0, 0.0, 0.0] and body["camera"]["up"] == [0.0, 1.0, 0.0]
+    r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "orbit", "pitch": 30})     # yaw defaults to 0
+    p = r.json()["camera"]["position"]
+    assert p == pytest.approx([100 * np.cos(np.radians(30)), -50.0, 0.0], abs=1e-9)          # down by 30°
+    assert np.linalg.norm(p) == pytest.approx(100.0)
+    r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "orbit", "yaw": 0, "pitch": 300})
+    pos = np.array(r.json()["camera"]["position"])
+    polar = np.degrees(np.arccos(pos[1] / np.linalg.norm(pos)))
+    assert polar == pytest.approx(179.0)                              # clamped short of −up
+    assert client.get(f"/api/sessions/{sid}").json()["version"] == 4
 
 
 def test_frame_png_headers_and_image(ready_client):

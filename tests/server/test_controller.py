@@ -106,3 +106,89 @@ def test_pan_out_of_range_raises_scene_error():
     cam = Camera(position=(9.9e6, 0.0, 100.0), target=(9.9e6, 0.0, 0.0))
     with pytest.raises(SceneError):
         controller.pan(cam, -1e6, 0.0, 10)
+
+
+# ---- orbit ------------------------------------------------------------------------------
+def _offset(cam: Camera) -> np.ndarray:
+    return np.subtract(cam.position, cam.target)
+
+
+@pytest.mark.parametrize("cam", CAMERAS)
+@pytest.mark.parametrize("yaw,pitch", [(30.0, 0.0), (0.0, -20.0), (-75.5, 12.25), (360.0, 0.0)])
+def test_orbit_keeps_the_target_and_the_distance(cam, yaw, pitch):
+    moved = controller.orbit(cam, yaw, pitch)
+    assert moved.target == cam.target
+    assert np.linalg.norm(_offset(moved)) == pytest.approx(np.linalg.norm(_offset(cam)), rel=1e-12)
+    assert moved.up == cam.up and moved.fov_y == cam.fov_y
+
+
+def test_orbit_yaw_turns_about_up_towards_the_cameras_right():
+    cam = Camera()                                    # at +z, looking at the origin, up +y
+    moved = controller.orbit(cam, 90.0, 0.0)
+    assert moved.position == pytest.approx((100.0, 0.0, 0.0), abs=1e-9)   # to its right (+x)
+    back = controller.orbit(cam, -90.0, 0.0)
+    assert back.position == pytest.approx((-100.0, 0.0, 0.0), abs=1e-9)
+    # Any yaw keeps the height along up (a turntable: the horizon stays level).
+    tilted = CAMERAS[1]
+    up = np.array(tilted.up) / np.linalg.norm(tilted.up)
+    for yaw in (10.0, 123.0, -200.0):
+        assert _offset(controller.orbit(tilted, yaw, 0.0)) @ up == pytest.approx(_offset(tilted) @ up, abs=1e-9)
+
+
+def test_orbit_pitch_turns_about_right_and_moves_the_camera_down():
+    cam = Camera()
+    moved = controller.orbit(cam, 0.0, 30.0)
+    d = 100.0
+    assert moved.position == pytest.approx((0.0, -d * math.sin(math.radians(30)), d * math.cos(math.radians(30))))
+    right, _, _ = cam.basis()
+    assert _offset(moved) @ right == pytest.approx(0.0, abs=1e-9)          # the rotation axis is right
+    assert np.allclose(moved.basis()[0], right)                           # … and right stays
+
+
+def test_orbit_composes_and_undoes():
+    cam = CAMERAS[1]
+    once = controller.orbit(cam, 50.0, 20.0)
+    twice = controller.orbit(controller.orbit(cam, 30.0, 5.0), 20.0, 15.0)
+    assert twice.position == pytest.approx(once.position, abs=1e-9)
+    split = controller.orbit(controller.orbit(cam, 50.0, 0.0), 0.0, 20.0)  # yaw and pitch commute
+    assert split.position == pytest.approx(once.position, abs=1e-9)
+    back = controller.orbit(once, -50.0, -20.0)
+    assert back.position == pytest.approx(cam.position, abs=1e-9)
+
+
+@pytest.mark.parametrize("pitch", [89.5, 120.0, 360.0, -89.5, -179.0, -360.0])
+def test_orbit_pitch_stops_short_of_the_poles(pitch):
+    cam = Camera()                                     # polar angle 90°
+    moved = controller.orbit(cam, 0.0, pitch)
+    theta = controller.polar_angle(moved)
+    assert controller.MIN_POLAR_DEG - 1e-9 <= theta <= 180.0 - controller.MIN_POLAR_DEG + 1e-9
+    assert theta == pytest.approx(min(180 - controller.MIN_POLAR_DEG, max(controller.MIN_POLAR_DEG, 90 + pitch)))
+    # Never flipped: the view's right vector points the same way as before.
+    assert moved.basis()[0] @ cam.basis()[0] > 0.99
+
+
+def test_orbit_from_near_a_pole_may_come_back_but_not_go_further():
+    cam = Camera(position=(0.0, 100.0, 1.0), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0))   # from above: ≈ 0.57°
+    theta = controller.polar_angle(cam)
+    assert theta < controller.MIN_POLAR_DEG
+    assert controller.polar_angle(controller.orbit(cam, 0.0, -10.0)) == pytest.approx(theta)
+    assert controller.polar_angle(controller.orbit(cam, 0.0, 10.0)) == pytest.approx(theta + 10.0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.floats(-360, 360), st.floats(-360, 360)), min_size=1, max_size=30))
+def test_orbit_never_flips_the_view(steps):
+    cam = CAMERAS[1]
+    d0 = np.linalg.norm(_offset(cam))
+    for yaw, pitch in steps:
+        cam = controller.orbit(cam, yaw, pitch)
+        theta = controller.polar_angle(cam)
+        assert controller.MIN_POLAR_DEG - 1e-6 <= theta <= 180 - controller.MIN_POLAR_DEG + 1e-6
+        assert np.linalg.norm(_offset(cam)) == pytest.approx(d0, rel=1e-9)
+
+
+def test_orbit_refuses_non_finite_angles():
+    with pytest.raises(ValueError):
+        controller.orbit(Camera(), math.nan, 0.0)
+    with pytest.raises(ValueError):
+        controller.orbit(Camera(), 0.0, math.inf)

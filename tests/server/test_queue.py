@@ -111,3 +111,4 @@ def test_service_answers_while_the_gl_thread_traces(ready_client):
     # answer during it, each in a small part of the trace time.
     assert len(waits) >= 3, f"only {len(waits)} health answers during a {trace_s:.2f} s trace"
     assert max(waits) < 0.25 * trace_s, f"health answered after {max(waits):.3f} s during a {trace_s:.2f} s trace"
+

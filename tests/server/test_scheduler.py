@@ -79,6 +79,17 @@ def test_sessions_take_turns_slice_by_slice(worker):
     assert [i for name, i in log if name == "long"] == list(range(50))
 
 
+def test_in_flight_names_only_the_sessions_own_frames(worker):
+    gate = threading.Event()
+    blocker = worker.admit().submit(lambda r: gate.wait(5))     # the frames below wait to start
+    a = worker.admit().frame(lambda r: FakeFrame("a", 1, []), session="A", cost_ms=1)
+    b = worker.admit().frame(lambda r: FakeFrame("b", 1, []), session="B", cost_ms=1)
+    assert worker.in_flight("A") == [a] and worker.in_flight("B") == [b] and worker.in_flight("C") == []
+    gate.set()
+    blocker.result(5)
+    assert a.wait(5) == "a done" and b.wait(5) == "b done"
+
+
 def test_a_cancelled_frame_stops_between_slices_and_frees_its_slot_at_once(worker):
     log: list = []
     gate = threading.Event()

@@ -14,6 +14,7 @@ from renderer.settings import FORMATS, METHODS, MODES
 from renderer.tree_update import UPDATE_SCHEMES
 
 from ...models import HealthOut, InfoOut, LimitsOut, ReadyOut
+from ...service import info_extras
 from ..deps import ServiceDep, WorkerDep
 
 router = APIRouter()
@@ -56,4 +57,5 @@ def info(service: ServiceDep) -> InfoOut:
                    limits=LimitsOut(max_work=c.max_work, max_frame_cost=c.max_frame_cost, slice_ms=c.slice_ms,
                                     max_spheres=c.max_spheres, max_body_bytes=c.max_body_bytes,
                                     max_image_side=MAX_IMAGE_SIDE, queue_size=c.queue_size,
-                                    session_ttl_s=c.session_ttl_s))
+                                    session_ttl_s=c.session_ttl_s),
+                   **info_extras(c))

@@ -1,0 +1,161 @@
+// The settings form's limits and which settings apply, from GET /api/info — so that the
+// form refuses, before anything is sent, what the service would refuse, and says why in
+// the panel's words with the accepted range (the service's own 422s are translated by
+// messages.js). Pure: no DOM (tests/browser/test_units.py).
+//
+// ctx = {info, scene: {scenario, n, …}, render: {width, height, samples_per_pixel,
+//        max_recursion_depth, method, …}, animated, renderer} — the values as they would be
+// with the change applied.
+
+import { FIELD_LABELS } from './settings.js';
+
+// Used when the service does not describe its methods (an older service).
+const FALLBACK_METHOD = Object.freeze({
+  settings: ['max_prims', 'max_tree_depth'], modes: null, device: true, tests_every_sphere: false, update_schemes: ['rebuild'],
+});
+const FALLBACK_METHODS = Object.freeze({
+  bih: FALLBACK_METHOD,
+  bruteforce: { ...FALLBACK_METHOD, settings: [], tests_every_sphere: true },
+});
+const DEFAULT_LIMITS = Object.freeze({ max_image_side: 4096, max_spheres: 1 << 21, max_work: Infinity, max_bruteforce_work: Infinity });
+const MUSEUM_ROOM = 576;            // renderer.animation.MUSEUM_ROOM_SPHERES, when /api/info does not say
+const MUSEUM_N_MAX = (1 << 21) - 1024;  // server.models.MuseumRecipe.n's bound
+const SUBPIXELS = { 1: 1, 4: 2, 9: 3, 16: 4 };
+
+const fmt = (x) => (Number.isFinite(x) ? Math.floor(x).toLocaleString('en') : String(x));
+const label = (name) => FIELD_LABELS[name] || name;
+
+export function methodInfo(info, method) {
+  const m = info && info.method_settings && info.method_settings[method];
+  return m || FALLBACK_METHODS[method] || FALLBACK_METHOD;
+}
+
+function limitsOf(info) {
+  return { ...DEFAULT_LIMITS, ...((info && info.limits) || {}) };
+}
+
+// Spheres the scene has (the museum's n counts moving ones, on top of its room).
+export function sceneSpheres(ctx) {
+  const museum = ctx.scene.scenario === 'museum';
+  return (Number(ctx.scene.n) || 0) + (museum ? (ctx.info && ctx.info.museum_room_spheres) ?? MUSEUM_ROOM : 0);
+}
+
+// Whether a setting means anything for the scene, method and renderer at hand (else the panel hides it).
+export function applies(name, ctx) {
+  const museum = ctx.scene.scenario === 'museum';
+  const m = methodInfo(ctx.info, ctx.render.method);
+  switch (name) {
+    case 'motion': return museum;
+    case 'radius': return !museum;
+    case 'update': return !!ctx.animated && m.settings.includes('update');
+    case 'max_prims': case 'max_tree_depth': case 'tile_size': return m.settings.includes(name);
+    case 'previewFormat': case 'previewQuality':
+      // The device draws its previews itself: no image format to choose.
+      return ctx.renderer !== 'device' && (name === 'previewFormat' || ctx.client?.previewFormat === 'jpeg');
+    default: return true;
+  }
+}
+
+// The modes the method can draw (null: all of them).
+export function modesOf(ctx) {
+  return methodInfo(ctx.info, ctx.render.method).modes;
+}
+
+// Samples per pixel a frame of width × height at this depth can have.
+export function samplesAllowed(ctx, values = [1, 4, 9, 16]) {
+  const L = limitsOf(ctx.info), r = ctx.render;
+  return values.filter((s) => (SUBPIXELS[s] || 1) * Math.max(r.width, r.height) <= L.max_image_side &&
+    r.width * r.height * r.max_recursion_depth * s <= L.max_work);
+}
+
+// {min, max, why} of a numeric setting, given the others in ctx.
+export function range(name, ctx) {
+  const L = limitsOf(ctx.info), r = ctx.render;
+  const spp = r.samples_per_pixel || 1, k = SUBPIXELS[spp] || 1, d = r.max_recursion_depth || 1;
+  const bf = methodInfo(ctx.info, r.method).tests_every_sphere;
+  const spheres = sceneSpheres(ctx);
+  switch (name) {
+    case 'n': {
+      const museum = ctx.scene.scenario === 'museum';
+      const room = museum ? sceneSpheres({ ...ctx, scene: { ...ctx.scene, n: 0 } }) : 0;
+      let max = museum ? Math.min(L.max_spheres - room, MUSEUM_N_MAX) : L.max_spheres;
+      let why = museum ? `the room has ${fmt(room)} more and a scene at most ${fmt(L.max_spheres)}` : '';
+      if (bf) {
+        const m = Math.floor(L.max_bruteforce_work / (r.width * r.height * d)) - room;
+        if (m < max) {
+          max = m;
+          why = `${label('method')} ${r.method} tests every sphere: at ${r.width} × ${r.height} and recursion depth ${d}`;
+        }
+      }
+      return { min: museum ? 0 : 1, max, why };
+    }
+    case 'seed': return { min: 0, max: 2 ** 32 - 1 };
+    case 'radius': return { min: 1e-6, max: 20 };
+    case 'width': case 'height': {
+      const other = name === 'width' ? r.height : r.width;
+      const bySide = Math.floor(L.max_image_side / k);
+      const byWork = Math.floor(L.max_work / (other * d * spp));
+      const byBf = bf ? Math.floor(L.max_bruteforce_work / (other * d * spheres)) : Infinity;
+      const max = Math.min(bySide, byWork, byBf);
+      const why = max === bySide ? (k > 1 ? `at ${spp} samples per pixel (${k} × the side is traced, at most ${fmt(L.max_image_side)})` : '')
+        : max === byWork ? `at ${label(name === 'width' ? 'height' : 'width').toLowerCase()} ${other}, recursion depth ${d} and ${spp} samples per pixel`
+          : `${r.method} tests every sphere: at ${fmt(spheres)} spheres, ${label(name === 'width' ? 'height' : 'width').toLowerCase()} ${other} and recursion depth ${d}`;
+      return { min: 8, max, why };
+    }
+    case 'max_recursion_depth': {
+      const byWork = Math.floor(L.max_work / (r.width * r.height * spp));
+      const byBf = bf ? Math.floor(L.max_bruteforce_work / (r.width * r.height * spheres)) : Infinity;
+      const max = Math.min(8, byWork, byBf);
+      const why = max === 8 ? '' : max === byWork ? `at ${r.width} × ${r.height} and ${spp} samples per pixel`
+        : `${r.method} tests every sphere: at ${fmt(spheres)} spheres and ${r.width} × ${r.height}`;
+      return { min: 1, max, why };
+    }
+    case 'max_prims': return { min: 1, max: 1 << 24 };
+    case 'max_tree_depth': return { min: 1, max: 64 };
+    case 'tile_size': return { min: 2, max: 64 };
+    case 'previewQuality': return { min: 1, max: 100 };
+    case 'refineDelayMs': return { min: 0, max: 5000 };
+    default: return null;
+  }
+}
+
+const INTEGER = new Set(['n', 'seed', 'width', 'height', 'max_recursion_depth', 'max_prims', 'max_tree_depth', 'tile_size',
+  'previewQuality', 'refineDelayMs']);
+
+// What is wrong with setting `name` as ctx has it (null: nothing). `value` is the form's value.
+export function check(name, value, ctx) {
+  const rg = range(name, ctx);
+  if (rg) {
+    const x = Number(value);
+    const ok = value !== '' && Number.isFinite(x) && (!INTEGER.has(name) || Number.isInteger(x)) &&
+      x >= rg.min && x <= rg.max && (name !== 'radius' || x > 0);
+    if (ok) return null;
+    if (rg.max < rg.min) return `${label(name)}: no value fits ${rg.why}; change the others first`;
+    const lo = name === 'radius' ? 'more than 0' : fmt(rg.min);
+    const kind = INTEGER.has(name) ? 'a whole number ' : 'a number ';
+    return `${label(name)}: ${kind}${lo} … ${fmt(rg.max)}${rg.why ? ` ${rg.why}` : ''}`;
+  }
+  if (name === 'samples_per_pixel') {
+    const allowed = samplesAllowed(ctx);
+    if (allowed.includes(Number(value))) return null;
+    const r = ctx.render;
+    return `${label(name)}: ${allowed.join(', ') || 'none'} for a ${r.width} × ${r.height} frame at recursion depth ` +
+      `${r.max_recursion_depth} (the traced frame may be at most ${fmt(limitsOf(ctx.info).max_image_side)} a side)`;
+  }
+  if (name === 'method') {
+    const r = ctx.render, L = limitsOf(ctx.info), spheres = sceneSpheres(ctx);
+    const work = r.width * r.height * r.max_recursion_depth * spheres;
+    if (methodInfo(ctx.info, value).tests_every_sphere && work > L.max_bruteforce_work) {
+      return `${label('method')}: ${value} tests every sphere, and ${r.width} × ${r.height} × recursion depth ` +
+        `${r.max_recursion_depth} × ${fmt(spheres)} spheres is over the ${fmt(L.max_bruteforce_work)} it may trace; ` +
+        'choose a method with a tree (bih) or lower the resolution, the depth or n';
+    }
+    return null;
+  }
+  if (name === 'mode') {
+    const modes = modesOf(ctx);
+    return !modes || modes.includes(value) ? null
+      : `${label('mode')}: ${ctx.render.method} draws ${modes.join(', ')}`;
+  }
+  return null;
+}

@@ -1,0 +1,45 @@
+// The service's refusals in the panel's words: which field of the form a 422 is about
+// (its `loc`) and its message with the API's names (samples_per_pixel, …) replaced by the
+// labels the panel shows, and server-side variable names left out — a phone user cannot
+// set POCKETRAY_MAX_WORK. Pure (tests/browser/test_units.py).
+
+import { FIELD_LABELS } from './settings.js';
+
+// API name → the panel's words (longest names first, so that max_tree_depth is not cut by a shorter one).
+const WORDS = [
+  ['max_recursion_depth', 'recursion depth'], ['samples_per_pixel', 'samples per pixel'],
+  ['max_tree_depth', 'max tree depth'], ['max_prims', 'max primitives per leaf'], ['tile_size', 'tile size'],
+  ['min_weight', 'the ray cut-off ε'], ['update_threshold', 'the selective rebuild threshold'],
+];
+
+export function inPanelWords(text) {
+  let out = String(text);
+  out = out.replace(/\s*\(POCKETRAY_[A-Z_]+\)/g, '');            // "(POCKETRAY_MAX_WORK)"
+  out = out.replace(/POCKETRAY_[A-Z_]+/g, 'the service\u2019s limit');
+  for (const [api, words] of WORDS) out = out.replaceAll(api, words);
+  out = out.replace(/method=(\w+)/g, 'method $1');
+  return out;
+}
+
+// The form field a 422's loc names: its last part that is a setting of the panel.
+export function fieldOf(loc) {
+  if (!Array.isArray(loc)) return null;
+  for (let i = loc.length - 1; i >= 0; i--) if (typeof loc[i] === 'string' && FIELD_LABELS[loc[i]]) return loc[i];
+  return null;
+}
+
+// {field, text, status} for an error from api.js (an ApiError has status and detail).
+export function explain(e) {
+  if (!e || e.status === undefined) return { field: null, text: `Something went wrong: ${e && (e.message || e)}`, status: null };
+  const d = e.detail;
+  if (Array.isArray(d) && d.length) {   // FastAPI / the service's validation errors
+    const first = d[0];
+    const field = fieldOf(first.loc);
+    let msg = String(first.msg ?? JSON.stringify(first));
+    msg = msg.replace(/^[\w.[\]]+: /, '');   // the server's "settings.width: " prefix: the label says it
+    const text = field ? `${FIELD_LABELS[field]}: ${inPanelWords(msg)}` : `Not accepted: ${inPanelWords(msg)}`;
+    return { field, text, status: e.status };
+  }
+  const msg = typeof d === 'string' ? d : JSON.stringify(d);
+  return { field: null, text: e.status === 422 ? `Not accepted: ${inPanelWords(msg)}` : `The service answered ${e.status}: ${inPanelWords(msg)}`, status: e.status };
+}

@@ -1,0 +1,281 @@
+// The settings sheet: shows the session's settings, hides the ones that do not apply,
+// refuses (and marks, next to the field) values the service would refuse, and puts
+// marked fields back to the session's values when it closes without them applied.
+//
+// callbacks: onScene(scene) (a new session), onRender(partial) (PATCH), onClient(partial)
+// (this browser's levels). The app calls show(state) with {scene, render, client, anim}
+// whenever they change, setInfo(info) once GET /api/info answered, and refused(explained)
+// with a 422 in the panel's words (messages.js).
+
+import { applies, check, modesOf, range, samplesAllowed } from './limits.js';
+import {
+  DEFAULT_MUSEUM_N, DEFAULT_SCENE, FALLBACK_METHODS, FIELD_LABELS, METHOD_LABELS, MODE_LABELS, MODES, MUSEUM_KINDS,
+  PREVIEW_SCALES, RESOLUTIONS, SAMPLES, SCENARIOS, UPDATE_SCHEMES, parseResolution,
+} from './settings.js';
+
+const SCENE_KEYS = ['scenario', 'n', 'seed', 'radius', 'motion'];
+const RENDER_INT = ['max_prims', 'max_tree_depth', 'max_recursion_depth', 'tile_size', 'samples_per_pixel'];
+const RENDER_TEXT = ['method', 'mode', 'update'];
+const CLIENT_KEYS = ['previewScale', 'previewFormat', 'previewQuality', 'refineDelayMs', 'renderer'];
+
+function fillSelect(select, items, labelOf = (v) => v) {
+  const cur = select.value;
+  select.replaceChildren(...items.map((it) => {
+    const o = document.createElement('option');
+    const value = typeof it === 'object' ? it.value : it;
+    o.value = String(value);
+    o.textContent = typeof it === 'object' ? it.label : labelOf(it);
+    return o;
+  }));
+  if (cur) select.value = cur;
+}
+
+const isMuseum = (scenario) => String(scenario) === 'museum';
+
+export class SettingsPanel {
+  constructor(root, openButton, callbacks) {
+    this.root = root;
+    this.openButton = openButton;
+    this.cb = callbacks;
+    this.form = root.querySelector('form');
+    this.el = (name) => this.form.elements.namedItem(name);
+    this.info = null;
+    this.state = null;
+    this.invalid = new Map();      // field → message shown next to it
+    this.nByKind = { thesis: null, museum: null };   // each kind of scene keeps its own n
+    fillSelect(this.el('scenario'), SCENARIOS);
+    fillSelect(this.el('motion'), MUSEUM_KINDS);
+    fillSelect(this.el('update'), UPDATE_SCHEMES);
+    fillSelect(this.el('method'), FALLBACK_METHODS, (m) => METHOD_LABELS[m] || m);
+    fillSelect(this.el('mode'), MODES, (m) => MODE_LABELS[m] || m);
+    fillSelect(this.el('resolution'), RESOLUTIONS);
+    fillSelect(this.el('previewScale'), PREVIEW_SCALES);
+    fillSelect(this.el('samples_per_pixel'), SAMPLES);
+
+    openButton.addEventListener('click', () => this.setOpen(!this.open));
+    root.querySelector('[data-close]').addEventListener('click', () => this.setOpen(false));
+    // Escape closes the sheet wherever the focus is (a marked field does not take it).
+    document.addEventListener('keydown', (e) => {
+      if (e.key === 'Escape' && this.open) this.setOpen(false);
+    });
+    this.form.addEventListener('submit', (e) => e.preventDefault());
+    this.form.addEventListener('change', (e) => this._changed(e.target));
+    this.setOpen(false);
+  }
+
+  setOpen(open) {
+    this.open = open;
+    this.root.hidden = !open;
+    this.openButton.setAttribute('aria-expanded', String(open));
+    document.body.classList.toggle('sheet-open', open);
+    if (open) {
+      this.el('scenario').focus({ preventScroll: true });
+    } else if (this.invalid.size) {
+      // Closed without the marked values applied: the form shows the session again.
+      for (const name of [...this.invalid.keys()]) this.clear(name);
+      if (this.state) this.show(this.state, { force: true });
+    }
+  }
+
+  // GET /api/info: the method, mode and samples lists, the limits, what applies to which method.
+  setInfo(info) {
+    this.info = info;
+    if (Array.isArray(info.methods) && info.methods.length) fillSelect(this.el('method'), info.methods, (m) => METHOD_LABELS[m] || m);
+    if (Array.isArray(info.modes) && info.modes.length) fillSelect(this.el('mode'), info.modes, (m) => MODE_LABELS[m] || m);
+    if (Array.isArray(info.samples_per_pixel) && info.samples_per_pixel.length) {
+      fillSelect(this.el('samples_per_pixel'), info.samples_per_pixel.map((s) => SAMPLES.find((x) => x.value === s) || { value: s, label: String(s) }));
+    }
+    if (this.state) this.show(this.state);
+  }
+
+  // The form's context with `change` applied ({scene?, render?, client?}).
+  _ctx(change = {}) {
+    const s = this.state;
+    const client = { ...s.client, ...change.client };
+    return {
+      info: this.info, scene: { ...s.scene, ...change.scene }, render: { ...s.render, ...change.render },
+      animated: !!(s.anim && s.anim.animated), renderer: client.renderer, client,
+    };
+  }
+
+  // Show the current state: {scene, render, client, anim}. Marked (refused) fields keep what the
+  // user typed, unless `force` (the sheet closed).
+  show(state, { force = false } = {}) {
+    this.state = state;
+    const { scene, render, client } = state;
+    const kind = isMuseum(scene.scenario) ? 'museum' : 'thesis';
+    if (Number.isFinite(scene.n)) this.nByKind[kind] = scene.n;
+    const set = (name, v) => {
+      const el = this.el(name);
+      if (!el || v === undefined || v === null) return;
+      if (!force && (document.activeElement === el || this.invalid.has(name))) return;
+      el.value = String(v);
+    };
+    for (const k of SCENE_KEYS) set(k, scene[k]);
+    for (const k of [...RENDER_TEXT, ...RENDER_INT]) set(k, render[k]);
+    const known = RESOLUTIONS.some((r) => r.value === client.resolution);
+    set('resolution', known ? client.resolution : 'custom');
+    set('width', render.width);
+    set('height', render.height);
+    const scale = PREVIEW_SCALES.find((p) => Math.abs(p.value - client.previewScale) < 1e-6);
+    if (!scale && ![...this.el('previewScale').options].some((o) => Number(o.value) === client.previewScale)) {
+      const o = document.createElement('option');
+      o.value = String(client.previewScale);
+      o.textContent = `×${client.previewScale}`;
+      this.el('previewScale').append(o);
+    }
+    set('previewScale', scale ? scale.value : client.previewScale);
+    for (const k of ['previewFormat', 'previewQuality', 'refineDelayMs', 'renderer']) set(k, client[k]);
+    this._layout();
+  }
+
+  // Visibility, bounds and offered options, for what the form shows now (a choice made in the
+  // form counts at once, before the service has answered it; refused values do not).
+  _layout() {
+    const render = {};
+    for (const k of ['method', 'mode', ...RENDER_INT]) {
+      const el = this.el(k);
+      if (!el || this.invalid.has(k) || el.value === '') continue;
+      render[k] = RENDER_INT.includes(k) ? Number(el.value) : el.value;
+    }
+    const ctx = this._ctx({ scene: this._formScene(), render });
+    for (const wrap of this.root.querySelectorAll('.field[data-setting]')) {
+      const name = wrap.dataset.setting;
+      let show = applies(name, ctx);
+      if (name === 'width' || name === 'height') show = this.el('resolution').value === 'custom';
+      wrap.hidden = !show;
+    }
+    this.root.querySelector('[data-label-n]').textContent = isMuseum(ctx.scene.scenario) ? 'Moving spheres (n)' : FIELD_LABELS.n;
+    for (const name of ['n', 'seed', 'radius', 'width', 'height', 'max_recursion_depth', 'max_prims', 'max_tree_depth',
+      'tile_size', 'previewQuality', 'refineDelayMs']) {
+      const rg = range(name, ctx), el = this.el(name);
+      if (!rg || !el) continue;
+      el.min = String(rg.min);
+      el.max = String(Math.max(rg.min, rg.max));
+    }
+    const allowed = samplesAllowed(ctx, [...this.el('samples_per_pixel').options].map((o) => Number(o.value)));
+    for (const o of this.el('samples_per_pixel').options) o.disabled = !allowed.includes(Number(o.value));
+    const modes = modesOf(ctx);
+    for (const o of this.el('mode').options) o.disabled = !!modes && !modes.includes(o.value);
+  }
+
+  // The scene as the form has it now.
+  _formScene() {
+    const f = this.form.elements;
+    return {
+      scenario: isMuseum(f.scenario.value) ? 'museum' : parseInt(f.scenario.value, 10), n: Number(f.n.value),
+      seed: Number(f.seed.value), radius: Number(f.radius.value), motion: f.motion.value,
+    };
+  }
+
+  // Mark `name` as refused with `text` next to it (aria-invalid + a described-by message).
+  mark(name, text) {
+    const el = this.el(name);
+    const wrap = this.root.querySelector(`.field[data-setting="${name}"]`);
+    if (!el || !wrap) return false;
+    let p = wrap.querySelector('.field-error');
+    if (!p) {
+      p = document.createElement('p');
+      p.className = 'field-error';
+      p.id = `f-${name}-error`;
+      p.setAttribute('role', 'alert');
+      wrap.append(p);
+    }
+    p.textContent = text;
+    el.setAttribute('aria-invalid', 'true');
+    el.setAttribute('aria-describedby', p.id);
+    this.invalid.set(name, text);
+    return true;
+  }
+
+  clear(name) {
+    const el = this.el(name);
+    const p = this.root.querySelector(`.field[data-setting="${name}"] .field-error`);
+    if (p) p.remove();
+    if (el) {
+      el.removeAttribute('aria-invalid');
+      el.removeAttribute('aria-describedby');
+    }
+    this.invalid.delete(name);
+  }
+
+  // The service refused a change ({field, text} from messages.js). → whether it is shown
+  // next to its field (the sheet is open and shows it); else the app shows a notice.
+  refused({ field, text }) {
+    if (!field || !this.open) return false;
+    const wrap = this.root.querySelector(`.field[data-setting="${field}"]`);
+    if (!wrap || wrap.hidden) return false;
+    return this.mark(field, text);
+  }
+
+  _problem(name, value, ctx) {
+    const text = check(name, value, ctx);
+    if (text) this.mark(name, text);
+    else this.clear(name);
+    return text;
+  }
+
+  _changed(target) {
+    const name = target.name;
+    if (!name || !this.state) return;
+    const v = target.value;
+    if (SCENE_KEYS.includes(name)) return this._sceneChanged(name);
+    if (RENDER_TEXT.includes(name) || RENDER_INT.includes(name)) {
+      const value = RENDER_INT.includes(name) ? Number(v) : v;
+      const render = { [name]: value };
+      const ctx = this._ctx({ render });
+      if (this._problem(name, v, ctx)) return;
+      // A method that cannot draw the mode on screen: back to colour rather than a refusal.
+      if (name === 'method') {
+        const modes = modesOf(ctx);
+        if (modes && !modes.includes(ctx.render.mode)) render.mode = 'color';
+      }
+      this._layout();
+      this.cb.onRender(render);
+    } else if (name === 'resolution') {
+      const size = parseResolution(v);
+      if (size) {
+        for (const side of ['width', 'height']) {
+          const text = check(side, size[side], this._ctx({ render: size }));
+          if (text) {
+            this.mark('resolution', text);
+            return;
+          }
+        }
+      }
+      this.clear('resolution');
+      this._layout();
+      this.cb.onClient({ resolution: v });
+    } else if (name === 'width' || name === 'height') {
+      if (this._problem(name, v, this._ctx({ render: { [name]: Number(v) } }))) return;
+      this.cb.onClient({ resolution: 'custom' });
+      this.cb.onRender({ [name]: Number(v) });
+    } else if (CLIENT_KEYS.includes(name)) {
+      if (this._problem(name, v, this._ctx())) return;
+      const value = name === 'previewScale' ? parseFloat(v) : ['previewQuality', 'refineDelayMs'].includes(name) ? parseInt(v, 10) : v;
+      this.cb.onClient({ [name]: value });
+      this._layout();
+    }
+  }
+
+  _sceneChanged(name) {
+    const prevKind = isMuseum(this.state.scene.scenario) ? 'museum' : 'thesis';
+    if (name === 'scenario') {
+      const kind = isMuseum(this.el('scenario').value) ? 'museum' : 'thesis';
+      if (kind !== prevKind) {
+        // The museum's n is moving spheres; a thesis n carried over could be thousands of them.
+        const n = this.nByKind[kind] ?? (kind === 'museum' ? DEFAULT_MUSEUM_N : DEFAULT_SCENE.n);
+        this.el('n').value = String(n);
+        this.clear('n');
+      }
+    }
+    const scene = this._formScene();
+    const ctx = this._ctx({ scene });
+    this._layout();
+    let bad = false;
+    for (const k of ['n', 'seed', 'radius']) {
+      if (applies(k, ctx) && this._problem(k, this.el(k).value, ctx)) bad = true;
+    }
+    if (!bad) this.cb.onScene(scene);
+  }
+}
