@@ -169,9 +169,14 @@ export class Api {
     return readFrame(res);
   }
 
-  async frame(id, params) {
-    const res = await this.request('GET', `/api/sessions/${encodeURIComponent(id)}/frame`, { params });
-    return readFrame(res);
+  // The session's frame. With `onPreview`, asked for progressively (docs/API.md, "Progressive
+  // frames"): a supersampled frame's pixel-centre image is handed to onPreview(frame) as soon
+  // as it arrives, and the final image is returned.
+  async frame(id, params, onPreview = null) {
+    const path = `/api/sessions/${encodeURIComponent(id)}/frame`;
+    if (!onPreview) return readFrame(await this.request('GET', path, { params }));
+    const res = await this.request('GET', path, { params: { ...params, progressive: 1 } });
+    return readParts(res, onPreview);
   }
 
   // What the server offers (GET /api/info: methods, modes, formats, limits), or null.
@@ -186,20 +191,93 @@ export class Api {
 }
 
 async function readFrame(res) {
-  const blob = await res.blob();
+  return frameOf(await res.blob(), (name) => res.headers.get(name));
+}
+
+// A frame from its bytes and a header lookup (a response's, or a multipart part's).
+function frameOf(blob, header) {
   let stats = null;
   try {
-    stats = JSON.parse(res.headers.get('X-Stats') || 'null');
+    stats = JSON.parse(header('X-Stats') || 'null');
   } catch { /* ignore */ }
-  const v = res.headers.get('X-Session-Version');
+  const v = header('X-Session-Version');
   return {
     blob,
-    version: v === null ? null : Number(v),
-    method: res.headers.get('X-Method'),
-    timing: parseServerTiming(res.headers.get('Server-Timing')),
+    version: v === null || v === undefined ? null : Number(v),
+    method: header('X-Method'),
+    timing: parseServerTiming(header('Server-Timing')),
     stats,
-    contentType: res.headers.get('Content-Type'),
+    contentType: header('Content-Type'),
+    part: header('X-Frame-Part') || 'final',
   };
+}
+
+// A multipart/mixed answer (progressive=1): every part before the last goes to onPreview as it
+// arrives; the last (X-Frame-Part: final) is returned. A plain image answer is the final one.
+async function readParts(res, onPreview) {
+  const type = res.headers.get('Content-Type') || '';
+  const m = /boundary=([^;]+)/.exec(type);
+  if (!type.startsWith('multipart/') || !m) return readFrame(res);
+  let last = null;
+  for await (const part of multipartParts(res.body, m[1])) {
+    const headers = part.headers;
+    const frame = frameOf(new Blob([part.body], { type: headers['content-type'] }), (n) => headers[n.toLowerCase()]);
+    if (frame.part === 'preview') await onPreview(frame);
+    else last = frame;
+  }
+  if (!last) throw new ApiError(502, 'the progressive frame ended without its final part', '');
+  return last;
+}
+
+// The parts of a multipart/mixed stream whose parts carry Content-Length: {headers, body}.
+export async function* multipartParts(stream, boundary) {
+  const reader = stream.getReader();
+  const enc = new TextEncoder(), dec = new TextDecoder();
+  const open = enc.encode(`--${boundary}`);
+  let buf = new Uint8Array(0), done = false;
+  const find = (needle, from = 0) => {
+    outer: for (let i = from; i <= buf.length - needle.length; i++) {
+      for (let j = 0; j < needle.length; j++) if (buf[i + j] !== needle[j]) continue outer;
+      return i;
+    }
+    return -1;
+  };
+  const more = async () => {
+    const { value, done: end } = await reader.read();
+    if (end) { done = true; return; }
+    const next = new Uint8Array(buf.length + value.length);
+    next.set(buf);
+    next.set(value, buf.length);
+    buf = next;
+  };
+  for (;;) {
+    let at = find(open);
+    while (at < 0 || buf.length < at + open.length + 2) {
+      if (done) return;
+      await more();
+      at = find(open);
+    }
+    if (buf[at + open.length] === 45 && buf[at + open.length + 1] === 45) return;   // "--": the end
+    let head = find(enc.encode('\r\n\r\n'), at);
+    while (head < 0) {
+      if (done) return;
+      await more();
+      head = find(enc.encode('\r\n\r\n'), at);
+    }
+    const headers = {};
+    for (const line of dec.decode(buf.subarray(at + open.length + 2, head)).split('\r\n')) {
+      const i = line.indexOf(':');
+      if (i > 0) headers[line.slice(0, i).trim().toLowerCase()] = line.slice(i + 1).trim();
+    }
+    const length = Number(headers['content-length']);
+    const start = head + 4;
+    while (buf.length < start + length) {
+      if (done) return;
+      await more();
+    }
+    yield { headers, body: buf.slice(start, start + length) };
+    buf = buf.slice(start + length);
+  }
 }
 
 // ---- the session, kept across reloads and server restarts ---------------------

@@ -198,18 +198,21 @@ const transport = {
     const meta = level ? requestMeta(level) : null;
     return timed(() => api.gesture(state.sessionId, body, level ? frameParams(level) : null), meta);
   },
-  async frame(level) {
+  async frame(level, onPreview = null) {
     if (deviceMode()) {
       if (state.anim.animated) animTime();   // the device's data is posed at state.anim.time
       try {
-        return await device.frame(level);
+        return await device.frame(level, onPreview && level === 'full' ? onPreview : null);
       } catch (e) {
         if (e instanceof ApiError && e.status === 404) throw e;  // the session expired: handled as ever
         fallBackToServer(e instanceof ApiError ? explain(e).text : (e.message || String(e)), false);  // frame below
       }
     }
     const meta = requestMeta(level);
-    return timed(() => api.frame(state.sessionId, frameParams(level)), meta);
+    // Full frames come progressively: the pixel centres first, then the supersampled image.
+    const t0 = performance.now();
+    const preview = onPreview && level === 'full' ? (f) => onPreview({ ...f, t0, meta }) : null;
+    return timed(() => api.frame(state.sessionId, frameParams(level), preview), meta);
   },
   refineNeeded() {
     if (deviceMode()) return false;
@@ -241,10 +244,11 @@ async function display(frame, level) {
     level, width: canvas.width, height: canvas.height, version: frame.version,
     contentType: frame.contentType, method, timing: frame.timing, stats: frame.stats, clientMs,
     renderer, renderedBy, n, mode: meta.mode, samples: meta.samples, camera: frame.camera ?? null,
+    part: frame.part || 'final',
   };
   hook.log.push({
     level, width: canvas.width, height: canvas.height, contentType: frame.contentType, version: frame.version, renderer,
-    camera: frame.camera ?? null,
+    camera: frame.camera ?? null, part: frame.part || 'final', clientMs,
   });
   if (hook.log.length > 100) hook.log.shift();
   const shownTime = frame.stats && Number.isFinite(frame.stats.time) ? frame.stats.time : null;

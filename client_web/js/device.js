@@ -228,16 +228,18 @@ export class DeviceView {
   // Render the local camera at `level` (the app's transport.frame in device mode). → a frame
   // for the app's display ({image: canvas, renderer: 'device', …}), or null when a gesture
   // cancelled it (the gesture's own frame follows).
-  async frame(level = 'full') {
+  // A frame at `level`; a supersampled one shows its pixel centres first and hands that image
+  // to onPreview (refined as the server's progressive frames are).
+  async frame(level = 'full', onPreview = null) {
     const p = this.probe();
     if (!p.ok) throw new DeviceUnavailable(p.reason);
     const t0 = performance.now();
     await this.ensure();
-    return this._start(level, t0);
+    return this._start(level, t0, onPreview);
   }
 
   // Start tracing a frame of the local camera (cancelling the one in progress). → Promise.
-  _start(level, t0) {
+  _start(level, t0, onPreview = null) {
     if (this.job) this._cancel(this.job);
     const p = this._profile(level);
     const uniforms = { ...cameraUniforms(this.camera, p.width * p.k, p.height * p.k), u_min_weight: p.minWeight };
@@ -250,6 +252,7 @@ export class DeviceView {
       id: ++this.jobSeq, level, trace, profile: p, camera: this.camera, version: this.version, data,
       t0: inputAt ?? t0, inputAt, rowsDone: 0, rowsTotal: trace.rowsTotal, done: false, cancelled: false, raf: null,
     };
+    job.onPreview = onPreview;
     job.promise = new Promise((resolve, reject) => { job.resolve = resolve; job.reject = reject; });
     this.job = job;
     this._band(job);   // the first band now; the others one per animation frame
@@ -267,6 +270,12 @@ export class DeviceView {
       this.counts.bands++;
       this.counts.lastRows = Math.max(this.counts.lastRows, rows);
       job.rowsDone = t.rowsDoneTotal;
+      if (!t.done && t.k > 1 && t.phase === 1 && !job.previewed && job.onPreview) {
+        // The pixel centres are traced: show them while the sub-pixels follow.
+        job.previewed = true;
+        const displayMs = this.renderer.showCentre(t);
+        job.onPreview({ ...this._frameOf(job, displayMs), part: 'preview' });
+      }
       if (!t.done) {
         job.raf = requestAnimationFrame(() => this._band(job));
         return;

@@ -321,6 +321,29 @@ export class DeviceRenderer {
     return performance.now() - t0;
   }
 
+  // The pixel-centre phase of a supersampled frame onto this.canvas (its preview). → ms.
+  showCentre(trace) {
+    this._check();
+    const gl = this.gl, t0 = performance.now();
+    const centre = this._targets(trace.width, trace.height, 'centre');
+    if (this.canvas.width !== trace.width || this.canvas.height !== trace.height) {
+      this.canvas.width = trace.width;
+      this.canvas.height = trace.height;
+    }
+    gl.bindVertexArray(this.vao);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    gl.viewport(0, 0, trace.width, trace.height);
+    const d = this.displayProgram;
+    gl.useProgram(d.program);
+    gl.activeTexture(gl.TEXTURE0 + 4);
+    gl.bindTexture(gl.TEXTURE_2D, centre.tex[0]);
+    gl.uniform1i(d.uniforms.get('u_image').loc, 4);
+    gl.drawArrays(gl.TRIANGLES, 0, 6);
+    gl.bindTexture(gl.TEXTURE_2D, null);
+    gl.bindVertexArray(null);
+    return performance.now() - t0;
+  }
+
   // A whole frame at once (benchmarks): one band of every row. → {trace, display} ms.
   render(prog, { width, height, k = 1, uniforms }) {
     const trace = this.beginTrace(prog, { width, height, k, uniforms });

@@ -17,7 +17,8 @@
 //
 // No DOM and no fetch here: `transport` does the I/O, so this is unit-testable.
 //   transport.gesture(op, level|null) → frame (level given) or anything (null)
-//   transport.frame(level)            → frame            level: 'preview' | 'full'
+//   transport.frame(level, onPreview) → frame            level: 'preview' | 'full'; a progressive
+//                                       frame hands its first image to onPreview first (optional)
 //   transport.refineNeeded()          → false when both levels are the same (optional)
 //   display(frame, level)             → shows it (may be async)
 //   onError(error, what)              → what: 'gesture' | 'frame' | 'task'
@@ -164,6 +165,19 @@ export class FrameScheduler {
     }, wait);
   }
 
+  // The first image of a progressive frame: shown when nothing newer is on screen, without
+  // taking the request's place (its final image, same request, follows and replaces it).
+  async _offerPreview(frame, seq, level) {
+    if (seq <= this.shownSeq ||
+        (frame.version != null && this.shownVersion != null && frame.version < this.shownVersion)) {
+      this.dropped++;
+      return false;
+    }
+    this.previews = (this.previews || 0) + 1;
+    await this.display(frame, level);
+    return true;
+  }
+
   // Show `frame` if it is newer than the one on screen. Returns whether it was shown.
   async _offer(frame, seq, level) {
     if (seq <= this.shownSeq ||
@@ -184,7 +198,7 @@ export class FrameScheduler {
     const seq = ++this.seq;
     try {
       this.requests++;
-      const frame = await this.transport.frame(level);
+      const frame = await this.transport.frame(level, (preview) => this._offerPreview(preview, seq, level));
       if (frame) await this._offer(frame, seq, level);   // null: cancelled by a gesture (device mode)
     } catch (e) {
       this.onError(e, 'frame');
