@@ -62,7 +62,7 @@ def pct(values: list[float], q: float) -> float:
 class Server:
     """A ``python -m server`` child on a free port with a temporary SQLite file."""
 
-    def __init__(self, queue_size: int):
+    def __init__(self, queue_size: int, **settings: object):
         self.tmp = tempfile.TemporaryDirectory()
         with socket.socket() as s:
             s.bind(("127.0.0.1", 0))
@@ -71,7 +71,8 @@ class Server:
         env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
         env.update(POCKETRAY_PORT=str(port), POCKETRAY_HOST="127.0.0.1", POCKETRAY_LOG_LEVEL="warning",
                    POCKETRAY_SQLITE_PATH=str(Path(self.tmp.name) / "bench.sqlite3"),
-                   POCKETRAY_QUEUE_SIZE=str(queue_size))
+                   POCKETRAY_QUEUE_SIZE=str(queue_size),
+                   **{f"POCKETRAY_{k.upper()}": str(v) for k, v in settings.items()})
         self.log = open(Path(self.tmp.name) / "server.log", "wb")
         self.proc = subprocess.Popen([sys.executable, "-m", "server"], cwd=ROOT, env=env,
                                      stdout=self.log, stderr=subprocess.STDOUT)

@@ -1,0 +1,39 @@
+"""The slice scheduler through the service (issue 16): fairness, progressive frames, slice size.
+
+Runs ``bench/scheduling.py``'s three measurements against render-service processes it
+starts (loopback). Quick mode: the progressive timeline only, at a small size.
+"""
+
+from __future__ import annotations
+
+from bench import scheduling as S
+
+from .common import Context
+
+NAME = "scheduling"
+TITLE = "Frames as slices — fairness, progressive frames, slice size"
+
+
+def run(ctx: Context) -> str:
+    lines: list[str] = []
+    out = lines.append
+    if ctx.quick:
+        S.progressive(1, out, size=(64, 96))
+    else:
+        runs = max(1, min(ctx.runs, 3))
+        S.fairness(runs, 512, out)
+        S.progressive(ctx.runs, out)
+        S.slices(max(1, runs - 1), 256, out)
+    body = "\n".join(lines)
+    return f"""## {TITLE}
+
+{ctx.caption(ctx.runs, "medians; each row from service processes started for it")}
+
+The long frame (a BIH of one leaf over 16,384 spheres, so every ray tests every sphere) and a
+light session's 32 × 32 frames beside it, with slicing off (one draw per pass, as before
+slices) and on; the phone viewport's progressive timeline; the slice-size trade-off
+(`POCKETRAY_SLICE_MS`). Targets: the small frame within 0.5 s beside the long one; the first
+image ≤ 0.25 × the final image's time and ≤ 0.5 s.
+
+{body}
+"""
