@@ -18,6 +18,8 @@ import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any, Callable, TypeVar
 
+from . import metrics
+
 log = logging.getLogger("pocketray.gl")
 T = TypeVar("T")
 
@@ -122,6 +124,7 @@ class GLWorker:
             if self._admitted >= self.queue_size:
                 raise QueueFull(self.retry_after())
             self._admitted += 1
+        metrics.render_admitted()
         return Ticket(self)
 
     def retry_after(self) -> int:
@@ -136,6 +139,7 @@ class GLWorker:
         if self.renderer is None:
             raise GLNotReady(self.error or "OpenGL context not created")
         t0 = time.perf_counter()
+        metrics.render_started()
         try:
             return fn(self.renderer)
         finally:
@@ -171,6 +175,7 @@ class Ticket:
                 return
             self._released = True
         self._worker._release()
+        metrics.render_released(never_ran=not self._submitted)
 
     def __enter__(self) -> "Ticket":
         return self

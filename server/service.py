@@ -27,7 +27,7 @@ from renderer.scene import Camera, Scene, SceneError
 from renderer.settings import RenderSettings
 from renderer.tree_update import TreeUpdate
 
-from . import controller
+from . import controller, metrics
 from .config import ServerConfig
 from .gl_worker import GLWorker, QueueFull, Ticket
 from .models import (PanGesture, PinchGesture, ResetGesture, SceneModel, SessionCreate, SettingsPatch)
@@ -315,6 +315,7 @@ class SessionService:
                    **{k: float(v) for k, v in result.timings.items()
                       if k in ("pose", "update", "build", "upload", "trace", "read")},
                    "encode": encode_ms, "total": (t_end - t_admit) * 1e3}
+        metrics.observe_stages(method, rs.mode, timings)
         if session is not None and result.stats:
             self._remember_stats(StatsKey(session.id, session.scene_rev, method, rs.max_prims,
                                           rs.max_tree_depth, self._pose_time(scene, rs.time)), result.stats)
