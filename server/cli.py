@@ -8,6 +8,7 @@
     pocketray scenario 1|2|3 --n N [--seed S] [--radius R] -o scene.json
     pocketray scenario museum --n N [--kind mixed] [--absent A] [--seed S] -o scene.json
     pocketray devices [--probe]
+    pocketray stack [--processes N] [--port P]     (Redis + render processes + HAProxy, server/stack.py)
 
 ``serve`` takes a flag for every field of :class:`server.config.ServerConfig` (``--queue-size``,
 ``--cors-origins``, ``--drain-s`` …): each is put in the environment as its ``POCKETRAY_*``
@@ -297,14 +298,29 @@ def parser() -> argparse.ArgumentParser:
     _add_render(sub)
     _add_scenario(sub)
     _add_devices(sub)
+    _add_stack(sub)
     return p
 
 
-COMMANDS = {"serve": serve, "render": render, "scenario": write_scenario, "devices": devices}
+def _add_stack(sub: argparse._SubParsersAction) -> None:
+    sub.add_parser("stack", add_help=False, help="Redis + render processes + HAProxy on loopback ports "
+                                                 "(server/stack.py; needs redis-server and haproxy)")
+
+
+def stack(args: argparse.Namespace) -> int:
+    from .stack import main as stack_main
+
+    return stack_main(args.rest)
+
+
+COMMANDS = {"serve": serve, "render": render, "scenario": write_scenario, "devices": devices, "stack": stack}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = parser().parse_args(argv)
+    args, rest = parser().parse_known_args(argv)
+    if args.command != "stack" and rest:
+        parser().parse_args(argv)   # the usual error for unknown arguments
+    args.rest = rest
     try:
         return COMMANDS[args.command](args)
     except UsageError as e:
