@@ -83,7 +83,7 @@ def series(label: str, variant: int = 0, method: str | None = None, **extra: Any
     """``plot()`` keyword arguments of a series: its method's colour and marker; ``variant`` ≥ 1
     (a second MAX_PRIMS, another scheme) changes the line style and lightens the colour."""
     colour, marker = colour_marker(method or method_of(label))
-    style = {"color": shade(colour, min(0.55, 0.18 * variant)) if variant else colour, "marker": marker,
+    style = {"color": shade(colour, min(0.7, 0.15 * variant)) if variant else colour, "marker": marker,
              "ls": LINESTYLES[variant % len(LINESTYLES)], "label": label, "ms": 5, "lw": 1.5}
     style.update(extra)
     return style
