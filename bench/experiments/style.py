@@ -58,7 +58,7 @@ def method_of(label: str) -> str:
             return name
     words = re.findall(r"[a-z0-9_]+", text)
     for name in sorted(METHOD_STYLE, key=len, reverse=True):
-        if name in words:
+        if name != "thesis" and name in words:   # "BIH rebuild (thesis)" is the BIH's
             return name
     return words[0] if words else text
 
