@@ -104,7 +104,7 @@ def serve(args: argparse.Namespace) -> int:
 
 # ---- render ---------------------------------------------------------------------------------
 def _add_render(sub: argparse._SubParsersAction) -> None:
-    from .models import FrameQuery, RenderParams
+    from .models import RenderParams
 
     p = sub.add_parser("render", help="render a scene JSON file to an image or array",
                        description="Render SCENE (scene JSON, docs/FORMATS.md; - for stdin) with the API's "
@@ -118,7 +118,6 @@ def _add_render(sub: argparse._SubParsersAction) -> None:
         p.add_argument(*flags, dest=f"set_{name}", metavar=name.upper(), default=None,
                        help=(field.description or name).replace("%", "%%"))
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
-    assert FrameQuery  # the flags are validated as the frame query (text values)
 
 
 def _validation_message(e: Exception) -> str:
@@ -140,7 +139,6 @@ def render_file(scene_text: str, output: Path, flags: dict[str, str]) -> dict[st
     from pydantic import ValidationError
 
     from renderer.scene import SceneError
-    from renderer.settings import RenderSettings
 
     from .config import ServerConfig
     from .models import FrameQuery, SceneModel
@@ -170,8 +168,6 @@ def render_file(scene_text: str, output: Path, flags: dict[str, str]) -> dict[st
         rs.check_method(scene.n_spheres)
     except (SceneError, TypeError) as e:
         raise UsageError(f"{getattr(e, 'field', 'settings')}: {getattr(e, 'message', e)}") from None
-    if not isinstance(rs, RenderSettings):  # pragma: no cover - a guard for the type checker
-        raise UsageError("settings")
 
     from renderer.gl import GLRenderer
 

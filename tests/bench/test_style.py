@@ -54,11 +54,8 @@ def test_the_legend_is_outside_every_axes():
 
 @pytest.mark.gl   # ray_engines' data from before the cones were saved renders them again
 def test_every_chart_of_docs_figures_is_redrawn_from_its_saved_data(tmp_path):
-    from bench.experiments import __name__ as pkg  # noqa: F401
     import importlib
-    import sys
 
-    sys.path.insert(0, str(ROOT))
     figures = tmp_path / "figures"
     figures.mkdir()
     drawn = set()
