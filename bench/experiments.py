@@ -4,13 +4,16 @@
     ./dev bench bench/experiments.py --quick              # smoke run (tiny sizes, 1 run) → a temp dir
     ./dev bench bench/experiments.py --only fig_4_4,pareto   # re-run some; their sections are replaced
     ./dev bench bench/experiments.py --list
+    ./dev bench bench/experiments.py --replot [--only peers]   # redraw the charts from figures/*.json
 
 Each experiment is a module of ``bench/experiments/`` (see ``EXPERIMENTS`` there). It
 measures, writes its charts (``figures/*.png``) and raw data (``figures/*.json``) and
 returns a Markdown fragment; this script puts the fragments into ``RESULTS.md`` between
 ``<!-- BEGIN name -->`` / ``<!-- END name -->`` markers under a header naming the machine,
 the GL renderer and the number of runs. ``--quick`` never writes over ``docs/``: without
-``--out`` it writes to a fresh temporary directory and prints where.
+``--out`` it writes to a fresh temporary directory and prints where. ``--replot`` measures
+nothing: every module's ``plot(data, figures)`` redraws its charts from the
+``figures/NAME.json`` it saved (the style of ``bench/experiments/style.py``).
 """
 
 from __future__ import annotations
@@ -110,6 +113,31 @@ def _anchor(title: str) -> str:
     return a.replace(" ", "-")
 
 
+def replot(out: Path, names: list[str]) -> int:
+    """Redraw the charts of ``names`` from ``out/figures/NAME.json``; 1 when one is missing or fails."""
+    import json
+
+    status = 0
+    for name in names:
+        mod = importlib.import_module(f"bench.experiments.{name}")
+        data_path = out / "figures" / f"{getattr(mod, 'NAME', name)}.json"
+        if not hasattr(mod, "plot"):
+            continue   # an experiment without charts (tables only)
+        if not data_path.exists():
+            print(f"  {name:12s} no {data_path}: run the experiment first", file=sys.stderr)
+            status = 1
+            continue
+        try:
+            charts = mod.plot(json.loads(data_path.read_text()), out / "figures")
+        except Exception:
+            print(f"  {name:12s} FAILED:\n{traceback.format_exc()}", file=sys.stderr)
+            status = 1
+            continue
+        for chart in charts:
+            print(f"  {name:12s} {out / 'figures' / (chart + '.png')}")
+    return status
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -123,6 +151,8 @@ def main(argv: list[str] | None = None) -> int:
                          "(default 10; 0.5 with --quick; 0 = no limit)")
     ap.add_argument("--no-progress", action="store_true", help="no progress bars")
     ap.add_argument("--list", action="store_true", help="list the experiments and exit")
+    ap.add_argument("--replot", action="store_true",
+                    help="measure nothing: redraw the charts of figures/*.json (in --out, default docs/)")
     a = ap.parse_args(argv)
 
     if a.list:
@@ -138,6 +168,8 @@ def main(argv: list[str] | None = None) -> int:
         out = Path(tempfile.mkdtemp(prefix="pocketray-quick-")) if a.quick else DEFAULT_OUT
     else:
         out = a.out
+    if a.replot:
+        return replot(out, names)
     if a.quick and out.resolve() == DEFAULT_OUT.resolve():
         ap.error("--quick does not write over docs/: give another --out")
     runs = a.runs if a.runs is not None else (1 if a.quick else 5)

@@ -14,7 +14,7 @@ from .tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
 
 # "auto" picks brute force below the measured crossover n, BIH above it.
 METHODS = (*_METHOD_REGISTRY, AUTO_METHOD)
-FORMATS = ("png", "jpeg", "npy")
+FORMATS = ("png", "jpeg", "npy", "exr")   # exr: float channels (server/exr.py)
 
 
 @dataclass(frozen=True)

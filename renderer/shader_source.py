@@ -11,13 +11,13 @@ pass's own file. The same text serves moderngl and the browser (WebGL2, ``GET
 from __future__ import annotations
 
 from functools import lru_cache
-from pathlib import Path
 
 from . import gpu_layout
 from .gpu_layout import Binding, Variant
 from .methods import METHODS
+from .resources import shader_dir
 
-SHADER_DIR = Path(__file__).resolve().parent.parent / "shaders"
+SHADER_DIR = shader_dir()   # the package's shaders/ (installed) or the checkout's top-level shaders/
 HEADER_MARK = "//@HEADER@"
 METHOD_MARK = "//@METHOD@"
 INCLUDE_MARK = "//@INCLUDE "   # a line "//@INCLUDE method_bvh.glsl" in a method file inlines that file

@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # Installs what pocketray needs on a fresh Debian machine. Idempotent and quick
-# when nothing changed (a stamp of pyproject.toml's hash skips pip).
+# when nothing changed (a stamp of pyproject.toml's and the lock's hash skips pip).
 #  - Mesa's EGL + llvmpipe for headless OpenGL (when libEGL is missing)
-#  - Chromium for the browser tests, redis-server for the scale-out tests
-#  - a virtual environment .venv with the project and its test extras
+#  - Chromium for the browser tests; redis-server and haproxy for the scale-out stack
+#    (./dev stack and its test)
+#  - a virtual environment .venv with the exact versions of requirements-test.lock (the
+#    service and the test extras; scripts/lock.sh rewrites it), then the project itself
+#    (editable, without resolving anything again)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -12,6 +15,7 @@ ldconfig -p | grep -q 'libEGL.so.1' || need_apt+=(libegl1 libegl-mesa0 libgl1-me
 ldconfig -p | grep -q 'libEGL_mesa' || need_apt+=(libegl-mesa0 libgl1-mesa-dri)
 command -v chromium >/dev/null || need_apt+=(chromium)
 command -v redis-server >/dev/null || need_apt+=(redis-server)
+command -v haproxy >/dev/null || [ -x /usr/sbin/haproxy ] || need_apt+=(haproxy)
 if [ ${#need_apt[@]} -gt 0 ]; then
   SUDO=""; [ "$(id -u)" = 0 ] || SUDO="sudo"
   echo "bootstrap: installing system packages: ${need_apt[*]}" >&2
@@ -20,10 +24,12 @@ if [ ${#need_apt[@]} -gt 0 ]; then
 fi
 
 [ -x .venv/bin/python ] || python3 -m venv .venv
-stamp=$(sha256sum pyproject.toml | cut -c1-16)
+stamp=$(cat pyproject.toml requirements-test.lock | sha256sum | cut -c1-16)
 if [ "$(cat .bootstrap-stamp 2>/dev/null || true)" != "$stamp" ]; then
-  echo "bootstrap: installing Python packages into .venv" >&2
+  echo "bootstrap: installing Python packages into .venv (requirements-test.lock)" >&2
   .venv/bin/python -m pip install -q --upgrade pip >/dev/null
-  .venv/bin/python -m pip install -q -e '.[test]'
+  .venv/bin/python -m pip install -q -r requirements-test.lock
+  # (setuptools' editable build warns about folders named like the packages: that is the layout)
+  out=$(.venv/bin/python -m pip install -q --no-deps -e . 2>&1) || { echo "$out" >&2; exit 1; }
   echo "$stamp" > .bootstrap-stamp
 fi

@@ -1,24 +1,12 @@
-"""``python -m server``: run the service with uvicorn on POCKETRAY_HOST:POCKETRAY_PORT."""
+"""``python -m server [serve flags]``: the same as ``pocketray serve`` (``python -m server
+render …`` and the other commands of :mod:`server.cli` work too)."""
 
 from __future__ import annotations
 
-import logging
+import sys
 
-import uvicorn
-
-from .config import ServerConfig
-
-
-def main() -> None:
-    config = ServerConfig()
-    level = logging.getLevelName(config.log_level.upper())
-    logging.basicConfig(level=level if isinstance(level, int) else logging.INFO,
-                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
-    from .app import create_app
-
-    # One process owns one GL context; scale out with more processes and the redis backend.
-    uvicorn.run(create_app(config), host=config.host, port=config.port, log_level=config.log_level)
-
+from .cli import COMMANDS, main
 
 if __name__ == "__main__":
-    main()
+    argv = sys.argv[1:]
+    sys.exit(main(argv if argv and argv[0] in COMMANDS else ["serve", *argv]))

@@ -6,10 +6,18 @@ Lifespan: opens the state backend, starts the GL thread (context + warm-up rende
 background: /api/ready turns 200 once both succeeded) and closes both at shutdown. Routes
 get the service through ``Depends(get_service)`` (it lives on ``app.state``), never
 through globals.
+
+``uvicorn server.app:app`` serves the module's app (configured from the environment);
+``pocketray serve`` (:mod:`server.cli`) runs ``server.app:create_app`` as a factory, so that
+``--workers N`` works: each worker makes its own app, and with it its own GL context.
+
+Middleware, outermost first: request id / session id / access log / HTTP metrics
+(:mod:`server.observability`), CORS and plain OPTIONS (:mod:`server.web`), the body limit.
 """
 
 from __future__ import annotations
 
+import os
 from contextlib import asynccontextmanager
 from typing import Any, AsyncIterator
 
@@ -20,13 +28,17 @@ from fastapi.staticfiles import StaticFiles
 from renderer.scenarios import scenario
 from renderer.settings import RenderSettings
 
-from . import api
+from . import api, metrics, web
 from .api import errors
 from .body_limit import BodyLimit
 from .config import ServerConfig
 from .gl_worker import GLWorker, default_renderer
+from .observability import RequestContext, configure_logging
 from .service import SessionService
+from .shutdown import Drain
 from .store import open_store
+
+GL_DEVICE_ENV = "GLCONTEXT_DEVICE_INDEX"   # glcontext's EGL backend picks its device by this index
 
 WARMUP_SIDE = 16       # pixels: the warm-up frame only has to compile the default shader
 WARMUP_SPHERES = 16
@@ -41,9 +53,13 @@ def warmup_render(renderer: Any) -> None:
 def create_app(config: ServerConfig | None = None) -> FastAPI:
     """A new application for ``config`` (default: from POCKETRAY_* environment variables)."""
     config = config or ServerConfig()
+    configure_logging(config.log_level, config.log_format)
+    drain = Drain(config.drain_s)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        if config.gl_device is not None:
+            os.environ[GL_DEVICE_ENV] = str(config.gl_device)
         store = open_store(config)
         worker = GLWorker(config.queue_size, warmup=warmup_render if config.warmup else None,
                           renderer_factory=lambda: default_renderer(config.max_target_bytes),
@@ -53,19 +69,34 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
         app.state.store = store
         app.state.worker = worker
         app.state.service = SessionService(config, store, worker)
+        app.state.drain = drain
+        app.state.is_ready = lambda: worker.ready.is_set() and not drain.draining.is_set()
+        drain.install()
         try:
             yield
         finally:
+            drain.begin("lifespan shutdown")
+            drain.uninstall()
             await run_in_threadpool(worker.close)
             store.close()
+            metrics.process_exit()
 
     app = FastAPI(title="pocketray render service", version="0.1.0", lifespan=lifespan,
                   description="Sessions (Model), gestures (Controller) and frames (View) of the pocketray "
-                              "ray tracer; see docs/API.md.")
+                              "ray tracer; see docs/API.md.",
+                  docs_url=None, redoc_url=None, openapi_tags=web.OPENAPI_TAGS,
+                  generate_unique_id_function=web.operation_id)
+    # add_middleware wraps what is there: the last added runs first.
     app.add_middleware(BodyLimit, max_bytes=config.max_body_bytes)
+    app.add_middleware(web.AllowOptions)
+    web.install_cors(app, config.cors_origins)
+    app.add_middleware(RequestContext)
     errors.install(app)
     app.include_router(api.api_router)
-    config.client_dir.mkdir(parents=True, exist_ok=True)
+    app.include_router(metrics.router)
+    web.install_docs(app)
+    if not config.client_dir.is_dir():
+        config.client_dir.mkdir(parents=True, exist_ok=True)
     if config.shader_dir.is_dir():
         app.mount("/shaders", StaticFiles(directory=config.shader_dir), name="shaders")
     app.mount("/", StaticFiles(directory=config.client_dir, html=True), name="client")

@@ -9,15 +9,16 @@ one process) on 127.0.0.1:8000.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import Field, model_validator
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic import Field, field_validator, model_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from renderer.limits import JPEG_QUALITY_RANGE, MAX_SPHERES, MAX_TREE_DEPTH
 from renderer.profiles import STILL
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
+from . import resources
+
 FIT_SIDE = 1088   # pixels: the side of the browser client's largest 'fit' frame
 QUALITY_MIN, QUALITY_MAX = JPEG_QUALITY_RANGE
 
@@ -30,12 +31,29 @@ class ServerConfig(BaseSettings):
     # --- network ------------------------------------------------------------
     host: str = Field("127.0.0.1", description="interface uvicorn binds to")
     port: int = Field(8000, ge=0, le=65535, description="TCP port (0 = any free port)")
-    log_level: str = Field("info", description="uvicorn log level")
+    log_level: str = Field("info", description="log level (the service's and uvicorn's)")
+    log_format: Literal["json", "text"] = Field(
+        "json", description="json: one JSON object a line (time, level, logger, message, request_id, session_id); "
+                            "text: plain lines")
+    cors_origins: Annotated[list[str], NoDecode] = Field(
+        default_factory=list, description="origins allowed to call the API from another site (CORS): "
+                                          "comma-separated or a JSON list; '*' allows any; default none")
+    drain_s: float = Field(0.0, ge=0, le=600,
+                           description="on SIGTERM, /api/ready answers 503 at once and the process goes on "
+                                       "serving this many seconds (a balancer's health check notices) "
+                                       "before it shuts down")
+
+    # --- the GPU --------------------------------------------------------------------
+    gl_device: int | None = Field(None, ge=0, description="EGL device index of the GL context (glcontext's "
+                                                          "GLCONTEXT_DEVICE_INDEX; `pocketray devices` lists them); "
+                                                          "default: the first")
 
     # --- state (the Model) ----------------------------------------------------
     state_backend: Literal["sqlite", "redis"] = Field(
         "sqlite", description="where sessions live: an embedded SQLite file, or Redis shared by processes")
-    sqlite_path: Path = Field(REPO_ROOT / "var" / "sessions.sqlite3", description="SQLite file (sqlite backend)")
+    sqlite_path: Path = Field(default_factory=resources.default_sqlite_path,
+                              description="SQLite file (sqlite backend); default var/sessions.sqlite3 under the "
+                                          "working directory")
     redis_url: str = Field("redis://127.0.0.1:6379/0", description="Redis URL (redis backend)")
     redis_prefix: str = Field("pocketray:", description="key prefix in Redis")
     session_ttl_s: float = Field(24 * 3600.0, gt=0, description="a session expires after this idle time, seconds")
@@ -85,8 +103,23 @@ class ServerConfig(BaseSettings):
                                       description="JPEG quality when a request names none")
 
     # --- static files ------------------------------------------------------------
-    client_dir: Path = Field(REPO_ROOT / "client_web", description="served at / (created when missing)")
-    shader_dir: Path = Field(REPO_ROOT / "shaders", description="served read-only at /shaders/")
+    client_dir: Path = Field(default_factory=resources.client_dir,
+                             description="served at / (default: the client shipped with the package)")
+    shader_dir: Path = Field(default_factory=resources.shader_dir,
+                             description="served read-only at /shaders/ (default: the package's shaders)")
+
+    @field_validator("cors_origins", mode="before")
+    @classmethod
+    def _origins(cls, value: Any) -> Any:
+        """``a,b`` or ``["a", "b"]`` (JSON) from the environment; a list as it is."""
+        if isinstance(value, str):
+            text = value.strip()
+            if text.startswith("["):
+                import json
+
+                return json.loads(text)
+            return [o.strip() for o in text.split(",") if o.strip()]
+        return value
 
     @model_validator(mode="after")
     def _check(self) -> "ServerConfig":

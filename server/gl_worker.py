@@ -32,6 +32,8 @@ from collections import OrderedDict, deque
 from concurrent.futures import Future
 from typing import Any, Callable, Hashable, TypeVar
 
+from . import metrics
+
 log = logging.getLogger("pocketray.gl")
 T = TypeVar("T")
 
@@ -250,6 +252,7 @@ class GLWorker:
             if self._admitted >= self.queue_size:
                 raise QueueFull(self.retry_after())
             self._admitted += 1
+        metrics.render_admitted()
         return Ticket(self)
 
     def queued_ms(self) -> float:
@@ -326,6 +329,7 @@ class GLWorker:
         if not fut.set_running_or_notify_cancel():
             return
         t0 = time.perf_counter()
+        metrics.render_started()
         try:
             if self.renderer is None:
                 raise GLNotReady(self.error or "OpenGL context not created")
@@ -336,13 +340,15 @@ class GLWorker:
             self._avg_call_s = 0.8 * self._avg_call_s + 0.2 * (time.perf_counter() - t0)
 
     def _start_frame(self, h: FrameHandle) -> None:
-        if h.reason is not None:
+        if h.reason is not None:        # cancelled while it waited: it never runs
+            metrics.render_started()
             h._finish(error=FrameCancelled(h.reason))
             return
         try:
             if self.renderer is None:
                 raise GLNotReady(self.error or "OpenGL context not created")
             h.started_at = time.perf_counter()
+            metrics.render_started()
             h.frame = h.start(self.renderer)      # uploads: counts as a slice
         except BaseException as e:  # noqa: BLE001
             h._finish(error=e)
@@ -452,6 +458,7 @@ class Ticket:
                 return
             self._released = True
         self._worker._release()
+        metrics.render_released(never_ran=not self._submitted)
 
     def __enter__(self) -> "Ticket":
         return self

@@ -185,7 +185,8 @@ UpdateThreshold = Annotated[float, Field(ge=UPDATE_THRESHOLD_RANGE[0], le=UPDATE
 Method = Annotated[MethodName, Field(description="acceleration method; auto: brute force below the measured "
                                                 "crossover, bih above it")]
 Mode = Annotated[ModeName, Field(description="what the image shows (docs/SHADING.md)")]
-Format = Annotated[FormatName, Field(description="encoding of the frame: png, jpeg or npy (one array)")]
+Format = Annotated[FormatName, Field(description="encoding of the frame: png, jpeg, npy (one array) or exr "
+                                                 "(OpenEXR, float channels)")]
 Specialize = Annotated[bool, Field(description="shader variant with only the scene's features (exact)")]
 Update = Annotated[UpdateScheme, Field(description="how bvh/twolevel follow the motion between frames: "
                                                    "rebuild, refit or selective")]

@@ -37,7 +37,7 @@ from renderer.scene import Camera, Scene, SceneError
 from renderer.settings import RenderSettings
 from renderer.tree_update import TreeUpdate
 
-from . import controller
+from . import controller, metrics
 from .config import ServerConfig
 from .gl_worker import FrameCancelled, FrameHandle, GLWorker, QueueFull, Ticket
 from .models import (OrbitGesture, PanGesture, PinchGesture, ResetGesture, SceneModel, SessionCreate,
@@ -439,6 +439,8 @@ class SessionService:
                    "encode": encode_ms, "total": (t_end - t_admit) * 1e3}
         if frame.pose_ms is not None:
             timings["pose"] = frame.pose_ms
+        if final:
+            metrics.observe_stages(frame.method, rs.mode, timings)
         return Frame(body=body, media_type=MEDIA_TYPES[rs.format], method=frame.method, timings=timings,
                      stats=result.stats, version=version, width=rs.width, height=rs.height, final=final)
 

@@ -206,6 +206,12 @@ class SQLiteStore:
         with self._lock:
             return self._db.execute("SELECT 1").fetchone() == (1,)
 
+    def count(self) -> int:
+        """Sessions not yet expired (the /metrics gauge)."""
+        with self._lock:
+            return self._db.execute("SELECT COUNT(*) FROM sessions WHERE accessed_at >= ?",
+                                    (time.time() - self.ttl_s,)).fetchone()[0]
+
     def close(self) -> None:
         with self._lock:
             self._db.close()
@@ -295,6 +301,10 @@ class RedisStore:
             return bool(self.client.ping())
         except Exception:
             return False
+
+    def count(self) -> int:
+        """Sessions not yet expired (the /metrics gauge; a SCAN, so /metrics caches it)."""
+        return sum(1 for _ in self.client.scan_iter(match=f"{self.prefix}state:*", count=1000))
 
     def close(self) -> None:
         self.client.close()

@@ -2,7 +2,8 @@
 
 Formats (docs/FORMATS.md): ``png`` and ``jpeg`` carry what the render mode shows as 8-bit
 RGB; ``npy`` is one ``.npy`` array (colour uint8 H×W×3, depth float32 H×W with
-inf on a miss, primid int32 H×W with −1 on a miss, normal float32 H×W×3).
+inf on a miss, primid int32 H×W with −1 on a miss, normal float32 H×W×3); ``exr`` is one
+OpenEXR file of float channels (colour linear and unquantised; :mod:`server.exr`).
 
 Headers of every frame:
 
@@ -29,7 +30,9 @@ from PIL import Image
 
 from renderer.result import RenderResult
 
-MEDIA_TYPES = {"png": "image/png", "jpeg": "image/jpeg", "npy": "application/octet-stream"}
+from .exr import MEDIA_TYPE as EXR_MEDIA_TYPE, encode_exr
+
+MEDIA_TYPES = {"png": "image/png", "jpeg": "image/jpeg", "npy": "application/octet-stream", "exr": EXR_MEDIA_TYPE}
 TIMING_NAMES = ("queue", "pose", "update", "build", "upload", "trace", "read", "encode", "total")
 STATS_HEADER_KEYS = ("method", "time", "scheme", "n_spheres", "primitives", "inner_nodes", "leaves", "depth_max",
                      "optimized_nodes", "forced_leaves", "build_ms")
@@ -51,9 +54,11 @@ class Frame:
 
 
 def encode(result: RenderResult, fmt: str, quality: int, png_level: int = 1) -> tuple[bytes, float]:
-    """(bytes, encode ms) of ``result`` in ``fmt`` (png | jpeg | npy); quality 1 … 100 for jpeg."""
+    """(bytes, encode ms) of ``result`` in ``fmt`` (png | jpeg | npy | exr); quality 1 … 100 for jpeg."""
     t0 = time.perf_counter()
     buf = io.BytesIO()
+    if fmt == "exr":
+        return encode_exr(result), (time.perf_counter() - t0) * 1e3
     if fmt == "npy":
         np.save(buf, np.ascontiguousarray(result.array()), allow_pickle=False)
     else:
@@ -90,13 +95,15 @@ def frame_headers(frame: Frame) -> dict[str, str]:
 
 
 FRAME_RESPONSE_DOC: dict[str, Any] = {
-    "description": "the frame: PNG, JPEG, or one .npy array (format=npy)",
+    "description": "the frame: PNG, JPEG, one .npy array (format=npy) or an OpenEXR file of float channels "
+                   "(format=exr)",
     "content": {
         "image/png": {"schema": {"type": "string", "format": "binary"}},
         "image/jpeg": {"schema": {"type": "string", "format": "binary"}},
         "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
         "multipart/mixed": {"schema": {"type": "string", "format": "binary"},
                             "description": "progressive=1: the preview part, then the final part"},
+        EXR_MEDIA_TYPE: {"schema": {"type": "string", "format": "binary"}},
     },
     "headers": {
         "Server-Timing": {"description": "queue, pose, update, build, upload, trace, read, encode, total as name;dur=ms",

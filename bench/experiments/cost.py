@@ -23,6 +23,7 @@ from renderer.scenarios import scenario
 from renderer.settings import RenderSettings
 
 from .common import Context, md_table, plt
+from .style import image_line, legend_outside, save, series
 
 NAME = "cost"
 TITLE = "Cost model of a frame — estimate against measured"
@@ -108,24 +109,11 @@ def run(ctx: Context) -> str:
     for r in rows:
         r["est"] = estimate(r["settings"].method, r["stats"], r["scene"], r["settings"], model, r["multi_pass"]).ms
     ratios = np.array([r["est"] / max(r["ms"], 1e-3) for r in rows])
-    ctx.save_data(NAME, {"model": model.__dict__, "median_abs_log_ratio": err,
-                         "frames": [{"label": r["label"], "measured_ms": r["ms"], "estimated_ms": r["est"]}
-                                    for r in rows]})
-    fig, ax = plt().subplots(figsize=(6.4, 5.2))
-    for mp, marker, lab in ((False, "o", "one-pass methods"), (True, "s", "ray engines")):
-        pts = [(r["ms"], r["est"]) for r in rows if r["multi_pass"] == mp]
-        if pts:
-            m, e = zip(*pts)
-            ax.scatter(m, e, s=12, marker=marker, label=lab, alpha=0.7)
-    lo = max(0.1, min(min(r["ms"] for r in rows), min(r["est"] for r in rows)))
-    hi = max(max(r["ms"] for r in rows), max(r["est"] for r in rows))
-    ax.plot([lo, hi], [lo, hi], "k--", lw=0.8, label="estimate = measured")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("measured GL time per frame (ms)")
-    ax.set_ylabel("estimated (ms)")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0))
-    img = ctx.savefig(fig, "cost_model", "estimated against measured frame time")
+    saved = {"model": model.__dict__, "median_abs_log_ratio": err,
+             "frames": [{"label": r["label"], "measured_ms": r["ms"], "estimated_ms": r["est"],
+                         "multi_pass": r["multi_pass"]} for r in rows]}
+    ctx.save_data(NAME, saved)
+    img = "\n".join(image_line(k, v) for k, v in plot(saved, ctx.figures, ctx.quick).items())
     worst = sorted(rows, key=lambda r: -abs(math.log(max(r["est"], 1e-3) / max(r["ms"], 1e-3))))[:8]
     table = md_table(["frame", "measured ms", "estimated ms", "ratio"],
                      [(r["label"], f"{r['ms']:.1f}", f"{r['est']:.1f}", f"{r['est'] / max(r['ms'], 1e-3):.2f}")
@@ -149,3 +137,27 @@ The frames the model misses most:
 
 {table}
 """
+
+
+def plot(data: dict, figures, quick: bool = False) -> dict[str, str]:
+    """``cost_model.png`` from ``cost.json``: estimated against measured frame time, log–log."""
+    pyplot = plt()
+    fig, ax = pyplot.subplots(figsize=(6.4, 5.2), layout="constrained")
+    frames = data["frames"]
+    for mp, label in ((False, "one-pass methods"), (True, "ray engines")):
+        pts = [(f["measured_ms"], f["estimated_ms"]) for f in frames if bool(f.get("multi_pass")) == mp]
+        if pts:
+            m, e = zip(*pts)
+            ax.scatter(m, e, s=12, alpha=0.7, **{k: v for k, v in series(label, method="hre" if mp else "bih").items()
+                                                  if k in ("color", "marker", "label")})
+    lo = max(0.1, min(min(f["measured_ms"] for f in frames), min(f["estimated_ms"] for f in frames)))
+    hi = max(max(f["measured_ms"] for f in frames), max(f["estimated_ms"] for f in frames))
+    ax.plot([lo, hi], [lo, hi], "k--", lw=0.8, label="estimate = measured")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("measured GL time per frame (ms)")
+    ax.set_ylabel("estimated (ms)")
+    ax.grid(True, which="both", alpha=0.3)
+    legend_outside(fig, [ax])
+    save(fig, figures, "cost_model", quick)
+    return {"cost_model": "estimated against measured frame time"}

@@ -11,11 +11,13 @@ force when n < c") that loses least over every measured case.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 from renderer import methods as _methods
 from renderer.scenarios import scenario
 
 from .common import Context, crossover_n, default_settings, log_axis, md_table, method_names, plt
+from .style import image_line, legend_outside, roundtrip, save, series
 
 NAME = "crossover"
 TITLE = "Crossover — where brute force beats the BIH"
@@ -85,29 +87,10 @@ def run(ctx: Context) -> str:
     ctx.note(f"crossover: AUTO_CROSSOVER_N = {c}  # renderer/methods.py: brute force when n < {c} "
              f"(current: {current})")
 
-    pyplot = plt()
-    fig, axes = pyplot.subplots(1, 3, figsize=(15, 4.6), sharey=True, layout="constrained")
-    for j, sc in enumerate((1, 2, 3)):
-        ax = axes[j]
-        for d, ls in zip(DEPTHS, ("-", "--")):
-            for m in methods:
-                ax.plot(ns, [times[(m, d, sc, n)] for n in ns], ls=ls if m != "auto" else ":", marker=".",
-                        color={"bruteforce": "black", "bih": "tab:blue"}.get(m), label=f"{m}, depth {d}")
-            if math.isfinite(xs[(d, sc)]):
-                ax.axvline(xs[(d, sc)], color="tab:red", ls=ls, alpha=0.6)
-        ax.axvline(c, color="tab:green", lw=2, alpha=0.5, label=f"chosen AUTO_CROSSOVER_N = {c}")
-        ax.set_xscale("log", base=2)
-        log_axis(ax, "y")
-        ax.set_title(f"scenario {sc}")
-        ax.set_xlabel("spheres n")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_ylabel(f"frame time (ms) at {w} × {h}")
-    axes[-1].legend(fontsize=7)
-    fig.suptitle(f"Brute force against BIH (MAX_PRIMS {mp}); red lines: crossover per depth")
-    img = ctx.savefig(fig, "crossover", "Frame time of brute force and BIH at small n, with the crossover")
-    path = ctx.save_data(NAME, {"size": [w, h], "ns": ns, "max_prims": mp, "points": raw,
-                                "crossover": {f"{d}/{sc}": x for (d, sc), x in xs.items()},
-                                "auto_crossover_n": c, "regret": regret})
+    saved = {"size": [w, h], "ns": ns, "max_prims": mp, "points": raw,
+             "crossover": {f"{d}/{sc}": x for (d, sc), x in xs.items()}, "auto_crossover_n": c, "regret": regret}
+    path = ctx.save_data(NAME, saved)
+    img = "\n".join(image_line(k, v) for k, v in plot(roundtrip(saved), ctx.figures, ctx.quick).items())
 
     reg = ", ".join(f"{k}: {v:.2f}" for k, v in regret.items())
     return f"""## {TITLE}
@@ -129,3 +112,39 @@ the faster method − 1) over every measured n. Cost per threshold: {reg}. Value
 
 Raw data: [`{path}`]({path}).
 """
+
+
+def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
+    """``crossover.png`` from ``crossover.json``: frame time of brute force, the BIH and auto
+    against n (method colours; line style = depth), each series' crossover and the chosen threshold."""
+    pyplot = plt()
+    w, h = data["size"]
+    ns = data["ns"]
+    points = {tuple(k.split("/")): v for k, v in data["points"].items()}
+    methods = list(dict.fromkeys(m for m, _, _, _ in points))
+    depths = sorted({int(d) for _, d, _, _ in points})
+    c = data["auto_crossover_n"]
+    fig, axes = pyplot.subplots(1, 3, figsize=(15, 4.6), sharey=True, layout="constrained")
+    for j, sc in enumerate((1, 2, 3)):
+        ax = axes[j]
+        for i, d in enumerate(depths):
+            for m in methods:
+                xs = [n for n in ns if (m, str(d), str(sc), str(n)) in points]
+                ax.plot(xs, [points[(m, str(d), str(sc), str(n))]["total"]["median"] for n in xs],
+                        **series(f"{m}, depth {d}", method=m, variant=i, marker=".",
+                                 ls=(":" if m == "auto" else ("-", "--", "-.")[i % 3])))
+            x = data["crossover"].get(f"{d}/{sc}")
+            if x is not None and math.isfinite(x):
+                ax.axvline(x, color="#d62728", ls=("-", "--", "-.")[i % 3], alpha=0.45,
+                           label=f"crossover, depth {d}")
+        ax.axvline(c, color="#2ca02c", lw=2, alpha=0.5, label=f"chosen AUTO_CROSSOVER_N = {c}")
+        ax.set_xscale("log", base=2)
+        log_axis(ax, "y")
+        ax.set_title(f"scenario {sc}")
+        ax.set_xlabel("spheres n")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel(f"frame time (ms) at {w} × {h}")
+    legend_outside(fig, axes)
+    fig.suptitle(f"Brute force against BIH (MAX_PRIMS {data['max_prims']}); red lines: crossover per depth")
+    save(fig, figures, "crossover", quick)
+    return {"crossover": "Frame time of brute force and BIH at small n, with the crossover"}

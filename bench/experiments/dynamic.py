@@ -31,6 +31,7 @@ if __name__ == "__main__":  # standalone: make the repository root importable
 import numpy as np  # noqa: E402
 
 from bench.experiments.common import Context, Stat, crossover_n, log_axis, md_table, plt  # noqa: E402
+from bench.experiments.style import image_line, legend_outside, roundtrip, save, series  # noqa: E402
 from renderer.animation import AnimatedScene, museum, pose  # noqa: E402
 from renderer.accel.bih import sphere_aabbs  # noqa: E402
 from renderer.accel.kdtree import build_kdtree  # noqa: E402
@@ -116,22 +117,6 @@ def fig_5_11(ctx: Context) -> tuple[str, dict]:
     for kind, n, (label, method, scheme) in ctx.bar(jobs, desc="fig 5.11"):
         anim = make_anim(kind, n)
         data[(kind, n, label)] = play(ctx, anim, method, scheme, frames, every, settings)
-    pyplot = plt()
-    fig, axes = pyplot.subplots(1, len(KINDS), figsize=(4.4 * len(KINDS), 4.2), sharey=True)
-    for ax, kind in zip(axes, KINDS):
-        for label, _, _ in SCHEMES:
-            ys = [data[(kind, n, label)]["frame_ms"] for n in ns]
-            ax.plot(ns, ys, marker="o", label=label)
-            ax.plot(ns, [data[(kind, n, label)]["update_ms"] for n in ns], ls=":", color=ax.lines[-1].get_color(),
-                    alpha=0.7)
-        ax.set_xscale("log", base=2)
-        log_axis(ax, "y")
-        ax.set_title(KIND_TEXT[kind], fontsize=9)
-        ax.set_xlabel("moving spheres n")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_ylabel("ms per frame (solid: update + trace; dotted: update)")
-    axes[-1].legend(fontsize=7)
-    img = ctx.savefig(fig, "dynamic_fig_5_11", "Frame time per updating scheme and n, per kind of motion")
     tables = []
     cross_rows = []
     for kind in KINDS:
@@ -154,6 +139,7 @@ def fig_5_11(ctx: Context) -> tuple[str, dict]:
     cross = md_table(["kind of motion", "refit beats BIH rebuild from n", "selective beats BIH rebuild from n"],
                      cross_rows, "lll")
     raw = {f"{k}/{n}/{lab}": v for (k, n, lab), v in data.items()}
+    img = image_line("dynamic_fig_5_11", plot_fig_5_11(roundtrip(raw), ctx.figures, ctx.quick))
     frag = f"""### Updating schemes (Reiter Fig. 5.11)
 
 Museum-like animation, {frames} frames at {FPS:g} frames/s, primid mode (colour coding of the visible
@@ -213,20 +199,7 @@ def fig_5_4(ctx: Context) -> tuple[str, dict]:
         kd_method.cost_scale = saved
     table = md_table(["scene", "scale s at max. depth", "trace ms (rel.)", "build ms (rel.)", "bytes (rel.)",
                       "nodes", "depth", "refs / sphere"], rows, "lrrrrrrr")
-    pyplot = plt()
-    fig, axes = pyplot.subplots(1, 3, figsize=(13, 3.8), sharex=True)
-    for (name, _) in scenes:
-        for ax, key in zip(axes, ("trace_ms", "build_ms", "bytes")):
-            b = raw[f"{name}/{COST_SCALES[0]}"][key]
-            ax.plot(COST_SCALES, [raw[f"{name}/{s}"][key] / b for s in COST_SCALES], marker="o", label=name)
-    for ax, t in zip(axes, ("trace time", "build time", "tree bytes")):
-        ax.set_xscale("log")
-        ax.invert_xaxis()
-        ax.set_title(f"{t} relative to plain SAH")
-        ax.set_xlabel("leaf-cost scale at the maximal depth")
-        ax.grid(True, alpha=0.3)
-    axes[0].legend(fontsize=7)
-    img = ctx.savefig(fig, "dynamic_fig_5_4", "kd-tree cost-scaling criterion against plain SAH")
+    img = image_line("dynamic_fig_5_4", plot_fig_5_4(roundtrip(raw), ctx.figures, ctx.quick))
     frag = f"""### Cost-scaling termination criterion (Reiter Fig. 5.4)
 
 SAH kd-tree, leaf cost scaled by s^((depth − 1)/(D − 1)) (D = min(64, 8 + 1.3 log₂ n)); s = 1 is the plain
@@ -295,6 +268,75 @@ no unshadowed diffuse term, so Reiter's "diffuse" row becomes primary rays with 
 {ctx.caption()}
 """
     return frag, raw
+
+
+def plot_fig_5_11(raw: dict, figures: Path, quick: bool = False) -> str:
+    """``dynamic_fig_5_11.png`` from ``dynamic.json``'s ``fig_5_11``: ms per frame against n per
+    motion; a scheme's method colour (BIH blue, BVH green; the BVH's schemes as line styles),
+    dotted = its update alone; the legend outside. Returns the alt text."""
+    pyplot = plt()
+    data = {tuple(k.split("/", 2)): v for k, v in raw.items()}
+    kinds = [k for k in KINDS if any(d[0] == k for d in data)]
+    labels = [lab for lab, _, _ in SCHEMES if any(d[2] == lab for d in data)]
+    method = {lab: m for lab, m, _ in SCHEMES}
+    fig, axes = pyplot.subplots(1, len(kinds), figsize=(4.4 * len(kinds) + 2.5, 4.2), sharey=True,
+                                layout="constrained", squeeze=False)
+    for ax, kind in zip(axes[0], kinds):
+        ns = sorted({int(n) for k, n, _ in data if k == kind})
+        for lab in labels:
+            same = [x for x in labels if method[x] == method[lab]]
+            i = same.index(lab)
+            style = series(lab, method=method[lab], variant=i, ls=("-", "--", "-.")[i % 3])   # ':' is the update
+            ax.plot(ns, [data[(kind, str(n), lab)]["frame_ms"] for n in ns], **style)
+            ax.plot(ns, [data[(kind, str(n), lab)]["update_ms"] for n in ns],
+                    **{**style, "ls": ":", "alpha": 0.7, "marker": None, "label": "_update"})
+        ax.set_xscale("log", base=2)
+        log_axis(ax, "y")
+        ax.set_title(KIND_TEXT[kind], fontsize=9)
+        ax.set_xlabel("moving spheres n")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0][0].set_ylabel("ms per frame (solid: update + trace; dotted: update)")
+    legend_outside(fig, axes, title="scheme")
+    alt = "Frame time per updating scheme and n, per kind of motion"
+    save(fig, figures, "dynamic_fig_5_11", quick)
+    return alt
+
+
+def plot_fig_5_4(raw: dict, figures: Path, quick: bool = False) -> str:
+    """``dynamic_fig_5_4.png`` from ``dynamic.json``'s ``fig_5_4``: the kd-tree's trace, build and
+    bytes relative to plain SAH against the cost scale; all kd-tree (its colour), one line style
+    per scene; the legend outside. Returns the alt text."""
+    pyplot = plt()
+    scenes = list(dict.fromkeys(k.rsplit("/", 1)[0] for k in raw))
+    scales = sorted({float(k.rsplit("/", 1)[1]) for k in raw}, reverse=True)
+
+    def rec(name: str, s: float) -> dict:
+        return raw.get(f"{name}/{s}") or raw[f"{name}/{s:g}"]
+    fig, axes = pyplot.subplots(1, 3, figsize=(15, 3.8), sharex=True, layout="constrained")
+    for i, name in enumerate(scenes):
+        style = series(name, method="kdtree", variant=i)
+        for ax, key in zip(axes, ("trace_ms", "build_ms", "bytes")):
+            b = rec(name, scales[0])[key]
+            ax.plot(scales, [rec(name, s)[key] / b for s in scales], **style)
+    for ax, t in zip(axes, ("trace time", "build time", "tree bytes")):
+        ax.set_xscale("log")
+        ax.invert_xaxis()
+        ax.set_title(f"{t} relative to plain SAH")
+        ax.set_xlabel("leaf-cost scale at the maximal depth")
+        ax.grid(True, alpha=0.3)
+    legend_outside(fig, axes, title="kd-tree, scene")
+    save(fig, figures, "dynamic_fig_5_4", quick)
+    return "kd-tree cost-scaling criterion against plain SAH"
+
+
+def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
+    """Both charts from ``dynamic.json`` (the parts it holds)."""
+    out = {}
+    if data.get("fig_5_11"):
+        out["dynamic_fig_5_11"] = plot_fig_5_11(data["fig_5_11"], figures, quick)
+    if data.get("fig_5_4"):
+        out["dynamic_fig_5_4"] = plot_fig_5_4(data["fig_5_4"], figures, quick)
+    return out
 
 
 def run(ctx: Context) -> str:

@@ -10,10 +10,13 @@ from __future__ import annotations
 
 import math
 import statistics
+from pathlib import Path
 
 from renderer.scenarios import scenario
 
 from .common import Context, default_settings, log_axis, md_table, method_names, plt
+from .style import image_line, legend_outside, roundtrip, save
+from .style import series as line_style
 
 NAME = "fig_4_4"
 TITLE = "Fig. 4.4 — frames per second against n, primary rays"
@@ -168,31 +171,11 @@ def run(ctx: Context) -> str:
                  f"{fps(*top):.1f} fps ({top[2]}, scenario {top[0]}, {top[1]} spheres)"])
     comp_table = md_table(["", "thesis (iPhone 5s)", "ours"], comp, "lll")
 
-    # Chart.
-    pyplot = plt()
-    fig, axes = pyplot.subplots(1, 3, figsize=(15, 4.6), sharey=True, layout="constrained")
-    for j, sc in enumerate((1, 2, 3)):
-        ax = axes[j]
-        for lab in labels:
-            style = dict(color="black", lw=2.2) if lab == "BF" else {}
-            xs = [n for n in ns if not math.isnan(fps(sc, n, lab))]
-            if xs:
-                ax.plot(xs, [fps(sc, n, lab) for n in xs], marker="o", label=lab, **style)
-        if has_bf:
-            ax.plot([128, 256], [THESIS["bf_fps_128"], THESIS["bf_fps_256"]], "kx", ms=10, mew=2,
-                    label="thesis BF (iPhone 5s)")
-        ax.set_xscale("log", base=2)
-        log_axis(ax, "y")
-        ax.set_xticks(ns, [str(n) for n in ns])
-        ax.set_title(f"scenario {sc}")
-        ax.set_xlabel("spheres n")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_ylabel("frames / s")
-    axes[-1].legend(fontsize=8)
-    fig.suptitle(f"Fig. 4.4 reproduced: {w} × {h}, primary rays only ({ctx.gl.split(',')[0]})")
-    img = ctx.savefig(fig, "fig_4_4_fps", "Frames per second against n, per scenario and method")
-    path = ctx.save_data(NAME, {"size": [w, h], "ns": ns, "runs": ctx.runs, "points": data,
-                                "sweet_spot_max_prims": sweet_mp, "wins": wins})
+    # Chart (drawn from the saved data, as --replot does).
+    saved = {"size": [w, h], "ns": ns, "runs": ctx.runs, "points": data, "sweet_spot_max_prims": sweet_mp,
+             "wins": wins, "gl": ctx.gl, "labels": labels}
+    path = ctx.save_data(NAME, saved)
+    img = "\n".join(image_line(k, v) for k, v in plot(roundtrip(saved), ctx.figures, ctx.quick).items())
 
     return f"""## {TITLE}
 
@@ -221,3 +204,45 @@ Trace stage only (draw + finish, no build/upload/read), frames/s:
 
 Raw data: [`{path}`]({path}).
 """
+
+
+def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
+    """``fig_4_4_fps.png`` from ``fig_4_4.json``: frames/s against n per scenario; a method's
+    colour and marker as in every chart (the BIH's MAX_PRIMS as line styles), legend outside."""
+    pyplot = plt()
+    w, h = data["size"]
+    ns = data["ns"]
+    points = data["points"]
+    labels = data.get("labels") or list(dict.fromkeys(p["series"] for p in points.values()))
+    method = {p["series"]: p["method"] for p in points.values()}
+
+    def fps(sc: int, n: int, label: str) -> float:
+        p = points.get(f"{sc}/{n}/{label}")
+        return math.nan if p is None else 1000.0 / p["timing"]["total"]["median"]
+    bih = [lab for lab in labels if method.get(lab) == "bih"]
+    fig, axes = pyplot.subplots(1, 3, figsize=(15, 4.6), sharey=True, layout="constrained")
+    for j, sc in enumerate((1, 2, 3)):
+        ax = axes[j]
+        for lab in labels:
+            xs = [n for n in ns if not math.isnan(fps(sc, n, lab))]
+            if xs:
+                variant = bih.index(lab) if lab in bih else 0
+                ax.plot(xs, [fps(sc, n, lab) for n in xs],
+                        **line_style(lab, method=method.get(lab), variant=variant,
+                                     lw=2.2 if method.get(lab) == "bruteforce" else 1.5))
+        if "BF" in labels:
+            ax.plot([128, 256], [THESIS["bf_fps_128"], THESIS["bf_fps_256"]], ls="none",
+                    **{k: v for k, v in line_style("thesis BF (iPhone 5s)", method="thesis").items() if k != "ls"},
+                    mew=2)
+        ax.set_xscale("log", base=2)
+        log_axis(ax, "y")
+        ax.set_xticks(ns, [str(n) for n in ns])
+        ax.set_title(f"scenario {sc}")
+        ax.set_xlabel("spheres n")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel("frames / s")
+    legend_outside(fig, axes, title="method (BIH: MAX_PRIMS)")
+    gl = data.get("gl")
+    fig.suptitle(f"Fig. 4.4 reproduced: {w} × {h}, primary rays only" + (f" ({gl.split(',')[0]})" if gl else ""))
+    save(fig, figures, "fig_4_4_fps", quick)
+    return {"fig_4_4_fps": "Frames per second against n, per scenario and method"}

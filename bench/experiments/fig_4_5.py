@@ -7,10 +7,13 @@ build per point, no timing.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from renderer.accel.bih import build_for_spheres
 from renderer.scenarios import scenario
 
 from .common import Context, md_table, plt
+from .style import image_line, legend_outside, roundtrip, save, series
 
 NAME = "fig_4_5"
 TITLE = "Fig. 4.5 — BIH memory against n (radius 0.001)"
@@ -62,25 +65,9 @@ def run(ctx: Context) -> str:
          f"{max(per_sc, key=per_sc.get)} / {min(per_sc, key=per_sc.get)}"],
     ], "lll")
 
-    pyplot = plt()
-    fig, axes = pyplot.subplots(1, 3, figsize=(15, 4.4), sharey=True, layout="constrained")
-    import numpy as np
-    x = np.arange(len(NS))
-    wbar = 0.8 / len(MAX_PRIMS)
-    for j, sc in enumerate((1, 2, 3)):
-        ax = axes[j]
-        for i, mp in enumerate(MAX_PRIMS):
-            ax.bar(x + (i - (len(MAX_PRIMS) - 1) / 2) * wbar, [mem[(sc, n, mp)] / 1000 for n in NS], wbar,
-                   label=f"BIH {mp}")
-        ax.set_xticks(x, [f"{n:,}" for n in NS])
-        ax.set_title(f"scenario {sc}")
-        ax.set_xlabel("spheres n")
-        ax.grid(True, axis="y", alpha=0.3)
-    axes[0].set_ylabel("kB (nodes + indices + global AABB)")
-    axes[-1].legend()
-    fig.suptitle(f"Fig. 4.5 reproduced: BIH memory, radius {RADIUS:g}")
-    img = ctx.savefig(fig, "fig_4_5_memory", "BIH memory against n per MAX_PRIMS")
-    path = ctx.save_data(NAME, {"radius": RADIUS, "bytes": {f"{sc}/{n}/{mp}": v for (sc, n, mp), v in mem.items()}})
+    saved = {"radius": RADIUS, "bytes": {f"{sc}/{n}/{mp}": v for (sc, n, mp), v in mem.items()}}
+    path = ctx.save_data(NAME, saved)
+    img = "\n".join(image_line(k, v) for k, v in plot(roundtrip(saved), ctx.figures, ctx.quick).items())
 
     return f"""## {TITLE}
 
@@ -101,3 +88,32 @@ Bytes of the BIH as the thesis counts them: nodes × 12 + primitives × 4 (index
 
 Raw data: [`{path}`]({path}).
 """
+
+
+def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
+    """``fig_4_5_memory.png`` from ``fig_4_5.json``: BIH memory against n, one bar per MAX_PRIMS in
+    the BIH's colour (lighter for larger MAX_PRIMS); the legend outside."""
+    import numpy as np
+
+    pyplot = plt()
+    mem = {tuple(int(x) for x in k.split("/")): v for k, v in data["bytes"].items()}
+    ns = sorted({n for _, n, _ in mem})
+    mps = sorted({mp for _, _, mp in mem})
+    fig, axes = pyplot.subplots(1, 3, figsize=(16, 4.4), sharey=True, layout="constrained")
+    x = np.arange(len(ns))
+    wbar = 0.8 / len(mps)
+    for j, sc in enumerate((1, 2, 3)):
+        ax = axes[j]
+        for i, mp in enumerate(mps):
+            ax.bar(x + (i - (len(mps) - 1) / 2) * wbar, [mem[(sc, n, mp)] / 1000 for n in ns], wbar,
+                   color=series("bih", variant=i)["color"], edgecolor="black", linewidth=0.3,
+                   label=f"BIH, MAX_PRIMS {mp}")
+        ax.set_xticks(x, [f"{n:,}" for n in ns])
+        ax.set_title(f"scenario {sc}")
+        ax.set_xlabel("spheres n")
+        ax.grid(True, axis="y", alpha=0.3)
+    axes[0].set_ylabel("kB (nodes + indices + global AABB)")
+    legend_outside(fig, axes)
+    fig.suptitle(f"Fig. 4.5 reproduced: BIH memory, radius {data['radius']:g}")
+    save(fig, figures, "fig_4_5_memory", quick)
+    return {"fig_4_5_memory": "BIH memory against n per MAX_PRIMS"}

@@ -30,6 +30,8 @@ from renderer.scenarios import scenario
 
 from .common import (Context, cached_array, default_settings, details, fmt_db, has_setting, log_axis,
                      max_abs, md_table, method_names, plt, psnr, ssim, upscale)
+from .style import image_line, legend_outside, roundtrip, save
+from .style import series as line_style
 
 NAME = "pareto"
 TITLE = "Speed against accuracy — the Pareto front"
@@ -224,48 +226,6 @@ def run(ctx: Context) -> str:
              f"still = {json.dumps(recommended['still'])}")
 
     # ---- chart
-    pyplot = plt()
-    fig, axes = pyplot.subplots(2, 3, figsize=(16, 9), sharex="col", layout="constrained")
-    families = list(dict.fromkeys(k.family for k in grid))
-    cmap = pyplot.get_cmap("tab10")
-    col = {f: cmap(i % 10) for i, f in enumerate(families)}
-    for j, sc in enumerate(scs):
-        for row, metric in enumerate(("psnr", "ssim")):
-            ax = axes[row, j]
-            pts = [(results[(sc, k)]["time"].median, results[(sc, k)][metric]) for k in grid]
-            finite = [(x, y if math.isfinite(y) else 100.0) for x, y in pts]
-            for fam in families:
-                idx = [i for i, k in enumerate(grid) if k.family == fam]
-                ax.scatter([finite[i][0] for i in idx], [finite[i][1] for i in idx], s=22, color=col[fam], label=fam)
-            front = pareto_front(finite)
-            fx = [finite[i][0] for i in front]
-            fy = [finite[i][1] for i in front]
-            ax.step(fx, fy, where="post", color="black", lw=1.2, alpha=0.7, label="Pareto front")
-            ax.scatter(fx, fy, s=70, facecolors="none", edgecolors="black")
-            # methods / MAX_PRIMS: same error, other times
-            labs = [lab for lab, _ in exact_variants if (sc, lab) in exact]
-            ex = [(exact[(sc, lab)]["time"].median, exact[(sc, lab)][metric]) for lab in labs]
-            ax.scatter([x for x, _ in ex], [y if math.isfinite(y) else 100.0 for _, y in ex], marker="*", s=90,
-                       color="crimson", zorder=5, label=f"methods / MAX_PRIMS at {ek.label}")
-            ax.plot([min(x for x, _ in ex), max(x for x, _ in ex)], [ex[0][1]] * 2, color="crimson", lw=0.8)
-            for lab, (x, y) in zip(labs, ex):
-                ax.annotate(lab.replace("bih, MAX_PRIMS ", "BIH "), (x, y), fontsize=6, rotation=30,
-                            xytext=(2, 4), textcoords="offset points", color="crimson")
-            for k, mk in ((interactive, "interactive"), (still, "still")):
-                ax.annotate(mk, (results[(sc, k)]["time"].median, results[(sc, k)][metric]), fontsize=8,
-                            xytext=(-10, -16), textcoords="offset points", weight="bold")
-            log_axis(ax, "x")
-            ax.grid(True, which="both", alpha=0.3)
-            if row == 0:
-                ax.set_title(f"scenario {sc}, n = {n}")
-            else:
-                ax.set_xlabel("time to image (ms, median)")
-            if j == 0:
-                ax.set_ylabel({"psnr": "PSNR vs reference (dB)", "ssim": "SSIM vs reference"}[metric])
-    axes[0, -1].legend(fontsize=7, loc="lower right")
-    fig.suptitle(f"Error against time, {w} × {h}; reference: float64, depth {REF_DEPTH}, "
-                 f"{REF_SS}×{REF_SS} supersampling")
-    img = ctx.savefig(fig, "pareto", "Error against time to image with the Pareto front, per scenario")
 
     # ---- tables
     front_rows = []
@@ -309,11 +269,14 @@ def run(ctx: Context) -> str:
     missing = [name for name in ("samples_per_pixel", "min_weight") if not has_setting(name)]
     missing_txt = (f"\n\n**Not measured:** RenderSettings of this build has no {', '.join(f'`{m}`' for m in missing)}."
                    if missing else "")
-    path = ctx.save_data(NAME, {
+    saved = {
         "size": [w, h], "n": n, "reference": {"depth": REF_DEPTH, "ss": REF_SS},
         "results": {f"{sc}/{k.label}": {**v, "knobs": dataclasses.asdict(k)} for (sc, k), v in results.items()},
         "exact": {f"{sc}/{lab}": v for (sc, lab), v in exact.items()},
-        "recommended": recommended})
+        "exact_at": dataclasses.asdict(ek), "recommended": recommended,
+        "recommended_knobs": {"interactive": dataclasses.asdict(interactive), "still": dataclasses.asdict(still)}}
+    path = ctx.save_data(NAME, saved)
+    img = "\n".join(image_line(k, v) for k, v in plot(roundtrip(saved), ctx.figures, ctx.quick).items())
     return f"""## {TITLE}
 
 Thesis scenarios 1–3 with n = {n} spheres of radius 1 at {w} × {h}, colour. Reference: the float64
@@ -356,3 +319,80 @@ images {'identical' if same_u8 else 'NOT all identical'} (last two columns).
 {chr(10).join(t + chr(10) for t in all_tables)}
 Raw data: [`{path}`]({path}).
 """
+
+
+def _knobs_of(settings: dict) -> Knobs:
+    """The Knobs of a recommended profile as saved (``as_settings``)."""
+    scale = settings.get("resolution_scale", "1")
+    return Knobs(depth=settings["max_recursion_depth"], scale=int(scale.split("/")[-1]) if "/" in scale else 1,
+                 spp=settings.get("samples_per_pixel", 1), eps=settings.get("min_weight", 0.0))
+
+
+def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
+    """``pareto.png`` from ``pareto.json``: PSNR and SSIM against time per scenario, knob families
+    as colours (a palette of their own: they are not methods), the Pareto front, and the methods
+    at one knob setting in their method colours; the legend outside the panels."""
+    pyplot = plt()
+    w, h = data["size"]
+    n = data["n"]
+    results = {}
+    grid: list[Knobs] = []
+    for key, v in data["results"].items():
+        sc, _ = key.split("/", 1)
+        k = Knobs(**v["knobs"])
+        results[(int(sc), k)] = v
+        if k not in grid:
+            grid.append(k)
+    scs = sorted({sc for sc, _ in results})
+    exact = {(int(key.split("/", 1)[0]), key.split("/", 1)[1]): v for key, v in data["exact"].items()}
+    exact_labels = list(dict.fromkeys(lab for _, lab in exact))
+    ek = Knobs(**data["exact_at"]) if "exact_at" in data else Knobs(**EXACT_AT)
+    marks = {name: Knobs(**kn) for name, kn in data["recommended_knobs"].items()} if "recommended_knobs" in data \
+        else {name: _knobs_of(st) for name, st in data["recommended"].items()}
+    families = list(dict.fromkeys(k.family for k in grid))
+    family_colour = {f: c for f, c in zip(families, ("#4c72b0", "#dd8452", "#55a868", "#c44e52", "#8172b3",
+                                                     "#937860", "#da8bc3", "#8c8c8c", "#ccb974", "#64b5cd"))}
+    fig, axes = pyplot.subplots(2, len(scs), figsize=(5.2 * len(scs) + 3, 9), sharex="col", layout="constrained",
+                                squeeze=False)
+    for j, sc in enumerate(scs):
+        for row, metric in enumerate(("psnr", "ssim")):
+            ax = axes[row, j]
+            pts = [(results[(sc, k)]["time"]["median"], results[(sc, k)][metric]) for k in grid]
+            finite = [(x, y if y is not None and math.isfinite(y) else 100.0) for x, y in pts]
+            for fam in families:
+                idx = [i for i, k in enumerate(grid) if k.family == fam]
+                ax.scatter([finite[i][0] for i in idx], [finite[i][1] for i in idx], s=22,
+                           color=family_colour.get(fam, "#8c8c8c"), label=f"knobs: {fam}")
+            front = pareto_front(finite)
+            ax.step([finite[i][0] for i in front], [finite[i][1] for i in front], where="post", color="black",
+                    lw=1.2, alpha=0.7, label="Pareto front")
+            ax.scatter([finite[i][0] for i in front], [finite[i][1] for i in front], s=70, facecolors="none",
+                       edgecolors="black")
+            labs = [lab for lab in exact_labels if (sc, lab) in exact]
+            bih_labs = [lab for lab in labs if lab.startswith("bih")]
+            for lab in labs:
+                e = exact[(sc, lab)]
+                y = e[metric] if e[metric] is not None and math.isfinite(e[metric]) else 100.0
+                st = line_style(lab.replace("bih, MAX_PRIMS ", "BIH "), variant=bih_labs.index(lab) if lab in bih_labs
+                                else 0)
+                ax.scatter([e["time"]["median"]], [y], marker=st["marker"], s=60, color=st["color"],
+                           edgecolors="black", linewidths=0.4, zorder=5,
+                           label=f"{st['label']} at {ek.label}")
+            for name, k in marks.items():
+                if (sc, k) in results:
+                    ax.annotate(name, (results[(sc, k)]["time"]["median"], results[(sc, k)][metric]), fontsize=8,
+                                xytext=(-10, -16), textcoords="offset points", weight="bold")
+            log_axis(ax, "x")
+            ax.grid(True, which="both", alpha=0.3)
+            if row == 0:
+                ax.set_title(f"scenario {sc}, n = {n}")
+            else:
+                ax.set_xlabel("time to image (ms, median)")
+            if j == 0:
+                ax.set_ylabel({"psnr": "PSNR vs reference (dB)", "ssim": "SSIM vs reference"}[metric])
+    legend_outside(fig, axes)
+    ref = data.get("reference", {"depth": REF_DEPTH, "ss": REF_SS})
+    fig.suptitle(f"Error against time, {w} × {h}; reference: float64, depth {ref['depth']}, "
+                 f"{ref['ss']}×{ref['ss']} supersampling")
+    save(fig, figures, "pareto", quick)
+    return {"pareto": "Error against time to image with the Pareto front, per scenario"}

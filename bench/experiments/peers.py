@@ -27,6 +27,7 @@ import importlib
 import math
 import os
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -36,6 +37,7 @@ from renderer.reference import primary_rays, render_reference
 from renderer.scenarios import scenario
 
 from .common import Context, Stat, default_settings, md_table, measure, method_names, plt
+from .style import image_line, legend_outside, roundtrip, save, series
 
 NAME = "peers"
 TITLE = "Peers — Mitsuba 3 and Embree beside our tracers"
@@ -361,34 +363,11 @@ def run(ctx: Context) -> str:
             ["n", "engine", "build ms", "trace ms", "Mrays/s", "nearest sphere ≠ reference", "max |Δt|",
              "median |Δt|"], trs, "rlrrrrrr") + "\n\n" + ctx.caption(capped=True))
 
-    # Chart: Mrays/s, build ms and max |Δt| against n; median over scenarios per engine.
-    pyplot = plt()
-    fig, axes = pyplot.subplots(1, 3, figsize=(16, 4.6), layout="constrained")
-    for eng in engines:
-        xs = [n for n in ns if any((sc, n, eng) in rows for sc in scs)]
-        if not xs:
-            continue
-        med = lambda key, n: float(np.median([rows[(sc, n, eng)][key] if key != "build" else  # noqa: E731
-                                               rows[(sc, n, eng)]["build"].median
-                                               for sc in scs if (sc, n, eng) in rows]))
-        style = dict(marker="o", ls="-" if eng.startswith("ours") else "--")
-        axes[0].plot(xs, [med("mrays", n) for n in xs], label=eng, **style)
-        bx = [n for n in xs if med("build", n) > 0]  # brute force builds nothing
-        if bx:
-            axes[1].plot(bx, [med("build", n) for n in bx], label=eng, **style)
-        axes[2].plot(xs, [max(med("max_dt", n), 1e-9) for n in xs], label=eng, **style)
-    for ax, yl in zip(axes, ("Mrays/s (primary rays)", "build ms", "max |t − t_ref| (world units)")):
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("spheres n")
-        ax.set_ylabel(yl)
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=7)
-    fig.suptitle(f"Primary rays at {w} × {h}, median over scenarios {', '.join(map(str, scs))}")
-    img = ctx.savefig(fig, "peers", "Mrays/s, build time and hit-distance error against n, ours and peers")
-    path = ctx.save_data(NAME, {"size": [w, h], "ns": ns, "scenarios": scs, "versions": versions(),
-                                "rows": {f"{sc}/{n}/{eng}": v for (sc, n, eng), v in rows.items()},
-                                "skipped": skipped, "reference_check": ref_check, "unavailable": {k: v for k, v in why.items() if v}})
+    data = {"size": [w, h], "ns": ns, "scenarios": scs, "versions": versions(),
+            "rows": {f"{sc}/{n}/{eng}": v for (sc, n, eng), v in rows.items()},
+            "skipped": skipped, "reference_check": ref_check, "unavailable": {k: v for k, v in why.items() if v}}
+    path = ctx.save_data(NAME, data)
+    img = "\n".join(image_line(name, alt) for name, alt in plot(roundtrip(data), ctx.figures, ctx.quick).items())
     vers = ", ".join(f"{k} {v}" for k, v in versions().items())
     missing = "".join(f"\n- `{k}` not run: {v}" for k, v in why.items() if v)
     skipped_txt = ("\n\nNot run (errors): " + "; ".join(skipped) + ".") if skipped else ""
@@ -415,3 +394,40 @@ checked against `render_reference` at the smallest n — {check_txt}.{missing}
 
 Raw data: [`{path}`]({path}).
 """
+
+
+def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
+    """``peers.png`` from ``peers.json``: Mrays/s, build ms and max |Δt| against n, the median over
+    the scenarios per engine; one colour and marker per engine in all three panels."""
+    pyplot = plt()
+    w, h = data["size"]
+    ns, scs = data["ns"], data["scenarios"]
+    rows = {tuple(k.split("/", 2)): v for k, v in data["rows"].items()}
+    engines = list(dict.fromkeys(k[2] for k in rows))
+
+    def med(key: str, n: int, eng: str) -> float:
+        vals = [rows[(str(sc), str(n), eng)] for sc in scs if (str(sc), str(n), eng) in rows]
+        return float(np.median([v[key]["median"] if isinstance(v[key], dict) else v[key] for v in vals]))
+    fig, axes = pyplot.subplots(1, 3, figsize=(16, 4.6), layout="constrained")
+    for eng in engines:
+        xs = [n for n in ns if any((str(sc), str(n), eng) in rows for sc in scs)]
+        if not xs:
+            continue
+        ours = eng.startswith("ours")
+        style = series(eng, ls="-" if ours else "--")
+        axes[0].plot(xs, [med("mrays", n, eng) for n in xs], **style)
+        bx = [n for n in xs if med("build", n, eng) > 0]  # brute force builds nothing: no line, same colours
+        if bx:
+            axes[1].plot(bx, [med("build", n, eng) for n in bx], **style)
+        axes[2].plot(xs, [max(med("max_dt", n, eng), 1e-9) for n in xs], **style)
+    for ax, yl in zip(axes, ("Mrays/s (primary rays)", "build ms (brute force builds nothing)",
+                             "max |t − t_ref| (world units)")):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("spheres n")
+        ax.set_ylabel(yl)
+        ax.grid(True, which="both", alpha=0.3)
+    legend_outside(fig, axes, title="engine (solid: ours)")
+    fig.suptitle(f"Primary rays at {w} × {h}, median over scenarios {', '.join(map(str, scs))}")
+    save(fig, figures, "peers", quick)
+    return {"peers": "Mrays/s, build time and hit-distance error against n, ours and peers"}

@@ -33,6 +33,7 @@ ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from renderer.limits import DEFAULT_TILE_SIZE  # noqa: E402
 from renderer.scenarios import TRANSPARENT  # noqa: E402
 from renderer.scene import Camera, Light, Scene  # noqa: E402
 from renderer.settings import RenderSettings  # noqa: E402
@@ -159,27 +160,14 @@ def twice_as_fast(fps: dict, size) -> tuple[str, list[tuple[int, float]]]:
 
 
 def run(ctx) -> str:
-    from bench.experiments.common import log_axis, md_table, plt
+    from bench.experiments.common import md_table
+    from bench.experiments.style import image_line, roundtrip
     quick = ctx.quick
     sizes = getattr(ctx, "ray_engine_sizes", None) or (SIZES_QUICK if quick else SIZES)
     ns = NS_QUICK if quick else NS
     budget = getattr(ctx, "ray_engine_budget_s", None) or (FRAME_BUDGET_S_QUICK if quick else FRAME_BUDGET_S)
     fps = measure_fps(ctx, sizes, ns, budget)
 
-    pyplot = plt()
-    fig, axes = pyplot.subplots(1, len(sizes), figsize=(6 * len(sizes), 4), squeeze=False)
-    for ax, (w, h) in zip(axes[0], sizes):
-        for method in METHODS:
-            pts = [(n, fps[f"{w}x{h}/{method}/{n}"]["fps"]) for n in ns if fps.get(f"{w}x{h}/{method}/{n}")]
-            if pts:
-                ax.plot(*zip(*pts), marker="o", label=method)
-        log_axis(ax)
-        ax.set_xlabel("primitives (refractive spheres)")
-        ax.set_ylabel("frames / s")
-        ax.set_title(f"{w} × {h}, recursion {DEPTH}")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend()
-    img_fps = ctx.savefig(fig, "ray_engines_fps", "frames per second against primitive count")
 
     rows = []
     for w, h in sizes:
@@ -204,16 +192,16 @@ def run(ctx) -> str:
                           for ts in TILES]] for n in sweep_ns]
     stable = md_table(["n", *[f"tile {ts} × {ts}" for ts in TILES]], srows)
 
-    cones = cone_images(ctx, sizes[0], ns[min(2, len(ns) - 1)])
-    fig, axes = pyplot.subplots(1, len(GENERATIONS), figsize=(3 * len(GENERATIONS), 3.2))
-    for ax, g in zip(axes, GENERATIONS):
-        ax.imshow(np.clip(cones[g], 0, 1), interpolation="nearest")
-        ax.set_title(f"generation {g}")
-        ax.axis("off")
-    img_cones = ctx.savefig(fig, "ray_engines_cones", "cone angles per tile, generations 1, 2, 4, 8")
+    cones_n = ns[min(2, len(ns) - 1)]
+    cones = cone_images(ctx, sizes[0], cones_n)
 
-    path = ctx.save_data(NAME, {"fps": fps, "tile_sweep": sweep, "sizes": sizes, "ns": ns, "depth": DEPTH,
-                                "budget_s": budget})
+    saved = {"fps": fps, "tile_sweep": sweep, "sizes": sizes, "ns": ns, "depth": DEPTH, "budget_s": budget,
+             "cones": {"n": cones_n, "size": list(sizes[0]), "tile": DEFAULT_TILE_SIZE,
+                       "tiles": {str(g): tile_grid(img) for g, img in cones.items()}}}
+    path = ctx.save_data(NAME, saved)
+    images = plot(roundtrip(saved), ctx.figures, quick)
+    img_fps = image_line("ray_engines_fps", images["ray_engines_fps"])
+    img_cones = image_line("ray_engines_cones", images["ray_engines_cones"])
     return f"""## {TITLE}
 
 Refractive spheres filling the view (every primary ray meets one), recursion depth {DEPTH}, colour with shadows,
@@ -241,6 +229,69 @@ Cone angles per tile (his Fig. 4; mode `cones`, brighter = narrower, black = no 
 
 Raw data: [`{path}`]({path}).
 """
+
+
+def tile_grid(img: np.ndarray, tile: int = DEFAULT_TILE_SIZE) -> list:
+    """The per-tile colours of a ``cones`` image (each tile is one colour), rounded, as lists."""
+    return np.round(np.asarray(img)[::tile, ::tile, :3], 4).tolist()
+
+
+def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
+    """``ray_engines_fps.png`` (frames/s against n, method colours, legend outside) and
+    ``ray_engines_cones.png`` (cone half-angle per tile with its colour scale) from
+    ``ray_engines.json``. Data saved before the cones were kept: they are rendered again (GL)."""
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    from matplotlib.patches import Patch
+
+    from bench.experiments.common import log_axis, plt
+    from bench.experiments.style import legend_outside, save, series
+
+    pyplot = plt()
+    sizes = [tuple(sz) for sz in data["sizes"]]
+    ns = data["ns"]
+    fps = data["fps"]
+    methods = list(dict.fromkeys(k.split("/")[1] for k in fps)) or list(METHODS)
+    fig, axes = pyplot.subplots(1, len(sizes), figsize=(6 * len(sizes) + 2, 4), squeeze=False, layout="constrained")
+    for ax, (w, h) in zip(axes[0], sizes):
+        for method in methods:
+            pts = [(n, fps[f"{w}x{h}/{method}/{n}"]["fps"]) for n in ns if fps.get(f"{w}x{h}/{method}/{n}")]
+            if pts:
+                ax.plot(*zip(*pts), **series(method))
+        log_axis(ax)
+        ax.set_xlabel("primitives (refractive spheres)")
+        ax.set_ylabel("frames / s")
+        ax.set_title(f"{w} × {h}, recursion {data.get('depth', DEPTH)}")
+        ax.grid(True, which="both", alpha=0.3)
+    legend_outside(fig, axes)
+    save(fig, figures, "ray_engines_fps", quick)
+
+    cones = data.get("cones")
+    if cones is None:   # data of a run before the cones were saved: render them again
+        import types
+
+        from renderer.gl.renderer import GLRenderer
+
+        n = ns[min(2, len(ns) - 1)]
+        images = cone_images(types.SimpleNamespace(renderer=GLRenderer()), sizes[0], n)
+        cones = {"n": n, "size": list(sizes[0]), "tile": DEFAULT_TILE_SIZE,
+                 "tiles": {str(g): tile_grid(img) for g, img in images.items()}}
+    gens = sorted(int(g) for g in cones["tiles"])
+    fig, axes = pyplot.subplots(1, len(gens), figsize=(3 * len(gens) + 1.5, 3.4), layout="constrained")
+    for ax, g in zip(np.atleast_1d(axes), gens):
+        ax.imshow(np.clip(np.asarray(cones["tiles"][str(g)], dtype=float), 0, 1), interpolation="nearest")
+        ax.set_title(f"generation {g}")
+        ax.axis("off")
+    # The image's grey is 1 − φ / 90°: white = a narrow cone (good culling), black = 90° or no live ray.
+    bar = fig.colorbar(ScalarMappable(Normalize(0, 90), cmap="gray_r"), ax=axes, shrink=0.85, pad=0.02)
+    bar.set_label("cone half-angle φ (°)")
+    fig.legend(handles=[Patch(color="black", label="no live ray"), Patch(color=(0.25, 0, 0), label="no useful cone")],
+               loc="outside lower center", ncol=2, fontsize=8, frameon=False)
+    fig.suptitle(f"hre cones per {cones['tile']} × {cones['tile']} tile, {cones['n']:,} spheres, "
+                 f"{cones['size'][0]} × {cones['size'][1]}", fontsize=10)
+    save(fig, figures, "ray_engines_cones", quick)
+    return {"ray_engines_fps": "frames per second against primitive count",
+            "ray_engines_cones": "cone angles per tile, generations 1, 2, 4, 8, with the colour scale"}
 
 
 def main(argv=None) -> None:

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 from renderer.accel.bih import build_for_spheres
 from renderer.scenarios import scenario
 
 from .common import Context, Stat, default_settings, fit_power, md_table, measure, method_names, plt
+from .style import image_line, legend_outside, roundtrip, save, series
 
 NAME = "scaling"
 TITLE = "Scaling — build and trace cost against n"
@@ -111,48 +113,14 @@ def run(ctx: Context) -> str:
                            t_rows, "lrr" + "r" * (len(t_ns) + 1))
 
     # ---- charts
-    pyplot = plt()
-    fig, axes = pyplot.subplots(1, 1 + len(depths), figsize=(6 + 5.5 * len(depths), 4.8),
-                                layout="constrained")
-    ax = axes[0]
-    for sc in (1, 2, 3):
-        for mp in BUILD_MAX_PRIMS:
-            k, a = build_fit[(sc, mp)]
-            ax.plot(b_ns, [build[(sc, n, mp)].median for n in b_ns], marker="o",
-                    ls="-" if mp == BUILD_MAX_PRIMS[-1] else "--", label=f"S{sc} MP{mp}: k = {k:.2f}")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("spheres n")
-    ax.set_ylabel("BIH build time (ms, CPU)")
-    ax.set_title(f"build (fit over n ≥ {fit_from:,})")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    for j, d in enumerate(depths):
-        ax = axes[1 + j]
-        for m in methods:
-            for sc in (1, 2, 3):
-                xs = [n for n in t_ns if (m, d, sc, n) in trace]
-                if not xs:
-                    continue
-                k = trace_fit[(m, d, sc)][0]
-                ax.plot(xs, [trace[(m, d, sc, n)]["trace"].median for n in xs], marker="o",
-                        ls={1: "-", 2: "--", 3: ":"}[sc],
-                        color="black" if m == "bruteforce" else None,
-                        label=f"{m} S{sc}" + ("" if math.isnan(k) else f": k = {k:.2f}"))
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("spheres n")
-        ax.set_ylabel("trace stage (ms)")
-        ax.set_title(f"trace {w} × {h}, recursion depth {d}")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
-    img = ctx.savefig(fig, "scaling_loglog", "Build and trace cost against n, log–log, with fitted exponents")
-    path = ctx.save_data(NAME, {
+    data = {
         "build": {f"{sc}/{n}/{mp}": v for (sc, n, mp), v in build.items()},
         "build_fit": {f"{sc}/{mp}": v for (sc, mp), v in build_fit.items()},
         "trace": {f"{m}/{d}/{sc}/{n}": v for (m, d, sc, n), v in trace.items()},
         "trace_fit": {f"{m}/{d}/{sc}": v for (m, d, sc), v in trace_fit.items()},
-        "skipped": list(ctx.skipped), "size": [w, h]})
+        "skipped": list(ctx.skipped), "size": [w, h], "fit_from": fit_from, "depths": list(depths)}
+    path = ctx.save_data(NAME, data)
+    img = "\n".join(image_line(k, v) for k, v in plot(roundtrip(data), ctx.figures, ctx.quick).items())
     skipped_txt = ctx.skipped_md()
     return f"""## {TITLE}
 
@@ -183,3 +151,55 @@ Trace stage / whole frame (ms) at {w} × {h}, colour, spheres of radius 1, every
 
 Raw data: [`{path}`]({path}).
 """
+
+
+def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
+    """``scaling_loglog.png`` from ``scaling.json``: the BIH build against n (one colour, the BIH's;
+    line style = scenario, lighter = MAX_PRIMS 1), and the trace per depth (colour = method, line
+    style = scenario); the legends outside the panels."""
+    pyplot = plt()
+    w, h = data["size"]
+    fit_from = data.get("fit_from", FIT_FROM)
+    build = {tuple(int(x) for x in k.split("/")): v for k, v in data["build"].items()}
+    b_ns = sorted({n for _, n, _ in build})
+    mps = sorted({mp for _, _, mp in build})
+    trace = {(k.split("/")[0], *map(int, k.split("/")[1:])): v for k, v in data["trace"].items()}
+    methods = list(dict.fromkeys(m for m, _, _, _ in trace))
+    depths = data.get("depths") or sorted({d for _, d, _, _ in trace})
+    t_ns = sorted({n for _, _, _, n in trace})
+    fig, axes = pyplot.subplots(1, 1 + len(depths), figsize=(6 + 5.5 * len(depths), 4.8), layout="constrained")
+    ax = axes[0]
+    for sc in (1, 2, 3):
+        for mp in mps:
+            k = data["build_fit"][f"{sc}/{mp}"][0]
+            ys = [build[(sc, n, mp)]["median"] for n in b_ns if (sc, n, mp) in build]
+            ax.plot(b_ns[:len(ys)], ys, **series(f"BIH build, S{sc} MAX_PRIMS {mp}: k = {k:.2f}", method="bih",
+                                                 variant=sc - 1, alpha=1.0 if mp == mps[-1] else 0.55,
+                                                 mfc="none" if mp != mps[-1] else None))
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("spheres n")
+    ax.set_ylabel("BIH build time (ms, CPU)")
+    ax.set_title(f"build (fit over n ≥ {fit_from:,}; hollow: MAX_PRIMS {mps[0]})")
+    ax.grid(True, which="both", alpha=0.3)
+    for j, d in enumerate(depths):
+        ax = axes[1 + j]
+        for m in methods:
+            for sc in (1, 2, 3):
+                xs = [n for n in t_ns if (m, d, sc, n) in trace]
+                if not xs:
+                    continue
+                k = data["trace_fit"].get(f"{m}/{d}/{sc}", [math.nan])[0]
+                k = math.nan if k is None else k
+                ax.plot(xs, [trace[(m, d, sc, n)]["trace"]["median"] for n in xs],
+                        **series(f"{m} S{sc}, depth {d}" + ("" if math.isnan(k) else f": k = {k:.2f}"), method=m,
+                                 variant=sc - 1))
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("spheres n")
+        ax.set_ylabel("trace stage (ms)")
+        ax.set_title(f"trace {w} × {h}, recursion depth {d}")
+        ax.grid(True, which="both", alpha=0.3)
+    legend_outside(fig, axes, title="line style: scenario S1 — S2 - - S3 ···", ncol=2)
+    save(fig, figures, "scaling_loglog", quick)
+    return {"scaling_loglog": "Build and trace cost against n, log–log, with fitted exponents"}

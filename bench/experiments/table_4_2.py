@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from renderer.accel.bih import build_for_spheres
 from renderer.scenarios import scenario
 
 from .common import Context, fmt_num, md_table, measure, plt
+from .style import colour_marker, image_line, legend_outside, roundtrip, save
 
 NAME = "table_4_2"
 TITLE = "Table 4.2 — BIH statistics (4,096 spheres, radius 1)"
@@ -87,27 +90,11 @@ def run(ctx: Context) -> str:
     build_sc1 = ours[(1, 8)]["build"].median / ours[(1, 1)]["build"].median
 
     # Chart: leaf-size histograms, ours beside the thesis's.
-    pyplot = plt()
-    fig, axes = pyplot.subplots(2, 3, figsize=(13, 6), sharey=True, layout="constrained")
-    import numpy as np
-    x = np.arange(len(HIST_LABELS))
-    for j, sc in enumerate((1, 2, 3)):
-        for i, mp in enumerate(MAX_PRIMS):
-            ax = axes[i, j]
-            ax.bar(x - 0.2, [100 * v for v in ours[(sc, mp)]["stats"]["leaf_histogram"]], 0.4, label="ours")
-            ax.bar(x + 0.2, THESIS[(sc, mp)]["hist"], 0.4, label="thesis (Table 4.2)")
-            ax.set_xticks(x, HIST_LABELS)
-            ax.set_title(f"scenario {sc}, MAX_PRIMS {mp}")
-            if j == 0:
-                ax.set_ylabel("% of leaves")
-            if i == 1:
-                ax.set_xlabel("primitives in the leaf")
-    axes[0, 0].legend()
-    fig.suptitle(f"Leaf sizes, {N:,} spheres of radius {RADIUS:g}")
-    img = ctx.savefig(fig, "table_4_2_leaves", "Leaf-size histograms, ours and the thesis's")
-    data = ctx.save_data(NAME, {"n": N, "radius": RADIUS, "runs": ctx.runs,
-                                "ours": {f"s{sc}_mp{mp}": v for (sc, mp), v in ours.items()},
-                                "thesis": {f"s{sc}_mp{mp}": v for (sc, mp), v in THESIS.items()}})
+    saved = {"n": N, "radius": RADIUS, "runs": ctx.runs,
+             "ours": {f"s{sc}_mp{mp}": v for (sc, mp), v in ours.items()},
+             "thesis": {f"s{sc}_mp{mp}": v for (sc, mp), v in THESIS.items()}}
+    data = ctx.save_data(NAME, saved)
+    img = "\n".join(image_line(k, v) for k, v in plot(roundtrip(saved), ctx.figures, ctx.quick).items())
 
     return f"""## {TITLE}
 
@@ -130,3 +117,31 @@ median of {ctx.runs} run(s), beside the thesis's iPhone 5s means.
 
 Raw data: [`{data}`]({data}).
 """
+
+
+def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
+    """``table_4_2_leaves.png`` from ``table_4_2.json``: leaf-size histograms, ours (the BIH's
+    colour) beside the thesis's (the colour of quoted thesis numbers); the legend outside."""
+    import numpy as np
+
+    pyplot = plt()
+    fig, axes = pyplot.subplots(2, 3, figsize=(14, 6), sharey=True, layout="constrained")
+    x = np.arange(len(HIST_LABELS))
+    ours_c, thesis_c = colour_marker("bih")[0], colour_marker("thesis")[0]
+    for j, sc in enumerate((1, 2, 3)):
+        for i, mp in enumerate(MAX_PRIMS):
+            ax = axes[i, j]
+            key = f"s{sc}_mp{mp}"
+            ax.bar(x - 0.2, [100 * v for v in data["ours"][key]["stats"]["leaf_histogram"]], 0.4, color=ours_c,
+                   label="ours (BIH)")
+            ax.bar(x + 0.2, data["thesis"][key]["hist"], 0.4, color=thesis_c, label="thesis (Table 4.2)")
+            ax.set_xticks(x, HIST_LABELS)
+            ax.set_title(f"scenario {sc}, MAX_PRIMS {mp}")
+            if j == 0:
+                ax.set_ylabel("% of leaves")
+            if i == 1:
+                ax.set_xlabel("primitives in the leaf")
+    legend_outside(fig, axes)
+    fig.suptitle(f"Leaf sizes, {data['n']:,} spheres of radius {data['radius']:g}")
+    save(fig, figures, "table_4_2_leaves", quick)
+    return {"table_4_2_leaves": "Leaf-size histograms, ours and the thesis's"}

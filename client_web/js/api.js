@@ -96,6 +96,10 @@ export class Api {
   async request(method, path, { body, params, headers = {} } = {}) {
     const url = this.base + path + query(params);
     const init = { method, headers: { ...headers }, cache: 'no-store' };
+    // The balancer hashes on X-Session-Id (docs/DEPLOY.md): a session's requests reach the
+    // process that holds its scene and refit trees.
+    const sid = /^\/api\/sessions\/([^/?]+)/.exec(path);
+    if (sid) init.headers['X-Session-Id'] = decodeURIComponent(sid[1]);
     if (body !== undefined) {
       init.body = JSON.stringify(body);
       init.headers['Content-Type'] = 'application/json';

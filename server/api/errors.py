@@ -34,6 +34,7 @@ from starlette.responses import Response
 
 from renderer.scene import SceneError
 
+from .. import metrics
 from ..config import ServerConfig
 from ..gl_worker import GLNotReady, QueueFull
 from ..models import ErrorOut
@@ -178,7 +179,10 @@ def answer(exc: Exception, config: ServerConfig, where: str) -> ErrorAnswer:
     row = row_of(exc)
     if row.name == "internal":
         log.exception("unexpected error in %s", where, exc_info=exc)
-    return row.answer(exc, config)
+    out = row.answer(exc, config)
+    if out.status == 503:
+        metrics.unavailable("render_timeout" if isinstance(exc, RenderTimeout) else row.name)
+    return out
 
 
 # ---- HTTP ---------------------------------------------------------------------------------

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 
 from renderer.animation import MUSEUM_KINDS
@@ -13,6 +13,7 @@ from renderer.profiles import PROFILES
 from renderer.settings import FORMATS, METHODS, MODES
 from renderer.tree_update import UPDATE_SCHEMES
 
+from ... import metrics
 from ...models import HealthOut, InfoOut, LimitsOut, ReadyOut
 from ...service import info_extras
 from ..deps import ServiceDep, WorkerDep
@@ -29,16 +30,18 @@ def health() -> HealthOut:
 
 @router.get("/ready", response_model=ReadyOut, responses={503: {"model": ReadyOut, "description": "not ready"}},
             summary="Readiness: GL context created and warm-up render done")
-def ready(worker: WorkerDep, service: ServiceDep) -> Any:
+def ready(request: Request, worker: WorkerDep, service: ServiceDep) -> Any:
     info = worker.info or {}
+    drain = getattr(request.app.state, "drain", None)
+    draining = (drain is not None and drain.draining.is_set()) or worker.closing
     saturated = worker.saturated
-    out = ReadyOut(ready=worker.ready.is_set() and not worker.closing and not saturated and service.store.ping(),
+    out = ReadyOut(ready=not draining and not saturated and worker.ready.is_set() and service.store.ping(),
                    gl_renderer=info.get("renderer"), gl_version=info.get("version"))
     if out.ready:
         return out
     retry = READY_RETRY_AFTER_S
-    if worker.closing:
-        out.detail = "shutting down"
+    if draining:   # shutdown has begun: a balancer takes this process out of rotation
+        out.detail = "draining: the process is shutting down"
     elif saturated:             # the work queued ahead is more than a render may wait
         retry = worker.retry_after()
         out.detail = (f"saturated: {worker.queued_ms() / 1e3:,.1f} s of GL work queued, over the render timeout "
@@ -46,6 +49,7 @@ def ready(worker: WorkerDep, service: ServiceDep) -> Any:
     else:
         out.detail = worker.error or ("state backend not answering" if worker.ready.is_set() else
                                       "starting: creating the GL context and rendering the warm-up frame")
+    metrics.unavailable("draining" if draining else "saturated" if saturated else "not_ready")
     return JSONResponse(out.model_dump(), status_code=503, headers={"Retry-After": str(retry)})
 
 

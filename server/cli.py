@@ -1,0 +1,328 @@
+"""``pocketray``: the one command (console script of the package; ``python -m server`` too).
+
+::
+
+    pocketray serve [--host H] [--port P] [--workers N] [--state-backend sqlite|redis] [--gl-device I] …
+    pocketray render SCENE.json -o OUT.png|.jpg|.npy|.exr [--width W --height H --method M --mode M
+                     --spp S --depth D …]
+    pocketray scenario 1|2|3 --n N [--seed S] [--radius R] -o scene.json
+    pocketray scenario museum --n N [--kind mixed] [--absent A] [--seed S] -o scene.json
+    pocketray devices [--probe]
+    pocketray stack [--processes N] [--port P]     (Redis + render processes + HAProxy, server/stack.py)
+
+``serve`` takes a flag for every field of :class:`server.config.ServerConfig` (``--queue-size``,
+``--cors-origins``, ``--drain-s`` …): each is put in the environment as its ``POCKETRAY_*``
+variable, so the flags are read and validated exactly as the variables are, by every worker.
+uvicorn gets the app as the import string ``server.app:create_app`` (a factory), so that
+``--workers N`` starts N processes, each with its own app and GL context; with more than one
+the Prometheus metrics go through a shared directory (multiprocess mode).
+
+``render`` takes the settings of the API's frame query (:class:`server.models.FrameQuery`,
+validated by the same models and by ``RenderSettings``, with ``--spp`` for
+``samples_per_pixel`` and ``--depth`` for ``max_recursion_depth``) and the scene JSON of
+docs/FORMATS.md (:class:`server.models.SceneModel`). The output format follows the file's
+extension. Errors are the API's 422 messages (``width: …``), exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any, Sequence
+
+EXTENSIONS = {".png": "png", ".jpg": "jpeg", ".jpeg": "jpeg", ".npy": "npy", ".exr": "exr"}
+ENV_PREFIX = "POCKETRAY_"
+# Short names of the render flags (the API's names work too).
+RENDER_ALIASES = {"samples_per_pixel": ["--spp"], "max_recursion_depth": ["--depth"]}
+APP_FACTORY = "server.app:create_app"
+
+
+class UsageError(Exception):
+    """A bad flag or input: printed, exit status 2."""
+
+
+# ---- serve ------------------------------------------------------------------------------------
+def _config_fields() -> dict[str, Any]:
+    from .config import ServerConfig
+
+    return dict(ServerConfig.model_fields)
+
+
+def _add_serve(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("serve", help="run the render service (uvicorn)",
+                       description="Run the render service. Every flag below but --workers is the "
+                                   "POCKETRAY_<NAME> variable of the same name (docs/API.md).")
+    p.add_argument("--workers", type=int, default=1,
+                   help="uvicorn worker processes, each with its own GL context (default 1); with more "
+                        "than one use --state-backend redis, or they share one SQLite file")
+    for name, field in _config_fields().items():
+        flag = "--" + name.replace("_", "-")
+        default = field.get_default(call_default_factory=False)
+        shown = "" if default is None or callable(default) or field.default_factory else f" (default {default})"
+        p.add_argument(flag, dest=f"cfg_{name}", metavar=name.upper(), default=None,
+                       help=f"{field.description or name}{shown}".replace("%", "%%"))
+
+
+def serve(args: argparse.Namespace) -> int:
+    import uvicorn
+
+    from .config import ServerConfig
+    from .observability import configure_logging, uvicorn_log_config
+
+    for name in _config_fields():
+        value = getattr(args, f"cfg_{name}")
+        if value is not None:
+            os.environ[ENV_PREFIX + name.upper()] = value
+    try:
+        config = ServerConfig()   # what every worker will read: fail here, once, with the message
+    except Exception as e:
+        raise UsageError(f"configuration: {e}") from None
+    if args.workers < 1:
+        raise UsageError("--workers: at least 1")
+    configure_logging(config.log_level, config.log_format)
+    multiproc_dir = None
+    if args.workers > 1 and not os.environ.get("PROMETHEUS_MULTIPROC_DIR"):
+        multiproc_dir = tempfile.mkdtemp(prefix="pocketray-metrics-")
+        os.environ["PROMETHEUS_MULTIPROC_DIR"] = multiproc_dir
+    if config.gl_device is not None:
+        os.environ["GLCONTEXT_DEVICE_INDEX"] = str(config.gl_device)
+    try:
+        uvicorn.run(APP_FACTORY, factory=True, host=config.host, port=config.port, workers=args.workers,
+                    log_level=config.log_level, log_config=uvicorn_log_config(config.log_level, config.log_format),
+                    access_log=False, timeout_graceful_shutdown=max(30, int(config.drain_s) + 30))
+    finally:
+        if multiproc_dir:
+            shutil.rmtree(multiproc_dir, ignore_errors=True)
+    return 0
+
+
+# ---- render ---------------------------------------------------------------------------------
+def _add_render(sub: argparse._SubParsersAction) -> None:
+    from .models import RenderParams
+
+    p = sub.add_parser("render", help="render a scene JSON file to an image or array",
+                       description="Render SCENE (scene JSON, docs/FORMATS.md; - for stdin) with the API's "
+                                   "settings. The output's extension picks the format: .png .jpg .npy .exr.")
+    p.add_argument("scene", help="scene JSON file (docs/FORMATS.md), or - for standard input")
+    p.add_argument("-o", "--output", required=True, help="output file: .png, .jpg/.jpeg, .npy or .exr")
+    for name, field in RenderParams.model_fields.items():
+        if name == "format":
+            continue
+        flags = [*RENDER_ALIASES.get(name, []), "--" + name.replace("_", "-")]
+        p.add_argument(*flags, dest=f"set_{name}", metavar=name.upper(), default=None,
+                       help=(field.description or name).replace("%", "%%"))
+    p.add_argument("--quiet", action="store_true", help="print nothing on success")
+
+
+def _validation_message(e: Exception) -> str:
+    from pydantic import ValidationError
+
+    if isinstance(e, ValidationError):
+        out = []
+        for err in e.errors():
+            loc = ".".join(str(x) for x in err.get("loc", ()))
+            out.append(f"{loc or 'input'}: {err.get('msg')}")
+        return "; ".join(out)
+    return str(e)
+
+
+def render_file(scene_text: str, output: Path, flags: dict[str, str]) -> dict[str, Any]:
+    """Render ``scene_text`` with the settings ``flags`` (text, as in a query) into ``output``.
+
+    Returns what was done (method, size, format, timings in ms). UsageError on bad input."""
+    from pydantic import ValidationError
+
+    from renderer.scene import SceneError
+
+    from .config import ServerConfig
+    from .models import FrameQuery, SceneModel
+    from .scenes import scene_from_model
+    from .service import SessionService
+    from .view import encode
+
+    fmt = EXTENSIONS.get(output.suffix.lower())
+    if fmt is None:
+        raise UsageError(f"output: unknown extension {output.suffix!r}; use one of {', '.join(EXTENSIONS)}")
+    try:
+        patch = FrameQuery.model_validate({**flags, "format": fmt}).given()
+    except ValidationError as e:
+        raise UsageError(_validation_message(e)) from None
+    try:
+        model = SceneModel.model_validate_json(scene_text)
+    except ValidationError as e:
+        raise UsageError("scene." + _validation_message(e).replace("; ", "; scene.")) from None
+    try:
+        scene = scene_from_model(model)
+    except SceneError as e:
+        raise UsageError(f"scene.{e.field}: {e.message}") from None
+    config = ServerConfig()
+    settings = {**config.default_settings(), **patch}
+    try:
+        rs = SessionService.render_settings(settings)
+        rs.check_method(scene.n_spheres)
+    except (SceneError, TypeError) as e:
+        raise UsageError(f"{getattr(e, 'field', 'settings')}: {getattr(e, 'message', e)}") from None
+
+    from renderer.gl import GLRenderer
+
+    t0 = time.perf_counter()
+    renderer = GLRenderer()
+    t_ctx = time.perf_counter()
+    result = renderer.render(scene, rs.with_(update="rebuild"))
+    body, encode_ms = encode(result, fmt, settings.get("quality", config.default_jpeg_quality),
+                             config.png_compress_level)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    output.write_bytes(body)
+    method = (result.stats or {}).get("method", rs.method)
+    return {"output": str(output), "format": fmt, "bytes": len(body), "width": rs.width, "height": rs.height,
+            "method": method, "mode": rs.mode, "context_ms": round((t_ctx - t0) * 1e3, 1),
+            "timings_ms": {k: round(float(v), 2) for k, v in {**result.timings, "encode": encode_ms}.items()},
+            "gl_renderer": dict(getattr(renderer, "info", {}) or {}).get("renderer")}
+
+
+def render(args: argparse.Namespace) -> int:
+    text = sys.stdin.read() if args.scene == "-" else _read(args.scene)
+    flags = {k[4:]: v for k, v in vars(args).items() if k.startswith("set_") and v is not None}
+    done = render_file(text, Path(args.output), flags)
+    if not args.quiet:
+        t = done["timings_ms"]
+        print(f"{done['output']}: {done['width']}×{done['height']} {done['mode']} {done['format']}, "
+              f"{done['bytes']} bytes; method {done['method']}; build {t.get('build', 0):.1f} ms, "
+              f"trace {t.get('trace', 0):.1f} ms, encode {t.get('encode', 0):.1f} ms ({done['gl_renderer']})",
+              file=sys.stderr)
+    return 0
+
+
+def _read(path: str) -> str:
+    try:
+        return Path(path).read_text()
+    except OSError as e:
+        raise UsageError(f"scene: cannot read {path}: {e.strerror}") from None
+
+
+# ---- scenario -----------------------------------------------------------------------------------
+def _add_scenario(sub: argparse._SubParsersAction) -> None:
+    from renderer.animation import MUSEUM_KINDS
+
+    p = sub.add_parser("scenario", help="write a thesis scenario (1, 2, 3) or the museum as scene JSON",
+                       description="Write the scene JSON (docs/FORMATS.md) of the thesis's scenario 1, 2 or 3, "
+                                   "or of the animated museum (its motions included).")
+    p.add_argument("which", choices=["1", "2", "3", "museum"], help="scenario number, or museum")
+    p.add_argument("--n", type=int, required=True, help="spheres (museum: the moving ones)")
+    p.add_argument("--seed", type=int, default=0, help="placement seed (default 0)")
+    p.add_argument("--radius", type=float, default=1.0, help="sphere radius of scenarios 1–3 (default 1)")
+    p.add_argument("--kind", choices=list(MUSEUM_KINDS), default="mixed", help="museum motion (default mixed)")
+    p.add_argument("--absent", type=float, default=0.2, help="museum: share of incoherent spheres absent "
+                                                             "at a time (default 0.2)")
+    p.add_argument("-o", "--output", default="-", help="output file (default: standard output)")
+
+
+def scenario_scene(which: str, n: int, seed: int = 0, radius: float = 1.0, kind: str = "mixed",
+                   absent: float = 0.2) -> Any:
+    """The scene (or animated scene) the ``scenario`` command writes; validated as the API does."""
+    from renderer.animation import MUSEUM_ROOM_SPHERES, museum
+    from renderer.limits import MAX_SPHERES
+    from renderer.scenarios import scenario
+    from renderer.scene import SceneError
+
+    if n < 0 or n + (MUSEUM_ROOM_SPHERES if which == "museum" else 0) > MAX_SPHERES:
+        raise UsageError(f"n: 0 … {MAX_SPHERES} spheres")
+    try:
+        if which == "museum":
+            return museum(n, kind, seed, absent)
+        return scenario(int(which), n, seed, radius)
+    except SceneError as e:
+        raise UsageError(f"{e.field}: {e.message}") from None
+
+
+def write_scenario(args: argparse.Namespace) -> int:
+    from .scenes import scene_json_chunks
+
+    scene = scenario_scene(args.which, args.n, args.seed, args.radius, args.kind, args.absent)
+    if args.output == "-":
+        for chunk in scene_json_chunks(scene):
+            sys.stdout.buffer.write(chunk)
+        sys.stdout.buffer.write(b"\n")
+        sys.stdout.flush()
+        return 0
+    out = Path(args.output)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with out.open("wb") as f:
+        for chunk in scene_json_chunks(scene):
+            f.write(chunk)
+    print(f"{out}: scenario {args.which}, {args.n} spheres", file=sys.stderr)
+    return 0
+
+
+# ---- devices ------------------------------------------------------------------------------------
+def _add_devices(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("devices", help="list the EGL devices (--gl-device picks one by index)")
+    p.add_argument("--probe", action="store_true", help="also create a context on each and print its renderer")
+    p.add_argument("--json", action="store_true", help="print JSON")
+
+
+def devices(args: argparse.Namespace) -> int:
+    from renderer.gl.devices import egl_devices, probe
+
+    found = egl_devices()
+    if args.probe:
+        for d in found:
+            d.update(probe(d["index"]))
+    if args.json:
+        print(json.dumps(found, indent=2))
+        return 0
+    if not found:
+        print("no EGL devices (EGL_EXT_device_enumeration missing, or no libEGL)")
+    for d in found:
+        extra = f"  → {d['gl_renderer']}" if d.get("gl_renderer") else (f"  → {d['error']}" if d.get("error") else "")
+        print(f"{d['index']}: {d.get('kind', '?'):8} {d.get('drm') or d.get('renderer') or ''}{extra}")
+    return 0
+
+
+# ---- main -------------------------------------------------------------------------------------
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="pocketray", description="pocketray: the render service, and renders "
+                                                              "from the command line")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_serve(sub)
+    _add_render(sub)
+    _add_scenario(sub)
+    _add_devices(sub)
+    _add_stack(sub)
+    return p
+
+
+def _add_stack(sub: argparse._SubParsersAction) -> None:
+    sub.add_parser("stack", add_help=False, help="Redis + render processes + HAProxy on loopback ports "
+                                                 "(server/stack.py; needs redis-server and haproxy)")
+
+
+def stack(args: argparse.Namespace) -> int:
+    from .stack import main as stack_main
+
+    return stack_main(args.rest)
+
+
+COMMANDS = {"serve": serve, "render": render, "scenario": write_scenario, "devices": devices, "stack": stack}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args, rest = parser().parse_known_args(argv)
+    if args.command != "stack" and rest:
+        parser().parse_args(argv)   # the usual error for unknown arguments
+    args.rest = rest
+    try:
+        return COMMANDS[args.command](args)
+    except UsageError as e:
+        print(f"pocketray {args.command}: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,323 @@
+"""The scale-out topology on one machine, without containers: Redis, N render processes and
+HAProxy on loopback ports (``./dev stack``, ``pocketray stack``; its test drives sessions
+through it). ``compose.yaml`` runs the same topology in containers, one render service per
+GPU; both use the HAProxy configuration made by :func:`haproxy_config` (``deploy/haproxy.cfg``
+is its output for compose, and a test keeps the two equal). docs/DEPLOY.md explains it.
+
+- **Redis** with the append-only file, fsynced at every write (``appendfsync always``): an
+  acknowledged change survives a crash of Redis too.
+- **Render processes**: ``pocketray serve --state-backend redis`` each, with their own GL
+  context, scene cache and refit trees; ``POCKETRAY_DRAIN_S`` lets a stopping process fail its
+  health check before its port closes.
+- **HAProxy**: consistent hashing on the ``X-Session-Id`` header (else the session id of the
+  path), with bounded load (``hash-balance-factor``: no process takes more than 150 % of the
+  mean), health checks on ``/api/ready`` every second, a request whose connection is refused
+  is re-sent to another process, and ``X-Served-By`` names the process that answered.
+
+Nothing here is a target but the loopback interface.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+import httpx
+
+SESSION_HEADER = "X-Session-Id"
+SERVED_BY_HEADER = "X-Served-By"
+HASH_BALANCE_FACTOR = 150      # % of the mean load a server may take before the next one is used
+CHECK_INTERVAL_MS = 1000
+CHECK_FALL = 2                 # failed checks before a server is taken out
+CHECK_RISE = 1
+DRAIN_S = 3.0                  # > CHECK_FALL × CHECK_INTERVAL: a stopping process is out before it stops
+RENDER_TIMEOUT_S = 120         # POCKETRAY_RENDER_TIMEOUT_S's default: the server timeout is above it
+
+
+def haproxy_config(bind: str, servers: Sequence[tuple[str, str]], stats_bind: str | None = None,
+                   resolvers: str | None = None) -> str:
+    """HAProxy's configuration: the frontend on ``bind``, a backend of ``servers`` (name,
+    host:port), the stats page on ``stats_bind``; ``resolvers``: a DNS server for container
+    names (compose: Docker's ``127.0.0.11:53``), so a render service that starts late or moves
+    is found again."""
+    lines = [
+        "# pocketray's balancer (server/stack.py:haproxy_config writes this; docs/DEPLOY.md explains it)",
+        "global",
+        "    maxconn 4096",
+        "",
+    ]
+    if resolvers:
+        lines += ["resolvers docker",
+                  f"    nameserver dns {resolvers}",
+                  "    hold valid 10s",
+                  ""]
+    lines += [
+        "defaults",
+        "    mode http",
+        "    timeout connect 2s",
+        "    timeout http-request 10s",
+        f"    timeout client {RENDER_TIMEOUT_S + 15}s",
+        f"    timeout server {RENDER_TIMEOUT_S + 10}s",
+        "    timeout tunnel 1h",
+        "    option http-keep-alive",
+        "    # a request that never reached a process (connection refused: it was killed) goes to another",
+        "    retries 2",
+        "    option redispatch 1",
+        "    retry-on conn-failure",
+        "",
+        "frontend pocketray",
+        f"    bind {bind}",
+        "    default_backend render",
+        "",
+        "backend render",
+        f"    # one session → one process (its scene cache and refit trees), by the {SESSION_HEADER} header,",
+        "    # else the session id of the path; no key (POST /api/sessions, /api/info): round robin",
+        f"    http-request set-var(txn.session) req.hdr({SESSION_HEADER})",
+        "    http-request set-var(txn.session) path,field(4,/) if !{ var(txn.session) -m found } "
+        "{ path_beg /api/sessions/ }",
+        "    balance hash var(txn.session)",
+        "    hash-type consistent",
+        f"    hash-balance-factor {HASH_BALANCE_FACTOR}",
+        "    option httpchk GET /api/ready",
+        "    http-check expect status 200",
+        f"    http-response set-header {SERVED_BY_HEADER} %[srv_name]",
+        f"    default-server check inter {CHECK_INTERVAL_MS}ms fall {CHECK_FALL} rise {CHECK_RISE} "
+        + ("init-addr last,libc,none resolvers docker" if resolvers else "init-addr last,libc,none"),
+    ]
+    lines += [f"    server {name} {address}" for name, address in servers]
+    if stats_bind:
+        lines += ["", "frontend stats", f"    bind {stats_bind}", "    stats enable", "    stats uri /",
+                  "    stats refresh 5s"]
+    return "\n".join(lines) + "\n"
+
+
+def compose_haproxy_config(renders: int = 2) -> str:
+    """``deploy/haproxy.cfg``: the balancer of compose.yaml (services render0 … render{n−1} on 8000)."""
+    return haproxy_config(":8000", [(f"render{i}", f"render{i}:8000") for i in range(renders)],
+                          stats_bind=":8404", resolvers="127.0.0.11:53")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def find_executable(name: str) -> str:
+    exe = shutil.which(name) or next((p for p in (f"/usr/sbin/{name}", f"/usr/bin/{name}") if os.access(p, os.X_OK)),
+                                     None)
+    if exe is None:
+        raise RuntimeError(f"{name} is not installed (scripts/bootstrap.sh installs it: apt-get install {name})")
+    return exe
+
+
+@dataclass
+class Child:
+    name: str
+    args: list[str]
+    log_path: Path
+    env: dict[str, str] | None = None
+    proc: subprocess.Popen | None = None
+    port: int = 0
+
+    def start(self) -> "Child":
+        log = open(self.log_path, "ab")
+        self.proc = subprocess.Popen(self.args, stdout=log, stderr=subprocess.STDOUT, env=self.env,
+                                     start_new_session=True)
+        log.close()
+        return self
+
+    @property
+    def alive(self) -> bool:
+        return self.proc is not None and self.proc.poll() is None
+
+    def log_tail(self, chars: int = 3000) -> str:
+        try:
+            return self.log_path.read_text(errors="replace")[-chars:]
+        except OSError:
+            return ""
+
+    def stop(self, sig: int = signal.SIGTERM, timeout_s: float = 20.0) -> None:
+        if not self.alive:
+            return
+        self.proc.send_signal(sig)
+        try:
+            self.proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+
+
+@dataclass
+class Stack:
+    """Redis + ``processes`` render processes + HAProxy on loopback; ``start()`` / ``stop()``."""
+    processes: int = 2
+    port: int = 0                          # the balancer's (0: a free one)
+    workdir: Path | None = None            # logs, redis' AOF, haproxy.cfg (default: a temp dir)
+    env: dict[str, str] = field(default_factory=dict)   # extra POCKETRAY_* for the render processes
+    drain_s: float = DRAIN_S
+    redis: Child | None = None
+    renders: list[Child] = field(default_factory=list)
+    haproxy: Child | None = None
+    _own_dir: bool = False
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.port}"
+
+    @property
+    def redis_url(self) -> str:
+        return f"redis://127.0.0.1:{self.redis.port}/0"
+
+    def start(self, timeout_s: float = 120.0) -> "Stack":
+        if self.workdir is None:
+            self.workdir = Path(tempfile.mkdtemp(prefix="pocketray-stack-"))
+            self._own_dir = True
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        self.port = self.port or free_port()
+        try:
+            self._start_redis(timeout_s)
+            for i in range(self.processes):
+                self.renders.append(self._start_render(i))
+            for child in self.renders:
+                self._wait(child, "/api/ready", timeout_s)
+            self._start_haproxy(timeout_s)
+        except BaseException:
+            self.stop()
+            raise
+        return self
+
+    def _start_redis(self, timeout_s: float) -> None:
+        import redis
+
+        port = free_port()
+        self.redis = Child("redis", [find_executable("redis-server"), "--port", str(port), "--bind", "127.0.0.1",
+                                     "--dir", str(self.workdir), "--appendonly", "yes", "--appendfsync", "always",
+                                     "--save", "", "--protected-mode", "yes"],
+                           self.workdir / "redis.log", port=port).start()
+        client = redis.Redis(host="127.0.0.1", port=port)
+        deadline = time.monotonic() + timeout_s
+        while True:
+            try:
+                if client.ping():
+                    break
+            except redis.RedisError:
+                if not self.redis.alive or time.monotonic() > deadline:
+                    raise RuntimeError(f"redis-server did not start: {self.redis.log_tail()}") from None
+                time.sleep(0.05)
+        client.close()
+
+    def _start_render(self, i: int) -> Child:
+        port = free_port()
+        env = {**os.environ, **self.env}
+        args = [sys.executable, "-m", "server", "serve", "--host", "127.0.0.1", "--port", str(port),
+                "--state-backend", "redis", "--redis-url", self.redis_url, "--drain-s", str(self.drain_s)]
+        return Child(f"render{i}", args, self.workdir / f"render{i}.log", env=env, port=port).start()
+
+    def _start_haproxy(self, timeout_s: float) -> None:
+        cfg = self.workdir / "haproxy.cfg"
+        cfg.write_text(haproxy_config(f"127.0.0.1:{self.port}",
+                                      [(c.name, f"127.0.0.1:{c.port}") for c in self.renders]))
+        exe = find_executable("haproxy")
+        check = subprocess.run([exe, "-c", "-f", str(cfg)], capture_output=True, text=True)
+        if check.returncode != 0:
+            raise RuntimeError(f"haproxy rejects its configuration: {check.stdout}{check.stderr}")
+        self.haproxy = Child("haproxy", [exe, "-db", "-f", str(cfg)], self.workdir / "haproxy.log").start()
+        self.haproxy.port = self.port
+        self._wait(self.haproxy, "/api/ready", timeout_s)
+        # Every process in rotation: each answers through the balancer (health checks passed).
+        deadline = time.monotonic() + timeout_s
+        seen: set[str] = set()
+        while seen != {c.name for c in self.renders}:
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"the balancer never reached every process (saw {sorted(seen)}): "
+                                   f"{self.haproxy.log_tail()}")
+            try:
+                r = httpx.get(self.url + "/api/health", timeout=5.0)
+                seen.add(r.headers.get(SERVED_BY_HEADER, ""))
+                seen &= {c.name for c in self.renders}
+            except httpx.HTTPError:
+                time.sleep(0.1)
+
+    def _wait(self, child: Child, path: str, timeout_s: float) -> None:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if not child.alive:
+                raise RuntimeError(f"{child.name} exited with {child.proc.returncode}: {child.log_tail()}")
+            try:
+                if httpx.get(f"http://127.0.0.1:{child.port}{path}", timeout=5.0).status_code == 200:
+                    return
+            except httpx.HTTPError:
+                pass
+            time.sleep(0.1)
+        raise RuntimeError(f"{child.name} did not answer {path} within {timeout_s:g} s: {child.log_tail()}")
+
+    def kill(self, i: int) -> None:
+        """SIGKILL render process ``i`` (a crash: nothing of it runs any more)."""
+        self.renders[i].stop(signal.SIGKILL)
+
+    def stop(self) -> None:
+        """HAProxy, then the render processes (SIGTERM: they drain), then Redis; the temp dir goes too."""
+        if self.haproxy is not None:
+            self.haproxy.stop(signal.SIGTERM)   # haproxy -db: SIGTERM is a hard stop, SIGUSR1 a soft one
+        for child in self.renders:
+            if child.alive:
+                child.proc.send_signal(signal.SIGINT)   # no drain needed: the balancer is gone
+        for child in self.renders:
+            child.stop(signal.SIGTERM, timeout_s=30)
+        if self.redis is not None:
+            self.redis.stop(signal.SIGTERM)
+        if self._own_dir and self.workdir is not None:
+            shutil.rmtree(self.workdir, ignore_errors=True)
+
+    def __enter__(self) -> "Stack":
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="pocketray stack", description="Redis, render processes and HAProxy on "
+                                                                    "loopback ports, until Ctrl-C")
+    p.add_argument("--processes", type=int, default=2, help="render processes (default 2)")
+    p.add_argument("--port", type=int, default=8080, help="the balancer's port (default 8080)")
+    p.add_argument("--dir", type=Path, default=None, help="logs, Redis' AOF, haproxy.cfg (default: var/stack)")
+    args = p.parse_args(argv)
+    stack = Stack(processes=args.processes, port=args.port, workdir=args.dir or Path.cwd() / "var" / "stack")
+    print(f"stack: starting redis, {args.processes} render processes and haproxy in {stack.workdir} …",
+          file=sys.stderr)
+    stack.start()
+    print(f"stack: the balancer is {stack.url} (Redis {stack.redis_url}; render processes "
+          + ", ".join(f"{c.name} :{c.port}" for c in stack.renders) + "); Ctrl-C stops everything", file=sys.stderr)
+    stop = {"now": False}
+
+    def on_signal(signum: int, frame: object) -> None:
+        stop["now"] = True
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    try:
+        while not stop["now"]:
+            dead = [c.name for c in [stack.redis, *stack.renders, stack.haproxy] if c is not None and not c.alive]
+            if dead:
+                print(f"stack: {', '.join(dead)} stopped; stopping the rest", file=sys.stderr)
+                break
+            time.sleep(0.5)
+    finally:
+        stack.stop()
+        print("stack: stopped", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

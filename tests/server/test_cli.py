@@ -1,0 +1,137 @@
+"""``pocketray`` (server/cli.py): scenario → scene JSON as the API writes it, render with the
+API's settings and validation (png, jpeg, npy, exr), the serve flags from ServerConfig, the
+EGL device list, and ``serve --workers 2`` (uvicorn by import string: two processes, two GL
+contexts, one /metrics summing both)."""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+from PIL import Image
+
+from pocketray_server_support import ROOT, free_port
+from server import cli
+from server.exr import decode_exr
+
+pytestmark = pytest.mark.gl   # render runs GLRenderer, serve a GL worker
+
+
+def pocketray(*args: str, cwd: Path, stdin: str | None = None) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
+    return subprocess.run([sys.executable, "-m", "server", *args], cwd=cwd, env=env, input=stdin,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_scenario_writes_the_scene_json_the_api_serves(tmp_path, client):
+    assert pocketray("scenario", "3", "--n", "100", "--seed", "7", "-o", "s.json", cwd=tmp_path).returncode == 0
+    written = json.loads((tmp_path / "s.json").read_text())
+    sid = client.post("/api/sessions", json={"scenario": 3, "n": 100, "seed": 7}).json()["id"]
+    assert written == client.get(f"/api/sessions/{sid}/scene").json()
+    museum = pocketray("scenario", "museum", "--n", "32", "--kind", "rigid", cwd=tmp_path)
+    doc = json.loads(museum.stdout)
+    assert doc["motions"] and doc["motions"][0]["kind"] == "rigid" and len(doc["spheres"]) > 32
+
+
+def test_render_writes_each_format_and_agrees_with_the_api(tmp_path, client):
+    scene = {"materials": [{}], "spheres": [{"center": [0, 0, 0], "radius": 20}, {"center": [25, 5, 0], "radius": 6}]}
+    (tmp_path / "scene.json").write_text(json.dumps(scene))
+    common = ["--width", "40", "--height", "30", "--depth", "2", "--spp", "1"]
+    for out in ("a.png", "a.jpg", "a.npy", "p.npy", "z.exr", "n.exr", "c.exr", "i.exr"):
+        mode = {"p": "primid", "z": "depth", "n": "normal", "i": "primid"}.get(out[0], "color")
+        r = pocketray("render", "scene.json", "-o", out, "--mode", mode, *common, "--quiet", cwd=tmp_path)
+        assert r.returncode == 0 and r.stderr == "", r.stderr
+    assert Image.open(tmp_path / "a.png").size == (40, 30) and Image.open(tmp_path / "a.jpg").format == "JPEG"
+    api = client.post("/api/render", json={"scene": scene, "settings": {
+        "width": 40, "height": 30, "max_recursion_depth": 2, "samples_per_pixel": 1, "format": "npy"}})
+    assert np.array_equal(np.load(tmp_path / "a.npy"), np.load(io.BytesIO(api.content)))
+    primid = np.load(tmp_path / "p.npy")
+    assert np.array_equal(decode_exr((tmp_path / "i.exr").read_bytes())["id"].view(np.int32), primid)
+    z = decode_exr((tmp_path / "z.exr").read_bytes())["Z"]
+    assert z.shape == (30, 40) and np.isinf(z[primid < 0]).all() and np.isfinite(z[primid >= 0]).all()
+    assert decode_exr((tmp_path / "n.exr").read_bytes())["RGB"].shape == (30, 40, 3)
+    colour = decode_exr((tmp_path / "c.exr").read_bytes())["RGB"]
+    assert colour.dtype == np.float32 and np.abs(np.floor(np.clip(colour, 0, 1) * 255 + 0.5)
+                                                 - np.load(tmp_path / "a.npy")).max() == 0
+
+
+def test_render_rejects_what_the_api_rejects_naming_the_field(tmp_path):
+    (tmp_path / "s.json").write_text(json.dumps({"materials": [{}], "spheres": [{"center": [0, 0, 0], "radius": 1}]}))
+    cases = {("--width", "0"): "width", ("--spp", "3"): "samples_per_pixel", ("--method", "nope"): "method",
+             ("--mode", "cones"): "mode", ("--min-weight", "nan"): "min_weight"}
+    for flags, field in cases.items():
+        r = pocketray("render", "s.json", "-o", "x.png", *flags, cwd=tmp_path)
+        assert r.returncode == 2 and field in r.stderr, (flags, r.stderr)
+    bad = pocketray("render", "-", "-o", "x.png", cwd=tmp_path,
+                    stdin=json.dumps({"materials": [{}], "spheres": [{"center": [0, 0, 0], "radius": -1}]}))
+    assert bad.returncode == 2 and "scene.spheres.0.radius" in bad.stderr
+    assert pocketray("render", "s.json", "-o", "x.gif", cwd=tmp_path).returncode == 2
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_serve_has_a_flag_for_every_config_field_and_validates_them_before_starting(tmp_path):
+    text = cli.parser().format_help() + pocketray("serve", "--help", cwd=tmp_path).stdout
+    for name in ("--workers", "--host", "--port", "--state-backend", "--gl-device", "--cors-origins", "--drain-s",
+                 "--queue-size", "--log-format"):
+        assert name in text
+    r = pocketray("serve", "--state-backend", "mongodb", cwd=tmp_path)
+    assert r.returncode == 2 and "state_backend" in r.stderr
+
+
+def test_devices_lists_the_egl_device_the_context_uses(tmp_path):
+    r = pocketray("devices", "--probe", "--json", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    found = json.loads(r.stdout)
+    assert found and found[0]["index"] == 0 and found[0]["gl_renderer"]
+
+
+def test_serve_with_two_workers_runs_two_gl_processes_and_one_metrics_endpoint(tmp_path):
+    port = free_port()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
+    log = open(tmp_path / "serve.log", "wb")
+    proc = subprocess.Popen([sys.executable, "-m", "server", "serve", "--workers", "2", "--port", str(port),
+                             "--sqlite-path", str(tmp_path / "s.sqlite3"), "--default-render",
+                             '{"width": 32, "height": 32, "max_recursion_depth": 2, "samples_per_pixel": 1}'],
+                            cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT)
+    url = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + 120
+        while True:
+            text = (tmp_path / "serve.log").read_text()
+            if text.count('"OpenGL: ') >= 2 and text.count("warm-up render took") >= 2:
+                break
+            assert proc.poll() is None and time.monotonic() < deadline, text[-3000:]
+            time.sleep(0.2)
+        children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()
+        workers = [pid for pid in children if b"resource_tracker" not in Path(f"/proc/{pid}/cmdline").read_bytes()]
+        assert len(workers) == 2
+        frames = 6
+        with httpx.Client(base_url=url, timeout=60) as c:
+            sid = c.post("/api/sessions", json={"scenario": 1, "n": 8}).json()["id"]
+            for _ in range(frames):
+                assert c.get(f"/api/sessions/{sid}/frame").status_code == 200
+        rendered = 0.0
+        for _ in range(4):   # whichever worker answers the scrape, it reports both
+            with httpx.Client(base_url=url, timeout=30) as c:   # a new connection: maybe the other worker
+                text = c.get("/metrics").text
+            rendered = sum(float(line.rsplit(" ", 1)[1]) for line in text.splitlines()
+                           if line.startswith("pocketray_renders_total{"))
+            assert rendered == frames, text
+        lines = [json.loads(line) for line in (tmp_path / "serve.log").read_text().splitlines() if line.startswith("{")]
+        assert any(line.get("logger", "").startswith("uvicorn") for line in lines)   # uvicorn's lines are JSON too
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+        log.close()
