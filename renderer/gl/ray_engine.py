@@ -79,7 +79,7 @@ from ..limits import DEFAULT_TEXTURE_WIDTH, STENCIL_BITS
 from ..modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, primid_colours
 from ..result import RenderResult
 from ..scene import Scene, SceneError
-from ..shader_source import pass_source, vertex_source
+from .ray_engine_targets import Programs as _Programs, Targets as _Targets  # noqa: F401
 from .raw_gl import GL_STENCIL_BUFFER_BIT, RawGL
 from .textures import upload_textures
 
@@ -87,102 +87,6 @@ if TYPE_CHECKING:
     from ..settings import RenderSettings
 
 COUNT_LIMIT = 1 << 20       # (tile, sphere) pairs per pass up to which hre's stats mirror its culling
-FULLSCREEN = np.array([-1, -1, 1, -1, 1, 1, -1, -1, 1, 1, -1, 1], dtype=np.float32)
-
-
-# ------------------------------------------------------------------------ programs
-
-class _Programs:
-    """Compiled programs of one context, by (vertex, fragment, defines)."""
-
-    def __init__(self, ctx: moderngl.Context):
-        self.ctx = ctx
-        self.progs: dict[tuple, moderngl.Program] = {}
-        self.quad = ctx.buffer(FULLSCREEN.tobytes())
-        self.quad_vaos: dict[tuple, moderngl.VertexArray] = {}
-        self.used: set[tuple] = set()     # keys of the programs the current frame asked for
-
-    def get(self, vert: str, frag: str, defines: tuple[str, ...]) -> moderngl.Program:
-        key = (vert, frag, defines)
-        self.used.add(key)
-        if key not in self.progs:
-            vs = vertex_source() if vert == "fullscreen.vert" else pass_source(vert, defines)
-            self.progs[key] = self.ctx.program(vertex_shader=vs, fragment_shader=pass_source(frag, defines))
-        return self.progs[key]
-
-    def fullscreen(self, frag: str, defines: tuple[str, ...]) -> tuple[moderngl.Program, moderngl.VertexArray]:
-        key = (frag, defines)
-        prog = self.get("fullscreen.vert", frag, defines)
-        if key not in self.quad_vaos:
-            self.quad_vaos[key] = self.ctx.vertex_array(prog, [(self.quad, "2f", "a_position")])
-        return prog, self.quad_vaos[key]
-
-
-# ------------------------------------------------------------------------ targets
-
-class _Targets:
-    """The frame's textures on one padded size: shared depth-stencil, hit, surface,
-    blocked, colour targets, and a pool of ray layers."""
-
-    def __init__(self, ctx: moderngl.Context, gl: RawGL, width: int, height: int):
-        self.ctx, self.size = ctx, (width, height)
-        self.gl = gl
-        self.rb = self.gl.renderbuffer(width, height)
-        tex = lambda: self._tex(width, height)  # noqa: E731
-        self.hit, self.surf0, self.surf1, self.blocked0, self.blocked1, self.colour = (tex() for _ in range(6))
-        self.fbo_hit = self._fbo([self.hit], depth=True)
-        self.fbo_surf = self._fbo([self.surf0, self.surf1])
-        self.fbo_blocked = [self._fbo([self.blocked0]), self._fbo([self.blocked1])]
-        self.stencil_bits = self.gl.stencil_bits(self.fbo_hit)
-        self.pool: list[tuple[moderngl.Texture, moderngl.Texture]] = []
-        self.all_layers: list[tuple[moderngl.Texture, moderngl.Texture]] = []
-        self.fbos: list[moderngl.Framebuffer] = [self.fbo_hit, self.fbo_surf, *self.fbo_blocked]
-        self.shade_fbos: dict[tuple[int, ...], moderngl.Framebuffer] = {}
-        self.layer_fbos: dict[int, moderngl.Framebuffer] = {}
-
-    def _tex(self, w: int, h: int) -> moderngl.Texture:
-        t = self.ctx.texture((w, h), 4, dtype="f4")
-        t.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        return t
-
-    def _fbo(self, colour: list, depth: bool = False) -> moderngl.Framebuffer:
-        fbo = self.ctx.framebuffer(color_attachments=colour)
-        self.gl.attach(fbo, self.rb)
-        fbo.depth_mask = depth
-        return fbo
-
-    def layer(self) -> tuple[moderngl.Texture, moderngl.Texture]:
-        if self.pool:
-            return self.pool.pop()
-        pair = (self._tex(*self.size), self._tex(*self.size))
-        self.all_layers.append(pair)
-        return pair
-
-    def release(self, pair) -> None:
-        self.pool.append(pair)
-
-    def layer_fbo(self, pair) -> moderngl.Framebuffer:
-        """Framebuffer writing a layer (primary rays; clearing)."""
-        key = pair[0].glo
-        if key not in self.layer_fbos:
-            self.layer_fbos[key] = self._fbo(list(pair))
-        return self.layer_fbos[key]
-
-    def shade_fbo(self, refl, trans) -> moderngl.Framebuffer:
-        key = (refl[0].glo, trans[0].glo)
-        if key not in self.shade_fbos:
-            self.shade_fbos[key] = self._fbo([self.colour, refl[0], refl[1], trans[0], trans[1]])
-        return self.shade_fbos[key]
-
-    def release_all(self) -> None:
-        for f in [*self.fbos, *self.shade_fbos.values(), *self.layer_fbos.values()]:
-            f.release()
-        for t in (self.hit, self.surf0, self.surf1, self.blocked0, self.blocked1, self.colour):
-            t.release()
-        for a, b in self.all_layers:
-            a.release()
-            b.release()
-        self.gl.delete_renderbuffer(self.rb)
 
 
 # --------------------------------------------------------------------------- frame
