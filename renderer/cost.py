@@ -33,16 +33,25 @@ from .scene import Scene
 
 @dataclass(frozen=True)
 class CostModel:
-    """Nanoseconds per unit of work on the reference machine."""
-    ns_frame: float = 2.0e6        # per frame: uploads, draw set-up, read-back
-    ns_pixel: float = 40.0         # per fragment and traced ray: generation, shading, write
-    ns_node: float = 2.0           # per node visit
-    ns_test: float = 2.5           # per sphere (or plane) test
-    ns_raster: float = 1.0         # ray engines: per primitive drawn over one ray
-    level_decay: float = 0.5       # share of rays whose path goes on to the next level
+    """Nanoseconds per unit of work on the reference machine (the terms of :func:`terms`)."""
+    ns_frame: float = 1.0e6        # per frame: uploads, draw set-up, read-back
+    ns_pixel: float = 150.0        # per fragment and traced ray: generation, shading, writes
+    ns_node: float = 2.0           # per node visit of a ray inside the scene's box
+    ns_test: float = 4.0           # per sphere test in small leaves (the SAH's count; a ray stops early)
+    ns_leaf_test: float = 20.0     # per sphere test in leaves of more than BIG_LEAF (every one is made)
+    ns_bf_test: float = 10.0       # brute force: per sphere test (every ray tests every sphere)
+    ns_pass: float = 50.0          # ray engines: per full-screen pass and pixel
+    ns_raster: float = 3.0         # ray engines: per primitive drawn over one ray
+    level_decay: float = 0.7       # share of rays whose path goes on to the next level
+
+    TERMS = ("frame", "pixel", "node", "test", "leaf_test", "bf_test", "pass", "raster")
+
+    def vector(self) -> np.ndarray:
+        return np.array([self.ns_frame, self.ns_pixel, self.ns_node, self.ns_test, self.ns_leaf_test,
+                         self.ns_bf_test, self.ns_pass, self.ns_raster])
 
 
-# Fitted by bench/cost.py (see docs/RESULTS.md, "Cost model"); rerun it on another machine.
+# Fitted by bench/experiments/cost.py (see docs/RESULTS.md, "Cost model"); rerun it on another machine.
 DEFAULT_MODEL = CostModel()
 
 
@@ -55,6 +64,7 @@ class FrameCost:
     rays_per_pixel: float       # radiance and shadow rays of one fragment
     nodes_per_ray: float
     tests_per_ray: float
+    coverage: float             # share of the primary rays that enter the scene's box
     ms: float
     ms_per_pixel: float
     degenerate: bool            # the hierarchy tests (nearly) every sphere on every ray
@@ -63,18 +73,18 @@ class FrameCost:
         return {k: (round(v, 4) if isinstance(v, float) else v) for k, v in self.__dict__.items()}
 
 
-def traversal_work(method: str, stats: dict[str, Any], n_spheres: int) -> tuple[float, float]:
-    """(node visits, sphere tests) a ray can expect from the structure a build reported."""
+def traversal_work(method: str, stats: dict[str, Any], n_spheres: int) -> tuple[float, float, float]:
+    """(node visits, sphere tests, of those in big leaves) a ray through the scene's box can
+    expect from the structure a build reported (the SAH's terms; a method without a
+    structure tests all)."""
     if method in ("bruteforce", "rayengine", "hre") or not stats:
-        return 0.0, float(n_spheres)
-    if method == "twolevel":
-        parts = [stats.get("kd") or {}, stats.get("bvh") or {}]
-        return (sum(float(p.get("sah_nodes", 0.0)) for p in parts),
-                sum(float(p.get("sah_tests", 0.0)) for p in parts))
-    return float(stats.get("sah_nodes", 0.0)), float(stats.get("sah_tests", n_spheres))
+        return 0.0, float(n_spheres), float(n_spheres)
+    parts = [stats.get("kd") or {}, stats.get("bvh") or {}] if method == "twolevel" else [stats]
+    return tuple(sum(float(p.get(k, 0.0)) for p in parts)  # type: ignore[return-value]
+                 for k in ("sah_nodes", "sah_tests", "sah_big_tests"))
 
 
-def ray_tree(scene: Scene, settings, model: CostModel = DEFAULT_MODEL) -> tuple[int, float]:
+def ray_tree(scene: Scene, settings, decay: float = DEFAULT_MODEL.level_decay) -> tuple[int, float]:
     """(levels, radiance rays per pixel) of the ray tree the settings trace in this scene."""
     if settings.mode not in RAY_TREE_MODES:
         return 1, 1.0
@@ -88,36 +98,95 @@ def ray_tree(scene: Scene, settings, model: CostModel = DEFAULT_MODEL) -> tuple[
     if k_max == 0:
         levels = 1
     branching = 2.0 if any(m.reflective > 0 and m.transmissive > 0 for m in mats) else 1.0
-    g = branching * model.level_decay
-    rays = sum(g ** level for level in range(levels))
-    return levels, rays
+    g = branching * decay
+    return levels, sum(g ** level for level in range(levels))
+
+
+def _branching(scene: Scene) -> int:
+    """Child layers a ray-engine layer makes: 2 where some material reflects and another (or
+    the same) transmits, else 1."""
+    used = set(np.unique(scene.sphere_materials).tolist()) | {p.material for p in scene.planes}
+    mats = [scene.materials[i] for i in used]
+    return 2 if any(m.reflective > 0 for m in mats) and any(m.transmissive > 0 for m in mats) else 1
+
+
+def coverage(scene: Scene, width: int, height: int) -> float:
+    """The share of the image whose primary rays enter the spheres' bounding box: the box's
+    projection onto the image (1 when the camera is inside or beside it, 0 for no spheres)."""
+    if scene.n_spheres == 0:
+        return 0.0
+    lo = (scene.sphere_centers - scene.sphere_radii[:, None]).min(axis=0)
+    hi = (scene.sphere_centers + scene.sphere_radii[:, None]).max(axis=0)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    cam = scene.camera
+    right, up, forward = cam.basis()
+    v = corners - np.asarray(cam.position, dtype=np.float64)
+    z = v @ forward
+    if (z <= 0).any():
+        return 1.0
+    s = math.tan(math.radians(cam.fov_y) / 2.0)
+    x = (v @ right) / z / (s * width / height)
+    y = (v @ up) / z / s
+    w_ = max(0.0, min(1.0, x.max()) - max(-1.0, x.min()))
+    h_ = max(0.0, min(1.0, y.max()) - max(-1.0, y.min()))
+    return float(w_ * h_ / 4.0)
+
+
+def terms(method: str, stats: dict[str, Any], scene: Scene, settings, decay: float,
+          multi_pass: bool = False) -> tuple[np.ndarray, dict[str, Any]]:
+    """The frame's work in the model's units (:attr:`CostModel.TERMS`), and what it is made of."""
+    k = settings.supersampling
+    averaged = settings.mode in AVERAGED_MODES
+    w, h = settings.width, settings.height
+    levels, radiance = ray_tree(scene, settings, decay)
+    lights = len(scene.lights) if settings.mode == "color" else 0
+    rays = radiance * (1 + lights)
+    nodes, tests, big = traversal_work(method, stats, scene.n_spheres)
+    n, planes = scene.n_spheres, len(scene.planes)
+    c = coverage(scene, w, h)
+    # Primary rays enter the box where it covers the image; the others start on surfaces in it.
+    rays_in_box = (c + max(0.0, radiance - 1.0)) * (1 + lights)
+    t = np.zeros(len(CostModel.TERMS))
+    t[0] = 1.0
+    if multi_pass:
+        # Per layer — a whole grid of rays per branch path, however few are live: each level
+        # has one layer per reflected and per transmitted parent — the full-screen passes
+        # (mask, surface, shade, one per light) and every primitive drawn over the grid once,
+        # and once more per light.
+        grid = w * h * (k * k if averaged else 1)
+        centre = w * h if averaged and k > 1 else 0      # the pixel-centre frame of the arrays
+        layers = sum(_branching(scene) ** level for level in range(levels)) if settings.mode in RAY_TREE_MODES else 1
+        t[1] = grid * rays + centre
+        t[6] = grid * layers * (4 + lights) + 4 * centre
+        t[7] = (grid * layers * (1 + lights) + centre) * (n + planes)
+        meta = {"passes": 1 + (1 if centre else 0), "pixels": grid, "rays": rays, "nodes": 0.0,
+                "tests": float(n + planes), "coverage": c}
+        return t, meta
+    passes = 1 + (k * k if averaged and k > 1 else 0)
+    px = passes * w * h
+    t[1] = px * rays
+    if method == "bruteforce":
+        t[5] = px * rays * n
+        t[3] = px * rays * planes
+    else:
+        t[2] = px * rays_in_box * nodes
+        t[3] = px * (rays_in_box * (tests - big) + rays * planes)
+        t[4] = px * rays_in_box * big
+    meta = {"passes": passes, "pixels": w * h, "rays": rays, "nodes": nodes, "tests": tests + planes,
+            "coverage": c}
+    return t, meta
 
 
 def estimate(method: str, stats: dict[str, Any], scene: Scene, settings, model: CostModel = DEFAULT_MODEL,
              multi_pass: bool = False) -> FrameCost:
     """The cost of tracing ``scene`` with ``settings`` by ``method`` whose build reported ``stats``."""
-    k = settings.supersampling
-    averaged = settings.mode in AVERAGED_MODES
-    w, h = settings.width, settings.height
-    levels, radiance = ray_tree(scene, settings, model)
-    lights = len(scene.lights) if settings.mode == "color" else 0
-    rays = radiance * (1 + lights)
-    nodes, tests = traversal_work(method, stats, scene.n_spheres)
-    tests += len(scene.planes)
+    t, m = terms(method, stats, scene, settings, model.level_decay, multi_pass)
+    total = float(t @ model.vector())
+    frags = m["passes"] * m["pixels"]
     n = scene.n_spheres
-    degenerate = n >= 64 and tests >= 0.5 * n and method not in ("bruteforce", "rayengine", "hre")
-    if multi_pass:
-        # Every primitive is drawn over the whole padded grid, once per layer and per light.
-        pixels = w * h * (k * k if averaged else 1)
-        per_pixel = model.ns_pixel * rays + model.ns_raster * (n + len(scene.planes)) * rays
-        passes = 1 + (1 if averaged and k > 1 else 0)
-        total = model.ns_frame + pixels * per_pixel + (w * h * model.ns_raster * n if passes > 1 else 0.0)
-        return FrameCost(passes, pixels, rays, 0.0, float(n), total / 1e6, per_pixel / 1e6, False)
-    passes = 1 + (k * k if averaged and k > 1 else 0)
-    pixels = w * h
-    per_pixel = rays * (model.ns_pixel + model.ns_node * nodes + model.ns_test * tests)
-    total = model.ns_frame + passes * pixels * per_pixel
-    return FrameCost(passes, pixels, rays, nodes, tests, total / 1e6, per_pixel / 1e6, degenerate)
+    degenerate = (not multi_pass and method != "bruteforce" and n >= 64 and m["tests"] >= 0.5 * n)
+    return FrameCost(m["passes"], m["pixels"], m["rays"], m["nodes"], m["tests"], m["coverage"], total / 1e6,
+                     (total - model.ns_frame) / max(1, frags) / 1e6, degenerate)
 
 
 def largest_accepted(method: str, stats: dict[str, Any], scene: Scene, settings, limit_ms: float,

@@ -24,6 +24,12 @@ from ..scene import Scene
 from ..tree_update import REBUILD, TreeUpdate
 
 
+# A ray stops at its nearest hit, so it rarely reaches every leaf the SAH counts, but it tests
+# every primitive of a leaf it enters: the builds report the SAH's tests in leaves this big
+# apart (``sah_big_tests``), which the cost model (renderer/cost.py) counts in full.
+BIG_LEAF = 32
+
+
 @dataclass
 class PreparedMethod:
     """One request's acceleration data: GPU data, build time (ms), statistics."""

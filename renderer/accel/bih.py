@@ -42,7 +42,7 @@ from ..limits import MAX_RETRIES, MAX_TREE_DEPTH
 from ..scene import Scene
 from ..tree_update import REBUILD, TreeUpdate
 from . import bih_layout as L
-from .base import Capabilities, PreparedMethod
+from .base import BIG_LEAF, Capabilities, PreparedMethod
 from .primitives import sphere_aabbs
 
 OPTIMIZED_NODE_FACTOR = np.float32(1.3)
@@ -77,6 +77,7 @@ class BIHStats:
     bytes: int
     sah_nodes: float = 0.0
     sah_tests: float = 0.0
+    sah_big_tests: float = 0.0      # of sah_tests, those in leaves of more than BIG_LEAF spheres
 
     def to_json(self) -> dict:
         return asdict(self)
@@ -146,10 +147,14 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
     # visits and primitive tests of a ray through the root box (the SAH's terms).
     area_inner = 0.0
     area_leaf_prims = 0.0
+    area_big_prims = 0.0
 
     def make_leaves(mask: np.ndarray) -> None:
-        nonlocal area_leaf_prims
-        area_leaf_prims += float((_half_area(bmin[mask], bmax[mask]) * (hi[mask] - lo[mask])).sum())
+        nonlocal area_leaf_prims, area_big_prims
+        cnt = hi[mask] - lo[mask]
+        a = _half_area(bmin[mask], bmax[mask]) * cnt
+        area_leaf_prims += float(a.sum())
+        area_big_prims += float(a[cnt > BIG_LEAF].sum())
         s = slot[mask]
         nodes[s, 0] = np.uint32(L.LEAF_TAG)
         nodes[s, 1] = lo[mask].astype(np.uint32)
@@ -271,7 +276,7 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
         depth_min=int(depths.min()), depth_avg=float(depths.mean()), depth_max=int(depths.max()),
         leaf_histogram=hist, optimized_nodes=optimized, one_sided_retries=one_sided, forced_leaves=forced,
         rounds=rounds, build_ms=build_ms, bytes=int(next_slot * L.NODE_BYTES + n * 4 + 24),
-        **_expected_work(area_inner, area_leaf_prims, gbox, n))
+        **_expected_work(area_inner, area_leaf_prims, area_big_prims, gbox, n))
     return BIH(nodes=nodes, indices=indices, global_aabb=gbox.astype(np.float32), node_depths=node_depth,
                max_prims=max_prims, max_tree_depth=max_tree_depth, stats=stats)
 
@@ -281,14 +286,16 @@ def _half_area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0]
 
 
-def _expected_work(area_inner: float, area_leaf_prims: float, gbox: np.ndarray, n: int) -> dict[str, float]:
+def _expected_work(area_inner: float, area_leaf_prims: float, area_big_prims: float, gbox: np.ndarray,
+                   n: int) -> dict[str, float]:
     """``sah_nodes``, ``sah_tests``: node visits and primitive tests a ray through the root box
-    can expect (areas relative to the root's). A root of no area (all primitives at one
-    point) is one leaf of n tests."""
+    can expect (areas relative to the root's); ``sah_big_tests`` the part of the tests in
+    leaves of more than BIG_LEAF primitives. A root of no area (all primitives at one point)
+    is one leaf of n tests."""
     root = float(_half_area(gbox[0], gbox[1])) if n else 0.0
     if not root > 0:
-        return {"sah_nodes": 0.0, "sah_tests": float(n)}
-    return {"sah_nodes": area_inner / root, "sah_tests": area_leaf_prims / root}
+        return {"sah_nodes": 0.0, "sah_tests": float(n), "sah_big_tests": float(n if n > BIG_LEAF else 0)}
+    return {"sah_nodes": area_inner / root, "sah_tests": area_leaf_prims / root, "sah_big_tests": area_big_prims / root}
 
 
 def build_for_spheres(centers: np.ndarray, radii: np.ndarray, max_prims: int = 8,

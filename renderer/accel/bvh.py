@@ -51,7 +51,7 @@ import numpy as np
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..tree_update import DEFAULT_THRESHOLD, REBUILD, UPDATE_SCHEMES, TreeUpdate
 from . import bvh_layout as L
-from .base import Capabilities, PreparedMethod
+from .base import BIG_LEAF, Capabilities, PreparedMethod
 from .primitives import sphere_aabbs
 
 BINS = 16
@@ -80,6 +80,7 @@ class BVHStats:
     sah_cost: float
     sah_nodes: float
     sah_tests: float
+    sah_big_tests: float
     median_splits: int
     depth_limited_leaves: int
     scheme: str
@@ -402,14 +403,17 @@ def sah_cost(bvh: BVH) -> float:
 def expected_work(bvh: BVH) -> dict[str, float]:
     """The SAH's two terms apart (renderer/cost.py): node visits and primitive tests a ray
     through the root box can expect."""
-    if bvh.n_primitives == 0:
-        return {"sah_nodes": 0.0, "sah_tests": 0.0}
+    n = bvh.n_primitives
+    if n == 0:
+        return {"sah_nodes": 0.0, "sah_tests": 0.0, "sah_big_tests": 0.0}
     a = _half_area(bvh.bmin, bvh.bmax)
     root = a[0]
     if not root > 0:
-        return {"sah_nodes": 0.0, "sah_tests": float(bvh.n_primitives)}
+        return {"sah_nodes": 0.0, "sah_tests": float(n), "sah_big_tests": float(n if n > BIG_LEAF else 0)}
     inner = bvh.left >= 0
-    return {"sah_nodes": float(a[inner].sum() / root), "sah_tests": float((a[~inner] * bvh.count[~inner]).sum() / root)}
+    leaf_work = a[~inner] * bvh.count[~inner]
+    return {"sah_nodes": float(a[inner].sum() / root), "sah_tests": float(leaf_work.sum() / root),
+            "sah_big_tests": float(leaf_work[bvh.count[~inner] > BIG_LEAF].sum() / root)}
 
 
 def _sorted_orders(cen: np.ndarray, pos_lo: np.ndarray, pos_hi: np.ndarray, prims: np.ndarray,

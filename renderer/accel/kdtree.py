@@ -41,7 +41,7 @@ import numpy as np
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..tree_update import REBUILD, TreeUpdate
 from . import kdtree_layout as L
-from .base import Capabilities, PreparedMethod
+from .base import BIG_LEAF, Capabilities, PreparedMethod
 from .primitives import sphere_aabbs
 
 C_TRAV = 1.0
@@ -84,6 +84,7 @@ class KdStats:
     sah_cost: float
     sah_nodes: float
     sah_tests: float
+    sah_big_tests: float
     rounds: int
     blowup_stops: int
     build_ms: float
@@ -421,6 +422,9 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
     # The SAH's terms apart, for the cost model (renderer/cost.py).
     sah_nodes = float(area[~leaf].sum() / area[0]) if n and area[0] > 0 else 0.0
     sah_tests = float((area[leaf] * count[leaf]).sum() / area[0]) if n and area[0] > 0 else float(n)
+    big = leaf & (count > BIG_LEAF)
+    sah_big_tests = float((area[big] * count[big]).sum() / area[0]) if n and area[0] > 0 else \
+        float(n if n > BIG_LEAF else 0)
     nonempty = leaf & (count > 0)
     build_ms = (time.perf_counter() - t_start) * 1e3
     kd.stats = KdStats(
@@ -429,7 +433,7 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
         depth_avg=float(ndepth[leaf].mean()) if leaf.any() else 1.0, max_depth=D, cost_scale=float(cost_scale),
         references=references, indices=len(indices), refs_per_prim=references / n if n else 0.0,
         prims_per_leaf_avg=float(count[nonempty].mean()) if nonempty.any() else 0.0, sah_cost=sah,
-        sah_nodes=sah_nodes, sah_tests=sah_tests,
+        sah_nodes=sah_nodes, sah_tests=sah_tests, sah_big_tests=sah_big_tests,
         rounds=rounds, blowup_stops=blowup, build_ms=build_ms, compaction_ms=compaction_ms,
         bytes=int(m * L.NODE_BYTES + len(indices) * 4 + 24))
     return kd
