@@ -64,7 +64,8 @@ class FrameCost:
 
 
 def traversal_work(method: str, stats: dict[str, Any], n_spheres: int) -> tuple[float, float]:
-    """(node visits, sphere tests) a ray can expect from the structure a build reported."""
+    """(node visits, primitive tests) a ray can expect from the structure a build reported;
+    ``n_spheres``: the primitives a brute-force ray tests (spheres and triangles)."""
     if method in ("bruteforce", "rayengine", "hre") or not stats:
         return 0.0, float(n_spheres)
     if method == "twolevel":
@@ -80,7 +81,8 @@ def ray_tree(scene: Scene, settings, model: CostModel = DEFAULT_MODEL) -> tuple[
         return 1, 1.0
     features = scene_features(scene) if settings.specialize else GENERIC
     levels = features.recursion_depth(settings.max_recursion_depth)
-    used = set(np.unique(scene.sphere_materials).tolist()) | {p.material for p in scene.planes}
+    used = (set(np.unique(scene.sphere_materials).tolist()) | {p.material for p in scene.planes}
+            | {m.material for m in scene.meshes})
     mats = [scene.materials[i] for i in used] or list(scene.materials)
     k_max = max((max(m.reflective, m.transmissive) for m in mats), default=0.0)
     if settings.min_weight > 0 and 0 < k_max < 1:   # ε stops a path once its weight k_max^(L−1) < ε
@@ -102,9 +104,9 @@ def estimate(method: str, stats: dict[str, Any], scene: Scene, settings, model: 
     levels, radiance = ray_tree(scene, settings, model)
     lights = len(scene.lights) if settings.mode == "color" else 0
     rays = radiance * (1 + lights)
-    nodes, tests = traversal_work(method, stats, scene.n_spheres)
+    n = scene.n_spheres + scene.n_triangles     # what a tree holds (a triangle test costs as a sphere's)
+    nodes, tests = traversal_work(method, stats, n)
     tests += len(scene.planes)
-    n = scene.n_spheres
     degenerate = n >= 64 and tests >= 0.5 * n and method not in ("bruteforce", "rayengine", "hre")
     if multi_pass:
         # Every primitive is drawn over the whole padded grid, once per layer and per light.
