@@ -257,7 +257,15 @@ def rows3(value: Any, where: str, what: str = "numbers") -> np.ndarray:
         _first_bad_row(value, where, what)
     if lengths != {3} or bool in types or not all(issubclass(t, _NUMBER_TYPES) for t in types):
         _first_bad_row(value, where, what)
-    return np.array(value, dtype=np.float64).reshape(-1, 3)
+    try:
+        return np.array(value, dtype=np.float64).reshape(-1, 3)
+    except OverflowError:            # an integer beyond float64 (JSON allows any)
+        for i, row in enumerate(value):
+            try:
+                np.array(row, dtype=np.float64)
+            except OverflowError:
+                raise SceneError(f"{where}[{i}]", "a number too large for float64") from None
+        raise
 
 
 def _bad_rows(mask: np.ndarray) -> int:
