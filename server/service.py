@@ -625,7 +625,8 @@ class SessionService:
         settings: the last build's, or a build made now (without rendering)."""
         state = self.get(session_id)
         settings = self.merge_settings(state.settings, patch, "query")
-        method_name = resolve_method(settings["method"], state.scene_info.get("n_spheres", 0))
+        method_name = resolve_method(settings["method"], state.scene_info.get("n_spheres", 0)
+                                     + state.scene_info.get("n_triangles", 0))     # auto as prepare_frame does
         scene = self.scene(state)
         key = StatsKey(state.id, state.scene_rev, method_name, settings["max_prims"], settings["max_tree_depth"],
                        self._pose_time(scene, settings.get("time", 0.0)))
