@@ -519,6 +519,8 @@ class MethodSettingsOut(BaseModel):
     update_schemes: list[str]
     device: bool = Field(description="a browser can trace it (device mode)")
     tests_every_sphere: bool = Field(False, description="no hierarchy: POCKETRAY_MAX_BRUTEFORCE_WORK applies")
+    primitives: list[str] = Field(default_factory=lambda: ["spheres", "planes", "triangles"],
+                                  description="the kinds of primitive it traces (a scene with another is a 422)")
     auto: bool = Field(False, description="resolved per scene: brute force below the crossover, else bih")
 
 

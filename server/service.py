@@ -83,7 +83,8 @@ def method_settings(name: str) -> dict[str, Any]:
     browser can trace it (``auto`` answers for the BIH it picks above the crossover)."""
     caps = METHODS[resolve_method(name, 1 << 30)].capabilities
     return {"settings": list(caps.settings), "modes": list(caps.modes), "update_schemes": list(caps.update_schemes),
-            "device": caps.device, "tests_every_sphere": caps.tests_every_sphere, "auto": name == AUTO_METHOD}
+            "device": caps.device, "tests_every_sphere": caps.tests_every_sphere, "auto": name == AUTO_METHOD,
+            "primitives": list(caps.primitives)}
 
 
 def info_extras(config: ServerConfig) -> dict[str, Any]:

@@ -199,6 +199,9 @@ def test_a_motion_can_move_a_mesh_through_the_api(api):
     assert_422(create(api, body), "scene.motions[0].mesh")
 
 
-def test_info_states_the_triangle_cap(api):
-    assert api.get("/api/info").json()["limits"]["max_triangles"] == MAX_TRIANGLES
+def test_info_states_the_triangle_cap_and_what_each_method_traces(api):
+    info = api.get("/api/info").json()
+    assert info["limits"]["max_triangles"] == MAX_TRIANGLES
+    assert info["method_settings"]["rayengine"]["primitives"] == ["spheres", "planes"]
+    assert "triangles" in info["method_settings"]["bih"]["primitives"]
     assert math.isfinite(api.get("/api/info").json()["limits"]["max_frame_cost"])
