@@ -17,8 +17,13 @@ Motion models, after Reiter §2.4.1 (Wald et al.'s classes):
   seconds; with ``absent > 0`` it also *disappears* for that fraction of each
   lifetime (the scene's sphere count changes, which forces a rebuild).
 
-A motion covers a contiguous range of sphere ids ``first … first + count − 1``; ranges
-of different motions must not overlap; spheres no motion covers are static.
+A motion covers a contiguous range of sphere ids ``first … first + count − 1``, or — with
+``mesh: m`` instead of ``first``/``count`` — the vertices of mesh ``m``: a rigid motion moves
+the mesh as one body (its normals turn with it), a deformable one displaces each vertex by
+the wave of its rest position (smooth normals are then recomputed from the deformed
+triangles); an incoherent motion moves spheres only (flying vertices would tear a mesh
+apart). Ranges of different motions must not overlap, nor two motions move one mesh;
+spheres and meshes no motion covers are static.
 :func:`pose` evaluates all motions at a time ``t ≥ 0`` and returns the posed
 :class:`~renderer.scene.Scene` (absent spheres removed, so later ids shift down) together
 with, per posed sphere, its id in the animated scene and whether it moves.
@@ -30,7 +35,7 @@ move a sphere beyond ``MAX_COORDINATE`` or produce a non-finite number at any ti
 
 JSON: a scene JSON (docs/FORMATS.md) may carry ``"motions": [...]``; :func:`animated_scene_from_json`
 reads it. Each motion is an object with ``kind`` (``rigid`` | ``deformable`` |
-``incoherent``), ``first``, ``count`` and the fields of its class below.
+``incoherent``), ``first`` and ``count`` (or ``mesh``) and the fields of its class below.
 """
 
 from __future__ import annotations
@@ -105,6 +110,7 @@ class RigidGroup:
     angular_velocity: float = 0.5
     amplitude: tuple[float, float, float] = (0.0, 0.0, 0.0)
     period: float = 4.0
+    mesh: int | None = None
     kind = "rigid"
 
     def validate(self, where: str) -> "RigidGroup":
@@ -123,9 +129,13 @@ class RigidGroup:
         r = float(np.linalg.norm(c0 - p, axis=1).max(initial=0.0))
         return float(np.abs(p).max() + r + np.linalg.norm(self.amplitude))
 
+    def rotation(self, t: float) -> np.ndarray:
+        """The body's rotation at time t (3 × 3): it also turns a mesh's normals."""
+        return _rotation(np.asarray(self.axis, dtype=np.float64), self.angular_velocity * t)
+
     def centers(self, c0: np.ndarray, t: float, ids: np.ndarray) -> np.ndarray:
         p = np.asarray(self.pivot)
-        rot = _rotation(np.asarray(self.axis, dtype=np.float64), self.angular_velocity * t)
+        rot = self.rotation(t)
         return p + (c0 - p) @ rot.T + np.asarray(self.amplitude) * math.sin(2 * math.pi * t / self.period)
 
     def alive(self, t: float, ids: np.ndarray) -> np.ndarray:
@@ -144,6 +154,7 @@ class Deformable:
     amplitude: float = 1.0
     wavelength: float = 10.0
     speed: float = 4.0
+    mesh: int | None = None
     kind = "deformable"
 
     def validate(self, where: str) -> "Deformable":
@@ -179,6 +190,7 @@ class Incoherent:
     lifetime: float = 2.0
     absent: float = 0.0
     seed: int = 0
+    mesh: int | None = None
     kind = "incoherent"
 
     def validate(self, where: str) -> "Incoherent":
@@ -227,8 +239,12 @@ Motion = RigidGroup | Deformable | Incoherent
 
 
 def motion_to_json(m: Motion) -> dict:
+    """A motion's JSON: ``first``/``count`` for a sphere range, ``mesh`` for a mesh (never both)."""
     d = {"kind": m.kind}
+    skip = {"first", "count"} if m.mesh is not None else {"mesh"}
     for f in fields(m):
+        if f.name in skip:
+            continue
         v = getattr(m, f.name)
         d[f.name] = list(v) if isinstance(v, tuple) else v
     return d
@@ -245,9 +261,15 @@ def motion_from_json(d: Any, where: str) -> Motion:
     unknown = set(d) - names - {"kind"}
     if unknown:
         raise SceneError(f"{where}.{sorted(unknown)[0]}", f"unknown field (allowed: kind, {', '.join(sorted(names))})")
+    if d.get("mesh") is not None:
+        both = [k for k in ("first", "count") if k in d]
+        if both:
+            raise SceneError(f"{where}.{both[0]}", "a motion moves either a mesh (mesh) or a sphere range "
+                                                   "(first, count), not both")
+        d = {**d, "first": 0, "count": 0}
     for req in ("first", "count"):
         if req not in d:
-            raise SceneError(f"{where}.{req}", "field required")
+            raise SceneError(f"{where}.{req}", "field required (or mesh: the index of a mesh to move)")
     kw = {k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items() if k != "kind"}
     return cls(**kw)
 
@@ -264,10 +286,28 @@ class AnimatedScene:
         n = self.scene.n_spheres
         out = []
         covered = np.zeros(n, dtype=bool)
+        meshes = np.zeros(len(self.scene.meshes), dtype=bool)
         for i, m in enumerate(self.motions):
             where = f"motions[{i}]"
             if not isinstance(m, (RigidGroup, Deformable, Incoherent)):
                 raise SceneError(where, "expected a motion")
+            if m.mesh is not None:
+                if not self.scene.meshes:
+                    raise SceneError(f"{where}.mesh", "the scene has no meshes")
+                k = _int(m.mesh, f"{where}.mesh", 0, len(self.scene.meshes) - 1)
+                if isinstance(m, Incoherent):
+                    raise SceneError(f"{where}.mesh", "an incoherent motion moves spheres only (its vertices would "
+                                                      "fly apart); use rigid or deformable for a mesh")
+                if meshes[k]:
+                    raise SceneError(f"{where}.mesh", f"mesh {k} is moved by another motion")
+                meshes[k] = True
+                m = m.validate(where)
+                reach = m.reach(self.scene.meshes[k].vertices)
+                if not reach <= MAX_COORDINATE:
+                    raise SceneError(where, f"would move mesh {k} to coordinates of {reach:.3g}, beyond "
+                                            f"±{MAX_COORDINATE:g}")
+                out.append(m)
+                continue
             first = _int(m.first, f"{where}.first", 0, max(n - 1, 0))
             _int(m.count, f"{where}.count", 0, n - first)
             m = m.validate(where)
@@ -281,12 +321,19 @@ class AnimatedScene:
             out.append(m)
         object.__setattr__(self, "motions", tuple(out))
         covered.setflags(write=False)
+        meshes.setflags(write=False)
         object.__setattr__(self, "_moving", covered)
+        object.__setattr__(self, "_moving_meshes", meshes)
 
     @property
     def moving(self) -> np.ndarray:
         """bool (n,): spheres some motion covers."""
         return self._moving  # type: ignore[attr-defined]
+
+    @property
+    def moving_meshes(self) -> np.ndarray:
+        """bool (meshes,): meshes some motion moves."""
+        return self._moving_meshes  # type: ignore[attr-defined]
 
     @property
     def camera(self) -> Camera:
@@ -303,6 +350,7 @@ class AnimatedScene:
         object.__setattr__(seen, "scene", self.scene.with_camera(camera))
         object.__setattr__(seen, "motions", self.motions)
         object.__setattr__(seen, "_moving", self._moving)  # type: ignore[attr-defined]
+        object.__setattr__(seen, "_moving_meshes", self._moving_meshes)  # type: ignore[attr-defined]
         return seen
 
     def to_json(self) -> dict:
@@ -331,12 +379,25 @@ def animated_scene_from_json(d: Any) -> AnimatedScene:
 
 @dataclass
 class PosedFrame:
-    """A posed scene, the animated-scene id of each of its spheres, and which of them move."""
+    """A posed scene, the animated-scene id of each of its spheres, and which of its tree
+    primitives move: ``moving`` is bool over the posed spheres, then the triangles
+    (:mod:`renderer.accel.primitives`' index space)."""
     scene: Scene
     ids: np.ndarray
     moving: np.ndarray
     time: float
     pose_ms: float
+
+
+def _posed_mesh(mesh, m: Motion, t: float):
+    """A mesh moved by motion ``m`` at time t: rigidly (normals turned), or deformed (smooth
+    normals recomputed from the deformed triangles, area-weighted)."""
+    from .meshes import vertex_normals
+    v = m.centers(mesh.vertices, t, np.arange(len(mesh.vertices), dtype=np.int64))
+    normals = None
+    if mesh.normals is not None:
+        normals = mesh.normals @ m.rotation(t).T if isinstance(m, RigidGroup) else vertex_normals(v, mesh.triangles)
+    return mesh.with_vertices(v, normals)
 
 
 def pose(anim: AnimatedScene, t: float) -> PosedFrame:
@@ -346,15 +407,22 @@ def pose(anim: AnimatedScene, t: float) -> PosedFrame:
     base = anim.scene
     c = base.sphere_centers.copy()
     alive = np.ones(base.n_spheres, dtype=bool)
+    meshes = list(base.meshes)
     for m in anim.motions:
+        if m.mesh is not None:
+            meshes[m.mesh] = _posed_mesh(base.meshes[m.mesh], m, t)
+            continue
         sl = slice(m.first, m.first + m.count)
         ids = np.arange(m.first, m.first + m.count, dtype=np.int64)
         c[sl] = m.centers(base.sphere_centers[sl], t, ids)
         alive[sl] = m.alive(t, ids)
     keep = np.flatnonzero(alive)
     scene = Scene(base.camera, base.lights, base.materials, c[keep], base.sphere_radii[keep],
-                  base.sphere_materials[keep], base.planes)
-    return PosedFrame(scene, keep, anim.moving[keep], t, (_time.perf_counter() - t0) * 1e3)
+                  base.sphere_materials[keep], base.planes, tuple(meshes))
+    tri_moving = np.repeat(anim.moving_meshes, [mesh.n_triangles for mesh in base.meshes]) if base.meshes else \
+        np.zeros(0, bool)
+    moving = np.concatenate([anim.moving[keep], tri_moving])
+    return PosedFrame(scene, keep, moving, t, (_time.perf_counter() - t0) * 1e3)
 
 
 # ---------------------------------------------------------------- Museum generator

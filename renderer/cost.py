@@ -90,7 +90,8 @@ def ray_tree(scene: Scene, settings, decay: float = DEFAULT_MODEL.level_decay) -
         return 1, 1.0
     features = scene_features(scene) if settings.specialize else GENERIC
     levels = features.recursion_depth(settings.max_recursion_depth)
-    used = set(np.unique(scene.sphere_materials).tolist()) | {p.material for p in scene.planes}
+    used = (set(np.unique(scene.sphere_materials).tolist()) | {p.material for p in scene.planes}
+            | {m.material for m in scene.meshes})
     mats = [scene.materials[i] for i in used] or list(scene.materials)
     k_max = max((max(m.reflective, m.transmissive) for m in mats), default=0.0)
     if settings.min_weight > 0 and 0 < k_max < 1:   # ε stops a path once its weight k_max^(L−1) < ε
@@ -105,18 +106,24 @@ def ray_tree(scene: Scene, settings, decay: float = DEFAULT_MODEL.level_decay) -
 def _branching(scene: Scene) -> int:
     """Child layers a ray-engine layer makes: 2 where some material reflects and another (or
     the same) transmits, else 1."""
-    used = set(np.unique(scene.sphere_materials).tolist()) | {p.material for p in scene.planes}
+    used = (set(np.unique(scene.sphere_materials).tolist()) | {p.material for p in scene.planes}
+            | {m.material for m in scene.meshes})
     mats = [scene.materials[i] for i in used]
     return 2 if any(m.reflective > 0 for m in mats) and any(m.transmissive > 0 for m in mats) else 1
 
 
 def coverage(scene: Scene, width: int, height: int) -> float:
-    """The share of the image whose primary rays enter the spheres' bounding box: the box's
-    projection onto the image (1 when the camera is inside or beside it, 0 for no spheres)."""
-    if scene.n_spheres == 0:
+    """The share of the image whose primary rays enter the primitives' bounding box: the box's
+    projection onto the image (1 when the camera is inside or beside it, 0 for none)."""
+    boxes = []
+    if scene.n_spheres:
+        boxes += [scene.sphere_centers - scene.sphere_radii[:, None], scene.sphere_centers + scene.sphere_radii[:, None]]
+    if scene.n_triangles:
+        boxes.append(scene.triangle_corners.reshape(-1, 3))
+    if not boxes:
         return 0.0
-    lo = (scene.sphere_centers - scene.sphere_radii[:, None]).min(axis=0)
-    hi = (scene.sphere_centers + scene.sphere_radii[:, None]).max(axis=0)
+    points = np.concatenate(boxes)
+    lo, hi = points.min(axis=0), points.max(axis=0)
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     cam = scene.camera
     right, up, forward = cam.basis()
@@ -141,8 +148,8 @@ def terms(method: str, stats: dict[str, Any], scene: Scene, settings, decay: flo
     levels, radiance = ray_tree(scene, settings, decay)
     lights = len(scene.lights) if settings.mode == "color" else 0
     rays = radiance * (1 + lights)
-    nodes, tests, big = traversal_work(method, stats, scene.n_spheres)
-    n, planes = scene.n_spheres, len(scene.planes)
+    n, planes = scene.n_spheres + scene.n_triangles, len(scene.planes)   # a triangle test costs as a sphere's
+    nodes, tests, big = traversal_work(method, stats, n)
     c = coverage(scene, w, h)
     # Primary rays enter the box where it covers the image; the others start on surfaces in it.
     rays_in_box = (c + max(0.0, radiance - 1.0)) * (1 + lights)
@@ -183,7 +190,7 @@ def estimate(method: str, stats: dict[str, Any], scene: Scene, settings, model: 
     t, m = terms(method, stats, scene, settings, model.level_decay, multi_pass)
     total = float(t @ model.vector())
     frags = m["passes"] * m["pixels"]
-    n = scene.n_spheres
+    n = scene.n_spheres + scene.n_triangles
     degenerate = (not multi_pass and method != "bruteforce" and n >= 64 and m["tests"] >= 0.5 * n)
     return FrameCost(m["passes"], m["pixels"], m["rays"], m["nodes"], m["tests"], m["coverage"], total / 1e6,
                      (total - model.ns_frame) / max(1, frags) / 1e6, degenerate)

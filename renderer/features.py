@@ -46,7 +46,8 @@ GENERIC = SceneFeatures(reflection=True, transmission=True, lights=True)
 
 def scene_features(scene: Scene) -> SceneFeatures:
     """Features of the materials that primitives actually use, and whether there are lights."""
-    used = set(np.unique(scene.sphere_materials).tolist()) | {p.material for p in scene.planes}
+    used = (set(np.unique(scene.sphere_materials).tolist()) | {p.material for p in scene.planes}
+            | {m.material for m in scene.meshes})
     mats = [scene.materials[i] for i in used]
     return SceneFeatures(reflection=any(m.reflective > 0 for m in mats),
                          transmission=any(m.transmissive > 0 for m in mats),

@@ -57,6 +57,13 @@ MAX_LIGHT_INTENSITY = 1e3      # per RGB channel
 MAX_SHININESS = 1e4            # Phong exponent
 MAX_IOR = 10.0                 # refraction index
 MAX_MUSEUM_MOVING = MAX_SPHERES - 1024   # the Museum's moving spheres: room for its static room
+# Triangle meshes (docs/FORMATS.md, "Meshes"). A tree indexes spheres then triangles: with
+# MAX_SPHERES + MAX_TRIANGLES < 2^22 every primitive index fits the BIH's 30-bit child
+# index with room to spare, and a scene's arrays stay under ~100 MiB (72 B per triangle
+# for its world-space corners, as many again for smooth normals).
+MAX_TRIANGLES = 1 << 20        # per scene, all meshes together
+MAX_MESH_VERTICES = 1 << 20    # per mesh
+MAX_MESHES = 256               # per scene
 
 # ---- GPU data ------------------------------------------------------------------------------
 DEFAULT_TEXTURE_WIDTH = 4096   # texture rows; WebGL2 guarantees 2048, most phones have 4096

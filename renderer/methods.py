@@ -15,6 +15,7 @@ from .accel.bvh import BVHMethod
 from .accel.kdtree import KdTreeMethod
 from .accel.ray_engine import HierarchicalRayEngine, RayEngine
 from .accel.twolevel import TwoLevelMethod
+from .scene import SceneError
 
 METHODS: dict[str, AccelerationMethod] = {m.name: m for m in (
     BoundingIntervalHierarchy(),
@@ -33,7 +34,8 @@ AUTO_CROSSOVER_N = 16
 
 
 def resolve_method(name: str, n_spheres: int) -> str:
-    """The concrete method for a request: ``auto`` → brute force below the crossover, else BIH."""
+    """The concrete method for a request: ``auto`` → brute force below the crossover, else BIH.
+    ``n_spheres`` counts the primitives a tree would hold: spheres and triangles."""
     if name != AUTO_METHOD:
         return name
     return BruteForce.name if n_spheres < AUTO_CROSSOVER_N else BoundingIntervalHierarchy.name
@@ -42,3 +44,14 @@ def resolve_method(name: str, n_spheres: int) -> str:
 def capabilities(name: str, n_spheres: int = 0) -> Capabilities:
     """What the method a request names (``auto`` resolved for ``n_spheres``) can do."""
     return METHODS[resolve_method(name, n_spheres)].capabilities
+
+
+def check_primitives(name: str, scene) -> None:
+    """Refuse (SceneError ``method``) a scene with a kind of primitive the method does not
+    trace (``Capabilities.primitives``): the ray engines draw spheres and planes only."""
+    caps = METHODS[name].capabilities
+    if scene.n_triangles and "triangles" not in caps.primitives:
+        able = [m for m, x in METHODS.items() if "triangles" in x.capabilities.primitives]
+        raise SceneError("method", f"method {name!r} traces {' and '.join(caps.primitives)} only; this scene has "
+                                   f"{len(scene.meshes)} mesh(es) of {scene.n_triangles:,} triangles: use one of "
+                                   f"{', '.join(able)}")

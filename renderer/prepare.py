@@ -15,7 +15,7 @@ from typing import Hashable
 from .animation import AnimatedScene, pose
 from .cost import DEFAULT_MODEL, CostModel, FrameCost, estimate
 from .limits import DEFAULT_TEXTURE_WIDTH
-from .methods import METHODS, PreparedMethod, resolve_method
+from .methods import METHODS, PreparedMethod, check_primitives, resolve_method
 from .scene import Scene
 from .settings import RenderSettings
 from .tree_update import TreeUpdate
@@ -44,9 +44,11 @@ def prepare_frame(scene: Scene | AnimatedScene, settings: RenderSettings, *, key
     if isinstance(scene, AnimatedScene):
         posed = pose(scene, settings.time)
         scene, moving, pose_ms = posed.scene, posed.moving, posed.pose_ms
-    name = resolve_method(settings.method, scene.n_spheres)
+    n_tree = scene.n_spheres + scene.n_triangles       # what a tree would hold (auto's crossover)
+    name = resolve_method(settings.method, n_tree)
     method = METHODS[name]
-    settings.check_method(scene.n_spheres)
+    settings.check_method(n_tree)
+    check_primitives(name, scene)
     update = TreeUpdate(settings.update, settings.update_threshold, key, moving)
     multi = method.capabilities.multi_pass
     with _BUILD_LOCK:

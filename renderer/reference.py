@@ -3,7 +3,9 @@
 It implements ``docs/SHADING.md`` literally and independently of the shader:
 
 - primary rays, row 0 = top row, pixel index ``y * W + x`` (row-major);
-- brute force over every sphere and plane, nearest ``t > 0``, ties to the lower id;
+- brute force over every sphere, plane and triangle, nearest ``t > 0``, ties to the lower id;
+- triangles by the watertight test of Woop, Benthin & Wald (2013), written here on its own
+  (:func:`triangle_hits`; SHADING.md, "Triangles");
 - secondary rays start exactly at the hit point, self-intersection excluded by the
   primitive-exclusion / far-root rule (no epsilon anywhere);
 - Whitted/Phong shading with one shadow ray per light per hit, reflection and
@@ -20,17 +22,19 @@ it contributes to and its weight (the product of ``kr``/``kt`` along its path), 
 depth first from a stack, and are never larger than ``chunk_rays``, so memory stays
 bounded however deep the tree. Intersection works on tiles of rays × spheres; a cheap
 conservative cull (BLAS products, with a rigorous rounding margin) picks the few
-candidate pairs, and only those go through the robust quadratic.
+candidate pairs, and only those go through the robust quadratic. Triangles are culled
+the same way by their bounding spheres, and the candidates go through the exact test.
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from fractions import Fraction
 
 import numpy as np
 
-from .accel.bih import build_for_spheres
+from .accel.bih import build_for_scene
 from .accel.bih_traverse import traverse
 from .modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, heat_image, primid_colours  # noqa: F401
 from .result import RenderResult
@@ -79,14 +83,18 @@ def reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
     return d - 2.0 * _dot(d, n)[:, None] * n
 
 
-def transmitted_directions(d: np.ndarray, normal: np.ndarray, ior: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def transmitted_directions(d: np.ndarray, normal: np.ndarray, ior: np.ndarray, entering: np.ndarray | None = None
+                           ) -> tuple[np.ndarray, np.ndarray]:
     """Transmitted directions (SHADING.md § Secondary rays) and the total-internal-reflection mask.
 
     ``d`` unit incoming directions (k, 3), ``normal`` the outward normals N (k, 3), ``ior``
-    (k,) inside relative to outside. Entering (``dot(d, N) < 0``): η = 1/ior, n = N; else
-    η = ior, n = −N. Under total internal reflection the ray is the mirror of ``d`` about n.
+    (k,) inside relative to outside. Entering (``dot(d, N) < 0``, or ``entering`` where
+    given — a smooth triangle enters by its geometric normal and bends about its shading
+    normal): η = 1/ior, n = N; else η = ior, n = −N. Under total internal reflection the ray
+    is the mirror of ``d`` about n.
     """
-    entering = _dot(d, normal) < 0.0
+    if entering is None:
+        entering = _dot(d, normal) < 0.0
     eta = np.where(entering, 1.0 / ior, ior)
     n = np.where(entering[:, None], normal, -normal)
     cos_i = -_dot(d, n)
@@ -101,9 +109,63 @@ def transmitted_directions(d: np.ndarray, normal: np.ndarray, ior: np.ndarray) -
 # ----------------------------------------------------------------------- geometry
 
 @dataclass(frozen=True)
+class _Balls:
+    """Spheres for the conservative cull (the scene's spheres, or bounding balls of triangles)."""
+    centers_t: np.ndarray       # (3, k) contiguous, for the cull's matrix products
+    cc: np.ndarray              # (k,) |c|²
+    r2: np.ndarray              # (k,) r²
+    extent: float               # max |c| + max r: bounds the cull's rounding error
+
+    @staticmethod
+    def of(c: np.ndarray, r: np.ndarray) -> "_Balls":
+        extent = float(np.sqrt(_dot(c, c).max()) + r.max()) if len(r) else 0.0
+        return _Balls(np.ascontiguousarray(c.T), _dot(c, c), r * r, extent)
+
+    def __len__(self) -> int:
+        return len(self.r2)
+
+
+@dataclass(frozen=True)
+class _Triangles:
+    """The triangles flattened in id order (``base + j``), world space, float64."""
+    base: int                   # id of triangle 0 (spheres + planes)
+    v0: np.ndarray              # (T, 3) corners …
+    v1: np.ndarray
+    v2: np.ndarray
+    geo_normal: np.ndarray      # (T, 3) unit (v1 − v0) × (v2 − v0); 0 for a degenerate triangle
+    vertex_normals: np.ndarray  # (T, 3, 3) unit shading normals at the corners (smooth ones)
+    smooth: np.ndarray          # (T,) bool
+    valid: np.ndarray           # (T,) bool: not degenerate (a zero-area triangle is never hit)
+    balls: _Balls               # bounding balls for the cull
+
+    @staticmethod
+    def of(scene: Scene) -> "_Triangles":
+        c = np.asarray(scene.triangle_corners, dtype=np.float64).reshape(-1, 3, 3)
+        v0, v1, v2 = (np.ascontiguousarray(c[:, k]) for k in range(3))
+        cross = np.cross(v1 - v0, v2 - v0)
+        length = np.linalg.norm(cross, axis=1)
+        valid = ~np.asarray(scene.triangle_degenerate, dtype=bool) & (length > 0)
+        geo = cross / np.where(length > 0, length, 1.0)[:, None]
+        vn = np.asarray(scene.triangle_normals, dtype=np.float64).reshape(-1, 3, 3)
+        vlen = np.linalg.norm(vn, axis=2, keepdims=True)
+        vn = vn / np.where(vlen > 0, vlen, 1.0)
+        centre = (v0 + v1 + v2) / 3.0
+        # The ball must hold the float64 triangle: the largest corner distance, inflated far
+        # beyond its rounding error (relative 1e-16), so no vertex lies on the ball's surface.
+        radius = np.sqrt(np.max([_dot(v - centre, v - centre) for v in (v0, v1, v2)], axis=0)) if len(c) else \
+            np.zeros(0)
+        radius = radius * (1.0 + 1e-9) + 1e-300
+        return _Triangles(scene.triangle_id_base, v0, v1, v2, geo, vn, np.asarray(scene.triangle_smooth, bool),
+                          valid, _Balls.of(centre, radius))
+
+    def __len__(self) -> int:
+        return len(self.v0)
+
+
+@dataclass(frozen=True)
 class _Geometry:
     """The scene flattened into float64 arrays, indexed by primitive / material id."""
-    n: int                      # spheres; ids 0 … n−1, planes n …
+    n: int                      # spheres; ids 0 … n−1, planes n …, triangles after the planes
     centers: np.ndarray         # (n, 3)
     centers_t: np.ndarray       # (3, n) contiguous, for the cull's matrix products
     cc: np.ndarray              # (n,) |c|²
@@ -112,7 +174,7 @@ class _Geometry:
     extent: float               # max |c| + max r: bounds the cull's rounding error
     plane_points: np.ndarray    # (P, 3)
     plane_normals: np.ndarray   # (P, 3) unit
-    prim_material: np.ndarray   # (n + P,) material index of each primitive
+    prim_material: np.ndarray   # (n + P + T,) material index of each primitive
     color: np.ndarray           # (M, 3) material tables …
     ka: np.ndarray
     kd: np.ndarray
@@ -123,6 +185,7 @@ class _Geometry:
     ior: np.ndarray
     light_pos: np.ndarray       # (L, 3)
     light_col: np.ndarray       # (L, 3)
+    tris: _Triangles
 
     @staticmethod
     def of(scene: Scene) -> "_Geometry":
@@ -136,7 +199,8 @@ class _Geometry:
             plane_points=np.array([p.point for p in scene.planes], dtype=np.float64).reshape(-1, 3),
             plane_normals=np.array([p.normal for p in scene.planes], dtype=np.float64).reshape(-1, 3),
             prim_material=np.concatenate([np.asarray(scene.sphere_materials, dtype=np.int64),
-                                          np.array([p.material for p in scene.planes], dtype=np.int64)]),
+                                          np.array([p.material for p in scene.planes], dtype=np.int64),
+                                          np.asarray(scene.triangle_materials, dtype=np.int64)]),
             color=np.array([m.color for m in mats], dtype=np.float64).reshape(-1, 3),
             ka=np.array([m.ambient for m in mats]), kd=np.array([m.diffuse for m in mats]),
             ks=np.array([m.specular for m in mats]), shininess=np.array([m.shininess for m in mats]),
@@ -144,16 +208,41 @@ class _Geometry:
             ior=np.array([m.ior for m in mats]),
             light_pos=np.array([l.position for l in scene.lights], dtype=np.float64).reshape(-1, 3),
             light_col=np.array([l.color for l in scene.lights], dtype=np.float64).reshape(-1, 3),
+            tris=_Triangles.of(scene),
         )
 
-    def normals(self, prim: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """Outward normals N at points ``p`` of primitives ``prim``: sphere (p − c)/r, plane its normal."""
+    def normals(self, prim: np.ndarray, p: np.ndarray, o: np.ndarray | None = None, d: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """(geometric, shading) outward unit normals at points ``p`` of primitives ``prim``.
+
+        Sphere: both ``(p − c)/r``; plane: both its normal; triangle: the geometric normal
+        of its winding, and — smooth meshes — the normalised barycentric blend of its corner
+        normals at the hit of ray (o, d) (the same test that found it gives the weights),
+        flat ones the geometric normal. A blend that cancels to zero falls back to the
+        geometric normal."""
         sph = prim < self.n
-        out = np.empty_like(p)
+        tri = prim >= self.tris.base
+        geo = np.empty_like(p)
         i = prim[sph]
-        out[sph] = (p[sph] - self.centers[i]) / self.radii[i][:, None]
-        out[~sph] = self.plane_normals[prim[~sph] - self.n]
-        return out
+        geo[sph] = (p[sph] - self.centers[i]) / self.radii[i][:, None]
+        pl = ~sph & ~tri
+        geo[pl] = self.plane_normals[prim[pl] - self.n]
+        shade = geo.copy()
+        if tri.any():
+            j = prim[tri] - self.tris.base
+            geo[tri] = self.tris.geo_normal[j]
+            shade[tri] = geo[tri]
+            smooth = self.tris.smooth[j]
+            if smooth.any() and o is not None and d is not None:
+                rows = np.flatnonzero(tri)[smooth]
+                js = j[smooth]
+                _, b0, b1, b2 = triangle_hits(o[rows], d[rows], self.tris.v0[js], self.tris.v1[js], self.tris.v2[js])
+                vn = self.tris.vertex_normals[js]
+                blend = b0[:, None] * vn[:, 0] + b1[:, None] * vn[:, 1] + b2[:, None] * vn[:, 2]
+                length = np.linalg.norm(blend, axis=1)
+                ok = length > 0
+                shade[rows[ok]] = blend[ok] / length[ok][:, None]
+        return geo, shade
 
 
 # ------------------------------------------------------------------- intersection
@@ -199,9 +288,8 @@ def sphere_far_t(o: np.ndarray, d: np.ndarray, c: np.ndarray, r2: np.ndarray) ->
     return np.where(t > 0.0, t, np.inf)
 
 
-def _sphere_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(ray, t, sphere id) of every sphere hit with t > 0, the source sphere excluded.
+def _cull(balls: _Balls, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(ray, ball) of every pair whose ray may meet the ball at some t (a superset).
 
     The cull evaluates ``h² ≈ r² − (|o|² − 2 o·c + |c|²) + (o·d − c·d)²`` with matrix
     products (cheap, cancellation-prone) and keeps pairs with ``h² ≥ −tol``. ``tol``
@@ -209,16 +297,15 @@ def _sphere_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarr
     difference between the two when |d| ≠ 1 (reflected rays are not renormalised), so
     no pair the robust test would accept is lost.
     """
-    if g.n == 0 or len(o) == 0:
-        return _NO_PAIRS
+    k = len(balls)
     od, oo, dd = _dot(o, d), _dot(o, o), _dot(d, d)
-    scale = (float(np.sqrt(oo.max())) + g.extent) ** 2 * float(dd.max())
+    scale = (float(np.sqrt(oo.max())) + balls.extent) ** 2 * float(dd.max())
     tol = (64.0 * _EPS + 4.0 * float(np.abs(1.0 - dd).max())) * scale
     tile = max(1, _PAIR_BUDGET // len(o))
     rays, sph = [], []
-    for s0 in range(0, g.n, tile):
-        s1 = min(g.n, s0 + tile)
-        ct = g.centers_t[:, s0:s1]
+    for s0 in range(0, k, tile):
+        s1 = min(k, s0 + tile)
+        ct = balls.centers_t[:, s0:s1]
         # einsum, not `@`: a K = 3 BLAS product is slow and multi-threaded (contention).
         h2 = np.einsum("ik,kj->ij", d, ct)
         np.subtract(od[:, None], h2, out=h2)   # b = o·d − c·d
@@ -226,13 +313,22 @@ def _sphere_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarr
         q = np.einsum("ik,kj->ij", o, ct)      # |o − c|² = |o|² − 2 o·c + |c|²
         q *= -2.0
         q += oo[:, None]
-        q += g.cc[None, s0:s1]
+        q += balls.cc[None, s0:s1]
         h2 -= q
-        h2 += g.r2[None, s0:s1]
+        h2 += balls.r2[None, s0:s1]
         ri, si = np.nonzero(h2 >= -tol)
         rays.append(ri)
         sph.append(si + s0)
-    ri, si = np.concatenate(rays), np.concatenate(sph)
+    return np.concatenate(rays), np.concatenate(sph)
+
+
+def _sphere_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(ray, t, sphere id) of every sphere hit with t > 0, the source sphere excluded
+    (candidates from :func:`_cull`, then the robust quadratic)."""
+    if g.n == 0 or len(o) == 0:
+        return _NO_PAIRS
+    ri, si = _cull(_Balls(g.centers_t, g.cc, g.r2, g.extent), o, d)
     keep = si != src[ri]        # the source sphere is handled by the exclusion rule
     ri, si = ri[keep], si[keep]
     t = sphere_t(o[ri], d[ri], g.centers[si], g.r2[si])
@@ -272,6 +368,91 @@ def _plane_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarra
     return np.concatenate(rays), np.concatenate(ts), np.concatenate(ids)
 
 
+# ------------------------------------------------------------------- triangles
+
+def _exact_edge(qx: float, py: float, qy: float, px: float) -> float:
+    """``qx·py − qy·px`` exactly (rational arithmetic on the float64 inputs), as a float of
+    the exact sign (the smallest subnormal when the exact value is below the float range)."""
+    v = Fraction(qx) * Fraction(py) - Fraction(qy) * Fraction(px)
+    f = float(v)
+    if f == 0.0 and v != 0:
+        f = 5e-324 if v > 0 else -5e-324
+    return f
+
+
+def _edge(qx: np.ndarray, py: np.ndarray, qy: np.ndarray, px: np.ndarray) -> np.ndarray:
+    """Edge function ``E(P, Q) = Q.x·P.y − Q.y·P.x`` of the sheared 2-D corners P, Q.
+
+    Woop et al. fall back to double precision for an edge function that came out exactly
+    0 in single precision. In float64 there is no wider type, so the fallback is the exact
+    value: an edge that rounds to 0 is recomputed exactly (only that edge: each edge
+    function stays a function of its own two corners, ``E(Q, P) = −E(P, Q)`` bit for bit,
+    which is what keeps two triangles sharing the edge consistent). Exactly 0 means the
+    ray meets the edge itself, and the edge belongs to both triangles."""
+    e = qx * py - qy * px
+    zero = np.flatnonzero(e == 0.0)
+    for k in zero.tolist():
+        e[k] = _exact_edge(float(qx[k]), float(py[k]), float(qy[k]), float(px[k]))
+    return e
+
+
+def triangle_hits(o: np.ndarray, d: np.ndarray, v0: np.ndarray, v1: np.ndarray, v2: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Woop, Benthin & Wald's watertight ray/triangle test, row-wise over (k, 3) arrays.
+
+    Returns ``(t, b0, b1, b2)``: ``t`` of the hit (``inf`` when none or ``t ≤ 0``) and the
+    barycentric weights of corners v0, v1, v2 (meaningful where t is finite). Both sides
+    are hit (no backface culling). Per ray: ``kz`` = the axis of the largest |d| (the first
+    on ties), ``kx, ky`` the next two, swapped when ``d[kz] < 0`` (keeps the winding);
+    shear ``Sx = d[kx]/d[kz]``, ``Sy = d[ky]/d[kz]``, ``Sz = 1/d[kz]``. Corners relative to
+    the origin are sheared to ``(A[kx] − Sx A[kz], A[ky] − Sy A[kz])``, and the edge
+    functions ``U = E(B, C)``, ``V = E(C, A)``, ``W = E(A, B)`` (:func:`_edge`) must not
+    have mixed signs; ``det = U + V + W ≠ 0``; ``t = (U Az + V Bz + W Cz) / det`` with
+    ``Az = Sz A[kz]`` … must be > 0.
+    """
+    k = len(o)
+    rows = np.arange(k)
+    kz = np.argmax(np.abs(d), axis=1)
+    kx = (kz + 1) % 3
+    ky = (kx + 1) % 3
+    neg = d[rows, kz] < 0.0
+    kx, ky = np.where(neg, ky, kx), np.where(neg, kx, ky)
+    dz = d[rows, kz]
+    sx, sy, sz = d[rows, kx] / dz, d[rows, ky] / dz, 1.0 / dz
+    a, b, c = v0 - o, v1 - o, v2 - o
+    az_, bz_, cz_ = a[rows, kz], b[rows, kz], c[rows, kz]
+    ax, ay = a[rows, kx] - sx * az_, a[rows, ky] - sy * az_
+    bx, by = b[rows, kx] - sx * bz_, b[rows, ky] - sy * bz_
+    cx, cy = c[rows, kx] - sx * cz_, c[rows, ky] - sy * cz_
+    u = _edge(cx, by, cy, bx)
+    v = _edge(ax, cy, ay, cx)
+    w = _edge(bx, ay, by, ax)
+    mixed = ((u < 0) | (v < 0) | (w < 0)) & ((u > 0) | (v > 0) | (w > 0))
+    det = u + v + w
+    big_t = u * (sz * az_) + v * (sz * bz_) + w * (sz * cz_)
+    ok = ~mixed & (det != 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(ok, big_t / np.where(ok, det, 1.0), np.inf)
+        inv = 1.0 / np.where(ok, det, 1.0)
+    t = np.where(t > 0.0, t, np.inf)
+    return t, u * inv, v * inv, w * inv
+
+
+def _triangle_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(ray, t, id) of every triangle hit with t > 0; a ray leaving a triangle ignores it
+    (flat: it cannot meet its own plane again). Candidates from the bounding balls' cull."""
+    tr = g.tris
+    if len(tr) == 0 or len(o) == 0:
+        return _NO_PAIRS
+    ri, ti = _cull(tr.balls, o, d)
+    keep = tr.valid[ti] & (tr.base + ti != src[ri])
+    ri, ti = ri[keep], ti[keep]
+    t, _, _, _ = triangle_hits(o[ri], d[ri], tr.v0[ti], tr.v1[ti], tr.v2[ti])
+    ok = np.isfinite(t)
+    return ri[ok], t[ok], tr.base + ti[ok]
+
+
 def _reduce_nearest(count: int, rays: np.ndarray, ts: np.ndarray, ids: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Per ray the smallest t; among exactly equal t the lowest id. (inf, −1) without candidates."""
@@ -290,7 +471,8 @@ def nearest_hit(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray, far
 
     ``src`` is the primitive each ray leaves (−1 for primary rays) and ``far_only`` is
     True where that primitive is a sphere the ray enters (``dot(d, N) < 0``): for it only
-    the far root counts. Any other source primitive is ignored (SHADING.md, no epsilon).
+    the far root counts. Any other source primitive (a plane, a triangle) is ignored
+    (SHADING.md, no epsilon).
     """
     t_out = np.full(len(o), np.inf)
     id_out = np.full(len(o), -1, dtype=np.int64)
@@ -298,7 +480,8 @@ def nearest_hit(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray, far
         sl = slice(a, min(len(o), a + _RAY_TILE))
         parts = [_sphere_candidates(g, o[sl], d[sl], src[sl]),
                  _far_root_candidates(g, o[sl], d[sl], src[sl], far_only[sl]),
-                 _plane_candidates(g, o[sl], d[sl], src[sl])]
+                 _plane_candidates(g, o[sl], d[sl], src[sl]),
+                 _triangle_candidates(g, o[sl], d[sl], src[sl])]
         rays, ts, ids = (np.concatenate([p[k] for p in parts]) for k in range(3))
         t_out[sl], id_out[sl] = _reduce_nearest(sl.stop - sl.start, rays, ts, ids)
     return t_out, id_out
@@ -320,16 +503,20 @@ def trace_rays(scene: Scene, origins: np.ndarray, dirs: np.ndarray, src: np.ndar
 
 # ------------------------------------------------------------------------ shading
 
-def local_colour(g: _Geometry, p: np.ndarray, d: np.ndarray, normal: np.ndarray, prim: np.ndarray
-                 ) -> np.ndarray:
+def local_colour(g: _Geometry, p: np.ndarray, d: np.ndarray, normal: np.ndarray, prim: np.ndarray,
+                 geo_normal: np.ndarray | None = None) -> np.ndarray:
     """Phong ``local`` term of SHADING.md at hits (p, prim) of rays with direction d, (k, 3).
 
-    One shadow ray per light from exactly ``p``; every primitive blocks light fully.
+    ``normal`` is the shading normal, ``geo_normal`` the geometric one (the same for
+    spheres and planes, and when not given): the side the ray sees is decided by the
+    geometric normal, ``Nf`` is the shading normal turned to that side. One shadow ray per
+    light from exactly ``p``; every primitive blocks light fully.
     """
+    geo = normal if geo_normal is None else geo_normal
     mat = g.prim_material[prim]
     c = g.color[mat]
     local = g.ka[mat][:, None] * c
-    facing = np.where((_dot(d, normal) < 0.0)[:, None], normal, -normal)   # Nf
+    facing = np.where((_dot(d, geo) < 0.0)[:, None], normal, -normal)   # Nf
     is_sphere = prim < g.n
     for lp, lc in zip(g.light_pos, g.light_col):
         to_light = lp[None, :] - p
@@ -342,7 +529,7 @@ def local_colour(g: _Geometry, p: np.ndarray, d: np.ndarray, normal: np.ndarray,
         if len(idx) == 0:
             continue
         li = l[idx]
-        far = is_sphere[idx] & (_dot(li, normal[idx]) < 0.0)
+        far = is_sphere[idx] & (_dot(li, geo[idx]) < 0.0)
         t_s, _ = nearest_hit(g, p[idx], li, prim[idx], far)
         idx = idx[~(t_s < dist[idx])]
         li, ci, fi, m = l[idx], cos[idx], facing[idx], mat[idx]
@@ -397,8 +584,11 @@ class _Frame:
 
 
 def _secondary_rays(g: _Geometry, batch: RayBatch, hit: np.ndarray, p: np.ndarray, normal: np.ndarray,
-                    prim: np.ndarray) -> RayBatch | None:
-    """Reflected (kr > 0) and transmitted (kt > 0) children of the hits ``hit`` of ``batch``."""
+                    prim: np.ndarray, geo: np.ndarray) -> RayBatch | None:
+    """Reflected (kr > 0) and transmitted (kt > 0) children of the hits ``hit`` of ``batch``.
+
+    Directions bend about the shading normal ``normal``; whether a transmitted ray enters
+    or leaves is decided by the geometric normal ``geo`` (the same for spheres and planes)."""
     mat = g.prim_material[prim]
     kr, kt = g.kr[mat], g.kt[mat]
     d, w = batch.dirs[hit], batch.weight[hit]
@@ -406,12 +596,13 @@ def _secondary_rays(g: _Geometry, batch: RayBatch, hit: np.ndarray, p: np.ndarra
     t_sel = np.nonzero(kt > 0.0)[0]
     if len(r_sel) + len(t_sel) == 0:
         return None
-    t_dirs, _ = transmitted_directions(d[t_sel], normal[t_sel], g.ior[mat[t_sel]])
+    t_dirs, _ = transmitted_directions(d[t_sel], normal[t_sel], g.ior[mat[t_sel]],
+                                       _dot(d[t_sel], geo[t_sel]) < 0.0)
     sel = np.concatenate([r_sel, t_sel])
     dirs = np.concatenate([reflect(d[r_sel], normal[r_sel]), t_dirs])
     weight = w[sel] * np.concatenate([kr[r_sel], kt[t_sel]])[:, None]
     src = prim[sel]
-    far_only = (src < g.n) & (_dot(dirs, normal[sel]) < 0.0)
+    far_only = (src < g.n) & (_dot(dirs, geo[sel]) < 0.0)
     return RayBatch(p[sel], dirs, batch.pix[hit][sel], weight, batch.level + 1, src, far_only)
 
 
@@ -423,18 +614,18 @@ def _trace_batch(g: _Geometry, batch: RayBatch, frame: _Frame, max_level: int, s
         return None      # a miss is black: nothing to add
     prim_h, pix_h = prim[hit], batch.pix[hit]
     p = batch.origins[hit] + t[hit, None] * batch.dirs[hit]
-    normal = g.normals(prim_h, p)
+    geo, normal = g.normals(prim_h, p, batch.origins[hit], batch.dirs[hit])
     frame.deepest[pix_h] = np.maximum(frame.deepest[pix_h], batch.level)
     if batch.level == 1:     # primary rays: one per pixel
         frame.depth[pix_h] = t[hit]
         frame.primid[pix_h] = prim_h
         frame.normal[pix_h] = normal
     if shade:
-        local = local_colour(g, p, batch.dirs[hit], normal, prim_h)
+        local = local_colour(g, p, batch.dirs[hit], normal, prim_h, geo)
         np.add.at(frame.colour, pix_h, batch.weight[hit] * local)
     if batch.level >= max_level:
         return None      # the deepest level returns `local` only
-    return _secondary_rays(g, batch, hit, p, normal, prim_h)
+    return _secondary_rays(g, batch, hit, p, normal, prim_h, geo)
 
 
 def _trace_pixels(g: _Geometry, camera: Camera, w: int, h: int, frame: _Frame,
@@ -455,20 +646,22 @@ def _trace_pixels(g: _Geometry, camera: Camera, w: int, h: int, frame: _Frame,
 
 def heat_counts(scene: Scene, settings: RenderSettings, o: np.ndarray, d: np.ndarray, chunk_rays: int = 4096
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(nodes visited, gaps, sphere tests) per primary ray for ``settings.method``.
+    """(nodes visited, gaps, primitive tests) per primary ray for ``settings.method``.
 
-    Brute force tests every sphere and visits no node. ``bih`` counts come from the BIH
-    traversal of docs/SHADING.md (:mod:`renderer.accel.bih_traverse`, the CPU mirror of the
-    shader's).
+    Brute force tests every sphere and triangle and visits no node. ``bih`` counts come from
+    the BIH traversal of docs/SHADING.md (:mod:`renderer.accel.bih_traverse`, the CPU mirror
+    of the shader's) over the spheres and triangles; a triangle test counts as a sphere
+    test does.
     """
     n_rays = len(o)
     if settings.method == "bruteforce":
         return (np.zeros(n_rays, np.int64), np.zeros(n_rays, np.int64),
-                np.full(n_rays, scene.n_spheres, dtype=np.int64))
-    bih = build_for_spheres(scene.sphere_centers, scene.sphere_radii, settings.max_prims, settings.max_tree_depth)
+                np.full(n_rays, scene.n_spheres + scene.n_triangles, dtype=np.int64))
+    bih = build_for_scene(scene, settings.max_prims, settings.max_tree_depth)
     nodes, gaps, tests = [], [], []
     for a in range(0, n_rays, chunk_rays):
-        res = traverse(bih, scene.sphere_centers, scene.sphere_radii, o[a:a + chunk_rays], d[a:a + chunk_rays])
+        res = traverse(bih, scene.sphere_centers, scene.sphere_radii, o[a:a + chunk_rays], d[a:a + chunk_rays],
+                       triangles=scene.triangle_corners)
         nodes.append(np.asarray(res.nodes_visited))
         gaps.append(np.asarray(res.gaps))
         tests.append(np.asarray(res.tests))

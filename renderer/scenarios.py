@@ -108,3 +108,65 @@ def scenario(number: int, n: int, seed: int = 0, radius: float = 1.0) -> Scene:
         sphere_materials=materials,
         planes=(Plane(point=(0.0, -CUBE_HALF, 0.0), normal=(0.0, 1.0, 0.0), material=0),),
     )
+
+
+# ---- scenes with triangle meshes (issue #20) --------------------------------------------
+MESH_SCENES = ("teapot", "mixed", "room")
+MAX_MESH_DETAIL = 5
+
+PORCELAIN = Material(color=(0.92, 0.9, 0.85), ambient=0.15, diffuse=0.65, specular=0.4, shininess=60.0,
+                     reflective=0.1, transmissive=0.0, ior=1.0)
+GLASS = Material(color=(1.0, 1.0, 1.0), ambient=0.05, diffuse=0.05, specular=0.3, shininess=80.0,
+                 reflective=0.1, transmissive=0.8, ior=1.5)
+WALLS = Material(color=(0.75, 0.72, 0.65), ambient=0.25, diffuse=0.6, specular=0.05, shininess=10.0,
+                 reflective=0.0, transmissive=0.0, ior=1.0)
+
+
+def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True) -> Scene:
+    """A scene with triangle meshes inside the thesis's cube [−20, 20]³, for demos and tests.
+
+    - ``teapot``: the closed Utah teapot (:func:`renderer.meshes.teapot`, 5.5 units to the
+      data's 1: about 17 high and 36 long) standing on the floor plane y = −20;
+    - ``mixed``: a grid of 27 red spheres above the floor, a glass icosphere and a red
+      torus among them (spheres, planes and triangles together, the ids of every kind);
+    - ``room``: a closed box room seen from inside (walls wound inwards, no plane), with
+      a teapot, a glass icosphere and four spheres.
+
+    ``detail`` (0 … MAX_MESH_DETAIL) sets the tessellation: teapot ``2 + 2·detail``
+    segments per patch, icosphere subdivisions ``detail``, torus ``12 (detail + 1)``
+    segments. ``smooth``: vertex normals (else flat shading). Deterministic.
+    """
+    from . import meshes as M
+    if kind not in MESH_SCENES:
+        raise SceneError("kind", f"unknown mesh scene {kind!r}; one of {', '.join(MESH_SCENES)}")
+    if isinstance(detail, bool) or not isinstance(detail, (int, np.integer)) or not 0 <= detail <= MAX_MESH_DETAIL:
+        raise SceneError("detail", f"must be an integer in 0 … {MAX_MESH_DETAIL}, got {detail!r}")
+    seg = 2 + 2 * int(detail)
+    light = Light(position=(20.0, 40.0, 30.0), color=(1.0, 1.0, 1.0))
+    floor = Plane(point=(0.0, -CUBE_HALF, 0.0), normal=(0.0, 1.0, 0.0), material=0)
+
+    def placed(x: float, y: float, z: float, s: float = 1.0) -> list:
+        return [[s, 0.0, 0.0, x], [0.0, s, 0.0, y], [0.0, 0.0, s, z], [0.0, 0.0, 0.0, 1.0]]
+
+    empty = (np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32))
+    if kind == "teapot":
+        pot = M.teapot(seg, size=5.5, material=1, smooth=smooth, transform=placed(-1.0, -CUBE_HALF, 0.0))
+        return Scene(Camera((0.0, 8.0, 75.0), (0.0, -10.0, 0.0), (0.0, 1.0, 0.0), 45.0), (light,),
+                     (RED, PORCELAIN), *empty, (floor,), (pot,))
+    if kind == "mixed":
+        axis = np.array([-12.0, 0.0, 12.0])
+        z, y, x = np.meshgrid(axis, axis + 2.0, axis, indexing="ij")
+        centers = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+        meshes = (M.icosphere(int(detail), radius=5.0, center=(-6.0, -12.0, 6.0), material=1, smooth=smooth),
+                  M.torus(6.0, 1.8, 12 * (int(detail) + 1), 6 * (int(detail) + 1), center=(6.0, -16.0, -4.0),
+                          material=0, smooth=smooth))
+        return Scene(Camera((0.0, 0.0, 100.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 60.0), (light,),
+                     (RED, GLASS), centers, np.full(len(centers), 2.0), np.zeros(len(centers), np.int32),
+                     (floor,), meshes)
+    room = M.box((-CUBE_HALF,) * 3, (CUBE_HALF,) * 3, inward=True, material=0)
+    pot = M.teapot(seg, size=3.0, material=1, smooth=smooth, transform=placed(-6.0, -CUBE_HALF, -6.0))
+    ball = M.icosphere(int(detail), radius=4.0, center=(8.0, -16.0, -2.0), material=2, smooth=smooth)
+    centers = np.array([[-14.0, -17.0, 8.0], [12.0, -18.0, 10.0], [0.0, -17.0, -14.0], [14.0, -17.0, -14.0]])
+    return Scene(Camera((0.0, 0.0, 18.0), (0.0, -8.0, 0.0), (0.0, 1.0, 0.0), 70.0),
+                 (Light((0.0, 18.0, 5.0), (1.0, 1.0, 1.0)),), (WALLS, PORCELAIN, GLASS, RED),
+                 centers, np.full(4, 3.0), np.full(4, 3, np.int32), (), (room, pot, ball))

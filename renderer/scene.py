@@ -1,4 +1,4 @@
-"""The scene model: camera, point lights, materials, spheres and planes.
+"""The scene model: camera, point lights, materials, spheres, planes and triangle meshes.
 
 One contract for renderer, server, client and tests: the scene JSON of
 ``docs/FORMATS.md``. Everything is validated on construction, so a ``Scene``
@@ -8,14 +8,19 @@ that exists is renderable; a bad value raises :class:`SceneError` whose
 Conventions (docs/FORMATS.md):
 - right-handed world, the camera is a pinhole at ``position`` looking at
   ``target``; ``fov_y`` is the vertical field of view in degrees;
-- primitive ids: spheres ``0 … n-1`` in scene order, planes follow; -1 = no hit.
+- primitive ids: spheres ``0 … n-1`` in scene order, then the planes, then the
+  triangles of each mesh in mesh order; -1 = no hit (:attr:`Scene.triangle_id_base`);
+- a mesh is kept in world space: its optional ``transform`` is applied when it is made,
+  so every tracer and tree sees the same float64 vertices (:class:`Mesh`).
 """
 
 from __future__ import annotations
 
 import copy
+import itertools
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any, Sequence
 
 import numpy as np
@@ -212,12 +217,235 @@ def _material_index(v: Any, where: str, count: int) -> int:
     return i
 
 
+# ---- meshes ---------------------------------------------------------------------------------
+_NUMBER_TYPES = (int, float, np.floating, np.integer)
+
+
+def _first_bad_row(value: Sequence, where: str, what: str) -> None:
+    """Raise for the first row of ``value`` that is not a list of 3 numbers (the slow path
+    that names the culprit; the fast path found that one exists)."""
+    for i, row in enumerate(value):
+        if not isinstance(row, (list, tuple, np.ndarray)) or len(row) != 3:
+            raise SceneError(f"{where}[{i}]", f"expected a list of 3 {what}")
+        for j, x in enumerate(row):
+            if isinstance(x, bool) or not isinstance(x, _NUMBER_TYPES):
+                raise SceneError(f"{where}[{i}][{j}]", f"expected a number, got {type(x).__name__}")
+    raise SceneError(where, "expected a list of [x, y, z] rows")   # not reached: a caller saw a bad row
+
+
+def rows3(value: Any, where: str, what: str = "numbers") -> np.ndarray:
+    """A list of ``[a, b, c]`` rows (or an (n, 3) array) as a float64 (n, 3) array; SceneError
+    names the first bad row (``where[i]``) — not finite numbers are checked by the caller.
+
+    The common case (a well-formed JSON list) is converted at C speed: row lengths and
+    element types are collected with ``map``, and only a malformed input is walked in Python.
+    """
+    if isinstance(value, np.ndarray):
+        if value.size == 0:
+            return np.zeros((0, 3))
+        if value.ndim != 2 or value.shape[1] != 3 or value.dtype.kind not in "iuf":
+            raise SceneError(where, f"expected an array of shape (n, 3) of numbers, got {value.dtype} {value.shape}")
+        return np.ascontiguousarray(value, dtype=np.float64)
+    if not isinstance(value, (list, tuple)):
+        raise SceneError(where, "expected a list")
+    if not value:
+        return np.zeros((0, 3))
+    try:
+        lengths = set(map(len, value))
+        types = set(map(type, itertools.chain.from_iterable(value)))
+    except TypeError:
+        _first_bad_row(value, where, what)
+    if lengths != {3} or bool in types or not all(issubclass(t, _NUMBER_TYPES) for t in types):
+        _first_bad_row(value, where, what)
+    try:
+        return np.array(value, dtype=np.float64).reshape(-1, 3)
+    except OverflowError:            # an integer beyond float64 (JSON allows any)
+        for i, row in enumerate(value):
+            try:
+                np.array(row, dtype=np.float64)
+            except OverflowError:
+                raise SceneError(f"{where}[{i}]", "a number too large for float64") from None
+        raise
+
+
+def _bad_rows(mask: np.ndarray) -> int:
+    """Index of the first True row of a (n,) mask."""
+    return int(np.argmax(mask))
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """A triangle mesh in world space. Validated on construction; arrays are made read-only.
+
+    ``vertices`` float64 (V, 3), world units. ``triangles`` int32 (T, 3), indices into
+    ``vertices``; a triangle ``(i, j, k)`` faces the side from which it is seen
+    counter-clockwise: its geometric normal is ``(v_j − v_i) × (v_k − v_i)``, outward for a
+    closed mesh wound that way (OBJ, STL, glTF convention). ``material`` indexes the scene's
+    materials. ``normals`` float64 (V, 3) or None: per-vertex shading normals (smooth
+    shading, interpolated barycentrically); non-zero, normalised when shading. None: flat
+    shading by the geometric normal.
+
+    A triangle of exactly zero area (float64 cross product of its edges = 0, e.g. a repeated
+    index) is kept, so that ids do not move, and is never hit; :attr:`n_degenerate` counts
+    them. Build one from JSON-like input, with a transform, with :func:`make_mesh`.
+    """
+    vertices: np.ndarray
+    triangles: np.ndarray
+    material: int = 0
+    normals: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        v = rows3(self.vertices, "vertices")
+        bad = ~np.isfinite(v).all(axis=1) | (np.abs(v) > MAX_COORDINATE).any(axis=1)
+        if bad.any():
+            i = _bad_rows(bad)
+            raise SceneError(f"vertices[{i}]", f"must be finite numbers within ±{MAX_COORDINATE:g}, "
+                                               f"got {v[i].tolist()}")
+        if len(v) > limits.MAX_MESH_VERTICES:
+            raise SceneError("vertices", f"at most {limits.MAX_MESH_VERTICES} vertices per mesh, got {len(v)}")
+        t = rows3(self.triangles, "triangles", "vertex indices")
+        if len(t) > limits.MAX_TRIANGLES:
+            raise SceneError("triangles", f"at most {limits.MAX_TRIANGLES} triangles allowed, got {len(t)}")
+        bad = ~(np.isfinite(t).all(axis=1) & (t == np.round(t)).all(axis=1) & (t >= 0).all(axis=1)
+                & (t < len(v)).all(axis=1))
+        if bad.any():
+            i = _bad_rows(bad)
+            got = [int(x) if math.isfinite(x) and float(x).is_integer() else x for x in t[i].tolist()]
+            raise SceneError(f"triangles[{i}]", f"vertex indices must be integers in 0 … {len(v) - 1} "
+                                                f"(the mesh has {len(v)} vertices), got {got}")
+        t = t.astype(np.int32)
+        n = None
+        if self.normals is not None:
+            n = rows3(self.normals, "normals")
+            if len(n) != len(v):
+                raise SceneError("normals", f"one normal per vertex: expected {len(v)}, got {len(n)}")
+            bad = ~np.isfinite(n).all(axis=1) | (np.abs(n) > MAX_COORDINATE).any(axis=1) | ~(n != 0.0).any(axis=1)
+            if bad.any():
+                i = _bad_rows(bad)
+                raise SceneError(f"normals[{i}]", f"must be a finite non-zero vector, got {n[i].tolist()}")
+            n.setflags(write=False)
+        if isinstance(self.material, bool) or not isinstance(self.material, (int, np.integer)) or self.material < 0:
+            raise SceneError("material", f"expected a material index (an integer ≥ 0), got {self.material!r}")
+        for a in (v, t):
+            a.setflags(write=False)
+        object.__setattr__(self, "vertices", v)
+        object.__setattr__(self, "triangles", t)
+        object.__setattr__(self, "normals", n)
+        object.__setattr__(self, "material", int(self.material))
+
+    @property
+    def n_triangles(self) -> int:
+        return len(self.triangles)
+
+    @property
+    def smooth(self) -> bool:
+        return self.normals is not None
+
+    @cached_property
+    def corners(self) -> np.ndarray:
+        """float64 (T, 3, 3): the world-space vertices of each triangle (corner k = vertex k)."""
+        return self.vertices[self.triangles]
+
+    @cached_property
+    def degenerate(self) -> np.ndarray:
+        """bool (T,): triangles of exactly zero area (never hit)."""
+        c = self.corners
+        cross = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+        return ~(cross != 0.0).any(axis=1)
+
+    @property
+    def n_degenerate(self) -> int:
+        return int(self.degenerate.sum())
+
+    def with_vertices(self, vertices: np.ndarray, normals: np.ndarray | None = None) -> "Mesh":
+        """The same triangles and material on moved vertices (an animation's pose)."""
+        return Mesh(vertices, self.triangles, self.material, normals)
+
+    def to_json(self) -> dict:
+        """World-space JSON (the transform it was made with is already applied)."""
+        d = {"vertices": self.vertices.tolist(), "triangles": self.triangles.tolist(), "material": self.material}
+        if self.normals is not None:
+            d["normals"] = self.normals.tolist()
+        return d
+
+    @staticmethod
+    def from_json(d: Any, where: str) -> "Mesh":
+        d = _object(d, where, {"vertices", "triangles", "material", "normals", "transform"})
+        for k in ("vertices", "triangles"):
+            if k not in d:
+                raise SceneError(f"{where}.{k}", "field required")
+        m = d.get("material", 0)
+        if isinstance(m, bool) or not isinstance(m, (int, np.integer)) and not (isinstance(m, float) and m.is_integer()):
+            raise SceneError(f"{where}.material", "expected an integer material index")
+        try:
+            return make_mesh(d["vertices"], d["triangles"], int(m), d.get("normals"), d.get("transform"))
+        except SceneError as e:
+            raise SceneError(f"{where}.{e.field}", e.message) from None
+
+
+def affine_transform(value: Any, where: str = "transform") -> np.ndarray:
+    """A 4 × 4 row-major affine transform (last row ``[0, 0, 0, 1]``, invertible 3 × 3 part) as
+    float64 (4, 4); SceneError names the bad entry."""
+    m = np.asarray(value, dtype=object) if not isinstance(value, np.ndarray) else value
+    if m.shape != (4, 4):
+        raise SceneError(where, "expected 4 rows of 4 numbers (row-major, last row [0, 0, 0, 1])")
+    out = np.empty((4, 4))
+    for i in range(4):
+        for j in range(4):
+            out[i, j] = finite_number(m[i, j], f"{where}[{i}][{j}]")
+    if not np.array_equal(out[3], [0.0, 0.0, 0.0, 1.0]):
+        raise SceneError(f"{where}[3]", f"the last row must be [0, 0, 0, 1] (an affine map), got {out[3].tolist()}")
+    det = float(np.linalg.det(out[:3, :3]))
+    if not (math.isfinite(det) and det != 0.0):
+        raise SceneError(where, "the 3 × 3 part must be invertible (it flattens the mesh)")
+    return out
+
+
+def make_mesh(vertices: Any, triangles: Any, material: int = 0, normals: Any = None,
+              transform: Any = None) -> Mesh:
+    """A :class:`Mesh` from JSON-like lists or arrays, ``transform`` (4 × 4 row-major affine)
+    applied: ``v' = A v + b``, normals by the inverse transpose of ``A``, and — when ``A``
+    mirrors (det < 0) — every triangle's winding reversed, so that a closed mesh stays
+    wound outwards. Bounds (±MAX_COORDINATE) hold for the transformed vertices. SceneError
+    fields are relative to the mesh (``vertices[3]``, ``transform[0][2]``)."""
+    if transform is None:
+        return Mesh(vertices, triangles, material, normals)
+    m = affine_transform(transform)
+    v = rows3(vertices, "vertices")
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        i = _bad_rows(bad)
+        raise SceneError(f"vertices[{i}]", f"must be finite numbers, got {v[i].tolist()}")
+    a, b = m[:3, :3], m[:3, 3]
+    with np.errstate(over="ignore", invalid="ignore"):
+        moved = v @ a.T + b
+    n = None
+    if normals is not None:
+        n = rows3(normals, "normals")
+        with np.errstate(over="ignore", invalid="ignore"):
+            n = n @ np.linalg.inv(a)            # (A⁻ᵀ n)ᵀ = nᵀ A⁻¹
+    t = triangles
+    if np.linalg.det(a) < 0:
+        t = rows3(triangles, "triangles", "vertex indices")[:, [0, 2, 1]]
+    try:
+        return Mesh(moved, t, material, n)
+    except SceneError as e:
+        if e.field.startswith("vertices["):
+            raise SceneError(e.field, f"{e.message} after the transform") from None
+        raise
+
+
 @dataclass(frozen=True)
 class Scene:
     """A whole scene. Spheres are stored as arrays (they can number a million).
 
     ``sphere_centers`` float64 (n, 3), ``sphere_radii`` float64 (n,),
-    ``sphere_materials`` int32 (n,). Arrays are made read-only.
+    ``sphere_materials`` int32 (n,). Arrays are made read-only. ``meshes``: world-space
+    :class:`Mesh` es; their triangles, flattened in id order, are :attr:`triangle_corners`
+    (and the per-triangle arrays beside it).
+
+    Ids (docs/FORMATS.md): spheres ``0 … n−1``, planes ``n … n+P−1``, then triangle ``j``
+    of the flattened list is ``triangle_id_base + j`` (``triangle_id_base = n + P``).
     """
     camera: Camera
     lights: tuple[Light, ...]
@@ -226,18 +454,22 @@ class Scene:
     sphere_radii: np.ndarray
     sphere_materials: np.ndarray
     planes: tuple[Plane, ...] = field(default_factory=tuple)
+    meshes: tuple[Mesh, ...] = field(default_factory=tuple)
 
     # Upper bounds that keep one scene from exhausting the service.
     MAX_SPHERES = limits.MAX_SPHERES
     MAX_PLANES = limits.MAX_PLANES
     MAX_LIGHTS = limits.MAX_LIGHTS
     MAX_MATERIALS = limits.MAX_MATERIALS
+    MAX_MESHES = limits.MAX_MESHES
+    MAX_TRIANGLES = limits.MAX_TRIANGLES
 
     def __post_init__(self) -> None:
         if not self.materials:
             raise SceneError("materials", "at least one material is required")
         for name, items, cap in (("lights", self.lights, self.MAX_LIGHTS), ("planes", self.planes, self.MAX_PLANES),
-                                 ("materials", self.materials, self.MAX_MATERIALS)):
+                                 ("materials", self.materials, self.MAX_MATERIALS),
+                                 ("meshes", self.meshes, self.MAX_MESHES)):
             if len(items) > cap:
                 raise SceneError(name, f"at most {cap} allowed, got {len(items)}")
         c = np.ascontiguousarray(self.sphere_centers, dtype=np.float64).reshape(-1, 3)
@@ -267,6 +499,13 @@ class Scene:
                                  f"material index {int(m[i])} out of range (scene has {len(self.materials)} materials)")
         for i, p in enumerate(self.planes):
             _material_index(p.material, f"planes[{i}].material", len(self.materials))
+        for i, mesh in enumerate(self.meshes):
+            if not isinstance(mesh, Mesh):
+                raise SceneError(f"meshes[{i}]", f"expected a Mesh, got {type(mesh).__name__}")
+            _material_index(mesh.material, f"meshes[{i}].material", len(self.materials))
+        n_tri = sum(mesh.n_triangles for mesh in self.meshes)
+        if n_tri > self.MAX_TRIANGLES:
+            raise SceneError("meshes", f"at most {self.MAX_TRIANGLES} triangles per scene, got {n_tri}")
         m = m.astype(np.int32)
         for a in (c, r, m):
             a.setflags(write=False)
@@ -276,14 +515,83 @@ class Scene:
         object.__setattr__(self, "lights", tuple(self.lights))
         object.__setattr__(self, "materials", tuple(self.materials))
         object.__setattr__(self, "planes", tuple(self.planes))
+        object.__setattr__(self, "meshes", tuple(self.meshes))
 
     @property
     def n_spheres(self) -> int:
         return len(self.sphere_radii)
 
     @property
+    def n_triangles(self) -> int:
+        """Triangles of all meshes (degenerate ones included: they keep their ids)."""
+        return sum(m.n_triangles for m in self.meshes)
+
+    @property
+    def n_degenerate_triangles(self) -> int:
+        return sum(m.n_degenerate for m in self.meshes)
+
+    @property
     def n_primitives(self) -> int:
+        """Spheres + planes + triangles: one past the largest primitive id."""
+        return self.n_spheres + len(self.planes) + self.n_triangles
+
+    @property
+    def triangle_id_base(self) -> int:
+        """The id of the first triangle: after the spheres and the planes."""
         return self.n_spheres + len(self.planes)
+
+    def _flat(self, per_mesh, shape: tuple, dtype) -> np.ndarray:
+        parts = [per_mesh(m) for m in self.meshes]
+        out = np.concatenate(parts) if parts else np.zeros((0, *shape), dtype)
+        out = np.ascontiguousarray(out, dtype=dtype)
+        out.setflags(write=False)
+        return out
+
+    @cached_property
+    def triangle_corners(self) -> np.ndarray:
+        """float64 (T, 3, 3): every triangle's world-space vertices, in id order."""
+        return self._flat(lambda m: m.corners, (3, 3), np.float64)
+
+    @cached_property
+    def triangle_materials(self) -> np.ndarray:
+        """int32 (T,): each triangle's material."""
+        return self._flat(lambda m: np.full(m.n_triangles, m.material), (), np.int32)
+
+    @cached_property
+    def triangle_mesh(self) -> np.ndarray:
+        """int32 (T,): the mesh each triangle belongs to."""
+        counts = [m.n_triangles for m in self.meshes]
+        out = np.repeat(np.arange(len(counts), dtype=np.int32), counts) if counts else np.zeros(0, np.int32)
+        out.setflags(write=False)
+        return out
+
+    @cached_property
+    def triangle_smooth(self) -> np.ndarray:
+        """bool (T,): the triangle's mesh has vertex normals (smooth shading)."""
+        return self._flat(lambda m: np.full(m.n_triangles, m.smooth), (), bool)
+
+    @cached_property
+    def triangle_normals(self) -> np.ndarray:
+        """float64 (T, 3, 3): the vertex normals at each corner as given (0 for flat meshes)."""
+        return self._flat(lambda m: m.normals[m.triangles] if m.smooth else np.zeros((m.n_triangles, 3, 3)),
+                          (3, 3), np.float64)
+
+    @cached_property
+    def triangle_degenerate(self) -> np.ndarray:
+        """bool (T,): zero-area triangles (never hit)."""
+        return self._flat(lambda m: m.degenerate, (), bool)
+
+    def mesh_triangle_range(self, i: int) -> range:
+        """Positions in the flattened triangle list of mesh ``i``'s triangles."""
+        start = sum(m.n_triangles for m in self.meshes[:i])
+        return range(start, start + self.meshes[i].n_triangles)
+
+    def with_geometry(self, sphere_centers: np.ndarray, sphere_radii: np.ndarray, sphere_materials: np.ndarray,
+                      meshes: Sequence[Mesh] | None = None) -> "Scene":
+        """The same camera, lights, materials and planes with other spheres (and meshes: the
+        same ones unless given), validated."""
+        return Scene(self.camera, self.lights, self.materials, sphere_centers, sphere_radii, sphere_materials,
+                     self.planes, tuple(self.meshes if meshes is None else meshes))
 
     def with_camera(self, camera: Camera) -> "Scene":
         """The same scene seen through ``camera`` (a validated Camera): everything else is shared,
@@ -298,13 +606,16 @@ class Scene:
     def to_json(self) -> dict:
         spheres = [{"center": c, "radius": r, "material": m} for c, r, m in
                    zip(self.sphere_centers.tolist(), self.sphere_radii.tolist(), self.sphere_materials.tolist())]
-        return {"camera": self.camera.to_json(), "lights": [l.to_json() for l in self.lights],
-                "materials": [m.to_json() for m in self.materials], "spheres": spheres,
-                "planes": [p.to_json() for p in self.planes]}
+        out = {"camera": self.camera.to_json(), "lights": [l.to_json() for l in self.lights],
+               "materials": [m.to_json() for m in self.materials], "spheres": spheres,
+               "planes": [p.to_json() for p in self.planes]}
+        if self.meshes:       # absent when there are none: a sphere scene's JSON is as it always was
+            out["meshes"] = [m.to_json() for m in self.meshes]
+        return out
 
     @staticmethod
     def from_json(d: Any) -> "Scene":
-        d = _object(d, "scene", {"camera", "lights", "materials", "spheres", "planes"})
+        d = _object(d, "scene", {"camera", "lights", "materials", "spheres", "planes", "meshes"})
         camera = Camera.from_json(d.get("camera", {}), "camera")
         lights = [Light.from_json(x, f"lights[{i}]") for i, x in enumerate(_list(d.get("lights", []), "lights"))]
         materials = [Material.from_json(x, f"materials[{i}]")
@@ -329,7 +640,15 @@ class Scene:
             mi = _material_index(p.get("material", 0), f"planes[{i}].material", max(len(materials), 1))
             kw = {k: p[k] for k in ("point", "normal") if k in p}
             planes.append(_construct(Plane, {**kw, "material": mi}, f"planes[{i}]"))
-        return Scene(camera, tuple(lights), tuple(materials), centers, radii, mats, tuple(planes))
+        raw = _list(d.get("meshes", []), "meshes")
+        if len(raw) > Scene.MAX_MESHES:
+            raise SceneError("meshes", f"at most {Scene.MAX_MESHES} meshes allowed, got {len(raw)}")
+        meshes = []
+        for i, x in enumerate(raw):
+            mesh = Mesh.from_json(x, f"meshes[{i}]")
+            _material_index(mesh.material, f"meshes[{i}].material", max(len(materials), 1))
+            meshes.append(mesh)
+        return Scene(camera, tuple(lights), tuple(materials), centers, radii, mats, tuple(planes), tuple(meshes))
 
 
 def _list(v: Any, where: str) -> Sequence:

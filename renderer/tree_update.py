@@ -34,8 +34,9 @@ class TreeUpdate:
 
     scheme: one of ``UPDATE_SCHEMES``. threshold: selective rebuild's cost growth
     (fraction, ≥ 0). key: the animation this frame belongs to (None: one shared slot).
-    moving: bool per sphere of the posed scene, True where a motion moves it (the
-    two-level method puts the others in its static kd-tree); None = nothing moves.
+    moving: bool per tree primitive of the posed scene — its spheres, then its triangles
+    (:mod:`renderer.accel.primitives`) — True where a motion moves it (the two-level method
+    puts the others in its static kd-tree); None = nothing moves.
     """
     scheme: str = "rebuild"
     threshold: float = DEFAULT_THRESHOLD

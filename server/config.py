@@ -14,7 +14,7 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
-from renderer.limits import JPEG_QUALITY_RANGE, MAX_SPHERES, MAX_TREE_DEPTH
+from renderer.limits import JPEG_QUALITY_RANGE, MAX_SPHERES, MAX_TREE_DEPTH, MAX_TRIANGLES
 from renderer.profiles import STILL
 
 from . import resources
@@ -71,6 +71,9 @@ class ServerConfig(BaseSettings):
                                       f"{STILL['samples_per_pixel']} spp — on a {FIT_SIDE} × {FIT_SIDE} frame, the "
                                       "client's largest 'fit' size)")
     max_spheres: int = Field(MAX_SPHERES, ge=0, le=MAX_SPHERES, description="cap on the spheres of one scene")
+    max_triangles: int = Field(MAX_TRIANGLES, ge=0, le=MAX_TRIANGLES,
+                               description="cap on the triangles of one scene (all its meshes; an uploaded model "
+                                           "file counts with the scene it joins)")
     max_frame_cost: float = Field(
         10_000.0, gt=0,
         description="cap on the estimated GL time of one frame, milliseconds of the reference machine "

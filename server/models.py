@@ -23,10 +23,12 @@ from pydantic.fields import FieldInfo
 from renderer.animation import MUSEUM_KINDS
 from renderer.limits import (DEFAULT_TILE_SIZE, JPEG_QUALITY_RANGE, MAX_ABSENT, MAX_ANGULAR_VELOCITY, MAX_COORDINATE,
                              MAX_DEVICE_TEXTURE_SIZE, MAX_IMAGE_SIDE, MAX_IOR, MAX_LIFETIME, MAX_LIGHT_INTENSITY,
-                             MAX_LIGHTS, MAX_MATERIALS, MAX_MOTION_SEED, MAX_MOTIONS, MAX_MUSEUM_MOVING, MAX_PERIOD,
-                             MAX_PLANES, MAX_PRIMS, MAX_RECURSION_DEPTH, MAX_SHININESS, MAX_SPEED, MAX_SPHERES,
-                             MAX_TILE_SIZE, MAX_TIME, MAX_TREE_DEPTH, MAX_WAVELENGTH, MIN_TILE_SIZE, MIN_WEIGHT_RANGE,
-                             SAMPLES_PER_PIXEL, UPDATE_THRESHOLD_RANGE)
+                             MAX_LIGHTS, MAX_MATERIALS, MAX_MESH_VERTICES, MAX_MESHES, MAX_MOTION_SEED, MAX_MOTIONS,
+                             MAX_MUSEUM_MOVING, MAX_PERIOD, MAX_PLANES, MAX_PRIMS, MAX_RECURSION_DEPTH, MAX_SHININESS,
+                             MAX_SPEED, MAX_SPHERES, MAX_TILE_SIZE, MAX_TIME, MAX_TREE_DEPTH, MAX_TRIANGLES,
+                             MAX_WAVELENGTH, MIN_TILE_SIZE, MIN_WEIGHT_RANGE, SAMPLES_PER_PIXEL,
+                             UPDATE_THRESHOLD_RANGE)
+from renderer.mesh_io import MODEL_FORMATS
 from renderer.scenarios import CUBE_HALF
 from renderer.settings import FORMATS, METHODS, MODES, RenderSettings
 from renderer.tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
@@ -38,6 +40,7 @@ ModeName = Literal[MODES]  # type: ignore[valid-type]
 FormatName = Literal[FORMATS]  # type: ignore[valid-type]
 UpdateScheme = Literal[UPDATE_SCHEMES]  # type: ignore[valid-type]
 MuseumKind = Literal[MUSEUM_KINDS]  # type: ignore[valid-type]
+ModelFormat = Literal[MODEL_FORMATS]  # type: ignore[valid-type]
 
 # The API's own bound: a 32-bit placement seed (the renderer takes any non-negative one).
 MAX_SEED = 2 ** 32 - 1
@@ -105,17 +108,54 @@ class PlaneModel(Strict):
     material: MaterialIndex = 0
 
 
+# A mesh's numbers are bounded after its transform is applied (by the renderer, which names
+# the vertex); here they only have to be finite.
+Row3 = Annotated[list[float], Field(min_length=3, max_length=3, description="[x, y, z]")]
+VertexIndex = Annotated[int, Field(ge=0, lt=MAX_MESH_VERTICES, description="index into the mesh's vertices")]
+Triangle = Annotated[list[VertexIndex], Field(min_length=3, max_length=3,
+                                              description="[i, j, k], counter-clockwise seen from outside")]
+Row4 = Annotated[list[float], Field(min_length=4, max_length=4)]
+
+
+class MeshModel(Strict):
+    """A triangle mesh (docs/FORMATS.md, "Meshes"). Every vertex within ±MAX_COORDINATE after
+    ``transform``; triangle indices < len(vertices); ``normals`` one per vertex, non-zero
+    (smooth shading); zero-area triangles are kept and counted (never hit)."""
+    vertices: list[Row3] = Field(max_length=MAX_MESH_VERTICES, description="world units (before the transform)")
+    triangles: list[Triangle] = Field(max_length=MAX_TRIANGLES)
+    material: MaterialIndex = 0
+    normals: list[Row3] | None = Field(None, max_length=MAX_MESH_VERTICES,
+                                       description="per-vertex shading normals (smooth); none: flat shading")
+    transform: Annotated[list[Row4], Field(min_length=4, max_length=4)] | None = Field(
+        None, description="4 × 4 row-major affine (last row [0, 0, 0, 1]) applied to the vertices on input")
+
+
 # ---- motion (issue #9; renderer.animation) ------------------------------------------
 SphereIndex = Annotated[int, Field(ge=0, lt=MAX_SPHERES, description="id of the first sphere moved")]
 SphereCount = Annotated[int, Field(ge=0, le=MAX_SPHERES, description="number of spheres moved")]
+MeshIndex = Annotated[int, Field(ge=0, lt=MAX_MESHES, description="index of the mesh moved (instead of first, count)")]
 
 
-class RigidMotion(Strict):
-    """Spheres ``first … first+count−1`` move as one rigid body: centre(t) = pivot +
-    R(axis, angular_velocity·t)(c₀ − pivot) + amplitude·sin(2πt / period)."""
+class MotionTarget(Strict):
+    """What a motion moves: the spheres ``first … first+count−1``, or the mesh ``mesh``."""
+    first: SphereIndex | None = None
+    count: SphereCount | None = None
+    mesh: MeshIndex | None = None
+
+    @model_validator(mode="after")
+    def _one_target(self) -> "MotionTarget":
+        if self.mesh is not None:
+            if self.first is not None or self.count is not None:
+                raise ValueError("give either mesh or first and count, not both")
+        elif self.first is None or self.count is None:
+            raise ValueError("first and count are required (or mesh)")
+        return self
+
+
+class RigidMotion(MotionTarget):
+    """Spheres ``first … first+count−1`` (or mesh ``mesh``) move as one rigid body: centre(t) =
+    pivot + R(axis, angular_velocity·t)(c₀ − pivot) + amplitude·sin(2πt / period)."""
     kind: Literal["rigid"]
-    first: SphereIndex
-    count: SphereCount
     pivot: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     axis: Vec3 = Field(default_factory=lambda: [0.0, 1.0, 0.0], description="non-zero")
     angular_velocity: float = Field(0.5, ge=-MAX_ANGULAR_VELOCITY, le=MAX_ANGULAR_VELOCITY,
@@ -124,22 +164,20 @@ class RigidMotion(Strict):
     period: float = Field(4.0, gt=0.0, le=MAX_PERIOD, description="seconds")
 
 
-class DeformableMotion(Strict):
-    """Coherent local motion: a travelling wave moves each sphere by at most ``amplitude`` per axis."""
+class DeformableMotion(MotionTarget):
+    """Coherent local motion: a travelling wave moves each sphere (or each vertex of mesh
+    ``mesh``) by at most ``amplitude`` per axis."""
     kind: Literal["deformable"]
-    first: SphereIndex
-    count: SphereCount
     amplitude: float = Field(1.0, ge=0.0, le=MAX_COORDINATE, description="world units")
     wavelength: float = Field(10.0, gt=0.0, le=MAX_WAVELENGTH, description="world units")
     speed: float = Field(4.0, ge=-MAX_SPEED, le=MAX_SPEED, description="world units per second")
 
 
-class IncoherentMotion(Strict):
+class IncoherentMotion(MotionTarget):
     """Every sphere flies alone inside [box_min, box_max] and respawns every ``lifetime`` seconds;
-    for the last ``absent`` fraction of each lifetime it is gone (spheres appear and disappear)."""
+    for the last ``absent`` fraction of each lifetime it is gone (spheres appear and disappear).
+    Spheres only: a mesh is refused."""
     kind: Literal["incoherent"]
-    first: SphereIndex
-    count: SphereCount
     box_min: Vec3 = Field(default_factory=lambda: [-15.0, -15.0, -15.0])
     box_max: Vec3 = Field(default_factory=lambda: [15.0, 15.0, 15.0], description="> box_min on every axis")
     speed: float = Field(5.0, ge=0.0, le=MAX_SPEED, description="world units per second")
@@ -153,12 +191,15 @@ Motion = Annotated[Union[RigidMotion, DeformableMotion, IncoherentMotion], Field
 
 class SceneModel(Strict):
     """A whole scene (docs/FORMATS.md). Material indices must be < len(materials). ``motions`` (optional)
-    animate sphere ranges that must not overlap; the render setting ``time`` poses the scene."""
+    animate sphere ranges that must not overlap, or meshes; the render setting ``time`` poses the
+    scene. Primitive ids: spheres, then planes, then the triangles of each mesh."""
     camera: CameraModel = Field(default_factory=CameraModel)
     lights: list[LightModel] = Field(default_factory=list, max_length=MAX_LIGHTS)
     materials: list[MaterialModel] = Field(min_length=1, max_length=MAX_MATERIALS)
     spheres: list[SphereModel] = Field(default_factory=list, max_length=MAX_SPHERES)
     planes: list[PlaneModel] = Field(default_factory=list, max_length=MAX_PLANES)
+    meshes: list[MeshModel] = Field(default_factory=list, max_length=MAX_MESHES,
+                                    description=f"triangle meshes; at most {MAX_TRIANGLES} triangles in all")
     motions: list[Motion] = Field(default_factory=list, max_length=MAX_MOTIONS)
 
 
@@ -354,6 +395,10 @@ class SceneInfo(BaseModel):
     animated: bool = False
     n_moving: int = Field(0, description="spheres some motion moves")
     museum: MuseumRecipe | None = None
+    n_meshes: int = 0
+    n_triangles: int = Field(0, description="triangles of all meshes (ids after the planes)")
+    n_degenerate_triangles: int = Field(0, description="zero-area triangles: kept, never hit")
+    n_moving_meshes: int = Field(0, description="meshes some motion moves")
 
 
 class SessionOut(BaseModel):
@@ -416,6 +461,24 @@ Gesture = Annotated[Union[PanGesture, PinchGesture, OrbitGesture, ResetGesture],
 
 
 # ---- stateless render ------------------------------------------------------------------
+class MeshUploadQuery(QueryModel):
+    """How an uploaded model file (the request body, bytes) becomes a mesh."""
+    format: ModelFormat = Field(description="the file's format: " + ", ".join(MODEL_FORMATS))
+    material: MaterialIndex = Field(0, description="index into the scene's materials")
+    smooth: bool | None = Field(None, description="shading: the file's normals (default), true: smooth (the file's "
+                                                  "or area-weighted normals), false: flat")
+    size: float | None = Field(None, gt=0.0, le=2 * CUBE_HALF,
+                               description="scale the model so that its longest side is this many world units, "
+                                           "centred on the y axis, standing on the floor y = −20 (default: as is)")
+
+
+class MeshAdded(BaseModel):
+    version: int
+    scene_info: SceneInfo
+    mesh: int = Field(description="index of the new mesh in the scene's meshes")
+    first_id: int = Field(description="primitive id of its first triangle")
+
+
 class RenderRequest(Strict):
     scene: SceneModel
     settings: SettingsPatch = Field(default_factory=SettingsPatch)
@@ -442,6 +505,7 @@ class LimitsOut(BaseModel):
     max_frame_cost: float = Field(description="ms of estimated GL time a frame may cost (POCKETRAY_MAX_FRAME_COST)")
     slice_ms: float = Field(description="ms of estimated GL time of one slice (POCKETRAY_SLICE_MS)")
     max_spheres: int
+    max_triangles: int = Field(MAX_TRIANGLES, description="triangles of one scene (POCKETRAY_MAX_TRIANGLES)")
     max_body_bytes: int
     max_image_side: int
     queue_size: int
@@ -456,6 +520,8 @@ class MethodSettingsOut(BaseModel):
     update_schemes: list[str]
     device: bool = Field(description="a browser can trace it (device mode)")
     tests_every_sphere: bool = Field(False, description="no hierarchy: POCKETRAY_MAX_BRUTEFORCE_WORK applies")
+    primitives: list[str] = Field(default_factory=lambda: ["spheres", "planes", "triangles"],
+                                  description="the kinds of primitive it traces (a scene with another is a 422)")
     auto: bool = Field(False, description="resolved per scene: brute force below the crossover, else bih")
 
 

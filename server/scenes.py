@@ -5,8 +5,9 @@ A session's scene is stored as a *source*, not re-serialised for every change:
 - a thesis scenario is its recipe ``{"scenario", "n", "seed", "radius"}`` (a few
   bytes; ``renderer.scenarios.scenario`` is deterministic), and an animated Museum
   its recipe ``{"museum": {"n", "kind", "seed", "absent"}}``;
-- an uploaded scene is its small parts (and motions) as JSON plus the sphere arrays,
-  in one compressed ``.npz``.
+- an uploaded scene is its small parts (and motions) as JSON plus the sphere arrays and
+  the meshes' arrays (world-space vertices, triangles, normals, each mesh's rows
+  concatenated; the JSON says how many rows are whose), in one compressed ``.npz``.
 
 An animated scene (one with motions) is an :class:`~renderer.animation.AnimatedScene`;
 ``SessionScene`` is either kind. The renderer poses it at the frame's ``time``.
@@ -29,7 +30,7 @@ import numpy as np
 
 from renderer.animation import AnimatedScene, motion_from_json, motion_to_json, museum
 from renderer.scenarios import scenario
-from renderer.scene import Camera, Scene, SceneError
+from renderer.scene import Camera, Mesh, Scene, SceneError, make_mesh
 
 from .models import CameraModel, SceneModel
 
@@ -42,15 +43,21 @@ SessionScene = Scene | AnimatedScene
 def scene_from_model(model: SceneModel, where: str = "scene") -> SessionScene:
     """A validated Scene — an AnimatedScene when it has motions — from a request body
     (SceneError names the JSON field)."""
-    small = model.model_dump(exclude={"spheres", "motions"})
+    small = model.model_dump(exclude={"spheres", "motions", "meshes"})
     try:
         base = Scene.from_json(small)
         n = len(model.spheres)
         centers = np.array([s.center for s in model.spheres], dtype=np.float64).reshape(n, 3)
         radii = np.array([s.radius for s in model.spheres], dtype=np.float64).reshape(n)
         mats = np.array([s.material for s in model.spheres], dtype=np.int64).reshape(n)
-        scene = Scene(base.camera, base.lights, base.materials, centers, radii, mats, base.planes)
-        return with_motions(scene, [m.model_dump() for m in model.motions])
+        meshes = []
+        for i, m in enumerate(model.meshes):
+            try:
+                meshes.append(make_mesh(m.vertices, m.triangles, m.material, m.normals, m.transform))
+            except SceneError as e:
+                raise SceneError(f"meshes[{i}].{e.field}", e.message) from None
+        scene = Scene(base.camera, base.lights, base.materials, centers, radii, mats, base.planes, tuple(meshes))
+        return with_motions(scene, [m.model_dump(exclude_none=True) for m in model.motions])
     except SceneError as e:
         raise SceneError(f"{where}.{e.field}" if where else e.field, e.message) from None
 
@@ -76,16 +83,39 @@ def scenario_source(number: int, n: int, seed: int, radius: float) -> bytes:
 
 
 def scene_source(scene: SessionScene) -> bytes:
-    """Lights, materials, planes and motions as JSON, spheres as arrays (compressed npz)."""
+    """Lights, materials, planes, motions and how the meshes are cut as JSON; spheres and mesh
+    rows as arrays (compressed npz). The meshes are stored in world space, as the scene
+    holds them, so that a stored scene loads bit for bit as it was."""
     motions = [motion_to_json(m) for m in scene.motions] if isinstance(scene, AnimatedScene) else []
     if isinstance(scene, AnimatedScene):
         scene = scene.scene
     small = {"lights": [x.to_json() for x in scene.lights], "materials": [m.to_json() for m in scene.materials],
              "planes": [p.to_json() for p in scene.planes], "motions": motions}
+    arrays = {"centers": scene.sphere_centers, "radii": scene.sphere_radii, "materials": scene.sphere_materials}
+    if scene.meshes:
+        small["meshes"] = [{"material": m.material, "vertices": len(m.vertices), "triangles": m.n_triangles,
+                            "smooth": m.smooth} for m in scene.meshes]
+        arrays["mesh_vertices"] = np.concatenate([m.vertices for m in scene.meshes])
+        arrays["mesh_triangles"] = np.concatenate([m.triangles for m in scene.meshes])
+        smooth = [m.normals for m in scene.meshes if m.smooth]
+        arrays["mesh_normals"] = np.concatenate(smooth) if smooth else np.zeros((0, 3))
     buf = io.BytesIO()
-    np.savez_compressed(buf, meta=np.frombuffer(json.dumps(small).encode(), dtype=np.uint8),
-                        centers=scene.sphere_centers, radii=scene.sphere_radii, materials=scene.sphere_materials)
+    np.savez_compressed(buf, meta=np.frombuffer(json.dumps(small).encode(), dtype=np.uint8), **arrays)
     return _ARRAYS + buf.getvalue()
+
+
+def _stored_meshes(cut: list[dict], z) -> tuple[Mesh, ...]:
+    """The meshes of a stored source: ``cut`` says how many rows of each array are whose."""
+    out, v0, t0, n0 = [], 0, 0, 0
+    for m in cut:
+        nv, nt = m["vertices"], m["triangles"]
+        normals = None
+        if m["smooth"]:
+            normals = z["mesh_normals"][n0:n0 + nv]
+            n0 += nv
+        out.append(Mesh(z["mesh_vertices"][v0:v0 + nv], z["mesh_triangles"][t0:t0 + nt], m["material"], normals))
+        v0, t0 = v0 + nv, t0 + nt
+    return tuple(out)
 
 
 def load_source(source: bytes, camera: Camera) -> SessionScene:
@@ -100,15 +130,26 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
         with np.load(io.BytesIO(body), allow_pickle=False) as z:
             small = json.loads(z["meta"].tobytes())
             motions = small.pop("motions", [])
+            meshes = _stored_meshes(small.pop("meshes", []), z)
             base = Scene.from_json({**small, "camera": camera.to_json()})
-            scene = Scene(camera, base.lights, base.materials, z["centers"], z["radii"], z["materials"], base.planes)
+            scene = Scene(camera, base.lights, base.materials, z["centers"], z["radii"], z["materials"], base.planes,
+                          meshes)
             return with_motions(scene, motions)
     raise ValueError("unknown scene source")
 
 
+def _rows_json(rows: np.ndarray, per_chunk: int) -> Iterator[str]:
+    """A JSON list of rows (``[[…],[…]]``, compact) in pieces of ``per_chunk`` rows."""
+    yield "["
+    for start in range(0, len(rows), per_chunk):
+        text = json.dumps(rows[start:start + per_chunk].tolist(), separators=(",", ":"), allow_nan=False)[1:-1]
+        yield text if start == 0 else "," + text
+    yield "]"
+
+
 def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> Iterator[bytes]:
     """The scene JSON (docs/FORMATS.md) of ``scene`` (exactly ``json.dumps(scene.to_json())``, compact) in
-    pieces, so that a scene of 2^21 spheres is sent without building it in memory.
+    pieces, so that a scene of 2^21 spheres (or 2^20 triangles) is sent without building it in memory.
     An animated scene is its rest pose plus ``motions``."""
     def dumps(obj: Any) -> str:
         return json.dumps(obj, separators=(",", ":"), allow_nan=False)
@@ -116,10 +157,6 @@ def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> It
     if isinstance(scene, AnimatedScene):
         tail = ',"motions":' + dumps([motion_to_json(m) for m in scene.motions])
         scene = scene.scene
-    head = scene.to_json() if scene.n_spheres == 0 else None
-    if head is not None:
-        yield (dumps(head)[:-1] + tail + "}").encode()
-        return
     small = {"camera": scene.camera.to_json(), "lights": [x.to_json() for x in scene.lights],
              "materials": [m.to_json() for m in scene.materials]}
     yield (dumps(small)[:-1] + ',"spheres":[').encode()
@@ -131,23 +168,49 @@ def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> It
                     scene.sphere_materials[start:stop].tolist())]
         text = dumps(part)[1:-1]
         yield ((text if start == 0 else "," + text)).encode()
-    yield ('],"planes":' + dumps([p.to_json() for p in scene.planes]) + tail + "}").encode()
+    yield ('],"planes":' + dumps([p.to_json() for p in scene.planes])).encode()
+    if scene.meshes:       # as Mesh.to_json: vertices, triangles, material, normals
+        rows = max(1, spheres_per_chunk * 2)
+        yield b',"meshes":['
+        for i, m in enumerate(scene.meshes):
+            yield (("," if i else "") + '{"vertices":').encode()
+            yield from (x.encode() for x in _rows_json(m.vertices, rows))
+            yield b',"triangles":'
+            yield from (x.encode() for x in _rows_json(m.triangles, rows))
+            yield f',"material":{m.material}'.encode()
+            if m.normals is not None:
+                yield b',"normals":'
+                yield from (x.encode() for x in _rows_json(m.normals, rows))
+            yield b"}"
+        yield b"]"
+    yield (tail + "}").encode()
 
 
 def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dict[str, Any]:
     rest = scene.scene if isinstance(scene, AnimatedScene) else scene
     info: dict[str, Any] = {"n_spheres": rest.n_spheres, "n_planes": len(rest.planes)}
+    if rest.meshes:         # (absent for a sphere scene: the stored state stays as it was)
+        info.update(n_meshes=len(rest.meshes), n_triangles=rest.n_triangles,
+                    n_degenerate_triangles=rest.n_degenerate_triangles)
     if isinstance(scene, AnimatedScene):
         info.update(animated=True, n_moving=int(scene.moving.sum()))
+        if rest.meshes:
+            info["n_moving_meshes"] = int(scene.moving_meshes.sum())
     if recipe:
         info.update(recipe)
     return info
 
 
+def _weight(scene: SessionScene) -> int:
+    rest = scene.scene if isinstance(scene, AnimatedScene) else scene
+    return rest.n_spheres + 4 * rest.n_triangles
+
+
 class SceneCache:
     """Least-recently-used scenes of this process, keyed by (session id, scene revision).
 
-    Bounded by the total number of spheres held (memory ≈ 36 bytes per sphere).
+    Bounded by the total number of spheres and triangles held (memory ≈ 36 bytes per sphere,
+    about 150 per triangle: its mesh's arrays and the flattened corners — counted as 4).
     """
 
     def __init__(self, max_spheres: int = 8 << 20):
@@ -166,7 +229,7 @@ class SceneCache:
         with self._lock:
             self._items[key] = scene
             self._items.move_to_end(key)
-            while len(self._items) > 1 and sum(s.n_spheres for s in self._items.values()) > self.max_spheres:
+            while len(self._items) > 1 and sum(_weight(s) for s in self._items.values()) > self.max_spheres:
                 self._items.popitem(last=False)
 
     def drop_session(self, session_id: str) -> None:

@@ -27,9 +27,11 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import replace
 from typing import Any, Iterable, NamedTuple
 
+from renderer.accel.base import NOT_ON_GPU
 from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum, pose
 from renderer.cost import largest_accepted
-from renderer.limits import DEFAULT_TEXTURE_WIDTH, SAMPLES_PER_PIXEL
+from renderer.limits import DEFAULT_TEXTURE_WIDTH, MAX_TRIANGLES, SAMPLES_PER_PIXEL
+from renderer.mesh_io import fit_transform, load_mesh
 from renderer.methods import AUTO_METHOD, METHODS, capabilities, resolve_method
 from renderer.prepare import PreparedFrame, band_rows, batch_size, prepare_frame
 from renderer.scenarios import scenario
@@ -40,8 +42,8 @@ from renderer.tree_update import TreeUpdate
 from . import controller, metrics
 from .config import ServerConfig
 from .gl_worker import FrameCancelled, FrameHandle, GLWorker, QueueFull, Ticket
-from .models import (OrbitGesture, PanGesture, PinchGesture, ResetGesture, SceneModel, SessionCreate,
-                     SettingsPatch)
+from .models import (MeshUploadQuery, OrbitGesture, PanGesture, PinchGesture, ResetGesture, SceneModel,
+                     SessionCreate, SettingsPatch)
 from .scenes import (SceneCache, SessionScene, camera_from_model, load_source, museum_source, scenario_source,
                      scene_from_model, scene_info, scene_source)
 from .store import SessionState, SessionStore
@@ -60,8 +62,10 @@ class InputError(SceneError):
 
     def __init__(self, loc: Iterable[str | int], message: str):
         loc = tuple(loc)
-        field = ".".join(str(x) for x in loc[1:]) if loc and loc[0] in ("body", "query", "path") else \
-            ".".join(str(x) for x in loc)
+        inner = loc[1:] if loc and loc[0] in ("body", "query", "path") else loc
+        field = ""
+        for part in inner:   # the JSON path as the renderer writes it: scene.meshes[0].triangles[12]
+            field += f"[{part}]" if isinstance(part, int) else (f".{part}" if field else str(part))
         super().__init__(field or "body", message)
         self.loc = loc
 
@@ -79,7 +83,8 @@ def method_settings(name: str) -> dict[str, Any]:
     browser can trace it (``auto`` answers for the BIH it picks above the crossover)."""
     caps = METHODS[resolve_method(name, 1 << 30)].capabilities
     return {"settings": list(caps.settings), "modes": list(caps.modes), "update_schemes": list(caps.update_schemes),
-            "device": caps.device, "tests_every_sphere": caps.tests_every_sphere, "auto": name == AUTO_METHOD}
+            "device": caps.device, "tests_every_sphere": caps.tests_every_sphere, "auto": name == AUTO_METHOD,
+            "primitives": list(caps.primitives)}
 
 
 def info_extras(config: ServerConfig) -> dict[str, Any]:
@@ -172,8 +177,14 @@ class SessionService:
             raise InputError(loc, f"at most {self.config.max_spheres} spheres per scene "
                                   f"(POCKETRAY_MAX_SPHERES), got {n}")
 
+    def check_triangles(self, n: int, loc: tuple[str | int, ...]) -> None:
+        if n > self.config.max_triangles:
+            raise InputError(loc, f"at most {self.config.max_triangles} triangles per scene "
+                                  f"(POCKETRAY_MAX_TRIANGLES), got {n}")
+
     def checked_scene(self, model: SceneModel, loc: tuple[str, ...]) -> SessionScene:
         self.check_spheres(len(model.spheres), (*loc, "spheres"))
+        self.check_triangles(sum(len(m.triangles) for m in model.meshes), (*loc, "meshes"))
         try:
             return scene_from_model(model, ".".join(loc[1:]) if len(loc) > 1 else "")
         except SceneError as e:
@@ -268,6 +279,50 @@ class SessionService:
         self.cache.put((state.id, rev), scene)
         return state
 
+    def add_mesh(self, session_id: str, data: bytes, query: MeshUploadQuery) -> tuple[SessionState, int, int]:
+        """Parse a model file (in memory: nothing is written) and add it to the session's scene
+        as a new mesh, its last; the camera stays. Returns the state, the mesh's index and its
+        first triangle's primitive id. 422 naming ``body`` (the file), ``query.format``,
+        ``query.material``, or the triangle cap (POCKETRAY_MAX_TRIANGLES, with the scene's own)."""
+        state = self.get(session_id)
+        old = self.scene(state)
+        rest = old.scene if isinstance(old, AnimatedScene) else old
+        room = self.config.max_triangles - rest.n_triangles
+        if room <= 0 or not data:
+            raise InputError(("body",), "the scene already holds the most triangles allowed "
+                                        f"({self.config.max_triangles}, POCKETRAY_MAX_TRIANGLES)" if data else
+                             "empty body: send the model file's bytes")
+        try:
+            parsed = load_mesh(data, query.format, max_triangles=min(room, MAX_TRIANGLES))
+        except SceneError as e:
+            where = ("query", "format") if e.field == "format" else ("body",)
+            raise InputError(where, f"{e.message}" + (f" (POCKETRAY_MAX_TRIANGLES = {self.config.max_triangles}, "
+                                                      f"{rest.n_triangles} in the scene)"
+                                                      if "triangles" in e.message else "")) from None
+        if query.material >= len(rest.materials):
+            raise InputError(("query", "material"), f"material index {query.material} out of range (the scene has "
+                                                    f"{len(rest.materials)} materials)")
+        try:
+            mesh = parsed.to_mesh(query.material, fit_transform(parsed, query.size) if query.size else None,
+                                  query.smooth)
+            grown = rest.with_geometry(rest.sphere_centers, rest.sphere_radii, rest.sphere_materials,
+                                       (*rest.meshes, mesh))
+            scene: SessionScene = AnimatedScene(grown, old.motions) if isinstance(old, AnimatedScene) else grown
+        except SceneError as e:
+            raise InputError(("body",), f"the model does not fit the scene: {e.field}: {e.message}") from None
+        source = scene_source(scene)
+        rev = secrets.token_hex(8)
+
+        def mutate(current: SessionState) -> SessionState:
+            if current.scene_rev != state.scene_rev:
+                raise Superseded("session: its scene changed while the model was read; send it again")
+            # no recipe any more: a scenario with a model in it is a scene of its own
+            return replace(current, scene_rev=rev, scene_info=scene_info(scene, None))
+        new = self._update(session_id, mutate, source)
+        self.cache.put((new.id, rev), scene)
+        index = len(grown.meshes) - 1
+        return new, index, grown.triangle_id_base + grown.mesh_triangle_range(index).start
+
     def set_camera(self, session_id: str, model) -> SessionState:
         try:
             camera = camera_from_model(model)
@@ -348,6 +403,15 @@ class SessionService:
         if frame.cost.ms > limit:
             raise InputError(*self._too_costly(frame, where, limit, n_field))
         return frame
+
+    @staticmethod
+    def check_traceable(frame: PreparedFrame, where: str) -> None:
+        """422 (``meshes``) before admission for a frame the GPU cannot trace yet: one with
+        triangles (its trees are built, its cost is known; the GL frame would refuse it too)."""
+        if frame.scene.n_triangles and not frame.multi_pass:
+            raise InputError((where, "meshes"), f"{NOT_ON_GPU}; this scene has {len(frame.scene.meshes)} mesh(es) of "
+                                                f"{frame.scene.n_triangles:,} triangles — its scene, statistics and "
+                                                f"meshes are served, its frames not yet")
 
     # A ray through a good hierarchy tests a few dozen spheres; this many means they crowd it.
     CROWDED_TESTS = 1000
@@ -470,6 +534,7 @@ class SessionService:
         t_admit = time.perf_counter()
         key = (session.id, session.scene_rev) if session is not None else None
         frame = self.plan(scene, settings, where, key=key)
+        self.check_traceable(frame, where)
         handle = self.start_frame(frame, session=session)
         version = session.version if session is not None else None
         try:
@@ -563,7 +628,8 @@ class SessionService:
         settings: the last build's, or a build made now (without rendering)."""
         state = self.get(session_id)
         settings = self.merge_settings(state.settings, patch, "query")
-        method_name = resolve_method(settings["method"], state.scene_info.get("n_spheres", 0))
+        method_name = resolve_method(settings["method"], state.scene_info.get("n_spheres", 0)
+                                     + state.scene_info.get("n_triangles", 0))     # auto as prepare_frame does
         scene = self.scene(state)
         key = StatsKey(state.id, state.scene_rev, method_name, settings["max_prims"], settings["max_tree_depth"],
                        self._pose_time(scene, settings.get("time", 0.0)))

@@ -15,12 +15,12 @@ from ``capabilities.multi_pass``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, Callable, Protocol
 
 from .. import gpu_layout
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..modes import SINGLE_PASS_MODES
-from ..scene import Scene
+from ..scene import Scene, SceneError
 from ..tree_update import REBUILD, TreeUpdate
 
 
@@ -32,10 +32,64 @@ BIG_LEAF = 32
 
 @dataclass
 class PreparedMethod:
-    """One request's acceleration data: GPU data, build time (ms), statistics."""
+    """One request's acceleration data: GPU data, build time (ms), statistics, and the
+    built structure itself (``tree``: what the CPU traversals of the tests and the
+    reference walk; None for a method without one).
+
+    For a scene with triangles ``packed`` is :class:`NotOnGPU`: the trees are built over
+    spheres and triangles, but the GPU layouts pack spheres only until the GPU tracer
+    traces triangles (issue #20's GPU part)."""
     packed: gpu_layout.PackedScene
     build_ms: float
     stats: dict[str, Any] = field(default_factory=dict)
+    tree: Any = None
+
+
+NOT_ON_GPU = ("triangle meshes are not traced on the GPU yet (issue #20: the scene model, the float64 "
+              "reference and the trees over spheres and triangles are done; the shaders' part comes next)")
+
+
+class NotOnGPU:
+    """Stands where a scene with triangles would have its packed GPU data: reading it (the
+    GL frame's upload, device data) raises ``SceneError("meshes", …)``, so no tracer can
+    silently draw the spheres and drop the meshes."""
+
+    def __init__(self, scene: Scene):
+        self.detail = (f"{NOT_ON_GPU}; this scene has {len(scene.meshes)} mesh(es) of "
+                       f"{scene.n_triangles:,} triangles")
+
+    def _refuse(self) -> None:
+        raise SceneError("meshes", self.detail)
+
+    @property
+    def textures(self) -> dict:
+        self._refuse()
+        return {}
+
+    @property
+    def uniforms(self) -> dict:
+        self._refuse()
+        return {}
+
+    @property
+    def nbytes(self) -> int:
+        self._refuse()
+        return 0
+
+
+def gpu_data(scene: Scene, pack: Callable[[], gpu_layout.PackedScene]) -> gpu_layout.PackedScene:
+    """``pack()`` — the sphere-only packing every layout does today — or, for a scene with
+    triangles, :class:`NotOnGPU`."""
+    return NotOnGPU(scene) if scene.n_triangles else pack()  # type: ignore[return-value]
+
+
+def mesh_stats(scene: Scene) -> dict[str, int]:
+    """What a build's statistics add for a scene with meshes (nothing for spheres only, whose
+    statistics stay as they were): tree primitives are spheres then triangles."""
+    if not scene.n_triangles:
+        return {}
+    return {"spheres": scene.n_spheres, "triangles": scene.n_triangles,
+            "degenerate_triangles": scene.n_degenerate_triangles}
 
 
 class NoLayout:
@@ -57,6 +111,8 @@ class Capabilities:
     ``method_init()`` and ``intersect_spheres()``.
     modes: the render modes it can draw.
     tests_every_sphere: no hierarchy over the primitives — a frame costs rays × spheres.
+    primitives: the kinds of primitive it traces; a scene with another kind is refused with
+    422 before anything is built (the ray engines draw spheres and planes only).
     update_schemes: how it can follow an animation from its previous frame
     (:data:`renderer.tree_update.UPDATE_SCHEMES`); ``("rebuild",)`` = always rebuilds.
     settings: the render settings its build or passes read (``max_prims``,
@@ -68,6 +124,7 @@ class Capabilities:
     tests_every_sphere: bool = False
     update_schemes: tuple[str, ...] = ("rebuild",)
     settings: tuple[str, ...] = ()
+    primitives: tuple[str, ...] = ("spheres", "planes", "triangles")
 
     @property
     def device(self) -> bool:

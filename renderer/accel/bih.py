@@ -42,8 +42,8 @@ from ..limits import MAX_RETRIES, MAX_TREE_DEPTH
 from ..scene import Scene
 from ..tree_update import REBUILD, TreeUpdate
 from . import bih_layout as L
-from .base import BIG_LEAF, Capabilities, PreparedMethod
-from .primitives import sphere_aabbs
+from .base import BIG_LEAF, Capabilities, PreparedMethod, gpu_data, mesh_stats
+from .primitives import scene_aabbs, sphere_aabbs
 
 OPTIMIZED_NODE_FACTOR = np.float32(1.3)
 # MAX_RETRIES (limits): retries (optimized-node shrinks and one-sided halvings) allowed
@@ -305,6 +305,14 @@ def build_for_spheres(centers: np.ndarray, radii: np.ndarray, max_prims: int = 8
     return build_bih(lo, hi, max_prims=max_prims, max_tree_depth=max_tree_depth)
 
 
+def build_for_scene(scene: Scene, max_prims: int = 8, max_tree_depth: int = MAX_TREE_DEPTH) -> BIH:
+    """A BIH over the scene's spheres and triangles (tree primitive ``i``: sphere ``i``, then
+    triangle ``i − n_spheres``; :mod:`renderer.accel.primitives`). Spheres only: the same
+    tree as :func:`build_for_spheres`."""
+    lo, hi = scene_aabbs(scene)
+    return build_bih(lo, hi, max_prims=max_prims, max_tree_depth=max_tree_depth)
+
+
 class BoundingIntervalHierarchy:
     """Method ``bih``: the thesis's BIH (listings 3.3–3.5), rebuilt per request and traced
     by ``shaders/method_bih.glsl``."""
@@ -316,6 +324,7 @@ class BoundingIntervalHierarchy:
     def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
                 max_width: int = limits.DEFAULT_TEXTURE_WIDTH, update: TreeUpdate = REBUILD) -> PreparedMethod:
         t0 = time.perf_counter()
-        bih = build_for_spheres(scene.sphere_centers, scene.sphere_radii, max_prims, max_tree_depth)
+        bih = build_for_scene(scene, max_prims, max_tree_depth)
         build_ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod(L.pack_bih(bih, max_width), build_ms, {"method": self.name, **bih.stats.to_json()})
+        return PreparedMethod(gpu_data(scene, lambda: L.pack_bih(bih, max_width)), build_ms,
+                              {"method": self.name, **bih.stats.to_json(), **mesh_stats(scene)}, tree=bih)

@@ -32,21 +32,29 @@ the same ``t``): ``b = dot(o - c, d)``, ``h² = r² - |(o - c) - b d|²``, roots
 ray ``i`` does not see at all, ``far_only[i]`` one for which only the far root
 ``-b + h`` counts (``-1`` = none).
 
+Triangles (``triangles``: float64 corners (T, 3, 3), tree primitives ``n …`` after the
+``n`` spheres, :mod:`renderer.accel.primitives`): the watertight test of Woop, Benthin &
+Wald (:func:`triangle_t`, docs/SHADING.md "Triangles"), both sides hit, a zero-area
+triangle never; ``ignore`` may name a triangle (the one a secondary ray leaves). A leaf's
+triangle tests count in ``tests`` like its sphere tests. Returned ids are tree indices
+(a triangle's scene id is ``i + n_planes``).
+
 Exactness against brute force: the intervals only prune, and pruning is safe
-when every float64 sphere lies inside its float32 AABB (see
-``tests/test_bih.py`` and the note there on ``sphere_aabbs``).
+when every float64 primitive lies inside its float32 AABB (see
+``tests/test_bih.py`` and the note there on ``sphere_aabbs``; ``triangle_aabbs``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
 
 import numpy as np
 
 from . import bih_layout as L
 from .bih import BIH
 
-__all__ = ["TraversalResult", "traverse", "brute_force", "sphere_t"]
+__all__ = ["TraversalResult", "traverse", "brute_force", "sphere_t", "triangle_t"]
 
 # Pairs (ray, sphere) evaluated at once by brute_force.
 _BRUTE_CHUNK = 1 << 21
@@ -84,6 +92,78 @@ def sphere_t(o: np.ndarray, d: np.ndarray, c: np.ndarray, r: np.ndarray, ids: np
     return np.where(hit & (ids != ignore), t, np.inf)
 
 
+def _pick(k: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Component ``k`` (0, 1, 2: x, y, z) of each element."""
+    return np.where(k == 0, x, np.where(k == 1, y, z))
+
+
+def _edge(qx: np.ndarray, py: np.ndarray, qy: np.ndarray, px: np.ndarray) -> np.ndarray:
+    """``qx·py − qy·px``; an element that rounds to exactly 0 is recomputed exactly (rational
+    arithmetic: in float64 the paper's double-precision fallback has no wider type to go to).
+    Per edge, so that ``E(Q, P) = −E(P, Q)`` holds bit for bit between neighbours."""
+    qx, py, qy, px = np.broadcast_arrays(qx, py, qy, px)
+    e = qx * py - qy * px
+    for k in zip(*np.nonzero(e == 0.0)):
+        exact = Fraction(float(qx[k])) * Fraction(float(py[k])) - Fraction(float(qy[k])) * Fraction(float(px[k]))
+        f = float(exact)
+        e[k] = f if (f != 0.0 or exact == 0) else (5e-324 if exact > 0 else -5e-324)
+    return e
+
+
+def triangle_t(o, d, v0, v1, v2, ids: np.ndarray, ignore: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """t of the watertight hit (Woop, Benthin & Wald 2013) of ray ``(o, d)`` with triangle
+    ``(v0, v1, v2)``; inf when none, when ``t ≤ 0``, when ``ids == ignore`` or the triangle
+    is not ``valid`` (zero area). Component tuples that broadcast, as :func:`sphere_t`.
+
+    The shear: ``kz`` the axis of the largest |d| (the first on ties), ``kx, ky`` the
+    next ones, swapped when ``d[kz] < 0``; corners relative to ``o`` sheared to
+    ``(A[kx] − A[kz] d[kx]/d[kz], A[ky] − A[kz] d[ky]/d[kz])``; the edge functions
+    ``U = E(B, C)``, ``V = E(C, A)``, ``W = E(A, B)`` (:func:`_edge`) of one sign (zeros
+    allowed: a ray through an edge or vertex hits), ``det = U + V + W ≠ 0``, and
+    ``t = (U A[kz] + V B[kz] + W C[kz]) / (d[kz] det)`` with the ``1/d[kz]`` applied to each
+    z first, as the paper does."""
+    dx, dy, dz = d
+    ax, ay, az = np.abs(dx), np.abs(dy), np.abs(dz)
+    kz = np.where((ax >= ay) & (ax >= az), 0, np.where(ay >= az, 1, 2))
+    kx = (kz + 1) % 3
+    ky = (kx + 1) % 3
+    dkz = _pick(kz, dx, dy, dz)
+    neg = dkz < 0.0
+    kx, ky = np.where(neg, ky, kx), np.where(neg, kx, ky)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sx = _pick(kx, dx, dy, dz) / dkz
+        sy = _pick(ky, dx, dy, dz) / dkz
+        sz = 1.0 / dkz
+
+    def shear(v):
+        px, py, pz = v[0] - o[0], v[1] - o[1], v[2] - o[2]
+        zc = _pick(kz, px, py, pz)
+        return _pick(kx, px, py, pz) - sx * zc, _pick(ky, px, py, pz) - sy * zc, sz * zc
+
+    a_x, a_y, a_z = shear(v0)
+    b_x, b_y, b_z = shear(v1)
+    c_x, c_y, c_z = shear(v2)
+    u = _edge(c_x, b_y, c_y, b_x)
+    v = _edge(a_x, c_y, a_y, c_x)
+    w = _edge(b_x, a_y, b_y, a_x)
+    mixed = ((u < 0) | (v < 0) | (w < 0)) & ((u > 0) | (v > 0) | (w > 0))
+    det = u + v + w
+    big_t = u * a_z + v * b_z + w * c_z
+    ok = ~mixed & (det != 0.0) & valid & (ids != ignore)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(ok, big_t / np.where(ok, det, 1.0), np.inf)
+    return np.where(t > 0.0, t, np.inf)
+
+
+def _corners(triangles) -> tuple[np.ndarray, np.ndarray]:
+    """float64 (T, 3, 3) corners and their validity (not of exactly zero area)."""
+    if triangles is None:
+        return np.zeros((0, 3, 3)), np.zeros(0, bool)
+    c = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+    cross = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+    return c, (cross != 0.0).any(axis=1)
+
+
 def _prepare(centers, radii, origins, dirs, ignore, far_only):
     c = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
     r = np.asarray(radii, dtype=np.float64).reshape(-1)
@@ -106,8 +186,9 @@ def _prepare(centers, radii, origins, dirs, ignore, far_only):
     return c, r, o, d, ids(ignore, "ignore"), ids(far_only, "far_only")
 
 
-def brute_force(centers, radii, origins, dirs, ignore=None, far_only=None) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest sphere hit of every ray over all spheres: ``(t, prim)``.
+def brute_force(centers, radii, origins, dirs, ignore=None, far_only=None, triangles=None
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest hit of every ray over all spheres (and ``triangles``, tree ids after them): ``(t, prim)``.
 
     ``t`` float64 (inf on a miss), ``prim`` int64 (-1 on a miss); exactly
     equal ``t`` goes to the lower id.
@@ -116,6 +197,20 @@ def brute_force(centers, radii, origins, dirs, ignore=None, far_only=None) -> tu
     n_rays, n = len(o), len(c)
     t_best = np.full(n_rays, np.inf)
     prim = np.full(n_rays, -1, dtype=np.int64)
+    tri, valid = _corners(triangles)
+    if len(tri) and n_rays:
+        ids = (n + np.arange(len(tri), dtype=np.int64))[None, :]
+        vs = [tuple(tri[None, :, k, a] for a in range(3)) for k in range(3)]
+        step = max(1, _BRUTE_CHUNK // len(tri))
+        for s in range(0, n_rays, step):
+            e = min(n_rays, s + step)
+            oo = (o[s:e, 0:1], o[s:e, 1:2], o[s:e, 2:3])
+            dd = (d[s:e, 0:1], d[s:e, 1:2], d[s:e, 2:3])
+            t = triangle_t(oo, dd, *vs, ids, ign[s:e, None], valid[None, :])
+            k = np.argmin(t, axis=1)
+            tk = t[np.arange(e - s), k]
+            t_best[s:e] = tk
+            prim[s:e] = np.where(np.isfinite(tk), n + k, -1)
     if n == 0 or n_rays == 0:
         return t_best, prim
     ids = np.arange(n, dtype=np.int64)[None, :]
@@ -129,8 +224,9 @@ def brute_force(centers, radii, origins, dirs, ignore=None, far_only=None) -> tu
         t = sphere_t(oo, dd, cc, rr, ids, ign[s:e, None], far[s:e, None])
         k = np.argmin(t, axis=1)          # first minimum: the lower id on ties
         tk = t[np.arange(e - s), k]
-        t_best[s:e] = tk
-        prim[s:e] = np.where(np.isfinite(tk), k, -1)
+        better = np.isfinite(tk) & (tk <= t_best[s:e])    # a sphere's id is below every triangle's
+        t_best[s:e] = np.where(better, tk, t_best[s:e])
+        prim[s:e] = np.where(better, k, prim[s:e])
     return t_best, prim
 
 
@@ -158,14 +254,18 @@ def _clip_global(box: np.ndarray, o: np.ndarray, d: np.ndarray) -> tuple[np.ndar
 
 
 def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarray, dirs: np.ndarray,
-             ignore: np.ndarray | None = None, far_only: np.ndarray | None = None) -> TraversalResult:
-    """Nearest sphere hit of every ray through ``bih`` (built over these spheres).
+             ignore: np.ndarray | None = None, far_only: np.ndarray | None = None,
+             triangles: np.ndarray | None = None) -> TraversalResult:
+    """Nearest hit of every ray through ``bih`` (built over these spheres and triangles).
 
     Returns the same ``(t, prim)`` as :func:`brute_force` plus the heat-mode
     counters of SHADING.md. ``centers``/``radii`` are the float64 spheres the
-    hierarchy was built for (primitive ``i`` of the build is sphere ``i``).
+    hierarchy was built for (primitive ``i`` of the build is sphere ``i``), ``triangles``
+    its float64 triangle corners (primitive ``n + j`` is triangle ``j``).
     """
     c, r, o, d, ign, far = _prepare(centers, radii, origins, dirs, ignore, far_only)
+    tri, valid = _corners(triangles)
+    n_s = len(c)
     n_rays = len(o)
     best_t = np.full(n_rays, np.inf)
     best_p = np.full(n_rays, -1, dtype=np.int64)
@@ -173,11 +273,11 @@ def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarr
     gaps = np.zeros(n_rays, dtype=np.int64)
     tests = np.zeros(n_rays, dtype=np.int64)
     result = TraversalResult(best_t, best_p, visited, gaps, tests)
-    n = len(c)
+    n = n_s + len(tri)
     if n == 0 or n_rays == 0:
         return result
     if len(bih.indices) != n:
-        raise ValueError(f"BIH built over {len(bih.indices)} primitives, got {n} spheres")
+        raise ValueError(f"BIH built over {len(bih.indices)} primitives, got {n_s} spheres and {len(tri)} triangles")
 
     # Decoded node table.
     w0 = bih.nodes[:, 0]
@@ -191,6 +291,7 @@ def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarr
     count_of = bih.nodes[:, 2].astype(np.int64)
     indices = bih.indices.astype(np.int64)
     cx, cy, cz = c[:, 0], c[:, 1], c[:, 2]
+    tv = [[tri[:, k, a] for a in range(3)] for k in range(3)]
 
     hit_box, t0, t1 = _clip_global(bih.global_aabb, o, d)
 
@@ -252,8 +353,19 @@ def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarr
                     starts = np.cumsum(cnt) - cnt
                     pos = np.repeat(offset_of[ln] - starts, cnt) + np.arange(total, dtype=np.int64)
                     pid = indices[pos]
-                    t = sphere_t((o[ray, 0], o[ray, 1], o[ray, 2]), (d[ray, 0], d[ray, 1], d[ray, 2]),
-                                 (cx[pid], cy[pid], cz[pid]), r[pid], pid, ign[ray], far[ray])
+                    t = np.full(total, np.inf)
+                    sp_ = np.flatnonzero(pid < n_s)
+                    if len(sp_):
+                        ry, ps = ray[sp_], pid[sp_]
+                        t[sp_] = sphere_t((o[ry, 0], o[ry, 1], o[ry, 2]), (d[ry, 0], d[ry, 1], d[ry, 2]),
+                                          (cx[ps], cy[ps], cz[ps]), r[ps], ps, ign[ry], far[ry])
+                    tp_ = np.flatnonzero(pid >= n_s)
+                    if len(tp_):
+                        ry, ps = ray[tp_], pid[tp_]
+                        j = ps - n_s
+                        t[tp_] = triangle_t((o[ry, 0], o[ry, 1], o[ry, 2]), (d[ry, 0], d[ry, 1], d[ry, 2]),
+                                            *[tuple(tv[k][a][j] for a in range(3)) for k in range(3)],
+                                            ps, ign[ry], valid[j])
                     order = np.lexsort((pid, t, ray))
                     ray_s = ray[order]
                     first = np.ones(total, dtype=bool)

@@ -51,8 +51,8 @@ import numpy as np
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..tree_update import DEFAULT_THRESHOLD, REBUILD, UPDATE_SCHEMES, TreeUpdate
 from . import bvh_layout as L
-from .base import BIG_LEAF, Capabilities, PreparedMethod
-from .primitives import sphere_aabbs
+from .base import BIG_LEAF, Capabilities, PreparedMethod, gpu_data, mesh_stats
+from .primitives import scene_aabbs, sphere_aabbs
 
 BINS = 16
 C_TRAV = 1.0
@@ -504,6 +504,12 @@ def build_for_spheres(centers: np.ndarray, radii: np.ndarray, max_prims: int = 4
     return build_bvh(lo, hi, max_prims, max_tree_depth)
 
 
+def build_for_scene(scene, max_prims: int = 4, max_tree_depth: int = L.STACK_SIZE) -> BVH:
+    """A BVH over the scene's spheres then triangles (:mod:`renderer.accel.primitives`)."""
+    lo, hi = scene_aabbs(scene)
+    return build_bvh(lo, hi, max_prims, max_tree_depth)
+
+
 # ------------------------------------------------------------------------------ update
 
 def _levels(bvh: BVH) -> list[np.ndarray]:
@@ -630,9 +636,11 @@ def selective_rebuild(bvh: BVH, aabb_min: np.ndarray, aabb_max: np.ndarray,
 class BVHUpdater:
     """Keeps one animation's BVH between frames and applies the chosen update scheme.
 
-    ``update(centers, radii, scheme)`` returns the frame's BVH. A change in the number
-    of spheres (spheres appearing or disappearing) or in the build limits always
-    rebuilds (Reiter §4.1: resizing needs a rebuild); so does the first frame.
+    ``update(centers, radii, scheme)`` returns the frame's BVH over spheres,
+    ``update_boxes(lo, hi, scheme)`` over any primitives' boxes (spheres and triangles).
+    A change in the number of primitives (spheres appearing or disappearing) or in the
+    build limits always rebuilds (Reiter §4.1: resizing needs a rebuild); so does the first
+    frame.
     """
 
     def __init__(self, max_prims: int = 4, max_tree_depth: int = L.STACK_SIZE,
@@ -644,9 +652,12 @@ class BVHUpdater:
         self.bvh: BVH | None = None
 
     def update(self, centers: np.ndarray, radii: np.ndarray, scheme: str = "rebuild") -> BVH:
+        lo, hi = sphere_aabbs(centers, radii)
+        return self.update_boxes(lo, hi, scheme)
+
+    def update_boxes(self, lo: np.ndarray, hi: np.ndarray, scheme: str = "rebuild") -> BVH:
         if scheme not in UPDATE_SCHEMES:
             raise ValueError(f"unknown update scheme {scheme!r}; one of {', '.join(UPDATE_SCHEMES)}")
-        lo, hi = sphere_aabbs(centers, radii)
         old = self.bvh
         if scheme == "rebuild" or old is None or old.n_primitives != len(lo) or old.n_primitives == 0:
             self.bvh = build_bvh(lo, hi, self.max_prims, self.max_tree_depth)
@@ -689,14 +700,23 @@ class BVHMethod:
         return up
 
     def build(self, scene, max_prims: int, max_tree_depth: int, update: TreeUpdate = REBUILD) -> BVH:
+        """The frame's BVH over the scene's spheres and triangles (built, or updated from the
+        previous frame of ``update.key``)."""
+        lo, hi = scene_aabbs(scene)
+        return self.build_boxes(lo, hi, max_prims, max_tree_depth, update)
+
+    def build_boxes(self, lo: np.ndarray, hi: np.ndarray, max_prims: int, max_tree_depth: int,
+                    update: TreeUpdate = REBUILD) -> BVH:
+        """The same over primitive boxes (float32 (n, 3)): the two-level method's moving part."""
         if update.scheme == "rebuild":
-            return build_for_spheres(scene.sphere_centers, scene.sphere_radii, max_prims, max_tree_depth)
-        return self.updater(update.key, max_prims, max_tree_depth, update.threshold).update(
-            scene.sphere_centers, scene.sphere_radii, update.scheme)
+            return build_bvh(lo, hi, max_prims, max_tree_depth)
+        return self.updater(update.key, max_prims, max_tree_depth, update.threshold).update_boxes(
+            lo, hi, update.scheme)
 
     def prepare(self, scene, max_prims: int, max_tree_depth: int, max_width: int = DEFAULT_TEXTURE_WIDTH,
                 update: TreeUpdate = REBUILD) -> PreparedMethod:
         t0 = time.perf_counter()
         bvh = self.build(scene, max_prims, max_tree_depth, update)
         ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod(L.pack_bvh(bvh, max_width), ms, {"method": self.name, **bvh.stats.to_json()})
+        return PreparedMethod(gpu_data(scene, lambda: L.pack_bvh(bvh, max_width)), ms,
+                              {"method": self.name, **bvh.stats.to_json(), **mesh_stats(scene)}, tree=bvh)

@@ -41,8 +41,8 @@ import numpy as np
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..tree_update import REBUILD, TreeUpdate
 from . import kdtree_layout as L
-from .base import BIG_LEAF, Capabilities, PreparedMethod
-from .primitives import sphere_aabbs
+from .base import BIG_LEAF, Capabilities, PreparedMethod, gpu_data, mesh_stats
+from .primitives import scene_aabbs, sphere_aabbs
 
 C_TRAV = 1.0
 C_ISECT = 1.0
@@ -445,6 +445,13 @@ def build_for_spheres(centers: np.ndarray, radii: np.ndarray, max_tree_depth: in
     return build_kdtree(lo, hi, max_tree_depth=max_tree_depth, cost_scale=cost_scale, **kw)
 
 
+def build_for_scene(scene, max_tree_depth: int = L.STACK_SIZE, cost_scale: float = DEFAULT_COST_SCALE,
+                    **kw) -> KdTree:
+    """A kd-tree over the scene's spheres then triangles (:mod:`renderer.accel.primitives`)."""
+    lo, hi = scene_aabbs(scene)
+    return build_kdtree(lo, hi, max_tree_depth=max_tree_depth, cost_scale=cost_scale, **kw)
+
+
 class KdTreeMethod:
     """Method ``kdtree``: the SAH kd-tree of this module (cost scaling on), rebuilt per request,
     traced by ``shaders/method_kdtree.glsl``. ``max_prims`` is not used: the SAH decides."""
@@ -458,6 +465,7 @@ class KdTreeMethod:
                 update: TreeUpdate = REBUILD) -> PreparedMethod:
         """Builds a fresh tree every frame: a kd-tree is not refitted (``update`` is ignored)."""
         t0 = time.perf_counter()
-        kd = build_for_spheres(scene.sphere_centers, scene.sphere_radii, max_tree_depth, self.cost_scale)
+        kd = build_for_scene(scene, max_tree_depth, self.cost_scale)
         ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod(L.pack_kdtree(kd, max_width), ms, {"method": self.name, **kd.stats.to_json()})
+        return PreparedMethod(gpu_data(scene, lambda: L.pack_kdtree(kd, max_width)), ms,
+                              {"method": self.name, **kd.stats.to_json(), **mesh_stats(scene)}, tree=kd)

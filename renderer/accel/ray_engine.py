@@ -17,12 +17,16 @@ from ..scene import Scene
 from ..tree_update import REBUILD, TreeUpdate
 from .base import Capabilities, NoLayout, PreparedMethod
 
+SPHERES_AND_PLANES = ("spheres", "planes")
+
 
 class RayEngine(NoLayout):
     """Carr et al.'s ray engine: every primitive drawn over every ray."""
     name = "rayengine"
     hierarchical = False
-    capabilities = Capabilities(multi_pass=True, modes=SINGLE_PASS_MODES, tests_every_sphere=True)
+    # Its passes draw sphere and plane impostors only; triangles would need passes of their own.
+    capabilities = Capabilities(multi_pass=True, modes=SINGLE_PASS_MODES, tests_every_sphere=True,
+                                primitives=SPHERES_AND_PLANES)
     stencil_bits = STENCIL_BITS   # bits used, one per generation (§5); fewer: fallback beyond them
 
     def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
@@ -41,7 +45,8 @@ class HierarchicalRayEngine(RayEngine):
     Its ``cones`` mode shows the cones."""
     name = "hre"
     hierarchical = True
-    capabilities = Capabilities(multi_pass=True, modes=MODES, tests_every_sphere=True, settings=("tile_size",))
+    capabilities = Capabilities(multi_pass=True, modes=MODES, tests_every_sphere=True, settings=("tile_size",),
+                                primitives=SPHERES_AND_PLANES)
 
     def tile(self, tile_size: int) -> int:
         """The tile side, the ``tile_size`` setting (the settings bound it by ``limits``; the

@@ -1,4 +1,4 @@
-"""Method ``twolevel`` (Reiter §3.2.2, Figure 5.6): static spheres in a kd-tree, moving ones in a BVH."""
+"""Method ``twolevel`` (Reiter §3.2.2, Figure 5.6): static primitives in a kd-tree, moving ones in a BVH."""
 
 from __future__ import annotations
 
@@ -9,12 +9,13 @@ import numpy as np
 from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
 from ..scene import Scene
 from ..tree_update import REBUILD, UPDATE_SCHEMES, TreeUpdate
-from .base import Capabilities, PreparedMethod
+from .base import Capabilities, PreparedMethod, gpu_data, mesh_stats
 from .bvh import BVHMethod
 from . import bvh_layout, kdtree_layout
 from .bvh_layout import pack_bvh
-from .kdtree import DEFAULT_COST_SCALE, build_for_spheres
+from .kdtree import DEFAULT_COST_SCALE, build_kdtree
 from .kdtree_layout import pack_kdtree
+from .primitives import scene_aabbs
 
 KD_COUNT = Binding("u_kd_count", "highp int", "spheres in the kd-tree (static)")
 BVH_COUNT = Binding("u_bvh_count", "highp int", "spheres in the BVH (moving)")
@@ -26,8 +27,12 @@ class TwoLevelMethod:
     with the chosen scheme. Every ray traverses both and keeps the nearer hit
     (``shaders/method_twolevel.glsl``: kd-tree first, its hit then bounds the BVH).
 
-    ``update.moving`` is a bool mask over the scene's spheres (from :func:`renderer.animation.pose`); without
-    it every sphere counts as static (a plain scene has no motion).
+    ``update.moving`` is a bool mask over the scene's tree primitives — spheres, then
+    triangles (from :func:`renderer.animation.pose`; for a scene without triangles, one
+    per sphere); without it everything counts as static (a plain scene has no motion).
+    Tree primitive ids are those of :mod:`renderer.accel.primitives`; ``tree`` of the
+    prepared method is ``(kd, static_ids, bvh, moving_ids)``, each structure built over its
+    subset (its primitive ``i`` is tree primitive ``ids[i]``).
     """
     name = "twolevel"
     capabilities = Capabilities(shader="method_twolevel.glsl", update_schemes=UPDATE_SCHEMES,
@@ -43,13 +48,12 @@ class TwoLevelMethod:
         self._bvh = BVHMethod()
         self._kd: dict = {}
 
-    def _static_tree(self, scene: Scene, static_ids: np.ndarray, max_tree_depth: int, key):
-        c = scene.sphere_centers[static_ids]
-        r = scene.sphere_radii[static_ids]
-        sig = (key, max_tree_depth, len(static_ids), hash(static_ids.tobytes()), hash(c.tobytes()), hash(r.tobytes()))
+    def _static_tree(self, lo: np.ndarray, hi: np.ndarray, static_ids: np.ndarray, max_tree_depth: int, key):
+        lo, hi = lo[static_ids], hi[static_ids]
+        sig = (key, max_tree_depth, len(static_ids), hash(static_ids.tobytes()), hash(lo.tobytes()), hash(hi.tobytes()))
         hit = self._kd.pop(sig, None)
         if hit is None:
-            hit = build_for_spheres(c, r, max_tree_depth, DEFAULT_COST_SCALE)
+            hit = build_kdtree(lo, hi, max_tree_depth=max_tree_depth, cost_scale=DEFAULT_COST_SCALE)
             fresh = True
         else:
             fresh = False
@@ -61,32 +65,33 @@ class TwoLevelMethod:
     def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int, max_width: int = DEFAULT_TEXTURE_WIDTH,
                 update: TreeUpdate = REBUILD) -> PreparedMethod:
         t0 = time.perf_counter()
-        n = scene.n_spheres
+        n = scene.n_spheres + scene.n_triangles
         mv = np.zeros(n, dtype=bool) if update.moving is None else np.asarray(update.moving, dtype=bool).reshape(-1)
         if len(mv) != n:
-            raise ValueError(f"moving mask has {len(mv)} entries for {n} spheres")
+            raise ValueError(f"moving mask has {len(mv)} entries for {scene.n_spheres} spheres and "
+                             f"{scene.n_triangles} triangles")
         static_ids = np.flatnonzero(~mv)
         moving_ids = np.flatnonzero(mv)
-        kd, fresh = self._static_tree(scene, static_ids, max_tree_depth, update.key)
+        lo, hi = scene_aabbs(scene)
+        kd, fresh = self._static_tree(lo, hi, static_ids, max_tree_depth, update.key)
         t1 = time.perf_counter()
-        sub = Scene(scene.camera, scene.lights, scene.materials, scene.sphere_centers[moving_ids],
-                    scene.sphere_radii[moving_ids], scene.sphere_materials[moving_ids], scene.planes)
-        bvh = self._bvh.build(sub, max_prims, max_tree_depth, update)
+        bvh = self._bvh.build_boxes(lo[moving_ids], hi[moving_ids], max_prims, max_tree_depth, update)
         t2 = time.perf_counter()
-        packed = pack_twolevel(kd, static_ids, bvh, moving_ids, max_width)
+        packed = gpu_data(scene, lambda: pack_twolevel(kd, static_ids, bvh, moving_ids, max_width))
         stats = {"method": self.name, "static": int(len(static_ids)), "moving": int(len(moving_ids)),
                  "kd_build_ms": (t1 - t0) * 1e3 if fresh else 0.0, "kd_cached": not fresh,
                  "bvh_update_ms": (t2 - t1) * 1e3, "scheme": bvh.stats.scheme,
                  "kd": kd.stats.to_json(), "bvh": bvh.stats.to_json(),
-                 "bytes": kd.stats.bytes + bvh.stats.bytes}
-        return PreparedMethod(packed, (t2 - t0) * 1e3, stats)
+                 "bytes": kd.stats.bytes + bvh.stats.bytes, **mesh_stats(scene)}
+        return PreparedMethod(packed, (t2 - t0) * 1e3, stats, tree=(kd, static_ids, bvh, moving_ids))
 
 
 def pack_twolevel(kd, kd_ids: np.ndarray, bvh, bvh_ids: np.ndarray,
                   max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
     """Two levels: the kd-tree over the spheres ``kd_ids`` and the BVH over ``bvh_ids``.
 
-    Each structure was built over its subset (primitive ``i`` = scene sphere ``ids[i]``);
+    Each structure was built over its subset (primitive ``i`` = scene sphere ``ids[i]``; packed
+    only for scenes without triangles, where tree primitives are the spheres);
     their index arrays are mapped to scene ids here, so the shader sees scene ids only.
     """
     kd_ids = np.asarray(kd_ids, dtype=np.int64)

@@ -37,6 +37,7 @@ from fastapi.responses import PlainTextResponse
 from renderer import gpu_layout
 from renderer.accel.base import AccelerationMethod
 from renderer.features import scene_features
+from renderer.accel.base import NOT_ON_GPU
 from renderer.methods import METHODS, resolve_method
 from renderer.modes import SINGLE_PASS_MODES
 from renderer.shader_source import tracer_source, vertex_source
@@ -118,6 +119,9 @@ def device_data(session_id: SessionId, service: ServiceDep, query: Annotated[Dev
                          "the tracer reads RGBA32F textures and writes two RGBA32F targets (WebGL2 needs "
                          "EXT_color_buffer_float); this device cannot run it: use server mode")
     state = service.get(session_id)
+    if state.scene_info.get("n_triangles", 0):
+        raise InputError(("query", "meshes"), f"{NOT_ON_GPU}: a device cannot trace this scene's "
+                                              f"{state.scene_info['n_triangles']:,} triangles")
     settings = service.merge_settings(state.settings, query.given(), "query")
     n = state.scene_info.get("n_spheres", 0)
     method_name = resolve_method(settings["method"], n)

@@ -59,7 +59,8 @@ def info(service: ServiceDep) -> InfoOut:
     return InfoOut(methods=list(METHODS), modes=list(MODES), formats=list(FORMATS), state_backend=c.state_backend,
                    profiles=PROFILES, update_schemes=list(UPDATE_SCHEMES), museum_kinds=list(MUSEUM_KINDS),
                    limits=LimitsOut(max_work=c.max_work, max_frame_cost=c.max_frame_cost, slice_ms=c.slice_ms,
-                                    max_spheres=c.max_spheres, max_body_bytes=c.max_body_bytes,
+                                    max_spheres=c.max_spheres, max_triangles=c.max_triangles,
+                                    max_body_bytes=c.max_body_bytes,
                                     max_image_side=MAX_IMAGE_SIDE, queue_size=c.queue_size,
                                     session_ttl_s=c.session_ttl_s),
                    **info_extras(c))

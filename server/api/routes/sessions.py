@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
+import json
 from typing import Annotated
 
-from fastapi import APIRouter, Body, Response
+from fastapi import APIRouter, Body, Query, Request, Response
 from fastapi.responses import StreamingResponse
+from starlette.concurrency import run_in_threadpool
 
-from ...models import (CameraModel, CameraOut, FullSettings, SceneInfo, SceneModel, SessionCreate, SessionOut,
-                       SettingsOut, SettingsPatch, VersionOut)
+from renderer.mesh_io import MODEL_FORMATS, fit_transform, load_mesh
+from renderer.scene import SceneError
+
+from ...models import (CameraModel, CameraOut, FullSettings, MeshAdded, MeshModel, MeshUploadQuery, SceneInfo,
+                       SceneModel, SessionCreate, SessionOut, SettingsOut, SettingsPatch, VersionOut)
+from ...service import InputError
 from ...scenes import scene_json_chunks
 from ...store import SessionState
 from ..deps import ServiceDep, SessionId
@@ -72,3 +78,37 @@ def patch_settings(session_id: SessionId, patch: Annotated[SettingsPatch, Body()
                    service: ServiceDep) -> SettingsOut:
     state = service.patch_settings(session_id, patch)
     return SettingsOut(**state.settings, version=state.version)
+
+
+# A model file is the raw request body (bytes), read in memory: no multipart, nothing written to disk.
+_MODEL_BODY = {"requestBody": {"required": True, "description": "the model file's bytes (" + ", ".join(MODEL_FORMATS)
+                               + "); at most POCKETRAY_MAX_BODY_BYTES (else 413)",
+                               "content": {"application/octet-stream": {"schema": {"type": "string",
+                                                                                     "format": "binary"}}}}}
+
+
+@router.post("/sessions/{session_id}/meshes", status_code=201, response_model=MeshAdded,
+             responses=documented(404, 409, 413, 503), openapi_extra=_MODEL_BODY,
+             summary="Add a model file (OBJ, PLY, STL, glTF/GLB; the body) to the session's scene as a mesh")
+async def add_mesh(session_id: SessionId, request: Request, query: Annotated[MeshUploadQuery, Query()],
+                   service: ServiceDep) -> MeshAdded:
+    data = await request.body()
+    state, index, first_id = await run_in_threadpool(service.add_mesh, session_id, data, query)
+    return MeshAdded(version=state.version, scene_info=SceneInfo(**state.scene_info), mesh=index, first_id=first_id)
+
+
+@router.post("/meshes", response_model=MeshModel, responses=documented(413, 503), openapi_extra=_MODEL_BODY,
+             summary="A model file (the body) as mesh JSON, to put in a scene (nothing is stored)")
+async def convert_mesh(request: Request, query: Annotated[MeshUploadQuery, Query()], service: ServiceDep) -> Response:
+    data = await request.body()
+
+    def convert() -> bytes:
+        try:
+            parsed = load_mesh(data, query.format, max_triangles=service.config.max_triangles)
+            mesh = parsed.to_json(query.material, fit_transform(parsed, query.size) if query.size else None,
+                                  query.smooth)
+        except SceneError as e:
+            raise InputError(("query", "format") if e.field == "format" else ("body",), e.message) from None
+        return json.dumps(mesh, separators=(",", ":"), allow_nan=False).encode()
+    # JSON written directly: a mesh of a million triangles is not validated again on its way out
+    return Response(await run_in_threadpool(convert), media_type="application/json")

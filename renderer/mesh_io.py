@@ -1,0 +1,233 @@
+"""Triangle meshes from model files — OBJ, PLY, STL, glTF/GLB — through trimesh, and the
+functions a command line calls to make scenes of them.
+
+:func:`load_mesh` parses a file (a path, or bytes held in memory: nothing is written, and a
+model given as bytes cannot reference other files — an OBJ's materials, a glTF's external
+buffers) into :class:`MeshData`: float64 vertices, triangles, and the file's vertex normals
+when it has them (OBJ ``vn``, PLY ``nx ny nz``, glTF ``NORMAL``). A file of several meshes
+(a glTF scene, an OBJ of several objects) becomes one mesh: each part placed by its node's
+transform. Polygons are split into triangles by trimesh; degenerate triangles are kept (the
+scene counts them). Vertices of exactly equal position (and normal) are merged
+(:func:`renderer.meshes.weld`-like, but keeping every triangle): STL stores each
+triangle's corners apart, and only shared vertices make a mesh watertight for the tracer —
+exact equality keeps every coordinate as the file has it.
+
+There is no ``pocketray`` command line yet (``server/cli.py``); :func:`model_scene`,
+:func:`mesh_json` and :func:`write_scene_json` are what its ``render model.glb`` and
+``scene --mesh model.obj -o scene.json`` will call.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import limits
+from .scene import Camera, Light, Material, Mesh, Plane, Scene, SceneError, make_mesh
+
+MODEL_FORMATS = ("obj", "ply", "stl", "glb", "gltf")
+_SUFFIX = {".obj": "obj", ".ply": "ply", ".stl": "stl", ".glb": "glb", ".gltf": "gltf"}
+
+
+@dataclass(frozen=True)
+class MeshData:
+    """A model's geometry as parsed: ``vertices`` float64 (V, 3) in the file's units,
+    ``triangles`` int64 (T, 3), ``normals`` float64 (V, 3) or None (the file had none)."""
+    vertices: np.ndarray
+    triangles: np.ndarray
+    normals: np.ndarray | None = None
+
+    @property
+    def n_triangles(self) -> int:
+        return len(self.triangles)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.vertices.min(axis=0), self.vertices.max(axis=0)
+
+    def to_mesh(self, material: int = 0, transform: Any = None, smooth: bool | None = None) -> Mesh:
+        """The scene's :class:`~renderer.scene.Mesh` (``transform`` applied); ``smooth``: None
+        keeps the file's normals, False shades flat, True uses the file's normals or, when it
+        has none, area-weighted ones."""
+        normals = self.normals
+        if smooth is False:
+            normals = None
+        elif smooth and normals is None:
+            from .meshes import vertex_normals
+            normals = vertex_normals(self.vertices, self.triangles)
+        return make_mesh(self.vertices, self.triangles, material, normals, transform)
+
+    def to_json(self, material: int = 0, transform: Any = None, smooth: bool | None = None) -> dict:
+        """The mesh JSON of docs/FORMATS.md (world space: the transform applied)."""
+        return self.to_mesh(material, transform, smooth).to_json()
+
+
+def file_type_of(source: str | Path | bytes, file_type: str | None) -> str:
+    """The format to parse: ``file_type`` when given, else the path's suffix."""
+    if file_type is not None:
+        ft = str(file_type).lower().lstrip(".")
+        if ft not in MODEL_FORMATS:
+            raise SceneError("format", f"unknown model format {file_type!r}; one of {', '.join(MODEL_FORMATS)}")
+        return ft
+    if isinstance(source, (bytes, bytearray, memoryview)):
+        raise SceneError("format", f"required for a model given as bytes: one of {', '.join(MODEL_FORMATS)}")
+    suffix = Path(source).suffix.lower()
+    if suffix not in _SUFFIX:
+        raise SceneError("format", f"cannot tell the format of {Path(source).name!r}; name one of "
+                                   f"{', '.join(MODEL_FORMATS)}")
+    return _SUFFIX[suffix]
+
+
+def _file_normals(geom) -> np.ndarray | None:
+    """The vertex normals trimesh read from the file, if any (it keeps them in its cache; a
+    normal it would compute itself is not the file's)."""
+    cache = getattr(getattr(geom, "_cache", None), "cache", {})
+    n = cache.get("vertex_normals") if isinstance(cache, dict) else None
+    if n is None or len(n) != len(geom.vertices):
+        return None
+    return np.asarray(n, dtype=np.float64)
+
+
+def _parts(loaded) -> list[tuple[np.ndarray, np.ndarray, np.ndarray | None]]:
+    """(vertices, faces, normals) of every triangle mesh in what trimesh loaded, each placed by
+    its scene node's transform (normals by the inverse transpose)."""
+    import trimesh
+    if isinstance(loaded, trimesh.Trimesh):
+        return [(np.asarray(loaded.vertices, np.float64), np.asarray(loaded.faces, np.int64), _file_normals(loaded))]
+    if not isinstance(loaded, trimesh.Scene):
+        return []
+    out = []
+    for node in loaded.graph.nodes_geometry:
+        matrix, name = loaded.graph[node]
+        geom = loaded.geometry.get(name)
+        if not isinstance(geom, trimesh.Trimesh) or len(geom.faces) == 0:
+            continue           # points, paths: nothing to trace
+        m = np.asarray(matrix, np.float64)
+        v = np.asarray(geom.vertices, np.float64) @ m[:3, :3].T + m[:3, 3]
+        n = _file_normals(geom)
+        f = np.asarray(geom.faces, np.int64)
+        if n is not None:
+            n = n @ np.linalg.inv(m[:3, :3])
+        if np.linalg.det(m[:3, :3]) < 0:
+            f = f[:, [0, 2, 1]]
+        out.append((v, f, n))
+    return out
+
+
+def _merge_equal(v: np.ndarray, t: np.ndarray, n: np.ndarray | None):
+    """Merge vertices of exactly equal position (and normal); every triangle is kept."""
+    key = v + 0.0 if n is None else np.concatenate([v + 0.0, n + 0.0], axis=1)
+    uniq, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    t = inverse.reshape(-1)[t]
+    return v[first], t, (None if n is None else n[first])
+
+
+def load_mesh(source: str | Path | bytes, file_type: str | None = None, *,
+              max_triangles: int = limits.MAX_TRIANGLES, max_vertices: int = limits.MAX_MESH_VERTICES) -> MeshData:
+    """Parse a model file (path or bytes; ``file_type`` one of :data:`MODEL_FORMATS`, from the
+    suffix when None) into :class:`MeshData`. SceneError ``format`` for an unknown format,
+    ``file`` for a file that is not a model of that format, holds no triangle, or exceeds
+    ``max_triangles`` / ``max_vertices`` (after merging equal vertices)."""
+    import trimesh
+
+    ft = file_type_of(source, file_type)
+    if isinstance(source, (bytes, bytearray, memoryview)):
+        obj: Any = io.BytesIO(bytes(source))          # in memory, with no resolver: no other file is read
+        resolver = None
+    else:
+        obj = str(source)
+        resolver = None                               # trimesh resolves a path's neighbours itself
+    try:
+        loaded = trimesh.load(obj, file_type=ft, resolver=resolver, process=False)
+        parts = _parts(loaded)
+    except SceneError:
+        raise
+    except Exception as e:  # noqa: BLE001 - a parser's failure is the file's fault: say which
+        raise SceneError("file", f"not a readable {ft.upper()} model ({type(e).__name__}: {e})") from None
+    if not parts:
+        raise SceneError("file", f"the {ft.upper()} file holds no triangle mesh")
+    total = sum(len(f) for _, f, _ in parts)
+    if total > max_triangles:
+        raise SceneError("file", f"the model has {total:,} triangles; at most {max_triangles:,} allowed")
+    with_normals = all(n is not None for _, _, n in parts)
+    vs, ts, ns, base = [], [], [], 0
+    for v, f, n in parts:
+        vs.append(v)
+        ts.append(f + base)
+        ns.append(n)
+        base += len(v)
+    v = np.concatenate(vs)
+    t = np.concatenate(ts)
+    n = np.concatenate(ns) if with_normals else None
+    if not (np.isfinite(v).all() and (n is None or np.isfinite(n).all())):
+        raise SceneError("file", "the model has vertices or normals that are not finite numbers")
+    if len(t) and (t.min() < 0 or t.max() >= len(v)):
+        raise SceneError("file", "the model has faces that index missing vertices")
+    v, t, n = _merge_equal(v, t, n)
+    if n is not None and not (np.abs(n).sum(axis=1) > 0).all():
+        n = None      # a zero normal in the file: fall back to flat shading rather than refuse the model
+    if len(v) > max_vertices:
+        raise SceneError("file", f"the model has {len(v):,} distinct vertices; at most {max_vertices:,} per mesh")
+    return MeshData(v, t, n)
+
+
+def export_mesh(mesh: Mesh | MeshData, file_type: str) -> bytes:
+    """A mesh written in ``file_type`` (OBJ, PLY, STL, GLB; with its normals where the format
+    keeps them) — for round trips and for handing scenes to other tools."""
+    import trimesh
+    ft = file_type_of(b"", file_type)
+    if ft == "gltf":
+        raise SceneError("format", "gltf is several files (JSON and buffers): export glb instead")
+    tm = trimesh.Trimesh(np.asarray(mesh.vertices), np.asarray(mesh.triangles),
+                         vertex_normals=None if mesh.normals is None else np.asarray(mesh.normals), process=False)
+    data = tm.export(file_type=ft, **({"include_normals": mesh.normals is not None} if ft == "obj" else {}))
+    return data.encode() if isinstance(data, str) else bytes(data)
+
+
+def fit_transform(data: MeshData, size: float = 30.0, floor: float | None = -20.0) -> list[list[float]]:
+    """The 4 × 4 transform (row-major) that scales a model uniformly so that its longest side
+    is ``size`` world units, centres it on the y axis and sets it on ``floor`` (its lowest
+    point at y = floor; None: centred on the origin)."""
+    lo, hi = data.bounds()
+    extent = float((hi - lo).max())
+    if not extent > 0:
+        raise SceneError("file", "the model has no extent (all its vertices at one point)")
+    s = float(size) / extent
+    centre = (lo + hi) / 2.0
+    ty = -centre[1] * s if floor is None else floor - lo[1] * s
+    return [[s, 0.0, 0.0, -centre[0] * s], [0.0, s, 0.0, ty], [0.0, 0.0, s, -centre[2] * s], [0.0, 0.0, 0.0, 1.0]]
+
+
+MODEL = Material(color=(0.92, 0.9, 0.85), ambient=0.15, diffuse=0.65, specular=0.4, shininess=60.0,
+                 reflective=0.1, transmissive=0.0, ior=1.0)
+FLOOR = Material(color=(0.9, 0.3, 0.3), ambient=0.30, diffuse=0.30, specular=0.10, shininess=40.0,
+                 reflective=0.30, transmissive=0.0, ior=1.0)     # the thesis's red (Table 4.1)
+
+
+def model_scene(source: str | Path | bytes, file_type: str | None = None, *, size: float = 30.0,
+                smooth: bool | None = None, material: Material = MODEL) -> Scene:
+    """A scene of one model: fitted (:func:`fit_transform`) into the thesis's cube, standing
+    on its floor plane (y = −20), the thesis's camera and light — what ``pocketray render
+    model.glb`` renders."""
+    data = load_mesh(source, file_type)
+    mesh = data.to_mesh(1, fit_transform(data, size), smooth)
+    return Scene(Camera((0.0, 0.0, 100.0), (0.0, -5.0, 0.0), (0.0, 1.0, 0.0), 40.0),
+                 (Light((20.0, 40.0, 30.0), (1.0, 1.0, 1.0)),), (FLOOR, material),
+                 np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32),
+                 (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),), (mesh,))
+
+
+def mesh_json(source: str | Path | bytes, file_type: str | None = None, *, material: int = 0,
+              transform: Any = None, smooth: bool | None = None) -> dict:
+    """The mesh JSON (docs/FORMATS.md) of a model file — what ``pocketray scene --mesh
+    model.obj`` puts in a scene."""
+    return load_mesh(source, file_type).to_json(material, transform, smooth)
+
+
+def write_scene_json(scene: Scene, path: str | Path) -> None:
+    """Write ``scene`` as scene JSON (compact, no NaN)."""
+    Path(path).write_text(json.dumps(scene.to_json(), separators=(",", ":"), allow_nan=False))
