@@ -400,7 +400,7 @@ class SessionService:
         except SceneError as e:
             raise relocate(e, where) from None
         limit = self.config.max_frame_cost
-        if frame.cost.ms > limit:
+        if frame.cost.bound_ms > limit:
             raise InputError(*self._too_costly(frame, where, limit, n_field))
         return frame
 
@@ -421,8 +421,8 @@ class SessionService:
         """Where to point and what to say of a frame estimated over the cost cap."""
         s, c = frame.settings, frame.cost
         n = frame.scene.n_spheres
-        head = (f"this frame of {n:,} spheres is estimated at {c.ms:,.0f} ms of GL time, over the limit of "
-                f"{limit:,.0f} ms (POCKETRAY_MAX_FRAME_COST; {c.passes} pass(es) of {c.pixels:,} pixels, "
+        head = (f"this frame of {n:,} primitives is estimated at up to {c.bound_ms:,.0f} ms of GL time, over the "
+                f"limit of {limit:,.0f} ms (POCKETRAY_MAX_FRAME_COST; {c.passes} pass(es) of {c.pixels:,} pixels, "
                 f"{c.rays_per_pixel:.1f} rays per pixel, {c.tests_per_ray:,.0f} sphere tests per ray)")
         if n_field is not None and not c.degenerate and c.tests_per_ray > self.CROWDED_TESTS:
             return (n_field, f"{head}: the spheres crowd every ray even through the hierarchy; lower n "

@@ -166,7 +166,7 @@ def estimate_ms(n: int, **settings) -> float:
     from renderer.prepare import prepare_frame
     from renderer.scenarios import scenario
     from renderer.settings import RenderSettings
-    return prepare_frame(scenario(3, n, seed=1), RenderSettings(**{**SMALL, **FRAME, **settings})).cost.ms
+    return prepare_frame(scenario(3, n, seed=1), RenderSettings(**{**SMALL, **FRAME, **settings})).cost.bound_ms
 
 
 @pytest.fixture(scope="module")
