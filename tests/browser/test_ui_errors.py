@@ -148,7 +148,7 @@ def test_a_scene_too_heavy_to_render_gets_the_services_explanation(open_client, 
     time.sleep(1.0)                                          # a retry would have gone by now
     assert len(refused) == 1, refused                       # one frame asked for, no retries
     text = invalid(p, "n")
-    assert text and "2,097,152 spheres" in text and "lower n" in text, text
+    assert text and "2,097,152 primitives" in text and "lower n" in text, text
     assert not any(w in text for w in API_WORDS), text
     assert c.hook("sessionId") == sid                       # back to the scene on screen
     assert p.evaluate("() => JSON.parse(localStorage.getItem('pocketray.session')).id") == sid
