@@ -311,4 +311,4 @@ class BoundingIntervalHierarchy:
         t0 = time.perf_counter()
         bih = build_for_spheres(scene.sphere_centers, scene.sphere_radii, max_prims, max_tree_depth)
         build_ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod(L.pack_bih(bih, max_width), build_ms, {"method": self.name, **bih.stats.to_json()})
+        return PreparedMethod(L.pack_bih(bih, scene, max_width), build_ms, {"method": self.name, **bih.stats.to_json()})

@@ -694,4 +694,4 @@ class BVHMethod:
         t0 = time.perf_counter()
         bvh = self.build(scene, max_prims, max_tree_depth, update)
         ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod(L.pack_bvh(bvh, max_width), ms, {"method": self.name, **bvh.stats.to_json()})
+        return PreparedMethod(L.pack_bvh(bvh, scene, None, max_width), ms, {"method": self.name, **bvh.stats.to_json()})

@@ -456,4 +456,4 @@ class KdTreeMethod:
         t0 = time.perf_counter()
         kd = build_for_spheres(scene.sphere_centers, scene.sphere_radii, max_tree_depth, self.cost_scale)
         ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod(L.pack_kdtree(kd, max_width), ms, {"method": self.name, **kd.stats.to_json()})
+        return PreparedMethod(L.pack_kdtree(kd, scene, None, max_width), ms, {"method": self.name, **kd.stats.to_json()})
