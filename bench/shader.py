@@ -20,6 +20,7 @@ built once per configuration and side (``prepare`` is not timed).
     .venv/bin/python bench/shader.py --quick          # tiny images, 1 run (smoke)
     .venv/bin/python bench/shader.py --only colour_d3,primary --runs 9
     .venv/bin/python bench/shader.py --sides base,new,new/tex --json out.json
+    .venv/bin/python bench/shader.py --sides new,try=/tmp/copy   # a modified copy of renderer/ + shaders/
 
 ``bench/experiments/shader.py`` runs it for docs/RESULTS.md.
 """
@@ -170,7 +171,11 @@ def measure(configs, sides: list[str], runs: int, quick: bool = False, base: str
     """{config name: {side: {"trace": [ms…], "read": [ms…], "stats": …}}}, interleaved."""
     with tempfile.TemporaryDirectory(prefix="pocketray-base-") as tmp:
         roots = {"base": extract(base, Path(tmp)) if "base" in sides else None}
-        workers = {s: Side(s, roots.get("base") if s == "base" else ROOT, SIDES[s]) for s in sides}
+        def root_of(side: str) -> Path:
+            if side == "base":
+                return roots["base"]
+            return Path(side.split("=", 1)[1]) if "=" in side else ROOT
+        workers = {s: Side(s, root_of(s), SIDES.get(s, {})) for s in sides}
         try:
             out = {c.name: {s: {"trace": [], "read": [], "wall": []} for s in sides} for c in configs}
             for rep in range(runs + 1):            # rep 0: the untimed warm-up (compiles)
@@ -194,8 +199,10 @@ def measure(configs, sides: list[str], runs: int, quick: bool = False, base: str
 def table(data: dict, configs) -> str:
     sides = data["sides"]
     ref = "base" if "base" in sides else sides[0]
-    head = ["configuration", *(f"{s} trace ms" for s in sides),
-            *(f"{s} / {ref}" for s in sides if s != ref), *(f"{s} read ms" for s in sides)]
+    sides_shown = {s: s.split("=", 1)[0] for s in sides}
+    head = ["configuration", *(f"{sides_shown[s]} trace ms" for s in sides),
+            *(f"{sides_shown[s]} / {sides_shown[ref]}" for s in sides if s != ref),
+            *(f"{sides_shown[s]} read ms" for s in sides)]
     rows = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for c in configs:
         d = data["results"][c.name]
@@ -213,7 +220,8 @@ def main(argv=None) -> int:
     ap.add_argument("--runs", type=int, default=7)
     ap.add_argument("--quick", action="store_true", help="tiny images, 1 run")
     ap.add_argument("--only", default="", help="comma-separated configuration names")
-    ap.add_argument("--sides", default="base,new", help=f"comma-separated, of {', '.join(SIDES)}")
+    ap.add_argument("--sides", default="base,new",
+                    help=f"comma-separated, of {', '.join(SIDES)} or NAME=PATH (a directory with renderer/ and shaders/)")
     ap.add_argument("--base", default=BASE_COMMIT, help="the commit to compare against")
     ap.add_argument("--json", type=Path, help="write the raw measurements here")
     a = ap.parse_args(argv)
