@@ -7,8 +7,10 @@
 // server/device_data.py). The tree is still built by the server, per request.
 //
 //  - DeviceRenderer: WebGL2 context on an offscreen canvas; uploads the blob's
-//    textures (RGBA32F → RGBA32F/FLOAT, R32UI → R32UI/RED_INTEGER, RGB32UI →
-//    RGB32UI/RGB_INTEGER, …; NEAREST), sets the uniforms by the types the linked
+//    textures (RGBA32F → RGBA32F/FLOAT, R32UI → R32UI/RED_INTEGER, RGBA32UI →
+//    RGBA32UI/RGBA_INTEGER: the tree's records and the sphere records, which a device
+//    always gets as textures, never as the uniform blocks the server may choose; …;
+//    NEAREST), sets the uniforms by the types the linked
 //    program reports, draws two triangles into two RGBA32F targets (location 0:
 //    rgb image + primary id, location 1: normal + t), then copies location 0,
 //    clamped, to its canvas for display. readback() gives ids and uint8 colour

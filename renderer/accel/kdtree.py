@@ -66,7 +66,8 @@ class KdStats:
     ``references``: primitive references in all leaves (a straddler counts once
     per leaf); ``indices``: entries of the compacted index array; ``bytes``:
     nodes (8 B) + compacted index array (4 B each) + global box (24 B), Fig. 5.4's
-    "size"; ``sah_cost``: ``(C_TRAV Σ_inner A + C_ISECT Σ_leaf A·n) / A_root``.
+    "size" (the build's layout; the GPU's, ``kdtree_layout``, holds a sphere record per
+    reference); ``sah_cost``: ``(C_TRAV Σ_inner A + C_ISECT Σ_leaf A·n) / A_root``.
     """
     primitives: int
     nodes: int
