@@ -207,3 +207,79 @@ def test_glsl_header_states_the_tracers_constants():
     assert f"#define BIH_STACK_SIZE {MAX_TREE_DEPTH}" in bih_layout.glsl_defines().splitlines()
     assert f"#define BVH_STACK_SIZE {MAX_TREE_DEPTH}" in bvh_layout.glsl_defines().splitlines()
     assert f"#define KD_STACK_SIZE {MAX_TREE_DEPTH}" in kdtree_layout.glsl_defines().splitlines()
+
+
+# ---------------------------------------------------------- issue 18: records, blocks, variants
+
+def test_sphere_records_are_centres_and_keys_in_the_given_order():
+    """Equal radii: one 16-byte record (centre, id | material << 21 | last); otherwise two
+    (centre and radius, then the key); the radius of equal ones is the uniform."""
+    from renderer import gpu_layout as G
+    scene = small_scene()                               # unequal radii
+    order = np.array([3, 0, 4, 1, 2])
+    last = np.array([False, True, False, False, True])
+    rec = G.sphere_records(scene, order, last)
+    assert rec.shape == (10, 4) and rec.dtype == np.uint32
+    u = G.unpack_sphere_records(rec, equal=False)
+    assert u["id"].tolist() == order.tolist() and u["last"].tolist() == last.tolist()
+    assert u["material"].tolist() == scene.sphere_materials[order].tolist()
+    np.testing.assert_array_equal(u["centre"], scene.sphere_centers[order].astype(np.float32))
+    np.testing.assert_array_equal(u["radius"], scene.sphere_radii[order].astype(np.float32))
+    assert (rec[1::2, 1:] == 0).all()
+    assert rec[1, 0] == (3 | (1 << G.SPHERE_MAT_SHIFT)) and rec[3, 0] == (0 | (1 << 21) | G.SPHERE_LAST)
+    assert not G.equal_radii(scene) and pack_primitives(scene).uniforms["u_sphere_radius"] == 0.0
+
+    same = Scene(scene.camera, scene.lights, scene.materials, scene.sphere_centers, np.full(5, 0.75),
+                 scene.sphere_materials, scene.planes)
+    assert G.equal_radii(same) and pack_primitives(same).uniforms["u_sphere_radius"] == 0.75
+    rec = G.sphere_records(same, order, last)
+    assert rec.shape == (5, 4)
+    u = G.unpack_sphere_records(rec, equal=True)
+    assert u["id"].tolist() == order.tolist() and u["last"].tolist() == last.tolist()
+    np.testing.assert_array_equal(u["centre"], same.sphere_centers[order].astype(np.float32))
+    assert G.SPHERE_ID_MASK + 1 >= G.MAX_SPHERES and G.SPHERE_MAT_MASK + 1 >= G.MAX_MATERIALS
+
+
+def test_leaf_ends_flag_the_last_record_of_each_run():
+    from renderer.gpu_layout import leaf_ends
+    assert leaf_ends([0, 3, 4], [3, 1, 2], 6).tolist() == [False, False, True, True, False, True]
+    assert leaf_ends([0, 2, 2], [2, 0, 1], 3).tolist() == [False, True, True]    # an empty leaf flags nothing
+    assert leaf_ends([], [], 0).tolist() == []
+
+
+def test_materials_as_uniform_vectors_and_the_empty_box():
+    from renderer import gpu_layout as G
+    scene = small_scene()
+    u = pack_primitives(scene).uniforms
+    vecs = np.float32(u["u_material_vecs"])
+    assert vecs.shape == (MATERIAL_TEXELS * G.MAX_UNIFORM_MATERIALS, 4)
+    tex = pack_primitives(scene).textures["u_materials"].data.reshape(-1, 4)
+    np.testing.assert_array_equal(vecs[:len(scene.materials) * MATERIAL_TEXELS], tex[:len(scene.materials) * 3])
+    assert not G.material_texture(scene)
+    assert G.box_uniform([np.inf] * 3, [-np.inf] * 3) == ((1.0, 1.0, 1.0), (-1.0, -1.0, -1.0))
+    assert G.box_uniform([0, 1, 2], [3, 4, 5]) == ((0.0, 1.0, 2.0), (3.0, 4.0, 5.0))
+
+
+def test_a_record_array_is_declared_as_a_texture_or_a_uniform_block():
+    from renderer.gpu_layout import Binding, declarations
+    b = Binding("u_x", doc="records", records=True)
+    tex = declarations([b])
+    assert "uniform highp usampler2D u_x;" in tex and "#define u_x_at(i) texelFetch(u_x, texel((i), u_x_shift), 0)" in tex
+    assert "#define LAYOUT_INIT() u_x_shift = row_shift(textureSize(u_x, 0));" in tex
+    block = declarations([b], blocks=("u_x",))
+    assert "layout(std140) uniform u_x { highp uvec4 u_x_rec[BLOCK_RECORDS]; };" in block
+    assert "#define u_x_at(i) u_x_rec[i]" in block and "#define LAYOUT_INIT()\n" in block
+    assert "usampler2D" not in block
+
+
+def test_what_a_variant_reads_follows_its_data_formats_and_counts():
+    from renderer import gpu_layout as G
+    from renderer.gpu_layout import Variant
+    plain = Variant("bih", "color", 3)
+    fixed = Variant("bih", "color", 3, ("PLANES_1", "LIGHTS_2", "EQUAL_RADII", "MATERIAL_TEXTURE"))
+    for b, in_plain, in_fixed in ((G.NUM_PLANES, True, False), (G.NUM_LIGHTS, True, False),
+                                  (G.SPHERE_RADIUS, False, True), (G.MATERIALS, False, True),
+                                  (G.MATERIAL_VECS, True, False), (G.SPHERES, False, False),
+                                  (G.SPHERE_MAT, False, False), (G.PLANE_POINT, True, True)):
+        assert (plain.reads_binding(b), fixed.reads_binding(b)) == (in_plain, in_fixed), b.name
+    assert not Variant("bih", "depth", 1).reads_binding(G.MATERIAL_VECS)

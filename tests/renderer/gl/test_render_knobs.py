@@ -89,3 +89,22 @@ def test_weight_cutoff(gl_renderer):
     cut = gl_renderer.render(scene, s.with_(min_weight=1.0)).image_u8()
     primary = gl_renderer.render(scene, s.with_(max_recursion_depth=1)).image_u8()
     assert psnr(cut, primary) >= 60.0 and psnr(cut, base) < 60.0
+
+
+def test_png_frames_at_one_sample_read_one_rgba8_target(gl_renderer):
+    """Issue 18: a png or jpeg frame at 1 sample per pixel renders into one RGBA8 target, the
+    shader rounding as image_u8 does: the same bytes as the float frame's image_u8. Its float
+    arrays are traced again only when read (the service never reads them); a supersampled
+    frame keeps its float sub-pixels."""
+    scene = scenario(3, 256)
+    s = RenderSettings(width=48, height=80, max_recursion_depth=3)
+    png = gl_renderer.render(scene, s)
+    npy = gl_renderer.render(scene, s.with_(format="npy"))
+    assert png.stats["target"] == "rgba8" and npy.stats["target"] == "float"
+    np.testing.assert_array_equal(png.image_u8(), npy.image_u8())
+    assert png._full is None, "image_u8 did not trace again"
+    for field in ("image", "depth", "primid", "normal"):
+        np.testing.assert_array_equal(getattr(png, field), getattr(npy, field))
+    assert gl_renderer.render(scene, s.with_(format="jpeg", samples_per_pixel=4)).stats["target"] == "float"
+    from renderer.gl import GLRenderer
+    assert GLRenderer(gl_renderer.ctx, image_targets=False).render(scene, s).stats["target"] == "float"
