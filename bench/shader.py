@@ -7,7 +7,9 @@ a worker process with its own GL context:
   issue 18), extracted from git into a temporary directory;
 - ``new``: this checkout as the service runs it (uniform blocks where the data fit);
 - ``new/tex``: this checkout with textures only (the device's layout, and the server's
-  above the uniform-block size).
+  above the uniform-block size);
+- ``new/nobg``: this checkout without the background variant (every pixel of a
+  primary-ray frame traced by the tracer).
 
 Timing: process CPU time (``time.process_time``: llvmpipe's threads included) of the
 frame's slices — bind, draw, ``glFinish`` — without the read-back and the box filter,
@@ -82,7 +84,7 @@ CONFIGS = (
     Config("bruteforce", "bruteforce: colour depth 3, 320 × 544, scenario 3, 256", {**S3, "n": 256},
            {**COLOUR, "method": "bruteforce", "max_recursion_depth": 3}, SMALL),
 )
-SIDES = {"base": {}, "new": {}, "new/tex": {"uniform_blocks": False}}
+SIDES = {"base": {}, "new": {}, "new/tex": {"uniform_blocks": False}, "new/nobg": {"background": False}}
 
 
 # ---- the worker (runs in its own process, with the side's code first on sys.path) ------------

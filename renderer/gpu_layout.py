@@ -88,6 +88,7 @@ class Binding:
     declaration is valid before any default-precision statement), array length, purpose,
     and the group of what a variant reads it for (see :meth:`Variant.reads`).
 
+    ``traversal``: read only by the traversal (not by the background variant).
     ``needs`` / ``unless``: a feature define the variant must / must not carry to read it
     (the data formats: ``EQUAL_RADII``, ``MATERIAL_TEXTURE``); one ending in ``_`` stands
     for every define it begins (``PLANES_``: a compiled-in count). ``tracer``: False for what
@@ -102,6 +103,7 @@ class Binding:
     unless: str | None = None
     tracer: bool = True
     records: bool = False
+    traversal: bool = False
 
     def declaration(self, block: bool = False) -> str:
         """The GLSL declaration; a record array's also declares ``NAME_at(i)`` (and, as a
@@ -126,14 +128,18 @@ GROUPS = ("materials", "lights", "min_weight", "target_distance")
 class Variant:
     """One compiled tracer: method × mode × recursion depth × feature defines (``NO_*``,
     counts, data formats; :mod:`renderer.features`) × the host's choices: the record arrays
-    it reads from uniform blocks (``blocks``) and whether it writes one RGBA8 image
-    (``image_only``: png/jpeg frames at one sample per pixel)."""
+    it reads from uniform blocks (``blocks``), whether it writes one RGBA8 image
+    (``image_only``: png/jpeg frames at one sample per pixel), and whether it traces the
+    spheres at all (``spheres`` False: the *background* variant of a primary-ray frame,
+    drawn where no primary ray can meet a sphere, :func:`primary_rect`; it reads none of
+    the method's bindings)."""
     method: str
     mode: str
     depth: int
     features: tuple[str, ...] = ()
     blocks: tuple[str, ...] = ()
     image_only: bool = False
+    spheres: bool = True
 
     @property
     def traced_depth(self) -> int:
@@ -163,7 +169,8 @@ class Variant:
         """Whether the variant's shader declares and reads ``b``."""
         def carries(define: str) -> bool:
             return any(f == define or (define.endswith("_") and f.startswith(define)) for f in self.features)
-        return (b.tracer and self.reads(b.group) and (b.needs is None or carries(b.needs))
+        return (b.tracer and self.reads(b.group) and (self.spheres or not b.traversal)
+                and (b.needs is None or carries(b.needs))
                 and (b.unless is None or not carries(b.unless)))
 
     def defines(self) -> list[str]:
@@ -179,7 +186,7 @@ MATERIALS = Binding("u_materials", "highp sampler2D", "MATERIAL_TEXELS texels pe
 MATERIAL_VECS = Binding("u_material_vecs", "highp vec4", "MATERIAL_TEXELS vectors per material",
                         length="MATERIAL_VECS", group="materials", unless="MATERIAL_TEXTURE")
 SPHERE_RADIUS = Binding("u_sphere_radius", "highp float", "the radius of every sphere (EQUAL_RADII records)",
-                        needs="EQUAL_RADII")
+                        needs="EQUAL_RADII", traversal=True)
 NUM_SPHERES = Binding("u_num_spheres", "highp int")
 NUM_PLANES = Binding("u_num_planes", "highp int", unless="PLANES_")
 PLANE_POINT = Binding("u_plane_point", "highp vec3", length="MAX_PLANES")
@@ -403,6 +410,39 @@ def camera_uniforms(camera: Camera, width: int, height: int) -> dict[str, object
         RESOLUTION.name: (float(width), float(height)),
         TARGET_DISTANCE.name: float(np.linalg.norm(np.subtract(camera.target, camera.position))),
     }
+
+
+def primary_rect(scene: Scene, width: int, height: int, margin: int = 2) -> tuple[int, int, int, int] | None:
+    """The window rectangle ``(x, y, w, h)`` (GL coordinates: rows from the bottom) of a
+    ``width × height`` grid of primary rays outside which no ray can meet a sphere: the
+    bounding rectangle of the spheres' box projected through the camera
+    (:func:`camera_uniforms`' pixel mapping), widened by ``margin`` pixels and clipped to
+    the grid; ``(0, 0, 0, 0)`` without spheres. None when there is no such bound: a corner
+    of the box at or behind the camera's plane (the camera inside or beside the box).
+
+    The box is the float64 one widened by a relative 1e-6, so it holds every sphere as
+    float32 stores it; the margin covers the float32 rounding of the rays' directions."""
+    if scene.n_spheres == 0:
+        return (0, 0, 0, 0)
+    c, r = scene.sphere_centers, scene.sphere_radii[:, None]
+    slack = 1e-6 * (np.abs(c) + r).max()
+    lo, hi = (c - r).min(axis=0) - slack, (c + r).max(axis=0) + slack
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    right, up, forward = scene.camera.basis()
+    v = corners - np.asarray(scene.camera.position, dtype=np.float64)
+    z = v @ forward
+    if not (z > 1e-6 * np.linalg.norm(v, axis=1)).all():
+        return None
+    s = math.tan(math.radians(scene.camera.fov_y) / 2.0)
+    px = ((v @ right) / z / (s * width / height) + 1.0) * width / 2.0        # u = (2 px / W − 1) · hx
+    row = (1.0 - (v @ up) / z / s) * height / 2.0                           # v = (1 − 2 row / H) · hy
+    x0 = max(0, math.floor(px.min()) - margin)
+    x1 = min(width, math.ceil(px.max()) + margin)
+    y0 = max(0, math.floor(height - row.max()) - margin)                    # GL rows grow upwards
+    y1 = min(height, math.ceil(height - row.min()) + margin)
+    if x1 <= x0 or y1 <= y0:
+        return (0, 0, 0, 0)
+    return (x0, y0, x1 - x0, y1 - y0)
 
 
 def pass_uniforms(scale: int = 1, sub: tuple[int, int] = (0, 0)) -> dict[str, object]:

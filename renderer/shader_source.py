@@ -40,7 +40,8 @@ def method_shader(method: str) -> str:
 def tracer_bindings(variant: Variant) -> list[Binding]:
     """The textures, uniforms and record arrays the variant's shader declares and reads: the
     scene's and the camera's it needs (:meth:`Variant.reads_binding`), then its method's."""
-    return [b for b in (*gpu_layout.TRACER_BINDINGS, *METHODS[variant.method].bindings) if variant.reads_binding(b)]
+    method = METHODS[variant.method].bindings if variant.spheres else ()
+    return [b for b in (*gpu_layout.TRACER_BINDINGS, *method) if variant.reads_binding(b)]
 
 
 @lru_cache(maxsize=None)
@@ -62,16 +63,20 @@ def tracer_header(variant: Variant) -> str:
                 defines.append(f"{name} {int(f[len(prefix):])}")
     if variant.image_only:
         defines.append("IMAGE_ONLY")
+    if not variant.spheres:
+        defines.append("BACKGROUND")
     return (gpu_layout.glsl_header() + gpu_layout.tracer_constants() + METHODS[variant.method].glsl_defines()
             + "".join(f"#define {d}\n" for d in defines)
             + gpu_layout.declarations(tracer_bindings(variant), tuple(variant.blocks)))
 
 
 def tracer_source(method: str, mode: str, max_recursion_depth: int, extra_defines: tuple[str, ...] = (),
-                  blocks: tuple[str, ...] = (), image_only: bool = False) -> str:
+                  blocks: tuple[str, ...] = (), image_only: bool = False, spheres: bool = True) -> str:
     """The fragment shader of one variant: method × mode × recursion depth × feature defines,
-    and the host's choices (record arrays in uniform blocks, one RGBA8 image)."""
-    variant = Variant(method, mode, int(max_recursion_depth), tuple(extra_defines), tuple(blocks), image_only)
+    and the host's choices (record arrays in uniform blocks, one RGBA8 image, the background
+    variant without spheres)."""
+    variant = Variant(method, mode, int(max_recursion_depth), tuple(extra_defines), tuple(blocks), image_only,
+                      spheres)
     return variant_source(variant)
 
 

@@ -53,7 +53,7 @@ struct Sphere {
     uint key;
 };
 
-#ifdef EQUAL_RADII
+#if defined(EQUAL_RADII) && !defined(BACKGROUND)
 Sphere sphere_of(uvec4 w) { return Sphere(vec4(uintBitsToFloat(w.xyz), u_sphere_radius), w.w); }
 #define SPHERE_AT(ARRAY, p) sphere_of(ARRAY(p))
 #else
@@ -141,7 +141,14 @@ bool slab_interval(vec3 o, vec3 d, vec3 bmin, vec3 bmax, out float t0, out float
     return true;
 }
 
+#ifndef BACKGROUND
 //@METHOD@
+#else
+// The background variant (host's choice): drawn only where no primary ray can meet a
+// sphere (renderer/gpu_layout.py, primary_rect), so it has no traversal.
+void method_init() {}
+void intersect_spheres(Query q, inout Hit h) {}
+#endif
 
 // Planes and lights: a specialised variant knows their counts (N_PLANES, N_LIGHTS from
 // PLANES_k / LIGHTS_k), so their loops have a known length; the generic one reads them.

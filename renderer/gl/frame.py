@@ -20,6 +20,13 @@ Passes (docs/FORMATS.md, "Camera and pixels"):
 Uniforms, texture units and uniform-block bindings are program state, and frames of the
 same variant share a program, so every slice binds its own frame's before drawing.
 
+A frame of primary rays only (modes depth, primid, normal) is split by
+:func:`renderer.gpu_layout.primary_rect`: inside the rectangle the spheres' box projects
+to, the tracer; outside it, where no primary ray can meet a sphere, the *background*
+variant, the same shader without the traversal (llvmpipe runs a loop's body once even
+when no lane enters it, so a pixel that misses the box still paid for the traversal).
+The pixels are the same either way, bit for bit.
+
 What a frame uploads is what its variant declares (:func:`check_bindings`): record arrays
 the renderer chose to read from uniform blocks (``variant.blocks``) as 64 KiB buffers,
 everything else as textures. A png or jpeg frame at one sample per pixel
@@ -94,6 +101,11 @@ class ImageOnlyResult(RenderResult):
     normal = property(lambda self: self._traced().normal)
 
 
+# Modes whose frame is primary rays only and whose pixels outside the spheres' box owe
+# nothing to the spheres (heat is left out: brute force counts its tests on every ray).
+BACKGROUND_MODES = ("depth", "primid", "normal")
+
+
 def plan_passes(mode: str, k: int) -> list[Pass]:
     """The passes of a frame of ``mode`` at k × k samples per pixel (sy from the bottom)."""
     passes = [Pass(1, None)]
@@ -127,6 +139,15 @@ class TracerFrame:
         self.band_rows = band_rows
         self.prog, self.vao = renderer.program(variant.method, variant.mode, variant.depth, variant.features,
                                                variant.blocks, variant.image_only)
+        # Primary-ray frames: the pixels outside the spheres' projected box get the background variant.
+        self.cull: tuple[int, int, int, int] | None = None
+        if getattr(renderer, "background", False) and variant.mode in BACKGROUND_MODES and not self.one_shot:
+            self.cull = gpu_layout.primary_rect(scene, self.width, self.height)
+            if self.cull is not None:
+                self.bg_prog, self.bg_vao = renderer.program(variant.method, variant.mode, variant.depth,
+                                                             variant.features, (), variant.image_only, False)
+                x, y, w, h = self.cull
+                stats["background_pixels"] = self.width * self.height - w * h
         self.textures: list[moderngl.Texture] = []
         self.buffers: list[moderngl.Buffer] = []
         self.fbo: moderngl.Framebuffer | None = None
@@ -160,17 +181,19 @@ class TracerFrame:
     def _target_size(self) -> tuple[int, int]:
         return (self.width * self.k, self.height * self.k) if self.one_shot else (self.width, self.height)
 
-    def _bind(self, p: Pass) -> None:
-        """This frame's textures, uniforms and the pass's camera terms onto the shared program."""
-        prog = self.prog
+    def _bind(self, p: Pass, prog: moderngl.Program | None = None) -> None:
+        """This frame's textures, uniforms and the pass's camera terms onto the shared program
+        (``prog``: the background variant's instead)."""
+        prog = self.prog if prog is None else prog
         for unit, tex in enumerate(self.textures):
             tex.use(unit)
         for name, unit in self.units.items():
             if name in prog:
                 prog[name].value = unit
         for binding, (name, buf) in enumerate(self.block_units.items()):
-            buf.bind_to_uniform_block(binding)
-            prog[name].binding = binding
+            if name in prog:
+                buf.bind_to_uniform_block(binding)
+                prog[name].binding = binding
         if self.one_shot:     # the whole k × k grid in one draw: each fragment is one sub-pixel
             grid, pass_terms = self._target_size(), gpu_layout.pass_uniforms(1)
         else:
@@ -207,10 +230,11 @@ class TracerFrame:
         w, h = self._target_size()
         rows = h - self._row if self.band_rows is None else min(max(1, int(self.band_rows)), h - self._row)
         t0 = time.perf_counter()
-        self._bind(p)
-        self.fbo.scissor = (0, self._row, w, rows) if rows < h else None
         self.fbo.use()
-        self.vao.render(moderngl.TRIANGLES)
+        for prog, vao, scissor in self._draws(w, h, self._row, rows):
+            self._bind(p, prog)
+            self.fbo.scissor = scissor
+            vao.render(moderngl.TRIANGLES)
         self.ctx.finish()
         self.timings["trace"] += (time.perf_counter() - t0) * 1e3
         self.slices += 1
@@ -223,6 +247,23 @@ class TracerFrame:
                 self._result = self._compose()
                 self.release()
         return self.done
+
+    def _draws(self, w: int, h: int, y0: int, rows: int) -> list:
+        """(program, vertex array, scissor) of the draws of one band of rows: the tracer, or
+        for a culled frame the tracer inside the spheres' rectangle and the background
+        variant on the rest of the band (up to four rectangles)."""
+        band = (0, y0, w, rows) if rows < h else None
+        if self.cull is None:
+            return [(self.prog, self.vao, band)]
+        x, y, cw, ch = self.cull
+        y1 = y0 + rows
+        ix0, iy0, ix1, iy1 = x, max(y0, y), x + cw, min(y1, y + ch)
+        if ix1 <= ix0 or iy1 <= iy0:
+            return [(self.bg_prog, self.bg_vao, (0, y0, w, rows))]
+        out = [(self.prog, self.vao, (ix0, iy0, ix1 - ix0, iy1 - iy0))]
+        rest = [(0, y0, w, iy0 - y0), (0, iy1, w, y1 - iy1), (0, iy0, ix0, iy1 - iy0), (ix1, iy0, w - ix1, iy1 - iy0)]
+        out += [(self.bg_prog, self.bg_vao, r) for r in rest if r[2] > 0 and r[3] > 0]
+        return out
 
     def run(self) -> RenderResult:
         """Every remaining slice, then the result."""

@@ -4,7 +4,9 @@ The renderer makes the host's choices of a variant (issue 18): a record array of
 method (nodes, sphere records) whose packed data fit a uniform block (64 KiB, and the
 context allows blocks that large) is read from one instead of a texture — textures above
 that, and always for device data; a png or jpeg frame at one sample per pixel renders into
-one RGBA8 target (``renderer.gl.frame.image_only``).
+one RGBA8 target (``renderer.gl.frame.image_only``); a frame of primary rays (depth,
+primid, normal) draws the pixels outside the spheres' projected box with the background
+variant, which has no traversal (``renderer.gl.frame``).
 
 A ``GLRenderer`` owns one OpenGL context. A context is not thread-safe: call a
 renderer from the thread that created it only (the server runs all renders on
@@ -41,16 +43,19 @@ class GLRenderer:
 
     def __init__(self, ctx: moderngl.Context | None = None,
                  max_texture_width: int = DEFAULT_TEXTURE_WIDTH, max_target_bytes: int = 256 << 20,
-                 uniform_blocks: bool = True, image_targets: bool = True):
+                 uniform_blocks: bool = True, image_targets: bool = True, background: bool = True):
         """``uniform_blocks``: read record arrays that fit from uniform blocks (False:
         textures only, the device's layout). ``image_targets``: RGBA8 targets for png/jpeg
-        frames at one sample per pixel (False: always the float targets)."""
+        frames at one sample per pixel (False: always the float targets). ``background``:
+        primary-ray frames draw the pixels whose rays cannot meet a sphere with the
+        background variant (False: the whole frame with the tracer)."""
         self.ctx = ctx or create_context()
         self.max_texture_width = min(max_texture_width, self.ctx.info["GL_MAX_TEXTURE_SIZE"])
         self.max_blocks = (int(self.ctx.info["GL_MAX_FRAGMENT_UNIFORM_BLOCKS"])
                            if uniform_blocks and self.ctx.info["GL_MAX_UNIFORM_BLOCK_SIZE"] >= gpu_layout.BLOCK_BYTES
                            else 0)
         self.image_targets = image_targets
+        self.background = background
         self._programs: dict[tuple, moderngl.Program] = {}
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         # Render targets, reused and bounded in bytes (the frames in flight hold their own).
@@ -71,13 +76,14 @@ class GLRenderer:
         return {"renderer": self.ctx.info["GL_RENDERER"], "version": self.ctx.info["GL_VERSION"]}
 
     def program(self, method: str, mode: str, max_recursion_depth: int, features: tuple[str, ...] = (),
-                blocks: tuple[str, ...] = (), image_only: bool = False
+                blocks: tuple[str, ...] = (), image_only: bool = False, spheres: bool = True
                 ) -> tuple[moderngl.Program, moderngl.VertexArray]:
         """The compiled variant, cached by method × mode × recursion depth × feature set ×
-        the host's choices (record arrays in uniform blocks, RGBA8 image)."""
-        key = (method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only))
+        the host's choices (record arrays in uniform blocks, RGBA8 image, background)."""
+        key = (method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only), bool(spheres))
         if key not in self._programs:
-            src = tracer_source(method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only))
+            src = tracer_source(method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only),
+                                bool(spheres))
             prog = self.ctx.program(vertex_shader=vertex_source(), fragment_shader=src)
             self._programs[key] = prog
             self._vaos[key] = self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
@@ -141,7 +147,7 @@ class GLRenderer:
         if not settings.specialize:
             features = features.generic()
         depth = features.recursion_depth(settings.max_recursion_depth)
-        image = self.image_targets and image_only(settings) and not (one_shot and settings.supersampling > 1)
+        image = self.image_targets and image_only(settings)
         variant = Variant(method_name, settings.mode, depth, features.defines(), image_only=image)
         variant = Variant(method_name, settings.mode, depth, features.defines(), self.blocks_for(variant, prepared),
                           image)

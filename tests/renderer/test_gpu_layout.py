@@ -283,3 +283,33 @@ def test_what_a_variant_reads_follows_its_data_formats_and_counts():
                                   (G.SPHERE_MAT, False, False), (G.PLANE_POINT, True, True)):
         assert (plain.reads_binding(b), fixed.reads_binding(b)) == (in_plain, in_fixed), b.name
     assert not Variant("bih", "depth", 1).reads_binding(G.MATERIAL_VECS)
+
+
+@pytest.mark.parametrize("position,target,fov", [((0.0, 0.0, 100.0), (0.0, 0.0, 0.0), 60.0),
+                                                 ((35.0, 28.0, 60.0), (0.0, -3.0, 0.0), 40.0),
+                                                 ((-90.0, 5.0, -10.0), (3.0, 1.0, 2.0), 90.0),
+                                                 ((0.0, 0.0, 45.0), (0.0, 0.0, 0.0), 120.0)])
+def test_no_primary_ray_outside_the_spheres_rectangle_meets_a_sphere(position, target, fov):
+    """primary_rect bounds the pixels whose primary ray can meet a sphere (the background
+    variant draws the rest); None when the camera is inside or beside the spheres' box."""
+    from renderer.accel.bih_traverse import brute_force
+    from renderer.gpu_layout import primary_rect
+    from renderer.reference import primary_rays
+    from renderer.scenarios import scenario
+    base = scenario(3, 512)
+    cam = Camera(position=position, target=target, up=(0.0, 1.0, 0.0), fov_y=fov)
+    scene = base.with_camera(cam)
+    w, h = 61, 47
+    rect = primary_rect(scene, w, h)
+    assert rect is not None
+    o, d = primary_rays(cam, w, h)
+    _, prim = brute_force(scene.sphere_centers, scene.sphere_radii, o, d)
+    hit = (prim >= 0).reshape(h, w)[::-1]          # GL rows from the bottom
+    x, y, rw, rh = rect
+    inside = np.zeros_like(hit)
+    inside[y:y + rh, x:x + rw] = True
+    assert hit.any() and not (hit & ~inside).any()
+    assert 0 <= x and x + rw <= w and 0 <= y and y + rh <= h
+    assert primary_rect(scene.with_camera(Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0))), w, h) is None
+    empty = Scene(cam, (), (Material(),), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32))
+    assert primary_rect(empty, w, h) == (0, 0, 0, 0)

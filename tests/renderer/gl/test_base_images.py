@@ -39,9 +39,10 @@ def test_the_record_is_the_base_commits_and_covers_every_case():
 
 
 @pytest.fixture(scope="module")
-def textures_only():
+def textures_only(gl_renderer):
+    """Another renderer on the same context (a second context would become the current one)."""
     from renderer.gl import GLRenderer
-    return GLRenderer(max_texture_width=128, uniform_blocks=False)
+    return GLRenderer(gl_renderer.ctx, max_texture_width=128, uniform_blocks=False)
 
 
 def _mismatches(renderer, group: str, fields=("image", "u8", "depth", "primid", "normal"), skip=None,

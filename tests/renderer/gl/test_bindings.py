@@ -39,7 +39,7 @@ def active(prog) -> set[str]:
 
 def check_variant(gl_renderer, variant: Variant) -> None:
     prog, _ = gl_renderer.program(variant.method, variant.mode, variant.depth, variant.features, variant.blocks,
-                                  variant.image_only)
+                                  variant.image_only, variant.spheres)
     declared = full = {b.name for b in tracer_bindings(variant)}
     if variant.image_only and variant.mode == "heat" and METHODS[variant.method].capabilities.tests_every_sphere:
         # Brute force's heat image is n sphere tests whatever the ray, and an image-only
@@ -65,6 +65,8 @@ def test_every_declared_binding_of_every_variant_is_active(gl_renderer, method, 
     for depth, features, image in itertools.product((1, 3), SHAPES[:3], (False, True)):
         check_variant(gl_renderer, Variant(method, mode, depth, features, records, image))
         check_variant(gl_renderer, Variant(method, mode, depth, features, records[:1], image))
+        if mode in ("depth", "primid", "normal"):     # the background variant reads none of the method's
+            check_variant(gl_renderer, Variant(method, mode, depth, features, (), image, spheres=False))
 
 
 def test_record_arrays_in_blocks_are_the_renderers_choice(gl_renderer):

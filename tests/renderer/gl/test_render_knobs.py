@@ -108,3 +108,24 @@ def test_png_frames_at_one_sample_read_one_rgba8_target(gl_renderer):
     assert gl_renderer.render(scene, s.with_(format="jpeg", samples_per_pixel=4)).stats["target"] == "float"
     from renderer.gl import GLRenderer
     assert GLRenderer(gl_renderer.ctx, image_targets=False).render(scene, s).stats["target"] == "float"
+
+
+@pytest.mark.parametrize("mode", ["depth", "primid", "normal"])
+def test_primary_frames_draw_the_background_variant_outside_the_spheres(gl_renderer, mode):
+    """Outside the spheres' projected box a primary-ray frame is drawn by the variant without
+    traversal: the same pixels, bit for bit, in bands too; a camera inside the box draws
+    every pixel with the tracer."""
+    from renderer.gl import GLRenderer
+    full = GLRenderer(gl_renderer.ctx, background=False)
+    scene = scenario(3, 256)
+    s = RenderSettings(width=64, height=96, mode=mode, format="npy")
+    culled = gl_renderer.render(scene, s)
+    assert 0 < culled.stats["background_pixels"] < 64 * 96
+    banded = gl_renderer.begin(scene, s, band_rows=7).run()
+    want = full.render(scene, s)
+    for res in (culled, banded):
+        for field in ("image", "depth", "primid", "normal"):
+            np.testing.assert_array_equal(getattr(res, field), getattr(want, field), err_msg=field)
+    from renderer.scene import Camera
+    inside = scene.with_camera(Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0)))
+    assert "background_pixels" not in gl_renderer.render(inside, s).stats
