@@ -445,6 +445,63 @@ def primary_rect(scene: Scene, width: int, height: int, margin: int = 2) -> tupl
     return (x0, y0, x1 - x0, y1 - y0)
 
 
+def frame_regions(scene: Scene, width: int, height: int, planes: bool, margin: int = 2
+                  ) -> list[tuple[int, int, int, int, bool]] | None:
+    """A partition of a ``width × height`` frame into rectangles ``(x, y, w, h, tracer)``
+    (GL coordinates, rows from the bottom): ``tracer`` False where no primary ray can meet
+    a sphere (outside :func:`primary_rect`) — and, with ``planes``, no plane either — so
+    that the background variant (the shader without its traversal) draws the same pixels.
+    ``planes`` is for frames whose hits spawn rays (colour, recursion): there a pixel may
+    skip the tracer only if its ray meets nothing at all. None: no such split (every pixel
+    to the tracer).
+
+    A plane through P with normal N is met by the ray of direction d from the camera C when
+    t = dot(P − C, N) / dot(d, N) > 0: never when the signs differ, a linear condition on
+    the image plane, so a rectangle misses the plane when its corners (widened by
+    ``margin`` pixels) do, with a relative slack; a camera (nearly) on a plane splits nothing."""
+    rect = primary_rect(scene, width, height, margin)
+    if rect is None:
+        return None
+    sx, sy, sw, sh = rect
+    miss = np.ones(height, dtype=bool)              # GL row y: its whole row may skip the tracer
+    if planes and scene.planes:
+        right, up, forward = scene.camera.basis()
+        cam = np.asarray(scene.camera.position, dtype=np.float64)
+        s = math.tan(math.radians(scene.camera.fov_y) / 2.0)
+        hx, hy = s * width / height, s
+        y = np.arange(height, dtype=np.float64)
+        rows = np.stack([height - (y + 0.5 + margin), height - (y + 0.5 - margin)], axis=1)   # from the top
+        cols = np.array([0.5 - margin, width - 0.5 + margin])
+        u = (2.0 * cols / width - 1.0) * hx
+        v = (1.0 - 2.0 * rows / height) * hy                                                   # (H, 2)
+        for p in scene.planes:
+            n = np.asarray(p.normal, dtype=np.float64)
+            side = float(np.dot(np.asarray(p.point, dtype=np.float64) - cam, n))
+            if abs(side) <= 1e-6 * (np.abs(cam).max() + np.abs(p.point).max() + 1.0):
+                return None
+            dn = (forward @ n) + u[None, :, None] * (right @ n) + v[:, None, :] * (up @ n)    # (H, 2, 2)
+            norm = 1.0 + abs(hx) + abs(hy)
+            miss &= (np.sign(side) * dn < -1e-5 * norm).all(axis=(1, 2))
+    out: list[tuple[int, int, int, int, bool]] = []
+    y0 = 0
+    while y0 < height:                               # runs of rows of one kind
+        y1 = y0 + 1
+        while y1 < height and miss[y1] == miss[y0]:
+            y1 += 1
+        if not miss[y0]:
+            out.append((0, y0, width, y1 - y0, True))
+        else:
+            a, b = max(y0, sy), min(y1, sy + sh)
+            if sw <= 0 or sh <= 0 or b <= a:
+                out.append((0, y0, width, y1 - y0, False))
+            else:
+                out += [(0, y0, width, a - y0, False), (0, b, width, y1 - b, False),
+                        (0, a, sx, b - a, False), (sx + sw, a, width - sx - sw, b - a, False),
+                        (sx, a, sw, b - a, True)]
+        y0 = y1
+    return [r for r in out if r[2] > 0 and r[3] > 0]
+
+
 def pass_uniforms(scale: int = 1, sub: tuple[int, int] = (0, 0)) -> dict[str, object]:
     """The pass uniforms: the pixel centres (scale 1), or sub-pixel ``sub`` = (sx, sy) of a
     ``scale × scale`` grid per pixel (sy counts from the bottom, as GL's rows do)."""

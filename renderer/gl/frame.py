@@ -20,12 +20,12 @@ Passes (docs/FORMATS.md, "Camera and pixels"):
 Uniforms, texture units and uniform-block bindings are program state, and frames of the
 same variant share a program, so every slice binds its own frame's before drawing.
 
-A frame of primary rays only (modes depth, primid, normal) is split by
-:func:`renderer.gpu_layout.primary_rect`: inside the rectangle the spheres' box projects
-to, the tracer; outside it, where no primary ray can meet a sphere, the *background*
-variant, the same shader without the traversal (llvmpipe runs a loop's body once even
-when no lane enters it, so a pixel that misses the box still paid for the traversal).
-The pixels are the same either way, bit for bit.
+A frame is split by :func:`renderer.gpu_layout.frame_regions`: inside the rectangle the
+spheres' box projects to, the tracer; outside it, where no primary ray can meet a sphere
+— and, in colour and recursion frames, whose hits spawn rays, where it meets no plane
+either — the *background* variant, the same shader without the traversal (llvmpipe runs
+a loop's body once even when no lane enters it, so a pixel that misses the box still
+paid for the traversal). The pixels are the same either way, bit for bit.
 
 What a frame uploads is what its variant declares (:func:`check_bindings`): record arrays
 the renderer chose to read from uniform blocks (``variant.blocks``) as 64 KiB buffers,
@@ -101,9 +101,11 @@ class ImageOnlyResult(RenderResult):
     normal = property(lambda self: self._traced().normal)
 
 
-# Modes whose frame is primary rays only and whose pixels outside the spheres' box owe
-# nothing to the spheres (heat is left out: brute force counts its tests on every ray).
-BACKGROUND_MODES = ("depth", "primid", "normal")
+# Modes whose pixels outside the spheres' box (and, for colour and recursion, outside every
+# plane) owe nothing to the spheres (heat is left out: brute force counts its tests on
+# every ray); of those, the modes that trace the primary ray only.
+BACKGROUND_MODES = ("depth", "primid", "normal", "color", "recursion")
+PRIMARY_MODES = ("depth", "primid", "normal")
 
 
 def plan_passes(mode: str, k: int) -> list[Pass]:
@@ -139,15 +141,16 @@ class TracerFrame:
         self.band_rows = band_rows
         self.prog, self.vao = renderer.program(variant.method, variant.mode, variant.depth, variant.features,
                                                variant.blocks, variant.image_only)
-        # Primary-ray frames: the pixels outside the spheres' projected box get the background variant.
-        self.cull: tuple[int, int, int, int] | None = None
+        # The pixels whose primary ray can meet no sphere (no primitive at all, when hits spawn
+        # rays) are drawn by the background variant.
+        self.regions: list[tuple[int, int, int, int, bool]] | None = None
         if getattr(renderer, "background", False) and variant.mode in BACKGROUND_MODES and not self.one_shot:
-            self.cull = gpu_layout.primary_rect(scene, self.width, self.height)
-            if self.cull is not None:
+            self.regions = gpu_layout.frame_regions(scene, self.width, self.height,
+                                                    planes=variant.mode not in PRIMARY_MODES)
+            if self.regions is not None:
                 self.bg_prog, self.bg_vao = renderer.program(variant.method, variant.mode, variant.depth,
                                                              variant.features, (), variant.image_only, False)
-                x, y, w, h = self.cull
-                stats["background_pixels"] = self.width * self.height - w * h
+                stats["background_pixels"] = sum(w * h for _, _, w, h, tracer in self.regions if not tracer)
         self.textures: list[moderngl.Texture] = []
         self.buffers: list[moderngl.Buffer] = []
         self.fbo: moderngl.Framebuffer | None = None
@@ -250,19 +253,15 @@ class TracerFrame:
 
     def _draws(self, w: int, h: int, y0: int, rows: int) -> list:
         """(program, vertex array, scissor) of the draws of one band of rows: the tracer, or
-        for a culled frame the tracer inside the spheres' rectangle and the background
-        variant on the rest of the band (up to four rectangles)."""
-        band = (0, y0, w, rows) if rows < h else None
-        if self.cull is None:
-            return [(self.prog, self.vao, band)]
-        x, y, cw, ch = self.cull
-        y1 = y0 + rows
-        ix0, iy0, ix1, iy1 = x, max(y0, y), x + cw, min(y1, y + ch)
-        if ix1 <= ix0 or iy1 <= iy0:
-            return [(self.bg_prog, self.bg_vao, (0, y0, w, rows))]
-        out = [(self.prog, self.vao, (ix0, iy0, ix1 - ix0, iy1 - iy0))]
-        rest = [(0, y0, w, iy0 - y0), (0, iy1, w, y1 - iy1), (0, iy0, ix0, iy1 - iy0), (ix1, iy0, w - ix1, iy1 - iy0)]
-        out += [(self.bg_prog, self.bg_vao, r) for r in rest if r[2] > 0 and r[3] > 0]
+        for a split frame each region's variant on its part of the band."""
+        if self.regions is None:
+            return [(self.prog, self.vao, (0, y0, w, rows) if rows < h else None)]
+        out = []
+        for x, y, rw, rh, tracer in self.regions:
+            a, b = max(y, y0), min(y + rh, y0 + rows)
+            if b > a:
+                out.append((self.prog, self.vao, (x, a, rw, b - a)) if tracer else
+                           (self.bg_prog, self.bg_vao, (x, a, rw, b - a)))
         return out
 
     def run(self) -> RenderResult:

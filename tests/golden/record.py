@@ -58,7 +58,7 @@ def tracer_shaders() -> dict[str, str]:
         for blocks, image in ((records, False), ((), True), (records, True)):
             key = f"{method}/{mode}/{depth}/{','.join(feats)}/blocks={','.join(blocks)}/{'rgba8' if image else 'float'}"
             out[key] = _sha(tracer_source(method, mode, depth, feats, blocks, image))
-        if mode in ("depth", "primid", "normal"):
+        if mode != "heat":
             for image in (False, True):
                 key = f"{method}/{mode}/{depth}/{','.join(feats)}/background/{'rgba8' if image else 'float'}"
                 out[key] = _sha(tracer_source(method, mode, depth, feats, (), image, spheres=False))

@@ -313,3 +313,42 @@ def test_no_primary_ray_outside_the_spheres_rectangle_meets_a_sphere(position, t
     assert primary_rect(scene.with_camera(Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0))), w, h) is None
     empty = Scene(cam, (), (Material(),), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32))
     assert primary_rect(empty, w, h) == (0, 0, 0, 0)
+
+
+@pytest.mark.parametrize("position,target", [((0.0, 0.0, 100.0), (0.0, 0.0, 0.0)), ((30.0, 45.0, 70.0), (0.0, -5.0, 0.0)),
+                                             ((0.0, -10.0, 80.0), (0.0, 10.0, 0.0))])
+@pytest.mark.parametrize("planes", [False, True])
+def test_frame_regions_partition_the_frame_and_skip_only_rays_that_meet_nothing(position, target, planes):
+    """frame_regions tiles the frame; where it says background, no primary ray meets a sphere,
+    and (planes=True: frames whose hits spawn rays) no plane either."""
+    from renderer.accel.bih_traverse import brute_force
+    from renderer.gpu_layout import frame_regions
+    from renderer.reference import primary_rays
+    from renderer.scenarios import scenario
+    cam = Camera(position=position, target=target, up=(0.0, 1.0, 0.0), fov_y=60.0)
+    scene = scenario(2, 256).with_camera(cam)
+    scene = Scene(cam, scene.lights, scene.materials, scene.sphere_centers, scene.sphere_radii,
+                  scene.sphere_materials, (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),
+                                           Plane((0.0, 0.0, 500.0), (0.0, 0.1, 1.0), 0)))   # behind the camera
+    w, h = 57, 75
+    regions = frame_regions(scene, w, h, planes)
+    assert regions is not None
+    cover = np.zeros((h, w), int)
+    for x, y, rw, rh, _ in regions:
+        cover[y:y + rh, x:x + rw] += 1
+    assert (cover == 1).all(), "the regions tile the frame"
+    o, d = primary_rays(cam, w, h)
+    _, prim = brute_force(scene.sphere_centers, scene.sphere_radii, o, d)
+    meets = (prim >= 0)
+    if planes:
+        for p in scene.planes:
+            n = np.asarray(p.normal)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = ((np.asarray(p.point) - o) @ n) / (d @ n)
+            meets |= t > 0
+    meets = meets.reshape(h, w)[::-1]                 # GL rows from the bottom
+    for x, y, rw, rh, tracer in regions:
+        if not tracer:
+            assert not meets[y:y + rh, x:x + rw].any(), (x, y, rw, rh)
+    if position == (0.0, 0.0, 100.0):      # the thesis's camera: sky above the horizon, spheres in the middle
+        assert sum(rw * rh for _, _, rw, rh, t in regions if not t) > (0.25 if planes else 0.5) * w * h

@@ -110,15 +110,15 @@ def test_png_frames_at_one_sample_read_one_rgba8_target(gl_renderer):
     assert GLRenderer(gl_renderer.ctx, image_targets=False).render(scene, s).stats["target"] == "float"
 
 
-@pytest.mark.parametrize("mode", ["depth", "primid", "normal"])
-def test_primary_frames_draw_the_background_variant_outside_the_spheres(gl_renderer, mode):
-    """Outside the spheres' projected box a primary-ray frame is drawn by the variant without
-    traversal: the same pixels, bit for bit, in bands too; a camera inside the box draws
-    every pixel with the tracer."""
+@pytest.mark.parametrize("mode", ["depth", "primid", "normal", "color", "recursion"])
+def test_frames_draw_the_background_variant_where_rays_meet_no_sphere(gl_renderer, mode):
+    """Outside the spheres' projected box (and, in colour and recursion, where the ray meets
+    no plane either) a frame is drawn by the variant without traversal: the same pixels, bit
+    for bit, in bands too; a camera inside the box draws every pixel with the tracer."""
     from renderer.gl import GLRenderer
     full = GLRenderer(gl_renderer.ctx, background=False)
     scene = scenario(3, 256)
-    s = RenderSettings(width=64, height=96, mode=mode, format="npy")
+    s = RenderSettings(width=64, height=96, mode=mode, format="npy", max_recursion_depth=4)
     culled = gl_renderer.render(scene, s)
     assert 0 < culled.stats["background_pixels"] < 64 * 96
     banded = gl_renderer.begin(scene, s, band_rows=7).run()
