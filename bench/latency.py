@@ -3,7 +3,14 @@
 For scenario 3 with 4,096 spheres (radius 1), JPEG frames at 640 × 1088 and
 320 × 544, with 1 and 4 concurrent clients (each its own session), every client
 sends pan gestures with ``?frame=1`` (one round trip: the answer is the new
-frame) back to back. Reported per configuration: client-side latency p50 / p95
+frame) back to back, with the settings of a render profile (``renderer.profiles``,
+the recursion depth capped at ``--depth`` as the client caps it at the session's):
+
+- ``interactive`` — what the client asks for while a finger moves: 1 sample per
+  pixel, ε = 0.3 (the frames the ≥ 10 frames/s target is about);
+- ``still`` — the frames a session shows at rest: 4 samples per pixel, ε = 0.03.
+
+Reported per profile and configuration: client-side latency p50 / p95
 (ms), frames/s per client and in total, and the share of the mean latency spent
 in each stage the server reports in ``Server-Timing`` (queue, build, upload,
 trace, read, encode; "other" = HTTP, session store, scene lookup).
@@ -18,8 +25,9 @@ Usage::
     .venv/bin/python bench/latency.py                # starts its own server process
     .venv/bin/python bench/latency.py --url http://127.0.0.1:8000
     .venv/bin/python bench/latency.py --frames 10 --depth 3 --n 4096
+    .venv/bin/python bench/latency.py --profiles interactive --no-transports
 
-Target of the issue: ≥ 10 frames/s for one client at 320 × 544, depth 3.
+Target of the issue: ≥ 10 frames/s for one client at 320 × 544, depth 3, interactive profile.
 """
 
 from __future__ import annotations
@@ -40,7 +48,17 @@ from pathlib import Path
 import httpx
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+from renderer.profiles import PROFILES  # noqa: E402
+
 STAGES = ("queue", "build", "upload", "trace", "read", "encode")
+
+
+def profile_params(name: str, depth: int) -> dict:
+    """The frame query of a render profile, its depth capped at ``depth``."""
+    p = PROFILES[name]
+    return {"max_recursion_depth": min(int(p["max_recursion_depth"]), depth),
+            "samples_per_pixel": int(p["samples_per_pixel"]), "min_weight": float(p["min_weight"])}
 
 
 def server_timing(header: str) -> dict[str, float]:
@@ -60,9 +78,14 @@ def pct(values: list[float], q: float) -> float:
 
 
 class Server:
-    """A ``python -m server`` child on a free port with a temporary SQLite file."""
+    """A ``python -m server`` child on a free port with a temporary SQLite file.
 
-    def __init__(self, queue_size: int, **settings: object):
+    ``base``: a commit whose ``renderer/`` and ``shaders/`` (extracted from git into the
+    temporary directory) the server renders with, this checkout's ``server/`` otherwise
+    (the shader and layouts before issue 18 beside today's service); ``settings``: more
+    ``POCKETRAY_*`` settings of the child (``slice_ms=…``)."""
+
+    def __init__(self, queue_size: int, base: str | None = None, **settings: object):
         self.tmp = tempfile.TemporaryDirectory()
         with socket.socket() as s:
             s.bind(("127.0.0.1", 0))
@@ -73,8 +96,17 @@ class Server:
                    POCKETRAY_SQLITE_PATH=str(Path(self.tmp.name) / "bench.sqlite3"),
                    POCKETRAY_QUEUE_SIZE=str(queue_size),
                    **{f"POCKETRAY_{k.upper()}": str(v) for k, v in settings.items()})
+        cwd = ROOT
+        if base:
+            code = Path(self.tmp.name) / "code"
+            code.mkdir()
+            archive = subprocess.run(["git", "-C", str(ROOT), "archive", base, "renderer", "shaders"], check=True,
+                                     capture_output=True).stdout
+            subprocess.run(["tar", "-x", "-C", str(code)], input=archive, check=True)
+            env["PYTHONPATH"] = f"{code}{os.pathsep}{ROOT}"
+            cwd = code
         self.log = open(Path(self.tmp.name) / "server.log", "wb")
-        self.proc = subprocess.Popen([sys.executable, "-m", "server"], cwd=ROOT, env=env,
+        self.proc = subprocess.Popen([sys.executable, "-m", "server"], cwd=cwd, env=env,
                                      stdout=self.log, stderr=subprocess.STDOUT)
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline:
@@ -103,12 +135,14 @@ def new_session(c: httpx.Client, n: int, depth: int, w: int, h: int) -> str:
     return r.json()["id"]
 
 
-def run_clients(url: str, clients: int, frames: int, n: int, depth: int, w: int, h: int) -> dict:
-    """``clients`` threads, each its own session, ``frames`` gesture?frame=1 each."""
+def run_clients(url: str, clients: int, frames: int, n: int, depth: int, w: int, h: int,
+                profile: str = "interactive") -> dict:
+    """``clients`` threads, each its own session, ``frames`` gesture?frame=1 each, with the
+    settings of ``profile``."""
     samples: list[tuple[float, dict[str, float]]] = []
     errors: list[str] = []
     lock = threading.Lock()
-    params = {"frame": 1, "width": w, "height": h, "format": "jpeg", "max_recursion_depth": depth}
+    params = {"frame": 1, "width": w, "height": h, "format": "jpeg", **profile_params(profile, depth)}
 
     def client(i: int) -> None:
         with httpx.Client(base_url=url, timeout=300) as c:
@@ -142,16 +176,48 @@ def run_clients(url: str, clients: int, frames: int, n: int, depth: int, w: int,
         if samples else {}
     if shares:
         shares["other"] = 100.0 - sum(shares.values())
-    return {"size": f"{w}×{h}", "clients": clients, "frames": len(lat), "errors": len(errors),
+    return {"profile": profile, "size": f"{w}×{h}", "clients": clients, "frames": len(lat), "errors": len(errors),
             "p50": pct(lat, 0.5), "p95": pct(lat, 0.95), "fps_client": 1000.0 / mean_lat if lat else 0.0,
             "fps_total": len(lat) / wall if wall > 0 else 0.0, "shares": shares,
-            "server_total_p50": pct([s[1].get("total", 0.0) for s in samples], 0.5)}
+            "server_total_p50": pct([s[1].get("total", 0.0) for s in samples], 0.5),
+            "trace_p50": pct([s[1].get("trace", 0.0) for s in samples], 0.5)}
+
+
+def against_base(urls: dict[str, str], frames: int, n: int, depth: int, w: int, h: int, profile: str) -> dict:
+    """One client per server (today's and the base commit's renderer), gestures alternating
+    between them (A/B/A/B): p50 latency, server trace p50 and fps of each, and whether
+    their JPEG frames are the same bytes."""
+    params = {"frame": 1, "width": w, "height": h, "format": "jpeg", **profile_params(profile, depth)}
+    clients = {k: httpx.Client(base_url=u, timeout=300) for k, u in urls.items()}
+    lat: dict[str, list[float]] = {k: [] for k in urls}
+    trace: dict[str, list[float]] = {k: [] for k in urls}
+    same = 0
+    try:
+        sids = {k: new_session(c, n, depth, w, h) for k, c in clients.items()}
+        for k, c in clients.items():
+            c.get(f"/api/sessions/{sids[k]}/frame", params={q: v for q, v in params.items() if q != "frame"})
+        for i in range(frames):
+            g = {"type": "pan", "dx": 6.0 if i % 2 == 0 else -6.0, "dy": 0.0}
+            bodies = {}
+            for k, c in (clients.items() if i % 2 == 0 else reversed(clients.items())):
+                t0 = time.perf_counter()
+                r = c.post(f"/api/sessions/{sids[k]}/gesture", params=params, json=g)
+                r.raise_for_status()
+                lat[k].append((time.perf_counter() - t0) * 1e3)
+                trace[k].append(server_timing(r.headers.get("server-timing", "")).get("trace", float("nan")))
+                bodies[k] = r.content
+            same += len(set(bodies.values())) == 1
+    finally:
+        for c in clients.values():
+            c.close()
+    return {k: {"p50": pct(lat[k], 0.5), "p95": pct(lat[k], 0.95), "trace_p50": pct(trace[k], 0.5),
+                "fps": 1000.0 / statistics.fmean(lat[k])} for k in urls} | {"same_bytes": same, "frames": frames}
 
 
 def transports(url: str, frames: int, n: int, depth: int, w: int, h: int) -> list[dict]:
     """p50/p95 of one gesture → frame by three transports (one client, 320 × 544)."""
     out = []
-    params = {"width": w, "height": h, "format": "jpeg", "max_recursion_depth": depth}
+    params = {"width": w, "height": h, "format": "jpeg", **profile_params("interactive", depth)}
     with httpx.Client(base_url=url, timeout=300) as c:
         sid = new_session(c, n, depth, w, h)
         c.get(f"/api/sessions/{sid}/frame", params=params)  # warm-up (shader variant)
@@ -211,36 +277,69 @@ def main() -> None:
     ap.add_argument("--depth", type=int, default=3, help="max_recursion_depth")
     ap.add_argument("--frames", type=int, default=12, help="gestures per client at 320×544 (half at 640×1088)")
     ap.add_argument("--no-transports", action="store_true", help="skip the transport comparison")
+    ap.add_argument("--profiles", default="interactive,still", help="render profiles, comma-separated")
+    ap.add_argument("--sizes", default="640x1088,320x544", help="frame sizes, comma-separated")
+    ap.add_argument("--clients", default="1,4", help="concurrent clients, comma-separated")
+    ap.add_argument("--base", default=None, metavar="COMMIT",
+                    help="also start a server rendering with COMMIT's renderer and shaders (e.g. cda5fce, before "
+                         "issue 18) and compare one client at 320×544, interactive, gestures alternating")
     args = ap.parse_args()
+    profiles = [p for p in args.profiles.split(",") if p]
+    sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",") if s]
+    client_counts = [int(c) for c in args.clients.split(",") if c]
 
     server = None if args.url else Server(queue_size=8)
     url = args.url or server.url
     try:
         info = httpx.get(url + "/api/ready", timeout=10).json()
-        print(f"# gesture → frame latency — scenario 3, n = {args.n}, radius 1, max_recursion_depth = "
+        print(f"# gesture → frame latency — scenario 3, n = {args.n}, radius 1, max_recursion_depth ≤ "
               f"{args.depth}, JPEG q85, BIH max_prims 8")
         print(f"# GL: {info.get('gl_renderer')} | {info.get('gl_version')} | CPUs: {os.cpu_count()} | "
               f"load avg before: {os.getloadavg()[0]:.2f}")
-        print()
-        print("| size | clients | frames | p50 ms | p95 ms | fps/client | fps total | "
-              + " | ".join(f"{s} %" for s in (*STAGES, "other")) + " |")
-        print("|---|---|---|---|---|---|---|" + "---|" * (len(STAGES) + 1))
         results = []
-        for w, h, frames in ((640, 1088, max(2, args.frames // 2)), (320, 544, args.frames)):
-            for clients in (1, 4):
-                per_client = frames if clients == 1 else max(2, frames // 2)
-                r = run_clients(url, clients, per_client, args.n, args.depth, w, h)
-                results.append(r)
-                shed = f" (+{r['errors']} 503)" if r["errors"] else ""
-                print(f"| {r['size']} | {clients} | {r['frames']}{shed} "
-                      f"| {r['p50']:.0f} | {r['p95']:.0f} | {r['fps_client']:.2f} | {r['fps_total']:.2f} | "
-                      + " | ".join(f"{r['shares'].get(s, 0):.1f}" for s in (*STAGES, "other")) + " |",
-                      flush=True)
-        one = next(r for r in results if r["size"] == "320×544" and r["clients"] == 1)
-        verdict = "met" if one["fps_client"] >= 10 else "NOT met"
-        print()
-        print(f"Target ≥ 10 frames/s, one client, 320×544, depth {args.depth}: "
-              f"{one['fps_client']:.2f} fps → {verdict}")
+        for profile in profiles:
+            q = profile_params(profile, args.depth)
+            print(f"\n## profile {profile}: depth {q['max_recursion_depth']}, {q['samples_per_pixel']} sample(s) "
+                  f"per pixel, ε = {q['min_weight']:g}\n")
+            print("| size | clients | frames | p50 ms | p95 ms | fps/client | fps total | server trace p50 ms | "
+                  + " | ".join(f"{s} %" for s in (*STAGES, "other")) + " |")
+            print("|---|---|---|---|---|---|---|---|" + "---|" * (len(STAGES) + 1))
+            for w, h in sizes:
+                frames = args.frames if w * h <= 320 * 544 else max(2, args.frames // 2)
+                for clients in client_counts:
+                    per_client = frames if clients == 1 else max(2, frames // 2)
+                    r = run_clients(url, clients, per_client, args.n, args.depth, w, h, profile)
+                    results.append(r)
+                    shed = f" (+{r['errors']} 503)" if r["errors"] else ""
+                    print(f"| {r['size']} | {clients} | {r['frames']}{shed} "
+                          f"| {r['p50']:.0f} | {r['p95']:.0f} | {r['fps_client']:.2f} | {r['fps_total']:.2f} | "
+                          f"{r['trace_p50']:.0f} | "
+                          + " | ".join(f"{r['shares'].get(s, 0):.1f}" for s in (*STAGES, "other")) + " |",
+                          flush=True)
+        one = next((r for r in results if r["size"] == "320×544" and r["clients"] == 1
+                    and r["profile"] == "interactive"), None)
+        if one is not None:
+            verdict = "met" if one["fps_client"] >= 10 else "NOT met"
+            print()
+            print(f"Target ≥ 10 frames/s, one client, 320×544, interactive profile, depth "
+                  f"{profile_params('interactive', args.depth)['max_recursion_depth']}: p50 {one['p50']:.0f} ms, "
+                  f"{one['fps_client']:.2f} fps → {verdict}")
+        if args.base:
+            base = Server(queue_size=8, base=args.base)
+            try:
+                ab = against_base({"now": url, args.base: base.url}, max(8, args.frames), args.n, args.depth,
+                                  320, 544, "interactive")
+            finally:
+                base.close()
+            print()
+            print(f"| 320×544, 1 client, interactive, gestures alternating | p50 ms | p95 ms | server trace p50 ms "
+                  f"| fps |")
+            print("|---|---|---|---|---|")
+            for k in ("now", args.base):
+                print(f"| {'this checkout' if k == 'now' else 'renderer and shaders of ' + k} | {ab[k]['p50']:.0f} "
+                      f"| {ab[k]['p95']:.0f} | {ab[k]['trace_p50']:.0f} | {ab[k]['fps']:.2f} |")
+            print(f"\np50 ratio now / {args.base}: {ab['now']['p50'] / ab[args.base]['p50']:.2f}×; "
+                  f"identical JPEG bytes in {ab['same_bytes']} of {ab['frames']} gestures")
         if not args.no_transports:
             print()
             print("| transport (320×544, 1 client) | p50 ms | p95 ms | p50 latency − server total, ms |")

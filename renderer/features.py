@@ -4,19 +4,36 @@ A shader variant compiled for a scene without reflective materials has no
 reflection code, one without lights no shadow rays, and a scene where nothing
 reflects or transmits needs no recursion beyond the primary ray. Each of these
 is exact: the image is the one the generic variant renders.
+
+Beside those removals a specialised variant compiles in the scene's counts of planes and
+lights (``PLANES_k``, ``LIGHTS_k``: loops of known length instead of loops bounded at run
+time) and, when no material both reflects and transmits (``NO_SPLIT``), leaves out the task
+stack: every hit then spawns at most one ray, so the ray tree is a path (issue 18).
+
+Two defines are not choices but the scene's *data formats* (``renderer/gpu_layout.py``),
+carried by every variant, the generic one too, because the packers follow them:
+``EQUAL_RADII`` (16-byte sphere records, the radius a uniform) and ``MATERIAL_TEXTURE``
+(more materials than the uniform array holds).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from . import gpu_layout
+from .limits import MAX_LIGHTS, MAX_PLANES
 from .scene import Scene
 
-
-# The defines a specialised shader variant may carry, in the order they are emitted.
-FEATURE_DEFINES = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS")
+# What a specialised variant removes (the stats' ``features_removed``), then the counts.
+REMOVALS = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS", "NO_SPLIT")
+PLANE_COUNTS = tuple(f"PLANES_{k}" for k in range(MAX_PLANES + 1))
+LIGHT_COUNTS = tuple(f"LIGHTS_{k}" for k in range(1, MAX_LIGHTS + 1))   # no lights: NO_LIGHTS
+DATA_FORMATS = ("EQUAL_RADII", "MATERIAL_TEXTURE")
+# The defines a variant may carry, in the order they are emitted (the server's shader query
+# accepts these, in this order).
+FEATURE_DEFINES = (*REMOVALS, *PLANE_COUNTS, *LIGHT_COUNTS, *DATA_FORMATS)
 
 
 @dataclass(frozen=True)
@@ -24,31 +41,60 @@ class SceneFeatures:
     reflection: bool
     transmission: bool
     lights: bool
+    split: bool = True                # a used material both reflects and transmits
+    n_planes: int | None = None       # compiled-in counts (None: read from uniforms)
+    n_lights: int | None = None
+    equal_radii: bool = False         # data formats (gpu_layout), never specialised away
+    material_texture: bool = False
 
     def defines(self) -> tuple[str, ...]:
-        """Shader defines that remove what the scene cannot use."""
-        out = []
+        """The variant's defines, in FEATURE_DEFINES order: what the scene cannot use removed,
+        its counts compiled in, its data formats."""
+        on = set()
         if not self.reflection:
-            out.append("NO_REFLECTION")
+            on.add("NO_REFLECTION")
         if not self.transmission:
-            out.append("NO_TRANSMISSION")
+            on.add("NO_TRANSMISSION")
         if not self.lights:
-            out.append("NO_LIGHTS")
-        return tuple(out)
+            on.add("NO_LIGHTS")
+        if self.reflection and self.transmission and not self.split:
+            on.add("NO_SPLIT")
+        if self.n_planes is not None:
+            on.add(f"PLANES_{self.n_planes}")
+        if self.n_lights:
+            on.add(f"LIGHTS_{self.n_lights}")
+        if self.equal_radii:
+            on.add("EQUAL_RADII")
+        if self.material_texture:
+            on.add("MATERIAL_TEXTURE")
+        return tuple(d for d in FEATURE_DEFINES if d in on)
+
+    def removed(self) -> list[str]:
+        """What the variant leaves out (``features_removed`` of a frame's stats)."""
+        return [d for d in self.defines() if d in REMOVALS]
 
     def recursion_depth(self, requested: int) -> int:
         """The deepest level a ray tree can reach in this scene (≤ requested)."""
         return requested if (self.reflection or self.transmission) else 1
+
+    def generic(self) -> "SceneFeatures":
+        """The generic variant for the same data: nothing removed, counts read at run time."""
+        return replace(GENERIC, equal_radii=self.equal_radii, material_texture=self.material_texture)
 
 
 GENERIC = SceneFeatures(reflection=True, transmission=True, lights=True)
 
 
 def scene_features(scene: Scene) -> SceneFeatures:
-    """Features of the materials that primitives actually use, and whether there are lights."""
+    """Features of the materials that primitives actually use, the counts of planes and
+    lights, and the scene's data formats."""
     used = (set(np.unique(scene.sphere_materials).tolist()) | {p.material for p in scene.planes}
             | {m.material for m in scene.meshes})
     mats = [scene.materials[i] for i in used]
     return SceneFeatures(reflection=any(m.reflective > 0 for m in mats),
                          transmission=any(m.transmissive > 0 for m in mats),
-                         lights=len(scene.lights) > 0)
+                         lights=len(scene.lights) > 0,
+                         split=any(m.reflective > 0 and m.transmissive > 0 for m in mats),
+                         n_planes=len(scene.planes), n_lights=len(scene.lights),
+                         equal_radii=gpu_layout.equal_radii(scene),
+                         material_texture=gpu_layout.material_texture(scene))

@@ -6,23 +6,46 @@ layout module (``renderer/accel/<method>_layout.py``). The packers fill them *by
 constants*, and the shader header declares them *from those constants*
 (:mod:`renderer.shader_source`), so a name exists once: a packer cannot fill a
 sampler the shader spells differently. What a compiled variant reads (a
-:class:`Variant`: method, mode, recursion depth, feature defines) decides which bindings
-its header declares; the GL renderer uploads exactly those, and a test checks that each
-of them is an active uniform of its program.
+:class:`Variant`: method, mode, recursion depth, feature defines, and the host's choices)
+decides which bindings its header declares; the GL renderer uploads exactly those, and a
+test checks that each of them is an active uniform (or uniform block) of its program.
 
 Arrays longer than one texture row wrap into a 2-D texture: element ``i`` is
 texel ``(i % width, i / width)`` where ``width = textureSize(tex, 0).x`` — the
 shader reads the width from the texture, so a device with a smaller
 ``MAX_TEXTURE_SIZE`` only needs a narrower packing.
 
+**Record arrays** (``Binding(records=True)``): arrays of 16-byte ``uvec4`` records (tree
+nodes, sphere records) that the host may place in a *uniform block* instead of a texture
+when they fit one (:data:`BLOCK_RECORDS` records, 64 KiB): ``Variant.blocks`` names them,
+and the header declares either the ``usampler2D`` or ``layout(std140) uniform NAME {
+uvec4 NAME_rec[BLOCK_RECORDS]; }`` and the accessor ``NAME_at(i)`` for both, so the
+traversal reads ``NAME_at(i)`` whatever the storage. A uniform-block read costs llvmpipe
+0.78 ns against 0.96 for an RGBA32UI ``texelFetch`` (issue 18). The device (WebGL2, whose
+guaranteed block is 16 KiB) always gets textures.
+
+**Sphere records** (:func:`sphere_records`), in the order a method's leaves list them (a
+leaf is a run of records, the last one flagged), so a leaf needs no index array::
+
+    equal radii (EQUAL_RADII), 16 bytes, one record per sphere:
+        x, y, z  float32 bits of the centre
+        w        key: bits 20..0 sphere id, bits 28..21 material, bit 31 last of its leaf
+        (the radius is the uniform u_sphere_radius)                       total: 16 bytes
+    otherwise, 32 bytes, records 2p and 2p + 1:
+        2p       x, y, z, w  float32 bits of the centre and the radius
+        2p + 1   x           key (as above); y, z, w zero                   total: 32 bytes
+
 ==============  ========  ==========  ==========================================
 texture         format    element     contents
 ==============  ========  ==========  ==========================================
-u_spheres       RGBA32F   sphere id   centre x, y, z, radius
-u_sphere_mat    R32UI     sphere id   material index
+u_spheres       RGBA32F   sphere id   centre x, y, z, radius (the ray engines)
+u_sphere_mat    R32UI     sphere id   material index (the ray engines)
 u_materials     RGBA32F   3 per mat.  (r, g, b, ambient), (diffuse, specular,
                                       shininess, reflective), (transmissive,
-                                      ior, 0, 0)
+                                      ior, 0, 0); the tracer reads the same
+                                      texels from the uniform array
+                                      u_material_vecs when the scene has at most
+                                      MAX_UNIFORM_MATERIALS materials
 ==============  ========  ==========  ==========================================
 
 Planes and lights are few and go in uniform arrays (``MAX_PLANES``,
@@ -37,11 +60,25 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .limits import DEFAULT_TEXTURE_WIDTH, MAX_LIGHTS, MAX_PLANES
+from .limits import DEFAULT_TEXTURE_WIDTH, MAX_LIGHTS, MAX_MATERIALS, MAX_PLANES, MAX_SPHERES
 from .modes import RAY_TREE_MODES
 from .scene import Camera, Scene
 
 MATERIAL_TEXELS = 3
+# The tracer reads materials from a uniform array when the scene has at most this many
+# (WebGL2 guarantees 224 fragment uniform vectors; these take 48), else from u_materials.
+MAX_UNIFORM_MATERIALS = 16
+# Records of a uniform block: 64 KiB of uvec4 (the renderer uses blocks only where
+# GL_MAX_UNIFORM_BLOCK_SIZE allows them).
+BLOCK_RECORDS = 4096
+BLOCK_BYTES = 16 * BLOCK_RECORDS
+# The key word of a sphere record.
+SPHERE_ID_BITS = 21                     # ids < MAX_SPHERES = 2^21
+SPHERE_ID_MASK = (1 << SPHERE_ID_BITS) - 1
+SPHERE_MAT_SHIFT = SPHERE_ID_BITS
+SPHERE_MAT_MASK = 0xFF                  # materials < MAX_MATERIALS = 256
+SPHERE_LAST = 1 << 31                   # the last record of a leaf
+assert MAX_SPHERES <= 1 << SPHERE_ID_BITS and MAX_MATERIALS <= SPHERE_MAT_MASK + 1
 
 
 # ---- bindings and variants -----------------------------------------------------------------
@@ -49,16 +86,38 @@ MATERIAL_TEXELS = 3
 class Binding:
     """One texture or uniform of the tracer: GLSL name and type (with its precision, so the
     declaration is valid before any default-precision statement), array length, purpose,
-    and the group of what a variant reads it for (see :meth:`Variant.reads`)."""
+    and the group of what a variant reads it for (see :meth:`Variant.reads`).
+
+    ``traversal``: read only by the traversal (not by the background variant).
+    ``needs`` / ``unless``: a feature define the variant must / must not carry to read it
+    (the data formats: ``EQUAL_RADII``, ``MATERIAL_TEXTURE``); one ending in ``_`` stands
+    for every define it begins (``PLANES_``: a compiled-in count). ``tracer``: False for what
+    only the ray engines read. ``records``: an array of ``uvec4`` records that the host may
+    place in a uniform block (the module's docstring); its GLSL type is then implied."""
     name: str
-    glsl_type: str
+    glsl_type: str = "highp usampler2D"
     doc: str = ""
     length: str | None = None   # GLSL constant of a uniform array's length
     group: str = "always"
+    needs: str | None = None
+    unless: str | None = None
+    tracer: bool = True
+    records: bool = False
+    traversal: bool = False
 
-    def declaration(self) -> str:
-        arr = f"[{self.length}]" if self.length else ""
-        return f"uniform {self.glsl_type} {self.name}{arr};" + (f"  // {self.doc}" if self.doc else "")
+    def declaration(self, block: bool = False) -> str:
+        """The GLSL declaration; a record array's also declares ``NAME_at(i)`` (and, as a
+        texture, its row shift, set by ``LAYOUT_INIT()``)."""
+        doc = f"  // {self.doc}" if self.doc else ""
+        if not self.records:
+            arr = f"[{self.length}]" if self.length else ""
+            return f"uniform {self.glsl_type} {self.name}{arr};" + doc
+        if block:
+            return (f"layout(std140) uniform {self.name} {{ highp uvec4 {self.name}_rec[BLOCK_RECORDS]; }};{doc}\n"
+                    f"#define {self.name}_at(i) {self.name}_rec[i]")
+        return (f"uniform highp usampler2D {self.name};{doc}\n"
+                f"int {self.name}_shift;\n"
+                f"#define {self.name}_at(i) texelFetch({self.name}, texel((i), {self.name}_shift), 0)")
 
 
 # Groups of bindings a variant may not read; each has a READS_<GROUP> define in the shader.
@@ -67,11 +126,20 @@ GROUPS = ("materials", "lights", "min_weight", "target_distance")
 
 @dataclass(frozen=True)
 class Variant:
-    """One compiled tracer: method × mode × recursion depth × feature defines (``NO_*``)."""
+    """One compiled tracer: method × mode × recursion depth × feature defines (``NO_*``,
+    counts, data formats; :mod:`renderer.features`) × the host's choices: the record arrays
+    it reads from uniform blocks (``blocks``), whether it writes one RGBA8 image
+    (``image_only``: png/jpeg frames at one sample per pixel), and whether it traces the
+    spheres at all (``spheres`` False: the *background* variant of a primary-ray frame,
+    drawn where no primary ray can meet a sphere, :func:`primary_rect`; it reads none of
+    the method's bindings)."""
     method: str
     mode: str
     depth: int
     features: tuple[str, ...] = ()
+    blocks: tuple[str, ...] = ()
+    image_only: bool = False
+    spheres: bool = True
 
     @property
     def traced_depth(self) -> int:
@@ -97,24 +165,39 @@ class Variant:
             return self.mode == "depth"
         raise ValueError(f"unknown binding group {group!r}")
 
+    def reads_binding(self, b: Binding) -> bool:
+        """Whether the variant's shader declares and reads ``b``."""
+        def carries(define: str) -> bool:
+            return any(f == define or (define.endswith("_") and f.startswith(define)) for f in self.features)
+        return (b.tracer and self.reads(b.group) and (self.spheres or not b.traversal)
+                and (b.needs is None or carries(b.needs))
+                and (b.unless is None or not carries(b.unless)))
+
     def defines(self) -> list[str]:
         """``READS_<GROUP>`` for each group read: the shader guards its uses with them."""
         return [f"READS_{g.upper()}" for g in GROUPS if self.reads(g)]
 
 
-SPHERES = Binding("u_spheres", "highp sampler2D", "(centre.xyz, radius) per sphere id")
-SPHERE_MAT = Binding("u_sphere_mat", "highp usampler2D", "material index per sphere id", group="materials")
-MATERIALS = Binding("u_materials", "highp sampler2D", "MATERIAL_TEXELS texels per material", group="materials")
+SPHERES = Binding("u_spheres", "highp sampler2D", "(centre.xyz, radius) per sphere id", tracer=False)
+SPHERE_MAT = Binding("u_sphere_mat", "highp usampler2D", "material index per sphere id", group="materials",
+                     tracer=False)
+MATERIALS = Binding("u_materials", "highp sampler2D", "MATERIAL_TEXELS texels per material", group="materials",
+                    needs="MATERIAL_TEXTURE")
+MATERIAL_VECS = Binding("u_material_vecs", "highp vec4", "MATERIAL_TEXELS vectors per material",
+                        length="MATERIAL_VECS", group="materials", unless="MATERIAL_TEXTURE")
+SPHERE_RADIUS = Binding("u_sphere_radius", "highp float", "the radius of every sphere (EQUAL_RADII records)",
+                        needs="EQUAL_RADII", traversal=True)
 NUM_SPHERES = Binding("u_num_spheres", "highp int")
-NUM_PLANES = Binding("u_num_planes", "highp int")
+NUM_PLANES = Binding("u_num_planes", "highp int", unless="PLANES_")
 PLANE_POINT = Binding("u_plane_point", "highp vec3", length="MAX_PLANES")
 PLANE_NORMAL = Binding("u_plane_normal", "highp vec3", length="MAX_PLANES")
 PLANE_MAT = Binding("u_plane_mat", "highp int", length="MAX_PLANES", group="materials")
-NUM_LIGHTS = Binding("u_num_lights", "highp int", group="lights")
+NUM_LIGHTS = Binding("u_num_lights", "highp int", group="lights", unless="LIGHTS_")
 LIGHT_POS = Binding("u_light_pos", "highp vec3", length="MAX_LIGHTS", group="lights")
 LIGHT_COLOR = Binding("u_light_color", "highp vec3", length="MAX_LIGHTS", group="lights")
-SCENE_BINDINGS = (SPHERES, SPHERE_MAT, MATERIALS, NUM_SPHERES, NUM_PLANES, PLANE_POINT, PLANE_NORMAL, PLANE_MAT,
-                  NUM_LIGHTS, LIGHT_POS, LIGHT_COLOR)
+# Everything pack_primitives packs (the tracer's and the ray engines' scene data).
+SCENE_BINDINGS = (SPHERES, SPHERE_MAT, MATERIALS, MATERIAL_VECS, SPHERE_RADIUS, NUM_SPHERES, NUM_PLANES,
+                  PLANE_POINT, PLANE_NORMAL, PLANE_MAT, NUM_LIGHTS, LIGHT_POS, LIGHT_COLOR)
 
 CAM_POS = Binding("u_cam_pos", "highp vec3")
 CAM_RIGHT = Binding("u_cam_right", "highp vec3")
@@ -135,14 +218,25 @@ PASS_BINDINGS = (PASS_SCALE, PASS_OFFSET)
 TRACER_BINDINGS = (*SCENE_BINDINGS, *CAMERA_BINDINGS, *PASS_BINDINGS, MIN_WEIGHT)
 # The ray engines draw planes as instances after the spheres (the instance count carries the
 # number of primitives), so they never read u_num_planes; their depth image is made on the CPU.
-RAY_ENGINE_SCENE_BINDINGS = tuple(b for b in SCENE_BINDINGS if b is not NUM_PLANES)
+# Their materials are the texture, their spheres the per-id textures.
+RAY_ENGINE_SCENE_BINDINGS = (SPHERES, SPHERE_MAT, MATERIALS, NUM_SPHERES, PLANE_POINT, PLANE_NORMAL, PLANE_MAT,
+                             NUM_LIGHTS, LIGHT_POS, LIGHT_COLOR)
 RAY_ENGINE_BINDINGS = (*RAY_ENGINE_SCENE_BINDINGS, *(b for b in CAMERA_BINDINGS if b is not TARGET_DISTANCE),
                        MIN_WEIGHT)
 
 
-def declarations(bindings: tuple[Binding, ...] | list[Binding]) -> str:
-    """GLSL declarations of ``bindings``, one per line."""
-    return "".join(b.declaration() + "\n" for b in bindings)
+def declarations(bindings: tuple[Binding, ...] | list[Binding], blocks: tuple[str, ...] = ()) -> str:
+    """GLSL declarations of ``bindings``, one per line; record arrays named in ``blocks`` as
+    uniform blocks. A ``LAYOUT_INIT()`` macro follows when a record array is a texture (it
+    sets the row shifts; the tracer calls it first)."""
+    text = "".join(b.declaration(b.name in blocks) + "\n" for b in bindings)
+    shifts = [b.name for b in bindings if b.records and b.name not in blocks]
+    if shifts:
+        text += ("#define LAYOUT_INIT() " + " ".join(f"{n}_shift = row_shift(textureSize({n}, 0));" for n in shifts)
+                 + "\n")
+    elif any(b.records for b in bindings):
+        text += "#define LAYOUT_INIT()\n"
+    return text
 
 
 @dataclass
@@ -194,8 +288,75 @@ class PackedScene:
         return sum(t.data.nbytes for t in self.textures.values())
 
 
+def equal_radii(scene: Scene) -> bool:
+    """Whether every sphere has the same float32 radius: the 16-byte sphere records."""
+    r = scene.sphere_radii.astype(np.float32)
+    return bool(len(r) == 0 or (r == r[0]).all())
+
+
+def material_texture(scene: Scene) -> bool:
+    """Whether the scene has more materials than the tracer's uniform array holds."""
+    return len(scene.materials) > MAX_UNIFORM_MATERIALS
+
+
+def sphere_records(scene: Scene, order: np.ndarray, last: np.ndarray | None = None) -> np.ndarray:
+    """The records of spheres ``order`` (scene ids, in the order a method's leaves list them),
+    ``last`` flagging the last record of each leaf: uint32 (k, 4), or (2k, 4) when the radii
+    differ (the module's docstring)."""
+    ids = np.asarray(order, dtype=np.int64).reshape(-1)
+    k = len(ids)
+    key = ids.astype(np.uint32) | (scene.sphere_materials[ids].astype(np.uint32) << np.uint32(SPHERE_MAT_SHIFT))
+    if last is not None:
+        key |= np.where(np.asarray(last, dtype=bool), np.uint32(SPHERE_LAST), np.uint32(0))
+    centres = np.ascontiguousarray(scene.sphere_centers[ids], dtype=np.float32).view(np.uint32)
+    if equal_radii(scene):
+        out = np.empty((k, 4), dtype=np.uint32)
+        out[:, :3] = centres
+        out[:, 3] = key
+        return out
+    out = np.zeros((k, 2, 4), dtype=np.uint32)
+    out[:, 0, :3] = centres
+    out[:, 0, 3] = np.ascontiguousarray(scene.sphere_radii[ids], dtype=np.float32).view(np.uint32)
+    out[:, 1, 0] = key
+    return out.reshape(2 * k, 4)
+
+
+def unpack_sphere_records(records: np.ndarray, equal: bool) -> dict[str, np.ndarray]:
+    """The inverse of :func:`sphere_records` (tests and the CPU mirrors): ``records`` uint32
+    (…, 4) as packed (padding included), ``equal``: the EQUAL_RADII format (then ``radius``
+    is NaN: it is the uniform's)."""
+    r = np.asarray(records, dtype=np.uint32).reshape(-1, 4)
+    if equal:
+        centre, radius, key = r[:, :3].copy().view(np.float32), np.full(len(r), np.nan, np.float32), r[:, 3]
+    else:
+        r = r[:len(r) // 2 * 2].reshape(-1, 2, 4)
+        centre, radius, key = r[:, 0, :3].copy().view(np.float32), r[:, 0, 3].copy().view(np.float32), r[:, 1, 0]
+    return {"centre": centre, "radius": radius, "id": (key & np.uint32(SPHERE_ID_MASK)).astype(np.int64),
+            "material": ((key >> np.uint32(SPHERE_MAT_SHIFT)) & np.uint32(SPHERE_MAT_MASK)).astype(np.int64),
+            "last": (key & np.uint32(SPHERE_LAST)) != 0}
+
+
+def leaf_ends(starts: np.ndarray, counts: np.ndarray, total: int) -> np.ndarray:
+    """The ``last`` flags of :func:`sphere_records` for leaves of ``counts`` records at ``starts``."""
+    last = np.zeros(total, dtype=bool)
+    counts = np.asarray(counts, dtype=np.int64)
+    last[(np.asarray(starts, dtype=np.int64) + counts - 1)[counts > 0]] = True
+    return last
+
+
+def box_uniform(lo, hi) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """A box as two vec3 uniforms; the empty box of no primitives (+inf, −inf) as the finite
+    empty box (1, 1, 1)–(−1, −1, −1), which JSON can carry to a device (no ray meets either;
+    the traversals do not start without primitives anyway)."""
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+        return (1.0, 1.0, 1.0), (-1.0, -1.0, -1.0)
+    return tuple(float(x) for x in lo), tuple(float(x) for x in hi)
+
+
 def pack_primitives(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
-    """Spheres, materials, planes and lights (what every method reads)."""
+    """Spheres, materials, planes and lights (what every method reads): the materials as a
+    texture and as the uniform array, the common radius of EQUAL_RADII records."""
     spheres = np.concatenate([scene.sphere_centers, scene.sphere_radii[:, None]], axis=1).astype(np.float32)
     mats = np.zeros((len(scene.materials) * MATERIAL_TEXELS, 4), dtype=np.float32)
     for i, m in enumerate(scene.materials):
@@ -209,7 +370,12 @@ def pack_primitives(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> Pac
     }
     planes = scene.planes
     lights = scene.lights
+    vecs = np.zeros((MATERIAL_TEXELS * MAX_UNIFORM_MATERIALS, 4), dtype=np.float32)
+    vecs[:min(len(mats), len(vecs))] = mats[:len(vecs)]
+    radius = float(scene.sphere_radii.astype(np.float32)[0]) if scene.n_spheres and equal_radii(scene) else 0.0
     uniforms: dict[str, object] = {
+        MATERIAL_VECS.name: [tuple(float(x) for x in v) for v in vecs],
+        SPHERE_RADIUS.name: radius,
         NUM_SPHERES.name: scene.n_spheres,
         NUM_PLANES.name: len(planes),
         PLANE_POINT.name: _fixed([p.point for p in planes], MAX_PLANES, (0.0, 0.0, 0.0)),
@@ -246,6 +412,96 @@ def camera_uniforms(camera: Camera, width: int, height: int) -> dict[str, object
     }
 
 
+def primary_rect(scene: Scene, width: int, height: int, margin: int = 2) -> tuple[int, int, int, int] | None:
+    """The window rectangle ``(x, y, w, h)`` (GL coordinates: rows from the bottom) of a
+    ``width × height`` grid of primary rays outside which no ray can meet a sphere: the
+    bounding rectangle of the spheres' box projected through the camera
+    (:func:`camera_uniforms`' pixel mapping), widened by ``margin`` pixels and clipped to
+    the grid; ``(0, 0, 0, 0)`` without spheres. None when there is no such bound: a corner
+    of the box at or behind the camera's plane (the camera inside or beside the box).
+
+    The box is the float64 one widened by a relative 1e-6, so it holds every sphere as
+    float32 stores it; the margin covers the float32 rounding of the rays' directions."""
+    if scene.n_spheres == 0:
+        return (0, 0, 0, 0)
+    c, r = scene.sphere_centers, scene.sphere_radii[:, None]
+    slack = 1e-6 * (np.abs(c) + r).max()
+    lo, hi = (c - r).min(axis=0) - slack, (c + r).max(axis=0) + slack
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    right, up, forward = scene.camera.basis()
+    v = corners - np.asarray(scene.camera.position, dtype=np.float64)
+    z = v @ forward
+    if not (z > 1e-6 * np.linalg.norm(v, axis=1)).all():
+        return None
+    s = math.tan(math.radians(scene.camera.fov_y) / 2.0)
+    px = ((v @ right) / z / (s * width / height) + 1.0) * width / 2.0        # u = (2 px / W − 1) · hx
+    row = (1.0 - (v @ up) / z / s) * height / 2.0                           # v = (1 − 2 row / H) · hy
+    x0 = max(0, math.floor(px.min()) - margin)
+    x1 = min(width, math.ceil(px.max()) + margin)
+    y0 = max(0, math.floor(height - row.max()) - margin)                    # GL rows grow upwards
+    y1 = min(height, math.ceil(height - row.min()) + margin)
+    if x1 <= x0 or y1 <= y0:
+        return (0, 0, 0, 0)
+    return (x0, y0, x1 - x0, y1 - y0)
+
+
+def frame_regions(scene: Scene, width: int, height: int, planes: bool, margin: int = 2
+                  ) -> list[tuple[int, int, int, int, bool]] | None:
+    """A partition of a ``width × height`` frame into rectangles ``(x, y, w, h, tracer)``
+    (GL coordinates, rows from the bottom): ``tracer`` False where no primary ray can meet
+    a sphere (outside :func:`primary_rect`) — and, with ``planes``, no plane either — so
+    that the background variant (the shader without its traversal) draws the same pixels.
+    ``planes`` is for frames whose hits spawn rays (colour, recursion): there a pixel may
+    skip the tracer only if its ray meets nothing at all. None: no such split (every pixel
+    to the tracer).
+
+    A plane through P with normal N is met by the ray of direction d from the camera C when
+    t = dot(P − C, N) / dot(d, N) > 0: never when the signs differ, a linear condition on
+    the image plane, so a rectangle misses the plane when its corners (widened by
+    ``margin`` pixels) do, with a relative slack; a camera (nearly) on a plane splits nothing."""
+    rect = primary_rect(scene, width, height, margin)
+    if rect is None:
+        return None
+    sx, sy, sw, sh = rect
+    miss = np.ones(height, dtype=bool)              # GL row y: its whole row may skip the tracer
+    if planes and scene.planes:
+        right, up, forward = scene.camera.basis()
+        cam = np.asarray(scene.camera.position, dtype=np.float64)
+        s = math.tan(math.radians(scene.camera.fov_y) / 2.0)
+        hx, hy = s * width / height, s
+        y = np.arange(height, dtype=np.float64)
+        rows = np.stack([height - (y + 0.5 + margin), height - (y + 0.5 - margin)], axis=1)   # from the top
+        cols = np.array([0.5 - margin, width - 0.5 + margin])
+        u = (2.0 * cols / width - 1.0) * hx
+        v = (1.0 - 2.0 * rows / height) * hy                                                   # (H, 2)
+        for p in scene.planes:
+            n = np.asarray(p.normal, dtype=np.float64)
+            side = float(np.dot(np.asarray(p.point, dtype=np.float64) - cam, n))
+            if abs(side) <= 1e-6 * (np.abs(cam).max() + np.abs(p.point).max() + 1.0):
+                return None
+            dn = (forward @ n) + u[None, :, None] * (right @ n) + v[:, None, :] * (up @ n)    # (H, 2, 2)
+            norm = 1.0 + abs(hx) + abs(hy)
+            miss &= (np.sign(side) * dn < -1e-5 * norm).all(axis=(1, 2))
+    out: list[tuple[int, int, int, int, bool]] = []
+    y0 = 0
+    while y0 < height:                               # runs of rows of one kind
+        y1 = y0 + 1
+        while y1 < height and miss[y1] == miss[y0]:
+            y1 += 1
+        if not miss[y0]:
+            out.append((0, y0, width, y1 - y0, True))
+        else:
+            a, b = max(y0, sy), min(y1, sy + sh)
+            if sw <= 0 or sh <= 0 or b <= a:
+                out.append((0, y0, width, y1 - y0, False))
+            else:
+                out += [(0, y0, width, a - y0, False), (0, b, width, y1 - b, False),
+                        (0, a, sx, b - a, False), (sx + sw, a, width - sx - sw, b - a, False),
+                        (sx, a, sw, b - a, True)]
+        y0 = y1
+    return [r for r in out if r[2] > 0 and r[3] > 0]
+
+
 def pass_uniforms(scale: int = 1, sub: tuple[int, int] = (0, 0)) -> dict[str, object]:
     """The pass uniforms: the pixel centres (scale 1), or sub-pixel ``sub`` = (sx, sy) of a
     ``scale × scale`` grid per pixel (sy counts from the bottom, as GL's rows do)."""
@@ -255,7 +511,18 @@ def pass_uniforms(scale: int = 1, sub: tuple[int, int] = (0, 0)) -> dict[str, ob
 
 
 def glsl_header() -> str:
-    """The tracer's own layout constants (inserted after ``#version``, before each method's)."""
+    """The scene's layout constants (the tracer's and the ray engines' headers, after ``#version``)."""
     return (f"#define MAX_PLANES {MAX_PLANES}\n"
             f"#define MAX_LIGHTS {MAX_LIGHTS}\n"
             f"#define MATERIAL_TEXELS {MATERIAL_TEXELS}\n")
+
+
+def tracer_constants() -> str:
+    """The tracer's own constants beside :func:`glsl_header`: the uniform material array,
+    uniform blocks and the sphere records' key."""
+    return (f"#define MATERIAL_VECS {MATERIAL_TEXELS * MAX_UNIFORM_MATERIALS}\n"
+            f"#define BLOCK_RECORDS {BLOCK_RECORDS}\n"
+            f"#define SPHERE_ID_MASK {SPHERE_ID_MASK}u\n"
+            f"#define SPHERE_MAT_SHIFT {SPHERE_MAT_SHIFT}u\n"
+            f"#define SPHERE_MAT_MASK {SPHERE_MAT_MASK}u\n"
+            f"#define SPHERE_LAST {SPHERE_LAST}u\n")

@@ -38,9 +38,10 @@ def method_shader(method: str) -> str:
 
 
 def tracer_bindings(variant: Variant) -> list[Binding]:
-    """The textures and uniforms the variant's shader declares and reads: the scene's and
-    the camera's it needs (:meth:`Variant.reads`), then every one of its method's."""
-    return [b for b in (*gpu_layout.TRACER_BINDINGS, *METHODS[variant.method].bindings) if variant.reads(b.group)]
+    """The textures, uniforms and record arrays the variant's shader declares and reads: the
+    scene's and the camera's it needs (:meth:`Variant.reads_binding`), then its method's."""
+    method = METHODS[variant.method].bindings if variant.spheres else ()
+    return [b for b in (*gpu_layout.TRACER_BINDINGS, *method) if variant.reads_binding(b)]
 
 
 @lru_cache(maxsize=None)
@@ -51,16 +52,37 @@ def known_bindings() -> frozenset[str]:
 
 def tracer_header(variant: Variant) -> str:
     """Layout constants, the variant's defines and its bindings' declarations."""
+    unknown = set(variant.blocks) - {b.name for b in tracer_bindings(variant) if b.records}
+    if unknown:
+        raise ValueError(f"blocks {sorted(unknown)} are not record arrays the {variant.method} variant reads")
     defines = [f"METHOD_{variant.method.upper()}", f"MODE_{variant.mode.upper()}",
                f"MAX_RECURSION_DEPTH {int(variant.depth)}", *variant.features, *variant.defines()]
-    return (gpu_layout.glsl_header() + METHODS[variant.method].glsl_defines()
-            + "".join(f"#define {d}\n" for d in defines) + gpu_layout.declarations(tracer_bindings(variant)))
+    for f in variant.features:     # compiled-in counts (renderer.features): PLANES_k → N_PLANES k
+        for prefix, name in (("PLANES_", "N_PLANES"), ("LIGHTS_", "N_LIGHTS")):
+            if f.startswith(prefix):
+                defines.append(f"{name} {int(f[len(prefix):])}")
+    if variant.image_only:
+        defines.append("IMAGE_ONLY")
+    if not variant.spheres:
+        defines.append("BACKGROUND")
+    return (gpu_layout.glsl_header() + gpu_layout.tracer_constants() + METHODS[variant.method].glsl_defines()
+            + "".join(f"#define {d}\n" for d in defines)
+            + gpu_layout.declarations(tracer_bindings(variant), tuple(variant.blocks)))
 
 
-def tracer_source(method: str, mode: str, max_recursion_depth: int, extra_defines: tuple[str, ...] = ()) -> str:
-    """The fragment shader of one variant: method × mode × recursion depth × feature defines."""
-    variant = Variant(method, mode, int(max_recursion_depth), tuple(extra_defines))
-    method_src = _with_includes(read(method_shader(method)))
+def tracer_source(method: str, mode: str, max_recursion_depth: int, extra_defines: tuple[str, ...] = (),
+                  blocks: tuple[str, ...] = (), image_only: bool = False, spheres: bool = True) -> str:
+    """The fragment shader of one variant: method × mode × recursion depth × feature defines,
+    and the host's choices (record arrays in uniform blocks, one RGBA8 image, the background
+    variant without spheres)."""
+    variant = Variant(method, mode, int(max_recursion_depth), tuple(extra_defines), tuple(blocks), image_only,
+                      spheres)
+    return variant_source(variant)
+
+
+def variant_source(variant: Variant) -> str:
+    """The fragment shader of ``variant``."""
+    method_src = _with_includes(read(method_shader(variant.method)))
     return read("raytrace.frag").replace(HEADER_MARK, tracer_header(variant)).replace(METHOD_MARK, method_src)
 
 

@@ -1,17 +1,11 @@
 // Method "bvh": binned-SAH bounding volume hierarchy with Reiter's ordered
 // traversal (near mask per direction octant, listing 4.13), stack-based.
 // Spliced into raytrace.frag at its METHOD mark; defines intersect_spheres().
-// Node layout: renderer/accel/bvh_layout.py (two RGBA32UI texels per node).
+// Layout: renderer/accel/bvh_layout.py (an inner record of 4 uvec4 holds both children's
+// boxes and refs; leaves are runs of sphere records). Its constants (BVH_*) and bindings
+// (u_bvh_nodes, u_bvh_spheres, u_bvh_root, u_bvh_root_min/max) come via the host header.
 
-// Layout constants (BVH_*) and the bindings (u_bvh_nodes, u_bvh_indices) come from
-// renderer/accel/bvh_layout.py via the host header.
-
-int g_bvh_node_shift, g_bvh_index_shift;
-
-void bvh_init() {
-    g_bvh_node_shift = row_shift(textureSize(u_bvh_nodes, 0));
-    g_bvh_index_shift = row_shift(textureSize(u_bvh_indices, 0));
-}
+void bvh_init() {}
 
 // 1/d with components of magnitude below BVH_DIR_EPS replaced by ±1/BVH_DIR_EPS,
 // so that (bound − o) · inv is never 0 · inf = NaN (a parallel ray outside a
@@ -24,9 +18,9 @@ vec3 bvh_safe_inv(vec3 d) {
 // Entry distance of the ray into the box, clamped to [0, ∞); BIG when the ray
 // misses the box or enters it beyond t_best. The slack keeps float32 rounding
 // from culling a box that holds the nearest hit (it only adds work).
-float bvh_box(uvec4 lo, uvec4 hi, vec3 o, vec3 inv, float t_best) {
-    vec3 ta = (uintBitsToFloat(lo.xyz) - o) * inv;
-    vec3 tb = (uintBitsToFloat(hi.xyz) - o) * inv;
+float bvh_box(vec3 lo, vec3 hi, vec3 o, vec3 inv, float t_best) {
+    vec3 ta = (lo - o) * inv;
+    vec3 tb = (hi - o) * inv;
     vec3 tn = min(ta, tb);
     vec3 tf = max(ta, tb);
     float t0 = max(max(tn.x, tn.y), max(tn.z, 0.0));
@@ -34,67 +28,66 @@ float bvh_box(uvec4 lo, uvec4 hi, vec3 o, vec3 inv, float t_best) {
     return (t0 <= t1 && t0 <= t_best * BVH_T_SLACK) ? t0 : BIG;
 }
 
-uvec4 bvh_texel(int i) {
-    return texelFetch(u_bvh_nodes, texel(i, g_bvh_node_shift), 0);
-}
-
 // Ordered stack traversal (Reiter §4.4.1): at an inner node both children's
 // boxes are tested; the one the near mask names for the ray's octant is
 // visited first and the other pushed with its entry distance; a popped entry
 // that starts beyond the best hit is dropped. The stack holds one entry per
 // level and the build never makes a tree deeper than BVH_STACK_SIZE.
+// Three loops, each doing one thing: descend through inner records to a leaf
+// child, test the leaf's sphere records up to the one flagged last, pop.
 void bvh_intersect(Query q, inout Hit h) {
     vec3 inv = bvh_safe_inv(q.d);
     uint octant = (q.d.x < 0.0 ? 1u : 0u) | (q.d.y < 0.0 ? 2u : 0u) | (q.d.z < 0.0 ? 4u : 0u);
-    uvec4 n0 = bvh_texel(0);
-    uvec4 n1 = bvh_texel(1);
-    if (bvh_box(n0, n1, q.o, inv, h.t) >= BIG) return;
-    int st_node[BVH_STACK_SIZE];
+    if (bvh_box(u_bvh_root_min, u_bvh_root_max, q.o, inv, h.t) >= BIG) return;
+    uint st_ref[BVH_STACK_SIZE];
     float st_t[BVH_STACK_SIZE];
     int sp = 0;
+    uint ref = u_bvh_root;
     while (true) {
-        COUNT(x);
-        if ((n1.w & BVH_INNER_FLAG) == 0u) {
-            int offset = int(n0.w);
-            int end = offset + int(n1.w & BVH_COUNT_MASK);
-            for (int i = offset; i < end; i++) {
-                int id = int(texelFetch(u_bvh_indices, texel(i, g_bvh_index_shift), 0).x);
-                test_sphere(q, id, h);
-                if (q.any_hit && h.t < q.t_max) return;
-            }
-        } else {
-            int l = int(n0.w);
-            bool right_first = ((n1.w >> octant) & 1u) == 1u;
-            int near_node = right_first ? l + 1 : l;
-            int far_node = right_first ? l : l + 1;
-            uvec4 a0 = bvh_texel(2 * near_node);
-            uvec4 a1 = bvh_texel(2 * near_node + 1);
-            uvec4 b0 = bvh_texel(2 * far_node);
-            uvec4 b1 = bvh_texel(2 * far_node + 1);
-            float t_near = bvh_box(a0, a1, q.o, inv, h.t);
-            float t_far = bvh_box(b0, b1, q.o, inv, h.t);
+        while ((ref & BVH_REF_LEAF) == 0u) {
+            COUNT(x);
+            int i = 4 * int(ref);
+            uvec4 a0 = u_bvh_nodes_at(i);
+            uvec4 a1 = u_bvh_nodes_at(i + 1);
+            uvec4 b0 = u_bvh_nodes_at(i + 2);
+            uvec4 b1 = u_bvh_nodes_at(i + 3);
+            float t_l = bvh_box(uintBitsToFloat(a0.xyz), uintBitsToFloat(a1.xyz), q.o, inv, h.t);
+            float t_r = bvh_box(uintBitsToFloat(b0.xyz), uintBitsToFloat(b1.xyz), q.o, inv, h.t);
+            bool right_first = ((b0.w >> octant) & 1u) == 1u;
+            uint near_ref = right_first ? a1.w : a0.w;
+            uint far_ref = right_first ? a0.w : a1.w;
+            float t_near = right_first ? t_r : t_l;
+            float t_far = right_first ? t_l : t_r;
             if (t_near < BIG) {
                 if (t_far < BIG) {
-                    st_node[sp] = far_node; st_t[sp] = t_far; sp++;
+                    st_ref[sp] = far_ref; st_t[sp] = t_far; sp++;
                 }
-                n0 = a0; n1 = a1;
-                continue;
+                ref = near_ref;
+            } else if (t_far < BIG) {
+                ref = far_ref;
+            } else {
+                COUNT(y);   // both children missed: the ray passes through empty space
+                ref = BVH_REF_NONE;
             }
-            if (t_far < BIG) {
-                n0 = b0; n1 = b1;
-                continue;
+        }
+        if (ref != BVH_REF_NONE) {
+            COUNT(x);   // a leaf: its records, up to the one flagged last
+            int p = int(ref & BVH_REF_INDEX);
+            while (true) {
+                Sphere s = SPHERE_AT(u_bvh_spheres_at, p);
+                test_sphere(q, s, h);
+                if (q.any_hit && h.t < q.t_max) return;
+                if (SPHERE_IS_LAST(s.key)) break;
+                p++;
             }
-            COUNT(y);   // both children missed: the ray passes through empty space
         }
         // pop the next entry that can still hold a closer hit
-        int node = -1;
+        ref = BVH_REF_NONE;
         while (sp > 0) {
             sp--;
-            if (st_t[sp] <= h.t * BVH_T_SLACK) { node = st_node[sp]; break; }
+            if (st_t[sp] <= h.t * BVH_T_SLACK) { ref = st_ref[sp]; break; }
         }
-        if (node < 0) return;
-        n0 = bvh_texel(2 * node);
-        n1 = bvh_texel(2 * node + 1);
+        if (ref == BVH_REF_NONE) return;
     }
 }
 

@@ -6,9 +6,15 @@
 // intersect_spheres(). The conventions (rays, self-intersection, shading,
 // modes) are those of docs/SHADING.md. The host inserts at the HEADER mark the
 // layout constants, the variant's METHOD_* / MODE_* / READS_* defines and the
-// declarations of every texture and uniform the variant reads, generated from
-// renderer/gpu_layout.py and the method's layout module, so each name is
-// written once. Valid GLSL ES 3.00, for WebGL2 too.
+// declarations of every texture, uniform and record array the variant reads,
+// generated from renderer/gpu_layout.py and the method's layout module, so each
+// name is written once. Valid GLSL ES 3.00, for WebGL2 too.
+//
+// Shaped for how llvmpipe runs it (issue 18): a fragment shader is run for 8 pixels
+// at once, and a branch no lane takes, or a loop that runs zero times, costs as much
+// as running it; every texelFetch is a call into a generated function. So each loop
+// does one thing (the traversal descends, tests a leaf, or pops), the shading loop
+// traces one ray per iteration, and what a frame cannot use is not compiled in.
 precision highp float;
 precision highp int;
 precision highp sampler2D;
@@ -16,24 +22,46 @@ precision highp usampler2D;
 
 //@HEADER@
 
+#ifdef IMAGE_ONLY
+layout(location = 0) out vec4 o_image;  // rgb = mode image rounded to 8 bits (an RGBA8 target)
+#else
 layout(location = 0) out vec4 o_image;  // rgb = mode image, a = primary id (−1 miss)
 layout(location = 1) out vec4 o_hit;    // xyz = outward normal, w = primary t (−1 miss)
+#endif
 
 const float BIG = 3.0e38;               // "no hit yet"; finite on purpose (no inf literals in ES)
 const int NO_PRIM = -1;
 
 // Texture rows are a power of two wide (gpu_layout.wrap_rows), so element i
 // is texel (i & mask, i >> shift): integer division per fetch costs llvmpipe
-// half of a brute-force frame. The shifts are read once per fragment.
-int g_sphere_shift, g_mat_shift;
+// half of a brute-force frame. The shifts are read once per fragment (LAYOUT_INIT).
+int g_mat_shift;
 
 int row_shift(ivec2 size) { return int(log2(float(size.x)) + 0.5); }  // exact: a power of two
 
 ivec2 texel(int i, int shift) { return ivec2(i & ((1 << shift) - 1), i >> shift); }
 
-vec4 fetch_sphere(int id) {
-    return texelFetch(u_spheres, texel(id, g_sphere_shift), 0);
-}
+#ifndef LAYOUT_INIT
+#define LAYOUT_INIT()
+#endif
+
+// A sphere record (gpu_layout.sphere_records): centre and radius, and the key
+// (id | material << SPHERE_MAT_SHIFT | SPHERE_LAST on the last record of a leaf).
+// SPHERE_AT(ARRAY, p) reads record p of a record array (its NAME_at accessor).
+struct Sphere {
+    vec4 s;
+    uint key;
+};
+
+#if defined(EQUAL_RADII) && !defined(BACKGROUND)
+Sphere sphere_of(uvec4 w) { return Sphere(vec4(uintBitsToFloat(w.xyz), u_sphere_radius), w.w); }
+#define SPHERE_AT(ARRAY, p) sphere_of(ARRAY(p))
+#else
+Sphere sphere_of(uvec4 a, uvec4 b) { return Sphere(uintBitsToFloat(a), b.x); }
+#define SPHERE_AT(ARRAY, p) sphere_of(ARRAY(2 * (p)), ARRAY(2 * (p) + 1))
+#endif
+#define SPHERE_ID(key) int((key) & SPHERE_ID_MASK)
+#define SPHERE_IS_LAST(key) (((key) & SPHERE_LAST) != 0u)
 
 // Ray–sphere intersection (docs/SHADING.md). |d| = 1. The discriminant is
 // formed as r² − |f|² with f the centre's offset from the ray's closest
@@ -67,9 +95,13 @@ struct Query {
     bool any_hit; // stop at the first hit (shadow rays)
 };
 
+// The nearest hit so far, with the sphere's record (its centre and material are what
+// shading needs: no second fetch by id).
 struct Hit {
     float t;
     int id;
+    vec4 sphere;
+    uint key;
 };
 
 // Counters for the heat mode (Fig. 4.3): nodes visited, gaps, sphere tests.
@@ -81,11 +113,12 @@ ivec3 g_counters = ivec3(0);
 #define COUNT(c)
 #endif
 
-void test_sphere(Query q, int id, inout Hit h) {
+void test_sphere(Query q, Sphere sp, inout Hit h) {
     COUNT(z);
+    int id = SPHERE_ID(sp.key);
     if (id == q.skip) return;
-    float t = intersect_sphere(q.o, q.d, fetch_sphere(id), id == q.far_id);
-    if (closer(t, id, h.t, h.id)) { h.t = t; h.id = id; }
+    float t = intersect_sphere(q.o, q.d, sp.s, id == q.far_id);
+    if (closer(t, id, h.t, h.id)) { h.t = t; h.id = id; h.sphere = sp.s; h.key = sp.key; }
 }
 
 // Slab test of a ray against an axis-aligned box, clipped to [0, ∞): entry
@@ -108,12 +141,42 @@ bool slab_interval(vec3 o, vec3 d, vec3 bmin, vec3 bmax, out float t0, out float
     return true;
 }
 
+#ifndef BACKGROUND
 //@METHOD@
+#else
+// The background variant (host's choice): drawn only where no primary ray can meet a
+// sphere (renderer/gpu_layout.py, primary_rect), so it has no traversal.
+void method_init() {}
+void intersect_spheres(Query q, inout Hit h) {}
+#endif
+
+// Planes and lights: a specialised variant knows their counts (N_PLANES, N_LIGHTS from
+// PLANES_k / LIGHTS_k), so their loops have a known length; the generic one reads them.
+#ifdef N_PLANES
+#define PLANE_LOOP N_PLANES
+#define PLANES_END(i) false
+#if N_PLANES == 1
+#define PLANE_INDEX(i) 0
+#endif
+#else
+#define PLANE_LOOP MAX_PLANES
+#define PLANES_END(i) ((i) >= u_num_planes)
+#endif
+#ifndef PLANE_INDEX
+#define PLANE_INDEX(i) (i)
+#endif
+#ifdef N_LIGHTS
+#define LIGHT_LOOP N_LIGHTS
+#define LIGHTS_END(i) false
+#else
+#define LIGHT_LOOP MAX_LIGHTS
+#define LIGHTS_END(i) ((i) >= u_num_lights)
+#endif
 
 Hit intersect_scene(Query q) {
-    Hit h = Hit(q.t_max, NO_PRIM);
-    for (int i = 0; i < MAX_PLANES; i++) {
-        if (i >= u_num_planes) break;
+    Hit h = Hit(q.t_max, NO_PRIM, vec4(0.0), 0u);
+    for (int i = 0; i < PLANE_LOOP; i++) {
+        if (PLANES_END(i)) break;
         int id = u_num_spheres + i;
         if (id == q.skip) continue;
         vec3 n = u_plane_normal[i];
@@ -133,10 +196,16 @@ struct Material {
 };
 
 #ifdef READS_MATERIALS
-Material fetch_material(int m) {
+Material material_at(int m) {
+#ifdef MATERIAL_TEXTURE
     vec4 a = texelFetch(u_materials, texel(m * MATERIAL_TEXELS, g_mat_shift), 0);
     vec4 b = texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 1, g_mat_shift), 0);
     vec4 c = texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 2, g_mat_shift), 0);
+#else
+    vec4 a = u_material_vecs[m * MATERIAL_TEXELS];
+    vec4 b = u_material_vecs[m * MATERIAL_TEXELS + 1];
+    vec4 c = u_material_vecs[m * MATERIAL_TEXELS + 2];
+#endif
     return Material(a.rgb, a.a, b.x, b.y, b.z, b.w, c.x, c.y);
 }
 #endif
@@ -162,21 +231,31 @@ vec3 recursion_colour(int level) {
 
 // Compile-time shape of the variant (llvmpipe and mobile GPUs pay for code
 // that is only masked off, so what a frame cannot use is not compiled in):
-// MAX_RECURSION_DEPTH (1 … 8) sizes the task stack; modes other than colour
+// MAX_RECURSION_DEPTH (1 … 8) bounds the ray tree; modes other than colour
 // and recursion trace the primary ray only.
 #if !defined(MODE_COLOR) && !defined(MODE_RECURSION)
 #undef MAX_RECURSION_DEPTH
 #define MAX_RECURSION_DEPTH 1
 #define PRIMARY_ONLY
 #endif
-// The ray tree is evaluated depth-first from an explicit stack of radiance
-// rays (GLSL has no recursion): one pending sibling per level plus the
-// deepest node's two children. Shadow rays are traced by the same loop, one
-// light per iteration, from the shading state of the current hit kept in
-// scalars: the frame has a single call of intersect_scene, because every call
-// site inlines another copy of the traversal and llvmpipe also executes code
-// that is masked off, and small private arrays stay in registers.
-#define MAX_TASKS (MAX_RECURSION_DEPTH + 1)
+// The ray tree is evaluated depth-first (GLSL has no recursion). A hit spawns at most one
+// reflected and one transmitted ray; the transmitted one is traced next and the
+// reflected one waits on a task stack (one entry per level), so the tree is summed in
+// the order of a recursion that follows the transmitted ray first. Only where a
+// material both reflects and transmits can a hit spawn two rays: elsewhere
+// (NO_SPLIT, NO_REFLECTION, NO_TRANSMISSION) the tree is a path and there is no stack.
+// Shadow rays are traced by the same loop, one light per iteration: every iteration
+// traces exactly one ray (the frame has a single call of intersect_scene, because
+// every call site inlines another copy of the traversal), then shades its hit and
+// picks the next ray — the next light's shadow ray, else a spawned ray, else a
+// waiting one.
+#if MAX_RECURSION_DEPTH > 1 && !defined(NO_REFLECTION) && !defined(NO_TRANSMISSION) && !defined(NO_SPLIT)
+#define TASK_STACK
+#define MAX_TASKS MAX_RECURSION_DEPTH
+#endif
+#if defined(MODE_COLOR) && defined(READS_LIGHTS)
+#define SHADOW_RAYS
+#endif
 
 struct Task {
     vec3 o;
@@ -197,29 +276,29 @@ Surface surface_at(vec3 o, vec3 d, Hit h) {
     Surface s;
     s.p = o + h.t * d;
     if (h.id < u_num_spheres) {
-        vec4 sp = fetch_sphere(h.id);
         // From the centre's offset (o − c) + t·d, not from p − c: far from the origin
         // p is rounded to float32's spacing there (0.0625 at 1e6), which can exceed
         // the radius and even make p − c zero (a NaN normal); o − c is exact there.
-        vec3 rel = (o - sp.xyz) + h.t * d;
+        vec3 rel = (o - h.sphere.xyz) + h.t * d;
         float len = length(rel);
         s.n = len > 0.0 ? rel / len : -d;   // len = 0 only where float32 cannot resolve the sphere
 #ifdef READS_MATERIALS
-        s.mat = int(texelFetch(u_sphere_mat, texel(h.id, g_sphere_shift), 0).x);
+        s.mat = int((h.key >> SPHERE_MAT_SHIFT) & SPHERE_MAT_MASK);
 #endif
     } else {
-        s.n = normalize(u_plane_normal[h.id - u_num_spheres]);
+        int i = PLANE_INDEX(h.id - u_num_spheres);
+        s.n = normalize(u_plane_normal[i]);
 #ifdef READS_MATERIALS
-        s.mat = u_plane_mat[h.id - u_num_spheres];
+        s.mat = u_plane_mat[i];
 #endif
     }
     return s;
 }
 
 void main() {
-    g_sphere_shift = row_shift(textureSize(u_spheres, 0));
+    LAYOUT_INIT();
     method_init();
-#ifdef READS_MATERIALS
+#if defined(READS_MATERIALS) && defined(MATERIAL_TEXTURE)
     g_mat_shift = row_shift(textureSize(u_materials, 0));
 #endif
     // The point of the frame's sample grid (u_resolution) this fragment traces: a pass
@@ -246,111 +325,109 @@ void main() {
         primary_t = h0.t; primary_id = h0.id; primary_n = s0.n; deepest = 1;
     }
 #else
+#ifdef TASK_STACK
     Task tasks[MAX_TASKS];
-    tasks[0] = Task(u_cam_pos, dir, 1.0, 1, NO_PRIM, NO_PRIM);
-    int n_tasks = 1;
-    // Shading state of the current hit; light >= 0 while its shadow rays run.
-    int light = -1;
-    Task k;
+    int n_tasks = 0;
+#endif
+    Task k = Task(u_cam_pos, dir, 1.0, 1, NO_PRIM, NO_PRIM);   // the radiance ray being shaded
+    Query q = Query(k.o, k.d, k.skip, k.far_id, BIG, false);   // the ray this iteration traces
+    // Shading state of the current hit (light: the next light to try).
+    int light = 0;
     Hit h;
     Surface s;
     Material m;
     vec3 nf;
     vec3 contrib = vec3(0.0);
     while (true) {
-        Query q;
-        if (light >= 0) {
-#ifdef READS_LIGHTS
-            // The next light that faces the surface: its shadow ray.
-            vec3 l = vec3(0.0);
-            float dist = 0.0;
-            for (; light < MAX_LIGHTS; light++) {
-                if (light >= u_num_lights) { light = MAX_LIGHTS; break; }
+        Hit hq = intersect_scene(q);
+        bool live;   // the current radiance ray hit something: its lights and children are next
+        if (q.any_hit) {
+            if (hq.id == NO_PRIM) colour += contrib;   // the light is visible
+            light++;
+            live = true;
+        } else {
+            live = hq.id != NO_PRIM;
+            if (live) {
+                h = hq;
+                s = surface_at(k.o, k.d, h);
+                if (k.level == 1) { primary_t = h.t; primary_id = h.id; primary_n = s.n; }
+                deepest = max(deepest, k.level);
+#ifdef READS_MATERIALS
+                m = material_at(s.mat);
+#endif
+                nf = dot(k.d, s.n) < 0.0 ? s.n : -s.n;
+#ifdef MODE_COLOR
+                colour += k.weight * m.ambient * m.color;   // Phong's ambient term
+#endif
+                light = 0;
+            }
+        }
+#ifdef SHADOW_RAYS
+        // The next light that faces the surface: its shadow ray.
+        if (live) {
+            bool shadow = false;
+            for (; light < LIGHT_LOOP; light++) {
+                if (LIGHTS_END(light)) break;
                 vec3 to_light = u_light_pos[light] - s.p;
-                dist = length(to_light);
-                l = to_light / dist;
+                float dist = length(to_light);
+                vec3 l = to_light / dist;
                 float cos_l = dot(nf, l);
                 if (cos_l > 0.0) {
                     vec3 r = 2.0 * cos_l * nf - l;
                     float x = dot(r, -k.d);
                     float spec = x > 0.0 ? pow(x, m.shininess) : 0.0;
                     contrib = k.weight * u_light_color[light] * (m.diffuse * cos_l * m.color + m.specular * spec);
+                    int skip, far_id;
+                    exclusion(h.id, s.n, l, skip, far_id);
+                    q = Query(s.p, l, skip, far_id, dist, true);
+                    shadow = true;
                     break;
                 }
             }
-#else
-            light = MAX_LIGHTS;   // no light in this variant: straight to the spawned rays
+            if (shadow) continue;
+        }
 #endif
-            if (light >= MAX_LIGHTS) {
-                light = -1;
+        // The lights are done: the rays the hit spawns, else one that waits.
+        bool next = false;
+        Task t;
 #if MAX_RECURSION_DEPTH > 1
-                // All lights done: spawn the reflected and transmitted rays.
-                if (k.level < MAX_RECURSION_DEPTH) {
-                    vec3 n = s.n;
+        if (live && k.level < MAX_RECURSION_DEPTH) {
+            vec3 n = s.n;
 #ifndef NO_REFLECTION
-                    if (m.reflective > 0.0 && k.weight * m.reflective >= u_min_weight) {
-                        vec3 r = k.d - 2.0 * dot(k.d, n) * n;
-                        int skip, far_id;
-                        exclusion(h.id, n, r, skip, far_id);
-                        tasks[n_tasks] = Task(s.p, r, k.weight * m.reflective, k.level + 1, skip, far_id);
-                        n_tasks++;
-                    }
+            if (m.reflective > 0.0 && k.weight * m.reflective >= u_min_weight) {
+                vec3 r = k.d - 2.0 * dot(k.d, n) * n;
+                int skip, far_id;
+                exclusion(h.id, n, r, skip, far_id);
+                t = Task(s.p, r, k.weight * m.reflective, k.level + 1, skip, far_id);
+                next = true;
+            }
 #endif
 #ifndef NO_TRANSMISSION
-                    if (m.transmissive > 0.0 && k.weight * m.transmissive >= u_min_weight) {
-                        bool entering = dot(k.d, n) < 0.0;
-                        float eta = entering ? 1.0 / m.ior : m.ior;
-                        vec3 nn = entering ? n : -n;
-                        float cos_i = -dot(k.d, nn);
-                        float kk = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
-                        vec3 t_dir = kk < 0.0 ? k.d - 2.0 * dot(k.d, nn) * nn      // total internal reflection
-                                              : normalize(eta * k.d + (eta * cos_i - sqrt(kk)) * nn);
-                        int skip, far_id;
-                        exclusion(h.id, n, t_dir, skip, far_id);
-                        tasks[n_tasks] = Task(s.p, t_dir, k.weight * m.transmissive, k.level + 1, skip, far_id);
-                        n_tasks++;
-                    }
+            if (m.transmissive > 0.0 && k.weight * m.transmissive >= u_min_weight) {
+                bool entering = dot(k.d, n) < 0.0;
+                float eta = entering ? 1.0 / m.ior : m.ior;
+                vec3 nn = entering ? n : -n;
+                float cos_i = -dot(k.d, nn);
+                float kk = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+                vec3 t_dir = kk < 0.0 ? k.d - 2.0 * dot(k.d, nn) * nn      // total internal reflection
+                                      : normalize(eta * k.d + (eta * cos_i - sqrt(kk)) * nn);
+                int skip, far_id;
+                exclusion(h.id, n, t_dir, skip, far_id);
+#ifdef TASK_STACK
+                if (next) { tasks[n_tasks] = t; n_tasks++; }   // the reflected ray waits
 #endif
-                }
-#endif
-                continue;
+                t = Task(s.p, t_dir, k.weight * m.transmissive, k.level + 1, skip, far_id);
+                next = true;
             }
-#ifdef READS_LIGHTS
-            int skip, far_id;
-            exclusion(h.id, s.n, l, skip, far_id);
-            q = Query(s.p, l, skip, far_id, dist, true);
 #endif
-        } else {
-            if (n_tasks == 0) break;
-            n_tasks--;
-            k = tasks[n_tasks];
-            q = Query(k.o, k.d, k.skip, k.far_id, BIG, false);
         }
-        Hit hq = intersect_scene(q);
-        if (q.any_hit) {
-            if (hq.id == NO_PRIM) colour += contrib;   // the light is visible
-            light++;
-            continue;
-        }
-        if (hq.id == NO_PRIM) continue;
-        h = hq;
-        s = surface_at(k.o, k.d, h);
-        if (k.level == 1) { primary_t = h.t; primary_id = h.id; primary_n = s.n; }
-        deepest = max(deepest, k.level);
-#ifdef READS_MATERIALS
-        m = fetch_material(s.mat);
 #endif
-        nf = dot(k.d, s.n) < 0.0 ? s.n : -s.n;
-#ifdef MODE_COLOR
-        colour += k.weight * m.ambient * m.color;   // Phong's ambient term
-#ifdef NO_LIGHTS
-        light = MAX_LIGHTS;
-#else
-        light = 0;
+#ifdef TASK_STACK
+        if (!next && n_tasks > 0) { n_tasks--; t = tasks[n_tasks]; next = true; }
 #endif
-#else
-        light = MAX_LIGHTS;   // the recursion image needs no shadow rays
-#endif
+        if (!next) break;
+        k = t;
+        q = Query(k.o, k.d, k.skip, k.far_id, BIG, false);
     }
 #endif
 
@@ -369,6 +446,12 @@ void main() {
 #elif defined(MODE_HEAT)
     image = min(vec3(0.05 * float(g_counters.z), 0.2 * float(g_counters.y), 0.2 * float(g_counters.x)), vec3(1.0));
 #endif
+#ifdef IMAGE_ONLY
+    // The bytes of RenderResult.image_u8, floor(255·clamp(c, 0, 1) + 0.5), made here: the
+    // RGBA8 target stores k / 255 as k exactly (its own conversion rounds differently).
+    o_image = vec4(floor(255.0 * clamp(image, 0.0, 1.0) + 0.5) / 255.0, 1.0);
+#else
     o_image = vec4(image, float(primary_id));
     o_hit = vec4(primary_n, primary_t);
+#endif
 }

@@ -57,7 +57,8 @@ class BIHStats:
     Depths count the root as 1. ``leaf_histogram`` holds the fraction of
     leaves with 0, 1, 2, 3, 4 and more than 4 primitives. ``bytes`` is
     Fig. 4.5's memory: nodes (12 B each) + index array (4 B per primitive) +
-    global AABB (24 B).
+    global AABB (24 B), the thesis's layout (the GPU's since issue 18, ``bih_layout``:
+    16 B per inner node and a 16- or 32-byte sphere record per primitive).
     """
     primitives: int
     inner_nodes: int
@@ -326,5 +327,5 @@ class BoundingIntervalHierarchy:
         t0 = time.perf_counter()
         bih = build_for_scene(scene, max_prims, max_tree_depth)
         build_ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod(gpu_data(scene, lambda: L.pack_bih(bih, max_width)), build_ms,
+        return PreparedMethod(gpu_data(scene, lambda: L.pack_bih(bih, scene, max_width)), build_ms,
                               {"method": self.name, **bih.stats.to_json(), **mesh_stats(scene)}, tree=bih)

@@ -1,6 +1,7 @@
-"""The BIH node layout (thesis listing 3.2), defined once for packer and shader.
+"""The BIH's two layouts, defined once: the build's node (thesis listing 3.2) and the GPU's.
 
-One node is 12 bytes, three little-endian 32-bit words::
+**Build** (:mod:`renderer.accel.bih`, ``BIH.nodes``): the thesis's node, 12 bytes, three
+little-endian 32-bit words::
 
     word 0  axis_leftChild   bits 31..30: 00 = x, 01 = y, 10 = z split axis,
                                           11 = leaf
@@ -12,18 +13,43 @@ One node is 12 bytes, three little-endian 32-bit words::
     word 2  clipR_primCount  inner: float32 clip_right (min of the right
                                     children's AABB minima on the axis)
                              leaf:  uint32 number of primitives
+                                                                   total: 12 bytes
 
-Words 1 and 2 are a union, as in the thesis's C struct: a leaf stores integers
-in the bits, an inner node stores float bits. On the GPU the node array is an
-RGB32UI texture and the shader reinterprets words 1–2 with
-``uintBitsToFloat`` in inner nodes. :func:`glsl_defines` emits the constants
-below for the shader, so the two sides cannot drift apart.
+Words 1 and 2 are a union, as in the thesis's C struct. The statistics (Table 4.2,
+Fig. 4.5's memory) and the build's tests read this form.
+
+**Conversion** (:func:`gpu_records`, per frame after the build): the GPU gets no record for
+a leaf — its parent says where the leaf's spheres are — and the spheres themselves in
+leaf order (the sorted index array's order), as :func:`renderer.gpu_layout.sphere_records`,
+so a leaf is a run of sphere records ended by the one flagged ``SPHERE_LAST`` and needs
+no index array. Inner nodes keep the build's order, renumbered without the leaves.
+
+**GPU** (``u_bih_nodes``, a record array: RGBA32UI texture or uniform block): one inner
+node per ``uvec4``::
+
+    x   bits 31..30 split axis (0, 1, 2); bits 29..0 the left child's ref
+    y   float32 bits of clip_left
+    z   float32 bits of clip_right
+    w   the right child's ref
+                                                                   total: 16 bytes
+    ref bit 29 (REF_LEAF) set:   a leaf; bits 28..0 its first sphere record
+        bit 29 clear:            an inner node; bits 28..0 its record
+
+``u_bih_root`` is the root's ref (a leaf when the whole scene is one), ``u_box_min/max``
+the global box. An RGBA32UI fetch costs llvmpipe 0.96 ns against 1.36 for the RGB32UI the
+12-byte node needed, and one record answers for both children (issue 18).
+
+**Traversal** (``shaders/method_bih.glsl``, mirrored on the CPU by
+:mod:`renderer.accel.bih_traverse`): a descent loop through inner records that ends at a
+leaf child, a leaf loop over its sphere records, a pop loop; the decisions are listing
+3.5's as corrected in docs/THESIS.md, unchanged. :func:`glsl_defines` emits the constants.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from .. import gpu_layout
 from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
 from ..limits import MAX_TREE_DEPTH
 
@@ -38,11 +64,18 @@ MAX_NODES = 1 << AXIS_SHIFT
 # One traversal-stack entry per tree level: a tree is never deeper than MAX_TREE_DEPTH.
 STACK_SIZE = MAX_TREE_DEPTH
 
-NODES = Binding("u_nodes", "highp usampler2D", "BIH nodes (bih_layout)")
-INDICES = Binding("u_indices", "highp usampler2D", "BIH sorted primitive indices")
+# The GPU record's child refs.
+REF_LEAF = 1 << 29
+REF_INDEX = REF_LEAF - 1
+REF_NONE = 0xFFFFFFFF               # "no node" in the shader's loops (has REF_LEAF set)
+RECORD_BYTES = 16
+
+NODES = Binding("u_bih_nodes", doc="BIH inner nodes (bih_layout)", records=True)
+SPHERES = Binding("u_bih_spheres", doc="spheres in leaf order (gpu_layout.sphere_records)", records=True)
+ROOT = Binding("u_bih_root", "highp uint", "the root's ref")
 BOX_MIN = Binding("u_box_min", "highp vec3", "BIH global AABB")
 BOX_MAX = Binding("u_box_max", "highp vec3")
-BINDINGS = (NODES, INDICES, BOX_MIN, BOX_MAX)
+BINDINGS = (NODES, SPHERES, ROOT, BOX_MIN, BOX_MAX)
 
 
 def empty_nodes(count: int) -> np.ndarray:
@@ -68,18 +101,49 @@ def clips(nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return f[:, 0], f[:, 1]
 
 
+def gpu_records(bih) -> tuple[np.ndarray, int]:
+    """The build's nodes as GPU inner records: uint32 (inner nodes, 4), and the root's ref."""
+    nodes = bih.nodes
+    w0 = nodes[:, 0]
+    leaf = is_leaf(w0)
+    inner = np.flatnonzero(~leaf)
+    index = np.zeros(len(nodes), dtype=np.int64)
+    index[inner] = np.arange(len(inner))
+    ref = np.where(leaf, REF_LEAF | nodes[:, 1].astype(np.int64), index).astype(np.uint32)
+    left = left_child(w0[inner])
+    out = np.empty((len(inner), 4), dtype=np.uint32)
+    out[:, 0] = (axis_of(w0[inner]).astype(np.uint32) << np.uint32(AXIS_SHIFT)) | ref[left]
+    out[:, 1] = nodes[inner, 1]
+    out[:, 2] = nodes[inner, 2]
+    out[:, 3] = ref[left + 1]
+    return out, int(ref[0])
+
+
+def leaf_order(bih) -> tuple[np.ndarray, np.ndarray]:
+    """The spheres in leaf order and the ``last`` flags of their records."""
+    w0 = bih.nodes[:, 0]
+    leaves = np.flatnonzero(is_leaf(w0))
+    last = gpu_layout.leaf_ends(bih.nodes[leaves, 1], bih.nodes[leaves, 2], len(bih.indices))
+    return bih.indices.astype(np.int64), last
+
+
 def glsl_defines() -> str:
     """The layout as GLSL ES 3.00 ``#define`` lines (shared with the shader)."""
     return (f"#define BIH_STACK_SIZE {STACK_SIZE}\n"
             f"#define BIH_AXIS_SHIFT {AXIS_SHIFT}u\n"
-            f"#define BIH_LEAF_TAG {LEAF_TAG}u\n"
-            f"#define BIH_CHILD_MASK {CHILD_MASK}u\n")
+            f"#define BIH_REF_LEAF {REF_LEAF}u\n"
+            f"#define BIH_REF_INDEX {REF_INDEX}u\n"
+            f"#define BIH_REF_MASK {CHILD_MASK}u\n"
+            f"#define BIH_REF_NONE {REF_NONE}u\n")
 
 
-def pack_bih(bih, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
-    """The BIH's node array, index array and global AABB."""
+def pack_bih(bih, scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
+    """The BIH of ``scene``'s spheres for the GPU: inner records, sphere records in leaf
+    order, the root's ref and the global AABB."""
+    records, root = gpu_records(bih)
+    order, last = leaf_order(bih)
     return PackedScene(
-        textures={NODES.name: wrap_rows(bih.nodes, max_width),
-                  INDICES.name: wrap_rows(bih.indices.astype(np.uint32), max_width)},
-        uniforms={BOX_MIN.name: tuple(float(x) for x in bih.global_aabb[0]),
-                  BOX_MAX.name: tuple(float(x) for x in bih.global_aabb[1])})
+        textures={NODES.name: wrap_rows(records, max_width),
+                  SPHERES.name: wrap_rows(gpu_layout.sphere_records(scene, order, last), max_width)},
+        uniforms=dict(zip((ROOT.name, BOX_MIN.name, BOX_MAX.name),
+                          (root, *gpu_layout.box_uniform(*bih.global_aabb)))))

@@ -1,10 +1,12 @@
 """CPU BIH traversal in float64, vectorised over rays (docs/SHADING.md).
 
 This is the reference for what the shader's ``intersect_spheres`` (``shaders/method_bih.glsl``) does, including
-the heat-mode counters. All rays run in lockstep: every *step* each live ray
-either pops an entry off its own explicit stack or visits one node, so the
-Python loop runs over steps (about the number of nodes the busiest ray
-visits), never over rays.
+the heat-mode counters, on the same GPU layout (:mod:`bih_layout`): inner records whose
+child refs name an inner record or a leaf's first sphere record, and the spheres in leaf
+order, each leaf a run of records ended by the one flagged last. All rays run in
+lockstep: every *step* each live ray either pops an entry off its own explicit stack or
+visits one node (an inner record or a leaf), so the Python loop runs over steps (about
+the number of nodes the busiest ray visits), never over rays.
 
 What it implements, exactly as SHADING.md's "BIH traversal" pseudo-code:
 
@@ -22,7 +24,7 @@ What it implements, exactly as SHADING.md's "BIH traversal" pseudo-code:
   exceeds the best hit so far is dropped; with both left, the far one is
   pushed with its own interval; a popped entry whose ``a`` exceeds the best
   hit is skipped (not counted as visited);
-- a leaf tests the spheres ``indices[offset .. offset + count)``
+- a leaf tests the spheres of its run of records, up to the one flagged last
   (``tests += count``, ignored spheres included, as in the shader);
 - nearest hit with ``t > 0``; exactly equal ``t`` goes to the lower id.
 
@@ -279,17 +281,18 @@ def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarr
     if len(bih.indices) != n:
         raise ValueError(f"BIH built over {len(bih.indices)} primitives, got {n_s} spheres and {len(tri)} triangles")
 
-    # Decoded node table.
-    w0 = bih.nodes[:, 0]
-    leaf_of = L.is_leaf(w0)
-    axis_of = np.where(leaf_of, 0, L.axis_of(w0))
-    left_of = L.left_child(w0)
-    cl32, cr32 = L.clips(bih.nodes)
-    clip_l = cl32.astype(np.float64)
-    clip_r = cr32.astype(np.float64)
-    offset_of = bih.nodes[:, 1].astype(np.int64)
-    count_of = bih.nodes[:, 2].astype(np.int64)
-    indices = bih.indices.astype(np.int64)
+    # The GPU layout, decoded: inner records, and the spheres in leaf order with the end
+    # of each record's run.
+    records, root = L.gpu_records(bih)
+    order, last = L.leaf_order(bih)
+    ends = np.flatnonzero(last)
+    run_end = ends[np.searchsorted(ends, np.arange(n))]
+    axis_of = (records[:, 0] >> np.uint32(L.AXIS_SHIFT)).astype(np.int64)
+    left_of = (records[:, 0] & np.uint32(L.CHILD_MASK)).astype(np.int64)
+    right_of = records[:, 3].astype(np.int64)
+    f = records[:, 1:3].copy().view(np.float32)
+    clip_l = f[:, 0].astype(np.float64)
+    clip_r = f[:, 1].astype(np.float64)
     cx, cy, cz = c[:, 0], c[:, 1], c[:, 2]
     tv = [[tri[:, k, a] for a in range(3)] for k in range(3)]
 
@@ -310,7 +313,7 @@ def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarr
 
     # stack = [(root, t0, t1)] for the rays that hit the global box.
     live = np.flatnonzero(hit_box)
-    st_node[live, 0] = 0
+    st_node[live, 0] = root
     st_a[live, 0] = t0[live]
     st_b[live, 0] = t1[live]
     sp[live] = 1
@@ -337,22 +340,23 @@ def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarr
                 break
 
             visited[live] += 1
-            node = cur[live]
-            is_leaf = leaf_of[node]
+            ref = cur[live]
+            is_leaf = (ref & L.REF_LEAF) != 0
+            idx = ref & L.REF_INDEX
 
-            # Leaves: test their spheres, keep the nearest (lower id on ties).
+            # Leaves: test the run of sphere records, keep the nearest (lower id on ties).
             lr = live[is_leaf]
             if len(lr):
-                ln = node[is_leaf]
-                cnt = count_of[ln]
+                start = idx[is_leaf]
+                cnt = run_end[start] - start + 1
                 tests[lr] += cnt
                 has_cur[lr] = False
                 total = int(cnt.sum())
                 if total:
                     ray = np.repeat(lr, cnt)
                     starts = np.cumsum(cnt) - cnt
-                    pos = np.repeat(offset_of[ln] - starts, cnt) + np.arange(total, dtype=np.int64)
-                    pid = indices[pos]
+                    pos = np.repeat(start - starts, cnt) + np.arange(total, dtype=np.int64)
+                    pid = order[pos]
                     t = np.full(total, np.inf)
                     sp_ = np.flatnonzero(pid < n_s)
                     if len(sp_):
@@ -366,11 +370,11 @@ def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarr
                         t[tp_] = triangle_t((o[ry, 0], o[ry, 1], o[ry, 2]), (d[ry, 0], d[ry, 1], d[ry, 2]),
                                             *[tuple(tv[k][a][j] for a in range(3)) for k in range(3)],
                                             ps, ign[ry], valid[j])
-                    order = np.lexsort((pid, t, ray))
-                    ray_s = ray[order]
+                    order_t = np.lexsort((pid, t, ray))
+                    ray_s = ray[order_t]
                     first = np.ones(total, dtype=bool)
                     first[1:] = ray_s[1:] != ray_s[:-1]
-                    sel = order[first]
+                    sel = order_t[first]
                     rr, tt, pp = ray[sel], t[sel], pid[sel]
                     bt, bp = best_t[rr], best_p[rr]
                     better = np.isfinite(tt) & ((tt < bt) | ((tt == bt) & (pp < bp)))
@@ -380,7 +384,7 @@ def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarr
             # Inner nodes: per-child intervals.
             ir = live[~is_leaf]
             if len(ir):
-                nd = node[~is_leaf]
+                nd = idx[~is_leaf]
                 ax = axis_of[nd]
                 oa = o[ir, ax]
                 da = d[ir, ax]
@@ -389,12 +393,13 @@ def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarr
                 cl = clip_l[nd]
                 cr = clip_r[nd]
                 lc = left_of[nd]
+                rc = right_of[nd]
                 t_l = (cl - oa) / da
                 t_r = (cr - oa) / da
                 pos_d = da > 0.0
                 zero = da == 0.0
-                near_node = np.where(pos_d | zero, lc, lc + 1)
-                far_node = np.where(pos_d | zero, lc + 1, lc)
+                near_node = np.where(pos_d | zero, lc, rc)
+                far_node = np.where(pos_d | zero, rc, lc)
                 near_hi = np.minimum(b, np.where(pos_d, t_l, t_r))
                 far_lo = np.maximum(a, np.where(pos_d, t_r, t_l))
                 near_ok = np.where(zero, oa <= cl, a <= near_hi)

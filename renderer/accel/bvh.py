@@ -64,7 +64,9 @@ class BVHStats:
     """Statistics of a BVH after its latest build or update.
 
     ``sah_cost``: the tree's SAH cost ``(C_TRAV Σ_inner A + C_ISECT Σ_leaf A·n) / A_root``.
-    ``bytes``: GPU memory of nodes (32 B each) + index array (4 B per primitive).
+    ``bytes``: memory of the build's layout, nodes (32 B each) + index array (4 B per
+    primitive), as before issue 18 (the GPU now reads 64 B per inner node and a sphere
+    record per primitive: ``bvh_layout``).
     ``update_ms``: time of the latest update (= ``build_ms`` after a build).
     ``rebuilt_subtrees`` / ``rebuilt_primitives``: what the latest selective
     rebuild rebuilt (0 after refit, all after a rebuild).
@@ -718,5 +720,5 @@ class BVHMethod:
         t0 = time.perf_counter()
         bvh = self.build(scene, max_prims, max_tree_depth, update)
         ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod(gpu_data(scene, lambda: L.pack_bvh(bvh, max_width)), ms,
+        return PreparedMethod(gpu_data(scene, lambda: L.pack_bvh(bvh, scene, None, max_width)), ms,
                               {"method": self.name, **bvh.stats.to_json(), **mesh_stats(scene)}, tree=bvh)

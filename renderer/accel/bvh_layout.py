@@ -1,12 +1,13 @@
-"""The BVH node layout, defined once for packer, shader and tests.
+"""The BVH's layouts, defined once for packer, shader and tests: the build's and the GPU's.
 
-One node is 32 bytes: two RGBA32UI texels (texture ``u_bvh_nodes``), node ``i``
-at texels ``2i`` and ``2i + 1``::
+**Build** (:class:`renderer.accel.bvh.BVH`, struct of arrays; :func:`pack_nodes` writes it
+as the node array the GPU read before issue 18, kept for tools and tests): node ``i`` at
+texels ``2i`` and ``2i + 1``::
 
     texel 2i      x, y, z  float32 bits of the node box's minimum corner
                   w        inner: index of the left child; the right child is
                                   at left + 1 (siblings are stored in pairs)
-                           leaf:  offset into the index array ``u_bvh_indices``
+                           leaf:  offset into the index array
     texel 2i + 1  x, y, z  float32 bits of the node box's maximum corner
                   w        bit 31 (INNER_FLAG): set in inner nodes
                            inner: bits 7..0 = Reiter's near mask (listing 4.13):
@@ -14,21 +15,42 @@ at texels ``2i`` and ``2i + 1``::
                                   ray of direction octant s (octant bit a is
                                   set when d[a] < 0); 0 = left, 1 = right
                            leaf:  bits 30..0 = number of primitives
+                                                                   total: 32 bytes
 
-Boxes are float32 and hold every primitive of the subtree (sphere boxes are
-rounded outwards, see ``bih.sphere_aabbs``); the shader reinterprets them
-with ``uintBitsToFloat``. The texture is integer so no driver can touch the
-bits of the words stored in ``w``.
+**Conversion** (:func:`gpu_records`): an inner node's record holds both children's boxes,
+which is what the traversal tests there; a leaf has no record (its parent's ref says
+where its spheres are), and the spheres are sphere records in leaf order
+(:func:`renderer.gpu_layout.sphere_records`, the last of each leaf flagged), so no index
+array is read. Inner records keep the build's order, renumbered without the leaves.
 
-The root is node 0. The build never makes a tree deeper than
-``max_tree_depth`` (≤ ``STACK_SIZE``), so the shader's traversal stack, one
-entry per level, cannot overflow. :func:`glsl_defines` emits the constants.
+**GPU** (``u_bvh_nodes``, a record array: RGBA32UI texture or uniform block), inner node
+``i`` at records ``4i … 4i + 3``::
+
+    4i      x, y, z  left child's box minimum    w  the left child's ref
+    4i + 1  x, y, z  left child's box maximum    w  the right child's ref
+    4i + 2  x, y, z  right child's box minimum   w  the near mask (bits 7..0)
+    4i + 3  x, y, z  right child's box maximum   w  0
+                                                                   total: 64 bytes
+    ref bit 31 (REF_LEAF) set: a leaf; bits 30..0 its first sphere record
+        bit 31 clear:          an inner node; bits 30..0 its record
+
+The root's box and ref are uniforms (``u_bvh_root_min/max``, ``u_bvh_root``). Boxes are
+float32 and hold every primitive of the subtree (sphere boxes are rounded outwards, see
+``bih.sphere_aabbs``); the shader reinterprets them with ``uintBitsToFloat``.
+
+**Traversal** (``shaders/method_bvh.glsl``): Reiter's ordered stack traversal as before —
+both children's boxes tested, the near mask's child first, the other pushed with its entry
+distance — in a descent loop that ends at a leaf child, a leaf loop over its sphere
+records and a pop loop. The build never makes a tree deeper than ``max_tree_depth``
+(≤ ``STACK_SIZE``), so the stack, one entry per level, cannot overflow.
+:func:`glsl_defines` emits the constants.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from .. import gpu_layout
 from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
 from ..limits import MAX_TREE_DEPTH
 
@@ -49,9 +71,18 @@ T_SLACK = 1.00001
 # distance: conservative).
 DIR_EPS = 1e-30
 
-NODES = Binding("u_bvh_nodes", "highp usampler2D", "2 texels per node (bvh_layout)")
-INDICES = Binding("u_bvh_indices", "highp usampler2D", "primitive ids in leaf order")
-BINDINGS = (NODES, INDICES)
+REF_LEAF = 1 << 31
+REF_INDEX = REF_LEAF - 1
+REF_NONE = 0xFFFFFFFF
+RECORDS_PER_NODE = 4
+RECORD_BYTES = 64
+
+NODES = Binding("u_bvh_nodes", doc="4 records per inner node (bvh_layout)", records=True)
+SPHERES = Binding("u_bvh_spheres", doc="spheres in leaf order (gpu_layout.sphere_records)", records=True)
+ROOT = Binding("u_bvh_root", "highp uint", "the root's ref")
+ROOT_MIN = Binding("u_bvh_root_min", "highp vec3", "the root's box")
+ROOT_MAX = Binding("u_bvh_root_max", "highp vec3")
+BINDINGS = (NODES, SPHERES, ROOT, ROOT_MIN, ROOT_MAX)
 
 
 def pack_nodes(bmin: np.ndarray, bmax: np.ndarray, left: np.ndarray, first: np.ndarray,
@@ -80,17 +111,54 @@ def unpack_nodes(texels: np.ndarray) -> dict[str, np.ndarray]:
             "near_mask": np.where(inner, (w1 & np.uint32(NEAR_MASK_BITS)).astype(np.int64), 0)}
 
 
+def gpu_records(bvh) -> tuple[np.ndarray, int]:
+    """The build's nodes as GPU inner records: uint32 (4 · inner nodes, 4), and the root's ref."""
+    inner = np.flatnonzero(bvh.left >= 0)
+    index = np.zeros(bvh.n_nodes, dtype=np.int64)
+    index[inner] = np.arange(len(inner))
+    leaf = bvh.left < 0
+    if (bvh.count[leaf] == 0).any() and bvh.n_primitives:
+        raise ValueError("a BVH leaf without primitives has no sphere record to point at")
+    ref = np.where(leaf, REF_LEAF | bvh.first, index).astype(np.uint32)
+    lc = bvh.left[inner]
+    rc = lc + 1
+    out = np.zeros((len(inner), 4, 4), dtype=np.uint32)
+    f = lambda a: np.ascontiguousarray(a, dtype=np.float32).view(np.uint32)   # noqa: E731
+    out[:, 0, :3], out[:, 0, 3] = f(bvh.bmin[lc]), ref[lc]
+    out[:, 1, :3], out[:, 1, 3] = f(bvh.bmax[lc]), ref[rc]
+    out[:, 2, :3], out[:, 2, 3] = f(bvh.bmin[rc]), bvh.near_mask[inner].astype(np.uint32) & np.uint32(NEAR_MASK_BITS)
+    out[:, 3, :3] = f(bvh.bmax[rc])
+    return out.reshape(-1, 4), int(ref[0])
+
+
+def leaf_order(bvh) -> tuple[np.ndarray, np.ndarray]:
+    """Positions in ``bvh.indices`` in leaf order (the index array's own order) and the
+    ``last`` flags of their records."""
+    leaves = np.flatnonzero(bvh.left < 0)
+    return bvh.indices.astype(np.int64), gpu_layout.leaf_ends(bvh.first[leaves], bvh.count[leaves],
+                                                              bvh.n_primitives)
+
+
 def glsl_defines() -> str:
     """The layout as GLSL ES 3.00 ``#define`` lines (shared with the shader)."""
-    return (f"#define BVH_INNER_FLAG {INNER_FLAG}u\n"
-            f"#define BVH_COUNT_MASK {COUNT_MASK}u\n"
+    return (f"#define BVH_REF_LEAF {REF_LEAF}u\n"
+            f"#define BVH_REF_INDEX {REF_INDEX}u\n"
+            f"#define BVH_REF_NONE {REF_NONE}u\n"
             f"#define BVH_STACK_SIZE {STACK_SIZE}\n"
             f"#define BVH_T_SLACK {T_SLACK!r}\n"
             f"#define BVH_DIR_EPS {DIR_EPS!r}\n")
 
 
-def pack_bvh(bvh, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
-    """The BVH's nodes (two RGBA32UI texels each, see above) and its index array."""
+def pack_bvh(bvh, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
+    """The BVH for the GPU: inner records, the sphere records in leaf order, the root's ref
+    and box. ``ids``: the scene id of each primitive the BVH was built over (None: the
+    primitives are the scene's spheres)."""
+    records, root = gpu_records(bvh)
+    order, last = leaf_order(bvh)
+    if ids is not None:
+        order = np.asarray(ids, dtype=np.int64)[order]
     return PackedScene(
-        textures={NODES.name: wrap_rows(bvh.texels(), max_width),
-                  INDICES.name: wrap_rows(bvh.indices.astype(np.uint32), max_width)})
+        textures={NODES.name: wrap_rows(records, max_width),
+                  SPHERES.name: wrap_rows(gpu_layout.sphere_records(scene, order, last), max_width)},
+        uniforms=dict(zip((ROOT.name, ROOT_MIN.name, ROOT_MAX.name),
+                          (root, *gpu_layout.box_uniform(bvh.bmin[0], bvh.bmax[0])))))

@@ -66,7 +66,8 @@ class KdStats:
     ``references``: primitive references in all leaves (a straddler counts once
     per leaf); ``indices``: entries of the compacted index array; ``bytes``:
     nodes (8 B) + compacted index array (4 B each) + global box (24 B), Fig. 5.4's
-    "size"; ``sah_cost``: ``(C_TRAV Σ_inner A + C_ISECT Σ_leaf A·n) / A_root``.
+    "size" (the build's layout; the GPU's, ``kdtree_layout``, holds a sphere record per
+    reference); ``sah_cost``: ``(C_TRAV Σ_inner A + C_ISECT Σ_leaf A·n) / A_root``.
     """
     primitives: int
     nodes: int
@@ -467,5 +468,5 @@ class KdTreeMethod:
         t0 = time.perf_counter()
         kd = build_for_scene(scene, max_tree_depth, self.cost_scale)
         ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod(gpu_data(scene, lambda: L.pack_kdtree(kd, max_width)), ms,
+        return PreparedMethod(gpu_data(scene, lambda: L.pack_kdtree(kd, scene, None, max_width)), ms,
                               {"method": self.name, **kd.stats.to_json(), **mesh_stats(scene)}, tree=kd)

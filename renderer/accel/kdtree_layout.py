@@ -1,7 +1,7 @@
-"""The kd-tree node layout (Reiter's listing 4.5), defined once for packer, shader and tests.
+"""The kd-tree's layouts (Reiter's listing 4.5), defined once for packer, shader and tests.
 
-One node is 8 bytes, two little-endian 32-bit words (texture ``u_kd_nodes``,
-RG32UI, node ``i`` at texel ``i``)::
+**Build** (:class:`renderer.accel.kdtree.KdTree`, struct of arrays; :func:`pack_nodes`
+writes it as the node array the GPU read before issue 18, kept for tools and tests)::
 
     word 0  bits 31..30  00 / 01 / 10 = split axis x / y / z, 11 = leaf
             bits 29..0   inner: index of the left child; the right child is at
@@ -9,18 +9,43 @@ RG32UI, node ``i`` at texel ``i``)::
                          leaf:  number of primitives
     word 1               inner: float32 bits of the split plane's position
                          leaf:  offset into the compacted index array
-                                ``u_kd_indices`` (leaves' ranges may overlap,
-                                algorithm 6)
+                                (leaves' ranges may overlap, algorithm 6)
+                                                                   total: 8 bytes
 
-The left child holds everything below the plane (``x[axis] < split``), the
-right child everything above; a primitive whose box straddles the plane is in
-both. The root's voxel is the global box (uniforms ``u_kd_box_min/max``).
+The left child holds everything below the plane (``x[axis] < split``), the right child
+everything above; a primitive whose box straddles the plane is in both.
+
+**Conversion** (:func:`gpu_records`): a leaf has no record, its parent's ref says where its
+spheres are, and every leaf's spheres are a run of sphere records
+(:func:`renderer.gpu_layout.sphere_records`, the last flagged) in leaf order — a straddler
+has a record in every leaf it is in, so no index array is read (the runs hold the
+references, ``stats.references``, not the compacted index array). An empty leaf has no
+records: its ref says so. Inner records keep the build's order, renumbered without leaves.
+
+**GPU** (``u_kd_nodes``, a record array: RGBA32UI texture or uniform block), one inner
+node per ``uvec4``::
+
+    x   bits 31..30 split axis (0, 1, 2); bits 29..0 the left child's ref
+    y   float32 bits of the split plane's position
+    z   the right child's ref
+    w   0
+                                                                   total: 16 bytes
+    ref bit 29 (REF_LEAF) set: a leaf; bit 28 (REF_EMPTY) set: it has no primitives,
+                               else bits 27..0 its first sphere record
+        bit 29 clear:          an inner node; bits 27..0 its record
+
+``u_kd_root`` is the root's ref, ``u_kd_box_min/max`` the root's voxel.
+
+**Traversal** (``shaders/method_kdtree.glsl``): front to back with early exit, as before,
+in a descent loop that ends at a leaf child, a leaf block (its sphere records, the
+early exit) and a pop loop.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from .. import gpu_layout
 from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
 from ..limits import MAX_TREE_DEPTH
 
@@ -36,11 +61,18 @@ STACK_SIZE = MAX_TREE_DEPTH
 # conservative against float32 rounding by this factor (they only add work).
 T_SLACK = 1.00001
 
-NODES = Binding("u_kd_nodes", "highp usampler2D", "kd-tree nodes (kdtree_layout)")
-INDICES = Binding("u_kd_indices", "highp usampler2D", "compacted primitive index array")
+REF_LEAF = 1 << 29
+REF_EMPTY = 1 << 28
+REF_INDEX = REF_EMPTY - 1
+REF_NONE = 0xFFFFFFFF
+RECORD_BYTES = 16
+
+NODES = Binding("u_kd_nodes", doc="kd-tree inner nodes (kdtree_layout)", records=True)
+SPHERES = Binding("u_kd_spheres", doc="each leaf's spheres (gpu_layout.sphere_records)", records=True)
+ROOT = Binding("u_kd_root", "highp uint", "the root's ref")
 BOX_MIN = Binding("u_kd_box_min", "highp vec3", "the root's voxel")
 BOX_MAX = Binding("u_kd_box_max", "highp vec3")
-BINDINGS = (NODES, INDICES, BOX_MIN, BOX_MAX)
+BINDINGS = (NODES, SPHERES, ROOT, BOX_MIN, BOX_MAX)
 
 
 def pack_nodes(axis: np.ndarray, left: np.ndarray, split: np.ndarray, count: np.ndarray,
@@ -67,19 +99,58 @@ def unpack_nodes(words: np.ndarray) -> dict[str, np.ndarray]:
             "split": w[:, 1].copy().view(np.float32)}
 
 
+def leaf_runs(kd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every leaf's primitives, leaf after leaf: (primitive positions in the concatenation,
+    each leaf's first record, the ``last`` flags)."""
+    leaves = np.flatnonzero(kd.axis < 0)
+    counts = kd.count[leaves].astype(np.int64)
+    starts = np.zeros(len(leaves), dtype=np.int64)
+    np.cumsum(counts[:-1], out=starts[1:])
+    total = int(counts.sum())
+    pos = np.repeat(kd.offset[leaves].astype(np.int64) - starts, counts) + np.arange(total, dtype=np.int64)
+    first = np.zeros(kd.n_nodes, dtype=np.int64)
+    first[leaves] = starts
+    return kd.indices[pos].astype(np.int64), first, gpu_layout.leaf_ends(starts, counts, total)
+
+
+def gpu_records(kd, first: np.ndarray) -> tuple[np.ndarray, int]:
+    """The build's nodes as GPU inner records: uint32 (inner nodes, 4), and the root's ref;
+    ``first``: each leaf's first sphere record (:func:`leaf_runs`)."""
+    leaf = kd.axis < 0
+    inner = np.flatnonzero(~leaf)
+    index = np.zeros(kd.n_nodes, dtype=np.int64)
+    index[inner] = np.arange(len(inner))
+    ref = np.where(leaf, np.where(kd.count > 0, REF_LEAF | first, REF_LEAF | REF_EMPTY), index).astype(np.uint32)
+    lc = kd.left[inner]
+    out = np.zeros((len(inner), 4), dtype=np.uint32)
+    out[:, 0] = (kd.axis[inner].astype(np.uint32) << np.uint32(AXIS_SHIFT)) | ref[lc]
+    out[:, 1] = np.ascontiguousarray(kd.split[inner], dtype=np.float32).view(np.uint32)
+    out[:, 2] = ref[lc + 1]
+    return out, int(ref[0])
+
+
 def glsl_defines() -> str:
     """The layout as GLSL ES 3.00 ``#define`` lines (shared with the shader)."""
     return (f"#define KD_AXIS_SHIFT {AXIS_SHIFT}u\n"
-            f"#define KD_LEAF_TAG {LEAF_TAG}u\n"
-            f"#define KD_LOW_MASK {LOW_MASK}u\n"
+            f"#define KD_REF_MASK {LOW_MASK}u\n"
+            f"#define KD_REF_LEAF {REF_LEAF}u\n"
+            f"#define KD_REF_EMPTY {REF_EMPTY}u\n"
+            f"#define KD_REF_INDEX {REF_INDEX}u\n"
+            f"#define KD_REF_NONE {REF_NONE}u\n"
             f"#define KD_STACK_SIZE {STACK_SIZE}\n"
             f"#define KD_T_SLACK {T_SLACK!r}\n")
 
 
-def pack_kdtree(kd, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
-    """The kd-tree's nodes (RG32UI, see above), compacted index array and global box."""
+def pack_kdtree(kd, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
+    """The kd-tree for the GPU: inner records, every leaf's sphere records, the root's ref
+    and voxel. ``ids``: the scene id of each primitive the tree was built over (None: the
+    primitives are the scene's spheres)."""
+    prims, first, last = leaf_runs(kd)
+    records, root = gpu_records(kd, first)
+    if ids is not None:
+        prims = np.asarray(ids, dtype=np.int64)[prims]
     return PackedScene(
-        textures={NODES.name: wrap_rows(kd.words(), max_width),
-                  INDICES.name: wrap_rows(kd.indices.astype(np.uint32), max_width)},
-        uniforms={BOX_MIN.name: tuple(float(x) for x in kd.global_box[0]),
-                  BOX_MAX.name: tuple(float(x) for x in kd.global_box[1])})
+        textures={NODES.name: wrap_rows(records, max_width),
+                  SPHERES.name: wrap_rows(gpu_layout.sphere_records(scene, prims, last), max_width)},
+        uniforms=dict(zip((ROOT.name, BOX_MIN.name, BOX_MAX.name),
+                          (root, *gpu_layout.box_uniform(*kd.global_box)))))

@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
+from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene
 from ..scene import Scene
 from ..tree_update import REBUILD, UPDATE_SCHEMES, TreeUpdate
 from .base import Capabilities, PreparedMethod, gpu_data, mesh_stats
@@ -77,7 +77,7 @@ class TwoLevelMethod:
         t1 = time.perf_counter()
         bvh = self._bvh.build_boxes(lo[moving_ids], hi[moving_ids], max_prims, max_tree_depth, update)
         t2 = time.perf_counter()
-        packed = gpu_data(scene, lambda: pack_twolevel(kd, static_ids, bvh, moving_ids, max_width))
+        packed = gpu_data(scene, lambda: pack_twolevel(kd, static_ids, bvh, moving_ids, scene, max_width))
         stats = {"method": self.name, "static": int(len(static_ids)), "moving": int(len(moving_ids)),
                  "kd_build_ms": (t1 - t0) * 1e3 if fresh else 0.0, "kd_cached": not fresh,
                  "bvh_update_ms": (t2 - t1) * 1e3, "scheme": bvh.stats.scheme,
@@ -86,20 +86,16 @@ class TwoLevelMethod:
         return PreparedMethod(packed, (t2 - t0) * 1e3, stats, tree=(kd, static_ids, bvh, moving_ids))
 
 
-def pack_twolevel(kd, kd_ids: np.ndarray, bvh, bvh_ids: np.ndarray,
+def pack_twolevel(kd, kd_ids: np.ndarray, bvh, bvh_ids: np.ndarray, scene: Scene,
                   max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
     """Two levels: the kd-tree over the spheres ``kd_ids`` and the BVH over ``bvh_ids``.
 
     Each structure was built over its subset (primitive ``i`` = scene sphere ``ids[i]``; packed
-    only for scenes without triangles, where tree primitives are the spheres);
-    their index arrays are mapped to scene ids here, so the shader sees scene ids only.
+    only for scenes without triangles, where tree primitives are the spheres); their sphere
+    records carry scene ids (and the scene's spheres), so the shader sees scene ids only.
     """
-    kd_ids = np.asarray(kd_ids, dtype=np.int64)
-    bvh_ids = np.asarray(bvh_ids, dtype=np.int64)
-    kd_part = pack_kdtree(kd, max_width)
-    kd_part.textures[kdtree_layout.INDICES.name] = wrap_rows(kd_ids[kd.indices].astype(np.uint32), max_width)
-    bvh_part = pack_bvh(bvh, max_width)
-    bvh_part.textures[bvh_layout.INDICES.name] = wrap_rows(bvh_ids[bvh.indices].astype(np.uint32), max_width)
+    kd_part = pack_kdtree(kd, scene, kd_ids, max_width)
+    bvh_part = pack_bvh(bvh, scene, bvh_ids, max_width)
     return PackedScene(textures={**kd_part.textures, **bvh_part.textures},
-                       uniforms={**kd_part.uniforms, KD_COUNT.name: int(len(kd_ids)),
+                       uniforms={**kd_part.uniforms, **bvh_part.uniforms, KD_COUNT.name: int(len(kd_ids)),
                                  BVH_COUNT.name: int(len(bvh_ids))})

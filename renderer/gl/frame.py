@@ -17,8 +17,23 @@ Passes (docs/FORMATS.md, "Camera and pixels"):
    the whole grid was (the shader's sub-pixel arithmetic is exact), so the final image is
    bit for bit the one a single ``kW × kH`` draw gives.
 
-Uniforms and texture units are program state, and frames of the same variant share a
-program, so every slice binds its own frame's before drawing.
+Uniforms, texture units and uniform-block bindings are program state, and frames of the
+same variant share a program, so every slice binds its own frame's before drawing.
+
+A frame is split by :func:`renderer.gpu_layout.frame_regions`: inside the rectangle the
+spheres' box projects to, the tracer; outside it, where no primary ray can meet a sphere
+— and, in colour and recursion frames, whose hits spawn rays, where it meets no plane
+either — the *background* variant, the same shader without the traversal (llvmpipe runs
+a loop's body once even when no lane enters it, so a pixel that misses the box still
+paid for the traversal). The pixels are the same either way, bit for bit.
+
+What a frame uploads is what its variant declares (:func:`check_bindings`): record arrays
+the renderer chose to read from uniform blocks (``variant.blocks``) as 64 KiB buffers,
+everything else as textures. A png or jpeg frame at one sample per pixel
+(:func:`image_only`) renders into one RGBA8 target, the shader rounding the colour as
+``RenderResult.image_u8`` does; its result (:class:`ImageOnlyResult`) carries those bytes,
+and its float image, depth, primid and normal arrays are traced again (with float
+targets) only if someone reads them — the service never does for those formats.
 """
 
 from __future__ import annotations
@@ -37,7 +52,7 @@ from ..modes import AVERAGED_MODES
 from ..result import RenderResult
 from ..scene import Scene
 from ..shader_source import known_bindings, tracer_bindings
-from .textures import upload_textures
+from .textures import upload_blocks, upload_textures
 
 if TYPE_CHECKING:
     from ..settings import RenderSettings
@@ -53,6 +68,44 @@ class Pass:
     @property
     def name(self) -> str:
         return "centre" if self.sub is None else f"sample {self.sub[0]},{self.sub[1]}"
+
+
+def image_only(settings: "RenderSettings") -> bool:
+    """Whether a frame needs only its 8-bit image: png or jpeg at one sample per pixel (a
+    supersampled frame keeps float sub-pixels, so its box filter is the same)."""
+    return settings.format in ("png", "jpeg") and settings.samples_per_pixel == 1
+
+
+class ImageOnlyResult(RenderResult):
+    """The result of an image-only frame: :meth:`image_u8` gives the bytes the shader wrote
+    (those of ``image_u8()`` of the float image); ``image``, ``depth``, ``primid`` and
+    ``normal`` are those of the same frame traced again with float targets, on first use
+    (from the thread that owns the renderer)."""
+
+    def __init__(self, u8: np.ndarray, mode: str, timings: dict, stats: dict, arrays):
+        self._u8, self.mode, self.timings, self.stats = u8, mode, timings, stats
+        self._arrays, self._full = arrays, None
+
+    def image_u8(self) -> np.ndarray:
+        return self._u8.copy()
+
+    def _traced(self) -> RenderResult:
+        if self._full is None:
+            self._full = self._arrays()
+            self._arrays = None
+        return self._full
+
+    image = property(lambda self: self._traced().image)
+    depth = property(lambda self: self._traced().depth)
+    primid = property(lambda self: self._traced().primid)
+    normal = property(lambda self: self._traced().normal)
+
+
+# Modes whose pixels outside the spheres' box (and, for colour and recursion, outside every
+# plane) owe nothing to the spheres (heat is left out: brute force counts its tests on
+# every ray); of those, the modes that trace the primary ray only.
+BACKGROUND_MODES = ("depth", "primid", "normal", "color", "recursion")
+PRIMARY_MODES = ("depth", "primid", "normal")
 
 
 def plan_passes(mode: str, k: int) -> list[Pass]:
@@ -86,8 +139,20 @@ class TracerFrame:
         self.width, self.height = settings.width, settings.height
         self.passes = [Pass(self.k, None)] if self.one_shot else plan_passes(settings.mode, self.k)
         self.band_rows = band_rows
-        self.prog, self.vao = renderer.program(variant.method, variant.mode, variant.depth, variant.features)
+        self.prog, self.vao = renderer.program(variant.method, variant.mode, variant.depth, variant.features,
+                                               variant.blocks, variant.image_only)
+        # The pixels whose primary ray can meet no sphere (no primitive at all, when hits spawn
+        # rays) are drawn by the background variant.
+        self.regions: list[tuple[int, int, int, int, bool]] | None = None
+        if getattr(renderer, "background", False) and variant.mode in BACKGROUND_MODES and not self.one_shot:
+            self.regions = gpu_layout.frame_regions(scene, self.width, self.height,
+                                                    planes=variant.mode not in PRIMARY_MODES)
+            if self.regions is not None:
+                self.bg_prog, self.bg_vao = renderer.program(variant.method, variant.mode, variant.depth,
+                                                             variant.features, (), variant.image_only, False)
+                stats["background_pixels"] = sum(w * h for _, _, w, h, tracer in self.regions if not tracer)
         self.textures: list[moderngl.Texture] = []
+        self.buffers: list[moderngl.Buffer] = []
         self.fbo: moderngl.Framebuffer | None = None
         self.timings = {"build": prepared.build_ms, "update": prepared.build_ms, "upload": 0.0, "trace": 0.0,
                         "read": 0.0}
@@ -107,23 +172,31 @@ class TracerFrame:
         parts = [gpu_layout.pack_primitives(self.scene, self.renderer.max_texture_width), self.prepared.packed,
                  PackedScene({}, {gpu_layout.MIN_WEIGHT.name: float(self.settings.min_weight)})]
         tex, self.uniforms = check_bindings(self.variant, parts)
-        self.units = upload_textures(self.ctx, PackedScene(tex), self.textures)
+        blocks = {n: t for n, t in tex.items() if n in self.variant.blocks}
+        self.units = upload_textures(self.ctx, PackedScene({n: t for n, t in tex.items() if n not in blocks}),
+                                     self.textures)
+        self.block_units = upload_blocks(self.ctx, blocks, self.buffers)
         w, h = self._target_size()
-        self.fbo = self.renderer.targets.acquire(w, h)
+        self.fbo = self.renderer.targets.acquire(w, h, self.variant.image_only)
         self.ctx.finish()
         self.timings["upload"] = (time.perf_counter() - t0) * 1e3
 
     def _target_size(self) -> tuple[int, int]:
         return (self.width * self.k, self.height * self.k) if self.one_shot else (self.width, self.height)
 
-    def _bind(self, p: Pass) -> None:
-        """This frame's textures, uniforms and the pass's camera terms onto the shared program."""
-        prog = self.prog
+    def _bind(self, p: Pass, prog: moderngl.Program | None = None) -> None:
+        """This frame's textures, uniforms and the pass's camera terms onto the shared program
+        (``prog``: the background variant's instead)."""
+        prog = self.prog if prog is None else prog
         for unit, tex in enumerate(self.textures):
             tex.use(unit)
         for name, unit in self.units.items():
             if name in prog:
                 prog[name].value = unit
+        for binding, (name, buf) in enumerate(self.block_units.items()):
+            if name in prog:
+                buf.bind_to_uniform_block(binding)
+                prog[name].binding = binding
         if self.one_shot:     # the whole k × k grid in one draw: each fragment is one sub-pixel
             grid, pass_terms = self._target_size(), gpu_layout.pass_uniforms(1)
         else:
@@ -132,7 +205,7 @@ class TracerFrame:
         camera = gpu_layout.camera_uniforms(self.scene.camera, *grid)
         for name, value in {**self.uniforms, **camera, **pass_terms}.items():
             if name in prog:
-                prog[name].value = value
+                set_uniform(prog[name], value)
 
     # ---- slices ------------------------------------------------------------------------------
     @property
@@ -160,10 +233,11 @@ class TracerFrame:
         w, h = self._target_size()
         rows = h - self._row if self.band_rows is None else min(max(1, int(self.band_rows)), h - self._row)
         t0 = time.perf_counter()
-        self._bind(p)
-        self.fbo.scissor = (0, self._row, w, rows) if rows < h else None
         self.fbo.use()
-        self.vao.render(moderngl.TRIANGLES)
+        for prog, vao, scissor in self._draws(w, h, self._row, rows):
+            self._bind(p, prog)
+            self.fbo.scissor = scissor
+            vao.render(moderngl.TRIANGLES)
         self.ctx.finish()
         self.timings["trace"] += (time.perf_counter() - t0) * 1e3
         self.slices += 1
@@ -177,6 +251,19 @@ class TracerFrame:
                 self.release()
         return self.done
 
+    def _draws(self, w: int, h: int, y0: int, rows: int) -> list:
+        """(program, vertex array, scissor) of the draws of one band of rows: the tracer, or
+        for a split frame each region's variant on its part of the band."""
+        if self.regions is None:
+            return [(self.prog, self.vao, (0, y0, w, rows) if rows < h else None)]
+        out = []
+        for x, y, rw, rh, tracer in self.regions:
+            a, b = max(y, y0), min(y + rh, y0 + rows)
+            if b > a:
+                out.append((self.prog, self.vao, (x, a, rw, b - a)) if tracer else
+                           (self.bg_prog, self.bg_vao, (x, a, rw, b - a)))
+        return out
+
     def run(self) -> RenderResult:
         """Every remaining slice, then the result."""
         while not self.step():
@@ -187,6 +274,11 @@ class TracerFrame:
         t0 = time.perf_counter()
         w, h = self._target_size()
         self.fbo.scissor = None
+        if self.variant.image_only:
+            u8 = np.frombuffer(self.fbo.read(components=4, dtype="f1", attachment=0), np.uint8).reshape(h, w, 4)
+            self._centre = (u8, None)
+            self.timings["read"] += (time.perf_counter() - t0) * 1e3
+            return
         img = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=0), np.float32).reshape(h, w, 4)
         if p.sub is None:
             hit = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(h, w, 4)
@@ -202,6 +294,13 @@ class TracerFrame:
 
     # ---- results -----------------------------------------------------------------------------
     def _compose(self) -> RenderResult:
+        if self.variant.image_only:
+            u8 = np.ascontiguousarray(self._centre[0][::-1, :, :3])
+            timings = {**self.timings, "total": (time.perf_counter() - self.t_start) * 1e3}
+            stats = {**self.stats, "tracer_passes": len(self.passes), "slices": self.slices}
+            r, scene, settings, prepared = self.renderer, self.scene, self.settings, self.prepared
+            return ImageOnlyResult(u8, settings.mode, timings, stats,
+                                   lambda: r.begin(scene, settings.with_(format="npy"), prepared=prepared).run())
         img, hit = self._centre
         img, hit = img[::-1], hit[::-1]          # image row 0 at the top
         k, W, H = self.k, self.width, self.height
@@ -240,10 +339,21 @@ class TracerFrame:
         for t in self.textures:
             t.release()
         self.textures = []
+        for b in self.buffers:
+            b.release()
+        self.buffers = []
         if self.fbo is not None:
             self.fbo.scissor = None
             self.renderer.targets.release(self.fbo)
             self.fbo = None
+
+
+def set_uniform(u, value) -> None:
+    """Set a uniform; of an array the compiler shortened (a specialised variant indexes only
+    the planes it has), the elements it kept."""
+    if isinstance(value, list) and u.array_length < len(value):
+        value = value[0] if u.array_length == 1 else value[:u.array_length]
+    u.value = value
 
 
 def check_bindings(variant: Variant, parts: list[PackedScene]) -> tuple[dict, dict]:

@@ -1,5 +1,13 @@
 """The moderngl renderer: one frame = rebuild → upload → draw → read back.
 
+The renderer makes the host's choices of a variant (issue 18): a record array of the
+method (nodes, sphere records) whose packed data fit a uniform block (64 KiB, and the
+context allows blocks that large) is read from one instead of a texture — textures above
+that, and always for device data; a png or jpeg frame at one sample per pixel renders into
+one RGBA8 target (``renderer.gl.frame.image_only``); a frame of primary rays (depth,
+primid, normal) draws the pixels outside the spheres' projected box with the background
+variant, which has no traversal (``renderer.gl.frame``).
+
 A ``GLRenderer`` owns one OpenGL context. A context is not thread-safe: call a
 renderer from the thread that created it only (the server runs all renders on
 one dedicated thread).
@@ -14,7 +22,8 @@ import moderngl
 import numpy as np
 
 from ..animation import AnimatedScene
-from ..features import GENERIC, scene_features
+from .. import gpu_layout
+from ..features import scene_features
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..methods import METHODS, PreparedMethod, resolve_method
 from ..prepare import PreparedFrame, prepare_frame
@@ -22,10 +31,10 @@ from ..result import RenderResult
 from ..scene import Scene, SceneError
 from ..gpu_layout import Variant
 from ..settings import RenderSettings
-from ..shader_source import tracer_source, vertex_source
+from ..shader_source import tracer_bindings, tracer_source, vertex_source
 from ..tree_update import TreeUpdate
 from .context import GLUnavailable, create_context  # noqa: F401  (re-exported)
-from .frame import TracerFrame
+from .frame import TracerFrame, image_only
 from .ray_engine import RayEnginePasses
 from .targets import TargetPool
 
@@ -34,9 +43,20 @@ class GLRenderer:
     """Renders scenes with the GLSL ES 3.00 tracer. Programs are cached per variant."""
 
     def __init__(self, ctx: moderngl.Context | None = None,
-                 max_texture_width: int = DEFAULT_TEXTURE_WIDTH, max_target_bytes: int = 256 << 20):
+                 max_texture_width: int = DEFAULT_TEXTURE_WIDTH, max_target_bytes: int = 256 << 20,
+                 uniform_blocks: bool = True, image_targets: bool = True, background: bool = True):
+        """``uniform_blocks``: read record arrays that fit from uniform blocks (False:
+        textures only, the device's layout). ``image_targets``: RGBA8 targets for png/jpeg
+        frames at one sample per pixel (False: always the float targets). ``background``:
+        primary-ray frames draw the pixels whose rays cannot meet a sphere with the
+        background variant (False: the whole frame with the tracer)."""
         self.ctx = ctx or create_context()
         self.max_texture_width = min(max_texture_width, self.ctx.info["GL_MAX_TEXTURE_SIZE"])
+        self.max_blocks = (int(self.ctx.info["GL_MAX_FRAGMENT_UNIFORM_BLOCKS"])
+                           if uniform_blocks and self.ctx.info["GL_MAX_UNIFORM_BLOCK_SIZE"] >= gpu_layout.BLOCK_BYTES
+                           else 0)
+        self.image_targets = image_targets
+        self.background = background
         self._programs: dict[tuple, moderngl.Program] = {}
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         # Render targets, reused and bounded in bytes (the frames in flight hold their own).
@@ -56,13 +76,16 @@ class GLRenderer:
     def info(self) -> dict[str, str]:
         return {"renderer": self.ctx.info["GL_RENDERER"], "version": self.ctx.info["GL_VERSION"]}
 
-    def program(self, method: str, mode: str, max_recursion_depth: int, features: tuple[str, ...] = ()
+    def program(self, method: str, mode: str, max_recursion_depth: int, features: tuple[str, ...] = (),
+                blocks: tuple[str, ...] = (), image_only: bool = False, spheres: bool = True
                 ) -> tuple[moderngl.Program, moderngl.VertexArray]:
-        """The compiled variant, cached by method × mode × recursion depth × feature set."""
-        key = (method, mode, max_recursion_depth, features)
+        """The compiled variant, cached by method × mode × recursion depth × feature set ×
+        the host's choices (record arrays in uniform blocks, RGBA8 image, background)."""
+        key = (method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only), bool(spheres))
         if key not in self._programs:
-            prog = self.ctx.program(vertex_shader=vertex_source(),
-                                    fragment_shader=tracer_source(method, mode, max_recursion_depth, features))
+            src = tracer_source(method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only),
+                                bool(spheres))
+            prog = self.ctx.program(vertex_shader=vertex_source(), fragment_shader=src)
             self._programs[key] = prog
             self._vaos[key] = self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
         return self._programs[key], self._vaos[key]
@@ -118,13 +141,31 @@ class GLRenderer:
         if prepared is None:
             prepared = method.prepare(scene, settings.max_prims, settings.max_tree_depth,
                                       self.max_texture_width, update)
-        features = scene_features(scene) if settings.specialize else GENERIC
+        features = scene_features(scene)
+        if not settings.specialize:
+            features = features.generic()
         depth = features.recursion_depth(settings.max_recursion_depth)
-        variant = Variant(method_name, settings.mode, depth, features.defines())
+        image = self.image_targets and image_only(settings)
+        variant = Variant(method_name, settings.mode, depth, features.defines(), image_only=image)
+        variant = Variant(method_name, settings.mode, depth, features.defines(), self.blocks_for(variant, prepared),
+                          image)
         stats = {**prepared.stats, "method": method_name, "recursion_depth": depth,
-                 "features_removed": list(features.defines()), "n_spheres": scene.n_spheres}
+                 "features_removed": features.removed(), "shader_features": list(features.defines()),
+                 "blocks": list(variant.blocks), "target": "rgba8" if image else "float",
+                 "n_spheres": scene.n_spheres}
         return TracerFrame(self, scene, settings, variant, prepared, stats, band_rows=band_rows,
                            one_shot=one_shot, t_start=t_start)
+
+    def blocks_for(self, variant: Variant, prepared: PreparedMethod) -> tuple[str, ...]:
+        """The method's record arrays this variant reads whose packed data fit a uniform
+        block, as many as the context allows (in the method's order of bindings)."""
+        out = []
+        for b in tracer_bindings(variant):
+            tex = prepared.packed.textures.get(b.name)
+            if b.records and tex is not None and len(out) < self.max_blocks \
+                    and tex.data.shape[0] * tex.data.shape[1] <= gpu_layout.BLOCK_RECORDS:
+                out.append(b.name)
+        return tuple(out)
 
 
 class StartedFrame:

@@ -85,7 +85,7 @@ def psnr(a: np.ndarray, b: np.ndarray) -> float:
     return math.inf if mse == 0 else 10 * math.log10(255.0 ** 2 / mse)
 
 
-@pytest.mark.parametrize("method", ["bih", "bruteforce"])
+@pytest.mark.parametrize("method", ["bih", "bruteforce", "bvh", "kdtree", "twolevel"])
 @pytest.mark.parametrize("n", [64, 1024])
 @pytest.mark.parametrize("scenario", [1, 2, 3])
 def test_device_image_equals_the_servers(device_page, server, sessions, scenario, n, method):
@@ -107,6 +107,35 @@ def test_device_image_equals_the_servers(device_page, server, sessions, scenario
     assert device_page.errors() == []
 
 
+@pytest.mark.parametrize("method", ["bih", "bvh", "kdtree"])
+def test_device_renders_the_data_formats(device_page, server, method):
+    """Unequal radii (32-byte sphere records), 20 materials (the material texture, not the
+    uniform array), two lights and two planes (compiled-in counts), a material that both
+    reflects and transmits (the task stack): the device's picture is the server's."""
+    from tests.renderer.gl.base_images import _scenes
+    scene = _scenes()["both_kr_kt"]
+    many = [{"color": [0.2 + 0.03 * i, 0.9 - 0.04 * i, 0.5], "reflective": 0.3 * (i % 2),
+             "transmissive": 0.5 * (i % 3 == 1), "ior": 1.2} for i in range(20)]
+    body = scene.to_json()
+    rng = np.random.default_rng(5)
+    for i, sp in enumerate(body["spheres"]):
+        sp["radius"] = float(rng.uniform(0.4, 1.6))
+        sp["material"] = i % 20
+    body["materials"] = many
+    sid = http_json("POST", f"{server.base}/api/sessions", {"scene": body})["id"]
+    common = dict(width=W, height=H, method=method, max_recursion_depth=DEPTH)
+    dev = device_render(device_page, session=sid, mode="primid", **common)
+    assert dev["infoLog"] == {"vertex": "", "fragment": "", "program": ""}, dev["infoLog"]
+    assert {"EQUAL_RADII"} & set(dev["shader"]["features"]) == set()
+    assert {"MATERIAL_TEXTURE", "LIGHTS_2", "PLANES_2"} <= set(dev["shader"]["features"]), dev["shader"]
+    srv = server_array(server, sid, mode="primid", **common)
+    assert np.mean(srv == dev["primid"]) >= 0.999
+    dev = device_render(device_page, session=sid, mode="color", **common)
+    srv = server_array(server, sid, mode="color", **common)
+    assert psnr(dev["colour"], srv) >= 35.0, psnr(dev["colour"], srv)
+    assert device_page.errors() == []
+
+
 def test_one_layout_small_textures_and_the_javascript_camera(device_page, server, sessions):
     """A device with MAX_TEXTURE_SIZE 32: narrower rows, the same picture; the JS basis is the server's."""
     sid = sessions(3, 1024)
@@ -114,7 +143,8 @@ def test_one_layout_small_textures_and_the_javascript_camera(device_page, server
                         max_texture_size=32)
     sizes = {t["name"]: (t["width"], t["height"], t["internal_format"]) for t in dev["textures"]}
     assert sizes["u_spheres"] == (32, 32, "RGBA32F") and sizes["u_sphere_mat"] == (32, 32, "R32UI")
-    assert sizes["u_nodes"][0] <= 32 and sizes["u_nodes"][2] == "RGB32UI"
+    assert sizes["u_bih_nodes"][0] <= 32 and sizes["u_bih_nodes"][2] == "RGBA32UI"
+    assert sizes["u_bih_spheres"] == (32, 32, "RGBA32UI"), "1,024 equal-radius sphere records, 16 bytes each"
     srv = server_array(server, sid, mode="primid", width=W, height=H, method="bih")
     assert np.mean(srv == dev["primid"]) >= 0.999
     u = dev["serverUniforms"]

@@ -1,5 +1,8 @@
 """The record of what users get: every shader text and the device data of scenarios 1–3.
 
+(Rewritten for issue 18, which changed the shaders and the packing on purpose: the images
+stayed bit for bit the same, which ``tests/renderer/gl/test_base_images.py`` proves.)
+
 Architecture changes must not change what is compiled or sent to a device. This module
 computes, for every single-pass method × mode × recursion depth × feature set, the
 sha256 of the assembled fragment shader; for every ray-engine program the sha256 of its
@@ -29,6 +32,11 @@ from renderer.modes import SINGLE_PASS_MODES as MODES  # noqa: E402
 # Every method with a one-pass traversal: a new method adds its variants to the record.
 SINGLE_PASS = tuple(name for name, m in METHODS.items() if m.capabilities.shader)
 FEATURES = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS")
+# Issue 18's defines (data formats, compiled-in counts, no task stack) with some removals,
+# and the host's choices (every record array in a uniform block; the RGBA8 image).
+SHAPES = (("EQUAL_RADII",), ("MATERIAL_TEXTURE",), ("NO_SPLIT", "PLANES_1", "LIGHTS_1", "EQUAL_RADII"),
+          ("NO_TRANSMISSION", "PLANES_1", "LIGHTS_1", "EQUAL_RADII"), ("NO_LIGHTS", "PLANES_0", "MATERIAL_TEXTURE"),
+          ("PLANES_8", "LIGHTS_8"))
 
 
 def _sha(text: str | bytes) -> str:
@@ -44,6 +52,16 @@ def tracer_shaders() -> dict[str, str]:
     out = {"vertex": _sha(vertex_source())}
     for method, mode, depth, feats in itertools.product(SINGLE_PASS, MODES, range(1, 9), feature_sets()):
         out[f"{method}/{mode}/{depth}/{','.join(feats)}"] = _sha(tracer_source(method, mode, depth, feats))
+    for method, mode, depth, feats in itertools.product(SINGLE_PASS, MODES, (1, 3, 8), SHAPES):
+        records = tuple(b.name for b in METHODS[method].bindings if b.records)
+        out[f"{method}/{mode}/{depth}/{','.join(feats)}"] = _sha(tracer_source(method, mode, depth, feats))
+        for blocks, image in ((records, False), ((), True), (records, True)):
+            key = f"{method}/{mode}/{depth}/{','.join(feats)}/blocks={','.join(blocks)}/{'rgba8' if image else 'float'}"
+            out[key] = _sha(tracer_source(method, mode, depth, feats, blocks, image))
+        if mode != "heat":
+            for image in (False, True):
+                key = f"{method}/{mode}/{depth}/{','.join(feats)}/background/{'rgba8' if image else 'float'}"
+                out[key] = _sha(tracer_source(method, mode, depth, feats, (), image, spheres=False))
     return out
 
 

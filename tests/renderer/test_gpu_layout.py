@@ -207,3 +207,148 @@ def test_glsl_header_states_the_tracers_constants():
     assert f"#define BIH_STACK_SIZE {MAX_TREE_DEPTH}" in bih_layout.glsl_defines().splitlines()
     assert f"#define BVH_STACK_SIZE {MAX_TREE_DEPTH}" in bvh_layout.glsl_defines().splitlines()
     assert f"#define KD_STACK_SIZE {MAX_TREE_DEPTH}" in kdtree_layout.glsl_defines().splitlines()
+
+
+# ---------------------------------------------------------- issue 18: records, blocks, variants
+
+def test_sphere_records_are_centres_and_keys_in_the_given_order():
+    """Equal radii: one 16-byte record (centre, id | material << 21 | last); otherwise two
+    (centre and radius, then the key); the radius of equal ones is the uniform."""
+    from renderer import gpu_layout as G
+    scene = small_scene()                               # unequal radii
+    order = np.array([3, 0, 4, 1, 2])
+    last = np.array([False, True, False, False, True])
+    rec = G.sphere_records(scene, order, last)
+    assert rec.shape == (10, 4) and rec.dtype == np.uint32
+    u = G.unpack_sphere_records(rec, equal=False)
+    assert u["id"].tolist() == order.tolist() and u["last"].tolist() == last.tolist()
+    assert u["material"].tolist() == scene.sphere_materials[order].tolist()
+    np.testing.assert_array_equal(u["centre"], scene.sphere_centers[order].astype(np.float32))
+    np.testing.assert_array_equal(u["radius"], scene.sphere_radii[order].astype(np.float32))
+    assert (rec[1::2, 1:] == 0).all()
+    assert rec[1, 0] == (3 | (1 << G.SPHERE_MAT_SHIFT)) and rec[3, 0] == (0 | (1 << 21) | G.SPHERE_LAST)
+    assert not G.equal_radii(scene) and pack_primitives(scene).uniforms["u_sphere_radius"] == 0.0
+
+    same = Scene(scene.camera, scene.lights, scene.materials, scene.sphere_centers, np.full(5, 0.75),
+                 scene.sphere_materials, scene.planes)
+    assert G.equal_radii(same) and pack_primitives(same).uniforms["u_sphere_radius"] == 0.75
+    rec = G.sphere_records(same, order, last)
+    assert rec.shape == (5, 4)
+    u = G.unpack_sphere_records(rec, equal=True)
+    assert u["id"].tolist() == order.tolist() and u["last"].tolist() == last.tolist()
+    np.testing.assert_array_equal(u["centre"], same.sphere_centers[order].astype(np.float32))
+    assert G.SPHERE_ID_MASK + 1 >= G.MAX_SPHERES and G.SPHERE_MAT_MASK + 1 >= G.MAX_MATERIALS
+
+
+def test_leaf_ends_flag_the_last_record_of_each_run():
+    from renderer.gpu_layout import leaf_ends
+    assert leaf_ends([0, 3, 4], [3, 1, 2], 6).tolist() == [False, False, True, True, False, True]
+    assert leaf_ends([0, 2, 2], [2, 0, 1], 3).tolist() == [False, True, True]    # an empty leaf flags nothing
+    assert leaf_ends([], [], 0).tolist() == []
+
+
+def test_materials_as_uniform_vectors_and_the_empty_box():
+    from renderer import gpu_layout as G
+    scene = small_scene()
+    u = pack_primitives(scene).uniforms
+    vecs = np.float32(u["u_material_vecs"])
+    assert vecs.shape == (MATERIAL_TEXELS * G.MAX_UNIFORM_MATERIALS, 4)
+    tex = pack_primitives(scene).textures["u_materials"].data.reshape(-1, 4)
+    np.testing.assert_array_equal(vecs[:len(scene.materials) * MATERIAL_TEXELS], tex[:len(scene.materials) * 3])
+    assert not G.material_texture(scene)
+    assert G.box_uniform([np.inf] * 3, [-np.inf] * 3) == ((1.0, 1.0, 1.0), (-1.0, -1.0, -1.0))
+    assert G.box_uniform([0, 1, 2], [3, 4, 5]) == ((0.0, 1.0, 2.0), (3.0, 4.0, 5.0))
+
+
+def test_a_record_array_is_declared_as_a_texture_or_a_uniform_block():
+    from renderer.gpu_layout import Binding, declarations
+    b = Binding("u_x", doc="records", records=True)
+    tex = declarations([b])
+    assert "uniform highp usampler2D u_x;" in tex and "#define u_x_at(i) texelFetch(u_x, texel((i), u_x_shift), 0)" in tex
+    assert "#define LAYOUT_INIT() u_x_shift = row_shift(textureSize(u_x, 0));" in tex
+    block = declarations([b], blocks=("u_x",))
+    assert "layout(std140) uniform u_x { highp uvec4 u_x_rec[BLOCK_RECORDS]; };" in block
+    assert "#define u_x_at(i) u_x_rec[i]" in block and "#define LAYOUT_INIT()\n" in block
+    assert "usampler2D" not in block
+
+
+def test_what_a_variant_reads_follows_its_data_formats_and_counts():
+    from renderer import gpu_layout as G
+    from renderer.gpu_layout import Variant
+    plain = Variant("bih", "color", 3)
+    fixed = Variant("bih", "color", 3, ("PLANES_1", "LIGHTS_2", "EQUAL_RADII", "MATERIAL_TEXTURE"))
+    for b, in_plain, in_fixed in ((G.NUM_PLANES, True, False), (G.NUM_LIGHTS, True, False),
+                                  (G.SPHERE_RADIUS, False, True), (G.MATERIALS, False, True),
+                                  (G.MATERIAL_VECS, True, False), (G.SPHERES, False, False),
+                                  (G.SPHERE_MAT, False, False), (G.PLANE_POINT, True, True)):
+        assert (plain.reads_binding(b), fixed.reads_binding(b)) == (in_plain, in_fixed), b.name
+    assert not Variant("bih", "depth", 1).reads_binding(G.MATERIAL_VECS)
+
+
+@pytest.mark.parametrize("position,target,fov", [((0.0, 0.0, 100.0), (0.0, 0.0, 0.0), 60.0),
+                                                 ((35.0, 28.0, 60.0), (0.0, -3.0, 0.0), 40.0),
+                                                 ((-90.0, 5.0, -10.0), (3.0, 1.0, 2.0), 90.0),
+                                                 ((0.0, 0.0, 45.0), (0.0, 0.0, 0.0), 120.0)])
+def test_no_primary_ray_outside_the_spheres_rectangle_meets_a_sphere(position, target, fov):
+    """primary_rect bounds the pixels whose primary ray can meet a sphere (the background
+    variant draws the rest); None when the camera is inside or beside the spheres' box."""
+    from renderer.accel.bih_traverse import brute_force
+    from renderer.gpu_layout import primary_rect
+    from renderer.reference import primary_rays
+    from renderer.scenarios import scenario
+    base = scenario(3, 512)
+    cam = Camera(position=position, target=target, up=(0.0, 1.0, 0.0), fov_y=fov)
+    scene = base.with_camera(cam)
+    w, h = 61, 47
+    rect = primary_rect(scene, w, h)
+    assert rect is not None
+    o, d = primary_rays(cam, w, h)
+    _, prim = brute_force(scene.sphere_centers, scene.sphere_radii, o, d)
+    hit = (prim >= 0).reshape(h, w)[::-1]          # GL rows from the bottom
+    x, y, rw, rh = rect
+    inside = np.zeros_like(hit)
+    inside[y:y + rh, x:x + rw] = True
+    assert hit.any() and not (hit & ~inside).any()
+    assert 0 <= x and x + rw <= w and 0 <= y and y + rh <= h
+    assert primary_rect(scene.with_camera(Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0))), w, h) is None
+    empty = Scene(cam, (), (Material(),), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32))
+    assert primary_rect(empty, w, h) == (0, 0, 0, 0)
+
+
+@pytest.mark.parametrize("position,target", [((0.0, 0.0, 100.0), (0.0, 0.0, 0.0)), ((30.0, 45.0, 70.0), (0.0, -5.0, 0.0)),
+                                             ((0.0, -10.0, 80.0), (0.0, 10.0, 0.0))])
+@pytest.mark.parametrize("planes", [False, True])
+def test_frame_regions_partition_the_frame_and_skip_only_rays_that_meet_nothing(position, target, planes):
+    """frame_regions tiles the frame; where it says background, no primary ray meets a sphere,
+    and (planes=True: frames whose hits spawn rays) no plane either."""
+    from renderer.accel.bih_traverse import brute_force
+    from renderer.gpu_layout import frame_regions
+    from renderer.reference import primary_rays
+    from renderer.scenarios import scenario
+    cam = Camera(position=position, target=target, up=(0.0, 1.0, 0.0), fov_y=60.0)
+    scene = scenario(2, 256).with_camera(cam)
+    scene = Scene(cam, scene.lights, scene.materials, scene.sphere_centers, scene.sphere_radii,
+                  scene.sphere_materials, (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),
+                                           Plane((0.0, 0.0, 500.0), (0.0, 0.1, 1.0), 0)))   # behind the camera
+    w, h = 57, 75
+    regions = frame_regions(scene, w, h, planes)
+    assert regions is not None
+    cover = np.zeros((h, w), int)
+    for x, y, rw, rh, _ in regions:
+        cover[y:y + rh, x:x + rw] += 1
+    assert (cover == 1).all(), "the regions tile the frame"
+    o, d = primary_rays(cam, w, h)
+    _, prim = brute_force(scene.sphere_centers, scene.sphere_radii, o, d)
+    meets = (prim >= 0)
+    if planes:
+        for p in scene.planes:
+            n = np.asarray(p.normal)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = ((np.asarray(p.point) - o) @ n) / (d @ n)
+            meets |= t > 0
+    meets = meets.reshape(h, w)[::-1]                 # GL rows from the bottom
+    for x, y, rw, rh, tracer in regions:
+        if not tracer:
+            assert not meets[y:y + rh, x:x + rw].any(), (x, y, rw, rh)
+    if position == (0.0, 0.0, 100.0):      # the thesis's camera: sky above the horizon, spheres in the middle
+        assert sum(rw * rh for _, _, rw, rh, t in regions if not t) > (0.25 if planes else 0.5) * w * h

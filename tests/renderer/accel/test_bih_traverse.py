@@ -320,3 +320,35 @@ def test_secondary_rules():
     assert res.prim.tolist() == [0, 0, -1] and res.t.tolist() == [2.0, 2.0, np.inf]
     assert brute_force(c, r, o, d)[1].tolist() == [0, 0, -1]
     assert brute_force(c, r, o, d, ignore=np.array([-1, 0, 0]), far_only=np.array([0, -1, -1]))[1].tolist() == [0, 1, -1]
+
+
+@settings(max_examples=60, **HYP)
+@given(scene=scenes(), max_prims=st.integers(1, 16), max_tree_depth=st.integers(1, 64))
+def test_gpu_records_are_the_built_tree(scene, max_prims, max_tree_depth):
+    """The GPU layout (bih_layout.gpu_records, leaf_order) says what the thesis's nodes say:
+    every inner node has a record with its axis and clips; its child refs name the child's
+    record, or the first sphere record of a leaf, whose run ends (flag) after its count."""
+    from renderer.accel import bih_layout as L
+    c, r = scene
+    bih = build_for_spheres(c, r, max_prims, max_tree_depth)
+    leaf, axis, left, cl, cr, off, cnt = decode(bih)
+    records, root = L.gpu_records(bih)
+    order, last = L.leaf_order(bih)
+    inner = np.flatnonzero(~leaf)
+    assert len(records) == len(inner) and records.shape[1] == 4
+    np.testing.assert_array_equal(order, bih.indices)
+    rec_of = {int(node): k for k, node in enumerate(inner)}
+
+    def ref_of(node: int) -> int:
+        return (L.REF_LEAF | int(off[node])) if leaf[node] else rec_of[int(node)]
+    assert root == ref_of(0)
+    for k, node in enumerate(inner):
+        x, y, z, w = (int(v) for v in records[k])
+        assert x >> L.AXIS_SHIFT == axis[node]
+        assert (x & L.CHILD_MASK, w) == (ref_of(left[node]), ref_of(left[node] + 1))
+        assert np.uint32(y).view(np.float32) == cl[node] and np.uint32(z).view(np.float32) == cr[node]
+    for node in np.flatnonzero(leaf):
+        if cnt[node]:
+            run = last[off[node]:off[node] + cnt[node]]
+            assert run[-1] and not run[:-1].any(), "a leaf's run ends at its last record"
+    assert last.sum() == (cnt[leaf] > 0).sum()

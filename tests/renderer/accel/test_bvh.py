@@ -75,6 +75,27 @@ def check_bvh(b, lo: np.ndarray, hi: np.ndarray, max_tree_depth: int) -> None:
     np.testing.assert_array_equal(u["count"][leaves], b.count[leaves])
     np.testing.assert_array_equal(u["first"][leaves], b.first[leaves])
     np.testing.assert_array_equal(u["near_mask"], b.near_mask)
+    # the GPU records (issue 18): an inner node's record holds both children's boxes and refs
+    records, root = bvh_layout.gpu_records(b)
+    inner = np.flatnonzero(b.left >= 0)
+    rec_of = {int(k): i for i, k in enumerate(inner)}
+
+    def ref_of(node: int) -> int:
+        return (bvh_layout.REF_LEAF | int(b.first[node])) if b.left[node] < 0 else rec_of[int(node)]
+    assert root == ref_of(0) and records.shape == (4 * len(inner), 4)
+    rec = records.reshape(-1, 4, 4)
+    f = lambda a: a.copy().view(np.float32)   # noqa: E731
+    for i, node in enumerate(inner):
+        lc, rc = b.left[node], b.left[node] + 1
+        np.testing.assert_array_equal(f(rec[i, 0, :3]), b.bmin[lc])
+        np.testing.assert_array_equal(f(rec[i, 1, :3]), b.bmax[lc])
+        np.testing.assert_array_equal(f(rec[i, 2, :3]), b.bmin[rc])
+        np.testing.assert_array_equal(f(rec[i, 3, :3]), b.bmax[rc])
+        assert (rec[i, 0, 3], rec[i, 1, 3], rec[i, 2, 3]) == (ref_of(lc), ref_of(rc), b.near_mask[node])
+    order, last = bvh_layout.leaf_order(b)
+    np.testing.assert_array_equal(order, b.indices)
+    assert last.sum() == len(leaves) if n else not last.any()
+    assert all(last[b.first[k] + b.count[k] - 1] for k in leaves if b.count[k])
 
 
 @settings(max_examples=40, **HYP)

@@ -80,6 +80,27 @@ def check_kdtree(kd, lo: np.ndarray, hi: np.ndarray, max_tree_depth: int) -> Non
     np.testing.assert_array_equal(u["split"][inner], kd.split[inner])
     np.testing.assert_array_equal(u["count"][leaves], kd.count[leaves])
     np.testing.assert_array_equal(u["offset"][leaves], kd.offset[leaves])
+    # the GPU records (issue 18): each leaf a run of its own primitives, empty ones flagged
+    prims, first, last = kdtree_layout.leaf_runs(kd)
+    records, root = kdtree_layout.gpu_records(kd, first)
+    rec_of = {int(k): i for i, k in enumerate(inner)}
+
+    def ref_of(node: int) -> int:
+        if kd.axis[node] >= 0:
+            return rec_of[int(node)]
+        return kdtree_layout.REF_LEAF | (int(first[node]) if kd.count[node] else kdtree_layout.REF_EMPTY)
+    assert root == ref_of(0) and records.shape == (len(inner), 4)
+    for i, node in enumerate(inner):
+        x, y, z, w = (int(v) for v in records[i])
+        assert x >> kdtree_layout.AXIS_SHIFT == kd.axis[node] and w == 0
+        assert (x & kdtree_layout.LOW_MASK, z) == (ref_of(kd.left[node]), ref_of(kd.left[node] + 1))
+        assert np.uint32(y).view(np.float32) == kd.split[node]
+    for node in leaves:
+        run = prims[first[node]:first[node] + kd.count[node]]
+        np.testing.assert_array_equal(run, kd.leaf_prims(node))
+        if kd.count[node]:
+            assert last[first[node] + kd.count[node] - 1] and not last[first[node]:first[node] + kd.count[node] - 1].any()
+    assert len(prims) == kd.count[leaves].sum()
 
 
 @settings(max_examples=40, **HYP)

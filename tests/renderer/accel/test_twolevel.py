@@ -1,5 +1,5 @@
 """Method ``twolevel`` (renderer.accel.twolevel), without a GPU: the static spheres go to the
-kd-tree, the moving ones to the BVH, the packed index arrays hold scene ids, and the
+kd-tree, the moving ones to the BVH, the packed sphere records hold scene ids, and the
 static kd-tree is built once per static set. That every frame renders the brute-force
 ids is tested on the GPU in ``tests/renderer/gl/test_renderer.py``.
 """
@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from renderer import gpu_layout
 from renderer.accel.twolevel import TwoLevelMethod
 from renderer.animation import museum, pose
 from renderer.scene import Scene
@@ -25,12 +26,16 @@ def test_static_spheres_in_the_kd_tree_moving_ones_in_the_bvh(kind):
     assert prep.stats["static"] == len(static_ids) and prep.stats["moving"] == len(moving_ids)
     u = prep.packed.uniforms
     assert (u["u_kd_count"], u["u_bvh_count"]) == (len(static_ids), len(moving_ids))
-    # the BVH holds each moving sphere exactly once, as its scene id
-    bvh = prep.packed.textures["u_bvh_indices"].data.reshape(-1)[:len(moving_ids)]
-    assert sorted(bvh.tolist()) == sorted(moving_ids)
+    equal = gpu_layout.equal_radii(scene)
+    # the BVH holds each moving sphere exactly once, as its scene id, with its centre
+    bvh = gpu_layout.unpack_sphere_records(prep.packed.textures["u_bvh_spheres"].data, equal)
+    ids = bvh["id"][:len(moving_ids)]
+    assert sorted(ids.tolist()) == sorted(moving_ids)
+    np.testing.assert_array_equal(bvh["centre"][:len(ids)], scene.sphere_centers[ids].astype(np.float32))
+    assert bvh["last"][len(ids) - 1] and not bvh["last"][len(ids):].any()
     # the kd-tree may list a sphere in several leaves, but only static ones, and all of them
-    kd = set(prep.packed.textures["u_kd_indices"].data.reshape(-1).tolist())
-    assert static_ids <= kd and kd <= static_ids | {0}, "kd indices are static scene ids (0 pads the last row)"
+    kd = set(gpu_layout.unpack_sphere_records(prep.packed.textures["u_kd_spheres"].data, equal)["id"].tolist())
+    assert static_ids <= kd and kd <= static_ids | {0}, "kd records are static scene ids (0 pads the last row)"
     assert prep.stats["bytes"] == prep.stats["kd"]["bytes"] + prep.stats["bvh"]["bytes"]
 
 

@@ -1,10 +1,13 @@
 """Every GPU name once: what is packed for a shader variant is what the variant reads.
 
-The shader header declares a variant's textures and uniforms from the layout constants
-(renderer/gpu_layout.py, renderer/accel/*_layout.py) and the renderer uploads exactly
-those. Here, for every method and mode, each uploaded texture or uniform must be an
-*active* uniform of the compiled program: a binding packed for nothing, or declared
-under a name the shader does not use, fails.
+The shader header declares a variant's textures, uniforms and record arrays from the
+layout constants (renderer/gpu_layout.py, renderer/accel/*_layout.py) and the renderer
+uploads exactly those. Here, for every method and mode, each uploaded texture or uniform
+must be an *active* uniform of the compiled program, and each record array the variant
+reads from a uniform block an active uniform *block* of that name (a texture otherwise):
+a binding packed for nothing, or declared under a name the shader does not use, fails —
+with the feature sets, the data formats (EQUAL_RADII, MATERIAL_TEXTURE), the compiled-in
+counts, every record array in a block or none, and the RGBA8 image.
 """
 
 from __future__ import annotations
@@ -23,6 +26,9 @@ from renderer.shader_source import known_bindings, tracer_bindings
 
 FEATURES = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS")
 FEATURE_SETS = [tuple(f for f, on in zip(FEATURES, bits) if on) for bits in itertools.product((0, 1), repeat=3)]
+# Data formats and compiled-in counts, each with some of the removals (features' order).
+SHAPES = [("EQUAL_RADII",), ("MATERIAL_TEXTURE",), ("NO_SPLIT", "PLANES_1", "LIGHTS_2", "EQUAL_RADII"),
+          ("NO_LIGHTS", "PLANES_0", "MATERIAL_TEXTURE"), ("NO_REFLECTION", "PLANES_3", "LIGHTS_1")]
 ONE_PASS = [name for name, m in METHODS.items() if not m.capabilities.multi_pass]
 MULTI_PASS = [name for name, m in METHODS.items() if m.capabilities.multi_pass]
 
@@ -31,15 +37,50 @@ def active(prog) -> set[str]:
     return {name.split("[")[0] for name in prog}
 
 
+def check_variant(gl_renderer, variant: Variant) -> None:
+    prog, _ = gl_renderer.program(variant.method, variant.mode, variant.depth, variant.features, variant.blocks,
+                                  variant.image_only, variant.spheres)
+    declared = full = {b.name for b in tracer_bindings(variant)}
+    if variant.image_only and variant.mode == "heat" and METHODS[variant.method].capabilities.tests_every_sphere:
+        # Brute force's heat image is n sphere tests whatever the ray, and an image-only
+        # variant writes nothing else: the compiler drops the ray and what makes it.
+        declared = {n for n in declared if not n.startswith(("u_cam_", "u_plane_", "u_num_planes", "u_half_",
+                                                             "u_resolution", "u_pass_", "u_bf_", "u_sphere_"))}
+    assert declared <= active(prog), (variant, sorted(declared - active(prog)))
+    assert active(prog) & known_bindings() <= full, variant
+    for b in tracer_bindings(variant):
+        if b.records:
+            if b.name not in active(prog):
+                continue
+            kind = "UniformBlock" if b.name in variant.blocks else "Uniform"
+            assert type(prog[b.name]).__name__ == kind, (variant, b.name, type(prog[b.name]))
+
+
 @pytest.mark.parametrize("method", ONE_PASS)
 @pytest.mark.parametrize("mode", SINGLE_PASS_MODES)
 def test_every_declared_binding_of_every_variant_is_active(gl_renderer, method, mode):
-    for depth, features in itertools.product((1, 2, 8), FEATURE_SETS):
-        variant = Variant(method, mode, depth, features)
-        prog, _ = gl_renderer.program(method, mode, depth, features)
-        declared = {b.name for b in tracer_bindings(variant)}
-        assert declared <= active(prog), (variant, sorted(declared - active(prog)))
-        assert active(prog) & known_bindings() <= declared, variant
+    records = tuple(b.name for b in METHODS[method].bindings if b.records)
+    for depth, features in itertools.product((1, 2, 8), FEATURE_SETS + SHAPES):
+        check_variant(gl_renderer, Variant(method, mode, depth, features))
+    for depth, features, image in itertools.product((1, 3), SHAPES[:3], (False, True)):
+        check_variant(gl_renderer, Variant(method, mode, depth, features, records, image))
+        check_variant(gl_renderer, Variant(method, mode, depth, features, records[:1], image))
+        if mode != "heat":     # the background variant reads none of the method's
+            check_variant(gl_renderer, Variant(method, mode, depth, features, (), image, spheres=False))
+
+
+def test_record_arrays_in_blocks_are_the_renderers_choice(gl_renderer):
+    """A record array that fits 64 KiB is read from a uniform block, a larger one from a
+    texture; a renderer without blocks uses textures only; the device's data are textures."""
+    from renderer.gl import GLRenderer
+    small = gl_renderer.render(scenario(3, 1024), RenderSettings(width=8, height=8, format="npy"))
+    assert set(small.stats["blocks"]) == {"u_bih_nodes", "u_bih_spheres"}
+    big = gl_renderer.render(scenario(3, 8192), RenderSettings(width=8, height=8, format="npy"))
+    assert big.stats["blocks"] == ["u_bih_nodes"], "8,192 sphere records are 128 KiB: a texture"
+    bvh = gl_renderer.render(scenario(3, 4096), RenderSettings(width=8, height=8, method="bvh", format="npy"))
+    assert bvh.stats["blocks"] == ["u_bvh_spheres"], "4 records per inner node: 4,095 × 64 B is a texture"
+    tex = GLRenderer(gl_renderer.ctx, uniform_blocks=False).render(scenario(3, 64), RenderSettings(width=8, height=8))
+    assert tex.stats["blocks"] == []
 
 
 @pytest.mark.parametrize("method", ONE_PASS)

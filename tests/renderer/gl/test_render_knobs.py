@@ -89,3 +89,43 @@ def test_weight_cutoff(gl_renderer):
     cut = gl_renderer.render(scene, s.with_(min_weight=1.0)).image_u8()
     primary = gl_renderer.render(scene, s.with_(max_recursion_depth=1)).image_u8()
     assert psnr(cut, primary) >= 60.0 and psnr(cut, base) < 60.0
+
+
+def test_png_frames_at_one_sample_read_one_rgba8_target(gl_renderer):
+    """Issue 18: a png or jpeg frame at 1 sample per pixel renders into one RGBA8 target, the
+    shader rounding as image_u8 does: the same bytes as the float frame's image_u8. Its float
+    arrays are traced again only when read (the service never reads them); a supersampled
+    frame keeps its float sub-pixels."""
+    scene = scenario(3, 256)
+    s = RenderSettings(width=48, height=80, max_recursion_depth=3)
+    png = gl_renderer.render(scene, s)
+    npy = gl_renderer.render(scene, s.with_(format="npy"))
+    assert png.stats["target"] == "rgba8" and npy.stats["target"] == "float"
+    np.testing.assert_array_equal(png.image_u8(), npy.image_u8())
+    assert png._full is None, "image_u8 did not trace again"
+    for field in ("image", "depth", "primid", "normal"):
+        np.testing.assert_array_equal(getattr(png, field), getattr(npy, field))
+    assert gl_renderer.render(scene, s.with_(format="jpeg", samples_per_pixel=4)).stats["target"] == "float"
+    from renderer.gl import GLRenderer
+    assert GLRenderer(gl_renderer.ctx, image_targets=False).render(scene, s).stats["target"] == "float"
+
+
+@pytest.mark.parametrize("mode", ["depth", "primid", "normal", "color", "recursion"])
+def test_frames_draw_the_background_variant_where_rays_meet_no_sphere(gl_renderer, mode):
+    """Outside the spheres' projected box (and, in colour and recursion, where the ray meets
+    no plane either) a frame is drawn by the variant without traversal: the same pixels, bit
+    for bit, in bands too; a camera inside the box draws every pixel with the tracer."""
+    from renderer.gl import GLRenderer
+    full = GLRenderer(gl_renderer.ctx, background=False)
+    scene = scenario(3, 256)
+    s = RenderSettings(width=64, height=96, mode=mode, format="npy", max_recursion_depth=4)
+    culled = gl_renderer.render(scene, s)
+    assert 0 < culled.stats["background_pixels"] < 64 * 96
+    banded = gl_renderer.begin(scene, s, band_rows=7).run()
+    want = full.render(scene, s)
+    for res in (culled, banded):
+        for field in ("image", "depth", "primid", "normal"):
+            np.testing.assert_array_equal(getattr(res, field), getattr(want, field), err_msg=field)
+    from renderer.scene import Camera
+    inside = scene.with_camera(Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0)))
+    assert "background_pixels" not in gl_renderer.render(inside, s).stats

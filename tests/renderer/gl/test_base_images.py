@@ -1,0 +1,90 @@
+"""Issue 18's exactness: every frame is bit for bit what the shader before issue 18 rendered.
+
+The record ``base_images.json`` was generated from the shader, layouts and packers
+*before issue 18* (commit ``base_images.BASE_COMMIT``, extracted from git and run in a
+subprocess by ``python -m tests.renderer.gl.base_images --write``), never from the code
+under test. Its frames (``base_images.cases``): every one-pass method × every mode × scenes
+with equal and unequal radii, a material that reflects and transmits, several lights and
+planes, no lights, 20 materials, no spheres, planes only, an animated museum, at 1 and 4
+samples per pixel, and every stability-catalogue case in colour. Here each is rendered now
+and its float image, uint8 image, depth, primid and normal arrays must hash the same:
+
+- with the renderer's own choices (uniform blocks where the data fit, float targets for
+  ``npy`` frames);
+- with textures only, wrapped into 128-texel rows (the device's path, and the wrapping);
+- as ``png`` at one sample per pixel (the RGBA8 target, rounded in the shader): the
+  same bytes as ``image_u8()`` of the float image.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import defaultdict
+
+import pytest
+
+from renderer.settings import RenderSettings
+from tests.renderer.gl import base_images as B
+
+RECORD = json.loads(B.RECORD.read_text())["frames"]
+CASES = B.cases()
+GROUPS: dict[str, list] = defaultdict(list)
+for _key, _scene, _kw in CASES:
+    GROUPS[_key.split("/")[0]].append((_key, _scene, _kw))
+
+
+def test_the_record_is_the_base_commits_and_covers_every_case():
+    assert json.loads(B.RECORD.read_text())["base_commit"] == B.BASE_COMMIT
+    assert set(RECORD) == {k for k, _, _ in CASES}
+
+
+@pytest.fixture(scope="module")
+def textures_only(gl_renderer):
+    """Another renderer on the same context (a second context would become the current one)."""
+    from renderer.gl import GLRenderer
+    return GLRenderer(gl_renderer.ctx, max_texture_width=128, uniform_blocks=False)
+
+
+def _mismatches(renderer, group: str, fields=("image", "u8", "depth", "primid", "normal"), skip=None,
+                **over) -> list[str]:
+    bad = []
+    for key, scene, kw in GROUPS[group]:
+        if skip and skip(key, kw):
+            continue
+        settings = RenderSettings(**{**kw, **over})
+        got = B.hashes(renderer.render(scene, settings))
+        want = RECORD[key]
+        diff = [f for f in fields if got[f] != want[f]]
+        if diff:
+            bad.append(f"{key}: {', '.join(diff)}")
+    return bad
+
+
+@pytest.mark.parametrize("group", sorted(GROUPS))
+def test_frames_equal_the_base_shaders(gl_renderer, group):
+    bad = _mismatches(gl_renderer, group)
+    assert not bad, f"{len(bad)} of {len(GROUPS[group])} frames differ from the shader before issue 18: {bad[:6]}"
+
+
+@pytest.mark.parametrize("group", sorted(g for g in GROUPS if g != "catalogue"))
+def test_frames_with_textures_only_equal_the_base_shaders(textures_only, group):
+    # Brute force's one record array wraps alike at every n: its large scenes are left to
+    # the test above (they take most of the time).
+    bad = _mismatches(textures_only, group, skip=lambda key, kw: kw["method"] == "bruteforce"
+                      and group in ("s3_4096", "s2_1024", "s3_1024_radii"))
+    assert not bad, f"{len(bad)} frames differ (textures only, 128-texel rows): {bad[:6]}"
+
+
+@pytest.mark.parametrize("group", sorted(GROUPS))
+def test_png_frames_have_the_base_shaders_bytes(gl_renderer, group):
+    """png at one sample per pixel goes through the RGBA8 target: the bytes are image_u8's."""
+    bad, n = [], 0
+    for key, scene, kw in GROUPS[group]:
+        if kw.get("samples_per_pixel", 1) != 1:
+            continue
+        res = gl_renderer.render(scene, RenderSettings(**{**kw, "format": "png"}))
+        assert res.stats["target"] == "rgba8", key
+        n += 1
+        if B.hashes(res, arrays=False)["u8"] != RECORD[key]["u8"]:
+            bad.append(key)
+    assert not bad, f"{len(bad)} of {n} png frames differ in their bytes: {bad[:6]}"
