@@ -36,8 +36,10 @@ from renderer.scene import SceneError
 
 from ..config import ServerConfig
 from ..gl_worker import GLNotReady, QueueFull
-from ..models import ErrorOut
+from ..models import MAX_LISTED_ERRORS, ErrorOut
 from ..service import InputError, NotFound, RenderTimeout, Superseded, field_path
+from ..store import StoreUnavailable
+from .body import BodiesBusy
 
 log = logging.getLogger("pocketray.server")
 
@@ -91,11 +93,25 @@ def _invalid(loc: list, msg: str, type_: str) -> ErrorAnswer:
 
 
 def _validation(exc: RequestValidationError, config: ServerConfig) -> ErrorAnswer:
+    """The first MAX_LISTED_ERRORS errors, then one ``too_many_errors`` entry counting the rest.
+    A long list of spheres is cut while it is validated (``SceneModel``): its own
+    ``too_many_errors`` entry carries the count of the errors it did not keep."""
+    found = exc.errors()
+    summaries = [e for e in found if e.get("type") == "too_many_errors"]
+    real = [e for e in found if e.get("type") != "too_many_errors"]
+    shown = real[:MAX_LISTED_ERRORS]
+    hidden = len(real) - len(shown) + sum(int((e.get("ctx") or {}).get("more", 0)) for e in summaries)
     errors = []
-    for e in exc.errors():
+    for e in shown:
         loc = [x if isinstance(x, (int, str)) else str(x) for x in e.get("loc", ())]
         msg = str(e.get("msg", "invalid value"))
         errors.append({"loc": loc, "msg": f"{_loc_label(loc)}: {msg}", "type": str(e.get("type", "value_error"))})
+    if hidden:
+        where = summaries[0] if summaries and len(real) <= MAX_LISTED_ERRORS else real[MAX_LISTED_ERRORS]
+        loc = [x if isinstance(x, (int, str)) else str(x) for x in where.get("loc", ("body",))]
+        loc = loc if where in summaries else loc[:1]
+        errors.append({"loc": loc, "msg": f"{_loc_label(loc)}: {hidden} more errors not listed "
+                                          f"({len(shown) + hidden} in all)", "type": "too_many_errors"})
     return ErrorAnswer(422, errors)
 
 
@@ -121,6 +137,10 @@ def _queue_full(exc: QueueFull, config: ServerConfig) -> ErrorAnswer:
                             f"retry after {exc.retry_after_s} s", {"Retry-After": str(exc.retry_after_s)})
 
 
+def _bodies_busy(exc: BodiesBusy, config: ServerConfig) -> ErrorAnswer:
+    return ErrorAnswer(503, str(exc), {"Retry-After": str(exc.retry_after_s)})
+
+
 def _gl_unavailable(exc: Exception, config: ServerConfig) -> ErrorAnswer:
     return ErrorAnswer(503, f"gl: {exc}", {"Retry-After": str(GL_RETRY_AFTER_S)})
 
@@ -136,9 +156,13 @@ def _superseded(exc: Superseded, config: ServerConfig) -> ErrorAnswer:
 
 
 def _store_unavailable(exc: Exception, config: ServerConfig) -> ErrorAnswer:
-    log.error("state backend error: %s", exc)
-    return ErrorAnswer(503, f"state: the session store is not answering ({type(exc).__name__}); retry",
-                       {"Retry-After": str(STORE_RETRY_AFTER_S)})
+    """Any failure of the session store — not answering, locked, a file that is gone or not a
+    database, a record that does not decode, a change that kept colliding — is a 503: the request
+    changed nothing it did not report, and may be retried."""
+    log.error("state backend error: %s: %s", type(exc).__name__, exc)
+    what = str(exc) if isinstance(exc, StoreUnavailable) else f"not answering ({type(exc).__name__})"
+    return ErrorAnswer(503, f"state: the session store is {what}; retry",
+                       {"Retry-After": str(getattr(exc, "retry_after_s", STORE_RETRY_AFTER_S))})
 
 
 def _internal(exc: Exception, config: ServerConfig) -> ErrorAnswer:
@@ -156,14 +180,15 @@ class ErrorRow:
 # First match wins: the catch-all Exception is last.
 ERROR_TABLE: tuple[ErrorRow, ...] = (
     ErrorRow("validation", (RequestValidationError,), _validation),
-    ErrorRow("unreadable_body", (StarletteHTTPException,), _http),
+    ErrorRow("http_exception", (StarletteHTTPException,), _http),
     ErrorRow("scene", (SceneError,), _scene),   # InputError is a SceneError that knows its loc
     ErrorRow("not_found", (NotFound,), _not_found),
     ErrorRow("queue_full", (QueueFull,), _queue_full),
+    ErrorRow("bodies_busy", (BodiesBusy,), _bodies_busy),
     ErrorRow("timeout", (RenderTimeout,), _timeout),
     ErrorRow("gl_unavailable", (GLNotReady,), _gl_unavailable),
     ErrorRow("superseded", (Superseded,), _superseded),
-    ErrorRow("store_unavailable", (sqlite3.OperationalError, redis.RedisError), _store_unavailable),
+    ErrorRow("store_unavailable", (StoreUnavailable, sqlite3.Error, redis.RedisError), _store_unavailable),
     ErrorRow("internal", (Exception,), _internal),
 )
 

@@ -1,0 +1,231 @@
+"""JSON request bodies: read strictly, and the large ones parsed and validated off the event loop.
+
+FastAPI reads a JSON body with ``json.loads`` and validates it with pydantic on the event loop: a
+16 MiB scene stalled every other request (``/api/health`` included) for seconds, and six of them
+for 15 s (issue #17). Routes with a JSON body use :class:`JSONBodyRoute`, which
+
+- refuses what ``json.loads`` lets through: bytes that are not UTF-8 (it guesses UTF-16/32), a
+  byte-order mark, duplicate keys (it keeps the last silently), nesting deeper than
+  ``POCKETRAY_MAX_JSON_DEPTH`` (it reported 1,000 levels as "not valid UTF-8 JSON"), integers of
+  more digits than Python converts — each a 422 with ``loc`` ``["body"]`` that says which;
+- parses and validates bodies over :data:`INLINE_BODY_BYTES` on a pool of
+  ``POCKETRAY_PARSE_WORKERS`` threads, at most ``POCKETRAY_QUEUE_SIZE`` such bodies per process at
+  once (503 + ``Retry-After`` beyond, answered before the body is read), so their memory is
+  bounded and the event loop only moves bytes;
+- hands FastAPI the validated model, which it takes as it is (no second validation of the
+  spheres). When the body is invalid FastAPI still validates the query and the path, and the
+  body's errors take the place of its own, in FastAPI's order (query first).
+
+The WebSocket reads its messages with :func:`parse_json` too (``server.api.routes.ws``).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import re
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, Callable
+
+import numpy as np
+from fastapi.exceptions import RequestValidationError
+from fastapi.routing import APIRoute
+from starlette.requests import Request
+from starlette.responses import Response
+
+from ..config import ServerConfig
+
+# Bodies up to this size are read on the event loop: a gesture or a settings patch is a few
+# hundred bytes (parsed in microseconds) and must not wait behind a large scene in the pool;
+# 64 KiB of scene JSON (~1,500 spheres) parses and validates in ~3 ms.
+INLINE_BODY_BYTES = 64 * 1024
+BODY_RETRY_AFTER_S = 1
+
+_STRING = re.compile(rb'"(?:[^"\\]|\\.)*"', re.S)
+_NOT_BRACKETS = bytes(b for b in range(256) if b not in b"[]{}")
+
+
+class BodyError(ValueError):
+    """A body that is not strict JSON: ``kind`` is the 422's ``type``."""
+
+    def __init__(self, kind: str, message: str):
+        super().__init__(message)
+        self.kind = kind
+
+    def validation_error(self) -> RequestValidationError:
+        return RequestValidationError([{"type": self.kind, "loc": ("body",), "msg": str(self), "input": None}])
+
+
+class BodiesBusy(Exception):
+    """As many large bodies as the process admits are being read: 503 + Retry-After."""
+
+    def __init__(self, admitted: int):
+        super().__init__(f"busy: {admitted} large request bodies are being read (POCKETRAY_QUEUE_SIZE); "
+                         f"retry after {BODY_RETRY_AFTER_S} s")
+        self.retry_after_s = BODY_RETRY_AFTER_S
+
+
+class _DuplicateKey(Exception):
+    def __init__(self, key: str):
+        self.key = key
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out = dict(pairs)
+    if len(out) != len(pairs):
+        seen: set[str] = set()
+        raise _DuplicateKey(next(k for k, _ in pairs if k in seen or seen.add(k)))
+    return out
+
+
+def json_depth(raw: bytes) -> int:
+    """Nesting depth of well-formed JSON (strings removed, then brackets counted)."""
+    brackets = _STRING.sub(b"", raw).translate(None, _NOT_BRACKETS)
+    if not brackets:
+        return 0
+    steps = np.frombuffer(brackets, np.uint8)
+    steps = np.where((steps == ord("[")) | (steps == ord("{")), 1, -1).astype(np.int32)
+    return int(np.cumsum(steps).max())
+
+
+def parse_json(raw: bytes | str, max_depth: int) -> Any:
+    """``raw`` as strict JSON (RFC 8259: UTF-8, no byte-order mark; and here: each key once, at
+    most ``max_depth`` levels), or :class:`BodyError`. ``NaN``/``Infinity`` literals are read, so that
+    the field's validation names them (``allow_inf_nan=False`` everywhere)."""
+    if isinstance(raw, bytes):
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as e:
+            raise BodyError("json_not_utf8", f"not UTF-8 (byte 0x{raw[e.start]:02x} at offset {e.start}); "
+                                             "send JSON encoded as UTF-8") from None
+    else:
+        text, raw = raw, raw.encode("utf-8", "surrogatepass")
+    if text.startswith("\ufeff"):
+        raise BodyError("json_invalid", "starts with a byte-order mark; send UTF-8 JSON without one")
+    too_deep = BodyError("json_too_deep", f"JSON nested deeper than {max_depth} levels "
+                                          "(POCKETRAY_MAX_JSON_DEPTH); no request needs more than 6")
+    try:
+        value = json.loads(text, object_pairs_hook=_unique_keys)
+    except _DuplicateKey as e:
+        raise BodyError("json_duplicate_key", f"duplicate key {json.dumps(e.key)} in an object; "
+                                              "give each key once") from None
+    except json.JSONDecodeError as e:
+        raise BodyError("json_invalid", f"not valid JSON: {e.msg} at line {e.lineno} column {e.colno} "
+                                        f"(offset {e.pos})") from None
+    except RecursionError:
+        raise too_deep from None
+    except ValueError as e:     # e.g. an integer of more than sys.get_int_max_str_digits() digits
+        raise BodyError("json_invalid", f"not a JSON value this service reads ({e})") from None
+    if json_depth(raw) > max_depth:
+        raise too_deep
+    return value
+
+
+def validate_body(field: Any, raw: bytes, max_depth: int) -> tuple[Any, list[dict[str, Any]] | None]:
+    """(the validated model, None) or (None, errors located under ``body``). ``field`` is the route's
+    ``body_field``: validated exactly as FastAPI validates it (same adapter, same errors)."""
+    try:
+        value = parse_json(raw, max_depth)
+    except BodyError as e:
+        return None, e.validation_error().errors()
+    value, errors = field.validate(value, {}, loc=("body",))
+    return (value, None) if not errors else (None, errors)
+
+
+class BodyParsers:
+    """The process's pool for large bodies: ``workers`` threads, ``admitted`` bodies at once."""
+
+    def __init__(self, workers: int, admitted: int):
+        self.pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pocketray-body")
+        self.admitted = admitted
+        self._in_flight = 0
+        self._lock = threading.Lock()
+
+    @classmethod
+    def of(cls, request: Request) -> "BodyParsers":
+        """The app's parsers (made on first use from its config; ``app.state`` lives with the app)."""
+        state = request.app.state
+        parsers = getattr(state, "body_parsers", None)
+        if parsers is None:
+            config: ServerConfig = state.config
+            parsers = state.body_parsers = cls(config.parse_workers, config.queue_size)
+        return parsers
+
+    def try_admit(self) -> bool:
+        with self._lock:
+            if self._in_flight >= self.admitted:
+                return False
+            self._in_flight += 1
+            return True
+
+    def release(self) -> None:
+        with self._lock:
+            self._in_flight -= 1
+
+    async def run(self, fn: Callable[..., Any], *args: Any) -> Any:
+        return await asyncio.get_running_loop().run_in_executor(self.pool, fn, *args)
+
+
+class _ParsedRequest(Request):
+    """The request as FastAPI's handler sees it: the body already read, its JSON already validated."""
+
+    def __init__(self, request: Request, raw: bytes, value: Any):
+        super().__init__(request.scope, request.receive)
+        self._raw, self._value = raw, value
+
+    async def body(self) -> bytes:
+        return self._raw
+
+    async def json(self) -> Any:
+        return self._value
+
+
+def _is_json(request: Request) -> bool:
+    kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    return kind == "application/json" or (kind.startswith("application/") and kind.endswith("+json"))
+
+
+class JSONBodyRoute(APIRoute):
+    """An APIRoute whose JSON body is read as described in the module docstring."""
+
+    def get_route_handler(self) -> Callable[[Request], Any]:
+        handler = super().get_route_handler()
+        body_params = self.dependant.body_params
+        if self.body_field is None or len(body_params) != 1:
+            return handler             # no body, or an embedded one: FastAPI's own reading
+        field = self.body_field
+
+        async def route(request: Request) -> Response:
+            if not _is_json(request):
+                return await handler(request)       # FastAPI refuses it (a JSON object is expected)
+            config: ServerConfig = request.app.state.config
+            declared = request.headers.get("content-length")
+            large = declared is None or not declared.isdigit() or int(declared) > INLINE_BODY_BYTES
+            parsers = BodyParsers.of(request) if large else None
+            if parsers is not None and not parsers.try_admit():
+                raise BodiesBusy(parsers.admitted)
+            try:
+                raw = await request.body()
+                if not raw:
+                    return await handler(request)
+                if parsers is not None and len(raw) > INLINE_BODY_BYTES:
+                    value, errors = await parsers.run(validate_body, field, raw, config.max_json_depth)
+                else:
+                    value, errors = validate_body(field, raw, config.max_json_depth)
+                parsed = _ParsedRequest(request, raw, value)
+                del raw
+                if errors is None:
+                    return await handler(parsed)
+                try:            # FastAPI validates the rest (query, path) and finds the body missing
+                    return await handler(parsed)
+                except RequestValidationError as e:
+                    others = [err for err in e.errors() if not (err.get("loc") or ("",))[0] == "body"]
+                    raise RequestValidationError([*others, *errors]) from None
+            finally:
+                if parsers is not None:
+                    parsers.release()
+        return route
+
+
+__all__ = ["JSONBodyRoute", "BodyError", "BodiesBusy", "parse_json", "json_depth", "INLINE_BODY_BYTES"]
