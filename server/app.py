@@ -21,6 +21,7 @@ from renderer.scenarios import scenario
 from renderer.settings import RenderSettings
 
 from . import api
+from .allow import AllowMethods
 from .api import errors
 from .body_limit import BodyLimit
 from .config import ServerConfig
@@ -63,6 +64,7 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
                   description="Sessions (Model), gestures (Controller) and frames (View) of the pocketray "
                               "ray tracer; see docs/API.md.")
     app.add_middleware(BodyLimit, max_bytes=config.max_body_bytes)
+    app.add_middleware(AllowMethods)     # OPTIONS and 405 with the path's real Allow (server/allow.py)
     errors.install(app)
     app.include_router(api.api_router)
     config.client_dir.mkdir(parents=True, exist_ok=True)
