@@ -15,9 +15,11 @@ def main() -> None:
     logging.basicConfig(level=level if isinstance(level, int) else logging.INFO,
                         format="%(asctime)s %(name)s %(levelname)s %(message)s")
     from .app import create_app
+    from .wire import uvicorn_options
 
     # One process owns one GL context; scale out with more processes and the redis backend.
-    uvicorn.run(create_app(config), host=config.host, port=config.port, log_level=config.log_level)
+    uvicorn.run(create_app(config), host=config.host, port=config.port, log_level=config.log_level,
+                **uvicorn_options(config))   # 408 for stalled requests, connections per client (server/wire.py)
 
 
 if __name__ == "__main__":
