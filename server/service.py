@@ -44,7 +44,7 @@ from .models import (OrbitGesture, PanGesture, PinchGesture, ResetGesture, Scene
                      SettingsPatch)
 from .scenes import (SceneCache, SessionScene, camera_from_model, load_source, museum_source, scenario_source,
                      scene_from_model, scene_info, scene_source)
-from .store import SessionState, SessionStore
+from .store import SessionState, SessionStore, StoreUnavailable
 from .view import MEDIA_TYPES, Frame, encode
 
 _PATH_TOKEN = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
@@ -251,7 +251,10 @@ class SessionService:
             if got is None:
                 raise NotFound(state.id)
             rev, source = got
-            base = load_source(source, camera)
+            try:
+                base = load_source(source, camera)
+            except Exception as e:     # bytes the store holds that are no scene: a store fault, not a bug
+                raise StoreUnavailable(f"holding a scene that does not decode ({type(e).__name__})") from None
             self.cache.put((state.id, rev), base)
         return base if base.camera == camera else base.with_camera(camera)
 
