@@ -11,9 +11,9 @@ over the WebSocket as one text message ``{"status", "detail"}`` plus ``"retry_af
   (with its field) and bodies that are not even JSON (FastAPI would say 400).
 - 404: no such session. 409: the frame was superseded (a newer frame of the session,
   latest wins) or the session changed under a gesture's frame: nothing was committed.
-  503 + ``Retry-After``: queue full, GL unavailable, render timed out (Retry-After = the
-  work queued ahead), session store not answering — never a 500 for load. 500: a bug
-  (logged).
+  503 + ``Retry-After``: queue full, busy (planning slots, large-body slots), GL
+  unavailable, render timed out (Retry-After = the work queued ahead), any failure of the
+  session store — never a 500 for load or the store. 500: a bug (logged).
 """
 
 from __future__ import annotations
@@ -37,16 +37,13 @@ from renderer.scene import SceneError
 from ..config import ServerConfig
 from ..gl_worker import GLNotReady, QueueFull
 from ..models import MAX_LISTED_ERRORS, ErrorOut
-from ..service import InputError, NotFound, RenderTimeout, Superseded, field_path
+from ..service import Busy, InputError, NotFound, RenderTimeout, Superseded, field_path
 from ..store import StoreUnavailable
-from .body import BodiesBusy
 
 log = logging.getLogger("pocketray.server")
 
 NOT_FOUND = ("session: no session with this id (unknown, deleted, or expired after POCKETRAY_SESSION_TTL_S "
              "seconds idle); create one with POST /api/sessions")
-# FastAPI's words for a body it could not read at all (bytes that are not UTF-8 text).
-BODY_UNREADABLE = "There was an error parsing the body"
 GL_RETRY_AFTER_S = 5      # a GL context that failed, or a render that timed out: try again later
 STORE_RETRY_AFTER_S = 1   # the session store is usually back within a second (locked, reconnecting)
 
@@ -137,7 +134,8 @@ def _queue_full(exc: QueueFull, config: ServerConfig) -> ErrorAnswer:
                             f"retry after {exc.retry_after_s} s", {"Retry-After": str(exc.retry_after_s)})
 
 
-def _bodies_busy(exc: BodiesBusy, config: ServerConfig) -> ErrorAnswer:
+def _busy(exc: Busy, config: ServerConfig) -> ErrorAnswer:
+    """A bounded stage before the GL queue is full: frames being planned, large bodies being read."""
     return ErrorAnswer(503, str(exc), {"Retry-After": str(exc.retry_after_s)})
 
 
@@ -184,7 +182,7 @@ ERROR_TABLE: tuple[ErrorRow, ...] = (
     ErrorRow("scene", (SceneError,), _scene),   # InputError is a SceneError that knows its loc
     ErrorRow("not_found", (NotFound,), _not_found),
     ErrorRow("queue_full", (QueueFull,), _queue_full),
-    ErrorRow("bodies_busy", (BodiesBusy,), _bodies_busy),
+    ErrorRow("busy", (Busy,), _busy),
     ErrorRow("timeout", (RenderTimeout,), _timeout),
     ErrorRow("gl_unavailable", (GLNotReady,), _gl_unavailable),
     ErrorRow("superseded", (Superseded,), _superseded),
@@ -226,8 +224,9 @@ ERROR_DOCS: dict[int, dict[str, Any]] = {
     409: {"model": ErrorOut, "description": "the frame was superseded by a newer frame of this session (latest "
                                             "wins), or the session changed before a gesture could be committed"},
     413: {"model": ErrorOut, "description": "request body too large (POCKETRAY_MAX_BODY_BYTES)"},
-    503: {"model": ErrorOut, "description": "render queue full, GL or session store not available; "
-                                            "see Retry-After", "headers": _RETRY_AFTER_DOC},
+    503: {"model": ErrorOut, "description": "render queue full, busy (frames being planned, large bodies being "
+                                            "read), GL or session store not available; see Retry-After",
+          "headers": _RETRY_AFTER_DOC},
 }
 
 

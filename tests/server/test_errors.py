@@ -52,6 +52,7 @@ class Case:
     full_queue: bool = False                # every queue slot is taken
     path: str | None = None                 # HTTP only: GET this path instead
     busy_bodies: bool = False               # HTTP only: every slot of the body parsers is taken
+    busy_planning: bool = False             # every planning slot is taken
 
 
 CASES = {
@@ -75,7 +76,8 @@ CASES = {
     "redis gone": Case("store_unavailable", 503, raises=redis.ConnectionError("Connection refused")),
     "a bug": Case("internal", 500, raises=RuntimeError("a bug")),
     "no such route": Case("http_exception", 404, path="/api/no-such-route"),
-    "body parsers busy": Case("bodies_busy", 503, busy_bodies=True),
+    "planning slots taken": Case("busy", 503, gesture=PINCH, busy_planning=True),
+    "body parsers busy": Case("busy", 503, busy_bodies=True),
 }
 HTTP_ONLY = {
     "no such route": "a WebSocket message has no route to miss",
@@ -148,6 +150,9 @@ def test_http_and_websocket_answer_alike(client, http, sid, monkeypatch, name):
     held = [worker.admit() for _ in range(worker.queue_size)] if case.full_queue else []
     parsers = BodyParsers.of(SimpleNamespace(app=client.app))
     bodies = [parsers.try_admit() for _ in range(parsers.admitted)] if case.busy_bodies else []
+    planning = [service._planning.acquire() for _ in range(service.config.queue_size)] if case.busy_planning else []
+    if planning:
+        monkeypatch.setattr(service, "PLAN_WAIT_S", 0.01)
     try:
         r = over_http(http, case.session or sid, case)
         http_rows, rows[:] = list(rows), []
@@ -157,6 +162,8 @@ def test_http_and_websocket_answer_alike(client, http, sid, monkeypatch, name):
             ticket.__exit__(None, None, None)
         for _ in bodies:
             parsers.release()
+        for _ in planning:
+            service._planning.release()
 
     assert http_rows == [case.row] and rows == ([] if name in HTTP_ONLY else [case.row])  # through the one row
     assert r.status_code == case.status, r.text
