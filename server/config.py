@@ -70,8 +70,10 @@ class ServerConfig(BaseSettings):
     # --- hostile clients and faults (issue #17; docs/API.md, "Hardening") -------------
     max_json_depth: int = Field(32, ge=8, le=512,
                                 description="deepest nesting of a JSON body or message (the API needs 6); deeper: 422")
-    parse_workers: int = Field(2, ge=1, le=64,
-                               description="threads that parse and validate large JSON bodies, off the event loop")
+    parse_workers: int = Field(1, ge=1, le=64,
+                               description="threads that parse and validate large JSON bodies, off the event loop "
+                                           "(parsing holds the GIL: a second thread parses no faster, and the event "
+                                           "loop waits behind both)")
     request_idle_timeout_s: float = Field(
         5.0, gt=0, le=3600,
         description="longest silence while a request's headers or body arrive, seconds; then 408 and closed")

@@ -24,7 +24,6 @@ from __future__ import annotations
 import asyncio
 import gc
 import json
-import re
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Callable
@@ -44,8 +43,7 @@ from ..service import Busy
 INLINE_BODY_BYTES = 64 * 1024
 BODY_RETRY_AFTER_S = 1
 
-_STRING = re.compile(rb'"(?:[^"\\]|\\.)*"', re.S)
-_NOT_BRACKETS = bytes(b for b in range(256) if b not in b"[]{}")
+_NOT_STRUCTURE = bytes(b for b in range(256) if b not in b'"[]{}')
 
 
 class BodyError(ValueError):
@@ -81,13 +79,20 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
 
 
 def json_depth(raw: bytes) -> int:
-    """Nesting depth of well-formed JSON (strings removed, then brackets counted)."""
-    brackets = _STRING.sub(b"", raw).translate(None, _NOT_BRACKETS)
-    if not brackets:
+    """Nesting depth of well-formed JSON, without a regex (``re`` holds the GIL through all 16 MiB:
+    it stalled the event loop ~0.5 s). The escapes go first (an escaped backslash, then an escaped
+    quote: what is left of ``"`` are the strings' own quotes), then everything but quotes and
+    brackets; a bracket counts when an even number of quotes precede it."""
+    structure = raw.replace(b"\\\\", b"").replace(b'\\"', b"").translate(None, _NOT_STRUCTURE)
+    if not structure:
         return 0
-    steps = np.frombuffer(brackets, np.uint8)
-    steps = np.where((steps == ord("[")) | (steps == ord("{")), 1, -1).astype(np.int32)
-    return int(np.cumsum(steps).max())
+    a = np.frombuffer(structure, np.uint8)
+    in_string = (np.cumsum(a == ord('"'), dtype=np.int32) & 1).astype(bool)
+    step = np.zeros(len(a), np.int32)
+    step[(a == ord("[")) | (a == ord("{"))] = 1
+    step[(a == ord("]")) | (a == ord("}"))] = -1
+    step[in_string] = 0
+    return int(np.cumsum(step).max())
 
 
 def parse_json(raw: bytes | str, max_depth: int) -> Any:
