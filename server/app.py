@@ -10,6 +10,7 @@ through globals.
 
 from __future__ import annotations
 
+import sys
 from contextlib import asynccontextmanager
 from typing import Any, AsyncIterator
 
@@ -45,6 +46,7 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        sys.setswitchinterval(config.switch_interval_s)   # the event loop's turn between busy threads (#17)
         store = open_store(config)
         worker = GLWorker(config.queue_size, warmup=warmup_render if config.warmup else None,
                           renderer_factory=lambda: default_renderer(config.max_target_bytes),
