@@ -12,12 +12,13 @@ through globals.
 ``--workers N`` works: each worker makes its own app, and with it its own GL context.
 
 Middleware, outermost first: request id / session id / access log / HTTP metrics
-(:mod:`server.observability`), CORS and plain OPTIONS (:mod:`server.web`), the body limit.
+(:mod:`server.observability`), CORS (:mod:`server.web`), OPTIONS and 405 (:mod:`server.allow`), the body limit.
 """
 
 from __future__ import annotations
 
 import os
+import sys
 from contextlib import asynccontextmanager
 from typing import Any, AsyncIterator
 
@@ -29,6 +30,7 @@ from renderer.scenarios import scenario
 from renderer.settings import RenderSettings
 
 from . import api, metrics, web
+from .allow import AllowMethods
 from .api import errors
 from .body_limit import BodyLimit
 from .config import ServerConfig
@@ -60,6 +62,7 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         if config.gl_device is not None:
             os.environ[GL_DEVICE_ENV] = str(config.gl_device)
+        sys.setswitchinterval(config.switch_interval_s)   # the event loop's turn between busy threads (#17)
         store = open_store(config)
         worker = GLWorker(config.queue_size, warmup=warmup_render if config.warmup else None,
                           renderer_factory=lambda: default_renderer(config.max_target_bytes),
@@ -88,7 +91,7 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
                   generate_unique_id_function=web.operation_id)
     # add_middleware wraps what is there: the last added runs first.
     app.add_middleware(BodyLimit, max_bytes=config.max_body_bytes)
-    app.add_middleware(web.AllowOptions)
+    app.add_middleware(AllowMethods)     # OPTIONS and 405 with the path's real Allow (server/allow.py)
     web.install_cors(app, config.cors_origins)
     app.add_middleware(RequestContext)
     errors.install(app)

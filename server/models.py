@@ -17,8 +17,10 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal, Union, get_args
 
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, TypeAdapter, ValidationError, field_validator,
+                      model_validator)
 from pydantic.fields import FieldInfo
+from pydantic_core import InitErrorDetails, PydanticCustomError, PydanticKnownError
 
 from renderer.animation import MUSEUM_KINDS
 from renderer.limits import (DEFAULT_TILE_SIZE, JPEG_QUALITY_RANGE, MAX_ABSENT, MAX_ANGULAR_VELOCITY, MAX_COORDINATE,
@@ -44,6 +46,16 @@ ModelFormat = Literal[MODEL_FORMATS]  # type: ignore[valid-type]
 
 # The API's own bound: a 32-bit placement seed (the renderer takes any non-negative one).
 MAX_SEED = 2 ** 32 - 1
+# The incoherent motion's seed as JSON carries it: integers beyond 2^53 are not exact in JavaScript nor
+# in JSON Schema validators that compare as doubles (2^63 − 1 + 192 passed as ≤ 2^63 − 1).
+MAX_JSON_MOTION_SEED = min(MAX_MOTION_SEED, 2 ** 53)
+# A 422 lists at most this many errors, then one entry counting the rest: a body of 150,000 bad
+# spheres is answered in a few kB, not 72 MB (issue #17).
+MAX_LISTED_ERRORS = 20
+# The spheres of a scene are validated this many at a time, keeping only the first
+# MAX_LISTED_ERRORS errors (the others are counted): the memory of a refusal stays that of one
+# chunk's errors, and the GIL is given up between chunks (the event loop keeps answering).
+SPHERE_CHUNK = 2048
 
 
 def optional(tp: Any) -> Any:
@@ -54,8 +66,25 @@ def optional(tp: Any) -> Any:
 
 
 class Strict(BaseModel):
-    """Unknown fields are errors; NaN and ±inf are rejected everywhere."""
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    """A JSON body's model: unknown fields are errors; NaN and ±inf are rejected everywhere; types are
+    strict — a number is a JSON number (``"1"`` and ``true`` are not), an integer an integral JSON number
+    (an int field refuses ``1.5`` and ``true``), a boolean ``true``/``false``."""
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
+
+
+def _integral(value: Any) -> Any:
+    """An integer as JSON Schema has it (draft 6 on, what the OpenAPI schema says): any number without a
+    fraction, so ``4.0`` is 4 — a strict int would refuse it — but ``true`` is none (in Python it equals 1,
+    and an int Literal such as 1 | 4 | 9 | 16 would take it). Text is left to the field: a body's strict
+    int refuses ``"4"``, a query's reads it."""
+    if isinstance(value, bool):
+        raise PydanticKnownError("int_type")
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    return value
+
+
+Integral = BeforeValidator(_integral)
 
 
 Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
@@ -65,7 +94,7 @@ Rgb = Annotated[list[Unit], Field(min_length=3, max_length=3, description="RGB, 
 Intensity = Annotated[list[Annotated[float, Field(ge=0.0, le=MAX_LIGHT_INTENSITY)]],
                       Field(min_length=3, max_length=3,
                             description=f"RGB intensity, each 0 … {MAX_LIGHT_INTENSITY:g}")]
-MaterialIndex = Annotated[int, Field(ge=0, lt=MAX_MATERIALS, description="index into materials")]
+MaterialIndex = Annotated[int, Field(ge=0, lt=MAX_MATERIALS, description="index into materials"), Integral]
 
 
 # ---- scene (the scene JSON of docs/FORMATS.md) --------------------------------------------
@@ -111,7 +140,7 @@ class PlaneModel(Strict):
 # A mesh's numbers are bounded after its transform is applied (by the renderer, which names
 # the vertex); here they only have to be finite.
 Row3 = Annotated[list[float], Field(min_length=3, max_length=3, description="[x, y, z]")]
-VertexIndex = Annotated[int, Field(ge=0, lt=MAX_MESH_VERTICES, description="index into the mesh's vertices")]
+VertexIndex = Annotated[int, Field(ge=0, lt=MAX_MESH_VERTICES, description="index into the mesh's vertices"), Integral]
 Triangle = Annotated[list[VertexIndex], Field(min_length=3, max_length=3,
                                               description="[i, j, k], counter-clockwise seen from outside")]
 Row4 = Annotated[list[float], Field(min_length=4, max_length=4)]
@@ -131,9 +160,10 @@ class MeshModel(Strict):
 
 
 # ---- motion (issue #9; renderer.animation) ------------------------------------------
-SphereIndex = Annotated[int, Field(ge=0, lt=MAX_SPHERES, description="id of the first sphere moved")]
-SphereCount = Annotated[int, Field(ge=0, le=MAX_SPHERES, description="number of spheres moved")]
-MeshIndex = Annotated[int, Field(ge=0, lt=MAX_MESHES, description="index of the mesh moved (instead of first, count)")]
+SphereIndex = Annotated[int, Field(ge=0, lt=MAX_SPHERES, description="id of the first sphere moved"), Integral]
+SphereCount = Annotated[int, Field(ge=0, le=MAX_SPHERES, description="number of spheres moved"), Integral]
+MeshIndex = Annotated[int, Field(ge=0, lt=MAX_MESHES, description="index of the mesh moved (instead of first, count)"),
+                      Integral]
 
 
 class MotionTarget(Strict):
@@ -183,7 +213,7 @@ class IncoherentMotion(MotionTarget):
     speed: float = Field(5.0, ge=0.0, le=MAX_SPEED, description="world units per second")
     lifetime: float = Field(2.0, gt=0.0, le=MAX_LIFETIME, description="seconds")
     absent: float = Field(0.0, ge=0.0, le=MAX_ABSENT, description="fraction of each lifetime a sphere is gone")
-    seed: int = Field(0, ge=0, le=MAX_MOTION_SEED)
+    seed: Annotated[int, Integral] = Field(0, ge=0, le=MAX_JSON_MOTION_SEED)
 
 
 Motion = Annotated[Union[RigidMotion, DeformableMotion, IncoherentMotion], Field(discriminator="kind")]
@@ -202,22 +232,56 @@ class SceneModel(Strict):
                                     description=f"triangle meshes; at most {MAX_TRIANGLES} triangles in all")
     motions: list[Motion] = Field(default_factory=list, max_length=MAX_MOTIONS)
 
+    @field_validator("spheres", mode="wrap")
+    @classmethod
+    def _spheres_in_chunks(cls, value: Any, handler: Any) -> Any:
+        """The spheres SPHERE_CHUNK at a time (see there): the first MAX_LISTED_ERRORS errors
+        with their index, then one ``too_many_errors`` entry counting the others."""
+        if not isinstance(value, list) or len(value) <= SPHERE_CHUNK:
+            return handler(value)
+        if len(value) > MAX_SPHERES:
+            raise PydanticKnownError("too_long", {"field_type": "List", "max_length": MAX_SPHERES,
+                                                  "actual_length": len(value)})
+        out: list[Any] = []
+        listed: list[InitErrorDetails] = []
+        count = 0
+        for start in range(0, len(value), SPHERE_CHUNK):
+            try:
+                out.extend(handler(value[start:start + SPHERE_CHUNK]))
+            except ValidationError as e:
+                count += e.error_count()
+                if len(listed) < MAX_LISTED_ERRORS:
+                    for err in e.errors(include_url=False, include_context=False)[:MAX_LISTED_ERRORS - len(listed)]:
+                        index, *rest = err["loc"]
+                        listed.append(InitErrorDetails(
+                            type=PydanticCustomError(err["type"], "{msg}", {"msg": err["msg"]}),
+                            loc=(int(index) + start, *rest), input=err["input"]))
+        if not count:
+            return out
+        if count > len(listed):
+            listed.append(InitErrorDetails(
+                type=PydanticCustomError("too_many_errors", "{more} more errors in these spheres not listed "
+                                         "({total} in all)", {"more": count - len(listed), "total": count}),
+                loc=(), input=None))
+        raise ValidationError.from_exception_data("spheres", listed)
+
 
 # ---- render settings ----------------------------------------------------------
-Side = Annotated[int, Field(ge=1, le=MAX_IMAGE_SIDE, description=f"pixels, 1 … {MAX_IMAGE_SIDE}")]
+Side = Annotated[int, Field(ge=1, le=MAX_IMAGE_SIDE, description=f"pixels, 1 … {MAX_IMAGE_SIDE}"), Integral]
 Quality = Annotated[int, Field(ge=JPEG_QUALITY_RANGE[0], le=JPEG_QUALITY_RANGE[1],
                                description=f"JPEG quality {JPEG_QUALITY_RANGE[0]} … {JPEG_QUALITY_RANGE[1]} "
-                                           "(ignored by png and npy)")]
-MaxPrims = Annotated[int, Field(ge=1, le=MAX_PRIMS, description="BIH leaf size limit")]
-TreeDepth = Annotated[int, Field(ge=1, le=MAX_TREE_DEPTH, description="BIH depth limit (root = 1)")]
+                                           "(ignored by png and npy)"), Integral]
+MaxPrims = Annotated[int, Field(ge=1, le=MAX_PRIMS, description="BIH leaf size limit"), Integral]
+TreeDepth = Annotated[int, Field(ge=1, le=MAX_TREE_DEPTH, description="BIH depth limit (root = 1)"), Integral]
 RecursionDepth = Annotated[int, Field(ge=1, le=MAX_RECURSION_DEPTH,
-                                      description="1 = primary rays only; each reflection/refraction +1")]
-SamplesPerPixel = Annotated[Literal[SAMPLES_PER_PIXEL],  # type: ignore[valid-type]
+                                      description="1 = primary rays only; each reflection/refraction +1"), Integral]
+SamplesPerPixel = Annotated[Literal[SAMPLES_PER_PIXEL], Integral,  # type: ignore[valid-type]
                             Field(description="stratified supersampling: traced at √s× the resolution and "
                                               "box-filtered")]
 MinWeight = Annotated[float, Field(ge=MIN_WEIGHT_RANGE[0], le=MIN_WEIGHT_RANGE[1], allow_inf_nan=False,
                                    description="ε: reflected/refracted rays of smaller path weight are not traced")]
-TileSize = Annotated[int, Field(ge=MIN_TILE_SIZE, le=MAX_TILE_SIZE, description="hre's tile edge in pixels")]
+TileSize = Annotated[int, Field(ge=MIN_TILE_SIZE, le=MAX_TILE_SIZE, description="hre's tile edge in pixels"),
+                     Integral]
 Time = Annotated[float, Field(ge=0.0, le=MAX_TIME, allow_inf_nan=False,
                               description="seconds: the time an animated scene is posed at")]
 UpdateThreshold = Annotated[float, Field(ge=UPDATE_THRESHOLD_RANGE[0], le=UPDATE_THRESHOLD_RANGE[1],
@@ -263,14 +327,25 @@ class RenderParams(BaseModel):
 
 
 class SettingsPatch(RenderParams):
-    """Some render settings; the ones left out (or null) keep their value."""
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    """Some render settings; the ones left out (or null) keep their value. A JSON body: strict
+    types as :class:`Strict` (the query, :class:`FrameQuery`, reads the same fields from text)."""
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
 
 
 # ---- query parameters ---------------------------------------------------------------
 class QueryModel(BaseModel):
-    """Query parameters: unknown ones are ignored (links may carry the client's own); no NaN or ±inf."""
+    """Query parameters: unknown ones are ignored (links may carry the client's own); no NaN or ±inf.
+    ``null`` for an optional parameter — what the schema allows there, and what a generic client sends
+    for it — is the parameter left out."""
     model_config = ConfigDict(extra="ignore", allow_inf_nan=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _null_is_left_out(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "null" in data.values():
+            optional = {k for k, f in cls.model_fields.items() if f.default is None and not f.is_required()}
+            return {k: v for k, v in data.items() if not (v == "null" and k in optional)}
+        return data
 
 
 _INT = TypeAdapter(int)
@@ -330,12 +405,18 @@ class DeviceDataQuery(QueryModel):
                 if (v := getattr(self, k)) is not None}
 
 
+# What server.api.routes.device.parse_features reads: names from FEATURE_DEFINES, commas, whitespace.
+_FEATURE = "(?:" + "|".join(FEATURE_DEFINES) + ")"
+_FEATURES_PATTERN = rf"^\s*(?:{_FEATURE}\s*)?(?:,\s*(?:{_FEATURE}\s*)?)*$"
+
+
 class ShaderQuery(QueryModel):
     """The shader variant asked for."""
     method: Method = "bih"
     mode: Mode = "color"
     max_recursion_depth: RecursionDepth = RenderSettings.max_recursion_depth
-    features: str | None = Field(None, max_length=200, description="comma-separated: " + ", ".join(FEATURE_DEFINES))
+    features: str | None = Field(None, max_length=200, pattern=_FEATURES_PATTERN,
+                                 description="comma-separated: " + ", ".join(FEATURE_DEFINES))
     stage: str = Field("fragment", pattern="^(fragment|vertex)$", description="fragment (the tracer) or vertex")
 
 
@@ -367,18 +448,21 @@ class SettingsOut(FullSettings):
 class MuseumRecipe(Strict):
     """Reiter's BART-Museum analogue (renderer.animation.museum): ``n`` moving spheres in a
     static room of 576 spheres and the floor."""
-    n: int = Field(ge=0, le=MAX_MUSEUM_MOVING, description="moving spheres")
+    n: Annotated[int, Integral] = Field(ge=0, le=MAX_MUSEUM_MOVING, description="moving spheres")
     kind: MuseumKind = Field("deformable", description="rigid, deformable, incoherent or mixed (a third each)")
-    seed: int = Field(0, ge=0, le=MAX_SEED)
+    seed: Annotated[int, Integral] = Field(0, ge=0, le=MAX_SEED)
     absent: float = Field(0.2, ge=0.0, le=MAX_ABSENT, description="incoherent spheres: fraction of a lifetime gone")
 
 
 class SessionCreate(Strict):
     """Either a thesis scenario (``scenario`` and ``n``; ``seed``, ``radius`` optional),
     an animated ``museum``, or a full ``scene``; optionally the session's first render settings."""
-    scenario: Literal[1, 2, 3] | None = Field(None, description="thesis scenario 1, 2 or 3")
-    n: int | None = Field(None, ge=0, le=MAX_SPHERES, description="number of spheres")
-    seed: int | None = Field(None, ge=0, le=MAX_SEED, description="random placement seed (default 0)")
+    scenario: Annotated[Literal[1, 2, 3], Integral] | None = Field(None, description="thesis scenario 1, 2 or 3")
+    # The bounds inside the Annotated: on an optional field pydantic would write them to the schema
+    # as "ge"/"le", which JSON Schema does not know (the schema said nothing of n's range).
+    n: Annotated[int, Field(ge=0, le=MAX_SPHERES), Integral] | None = Field(None, description="number of spheres")
+    seed: Annotated[int, Field(ge=0, le=MAX_SEED), Integral] | None = Field(
+        None, description="random placement seed (default 0)")
     radius: float | None = Field(None, gt=0.0, le=CUBE_HALF, description="sphere radius, world units (default 1)")
     museum: MuseumRecipe | None = None
     scene: SceneModel | None = None

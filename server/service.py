@@ -23,6 +23,7 @@ import secrets
 import threading
 import time
 from collections import OrderedDict
+from contextlib import contextmanager
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import replace
 from typing import Any, Iterable, NamedTuple
@@ -46,7 +47,7 @@ from .models import (MeshUploadQuery, OrbitGesture, PanGesture, PinchGesture, Re
                      SessionCreate, SettingsPatch)
 from .scenes import (SceneCache, SessionScene, camera_from_model, load_source, museum_source, scenario_source,
                      scene_from_model, scene_info, scene_source)
-from .store import SessionState, SessionStore
+from .store import SessionState, SessionStore, StoreUnavailable
 from .view import MEDIA_TYPES, Frame, encode
 
 _PATH_TOKEN = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
@@ -107,6 +108,14 @@ class RenderTimeout(Exception):
         self.retry_after_s = retry_after_s
 
 
+class Busy(Exception):
+    """Every slot of a bounded stage is taken (planning frames, reading large bodies): 503 + Retry-After."""
+
+    def __init__(self, message: str, retry_after_s: int = 1):
+        super().__init__(message)
+        self.retry_after_s = retry_after_s
+
+
 class Superseded(Exception):
     """A frame stopped because the session asked for a newer one (latest wins), its client
     went away, or the session changed before a gesture's frame could be committed."""
@@ -142,6 +151,29 @@ class SessionService:
         self.cache = cache or SceneCache()
         self._stats: OrderedDict[StatsKey, dict] = OrderedDict()
         self._stats_lock = threading.Lock()
+        # Planning (a scene made from a recipe, posed, its structure built, the frame's cost) holds
+        # the memory of the largest requests — ~500 MB for 2^21 spheres — on the request's thread,
+        # before the GL queue bounds anything: at most POCKETRAY_QUEUE_SIZE plan at once (issue #17).
+        self._planning = threading.BoundedSemaphore(config.queue_size)
+        self._planning_depth = threading.local()
+
+    PLAN_WAIT_S = 1.0     # a burst of small frames waits this long for a planning slot; then 503
+
+    @contextmanager
+    def planning(self):
+        """One of the POCKETRAY_QUEUE_SIZE planning slots for the work inside (re-entrant per thread);
+        :class:`Busy` when none frees within PLAN_WAIT_S."""
+        depth = getattr(self._planning_depth, "n", 0)
+        if depth == 0 and not self._planning.acquire(timeout=self.PLAN_WAIT_S):
+            raise Busy(f"busy: {self.config.queue_size} frames are being planned (POCKETRAY_QUEUE_SIZE); "
+                       "retry after 1 s")
+        self._planning_depth.n = depth + 1
+        try:
+            yield
+        finally:
+            self._planning_depth.n = depth
+            if depth == 0:
+                self._planning.release()
 
     # ---- settings and caps ---------------------------------------------------------------
     def default_settings(self) -> dict[str, Any]:
@@ -183,15 +215,28 @@ class SessionService:
                                   f"(POCKETRAY_MAX_TRIANGLES), got {n}")
 
     def checked_scene(self, model: SceneModel, loc: tuple[str, ...]) -> SessionScene:
-        self.check_spheres(len(model.spheres), (*loc, "spheres"))
-        self.check_triangles(sum(len(m.triangles) for m in model.meshes), (*loc, "meshes"))
+        """The request's scene as arrays. Its sphere models are released here, a chunk at a time:
+        nothing reads them after, and the 300,000 of a 16 MiB body, freed at once where the
+        request ends (on the event loop), held the GIL ~60 ms."""
         try:
+            self.check_spheres(len(model.spheres), (*loc, "spheres"))
+            self.check_triangles(sum(len(m.triangles) for m in model.meshes), (*loc, "meshes"))
             return scene_from_model(model, ".".join(loc[1:]) if len(loc) > 1 else "")
         except SceneError as e:
             raise relocate(e, loc[0]) from None
+        finally:
+            if len(model.spheres) > 2048:
+                for stop in range(len(model.spheres) - 2048, -2048, -2048):
+                    del model.spheres[max(stop, 0):]
 
     # ---- sessions (the Model) -----------------------------------------------------------
     def create(self, body: SessionCreate) -> SessionState:
+        """A new session; its scene is made (a recipe's too) and its first frame planned in one
+        planning slot."""
+        with self.planning():
+            return self._create(body)
+
+    def _create(self, body: SessionCreate) -> SessionState:
         recipe_given = [k for k in ("scenario", "n", "seed", "radius") if getattr(body, k) is not None]
         sources = [k for k, given in (("scenario", bool(recipe_given)), ("museum", body.museum is not None),
                                       ("scene", body.scene is not None)) if given]
@@ -262,7 +307,10 @@ class SessionService:
             if got is None:
                 raise NotFound(state.id)
             rev, source = got
-            base = load_source(source, camera)
+            try:
+                base = load_source(source, camera)
+            except Exception as e:     # bytes the store holds that are no scene: a store fault, not a bug
+                raise StoreUnavailable(f"holding a scene that does not decode ({type(e).__name__})") from None
             self.cache.put((state.id, rev), base)
         return base if base.camera == camera else base.with_camera(camera)
 
@@ -396,7 +444,8 @@ class SessionService:
         if key is None:
             rs = rs.with_(update="rebuild")      # no animation to follow: never touch a kept tree
         try:
-            frame = prepare_frame(scene, rs, key=key, max_width=self.max_texture_width)
+            with self.planning():
+                frame = prepare_frame(scene, rs, key=key, max_width=self.max_texture_width)
         except SceneError as e:
             raise relocate(e, where) from None
         limit = self.config.max_frame_cost
@@ -597,7 +646,7 @@ class SessionService:
 
     def render_stateless(self, scene_model: SceneModel, patch: dict[str, Any], *,
                          cancel: threading.Event | None = None) -> Frame:
-        scene = self.checked_scene(scene_model, ("body", "scene"))
+        scene = self.checked_scene(scene_model, ("body", "scene"))   # its body was bounded by the body parsers
         settings = self.merge_settings(self.default_settings(), patch, "body")
         self.check_work(settings, scene.n_spheres, "body")
         return self.render(scene, settings, where="body", cancel=cancel)
@@ -652,4 +701,4 @@ class SessionService:
         return stats
 
 
-__all__ = ["SessionService", "NotFound", "InputError", "RenderTimeout", "QueueFull", "field_path"]
+__all__ = ["SessionService", "NotFound", "InputError", "RenderTimeout", "QueueFull", "Busy", "field_path"]

@@ -16,18 +16,44 @@ store bumps ``version`` and the idle clock itself.
 Idle expiry: a session not read or written for ``ttl_s`` seconds is gone
 (SQLite: checked on access and purged on create; Redis: key TTLs). Reads
 refresh the idle clock at most every ``touch_interval_s`` seconds so a stream
-of frame requests does not turn into a stream of writes.
+of frame requests does not turn into a stream of writes (Redis: the state key's
+TTL by the read itself, ``GETEX``; the scene key's at most every interval).
+
+Faults (issue #17) are reported, never papered over: every failure is a
+:class:`StoreUnavailable` (or the driver's own error), answered 503. The SQLite
+store checks before each transaction that its file is still the one it opened (a
+file deleted or replaced under the running service would otherwise take writes
+that no restart finds); ``probe`` reads and writes a probe record the way requests
+do (``/api/ready``); a file that is not a database at start-up is moved aside or
+refused (``POCKETRAY_SQLITE_ON_CORRUPT``). Redis retries a change that collides with
+another process's at most ``max_retries`` times.
 """
 
 from __future__ import annotations
 
 import json
+import logging
+import os
 import sqlite3
 import threading
 import time
+from collections import OrderedDict
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Protocol
+
+
+log = logging.getLogger("pocketray.store")
+
+
+class StoreUnavailable(Exception):
+    """The store cannot serve a request (its message says why, without paths; the log has them)."""
+
+    retry_after_s = 1
+
+
+class StoreCorrupt(StoreUnavailable):
+    """The SQLite file is not a readable database (at start-up: moved aside or refused)."""
 
 
 @dataclass(frozen=True)
@@ -48,7 +74,10 @@ class SessionState:
 
     @staticmethod
     def from_json(text: str | bytes) -> "SessionState":
-        return SessionState(**json.loads(text))
+        try:
+            return SessionState(**json.loads(text))
+        except (ValueError, TypeError) as e:      # a record someone else wrote, or a torn one
+            raise StoreUnavailable(f"holding a session record that does not decode ({type(e).__name__})") from None
 
 
 Mutation = Callable[[SessionState], SessionState]
@@ -79,6 +108,9 @@ class SessionStore(Protocol):
     def ping(self) -> bool:
         """True when the backend answers."""
 
+    def probe(self) -> str | None:
+        """None when a read and a write of a probe record succeed as a request's would; else why not."""
+
     def close(self) -> None:
         """Release connections."""
 
@@ -100,33 +132,108 @@ CREATE TABLE IF NOT EXISTS scenes (
     source BLOB NOT NULL
 );
 CREATE INDEX IF NOT EXISTS sessions_accessed ON sessions(accessed_at);
+CREATE TABLE IF NOT EXISTS probe (
+    k TEXT PRIMARY KEY,
+    v REAL NOT NULL
+);
 """
+SQLITE_HEADER = b"SQLite format 3\x00"
+
+
+class StoreStartupError(RuntimeError):
+    """The store cannot be opened at start-up (the message says what to do)."""
 
 
 class SQLiteStore:
     """Sessions in one SQLite file (WAL, ``synchronous=FULL``: a committed change
-    survives a crash of the process or the machine)."""
+    survives a crash of the process or the machine).
 
-    def __init__(self, path: Path | str, ttl_s: float, touch_interval_s: float | None = None):
+    ``on_corrupt`` — what to do when the file at start-up is not a readable database:
+    ``"refuse"`` (raise :class:`StoreStartupError`) or ``"move_aside"`` (rename it, with its
+    ``-wal``/``-shm``, to ``<file>.corrupt-<unix time>`` and start with an empty store).
+    """
+
+    def __init__(self, path: Path | str, ttl_s: float, touch_interval_s: float | None = None,
+                 on_corrupt: str = "refuse"):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.ttl_s = float(ttl_s)
         self.touch_interval_s = min(60.0, self.ttl_s / 10.0) if touch_interval_s is None else touch_interval_s
         self._lock = threading.Lock()
-        self._db = sqlite3.connect(str(self.path), isolation_level=None, check_same_thread=False, timeout=10.0)
-        self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.execute("PRAGMA synchronous=FULL")
-        self._db.execute("PRAGMA busy_timeout=10000")
-        self._db.executescript(_SCHEMA)
+        self._lost: str | None = None          # why the file is no longer the one opened
+        self._reported = False
+        if not self.path.exists():
+            log.info("session store %s does not exist: starting with an empty one", self.path)
+        try:
+            self._db = self._open()
+        except StoreCorrupt as e:
+            if on_corrupt != "move_aside":
+                raise StoreStartupError(
+                    f"the session store {self.path} is not a readable SQLite database ({e}). Move it aside "
+                    f"(mv {self.path} {self.path}.corrupt) to start with an empty store, or set "
+                    "POCKETRAY_SQLITE_ON_CORRUPT=move_aside to have that done at start-up") from None
+            aside = self.path.with_name(f"{self.path.name}.corrupt-{int(time.time())}")
+            for suffix in ("", "-wal", "-shm"):
+                part = Path(str(self.path) + suffix)
+                if part.exists():
+                    part.rename(Path(str(aside) + suffix))
+            log.error("the session store %s was not a readable SQLite database (%s): moved it to %s and started "
+                      "with an empty store (POCKETRAY_SQLITE_ON_CORRUPT=move_aside)", self.path, e, aside)
+            self._db = self._open()
+        self._identity = self._file_identity()
+        self._fd = os.open(self.path, os.O_RDONLY)      # to read the header of the file opened
+
+    def _open(self) -> sqlite3.Connection:
+        db = sqlite3.connect(str(self.path), isolation_level=None, check_same_thread=False, timeout=10.0)
+        try:
+            db.execute("PRAGMA journal_mode=WAL")
+            db.execute("PRAGMA synchronous=FULL")
+            db.execute("PRAGMA busy_timeout=10000")
+            db.executescript(_SCHEMA)
+            check = db.execute("PRAGMA quick_check").fetchone()[0]
+            if check != "ok":
+                raise sqlite3.DatabaseError(f"quick_check: {check}")
+        except sqlite3.DatabaseError as e:
+            db.close()
+            raise StoreCorrupt(str(e)) from None
+        return db
+
+    def _file_identity(self) -> tuple[int, int] | None:
+        try:
+            st = os.stat(self.path)
+        except FileNotFoundError:
+            return None
+        return st.st_dev, st.st_ino
+
+    def _check_file(self) -> None:
+        """The file must still be the one opened, and still a database: SQLite acknowledges writes
+        to a deleted or replaced file, and (WAL, pages in its cache) to one overwritten with junk —
+        all gone at the next start. A stat and a 16-byte read, a few microseconds."""
+        if self._lost is None and self._file_identity() != self._identity:
+            self._lost = "deleted" if self._file_identity() is None else "replaced"
+        if self._lost is None and os.pread(self._fd, len(SQLITE_HEADER), 0) != SQLITE_HEADER:
+            self._lost = "overwritten (it is no SQLite database any more)"
+        if self._lost is not None and not self._reported:
+            self._reported = True
+            log.error("session store %s was %s while the service ran: every request now answers 503; restart "
+                      "the service (it opens the file found then; docs/API.md, 'Store faults')",
+                      self.path, self._lost)
+        if self._lost is not None:
+            raise StoreUnavailable(f"unavailable: its file was {self._lost} while the service ran; the operator "
+                                   "must restart the service")
 
     # One connection, one lock: each method is one short transaction.
     def _tx(self, fn: Callable[[sqlite3.Connection], Any]) -> Any:
         with self._lock:
+            self._check_file()
             self._db.execute("BEGIN IMMEDIATE")
             try:
                 out = fn(self._db)
             except BaseException:
-                self._db.execute("ROLLBACK")
+                try:
+                    self._db.execute("ROLLBACK")
+                except sqlite3.Error:
+                    pass            # the transaction is gone with the error that ended it
                 raise
             self._db.execute("COMMIT")
             return out
@@ -203,8 +310,30 @@ class SQLiteStore:
         db.execute("DELETE FROM sessions WHERE accessed_at < ?", (cutoff,))
 
     def ping(self) -> bool:
-        with self._lock:
-            return self._db.execute("SELECT 1").fetchone() == (1,)
+        return self.probe() is None
+
+    def probe(self) -> str | None:
+        """A write and a read of the probe record in one transaction, on a file that is still the one
+        opened and still starts as a SQLite database."""
+        now = time.time()
+        try:
+            with open(self.path, "rb") as f:
+                if f.read(len(SQLITE_HEADER)) != SQLITE_HEADER:
+                    raise StoreCorrupt("not a database: its header was overwritten")
+
+            def tx(db: sqlite3.Connection) -> Any:
+                db.execute("INSERT OR REPLACE INTO probe (k, v) VALUES ('ready', ?)", (now,))
+                return db.execute("SELECT v FROM probe WHERE k = 'ready'").fetchone()
+            if self._tx(tx) != (now,):
+                return "sqlite: the probe record read back differs from the one written"
+        except FileNotFoundError:
+            return "sqlite: the store file was deleted while the service ran; restart the service"
+        except StoreUnavailable as e:
+            return f"sqlite: {e}"
+        except (sqlite3.Error, OSError) as e:    # the log has the message (it may name paths)
+            log.error("session store probe failed: %s: %s", type(e).__name__, e)
+            return f"sqlite: {type(e).__name__}"
+        return None
 
     def count(self) -> int:
         """Sessions not yet expired (the /metrics gauge)."""
@@ -215,6 +344,7 @@ class SQLiteStore:
     def close(self) -> None:
         with self._lock:
             self._db.close()
+            os.close(self._fd)
 
 
 # ---- Redis --------------------------------------------------------------------------
@@ -225,8 +355,11 @@ class RedisStore:
     in a hash), both with the idle TTL; changes are optimistic transactions.
     """
 
+    # Sessions whose scene key this process refreshed lately (bounded; an entry only saves a PEXPIRE).
+    SCENE_TOUCHES = 4096
+
     def __init__(self, url: str, ttl_s: float, prefix: str = "pocketray:",
-                 touch_interval_s: float | None = None):
+                 touch_interval_s: float | None = None, max_retries: int = 16):
         import redis
 
         self._redis_module = redis
@@ -234,6 +367,9 @@ class RedisStore:
         self.ttl_ms = max(1, int(round(ttl_s * 1000)))
         self.touch_interval_s = min(60.0, ttl_s / 10.0) if touch_interval_s is None else touch_interval_s
         self.prefix = prefix
+        self.max_retries = max_retries
+        self._scene_touched: OrderedDict[str, float] = OrderedDict()
+        self._touch_lock = threading.Lock()
 
     def _keys(self, session_id: str) -> tuple[str, str]:
         return f"{self.prefix}state:{session_id}", f"{self.prefix}scene:{session_id}"
@@ -250,17 +386,20 @@ class RedisStore:
 
     def get(self, session_id: str) -> SessionState | None:
         k_state, k_scene = self._keys(session_id)
-        raw = self.client.get(k_state)
+        raw = self.client.getex(k_state, px=self.ttl_ms)     # the read refreshes the idle TTL itself
         if raw is None:
             return None
         st = SessionState.from_json(raw)
-        now = time.time()
-        if now - st.accessed_at >= self.touch_interval_s:
-            # Refresh the TTLs only; the state's accessed_at is rewritten by the next change.
-            with self.client.pipeline(transaction=True) as p:
-                p.pexpire(k_state, self.ttl_ms)
-                p.pexpire(k_scene, self.ttl_ms)
-                p.execute()
+        now = time.monotonic()
+        with self._touch_lock:
+            due = now - self._scene_touched.get(session_id, -self.touch_interval_s) >= self.touch_interval_s
+            if due:
+                self._scene_touched[session_id] = now
+                self._scene_touched.move_to_end(session_id)
+                while len(self._scene_touched) > self.SCENE_TOUCHES:
+                    self._scene_touched.popitem(last=False)
+        if due:      # the scene key lives as long as its state: refreshed at most every touch interval
+            self.client.pexpire(k_scene, self.ttl_ms)
         return st
 
     def get_source(self, session_id: str) -> tuple[str, bytes] | None:
@@ -273,7 +412,7 @@ class RedisStore:
     def update(self, session_id: str, mutate: Mutation, source: bytes | None = None) -> SessionState | None:
         k_state, k_scene = self._keys(session_id)
         with self.client.pipeline(transaction=True) as p:
-            while True:
+            for _ in range(self.max_retries + 1):
                 try:
                     p.watch(k_state)
                     raw = p.get(k_state)
@@ -292,15 +431,27 @@ class RedisStore:
                     return new
                 except self._redis_module.WatchError:
                     continue  # someone else changed it first: read again and redo
+        raise StoreUnavailable(f"busy: this session was changed by others {self.max_retries + 1} times while "
+                               "this change was computed")
 
     def delete(self, session_id: str) -> bool:
         return self.client.delete(*self._keys(session_id)) > 0
 
     def ping(self) -> bool:
+        return self.probe() is None
+
+    def probe(self) -> str | None:
+        """A write and a read of a probe key (expiring by itself), as requests write and read."""
+        key, token = f"{self.prefix}probe:{os.getpid()}", f"{time.time():.6f}"
         try:
-            return bool(self.client.ping())
-        except Exception:
-            return False
+            with self.client.pipeline(transaction=False) as p:
+                p.set(key, token, px=60_000)
+                p.get(key)
+                _, got = p.execute()
+        except self._redis_module.RedisError as e:   # the log has the message (it names the server)
+            log.error("session store probe failed: %s: %s", type(e).__name__, e)
+            return f"redis: {type(e).__name__}"
+        return None if got is not None and got.decode() == token else "redis: the probe key read back differs"
 
     def count(self) -> int:
         """Sessions not yet expired (the /metrics gauge; a SCAN, so /metrics caches it)."""
@@ -313,5 +464,6 @@ class RedisStore:
 def open_store(config) -> SessionStore:
     """The backend ``config.state_backend`` names (see :class:`server.config.ServerConfig`)."""
     if config.state_backend == "redis":
-        return RedisStore(config.redis_url, config.session_ttl_s, config.redis_prefix)
-    return SQLiteStore(config.sqlite_path, config.session_ttl_s)
+        return RedisStore(config.redis_url, config.session_ttl_s, config.redis_prefix,
+                          max_retries=config.redis_max_retries)
+    return SQLiteStore(config.sqlite_path, config.session_ttl_s, on_corrupt=config.sqlite_on_corrupt)

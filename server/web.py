@@ -1,12 +1,10 @@
-"""Web basics of the service: CORS, plain ``OPTIONS``, offline API docs, OpenAPI names.
+"""Web basics of the service: CORS, offline API docs, OpenAPI names.
 
 - **CORS** through Starlette's ``CORSMiddleware``: origins from ``POCKETRAY_CORS_ORIGINS``
   (default none: the client is served by the service itself, same origin); a preflight
   (``OPTIONS`` with ``Origin`` and ``Access-Control-Request-Method``) is answered by it; the
   frame headers (``Server-Timing``, ``X-Stats``, …) are exposed to the caller's script.
-- **Plain OPTIONS** (no preflight): :class:`AllowOptions` answers 204 with an ``Allow``
-  header listing the methods of the path (the routes that match it, or ``GET, HEAD`` for a
-  static file), 404 for a path nothing serves — never 405.
+- **Plain OPTIONS** (no preflight) and 405s: :mod:`server.allow`.
 - **/docs and /redoc offline**: Swagger UI's and ReDoc's files come from the
   ``fastapi-offline`` package (its ``static/``), served at ``/docs-assets/``.
 - **OpenAPI**: operation ids are the route functions' names (``create_session``,
@@ -17,14 +15,12 @@ from __future__ import annotations
 
 from importlib.resources import files
 from pathlib import Path
-from typing import Any
 
 from fastapi import FastAPI
 from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html, get_swagger_ui_oauth2_redirect_html
-from fastapi.responses import HTMLResponse, JSONResponse
+from fastapi.responses import HTMLResponse
 from fastapi.routing import APIRoute
 from starlette.middleware.cors import CORSMiddleware
-from starlette.routing import Match, Mount
 from starlette.staticfiles import StaticFiles
 
 from .observability import REQUEST_ID_HEADER, SESSION_HEADER
@@ -84,64 +80,3 @@ def install_cors(app: FastAPI, origins: list[str]) -> None:
     app.add_middleware(CORSMiddleware, allow_origins=["*"] if allow_all else list(origins),
                        allow_methods=list(CORS_METHODS), allow_headers=list(CORS_HEADERS),
                        expose_headers=[*EXPOSED, "X-Request-ID"], max_age=CORS_MAX_AGE_S)
-
-
-def _static_serves(app: StaticFiles, scope: dict) -> bool:
-    """Whether the static app would answer GET with a file for this (mount-relative) scope."""
-    try:
-        path = app.get_path(scope)
-        full, stat = app.lookup_path(path)
-        if stat is None:
-            return False
-        if Path(full).is_dir():
-            return bool(app.html) and app.lookup_path(str(Path(path) / "index.html"))[1] is not None
-        return True
-    except Exception:
-        return False
-
-
-PROBED_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE")
-
-
-def allowed_methods(app: Any, scope: dict) -> list[str]:
-    """The methods some route (or static file) of ``app`` answers at ``scope``'s path: each
-    method is probed against the app's routes (``route.matches``, whatever kind of route)."""
-    methods: list[str] = []
-    for method in PROBED_METHODS:
-        probe = {**scope, "method": method}
-        for route in app.router.routes:
-            match, child = route.matches(probe)
-            if match is not Match.FULL:
-                continue
-            if isinstance(route, Mount):
-                if not (isinstance(route.app, StaticFiles) and method in ("GET", "HEAD")
-                        and _static_serves(route.app, {**probe, **child})):
-                    continue
-            methods.append(method)
-            break
-    return methods
-
-
-class AllowOptions:
-    """A plain ``OPTIONS`` (not a CORS preflight): 204 + ``Allow``, or 404 for a path nothing serves."""
-
-    def __init__(self, app: Any):
-        self.app = app
-
-    async def __call__(self, scope: dict, receive: Any, send: Any) -> None:
-        if scope["type"] != "http" or scope["method"] != "OPTIONS" or self._preflight(scope):
-            await self.app(scope, receive, send)
-            return
-        methods = allowed_methods(scope["app"], scope)
-        if not methods:   # nothing serves the path (the static mount would say 405)
-            await JSONResponse({"detail": "Not Found"}, status_code=404)(scope, receive, send)
-            return
-        allow = ", ".join([*methods, "OPTIONS"]).encode()
-        await send({"type": "http.response.start", "status": 204,
-                    "headers": [(b"allow", allow), (b"content-length", b"0")]})
-        await send({"type": "http.response.body", "body": b""})
-
-    @staticmethod
-    def _preflight(scope: dict) -> bool:
-        names = {k for k, _ in scope.get("headers") or ()}
-        return b"origin" in names and b"access-control-request-method" in names

@@ -11,9 +11,9 @@ over the WebSocket as one text message ``{"status", "detail"}`` plus ``"retry_af
   (with its field) and bodies that are not even JSON (FastAPI would say 400).
 - 404: no such session. 409: the frame was superseded (a newer frame of the session,
   latest wins) or the session changed under a gesture's frame: nothing was committed.
-  503 + ``Retry-After``: queue full, GL unavailable, render timed out (Retry-After = the
-  work queued ahead), session store not answering — never a 500 for load. 500: a bug
-  (logged).
+  503 + ``Retry-After``: queue full, busy (planning slots, large-body slots), GL
+  unavailable, render timed out (Retry-After = the work queued ahead), any failure of the
+  session store — never a 500 for load or the store. 500: a bug (logged).
 """
 
 from __future__ import annotations
@@ -37,15 +37,14 @@ from renderer.scene import SceneError
 from .. import metrics
 from ..config import ServerConfig
 from ..gl_worker import GLNotReady, QueueFull
-from ..models import ErrorOut
-from ..service import InputError, NotFound, RenderTimeout, Superseded, field_path
+from ..models import MAX_LISTED_ERRORS, ErrorOut
+from ..service import Busy, InputError, NotFound, RenderTimeout, Superseded, field_path
+from ..store import StoreUnavailable
 
 log = logging.getLogger("pocketray.server")
 
 NOT_FOUND = ("session: no session with this id (unknown, deleted, or expired after POCKETRAY_SESSION_TTL_S "
              "seconds idle); create one with POST /api/sessions")
-# FastAPI's words for a body it could not read at all (bytes that are not UTF-8 text).
-BODY_UNREADABLE = "There was an error parsing the body"
 GL_RETRY_AFTER_S = 5      # a GL context that failed, or a render that timed out: try again later
 STORE_RETRY_AFTER_S = 1   # the session store is usually back within a second (locked, reconnecting)
 
@@ -92,11 +91,25 @@ def _invalid(loc: list, msg: str, type_: str) -> ErrorAnswer:
 
 
 def _validation(exc: RequestValidationError, config: ServerConfig) -> ErrorAnswer:
+    """The first MAX_LISTED_ERRORS errors, then one ``too_many_errors`` entry counting the rest.
+    A long list of spheres is cut while it is validated (``SceneModel``): its own
+    ``too_many_errors`` entry carries the count of the errors it did not keep."""
+    found = exc.errors()
+    summaries = [e for e in found if e.get("type") == "too_many_errors"]
+    real = [e for e in found if e.get("type") != "too_many_errors"]
+    shown = real[:MAX_LISTED_ERRORS]
+    hidden = len(real) - len(shown) + sum(int((e.get("ctx") or {}).get("more", 0)) for e in summaries)
     errors = []
-    for e in exc.errors():
+    for e in shown:
         loc = [x if isinstance(x, (int, str)) else str(x) for x in e.get("loc", ())]
         msg = str(e.get("msg", "invalid value"))
         errors.append({"loc": loc, "msg": f"{_loc_label(loc)}: {msg}", "type": str(e.get("type", "value_error"))})
+    if hidden:
+        where = summaries[0] if summaries and len(real) <= MAX_LISTED_ERRORS else real[MAX_LISTED_ERRORS]
+        loc = [x if isinstance(x, (int, str)) else str(x) for x in where.get("loc", ("body",))]
+        loc = loc if where in summaries else loc[:1]
+        errors.append({"loc": loc, "msg": f"{_loc_label(loc)}: {hidden} more errors not listed "
+                                          f"({len(shown) + hidden} in all)", "type": "too_many_errors"})
     return ErrorAnswer(422, errors)
 
 
@@ -122,6 +135,11 @@ def _queue_full(exc: QueueFull, config: ServerConfig) -> ErrorAnswer:
                             f"retry after {exc.retry_after_s} s", {"Retry-After": str(exc.retry_after_s)})
 
 
+def _busy(exc: Busy, config: ServerConfig) -> ErrorAnswer:
+    """A bounded stage before the GL queue is full: frames being planned, large bodies being read."""
+    return ErrorAnswer(503, str(exc), {"Retry-After": str(exc.retry_after_s)})
+
+
 def _gl_unavailable(exc: Exception, config: ServerConfig) -> ErrorAnswer:
     return ErrorAnswer(503, f"gl: {exc}", {"Retry-After": str(GL_RETRY_AFTER_S)})
 
@@ -137,9 +155,13 @@ def _superseded(exc: Superseded, config: ServerConfig) -> ErrorAnswer:
 
 
 def _store_unavailable(exc: Exception, config: ServerConfig) -> ErrorAnswer:
-    log.error("state backend error: %s", exc)
-    return ErrorAnswer(503, f"state: the session store is not answering ({type(exc).__name__}); retry",
-                       {"Retry-After": str(STORE_RETRY_AFTER_S)})
+    """Any failure of the session store — not answering, locked, a file that is gone or not a
+    database, a record that does not decode, a change that kept colliding — is a 503: the request
+    changed nothing it did not report, and may be retried."""
+    log.error("state backend error: %s: %s", type(exc).__name__, exc)
+    what = str(exc) if isinstance(exc, StoreUnavailable) else f"not answering ({type(exc).__name__})"
+    return ErrorAnswer(503, f"state: the session store is {what}; retry",
+                       {"Retry-After": str(getattr(exc, "retry_after_s", STORE_RETRY_AFTER_S))})
 
 
 def _internal(exc: Exception, config: ServerConfig) -> ErrorAnswer:
@@ -157,14 +179,15 @@ class ErrorRow:
 # First match wins: the catch-all Exception is last.
 ERROR_TABLE: tuple[ErrorRow, ...] = (
     ErrorRow("validation", (RequestValidationError,), _validation),
-    ErrorRow("unreadable_body", (StarletteHTTPException,), _http),
+    ErrorRow("http_exception", (StarletteHTTPException,), _http),
     ErrorRow("scene", (SceneError,), _scene),   # InputError is a SceneError that knows its loc
     ErrorRow("not_found", (NotFound,), _not_found),
     ErrorRow("queue_full", (QueueFull,), _queue_full),
+    ErrorRow("busy", (Busy,), _busy),
     ErrorRow("timeout", (RenderTimeout,), _timeout),
     ErrorRow("gl_unavailable", (GLNotReady,), _gl_unavailable),
     ErrorRow("superseded", (Superseded,), _superseded),
-    ErrorRow("store_unavailable", (sqlite3.OperationalError, redis.RedisError), _store_unavailable),
+    ErrorRow("store_unavailable", (StoreUnavailable, sqlite3.Error, redis.RedisError), _store_unavailable),
     ErrorRow("internal", (Exception,), _internal),
 )
 
@@ -205,8 +228,9 @@ ERROR_DOCS: dict[int, dict[str, Any]] = {
     409: {"model": ErrorOut, "description": "the frame was superseded by a newer frame of this session (latest "
                                             "wins), or the session changed before a gesture could be committed"},
     413: {"model": ErrorOut, "description": "request body too large (POCKETRAY_MAX_BODY_BYTES)"},
-    503: {"model": ErrorOut, "description": "render queue full, GL or session store not available; "
-                                            "see Retry-After", "headers": _RETRY_AFTER_DOC},
+    503: {"model": ErrorOut, "description": "render queue full, busy (frames being planned, large bodies being "
+                                            "read), GL or session store not available; see Retry-After",
+          "headers": _RETRY_AFTER_DOC},
 }
 
 

@@ -6,13 +6,16 @@ message's ``"frame"`` settings as the query; ``{"type": "frame"}`` ⇔ ``GET …
 and both must pass through that row and answer alike: the same status, the same detail,
 and ``retry_after`` exactly where HTTP sends ``Retry-After``, with the same seconds.
 Rows no request reaches on its own (a store that stops answering, a render timing out,
-a bug) are reached by making the service's frame call raise what they answer.
+a bug) are reached by making the service's frame call raise what they answer. Two rows only
+HTTP reaches, checked over HTTP alone (``HTTP_ONLY`` says why): Starlette's own answers
+(no such route) and a busy pool of body parsers.
 """
 
 from __future__ import annotations
 
 import json
 import sqlite3
+from types import SimpleNamespace
 import warnings
 from dataclasses import dataclass, field
 from typing import Any
@@ -27,6 +30,7 @@ with warnings.catch_warnings():  # as in conftest.py: the TestClient still speak
 from pocketray_server_support import SMALL, new_session
 from renderer.scene import SceneError
 from server.api import errors
+from server.api.body import BodyParsers
 from server.service import RenderTimeout, Superseded
 
 UNKNOWN_SESSION = "no-such-session"
@@ -46,6 +50,9 @@ class Case:
     raises: Exception | None = None         # service.session_frame raises this
     gl_error: str | None = None             # the GL context "failed" with this
     full_queue: bool = False                # every queue slot is taken
+    path: str | None = None                 # HTTP only: GET this path instead
+    busy_bodies: bool = False               # HTTP only: every slot of the body parsers is taken
+    busy_planning: bool = False             # every planning slot is taken
 
 
 CASES = {
@@ -55,7 +62,9 @@ CASES = {
     "samples_per_pixel not in the set": Case("validation", 422, frame={"samples_per_pixel": 3}),
     "not JSON": Case("validation", 422, raw="{nope"),
     "not an object": Case("validation", 422, raw="[1]"),
-    "not UTF-8": Case("unreadable_body", 422, raw=b'{"type": "\xff"}'),
+    "not UTF-8": Case("validation", 422, raw=b'{"type": "\xff"}'),
+    "duplicate key": Case("validation", 422, raw='{"type": "pinch", "scale": 2, "scale": 3}'),
+    "nested too deep": Case("validation", 422, raw="[" * 40 + "]" * 40),
     "work cap": Case("scene", 422, gesture=PINCH, frame={"width": 96, "height": 128, "max_recursion_depth": 4}),
     "renderer's SceneError": Case("scene", 422, raises=SceneError("camera.up", "parallel to the view")),
     "unknown session": Case("not_found", 404, session=UNKNOWN_SESSION),
@@ -66,6 +75,13 @@ CASES = {
     "sqlite locked": Case("store_unavailable", 503, raises=sqlite3.OperationalError("database is locked")),
     "redis gone": Case("store_unavailable", 503, raises=redis.ConnectionError("Connection refused")),
     "a bug": Case("internal", 500, raises=RuntimeError("a bug")),
+    "no such route": Case("http_exception", 404, path="/api/no-such-route"),
+    "planning slots taken": Case("busy", 503, gesture=PINCH, busy_planning=True),
+    "body parsers busy": Case("busy", 503, busy_bodies=True),
+}
+HTTP_ONLY = {
+    "no such route": "a WebSocket message has no route to miss",
+    "body parsers busy": "messages are small and read by their connection, not by the pool for large bodies",
 }
 
 
@@ -82,6 +98,11 @@ def http(client) -> TestClient:
 
 def over_http(http: TestClient, sid: str, case: Case):
     base = f"/api/sessions/{sid}"
+    if case.path is not None:
+        return http.get(case.path)
+    if case.busy_bodies:      # a body over the inline size goes to the pool, whose slots are all taken
+        scene = {"materials": [{}], "spheres": [{"center": [i % 50, 0, 0], "radius": 0.5} for i in range(2000)]}
+        return http.put(f"{base}/scene", json=scene)
     if case.raw is not None:
         body = case.raw.encode() if isinstance(case.raw, str) else case.raw
         return http.post(f"{base}/gesture", params={"frame": 1}, content=body,
@@ -127,16 +148,28 @@ def test_http_and_websocket_answer_alike(client, http, sid, monkeypatch, name):
     if case.gl_error is not None:
         monkeypatch.setattr(worker, "error", case.gl_error)
     held = [worker.admit() for _ in range(worker.queue_size)] if case.full_queue else []
+    parsers = BodyParsers.of(SimpleNamespace(app=client.app))
+    bodies = [parsers.try_admit() for _ in range(parsers.admitted)] if case.busy_bodies else []
+    planning = [service._planning.acquire() for _ in range(service.config.queue_size)] if case.busy_planning else []
+    if planning:
+        monkeypatch.setattr(service, "PLAN_WAIT_S", 0.01)
     try:
         r = over_http(http, case.session or sid, case)
         http_rows, rows[:] = list(rows), []
-        message = over_ws(client, case.session or sid, case)
+        message = None if name in HTTP_ONLY else over_ws(client, case.session or sid, case)
     finally:
         for ticket in held:
             ticket.__exit__(None, None, None)
+        for _ in bodies:
+            parsers.release()
+        for _ in planning:
+            service._planning.release()
 
-    assert (http_rows, rows) == ([case.row], [case.row])   # both transports through the one row
+    assert http_rows == [case.row] and rows == ([] if name in HTTP_ONLY else [case.row])  # through the one row
     assert r.status_code == case.status, r.text
+    if name in HTTP_ONLY:
+        assert ("retry-after" in r.headers) == (case.status == 503)
+        return
     expected = {"status": r.status_code, "detail": r.json()["detail"]}
     if "retry-after" in r.headers:
         expected["retry_after"] = int(r.headers["retry-after"])

@@ -97,8 +97,11 @@ def test_service_answers_while_the_gl_thread_traces(ready_client):
 
     c = ready_client
     worker = c.app.state.worker
-    scene, settings = scenario(3, 4096), RenderSettings(width=640, height=544, max_recursion_depth=3)
-    with worker.admit() as t:  # bigger than the test caps allow through the API: ~1 s on llvmpipe
+    # One draw and one glFinish of ~2 s on llvmpipe (bigger than the test caps allow through the API):
+    # long against the scheduling hiccups of a loaded machine (a health call once took 0.21 s during a
+    # 0.44 s trace, issue #17), so that they stay a small part of it.
+    scene, settings = scenario(3, 4096), RenderSettings(width=640, height=1088, max_recursion_depth=3)
+    with worker.admit() as t:
         job = t.submit(lambda r: r.render(scene, settings))
         waits = []
         while not job.done():
@@ -106,9 +109,10 @@ def test_service_answers_while_the_gl_thread_traces(ready_client):
             assert c.get("/api/health").status_code == 200
             waits.append(time.perf_counter() - t0)
         trace_s = job.result().timings["trace"] / 1e3
-    # Relative to the frame, so a loaded machine does not matter: with the GIL held
-    # through glFinish one health call waits out the whole trace; released, many
-    # answer during it, each in a small part of the trace time.
+    # Relative to the frame, so a loaded machine does not matter: with the GIL held through the one
+    # glFinish a health call waits out (nearly) the whole trace and hardly another answers during it;
+    # released, many answer, each in a small part of it. Half the trace separates the two with room
+    # for a loaded machine's hiccups (bench/latency.py measures the latency itself).
     assert len(waits) >= 3, f"only {len(waits)} health answers during a {trace_s:.2f} s trace"
-    assert max(waits) < 0.25 * trace_s, f"health answered after {max(waits):.3f} s during a {trace_s:.2f} s trace"
+    assert max(waits) < 0.5 * trace_s, f"health answered after {max(waits):.3f} s during a {trace_s:.2f} s trace"
 

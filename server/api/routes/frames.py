@@ -22,9 +22,10 @@ from ...models import (CameraModel, CameraOut, FrameQuery, Gesture, GestureQuery
                        StatsQuery)
 from ...view import FRAME_RESPONSE_DOC, Frame, frame_headers
 from ..deps import ServiceDep, SessionId
+from ..body import JSONBodyRoute
 from ..errors import documented
 
-router = APIRouter()
+router = APIRouter(route_class=JSONBodyRoute)   # JSON bodies strict, large ones off the event loop
 WATCH_S = 0.1      # how often a waiting route looks whether its client is still there
 
 

@@ -29,13 +29,16 @@ def health() -> HealthOut:
 
 
 @router.get("/ready", response_model=ReadyOut, responses={503: {"model": ReadyOut, "description": "not ready"}},
-            summary="Readiness: GL context created and warm-up render done")
+            summary="Readiness: GL context created, warm-up render done, session store read and written")
 def ready(request: Request, worker: WorkerDep, service: ServiceDep) -> Any:
     info = worker.info or {}
     drain = getattr(request.app.state, "drain", None)
     draining = (drain is not None and drain.draining.is_set()) or worker.closing
     saturated = worker.saturated
-    out = ReadyOut(ready=not draining and not saturated and worker.ready.is_set() and service.store.ping(),
+    # The store is checked the way requests use it: a write and a read of a probe record (SQLite: on
+    # the file that was opened, still a database) — a ping would pass on a deleted or overwritten file.
+    store_fault = service.store.probe() if worker.ready.is_set() else None
+    out = ReadyOut(ready=not draining and not saturated and worker.ready.is_set() and store_fault is None,
                    gl_renderer=info.get("renderer"), gl_version=info.get("version"))
     if out.ready:
         return out
@@ -47,7 +50,7 @@ def ready(request: Request, worker: WorkerDep, service: ServiceDep) -> Any:
         out.detail = (f"saturated: {worker.queued_ms() / 1e3:,.1f} s of GL work queued, over the render timeout "
                       f"of {worker.render_timeout_s:g} s (POCKETRAY_RENDER_TIMEOUT_S)")
     else:
-        out.detail = worker.error or ("state backend not answering" if worker.ready.is_set() else
+        out.detail = worker.error or (f"state backend: {store_fault}" if worker.ready.is_set() else
                                       "starting: creating the GL context and rendering the warm-up frame")
     metrics.unavailable("draining" if draining else "saturated" if saturated else "not_ready")
     return JSONResponse(out.model_dump(), status_code=503, headers={"Retry-After": str(retry)})

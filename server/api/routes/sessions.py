@@ -18,9 +18,10 @@ from ...service import InputError
 from ...scenes import scene_json_chunks
 from ...store import SessionState
 from ..deps import ServiceDep, SessionId
+from ..body import JSONBodyRoute
 from ..errors import documented
 
-router = APIRouter()
+router = APIRouter(route_class=JSONBodyRoute)   # JSON bodies strict, large ones off the event loop
 
 ERR_SESSION = documented(404, 503)
 ERR_SESSION_BODY = documented(404, 413, 503)

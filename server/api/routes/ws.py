@@ -22,12 +22,11 @@ from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from fastapi.concurrency import run_in_threadpool
 from fastapi.exceptions import RequestValidationError
 from pydantic import TypeAdapter, ValidationError
-from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from ...models import Gesture, SettingsPatch
 from ...service import SessionService
 from ...view import Frame
-from .. import errors
+from .. import body, errors
 from ..deps import ServiceDep
 
 router = APIRouter()
@@ -36,16 +35,13 @@ _gesture_adapter = TypeAdapter(Gesture)
 _patch_adapter = TypeAdapter(SettingsPatch)
 
 
-def parse_json(data: str | bytes) -> Any:
-    """The message's JSON, failing as FastAPI fails on a request body: not JSON → its
-    ``json_invalid`` validation error; bytes that are not even text → its 400."""
+def parse_json(data: str | bytes, max_depth: int) -> Any:
+    """The message's JSON, read as a request body is (:func:`server.api.body.parse_json`: UTF-8,
+    each key once, bounded nesting), failing with the same 422."""
     try:
-        return json.loads(data)
-    except json.JSONDecodeError as e:
-        raise RequestValidationError([{"type": "json_invalid", "loc": ("body", e.pos), "msg": "JSON decode error",
-                                       "input": {}, "ctx": {"error": e.msg}}]) from None
-    except UnicodeDecodeError:
-        raise StarletteHTTPException(400, errors.BODY_UNREADABLE) from None
+        return body.parse_json(data, max_depth)
+    except body.BodyError as e:
+        raise e.validation_error() from None
 
 
 def _validated(adapter: TypeAdapter, value: Any, where: str, problems: list[dict[str, Any]]) -> Any:
@@ -59,7 +55,7 @@ def _validated(adapter: TypeAdapter, value: Any, where: str, problems: list[dict
 
 async def answer_message(service: SessionService, session_id: str, data: str | bytes) -> tuple[Frame, dict]:
     """The frame one message asks for and the session's camera after it."""
-    msg = parse_json(data)
+    msg = parse_json(data, service.config.max_json_depth)
     frame_settings = (msg.pop("frame", None) if isinstance(msg, dict) else None) or {}
     problems: list[dict[str, Any]] = []
     patch = _validated(_patch_adapter, frame_settings, "query", problems)
