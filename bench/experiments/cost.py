@@ -51,6 +51,13 @@ def cases(quick: bool) -> list[tuple[str, object, RenderSettings]]:
                         RenderSettings(width=w, height=h, method="bih", max_prims=n, **prof)))
             out.append((f"s{sc} n={n} {w}×{h} bih depth 1", scene,
                         RenderSettings(width=w, height=h, method="bih", max_tree_depth=1, **prof)))
+    # Dense scenes, the service's largest (POCKETRAY_MAX_SPHERES = 2^21): thousands of sphere tests
+    # per ray through the hierarchy, which the frames above never reach (without them the fit made
+    # small-leaf tests free and estimated a 2^21-sphere frame at a quarter of its time).
+    for sc, n, prof in itertools.product((1, 3), (1 << 14,) if quick else (1 << 18, 1 << 21), profiles[:2]):
+        scene = scenario(sc, n, seed=0)
+        w, h = (48, 80) if quick else (80, 136)
+        out.append((f"s{sc} n={n} {w}×{h} bih {prof}", scene, RenderSettings(width=w, height=h, method="bih", **prof)))
     for n, (w, h) in itertools.product((16, 64) if quick else (64, 256), ((48, 80),) if quick else ((96, 160),)):
         scene = scenario(3, n, seed=0)
         for method, mode in itertools.product(("rayengine", "hre"), ("primid", "color")):
@@ -119,7 +126,8 @@ def run(ctx: Context) -> str:
 {ctx.caption(1, "one frame after a warm-up per configuration")}
 
 {len(frames)} frames (every method; scenarios 1–3; primary rays, colour at depth 3, and the still
-profile — depth 8, ε 0.03, 4 samples; degenerate BIHs of one leaf). Fitted constants, ns per
+profile — depth 8, ε 0.03, 4 samples; degenerate BIHs of one leaf; dense scenes of 2^18 and 2^21
+spheres through the BIH). Fitted constants, ns per
 unit of each term of `renderer/cost.py` (`DEFAULT_MODEL`): {consts}; level decay
 {model.level_decay:.1f}; the constants are scaled so that the median frame is estimated right.
 Median |log(estimate / measured)| = {err:.2f}; {within2:.0%} of the frames are estimated within

@@ -190,7 +190,8 @@ def capped(tmp_path_factory):
 def test_a_frame_over_the_cost_cap_is_refused_naming_the_setting_to_change(capped):
     c = capped
     limit = c.app.state.config.max_frame_cost
-    sid = new_session(c, n=4096)["id"]
+    # the session's own frames are FRAME's (the cap lies between the BIH and brute force at that size)
+    sid = new_session(c, n=4096, settings={**SMALL, **FRAME})["id"]
     assert c.get(f"/api/sessions/{sid}/frame", params=FRAME).status_code == 200   # the BIH fits
     for params, field in (({"method": "bruteforce"}, "method"), ({"max_prims": 4096}, "max_prims"),
                           ({"max_tree_depth": 1}, "max_tree_depth")):
