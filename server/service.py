@@ -505,7 +505,7 @@ class SessionService:
         batch = batch_size(frame.cost, self.config.slice_ms, frame.scene.n_primitives)
 
         def start(renderer):
-            return renderer.start(frame, band_rows=rows, batch=batch)
+            return renderer.start(frame, band_rows=rows, batch=batch, slice_ms=self.config.slice_ms)
         return ticket.frame(start, session=session.id if session is not None else None, cost_ms=frame.cost.ms)
 
     def wait(self, handle: FrameHandle, t_admit: float, *, preview: bool = False,

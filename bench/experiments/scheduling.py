@@ -21,9 +21,9 @@ def run(ctx: Context) -> str:
         S.progressive(1, out, size=(64, 96))
     else:
         runs = max(1, min(ctx.runs, 3))
-        S.fairness(runs, 512, out)
+        S.fairness(runs, 1024, out)
         S.progressive(ctx.runs, out)
-        S.slices(max(1, runs - 1), 256, out)
+        S.slices(max(1, runs - 1), 512, out)
     body = "\n".join(lines)
     return f"""## {TITLE}
 

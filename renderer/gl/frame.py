@@ -120,8 +120,10 @@ class TracerFrame:
     """A frame of the one-pass tracer, traced slice by slice (:meth:`step`).
 
     ``renderer``: the :class:`~renderer.gl.renderer.GLRenderer` that owns the context, the
-    programs and the target pool. ``band_rows``: rows of one band (None: each pass in one
-    draw). ``one_shot``: trace a
+    programs and the target pool. ``band_rows``: rows of the first band (None: each pass in
+    one draw); with ``slice_ms`` the next bands are resized from the measured time of the last
+    one, so that a slice costs about ``slice_ms`` even where the cost model is off (a leaf of
+    thousands of spheres costs 4× its estimate). ``one_shot``: trace a
     supersampled image the way it was before passes existed — one draw of the whole
     ``kW × kH`` grid, ids from its middle sub-pixel — for tests and benchmarks that
     compare against it.
@@ -129,7 +131,7 @@ class TracerFrame:
 
     def __init__(self, renderer, scene: Scene, settings: "RenderSettings", variant: Variant,
                  prepared: PreparedMethod, stats: dict, *, band_rows: int | None = None, one_shot: bool = False,
-                 t_start: float | None = None):
+                 t_start: float | None = None, slice_ms: float | None = None):
         self.renderer, self.ctx = renderer, renderer.ctx
         self.scene, self.settings, self.variant, self.prepared = scene, settings, variant, prepared
         self.stats = stats
@@ -139,6 +141,7 @@ class TracerFrame:
         self.width, self.height = settings.width, settings.height
         self.passes = [Pass(self.k, None)] if self.one_shot else plan_passes(settings.mode, self.k)
         self.band_rows = band_rows
+        self.slice_ms = slice_ms
         self.prog, self.vao = renderer.program(variant.method, variant.mode, variant.depth, variant.features,
                                                variant.blocks, variant.image_only)
         # The pixels whose primary ray can meet no sphere (no primitive at all, when hits spawn
@@ -239,8 +242,14 @@ class TracerFrame:
             self.fbo.scissor = scissor
             vao.render(moderngl.TRIANGLES)
         self.ctx.finish()
-        self.timings["trace"] += (time.perf_counter() - t0) * 1e3
+        ms = (time.perf_counter() - t0) * 1e3
+        self.timings["trace"] += ms
         self.slices += 1
+        if self.slice_ms and self.band_rows is not None:
+            # Rows cost alike within a pass; at most doubling keeps one cheap band (sky) from
+            # sizing the next, dearer one (the scene) far over the budget.
+            fit = int(self.slice_ms * rows / max(ms, 1e-3))
+            self.band_rows = max(1, min(fit, 2 * rows, h))
         self._row += rows
         if self._row >= h:
             self._finish_pass(p)

@@ -114,7 +114,7 @@ class GLRenderer:
         return frame.run()
 
     def start(self, frame: PreparedFrame, *, band_rows: int | None = None, batch: int | None = None,
-              t_start: float | None = None) -> "StartedFrame":
+              t_start: float | None = None, slice_ms: float | None = None) -> "StartedFrame":
         """A prepared frame (:func:`renderer.prepare.prepare_frame`) uploaded and ready to be
         traced slice by slice: bands of ``band_rows`` rows (the tracer) or batches of
         ``batch`` primitives (the ray engines)."""
@@ -122,12 +122,13 @@ class GLRenderer:
         if frame.multi_pass:
             inner = self.ray_engine.begin(METHODS[frame.method], frame.scene, frame.settings, batch=batch)
         else:
-            inner = self.begin(frame.scene, frame.settings, prepared=frame.prepared, band_rows=band_rows)
+            inner = self.begin(frame.scene, frame.settings, prepared=frame.prepared, band_rows=band_rows,
+                               slice_ms=slice_ms)
         return StartedFrame(inner, frame, t_start)
 
     def begin(self, scene: Scene, settings: RenderSettings, *, update: TreeUpdate = TreeUpdate(),
               prepared: PreparedMethod | None = None, band_rows: int | None = None,
-              one_shot: bool = False) -> TracerFrame:
+              one_shot: bool = False, slice_ms: float | None = None) -> TracerFrame:
         """A frame of the one-pass tracer for the posed ``scene``, uploaded and ready to be
         traced slice by slice (:class:`~renderer.gl.frame.TracerFrame`); ``band_rows``
         sizes its slices. Builds the method's structure first unless ``prepared`` is given."""
@@ -154,7 +155,7 @@ class GLRenderer:
                  "blocks": list(variant.blocks), "target": "rgba8" if image else "float",
                  "n_spheres": scene.n_spheres}
         return TracerFrame(self, scene, settings, variant, prepared, stats, band_rows=band_rows,
-                           one_shot=one_shot, t_start=t_start)
+                           one_shot=one_shot, t_start=t_start, slice_ms=slice_ms)
 
     def blocks_for(self, variant: Variant, prepared: PreparedMethod) -> tuple[str, ...]:
         """The method's record arrays this variant reads whose packed data fit a uniform

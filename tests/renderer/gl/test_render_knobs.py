@@ -122,8 +122,12 @@ def test_frames_draw_the_background_variant_where_rays_meet_no_sphere(gl_rendere
     culled = gl_renderer.render(scene, s)
     assert 0 < culled.stats["background_pixels"] < 64 * 96
     banded = gl_renderer.begin(scene, s, band_rows=7).run()
+    # bands resized from their measured time (a budget no band meets: one row each after the first)
+    fed_frame = gl_renderer.begin(scene, s, band_rows=7, slice_ms=1e-6)
+    fed = fed_frame.run()
+    assert fed_frame.band_rows == 1 and fed_frame.slices >= 96 - 7 + 1
     want = full.render(scene, s)
-    for res in (culled, banded):
+    for res in (culled, banded, fed):
         for field in ("image", "depth", "primid", "normal"):
             np.testing.assert_array_equal(getattr(res, field), getattr(want, field), err_msg=field)
     from renderer.scene import Camera
