@@ -77,7 +77,8 @@ class TwoLevelMethod:
         t1 = time.perf_counter()
         bvh = self._bvh.build_boxes(lo[moving_ids], hi[moving_ids], max_prims, max_tree_depth, update)
         t2 = time.perf_counter()
-        packed = gpu_data(scene, lambda: pack_twolevel(kd, static_ids, bvh, moving_ids, scene, max_width))
+        packed = gpu_data(scene, method=self.name,
+                          pack=lambda: pack_twolevel(kd, static_ids, bvh, moving_ids, scene, max_width))
         stats = {"method": self.name, "static": int(len(static_ids)), "moving": int(len(moving_ids)),
                  "kd_build_ms": (t1 - t0) * 1e3 if fresh else 0.0, "kd_cached": not fresh,
                  "bvh_update_ms": (t2 - t1) * 1e3, "scheme": bvh.stats.scheme,
