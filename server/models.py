@@ -522,6 +522,9 @@ class MethodSettingsOut(BaseModel):
     tests_every_sphere: bool = Field(False, description="no hierarchy: POCKETRAY_MAX_BRUTEFORCE_WORK applies")
     primitives: list[str] = Field(default_factory=lambda: ["spheres", "planes", "triangles"],
                                   description="the kinds of primitive it traces (a scene with another is a 422)")
+    meshes_on_gpu: bool = Field(False, description="its GPU layout holds triangles: it traces frames of scenes "
+                                                   "with meshes (bih, bruteforce, auto); the other one-pass methods "
+                                                   "answer those with 422 'meshes'")
     auto: bool = Field(False, description="resolved per scene: brute force below the crossover, else bih")
 
 

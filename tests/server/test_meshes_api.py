@@ -1,9 +1,11 @@
 """Meshes through the API (issue #20): scenes with meshes in and out, model files uploaded as
-bytes, bad meshes refused with 422 naming the field (413 for bodies too large), and frames
-refused until the GPU traces triangles."""
+bytes, bad meshes refused with 422 naming the field (413 for bodies too large), frames
+served by the methods that trace triangles on the GPU (bih, bruteforce, auto) and refused
+with 422 by those that do not (bvh, kdtree, twolevel: ``meshes``; the ray engines: ``method``)."""
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import warnings
@@ -76,13 +78,27 @@ def test_a_scene_with_meshes_is_stored_and_streamed_back_in_world_space(api):
     assert stats["triangles"] == 92 and stats["primitives"] == 93
 
 
-def test_frames_of_a_scene_with_meshes_are_refused_until_the_gpu_traces_triangles(api):
-    sid = create(api, mesh_scene_json()).json()["id"]
+@pytest.mark.parametrize("method", ["bih", "bruteforce", "auto"])
+def test_frames_of_a_scene_with_meshes_are_served_by_the_methods_that_trace_triangles(api, method):
+    sid = create(api, mesh_scene_json(), method=method, mode="primid").json()["id"]
+    r = api.get(f"/api/sessions/{sid}/frame", params={"format": "npy"})
+    assert r.status_code == 200, r.text
+    ids = np.load(io.BytesIO(r.content))
+    # sphere 0, plane 1, the icosphere's triangles 2 … 81, the box's 82 … 93 (FORMATS.md)
+    assert ids.shape == (SMALL["height"], SMALL["width"])
+    assert (ids >= 2).any() and (ids == 0).any(), np.unique(ids)
+    assert ids.max() <= 1 + 80 + 12
+
+
+@pytest.mark.parametrize("method", ["bvh", "kdtree", "twolevel"])
+def test_frames_of_a_scene_with_meshes_are_refused_by_the_methods_that_pack_spheres_only(api, method):
+    sid = create(api, mesh_scene_json(), method=method).json()["id"]
     r = api.get(f"/api/sessions/{sid}/frame")
     assert_422(r, "meshes")
-    assert "not traced on the GPU yet" in r.text
+    assert "bih, bruteforce, auto" in r.text and method in r.text
     assert_422(api.get(f"/api/sessions/{sid}/device-data"), "meshes")
-    assert_422(api.post("/api/render", json={"scene": mesh_scene_json(), "settings": SMALL}), "meshes")
+    assert_422(api.post("/api/render", json={"scene": mesh_scene_json(), "settings": {**SMALL, "method": method}}),
+               "meshes")
 
 
 def test_the_ray_engines_refuse_a_scene_with_meshes_naming_the_method(api):
@@ -204,4 +220,5 @@ def test_info_states_the_triangle_cap_and_what_each_method_traces(api):
     assert info["limits"]["max_triangles"] == MAX_TRIANGLES
     assert info["method_settings"]["rayengine"]["primitives"] == ["spheres", "planes"]
     assert "triangles" in info["method_settings"]["bih"]["primitives"]
+    assert {m for m, x in info["method_settings"].items() if x["meshes_on_gpu"]} == {"bih", "bruteforce", "auto"}
     assert math.isfinite(api.get("/api/info").json()["limits"]["max_frame_cost"])
