@@ -523,8 +523,8 @@ class MethodSettingsOut(BaseModel):
     primitives: list[str] = Field(default_factory=lambda: ["spheres", "planes", "triangles"],
                                   description="the kinds of primitive it traces (a scene with another is a 422)")
     meshes_on_gpu: bool = Field(False, description="its GPU layout holds triangles: it traces frames of scenes "
-                                                   "with meshes (bih, bruteforce, auto); the other one-pass methods "
-                                                   "answer those with 422 'meshes'")
+                                                   "with meshes (every one-pass method and auto); a method without "
+                                                   "it would answer those with 422 'meshes'")
     auto: bool = Field(False, description="resolved per scene: brute force below the crossover, else bih")
 
 

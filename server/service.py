@@ -409,7 +409,8 @@ class SessionService:
     def check_traceable(frame: PreparedFrame, where: str) -> None:
         """422 (``meshes``) before admission for a frame its method cannot trace on the GPU: one
         with triangles for a one-pass method whose layout holds spheres only
-        (``Capabilities.meshes_on_gpu`` False: bvh, kdtree, twolevel; its trees are built, its
+        (``Capabilities.meshes_on_gpu`` False — none since every one-pass layout holds triangles,
+        the check stays for a method added without them; its trees are built, its
         cost is known, the GL frame would refuse it too). The ray engines refuse meshes
         earlier, naming the ``method`` (prepare_frame's check_primitives)."""
         if frame.scene.n_triangles and not frame.multi_pass and not METHODS[frame.method].capabilities.meshes_on_gpu:

@@ -133,6 +133,10 @@ void triangle_surface(vec3 d, Hit h, inout Surface s) {
     if (!slab_interval(q.o, q.d, u_box_min, u_box_max, t0, t1) || !(t0 <= t1)) return;
 #if 0
 
+//@SECTION if0
+    // (with triangles there is at least one tree primitive, and u_num_spheres may be 0)
+#if 0
+
 //@SECTION end_if0
 #endif
 

@@ -37,9 +37,9 @@ class PreparedMethod:
     reference walk; None for a method without one).
 
     For a scene with triangles ``packed`` is :class:`NotOnGPU` for a method whose GPU layout
-    packs spheres only (``Capabilities.meshes_on_gpu`` False: bvh, kdtree, twolevel): the
-    trees are built over spheres and triangles, but only the BIH's and brute force's
-    layouts hold triangles (issue #20's GPU part)."""
+    packs spheres only (``Capabilities.meshes_on_gpu`` False; since issue #20's GPU part
+    every one-pass method's layout holds triangles, so none today: the refusal stays for a
+    method added without them)."""
     packed: gpu_layout.PackedScene
     build_ms: float
     stats: dict[str, Any] = field(default_factory=dict)
@@ -47,8 +47,8 @@ class PreparedMethod:
 
 
 # The one-pass methods whose GPU layouts hold triangles (Capabilities.meshes_on_gpu), named in
-# the refusal of the others; auto resolves to one of them.
-MESH_METHODS = ("bih", "bruteforce", "auto")
+# the refusal of any other; auto resolves to one of them.
+MESH_METHODS = ("bih", "bruteforce", "bvh", "kdtree", "twolevel", "auto")
 NOT_ON_GPU = ("this method's GPU layout holds spheres only: its frames of a scene with triangle meshes are "
               f"not traced on the GPU (issue #20); the methods that trace meshes are {', '.join(MESH_METHODS)}")
 
@@ -126,9 +126,10 @@ class Capabilities:
     (:data:`renderer.tree_update.UPDATE_SCHEMES`); ``("rebuild",)`` = always rebuilds.
     settings: the render settings its build or passes read (``max_prims``,
     ``max_tree_depth``, ``tile_size``, ``update``…): a client shows only these.
-    meshes_on_gpu: its GPU layout and traversal hold triangles (bih, bruteforce), so a scene
-    with meshes is traced on the GPU; the other one-pass methods build over triangles on the
-    CPU but refuse such frames (:class:`NotOnGPU`), and the server refuses them with 422.
+    meshes_on_gpu: its GPU layout and traversal hold triangles (bih, bruteforce, bvh, kdtree,
+    twolevel), so a scene with meshes is traced on the GPU; a one-pass method without it
+    builds over triangles on the CPU but refuses such frames (:class:`NotOnGPU`), and the
+    server refuses them with 422 ``meshes``.
     """
     multi_pass: bool = False
     shader: str | None = None
