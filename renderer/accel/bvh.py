@@ -720,6 +720,7 @@ class BVHMethod:
         t0 = time.perf_counter()
         bvh = self.build(scene, max_prims, max_tree_depth, update)
         ms = (time.perf_counter() - t0) * 1e3
-        packed = gpu_data(scene, meshes_on_gpu=True, method=self.name, pack=lambda: L.pack_bvh(bvh, scene, None, max_width))
+        packed = gpu_data(scene, meshes_on_gpu=True, method=self.name,
+                          pack=lambda: L.pack_bvh(bvh, scene, None, max_width))
         return PreparedMethod(packed, ms,
                               {"method": self.name, **bvh.stats.to_json(), **mesh_stats(scene)}, tree=bvh)

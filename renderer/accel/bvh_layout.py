@@ -21,7 +21,8 @@ texels ``2i`` and ``2i + 1``::
 which is what the traversal tests there; a leaf has no record (its parent's ref says
 where its spheres are), and the spheres are sphere records in leaf order
 (:func:`renderer.gpu_layout.sphere_records`, the last of each leaf flagged), so no index
-array is read. Inner records keep the build's order, renumbered without the leaves. With triangles a tree primitive that is a triangle has a slot of a sphere record's size
+array is read. Inner records keep the build's order, renumbered without the leaves.
+With triangles a tree primitive that is a triangle has a slot of a sphere record's size
 there instead (:func:`renderer.gpu_layout.leaf_records`, its corners in ``u_triangles``), so
 positions, refs and the ``last`` flags are as for spheres.
 

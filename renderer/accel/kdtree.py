@@ -469,6 +469,7 @@ class KdTreeMethod:
         t0 = time.perf_counter()
         kd = build_for_scene(scene, max_tree_depth, self.cost_scale)
         ms = (time.perf_counter() - t0) * 1e3
-        packed = gpu_data(scene, meshes_on_gpu=True, method=self.name, pack=lambda: L.pack_kdtree(kd, scene, None, max_width))
+        packed = gpu_data(scene, meshes_on_gpu=True, method=self.name,
+                          pack=lambda: L.pack_kdtree(kd, scene, None, max_width))
         return PreparedMethod(packed, ms,
                               {"method": self.name, **kd.stats.to_json(), **mesh_stats(scene)}, tree=kd)

@@ -20,7 +20,8 @@ spheres are, and every leaf's spheres are a run of sphere records
 (:func:`renderer.gpu_layout.sphere_records`, the last flagged) in leaf order — a straddler
 has a record in every leaf it is in, so no index array is read (the runs hold the
 references, ``stats.references``, not the compacted index array). An empty leaf has no
-records: its ref says so. Inner records keep the build's order, renumbered without leaves. With triangles a tree primitive that is a triangle has a slot of a sphere record's size
+records: its ref says so. Inner records keep the build's order, renumbered without leaves.
+With triangles a tree primitive that is a triangle has a slot of a sphere record's size
 there instead (:func:`renderer.gpu_layout.leaf_records`, its corners in ``u_triangles``), so
 positions, refs and the ``last`` flags are as for spheres.
 

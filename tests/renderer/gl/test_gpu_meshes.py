@@ -264,7 +264,7 @@ def test_no_ray_leaks_through_a_closed_mesh(gl_renderer, kind, method):
     assert differ <= 0.002 * inside_total, f"{kind}/{method}: {differ} pixels disagree on hit or miss"
 
 
-def test_a_method_that_packs_spheres_only_refuses_meshes_naming_those_that_do(gl_renderer, scene, monkeypatch):
+def test_a_method_that_packs_spheres_only_refuses_meshes_naming_those_that_do(gl_renderer, scene):
     """NotOnGPU stands for a method without ``meshes_on_gpu``: the frame's upload refuses."""
     from renderer.accel import base
     from renderer.methods import METHODS
