@@ -48,13 +48,16 @@ and the triangle itself lives in the scene's triangle records (:func:`triangle_r
 ``u_triangles``, a record array indexed by j, read by the traversal's test and once more
 by the shading of a hit)::
 
-    3j      x, y, z  float32 bits of corner v0;  w  material (bits 7..0)
+    3j      x, y, z  float32 bits of corner v0;  w  material (bits 7..0),
+                                                    bit 31 TRI_DEGENERATE
     3j + 1  x, y, z  float32 bits of corner v1;  w  0
     3j + 2  x, y, z  float32 bits of corner v2;  w  0                   total: 48 bytes
 
-A zero-area triangle (``Scene.triangle_degenerate``) is packed as v0 three times: every
-edge function of Woop et al.'s test is then E(A, A) = 0, det = 0, a miss, as the
-reference never hits it. With ``SMOOTH_TRIANGLES`` the vertex normals follow in
+A zero-area triangle (``Scene.triangle_degenerate``: its float64 cross product is 0) is
+flagged TRI_DEGENERATE and the test skips it, as the reference never hits it. (Its float32
+corners alone would not do: a collinear triangle's det can round to a nonzero value, and
+even three equal corners give E(A, A) = fl(fma(a, b, −fl(b·a))) ≠ 0 where a compiler fuses.)
+With ``SMOOTH_TRIANGLES`` the vertex normals follow in
 ``u_tri_normals``, read only when a hit is shaded::
 
     3j + k  x, y, z  float32 bits of corner k's unit normal (normalised in float64);
@@ -114,6 +117,7 @@ assert MAX_SPHERES <= 1 << SPHERE_ID_BITS and MAX_MATERIALS <= SPHERE_MAT_MASK +
 # in a sphere key: ids take bits 20..0, materials 28..21) and the triangle index below it.
 TRI_SLOT = 1 << 30
 TRI_INDEX_MASK = TRI_SLOT - 1
+TRI_DEGENERATE = 1 << 31                # in the material word of a triangle's first record
 TRIANGLE_TEXELS = 3                     # records per triangle in u_triangles and u_tri_normals
 assert MAX_TRIANGLES <= TRI_SLOT
 
@@ -432,12 +436,12 @@ def leaf_records(scene: Scene, order: np.ndarray, last: np.ndarray | None = None
 
 def triangle_records(scene: Scene) -> np.ndarray:
     """``u_triangles``: uint32 (3 T, 4), the module's docstring."""
-    c = np.asarray(scene.triangle_corners, dtype=np.float64).reshape(-1, 3, 3).copy()
+    c = np.asarray(scene.triangle_corners, dtype=np.float64).reshape(-1, 3, 3)
     degenerate = np.asarray(scene.triangle_degenerate, dtype=bool)
-    c[degenerate] = c[degenerate, :1]                  # E(A, A) = 0 for every edge: never hit
     out = np.zeros((len(c), 3, 4), dtype=np.uint32)
     out[:, :, :3] = np.ascontiguousarray(c, dtype=np.float32).view(np.uint32)
-    out[:, 0, 3] = np.asarray(scene.triangle_materials, dtype=np.uint32)
+    out[:, 0, 3] = (np.asarray(scene.triangle_materials, dtype=np.uint32)
+                    | np.where(degenerate, np.uint32(TRI_DEGENERATE), np.uint32(0)))
     return out.reshape(-1, 4)
 
 
@@ -684,4 +688,5 @@ def triangle_constants() -> str:
     format, so a sphere-only variant's text stays what it was before meshes."""
     return (f"#define TRI_SLOT {TRI_SLOT}u\n"
             f"#define TRI_INDEX_MASK {TRI_INDEX_MASK}u\n"
+            f"#define TRI_DEGENERATE {TRI_DEGENERATE}u\n"
             f"#define TRIANGLE_TEXELS {TRIANGLE_TEXELS}\n")

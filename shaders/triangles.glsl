@@ -45,23 +45,25 @@ float edge_fn(vec2 p, vec2 q) {
 }
 
 // Record k of triangle j (renderer/gpu_layout.py, triangle_records): corner k in xyz, the
-// material in w of corner 0.
+// material and the TRI_DEGENERATE flag in w of corner 0.
 #define TRI_RECORD(j, k) u_triangles_at(TRIANGLE_TEXELS * (j) + (k))
 
 // Triangle j (scene id u_tri_base + j) against the query's ray: both sides hit, the
 // triangle the ray leaves ignored (a triangle is flat: the ray cannot meet it again, the
-// no-epsilon exclusion of docs/SHADING.md). A zero-area triangle is packed as one corner
-// three times: every edge function is E(A, A) = 0, det = 0, never a hit. The hit keeps
+// no-epsilon exclusion of docs/SHADING.md). A zero-area triangle (float64 cross product 0)
+// is flagged and never hit, as in the reference: its float32 det need not be 0. The hit keeps
 // (U, V, W, det) in h.sphere — the barycentric weights U/det, V/det, W/det that smooth
 // shading blends the vertex normals with — and j in h.key.
 void test_triangle(Query q, int j, inout Hit h) {
     COUNT(z);
     int id = u_tri_base + j;
     if (id == q.skip) return;
+    uvec4 r0 = TRI_RECORD(j, 0);
+    if ((r0.w & TRI_DEGENERATE) != 0u) return;
     Shear sh = g_shear;
     // Corners relative to the origin, then sheared: each corner's values depend only on
     // the corner and the ray, so triangles sharing a corner see it bitwise alike.
-    vec3 A = uintBitsToFloat(TRI_RECORD(j, 0).xyz) - q.o;
+    vec3 A = uintBitsToFloat(r0.xyz) - q.o;
     vec3 B = uintBitsToFloat(TRI_RECORD(j, 1).xyz) - q.o;
     vec3 C = uintBitsToFloat(TRI_RECORD(j, 2).xyz) - q.o;
     vec2 a = vec2(A[sh.kx] - sh.s.x * A[sh.kz], A[sh.ky] - sh.s.y * A[sh.kz]);
@@ -112,7 +114,7 @@ void triangle_surface(vec3 d, Hit h, inout Surface s) {
     }
 #endif
 #ifdef READS_MATERIALS
-    s.mat = int(r0.w & SPHERE_MAT_MASK);
+    s.mat = int(r0.w & SPHERE_MAT_MASK);   // (bits 7..0; bit 31 is TRI_DEGENERATE)
 #endif
 }
 
