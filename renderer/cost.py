@@ -9,8 +9,11 @@ the next level with probability ``level_decay``; each radiance ray in the colour
 casts one shadow ray per light. Each ray costs what its hierarchy says a ray through the
 scene's box costs — the SAH's two terms, computed by the build (``sah_nodes`` node visits,
 ``sah_tests`` sphere tests: a single leaf of n spheres costs n tests, as brute force) — plus
-one test per plane. The ray engines draw every primitive over every ray of a layer
-(``ns_raster`` per primitive and pixel).
+one test per plane. A triangle test counts as a sphere test (one leaf test, ``n`` = spheres +
+triangles): kept simple on purpose — Woop et al.'s test fetches three records instead of
+one and does more arithmetic, and the constants were fitted to sphere frames only; how far
+a mesh frame's estimate is off has not been measured yet. The ray engines draw
+every primitive over every ray of a layer (``ns_raster`` per primitive and pixel).
 
 The constants are nanoseconds of this project's reference machine (2 cores, Mesa
 llvmpipe), fitted by ``bench/cost.py`` to measured traces; the fit is in docs/RESULTS.md.

@@ -13,7 +13,10 @@ stack: every hit then spawns at most one ray, so the ray tree is a path (issue 1
 Two defines are not choices but the scene's *data formats* (``renderer/gpu_layout.py``),
 carried by every variant, the generic one too, because the packers follow them:
 ``EQUAL_RADII`` (16-byte sphere records, the radius a uniform) and ``MATERIAL_TEXTURE``
-(more materials than the uniform array holds).
+(more materials than the uniform array holds). Two more only scenes with meshes carry:
+``TRIANGLES`` (the triangle records, Woop et al.'s test and the triangles' shading compiled
+in) and ``SMOOTH_TRIANGLES`` (some mesh has vertex normals: they are read when a hit is
+shaded). A sphere-only scene carries neither, so its shader text is the one before meshes.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from .scene import Scene
 REMOVALS = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS", "NO_SPLIT")
 PLANE_COUNTS = tuple(f"PLANES_{k}" for k in range(MAX_PLANES + 1))
 LIGHT_COUNTS = tuple(f"LIGHTS_{k}" for k in range(1, MAX_LIGHTS + 1))   # no lights: NO_LIGHTS
-DATA_FORMATS = ("EQUAL_RADII", "MATERIAL_TEXTURE")
+DATA_FORMATS = ("EQUAL_RADII", "MATERIAL_TEXTURE", "TRIANGLES", "SMOOTH_TRIANGLES")
 # The defines a variant may carry, in the order they are emitted (the server's shader query
 # accepts these, in this order).
 FEATURE_DEFINES = (*REMOVALS, *PLANE_COUNTS, *LIGHT_COUNTS, *DATA_FORMATS)
@@ -46,6 +49,8 @@ class SceneFeatures:
     n_lights: int | None = None
     equal_radii: bool = False         # data formats (gpu_layout), never specialised away
     material_texture: bool = False
+    triangles: bool = False
+    smooth_triangles: bool = False
 
     def defines(self) -> tuple[str, ...]:
         """The variant's defines, in FEATURE_DEFINES order: what the scene cannot use removed,
@@ -67,6 +72,10 @@ class SceneFeatures:
             on.add("EQUAL_RADII")
         if self.material_texture:
             on.add("MATERIAL_TEXTURE")
+        if self.triangles:
+            on.add("TRIANGLES")
+        if self.smooth_triangles:
+            on.add("SMOOTH_TRIANGLES")
         return tuple(d for d in FEATURE_DEFINES if d in on)
 
     def removed(self) -> list[str]:
@@ -79,7 +88,8 @@ class SceneFeatures:
 
     def generic(self) -> "SceneFeatures":
         """The generic variant for the same data: nothing removed, counts read at run time."""
-        return replace(GENERIC, equal_radii=self.equal_radii, material_texture=self.material_texture)
+        return replace(GENERIC, equal_radii=self.equal_radii, material_texture=self.material_texture,
+                       triangles=self.triangles, smooth_triangles=self.smooth_triangles)
 
 
 GENERIC = SceneFeatures(reflection=True, transmission=True, lights=True)
@@ -97,4 +107,6 @@ def scene_features(scene: Scene) -> SceneFeatures:
                          split=any(m.reflective > 0 and m.transmissive > 0 for m in mats),
                          n_planes=len(scene.planes), n_lights=len(scene.lights),
                          equal_radii=gpu_layout.equal_radii(scene),
-                         material_texture=gpu_layout.material_texture(scene))
+                         material_texture=gpu_layout.material_texture(scene),
+                         triangles=gpu_layout.has_triangles(scene),
+                         smooth_triangles=gpu_layout.smooth_triangles(scene))

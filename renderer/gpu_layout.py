@@ -35,6 +35,40 @@ leaf is a run of records, the last one flagged), so a leaf needs no index array:
         2p       x, y, z, w  float32 bits of the centre and the radius
         2p + 1   x           key (as above); y, z, w zero                   total: 32 bytes
 
+**Triangles** (scenes with meshes only: the variant carries the data-format define
+``TRIANGLES``, and ``SMOOTH_TRIANGLES`` when a mesh has vertex normals; a sphere-only
+variant's text is the one before meshes). A method's leaf-order records hold one *slot*
+per tree primitive, the size of a sphere record (16 or 32 bytes), so leaves, refs and
+the ``last`` flags stay as they were; a triangle's slot is (:func:`leaf_records`)::
+
+    key (where a sphere record has its key): bit 30 TRI_SLOT, bits 29..0 the triangle
+        index j (scene order, < MAX_TRIANGLES), bit 31 last of its leaf; the rest zero
+
+and the triangle itself lives in the scene's triangle records (:func:`triangle_records`,
+``u_triangles``, a record array indexed by j, read by the traversal's test and once more
+by the shading of a hit)::
+
+    3j      x, y, z  float32 bits of corner v0;  w  material (bits 7..0),
+                                                    bit 31 TRI_DEGENERATE
+    3j + 1  x, y, z  float32 bits of corner v1;  w  0
+    3j + 2  x, y, z  float32 bits of corner v2;  w  0                   total: 48 bytes
+
+A zero-area triangle (``Scene.triangle_degenerate``: its float64 cross product is 0) is
+flagged TRI_DEGENERATE and the test skips it, as the reference never hits it. (Its float32
+corners alone would not do: a collinear triangle's det can round to a nonzero value, and
+even three equal corners give E(A, A) = fl(fma(a, b, −fl(b·a))) ≠ 0 where a compiler fuses.)
+With ``SMOOTH_TRIANGLES`` the vertex normals follow in
+``u_tri_normals``, read only when a hit is shaded::
+
+    3j + k  x, y, z  float32 bits of corner k's unit normal (normalised in float64);
+            w  1 for a smooth triangle, 0 for a flat one (its normals are zero)
+                                                                        total: 48 bytes
+
+``u_tri_base`` is the scene id of triangle 0 (``Scene.triangle_id_base``: spheres +
+planes), so a hit writes scene ids. The methods that trace triangles list
+:data:`TRIANGLE_BINDINGS` among their own bindings, so these record arrays, like the
+method's, may sit in uniform blocks; the background variant reads none of them.
+
 ==============  ========  ==========  ==========================================
 texture         format    element     contents
 ==============  ========  ==========  ==========================================
@@ -60,7 +94,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .limits import DEFAULT_TEXTURE_WIDTH, MAX_LIGHTS, MAX_MATERIALS, MAX_PLANES, MAX_SPHERES
+from .limits import DEFAULT_TEXTURE_WIDTH, MAX_LIGHTS, MAX_MATERIALS, MAX_PLANES, MAX_SPHERES, MAX_TRIANGLES
 from .modes import RAY_TREE_MODES
 from .scene import Camera, Scene
 
@@ -79,6 +113,13 @@ SPHERE_MAT_SHIFT = SPHERE_ID_BITS
 SPHERE_MAT_MASK = 0xFF                  # materials < MAX_MATERIALS = 256
 SPHERE_LAST = 1 << 31                   # the last record of a leaf
 assert MAX_SPHERES <= 1 << SPHERE_ID_BITS and MAX_MATERIALS <= SPHERE_MAT_MASK + 1
+# A triangle's slot among the leaf-order records (the module's docstring): bit 30 (never set
+# in a sphere key: ids take bits 20..0, materials 28..21) and the triangle index below it.
+TRI_SLOT = 1 << 30
+TRI_INDEX_MASK = TRI_SLOT - 1
+TRI_DEGENERATE = 1 << 31                # in the material word of a triangle's first record
+TRIANGLE_TEXELS = 3                     # records per triangle in u_triangles and u_tri_normals
+assert MAX_TRIANGLES <= TRI_SLOT
 
 
 # ---- bindings and variants -----------------------------------------------------------------
@@ -122,6 +163,9 @@ class Binding:
 
 # Groups of bindings a variant may not read; each has a READS_<GROUP> define in the shader.
 GROUPS = ("materials", "lights", "min_weight", "target_distance")
+# Groups whose READS_<GROUP> define only variants with triangles get (renderer/shader_source.py),
+# so no sphere variant's text changes for them: the smooth triangles' vertex normals.
+SILENT_GROUPS = ("shading_normals",)
 
 
 @dataclass(frozen=True)
@@ -163,6 +207,11 @@ class Variant:
             return self.spawns
         if group == "target_distance":
             return self.mode == "depth"
+        if group == "shading_normals":   # a hit's shading normal: the hit target, or the image
+            if not self.image_only:
+                return True
+            return (self.mode == "normal" or (self.mode == "color" and (self.reads("lights") or self.spawns))
+                    or (self.mode == "recursion" and self.spawns))
         raise ValueError(f"unknown binding group {group!r}")
 
     def reads_binding(self, b: Binding) -> bool:
@@ -195,6 +244,16 @@ PLANE_MAT = Binding("u_plane_mat", "highp int", length="MAX_PLANES", group="mate
 NUM_LIGHTS = Binding("u_num_lights", "highp int", group="lights", unless="LIGHTS_")
 LIGHT_POS = Binding("u_light_pos", "highp vec3", length="MAX_LIGHTS", group="lights")
 LIGHT_COLOR = Binding("u_light_color", "highp vec3", length="MAX_LIGHTS", group="lights")
+# The triangles (only with the TRIANGLES data format): listed among the bindings of each method
+# that traces them, packed by its packer with pack_triangles, so that they may be uniform blocks.
+TRIANGLES = Binding("u_triangles", doc="TRIANGLE_TEXELS records per triangle: corners, material", records=True,
+                    needs="TRIANGLES", traversal=True)
+TRI_NORMALS = Binding("u_tri_normals", doc="TRIANGLE_TEXELS records per triangle: vertex normals", records=True,
+                      group="shading_normals", needs="SMOOTH_TRIANGLES", traversal=True)
+TRI_BASE = Binding("u_tri_base", "highp int", "scene id of triangle 0 (spheres + planes)", needs="TRIANGLES",
+                   traversal=True)
+NUM_TRIANGLES = Binding("u_num_triangles", "highp int", needs="TRIANGLES", traversal=True)
+TRIANGLE_BINDINGS = (TRIANGLES, TRI_NORMALS, TRI_BASE, NUM_TRIANGLES)
 # Everything pack_primitives packs (the tracer's and the ray engines' scene data).
 SCENE_BINDINGS = (SPHERES, SPHERE_MAT, MATERIALS, MATERIAL_VECS, SPHERE_RADIUS, NUM_SPHERES, NUM_PLANES,
                   PLANE_POINT, PLANE_NORMAL, PLANE_MAT, NUM_LIGHTS, LIGHT_POS, LIGHT_COLOR)
@@ -336,6 +395,92 @@ def unpack_sphere_records(records: np.ndarray, equal: bool) -> dict[str, np.ndar
             "last": (key & np.uint32(SPHERE_LAST)) != 0}
 
 
+def has_triangles(scene: Scene) -> bool:
+    """The TRIANGLES data format: the scene has triangles (meshes)."""
+    return scene.n_triangles > 0
+
+
+def smooth_triangles(scene: Scene) -> bool:
+    """The SMOOTH_TRIANGLES data format: some mesh has vertex normals."""
+    return bool(scene.n_triangles and np.asarray(scene.triangle_smooth, dtype=bool).any())
+
+
+def leaf_records(scene: Scene, order: np.ndarray, last: np.ndarray | None = None) -> np.ndarray:
+    """The records of tree primitives ``order`` (tree indices in leaf order: ``i < n_spheres``
+    sphere ``i``, else triangle ``i − n_spheres``, renderer/accel/primitives.py): a sphere's
+    record as :func:`sphere_records`, a triangle's slot of the same size (the module's
+    docstring). Without triangles this is :func:`sphere_records` itself."""
+    order = np.asarray(order, dtype=np.int64).reshape(-1)
+    n = scene.n_spheres
+    if not scene.n_triangles:
+        return sphere_records(scene, order, last)
+    is_tri = order >= n
+    # Spheres' records with a placeholder id where a triangle goes, then the slots overwritten.
+    out = sphere_records(scene, np.where(is_tri, 0, order), last) if n else None
+    per = 1 if equal_radii(scene) else 2
+    if out is None:
+        out = np.zeros((per * len(order), 4), dtype=np.uint32)
+    key = (order - n).astype(np.uint32) | np.uint32(TRI_SLOT)
+    if last is not None:
+        key |= np.where(np.asarray(last, dtype=bool), np.uint32(SPHERE_LAST), np.uint32(0))
+    rows = np.flatnonzero(is_tri)
+    if per == 1:
+        out[rows] = 0
+        out[rows, 3] = key[rows]
+    else:
+        out[2 * rows] = 0
+        out[2 * rows + 1] = 0
+        out[2 * rows + 1, 0] = key[rows]
+    return out
+
+
+def triangle_records(scene: Scene) -> np.ndarray:
+    """``u_triangles``: uint32 (3 T, 4), the module's docstring."""
+    c = np.asarray(scene.triangle_corners, dtype=np.float64).reshape(-1, 3, 3)
+    degenerate = np.asarray(scene.triangle_degenerate, dtype=bool)
+    out = np.zeros((len(c), 3, 4), dtype=np.uint32)
+    out[:, :, :3] = np.ascontiguousarray(c, dtype=np.float32).view(np.uint32)
+    out[:, 0, 3] = (np.asarray(scene.triangle_materials, dtype=np.uint32)
+                    | np.where(degenerate, np.uint32(TRI_DEGENERATE), np.uint32(0)))
+    return out.reshape(-1, 4)
+
+
+def triangle_normal_records(scene: Scene) -> np.ndarray:
+    """``u_tri_normals``: uint32 (3 T, 4), unit vertex normals (float64 normalised, as the
+    reference does) and w = 1 for a smooth triangle."""
+    vn = np.asarray(scene.triangle_normals, dtype=np.float64).reshape(-1, 3, 3)
+    length = np.linalg.norm(vn, axis=2, keepdims=True)
+    vn = vn / np.where(length > 0, length, 1.0)
+    out = np.zeros((len(vn), 3, 4), dtype=np.uint32)
+    out[:, :, :3] = np.ascontiguousarray(vn, dtype=np.float32).view(np.uint32)
+    out[:, :, 3] = np.asarray(scene.triangle_smooth, dtype=np.uint32)[:, None]
+    return out.reshape(-1, 4)
+
+
+def pack_triangles(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH, count: bool = True) -> PackedScene:
+    """What :data:`TRIANGLE_BINDINGS` read: nothing for a scene without triangles (its variant
+    declares none of them), the normals only when some mesh is smooth; ``count`` False
+    leaves out ``u_num_triangles`` (a tree's leaves say where its triangles are)."""
+    if not scene.n_triangles:
+        return PackedScene({}, {})
+    textures = {TRIANGLES.name: wrap_rows(triangle_records(scene), max_width)}
+    if smooth_triangles(scene):
+        textures[TRI_NORMALS.name] = wrap_rows(triangle_normal_records(scene), max_width)
+    uniforms: dict[str, object] = {TRI_BASE.name: int(scene.triangle_id_base)}
+    if count:
+        uniforms[NUM_TRIANGLES.name] = int(scene.n_triangles)
+    return PackedScene(textures, uniforms)
+
+
+def merged(*parts: PackedScene) -> PackedScene:
+    """One packed scene of several (names are distinct)."""
+    out = PackedScene({}, {})
+    for p in parts:
+        out.textures.update(p.textures)
+        out.uniforms.update(p.uniforms)
+    return out
+
+
 def leaf_ends(starts: np.ndarray, counts: np.ndarray, total: int) -> np.ndarray:
     """The ``last`` flags of :func:`sphere_records` for leaves of ``counts`` records at ``starts``."""
     last = np.zeros(total, dtype=bool)
@@ -414,19 +559,29 @@ def camera_uniforms(camera: Camera, width: int, height: int) -> dict[str, object
 
 def primary_rect(scene: Scene, width: int, height: int, margin: int = 2) -> tuple[int, int, int, int] | None:
     """The window rectangle ``(x, y, w, h)`` (GL coordinates: rows from the bottom) of a
-    ``width × height`` grid of primary rays outside which no ray can meet a sphere: the
-    bounding rectangle of the spheres' box projected through the camera
+    ``width × height`` grid of primary rays outside which no ray can meet a sphere (or a
+    triangle): the bounding rectangle of the spheres' (and triangles') box projected through the camera
     (:func:`camera_uniforms`' pixel mapping), widened by ``margin`` pixels and clipped to
     the grid; ``(0, 0, 0, 0)`` without spheres. None when there is no such bound: a corner
     of the box at or behind the camera's plane (the camera inside or beside the box).
 
     The box is the float64 one widened by a relative 1e-6, so it holds every sphere as
     float32 stores it; the margin covers the float32 rounding of the rays' directions."""
-    if scene.n_spheres == 0:
+    if scene.n_spheres == 0 and scene.n_triangles == 0:
         return (0, 0, 0, 0)
-    c, r = scene.sphere_centers, scene.sphere_radii[:, None]
-    slack = 1e-6 * (np.abs(c) + r).max()
-    lo, hi = (c - r).min(axis=0) - slack, (c + r).max(axis=0) + slack
+    if scene.n_triangles == 0:
+        c, r = scene.sphere_centers, scene.sphere_radii[:, None]
+        slack = 1e-6 * (np.abs(c) + r).max()
+        lo, hi = (c - r).min(axis=0) - slack, (c + r).max(axis=0) + slack
+    else:
+        # The triangles' corners too (a triangle is their convex hull), with the same slack.
+        pts = [np.asarray(scene.triangle_corners, dtype=np.float64).reshape(-1, 3)]
+        if scene.n_spheres:
+            c, r = scene.sphere_centers, scene.sphere_radii[:, None]
+            pts += [c - r, c + r]
+        pts = np.concatenate(pts)
+        slack = 1e-6 * np.abs(pts).max()
+        lo, hi = pts.min(axis=0) - slack, pts.max(axis=0) + slack
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     right, up, forward = scene.camera.basis()
     v = corners - np.asarray(scene.camera.position, dtype=np.float64)
@@ -526,3 +681,12 @@ def tracer_constants() -> str:
             f"#define SPHERE_MAT_SHIFT {SPHERE_MAT_SHIFT}u\n"
             f"#define SPHERE_MAT_MASK {SPHERE_MAT_MASK}u\n"
             f"#define SPHERE_LAST {SPHERE_LAST}u\n")
+
+
+def triangle_constants() -> str:
+    """The triangle records' constants: emitted only into variants with the TRIANGLES data
+    format, so a sphere-only variant's text stays what it was before meshes."""
+    return (f"#define TRI_SLOT {TRI_SLOT}u\n"
+            f"#define TRI_INDEX_MASK {TRI_INDEX_MASK}u\n"
+            f"#define TRI_DEGENERATE {TRI_DEGENERATE}u\n"
+            f"#define TRIANGLE_TEXELS {TRIANGLE_TEXELS}\n")

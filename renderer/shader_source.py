@@ -2,7 +2,10 @@
 
 The tracer of a variant is ``raytrace.frag`` with the layout header and the variant's
 defines after ``#version`` (at ``//@HEADER@``) and the method's traversal
-(``shaders/<capabilities.shader>``) spliced in at ``//@METHOD@``. A ray-engine pass is
+(``shaders/<capabilities.shader>``) spliced in at ``//@METHOD@``; in a variant that traces
+triangles (the ``TRIANGLES`` data format) the ``//@TRIANGLES <name>`` marks of both get the
+sections of ``shaders/triangles.glsl``, in every other variant they are removed, so a
+sphere-only variant's text is exactly the one before meshes. A ray-engine pass is
 ``#version``, the same header, the pass's defines, ``rayengine_common.glsl`` and the
 pass's own file. The same text serves moderngl and the browser (WebGL2, ``GET
 /api/shader``); nothing here touches OpenGL.
@@ -21,6 +24,11 @@ SHADER_DIR = shader_dir()   # the package's shaders/ (installed) or the checkout
 HEADER_MARK = "//@HEADER@"
 METHOD_MARK = "//@METHOD@"
 INCLUDE_MARK = "//@INCLUDE "   # a line "//@INCLUDE method_bvh.glsl" in a method file inlines that file
+# A line "//@TRIANGLES <name>" in the tracer or a traversal: section <name> of TRIANGLES_FILE in a
+# variant that traces triangles, nothing at all in any other (with_triangles).
+TRIANGLES_MARK = "//@TRIANGLES "
+TRIANGLES_FILE = "triangles.glsl"
+SECTION_MARK = "//@SECTION "
 
 
 @lru_cache(maxsize=None)
@@ -65,7 +73,12 @@ def tracer_header(variant: Variant) -> str:
         defines.append("IMAGE_ONLY")
     if not variant.spheres:
         defines.append("BACKGROUND")
-    return (gpu_layout.glsl_header() + gpu_layout.tracer_constants() + METHODS[variant.method].glsl_defines()
+    triangles = ""
+    if "TRIANGLES" in variant.features:     # (only there: a sphere variant's text stays as it was)
+        triangles = gpu_layout.triangle_constants() + "".join(
+            f"#define READS_{g.upper()}\n" for g in gpu_layout.SILENT_GROUPS if variant.reads(g))
+    return (gpu_layout.glsl_header() + gpu_layout.tracer_constants() + triangles
+            + METHODS[variant.method].glsl_defines()
             + "".join(f"#define {d}\n" for d in defines)
             + gpu_layout.declarations(tracer_bindings(variant), tuple(variant.blocks)))
 
@@ -83,7 +96,46 @@ def tracer_source(method: str, mode: str, max_recursion_depth: int, extra_define
 def variant_source(variant: Variant) -> str:
     """The fragment shader of ``variant``."""
     method_src = _with_includes(read(method_shader(variant.method)))
-    return read("raytrace.frag").replace(HEADER_MARK, tracer_header(variant)).replace(METHOD_MARK, method_src)
+    text = read("raytrace.frag").replace(HEADER_MARK, tracer_header(variant)).replace(METHOD_MARK, method_src)
+    return with_triangles(text, traces_triangles(variant))
+
+
+def traces_triangles(variant: Variant) -> bool:
+    """Whether the variant traces triangles: the TRIANGLES data format, and not the
+    background variant (which has no traversal and so meets no triangle)."""
+    return "TRIANGLES" in variant.features and variant.spheres
+
+
+@lru_cache(maxsize=None)
+def triangle_sections() -> dict[str, str]:
+    """``shaders/triangles.glsl`` cut at its ``//@SECTION <name>`` lines: name → text."""
+    sections: dict[str, list[str]] = {}
+    current: list[str] | None = None
+    for line in read(TRIANGLES_FILE).splitlines(keepends=True):
+        if line.startswith(SECTION_MARK):
+            current = sections.setdefault(line[len(SECTION_MARK):].strip(), [])
+        elif current is not None:
+            current.append(line)
+    return {name: "".join(lines).rstrip("\n") + "\n" for name, lines in sections.items()}
+
+
+def with_triangles(text: str, triangles: bool) -> str:
+    """The ``//@TRIANGLES <name>`` marks of ``text`` replaced by their sections of
+    ``shaders/triangles.glsl`` (``triangles``), or removed, line and all: a variant without
+    triangles is then byte for byte the text it was before meshes (tests/golden), so
+    sphere-only frames compile to the same program and render the same pixels. A mark
+    without a section is an error (KeyError)."""
+    if TRIANGLES_MARK not in text:
+        return text
+    sections = triangle_sections() if triangles else {}
+    out = []
+    for line in text.splitlines(keepends=True):
+        if line.startswith(TRIANGLES_MARK):
+            if triangles:
+                out.append(sections[line[len(TRIANGLES_MARK):].strip()])
+        else:
+            out.append(line)
+    return "".join(out)
 
 
 def _with_includes(text: str) -> str:

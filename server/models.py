@@ -606,6 +606,9 @@ class MethodSettingsOut(BaseModel):
     tests_every_sphere: bool = Field(False, description="no hierarchy: POCKETRAY_MAX_BRUTEFORCE_WORK applies")
     primitives: list[str] = Field(default_factory=lambda: ["spheres", "planes", "triangles"],
                                   description="the kinds of primitive it traces (a scene with another is a 422)")
+    meshes_on_gpu: bool = Field(False, description="its GPU layout holds triangles: it traces frames of scenes "
+                                                   "with meshes (every one-pass method and auto); a method without "
+                                                   "it would answer those with 422 'meshes'")
     auto: bool = Field(False, description="resolved per scene: brute force below the crossover, else bih")
 
 

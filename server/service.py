@@ -80,12 +80,13 @@ def relocate(e: SceneError, where: str) -> InputError:
 
 def method_settings(name: str) -> dict[str, Any]:
     """What a client needs to show only the settings that apply to method ``name``: the
-    settings its build or passes read, its modes, its update schemes and whether a
-    browser can trace it (``auto`` answers for the BIH it picks above the crossover)."""
+    settings its build or passes read, its modes, its update schemes, whether a browser can
+    trace it and whether it traces meshes on the GPU (``auto`` answers for the BIH it picks
+    above the crossover)."""
     caps = METHODS[resolve_method(name, 1 << 30)].capabilities
     return {"settings": list(caps.settings), "modes": list(caps.modes), "update_schemes": list(caps.update_schemes),
             "device": caps.device, "tests_every_sphere": caps.tests_every_sphere, "auto": name == AUTO_METHOD,
-            "primitives": list(caps.primitives)}
+            "primitives": list(caps.primitives), "meshes_on_gpu": caps.meshes_on_gpu}
 
 
 def info_extras(config: ServerConfig) -> dict[str, Any]:
@@ -455,12 +456,17 @@ class SessionService:
 
     @staticmethod
     def check_traceable(frame: PreparedFrame, where: str) -> None:
-        """422 (``meshes``) before admission for a frame the GPU cannot trace yet: one with
-        triangles (its trees are built, its cost is known; the GL frame would refuse it too)."""
-        if frame.scene.n_triangles and not frame.multi_pass:
-            raise InputError((where, "meshes"), f"{NOT_ON_GPU}; this scene has {len(frame.scene.meshes)} mesh(es) of "
+        """422 (``meshes``) before admission for a frame its method cannot trace on the GPU: one
+        with triangles for a one-pass method whose layout holds spheres only
+        (``Capabilities.meshes_on_gpu`` False — none since every one-pass layout holds triangles,
+        the check stays for a method added without them; its trees are built, its
+        cost is known, the GL frame would refuse it too). The ray engines refuse meshes
+        earlier, naming the ``method`` (prepare_frame's check_primitives)."""
+        if frame.scene.n_triangles and not frame.multi_pass and not METHODS[frame.method].capabilities.meshes_on_gpu:
+            raise InputError((where, "meshes"), f"method {frame.method!r}: {NOT_ON_GPU}; this scene has "
+                                                f"{len(frame.scene.meshes)} mesh(es) of "
                                                 f"{frame.scene.n_triangles:,} triangles — its scene, statistics and "
-                                                f"meshes are served, its frames not yet")
+                                                f"meshes are served, its frames with those methods")
 
     # A ray through a good hierarchy tests a few dozen spheres; this many means they crowd it.
     CROWDED_TESTS = 1000

@@ -16,7 +16,9 @@ void method_init() {}
 // sphere records up to the one flagged last, pop.
 void intersect_spheres(Query q, inout Hit h) {
     float t0, t1;
+//@TRIANGLES bih_box
     if (u_num_spheres == 0 || !slab_interval(q.o, q.d, u_box_min, u_box_max, t0, t1) || !(t0 <= t1)) return;
+//@TRIANGLES end_if0
     if (t0 > h.t) return;     // the whole box lies beyond the best hit (a plane's)
     uint st_ref[BIH_STACK_SIZE];
     float st_a[BIH_STACK_SIZE];
@@ -75,6 +77,7 @@ void intersect_spheres(Query q, inout Hit h) {
             int p = int(ref & BIH_REF_INDEX);
             while (true) {
                 Sphere s = SPHERE_AT(u_bih_spheres_at, p);
+//@TRIANGLES leaf_slot
                 test_sphere(q, s, h);
                 if (q.any_hit && h.t < q.t_max) return;
                 if (SPHERE_IS_LAST(s.key)) break;

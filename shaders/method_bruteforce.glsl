@@ -9,4 +9,5 @@ void intersect_spheres(Query q, inout Hit h) {
         test_sphere(q, SPHERE_AT(u_bf_spheres_at, i), h);
         if (q.any_hit && h.id != NO_PRIM) return;
     }
+//@TRIANGLES bruteforce_loop
 }

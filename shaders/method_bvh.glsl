@@ -75,6 +75,7 @@ void bvh_intersect(Query q, inout Hit h) {
             int p = int(ref & BVH_REF_INDEX);
             while (true) {
                 Sphere s = SPHERE_AT(u_bvh_spheres_at, p);
+//@TRIANGLES leaf_slot
                 test_sphere(q, s, h);
                 if (q.any_hit && h.t < q.t_max) return;
                 if (SPHERE_IS_LAST(s.key)) break;
@@ -95,7 +96,9 @@ void bvh_intersect(Query q, inout Hit h) {
 void method_init() { bvh_init(); }
 
 void intersect_spheres(Query q, inout Hit h) {
+//@TRIANGLES if0
     if (u_num_spheres == 0) return;
+//@TRIANGLES end_if0
     bvh_intersect(q, h);
 }
 #endif

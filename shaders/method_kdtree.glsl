@@ -73,6 +73,7 @@ void kd_intersect(Query q, inout Hit h) {
             int p = int(ref & KD_REF_INDEX);
             while (true) {
                 Sphere s = SPHERE_AT(u_kd_spheres_at, p);
+//@TRIANGLES leaf_slot
                 test_sphere(q, s, h);
                 if (q.any_hit && h.t < q.t_max) return;
                 if (SPHERE_IS_LAST(s.key)) break;
@@ -95,7 +96,9 @@ void kd_intersect(Query q, inout Hit h) {
 void method_init() { kd_init(); }
 
 void intersect_spheres(Query q, inout Hit h) {
+//@TRIANGLES if0
     if (u_num_spheres == 0) return;
+//@TRIANGLES end_if0
     kd_intersect(q, h);
 }
 #endif

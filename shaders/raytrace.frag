@@ -141,6 +141,7 @@ bool slab_interval(vec3 o, vec3 d, vec3 bmin, vec3 bmax, out float t0, out float
     return true;
 }
 
+//@TRIANGLES functions
 #ifndef BACKGROUND
 //@METHOD@
 #else
@@ -175,6 +176,7 @@ void intersect_spheres(Query q, inout Hit h) {}
 
 Hit intersect_scene(Query q) {
     Hit h = Hit(q.t_max, NO_PRIM, vec4(0.0), 0u);
+//@TRIANGLES shear
     for (int i = 0; i < PLANE_LOOP; i++) {
         if (PLANES_END(i)) break;
         int id = u_num_spheres + i;
@@ -270,11 +272,14 @@ struct Surface {
     vec3 p;
     vec3 n;   // outward unit normal
     int mat;
+//@TRIANGLES surface_field
 };
+//@TRIANGLES surface_function
 
 Surface surface_at(vec3 o, vec3 d, Hit h) {
     Surface s;
     s.p = o + h.t * d;
+//@TRIANGLES surface_at
     if (h.id < u_num_spheres) {
         // From the centre's offset (o − c) + t·d, not from p − c: far from the origin
         // p is rounded to float32's spacing there (0.0625 at 1e6), which can exceed
@@ -292,6 +297,7 @@ Surface surface_at(vec3 o, vec3 d, Hit h) {
         s.mat = u_plane_mat[i];
 #endif
     }
+//@TRIANGLES surface_ng
     return s;
 }
 
@@ -356,6 +362,7 @@ void main() {
                 m = material_at(s.mat);
 #endif
                 nf = dot(k.d, s.n) < 0.0 ? s.n : -s.n;
+//@TRIANGLES facing
 #ifdef MODE_COLOR
                 colour += k.weight * m.ambient * m.color;   // Phong's ambient term
 #endif
@@ -405,6 +412,7 @@ void main() {
 #ifndef NO_TRANSMISSION
             if (m.transmissive > 0.0 && k.weight * m.transmissive >= u_min_weight) {
                 bool entering = dot(k.d, n) < 0.0;
+//@TRIANGLES entering
                 float eta = entering ? 1.0 / m.ior : m.ior;
                 vec3 nn = entering ? n : -n;
                 float cos_i = -dot(k.d, nn);

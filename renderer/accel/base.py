@@ -36,26 +36,32 @@ class PreparedMethod:
     built structure itself (``tree``: what the CPU traversals of the tests and the
     reference walk; None for a method without one).
 
-    For a scene with triangles ``packed`` is :class:`NotOnGPU`: the trees are built over
-    spheres and triangles, but the GPU layouts pack spheres only until the GPU tracer
-    traces triangles (issue #20's GPU part)."""
+    For a scene with triangles ``packed`` is :class:`NotOnGPU` for a method whose GPU layout
+    packs spheres only (``Capabilities.meshes_on_gpu`` False; since issue #20's GPU part
+    every one-pass method's layout holds triangles, so none today: the refusal stays for a
+    method added without them)."""
     packed: gpu_layout.PackedScene
     build_ms: float
     stats: dict[str, Any] = field(default_factory=dict)
     tree: Any = None
 
 
-NOT_ON_GPU = ("triangle meshes are not traced on the GPU yet (issue #20: the scene model, the float64 "
-              "reference and the trees over spheres and triangles are done; the shaders' part comes next)")
+# The one-pass methods whose GPU layouts hold triangles (Capabilities.meshes_on_gpu), named in
+# the refusal of any other; auto resolves to one of them.
+MESH_METHODS = ("bih", "bruteforce", "bvh", "kdtree", "twolevel", "auto")
+NOT_ON_GPU = ("this method's GPU layout holds spheres only: its frames of a scene with triangle meshes are "
+              f"not traced on the GPU (issue #20); the methods that trace meshes are {', '.join(MESH_METHODS)}")
 
 
 class NotOnGPU:
-    """Stands where a scene with triangles would have its packed GPU data: reading it (the
-    GL frame's upload, device data) raises ``SceneError("meshes", …)``, so no tracer can
-    silently draw the spheres and drop the meshes."""
+    """Stands where a scene with triangles would have its packed GPU data, for a method that
+    does not trace triangles on the GPU: reading it (the GL frame's upload, device data)
+    raises ``SceneError("meshes", …)``, so no tracer can silently draw the spheres and
+    drop the meshes."""
 
-    def __init__(self, scene: Scene):
-        self.detail = (f"{NOT_ON_GPU}; this scene has {len(scene.meshes)} mesh(es) of "
+    def __init__(self, scene: Scene, method: str = ""):
+        who = f"method {method!r}: " if method else ""
+        self.detail = (f"{who}{NOT_ON_GPU}; this scene has {len(scene.meshes)} mesh(es) of "
                        f"{scene.n_triangles:,} triangles")
 
     def _refuse(self) -> None:
@@ -77,10 +83,13 @@ class NotOnGPU:
         return 0
 
 
-def gpu_data(scene: Scene, pack: Callable[[], gpu_layout.PackedScene]) -> gpu_layout.PackedScene:
-    """``pack()`` — the sphere-only packing every layout does today — or, for a scene with
-    triangles, :class:`NotOnGPU`."""
-    return NotOnGPU(scene) if scene.n_triangles else pack()  # type: ignore[return-value]
+def gpu_data(scene: Scene, pack: Callable[[], gpu_layout.PackedScene], meshes_on_gpu: bool = False,
+             method: str = "") -> gpu_layout.PackedScene:
+    """``pack()``, or — for a scene with triangles and a method whose layout packs spheres
+    only (``meshes_on_gpu`` False) — :class:`NotOnGPU`."""
+    if scene.n_triangles and not meshes_on_gpu:
+        return NotOnGPU(scene, method)  # type: ignore[return-value]
+    return pack()
 
 
 def mesh_stats(scene: Scene) -> dict[str, int]:
@@ -117,6 +126,10 @@ class Capabilities:
     (:data:`renderer.tree_update.UPDATE_SCHEMES`); ``("rebuild",)`` = always rebuilds.
     settings: the render settings its build or passes read (``max_prims``,
     ``max_tree_depth``, ``tile_size``, ``update``…): a client shows only these.
+    meshes_on_gpu: its GPU layout and traversal hold triangles (bih, bruteforce, bvh, kdtree,
+    twolevel), so a scene with meshes is traced on the GPU; a one-pass method without it
+    builds over triangles on the CPU but refuses such frames (:class:`NotOnGPU`), and the
+    server refuses them with 422 ``meshes``.
     """
     multi_pass: bool = False
     shader: str | None = None
@@ -125,6 +138,7 @@ class Capabilities:
     update_schemes: tuple[str, ...] = ("rebuild",)
     settings: tuple[str, ...] = ()
     primitives: tuple[str, ...] = ("spheres", "planes", "triangles")
+    meshes_on_gpu: bool = False
 
     @property
     def device(self) -> bool:

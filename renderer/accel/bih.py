@@ -318,7 +318,8 @@ class BoundingIntervalHierarchy:
     """Method ``bih``: the thesis's BIH (listings 3.3–3.5), rebuilt per request and traced
     by ``shaders/method_bih.glsl``."""
     name = "bih"
-    capabilities = Capabilities(shader="method_bih.glsl", settings=("max_prims", "max_tree_depth"))
+    capabilities = Capabilities(shader="method_bih.glsl", settings=("max_prims", "max_tree_depth"),
+                                meshes_on_gpu=True)
     bindings = L.BINDINGS
     glsl_defines = staticmethod(L.glsl_defines)
 
@@ -327,5 +328,5 @@ class BoundingIntervalHierarchy:
         t0 = time.perf_counter()
         bih = build_for_scene(scene, max_prims, max_tree_depth)
         build_ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod(gpu_data(scene, lambda: L.pack_bih(bih, scene, max_width)), build_ms,
+        return PreparedMethod(gpu_data(scene, lambda: L.pack_bih(bih, scene, max_width), True), build_ms,
                               {"method": self.name, **bih.stats.to_json(), **mesh_stats(scene)}, tree=bih)

@@ -22,7 +22,10 @@ Fig. 4.5's memory) and the build's tests read this form.
 a leaf — its parent says where the leaf's spheres are — and the spheres themselves in
 leaf order (the sorted index array's order), as :func:`renderer.gpu_layout.sphere_records`,
 so a leaf is a run of sphere records ended by the one flagged ``SPHERE_LAST`` and needs
-no index array. Inner nodes keep the build's order, renumbered without the leaves.
+no index array. With triangles a tree primitive that is a triangle has a *slot* of the same
+size there instead (:func:`renderer.gpu_layout.leaf_records`: its key flagged ``TRI_SLOT``
+with the triangle's index; the corners in ``u_triangles``), so positions, refs and the
+``last`` flags are the same as for spheres. Inner nodes keep the build's order, renumbered without the leaves.
 
 **GPU** (``u_bih_nodes``, a record array: RGBA32UI texture or uniform block): one inner
 node per ``uvec4``::
@@ -75,7 +78,10 @@ SPHERES = Binding("u_bih_spheres", doc="spheres in leaf order (gpu_layout.sphere
 ROOT = Binding("u_bih_root", "highp uint", "the root's ref")
 BOX_MIN = Binding("u_box_min", "highp vec3", "BIH global AABB")
 BOX_MAX = Binding("u_box_max", "highp vec3")
-BINDINGS = (NODES, SPHERES, ROOT, BOX_MIN, BOX_MAX)
+# The triangles' records (gpu_layout, read only by variants with the TRIANGLES data format).
+# (Not u_num_triangles: the tree's leaves say where the triangles are.)
+BINDINGS = (NODES, SPHERES, ROOT, BOX_MIN, BOX_MAX, gpu_layout.TRIANGLES, gpu_layout.TRI_NORMALS,
+            gpu_layout.TRI_BASE)
 
 
 def empty_nodes(count: int) -> np.ndarray:
@@ -138,12 +144,15 @@ def glsl_defines() -> str:
 
 
 def pack_bih(bih, scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
-    """The BIH of ``scene``'s spheres for the GPU: inner records, sphere records in leaf
-    order, the root's ref and the global AABB."""
+    """The BIH of ``scene``'s spheres and triangles for the GPU: inner records, the leaf-order
+    records (a sphere's record or a triangle's slot per tree primitive,
+    :func:`renderer.gpu_layout.leaf_records`: for spheres only, the sphere records), the
+    root's ref and the global AABB, and the triangles' records when there are any."""
     records, root = gpu_records(bih)
     order, last = leaf_order(bih)
-    return PackedScene(
+    packed = PackedScene(
         textures={NODES.name: wrap_rows(records, max_width),
-                  SPHERES.name: wrap_rows(gpu_layout.sphere_records(scene, order, last), max_width)},
+                  SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, order, last), max_width)},
         uniforms=dict(zip((ROOT.name, BOX_MIN.name, BOX_MAX.name),
                           (root, *gpu_layout.box_uniform(*bih.global_aabb)))))
+    return gpu_layout.merged(packed, gpu_layout.pack_triangles(scene, max_width, count=False))

@@ -39,7 +39,10 @@ Triangles (``triangles``: float64 corners (T, 3, 3), tree primitives ``n …`` a
 Wald (:func:`triangle_t`, docs/SHADING.md "Triangles"), both sides hit, a zero-area
 triangle never; ``ignore`` may name a triangle (the one a secondary ray leaves). A leaf's
 triangle tests count in ``tests`` like its sphere tests. Returned ids are tree indices
-(a triangle's scene id is ``i + n_planes``).
+(a triangle's scene id is ``i + n_planes``). On the GPU a triangle's leaf-order record is a
+slot at the same position a sphere's record would have (``gpu_layout.leaf_records``: the
+key flagged ``TRI_SLOT`` with the triangle's index, the corners in ``u_triangles``), so the
+runs decoded here from :func:`bih_layout.leaf_order` are the shader's record for record.
 
 Exactness against brute force: the intervals only prune, and pruning is safe
 when every float64 primitive lies inside its float32 AABB (see

@@ -1,10 +1,11 @@
-"""Method ``bruteforce``: every ray tests every sphere (the thesis's "BF" series) — and
-every triangle, once the GPU traces them (until then a scene with meshes is refused when its
-frame is uploaded, :class:`~renderer.accel.base.NotOnGPU`).
+"""Method ``bruteforce``: every ray tests every sphere (the thesis's "BF" series) and every
+triangle.
 
 No structure: ``shaders/method_bruteforce.glsl`` loops over the sphere records in id
 order (``u_bf_spheres``, :func:`renderer.gpu_layout.sphere_records`: 16 bytes a sphere
-when the radii are equal, else 32), a record array the host may put in a uniform block.
+when the radii are equal, else 32), a record array the host may put in a uniform block,
+then — in a variant with the TRIANGLES data format — over the triangle records in id order
+(``u_triangles``, :func:`renderer.gpu_layout.triangle_records`).
 """
 
 from __future__ import annotations
@@ -23,8 +24,8 @@ SPHERES = Binding("u_bf_spheres", doc="spheres in id order (gpu_layout.sphere_re
 
 class BruteForce:
     name = "bruteforce"
-    capabilities = Capabilities(shader="method_bruteforce.glsl", tests_every_sphere=True)
-    bindings = (SPHERES,)
+    capabilities = Capabilities(shader="method_bruteforce.glsl", tests_every_sphere=True, meshes_on_gpu=True)
+    bindings = (SPHERES, *gpu_layout.TRIANGLE_BINDINGS)
 
     @staticmethod
     def glsl_defines() -> str:
@@ -32,7 +33,10 @@ class BruteForce:
 
     def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
                 max_width: int = DEFAULT_TEXTURE_WIDTH, update: TreeUpdate = REBUILD) -> PreparedMethod:
+        def pack() -> gpu_layout.PackedScene:
+            spheres = gpu_layout.PackedScene(
+                {SPHERES.name: wrap_rows(gpu_layout.sphere_records(scene, np.arange(scene.n_spheres)), max_width)})
+            return gpu_layout.merged(spheres, gpu_layout.pack_triangles(scene, max_width))
         return PreparedMethod(
-            gpu_data(scene, lambda: gpu_layout.PackedScene(
-                {SPHERES.name: wrap_rows(gpu_layout.sphere_records(scene, np.arange(scene.n_spheres)), max_width)})),
+            gpu_data(scene, pack, True),
             0.0, {"method": self.name, "primitives": scene.n_spheres + scene.n_triangles, **mesh_stats(scene)})

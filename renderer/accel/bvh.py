@@ -685,7 +685,7 @@ class BVHMethod:
     """
     name = "bvh"
     capabilities = Capabilities(shader="method_bvh.glsl", update_schemes=UPDATE_SCHEMES,
-                                settings=("max_prims", "max_tree_depth", "update"))
+                                settings=("max_prims", "max_tree_depth", "update"), meshes_on_gpu=True)
     bindings = L.BINDINGS
     glsl_defines = staticmethod(L.glsl_defines)
     CACHE_SLOTS = 8
@@ -720,5 +720,7 @@ class BVHMethod:
         t0 = time.perf_counter()
         bvh = self.build(scene, max_prims, max_tree_depth, update)
         ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod(gpu_data(scene, lambda: L.pack_bvh(bvh, scene, None, max_width)), ms,
+        packed = gpu_data(scene, meshes_on_gpu=True, method=self.name,
+                          pack=lambda: L.pack_bvh(bvh, scene, None, max_width))
+        return PreparedMethod(packed, ms,
                               {"method": self.name, **bvh.stats.to_json(), **mesh_stats(scene)}, tree=bvh)

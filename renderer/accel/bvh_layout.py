@@ -22,6 +22,9 @@ which is what the traversal tests there; a leaf has no record (its parent's ref 
 where its spheres are), and the spheres are sphere records in leaf order
 (:func:`renderer.gpu_layout.sphere_records`, the last of each leaf flagged), so no index
 array is read. Inner records keep the build's order, renumbered without the leaves.
+With triangles a tree primitive that is a triangle has a slot of a sphere record's size
+there instead (:func:`renderer.gpu_layout.leaf_records`, its corners in ``u_triangles``), so
+positions, refs and the ``last`` flags are as for spheres.
 
 **GPU** (``u_bvh_nodes``, a record array: RGBA32UI texture or uniform block), inner node
 ``i`` at records ``4i … 4i + 3``::
@@ -82,7 +85,9 @@ SPHERES = Binding("u_bvh_spheres", doc="spheres in leaf order (gpu_layout.sphere
 ROOT = Binding("u_bvh_root", "highp uint", "the root's ref")
 ROOT_MIN = Binding("u_bvh_root_min", "highp vec3", "the root's box")
 ROOT_MAX = Binding("u_bvh_root_max", "highp vec3")
-BINDINGS = (NODES, SPHERES, ROOT, ROOT_MIN, ROOT_MAX)
+# The triangles' records (gpu_layout; only variants with the TRIANGLES data format read them).
+TRIANGLE_BINDINGS = (gpu_layout.TRIANGLES, gpu_layout.TRI_NORMALS, gpu_layout.TRI_BASE)
+BINDINGS = (NODES, SPHERES, ROOT, ROOT_MIN, ROOT_MAX, *TRIANGLE_BINDINGS)
 
 
 def pack_nodes(bmin: np.ndarray, bmax: np.ndarray, left: np.ndarray, first: np.ndarray,
@@ -152,13 +157,16 @@ def glsl_defines() -> str:
 def pack_bvh(bvh, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
     """The BVH for the GPU: inner records, the sphere records in leaf order, the root's ref
     and box. ``ids``: the scene id of each primitive the BVH was built over (None: the
-    primitives are the scene's spheres)."""
+    primitives are the scene's tree primitives: spheres, then triangles). With triangles the
+    leaf-order records hold triangle slots (:func:`renderer.gpu_layout.leaf_records`) and the
+    triangles' records come along."""
     records, root = gpu_records(bvh)
     order, last = leaf_order(bvh)
     if ids is not None:
         order = np.asarray(ids, dtype=np.int64)[order]
-    return PackedScene(
+    packed = PackedScene(
         textures={NODES.name: wrap_rows(records, max_width),
-                  SPHERES.name: wrap_rows(gpu_layout.sphere_records(scene, order, last), max_width)},
+                  SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, order, last), max_width)},
         uniforms=dict(zip((ROOT.name, ROOT_MIN.name, ROOT_MAX.name),
                           (root, *gpu_layout.box_uniform(bvh.bmin[0], bvh.bmax[0])))))
+    return gpu_layout.merged(packed, gpu_layout.pack_triangles(scene, max_width, count=False))

@@ -457,7 +457,8 @@ class KdTreeMethod:
     """Method ``kdtree``: the SAH kd-tree of this module (cost scaling on), rebuilt per request,
     traced by ``shaders/method_kdtree.glsl``. ``max_prims`` is not used: the SAH decides."""
     name = "kdtree"
-    capabilities = Capabilities(shader="method_kdtree.glsl", settings=("max_tree_depth",))   # the SAH decides leaves
+    capabilities = Capabilities(shader="method_kdtree.glsl", settings=("max_tree_depth",),   # the SAH decides leaves
+                                meshes_on_gpu=True)
     bindings = L.BINDINGS
     glsl_defines = staticmethod(L.glsl_defines)
     cost_scale = DEFAULT_COST_SCALE
@@ -468,5 +469,7 @@ class KdTreeMethod:
         t0 = time.perf_counter()
         kd = build_for_scene(scene, max_tree_depth, self.cost_scale)
         ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod(gpu_data(scene, lambda: L.pack_kdtree(kd, scene, None, max_width)), ms,
+        packed = gpu_data(scene, meshes_on_gpu=True, method=self.name,
+                          pack=lambda: L.pack_kdtree(kd, scene, None, max_width))
+        return PreparedMethod(packed, ms,
                               {"method": self.name, **kd.stats.to_json(), **mesh_stats(scene)}, tree=kd)

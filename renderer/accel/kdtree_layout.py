@@ -21,6 +21,9 @@ spheres are, and every leaf's spheres are a run of sphere records
 has a record in every leaf it is in, so no index array is read (the runs hold the
 references, ``stats.references``, not the compacted index array). An empty leaf has no
 records: its ref says so. Inner records keep the build's order, renumbered without leaves.
+With triangles a tree primitive that is a triangle has a slot of a sphere record's size
+there instead (:func:`renderer.gpu_layout.leaf_records`, its corners in ``u_triangles``), so
+positions, refs and the ``last`` flags are as for spheres.
 
 **GPU** (``u_kd_nodes``, a record array: RGBA32UI texture or uniform block), one inner
 node per ``uvec4``::
@@ -72,7 +75,9 @@ SPHERES = Binding("u_kd_spheres", doc="each leaf's spheres (gpu_layout.sphere_re
 ROOT = Binding("u_kd_root", "highp uint", "the root's ref")
 BOX_MIN = Binding("u_kd_box_min", "highp vec3", "the root's voxel")
 BOX_MAX = Binding("u_kd_box_max", "highp vec3")
-BINDINGS = (NODES, SPHERES, ROOT, BOX_MIN, BOX_MAX)
+# The triangles' records (gpu_layout; only variants with the TRIANGLES data format read them).
+TRIANGLE_BINDINGS = (gpu_layout.TRIANGLES, gpu_layout.TRI_NORMALS, gpu_layout.TRI_BASE)
+BINDINGS = (NODES, SPHERES, ROOT, BOX_MIN, BOX_MAX, *TRIANGLE_BINDINGS)
 
 
 def pack_nodes(axis: np.ndarray, left: np.ndarray, split: np.ndarray, count: np.ndarray,
@@ -144,13 +149,16 @@ def glsl_defines() -> str:
 def pack_kdtree(kd, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
     """The kd-tree for the GPU: inner records, every leaf's sphere records, the root's ref
     and voxel. ``ids``: the scene id of each primitive the tree was built over (None: the
-    primitives are the scene's spheres)."""
+    primitives are the scene's tree primitives: spheres, then triangles). With triangles the
+    leaf records hold triangle slots (:func:`renderer.gpu_layout.leaf_records`) and the
+    triangles' records come along."""
     prims, first, last = leaf_runs(kd)
     records, root = gpu_records(kd, first)
     if ids is not None:
         prims = np.asarray(ids, dtype=np.int64)[prims]
-    return PackedScene(
+    packed = PackedScene(
         textures={NODES.name: wrap_rows(records, max_width),
-                  SPHERES.name: wrap_rows(gpu_layout.sphere_records(scene, prims, last), max_width)},
+                  SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, prims, last), max_width)},
         uniforms=dict(zip((ROOT.name, BOX_MIN.name, BOX_MAX.name),
                           (root, *gpu_layout.box_uniform(*kd.global_box)))))
+    return gpu_layout.merged(packed, gpu_layout.pack_triangles(scene, max_width, count=False))

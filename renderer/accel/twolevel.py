@@ -36,8 +36,10 @@ class TwoLevelMethod:
     """
     name = "twolevel"
     capabilities = Capabilities(shader="method_twolevel.glsl", update_schemes=UPDATE_SCHEMES,
-                                settings=("max_prims", "max_tree_depth", "update"))
-    bindings = (*kdtree_layout.BINDINGS, *bvh_layout.BINDINGS, KD_COUNT, BVH_COUNT)
+                                settings=("max_prims", "max_tree_depth", "update"), meshes_on_gpu=True)
+    # Both trees' bindings; the triangles' records, which both list, once.
+    bindings = (*kdtree_layout.BINDINGS,
+                *(b for b in bvh_layout.BINDINGS if b not in kdtree_layout.TRIANGLE_BINDINGS), KD_COUNT, BVH_COUNT)
 
     @staticmethod
     def glsl_defines() -> str:
@@ -77,7 +79,8 @@ class TwoLevelMethod:
         t1 = time.perf_counter()
         bvh = self._bvh.build_boxes(lo[moving_ids], hi[moving_ids], max_prims, max_tree_depth, update)
         t2 = time.perf_counter()
-        packed = gpu_data(scene, lambda: pack_twolevel(kd, static_ids, bvh, moving_ids, scene, max_width))
+        packed = gpu_data(scene, meshes_on_gpu=True, method=self.name,
+                          pack=lambda: pack_twolevel(kd, static_ids, bvh, moving_ids, scene, max_width))
         stats = {"method": self.name, "static": int(len(static_ids)), "moving": int(len(moving_ids)),
                  "kd_build_ms": (t1 - t0) * 1e3 if fresh else 0.0, "kd_cached": not fresh,
                  "bvh_update_ms": (t2 - t1) * 1e3, "scheme": bvh.stats.scheme,
@@ -90,9 +93,10 @@ def pack_twolevel(kd, kd_ids: np.ndarray, bvh, bvh_ids: np.ndarray, scene: Scene
                   max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
     """Two levels: the kd-tree over the spheres ``kd_ids`` and the BVH over ``bvh_ids``.
 
-    Each structure was built over its subset (primitive ``i`` = scene sphere ``ids[i]``; packed
-    only for scenes without triangles, where tree primitives are the spheres); their sphere
-    records carry scene ids (and the scene's spheres), so the shader sees scene ids only.
+    Each structure was built over its subset (primitive ``i`` = tree primitive ``ids[i]``: a
+    sphere, or a triangle after the spheres); their leaf records carry scene ids (a sphere's
+    record) or triangle indices (a triangle's slot, gpu_layout.leaf_records), so the shader
+    sees scene ids only. Both parts pack the same triangle records; they are one.
     """
     kd_part = pack_kdtree(kd, scene, kd_ids, max_width)
     bvh_part = pack_bvh(bvh, scene, bvh_ids, max_width)

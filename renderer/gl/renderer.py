@@ -133,7 +133,8 @@ class GLRenderer:
         traced slice by slice (:class:`~renderer.gl.frame.TracerFrame`); ``band_rows``
         sizes its slices. Builds the method's structure first unless ``prepared`` is given."""
         t_start = time.perf_counter()
-        method_name = resolve_method(settings.method, scene.n_spheres)
+        # auto's crossover counts what a tree would hold, spheres and triangles (as prepare_frame)
+        method_name = resolve_method(settings.method, scene.n_spheres + scene.n_triangles)
         method = METHODS[method_name]
         if method.capabilities.multi_pass:
             raise ValueError(f"method {method_name!r} draws its frames in passes of its own: use render()")

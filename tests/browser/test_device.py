@@ -3,7 +3,8 @@
 One shader, one tree layout, two GL implementations (the server's Mesa llvmpipe
 through moderngl, Chromium's ANGLE on SwiftShader here), checked against each other:
 primary ids equal on ≥ 99.9 % of pixels and colour PSNR ≥ 35 dB at recursion depth 5,
-for the three scenarios at n = 64 and 1,024, BIH and brute force; the shader compiles
+for the three scenarios at n = 64 and 1,024, BIH and brute force, and a scene with triangle
+meshes (issue #20: every one-pass method traces them on the device too); the shader compiles
 with an empty info log; the client falls back to server mode, visibly, without WebGL2;
 the overlay says which side rendered; gestures in device mode reach the server's Model.
 
@@ -16,6 +17,7 @@ from __future__ import annotations
 import base64
 import io
 import math
+import urllib.error
 import urllib.request
 
 import numpy as np
@@ -377,3 +379,29 @@ def test_device_mode_keeps_up_with_the_fingers(gl_browser, server):
         assert c.errors() == [] and c.hook("errors") == []
     finally:
         ctx.close()
+
+
+@pytest.mark.parametrize("method", ["bih", "bruteforce", "bvh", "kdtree", "twolevel"])
+def test_device_traces_a_scene_with_meshes(device_page, server, method):
+    """Issue #20: spheres of three radii, a plane, a smooth teapot, a glass icosphere, a mirror
+    box, a torus (tests/renderer/gl/test_gpu_meshes.py) — the triangle records and the
+    TRIANGLES variant, on ANGLE — give the server's picture."""
+    from tests.renderer.gl.test_gpu_meshes import mixed_scene
+    scene = mixed_scene()
+    body = scene.to_json()
+    try:
+        sid = http_json("POST", f"{server.base}/api/sessions",
+                        {"scene": body, "settings": {"width": W, "height": H, "max_recursion_depth": 2}})["id"]
+    except urllib.error.HTTPError as e:
+        pytest.fail(f"{e}: {e.read()[:2000]!r}")
+    common = dict(width=W, height=H, method=method, max_recursion_depth=DEPTH)
+    dev = device_render(device_page, session=sid, mode="primid", **common)
+    assert dev["infoLog"] == {"vertex": "", "fragment": "", "program": ""}, dev["infoLog"]
+    assert {"TRIANGLES", "SMOOTH_TRIANGLES"} <= set(dev["shader"]["features"]), dev["shader"]
+    srv = server_array(server, sid, mode="primid", **common)
+    assert np.mean(srv == dev["primid"]) >= 0.999
+    assert (srv >= scene.triangle_id_base).mean() > 0.1, "the meshes are in view"
+    dev = device_render(device_page, session=sid, mode="color", **common)
+    srv = server_array(server, sid, mode="color", **common)
+    assert psnr(dev["colour"], srv) >= 35.0, psnr(dev["colour"], srv)
+    assert device_page.errors() == []

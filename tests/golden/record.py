@@ -53,7 +53,8 @@ def tracer_shaders() -> dict[str, str]:
     for method, mode, depth, feats in itertools.product(SINGLE_PASS, MODES, range(1, 9), feature_sets()):
         out[f"{method}/{mode}/{depth}/{','.join(feats)}"] = _sha(tracer_source(method, mode, depth, feats))
     for method, mode, depth, feats in itertools.product(SINGLE_PASS, MODES, (1, 3, 8), SHAPES):
-        records = tuple(b.name for b in METHODS[method].bindings if b.records)
+        # (the sphere variants' record arrays: the triangles' need the TRIANGLES data format)
+        records = tuple(b.name for b in METHODS[method].bindings if b.records and b.needs is None)
         out[f"{method}/{mode}/{depth}/{','.join(feats)}"] = _sha(tracer_source(method, mode, depth, feats))
         for blocks, image in ((records, False), ((), True), (records, True)):
             key = f"{method}/{mode}/{depth}/{','.join(feats)}/blocks={','.join(blocks)}/{'rgba8' if image else 'float'}"

@@ -1,9 +1,11 @@
 """Meshes through the API (issue #20): scenes with meshes in and out, model files uploaded as
-bytes, bad meshes refused with 422 naming the field (413 for bodies too large), and frames
-refused until the GPU traces triangles."""
+bytes, bad meshes refused with 422 naming the field (413 for bodies too large), frames
+served by the methods that trace triangles on the GPU (every one-pass method and auto) and
+refused with 422 by those that do not (the ray engines, naming ``method``)."""
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import warnings
@@ -76,13 +78,43 @@ def test_a_scene_with_meshes_is_stored_and_streamed_back_in_world_space(api):
     assert stats["triangles"] == 92 and stats["primitives"] == 93
 
 
-def test_frames_of_a_scene_with_meshes_are_refused_until_the_gpu_traces_triangles(api):
+@pytest.mark.parametrize("method", ["bih", "bruteforce", "bvh", "kdtree", "twolevel", "auto"])
+def test_frames_of_a_scene_with_meshes_are_served_by_the_methods_that_trace_triangles(api, method):
+    sid = create(api, mesh_scene_json(), method=method, mode="primid").json()["id"]
+    r = api.get(f"/api/sessions/{sid}/frame", params={"format": "npy"})
+    assert r.status_code == 200, r.text
+    ids = np.load(io.BytesIO(r.content))
+    # sphere 0, plane 1, the icosphere's triangles 2 … 81, the box's 82 … 93 (FORMATS.md)
+    assert ids.shape == (SMALL["height"], SMALL["width"])
+    assert (ids >= 2).any() and (ids == 0).any(), np.unique(ids)
+    assert ids.max() <= 1 + 80 + 12
+
+
+def test_device_data_of_a_scene_with_meshes_holds_the_triangles(api):
     sid = create(api, mesh_scene_json()).json()["id"]
+    r = api.get(f"/api/sessions/{sid}/device-data")
+    assert r.status_code == 200, r.text
+    from server.device_data import decode_blob
+    header, textures = decode_blob(r.content)
+    assert "TRIANGLES" in header["shader"]["features"] and "u_triangles" in textures
+    assert header["uniforms"]["u_tri_base"] == 2
+
+
+def test_a_method_without_meshes_on_gpu_is_refused_with_422_meshes(api, monkeypatch):
+    """The per-method refusal (Capabilities.meshes_on_gpu), for a method whose layout would
+    hold spheres only — none does today, so bvh pretends: frames, renders and device data
+    of a mesh scene are 422 'meshes' naming the methods that trace meshes."""
+    import dataclasses
+    from renderer.methods import METHODS
+    monkeypatch.setattr(METHODS["bvh"], "capabilities",
+                        dataclasses.replace(METHODS["bvh"].capabilities, meshes_on_gpu=False))
+    sid = create(api, mesh_scene_json(), method="bvh").json()["id"]
     r = api.get(f"/api/sessions/{sid}/frame")
     assert_422(r, "meshes")
-    assert "not traced on the GPU yet" in r.text
+    assert "'bvh'" in r.text and "bih, bruteforce" in r.text
     assert_422(api.get(f"/api/sessions/{sid}/device-data"), "meshes")
-    assert_422(api.post("/api/render", json={"scene": mesh_scene_json(), "settings": SMALL}), "meshes")
+    assert_422(api.post("/api/render", json={"scene": mesh_scene_json(), "settings": {**SMALL, "method": "bvh"}}),
+               "meshes")
 
 
 def test_the_ray_engines_refuse_a_scene_with_meshes_naming_the_method(api):
@@ -204,4 +236,6 @@ def test_info_states_the_triangle_cap_and_what_each_method_traces(api):
     assert info["limits"]["max_triangles"] == MAX_TRIANGLES
     assert info["method_settings"]["rayengine"]["primitives"] == ["spheres", "planes"]
     assert "triangles" in info["method_settings"]["bih"]["primitives"]
+    assert {m for m, x in info["method_settings"].items() if x["meshes_on_gpu"]} == {
+        "bih", "bruteforce", "bvh", "kdtree", "twolevel", "auto"}
     assert math.isfinite(api.get("/api/info").json()["limits"]["max_frame_cost"])

@@ -119,13 +119,16 @@ def device_data(session_id: SessionId, service: ServiceDep, query: Annotated[Dev
                          "the tracer reads RGBA32F textures and writes two RGBA32F targets (WebGL2 needs "
                          "EXT_color_buffer_float); this device cannot run it: use server mode")
     state = service.get(session_id)
-    if state.scene_info.get("n_triangles", 0):
-        raise InputError(("query", "meshes"), f"{NOT_ON_GPU}: a device cannot trace this scene's "
-                                              f"{state.scene_info['n_triangles']:,} triangles")
     settings = service.merge_settings(state.settings, query.given(), "query")
-    n = state.scene_info.get("n_spheres", 0)
+    n_triangles = state.scene_info.get("n_triangles", 0)
+    n = state.scene_info.get("n_spheres", 0) + n_triangles      # auto's crossover, as prepare_frame
     method_name = resolve_method(settings["method"], n)
     meth = single_pass_method(method_name, ("query", "method"))
+    if n_triangles and not meth.capabilities.meshes_on_gpu:
+        # The device runs the server's shader on the server's layout: what the GPU cannot trace
+        # with this method (Capabilities.meshes_on_gpu), a device cannot either.
+        raise InputError(("query", "meshes"), f"method {method_name!r}: {NOT_ON_GPU}: a device cannot trace this "
+                                              f"scene's {n_triangles:,} triangles with it")
     check_single_pass_mode(settings["mode"])
     width = 1 << (int(query.max_texture_size).bit_length() - 1)   # the power of two at most the device's
     with service.admit():  # a queue slot for back-pressure; the work is NumPy, on this thread

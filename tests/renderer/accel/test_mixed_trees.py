@@ -4,7 +4,9 @@ Every method's ``prepare`` builds its tree over the scene's spheres then triangl
 (renderer.accel.primitives); the trees are traversed on the CPU (renderer.accel.cpu_trace,
 renderer.accel.bih_traverse) and must give the ids of brute force on ≥ 99.99 % of the
 rays and of the float64 reference on ≥ 99.9 % of the pixels. For such a scene the GPU data
-is refused (triangles are not traced on the GPU yet); a sphere scene packs as before.
+of every method holds the triangles (leaf-order slots decoding to the tree's order, the
+triangle records; a method without ``meshes_on_gpu`` would be refused naming the methods
+that trace meshes); a sphere scene packs as before, with no triangle binding.
 """
 
 from __future__ import annotations
@@ -78,12 +80,28 @@ def test_primary_ids_through_each_tree_match_brute_force_and_the_reference(name,
     assert np.mean(ids == id_bf) >= 0.9999, f"{name}: {np.sum(ids != id_bf)} of {len(ids)} rays differ"
     np.testing.assert_array_equal(t[ids == id_bf], t_bf[ids == id_bf])
     assert np.mean(ids == reference_ids) >= 0.999, f"{name}: {np.sum(ids != reference_ids)} differ from the reference"
-    # the statistics count the triangles; the GPU data is refused, naming the meshes
+    # the statistics count the triangles; the GPU data holds them (the triangle records)
     assert prep.stats["triangles"] == scene.n_triangles
-    assert isinstance(prep.packed, NotOnGPU)
-    with pytest.raises(SceneError) as e:
-        prep.packed.textures
-    assert e.value.field == "meshes" and "not traced on the GPU yet" in e.value.message
+    assert METHODS[name].capabilities.meshes_on_gpu
+    assert not isinstance(prep.packed, NotOnGPU)
+    tex = prep.packed.textures
+    tri = tex["u_triangles"].data.reshape(-1, 4)[:3 * scene.n_triangles]
+    corners = tri[:, :3].copy().view(np.float32).reshape(-1, 3, 3)
+    np.testing.assert_array_equal(corners, scene.triangle_corners.astype(np.float32))
+    assert prep.packed.uniforms["u_tri_base"] == scene.triangle_id_base
+    if name == "bih":       # the leaf-order records decode to the tree's own order
+        from renderer import gpu_layout
+        from renderer.accel import bih_layout
+        order, last = bih_layout.leaf_order(prep.tree)
+        per = 1 if gpu_layout.equal_radii(scene) else 2
+        rec = tex["u_bih_spheres"].data.reshape(-1, 4)[:per * len(order)]
+        key = rec[:, 3] if per == 1 else rec[1::2, 0]
+        is_tri = (key & np.uint32(gpu_layout.TRI_SLOT)) != 0
+        np.testing.assert_array_equal(is_tri, order >= scene.n_spheres)
+        index = np.where(is_tri, (key & np.uint32(gpu_layout.TRI_INDEX_MASK)).astype(np.int64) + scene.n_spheres,
+                         (key & np.uint32(gpu_layout.SPHERE_ID_MASK)).astype(np.int64))
+        np.testing.assert_array_equal(index, order)
+        np.testing.assert_array_equal((key & np.uint32(gpu_layout.SPHERE_LAST)) != 0, last)
 
 
 @pytest.mark.parametrize("name", ["bih", "bvh", "kdtree"])
@@ -153,12 +171,26 @@ def test_the_tree_index_space_is_spheres_then_triangles_and_maps_to_scene_ids(sc
     assert scene_to_tree_ids(np.array([scene.n_spheres]), scene.n_spheres, 1)[0] == -1     # a plane
 
 
+def test_a_method_whose_layout_packs_spheres_only_would_refuse_meshes(scene):
+    """NotOnGPU (no method needs it since every layout holds triangles): reading it raises
+    SceneError("meshes") naming the method and the methods that trace meshes."""
+    from renderer.accel.base import MESH_METHODS, gpu_data
+    packed = gpu_data(scene, lambda: None, meshes_on_gpu=False, method="newtree")
+    assert isinstance(packed, NotOnGPU)
+    with pytest.raises(SceneError) as e:
+        packed.textures
+    assert e.value.field == "meshes" and "'newtree'" in e.value.message
+    assert ", ".join(MESH_METHODS) in e.value.message and f"{scene.n_triangles:,} triangles" in e.value.message
+    assert gpu_data(scenario(2, 8), lambda: "packed", meshes_on_gpu=False) == "packed"   # spheres only: packed
+
+
 @pytest.mark.parametrize("name", TREE_METHODS)
 def test_a_sphere_scene_still_packs_its_gpu_data(name):
     s = scenario(2, 200, seed=3)
     prep = METHODS[name].prepare(s, 4, 64)
     assert not isinstance(prep.packed, NotOnGPU) and isinstance(prep.packed.textures, dict)
     assert "triangles" not in prep.stats
+    assert not {"u_triangles", "u_tri_normals", "u_tri_base"} & (set(prep.packed.textures) | set(prep.packed.uniforms))
 
 
 def test_a_mask_of_the_wrong_length_is_refused_by_twolevel(scene):

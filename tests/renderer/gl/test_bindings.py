@@ -20,7 +20,7 @@ from renderer import gpu_layout
 from renderer.gpu_layout import Variant
 from renderer.methods import METHODS
 from renderer.modes import SINGLE_PASS_MODES
-from renderer.scenarios import scenario
+from renderer.scenarios import mesh_scene, scenario
 from renderer.settings import RenderSettings
 from renderer.shader_source import known_bindings, tracer_bindings
 
@@ -45,7 +45,8 @@ def check_variant(gl_renderer, variant: Variant) -> None:
         # Brute force's heat image is n sphere tests whatever the ray, and an image-only
         # variant writes nothing else: the compiler drops the ray and what makes it.
         declared = {n for n in declared if not n.startswith(("u_cam_", "u_plane_", "u_num_planes", "u_half_",
-                                                             "u_resolution", "u_pass_", "u_bf_", "u_sphere_"))}
+                                                             "u_resolution", "u_pass_", "u_bf_", "u_sphere_",
+                                                             "u_tri"))}
     assert declared <= active(prog), (variant, sorted(declared - active(prog)))
     assert active(prog) & known_bindings() <= full, variant
     for b in tracer_bindings(variant):
@@ -56,16 +57,30 @@ def check_variant(gl_renderer, variant: Variant) -> None:
             assert type(prog[b.name]).__name__ == kind, (variant, b.name, type(prog[b.name]))
 
 
+# The triangles' data formats (issue #20), for the methods that trace meshes on the GPU.
+TRIANGLE_SHAPES = [("TRIANGLES",), ("EQUAL_RADII", "TRIANGLES", "SMOOTH_TRIANGLES"),
+                   ("NO_SPLIT", "PLANES_1", "LIGHTS_1", "MATERIAL_TEXTURE", "TRIANGLES", "SMOOTH_TRIANGLES")]
+
+
 @pytest.mark.parametrize("method", ONE_PASS)
 @pytest.mark.parametrize("mode", SINGLE_PASS_MODES)
 def test_every_declared_binding_of_every_variant_is_active(gl_renderer, method, mode):
-    records = tuple(b.name for b in METHODS[method].bindings if b.records)
+    records = tuple(b.name for b in METHODS[method].bindings if b.records and b.needs is None)
     for depth, features in itertools.product((1, 2, 8), FEATURE_SETS + SHAPES):
         check_variant(gl_renderer, Variant(method, mode, depth, features))
     for depth, features, image in itertools.product((1, 3), SHAPES[:3], (False, True)):
         check_variant(gl_renderer, Variant(method, mode, depth, features, records, image))
         check_variant(gl_renderer, Variant(method, mode, depth, features, records[:1], image))
         if mode != "heat":     # the background variant reads none of the method's
+            check_variant(gl_renderer, Variant(method, mode, depth, features, (), image, spheres=False))
+    if not METHODS[method].capabilities.meshes_on_gpu:
+        return
+    for depth, features, image in itertools.product((1, 3), TRIANGLE_SHAPES, (False, True)):
+        v = Variant(method, mode, depth, features, (), image)
+        blocks = tuple(b.name for b in tracer_bindings(v) if b.records)     # every record array it reads
+        check_variant(gl_renderer, Variant(method, mode, depth, features, (), image))
+        check_variant(gl_renderer, Variant(method, mode, depth, features, blocks, image))
+        if mode != "heat":
             check_variant(gl_renderer, Variant(method, mode, depth, features, (), image, spheres=False))
 
 
@@ -87,7 +102,11 @@ def test_record_arrays_in_blocks_are_the_renderers_choice(gl_renderer):
 def test_what_a_method_packs_is_what_its_shader_declares(method):
     packed = METHODS[method].prepare(scenario(3, 64), 8, 64).packed
     names = set(packed.textures) | set(packed.uniforms)
-    assert names == {b.name for b in METHODS[method].bindings}
+    assert names == {b.name for b in METHODS[method].bindings if b.needs is None}, "a sphere scene: no triangles"
+    if METHODS[method].capabilities.meshes_on_gpu:     # a smooth mesh scene: the triangles' too
+        packed = METHODS[method].prepare(mesh_scene("mixed", 1), 8, 64).packed
+        names = set(packed.textures) | set(packed.uniforms)
+        assert names == {b.name for b in METHODS[method].bindings}
     prims = gpu_layout.pack_primitives(scenario(3, 64))
     assert set(prims.textures) | set(prims.uniforms) == {b.name for b in gpu_layout.SCENE_BINDINGS}
 
