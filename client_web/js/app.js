@@ -255,7 +255,8 @@ async function display(frame, level) {
   const shownTime = frame.stats && Number.isFinite(frame.stats.time) ? frame.stats.time : null;
   hook.lastFrame.time = shownTime;
   const mode = meta.mode || state.render.mode;
-  const triangles = frame.stats?.n_triangles ?? meta.triangles ?? 0;
+  // (the device's frames are of the data it fetched for the scene as it is now)
+  const triangles = frame.stats?.n_triangles ?? meta.triangles ?? (renderer === 'device' ? state.scene.n_triangles : 0) ?? 0;
   hook.lastFrame.triangles = triangles;
   const withTriangles = triangles ? `, ${triangles} triangles in ${meta.meshes || 1} mesh${meta.meshes > 1 ? 'es' : ''}` : '';
   const kind = meshKind(meta.scenario);
@@ -455,6 +456,7 @@ const panel = new SettingsPanel($('#settings'), $('#settings-toggle'), {
       }
       if (state.sessionId !== sid) return false;
       const s = { ...state.session, version: added.version, scene_info: added.scene_info };
+      state.sceneRev = (state.sceneRev || 0) + 1;   // device mode fetches the grown scene's data
       adopt(s);
       notice(`Added ${file.name}: ${added.scene_info.n_triangles} triangles in the scene now.`);
       return true;

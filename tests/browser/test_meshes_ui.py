@@ -161,3 +161,31 @@ def test_upload_refusals_in_the_panel_words(open_client):
     assert "POCKETRAY" not in got["bad"]["text"]
     assert got["name"] == "Model: a.dae is not a model file the service reads (.obj, .stl)"
     assert got["empty"] == "Model: a.obj is empty" and got["ok"] is None
+
+
+def test_in_device_mode_an_uploaded_model_is_traced_by_the_device(browser, server):
+    """The device fetches the grown scene's data after an upload (its triangles in the frame)."""
+    from browser_support import CHROMIUM, CHROMIUM_ARGS, MOBILE, Client
+    gl = browser.browser_type.launch(executable_path=CHROMIUM, headless=True,
+                                     args=[*CHROMIUM_ARGS, "--use-angle=swiftshader", "--enable-unsafe-swiftshader"])
+    try:
+        ctx = gl.new_context(**MOBILE)
+        c = Client(server, ctx, ctx.new_page())
+        c.open("scenario=1&n=27&seed=1&radius=1&width=96&height=160&max_recursion_depth=2&preview_scale=1"
+               "&refine_ms=0&renderer=device&mode=color")
+        p = c.page
+        assert c.hook("lastFrame.renderer") == "device"
+        sid, pixels = c.hook("sessionId"), canvas_pixels(p)
+        version = server.session(sid)["version"]
+        open_sheet(c)
+        ball = export_mesh(icosphere(2), "obj")
+        p.set_input_files(PICKER, files=[{"name": "ball.obj", "mimeType": "text/plain", "buffer": ball}])
+        p.wait_for_function("v => window.pocketray.lastFrameVersion > v", arg=version)
+        c.wait_idle()
+        assert c.hook("lastFrame.renderer") == "device" and c.hook("sessionId") == sid
+        assert server.session(sid)["scene_info"]["n_triangles"] == load_mesh(ball, "obj").n_triangles
+        assert canvas_pixels(p) != pixels
+        assert c.hook("lastFrame.triangles") == load_mesh(ball, "obj").n_triangles
+        assert c.hook("errors") == [] and c.errors() == []
+    finally:
+        gl.close()
