@@ -283,7 +283,8 @@ class SessionService:
         self.check_work(settings, scene.n_spheres, "body")
         # A session no frame could render is refused now (the sphere count named where it was asked for).
         n_field = (("body", "museum", "n") if body.museum is not None else
-                   ("body", "mesh_scene", "detail") if body.mesh_scene is not None else ("body", "n") if recipe else None)
+                   ("body", "mesh_scene", "detail") if body.mesh_scene is not None else
+                   ("body", "n") if recipe else None)
         self.plan(scene, settings, "body", n_field=n_field)
         camera = scene.camera.to_json()
         state = SessionState(id=secrets.token_urlsafe(24), version=1, camera=camera, home_camera=camera,

@@ -153,7 +153,8 @@ def test_upload_refusals_in_the_panel_words(open_client):
                                     + 'triangles; at most 1,048,576 allowed (POCKETRAY_MAX_TRIANGLES = 1048576, 0 in '
                                     + 'the scene)'}]});
       return {big, bad, name: m.modelFileProblem('a.dae', 10, 'dae', ['obj', 'stl'], 100),
-              empty: m.modelFileProblem('a.obj', 0, 'obj', ['obj'], 100), ok: m.modelFileProblem('a.obj', 10, 'obj', ['obj'], 100)};
+              empty: m.modelFileProblem('a.obj', 0, 'obj', ['obj'], 100),
+              ok: m.modelFileProblem('a.obj', 10, 'obj', ['obj'], 100)};
     }""")
     assert got["big"] == {"field": "model", "status": 413,
                           "text": "Model: the file is too big (70.0 MB; the service takes at most 67.1 MB)"}
