@@ -190,3 +190,16 @@ def test_in_device_mode_an_uploaded_model_is_traced_by_the_device(browser, serve
         assert c.hook("errors") == [] and c.errors() == []
     finally:
         gl.close()
+
+
+def test_a_link_to_a_mesh_scene_opens_it_and_a_reload_keeps_it(open_client, server):
+    c = open_client("mobile", "scenario=mesh:room&width=160&height=272&max_recursion_depth=2&preview_scale=1")
+    p = c.page
+    sid = c.hook("sessionId")
+    info = server.session(sid)["scene_info"]
+    assert info["mesh_scene"]["kind"] == "room" and info["n_triangles"] == mesh_scene("room").n_triangles
+    assert p.eval_on_selector("#f-scenario", "e => e.value") == "mesh:room"
+    p.reload()
+    c.wait_idle(min_frames=1)
+    assert c.hook("sessionId") == sid                      # the same scene asked for: the stored session
+    assert c.hook("errors") == [] and c.errors() == []
