@@ -12,9 +12,8 @@ scene counts them). Vertices of exactly equal position (and normal) are merged
 triangle's corners apart, and only shared vertices make a mesh watertight for the tracer —
 exact equality keeps every coordinate as the file has it.
 
-There is no ``pocketray`` command line yet (``server/cli.py``); :func:`model_scene`,
-:func:`mesh_json` and :func:`write_scene_json` are what its ``render model.glb`` and
-``scene --mesh model.obj -o scene.json`` will call.
+The ``pocketray`` command line (``server/cli.py``) calls :func:`model_scene` for ``render
+model.glb`` and :func:`models_scene_json` for ``scene --mesh model.obj -o scene.json``.
 """
 
 from __future__ import annotations
@@ -215,10 +214,42 @@ def model_scene(source: str | Path | bytes, file_type: str | None = None, *, siz
     model.glb`` renders."""
     data = load_mesh(source, file_type)
     mesh = data.to_mesh(1, fit_transform(data, size), smooth)
+    return _stage((mesh,), material)
+
+
+def _stage(meshes: tuple[Mesh, ...], material: Material = MODEL) -> Scene:
+    """The thesis's camera, light and floor around ``meshes`` (material 1; the floor is 0)."""
     return Scene(Camera((0.0, 0.0, 100.0), (0.0, -5.0, 0.0), (0.0, 1.0, 0.0), 40.0),
                  (Light((20.0, 40.0, 30.0), (1.0, 1.0, 1.0)),), (FLOOR, material),
                  np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32),
-                 (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),), (mesh,))
+                 (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),), meshes)
+
+
+def models_scene_json(sources: list[str | Path], *, size: float = 30.0, smooth: bool | None = None,
+                      as_is: bool = False) -> dict:
+    """The scene JSON (docs/FORMATS.md) of the model files ``sources``, in :func:`model_scene`'s
+    stage: each mesh's vertices as the file has them and a ``transform`` that fits it —
+    ``k`` models side by side along x, each scaled to ``size / k`` (so the row is at most
+    ``size`` wide and the camera sees it), standing on the floor. ``as_is``: no transform
+    (the file's coordinates are world units). Validated as the scene's meshes are."""
+    if not sources:
+        raise SceneError("mesh", "give at least one model file")
+    k = len(sources)
+    meshes, docs = [], []
+    for i, src in enumerate(sources):
+        data = load_mesh(src)
+        flat = data.to_mesh(1, None, smooth)            # the file's coordinates, validated
+        doc = flat.to_json()
+        transform = None
+        if not as_is:
+            transform = fit_transform(data, size / k)
+            transform[0][3] += -size / 2.0 + (i + 0.5) * size / k
+            doc["transform"] = transform
+        meshes.append(data.to_mesh(1, transform, smooth))   # checks the placed mesh too
+        docs.append(doc)
+    out = _stage(tuple(meshes)).to_json()
+    out["meshes"] = docs
+    return out
 
 
 def mesh_json(source: str | Path | bytes, file_type: str | None = None, *, material: int = 0,

@@ -5,6 +5,8 @@
     pocketray serve [--host H] [--port P] [--workers N] [--state-backend sqlite|redis] [--gl-device I] …
     pocketray render SCENE.json -o OUT.png|.jpg|.npy|.exr [--width W --height H --method M --mode M
                      --spp S --depth D …]
+    pocketray render MODEL.obj|.ply|.stl|.glb|.gltf -o OUT.png [--size S --smooth|--flat] [the same flags]
+    pocketray scene --mesh MODEL [--mesh MODEL …] [--size S] [--as-is] [-o scene.json]
     pocketray scenario 1|2|3 --n N [--seed S] [--radius R] -o scene.json
     pocketray scenario museum --n N [--kind mixed] [--absent A] [--seed S] -o scene.json
     pocketray devices [--probe]
@@ -22,6 +24,14 @@ validated by the same models and by ``RenderSettings``, with ``--spp`` for
 ``samples_per_pixel`` and ``--depth`` for ``max_recursion_depth``) and the scene JSON of
 docs/FORMATS.md (:class:`server.models.SceneModel`). The output format follows the file's
 extension. Errors are the API's 422 messages (``width: …``), exit status 2.
+
+``render`` also takes a model file (any format :mod:`renderer.mesh_io` loads, told by its
+suffix): :func:`renderer.mesh_io.model_scene` makes its scene — the model scaled so that its
+longest side is ``--size`` (default 30) world units, centred on the y axis and standing on the
+floor plane y = −20, seen by a camera that frames that box, under one light — the scene a
+model uploaded with ``POST /api/sessions/{id}/meshes?size=…`` stands in. ``scene --mesh``
+writes the scene JSON of one or more models (each as the file has it, with a ``transform``
+that fits it: the same box, side by side along x), to edit and ``render``.
 """
 
 from __future__ import annotations
@@ -110,10 +120,12 @@ def serve(args: argparse.Namespace) -> int:
 def _add_render(sub: argparse._SubParsersAction) -> None:
     from .models import RenderParams
 
-    p = sub.add_parser("render", help="render a scene JSON file to an image or array",
-                       description="Render SCENE (scene JSON, docs/FORMATS.md; - for stdin) with the API's "
-                                   "settings. The output's extension picks the format: .png .jpg .npy .exr.")
-    p.add_argument("scene", help="scene JSON file (docs/FORMATS.md), or - for standard input")
+    p = sub.add_parser("render", help="render a scene JSON file or a model file to an image or array",
+                       description="Render SCENE (scene JSON, docs/FORMATS.md; - for stdin) or a model file "
+                                   "(.obj .ply .stl .glb .gltf: fitted, on the floor, framed by the camera) with "
+                                   "the API's settings. The output's extension picks the format: .png .jpg .npy .exr.")
+    p.add_argument("scene", help="scene JSON file (docs/FORMATS.md), - for standard input, or a model file")
+    _add_model_flags(p)
     p.add_argument("-o", "--output", required=True, help="output file: .png, .jpg/.jpeg, .npy or .exr")
     for name, field in RenderParams.model_fields.items():
         if name == "format":
@@ -122,6 +134,44 @@ def _add_render(sub: argparse._SubParsersAction) -> None:
         p.add_argument(*flags, dest=f"set_{name}", metavar=name.upper(), default=None,
                        help=(field.description or name).replace("%", "%%"))
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
+
+
+def _add_model_flags(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--size", type=float, default=30.0,
+                   help="models: longest side (scene: the row's width) in world units (default 30)")
+    shade = p.add_mutually_exclusive_group()
+    shade.add_argument("--smooth", dest="smooth", action="store_const", const=True, default=None,
+                       help="models: smooth shading (the file's normals, else area-weighted ones)")
+    shade.add_argument("--flat", dest="smooth", action="store_const", const=False,
+                       help="models: flat shading (default: the file's normals if it has them)")
+
+
+def is_model(path: str) -> bool:
+    from renderer.mesh_io import MODEL_FORMATS
+
+    return Path(path).suffix.lower().lstrip(".") in MODEL_FORMATS
+
+
+def _size(size: float) -> float:
+    from renderer.scenarios import CUBE_HALF
+
+    if not (0.0 < size <= 2 * CUBE_HALF):   # what the upload's size takes (MeshUploadQuery)
+        raise UsageError(f"size: greater than 0 and at most {2 * CUBE_HALF:g}")
+    return size
+
+
+def model_file_scene(path: str, size: float = 30.0, smooth: bool | None = None) -> Any:
+    """The scene ``render MODEL`` renders (:func:`renderer.mesh_io.model_scene`). UsageError
+    naming ``model`` for a file that cannot be read or is not a model."""
+    from renderer.mesh_io import model_scene
+    from renderer.scene import SceneError
+
+    if not Path(path).is_file():
+        raise UsageError(f"model: cannot read {path}: no such file")
+    try:
+        return model_scene(path, size=_size(size), smooth=smooth)
+    except SceneError as e:
+        raise UsageError(f"model: {e.message}") from None
 
 
 def _validation_message(e: Exception) -> str:
@@ -136,8 +186,9 @@ def _validation_message(e: Exception) -> str:
     return str(e)
 
 
-def render_file(scene_text: str, output: Path, flags: dict[str, str]) -> dict[str, Any]:
-    """Render ``scene_text`` with the settings ``flags`` (text, as in a query) into ``output``.
+def render_file(scene_text: str | None, output: Path, flags: dict[str, str], scene: Any = None) -> dict[str, Any]:
+    """Render ``scene_text`` (scene JSON; or the ready ``scene``, a model's) with the settings
+    ``flags`` (text, as in a query) into ``output``.
 
     Returns what was done (method, size, format, timings in ms). UsageError on bad input."""
     from pydantic import ValidationError
@@ -157,14 +208,15 @@ def render_file(scene_text: str, output: Path, flags: dict[str, str]) -> dict[st
         patch = FrameQuery.model_validate({**flags, "format": fmt}).given()
     except ValidationError as e:
         raise UsageError(_validation_message(e)) from None
-    try:
-        model = SceneModel.model_validate_json(scene_text)
-    except ValidationError as e:
-        raise UsageError("scene." + _validation_message(e).replace("; ", "; scene.")) from None
-    try:
-        scene = scene_from_model(model)
-    except SceneError as e:
-        raise UsageError(f"scene.{e.field}: {e.message}") from None
+    if scene is None:
+        try:
+            model = SceneModel.model_validate_json(scene_text)
+        except ValidationError as e:
+            raise UsageError("scene." + _validation_message(e).replace("; ", "; scene.")) from None
+        try:
+            scene = scene_from_model(model)
+        except SceneError as e:
+            raise UsageError(f"scene.{e.field}: {e.message}") from None
     config = ServerConfig()
     settings = {**config.default_settings(), **patch}
     try:
@@ -191,9 +243,13 @@ def render_file(scene_text: str, output: Path, flags: dict[str, str]) -> dict[st
 
 
 def render(args: argparse.Namespace) -> int:
-    text = sys.stdin.read() if args.scene == "-" else _read(args.scene)
     flags = {k[4:]: v for k, v in vars(args).items() if k.startswith("set_") and v is not None}
-    done = render_file(text, Path(args.output), flags)
+    if args.scene != "-" and is_model(args.scene):
+        done = render_file(None, Path(args.output), flags,
+                           scene=model_file_scene(args.scene, args.size, args.smooth))
+    else:
+        text = sys.stdin.read() if args.scene == "-" else _read(args.scene)
+        done = render_file(text, Path(args.output), flags)
     if not args.quiet:
         t = done["timings_ms"]
         print(f"{done['output']}: {done['width']}×{done['height']} {done['mode']} {done['format']}, "
@@ -264,6 +320,59 @@ def write_scenario(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---- scene --mesh ---------------------------------------------------------------------------
+def _add_scene(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("scene", help="write a scene JSON of model files (to edit, and render)",
+                       description="Write the scene JSON (docs/FORMATS.md) of one or more model files (.obj .ply "
+                                   ".stl .glb .gltf): each mesh as the file has it with a transform that fits it, "
+                                   "side by side along x on the floor, the camera and light of render MODEL.")
+    p.add_argument("--mesh", action="append", required=True, metavar="MODEL",
+                   help="a model file (repeat for more)")
+    p.add_argument("--as-is", action="store_true", help="no transform: the files' coordinates are world units")
+    _add_model_flags(p)
+    p.add_argument("-o", "--output", default="-", help="output file (default: standard output)")
+
+
+def models_scene(paths: list[str], size: float = 30.0, smooth: bool | None = None, as_is: bool = False) -> dict:
+    """The scene JSON ``scene --mesh`` writes, validated as the API validates a scene."""
+    from pydantic import ValidationError
+
+    from renderer.mesh_io import models_scene_json
+    from renderer.scene import SceneError
+
+    from .models import SceneModel
+    from .scenes import scene_from_model
+
+    for path in paths:
+        if not Path(path).is_file():
+            raise UsageError(f"mesh: cannot read {path}: no such file")
+    try:
+        doc = models_scene_json(paths, size=_size(size), smooth=smooth, as_is=as_is)
+    except SceneError as e:
+        raise UsageError(f"mesh: {e.message}") from None
+    try:
+        scene_from_model(SceneModel.model_validate(doc))
+    except (ValidationError, SceneError) as e:   # e.g. --as-is with coordinates beyond the limits
+        msg = _validation_message(e) if isinstance(e, ValidationError) else f"{e.field}: {e.message}"
+        raise UsageError(f"scene.{msg}") from None
+    return doc
+
+
+def write_models_scene(args: argparse.Namespace) -> int:
+    doc = models_scene(args.mesh, args.size, args.smooth, args.as_is)
+    text = json.dumps(doc, separators=(",", ":"), allow_nan=False)
+    if args.output == "-":
+        sys.stdout.write(text + "\n")
+        sys.stdout.flush()
+        return 0
+    out = Path(args.output)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(text)
+    n = sum(len(m["triangles"]) for m in doc["meshes"])
+    print(f"{out}: {len(doc['meshes'])} meshes, {n} triangles", file=sys.stderr)
+    return 0
+
+
 # ---- devices ------------------------------------------------------------------------------------
 def _add_devices(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("devices", help="list the EGL devices (--gl-device picks one by index)")
@@ -297,6 +406,7 @@ def parser() -> argparse.ArgumentParser:
     _add_serve(sub)
     _add_render(sub)
     _add_scenario(sub)
+    _add_scene(sub)
     _add_devices(sub)
     _add_stack(sub)
     return p
@@ -313,7 +423,8 @@ def stack(args: argparse.Namespace) -> int:
     return stack_main(args.rest)
 
 
-COMMANDS = {"serve": serve, "render": render, "scenario": write_scenario, "devices": devices, "stack": stack}
+COMMANDS = {"serve": serve, "render": render, "scenario": write_scenario, "scene": write_models_scene,
+            "devices": devices, "stack": stack}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -31,7 +31,7 @@ from renderer.limits import (DEFAULT_TILE_SIZE, JPEG_QUALITY_RANGE, MAX_ABSENT, 
                              MAX_WAVELENGTH, MIN_TILE_SIZE, MIN_WEIGHT_RANGE, SAMPLES_PER_PIXEL,
                              UPDATE_THRESHOLD_RANGE)
 from renderer.mesh_io import MODEL_FORMATS
-from renderer.scenarios import CUBE_HALF
+from renderer.scenarios import CUBE_HALF, MAX_MESH_DETAIL, MESH_SCENES
 from renderer.settings import FORMATS, METHODS, MODES, RenderSettings
 from renderer.tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
 
@@ -454,9 +454,21 @@ class MuseumRecipe(Strict):
     absent: float = Field(0.2, ge=0.0, le=MAX_ABSENT, description="incoherent spheres: fraction of a lifetime gone")
 
 
+class MeshSceneRecipe(Strict):
+    """A demo scene with triangle meshes (renderer.scenarios.mesh_scene): ``teapot`` (the
+    closed Utah teapot on the floor), ``mixed`` (27 spheres, a glass icosphere and a torus),
+    ``room`` (a box room seen from inside with a teapot, an icosphere and four spheres)."""
+    kind: Literal[MESH_SCENES] = Field("teapot", description="teapot, mixed or room")  # type: ignore[valid-type]
+    detail: Annotated[int, Integral] = Field(2, ge=0, le=MAX_MESH_DETAIL,
+                                             description="tessellation: teapot 2 + 2·detail segments per patch, "
+                                                         "icosphere subdivisions, torus 12 (detail + 1) segments")
+    smooth: bool = Field(True, description="vertex normals (smooth shading); false: flat")
+
+
 class SessionCreate(Strict):
     """Either a thesis scenario (``scenario`` and ``n``; ``seed``, ``radius`` optional),
-    an animated ``museum``, or a full ``scene``; optionally the session's first render settings."""
+    an animated ``museum``, a ``mesh_scene`` or a full ``scene``; optionally the session's
+    first render settings."""
     scenario: Annotated[Literal[1, 2, 3], Integral] | None = Field(None, description="thesis scenario 1, 2 or 3")
     # The bounds inside the Annotated: on an optional field pydantic would write them to the schema
     # as "ge"/"le", which JSON Schema does not know (the schema said nothing of n's range).
@@ -465,6 +477,7 @@ class SessionCreate(Strict):
         None, description="random placement seed (default 0)")
     radius: float | None = Field(None, gt=0.0, le=CUBE_HALF, description="sphere radius, world units (default 1)")
     museum: MuseumRecipe | None = None
+    mesh_scene: MeshSceneRecipe | None = None
     scene: SceneModel | None = None
     settings: SettingsPatch | None = None
 
@@ -479,6 +492,8 @@ class SceneInfo(BaseModel):
     animated: bool = False
     n_moving: int = Field(0, description="spheres some motion moves")
     museum: MuseumRecipe | None = None
+    mesh_scene: MeshSceneRecipe | None = Field(None, description="the mesh scene recipe it was made from (until a "
+                                                                  "model is added or the scene replaced)")
     n_meshes: int = 0
     n_triangles: int = Field(0, description="triangles of all meshes (ids after the planes)")
     n_degenerate_triangles: int = Field(0, description="zero-area triangles: kept, never hit")

@@ -35,7 +35,7 @@ from renderer.limits import DEFAULT_TEXTURE_WIDTH, MAX_TRIANGLES, SAMPLES_PER_PI
 from renderer.mesh_io import fit_transform, load_mesh
 from renderer.methods import AUTO_METHOD, METHODS, capabilities, resolve_method
 from renderer.prepare import PreparedFrame, band_rows, batch_size, prepare_frame
-from renderer.scenarios import scenario
+from renderer.scenarios import mesh_scene, scenario
 from renderer.scene import Camera, Scene, SceneError
 from renderer.settings import RenderSettings
 from renderer.tree_update import TreeUpdate
@@ -240,12 +240,22 @@ class SessionService:
     def _create(self, body: SessionCreate) -> SessionState:
         recipe_given = [k for k in ("scenario", "n", "seed", "radius") if getattr(body, k) is not None]
         sources = [k for k, given in (("scenario", bool(recipe_given)), ("museum", body.museum is not None),
+                                      ("mesh_scene", body.mesh_scene is not None),
                                       ("scene", body.scene is not None)) if given]
         if len(sources) > 1:
             where = recipe_given[0] if recipe_given else sources[1]
-            raise InputError(("body", where), "give one of a scenario (scenario, n, seed, radius), a museum "
-                                              f"or a scene, not {' and '.join(sources)}")
-        if body.museum is not None:
+            raise InputError(("body", where), "give one of a scenario (scenario, n, seed, radius), a museum, "
+                                              f"a mesh_scene or a scene, not {' and '.join(sources)}")
+        if body.mesh_scene is not None:
+            r = body.mesh_scene
+            scene = mesh_scene(r.kind, r.detail, r.smooth)
+            if scene.n_triangles > self.config.max_triangles:
+                raise InputError(("body", "mesh_scene", "detail"),
+                                 f"{scene.n_triangles} triangles; at most {self.config.max_triangles} allowed "
+                                 "(POCKETRAY_MAX_TRIANGLES)")
+            recipe = {"mesh_scene": r.model_dump()}
+            source = scene_source(scene)
+        elif body.museum is not None:
             m = body.museum
             self.check_spheres(m.n + MUSEUM_ROOM_SPHERES, ("body", "museum", "n"))
             scene = museum(m.n, m.kind, m.seed, m.absent)
@@ -272,7 +282,9 @@ class SessionService:
         settings = self.merge_settings(self.default_settings(), patch, "body")
         self.check_work(settings, scene.n_spheres, "body")
         # A session no frame could render is refused now (the sphere count named where it was asked for).
-        n_field = ("body", "museum", "n") if body.museum is not None else ("body", "n") if recipe else None
+        n_field = (("body", "museum", "n") if body.museum is not None else
+                   ("body", "mesh_scene", "detail") if body.mesh_scene is not None else
+                   ("body", "n") if recipe else None)
         self.plan(scene, settings, "body", n_field=n_field)
         camera = scene.camera.to_json()
         state = SessionState(id=secrets.token_urlsafe(24), version=1, camera=camera, home_camera=camera,

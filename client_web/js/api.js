@@ -93,7 +93,7 @@ export class Api {
   }
 
   // One request, retried while the failure is transient. Returns the Response (ok).
-  async request(method, path, { body, params, headers = {} } = {}) {
+  async request(method, path, { body, raw, params, headers = {} } = {}) {
     const url = this.base + path + query(params);
     const init = { method, headers: { ...headers }, cache: 'no-store' };
     // The balancer hashes on X-Session-Id (docs/DEPLOY.md): a session's requests reach the
@@ -103,6 +103,9 @@ export class Api {
     if (body !== undefined) {
       init.body = JSON.stringify(body);
       init.headers['Content-Type'] = 'application/json';
+    } else if (raw !== undefined) {   // a file's bytes as the body (a Blob can be sent again on a retry)
+      init.body = raw;
+      init.headers['Content-Type'] = 'application/octet-stream';
     }
     for (let attempt = 1; ; attempt++) {
       let res = null, failure = null;
@@ -163,6 +166,12 @@ export class Api {
 
   patchSettings(id, partial) {
     return this.json('PATCH', `/api/sessions/${encodeURIComponent(id)}/settings`, { body: partial });
+  }
+
+  // A model file (a Blob/File) added to the session's scene: the raw body, no multipart
+  // (docs/API.md, "Triangle meshes"). → {version, scene_info, mesh, first_id}.
+  addMesh(id, file, params) {
+    return this.json('POST', `/api/sessions/${encodeURIComponent(id)}/meshes`, { raw: file, params });
   }
 
   // A gesture; with frameParams the answer is the new frame (one round trip).
@@ -304,6 +313,8 @@ export function storeSession(session, storage = window.localStorage) {
 // Same scene? (the scene parameters that were asked for, against the session's scene_info)
 export function sameScene(wanted, info) {
   if (!info) return false;
+  const mesh = /^mesh:(\w+)$/.exec(String(wanted.scenario ?? ''));
+  if (mesh || info.mesh_scene) return !!mesh && !!info.mesh_scene && info.mesh_scene.kind === mesh[1];
   if (wanted.scenario === 'museum' || info.museum) {
     const m = info.museum;
     return !!m && wanted.scenario === 'museum' && (wanted.n === undefined || Number(wanted.n) === m.n) &&

@@ -11,12 +11,12 @@ import { Overlay } from './overlay.js';
 import { Legend } from './legend.js';
 import { Hint } from './hint.js';
 import { Banner, Notices } from './notices.js';
-import { explain } from './messages.js';
+import { explain, explainUpload } from './messages.js';
 import { DeviceView } from './device.js';
 import { SettingsPanel } from './panel.js';
 import {
-  DEFAULT_SCENE, FALLBACK_METHODS, RENDER_KEYS, fitResolution, loadClientSettings, parseResolution, previewSize,
-  readUrlParams, saveClientSettings,
+  DEFAULT_SCENE, FALLBACK_METHODS, MODEL_SIZE, RENDER_KEYS, fitResolution, loadClientSettings, meshKind, parseResolution,
+  previewSize, readUrlParams, saveClientSettings,
 } from './settings.js';
 
 const $ = (sel) => document.querySelector(sel);
@@ -153,7 +153,8 @@ function requestMeta(level) {
   return {
     sessionId: state.sessionId, n: state.scene.n_spheres ?? state.scene.n, mode: r.mode, method: r.method,
     samples: (fast && fast.samples_per_pixel) ?? r.samples_per_pixel ?? 1, minWeight: (fast && fast.min_weight) ?? r.min_weight,
-    scenario: state.scene.scenario, motion: state.scene.motion,
+    scenario: state.scene.scenario, motion: state.scene.motion, triangles: state.scene.n_triangles || 0,
+    meshes: state.scene.n_meshes || 0,
   };
 }
 
@@ -254,13 +255,19 @@ async function display(frame, level) {
   const shownTime = frame.stats && Number.isFinite(frame.stats.time) ? frame.stats.time : null;
   hook.lastFrame.time = shownTime;
   const mode = meta.mode || state.render.mode;
+  // (the device's frames are of the data it fetched for the scene as it is now)
+  const triangles = frame.stats?.n_triangles ?? meta.triangles ?? (renderer === 'device' ? state.scene.n_triangles : 0) ?? 0;
+  hook.lastFrame.triangles = triangles;
+  const withTriangles = triangles ? `, ${triangles} triangles in ${meta.meshes || 1} mesh${meta.meshes > 1 ? 'es' : ''}` : '';
+  const kind = meshKind(meta.scenario);
   canvas.setAttribute('aria-label', meta.scenario === 'museum'
     ? `Ray-traced animated museum: ${n} spheres (${meta.motion}), ${mode} mode`
-    : `Ray-traced scene: scenario ${meta.scenario ?? state.scene.scenario}, ${n} spheres, ${mode} mode`);
+    : kind ? `Ray-traced mesh scene: ${kind}, ${n} spheres${withTriangles}, ${mode} mode`
+      : `Ray-traced scene: scenario ${meta.scenario ?? state.scene.scenario}, ${n} spheres${withTriangles}, ${mode} mode`);
   legend.show(mode === 'recursion' || mode === 'heat' ? mode : null);
   overlay.frame({
     level, width: canvas.width, height: canvas.height, clientMs, timing: frame.timing, stats: frame.stats,
-    method, n, version: frame.version, renderedBy, renderer, samples: meta.samples, minWeight: meta.minWeight,
+    method, n, triangles, version: frame.version, renderedBy, renderer, samples: meta.samples, minWeight: meta.minWeight,
     time: state.anim.animated ? shownTime : null, playing: state.anim.playing,
   });
   if (state.anim.playing) scheduler.animate();   // the next frame as soon as this one is shown
@@ -296,11 +303,13 @@ function adopt(s) {
   hook.sessionId = s.id;
   const info = s.scene_info || {};
   const museum = info.museum || null;
+  const mesh = info.mesh_scene || null;
   state.scene = {
-    scenario: museum ? 'museum' : info.scenario ?? state.scene.scenario,
+    scenario: museum ? 'museum' : mesh ? `mesh:${mesh.kind}` : info.scenario ?? state.scene.scenario,
     n: museum ? museum.n : info.n ?? info.n_spheres ?? state.scene.n,
     seed: museum ? museum.seed : info.seed ?? state.scene.seed, radius: info.radius ?? state.scene.radius,
     motion: museum ? museum.kind : state.scene.motion, n_spheres: info.n_spheres, animated: !!info.animated,
+    n_triangles: info.n_triangles || 0, n_meshes: info.n_meshes || 0,
   };
   state.render = pickRender(s.settings);
   const anim = state.anim;
@@ -327,8 +336,10 @@ function sceneBodyKeys(scene) {
   return k;
 }
 
-// POST /api/sessions body: a thesis scenario or the animated museum.
+// POST /api/sessions body: a thesis scenario, the animated museum or a mesh scene.
 function sceneBody(scene) {
+  const kind = meshKind(scene.scenario);
+  if (kind) return { mesh_scene: { kind } };
   if (scene.scenario === 'museum') {
     return { museum: { n: scene.n, kind: scene.motion || 'deformable', seed: scene.seed || 0 } };
   }
@@ -425,6 +436,32 @@ const panel = new SettingsPanel($('#settings'), $('#settings-toggle'), {
     }).then(() => scheduler.invalidate(), () => panel.show(state));
   },
   onRender: applyRender,
+  // A model file chosen in the sheet: added to this session's scene (POST …/meshes, the raw
+  // bytes), then the new frame. A refusal (413, 422) goes next to the picker; the scene stays.
+  onModel(file, format) {
+    scheduler.dropPending();
+    return scheduler.enqueue(async () => {
+      const sid = state.sessionId;
+      let added;
+      try {
+        added = await api.addMesh(sid, file, { format, size: MODEL_SIZE });
+      } catch (e) {
+        if (!(e instanceof ApiError) || ![413, 422].includes(e.status)) throw e;
+        const ex = explainUpload(e);
+        const entry = { what: 'model', status: ex.status, message: ex.text, field: 'model' };
+        hook.errors.push(entry);
+        entry.inline = panel.open && panel.mark('model', ex.text);
+        if (!entry.inline) notice(ex.text, 'error', 8000);
+        return false;
+      }
+      if (state.sessionId !== sid) return false;
+      const s = { ...state.session, version: added.version, scene_info: added.scene_info };
+      state.sceneRev = (state.sceneRev || 0) + 1;   // device mode fetches the grown scene's data
+      adopt(s);
+      notice(`Added ${file.name}: ${added.scene_info.n_triangles} triangles in the scene now.`);
+      return true;
+    }).then((ok) => { if (ok) scheduler.invalidate(); }, () => {});
+  },
   onClient(partial) {
     state.client = { ...state.client, ...partial };
     saveClientSettings(state.client);

@@ -43,10 +43,12 @@ export function sceneSpheres(ctx) {
 // Whether a setting means anything for the scene, method and renderer at hand (else the panel hides it).
 export function applies(name, ctx) {
   const museum = ctx.scene.scenario === 'museum';
+  const mesh = /^mesh:/.test(String(ctx.scene.scenario ?? ''));   // a mesh scene: made by its kind alone
   const m = methodInfo(ctx.info, ctx.render.method);
   switch (name) {
     case 'motion': return museum;
-    case 'radius': return !museum;
+    case 'radius': return !museum && !mesh;
+    case 'n': case 'seed': return !mesh;
     case 'update': return !!ctx.animated && m.settings.includes('update');
     case 'max_prims': case 'max_tree_depth': case 'tile_size': return m.settings.includes(name);
     case 'previewFormat': case 'previewQuality':

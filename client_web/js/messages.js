@@ -28,6 +28,38 @@ export function fieldOf(loc) {
   return null;
 }
 
+// Why a chosen model file is not sent (null: send it): its suffix, its size against the
+// service's body limit (POCKETRAY_MAX_BODY_BYTES, GET /api/info's limits.max_body_bytes).
+export function modelFileProblem(name, size, format, formats, limit) {
+  if (!formats.includes(format)) {
+    return `${FIELD_LABELS.model}: ${name} is not a model file the service reads (${formats.map((f) => `.${f}`).join(', ')})`;
+  }
+  if (!size) return `${FIELD_LABELS.model}: ${name} is empty`;
+  if (limit > 0 && size > limit) return `${FIELD_LABELS.model}: ${tooBig(size, limit)}`;
+  return null;
+}
+
+const mb = (b) => (b >= 1e6 ? `${(b / 1e6).toFixed(1)} MB` : `${Math.ceil(b / 1e3)} kB`);
+const tooBig = (size, limit) => `the file is too big (${mb(size)}; the service takes at most ${mb(limit)})`;
+
+// A refused model upload in the panel's words, next to the file picker: 413 (too big), 422
+// (not a model, too many triangles, …: the service's message without its field prefix).
+export function explainUpload(e) {
+  if (e && e.status === 413) {
+    const d = typeof e.detail === 'string' ? e.detail : '';
+    const m = /of (\d+) bytes exceeds the limit of (\d+) bytes/.exec(d);
+    return { field: 'model', status: 413,
+      text: `${FIELD_LABELS.model}: ${m ? tooBig(Number(m[1]), Number(m[2])) : 'the file is too big for the service'}` };
+  }
+  if (e && e.status === 422) {
+    const d = e.detail;
+    let msg = Array.isArray(d) && d.length ? String(d[0].msg ?? JSON.stringify(d[0])) : typeof d === 'string' ? d : JSON.stringify(d);
+    msg = msg.replace(/^[\w.[\]]+: /, '');
+    return { field: 'model', status: 422, text: `${FIELD_LABELS.model}: ${inPanelWords(msg)}` };
+  }
+  return { ...explain(e), field: 'model' };
+}
+
 // {field, text, status} for an error from api.js (an ApiError has status and detail).
 export function explain(e) {
   if (!e || e.status === undefined) return { field: null, text: `Something went wrong: ${e && (e.message || e)}`, status: null };

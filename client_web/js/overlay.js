@@ -126,6 +126,9 @@ export class Overlay {
     this._set('depth', s.depth_max != null ? String(s.depth_max) : '–');
     this._set('method', info.method || s.method || '–');
     this._set('n', info.n != null ? String(info.n) : '–');
+    const meshRow = this.details.querySelector('[data-meshes]');
+    if (meshRow) meshRow.hidden = !info.triangles;
+    this._set('triangles', info.triangles ? String(info.triangles) : '–');
     this._set('res', `${info.width}×${info.height} ${info.level === 'full' ? 'full' : 'preview'}`);
     this._set('samples', info.samples != null
       ? `${info.samples} spp${info.minWeight != null ? `, ε ${info.minWeight}` : ''}` : '–');

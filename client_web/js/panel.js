@@ -3,15 +3,17 @@
 // marked fields back to the session's values when it closes without them applied.
 //
 // callbacks: onScene(scene) (a new session), onRender(partial) (PATCH), onClient(partial)
-// (this browser's levels). The app calls show(state) with {scene, render, client, anim}
+// (this browser's levels), onModel(file, format) (a model file to add to the session's scene;
+// the app marks a refusal next to the picker with mark('model', text)). The app calls show(state) with {scene, render, client, anim}
 // whenever they change, setInfo(info) once GET /api/info answered, and refused(explained)
 // with a 422 in the panel's words (messages.js).
 
 import { applies, check, modesOf, range, samplesAllowed } from './limits.js';
 import {
-  DEFAULT_MUSEUM_N, DEFAULT_SCENE, FALLBACK_METHODS, FIELD_LABELS, METHOD_LABELS, MODE_LABELS, MODES, MUSEUM_KINDS,
-  PREVIEW_SCALES, RESOLUTIONS, SAMPLES, SCENARIOS, UPDATE_SCHEMES, parseResolution,
+  DEFAULT_MUSEUM_N, DEFAULT_SCENE, FALLBACK_METHODS, FIELD_LABELS, METHOD_LABELS, MODE_LABELS, MODES, MODEL_FORMATS,
+  MUSEUM_KINDS, PREVIEW_SCALES, RESOLUTIONS, SAMPLES, SCENARIOS, UPDATE_SCHEMES, meshKind, parseResolution,
 } from './settings.js';
+import { modelFileProblem } from './messages.js';
 
 const SCENE_KEYS = ['scenario', 'n', 'seed', 'radius', 'motion'];
 const RENDER_INT = ['max_prims', 'max_tree_depth', 'max_recursion_depth', 'tile_size', 'samples_per_pixel'];
@@ -104,14 +106,15 @@ export class SettingsPanel {
     this.state = state;
     const { scene, render, client } = state;
     const kind = isMuseum(scene.scenario) ? 'museum' : 'thesis';
-    if (Number.isFinite(scene.n)) this.nByKind[kind] = scene.n;
+    const mesh = !!meshKind(scene.scenario);   // n, seed, radius mean nothing there: the form keeps the last ones
+    if (Number.isFinite(scene.n) && !mesh) this.nByKind[kind] = scene.n;
     const set = (name, v) => {
       const el = this.el(name);
       if (!el || v === undefined || v === null) return;
       if (!force && (document.activeElement === el || this.invalid.has(name))) return;
       el.value = String(v);
     };
-    for (const k of SCENE_KEYS) set(k, scene[k]);
+    for (const k of SCENE_KEYS) if (!mesh || k === 'scenario' || k === 'motion') set(k, scene[k]);
     for (const k of [...RENDER_TEXT, ...RENDER_INT]) set(k, render[k]);
     const known = RESOLUTIONS.some((r) => r.value === client.resolution);
     set('resolution', known ? client.resolution : 'custom');
@@ -162,8 +165,10 @@ export class SettingsPanel {
   // The scene as the form has it now.
   _formScene() {
     const f = this.form.elements;
+    const scenario = isMuseum(f.scenario.value) ? 'museum' : meshKind(f.scenario.value) ? f.scenario.value
+      : parseInt(f.scenario.value, 10);
     return {
-      scenario: isMuseum(f.scenario.value) ? 'museum' : parseInt(f.scenario.value, 10), n: Number(f.n.value),
+      scenario, n: Number(f.n.value),
       seed: Number(f.seed.value), radius: Number(f.radius.value), motion: f.motion.value,
     };
   }
@@ -220,6 +225,7 @@ export class SettingsPanel {
     if (!name || !this.state) return;
     const v = target.value;
     if (SCENE_KEYS.includes(name)) return this._sceneChanged(name);
+    if (name === 'model') return this._modelChosen(target);
     if (RENDER_TEXT.includes(name) || RENDER_INT.includes(name)) {
       const value = RENDER_INT.includes(name) ? Number(v) : v;
       const render = { [name]: value };
@@ -256,6 +262,23 @@ export class SettingsPanel {
       this.cb.onClient({ [name]: value });
       this._layout();
     }
+  }
+
+  // A model file chosen: refused here when its suffix or size cannot be right (the service's
+  // limit, GET /api/info), else handed to the app, which uploads it.
+  _modelChosen(input) {
+    const file = input.files && input.files[0];
+    if (!file) return;
+    const format = (/\.([^.]+)$/.exec(file.name) || [])[1]?.toLowerCase() || '';
+    const limit = this.info && this.info.limits && this.info.limits.max_body_bytes;
+    const problem = modelFileProblem(file.name, file.size, format, MODEL_FORMATS, limit);
+    if (problem) {
+      this.mark('model', problem);
+      input.value = '';
+      return;
+    }
+    this.clear('model');
+    Promise.resolve(this.cb.onModel(file, format)).finally(() => { input.value = ''; });   // the same file again: a change
   }
 
   _sceneChanged(name) {

@@ -23,7 +23,17 @@ export const SCENARIOS = Object.freeze([
   { value: 2, label: '2 — eight corner clusters' },
   { value: 3, label: '3 — half grid, half clusters' },
   { value: 'museum', label: 'Museum — animated (Reiter)' },
+  // Scenes of triangle meshes (POST /api/sessions {mesh_scene: {kind}}, renderer/scenarios.py).
+  { value: 'mesh:teapot', label: 'Teapot — triangles (Newell)' },
+  { value: 'mesh:mixed', label: 'Icosphere, torus and spheres' },
+  { value: 'mesh:room', label: 'Mesh room — teapot, icosphere, spheres' },
 ]);
+// A mesh scene's kind ('mesh:teapot' → 'teapot'), or null for the sphere scenes.
+export const meshKind = (scenario) => (/^mesh:(teapot|mixed|room)$/.exec(String(scenario ?? '')) || [])[1] || null;
+// Model files the settings sheet uploads (POST /api/sessions/{id}/meshes?format=…), by suffix.
+export const MODEL_FORMATS = Object.freeze(['obj', 'ply', 'stl', 'glb', 'gltf']);
+// An uploaded model is fitted into this many world units, standing on the floor (the endpoint's size).
+export const MODEL_SIZE = 20;
 // Motions of the animated museum (POST /api/sessions {museum: {n, kind}}); GET /api/info lists them too.
 export const MUSEUM_KINDS = Object.freeze([
   { value: 'deformable', label: 'Deformable (a travelling wave)' },
@@ -70,7 +80,7 @@ export const FIELD_LABELS = Object.freeze({
   max_recursion_depth: 'Recursion depth', max_prims: 'Max primitives per leaf', max_tree_depth: 'Max tree depth',
   tile_size: 'Tile size', update: 'Between animation frames', resolution: 'Full resolution', width: 'Width',
   height: 'Height', previewScale: 'While moving (preview)', previewFormat: 'Preview format',
-  previewQuality: 'Preview JPEG quality', refineDelayMs: 'Refine after (ms)',
+  previewQuality: 'Preview JPEG quality', refineDelayMs: 'Refine after (ms)', model: 'Model',
 });
 export const DEFAULT_CLIENT = Object.freeze({
   resolution: 'fit',       // 'fit' | 'WxH' | 'custom'
@@ -111,6 +121,7 @@ export function readUrlParams(search) {
   const num = (k) => (INT_KEYS.has(k) ? parseInt(q.get(k), 10) : parseFloat(q.get(k)));
   for (const k of ['scenario', 'n', 'seed', 'radius']) if (q.has(k) && Number.isFinite(num(k))) scene[k] = num(k);
   if (q.get('scenario') === 'museum') scene.scenario = 'museum';
+  if (meshKind(q.get('scenario'))) scene.scenario = q.get('scenario');
   if (MUSEUM_KINDS.some((m) => m.value === q.get('motion'))) scene.motion = q.get('motion');
   if (UPDATE_SCHEMES.some((m) => m.value === q.get('update'))) render.update = q.get('update');
   for (const k of ['max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height', 'samples_per_pixel', 'tile_size']) {

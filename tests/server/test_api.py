@@ -66,8 +66,8 @@ def test_create_from_scenario_and_read(client):
     assert set(s["settings"]) == SETTING_KEYS
     assert s["settings"]["width"] == SMALL["width"]
     assert s["scene_info"] == {"n_spheres": 100, "n_planes": 1, "scenario": 3, "n": 100, "seed": 7, "radius": 0.5,
-                               "animated": False, "n_moving": 0, "museum": None, "n_meshes": 0, "n_triangles": 0,
-                               "n_degenerate_triangles": 0, "n_moving_meshes": 0}
+                               "animated": False, "n_moving": 0, "museum": None, "mesh_scene": None, "n_meshes": 0,
+                               "n_triangles": 0, "n_degenerate_triangles": 0, "n_moving_meshes": 0}
     got = client.get(f"/api/sessions/{s['id']}").json()
     assert got["camera"] == {"position": [0.0, 0.0, 100.0], "target": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0],
                              "fov_y": 60.0}

@@ -28,6 +28,7 @@ pytestmark = pytest.mark.gl   # render runs GLRenderer, serve a GL worker
 
 def pocketray(*args: str, cwd: Path, stdin: str | None = None) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
+    env["PYTHONPATH"] = str(ROOT)     # this checkout's server, not whichever one the environment installed
     return subprocess.run([sys.executable, "-m", "server", *args], cwd=cwd, env=env, input=stdin,
                           capture_output=True, text=True, timeout=300)
 

@@ -239,3 +239,29 @@ def test_info_states_the_triangle_cap_and_what_each_method_traces(api):
     assert {m for m, x in info["method_settings"].items() if x["meshes_on_gpu"]} == {
         "bih", "bruteforce", "bvh", "kdtree", "twolevel", "auto"}
     assert math.isfinite(api.get("/api/info").json()["limits"]["max_frame_cost"])
+
+
+def test_a_mesh_scene_recipe_makes_a_session_of_its_triangles(api):
+    from renderer.scenarios import mesh_scene
+    r = api.post("/api/sessions", json={"mesh_scene": {"kind": "mixed", "detail": 1}, "settings": SMALL})
+    assert r.status_code == 201, r.text
+    info = r.json()["scene_info"]
+    want = mesh_scene("mixed", 1)
+    assert info["mesh_scene"] == {"kind": "mixed", "detail": 1, "smooth": True}
+    assert info["n_triangles"] == want.n_triangles and info["n_meshes"] == 2 and info["n_spheres"] == 27
+    sid = r.json()["id"]
+    frame = api.get(f"/api/sessions/{sid}/frame", params={"mode": "primid", "format": "npy"})
+    ids = np.load(io.BytesIO(frame.content))
+    assert (ids >= want.triangle_id_base).any()            # its triangles are in the frame
+    # A model added to it: a scene of its own (no recipe any more), the triangles counted.
+    model = export_mesh(box((0, 0, 0), (1, 1, 1)), "obj")
+    added = api.post(f"/api/sessions/{sid}/meshes", params={"format": "obj", "size": 5}, content=model)
+    assert added.status_code == 201 and added.json()["scene_info"].get("mesh_scene") is None
+    assert added.json()["scene_info"]["n_triangles"] == want.n_triangles + 12
+    # Refused naming the field: an unknown kind, a detail out of range or over the triangle cap, two recipes.
+    for body, field in [({"mesh_scene": {"kind": "dragon"}}, "kind"), ({"mesh_scene": {"detail": 9}}, "detail"),
+                        ({"mesh_scene": {"kind": "room", "detail": 3}}, "mesh_scene"),
+                        ({"mesh_scene": {}, "scenario": 1, "n": 4}, "mesh_scene")]:
+        bad = api.post("/api/sessions", json=body)
+        assert bad.status_code == 422, (body, bad.text)
+        assert any(field in [str(x) for x in d["loc"]] or field in d["msg"] for d in bad.json()["detail"]), bad.text
