@@ -33,6 +33,11 @@ MIN_TILE_SIZE = 2              # hre: tile side in pixels
 MAX_TILE_SIZE = 64
 DEFAULT_TILE_SIZE = 16
 JPEG_QUALITY_RANGE = (1, 100)
+# A shader loop with one primitive per iteration (brute force): llvmpipe's loop limiter ends a
+# loop after 65,535 iterations without an error, so past this many the last primitives are never
+# tested (measured: a triangle of id 65,532 is hit, one of id 65,533 is not). Such a scene is
+# refused for that method instead of drawn without them.
+MAX_LOOP_PRIMITIVES = 65_533
 
 # ---- animation -----------------------------------------------------------------------------
 MAX_TIME = 1.0e6               # seconds: the largest time a scene can be posed at

@@ -55,3 +55,8 @@ def check_primitives(name: str, scene) -> None:
         raise SceneError("method", f"method {name!r} traces {' and '.join(caps.primitives)} only; this scene has "
                                    f"{len(scene.meshes)} mesh(es) of {scene.n_triangles:,} triangles: use one of "
                                    f"{', '.join(able)}")
+    n = scene.n_spheres + scene.n_triangles
+    if caps.max_primitives is not None and n > caps.max_primitives:
+        raise SceneError("method", f"method {name!r} traces at most {caps.max_primitives:,} primitives (one shader loop "
+                                   f"over them all; llvmpipe ends longer loops early); this scene has {n:,}: use a "
+                                   f"hierarchy (bih, bvh, kdtree, twolevel)")

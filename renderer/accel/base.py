@@ -130,6 +130,8 @@ class Capabilities:
     twolevel), so a scene with meshes is traced on the GPU; a one-pass method without it
     builds over triangles on the CPU but refuses such frames (:class:`NotOnGPU`), and the
     server refuses them with 422 ``meshes``.
+    max_primitives: the most primitives (spheres + triangles) it traces; more are refused with
+    422 ``method`` (brute force: one shader loop over them all, ``limits.MAX_LOOP_PRIMITIVES``).
     """
     multi_pass: bool = False
     shader: str | None = None
@@ -139,6 +141,7 @@ class Capabilities:
     settings: tuple[str, ...] = ()
     primitives: tuple[str, ...] = ("spheres", "planes", "triangles")
     meshes_on_gpu: bool = False
+    max_primitives: int | None = None
 
     @property
     def device(self) -> bool:

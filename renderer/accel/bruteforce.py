@@ -14,7 +14,7 @@ import numpy as np
 
 from .. import gpu_layout
 from ..gpu_layout import Binding, wrap_rows
-from ..limits import DEFAULT_TEXTURE_WIDTH
+from ..limits import DEFAULT_TEXTURE_WIDTH, MAX_LOOP_PRIMITIVES
 from ..scene import Scene
 from ..tree_update import REBUILD, TreeUpdate
 from .base import Capabilities, PreparedMethod, gpu_data, mesh_stats
@@ -24,7 +24,8 @@ SPHERES = Binding("u_bf_spheres", doc="spheres in id order (gpu_layout.sphere_re
 
 class BruteForce:
     name = "bruteforce"
-    capabilities = Capabilities(shader="method_bruteforce.glsl", tests_every_sphere=True, meshes_on_gpu=True)
+    capabilities = Capabilities(shader="method_bruteforce.glsl", tests_every_sphere=True, meshes_on_gpu=True,
+                                max_primitives=MAX_LOOP_PRIMITIVES)
     bindings = (SPHERES, *gpu_layout.TRIANGLE_BINDINGS)
 
     @staticmethod

@@ -25,7 +25,7 @@ from ..animation import AnimatedScene
 from .. import gpu_layout
 from ..features import scene_features
 from ..limits import DEFAULT_TEXTURE_WIDTH
-from ..methods import METHODS, PreparedMethod, resolve_method
+from ..methods import METHODS, PreparedMethod, check_primitives, resolve_method
 from ..prepare import PreparedFrame, prepare_frame
 from ..result import RenderResult
 from ..scene import Scene, SceneError
@@ -140,6 +140,7 @@ class GLRenderer:
             raise ValueError(f"method {method_name!r} draws its frames in passes of its own: use render()")
         if settings.mode not in method.capabilities.modes:
             raise SceneError("mode", f"mode {settings.mode!r} is not available with method {method_name!r}")
+        check_primitives(method_name, scene)    # e.g. brute force past the shader's loop limit
         if prepared is None:
             prepared = method.prepare(scene, settings.max_prims, settings.max_tree_depth,
                                       self.max_texture_width, update)

@@ -3,6 +3,8 @@ a scene; ``auto`` picks brute force below the measured crossover and the BIH fro
 
 from __future__ import annotations
 
+import pytest
+
 from renderer.methods import AUTO_CROSSOVER_N, METHODS, resolve_method
 from renderer.scenarios import scenario
 from renderer.settings import RenderSettings
@@ -26,3 +28,17 @@ def test_registered_like_the_other_methods():
         prep = METHODS[name].prepare(scenario(1, 8), 8, 64)
         assert prep.stats["method"] == name
     assert RenderSettings(method="hre").method == "hre"
+
+
+def test_bruteforce_refuses_more_primitives_than_one_shader_loop_runs():
+    """llvmpipe ends a loop after 65,535 iterations without an error: brute force over more
+    primitives would silently drop the last ones, so such a scene is refused naming the method."""
+    from renderer.limits import MAX_LOOP_PRIMITIVES
+    from renderer.methods import check_primitives
+    from renderer.scenarios import scenario
+    from renderer.scene import SceneError
+    check_primitives("bruteforce", scenario(1, MAX_LOOP_PRIMITIVES))
+    with pytest.raises(SceneError) as e:
+        check_primitives("bruteforce", scenario(1, MAX_LOOP_PRIMITIVES + 1))
+    assert e.value.field == "method" and "65,533" in str(e.value)
+    check_primitives("bih", scenario(1, MAX_LOOP_PRIMITIVES + 1))   # a hierarchy has no such loop
