@@ -893,8 +893,9 @@ _OFFSET_MESH = ("float32 moves the vertices by up to 4.9e-4 (half the spacing 9.
                 "another triangle (measured: 11 px, 99.72 %; depth 1.64e-3); against the float32-input "
                 "scene every strict threshold holds.")
 _LOOP_LIMIT = ("llvmpipe stops the brute-force triangle loop after 65,533 iterations (measured: a triangle "
-               "at id 65,532 is hit, at 65,533 it is not — consistent with Mesa gallivm's loop limiter of "
-               "65,535 iterations), so triangles past that are never tested: whole icospheres vanish")
+               "at id 65,532 is hit, at 65,533 it is not — consistent with Mesa gallivm's loop limiter, "
+               "LP_MAX_TGSI_LOOP_ITERATIONS = 65,535 iterations shared by every loop of a shader), so "
+               "triangles past that are never tested: whole icospheres vanish")
 _add(
     Case("mesh_box_seams", "rays exactly on a closed box's shared edges (the front face's diagonal, its rims "
          "shared with side faces seen edge-on) and on its corners: a ray between two triangles must hit one",
