@@ -18,8 +18,13 @@ Per case and method:
   the same figures, strict unless pinned. The difference between the two separates
   what float32 *input* quantization costs from what the tracer's arithmetic costs;
 - the methods against each other: identical ids (the BIH only prunes; the sphere
-  test and the tie rule are shared), compared when both ran in this session;
-- the case's own checks (tree depth, no light leaking, ties only …).
+  test and the tie rule are shared), compared when both ran in this session — or, where a
+  case pins ``method_ties_why`` (rays exactly through edges two triangles share), differing
+  on ties only;
+- the case's own checks (tree depth, no light leaking, ties only, no leak through a mesh …).
+
+A case runs with ``Case.methods`` (mesh cases: the methods that trace triangles) and may
+name ``known_failures``: the test expects those (strict xfail) and the report marks them.
 """
 
 from __future__ import annotations
