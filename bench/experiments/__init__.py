@@ -7,4 +7,4 @@ the Markdown fragment that ``bench/experiments.py`` puts into ``RESULTS.md``.
 
 # In the order they appear in RESULTS.md.
 EXPERIMENTS = ("table_4_2", "fig_4_4", "fig_4_5", "scaling", "crossover", "peers", "pareto", "specialize",
-               "ray_engines", "dynamic", "cost", "scheduling", "shader", "hardening")
+               "ray_engines", "dynamic", "cost", "scheduling", "shader", "hardening", "meshes")

@@ -29,6 +29,7 @@ SECTIONS = {  # experiment name → heading start
     "pareto": "## Speed against accuracy",
     "specialize": "## Model no more than the scene needs",
     "shader": "## The tracer shaped for llvmpipe",
+    "meshes": "## Triangle meshes",
 }
 FIGURES = ("table_4_2_leaves", "fig_4_4_fps", "fig_4_5_memory", "scaling_loglog", "crossover", "pareto")
 

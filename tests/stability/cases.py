@@ -34,7 +34,7 @@ import numpy as np
 from renderer.accel.bih import build_for_spheres
 from renderer.accel import bih_layout as L
 from renderer.scenarios import RED, TRANSPARENT, scenario
-from renderer.scene import Camera, Light, Material, Plane, Scene
+from renderer.scene import Camera, Light, Material, Mesh, Plane, Scene
 
 PRIMID_AGREEMENT = 0.999
 DEPTH_REL = 1e-4
@@ -72,6 +72,15 @@ class Case:
     facts: Callable[[Scene], str] | None = None
     # What the figures mean, for the report.
     note: str = ""
+    # The methods the case runs with (None: every method of METHODS). Mesh cases name the
+    # methods that trace triangles (the ray engines draw spheres and planes only).
+    methods: tuple[str, ...] | None = None
+    # The methods must return identical ids (the default); a case where two triangles meet a
+    # ray at the same t (a shared edge) may let them differ on ties only, with this reason.
+    method_ties_why: str = ""
+    # (method, reason): the case is known to fail with that method (the test expects the
+    # failure, strictly: a fix shows up as an unexpected pass).
+    known_failures: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self) -> None:
         if self.min_primid_agreement < PRIMID_AGREEMENT and not self.why:
@@ -142,7 +151,10 @@ def float32_inputs(scene: Scene) -> Scene:
     return Scene(camera, tuple(Light(f32(l.position), f32(l.color)) for l in scene.lights), mats,
                  scene.sphere_centers.astype(np.float32).astype(np.float64),
                  scene.sphere_radii.astype(np.float32).astype(np.float64), scene.sphere_materials,
-                 tuple(Plane(f32(p.point), f32(p.normal), p.material) for p in scene.planes))
+                 tuple(Plane(f32(p.point), f32(p.normal), p.material) for p in scene.planes),
+                 tuple(Mesh(m.vertices.astype(np.float32).astype(np.float64), m.triangles, m.material,
+                            None if m.normals is None else m.normals.astype(np.float32).astype(np.float64))
+                       for m in scene.meshes))
 
 
 def same_scene(a: Scene, b: Scene) -> bool:
@@ -672,4 +684,246 @@ _add(
     Case("glass_mirror_room_depth8", "mirror walls with half-mirror half-glass spheres: a full binary ray tree "
          "(255 rays per pixel) at depth 8", lambda: mirror_room(True), width=33, height=33,
          max_recursion_depth=8),
+)
+
+
+# ------------------------------------------------------------------------- triangle meshes
+
+def _mesh_methods() -> tuple[str, ...]:
+    from renderer.methods import METHODS
+    return tuple(m for m, x in METHODS.items() if "triangles" in x.capabilities.primitives)
+
+
+MESH_METHODS = _mesh_methods()
+MESH_LIGHT = Light((40.0, 60.0, 80.0), (1.0, 1.0, 1.0))
+
+
+def _mesh_scene(camera: Camera, *meshes: Mesh, planes=(FLOOR,), materials=(RED, TRANSPARENT, MATTE)) -> Scene:
+    return Scene(camera, (MESH_LIGHT,), tuple(materials), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32),
+                 tuple(planes), tuple(meshes))
+
+
+def _inside_silhouette(ref_ids: np.ndarray, lo: int, hi: int) -> np.ndarray:
+    """Pixels whose reference hit and all 8 neighbours' hits are triangles with ids in [lo, hi)."""
+    on = (ref_ids >= lo) & (ref_ids < hi)
+    p = np.pad(on, 1, constant_values=False)
+    h, w = on.shape
+    out = on.copy()
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            out &= p[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+    return out
+
+
+def no_leak(scene, ref, gpu, method) -> list[str]:
+    """Watertightness: no pixel strictly inside a mesh's reference silhouette (it and its 8
+    neighbours hit that mesh) may miss the mesh on the GPU — every mesh, separately."""
+    out, base = [], scene.triangle_id_base
+    for k, m in enumerate(scene.meshes):
+        lo, hi = base, base + m.n_triangles
+        base = hi
+        inside = _inside_silhouette(ref.primid, lo, hi)
+        leak = inside & ~((gpu.primid >= lo) & (gpu.primid < hi))
+        if leak.any():
+            ys, xs = np.nonzero(leak)
+            out.append(f"mesh {k}: {int(leak.sum())} of {int(inside.sum())} px inside its silhouette leak "
+                       f"through it (first at x {xs[0]}, y {ys[0]}: GPU id {int(gpu.primid[ys[0], xs[0]])})")
+    return out
+
+
+def centre_pixel_hits_mesh(scene, ref, gpu, method) -> list[str]:
+    """The centre pixel's ray goes exactly through a vertex shared by several triangles: it
+    must hit one of them (the reference does)."""
+    h, w = gpu.primid.shape
+    i, base = int(gpu.primid[h // 2, w // 2]), scene.triangle_id_base
+    if not base <= i < base + scene.n_triangles:
+        return [f"the centre ray through the shared vertex hits id {i}, not a triangle"]
+    if not base <= int(ref.primid[h // 2, w // 2]) < base + scene.n_triangles:
+        return ["the reference's centre ray misses the shared vertex's triangles"]
+    return []
+
+
+def never_degenerate(scene, ref, gpu, method) -> list[str]:
+    """No pixel may show a zero-area triangle (the reference never hits one)."""
+    deg = np.flatnonzero(np.concatenate([m.degenerate for m in scene.meshes])) + scene.triangle_id_base
+    out = []
+    for name, r in (("GPU", gpu), ("reference", ref)):
+        n = int(np.isin(r.primid, deg).sum())
+        if n:
+            out.append(f"{name}: {n} px hit a degenerate triangle")
+    return out
+
+
+def on_box_seams(scene, ref, gpu, method) -> list[str]:
+    """mesh_box_seams: every pixel whose id differs from the reference's is a seam pixel
+    (the front face's diagonal, its rims in columns/rows 7 and 25) and a tie."""
+    h, w = gpu.primid.shape
+    y, x = np.mgrid[0:h, 0:w]
+    seam = (x + y == w - 1) | (x == y) | np.isin(x, (7, 25)) | np.isin(y, (7, 25))
+    off = (gpu.primid != ref.primid) & ~seam
+    if off.any():
+        ys, xs = np.nonzero(off)
+        return [f"{int(off.sum())} px off the seams differ in id from the reference (first x {xs[0]}, y {ys[0]})"]
+    return only_ties(scene, ref, gpu, method)
+
+
+def _mesh_facts(scene: Scene) -> str:
+    return (f"{scene.n_triangles:,} triangles in {len(scene.meshes)} mesh(es), "
+            f"{scene.n_degenerate_triangles} of zero area")
+
+
+def mesh_box_seams() -> Scene:
+    """The closed box [−30, 30]² × [−60, 0] seen from (0, 0, 55), fov 90°, 33 × 33: columns 7
+    and 25 (rows too) have u = ∓30/55, so their rays meet the front face exactly on its edges
+    x = ±30 (shared with the side faces, seen edge-on), the pixels (7, 7) … exactly on its
+    corners (three faces' shared vertex), and the diagonal pixels (u = v) exactly on the
+    front face's diagonal, the edge its two triangles share."""
+    from renderer.meshes import box
+    cam = Camera((0.0, 0.0, 55.0), (0.0, 0.0, -30.0), (0.0, 1.0, 0.0), 90.0)
+    return _mesh_scene(cam, box((-30.0, -30.0, -60.0), (30.0, 30.0, 0.0), material=2),
+                       planes=(Plane((0.0, 0.0, -200.0), (0.0, 0.0, 1.0), 0),))
+
+
+def mesh_box_corner() -> Scene:
+    """The box [−10, 10]³ seen along its diagonal: the centre ray goes exactly through the
+    corner (10, 10, 10) shared by three faces (and their diagonals: up to six triangles)."""
+    from renderer.meshes import box
+    cam = Camera((50.0, 50.0, 50.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0)
+    return _mesh_scene(cam, box((-10.0, -10.0, -10.0), (10.0, 10.0, 10.0), material=0))
+
+
+def mesh_icosphere_edges() -> Scene:
+    """Icosphere (3 subdivisions, 1280 triangles, radius 10) from (0, 0, 60) down −z: its
+    vertices (0, ±1, g) and their edge's midpoints all lie in the plane x = 0, so the centre
+    column's rays (d.x = +0/−0, o.x = 0) run exactly along a chain of shared edges, and the
+    centre ray through the shared vertex (0, 0, 10) (six triangles)."""
+    from renderer.meshes import icosphere
+    cam = Camera((0.0, 0.0, 60.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0)
+    return _mesh_scene(cam, icosphere(3, radius=10.0, material=2, smooth=False))
+
+
+def _grid(n: int, half: float, y: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    ax = np.linspace(-half, half, n + 1)
+    z, x = np.meshgrid(ax, ax, indexing="ij")
+    v = np.stack([x.ravel(), np.full(x.size, y), z.ravel()], axis=1)
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    a = i * (n + 1) + j
+    t = np.concatenate([np.stack([a, a + n + 1, a + 1], -1).reshape(-1, 3),
+                        np.stack([a + 1, a + n + 1, a + n + 2], -1).reshape(-1, 3)])
+    return v, t
+
+
+def mesh_grazing() -> Scene:
+    """A 16 × 16-quad grid of 512 triangles in the plane y = 0 (normal +y), the camera exactly
+    in that plane: the centre row's rays lie in the triangles' plane (det = 0: never a hit,
+    they must reach the icosphere behind), the rows below meet the grid at grazing angles
+    down to 1/40 of a pixel's angle from the plane, across its shared edges."""
+    from renderer.meshes import icosphere
+    v, t = _grid(16, 80.0)
+    cam = Camera((0.0, 0.0, 100.0), (0.0, 0.0, -100.0), (0.0, 1.0, 0.0), 30.0)
+    return _mesh_scene(cam, Mesh(v, t, 2), icosphere(2, radius=8.0, center=(0.0, 4.0, -40.0), material=0),
+                       planes=())
+
+
+def mesh_needles() -> Scene:
+    """Needles and degenerate triangles in front of a backdrop triangle: a fan of 40 needles
+    10 long and 1e-4 … 1e-9 wide (far thinner than a pixel), triangles of zero area (a
+    repeated index; three collinear points with exactly representable coordinates) and, for
+    scale, ordinary triangles."""
+    rng = np.random.default_rng(3)
+    verts, tris = [], []
+
+    def tri(a, b, c):
+        k = len(verts)
+        verts.extend([a, b, c])
+        tris.append((k, k + 1, k + 2))
+    for i, w in enumerate(np.geomspace(1e-4, 1e-9, 40)):
+        ang = 2 * np.pi * i / 40
+        d = np.array([np.cos(ang), np.sin(ang), 0.0])
+        n = np.array([-d[1], d[0], 0.0])
+        tri((0.0, 0.0, 1.0), tuple(10 * d + w * n + (0, 0, 1)), tuple(10 * d - w * n + (0, 0, 1)))
+    for _ in range(20):                         # zero area: a repeated corner
+        p = rng.uniform(-12, 12, 3) * (1, 1, 0.1)
+        q = rng.uniform(-12, 12, 3) * (1, 1, 0.1)
+        tri(tuple(p), tuple(q), tuple(p))
+    for _ in range(20):                         # zero area: collinear, dyadic coordinates
+        p = np.round(rng.uniform(-12, 12, 3) * 8) / 8
+        e = np.round(rng.uniform(-4, 4, 3) * 8) / 8
+        tri(tuple(p), tuple(p + e), tuple(p + 2 * e))
+    for _ in range(12):                         # ordinary triangles among them
+        p = rng.uniform(-12, 12, 3) * (1, 1, 0.1)
+        tri(tuple(p), tuple(p + rng.uniform(-3, 3, 3)), tuple(p + rng.uniform(-3, 3, 3)))
+    front = Mesh(np.array(verts), np.array(tris), 0)
+    back = Mesh(np.array([[-40.0, -40.0, -5.0], [40.0, -40.0, -5.0], [0.0, 60.0, -5.0]]), np.array([[0, 1, 2]]), 2)
+    cam = Camera((0.3, -0.2, 40.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0)
+    return _mesh_scene(cam, front, back, planes=())
+
+
+def mesh_huge(subdivisions: int = 5, k: int = 4) -> Scene:
+    """``k`` icospheres of ``subdivisions`` levels (4 × 20,480 = 81,920 triangles), packed
+    in view and overlapping: far more triangles than pixels."""
+    from renderer.meshes import icosphere
+    rng = np.random.default_rng(11)
+    c = rng.uniform([-14, -10, -6], [14, 10, 6], (k, 3))
+    meshes = [icosphere(subdivisions, radius=6.0, center=tuple(p), material=i % 3, smooth=False)
+              for i, p in enumerate(c)]
+    return _mesh_scene(Camera((0.0, 0.0, 70.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0), *meshes)
+
+
+def mesh_offset_1e4() -> Scene:
+    """An icosphere (radius 1, 2 subdivisions) and a box 1e4 units from the origin along every
+    axis, the camera 6 units from them: float32 spacing there is 1e-3 (0.1 % of the radius)."""
+    from renderer.meshes import box, icosphere
+    o = np.array([1e4, 1e4, 1e4])
+    cam = Camera(tuple(o + (0.5, 0.8, 6.0)), tuple(o), (0.0, 1.0, 0.0), 40.0)
+    return _mesh_scene(cam, icosphere(2, radius=1.0, center=tuple(o), material=0, smooth=False),
+                       box(tuple(o + (1.5, -1.5, -2.0)), tuple(o + (2.5, 1.0, -1.0)), material=2),
+                       planes=(Plane(tuple(o + (0.0, -1.0, 0.0)), (0.0, 1.0, 0.0), 2),))
+
+
+_EDGE_TIES = ("a ray exactly through an edge two triangles share meets both at the same t up to float32 "
+              "rounding, so which one wins is a tie that float32 and float64, and traversals that test "
+              "the two in different orders, may decide differently; every differing pixel must be such a "
+              "tie (only_ties) and none a leak (no_leak)")
+_BOX_SEAMS = ("measured: 16 of the 1089 px differ, every one on a seam (13 on the front face's diagonal, "
+              "3 on its rims and corners) and a tie; on the rims the other triangle is a side face seen "
+              "edge-on, whose other normal gives another colour (hence the PSNR). " + _EDGE_TIES)
+_OFFSET_MESH = ("float32 moves the vertices by up to 4.9e-4 (half the spacing 9.8e-4 at 1e4), which shifts "
+                "t by up to ~1.6e-3 relative near the silhouettes and moves a few silhouette pixels to "
+                "another triangle (measured: 11 px, 99.72 %; depth 1.64e-3); against the float32-input "
+                "scene every strict threshold holds.")
+_add(
+    Case("mesh_box_seams", "rays exactly on a closed box's shared edges (the front face's diagonal, its rims "
+         "shared with side faces seen edge-on) and on its corners: a ray between two triangles must hit one",
+         mesh_box_seams, width=33, height=33, checks=(no_leak, on_box_seams), facts=_mesh_facts,
+         methods=MESH_METHODS, min_primid_agreement=0.985, colour_psnr_min=30.0, why=_BOX_SEAMS,
+         psnr_why=_BOX_SEAMS, f32_min_primid_agreement=0.985, f32_colour_psnr_min=30.0, f32_why=_BOX_SEAMS),
+    Case("mesh_box_corner", "the centre ray exactly through a box corner shared by three faces",
+         mesh_box_corner, checks=(no_leak, centre_pixel_hits_mesh, only_ties), facts=_mesh_facts,
+         methods=MESH_METHODS, min_primid_agreement=0.998, why="measured: the BIH takes the other triangle "
+         "on 4 px of one edge (99.90 %); " + _EDGE_TIES, f32_min_primid_agreement=0.998, f32_why=_EDGE_TIES,
+         method_ties_why=_EDGE_TIES),
+    Case("mesh_icosphere_edges", "a column of rays exactly along a chain of an icosphere's shared edges, the "
+         "centre ray through a vertex of six triangles", mesh_icosphere_edges,
+         checks=(no_leak, centre_pixel_hits_mesh, only_ties), facts=_mesh_facts, methods=MESH_METHODS,
+         min_primid_agreement=0.993, why="measured: the BVH takes the other triangle on 24 px, 23 of them in the centre "
+         "column (99.40 %), the kd-tree and two-level on 2; " + _EDGE_TIES, f32_min_primid_agreement=0.993,
+         f32_why=_EDGE_TIES, method_ties_why=_EDGE_TIES),
+    Case("mesh_grazing", "rays in a triangle grid's plane (det = 0) and at grazing angles across its edges",
+         mesh_grazing, checks=(no_leak, only_ties), facts=_mesh_facts, methods=MESH_METHODS,
+         min_primid_agreement=0.997, why="measured: the BVH takes the other triangle on 10 px of the centre "
+         "column (99.75 %), where the grazing rays cross the grid's shared edges; " + _EDGE_TIES,
+         f32_min_primid_agreement=0.997, f32_why=_EDGE_TIES, method_ties_why=_EDGE_TIES),
+    Case("mesh_needles", "needle triangles far thinner than a pixel; zero-area (repeated corner, collinear) "
+         "triangles that must never be hit", mesh_needles, checks=(never_degenerate,), facts=_mesh_facts,
+         methods=MESH_METHODS),
+    # Brute force is left out: past limits.MAX_LOOP_PRIMITIVES (65,533, llvmpipe's loop limiter) it
+    # refuses the scene (tests/renderer/test_methods.py), where it used to drop the last triangles.
+    Case("mesh_huge_81920", "81,920 triangles at 25 × 41 (80 per pixel): deep trees, many triangles per "
+         "pixel, past the 65,533 primitives a brute-force loop reaches on llvmpipe (so brute force refuses it)",
+         mesh_huge, width=25, height=41, max_prims=8, checks=(no_leak,), facts=_mesh_facts,
+         methods=tuple(m for m in MESH_METHODS if m != "bruteforce")),
+    Case("mesh_offset_1e4", "meshes 1e4 from the origin, camera 6 units away (float32 spacing 1e-3)",
+         mesh_offset_1e4, max_prims=8, checks=(no_leak,), facts=_mesh_facts, methods=MESH_METHODS,
+         min_primid_agreement=0.997, max_depth_rel=2e-3, why=_OFFSET_MESH, depth_why=_OFFSET_MESH),
 )
