@@ -559,12 +559,16 @@ class SessionService:
         return Superseded(f"frame: stopped, {e.reason} (a newer frame of this session, or the client went away)")
 
     def encode_frame(self, result, frame: PreparedFrame, settings: dict[str, Any], t_admit: float,
-                     t_started: float | None, *, version: int | None, final: bool = True) -> Frame:
+                     t_started: float | None, *, version: int | None, final: bool = True,
+                     t_queued: float | None = None) -> Frame:
+        """``queue`` is the wait from ``t_queued`` (the frame handed to the GL thread, after its
+        planning, whose pose and build are stages of their own) to its first slice."""
         rs = frame.settings
+        t_queued = t_queued if t_queued is not None else t_admit
         body, encode_ms = encode(result, rs.format, settings.get("quality", self.config.default_jpeg_quality),
                                  self.config.png_compress_level)
         t_end = time.perf_counter()
-        timings = {"queue": ((t_started or t_admit) - t_admit) * 1e3,
+        timings = {"queue": max(0.0, ((t_started or t_queued) - t_queued) * 1e3),
                    **{k: float(v) for k, v in result.timings.items()
                       if k in ("pose", "update", "build", "upload", "trace", "read")},
                    "encode": encode_ms, "total": (t_end - t_admit) * 1e3}
@@ -602,6 +606,7 @@ class SessionService:
         key = (session.id, session.scene_rev) if session is not None else None
         frame = self.plan(scene, settings, where, key=key)
         self.check_traceable(frame, where)
+        t_queued = time.perf_counter()
         handle = self.start_frame(frame, session=session)
         version = session.version if session is not None else None
         try:
@@ -609,7 +614,7 @@ class SessionService:
                 first = self.wait(handle, t_admit, preview=True, cancel=cancel)
                 if first is not None:
                     yield self.encode_frame(first, frame, settings, t_admit, handle.started_at, version=version,
-                                            final=False)
+                                            final=False, t_queued=t_queued)
             result = self.wait(handle, t_admit, cancel=cancel)
         except BaseException:
             handle.cancel("disconnected")
@@ -620,7 +625,8 @@ class SessionService:
             rs = frame.settings
             self._remember_stats(StatsKey(session.id, session.scene_rev, frame.method, rs.max_prims,
                                           rs.max_tree_depth, self._pose_time(scene, rs.time)), result.stats)
-        yield self.encode_frame(result, frame, settings, t_admit, handle.started_at, version=version)
+        yield self.encode_frame(result, frame, settings, t_admit, handle.started_at, version=version,
+                                t_queued=t_queued)
 
     def session_frame(self, session_id: str, patch: dict[str, Any], *, cancel: threading.Event | None = None,
                       progressive: bool = False) -> Frame | list[Frame]:
