@@ -247,8 +247,8 @@ def primary(ctx: Context) -> dict:
         st = ours_settings(m, w, h)
         if m == "bruteforce" and scene.n_triangles > BF_LOOP_LIMIT:
             skipped.append(f"{eng}: {scene.n_triangles:,} triangles, but on llvmpipe its loop never reaches a "
-                           f"triangle past id {BF_LOOP_LIMIT - 1:,} (tests/stability, mesh_huge_81920): its "
-                           "frame would be wrong, not merely slow")
+                           f"triangle past id {BF_LOOP_LIMIT - 1:,}, so it refuses more than {BF_LOOP_LIMIT:,} "
+                           "primitives (renderer/limits.py, MAX_LOOP_PRIMITIVES)")
             continue
         # bih and bvh are what this table is for: no frame-budget prediction (from a frame at
         # 1/8 × 1/8 it scales the fixed per-draw cost by 64 and refused the BIH at 8 s); their
