@@ -56,6 +56,22 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+def wait_ready(proc: subprocess.Popen, url: str, log: Path, timeout_s: float = 180) -> None:
+    """Until the child's ``/api/ready`` says 200; RuntimeError with its log's tail if it exits or
+    is not ready within ``timeout_s`` (bench/soak.py's server too)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            raise RuntimeError(f"server exited: {log.read_text()[-2000:]}")
+        try:
+            if httpx.get(url + "/api/ready", timeout=2).status_code == 200:
+                return
+        except httpx.HTTPError:
+            pass
+        time.sleep(0.2)
+    raise RuntimeError("server not ready")
+
+
 class Server:
     """``python -m server`` of ``root`` on a free port with a temporary SQLite file."""
 
@@ -70,17 +86,7 @@ class Server:
         self.log = open(Path(self.tmp.name) / "server.log", "wb")
         self.proc = subprocess.Popen([sys.executable, "-m", "server"], cwd=root, env=env, stdout=self.log,
                                      stderr=subprocess.STDOUT)
-        deadline = time.monotonic() + 180
-        while time.monotonic() < deadline:
-            if self.proc.poll() is not None:
-                raise RuntimeError(f"server exited: {(Path(self.tmp.name) / 'server.log').read_text()[-2000:]}")
-            try:
-                if httpx.get(self.url + "/api/ready", timeout=2).status_code == 200:
-                    return
-            except httpx.HTTPError:
-                pass
-            time.sleep(0.2)
-        raise RuntimeError("server not ready")
+        wait_ready(self.proc, self.url, Path(self.tmp.name) / "server.log")
 
     def memory(self) -> dict[str, float]:
         """VmRSS and VmHWM of the server process, MiB."""

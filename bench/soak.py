@@ -37,6 +37,8 @@ from pathlib import Path
 
 import httpx
 
+from hostile import wait_ready   # bench/: run as a script, or imported with bench/ on the path
+
 ROOT = Path(__file__).resolve().parent.parent
 FRAME = {"width": 96, "height": 160, "max_recursion_depth": 2, "samples_per_pixel": 1, "format": "jpeg"}
 
@@ -57,17 +59,7 @@ class Server:
         self.log = open(log, "ab")
         self.proc = subprocess.Popen([sys.executable, "-m", "server"], cwd=root, env=env, stdout=self.log,
                                      stderr=subprocess.STDOUT)
-        deadline = time.monotonic() + 180
-        while time.monotonic() < deadline:
-            if self.proc.poll() is not None:
-                raise RuntimeError(f"server exited: {log.read_text()[-2000:]}")
-            try:
-                if httpx.get(self.url + "/api/ready", timeout=2).status_code == 200:
-                    return
-            except httpx.HTTPError:
-                pass
-            time.sleep(0.2)
-        raise RuntimeError("server not ready")
+        wait_ready(self.proc, self.url, log)
 
     def rss_mib(self) -> float:
         for line in Path(f"/proc/{self.proc.pid}/status").read_text().splitlines():
