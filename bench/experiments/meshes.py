@@ -2,8 +2,8 @@
 ~100,000-triangle teapot through our GPU path, Embree (embreex) and Mitsuba 3.
 
 (a) Build: the scene is a grid of level-5 icospheres (20,480 triangles each; 49 of them:
-1,003,520 triangles). Timed: each method's ``prepare`` (the tree build over the triangles'
-AABBs and the method's bookkeeping; the GPU packing runs lazily at upload and is not counted),
+1,003,520 triangles). Timed: each method's ``prepare`` (the triangles' AABBs, the tree build
+over them, its statistics and the packing of its GPU records: what a request pays before the draw),
 with the default ``max_prims`` / ``max_tree_depth`` of ``RenderSettings``. BIH and BVH:
 median of a few runs, against the targets (BIH ≤ 3 s, BVH ≤ 6 s). The kd-tree and the
 two-level method: one run under a deadline; past it they are listed as not measured.

@@ -1,22 +1,28 @@
-"""Bounding volume hierarchy over sphere boxes: binned SAH build, refit, selective rebuild.
+"""Bounding volume hierarchy over primitive boxes (spheres, triangles): binned SAH build,
+refit, selective rebuild.
 
 Build (Wald 2007's binned SAH, Reiter §2.4.4): top-down, every node of one
-round at once with NumPy, as ``renderer/bih.py`` does. Each open node
+round at once with NumPy, as ``renderer/accel/bih.py`` does. Each open node
 
 1. becomes a leaf when it holds one primitive or reaches ``max_tree_depth``
    (depth counts the root as 1, as Table 4.2 does);
-2. otherwise bins its primitives' box centroids into ``BINS`` equal bins of the
-   node's centroid bounds on each axis and evaluates the SAH of the ``BINS − 1``
-   splits between bins on every axis, with tight child boxes:
+2. otherwise bins its primitives' box centroids, as Wald does, into equal bins of
+   the node's centroid bounds on the axis where those bounds are longest —
+   ``BINS`` bins, or the next power of two above a smaller node's primitive count
+   — and evaluates the SAH of every split between bins, with tight child boxes:
    ``cost = C_TRAV + C_ISECT · (A_L · n_L + A_R · n_R) / A``;
 3. splits at the cheapest one when the node holds more than ``max_prims``
    primitives or when the split is cheaper than the leaf (``C_ISECT · n``);
    when all centroids coincide (no bin split exists) and the node holds more
    than ``max_prims``, it splits at the object median (``median_splits``).
 
-No re-sorting per node: the primitives are sorted by centroid once per axis,
-and each round partitions the three orders stably, so every node's primitives
-stay sorted on every axis and a bin is a contiguous run (O(n log n) in all).
+No sorting: binning needs none, so a round reads each primitive's row (box and
+centroid, kept in position order, :func:`_rows`) once, bins it, and moves it once
+(a stable partition per node): O(n) per level. The child boxes come from the bins'
+prefix and suffix boxes. One axis per node (Wald's choice) rather than three costs
+a third of the sweeps for a tree ~1–3 % higher in SAH cost (1,003,520 triangles:
+69.5 against 67.7 for three axes with full sweeps of small nodes; `docs/RESULTS.md`,
+section meshes, has the build times).
 Each primitive is in exactly one leaf; leaves are ranges of ``indices``.
 Siblings are allocated in pairs (right = left + 1), round by round.
 
@@ -44,7 +50,7 @@ valid, which is what is computed here.)
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 
@@ -180,197 +186,250 @@ class _Nodes:
         return nodes
 
 
-def _grow(nodes: _Nodes, ords: np.ndarray, loT: np.ndarray, hiT: np.ndarray, cenT: np.ndarray,
-          slot: np.ndarray, lo: np.ndarray, hi: np.ndarray, depth: np.ndarray,
-          max_prims: int, max_depth: int) -> dict:
+# The build's working rows: one float32 row per primitive, its box and centroid, kept in
+# position order (every node's primitives contiguous), so a round reads them sequentially
+# and moves them once, instead of gathering them at random through an index array.
+LO, HI, CEN = slice(0, 3), slice(3, 6), slice(6, 9)
+ROW = 9
+
+
+def _rows(plo: np.ndarray, phi: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """(n, ROW) rows of primitives ``ids`` in that order."""
+    rows = np.empty((len(ids), ROW), np.float32)
+    rows[:, LO], rows[:, HI] = plo[ids], phi[ids]
+    rows[:, CEN] = rows[:, LO] * np.float32(0.5) + rows[:, HI] * np.float32(0.5)   # no overflow near ±3e38
+    return rows
+
+
+def _set_boxes(nodes: _Nodes, rows: np.ndarray, slot: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
+    """Boxes of nodes ``slot`` from their primitives at positions [lo, hi)."""
+    if not len(slot):
+        return
+    _, pos, starts, _ = _expand(lo, hi)
+    r = rows[pos]
+    nodes.bmin[slot] = np.minimum.reduceat(r[:, LO], starts, axis=0)
+    nodes.bmax[slot] = np.maximum.reduceat(r[:, HI], starts, axis=0)
+
+
+@dataclass
+class _Split:
+    """The cheapest SAH split of each node (between two of its bins)."""
+    cost: np.ndarray          # (k,) (A_L n_L + A_R n_R), inf: none exists
+    bin: np.ndarray           # (k,) last bin of the left child
+    left_lo: np.ndarray       # (k, 3) float32 child boxes
+    left_hi: np.ndarray
+    right_lo: np.ndarray
+    right_hi: np.ndarray
+
+
+def _widths(count: np.ndarray) -> np.ndarray:
+    """Bins per node: BINS, or for a node of fewer primitives the next power of two (more
+    bins than primitives would only add empty cells to scan)."""
+    return np.minimum(BINS, 1 << np.ceil(np.log2(count)).astype(np.int64))
+
+
+def _bins(r: np.ndarray, seg: np.ndarray, starts: np.ndarray, width: int) -> np.ndarray:
+    """Each primitive's bin on its node's longest centroid axis (Wald 2007: ``width`` equal
+    bins of the centroid bounds; all in bin 0 where every centroid coincides)."""
+    c = r[:, CEN]
+    cmin = np.minimum.reduceat(c, starts, axis=0).astype(np.float64)
+    spread = np.maximum.reduceat(c, starts, axis=0) - cmin      # float64: no overflow
+    axis = np.argmax(spread, axis=1)
+    k = np.arange(len(starts))
+    ext, base = spread[k, axis], cmin[k, axis]
+    scale = np.where(ext > 0, width / np.where(ext > 0, ext, 1.0), 0.0)
+    a = axis[seg]
+    ce = np.where(a == 0, c[:, 0], np.where(a == 1, c[:, 1], c[:, 2]))
+    b = ((ce - base[seg]) * scale[seg]).astype(np.int64)        # ≥ 0: truncation is the floor
+    np.clip(b, 0, width - 1, out=b)
+    return b
+
+
+def _cheapest_split(r: np.ndarray, seg: np.ndarray, b: np.ndarray, count: np.ndarray, width: int) -> _Split:
+    """The cheapest of the ``width − 1`` splits between bins of every node.
+
+    The bins form a dense (width, k) grid — bin-major, so each scan step covers every node at
+    once: a cell holds the box and count of its primitives (empty cells +inf/−inf and 0),
+    and the prefix and suffix boxes are float32 min/max scans (exact: min and max do not
+    round). The areas are float32 too (they only rank splits; equal boxes still give equal
+    costs, which the float64 balance term then orders).
+    """
+    k = len(count)
+    cell = b * k + seg
+    blo = np.full((3, width * k), np.inf, np.float32)
+    bhi = np.full((3, width * k), -np.inf, np.float32)
+    for a in range(3):
+        np.minimum.at(blo[a], cell, r[:, a])
+        np.maximum.at(bhi[a], cell, r[:, 3 + a])
+    n = np.bincount(cell, minlength=width * k).reshape(width, k)
+    blo, bhi = blo.reshape(3, width, k), bhi.reshape(3, width, k)
+    pl, ph = _scan(blo, np.minimum), _scan(bhi, np.maximum)
+    sl, sh = _scan(blo, np.minimum, reverse=True), _scan(bhi, np.maximum, reverse=True)
+    n_l = np.cumsum(n, axis=0)[:-1]
+    n_r = count - n_l
+    with np.errstate(invalid="ignore", over="ignore"):
+        d = ph[:, :-1] - pl[:, :-1]
+        a_l = d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+        d = sh[:, 1:] - sl[:, 1:]
+        a_r = d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+        # ties (e.g. coincident boxes) go to the most balanced split, then the lowest bin
+        balance = 1.0 + 1e-9 * np.abs(n_l - n_r) / count
+        cost = np.where((n_l > 0) & (n_r > 0), (a_l * n_l + a_r * n_r) * balance, np.inf)
+    j = np.argmin(cost, axis=0)
+    at, nxt = j * k + np.arange(k), (j + 1) * k + np.arange(k)
+    flat = lambda x: x.reshape(3, width * k)  # noqa: E731
+    return _Split(cost.reshape(-1)[at], j, flat(pl)[:, at].T, flat(ph)[:, at].T, flat(sl)[:, nxt].T,
+                  flat(sh)[:, nxt].T)
+
+
+def _scan(x: np.ndarray, op: np.ufunc, reverse: bool = False) -> np.ndarray:
+    """Running ``op`` along axis 1 of (3, width, k): one whole-row step per bin (numpy's
+    ``accumulate`` along a middle axis is several times slower for short rows)."""
+    out = x.copy()
+    steps = range(x.shape[1] - 2, -1, -1) if reverse else range(1, x.shape[1])
+    d = 1 if reverse else -1
+    for i in steps:
+        op(out[:, i + d], out[:, i], out=out[:, i])
+    return out
+
+
+def _partition(rows: np.ndarray, ids: np.ndarray, r: np.ndarray, pos: np.ndarray, seg: np.ndarray,
+               starts: np.ndarray, lo: np.ndarray, left: np.ndarray) -> np.ndarray:
+    """Partition the rows (and ids) of each range stably, ``left`` ones first; ``r`` are the
+    rows at ``pos``, the ranges' elements in order. Returns each range's left count."""
+    cs = np.cumsum(left, dtype=np.int64)
+    n_left = np.add.reduceat(left.astype(np.int64), starts)
+    before = cs[starts] - left[starts]                    # left primitives of the earlier ranges
+    # the k-th left primitive of a range goes to lo + k, the k-th right one to lo + n_left + k;
+    # with cs the running left count, both are one add away
+    dest = np.where(left, (lo - before - 1)[seg] + cs, (lo + n_left + before)[seg] + pos - lo[seg] - cs)
+    moved = ids[pos]
+    # rows moved as opaque 36-byte records: twice as fast as fancy assignment of float rows
+    record = np.dtype((np.void, rows.itemsize * ROW))
+    rows.view(record)[dest, 0] = np.ascontiguousarray(r).view(record)[:, 0]
+    ids[dest] = moved
+    return n_left
+
+
+def _grow(nodes: _Nodes, rows: np.ndarray, ids: np.ndarray, slot: np.ndarray, lo: np.ndarray,
+          hi: np.ndarray, depth: np.ndarray, max_prims: int, max_depth: int) -> dict:
     """Build subtrees top-down from open nodes ``slot`` over position ranges [lo, hi).
 
-    ``loT``/``hiT`` are the primitive boxes (float32, (3, n)), ``cenT`` their centres
-    (float64, (3, n)). ``ords[a]`` maps positions to primitive ids, sorted by centroid
-    on axis ``a`` within each open range; it is partitioned in place, so ``ords[0]``
-    ends as the leaf-ordered index array over these ranges. Returns counters.
+    ``rows`` (:func:`_rows`) and ``ids`` (primitive ids) are in position order and are
+    partitioned in place, so ``ids`` ends as the leaf-ordered index array over these
+    ranges. Each round: (1) record the open nodes, (2) bin each one's primitives on its
+    longest centroid axis and find the cheapest split, (3) split or make a leaf, (4) mark
+    every primitive's side, (5) partition and open the children, whose boxes come from the
+    bins. Returns counters.
     """
-    side = np.zeros(loT.shape[1], dtype=bool)
     median = depth_limited = 0
+    _set_boxes(nodes, rows, slot, lo, hi)
     while len(slot):
+        # (1) the open nodes
         count = hi - lo
-        seg, pos, starts, total = _expand(lo, hi)
-        p0 = ords[0][pos]
-        for k in range(3):
-            nodes.bmin[slot, k] = np.minimum.reduceat(loT[k][p0], starts)
-            nodes.bmax[slot, k] = np.maximum.reduceat(hiT[k][p0], starts)
         nodes.first[slot] = lo
         nodes.count[slot] = count
         nodes.depth[slot] = depth
         nodes.left[slot] = -1
         depth_limited += int(((depth >= max_depth) & (count > 1)).sum())
-        open_ = (count > 1) & (depth < max_depth)
-        cand = np.flatnonzero(open_)
+        cand = np.flatnonzero((count > 1) & (depth < max_depth))
         if not len(cand):
             break
-        clo, chi, cnt = lo[cand], hi[cand], count[cand]
-        kc = len(cand)
-        if kc == len(slot):
-            cseg, cpos, cst, ctot = seg, pos, starts, total
-        else:
-            cseg, cpos, cst, ctot = _expand(clo, chi)
-        cend = cst + cnt
-        best = np.full(kc, np.inf)
-        best_axis = np.zeros(kc, np.int64)
-        best_cell = np.zeros(kc, np.int64)
-        # Cells: BINS bins of the centroid bounds for nodes of more than BINS
-        # primitives; one cell per primitive (a full sweep in centroid order,
-        # as Reiter does for small nodes) otherwise.
-        big = cnt > BINS
-        ncells = np.where(big, BINS, cnt)
-        cell_base = np.zeros(kc, np.int64)
-        if kc > 1:
-            np.cumsum(ncells[:-1], out=cell_base[1:])
-        total_cells = int(ncells.sum())
-        cell_seg = np.repeat(np.arange(kc, dtype=np.int64), ncells)
-        local = np.arange(ctot, dtype=np.int64) - cst[cseg]
-        big_e = big[cseg]
-        nmin = nodes.bmin[slot[cand]].T.astype(np.float64)                   # (3, kc)
-        ext_n = nodes.bmax[slot[cand]].T.astype(np.float64) - nmin
-        inv_ext = 1.0 / np.where(ext_n > 0, ext_n, 1.0)
-        ext_c = ext_n[:, cell_seg]                                         # (3, cells)
-        # Segmented scans: values normalised to [0, 1] within their node and
-        # offset by 2 per node, so one running max never crosses a node boundary.
-        off = 2.0 * cell_seg
-        off_r = 2.0 * (kc - 1 - cell_seg[::-1])
-        same = np.zeros(total_cells, dtype=bool)
-        same[:-1] = cell_seg[1:] == cell_seg[:-1]
-        gl = np.empty(total_cells)
-        gh = np.empty(total_cells)
-        dl = np.empty((3, total_cells))
-        dr = np.empty((3, total_cells))
-        cells = []
-        with np.errstate(invalid="ignore", over="ignore"):
-            for a in range(3):
-                pa = ords[a][cpos]
-                c = cenT[a][pa]
-                cmin, cmax = c[cst], c[cend - 1]
-                ext = cmax - cmin
-                scale = np.where(ext > 0, BINS / np.where(ext > 0, ext, 1.0), 0.0)
-                b = np.floor((c - cmin[cseg]) * scale[cseg]).astype(np.int64)
-                np.clip(b, 0, BINS - 1, out=b)
-                cell = cell_base[cseg] + np.where(big_e, b, local)
-                cells.append(cell)
-                rs = np.flatnonzero(np.concatenate([[True], cell[1:] != cell[:-1]]))
-                singletons = len(rs) == ctot
-                rc, rseg = cell[rs], cseg[rs]
-                gn = np.zeros(total_cells, np.int64)
-                gn[rc] = np.diff(np.concatenate([rs, [ctot]]))
-                for k in range(3):
-                    vlo, vhi = loT[k][pa], hiT[k][pa]
-                    if not singletons:
-                        vlo, vhi = np.minimum.reduceat(vlo, rs), np.maximum.reduceat(vhi, rs)
-                    gl.fill(1.0)
-                    gh.fill(0.0)
-                    gl[rc] = (vlo - nmin[k][rseg]) * inv_ext[k][rseg]
-                    gh[rc] = (vhi - nmin[k][rseg]) * inv_ext[k][rseg]
-                    pl = off - np.maximum.accumulate(off - gl)
-                    ph = np.maximum.accumulate(gh + off) - off
-                    dl[k] = (ph - pl) * ext_c[k]
-                    sl = off_r - np.maximum.accumulate(off_r - gl[::-1])
-                    sh = np.maximum.accumulate(gh[::-1] + off_r) - off_r
-                    dr[k] = ((sh - sl) * ext_c[k][::-1])[::-1]
-                a_l = dl[0] * dl[1] + dl[1] * dl[2] + dl[2] * dl[0]
-                a_r = np.zeros(total_cells)
-                a_r[:-1] = (dr[0] * dr[1] + dr[1] * dr[2] + dr[2] * dr[0])[1:]
-                cn = np.cumsum(gn)
-                n_l = cn - (cn[cell_base] - gn[cell_base])[cell_seg]
-                n_r = cnt[cell_seg] - n_l
-                # ties (e.g. coincident boxes) go to the most balanced split
-                balance = 1.0 + 1e-9 * np.abs(n_l - n_r) / cnt[cell_seg]
-                cost = np.where(same & (n_l > 0) & (n_r > 0), (a_l * n_l + a_r * n_r) * balance, np.inf)
-                cmin_node = np.minimum.reduceat(cost, cell_base)
-                better = cmin_node < best
-                if better.any():
-                    hit = np.flatnonzero((cost == cmin_node[cell_seg]) & better[cell_seg])
-                    hs = cell_seg[hit]
-                    first_hit = np.concatenate([[True], hs[1:] != hs[:-1]])
-                    nodes_b, cells_b = hs[first_hit], hit[first_hit]
-                    best[nodes_b] = cmin_node[nodes_b]
-                    best_axis[nodes_b] = a
-                    best_cell[nodes_b] = cells_b
-        d = ext_n
-        area = d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
-        has = np.isfinite(best)
+        # candidates grouped by their bin count, so each group's primitives are one run
+        width = _widths(count[cand])
+        order = np.argsort(width, kind="stable")
+        cand, width = cand[order], width[order]
+        clo, cnt = lo[cand], count[cand]
+        seg, pos, starts, _ = _expand(clo, clo + cnt)
+        r = rows.take(pos, axis=0)      # take: twice as fast as fancy indexing of rows
+        # (2) the cheapest split of each node, group by group
+        b = np.empty(len(pos), np.int64)
+        parts = []
+        edges = np.flatnonzero(np.concatenate([[True], width[1:] != width[:-1], [True]]))
+        for g0, g1 in zip(edges[:-1], edges[1:]):
+            e0, e1 = starts[g0], (starts[g1] if g1 < len(cand) else len(pos))
+            gseg = seg[e0:e1] - g0
+            b[e0:e1] = _bins(r[e0:e1], gseg, starts[g0:g1] - e0, int(width[g0]))
+            parts.append(_cheapest_split(r[e0:e1], gseg, b[e0:e1], cnt[g0:g1], int(width[g0])))
+        best = _Split(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(_Split)))
+        # (3) split when it must (more than max_prims) or when the SAH says so
+        ext = nodes.bmax[slot[cand]].astype(np.float64) - nodes.bmin[slot[cand]].astype(np.float64)
+        area = ext[:, 0] * ext[:, 1] + ext[:, 1] * ext[:, 2] + ext[:, 2] * ext[:, 0]
+        has = np.isfinite(best.cost)
         with np.errstate(invalid="ignore", divide="ignore"):
-            sah_split = C_TRAV + C_ISECT * best / np.where(area > 0, area, 1.0)
+            sah_split = C_TRAV + C_ISECT * best.cost / np.where(area > 0, area, 1.0)
         do_sah = has & ((cnt > max_prims) | (sah_split < C_ISECT * cnt))
-        do_median = ~has & (cnt > max_prims)
-        split = do_sah | do_median
+        do_median = ~has & (cnt > max_prims)     # every centroid coincides: the object median
         median += int(do_median.sum())
-        if not split.any():
+        split = np.flatnonzero(do_sah | do_median)
+        if not len(split):
             break
-        # side of every primitive of a splitting node (True = left)
-        for a in range(3):
-            m = (do_sah & (best_axis == a))[cseg]
-            if m.any():
-                side[ords[a][cpos[m]]] = cells[a][m] <= best_cell[cseg[m]]
-        m = do_median[cseg]
-        if m.any():
-            side[ords[0][cpos[m]]] = local[m] < (cnt[cseg[m]] // 2)
-        # stable partition of the three orders (left part first)
-        ms = split[cseg]
-        n_left = None
-        for a in range(3):
-            pa = ords[a][cpos]
-            li = (side[pa] & ms).astype(np.int64)
-            excl = np.cumsum(li) - li
-            rank = excl - excl[cst][cseg]
-            if n_left is None:
-                n_left = np.add.reduceat(li, cst)
-            dest = np.where(li == 1, clo[cseg] + rank, clo[cseg] + n_left[cseg] + (local - rank))
-            ords[a][dest[ms]] = pa[ms]
-        sp = np.flatnonzero(split)
-        msp = len(sp)
-        child = nodes.next + 2 * np.arange(msp, dtype=np.int64)
-        nodes.next += 2 * msp
-        nodes.left[slot[cand[sp]]] = child
-        mid = clo[sp] + n_left[sp]
+        # (4) the side of every primitive (True = left; a node that stays a leaf keeps its order)
+        local = pos - clo[seg]
+        left = np.where(do_sah[seg], b <= best.bin[seg], ~do_median[seg] | (local < (cnt // 2)[seg]))
+        # (5) the children: left then right, allocated in pairs
+        n_left = _partition(rows, ids, r, pos, seg, starts, clo, left)[split]
+        slo, scnt = clo[split], cnt[split]
+        child = nodes.next + 2 * np.arange(len(split), dtype=np.int64)
+        nodes.next += 2 * len(split)
+        nodes.left[slot[cand[split]]] = child
+        mid = slo + n_left
+        nodes.bmin[child], nodes.bmax[child] = best.left_lo[split], best.left_hi[split]
+        nodes.bmin[child + 1], nodes.bmax[child + 1] = best.right_lo[split], best.right_hi[split]
+        med = np.flatnonzero(do_median[split])
+        if len(med):      # median splits have no bin boxes
+            _set_boxes(nodes, rows, np.concatenate([child[med], child[med] + 1]),
+                       np.concatenate([slo[med], mid[med]]), np.concatenate([mid[med], slo[med] + scnt[med]]))
         slot = np.concatenate([child, child + 1])
-        lo = np.concatenate([clo[sp], mid])
-        hi = np.concatenate([mid, chi[sp]])
-        depth = np.concatenate([depth[cand[sp]] + 1, depth[cand[sp]] + 1])
+        lo = np.concatenate([slo, mid])
+        hi = np.concatenate([mid, slo + scnt])
+        depth = np.concatenate([depth[cand[split]] + 1, depth[cand[split]] + 1])
     return {"median_splits": median, "depth_limited_leaves": depth_limited}
 
 
 def near_masks(bmin: np.ndarray, bmax: np.ndarray, left: np.ndarray) -> np.ndarray:
     """Listing 4.13 for every inner node: uint8 mask, bit s = 1 → right child first for octant s.
 
-    In float32 (an ordering heuristic: exactness is not needed), one octant at a time.
+    In float32 (an ordering heuristic: exactness is not needed). Each axis' terms depend
+    only on the sign of the direction along it, so they are formed once per axis and sign
+    and combined for the 8 octants.
     """
     out = np.zeros(len(left), dtype=np.uint8)
     inner = np.flatnonzero(left >= 0)
     if not len(inner):
         return out
     li = left[inner]
-    lL, lU = bmin[li], bmax[li]
-    rL, rU = bmin[li + 1], bmax[li + 1]
-    mask = np.zeros(len(inner), dtype=np.uint8)
+    lL, lU = bmin[li].T, bmax[li].T
+    rL, rU = bmin[li + 1].T, bmax[li + 1].T
     zero = np.float32(0)
+    terms = {}
     with np.errstate(over="ignore", invalid="ignore"):
+        for a in range(3):
+            for neg in (0, 1):
+                # the corridor of rays that can hit both children, along axis a
+                pick = np.maximum if neg else np.minimum
+                int_l, int_u = pick(lL[a], rL[a]), pick(lU[a], rU[a])
+                right_front = lU[a] < rU[a] if neg else lL[a] > rL[a]
+                left_l, left_u = np.maximum(lL[a], int_l), np.minimum(lU[a], int_u)
+                right_l, right_u = np.maximum(rL[a], int_l), np.minimum(rU[a], int_u)
+                di = np.maximum(np.minimum(left_u, right_u) - np.maximum(left_l, right_l), zero)
+                terms[a, neg] = (left_l <= left_u, right_l <= right_u, left_u - left_l, right_u - right_l,
+                                 di, right_front)
+        mask = np.zeros(len(inner), dtype=np.uint8)
         for s in range(8):
-            neg = np.array([(s >> a) & 1 for a in range(3)], dtype=bool)
-            int_l = np.where(neg, np.maximum(lL, rL), np.minimum(lL, rL))
-            int_u = np.where(neg, np.maximum(lU, rU), np.minimum(lU, rU))
-            right_front = np.where(neg, lU < rU, lL > rL)
-            left_l, left_u = np.maximum(lL, int_l), np.minimum(lU, int_u)
-            right_l, right_u = np.maximum(rL, int_l), np.minimum(rU, int_u)
-            lvalid = (left_l <= left_u).all(axis=1)
-            rvalid = (right_l <= right_u).all(axis=1)
-            d = left_u - left_l
-            la = np.where(lvalid, d[:, 0] * d[:, 1] + d[:, 1] * d[:, 2] + d[:, 2] * d[:, 0], zero)
-            d = right_u - right_l
-            ra = np.where(rvalid, d[:, 0] * d[:, 1] + d[:, 1] * d[:, 2] + d[:, 2] * d[:, 0], zero)
-            both = (lvalid & rvalid)[:, None]
-            di = np.maximum(np.minimum(left_u, right_u) - np.maximum(left_l, right_l), zero)
-            occl = np.stack([di[:, 1] * di[:, 2], di[:, 0] * di[:, 2], di[:, 0] * di[:, 1]], axis=1)
-            la = la - np.where(both & right_front, occl, zero).sum(axis=1)
-            ra = ra - np.where(both & ~right_front, occl, zero).sum(axis=1)
+            t = [terms[a, (s >> a) & 1] for a in range(3)]
+            lvalid = t[0][0] & t[1][0] & t[2][0]
+            rvalid = t[0][1] & t[1][1] & t[2][1]
+            dl, dr, di = [x[2] for x in t], [x[3] for x in t], [x[4] for x in t]
+            la = np.where(lvalid, dl[0] * dl[1] + dl[1] * dl[2] + dl[2] * dl[0], zero)
+            ra = np.where(rvalid, dr[0] * dr[1] + dr[1] * dr[2] + dr[2] * dr[0], zero)
+            both = lvalid & rvalid
+            occl = (di[1] * di[2], di[0] * di[2], di[0] * di[1])
+            front = [both & x[5] for x in t]
+            la = la - (np.where(front[0], occl[0], zero) + np.where(front[1], occl[1], zero)
+                       + np.where(front[2], occl[2], zero))
+            ra = ra - (np.where(both & ~t[0][5], occl[0], zero) + np.where(both & ~t[1][5], occl[1], zero)
+                       + np.where(both & ~t[2][5], occl[2], zero))
             mask |= ((la < ra).astype(np.uint8) << np.uint8(s))
     out[inner] = mask
     return out
@@ -416,18 +475,6 @@ def expected_work(bvh: BVH) -> dict[str, float]:
     leaf_work = a[~inner] * bvh.count[~inner]
     return {"sah_nodes": float(a[inner].sum() / root), "sah_tests": float(leaf_work.sum() / root),
             "sah_big_tests": float(leaf_work[bvh.count[~inner] > BIG_LEAF].sum() / root)}
-
-
-def _sorted_orders(cen: np.ndarray, pos_lo: np.ndarray, pos_hi: np.ndarray, prims: np.ndarray,
-                   n: int) -> np.ndarray:
-    """(3, n) orders: within each range [pos_lo, pos_hi), ``prims`` of that range sorted by centroid per axis."""
-    ords = np.zeros((3, n), dtype=np.int64)
-    seg, pos, _, _ = _expand(pos_lo, pos_hi)
-    p = prims[pos]
-    for a in range(3):
-        o = np.lexsort((p, cen[p, a], seg))
-        ords[a][pos] = p[o]
-    return ords
 
 
 def _finish(nodes: _Nodes, indices: np.ndarray, plo: np.ndarray, phi: np.ndarray, max_prims: int,
@@ -477,22 +524,15 @@ def build_bvh(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 4,
     n = len(plo)
     if n >= (1 << 30):
         raise ValueError("too many primitives")
-    cen = (plo.astype(np.float64) + phi.astype(np.float64)) * 0.5
     nodes = _Nodes(2 * n - 1)
     counters: dict = {}
+    indices = np.arange(n, dtype=np.int64)
+    nodes.next = 1
     if n == 0:
         nodes.bmin[0], nodes.bmax[0] = np.inf, -np.inf
-        nodes.next = 1
-        indices = np.zeros(0, np.int64)
     else:
-        prims = np.arange(n, dtype=np.int64)
-        ords = _sorted_orders(cen, np.zeros(1, np.int64), np.full(1, n, np.int64), prims, n)
-        nodes.next = 1
-        counters = _grow(nodes, ords, np.ascontiguousarray(plo.T), np.ascontiguousarray(phi.T),
-                         np.ascontiguousarray(cen.T), np.zeros(1, np.int64),
-                         np.zeros(1, np.int64),
+        counters = _grow(nodes, _rows(plo, phi, indices), indices, np.zeros(1, np.int64), np.zeros(1, np.int64),
                          np.full(1, n, np.int64), np.ones(1, np.int64), max_prims, max_tree_depth)
-        indices = ords[0]
     bvh = _finish(nodes, indices, plo, phi, max_prims, max_tree_depth, None)
     bvh.split_cost = split_costs(bvh)
     ms = (time.perf_counter() - t0) * 1e3
@@ -604,18 +644,12 @@ def selective_rebuild(bvh: BVH, aabb_min: np.ndarray, aabb_max: np.ndarray,
     roots = np.flatnonzero(marked & ~blocked)
     counters: dict = {}
     if len(roots):
-        cen = (plo.astype(np.float64) + phi.astype(np.float64)) * 0.5
         lo, hi = bvh.first[roots], bvh.first[roots] + bvh.count[roots]
         nodes = _Nodes.of(bvh, 2 * int(bvh.count[roots].sum()))
         split_cost = np.concatenate([bvh.split_cost, np.full(nodes.bmin.shape[0] - bvh.n_nodes, np.nan)])
-        ords = _sorted_orders(cen, lo, hi, bvh.indices, n)
-        counters = _grow(nodes, ords, np.ascontiguousarray(plo.T), np.ascontiguousarray(phi.T),
-                         np.ascontiguousarray(cen.T), roots.astype(np.int64), lo, hi,
-                         bvh.depth[roots].copy(),
-                         bvh.max_prims, bvh.max_tree_depth)
-        seg, pos, _, _ = _expand(lo, hi)
         indices = bvh.indices.copy()
-        indices[pos] = ords[0][pos]
+        counters = _grow(nodes, _rows(plo, phi, indices), indices, roots.astype(np.int64), lo, hi,
+                         bvh.depth[roots].copy(), bvh.max_prims, bvh.max_tree_depth)
         grown = _finish(nodes, indices, plo, phi, bvh.max_prims, bvh.max_tree_depth, split_cost)
         grown.stats = bvh.stats
         # record the split costs of the new splits (the kept nodes keep their original ones)

@@ -182,3 +182,25 @@ def test_bvh_build_is_fast_and_terminates_on_degenerate_input():
     assert b.stats.median_splits > 0 and b.stats.depth_max <= 13
     b = build_bvh(*sphere_aabbs(same, np.ones(3000)), 1, max_tree_depth=3)
     assert b.stats.depth_max == 3 and b.stats.depth_limited_leaves == 4
+
+
+def test_bvh_boxes_are_tight_where_the_bins_give_them():
+    """Child boxes come from the bins' prefix and suffix boxes (not from their primitives):
+    each must be exactly the union of its primitives' boxes, at any magnitude — boxes near
+    ±1e38 (whose centroid sums and spreads overflow float32), mixed sizes, coincident ones."""
+    rng = np.random.default_rng(20)
+    cases = {
+        "mixed": (rng.uniform(-50, 50, (3000, 3)), rng.uniform(0.01, 3, (3000, 1))),
+        "huge": (rng.uniform(-3e38, 3e38, (500, 3)), rng.uniform(1e30, 1e36, (500, 1))),
+        "clusters": (np.repeat(rng.uniform(-1, 1, (40, 3)), 25, axis=0), np.full((1000, 1), 0.5)),
+    }
+    for name, (c, r) in cases.items():
+        lo = np.clip(c - r, -3.3e38, 3.3e38).astype(np.float32)
+        hi = np.clip(c + r, -3.3e38, 3.3e38).astype(np.float32)
+        b = build_bvh(lo, hi, 2)
+        check_bvh(b, lo, hi, 64)
+        for node in range(b.n_nodes):
+            p = b.indices[b.first[node]:b.first[node] + b.count[node]]
+            np.testing.assert_array_equal(b.bmin[node], lo[p].min(axis=0), err_msg=f"{name} node {node}")
+            np.testing.assert_array_equal(b.bmax[node], hi[p].max(axis=0), err_msg=f"{name} node {node}")
+        assert b.stats.leaves > len(lo) // 4, f"{name}: the bins found splits"
