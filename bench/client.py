@@ -29,16 +29,14 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import socket
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
-import httpx
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+from bench.child import ServerChild  # noqa: E402  (run as a script or imported)
 CHROMIUM = os.environ.get("POCKETRAY_CHROMIUM", "/usr/bin/chromium")
 GL_ARGS = ["--no-sandbox", "--disable-background-networking", "--disable-component-update", "--disable-sync",
            "--no-first-run", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
@@ -68,40 +66,11 @@ CHROME_SHARE = """() => {
 }"""
 
 
-class Server:
-    """``python -m server`` on a free port (optionally serving another client folder)."""
+class Server(ServerChild):
+    """A server child (bench/child.py), optionally serving another client folder."""
 
     def __init__(self, client_dir: str | None):
-        self.tmp = tempfile.TemporaryDirectory()
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            port = s.getsockname()[1]
-        self.url = f"http://127.0.0.1:{port}"
-        env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
-        env.update(POCKETRAY_PORT=str(port), POCKETRAY_HOST="127.0.0.1", POCKETRAY_LOG_LEVEL="warning",
-                   POCKETRAY_SQLITE_PATH=str(Path(self.tmp.name) / "bench.sqlite3"))
-        if client_dir:
-            env["POCKETRAY_CLIENT_DIR"] = str(Path(client_dir).resolve())
-        self.log = open(Path(self.tmp.name) / "server.log", "wb")
-        self.proc = subprocess.Popen([sys.executable, "-m", "server"], cwd=ROOT, env=env,
-                                     stdout=self.log, stderr=subprocess.STDOUT)
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
-            if self.proc.poll() is not None:
-                raise SystemExit(f"server exited: {(Path(self.tmp.name) / 'server.log').read_text()[-2000:]}")
-            try:
-                if httpx.get(self.url + "/api/ready", timeout=2).status_code == 200:
-                    return
-            except httpx.HTTPError:
-                pass
-            time.sleep(0.2)
-        raise SystemExit("server did not become ready")
-
-    def close(self) -> None:
-        self.proc.terminate()
-        self.proc.wait(timeout=30)
-        self.log.close()
-        self.tmp.cleanup()
+        super().__init__(ROOT, {"client_dir": Path(client_dir).resolve()} if client_dir else {}, timeout_s=120)
 
 
 def wait_full(page, min_frames: int, timeout_ms: float = 300_000) -> None:

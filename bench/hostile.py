@@ -39,7 +39,6 @@ import socket
 import statistics
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from pathlib import Path
@@ -47,65 +46,16 @@ from pathlib import Path
 import httpx
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+from bench.child import ServerChild  # noqa: E402  (run as a script or imported)
 MIB = 1 << 20
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def wait_ready(proc: subprocess.Popen, url: str, log: Path, timeout_s: float = 180) -> None:
-    """Until the child's ``/api/ready`` says 200; RuntimeError with its log's tail if it exits or
-    is not ready within ``timeout_s`` (bench/soak.py's server too)."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            raise RuntimeError(f"server exited: {log.read_text()[-2000:]}")
-        try:
-            if httpx.get(url + "/api/ready", timeout=2).status_code == 200:
-                return
-        except httpx.HTTPError:
-            pass
-        time.sleep(0.2)
-    raise RuntimeError("server not ready")
-
-
-class Server:
-    """``python -m server`` of ``root`` on a free port with a temporary SQLite file."""
+class Server(ServerChild):
+    """A server child (bench/child.py) of checkout ``root`` with a temporary SQLite file."""
 
     def __init__(self, root: Path, **settings: str):
-        self.tmp = tempfile.TemporaryDirectory()
-        self.port = free_port()
-        self.url = f"http://127.0.0.1:{self.port}"
-        env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
-        env.update(POCKETRAY_PORT=str(self.port), POCKETRAY_HOST="127.0.0.1", POCKETRAY_LOG_LEVEL="warning",
-                   POCKETRAY_SQLITE_PATH=str(Path(self.tmp.name) / "bench.sqlite3"))
-        env.update({f"POCKETRAY_{k.upper()}": str(v) for k, v in settings.items()})
-        self.log = open(Path(self.tmp.name) / "server.log", "wb")
-        self.proc = subprocess.Popen([sys.executable, "-m", "server"], cwd=root, env=env, stdout=self.log,
-                                     stderr=subprocess.STDOUT)
-        wait_ready(self.proc, self.url, Path(self.tmp.name) / "server.log")
-
-    def memory(self) -> dict[str, float]:
-        """VmRSS and VmHWM of the server process, MiB."""
-        out = {}
-        for line in Path(f"/proc/{self.proc.pid}/status").read_text().splitlines():
-            key, _, value = line.partition(":")
-            if key in ("VmRSS", "VmHWM"):
-                out[key] = int(value.split()[0]) / 1024
-        return out
-
-    def close(self) -> None:
-        self.proc.terminate()
-        try:
-            self.proc.wait(20)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
-        self.log.close()
-        self.tmp.cleanup()
+        super().__init__(root, settings)
 
 
 def scene_body(n: int, bad: bool = False, seed: int = 1) -> bytes:

@@ -36,7 +36,6 @@ import argparse
 import json
 import os
 import re
-import socket
 import statistics
 import subprocess
 import sys
@@ -49,6 +48,7 @@ import httpx
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+from bench.child import ServerChild  # noqa: E402
 from renderer.profiles import PROFILES  # noqa: E402
 
 STAGES = ("queue", "build", "upload", "trace", "read", "encode")
@@ -77,54 +77,27 @@ def pct(values: list[float], q: float) -> float:
     return v[lo] + (v[hi] - v[lo]) * (k - lo)
 
 
-class Server:
-    """A ``python -m server`` child on a free port with a temporary SQLite file.
+class Server(ServerChild):
+    """A server child (bench/child.py) with a temporary SQLite file and a queue of ``queue_size``.
 
-    ``base``: a commit whose ``renderer/`` and ``shaders/`` (extracted from git into the
+    ``base``: a commit whose ``renderer/`` and ``shaders/`` (extracted from git into a
     temporary directory) the server renders with, this checkout's ``server/`` otherwise
     (the shader and layouts before issue 18 beside today's service); ``settings``: more
     ``POCKETRAY_*`` settings of the child (``slice_ms=…``)."""
 
     def __init__(self, queue_size: int, base: str | None = None, **settings: object):
-        self.tmp = tempfile.TemporaryDirectory()
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            port = s.getsockname()[1]
-        self.url = f"http://127.0.0.1:{port}"
-        env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
-        env.update(POCKETRAY_PORT=str(port), POCKETRAY_HOST="127.0.0.1", POCKETRAY_LOG_LEVEL="warning",
-                   POCKETRAY_SQLITE_PATH=str(Path(self.tmp.name) / "bench.sqlite3"),
-                   POCKETRAY_QUEUE_SIZE=str(queue_size),
-                   **{f"POCKETRAY_{k.upper()}": str(v) for k, v in settings.items()})
-        cwd = ROOT
+        self.code = tempfile.TemporaryDirectory()
+        cwd, pythonpath = ROOT, None
         if base:
-            code = Path(self.tmp.name) / "code"
-            code.mkdir()
             archive = subprocess.run(["git", "-C", str(ROOT), "archive", base, "renderer", "shaders"], check=True,
                                      capture_output=True).stdout
-            subprocess.run(["tar", "-x", "-C", str(code)], input=archive, check=True)
-            env["PYTHONPATH"] = f"{code}{os.pathsep}{ROOT}"
-            cwd = code
-        self.log = open(Path(self.tmp.name) / "server.log", "wb")
-        self.proc = subprocess.Popen([sys.executable, "-m", "server"], cwd=cwd, env=env,
-                                     stdout=self.log, stderr=subprocess.STDOUT)
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
-            if self.proc.poll() is not None:
-                raise SystemExit(f"server exited: {(Path(self.tmp.name) / 'server.log').read_text()[-2000:]}")
-            try:
-                if httpx.get(self.url + "/api/ready", timeout=2).status_code == 200:
-                    return
-            except httpx.HTTPError:
-                pass
-            time.sleep(0.2)
-        raise SystemExit("server did not become ready")
+            subprocess.run(["tar", "-x", "-C", self.code.name], input=archive, check=True)
+            cwd, pythonpath = Path(self.code.name), f"{self.code.name}{os.pathsep}{ROOT}"
+        super().__init__(cwd, {"queue_size": queue_size, **settings}, pythonpath=pythonpath, timeout_s=120)
 
     def close(self) -> None:
-        self.proc.terminate()
-        self.proc.wait(timeout=30)
-        self.log.close()
-        self.tmp.cleanup()
+        super().close()
+        self.code.cleanup()
 
 
 def new_session(c: httpx.Client, n: int, depth: int, w: int, h: int) -> str:
@@ -332,8 +305,8 @@ def main() -> None:
             finally:
                 base.close()
             print()
-            print(f"| 320×544, 1 client, interactive, gestures alternating | p50 ms | p95 ms | server trace p50 ms "
-                  f"| fps |")
+            print("| 320×544, 1 client, interactive, gestures alternating | p50 ms | p95 ms | server trace p50 ms "
+                  "| fps |")
             print("|---|---|---|---|---|")
             for k in ("now", args.base):
                 print(f"| {'this checkout' if k == 'now' else 'renderer and shaders of ' + k} | {ab[k]['p50']:.0f} "

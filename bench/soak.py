@@ -27,7 +27,6 @@ import os
 import signal
 import socket
 import statistics
-import subprocess
 import sys
 import tempfile
 import threading
@@ -37,40 +36,22 @@ from pathlib import Path
 
 import httpx
 
-from hostile import wait_ready   # bench/: run as a script, or imported with bench/ on the path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+from bench.child import ServerChild, free_port  # noqa: E402  (run as a script or imported)
 FRAME = {"width": 96, "height": 160, "max_recursion_depth": 2, "samples_per_pixel": 1, "format": "jpeg"}
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+class Server(ServerChild):
+    """A server child (bench/child.py) on ``port`` with the soak's SQLite file and log: killed
+    and restarted on the same ones."""
 
-
-class Server:
     def __init__(self, root: Path, sqlite: Path, port: int, log: Path):
-        env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
-        env.update(POCKETRAY_PORT=str(port), POCKETRAY_HOST="127.0.0.1", POCKETRAY_LOG_LEVEL="warning",
-                   POCKETRAY_SQLITE_PATH=str(sqlite), POCKETRAY_DEFAULT_RENDER=json.dumps(FRAME))
-        self.url = f"http://127.0.0.1:{port}"
-        self.port = port
-        self.log = open(log, "ab")
-        self.proc = subprocess.Popen([sys.executable, "-m", "server"], cwd=root, env=env, stdout=self.log,
-                                     stderr=subprocess.STDOUT)
-        wait_ready(self.proc, self.url, log)
+        super().__init__(root, {"default_render": json.dumps(FRAME)}, sqlite=sqlite, port=port, log=log)
 
     def rss_mib(self) -> float:
-        for line in Path(f"/proc/{self.proc.pid}/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024
-        return float("nan")
-
-    def kill(self, sig: int) -> None:
-        self.proc.send_signal(sig)
-        self.proc.wait(30)
-        self.log.close()
+        return self.memory().get("VmRSS", float("nan"))
 
 
 def pct(values: list[float], q: float) -> float:
