@@ -18,14 +18,20 @@ little-endian 32-bit words::
 Words 1 and 2 are a union, as in the thesis's C struct. The statistics (Table 4.2,
 Fig. 4.5's memory) and the build's tests read this form.
 
+A *cut* (the build's step 0, trees over triangles) is an ordinary inner node one of whose
+children is a leaf of no primitives: its clip plane on that side is ``±EMPTY_CLIP`` (the
+largest float32: ``clip_right = +EMPTY_CLIP`` behind an empty right child, ``clip_left =
+−EMPTY_CLIP`` before an empty left one), the other plane bounds the primitives' child.
+
 **Conversion** (:func:`gpu_records`, per frame after the build): the GPU gets no record for
-a leaf — its parent says where the leaf's spheres are — and the spheres themselves in
-leaf order (the sorted index array's order), as :func:`renderer.gpu_layout.sphere_records`,
-so a leaf is a run of sphere records ended by the one flagged ``SPHERE_LAST`` and needs
-no index array. With triangles a tree primitive that is a triangle has a *slot* of the same
-size there instead (:func:`renderer.gpu_layout.leaf_records`: its key flagged ``TRI_SLOT``
-with the triangle's index; the corners in ``u_triangles``), so positions, refs and the
-``last`` flags are the same as for spheres. Inner nodes keep the build's order, renumbered without the leaves.
+a leaf — its parent says where the leaf's spheres are — and the spheres themselves in leaf
+order (the sorted index array's order), as :func:`renderer.gpu_layout.sphere_records`, so a
+leaf is a run of sphere records ended by the one flagged ``SPHERE_LAST`` and needs no index
+array. A cut's empty child has no records: its ref is its sibling's (below). With triangles
+a tree primitive that is a triangle has a *slot* of the same size there instead
+(:func:`renderer.gpu_layout.leaf_records`: its key flagged ``TRI_SLOT`` with the triangle's
+index; the corners in ``u_triangles``), so positions, refs and the ``last`` flags are the
+same as for spheres. Inner nodes keep the build's order, renumbered without the leaves.
 
 **GPU** (``u_bih_nodes``, a record array: RGBA32UI texture or uniform block): one inner
 node per ``uvec4``::
@@ -37,6 +43,13 @@ node per ``uvec4``::
                                                                    total: 16 bytes
     ref bit 29 (REF_LEAF) set:   a leaf; bits 28..0 its first sphere record
         bit 29 clear:            an inner node; bits 28..0 its record
+    a cut's empty child:         the ref of its sibling (the primitives' child)
+
+No ray takes a cut's empty side: with a direction of length ≤ 1 and the scene inside
+``±MAX_COORDINATE``, ``(±EMPTY_CLIP − o) / d`` puts that child's interval beyond ``BIG`` (the
+shader's largest t, ≥ every interval end) or below 0. Were it taken, the sibling's ref would
+only make the ray walk the primitives' child once more: extra work, no hit lost or made.
+So the shader and its CPU mirror trace cuts with listing 3.5's decisions, unchanged.
 
 ``u_bih_root`` is the root's ref (a leaf when the whole scene is one), ``u_box_min/max``
 the global box. An RGBA32UI fetch costs llvmpipe 0.96 ns against 1.36 for the RGB32UI the
@@ -72,6 +85,9 @@ REF_LEAF = 1 << 29
 REF_INDEX = REF_LEAF - 1
 REF_NONE = 0xFFFFFFFF               # "no node" in the shader's loops (has REF_LEAF set)
 RECORD_BYTES = 16
+# A cut's empty side (renderer.accel.bih, step 0): its clip plane at ±EMPTY_CLIP (the module's
+# docstring: no ray takes it), and its ref in the GPU record is its sibling's.
+EMPTY_CLIP = float(np.finfo(np.float32).max)
 
 NODES = Binding("u_bih_nodes", doc="BIH inner nodes (bih_layout)", records=True)
 SPHERES = Binding("u_bih_spheres", doc="spheres in leaf order (gpu_layout.sphere_records)", records=True)
@@ -117,6 +133,12 @@ def gpu_records(bih) -> tuple[np.ndarray, int]:
     index[inner] = np.arange(len(inner))
     ref = np.where(leaf, REF_LEAF | nodes[:, 1].astype(np.int64), index).astype(np.uint32)
     left = left_child(w0[inner])
+    # A cut's empty child (a leaf of no primitives) is named by its sibling's ref.
+    empty = leaf & (nodes[:, 2] == 0)
+    if len(nodes) > 1 and empty.any():
+        el, er = empty[left], empty[left + 1]
+        ref[left[el]] = ref[left[el] + 1]
+        ref[left[er] + 1] = ref[left[er]]
     out = np.empty((len(inner), 4), dtype=np.uint32)
     out[:, 0] = (axis_of(w0[inner]).astype(np.uint32) << np.uint32(AXIS_SHIFT)) | ref[left]
     out[:, 1] = nodes[inner, 1]

@@ -37,8 +37,10 @@ def triangle_aabbs(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     and the float64 one of the reference and the CPU traversal.
     """
     c = np.asarray(corners, dtype=np.float64).reshape(-1, 3, 3).astype(np.float32)
-    lo = np.nextafter(c.min(axis=1), np.float32(-np.inf))
-    hi = np.nextafter(c.max(axis=1), np.float32(np.inf))
+    # (corner by corner: the same values as c.min(axis=1), several times faster on NumPy's
+    # middle-axis reduction, which a million-triangle build pays on every request)
+    lo = np.nextafter(np.minimum(np.minimum(c[:, 0], c[:, 1]), c[:, 2]), np.float32(-np.inf))
+    hi = np.nextafter(np.maximum(np.maximum(c[:, 0], c[:, 1]), c[:, 2]), np.float32(np.inf))
     return lo, hi
 
 

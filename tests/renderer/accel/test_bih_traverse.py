@@ -4,7 +4,11 @@
   adversarial rays (±0 direction components, origins on clip planes, secondary rays
   leaving a sphere), and == SHADING.md's pseudo-code transcribed one ray at a time,
   counters included (the heat mode's nodes visited, empty gaps, sphere tests);
-- the thesis's scenarios, pruning, ties to the lower id, the secondary-ray rules.
+- the thesis's scenarios, pruning, ties to the lower id, the secondary-ray rules;
+- the same over trees with the build's empty-space cuts (step 0 of renderer.accel.bih, made
+  for triangles, here over the spheres' boxes): the oracle reads the thesis's nodes, where
+  a cut's empty child is a leaf of no primitives, the traversal the GPU records, where it
+  names its sibling, so equal counters also say that no ray ever takes a cut's empty side.
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from renderer.accel.bih import build_for_spheres
+from renderer.accel.bih import build_bih, build_for_spheres, sphere_aabbs
 from renderer.accel.bih_traverse import brute_force, traverse
 from renderer.scenarios import scenario
 from tests.helpers import HYP
@@ -184,9 +188,9 @@ def make_rays(bih, c, r, rng, per_kind):
     return out
 
 
-def check_traversal(scene, max_prims, max_tree_depth, seed, per_kind=10, oracle=True):
+def check_traversal(scene, max_prims, max_tree_depth, seed, per_kind=10, oracle=True, empty_cuts=False):
     c, r = scene
-    bih = build_for_spheres(c, r, max_prims=max_prims, max_tree_depth=max_tree_depth)
+    bih = build_bih(*sphere_aabbs(c, r), max_prims=max_prims, max_tree_depth=max_tree_depth, empty_cuts=empty_cuts)
     rng = np.random.default_rng(seed)
     parts = make_rays(bih, c, r, rng, per_kind)
     o = np.concatenate([p[0] for p in parts])
@@ -229,6 +233,21 @@ def test_traverse_matches_brute_force(scene, max_prims, max_tree_depth, seed):
        seed=st.integers(0, 2**32 - 1))
 def test_traverse_matches_brute_force_slow(scene, max_prims, max_tree_depth, seed):
     check_traversal(scene, max_prims, max_tree_depth, seed)
+
+
+@settings(max_examples=100, **HYP)
+@given(scene=scenes(f32=True), max_prims=st.integers(1, 16), max_tree_depth=st.integers(1, 64),
+       seed=st.integers(0, 2**32 - 1))
+def test_traverse_with_empty_cuts_matches_brute_force(scene, max_prims, max_tree_depth, seed):
+    check_traversal(scene, max_prims, max_tree_depth, seed, empty_cuts=True)
+
+
+@pytest.mark.slow
+@settings(max_examples=2000, **HYP)
+@given(scene=scenes(f32=True), max_prims=st.integers(1, 16), max_tree_depth=st.integers(1, 64),
+       seed=st.integers(0, 2**32 - 1))
+def test_traverse_with_empty_cuts_matches_brute_force_slow(scene, max_prims, max_tree_depth, seed):
+    check_traversal(scene, max_prims, max_tree_depth, seed, empty_cuts=True)
 
 
 def _camera_rays(sc, w, h):
@@ -323,14 +342,15 @@ def test_secondary_rules():
 
 
 @settings(max_examples=60, **HYP)
-@given(scene=scenes(), max_prims=st.integers(1, 16), max_tree_depth=st.integers(1, 64))
-def test_gpu_records_are_the_built_tree(scene, max_prims, max_tree_depth):
+@given(scene=scenes(), max_prims=st.integers(1, 16), max_tree_depth=st.integers(1, 64), empty_cuts=st.booleans())
+def test_gpu_records_are_the_built_tree(scene, max_prims, max_tree_depth, empty_cuts):
     """The GPU layout (bih_layout.gpu_records, leaf_order) says what the thesis's nodes say:
     every inner node has a record with its axis and clips; its child refs name the child's
-    record, or the first sphere record of a leaf, whose run ends (flag) after its count."""
+    record, or the first sphere record of a leaf, whose run ends (flag) after its count; a
+    cut's empty child (a leaf of no primitives) is named by its sibling's ref."""
     from renderer.accel import bih_layout as L
     c, r = scene
-    bih = build_for_spheres(c, r, max_prims, max_tree_depth)
+    bih = build_bih(*sphere_aabbs(c, r), max_prims, max_tree_depth, empty_cuts=empty_cuts)
     leaf, axis, left, cl, cr, off, cnt = decode(bih)
     records, root = L.gpu_records(bih)
     order, last = L.leaf_order(bih)
@@ -339,13 +359,15 @@ def test_gpu_records_are_the_built_tree(scene, max_prims, max_tree_depth):
     np.testing.assert_array_equal(order, bih.indices)
     rec_of = {int(node): k for k, node in enumerate(inner)}
 
-    def ref_of(node: int) -> int:
+    def ref_of(node: int, sibling: int | None = None) -> int:
+        if leaf[node] and cnt[node] == 0 and sibling is not None:
+            return ref_of(sibling)
         return (L.REF_LEAF | int(off[node])) if leaf[node] else rec_of[int(node)]
     assert root == ref_of(0)
     for k, node in enumerate(inner):
         x, y, z, w = (int(v) for v in records[k])
         assert x >> L.AXIS_SHIFT == axis[node]
-        assert (x & L.CHILD_MASK, w) == (ref_of(left[node]), ref_of(left[node] + 1))
+        assert (x & L.CHILD_MASK, w) == (ref_of(left[node], left[node] + 1), ref_of(left[node] + 1, left[node]))
         assert np.uint32(y).view(np.float32) == cl[node] and np.uint32(z).view(np.float32) == cr[node]
     for node in np.flatnonzero(leaf):
         if cnt[node]:
