@@ -312,8 +312,8 @@ def run(ctx: Context) -> str:
 
 **(a) Build over {n_build:,} triangles** (flat level-{BUILD_LEVEL_QUICK if ctx.quick else BUILD_LEVEL} icospheres of 20 · 4^level triangles on a grid):
 the method's `prepare` with the default `max_prims` / `max_tree_depth` — the tree over the
-triangles' float32 AABBs and its statistics; the scene's flattened corners are made before
-the clock starts and the GPU packing (lazy, at upload) is not counted. The kd-tree and the
+triangles' float32 AABBs, its statistics and the packing of its GPU records; the scene's
+flattened corners are made before the clock starts. The kd-tree and the
 two-level method get one attempt each under a {OTHER_DEADLINE_S:g} s deadline.
 
 {btable}
