@@ -23,6 +23,10 @@ import os
 
 import pytest
 
+# schemathesis.parametrize() (tests/server/test_schemathesis.py) needs its plugin; pyproject.toml's
+# addopts turn off the entry point it is otherwise loaded by (see there).
+pytest_plugins = ("schemathesis.pytest.plugin",)
+
 # Fixtures that make an OpenGL context or start the service (in-process or as a process,
 # whose GL worker makes one). Names of tests/server/conftest.py, tests/browser/conftest.py
 # and tests/server/test_schemathesis.py: a fixture renamed there must be renamed here (a

@@ -103,6 +103,60 @@ class ServerProcess:
             self.log.close()
 
 
+def cli_env() -> dict[str, str]:
+    """The environment of a ``python -m server`` command: no POCKETRAY_* of ours, this checkout first."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
+    env["PYTHONPATH"] = str(ROOT)     # this checkout's server, not whichever one the environment installed
+    return env
+
+
+def pocketray(*args: str, cwd: Path, stdin: str | None = None) -> subprocess.CompletedProcess:
+    """``pocketray ARGS`` as a user runs it: ``python -m server ARGS``, a process of its own."""
+    return subprocess.run([sys.executable, "-m", "server", *args], cwd=cwd, env=cli_env(), input=stdin,
+                          capture_output=True, text=True, timeout=300)
+
+
+# One process running several commands one after the other, each through server.cli.main as
+# ``python -m server`` runs it (server/__main__.py: sys.exit(main(argv))): its exit status is
+# main's return value, or SystemExit's code (argparse's usage errors), or 1 with the traceback
+# on stderr for any other exception; stdin, stdout and stderr are the command's own.
+_BATCH = r"""
+import contextlib, io, json, sys, traceback
+from server import cli
+out = []
+for argv, stdin in json.loads(sys.stdin.read()):
+    so, se = io.TextIOWrapper(io.BytesIO(), encoding="utf-8"), io.StringIO()   # stdout has a .buffer
+    sys.stdin = io.StringIO(stdin or "")
+    with contextlib.redirect_stdout(so), contextlib.redirect_stderr(se):
+        try:
+            code = cli.main(argv)
+        except SystemExit as e:
+            code = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
+        except BaseException:
+            traceback.print_exc()
+            code = 1
+    so.flush()
+    out.append({"returncode": code, "stdout": so.buffer.getvalue().decode(), "stderr": se.getvalue()})
+sys.stdout = sys.__stdout__
+print(json.dumps(out))
+"""
+
+
+def pocketray_batch(commands: list[tuple[str, ...] | tuple[tuple[str, ...], str]], cwd: Path
+                    ) -> list[subprocess.CompletedProcess]:
+    """``pocketray`` commands run in order in one ``python -m``-like process (its start-up, the
+    imports, paid once): each gives what :func:`pocketray` would, a CompletedProcess with its
+    exit status, stdout and stderr. A command is its arguments, or (arguments, stdin text)."""
+    calls = [(list(c[0]), c[1]) if len(c) == 2 and isinstance(c[0], tuple) else (list(c), None)
+             for c in commands]
+    proc = subprocess.run([sys.executable, "-c", _BATCH], cwd=cwd, env=cli_env(), input=json.dumps(calls),
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    results = json.loads(proc.stdout.strip().splitlines()[-1])
+    return [subprocess.CompletedProcess(["pocketray", *argv], r["returncode"], r["stdout"], r["stderr"])
+            for (argv, _), r in zip(calls, results)]
+
+
 def server_env(sqlite_path: Path, port: int | None = None, **settings) -> dict[str, str]:
     """The environment of a test server process: TEST_CAPS plus ``settings`` as POCKETRAY_*."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}

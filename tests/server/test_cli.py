@@ -19,26 +19,25 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from pocketray_server_support import ROOT, free_port
+from pocketray_server_support import ROOT, free_port, pocketray, pocketray_batch
 from server import cli
 from server.exr import decode_exr
 
 pytestmark = pytest.mark.gl   # render runs GLRenderer, serve a GL worker
 
-
-def pocketray(*args: str, cwd: Path, stdin: str | None = None) -> subprocess.CompletedProcess:
-    env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
-    env["PYTHONPATH"] = str(ROOT)     # this checkout's server, not whichever one the environment installed
-    return subprocess.run([sys.executable, "-m", "server", *args], cwd=cwd, env=env, input=stdin,
-                          capture_output=True, text=True, timeout=300)
+# Commands whose subject is what they write or refuse run several to a process (pocketray_batch:
+# server.cli.main as ``python -m server`` calls it, the start-up paid once); ``pocketray`` itself as
+# a process of its own (its exit status from sys.exit included) is run by the serve and devices
+# tests below.
 
 
 def test_scenario_writes_the_scene_json_the_api_serves(tmp_path, client):
-    assert pocketray("scenario", "3", "--n", "100", "--seed", "7", "-o", "s.json", cwd=tmp_path).returncode == 0
+    written, museum = pocketray_batch([("scenario", "3", "--n", "100", "--seed", "7", "-o", "s.json"),
+                                       ("scenario", "museum", "--n", "32", "--kind", "rigid")], cwd=tmp_path)
+    assert written.returncode == 0, written.stderr
     written = json.loads((tmp_path / "s.json").read_text())
     sid = client.post("/api/sessions", json={"scenario": 3, "n": 100, "seed": 7}).json()["id"]
     assert written == client.get(f"/api/sessions/{sid}/scene").json()
-    museum = pocketray("scenario", "museum", "--n", "32", "--kind", "rigid", cwd=tmp_path)
     doc = json.loads(museum.stdout)
     assert doc["motions"] and doc["motions"][0]["kind"] == "rigid" and len(doc["spheres"]) > 32
 
@@ -47,10 +46,12 @@ def test_render_writes_each_format_and_agrees_with_the_api(tmp_path, client):
     scene = {"materials": [{}], "spheres": [{"center": [0, 0, 0], "radius": 20}, {"center": [25, 5, 0], "radius": 6}]}
     (tmp_path / "scene.json").write_text(json.dumps(scene))
     common = ["--width", "40", "--height", "30", "--depth", "2", "--spp", "1"]
-    for out in ("a.png", "a.jpg", "a.npy", "p.npy", "z.exr", "n.exr", "c.exr", "i.exr"):
-        mode = {"p": "primid", "z": "depth", "n": "normal", "i": "primid"}.get(out[0], "color")
-        r = pocketray("render", "scene.json", "-o", out, "--mode", mode, *common, "--quiet", cwd=tmp_path)
-        assert r.returncode == 0 and r.stderr == "", r.stderr
+    outs = ("a.png", "a.jpg", "a.npy", "p.npy", "z.exr", "n.exr", "c.exr", "i.exr")
+    modes = [{"p": "primid", "z": "depth", "n": "normal", "i": "primid"}.get(out[0], "color") for out in outs]
+    done = pocketray_batch([("render", "scene.json", "-o", out, "--mode", mode, *common, "--quiet")
+                            for out, mode in zip(outs, modes)], cwd=tmp_path)
+    for out, r in zip(outs, done):
+        assert r.returncode == 0 and r.stderr == "", (out, r.stderr)
     assert Image.open(tmp_path / "a.png").size == (40, 30) and Image.open(tmp_path / "a.jpg").format == "JPEG"
     api = client.post("/api/render", json={"scene": scene, "settings": {
         "width": 40, "height": 30, "max_recursion_depth": 2, "samples_per_pixel": 1, "format": "npy"}})
@@ -69,13 +70,15 @@ def test_render_rejects_what_the_api_rejects_naming_the_field(tmp_path):
     (tmp_path / "s.json").write_text(json.dumps({"materials": [{}], "spheres": [{"center": [0, 0, 0], "radius": 1}]}))
     cases = {("--width", "0"): "width", ("--spp", "3"): "samples_per_pixel", ("--method", "nope"): "method",
              ("--mode", "cones"): "mode", ("--min-weight", "nan"): "min_weight"}
-    for flags, field in cases.items():
-        r = pocketray("render", "s.json", "-o", "x.png", *flags, cwd=tmp_path)
+    *refused, bad, gif = pocketray_batch(
+        [("render", "s.json", "-o", "x.png", *flags) for flags in cases]
+        + [(("render", "-", "-o", "x.png"),
+            json.dumps({"materials": [{}], "spheres": [{"center": [0, 0, 0], "radius": -1}]})),
+           ("render", "s.json", "-o", "x.gif")], cwd=tmp_path)
+    for (flags, field), r in zip(cases.items(), refused):
         assert r.returncode == 2 and field in r.stderr, (flags, r.stderr)
-    bad = pocketray("render", "-", "-o", "x.png", cwd=tmp_path,
-                    stdin=json.dumps({"materials": [{}], "spheres": [{"center": [0, 0, 0], "radius": -1}]}))
     assert bad.returncode == 2 and "scene.spheres.0.radius" in bad.stderr
-    assert pocketray("render", "s.json", "-o", "x.gif", cwd=tmp_path).returncode == 2
+    assert gif.returncode == 2
     assert not (tmp_path / "x.png").exists()
 
 
@@ -84,7 +87,7 @@ def test_serve_has_a_flag_for_every_config_field_and_validates_them_before_start
     for name in ("--workers", "--host", "--port", "--state-backend", "--gl-device", "--cors-origins", "--drain-s",
                  "--queue-size", "--log-format"):
         assert name in text
-    r = pocketray("serve", "--state-backend", "mongodb", cwd=tmp_path)
+    r = pocketray("serve", "--state-backend", "mongodb", cwd=tmp_path)    # a process's exit status 2
     assert r.returncode == 2 and "state_backend" in r.stderr
 
 

@@ -7,15 +7,12 @@ flags are refused naming them, writing nothing."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from pocketray_server_support import ROOT
+from pocketray_server_support import pocketray_batch
 from renderer.mesh_io import export_mesh, load_mesh, model_scene
 from renderer.meshes import box, icosphere, torus
 from renderer.reference import primary_rays, trace_rays
@@ -24,13 +21,10 @@ from renderer.scene import Scene
 pytestmark = pytest.mark.gl   # render runs GLRenderer
 
 W, H = 48, 40
-
-
-def pocketray(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
-    env["PYTHONPATH"] = str(ROOT)     # this checkout's server, whatever the environment installed
-    return subprocess.run([sys.executable, "-m", "server", *args], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=300)
+MODELS = ["ball.obj", "box.stl", "ring.ply", "ball.glb"]
+# The commands run several to a process (pocketray_batch: server.cli.main as ``python -m server``
+# calls it; tests/server/test_cli.py runs the command as a process of its own).
+COMMON = ("--width", str(W), "--height", str(H), "--spp", "1", "--quiet")
 
 
 def reference_ids(scene: Scene, width: int = W, height: int = H) -> np.ndarray:
@@ -39,21 +33,34 @@ def reference_ids(scene: Scene, width: int = W, height: int = H) -> np.ndarray:
     return ids.reshape(height, width)
 
 
-@pytest.fixture
-def models(tmp_path):
-    (tmp_path / "ball.obj").write_bytes(export_mesh(icosphere(2), "obj"))
-    (tmp_path / "box.stl").write_bytes(export_mesh(box((0, 0, 0), (2, 1, 1)), "stl"))
-    (tmp_path / "ring.ply").write_bytes(export_mesh(torus(1.0, 0.35, 16, 8), "ply"))
-    (tmp_path / "ball.glb").write_bytes(export_mesh(icosphere(1), "glb"))
-    return tmp_path
+@pytest.fixture(scope="module")
+def models(tmp_path_factory) -> Path:
+    """The model files, in a directory the module's commands share (each writes its own outputs)."""
+    tmp = tmp_path_factory.mktemp("models")
+    (tmp / "ball.obj").write_bytes(export_mesh(icosphere(2), "obj"))
+    (tmp / "box.stl").write_bytes(export_mesh(box((0, 0, 0), (2, 1, 1)), "stl"))
+    (tmp / "ring.ply").write_bytes(export_mesh(torus(1.0, 0.35, 16, 8), "ply"))
+    (tmp / "ball.glb").write_bytes(export_mesh(icosphere(1), "glb"))
+    return tmp
 
 
-@pytest.mark.parametrize("name", ["ball.obj", "box.stl", "ring.ply", "ball.glb"])
-def test_render_model_file_agrees_with_the_reference_on_the_fitted_scene(models, name):
-    r = pocketray("render", name, "-o", "p.npy", "--mode", "primid", "--width", str(W), "--height", str(H),
-                  "--spp", "1", "--quiet", cwd=models)
+@pytest.fixture(scope="module")
+def renders(models) -> dict[str, object]:
+    """Every ``render MODEL`` of the tests below, in one process: the primid frame of each model
+    (``p-NAME.npy``), and of the ball at --size 10, its normals --flat and --smooth."""
+    commands = {f"p-{name}.npy": ("render", name, "-o", f"p-{name}.npy", "--mode", "primid", *COMMON)
+                for name in MODELS}
+    commands["small.npy"] = ("render", "ball.obj", "-o", "small.npy", "--size", "10", "--mode", "primid", *COMMON)
+    commands["n.npy"] = ("render", "ball.obj", "-o", "n.npy", "--flat", "--mode", "normal", *COMMON)
+    commands["s.npy"] = ("render", "ball.obj", "-o", "s.npy", "--smooth", "--mode", "normal", *COMMON)
+    return dict(zip(commands, pocketray_batch(list(commands.values()), cwd=models)))
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_render_model_file_agrees_with_the_reference_on_the_fitted_scene(models, renders, name):
+    r = renders[f"p-{name}.npy"]
     assert r.returncode == 0 and r.stderr == "", r.stderr
-    got = np.load(models / "p.npy")
+    got = np.load(models / f"p-{name}.npy")
     scene = model_scene(models / name)
     want = reference_ids(scene)
     n_tri = load_mesh(models / name).n_triangles
@@ -70,18 +77,13 @@ def test_render_model_file_agrees_with_the_reference_on_the_fitted_scene(models,
     assert (kind(got) != kind(want)).mean() < 0.03
 
 
-def test_render_model_flags_shading_and_size(models):
-    common = ["--width", str(W), "--height", str(H), "--spp", "1", "--quiet", "--mode", "primid"]
-    assert pocketray("render", "ball.obj", "-o", "big.npy", *common, cwd=models).returncode == 0
-    assert pocketray("render", "ball.obj", "-o", "small.npy", "--size", "10", *common, cwd=models).returncode == 0
-    big, small = np.load(models / "big.npy"), np.load(models / "small.npy")
+def test_render_model_flags_shading_and_size(models, renders):
+    # the ball at the default size: the same command as its fitted-scene frame above
+    assert renders["p-ball.obj.npy"].returncode == 0 and renders["small.npy"].returncode == 0
+    big, small = np.load(models / "p-ball.obj.npy"), np.load(models / "small.npy")
     assert 0 < (small >= 1).sum() < 0.5 * (big >= 1).sum()
     assert (small != reference_ids(model_scene(models / "ball.obj", size=10))).mean() < 0.03
-    r = pocketray("render", "ball.obj", "-o", "n.npy", "--flat", "--mode", "normal", "--width", str(W),
-                  "--height", str(H), "--spp", "1", "--quiet", cwd=models)
-    s = pocketray("render", "ball.obj", "-o", "s.npy", "--smooth", "--mode", "normal", "--width", str(W),
-                  "--height", str(H), "--spp", "1", "--quiet", cwd=models)
-    assert r.returncode == 0 and s.returncode == 0
+    assert renders["n.npy"].returncode == 0 and renders["s.npy"].returncode == 0
     assert not np.array_equal(np.load(models / "n.npy"), np.load(models / "s.npy"))
 
 
@@ -93,15 +95,18 @@ def test_render_model_refuses_bad_files_and_flags_naming_them(models):
              (("render", "ball.obj", "-o", "x.gif"), "output:"),
              (("scene", "--mesh", "bad.ply", "-o", "x.json"), "mesh:"),
              (("scene", "--mesh", "ball.obj", "--mesh", "gone.stl", "-o", "x.json"), "mesh:")]
-    for args, words in cases:
-        r = pocketray(*args, cwd=models)
+    for (args, words), r in zip(cases, pocketray_batch([args for args, _ in cases], cwd=models)):
         assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr, (args, r.stderr)
     assert not (models / "x.png").exists() and not (models / "x.json").exists()
 
 
 def test_scene_of_meshes_validates_renders_and_places_each_model(models, client):
-    r = pocketray("scene", "--mesh", "ball.obj", "--mesh", "box.stl", "--mesh", "ring.ply", "-o", "s.json",
-                  cwd=models)
+    r, out, as_is, std = pocketray_batch([
+        ("scene", "--mesh", "ball.obj", "--mesh", "box.stl", "--mesh", "ring.ply", "-o", "s.json"),
+        ("render", "s.json", "-o", "p.npy", "--mode", "primid", "--width", "128", "--height", "64", "--spp", "1",
+         "--quiet"),
+        ("scene", "--mesh", "box.stl", "--as-is", "-o", "raw.json"),
+        ("scene", "--mesh", "ring.ply")], cwd=models)
     assert r.returncode == 0, r.stderr
     doc = json.loads((models / "s.json").read_text())
     counts = [load_mesh(models / n).n_triangles for n in ("ball.obj", "box.stl", "ring.ply")]
@@ -119,8 +124,6 @@ def test_scene_of_meshes_validates_renders_and_places_each_model(models, client)
         assert v[:, 1].min() == pytest.approx(-20.0)
         assert -15 + 10 * i - 1e-9 <= v[:, 0].min() and v[:, 0].max() <= -15 + 10 * (i + 1) + 1e-9
     # render scene.json: the triangles where the float64 reference sees them
-    out = pocketray("render", "s.json", "-o", "p.npy", "--mode", "primid", "--width", "128", "--height", "64",
-                    "--spp", "1", "--quiet", cwd=models)
     assert out.returncode == 0, out.stderr
     got = np.load(models / "p.npy")
     from server.models import SceneModel
@@ -132,10 +135,9 @@ def test_scene_of_meshes_validates_renders_and_places_each_model(models, client)
         seen, ref = (got >= lo) & (got < lo + n), (want >= lo) & (want < lo + n)
         assert seen.sum() > 10 and (seen != ref).sum() < 0.15 * ref.sum(), i
     # --as-is: no transform, the file's coordinates
-    assert pocketray("scene", "--mesh", "box.stl", "--as-is", "-o", "raw.json", cwd=models).returncode == 0
+    assert as_is.returncode == 0, as_is.stderr
     raw = json.loads((models / "raw.json").read_text())
     assert "transform" not in raw["meshes"][0]
     assert np.asarray(raw["meshes"][0]["vertices"]).max(axis=0).tolist() == [2.0, 1.0, 1.0]
     # standard output by default
-    std = pocketray("scene", "--mesh", "ring.ply", cwd=models)
     assert std.returncode == 0 and len(json.loads(std.stdout)["meshes"][0]["triangles"]) == counts[2]

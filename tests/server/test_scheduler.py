@@ -112,6 +112,9 @@ def test_a_cancelled_frame_stops_between_slices_and_frees_its_slot_at_once(worke
 
 def test_a_timeout_cancels_the_frame(worker):
     gate = threading.Event()
+    # The first slice ends 1 s in, well after the 0.2 s timeout, and the GL thread drops the cancelled
+    # frame there (without the timer that slice would wait out its gate's 5 s).
+    threading.Timer(1.0, gate.set).start()
     h = worker.admit().frame(lambda r: FakeFrame("slow", 10 ** 6, [], gate), session="A", cost_ms=1e6)
     with pytest.raises(FrameCancelled) as e:
         h.wait(0.2)

@@ -14,6 +14,10 @@ and its float image, uint8 image, depth, primid and normal arrays must hash the 
 - with textures only, wrapped into 128-texel rows (the device's path, and the wrapping);
 - as ``png`` at one sample per pixel (the RGBA8 target, rounded in the shader): the
   same bytes as ``image_u8()`` of the float image.
+
+A static scene's structure per method is built once (as ``render`` builds it) and traced by all
+of its frames in the three tests (``render(..., prepared=)``); the museum is posed and built per
+frame.
 """
 
 from __future__ import annotations
@@ -23,6 +27,8 @@ from collections import defaultdict
 
 import pytest
 
+from renderer.prepare import prepare_frame
+from renderer.scene import Scene
 from renderer.settings import RenderSettings
 from tests.renderer.gl import base_images as B
 
@@ -55,6 +61,21 @@ def textures_only(gl_renderer):
     return GLRenderer(gl_renderer.ctx, max_texture_width=128, uniform_blocks=False)
 
 
+# A static scene's structure for a method, as the renderer's render() builds it (prepare_frame, at
+# the renderer's texture width), made once and traced by every frame of it: the modes, the samples
+# and the three tests below (the frames differ in what is traced, not in what is built).
+_PREPARED: dict[tuple, object] = {}
+
+
+def render(renderer, scene, settings: RenderSettings):
+    if not isinstance(scene, Scene):     # the animated museum: posed and built per frame, as render() does
+        return renderer.render(scene, settings)
+    key = (id(scene), settings.method, settings.max_prims, settings.max_tree_depth, renderer.max_texture_width)
+    if key not in _PREPARED:
+        _PREPARED[key] = prepare_frame(scene, settings, max_width=renderer.max_texture_width).prepared
+    return renderer.render(scene, settings, prepared=_PREPARED[key])
+
+
 def _mismatches(renderer, group: str, fields=("image", "u8", "depth", "primid", "normal"), skip=None,
                 **over) -> list[str]:
     bad = []
@@ -62,7 +83,7 @@ def _mismatches(renderer, group: str, fields=("image", "u8", "depth", "primid", 
         if _tree_dependent(key, kw) or (skip and skip(key, kw)):
             continue
         settings = RenderSettings(**{**kw, **over})
-        got = B.hashes(renderer.render(scene, settings))
+        got = B.hashes(render(renderer, scene, settings))
         want = RECORD[key]
         diff = [f for f in fields if got[f] != want[f]]
         if diff:
@@ -92,7 +113,7 @@ def test_png_frames_have_the_base_shaders_bytes(gl_renderer, group):
     for key, scene, kw in GROUPS[group]:
         if kw.get("samples_per_pixel", 1) != 1:
             continue
-        res = gl_renderer.render(scene, RenderSettings(**{**kw, "format": "png"}))
+        res = render(gl_renderer, scene, RenderSettings(**{**kw, "format": "png"}))
         assert res.stats["target"] == "rgba8", key
         n += 1
         want = (B.hashes(gl_renderer.render(scene, RenderSettings(**kw)))["u8"] if _tree_dependent(key, kw)

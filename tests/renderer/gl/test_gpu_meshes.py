@@ -103,6 +103,20 @@ def settings(**kw) -> RenderSettings:
     return RenderSettings(**{"width": W, "height": H, "max_recursion_depth": 5, "max_prims": 4, **kw})
 
 
+@pytest.fixture(scope="module")
+def primid_frames(gl_renderer, textures_only, scene):
+    """The scene's primid frame per method, with record arrays in uniform blocks where they fit
+    (``blocks``) or in textures only, rendered once for the tests that read it."""
+    cache = {}
+
+    def get(method: str, blocks: bool = True):
+        if (method, blocks) not in cache:
+            r = gl_renderer if blocks else textures_only
+            cache[method, blocks] = r.render(scene, settings(mode="primid", method=method))
+        return cache[method, blocks]
+    return get
+
+
 def test_the_scene_has_every_kind_of_primitive_in_view(scene, cpu_ids):
     base = scene.triangle_id_base
     assert scene.n_spheres == 24 and len(scene.planes) == 1 and scene.n_triangles > 2000
@@ -118,10 +132,8 @@ ONE_PASS = ("bih", "bruteforce", "bvh", "kdtree", "twolevel")
 
 
 @pytest.mark.parametrize("method,blocks", [*((m, b) for m in ONE_PASS for b in (True, False)), ("auto", True)])
-def test_primary_ids_match_the_reference_and_cpu_brute_force(gl_renderer, textures_only, scene, cpu_ids,
-                                                             reference, method, blocks):
-    r = gl_renderer if blocks else textures_only
-    g = r.render(scene, settings(mode="primid", method=method))
+def test_primary_ids_match_the_reference_and_cpu_brute_force(primid_frames, cpu_ids, reference, method, blocks):
+    g = primid_frames(method, blocks)
     assert g.stats["method"] == ("bih" if method == "auto" else method)
     assert "TRIANGLES" in g.stats["shader_features"] and "SMOOTH_TRIANGLES" in g.stats["shader_features"]
     assert bool(g.stats["blocks"]) == blocks or (blocks and method == "bvh")    # (its nodes are 64 B: a texture)
@@ -135,10 +147,10 @@ def test_primary_ids_match_the_reference_and_cpu_brute_force(gl_renderer, textur
     assert rel.max() <= 1e-4, f"{method}: depth off by {rel.max():.2e} relative"
 
 
-def test_the_methods_agree_with_each_other(gl_renderer, scene):
-    b = gl_renderer.render(scene, settings(mode="primid", method="bruteforce")).primid
+def test_the_methods_agree_with_each_other(primid_frames):
+    b = primid_frames("bruteforce").primid
     for method in ("bih", "bvh", "kdtree", "twolevel"):
-        a = gl_renderer.render(scene, settings(mode="primid", method=method)).primid
+        a = primid_frames(method).primid
         assert (a == b).mean() >= 0.9999, method
 
 
@@ -235,20 +247,36 @@ def directions(count: int) -> np.ndarray:
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
+@pytest.fixture(scope="module")
+def leak_views():
+    """The closed meshes' views of the test below and their reference primary ids, made once for
+    every method (the reference's ids do not depend on the method: only its heat image does)."""
+    cache = {}
+
+    def get(kind: str, w: int, h: int) -> list[tuple[Scene, np.ndarray]]:
+        if kind not in cache:
+            mesh = closed_meshes()[kind]
+            views = []
+            for i, d in enumerate(directions(10)):
+                pos = tuple(float(x) for x in 9.0 * d)
+                up = (0.0, 0.0, 1.0) if abs(d[1]) > 0.9 else (0.0, 1.0, 0.0)
+                sc = Scene(Camera(pos, (0.0, 0.0, 0.0), up, 40.0 if i % 2 else 37.0), (), (MATTE,),
+                           np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32), (), (mesh,))
+                s = RenderSettings(width=w, height=h, mode="primid", method="bruteforce", max_prims=4)
+                views.append((sc, render_reference(sc, s).primid))
+            cache[kind] = views
+        return cache[kind]
+    return get
+
+
 @pytest.mark.parametrize("kind", ["icosphere", "box", "teapot"])
 @pytest.mark.parametrize("method", ONE_PASS)
-def test_no_ray_leaks_through_a_closed_mesh(gl_renderer, kind, method):
-    mesh = closed_meshes()[kind]
+def test_no_ray_leaks_through_a_closed_mesh(gl_renderer, leak_views, kind, method):
     w = h = 48
     leaks = differ = inside_total = 0
-    for i, d in enumerate(directions(10)):
-        pos = tuple(float(x) for x in 9.0 * d)
-        up = (0.0, 0.0, 1.0) if abs(d[1]) > 0.9 else (0.0, 1.0, 0.0)
-        sc = Scene(Camera(pos, (0.0, 0.0, 0.0), up, 40.0 if i % 2 else 37.0), (), (MATTE,),
-                   np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32), (), (mesh,))
+    for sc, ref in leak_views(kind, w, h):
         s = RenderSettings(width=w, height=h, mode="primid", method=method, max_prims=4)
         g = gl_renderer.render(sc, s).primid
-        ref = render_reference(sc, s).primid
         hit = ref >= 0
         pad = np.pad(hit, 1)
         inside = np.ones_like(hit)
@@ -289,10 +317,10 @@ def test_zero_area_triangles_keep_their_ids_and_are_never_hit(gl_renderer):
     assert sc.n_degenerate_triangles == 2
     rec = gpu_layout.triangle_records(sc).reshape(-1, 3, 4)
     np.testing.assert_array_equal((rec[:, 0, 3] & np.uint32(gpu_layout.TRI_DEGENERATE)) != 0, sc.triangle_degenerate)
+    ref = render_reference(sc, RenderSettings(width=65, height=33, mode="primid", max_prims=2)).primid
     for method in ONE_PASS:
         s = RenderSettings(width=65, height=33, mode="primid", method=method, max_prims=2)
         g = gl_renderer.render(sc, s).primid
-        ref = render_reference(sc, s).primid
         assert not np.isin(g, [0, 1]).any(), method
         assert (g == 2).sum() > 20 and (g >= 3).any()
         # This odd-sized grid has rays exactly along the box's face diagonals (both triangles
