@@ -188,20 +188,33 @@ def test_modes_match_the_reference(gl_renderer, scene, reference, method, mode):
         assert ok.mean() >= 0.999 and np.quantile(diff, 0.999) <= 2e-3, f"{mode}: max diff {diff.max():.2e}"
 
 
+@pytest.fixture(scope="module")
+def teapot_normals():
+    """The teapot scene, smooth or flat, and its reference normal frame (each made once: the
+    test of one shading compares with the other's too)."""
+    cache = {}
+
+    def get(smooth: bool):
+        if smooth not in cache:
+            sc = mesh_scene("teapot", 2, smooth=smooth)
+            cache[smooth] = sc, render_reference(sc, settings(mode="normal", method="bih"))
+        return cache[smooth]
+    return get
+
+
 @pytest.mark.parametrize("smooth", [True, False])
-def test_flat_and_smooth_normals_match_the_reference(gl_renderer, smooth):
+def test_flat_and_smooth_normals_match_the_reference(gl_renderer, teapot_normals, smooth):
     """The normal image is the shading normal: the blend of vertex normals on a smooth mesh,
     the geometric normal on a flat one; the two differ (the blend is really used)."""
-    sc = mesh_scene("teapot", 2, smooth=smooth)
+    sc, ref = teapot_normals(smooth)
     s = settings(mode="normal", method="bih")
     g = gl_renderer.render(sc, s)
-    ref = render_reference(sc, s)
     assert (g.primid == ref.primid).mean() >= 0.999
     ok = (g.primid == ref.primid) & (ref.primid >= sc.triangle_id_base)     # the teapot's pixels
     assert ok.sum() > 0.05 * W * H
     err = np.abs(g.normal[ok].astype(np.float64) - ref.normal[ok]).max(axis=1)
     assert np.quantile(err, 0.999) <= 1e-3, f"smooth={smooth}: normals off by {err.max():.2e}"
-    other = render_reference(mesh_scene("teapot", 2, smooth=not smooth), s)
+    _, other = teapot_normals(not smooth)
     both = ok & (other.primid == ref.primid)
     # flat and smooth differ by more than 1e-2 on most of the teapot (0.97 of its pixels)
     assert (np.abs(other.normal[both] - ref.normal[both]).max(axis=1) > 1e-2).mean() > 0.8
