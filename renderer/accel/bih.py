@@ -66,6 +66,7 @@ from ..tree_update import REBUILD, TreeUpdate
 from . import bih_layout as L
 from .base import BIG_LEAF, Capabilities, PreparedMethod, gpu_data, mesh_stats
 from .primitives import scene_aabbs, sphere_aabbs
+from .ranges import positions, segments
 
 OPTIMIZED_NODE_FACTOR = np.float32(1.3)
 # Step 0: the least share of a region's surface area (the probability that a ray through the
@@ -187,8 +188,8 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
         rounds += 1
         count = op.hi - op.lo
         if empty_cuts and n:
-            starts, seg = _segments(count)
-            prim = indices[_positions(op.lo, starts, seg)]
+            starts, seg = segments(count)
+            prim = indices[positions(op.lo, starts, seg)]
             rows = np.take(rows6, prim, axis=0)
             tight = np.minimum.reduceat(rows, starts, axis=0)
             cuts += _cut_empty_space(op, tight[:, :3], -tight[:, 3:], store, max_tree_depth, area)
@@ -210,12 +211,12 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
             if empty_cuts:
                 el = keep[seg]
                 prim, emin, emax = prim[el], emin[el], emax[el]
-                starts, seg = _segments(count)
+                starts, seg = segments(count)
         if empty_cuts:
             cen = (emin + emax) * np.float32(0.5)
         else:
-            starts, seg = _segments(count)
-            prim = indices[_positions(op.lo, starts, seg)]
+            starts, seg = segments(count)
+            prim = indices[positions(op.lo, starts, seg)]
             flat = prim.astype(np.int64) * 3 + axis[seg]
             emin, emax, cen = fmin[flat], fmax[flat], fcen[flat]
         k = len(op.slot)
@@ -366,18 +367,6 @@ class _Open:
     @staticmethod
     def concat(parts: list["_Open"]) -> "_Open":
         return _Open(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(_Open)))
-
-
-def _segments(count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For nodes of ``count`` elements, concatenated: each node's first element, each element's node."""
-    starts = np.zeros(len(count), dtype=np.int64)
-    np.cumsum(count[:-1], out=starts[1:])
-    return starts, np.repeat(np.arange(len(count)), count)
-
-
-def _positions(lo: np.ndarray, starts: np.ndarray, seg: np.ndarray) -> np.ndarray:
-    """Each concatenated element's position in the index array (its node's range starts at ``lo``)."""
-    return np.arange(len(seg), dtype=np.int64) + (lo - starts)[seg]
 
 
 class _NodeStore:

@@ -59,6 +59,7 @@ from ..tree_update import DEFAULT_THRESHOLD, REBUILD, UPDATE_SCHEMES, TreeUpdate
 from . import bvh_layout as L
 from .base import BIG_LEAF, Capabilities, PreparedMethod, gpu_data, mesh_stats
 from .primitives import scene_aabbs, sphere_aabbs
+from .ranges import expand
 
 BINS = 16
 C_TRAV = 1.0
@@ -150,19 +151,6 @@ def _half_area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0]
 
 
-def _expand(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    """Ranges [lo, hi) → (segment of each element, its position, segment starts, total)."""
-    count = hi - lo
-    k = len(lo)
-    starts = np.zeros(k, dtype=np.int64)
-    if k > 1:
-        np.cumsum(count[:-1], out=starts[1:])
-    total = int(count.sum())
-    seg = np.repeat(np.arange(k, dtype=np.int64), count)
-    pos = np.arange(total, dtype=np.int64) + np.repeat(lo - starts, count)
-    return seg, pos, starts, total
-
-
 class _Nodes:
     """Growable node arrays used while building."""
 
@@ -205,7 +193,7 @@ def _set_boxes(nodes: _Nodes, rows: np.ndarray, slot: np.ndarray, lo: np.ndarray
     """Boxes of nodes ``slot`` from their primitives at positions [lo, hi)."""
     if not len(slot):
         return
-    _, pos, starts, _ = _expand(lo, hi)
+    _, pos, starts = expand(lo, hi - lo)
     r = rows[pos]
     nodes.bmin[slot] = np.minimum.reduceat(r[:, LO], starts, axis=0)
     nodes.bmax[slot] = np.maximum.reduceat(r[:, HI], starts, axis=0)
@@ -294,15 +282,16 @@ def _scan(x: np.ndarray, op: np.ufunc, reverse: bool = False) -> np.ndarray:
 
 
 def _partition(rows: np.ndarray, ids: np.ndarray, r: np.ndarray, pos: np.ndarray, seg: np.ndarray,
-               starts: np.ndarray, lo: np.ndarray, left: np.ndarray) -> np.ndarray:
+               starts: np.ndarray, local: np.ndarray, lo: np.ndarray, left: np.ndarray) -> np.ndarray:
     """Partition the rows (and ids) of each range stably, ``left`` ones first; ``r`` are the
-    rows at ``pos``, the ranges' elements in order. Returns each range's left count."""
+    rows at ``pos``, the ranges' elements in order (``local``: each one's place in its range).
+    Returns each range's left count."""
     cs = np.cumsum(left, dtype=np.int64)
     n_left = np.add.reduceat(left.astype(np.int64), starts)
     before = cs[starts] - left[starts]                    # left primitives of the earlier ranges
     # the k-th left primitive of a range goes to lo + k, the k-th right one to lo + n_left + k;
     # with cs the running left count, both are one add away
-    dest = np.where(left, (lo - before - 1)[seg] + cs, (lo + n_left + before)[seg] + pos - lo[seg] - cs)
+    dest = np.where(left, (lo - before - 1)[seg] + cs, (lo + n_left + before)[seg] + local - cs)
     moved = ids[pos]
     # rows moved as opaque 36-byte records: twice as fast as fancy assignment of float rows
     record = np.dtype((np.void, rows.itemsize * ROW))
@@ -340,7 +329,7 @@ def _grow(nodes: _Nodes, rows: np.ndarray, ids: np.ndarray, slot: np.ndarray, lo
         order = np.argsort(width, kind="stable")
         cand, width = cand[order], width[order]
         clo, cnt = lo[cand], count[cand]
-        seg, pos, starts, _ = _expand(clo, clo + cnt)
+        seg, pos, starts = expand(clo, cnt)
         r = rows.take(pos, axis=0)      # take: twice as fast as fancy indexing of rows
         # (2) the cheapest split of each node, group by group
         b = np.empty(len(pos), np.int64)
@@ -368,7 +357,7 @@ def _grow(nodes: _Nodes, rows: np.ndarray, ids: np.ndarray, slot: np.ndarray, lo
         local = pos - clo[seg]
         left = np.where(do_sah[seg], b <= best.bin[seg], ~do_median[seg] | (local < (cnt // 2)[seg]))
         # (5) the children: left then right, allocated in pairs
-        n_left = _partition(rows, ids, r, pos, seg, starts, clo, left)[split]
+        n_left = _partition(rows, ids, r, pos, seg, starts, local, clo, left)[split]
         slo, scnt = clo[split], cnt[split]
         child = nodes.next + 2 * np.arange(len(split), dtype=np.int64)
         nodes.next += 2 * len(split)
