@@ -169,9 +169,10 @@ def _store_unavailable(exc: Exception, config: ServerConfig) -> ErrorAnswer:
 
 
 def _rate_limited(exc: RateLimited, config: ServerConfig) -> ErrorAnswer:
-    return ErrorAnswer(429, f"sessions: this address created its {exc.burst} sessions and may create "
-                            f"{exc.per_min:g} a minute (POCKETRAY_SESSION_CREATE_PER_MIN, POCKETRAY_SESSION_CREATE_BURST); "
-                            f"retry after {exc.retry_after_s} s, or go on with a session it has",
+    return ErrorAnswer(429, f"sessions: this address created its {exc.burst} sessions at once and may create "
+                            f"{exc.per_min:g} a minute (POCKETRAY_SESSION_CREATE_BURST, "
+                            f"POCKETRAY_SESSION_CREATE_PER_MIN); retry after {exc.retry_after_s} s, or go on with a "
+                            "session it has",
                        {"Retry-After": str(exc.retry_after_s)})
 
 
