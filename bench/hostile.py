@@ -245,9 +245,104 @@ def part_stalled(root: Path, args) -> dict:
         s.close()
 
 
+# ---- metrics labels and session quotas: made-up methods, a session flood, a store filled ------------------
+def _series(text: str) -> int:
+    """Series of a /metrics exposition: its sample lines."""
+    return sum(1 for line in text.splitlines() if line and not line.startswith("#"))
+
+
+def _scrape(c: httpx.Client) -> tuple[httpx.Response, float]:
+    t0 = time.perf_counter()
+    r = c.get("/metrics")
+    return r, time.perf_counter() - t0
+
+
+def _gauge(text: str, name: str) -> float | None:
+    for line in text.splitlines():
+        if line.startswith(name + " "):
+            return float(line.split()[1])
+    return None
+
+
+def part_metrics(root: Path, args) -> dict:
+    """``--metrics-requests`` requests with made-up methods on made-up paths, then /metrics: its
+    series (sample lines), size and scrape time (median of 3)."""
+    s = Server(root)
+    try:
+        with httpx.Client(base_url=s.url, timeout=60) as c:
+            _scrape(c)
+            before = _series(_scrape(c)[0].text)           # with the scrape's own series
+            rnd = random.Random(24)
+            codes: dict[int, int] = {}
+            t0 = time.perf_counter()
+            for _ in range(args.metrics_requests):
+                method = "".join(rnd.choices("ABCDEFGHIJKLMNOPQRSTUVWXYZ", k=8))
+                tok = "%08x" % rnd.getrandbits(32)
+                path = rnd.choice(("/api/sessions", f"/api/sessions/{tok}", f"/{tok}", f"/api/{tok}/{tok}"))
+                code = c.request(method, path).status_code
+                codes[code] = codes.get(code, 0) + 1
+            seconds = time.perf_counter() - t0
+            scrapes = [_scrape(c) for _ in range(3)]
+        r = scrapes[-1][0]
+        return {"requests": args.metrics_requests, "codes": codes, "seconds": round(seconds, 1),
+                "series_before": before, "series_after": _series(r.text), "metrics_kib": round(len(r.content) / 1024),
+                "scrape_ms": round(1e3 * statistics.median(dt for _, dt in scrapes), 1)}
+    finally:
+        s.close()
+
+
+def part_flood(root: Path, args) -> dict:
+    """``POST /api/sessions`` (a tiny recipe) from one address, 4 connections, for ``--flood-s`` s, the
+    service's defaults: how many 201, how many 429; then ``--uploads`` sessions of a 3.2 MB scene each (0.8 MB
+    stored) against ``POCKETRAY_MAX_STORE_BYTES=--flood-quota`` (a setting the base commit lacks): how many
+    201 before 507, and the SQLite file's size."""
+    out: dict = {}
+    s = Server(root)
+    try:
+        codes: dict[int, int] = {}
+        lock = threading.Lock()
+        stop = time.monotonic() + args.flood_s
+
+        def flood(i: int) -> None:
+            with httpx.Client(base_url=s.url, timeout=60) as c:
+                while time.monotonic() < stop:
+                    code = c.post("/api/sessions", json={"scenario": 1, "n": 8, "seed": i}).status_code
+                    with lock:
+                        codes[code] = codes.get(code, 0) + 1
+        threads = [threading.Thread(target=flood, args=(i,)) for i in range(4)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        text = httpx.get(s.url + "/metrics").text
+        out["flood"] = {"seconds": args.flood_s, "codes": codes, "sessions": _gauge(text, "pocketray_sessions")}
+    finally:
+        s.close()
+    s = Server(root, max_store_bytes=str(args.flood_quota), session_create_per_min="0")
+    try:
+        body = b'{"scene":' + scene_body(60_000) + b"}"
+        codes = {}
+        with httpx.Client(base_url=s.url, timeout=120) as c:
+            for _ in range(args.uploads):
+                code = c.post("/api/sessions", content=body, headers=JSON).status_code
+                codes[code] = codes.get(code, 0) + 1
+            text = c.get("/metrics").text
+        db = Path(s.tmp.name) / "bench.sqlite3"
+        wal = Path(str(db) + "-wal")
+        out["uploads"] = {"quota_mib": round(args.flood_quota / MIB, 1), "body_mb": round(len(body) / 1e6, 2),
+                          "codes": codes, "store_bytes": _gauge(text, "pocketray_store_bytes"),
+                          "sqlite_mib": round((db.stat().st_size + (wal.stat().st_size if wal.exists() else 0)) / MIB,
+                                              1)}
+    finally:
+        s.close()
+    return out
+# ---- end of metrics labels and session quotas --------------------------------------------------------------
+
+
 PARTS = {"targets": part_targets, "bad": part_bad, "largest": part_largest, "recipe": part_recipe,
          "health": part_health,
-         "stalled": part_stalled}
+         "stalled": part_stalled,
+         "metrics": part_metrics, "flood": part_flood}
 
 
 def parser() -> argparse.ArgumentParser:
@@ -263,6 +358,10 @@ def parser() -> argparse.ArgumentParser:
                     help="health: POCKETRAY_MAX_SPHERES=1000, so that the bodies are read, parsed, validated and "
                          "refused (422) — no build")
     ap.add_argument("--stall-wait", type=float, default=30.0, help="seconds to wait for a stalled body's close")
+    ap.add_argument("--metrics-requests", type=int, default=4000, help="metrics: requests with made-up methods")
+    ap.add_argument("--flood-s", type=float, default=10, help="flood: seconds of session creation from one address")
+    ap.add_argument("--uploads", type=int, default=30, help="flood: sessions created with a 3.2 MB scene each")
+    ap.add_argument("--flood-quota", type=int, default=16 * MIB, help="flood: POCKETRAY_MAX_STORE_BYTES of the uploads")
     ap.add_argument("--json", type=Path, help="write the figures here too")
     return ap
 

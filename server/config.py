@@ -117,6 +117,24 @@ class ServerConfig(BaseSettings):
                                    description="retries of a change whose session another process changed "
                                                "meanwhile (WATCH); then 503")
 
+    # --- sessions: creation rate and store quota (docs/API.md, "Hardening") -------------
+    session_create_per_min: float = Field(
+        60.0, ge=0, le=1_000_000,
+        description="sessions one client address may create per minute, per process (POST /api/sessions; a "
+                    "token bucket refilled at this rate, IPv6 addresses by /64); beyond: 429 with Retry-After. "
+                    "0: no limit. Behind a reverse proxy every client is the proxy's address: raise it or set 0, "
+                    "and let the proxy limit clients")
+    session_create_burst: int = Field(
+        60, ge=1, le=1_000_000,
+        description="sessions one client address may create at once before POCKETRAY_SESSION_CREATE_PER_MIN "
+                    "applies (the token bucket's size)")
+    max_store_bytes: int = Field(
+        1 << 30, ge=0,
+        description="quota of the session store: bytes of all sessions' scene sources (recipes, uploaded scenes "
+                    "and the model files added to them), all processes' together; a new session or a scene "
+                    "change that would pass it: 507 with Retry-After (existing sessions keep working; space "
+                    "frees as sessions are deleted or expire). 0: no quota")
+
     # --- gestures ---------------------------------------------------------------
     min_target_distance: float = Field(1e-3, gt=0,
                                        description="pinch never brings the camera closer to its target, world units")

@@ -15,9 +15,16 @@ The names (docs/API.md, "Metrics"):
 - ``pocketray_http_requests_total{method, route, status}`` and
   ``pocketray_http_request_duration_seconds{method, route}`` — every request, by route
   template (``/api/sessions/{session_id}/frame``), never by raw path.
-- ``pocketray_sessions`` — sessions in the store (all processes', not expired), counted at
-  most every :data:`SESSIONS_CACHE_S` seconds; ``pocketray_ready`` — 1 when this process
+- ``pocketray_sessions`` — sessions in the store (all processes', not expired), and
+  ``pocketray_store_bytes`` — the bytes its quota counts (``POCKETRAY_MAX_STORE_BYTES``), both
+  read at most every :data:`SESSIONS_CACHE_S` seconds; ``pocketray_ready`` — 1 when this process
   answers ``/api/ready`` with 200.
+
+Every label value comes from a closed set, whatever a client sends, so that no request can
+add series (each one is kept for the life of the process, and is in every scrape): the HTTP
+method is one of :data:`HTTP_METHODS` or ``other``; the route is a template of the app's
+routes, ``static`` (the static files, and paths nothing serves) or ``other``; the status is
+the answer's code; render methods, modes and stages are the renderer's names (else ``other``).
 
 With several uvicorn workers (``pocketray serve --workers N``) every worker writes its
 values to ``PROMETHEUS_MULTIPROC_DIR`` (the CLI makes one) and a scrape, whichever worker
@@ -38,6 +45,11 @@ from fastapi.responses import Response
 from prometheus_client import (CONTENT_TYPE_LATEST, REGISTRY, CollectorRegistry, Counter, Gauge, Histogram,
                                disable_created_metrics, generate_latest)
 from prometheus_client.core import GaugeMetricFamily
+
+from renderer.modes import MODES
+from renderer.settings import METHODS
+
+from .view import TIMING_NAMES
 
 disable_created_metrics()   # no *_created series: they double the exposition and nobody graphs them
 
@@ -61,9 +73,33 @@ HTTP_REQUESTS = Counter("pocketray_http_requests", "HTTP requests answered", ["m
 HTTP_SECONDS = Histogram("pocketray_http_request_duration_seconds", "HTTP request duration",
                          ["method", "route"], buckets=HTTP_BUCKETS_S)
 
+# The methods the API answers (server/allow.py's and OPTIONS); any other method is one label value.
+HTTP_METHODS = frozenset(("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"))
+OTHER = "other"
+STAGES = frozenset(TIMING_NAMES)
+RENDER_METHODS, RENDER_MODES = frozenset(METHODS), frozenset(MODES)
+_MAX_ROUTE_LABEL = 128
+
+
+def method_label(method: str) -> str:
+    """The HTTP method as a label: one of HTTP_METHODS, else ``other``."""
+    return method if method in HTTP_METHODS else OTHER
+
+
+def route_label(route: str) -> str:
+    """A route template as a label (they come from the app's routes; a long one is not one of them)."""
+    return route if isinstance(route, str) and 0 < len(route) <= _MAX_ROUTE_LABEL else OTHER
+
+
+def status_label(status: int) -> str:
+    """The status code as a label: a valid code (100 … 599), else ``other``."""
+    return str(status) if isinstance(status, int) and 100 <= status <= 599 else OTHER
+
+
 METRIC_NAMES = ("pocketray_renders_admitted", "pocketray_renders_waiting", "pocketray_renders_total",
                 "pocketray_render_stage_seconds", "pocketray_unavailable_total", "pocketray_http_requests_total",
-                "pocketray_http_request_duration_seconds", "pocketray_sessions", "pocketray_ready")
+                "pocketray_http_request_duration_seconds", "pocketray_sessions", "pocketray_store_bytes",
+                "pocketray_ready")
 
 
 def _safe(fn):
@@ -102,9 +138,12 @@ def render_released(never_ran: bool = False) -> None:
 @_safe
 def observe_stages(method: str, mode: str, timings_ms: dict[str, float]) -> None:
     """One rendered frame: its stages' times in ms (the Server-Timing names)."""
+    method = method if method in RENDER_METHODS else OTHER
+    mode = mode if mode in RENDER_MODES else OTHER
     RENDERS.labels(method, mode).inc()
     for stage, ms in timings_ms.items():
-        STAGE_SECONDS.labels(method, mode, stage).observe(max(0.0, float(ms)) / 1e3)
+        if stage in STAGES:
+            STAGE_SECONDS.labels(method, mode, stage).observe(max(0.0, float(ms)) / 1e3)
 
 
 @_safe
@@ -115,7 +154,9 @@ def unavailable(cause: str) -> None:
 
 @_safe
 def http_request(method: str, route: str, status: int, seconds: float) -> None:
-    HTTP_REQUESTS.labels(method, route, str(status)).inc()
+    """One answered request; its labels from closed sets (see the module's docstring)."""
+    method, route = method_label(method), route_label(route)
+    HTTP_REQUESTS.labels(method, route, status_label(status)).inc()
     HTTP_SECONDS.labels(method, route).observe(seconds)
 
 
@@ -127,9 +168,13 @@ class _ProcessCollector:
         self.state = app_state
 
     def collect(self) -> Iterable[GaugeMetricFamily]:
-        sessions = _session_count(self.state)
-        if sessions is not None:
+        counted = _session_count(self.state)
+        if counted is not None:
+            sessions, used = counted
             yield GaugeMetricFamily("pocketray_sessions", "Sessions in the store (not expired)", value=sessions)
+            if used is not None:
+                yield GaugeMetricFamily("pocketray_store_bytes", "Bytes of the stored scenes, as the store's quota "
+                                        "(POCKETRAY_MAX_STORE_BYTES) counts them", value=used)
         ready = getattr(self.state, "is_ready", None)
         yield GaugeMetricFamily("pocketray_ready", "1 when /api/ready answers 200 in this process",
                                 value=1.0 if (ready() if callable(ready) else False) else 0.0)
@@ -138,7 +183,8 @@ class _ProcessCollector:
 _count_lock = threading.Lock()
 
 
-def _session_count(state: Any) -> int | None:
+def _session_count(state: Any) -> tuple[int, int | None] | None:
+    """(sessions, bytes the quota counts, if the store says), cached SESSIONS_CACHE_S."""
     store = getattr(state, "store", None)
     if store is None or not hasattr(store, "count"):
         return None
@@ -149,11 +195,12 @@ def _session_count(state: Any) -> int | None:
             return cached[1]
         try:
             n = int(store.count())
+            used = int(store.used_bytes()) if hasattr(store, "used_bytes") else None
         except Exception as e:   # the store is down: say nothing rather than a wrong number
             log.warning("metrics: cannot count sessions: %s", e)
             return None
-        state._metrics_sessions = (now, n)
-        return n
+        state._metrics_sessions = (now, (n, used))
+        return n, used
 
 
 def exposition(app_state: Any) -> bytes:

@@ -19,6 +19,14 @@ refresh the idle clock at most every ``touch_interval_s`` seconds so a stream
 of frame requests does not turn into a stream of writes (Redis: the state key's
 TTL by the read itself, ``GETEX``; the scene key's at most every interval).
 
+Quota: the bytes of all sessions' scene sources (recipes, uploaded scenes and the model files
+added to them) are counted in the store itself, in the same transaction as the writes (SQLite:
+triggers on the scenes table keep a counter row; Redis: one Lua script writes a session's scene
+and its byte count, and gives back the bytes of sessions whose scene key expired). A create, or a
+change that grows a scene, that would take the total over ``max_bytes`` raises
+:class:`StoreFull` and writes nothing; existing sessions keep working, and a change that does
+not grow its scene is never refused.
+
 Faults (issue #17) are reported, never papered over: every failure is a
 :class:`StoreUnavailable` (or the driver's own error), answered 503. The SQLite
 store checks before each transaction that its file is still the one it opened (a
@@ -50,6 +58,14 @@ class StoreUnavailable(Exception):
     """The store cannot serve a request (its message says why, without paths; the log has them)."""
 
     retry_after_s = 1
+
+
+class StoreFull(Exception):
+    """The store's quota (``max_bytes``) would be passed by this write; nothing was written."""
+
+    def __init__(self, used: int, wanted: int, limit: int):
+        super().__init__(f"{used} of {limit} bytes used, {wanted} more wanted")
+        self.used, self.wanted, self.limit = used, wanted, limit
 
 
 class StoreCorrupt(StoreUnavailable):
@@ -136,7 +152,26 @@ CREATE TABLE IF NOT EXISTS probe (
     k TEXT PRIMARY KEY,
     v REAL NOT NULL
 );
+CREATE TABLE IF NOT EXISTS usage (
+    k     TEXT PRIMARY KEY,
+    bytes INTEGER NOT NULL
+);
+CREATE TRIGGER IF NOT EXISTS scenes_bytes_insert AFTER INSERT ON scenes BEGIN
+    UPDATE usage SET bytes = bytes + length(NEW.source) WHERE k = 'scenes';
+END;
+CREATE TRIGGER IF NOT EXISTS scenes_bytes_update AFTER UPDATE OF source ON scenes BEGIN
+    UPDATE usage SET bytes = bytes - length(OLD.source) + length(NEW.source) WHERE k = 'scenes';
+END;
+CREATE TRIGGER IF NOT EXISTS scenes_bytes_delete AFTER DELETE ON scenes BEGIN
+    UPDATE usage SET bytes = bytes - length(OLD.source) WHERE k = 'scenes';
+END;
 """
+# The triggers count every write of the scenes table, whatever statement makes it; scenes are
+# written with an upsert (an UPDATE) rather than INSERT OR REPLACE, whose implicit delete fires
+# no trigger unless recursive triggers are on. The counter is recounted at every open, so a file
+# written by a version without it (or edited by hand) starts right.
+_UPSERT_SCENE = ("INSERT INTO scenes (id, rev, source) VALUES (?, ?, ?) "
+                 "ON CONFLICT(id) DO UPDATE SET rev = excluded.rev, source = excluded.source")
 SQLITE_HEADER = b"SQLite format 3\x00"
 
 
@@ -151,11 +186,13 @@ class SQLiteStore:
     ``on_corrupt`` — what to do when the file at start-up is not a readable database:
     ``"refuse"`` (raise :class:`StoreStartupError`) or ``"move_aside"`` (rename it, with its
     ``-wal``/``-shm``, to ``<file>.corrupt-<unix time>`` and start with an empty store).
+    ``max_bytes``: the quota of all scene sources, bytes (0: none).
     """
 
     def __init__(self, path: Path | str, ttl_s: float, touch_interval_s: float | None = None,
-                 on_corrupt: str = "refuse"):
+                 on_corrupt: str = "refuse", max_bytes: int = 0):
         self.path = Path(path)
+        self.max_bytes = int(max_bytes)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.ttl_s = float(ttl_s)
         self.touch_interval_s = min(60.0, self.ttl_s / 10.0) if touch_interval_s is None else touch_interval_s
@@ -193,6 +230,10 @@ class SQLiteStore:
             check = db.execute("PRAGMA quick_check").fetchone()[0]
             if check != "ok":
                 raise sqlite3.DatabaseError(f"quick_check: {check}")
+            db.execute("BEGIN IMMEDIATE")
+            db.execute("INSERT OR REPLACE INTO usage (k, bytes) "
+                       "VALUES ('scenes', (SELECT COALESCE(SUM(length(source)), 0) FROM scenes))")
+            db.execute("COMMIT")
         except sqlite3.DatabaseError as e:
             db.close()
             raise StoreCorrupt(str(e)) from None
@@ -248,16 +289,35 @@ class SQLiteStore:
             return None
         return replace(SessionState.from_json(row[0]), accessed_at=row[1])
 
+    @staticmethod
+    def _used(db: sqlite3.Connection) -> int:
+        return db.execute("SELECT bytes FROM usage WHERE k = 'scenes'").fetchone()[0]
+
+    def _check_quota(self, db: sqlite3.Connection, session_id: str, source: bytes, now: float) -> None:
+        """StoreFull when writing ``source`` as ``session_id``'s scene grows the total over the quota
+        (expired sessions purged first). A scene that does not grow is never refused."""
+        if not self.max_bytes:
+            return
+        row = db.execute("SELECT length(source) FROM scenes WHERE id = ?", (session_id,)).fetchone()
+        old = row[0] if row else 0
+        if len(source) <= old:
+            return
+        if self._used(db) - old + len(source) > self.max_bytes:
+            self._purge(db, now)
+            used = self._used(db)
+            if used - old + len(source) > self.max_bytes:
+                raise StoreFull(used, len(source) - old, self.max_bytes)
+
     def create(self, state: SessionState, source: bytes) -> None:
         now = time.time()
         state = replace(state, accessed_at=now)
 
         def tx(db: sqlite3.Connection) -> None:
             self._purge(db, now)
+            self._check_quota(db, state.id, source, now)
             db.execute("INSERT INTO sessions (id, state, accessed_at) VALUES (?, ?, ?)",
                        (state.id, state.to_json(), now))
-            db.execute("INSERT OR REPLACE INTO scenes (id, rev, source) VALUES (?, ?, ?)",
-                       (state.id, state.scene_rev, source))
+            db.execute(_UPSERT_SCENE, (state.id, state.scene_rev, source))
         self._tx(tx)
 
     def get(self, session_id: str) -> SessionState | None:
@@ -289,11 +349,12 @@ class SQLiteStore:
             if old is None:
                 return None
             new = _bumped(old, mutate(old), now)
+            if source is not None:
+                self._check_quota(db, session_id, source, now)
             db.execute("UPDATE sessions SET state = ?, accessed_at = ? WHERE id = ?",
                        (new.to_json(), now, session_id))
             if source is not None:
-                db.execute("INSERT OR REPLACE INTO scenes (id, rev, source) VALUES (?, ?, ?)",
-                           (session_id, new.scene_rev, source))
+                db.execute(_UPSERT_SCENE, (session_id, new.scene_rev, source))
             return new
         return self._tx(tx)
 
@@ -341,6 +402,11 @@ class SQLiteStore:
             return self._db.execute("SELECT COUNT(*) FROM sessions WHERE accessed_at >= ?",
                                     (time.time() - self.ttl_s,)).fetchone()[0]
 
+    def used_bytes(self) -> int:
+        """Bytes of the stored scene sources, the quota's count (expired sessions not yet purged too)."""
+        with self._lock:
+            return self._used(self._db)
+
     def close(self) -> None:
         with self._lock:
             self._db.close()
@@ -348,18 +414,73 @@ class SQLiteStore:
 
 
 # ---- Redis --------------------------------------------------------------------------
+# Writes a session's state and scene source and counts the scene's bytes, in one step, or refuses
+# when the quota would be passed (then nothing is written). The store's bytes are a counter key,
+# each session's size a field of a hash and the deadline of its scene key a member of a sorted
+# set: a scene key that expired (Redis says nothing when it does) is found there and its bytes
+# given back, at most 256 a call; a deadline that passed while the key lives (a read refreshed
+# its TTL) is only moved to the key's real one. Time is the caller's (now_ms): a clock that is off
+# only makes a key be looked at early or late, never counted wrong.
+#   KEYS: state, scene, bytes counter, sizes hash, deadlines zset
+#   ARGV: id, state JSON, rev, source, ttl ms, quota bytes (0: none), now ms, scene key prefix,
+#         "1" when the scene key is new (dropped first)
+#   → {1, bytes used after} written, or {0, bytes used} refused
+_REDIS_PUT = """
+local id, ttl, quota, now = ARGV[1], tonumber(ARGV[5]), tonumber(ARGV[6]), tonumber(ARGV[7])
+local due = redis.call('ZRANGEBYSCORE', KEYS[5], '-inf', now, 'LIMIT', 0, 256)
+for _, other in ipairs(due) do
+  local left = redis.call('PTTL', ARGV[8] .. other)
+  if left == -2 then
+    redis.call('DECRBY', KEYS[3], tonumber(redis.call('HGET', KEYS[4], other) or '0'))
+    redis.call('HDEL', KEYS[4], other)
+    redis.call('ZREM', KEYS[5], other)
+  else
+    redis.call('ZADD', KEYS[5], now + (left > 0 and left or ttl), other)
+  end
+end
+local old = tonumber(redis.call('HGET', KEYS[4], id) or '0')
+local new = string.len(ARGV[4])
+local used = tonumber(redis.call('GET', KEYS[3]) or '0')
+if quota > 0 and new > old and used - old + new > quota then
+  return {0, used}
+end
+redis.call('SET', KEYS[1], ARGV[2], 'PX', ttl)
+if ARGV[9] == '1' then redis.call('DEL', KEYS[2]) end
+redis.call('HSET', KEYS[2], 'rev', ARGV[3], 'source', ARGV[4])
+redis.call('PEXPIRE', KEYS[2], ttl)
+redis.call('HSET', KEYS[4], id, new)
+redis.call('INCRBY', KEYS[3], new - old)
+redis.call('ZADD', KEYS[5], now + ttl, id)
+return {1, used - old + new}
+"""
+# Deletes a session and gives its bytes back.  KEYS: state, scene, bytes, sizes, deadlines; ARGV: id
+_REDIS_DELETE = """
+local n = redis.call('DEL', KEYS[1], KEYS[2])
+local size = redis.call('HGET', KEYS[4], ARGV[1])
+if size then
+  redis.call('DECRBY', KEYS[3], tonumber(size))
+  redis.call('HDEL', KEYS[4], ARGV[1])
+  redis.call('ZREM', KEYS[5], ARGV[1])
+end
+return n
+"""
+
+
 class RedisStore:
     """Sessions in Redis, shared by any number of server processes.
 
     Keys ``<prefix>state:<id>`` (JSON) and ``<prefix>scene:<id>`` (``rev`` + source
-    in a hash), both with the idle TTL; changes are optimistic transactions.
+    in a hash), both with the idle TTL; changes are optimistic transactions. The quota's
+    count: ``<prefix>bytes``, ``<prefix>sizes`` and ``<prefix>deadlines`` (see ``_REDIS_PUT``),
+    written only by the scripts, which Redis runs one at a time whichever process sends them.
+    Sessions written by a version without the count are not in it (until they expire).
     """
 
     # Sessions whose scene key this process refreshed lately (bounded; an entry only saves a PEXPIRE).
     SCENE_TOUCHES = 4096
 
     def __init__(self, url: str, ttl_s: float, prefix: str = "pocketray:",
-                 touch_interval_s: float | None = None, max_retries: int = 16):
+                 touch_interval_s: float | None = None, max_retries: int = 16, max_bytes: int = 0):
         import redis
 
         self._redis_module = redis
@@ -368,21 +489,28 @@ class RedisStore:
         self.touch_interval_s = min(60.0, ttl_s / 10.0) if touch_interval_s is None else touch_interval_s
         self.prefix = prefix
         self.max_retries = max_retries
+        self.max_bytes = int(max_bytes)
+        self._usage_keys = (f"{prefix}bytes", f"{prefix}sizes", f"{prefix}deadlines")
         self._scene_touched: OrderedDict[str, float] = OrderedDict()
         self._touch_lock = threading.Lock()
 
     def _keys(self, session_id: str) -> tuple[str, str]:
         return f"{self.prefix}state:{session_id}", f"{self.prefix}scene:{session_id}"
 
+    def _put_args(self, state: SessionState, source: bytes, new_scene: bool) -> list[Any]:
+        return [_REDIS_PUT, 5, *self._keys(state.id), *self._usage_keys,
+                state.id, state.to_json(), state.scene_rev, source, self.ttl_ms, self.max_bytes,
+                int(time.time() * 1000), f"{self.prefix}scene:", "1" if new_scene else "0"]
+
+    def _written(self, result: Any, wanted: int) -> None:
+        """StoreFull when the put script refused (``{0, used}``)."""
+        ok, used = int(result[0]), int(result[1])
+        if not ok:
+            raise StoreFull(used, wanted, self.max_bytes)
+
     def create(self, state: SessionState, source: bytes) -> None:
         state = replace(state, accessed_at=time.time())
-        k_state, k_scene = self._keys(state.id)
-        with self.client.pipeline(transaction=True) as p:
-            p.set(k_state, state.to_json(), px=self.ttl_ms)
-            p.delete(k_scene)
-            p.hset(k_scene, mapping={"rev": state.scene_rev, "source": source})
-            p.pexpire(k_scene, self.ttl_ms)
-            p.execute()
+        self._written(self.client.eval(*self._put_args(state, source, True)), len(source))
 
     def get(self, session_id: str) -> SessionState | None:
         k_state, k_scene = self._keys(session_id)
@@ -423,9 +551,12 @@ class RedisStore:
                     old = SessionState.from_json(raw)
                     new = _bumped(old, mutate(old), now)
                     p.multi()
+                    if source is not None:    # state, scene and byte count written (or refused) together
+                        p.eval(*self._put_args(new, source, False))
+                        result = p.execute()[0]
+                        self._written(result, len(source))
+                        return new
                     p.set(k_state, new.to_json(), px=self.ttl_ms)
-                    if source is not None:
-                        p.hset(k_scene, mapping={"rev": new.scene_rev, "source": source})
                     p.pexpire(k_scene, self.ttl_ms)
                     p.execute()
                     return new
@@ -435,7 +566,7 @@ class RedisStore:
                                "this change was computed")
 
     def delete(self, session_id: str) -> bool:
-        return self.client.delete(*self._keys(session_id)) > 0
+        return int(self.client.eval(_REDIS_DELETE, 5, *self._keys(session_id), *self._usage_keys, session_id)) > 0
 
     def ping(self) -> bool:
         return self.probe() is None
@@ -457,6 +588,10 @@ class RedisStore:
         """Sessions not yet expired (the /metrics gauge; a SCAN, so /metrics caches it)."""
         return sum(1 for _ in self.client.scan_iter(match=f"{self.prefix}state:*", count=1000))
 
+    def used_bytes(self) -> int:
+        """Bytes of the stored scene sources, the quota's count (scenes expired since the last write too)."""
+        return int(self.client.get(self._usage_keys[0]) or 0)
+
     def close(self) -> None:
         self.client.close()
 
@@ -465,5 +600,6 @@ def open_store(config) -> SessionStore:
     """The backend ``config.state_backend`` names (see :class:`server.config.ServerConfig`)."""
     if config.state_backend == "redis":
         return RedisStore(config.redis_url, config.session_ttl_s, config.redis_prefix,
-                          max_retries=config.redis_max_retries)
-    return SQLiteStore(config.sqlite_path, config.session_ttl_s, on_corrupt=config.sqlite_on_corrupt)
+                          max_retries=config.redis_max_retries, max_bytes=config.max_store_bytes)
+    return SQLiteStore(config.sqlite_path, config.session_ttl_s, on_corrupt=config.sqlite_on_corrupt,
+                       max_bytes=config.max_store_bytes)

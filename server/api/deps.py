@@ -7,6 +7,7 @@ globals, so every app of a test process has its own.
 
 from __future__ import annotations
 
+import threading
 from typing import Annotated, Any
 
 from fastapi import Depends, Path, Query
@@ -14,6 +15,7 @@ from starlette.requests import HTTPConnection
 
 from ..gl_worker import GLWorker
 from ..models import FrameQuery
+from ..ratelimit import TokenBuckets, client_key
 from ..service import SessionService
 
 
@@ -27,7 +29,27 @@ def get_worker(conn: HTTPConnection) -> GLWorker:
     return conn.app.state.worker
 
 
+_limiter_lock = threading.Lock()
+
+
+def session_create_rate(conn: HTTPConnection) -> None:
+    """Takes a token of the client address's bucket (POCKETRAY_SESSION_CREATE_PER_MIN, _BURST);
+    :class:`server.ratelimit.RateLimited` (429) when it has none. The buckets are made on first
+    use, one set per app, like everything else on ``app.state``."""
+    state = conn.app.state
+    limiter = getattr(state, "session_create_buckets", None)
+    if limiter is None:
+        with _limiter_lock:
+            limiter = getattr(state, "session_create_buckets", None)
+            if limiter is None:
+                config = state.config
+                limiter = state.session_create_buckets = TokenBuckets(config.session_create_per_min,
+                                                                      config.session_create_burst)
+    limiter.take(client_key(conn.client.host if conn.client else None))
+
+
 ServiceDep = Annotated[SessionService, Depends(get_service)]
+SessionCreateRate = Depends(session_create_rate)
 WorkerDep = Annotated[GLWorker, Depends(get_worker)]
 
 # secrets.token_urlsafe(24) makes 32 characters; 64 leaves room and bounds what is looked up.

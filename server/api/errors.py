@@ -13,7 +13,9 @@ over the WebSocket as one text message ``{"status", "detail"}`` plus ``"retry_af
   latest wins) or the session changed under a gesture's frame: nothing was committed.
   503 + ``Retry-After``: queue full, busy (planning slots, large-body slots), GL
   unavailable, render timed out (Retry-After = the work queued ahead), any failure of the
-  session store — never a 500 for load or the store. 500: a bug (logged).
+  session store — never a 500 for load or the store. 429 + ``Retry-After``: a client address
+  over its session creation rate. 507 + ``Retry-After``: the session store's quota
+  (POCKETRAY_MAX_STORE_BYTES) would be passed. 500: a bug (logged).
 """
 
 from __future__ import annotations
@@ -38,8 +40,9 @@ from .. import metrics
 from ..config import ServerConfig
 from ..gl_worker import GLNotReady, QueueFull
 from ..models import MAX_LISTED_ERRORS, ErrorOut
+from ..ratelimit import RateLimited
 from ..service import Busy, InputError, NotFound, RenderTimeout, Superseded, field_path
-from ..store import StoreUnavailable
+from ..store import StoreFull, StoreUnavailable
 
 log = logging.getLogger("pocketray.server")
 
@@ -47,6 +50,7 @@ NOT_FOUND = ("session: no session with this id (unknown, deleted, or expired aft
              "seconds idle); create one with POST /api/sessions")
 GL_RETRY_AFTER_S = 5      # a GL context that failed, or a render that timed out: try again later
 STORE_RETRY_AFTER_S = 1   # the session store is usually back within a second (locked, reconnecting)
+STORE_FULL_RETRY_AFTER_S = 60   # a full store frees space only as sessions are deleted or expire
 
 
 @dataclass(frozen=True)
@@ -164,6 +168,22 @@ def _store_unavailable(exc: Exception, config: ServerConfig) -> ErrorAnswer:
                        {"Retry-After": str(getattr(exc, "retry_after_s", STORE_RETRY_AFTER_S))})
 
 
+def _rate_limited(exc: RateLimited, config: ServerConfig) -> ErrorAnswer:
+    return ErrorAnswer(429, f"sessions: this address created its {exc.burst} sessions at once and may create "
+                            f"{exc.per_min:g} a minute (POCKETRAY_SESSION_CREATE_BURST, "
+                            f"POCKETRAY_SESSION_CREATE_PER_MIN); retry after {exc.retry_after_s} s, or go on with a "
+                            "session it has",
+                       {"Retry-After": str(exc.retry_after_s)})
+
+
+def _store_full(exc: StoreFull, config: ServerConfig) -> ErrorAnswer:
+    """The store's quota would be passed: nothing was written, existing sessions go on."""
+    return ErrorAnswer(507, f"state: the session store is full ({exc.used} of {exc.limit} bytes used, "
+                            f"POCKETRAY_MAX_STORE_BYTES; this scene needs {exc.wanted} more); space frees as sessions "
+                            f"are deleted or expire (POCKETRAY_SESSION_TTL_S idle): retry later, or delete a session",
+                       {"Retry-After": str(STORE_FULL_RETRY_AFTER_S)})
+
+
 def _internal(exc: Exception, config: ServerConfig) -> ErrorAnswer:
     return ErrorAnswer(500, f"internal error ({type(exc).__name__}); see the server log")
 
@@ -187,6 +207,8 @@ ERROR_TABLE: tuple[ErrorRow, ...] = (
     ErrorRow("timeout", (RenderTimeout,), _timeout),
     ErrorRow("gl_unavailable", (GLNotReady,), _gl_unavailable),
     ErrorRow("superseded", (Superseded,), _superseded),
+    ErrorRow("rate_limited", (RateLimited,), _rate_limited),
+    ErrorRow("store_full", (StoreFull,), _store_full),
     ErrorRow("store_unavailable", (StoreUnavailable, sqlite3.Error, redis.RedisError), _store_unavailable),
     ErrorRow("internal", (Exception,), _internal),
 )
@@ -228,6 +250,11 @@ ERROR_DOCS: dict[int, dict[str, Any]] = {
     409: {"model": ErrorOut, "description": "the frame was superseded by a newer frame of this session (latest "
                                             "wins), or the session changed before a gesture could be committed"},
     413: {"model": ErrorOut, "description": "request body too large (POCKETRAY_MAX_BODY_BYTES)"},
+    429: {"model": ErrorOut, "description": "this client address is over its session creation rate "
+                                            "(POCKETRAY_SESSION_CREATE_PER_MIN); see Retry-After",
+          "headers": _RETRY_AFTER_DOC},
+    507: {"model": ErrorOut, "description": "the session store is full (POCKETRAY_MAX_STORE_BYTES); nothing was "
+                                            "written; see Retry-After", "headers": _RETRY_AFTER_DOC},
     503: {"model": ErrorOut, "description": "render queue full, busy (frames being planned, large bodies being "
                                             "read), GL or session store not available; see Retry-After",
           "headers": _RETRY_AFTER_DOC},

@@ -24,6 +24,9 @@ ROOT = Path(__file__).resolve().parents[2]
 SMALL = {"width": 48, "height": 64, "max_recursion_depth": 2, "samples_per_pixel": 1, "min_weight": 0.0}
 TEST_CAPS = dict(max_work=96 * 128 * 2, max_spheres=4096, max_frame_cost=2_000.0,
                  queue_size=4, max_body_bytes=256 * 1024, default_render=SMALL)
+# A test module creates sessions from one address faster than a client does: no creation rate here
+# (tests/server/test_session_quota.py sets and tests it).
+TEST_CAPS["session_create_per_min"] = 0
 
 
 def free_port() -> int:

@@ -31,7 +31,9 @@ from pocketray_server_support import SMALL, new_session
 from renderer.scene import SceneError
 from server.api import errors
 from server.api.body import BodyParsers
+from server.ratelimit import RateLimited
 from server.service import RenderTimeout, Superseded
+from server.store import StoreFull
 
 UNKNOWN_SESSION = "no-such-session"
 PINCH = {"type": "pinch", "scale": 2}
@@ -75,10 +77,13 @@ CASES = {
     "sqlite locked": Case("store_unavailable", 503, raises=sqlite3.OperationalError("database is locked")),
     "redis gone": Case("store_unavailable", 503, raises=redis.ConnectionError("Connection refused")),
     "a bug": Case("internal", 500, raises=RuntimeError("a bug")),
+    "store over its quota": Case("store_full", 507, raises=StoreFull(1000, 200, 1024)),
+    "creation rate": Case("rate_limited", 429, raises=RateLimited(3, 60.0, 60)),
     "no such route": Case("http_exception", 404, path="/api/no-such-route"),
     "planning slots taken": Case("busy", 503, gesture=PINCH, busy_planning=True),
     "body parsers busy": Case("busy", 503, busy_bodies=True),
 }
+RETRY_STATUSES = (429, 503, 507)     # the answers that say when to retry
 HTTP_ONLY = {
     "no such route": "a WebSocket message has no route to miss",
     "body parsers busy": "messages are small and read by their connection, not by the pool for large bodies",
@@ -168,12 +173,12 @@ def test_http_and_websocket_answer_alike(client, http, sid, monkeypatch, name):
     assert http_rows == [case.row] and rows == ([] if name in HTTP_ONLY else [case.row])  # through the one row
     assert r.status_code == case.status, r.text
     if name in HTTP_ONLY:
-        assert ("retry-after" in r.headers) == (case.status == 503)
+        assert ("retry-after" in r.headers) == (case.status in RETRY_STATUSES)
         return
     expected = {"status": r.status_code, "detail": r.json()["detail"]}
     if "retry-after" in r.headers:
         expected["retry_after"] = int(r.headers["retry-after"])
-    assert ("retry-after" in r.headers) == (case.status == 503)
+    assert ("retry-after" in r.headers) == (case.status in RETRY_STATUSES)
     assert message == expected
 
 

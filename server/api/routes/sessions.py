@@ -17,7 +17,7 @@ from ...models import (CameraModel, CameraOut, FullSettings, MeshAdded, MeshMode
 from ...service import InputError
 from ...scenes import scene_json_chunks
 from ...store import SessionState
-from ..deps import ServiceDep, SessionId
+from ..deps import ServiceDep, SessionCreateRate, SessionId
 from ..body import JSONBodyRoute
 from ..errors import documented
 
@@ -33,7 +33,8 @@ def session_out(state: SessionState) -> SessionOut:
                       scene_info=SceneInfo(**state.scene_info), camera=CameraModel(**state.camera))
 
 
-@router.post("/sessions", status_code=201, response_model=SessionOut, responses=documented(413, 503),
+@router.post("/sessions", status_code=201, response_model=SessionOut, responses=documented(413, 429, 503, 507),
+             dependencies=[SessionCreateRate],
              summary="Create a session from a thesis scenario, an animated museum or a full scene")
 def create_session(body: SessionCreate, service: ServiceDep) -> SessionOut:
     return session_out(service.create(body))
@@ -60,7 +61,7 @@ def read_scene(session_id: SessionId, service: ServiceDep) -> Response:
     return StreamingResponse(scene_json_chunks(service.scene(state)), media_type="application/json")
 
 
-@router.put("/sessions/{session_id}/scene", response_model=VersionOut, responses=ERR_SESSION_BODY,
+@router.put("/sessions/{session_id}/scene", response_model=VersionOut, responses=documented(404, 413, 503, 507),
             summary="Replace the scene (its camera becomes the current and the reset camera)")
 def replace_scene(session_id: SessionId, scene: Annotated[SceneModel, Body()], service: ServiceDep) -> VersionOut:
     return VersionOut(version=service.replace_scene(session_id, scene).version)
