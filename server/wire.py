@@ -16,7 +16,7 @@ complete. :class:`GuardedH11Protocol` is uvicorn's h11 protocol with these bound
 - ``POCKETRAY_WRITE_TIMEOUT_S``: an answer the client does not take — less than 64 KiB of it
   in that time — is abandoned and the connection aborted, which frees its buffered bytes (a
   4096² ``normal`` ``npy`` frame is 192 MiB; a client that never read held it as long as it
-  stayed connected);
+  stayed connected) — with a TCP reset, so that the kernel drops its part too;
 - ``POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT``: answer bytes of one address that its clients have
   not taken yet (the transports' write buffers of all its connections); past it, a new request
   from the address is answered ``429`` before the app sees it, and an answer that starts
@@ -53,6 +53,8 @@ from __future__ import annotations
 import functools
 import json
 import logging
+import socket
+import struct
 import time
 import weakref
 from typing import Any
@@ -82,6 +84,19 @@ def _raw_answer(status: int, reason: str, detail: str, extra: list[tuple[str, st
     head = [f"HTTP/1.1 {status} {reason}", "content-type: application/json", f"content-length: {len(body)}",
             "connection: close", *(f"{k}: {v}" for k, v in extra)]
     return ("\r\n".join(head) + "\r\n\r\n").encode() + body
+
+
+def _reset(transport) -> None:
+    """Abort ``transport`` with a TCP reset: its buffer is dropped at once, and the kernel's too (a
+    plain close would leave the socket's unsent bytes to the kernel, retrying a client that reads
+    nothing), and the client learns that its answer was abandoned."""
+    sock = transport.get_extra_info("socket")
+    if sock is not None:
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        except OSError:
+            pass
+    transport.abort()
 
 
 def _group(server_state: Any, host: str) -> set[Any]:
@@ -165,7 +180,7 @@ class _Guard:
                     "(POCKETRAY_WRITE_TIMEOUT_S)", self._host or "?", max(0, self._write_mark - size),
                     self._write_mark, self.write_s)
         self._write_abandoned()
-        self.transport.abort()
+        _reset(self.transport)
 
     def _write_abandoned(self) -> None:
         """The answer is given up (before the transport is aborted)."""

@@ -122,9 +122,14 @@ def test_websockets_hold_their_connection_slot_while_open_and_give_it_back(serve
 
 
 # ---- 3. floods -----------------------------------------------------------------------------------------------
-def raw_websocket(server, sid: str) -> socket.socket:
-    """A WebSocket opened by hand (no extensions): the test writes frames as fast as it likes."""
-    sock = socket.create_connection(("127.0.0.1", server.port), timeout=30)
+def raw_websocket(server, sid: str, rcvbuf: int | None = None) -> socket.socket:
+    """A WebSocket opened by hand (no extensions): the test writes frames as fast as it likes
+    (``rcvbuf``: and takes next to nothing of what comes)."""
+    sock = socket.socket()
+    if rcvbuf is not None:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)    # before connect: no autotuning
+    sock.settimeout(30)
+    sock.connect(("127.0.0.1", server.port))
     key = base64.b64encode(os.urandom(16)).decode()
     sock.sendall(f"GET /api/sessions/{sid}/ws HTTP/1.1\r\nHost: t\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
                  f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n".encode())
@@ -137,8 +142,8 @@ def raw_websocket(server, sid: str) -> socket.socket:
 
 def masked_text(payload: bytes) -> bytes:
     mask = b"\x01\x02\x03\x04"
-    assert len(payload) < 126
-    return bytes([0x81, 0x80 | len(payload)]) + mask + bytes(b ^ mask[i % 4] for i, b in enumerate(payload))
+    size = bytes([0x80 | len(payload)]) if len(payload) < 126 else bytes([0x80 | 126]) + struct.pack("!H", len(payload))
+    return bytes([0x81]) + size + mask + bytes(b ^ mask[i % 4] for i, b in enumerate(payload))
 
 
 def read_frames(sock: socket.socket, within_s: float) -> tuple[int, int | None]:
@@ -230,7 +235,7 @@ def test_an_answer_not_taken_is_abandoned_and_its_bytes_freed(server, sid):
             ws.send(json.dumps({"type": "frame"}))
             refused = json.loads(ws.recv(timeout=30))
         assert refused["status"] == 429 and refused["retry_after"] >= 1, refused
-        # ... and after the write timeout (3 s) the connection is dropped and its bytes with it.
+        # ... and after the write timeout (3 s) the connection is reset and its bytes dropped.
         assert health_until(server, 200, within_s=15) == 200
         got, reset = 0, False
         try:
@@ -238,6 +243,25 @@ def test_an_answer_not_taken_is_abandoned_and_its_bytes_freed(server, sid):
                 got += len(chunk)
         except ConnectionResetError:
             reset = True
-        assert reset or got < BIG_SIDE * BIG_SIDE * 12, got     # closed before the whole frame came
+        assert reset and got < BIG_SIDE * BIG_SIDE * 12, (reset, got)   # reset before the whole frame came
+    finally:
+        sock.close()
+
+
+def test_a_websocket_frame_not_taken_is_abandoned_too(server, sid):
+    sock = raw_websocket(server, sid, rcvbuf=4096)
+    try:
+        sock.sendall(masked_text(json.dumps({"type": "frame", "frame": {
+            "width": BIG_SIDE, "height": BIG_SIDE, "mode": "normal", "format": "npy",
+            "max_recursion_depth": 1}}).encode()))
+        assert health_until(server, 429, within_s=60) == 429      # held ...
+        assert health_until(server, 200, within_s=15) == 200      # ... then dropped
+        got, reset = 0, False
+        try:
+            while chunk := sock.recv(1 << 16):
+                got += len(chunk)
+        except ConnectionResetError:
+            reset = True
+        assert reset and got < BIG_SIDE * BIG_SIDE * 12, (reset, got)
     finally:
         sock.close()
