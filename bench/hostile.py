@@ -18,7 +18,14 @@ the peak):
 - ``health``: ``/api/health`` latency (polled every 20 ms) while six maximum bodies arrive
   (``--parse-only``: and are refused after validation, so that no build follows);
 - ``stalled``: seconds until a connection that sent headers with ``Content-Length: 100000``
-  and a few body bytes is closed (given up after ``--stall-wait`` s).
+  and a few body bytes is closed (given up after ``--stall-wait`` s);
+- ``ws_keepalive``: a WebSocket that sends a gesture every 0.5 s for ``--ws-talk-s`` s and reads
+  every answer: how long it lives, its close code;
+- ``ws_slots``: ``--ws-count`` WebSockets opened and closed one after another, then a plain request;
+- ``ws_flood``: ``--flood`` tiny invalid messages written at once on one WebSocket: the answers,
+  the close code, ``/api/health`` p50/p99/max meanwhile;
+- ``unread``: ``--unread-clients`` connections that never read ask for a ``--unread-side``²
+  ``normal`` ``npy`` frame each: resident memory, peak and ``--unread-hold-s`` later.
 
 Usage::
 
@@ -339,10 +346,250 @@ def part_flood(root: Path, args) -> dict:
 # ---- end of metrics labels and session quotas --------------------------------------------------------------
 
 
+# ---- WebSockets and slow readers (issue #24: ws_keepalive, ws_slots, ws_flood, unread) -------------------
+def _session(url: str, **settings) -> str:
+    body = {"scenario": 3, "n": 64, "seed": 1, "settings": {"width": 48, "height": 64, "max_recursion_depth": 2,
+                                                            "samples_per_pixel": 1, **settings}}
+    r = httpx.post(url + "/api/sessions", json=body, timeout=60)
+    r.raise_for_status()
+    return r.json()["id"]
+
+
+def _raw_ws(port: int, sid: str) -> socket.socket:
+    """A WebSocket opened by hand (no extensions), to write frames as fast as the socket takes them."""
+    import base64
+
+    sock = socket.create_connection(("127.0.0.1", port), timeout=30)
+    key = base64.b64encode(os.urandom(16)).decode()
+    sock.sendall(f"GET /api/sessions/{sid}/ws HTTP/1.1\r\nHost: b\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                 f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n".encode())
+    head = b""
+    while b"\r\n\r\n" not in head:
+        head += sock.recv(1)
+    if not head.startswith(b"HTTP/1.1 101 "):
+        raise RuntimeError(f"no WebSocket: {head[:200]!r}")
+    return sock
+
+
+def _ws_text_frame(payload: bytes) -> bytes:
+    mask = b"\x01\x02\x03\x04"
+    return bytes([0x81, 0x80 | len(payload)]) + mask + bytes(b ^ mask[i % 4] for i, b in enumerate(payload))
+
+
+def _read_ws(sock: socket.socket, quiet_s: float, limit_s: float) -> dict:
+    """The server's frames until it closes, falls quiet for ``quiet_s`` or ``limit_s`` passes: text
+    messages, the close code, and whether HTTP bytes came inside the WebSocket stream."""
+    import struct
+
+    buf, texts, code, http_inside = b"", 0, None, False
+    t0 = last = time.perf_counter()
+    sock.settimeout(0.2)
+    while time.perf_counter() - t0 < limit_s and time.perf_counter() - last < quiet_s:
+        try:
+            chunk = sock.recv(1 << 16)
+        except socket.timeout:
+            continue
+        except ConnectionResetError:
+            break
+        if not chunk:
+            break
+        last = time.perf_counter()
+        buf += chunk
+        while len(buf) >= 2 and code is None:
+            if buf.startswith(b"HTTP/"):
+                http_inside, buf = True, b""
+                break
+            opcode, n, at = buf[0] & 0x0F, buf[1] & 0x7F, 2
+            if n >= 126:
+                at = 4 if n == 126 else 10
+                if len(buf) < at:
+                    break
+                n = int.from_bytes(buf[2:at], "big")
+            if len(buf) < at + n:
+                break
+            payload, buf = buf[at:at + n], buf[at + n:]
+            texts += opcode == 0x1
+            if opcode == 0x8:
+                code = int.from_bytes(payload[:2], "big") if len(payload) >= 2 else 1005
+        if code is not None:
+            break
+    return {"answers": texts, "close_code": code, "http_in_stream": http_inside,
+            "seconds": round(last - t0, 2)}
+
+
+def part_ws_keepalive(root: Path, args) -> dict:
+    """A WebSocket sending a gesture every 0.5 s for --ws-talk-s and reading every answer: how long it lives."""
+    from websockets.exceptions import ConnectionClosed
+    from websockets.sync.client import connect
+
+    s = Server(root)
+    try:
+        sid = _session(s.url)
+        answers, closed = 0, None
+        t0 = time.perf_counter()
+        with connect(f"ws://127.0.0.1:{s.port}/api/sessions/{sid}/ws", open_timeout=30) as ws:
+            try:
+                while time.perf_counter() - t0 < args.ws_talk_s:
+                    ws.send(json.dumps({"type": "pan", "dx": 1, "dy": 0}))
+                    ws.recv(timeout=60)
+                    ws.recv(timeout=60)
+                    answers += 1
+                    time.sleep(0.5)
+            except ConnectionClosed as e:
+                closed = e
+        lived = time.perf_counter() - t0
+        code = reason = None
+        if closed is not None:
+            close = closed.rcvd or closed.sent
+            code, reason = (close.code, close.reason) if close else (None, None)
+        return {"talk_s": args.ws_talk_s, "answers": answers, "cut": closed is not None,
+                "lived_s": round(lived, 1), "close_code": code, "close_reason": reason}
+    finally:
+        s.close()
+
+
+def part_ws_slots(root: Path, args) -> dict:
+    """--ws-count WebSockets opened and closed one after another, then a plain request."""
+    from websockets.sync.client import connect
+
+    s = Server(root)
+    try:
+        sid = _session(s.url)
+        opened, first_refused = 0, None
+        for i in range(args.ws_count):
+            try:
+                with connect(f"ws://127.0.0.1:{s.port}/api/sessions/{sid}/ws", open_timeout=30):
+                    opened += 1
+            except Exception as e:   # the handshake answered 429
+                if first_refused is None:
+                    first_refused = {"index": i, "error": str(e)[:120]}
+        time.sleep(0.5)
+        r = httpx.get(s.url + "/api/health", timeout=10)
+        return {"websockets": args.ws_count, "opened": opened, "first_refused": first_refused,
+                "then_health": r.status_code}
+    finally:
+        s.close()
+
+
+def part_ws_flood(root: Path, args) -> dict:
+    """--flood messages (one invalid byte each) written at once on one WebSocket, per count; /api/health
+    polled every 20 ms meanwhile (p50/p99/max), and how the server answered."""
+    out = {}
+    s = Server(root)
+    try:
+        sid = _session(s.url)
+        with httpx.Client(base_url=s.url, timeout=60) as c:
+            idle = []
+            for _ in range(20):
+                t0 = time.perf_counter()
+                c.get("/api/health")
+                idle.append(time.perf_counter() - t0)
+        for count in args.flood:
+            waits: list[float] = []
+            stop = threading.Event()
+
+            def poll() -> None:
+                with httpx.Client(base_url=s.url, timeout=120) as c:
+                    while not stop.is_set():
+                        t0 = time.perf_counter()
+                        c.get("/api/health")
+                        waits.append(time.perf_counter() - t0)
+                        time.sleep(0.02)
+            sock = _raw_ws(s.port, sid)
+            poller = threading.Thread(target=poll)
+            poller.start()
+            time.sleep(0.3)
+            flood = _ws_text_frame(b"x") * count
+            t0 = time.perf_counter()
+            sock.sendall(flood)
+            sent_s = time.perf_counter() - t0
+            got = _read_ws(sock, quiet_s=3.0, limit_s=90)
+            time.sleep(0.5)
+            stop.set()
+            poller.join()
+            sock.close()
+            w = sorted(waits)
+            out[str(count)] = {"sent_s": round(sent_s, 3), **got, "health_calls": len(w),
+                               "health_p50_ms": round(1e3 * statistics.median(w), 1),
+                               "health_p99_ms": round(1e3 * w[int(0.99 * (len(w) - 1))], 1),
+                               "health_max_ms": round(1e3 * w[-1], 1)}
+            print(f"  {count}: {json.dumps(out[str(count)])}", flush=True)
+        return {"idle_health_p50_ms": round(1e3 * statistics.median(idle), 1), **out}
+    finally:
+        s.close()
+
+
+def part_unread(root: Path, args) -> dict:
+    """--unread-clients connections ask for an --unread-side² normal npy frame each (of a session each) and never read
+    (SO_RCVBUF 4 KiB): the server's resident memory, peak and --unread-hold-s after the last answer
+    started; then each one's status line (peeked) and whether the server still holds it open."""
+    side = args.unread_side
+    s = Server(root, max_frame_cost="1e9", render_timeout_s="600", queue_size=str(max(8, args.unread_clients)),
+               max_connections_per_client=str(max(32, args.unread_clients + 4)))
+    socks: list[socket.socket] = []
+    try:
+        sids = [_session(s.url) for _ in range(args.unread_clients)]   # one each: a session's frames supersede
+        idle = s.memory()
+        t0 = time.perf_counter()
+        for sid in sids:
+            sock = socket.socket()
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+            sock.connect(("127.0.0.1", s.port))
+            sock.sendall(f"GET /api/sessions/{sid}/frame?width={side}&height={side}&mode=normal&format=npy"
+                         f"&max_recursion_depth=1&samples_per_pixel=1 HTTP/1.1\r\nHost: b\r\n\r\n".encode())
+            socks.append(sock)
+        started: dict[int, float] = {}
+        while len(started) < len(socks) and time.perf_counter() - t0 < 300:   # answers started (peeked)
+            for i, sock in enumerate(socks):
+                if i in started:
+                    continue
+                sock.settimeout(0.05)
+                try:
+                    if sock.recv(16, socket.MSG_PEEK):
+                        started[i] = time.perf_counter() - t0
+                except (socket.timeout, BlockingIOError):
+                    pass
+                except OSError:
+                    started[i] = time.perf_counter() - t0
+        last = max(started.values(), default=0.0)
+        peak_while = 0.0
+        rss_trace = []
+        while time.perf_counter() - t0 < last + args.unread_hold_s:
+            m = s.memory()
+            peak_while = max(peak_while, m["VmRSS"])
+            rss_trace.append(round(m["VmRSS"] - idle["VmRSS"]))
+            time.sleep(1.0)
+        held = s.memory()
+        answers: dict[str, int] = {}
+        still_open = 0
+        for sock in socks:                      # the status line (peeked) and whether the server kept it open
+            sock.settimeout(2)
+            try:
+                got = sock.recv(64, socket.MSG_PEEK)
+            except OSError:
+                got = b""
+            line = got.split(b"\r\n", 1)[0].decode(errors="replace") or "(nothing)"
+            answers[line] = answers.get(line, 0) + 1
+            still_open += sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_INFO, 1)[0] == 1   # TCP_ESTABLISHED
+        return {"clients": args.unread_clients, "frame_mib": round(side * side * 12 / 2**20), "answers": answers,
+                "connections_still_open": still_open, "last_answer_started_s": round(last, 1),
+                "rss_idle_mib": round(idle["VmRSS"]), "rss_peak_above_idle_mib": round(held["VmHWM"] - idle["VmRSS"]),
+                f"rss_above_idle_{args.unread_hold_s:g}s_after_mib": round(held["VmRSS"] - idle["VmRSS"]),
+                "rss_above_idle_trace_mib": rss_trace[::max(1, len(rss_trace) // 12)]}
+    finally:
+        for sock in socks:
+            sock.close()
+        s.close()
+# ---- end of WebSockets and slow readers ---------------------------------------------------------------------
+
+
 PARTS = {"targets": part_targets, "bad": part_bad, "largest": part_largest, "recipe": part_recipe,
          "health": part_health,
          "stalled": part_stalled,
-         "metrics": part_metrics, "flood": part_flood}
+         "metrics": part_metrics, "flood": part_flood,
+         # WebSockets and slow readers
+         "ws_keepalive": part_ws_keepalive, "ws_slots": part_ws_slots, "ws_flood": part_ws_flood,
+         "unread": part_unread}
 
 
 def parser() -> argparse.ArgumentParser:
@@ -362,6 +609,15 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--flood-s", type=float, default=10, help="flood: seconds of session creation from one address")
     ap.add_argument("--uploads", type=int, default=30, help="flood: sessions created with a 3.2 MB scene each")
     ap.add_argument("--flood-quota", type=int, default=16 * MIB, help="flood: POCKETRAY_MAX_STORE_BYTES of the uploads")
+    # WebSockets and slow readers
+    ap.add_argument("--ws-talk-s", type=float, default=20.0, help="ws_keepalive: seconds of a gesture every 0.5 s")
+    ap.add_argument("--ws-count", type=int, default=64, help="ws_slots: WebSockets opened and closed in turn")
+    ap.add_argument("--flood", type=int, nargs="+", default=[20_000, 60_000],
+                    help="ws_flood: messages written at once (one run per count)")
+    ap.add_argument("--unread-clients", type=int, default=10, help="unread: connections that never read")
+    ap.add_argument("--unread-side", type=int, default=4096, help="unread: the frame's side (normal npy)")
+    ap.add_argument("--unread-hold-s", type=float, default=45.0,
+                    help="unread: seconds after the last answer started when the memory is read")
     ap.add_argument("--json", type=Path, help="write the figures here too")
     return ap
 

@@ -84,7 +84,7 @@ def serve(args: argparse.Namespace) -> int:
 
     from .config import ServerConfig
     from .observability import configure_logging, uvicorn_log_config
-    from .wire import GuardedH11Protocol
+    from .wire import GuardedH11Protocol, GuardedWebSocketProtocol
 
     for name in _config_fields():
         value = getattr(args, f"cfg_{name}")
@@ -104,10 +104,12 @@ def serve(args: argparse.Namespace) -> int:
     if config.gl_device is not None:
         os.environ["GLCONTEXT_DEVICE_INDEX"] = str(config.gl_device)
     try:
-        # GuardedH11Protocol: 408 for stalled requests, connections per client (server/wire.py); the
-        # class, not a subclass per config, so that --workers can hand it to each worker process.
+        # GuardedH11Protocol: 408 for stalled requests, connections per client, write timeout, unsent
+        # bytes per client; GuardedWebSocketProtocol: the same through the upgrade, idle and flooding
+        # WebSockets (server/wire.py). The classes, not subclasses per config, so that --workers can
+        # hand them to each worker process.
         uvicorn.run(APP_FACTORY, factory=True, host=config.host, port=config.port, workers=args.workers,
-                    http=GuardedH11Protocol,
+                    http=GuardedH11Protocol, ws=GuardedWebSocketProtocol,
                     log_level=config.log_level, log_config=uvicorn_log_config(config.log_level, config.log_format),
                     access_log=False, timeout_graceful_shutdown=max(30, int(config.drain_s) + 30))
     finally:

@@ -109,6 +109,27 @@ class ServerConfig(BaseSettings):
         32, ge=0, le=100_000,
         description="open connections per client address (0: no cap); beyond: 429 and closed. Behind a proxy "
                     "every client is the proxy's address: raise it or set 0, and let the proxy limit clients")
+
+    # --- WebSockets and slow readers (server/wire.py; docs/API.md, "Hardening") -------------
+    ws_idle_timeout_s: float = Field(
+        60.0, gt=0, le=86_400,
+        description="a WebSocket on which no message came for this long while the service had nothing to "
+                    "answer is closed with code 1001, seconds")
+    ws_messages_per_s: float = Field(
+        20.0, gt=0, le=100_000,
+        description="messages (and pings) per second one WebSocket may send, on average; a client over "
+                    "it (beyond ws_message_burst) is closed with code 1008 and its queued messages dropped")
+    ws_message_burst: int = Field(40, ge=1, le=1_000_000,
+                                  description="messages one WebSocket may send at once above ws_messages_per_s")
+    write_timeout_s: float = Field(
+        30.0, gt=0, le=3600,
+        description="a connection whose client takes less than 64 KiB of its pending answer within this many "
+                    "seconds is closed and the answer's bytes freed, seconds")
+    max_unsent_bytes_per_client: int = Field(
+        128 << 20, ge=0,
+        description="answer bytes of one client address waiting for the client to take them (0: no cap); "
+                    "beyond: its new requests and WebSocket messages are answered 429 before any work. Behind "
+                    "a proxy every client is the proxy's address: set 0 and let the proxy buffer")
     sqlite_on_corrupt: Literal["move_aside", "refuse"] = Field(
         "move_aside",
         description="a session store file that is not a readable SQLite database at start-up: move_aside (rename "

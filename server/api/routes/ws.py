@@ -6,7 +6,10 @@ Client → a text (or UTF-8 binary) JSON message: a gesture (``{"type": "pan", "
 Server → text JSON ``{"version", "camera", "timings", "stats", "media_type"}`` then the
 frame as one binary message; on an error one text JSON ``{"status", "detail"}`` (and
 ``"retry_after"``, seconds, where HTTP sends Retry-After) — the very answer the HTTP
-route gives (:mod:`server.api.errors`), and the connection stays open.
+route gives (:mod:`server.api.errors`), and the connection stays open. While the client's
+address has more answer bytes not taken than ``POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT``, a
+message is answered ``{"status": 429, …}`` without any work (:func:`server.wire.refusal`);
+the connection's idle time, message rate and write timeout are :mod:`server.wire`'s.
 
 A message is read and validated as FastAPI reads a request: its JSON as the body
 (``loc`` ``["body", …]``), its ``"frame"`` settings as the query (``["query", …]``), all
@@ -23,6 +26,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.exceptions import RequestValidationError
 from pydantic import TypeAdapter, ValidationError
 
+from ... import wire
 from ...models import Gesture, SettingsPatch
 from ...service import SessionService
 from ...view import Frame
@@ -85,6 +89,10 @@ async def session_socket(websocket: WebSocket, session_id: str, service: Service
             data = message.get("text")
             if data is None:
                 data = message.get("bytes") or b""
+            refused = wire.refusal(websocket.scope)    # answers of this address not taken: no new work
+            if refused is not None:
+                await websocket.send_text(json.dumps(refused))
+                continue
             try:
                 frame, camera = await answer_message(service, session_id, data)
             except Exception as exc:   # every failure is a row of the error table, as over HTTP
