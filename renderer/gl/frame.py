@@ -256,8 +256,11 @@ class TracerFrame:
             self._row = 0
             self._pass_index += 1
             if self._pass_index == len(self.passes):
-                self._result = self._compose()
+                # The target first (everything is read back): on llvmpipe it is host memory, as much
+                # as the read-back, and need not wait for the result's arrays to be made.
                 self.release()
+                self._result = self._compose()
+                self._centre = self._grid = None     # the result holds what it needs of them
         return self.done
 
     def _draws(self, w: int, h: int, y0: int, rows: int) -> list:
