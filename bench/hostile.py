@@ -130,7 +130,8 @@ def part_largest(root: Path, args) -> dict:
     out = {}
     body, n = largest_scene(args.max_body)
     for count in (1, args.queue):
-        s = Server(root, max_body_bytes=str(args.max_body), queue_size=str(args.queue))
+        s = Server(root, max_body_bytes=str(args.max_body), queue_size=str(args.queue),
+                   body_slots_per_client="0")      # every body comes from this one address
         try:
             idle = s.memory()
             codes: list[int] = []
@@ -184,7 +185,8 @@ def part_recipe(root: Path, args) -> dict:
 
 def part_health(root: Path, args) -> dict:
     extra = {"max_spheres": "1000"} if args.parse_only else {}
-    s = Server(root, max_body_bytes=str(args.max_body), queue_size=str(max(8, args.queue)), **extra)
+    s = Server(root, max_body_bytes=str(args.max_body), queue_size=str(max(8, args.queue)),
+               body_slots_per_client="0", **extra)      # every body comes from this one address
     try:
         body, n = largest_scene(args.max_body)
         codes: list[int] = []

@@ -28,6 +28,8 @@ from pocketray_server_support import SMALL, make_config
 from server.api.body import INLINE_BODY_BYTES, BodyParsers
 from server.app import create_app
 
+pytestmark = pytest.mark.gl     # the app's lifespan starts the GL worker
+
 ATTACKER, HONEST = ("10.0.0.66", 40000), ("10.0.0.7", 40001)
 DECLARED = 100_000                       # over INLINE_BODY_BYTES: each such body takes a slot
 
