@@ -46,10 +46,9 @@ class RenderResult:
 
 # Bytes per pixel of what a frame of the one-pass tracer holds on its way to the client
 # (renderer/gl/frame.py, renderer/gl/targets.py): its render target (two RGBA32F attachments,
-# or one RGBA8 for a png/jpeg frame at one sample per pixel), the target's read-back (the
-# target is released before the result is composed from it), the result's arrays (float
-# image and normal, depth, primid; held with the read-back while they are made) and, of a
-# supersampled frame, the grid of sub-pixel images.
+# or one RGBA8 for a png/jpeg frame at one sample per pixel), the target's read-back, the
+# result's arrays (float image and normal, depth, primid) and, of a supersampled frame, the grid
+# of sub-pixel images.
 TARGET_BYTES_PER_PIXEL = 2 * 4 * 4
 TARGET_BYTES_PER_PIXEL_RGBA8 = 4
 RESULT_BYTES_PER_PIXEL = 3 * 4 + 3 * 4 + 4 + 4
@@ -57,14 +56,15 @@ IMAGE_ONLY_BYTES_PER_PIXEL = 3 + 3       # the 8-bit image cut from the read-bac
 
 
 def traced_nbytes(width: int, height: int, supersampling: int = 1, image_only: bool = False) -> int:
-    """The most bytes one frame holds at once from its render target to its result: the
-    target and its read-back (the read-back happens while the target is still held), or the
-    read-back and the result's arrays, whichever is more, plus a supersampled frame's grid.
-    An estimate that the frame budget of the service (POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT)
-    adds up; the encoded body comes on top (server/view.py)."""
+    """An upper bound of the bytes one frame holds from its render target to its result: the sum
+    of the target, its read-back, the result's arrays and a supersampled frame's grid. (They do
+    not all live at once — the read-back goes as the result is made — but on llvmpipe the memory
+    of a released target stays with the driver until the next target takes it.) The frame budget
+    of the service (POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT) adds these up; the encoded body comes on
+    top (server/view.py)."""
     pixels = int(width) * int(height)
     if image_only:
         return pixels * (2 * TARGET_BYTES_PER_PIXEL_RGBA8 + IMAGE_ONLY_BYTES_PER_PIXEL)
     k = max(1, int(supersampling))
     grid = pixels * k * k * 4 * 4 if k > 1 else 0
-    return pixels * max(2 * TARGET_BYTES_PER_PIXEL, TARGET_BYTES_PER_PIXEL + RESULT_BYTES_PER_PIXEL) + grid
+    return pixels * (2 * TARGET_BYTES_PER_PIXEL + RESULT_BYTES_PER_PIXEL) + grid

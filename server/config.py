@@ -116,7 +116,7 @@ class ServerConfig(BaseSettings):
                     "size, mode and format (render target, its read-back, the result's arrays, the encoded "
                     "body); a frame past it waits up to 1 s for earlier frames to finish, then 503 with "
                     "Retry-After. One frame is always admitted when none is in flight (a 4096² normal npy "
-                    "frame is estimated at 1.2 GiB)")
+                    "frame is estimated at 1.7 GiB)")
     body_min_rate_bytes_s: int = Field(
         16 * 1024, ge=1, le=1 << 30,
         description="a large JSON body (over 64 KiB), which holds one of the POCKETRAY_QUEUE_SIZE large-body "

@@ -149,7 +149,8 @@ def test_the_estimate_of_a_frame_counts_its_target_read_back_and_body():
     assert (TARGET_BYTES_PER_PIXEL, TARGET_BYTES_PER_PIXEL_RGBA8) == (BYTES_PER_PIXEL, BYTES_PER_PIXEL_RGBA8)
     pixels = 4096 * 4096
     big = RenderSettings(width=4096, height=4096, mode="normal", format="npy", samples_per_pixel=1)
-    assert frame_nbytes(big) == 2 * TargetPool.nbytes_of(4096, 4096) + 12 * pixels      # 1.19 GiB
+    result = 3 * 4 + 3 * 4 + 4 + 4                                                       # image, normal, depth, primid
+    assert frame_nbytes(big) == 2 * TargetPool.nbytes_of(4096, 4096) + (result + 12) * pixels   # 1.69 GiB
     png = RenderSettings(width=4096, height=4096, format="png", samples_per_pixel=1)
     assert frame_nbytes(png) < frame_nbytes(big) / 3
     assert traced_nbytes(64, 64, 4) > traced_nbytes(64, 64, 1)                          # the sub-pixel grid
