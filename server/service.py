@@ -8,8 +8,9 @@ rejected request therefore changes nothing.
 
 A frame is planned on the request's thread — the scene posed, the method's structure
 built, the frame's cost estimated (:mod:`renderer.prepare`, :mod:`renderer.cost`); over
-``POCKETRAY_MAX_FRAME_COST`` it is a 422 — then admitted to the GL worker's bounded queue
-(503 when full) and traced there in slices. A newer frame of a session supersedes its
+``POCKETRAY_MAX_FRAME_COST`` it is a 422 — then, its estimated bytes reserved in
+``POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT`` (:class:`FrameBytes`) until it is encoded, admitted to the
+GL worker's bounded queue (503 when full) and traced there in slices. A newer frame of a session supersedes its
 older ones (latest wins). A gesture with ``frame=1`` is rendered with its new camera
 *before* it is committed, and committed only when the frame is ready and the session has
 not changed meanwhile: a refused, failed, timed-out or cancelled frame leaves the session
