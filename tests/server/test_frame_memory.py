@@ -54,7 +54,7 @@ def test_frames_past_the_byte_budget_are_never_in_flight_together(app, monkeypat
     """Four frames of four sessions at once, each over half the budget: one at a time from
     its admission to its encoded body (was: all four, as many as POCKETRAY_QUEUE_SIZE admits)."""
     service = service_of(app)
-    monkeypatch.setattr(service, "FRAME_BYTES_WAIT_S", 30.0, raising=False)     # here they wait their turn rather than 503
+    monkeypatch.setattr(service, "FRAME_BYTES_WAIT_S", 30.0, raising=False)     # wait their turn, no 503
     sids = [new_session(app)["id"] for _ in range(4)]
     encode_frame = service.encode_frame
     lock, now, most = threading.Lock(), [0], [0]
