@@ -17,6 +17,11 @@ the peak):
   ``--queue`` at once;
 - ``health``: ``/api/health`` latency (polled every 20 ms) while six maximum bodies arrive
   (``--parse-only``: and are refused after validation, so that no build follows);
+- ``frames``: ``--frames`` (8) concurrent ``--frame-side``² (4096²) normal npy frames: the peak
+  resident memory above the idle server (503s retried after their Retry-After);
+- ``trickle``: eight connections trickling a byte every 4 s into 1 MB bodies, for
+  ``--trickle-s`` seconds: what an honest client (another loopback address) gets for its
+  100 kB bodies meanwhile, what the trickles get, and ``/api/health``'s p99;
 - ``stalled``: seconds until a connection that sent headers with ``Content-Length: 100000``
   and a few body bytes is closed (given up after ``--stall-wait`` s);
 - ``ws_keepalive``: a WebSocket that sends a gesture every 0.5 s for ``--ws-talk-s`` s and reads
@@ -137,7 +142,8 @@ def part_largest(root: Path, args) -> dict:
     out = {}
     body, n = largest_scene(args.max_body)
     for count in (1, args.queue):
-        s = Server(root, max_body_bytes=str(args.max_body), queue_size=str(args.queue))
+        s = Server(root, max_body_bytes=str(args.max_body), queue_size=str(args.queue),
+                   body_slots_per_client="0")      # every body comes from this one address
         try:
             idle = s.memory()
             codes: list[int] = []
@@ -191,7 +197,8 @@ def part_recipe(root: Path, args) -> dict:
 
 def part_health(root: Path, args) -> dict:
     extra = {"max_spheres": "1000"} if args.parse_only else {}
-    s = Server(root, max_body_bytes=str(args.max_body), queue_size=str(max(8, args.queue)), **extra)
+    s = Server(root, max_body_bytes=str(args.max_body), queue_size=str(max(8, args.queue)),
+               body_slots_per_client="0", **extra)      # every body comes from this one address
     try:
         body, n = largest_scene(args.max_body)
         codes: list[int] = []
@@ -583,13 +590,140 @@ def part_unread(root: Path, args) -> dict:
 # ---- end of WebSockets and slow readers ---------------------------------------------------------------------
 
 
+# ---- memory of frames in flight, and trickling large bodies (issue 24, items 8 and 9) ------------------
+def part_frames(root: Path, args) -> dict:
+    """``--frames`` concurrent ``--frame-side``² normal npy frames (depth 1, 1 sample, 64 spheres), one
+    session each: the server's peak resident memory above idle. A 503 is retried after its
+    Retry-After (as a client should), until 300 s have passed; the bodies are read and dropped."""
+    side, count = args.frame_side, args.frames
+    s = Server(root, max_work=str(max(side * side, 64 << 20)), max_frame_cost="1e9", render_timeout_s="600",
+               queue_size=str(max(8, count)))
+    try:
+        settings = {"max_recursion_depth": 1, "samples_per_pixel": 1, "min_weight": 0.0}
+        with httpx.Client(base_url=s.url, timeout=600) as c:
+            sids = [c.post("/api/sessions", json={"scenario": 3, "n": 64, "seed": i, "settings": settings}).json()["id"]
+                    for i in range(count)]
+            assert c.get(f"/api/sessions/{sids[0]}/frame", params={"width": 64, "height": 64}).status_code == 200
+        time.sleep(1)
+        idle = s.memory()
+        codes: list[int] = []
+        retries: list[int] = []
+        sizes: list[int] = []
+        t_start = time.perf_counter()
+
+        def frame(sid: str) -> None:
+            tries = 0
+            with httpx.Client(base_url=s.url, timeout=600) as c:
+                while True:
+                    with c.stream("GET", f"/api/sessions/{sid}/frame",
+                                  params={"width": side, "height": side, "mode": "normal", "format": "npy"}) as r:
+                        size = sum(len(chunk) for chunk in r.iter_bytes(1 << 20))
+                        if r.status_code == 503 and time.perf_counter() - t_start < 300:
+                            tries += 1
+                            time.sleep(float(r.headers.get("retry-after", "1")))
+                            continue
+                        codes.append(r.status_code)
+                        sizes.append(size)
+                        retries.append(tries)
+                        return
+        threads = [threading.Thread(target=frame, args=(sid,)) for sid in sids]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        seconds = time.perf_counter() - t_start
+        mem = s.memory()
+        return {"frames": count, "side": side, "codes": sorted(codes), "retries_503": sum(retries),
+                "body_mib": round(max(sizes) / MIB, 1), "seconds": round(seconds, 1),
+                "rss_idle_mib": round(idle["VmRSS"]), "rss_peak_mib": round(mem["VmHWM"]),
+                "peak_above_idle_mib": round(mem["VmHWM"] - idle["VmRSS"])}
+    finally:
+        s.close()
+
+
+def part_trickle(root: Path, args) -> dict:
+    """Eight connections from 127.0.0.1 trickle one byte every 4 s into 1 MB JSON bodies (and
+    reconnect when closed) for ``--trickle-s`` seconds; meanwhile an honest client on another
+    loopback address (127.0.0.2) sends a 100 kB scene (a new session) every second, and
+    ``/api/health`` is polled every 20 ms: the honest answers, the trickles' answers, the p99."""
+    s = Server(root, queue_size="8")
+    stop = threading.Event()
+    trickled: list[str] = []
+    honest: list[int] = []
+    waits: list[float] = []
+    body = b'{"scene":' + scene_body(2500) + b"}"
+    assert len(body) > 64 * 1024
+
+    def trickler() -> None:
+        while not stop.is_set():
+            sock = socket.create_connection(("127.0.0.1", s.port), timeout=4)
+            sock.sendall(b"POST /api/sessions HTTP/1.1\r\nHost: b\r\ncontent-type: application/json\r\n"
+                         b"content-length: 1000000\r\n\r\n{")
+            got = b""
+            while not stop.is_set():
+                try:
+                    chunk = sock.recv(65536)
+                    if not chunk:
+                        break
+                    got += chunk
+                except socket.timeout:
+                    try:
+                        sock.sendall(b" ")                     # one byte every 4 s
+                    except OSError:
+                        break
+                except OSError:
+                    break
+            sock.close()
+            if got:
+                trickled.append(got.split(b" ", 2)[1].decode(errors="replace"))
+            stop.wait(1.0)                                    # then again, on a new connection
+
+    def honest_client() -> None:
+        transport = httpx.HTTPTransport(local_address="127.0.0.2")
+        with httpx.Client(base_url=s.url, timeout=60, transport=transport) as c:
+            while not stop.is_set():
+                t0 = time.perf_counter()
+                honest.append(c.post("/api/sessions", content=body, headers=JSON).status_code)
+                stop.wait(max(0.0, 1.0 - (time.perf_counter() - t0)))
+
+    try:
+        attackers = [threading.Thread(target=trickler) for _ in range(8)]
+        for t in attackers:
+            t.start()
+        time.sleep(1.0)                                       # the trickles take their slots first
+        good = threading.Thread(target=honest_client)
+        good.start()
+        t_end = time.perf_counter() + args.trickle_s
+        with httpx.Client(base_url=s.url, timeout=30) as c:
+            while time.perf_counter() < t_end:
+                t0 = time.perf_counter()
+                c.get("/api/health")
+                waits.append(time.perf_counter() - t0)
+                time.sleep(0.02)
+        stop.set()
+        good.join()
+        for t in attackers:
+            t.join()
+        w = sorted(waits)
+        counts = lambda xs: {str(k): xs.count(k) for k in sorted(set(xs))}   # noqa: E731
+        return {"seconds": args.trickle_s, "honest_body_kb": round(len(body) / 1e3),
+                "honest_answers": counts(honest), "trickle_answers": counts(trickled),
+                "health_calls": len(w), "health_p50_ms": round(1e3 * statistics.median(w), 1),
+                "health_p99_ms": round(1e3 * w[int(0.99 * (len(w) - 1))], 1)}
+    finally:
+        stop.set()
+        s.close()
+# ---- end of: memory of frames in flight, and trickling large bodies -------------------------------------
+
+
 PARTS = {"targets": part_targets, "bad": part_bad, "largest": part_largest, "recipe": part_recipe,
          "health": part_health,
          "stalled": part_stalled,
          "metrics": part_metrics, "flood": part_flood,
          # WebSockets and slow readers
          "ws_keepalive": part_ws_keepalive, "ws_slots": part_ws_slots, "ws_flood": part_ws_flood,
-         "unread": part_unread}
+         "unread": part_unread,
+         "frames": part_frames, "trickle": part_trickle}
 
 
 def parser() -> argparse.ArgumentParser:
@@ -618,6 +752,9 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--unread-side", type=int, default=4096, help="unread: the frame's side (normal npy)")
     ap.add_argument("--unread-hold-s", type=float, default=45.0,
                     help="unread: seconds after the last answer started when the memory is read")
+    ap.add_argument("--frames", type=int, default=8, help="frames: how many at once")
+    ap.add_argument("--frame-side", type=int, default=4096, help="frames: their side (normal, npy)")
+    ap.add_argument("--trickle-s", type=float, default=30.0, help="trickle: seconds of the attack")
     ap.add_argument("--json", type=Path, help="write the figures here too")
     return ap
 

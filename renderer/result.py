@@ -33,11 +33,38 @@ class RenderResult:
         return np.floor(np.clip(self.image, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
 
     def array(self) -> np.ndarray:
-        """The ``format=npy`` array of this result's mode (docs/FORMATS.md)."""
+        """The ``format=npy`` array of this result's mode (docs/FORMATS.md): the result's own
+        array where it already has the type (not a copy: a 4096² normal array is 192 MiB)."""
         if self.mode == "depth":
-            return self.depth.astype(np.float32)
+            return self.depth.astype(np.float32, copy=False)
         if self.mode == "primid":
-            return self.primid.astype(np.int32)
+            return self.primid.astype(np.int32, copy=False)
         if self.mode == "normal":
-            return self.normal.astype(np.float32)
+            return self.normal.astype(np.float32, copy=False)
         return self.image_u8()
+
+
+# Bytes per pixel of what a frame of the one-pass tracer holds on its way to the client
+# (renderer/gl/frame.py, renderer/gl/targets.py): its render target (two RGBA32F attachments,
+# or one RGBA8 for a png/jpeg frame at one sample per pixel), the target's read-back, the
+# result's arrays (float image and normal, depth, primid) and, of a supersampled frame, the grid
+# of sub-pixel images.
+TARGET_BYTES_PER_PIXEL = 2 * 4 * 4
+TARGET_BYTES_PER_PIXEL_RGBA8 = 4
+RESULT_BYTES_PER_PIXEL = 3 * 4 + 3 * 4 + 4 + 4
+IMAGE_ONLY_BYTES_PER_PIXEL = 3 + 3       # the 8-bit image cut from the read-back, and its copy for the encoder
+
+
+def traced_nbytes(width: int, height: int, supersampling: int = 1, image_only: bool = False) -> int:
+    """An upper bound of the bytes one frame holds from its render target to its result: the sum
+    of the target, its read-back, the result's arrays and a supersampled frame's grid. (They do
+    not all live at once — the read-back goes as the result is made — but on llvmpipe the memory
+    of a released target stays with the driver until the next target takes it.) The frame budget
+    of the service (POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT) adds these up; the encoded body comes on
+    top (server/view.py)."""
+    pixels = int(width) * int(height)
+    if image_only:
+        return pixels * (2 * TARGET_BYTES_PER_PIXEL_RGBA8 + IMAGE_ONLY_BYTES_PER_PIXEL)
+    k = max(1, int(supersampling))
+    grid = pixels * k * k * 4 * 4 if k > 1 else 0
+    return pixels * (2 * TARGET_BYTES_PER_PIXEL + RESULT_BYTES_PER_PIXEL) + grid

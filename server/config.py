@@ -130,6 +130,29 @@ class ServerConfig(BaseSettings):
         description="answer bytes of one client address waiting for the client to take them (0: no cap); "
                     "beyond: its new requests and WebSocket messages are answered 429 before any work. Behind "
                     "a proxy every client is the proxy's address: set 0 and let the proxy buffer")
+
+    # --- memory of frames in flight and large-body slots (docs/API.md, "Memory budget") ---------------
+    max_frame_bytes_in_flight: int = Field(
+        2 << 30, ge=1 << 20,
+        description="bytes that the frames admitted at once may hold together, estimated from each frame's "
+                    "size, mode and format (render target, its read-back, the result's arrays, the encoded "
+                    "body); a frame past it waits up to 1 s for earlier frames to finish, then 503 with "
+                    "Retry-After. One frame is always admitted when none is in flight (a 4096² normal npy "
+                    "frame is estimated at 1.7 GiB)")
+    body_min_rate_bytes_s: int = Field(
+        16 * 1024, ge=1, le=1 << 30,
+        description="a large JSON body (over 64 KiB), which holds one of the POCKETRAY_QUEUE_SIZE large-body "
+                    "slots while it arrives, must arrive at least this fast, bytes per second, after its first "
+                    "POCKETRAY_BODY_GRACE_S seconds; slower: 408, the connection closed and the slot freed")
+    body_grace_s: float = Field(
+        10.0, gt=0, le=3600,
+        description="seconds a large body may take before POCKETRAY_BODY_MIN_RATE_BYTES_S applies (a body "
+                    "of n bytes may take body_grace_s + n / body_min_rate_bytes_s seconds in all)")
+    body_slots_per_client: int = Field(
+        2, ge=0, le=1024,
+        description="of the POCKETRAY_QUEUE_SIZE large-body slots, the most one client address holds at once "
+                    "(0: no cap); beyond: 429 with Retry-After. Behind a proxy every client is the proxy's "
+                    "address: set 0 or POCKETRAY_QUEUE_SIZE and let the proxy bound each client")
     sqlite_on_corrupt: Literal["move_aside", "refuse"] = Field(
         "move_aside",
         description="a session store file that is not a readable SQLite database at start-up: move_aside (rename "

@@ -8,8 +8,9 @@ rejected request therefore changes nothing.
 
 A frame is planned on the request's thread — the scene posed, the method's structure
 built, the frame's cost estimated (:mod:`renderer.prepare`, :mod:`renderer.cost`); over
-``POCKETRAY_MAX_FRAME_COST`` it is a 422 — then admitted to the GL worker's bounded queue
-(503 when full) and traced there in slices. A newer frame of a session supersedes its
+``POCKETRAY_MAX_FRAME_COST`` it is a 422 — then, its estimated bytes reserved in
+``POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT`` (:class:`FrameBytes`) until it is encoded, admitted to the
+GL worker's bounded queue (503 when full) and traced there in slices. A newer frame of a session supersedes its
 older ones (latest wins). A gesture with ``frame=1`` is rendered with its new camera
 *before* it is committed, and committed only when the frame is ready and the session has
 not changed meanwhile: a refused, failed, timed-out or cancelled frame leaves the session
@@ -35,6 +36,7 @@ from renderer.limits import DEFAULT_TEXTURE_WIDTH, MAX_TRIANGLES, SAMPLES_PER_PI
 from renderer.mesh_io import fit_transform, load_mesh
 from renderer.methods import AUTO_METHOD, METHODS, capabilities, resolve_method
 from renderer.prepare import PreparedFrame, band_rows, batch_size, prepare_frame
+from renderer.result import traced_nbytes
 from renderer.scenarios import mesh_scene, scenario
 from renderer.scene import Camera, Scene, SceneError
 from renderer.settings import RenderSettings
@@ -48,7 +50,7 @@ from .models import (MeshUploadQuery, OrbitGesture, PanGesture, PinchGesture, Re
 from .scenes import (SceneCache, SessionScene, camera_from_model, load_source, museum_source, scenario_source,
                      scene_from_model, scene_info, scene_source)
 from .store import SessionState, SessionStore, StoreUnavailable
-from .view import MEDIA_TYPES, Frame, encode
+from .view import MEDIA_TYPES, Frame, encode, encoded_nbytes
 
 _PATH_TOKEN = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
 
@@ -117,6 +119,51 @@ class Busy(Exception):
         self.retry_after_s = retry_after_s
 
 
+class FrameBytes:
+    """The bytes the frames admitted at once may hold together (POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT).
+
+    Eight 4096² normal npy frames held their render targets at once (the GL thread starts every
+    admitted frame before it traces any slice), then their read-backs, arrays and bodies: 5.5 GB
+    resident for a budget of 3 GiB. A frame reserves its estimated bytes here before it is handed
+    to the GL thread and gives them back once it is encoded; one that does not fit waits, and a
+    frame is always admitted when none holds any bytes (else one larger than the budget never
+    ran)."""
+
+    def __init__(self, limit: int):
+        self.limit = int(limit)
+        self.used = 0
+        self._cv = threading.Condition()
+
+    def acquire(self, nbytes: int, timeout_s: float) -> bool:
+        deadline = time.monotonic() + timeout_s
+        with self._cv:
+            while self.used > 0 and self.used + nbytes > self.limit:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return False
+                self._cv.wait(left)
+            self.used += nbytes
+            return True
+
+    def release(self, nbytes: int) -> None:
+        with self._cv:
+            self.used -= nbytes
+            self._cv.notify_all()
+
+
+def frame_nbytes(settings: RenderSettings) -> int:
+    """What one frame of these settings holds at most, from its render target to its encoded body."""
+    s = settings
+    return (traced_nbytes(s.width, s.height, s.supersampling, image_only(s))
+            + encoded_nbytes(s.format, s.mode, s.width, s.height))
+
+
+def image_only(settings: RenderSettings) -> bool:
+    """Whether the frame is traced into one 8-bit target (renderer.gl.frame.image_only, which the
+    service may not import: png or jpeg at one sample per pixel)."""
+    return settings.format in ("png", "jpeg") and settings.samples_per_pixel == 1
+
+
 class Superseded(Exception):
     """A frame stopped because the session asked for a newer one (latest wins), its client
     went away, or the session changed before a gesture's frame could be committed."""
@@ -157,8 +204,27 @@ class SessionService:
         # before the GL queue bounds anything: at most POCKETRAY_QUEUE_SIZE plan at once (issue #17).
         self._planning = threading.BoundedSemaphore(config.queue_size)
         self._planning_depth = threading.local()
+        self.frame_bytes = FrameBytes(config.max_frame_bytes_in_flight)
 
     PLAN_WAIT_S = 1.0     # a burst of small frames waits this long for a planning slot; then 503
+    FRAME_BYTES_WAIT_S = 1.0   # a frame waits this long for room in POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT; then 503
+
+    @contextmanager
+    def frame_memory(self, settings: RenderSettings):
+        """The frame's estimated bytes reserved in POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT for the work
+        inside; :class:`Busy` (Retry-After: the GL work queued ahead) when they do not fit within
+        FRAME_BYTES_WAIT_S."""
+        nbytes = frame_nbytes(settings)
+        if not self.frame_bytes.acquire(nbytes, self.FRAME_BYTES_WAIT_S):
+            retry = self.worker.retry_after()
+            raise Busy(f"busy: the frames in flight hold the {self.config.max_frame_bytes_in_flight} bytes of "
+                       f"POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT; this {settings.width} × {settings.height} "
+                       f"{settings.mode} {settings.format} frame needs ~{nbytes} bytes; retry after {retry} s "
+                       f"(or ask for a smaller frame)", retry)
+        try:
+            yield
+        finally:
+            self.frame_bytes.release(nbytes)
 
     @contextmanager
     def planning(self):
@@ -606,27 +672,31 @@ class SessionService:
         key = (session.id, session.scene_rev) if session is not None else None
         frame = self.plan(scene, settings, where, key=key)
         self.check_traceable(frame, where)
-        t_queued = time.perf_counter()
-        handle = self.start_frame(frame, session=session)
-        version = session.version if session is not None else None
-        try:
-            if progressive:
-                first = self.wait(handle, t_admit, preview=True, cancel=cancel)
-                if first is not None:
-                    yield self.encode_frame(first, frame, settings, t_admit, handle.started_at, version=version,
-                                            final=False, t_queued=t_queued)
-            result = self.wait(handle, t_admit, cancel=cancel)
-        except BaseException:
-            handle.cancel("disconnected")
-            raise
-        if commit is not None:
-            version = commit(result)
-        if session is not None and result.stats:
-            rs = frame.settings
-            self._remember_stats(StatsKey(session.id, session.scene_rev, frame.method, rs.max_prims,
-                                          rs.max_tree_depth, self._pose_time(scene, rs.time)), result.stats)
-        yield self.encode_frame(result, frame, settings, t_admit, handle.started_at, version=version,
-                                t_queued=t_queued)
+        with self.frame_memory(frame.settings):     # from before its target exists to its encoded body
+            t_queued = time.perf_counter()
+            handle = self.start_frame(frame, session=session)
+            version = session.version if session is not None else None
+            first = None
+            try:
+                if progressive:
+                    first = self.wait(handle, t_admit, preview=True, cancel=cancel)
+                    if first is not None:
+                        yield self.encode_frame(first, frame, settings, t_admit, handle.started_at,
+                                                version=version, final=False, t_queued=t_queued)
+                result = self.wait(handle, t_admit, cancel=cancel)
+            except BaseException:
+                handle.cancel("disconnected")
+                raise
+            if commit is not None:
+                version = commit(result)
+            if session is not None and result.stats:
+                rs = frame.settings
+                self._remember_stats(StatsKey(session.id, session.scene_rev, frame.method, rs.max_prims,
+                                              rs.max_tree_depth, self._pose_time(scene, rs.time)), result.stats)
+            last = self.encode_frame(result, frame, settings, t_admit, handle.started_at, version=version,
+                                     t_queued=t_queued)
+            result = handle = first = None      # the arrays go now, not when the generator does
+        yield last
 
     def session_frame(self, session_id: str, patch: dict[str, Any], *, cancel: threading.Event | None = None,
                       progressive: bool = False) -> Frame | list[Frame]:

@@ -60,7 +60,7 @@ def encode(result: RenderResult, fmt: str, quality: int, png_level: int = 1) -> 
     if fmt == "exr":
         return encode_exr(result), (time.perf_counter() - t0) * 1e3
     if fmt == "npy":
-        np.save(buf, np.ascontiguousarray(result.array()), allow_pickle=False)
+        return npy_bytes(result.array()), (time.perf_counter() - t0) * 1e3
     else:
         img = Image.fromarray(result.image_u8(), "RGB")
         if fmt == "jpeg":
@@ -68,6 +68,45 @@ def encode(result: RenderResult, fmt: str, quality: int, png_level: int = 1) -> 
         else:
             img.save(buf, format="PNG", compress_level=int(png_level))
     return buf.getvalue(), (time.perf_counter() - t0) * 1e3
+
+
+NPY_CHUNK_BYTES = 1 << 20
+
+
+def npy_bytes(array: np.ndarray) -> bytes:
+    """What ``np.save`` writes for ``array`` (format 1.0), with the array's bytes copied once, into
+    the body: np.save first copied a strided array whole, then the result, chunk by chunk, into its
+    buffer (a 4096² normal frame, 192 MiB, was there three times). Here rows go into the buffer
+    1 MiB at a time, straight from the array (a copy only of a strided chunk), and getvalue() hands
+    over the buffer itself."""
+    buf = io.BytesIO()
+    header = np.lib.format.header_data_from_array_1_0(array)
+    header["fortran_order"] = False          # the rows below are written in C order, whatever the strides
+    np.lib.format.write_array_header_1_0(buf, header)
+    if array.ndim == 0 or array.size == 0:
+        buf.write(array.tobytes())
+        return buf.getvalue()
+    rows = max(1, NPY_CHUNK_BYTES // max(1, array[0].nbytes))
+    for i in range(0, len(array), rows):
+        buf.write(np.ascontiguousarray(array[i:i + rows]).data)
+    return buf.getvalue()
+
+
+# Bytes per pixel of the npy array of each mode (docs/FORMATS.md); the other modes are 8-bit RGB.
+NPY_BYTES_PER_PIXEL = {"depth": 4, "primid": 4, "normal": 12}
+
+
+def encoded_nbytes(fmt: str, mode: str, width: int, height: int) -> int:
+    """At most the bytes :func:`encode` adds while it encodes a frame and that its body holds
+    after: npy, the array itself; exr, the channels' contiguous copy and the file (compressed,
+    at most as large); png and jpeg, the 8-bit image PIL holds (4 bytes a pixel) and a body of
+    at most the raw RGB bytes."""
+    pixels = int(width) * int(height)
+    if fmt == "npy":
+        return pixels * NPY_BYTES_PER_PIXEL.get(mode, 3)
+    if fmt == "exr":
+        return 2 * pixels * NPY_BYTES_PER_PIXEL.get(mode, 12)
+    return pixels * (4 + 3)
 
 
 def server_timing(timings: dict[str, float]) -> str:

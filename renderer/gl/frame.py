@@ -256,8 +256,11 @@ class TracerFrame:
             self._row = 0
             self._pass_index += 1
             if self._pass_index == len(self.passes):
-                self._result = self._compose()
+                # The target first (everything is read back): on llvmpipe it is host memory, as much
+                # as the read-back, and need not wait for the result's arrays to be made.
                 self.release()
+                self._result = self._compose()
+                self._centre = self._grid = None     # (an image-only frame's) the result holds what it needs
         return self.done
 
     def _draws(self, w: int, h: int, y0: int, rows: int) -> list:
@@ -293,7 +296,7 @@ class TracerFrame:
             hit = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(h, w, 4)
             self._centre = (img, hit)
             if len(self.passes) > 1:
-                self._preview = self._result_of(img[::-1], hit[::-1], img[::-1][..., :3], final=False)
+                self._preview = self._result_of([img[::-1], hit[::-1], img[::-1][..., :3]], final=False)
         else:
             if self._grid is None:
                 self._grid = np.empty((h * p.scale, w * p.scale, 4), np.float32)
@@ -311,6 +314,7 @@ class TracerFrame:
             return ImageOnlyResult(u8, settings.mode, timings, stats,
                                    lambda: r.begin(scene, settings.with_(format="npy"), prepared=prepared).run())
         img, hit = self._centre
+        self._centre = None                      # the arrays below are the read-back's last references
         img, hit = img[::-1], hit[::-1]          # image row 0 at the top
         k, W, H = self.k, self.width, self.height
         if self.one_shot:                        # the old way: ids from the middle sub-pixel
@@ -318,19 +322,30 @@ class TracerFrame:
             img, hit = img[k // 2::k, k // 2::k], hit[k // 2::k, k // 2::k]
         elif self._grid is not None:             # the box filter over the sub-pixel passes
             colour = self._grid[::-1][..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
+            self._grid = None
         else:
             colour = img[..., :3]
-        return self._result_of(img, hit, colour, final=True)
+        arrays = [img, hit, colour]
+        del img, hit, colour
+        return self._result_of(arrays, final=True)
 
-    def _result_of(self, img: np.ndarray, hit: np.ndarray, colour: np.ndarray, final: bool) -> RenderResult:
+    def _result_of(self, arrays: list[np.ndarray], final: bool) -> RenderResult:
+        """The result made of ``[img, hit, colour]`` (image rows, top first), which it empties: each
+        read-back is freed as soon as what is made of it exists (where nothing else holds it), so
+        a 4096² frame holds one of its two 256 MiB read-backs beside its new arrays, not both."""
+        img, hit, colour = arrays
+        arrays.clear()
         primid = img[..., 3].astype(np.int32)
-        depth_t = np.where(primid >= 0, hit[..., 3], np.float32(np.inf)).astype(np.float32)
+        image = np.ascontiguousarray(colour, dtype=np.float32)
+        del img, colour
+        depth_t = np.where(primid >= 0, hit[..., 3], np.float32(np.inf)).astype(np.float32, copy=False)
+        normal = np.ascontiguousarray(hit[..., :3])
+        del hit
         timings = {**self.timings, "total": (time.perf_counter() - self.t_start) * 1e3}
         stats = {**self.stats, "tracer_passes": len(self.passes), "slices": self.slices}
         if not final:
             stats["preview"] = True
-        return RenderResult(image=np.ascontiguousarray(colour, dtype=np.float32), depth=depth_t, primid=primid,
-                            normal=np.ascontiguousarray(hit[..., :3]), mode=self.settings.mode,
+        return RenderResult(image=image, depth=depth_t, primid=primid, normal=normal, mode=self.settings.mode,
                             timings=timings, stats=stats)
 
     @property

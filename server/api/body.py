@@ -12,6 +12,12 @@ for 15 s (issue #17). Routes with a JSON body use :class:`JSONBodyRoute`, which
   ``POCKETRAY_PARSE_WORKERS`` threads, at most ``POCKETRAY_QUEUE_SIZE`` such bodies per process at
   once (503 + ``Retry-After`` beyond, answered before the body is read), so their memory is
   bounded and the event loop only moves bytes;
+- reads a large body, which holds one of those slots while it arrives, at a minimum rate: after
+  ``POCKETRAY_BODY_GRACE_S`` it must keep up with ``POCKETRAY_BODY_MIN_RATE_BYTES_S`` (else 408,
+  the connection closed, the slot freed), and one client address holds at most
+  ``POCKETRAY_BODY_SLOTS_PER_CLIENT`` of the slots (429 + ``Retry-After`` beyond): eight
+  connections trickling a byte every 4 s into 1 MB bodies held every slot for as long as they
+  liked (each byte restarted the idle timer), and every honest body over 64 KiB got 503;
 - hands FastAPI the validated model, which it takes as it is (no second validation of the
   spheres). When the body is invalid FastAPI still validates the query and the path, and the
   body's errors take the place of its own, in FastAPI's order (query first).
@@ -31,7 +37,8 @@ from typing import Any, Callable
 import numpy as np
 from fastapi.exceptions import RequestValidationError
 from fastapi.routing import APIRoute
-from starlette.requests import Request
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.requests import ClientDisconnect, Request
 from starlette.responses import Response
 
 from ..config import ServerConfig
@@ -63,6 +70,55 @@ class BodiesBusy(Busy):
     def __init__(self, admitted: int):
         super().__init__(f"busy: {admitted} large request bodies are being read (POCKETRAY_QUEUE_SIZE); "
                          f"retry after {BODY_RETRY_AFTER_S} s", BODY_RETRY_AFTER_S)
+
+
+def body_too_slow(got: int, declared: str | None, seconds: float, config: ServerConfig) -> StarletteHTTPException:
+    """408 for a large body that fell behind the minimum rate; the connection is closed with it
+    (the rest of the body is never read)."""
+    of = f" of {declared}" if declared and declared.isdigit() else ""
+    return StarletteHTTPException(
+        408, f"body: {got} bytes{of} arrived in {seconds:.1f} s, slower than {config.body_min_rate_bytes_s} bytes/s "
+             f"after the first {config.body_grace_s:g} s (POCKETRAY_BODY_MIN_RATE_BYTES_S, POCKETRAY_BODY_GRACE_S); "
+             "send the body faster, or a smaller one", {"Connection": "close"})
+
+
+def client_share_taken(host: str, held: int, config: ServerConfig) -> StarletteHTTPException:
+    """429 for an address that already holds its share of the large-body slots."""
+    return StarletteHTTPException(
+        429, f"busy: this client address ({host}) already sends {held} large request bodies, its share of the "
+             f"{config.queue_size} slots (POCKETRAY_BODY_SLOTS_PER_CLIENT); retry after {BODY_RETRY_AFTER_S} s, "
+             "once one of them is read", {"Retry-After": str(BODY_RETRY_AFTER_S), "Connection": "close"})
+
+
+async def read_steadily(request: Request, config: ServerConfig) -> bytes:
+    """The request's body, read while it keeps up with the minimum rate: by ``t`` seconds after
+    the start, ``min_rate · (t − grace)`` bytes must have come. The wait for the next chunk is
+    bounded by when the bytes so far stop being enough, so a silent body and a trickling one are
+    both cut there (408), whatever the idle timer of the connection allows."""
+    loop = asyncio.get_running_loop()
+    t0 = loop.time()
+    rate, grace = float(config.body_min_rate_bytes_s), float(config.body_grace_s)
+    chunks: list[bytes] = []
+    got = 0
+    while True:
+        left = t0 + grace + got / rate - loop.time()
+        try:
+            if left <= 0:
+                raise asyncio.TimeoutError
+            message = await asyncio.wait_for(request.receive(), left)
+        except asyncio.TimeoutError:
+            raise body_too_slow(got, request.headers.get("content-length"), loop.time() - t0, config) from None
+        if message["type"] == "http.disconnect":
+            raise ClientDisconnect()
+        chunk = message.get("body", b"")
+        if chunk:
+            chunks.append(chunk)
+            got += len(chunk)
+        if not message.get("more_body", False):
+            break
+    body = b"".join(chunks)
+    request._body = body           # what Request.body() returns from now on (FastAPI's handler reads it)
+    return body
 
 
 class _DuplicateKey(Exception):
@@ -194,10 +250,12 @@ def validate_large_body(field: Any, raw: bytes, max_depth: int) -> tuple[Any, li
 class BodyParsers:
     """The process's pool for large bodies: ``workers`` threads, ``admitted`` bodies at once."""
 
-    def __init__(self, workers: int, admitted: int):
+    def __init__(self, workers: int, admitted: int, per_client: int = 0):
         self.pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pocketray-body")
         self.admitted = admitted
+        self.per_client = per_client        # slots one client address may hold (0: any number)
         self._in_flight = 0
+        self._by_client: dict[str, int] = {}
         self._lock = threading.Lock()
 
     @classmethod
@@ -207,19 +265,32 @@ class BodyParsers:
         parsers = getattr(state, "body_parsers", None)
         if parsers is None:
             config: ServerConfig = state.config
-            parsers = state.body_parsers = cls(config.parse_workers, config.queue_size)
+            parsers = state.body_parsers = cls(config.parse_workers, config.queue_size, config.body_slots_per_client)
         return parsers
 
-    def try_admit(self) -> bool:
+    def try_admit(self, client: str | None = None) -> str | None:
+        """Take a slot for a body from address ``client``: None when taken, else why not —
+        ``"client"`` (the address holds its share) or ``"full"`` (every slot is held)."""
         with self._lock:
+            held = self._by_client.get(client, 0) if client is not None else 0
+            if client is not None and self.per_client and held >= self.per_client:
+                return "client"
             if self._in_flight >= self.admitted:
-                return False
+                return "full"
             self._in_flight += 1
-            return True
+            if client is not None:
+                self._by_client[client] = held + 1
+            return None
 
-    def release(self) -> None:
+    def release(self, client: str | None = None) -> None:
         with self._lock:
             self._in_flight -= 1
+            if client is not None:
+                held = self._by_client.get(client, 0) - 1
+                if held > 0:
+                    self._by_client[client] = held
+                else:
+                    self._by_client.pop(client, None)
 
     async def run(self, fn: Callable[..., Any], *args: Any) -> Any:
         return await asyncio.get_running_loop().run_in_executor(self.pool, fn, *args)
@@ -261,10 +332,15 @@ class JSONBodyRoute(APIRoute):
             declared = request.headers.get("content-length")
             large = declared is None or not declared.isdigit() or int(declared) > INLINE_BODY_BYTES
             parsers = BodyParsers.of(request) if large else None
-            if parsers is not None and not parsers.try_admit():
-                raise BodiesBusy(parsers.admitted)
+            client = request.client.host if request.client is not None else None
+            if parsers is not None:
+                refused = parsers.try_admit(client)
+                if refused == "client":
+                    raise client_share_taken(client, parsers.per_client, config)
+                if refused == "full":
+                    raise BodiesBusy(parsers.admitted)
             try:
-                raw = await request.body()
+                raw = await (read_steadily(request, config) if parsers is not None else request.body())
                 if not raw:
                     return await handler(request)
                 if parsers is not None and len(raw) > INLINE_BODY_BYTES:
@@ -282,7 +358,7 @@ class JSONBodyRoute(APIRoute):
                     raise RequestValidationError([*others, *errors]) from None
             finally:
                 if parsers is not None:
-                    parsers.release()
+                    parsers.release(client)
         return route
 
 

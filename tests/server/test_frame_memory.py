@@ -1,0 +1,167 @@
+"""The memory of frames in flight (docs/API.md, "Memory budget").
+
+Was: eight concurrent 4096 × 4096 ``normal`` ``npy`` frames peaked at 5.49 GB resident, for a
+budget of 3 GiB: every admitted frame held its render target at once (two RGBA32F attachments,
+host memory on llvmpipe), then its read-back, its result's arrays and three copies of the npy
+array. Frames now reserve their estimated bytes in POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT, a
+frame lets go of its target and read-back as soon as it can, and the npy body is the one copy
+of the array. The tests use a 1 MiB budget and small frames, not 4096² ones.
+"""
+
+from __future__ import annotations
+
+import io
+import threading
+import time
+import tracemalloc
+import warnings
+
+import numpy as np
+import pytest
+
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    from fastapi.testclient import TestClient
+
+from pocketray_server_support import SMALL, make_config, new_session, wait_ready
+from renderer.result import RenderResult, traced_nbytes
+from renderer.settings import RenderSettings
+from server.app import create_app
+from server.service import frame_nbytes
+from server.view import encode
+
+pytestmark = pytest.mark.gl     # the app's lifespan starts the GL worker
+
+SIDE = 256                                  # a 256² normal npy frame: ~5 MB estimated, over the 1 MiB budget
+BUDGET = 1 << 20
+FRAME = {"width": SIDE, "height": SIDE, "mode": "normal", "format": "npy"}
+
+
+@pytest.fixture(scope="module")
+def app(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("frame-memory")
+    with TestClient(create_app(make_config(tmp, max_work=SIDE * SIDE * 2, max_frame_bytes_in_flight=BUDGET,
+                                           queue_size=4))) as c:
+        wait_ready(c.get)
+        yield c
+
+
+def service_of(c: TestClient):
+    return c.app.state.service
+
+
+def test_frames_past_the_byte_budget_are_never_in_flight_together(app, monkeypatch):
+    """Four frames of four sessions at once, each over half the budget: one at a time from
+    its admission to its encoded body (was: all four, as many as POCKETRAY_QUEUE_SIZE admits)."""
+    service = service_of(app)
+    monkeypatch.setattr(service, "FRAME_BYTES_WAIT_S", 30.0, raising=False)     # wait their turn, no 503
+    sids = [new_session(app)["id"] for _ in range(4)]
+    encode_frame = service.encode_frame
+    lock, now, most = threading.Lock(), [0], [0]
+
+    def slow_encode(*args, **kwargs):                            # the stage where all four overlapped
+        with lock:
+            now[0] += 1
+            most[0] = max(most[0], now[0])
+        try:
+            time.sleep(0.3)
+            return encode_frame(*args, **kwargs)
+        finally:
+            with lock:
+                now[0] -= 1
+    monkeypatch.setattr(service, "encode_frame", slow_encode)
+    codes: list[int] = []
+
+    def get(sid: str) -> None:
+        codes.append(app.get(f"/api/sessions/{sid}/frame", params=FRAME).status_code)
+    threads = [threading.Thread(target=get, args=(sid,)) for sid in sids]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(60)
+    assert codes == [200] * 4
+    assert most[0] == 1, most[0]
+    assert service.frame_bytes.used == 0
+
+
+def test_a_frame_that_finds_the_budget_taken_gets_503_with_retry_after(app, monkeypatch):
+    service = service_of(app)
+    sid = new_session(app)["id"]
+    monkeypatch.setattr(service, "FRAME_BYTES_WAIT_S", 0.05)
+    assert service.frame_bytes.acquire(BUDGET, 0)                # another frame holds the whole budget
+    try:
+        r = app.get(f"/api/sessions/{sid}/frame", params=FRAME)
+    finally:
+        service.frame_bytes.release(BUDGET)
+    assert r.status_code == 503 and int(r.headers["retry-after"]) >= 1, r.text
+    assert "POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT" in r.json()["detail"]
+    small = {**FRAME, "width": 16, "height": 16}                 # the budget back: frames are served
+    assert app.get(f"/api/sessions/{sid}/frame", params=small).status_code == 200
+    assert app.get(f"/api/sessions/{sid}/frame", params=FRAME).status_code == 200   # alone, though over it
+
+
+@pytest.mark.parametrize("mode", ["normal", "depth", "primid", "color"])
+def test_the_npy_body_is_the_renderers_array(app, monkeypatch, mode):
+    service = service_of(app)
+    sid = new_session(app)["id"]
+    seen = []
+    encode_frame = service.encode_frame
+
+    def spy(result, *args, **kwargs):
+        seen.append(result.array().copy())
+        return encode_frame(result, *args, **kwargs)
+    monkeypatch.setattr(service, "encode_frame", spy)
+    r = app.get(f"/api/sessions/{sid}/frame", params={**FRAME, "mode": mode, "width": 48, "height": 40})
+    assert r.status_code == 200, r.text
+    got = np.load(io.BytesIO(r.content), allow_pickle=False)
+    want = seen[-1]
+    assert got.dtype == want.dtype and got.shape == want.shape and got.tobytes() == want.tobytes()
+
+
+def strided_result(side: int) -> RenderResult:
+    """A normal result whose array is a strided view (as a read-back's rows turned over are)."""
+    rng = np.random.default_rng(1)
+    hit = rng.random((side, side, 4), dtype=np.float32)
+    return RenderResult(image=np.zeros((side, side, 3), np.float32), depth=hit[..., 3],
+                        primid=np.zeros((side, side), np.int32), normal=hit[::-1][..., :3], mode="normal")
+
+
+def test_npy_encoding_copies_the_array_once():
+    """Was: a contiguous copy of the array, then np.save's copy of it, then the buffer: the
+    encoder's peak was 2-3 times the body; now the body and a 1 MiB chunk."""
+    result = strided_result(1024)
+    tracemalloc.start()
+    try:
+        body, _ = encode(result, "npy", 85)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 1.2 * len(body), (peak, len(body))
+    want = io.BytesIO()
+    np.save(want, np.ascontiguousarray(result.normal), allow_pickle=False)
+    assert body == want.getvalue()
+
+
+def test_the_estimate_of_a_frame_counts_its_target_read_back_and_body():
+    from renderer.gl.targets import BYTES_PER_PIXEL, BYTES_PER_PIXEL_RGBA8, TargetPool
+
+    from renderer.result import TARGET_BYTES_PER_PIXEL, TARGET_BYTES_PER_PIXEL_RGBA8
+    assert (TARGET_BYTES_PER_PIXEL, TARGET_BYTES_PER_PIXEL_RGBA8) == (BYTES_PER_PIXEL, BYTES_PER_PIXEL_RGBA8)
+    pixels = 4096 * 4096
+    big = RenderSettings(width=4096, height=4096, mode="normal", format="npy", samples_per_pixel=1)
+    result = 3 * 4 + 3 * 4 + 4 + 4                                                       # image, normal, depth, primid
+    assert frame_nbytes(big) == 2 * TargetPool.nbytes_of(4096, 4096) + (result + 12) * pixels   # 1.69 GiB
+    png = RenderSettings(width=4096, height=4096, format="png", samples_per_pixel=1)
+    assert frame_nbytes(png) < frame_nbytes(big) / 3
+    assert traced_nbytes(64, 64, 4) > traced_nbytes(64, 64, 1)                          # the sub-pixel grid
+
+
+def test_a_traced_frame_keeps_no_target_or_read_back_once_its_result_is_made(gl_renderer):
+    from renderer.scenarios import scenario
+
+    settings = RenderSettings(**{**SMALL, "mode": "normal", "format": "npy"})
+    frame = gl_renderer.begin(scenario(3, 64), settings)
+    frame.run()
+    assert frame.fbo is None
+    assert frame._centre is None and frame._grid is None      # was: the read-back, as large again as the result
+    assert frame.result().normal.shape == (SMALL["height"], SMALL["width"], 3)
