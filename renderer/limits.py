@@ -79,6 +79,7 @@ MAX_MODEL_NODES = 16_384       # glTF nodes (a flat scene of this many parses in
 MAX_MODEL_NODE_DEPTH = 256     # glTF node-tree levels (the root counts as 1)
 MAX_ACCESSOR_COUNT = 3 * MAX_TRIANGLES      # glTF elements of one accessor (the indices of MAX_TRIANGLES)
 MAX_MODEL_ARRAY_BYTES = 256 << 20           # glTF: the bufferViews' bytes, and the accessors', each summed
+MAX_BUFFERLESS_BYTES = 16 << 20             # glTF: accessors without a bufferView (zeros the file does not hold)
 # Vertices a file may declare per vertex of MAX_MESH_VERTICES (before equal ones are merged: an
 # STL stores three per triangle, a glTF repeats them per instance).
 DECLARED_VERTEX_FACTOR = 3

@@ -135,8 +135,6 @@ def load_mesh(source: str | Path | bytes, file_type: str | None = None, *,
     counts, lengths and node tree are checked first (:func:`renderer.model_guard.check_model`),
     so a parser never allocates what the file only claims; parse in a worker process with a
     deadline when the file comes from someone else (``server/model_worker.py``)."""
-    import trimesh
-
     ft = file_type_of(source, file_type)
     if isinstance(source, (bytes, bytearray, memoryview)):
         data = bytes(source)
@@ -151,6 +149,7 @@ def load_mesh(source: str | Path | bytes, file_type: str | None = None, *,
         base_dir = Path(source).parent
     # the file's own counts and lengths first: the parser would allocate whatever they ask for
     check_model(data, ft, max_triangles=max_triangles, max_vertices=max_vertices, base_dir=base_dir)
+    import trimesh
     try:
         # materials are not read: textures are images to decode, and the tracer needs none
         loaded = trimesh.load(obj, file_type=ft, resolver=None, process=False, skip_materials=True)

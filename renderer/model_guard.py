@@ -167,7 +167,7 @@ def _check_gltf(doc: Any, bin_len: int | None, base_dir: Path | None, max_triang
                            f"{limits.MAX_MODEL_ARRAY_BYTES:,} allowed (MAX_MODEL_ARRAY_BYTES)")
 
     accessors = _list(doc, "accessors", fmt)
-    counts, array_bytes = [], 0
+    counts, array_bytes, zero_bytes = [], 0, 0
     for i, acc in enumerate(accessors):
         where = f"accessors[{i}]"
         if not isinstance(acc, dict):
@@ -193,6 +193,12 @@ def _check_gltf(doc: Any, bin_len: int | None, base_dir: Path | None, max_triang
             raise _refuse(fmt, f"{where}.sparse must be an object of at most {count:,} elements")
         counts.append(count)
         array_bytes += count * element
+        if v is None:
+            zero_bytes += count * element
+            if zero_bytes > limits.MAX_BUFFERLESS_BYTES:
+                raise _refuse(fmt, f"{where} has no bufferView and {count:,} elements: its accessors without data "
+                                   f"would take {zero_bytes:,} bytes of zeros; at most {limits.MAX_BUFFERLESS_BYTES:,} "
+                                   "allowed (MAX_BUFFERLESS_BYTES)")
     if array_bytes > limits.MAX_MODEL_ARRAY_BYTES:
         raise _refuse(fmt, f"its accessors add up to {array_bytes:,} bytes of arrays; at most "
                            f"{limits.MAX_MODEL_ARRAY_BYTES:,} allowed (MAX_MODEL_ARRAY_BYTES)")
@@ -391,7 +397,15 @@ def _check_obj(data: bytes, max_triangles: int, max_vertices: int) -> None:
     try:
         refs = words[words != b"|"].astype(np.int64)
     except ValueError:
-        raise _refuse("obj", "a face holds a vertex reference that is not a whole number") from None
+        for _, text in faces:
+            for ref in text.split():
+                try:
+                    int(ref.split(b"/", 1)[0])
+                except ValueError:
+                    raise _refuse("obj", f"face 'f {text.strip().decode(errors='replace')[:60]}': "
+                                         f"{ref.decode(errors='replace')[:20]!r} is not a whole number "
+                                         "(a vertex reference)") from None
+        raise
     face_of = np.repeat(np.arange(len(faces)), sizes)
     before = np.searchsorted(vertex_at, starts)[face_of]       # vertices defined before each face
     bad = (refs == 0) | (refs > n_vertices) | (-refs > before)
