@@ -42,6 +42,15 @@ _HEADER = struct.Struct("<Q")
 START_TIMEOUT_S = 60.0      # a fresh worker imports numpy and trimesh: seconds on a loaded machine
 
 
+class ParsersBusy(Exception):
+    """Every worker stayed busy (or one could not start): a 503 with Retry-After. The service
+    passes its own ``Busy`` (``busy=``), which its error handlers answer so."""
+
+    def __init__(self, message: str, retry_after_s: int = 1):
+        super().__init__(message)
+        self.retry_after_s = retry_after_s
+
+
 class _Worker:
     """One worker process and its two pipes."""
 
@@ -121,9 +130,10 @@ class ModelWorkers:
             self._all.add(w)
         return w
 
-    def load(self, data: bytes, fmt: str | None, max_triangles: int, max_vertices: int):
+    def load(self, data: bytes, fmt: str | None, max_triangles: int, max_vertices: int,
+             busy: type[Exception] = ParsersBusy):
         """:class:`renderer.mesh_io.MeshData` of the file, or SceneError (``format`` or
-        ``file``: what is wrong, a limit it exceeds, or the deadline it missed); ``Busy`` (503)
+        ``file``: what is wrong, a limit it exceeds, or the deadline it missed); ``busy`` (503)
         when every worker stays busy for ``timeout_s``."""
         from renderer.mesh_io import MeshData, file_type_of
         from renderer.scene import SceneError
@@ -132,14 +142,12 @@ class ModelWorkers:
         try:
             w = self._idle.get(timeout=self.timeout_s)
         except queue.Empty:
-            from .service import Busy
-            raise Busy(f"model files: all {len(self._all)} parsers busy (POCKETRAY_MODEL_WORKERS); retry",
+            raise busy(f"model files: all {len(self._all)} parsers busy (POCKETRAY_MODEL_WORKERS); retry",
                        retry_after_s=max(1, round(self.timeout_s))) from None
         healthy = False
         try:
             if not w.wait_ready():
-                from .service import Busy
-                raise Busy(f"model files: a parser process did not start (exit status {w.proc.poll()}; "
+                raise busy(f"model files: a parser process did not start (exit status {w.proc.poll()}; "
                            f"POCKETRAY_MODEL_MEMORY_BYTES = {self.memory_bytes >> 20} MiB must hold its imports); "
                            "retry", retry_after_s=5)
             answer = w.run((bytes(data), ft, max_triangles, max_vertices), self.timeout_s)
@@ -192,15 +200,17 @@ def workers_for(config) -> ModelWorkers | None:
         return pool
 
 
-def load_model(config, data: bytes, fmt: str | None, *, max_triangles: int, max_vertices: int | None = None):
-    """:func:`renderer.mesh_io.load_mesh` of an uploaded file, in a worker process (above)."""
+def load_model(config, data: bytes, fmt: str | None, *, max_triangles: int, max_vertices: int | None = None,
+               busy: type[Exception] = ParsersBusy):
+    """:func:`renderer.mesh_io.load_mesh` of an uploaded file, in a worker process (above);
+    ``busy(message, retry_after_s=)`` is raised when no worker is free."""
     from renderer.limits import MAX_MESH_VERTICES
     from renderer.mesh_io import load_mesh
     max_vertices = MAX_MESH_VERTICES if max_vertices is None else max_vertices
     pool = workers_for(config)
     if pool is None:
         return load_mesh(data, fmt, max_triangles=max_triangles, max_vertices=max_vertices)
-    return pool.load(data, fmt, max_triangles, max_vertices)
+    return pool.load(data, fmt, max_triangles, max_vertices, busy)
 
 
 @atexit.register

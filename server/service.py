@@ -355,7 +355,7 @@ class SessionService:
                                         f"({self.config.max_triangles}, POCKETRAY_MAX_TRIANGLES)" if data else
                              "empty body: send the model file's bytes")
         try:
-            parsed = load_model(self.config, data, query.format, max_triangles=min(room, MAX_TRIANGLES))
+            parsed = load_model(self.config, data, query.format, max_triangles=min(room, MAX_TRIANGLES), busy=Busy)
         except SceneError as e:
             where = ("query", "format") if e.field == "format" else ("body",)
             raise InputError(where, f"{e.message}" + (f" (POCKETRAY_MAX_TRIANGLES = {self.config.max_triangles}, "

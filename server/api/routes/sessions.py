@@ -15,7 +15,7 @@ from renderer.scene import SceneError
 from ...model_worker import load_model
 from ...models import (CameraModel, CameraOut, FullSettings, MeshAdded, MeshModel, MeshUploadQuery, SceneInfo,
                        SceneModel, SessionCreate, SessionOut, SettingsOut, SettingsPatch, VersionOut)
-from ...service import InputError
+from ...service import Busy, InputError
 from ...scenes import scene_json_chunks
 from ...store import SessionState
 from ..deps import ServiceDep, SessionId
@@ -106,7 +106,8 @@ async def convert_mesh(request: Request, query: Annotated[MeshUploadQuery, Query
 
     def convert() -> bytes:
         try:
-            parsed = load_model(service.config, data, query.format, max_triangles=service.config.max_triangles)
+            parsed = load_model(service.config, data, query.format, max_triangles=service.config.max_triangles,
+                                busy=Busy)
             mesh = parsed.to_json(query.material, fit_transform(parsed, query.size) if query.size else None,
                                   query.smooth)
         except SceneError as e:
