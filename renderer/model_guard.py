@@ -35,7 +35,16 @@ def check_model(data: bytes, ft: str, *, max_triangles: int = limits.MAX_TRIANGL
     ``max_triangles`` triangles or ``DECLARED_VERTEX_FACTOR × max_vertices`` vertices, or
     disagree with the bytes it holds. ``base_dir``: where a glTF's external buffers are (a
     file given by path); None: a glTF given as bytes has none."""
-    max_declared_vertices = limits.DECLARED_VERTEX_FACTOR * max_vertices
+    try:
+        _check(data, ft, max_triangles, limits.DECLARED_VERTEX_FACTOR * max_vertices, base_dir)
+    except SceneError:
+        raise
+    except (ValueError, TypeError, KeyError, IndexError, AttributeError, struct.error, RecursionError) as e:
+        # a structure the checks did not foresee (a list where a number belongs, bad base64 …)
+        raise _refuse(ft, f"not a readable {ft.upper()} file ({type(e).__name__}: {str(e)[:200]})") from None
+
+
+def _check(data: bytes, ft: str, max_triangles: int, max_declared_vertices: int, base_dir: Path | None) -> None:
     if ft == "glb":
         doc, bin_len = _glb_chunks(data)
         _check_gltf(doc, bin_len, None, max_triangles, max_declared_vertices, "glb")

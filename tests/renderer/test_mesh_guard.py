@@ -206,3 +206,17 @@ def test_a_text_model_that_is_not_utf8_loads():
     assert any(d.replace("_", "-").lower().startswith("charset-normalizer") for d in project["dependencies"])
     obj = "# modèle éprouvé, café\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".encode("latin-1")
     assert load_mesh(obj, "obj").n_triangles == 1
+
+
+@pytest.mark.parametrize("doc", [
+    {"accessors": [{"componentType": [5126], "count": 3, "type": "VEC3"}]},
+    {"accessors": [{"componentType": 5126, "count": -3, "type": "VEC3"}]},
+    {"buffers": [{"byteLength": 3, "uri": "data:x;base64,@@@"}]},
+    {"nodes": [{"children": "0"}]},
+    {"meshes": [{"primitives": [{"attributes": {"POSITION": 5}}]}]},
+    {"scenes": [{"nodes": [0]}], "scene": 3},
+    [1, 2, 3],
+])
+def test_malformed_gltf_structures_are_refused_as_the_file(doc):
+    assert refused(json.dumps(doc).encode(), "gltf").startswith("GLTF: ")
+    assert refused(b"[" * 100_000 + b"]" * 100_000, "gltf").startswith("GLTF: ")
