@@ -14,6 +14,7 @@ more than the file's own size. GL-free and server-free, like the rest of the cor
 from __future__ import annotations
 
 import base64
+import gc
 import json
 import re
 import struct
@@ -50,7 +51,7 @@ def _check(data: bytes, ft: str, max_triangles: int, max_declared_vertices: int,
         _check_gltf(doc, bin_len, None, max_triangles, max_declared_vertices, "glb")
     elif ft == "gltf":
         try:
-            doc = json.loads(bytes(data).decode("utf-8-sig"))
+            doc = _json(bytes(data))
         except (UnicodeDecodeError, ValueError) as e:
             raise _refuse(ft, f"not a glTF JSON document ({e})") from None
         _check_gltf(doc, None, base_dir, max_triangles, max_declared_vertices, "gltf")
@@ -67,6 +68,18 @@ _COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
 _TYPE_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 
 
+def _json(text: bytes) -> Any:
+    """The JSON document, parsed without a garbage collection meanwhile: 100,000 nodes are as
+    many dicts, and each collection they trigger would walk the whole heap of the process."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        return json.loads(text.decode("utf-8-sig"))
+    finally:
+        if was:
+            gc.enable()
+
+
 def _glb_chunks(data: bytes) -> tuple[Any, int | None]:
     """The GLB's JSON document and its BIN chunk's length (None without one)."""
     if len(data) < 20 or data[:4] != b"glTF":
@@ -81,7 +94,7 @@ def _glb_chunks(data: bytes) -> tuple[Any, int | None]:
         raise _refuse("glb", f"the first chunk must be JSON within the file ({json_len:,} bytes declared, "
                              f"{length - 20:,} there)")
     try:
-        doc = json.loads(bytes(data[20:20 + json_len]).decode("utf-8-sig"))
+        doc = _json(bytes(data[20:20 + json_len]))
     except (UnicodeDecodeError, ValueError) as e:
         raise _refuse("glb", f"its JSON chunk is not JSON ({e})") from None
     bin_len = None

@@ -96,7 +96,7 @@ def test_a_glb_chain_of_100000_nodes_is_refused_in_well_under_a_second():
     data = triangle_glb([{"children": [i + 1]} for i in range(n - 1)] + [{"mesh": 0}], [0])
     t0 = time.perf_counter()
     msg = refused(data, "glb")
-    assert time.perf_counter() - t0 < 0.5
+    assert time.perf_counter() - t0 < 1.0          # ~0.1 s here; before: 80 s
     assert f"{n:,} nodes; at most {limits.MAX_MODEL_NODES:,}" in msg
     # within the node cap, the depth is bounded
     n = limits.MAX_MODEL_NODE_DEPTH + 1
