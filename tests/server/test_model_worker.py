@@ -10,9 +10,10 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from renderer.mesh_io import export_mesh
+from renderer.mesh_io import MeshData, export_mesh
 from renderer.meshes import icosphere
 from renderer.scene import SceneError
 from server.config import ServerConfig
@@ -23,8 +24,10 @@ SMALL = export_mesh(icosphere(1), "obj")
 
 @pytest.fixture(scope="module")
 def large() -> bytes:
-    """327,680 triangles as PLY (8 MB): ~0.3-0.6 s to parse, ~120 MiB of the worker's memory."""
-    return export_mesh(icosphere(7), "ply")
+    """400,000 random triangles over 200,000 vertices as binary PLY (7.2 MB): ~0.3 s to parse,
+    over 100 MiB of the worker's memory."""
+    rng = np.random.default_rng(1)
+    return export_mesh(MeshData(rng.random((200_000, 3)), rng.integers(0, 200_000, (400_000, 3))), "ply")
 
 
 def vm_kib(pid: int | str, key: str) -> int:
@@ -58,7 +61,7 @@ def test_a_file_that_needs_more_than_the_memory_limit_is_refused_inside_its_work
         probe.load(SMALL, "obj", 1 << 20, 1 << 20)
         (w,) = probe._all
         base = vm_kib(w.proc.pid, "VmSize") << 10              # the worker's address space, imports done
-        assert probe.load(large, "ply", 1 << 20, 1 << 20).n_triangles == 327_680
+        assert probe.load(large, "ply", 1 << 20, 1 << 20).n_triangles == 400_000
     finally:
         probe.close()
     pool = ModelWorkers(1, 30, base + (48 << 20))
