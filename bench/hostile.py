@@ -716,6 +716,164 @@ def part_trickle(root: Path, args) -> dict:
 # ---- end of: memory of frames in flight, and trickling large bodies -------------------------------------
 
 
+# ---- model files (issue 24: hostile glTF/GLB bodies; renderer/model_guard.py, server/model_worker.py) -------------
+def accessor_gltf(count: int) -> bytes:
+    """~250 bytes: one accessor of ``count`` VEC3 without a bufferView (zeros the file does not hold)."""
+    return json.dumps({"asset": {"version": "2.0"}, "bufferViews": [],
+                       "accessors": [{"componentType": 5126, "count": count, "type": "VEC3"}],
+                       "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "nodes": [{"mesh": 0}],
+                       "scenes": [{"nodes": [0]}], "scene": 0}).encode()
+
+
+def chain_glb(n: int) -> bytes:
+    """A GLB of one triangle under a chain of ``n`` nodes (the parser's cost grows with depth²)."""
+    import struct
+    tri = b"".join(struct.pack("<3f", *v) for v in ((0, 0, 0), (1, 0, 0), (0, 1, 0)))
+    doc = {"asset": {"version": "2.0"}, "buffers": [{"byteLength": 36}],
+           "bufferViews": [{"buffer": 0, "byteLength": 36}],
+           "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                          "min": [0, 0, 0], "max": [1, 1, 0]}],
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+           "nodes": [{"children": [i + 1]} for i in range(n - 1)] + [{"mesh": 0}],
+           "scenes": [{"nodes": [0]}], "scene": 0}
+    j = json.dumps(doc).encode()
+    j += b" " * (-len(j) % 4)
+    body = struct.pack("<I4s", len(j), b"JSON") + j + struct.pack("<I4s", 36, b"BIN\0") + tri
+    return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
+
+
+def children_hwm_mib(pid: int) -> float:
+    """The largest VmHWM of ``pid``'s child processes (the model-file workers), MiB; 0 without any."""
+    kids: list[str] = []
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            kids += (task / "children").read_text().split()
+        except OSError:
+            pass
+    best = 0.0
+    for kid in kids:
+        try:
+            for line in Path(f"/proc/{kid}/status").read_text().splitlines():
+                if line.startswith("VmHWM:"):
+                    best = max(best, int(line.split()[1]) / 1024)
+        except OSError:
+            pass
+    return round(best)
+
+
+def post_model(url: str, data: bytes, fmt: str, out: list, timeout: float = 600) -> None:
+    t0 = time.perf_counter()
+    r = httpx.post(url + "/api/meshes", params={"format": fmt}, content=data,
+                   headers={"content-type": "application/octet-stream"}, timeout=timeout)
+    detail = r.json().get("detail") if r.headers.get("content-type", "").startswith("application/json") else None
+    msg = detail[0].get("msg") if isinstance(detail, list) and detail else detail
+    out.append((r.status_code, round(time.perf_counter() - t0, 2), str(msg)[:140] if msg else None))
+
+
+def part_model_accessor(root: Path, args) -> dict:
+    """A ~250-byte glTF whose accessor claims N VEC3 without data: one, then --model-parallel at
+    once (a fresh server each): seconds, answers, the server's peak memory above idle and the
+    model-file workers' peak (0 when the parse runs in the server)."""
+    out = {}
+    for count in args.accessor_counts:
+        body = accessor_gltf(count)
+        for k in sorted({1, args.model_parallel}):
+            if (count, k) in args.skip_model:
+                out[f"{count:,} x{k}"] = "skipped (--skip-model)"
+                continue
+            s = Server(root)
+            try:
+                post_model(s.url, export_box_obj(), "obj", [])     # the first upload starts the parsers
+                idle = s.memory()
+                got: list = []
+                t0 = time.perf_counter()
+                threads = [threading.Thread(target=post_model, args=(s.url, body, "gltf", got)) for _ in range(k)]
+                for t in threads:
+                    t.start()
+                for t in threads:
+                    t.join()
+                mem = s.memory()
+                out[f"{count:,} x{k}"] = {
+                    "body_bytes": len(body), "codes": sorted(c for c, _, _ in got),
+                    "seconds": round(time.perf_counter() - t0, 2), "each_s": sorted(x for _, x, _ in got),
+                    "peak_above_idle_mib": round(mem["VmHWM"] - idle["VmRSS"]),
+                    "workers_peak_mib": children_hwm_mib(s.proc.pid), "answer": got[0][2]}
+                print(f"  {count:,} x{k}: {json.dumps(out[f'{count:,} x{k}'])}", flush=True)
+            finally:
+                s.close()
+    return out
+
+
+def export_box_obj() -> bytes:
+    return b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n"
+
+
+def part_model_chain(root: Path, args) -> dict:
+    """A GLB chain of N nodes over one triangle: its answer time, and /api/health latency
+    (polled every 20 ms) while it is parsed, then while --model-parallel of them are."""
+    out = {}
+    s = Server(root)
+    try:
+        post_model(s.url, export_box_obj(), "obj", [])
+        with httpx.Client(base_url=s.url, timeout=60) as c:
+            idle = []
+            for _ in range(20):
+                t0 = time.perf_counter()
+                c.get("/api/health")
+                idle.append(time.perf_counter() - t0)
+            out["idle_health_p50_ms"] = round(1e3 * statistics.median(idle), 1)
+            for n in args.chain_nodes:
+                body = chain_glb(n)
+                for k in sorted({1, args.model_parallel}) if n == min(args.chain_nodes) else (1,):
+                    got: list = []
+                    threads = [threading.Thread(target=post_model, args=(s.url, body, "glb", got)) for _ in range(k)]
+                    waits = []
+                    t_start = time.perf_counter()
+                    for t in threads:
+                        t.start()
+                    while any(t.is_alive() for t in threads) and time.perf_counter() - t_start < 600:
+                        t0 = time.perf_counter()
+                        c.get("/api/health")
+                        waits.append(time.perf_counter() - t0)
+                        time.sleep(0.02)
+                    for t in threads:
+                        t.join()
+                    w = sorted(waits)
+                    out[f"{n:,} x{k}"] = {
+                        "body_mb": round(len(body) / 1e6, 2), "codes": sorted(c_ for c_, _, _ in got),
+                        "each_s": sorted(x for _, x, _ in got), "health_calls": len(w),
+                        "health_p50_ms": round(1e3 * statistics.median(w), 1) if w else None,
+                        "health_p99_ms": round(1e3 * w[int(0.99 * (len(w) - 1))], 1) if w else None,
+                        "health_max_ms": round(1e3 * w[-1], 1) if w else None, "answer": got[0][2]}
+                    print(f"  {n:,} x{k}: {json.dumps(out[f'{n:,} x{k}'])}", flush=True)
+    finally:
+        s.close()
+    return out
+
+
+def part_model_overhead(root: Path, args) -> dict:
+    """What a valid upload costs: POST /api/meshes of a small OBJ (80 triangles) and of a
+    327,680-triangle PLY (8 MB), median of --model-repeats (one at a time, 0.2 s apart)."""
+    from renderer.mesh_io import export_mesh
+    from renderer.meshes import icosphere
+    out = {}
+    s = Server(root, max_body_bytes=str(32 * MIB))
+    try:
+        post_model(s.url, export_box_obj(), "obj", [])
+        for name, data, fmt in (("obj_80_tris", export_mesh(icosphere(1), "obj"), "obj"),
+                                ("ply_327680_tris", export_mesh(icosphere(7), "ply"), "ply")):
+            got: list = []
+            for _ in range(args.model_repeats):
+                time.sleep(0.2)
+                post_model(s.url, data, fmt, got)
+            out[name] = {"bytes": len(data), "codes": sorted(set(c for c, _, _ in got)),
+                         "median_s": round(statistics.median(x for _, x, _ in got), 3)}
+    finally:
+        s.close()
+    return out
+# ---- end of model files ---------------------------------------------------------------------------------------------
+
+
 PARTS = {"targets": part_targets, "bad": part_bad, "largest": part_largest, "recipe": part_recipe,
          "health": part_health,
          "stalled": part_stalled,
@@ -723,7 +881,9 @@ PARTS = {"targets": part_targets, "bad": part_bad, "largest": part_largest, "rec
          # WebSockets and slow readers
          "ws_keepalive": part_ws_keepalive, "ws_slots": part_ws_slots, "ws_flood": part_ws_flood,
          "unread": part_unread,
-         "frames": part_frames, "trickle": part_trickle}
+         "frames": part_frames, "trickle": part_trickle,
+         "model_accessor": part_model_accessor, "model_chain": part_model_chain,
+         "model_overhead": part_model_overhead}
 
 
 def parser() -> argparse.ArgumentParser:
@@ -755,6 +915,14 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--frames", type=int, default=8, help="frames: how many at once")
     ap.add_argument("--frame-side", type=int, default=4096, help="frames: their side (normal, npy)")
     ap.add_argument("--trickle-s", type=float, default=30.0, help="trickle: seconds of the attack")
+    ap.add_argument("--accessor-counts", type=lambda v: [int(x) for x in v.split(",")],
+                    default=[30_000_000, 90_000_000], help="model_accessor: the VEC3 counts the glTF claims (comma-separated)")
+    ap.add_argument("--chain-nodes", type=lambda v: [int(x) for x in v.split(",")], default=[25_000, 50_000, 100_000],
+                    help="model_chain: the chains' node counts (comma-separated)")
+    ap.add_argument("--model-parallel", type=int, default=3, help="model parts: the bodies sent at once")
+    ap.add_argument("--model-repeats", type=int, default=9, help="model_overhead: uploads per file")
+    ap.add_argument("--skip-model", type=lambda v: {(int(c), int(k)) for c, k in (p.split("x") for p in v.split(","))},
+                    default=set(), help="model_accessor: COUNTxK cases not run (e.g. 90000000x3: ~20 GB before)")
     ap.add_argument("--json", type=Path, help="write the figures here too")
     return ap
 

@@ -70,6 +70,21 @@ MAX_TRIANGLES = 1 << 20        # per scene, all meshes together
 MAX_MESH_VERTICES = 1 << 20    # per mesh
 MAX_MESHES = 256               # per scene
 
+# ---- model files ---------------------------------------------------------------------------
+# renderer/model_guard.py checks a model file's own numbers (counts, lengths, the node tree)
+# against these before a parser allocates what they ask for: a 250-byte glTF may claim 30
+# million vertices, a 2 MB GLB a chain of 100,000 nodes (the parser's cost grows with the
+# square of the depth). Each bound is far above what a model of MAX_TRIANGLES needs.
+MAX_MODEL_NODES = 16_384       # glTF nodes (a flat scene of this many parses in ~0.6 s)
+MAX_MODEL_NODE_DEPTH = 256     # glTF node-tree levels (the root counts as 1)
+MAX_ACCESSOR_COUNT = 3 * MAX_TRIANGLES      # glTF elements of one accessor (the indices of MAX_TRIANGLES)
+MAX_MODEL_ARRAY_BYTES = 256 << 20           # glTF: the bufferViews' bytes, and the accessors', each summed
+MAX_BUFFERLESS_BYTES = 16 << 20             # glTF: accessors without a bufferView (zeros the file does not hold)
+# Vertices a file may declare per vertex of MAX_MESH_VERTICES (before equal ones are merged: an
+# STL stores three per triangle, a glTF repeats them per instance).
+DECLARED_VERTEX_FACTOR = 3
+MAX_PLY_HEADER_BYTES = 64 << 10             # a PLY header (text up to end_header)
+
 # ---- GPU data ------------------------------------------------------------------------------
 DEFAULT_TEXTURE_WIDTH = 4096   # texture rows; WebGL2 guarantees 2048, most phones have 4096
 MAX_DEVICE_TEXTURE_SIZE = 1 << 16   # the largest MAX_TEXTURE_SIZE a device may report (GPUs: ≤ 32,768)

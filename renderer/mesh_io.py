@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from . import limits
+from .model_guard import check_model
 from .scene import Camera, Light, Material, Mesh, Plane, Scene, SceneError, make_mesh
 
 MODEL_FORMATS = ("obj", "ply", "stl", "glb", "gltf")
@@ -130,18 +131,28 @@ def load_mesh(source: str | Path | bytes, file_type: str | None = None, *,
     """Parse a model file (path or bytes; ``file_type`` one of :data:`MODEL_FORMATS`, from the
     suffix when None) into :class:`MeshData`. SceneError ``format`` for an unknown format,
     ``file`` for a file that is not a model of that format, holds no triangle, or exceeds
-    ``max_triangles`` / ``max_vertices`` (after merging equal vertices)."""
-    import trimesh
-
+    ``max_triangles`` / ``max_vertices`` (after merging equal vertices). The file's declared
+    counts, lengths and node tree are checked first (:func:`renderer.model_guard.check_model`),
+    so a parser never allocates what the file only claims; parse in a worker process with a
+    deadline when the file comes from someone else (``server/model_worker.py``)."""
     ft = file_type_of(source, file_type)
     if isinstance(source, (bytes, bytearray, memoryview)):
-        obj: Any = io.BytesIO(bytes(source))          # in memory, with no resolver: no other file is read
-        resolver = None
+        data = bytes(source)
+        obj: Any = io.BytesIO(data)                   # in memory, with no resolver: no other file is read
+        base_dir = None
     else:
-        obj = str(source)
-        resolver = None                               # trimesh resolves a path's neighbours itself
+        try:
+            data = Path(source).read_bytes()
+        except OSError as e:
+            raise SceneError("file", f"cannot read {str(source)!r} ({e.strerror or e})") from None
+        obj = str(source)                             # trimesh resolves a path's neighbours itself
+        base_dir = Path(source).parent
+    # the file's own counts and lengths first: the parser would allocate whatever they ask for
+    check_model(data, ft, max_triangles=max_triangles, max_vertices=max_vertices, base_dir=base_dir)
+    import trimesh
     try:
-        loaded = trimesh.load(obj, file_type=ft, resolver=resolver, process=False)
+        # materials are not read: textures are images to decode, and the tracer needs none
+        loaded = trimesh.load(obj, file_type=ft, resolver=None, process=False, skip_materials=True)
         parts = _parts(loaded)
     except SceneError:
         raise

@@ -153,6 +153,23 @@ class ServerConfig(BaseSettings):
         description="of the POCKETRAY_QUEUE_SIZE large-body slots, the most one client address holds at once "
                     "(0: no cap); beyond: 429 with Retry-After. Behind a proxy every client is the proxy's "
                     "address: set 0 or POCKETRAY_QUEUE_SIZE and let the proxy bound each client")
+
+    # --- model files (server/model_worker.py): parsed in worker processes with a deadline and a memory limit
+    model_workers: int = Field(
+        2, ge=0, le=64,
+        description="processes that parse uploaded model files, kept warm (started at the first upload); busy "
+                    "for POCKETRAY_MODEL_TIMEOUT_S: 503. 0: parse in the service's own process, without deadline "
+                    "or memory limit")
+    model_timeout_s: float = Field(
+        20.0, gt=0, le=3600,
+        description="longest parse of one model file, seconds (wall clock, and its CPU time): then the worker is "
+                    "killed and the file refused with 422")
+    model_memory_bytes: int = Field(
+        2 << 30, ge=512 << 20,
+        description="address space of one model-file worker, bytes (RLIMIT_AS, the worker's imports included: "
+                    "~0.4 GiB); a file that needs more is refused with 422")
+
+    # --- the session store's faults -------------------------------------------------------
     sqlite_on_corrupt: Literal["move_aside", "refuse"] = Field(
         "move_aside",
         description="a session store file that is not a readable SQLite database at start-up: move_aside (rename "

@@ -33,7 +33,7 @@ from renderer.accel.base import NOT_ON_GPU
 from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum, pose
 from renderer.cost import largest_accepted
 from renderer.limits import DEFAULT_TEXTURE_WIDTH, MAX_TRIANGLES, SAMPLES_PER_PIXEL
-from renderer.mesh_io import fit_transform, load_mesh
+from renderer.mesh_io import fit_transform
 from renderer.methods import AUTO_METHOD, METHODS, capabilities, resolve_method
 from renderer.prepare import PreparedFrame, band_rows, batch_size, prepare_frame
 from renderer.result import traced_nbytes
@@ -45,6 +45,7 @@ from renderer.tree_update import TreeUpdate
 from . import controller, metrics
 from .config import ServerConfig
 from .gl_worker import FrameCancelled, FrameHandle, GLWorker, QueueFull, Ticket
+from .model_worker import load_model
 from .models import (MeshUploadQuery, OrbitGesture, PanGesture, PinchGesture, ResetGesture, SceneModel,
                      SessionCreate, SettingsPatch)
 from .scenes import (SceneCache, SessionScene, camera_from_model, load_source, museum_source, scenario_source,
@@ -420,7 +421,7 @@ class SessionService:
                                         f"({self.config.max_triangles}, POCKETRAY_MAX_TRIANGLES)" if data else
                              "empty body: send the model file's bytes")
         try:
-            parsed = load_mesh(data, query.format, max_triangles=min(room, MAX_TRIANGLES))
+            parsed = load_model(self.config, data, query.format, max_triangles=min(room, MAX_TRIANGLES), busy=Busy)
         except SceneError as e:
             where = ("query", "format") if e.field == "format" else ("body",)
             raise InputError(where, f"{e.message}" + (f" (POCKETRAY_MAX_TRIANGLES = {self.config.max_triangles}, "

@@ -5,9 +5,11 @@ refused with 422 by those that do not (the ray engines, naming ``method``)."""
 
 from __future__ import annotations
 
+import base64
 import io
 import json
 import math
+import time
 import warnings
 
 import numpy as np
@@ -265,3 +267,58 @@ def test_a_mesh_scene_recipe_makes_a_session_of_its_triangles(api):
         bad = api.post("/api/sessions", json=body)
         assert bad.status_code == 422, (body, bad.text)
         assert any(field in [str(x) for x in d["loc"]] or field in d["msg"] for d in bad.json()["detail"]), bad.text
+
+
+def vm_hwm_kib() -> int:
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1])
+    raise AssertionError("no VmHWM")
+
+
+def test_hostile_model_files_get_a_quick_422_naming_the_problem(api):
+    """A 250-byte glTF whose accessor claims 30,000,000 vertices (before: 2.3 GB of peak memory
+    and 7.5 s, in the service's own process, then 422), a node tree deeper than the limit, a
+    binary STL whose header count disagrees with its length (before: ModuleNotFoundError where
+    charset-normalizer was not installed), a PLY short of its declared faces and an OBJ face
+    of index 0 (both accepted before): each refused with 422 saying what is wrong."""
+    octets = {"content-type": "application/octet-stream"}
+    assert api.post("/api/meshes", params={"format": "obj"}, content=export_mesh(box(), "obj"),
+                    headers=octets).status_code == 200          # the parser processes have started
+    claim = json.dumps({"asset": {"version": "2.0"}, "bufferViews": [],
+                        "accessors": [{"componentType": 5126, "count": 30_000_000, "type": "VEC3"}],
+                        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "nodes": [{"mesh": 0}],
+                        "scenes": [{"nodes": [0]}], "scene": 0}).encode()
+    sid = create(api, mesh_scene_json()).json()["id"]
+    hwm = vm_hwm_kib()
+    for send in (lambda: api.post("/api/meshes", params={"format": "gltf"}, content=claim, headers=octets),
+                 lambda: upload(api, sid, claim, format="gltf")):
+        t0 = time.perf_counter()
+        r = send()
+        assert time.perf_counter() - t0 < 3.0
+        assert_422(r, "body")
+        assert "accessors[0].count = 30,000,000; at most 3,145,728 allowed" in r.text
+    assert vm_hwm_kib() - hwm < 100 * 1024             # KiB: no array of 30 M vertices here
+
+    stl = export_mesh(icosphere(1), "stl")
+    r = upload(api, sid, stl[:80] + (81).to_bytes(4, "little") + stl[84:], format="stl")
+    assert_422(r, "body")
+    assert "header says 81 triangles, which take 84 + 50 × 81 = 4,134 bytes; the file has 4,084" in r.text
+    ply = (b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+           b"element face 1000\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    assert "element face 1,000 (1,003 rows); the file holds 4" in upload(api, sid, ply, format="ply").text
+    r = upload(api, sid, b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", format="obj")
+    assert_422(r, "body")
+    assert "vertex index 0" in r.text
+    tri = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32).tobytes()
+    nodes = [{"children": [i + 1]} for i in range(299)] + [{"mesh": 0}]
+    doc = {"asset": {"version": "2.0"}, "buffers": [{"byteLength": 36}],
+           "bufferViews": [{"buffer": 0, "byteLength": 36}],
+           "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}],
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "nodes": nodes,
+           "scenes": [{"nodes": [0]}], "scene": 0}
+    doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(tri).decode()
+    r = upload(api, sid, json.dumps(doc).encode(), format="gltf")
+    assert_422(r, "body")
+    assert "MAX_MODEL_NODE_DEPTH" in r.text
+    assert api.get(f"/api/sessions/{sid}").json()["scene_info"]["n_meshes"] == 2      # nothing was added

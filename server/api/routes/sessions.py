@@ -9,12 +9,13 @@ from fastapi import APIRouter, Body, Query, Request, Response
 from fastapi.responses import StreamingResponse
 from starlette.concurrency import run_in_threadpool
 
-from renderer.mesh_io import MODEL_FORMATS, fit_transform, load_mesh
+from renderer.mesh_io import MODEL_FORMATS, fit_transform
 from renderer.scene import SceneError
 
+from ...model_worker import load_model
 from ...models import (CameraModel, CameraOut, FullSettings, MeshAdded, MeshModel, MeshUploadQuery, SceneInfo,
                        SceneModel, SessionCreate, SessionOut, SettingsOut, SettingsPatch, VersionOut)
-from ...service import InputError
+from ...service import Busy, InputError
 from ...scenes import scene_json_chunks
 from ...store import SessionState
 from ..deps import ServiceDep, SessionCreateRate, SessionId
@@ -106,7 +107,8 @@ async def convert_mesh(request: Request, query: Annotated[MeshUploadQuery, Query
 
     def convert() -> bytes:
         try:
-            parsed = load_mesh(data, query.format, max_triangles=service.config.max_triangles)
+            parsed = load_model(service.config, data, query.format, max_triangles=service.config.max_triangles,
+                                busy=Busy)
             mesh = parsed.to_json(query.material, fit_transform(parsed, query.size) if query.size else None,
                                   query.smooth)
         except SceneError as e:
