@@ -268,7 +268,7 @@ def _stack_children(pid: int) -> dict:
             continue
         if "Z" in state.split()[1]:
             continue                     # exited, not yet reaped
-        if argv[0].endswith("redis-server"):
+        if "redis-server" in argv[0]:      # it rewrites its title: "redis-server 127.0.0.1:port"
             out["redis"] = k
         elif argv[0].endswith("haproxy"):
             out["haproxy"] = k
@@ -313,7 +313,8 @@ async def _stack_load(url: str, sids: list[str], t0: float, until: float, log: l
 
 
 def _stack_phase(log: list, lo: float, hi: float) -> dict:
-    rows = [r for r in log if lo <= r[0] < hi]
+    """The requests that ended in [lo, hi) (a request in flight when a phase begins is that phase's)."""
+    rows = [r for r in log if lo <= r[1] < hi]
     failed = [r for r in rows if r[3] is None or r[3] >= 400]
     kinds: dict[str, int] = {}
     for r in failed:
@@ -323,7 +324,7 @@ def _stack_phase(log: list, lo: float, hi: float) -> dict:
         kinds[key] = kinds.get(key, 0) + 1
     return {"requests": len(rows), "failed": len(failed),
             "failed_pct": round(100 * len(failed) / max(1, len(rows)), 2), "failures": kinds,
-            "examples": sorted({r[8] for r in failed if r[8]})[:3]}
+            "examples": sorted({f"{r[2]} {r[8]}" for r in failed if r[8]})[:4]}
 
 
 def part_stack(root: Path, args) -> dict:
@@ -397,8 +398,8 @@ def part_stack(root: Path, args) -> dict:
         if "continued" in events:
             cont = events["continued"]
             out["redis_paused"] = _stack_phase(log, t_pause, cont)
-            out["redis_back"] = _stack_phase(log, cont, t_end)
-            late = [r for r in log if r[0] >= t_pause and r[3] is not None and r[3] >= 400 and r[1] > cont]
+            out["redis_back"] = _stack_phase(log, cont, t_end + 60)
+            late = [r for r in log if (r[3] is None or r[3] >= 400) and r[1] > cont]
             first_ok = min((r[1] for r in log if r[0] >= cont and r[3] is not None and r[3] < 400), default=None)
             out["redis_back"]["last_failure_after_return_s"] = round(max((r[1] for r in late), default=cont) - cont, 2)
             out["redis_back"]["first_success_after_return_s"] = round(first_ok - cont, 2) if first_ok else None
