@@ -46,6 +46,7 @@ SESSION_HEADER = "X-Session-Id"
 SERVED_BY_HEADER = "X-Served-By"
 HASH_BALANCE_FACTOR = 150      # % of the mean load a server may take before the next one is used
 CHECK_INTERVAL_MS = 500
+CONNECT_TIMEOUT_MS = 250       # a render process on this host or the LAN accepts within a millisecond
 CHECK_TIMEOUT_MS = 2000        # /api/ready answers from the event loop; slower than this is a hung process
 CHECK_FALL = 2                 # failed checks before a server is taken out
 CHECK_RISE = 1
@@ -58,9 +59,9 @@ STABLE_S = 30.0                # a child up this long has its restart count rese
 SUPERVISE_EVERY_S = 0.1
 
 # The balancer's own answers, JSON like the service's ({"detail": …}); Retry-After where a retry helps.
+# (A malformed request's 400 and a slow one's 408 come from HAProxy's connection layer, which keeps its own
+# pages; neither is worth a retry.)
 BALANCER_ERRORS = {
-    400: ("balancer: not a valid HTTP request", False),
-    408: ("balancer: the request did not arrive within 10 s (timeout http-request); closed", False),
     429: ("balancer: too many connections from this address (at most {cap}); reuse one", True),
     502: ("balancer: the render process stopped before it answered; this request may have been applied: "
           "read the session before repeating it", True),
@@ -98,7 +99,8 @@ def haproxy_config(bind: str, servers: Sequence[tuple[str, str]], stats_bind: st
     lines += [
         "defaults",
         "    mode http",
-        "    timeout connect 2s",
+        "    # also the pause before a refused connection is tried elsewhere: HAProxy waits min(1 s, this)",
+        f"    timeout connect {CONNECT_TIMEOUT_MS}ms",
         "    timeout http-request 10s",
         f"    timeout client {RENDER_TIMEOUT_S + 15}s",
         f"    timeout server {RENDER_TIMEOUT_S + 10}s",
