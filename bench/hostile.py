@@ -18,13 +18,22 @@ the peak):
 - ``health``: ``/api/health`` latency (polled every 20 ms) while six maximum bodies arrive
   (``--parse-only``: and are refused after validation, so that no build follows);
 - ``stalled``: seconds until a connection that sent headers with ``Content-Length: 100000``
-  and a few body bytes is closed (given up after ``--stall-wait`` s).
+  and a few body bytes is closed (given up after ``--stall-wait`` s);
+- ``stack``: ``python -m server.stack`` (Redis, two render processes, HAProxy) and
+  ``--stack-clients`` clients (80), each from its own loopback address with its own session, a
+  gesture then a small frame (48 × 64) every 50 ms: ``--stack-load-s`` (15) of load, then
+  ``kill -9`` of render0 and ``--stack-kill-s`` (10) more, then Redis stopped (SIGSTOP) for
+  ``--stack-pause-s`` (5) and as long after; per phase the requests, the failures by kind (the
+  service's JSON, the balancer's JSON or page, a connection error; with Retry-After or not), then
+  acknowledged gestures not found in Redis and what still runs. Both runs set
+  ``POCKETRAY_QUEUE_SIZE`` to the clients and ``POCKETRAY_REDIS_TIMEOUT_S=2``.
 
 Usage::
 
     .venv/bin/python bench/hostile.py                      # all parts, this checkout
     .venv/bin/python bench/hostile.py --root /tmp/pre17 bad health stalled
     .venv/bin/python bench/hostile.py --json out.json
+    .venv/bin/python bench/hostile.py stack --root /tmp/base     # the stack's parts failing, an older commit
 
 Loopback only; every loop is bounded.
 """
@@ -371,7 +380,7 @@ def part_stack(root: Path, args) -> dict:
 
         async def chaos(t0: float) -> None:
             await asyncio.sleep(t_kill - (time.monotonic() - t0))
-            victim = _stack_children(proc.pid)["renders"].get(render0_port)
+            victim = _stack_children(proc.pid)["renders"].get(render0_port) if args.stack_kill_s > 0 else None
             if victim:
                 os.kill(victim, signal.SIGKILL)
                 events["killed"] = f"render0 (pid {victim}) at {time.monotonic() - t0:.1f} s"
@@ -394,7 +403,8 @@ def part_stack(root: Path, args) -> dict:
         asyncio.run(run())
         out["events"] = events
         out["load"] = _stack_phase(log, 0, t_kill)
-        out["kill"] = _stack_phase(log, t_kill, t_pause)
+        if args.stack_kill_s > 0:
+            out["kill"] = _stack_phase(log, t_kill, t_pause)
         if "continued" in events:
             cont = events["continued"]
             out["redis_paused"] = _stack_phase(log, t_pause, cont)
@@ -473,7 +483,7 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--stall-wait", type=float, default=30.0, help="seconds to wait for a stalled body's close")
     ap.add_argument("--stack-clients", type=int, default=80, help="stack: concurrent clients (one session each)")
     ap.add_argument("--stack-load-s", type=float, default=15, help="stack: seconds of load before the kill")
-    ap.add_argument("--stack-kill-s", type=float, default=10, help="stack: seconds after kill -9 of render0")
+    ap.add_argument("--stack-kill-s", type=float, default=10, help="stack: seconds after kill -9 of render0 (0: no kill)")
     ap.add_argument("--stack-pause-s", type=float, default=5, help="stack: seconds Redis is stopped (and after)")
     ap.add_argument("--json", type=Path, help="write the figures here too")
     return ap
