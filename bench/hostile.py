@@ -405,6 +405,8 @@ def part_stack(root: Path, args) -> dict:
         out["load"] = _stack_phase(log, 0, t_kill)
         if args.stack_kill_s > 0:
             out["kill"] = _stack_phase(log, t_kill, t_pause)
+            back = min((r[1] for r in log if r[0] > t_kill + 0.5 and r[6] == "render0"), default=None)
+            out["kill"]["render0_serving_again_after_s"] = round(back - t_kill, 1) if back else None
         if "continued" in events:
             cont = events["continued"]
             out["redis_paused"] = _stack_phase(log, t_pause, cont)
