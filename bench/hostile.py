@@ -485,7 +485,8 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--stall-wait", type=float, default=30.0, help="seconds to wait for a stalled body's close")
     ap.add_argument("--stack-clients", type=int, default=80, help="stack: concurrent clients (one session each)")
     ap.add_argument("--stack-load-s", type=float, default=15, help="stack: seconds of load before the kill")
-    ap.add_argument("--stack-kill-s", type=float, default=10, help="stack: seconds after kill -9 of render0 (0: no kill)")
+    ap.add_argument("--stack-kill-s", type=float, default=10,
+                    help="stack: seconds after kill -9 of render0 (0: no kill)")
     ap.add_argument("--stack-pause-s", type=float, default=5, help="stack: seconds Redis is stopped (and after)")
     ap.add_argument("--json", type=Path, help="write the figures here too")
     return ap

@@ -17,7 +17,7 @@ from renderer.tree_update import UPDATE_SCHEMES
 from ... import metrics
 from ...models import HealthOut, InfoOut, LimitsOut, ReadyOut
 from ...service import info_extras
-from ..deps import ServiceDep, WorkerDep
+from ..deps import ServiceDep
 
 router = APIRouter()
 
