@@ -41,17 +41,22 @@ class Balancer:
             servers.append((f"render{i}", f"127.0.0.1:{port}"))
         self.ports = [int(address.rsplit(":", 1)[1]) for _, address in servers]
         self.port, self.stats_port = free_port(), free_port()
-        cfg = tmp / "haproxy.cfg"
-        cfg.write_text(haproxy_config(f"127.0.0.1:{self.port}", servers, stats_bind=f"127.0.0.1:{self.stats_port}",
-                                      **config))
-        self.haproxy = subprocess.Popen([find_executable("haproxy"), "-db", "-f", str(cfg)],
-                                        stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
-        self.url = f"http://127.0.0.1:{self.port}"
-        up = sum(mode is not None for mode in modes)
-        deadline = time.monotonic() + 20
-        while sum(s == "UP" for s in self.status().values()) < up:   # every live stand-in passed a check
-            assert time.monotonic() < deadline, self.status()
-            time.sleep(0.05)
+        self.haproxy = None
+        try:
+            cfg = tmp / "haproxy.cfg"
+            cfg.write_text(haproxy_config(f"127.0.0.1:{self.port}", servers,
+                                          stats_bind=f"127.0.0.1:{self.stats_port}", **config))
+            self.haproxy = subprocess.Popen([find_executable("haproxy"), "-db", "-f", str(cfg)],
+                                            stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+            self.url = f"http://127.0.0.1:{self.port}"
+            up = sum(mode is not None for mode in modes)
+            deadline = time.monotonic() + 20
+            while sum(s == "UP" for s in self.status().values()) < up:   # every live stand-in passed a check
+                assert time.monotonic() < deadline, self.status()
+                time.sleep(0.05)
+        except BaseException:
+            self.close()
+            raise
 
     def status(self) -> dict[str, str]:
         """Each server's state on HAProxy's stats page (UP, DOWN, …)."""
@@ -68,8 +73,9 @@ class Balancer:
 
     def close(self) -> None:
         for p in (self.haproxy, *self.procs):
-            p.kill()
-            p.wait()
+            if p is not None:
+                p.kill()
+                p.wait()
 
 
 @pytest.fixture
