@@ -30,13 +30,31 @@ the peak):
 - ``ws_flood``: ``--flood`` tiny invalid messages written at once on one WebSocket: the answers,
   the close code, ``/api/health`` p50/p99/max meanwhile;
 - ``unread``: ``--unread-clients`` connections that never read ask for a ``--unread-side``²
-  ``normal`` ``npy`` frame each: resident memory, peak and ``--unread-hold-s`` later.
+  ``normal`` ``npy`` frame each: resident memory, peak and ``--unread-hold-s`` later;
+- ``metrics``: ``--metrics-requests`` requests with made-up methods and paths, then ``/metrics``:
+  its series, size and scrape time;
+- ``flood``: sessions created from one address for ``--flood-s`` s (201 against 429), then
+  ``--uploads`` sessions of a 3.2 MB scene each under a ``--flood-quota`` store quota;
+- ``model_accessor``: glTF files whose accessor claims ``--accessor-counts`` VEC3 without data,
+  one and ``--model-parallel`` at once: time to the answer, memory of the server and its parsers;
+- ``model_chain``: GLB chains of ``--chain-nodes`` nodes over one triangle: time to the answer,
+  ``/api/health`` meanwhile;
+- ``model_overhead``: what a valid upload costs (``--model-repeats`` each);
+- ``stack``: ``python -m server.stack`` (Redis, two render processes, HAProxy) and
+  ``--stack-clients`` clients (80), each from its own loopback address with its own session, a
+  gesture then a small frame (48 × 64) every 50 ms: ``--stack-load-s`` (15) of load, then
+  ``kill -9`` of render0 and ``--stack-kill-s`` (10) more, then Redis stopped (SIGSTOP) for
+  ``--stack-pause-s`` (5) and as long after; per phase the requests, the failures by kind (the
+  service's JSON, the balancer's JSON or page, a connection error; with Retry-After or not), then
+  acknowledged gestures not found in Redis and what still runs. Both runs set
+  ``POCKETRAY_QUEUE_SIZE`` to the clients and ``POCKETRAY_REDIS_TIMEOUT_S=2``.
 
 Usage::
 
     .venv/bin/python bench/hostile.py                      # all parts, this checkout
     .venv/bin/python bench/hostile.py --root /tmp/pre17 bad health stalled
     .venv/bin/python bench/hostile.py --json out.json
+    .venv/bin/python bench/hostile.py stack --root /tmp/base     # the stack's parts failing, an older commit
 
 Loopback only; every loop is bounded.
 """
@@ -47,6 +65,7 @@ import argparse
 import json
 import os
 import random
+import shutil
 import socket
 import statistics
 import subprocess
@@ -59,7 +78,7 @@ import httpx
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
-from bench.child import ServerChild  # noqa: E402  (run as a script or imported)
+from bench.child import ServerChild, free_port  # noqa: E402  (run as a script or imported)
 MIB = 1 << 20
 
 
@@ -874,6 +893,215 @@ def part_model_overhead(root: Path, args) -> dict:
 # ---- end of model files ---------------------------------------------------------------------------------------------
 
 
+# ---- the stack: its parts fail (80 clients through HAProxy; a render process killed; Redis paused) ----------
+STACK_SETTINGS = {"width": 48, "height": 64, "max_recursion_depth": 2, "samples_per_pixel": 1, "min_weight": 0.0,
+                  "format": "npy"}
+
+
+def _stack_children(pid: int) -> dict:
+    """The stack's children by role, from /proc: {"redis": pid, "haproxy": pid, "renders": {port: pid}}."""
+    out: dict = {"redis": None, "haproxy": None, "renders": {}}
+    try:
+        kids = [int(k) for t in Path(f"/proc/{pid}/task").iterdir()
+                for k in (t / "children").read_text().split()]
+    except OSError:
+        return out
+    for k in kids:
+        try:
+            argv = Path(f"/proc/{k}/cmdline").read_bytes().decode(errors="replace").split("\0")
+            state = next(line for line in Path(f"/proc/{k}/status").read_text().splitlines()
+                         if line.startswith("State:"))
+        except (OSError, StopIteration):
+            continue
+        if "Z" in state.split()[1]:
+            continue                     # exited, not yet reaped
+        if "redis-server" in argv[0]:      # it rewrites its title: "redis-server 127.0.0.1:port"
+            out["redis"] = k
+        elif argv[0].endswith("haproxy"):
+            out["haproxy"] = k
+        elif "serve" in argv and "--port" in argv:
+            out["renders"][int(argv[argv.index("--port") + 1])] = k
+    return out
+
+
+async def _stack_load(url: str, sids: list[str], t0: float, until: float, log: list) -> None:
+    """One client per session, each from its own loopback address (a phone each): a gesture, then a small
+    frame, and so on until ``until``; every request logged as (start, end, kind, status, json, retry_after,
+    served_by, version, error)."""
+    import asyncio
+
+    async def client(i: int, sid: str) -> None:
+        transport = httpx.AsyncHTTPTransport(local_address=f"127.0.1.{1 + i}")
+        headers = {"X-Session-Id": sid}
+        async with httpx.AsyncClient(base_url=url, transport=transport, timeout=30, headers=headers) as c:
+            k = 0
+            while time.monotonic() < until:
+                gesture = k % 2 == 0
+                k += 1
+                start = time.monotonic() - t0
+                try:
+                    if gesture:
+                        r = await c.post(f"/api/sessions/{sid}/gesture", json={"type": "pan", "dx": 2, "dy": -1})
+                    else:
+                        r = await c.get(f"/api/sessions/{sid}/frame")
+                    log.append((start, time.monotonic() - t0, "gesture" if gesture else "frame", r.status_code,
+                                r.headers.get("content-type", "").startswith("application/json"),
+                                "retry-after" in r.headers, r.headers.get("x-served-by"),
+                                r.json()["version"] if gesture and r.status_code == 200 else None,
+                                None if r.status_code < 400 else r.text[:120], sid))
+                    ok = r.status_code < 400
+                except httpx.HTTPError as e:
+                    log.append((start, time.monotonic() - t0, "gesture" if gesture else "frame", None, False, False,
+                                None, None, f"{type(e).__name__}: {e}"[:120], sid))
+                    ok = False
+                await asyncio.sleep(0.05 if ok else 0.2)   # a finger's pace; a little longer after a refusal
+
+    await asyncio.gather(*(client(i, sid) for i, sid in enumerate(sids)))
+
+
+def _stack_phase(log: list, lo: float, hi: float) -> dict:
+    """The requests that ended in [lo, hi) (a request in flight when a phase begins is that phase's)."""
+    rows = [r for r in log if lo <= r[1] < hi]
+    failed = [r for r in rows if r[3] is None or r[3] >= 400]
+    kinds: dict[str, int] = {}
+    for r in failed:
+        key = ("connection error" if r[3] is None else
+               f"{r[3]} {'service JSON' if r[6] else 'balancer JSON' if r[4] else 'balancer page'}"
+               f"{' +Retry-After' if r[5] else ''}")
+        kinds[key] = kinds.get(key, 0) + 1
+    return {"requests": len(rows), "failed": len(failed),
+            "failed_pct": round(100 * len(failed) / max(1, len(rows)), 2), "failures": kinds,
+            "examples": sorted({f"{r[2]} {r[8]}" for r in failed if r[8]})[:4]}
+
+
+def part_stack(root: Path, args) -> dict:
+    """``python -m server.stack`` of ``root`` (Redis, two render processes, HAProxy); ``--stack-clients``
+    clients for ``--stack-load-s``, then ``kill -9`` of render0 and ``--stack-kill-s`` more, then Redis
+    stopped (SIGSTOP) for ``--stack-pause-s`` and ``--stack-pause-s`` more after it is back."""
+    import asyncio
+    import signal
+    import tempfile
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench-stack-"))
+    port = free_port()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
+    env.update(POCKETRAY_LOG_LEVEL="warning", POCKETRAY_QUEUE_SIZE=str(args.stack_clients),
+               POCKETRAY_REDIS_TIMEOUT_S="2")
+    err = open(tmp / "stack.err", "wb")
+    proc = subprocess.Popen([sys.executable, "-m", "server.stack", "--port", str(port), "--dir", str(tmp / "stack")],
+                            cwd=root, env=env, stdout=err, stderr=subprocess.STDOUT)
+    url = f"http://127.0.0.1:{port}"
+    out: dict = {"clients": args.stack_clients}
+    try:
+        deadline = time.monotonic() + 180
+        while b"the balancer is" not in (tmp / "stack.err").read_bytes():
+            if proc.poll() is not None or time.monotonic() > deadline:
+                return {"error": (tmp / "stack.err").read_text()[-1500:]}
+            time.sleep(0.2)
+        cfg = (tmp / "stack" / "haproxy.cfg").read_text()
+        render0_port = int(cfg.split("server render0 127.0.0.1:")[1].split()[0])
+        sids = []
+        with httpx.Client(base_url=url, timeout=60) as c:
+            while len(sids) < args.stack_clients:
+                r = c.post("/api/sessions", json={"scenario": 3, "n": 64, "seed": len(sids),
+                                                  "settings": STACK_SETTINGS})
+                if r.status_code == 201:
+                    sids.append(r.json()["id"])
+                else:
+                    time.sleep(0.2)
+        log: list = []
+        t_kill = args.stack_load_s
+        t_pause = t_kill + args.stack_kill_s
+        t_cont = t_pause + args.stack_pause_s
+        t_end = t_cont + args.stack_pause_s
+        events: dict = {}
+
+        async def chaos(t0: float) -> None:
+            await asyncio.sleep(t_kill - (time.monotonic() - t0))
+            victim = _stack_children(proc.pid)["renders"].get(render0_port) if args.stack_kill_s > 0 else None
+            if victim:
+                os.kill(victim, signal.SIGKILL)
+                events["killed"] = f"render0 (pid {victim}) at {time.monotonic() - t0:.1f} s"
+            await asyncio.sleep(t_pause - (time.monotonic() - t0))
+            redis_pid = _stack_children(proc.pid)["redis"]
+            if proc.poll() is not None or not redis_pid:
+                events["paused"] = "no: the stack had stopped"
+                return
+            os.kill(redis_pid, signal.SIGSTOP)
+            events["paused"] = f"redis at {time.monotonic() - t0:.1f} s"
+            try:
+                await asyncio.sleep(t_cont - (time.monotonic() - t0))
+            finally:
+                os.kill(redis_pid, signal.SIGCONT)
+            events["continued"] = round(time.monotonic() - t0, 2)
+
+        async def run() -> None:
+            t0 = time.monotonic()
+            await asyncio.gather(_stack_load(url, sids, t0, t0 + t_end, log), chaos(t0))
+        asyncio.run(run())
+        out["events"] = events
+        out["load"] = _stack_phase(log, 0, t_kill)
+        if args.stack_kill_s > 0:
+            out["kill"] = _stack_phase(log, t_kill, t_pause)
+            back = min((r[1] for r in log if r[0] > t_kill + 0.5 and r[6] == "render0"), default=None)
+            out["kill"]["render0_serving_again_after_s"] = round(back - t_kill, 1) if back else None
+        if "continued" in events:
+            cont = events["continued"]
+            out["redis_paused"] = _stack_phase(log, t_pause, cont)
+            out["redis_back"] = _stack_phase(log, cont, t_end + 60)
+            late = [r for r in log if (r[3] is None or r[3] >= 400) and r[1] > cont]
+            first_ok = min((r[1] for r in log if r[0] >= cont and r[3] is not None and r[3] < 400), default=None)
+            out["redis_back"]["last_failure_after_return_s"] = round(max((r[1] for r in late), default=cont) - cont, 2)
+            out["redis_back"]["first_success_after_return_s"] = round(first_ok - cont, 2) if first_ok else None
+        served = {}
+        for r in log:
+            if r[6]:
+                served[r[6]] = served.get(r[6], 0) + 1
+        out["served_by"] = served
+        # Every acknowledged gesture is in Redis: a session's version is at least the last one acknowledged.
+        acked: dict[str, int] = {}
+        for r in log:
+            if r[7] is not None:
+                acked[r[9]] = max(acked.get(r[9], 0), r[7])
+        lost = unread = 0
+        with httpx.Client(base_url=url, timeout=30) as c:
+            for sid, version in acked.items():
+                try:
+                    r = c.get(f"/api/sessions/{sid}", headers={"X-Session-Id": sid})
+                    if r.status_code != 200:
+                        unread += 1
+                    elif r.json()["version"] < version:
+                        lost += 1
+                except httpx.HTTPError:
+                    unread += 1
+        kids = _stack_children(proc.pid)
+        out["end"] = {"acknowledged_gestures": sum(1 for r in log if r[7] is not None), "lost_writes": lost,
+                      "sessions_unreadable": unread, "stack_running": proc.poll() is None,
+                      "render_processes": len(kids["renders"]), "redis": bool(kids["redis"]),
+                      "haproxy": bool(kids["haproxy"])}
+        out["stack_log"] = [line for line in (tmp / "stack.err").read_text().splitlines()
+                            if line.startswith("stack:")][-6:]
+        for part in ("load", "kill", "redis_paused", "redis_back"):
+            if part in out:
+                print(f"stack {part}: {out[part]}", flush=True)
+        print(f"stack end: {out['end']}", flush=True)
+        return out
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+        kids = _stack_children(proc.pid)
+        for pid in [kids["redis"], kids["haproxy"], *kids["renders"].values()]:
+            if pid:
+                os.kill(pid, signal.SIGKILL)
+        err.close()
+        shutil.rmtree(tmp, ignore_errors=True)
+# ---- end of the stack part --------------------------------------------------------------------------------
+
+
 PARTS = {"targets": part_targets, "bad": part_bad, "largest": part_largest, "recipe": part_recipe,
          "health": part_health,
          "stalled": part_stalled,
@@ -883,7 +1111,8 @@ PARTS = {"targets": part_targets, "bad": part_bad, "largest": part_largest, "rec
          "unread": part_unread,
          "frames": part_frames, "trickle": part_trickle,
          "model_accessor": part_model_accessor, "model_chain": part_model_chain,
-         "model_overhead": part_model_overhead}
+         "model_overhead": part_model_overhead,
+         "stack": part_stack}
 
 
 def parser() -> argparse.ArgumentParser:
@@ -923,6 +1152,11 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--model-repeats", type=int, default=9, help="model_overhead: uploads per file")
     ap.add_argument("--skip-model", type=lambda v: {(int(c), int(k)) for c, k in (p.split("x") for p in v.split(","))},
                     default=set(), help="model_accessor: COUNTxK cases not run (e.g. 90000000x3: ~20 GB before)")
+    ap.add_argument("--stack-clients", type=int, default=80, help="stack: concurrent clients (one session each)")
+    ap.add_argument("--stack-load-s", type=float, default=15, help="stack: seconds of load before the kill")
+    ap.add_argument("--stack-kill-s", type=float, default=10,
+                    help="stack: seconds after kill -9 of render0 (0: no kill)")
+    ap.add_argument("--stack-pause-s", type=float, default=5, help="stack: seconds Redis is stopped (and after)")
     ap.add_argument("--json", type=Path, help="write the figures here too")
     return ap
 

@@ -177,6 +177,10 @@ class ServerConfig(BaseSettings):
     redis_max_retries: int = Field(16, ge=0, le=10_000,
                                    description="retries of a change whose session another process changed "
                                                "meanwhile (WATCH); then 503")
+    redis_timeout_s: float = Field(
+        5.0, gt=0, le=600,
+        description="longest wait for an answer of Redis, seconds (redis backend): a Redis that is stopped or "
+                    "stalled makes a request 503 with Retry-After after this long instead of holding it")
 
     # --- sessions: creation rate and store quota (docs/API.md, "Hardening") -------------
     session_create_per_min: float = Field(

@@ -6,7 +6,7 @@ signal first sets ``draining`` — from then on ``/api/ready`` answers 503 ``dra
 then hands over to uvicorn, at once for SIGINT (Ctrl-C) and for SIGTERM after
 ``POCKETRAY_DRAIN_S`` seconds (default 0), during which the process still serves every
 request, so a balancer's health check takes it out of rotation before its port closes
-(deploy/haproxy.cfg checks every second). A second signal hands over at once.
+(deploy/haproxy.cfg checks every 0.5 s). A second signal hands over at once.
 :func:`uninstall` puts uvicorn's handlers back at the lifespan's end.
 """
 

@@ -8,11 +8,17 @@ is its output for compose, and a test keeps the two equal). docs/DEPLOY.md expla
   acknowledged change survives a crash of Redis too.
 - **Render processes**: ``pocketray serve --state-backend redis`` each, with their own GL
   context, scene cache and refit trees; ``POCKETRAY_DRAIN_S`` lets a stopping process fail its
-  health check before its port closes.
+  health check before its port closes; ``POCKETRAY_MAX_CONNECTIONS_PER_CLIENT=0``: every
+  connection they see is the balancer's.
 - **HAProxy**: consistent hashing on the ``X-Session-Id`` header (else the session id of the
   path), with bounded load (``hash-balance-factor``: no process takes more than 150 % of the
-  mean), health checks on ``/api/ready`` every second, a request whose connection is refused
-  is re-sent to another process, and ``X-Served-By`` names the process that answered.
+  mean); at most ``POCKETRAY_MAX_CONNECTIONS_PER_CLIENT`` connections per client address (429);
+  health checks on ``/api/ready`` every 0.5 s, and a process whose connection fails is out at
+  once; a request that never reached a process (and a GET that one dropped) is re-sent to
+  another; its own errors are JSON with ``Retry-After``; ``X-Served-By`` names the process
+  that answered.
+- **The supervisor** (a thread of :class:`Stack`) starts a child that exits again, on the same
+  port, with back-off; nothing else stops the stack but ``stop()`` (Ctrl-C).
 
 Nothing here is a target but the loopback interface.
 """
@@ -20,6 +26,7 @@ Nothing here is a target but the loopback interface.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
 import signal
@@ -27,29 +34,58 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
+from typing import Callable, Sequence
 
 import httpx
 
 SESSION_HEADER = "X-Session-Id"
 SERVED_BY_HEADER = "X-Served-By"
 HASH_BALANCE_FACTOR = 150      # % of the mean load a server may take before the next one is used
-CHECK_INTERVAL_MS = 1000
+CHECK_INTERVAL_MS = 500
+CONNECT_TIMEOUT_MS = 250       # a render process on this host or the LAN accepts within a millisecond
+CHECK_TIMEOUT_MS = 2000        # /api/ready answers from the event loop; slower than this is a hung process
 CHECK_FALL = 2                 # failed checks before a server is taken out
 CHECK_RISE = 1
-DRAIN_S = 3.0                  # > CHECK_FALL × CHECK_INTERVAL: a stopping process is out before it stops
+DRAIN_S = 3.0                  # > CHECK_FALL × CHECK_INTERVAL (a draining process fails its checks at once)
 RENDER_TIMEOUT_S = 120         # POCKETRAY_RENDER_TIMEOUT_S's default: the server timeout is above it
+RETRY_AFTER_S = 1              # the balancer's own 429/502/503/504: a process is back or the other takes over
+CAP_ENV = "POCKETRAY_MAX_CONNECTIONS_PER_CLIENT"
+UNSENT_ENV = "POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT"
+RESTART_BACKOFF_S = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 30.0)   # a child's n-th restart in a row waits [n]
+STABLE_S = 30.0                # a child up this long has its restart count reset
+SUPERVISE_EVERY_S = 0.1
+
+# The balancer's own answers, JSON like the service's ({"detail": …}); Retry-After where a retry helps.
+# (A malformed request's 400 and a slow one's 408 come from HAProxy's connection layer, which keeps its own
+# pages; neither is worth a retry.)
+BALANCER_ERRORS = {
+    429: ("balancer: too many connections from this address (at most {cap}); reuse one", True),
+    502: ("balancer: the render process stopped before it answered; this request may have been applied: "
+          "read the session before repeating it", True),
+    503: ("balancer: no render process is available; retry", True),
+    504: ("balancer: the render process did not answer in time; retry", True),
+}
+
+
+def default_client_cap() -> int:
+    """POCKETRAY_MAX_CONNECTIONS_PER_CLIENT's default (server/config.py), the balancer's per-address cap."""
+    from .config import ServerConfig
+
+    return ServerConfig.model_fields["max_connections_per_client"].default
 
 
 def haproxy_config(bind: str, servers: Sequence[tuple[str, str]], stats_bind: str | None = None,
-                   resolvers: str | None = None) -> str:
+                   resolvers: str | None = None, client_cap: int | None = None) -> str:
     """HAProxy's configuration: the frontend on ``bind``, a backend of ``servers`` (name,
     host:port), the stats page on ``stats_bind``; ``resolvers``: a DNS server for container
     names (compose: Docker's ``127.0.0.11:53``), so a render service that starts late or moves
-    is found again."""
+    is found again; ``client_cap``: open connections per client address (0: none; default
+    POCKETRAY_MAX_CONNECTIONS_PER_CLIENT's), which the render processes cannot count behind it."""
+    cap = default_client_cap() if client_cap is None else client_cap
     lines = [
         "# pocketray's balancer (server/stack.py:haproxy_config writes this; docs/DEPLOY.md explains it)",
         "global",
@@ -64,19 +100,39 @@ def haproxy_config(bind: str, servers: Sequence[tuple[str, str]], stats_bind: st
     lines += [
         "defaults",
         "    mode http",
-        "    timeout connect 2s",
+        "    # also the pause before a refused connection is tried elsewhere: HAProxy waits min(1 s, this)",
+        f"    timeout connect {CONNECT_TIMEOUT_MS}ms",
         "    timeout http-request 10s",
         f"    timeout client {RENDER_TIMEOUT_S + 15}s",
         f"    timeout server {RENDER_TIMEOUT_S + 10}s",
+        f"    timeout check {CHECK_TIMEOUT_MS}ms",
         "    timeout tunnel 1h",
         "    option http-keep-alive",
-        "    # a request that never reached a process (connection refused: it was killed) goes to another",
-        "    retries 2",
-        "    option redispatch 1",
-        "    retry-on conn-failure",
+        "    # the client's address in X-Forwarded-For: the render processes trust it from the balancer",
+        "    # (uvicorn's forwarded-allow-ips), so the limits they keep per client address — sessions created,",
+        "    # large-body slots — count each client, not the balancer",
+        "    option forwardfor",
+        "    # the balancer's own answers read like the service's: JSON {\"detail\"}, Retry-After where a retry helps;",
+        "    # it closes the connection after them (Connection: close says so, or a client reuses it and fails)",
+    ]
+    for status, (detail, retry) in BALANCER_ERRORS.items():
+        body = json.dumps({"detail": detail.format(cap=cap)})
+        lines.append(f"    http-error status {status} content-type application/json string '{body}'"
+                     + (f" hdr Retry-After {RETRY_AFTER_S}" if retry else "") + " hdr Connection close")
+    lines += [
         "",
         "frontend pocketray",
         f"    bind {bind}",
+    ]
+    if cap:
+        lines += [
+            "    # the render processes see only this balancer's address (they run with",
+            f"    # {CAP_ENV}=0): the cap on each client address is kept here",
+            "    stick-table type ip size 100k expire 60s store conn_cur",
+            "    tcp-request connection track-sc0 src",
+            f"    http-request deny deny_status 429 if {{ sc_conn_cur(0) gt {cap} }}",
+        ]
+    lines += [
         "    default_backend render",
         "",
         "backend render",
@@ -88,10 +144,20 @@ def haproxy_config(bind: str, servers: Sequence[tuple[str, str]], stats_bind: st
         "    balance hash var(txn.session)",
         "    hash-type consistent",
         f"    hash-balance-factor {HASH_BALANCE_FACTOR}",
+        "    # a request that never reached a process (connection refused: it was killed) goes to another; a",
+        "    # GET or HEAD also when the process closed without an answer (killed mid-request): reading twice",
+        "    # is harmless, a gesture twice is not, so other methods are re-sent only when nothing was sent",
+        "    retries 2",
+        "    option redispatch 1",
+        "    retry-on conn-failure empty-response junk-response",
+        "    http-request disable-l7-retry if !METH_GET",
         "    option httpchk GET /api/ready",
         "    http-check expect status 200",
         f"    http-response set-header {SERVED_BY_HEADER} %[srv_name]",
+        "    # a refused or broken connection takes the process out at once (observe layer4), not after the",
+        "    # checks fail; the checks bring it back when its /api/ready says 200",
         f"    default-server check inter {CHECK_INTERVAL_MS}ms fall {CHECK_FALL} rise {CHECK_RISE} "
+        "observe layer4 error-limit 1 on-error mark-down "
         + ("init-addr last,libc,none resolvers docker" if resolvers else "init-addr last,libc,none"),
     ]
     lines += [f"    server {name} {address}" for name, address in servers]
@@ -129,12 +195,16 @@ class Child:
     env: dict[str, str] | None = None
     proc: subprocess.Popen | None = None
     port: int = 0
+    started_at: float = 0.0
+    restarts: int = 0             # restarts in a row (reset once it stayed up STABLE_S)
+    restart_at: float | None = None
 
     def start(self) -> "Child":
         log = open(self.log_path, "ab")
         self.proc = subprocess.Popen(self.args, stdout=log, stderr=subprocess.STDOUT, env=self.env,
                                      start_new_session=True)
         log.close()
+        self.started_at = time.monotonic()
         return self
 
     @property
@@ -148,14 +218,15 @@ class Child:
             return ""
 
     def stop(self, sig: int = signal.SIGTERM, timeout_s: float = 20.0) -> None:
-        if not self.alive:
+        proc = self.proc          # this process, not one the supervisor may start meanwhile
+        if proc is None or proc.poll() is not None:
             return
-        self.proc.send_signal(sig)
+        proc.send_signal(sig)
         try:
-            self.proc.wait(timeout=timeout_s)
+            proc.wait(timeout=timeout_s)
         except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
+            proc.kill()
+            proc.wait()
 
 
 @dataclass
@@ -166,10 +237,28 @@ class Stack:
     workdir: Path | None = None            # logs, redis' AOF, haproxy.cfg (default: a temp dir)
     env: dict[str, str] = field(default_factory=dict)   # extra POCKETRAY_* for the render processes
     drain_s: float = DRAIN_S
+    supervise: bool = True                 # restart a child that exits (with back-off) until stop()
+    say: Callable[[str], None] = field(default=lambda line: print(line, file=sys.stderr, flush=True))
     redis: Child | None = None
     renders: list[Child] = field(default_factory=list)
     haproxy: Child | None = None
+    restarted: list[tuple[str, int | None]] = field(default_factory=list)   # (child, its exit status), in order
     _own_dir: bool = False
+    _stopping: threading.Event = field(default_factory=threading.Event)
+    _supervisor: threading.Thread | None = None
+
+    @property
+    def client_cap(self) -> int:
+        """Open connections per client address, kept by the balancer: POCKETRAY_MAX_CONNECTIONS_PER_CLIENT
+        of ``env`` or of this process's environment (default: the service's default); 0: none. The
+        render processes run with 0: every connection they see is the balancer's."""
+        raw = self.env.get(CAP_ENV, os.environ.get(CAP_ENV))
+        if raw is None:
+            return default_client_cap()
+        cap = int(raw)
+        if cap < 0:
+            raise ValueError(f"{CAP_ENV}: {cap} is not a number of connections (0: no cap)")
+        return cap
 
     @property
     def url(self) -> str:
@@ -195,7 +284,38 @@ class Stack:
         except BaseException:
             self.stop()
             raise
+        if self.supervise:
+            self._supervisor = threading.Thread(target=self._supervise, name="stack-supervisor", daemon=True)
+            self._supervisor.start()
         return self
+
+    def children(self) -> list[Child]:
+        return [c for c in (self.redis, *self.renders, self.haproxy) if c is not None]
+
+    def _supervise(self) -> None:
+        """A child that exits is started again, on the same port with the same arguments: the balancer's
+        checks bring a render process back once its /api/ready says 200, Redis reloads its AOF. The
+        n-th restart in a row waits RESTART_BACKOFF_S[n] (a child that keeps failing is not a busy loop)."""
+        while not self._stopping.wait(SUPERVISE_EVERY_S):
+            now = time.monotonic()
+            for child in self.children():
+                if child.alive:
+                    if child.restarts and now - child.started_at >= STABLE_S:
+                        child.restarts = 0
+                    continue
+                if child.restart_at is None:
+                    delay = RESTART_BACKOFF_S[min(child.restarts, len(RESTART_BACKOFF_S) - 1)]
+                    child.restart_at = now + delay
+                    self.say(f"stack: {child.name} exited with {child.proc.returncode}; restarting it"
+                             + (f" in {delay:g} s" if delay else ""))
+                if now >= child.restart_at and not self._stopping.is_set():
+                    self.restarted.append((child.name, child.proc.returncode))
+                    child.restarts += 1
+                    child.restart_at = None
+                    try:
+                        child.start()
+                    except OSError as e:
+                        self.say(f"stack: {child.name} did not start: {e}")
 
     def _start_redis(self, timeout_s: float) -> None:
         import redis
@@ -219,7 +339,9 @@ class Stack:
 
     def _start_render(self, i: int) -> Child:
         port = free_port()
-        env = {**os.environ, **self.env}
+        # Every connection a render process sees is the balancer's: its per-address cap is the balancer's job.
+        # So is the count of answer bytes not taken per address (the balancer buffers answers).
+        env = {**os.environ, **self.env, CAP_ENV: "0", UNSENT_ENV: "0"}
         args = [sys.executable, "-m", "server", "serve", "--host", "127.0.0.1", "--port", str(port),
                 "--state-backend", "redis", "--redis-url", self.redis_url, "--drain-s", str(self.drain_s)]
         return Child(f"render{i}", args, self.workdir / f"render{i}.log", env=env, port=port).start()
@@ -227,7 +349,8 @@ class Stack:
     def _start_haproxy(self, timeout_s: float) -> None:
         cfg = self.workdir / "haproxy.cfg"
         cfg.write_text(haproxy_config(f"127.0.0.1:{self.port}",
-                                      [(c.name, f"127.0.0.1:{c.port}") for c in self.renders]))
+                                      [(c.name, f"127.0.0.1:{c.port}") for c in self.renders],
+                                      client_cap=self.client_cap))
         exe = find_executable("haproxy")
         check = subprocess.run([exe, "-c", "-f", str(cfg)], capture_output=True, text=True)
         if check.returncode != 0:
@@ -267,7 +390,11 @@ class Stack:
         self.renders[i].stop(signal.SIGKILL)
 
     def stop(self) -> None:
-        """HAProxy, then the render processes (SIGTERM: they drain), then Redis; the temp dir goes too."""
+        """The supervisor, HAProxy, then the render processes (SIGTERM: they drain), then Redis; the temp
+        dir goes too."""
+        self._stopping.set()
+        if self._supervisor is not None:
+            self._supervisor.join()
         if self.haproxy is not None:
             self.haproxy.stop(signal.SIGTERM)   # haproxy -db: SIGTERM is a hard stop, SIGUSR1 a soft one
         for child in self.renders:
@@ -307,12 +434,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
     try:
-        while not stop["now"]:
-            dead = [c.name for c in [stack.redis, *stack.renders, stack.haproxy] if c is not None and not c.alive]
-            if dead:
-                print(f"stack: {', '.join(dead)} stopped; stopping the rest", file=sys.stderr)
-                break
-            time.sleep(0.5)
+        while not stop["now"]:   # the supervisor restarts a child that exits
+            time.sleep(0.2)
     finally:
         stack.stop()
         print("stack: stopped", file=sys.stderr)

@@ -480,11 +480,12 @@ class RedisStore:
     SCENE_TOUCHES = 4096
 
     def __init__(self, url: str, ttl_s: float, prefix: str = "pocketray:",
-                 touch_interval_s: float | None = None, max_retries: int = 16, max_bytes: int = 0):
+                 touch_interval_s: float | None = None, max_retries: int = 16, max_bytes: int = 0,
+                 timeout_s: float = 5.0):
         import redis
 
         self._redis_module = redis
-        self.client = redis.Redis.from_url(url, socket_timeout=10.0, socket_connect_timeout=5.0)
+        self.client = redis.Redis.from_url(url, socket_timeout=timeout_s, socket_connect_timeout=timeout_s)
         self.ttl_ms = max(1, int(round(ttl_s * 1000)))
         self.touch_interval_s = min(60.0, ttl_s / 10.0) if touch_interval_s is None else touch_interval_s
         self.prefix = prefix
@@ -600,6 +601,7 @@ def open_store(config) -> SessionStore:
     """The backend ``config.state_backend`` names (see :class:`server.config.ServerConfig`)."""
     if config.state_backend == "redis":
         return RedisStore(config.redis_url, config.session_ttl_s, config.redis_prefix,
-                          max_retries=config.redis_max_retries, max_bytes=config.max_store_bytes)
+                          max_retries=config.redis_max_retries, max_bytes=config.max_store_bytes,
+                          timeout_s=config.redis_timeout_s)
     return SQLiteStore(config.sqlite_path, config.session_ttl_s, on_corrupt=config.sqlite_on_corrupt,
                        max_bytes=config.max_store_bytes)

@@ -53,6 +53,10 @@ def test_compose_topology_redis_with_aof_one_render_service_per_gpu_and_the_bala
         env = s["environment"]
         assert env["POCKETRAY_STATE_BACKEND"] == "redis" and env["POCKETRAY_REDIS_URL"].startswith("redis://redis:")
         assert env["POCKETRAY_HOST"] == "0.0.0.0" and float(env["POCKETRAY_DRAIN_S"]) > 0
+        # behind the balancer every connection is the balancer's: the per-address cap is kept there
+        assert env["POCKETRAY_MAX_CONNECTIONS_PER_CLIENT"] == "0"
+        assert env["POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT"] == "0"
+        assert env["FORWARDED_ALLOW_IPS"] == "*"          # the client's address comes from the balancer
         assert "graphics" in env["NVIDIA_DRIVER_CAPABILITIES"]
         assert s["depends_on"]["redis"]["condition"] == "service_healthy"
         assert "/api/ready" in " ".join(s["healthcheck"]["test"])
@@ -74,7 +78,10 @@ def test_the_balancer_configuration_is_its_generator_output_and_haproxy_accepts_
     for name in renders:
         assert f"server {name} {name}:8000" in cfg
     for line in ("balance hash var(txn.session)", "hash-type consistent", "hash-balance-factor 150",
-                 "option httpchk GET /api/ready", "req.hdr(X-Session-Id)", "retry-on conn-failure"):
+                 "option httpchk GET /api/ready", "req.hdr(X-Session-Id)", "retry-on conn-failure",
+                 "http-request disable-l7-retry if !METH_GET", "observe layer4 error-limit 1 on-error mark-down",
+                 "http-request deny deny_status 429 if { sc_conn_cur(0) gt 32 }",
+                 "http-error status 503 content-type application/json", "option forwardfor"):
         assert line in cfg
     haproxy = find_executable("haproxy")
     check = subprocess.run([haproxy, "-c", "-f", str(HAPROXY_CFG)], capture_output=True, text=True)

@@ -1,9 +1,10 @@
-"""The service itself: liveness, readiness (GL context and warm-up frame), and what it offers."""
+"""The service itself: liveness, readiness (GL context, warm-up frame, its own store), and what it offers."""
 
 from __future__ import annotations
 
 from typing import Any
 
+import anyio
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 
@@ -16,11 +17,12 @@ from renderer.tree_update import UPDATE_SCHEMES
 from ... import metrics
 from ...models import HealthOut, InfoOut, LimitsOut, ReadyOut
 from ...service import info_extras
-from ..deps import ServiceDep, WorkerDep
+from ..deps import ServiceDep
 
 router = APIRouter()
 
 READY_RETRY_AFTER_S = 1   # the warm-up frame takes about a second on llvmpipe
+SHARED_BACKENDS = {"redis"}   # session stores every process shares: not one process's readiness
 
 
 @router.get("/health", response_model=HealthOut, summary="Liveness")
@@ -28,16 +30,29 @@ def health() -> HealthOut:
     return HealthOut(status="ok")
 
 
+# The probe of a store that is this process's own (SQLite) runs on a thread of its own: requests waiting for the
+# store may hold every thread of the default pool, and the balancer's check must still be answered.
+_PROBE_LIMITER = anyio.CapacityLimiter(1)
+
+
 @router.get("/ready", response_model=ReadyOut, responses={503: {"model": ReadyOut, "description": "not ready"}},
-            summary="Readiness: GL context created, warm-up render done, session store read and written")
-def ready(request: Request, worker: WorkerDep, service: ServiceDep) -> Any:
+            summary="Readiness of this process: GL context created, warm-up render done, not draining or "
+                    "saturated, and its own session store (SQLite) read and written")
+async def ready(request: Request) -> Any:
+    # From the event loop, with no dependency that needs a thread: a balancer's health check is answered
+    # while every thread of the pool waits (for a stalled Redis, say), and says what this process can do.
+    worker, service = request.app.state.worker, request.app.state.service
     info = worker.info or {}
     drain = getattr(request.app.state, "drain", None)
     draining = (drain is not None and drain.draining.is_set()) or worker.closing
     saturated = worker.saturated
-    # The store is checked the way requests use it: a write and a read of a probe record (SQLite: on
-    # the file that was opened, still a database) — a ping would pass on a deleted or overwritten file.
-    store_fault = service.store.probe() if worker.ready.is_set() else None
+    # A store of this process alone (SQLite) is checked the way requests use it: a write and a read of a probe
+    # record, on the file that was opened, still a database (a ping would pass on a deleted or overwritten
+    # file). A shared store (Redis) is not: its fault is every process's at once, and taking them all out of
+    # the balancer would turn the service's own 503 + Retry-After into the balancer's "no server".
+    own_store = service.config.state_backend not in SHARED_BACKENDS
+    store_fault = (await anyio.to_thread.run_sync(service.store.probe, limiter=_PROBE_LIMITER)
+                   if own_store and worker.ready.is_set() else None)
     out = ReadyOut(ready=not draining and not saturated and worker.ready.is_set() and store_fault is None,
                    gl_renderer=info.get("renderer"), gl_version=info.get("version"))
     if out.ready:
