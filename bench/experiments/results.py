@@ -124,11 +124,10 @@ def run_info_from_section(section: str, data_runs: int | None = None) -> RunInfo
     the section that run wrote: its captions (machine, GL, runs, point budget), its list of
     what the budget left out, its stamp."""
     m = _CAPTION.search(section)
-    if not m:
-        raise ValueError("the section has no machine/GL/runs caption to take the run from")
+    machine, gl, runs_txt = m.groups() if m else ("unknown machine", "unknown GL", "")
     runs = data_runs
     if runs is None:
-        r = re.match(r"(\d+) runs? per point", m.group(3))
+        r = re.match(r"(\d+) runs? per point", runs_txt)
         runs = int(r.group(1)) if r else 1
     b = re.search(r"a point stops after ([\d.]+) s of timing", section)
     fb = re.search(r"longer than the frame budget, ([\d.]+) s", section)
@@ -138,6 +137,6 @@ def run_info_from_section(section: str, data_runs: int | None = None) -> RunInfo
     if nm:
         skipped = [line[2:] for line in nm.group(1).splitlines() if line.startswith("- ")]
     st = _STAMP.search(section)
-    return RunInfo(machine_short=m.group(1), gl=m.group(2), runs=runs,
+    return RunInfo(machine_short=machine, gl=gl, runs=runs,
                    quick="(quick mode)" in (st.group(0) if st else ""), frame_budget_s=frame_budget,
                    skipped=skipped, stamp=st.group(0) if st else "")
