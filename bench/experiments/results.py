@@ -124,11 +124,11 @@ def run_info_from_section(section: str, data_runs: int | None = None) -> RunInfo
     the section that run wrote: its captions (machine, GL, runs, point budget), its list of
     what the budget left out, its stamp."""
     m = _CAPTION.search(section)
-    machine, gl, runs_txt = m.groups() if m else ("unknown machine", "unknown GL", "")
+    machine, gl = m.groups()[:2] if m else ("unknown machine", "unknown GL")
     runs = data_runs
-    if runs is None:
-        r = re.match(r"(\d+) runs? per point", runs_txt)
-        runs = int(r.group(1)) if r else 1
+    if runs is None:   # the first caption that counts runs (some say "see the last column")
+        counts = [re.match(r"(\d+) runs? per point", c.group(3)) for c in _CAPTION.finditer(section)]
+        runs = next((int(r.group(1)) for r in counts if r), 1)
     b = re.search(r"a point stops after ([\d.]+) s of timing", section)
     fb = re.search(r"longer than the frame budget, ([\d.]+) s", section)
     frame_budget = float(fb.group(1)) if fb else (float(b.group(1)) / 4 if b else None)
