@@ -126,9 +126,9 @@ def run_info_from_section(section: str, data_runs: int | None = None) -> RunInfo
     m = _CAPTION.search(section)
     machine, gl = m.groups()[:2] if m else ("unknown machine", "unknown GL")
     runs = data_runs
-    if runs is None:   # the first caption that counts runs (some say "see the last column")
+    if runs is None:   # the run's count is the largest a caption gives (some tables take fewer runs)
         counts = [re.match(r"(\d+) runs? per point", c.group(3)) for c in _CAPTION.finditer(section)]
-        runs = next((int(r.group(1)) for r in counts if r), 1)
+        runs = max((int(r.group(1)) for r in counts if r), default=1)
     b = re.search(r"a point stops after ([\d.]+) s of timing", section)
     fb = re.search(r"longer than the frame budget, ([\d.]+) s", section)
     frame_budget = float(fb.group(1)) if fb else (float(b.group(1)) / 4 if b else None)
