@@ -21,47 +21,19 @@ sections again from the saved data (the header of RESULTS.md stays as it is).
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
 import tempfile
 import time
 import traceback
 from pathlib import Path
-from types import ModuleType
-from typing import Any
 
-from . import EXPERIMENTS, data
+from . import EXPERIMENTS
 from .context import Context, RunInfo
 from .machine import ROOT
-from .results import assemble, head_of, header, run_info_from_section, sections_of, stamp, with_stamp
+from .results import assemble, head_of, header, run_info_from_section, sections_of
+from .steps import load, module, run_one, write_up
 
 DEFAULT_OUT = ROOT / "docs"
-
-
-def module(name: str) -> ModuleType:
-    return importlib.import_module(f"bench.experiments.{name}")
-
-
-def load(mod: ModuleType, figures: Path) -> Any:
-    """The experiment's saved data (a module with more than one file has its own ``load``)."""
-    return mod.load(figures) if hasattr(mod, "load") else data.load(figures, mod.NAME)
-
-
-def dump(mod: ModuleType, saved: Any, figures: Path) -> None:
-    if hasattr(mod, "dump"):
-        mod.dump(saved, figures)
-    else:
-        data.save(figures, mod.NAME, saved)
-
-
-def charts_of(mod: ModuleType, saved: Any, figures: Path, quick: bool) -> dict[str, str]:
-    return mod.plot(saved, figures, quick) if hasattr(mod, "plot") else {}
-
-
-def write_up(mod: ModuleType, saved: dict, run: RunInfo, figures: Path) -> str:
-    """Charts and section text of saved data: the same whether just measured or replotted."""
-    charts = charts_of(mod, saved, figures, run.quick)
-    return with_stamp(mod.report(saved, run, charts), run.stamp)
 
 
 def replot(out: Path, names: list[str]) -> int:
@@ -100,32 +72,6 @@ def replot(out: Path, names: list[str]) -> int:
     for line in notes:
         print(f"  {line}")
     return status
-
-
-def run_one(ctx: Context, name: str, quick: bool) -> tuple[str, str, bool]:
-    """Measure, save, draw and write one experiment: (title, section, failed)."""
-    t0 = time.perf_counter()
-    title = name
-    try:
-        mod = module(name)
-        title = mod.TITLE
-        ctx.take_skipped()
-        saved = data.roundtrip(mod.measure(ctx))
-        run = ctx.run_info()
-        saved["run"] = run.to_json()
-        dump(mod, saved, ctx.figures)   # saved before writing it up: a failing report keeps the data
-        run.stamp = stamp(time.perf_counter() - t0, quick)
-        saved["run"] = run.to_json()
-        dump(mod, saved, ctx.figures)
-        frag = write_up(mod, saved, run, ctx.figures)
-        ctx.notes += run.notes
-        return title, frag, False
-    except Exception:  # one broken experiment must not lose the others' results
-        tb = traceback.format_exc()
-        from tqdm import tqdm
-        tqdm.write(f"{name} FAILED:\n{tb}", file=sys.stderr)
-        frag = f"## {title}\n\n**This experiment failed:**\n\n```\n{tb.strip()}\n```\n"
-        return title, with_stamp(frag, stamp(time.perf_counter() - t0, quick)), True
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -181,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in bar:
         bar.set_postfix_str(name)
         t0 = time.perf_counter()
-        titles[name], fragments[name], broke = run_one(ctx, name, a.quick)
+        titles[name], fragments[name], broke = run_one(ctx, name)
         if broke:
             failed.append(name)
         elapsed[name] = time.perf_counter() - t0
