@@ -10,7 +10,6 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-
 CACHE_DIR = Path(os.environ.get("POCKETRAY_BENCH_CACHE", Path.home() / ".cache" / "pocketray-bench"))
 
 

@@ -93,7 +93,7 @@ def play(ctx: Context, anim: AnimatedScene, method: str, scheme: str, frames: in
 
 
 def crossover_text(ns, ours, theirs) -> str:
-    """Where ``ours`` < ``theirs`` at every larger measured n (common.crossover_n), as table text."""
+    """Where ``ours`` < ``theirs`` at every larger measured n (timing.crossover_n), as table text."""
     n, i = crossover_n(ns, ours, theirs)
     if i == 0:
         return f"≤ {ns[0]:,}"

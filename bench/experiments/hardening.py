@@ -16,8 +16,8 @@ import importlib
 import os
 from pathlib import Path
 
-from .context import Context, RunInfo
 from . import data as saved_data
+from .context import Context, RunInfo
 from .markdown import md_table
 
 NAME = "hardening"

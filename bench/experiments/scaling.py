@@ -11,7 +11,7 @@ from renderer.scenarios import scenario
 from .context import Context, RunInfo
 from .markdown import md_table
 from .scenes import default_settings, method_names
-from .style import image_line, legend_outside, log_axis, plt, save, series
+from .style import image_line, legend_outside, plt, save, series
 from .timing import Stat, fit_power
 from .timing import measure as time_it
 

@@ -10,6 +10,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+
 @dataclasses.dataclass
 class Stat:
     """Samples of one measurement (ms unless said otherwise): median and min–max spread."""
