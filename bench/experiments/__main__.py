@@ -58,7 +58,7 @@ def replot(out: Path, names: list[str]) -> int:
             if isinstance(saved, dict) and "run" in saved:
                 run = RunInfo.from_json(saved["run"])
             else:  # saved before the data carried its run: read it back from the section
-                run = run_info_from_section(old.get(name, ""), mod.runs_of(saved) if hasattr(mod, "runs_of") else None)
+                run = run_info_from_section(old.get(name, ""))
             fragments[name] = write_up(mod, saved, run, out / "figures")
             notes += run.notes
         except Exception:

@@ -19,7 +19,6 @@ from typing import Any, Callable, Iterable
 from renderer.scene import Scene
 from renderer.settings import RenderSettings
 
-from . import data
 from .machine import machine_info
 from .timing import RenderTiming, Stat, measure
 
@@ -142,16 +141,6 @@ class Context:
     def log(self, msg: str) -> None:
         from tqdm import tqdm
         tqdm.write(msg, file=sys.stderr)
-
-    def note(self, msg: str) -> None:
-        """A line repeated in the summary at the end of the run (values to put into code)."""
-        self.notes.append(msg)
-        self.log(msg)
-
-    # ---- outputs
-    def save_data(self, name: str, obj: Any) -> str:
-        """Write ``figures/NAME.json`` (data an experiment keeps beside its own, e.g. a second file)."""
-        return data.save(self.figures, name, obj)
 
     # ---- rendering
     def predict_frame_s(self, scene: Scene, settings: RenderSettings) -> float:
