@@ -20,8 +20,8 @@ before/after comparison.
 
 Usage::
 
-    .venv/bin/python bench/client.py                         # this client
-    .venv/bin/python bench/client.py --client-dir /tmp/old/client_web
+    .venv/bin/python -m bench.client                         # this client
+    .venv/bin/python -m bench.client --client-dir /tmp/old/client_web
 """
 
 from __future__ import annotations
@@ -29,14 +29,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
 import time
 from pathlib import Path
 
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-from bench.child import ServerChild  # noqa: E402  (run as a script or imported)
+from bench.child import ServerChild
 CHROMIUM = os.environ.get("POCKETRAY_CHROMIUM", "/usr/bin/chromium")
 GL_ARGS = ["--no-sandbox", "--disable-background-networking", "--disable-component-update", "--disable-sync",
            "--no-first-run", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]

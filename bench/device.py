@@ -20,8 +20,8 @@ frames/s = 1000 / median frame ms. Each side gets a budget of ``--budget`` secon
 
 Usage::
 
-    .venv/bin/python bench/device.py                    # starts its own server; writes docs/device.md
-    .venv/bin/python bench/device.py --url http://127.0.0.1:8000 --out -   # table to stdout only
+    .venv/bin/python -m bench.device                    # starts its own server; writes docs/device.md
+    .venv/bin/python -m bench.device --url http://127.0.0.1:8000 --out -   # table to stdout only
 """
 
 from __future__ import annotations
@@ -35,8 +35,7 @@ from pathlib import Path
 
 import httpx
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from latency import Server, server_timing  # noqa: E402  (bench/latency.py: a server child process)
+from bench.latency import Server, server_timing  # a server child process
 
 ROOT = Path(__file__).resolve().parent.parent
 CHROMIUM = os.environ.get("POCKETRAY_CHROMIUM", "/usr/bin/chromium")
@@ -192,7 +191,7 @@ def markdown(rows: list[dict]) -> str:
 def document(table: str, renderer: str, gl_renderer: str | None, load0: float, load1: float, args) -> str:
     return f"""### Device against server: frames/s
 
-`bench/device.py` (`.venv/bin/python bench/device.py`): scenario 3, BIH (max_prims 8), colour,
+`bench/device.py` (`.venv/bin/python -m bench.device`): scenario 3, BIH (max_prims 8), colour,
 max_recursion_depth {DEPTH}, the session's home camera; headless Chromium (`/usr/bin/chromium`,
 flags `{' '.join(GL_ARGS)}`). **Device**: the client's WebGL2 renderer, `{renderer}`; one
 frame = trace (waited for with a one-pixel `readPixels`) + display pass; the data (tree built on

@@ -1,7 +1,7 @@
 """Engine benchmark (issue 2, item 9): BIH build time and trace time, BIH vs brute force.
 
-    ./dev bench bench/engine.py            # full tables (minutes)
-    ./dev bench bench/engine.py --quick    # small n, fewer runs
+    ./dev bench engine            # full tables (minutes)
+    ./dev bench engine --quick    # small n, fewer runs
 
 Prints two Markdown tables:
 1. build time (median of runs) for n = 64 … 1,048,576, scenarios 1–3, max_prims 1 and 8;
@@ -18,16 +18,13 @@ import argparse
 import os
 import platform
 import statistics
-import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from renderer.accel.bih import build_for_spheres  # noqa: E402
-from renderer.gl.renderer import GLRenderer  # noqa: E402
-from renderer.scenarios import scenario  # noqa: E402
-from renderer.settings import RenderSettings  # noqa: E402
+from renderer.accel.bih import build_for_spheres
+from renderer.gl.renderer import GLRenderer
+from renderer.scenarios import scenario
+from renderer.settings import RenderSettings
 
 
 def machine() -> str:

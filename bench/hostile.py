@@ -51,10 +51,10 @@ the peak):
 
 Usage::
 
-    .venv/bin/python bench/hostile.py                      # all parts, this checkout
-    .venv/bin/python bench/hostile.py --root /tmp/pre17 bad health stalled
-    .venv/bin/python bench/hostile.py --json out.json
-    .venv/bin/python bench/hostile.py stack --root /tmp/base     # the stack's parts failing, an older commit
+    .venv/bin/python -m bench.hostile                      # all parts, this checkout
+    .venv/bin/python -m bench.hostile --root /tmp/pre17 bad health stalled
+    .venv/bin/python -m bench.hostile --json out.json
+    .venv/bin/python -m bench.hostile stack --root /tmp/base     # the stack's parts failing, an older commit
 
 Loopback only; every loop is bounded.
 """
@@ -77,8 +77,7 @@ from pathlib import Path
 import httpx
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-from bench.child import ServerChild, free_port  # noqa: E402  (run as a script or imported)
+from bench.child import ServerChild, free_port
 MIB = 1 << 20
 
 

@@ -22,10 +22,10 @@ by the server; ``pip install websockets``).
 
 Usage::
 
-    .venv/bin/python bench/latency.py                # starts its own server process
-    .venv/bin/python bench/latency.py --url http://127.0.0.1:8000
-    .venv/bin/python bench/latency.py --frames 10 --depth 3 --n 4096
-    .venv/bin/python bench/latency.py --profiles interactive --no-transports
+    .venv/bin/python -m bench.latency                # starts its own server process
+    .venv/bin/python -m bench.latency --url http://127.0.0.1:8000
+    .venv/bin/python -m bench.latency --frames 10 --depth 3 --n 4096
+    .venv/bin/python -m bench.latency --profiles interactive --no-transports
 
 Target of the issue: ≥ 10 frames/s for one client at 320 × 544, depth 3, interactive profile.
 """
@@ -38,7 +38,6 @@ import os
 import re
 import statistics
 import subprocess
-import sys
 import tempfile
 import threading
 import time
@@ -47,9 +46,8 @@ from pathlib import Path
 import httpx
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-from bench.child import ServerChild  # noqa: E402
-from renderer.profiles import PROFILES  # noqa: E402
+from bench.child import ServerChild
+from renderer.profiles import PROFILES
 
 STAGES = ("queue", "build", "upload", "trace", "read", "encode")
 

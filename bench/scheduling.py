@@ -14,8 +14,8 @@
 
 Usage::
 
-    .venv/bin/python bench/scheduling.py              # all three, servers started here
-    .venv/bin/python bench/scheduling.py --only fairness,progressive --runs 5
+    .venv/bin/python -m bench.scheduling              # all three, servers started here
+    .venv/bin/python -m bench.scheduling --only fairness,progressive --runs 5
 
 Targets (issue 16): (a) ≤ 0.5 s for the small frame beside a 30 s one; (b) first image
 ≤ 0.25 × the final image's time and ≤ 0.5 s after load or after the finger lifts.
@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
-import sys
 import threading
 import time
 from pathlib import Path
@@ -34,9 +33,8 @@ from pathlib import Path
 import httpx
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
 
-from bench.latency import Server, pct  # noqa: E402
+from bench.latency import Server, pct
 
 PHONE = (502, 1088)          # 390 × 844 CSS px at DPR 3, fitted to a long side of 1,088 device px
 STILL = {"max_recursion_depth": 8, "samples_per_pixel": 4, "min_weight": 0.03}

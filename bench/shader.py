@@ -18,11 +18,11 @@ which are reported apart (``read``). Sides and configurations are interleaved
 medians, and ratios against ``base`` from the same run. The acceleration structure is
 built once per configuration and side (``prepare`` is not timed).
 
-    .venv/bin/python bench/shader.py                  # every configuration, 7 runs
-    .venv/bin/python bench/shader.py --quick          # tiny images, 1 run (smoke)
-    .venv/bin/python bench/shader.py --only colour_d3,primary --runs 9
-    .venv/bin/python bench/shader.py --sides base,new,new/tex --json out.json
-    .venv/bin/python bench/shader.py --sides new,try=/tmp/copy   # a modified copy of renderer/ + shaders/
+    .venv/bin/python -m bench.shader                  # every configuration, 7 runs
+    .venv/bin/python -m bench.shader --quick          # tiny images, 1 run (smoke)
+    .venv/bin/python -m bench.shader --only colour_d3,primary --runs 9
+    .venv/bin/python -m bench.shader --sides base,new,new/tex --json out.json
+    .venv/bin/python -m bench.shader --sides new,try=/tmp/copy   # a modified copy of renderer/ + shaders/
 
 ``bench/experiments/shader.py`` runs it for docs/RESULTS.md.
 """
@@ -87,7 +87,7 @@ CONFIGS = (
 SIDES = {"base": {}, "new": {}, "new/tex": {"uniform_blocks": False}, "new/nobg": {"background": False}}
 
 
-# ---- the worker (runs in its own process, with the side's code first on sys.path) ------------
+# ---- the worker (runs in its own process, the side's code first on PYTHONPATH) ---------------
 def _scene(spec: dict):
     from renderer.scenarios import scenario
     if spec["kind"] == "scenario":

@@ -16,7 +16,7 @@ applied twice (a refused or timed-out gesture changes nothing).
 
 Usage::
 
-    .venv/bin/python bench/soak.py --seconds 300 --users 4 [--json out.json]
+    .venv/bin/python -m bench.soak --seconds 300 --users 4 [--json out.json]
 """
 
 from __future__ import annotations
@@ -27,7 +27,6 @@ import os
 import signal
 import socket
 import statistics
-import sys
 import tempfile
 import threading
 import time
@@ -38,8 +37,7 @@ import httpx
 
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-from bench.child import ServerChild, free_port  # noqa: E402  (run as a script or imported)
+from bench.child import ServerChild, free_port
 FRAME = {"width": 96, "height": 160, "max_recursion_depth": 2, "samples_per_pixel": 1, "format": "jpeg"}
 
 

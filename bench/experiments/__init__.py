@@ -1,8 +1,18 @@
-"""pocketray's experiments: one module per experiment, run by ``bench/experiments.py``.
+"""pocketray's experiments: one module per experiment, run by ``python -m bench.experiments``.
 
-Every module has ``NAME``, ``TITLE`` and ``run(ctx) -> str``: it measures, saves its
-charts through ``ctx.savefig`` and its raw data through ``ctx.save_data``, and returns
-the Markdown fragment that ``bench/experiments.py`` puts into ``RESULTS.md``.
+Every module has ``NAME``, ``TITLE`` and three steps:
+
+- ``measure(ctx) -> dict``: measures (``ctx`` is a :class:`~.context.Context`) and returns
+  the raw data, JSON-able; the runner saves it as ``figures/NAME.json`` with the run's
+  :class:`~.context.RunInfo` under ``"run"``;
+- ``plot(data, figures, quick) -> {chart: alt text}`` (when it has charts): draws them from
+  the saved data;
+- ``report(data, run, charts) -> str``: the Markdown section, from the saved data only.
+
+So ``--replot`` writes the same sections and charts from ``figures/*.json`` without
+measuring. Shared pieces, one job each: ``context`` (the run), ``timing``, ``machine``,
+``scenes`` (settings and scene helpers), ``images``, ``cache``, ``data`` (the JSON files),
+``markdown``, ``style`` (charts), ``results`` (RESULTS.md).
 """
 
 # In the order they appear in RESULTS.md.

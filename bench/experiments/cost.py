@@ -22,8 +22,9 @@ from renderer.methods import METHODS
 from renderer.scenarios import scenario
 from renderer.settings import RenderSettings
 
-from .common import Context, md_table, plt
-from .style import image_line, legend_outside, save, series
+from .context import Context, RunInfo
+from .markdown import md_table
+from .style import image_line, legend_outside, plt, save, series
 
 NAME = "cost"
 TITLE = "Cost model of a frame — estimate against measured"
@@ -66,7 +67,7 @@ def cases(quick: bool) -> list[tuple[str, object, RenderSettings]]:
     return out
 
 
-def measure(ctx: Context) -> list[dict]:
+def measure_frames(ctx: Context) -> list[dict]:
     r = ctx.renderer
     rows = []
     for label, scene, s in ctx.bar(cases(ctx.quick), desc="cost frames"):
@@ -104,16 +105,21 @@ def fit(frames: list[dict]) -> tuple[CostModel, float]:
     return best
 
 
-def run(ctx: Context) -> str:
-    frames = measure(ctx)
+def measure(ctx: Context) -> dict:
+    """The frames measured, and the constants fitted to them with each frame's estimate."""
+    frames = measure_frames(ctx)
     model, err = fit(frames)
     for f in frames:
         f["est"] = float(np.array(f["terms"][str(model.level_decay)]) @ model.vector()) / 1e6
-    saved = {"model": model.__dict__, "terms": list(CostModel.TERMS), "median_abs_log_ratio": err,
-             "frames": [{"label": f["label"], "measured_ms": f["ms"], "estimated_ms": f["est"],
-                         "multi_pass": f["multi_pass"], "terms": f["terms"]} for f in frames]}
-    ctx.save_data(NAME, saved)
-    img = "\n".join(image_line(k, v) for k, v in plot(saved, ctx.figures, ctx.quick).items())
+    return {"model": model.__dict__, "terms": list(CostModel.TERMS), "median_abs_log_ratio": err,
+            "frames": [{"label": f["label"], "measured_ms": f["ms"], "estimated_ms": f["est"],
+                        "multi_pass": f["multi_pass"], "terms": f["terms"]} for f in frames]}
+
+
+def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
+    model, err = CostModel(**data["model"]), data["median_abs_log_ratio"]
+    frames = [{"label": f["label"], "ms": f["measured_ms"], "est": f["estimated_ms"]} for f in data["frames"]]
+    img = "\n".join(image_line(k, v) for k, v in charts.items())
     ratios = np.array([f["est"] / max(f["ms"], 1e-3) for f in frames])
     worst = sorted(frames, key=lambda f: -abs(math.log(max(f["est"], 1e-3) / max(f["ms"], 1e-3))))[:8]
     table = md_table(["frame", "measured ms", "estimated ms", "ratio"],
@@ -123,7 +129,7 @@ def run(ctx: Context) -> str:
     consts = ", ".join(f"{name} {value:.3g}" for name, value in zip(CostModel.TERMS, model.vector()))
     return f"""## {TITLE}
 
-{ctx.caption(1, "one frame after a warm-up per configuration")}
+{run.caption(1, "one frame after a warm-up per configuration")}
 
 {len(frames)} frames (every method; scenarios 1–3; primary rays, colour at depth 3, and the still
 profile — depth 8, ε 0.03, 4 samples; degenerate BIHs of one leaf; dense scenes of 2^18 and 2^21

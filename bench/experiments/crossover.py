@@ -16,8 +16,11 @@ from pathlib import Path
 from renderer import methods as _methods
 from renderer.scenarios import scenario
 
-from .common import Context, crossover_n, default_settings, log_axis, md_table, method_names, plt
-from .style import image_line, legend_outside, roundtrip, save, series
+from .context import Context, RunInfo
+from .markdown import md_table
+from .scenes import default_settings, method_names
+from .style import image_line, legend_outside, log_axis, plt, save, series
+from .timing import crossover_n
 
 NAME = "crossover"
 TITLE = "Crossover — where brute force beats the BIH"
@@ -54,43 +57,60 @@ def best_threshold(ns, cases: list[tuple[list[float], list[float]]]) -> tuple[in
     return best, regret
 
 
-def run(ctx: Context) -> str:
+def measure(ctx: Context) -> dict:
     ns = NS_QUICK if ctx.quick else NS
     w, h = SIZE_QUICK if ctx.quick else SIZE
     base = default_settings().with_(width=w, height=h, mode="color")
-    mp = base.max_prims
     # Brute force against the BIH, plus the names that choose between them (auto).
     extra = [m for m in method_names(dispatchers=True) if m not in method_names()]
     methods = ["bruteforce", "bih"] + extra
-    times: dict[tuple[str, int, int, int], float] = {}
     raw = {}
     jobs = [(m, d, sc, n) for d in DEPTHS for sc in (1, 2, 3) for n in ns for m in methods]
     for m, d, sc, n in ctx.bar(jobs, desc="crossover"):
         s = scenario(sc, n, seed=0, radius=1.0)
         t = ctx.time_render(s, base.with_(method=m, max_recursion_depth=d))
-        times[(m, d, sc, n)] = t.total.median
         raw[f"{m}/{d}/{sc}/{n}"] = t.to_json()
+    xs, c, regret = analyse(ns, raw)
+    return {"size": [w, h], "ns": ns, "max_prims": base.max_prims, "points": raw,
+            "crossover": {f"{d}/{sc}": x for (d, sc), x in xs.items()}, "auto_crossover_n": c, "regret": regret,
+            "auto_crossover_n_in_code": getattr(_methods, "AUTO_CROSSOVER_N", None)}
 
-    rows, cases, xs = [], [], {}
+
+def _series(ns, points: dict, method: str, d: int, sc: int) -> list[float]:
+    return [points[f"{method}/{d}/{sc}/{n}"]["total"]["median"] for n in ns]
+
+
+def analyse(ns, points: dict) -> tuple[dict[tuple[int, int], float], int, dict[int, float]]:
+    """Each scenario × depth series' crossover, the best threshold and every threshold's cost."""
+    xs, cases = {}, []
     for d in DEPTHS:
         for sc in (1, 2, 3):
-            bf = [times[("bruteforce", d, sc, n)] for n in ns]
-            bih = [times[("bih", d, sc, n)] for n in ns]
+            bf, bih = _series(ns, points, "bruteforce", d, sc), _series(ns, points, "bih", d, sc)
             cases.append((bf, bih))
-            x, txt = crossover(ns, bf, bih)
-            xs[(d, sc)] = x
-            rows.append([str(sc), str(d), txt] + [f"{f / b:.2f}" for f, b in zip(bf, bih)])
+            xs[(d, sc)] = crossover(ns, bf, bih)[0]
+    c, regret = best_threshold(ns, cases)
+    return xs, c, regret
+
+
+def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
+    ns, points = data["ns"], data["points"]
+    w, h = data["size"]
+    mp = data["max_prims"]
+    rows, cases = [], []
+    for d in DEPTHS:
+        for sc in (1, 2, 3):
+            bf, bih = _series(ns, points, "bruteforce", d, sc), _series(ns, points, "bih", d, sc)
+            cases.append((bf, bih))
+            rows.append([str(sc), str(d), crossover(ns, bf, bih)[1]] + [f"{f / b:.2f}" for f, b in zip(bf, bih)])
     table = md_table(["scenario", "depth", "crossover n"] + [f"BF/BIH n = {n}" for n in ns], rows,
                      "rrl" + "r" * len(ns))
     c, regret = best_threshold(ns, cases)
-    current = getattr(_methods, "AUTO_CROSSOVER_N", None)
-    ctx.note(f"crossover: AUTO_CROSSOVER_N = {c}  # renderer/methods.py: brute force when n < {c} "
+    # The value in the code when the data was measured (older data: the value in the code now).
+    current = data.get("auto_crossover_n_in_code", getattr(_methods, "AUTO_CROSSOVER_N", None))
+    run.note(f"crossover: AUTO_CROSSOVER_N = {c}  # renderer/methods.py: brute force when n < {c} "
              f"(current: {current})")
-
-    saved = {"size": [w, h], "ns": ns, "max_prims": mp, "points": raw,
-             "crossover": {f"{d}/{sc}": x for (d, sc), x in xs.items()}, "auto_crossover_n": c, "regret": regret}
-    path = ctx.save_data(NAME, saved)
-    img = "\n".join(image_line(k, v) for k, v in plot(roundtrip(saved), ctx.figures, ctx.quick).items())
+    img = "\n".join(image_line(k, v) for k, v in charts.items())
+    path = f"figures/{NAME}.json"
 
     reg = ", ".join(f"{k}: {v:.2f}" for k, v in regret.items())
     return f"""## {TITLE}
@@ -103,7 +123,7 @@ crossover and the ratio BF time / BIH time per n (> 1: the BIH is faster).
 
 {table}
 
-{ctx.caption(capped=True)}
+{run.caption(capped=True)}
 
 **`AUTO_CROSSOVER_N = {c}`** (brute force when n < {c}): of the thresholds tried, the one whose choice
 costs least over all {len(cases)} scenario × depth series, the cost being Σ (time of the choice / time of

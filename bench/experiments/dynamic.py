@@ -15,30 +15,29 @@
    one BVH, selective rebuild) against BVH + kd-tree (static spheres in a kd-tree built once,
    moving ones in the BVH), in four shading configurations, summed over an animation.
 
-Standalone: ``python bench/experiments/dynamic.py [--quick] [--out DIR]``.
+Standalone: ``python -m bench.experiments.dynamic [--quick] [--out DIR]``.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import sys
 import time
 from pathlib import Path
 
-if __name__ == "__main__":  # standalone: make the repository root importable
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+import numpy as np
 
-import numpy as np  # noqa: E402
+from renderer.accel.bih import sphere_aabbs
+from renderer.accel.kdtree import build_kdtree
+from renderer.animation import AnimatedScene, museum, pose
+from renderer.methods import METHODS
+from renderer.scenarios import scenario
+from renderer.settings import RenderSettings
+from renderer.tree_update import TreeUpdate
 
-from bench.experiments.common import Context, Stat, crossover_n, log_axis, md_table, plt  # noqa: E402
-from bench.experiments.style import image_line, legend_outside, roundtrip, save, series  # noqa: E402
-from renderer.animation import AnimatedScene, museum, pose  # noqa: E402
-from renderer.accel.bih import sphere_aabbs  # noqa: E402
-from renderer.accel.kdtree import build_kdtree  # noqa: E402
-from renderer.methods import METHODS  # noqa: E402
-from renderer.scenarios import scenario  # noqa: E402
-from renderer.settings import RenderSettings  # noqa: E402
-from renderer.tree_update import TreeUpdate  # noqa: E402
+from .context import Context, RunInfo
+from .markdown import md_table
+from .style import image_line, legend_outside, log_axis, plt, save, series
+from .timing import Stat, crossover_n
 
 NAME = "dynamic"
 TITLE = "Dynamic scenes — BVH updates, cost-scaling kd-tree, two levels (Reiter Figs. 5.11, 5.4, 5.6)"
@@ -94,7 +93,7 @@ def play(ctx: Context, anim: AnimatedScene, method: str, scheme: str, frames: in
 
 
 def crossover_text(ns, ours, theirs) -> str:
-    """Where ``ours`` < ``theirs`` at every larger measured n (common.crossover_n), as table text."""
+    """Where ``ours`` < ``theirs`` at every larger measured n (timing.crossover_n), as table text."""
     n, i = crossover_n(ns, ours, theirs)
     if i == 0:
         return f"≤ {ns[0]:,}"
@@ -103,7 +102,8 @@ def crossover_text(ns, ours, theirs) -> str:
     return f"≈ {n:,.0f}"
 
 
-def fig_5_11(ctx: Context) -> tuple[str, dict]:
+def measure_fig_5_11(ctx: Context) -> tuple[dict, dict]:
+    """(raw, params): per motion, n and scheme the frame and update times."""
     ns = getattr(ctx, "dynamic_ns", None) or (NS_QUICK if ctx.quick else NS)
     frames = getattr(ctx, "dynamic_frames", None) or (FRAMES_QUICK if ctx.quick else FRAMES)
     every = RENDER_EVERY_QUICK if ctx.quick else RENDER_EVERY
@@ -117,6 +117,18 @@ def fig_5_11(ctx: Context) -> tuple[str, dict]:
     for kind, n, (label, method, scheme) in ctx.bar(jobs, desc="fig 5.11"):
         anim = make_anim(kind, n)
         data[(kind, n, label)] = play(ctx, anim, method, scheme, frames, every, settings)
+    raw = {f"{k}/{n}/{lab}": v for (k, n, lab), v in data.items()}
+    return raw, {"frames": frames, "every": every, "size": [w, h]}
+
+
+def report_fig_5_11(raw: dict, params: dict, run: RunInfo, img: str) -> str:
+    frames, every = params["frames"], params["every"]
+    w, h = params["size"]
+    data = {}
+    for key, v in raw.items():
+        k, n, lab = key.split("/", 2)
+        data[(k, int(n), lab)] = v
+    ns = sorted({n for _, n, _ in data})
     tables = []
     cross_rows = []
     for kind in KINDS:
@@ -138,8 +150,6 @@ def fig_5_11(ctx: Context) -> tuple[str, dict]:
         cross_rows.append(cells)
     cross = md_table(["kind of motion", "refit beats BIH rebuild from n", "selective beats BIH rebuild from n"],
                      cross_rows, "lll")
-    raw = {f"{k}/{n}/{lab}": v for (k, n, lab), v in data.items()}
-    img = image_line("dynamic_fig_5_11", plot_fig_5_11(roundtrip(raw), ctx.figures, ctx.quick))
     frag = f"""### Updating schemes (Reiter Fig. 5.11)
 
 Museum-like animation, {frames} frames at {FPS:g} frames/s, primid mode (colour coding of the visible
@@ -156,14 +166,15 @@ BIH rebuild's at that n and every larger measured n):
 
 {cross}
 
-{ctx.caption(1, what="")}
+{run.caption(1, what="")}
 """
-    return frag, raw
+    return frag
 
 
 # ------------------------------------------------------------------- Fig. 5.4
 
-def fig_5_4(ctx: Context) -> tuple[str, dict]:
+def measure_fig_5_4(ctx: Context) -> tuple[dict, dict]:
+    """(raw, params): per scene and cost scale the kd-tree's trace, build and size."""
     n = 512 if ctx.quick else 4096
     w, h = SIZE_QUICK if ctx.quick else SIZE
     scenes = [(f"scenario {sc}, n = {n:,}", scenario(sc, n)) for sc in (1, 2, 3)]
@@ -172,11 +183,10 @@ def fig_5_4(ctx: Context) -> tuple[str, dict]:
     settings = RenderSettings(width=w, height=h, mode="color", max_recursion_depth=1, method="kdtree")
     kd_method = METHODS["kdtree"]
     saved = kd_method.cost_scale
-    raw, rows = {}, []
+    raw = {}
     try:
         for name, scene in ctx.bar(scenes, desc="fig 5.4"):
             lo, hi = sphere_aabbs(scene.sphere_centers, scene.sphere_radii)
-            base = None
             for s in COST_SCALES:
                 builds = []
                 for _ in range(ctx.runs):
@@ -188,18 +198,25 @@ def fig_5_4(ctx: Context) -> tuple[str, dict]:
                        "bytes": kd.stats.bytes, "nodes": kd.stats.nodes, "depth": kd.stats.depth_max,
                        "refs_per_prim": kd.stats.refs_per_prim, "sah": kd.stats.sah_cost}
                 raw[f"{name}/{s}"] = rec
-                if base is None:
-                    base = rec
-                rows.append([name if s == COST_SCALES[0] else "", f"{s:g}",
-                             f"{rec['trace_ms']:,.1f} ({rec['trace_ms'] / base['trace_ms']:.2f})",
-                             f"{rec['build_ms']:,.1f} ({rec['build_ms'] / base['build_ms']:.2f})",
-                             f"{rec['bytes']:,} ({rec['bytes'] / base['bytes']:.2f})",
-                             f"{rec['nodes']:,}", str(rec["depth"]), f"{rec['refs_per_prim']:.2f}"])
     finally:
         kd_method.cost_scale = saved
+    return raw, {"size": [w, h]}
+
+
+def report_fig_5_4(raw: dict, params: dict, run: RunInfo, img: str) -> str:
+    w, h = params["size"]
+    rows, bases = [], {}
+    for key, rec in raw.items():   # in the order measured: scene, then the scales from 1 down
+        name, s = key.rsplit("/", 1)
+        first = name not in bases
+        base = bases.setdefault(name, rec)
+        rows.append([name if first else "", f"{float(s):g}",
+                     f"{rec['trace_ms']:,.1f} ({rec['trace_ms'] / base['trace_ms']:.2f})",
+                     f"{rec['build_ms']:,.1f} ({rec['build_ms'] / base['build_ms']:.2f})",
+                     f"{rec['bytes']:,} ({rec['bytes'] / base['bytes']:.2f})",
+                     f"{rec['nodes']:,}", str(rec["depth"]), f"{rec['refs_per_prim']:.2f}"])
     table = md_table(["scene", "scale s at max. depth", "trace ms (rel.)", "build ms (rel.)", "bytes (rel.)",
                       "nodes", "depth", "refs / sphere"], rows, "lrrrrrrr")
-    img = image_line("dynamic_fig_5_4", plot_fig_5_4(roundtrip(raw), ctx.figures, ctx.quick))
     frag = f"""### Cost-scaling termination criterion (Reiter Fig. 5.4)
 
 SAH kd-tree, leaf cost scaled by s^((depth − 1)/(D − 1)) (D = min(64, 8 + 1.3 log₂ n)); s = 1 is the plain
@@ -209,14 +226,15 @@ SAH criterion, to which the values in brackets are relative. Trace: colour, recu
 
 {table}
 
-{ctx.caption()}
+{run.caption()}
 """
-    return frag, raw
+    return frag
 
 
 # ------------------------------------------------------------------- Fig. 5.6
 
-def fig_5_6(ctx: Context) -> tuple[str, dict]:
+def measure_fig_5_6(ctx: Context) -> tuple[dict, dict]:
+    """(raw, params): per shading configuration and method the animations' times."""
     n = 256 if ctx.quick else 4096
     frames = 3 if ctx.quick else 25
     w, h = (48, 36) if ctx.quick else (320, 240)
@@ -225,7 +243,7 @@ def fig_5_6(ctx: Context) -> tuple[str, dict]:
     configs = [("a) primary rays only (no light: ambient)", dark, 1), ("b) with shadows", anim, 1),
                ("c) reflection and refraction (no light)", dark, 3), ("d) all effects", anim, 3)]
     methods = ("bvh", "twolevel")
-    raw, rows = {}, []
+    raw = {}
     for label, a, depth in ctx.bar(configs, desc="fig 5.6"):
         totals: dict = {m: [] for m in methods}
         split: dict = {m: {"update": [], "trace": []} for m in methods}
@@ -244,8 +262,18 @@ def fig_5_6(ctx: Context) -> tuple[str, dict]:
                 totals[method].append((time.perf_counter() - t0) * 1e3)
                 split[method]["update"].append(upd / frames)
                 split[method]["trace"].append(trc / frames)
-        st = {m: Stat(totals[m]) for m in methods}
         raw[label] = {m: {"total_ms": totals[m], **split[m]} for m in methods}
+    return raw, {"n": n, "frames": frames, "size": [w, h], "runs": ctx.runs}
+
+
+def report_fig_5_6(raw: dict, params: dict, run: RunInfo, img: str) -> str:
+    n, frames, runs = params["n"], params["frames"], params["runs"]
+    w, h = params["size"]
+    methods = ("bvh", "twolevel")
+    rows = []
+    for label, per_method in raw.items():
+        st = {m: Stat(per_method[m]["total_ms"]) for m in methods}
+        split = per_method
         per_frame = {m: f"{float(np.median(split[m]['update'])):,.1f} / {float(np.median(split[m]['trace'])):,.1f}"
                      for m in methods}
         rows.append([label, st["bvh"].fmt(0), per_frame["bvh"], st["twolevel"].fmt(0), per_frame["twolevel"],
@@ -257,7 +285,7 @@ def fig_5_6(ctx: Context) -> tuple[str, dict]:
 
 Museum with {n:,} moving spheres (a third each rigid, deformable, incoherent), {frames} frames at
 {FPS:g} frames/s after one untimed warm-up frame, {w} × {h}, total wall time (pose + update + upload +
-trace + read back), median (min–max) of {ctx.runs} animations per method, the methods alternating.
+trace + read back), median (min–max) of {runs} animations per method, the methods alternating.
 "BVH only": every sphere in one BVH, selective rebuild; "BVH + kd-tree": the 576
 static spheres in a kd-tree built once, the moving ones in a BVH with selective rebuild. Our shader has
 no unshadowed diffuse term, so Reiter's "diffuse" row becomes primary rays with ambient shading only
@@ -265,9 +293,9 @@ no unshadowed diffuse term, so Reiter's "diffuse" row becomes primary rays with 
 
 {table}
 
-{ctx.caption()}
+{run.caption()}
 """
-    return frag, raw
+    return frag
 
 
 def plot_fig_5_11(raw: dict, figures: Path, quick: bool = False) -> str:
@@ -339,22 +367,47 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
     return out
 
 
-def run(ctx: Context) -> str:
-    parts, raw = [], {}
+PARTS = {"fig_5_11": (measure_fig_5_11, report_fig_5_11, "dynamic_fig_5_11"),
+         "fig_5_4": (measure_fig_5_4, report_fig_5_4, "dynamic_fig_5_4"),
+         "fig_5_6": (measure_fig_5_6, report_fig_5_6, None)}
+
+
+def measure(ctx: Context) -> dict:
     only = getattr(ctx, "dynamic_only", None)
-    for name, fn in (("fig_5_11", fig_5_11), ("fig_5_4", fig_5_4), ("fig_5_6", fig_5_6)):
+    data: dict = {"params": {}}
+    for name, (fn, _, _) in PARTS.items():
         if only and name not in only:
             continue
-        frag, data = fn(ctx)
-        parts.append(frag)
-        raw[name] = data
-    path = ctx.save_data(NAME, raw)
+        data[name], data["params"][name] = fn(ctx)
+    return data
+
+
+def legacy_params(run: RunInfo) -> dict:
+    """The parameters of data saved before it kept them: those of the run's mode (no standalone overrides)."""
+    q = run.quick
+    return {"fig_5_11": {"frames": FRAMES_QUICK if q else FRAMES, "every": RENDER_EVERY_QUICK if q else RENDER_EVERY,
+                         "size": list(SIZE_QUICK if q else SIZE)},
+            "fig_5_4": {"size": list(SIZE_QUICK if q else SIZE)},
+            "fig_5_6": {"n": 256 if q else 4096, "frames": 3 if q else 25,
+                        "size": [48, 36] if q else [320, 240], "runs": run.runs}}
+
+
+def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
+    params = data.get("params") or legacy_params(run)
+    parts = []
+    for name, (_, fn, chart) in PARTS.items():
+        if name in data:
+            img = image_line(chart, charts[chart]) if chart in charts else ""
+            parts.append(fn(data[name], params[name], run, img))
+    path = f"figures/{NAME}.json"
     return f"## {TITLE}\n\n" + "\n".join(parts) + f"\nRaw data: [`{path}`]({path}).\n"
 
 
 if __name__ == "__main__":
     import argparse
     import tempfile
+
+    from .steps import run_one
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--out", type=Path, default=None)
@@ -368,7 +421,7 @@ if __name__ == "__main__":
     ctx.dynamic_ns = tuple(int(x) for x in a.ns.split(",") if x.strip()) or None
     ctx.dynamic_frames = a.frames
     ctx.dynamic_only = tuple(x.strip() for x in a.only.split(",") if x.strip()) or None
-    text = run(ctx)
+    _, text, _ = run_one(ctx, NAME)
     (out / "dynamic.md").write_text(text)
     print(text)
     print(f"\nwrote {out / 'dynamic.md'} and {out / 'figures'}/")

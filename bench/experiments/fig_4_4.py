@@ -14,8 +14,10 @@ from pathlib import Path
 
 from renderer.scenarios import scenario
 
-from .common import Context, default_settings, log_axis, md_table, method_names, plt
-from .style import image_line, legend_outside, roundtrip, save
+from .context import Context, RunInfo
+from .markdown import md_table
+from .scenes import default_settings, method_names
+from .style import image_line, legend_outside, log_axis, plt, save
 from .style import series as line_style
 
 NAME = "fig_4_4"
@@ -53,7 +55,7 @@ def series() -> list[tuple[str, str, int]]:
     return out
 
 
-def run(ctx: Context) -> str:
+def measure(ctx: Context) -> dict:
     ns = NS_QUICK if ctx.quick else NS
     w, h = SIZE_QUICK if ctx.quick else SIZE
     ser = series()
@@ -74,8 +76,15 @@ def run(ctx: Context) -> str:
         t = ctx.time_render(scene, st)
         data[f"{sc}/{n}/{label}"] = {"scenario": sc, "n": n, "series": label, "method": method,
                                      "max_prims": mp, "timing": t.to_json()}
+    return {"size": [w, h], "ns": ns, "runs": ctx.runs, "points": data, "gl": ctx.gl, "labels": [s[0] for s in ser]}
 
-    skipped_md = ctx.skipped_md()
+
+def report(saved: dict, run: RunInfo, charts: dict[str, str]) -> str:
+    ns, data = saved["ns"], saved["points"]
+    # Older data did not keep its series: every series measured, in the order measured.
+    labels = saved.get("labels") or list(dict.fromkeys(p["series"] for p in data.values()))
+    w, h = saved["size"]
+    skipped_md = run.skipped_md()
 
     def fps(sc, n, label, stage="total"):
         """Frames/s of one point; NaN where it was not measured."""
@@ -93,8 +102,7 @@ def run(ctx: Context) -> str:
     def cell(x):
         return "—" if math.isnan(x) else f"{x:.2f}"
 
-    labels = [s[0] for s in ser]
-    bih_labels = [s[0] for s in ser if s[1] == "bih"]
+    bih_labels = [lab for lab in labels if lab.startswith("BIH ")]
     has_bf = "BF" in labels
 
     # Tables: one per scenario, fps per series (frame), then trace-only fps.
@@ -110,7 +118,7 @@ def run(ctx: Context) -> str:
             rows.append(cells)
         hdr = ["n"] + labels + (["best BIH / BF"] if has_bf else [])
         tables.append(f"**Scenario {sc}** — frames/s (whole frame: build + upload + trace + read back)\n\n"
-                      + md_table(hdr, rows) + "\n\n" + ctx.caption(capped=True))
+                      + md_table(hdr, rows) + "\n\n" + run.caption(capped=True))
     trace_rows = []
     for sc in (1, 2, 3):
         for n in ns:
@@ -132,7 +140,7 @@ def run(ctx: Context) -> str:
              for lab in bih_labels}
     sweet = max(bih_labels, key=lambda lab: (wins[lab], gmean[lab]))
     sweet_mp = int(sweet.split()[1])
-    ctx.note(f"fig_4_4: MAX_PRIMS sweet spot = {sweet_mp} (fastest in {wins[sweet]} of {cases} "
+    run.note(f"fig_4_4: MAX_PRIMS sweet spot = {sweet_mp} (fastest in {wins[sweet]} of {cases} "
              f"scenario × n cases) -> RenderSettings.max_prims default")
 
     # Thesis comparison (only with the sizes the thesis used, where we measured them).
@@ -171,11 +179,8 @@ def run(ctx: Context) -> str:
                  f"{fps(*top):.1f} fps ({top[2]}, scenario {top[0]}, {top[1]} spheres)"])
     comp_table = md_table(["", "thesis (iPhone 5s)", "ours"], comp, "lll")
 
-    # Chart (drawn from the saved data, as --replot does).
-    saved = {"size": [w, h], "ns": ns, "runs": ctx.runs, "points": data, "sweet_spot_max_prims": sweet_mp,
-             "wins": wins, "gl": ctx.gl, "labels": labels}
-    path = ctx.save_data(NAME, saved)
-    img = "\n".join(image_line(k, v) for k, v in plot(roundtrip(saved), ctx.figures, ctx.quick).items())
+    path = f"figures/{NAME}.json"
+    img = "\n".join(image_line(k, v) for k, v in charts.items())
 
     return f"""## {TITLE}
 
@@ -190,7 +195,7 @@ Trace stage only (draw + finish, no build/upload/read), frames/s:
 
 {trace_table}
 
-{ctx.caption(capped=True)}
+{run.caption(capped=True)}
 
 {skipped_md}
 **MAX_PRIMS sweet spot:** {sweet} is fastest in {wins[sweet]} of {cases} scenario × n cases
@@ -200,7 +205,7 @@ Trace stage only (draw + finish, no build/upload/read), frames/s:
 
 {comp_table}
 
-{ctx.caption(capped=True)} (Thesis column: iPhone 5s, as quoted.)
+{run.caption(capped=True)} (Thesis column: iPhone 5s, as quoted.)
 
 Raw data: [`{path}`]({path}).
 """

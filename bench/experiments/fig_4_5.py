@@ -12,8 +12,9 @@ from pathlib import Path
 from renderer.accel.bih import build_for_spheres
 from renderer.scenarios import scenario
 
-from .common import Context, md_table, plt
-from .style import image_line, legend_outside, roundtrip, save, series
+from .context import Context, RunInfo
+from .markdown import md_table
+from .style import image_line, legend_outside, plt, save, series
 
 NAME = "fig_4_5"
 TITLE = "Fig. 4.5 — BIH memory against n (radius 0.001)"
@@ -31,13 +32,18 @@ THESIS = {
 }
 
 
-def run(ctx: Context) -> str:
+def measure(ctx: Context) -> dict:
     jobs = [(sc, n, mp) for sc in (1, 2, 3) for n in NS for mp in MAX_PRIMS]
-    mem: dict[tuple[int, int, int], int] = {}
+    mem: dict[str, int] = {}
     scenes = {}
     for sc, n, mp in ctx.bar(jobs, desc="Fig 4.5"):
         s = scenes.setdefault((sc, n), scenario(sc, n, seed=0, radius=RADIUS))
-        mem[(sc, n, mp)] = int(build_for_spheres(s.sphere_centers, s.sphere_radii, mp).stats.bytes)
+        mem[f"{sc}/{n}/{mp}"] = int(build_for_spheres(s.sphere_centers, s.sphere_radii, mp).stats.bytes)
+    return {"radius": RADIUS, "bytes": mem}
+
+
+def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
+    mem = {tuple(int(x) for x in k.split("/")): v for k, v in data["bytes"].items()}
 
     red = {(sc, n): 100.0 * (1 - mem[(sc, n, MAX_PRIMS[-1])] / mem[(sc, n, 1)]) for sc in (1, 2, 3) for n in NS}
     rows = []
@@ -65,9 +71,8 @@ def run(ctx: Context) -> str:
          f"{max(per_sc, key=per_sc.get)} / {min(per_sc, key=per_sc.get)}"],
     ], "lll")
 
-    saved = {"radius": RADIUS, "bytes": {f"{sc}/{n}/{mp}": v for (sc, n, mp), v in mem.items()}}
-    path = ctx.save_data(NAME, saved)
-    img = "\n".join(image_line(k, v) for k, v in plot(roundtrip(saved), ctx.figures, ctx.quick).items())
+    img = "\n".join(image_line(k, v) for k, v in charts.items())
+    path = f"figures/{NAME}.json"
 
     return f"""## {TITLE}
 
@@ -78,13 +83,13 @@ Bytes of the BIH as the thesis counts them: nodes × 12 + primitives × 4 (index
 
 {table}
 
-{ctx.caption(1, '')} (Memory does not depend on the machine.)
+{run.caption(1, '')} (Memory does not depend on the machine.)
 
 **Thesis against ours:**
 
 {comp}
 
-{ctx.caption(1, '')} (Thesis column: as quoted.)
+{run.caption(1, '')} (Thesis column: as quoted.)
 
 Raw data: [`{path}`]({path}).
 """

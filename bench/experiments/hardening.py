@@ -12,12 +12,13 @@ it (``git worktree add /tmp/before c16d587``), else carried over from the last r
 
 from __future__ import annotations
 
-import json
+import importlib
 import os
-import sys
 from pathlib import Path
 
-from .common import Context, md_table
+from . import data as saved_data
+from .context import Context, RunInfo
+from .markdown import md_table
 
 NAME = "hardening"
 TITLE = "Hardening — the attack of issue #17, before and after, and a soak"
@@ -26,14 +27,11 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def _bench(name: str):
-    sys.path.insert(0, str(ROOT / "bench"))
-    try:
-        return __import__(name)
-    finally:
-        sys.path.pop(0)
+    """bench/NAME.py, imported when used (the service's benchmarks are heavy to import)."""
+    return importlib.import_module(f"bench.{name}")
 
 
-def measure(root: Path, quick: bool, parts: list[str]) -> dict:
+def measure_side(root: Path, quick: bool, parts: list[str]) -> dict:
     hostile = _bench("hostile")
     args = hostile.parser().parse_args([])
     if quick:
@@ -66,16 +64,17 @@ AFTER_PARTS = ["targets", "bad", "largest", "recipe", "health", "health_parse", 
 QUICK_PARTS = ["bad"]
 
 
-def run(ctx: Context) -> str:
-    old_path = ctx.figures / "hardening.json"
-    old = json.loads(old_path.read_text()) if old_path.exists() else {}
+def measure(ctx: Context) -> dict:
+    old = saved_data.load(ctx.figures, NAME) if (ctx.figures / f"{NAME}.json").exists() else {}
     before_root = os.environ.get("POCKETRAY_BEFORE")
-    before = (measure(Path(before_root), ctx.quick, QUICK_PARTS if ctx.quick else BEFORE_PARTS) if before_root
+    before = (measure_side(Path(before_root), ctx.quick, QUICK_PARTS if ctx.quick else BEFORE_PARTS) if before_root
               else old.get("before"))
-    after = measure(ROOT, ctx.quick, QUICK_PARTS if ctx.quick else AFTER_PARTS)
+    after = measure_side(ROOT, ctx.quick, QUICK_PARTS if ctx.quick else AFTER_PARTS)
     soak = _bench("soak").run_soak(ROOT, 5 if ctx.quick else 300, 1 if ctx.quick else 4)
-    data = {"before": before, "after": after, "soak": soak}
-    ctx.save_data(NAME, data)
+    return {"before": before, "after": after, "soak": soak}
+
+
+def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     return render(data)
 
 

@@ -46,9 +46,13 @@ from renderer.reference import primary_rays
 from renderer.scenarios import RED
 from renderer.scene import Camera, Light, Mesh, Scene
 
-from .common import Context, Stat, default_settings, md_table, measure, plt
+from .context import Context, RunInfo
+from .markdown import md_table
 from .peers import MITSUBA_VARIANT, Result, _warm_mitsuba, available, ours_settings, versions
-from .style import image_line, roundtrip, save
+from .scenes import default_settings
+from .style import image_line, plt, save
+from .timing import Stat
+from .timing import measure as time_it
 
 NAME = "meshes"
 TITLE = "Triangle meshes — a million-triangle build, and primary rays beside Embree and Mitsuba 3"
@@ -116,7 +120,7 @@ def builds(ctx: Context) -> tuple[dict, int]:
     out: dict[str, dict] = {}
     for m in ("bih", "bvh"):
         prep = lambda m=m: METHODS[m].prepare(scene, st.max_prims, st.max_tree_depth, width)  # noqa: E731
-        s, _ = measure(prep, runs, warmup=0)
+        s, _ = time_it(prep, runs, warmup=0)
         out[m] = {"build": s, "target_s": TARGETS_S[m], "runs": runs}
     for m in OTHER_BUILDS:
         if ctx.quick:
@@ -177,7 +181,7 @@ def run_embree(v32: np.ndarray, f32: np.ndarray, o: np.ndarray, d: np.ndarray, r
         return (time.perf_counter() - t1) * 1e3
     b = Stat([build() for _ in range(max(1, runs))])
     sc = holder["scene"]
-    tr, res = measure(lambda: sc.run(o32, d32, output=1), runs, warmup=1)
+    tr, res = time_it(lambda: sc.run(o32, d32, output=1), runs, warmup=1)
     prim = np.asarray(res["primID"]).astype(np.int64)
     t = np.asarray(res["tfar"], dtype=np.float64)
     hit = (prim >= 0) & np.isfinite(t) & (t < 1e30)
@@ -199,7 +203,7 @@ def run_mitsuba(v32: np.ndarray, f32: np.ndarray, o: np.ndarray, d: np.ndarray, 
         params["faces"] = mi.UInt32(np.ascontiguousarray(f32, dtype=np.uint32).ravel())
         params.update()
         holder["scene"] = mi.load_dict({"type": "scene", "m": mesh})
-    b, _ = measure(build, runs, warmup=0)
+    b, _ = time_it(build, runs, warmup=0)
     scene = holder["scene"]
     o32, d32 = o.astype(np.float32), d.astype(np.float32)
     ray = mi.Ray3f(mi.Point3f(*(mi.Float(o32[:, k]) for k in range(3))),
@@ -211,7 +215,7 @@ def run_mitsuba(v32: np.ndarray, f32: np.ndarray, o: np.ndarray, d: np.ndarray, 
         dr.eval(pi.t, pi.prim_index)
         dr.sync_thread()
         return pi
-    tr, pi = measure(trace, runs, warmup=1)
+    tr, pi = time_it(trace, runs, warmup=1)
     t = np.array(pi.t, dtype=np.float64)
     hit = np.isfinite(t)
     return Result(b, tr, np.where(hit, t, np.inf), np.where(hit, np.array(pi.prim_index, dtype=np.int64), -1),
@@ -274,13 +278,21 @@ def primary(ctx: Context) -> dict:
 
 # --------------------------------------------------------------------------- section
 
-def run(ctx: Context) -> str:
+def measure(ctx: Context) -> dict:
     b, n_build = builds(ctx)
     p = primary(ctx)
-    data = {"build": {"triangles": n_build, "methods": b}, "primary": p, "versions": versions(),
+    return {"build": {"triangles": n_build, "methods": b}, "primary": p, "versions": versions(),
             "drjit_threads": os.environ.get("DRJIT_NUM_THREADS", "default")}
-    path = ctx.save_data(NAME, data)
-    img = "\n".join(image_line(k, v) for k, v in plot(roundtrip(data), ctx.figures, ctx.quick).items())
+
+
+def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
+    n_build, p = data["build"]["triangles"], data["primary"]
+    b = {m: {**v, **({"build": Stat.from_json(v["build"])} if "build" in v else {})}
+         for m, v in data["build"]["methods"].items()}
+    for v in p["rows"].values():
+        v["build"], v["trace"] = Stat.from_json(v["build"]), Stat.from_json(v["trace"])
+    path = f"figures/{NAME}.json"
+    img = "\n".join(image_line(k, v) for k, v in charts.items())
 
     brows = []
     for m in ("bih", "bvh", *OTHER_BUILDS):
@@ -307,10 +319,10 @@ def run(ctx: Context) -> str:
     skipped = "".join(f"\n- {s}" for s in p["skipped"])
     chk = p["reference_check"]
     vers = ", ".join(f"{k} {v}" for k, v in data["versions"].items()) or "no peers installed"
-    size_note = "" if ctx.quick else f" (the peers section's phone portrait size, {w} × {h}: not reduced)"
+    size_note = "" if run.quick else f" (the peers section's phone portrait size, {w} × {h}: not reduced)"
     return f"""## {TITLE}
 
-**(a) Build over {n_build:,} triangles** (flat level-{BUILD_LEVEL_QUICK if ctx.quick else BUILD_LEVEL} icospheres of 20 · 4^level triangles on a grid):
+**(a) Build over {n_build:,} triangles** (flat level-{BUILD_LEVEL_QUICK if run.quick else BUILD_LEVEL} icospheres of 20 · 4^level triangles on a grid):
 the method's `prepare` with the default `max_prims` / `max_tree_depth` — the tree over the
 triangles' float32 AABBs, its statistics and the packing of its GPU records; the scene's
 flattened corners are made before the clock starts. The kd-tree and the
@@ -318,7 +330,7 @@ two-level method get one attempt each under a {OTHER_DEADLINE_S:g} s deadline.
 
 {btable}
 
-{ctx.caption_cpu(b['bih']['runs'], 'median')}
+{run.caption_cpu(b['bih']['runs'], 'median')}
 
 **(b) Primary rays on Newell's teapot, {p['triangles']:,} triangles** (flat, {p['segments']} segments
 per patch, no plane; {p['ref_hit_pct']:.1f} % of the rays hit it) at {w} × {h}{size_note}: the same
@@ -335,7 +347,7 @@ differ), and |Δt| over the rays where they agree.
 
 {ttable}
 
-{ctx.caption(capped=True)}
+{run.caption(capped=True)}
 
 Not run:{skipped or ' —'}
 

@@ -28,10 +28,14 @@ from renderer import reference as _reference_module
 from renderer.reference import render_reference
 from renderer.scenarios import scenario
 
-from .common import (Context, cached_array, default_settings, details, fmt_db, has_setting, log_axis,
-                     max_abs, md_table, method_names, plt, psnr, ssim, upscale)
-from .style import image_line, legend_outside, roundtrip, save
+from .cache import cached_array
+from .context import Context, RunInfo
+from .images import max_abs, psnr, ssim, upscale
+from .markdown import details, fmt_db, md_table
+from .scenes import default_settings, has_setting, method_names
+from .style import image_line, legend_outside, log_axis, plt, save
 from .style import series as line_style
+from .timing import Stat
 
 NAME = "pareto"
 TITLE = "Speed against accuracy — the Pareto front"
@@ -137,7 +141,7 @@ def pareto_front(points: list[tuple[float, float]]) -> list[int]:
     return front
 
 
-def run(ctx: Context) -> str:
+def measure(ctx: Context) -> dict:
     n = N_QUICK if ctx.quick else N
     w, h = SIZE_QUICK if ctx.quick else SIZE
     grid = knob_grid(ctx.quick)
@@ -173,12 +177,7 @@ def run(ctx: Context) -> str:
 
     # Methods and MAX_PRIMS at one knob setting: same image, different time.
     ek = Knobs(**EXACT_AT)
-    exact_variants = []
-    for m in method_names(dispatchers=True):
-        if m == "bih":
-            exact_variants += [(f"bih, MAX_PRIMS {mp}", dict(method="bih", max_prims=mp)) for mp in EXACT_MAX_PRIMS]
-        else:
-            exact_variants.append((m, dict(method=m)))
+    exact_variants = exact_variants_of_the_code()
     exact: dict[tuple[int, str], dict] = {}
     for sc in ctx.bar(scs, desc="pareto: methods"):
         scene = scenario(sc, n, seed=0, radius=1.0)
@@ -195,7 +194,43 @@ def run(ctx: Context) -> str:
                                   "max_diff_vs_first": float(np.max(np.abs(img.astype(np.float64) - first_img))),
                                   "u8_identical": bool(np.array_equal(to_u8(img), to_u8(first_img)))}
 
-    # ---- recommendation over all scenarios: worst PSNR / SSIM, mean time
+    _, _, interactive, still, _, recommended = recommend(grid, results, scs)
+    return {
+        "size": [w, h], "n": n, "reference": {"depth": REF_DEPTH, "ss": REF_SS},
+        "results": {f"{sc}/{k.label}": {**v, "knobs": dataclasses.asdict(k)} for (sc, k), v in results.items()},
+        "exact": {f"{sc}/{lab}": v for (sc, lab), v in exact.items()},
+        "exact_at": dataclasses.asdict(ek), "exact_variants": [lab for lab, _ in exact_variants],
+        "method": base.method, "max_prims": base.max_prims,
+        "recommended": recommended,
+        "recommended_knobs": {"interactive": dataclasses.asdict(interactive), "still": dataclasses.asdict(still)}}
+
+
+def exact_variants_of_the_code() -> list[tuple[str, dict]]:
+    """(label, settings) of the methods and MAX_PRIMS compared at one knob setting."""
+    out = []
+    for m in method_names(dispatchers=True):
+        if m == "bih":
+            out += [(f"bih, MAX_PRIMS {mp}", dict(method="bih", max_prims=mp)) for mp in EXACT_MAX_PRIMS]
+        else:
+            out.append((m, dict(method=m)))
+    return out
+
+
+def as_settings(k: Knobs) -> dict:
+    """A recommended profile as settings (``resolution_scale`` is the client's, not RenderSettings')."""
+    d = {"max_recursion_depth": k.depth}
+    if has_setting("samples_per_pixel"):
+        d["samples_per_pixel"] = k.spp
+    if has_setting("min_weight"):
+        d["min_weight"] = k.eps
+    d["resolution_scale"] = f"1/{k.scale}" if k.scale != 1 else "1"
+    return d
+
+
+def recommend(grid: list[Knobs], results: dict, scs) -> tuple[dict, float, Knobs, Knobs, Knobs, dict]:
+    """The recommendation over all scenarios (worst PSNR / SSIM, mean time): per setting its
+    aggregate, the best worst-scenario PSNR, the interactive and still settings, the baseline,
+    and both as settings."""
     agg = {}
     for k in grid:
         agg[k] = {"time": float(np.mean([results[(sc, k)]["time"].median for sc in scs])),
@@ -209,20 +244,36 @@ def run(ctx: Context) -> str:
     inter_ok = [k for k in grid if agg[k]["psnr"] >= b["psnr"] - INTERACTIVE_MAX_PSNR_LOSS_DB
                 and agg[k]["ssim"] >= b["ssim"] - INTERACTIVE_MAX_SSIM_LOSS]  # the baseline itself qualifies
     interactive = min(inter_ok, key=lambda k: agg[k]["time"])
+    recommended = {"interactive": as_settings(interactive), "still": as_settings(still)}
+    return agg, best_psnr, interactive, still, baseline, recommended
+
+
+def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
+    w, h = data["size"]
+    n = data["n"]
+    scs = (1, 2, 3)
+    results: dict[tuple[int, Knobs], dict] = {}
+    for key, v in data["results"].items():   # in the order measured: scenario, then the knob grid
+        k = Knobs(**v["knobs"])
+        results[(int(key.split("/", 1)[0]), k)] = {**v, "time": Stat.from_json(v["time"])}
+    grid = list(dict.fromkeys(k for _, k in results))
+    exact = {}
+    for key, v in data["exact"].items():
+        sc, lab = key.split("/", 1)
+        exact[(int(sc), lab)] = {**v, "time": Stat.from_json(v["time"])}
+    # Older data did not keep the variants it tried: those of the code.
+    exact_variants = ([(lab, None) for lab in data["exact_variants"]] if "exact_variants" in data
+                      else exact_variants_of_the_code())
+    ek = Knobs(**data.get("exact_at", EXACT_AT))
+    defaults = default_settings()
+    method, max_prims = data.get("method", defaults.method), data.get("max_prims", defaults.max_prims)
+
+    agg, best_psnr, interactive, still, baseline, recommended = recommend(grid, results, scs)
+    b = agg[baseline]
     inter_rule = (f"the fastest setting at most {INTERACTIVE_MAX_PSNR_LOSS_DB:g} dB PSNR and "
                   f"{INTERACTIVE_MAX_SSIM_LOSS:g} SSIM below the baseline frame ({baseline.label}, full resolution, "
                   f"1 spp: {b['time']:,.1f} ms, worst PSNR {fmt_db(b['psnr'])} dB, worst SSIM {b['ssim']:.4f})")
-
-    def as_settings(k: Knobs) -> dict:
-        d = {"max_recursion_depth": k.depth}
-        if has_setting("samples_per_pixel"):
-            d["samples_per_pixel"] = k.spp
-        if has_setting("min_weight"):
-            d["min_weight"] = k.eps
-        d["resolution_scale"] = f"1/{k.scale}" if k.scale != 1 else "1"
-        return d
-    recommended = {"interactive": as_settings(interactive), "still": as_settings(still)}
-    ctx.note(f"pareto: interactive = {json.dumps(recommended['interactive'])}; "
+    run.note(f"pareto: interactive = {json.dumps(recommended['interactive'])}; "
              f"still = {json.dumps(recommended['still'])}")
 
     # ---- chart
@@ -247,7 +298,7 @@ def run(ctx: Context) -> str:
                          f"{r['max_abs']:.4f}", f"{r['ssim']:.4f}"])
         all_tables.append(details(f"Scenario {sc}: all {len(grid)} settings (◆ = on this scenario's Pareto front)",
                                   md_table(["setting", "time ms", "PSNR dB", "max abs err", "SSIM"], rows,
-                                           "lrrrr") + "\n\n" + ctx.caption()))
+                                           "lrrrr") + "\n\n" + run.caption()))
     ex_rows = []
     for sc in scs:
         for lab, _ in exact_variants:
@@ -264,26 +315,20 @@ def run(ctx: Context) -> str:
     tspread = max(max(v["time"].median for v in by_sc[sc]) / min(v["time"].median for v in by_sc[sc]) for sc in scs)
     same_image = all(v["max_diff_vs_first"] == 0.0 for v in exact.values())
     same_u8 = all(v["u8_identical"] for v in exact.values())
-    skipped_md = ctx.skipped_md()
+    skipped_md = run.skipped_md()
 
     missing = [name for name in ("samples_per_pixel", "min_weight") if not has_setting(name)]
     missing_txt = (f"\n\n**Not measured:** RenderSettings of this build has no {', '.join(f'`{m}`' for m in missing)}."
                    if missing else "")
-    saved = {
-        "size": [w, h], "n": n, "reference": {"depth": REF_DEPTH, "ss": REF_SS},
-        "results": {f"{sc}/{k.label}": {**v, "knobs": dataclasses.asdict(k)} for (sc, k), v in results.items()},
-        "exact": {f"{sc}/{lab}": v for (sc, lab), v in exact.items()},
-        "exact_at": dataclasses.asdict(ek), "recommended": recommended,
-        "recommended_knobs": {"interactive": dataclasses.asdict(interactive), "still": dataclasses.asdict(still)}}
-    path = ctx.save_data(NAME, saved)
-    img = "\n".join(image_line(k, v) for k, v in plot(roundtrip(saved), ctx.figures, ctx.quick).items())
+    path = f"figures/{NAME}.json"
+    img = "\n".join(image_line(k, v) for k, v in charts.items())
     return f"""## {TITLE}
 
 Thesis scenarios 1–3 with n = {n} spheres of radius 1 at {w} × {h}, colour. Reference: the float64
 reference tracer at recursion depth {REF_DEPTH} with {REF_SS} × {REF_SS} supersampling (box filter). Every
 setting is a combination of the knobs: recursion depth; ½ or ¼ resolution upscaled bilinearly (upscale
 timed); samples per pixel; the weight cut-off ε (`min_weight`). Other settings at the defaults
-(method `{base.method}`, `MAX_PRIMS` {base.max_prims}). Time to image = whole frame, wall clock.{missing_txt}
+(method `{method}`, `MAX_PRIMS` {max_prims}). Time to image = whole frame, wall clock.{missing_txt}
 
 {img}
 
@@ -291,7 +336,7 @@ timed); samples per pixel; the weight cut-off ε (`min_weight`). Other settings 
 
 {front_table}
 
-{ctx.caption()}
+{run.caption()}
 
 **Recommended defaults** (from the table above; the rules are fixed in `bench/experiments/pareto.py`):
 
@@ -312,7 +357,7 @@ images {'identical' if same_u8 else 'NOT all identical'} (last two columns).
 
 {ex_table}
 
-{ctx.caption()}
+{run.caption()}
 
 {skipped_md}
 

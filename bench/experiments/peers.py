@@ -36,8 +36,12 @@ from renderer.accel.bih_traverse import traverse
 from renderer.reference import primary_rays, render_reference
 from renderer.scenarios import scenario
 
-from .common import Context, Stat, default_settings, md_table, measure, method_names, plt
-from .style import image_line, legend_outside, roundtrip, save, series
+from .context import Context, RunInfo
+from .markdown import md_table
+from .scenes import default_settings, method_names
+from .style import image_line, legend_outside, plt, save, series
+from .timing import Stat
+from .timing import measure as time_it
 
 NAME = "peers"
 TITLE = "Peers — Mitsuba 3 and Embree beside our tracers"
@@ -162,7 +166,7 @@ def run_mitsuba(kind: str, centers, radii, o, d, runs: int, budget_s: float | No
 
     def build():
         holder["scene"] = mi.load_dict(desc)
-    b, _ = measure(build, runs, warmup=0, budget_s=budget_s)
+    b, _ = time_it(build, runs, warmup=0, budget_s=budget_s)
     scene = holder["scene"]
     if kind == "spheres":
         index_of_shape = np.array([int(s.id()[1:]) for s in scene.shapes()], dtype=np.int64)
@@ -176,7 +180,7 @@ def run_mitsuba(kind: str, centers, radii, o, d, runs: int, budget_s: float | No
         dr.eval(pi.t, pi.prim_index, pi.shape_index)
         dr.sync_thread()
         return pi
-    tr, pi = measure(trace, runs, warmup=1)
+    tr, pi = time_it(trace, runs, warmup=1)
     t = np.array(pi.t, dtype=np.float64)
     hit = np.isfinite(t)
     if kind == "spheres":
@@ -221,7 +225,7 @@ def run_embree(centers, radii, o, d, runs: int, budget_s: float | None = 30.0) -
             break
     b = Stat(samples)
     sc = holder["scene"]
-    tr, res = measure(lambda: sc.run(o32, d32, output=1), runs, warmup=1)
+    tr, res = time_it(lambda: sc.run(o32, d32, output=1), runs, warmup=1)
     prim = np.asarray(res["primID"]).astype(np.int64)
     t = np.asarray(res["tfar"], dtype=np.float64)
     hit = (prim >= 0) & np.isfinite(t) & (t < 1e30)
@@ -284,18 +288,12 @@ def errors(res: Result, ref_ids: np.ndarray, ref_t: np.ndarray) -> dict[str, flo
 
 # --------------------------------------------------------------------------- experiment
 
-def run(ctx: Context) -> str:
+def measure(ctx: Context) -> dict:
     why = available()
     ok = [k for k, v in why.items() if v is None]
     if not ok:
         ctx.log(INSTALL_HINT)
-        lines = "\n".join(f"- `{k}`: {v}" for k, v in why.items())
-        return f"""## {TITLE}
-
-**{INSTALL_HINT}** — the peers are an optional dependency group; this section was skipped.
-
-{lines}
-"""
+        return {"unavailable": why}
     ns = NS_QUICK if ctx.quick else NS
     scs = SCENARIOS_QUICK if ctx.quick else SCENARIOS
     w, h = SIZE_QUICK if ctx.quick else SIZE
@@ -348,34 +346,50 @@ def run(ctx: Context) -> str:
                                   "mrays": w * h / (res.trace.median / 1e3) / 1e6, "note": res.note, **err}
     bar.close()
 
+    return {"size": [w, h], "ns": ns, "scenarios": scs, "versions": versions(),
+            "rows": {f"{sc}/{n}/{eng}": v for (sc, n, eng), v in rows.items()},
+            "skipped": skipped, "reference_check": ref_check, "unavailable": {k: v for k, v in why.items() if v},
+            "drjit_threads": os.environ.get("DRJIT_NUM_THREADS", "default")}
+
+
+def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
+    if "rows" not in data:
+        lines = "\n".join(f"- `{k}`: {v}" for k, v in data["unavailable"].items())
+        return f"""## {TITLE}
+
+**{INSTALL_HINT}** — the peers are an optional dependency group; this section was skipped.
+
+{lines}
+"""
+    w, h = data["size"]
+    scs, skipped, ref_check = data["scenarios"], data["skipped"], data["reference_check"]
+    rows = {}
+    for key, v in data["rows"].items():   # in the order measured: scenario, n, engine
+        sc, n, eng = key.split("/", 2)
+        rows[(int(sc), int(n), eng)] = {**v, "build": Stat.from_json(v["build"]), "trace": Stat.from_json(v["trace"])}
     tables = []
     for sc in scs:
         trs = []
-        for n in ns:
-            for eng in engines:
-                v = rows.get((sc, n, eng))
-                if v is None:
-                    continue
-                trs.append([f"{n:,}", eng + (f" ({v['note']})" if v["note"] else ""), v["build"].fmt(1),
-                            v["trace"].fmt(1), f"{v['mrays']:.2f}", f"{v['mismatch_pct']:.3f} %",
-                            f"{v['max_dt']:.2e}", f"{v['median_dt']:.2e}"])
+        for (sc2, n, eng), v in rows.items():
+            if sc2 != sc:
+                continue
+            trs.append([f"{n:,}", eng + (f" ({v['note']})" if v["note"] else ""), v["build"].fmt(1),
+                        v["trace"].fmt(1), f"{v['mrays']:.2f}", f"{v['mismatch_pct']:.3f} %",
+                        f"{v['max_dt']:.2e}", f"{v['median_dt']:.2e}"])
         tables.append(f"**Scenario {sc}**\n\n" + md_table(
             ["n", "engine", "build ms", "trace ms", "Mrays/s", "nearest sphere ≠ reference", "max |Δt|",
-             "median |Δt|"], trs, "rlrrrrrr") + "\n\n" + ctx.caption(capped=True))
+             "median |Δt|"], trs, "rlrrrrrr") + "\n\n" + run.caption(capped=True))
 
-    data = {"size": [w, h], "ns": ns, "scenarios": scs, "versions": versions(),
-            "rows": {f"{sc}/{n}/{eng}": v for (sc, n, eng), v in rows.items()},
-            "skipped": skipped, "reference_check": ref_check, "unavailable": {k: v for k, v in why.items() if v}}
-    path = ctx.save_data(NAME, data)
-    img = "\n".join(image_line(name, alt) for name, alt in plot(roundtrip(data), ctx.figures, ctx.quick).items())
-    vers = ", ".join(f"{k} {v}" for k, v in versions().items())
-    missing = "".join(f"\n- `{k}` not run: {v}" for k, v in why.items() if v)
+    path = f"figures/{NAME}.json"
+    img = "\n".join(image_line(name, alt) for name, alt in charts.items())
+    vers = ", ".join(f"{k} {v}" for k, v in data["versions"].items())
+    missing = "".join(f"\n- `{k}` not run: {v}" for k, v in data["unavailable"].items() if v)
     skipped_txt = ("\n\nNot run (errors): " + "; ".join(skipped) + ".") if skipped else ""
-    skipped_txt += "\n\n" + ctx.skipped_md()
+    skipped_txt += "\n\n" + run.skipped_md()
     check_txt = "; ".join(f"scenario {sc}, n = {v['n']:,}: {v['ids_differ']} ray(s) with a different sphere, "
                           f"max relative |Δt| {v['max_rel_dt']:.1e} (float32 output of render_reference)"
                           for sc, v in ref_check.items())
-    threads = os.environ.get("DRJIT_NUM_THREADS", "default")
+    threads = data.get("drjit_threads", "default")
     return f"""## {TITLE}
 
 The same primary rays of the thesis's scenes ({w} × {h}, spheres of radius 1, plane left out),
@@ -399,6 +413,8 @@ Raw data: [`{path}`]({path}).
 def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
     """``peers.png`` from ``peers.json``: Mrays/s, build ms and max |Δt| against n, the median over
     the scenarios per engine; one colour and marker per engine in all three panels."""
+    if "rows" not in data:   # the peers were not installed: nothing to draw
+        return {}
     pyplot = plt()
     w, h = data["size"]
     ns, scs = data["ns"], data["scenarios"]

@@ -18,25 +18,25 @@ On llvmpipe (no GPU) the ray engine's frames take minutes at 640 × 1,088: each 
 series stops at the first ``n`` whose frame exceeds the frame budget, and those points are
 marked "over budget" (never extrapolated).
 
-Standalone: ``python bench/experiments/ray_engines.py [--quick] [--out DIR]``.
+Standalone: ``python -m bench.experiments.ray_engines [--quick] [--out DIR]``.
 """
 
 from __future__ import annotations
 
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[2]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+from renderer.limits import DEFAULT_TILE_SIZE
+from renderer.scenarios import TRANSPARENT
+from renderer.scene import Camera, Light, Scene
+from renderer.settings import RenderSettings
 
-from renderer.limits import DEFAULT_TILE_SIZE  # noqa: E402
-from renderer.scenarios import TRANSPARENT  # noqa: E402
-from renderer.scene import Camera, Light, Scene  # noqa: E402
-from renderer.settings import RenderSettings  # noqa: E402
+from .context import Context, RunInfo
+from .machine import ROOT
+from .markdown import md_table
+from .style import image_line, legend_outside, log_axis, plt, save, series
 
 NAME = "ray_engines"
 TITLE = "The hierarchical ray engine (Szécsi 2006) against the ray engine, brute force and BIH"
@@ -159,16 +159,24 @@ def twice_as_fast(fps: dict, size) -> tuple[str, list[tuple[int, float]]]:
     return verdict, ratios
 
 
-def run(ctx) -> str:
-    from bench.experiments.common import md_table
-    from bench.experiments.style import image_line, roundtrip
+def measure(ctx: Context) -> dict:
     quick = ctx.quick
     sizes = getattr(ctx, "ray_engine_sizes", None) or (SIZES_QUICK if quick else SIZES)
     ns = NS_QUICK if quick else NS
     budget = getattr(ctx, "ray_engine_budget_s", None) or (FRAME_BUDGET_S_QUICK if quick else FRAME_BUDGET_S)
     fps = measure_fps(ctx, sizes, ns, budget)
+    sweep_ns = ns[:3] if not quick else ns[:2]
+    sweep = tile_sweep(ctx, sizes[0], sweep_ns, budget)
+    cones_n = ns[min(2, len(ns) - 1)]
+    cones = cone_images(ctx, sizes[0], cones_n)
+    return {"fps": fps, "tile_sweep": sweep, "sizes": sizes, "ns": ns, "depth": DEPTH, "budget_s": budget,
+            "cones": {"n": cones_n, "size": list(sizes[0]), "tile": DEFAULT_TILE_SIZE,
+                      "tiles": {str(g): tile_grid(img) for g, img in cones.items()}}}
 
 
+def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
+    fps, sweep, ns, budget = data["fps"], data["tile_sweep"], data["ns"], data["budget_s"]
+    sizes = [tuple(s) for s in data["sizes"]]
     rows = []
     for w, h in sizes:
         for n in ns:
@@ -186,22 +194,14 @@ def run(ctx) -> str:
         rs = ", ".join(f"n = {n:,}: {r:.2f}×" for n, r in ratios)
         verdicts.append(f"- {size[0]} × {size[1]}: {verdict}. hre / ray engine speed-up: {rs or '—'}.")
 
-    sweep_ns = ns[:3] if not quick else ns[:2]
-    sweep = tile_sweep(ctx, sizes[0], sweep_ns, budget)
+    sweep_ns = [int(n) for n in dict.fromkeys(k.split("/")[0] for k in sweep)]
     srows = [[f"{n:,}", *[f"{sweep[f'{n}/{ts}']['ms']:,.0f} ms, {100 * sweep[f'{n}/{ts}']['cull_fraction']:.0f} % culled"
                           for ts in TILES]] for n in sweep_ns]
     stable = md_table(["n", *[f"tile {ts} × {ts}" for ts in TILES]], srows)
 
-    cones_n = ns[min(2, len(ns) - 1)]
-    cones = cone_images(ctx, sizes[0], cones_n)
-
-    saved = {"fps": fps, "tile_sweep": sweep, "sizes": sizes, "ns": ns, "depth": DEPTH, "budget_s": budget,
-             "cones": {"n": cones_n, "size": list(sizes[0]), "tile": DEFAULT_TILE_SIZE,
-                       "tiles": {str(g): tile_grid(img) for g, img in cones.items()}}}
-    path = ctx.save_data(NAME, saved)
-    images = plot(roundtrip(saved), ctx.figures, quick)
-    img_fps = image_line("ray_engines_fps", images["ray_engines_fps"])
-    img_cones = image_line("ray_engines_cones", images["ray_engines_cones"])
+    path = f"figures/{NAME}.json"
+    img_fps = image_line("ray_engines_fps", charts["ray_engines_fps"])
+    img_cones = image_line("ray_engines_cones", charts["ray_engines_cones"])
     return f"""## {TITLE}
 
 Refractive spheres filling the view (every primary ray meets one), recursion depth {DEPTH}, colour with shadows,
@@ -211,7 +211,7 @@ every method in one run. A series stops at the first frame slower than {budget:g
 
 {table}
 
-{ctx.caption()}
+{run.caption()}
 
 Szécsi: "Already at a triangle count of 100, the new algorithm runs twice as fast" as the ray engine. Here:
 
@@ -243,9 +243,6 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
     from matplotlib.patches import Patch
-
-    from bench.experiments.common import log_axis, plt
-    from bench.experiments.style import legend_outside, save, series
 
     pyplot = plt()
     sizes = [tuple(sz) for sz in data["sizes"]]
@@ -303,12 +300,12 @@ def main(argv=None) -> None:
     ap.add_argument("--sizes", default=None, help="e.g. 256x256,640x1088 (default: both, or tiny with --quick)")
     ap.add_argument("--budget", type=float, default=None, help="frame budget in s that ends a series")
     a = ap.parse_args(argv)
-    from bench.experiments.common import Context
+    from .steps import run_one
     ctx = Context(quick=a.quick, out=a.out, runs=a.runs or (1 if a.quick else 3), progress=False)
     if a.sizes:
         ctx.ray_engine_sizes = tuple(tuple(int(v) for v in s.split("x")) for s in a.sizes.split(","))
     ctx.ray_engine_budget_s = a.budget
-    md = run(ctx)
+    _, md, _ = run_one(ctx, NAME)
     (ctx.out / f"{NAME}.md").write_text(md)
     print(md)
 

@@ -8,8 +8,12 @@ from pathlib import Path
 from renderer.accel.bih import build_for_spheres
 from renderer.scenarios import scenario
 
-from .common import Context, Stat, default_settings, fit_power, md_table, measure, method_names, plt
-from .style import image_line, legend_outside, roundtrip, save, series
+from .context import Context, RunInfo
+from .markdown import md_table
+from .scenes import default_settings, method_names
+from .style import image_line, legend_outside, plt, save, series
+from .timing import Stat, fit_power
+from .timing import measure as time_it
 
 NAME = "scaling"
 TITLE = "Scaling — build and trace cost against n"
@@ -28,7 +32,7 @@ FIT_FROM = 1024          # fits use n ≥ this (small n is dominated by fixed co
 BUILD_BUDGET_S = 20.0    # timing of one build point stops after this much time (≥ 1 run)
 
 
-def run(ctx: Context) -> str:
+def measure(ctx: Context) -> dict:
     b_ns = BUILD_NS_QUICK if ctx.quick else BUILD_NS
     t_ns = TRACE_NS_QUICK if ctx.quick else TRACE_NS
     depths = TRACE_DEPTHS_QUICK if ctx.quick else TRACE_DEPTHS
@@ -41,7 +45,7 @@ def run(ctx: Context) -> str:
     jobs = [(sc, n, mp) for n in b_ns for sc in (1, 2, 3) for mp in BUILD_MAX_PRIMS]
     for sc, n, mp in ctx.bar(jobs, desc="scaling: build"):
         s = scenario(sc, n, seed=0, radius=1.0)
-        build[(sc, n, mp)], _ = measure(lambda: build_for_spheres(s.sphere_centers, s.sphere_radii, mp),
+        build[(sc, n, mp)], _ = time_it(lambda: build_for_spheres(s.sphere_centers, s.sphere_radii, mp),
                                         ctx.runs, warmup=1 if n <= 65536 else 0,
                                         budget_s=None if ctx.quick else BUILD_BUDGET_S)
     build_fit = {}
@@ -49,17 +53,6 @@ def run(ctx: Context) -> str:
         for mp in BUILD_MAX_PRIMS:
             pts = [(n, build[(sc, n, mp)].median) for n in b_ns if n >= fit_from]
             build_fit[(sc, mp)] = fit_power(*zip(*pts))
-    rows = []
-    for n in b_ns:
-        cells = [f"{n:,}"]
-        for sc in (1, 2, 3):
-            for mp in BUILD_MAX_PRIMS:
-                cells.append(build[(sc, n, mp)].fmt(2))
-        cells.append(str(min(build[(sc, n, mp)].runs for sc in (1, 2, 3) for mp in BUILD_MAX_PRIMS)))
-        rows.append(cells)
-    rows.append(["fitted exponent k (ms ∝ n^k)"] +
-                [f"{build_fit[(sc, mp)][0]:.3f}" for sc in (1, 2, 3) for mp in BUILD_MAX_PRIMS] + [""])
-    build_table = md_table(["n"] + [f"S{sc} MP{mp}" for sc in (1, 2, 3) for mp in BUILD_MAX_PRIMS] + ["runs"], rows)
 
     # ---- trace
     base = default_settings().with_(width=w, height=h, mode="color")
@@ -96,6 +89,47 @@ def run(ctx: Context) -> str:
                 pts = [(n, trace[(m, d, sc, n)]["trace"].median) for n in t_ns
                        if (m, d, sc, n) in trace and n >= (256 if not ctx.quick else 0)]
                 trace_fit[(m, d, sc)] = fit_power(*zip(*pts)) if len(pts) >= 2 else (math.nan, math.nan)
+    return {
+        "build": {f"{sc}/{n}/{mp}": v for (sc, n, mp), v in build.items()},
+        "build_fit": {f"{sc}/{mp}": v for (sc, mp), v in build_fit.items()},
+        "trace": {f"{m}/{d}/{sc}/{n}": v for (m, d, sc, n), v in trace.items()},
+        "trace_fit": {f"{m}/{d}/{sc}": v for (m, d, sc), v in trace_fit.items()},
+        "skipped": list(ctx.skipped), "size": [w, h], "fit_from": fit_from, "depths": list(depths),
+        "build_ns": list(b_ns), "trace_ns": list(t_ns), "methods": methods, "max_prims": base.max_prims}
+
+
+def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
+    w, h = data["size"]
+    # Older data did not keep its sizes, depths and methods: those of the run's mode, the methods measured.
+    b_ns = data.get("build_ns") or (BUILD_NS_QUICK if run.quick else BUILD_NS)
+    fit_from = data.get("fit_from") or (min(b_ns) if run.quick else FIT_FROM)
+    depths = data.get("depths") or (TRACE_DEPTHS_QUICK if run.quick else TRACE_DEPTHS)
+    t_ns = data.get("trace_ns") or (TRACE_NS_QUICK if run.quick else TRACE_NS)
+    methods = data.get("methods") or list(dict.fromkeys(k.split("/")[0] for k in data["trace"]))
+    max_prims = data.get("max_prims", default_settings().max_prims)
+    build = {tuple(int(x) for x in k.split("/")): Stat.from_json(v) for k, v in data["build"].items()}
+    build_fit = {tuple(int(x) for x in k.split("/")): v for k, v in data["build_fit"].items()}
+    trace = {}
+    for k, v in data["trace"].items():
+        m, d, sc, n = k.split("/")
+        trace[(m, int(d), int(sc), int(n))] = {stage: Stat.from_json(x) for stage, x in v.items()}
+    trace_fit = {}
+    for k, v in data["trace_fit"].items():
+        m, d, sc = k.split("/")
+        trace_fit[(m, int(d), int(sc))] = tuple(math.nan if x is None else x for x in v)
+
+    rows = []
+    for n in b_ns:
+        cells = [f"{n:,}"]
+        for sc in (1, 2, 3):
+            for mp in BUILD_MAX_PRIMS:
+                cells.append(build[(sc, n, mp)].fmt(2))
+        cells.append(str(min(build[(sc, n, mp)].runs for sc in (1, 2, 3) for mp in BUILD_MAX_PRIMS)))
+        rows.append(cells)
+    rows.append(["fitted exponent k (ms ∝ n^k)"] +
+                [f"{build_fit[(sc, mp)][0]:.3f}" for sc in (1, 2, 3) for mp in BUILD_MAX_PRIMS] + [""])
+    build_table = md_table(["n"] + [f"S{sc} MP{mp}" for sc in (1, 2, 3) for mp in BUILD_MAX_PRIMS] + ["runs"], rows)
+
     t_rows = []
     for m in methods:
         for d in depths:
@@ -112,16 +146,9 @@ def run(ctx: Context) -> str:
     trace_table = md_table(["method", "depth", "scenario"] + [f"n = {n:,}" for n in t_ns] + ["k (trace ∝ n^k)"],
                            t_rows, "lrr" + "r" * (len(t_ns) + 1))
 
-    # ---- charts
-    data = {
-        "build": {f"{sc}/{n}/{mp}": v for (sc, n, mp), v in build.items()},
-        "build_fit": {f"{sc}/{mp}": v for (sc, mp), v in build_fit.items()},
-        "trace": {f"{m}/{d}/{sc}/{n}": v for (m, d, sc, n), v in trace.items()},
-        "trace_fit": {f"{m}/{d}/{sc}": v for (m, d, sc), v in trace_fit.items()},
-        "skipped": list(ctx.skipped), "size": [w, h], "fit_from": fit_from, "depths": list(depths)}
-    path = ctx.save_data(NAME, data)
-    img = "\n".join(image_line(k, v) for k, v in plot(roundtrip(data), ctx.figures, ctx.quick).items())
-    skipped_txt = ctx.skipped_md()
+    path = f"figures/{NAME}.json"
+    img = "\n".join(image_line(k, v) for k, v in charts.items())
+    skipped_txt = run.skipped_md()
     return f"""## {TITLE}
 
 {img}
@@ -135,17 +162,17 @@ an n log n build shows as slightly above 1.
 
 {build_table}
 
-{ctx.caption('see the last column')}
+{run.caption('see the last column')}
 
 ### Trace time against n
 
 Trace stage / whole frame (ms) at {w} × {h}, colour, spheres of radius 1, every method of
-`METHODS` at its default `MAX_PRIMS` ({default_settings().max_prims}) at recursion depth 1, and
+`METHODS` at its default `MAX_PRIMS` ({max_prims}) at recursion depth 1, and
 {' and '.join(DEEP_METHODS)} at depth {max(depths)} too; `k` fitted on the trace stage over the measured n ≥ 256.
 
 {trace_table}
 
-{ctx.caption(capped=True)}
+{run.caption(capped=True)}
 
 {skipped_txt}
 

@@ -8,13 +8,14 @@ from __future__ import annotations
 
 from bench import scheduling as S
 
-from .common import Context
+from .context import Context, RunInfo
 
 NAME = "scheduling"
 TITLE = "Frames as slices — fairness, progressive frames, slice size"
 
 
-def run(ctx: Context) -> str:
+def measure(ctx: Context) -> dict:
+    """The Markdown lines ``bench/scheduling.py`` prints as it measures (its tables)."""
     lines: list[str] = []
     out = lines.append
     if ctx.quick:
@@ -24,10 +25,14 @@ def run(ctx: Context) -> str:
         S.fairness(runs, 1024, out)
         S.progressive(ctx.runs, out)
         S.slices(max(1, runs - 1), 512, out)
-    body = "\n".join(lines)
+    return {"lines": lines}
+
+
+def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
+    body = "\n".join(data["lines"])
     return f"""## {TITLE}
 
-{ctx.caption(ctx.runs, "medians; each row from service processes started for it")}
+{run.caption(run.runs, "medians; each row from service processes started for it")}
 
 The long frame (a BIH of one leaf over 16,384 spheres, so every ray tests every sphere) and a
 light session's 32 × 32 frames beside it, with slicing off (one draw per pass, as before

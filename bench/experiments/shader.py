@@ -19,7 +19,9 @@ import numpy as np
 
 from bench import shader as S
 
-from .common import Context, md_table
+from . import data as saved_data
+from .context import Context, RunInfo
+from .markdown import md_table
 
 NAME = "shader"
 TITLE = "The tracer shaped for llvmpipe (issue 18) — CPU time against the shader before it"
@@ -28,12 +30,29 @@ SIDES = ["base", "new", "new/tex"]
 TARGETS = {"colour_d3": 0.55, "primary": 0.80}    # issue 18: at most these ratios against the base
 
 
-def run(ctx: Context) -> str:
+def measure(ctx: Context) -> dict:
     configs = S.CONFIGS if not ctx.quick else [c for c in S.CONFIGS if c.name in ("colour_d3", "primary",
                                                                                   "floor_primid")]
-    data = S.measure(configs, SIDES, ctx.runs, quick=ctx.quick, progress=ctx.log)
-    ctx.save_data("shader", data)
+    return {"trace": S.measure(configs, SIDES, ctx.runs, quick=ctx.quick, progress=ctx.log),
+            "next": measure_next(ctx)}
+
+
+def dump(saved: dict, figures) -> None:
+    """Two files: ``shader.json`` (the three sides' traces, with the run) and ``shader_next.json``."""
+    saved_data.save(figures, "shader", {**saved["trace"], **({"run": saved["run"]} if "run" in saved else {})})
+    saved_data.save(figures, "shader_next", saved["next"])
+
+
+def load(figures) -> dict:
+    trace = saved_data.load(figures, "shader")
+    run = trace.pop("run", None)
+    return {"trace": trace, "next": saved_data.load(figures, "shader_next"), **({"run": run} if run else {})}
+
+
+def report(saved: dict, run: RunInfo, charts: dict[str, str]) -> str:
+    data = saved["trace"]
     res = data["results"]
+    configs = [c for c in S.CONFIGS if c.name in res]
     med = {c.name: {s: statistics.median(res[c.name][s]["trace"]) for s in SIDES} for c in configs}
     lines = [f"## {TITLE}", "",
              "CPU time of one frame's trace (`time.process_time` around the draws and `glFinish`: llvmpipe's "
@@ -43,9 +62,9 @@ def run(ctx: Context) -> str:
              "target for jpeg frames at 1 sample per pixel); **new/tex**: this checkout with textures only "
              "(the device's layout, and the server's above 64 KiB). Every image is bit for bit the base's "
              "(`tests/renderer/gl/test_base_images.py`). Written by `bench/shader.py` (standalone: "
-             "`.venv/bin/python bench/shader.py`).", "",
+             "`.venv/bin/python -m bench.shader`).", "",
              S.table(data, configs), "",
-             ctx.caption(ctx.runs, "median, configurations and sides interleaved, one untimed warm-up frame each"),
+             run.caption(run.runs, "median, configurations and sides interleaved, one untimed warm-up frame each"),
              ""]
     verdicts = []
     for name, limit in TARGETS.items():
@@ -64,7 +83,7 @@ def run(ctx: Context) -> str:
                      f"at depth 3" if "floor_colour" in med else "")
                   + ": ray set-up, the plane, the outputs, and the traversal's loops, which llvmpipe runs once "
                   "with every lane masked off even when no lane enters them.", ""]
-    lines += next_factor(ctx)
+    lines += report_next(saved["next"], run)
     return "\n".join(lines)
 
 
@@ -100,7 +119,7 @@ def _tile_candidates(scene, w: int, h: int) -> np.ndarray:
     return tiles
 
 
-def next_factor(ctx: Context) -> list[str]:
+def measure_next(ctx: Context) -> dict:
     """Counts of the CPU mirror, the measured floor and per-test cost, and an estimate."""
     from renderer.accel.bih import build_for_spheres
     from renderer.accel.bih_traverse import traverse
@@ -133,7 +152,7 @@ def next_factor(ctx: Context) -> list[str]:
     floor = cpu_ms(scenario(1, 0), "bih")
     bf0, bf32 = cpu_ms(scenario(2, 0), "bruteforce"), cpu_ms(scenario(2, 32), "bruteforce")
     per_test = (bf32 - bf0) / 32 / (w * h) * 1e6          # ns of CPU per sphere test per pixel, uniform loop
-    rows, data = [], {"size": [w, h], "n": n, "floor_ms": floor, "uniform_test_ns": per_test, "scenes": {}}
+    data = {"size": [w, h], "n": n, "floor_ms": floor, "uniform_test_ns": per_test, "scenes": {}}
     for number in (2, 3):
         scene = scenario(number, n)
         o, d = primary_rays(scene.camera, w, h)
@@ -151,11 +170,18 @@ def next_factor(ctx: Context) -> list[str]:
                                   "tests": float(tests.mean()), "lanes_nodes": _lane_use(nodes),
                                   "lanes_tests": _lane_use(tests), "frame_ms": frame, "step_ns": step_ns,
                                   "tile_candidates": float(cand.mean()), "tile_estimate_ms": estimate}
-        e = data["scenes"][number]
+    return data
+
+
+def report_next(data: dict, run: RunInfo) -> list[str]:
+    w, h = data["size"]
+    n, floor, per_test = data["n"], data["floor_ms"], data["uniform_test_ns"]
+    rows = []
+    for number, e in data["scenes"].items():
+        frame, step_ns, estimate = e["frame_ms"], e["step_ns"], e["tile_estimate_ms"]
         rows.append([f"scenario {number}", f"{e['hit']:.1%}", f"{e['nodes']:.1f}", f"{e['tests']:.1f}",
                      f"{e['lanes_nodes']:.2f} / {e['lanes_tests']:.2f}", f"{frame:.0f}", f"{floor:.0f}",
                      f"{step_ns:.1f}", f"{e['tile_candidates']:.1f}", f"{estimate:.0f} ({estimate / frame:.2f}×)"])
-    ctx.save_data("shader_next", data)
     ratios = [e["step_ns"] / per_test for e in data["scenes"].values() if per_test > 0 and e["step_ns"] == e["step_ns"]]
     ratio_txt = (f"{min(ratios):.1f}–{max(ratios):.1f}×" if ratios else "more than")
     return ["### Where a primary ray's time goes now — the next factor", "",
@@ -170,7 +196,7 @@ def next_factor(ctx: Context) -> list[str]:
             "list made before the draw, no traversal in the shader).", "",
             md_table(["scene", "rays hitting", "nodes / ray", "tests / ray", "lane use nodes / tests",
                       "frame ms", "floor ms", "ns per step", "candidates / pixel", "estimate ms"], rows), "",
-            ctx.caption(ctx.runs), "",
+            run.caption(run.runs), "",
             f"A step of the traversal (a node or a sphere test, with the loops around it and its record fetch) "
             f"costs {ratio_txt} a test in a loop every lane runs alike: the fetches are gathers lane by lane, "
             "the loops run as long as the slowest of 8 pixels, and every loop body runs once even when no lane "

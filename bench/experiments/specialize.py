@@ -21,7 +21,11 @@ import numpy as np
 
 from renderer.scenarios import scenario
 
-from .common import Context, default_settings, diffuse_only, fmt_db, has_setting, md_table, method_names, psnr
+from .context import Context, RunInfo
+from .images import psnr
+from .markdown import fmt_db, md_table
+from .scenes import default_settings, diffuse_only, has_setting, method_names
+from .timing import Stat
 
 NAME = "specialize"
 TITLE = "Model no more than the scene needs — time saved, images unchanged"
@@ -56,18 +60,15 @@ def variants() -> list[tuple[str, dict | None, str]]:
     return out
 
 
-def run(ctx: Context) -> str:
+def measure(ctx: Context) -> dict:
     w, h = SIZE_QUICK if ctx.quick else SIZE
     base = default_settings().with_(width=w, height=h, mode="color")
-    vs = variants()
-    rows = []
     data = {}
-    all_ok = True
-    jobs = [(label, scene, v) for label, scene in scenes(ctx.quick) for v in vs]
+    measured = scenes(ctx.quick)
+    jobs = [(label, scene, v) for label, scene in measured for v in variants()]
     generic = {}
     for label, scene, (vlabel, over, why) in ctx.bar(jobs, desc="specialize"):
         if over is None:
-            rows.append([label, vlabel, "—", "—", "—", "—", "—", f"not available: {why}"])
             continue
         t = ctx.time_render(scene, base.with_(**over))
         res = t.result
@@ -77,23 +78,43 @@ def run(ctx: Context) -> str:
         same_ids = bool(np.array_equal(res.primid, g_res.primid))
         p = psnr(g_res.image, res.image)
         ok = same_ids and p >= MIN_PSNR
-        all_ok &= ok
         speed = g_t.total.median / t.total.median
-        rows.append([label, vlabel, t.total.fmt(1), f"{t.first_ms:,.0f}", f"{speed:.2f}×",
-                     "yes" if same_ids else "**NO**", fmt_db(p), "✓" if ok else "**✗**"])
         data[f"{label}/{vlabel}"] = {"timing": t.to_json(), "speedup": speed, "primid_identical": same_ids,
                                      "psnr_vs_generic": p, "ok": ok,
                                      "stats": {k: v for k, v in (res.stats or {}).items()
                                                if isinstance(v, (int, float, str, bool))}}
+    return {"size": [w, h], "scenes": [label for label, _ in measured],
+            "max_recursion_depth": base.max_recursion_depth, "max_prims": base.max_prims, "results": data}
+
+
+def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
+    w, h = data["size"]
+    base = default_settings()   # older data did not keep the defaults it ran with
+    depth, max_prims = data.get("max_recursion_depth", base.max_recursion_depth), data.get("max_prims", base.max_prims)
+    results = data["results"]
+    labels = data.get("scenes") or list(dict.fromkeys(k.split("/")[0] for k in results))
+    rows = []
+    all_ok = True
+    for label in labels:
+        for vlabel, over, why in variants():
+            r = results.get(f"{label}/{vlabel}")
+            if r is None:
+                rows.append([label, vlabel, "—", "—", "—", "—", "—", f"not available: {why}"])
+                continue
+            t = r["timing"]
+            all_ok &= r["ok"]
+            rows.append([label, vlabel, Stat.from_json(t["total"]).fmt(1), f"{t['first_ms']:,.0f}",
+                         f"{r['speedup']:.2f}×", "yes" if r["primid_identical"] else "**NO**",
+                         fmt_db(r["psnr_vs_generic"]), "✓" if r["ok"] else "**✗**"])
     table = md_table(["scene", "path", "frame ms", "first frame ms", "speed-up vs generic", "primid identical",
                       "colour PSNR vs generic (dB)", f"unchanged (PSNR ≥ {MIN_PSNR:g})"], rows, "llrrrcrc")
-    path = ctx.save_data(NAME, {"size": [w, h], "results": data})
+    path = f"figures/{NAME}.json"
     saved = []
-    for label, _ in scenes(ctx.quick):
+    for label in labels:
         key = f"{label}/both (defaults)"
-        if key in data:
-            gm = data[f"{label}/generic (bih, specialize off)"]["timing"]["total"]["median"]
-            bm = data[key]["timing"]["total"]["median"]
+        if key in results:
+            gm = results[f"{label}/generic (bih, specialize off)"]["timing"]["total"]["median"]
+            bm = results[key]["timing"]["total"]["median"]
             pct = 100 * (1 - bm / gm)
             saved.append(f"{label}: {gm:,.1f} → {bm:,.1f} ms "
                          + (f"({pct:.1f} % saved)" if pct >= 0 else f"({-pct:.1f} % slower)"))
@@ -102,13 +123,13 @@ def run(ctx: Context) -> str:
     return f"""## {TITLE}
 
 Each switch on its own and all together against the generic path, at {w} × {h}, colour, recursion depth
-{base.max_recursion_depth} (the service's default), `MAX_PRIMS` {base.max_prims}. "First frame" is the untimed warm-up frame: it
+{depth} (the service's default), `MAX_PRIMS` {max_prims}. "First frame" is the untimed warm-up frame: it
 includes compiling the shader variant when this run had not compiled it yet (variants are cached by feature
 set); frame ms is the median of the following runs.
 
 {table}
 
-{ctx.caption(capped=True)}
+{run.caption(capped=True)}
 
 Time saved by the defaults (both switches) against the generic path:
 

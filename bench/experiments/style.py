@@ -12,14 +12,15 @@ chart, legends sit outside the plots, and charts are drawn from their saved data
 - :func:`legend_outside` puts one legend for the whole figure to its right, outside every
   axes, so that no data hides under it.
 - :func:`save` writes the PNG; every experiment module's ``plot(data, figures)`` draws its
-  charts from the dict it saved as ``figures/NAME.json``, so ``bench/experiments.py
+  charts from the dict it saved as ``figures/NAME.json``, so ``python -m bench.experiments
   --replot`` redraws them without measuring again.
+- :func:`plt` is pyplot on the non-interactive backend, :func:`log_axis` a log axis with plain
+  numbers.
 """
 
 from __future__ import annotations
 
 import hashlib
-import json
 import re
 from pathlib import Path
 from typing import Any, Iterable, Sequence
@@ -129,13 +130,26 @@ def save(fig: Any, figures: Path, name: str, quick: bool = False) -> Path:
     return path
 
 
-def roundtrip(data: Any) -> Any:
-    """``data`` as it reads back from its JSON file (what ``--replot`` will draw from)."""
-    from .common import _json_default
-
-    return json.loads(json.dumps(data, default=_json_default))
-
-
 def image_line(name: str, alt: str) -> str:
     """The Markdown image line of ``figures/NAME.png``."""
     return f"![{alt}](figures/{name}.png)"
+
+
+def log_axis(ax, which: str = "xy", minor_labels: bool = True) -> None:
+    """Log scale with plain-number tick labels (1, 20, 300, 4000 rather than 4×10³)."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+    fmt = FuncFormatter(lambda v, _: f"{v:g}")
+    for w in which:
+        axis = ax.xaxis if w == "x" else ax.yaxis
+        (ax.set_xscale if w == "x" else ax.set_yscale)("log")
+        axis.set_major_formatter(fmt)
+        axis.set_minor_locator(LogLocator(subs=(2, 5)))
+        axis.set_minor_formatter(fmt if minor_labels else NullFormatter())
+
+
+def plt():
+    """matplotlib.pyplot with the non-interactive backend."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as pyplot
+    return pyplot

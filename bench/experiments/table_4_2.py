@@ -7,8 +7,11 @@ from pathlib import Path
 from renderer.accel.bih import build_for_spheres
 from renderer.scenarios import scenario
 
-from .common import Context, fmt_num, md_table, measure, plt
-from .style import colour_marker, image_line, legend_outside, roundtrip, save
+from .context import Context, RunInfo
+from .markdown import fmt_num, md_table
+from .style import colour_marker, image_line, legend_outside, plt, save
+from .timing import Stat
+from .timing import measure as time_it
 
 NAME = "table_4_2"
 TITLE = "Table 4.2 — BIH statistics (4,096 spheres, radius 1)"
@@ -36,13 +39,23 @@ THESIS = {
 HIST_LABELS = ("0", "1", "2", "3", "4", "> 4")
 
 
-def run(ctx: Context) -> str:
-    configs = [(sc, mp) for sc in (1, 2, 3) for mp in MAX_PRIMS]
-    ours: dict[tuple[int, int], dict] = {}
-    for sc, mp in ctx.bar(configs, desc="Table 4.2"):
+CONFIGS = [(sc, mp) for sc in (1, 2, 3) for mp in MAX_PRIMS]
+
+
+def measure(ctx: Context) -> dict:
+    ours: dict[str, dict] = {}
+    for sc, mp in ctx.bar(CONFIGS, desc="Table 4.2"):
         s = scenario(sc, N, seed=0, radius=RADIUS)
-        t, bih = measure(lambda: build_for_spheres(s.sphere_centers, s.sphere_radii, mp), ctx.runs)
-        ours[(sc, mp)] = {"stats": bih.stats.to_json(), "build": t}
+        t, bih = time_it(lambda: build_for_spheres(s.sphere_centers, s.sphere_radii, mp), ctx.runs)
+        ours[f"s{sc}_mp{mp}"] = {"stats": bih.stats.to_json(), "build": t}
+    return {"n": N, "radius": RADIUS, "runs": ctx.runs, "ours": ours,
+            "thesis": {f"s{sc}_mp{mp}": v for (sc, mp), v in THESIS.items()}}
+
+
+def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
+    configs = CONFIGS
+    ours = {(sc, mp): {"stats": data["ours"][f"s{sc}_mp{mp}"]["stats"],
+                       "build": Stat.from_json(data["ours"][f"s{sc}_mp{mp}"]["build"])} for sc, mp in configs}
 
     def row(label, ours_fn, thesis_fn, digits=0):
         cells = [label]
@@ -89,22 +102,17 @@ def run(ctx: Context) -> str:
     inner_plus_one = all(ours[k]["stats"]["leaves"] == ours[k]["stats"]["inner_nodes"] + 1 for k in configs)
     build_sc1 = ours[(1, 8)]["build"].median / ours[(1, 1)]["build"].median
 
-    # Chart: leaf-size histograms, ours beside the thesis's.
-    saved = {"n": N, "radius": RADIUS, "runs": ctx.runs,
-             "ours": {f"s{sc}_mp{mp}": v for (sc, mp), v in ours.items()},
-             "thesis": {f"s{sc}_mp{mp}": v for (sc, mp), v in THESIS.items()}}
-    data = ctx.save_data(NAME, saved)
-    img = "\n".join(image_line(k, v) for k, v in plot(roundtrip(saved), ctx.figures, ctx.quick).items())
+    img = "\n".join(image_line(k, v) for k, v in charts.items())
 
     return f"""## {TITLE}
 
 {N:,} spheres of radius {RADIUS:g} in each of the three scenarios, BIH built with `MAX_PRIMS` 1 and 8
 (`max_tree_depth` 64, the shader's stack), statistics from `BIH.stats`. Build time: CPU (NumPy),
-median of {ctx.runs} run(s), beside the thesis's iPhone 5s means.
+median of {run.runs} run(s), beside the thesis's iPhone 5s means.
 
 {table}
 
-{ctx.caption()}
+{run.caption()}
 
 - Scenario 1 against the thesis: {exact[0]}; {exact[1]}.
 - Leaves = inner nodes + 1 in every configuration here: {'yes' if inner_plus_one else 'NO'}. The thesis's
@@ -115,7 +123,7 @@ median of {ctx.runs} run(s), beside the thesis's iPhone 5s means.
 
 {img}
 
-Raw data: [`{data}`]({data}).
+Raw data: [`figures/{NAME}.json`](figures/{NAME}.json).
 """
 
 

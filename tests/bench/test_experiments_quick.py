@@ -1,15 +1,18 @@
-"""Smoke test of the experiments: ``bench/experiments.py --quick`` writes RESULTS.md and its charts.
+"""Smoke test of the experiments: ``python -m bench.experiments --quick`` writes RESULTS.md and its charts.
 
 The quick mode renders tiny images with few sizes and one run, so its numbers mean
 nothing; what is tested is that every experiment runs and writes its section, tables
-(with the machine, GL renderer and runs under them) and charts. Needs OpenGL (fails
+(with the machine, GL renderer and runs under them) and charts, and that ``--replot``
+writes the same sections again from the data the run saved. Needs OpenGL (fails
 without it, like every GL test).
 """
 
 from __future__ import annotations
 
+import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 
@@ -17,7 +20,7 @@ import pytest
 
 from tests.helpers import ROOT
 
-pytestmark = pytest.mark.gl  # bench/experiments.py renders in a subprocess: no fixture says so
+pytestmark = pytest.mark.gl  # python -m bench.experiments renders in a subprocess: no fixture says so
 
 SECTIONS = {  # experiment name → heading start
     "table_4_2": "## Table 4.2",
@@ -38,7 +41,7 @@ FIGURES = ("table_4_2_leaves", "fig_4_4_fps", "fig_4_5_memory", "scaling_loglog"
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("experiments")
     env = dict(os.environ, POCKETRAY_BENCH_CACHE=str(out / "cache"))
-    proc = subprocess.run([sys.executable, str(ROOT / "bench" / "experiments.py"), "--quick", "--out", str(out),
+    proc = subprocess.run([sys.executable, "-m", "bench.experiments", "--quick", "--out", str(out),
                            "--no-progress"], cwd=ROOT, env=env, capture_output=True, text=True, timeout=240)
     return out, proc
 
@@ -91,3 +94,25 @@ def test_table_4_2_scenario_1_matches_the_thesis(quick_run):
     out, _ = quick_run
     md = (out / "RESULTS.md").read_text()
     assert "MAX_PRIMS 1: identical" in md and "MAX_PRIMS 8: identical" in md
+
+
+def test_replot_writes_the_runs_sections_from_its_data(quick_run, tmp_path):
+    """Every section of the run, written again from the data it saved: the same text (headings spoilt
+    first, so a section not written again cannot pass)."""
+    from bench.experiments.__main__ import main
+    from bench.experiments.results import assemble, head_of, sections_of
+
+    out, _ = quick_run
+    shutil.copytree(out / "figures", tmp_path / "figures")
+    path = tmp_path / "RESULTS.md"
+    shutil.copy(out / "RESULTS.md", path)
+    ran = sections_of(out / "RESULTS.md")
+    assemble(path, head_of(path), {name: "## (stale)\n" + text.split("\n", 1)[1] for name, text in ran.items()}, {})
+    assert main(["--replot", "--out", str(tmp_path)]) == 0
+    again = sections_of(path)
+    for name, text in ran.items():
+        if "This experiment failed" in text:
+            continue   # no data to write it from (test_results_markdown_has_every_section fails then)
+        assert again[name] == text, name
+    for data in ("table_4_2", "pareto", "dynamic", "shader"):
+        assert "run" in json.loads((out / "figures" / f"{data}.json").read_text()), data

@@ -10,8 +10,7 @@ import shutil
 import pytest
 
 from bench.experiments import EXPERIMENTS
-from bench.experiments.common import plt
-from bench.experiments.style import METHOD_STYLE, legend_outside, method_of, series
+from bench.experiments.style import METHOD_STYLE, legend_outside, method_of, plt, series
 from renderer.methods import METHODS
 from tests.helpers import ROOT
 
