@@ -7,13 +7,13 @@
 import { Api, ApiError, loadStoredSession, storeSession, sameScene } from './api.js';
 import { attach } from './gestures.js';
 import { FrameScheduler } from './frames.js';
-import { Overlay } from './overlay.js';
-import { Legend } from './legend.js';
-import { Hint } from './hint.js';
-import { Banner, Notices } from './notices.js';
-import { explain, explainUpload } from './messages.js';
-import { DeviceView } from './device.js';
-import { SettingsPanel } from './panel.js';
+import { Overlay } from './ui/overlay.js';
+import { Legend } from './ui/legend.js';
+import { Hint } from './ui/hint.js';
+import { Banner, Notices } from './ui/notices.js';
+import { explain, explainUpload } from './ui/messages.js';
+import { DeviceView } from './device/device.js';
+import { SettingsPanel } from './ui/panel.js';
 import {
   DEFAULT_SCENE, FALLBACK_METHODS, MODEL_SIZE, RENDER_KEYS, fitResolution, loadClientSettings, meshKind, parseResolution,
   previewSize, readUrlParams, saveClientSettings,

@@ -13,10 +13,10 @@ async () => {
   const f = await import('/js/frames.js');
   const a = await import('/js/api.js');
   const s = await import('/js/settings.js');
-  const cam = await import('/js/camera.js');
-  const b = await import('/js/bands.js');
-  const lim = await import('/js/limits.js');
-  const msg = await import('/js/messages.js');
+  const cam = await import('/js/device/camera.js');
+  const b = await import('/js/device/bands.js');
+  const lim = await import('/js/ui/limits.js');
+  const msg = await import('/js/ui/messages.js');
   const out = {};
   const eq = (name, got, want) => { out[name] = JSON.stringify(got) === JSON.stringify(want) ? true : {got, want}; };
   const near = (x, y, e = 1e-9) => Math.abs(x - y) <= e;

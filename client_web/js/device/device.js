@@ -24,7 +24,7 @@
 import { BandPlanner, cancelsFrame } from './bands.js';
 import { applyGesture, cameraBasis, targetDistance } from './camera.js';
 import { DeviceRenderer, DeviceUnavailable } from './device_gl.js';
-import { previewSize } from './settings.js';
+import { previewSize } from '../settings.js';
 
 // The camera math lives in camera.js; these names stay importable from here (tests, tools).
 export { applyGesture, cameraBasis, orbitCamera, panCamera, pinchCamera, targetDistance } from './camera.js';

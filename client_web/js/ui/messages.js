@@ -3,7 +3,7 @@
 // labels the panel shows, and server-side variable names left out — a phone user cannot
 // set POCKETRAY_MAX_WORK. Pure (tests/browser/test_units.py).
 
-import { FIELD_LABELS } from './settings.js';
+import { FIELD_LABELS } from '../settings.js';
 
 // API name → the panel's words (longest names first, so that max_tree_depth is not cut by a shorter one).
 const WORDS = [

@@ -7,7 +7,7 @@
 //        max_recursion_depth, method, …}, animated, renderer} — the values as they would be
 // with the change applied.
 
-import { FIELD_LABELS } from './settings.js';
+import { FIELD_LABELS } from '../settings.js';
 
 // Used when the service does not describe its methods (an older service).
 const FALLBACK_METHOD = Object.freeze({
