@@ -142,7 +142,7 @@ export class DeviceView {
     const r = { ...s.render, ...params };
     // An animated scene's data is posed by the server at the frame's time: a new time is new data.
     const t = params.time ?? (s.anim && s.anim.animated ? s.anim.time : '');
-    // sceneRev: the session's scene grew (a model was added, app.js): its data is new too.
+    // sceneRev: the session's scene grew (a model was added, session.js): its data is new too.
     return [params.session ?? s.sessionId, r.method, r.mode, r.max_prims, r.max_tree_depth, r.max_recursion_depth,
       params.max_texture_size ?? this.renderer.maxTextureSize, t, s.sceneRev ?? 0].join('|');
   }
