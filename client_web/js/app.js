@@ -3,7 +3,7 @@
 // renders comes back (transport.js → frames.js → display.js), or this browser traces it
 // (device/). Test hook: window.pocketray (hook.js).
 
-import { Api, ApiError } from './api.js';
+import { Api } from './api.js';
 import { Display, displayedSize } from './display.js';
 import { FrameScheduler } from './frames.js';
 import { createHook, observe } from './hook.js';
@@ -25,8 +25,7 @@ import { Player } from './ui/player.js';
 const $ = (sel) => document.querySelector(sel);
 const canvas = $('#view'), stage = $('#stage');
 const { url, state } = createState(location.search);
-const hook = createHook(state);
-window.pocketray = hook;
+const hook = (window.pocketray = createHook(state));
 const viewportHeight = () => displayedSize(stage, state.render).height;
 
 const notices = new Notices($('#notice'), (n) => hook.notices.push(n));
@@ -54,11 +53,7 @@ const transport = new Transport({ state, api, device, activity: $('#activity'), 
   pending: () => scheduler.pending, onFallback: (reason, redraw) => renderers.fallBack(reason, redraw) });
 const scheduler = new FrameScheduler({
   transport, display: show, refineDelayMs: state.client.refineDelayMs,
-  onError(e, what) {
-    if (state.anim.playing && what !== 'gesture') player.set(false);   // a failed frame stops the animation
-    if (e instanceof ApiError && e.status === 404 && state.sessionId) return session.replaceExpired();  // expired
-    if (!session.refusedScene(e, what)) refusals.record(e, what);
-  },
+  onError: (e, what) => session.failed(e, what),
 });
 observe(hook, { scheduler, device });
 
@@ -81,10 +76,4 @@ session.followScreen();
 fetch('/api/ready', { cache: 'no-store' }).then((r) => r.json())
   .then((j) => { hook.serverRenderer = j.gl_renderer || null; }, () => {});
 api.info().then((info) => session.offered(info));
-scheduler.enqueue(() => session.start()).then(
-  () => scheduler.invalidate(),
-  (e) => {
-    hook.status = 'failed';
-    refusals.record(e, 'start');
-  },
-);
+session.begin();

@@ -98,6 +98,17 @@ export class Session {
     return changed(want, current);
   }
 
+  // Start (or resume) the session, then its first frame; the hook's status says 'failed' if it cannot.
+  begin() {
+    this.scheduler.enqueue(() => this.start()).then(
+      () => this.scheduler.invalidate(),
+      (e) => {
+        this.hook.status = 'failed';
+        this.refusals.record(e, 'start');
+      },
+    );
+  }
+
   async start() {
     const { api, url } = this;
     const stored = loadStoredSession();
@@ -163,15 +174,23 @@ export class Session {
     if (this.pendingScene && meta.sessionId === this.pendingScene.id) this.pendingScene = null;   // the new scene is on screen
   }
 
-  // A refused frame of a new scene (too heavy, …): say why, next to n, and stay with the scene on
-  // screen — its session still exists. → whether it was that.
-  refusedScene(e, what) {
-    if (!(this.pendingScene && e instanceof ApiError && e.status === 422 && what === 'frame')) return false;
-    const { prev } = this.pendingScene;
-    this.pendingScene = null;
+  // The scheduler's onError: a request of `what` ('frame', 'gesture', a task) failed with e.
+  failed(e, what) {
+    if (this.state.anim.playing && what !== 'gesture') this.player.set(false);   // a failed frame stops the animation
+    if (e instanceof ApiError && e.status === 404 && this.state.sessionId) {  // the session expired
+      this.replaceExpired();
+      return;
+    }
+    if (this.pendingScene && e instanceof ApiError && e.status === 422 && what === 'frame') {
+      // The service will not render the new scene (too heavy, …): say why, next to n, and stay
+      // with the scene on screen — its session still exists.
+      const { prev } = this.pendingScene;
+      this.pendingScene = null;
+      this.refusals.record(e, what);
+      if (prev) this.adopt(prev);
+      return;
+    }
     this.refusals.record(e, what);
-    if (prev) this.adopt(prev);
-    return true;
   }
 
   replaceExpired() {
