@@ -2,8 +2,8 @@
 # Installs what pocketray needs on a fresh Debian machine. Idempotent and quick
 # when nothing changed (a stamp of pyproject.toml's and the lock's hash skips pip).
 #  - Mesa's EGL + llvmpipe for headless OpenGL (when libEGL is missing)
-#  - Chromium for the browser tests; redis-server and haproxy for the scale-out stack
-#    (./dev stack and its test)
+#  - Chromium for the browser tests, Node.js for the client's unit tests (node --test);
+#    redis-server and haproxy for the scale-out stack (./dev stack and its test)
 #  - a virtual environment .venv with the exact versions of requirements-test.lock (the
 #    service and the test extras; scripts/lock.sh rewrites it), then the project itself
 #    (editable, without resolving anything again)
@@ -14,6 +14,7 @@ need_apt=()
 ldconfig -p | grep -q 'libEGL.so.1' || need_apt+=(libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1)
 ldconfig -p | grep -q 'libEGL_mesa' || need_apt+=(libegl-mesa0 libgl1-mesa-dri)
 command -v chromium >/dev/null || need_apt+=(chromium)
+command -v node >/dev/null || need_apt+=(nodejs)
 command -v redis-server >/dev/null || need_apt+=(redis-server)
 command -v haproxy >/dev/null || [ -x /usr/sbin/haproxy ] || need_apt+=(haproxy)
 if [ ${#need_apt[@]} -gt 0 ]; then

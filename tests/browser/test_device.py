@@ -162,7 +162,7 @@ def test_controller_port_matches_the_server(device_page):
     from server import controller
 
     cam = {"position": [3.0, -2.0, 80.0], "target": [1.0, 0.5, -4.0], "up": [0.1, 1.0, 0.0], "fov_y": 50.0}
-    got = device_page.page.evaluate("""async (cam) => { const d = await import('/js/device.js');
+    got = device_page.page.evaluate("""async (cam) => { const d = await import('/js/device/device.js');
         return [d.panCamera(cam, 37.5, -12.25, 640), d.pinchCamera(cam, 1.7), d.pinchCamera(cam, 0.3),
                 d.pinchCamera(cam, 1e9)]; }""", cam)
     c = Camera.from_json(cam)
@@ -307,7 +307,7 @@ def test_orbit_port_matches_the_server(device_page):
     cams = [{"position": [3.0, -2.0, 80.0], "target": [1.0, 0.5, -4.0], "up": [0.1, 1.0, 0.0], "fov_y": 50.0},
             {"position": [0.0, 100.0, 1.0], "target": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0], "fov_y": 60.0}]
     turns = [(37.5, -12.25), (-200.0, 0.0), (0.0, 170.0), (15.0, -95.0), (360.0, 360.0)]
-    got = device_page.page.evaluate("""async ([cams, turns]) => { const d = await import('/js/device.js');
+    got = device_page.page.evaluate("""async ([cams, turns]) => { const d = await import('/js/device/device.js');
         return cams.map((c) => turns.map(([y, p]) => d.orbitCamera(c, y, p))); }""", [cams, turns])
     for cam, row in zip(cams, got):
         c = Camera.from_json(cam)

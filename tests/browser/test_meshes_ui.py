@@ -146,7 +146,7 @@ def test_a_corrupt_misnamed_or_too_big_file_is_refused_next_to_the_picker(open_c
 def test_upload_refusals_in_the_panel_words(open_client):
     c = open_client("mobile")
     got = c.page.evaluate("""async () => {
-      const m = await import('/js/messages.js');
+      const m = await import('/js/ui/messages.js');
       const big = m.explainUpload({status: 413, detail: 'body: request body of 70000000 bytes exceeds the limit of '
                                     + '67108864 bytes (POCKETRAY_MAX_BODY_BYTES)'});
       const bad = m.explainUpload({status: 422, detail: [{loc: ['body'], msg: 'body: the model has 2,000,000 '

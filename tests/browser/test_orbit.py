@@ -10,7 +10,7 @@ import numpy as np
 
 from browser_support import Touch, distance
 
-ORBIT_DEGREES_PER_VIEW = 180          # client_web/js/app.js: a drag the frame's height turns 180°
+ORBIT_DEGREES_PER_VIEW = 180          # client_web/js/ui/controls.js: a drag the frame's height turns 180°
 
 
 def angles(cam: dict) -> tuple[float, float]:

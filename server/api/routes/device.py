@@ -1,6 +1,6 @@
 """On-device rendering (issue #10): what a browser needs to run the very same tracer.
 
-Two routes; the browser client's ``client_web/js/device.js`` uses both.
+Two routes; the browser client's ``client_web/js/device/device.js`` uses both.
 
 ``GET /api/sessions/{id}/device-data``
     The session's scene and the chosen method's acceleration data as one blob of

@@ -1,13 +1,13 @@
 // The settings form's limits and which settings apply, from GET /api/info — so that the
 // form refuses, before anything is sent, what the service would refuse, and says why in
 // the panel's words with the accepted range (the service's own 422s are translated by
-// messages.js). Pure: no DOM (tests/browser/test_units.py).
+// messages.js). Pure: no DOM (tests/browser/units/test_limits.mjs).
 //
 // ctx = {info, scene: {scenario, n, …}, render: {width, height, samples_per_pixel,
 //        max_recursion_depth, method, …}, animated, renderer} — the values as they would be
 // with the change applied.
 
-import { FIELD_LABELS } from './settings.js';
+import { FIELD_LABELS } from '../settings.js';
 
 // Used when the service does not describe its methods (an older service).
 const FALLBACK_METHOD = Object.freeze({

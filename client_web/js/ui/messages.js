@@ -1,9 +1,9 @@
 // The service's refusals in the panel's words: which field of the form a 422 is about
 // (its `loc`) and its message with the API's names (samples_per_pixel, …) replaced by the
 // labels the panel shows, and server-side variable names left out — a phone user cannot
-// set POCKETRAY_MAX_WORK. Pure (tests/browser/test_units.py).
+// set POCKETRAY_MAX_WORK. Pure (tests/browser/units/test_messages.mjs).
 
-import { FIELD_LABELS } from './settings.js';
+import { FIELD_LABELS } from '../settings.js';
 
 // API name → the panel's words (longest names first, so that max_tree_depth is not cut by a shorter one).
 const WORDS = [

@@ -12,7 +12,7 @@ import { applies, check, modesOf, range, samplesAllowed } from './limits.js';
 import {
   DEFAULT_MUSEUM_N, DEFAULT_SCENE, FALLBACK_METHODS, FIELD_LABELS, METHOD_LABELS, MODE_LABELS, MODES, MODEL_FORMATS,
   MUSEUM_KINDS, PREVIEW_SCALES, RESOLUTIONS, SAMPLES, SCENARIOS, UPDATE_SCHEMES, meshKind, parseResolution,
-} from './settings.js';
+} from '../settings.js';
 import { modelFileProblem } from './messages.js';
 
 const SCENE_KEYS = ['scenario', 'n', 'seed', 'radius', 'motion'];

@@ -4,7 +4,7 @@
 // thread back, so its length is how long touch input can wait. The planner keeps a band
 // near `budgetMs`: it learns the cost of a pixel from the bands drawn so far (an
 // exponential average, since the cost changes with the view and the settings) and sizes
-// the next band from it. Pure: no DOM, no GL (tests/browser/test_units.py).
+// the next band from it. Pure: no DOM, no GL (tests/browser/units/test_bands.mjs).
 
 export const BAND_DEFAULTS = Object.freeze({
   budgetMs: 25,       // the longest a band should hold the main thread

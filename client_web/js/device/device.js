@@ -24,7 +24,7 @@
 import { BandPlanner, cancelsFrame } from './bands.js';
 import { applyGesture, cameraBasis, targetDistance } from './camera.js';
 import { DeviceRenderer, DeviceUnavailable } from './device_gl.js';
-import { previewSize } from './settings.js';
+import { previewSize } from '../settings.js';
 
 // The camera math lives in camera.js; these names stay importable from here (tests, tools).
 export { applyGesture, cameraBasis, orbitCamera, panCamera, pinchCamera, targetDistance } from './camera.js';
@@ -142,7 +142,7 @@ export class DeviceView {
     const r = { ...s.render, ...params };
     // An animated scene's data is posed by the server at the frame's time: a new time is new data.
     const t = params.time ?? (s.anim && s.anim.animated ? s.anim.time : '');
-    // sceneRev: the session's scene grew (a model was added, app.js): its data is new too.
+    // sceneRev: the session's scene grew (a model was added, session.js): its data is new too.
     return [params.session ?? s.sessionId, r.method, r.mode, r.max_prims, r.max_tree_depth, r.max_recursion_depth,
       params.max_texture_size ?? this.renderer.maxTextureSize, t, s.sceneRev ?? 0].join('|');
   }

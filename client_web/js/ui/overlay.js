@@ -2,7 +2,7 @@
 // details — who rendered, the time split (server: update / upload / trace / encode /
 // queue+read / network from Server-Timing; device: update / upload / trace in bands /
 // display / data fetch), the tree, method, n, frame size, samples. Everything describes
-// the frame on screen (app.js passes what that frame was rendered with), never the
+// the frame on screen (display.js passes what that frame was rendered with), never the
 // request still on its way. The user can hide it; both choices are remembered.
 
 const HIDDEN_KEY = 'pocketray.overlayHidden';

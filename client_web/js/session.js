@@ -1,0 +1,272 @@
+// The session: the scene, camera and render settings the service keeps for this page. Started
+// (or resumed from localStorage) and adopted into state; render settings PATCHed; a new scene
+// is a new session, and when the service refuses to render it the client goes back to the
+// scene on screen; an expired session is started again with the same scene; model files are
+// added to the scene.
+
+import { ApiError, loadStoredSession, sameScene, storeSession } from './api.js';
+import {
+  DEFAULT_SCENE, MODEL_SIZE, RENDER_KEYS, fitResolution, meshKind, parseResolution, saveClientSettings,
+} from './settings.js';
+
+// The render settings the client keeps of a session's settings.
+export function pickRender(settings) {
+  const r = {};
+  for (const k of [...RENDER_KEYS, 'format', 'quality']) if (settings[k] !== undefined) r[k] = settings[k];
+  return r;
+}
+
+// A session's scene_info → state.scene (what it does not say is kept from `scene`, the one before).
+export function sceneOf(info, scene) {
+  const museum = info.museum || null;
+  const mesh = info.mesh_scene || null;
+  return {
+    scenario: museum ? 'museum' : mesh ? `mesh:${mesh.kind}` : info.scenario ?? scene.scenario,
+    n: museum ? museum.n : info.n ?? info.n_spheres ?? scene.n,
+    seed: museum ? museum.seed : info.seed ?? scene.seed, radius: info.radius ?? scene.radius,
+    motion: museum ? museum.kind : scene.motion, n_spheres: info.n_spheres, animated: !!info.animated,
+    n_triangles: info.n_triangles || 0, n_meshes: info.n_meshes || 0,
+  };
+}
+
+// What identifies a scene the client can ask for again (kept with the session in localStorage).
+export function sceneBodyKeys(scene) {
+  const k = { scenario: scene.scenario, n: scene.n, seed: scene.seed, radius: scene.radius };
+  if (scene.scenario === 'museum') k.motion = scene.motion;
+  return k;
+}
+
+// POST /api/sessions body: a thesis scenario, the animated museum or a mesh scene.
+export function sceneBody(scene) {
+  const kind = meshKind(scene.scenario);
+  if (kind) return { mesh_scene: { kind } };
+  if (scene.scenario === 'museum') {
+    return { museum: { n: scene.n, kind: scene.motion || 'deformable', seed: scene.seed || 0 } };
+  }
+  return { scenario: scene.scenario, n: scene.n, seed: scene.seed, radius: scene.radius };
+}
+
+// The settings of `want` that differ from `current` (all of them without a current).
+export function changed(want, current) {
+  const diff = {};
+  for (const [k, v] of Object.entries(want)) if (!current || current[k] !== v) diff[k] = v;
+  return diff;
+}
+
+// state, url (readUrlParams), api, scheduler (frames.js), panel (ui/panel.js), player
+// (ui/player.js), refusals (ui/errors.js), notice(text, kind), hook; stage: the element the
+// frame is shown in ('fit' resolutions follow its size).
+export class Session {
+  constructor({ state, url, api, scheduler, panel, player, refusals, notice, hook, stage }) {
+    Object.assign(this, { state, url, api, scheduler, panel, player, refusals, notice, hook, stage });
+    // A new scene whose first frame has not been shown yet: {prev: SessionOut, id}. If the service
+    // refuses to render it (422, e.g. too heavy), the client goes back to the previous session.
+    this.pendingScene = null;
+    this.replacing = false;
+  }
+
+  adopt(s) {
+    const { state } = this;
+    state.sessionId = s.id;
+    state.session = s;
+    this.hook.sessionId = s.id;
+    const info = s.scene_info || {};
+    state.scene = sceneOf(info, state.scene);
+    state.render = pickRender(s.settings);
+    this.player.adoptScene(!!info.animated, Number.isFinite(s.settings?.time) ? s.settings.time : 0);
+    storeSession({ id: s.id, scene: sceneBodyKeys(state.scene) });
+    this.scheduler.resetVersions();
+    this.panel.show(state);
+  }
+
+  // Full resolution the client wants now ('fit' follows the screen; null for 'custom': keep the session's).
+  wantedSize() {
+    const c = this.state.client;
+    if (c.resolution === 'fit') {
+      const stage = this.stage;
+      return fitResolution(stage.clientWidth || window.innerWidth, stage.clientHeight || window.innerHeight,
+        window.devicePixelRatio || 1, c.maxFitSide);
+    }
+    return parseResolution(c.resolution);
+  }
+
+  // Render settings to apply on top of the session's: URL parameters and the resolution.
+  wantedRender(current) {
+    const want = { ...this.url.render };
+    const size = this.wantedSize();
+    if (size) Object.assign(want, size);
+    return changed(want, current);
+  }
+
+  // Start (or resume) the session, then its first frame; the hook's status says 'failed' if it cannot.
+  begin() {
+    this.scheduler.enqueue(() => this.start()).then(
+      () => this.scheduler.invalidate(),
+      (e) => {
+        this.hook.status = 'failed';
+        this.refusals.record(e, 'start');
+      },
+    );
+  }
+
+  async start() {
+    const { api, url } = this;
+    const stored = loadStoredSession();
+    let s = null, expired = false;
+    if (stored && stored.id) {
+      try {
+        s = await api.getSession(stored.id);
+        if (Object.keys(url.scene).length && !sameScene(url.scene, s.scene_info)) s = null;  // a link to another scene
+      } catch (e) {
+        if (!(e instanceof ApiError && e.status === 404)) throw e;
+        expired = true;
+      }
+    }
+    if (!s) {
+      const scene = { ...DEFAULT_SCENE, ...(stored && stored.scene), ...url.scene };
+      try {
+        s = await api.createSession(sceneBody(scene), this.wantedRender(null));
+      } catch (e) {
+        if (!(e instanceof ApiError && e.status === 422)) throw e;
+        this.refusals.record(e, 'start');  // e.g. a link with parameters the service refuses
+        this.notice('Starting the default scene instead.', 'warn');
+        s = await api.createSession(sceneBody(DEFAULT_SCENE), this.wantedSize() || {});
+      }
+      if (expired) this.notice('Your previous session had expired; a new one was started with the same scene.', 'warn');
+      this.adopt(s);
+    } else {
+      this.adopt(s);
+      const diff = this.wantedRender(this.state.render);
+      if (Object.keys(diff).length) this.adopt({ ...s, settings: await this.patch(diff) });
+    }
+    this.hook.status = 'ready';
+  }
+
+  async patch(partial) {
+    const r = await this.api.patchSettings(this.state.sessionId, partial);
+    return r.settings ?? r;  // SettingsOut: the full settings plus version, flat
+  }
+
+  applyRender(partial) {
+    const { state, scheduler, panel } = this;
+    scheduler.enqueue(async () => {
+      const settings = await this.patch(partial);
+      state.render = pickRender(settings);
+      state.session = { ...state.session, settings };
+      panel.show(state);
+    }).then(() => scheduler.invalidate(), () => panel.show(state));
+  }
+
+  // The settings sheet chose another scene.
+  newScene(scene) {
+    const { state, scheduler } = this;
+    scheduler.dropPending();
+    scheduler.enqueue(async () => {
+      const prev = state.session;
+      const s = await this.api.createSession(sceneBody(scene), state.render);
+      this.adopt(s);
+      this.pendingScene = { prev, id: s.id };
+    }).then(() => scheduler.invalidate(), () => this.panel.show(state));
+  }
+
+  // A frame of `meta` (transport.js's requestMeta) is on screen.
+  shown(meta) {
+    if (this.pendingScene && meta.sessionId === this.pendingScene.id) this.pendingScene = null;   // the new scene is on screen
+  }
+
+  // The scheduler's onError: a request of `what` ('frame', 'gesture', a task) failed with e.
+  failed(e, what) {
+    if (this.state.anim.playing && what !== 'gesture') this.player.set(false);   // a failed frame stops the animation
+    if (e instanceof ApiError && e.status === 404 && this.state.sessionId) {  // the session expired
+      this.replaceExpired();
+      return;
+    }
+    if (this.pendingScene && e instanceof ApiError && e.status === 422 && what === 'frame') {
+      // The service will not render the new scene (too heavy, …): say why, next to n, and stay
+      // with the scene on screen — its session still exists.
+      const { prev } = this.pendingScene;
+      this.pendingScene = null;
+      this.refusals.record(e, what);
+      if (prev) this.adopt(prev);
+      return;
+    }
+    this.refusals.record(e, what);
+  }
+
+  replaceExpired() {
+    if (this.replacing) return;
+    this.replacing = true;
+    const { scheduler } = this;
+    scheduler.dropPending();
+    scheduler.enqueue(async () => {
+      const s = await this.api.createSession(sceneBody(this.state.scene), this.state.render);
+      this.adopt(s);
+      this.notice('The session had expired; a new one was started with the same scene (the camera is reset).', 'warn');
+    }).then(() => scheduler.invalidate(), () => {}).finally(() => { this.replacing = false; });
+  }
+
+  // A model file chosen in the sheet: added to this session's scene (POST …/meshes, the raw
+  // bytes), then the new frame. A refusal (413, 422) goes next to the picker; the scene stays.
+  addModel(file, format) {
+    const { state, scheduler } = this;
+    scheduler.dropPending();
+    return scheduler.enqueue(async () => {
+      const sid = state.sessionId;
+      let added;
+      try {
+        added = await this.api.addMesh(sid, file, { format, size: MODEL_SIZE });
+      } catch (e) {
+        if (!(e instanceof ApiError) || ![413, 422].includes(e.status)) throw e;
+        this.refusals.upload(e);
+        return false;
+      }
+      if (state.sessionId !== sid) return false;
+      const s = { ...state.session, version: added.version, scene_info: added.scene_info };
+      state.sceneRev = (state.sceneRev || 0) + 1;   // device mode fetches the grown scene's data
+      this.adopt(s);
+      this.notice(`Added ${file.name}: ${added.scene_info.n_triangles} triangles in the scene now.`);
+      return true;
+    }).then((ok) => { if (ok) scheduler.invalidate(); }, () => {});
+  }
+
+  // What this service offers (GET /api/info): its method and mode lists, its profiles, limits for the form.
+  offered(info) {
+    const { state, api } = this;
+    this.hook.info = info;
+    if (!info) return;
+    if (Array.isArray(info.methods) && info.methods.length) state.methods = info.methods;
+    if (info.profiles && typeof info.profiles === 'object') state.profiles = info.profiles;
+    // A frame may take up to the service's own limit (then it answers 422 itself): wait that long.
+    if (info.render_timeout_s > 0) api.timeoutMs = Math.max(api.timeoutMs, (info.render_timeout_s + 15) * 1000);
+    this.panel.setInfo(info);
+  }
+
+  // The sheet changed this browser's own settings (kept in localStorage); setRenderer(which):
+  // device/mode.js's RendererChoice.set.
+  setClient(partial, setRenderer) {
+    const { state } = this;
+    state.client = { ...state.client, ...partial };
+    saveClientSettings(state.client);
+    this.scheduler.refineDelayMs = state.client.refineDelayMs;
+    if ('renderer' in partial) setRenderer(partial.renderer);
+    if ('resolution' in partial) {
+      const size = this.wantedSize();
+      if (size && (size.width !== state.render.width || size.height !== state.render.height)) this.applyRender(size);
+    }
+    this.panel.show(state);
+  }
+
+  // 'fit' follows the screen: rotate the phone, resize the window.
+  followScreen() {
+    let timer = null;
+    window.addEventListener('resize', () => {
+      clearTimeout(timer);
+      timer = setTimeout(() => {
+        const { state } = this;
+        if (!state.render || state.client.resolution !== 'fit') return;
+        const size = this.wantedSize();
+        if (size.width !== state.render.width || size.height !== state.render.height) this.applyRender(size);
+      }, 300);
+    });
+  }
+}

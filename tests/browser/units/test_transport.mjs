@@ -1,0 +1,30 @@
+// transport.js: the query of a frame (levels, the interactive profile, the scene time) and what it was asked with.
+
+import { test } from 'node:test';
+import { frameParams, requestMeta } from '../../../client_web/js/transport.js';
+import { same } from './same.mjs';
+
+const state = (o = {}) => ({
+  sessionId: 's1', render: { width: 320, height: 544, mode: 'heat', method: 'bih', samples_per_pixel: 4, max_recursion_depth: 8, min_weight: 0.03 },
+  client: { previewScale: 0.5, previewFormat: 'jpeg', previewQuality: 70, fullFormat: 'png', fullQuality: 90 },
+  scene: { scenario: 2, n: 128, n_spheres: 128 }, profiles: null,
+  anim: { animated: false, playing: false, time: 0, time0: 0, clock0: 0 }, ...o,
+});
+
+test('full frames at the session size and full format; previews scaled, with their quality', () => {
+  same(frameParams(state(), 'full'), { width: 320, height: 544, format: 'png' });
+  same(frameParams(state(), 'preview'), { width: 160, height: 272, format: 'jpeg', quality: 70 });
+});
+
+test('previews at the service\'s interactive profile, the depth no deeper than the session\'s', () => {
+  const s = state({ profiles: { interactive: { max_recursion_depth: 10, samples_per_pixel: 1, min_weight: 0.1 } } });
+  same(frameParams(s, 'preview'), { width: 160, height: 272, format: 'jpeg', quality: 70, max_recursion_depth: 8, samples_per_pixel: 1, min_weight: 0.1 });
+  same(requestMeta(s, 'preview'), { sessionId: 's1', n: 128, mode: 'heat', method: 'bih', samples: 1, minWeight: 0.1, scenario: 2,
+    motion: undefined, triangles: 0, meshes: 0 });
+  same([requestMeta(s, 'full').samples, requestMeta(s, 'full').minWeight], [4, 0.03]);
+});
+
+test('an animated scene\'s frames carry the scene time', () => {
+  const s = state({ anim: { animated: true, playing: true, time: 0, time0: 1, clock0: 0 } });
+  same(frameParams(s, 'full', 500), { width: 320, height: 544, format: 'png', time: 1.5 });
+});
