@@ -15,7 +15,7 @@ import { explain, explainUpload } from './messages.js';
 import { DeviceView } from './device.js';
 import { SettingsPanel } from './panel.js';
 import {
-  DEFAULT_SCENE, FALLBACK_METHODS, MODEL_SIZE, RENDER_KEYS, fitResolution, loadClientSettings, meshKind, parseResolution,
+  DEFAULT_SCENE, FALLBACK_METHODS, MODEL_SIZE, settingNames, fitResolution, loadClientSettings, meshKind, parseResolution,
   previewSize, readUrlParams, saveClientSettings,
 } from './settings.js';
 
@@ -323,9 +323,11 @@ function adopt(s) {
   panel.show(state);
 }
 
+// The session's settings the client keeps (and carries to a new session): those GET /api/info
+// declares so; from a service that declares none, all of them.
 function pickRender(settings) {
-  const r = {};
-  for (const k of [...RENDER_KEYS, 'format', 'quality']) if (settings[k] !== undefined) r[k] = settings[k];
+  const r = {}, keys = settingNames('client');
+  for (const k of keys.length ? keys : Object.keys(settings)) if (k !== 'version' && settings[k] !== undefined) r[k] = settings[k];
   return r;
 }
 
@@ -379,6 +381,8 @@ function replaceExpiredSession() {
 }
 
 async function start() {
+  await infoReady;   // the settings the service declares: what a link may set and what a session carries
+  Object.assign(url.render, readUrlParams(location.search).render);
   const stored = loadStoredSession();
   let s = null, expired = false;
   if (stored && stored.id) {
@@ -575,7 +579,7 @@ setDragMode(state.client.dragMode === 'orbit' ? 'orbit' : 'pan');
 
 // ---- go ------------------------------------------------------------------------------
 // What this service offers: its method and mode lists, and limits for the form.
-api.info().then((info) => {
+const infoReady = api.info().then((info) => {
   hook.info = info;
   if (!info) return;
   if (Array.isArray(info.methods) && info.methods.length) state.methods = info.methods;

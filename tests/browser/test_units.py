@@ -19,6 +19,8 @@ async () => {
   const msg = await import('/js/messages.js');
   const out = {};
   const eq = (name, got, want) => { out[name] = JSON.stringify(got) === JSON.stringify(want) ? true : {got, want}; };
+  // The render settings are the service's declarations (GET /api/info), as the app learns them.
+  s.learnSettings((await (await fetch('/api/info')).json()).settings);
   const near = (x, y, e = 1e-9) => Math.abs(x - y) <= e;
 
   // --- gestures: one pointer pans, two pinch, taps, double tap ---
@@ -152,6 +154,15 @@ async () => {
                        client: {resolution: '320x544', previewScale: 0.25}});
   const m = s.readUrlParams('?scenario=museum&n=256&motion=rigid&update=refit');
   eq('museum url params', [m.scene, m.render], [{n: 256, scenario: 'museum', motion: 'rigid'}, {update: 'refit'}]);
+  eq('a link sets only declared sheet settings, a choice only among its choices',
+     s.readUrlParams('?update=sometimes&min_weight=0.5&time=3&specialize=false&tile_size=8&bogus=1').render, {tile_size: 8});
+  eq('settings by their declared flags', [s.settingNames('sheet').includes('samples_per_pixel'), s.settingNames('sheet').includes('time'),
+     s.settingNames('client').includes('quality'), s.settingNames('client').includes('time')], [true, false, true, false]);
+  eq('values by their declared type', [s.settingValue({type: 'integer'}, '4'), s.settingValue({type: 'number'}, '0.5'),
+     s.settingValue({type: 'boolean'}, 'false'), s.settingValue({type: 'string'}, 'bvh'), s.settingValue({type: 'integer'}, 'x')],
+     [4, 0.5, false, 'bvh', undefined]);
+  eq('labels are the declared ones', [s.FIELD_LABELS.samples_per_pixel, s.FIELD_LABELS.max_recursion_depth],
+     ['Quality (samples per pixel)', 'Recursion depth']);
   const museumInfo = {n_spheres: 832, museum: {n: 256, kind: 'rigid', seed: 0, absent: 0.2}, animated: true};
   out['same museum'] = a.sameScene({scenario: 'museum', n: 256, motion: 'rigid'}, museumInfo) &&
     !a.sameScene({scenario: 'museum', n: 256, motion: 'deformable'}, museumInfo) &&
