@@ -89,11 +89,12 @@ export const FIELD_LABELS = {
 // The render settings GET /api/info declares ([] until it answered, or from a service that does not).
 export const renderSettings = [];
 
-// Take the service's declarations (info.settings): their labels name them in every message.
+// Take the service's declarations (info.settings). The labels of those the sheet offers name them in
+// every message (a 422 about another one is not about a field of the sheet: "Not accepted: …").
 export function learnSettings(specs) {
   if (!Array.isArray(specs)) return;
   renderSettings.splice(0, renderSettings.length, ...specs.filter((x) => x && typeof x.name === 'string'));
-  for (const x of renderSettings) if (x.label) FIELD_LABELS[x.name] = x.label;
+  for (const x of renderSettings) if (x.sheet && x.label) FIELD_LABELS[x.name] = x.label;
 }
 
 // The names of the declared render settings that have `flag` (sheet: the settings sheet offers it;

@@ -73,7 +73,8 @@ def test_a_setting_added_to_the_declaration_reaches_the_api_info_and_cli(tmp_pat
     SettingSpec(**{**EXTRA, "bounds": tuple(EXTRA["bounds"]), "modes": tuple(EXTRA["modes"])})  # a valid entry
     result = tmp_path / "out.json"
     p = subprocess.run([sys.executable, "-c", SCRIPT, json.dumps(EXTRA), str(result)], cwd=ROOT,
-                       capture_output=True, text=True, timeout=300, env={**os.environ, "COLUMNS": "200", "PYTHONPATH": str(ROOT)})
+                       capture_output=True, text=True, timeout=300,
+                       env={**os.environ, "COLUMNS": "200", "PYTHONPATH": str(ROOT)})
     assert p.returncode == 0, p.stderr[-4000:]
     out = json.loads(result.read_text())
 
