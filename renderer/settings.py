@@ -66,6 +66,8 @@ class SettingSpec:
             raise ValueError(f"setting {self.name}: type {self.type!r} is not one of {', '.join(TYPES)}")
         if self.type == "string" and not self.choices:
             raise ValueError(f"setting {self.name}: a string setting names its choices")
+        if self.type in ("integer", "number") and self.choices is None and self.bounds is None:
+            raise ValueError(f"setting {self.name}: a number has bounds or choices")
 
     @property
     def python_type(self) -> type:
@@ -176,6 +178,7 @@ class _RenderSettingsBase:
     """The behaviour of :class:`RenderSettings`; its fields are the engine settings of :data:`SETTINGS`."""
 
     _specs: tuple[SettingSpec, ...] = ()
+    _checks: tuple[SettingSpec, ...] = ()     # _specs in the order they are checked
 
     if TYPE_CHECKING:   # the fields are made from SETTINGS at run time
         def __init__(self, **kw: Any) -> None: ...
@@ -183,7 +186,7 @@ class _RenderSettingsBase:
         def __getattr__(self, name: str) -> Any: ...
 
     def __post_init__(self) -> None:
-        for spec in sorted(self._specs, key=_check_order):
+        for spec in self._checks:
             spec.check(getattr(self, spec.name))
             if spec.name == "samples_per_pixel":
                 k = self.supersampling
@@ -247,12 +250,14 @@ _DOC = """How to render a scene: the engine settings of :data:`SETTINGS` (each o
     """
 
 
-def build_render_settings(specs: Iterable[SettingSpec] = SETTINGS) -> type:
-    """The frozen dataclass of the engine settings of ``specs``, in their order, with their defaults."""
-    specs = tuple(s for s in specs if s.engine)
+def build_render_settings(specs: Iterable[SettingSpec] | None = None) -> type:
+    """The frozen dataclass of the engine settings of ``specs`` (default: :data:`SETTINGS` as it is now), in
+    their order, with their defaults."""
+    specs = tuple(s for s in (SETTINGS if specs is None else specs) if s.engine)
     cls = dataclasses.make_dataclass(
         "RenderSettings", [(s.name, s.python_type, dataclasses.field(default=s.default)) for s in specs],
-        bases=(_RenderSettingsBase,), frozen=True, namespace={"__doc__": _DOC, "_specs": specs})
+        bases=(_RenderSettingsBase,), frozen=True, namespace={"__doc__": _DOC, "_specs": specs,
+                                                                 "_checks": tuple(sorted(specs, key=_check_order))})
     cls.__module__ = __name__   # pickled by name, as a class written here would be
     return cls
 

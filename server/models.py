@@ -29,7 +29,8 @@ from renderer.limits import (MAX_ABSENT, MAX_ANGULAR_VELOCITY, MAX_COORDINATE, M
                              MAX_SHININESS, MAX_SPEED, MAX_SPHERES, MAX_TRIANGLES, MAX_WAVELENGTH)
 from renderer.mesh_io import MODEL_FORMATS
 from renderer.scenarios import CUBE_HALF, MAX_MESH_DETAIL, MESH_SCENES
-from renderer.settings import SETTINGS, SettingSpec, setting
+from renderer import settings as declared
+from renderer.settings import SettingSpec, setting
 
 from .device_data import DEFAULT_MAX_TEXTURE_SIZE, FEATURE_DEFINES
 
@@ -287,9 +288,10 @@ class RenderParamsBase(BaseModel):
         return {k: v for k in self.setting_names if (v := getattr(self, k)) is not None}
 
 
-def build_render_params(specs: Iterable[SettingSpec] = SETTINGS) -> type[RenderParamsBase]:
-    """Every setting of ``specs``, optional: what a request names (body or query)."""
-    specs = tuple(specs)
+def build_render_params(specs: Iterable[SettingSpec] | None = None) -> type[RenderParamsBase]:
+    """Every setting of ``specs`` (default: renderer.settings.SETTINGS as it is now), optional: what a request
+    names (body or query)."""
+    specs = tuple(declared.SETTINGS if specs is None else specs)
     model = create_model("RenderParams", __base__=RenderParamsBase, __module__=__name__,
                          **{s.name: (optional(setting_type(s)), None) for s in specs})  # type: ignore[call-overload]
     model.__doc__ = """Render settings a request names; the ones left out (or null) keep their value.
@@ -300,16 +302,17 @@ def build_render_params(specs: Iterable[SettingSpec] = SETTINGS) -> type[RenderP
     return model
 
 
-def build_full_settings(specs: Iterable[SettingSpec] = SETTINGS) -> type[BaseModel]:
-    """Every setting of ``specs`` as a session has it; those added after the first sessions were stored take
-    their default when a stored session lacks them."""
+def build_full_settings(specs: Iterable[SettingSpec] | None = None) -> type[BaseModel]:
+    """Every setting of ``specs`` (default: renderer.settings.SETTINGS as it is now) as a session has it; those
+    added after the first sessions were stored take their default when a stored session lacks them."""
+    specs = tuple(declared.SETTINGS if specs is None else specs)
     return create_model("FullSettings", __module__=__name__, __doc__=FULL_SETTINGS_DOC,  # type: ignore[call-overload]
                         **{s.name: (s.python_type, ... if s.stored_since_first else s.default) for s in specs})
 
 
 FULL_SETTINGS_DOC = ("All render settings of a session (the render-settings JSON of docs/FORMATS.md plus "
                      "``quality``).")
-SETTING_TYPES: dict[str, Any] = {s.name: setting_type(s) for s in SETTINGS}
+SETTING_TYPES: dict[str, Any] = {s.name: setting_type(s) for s in declared.SETTINGS}
 MaxPrims, TreeDepth, RecursionDepth, Time, Method, Mode = (
     SETTING_TYPES[k] for k in ("max_prims", "max_tree_depth", "max_recursion_depth", "time", "method", "mode"))
 MethodName = get_args(Method)[0]

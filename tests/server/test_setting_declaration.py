@@ -42,7 +42,14 @@ SCRIPT = textwrap.dedent("""
     from server import cli
     from server.app import create_app
 
-    out = {}
+    from server.service import SessionService
+
+    # the engine's settings: a field with its default, validated
+    out = {"engine": [declared.RenderSettings().exposure, SessionService.render_settings({"exposure": 2.5}).exposure]}
+    try:
+        declared.RenderSettings(exposure=9.0)
+    except declared.SceneError as e:
+        out["engine_refuses"] = [e.field, e.message]
     with TestClient(create_app(make_config(Path(tempfile.mkdtemp())))) as c:
         out["info"] = [s for s in c.get("/api/info").json()["settings"] if s["name"] == spec.name]
         schema = c.get("/openapi.json").json()["components"]["schemas"]
@@ -78,6 +85,9 @@ def test_a_setting_added_to_the_declaration_reaches_the_api_info_and_cli(tmp_pat
     assert p.returncode == 0, p.stderr[-4000:]
     out = json.loads(result.read_text())
 
+    # RenderSettings (what the renderer gets) has it, validated
+    assert out["engine"] == [1.0, 2.5]
+    assert out["engine_refuses"] == ["exposure", "must be a number in [0, 4], got 9.0"]
     # GET /api/info lists it with what the sheet builds its field from
     [info] = out["info"]
     assert {k: info[k] for k in ("name", "type", "default", "minimum", "maximum", "label", "doc", "unit",
