@@ -245,7 +245,7 @@ class ServerConfig(BaseSettings):
 
         d = self.default_settings()
         try:
-            RenderSettings(**{k: v for k, v in d.items() if k != "quality"})
+            RenderSettings(**{k: v for k, v in d.items() if k in RenderSettings.names()})
         except (SceneError, TypeError) as e:
             raise ValueError(f"default_render: {e}") from None
         if not (isinstance(d["quality"], int) and QUALITY_MIN <= d["quality"] <= QUALITY_MAX):
@@ -261,7 +261,9 @@ class ServerConfig(BaseSettings):
         speed-against-accuracy experiment recommends (a session's frames are its still frames;
         the client asks for the 'interactive' profile while a finger moves), quality, and
         ``default_render`` last."""
-        from renderer.settings import RenderSettings
+        from renderer.settings import SETTINGS, RenderSettings
 
-        still = {k: v for k, v in STILL.items() if k in RenderSettings.__dataclass_fields__}
-        return {**RenderSettings().to_json(), **still, "quality": self.default_jpeg_quality, **self.default_render}
+        still = {k: v for k, v in STILL.items() if k in RenderSettings.names()}
+        service_own = {s.name: s.default for s in SETTINGS if not s.engine}   # the encoder's: quality
+        return {**RenderSettings().to_json(), **still, **service_own, "quality": self.default_jpeg_quality,
+                **self.default_render}

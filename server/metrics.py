@@ -47,7 +47,7 @@ from prometheus_client import (CONTENT_TYPE_LATEST, REGISTRY, CollectorRegistry,
 from prometheus_client.core import GaugeMetricFamily
 
 from renderer.modes import MODES
-from renderer.settings import METHODS
+from renderer.settings import METHOD_NAMES
 
 from .view import TIMING_NAMES
 
@@ -77,7 +77,7 @@ HTTP_SECONDS = Histogram("pocketray_http_request_duration_seconds", "HTTP reques
 HTTP_METHODS = frozenset(("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"))
 OTHER = "other"
 STAGES = frozenset(TIMING_NAMES)
-RENDER_METHODS, RENDER_MODES = frozenset(METHODS), frozenset(MODES)
+RENDER_METHODS, RENDER_MODES = frozenset(METHOD_NAMES), frozenset(MODES)
 _MAX_ROUTE_LABEL = 128
 
 

@@ -15,32 +15,25 @@ and ``dx``/``dy`` in pixels.
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal, Union, get_args
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Iterable, Literal, Union, get_args
 
-from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, TypeAdapter, ValidationError, field_validator,
-                      model_validator)
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, TypeAdapter, ValidationError, create_model,
+                      field_validator, model_validator)
 from pydantic.fields import FieldInfo
 from pydantic_core import InitErrorDetails, PydanticCustomError, PydanticKnownError
 
 from renderer.animation import MUSEUM_KINDS
-from renderer.limits import (DEFAULT_TILE_SIZE, JPEG_QUALITY_RANGE, MAX_ABSENT, MAX_ANGULAR_VELOCITY, MAX_COORDINATE,
-                             MAX_DEVICE_TEXTURE_SIZE, MAX_IMAGE_SIDE, MAX_IOR, MAX_LIFETIME, MAX_LIGHT_INTENSITY,
-                             MAX_LIGHTS, MAX_MATERIALS, MAX_MESH_VERTICES, MAX_MESHES, MAX_MOTION_SEED, MAX_MOTIONS,
-                             MAX_MUSEUM_MOVING, MAX_PERIOD, MAX_PLANES, MAX_PRIMS, MAX_RECURSION_DEPTH, MAX_SHININESS,
-                             MAX_SPEED, MAX_SPHERES, MAX_TILE_SIZE, MAX_TIME, MAX_TREE_DEPTH, MAX_TRIANGLES,
-                             MAX_WAVELENGTH, MIN_TILE_SIZE, MIN_WEIGHT_RANGE, SAMPLES_PER_PIXEL,
-                             UPDATE_THRESHOLD_RANGE)
+from renderer.limits import (MAX_ABSENT, MAX_ANGULAR_VELOCITY, MAX_COORDINATE, MAX_DEVICE_TEXTURE_SIZE, MAX_IOR,
+                             MAX_LIFETIME, MAX_LIGHT_INTENSITY, MAX_LIGHTS, MAX_MATERIALS, MAX_MESH_VERTICES,
+                             MAX_MESHES, MAX_MOTION_SEED, MAX_MOTIONS, MAX_MUSEUM_MOVING, MAX_PERIOD, MAX_PLANES,
+                             MAX_SHININESS, MAX_SPEED, MAX_SPHERES, MAX_TRIANGLES, MAX_WAVELENGTH)
 from renderer.mesh_io import MODEL_FORMATS
 from renderer.scenarios import CUBE_HALF, MAX_MESH_DETAIL, MESH_SCENES
-from renderer.settings import FORMATS, METHODS, MODES, RenderSettings
-from renderer.tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
+from renderer import settings as declared
+from renderer.settings import SettingSpec, setting
 
 from .device_data import DEFAULT_MAX_TEXTURE_SIZE, FEATURE_DEFINES
 
-MethodName = Literal[METHODS]  # type: ignore[valid-type]
-ModeName = Literal[MODES]  # type: ignore[valid-type]
-FormatName = Literal[FORMATS]  # type: ignore[valid-type]
-UpdateScheme = Literal[UPDATE_SCHEMES]  # type: ignore[valid-type]
 MuseumKind = Literal[MUSEUM_KINDS]  # type: ignore[valid-type]
 ModelFormat = Literal[MODEL_FORMATS]  # type: ignore[valid-type]
 
@@ -267,63 +260,68 @@ class SceneModel(Strict):
 
 
 # ---- render settings ----------------------------------------------------------
-Side = Annotated[int, Field(ge=1, le=MAX_IMAGE_SIDE, description=f"pixels, 1 … {MAX_IMAGE_SIDE}"), Integral]
-Quality = Annotated[int, Field(ge=JPEG_QUALITY_RANGE[0], le=JPEG_QUALITY_RANGE[1],
-                               description=f"JPEG quality {JPEG_QUALITY_RANGE[0]} … {JPEG_QUALITY_RANGE[1]} "
-                                           "(ignored by png and npy)"), Integral]
-MaxPrims = Annotated[int, Field(ge=1, le=MAX_PRIMS, description="BIH leaf size limit"), Integral]
-TreeDepth = Annotated[int, Field(ge=1, le=MAX_TREE_DEPTH, description="BIH depth limit (root = 1)"), Integral]
-RecursionDepth = Annotated[int, Field(ge=1, le=MAX_RECURSION_DEPTH,
-                                      description="1 = primary rays only; each reflection/refraction +1"), Integral]
-SamplesPerPixel = Annotated[Literal[SAMPLES_PER_PIXEL], Integral,  # type: ignore[valid-type]
-                            Field(description="stratified supersampling: traced at √s× the resolution and "
-                                              "box-filtered")]
-MinWeight = Annotated[float, Field(ge=MIN_WEIGHT_RANGE[0], le=MIN_WEIGHT_RANGE[1], allow_inf_nan=False,
-                                   description="ε: reflected/refracted rays of smaller path weight are not traced")]
-TileSize = Annotated[int, Field(ge=MIN_TILE_SIZE, le=MAX_TILE_SIZE, description="hre's tile edge in pixels"),
-                     Integral]
-Time = Annotated[float, Field(ge=0.0, le=MAX_TIME, allow_inf_nan=False,
-                              description="seconds: the time an animated scene is posed at")]
-UpdateThreshold = Annotated[float, Field(ge=UPDATE_THRESHOLD_RANGE[0], le=UPDATE_THRESHOLD_RANGE[1],
-                                         allow_inf_nan=False,
-                                         description="selective rebuild: SAH cost growth, 0.3 = +30 %")]
-Method = Annotated[MethodName, Field(description="acceleration method; auto: brute force below the measured "
-                                                "crossover, bih above it")]
-Mode = Annotated[ModeName, Field(description="what the image shows (docs/SHADING.md)")]
-Format = Annotated[FormatName, Field(description="encoding of the frame: png, jpeg, npy (one array) or exr "
-                                                 "(OpenEXR, float channels)")]
-Specialize = Annotated[bool, Field(description="shader variant with only the scene's features (exact)")]
-Update = Annotated[UpdateScheme, Field(description="how bvh/twolevel follow the motion between frames: "
-                                                   "rebuild, refit or selective")]
+# Every model of the render settings is made from their declarations (renderer.settings.SETTINGS):
+# a setting's type, bounds or choices, default and description are said there once.
+def setting_type(spec: SettingSpec) -> Any:
+    """The field type of one setting: its bounds or choices, its doc as the description; integers as
+    JSON Schema has them (:data:`Integral`)."""
+    described = Field(description=spec.doc)
+    if spec.choices is not None:
+        values = Literal[spec.choices]  # type: ignore[valid-type]
+        return Annotated[values, Integral, described] if spec.type == "integer" else Annotated[values, described]
+    if spec.type == "boolean":
+        return Annotated[bool, described]
+    assert spec.bounds is not None, f"setting {spec.name}: a number has bounds"
+    lo, hi = spec.bounds
+    if spec.type == "integer":
+        return Annotated[int, Field(ge=lo, le=hi, description=spec.doc), Integral]
+    return Annotated[float, Field(ge=lo, le=hi, allow_inf_nan=False, description=spec.doc)]
 
 
-class RenderParams(BaseModel):
-    """Render settings a request names; the ones left out (or null) keep their value.
-
-    Declared once for the body (:class:`SettingsPatch`) and the query of a frame
-    (:class:`FrameQuery`)."""
+class RenderParamsBase(BaseModel):
+    """What :func:`build_render_params` adds the settings' fields to."""
     model_config = ConfigDict(allow_inf_nan=False)
-
-    width: optional(Side) = None
-    height: optional(Side) = None
-    method: optional(Method) = None
-    mode: optional(Mode) = None
-    max_prims: optional(MaxPrims) = None
-    max_tree_depth: optional(TreeDepth) = None
-    max_recursion_depth: optional(RecursionDepth) = None
-    format: optional(Format) = None
-    quality: optional(Quality) = None
-    samples_per_pixel: optional(SamplesPerPixel) = None
-    min_weight: optional(MinWeight) = None
-    specialize: optional(Specialize) = None
-    tile_size: optional(TileSize) = None
-    time: optional(Time) = None
-    update: optional(Update) = None
-    update_threshold: optional(UpdateThreshold) = None
+    setting_names: ClassVar[tuple[str, ...]] = ()
 
     def given(self) -> dict[str, Any]:
         """The settings named, as a patch of a session's settings."""
-        return {k: v for k in RenderParams.model_fields if (v := getattr(self, k)) is not None}
+        return {k: v for k in self.setting_names if (v := getattr(self, k)) is not None}
+
+
+def build_render_params(specs: Iterable[SettingSpec] | None = None) -> type[RenderParamsBase]:
+    """Every setting of ``specs`` (default: renderer.settings.SETTINGS as it is now), optional: what a request
+    names (body or query)."""
+    specs = tuple(declared.SETTINGS if specs is None else specs)
+    model = create_model("RenderParams", __base__=RenderParamsBase, __module__=__name__,
+                         **{s.name: (optional(setting_type(s)), None) for s in specs})  # type: ignore[call-overload]
+    model.__doc__ = """Render settings a request names; the ones left out (or null) keep their value.
+
+    Declared once for the body (:class:`SettingsPatch`) and the query of a frame
+    (:class:`FrameQuery`)."""
+    model.setting_names = tuple(s.name for s in specs)
+    return model
+
+
+def build_full_settings(specs: Iterable[SettingSpec] | None = None) -> type[BaseModel]:
+    """Every setting of ``specs`` (default: renderer.settings.SETTINGS as it is now) as a session has it; those
+    added after the first sessions were stored take their default when a stored session lacks them."""
+    specs = tuple(declared.SETTINGS if specs is None else specs)
+    return create_model("FullSettings", __module__=__name__, __doc__=FULL_SETTINGS_DOC,  # type: ignore[call-overload]
+                        **{s.name: (s.python_type, ... if s.stored_since_first else s.default) for s in specs})
+
+
+FULL_SETTINGS_DOC = ("All render settings of a session (the render-settings JSON of docs/FORMATS.md plus "
+                     "``quality``).")
+SETTING_TYPES: dict[str, Any] = {s.name: setting_type(s) for s in declared.SETTINGS}
+MaxPrims, TreeDepth, RecursionDepth, Time, Method, Mode = (
+    SETTING_TYPES[k] for k in ("max_prims", "max_tree_depth", "max_recursion_depth", "time", "method", "mode"))
+MethodName = get_args(Method)[0]
+ModeName = get_args(Mode)[0]
+
+if TYPE_CHECKING:
+    RenderParams = RenderParamsBase
+else:
+    RenderParams = build_render_params()
 
 
 class SettingsPatch(RenderParams):
@@ -414,30 +412,16 @@ class ShaderQuery(QueryModel):
     """The shader variant asked for."""
     method: Method = "bih"
     mode: Mode = "color"
-    max_recursion_depth: RecursionDepth = RenderSettings.max_recursion_depth
+    max_recursion_depth: RecursionDepth = setting("max_recursion_depth").default
     features: str | None = Field(None, max_length=200, pattern=_FEATURES_PATTERN,
                                  description="comma-separated: " + ", ".join(FEATURE_DEFINES))
     stage: str = Field("fragment", pattern="^(fragment|vertex)$", description="fragment (the tracer) or vertex")
 
 
-class FullSettings(BaseModel):
-    """All render settings of a session (the render-settings JSON of docs/FORMATS.md plus ``quality``)."""
-    width: int
-    height: int
-    method: str
-    mode: str
-    max_prims: int
-    max_tree_depth: int
-    max_recursion_depth: int
-    format: str
-    quality: int
-    samples_per_pixel: int = 1
-    min_weight: float = 0.0
-    specialize: bool = True
-    tile_size: int = DEFAULT_TILE_SIZE
-    time: float = 0.0
-    update: str = "rebuild"
-    update_threshold: float = DEFAULT_THRESHOLD
+if TYPE_CHECKING:
+    FullSettings = BaseModel
+else:
+    FullSettings = build_full_settings()
 
 
 class SettingsOut(FullSettings):
@@ -627,6 +611,27 @@ class MethodSettingsOut(BaseModel):
     auto: bool = Field(False, description="resolved per scene: brute force below the crossover, else bih")
 
 
+class SettingInfoOut(BaseModel):
+    """One render setting as it is declared (renderer.settings.SETTINGS): what a client builds its settings
+    form from."""
+    name: str
+    type: Literal["integer", "number", "boolean", "string"]
+    default: Any
+    minimum: int | float | None = Field(None, description="smallest value (integer, number)")
+    maximum: int | float | None = Field(None, description="largest value (integer, number)")
+    choices: list[Any] | None = Field(None, description="the values allowed (string, and an integer such as "
+                                                        "samples_per_pixel)")
+    unit: str = ""
+    label: str = Field(description="the client's word for it")
+    doc: str = Field(description="one line: what it does")
+    methods: list[str] = Field(description="the methods that read it")
+    modes: list[str] = Field(description="the modes that read it")
+    engine: bool = Field(True, description="the renderer reads it (false: the service's own, e.g. JPEG quality)")
+    sheet: bool = Field(False, description="the client's settings sheet offers it")
+    client: bool = Field(False, description="the client keeps it with the session's settings and carries it to "
+                                            "a new session")
+
+
 class InfoOut(BaseModel):
     methods: list[str]
     modes: list[str]
@@ -646,6 +651,9 @@ class InfoOut(BaseModel):
                                             "against limits.max_spheres with its n moving ones")
     method_settings: dict[str, MethodSettingsOut] = Field(default_factory=dict,
                                                           description="per method: the settings that apply")
+    settings: list[SettingInfoOut] = Field(default_factory=list,
+                                           description="every render setting, declared once: type, bounds or "
+                                                       "choices, default, unit, label, doc, who reads it")
 
 
 class StatsOut(BaseModel):

@@ -94,10 +94,11 @@ def method_settings(name: str) -> dict[str, Any]:
 
 def info_extras(config: ServerConfig) -> dict[str, Any]:
     """The parts of GET /api/info a client's settings form needs beyond the lists and limits."""
-    from renderer.settings import METHODS as NAMES
+    from renderer.settings import METHOD_NAMES, SETTINGS
     return {"samples_per_pixel": list(SAMPLES_PER_PIXEL), "render_timeout_s": config.render_timeout_s,
             "museum_room_spheres": MUSEUM_ROOM_SPHERES,
-            "method_settings": {name: method_settings(name) for name in NAMES}}
+            "method_settings": {name: method_settings(name) for name in METHOD_NAMES},
+            "settings": [s.metadata() for s in SETTINGS]}
 
 
 class NotFound(Exception):
@@ -183,14 +184,11 @@ class StatsKey(NamedTuple):
 class SessionService:
     """The Model's operations plus the renders of the View, for one process."""
 
-    SETTING_KEYS = ("width", "height", "method", "mode", "max_prims", "max_tree_depth",
-                    "max_recursion_depth", "format", "samples_per_pixel", "min_weight", "specialize", "tile_size",
-                    "time", "update", "update_threshold")
-
     @classmethod
     def render_settings(cls, settings: dict[str, Any]) -> RenderSettings:
-        """RenderSettings of a stored settings dict (keys a session predates take their defaults)."""
-        return RenderSettings(**{k: settings[k] for k in cls.SETTING_KEYS if k in settings})
+        """RenderSettings of a stored settings dict (keys a session predates take their defaults; the
+        service's own, such as quality, are not the engine's)."""
+        return RenderSettings(**{k: settings[k] for k in RenderSettings.names() if k in settings})
 
     def __init__(self, config: ServerConfig, store: SessionStore, worker: GLWorker,
                  cache: SceneCache | None = None):

@@ -20,10 +20,10 @@ def method_names(dispatchers: bool = False) -> list[str]:
     """Every acceleration method of ``renderer.methods.METHODS``, in registry order (new ones
     join by themselves). ``dispatchers``: also the names that only pick one of them per scene
     (``auto``), i.e. every ``method`` RenderSettings accepts."""
-    from renderer.settings import METHODS as SETTING_METHODS
+    from renderer.settings import METHOD_NAMES
     names = list(METHODS)
     if dispatchers:
-        names += [m for m in SETTING_METHODS if m not in names]
+        names += [m for m in METHOD_NAMES if m not in names]
     return names
 
 

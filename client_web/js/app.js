@@ -8,6 +8,7 @@ import { Display, displayedSize } from './display.js';
 import { FrameScheduler } from './frames.js';
 import { createHook, observe } from './hook.js';
 import { Session } from './session.js';
+import { readUrlParams } from './settings.js';
 import { createState } from './state.js';
 import { Transport } from './transport.js';
 import { DeviceView } from './device/device.js';
@@ -75,5 +76,6 @@ session.followScreen();
 
 fetch('/api/ready', { cache: 'no-store' }).then((r) => r.json())
   .then((j) => { hook.serverRenderer = j.gl_renderer || null; }, () => {});
-api.info().then((info) => session.offered(info));
-session.begin();
+const infoReady = api.info().then((info) => session.offered(info));
+// A link's render settings are those the service declares: read them again once it has said which.
+session.begin(infoReady.then(() => Object.assign(url.render, readUrlParams(location.search).render)));

@@ -6,13 +6,14 @@
 
 import { ApiError, loadStoredSession, sameScene, storeSession } from './api.js';
 import {
-  DEFAULT_SCENE, MODEL_SIZE, RENDER_KEYS, fitResolution, meshKind, parseResolution, saveClientSettings,
+  DEFAULT_SCENE, MODEL_SIZE, fitResolution, meshKind, parseResolution, saveClientSettings, settingNames,
 } from './settings.js';
 
-// The render settings the client keeps of a session's settings.
+// The render settings the client keeps of a session's settings (and carries to a new session):
+// those GET /api/info declares so; from a service that declares none, all of them.
 export function pickRender(settings) {
-  const r = {};
-  for (const k of [...RENDER_KEYS, 'format', 'quality']) if (settings[k] !== undefined) r[k] = settings[k];
+  const r = {}, keys = settingNames('client');
+  for (const k of keys.length ? keys : Object.keys(settings)) if (k !== 'version' && settings[k] !== undefined) r[k] = settings[k];
   return r;
 }
 
@@ -98,9 +99,11 @@ export class Session {
     return changed(want, current);
   }
 
-  // Start (or resume) the session, then its first frame; the hook's status says 'failed' if it cannot.
-  begin() {
-    this.scheduler.enqueue(() => this.start()).then(
+  // Start (or resume) the session, then its first frame, once `ready` (the service's declarations of
+  // its settings: what a link may set and what a session carries); the hook's status says 'failed' if
+  // it cannot.
+  begin(ready = Promise.resolve()) {
+    this.scheduler.enqueue(async () => { await ready; return this.start(); }).then(
       () => this.scheduler.invalidate(),
       (e) => {
         this.hook.status = 'failed';

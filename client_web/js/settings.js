@@ -2,6 +2,10 @@
 // parameters and the client-side levels (preview / full). The panel is panel.js; the
 // form's limits are limits.js.
 //
+// The render settings themselves are the service's: GET /api/info's `settings` declares each
+// one (renderer/settings.py: type, bounds or choices, default, label, whether the sheet offers
+// it and whether the client carries it to a new session); the client names none of them here.
+//
 // Scene parameters (scenario, n, seed, radius) are fixed when a session is made,
 // so changing them makes a new session; render settings are PATCHed onto the
 // session; the preview/refine levels live in the client (localStorage).
@@ -73,15 +77,41 @@ export const DEFAULT_SCENE = Object.freeze({ scenario: 1, n: 512, seed: 1, radiu
 // make a crowd (and a first frame of many seconds), so each kind keeps its own n.
 export const DEFAULT_MUSEUM_N = 64;
 
-// The panel's words for each setting: every message the client shows names settings by these.
-export const FIELD_LABELS = Object.freeze({
+// The panel's words for each setting: every message the client shows names settings by these. The
+// render settings' words are the service's labels (GET /api/info, learnSettings).
+export const FIELD_LABELS = {
   scenario: 'Scenario', motion: 'Motion', n: 'Spheres (n)', seed: 'Seed', radius: 'Radius',
-  renderer: 'Rendered by', method: 'Method', mode: 'Mode', samples_per_pixel: 'Quality (samples per pixel)',
-  max_recursion_depth: 'Recursion depth', max_prims: 'Max primitives per leaf', max_tree_depth: 'Max tree depth',
-  tile_size: 'Tile size', update: 'Between animation frames', resolution: 'Full resolution', width: 'Width',
-  height: 'Height', previewScale: 'While moving (preview)', previewFormat: 'Preview format',
-  previewQuality: 'Preview JPEG quality', refineDelayMs: 'Refine after (ms)', model: 'Model',
-});
+  renderer: 'Rendered by', resolution: 'Full resolution', previewScale: 'While moving (preview)',
+  previewFormat: 'Preview format', previewQuality: 'Preview JPEG quality', refineDelayMs: 'Refine after (ms)',
+  model: 'Model',
+};
+
+// The render settings GET /api/info declares ([] until it answered, or from a service that does not).
+export const renderSettings = [];
+
+// Take the service's declarations (info.settings). The labels of those the sheet offers name them in
+// every message (a 422 about another one is not about a field of the sheet: "Not accepted: …").
+export function learnSettings(specs) {
+  if (!Array.isArray(specs)) return;
+  renderSettings.splice(0, renderSettings.length, ...specs.filter((x) => x && typeof x.name === 'string'));
+  for (const x of renderSettings) if (x.sheet && x.label) FIELD_LABELS[x.name] = x.label;
+}
+
+// The names of the declared render settings that have `flag` (sheet: the settings sheet offers it;
+// client: the client carries it to a new session), in the service's order.
+export const settingNames = (flag, specs = renderSettings) => specs.filter((x) => x[flag]).map((x) => x.name);
+export const settingSpec = (name, specs = renderSettings) => specs.find((x) => x.name === name) || null;
+
+// A setting's value from the form's text (or a URL's), by its declared type; undefined when it is none.
+export function settingValue(spec, text) {
+  if (text === null || text === undefined || text === '') return undefined;
+  switch (spec.type) {
+    case 'integer': { const v = parseInt(text, 10); return Number.isFinite(v) ? v : undefined; }
+    case 'number': { const v = parseFloat(text); return Number.isFinite(v) ? v : undefined; }
+    case 'boolean': return text === true || text === 'true' ? true : text === false || text === 'false' ? false : undefined;
+    default: return String(text);
+  }
+}
 export const DEFAULT_CLIENT = Object.freeze({
   resolution: 'fit',       // 'fit' | 'WxH' | 'custom'
   previewScale: 0.5,       // preview resolution = full × this, while a gesture goes on
@@ -93,10 +123,7 @@ export const DEFAULT_CLIENT = Object.freeze({
   maxFitSide: 1088,        // 'fit': the long side at most this many pixels
   renderer: 'server',      // 'server' | 'device' (the same tracer in WebGL2, issue #10)
 });
-export const RENDER_KEYS = Object.freeze(['method', 'mode', 'max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height',
-  'update', 'samples_per_pixel', 'min_weight', 'tile_size']);
-const INT_KEYS = new Set(['scenario', 'n', 'seed', 'max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height',
-  'samples_per_pixel', 'tile_size']);
+const INT_KEYS = new Set(['scenario', 'n', 'seed']);
 
 const CLIENT_KEY = 'pocketray.client';
 
@@ -115,7 +142,9 @@ export function saveClientSettings(c) {
 }
 
 // URL parameters → {scene, render, client}: e.g. ?scenario=2&n=128&width=320&height=544&preview_scale=0.5
-export function readUrlParams(search) {
+// The render settings a link can set are those the sheet offers (`specs`: GET /api/info's settings); a
+// string one must be one of its choices (the service's). width and height also make the resolution.
+export function readUrlParams(search, specs = renderSettings) {
   const q = new URLSearchParams(search);
   const scene = {}, render = {}, client = {};
   const num = (k) => (INT_KEYS.has(k) ? parseInt(q.get(k), 10) : parseFloat(q.get(k)));
@@ -123,12 +152,13 @@ export function readUrlParams(search) {
   if (q.get('scenario') === 'museum') scene.scenario = 'museum';
   if (meshKind(q.get('scenario'))) scene.scenario = q.get('scenario');
   if (MUSEUM_KINDS.some((m) => m.value === q.get('motion'))) scene.motion = q.get('motion');
-  if (UPDATE_SCHEMES.some((m) => m.value === q.get('update'))) render.update = q.get('update');
-  for (const k of ['max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height', 'samples_per_pixel', 'tile_size']) {
-    if (q.has(k) && Number.isFinite(num(k))) render[k] = num(k);
+  for (const spec of specs) {
+    if (!spec.sheet || !q.has(spec.name)) continue;
+    const v = settingValue(spec, q.get(spec.name));
+    if (v !== undefined && (spec.type !== 'string' || !spec.choices || spec.choices.includes(v))) render[spec.name] = v;
   }
-  for (const k of ['method', 'mode']) if (q.get(k)) render[k] = q.get(k);
-  if (render.width && render.height) client.resolution = `${render.width}x${render.height}`;
+  const side = (k) => parseInt(q.get(k), 10);
+  if (side('width') && side('height')) client.resolution = `${side('width')}x${side('height')}`;
   const f = (k) => parseFloat(q.get(k));
   if (q.has('preview_scale') && f('preview_scale') > 0 && f('preview_scale') <= 1) client.previewScale = f('preview_scale');
   if (['jpeg', 'png'].includes(q.get('preview_format'))) client.previewFormat = q.get('preview_format');

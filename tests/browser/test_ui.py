@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import time
 import urllib.request
 
@@ -96,6 +97,58 @@ def test_settings_panel_applies_through_the_api(open_client, server, artifacts):
     p.keyboard.press("Escape")
     assert not p.is_visible("#settings")
     assert c.errors() == []
+
+
+def test_a_declared_setting_is_shown_by_the_settings_sheet(open_client):
+    """The sheet is made from GET /api/info's declarations: a setting declared there (added to the answer on its
+    way here; tests/server/test_setting_declaration.py adds one to the table itself and sees the API take it)
+    gets a labelled field within its bounds and with its default, shown for the modes that read it; a value
+    outside its bounds is refused by the sheet, and another is PATCHed as that setting."""
+    from renderer.settings import SettingSpec
+
+    extra = SettingSpec("exposure", "number", 1.0, "brightness factor of the image (a test's setting)", "Exposure",
+                        unit="×", bounds=(0.0, 4.0), modes=("color",), sheet=True, client=True).metadata()
+
+    def info(route):
+        answer = route.fetch()
+        body = answer.json()
+        body["settings"].append(extra)
+        route.fulfill(response=answer, json=body)
+
+    c = open_client("desktop", query=None)
+    p = c.page
+    p.route("**/api/info", info)
+    sent: list[dict] = []
+    p.on("request", lambda r: sent.append(json.loads(r.post_data or "{}"))
+         if r.method == "PATCH" and r.url.endswith("/settings") else None)
+    c.open()
+    p.click("#settings-toggle")
+    assert p.is_visible("#f-exposure")
+    assert p.text_content('label[for="f-exposure"]') == "Exposure (×)"
+    assert (p.get_attribute("#f-exposure", "min"), p.get_attribute("#f-exposure", "max")) == ("0", "4")
+    assert p.input_value("#f-exposure") == "1"
+    assert p.evaluate("() => document.querySelector('#f-exposure').closest('fieldset').querySelector('legend')"
+                      ".textContent") == "Rendering"
+
+    p.fill("#f-exposure", "5")
+    p.locator("#f-exposure").blur()
+    assert p.get_attribute("#f-exposure", "aria-invalid") == "true"
+    assert p.text_content('.field[data-setting="exposure"] .field-error') == "Exposure: a number 0 … 4"
+    assert not any("exposure" in body for body in sent)
+
+    p.fill("#f-exposure", "2.5")
+    p.locator("#f-exposure").blur()
+    deadline = time.monotonic() + 10
+    while not any("exposure" in body for body in sent) and time.monotonic() < deadline:
+        p.wait_for_timeout(50)
+    assert [body for body in sent if "exposure" in body] == [{"exposure": 2.5}]
+    # (this service has no such setting: its 422 is shown next to the field)
+    p.wait_for_selector('.field[data-setting="exposure"] .field-error')
+
+    p.fill("#f-exposure", "1")       # back to a value the sheet takes, then a mode that does not read it
+    p.select_option("#f-mode", "depth")
+    p.wait_for_function("() => document.querySelector('.field[data-setting=\"exposure\"]').hidden")
+    assert not p.is_visible("#f-exposure")
 
 
 def test_reload_resumes_the_session_and_an_expired_one_is_replaced(open_client):

@@ -57,3 +57,57 @@ def test_bad_tile_size_is_a_clear_error(bad):
     with pytest.raises(SceneError) as e:
         RenderSettings(width=16, height=16, method="hre", tile_size=bad)
     assert e.value.field == "tile_size"
+
+
+# one declaration per setting (renderer.settings.SETTINGS)
+
+def test_render_settings_are_the_declared_engine_settings():
+    """RenderSettings' fields, order and defaults are the table's; quality is the service's (the encoder's)."""
+    from dataclasses import fields
+
+    from renderer.settings import SETTINGS
+
+    engine = [s for s in SETTINGS if s.engine]
+    assert [(f.name, f.default) for f in fields(RenderSettings)] == [(s.name, s.default) for s in engine]
+    assert RenderSettings.names() == tuple(s.name for s in engine)
+    assert [s.name for s in SETTINGS if not s.engine] == ["quality"]
+    assert RenderSettings().to_json() == {s.name: s.default for s in engine}
+    for s in SETTINGS:
+        s.check(s.default)            # every default is one of its values
+        assert s.label and s.doc and s.methods() and s.metadata()["modes"]
+
+
+def test_each_setting_names_the_methods_that_read_it():
+    """A setting read per method points at Capabilities.settings (the registry line says which)."""
+    from renderer.methods import capabilities
+    from renderer.settings import METHOD_NAMES, setting
+
+    assert setting("max_prims").methods() == [m for m in METHOD_NAMES
+                                              if "max_prims" in capabilities(m, 1 << 30).settings]
+    assert "bih" in setting("max_prims").methods() and "kdtree" not in setting("max_prims").methods()
+    assert setting("tile_size").methods() == ["hre"]
+    assert setting("update_threshold").methods() == setting("update").methods()
+    assert setting("width").methods() == list(METHOD_NAMES)
+
+
+def test_a_setting_added_to_the_declaration_is_validated():
+    """One entry in the table is a RenderSettings field with its default, bounds and messages."""
+    from renderer.settings import SETTINGS, SettingSpec, build_render_settings
+
+    extra = SettingSpec("exposure", "number", 1.0, "brightness factor of the image", "Exposure", bounds=(0.0, 4.0))
+    choice = SettingSpec("tonemap", "string", "none", "tone mapping", "Tone mapping", choices=("none", "reinhard"))
+    Settings = build_render_settings((*SETTINGS, extra, choice))
+    s = Settings(exposure=2.5)
+    assert (s.exposure, s.tonemap, s.width) == (2.5, "none", 640)
+    assert Settings.from_json(s.to_json()) == s
+    for kw, message in [({"exposure": 5.0}, "must be a number in [0, 4], got 5.0"),
+                        ({"exposure": True}, "must be a number in [0, 4], got True"),
+                        ({"tonemap": "aces"}, "unknown tonemap 'aces'; one of none, reinhard")]:
+        with pytest.raises(SceneError) as e:
+            Settings(**kw)
+        assert (e.value.field, e.value.message) == (next(iter(kw)), message)
+    with pytest.raises(SceneError) as e:
+        RenderSettings.from_json({"exposure": 2.0})      # the table as it is has no such setting
+    assert e.value.field == "exposure"
+    with pytest.raises(ValueError):
+        SettingSpec("bad", "string", "x", "a string without choices", "Bad")

@@ -11,13 +11,13 @@ import pytest
 from PIL import Image
 
 from renderer.scenarios import scenario
+from renderer.settings import SETTINGS
 
 from pocketray_server_support import SMALL, new_session
 
 SESSION_KEYS = {"id", "version", "settings", "scene_info", "camera"}
-SETTING_KEYS = {"width", "height", "method", "mode", "max_prims", "max_tree_depth", "max_recursion_depth",
-                "format", "quality", "samples_per_pixel", "min_weight", "specialize", "tile_size", "time", "update",
-                "update_threshold"}
+# A session's settings are exactly the declared ones (renderer.settings.SETTINGS).
+SETTING_KEYS = {s.name for s in SETTINGS}
 
 
 def timing(header: str) -> dict[str, float]:

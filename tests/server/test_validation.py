@@ -173,9 +173,9 @@ def test_oversized_body_is_413_and_changes_nothing(client, sid):
 
 def test_method_limits_are_checked_before_a_gesture_is_applied(client, sid):
     """A method's own limits (here: mode 'cones' needs method 'hre') are a 422 up front."""
-    from renderer.settings import METHODS
+    from renderer.settings import METHOD_NAMES
 
-    if "rayengine" not in METHODS:
+    if "rayengine" not in METHOD_NAMES:
         return  # nothing to check with this renderer
     before = snapshot(client, sid)
     r = client.post(f"/api/sessions/{sid}/gesture?frame=1&method=rayengine&mode=cones",

@@ -7,18 +7,23 @@
 // the app marks a refusal next to the picker with mark('model', text)). The app calls show(state) with {scene, render, client, anim}
 // whenever they change, setInfo(info) once GET /api/info answered, and refused(explained)
 // with a 422 in the panel's words (messages.js).
+//
+// The render settings it shows are those GET /api/info declares for the sheet (renderer/settings.py):
+// their names, types and labels come from there; a declared setting the page has no field for gets
+// one, made from its declaration (a number input within its bounds, or a select of its choices).
 
 import { applies, check, modesOf, range, samplesAllowed } from './limits.js';
 import {
   DEFAULT_MUSEUM_N, DEFAULT_SCENE, FALLBACK_METHODS, FIELD_LABELS, METHOD_LABELS, MODE_LABELS, MODES, MODEL_FORMATS,
-  MUSEUM_KINDS, PREVIEW_SCALES, RESOLUTIONS, SAMPLES, SCENARIOS, UPDATE_SCHEMES, meshKind, parseResolution,
+  MUSEUM_KINDS, PREVIEW_SCALES, RESOLUTIONS, SAMPLES, SCENARIOS, UPDATE_SCHEMES, learnSettings, meshKind,
+  parseResolution, renderSettings, settingValue,
 } from '../settings.js';
 import { modelFileProblem } from './messages.js';
 
 const SCENE_KEYS = ['scenario', 'n', 'seed', 'radius', 'motion'];
-const RENDER_INT = ['max_prims', 'max_tree_depth', 'max_recursion_depth', 'tile_size', 'samples_per_pixel'];
-const RENDER_TEXT = ['method', 'mode', 'update'];
 const CLIENT_KEYS = ['previewScale', 'previewFormat', 'previewQuality', 'refineDelayMs', 'renderer'];
+// The sheet's size fields: set through the resolution (its 'custom' choice shows them).
+const SIZE_KEYS = ['width', 'height'];
 
 function fillSelect(select, items, labelOf = (v) => v) {
   const cur = select.value;
@@ -82,12 +87,56 @@ export class SettingsPanel {
   // GET /api/info: the method, mode and samples lists, the limits, what applies to which method.
   setInfo(info) {
     this.info = info;
+    learnSettings(info.settings);
+    for (const spec of this._specs()) if (!this.el(spec.name)) this._addField(spec);
     if (Array.isArray(info.methods) && info.methods.length) fillSelect(this.el('method'), info.methods, (m) => METHOD_LABELS[m] || m);
     if (Array.isArray(info.modes) && info.modes.length) fillSelect(this.el('mode'), info.modes, (m) => MODE_LABELS[m] || m);
     if (Array.isArray(info.samples_per_pixel) && info.samples_per_pixel.length) {
       fillSelect(this.el('samples_per_pixel'), info.samples_per_pixel.map((s) => SAMPLES.find((x) => x.value === s) || { value: s, label: String(s) }));
     }
     if (this.state) this.show(this.state);
+  }
+
+  // The render settings the sheet offers (GET /api/info's declarations), the size fields aside.
+  _specs() {
+    return renderSettings.filter((x) => x.sheet && !SIZE_KEYS.includes(x.name));
+  }
+
+  _spec(name) {
+    return this._specs().find((x) => x.name === name) || null;
+  }
+
+  // A field for a declared setting the page has none for, in the rendering part of the sheet.
+  _addField(spec) {
+    const id = `f-${spec.name}`;
+    const wrap = document.createElement('div');
+    wrap.className = 'field';
+    wrap.dataset.setting = spec.name;
+    wrap.dataset.declared = '';
+    const label = document.createElement('label');
+    label.htmlFor = id;
+    label.textContent = spec.unit ? `${spec.label} (${spec.unit})` : spec.label;
+    if (spec.doc) label.title = spec.doc;
+    let input;
+    if (spec.choices || spec.type === 'boolean') {
+      input = document.createElement('select');
+      fillSelect(input, spec.choices || [true, false], String);
+    } else {
+      input = document.createElement('input');
+      input.type = 'number';
+      input.inputMode = spec.type === 'integer' ? 'numeric' : 'decimal';
+      input.step = spec.type === 'integer' ? '1' : 'any';
+      input.required = true;
+      if (spec.minimum !== null && spec.minimum !== undefined) input.min = String(spec.minimum);
+      if (spec.maximum !== null && spec.maximum !== undefined) input.max = String(spec.maximum);
+    }
+    input.id = id;
+    input.name = spec.name;
+    if (spec.default !== null && spec.default !== undefined) input.value = String(spec.default);
+    wrap.append(label, input);
+    const last = [...this.form.querySelectorAll('.field[data-setting]')].filter((f) => this._spec(f.dataset.setting)).pop();
+    if (last) last.after(wrap);
+    else this.form.append(wrap);
   }
 
   // The form's context with `change` applied ({scene?, render?, client?}).
@@ -115,7 +164,7 @@ export class SettingsPanel {
       el.value = String(v);
     };
     for (const k of SCENE_KEYS) if (!mesh || k === 'scenario' || k === 'motion') set(k, scene[k]);
-    for (const k of [...RENDER_TEXT, ...RENDER_INT]) set(k, render[k]);
+    for (const spec of this._specs()) set(spec.name, render[spec.name]);
     const known = RESOLUTIONS.some((r) => r.value === client.resolution);
     set('resolution', known ? client.resolution : 'custom');
     set('width', render.width);
@@ -136,21 +185,22 @@ export class SettingsPanel {
   // form counts at once, before the service has answered it; refused values do not).
   _layout() {
     const render = {};
-    for (const k of ['method', 'mode', ...RENDER_INT]) {
-      const el = this.el(k);
-      if (!el || this.invalid.has(k) || el.value === '') continue;
-      render[k] = RENDER_INT.includes(k) ? Number(el.value) : el.value;
+    for (const spec of this._specs()) {
+      const el = this.el(spec.name);
+      if (!el || this.invalid.has(spec.name) || el.value === '') continue;
+      render[spec.name] = settingValue(spec, el.value);
     }
     const ctx = this._ctx({ scene: this._formScene(), render });
     for (const wrap of this.root.querySelectorAll('.field[data-setting]')) {
       const name = wrap.dataset.setting;
       let show = applies(name, ctx);
-      if (name === 'width' || name === 'height') show = this.el('resolution').value === 'custom';
+      if (SIZE_KEYS.includes(name)) show = this.el('resolution').value === 'custom';
+      if ('declared' in wrap.dataset) show = show && this._reads(this._spec(name), ctx.render);
       wrap.hidden = !show;
     }
     this.root.querySelector('[data-label-n]').textContent = isMuseum(ctx.scene.scenario) ? 'Moving spheres (n)' : FIELD_LABELS.n;
-    for (const name of ['n', 'seed', 'radius', 'width', 'height', 'max_recursion_depth', 'max_prims', 'max_tree_depth',
-      'tile_size', 'previewQuality', 'refineDelayMs']) {
+    for (const name of ['n', 'seed', 'radius', ...SIZE_KEYS, ...this._specs().map((x) => x.name), 'previewQuality',
+      'refineDelayMs']) {
       const rg = range(name, ctx), el = this.el(name);
       if (!rg || !el) continue;
       el.min = String(rg.min);
@@ -160,6 +210,13 @@ export class SettingsPanel {
     for (const o of this.el('samples_per_pixel').options) o.disabled = !allowed.includes(Number(o.value));
     const modes = modesOf(ctx);
     for (const o of this.el('mode').options) o.disabled = !!modes && !modes.includes(o.value);
+  }
+
+  // Whether the method and mode at hand read a setting (its declaration names them).
+  _reads(spec, render) {
+    if (!spec) return false;
+    const inList = (list, v) => !Array.isArray(list) || v === undefined || list.includes(v);
+    return inList(spec.methods, render.method) && inList(spec.modes, render.mode);
   }
 
   // The scene as the form has it now.
@@ -214,10 +271,20 @@ export class SettingsPanel {
   }
 
   _problem(name, value, ctx) {
-    const text = check(name, value, ctx);
+    const text = check(name, value, ctx) || this._outOfBounds(this._spec(name), value);
     if (text) this.mark(name, text);
     else this.clear(name);
     return text;
+  }
+
+  // A declared number outside its declared bounds (the checks of limits.js, which know the
+  // settings' relations, come first).
+  _outOfBounds(spec, value) {
+    if (!spec || (spec.type !== 'integer' && spec.type !== 'number') || spec.choices) return null;
+    const x = Number(value), lo = spec.minimum ?? -Infinity, hi = spec.maximum ?? Infinity;
+    const whole = spec.type === 'integer';
+    if (value !== '' && Number.isFinite(x) && (!whole || Number.isInteger(x)) && x >= lo && x <= hi) return null;
+    return `${FIELD_LABELS[spec.name] || spec.name}: ${whole ? 'a whole number' : 'a number'} ${lo} … ${hi}`;
   }
 
   _changed(target) {
@@ -226,8 +293,9 @@ export class SettingsPanel {
     const v = target.value;
     if (SCENE_KEYS.includes(name)) return this._sceneChanged(name);
     if (name === 'model') return this._modelChosen(target);
-    if (RENDER_TEXT.includes(name) || RENDER_INT.includes(name)) {
-      const value = RENDER_INT.includes(name) ? Number(v) : v;
+    const spec = this._spec(name);
+    if (spec) {
+      const value = spec.type === 'integer' || spec.type === 'number' ? Number(v) : settingValue(spec, v);
       const render = { [name]: value };
       const ctx = this._ctx({ render });
       if (this._problem(name, v, ctx)) return;

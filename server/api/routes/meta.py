@@ -11,7 +11,7 @@ from fastapi.responses import JSONResponse
 from renderer.animation import MUSEUM_KINDS
 from renderer.limits import MAX_IMAGE_SIDE
 from renderer.profiles import PROFILES
-from renderer.settings import FORMATS, METHODS, MODES
+from renderer.settings import FORMATS, METHOD_NAMES, MODES
 from renderer.tree_update import UPDATE_SCHEMES
 
 from ... import metrics
@@ -74,7 +74,7 @@ async def ready(request: Request) -> Any:
 @router.get("/info", response_model=InfoOut, summary="Methods, modes, formats and limits of this service")
 def info(service: ServiceDep) -> InfoOut:
     c = service.config
-    return InfoOut(methods=list(METHODS), modes=list(MODES), formats=list(FORMATS), state_backend=c.state_backend,
+    return InfoOut(methods=list(METHOD_NAMES), modes=list(MODES), formats=list(FORMATS), state_backend=c.state_backend,
                    profiles=PROFILES, update_schemes=list(UPDATE_SCHEMES), museum_kinds=list(MUSEUM_KINDS),
                    limits=LimitsOut(max_work=c.max_work, max_frame_cost=c.max_frame_cost, slice_ms=c.slice_ms,
                                     max_spheres=c.max_spheres, max_triangles=c.max_triangles,

@@ -1,5 +1,6 @@
 // ui/limits.js: the form refuses what the service would, naming the range; what applies.
 
+import './declared.mjs';
 import { test } from 'node:test';
 import * as lim from '../../../client_web/js/ui/limits.js';
 import { assert, same } from './same.mjs';

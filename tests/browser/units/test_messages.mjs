@@ -1,5 +1,6 @@
 // ui/messages.js: the service's 422s in the panel's words, at the field their loc names.
 
+import './declared.mjs';
 import { test } from 'node:test';
 import * as msg from '../../../client_web/js/ui/messages.js';
 import { assert, same } from './same.mjs';
