@@ -60,7 +60,7 @@ class CostModel:
 # Fitted by bench/experiments/cost.py to 368 frames of every method on this project's
 # reference machine (2 cores, llvmpipe; docs/RESULTS.md, "Cost model"), scaled so that the
 # median frame is estimated right; rerun it on another machine.
-# Refitted after issue 18's shader (its frames are 0.3-0.6x the ones of the first fit, which
+# Refitted for the shader shaped for llvmpipe (its frames are 0.3-0.6x the ones of the first fit, which
 # refused the phone client's default still frame), with dense scenes up to 2^21 spheres.
 DEFAULT_MODEL = CostModel(ns_frame=7.27e6, ns_pixel=76.0, ns_node=3.30, ns_test=0.0, ns_leaf_test=1.43,
                           ns_bf_test=1.91, ns_pass=52.6, ns_raster=2.45, level_decay=0.7, upper=2.13)

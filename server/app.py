@@ -62,7 +62,7 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         if config.gl_device is not None:
             os.environ[GL_DEVICE_ENV] = str(config.gl_device)
-        sys.setswitchinterval(config.switch_interval_s)   # the event loop's turn between busy threads (#17)
+        sys.setswitchinterval(config.switch_interval_s)   # the event loop's turn between busy threads
         store = open_store(config)
         worker = GLWorker(config.queue_size, warmup=warmup_render if config.warmup else None,
                           renderer_factory=lambda: default_renderer(config.max_target_bytes),

@@ -88,7 +88,7 @@ class ServerConfig(BaseSettings):
                                               "hold their own)")
     max_body_bytes: int = Field(16 * 1024 * 1024, ge=1024, description="largest request body, bytes (else 413)")
 
-    # --- hostile clients and faults (issue #17; docs/API.md, "Hardening") -------------
+    # --- hostile clients and faults (docs/API.md, "Hardening") -----------------------
     max_json_depth: int = Field(32, ge=8, le=512,
                                 description="deepest nesting of a JSON body or message (the API needs 6); deeper: 422")
     parse_workers: int = Field(1, ge=1, le=64,

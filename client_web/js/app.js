@@ -491,7 +491,7 @@ window.addEventListener('resize', () => {
   }, 300);
 });
 
-// ---- device mode (issues #10, #19): the same tracer in this browser's WebGL2 --------------
+// ---- device mode: the same tracer in this browser's WebGL2 ------------------------------
 const device = new DeviceView({
   api,
   getState: () => state,

@@ -1,4 +1,4 @@
-// Device mode (issues #10, #19): the server's tracer, run by this browser in WebGL2.
+// Device mode: the server's tracer, run by this browser in WebGL2.
 //
 // One shader, one tree layout: the fragment shader is the text the server compiles
 // (GET /api/shader), the textures and uniforms are what renderer.gpu_layout packs for

@@ -91,7 +91,7 @@ export const DEFAULT_CLIENT = Object.freeze({
   fullQuality: 90,
   refineDelayMs: 200,      // full frame this long after the last gesture
   maxFitSide: 1088,        // 'fit': the long side at most this many pixels
-  renderer: 'server',      // 'server' | 'device' (the same tracer in WebGL2, issue #10)
+  renderer: 'server',      // 'server' | 'device' (the same tracer in WebGL2)
 });
 export const RENDER_KEYS = Object.freeze(['method', 'mode', 'max_prims', 'max_tree_depth', 'max_recursion_depth', 'width', 'height',
   'update', 'samples_per_pixel', 'min_weight', 'tile_size']);
