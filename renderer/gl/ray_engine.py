@@ -1,4 +1,4 @@
-"""Multi-pass ray tracing: the ray engine and the hierarchical ray engine (issue #8).
+"""Multi-pass ray tracing: the ray engine and the hierarchical ray engine.
 
 Both are methods of :mod:`renderer.accel.ray_engine` (``rayengine``, ``hre``) whose
 capabilities say ``multi_pass``: the GL renderer hands their frames to
@@ -142,11 +142,6 @@ class RayEnginePasses:
         """A frame of ``method``, uploaded, to be traced slice by slice; ``batch`` primitives
         per draw call (None: each pass in one draw)."""
         return RayEngineFrame(self, method, scene, settings, log=log, batch=batch)
-
-    def render_frame(self, method: RayEngine, scene: Scene, settings: "RenderSettings", *,
-                     log: FrameLog | None = None) -> RenderResult:
-        """Trace one frame of ``method`` (``GLRenderer.render`` hands multi-pass methods here)."""
-        return self.begin(method, scene, settings, log=log).run()
 
     def cull_matrix(self, scene: Scene, verts: np.ndarray) -> np.ndarray:
         """The vertex shader's decision for each (tile, primitive): bool (tiles, n_primitives), True = drawn.
