@@ -36,7 +36,7 @@ import numpy as np
 
 from .accel.bih import build_for_scene
 from .accel.bih_traverse import traverse
-from .modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, heat_image, primid_colours  # noqa: F401
+from .modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, heat_image, primid_colors  # noqa: F401
 from .result import RenderResult
 from .scene import Camera, Scene
 from .settings import RenderSettings
@@ -679,7 +679,7 @@ def _mode_image(scene: Scene, settings: RenderSettings, frame: _Frame, chunk_ray
         dist = float(np.linalg.norm(np.subtract(scene.camera.target, scene.camera.position)))
         return np.repeat(depth_grey(frame.depth, dist)[:, None], 3, axis=1)
     if mode == "primid":
-        return primid_colours(frame.primid)
+        return primid_colors(frame.primid)
     if mode == "normal":
         return np.where(hit, 0.5 * (frame.normal + 1.0), 0.0)
     if mode == "recursion":

@@ -76,7 +76,7 @@ from ..accel import hre_cones
 from ..accel.ray_engine import RayEngine
 from ..features import GENERIC, scene_features
 from ..limits import DEFAULT_TEXTURE_WIDTH, STENCIL_BITS
-from ..modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, primid_colours
+from ..modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, primid_colors
 from ..result import RenderResult
 from ..scene import Scene, SceneError
 from .ray_engine_targets import Programs as _Programs, Targets as _Targets  # noqa: F401
@@ -748,7 +748,7 @@ class _FrameRun:
             d = np.float32(np.linalg.norm(np.subtract(self.scene.camera.target, self.scene.camera.position)))
             image = np.repeat(depth_grey(depth, d)[..., None], 3, axis=2)
         elif mode == "primid":
-            image = primid_colours(primid)
+            image = primid_colors(primid)
         elif mode == "normal":
             image = np.where(hit[..., None], 0.5 * (normal + 1.0), 0.0)
         elif mode == "recursion":
