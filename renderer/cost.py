@@ -16,7 +16,7 @@ a mesh frame's estimate is off has not been measured yet. The ray engines draw
 every primitive over every ray of a layer (``ns_raster`` per primitive and pixel).
 
 The constants are nanoseconds of this project's reference machine (2 cores, Mesa
-llvmpipe), fitted by ``bench/cost.py`` to measured traces; the fit is in docs/RESULTS.md.
+llvmpipe), fitted by the cost experiment to measured traces; the fit is in docs/RESULTS.md.
 The estimate is for bounding and scheduling, not a prediction to the millisecond: slices,
 Retry-After and the queue's work use ``ms`` (the median frame is estimated right); the cap
 on a frame, POCKETRAY_MAX_FRAME_COST, uses ``bound_ms``, what 90 % of the fitted frames'

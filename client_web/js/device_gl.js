@@ -13,7 +13,7 @@
 // readback() returns the resolve targets as the server's npy arrays.
 //
 // Texture formats: the blob's (dtype, components) → RGBA32F/FLOAT, R32UI/RED_INTEGER, …,
-// NEAREST filtering, as server/device.py documents.
+// NEAREST filtering, as server/device_data.py documents.
 
 export class DeviceUnavailable extends Error {}
 
@@ -61,8 +61,8 @@ const DISPLAY_FS = `#version 300 es
 precision highp float;
 precision highp sampler2D;
 uniform highp sampler2D u_image;
-out vec4 o_colour;
-void main() { o_colour = vec4(clamp(texelFetch(u_image, ivec2(gl_FragCoord.xy), 0).rgb, 0.0, 1.0), 1.0); }`;
+out vec4 o_color;
+void main() { o_color = vec4(clamp(texelFetch(u_image, ivec2(gl_FragCoord.xy), 0).rgb, 0.0, 1.0), 1.0); }`;
 
 export class DeviceRenderer {
   // Throws DeviceUnavailable (with a message for the notice) when this browser cannot run the tracer.
