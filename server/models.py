@@ -627,6 +627,11 @@ class MethodSettingsOut(BaseModel):
     auto: bool = Field(False, description="resolved per scene: brute force below the crossover, else bih")
 
 
+class ModeColorOut(BaseModel):
+    rgb: tuple[float, float, float] = Field(description="red, green, blue in [0, 1]")
+    name: str
+
+
 class InfoOut(BaseModel):
     methods: list[str]
     modes: list[str]
@@ -646,6 +651,12 @@ class InfoOut(BaseModel):
                                             "against limits.max_spheres with its n moving ones")
     method_settings: dict[str, MethodSettingsOut] = Field(default_factory=dict,
                                                           description="per method: the settings that apply")
+    recursion_colors: list[ModeColorOut] = Field(default_factory=list,
+                                                 description="mode 'recursion': the colour of each ray level, "
+                                                             "index = level (0: the primary ray missed)")
+    heat_scale: dict[str, float] = Field(default_factory=dict,
+                                         description="mode 'heat': what each event adds to its channel (red "
+                                                     "'tests', green 'gaps', blue 'nodes'), clamped at 1")
 
 
 class StatsOut(BaseModel):

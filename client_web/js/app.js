@@ -577,6 +577,7 @@ setDragMode(state.client.dragMode === 'orbit' ? 'orbit' : 'pan');
 // What this service offers: its method and mode lists, and limits for the form.
 api.info().then((info) => {
   hook.info = info;
+  legend.setInfo(info);
   if (!info) return;
   if (Array.isArray(info.methods) && info.methods.length) state.methods = info.methods;
   if (info.profiles && typeof info.profiles === 'object') state.profiles = info.profiles;
