@@ -300,15 +300,15 @@ class RayEngineFrame:
     def _compose(self) -> RenderResult:
         t_traced = time.perf_counter()
         frame, settings, method, k = self.frame, self.settings, self.method, self.k
-        colour, primid, depth_t, normal, image = frame.read_back()
+        color, primid, depth_t, normal, image = frame.read_back()
         t_end = time.perf_counter()
         if k > 1:
-            colour = colour.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
+            color = color.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
             image = image.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
             centre = self.centre.result()     # the arrays through the pixel centres
             primid, depth_t, normal = centre.primid, centre.depth, centre.normal
         if settings.mode == "color":
-            image = colour
+            image = color
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
         timings = {"build": frame.build_ms, "upload": ms(self.t_start, self.t_up),
                    "trace": ms(self.t_up, t_traced) - frame.build_ms - frame.stats_ms, "read": ms(t_traced, t_end),
@@ -634,10 +634,10 @@ class _FrameRun:
         self.gl.glStencilMask(0xFF)
         self.gl.glClearStencil(0)
         self.gl.glClear(GL_STENCIL_BUFFER_BIT)
-        colour_fbo = self.ctx.framebuffer(color_attachments=[tg.colour])
-        colour_fbo.use()
-        colour_fbo.clear(0.0, 0.0, 0.0, 0.0)
-        colour_fbo.release()
+        color_fbo = self.ctx.framebuffer(color_attachments=[tg.color])
+        color_fbo.use()
+        color_fbo.clear(0.0, 0.0, 0.0, 0.0)
+        color_fbo.release()
         first = _Layer(tg.layer(), 1, "")
         self._primary(first)
         yield
@@ -730,7 +730,7 @@ class _FrameRun:
     def read_back(self):
         w, h = self.size
         mode = self.mode
-        colour = self._read(self.tg.colour)[:h, :w, :3][::-1].astype(np.float32)
+        color = self._read(self.tg.color)[:h, :w, :3][::-1].astype(np.float32)
         if self.primary:
             hit = self.primary["hit"][:h, :w][::-1]
             surf1 = self.primary["surf1"][:h, :w][::-1]
@@ -743,7 +743,7 @@ class _FrameRun:
             normal = np.zeros((h, w, 3), np.float32)
         hit = primid >= 0
         if mode == "color":
-            image = colour
+            image = color
         elif mode == "depth":
             d = np.float32(np.linalg.norm(np.subtract(self.scene.camera.target, self.scene.camera.position)))
             image = np.repeat(depth_grey(depth, d)[..., None], 3, axis=2)
@@ -760,4 +760,4 @@ class _FrameRun:
             image = (self.cone_image[:h, :w][::-1] if self.cone_image is not None else np.zeros((h, w, 3)))
         else:
             raise SceneError("mode", f"unknown mode {mode!r}")
-        return colour, primid, depth, normal, np.asarray(image, dtype=np.float32)
+        return color, primid, depth, normal, np.asarray(image, dtype=np.float32)

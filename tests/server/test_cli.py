@@ -62,8 +62,8 @@ def test_render_writes_each_format_and_agrees_with_the_api(tmp_path, client):
     z = decode_exr((tmp_path / "z.exr").read_bytes())["Z"]
     assert z.shape == (30, 40) and np.isinf(z[primid < 0]).all() and np.isfinite(z[primid >= 0]).all()
     assert decode_exr((tmp_path / "n.exr").read_bytes())["RGB"].shape == (30, 40, 3)
-    colour = decode_exr((tmp_path / "c.exr").read_bytes())["RGB"]
-    assert colour.dtype == np.float32 and np.abs(np.floor(np.clip(colour, 0, 1) * 255 + 0.5)
+    color = decode_exr((tmp_path / "c.exr").read_bytes())["RGB"]
+    assert color.dtype == np.float32 and np.abs(np.floor(np.clip(color, 0, 1) * 255 + 0.5)
                                                  - np.load(tmp_path / "a.npy")).max() == 0
 
 
