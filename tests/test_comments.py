@@ -12,7 +12,7 @@ import subprocess
 import tokenize
 import tomllib
 from collections.abc import Iterator
-from functools import lru_cache
+from functools import cache, lru_cache
 from pathlib import Path
 
 import pytest
@@ -30,7 +30,8 @@ def tracked(*paths: str) -> list[str]:
 FILES = [f for f in tracked(*PRODUCTION) if f.endswith((".py", ".html", *C_LIKE))]
 TOP = sorted({p.split("/")[0] for p in tracked() if "/" in p})
 # A path from the repository's root: a top-level folder, then names (``<name>`` and ``*`` stand for any).
-PATH = re.compile(r"(?<![\w./<>*-])((?:%s)/[\w*<>.{},/-]*[\w*>/])" % "|".join(map(re.escape, TOP)))
+TOPS = "|".join(map(re.escape, TOP))
+PATH = re.compile(rf"(?<![\w./<>*-])((?:{TOPS})/[\w*<>.{{}},/-]*[\w*>/])")
 # A source file named without its folder (``bih_layout.py``, ``method_bvh.glsl``).
 BARE = re.compile(r"(?<![\w./<>*-])([\w*<>-]+\.(?:py|js|glsl|frag|vert))\b")
 # A Python name in a Sphinx role or a plain dotted reference (``renderer.accel.bih``).
@@ -49,8 +50,9 @@ def comments(path: str) -> Iterator[tuple[int, str]]:
         for node in ast.walk(ast.parse(src)):
             if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body:
                 doc = node.body[0]
-                if isinstance(doc, ast.Expr) and isinstance(doc.value, ast.Constant) and isinstance(doc.value.value, str):
-                    yield doc.lineno, doc.value.value
+                if isinstance(doc, ast.Expr) and isinstance(doc.value, ast.Constant):
+                    if isinstance(doc.value.value, str):
+                        yield doc.lineno, doc.value.value
         return
     pattern = r"<!--.*?-->" if path.endswith(".html") else r"//[^\n]*|/\*.*?\*/"
     for m in re.finditer(pattern, src, re.S):
@@ -81,12 +83,12 @@ def exists(path: str) -> bool:
     return (ROOT / path).exists()
 
 
-@lru_cache(maxsize=None)
+@cache
 def parsed(file: Path) -> ast.Module:
     return ast.parse(file.read_text())
 
 
-@lru_cache(maxsize=None)
+@cache
 def module_has(dotted: str) -> bool:
     """``a.b.c``: a module, or a name defined at the top of the longest module prefix (and a
     class's member after it)."""

@@ -13,8 +13,15 @@ import pytest
 
 from renderer import shader_source
 from renderer.limits import MAX_RECURSION_DEPTH
-from renderer.modes import (HEAT_SCALE, PRIMID_FACTORS, RECURSION_COLOR_NAMES, RECURSION_COLORS, SINGLE_PASS_MODES,
-                            heat_image, primid_colors)
+from renderer.modes import (
+    HEAT_SCALE,
+    PRIMID_FACTORS,
+    RECURSION_COLOR_NAMES,
+    RECURSION_COLORS,
+    SINGLE_PASS_MODES,
+    heat_image,
+    primid_colors,
+)
 
 FLOAT = r"(-?\d+(?:\.\d*)?(?:e-?\d+)?)"
 VEC3 = rf"vec3\({FLOAT}, {FLOAT}, {FLOAT}\)"

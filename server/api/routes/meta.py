@@ -82,6 +82,6 @@ def info(service: ServiceDep) -> InfoOut:
                                     max_body_bytes=c.max_body_bytes,
                                     max_image_side=MAX_IMAGE_SIDE, queue_size=c.queue_size,
                                     session_ttl_s=c.session_ttl_s),
-                   recursion_colors=[{"rgb": tuple(rgb), "name": name}
-                                     for rgb, name in zip(RECURSION_COLORS.tolist(), RECURSION_COLOR_NAMES, strict=True)],
+                   recursion_colors=[{"rgb": tuple(rgb), "name": name} for rgb, name
+                                     in zip(RECURSION_COLORS.tolist(), RECURSION_COLOR_NAMES, strict=True)],
                    heat_scale=HEAT_SCALE, **info_extras(c))
