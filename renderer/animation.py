@@ -1,5 +1,5 @@
-"""Animated scenes (issue #9): motion models, posing at a time and a BART-Museum-like generator;
-the two-level method that suits them lives in :mod:`renderer.twolevel`.
+"""Animated scenes: motion models, posing at a time and a BART-Museum-like generator;
+the two-level method that suits them lives in :mod:`renderer.accel.twolevel`.
 
 A frame of an animation is rendered by handing :class:`AnimatedScene` to
 ``GLRenderer.render`` with the settings ``time``, ``update`` and ``update_threshold``

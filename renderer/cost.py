@@ -16,7 +16,7 @@ a mesh frame's estimate is off has not been measured yet. The ray engines draw
 every primitive over every ray of a layer (``ns_raster`` per primitive and pixel).
 
 The constants are nanoseconds of this project's reference machine (2 cores, Mesa
-llvmpipe), fitted by ``bench/cost.py`` to measured traces; the fit is in docs/RESULTS.md.
+llvmpipe), fitted by the cost experiment to measured traces; the fit is in docs/RESULTS.md.
 The estimate is for bounding and scheduling, not a prediction to the millisecond: slices,
 Retry-After and the queue's work use ``ms`` (the median frame is estimated right); the cap
 on a frame, POCKETRAY_MAX_FRAME_COST, uses ``bound_ms``, what 90 % of the fitted frames'
@@ -60,7 +60,7 @@ class CostModel:
 # Fitted by bench/experiments/cost.py to 368 frames of every method on this project's
 # reference machine (2 cores, llvmpipe; docs/RESULTS.md, "Cost model"), scaled so that the
 # median frame is estimated right; rerun it on another machine.
-# Refitted after issue 18's shader (its frames are 0.3-0.6x the ones of the first fit, which
+# Refitted for the shader shaped for llvmpipe (its frames are 0.3-0.6x the ones of the first fit, which
 # refused the phone client's default still frame), with dense scenes up to 2^21 spheres.
 DEFAULT_MODEL = CostModel(ns_frame=7.27e6, ns_pixel=76.0, ns_node=3.30, ns_test=0.0, ns_leaf_test=1.43,
                           ns_bf_test=1.91, ns_pass=52.6, ns_raster=2.45, level_decay=0.7, upper=2.13)

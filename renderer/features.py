@@ -8,7 +8,7 @@ is exact: the image is the one the generic variant renders.
 Beside those removals a specialised variant compiles in the scene's counts of planes and
 lights (``PLANES_k``, ``LIGHTS_k``: loops of known length instead of loops bounded at run
 time) and, when no material both reflects and transmits (``NO_SPLIT``), leaves out the task
-stack: every hit then spawns at most one ray, so the ray tree is a path (issue 18).
+stack: every hit then spawns at most one ray, so the ray tree is a path.
 
 Two defines are not choices but the scene's *data formats* (``renderer/gpu_layout.py``),
 carried by every variant, the generic one too, because the packers follow them:

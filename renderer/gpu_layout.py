@@ -21,7 +21,7 @@ when they fit one (:data:`BLOCK_RECORDS` records, 64 KiB): ``Variant.blocks`` na
 and the header declares either the ``usampler2D`` or ``layout(std140) uniform NAME {
 uvec4 NAME_rec[BLOCK_RECORDS]; }`` and the accessor ``NAME_at(i)`` for both, so the
 traversal reads ``NAME_at(i)`` whatever the storage. A uniform-block read costs llvmpipe
-0.78 ns against 0.96 for an RGBA32UI ``texelFetch`` (issue 18). The device (WebGL2, whose
+0.78 ns against 0.96 for an RGBA32UI ``texelFetch``. The device (WebGL2, whose
 guaranteed block is 16 KiB) always gets textures.
 
 **Sphere records** (:func:`sphere_records`), in the order a method's leaves list them (a

@@ -1,9 +1,12 @@
 """What each render mode shows, and the colours it uses (``docs/SHADING.md``).
 
 The GPU tracer (``shaders/raytrace.frag``), the ray engines' read-back
-(:mod:`renderer.gl.ray_engine`) and the float64 reference (:mod:`renderer.reference`)
-all colour their images with these; ``tests/renderer/test_modes.py`` checks that the
-GLSL literals are the same numbers.
+(:mod:`renderer.gl.ray_engine`), the float64 reference (:mod:`renderer.reference`) and
+the browser client's legend all colour with these. The recursion colours are written
+here only: the shader assembler (:func:`renderer.shader_source.recursion_color_function`)
+emits them into the tracer, and ``GET /api/info`` hands them to the legend;
+``tests/renderer/test_modes.py`` checks that the shader's primid and heat literals are the
+same numbers as here.
 """
 
 from __future__ import annotations
@@ -25,13 +28,15 @@ RECURSION_COLORS = np.array([
     (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0), (1.0, 1.0, 0.0),
     (1.0, 0.0, 1.0), (0.0, 1.0, 1.0), (1.0, 1.0, 1.0), (1.0, 0.5, 0.0),
 ], dtype=np.float64)
+# What the legend calls them.
+RECURSION_COLOR_NAMES = ("black", "red", "green", "blue", "yellow", "magenta", "cyan", "white", "orange")
 # Per-id colour multipliers of the `primid` mode.
 PRIMID_FACTORS = np.array([0.6180340, 0.7548777, 0.5698403], dtype=np.float64)
 # Fig. 4.3 of the `heat` mode: per sphere test (red), gap (green), node visit (blue).
 HEAT_SCALE = {"tests": 0.05, "gaps": 0.2, "nodes": 0.2}
 
 
-def primid_colours(primid: np.ndarray) -> np.ndarray:
+def primid_colors(primid: np.ndarray) -> np.ndarray:
     """``fract(id · PRIMID_FACTORS) · 0.8 + 0.2``, black where id = −1; shape (…, 3)."""
     primid = np.asarray(primid)
     x = primid.astype(np.float64)[..., None] * PRIMID_FACTORS

@@ -36,7 +36,7 @@ import numpy as np
 
 from .accel.bih import build_for_scene
 from .accel.bih_traverse import traverse
-from .modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, heat_image, primid_colours  # noqa: F401
+from .modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, heat_image, primid_colors  # noqa: F401
 from .result import RenderResult
 from .scene import Camera, Scene
 from .settings import RenderSettings
@@ -503,7 +503,7 @@ def trace_rays(scene: Scene, origins: np.ndarray, dirs: np.ndarray, src: np.ndar
 
 # ------------------------------------------------------------------------ shading
 
-def local_colour(g: _Geometry, p: np.ndarray, d: np.ndarray, normal: np.ndarray, prim: np.ndarray,
+def local_color(g: _Geometry, p: np.ndarray, d: np.ndarray, normal: np.ndarray, prim: np.ndarray,
                  geo_normal: np.ndarray | None = None) -> np.ndarray:
     """Phong ``local`` term of SHADING.md at hits (p, prim) of rays with direction d, (k, 3).
 
@@ -571,7 +571,7 @@ class RayBatch:
 @dataclass
 class _Frame:
     """Per-pixel accumulators (flat, row-major)."""
-    colour: np.ndarray     # (P, 3) float64 Whitted sum
+    color: np.ndarray      # (P, 3) float64 Whitted sum
     depth: np.ndarray      # (P,) t of the primary hit
     primid: np.ndarray     # (P,)
     normal: np.ndarray     # (P, 3)
@@ -621,8 +621,8 @@ def _trace_batch(g: _Geometry, batch: RayBatch, frame: _Frame, max_level: int, s
         frame.primid[pix_h] = prim_h
         frame.normal[pix_h] = normal
     if shade:
-        local = local_colour(g, p, batch.dirs[hit], normal, prim_h, geo)
-        np.add.at(frame.colour, pix_h, batch.weight[hit] * local)
+        local = local_color(g, p, batch.dirs[hit], normal, prim_h, geo)
+        np.add.at(frame.color, pix_h, batch.weight[hit] * local)
     if batch.level >= max_level:
         return None      # the deepest level returns `local` only
     return _secondary_rays(g, batch, hit, p, normal, prim_h, geo)
@@ -674,12 +674,12 @@ def _mode_image(scene: Scene, settings: RenderSettings, frame: _Frame, chunk_ray
     mode = settings.mode
     hit = (frame.primid >= 0)[:, None]
     if mode == "color":
-        return np.clip(frame.colour, 0.0, 1.0)
+        return np.clip(frame.color, 0.0, 1.0)
     if mode == "depth":
         dist = float(np.linalg.norm(np.subtract(scene.camera.target, scene.camera.position)))
         return np.repeat(depth_grey(frame.depth, dist)[:, None], 3, axis=1)
     if mode == "primid":
-        return primid_colours(frame.primid)
+        return primid_colors(frame.primid)
     if mode == "normal":
         return np.where(hit, 0.5 * (frame.normal + 1.0), 0.0)
     if mode == "recursion":

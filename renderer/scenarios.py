@@ -110,7 +110,7 @@ def scenario(number: int, n: int, seed: int = 0, radius: float = 1.0) -> Scene:
     )
 
 
-# ---- scenes with triangle meshes (issue #20) --------------------------------------------
+# ---- scenes with triangle meshes -------------------------------------------------------
 MESH_SCENES = ("teapot", "mixed", "room")
 MAX_MESH_DETAIL = 5
 

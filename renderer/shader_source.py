@@ -2,7 +2,8 @@
 
 The tracer of a variant is ``raytrace.frag`` with the layout header and the variant's
 defines after ``#version`` (at ``//@HEADER@``) and the method's traversal
-(``shaders/<capabilities.shader>``) spliced in at ``//@METHOD@``; in a variant that traces
+(``shaders/<capabilities.shader>``) spliced in at ``//@METHOD@`` and the recursion mode's
+colours (:data:`renderer.modes.RECURSION_COLORS`) at ``//@RECURSION_COLORS@``; in a variant that traces
 triangles (the ``TRIANGLES`` data format) the ``//@TRIANGLES <name>`` marks of both get the
 sections of ``shaders/triangles.glsl``, in every other variant they are removed, so a
 sphere-only variant's text is exactly the one before meshes. A ray-engine pass is
@@ -18,11 +19,13 @@ from functools import lru_cache
 from . import gpu_layout
 from .gpu_layout import Binding, Variant
 from .methods import METHODS
+from .modes import RECURSION_COLORS
 from .resources import shader_dir
 
 SHADER_DIR = shader_dir()   # the package's shaders/ (installed) or the checkout's top-level shaders/
 HEADER_MARK = "//@HEADER@"
 METHOD_MARK = "//@METHOD@"
+RECURSION_MARK = "//@RECURSION_COLORS@\n"   # the whole line becomes recursion_color_function()
 INCLUDE_MARK = "//@INCLUDE "   # a line "//@INCLUDE method_bvh.glsl" in a method file inlines that file
 # A line "//@TRIANGLES <name>" in the tracer or a traversal: section <name> of TRIANGLES_FILE in a
 # variant that traces triangles, nothing at all in any other (with_triangles).
@@ -96,8 +99,27 @@ def tracer_source(method: str, mode: str, max_recursion_depth: int, extra_define
 def variant_source(variant: Variant) -> str:
     """The fragment shader of ``variant``."""
     method_src = _with_includes(read(method_shader(variant.method)))
-    text = read("raytrace.frag").replace(HEADER_MARK, tracer_header(variant)).replace(METHOD_MARK, method_src)
+    text = (read("raytrace.frag").replace(HEADER_MARK, tracer_header(variant)).replace(METHOD_MARK, method_src)
+            .replace(RECURSION_MARK, recursion_color_function()))
     return with_triangles(text, traces_triangles(variant))
+
+
+def _glsl_float(x: float) -> str:
+    text = repr(float(x))
+    return text if "." in text or "e" in text else text + ".0"
+
+
+def recursion_color_function() -> str:
+    """GLSL ``vec3 recursion_color(int level)``: the colour of ray level 1, 2, … from
+    :data:`renderer.modes.RECURSION_COLORS`, and its entry 0 (the primary ray missed) for
+    any other level. The colours are defined in Python alone; this is how the tracer (and
+    the browser, which compiles the same text) gets them."""
+    def vec3(c) -> str:
+        return "vec3(" + ", ".join(_glsl_float(x) for x in c) + ")"
+    miss = RECURSION_COLORS[0]
+    lines = [f"    if (level == {level}) return {vec3(c)};\n" for level, c in enumerate(RECURSION_COLORS) if level]
+    other = f"vec3({_glsl_float(miss[0])})" if miss[0] == miss[1] == miss[2] else vec3(miss)
+    return "vec3 recursion_color(int level) {\n" + "".join(lines) + f"    return {other};\n}}\n"
 
 
 def traces_triangles(variant: Variant) -> bool:

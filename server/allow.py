@@ -3,7 +3,7 @@
 Starlette answers a method a route does not take with the ``Allow`` of the first route whose
 path matched — one of several for ``/api/sessions/{id}`` (GET and DELETE are two routes) — and,
 because the client's static files are mounted at ``/``, a plain ``OPTIONS`` reached that mount
-and came back 405 ``Allow: GET, HEAD`` (issue #17). Here the methods of *every* route whose
+and came back 405 ``Allow: GET, HEAD``, which is wrong for the API's paths. Here the methods of *every* route whose
 path matches are collected:
 
 - ``OPTIONS`` (not a CORS preflight, which carries ``Access-Control-Request-Method`` and is

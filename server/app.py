@@ -40,7 +40,7 @@ from .service import SessionService
 from .shutdown import Drain
 from .store import open_store
 
-GL_DEVICE_ENV = "GLCONTEXT_DEVICE_INDEX"   # glcontext's EGL backend picks its device by this index
+GPU_INDEX_ENV = "GLCONTEXT_DEVICE_INDEX"   # glcontext's EGL backend picks its GPU by this index
 
 WARMUP_SIDE = 16       # pixels: the warm-up frame only has to compile the default shader
 WARMUP_SPHERES = 16
@@ -60,9 +60,9 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        if config.gl_device is not None:
-            os.environ[GL_DEVICE_ENV] = str(config.gl_device)
-        sys.setswitchinterval(config.switch_interval_s)   # the event loop's turn between busy threads (#17)
+        if config.gpu is not None:
+            os.environ[GPU_INDEX_ENV] = str(config.gpu)
+        sys.setswitchinterval(config.switch_interval_s)   # the event loop's turn between busy threads
         store = open_store(config)
         worker = GLWorker(config.queue_size, warmup=warmup_render if config.warmup else None,
                           renderer_factory=lambda: default_renderer(config.max_target_bytes),

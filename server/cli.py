@@ -2,14 +2,14 @@
 
 ::
 
-    pocketray serve [--host H] [--port P] [--workers N] [--state-backend sqlite|redis] [--gl-device I] …
+    pocketray serve [--host H] [--port P] [--workers N] [--state-backend sqlite|redis] [--gpu I] …
     pocketray render SCENE.json -o OUT.png|.jpg|.npy|.exr [--width W --height H --method M --mode M
                      --spp S --depth D …]
     pocketray render MODEL.obj|.ply|.stl|.glb|.gltf -o OUT.png [--size S --smooth|--flat] [the same flags]
     pocketray scene --mesh MODEL [--mesh MODEL …] [--size S] [--as-is] [-o scene.json]
     pocketray scenario 1|2|3 --n N [--seed S] [--radius R] -o scene.json
     pocketray scenario museum --n N [--kind mixed] [--absent A] [--seed S] -o scene.json
-    pocketray devices [--probe]
+    pocketray gpus [--probe]
     pocketray stack [--processes N] [--port P]     (Redis + render processes + HAProxy, server/stack.py)
 
 ``serve`` takes a flag for every field of :class:`server.config.ServerConfig` (``--queue-size``,
@@ -77,6 +77,8 @@ def _add_serve(sub: argparse._SubParsersAction) -> None:
         shown = "" if default is None or callable(default) or field.default_factory else f" (default {default})"
         p.add_argument(flag, dest=f"cfg_{name}", metavar=name.upper(), default=None,
                        help=f"{field.description or name}{shown}".replace("%", "%%"))
+    # The GPU index's old flag, kept working for deployments that pass it (deprecated).
+    p.add_argument("--gl-device", dest="cfg_gpu", default=None, help=argparse.SUPPRESS)
 
 
 def serve(args: argparse.Namespace) -> int:
@@ -101,8 +103,8 @@ def serve(args: argparse.Namespace) -> int:
     if args.workers > 1 and not os.environ.get("PROMETHEUS_MULTIPROC_DIR"):
         multiproc_dir = tempfile.mkdtemp(prefix="pocketray-metrics-")
         os.environ["PROMETHEUS_MULTIPROC_DIR"] = multiproc_dir
-    if config.gl_device is not None:
-        os.environ["GLCONTEXT_DEVICE_INDEX"] = str(config.gl_device)
+    if config.gpu is not None:
+        os.environ["GLCONTEXT_DEVICE_INDEX"] = str(config.gpu)
     try:
         # GuardedH11Protocol: 408 for stalled requests, connections per client, write timeout, unsent
         # bytes per client; GuardedWebSocketProtocol: the same through the upgrade, idle and flooding
@@ -375,17 +377,19 @@ def write_models_scene(args: argparse.Namespace) -> int:
     return 0
 
 
-# ---- devices ------------------------------------------------------------------------------------
-def _add_devices(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("devices", help="list the EGL devices (--gl-device picks one by index)")
+# ---- gpus ---------------------------------------------------------------------------------------
+def _add_gpus(sub: argparse._SubParsersAction) -> None:
+    # ("devices" is its old name, kept working: "device" is the browser client's own tracer now.)
+    p = sub.add_parser("gpus", aliases=["devices"], help="list the GPUs as EGL lists them (serve --gpu picks one "
+                                                         "by index)")
     p.add_argument("--probe", action="store_true", help="also create a context on each and print its renderer")
     p.add_argument("--json", action="store_true", help="print JSON")
 
 
-def devices(args: argparse.Namespace) -> int:
-    from renderer.gl.devices import egl_devices, probe
+def gpus(args: argparse.Namespace) -> int:
+    from renderer.gl.gpus import list_gpus, probe
 
-    found = egl_devices()
+    found = list_gpus()
     if args.probe:
         for d in found:
             d.update(probe(d["index"]))
@@ -393,7 +397,7 @@ def devices(args: argparse.Namespace) -> int:
         print(json.dumps(found, indent=2))
         return 0
     if not found:
-        print("no EGL devices (EGL_EXT_device_enumeration missing, or no libEGL)")
+        print("no GPUs listed by EGL (EGL_EXT_device_enumeration missing, or no libEGL)")
     for d in found:
         extra = f"  → {d['gl_renderer']}" if d.get("gl_renderer") else (f"  → {d['error']}" if d.get("error") else "")
         print(f"{d['index']}: {d.get('kind', '?'):8} {d.get('drm') or d.get('renderer') or ''}{extra}")
@@ -409,7 +413,7 @@ def parser() -> argparse.ArgumentParser:
     _add_render(sub)
     _add_scenario(sub)
     _add_scene(sub)
-    _add_devices(sub)
+    _add_gpus(sub)
     _add_stack(sub)
     return p
 
@@ -426,7 +430,7 @@ def stack(args: argparse.Namespace) -> int:
 
 
 COMMANDS = {"serve": serve, "render": render, "scenario": write_scenario, "scene": write_models_scene,
-            "devices": devices, "stack": stack}
+            "gpus": gpus, "devices": gpus, "stack": stack}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import AliasChoices, Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from renderer.limits import JPEG_QUALITY_RANGE, MAX_SPHERES, MAX_TREE_DEPTH, MAX_TRIANGLES
@@ -26,7 +26,7 @@ QUALITY_MIN, QUALITY_MAX = JPEG_QUALITY_RANGE
 class ServerConfig(BaseSettings):
     """Settings of one server process (all units in the field names or docs)."""
 
-    model_config = SettingsConfigDict(env_prefix="POCKETRAY_", extra="ignore", frozen=True)
+    model_config = SettingsConfigDict(env_prefix="POCKETRAY_", extra="ignore", frozen=True, populate_by_name=True)
 
     # --- network ------------------------------------------------------------
     host: str = Field("127.0.0.1", description="interface uvicorn binds to")
@@ -44,9 +44,11 @@ class ServerConfig(BaseSettings):
                                        "before it shuts down")
 
     # --- the GPU --------------------------------------------------------------------
-    gl_device: int | None = Field(None, ge=0, description="EGL device index of the GL context (glcontext's "
-                                                          "GLCONTEXT_DEVICE_INDEX; `pocketray devices` lists them); "
-                                                          "default: the first")
+    # POCKETRAY_GL_DEVICE (--gl-device) is its old name, still read: deployments set it.
+    gpu: int | None = Field(None, ge=0, validation_alias=AliasChoices("POCKETRAY_GPU", "POCKETRAY_GL_DEVICE"),
+                            description="index of the GPU the GL context uses, in EGL's list (glcontext's "
+                                        "GLCONTEXT_DEVICE_INDEX; `pocketray gpus` lists them); default: the first; "
+                                        "POCKETRAY_GL_DEVICE is a deprecated name of it")
 
     # --- state (the Model) ----------------------------------------------------
     state_backend: Literal["sqlite", "redis"] = Field(
@@ -88,7 +90,7 @@ class ServerConfig(BaseSettings):
                                               "hold their own)")
     max_body_bytes: int = Field(16 * 1024 * 1024, ge=1024, description="largest request body, bytes (else 413)")
 
-    # --- hostile clients and faults (issue #17; docs/API.md, "Hardening") -------------
+    # --- hostile clients and faults (docs/API.md, "Hardening") -----------------------
     max_json_depth: int = Field(32, ge=8, le=512,
                                 description="deepest nesting of a JSON body or message (the API needs 6); deeper: 422")
     parse_workers: int = Field(1, ge=1, le=64,

@@ -1,4 +1,4 @@
-"""The device-data format (issue #10): what a browser receives to run the very same tracer.
+"""The device-data format: what a browser receives to run the very same tracer.
 
 ``GET /api/sessions/{id}/device-data`` (:mod:`server.api.routes.device`) answers one blob
 of this format: the session's scene and the chosen method's acceleration data, packed by

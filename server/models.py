@@ -43,7 +43,7 @@ MAX_SEED = 2 ** 32 - 1
 # in JSON Schema validators that compare as doubles (2^63 − 1 + 192 passed as ≤ 2^63 − 1).
 MAX_JSON_MOTION_SEED = min(MAX_MOTION_SEED, 2 ** 53)
 # A 422 lists at most this many errors, then one entry counting the rest: a body of 150,000 bad
-# spheres is answered in a few kB, not 72 MB (issue #17).
+# spheres is answered in a few kB, not 72 MB.
 MAX_LISTED_ERRORS = 20
 # The spheres of a scene are validated this many at a time, keeping only the first
 # MAX_LISTED_ERRORS errors (the others are counted): the memory of a refusal stays that of one
@@ -152,7 +152,7 @@ class MeshModel(Strict):
         None, description="4 × 4 row-major affine (last row [0, 0, 0, 1]) applied to the vertices on input")
 
 
-# ---- motion (issue #9; renderer.animation) ------------------------------------------
+# ---- motion (renderer.animation) --------------------------------------------------
 SphereIndex = Annotated[int, Field(ge=0, lt=MAX_SPHERES, description="id of the first sphere moved"), Integral]
 SphereCount = Annotated[int, Field(ge=0, le=MAX_SPHERES, description="number of spheres moved"), Integral]
 MeshIndex = Annotated[int, Field(ge=0, lt=MAX_MESHES, description="index of the mesh moved (instead of first, count)"),
@@ -632,6 +632,11 @@ class SettingInfoOut(BaseModel):
                                             "a new session")
 
 
+class ModeColorOut(BaseModel):
+    rgb: tuple[float, float, float] = Field(description="red, green, blue in [0, 1]")
+    name: str
+
+
 class InfoOut(BaseModel):
     methods: list[str]
     modes: list[str]
@@ -654,6 +659,12 @@ class InfoOut(BaseModel):
     settings: list[SettingInfoOut] = Field(default_factory=list,
                                            description="every render setting, declared once: type, bounds or "
                                                        "choices, default, unit, label, doc, who reads it")
+    recursion_colors: list[ModeColorOut] = Field(default_factory=list,
+                                                 description="mode 'recursion': the colour of each ray level, "
+                                                             "index = level (0: the primary ray missed)")
+    heat_scale: dict[str, float] = Field(default_factory=dict,
+                                         description="mode 'heat': what each event adds to its channel (red "
+                                                     "'tests', green 'gaps', blue 'nodes'), clamped at 1")
 
 
 class StatsOut(BaseModel):

@@ -200,7 +200,7 @@ class SessionService:
         self._stats_lock = threading.Lock()
         # Planning (a scene made from a recipe, posed, its structure built, the frame's cost) holds
         # the memory of the largest requests — ~500 MB for 2^21 spheres — on the request's thread,
-        # before the GL queue bounds anything: at most POCKETRAY_QUEUE_SIZE plan at once (issue #17).
+        # before the GL queue bounds anything: at most POCKETRAY_QUEUE_SIZE plan at once.
         self._planning = threading.BoundedSemaphore(config.queue_size)
         self._planning_depth = threading.local()
         self.frame_bytes = FrameBytes(config.max_frame_bytes_in_flight)

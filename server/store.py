@@ -27,7 +27,7 @@ change that grows a scene, that would take the total over ``max_bytes`` raises
 :class:`StoreFull` and writes nothing; existing sessions keep working, and a change that does
 not grow its scene is never refused.
 
-Faults (issue #17) are reported, never papered over: every failure is a
+Faults are reported, never papered over: every failure is a
 :class:`StoreUnavailable` (or the driver's own error), answered 503. The SQLite
 store checks before each transaction that its file is still the one it opened (a
 file deleted or replaced under the running service would otherwise take writes

@@ -4,7 +4,7 @@ on idle or flooding WebSockets; connections and unsent bytes per client address.
 uvicorn (h11) waits forever for the rest of a request: a client that sends headers with
 ``Content-Length: 100000`` and a few bytes of body holds its connection — and a file descriptor —
 until it goes away; 1,100 of them exhausted the process's descriptors and locked every new
-client out (issue #17). Neither can the ASGI app help: it is not called before the headers are
+client out. Neither can the ASGI app help: it is not called before the headers are
 complete. :class:`GuardedH11Protocol` is uvicorn's h11 protocol with these bounds:
 
 - ``POCKETRAY_REQUEST_IDLE_TIMEOUT_S``: the longest silence while a request's headers or body
@@ -45,7 +45,7 @@ Behind a reverse proxy every connection comes from the proxy's address: set
 above the proxy's pool) and let the proxy bound clients and their timeouts (nginx: ``limit_conn``,
 ``client_header_timeout``, ``client_body_timeout``, ``send_timeout``; docs/API.md, "Hardening").
 
-``python -m server`` runs uvicorn with both protocols (:func:`uvicorn_options`).
+``pocketray serve`` (:mod:`server.cli`) runs uvicorn with both protocols.
 """
 
 from __future__ import annotations
@@ -202,8 +202,8 @@ class _Guard:
 
 
 class GuardedH11Protocol(_Guard, H11Protocol):
-    """uvicorn's h11 protocol with the module's bounds, read from ``settings`` (a subclass per
-    ServerConfig: :func:`uvicorn_options`; uvicorn makes one protocol object per connection).
+    """uvicorn's h11 protocol with the module's bounds, read from ``settings`` (set by a subclass
+    for one ServerConfig; uvicorn makes one protocol object per connection).
     The class itself (``pocketray serve``, whose workers are separate processes that import it)
     reads the POCKETRAY_* environment once per process."""
 
@@ -503,9 +503,3 @@ class GuardedWebSocketProtocol(_Guard, WebSocketsSansIOProtocol):
 @functools.lru_cache(maxsize=1)
 def _environment_config() -> ServerConfig:
     return ServerConfig()
-
-
-def uvicorn_options(config: ServerConfig) -> dict[str, Any]:
-    """Keyword arguments of ``uvicorn.run``/``uvicorn.Config`` that install the guards for ``config``."""
-    return {"http": type("GuardedH11Protocol", (GuardedH11Protocol,), {"settings": config}),
-            "ws": type("GuardedWebSocketProtocol", (GuardedWebSocketProtocol,), {"settings": config})}

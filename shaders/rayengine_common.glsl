@@ -114,7 +114,7 @@ bool shadow_ray_at(sampler2D surf0, sampler2D surf1, ivec2 px, int light,
 // (world units); the sphere is inflated by the slack and by the rounding of
 // s.xyz - a, and a small angular margin covers atan/asin, so the answer
 // "cannot meet" is only given when it holds in exact arithmetic too.
-const float CONE_ANGLE_MARGIN = 1.0e-4;   // radians (renderer/hre_cones.py)
+const float CONE_ANGLE_MARGIN = 1.0e-4;   // radians (renderer/accel/hre_cones.py)
 
 bool cone_misses_sphere(vec3 a, vec3 x, float phi, float slack, vec4 s) {
     vec3 w = s.xyz - a;

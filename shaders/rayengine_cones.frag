@@ -1,7 +1,7 @@
 // Hierarchical ray engine, §4: one enclosing cone per tile of TILE × TILE
 // rays, one fragment per tile. RADIANCE: the rays of u_ray_o/u_ray_d (live
 // where the weight > 0); SHADOW: the shadow rays of light u_light from the
-// surfaces u_surf0/u_surf1. renderer/hre_cones.py is the same algorithm in
+// surfaces u_surf0/u_surf1. renderer/accel/hre_cones.py is the same algorithm in
 // NumPy (and documents it); keep the two in step.
 //
 // 1. Incremental construction (Szécsi §4): start with the zero-angle cone of

@@ -24,7 +24,7 @@ uniform int u_shade;                   // 1: colour (lights); 0: only the next r
 layout(location = 0) out vec4 o_surf0;
 layout(location = 1) out vec4 o_surf1;
 #elif defined(PASS_SHADE)
-layout(location = 0) out vec4 o_colour;
+layout(location = 0) out vec4 o_color;
 layout(location = 1) out vec4 o_refl_o;
 layout(location = 2) out vec4 o_refl_d;
 layout(location = 3) out vec4 o_trans_o;
@@ -104,9 +104,9 @@ void main() {
     vec4 s1 = texelFetch(u_surf1, px, 0);
     vec3 p = s0.xyz, n = s1.xyz, nf = s1.w * n;
     Material m = fetch_material(material_of(id));
-    vec3 colour = vec3(0.0);
+    vec3 color = vec3(0.0);
     if (u_shade == 1) {
-        colour += weight * m.ambient * m.color;
+        color += weight * m.ambient * m.color;
         for (int light = 0; light < MAX_LIGHTS; light++) {
             if (light >= u_num_lights) break;
             vec3 to_light = u_light_pos[light] - p;
@@ -117,11 +117,11 @@ void main() {
                 vec3 r = 2.0 * cos_l * nf - l;
                 float x = dot(r, -d);
                 float spec = x > 0.0 ? pow(x, m.shininess) : 0.0;
-                colour += weight * u_light_color[light] * (m.diffuse * cos_l * m.color + m.specular * spec);
+                color += weight * u_light_color[light] * (m.diffuse * cos_l * m.color + m.specular * spec);
             }
         }
     }
-    o_colour = vec4(colour, 0.0);
+    o_color = vec4(color, 0.0);
     o_refl_o = vec4(0.0); o_refl_d = vec4(0.0); o_trans_o = vec4(0.0); o_trans_d = vec4(0.0);
     if (u_level < u_max_level) {
         if (m.reflective > 0.0 && weight * m.reflective >= u_min_weight) {

@@ -10,7 +10,7 @@
 // generated from renderer/gpu_layout.py and the method's layout module, so each
 // name is written once. Valid GLSL ES 3.00, for WebGL2 too.
 //
-// Shaped for how llvmpipe runs it (issue 18): a fragment shader is run for 8 pixels
+// Shaped for how llvmpipe runs it: a fragment shader is run for 8 pixels
 // at once, and a branch no lane takes, or a loop that runs zero times, costs as much
 // as running it; every texelFetch is a call into a generated function. So each loop
 // does one thing (the traversal descends, tests a leaf, or pops), the shading loop
@@ -219,17 +219,9 @@ void exclusion(int id, vec3 n, vec3 d, out int skip, out int far_id) {
     else { skip = NO_PRIM; far_id = id; }
 }
 
-vec3 recursion_colour(int level) {
-    if (level == 1) return vec3(1.0, 0.0, 0.0);
-    if (level == 2) return vec3(0.0, 1.0, 0.0);
-    if (level == 3) return vec3(0.0, 0.0, 1.0);
-    if (level == 4) return vec3(1.0, 1.0, 0.0);
-    if (level == 5) return vec3(1.0, 0.0, 1.0);
-    if (level == 6) return vec3(0.0, 1.0, 1.0);
-    if (level == 7) return vec3(1.0, 1.0, 1.0);
-    if (level == 8) return vec3(1.0, 0.5, 0.0);
-    return vec3(0.0);
-}
+// The recursion mode's colour of a ray level: vec3 recursion_color(int level), written by the
+// host from renderer/modes.py (RECURSION_COLORS), where the legend's come from too.
+//@RECURSION_COLORS@
 
 // Compile-time shape of the variant (llvmpipe and mobile GPUs pay for code
 // that is only masked off, so what a frame cannot use is not compiled in):
@@ -318,7 +310,7 @@ void main() {
     float v = (1.0 - 2.0 * row / u_resolution.y) * u_half_extent.y;
     vec3 dir = normalize(u_cam_forward + u * u_cam_right + v * u_cam_up);
 
-    vec3 colour = vec3(0.0);
+    vec3 color = vec3(0.0);
     int deepest = 0;
     float primary_t = -1.0;
     int primary_id = NO_PRIM;
@@ -348,7 +340,7 @@ void main() {
         Hit hq = intersect_scene(q);
         bool live;   // the current radiance ray hit something: its lights and children are next
         if (q.any_hit) {
-            if (hq.id == NO_PRIM) colour += contrib;   // the light is visible
+            if (hq.id == NO_PRIM) color += contrib;   // the light is visible
             light++;
             live = true;
         } else {
@@ -364,7 +356,7 @@ void main() {
                 nf = dot(k.d, s.n) < 0.0 ? s.n : -s.n;
 //@TRIANGLES facing
 #ifdef MODE_COLOR
-                colour += k.weight * m.ambient * m.color;   // Phong's ambient term
+                color += k.weight * m.ambient * m.color;   // Phong's ambient term
 #endif
                 light = 0;
             }
@@ -441,9 +433,9 @@ void main() {
 
     vec3 image;
 #if defined(MODE_COLOR)
-    image = colour;
+    image = color;
 #elif defined(MODE_RECURSION)
-    image = recursion_colour(deepest);
+    image = recursion_color(deepest);
 #elif defined(MODE_DEPTH)
     image = primary_id == NO_PRIM ? vec3(0.0) : vec3(u_target_distance / (u_target_distance + primary_t));
 #elif defined(MODE_PRIMID)

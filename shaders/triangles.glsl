@@ -1,4 +1,4 @@
-// Triangles (issue #20): the sections the assembler (renderer/shader_source.py) puts at the
+// Triangles: the sections the assembler (renderer/shader_source.py) puts at the
 // "//@TRIANGLES <name>" marks of raytrace.frag and the methods' traversals — in variants
 // with the TRIANGLES data format that trace (not the background variant) only. Every other
 // variant has the marks removed, line and all, so its text is byte for byte the one before

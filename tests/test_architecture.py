@@ -131,21 +131,21 @@ def internal_edges() -> dict[str, set[str]]:
 
 def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
     """One cycle as [a, b, …, a], or None (iterative DFS, white/grey/black)."""
-    colour = dict.fromkeys(graph, 0)
+    color = dict.fromkeys(graph, 0)
     for start in sorted(graph):
-        if colour[start]:
+        if color[start]:
             continue
         path, stack = [start], [iter(sorted(graph[start]))]
-        colour[start] = 1
+        color[start] = 1
         while stack:
             nxt = next(stack[-1], None)
             if nxt is None:
-                colour[path.pop()] = 2
+                color[path.pop()] = 2
                 stack.pop()
-            elif colour[nxt] == 1:
+            elif color[nxt] == 1:
                 return path[path.index(nxt):] + [nxt]
-            elif colour[nxt] == 0:
-                colour[nxt] = 1
+            elif color[nxt] == 0:
+                color[nxt] = 1
                 path.append(nxt)
                 stack.append(iter(sorted(graph[nxt])))
     return None

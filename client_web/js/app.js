@@ -38,10 +38,10 @@ const player = new Player({
   button: $('#play-button'), animatedRows: $('[data-animated]'), state, onPlay: () => state.render && scheduler.animate(),
 });
 
-const overlay = new Overlay($('#overlay'), $('#overlay-toggle'));
+const overlay = new Overlay($('#overlay'), $('#overlay-toggle')), legend = new Legend($('#legend'));
 if (url.client.overlay !== undefined) overlay.setHidden(!url.client.overlay);
 const display = new Display({
-  canvas, state, hook, overlay, legend: new Legend($('#legend')),
+  canvas, state, hook, overlay, legend,
   onShown(meta) {
     session.shown(meta);
     if (state.anim.playing) scheduler.animate();   // the next frame as soon as this one is shown
@@ -76,6 +76,6 @@ session.followScreen();
 
 fetch('/api/ready', { cache: 'no-store' }).then((r) => r.json())
   .then((j) => { hook.serverRenderer = j.gl_renderer || null; }, () => {});
-const infoReady = api.info().then((info) => session.offered(info));
+const infoReady = api.info().then((info) => { legend.setInfo(info); session.offered(info); });
 // A link's render settings are those the service declares: read them again once it has said which.
 session.begin(infoReady.then(() => Object.assign(url.render, readUrlParams(location.search).render)));

@@ -121,7 +121,7 @@ export const DEFAULT_CLIENT = Object.freeze({
   fullQuality: 90,
   refineDelayMs: 200,      // full frame this long after the last gesture
   maxFitSide: 1088,        // 'fit': the long side at most this many pixels
-  renderer: 'server',      // 'server' | 'device' (the same tracer in WebGL2, issue #10)
+  renderer: 'server',      // 'server' | 'device' (the same tracer in WebGL2)
 });
 const INT_KEYS = new Set(['scenario', 'n', 'seed']);
 

@@ -37,8 +37,8 @@ class PreparedMethod:
     reference walk; None for a method without one).
 
     For a scene with triangles ``packed`` is :class:`NotOnGPU` for a method whose GPU layout
-    packs spheres only (``Capabilities.meshes_on_gpu`` False; since issue #20's GPU part
-    every one-pass method's layout holds triangles, so none today: the refusal stays for a
+    packs spheres only (``Capabilities.meshes_on_gpu`` False; every one-pass method's
+    layout holds triangles, so none today: the refusal stays for a
     method added without them)."""
     packed: gpu_layout.PackedScene
     build_ms: float
@@ -50,7 +50,7 @@ class PreparedMethod:
 # the refusal of any other; auto resolves to one of them.
 MESH_METHODS = ("bih", "bruteforce", "bvh", "kdtree", "twolevel", "auto")
 NOT_ON_GPU = ("this method's GPU layout holds spheres only: its frames of a scene with triangle meshes are "
-              f"not traced on the GPU (issue #20); the methods that trace meshes are {', '.join(MESH_METHODS)}")
+              f"not traced on the GPU; the methods that trace meshes are {', '.join(MESH_METHODS)}")
 
 
 class NotOnGPU:

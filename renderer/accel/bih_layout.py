@@ -53,7 +53,7 @@ So the shader and its CPU mirror trace cuts with listing 3.5's decisions, unchan
 
 ``u_bih_root`` is the root's ref (a leaf when the whole scene is one), ``u_box_min/max``
 the global box. An RGBA32UI fetch costs llvmpipe 0.96 ns against 1.36 for the RGB32UI the
-12-byte node needed, and one record answers for both children (issue 18).
+12-byte node needed, and one record answers for both children.
 
 **Traversal** (``shaders/method_bih.glsl``, mirrored on the CPU by
 :mod:`renderer.accel.bih_traverse`): a descent loop through inner records that ends at a

@@ -46,7 +46,7 @@ runs decoded here from :func:`bih_layout.leaf_order` are the shader's record for
 
 Exactness against brute force: the intervals only prune, and pruning is safe
 when every float64 primitive lies inside its float32 AABB (see
-``tests/test_bih.py`` and the note there on ``sphere_aabbs``; ``triangle_aabbs``).
+``tests/renderer/accel/test_bih.py`` and the note there on ``sphere_aabbs``; ``triangle_aabbs``).
 """
 
 from __future__ import annotations

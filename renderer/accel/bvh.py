@@ -72,8 +72,8 @@ class BVHStats:
 
     ``sah_cost``: the tree's SAH cost ``(C_TRAV Σ_inner A + C_ISECT Σ_leaf A·n) / A_root``.
     ``bytes``: memory of the build's layout, nodes (32 B each) + index array (4 B per
-    primitive), as before issue 18 (the GPU now reads 64 B per inner node and a sphere
-    record per primitive: ``bvh_layout``).
+    primitive); the GPU reads other records (64 B per inner node and a sphere record per
+    primitive: ``bvh_layout``).
     ``update_ms``: time of the latest update (= ``build_ms`` after a build).
     ``rebuilt_subtrees`` / ``rebuilt_primitives``: what the latest selective
     rebuild rebuilt (0 after refit, all after a rebuild).
@@ -137,10 +137,6 @@ class BVH:
     @property
     def n_primitives(self) -> int:
         return len(self.indices)
-
-    def texels(self) -> np.ndarray:
-        """The node array in the GPU layout of :mod:`bvh_layout`."""
-        return L.pack_nodes(self.bmin, self.bmax, self.left, self.first, self.count, self.near_mask)
 
 
 # ----------------------------------------------------------------------------- helpers

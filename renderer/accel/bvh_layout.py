@@ -1,21 +1,11 @@
 """The BVH's layouts, defined once for packer, shader and tests: the build's and the GPU's.
 
-**Build** (:class:`renderer.accel.bvh.BVH`, struct of arrays; :func:`pack_nodes` writes it
-as the node array the GPU read before issue 18, kept for tools and tests): node ``i`` at
-texels ``2i`` and ``2i + 1``::
-
-    texel 2i      x, y, z  float32 bits of the node box's minimum corner
-                  w        inner: index of the left child; the right child is
-                                  at left + 1 (siblings are stored in pairs)
-                           leaf:  offset into the index array
-    texel 2i + 1  x, y, z  float32 bits of the node box's maximum corner
-                  w        bit 31 (INNER_FLAG): set in inner nodes
-                           inner: bits 7..0 = Reiter's near mask (listing 4.13):
-                                  bit s says which child to visit first for a
-                                  ray of direction octant s (octant bit a is
-                                  set when d[a] < 0); 0 = left, 1 = right
-                           leaf:  bits 30..0 = number of primitives
-                                                                   total: 32 bytes
+**Build** (:class:`renderer.accel.bvh.BVH`): struct of arrays — per node its box
+(``bmin``/``bmax``), ``left`` (the right child is at ``left + 1``: siblings are stored in
+pairs; −1 in leaves), the range ``first``/``count`` of the index array and Reiter's near
+mask (listing 4.13: bit ``s`` says which child to visit first for a ray of direction
+octant ``s``, octant bit ``a`` set when ``d[a] < 0``; 0 = left, 1 = right). Its memory
+(``BVHStats.bytes``) counts ``NODE_BYTES`` = 32 per node: two boxes' corners and two words.
 
 **Conversion** (:func:`gpu_records`): an inner node's record holds both children's boxes,
 which is what the traversal tests there; a leaf has no record (its parent's ref says
@@ -57,10 +47,7 @@ from .. import gpu_layout
 from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
 from ..limits import MAX_TREE_DEPTH
 
-INNER_FLAG = 1 << 31
-COUNT_MASK = INNER_FLAG - 1
 NEAR_MASK_BITS = 0xFF
-TEXELS_PER_NODE = 2
 NODE_BYTES = 32
 # One stack entry per tree level.
 STACK_SIZE = MAX_TREE_DEPTH
@@ -88,32 +75,6 @@ ROOT_MAX = Binding("u_bvh_root_max", "highp vec3")
 # The triangles' records (gpu_layout; only variants with the TRIANGLES data format read them).
 TRIANGLE_BINDINGS = (gpu_layout.TRIANGLES, gpu_layout.TRI_NORMALS, gpu_layout.TRI_BASE)
 BINDINGS = (NODES, SPHERES, ROOT, ROOT_MIN, ROOT_MAX, *TRIANGLE_BINDINGS)
-
-
-def pack_nodes(bmin: np.ndarray, bmax: np.ndarray, left: np.ndarray, first: np.ndarray,
-               count: np.ndarray, near_mask: np.ndarray) -> np.ndarray:
-    """Node arrays → uint32 (2 · nodes, 4) texels in the layout above."""
-    m = len(left)
-    out = np.empty((m, 2, 4), dtype=np.uint32)
-    out[:, 0, :3] = np.ascontiguousarray(bmin, dtype=np.float32).view(np.uint32)
-    out[:, 1, :3] = np.ascontiguousarray(bmax, dtype=np.float32).view(np.uint32)
-    inner = left >= 0
-    out[:, 0, 3] = np.where(inner, left, first).astype(np.uint32)
-    out[:, 1, 3] = np.where(inner, np.uint32(INNER_FLAG) | (near_mask.astype(np.uint32) & np.uint32(NEAR_MASK_BITS)),
-                            count.astype(np.uint32) & np.uint32(COUNT_MASK))
-    return out.reshape(2 * m, 4)
-
-
-def unpack_nodes(texels: np.ndarray) -> dict[str, np.ndarray]:
-    """The inverse of :func:`pack_nodes` (for tests and tools)."""
-    t = np.asarray(texels, dtype=np.uint32).reshape(-1, 2, 4)
-    w0 = t[:, 0, 3].astype(np.int64)
-    w1 = t[:, 1, 3]
-    inner = (w1 & np.uint32(INNER_FLAG)) != 0
-    return {"bmin": t[:, 0, :3].copy().view(np.float32), "bmax": t[:, 1, :3].copy().view(np.float32),
-            "inner": inner, "left": np.where(inner, w0, -1), "first": np.where(inner, 0, w0),
-            "count": np.where(inner, 0, (w1 & np.uint32(COUNT_MASK)).astype(np.int64)),
-            "near_mask": np.where(inner, (w1 & np.uint32(NEAR_MASK_BITS)).astype(np.int64), 0)}
 
 
 def gpu_records(bvh) -> tuple[np.ndarray, int]:

@@ -122,9 +122,6 @@ class KdTree:
     def n_nodes(self) -> int:
         return len(self.axis)
 
-    def words(self) -> np.ndarray:
-        return L.pack_nodes(self.axis, self.left, self.split, self.count, self.offset)
-
     def leaf_prims(self, node: int) -> np.ndarray:
         return self.indices[self.offset[node]:self.offset[node] + self.count[node]]
 

@@ -1,16 +1,11 @@
 """The kd-tree's layouts (Reiter's listing 4.5), defined once for packer, shader and tests.
 
-**Build** (:class:`renderer.accel.kdtree.KdTree`, struct of arrays; :func:`pack_nodes`
-writes it as the node array the GPU read before issue 18, kept for tools and tests)::
-
-    word 0  bits 31..30  00 / 01 / 10 = split axis x / y / z, 11 = leaf
-            bits 29..0   inner: index of the left child; the right child is at
-                                left + 1 (siblings stored in pairs, figure 4.3)
-                         leaf:  number of primitives
-    word 1               inner: float32 bits of the split plane's position
-                         leaf:  offset into the compacted index array
-                                (leaves' ranges may overlap, algorithm 6)
-                                                                   total: 8 bytes
+**Build** (:class:`renderer.accel.kdtree.KdTree`): struct of arrays — per node its split
+``axis`` (−1 in leaves), ``left`` (the right child is at ``left + 1``: siblings stored in
+pairs, figure 4.3), the ``split`` plane's position, and a leaf's range ``offset``/``count``
+of the compacted index array (leaves' ranges may overlap, algorithm 6). Its memory
+(``KdStats.bytes``) counts ``NODE_BYTES`` = 8 per node, listing 4.5's node: a word for the
+axis and the child or count, a word for the split or the offset.
 
 The left child holds everything below the plane (``x[axis] < split``), the right child
 everything above; a primitive whose box straddles the plane is in both.
@@ -53,10 +48,8 @@ from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
 from ..limits import MAX_TREE_DEPTH
 
 AXIS_SHIFT = 30
-LEAF_TAG = 3 << AXIS_SHIFT
 LOW_MASK = (1 << AXIS_SHIFT) - 1
 NODE_BYTES = 8
-MAX_NODES = 1 << AXIS_SHIFT
 # One stack entry per level; the build never makes a deeper tree.
 STACK_SIZE = MAX_TREE_DEPTH
 # Relative slack (shader and checks): interval comparisons that decide which
@@ -78,30 +71,6 @@ BOX_MAX = Binding("u_kd_box_max", "highp vec3")
 # The triangles' records (gpu_layout; only variants with the TRIANGLES data format read them).
 TRIANGLE_BINDINGS = (gpu_layout.TRIANGLES, gpu_layout.TRI_NORMALS, gpu_layout.TRI_BASE)
 BINDINGS = (NODES, SPHERES, ROOT, BOX_MIN, BOX_MAX, *TRIANGLE_BINDINGS)
-
-
-def pack_nodes(axis: np.ndarray, left: np.ndarray, split: np.ndarray, count: np.ndarray,
-               offset: np.ndarray) -> np.ndarray:
-    """Node arrays (axis −1 for leaves) → uint32 (nodes, 2)."""
-    m = len(axis)
-    out = np.empty((m, 2), dtype=np.uint32)
-    leaf = axis < 0
-    w0 = np.where(leaf, np.uint64(LEAF_TAG) | count.astype(np.uint64),
-                  (np.maximum(axis, 0).astype(np.uint64) << np.uint64(AXIS_SHIFT)) | np.maximum(left, 0).astype(np.uint64))
-    out[:, 0] = w0.astype(np.uint32)
-    out[:, 1] = np.where(leaf, offset.astype(np.uint32), np.asarray(split, dtype=np.float32).view(np.uint32))
-    return out
-
-
-def unpack_nodes(words: np.ndarray) -> dict[str, np.ndarray]:
-    """The inverse of :func:`pack_nodes` (tests and tools)."""
-    w = np.asarray(words, dtype=np.uint32).reshape(-1, 2)
-    tag = (w[:, 0] >> np.uint32(AXIS_SHIFT)).astype(np.int64)
-    leaf = tag == 3
-    low = (w[:, 0] & np.uint32(LOW_MASK)).astype(np.int64)
-    return {"leaf": leaf, "axis": np.where(leaf, -1, tag), "left": np.where(leaf, -1, low),
-            "count": np.where(leaf, low, 0), "offset": np.where(leaf, w[:, 1].astype(np.int64), 0),
-            "split": w[:, 1].copy().view(np.float32)}
 
 
 def leaf_runs(kd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -318,26 +318,26 @@ class TracerFrame:
         img, hit = img[::-1], hit[::-1]          # image row 0 at the top
         k, W, H = self.k, self.width, self.height
         if self.one_shot:                        # the old way: ids from the middle sub-pixel
-            colour = img[..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
+            color = img[..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
             img, hit = img[k // 2::k, k // 2::k], hit[k // 2::k, k // 2::k]
         elif self._grid is not None:             # the box filter over the sub-pixel passes
-            colour = self._grid[::-1][..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
+            color = self._grid[::-1][..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
             self._grid = None
         else:
-            colour = img[..., :3]
-        arrays = [img, hit, colour]
-        del img, hit, colour
+            color = img[..., :3]
+        arrays = [img, hit, color]
+        del img, hit, color
         return self._result_of(arrays, final=True)
 
     def _result_of(self, arrays: list[np.ndarray], final: bool) -> RenderResult:
         """The result made of ``[img, hit, colour]`` (image rows, top first), which it empties: each
         read-back is freed as soon as what is made of it exists (where nothing else holds it), so
         a 4096² frame holds one of its two 256 MiB read-backs beside its new arrays, not both."""
-        img, hit, colour = arrays
+        img, hit, color = arrays
         arrays.clear()
         primid = img[..., 3].astype(np.int32)
-        image = np.ascontiguousarray(colour, dtype=np.float32)
-        del img, colour
+        image = np.ascontiguousarray(color, dtype=np.float32)
+        del img, color
         depth_t = np.where(primid >= 0, hit[..., 3], np.float32(np.inf)).astype(np.float32, copy=False)
         normal = np.ascontiguousarray(hit[..., :3])
         del hit

@@ -1,4 +1,4 @@
-"""Multi-pass ray tracing: the ray engine and the hierarchical ray engine (issue #8).
+"""Multi-pass ray tracing: the ray engine and the hierarchical ray engine.
 
 Both are methods of :mod:`renderer.accel.ray_engine` (``rayengine``, ``hre``) whose
 capabilities say ``multi_pass``: the GL renderer hands their frames to
@@ -76,7 +76,7 @@ from ..accel import hre_cones
 from ..accel.ray_engine import RayEngine
 from ..features import GENERIC, scene_features
 from ..limits import DEFAULT_TEXTURE_WIDTH, STENCIL_BITS
-from ..modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, primid_colours
+from ..modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, primid_colors
 from ..result import RenderResult
 from ..scene import Scene, SceneError
 from .ray_engine_targets import Programs as _Programs, Targets as _Targets  # noqa: F401
@@ -142,11 +142,6 @@ class RayEnginePasses:
         """A frame of ``method``, uploaded, to be traced slice by slice; ``batch`` primitives
         per draw call (None: each pass in one draw)."""
         return RayEngineFrame(self, method, scene, settings, log=log, batch=batch)
-
-    def render_frame(self, method: RayEngine, scene: Scene, settings: "RenderSettings", *,
-                     log: FrameLog | None = None) -> RenderResult:
-        """Trace one frame of ``method`` (``GLRenderer.render`` hands multi-pass methods here)."""
-        return self.begin(method, scene, settings, log=log).run()
 
     def cull_matrix(self, scene: Scene, verts: np.ndarray) -> np.ndarray:
         """The vertex shader's decision for each (tile, primitive): bool (tiles, n_primitives), True = drawn.
@@ -305,15 +300,15 @@ class RayEngineFrame:
     def _compose(self) -> RenderResult:
         t_traced = time.perf_counter()
         frame, settings, method, k = self.frame, self.settings, self.method, self.k
-        colour, primid, depth_t, normal, image = frame.read_back()
+        color, primid, depth_t, normal, image = frame.read_back()
         t_end = time.perf_counter()
         if k > 1:
-            colour = colour.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
+            color = color.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
             image = image.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
             centre = self.centre.result()     # the arrays through the pixel centres
             primid, depth_t, normal = centre.primid, centre.depth, centre.normal
         if settings.mode == "color":
-            image = colour
+            image = color
         ms = lambda a, b: (b - a) * 1e3  # noqa: E731
         timings = {"build": frame.build_ms, "upload": ms(self.t_start, self.t_up),
                    "trace": ms(self.t_up, t_traced) - frame.build_ms - frame.stats_ms, "read": ms(t_traced, t_end),
@@ -639,10 +634,10 @@ class _FrameRun:
         self.gl.glStencilMask(0xFF)
         self.gl.glClearStencil(0)
         self.gl.glClear(GL_STENCIL_BUFFER_BIT)
-        colour_fbo = self.ctx.framebuffer(color_attachments=[tg.colour])
-        colour_fbo.use()
-        colour_fbo.clear(0.0, 0.0, 0.0, 0.0)
-        colour_fbo.release()
+        color_fbo = self.ctx.framebuffer(color_attachments=[tg.color])
+        color_fbo.use()
+        color_fbo.clear(0.0, 0.0, 0.0, 0.0)
+        color_fbo.release()
         first = _Layer(tg.layer(), 1, "")
         self._primary(first)
         yield
@@ -735,7 +730,7 @@ class _FrameRun:
     def read_back(self):
         w, h = self.size
         mode = self.mode
-        colour = self._read(self.tg.colour)[:h, :w, :3][::-1].astype(np.float32)
+        color = self._read(self.tg.color)[:h, :w, :3][::-1].astype(np.float32)
         if self.primary:
             hit = self.primary["hit"][:h, :w][::-1]
             surf1 = self.primary["surf1"][:h, :w][::-1]
@@ -748,12 +743,12 @@ class _FrameRun:
             normal = np.zeros((h, w, 3), np.float32)
         hit = primid >= 0
         if mode == "color":
-            image = colour
+            image = color
         elif mode == "depth":
             d = np.float32(np.linalg.norm(np.subtract(self.scene.camera.target, self.scene.camera.position)))
             image = np.repeat(depth_grey(depth, d)[..., None], 3, axis=2)
         elif mode == "primid":
-            image = primid_colours(primid)
+            image = primid_colors(primid)
         elif mode == "normal":
             image = np.where(hit[..., None], 0.5 * (normal + 1.0), 0.0)
         elif mode == "recursion":
@@ -765,4 +760,4 @@ class _FrameRun:
             image = (self.cone_image[:h, :w][::-1] if self.cone_image is not None else np.zeros((h, w, 3)))
         else:
             raise SceneError("mode", f"unknown mode {mode!r}")
-        return colour, primid, depth, normal, np.asarray(image, dtype=np.float32)
+        return color, primid, depth, normal, np.asarray(image, dtype=np.float32)

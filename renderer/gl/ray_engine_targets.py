@@ -51,7 +51,7 @@ class Targets:
         self.gl = gl
         self.rb = self.gl.renderbuffer(width, height)
         tex = lambda: self._tex(width, height)  # noqa: E731
-        self.hit, self.surf0, self.surf1, self.blocked0, self.blocked1, self.colour = (tex() for _ in range(6))
+        self.hit, self.surf0, self.surf1, self.blocked0, self.blocked1, self.color = (tex() for _ in range(6))
         self.fbo_hit = self._fbo([self.hit], depth=True)
         self.fbo_surf = self._fbo([self.surf0, self.surf1])
         self.fbo_blocked = [self._fbo([self.blocked0]), self._fbo([self.blocked1])]
@@ -67,8 +67,8 @@ class Targets:
         t.filter = (moderngl.NEAREST, moderngl.NEAREST)
         return t
 
-    def _fbo(self, colour: list, depth: bool = False) -> moderngl.Framebuffer:
-        fbo = self.ctx.framebuffer(color_attachments=colour)
+    def _fbo(self, color: list, depth: bool = False) -> moderngl.Framebuffer:
+        fbo = self.ctx.framebuffer(color_attachments=color)
         self.gl.attach(fbo, self.rb)
         fbo.depth_mask = depth
         return fbo
@@ -93,13 +93,13 @@ class Targets:
     def shade_fbo(self, refl, trans) -> moderngl.Framebuffer:
         key = (refl[0].glo, trans[0].glo)
         if key not in self.shade_fbos:
-            self.shade_fbos[key] = self._fbo([self.colour, refl[0], refl[1], trans[0], trans[1]])
+            self.shade_fbos[key] = self._fbo([self.color, refl[0], refl[1], trans[0], trans[1]])
         return self.shade_fbos[key]
 
     def release_all(self) -> None:
         for f in [*self.fbos, *self.shade_fbos.values(), *self.layer_fbos.values()]:
             f.release()
-        for t in (self.hit, self.surf0, self.surf1, self.blocked0, self.blocked1, self.colour):
+        for t in (self.hit, self.surf0, self.surf1, self.blocked0, self.blocked1, self.color):
             t.release()
         for a, b in self.all_layers:
             a.release()

@@ -1,6 +1,6 @@
 """The moderngl renderer: one frame = rebuild → upload → draw → read back.
 
-The renderer makes the host's choices of a variant (issue 18): a record array of the
+The renderer makes the host's choices of a variant: a record array of the
 method (nodes, sphere records) whose packed data fit a uniform block (64 KiB, and the
 context allows blocks that large) is read from one instead of a texture — textures above
 that, and always for device data; a png or jpeg frame at one sample per pixel renders into

@@ -2,7 +2,7 @@
 
 A target is a framebuffer with two RGBA32F attachments (the mode image with the primary
 id, and the primary normal with t), or, for a frame that needs only its 8-bit image (png
-and jpeg at one sample per pixel, issue 18), one RGBA8 attachment: its read-back costs
+and jpeg at one sample per pixel), one RGBA8 attachment: its read-back costs
 0.4 ms at 320 × 544 against 4.7 ms for the two float ones. Frames in flight each hold their own (frames of the
 same size may be traced in turns, slice by slice), so the pool hands out a free one of
 the size asked for or makes one. Free targets are kept for reuse as long as all targets

@@ -2,7 +2,7 @@
 
 FastAPI reads a JSON body with ``json.loads`` and validates it with pydantic on the event loop: a
 16 MiB scene stalled every other request (``/api/health`` included) for seconds, and six of them
-for 15 s (issue #17). Routes with a JSON body use :class:`JSONBodyRoute`, which
+for 15 s. Routes with a JSON body use :class:`JSONBodyRoute`, which
 
 - refuses what ``json.loads`` lets through: bytes that are not UTF-8 (it guesses UTF-16/32), a
   byte-order mark, duplicate keys (it keeps the last silently), nesting deeper than

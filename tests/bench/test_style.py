@@ -15,7 +15,7 @@ from renderer.methods import METHODS
 from tests.helpers import ROOT
 
 
-def test_labels_name_their_method_and_get_its_colour_and_marker():
+def test_labels_name_their_method_and_get_its_color_and_marker():
     cases = {"ours: bih": "bih", "BIH 8": "bih", "BIH rebuild (thesis)": "bih", "bih, MAX_PRIMS 4": "bih",
              "BF": "bruteforce", "ours: bruteforce": "bruteforce", "bruteforce, depth 5": "bruteforce",
              "BVH refit": "bvh", "BVH selective +30 %": "bvh", "ours: twolevel": "twolevel", "kdtree S2": "kdtree",
@@ -27,8 +27,8 @@ def test_labels_name_their_method_and_get_its_colour_and_marker():
         assert series(label)["color"] == METHOD_STYLE[method][0]
         assert series(label)["marker"] == METHOD_STYLE[method][1]
     assert set(METHODS) <= set(METHOD_STYLE)   # every registered method has its own entry
-    colours = [c for c, _ in METHOD_STYLE.values()]
-    assert len(colours) == len(set(colours)) + (1 if "thesis" in METHOD_STYLE else 0)   # thesis shares auto's grey
+    colors = [c for c, _ in METHOD_STYLE.values()]
+    assert len(colors) == len(set(colors)) + (1 if "thesis" in METHOD_STYLE else 0)   # thesis shares auto's grey
     assert series("BIH 4", variant=2)["color"] != series("BIH 1")["color"]
     assert series("new-method")["color"] == series("new-method S2")["color"]   # a stable spare colour
 

@@ -78,7 +78,7 @@ def device_render(c: Client, **params) -> dict:
     r = c.page.evaluate("(p) => window.pocketray.device.renderOnce(p)", params)
     h, w = r["height"], r["width"]
     r["primid"] = np.frombuffer(base64.b64decode(r["primid"]), np.int32).reshape(h, w)
-    r["colour"] = np.frombuffer(base64.b64decode(r["colour"]), np.uint8).reshape(h, w, 3)
+    r["color"] = np.frombuffer(base64.b64decode(r["color"]), np.uint8).reshape(h, w, 3)
     return r
 
 
@@ -105,7 +105,7 @@ def test_device_image_equals_the_servers(device_page, server, sessions, scenario
     dev = device_render(device_page, session=sid, mode="color", **common)
     assert dev["infoLog"] == {"vertex": "", "fragment": "", "program": ""}, dev["infoLog"]
     srv = server_array(server, sid, mode="color", **common)
-    assert psnr(dev["colour"], srv) >= 35.0, psnr(dev["colour"], srv)
+    assert psnr(dev["color"], srv) >= 35.0, psnr(dev["color"], srv)
     assert device_page.errors() == []
 
 
@@ -136,7 +136,7 @@ def test_device_renders_the_data_formats(device_page, server, method):
     assert np.mean(srv == dev["primid"]) >= 0.999
     dev = device_render(device_page, session=sid, mode="color", **common)
     srv = server_array(server, sid, mode="color", **common)
-    assert psnr(dev["colour"], srv) >= 35.0, psnr(dev["colour"], srv)
+    assert psnr(dev["color"], srv) >= 35.0, psnr(dev["color"], srv)
     assert device_page.errors() == []
 
 
@@ -333,10 +333,10 @@ def test_device_frames_agree_with_the_server_at_the_still_profile(device_page, s
     assert np.mean(srv == dev["primid"]) >= 0.999
     dev = device_render(device_page, session=sid, mode="color", **common)
     srv = server_array(server, sid, mode="color", **common)
-    assert psnr(dev["colour"], srv) >= 35.0, psnr(dev["colour"], srv)
+    assert psnr(dev["color"], srv) >= 35.0, psnr(dev["color"], srv)
     # Supersampling did something: one sample per pixel is another image (edges are not smoothed).
     one = device_render(device_page, session=sid, mode="color", **{**common, "samples_per_pixel": 1})
-    assert psnr(one["colour"], srv) < psnr(dev["colour"], srv)
+    assert psnr(one["color"], srv) < psnr(dev["color"], srv)
     assert device_page.errors() == []
 
 
@@ -405,5 +405,5 @@ def test_device_traces_a_scene_with_meshes(device_page, server, method):
     assert (srv >= scene.triangle_id_base).mean() > 0.1, "the meshes are in view"
     dev = device_render(device_page, session=sid, mode="color", **common)
     srv = server_array(server, sid, mode="color", **common)
-    assert psnr(dev["colour"], srv) >= 35.0, psnr(dev["colour"], srv)
+    assert psnr(dev["color"], srv) >= 35.0, psnr(dev["color"], srv)
     assert device_page.errors() == []

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
+
 from browser_support import FAST_QUERY, Touch
 
 LAYOUT_QUERY = "scenario=1&n=64&seed=1&radius=1&width=96&height=160&max_recursion_depth=1&preview_scale=1"
@@ -184,15 +186,21 @@ def legend(page) -> list[tuple[str, str]]:
 
 
 def test_heat_and_recursion_have_a_legend(open_client):
+    from renderer.modes import RECURSION_COLORS
+    css = [f"rgb({r}, {g}, {b})" for r, g, b in np.floor(255 * RECURSION_COLORS + 0.5).astype(int)]
     c = open_client("portrait", LAYOUT_QUERY + "&mode=recursion")
     p = c.page
+    p.wait_for_selector("#legend li")   # the key comes with GET /api/info
     assert p.is_visible("#legend")
+    # the colours the shader is assembled with (renderer.modes), as the 8-bit frame shows them
+    assert legend(p) == [*((str(level), css[level]) for level in range(1, len(css))), ("miss", css[0])]
     assert legend(p) == [("1", "rgb(255, 0, 0)"), ("2", "rgb(0, 255, 0)"), ("3", "rgb(0, 0, 255)"),
                          ("4", "rgb(255, 255, 0)"), ("5", "rgb(255, 0, 255)"), ("6", "rgb(0, 255, 255)"),
                          ("7", "rgb(255, 255, 255)"), ("8", "rgb(255, 128, 0)"), ("miss", "rgb(0, 0, 0)")]
     assert not overlaps(box(p, "#legend"), box(p, "#toolbar"))
     c = open_client("wide", LAYOUT_QUERY + "&mode=heat")
     p = c.page
+    p.wait_for_selector("#legend li")
     assert legend(p) == [("red: 0.05 per sphere test", "rgb(255, 0, 0)"), ("green: 0.2 per gap", "rgb(0, 255, 0)"),
                          ("blue: 0.2 per node", "rgb(0, 0, 255)")]
     n0 = c.frame_count

@@ -46,10 +46,10 @@ def test_compose_topology_redis_with_aof_one_render_service_per_gpu_and_the_bala
     assert any(v.endswith(":/data") for v in redis["volumes"])
     renders = render_services(doc)
     assert len(renders) >= 2
-    devices = []
+    gpus = []
     for name, s in sorted(renders.items()):
         assert s["command"][0] == "serve"
-        devices.append(int(s["command"][s["command"].index("--gl-device") + 1]))
+        gpus.append(int(s["command"][s["command"].index("--gpu") + 1]))
         env = s["environment"]
         assert env["POCKETRAY_STATE_BACKEND"] == "redis" and env["POCKETRAY_REDIS_URL"].startswith("redis://redis:")
         assert env["POCKETRAY_HOST"] == "0.0.0.0" and float(env["POCKETRAY_DRAIN_S"]) > 0
@@ -62,7 +62,7 @@ def test_compose_topology_redis_with_aof_one_render_service_per_gpu_and_the_bala
         assert "/api/ready" in " ".join(s["healthcheck"]["test"])
         gpu = s["deploy"]["resources"]["reservations"]["devices"][0]
         assert gpu["driver"] == "nvidia" and gpu["capabilities"] == ["gpu"]
-    assert sorted(devices) == list(range(len(renders)))   # one service per GPU, each its own device
+    assert sorted(gpus) == list(range(len(renders)))   # one service per GPU, each its own
     balancer = doc["services"]["balancer"]
     assert balancer["image"].startswith("haproxy:")
     assert "./deploy/haproxy.cfg:/usr/local/etc/haproxy/haproxy.cfg:ro" in balancer["volumes"]

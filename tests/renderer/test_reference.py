@@ -317,7 +317,7 @@ def test_mirror_box_depth_8():
     np.testing.assert_array_equal(rec.image.reshape(-1, 3), np.tile([1.0, 0.5, 0.0], (1200, 1)))
 
 
-def test_scenario3_colour_is_finite():
+def test_scenario3_color_is_finite():
     res = render_reference(scenario(3, 64), settings(80, 136, mode="color", max_recursion_depth=5))
     assert res.image.shape == (136, 80, 3) and res.image.dtype == np.float32
     assert np.isfinite(res.image).all()
@@ -372,7 +372,7 @@ def test_primid_normal_depth_images():
         np.testing.assert_array_equal(m.depth, res.depth)
 
 
-def test_method_does_not_change_the_colour():
+def test_method_does_not_change_the_color():
     scene = scenario(2, 40, seed=3)
     a = render_reference(scene, settings(32, 40, method="bruteforce"))
     b = render_reference(scene, settings(32, 40, method="bih"), chunk_rays=100)   # chunking neither

@@ -104,7 +104,7 @@ def phong(c, ka, kd, ks, q, n, l, view):
 
 
 @pytest.mark.parametrize("smooth", [False, True])
-def test_colour_uses_the_shading_normal_turned_to_the_geometric_side(smooth):
+def test_color_uses_the_shading_normal_turned_to_the_geometric_side(smooth):
     mat = Material(color=(0.8, 0.6, 0.4), ambient=0.1, diffuse=0.6, specular=0.3, shininess=20.0, reflective=0.0)
     light = Light((3.0, 4.0, 8.0), (1.0, 1.0, 1.0))
     normals = np.array([[0.2, 0.0, 1.0], [0.0, 0.3, 1.0], [-0.1, -0.1, 1.0]]) if smooth else None

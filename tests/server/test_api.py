@@ -58,6 +58,16 @@ def test_health_ready_info(ready_client):
     assert info["museum_room_spheres"] == 576
 
 
+def test_info_gives_the_legend_the_colors_of_the_modes(client):
+    """The client's legend shows the colours of renderer.modes, which the shader is assembled with."""
+    from renderer.modes import HEAT_SCALE, RECURSION_COLOR_NAMES, RECURSION_COLORS
+    info = client.get("/api/info").json()
+    assert [c["rgb"] for c in info["recursion_colors"]] == RECURSION_COLORS.tolist()
+    assert [c["name"] for c in info["recursion_colors"]] == list(RECURSION_COLOR_NAMES)
+    assert info["recursion_colors"][0] == {"rgb": [0.0, 0.0, 0.0], "name": "black"}   # level 0: a miss
+    assert info["heat_scale"] == HEAT_SCALE
+
+
 def test_create_from_scenario_and_read(client):
     s = new_session(client, n=100, seed=7, radius=0.5)
     assert set(s) >= SESSION_KEYS

@@ -1,10 +1,11 @@
 """``pocketray`` (server/cli.py): scenario → scene JSON as the API writes it, render with the
 API's settings and validation (png, jpeg, npy, exr), the serve flags from ServerConfig, the
-EGL device list, and ``serve --workers 2`` (uvicorn by import string: two processes, two GL
+GPU list, and ``serve --workers 2`` (uvicorn by import string: two processes, two GL
 contexts, one /metrics summing both)."""
 
 from __future__ import annotations
 
+import argparse
 import io
 import json
 import os
@@ -61,8 +62,8 @@ def test_render_writes_each_format_and_agrees_with_the_api(tmp_path, client):
     z = decode_exr((tmp_path / "z.exr").read_bytes())["Z"]
     assert z.shape == (30, 40) and np.isinf(z[primid < 0]).all() and np.isfinite(z[primid >= 0]).all()
     assert decode_exr((tmp_path / "n.exr").read_bytes())["RGB"].shape == (30, 40, 3)
-    colour = decode_exr((tmp_path / "c.exr").read_bytes())["RGB"]
-    assert colour.dtype == np.float32 and np.abs(np.floor(np.clip(colour, 0, 1) * 255 + 0.5)
+    color = decode_exr((tmp_path / "c.exr").read_bytes())["RGB"]
+    assert color.dtype == np.float32 and np.abs(np.floor(np.clip(color, 0, 1) * 255 + 0.5)
                                                  - np.load(tmp_path / "a.npy")).max() == 0
 
 
@@ -84,18 +85,38 @@ def test_render_rejects_what_the_api_rejects_naming_the_field(tmp_path):
 
 def test_serve_has_a_flag_for_every_config_field_and_validates_them_before_starting(tmp_path):
     text = cli.parser().format_help() + pocketray("serve", "--help", cwd=tmp_path).stdout
-    for name in ("--workers", "--host", "--port", "--state-backend", "--gl-device", "--cors-origins", "--drain-s",
+    for name in ("--workers", "--host", "--port", "--state-backend", "--gpu", "--cors-origins", "--drain-s",
                  "--queue-size", "--log-format"):
         assert name in text
     r = pocketray("serve", "--state-backend", "mongodb", cwd=tmp_path)    # a process's exit status 2
     assert r.returncode == 2 and "state_backend" in r.stderr
 
 
-def test_devices_lists_the_egl_device_the_context_uses(tmp_path):
-    r = pocketray("devices", "--probe", "--json", cwd=tmp_path)
+def test_gpus_lists_the_gpu_the_context_uses(tmp_path):
+    r = pocketray("gpus", "--probe", "--json", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     found = json.loads(r.stdout)
     assert found and found[0]["index"] == 0 and found[0]["gl_renderer"]
+    old = pocketray("devices", "--json", cwd=tmp_path)      # the command's old name still works
+    assert old.returncode == 0 and [d["index"] for d in json.loads(old.stdout)] == [d["index"] for d in found]
+
+
+def test_the_gpu_index_keeps_its_old_names(monkeypatch):
+    """POCKETRAY_GPU / --gpu were POCKETRAY_GL_DEVICE / --gl-device: deployed configurations
+    that set the old names keep working ("device" is the browser's own tracer now)."""
+    from server.config import ServerConfig
+    for name in ("POCKETRAY_GPU", "POCKETRAY_GL_DEVICE"):
+        monkeypatch.delenv(name, raising=False)
+    assert ServerConfig().gpu is None and ServerConfig(gpu=2).gpu == 2
+    monkeypatch.setenv("POCKETRAY_GL_DEVICE", "1")
+    assert ServerConfig().gpu == 1
+    monkeypatch.setenv("POCKETRAY_GPU", "3")                     # the new name wins
+    assert ServerConfig().gpu == 3
+    p = cli.parser()
+    assert p.parse_args(["serve", "--gl-device", "1"]).cfg_gpu == "1"
+    assert p.parse_args(["serve", "--gpu", "2"]).cfg_gpu == "2"
+    commands = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction)).choices
+    assert "--gpu" in commands["serve"].format_help() and "--gl-device" not in commands["serve"].format_help()
 
 
 def test_serve_with_two_workers_runs_two_gl_processes_and_one_metrics_endpoint(tmp_path):

@@ -56,13 +56,13 @@ class Case:
     why: str = ""
     max_depth_rel: float = DEPTH_REL
     depth_why: str = ""
-    colour_psnr_min: float | None = PSNR_MIN
+    color_psnr_min: float | None = PSNR_MIN
     psnr_why: str = ""
     # The same three figures against the reference of ``float32_inputs(scene)`` (the
     # scene as the GPU stores it): strict unless pinned here, with ``f32_why``.
     f32_min_primid_agreement: float = PRIMID_AGREEMENT
     f32_max_depth_rel: float = DEPTH_REL
-    f32_colour_psnr_min: float | None = PSNR_MIN
+    f32_color_psnr_min: float | None = PSNR_MIN
     f32_why: str = ""
     # BIH only: the built tree must reach at least this depth (stats depth_max).
     min_tree_depth: int | None = None
@@ -87,10 +87,10 @@ class Case:
             raise ValueError(f"{self.name}: a primid threshold below {PRIMID_AGREEMENT} needs a reason")
         if self.max_depth_rel > DEPTH_REL and not self.depth_why:
             raise ValueError(f"{self.name}: a depth tolerance above {DEPTH_REL} needs a reason")
-        if self.colour_psnr_min is not None and self.colour_psnr_min < PSNR_MIN and not self.psnr_why:
+        if self.color_psnr_min is not None and self.color_psnr_min < PSNR_MIN and not self.psnr_why:
             raise ValueError(f"{self.name}: a PSNR threshold below {PSNR_MIN} dB needs a reason")
         relaxed = (self.f32_min_primid_agreement < PRIMID_AGREEMENT or self.f32_max_depth_rel > DEPTH_REL
-                   or (self.f32_colour_psnr_min is not None and self.f32_colour_psnr_min < PSNR_MIN))
+                   or (self.f32_color_psnr_min is not None and self.f32_color_psnr_min < PSNR_MIN))
         if relaxed and not self.f32_why:
             raise ValueError(f"{self.name}: a relaxed float32-input threshold needs a reason")
 
@@ -638,7 +638,7 @@ _add(
          "against the float32-input scene the depth error is below 1e-6 and every strict threshold holds."),
     Case("radius_1e-3_at_1e6", "radius 1e-3 at coordinates 1e6: float32 spacing there is 0.0625, 62 radii; "
          "hit points and normals from them are meaningless", lambda: _tiny_at(1e6),
-         min_primid_agreement=0.009, max_depth_rel=1.0, colour_psnr_min=15.0,
+         min_primid_agreement=0.009, max_depth_rel=1.0, color_psnr_min=15.0,
          why=_TINY_AT_1E6, depth_why=_TINY_AT_1E6, psnr_why=_TINY_AT_1E6),
     Case("radius_1e-3_near_origin", "the same 1e-3 spheres near the origin, seen from 0.03",
          lambda: _tiny_at(0.0)),
@@ -677,8 +677,8 @@ _add(
     Case("mirror_room_exact_seams_depth8", "the mirror room seen so that whole pixel columns and rows hit the "
          "room's edges exactly (u = ±30/55): two walls at the same t", lambda: mirror_room(False, seams=True),
          width=33, height=33, max_recursion_depth=8,
-         min_primid_agreement=0.975, colour_psnr_min=19.0, f32_min_primid_agreement=0.975,
-         f32_colour_psnr_min=19.0, why=_SEAMS, psnr_why=_SEAMS, f32_why=_SEAMS, checks=(only_ties,)),
+         min_primid_agreement=0.975, color_psnr_min=19.0, f32_min_primid_agreement=0.975,
+         f32_color_psnr_min=19.0, why=_SEAMS, psnr_why=_SEAMS, f32_why=_SEAMS, checks=(only_ties,)),
     Case("mirror_room_depth8", "six perfect-mirror walls and mirror spheres, recursion depth 8: bounded work, "
          "no hang", lambda: mirror_room(False), width=33, height=33, max_recursion_depth=8),
     Case("glass_mirror_room_depth8", "mirror walls with half-mirror half-glass spheres: a full binary ray tree "
@@ -896,8 +896,8 @@ _add(
     Case("mesh_box_seams", "rays exactly on a closed box's shared edges (the front face's diagonal, its rims "
          "shared with side faces seen edge-on) and on its corners: a ray between two triangles must hit one",
          mesh_box_seams, width=33, height=33, checks=(no_leak, on_box_seams), facts=_mesh_facts,
-         methods=MESH_METHODS, min_primid_agreement=0.985, colour_psnr_min=30.0, why=_BOX_SEAMS,
-         psnr_why=_BOX_SEAMS, f32_min_primid_agreement=0.985, f32_colour_psnr_min=30.0, f32_why=_BOX_SEAMS),
+         methods=MESH_METHODS, min_primid_agreement=0.985, color_psnr_min=30.0, why=_BOX_SEAMS,
+         psnr_why=_BOX_SEAMS, f32_min_primid_agreement=0.985, f32_color_psnr_min=30.0, f32_why=_BOX_SEAMS),
     Case("mesh_box_corner", "the centre ray exactly through a box corner shared by three faces",
          mesh_box_corner, checks=(no_leak, centre_pixel_hits_mesh, only_ties), facts=_mesh_facts,
          methods=MESH_METHODS, min_primid_agreement=0.998, why="measured: the BIH takes the other triangle "

@@ -155,12 +155,12 @@ def _pinned_figures(agreement: float, depth_rel: float, psnr: float | None) -> l
 
 def _pins(case: Case) -> list[str]:
     out = []
-    figures = _pinned_figures(case.min_primid_agreement, case.max_depth_rel, case.colour_psnr_min)
+    figures = _pinned_figures(case.min_primid_agreement, case.max_depth_rel, case.color_psnr_min)
     if figures:
         whys = " ".join(dict.fromkeys(w for w in (case.why, case.depth_why, case.psnr_why) if w))
         out.append(f"pinned against the float64 scene ({', '.join(figures)}): {whys}")
     if case.f32_why:
-        figures = _pinned_figures(case.f32_min_primid_agreement, case.f32_max_depth_rel, case.f32_colour_psnr_min)
+        figures = _pinned_figures(case.f32_min_primid_agreement, case.f32_max_depth_rel, case.f32_color_psnr_min)
         same = case.f32_why in (case.why, case.depth_why, case.psnr_why)
         out.append(f"pinned against the float32-input scene ({', '.join(figures)}): "
                    + ("the same reason." if same else case.f32_why))
@@ -296,8 +296,8 @@ def evaluate(gl_renderer, case: Case, method: str) -> tuple[dict, list[str]]:
             failures.append("depth is not finite exactly where there is a hit")
 
         thresholds = {
-            "f64": (ref64, case.min_primid_agreement, case.max_depth_rel, case.colour_psnr_min),
-            "f32": (ref32, case.f32_min_primid_agreement, case.f32_max_depth_rel, case.f32_colour_psnr_min),
+            "f64": (ref64, case.min_primid_agreement, case.max_depth_rel, case.color_psnr_min),
+            "f32": (ref32, case.f32_min_primid_agreement, case.f32_max_depth_rel, case.f32_color_psnr_min),
         }
         for key, (ref, min_agree, max_rel, min_psnr) in thresholds.items():
             if key == "f32" and data["exact_inputs"]:

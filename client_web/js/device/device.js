@@ -1,4 +1,4 @@
-// Device mode (issues #10, #19): the server's tracer, run by this browser in WebGL2.
+// Device mode: the server's tracer, run by this browser in WebGL2.
 //
 // One shader, one tree layout: the fragment shader is the text the server compiles
 // (GET /api/shader), the textures and uniforms are what renderer.gpu_layout packs for
@@ -456,7 +456,7 @@ export class DeviceView {
     this.key = null;
     const h = this.renderer.header;
     return {
-      width: rb.width, height: rb.height, primid: toBase64(rb.primid), colour: toBase64(rb.colour),
+      width: rb.width, height: rb.height, primid: toBase64(rb.primid), color: toBase64(rb.color),
       infoLog: this.prog.logs, renderer: `WebGL2 ${this.renderer.rendererName}`, textures: h.textures.map(
         ({ name, width: w, height: hh, internal_format }) => ({ name, width: w, height: hh, internal_format })),
       shader: h.shader, camera, basis: cameraBasis(camera), serverUniforms: h.uniforms, bands: trace.bands, ms,

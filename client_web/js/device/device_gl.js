@@ -13,7 +13,7 @@
 // readback() returns the resolve targets as the server's npy arrays.
 //
 // Texture formats: the blob's (dtype, components) → RGBA32F/FLOAT, R32UI/RED_INTEGER, …,
-// NEAREST filtering, as server/device.py documents.
+// NEAREST filtering, as server/device_data.py documents.
 
 export class DeviceUnavailable extends Error {}
 
@@ -61,8 +61,8 @@ const DISPLAY_FS = `#version 300 es
 precision highp float;
 precision highp sampler2D;
 uniform highp sampler2D u_image;
-out vec4 o_colour;
-void main() { o_colour = vec4(clamp(texelFetch(u_image, ivec2(gl_FragCoord.xy), 0).rgb, 0.0, 1.0), 1.0); }`;
+out vec4 o_color;
+void main() { o_color = vec4(clamp(texelFetch(u_image, ivec2(gl_FragCoord.xy), 0).rgb, 0.0, 1.0), 1.0); }`;
 
 export class DeviceRenderer {
   // Throws DeviceUnavailable (with a message for the notice) when this browser cannot run the tracer.
@@ -361,16 +361,16 @@ export class DeviceRenderer {
     gl.readBuffer(gl.COLOR_ATTACHMENT0);
     gl.readPixels(0, 0, w, h, gl.RGBA, gl.FLOAT, px);
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
-    const primid = new Int32Array(w * h), colour = new Uint8Array(w * h * 3);
+    const primid = new Int32Array(w * h), color = new Uint8Array(w * h * 3);
     for (let y = 0; y < h; y++) {
       const src = (h - 1 - y) * w;   // GL row 0 is the bottom
       for (let x = 0; x < w; x++) {
         const i = (src + x) * 4, o = y * w + x;
         primid[o] = px[i + 3] | 0;
-        for (let c = 0; c < 3; c++) colour[o * 3 + c] = Math.floor(255 * Math.min(1, Math.max(0, px[i + c])) + 0.5);
+        for (let c = 0; c < 3; c++) color[o * 3 + c] = Math.floor(255 * Math.min(1, Math.max(0, px[i + c])) + 0.5);
       }
     }
-    return { width: w, height: h, primid, colour };
+    return { width: w, height: h, primid, color };
   }
 
   _dummy(type) {

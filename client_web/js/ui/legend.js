@@ -1,19 +1,27 @@
 // The key to the false-colour modes (docs/SHADING.md, renderer/modes.py): what the colours
 // of the frame on screen mean. Shown for `recursion` (Fig. 4.2f) and `heat` (Fig. 4.3).
+// The numbers are the service's (GET /api/info: recursion_colors, heat_scale, from
+// renderer/modes.py, which the shader is assembled with); until it answers, no key is shown.
 
-// renderer.modes.RECURSION_COLORS, index = level (0: the primary ray missed).
-export const RECURSION_KEY = Object.freeze([
-  { level: 1, css: 'rgb(255, 0, 0)', name: 'red' }, { level: 2, css: 'rgb(0, 255, 0)', name: 'green' },
-  { level: 3, css: 'rgb(0, 0, 255)', name: 'blue' }, { level: 4, css: 'rgb(255, 255, 0)', name: 'yellow' },
-  { level: 5, css: 'rgb(255, 0, 255)', name: 'magenta' }, { level: 6, css: 'rgb(0, 255, 255)', name: 'cyan' },
-  { level: 7, css: 'rgb(255, 255, 255)', name: 'white' }, { level: 8, css: 'rgb(255, 128, 0)', name: 'orange' },
-]);
-// renderer.modes.HEAT_SCALE: each channel adds this much per event along the ray, clamped at 1.
-export const HEAT_KEY = Object.freeze([
-  { css: 'rgb(255, 0, 0)', text: 'red: 0.05 per sphere test' },
-  { css: 'rgb(0, 255, 0)', text: 'green: 0.2 per gap' },
-  { css: 'rgb(0, 0, 255)', text: 'blue: 0.2 per node' },
-]);
+// A colour in [0, 1]³ as CSS, rounded as the frame's 8-bit image is.
+export function cssColor(rgb) {
+  const c = rgb.map((x) => Math.round(255 * Math.min(Math.max(x, 0), 1)));
+  return `rgb(${c[0]}, ${c[1]}, ${c[2]})`;
+}
+
+// The recursion key (level ≥ 1, then the miss) and the heat key from GET /api/info, or null.
+export function keysOf(info) {
+  const rec = info && Array.isArray(info.recursion_colors) ? info.recursion_colors : null;
+  const heat = info && info.heat_scale && typeof info.heat_scale === 'object' ? info.heat_scale : null;
+  return {
+    recursion: rec && rec.length > 1 ? rec.map((c, level) => ({ level, css: cssColor(c.rgb), name: c.name })) : null,
+    heat: heat ? [
+      { css: 'rgb(255, 0, 0)', text: `red: ${heat.tests} per sphere test` },
+      { css: 'rgb(0, 255, 0)', text: `green: ${heat.gaps} per gap` },
+      { css: 'rgb(0, 0, 255)', text: `blue: ${heat.nodes} per node` },
+    ] : null,
+  };
+}
 
 function item(css, text, title) {
   const li = document.createElement('li');
@@ -29,6 +37,15 @@ export class Legend {
   constructor(root) {
     this.root = root;
     this.mode = null;
+    this.keys = keysOf(null);
+  }
+
+  // GET /api/info's answer (null: none): the colours the keys show.
+  setInfo(info) {
+    this.keys = keysOf(info);
+    const mode = this.mode;
+    this.mode = undefined;
+    this.show(mode);
   }
 
   // The mode of the frame on screen (null: none shown).
@@ -38,13 +55,14 @@ export class Legend {
     const ul = document.createElement('ul');
     const title = document.createElement('span');
     title.className = 'title';
-    if (mode === 'recursion') {
+    const { recursion, heat } = this.keys;
+    if (mode === 'recursion' && recursion) {
       title.textContent = 'Deepest ray level:';
-      for (const k of RECURSION_KEY) ul.append(item(k.css, String(k.level), `level ${k.level}: ${k.name}`));
-      ul.append(item('rgb(0, 0, 0)', 'miss', 'black: the primary ray hit nothing'));
-    } else if (mode === 'heat') {
+      for (const k of recursion.slice(1)) ul.append(item(k.css, String(k.level), `level ${k.level}: ${k.name}`));
+      ul.append(item(recursion[0].css, 'miss', `${recursion[0].name}: the primary ray hit nothing`));
+    } else if (mode === 'heat' && heat) {
       title.textContent = 'Traversal work, added per ray:';
-      for (const k of HEAT_KEY) ul.append(item(k.css, k.text));
+      for (const k of heat) ul.append(item(k.css, k.text));
     } else {
       this.root.hidden = true;
       this.root.replaceChildren();

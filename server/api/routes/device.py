@@ -1,4 +1,4 @@
-"""On-device rendering (issue #10): what a browser needs to run the very same tracer.
+"""On-device rendering: what a browser needs to run the very same tracer.
 
 Two routes; the browser client's ``client_web/js/device/device.js`` uses both.
 

@@ -10,6 +10,7 @@ from fastapi.responses import JSONResponse
 
 from renderer.animation import MUSEUM_KINDS
 from renderer.limits import MAX_IMAGE_SIDE
+from renderer.modes import HEAT_SCALE, RECURSION_COLOR_NAMES, RECURSION_COLORS
 from renderer.profiles import PROFILES
 from renderer.settings import FORMATS, METHOD_NAMES, MODES
 from renderer.tree_update import UPDATE_SCHEMES
@@ -81,4 +82,6 @@ def info(service: ServiceDep) -> InfoOut:
                                     max_body_bytes=c.max_body_bytes,
                                     max_image_side=MAX_IMAGE_SIDE, queue_size=c.queue_size,
                                     session_ttl_s=c.session_ttl_s),
-                   **info_extras(c))
+                   recursion_colors=[{"rgb": tuple(rgb), "name": name} for rgb, name
+                                     in zip(RECURSION_COLORS.tolist(), RECURSION_COLOR_NAMES, strict=True)],
+                   heat_scale=HEAT_SCALE, **info_extras(c))

@@ -73,6 +73,12 @@ def test_reference_agreement_of_bruteforce_is_the_bar(gl_renderer):
 
 # ------------------------------------------------------------------------ cones (GPU)
 
+def _trace(gl_renderer, method, scene, settings, log=None):
+    """One whole frame of a ray-engine ``method`` object (not the registry's: a test may set
+    its knobs), traced through the renderer's passes at once."""
+    return gl_renderer.ray_engine.begin(method, scene, settings, log=log).run()
+
+
 @pytest.fixture(scope="module")
 def hre_log(gl_renderer):
     """One hre frame that keeps its rays and cones: scenario 3, 64 spheres, depth 4, tiles of 8."""
@@ -80,7 +86,7 @@ def hre_log(gl_renderer):
     scene = scenario(3, 64)
     log = FrameLog(keep=True)
     s = RenderSettings(width=48, height=80, method="hre", max_recursion_depth=4, tile_size=8)
-    res = gl_renderer.ray_engine.render_frame(eng, scene, s, log=log)
+    res = _trace(gl_renderer, eng, scene, s, log=log)
     return scene, log, res
 
 
@@ -168,7 +174,7 @@ def test_fewer_stencil_bits_fall_back_exactly(gl_renderer):
     full = gl_renderer.render(scene, s)
     eng = RayEngine()
     eng.stencil_bits = 2
-    few = gl_renderer.ray_engine.render_frame(eng, scene, s)
+    few = _trace(gl_renderer, eng, scene, s)
     assert few.stats["stencil_fallback_levels"] == 3 and full.stats["stencil_fallback_levels"] == 0
     np.testing.assert_array_equal(few.primid, full.primid)
     assert psnr(few.image_u8(), full.image_u8()) >= 60.0

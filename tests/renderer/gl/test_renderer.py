@@ -99,10 +99,10 @@ def test_heat_counts_match_cpu_traversal(gl_renderer):
 def test_npy_arrays_follow_spec(gl_renderer):
     scene = scenario(2, 64)
     base = RenderSettings(width=32, height=48)
-    colour = gl_renderer.render(scene, base).array()
+    color = gl_renderer.render(scene, base).array()
     depth = gl_renderer.render(scene, base.with_(mode="depth")).array()
     prim = gl_renderer.render(scene, base.with_(mode="primid")).array()
-    assert colour.dtype == np.uint8 and colour.shape == (48, 32, 3)
+    assert color.dtype == np.uint8 and color.shape == (48, 32, 3)
     assert depth.dtype == np.float32 and depth.shape == (48, 32)
     assert prim.dtype == np.int32 and prim.shape == (48, 32)
     assert ((prim == -1) == np.isinf(depth)).all()

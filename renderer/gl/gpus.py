@@ -1,11 +1,12 @@
-"""The EGL devices of this machine (``pocketray devices``), and which one a context uses.
+"""The GPUs of this machine, as EGL lists them (``pocketray gpus``), and which one a context uses.
 
-glcontext's EGL backend (moderngl's headless contexts) takes the device by its index in
-``eglQueryDevicesEXT``'s list, from ``GLCONTEXT_DEVICE_INDEX`` (default 0); ``pocketray serve
---gl-device I`` / ``POCKETRAY_GL_DEVICE`` set it. This module lists that same list through
+("GPU" is the project's word for them, whatever EGL calls them: "device" is the browser
+client's own tracer.) glcontext's EGL backend (moderngl's headless contexts) takes the GPU by
+its index in ``eglQueryDevicesEXT``'s list, from ``GLCONTEXT_DEVICE_INDEX`` (default 0);
+``pocketray serve --gpu I`` / ``POCKETRAY_GPU`` set it. This module lists that same list through
 libEGL (ctypes): each device's DRM node and kind (``EGL_MESA_device_software`` is Mesa's
 llvmpipe, ``EGL_NV_device_cuda`` an NVIDIA GPU). :func:`probe` makes a context on one
-device, in a child process (a context belongs to its thread, and a failing driver must not
+of them, in a child process (a context belongs to its thread, and a failing driver must not
 take this process down), and reports its ``GL_RENDERER``.
 """
 
@@ -23,8 +24,8 @@ EGL_VENDOR = 0x3053
 EGL_DRM_DEVICE_FILE_EXT = 0x3233
 EGL_DRM_RENDER_NODE_FILE_EXT = 0x3377
 EGL_RENDERER_EXT = 0x335F
-DEVICE_ENV = "GLCONTEXT_DEVICE_INDEX"
-MAX_DEVICES = 64
+GPU_INDEX_ENV = "GLCONTEXT_DEVICE_INDEX"   # glcontext's name
+MAX_GPUS = 64
 
 
 def _libegl() -> Any | None:
@@ -44,7 +45,7 @@ def _proc(egl: Any, name: str, restype: Any, *argtypes: Any) -> Any | None:
     return ctypes.CFUNCTYPE(restype, *argtypes)(addr) if addr else None
 
 
-def egl_devices() -> list[dict[str, Any]]:
+def list_gpus() -> list[dict[str, Any]]:
     """``[{"index", "kind", "extensions", "drm", "render_node", "vendor", "renderer"}]`` in
     ``eglQueryDevicesEXT`` order (what ``GLCONTEXT_DEVICE_INDEX`` counts); [] without EGL."""
     egl = _libegl()
@@ -58,9 +59,9 @@ def egl_devices() -> list[dict[str, Any]]:
     query_string = _proc(egl, "eglQueryDeviceStringEXT", ctypes.c_char_p, ctypes.c_void_p, ctypes.c_int)
     if query_devices is None or query_string is None:
         return []
-    devices = (ctypes.c_void_p * MAX_DEVICES)()
+    devices = (ctypes.c_void_p * MAX_GPUS)()
     count = ctypes.c_int(0)
-    if not query_devices(MAX_DEVICES, devices, ctypes.byref(count)):
+    if not query_devices(MAX_GPUS, devices, ctypes.byref(count)):
         return []
 
     def text(dev: Any, name: int) -> str | None:
@@ -97,8 +98,8 @@ except Exception as e:
 
 
 def probe(index: int, timeout_s: float = 60.0) -> dict[str, Any]:
-    """``{"gl_renderer", "gl_version"}`` of a context on device ``index`` (or ``{"error"}``)."""
-    env = {**os.environ, DEVICE_ENV: str(index)}
+    """``{"gl_renderer", "gl_version"}`` of a context on GPU ``index`` (or ``{"error"}``)."""
+    env = {**os.environ, GPU_INDEX_ENV: str(index)}
     try:
         run = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True,
                              timeout=timeout_s)
