@@ -150,7 +150,7 @@ def test_the_scan_sees_the_comments_it_should():
     kinds = {k for _, _, k, _ in found}
     assert kinds == {"path", "file", "name"} and len(found) > 100
     files = {f for f, *_ in found}
-    assert {"renderer/modes.py", "shaders/raytrace.frag", "client_web/js/device.js"} <= files
+    assert {"renderer/modes.py", "shaders/raytrace.frag", "client_web/js/device/device.js"} <= files
     assert not exists("renderer/hre_cones.py") and exists("renderer/accel/hre_cones.py")
     assert exists("shaders/method_<name>.glsl") and exists("renderer/shaders/raytrace.frag")
     assert module_has("renderer.accel.bih.build_bih") and not module_has("renderer.twolevel")
