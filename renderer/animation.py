@@ -48,10 +48,9 @@ from typing import Any
 import numpy as np
 
 from . import limits
-from .limits import MAX_TIME  # noqa: F401  (re-exported: seconds, the largest time a scene can be posed at)
+from .limits import MAX_TIME  # re-exported: seconds, the largest time a scene can be posed at
 from .scenarios import RED, TRANSPARENT
 from .scene import MAX_COORDINATE, Camera, Light, Material, Plane, Scene, SceneError, finite_number, finite_vec3
-
 
 
 def _num(v: Any, where: str, lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> float:
@@ -113,7 +112,7 @@ class RigidGroup:
     mesh: int | None = None
     kind = "rigid"
 
-    def validate(self, where: str) -> "RigidGroup":
+    def validate(self, where: str) -> RigidGroup:
         axis = _vec(self.axis, f"{where}.axis")
         if not math.sqrt(sum(a * a for a in axis)) > 1e-12:
             raise SceneError(f"{where}.axis", "must be a non-zero vector")
@@ -157,7 +156,7 @@ class Deformable:
     mesh: int | None = None
     kind = "deformable"
 
-    def validate(self, where: str) -> "Deformable":
+    def validate(self, where: str) -> Deformable:
         return replace(self, amplitude=_num(self.amplitude, f"{where}.amplitude", 0.0, MAX_COORDINATE),
                        wavelength=_num(self.wavelength, f"{where}.wavelength", 0.0, limits.MAX_WAVELENGTH, lo_open=True),
                        speed=_num(self.speed, f"{where}.speed", -limits.MAX_SPEED, limits.MAX_SPEED))
@@ -193,7 +192,7 @@ class Incoherent:
     mesh: int | None = None
     kind = "incoherent"
 
-    def validate(self, where: str) -> "Incoherent":
+    def validate(self, where: str) -> Incoherent:
         lo = _vec(self.box_min, f"{where}.box_min")
         hi = _vec(self.box_max, f"{where}.box_max")
         for a in range(3):
@@ -344,7 +343,7 @@ class AnimatedScene:
         """Spheres at rest (a pose may hide some)."""
         return self.scene.n_spheres
 
-    def with_camera(self, camera: Camera) -> "AnimatedScene":
+    def with_camera(self, camera: Camera) -> AnimatedScene:
         """The same animation seen through ``camera`` (the motions are not validated again)."""
         seen = object.__new__(AnimatedScene)
         object.__setattr__(seen, "scene", self.scene.with_camera(camera))

@@ -156,7 +156,7 @@ def load_mesh(source: str | Path | bytes, file_type: str | None = None, *,
         parts = _parts(loaded)
     except SceneError:
         raise
-    except Exception as e:  # noqa: BLE001 - a parser's failure is the file's fault: say which
+    except Exception as e:  # a parser's failure is the file's fault: say which
         raise SceneError("file", f"not a readable {ft.upper()} model ({type(e).__name__}: {e})") from None
     if not parts:
         raise SceneError("file", f"the {ft.upper()} file holds no triangle mesh")

@@ -200,7 +200,7 @@ def _count(value: Any, name: str, lo: int, hi: int) -> int:
 
 
 def _positive(value: Any, name: str) -> float:
-    from .scene import SceneError, finite_number
+    from .scene import finite_number
     return finite_number(value, name, lo=0.0, lo_open=True, hi=1e7)
 
 

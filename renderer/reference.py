@@ -36,7 +36,7 @@ import numpy as np
 
 from .accel.bih import build_for_scene
 from .accel.bih_traverse import traverse
-from .modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, heat_image, primid_colours  # noqa: F401
+from .modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, heat_image, primid_colours
 from .result import RenderResult
 from .scene import Camera, Scene
 from .settings import RenderSettings
@@ -117,7 +117,7 @@ class _Balls:
     extent: float               # max |c| + max r: bounds the cull's rounding error
 
     @staticmethod
-    def of(c: np.ndarray, r: np.ndarray) -> "_Balls":
+    def of(c: np.ndarray, r: np.ndarray) -> _Balls:
         extent = float(np.sqrt(_dot(c, c).max()) + r.max()) if len(r) else 0.0
         return _Balls(np.ascontiguousarray(c.T), _dot(c, c), r * r, extent)
 
@@ -139,7 +139,7 @@ class _Triangles:
     balls: _Balls               # bounding balls for the cull
 
     @staticmethod
-    def of(scene: Scene) -> "_Triangles":
+    def of(scene: Scene) -> _Triangles:
         c = np.asarray(scene.triangle_corners, dtype=np.float64).reshape(-1, 3, 3)
         v0, v1, v2 = (np.ascontiguousarray(c[:, k]) for k in range(3))
         cross = np.cross(v1 - v0, v2 - v0)
@@ -188,7 +188,7 @@ class _Geometry:
     tris: _Triangles
 
     @staticmethod
-    def of(scene: Scene) -> "_Geometry":
+    def of(scene: Scene) -> _Geometry:
         c = np.asarray(scene.sphere_centers, dtype=np.float64).reshape(-1, 3)
         r = np.asarray(scene.sphere_radii, dtype=np.float64).reshape(-1)
         mats = scene.materials
@@ -561,7 +561,7 @@ class RayBatch:
     def __len__(self) -> int:
         return len(self.pix)
 
-    def split(self, size: int) -> list["RayBatch"]:
+    def split(self, size: int) -> list[RayBatch]:
         """Pieces of at most ``size`` rays (memory bound)."""
         return [RayBatch(self.origins[a:a + size], self.dirs[a:a + size], self.pix[a:a + size],
                          self.weight[a:a + size], self.level, self.src[a:a + size], self.far_only[a:a + size])
@@ -578,7 +578,7 @@ class _Frame:
     deepest: np.ndarray    # (P,) deepest level whose ray hit something (0: primary miss)
 
     @staticmethod
-    def empty(pixels: int) -> "_Frame":
+    def empty(pixels: int) -> _Frame:
         return _Frame(np.zeros((pixels, 3)), np.full(pixels, np.inf), np.full(pixels, -1, dtype=np.int64),
                       np.zeros((pixels, 3)), np.zeros(pixels, dtype=np.int64))
 

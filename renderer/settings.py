@@ -107,14 +107,14 @@ class RenderSettings:
         """Sub-pixels per side: √samples_per_pixel."""
         return {1: 1, 4: 2, 9: 3, 16: 4}.get(self.samples_per_pixel, 1)
 
-    def with_(self, **kw: Any) -> "RenderSettings":
+    def with_(self, **kw: Any) -> RenderSettings:
         return replace(self, **kw)
 
     def to_json(self) -> dict:
         return asdict(self)
 
     @staticmethod
-    def from_json(d: Any) -> "RenderSettings":
+    def from_json(d: Any) -> RenderSettings:
         if not isinstance(d, dict):
             raise SceneError("settings", "expected an object")
         names = {f.name for f in fields(RenderSettings)}

@@ -15,7 +15,7 @@ and ``dx``/``dy`` in pixels.
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal, Union, get_args
+from typing import Annotated, Any, Literal, get_args
 
 from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, TypeAdapter, ValidationError, field_validator,
                       model_validator)
@@ -173,7 +173,7 @@ class MotionTarget(Strict):
     mesh: MeshIndex | None = None
 
     @model_validator(mode="after")
-    def _one_target(self) -> "MotionTarget":
+    def _one_target(self) -> MotionTarget:
         if self.mesh is not None:
             if self.first is not None or self.count is not None:
                 raise ValueError("give either mesh or first and count, not both")
@@ -216,7 +216,7 @@ class IncoherentMotion(MotionTarget):
     seed: Annotated[int, Integral] = Field(0, ge=0, le=MAX_JSON_MOTION_SEED)
 
 
-Motion = Annotated[Union[RigidMotion, DeformableMotion, IncoherentMotion], Field(discriminator="kind")]
+Motion = Annotated[RigidMotion | DeformableMotion | IncoherentMotion, Field(discriminator="kind")]
 
 
 class SceneModel(Strict):
@@ -556,7 +556,7 @@ class ResetGesture(Strict):
     type: Literal["reset"]
 
 
-Gesture = Annotated[Union[PanGesture, PinchGesture, OrbitGesture, ResetGesture], Field(discriminator="type")]
+Gesture = Annotated[PanGesture | PinchGesture | OrbitGesture | ResetGesture, Field(discriminator="type")]
 
 
 # ---- stateless render ------------------------------------------------------------------

@@ -24,7 +24,8 @@ import io
 import json
 import threading
 from collections import OrderedDict
-from typing import Any, Iterator
+from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 
@@ -167,7 +168,7 @@ def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> It
                 zip(scene.sphere_centers[start:stop].tolist(), scene.sphere_radii[start:stop].tolist(),
                     scene.sphere_materials[start:stop].tolist())]
         text = dumps(part)[1:-1]
-        yield ((text if start == 0 else "," + text)).encode()
+        yield (text if start == 0 else "," + text).encode()
     yield ('],"planes":' + dumps([p.to_json() for p in scene.planes])).encode()
     if scene.meshes:       # as Mesh.to_json: vertices, triangles, material, normals
         rows = max(1, spheres_per_chunk * 2)

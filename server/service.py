@@ -27,7 +27,8 @@ from collections import OrderedDict
 from contextlib import contextmanager
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import replace
-from typing import Any, Iterable, NamedTuple
+from typing import Any, NamedTuple
+from collections.abc import Iterable
 
 from renderer.accel.base import NOT_ON_GPU
 from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum, pose

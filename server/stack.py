@@ -36,9 +36,9 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
 
 import httpx
 
@@ -199,7 +199,7 @@ class Child:
     restarts: int = 0             # restarts in a row (reset once it stayed up STABLE_S)
     restart_at: float | None = None
 
-    def start(self) -> "Child":
+    def start(self) -> Child:
         log = open(self.log_path, "ab")
         self.proc = subprocess.Popen(self.args, stdout=log, stderr=subprocess.STDOUT, env=self.env,
                                      start_new_session=True)
@@ -268,7 +268,7 @@ class Stack:
     def redis_url(self) -> str:
         return f"redis://127.0.0.1:{self.redis.port}/0"
 
-    def start(self, timeout_s: float = 120.0) -> "Stack":
+    def start(self, timeout_s: float = 120.0) -> Stack:
         if self.workdir is None:
             self.workdir = Path(tempfile.mkdtemp(prefix="pocketray-stack-"))
             self._own_dir = True
@@ -407,7 +407,7 @@ class Stack:
         if self._own_dir and self.workdir is not None:
             shutil.rmtree(self.workdir, ignore_errors=True)
 
-    def __enter__(self) -> "Stack":
+    def __enter__(self) -> Stack:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:

@@ -46,10 +46,10 @@ import sqlite3
 import threading
 import time
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any, Callable, Protocol
-
+from typing import Any, Protocol
 
 log = logging.getLogger("pocketray.store")
 
@@ -89,7 +89,7 @@ class SessionState:
         return json.dumps(asdict(self), separators=(",", ":"))
 
     @staticmethod
-    def from_json(text: str | bytes) -> "SessionState":
+    def from_json(text: str | bytes) -> SessionState:
         try:
             return SessionState(**json.loads(text))
         except (ValueError, TypeError) as e:      # a record someone else wrote, or a torn one

@@ -71,7 +71,7 @@ log = logging.getLogger("pocketray.wire")
 # The open connections of each client address, per uvicorn server (its ServerState), so that
 # several servers in one process (tests) count apart. A connection is its protocol object: the
 # h11 one, then the WebSocket one it hands over to.
-_PEERS: "weakref.WeakKeyDictionary[Any, dict[str, set[Any]]]" = weakref.WeakKeyDictionary()
+_PEERS: weakref.WeakKeyDictionary[Any, dict[str, set[Any]]] = weakref.WeakKeyDictionary()
 
 WRITE_PROGRESS = 64 * 1024   # bytes a client must take per write timeout while an answer waits for it
 WS_FEED = 4096               # bytes of WebSocket input parsed at a time (a flood is refused between slices)

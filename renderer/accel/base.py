@@ -14,15 +14,15 @@ from ``capabilities.multi_pass``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 from .. import gpu_layout
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..modes import SINGLE_PASS_MODES
 from ..scene import Scene, SceneError
 from ..tree_update import REBUILD, TreeUpdate
-
 
 # A ray stops at its nearest hit, so it rarely reaches every leaf the SAH counts, but it tests
 # every primitive of a leaf it enters: the builds report the SAH's tests in leaves this big

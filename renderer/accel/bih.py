@@ -306,7 +306,7 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
                max_prims=max_prims, max_tree_depth=max_tree_depth, stats=stats)
 
 
-def _cut_empty_space(op: "_Open", tmin: np.ndarray, tmax: np.ndarray, store: "_NodeStore",
+def _cut_empty_space(op: _Open, tmin: np.ndarray, tmax: np.ndarray, store: _NodeStore,
                      max_tree_depth: int, area: dict) -> int:
     """Step 0 of the module's docstring on the open nodes ``op`` (their primitives' tight
     boxes ``tmin``/``tmax``): while the best cut of a node — the side of its region, on any
@@ -360,12 +360,12 @@ class _Open:
     depth: np.ndarray
     retries: np.ndarray
 
-    def select(self, which) -> "_Open":
+    def select(self, which) -> _Open:
         """The nodes ``which`` (a mask, indices or a slice), as copies."""
         return _Open(*(np.array(getattr(self, f.name)[which]) for f in fields(self)))
 
     @staticmethod
-    def concat(parts: list["_Open"]) -> "_Open":
+    def concat(parts: list[_Open]) -> _Open:
         return _Open(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(_Open)))
 
 

@@ -165,7 +165,7 @@ class _Nodes:
         self.next = 0
 
     @staticmethod
-    def of(bvh: BVH, extra: int) -> "_Nodes":
+    def of(bvh: BVH, extra: int) -> _Nodes:
         nodes = _Nodes(bvh.n_nodes + extra)
         m = bvh.n_nodes
         nodes.bmin[:m], nodes.bmax[:m] = bvh.bmin, bvh.bmax
@@ -265,7 +265,7 @@ def _cheapest_split(r: np.ndarray, seg: np.ndarray, b: np.ndarray, count: np.nda
         cost = np.where((n_l > 0) & (n_r > 0), (a_l * n_l + a_r * n_r) * balance, np.inf)
     j = np.argmin(cost, axis=0)
     at, nxt = j * k + np.arange(k), (j + 1) * k + np.arange(k)
-    flat = lambda x: x.reshape(3, width * k)  # noqa: E731
+    flat = lambda x: x.reshape(3, width * k)
     return _Split(cost.reshape(-1)[at], j, flat(pl)[:, at].T, flat(ph)[:, at].T, flat(sl)[:, nxt].T,
                   flat(sh)[:, nxt].T)
 

@@ -128,7 +128,7 @@ def gpu_records(bvh) -> tuple[np.ndarray, int]:
     lc = bvh.left[inner]
     rc = lc + 1
     out = np.zeros((len(inner), 4, 4), dtype=np.uint32)
-    f = lambda a: np.ascontiguousarray(a, dtype=np.float32).view(np.uint32)   # noqa: E731
+    f = lambda a: np.ascontiguousarray(a, dtype=np.float32).view(np.uint32)
     out[:, 0, :3], out[:, 0, 3] = f(bvh.bmin[lc]), ref[lc]
     out[:, 1, :3], out[:, 1, 3] = f(bvh.bmax[lc]), ref[rc]
     out[:, 2, :3], out[:, 2, 3] = f(bvh.bmin[rc]), bvh.near_mask[inner].astype(np.uint32) & np.uint32(NEAR_MASK_BITS)

@@ -45,7 +45,7 @@ class TreePrimitives:
     valid: np.ndarray       # (T,) not of zero area
 
     @staticmethod
-    def of(scene) -> "TreePrimitives":
+    def of(scene) -> TreePrimitives:
         corners, valid = _corners(scene.triangle_corners)
         return TreePrimitives(np.asarray(scene.sphere_centers, np.float64).reshape(-1, 3),
                               np.asarray(scene.sphere_radii, np.float64).reshape(-1), corners, valid)

@@ -175,7 +175,7 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
         order = np.argsort(pos, kind="stable")
         ev_pos.append(pos[order])
         ev_ref.append(np.concatenate([ref_prim, ref_prim])[order])
-        ev_st.append((order < n))
+        ev_st.append(order < n)
     if n == 0:
         f_slot.append(slot); f_axis.append(np.full(1, -1)); f_left.append(np.full(1, -1))
         f_split.append(np.zeros(1, np.float32)); f_depth.append(depth); f_vmin.append(vmin); f_vmax.append(vmax)

@@ -6,7 +6,8 @@ A context belongs to the thread that made it: use it from that thread only.
 from __future__ import annotations
 
 import ctypes
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import moderngl
 

@@ -70,7 +70,7 @@ class Pass:
         return "centre" if self.sub is None else f"sample {self.sub[0]},{self.sub[1]}"
 
 
-def image_only(settings: "RenderSettings") -> bool:
+def image_only(settings: RenderSettings) -> bool:
     """Whether a frame needs only its 8-bit image: png or jpeg at one sample per pixel (a
     supersampled frame keeps float sub-pixels, so its box filter is the same)."""
     return settings.format in ("png", "jpeg") and settings.samples_per_pixel == 1
@@ -129,7 +129,7 @@ class TracerFrame:
     compare against it.
     """
 
-    def __init__(self, renderer, scene: Scene, settings: "RenderSettings", variant: Variant,
+    def __init__(self, renderer, scene: Scene, settings: RenderSettings, variant: Variant,
                  prepared: PreparedMethod, stats: dict, *, band_rows: int | None = None, one_shot: bool = False,
                  t_start: float | None = None, slice_ms: float | None = None):
         self.renderer, self.ctx = renderer, renderer.ctx

@@ -65,8 +65,9 @@ other pass, ``read`` = reading the frame back, ``total``.
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Iterator
+from typing import TYPE_CHECKING, Any
 
 import moderngl
 import numpy as np
@@ -79,8 +80,8 @@ from ..limits import DEFAULT_TEXTURE_WIDTH, STENCIL_BITS
 from ..modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, primid_colours
 from ..result import RenderResult
 from ..scene import Scene, SceneError
-from .ray_engine_targets import Programs as _Programs, Targets as _Targets  # noqa: F401
 from .raw_gl import GL_STENCIL_BUFFER_BIT, RawGL
+from .ray_engine_targets import Programs as _Programs, Targets as _Targets
 from .textures import upload_textures
 
 if TYPE_CHECKING:
@@ -137,13 +138,13 @@ class RayEnginePasses:
         while len(self._free) > 1:   # keep the most recent set: most frames repeat a size
             self._free.pop(0).release_all()
 
-    def begin(self, method: RayEngine, scene: Scene, settings: "RenderSettings", *,
-              log: FrameLog | None = None, batch: int | None = None) -> "RayEngineFrame":
+    def begin(self, method: RayEngine, scene: Scene, settings: RenderSettings, *,
+              log: FrameLog | None = None, batch: int | None = None) -> RayEngineFrame:
         """A frame of ``method``, uploaded, to be traced slice by slice; ``batch`` primitives
         per draw call (None: each pass in one draw)."""
         return RayEngineFrame(self, method, scene, settings, log=log, batch=batch)
 
-    def render_frame(self, method: RayEngine, scene: Scene, settings: "RenderSettings", *,
+    def render_frame(self, method: RayEngine, scene: Scene, settings: RenderSettings, *,
                      log: FrameLog | None = None) -> RenderResult:
         """Trace one frame of ``method`` (``GLRenderer.render`` hands multi-pass methods here)."""
         return self.begin(method, scene, settings, log=log).run()
@@ -201,7 +202,7 @@ class RayEngineFrame:
     come from a primary-only frame through the pixel centres, traced first (``centre``).
     """
 
-    def __init__(self, passes: RayEnginePasses, method: RayEngine, scene: Scene, settings: "RenderSettings", *,
+    def __init__(self, passes: RayEnginePasses, method: RayEngine, scene: Scene, settings: RenderSettings, *,
                  log: FrameLog | None = None, batch: int | None = None):
         self.t_start = time.perf_counter()
         self.passes, self.method, self.scene, self.settings = passes, method, scene, settings
@@ -314,7 +315,7 @@ class RayEngineFrame:
             primid, depth_t, normal = centre.primid, centre.depth, centre.normal
         if settings.mode == "color":
             image = colour
-        ms = lambda a, b: (b - a) * 1e3  # noqa: E731
+        ms = lambda a, b: (b - a) * 1e3
         timings = {"build": frame.build_ms, "upload": ms(self.t_start, self.t_up),
                    "trace": ms(self.t_up, t_traced) - frame.build_ms - frame.stats_ms, "read": ms(t_traced, t_end),
                    "total": ms(self.t_start, t_end) - frame.stats_ms}

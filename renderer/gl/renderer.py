@@ -16,20 +16,20 @@ one dedicated thread).
 from __future__ import annotations
 
 import time
-from typing import Hashable
+from collections.abc import Hashable
 
 import moderngl
 import numpy as np
 
-from ..animation import AnimatedScene
 from .. import gpu_layout
+from ..animation import AnimatedScene
 from ..features import scene_features
+from ..gpu_layout import Variant
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..methods import METHODS, PreparedMethod, check_primitives, resolve_method
 from ..prepare import PreparedFrame, prepare_frame
 from ..result import RenderResult
 from ..scene import Scene, SceneError
-from ..gpu_layout import Variant
 from ..settings import RenderSettings
 from ..shader_source import tracer_bindings, tracer_source, vertex_source
 from ..tree_update import TreeUpdate
@@ -114,7 +114,7 @@ class GLRenderer:
         return frame.run()
 
     def start(self, frame: PreparedFrame, *, band_rows: int | None = None, batch: int | None = None,
-              t_start: float | None = None, slice_ms: float | None = None) -> "StartedFrame":
+              t_start: float | None = None, slice_ms: float | None = None) -> StartedFrame:
         """A prepared frame (:func:`renderer.prepare.prepare_frame`) uploaded and ready to be
         traced slice by slice: bands of ``band_rows`` rows (the tracer) or batches of
         ``batch`` primitives (the ray engines)."""

@@ -31,8 +31,9 @@ import asyncio
 import gc
 import json
 import threading
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from fastapi.exceptions import RequestValidationError
@@ -104,9 +105,9 @@ async def read_steadily(request: Request, config: ServerConfig) -> bytes:
         left = t0 + grace + got / rate - loop.time()
         try:
             if left <= 0:
-                raise asyncio.TimeoutError
+                raise TimeoutError
             message = await asyncio.wait_for(request.receive(), left)
-        except asyncio.TimeoutError:
+        except TimeoutError:
             raise body_too_slow(got, request.headers.get("content-length"), loop.time() - t0, config) from None
         if message["type"] == "http.disconnect":
             raise ClientDisconnect()
@@ -259,7 +260,7 @@ class BodyParsers:
         self._lock = threading.Lock()
 
     @classmethod
-    def of(cls, request: Request) -> "BodyParsers":
+    def of(cls, request: Request) -> BodyParsers:
         """The app's parsers (made on first use from its config; ``app.state`` lives with the app)."""
         state = request.app.state
         parsers = getattr(state, "body_parsers", None)

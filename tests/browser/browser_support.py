@@ -164,7 +164,7 @@ class Client:
         page.on("console", lambda m: m.type == "error" and self.console_errors.append(m.text))
         page.on("pageerror", lambda e: self.console_errors.append(f"pageerror: {e}"))
 
-    def open(self, query: str = FAST_QUERY) -> "Client":
+    def open(self, query: str = FAST_QUERY) -> Client:
         self.page.goto(f"{self.server.base}/?{query}")
         self.wait_idle(min_frames=1)
         return self

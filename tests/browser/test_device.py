@@ -22,7 +22,6 @@ import urllib.request
 
 import numpy as np
 import pytest
-
 from browser_support import CHROMIUM, CHROMIUM_ARGS, FAILED_LOAD, MOBILE, Client, Touch, http_json
 
 # WebGL2 in headless Chromium without a GPU: ANGLE on SwiftShader (explicit, so that a
@@ -265,9 +264,9 @@ def test_device_data_is_the_gpu_layout_and_refuses_what_a_device_cannot_run(serv
     """The blob holds gpu_layout's arrays bit for bit; multi-pass methods, tiny textures and
     devices without float targets get a 422 that says why; the shader is the server's text."""
     from renderer import gpu_layout
-    from renderer.shader_source import tracer_source as shader_source
     from renderer.methods import METHODS
     from renderer.scenarios import scenario
+    from renderer.shader_source import tracer_source as shader_source
     from server.device_data import decode_blob
 
     sid = sessions(2, 64)
@@ -372,7 +371,7 @@ def test_device_mode_keeps_up_with_the_fingers(gl_browser, server):
         assert last["level"] == "full" and last["samples"] == 4
         local = p.evaluate("() => window.pocketray.device.camera")
         assert np.allclose(last["camera"]["position"], local["position"]) and np.allclose(c.camera()["position"], local["position"])
-        field = lambda name: p.text_content(f'#overlay [data-field="{name}"]')   # noqa: E731
+        field = lambda name: p.text_content(f'#overlay [data-field="{name}"]')
         for name in ("time", "trace", "bands", "display", "samples", "n", "method"):
             assert field(name) not in ("", "–"), name
         assert field("samples").startswith("4 spp") and int(field("bands")) > 1

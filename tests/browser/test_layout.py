@@ -207,7 +207,7 @@ def test_settings_that_do_not_apply_are_hidden(open_client):
     c = open_client("wide", FAST_QUERY)
     p = c.page
     p.click("#settings-toggle")
-    shown = lambda *names: {n: p.is_visible(f"#f-{n}") for n in names}   # noqa: E731
+    shown = lambda *names: {n: p.is_visible(f"#f-{n}") for n in names}
     names = ("max_prims", "max_tree_depth", "tile_size", "update", "motion", "radius", "samples_per_pixel")
     assert shown(*names) == {"max_prims": True, "max_tree_depth": True, "tile_size": False, "update": False,
                              "motion": False, "radius": True, "samples_per_pixel": True}

@@ -8,8 +8,15 @@ import json
 import numpy as np
 import pytest
 
-from renderer.mesh_io import MODEL_FORMATS, export_mesh, fit_transform, load_mesh, mesh_json, model_scene, \
-    write_scene_json
+from renderer.mesh_io import (
+    MODEL_FORMATS,
+    export_mesh,
+    fit_transform,
+    load_mesh,
+    mesh_json,
+    model_scene,
+    write_scene_json,
+)
 from renderer.meshes import box, edge_report, icosphere, signed_volume, torus
 from renderer.scene import Scene, SceneError
 

@@ -12,8 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from renderer.reference import (primary_rays, reflect, render_reference, trace_rays,
-                                transmitted_directions)
+from renderer.reference import primary_rays, reflect, render_reference, trace_rays, transmitted_directions
 from renderer.scenarios import scenario
 from renderer.scene import Camera, Light, Material, Plane, Scene
 from renderer.settings import RenderSettings

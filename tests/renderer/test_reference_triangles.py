@@ -11,8 +11,16 @@ import pytest
 
 from renderer.meshes import box, icosphere
 from renderer.modes import RECURSION_COLORS
-from renderer.reference import (RayBatch, _Frame, _Geometry, _trace_batch, primary_rays, render_reference,
-                                trace_rays, transmitted_directions)
+from renderer.reference import (
+    RayBatch,
+    _Frame,
+    _Geometry,
+    _trace_batch,
+    primary_rays,
+    render_reference,
+    trace_rays,
+    transmitted_directions,
+)
 from renderer.scene import Camera, Light, Material, Mesh, Plane, Scene
 from renderer.settings import RenderSettings
 

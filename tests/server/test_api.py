@@ -9,10 +9,9 @@ import time
 import numpy as np
 import pytest
 from PIL import Image
+from pocketray_server_support import SMALL, new_session
 
 from renderer.scenarios import scenario
-
-from pocketray_server_support import SMALL, new_session
 
 SESSION_KEYS = {"id", "version", "settings", "scene_info", "camera"}
 SETTING_KEYS = {"width", "height", "method", "mode", "max_prims", "max_tree_depth", "max_recursion_depth",
@@ -272,9 +271,10 @@ def test_static_client_shaders_and_docs(client):
 
 
 def test_sessions_expire_after_the_idle_time(tmp_path):
-    from pocketray_server_support import make_config
-    from server.app import create_app
     from fastapi.testclient import TestClient
+    from pocketray_server_support import make_config
+
+    from server.app import create_app
 
     with TestClient(create_app(make_config(tmp_path, session_ttl_s=1.0, warmup=False))) as c:
         idle = new_session(c)["id"]

@@ -18,8 +18,8 @@ import httpx
 import numpy as np
 import pytest
 from PIL import Image
-
 from pocketray_server_support import ROOT, free_port, pocketray, pocketray_batch
+
 from server import cli
 from server.exr import decode_exr
 

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from pocketray_server_support import pocketray_batch
+
 from renderer.mesh_io import export_mesh, load_mesh, model_scene
 from renderer.meshes import box, icosphere, torus
 from renderer.reference import primary_rays, trace_rays
@@ -73,7 +73,7 @@ def test_render_model_file_agrees_with_the_reference_on_the_fitted_scene(models,
     border = np.concatenate([got[0], got[-1], got[:, 0], got[:, -1]])
     assert not ((border >= first) & (border < first + n_tri)).any()
     # Which kind of primitive each pixel sees agrees with float64, up to pixels on silhouettes.
-    kind = lambda ids: np.where(ids >= first, 2, np.where(ids >= 0, 1, 0))   # noqa: E731
+    kind = lambda ids: np.where(ids >= first, 2, np.where(ids >= 0, 1, 0))
     assert (kind(got) != kind(want)).mean() < 0.03
 
 

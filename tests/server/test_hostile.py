@@ -23,14 +23,14 @@ from pathlib import Path
 
 import httpx
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 with warnings.catch_warnings():  # as in conftest.py: the TestClient still speaks httpx
     warnings.simplefilter("ignore")
     from fastapi.testclient import TestClient
 
-from pocketray_server_support import SMALL, make_config, new_session
+from pocketray_server_support import make_config, new_session
+
 from server.app import create_app
 from server.store import RedisStore, SessionState, SQLiteStore, StoreStartupError, StoreUnavailable
 
@@ -424,7 +424,7 @@ def test_headers_that_never_complete_are_answered_408(guarded):
             if not chunk:
                 break
             got += chunk
-        except socket.timeout:
+        except TimeoutError:
             continue
         except (BrokenPipeError, ConnectionResetError):
             break

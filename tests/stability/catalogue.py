@@ -41,8 +41,7 @@ from renderer.methods import METHODS
 from renderer.reference import render_reference
 from renderer.settings import RenderSettings
 from tests.helpers import ROOT, psnr
-from tests.stability.cases import (CASES, DEPTH_REL, PRIMID_AGREEMENT, PSNR_MIN, Case, float32_inputs,
-                                   same_scene)
+from tests.stability.cases import CASES, DEPTH_REL, PRIMID_AGREEMENT, PSNR_MIN, Case, float32_inputs, same_scene
 
 DOC = ROOT / "docs" / "STABILITY.md"
 BUILD_BOUND_S = 10.0     # the BIH build of any catalogue scene

@@ -12,6 +12,7 @@ import numpy as np
 from renderer.accel import hre_cones
 from tests.renderer.accel.support import any_hit, check_contained
 
+
 def coherent_tiles(rng, n_tiles: int, k: int):
     """Tiles of camera rays, of their reflections off a sphere, and of converging shadow rays."""
     o = np.zeros((n_tiles, k, 3))

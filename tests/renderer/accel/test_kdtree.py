@@ -11,8 +11,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from renderer.accel import kdtree_layout
 from renderer.accel.bih import sphere_aabbs
@@ -20,6 +19,7 @@ from renderer.accel.kdtree import build_kdtree
 from renderer.scenarios import scenario
 from tests.helpers import HYP
 from tests.renderer.accel.support import sphere_sets
+
 
 def kd_node_sets(kd) -> list[set]:
     """The primitives below every node (union of its leaves' lists)."""
