@@ -128,7 +128,7 @@ def orient_outward(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     pairs = starts[counts == 2]
     a_idx, b_idx = order[pairs], order[pairs + 1]
     adj: list[list[tuple[int, int, int]]] = [[] for _ in range(n)]
-    for ea, eb in zip(a_idx.tolist(), b_idx.tolist()):
+    for ea, eb in zip(a_idx.tolist(), b_idx.tolist(), strict=True):
         ta, tb = int(owner[ea]), int(owner[eb])
         if ta == tb:
             continue
@@ -356,7 +356,7 @@ def teapot_surface(segments: int = 8, closed: bool = True) -> tuple[np.ndarray, 
 
     def strip(inner: list[np.ndarray], outer: list[np.ndarray]) -> None:
         """Quads between two loops of the same sampling (the gap ring at z = 2.4)."""
-        for a_row, b_row in zip(inner, outer):
+        for a_row, b_row in zip(inner, outer, strict=True):
             k = np.arange(n)
             quad = np.concatenate([np.stack([k, k + 1, n + 2 + k], -1), np.stack([k, n + 2 + k, n + 1 + k], -1)])
             add(np.concatenate([a_row, b_row]), quad, True)

@@ -518,7 +518,7 @@ def local_colour(g: _Geometry, p: np.ndarray, d: np.ndarray, normal: np.ndarray,
     local = g.ka[mat][:, None] * c
     facing = np.where((_dot(d, geo) < 0.0)[:, None], normal, -normal)   # Nf
     is_sphere = prim < g.n
-    for lp, lc in zip(g.light_pos, g.light_col):
+    for lp, lc in zip(g.light_pos, g.light_col, strict=True):
         to_light = lp[None, :] - p
         dist = np.linalg.norm(to_light, axis=1)
         # A light exactly at p has no direction: it contributes nothing (avoids 0/0).

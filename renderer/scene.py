@@ -88,7 +88,7 @@ class Camera:
         object.__setattr__(self, "fov_y", finite_number(self.fov_y, "camera.fov_y", lo=0.0, hi=180.0,
                                                   lo_open=True, hi_open=True))
         _unit(self.up, "camera.up")
-        fwd = tuple(t - p for t, p in zip(self.target, self.position))
+        fwd = tuple(t - p for t, p in zip(self.target, self.position, strict=True))
         if not (_norm(fwd) > 0.0):
             raise SceneError("camera.target", "must differ from camera.position")
         f = _unit(fwd, "camera.target")
@@ -607,7 +607,7 @@ class Scene:
     # ---- JSON (docs/FORMATS.md) -------------------------------------------------
     def to_json(self) -> dict:
         spheres = [{"center": c, "radius": r, "material": m} for c, r, m in
-                   zip(self.sphere_centers.tolist(), self.sphere_radii.tolist(), self.sphere_materials.tolist())]
+                   zip(self.sphere_centers.tolist(), self.sphere_radii.tolist(), self.sphere_materials.tolist(), strict=True)]
         out = {"camera": self.camera.to_json(), "lights": [l.to_json() for l in self.lights],
                "materials": [m.to_json() for m in self.materials], "spheres": spheres,
                "planes": [p.to_json() for p in self.planes]}

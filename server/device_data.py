@@ -104,7 +104,7 @@ def encode_blob(header: dict[str, Any], textures: dict[str, gpu_layout.PackedTex
     for _ in range(4):
         start = _align(HEADER_START + len(head))
         pos = start
-        for e, c in zip(entries, chunks):
+        for e, c in zip(entries, chunks, strict=True):
             e["offset"] = pos
             pos = _align(pos + len(c))
         new = json.dumps({**header, "textures": entries, "nbytes": pos}, separators=(",", ":")).encode()
@@ -112,7 +112,7 @@ def encode_blob(header: dict[str, Any], textures: dict[str, gpu_layout.PackedTex
             break
         head = new
     out = bytearray(MAGIC + struct.pack("<II", FORMAT_VERSION, len(head)) + head)
-    for e, c in zip(entries, chunks):
+    for e, c in zip(entries, chunks, strict=True):
         out.extend(b"\0" * (e["offset"] - len(out)))
         out.extend(c)
     out.extend(b"\0" * (_align(len(out)) - len(out)))

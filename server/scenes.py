@@ -166,7 +166,7 @@ def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> It
         stop = min(n, start + spheres_per_chunk)
         part = [{"center": c, "radius": r, "material": m} for c, r, m in
                 zip(scene.sphere_centers[start:stop].tolist(), scene.sphere_radii[start:stop].tolist(),
-                    scene.sphere_materials[start:stop].tolist())]
+                    scene.sphere_materials[start:stop].tolist(), strict=True)]
         text = dumps(part)[1:-1]
         yield (text if start == 0 else "," + text).encode()
     yield ('],"planes":' + dumps([p.to_json() for p in scene.planes])).encode()

@@ -83,8 +83,8 @@ class BIHStats:
 
     ``inner_nodes`` counts the cuts too, ``leaves`` only the leaves that hold primitives
     (not a cut's empty child), so ``leaves = inner_nodes − cut_nodes + 1``, as the thesis's
-    own table has inner nodes beyond ``leaves − 1``. Depths count the root as 1. ``leaf_histogram`` holds the fraction of
-    leaves with 0, 1, 2, 3, 4 and more than 4 primitives. ``bytes`` is
+    own table has inner nodes beyond ``leaves − 1``. Depths count the root as 1. ``leaf_histogram``
+    holds the fraction of leaves with 0, 1, 2, 3, 4 and more than 4 primitives. ``bytes`` is
     Fig. 4.5's memory: nodes (12 B each) + index array (4 B per primitive) +
     global AABB (24 B), the thesis's layout (the GPU's since issue 18, ``bih_layout``:
     16 B per inner node and a 16- or 32-byte sphere record per primitive).

@@ -108,7 +108,7 @@ def _edge(qx: np.ndarray, py: np.ndarray, qy: np.ndarray, px: np.ndarray) -> np.
     Per edge, so that ``E(Q, P) = −E(P, Q)`` holds bit for bit between neighbours."""
     qx, py, qy, px = np.broadcast_arrays(qx, py, qy, px)
     e = qx * py - qy * px
-    for k in zip(*np.nonzero(e == 0.0)):
+    for k in zip(*np.nonzero(e == 0.0), strict=True):
         exact = Fraction(float(qx[k])) * Fraction(float(py[k])) - Fraction(float(qy[k])) * Fraction(float(px[k]))
         f = float(exact)
         e[k] = f if (f != 0.0 or exact == 0) else (5e-324 if exact > 0 else -5e-324)

@@ -335,7 +335,7 @@ def _grow(nodes: _Nodes, rows: np.ndarray, ids: np.ndarray, slot: np.ndarray, lo
         b = np.empty(len(pos), np.int64)
         parts = []
         edges = np.flatnonzero(np.concatenate([[True], width[1:] != width[:-1], [True]]))
-        for g0, g1 in zip(edges[:-1], edges[1:]):
+        for g0, g1 in zip(edges[:-1], edges[1:], strict=True):
             e0, e1 = starts[g0], (starts[g1] if g1 < len(cand) else len(pos))
             gseg = seg[e0:e1] - g0
             b[e0:e1] = _bins(r[e0:e1], gseg, starts[g0:g1] - e0, int(width[g0]))

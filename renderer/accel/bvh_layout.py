@@ -168,5 +168,5 @@ def pack_bvh(bvh, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT
         textures={NODES.name: wrap_rows(records, max_width),
                   SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, order, last), max_width)},
         uniforms=dict(zip((ROOT.name, ROOT_MIN.name, ROOT_MAX.name),
-                          (root, *gpu_layout.box_uniform(bvh.bmin[0], bvh.bmax[0])))))
+                          (root, *gpu_layout.box_uniform(bvh.bmin[0], bvh.bmax[0])), strict=True)))
     return gpu_layout.merged(packed, gpu_layout.pack_triangles(scene, max_width, count=False))

@@ -356,7 +356,7 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
     ndepth = np.ones(m, np.int64)
     nvmin = np.zeros((m, 3), np.float32)
     nvmax = np.zeros((m, 3), np.float32)
-    for s, ax, lf, spl, dp, v0_, v1_ in zip(f_slot, f_axis, f_left, f_split, f_depth, f_vmin, f_vmax):
+    for s, ax, lf, spl, dp, v0_, v1_ in zip(f_slot, f_axis, f_left, f_split, f_depth, f_vmin, f_vmax, strict=True):
         axis[s], left[s], split_pos[s], ndepth[s], nvmin[s], nvmax[s] = ax, lf, spl, dp, v0_, v1_
 
     # depth-first (preorder) rank of every node
@@ -393,7 +393,7 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
             glob = bytearray()
             win = 4 * int(compaction_window)
             offs = np.empty(len(starts), np.int64)
-            for i, (s0, c) in enumerate(zip(starts.tolist(), counts.tolist())):
+            for i, (s0, c) in enumerate(zip(starts.tolist(), counts.tolist(), strict=True)):
                 key = buf[4 * s0:4 * (s0 + c)]
                 j = glob.find(key, max(0, len(glob) - win))
                 while j != -1 and j % 4:

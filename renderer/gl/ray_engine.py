@@ -2,8 +2,8 @@
 
 Both are methods of :mod:`renderer.accel.ray_engine` (``rayengine``, ``hre``) whose
 capabilities say ``multi_pass``: the GL renderer hands their frames to
-:class:`RayEnginePasses` (one per renderer, holding its programs and targets). Rays live in float textures, primitives are drawn
-over them, and the Whitted shading of ``docs/SHADING.md`` runs as full-screen passes.
+:class:`RayEnginePasses` (one per renderer, holding its programs and targets). Rays live in float
+textures, primitives are drawn over them, and the Whitted shading of ``docs/SHADING.md`` runs as full-screen passes.
 
 **Ray engine** (Carr et al. 2002, as Szécsi §2.1 restates it). A *layer* is one set of
 rays, one per pixel, in two RGBA32F textures the size of the render target: origin and

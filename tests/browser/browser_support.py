@@ -138,7 +138,7 @@ class Touch:
         for k in range(1, steps + 1):
             a = k / steps
             self.send("touchMove", [(x0 + (x1 - x0) * a, y0 + (y1 - y0) * a)
-                                    for (x0, y0), (x1, y1) in zip(starts, ends)])
+                                    for (x0, y0), (x1, y1) in zip(starts, ends, strict=True)])
         self.send("touchEnd", [])
 
     def path(self, frames) -> None:

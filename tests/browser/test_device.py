@@ -167,7 +167,7 @@ def test_controller_port_matches_the_server(device_page):
     c = Camera.from_json(cam)
     want = [controller.pan(c, 37.5, -12.25, 640.0), controller.pinch(c, 1.7), controller.pinch(c, 0.3),
             controller.pinch(c, 1e9)]
-    for g, w in zip(got, want):
+    for g, w in zip(got, want, strict=True):
         assert np.allclose(g["position"], w.position, rtol=1e-14, atol=1e-12), (g, w)
         assert np.allclose(g["target"], w.target, rtol=1e-14, atol=1e-12), (g, w)
 
@@ -308,9 +308,9 @@ def test_orbit_port_matches_the_server(device_page):
     turns = [(37.5, -12.25), (-200.0, 0.0), (0.0, 170.0), (15.0, -95.0), (360.0, 360.0)]
     got = device_page.page.evaluate("""async ([cams, turns]) => { const d = await import('/js/device.js');
         return cams.map((c) => turns.map(([y, p]) => d.orbitCamera(c, y, p))); }""", [cams, turns])
-    for cam, row in zip(cams, got):
+    for cam, row in zip(cams, got, strict=True):
         c = Camera.from_json(cam)
-        for (yaw, pitch), g in zip(turns, row):
+        for (yaw, pitch), g in zip(turns, row, strict=True):
             w = controller.orbit(c, yaw, pitch)
             assert np.allclose(g["position"], w.position, rtol=1e-12, atol=1e-11), (cam, yaw, pitch, g, w)
             assert g["target"] == list(w.target) and g["up"] == list(w.up)

@@ -44,7 +44,7 @@ def _sha(text: str | bytes) -> str:
 
 
 def feature_sets() -> list[tuple[str, ...]]:
-    return [tuple(f for f, on in zip(FEATURES, bits) if on) for bits in itertools.product((0, 1), repeat=3)]
+    return [tuple(f for f, on in zip(FEATURES, bits, strict=True) if on) for bits in itertools.product((0, 1), repeat=3)]
 
 
 def tracer_shaders() -> dict[str, str]:

@@ -30,7 +30,7 @@ def corners_sorted(v: np.ndarray, t: np.ndarray) -> np.ndarray:
     c = v[t]
     key = np.round(c, 4)          # ordering by rounded values: float32 storage must not reorder
     rolled, keys = [], []
-    for tri, kt in zip(c, key):
+    for tri, kt in zip(c, key, strict=True):
         k = min(range(3), key=lambda i: tuple(kt[i]))
         rolled.append(np.roll(tri, -k, axis=0).ravel())
         keys.append(np.roll(kt, -k, axis=0).ravel())

@@ -139,7 +139,7 @@ def test_cull_matches_dense_brute_force():
         n = 300
         centres = offset + rng.uniform(-10, 10, (n, 3)) * scale
         radii = rng.uniform(0.2, 3.0, n) * scale
-        scene = make_scene([(c, r, 0) for c, r in zip(centres, radii)])
+        scene = make_scene([(c, r, 0) for c, r in zip(centres, radii, strict=True)])
         o = offset + rng.uniform(-15, 15, (700, 3)) * scale
         d = rng.normal(size=(700, 3))
         d /= np.linalg.norm(d, axis=1, keepdims=True)

@@ -68,7 +68,7 @@ def crossing_rays(mesh, rng: np.random.Generator, per_vertex: int, per_edge: int
             targets.append(w @ v[t[f]])
             cones.append(fn[[f]])
     origins, dirs, dist = [], [], []
-    for q, cone in zip(targets, cones):
+    for q, cone in zip(targets, cones, strict=True):
         mean = cone.sum(axis=0)
         mean /= np.linalg.norm(mean)
         if not (cone @ mean > 0.05).all():

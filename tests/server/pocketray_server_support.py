@@ -157,7 +157,7 @@ def pocketray_batch(commands: list[tuple[str, ...] | tuple[tuple[str, ...], str]
     assert proc.returncode == 0, proc.stderr[-4000:]
     results = json.loads(proc.stdout.strip().splitlines()[-1])
     return [subprocess.CompletedProcess(["pocketray", *argv], r["returncode"], r["stdout"], r["stderr"])
-            for (argv, _), r in zip(calls, results)]
+            for (argv, _), r in zip(calls, results, strict=True)]
 
 
 def server_env(sqlite_path: Path, port: int | None = None, **settings) -> dict[str, str]:

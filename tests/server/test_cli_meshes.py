@@ -53,7 +53,7 @@ def renders(models) -> dict[str, object]:
     commands["small.npy"] = ("render", "ball.obj", "-o", "small.npy", "--size", "10", "--mode", "primid", *COMMON)
     commands["n.npy"] = ("render", "ball.obj", "-o", "n.npy", "--flat", "--mode", "normal", *COMMON)
     commands["s.npy"] = ("render", "ball.obj", "-o", "s.npy", "--smooth", "--mode", "normal", *COMMON)
-    return dict(zip(commands, pocketray_batch(list(commands.values()), cwd=models)))
+    return dict(zip(commands, pocketray_batch(list(commands.values()), cwd=models), strict=True))
 
 
 @pytest.mark.parametrize("name", MODELS)
@@ -95,7 +95,7 @@ def test_render_model_refuses_bad_files_and_flags_naming_them(models):
              (("render", "ball.obj", "-o", "x.gif"), "output:"),
              (("scene", "--mesh", "bad.ply", "-o", "x.json"), "mesh:"),
              (("scene", "--mesh", "ball.obj", "--mesh", "gone.stl", "-o", "x.json"), "mesh:")]
-    for (args, words), r in zip(cases, pocketray_batch([args for args, _ in cases], cwd=models)):
+    for (args, words), r in zip(cases, pocketray_batch([args for args, _ in cases], cwd=models), strict=True):
         assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr, (args, r.stderr)
     assert not (models / "x.png").exists() and not (models / "x.json").exists()
 

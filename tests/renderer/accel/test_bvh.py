@@ -61,7 +61,7 @@ def check_bvh(b, lo: np.ndarray, hi: np.ndarray, max_tree_depth: int) -> None:
     leaves = np.flatnonzero(b.left < 0)
     assert b.count[leaves].sum() == n
     slot_leaf = np.repeat(leaves, b.count[leaves])
-    pos = np.concatenate([np.arange(f, f + c) for f, c in zip(b.first[leaves], b.count[leaves])])
+    pos = np.concatenate([np.arange(f, f + c) for f, c in zip(b.first[leaves], b.count[leaves], strict=True)])
     p = b.indices[pos]
     assert (lo[p] >= b.bmin[slot_leaf]).all() and (hi[p] <= b.bmax[slot_leaf]).all(), "leaf box holds its spheres"
     assert (b.near_mask[leaves] == 0).all()
