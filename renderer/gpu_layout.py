@@ -527,8 +527,8 @@ def pack_primitives(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> Pac
         PLANE_NORMAL.name: _fixed([p.normal for p in planes], MAX_PLANES, (0.0, 1.0, 0.0)),
         PLANE_MAT.name: _fixed([p.material for p in planes], MAX_PLANES, 0),
         NUM_LIGHTS.name: len(lights),
-        LIGHT_POS.name: _fixed([l.position for l in lights], MAX_LIGHTS, (0.0, 0.0, 0.0)),
-        LIGHT_COLOR.name: _fixed([l.color for l in lights], MAX_LIGHTS, (0.0, 0.0, 0.0)),
+        LIGHT_POS.name: _fixed([light.position for light in lights], MAX_LIGHTS, (0.0, 0.0, 0.0)),
+        LIGHT_COLOR.name: _fixed([light.color for light in lights], MAX_LIGHTS, (0.0, 0.0, 0.0)),
     }
     return PackedScene(textures, uniforms)
 

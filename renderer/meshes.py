@@ -223,7 +223,7 @@ def icosphere(subdivisions: int = 2, radius: float = 1.0, center=(0.0, 0.0, 0.0)
     for _ in range(s):
         mid: dict[tuple[int, int], int] = {}
 
-        def midpoint(a: int, b: int) -> int:
+        def midpoint(a: int, b: int, mid: dict[tuple[int, int], int] = mid) -> int:   # this step's edges
             k = (a, b) if a < b else (b, a)
             if k not in mid:            # one vertex per edge: both triangles share it exactly
                 m = verts[a] + verts[b]

@@ -206,8 +206,8 @@ class _Geometry:
             ks=np.array([m.specular for m in mats]), shininess=np.array([m.shininess for m in mats]),
             kr=np.array([m.reflective for m in mats]), kt=np.array([m.transmissive for m in mats]),
             ior=np.array([m.ior for m in mats]),
-            light_pos=np.array([l.position for l in scene.lights], dtype=np.float64).reshape(-1, 3),
-            light_col=np.array([l.color for l in scene.lights], dtype=np.float64).reshape(-1, 3),
+            light_pos=np.array([light.position for light in scene.lights], dtype=np.float64).reshape(-1, 3),
+            light_col=np.array([light.color for light in scene.lights], dtype=np.float64).reshape(-1, 3),
             tris=_Triangles.of(scene),
         )
 
@@ -523,16 +523,16 @@ def local_colour(g: _Geometry, p: np.ndarray, d: np.ndarray, normal: np.ndarray,
         dist = np.linalg.norm(to_light, axis=1)
         # A light exactly at p has no direction: it contributes nothing (avoids 0/0).
         with np.errstate(divide="ignore", invalid="ignore"):
-            l = to_light / dist[:, None]
-            cos = _dot(facing, l)
+            ldir = to_light / dist[:, None]
+            cos = _dot(facing, ldir)
         idx = np.nonzero((dist > 0.0) & (cos > 0.0))[0]
         if len(idx) == 0:
             continue
-        li = l[idx]
+        li = ldir[idx]
         far = is_sphere[idx] & (_dot(li, geo[idx]) < 0.0)
         t_s, _ = nearest_hit(g, p[idx], li, prim[idx], far)
         idx = idx[~(t_s < dist[idx])]
-        li, ci, fi, m = l[idx], cos[idx], facing[idx], mat[idx]
+        li, ci, fi, m = ldir[idx], cos[idx], facing[idx], mat[idx]
         r = 2.0 * ci[:, None] * fi - li
         x = -_dot(r, d[idx])
         spec = np.where(x > 0.0, np.power(np.where(x > 0.0, x, 1.0), g.shininess[m]), 0.0)

@@ -608,7 +608,7 @@ class Scene:
     def to_json(self) -> dict:
         spheres = [{"center": c, "radius": r, "material": m} for c, r, m in
                    zip(self.sphere_centers.tolist(), self.sphere_radii.tolist(), self.sphere_materials.tolist(), strict=True)]
-        out = {"camera": self.camera.to_json(), "lights": [l.to_json() for l in self.lights],
+        out = {"camera": self.camera.to_json(), "lights": [light.to_json() for light in self.lights],
                "materials": [m.to_json() for m in self.materials], "spheres": spheres,
                "planes": [p.to_json() for p in self.planes]}
         if self.meshes:       # absent when there are none: a sphere scene's JSON is as it always was

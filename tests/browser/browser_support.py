@@ -189,7 +189,7 @@ class Client:
                 status: p.status, idle: p.idle, frameCount: p.frameCount, lastFrame: p.lastFrame && p.lastFrame.level,
                 requests: p.requests, errors: p.errors, notices: p.notices, sessionId: p.sessionId}; }""")
             raise AssertionError(f"no idle full frame #{min_frames} within {timeout / 1000} s: {state}\n"
-                                 f"console: {self.console_errors}\nserver log:\n{self.server.log_tail(2000)}")
+                                 f"console: {self.console_errors}\nserver log:\n{self.server.log_tail(2000)}") from None
 
     def camera(self) -> dict:
         return self.server.session(self.hook("sessionId"))["camera"]

@@ -166,9 +166,9 @@ def test_lit_sphere_centre_pixel_by_hand(offset, radius):
     res = render_reference(scene, settings(31, 21, mode="color", max_recursion_depth=5))
     # By hand: p = c + (0, 0, R), N = (0, 0, 1), d = (0, 0, −1).
     N = np.array([0.0, 0.0, 1.0])
-    l = np.array([3.0, 4.0, 9.0]) / math.sqrt(9 + 16 + 81)
-    cos = l @ N
-    r = 2 * cos * N - l
+    L = np.array([3.0, 4.0, 9.0]) / math.sqrt(9 + 16 + 81)
+    cos = L @ N
+    r = 2 * cos * N - L
     spec = max(r @ N, 0.0) ** 10.0
     col = np.array(mat.color)
     expect = 0.1 * col + lc * (0.6 * cos * col + 0.3 * spec)

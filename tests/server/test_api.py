@@ -325,7 +325,7 @@ def test_info_hands_out_the_measured_profiles(client):
 
     info = client.get("/api/info").json()
     assert info["profiles"] == {"interactive": INTERACTIVE, "still": STILL}
-    for name, profile in info["profiles"].items():  # each is a valid set of render settings
+    for _name, profile in info["profiles"].items():  # each is a valid set of render settings
         RenderSettings(**{k: v for k, v in profile.items() if k != "resolution_scale"})
 
 

@@ -130,7 +130,7 @@ def transformed(scene: Scene, scale: float = 1.0, offset=(0.0, 0.0, 0.0)) -> Sce
     f = lambda p: tuple((np.asarray(p, dtype=np.float64) * scale + off).tolist())
     cam = scene.camera
     camera = Camera(f(cam.position), f(cam.target), cam.up, cam.fov_y)
-    lights = tuple(Light(f(l.position), l.color) for l in scene.lights)
+    lights = tuple(Light(f(light.position), light.color) for light in scene.lights)
     planes = tuple(Plane(f(p.point), p.normal, p.material) for p in scene.planes)
     return Scene(camera, lights, scene.materials, scene.sphere_centers * scale + off,
                  scene.sphere_radii * scale, scene.sphere_materials, planes)
@@ -148,7 +148,7 @@ def float32_inputs(scene: Scene) -> Scene:
     mats = tuple(Material(f32(m.color), *(float(np.float32(getattr(m, k))) for k in
                           ("ambient", "diffuse", "specular", "shininess", "reflective", "transmissive", "ior")))
                  for m in scene.materials)
-    return Scene(camera, tuple(Light(f32(l.position), f32(l.color)) for l in scene.lights), mats,
+    return Scene(camera, tuple(Light(f32(light.position), f32(light.color)) for light in scene.lights), mats,
                  scene.sphere_centers.astype(np.float32).astype(np.float64),
                  scene.sphere_radii.astype(np.float32).astype(np.float64), scene.sphere_materials,
                  tuple(Plane(f32(p.point), f32(p.normal), p.material) for p in scene.planes),
