@@ -67,7 +67,7 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import moderngl
 import numpy as np
@@ -166,10 +166,10 @@ class RayEnginePasses:
         t = ctx.texture(tex.size, tex.components, tex.data.tobytes(), dtype=tex.dtype)
         t.filter = (moderngl.NEAREST, moderngl.NEAREST)
         t.use(0)
-        prog["u_spheres"].value = 0
+        cast(moderngl.Uniform, prog["u_spheres"]).value = 0
         for name, value in {**packed.uniforms, "u_matrix_size": (float(n), float(tiles))}.items():
             if name in prog:
-                prog[name].value = value
+                cast(moderngl.Uniform, prog[name]).value = value
         target = ctx.texture((n, tiles), 4, dtype="f4")
         fbo = ctx.framebuffer(color_attachments=[target])
         buf = ctx.buffer(np.ascontiguousarray(verts, dtype=np.float32).tobytes())
@@ -219,7 +219,8 @@ class RayEngineFrame:
         if mode == "cones":
             max_level = settings.max_recursion_depth
         self.max_level = max_level
-        self.tg = passes.acquire_targets(wp, hp)
+        tg = passes.acquire_targets(wp, hp)
+        self.tg: _Targets | None = tg     # None once released
         self.textures: list[moderngl.Texture] = []
         self.slices = 0
         self._result: RenderResult | None = None
@@ -228,7 +229,7 @@ class RayEngineFrame:
             if self.k > 1:
                 self.centre = RayEngineFrame(passes, method, scene, settings.with_(
                     mode="primid", samples_per_pixel=1, max_recursion_depth=1), batch=batch)
-            self.frame = _FrameRun(method, self.ctx, self.gl, self.tg, passes.programs, scene, settings, (w, h),
+            self.frame = _FrameRun(method, self.ctx, self.gl, tg, passes.programs, scene, settings, (w, h),
                                    self.ts, max_level, self.log)
             self.frame.batch = batch
             self.frame.upload(passes.max_texture_width, self.textures)
@@ -253,7 +254,7 @@ class RayEngineFrame:
         """The GL state the one-pass tracer's slices expect: no tests, no blending."""
         self.ctx.enable_only(moderngl.NOTHING)
         self.gl.stencil_off()
-        self.ctx.blend_func = moderngl.DEFAULT_BLENDING
+        self.ctx.blend_func = moderngl.DEFAULT_BLENDING  # type: ignore[assignment]  # a pair; moderngl's stubs type it int
 
     def step(self) -> bool:
         if self.done:
@@ -294,7 +295,10 @@ class RayEngineFrame:
     def release(self) -> None:
         if self.centre is not None:
             self.centre.release()
-        for t in [*self.textures, *self.frame.buffers] if hasattr(self, "frame") else self.textures:
+        held: list[moderngl.Texture | moderngl.Buffer] = [*self.textures]
+        if hasattr(self, "frame"):
+            held += self.frame.buffers
+        for t in held:
             t.release()
         self.textures = []
         if hasattr(self, "frame"):
@@ -311,6 +315,7 @@ class RayEngineFrame:
         if k > 1:
             colour = colour.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
             image = image.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
+            assert self.centre is not None, "a supersampled frame traces its centres"
             centre = self.centre.result()     # the arrays through the pixel centres
             primid, depth_t, normal = centre.primid, centre.depth, centre.normal
         if settings.mode == "color":
@@ -325,7 +330,7 @@ class RayEngineFrame:
         stats = {"method": method.name, "recursion_depth": self.max_level,
                  "features_removed": list(self.features.defines()),
                  "primitives": self.scene.n_primitives, "layers": log.layers, "layers_skipped": log.layers_skipped,
-                 "passes": log.passes, "stencil_bits": min(method.stencil_bits, self.tg.stencil_bits),
+                 "passes": log.passes, "stencil_bits": min(method.stencil_bits, frame.tg.stencil_bits),
                  "stencil_fallback_levels": log.stencil_fallback_levels, "slices": self.slices}
         if method.hierarchical:
             stats.update({"tile_size": self.ts, "tile_prims_drawn": log.tiles_drawn,
@@ -405,15 +410,15 @@ class _FrameRun:
             tex.use(unit)
         for name, unit in self.units.items():
             if name in prog:
-                prog[name].value = unit
+                cast(moderngl.Uniform, prog[name]).value = unit
         for i, (name, tex) in enumerate(samplers.items()):
             unit = self.n_units + i
             tex.use(unit)
             if name in prog:
-                prog[name].value = unit
+                cast(moderngl.Uniform, prog[name]).value = unit
         for name, value in {**self.uniforms, **uniforms}.items():
             if name in prog:
-                prog[name].value = value
+                cast(moderngl.Uniform, prog[name]).value = value
 
     def _stencil_bit(self, level: int) -> int:
         if level > self.bits:
@@ -459,8 +464,11 @@ class _FrameRun:
         t0 = time.perf_counter()
         defines = (f"TILE {self.ts}",) + (("SHADOW",) if light >= 0 else ())
         prog, vao = self.progs.fullscreen("rayengine_cones.frag", defines)
-        samplers = ({"u_surf0": self.tg.surf0, "u_surf1": self.tg.surf1} if light >= 0
-                    else {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1]})
+        if light >= 0:
+            samplers = {"u_surf0": self.tg.surf0, "u_surf1": self.tg.surf1}
+        else:
+            assert layer is not None, "a radiance cone pass reads its layer's rays"
+            samplers = {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1]}
         self._bind(prog, samplers, u_light=max(light, 0))
         self.ctx.enable_only(moderngl.NOTHING)
         self.gl.stencil_off()
@@ -514,7 +522,7 @@ class _FrameRun:
             setup()
             if self.hre:
                 self.ctx.point_size = float(self.ts)
-            prog["u_instance_base"].value = first
+            cast(moderngl.Uniform, prog["u_instance_base"]).value = first
             vao.render(mode, instances=min(batch, n - first))
             yield
         self.log.passes += 1
@@ -624,6 +632,7 @@ class _FrameRun:
                "branch": layer.branch if layer else None, "verts": tiles[1] if tiles else None,
                "cones": tiles[0] if tiles else None}
         if kind == "radiance":
+            assert layer is not None, "a radiance record is a layer's"
             rec["ray_o"], rec["ray_d"] = self._read(layer.rays[0]).copy(), self._read(layer.rays[1]).copy()
         else:
             rec["surf0"], rec["surf1"] = self._read(self.tg.surf0).copy(), self._read(self.tg.surf1).copy()
@@ -748,6 +757,7 @@ class _FrameRun:
             depth = np.full((h, w), np.inf, np.float32)
             normal = np.zeros((h, w, 3), np.float32)
         hit = primid >= 0
+        image: np.ndarray
         if mode == "color":
             image = colour
         elif mode == "depth":
@@ -758,6 +768,7 @@ class _FrameRun:
         elif mode == "normal":
             image = np.where(hit[..., None], 0.5 * (normal + 1.0), 0.0)
         elif mode == "recursion":
+            assert self.deepest is not None, "a recursion frame counts its levels"
             image = RECURSION_COLORS[self.deepest[:h, :w][::-1]]
         elif mode == "heat":
             tests = self.heat[:h, :w][::-1] if self.heat is not None else np.zeros((h, w))
