@@ -88,7 +88,7 @@ def _splitmix(x: np.ndarray) -> np.ndarray:
 def _uniform(seed: int, i: np.ndarray, k: np.ndarray, salt: int) -> np.ndarray:
     """Deterministic uniforms in [0, 1) from (seed, sphere, cycle, salt)."""
     with np.errstate(over="ignore"):
-        h = _splitmix(np.uint64(seed) * np.uint64(0x100000001B3) + np.uint64(salt))
+        h = _splitmix(np.uint64(seed) * np.uint64(0x100000001B3) + np.uint64(salt))  # type: ignore[arg-type]  # a scalar: the same arithmetic
         h = _splitmix(h ^ i.astype(np.uint64))
         h = _splitmix(h ^ (k.astype(np.int64).astype(np.uint64) * np.uint64(0x9E3779B1)))
     return (h >> np.uint64(11)).astype(np.float64) / float(1 << 53)
@@ -239,7 +239,7 @@ Motion = RigidGroup | Deformable | Incoherent
 
 def motion_to_json(m: Motion) -> dict:
     """A motion's JSON: ``first``/``count`` for a sphere range, ``mesh`` for a mesh (never both)."""
-    d = {"kind": m.kind}
+    d: dict[str, Any] = {"kind": m.kind}
     skip = {"first", "count"} if m.mesh is not None else {"mesh"}
     for f in fields(m):
         if f.name in skip:
@@ -283,7 +283,7 @@ class AnimatedScene:
 
     def __post_init__(self) -> None:
         n = self.scene.n_spheres
-        out = []
+        out: list[Motion] = []
         covered = np.zeros(n, dtype=bool)
         meshes = np.zeros(len(self.scene.meshes), dtype=bool)
         for i, m in enumerate(self.motions):
@@ -327,12 +327,12 @@ class AnimatedScene:
     @property
     def moving(self) -> np.ndarray:
         """bool (n,): spheres some motion covers."""
-        return self._moving  # type: ignore[attr-defined]
+        return self._moving  # type: ignore[attr-defined]  # set by __post_init__, not a field
 
     @property
     def moving_meshes(self) -> np.ndarray:
         """bool (meshes,): meshes some motion moves."""
-        return self._moving_meshes  # type: ignore[attr-defined]
+        return self._moving_meshes  # type: ignore[attr-defined]  # set by __post_init__, not a field
 
     @property
     def camera(self) -> Camera:
@@ -348,8 +348,8 @@ class AnimatedScene:
         seen = object.__new__(AnimatedScene)
         object.__setattr__(seen, "scene", self.scene.with_camera(camera))
         object.__setattr__(seen, "motions", self.motions)
-        object.__setattr__(seen, "_moving", self._moving)  # type: ignore[attr-defined]
-        object.__setattr__(seen, "_moving_meshes", self._moving_meshes)  # type: ignore[attr-defined]
+        object.__setattr__(seen, "_moving", self._moving)  # type: ignore[attr-defined]  # set by __post_init__, not a field
+        object.__setattr__(seen, "_moving_meshes", self._moving_meshes)  # type: ignore[attr-defined]  # set by __post_init__, not a field
         return seen
 
     def to_json(self) -> dict:

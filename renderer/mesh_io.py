@@ -22,7 +22,7 @@ import io
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -172,7 +172,7 @@ def load_mesh(source: str | Path | bytes, file_type: str | None = None, *,
         base += len(v)
     v = np.concatenate(vs)
     t = np.concatenate(ts)
-    n = np.concatenate(ns) if with_normals else None
+    n = np.concatenate(cast(list[np.ndarray], ns)) if with_normals else None   # with_normals: none is None
     if not (np.isfinite(v).all() and (n is None or np.isfinite(n).all())):
         raise SceneError("file", "the model has vertices or normals that are not finite numbers")
     if len(t) and (t.min() < 0 or t.max() >= len(v)):
@@ -194,7 +194,8 @@ def export_mesh(mesh: Mesh | MeshData, file_type: str) -> bytes:
         raise SceneError("format", "gltf is several files (JSON and buffers): export glb instead")
     tm = trimesh.Trimesh(np.asarray(mesh.vertices), np.asarray(mesh.triangles),
                          vertex_normals=None if mesh.normals is None else np.asarray(mesh.normals), process=False)
-    data = tm.export(file_type=ft, **({"include_normals": mesh.normals is not None} if ft == "obj" else {}))
+    options: dict[str, Any] = {"include_normals": mesh.normals is not None} if ft == "obj" else {}
+    data = tm.export(file_type=ft, **options)
     return data.encode() if isinstance(data, str) else bytes(data)
 
 

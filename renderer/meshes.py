@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -409,7 +410,7 @@ MESH_KINDS = ("icosphere", "torus", "box", "teapot")
 def procedural(kind: str, **kw: Any) -> Mesh:
     """A procedural mesh by name (:data:`MESH_KINDS`) with its generator's keyword arguments."""
     from .scene import SceneError
-    makers = {"icosphere": icosphere, "torus": torus, "box": box, "teapot": teapot}
+    makers: dict[str, Callable[..., Mesh]] = {"icosphere": icosphere, "torus": torus, "box": box, "teapot": teapot}
     if kind not in makers:
         raise SceneError("kind", f"unknown mesh {kind!r}; one of {', '.join(MESH_KINDS)}")
     return makers[kind](**kw)

@@ -60,14 +60,15 @@ def finite_number(value: Any, where: str, *, lo: float | None = None, hi: float 
 def finite_vec3(value: Any, where: str, *, bound: float = MAX_COORDINATE) -> Vec3:
     if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != 3:
         raise SceneError(where, "expected a list of 3 numbers")
-    return tuple(finite_number(v, f"{where}[{i}]", lo=-bound, hi=bound) for i, v in enumerate(value))  # type: ignore[return-value]
+    x, y, z = (finite_number(v, f"{where}[{i}]", lo=-bound, hi=bound) for i, v in enumerate(value))
+    return (x, y, z)
 
 
-def _norm(v: Vec3) -> float:
+def _norm(v: Sequence[float]) -> float:
     return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
-def _unit(v: Vec3, where: str) -> Vec3:
+def _unit(v: Sequence[float], where: str) -> Vec3:
     n = _norm(v)
     if not (n > 1e-12) or not math.isfinite(n):
         raise SceneError(where, "must be a non-zero vector")

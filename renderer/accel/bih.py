@@ -190,6 +190,7 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
         if empty_cuts and n:
             starts, seg = segments(count)
             prim = indices[positions(op.lo, starts, seg)]
+            assert rows6 is not None    # made when empty_cuts
             rows = np.take(rows6, prim, axis=0)
             tight = np.minimum.reduceat(rows, starts, axis=0)
             cuts += _cut_empty_space(op, tight[:, :3], -tight[:, 3:], store, max_tree_depth, area)

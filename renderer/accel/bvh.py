@@ -128,7 +128,7 @@ class BVH:
     prim_hi: np.ndarray
     max_prims: int
     max_tree_depth: int
-    stats: BVHStats = field(repr=False, default=None)  # type: ignore[assignment]
+    stats: BVHStats = field(repr=False, default=None)  # type: ignore[assignment]  # the build sets it
 
     @property
     def n_nodes(self) -> int:
@@ -250,9 +250,9 @@ def _cheapest_split(r: np.ndarray, seg: np.ndarray, b: np.ndarray, count: np.nda
         np.minimum.at(blo[a], cell, r[:, a])
         np.maximum.at(bhi[a], cell, r[:, 3 + a])
     n = np.bincount(cell, minlength=width * k).reshape(width, k)
-    blo, bhi = blo.reshape(3, width, k), bhi.reshape(3, width, k)
-    pl, ph = _scan(blo, np.minimum), _scan(bhi, np.maximum)
-    sl, sh = _scan(blo, np.minimum, reverse=True), _scan(bhi, np.maximum, reverse=True)
+    blo3, bhi3 = blo.reshape(3, width, k), bhi.reshape(3, width, k)
+    pl, ph = _scan(blo3, np.minimum), _scan(bhi3, np.maximum)
+    sl, sh = _scan(blo3, np.minimum, reverse=True), _scan(bhi3, np.maximum, reverse=True)
     n_l = np.cumsum(n, axis=0)[:-1]
     n_r = count - n_l
     with np.errstate(invalid="ignore", over="ignore"):

@@ -71,8 +71,8 @@ class TreePrimitives:
         if len(tri):
             r, p = ray[tri], pid[tri]
             j = p - self.n_spheres
-            v = [tuple(self.corners[j, k, a] for a in range(3)) for k in range(3)]
-            t[tri] = triangle_t((o[r, 0], o[r, 1], o[r, 2]), (d[r, 0], d[r, 1], d[r, 2]), *v, p, none[tri],
+            v0, v1, v2 = (tuple(self.corners[j, k, a] for a in range(3)) for k in range(3))
+            t[tri] = triangle_t((o[r, 0], o[r, 1], o[r, 2]), (d[r, 0], d[r, 1], d[r, 2]), v0, v1, v2, p, none[tri],
                                 self.valid[j])
         return t
 

@@ -116,7 +116,7 @@ class KdTree:
     global_box: np.ndarray
     max_depth: int
     cost_scale: float
-    stats: KdStats = field(repr=False, default=None)  # type: ignore[assignment]
+    stats: KdStats = field(repr=False, default=None)  # type: ignore[assignment]  # the build sets it
 
     @property
     def n_nodes(self) -> int:
@@ -395,14 +395,14 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
             offs = np.empty(len(starts), np.int64)
             for i, (s0, c) in enumerate(zip(starts.tolist(), counts.tolist(), strict=True)):
                 key = buf[4 * s0:4 * (s0 + c)]
-                j = glob.find(key, max(0, len(glob) - win))
-                while j != -1 and j % 4:
-                    j = glob.find(key, j + 1)
-                if j == -1:
+                at = glob.find(key, max(0, len(glob) - win))
+                while at != -1 and at % 4:
+                    at = glob.find(key, at + 1)
+                if at == -1:
                     offs[i] = len(glob) // 4
                     glob += key
                 else:
-                    offs[i] = j // 4
+                    offs[i] = at // 4
             offset[leaves_dfs] = offs
             indices = np.frombuffer(bytes(glob), dtype="<i4").astype(np.int64)
         else:
