@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import io
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, cast
@@ -237,7 +238,7 @@ def _stage(meshes: tuple[Mesh, ...], material: Material = MODEL) -> Scene:
                  (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),), meshes)
 
 
-def models_scene_json(sources: list[str | Path], *, size: float = 30.0, smooth: bool | None = None,
+def models_scene_json(sources: Sequence[str | Path], *, size: float = 30.0, smooth: bool | None = None,
                       as_is: bool = False) -> dict:
     """The scene JSON (docs/FORMATS.md) of the model files ``sources``, in :func:`model_scene`'s
     stage: each mesh's vertices as the file has them and a ``transform`` that fits it —

@@ -212,6 +212,7 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
     except ValidationError as e:
         raise UsageError(_validation_message(e)) from None
     if scene is None:
+        assert scene_text is not None, "the scene's text or the scene"
         try:
             model = SceneModel.model_validate_json(scene_text)
         except ValidationError as e:

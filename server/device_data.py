@@ -91,7 +91,8 @@ def jsonable_stats(stats: dict[str, Any]) -> dict[str, Any]:
 
 def encode_blob(header: dict[str, Any], textures: dict[str, gpu_layout.PackedTexture]) -> bytes:
     """Magic, version, header length, JSON header (with the textures' offsets), aligned texture bytes."""
-    entries, chunks = [], []
+    entries: list[dict[str, Any]] = []
+    chunks: list[bytes] = []
     for name, tex in textures.items():
         data = np.ascontiguousarray(tex.data, dtype="<f4" if tex.dtype == "f4" else "<u4")
         w, h = tex.size

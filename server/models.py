@@ -37,12 +37,12 @@ from renderer.tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
 
 from .device_data import DEFAULT_MAX_TEXTURE_SIZE, FEATURE_DEFINES
 
-MethodName = Literal[METHODS]  # type: ignore[valid-type]
-ModeName = Literal[MODES]  # type: ignore[valid-type]
-FormatName = Literal[FORMATS]  # type: ignore[valid-type]
-UpdateScheme = Literal[UPDATE_SCHEMES]  # type: ignore[valid-type]
-MuseumKind = Literal[MUSEUM_KINDS]  # type: ignore[valid-type]
-ModelFormat = Literal[MODEL_FORMATS]  # type: ignore[valid-type]
+MethodName = Literal[METHODS]
+ModeName = Literal[MODES]
+FormatName = Literal[FORMATS]
+UpdateScheme = Literal[UPDATE_SCHEMES]
+MuseumKind = Literal[MUSEUM_KINDS]
+ModelFormat = Literal[MODEL_FORMATS]
 
 # The API's own bound: a 32-bit placement seed (the renderer takes any non-negative one).
 MAX_SEED = 2 ** 32 - 1
@@ -275,7 +275,7 @@ MaxPrims = Annotated[int, Field(ge=1, le=MAX_PRIMS, description="BIH leaf size l
 TreeDepth = Annotated[int, Field(ge=1, le=MAX_TREE_DEPTH, description="BIH depth limit (root = 1)"), Integral]
 RecursionDepth = Annotated[int, Field(ge=1, le=MAX_RECURSION_DEPTH,
                                       description="1 = primary rays only; each reflection/refraction +1"), Integral]
-SamplesPerPixel = Annotated[Literal[SAMPLES_PER_PIXEL], Integral,  # type: ignore[valid-type]
+SamplesPerPixel = Annotated[Literal[SAMPLES_PER_PIXEL], Integral,
                             Field(description="stratified supersampling: traced at √s× the resolution and "
                                               "box-filtered")]
 MinWeight = Annotated[float, Field(ge=MIN_WEIGHT_RANGE[0], le=MIN_WEIGHT_RANGE[1], allow_inf_nan=False,
@@ -458,7 +458,7 @@ class MeshSceneRecipe(Strict):
     """A demo scene with triangle meshes (renderer.scenarios.mesh_scene): ``teapot`` (the
     closed Utah teapot on the floor), ``mixed`` (27 spheres, a glass icosphere and a torus),
     ``room`` (a box room seen from inside with a teapot, an icosphere and four spheres)."""
-    kind: Literal[MESH_SCENES] = Field("teapot", description="teapot, mixed or room")  # type: ignore[valid-type]
+    kind: Literal[MESH_SCENES] = Field("teapot", description="teapot, mixed or room")
     detail: Annotated[int, Integral] = Field(2, ge=0, le=MAX_MESH_DETAIL,
                                              description="tessellation: teapot 2 + 2·detail segments per patch, "
                                                          "icosphere subdivisions, torus 12 (detail + 1) segments")

@@ -92,13 +92,14 @@ def scene_source(scene: SessionScene) -> bytes:
         scene = scene.scene
     small = {"lights": [x.to_json() for x in scene.lights], "materials": [m.to_json() for m in scene.materials],
              "planes": [p.to_json() for p in scene.planes], "motions": motions}
-    arrays = {"centers": scene.sphere_centers, "radii": scene.sphere_radii, "materials": scene.sphere_materials}
+    arrays: dict[str, Any] = {"centers": scene.sphere_centers, "radii": scene.sphere_radii,
+                              "materials": scene.sphere_materials}
     if scene.meshes:
         small["meshes"] = [{"material": m.material, "vertices": len(m.vertices), "triangles": m.n_triangles,
                             "smooth": m.smooth} for m in scene.meshes]
         arrays["mesh_vertices"] = np.concatenate([m.vertices for m in scene.meshes])
         arrays["mesh_triangles"] = np.concatenate([m.triangles for m in scene.meshes])
-        smooth = [m.normals for m in scene.meshes if m.smooth]
+        smooth = [m.normals for m in scene.meshes if m.normals is not None]     # the smooth ones
         arrays["mesh_normals"] = np.concatenate(smooth) if smooth else np.zeros((0, 3))
     buf = io.BytesIO()
     np.savez_compressed(buf, meta=np.frombuffer(json.dumps(small).encode(), dtype=np.uint8), **arrays)

@@ -49,7 +49,7 @@ from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 log = logging.getLogger("pocketray.store")
 
@@ -533,7 +533,8 @@ class RedisStore:
 
     def get_source(self, session_id: str) -> tuple[str, bytes] | None:
         _, k_scene = self._keys(session_id)
-        rev, source = self.client.hmget(k_scene, ["rev", "source"])
+        # bytes: the client does not decode responses
+        rev, source = cast(list[bytes | None], self.client.hmget(k_scene, ["rev", "source"]))
         if rev is None or source is None:
             return None
         return rev.decode(), bytes(source)

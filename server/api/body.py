@@ -31,7 +31,7 @@ import asyncio
 import gc
 import json
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -83,7 +83,7 @@ def body_too_slow(got: int, declared: str | None, seconds: float, config: Server
              "send the body faster, or a smaller one", {"Connection": "close"})
 
 
-def client_share_taken(host: str, held: int, config: ServerConfig) -> StarletteHTTPException:
+def client_share_taken(host: str | None, held: int, config: ServerConfig) -> StarletteHTTPException:
     """429 for an address that already holds its share of the large-body slots."""
     return StarletteHTTPException(
         429, f"busy: this client address ({host}) already sends {held} large request bodies, its share of the "
@@ -131,7 +131,10 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     out = dict(pairs)
     if len(out) != len(pairs):
         seen: set[str] = set()
-        raise _DuplicateKey(next(k for k, _ in pairs if k in seen or seen.add(k)))
+        for k, _ in pairs:       # the first key given twice
+            if k in seen:
+                raise _DuplicateKey(k)
+            seen.add(k)
     return out
 
 
@@ -230,7 +233,7 @@ def release_gradually(value: Any, depth: int = 4) -> None:
             del value[max(stop, 0):]
 
 
-def validate_body(field: Any, raw: bytes, max_depth: int) -> tuple[Any, list[dict[str, Any]] | None]:
+def validate_body(field: Any, raw: bytes, max_depth: int) -> tuple[Any, Sequence[Any] | None]:
     """(the validated model, None) or (None, errors located under ``body``). ``field`` is the route's
     ``body_field``: validated exactly as FastAPI validates it (same adapter, same errors)."""
     try:
@@ -242,7 +245,7 @@ def validate_body(field: Any, raw: bytes, max_depth: int) -> tuple[Any, list[dic
     return (value, None) if not errors else (None, errors)
 
 
-def validate_large_body(field: Any, raw: bytes, max_depth: int) -> tuple[Any, list[dict[str, Any]] | None]:
+def validate_large_body(field: Any, raw: bytes, max_depth: int) -> tuple[Any, Sequence[Any] | None]:
     """:func:`validate_body` for the pool's threads, without full collections meanwhile."""
     with NO_FULL_COLLECTIONS:
         return validate_body(field, raw, max_depth)
