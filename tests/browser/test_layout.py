@@ -154,7 +154,8 @@ def test_the_overlay_is_one_line_until_tapped(open_client):
 def test_every_button_says_what_it_does(open_client):
     c = open_client("portrait", MUSEUM_QUERY)
     p = c.page
-    buttons = p.evaluate("""() => [...document.querySelectorAll('#toolbar button')].filter((b) => !b.hidden).map((b) => {
+    buttons = p.evaluate("""() => [...document.querySelectorAll('#toolbar button')].filter((b) => !b.hidden)
+      .map((b) => {
         const l = b.querySelector('.label'); const r = l.getBoundingClientRect();
         return {id: b.id, label: l.textContent.trim(),
                 shown: r.width > 0 && r.height > 0 && getComputedStyle(l).visibility === 'visible',
