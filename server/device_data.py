@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from renderer import gpu_layout
-from renderer.features import FEATURE_DEFINES  # noqa: F401  (the shader variant's feature defines, in order)
+from renderer.features import FEATURE_DEFINES  # noqa: F401 - re-exported: the shader variant's feature defines, in order
 from renderer.limits import DEFAULT_TEXTURE_WIDTH
 from renderer.scene import Camera
 

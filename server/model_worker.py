@@ -234,7 +234,7 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
     resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
     import gc
 
-    import trimesh  # noqa: F401  (imported once, before the first file)
+    import trimesh  # noqa: F401 - imported once, before the first file
 
     from renderer.mesh_io import load_mesh
     from renderer.scene import SceneError

@@ -272,7 +272,7 @@ BLOCK_GL = textwrap.dedent("""
 
     sys.meta_path.insert(0, NoGL())
     try:
-        import moderngl  # noqa: F401  (the blocker must work, or the test proves nothing)
+        import moderngl  # noqa: F401 - the blocker must work, or the test proves nothing
         blocked = False
     except ImportError:
         blocked = True

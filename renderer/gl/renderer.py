@@ -35,7 +35,7 @@ from ..scene import Scene, SceneError
 from ..settings import RenderSettings
 from ..shader_source import tracer_bindings, tracer_source, vertex_source
 from ..tree_update import TreeUpdate
-from .context import GLUnavailable, create_context  # noqa: F401  (re-exported)
+from .context import GLUnavailable, create_context  # noqa: F401 - re-exported
 from .frame import TracerFrame, image_only
 from .ray_engine import RayEngineFrame, RayEnginePasses
 from .targets import TargetPool

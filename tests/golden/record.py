@@ -24,10 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-RECORD = Path(__file__).with_name("record.json")
+from renderer.methods import METHODS
+from renderer.modes import SINGLE_PASS_MODES as MODES
 
-from renderer.methods import METHODS  # noqa: E402
-from renderer.modes import SINGLE_PASS_MODES as MODES  # noqa: E402
+RECORD = Path(__file__).with_name("record.json")
 
 # Every method with a one-pass traversal: a new method adds its variants to the record.
 SINGLE_PASS = tuple(name for name, m in METHODS.items() if m.capabilities.shader)
