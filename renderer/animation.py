@@ -48,10 +48,9 @@ from typing import Any
 import numpy as np
 
 from . import limits
-from .limits import MAX_TIME  # noqa: F401  (re-exported: seconds, the largest time a scene can be posed at)
+from .limits import MAX_TIME  # re-exported: seconds, the largest time a scene can be posed at
 from .scenarios import RED, TRANSPARENT
 from .scene import MAX_COORDINATE, Camera, Light, Material, Plane, Scene, SceneError, finite_number, finite_vec3
-
 
 
 def _num(v: Any, where: str, lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> float:
@@ -89,7 +88,7 @@ def _splitmix(x: np.ndarray) -> np.ndarray:
 def _uniform(seed: int, i: np.ndarray, k: np.ndarray, salt: int) -> np.ndarray:
     """Deterministic uniforms in [0, 1) from (seed, sphere, cycle, salt)."""
     with np.errstate(over="ignore"):
-        h = _splitmix(np.uint64(seed) * np.uint64(0x100000001B3) + np.uint64(salt))
+        h = _splitmix(np.uint64(seed) * np.uint64(0x100000001B3) + np.uint64(salt))  # type: ignore[arg-type]  # a scalar: the same arithmetic
         h = _splitmix(h ^ i.astype(np.uint64))
         h = _splitmix(h ^ (k.astype(np.int64).astype(np.uint64) * np.uint64(0x9E3779B1)))
     return (h >> np.uint64(11)).astype(np.float64) / float(1 << 53)
@@ -113,7 +112,7 @@ class RigidGroup:
     mesh: int | None = None
     kind = "rigid"
 
-    def validate(self, where: str) -> "RigidGroup":
+    def validate(self, where: str) -> RigidGroup:
         axis = _vec(self.axis, f"{where}.axis")
         if not math.sqrt(sum(a * a for a in axis)) > 1e-12:
             raise SceneError(f"{where}.axis", "must be a non-zero vector")
@@ -157,7 +156,7 @@ class Deformable:
     mesh: int | None = None
     kind = "deformable"
 
-    def validate(self, where: str) -> "Deformable":
+    def validate(self, where: str) -> Deformable:
         return replace(self, amplitude=_num(self.amplitude, f"{where}.amplitude", 0.0, MAX_COORDINATE),
                        wavelength=_num(self.wavelength, f"{where}.wavelength", 0.0, limits.MAX_WAVELENGTH, lo_open=True),
                        speed=_num(self.speed, f"{where}.speed", -limits.MAX_SPEED, limits.MAX_SPEED))
@@ -193,7 +192,7 @@ class Incoherent:
     mesh: int | None = None
     kind = "incoherent"
 
-    def validate(self, where: str) -> "Incoherent":
+    def validate(self, where: str) -> Incoherent:
         lo = _vec(self.box_min, f"{where}.box_min")
         hi = _vec(self.box_max, f"{where}.box_max")
         for a in range(3):
@@ -240,7 +239,7 @@ Motion = RigidGroup | Deformable | Incoherent
 
 def motion_to_json(m: Motion) -> dict:
     """A motion's JSON: ``first``/``count`` for a sphere range, ``mesh`` for a mesh (never both)."""
-    d = {"kind": m.kind}
+    d: dict[str, Any] = {"kind": m.kind}
     skip = {"first", "count"} if m.mesh is not None else {"mesh"}
     for f in fields(m):
         if f.name in skip:
@@ -284,7 +283,7 @@ class AnimatedScene:
 
     def __post_init__(self) -> None:
         n = self.scene.n_spheres
-        out = []
+        out: list[Motion] = []
         covered = np.zeros(n, dtype=bool)
         meshes = np.zeros(len(self.scene.meshes), dtype=bool)
         for i, m in enumerate(self.motions):
@@ -328,12 +327,12 @@ class AnimatedScene:
     @property
     def moving(self) -> np.ndarray:
         """bool (n,): spheres some motion covers."""
-        return self._moving  # type: ignore[attr-defined]
+        return self._moving  # type: ignore[attr-defined]  # set by __post_init__, not a field
 
     @property
     def moving_meshes(self) -> np.ndarray:
         """bool (meshes,): meshes some motion moves."""
-        return self._moving_meshes  # type: ignore[attr-defined]
+        return self._moving_meshes  # type: ignore[attr-defined]  # set by __post_init__, not a field
 
     @property
     def camera(self) -> Camera:
@@ -344,13 +343,13 @@ class AnimatedScene:
         """Spheres at rest (a pose may hide some)."""
         return self.scene.n_spheres
 
-    def with_camera(self, camera: Camera) -> "AnimatedScene":
+    def with_camera(self, camera: Camera) -> AnimatedScene:
         """The same animation seen through ``camera`` (the motions are not validated again)."""
         seen = object.__new__(AnimatedScene)
         object.__setattr__(seen, "scene", self.scene.with_camera(camera))
         object.__setattr__(seen, "motions", self.motions)
-        object.__setattr__(seen, "_moving", self._moving)  # type: ignore[attr-defined]
-        object.__setattr__(seen, "_moving_meshes", self._moving_meshes)  # type: ignore[attr-defined]
+        object.__setattr__(seen, "_moving", self._moving)  # type: ignore[attr-defined]  # set by __post_init__, not a field
+        object.__setattr__(seen, "_moving_meshes", self._moving_meshes)  # type: ignore[attr-defined]  # set by __post_init__, not a field
         return seen
 
     def to_json(self) -> dict:

@@ -92,8 +92,9 @@ def traversal_work(method: str, stats: dict[str, Any], n_spheres: int) -> tuple[
     if method in ("bruteforce", "rayengine", "hre") or not stats:
         return 0.0, float(n_spheres), float(n_spheres)
     parts = [stats.get("kd") or {}, stats.get("bvh") or {}] if method == "twolevel" else [stats]
-    return tuple(sum(float(p.get(k, 0.0)) for p in parts)  # type: ignore[return-value]
-                 for k in ("sah_nodes", "sah_tests", "sah_big_tests"))
+    nodes, tests, big_tests = (sum(float(p.get(k, 0.0)) for p in parts)
+                               for k in ("sah_nodes", "sah_tests", "sah_big_tests"))
+    return nodes, tests, big_tests
 
 
 def ray_tree(scene: Scene, settings, decay: float = DEFAULT_MODEL.level_decay) -> tuple[int, float]:

@@ -86,7 +86,7 @@ class SceneFeatures:
         """The deepest level a ray tree can reach in this scene (≤ requested)."""
         return requested if (self.reflection or self.transmission) else 1
 
-    def generic(self) -> "SceneFeatures":
+    def generic(self) -> SceneFeatures:
         """The generic variant for the same data: nothing removed, counts read at run time."""
         return replace(GENERIC, equal_radii=self.equal_radii, material_texture=self.material_texture,
                        triangles=self.triangles, smooth_triangles=self.smooth_triangles)

@@ -388,8 +388,9 @@ def unpack_sphere_records(records: np.ndarray, equal: bool) -> dict[str, np.ndar
     if equal:
         centre, radius, key = r[:, :3].copy().view(np.float32), np.full(len(r), np.nan, np.float32), r[:, 3]
     else:
-        r = r[:len(r) // 2 * 2].reshape(-1, 2, 4)
-        centre, radius, key = r[:, 0, :3].copy().view(np.float32), r[:, 0, 3].copy().view(np.float32), r[:, 1, 0]
+        pairs = r[:len(r) // 2 * 2].reshape(-1, 2, 4)
+        centre, radius, key = (pairs[:, 0, :3].copy().view(np.float32), pairs[:, 0, 3].copy().view(np.float32),
+                               pairs[:, 1, 0])
     return {"centre": centre, "radius": radius, "id": (key & np.uint32(SPHERE_ID_MASK)).astype(np.int64),
             "material": ((key >> np.uint32(SPHERE_MAT_SHIFT)) & np.uint32(SPHERE_MAT_MASK)).astype(np.int64),
             "last": (key & np.uint32(SPHERE_LAST)) != 0}
@@ -527,8 +528,8 @@ def pack_primitives(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> Pac
         PLANE_NORMAL.name: _fixed([p.normal for p in planes], MAX_PLANES, (0.0, 1.0, 0.0)),
         PLANE_MAT.name: _fixed([p.material for p in planes], MAX_PLANES, 0),
         NUM_LIGHTS.name: len(lights),
-        LIGHT_POS.name: _fixed([l.position for l in lights], MAX_LIGHTS, (0.0, 0.0, 0.0)),
-        LIGHT_COLOR.name: _fixed([l.color for l in lights], MAX_LIGHTS, (0.0, 0.0, 0.0)),
+        LIGHT_POS.name: _fixed([light.position for light in lights], MAX_LIGHTS, (0.0, 0.0, 0.0)),
+        LIGHT_COLOR.name: _fixed([light.color for light in lights], MAX_LIGHTS, (0.0, 0.0, 0.0)),
     }
     return PackedScene(textures, uniforms)
 
@@ -575,11 +576,11 @@ def primary_rect(scene: Scene, width: int, height: int, margin: int = 2) -> tupl
         lo, hi = (c - r).min(axis=0) - slack, (c + r).max(axis=0) + slack
     else:
         # The triangles' corners too (a triangle is their convex hull), with the same slack.
-        pts = [np.asarray(scene.triangle_corners, dtype=np.float64).reshape(-1, 3)]
+        parts = [np.asarray(scene.triangle_corners, dtype=np.float64).reshape(-1, 3)]
         if scene.n_spheres:
             c, r = scene.sphere_centers, scene.sphere_radii[:, None]
-            pts += [c - r, c + r]
-        pts = np.concatenate(pts)
+            parts += [c - r, c + r]
+        pts = np.concatenate(parts)
         slack = 1e-6 * np.abs(pts).max()
         lo, hi = pts.min(axis=0) - slack, pts.max(axis=0) + slack
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])

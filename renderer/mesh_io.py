@@ -20,9 +20,10 @@ from __future__ import annotations
 
 import io
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -156,7 +157,7 @@ def load_mesh(source: str | Path | bytes, file_type: str | None = None, *,
         parts = _parts(loaded)
     except SceneError:
         raise
-    except Exception as e:  # noqa: BLE001 - a parser's failure is the file's fault: say which
+    except Exception as e:  # a parser's failure is the file's fault: say which
         raise SceneError("file", f"not a readable {ft.upper()} model ({type(e).__name__}: {e})") from None
     if not parts:
         raise SceneError("file", f"the {ft.upper()} file holds no triangle mesh")
@@ -172,7 +173,7 @@ def load_mesh(source: str | Path | bytes, file_type: str | None = None, *,
         base += len(v)
     v = np.concatenate(vs)
     t = np.concatenate(ts)
-    n = np.concatenate(ns) if with_normals else None
+    n = np.concatenate(cast(list[np.ndarray], ns)) if with_normals else None   # with_normals: none is None
     if not (np.isfinite(v).all() and (n is None or np.isfinite(n).all())):
         raise SceneError("file", "the model has vertices or normals that are not finite numbers")
     if len(t) and (t.min() < 0 or t.max() >= len(v)):
@@ -194,7 +195,8 @@ def export_mesh(mesh: Mesh | MeshData, file_type: str) -> bytes:
         raise SceneError("format", "gltf is several files (JSON and buffers): export glb instead")
     tm = trimesh.Trimesh(np.asarray(mesh.vertices), np.asarray(mesh.triangles),
                          vertex_normals=None if mesh.normals is None else np.asarray(mesh.normals), process=False)
-    data = tm.export(file_type=ft, **({"include_normals": mesh.normals is not None} if ft == "obj" else {}))
+    options: dict[str, Any] = {"include_normals": mesh.normals is not None} if ft == "obj" else {}
+    data = tm.export(file_type=ft, **options)
     return data.encode() if isinstance(data, str) else bytes(data)
 
 
@@ -236,7 +238,7 @@ def _stage(meshes: tuple[Mesh, ...], material: Material = MODEL) -> Scene:
                  (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),), meshes)
 
 
-def models_scene_json(sources: list[str | Path], *, size: float = 30.0, smooth: bool | None = None,
+def models_scene_json(sources: Sequence[str | Path], *, size: float = 30.0, smooth: bool | None = None,
                       as_is: bool = False) -> dict:
     """The scene JSON (docs/FORMATS.md) of the model files ``sources``, in :func:`model_scene`'s
     stage: each mesh's vertices as the file has them and a ``transform`` that fits it —

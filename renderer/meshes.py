@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -128,7 +129,7 @@ def orient_outward(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     pairs = starts[counts == 2]
     a_idx, b_idx = order[pairs], order[pairs + 1]
     adj: list[list[tuple[int, int, int]]] = [[] for _ in range(n)]
-    for ea, eb in zip(a_idx.tolist(), b_idx.tolist()):
+    for ea, eb in zip(a_idx.tolist(), b_idx.tolist(), strict=True):
         ta, tb = int(owner[ea]), int(owner[eb])
         if ta == tb:
             continue
@@ -200,7 +201,7 @@ def _count(value: Any, name: str, lo: int, hi: int) -> int:
 
 
 def _positive(value: Any, name: str) -> float:
-    from .scene import SceneError, finite_number
+    from .scene import finite_number
     return finite_number(value, name, lo=0.0, lo_open=True, hi=1e7)
 
 
@@ -223,7 +224,7 @@ def icosphere(subdivisions: int = 2, radius: float = 1.0, center=(0.0, 0.0, 0.0)
     for _ in range(s):
         mid: dict[tuple[int, int], int] = {}
 
-        def midpoint(a: int, b: int) -> int:
+        def midpoint(a: int, b: int, mid: dict[tuple[int, int], int] = mid) -> int:   # this step's edges
             k = (a, b) if a < b else (b, a)
             if k not in mid:            # one vertex per edge: both triangles share it exactly
                 m = verts[a] + verts[b]
@@ -356,7 +357,7 @@ def teapot_surface(segments: int = 8, closed: bool = True) -> tuple[np.ndarray, 
 
     def strip(inner: list[np.ndarray], outer: list[np.ndarray]) -> None:
         """Quads between two loops of the same sampling (the gap ring at z = 2.4)."""
-        for a_row, b_row in zip(inner, outer):
+        for a_row, b_row in zip(inner, outer, strict=True):
             k = np.arange(n)
             quad = np.concatenate([np.stack([k, k + 1, n + 2 + k], -1), np.stack([k, n + 2 + k, n + 1 + k], -1)])
             add(np.concatenate([a_row, b_row]), quad, True)
@@ -409,7 +410,7 @@ MESH_KINDS = ("icosphere", "torus", "box", "teapot")
 def procedural(kind: str, **kw: Any) -> Mesh:
     """A procedural mesh by name (:data:`MESH_KINDS`) with its generator's keyword arguments."""
     from .scene import SceneError
-    makers = {"icosphere": icosphere, "torus": torus, "box": box, "teapot": teapot}
+    makers: dict[str, Callable[..., Mesh]] = {"icosphere": icosphere, "torus": torus, "box": box, "teapot": teapot}
     if kind not in makers:
         raise SceneError("kind", f"unknown mesh {kind!r}; one of {', '.join(MESH_KINDS)}")
     return makers[kind](**kw)

@@ -8,7 +8,7 @@ Every method is behind the interface of :mod:`renderer.accel.base` and declares 
 
 from __future__ import annotations
 
-from .accel.base import AccelerationMethod, Capabilities, PreparedMethod  # noqa: F401  (the interface)
+from .accel.base import AccelerationMethod, Capabilities, PreparedMethod  # noqa: F401 - re-exported: the interface
 from .accel.bih import BoundingIntervalHierarchy
 from .accel.bruteforce import BruteForce
 from .accel.bvh import BVHMethod

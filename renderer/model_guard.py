@@ -64,8 +64,9 @@ def _check(data: bytes, ft: str, max_triangles: int, max_declared_vertices: int,
 
 
 # ---- glTF / GLB ---------------------------------------------------------------------------------
-_COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
-_TYPE_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+# Looked up with whatever JSON value the file holds there (a miss is refused).
+_COMPONENT_BYTES: dict[Any, int] = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
+_TYPE_COMPONENTS: dict[Any, int] = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 
 
 def _json(text: bytes) -> Any:
@@ -177,6 +178,7 @@ def _check_gltf(doc: Any, bin_len: int | None, base_dir: Path | None, max_triang
         if not isinstance(view, dict):
             raise _refuse(fmt, f"{where} must be an object")
         b = _index(view, "buffer", len(buffers), where, fmt, required=True)
+        assert b is not None    # required
         offset = _count(view, "byteOffset", where, fmt, 0)
         length = _count(view, "byteLength", where, fmt)
         _count(view, "byteStride", where, fmt, 4, limit=252)

@@ -9,8 +9,8 @@ a lock here.
 from __future__ import annotations
 
 import threading
+from collections.abc import Hashable
 from dataclasses import dataclass
-from typing import Hashable
 
 from .animation import AnimatedScene, pose
 from .cost import DEFAULT_MODEL, CostModel, FrameCost, estimate

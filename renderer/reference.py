@@ -117,7 +117,7 @@ class _Balls:
     extent: float               # max |c| + max r: bounds the cull's rounding error
 
     @staticmethod
-    def of(c: np.ndarray, r: np.ndarray) -> "_Balls":
+    def of(c: np.ndarray, r: np.ndarray) -> _Balls:
         extent = float(np.sqrt(_dot(c, c).max()) + r.max()) if len(r) else 0.0
         return _Balls(np.ascontiguousarray(c.T), _dot(c, c), r * r, extent)
 
@@ -139,7 +139,7 @@ class _Triangles:
     balls: _Balls               # bounding balls for the cull
 
     @staticmethod
-    def of(scene: Scene) -> "_Triangles":
+    def of(scene: Scene) -> _Triangles:
         c = np.asarray(scene.triangle_corners, dtype=np.float64).reshape(-1, 3, 3)
         v0, v1, v2 = (np.ascontiguousarray(c[:, k]) for k in range(3))
         cross = np.cross(v1 - v0, v2 - v0)
@@ -188,7 +188,7 @@ class _Geometry:
     tris: _Triangles
 
     @staticmethod
-    def of(scene: Scene) -> "_Geometry":
+    def of(scene: Scene) -> _Geometry:
         c = np.asarray(scene.sphere_centers, dtype=np.float64).reshape(-1, 3)
         r = np.asarray(scene.sphere_radii, dtype=np.float64).reshape(-1)
         mats = scene.materials
@@ -206,8 +206,8 @@ class _Geometry:
             ks=np.array([m.specular for m in mats]), shininess=np.array([m.shininess for m in mats]),
             kr=np.array([m.reflective for m in mats]), kt=np.array([m.transmissive for m in mats]),
             ior=np.array([m.ior for m in mats]),
-            light_pos=np.array([l.position for l in scene.lights], dtype=np.float64).reshape(-1, 3),
-            light_col=np.array([l.color for l in scene.lights], dtype=np.float64).reshape(-1, 3),
+            light_pos=np.array([light.position for light in scene.lights], dtype=np.float64).reshape(-1, 3),
+            light_col=np.array([light.color for light in scene.lights], dtype=np.float64).reshape(-1, 3),
             tris=_Triangles.of(scene),
         )
 
@@ -518,21 +518,21 @@ def local_color(g: _Geometry, p: np.ndarray, d: np.ndarray, normal: np.ndarray, 
     local = g.ka[mat][:, None] * c
     facing = np.where((_dot(d, geo) < 0.0)[:, None], normal, -normal)   # Nf
     is_sphere = prim < g.n
-    for lp, lc in zip(g.light_pos, g.light_col):
+    for lp, lc in zip(g.light_pos, g.light_col, strict=True):
         to_light = lp[None, :] - p
         dist = np.linalg.norm(to_light, axis=1)
         # A light exactly at p has no direction: it contributes nothing (avoids 0/0).
         with np.errstate(divide="ignore", invalid="ignore"):
-            l = to_light / dist[:, None]
-            cos = _dot(facing, l)
+            ldir = to_light / dist[:, None]
+            cos = _dot(facing, ldir)
         idx = np.nonzero((dist > 0.0) & (cos > 0.0))[0]
         if len(idx) == 0:
             continue
-        li = l[idx]
+        li = ldir[idx]
         far = is_sphere[idx] & (_dot(li, geo[idx]) < 0.0)
         t_s, _ = nearest_hit(g, p[idx], li, prim[idx], far)
         idx = idx[~(t_s < dist[idx])]
-        li, ci, fi, m = l[idx], cos[idx], facing[idx], mat[idx]
+        li, ci, fi, m = ldir[idx], cos[idx], facing[idx], mat[idx]
         r = 2.0 * ci[:, None] * fi - li
         x = -_dot(r, d[idx])
         spec = np.where(x > 0.0, np.power(np.where(x > 0.0, x, 1.0), g.shininess[m]), 0.0)
@@ -561,7 +561,7 @@ class RayBatch:
     def __len__(self) -> int:
         return len(self.pix)
 
-    def split(self, size: int) -> list["RayBatch"]:
+    def split(self, size: int) -> list[RayBatch]:
         """Pieces of at most ``size`` rays (memory bound)."""
         return [RayBatch(self.origins[a:a + size], self.dirs[a:a + size], self.pix[a:a + size],
                          self.weight[a:a + size], self.level, self.src[a:a + size], self.far_only[a:a + size])
@@ -578,7 +578,7 @@ class _Frame:
     deepest: np.ndarray    # (P,) deepest level whose ray hit something (0: primary miss)
 
     @staticmethod
-    def empty(pixels: int) -> "_Frame":
+    def empty(pixels: int) -> _Frame:
         return _Frame(np.zeros((pixels, 3)), np.full(pixels, np.inf), np.full(pixels, -1, dtype=np.int64),
                       np.zeros((pixels, 3)), np.zeros(pixels, dtype=np.int64))
 

@@ -19,15 +19,17 @@ from __future__ import annotations
 import copy
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from . import limits
+
 # Largest coordinate magnitude accepted (float32 resolves a unit sphere up to it; limits.py).
-from .limits import MAX_COORDINATE  # noqa: F401  (re-exported)
+from .limits import MAX_COORDINATE  # re-exported
 
 Vec3 = tuple[float, float, float]
 
@@ -58,14 +60,15 @@ def finite_number(value: Any, where: str, *, lo: float | None = None, hi: float 
 def finite_vec3(value: Any, where: str, *, bound: float = MAX_COORDINATE) -> Vec3:
     if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != 3:
         raise SceneError(where, "expected a list of 3 numbers")
-    return tuple(finite_number(v, f"{where}[{i}]", lo=-bound, hi=bound) for i, v in enumerate(value))  # type: ignore[return-value]
+    x, y, z = (finite_number(v, f"{where}[{i}]", lo=-bound, hi=bound) for i, v in enumerate(value))
+    return (x, y, z)
 
 
-def _norm(v: Vec3) -> float:
+def _norm(v: Sequence[float]) -> float:
     return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
-def _unit(v: Vec3, where: str) -> Vec3:
+def _unit(v: Sequence[float], where: str) -> Vec3:
     n = _norm(v)
     if not (n > 1e-12) or not math.isfinite(n):
         raise SceneError(where, "must be a non-zero vector")
@@ -86,7 +89,7 @@ class Camera:
         object.__setattr__(self, "fov_y", finite_number(self.fov_y, "camera.fov_y", lo=0.0, hi=180.0,
                                                   lo_open=True, hi_open=True))
         _unit(self.up, "camera.up")
-        fwd = tuple(t - p for t, p in zip(self.target, self.position))
+        fwd = tuple(t - p for t, p in zip(self.target, self.position, strict=True))
         if not (_norm(fwd) > 0.0):
             raise SceneError("camera.target", "must differ from camera.position")
         f = _unit(fwd, "camera.target")
@@ -110,7 +113,7 @@ class Camera:
                 "up": list(self.up), "fov_y": self.fov_y}
 
     @staticmethod
-    def from_json(d: Any, where: str = "camera") -> "Camera":
+    def from_json(d: Any, where: str = "camera") -> Camera:
         d = _object(d, where, {"position", "target", "up", "fov_y"})
         kw = {k: d[k] for k in ("position", "target", "up", "fov_y") if k in d}
         return _construct(Camera, kw, where)
@@ -133,7 +136,7 @@ class Light:
         return {"position": list(self.position), "color": list(self.color)}
 
     @staticmethod
-    def from_json(d: Any, where: str) -> "Light":
+    def from_json(d: Any, where: str) -> Light:
         d = _object(d, where, {"position", "color"})
         return _construct(Light, {k: d[k] for k in ("position", "color") if k in d}, where)
 
@@ -170,7 +173,7 @@ class Material:
                 "reflective": self.reflective, "transmissive": self.transmissive, "ior": self.ior}
 
     @staticmethod
-    def from_json(d: Any, where: str) -> "Material":
+    def from_json(d: Any, where: str) -> Material:
         keys = ("color", "ambient", "diffuse", "specular", "shininess", "reflective", "transmissive", "ior")
         d = _object(d, where, set(keys))
         return _construct(Material, {k: d[k] for k in keys if k in d}, where)
@@ -357,7 +360,7 @@ class Mesh:
     def n_degenerate(self) -> int:
         return int(self.degenerate.sum())
 
-    def with_vertices(self, vertices: np.ndarray, normals: np.ndarray | None = None) -> "Mesh":
+    def with_vertices(self, vertices: np.ndarray, normals: np.ndarray | None = None) -> Mesh:
         """The same triangles and material on moved vertices (an animation's pose)."""
         return Mesh(vertices, self.triangles, self.material, normals)
 
@@ -369,7 +372,7 @@ class Mesh:
         return d
 
     @staticmethod
-    def from_json(d: Any, where: str) -> "Mesh":
+    def from_json(d: Any, where: str) -> Mesh:
         d = _object(d, where, {"vertices", "triangles", "material", "normals", "transform"})
         for k in ("vertices", "triangles"):
             if k not in d:
@@ -587,13 +590,13 @@ class Scene:
         return range(start, start + self.meshes[i].n_triangles)
 
     def with_geometry(self, sphere_centers: np.ndarray, sphere_radii: np.ndarray, sphere_materials: np.ndarray,
-                      meshes: Sequence[Mesh] | None = None) -> "Scene":
+                      meshes: Sequence[Mesh] | None = None) -> Scene:
         """The same camera, lights, materials and planes with other spheres (and meshes: the
         same ones unless given), validated."""
         return Scene(self.camera, self.lights, self.materials, sphere_centers, sphere_radii, sphere_materials,
                      self.planes, tuple(self.meshes if meshes is None else meshes))
 
-    def with_camera(self, camera: Camera) -> "Scene":
+    def with_camera(self, camera: Camera) -> Scene:
         """The same scene seen through ``camera`` (a validated Camera): everything else is shared,
         already validated and read-only, so nothing is checked again (O(1), not O(n))."""
         if not isinstance(camera, Camera):
@@ -605,8 +608,8 @@ class Scene:
     # ---- JSON (docs/FORMATS.md) -------------------------------------------------
     def to_json(self) -> dict:
         spheres = [{"center": c, "radius": r, "material": m} for c, r, m in
-                   zip(self.sphere_centers.tolist(), self.sphere_radii.tolist(), self.sphere_materials.tolist())]
-        out = {"camera": self.camera.to_json(), "lights": [l.to_json() for l in self.lights],
+                   zip(self.sphere_centers.tolist(), self.sphere_radii.tolist(), self.sphere_materials.tolist(), strict=True)]
+        out = {"camera": self.camera.to_json(), "lights": [light.to_json() for light in self.lights],
                "materials": [m.to_json() for m in self.materials], "spheres": spheres,
                "planes": [p.to_json() for p in self.planes]}
         if self.meshes:       # absent when there are none: a sphere scene's JSON is as it always was
@@ -614,7 +617,7 @@ class Scene:
         return out
 
     @staticmethod
-    def from_json(d: Any) -> "Scene":
+    def from_json(d: Any) -> Scene:
         d = _object(d, "scene", {"camera", "lights", "materials", "spheres", "planes", "meshes"})
         camera = Camera.from_json(d.get("camera", {}), "camera")
         lights = [Light.from_json(x, f"lights[{i}]") for i, x in enumerate(_list(d.get("lights", []), "lights"))]

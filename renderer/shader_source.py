@@ -14,7 +14,7 @@ pass's own file. The same text serves moderngl and the browser (WebGL2, ``GET
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 from . import gpu_layout
 from .gpu_layout import Binding, Variant
@@ -34,7 +34,7 @@ TRIANGLES_FILE = "triangles.glsl"
 SECTION_MARK = "//@SECTION "
 
 
-@lru_cache(maxsize=None)
+@cache
 def read(name: str) -> str:
     """The text of ``shaders/<name>`` (read once per process)."""
     return (SHADER_DIR / name).read_text()
@@ -55,7 +55,7 @@ def tracer_bindings(variant: Variant) -> list[Binding]:
     return [b for b in (*gpu_layout.TRACER_BINDINGS, *method) if variant.reads_binding(b)]
 
 
-@lru_cache(maxsize=None)
+@cache
 def known_bindings() -> frozenset[str]:
     """Every binding name a layout declares: the tracer's and every method's."""
     return frozenset(b.name for b in (*gpu_layout.TRACER_BINDINGS, *(b for m in METHODS.values() for b in m.bindings)))
@@ -128,7 +128,7 @@ def traces_triangles(variant: Variant) -> bool:
     return "TRIANGLES" in variant.features and variant.spheres
 
 
-@lru_cache(maxsize=None)
+@cache
 def triangle_sections() -> dict[str, str]:
     """``shaders/triangles.glsl`` cut at its ``//@SECTION <name>`` lines: name → text."""
     sections: dict[str, list[str]] = {}

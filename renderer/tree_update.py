@@ -19,8 +19,8 @@ disappearing) an update falls back to a rebuild.
 
 from __future__ import annotations
 
+from collections.abc import Hashable
 from dataclasses import dataclass
-from typing import Hashable
 
 import numpy as np
 

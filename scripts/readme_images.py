@@ -74,9 +74,8 @@ def modes(renderer) -> Path:
 
 
 def phone() -> Path:
-    from playwright.sync_api import sync_playwright
-
     from browser_support import CHROMIUM, CHROMIUM_ARGS, Server
+    from playwright.sync_api import sync_playwright
 
     query = "scenario=3&n=4096&seed=0&width=320&height=544&max_recursion_depth=3"
     out = FIGURES / "readme_phone.png"

@@ -43,8 +43,9 @@ import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 EXTENSIONS = {".png": "png", ".jpg": "jpeg", ".jpeg": "jpeg", ".npy": "npy", ".exr": "exr"}
 ENV_PREFIX = "POCKETRAY_"
@@ -213,6 +214,7 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
     except ValidationError as e:
         raise UsageError(_validation_message(e)) from None
     if scene is None:
+        assert scene_text is not None, "the scene's text or the scene"
         try:
             model = SceneModel.model_validate_json(scene_text)
         except ValidationError as e:

@@ -239,7 +239,7 @@ class ServerConfig(BaseSettings):
         return value
 
     @model_validator(mode="after")
-    def _check(self) -> "ServerConfig":
+    def _check(self) -> ServerConfig:
         if self.state_backend == "redis" and not self.redis_url:
             raise ValueError("redis_url: required when state_backend is redis")
         from renderer.scene import SceneError

@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from renderer import gpu_layout
-from renderer.features import FEATURE_DEFINES  # noqa: F401  (the shader variant's feature defines, in order)
+from renderer.features import FEATURE_DEFINES  # noqa: F401 - re-exported: the shader variant's feature defines, in order
 from renderer.limits import DEFAULT_TEXTURE_WIDTH
 from renderer.scene import Camera
 
@@ -91,7 +91,8 @@ def jsonable_stats(stats: dict[str, Any]) -> dict[str, Any]:
 
 def encode_blob(header: dict[str, Any], textures: dict[str, gpu_layout.PackedTexture]) -> bytes:
     """Magic, version, header length, JSON header (with the textures' offsets), aligned texture bytes."""
-    entries, chunks = [], []
+    entries: list[dict[str, Any]] = []
+    chunks: list[bytes] = []
     for name, tex in textures.items():
         data = np.ascontiguousarray(tex.data, dtype="<f4" if tex.dtype == "f4" else "<u4")
         w, h = tex.size
@@ -104,7 +105,7 @@ def encode_blob(header: dict[str, Any], textures: dict[str, gpu_layout.PackedTex
     for _ in range(4):
         start = _align(HEADER_START + len(head))
         pos = start
-        for e, c in zip(entries, chunks):
+        for e, c in zip(entries, chunks, strict=True):
             e["offset"] = pos
             pos = _align(pos + len(c))
         new = json.dumps({**header, "textures": entries, "nbytes": pos}, separators=(",", ":")).encode()
@@ -112,7 +113,7 @@ def encode_blob(header: dict[str, Any], textures: dict[str, gpu_layout.PackedTex
             break
         head = new
     out = bytearray(MAGIC + struct.pack("<II", FORMAT_VERSION, len(head)) + head)
-    for e, c in zip(entries, chunks):
+    for e, c in zip(entries, chunks, strict=True):
         out.extend(b"\0" * (e["offset"] - len(out)))
         out.extend(c)
     out.extend(b"\0" * (_align(len(out)) - len(out)))

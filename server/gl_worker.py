@@ -29,8 +29,9 @@ import math
 import threading
 import time
 from collections import OrderedDict, deque
+from collections.abc import Callable, Hashable
 from concurrent.futures import Future
-from typing import Any, Callable, Hashable, TypeVar
+from typing import Any, TypeVar
 
 from . import metrics
 
@@ -74,7 +75,7 @@ class FrameCancelled(Exception):
 class FrameHandle:
     """A frame in flight: wait for its preview and its result, or cancel it."""
 
-    def __init__(self, worker: "GLWorker", ticket: "Ticket", session: Hashable, start: Callable[[Any], Any],
+    def __init__(self, worker: GLWorker, ticket: Ticket, session: Hashable, start: Callable[[Any], Any],
                  cost_ms: float):
         self.worker, self.ticket, self.session, self.start = worker, ticket, session, start
         self.cost_ms = float(cost_ms)
@@ -241,7 +242,7 @@ class GLWorker:
     def admitted(self) -> int:
         return self._admitted
 
-    def admit(self) -> "Ticket":
+    def admit(self) -> Ticket:
         """Reserve a slot or raise QueueFull (GLNotReady when the context failed or the
         service is stopping)."""
         if self.error is not None:
@@ -278,7 +279,7 @@ class GLWorker:
             self._cv.notify_all()
 
     # ---- submission ----------------------------------------------------------------------------
-    def _submit_call(self, fn: Callable[[Any], T]) -> "Future[T]":
+    def _submit_call(self, fn: Callable[[Any], T]) -> Future[T]:
         fut: Future = Future()
         with self._cv:
             if self._closing:
@@ -334,7 +335,7 @@ class GLWorker:
             if self.renderer is None:
                 raise GLNotReady(self.error or "OpenGL context not created")
             fut.set_result(fn(self.renderer))
-        except BaseException as e:  # noqa: BLE001 - handed to the waiting request
+        except BaseException as e:  # handed to the waiting request
             fut.set_exception(e)
         finally:
             self._avg_call_s = 0.8 * self._avg_call_s + 0.2 * (time.perf_counter() - t0)
@@ -350,7 +351,7 @@ class GLWorker:
             h.started_at = time.perf_counter()
             metrics.render_started()
             h.frame = h.start(self.renderer)      # uploads: counts as a slice
-        except BaseException as e:  # noqa: BLE001
+        except BaseException as e:
             h._finish(error=e)
             h.ticket._release()
             return
@@ -380,7 +381,7 @@ class GLWorker:
                 if finished:
                     h._finish(result=h.frame.result())
                     done = True
-        except BaseException as e:  # noqa: BLE001 - a frame that fails fails alone
+        except BaseException as e:  # a frame that fails fails alone
             try:
                 h.frame.release()
             except Exception:  # pragma: no cover - best effort
@@ -428,7 +429,7 @@ class Ticket:
         self._released = False
         self._lock = threading.Lock()
 
-    def submit(self, fn: Callable[[Any], T]) -> "Future[T]":
+    def submit(self, fn: Callable[[Any], T]) -> Future[T]:
         """Run ``fn(renderer)`` on the GL thread in one go; the slot frees when it is done."""
         self._claim()
         fut = self._worker._submit_call(fn)
@@ -460,7 +461,7 @@ class Ticket:
         self._worker._release()
         metrics.render_released(never_ran=not self._submitted)
 
-    def __enter__(self) -> "Ticket":
+    def __enter__(self) -> Ticket:
         return self
 
     def __exit__(self, *exc: object) -> None:

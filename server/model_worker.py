@@ -35,6 +35,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -62,10 +63,12 @@ class _Worker:
         self.proc = subprocess.Popen([sys.executable, "-m", "server.model_worker", str(memory_bytes), repr(cpu_s)],
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                                      env=env, close_fds=True)
+        assert self.proc.stdin is not None and self.proc.stdout is not None    # both piped
+        self.stdin, self.stdout = self.proc.stdin, self.proc.stdout
         self.ready = False
 
     def _read(self, n: int, deadline: float) -> bytes:
-        fd = self.proc.stdout.fileno()
+        fd = self.stdout.fileno()
         out = bytearray()
         while len(out) < n:
             left = deadline - time.monotonic()
@@ -92,9 +95,9 @@ class _Worker:
         deadline = time.monotonic() + timeout_s
         payload = pickle.dumps(job, protocol=pickle.HIGHEST_PROTOCOL)
         try:
-            self.proc.stdin.write(_HEADER.pack(len(payload)))
-            self.proc.stdin.write(payload)
-            self.proc.stdin.flush()
+            self.stdin.write(_HEADER.pack(len(payload)))
+            self.stdin.write(payload)
+            self.stdin.flush()
         except (BrokenPipeError, OSError):
             raise EOFError from None
         del payload
@@ -105,7 +108,7 @@ class _Worker:
         if self.proc.poll() is None:
             self.proc.kill()
         self.proc.wait()
-        for f in (self.proc.stdin, self.proc.stdout):
+        for f in (self.stdin, self.stdout):
             try:
                 f.close()
             except OSError:
@@ -131,7 +134,7 @@ class ModelWorkers:
         return w
 
     def load(self, data: bytes, fmt: str | None, max_triangles: int, max_vertices: int,
-             busy: type[Exception] = ParsersBusy):
+             busy: Callable[..., Exception] = ParsersBusy):
         """:class:`renderer.mesh_io.MeshData` of the file, or SceneError (``format`` or
         ``file``: what is wrong, a limit it exceeds, or the deadline it missed); ``busy`` (503)
         when every worker stays busy for ``timeout_s``."""
@@ -201,7 +204,7 @@ def workers_for(config) -> ModelWorkers | None:
 
 
 def load_model(config, data: bytes, fmt: str | None, *, max_triangles: int, max_vertices: int | None = None,
-               busy: type[Exception] = ParsersBusy):
+               busy: Callable[..., Exception] = ParsersBusy):
     """:func:`renderer.mesh_io.load_mesh` of an uploaded file, in a worker process (above);
     ``busy(message, retry_after_s=)`` is raised when no worker is free."""
     from renderer.limits import MAX_MESH_VERTICES
@@ -231,7 +234,7 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
     resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
     import gc
 
-    import trimesh  # noqa: F401  (imported once, before the first file)
+    import trimesh  # noqa: F401 - imported once, before the first file
 
     from renderer.mesh_io import load_mesh
     from renderer.scene import SceneError

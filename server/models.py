@@ -34,8 +34,8 @@ from renderer.settings import SettingSpec, setting
 
 from .device_data import DEFAULT_MAX_TEXTURE_SIZE, FEATURE_DEFINES
 
-MuseumKind = Literal[MUSEUM_KINDS]  # type: ignore[valid-type]
-ModelFormat = Literal[MODEL_FORMATS]  # type: ignore[valid-type]
+MuseumKind = Literal[MUSEUM_KINDS]
+ModelFormat = Literal[MODEL_FORMATS]
 
 # The API's own bound: a 32-bit placement seed (the renderer takes any non-negative one).
 MAX_SEED = 2 ** 32 - 1
@@ -166,7 +166,7 @@ class MotionTarget(Strict):
     mesh: MeshIndex | None = None
 
     @model_validator(mode="after")
-    def _one_target(self) -> "MotionTarget":
+    def _one_target(self) -> MotionTarget:
         if self.mesh is not None:
             if self.first is not None or self.count is not None:
                 raise ValueError("give either mesh or first and count, not both")
@@ -209,7 +209,7 @@ class IncoherentMotion(MotionTarget):
     seed: Annotated[int, Integral] = Field(0, ge=0, le=MAX_JSON_MOTION_SEED)
 
 
-Motion = Annotated[Union[RigidMotion, DeformableMotion, IncoherentMotion], Field(discriminator="kind")]
+Motion = Annotated[RigidMotion | DeformableMotion | IncoherentMotion, Field(discriminator="kind")]
 
 
 class SceneModel(Strict):
@@ -442,7 +442,7 @@ class MeshSceneRecipe(Strict):
     """A demo scene with triangle meshes (renderer.scenarios.mesh_scene): ``teapot`` (the
     closed Utah teapot on the floor), ``mixed`` (27 spheres, a glass icosphere and a torus),
     ``room`` (a box room seen from inside with a teapot, an icosphere and four spheres)."""
-    kind: Literal[MESH_SCENES] = Field("teapot", description="teapot, mixed or room")  # type: ignore[valid-type]
+    kind: Literal[MESH_SCENES] = Field("teapot", description="teapot, mixed or room")
     detail: Annotated[int, Integral] = Field(2, ge=0, le=MAX_MESH_DETAIL,
                                              description="tessellation: teapot 2 + 2·detail segments per patch, "
                                                          "icosphere subdivisions, torus 12 (detail + 1) segments")
@@ -540,7 +540,7 @@ class ResetGesture(Strict):
     type: Literal["reset"]
 
 
-Gesture = Annotated[Union[PanGesture, PinchGesture, OrbitGesture, ResetGesture], Field(discriminator="type")]
+Gesture = Annotated[PanGesture | PinchGesture | OrbitGesture | ResetGesture, Field(discriminator="type")]
 
 
 # ---- stateless render ------------------------------------------------------------------

@@ -24,7 +24,8 @@ import io
 import json
 import threading
 from collections import OrderedDict
-from typing import Any, Iterator
+from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 
@@ -91,13 +92,14 @@ def scene_source(scene: SessionScene) -> bytes:
         scene = scene.scene
     small = {"lights": [x.to_json() for x in scene.lights], "materials": [m.to_json() for m in scene.materials],
              "planes": [p.to_json() for p in scene.planes], "motions": motions}
-    arrays = {"centers": scene.sphere_centers, "radii": scene.sphere_radii, "materials": scene.sphere_materials}
+    arrays: dict[str, Any] = {"centers": scene.sphere_centers, "radii": scene.sphere_radii,
+                              "materials": scene.sphere_materials}
     if scene.meshes:
         small["meshes"] = [{"material": m.material, "vertices": len(m.vertices), "triangles": m.n_triangles,
                             "smooth": m.smooth} for m in scene.meshes]
         arrays["mesh_vertices"] = np.concatenate([m.vertices for m in scene.meshes])
         arrays["mesh_triangles"] = np.concatenate([m.triangles for m in scene.meshes])
-        smooth = [m.normals for m in scene.meshes if m.smooth]
+        smooth = [m.normals for m in scene.meshes if m.normals is not None]     # the smooth ones
         arrays["mesh_normals"] = np.concatenate(smooth) if smooth else np.zeros((0, 3))
     buf = io.BytesIO()
     np.savez_compressed(buf, meta=np.frombuffer(json.dumps(small).encode(), dtype=np.uint8), **arrays)
@@ -165,9 +167,9 @@ def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> It
         stop = min(n, start + spheres_per_chunk)
         part = [{"center": c, "radius": r, "material": m} for c, r, m in
                 zip(scene.sphere_centers[start:stop].tolist(), scene.sphere_radii[start:stop].tolist(),
-                    scene.sphere_materials[start:stop].tolist())]
+                    scene.sphere_materials[start:stop].tolist(), strict=True)]
         text = dumps(part)[1:-1]
-        yield ((text if start == 0 else "," + text)).encode()
+        yield (text if start == 0 else "," + text).encode()
     yield ('],"planes":' + dumps([p.to_json() for p in scene.planes])).encode()
     if scene.meshes:       # as Mesh.to_json: vertices, triangles, material, normals
         rows = max(1, spheres_per_chunk * 2)

@@ -24,10 +24,11 @@ import secrets
 import threading
 import time
 from collections import OrderedDict
+from collections.abc import Iterable
 from contextlib import contextmanager
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import replace
-from typing import Any, Iterable, NamedTuple
+from typing import Any, NamedTuple
 
 from renderer.accel.base import NOT_ON_GPU
 from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum, pose
@@ -311,6 +312,8 @@ class SessionService:
             where = recipe_given[0] if recipe_given else sources[1]
             raise InputError(("body", where), "give one of a scenario (scenario, n, seed, radius), a museum, "
                                               f"a mesh_scene or a scene, not {' and '.join(sources)}")
+        scene: Scene | AnimatedScene
+        recipe: dict[str, Any] | None
         if body.mesh_scene is not None:
             r = body.mesh_scene
             scene = mesh_scene(r.kind, r.detail, r.smooth)
@@ -694,7 +697,7 @@ class SessionService:
                                               rs.max_tree_depth, self._pose_time(scene, rs.time)), result.stats)
             last = self.encode_frame(result, frame, settings, t_admit, handle.started_at, version=version,
                                      t_queued=t_queued)
-            result = handle = first = None      # the arrays go now, not when the generator does
+            result = handle = first = None  # type: ignore[assignment]  # the arrays go now, not when the generator does
         yield last
 
     def session_frame(self, session_id: str, patch: dict[str, Any], *, cancel: threading.Event | None = None,

@@ -36,9 +36,9 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
 
 import httpx
 
@@ -199,7 +199,7 @@ class Child:
     restarts: int = 0             # restarts in a row (reset once it stayed up STABLE_S)
     restart_at: float | None = None
 
-    def start(self) -> "Child":
+    def start(self) -> Child:
         log = open(self.log_path, "ab")
         self.proc = subprocess.Popen(self.args, stdout=log, stderr=subprocess.STDOUT, env=self.env,
                                      start_new_session=True)
@@ -210,6 +210,10 @@ class Child:
     @property
     def alive(self) -> bool:
         return self.proc is not None and self.proc.poll() is None
+
+    @property
+    def returncode(self) -> int | None:
+        return None if self.proc is None else self.proc.returncode
 
     def log_tail(self, chars: int = 3000) -> str:
         try:
@@ -265,10 +269,16 @@ class Stack:
         return f"http://127.0.0.1:{self.port}"
 
     @property
+    def _dir(self) -> Path:
+        assert self.workdir is not None, "start() makes it"
+        return self.workdir
+
+    @property
     def redis_url(self) -> str:
+        assert self.redis is not None, "the stack is started"
         return f"redis://127.0.0.1:{self.redis.port}/0"
 
-    def start(self, timeout_s: float = 120.0) -> "Stack":
+    def start(self, timeout_s: float = 120.0) -> Stack:
         if self.workdir is None:
             self.workdir = Path(tempfile.mkdtemp(prefix="pocketray-stack-"))
             self._own_dir = True
@@ -306,10 +316,10 @@ class Stack:
                 if child.restart_at is None:
                     delay = RESTART_BACKOFF_S[min(child.restarts, len(RESTART_BACKOFF_S) - 1)]
                     child.restart_at = now + delay
-                    self.say(f"stack: {child.name} exited with {child.proc.returncode}; restarting it"
+                    self.say(f"stack: {child.name} exited with {child.returncode}; restarting it"
                              + (f" in {delay:g} s" if delay else ""))
                 if now >= child.restart_at and not self._stopping.is_set():
-                    self.restarted.append((child.name, child.proc.returncode))
+                    self.restarted.append((child.name, child.returncode))
                     child.restarts += 1
                     child.restart_at = None
                     try:
@@ -324,7 +334,7 @@ class Stack:
         self.redis = Child("redis", [find_executable("redis-server"), "--port", str(port), "--bind", "127.0.0.1",
                                      "--dir", str(self.workdir), "--appendonly", "yes", "--appendfsync", "always",
                                      "--save", "", "--protected-mode", "yes"],
-                           self.workdir / "redis.log", port=port).start()
+                           self._dir / "redis.log", port=port).start()
         client = redis.Redis(host="127.0.0.1", port=port)
         deadline = time.monotonic() + timeout_s
         while True:
@@ -344,10 +354,10 @@ class Stack:
         env = {**os.environ, **self.env, CAP_ENV: "0", UNSENT_ENV: "0"}
         args = [sys.executable, "-m", "server", "serve", "--host", "127.0.0.1", "--port", str(port),
                 "--state-backend", "redis", "--redis-url", self.redis_url, "--drain-s", str(self.drain_s)]
-        return Child(f"render{i}", args, self.workdir / f"render{i}.log", env=env, port=port).start()
+        return Child(f"render{i}", args, self._dir / f"render{i}.log", env=env, port=port).start()
 
     def _start_haproxy(self, timeout_s: float) -> None:
-        cfg = self.workdir / "haproxy.cfg"
+        cfg = self._dir / "haproxy.cfg"
         cfg.write_text(haproxy_config(f"127.0.0.1:{self.port}",
                                       [(c.name, f"127.0.0.1:{c.port}") for c in self.renders],
                                       client_cap=self.client_cap))
@@ -355,7 +365,7 @@ class Stack:
         check = subprocess.run([exe, "-c", "-f", str(cfg)], capture_output=True, text=True)
         if check.returncode != 0:
             raise RuntimeError(f"haproxy rejects its configuration: {check.stdout}{check.stderr}")
-        self.haproxy = Child("haproxy", [exe, "-db", "-f", str(cfg)], self.workdir / "haproxy.log").start()
+        self.haproxy = Child("haproxy", [exe, "-db", "-f", str(cfg)], self._dir / "haproxy.log").start()
         self.haproxy.port = self.port
         self._wait(self.haproxy, "/api/ready", timeout_s)
         # Every process in rotation: each answers through the balancer (health checks passed).
@@ -376,7 +386,7 @@ class Stack:
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             if not child.alive:
-                raise RuntimeError(f"{child.name} exited with {child.proc.returncode}: {child.log_tail()}")
+                raise RuntimeError(f"{child.name} exited with {child.returncode}: {child.log_tail()}")
             try:
                 if httpx.get(f"http://127.0.0.1:{child.port}{path}", timeout=5.0).status_code == 200:
                     return
@@ -398,7 +408,7 @@ class Stack:
         if self.haproxy is not None:
             self.haproxy.stop(signal.SIGTERM)   # haproxy -db: SIGTERM is a hard stop, SIGUSR1 a soft one
         for child in self.renders:
-            if child.alive:
+            if child.proc is not None and child.alive:
                 child.proc.send_signal(signal.SIGINT)   # no drain needed: the balancer is gone
         for child in self.renders:
             child.stop(signal.SIGTERM, timeout_s=30)
@@ -407,7 +417,7 @@ class Stack:
         if self._own_dir and self.workdir is not None:
             shutil.rmtree(self.workdir, ignore_errors=True)
 
-    def __enter__(self) -> "Stack":
+    def __enter__(self) -> Stack:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:

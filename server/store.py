@@ -46,10 +46,10 @@ import sqlite3
 import threading
 import time
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any, Callable, Protocol
-
+from typing import Any, Protocol, cast
 
 log = logging.getLogger("pocketray.store")
 
@@ -89,7 +89,7 @@ class SessionState:
         return json.dumps(asdict(self), separators=(",", ":"))
 
     @staticmethod
-    def from_json(text: str | bytes) -> "SessionState":
+    def from_json(text: str | bytes) -> SessionState:
         try:
             return SessionState(**json.loads(text))
         except (ValueError, TypeError) as e:      # a record someone else wrote, or a torn one
@@ -533,7 +533,8 @@ class RedisStore:
 
     def get_source(self, session_id: str) -> tuple[str, bytes] | None:
         _, k_scene = self._keys(session_id)
-        rev, source = self.client.hmget(k_scene, ["rev", "source"])
+        # bytes: the client does not decode responses
+        rev, source = cast(list[bytes | None], self.client.hmget(k_scene, ["rev", "source"]))
         if rev is None or source is None:
             return None
         return rev.decode(), bytes(source)

@@ -57,7 +57,8 @@ import socket
 import struct
 import time
 import weakref
-from typing import Any
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import h11
 from uvicorn.protocols.http.h11_impl import H11Protocol
@@ -71,7 +72,7 @@ log = logging.getLogger("pocketray.wire")
 # The open connections of each client address, per uvicorn server (its ServerState), so that
 # several servers in one process (tests) count apart. A connection is its protocol object: the
 # h11 one, then the WebSocket one it hands over to.
-_PEERS: "weakref.WeakKeyDictionary[Any, dict[str, set[Any]]]" = weakref.WeakKeyDictionary()
+_PEERS: weakref.WeakKeyDictionary[Any, dict[str, set[Any]]] = weakref.WeakKeyDictionary()
 
 WRITE_PROGRESS = 64 * 1024   # bytes a client must take per write timeout while an answer waits for it
 WS_FEED = 4096               # bytes of WebSocket input parsed at a time (a flood is refused between slices)
@@ -79,7 +80,7 @@ UNSENT_RETRY_AFTER_S = 1
 EXTENSION = "pocketray.wire"   # the scope extension through which a WebSocket route asks for refusal()
 
 
-def _raw_answer(status: int, reason: str, detail: str, extra: list[tuple[str, str]] = ()) -> bytes:
+def _raw_answer(status: int, reason: str, detail: str, extra: Sequence[tuple[str, str]] = ()) -> bytes:
     body = json.dumps({"detail": detail}).encode()
     head = [f"HTTP/1.1 {status} {reason}", "content-type: application/json", f"content-length: {len(body)}",
             "connection: close", *(f"{k}: {v}" for k, v in extra)]
@@ -128,7 +129,7 @@ def _unsent_detail(unsent: int, cap: int) -> str:
             f"{cap / 2**20:g} MiB, POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT); read the answers you asked for first")
 
 
-def refusal(scope: dict) -> dict[str, Any] | None:
+def refusal(scope: Mapping[str, Any]) -> dict[str, Any] | None:
     """For a WebSocket route: the error message to answer instead of a frame while the client's
     address has more unsent bytes than allowed (``{"status": 429, "detail", "retry_after"}``),
     else None (also under a server without this module's protocols)."""
@@ -136,7 +137,15 @@ def refusal(scope: dict) -> dict[str, Any] | None:
     return check() if check is not None else None
 
 
-class _Guard:
+if TYPE_CHECKING:
+    import asyncio
+
+    _ProtocolBase = asyncio.Protocol   # what the mixin is mixed into: uvicorn's protocols
+else:
+    _ProtocolBase = object
+
+
+class _Guard(_ProtocolBase):
     """What both protocols share: their place among their address's connections, the write watch.
 
     ``pause_writing``/``resume_writing`` are the transport's flow control (above 64 KiB
@@ -144,12 +153,16 @@ class _Guard:
     bytes per ``write_s``, or the transport is aborted — ``abort`` drops the buffer at once,
     where ``close`` would keep it until the client takes it, i.e. forever."""
 
+    # The protocol's own, set by uvicorn's protocol classes.
+    transport: asyncio.Transport
+    loop: asyncio.AbstractEventLoop
+
     def _guard_setup(self, settings: ServerConfig, server_state: Any) -> None:
         self.guard_state = server_state
         self.write_s = settings.write_timeout_s
         self.unsent_cap = settings.max_unsent_bytes_per_client
         self._host: str | None = None
-        self._write_timer = None
+        self._write_timer: asyncio.TimerHandle | None = None
         self._write_mark = 0
 
     def pause_writing(self) -> None:

@@ -28,7 +28,7 @@ import sys
 import textwrap
 from dataclasses import dataclass
 from fnmatch import fnmatchcase
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 from tests.helpers import ROOT
@@ -57,7 +57,7 @@ def module_name(path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
-@lru_cache(maxsize=None)
+@cache
 def modules() -> dict[str, Path]:
     found = {module_name(p): p for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))}
     assert found, "no module found: the test reads the wrong directory"
@@ -106,7 +106,7 @@ def read_imports(source: str, package: str, known) -> list[Import]:
     return out
 
 
-@lru_cache(maxsize=None)
+@cache
 def imports_of(name: str) -> tuple[Import, ...]:
     return tuple(read_imports(modules()[name].read_text(), _package_of(name), modules()))
 
@@ -272,7 +272,7 @@ BLOCK_GL = textwrap.dedent("""
 
     sys.meta_path.insert(0, NoGL())
     try:
-        import moderngl  # noqa: F401  (the blocker must work, or the test proves nothing)
+        import moderngl  # noqa: F401 - the blocker must work, or the test proves nothing
         blocked = False
     except ImportError:
         blocked = True

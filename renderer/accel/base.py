@@ -14,15 +14,15 @@ from ``capabilities.multi_pass``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 from .. import gpu_layout
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..modes import SINGLE_PASS_MODES
 from ..scene import Scene, SceneError
 from ..tree_update import REBUILD, TreeUpdate
-
 
 # A ray stops at its nearest hit, so it rarely reaches every leaf the SAH counts, but it tests
 # every primitive of a leaf it enters: the builds report the SAH's tests in leaves this big
@@ -88,7 +88,7 @@ def gpu_data(scene: Scene, pack: Callable[[], gpu_layout.PackedScene], meshes_on
     """``pack()``, or — for a scene with triangles and a method whose layout packs spheres
     only (``meshes_on_gpu`` False) — :class:`NotOnGPU`."""
     if scene.n_triangles and not meshes_on_gpu:
-        return NotOnGPU(scene, method)  # type: ignore[return-value]
+        return NotOnGPU(scene, method)  # type: ignore[return-value]  # stands in for the data: reading it refuses
     return pack()
 
 
@@ -154,11 +154,15 @@ class AccelerationMethod(Protocol):
     constants its traversal reads (declared into the shader header from here), and ``prepare``."""
     name: str
     capabilities: Capabilities
-    bindings: tuple[gpu_layout.Binding, ...]
 
-    @staticmethod
-    def glsl_defines() -> str:
-        """The method's layout constants as ``#define`` lines ("" when it has none)."""
+    # Read-only members (a method's class attribute, of a more precise type, satisfies them).
+    @property
+    def bindings(self) -> tuple[gpu_layout.Binding, ...]:
+        """What its traversal reads."""
+
+    @property
+    def glsl_defines(self) -> Callable[[], str]:
+        """The method's layout constants as ``#define`` lines ("" when it has none): a static method."""
 
     def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
                 max_width: int = DEFAULT_TEXTURE_WIDTH, update: TreeUpdate = REBUILD) -> PreparedMethod:

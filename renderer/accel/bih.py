@@ -83,8 +83,8 @@ class BIHStats:
 
     ``inner_nodes`` counts the cuts too, ``leaves`` only the leaves that hold primitives
     (not a cut's empty child), so ``leaves = inner_nodes − cut_nodes + 1``, as the thesis's
-    own table has inner nodes beyond ``leaves − 1``. Depths count the root as 1. ``leaf_histogram`` holds the fraction of
-    leaves with 0, 1, 2, 3, 4 and more than 4 primitives. ``bytes`` is
+    own table has inner nodes beyond ``leaves − 1``. Depths count the root as 1. ``leaf_histogram``
+    holds the fraction of leaves with 0, 1, 2, 3, 4 and more than 4 primitives. ``bytes`` is
     Fig. 4.5's memory: nodes (12 B each) + index array (4 B per primitive) +
     global AABB (24 B), the thesis's layout (the GPU reads ``bih_layout``'s records:
     16 B per inner node and a 16- or 32-byte sphere record per primitive).
@@ -190,6 +190,7 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
         if empty_cuts and n:
             starts, seg = segments(count)
             prim = indices[positions(op.lo, starts, seg)]
+            assert rows6 is not None    # made when empty_cuts
             rows = np.take(rows6, prim, axis=0)
             tight = np.minimum.reduceat(rows, starts, axis=0)
             cuts += _cut_empty_space(op, tight[:, :3], -tight[:, 3:], store, max_tree_depth, area)
@@ -306,7 +307,7 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
                max_prims=max_prims, max_tree_depth=max_tree_depth, stats=stats)
 
 
-def _cut_empty_space(op: "_Open", tmin: np.ndarray, tmax: np.ndarray, store: "_NodeStore",
+def _cut_empty_space(op: _Open, tmin: np.ndarray, tmax: np.ndarray, store: _NodeStore,
                      max_tree_depth: int, area: dict) -> int:
     """Step 0 of the module's docstring on the open nodes ``op`` (their primitives' tight
     boxes ``tmin``/``tmax``): while the best cut of a node — the side of its region, on any
@@ -360,12 +361,12 @@ class _Open:
     depth: np.ndarray
     retries: np.ndarray
 
-    def select(self, which) -> "_Open":
+    def select(self, which) -> _Open:
         """The nodes ``which`` (a mask, indices or a slice), as copies."""
         return _Open(*(np.array(getattr(self, f.name)[which]) for f in fields(self)))
 
     @staticmethod
-    def concat(parts: list["_Open"]) -> "_Open":
+    def concat(parts: list[_Open]) -> _Open:
         return _Open(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(_Open)))
 
 

@@ -176,5 +176,5 @@ def pack_bih(bih, scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
         textures={NODES.name: wrap_rows(records, max_width),
                   SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, order, last), max_width)},
         uniforms=dict(zip((ROOT.name, BOX_MIN.name, BOX_MAX.name),
-                          (root, *gpu_layout.box_uniform(*bih.global_aabb)))))
+                          (root, *gpu_layout.box_uniform(*bih.global_aabb)), strict=True)))
     return gpu_layout.merged(packed, gpu_layout.pack_triangles(scene, max_width, count=False))

@@ -51,6 +51,7 @@ when every float64 primitive lies inside its float32 AABB (see
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -74,8 +75,8 @@ class TraversalResult:
     tests: np.ndarray          # int64 (R,)
 
 
-def sphere_t(o: np.ndarray, d: np.ndarray, c: np.ndarray, r: np.ndarray, ids: np.ndarray,
-             ignore: np.ndarray, far_only: np.ndarray) -> np.ndarray:
+def sphere_t(o: Sequence[np.ndarray], d: Sequence[np.ndarray], c: Sequence[np.ndarray], r: np.ndarray,
+             ids: np.ndarray, ignore: np.ndarray, far_only: np.ndarray) -> np.ndarray:
     """t of the first accepted hit of ray ``(o, d)`` with sphere ``(c, r)``, inf if none.
 
     ``o, d, c`` are tuples/lists of three broadcastable float64 arrays (x, y, z
@@ -108,7 +109,7 @@ def _edge(qx: np.ndarray, py: np.ndarray, qy: np.ndarray, px: np.ndarray) -> np.
     Per edge, so that ``E(Q, P) = −E(P, Q)`` holds bit for bit between neighbours."""
     qx, py, qy, px = np.broadcast_arrays(qx, py, qy, px)
     e = qx * py - qy * px
-    for k in zip(*np.nonzero(e == 0.0)):
+    for k in zip(*np.nonzero(e == 0.0), strict=True):
         exact = Fraction(float(qx[k])) * Fraction(float(py[k])) - Fraction(float(qy[k])) * Fraction(float(px[k]))
         f = float(exact)
         e[k] = f if (f != 0.0 or exact == 0) else (5e-324 if exact > 0 else -5e-324)
@@ -205,13 +206,13 @@ def brute_force(centers, radii, origins, dirs, ignore=None, far_only=None, trian
     tri, valid = _corners(triangles)
     if len(tri) and n_rays:
         ids = (n + np.arange(len(tri), dtype=np.int64))[None, :]
-        vs = [tuple(tri[None, :, k, a] for a in range(3)) for k in range(3)]
+        v0, v1, v2 = (tuple(tri[None, :, k, a] for a in range(3)) for k in range(3))
         step = max(1, _BRUTE_CHUNK // len(tri))
         for s in range(0, n_rays, step):
             e = min(n_rays, s + step)
             oo = (o[s:e, 0:1], o[s:e, 1:2], o[s:e, 2:3])
             dd = (d[s:e, 0:1], d[s:e, 1:2], d[s:e, 2:3])
-            t = triangle_t(oo, dd, *vs, ids, ign[s:e, None], valid[None, :])
+            t = triangle_t(oo, dd, v0, v1, v2, ids, ign[s:e, None], valid[None, :])
             k = np.argmin(t, axis=1)
             tk = t[np.arange(e - s), k]
             t_best[s:e] = tk
@@ -370,9 +371,9 @@ def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarr
                     if len(tp_):
                         ry, ps = ray[tp_], pid[tp_]
                         j = ps - n_s
+                        v0, v1, v2 = (tuple(tv[k][a][j] for a in range(3)) for k in range(3))
                         t[tp_] = triangle_t((o[ry, 0], o[ry, 1], o[ry, 2]), (d[ry, 0], d[ry, 1], d[ry, 2]),
-                                            *[tuple(tv[k][a][j] for a in range(3)) for k in range(3)],
-                                            ps, ign[ry], valid[j])
+                                            v0, v1, v2, ps, ign[ry], valid[j])
                     order_t = np.lexsort((pid, t, ray))
                     ray_s = ray[order_t]
                     first = np.ones(total, dtype=bool)

@@ -128,7 +128,7 @@ class BVH:
     prim_hi: np.ndarray
     max_prims: int
     max_tree_depth: int
-    stats: BVHStats = field(repr=False, default=None)  # type: ignore[assignment]
+    stats: BVHStats = field(repr=False, default=None)  # type: ignore[assignment]  # the build sets it
 
     @property
     def n_nodes(self) -> int:
@@ -161,7 +161,7 @@ class _Nodes:
         self.next = 0
 
     @staticmethod
-    def of(bvh: BVH, extra: int) -> "_Nodes":
+    def of(bvh: BVH, extra: int) -> _Nodes:
         nodes = _Nodes(bvh.n_nodes + extra)
         m = bvh.n_nodes
         nodes.bmin[:m], nodes.bmax[:m] = bvh.bmin, bvh.bmax
@@ -246,9 +246,9 @@ def _cheapest_split(r: np.ndarray, seg: np.ndarray, b: np.ndarray, count: np.nda
         np.minimum.at(blo[a], cell, r[:, a])
         np.maximum.at(bhi[a], cell, r[:, 3 + a])
     n = np.bincount(cell, minlength=width * k).reshape(width, k)
-    blo, bhi = blo.reshape(3, width, k), bhi.reshape(3, width, k)
-    pl, ph = _scan(blo, np.minimum), _scan(bhi, np.maximum)
-    sl, sh = _scan(blo, np.minimum, reverse=True), _scan(bhi, np.maximum, reverse=True)
+    blo3, bhi3 = blo.reshape(3, width, k), bhi.reshape(3, width, k)
+    pl, ph = _scan(blo3, np.minimum), _scan(bhi3, np.maximum)
+    sl, sh = _scan(blo3, np.minimum, reverse=True), _scan(bhi3, np.maximum, reverse=True)
     n_l = np.cumsum(n, axis=0)[:-1]
     n_r = count - n_l
     with np.errstate(invalid="ignore", over="ignore"):
@@ -261,7 +261,7 @@ def _cheapest_split(r: np.ndarray, seg: np.ndarray, b: np.ndarray, count: np.nda
         cost = np.where((n_l > 0) & (n_r > 0), (a_l * n_l + a_r * n_r) * balance, np.inf)
     j = np.argmin(cost, axis=0)
     at, nxt = j * k + np.arange(k), (j + 1) * k + np.arange(k)
-    flat = lambda x: x.reshape(3, width * k)  # noqa: E731
+    flat = lambda x: x.reshape(3, width * k)
     return _Split(cost.reshape(-1)[at], j, flat(pl)[:, at].T, flat(ph)[:, at].T, flat(sl)[:, nxt].T,
                   flat(sh)[:, nxt].T)
 
@@ -331,7 +331,7 @@ def _grow(nodes: _Nodes, rows: np.ndarray, ids: np.ndarray, slot: np.ndarray, lo
         b = np.empty(len(pos), np.int64)
         parts = []
         edges = np.flatnonzero(np.concatenate([[True], width[1:] != width[:-1], [True]]))
-        for g0, g1 in zip(edges[:-1], edges[1:]):
+        for g0, g1 in zip(edges[:-1], edges[1:], strict=True):
             e0, e1 = starts[g0], (starts[g1] if g1 < len(cand) else len(pos))
             gseg = seg[e0:e1] - g0
             b[e0:e1] = _bins(r[e0:e1], gseg, starts[g0:g1] - e0, int(width[g0]))

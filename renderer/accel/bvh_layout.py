@@ -89,7 +89,7 @@ def gpu_records(bvh) -> tuple[np.ndarray, int]:
     lc = bvh.left[inner]
     rc = lc + 1
     out = np.zeros((len(inner), 4, 4), dtype=np.uint32)
-    f = lambda a: np.ascontiguousarray(a, dtype=np.float32).view(np.uint32)   # noqa: E731
+    f = lambda a: np.ascontiguousarray(a, dtype=np.float32).view(np.uint32)
     out[:, 0, :3], out[:, 0, 3] = f(bvh.bmin[lc]), ref[lc]
     out[:, 1, :3], out[:, 1, 3] = f(bvh.bmax[lc]), ref[rc]
     out[:, 2, :3], out[:, 2, 3] = f(bvh.bmin[rc]), bvh.near_mask[inner].astype(np.uint32) & np.uint32(NEAR_MASK_BITS)
@@ -129,5 +129,5 @@ def pack_bvh(bvh, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT
         textures={NODES.name: wrap_rows(records, max_width),
                   SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, order, last), max_width)},
         uniforms=dict(zip((ROOT.name, ROOT_MIN.name, ROOT_MAX.name),
-                          (root, *gpu_layout.box_uniform(bvh.bmin[0], bvh.bmax[0])))))
+                          (root, *gpu_layout.box_uniform(bvh.bmin[0], bvh.bmax[0])), strict=True)))
     return gpu_layout.merged(packed, gpu_layout.pack_triangles(scene, max_width, count=False))

@@ -45,7 +45,7 @@ class TreePrimitives:
     valid: np.ndarray       # (T,) not of zero area
 
     @staticmethod
-    def of(scene) -> "TreePrimitives":
+    def of(scene) -> TreePrimitives:
         corners, valid = _corners(scene.triangle_corners)
         return TreePrimitives(np.asarray(scene.sphere_centers, np.float64).reshape(-1, 3),
                               np.asarray(scene.sphere_radii, np.float64).reshape(-1), corners, valid)
@@ -71,8 +71,8 @@ class TreePrimitives:
         if len(tri):
             r, p = ray[tri], pid[tri]
             j = p - self.n_spheres
-            v = [tuple(self.corners[j, k, a] for a in range(3)) for k in range(3)]
-            t[tri] = triangle_t((o[r, 0], o[r, 1], o[r, 2]), (d[r, 0], d[r, 1], d[r, 2]), *v, p, none[tri],
+            v0, v1, v2 = (tuple(self.corners[j, k, a] for a in range(3)) for k in range(3))
+            t[tri] = triangle_t((o[r, 0], o[r, 1], o[r, 2]), (d[r, 0], d[r, 1], d[r, 2]), v0, v1, v2, p, none[tri],
                                 self.valid[j])
         return t
 

@@ -116,7 +116,7 @@ class KdTree:
     global_box: np.ndarray
     max_depth: int
     cost_scale: float
-    stats: KdStats = field(repr=False, default=None)  # type: ignore[assignment]
+    stats: KdStats = field(repr=False, default=None)  # type: ignore[assignment]  # the build sets it
 
     @property
     def n_nodes(self) -> int:
@@ -172,7 +172,7 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
         order = np.argsort(pos, kind="stable")
         ev_pos.append(pos[order])
         ev_ref.append(np.concatenate([ref_prim, ref_prim])[order])
-        ev_st.append((order < n))
+        ev_st.append(order < n)
     if n == 0:
         f_slot.append(slot); f_axis.append(np.full(1, -1)); f_left.append(np.full(1, -1))
         f_split.append(np.zeros(1, np.float32)); f_depth.append(depth); f_vmin.append(vmin); f_vmax.append(vmax)
@@ -353,7 +353,7 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
     ndepth = np.ones(m, np.int64)
     nvmin = np.zeros((m, 3), np.float32)
     nvmax = np.zeros((m, 3), np.float32)
-    for s, ax, lf, spl, dp, v0_, v1_ in zip(f_slot, f_axis, f_left, f_split, f_depth, f_vmin, f_vmax):
+    for s, ax, lf, spl, dp, v0_, v1_ in zip(f_slot, f_axis, f_left, f_split, f_depth, f_vmin, f_vmax, strict=True):
         axis[s], left[s], split_pos[s], ndepth[s], nvmin[s], nvmax[s] = ax, lf, spl, dp, v0_, v1_
 
     # depth-first (preorder) rank of every node
@@ -390,16 +390,16 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
             glob = bytearray()
             win = 4 * int(compaction_window)
             offs = np.empty(len(starts), np.int64)
-            for i, (s0, c) in enumerate(zip(starts.tolist(), counts.tolist())):
+            for i, (s0, c) in enumerate(zip(starts.tolist(), counts.tolist(), strict=True)):
                 key = buf[4 * s0:4 * (s0 + c)]
-                j = glob.find(key, max(0, len(glob) - win))
-                while j != -1 and j % 4:
-                    j = glob.find(key, j + 1)
-                if j == -1:
+                at = glob.find(key, max(0, len(glob) - win))
+                while at != -1 and at % 4:
+                    at = glob.find(key, at + 1)
+                if at == -1:
                     offs[i] = len(glob) // 4
                     glob += key
                 else:
-                    offs[i] = j // 4
+                    offs[i] = at // 4
             offset[leaves_dfs] = offs
             indices = np.frombuffer(bytes(glob), dtype="<i4").astype(np.int64)
         else:

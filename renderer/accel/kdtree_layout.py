@@ -129,5 +129,5 @@ def pack_kdtree(kd, scene, ids: np.ndarray | None = None, max_width: int = DEFAU
         textures={NODES.name: wrap_rows(records, max_width),
                   SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, prims, last), max_width)},
         uniforms=dict(zip((ROOT.name, BOX_MIN.name, BOX_MAX.name),
-                          (root, *gpu_layout.box_uniform(*kd.global_box)))))
+                          (root, *gpu_layout.box_uniform(*kd.global_box)), strict=True)))
     return gpu_layout.merged(packed, gpu_layout.pack_triangles(scene, max_width, count=False))

@@ -9,9 +9,9 @@ import numpy as np
 from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene
 from ..scene import Scene
 from ..tree_update import REBUILD, UPDATE_SCHEMES, TreeUpdate
+from . import bvh_layout, kdtree_layout
 from .base import Capabilities, PreparedMethod, gpu_data, mesh_stats
 from .bvh import BVHMethod
-from . import bvh_layout, kdtree_layout
 from .bvh_layout import pack_bvh
 from .kdtree import DEFAULT_COST_SCALE, build_kdtree
 from .kdtree_layout import pack_kdtree

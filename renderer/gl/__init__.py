@@ -5,5 +5,7 @@ the :class:`GLRenderer` (one context, its programs and targets), ``ray_engine`` 
 multi-pass methods' passes and ``raw_gl`` holds the few GL calls moderngl lacks.
 """
 
-from .context import GLUnavailable, create_context  # noqa: F401
-from .renderer import GLRenderer  # noqa: F401
+from .context import GLUnavailable, create_context
+from .renderer import GLRenderer
+
+__all__ = ["GLRenderer", "GLUnavailable", "create_context"]

@@ -6,7 +6,8 @@ A context belongs to the thread that made it: use it from that thread only.
 from __future__ import annotations
 
 import ctypes
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any, cast
 
 import moderngl
 
@@ -60,17 +61,17 @@ class ReleasingContext:
         setattr(self._ctx, name, value)
 
 
-def create_context() -> ReleasingContext:
+def create_context() -> moderngl.Context:
     """A headless OpenGL ≥ 3.3 context through EGL (Mesa's llvmpipe without a GPU).
 
     Wrapped in :class:`ReleasingContext`, so waiting for a frame does not stop
     the process's other threads.
     """
     try:
-        ctx = moderngl.create_standalone_context(backend="egl")
+        ctx = moderngl.create_standalone_context(backend="egl")  # type: ignore[arg-type]  # stubs: every keyword a dict
     except Exception as egl_error:  # pragma: no cover - depends on the machine
         try:
             ctx = moderngl.create_standalone_context()
         except Exception:
             raise GLUnavailable(f"cannot create an OpenGL context: {egl_error}") from egl_error
-    return ReleasingContext(ctx)
+    return cast(moderngl.Context, ReleasingContext(ctx))   # it stands in for the context: every attribute delegated

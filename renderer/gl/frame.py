@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, cast
 
 import moderngl
 import numpy as np
@@ -70,7 +70,7 @@ class Pass:
         return "centre" if self.sub is None else f"sample {self.sub[0]},{self.sub[1]}"
 
 
-def image_only(settings: "RenderSettings") -> bool:
+def image_only(settings: RenderSettings) -> bool:
     """Whether a frame needs only its 8-bit image: png or jpeg at one sample per pixel (a
     supersampled frame keeps float sub-pixels, so its box filter is the same)."""
     return settings.format in ("png", "jpeg") and settings.samples_per_pixel == 1
@@ -84,7 +84,8 @@ class ImageOnlyResult(RenderResult):
 
     def __init__(self, u8: np.ndarray, mode: str, timings: dict, stats: dict, arrays):
         self._u8, self.mode, self.timings, self.stats = u8, mode, timings, stats
-        self._arrays, self._full = arrays, None
+        self._arrays = arrays
+        self._full: RenderResult | None = None
 
     def image_u8(self) -> np.ndarray:
         return self._u8.copy()
@@ -129,7 +130,7 @@ class TracerFrame:
     compare against it.
     """
 
-    def __init__(self, renderer, scene: Scene, settings: "RenderSettings", variant: Variant,
+    def __init__(self, renderer, scene: Scene, settings: RenderSettings, variant: Variant,
                  prepared: PreparedMethod, stats: dict, *, band_rows: int | None = None, one_shot: bool = False,
                  t_start: float | None = None, slice_ms: float | None = None):
         self.renderer, self.ctx = renderer, renderer.ctx
@@ -162,7 +163,8 @@ class TracerFrame:
         self.slices = 0
         self._pass_index = 0
         self._row = 0
-        self._centre: tuple[np.ndarray, np.ndarray] | None = None   # image, hit of the centre pass (GL rows)
+        # image, hit of the centre pass (GL rows); an image-only frame reads no hit
+        self._centre: tuple[np.ndarray, np.ndarray | None] | None = None
         self._grid: np.ndarray | None = None                          # kH × kW × 4 sub-pixel images (GL rows)
         self._preview: RenderResult | None = None
         self._result: RenderResult | None = None
@@ -195,11 +197,11 @@ class TracerFrame:
             tex.use(unit)
         for name, unit in self.units.items():
             if name in prog:
-                prog[name].value = unit
+                cast(moderngl.Uniform, prog[name]).value = unit
         for binding, (name, buf) in enumerate(self.block_units.items()):
             if name in prog:
                 buf.bind_to_uniform_block(binding)
-                prog[name].binding = binding
+                cast(moderngl.UniformBlock, prog[name]).binding = binding
         if self.one_shot:     # the whole k × k grid in one draw: each fragment is one sub-pixel
             grid, pass_terms = self._target_size(), gpu_layout.pass_uniforms(1)
         else:
@@ -236,6 +238,7 @@ class TracerFrame:
         w, h = self._target_size()
         rows = h - self._row if self.band_rows is None else min(max(1, int(self.band_rows)), h - self._row)
         t0 = time.perf_counter()
+        assert self.fbo is not None, "the target is held until the last pass"
         self.fbo.use()
         for prog, vao, scissor in self._draws(w, h, self._row, rows):
             self._bind(p, prog)
@@ -285,7 +288,8 @@ class TracerFrame:
     def _finish_pass(self, p: Pass) -> None:
         t0 = time.perf_counter()
         w, h = self._target_size()
-        self.fbo.scissor = None
+        assert self.fbo is not None, "the target is held until the last pass"
+        self.fbo.scissor = None  # type: ignore[assignment]  # None: no scissor (moderngl's stubs omit it)
         if self.variant.image_only:
             u8 = np.frombuffer(self.fbo.read(components=4, dtype="f1", attachment=0), np.uint8).reshape(h, w, 4)
             self._centre = (u8, None)
@@ -306,6 +310,7 @@ class TracerFrame:
 
     # ---- results -----------------------------------------------------------------------------
     def _compose(self) -> RenderResult:
+        assert self._centre is not None, "the centre pass is read back"
         if self.variant.image_only:
             u8 = np.ascontiguousarray(self._centre[0][::-1, :, :3])
             timings = {**self.timings, "total": (time.perf_counter() - self.t_start) * 1e3}
@@ -315,6 +320,7 @@ class TracerFrame:
                                    lambda: r.begin(scene, settings.with_(format="npy"), prepared=prepared).run())
         img, hit = self._centre
         self._centre = None                      # the arrays below are the read-back's last references
+        assert hit is not None, "a float frame reads the hit target too"
         img, hit = img[::-1], hit[::-1]          # image row 0 at the top
         k, W, H = self.k, self.width, self.height
         if self.one_shot:                        # the old way: ids from the middle sub-pixel
@@ -367,7 +373,7 @@ class TracerFrame:
             b.release()
         self.buffers = []
         if self.fbo is not None:
-            self.fbo.scissor = None
+            self.fbo.scissor = None  # type: ignore[assignment]  # None: no scissor (moderngl's stubs omit it)
             self.renderer.targets.release(self.fbo)
             self.fbo = None
 
@@ -391,7 +397,8 @@ def check_bindings(variant: Variant, parts: list[PackedScene]) -> tuple[dict, di
     known = known_bindings()
     per_pass = {b.name for b in (*gpu_layout.CAMERA_BINDINGS, *gpu_layout.PASS_BINDINGS)}
     declared = {b.name for b in tracer_bindings(variant)} - per_pass
-    tex, uni = {}, {}
+    tex: dict[str, Any] = {}
+    uni: dict[str, Any] = {}
     for part in parts:
         for name in (*part.textures, *part.uniforms):
             if name not in known:

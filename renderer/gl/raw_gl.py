@@ -8,6 +8,8 @@ not cache any of this state. One ``RawGL`` belongs to one renderer.
 from __future__ import annotations
 
 import ctypes
+from collections.abc import Callable
+from typing import Any
 
 import moderngl
 
@@ -32,6 +34,26 @@ class RawGL:
     They act on the context current in this thread (the renderer's); moderngl does not
     cache any of this state.
     """
+
+    # The library's functions, set in __init__ with their ctypes signatures.
+    glEnable: Callable[..., Any]
+    glDisable: Callable[..., Any]
+    glStencilFunc: Callable[..., Any]
+    glStencilOp: Callable[..., Any]
+    glStencilMask: Callable[..., Any]
+    glClearStencil: Callable[..., Any]
+    glClear: Callable[..., Any]
+    glClearDepth: Callable[..., Any]
+    glGenRenderbuffers: Callable[..., Any]
+    glDeleteRenderbuffers: Callable[..., Any]
+    glBindRenderbuffer: Callable[..., Any]
+    glRenderbufferStorage: Callable[..., Any]
+    glBindFramebuffer: Callable[..., Any]
+    glFramebufferRenderbuffer: Callable[..., Any]
+    glCheckFramebufferStatus: Callable[..., Any]
+    glGetIntegerv: Callable[..., Any]
+    glGetFramebufferAttachmentParameteriv: Callable[..., Any]
+    glDepthMask: Callable[..., Any]
 
     def __init__(self) -> None:
         lib = None

@@ -2,8 +2,8 @@
 
 Both are methods of :mod:`renderer.accel.ray_engine` (``rayengine``, ``hre``) whose
 capabilities say ``multi_pass``: the GL renderer hands their frames to
-:class:`RayEnginePasses` (one per renderer, holding its programs and targets). Rays live in float textures, primitives are drawn
-over them, and the Whitted shading of ``docs/SHADING.md`` runs as full-screen passes.
+:class:`RayEnginePasses` (one per renderer, holding its programs and targets). Rays live in float
+textures, primitives are drawn over them, and the Whitted shading of ``docs/SHADING.md`` runs as full-screen passes.
 
 **Ray engine** (Carr et al. 2002, as Szécsi §2.1 restates it). A *layer* is one set of
 rays, one per pixel, in two RGBA32F textures the size of the render target: origin and
@@ -65,8 +65,9 @@ other pass, ``read`` = reading the frame back, ``total``.
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Iterator
+from typing import TYPE_CHECKING, Any, cast
 
 import moderngl
 import numpy as np
@@ -79,8 +80,8 @@ from ..limits import DEFAULT_TEXTURE_WIDTH, STENCIL_BITS
 from ..modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, primid_colors
 from ..result import RenderResult
 from ..scene import Scene, SceneError
-from .ray_engine_targets import Programs as _Programs, Targets as _Targets  # noqa: F401
 from .raw_gl import GL_STENCIL_BUFFER_BIT, RawGL
+from .ray_engine_targets import Programs as _Programs, Targets as _Targets
 from .textures import upload_textures
 
 if TYPE_CHECKING:
@@ -137,8 +138,8 @@ class RayEnginePasses:
         while len(self._free) > 1:   # keep the most recent set: most frames repeat a size
             self._free.pop(0).release_all()
 
-    def begin(self, method: RayEngine, scene: Scene, settings: "RenderSettings", *,
-              log: FrameLog | None = None, batch: int | None = None) -> "RayEngineFrame":
+    def begin(self, method: RayEngine, scene: Scene, settings: RenderSettings, *,
+              log: FrameLog | None = None, batch: int | None = None) -> RayEngineFrame:
         """A frame of ``method``, uploaded, to be traced slice by slice; ``batch`` primitives
         per draw call (None: each pass in one draw)."""
         return RayEngineFrame(self, method, scene, settings, log=log, batch=batch)
@@ -160,10 +161,10 @@ class RayEnginePasses:
         t = ctx.texture(tex.size, tex.components, tex.data.tobytes(), dtype=tex.dtype)
         t.filter = (moderngl.NEAREST, moderngl.NEAREST)
         t.use(0)
-        prog["u_spheres"].value = 0
+        cast(moderngl.Uniform, prog["u_spheres"]).value = 0
         for name, value in {**packed.uniforms, "u_matrix_size": (float(n), float(tiles))}.items():
             if name in prog:
-                prog[name].value = value
+                cast(moderngl.Uniform, prog[name]).value = value
         target = ctx.texture((n, tiles), 4, dtype="f4")
         fbo = ctx.framebuffer(color_attachments=[target])
         buf = ctx.buffer(np.ascontiguousarray(verts, dtype=np.float32).tobytes())
@@ -196,7 +197,7 @@ class RayEngineFrame:
     come from a primary-only frame through the pixel centres, traced first (``centre``).
     """
 
-    def __init__(self, passes: RayEnginePasses, method: RayEngine, scene: Scene, settings: "RenderSettings", *,
+    def __init__(self, passes: RayEnginePasses, method: RayEngine, scene: Scene, settings: RenderSettings, *,
                  log: FrameLog | None = None, batch: int | None = None):
         self.t_start = time.perf_counter()
         self.passes, self.method, self.scene, self.settings = passes, method, scene, settings
@@ -213,7 +214,8 @@ class RayEngineFrame:
         if mode == "cones":
             max_level = settings.max_recursion_depth
         self.max_level = max_level
-        self.tg = passes.acquire_targets(wp, hp)
+        tg = passes.acquire_targets(wp, hp)
+        self.tg: _Targets | None = tg     # None once released
         self.textures: list[moderngl.Texture] = []
         self.slices = 0
         self._result: RenderResult | None = None
@@ -222,7 +224,7 @@ class RayEngineFrame:
             if self.k > 1:
                 self.centre = RayEngineFrame(passes, method, scene, settings.with_(
                     mode="primid", samples_per_pixel=1, max_recursion_depth=1), batch=batch)
-            self.frame = _FrameRun(method, self.ctx, self.gl, self.tg, passes.programs, scene, settings, (w, h),
+            self.frame = _FrameRun(method, self.ctx, self.gl, tg, passes.programs, scene, settings, (w, h),
                                    self.ts, max_level, self.log)
             self.frame.batch = batch
             self.frame.upload(passes.max_texture_width, self.textures)
@@ -247,7 +249,7 @@ class RayEngineFrame:
         """The GL state the one-pass tracer's slices expect: no tests, no blending."""
         self.ctx.enable_only(moderngl.NOTHING)
         self.gl.stencil_off()
-        self.ctx.blend_func = moderngl.DEFAULT_BLENDING
+        self.ctx.blend_func = moderngl.DEFAULT_BLENDING  # type: ignore[assignment]  # a pair; moderngl's stubs type it int
 
     def step(self) -> bool:
         if self.done:
@@ -288,7 +290,10 @@ class RayEngineFrame:
     def release(self) -> None:
         if self.centre is not None:
             self.centre.release()
-        for t in [*self.textures, *self.frame.buffers] if hasattr(self, "frame") else self.textures:
+        held: list[moderngl.Texture | moderngl.Buffer] = [*self.textures]
+        if hasattr(self, "frame"):
+            held += self.frame.buffers
+        for t in held:
             t.release()
         self.textures = []
         if hasattr(self, "frame"):
@@ -305,11 +310,12 @@ class RayEngineFrame:
         if k > 1:
             color = color.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
             image = image.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
+            assert self.centre is not None, "a supersampled frame traces its centres"
             centre = self.centre.result()     # the arrays through the pixel centres
             primid, depth_t, normal = centre.primid, centre.depth, centre.normal
         if settings.mode == "color":
             image = color
-        ms = lambda a, b: (b - a) * 1e3  # noqa: E731
+        ms = lambda a, b: (b - a) * 1e3
         timings = {"build": frame.build_ms, "upload": ms(self.t_start, self.t_up),
                    "trace": ms(self.t_up, t_traced) - frame.build_ms - frame.stats_ms, "read": ms(t_traced, t_end),
                    "total": ms(self.t_start, t_end) - frame.stats_ms}
@@ -319,7 +325,7 @@ class RayEngineFrame:
         stats = {"method": method.name, "recursion_depth": self.max_level,
                  "features_removed": list(self.features.defines()),
                  "primitives": self.scene.n_primitives, "layers": log.layers, "layers_skipped": log.layers_skipped,
-                 "passes": log.passes, "stencil_bits": min(method.stencil_bits, self.tg.stencil_bits),
+                 "passes": log.passes, "stencil_bits": min(method.stencil_bits, frame.tg.stencil_bits),
                  "stencil_fallback_levels": log.stencil_fallback_levels, "slices": self.slices}
         if method.hierarchical:
             stats.update({"tile_size": self.ts, "tile_prims_drawn": log.tiles_drawn,
@@ -399,15 +405,15 @@ class _FrameRun:
             tex.use(unit)
         for name, unit in self.units.items():
             if name in prog:
-                prog[name].value = unit
+                cast(moderngl.Uniform, prog[name]).value = unit
         for i, (name, tex) in enumerate(samplers.items()):
             unit = self.n_units + i
             tex.use(unit)
             if name in prog:
-                prog[name].value = unit
+                cast(moderngl.Uniform, prog[name]).value = unit
         for name, value in {**self.uniforms, **uniforms}.items():
             if name in prog:
-                prog[name].value = value
+                cast(moderngl.Uniform, prog[name]).value = value
 
     def _stencil_bit(self, level: int) -> int:
         if level > self.bits:
@@ -453,8 +459,11 @@ class _FrameRun:
         t0 = time.perf_counter()
         defines = (f"TILE {self.ts}",) + (("SHADOW",) if light >= 0 else ())
         prog, vao = self.progs.fullscreen("rayengine_cones.frag", defines)
-        samplers = ({"u_surf0": self.tg.surf0, "u_surf1": self.tg.surf1} if light >= 0
-                    else {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1]})
+        if light >= 0:
+            samplers = {"u_surf0": self.tg.surf0, "u_surf1": self.tg.surf1}
+        else:
+            assert layer is not None, "a radiance cone pass reads its layer's rays"
+            samplers = {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1]}
         self._bind(prog, samplers, u_light=max(light, 0))
         self.ctx.enable_only(moderngl.NOTHING)
         self.gl.stencil_off()
@@ -508,7 +517,7 @@ class _FrameRun:
             setup()
             if self.hre:
                 self.ctx.point_size = float(self.ts)
-            prog["u_instance_base"].value = first
+            cast(moderngl.Uniform, prog["u_instance_base"]).value = first
             vao.render(mode, instances=min(batch, n - first))
             yield
         self.log.passes += 1
@@ -618,6 +627,7 @@ class _FrameRun:
                "branch": layer.branch if layer else None, "verts": tiles[1] if tiles else None,
                "cones": tiles[0] if tiles else None}
         if kind == "radiance":
+            assert layer is not None, "a radiance record is a layer's"
             rec["ray_o"], rec["ray_d"] = self._read(layer.rays[0]).copy(), self._read(layer.rays[1]).copy()
         else:
             rec["surf0"], rec["surf1"] = self._read(self.tg.surf0).copy(), self._read(self.tg.surf1).copy()
@@ -742,6 +752,7 @@ class _FrameRun:
             depth = np.full((h, w), np.inf, np.float32)
             normal = np.zeros((h, w, 3), np.float32)
         hit = primid >= 0
+        image: np.ndarray
         if mode == "color":
             image = color
         elif mode == "depth":
@@ -752,6 +763,7 @@ class _FrameRun:
         elif mode == "normal":
             image = np.where(hit[..., None], 0.5 * (normal + 1.0), 0.0)
         elif mode == "recursion":
+            assert self.deepest is not None, "a recursion frame counts its levels"
             image = RECURSION_COLORS[self.deepest[:h, :w][::-1]]
         elif mode == "heat":
             tests = self.heat[:h, :w][::-1] if self.heat is not None else np.zeros((h, w))

@@ -50,7 +50,7 @@ class Targets:
         self.ctx, self.size = ctx, (width, height)
         self.gl = gl
         self.rb = self.gl.renderbuffer(width, height)
-        tex = lambda: self._tex(width, height)  # noqa: E731
+        tex = lambda: self._tex(width, height)
         self.hit, self.surf0, self.surf1, self.blocked0, self.blocked1, self.color = (tex() for _ in range(6))
         self.fbo_hit = self._fbo([self.hit], depth=True)
         self.fbo_surf = self._fbo([self.surf0, self.surf1])

@@ -16,26 +16,28 @@ one dedicated thread).
 from __future__ import annotations
 
 import time
-from typing import Hashable
+from collections.abc import Hashable
+from typing import cast
 
 import moderngl
 import numpy as np
 
-from ..animation import AnimatedScene
 from .. import gpu_layout
+from ..accel.ray_engine import RayEngine
+from ..animation import AnimatedScene
 from ..features import scene_features
+from ..gpu_layout import Variant
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..methods import METHODS, PreparedMethod, check_primitives, resolve_method
 from ..prepare import PreparedFrame, prepare_frame
 from ..result import RenderResult
 from ..scene import Scene, SceneError
-from ..gpu_layout import Variant
 from ..settings import RenderSettings
 from ..shader_source import tracer_bindings, tracer_source, vertex_source
 from ..tree_update import TreeUpdate
-from .context import GLUnavailable, create_context  # noqa: F401  (re-exported)
+from .context import GLUnavailable, create_context  # noqa: F401 - re-exported
 from .frame import TracerFrame, image_only
-from .ray_engine import RayEnginePasses
+from .ray_engine import RayEngineFrame, RayEnginePasses
 from .targets import TargetPool
 
 
@@ -108,19 +110,21 @@ class GLRenderer:
         """
         t_start = time.perf_counter()
         if prepared is not None:      # the caller built it: trace with it (a static scene)
-            return self.begin(scene, settings, prepared=prepared).run()
+            return self.begin(cast(Scene, scene), settings, prepared=prepared).run()   # posed by the caller
         frame = self.start(prepare_frame(scene, settings, key=key, max_width=self.max_texture_width),
                            t_start=t_start)
         return frame.run()
 
     def start(self, frame: PreparedFrame, *, band_rows: int | None = None, batch: int | None = None,
-              t_start: float | None = None, slice_ms: float | None = None) -> "StartedFrame":
+              t_start: float | None = None, slice_ms: float | None = None) -> StartedFrame:
         """A prepared frame (:func:`renderer.prepare.prepare_frame`) uploaded and ready to be
         traced slice by slice: bands of ``band_rows`` rows (the tracer) or batches of
         ``batch`` primitives (the ray engines)."""
         t_start = t_start if t_start is not None else time.perf_counter()
-        if frame.multi_pass:
-            inner = self.ray_engine.begin(METHODS[frame.method], frame.scene, frame.settings, batch=batch)
+        inner: RayEngineFrame | TracerFrame
+        if frame.multi_pass:    # a ray engine
+            inner = self.ray_engine.begin(cast(RayEngine, METHODS[frame.method]), frame.scene, frame.settings,
+                                          batch=batch)
         else:
             inner = self.begin(frame.scene, frame.settings, prepared=frame.prepared, band_rows=band_rows,
                                slice_ms=slice_ms)
@@ -162,7 +166,7 @@ class GLRenderer:
     def blocks_for(self, variant: Variant, prepared: PreparedMethod) -> tuple[str, ...]:
         """The method's record arrays this variant reads whose packed data fit a uniform
         block, as many as the context allows (in the method's order of bindings)."""
-        out = []
+        out: list[str] = []
         for b in tracer_bindings(variant):
             tex = prepared.packed.textures.get(b.name)
             if b.records and tex is not None and len(out) < self.max_blocks \
@@ -193,9 +197,7 @@ class StartedFrame:
     def pixels_left(self) -> int:
         return getattr(self.inner, "pixels_left", 0)
 
-    def _annotate(self, result: RenderResult | None) -> RenderResult | None:
-        if result is None:
-            return None
+    def _annotate(self, result: RenderResult) -> RenderResult:
         if self.frame.pose_ms is not None:
             result.timings["pose"] = self.frame.pose_ms
             result.timings["total"] = (time.perf_counter() - self.t_start) * 1e3
@@ -207,7 +209,8 @@ class StartedFrame:
 
     @property
     def preview(self) -> RenderResult | None:
-        return self._annotate(self.inner.preview)
+        preview = self.inner.preview
+        return None if preview is None else self._annotate(preview)
 
     def result(self) -> RenderResult:
         return self._annotate(self.inner.result())

@@ -14,6 +14,6 @@ api_router = APIRouter(prefix="/api")
 # Tags group the OpenAPI document (server.web.OPENAPI_TAGS); device's router names its own.
 for _routes, _tags in ((sessions, ["sessions"]), (frames, ["frames"]), (meta, ["service"]), (ws, ["frames"]),
                        (device, [])):
-    api_router.include_router(_routes.router, tags=_tags)
+    api_router.include_router(_routes.router, tags=[*_tags])
 
 __all__ = ["api_router"]

@@ -31,8 +31,9 @@ import asyncio
 import gc
 import json
 import threading
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from fastapi.exceptions import RequestValidationError
@@ -82,7 +83,7 @@ def body_too_slow(got: int, declared: str | None, seconds: float, config: Server
              "send the body faster, or a smaller one", {"Connection": "close"})
 
 
-def client_share_taken(host: str, held: int, config: ServerConfig) -> StarletteHTTPException:
+def client_share_taken(host: str | None, held: int, config: ServerConfig) -> StarletteHTTPException:
     """429 for an address that already holds its share of the large-body slots."""
     return StarletteHTTPException(
         429, f"busy: this client address ({host}) already sends {held} large request bodies, its share of the "
@@ -104,9 +105,9 @@ async def read_steadily(request: Request, config: ServerConfig) -> bytes:
         left = t0 + grace + got / rate - loop.time()
         try:
             if left <= 0:
-                raise asyncio.TimeoutError
+                raise TimeoutError
             message = await asyncio.wait_for(request.receive(), left)
-        except asyncio.TimeoutError:
+        except TimeoutError:
             raise body_too_slow(got, request.headers.get("content-length"), loop.time() - t0, config) from None
         if message["type"] == "http.disconnect":
             raise ClientDisconnect()
@@ -130,7 +131,10 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     out = dict(pairs)
     if len(out) != len(pairs):
         seen: set[str] = set()
-        raise _DuplicateKey(next(k for k, _ in pairs if k in seen or seen.add(k)))
+        for k, _ in pairs:       # the first key given twice
+            if k in seen:
+                raise _DuplicateKey(k)
+            seen.add(k)
     return out
 
 
@@ -229,7 +233,7 @@ def release_gradually(value: Any, depth: int = 4) -> None:
             del value[max(stop, 0):]
 
 
-def validate_body(field: Any, raw: bytes, max_depth: int) -> tuple[Any, list[dict[str, Any]] | None]:
+def validate_body(field: Any, raw: bytes, max_depth: int) -> tuple[Any, Sequence[Any] | None]:
     """(the validated model, None) or (None, errors located under ``body``). ``field`` is the route's
     ``body_field``: validated exactly as FastAPI validates it (same adapter, same errors)."""
     try:
@@ -241,7 +245,7 @@ def validate_body(field: Any, raw: bytes, max_depth: int) -> tuple[Any, list[dic
     return (value, None) if not errors else (None, errors)
 
 
-def validate_large_body(field: Any, raw: bytes, max_depth: int) -> tuple[Any, list[dict[str, Any]] | None]:
+def validate_large_body(field: Any, raw: bytes, max_depth: int) -> tuple[Any, Sequence[Any] | None]:
     """:func:`validate_body` for the pool's threads, without full collections meanwhile."""
     with NO_FULL_COLLECTIONS:
         return validate_body(field, raw, max_depth)
@@ -259,7 +263,7 @@ class BodyParsers:
         self._lock = threading.Lock()
 
     @classmethod
-    def of(cls, request: Request) -> "BodyParsers":
+    def of(cls, request: Request) -> BodyParsers:
         """The app's parsers (made on first use from its config; ``app.state`` lives with the app)."""
         state = request.app.state
         parsers = getattr(state, "body_parsers", None)

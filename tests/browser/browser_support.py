@@ -138,7 +138,7 @@ class Touch:
         for k in range(1, steps + 1):
             a = k / steps
             self.send("touchMove", [(x0 + (x1 - x0) * a, y0 + (y1 - y0) * a)
-                                    for (x0, y0), (x1, y1) in zip(starts, ends)])
+                                    for (x0, y0), (x1, y1) in zip(starts, ends, strict=True)])
         self.send("touchEnd", [])
 
     def path(self, frames) -> None:
@@ -164,7 +164,7 @@ class Client:
         page.on("console", lambda m: m.type == "error" and self.console_errors.append(m.text))
         page.on("pageerror", lambda e: self.console_errors.append(f"pageerror: {e}"))
 
-    def open(self, query: str = FAST_QUERY) -> "Client":
+    def open(self, query: str = FAST_QUERY) -> Client:
         self.page.goto(f"{self.server.base}/?{query}")
         self.wait_idle(min_frames=1)
         return self
@@ -189,7 +189,7 @@ class Client:
                 status: p.status, idle: p.idle, frameCount: p.frameCount, lastFrame: p.lastFrame && p.lastFrame.level,
                 requests: p.requests, errors: p.errors, notices: p.notices, sessionId: p.sessionId}; }""")
             raise AssertionError(f"no idle full frame #{min_frames} within {timeout / 1000} s: {state}\n"
-                                 f"console: {self.console_errors}\nserver log:\n{self.server.log_tail(2000)}")
+                                 f"console: {self.console_errors}\nserver log:\n{self.server.log_tail(2000)}") from None
 
     def camera(self) -> dict:
         return self.server.session(self.hook("sessionId"))["camera"]

@@ -20,7 +20,7 @@ def test_play_pause_poses_frames_at_advancing_times(open_client, server):
     assert c.hook("lastFrame.time") == 0
 
     icon = lambda: p.evaluate("""() => ['.icon-play', '.icon-pause'].map((s) =>
-        getComputedStyle(document.querySelector('#play-button ' + s)).display !== 'none')""")   # noqa: E731
+        getComputedStyle(document.querySelector('#play-button ' + s)).display !== 'none')""")
     assert icon() == [True, False] and p.text_content("#play-button .label") == "Play"
     n0 = c.frame_count
     p.click("#play-button")

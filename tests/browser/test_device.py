@@ -22,7 +22,6 @@ import urllib.request
 
 import numpy as np
 import pytest
-
 from browser_support import CHROMIUM, CHROMIUM_ARGS, FAILED_LOAD, MOBILE, Client, Touch, http_json
 
 # WebGL2 in headless Chromium without a GPU: ANGLE on SwiftShader (explicit, so that a
@@ -168,7 +167,7 @@ def test_controller_port_matches_the_server(device_page):
     c = Camera.from_json(cam)
     want = [controller.pan(c, 37.5, -12.25, 640.0), controller.pinch(c, 1.7), controller.pinch(c, 0.3),
             controller.pinch(c, 1e9)]
-    for g, w in zip(got, want):
+    for g, w in zip(got, want, strict=True):
         assert np.allclose(g["position"], w.position, rtol=1e-14, atol=1e-12), (g, w)
         assert np.allclose(g["target"], w.target, rtol=1e-14, atol=1e-12), (g, w)
 
@@ -265,9 +264,9 @@ def test_device_data_is_the_gpu_layout_and_refuses_what_a_device_cannot_run(serv
     """The blob holds gpu_layout's arrays bit for bit; multi-pass methods, tiny textures and
     devices without float targets get a 422 that says why; the shader is the server's text."""
     from renderer import gpu_layout
-    from renderer.shader_source import tracer_source as shader_source
     from renderer.methods import METHODS
     from renderer.scenarios import scenario
+    from renderer.shader_source import tracer_source as shader_source
     from server.device_data import decode_blob
 
     sid = sessions(2, 64)
@@ -309,9 +308,9 @@ def test_orbit_port_matches_the_server(device_page):
     turns = [(37.5, -12.25), (-200.0, 0.0), (0.0, 170.0), (15.0, -95.0), (360.0, 360.0)]
     got = device_page.page.evaluate("""async ([cams, turns]) => { const d = await import('/js/device/device.js');
         return cams.map((c) => turns.map(([y, p]) => d.orbitCamera(c, y, p))); }""", [cams, turns])
-    for cam, row in zip(cams, got):
+    for cam, row in zip(cams, got, strict=True):
         c = Camera.from_json(cam)
-        for (yaw, pitch), g in zip(turns, row):
+        for (yaw, pitch), g in zip(turns, row, strict=True):
             w = controller.orbit(c, yaw, pitch)
             assert np.allclose(g["position"], w.position, rtol=1e-12, atol=1e-11), (cam, yaw, pitch, g, w)
             assert g["target"] == list(w.target) and g["up"] == list(w.up)
@@ -372,7 +371,7 @@ def test_device_mode_keeps_up_with_the_fingers(gl_browser, server):
         assert last["level"] == "full" and last["samples"] == 4
         local = p.evaluate("() => window.pocketray.device.camera")
         assert np.allclose(last["camera"]["position"], local["position"]) and np.allclose(c.camera()["position"], local["position"])
-        field = lambda name: p.text_content(f'#overlay [data-field="{name}"]')   # noqa: E731
+        field = lambda name: p.text_content(f'#overlay [data-field="{name}"]')
         for name in ("time", "trace", "bands", "display", "samples", "n", "method"):
             assert field(name) not in ("", "–"), name
         assert field("samples").startswith("4 spp") and int(field("bands")) > 1

@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from browser_support import Touch, basis, distance, moved
 
 HOME = {"position": [0.0, 0.0, 100.0], "target": [0.0, 0.0, 0.0]}

@@ -30,7 +30,8 @@ CHROME_SHARE = """() => {
   const xs = [...new Set(boxes.flatMap((b) => [b[0], b[2]]))].sort((a, b) => a - b);
   let area = 0;
   for (let i = 0; i + 1 < xs.length; i++) {
-    const spans = boxes.filter((b) => b[0] <= xs[i] && b[2] >= xs[i + 1]).map((b) => [b[1], b[3]]).sort((a, b) => a[0] - b[0]);
+    const spans = boxes.filter((b) => b[0] <= xs[i] && b[2] >= xs[i + 1]).map((b) => [b[1], b[3]])
+      .sort((a, b) => a[0] - b[0]);
     let covered = 0, top = -Infinity;
     for (const [t, b] of spans) { if (b > top) { covered += b - Math.max(t, top); top = b; } }
     area += covered * (xs[i + 1] - xs[i]);
@@ -59,7 +60,8 @@ def page_zoom(page) -> dict:
 
 
 def dismiss_hint(page) -> None:
-    page.evaluate("() => { const b = document.querySelector('#hint [data-dismiss]'); if (b && !document.querySelector('#hint').hidden) b.click(); }")
+    page.evaluate("() => { const b = document.querySelector('#hint [data-dismiss]');"
+                  " if (b && !document.querySelector('#hint').hidden) b.click(); }")
 
 
 def test_no_control_can_zoom_or_scroll_the_page(open_client):
@@ -154,9 +156,11 @@ def test_the_overlay_is_one_line_until_tapped(open_client):
 def test_every_button_says_what_it_does(open_client):
     c = open_client("portrait", MUSEUM_QUERY)
     p = c.page
-    buttons = p.evaluate("""() => [...document.querySelectorAll('#toolbar button')].filter((b) => !b.hidden).map((b) => {
+    buttons = p.evaluate("""() => [...document.querySelectorAll('#toolbar button')].filter((b) => !b.hidden)
+      .map((b) => {
         const l = b.querySelector('.label'); const r = l.getBoundingClientRect();
-        return {id: b.id, label: l.textContent.trim(), shown: r.width > 0 && r.height > 0 && getComputedStyle(l).visibility === 'visible',
+        return {id: b.id, label: l.textContent.trim(),
+                shown: r.width > 0 && r.height > 0 && getComputedStyle(l).visibility === 'visible',
                 aria: b.getAttribute('aria-label') || '', title: b.title}; })""")
     assert [b["id"] for b in buttons] == ["overlay-toggle", "play-button", "orbit-toggle", "reset-button", "settings-toggle"]
     for b in buttons:
@@ -215,7 +219,7 @@ def test_settings_that_do_not_apply_are_hidden(open_client):
     c = open_client("wide", FAST_QUERY)
     p = c.page
     p.click("#settings-toggle")
-    shown = lambda *names: {n: p.is_visible(f"#f-{n}") for n in names}   # noqa: E731
+    shown = lambda *names: {n: p.is_visible(f"#f-{n}") for n in names}
     names = ("max_prims", "max_tree_depth", "tile_size", "update", "motion", "radius", "samples_per_pixel")
     assert shown(*names) == {"max_prims": True, "max_tree_depth": True, "tile_size": False, "update": False,
                              "motion": False, "radius": True, "samples_per_pixel": True}

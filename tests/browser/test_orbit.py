@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from browser_support import Touch, distance
 
 ORBIT_DEGREES_PER_VIEW = 180          # client_web/js/ui/controls.js: a drag the frame's height turns 180°

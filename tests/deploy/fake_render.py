@@ -1,8 +1,8 @@
 """A stand-in for a render process behind HAProxy (tests/deploy/test_balancer.py): no GL, no
 state, one process to ``kill -9``. ``python fake_render.py PORT MODE LOG``: ``/api/ready`` is
 200; any other request is written to LOG (``METHOD PATH BODY``, one a line) and then, by MODE,
-answered 200 ``{"served": PORT, "forwarded_for": X-Forwarded-For}`` (``ok``) or left without an answer, its connection closed
-(``drop``: a process that died while it worked on the request)."""
+answered 200 ``{"served": PORT, "forwarded_for": X-Forwarded-For}`` (``ok``) or left without an answer, its
+connection closed (``drop``: a process that died while it worked on the request)."""
 
 from __future__ import annotations
 

@@ -47,7 +47,7 @@ def test_compose_topology_redis_with_aof_one_render_service_per_gpu_and_the_bala
     renders = render_services(doc)
     assert len(renders) >= 2
     gpus = []
-    for name, s in sorted(renders.items()):
+    for _name, s in sorted(renders.items()):
         assert s["command"][0] == "serve"
         gpus.append(int(s["command"][s["command"].index("--gpu") + 1]))
         env = s["environment"]

@@ -24,10 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-RECORD = Path(__file__).with_name("record.json")
+from renderer.methods import METHODS
+from renderer.modes import SINGLE_PASS_MODES as MODES
 
-from renderer.methods import METHODS  # noqa: E402
-from renderer.modes import SINGLE_PASS_MODES as MODES  # noqa: E402
+RECORD = Path(__file__).with_name("record.json")
 
 # Every method with a one-pass traversal: a new method adds its variants to the record.
 SINGLE_PASS = tuple(name for name, m in METHODS.items() if m.capabilities.shader)
@@ -44,7 +44,7 @@ def _sha(text: str | bytes) -> str:
 
 
 def feature_sets() -> list[tuple[str, ...]]:
-    return [tuple(f for f, on in zip(FEATURES, bits) if on) for bits in itertools.product((0, 1), repeat=3)]
+    return [tuple(f for f, on in zip(FEATURES, bits, strict=True) if on) for bits in itertools.product((0, 1), repeat=3)]
 
 
 def tracer_shaders() -> dict[str, str]:

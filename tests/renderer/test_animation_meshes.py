@@ -8,8 +8,15 @@ import json
 import numpy as np
 import pytest
 
-from renderer.animation import (AnimatedScene, Deformable, Incoherent, RigidGroup, animated_scene_from_json,
-                                motion_to_json, pose)
+from renderer.animation import (
+    AnimatedScene,
+    Deformable,
+    Incoherent,
+    RigidGroup,
+    animated_scene_from_json,
+    motion_to_json,
+    pose,
+)
 from renderer.meshes import icosphere, teapot
 from renderer.scenarios import mesh_scene
 from renderer.scene import SceneError

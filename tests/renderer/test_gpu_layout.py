@@ -20,8 +20,7 @@ import math
 import numpy as np
 import pytest
 
-from renderer.gpu_layout import (MATERIAL_TEXELS, PackedTexture, camera_uniforms, glsl_header,
-                                 pack_primitives, wrap_rows)
+from renderer.gpu_layout import MATERIAL_TEXELS, PackedTexture, camera_uniforms, glsl_header, pack_primitives, wrap_rows
 from renderer.limits import DEFAULT_TEXTURE_WIDTH, MAX_LIGHTS, MAX_PLANES, MAX_TREE_DEPTH
 from renderer.scene import Camera, Light, Material, Plane, Scene
 

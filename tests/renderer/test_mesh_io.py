@@ -8,8 +8,15 @@ import json
 import numpy as np
 import pytest
 
-from renderer.mesh_io import MODEL_FORMATS, export_mesh, fit_transform, load_mesh, mesh_json, model_scene, \
-    write_scene_json
+from renderer.mesh_io import (
+    MODEL_FORMATS,
+    export_mesh,
+    fit_transform,
+    load_mesh,
+    mesh_json,
+    model_scene,
+    write_scene_json,
+)
 from renderer.meshes import box, edge_report, icosphere, signed_volume, torus
 from renderer.scene import Scene, SceneError
 
@@ -23,7 +30,7 @@ def corners_sorted(v: np.ndarray, t: np.ndarray) -> np.ndarray:
     c = v[t]
     key = np.round(c, 4)          # ordering by rounded values: float32 storage must not reorder
     rolled, keys = [], []
-    for tri, kt in zip(c, key):
+    for tri, kt in zip(c, key, strict=True):
         k = min(range(3), key=lambda i: tuple(kt[i]))
         rolled.append(np.roll(tri, -k, axis=0).ravel())
         keys.append(np.roll(kt, -k, axis=0).ravel())

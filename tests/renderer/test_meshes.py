@@ -9,8 +9,19 @@ import numpy as np
 import pytest
 
 from renderer import teapot_data
-from renderer.meshes import (box, edge_report, icosphere, orient_outward, procedural, signed_volume, teapot,
-                             teapot_surface, torus, vertex_normals, weld)
+from renderer.meshes import (
+    box,
+    edge_report,
+    icosphere,
+    orient_outward,
+    procedural,
+    signed_volume,
+    teapot,
+    teapot_surface,
+    torus,
+    vertex_normals,
+    weld,
+)
 from renderer.scene import SceneError
 
 

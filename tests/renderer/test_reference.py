@@ -12,8 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from renderer.reference import (primary_rays, reflect, render_reference, trace_rays,
-                                transmitted_directions)
+from renderer.reference import primary_rays, reflect, render_reference, trace_rays, transmitted_directions
 from renderer.scenarios import scenario
 from renderer.scene import Camera, Light, Material, Plane, Scene
 from renderer.settings import RenderSettings
@@ -140,7 +139,7 @@ def test_cull_matches_dense_brute_force():
         n = 300
         centres = offset + rng.uniform(-10, 10, (n, 3)) * scale
         radii = rng.uniform(0.2, 3.0, n) * scale
-        scene = make_scene([(c, r, 0) for c, r in zip(centres, radii)])
+        scene = make_scene([(c, r, 0) for c, r in zip(centres, radii, strict=True)])
         o = offset + rng.uniform(-15, 15, (700, 3)) * scale
         d = rng.normal(size=(700, 3))
         d /= np.linalg.norm(d, axis=1, keepdims=True)
@@ -167,9 +166,9 @@ def test_lit_sphere_centre_pixel_by_hand(offset, radius):
     res = render_reference(scene, settings(31, 21, mode="color", max_recursion_depth=5))
     # By hand: p = c + (0, 0, R), N = (0, 0, 1), d = (0, 0, −1).
     N = np.array([0.0, 0.0, 1.0])
-    l = np.array([3.0, 4.0, 9.0]) / math.sqrt(9 + 16 + 81)
-    cos = l @ N
-    r = 2 * cos * N - l
+    L = np.array([3.0, 4.0, 9.0]) / math.sqrt(9 + 16 + 81)
+    cos = L @ N
+    r = 2 * cos * N - L
     spec = max(r @ N, 0.0) ** 10.0
     col = np.array(mat.color)
     expect = 0.1 * col + lc * (0.6 * cos * col + 0.3 * spec)

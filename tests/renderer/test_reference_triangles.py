@@ -11,8 +11,16 @@ import pytest
 
 from renderer.meshes import box, icosphere
 from renderer.modes import RECURSION_COLORS
-from renderer.reference import (RayBatch, _Frame, _Geometry, _trace_batch, primary_rays, render_reference,
-                                trace_rays, transmitted_directions)
+from renderer.reference import (
+    RayBatch,
+    _Frame,
+    _Geometry,
+    _trace_batch,
+    primary_rays,
+    render_reference,
+    trace_rays,
+    transmitted_directions,
+)
 from renderer.scene import Camera, Light, Material, Mesh, Plane, Scene
 from renderer.settings import RenderSettings
 
@@ -95,10 +103,10 @@ def test_smooth_normals_are_the_normalised_barycentric_blend():
     assert np.ptp(res.normal.reshape(-1, 3)[inside][:, 0]) > 0.3
 
 
-def phong(c, ka, kd, ks, q, n, l, view):
-    """SHADING.md's local term for one light of colour 1, n facing the viewer."""
-    cos = max(np.dot(n, l), 0.0)
-    r = 2 * cos * n - l
+def phong(c, ka, kd, ks, q, n, ldir, view):
+    """SHADING.md's local term for one light of colour 1 in direction ldir, n facing the viewer."""
+    cos = max(np.dot(n, ldir), 0.0)
+    r = 2 * cos * n - ldir
     x = np.dot(r, view)
     return ka * c + kd * cos * c + ks * (x ** q if x > 0 and cos > 0 else 0.0)
 
@@ -125,9 +133,9 @@ def test_color_uses_the_shading_normal_turned_to_the_geometric_side(smooth):
             n /= np.linalg.norm(n)
         else:
             n = np.array([0.0, 0.0, 1.0])
-        l = np.array(light.position) - p[i]
-        l /= np.linalg.norm(l)
-        expect = phong(np.array(mat.color), mat.ambient, mat.diffuse, mat.specular, mat.shininess, n, l, -d[i])
+        ldir = np.array(light.position) - p[i]
+        ldir /= np.linalg.norm(ldir)
+        expect = phong(np.array(mat.color), mat.ambient, mat.diffuse, mat.specular, mat.shininess, n, ldir, -d[i])
         np.testing.assert_allclose(img[i], np.clip(expect, 0, 1), atol=2e-6)
 
 

@@ -68,7 +68,7 @@ def crossing_rays(mesh, rng: np.random.Generator, per_vertex: int, per_edge: int
             targets.append(w @ v[t[f]])
             cones.append(fn[[f]])
     origins, dirs, dist = [], [], []
-    for q, cone in zip(targets, cones):
+    for q, cone in zip(targets, cones, strict=True):
         mean = cone.sum(axis=0)
         mean /= np.linalg.norm(mean)
         if not (cone @ mean > 0.05).all():
@@ -153,7 +153,7 @@ def test_lines_cross_a_closed_mesh_an_even_number_of_times(name):
     c = mesh.corners
     rng = np.random.default_rng(3)
     lo, hi = mesh.vertices.min(0), mesh.vertices.max(0)
-    centre, span = (lo + hi) / 2, float(np.linalg.norm(hi - lo))
+    span = float(np.linalg.norm(hi - lo))
     n = 1500
     aim = rng.uniform(lo, hi, (n, 3))
     dirs = rng.normal(size=(n, 3))

@@ -18,7 +18,7 @@ import signal
 import subprocess
 import time
 import warnings
-from typing import Callable, Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 
@@ -27,6 +27,7 @@ with warnings.catch_warnings():  # Starlette nudges towards httpx2; the TestClie
     from fastapi.testclient import TestClient
 
 from pocketray_server_support import ServerProcess, free_port, make_config, server_env, wait_ready
+
 from server.app import create_app
 
 

@@ -9,8 +9,8 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import httpx
 import pytest
@@ -75,7 +75,7 @@ class ServerProcess:
         self.log_path = log_path
         self.proc: subprocess.Popen | None = None
 
-    def start(self, timeout_s: float = 60.0) -> "ServerProcess":
+    def start(self, timeout_s: float = 60.0) -> ServerProcess:
         self.log = open(self.log_path, "ab")
         self.proc = subprocess.Popen([sys.executable, "-m", "server"], cwd=ROOT, env=self.env,
                                      stdout=self.log, stderr=subprocess.STDOUT)
@@ -157,7 +157,7 @@ def pocketray_batch(commands: list[tuple[str, ...] | tuple[tuple[str, ...], str]
     assert proc.returncode == 0, proc.stderr[-4000:]
     results = json.loads(proc.stdout.strip().splitlines()[-1])
     return [subprocess.CompletedProcess(["pocketray", *argv], r["returncode"], r["stdout"], r["stderr"])
-            for (argv, _), r in zip(calls, results)]
+            for (argv, _), r in zip(calls, results, strict=True)]
 
 
 def server_env(sqlite_path: Path, port: int | None = None, **settings) -> dict[str, str]:

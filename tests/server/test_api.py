@@ -9,11 +9,10 @@ import time
 import numpy as np
 import pytest
 from PIL import Image
+from pocketray_server_support import SMALL, new_session
 
 from renderer.scenarios import scenario
 from renderer.settings import SETTINGS
-
-from pocketray_server_support import SMALL, new_session
 
 SESSION_KEYS = {"id", "version", "settings", "scene_info", "camera"}
 # A session's settings are exactly the declared ones (renderer.settings.SETTINGS).
@@ -282,9 +281,10 @@ def test_static_client_shaders_and_docs(client):
 
 
 def test_sessions_expire_after_the_idle_time(tmp_path):
-    from pocketray_server_support import make_config
-    from server.app import create_app
     from fastapi.testclient import TestClient
+    from pocketray_server_support import make_config
+
+    from server.app import create_app
 
     with TestClient(create_app(make_config(tmp_path, session_ttl_s=1.0, warmup=False))) as c:
         idle = new_session(c)["id"]
@@ -335,7 +335,7 @@ def test_info_hands_out_the_measured_profiles(client):
 
     info = client.get("/api/info").json()
     assert info["profiles"] == {"interactive": INTERACTIVE, "still": STILL}
-    for name, profile in info["profiles"].items():  # each is a valid set of render settings
+    for _name, profile in info["profiles"].items():  # each is a valid set of render settings
         RenderSettings(**{k: v for k, v in profile.items() if k != "resolution_scale"})
 
 

@@ -25,6 +25,7 @@ with warnings.catch_warnings():
     from fastapi.testclient import TestClient
 
 from pocketray_server_support import SMALL, make_config
+
 from server.api.body import INLINE_BODY_BYTES, BodyParsers
 from server.app import create_app
 
@@ -168,7 +169,7 @@ def test_a_trickled_body_is_closed_on_the_wire_with_its_408(spawn_server):
             if not chunk:
                 break
             got += chunk
-        except socket.timeout:
+        except TimeoutError:
             continue
         except (BrokenPipeError, ConnectionResetError):
             break

@@ -19,8 +19,8 @@ import httpx
 import numpy as np
 import pytest
 from PIL import Image
-
 from pocketray_server_support import ROOT, free_port, pocketray, pocketray_batch
+
 from server import cli
 from server.exr import decode_exr
 
@@ -50,8 +50,8 @@ def test_render_writes_each_format_and_agrees_with_the_api(tmp_path, client):
     outs = ("a.png", "a.jpg", "a.npy", "p.npy", "z.exr", "n.exr", "c.exr", "i.exr")
     modes = [{"p": "primid", "z": "depth", "n": "normal", "i": "primid"}.get(out[0], "color") for out in outs]
     done = pocketray_batch([("render", "scene.json", "-o", out, "--mode", mode, *common, "--quiet")
-                            for out, mode in zip(outs, modes)], cwd=tmp_path)
-    for out, r in zip(outs, done):
+                            for out, mode in zip(outs, modes, strict=True)], cwd=tmp_path)
+    for out, r in zip(outs, done, strict=True):
         assert r.returncode == 0 and r.stderr == "", (out, r.stderr)
     assert Image.open(tmp_path / "a.png").size == (40, 30) and Image.open(tmp_path / "a.jpg").format == "JPEG"
     api = client.post("/api/render", json={"scene": scene, "settings": {
@@ -76,7 +76,7 @@ def test_render_rejects_what_the_api_rejects_naming_the_field(tmp_path):
         + [(("render", "-", "-o", "x.png"),
             json.dumps({"materials": [{}], "spheres": [{"center": [0, 0, 0], "radius": -1}]})),
            ("render", "s.json", "-o", "x.gif")], cwd=tmp_path)
-    for (flags, field), r in zip(cases.items(), refused):
+    for (flags, field), r in zip(cases.items(), refused, strict=True):
         assert r.returncode == 2 and field in r.stderr, (flags, r.stderr)
     assert bad.returncode == 2 and "scene.spheres.0.radius" in bad.stderr
     assert gif.returncode == 2

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from pocketray_server_support import pocketray_batch
+
 from renderer.mesh_io import export_mesh, load_mesh, model_scene
 from renderer.meshes import box, icosphere, torus
 from renderer.reference import primary_rays, trace_rays
@@ -53,7 +53,7 @@ def renders(models) -> dict[str, object]:
     commands["small.npy"] = ("render", "ball.obj", "-o", "small.npy", "--size", "10", "--mode", "primid", *COMMON)
     commands["n.npy"] = ("render", "ball.obj", "-o", "n.npy", "--flat", "--mode", "normal", *COMMON)
     commands["s.npy"] = ("render", "ball.obj", "-o", "s.npy", "--smooth", "--mode", "normal", *COMMON)
-    return dict(zip(commands, pocketray_batch(list(commands.values()), cwd=models)))
+    return dict(zip(commands, pocketray_batch(list(commands.values()), cwd=models), strict=True))
 
 
 @pytest.mark.parametrize("name", MODELS)
@@ -73,7 +73,7 @@ def test_render_model_file_agrees_with_the_reference_on_the_fitted_scene(models,
     border = np.concatenate([got[0], got[-1], got[:, 0], got[:, -1]])
     assert not ((border >= first) & (border < first + n_tri)).any()
     # Which kind of primitive each pixel sees agrees with float64, up to pixels on silhouettes.
-    kind = lambda ids: np.where(ids >= first, 2, np.where(ids >= 0, 1, 0))   # noqa: E731
+    kind = lambda ids: np.where(ids >= first, 2, np.where(ids >= 0, 1, 0))
     assert (kind(got) != kind(want)).mean() < 0.03
 
 
@@ -95,7 +95,7 @@ def test_render_model_refuses_bad_files_and_flags_naming_them(models):
              (("render", "ball.obj", "-o", "x.gif"), "output:"),
              (("scene", "--mesh", "bad.ply", "-o", "x.json"), "mesh:"),
              (("scene", "--mesh", "ball.obj", "--mesh", "gone.stl", "-o", "x.json"), "mesh:")]
-    for (args, words), r in zip(cases, pocketray_batch([args for args, _ in cases], cwd=models)):
+    for (args, words), r in zip(cases, pocketray_batch([args for args, _ in cases], cwd=models), strict=True):
         assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr, (args, r.stderr)
     assert not (models / "x.png").exists() and not (models / "x.json").exists()
 

@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import json
 import sqlite3
-from types import SimpleNamespace
 import warnings
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
@@ -28,6 +28,7 @@ with warnings.catch_warnings():  # as in conftest.py: the TestClient still speak
     from fastapi.testclient import TestClient
 
 from pocketray_server_support import SMALL, new_session
+
 from renderer.scene import SceneError
 from server.api import errors
 from server.api.body import BodyParsers

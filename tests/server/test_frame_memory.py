@@ -24,6 +24,7 @@ with warnings.catch_warnings():
     from fastapi.testclient import TestClient
 
 from pocketray_server_support import SMALL, make_config, new_session, wait_ready
+
 from renderer.result import RenderResult, traced_nbytes
 from renderer.settings import RenderSettings
 from server.app import create_app
@@ -144,7 +145,6 @@ def test_npy_encoding_copies_the_array_once():
 
 def test_the_estimate_of_a_frame_counts_its_target_read_back_and_body():
     from renderer.gl.targets import BYTES_PER_PIXEL, BYTES_PER_PIXEL_RGBA8, TargetPool
-
     from renderer.result import TARGET_BYTES_PER_PIXEL, TARGET_BYTES_PER_PIXEL_RGBA8
     assert (TARGET_BYTES_PER_PIXEL, TARGET_BYTES_PER_PIXEL_RGBA8) == (BYTES_PER_PIXEL, BYTES_PER_PIXEL_RGBA8)
     pixels = 4096 * 4096

@@ -23,14 +23,14 @@ from pathlib import Path
 
 import httpx
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 with warnings.catch_warnings():  # as in conftest.py: the TestClient still speaks httpx
     warnings.simplefilter("ignore")
     from fastapi.testclient import TestClient
 
-from pocketray_server_support import SMALL, make_config, new_session
+from pocketray_server_support import make_config, new_session
+
 from server.app import create_app
 from server.store import RedisStore, SessionState, SQLiteStore, StoreStartupError, StoreUnavailable
 
@@ -227,8 +227,8 @@ def test_a_large_body_is_read_as_strictly_as_a_small_one(client):
     from server.api.body import INLINE_BODY_BYTES
 
     sid = new_session(client)["id"]
-    spheres = ",".join('{"center": [%d, 0, 0], "radius": 0.5}' % (i % 40) for i in range(2200))
-    text = '{"materials": [{}], "spheres": [%s], "materials": [{}]}' % spheres
+    spheres = ",".join('{"center": [' + str(i % 40) + ', 0, 0], "radius": 0.5}' for i in range(2200))
+    text = '{"materials": [{}], "spheres": [' + spheres + '], "materials": [{}]}'
     assert INLINE_BODY_BYTES < len(text) < client.app.state.config.max_body_bytes
     r = client.put(f"/api/sessions/{sid}/scene", **raw_json(text))
     assert r.status_code == 422 and r.json()["detail"][0]["type"] == "json_duplicate_key", r.text
@@ -259,7 +259,7 @@ def test_a_body_of_150000_bad_spheres_gets_a_short_422(big_bodies):
     from server.models import MAX_LISTED_ERRORS
 
     bad = '{"center": [0, 0], "radius": -1, "material": -1}'      # three errors each
-    body = '{"scene": {"materials": [{}], "spheres": [%s]}}' % ",".join([bad] * 150_000)
+    body = '{"scene": {"materials": [{}], "spheres": [' + ",".join([bad] * 150_000) + "]}}"
     r = big_bodies.post("/api/sessions", **raw_json(body))
     assert r.status_code == 422
     assert len(r.content) < 16_000, len(r.content)
@@ -343,7 +343,7 @@ def test_health_answers_while_six_large_bodies_are_parsed(spawn_server):
     with httpx.Client(base_url=s.url, timeout=60) as c:
         sid = new_session(c)["id"]
     sphere = '{"center": [1.5, -2.25, 3.125], "radius": 0.5, "material": 0}'
-    body = ('{"materials": [{}], "spheres": [%s]}' % ",".join([sphere] * 65_000)).encode()   # 4 MB
+    body = ('{"materials": [{}], "spheres": [' + ",".join([sphere] * 65_000) + "]}").encode()   # 4 MB
     answers: list[int] = []
 
     def put() -> None:
@@ -424,7 +424,7 @@ def test_headers_that_never_complete_are_answered_408(guarded):
             if not chunk:
                 break
             got += chunk
-        except socket.timeout:
+        except TimeoutError:
             continue
         except (BrokenPipeError, ConnectionResetError):
             break

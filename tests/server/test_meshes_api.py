@@ -20,6 +20,7 @@ with warnings.catch_warnings():
     from fastapi.testclient import TestClient
 
 from pocketray_server_support import SMALL, make_config
+
 from renderer.mesh_io import export_mesh
 from renderer.meshes import box, icosphere
 from renderer.scene import Scene
@@ -107,6 +108,7 @@ def test_a_method_without_meshes_on_gpu_is_refused_with_422_meshes(api, monkeypa
     hold spheres only — none does today, so bvh pretends: frames, renders and device data
     of a mesh scene are 422 'meshes' naming the methods that trace meshes."""
     import dataclasses
+
     from renderer.methods import METHODS
     monkeypatch.setattr(METHODS["bvh"], "capabilities",
                         dataclasses.replace(METHODS["bvh"].capabilities, meshes_on_gpu=False))

@@ -12,9 +12,9 @@ import time
 
 import httpx
 import pytest
+from pocketray_server_support import ROOT, new_session, server_env
 from prometheus_client.parser import text_string_to_metric_families
 
-from pocketray_server_support import ROOT, new_session, server_env
 from server import metrics
 from server.api import errors
 from server.gl_worker import QueueFull

@@ -9,7 +9,6 @@ from concurrent.futures import ThreadPoolExecutor
 
 import httpx
 import numpy as np
-
 from pocketray_server_support import SMALL, new_session
 
 

@@ -6,8 +6,8 @@ import threading
 import time
 
 import pytest
-
 from pocketray_server_support import new_session
+
 from server.gl_worker import GLNotReady, GLWorker, QueueFull
 
 

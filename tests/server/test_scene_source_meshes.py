@@ -25,7 +25,7 @@ def test_the_npz_source_keeps_meshes_bit_for_bit_with_their_motions():
     cam = Camera((1.0, 2.0, 50.0))
     back = load_source(scene_source(anim), cam)
     assert isinstance(back, AnimatedScene) and back.camera == cam
-    for a, b in zip(anim.scene.meshes, back.scene.meshes):
+    for a, b in zip(anim.scene.meshes, back.scene.meshes, strict=True):
         np.testing.assert_array_equal(a.vertices, b.vertices)
         np.testing.assert_array_equal(a.triangles, b.triangles)
         assert a.material == b.material and (a.normals is None) == (b.normals is None)

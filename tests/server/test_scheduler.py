@@ -8,8 +8,8 @@ import threading
 import time
 
 import pytest
-
 from pocketray_server_support import SMALL, new_session
+
 from server.gl_worker import FrameCancelled, GLWorker
 
 
@@ -181,6 +181,7 @@ def capped(tmp_path_factory):
         warnings.simplefilter("ignore")
         from fastapi.testclient import TestClient
     from pocketray_server_support import make_config
+
     from server.app import create_app
     bih, bf = estimate_ms(4096), estimate_ms(4096, method="bruteforce")
     assert bf > 4 * bih

@@ -32,16 +32,22 @@ import jsonschema_rs
 import pytest
 import schemathesis
 from hypothesis import HealthCheck, settings
+from pocketray_server_support import ServerProcess, make_config, new_session, server_env
 from schemathesis.checks import not_a_server_error
 from schemathesis.config import SchemathesisConfig
 from schemathesis.core.parameters import ParameterLocation
 from schemathesis.generation import GenerationMode
-from schemathesis.specs.openapi.checks import (allow_header_conformance, content_type_conformance,
-                                               missing_required_header, negative_data_rejection,
-                                               response_headers_conformance, response_schema_conformance,
-                                               status_code_conformance, unsupported_method)
+from schemathesis.specs.openapi.checks import (
+    allow_header_conformance,
+    content_type_conformance,
+    missing_required_header,
+    negative_data_rejection,
+    response_headers_conformance,
+    response_schema_conformance,
+    status_code_conformance,
+    unsupported_method,
+)
 
-from pocketray_server_support import ServerProcess, make_config, new_session, server_env
 from server.app import create_app
 
 REFUSALS = ["400", "404", "405", "409", "413", "415", "422", "429", "503"]

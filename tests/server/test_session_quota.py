@@ -21,6 +21,7 @@ with warnings.catch_warnings():  # as in conftest.py: the TestClient still speak
     from fastapi.testclient import TestClient
 
 from pocketray_server_support import SMALL, make_config, new_session
+
 from server.app import create_app
 from server.ratelimit import RateLimited, TokenBuckets, client_key
 from server.store import RedisStore, SessionState, SQLiteStore, StoreFull

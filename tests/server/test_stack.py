@@ -16,8 +16,8 @@ from collections import Counter
 
 import httpx
 import pytest
-
 from pocketray_server_support import SMALL, TEST_CAPS
+
 from server.stack import SERVED_BY_HEADER, SESSION_HEADER, Stack
 
 pytestmark = pytest.mark.gl   # the render processes make GL contexts

@@ -5,8 +5,8 @@ from __future__ import annotations
 import json
 
 import pytest
-
 from pocketray_server_support import new_session
+
 from renderer.scenarios import scenario
 
 GOOD_CAMERA = {"position": [0, 0, 100], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 60}

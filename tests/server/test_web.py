@@ -17,6 +17,7 @@ with warnings.catch_warnings():
     from fastapi.testclient import TestClient
 
 from pocketray_server_support import SMALL, make_config, new_session, wait_ready
+
 from server.app import create_app
 from server.exr import decode_exr
 

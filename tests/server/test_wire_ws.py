@@ -26,10 +26,9 @@ import time
 
 import httpx
 import pytest
+from pocketray_server_support import ServerProcess, new_session, server_env
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect as ws_connect
-
-from pocketray_server_support import SMALL, ServerProcess, new_session, server_env
 
 BIG_SIDE = 1024      # a 1024² normal npy frame: 12 MiB, more than loopback's socket buffers hold
 WS_IDLE_S = 2.0
@@ -155,7 +154,7 @@ def read_frames(sock: socket.socket, within_s: float) -> tuple[int, int | None]:
     while time.monotonic() < deadline:
         try:
             chunk = sock.recv(1 << 16)
-        except socket.timeout:
+        except TimeoutError:
             continue
         except ConnectionResetError:
             break

@@ -26,13 +26,13 @@ thesis-like scenes use its 8.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
-from renderer.accel.bih import build_for_spheres
 from renderer.accel import bih_layout as L
+from renderer.accel.bih import build_for_spheres
 from renderer.scenarios import RED, TRANSPARENT, scenario
 from renderer.scene import Camera, Light, Material, Mesh, Plane, Scene
 
@@ -127,10 +127,10 @@ def make_scene(camera: Camera, centers, radii, mats, materials=(RED, TRANSPARENT
 def transformed(scene: Scene, scale: float = 1.0, offset=(0.0, 0.0, 0.0)) -> Scene:
     """Every position scaled by ``scale`` then shifted by ``offset``; radii scaled."""
     off = np.asarray(offset, dtype=np.float64)
-    f = lambda p: tuple((np.asarray(p, dtype=np.float64) * scale + off).tolist())  # noqa: E731
+    f = lambda p: tuple((np.asarray(p, dtype=np.float64) * scale + off).tolist())
     cam = scene.camera
     camera = Camera(f(cam.position), f(cam.target), cam.up, cam.fov_y)
-    lights = tuple(Light(f(l.position), l.color) for l in scene.lights)
+    lights = tuple(Light(f(light.position), light.color) for light in scene.lights)
     planes = tuple(Plane(f(p.point), p.normal, p.material) for p in scene.planes)
     return Scene(camera, lights, scene.materials, scene.sphere_centers * scale + off,
                  scene.sphere_radii * scale, scene.sphere_materials, planes)
@@ -140,7 +140,7 @@ def float32_inputs(scene: Scene) -> Scene:
     """The scene as the GPU receives it: every coordinate, radius and material value
     rounded to float32. The camera *position* is rounded and the target moved with it,
     so the viewing basis stays the float64 one the renderer computes on the host."""
-    f32 = lambda v: tuple(np.asarray(v, dtype=np.float32).astype(np.float64).tolist())  # noqa: E731
+    f32 = lambda v: tuple(np.asarray(v, dtype=np.float32).astype(np.float64).tolist())
     cam = scene.camera
     pos = np.asarray(f32(cam.position))
     tgt = np.asarray(cam.target) + (pos - np.asarray(cam.position))
@@ -148,7 +148,7 @@ def float32_inputs(scene: Scene) -> Scene:
     mats = tuple(Material(f32(m.color), *(float(np.float32(getattr(m, k))) for k in
                           ("ambient", "diffuse", "specular", "shininess", "reflective", "transmissive", "ior")))
                  for m in scene.materials)
-    return Scene(camera, tuple(Light(f32(l.position), f32(l.color)) for l in scene.lights), mats,
+    return Scene(camera, tuple(Light(f32(light.position), f32(light.color)) for light in scene.lights), mats,
                  scene.sphere_centers.astype(np.float32).astype(np.float64),
                  scene.sphere_radii.astype(np.float32).astype(np.float64), scene.sphere_materials,
                  tuple(Plane(f32(p.point), f32(p.normal), p.material) for p in scene.planes),

@@ -41,8 +41,7 @@ from renderer.methods import METHODS
 from renderer.reference import render_reference
 from renderer.settings import RenderSettings
 from tests.helpers import ROOT, psnr
-from tests.stability.cases import (CASES, DEPTH_REL, PRIMID_AGREEMENT, PSNR_MIN, Case, float32_inputs,
-                                   same_scene)
+from tests.stability.cases import CASES, DEPTH_REL, PRIMID_AGREEMENT, PSNR_MIN, Case, float32_inputs, same_scene
 
 DOC = ROOT / "docs" / "STABILITY.md"
 BUILD_BOUND_S = 10.0     # the BIH build of any catalogue scene
@@ -215,7 +214,7 @@ def render_doc(rows: dict, gl_info: dict) -> str:
         if all(n == per_method[0] for n in per_method):
             notes += [f"every method: {n}" for n in per_method[0]]
         else:
-            notes += [f"{m}: {n}" for m, ns in zip(ran, per_method) for n in ns]
+            notes += [f"{m}: {n}" for m, ns in zip(ran, per_method, strict=True) for n in ns]
         if notes:
             lines.append(f"- `{case.name}` ({case.width}×{case.height}, max_prims {case.max_prims}, "
                          f"max_tree_depth {case.max_tree_depth}, recursion {case.max_recursion_depth}):")

@@ -35,15 +35,13 @@ from fastapi import APIRouter, Query, Response
 from fastapi.responses import PlainTextResponse
 
 from renderer import gpu_layout
-from renderer.accel.base import AccelerationMethod
+from renderer.accel.base import NOT_ON_GPU, AccelerationMethod
 from renderer.features import scene_features
-from renderer.accel.base import NOT_ON_GPU
 from renderer.methods import METHODS, resolve_method
 from renderer.modes import SINGLE_PASS_MODES
 from renderer.shader_source import tracer_source, vertex_source
 
-from ...device_data import (FEATURE_DEFINES, FORMAT_VERSION, camera_uniforms, encode_blob, jsonable,
-                            jsonable_stats)
+from ...device_data import FEATURE_DEFINES, FORMAT_VERSION, camera_uniforms, encode_blob, jsonable, jsonable_stats
 from ...models import DeviceDataQuery, ShaderQuery
 from ...service import InputError
 from ...view import EXPOSED, stats_header

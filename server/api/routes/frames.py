@@ -12,17 +12,17 @@ from __future__ import annotations
 import asyncio
 import secrets
 import threading
-from typing import Annotated, Any, Callable, Iterator
+from collections.abc import Callable, Iterator
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse, StreamingResponse
 
-from ...models import (CameraModel, CameraOut, FrameQuery, Gesture, GestureQuery, RenderRequest, StatsOut,
-                       StatsQuery)
+from ...models import CameraModel, CameraOut, FrameQuery, Gesture, GestureQuery, RenderRequest, StatsOut, StatsQuery
 from ...view import FRAME_RESPONSE_DOC, Frame, frame_headers
-from ..deps import ServiceDep, SessionId
 from ..body import JSONBodyRoute
+from ..deps import ServiceDep, SessionId
 from ..errors import documented
 
 router = APIRouter(route_class=JSONBodyRoute)   # JSON bodies strict, large ones off the event loop

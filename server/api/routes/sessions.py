@@ -13,13 +13,26 @@ from renderer.mesh_io import MODEL_FORMATS, fit_transform
 from renderer.scene import SceneError
 
 from ...model_worker import load_model
-from ...models import (CameraModel, CameraOut, FullSettings, MeshAdded, MeshModel, MeshUploadQuery, SceneInfo,
-                       SceneModel, SessionCreate, SessionOut, SettingsOut, SettingsPatch, VersionOut)
-from ...service import Busy, InputError
+from ...models import (
+    CameraModel,
+    CameraOut,
+    FullSettings,
+    MeshAdded,
+    MeshModel,
+    MeshUploadQuery,
+    SceneInfo,
+    SceneModel,
+    SessionCreate,
+    SessionOut,
+    SettingsOut,
+    SettingsPatch,
+    VersionOut,
+)
 from ...scenes import scene_json_chunks
+from ...service import Busy, InputError
 from ...store import SessionState
-from ..deps import ServiceDep, SessionCreateRate, SessionId
 from ..body import JSONBodyRoute
+from ..deps import ServiceDep, SessionCreateRate, SessionId
 from ..errors import documented
 
 router = APIRouter(route_class=JSONBodyRoute)   # JSON bodies strict, large ones off the event loop

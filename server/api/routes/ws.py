@@ -19,7 +19,7 @@ errors of both in one 422.
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import Any, cast
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from fastapi.concurrency import run_in_threadpool
@@ -68,7 +68,8 @@ async def answer_message(service: SessionService, session_id: str, data: str | b
     if problems:
         raise RequestValidationError(problems)
     if only_frame:
-        frame = await run_in_threadpool(service.session_frame, session_id, patch.given())
+        one = await run_in_threadpool(service.session_frame, session_id, patch.given())
+        frame = cast(Frame, one)      # not progressive: one frame
     else:
         frame = await run_in_threadpool(service.gesture_frame, session_id, gesture, patch.given())
     state = await run_in_threadpool(service.get, session_id)

@@ -8,8 +8,7 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import strategies as st
 
-from renderer.accel import bih_layout as L
-from renderer.accel import hre_cones
+from renderer.accel import bih_layout as L, hre_cones
 
 # ---------------------------------------------------------------------------
 # BIH nodes

@@ -19,8 +19,7 @@ import time
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from renderer.accel import bih_layout as L
 from renderer.accel.bih import EMPTY_CUT_AREA, build_bih, build_for_scene, build_for_spheres, sphere_aabbs

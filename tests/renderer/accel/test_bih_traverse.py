@@ -17,8 +17,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from renderer.accel.bih import build_bih, build_for_spheres, sphere_aabbs
 from renderer.accel.bih_traverse import brute_force, traverse
@@ -135,8 +134,8 @@ def make_rays(bih, c, r, rng, per_kind):
         box = np.array([[-1.0] * 3, [1.0] * 3])
     lo, hi = box
     ext = float(np.max(hi - lo)) + 1.0
-    inside = lambda m: lo + rng.random((m, 3)) * (hi - lo)  # noqa: E731
-    none = lambda m: np.full(m, -1, dtype=np.int64)  # noqa: E731
+    inside = lambda m: lo + rng.random((m, 3)) * (hi - lo)
+    none = lambda m: np.full(m, -1, dtype=np.int64)
     out = []
     # 1. from outside, aimed at sphere centres / points of the box
     tgt = c[rng.integers(0, n, k)] if n else inside(k)

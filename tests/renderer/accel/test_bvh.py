@@ -13,16 +13,15 @@ import time
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from renderer.accel import bvh_layout
 from renderer.accel.bih import sphere_aabbs
-from renderer.accel.bvh import (BVHUpdater, build_bvh, near_masks, refit, selective_rebuild,
-                                split_costs)
+from renderer.accel.bvh import BVHUpdater, build_bvh, near_masks, refit, selective_rebuild, split_costs
 from renderer.scenarios import scenario
 from tests.helpers import HYP
 from tests.renderer.accel.support import sphere_sets
+
 
 def motion(c: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
     if kind == "rigid":
@@ -62,7 +61,7 @@ def check_bvh(b, lo: np.ndarray, hi: np.ndarray, max_tree_depth: int) -> None:
     leaves = np.flatnonzero(b.left < 0)
     assert b.count[leaves].sum() == n
     slot_leaf = np.repeat(leaves, b.count[leaves])
-    pos = np.concatenate([np.arange(f, f + c) for f, c in zip(b.first[leaves], b.count[leaves])])
+    pos = np.concatenate([np.arange(f, f + c) for f, c in zip(b.first[leaves], b.count[leaves], strict=True)])
     p = b.indices[pos]
     assert (lo[p] >= b.bmin[slot_leaf]).all() and (hi[p] <= b.bmax[slot_leaf]).all(), "leaf box holds its spheres"
     assert (b.near_mask[leaves] == 0).all()
@@ -76,7 +75,7 @@ def check_bvh(b, lo: np.ndarray, hi: np.ndarray, max_tree_depth: int) -> None:
         return (bvh_layout.REF_LEAF | int(b.first[node])) if b.left[node] < 0 else rec_of[int(node)]
     assert root == ref_of(0) and records.shape == (4 * len(inner), 4)
     rec = records.reshape(-1, 4, 4)
-    f = lambda a: a.copy().view(np.float32)   # noqa: E731
+    f = lambda a: a.copy().view(np.float32)
     for i, node in enumerate(inner):
         lc, rc = b.left[node], b.left[node] + 1
         np.testing.assert_array_equal(f(rec[i, 0, :3]), b.bmin[lc])

@@ -12,6 +12,7 @@ import numpy as np
 from renderer.accel import hre_cones
 from tests.renderer.accel.support import any_hit, check_contained
 
+
 def coherent_tiles(rng, n_tiles: int, k: int):
     """Tiles of camera rays, of their reflections off a sphere, and of converging shadow rays."""
     o = np.zeros((n_tiles, k, 3))
@@ -77,5 +78,5 @@ def test_python_cull_test_is_conservative():
     radii = rng.uniform(0.5, 6.0, 400)
     miss = hre_cones.cone_misses_sphere(cones, centers, radii)
     assert miss.any(), "some spheres should be culled"
-    for t, s in zip(*np.nonzero(miss)):
+    for t, s in zip(*np.nonzero(miss), strict=True):
         assert not any_hit(o[t], d[t], centers[s], radii[s]).any()

@@ -11,8 +11,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from renderer.accel import kdtree_layout
 from renderer.accel.bih import sphere_aabbs
@@ -20,6 +19,7 @@ from renderer.accel.kdtree import build_kdtree
 from renderer.scenarios import scenario
 from tests.helpers import HYP
 from tests.renderer.accel.support import sphere_sets
+
 
 def kd_node_sets(kd) -> list[set]:
     """The primitives below every node (union of its leaves' lists)."""
@@ -58,17 +58,17 @@ def check_kdtree(kd, lo: np.ndarray, hi: np.ndarray, max_tree_depth: int) -> Non
     np.testing.assert_array_equal(kd.vmin[li + 1], exp_rmin)
     np.testing.assert_array_equal(kd.vmax[li + 1], kd.vmax[inner])
     leaves = np.flatnonzero(kd.axis < 0)
-    for l in leaves:
-        p = kd.leaf_prims(l)
+    for leaf in leaves:
+        p = kd.leaf_prims(leaf)
         assert (np.diff(p) > 0).all(), "leaf lists are sorted, without repeats"
-        assert kd.offset[l] + kd.count[l] <= len(kd.indices)
+        assert kd.offset[leaf] + kd.count[leaf] <= len(kd.indices)
     sets = kd_node_sets(kd)
     if n:
         assert sets[0] == set(range(n)), "every primitive reachable"
         # completeness: a primitive whose box meets a leaf's open voxel is in that leaf
-        for l in leaves:
-            meets = np.flatnonzero(((lo < kd.vmax[l]) & (hi > kd.vmin[l])).all(axis=1))
-            assert set(meets.tolist()) <= sets[l], f"leaf {l} misses primitives of its voxel"
+        for leaf in leaves:
+            meets = np.flatnonzero(((lo < kd.vmax[leaf]) & (hi > kd.vmin[leaf])).all(axis=1))
+            assert set(meets.tolist()) <= sets[leaf], f"leaf {leaf} misses primitives of its voxel"
         # a straddler is in both children
         for i in inner:
             a, p = kd.axis[i], kd.split[i]

@@ -185,7 +185,7 @@ def test_a_method_whose_layout_packs_spheres_only_would_refuse_meshes(scene):
     packed = gpu_data(scene, lambda: None, meshes_on_gpu=False, method="newtree")
     assert isinstance(packed, NotOnGPU)
     with pytest.raises(SceneError) as e:
-        packed.textures
+        _ = packed.textures
     assert e.value.field == "meshes" and "'newtree'" in e.value.message
     assert ", ".join(MESH_METHODS) in e.value.message and f"{scene.n_triangles:,} triangles" in e.value.message
     assert gpu_data(scenario(2, 8), lambda: "packed", meshes_on_gpu=False) == "packed"   # spheres only: packed

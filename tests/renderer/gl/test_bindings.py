@@ -25,7 +25,7 @@ from renderer.settings import RenderSettings
 from renderer.shader_source import known_bindings, tracer_bindings
 
 FEATURES = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS")
-FEATURE_SETS = [tuple(f for f, on in zip(FEATURES, bits) if on) for bits in itertools.product((0, 1), repeat=3)]
+FEATURE_SETS = [tuple(f for f, on in zip(FEATURES, bits, strict=True) if on) for bits in itertools.product((0, 1), repeat=3)]
 # Data formats and compiled-in counts, each with some of the removals (features' order).
 SHAPES = [("EQUAL_RADII",), ("MATERIAL_TEXTURE",), ("NO_SPLIT", "PLANES_1", "LIGHTS_2", "EQUAL_RADII"),
           ("NO_LIGHTS", "PLANES_0", "MATERIAL_TEXTURE"), ("NO_REFLECTION", "PLANES_3", "LIGHTS_1")]

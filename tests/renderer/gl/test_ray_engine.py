@@ -113,10 +113,10 @@ def test_gpu_cones_hold_their_rays(hre_log):
     kinds = {r["kind"] for r in log.records}
     assert kinds == {"radiance", "shadow"}
     assert len(log.records) >= 6
+    ts = 8
     for rec in log.records:
         o, d, live, _ = _record_rays(rec, scene)
-        ts = 8
-        tiles = lambda a: hre_cones.tiles_of(a if a.ndim == 3 else a[..., None], ts)  # noqa: E731
+        tiles = lambda a: hre_cones.tiles_of(a if a.ndim == 3 else a[..., None], ts)
         cones = rec["cones"].astype(np.float64)
         to, td, tl = tiles(o), tiles(d), tiles(live)[..., 0]
         # the shadow rays' directions are recomputed here in float64: allow their rounding
