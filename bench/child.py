@@ -49,22 +49,35 @@ class ServerChild:
     child's import path (another checkout's ``renderer/`` beside this ``server/``).
     """
 
-    def __init__(self, cwd: Path, settings: dict[str, object] | None = None, *, sqlite: Path | None = None,
-                 log: Path | None = None, port: int | None = None, pythonpath: str | None = None,
-                 timeout_s: float = 180):
+    def __init__(
+        self,
+        cwd: Path,
+        settings: dict[str, object] | None = None,
+        *,
+        sqlite: Path | None = None,
+        log: Path | None = None,
+        port: int | None = None,
+        pythonpath: str | None = None,
+        timeout_s: float = 180,
+    ):
         self.tmp = tempfile.TemporaryDirectory()
         self.port = port or free_port()
         self.url = f"http://127.0.0.1:{self.port}"
         self.log_path = log or Path(self.tmp.name) / "server.log"
         env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
-        env.update(POCKETRAY_PORT=str(self.port), POCKETRAY_HOST="127.0.0.1", POCKETRAY_LOG_LEVEL="warning",
-                   POCKETRAY_SQLITE_PATH=str(sqlite or Path(self.tmp.name) / "bench.sqlite3"))
+        env.update(
+            POCKETRAY_PORT=str(self.port),
+            POCKETRAY_HOST="127.0.0.1",
+            POCKETRAY_LOG_LEVEL="warning",
+            POCKETRAY_SQLITE_PATH=str(sqlite or Path(self.tmp.name) / "bench.sqlite3"),
+        )
         env.update({f"POCKETRAY_{k.upper()}": str(v) for k, v in (settings or {}).items()})
         if pythonpath:
             env["PYTHONPATH"] = pythonpath
         self.log = open(self.log_path, "ab")
-        self.proc = subprocess.Popen([sys.executable, "-m", "server"], cwd=cwd, env=env, stdout=self.log,
-                                     stderr=subprocess.STDOUT)
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "server"], cwd=cwd, env=env, stdout=self.log, stderr=subprocess.STDOUT
+        )
         try:
             wait_ready(self.proc, self.url, self.log_path, timeout_s)
         except RuntimeError:

@@ -32,12 +32,19 @@ import os
 import time
 from pathlib import Path
 
-
 ROOT = Path(__file__).resolve().parent.parent
 from bench.child import ServerChild
+
 CHROMIUM = os.environ.get("POCKETRAY_CHROMIUM", "/usr/bin/chromium")
-GL_ARGS = ["--no-sandbox", "--disable-background-networking", "--disable-component-update", "--disable-sync",
-           "--no-first-run", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+GL_ARGS = [
+    "--no-sandbox",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+]
 PORTRAIT = dict(viewport={"width": 390, "height": 844}, device_scale_factor=3, is_mobile=True, has_touch=True)
 LANDSCAPE = dict(viewport={"width": 844, "height": 390}, device_scale_factor=3, is_mobile=True, has_touch=True)
 # Small frames: the layout does not depend on the frame's size, and the bench should not wait for llvmpipe.
@@ -74,7 +81,10 @@ class Server(ServerChild):
 def wait_full(page, min_frames: int, timeout_ms: float = 300_000) -> None:
     page.wait_for_function(
         """n => { const p = window.pocketray; return p && p.idle && p.frameCount >= n && p.lastFrame
-                  && p.lastFrame.level === 'full'; }""", arg=min_frames, timeout=timeout_ms)
+                  && p.lastFrame.level === 'full'; }""",
+        arg=min_frames,
+        timeout=timeout_ms,
+    )
 
 
 def dismiss_hint(page) -> None:
@@ -106,13 +116,23 @@ def device_latency(browser, url: str, query: str, steps: int = 10) -> dict:
         cdp = ctx.new_cdp_session(page)
 
         def touch(kind: str, pts) -> None:
-            cdp.send("Input.dispatchTouchEvent", {"type": kind, "touchPoints": [
-                {"x": x, "y": y, "id": i, "radiusX": 5, "radiusY": 5, "force": 1} for i, (x, y) in enumerate(pts)]})
+            cdp.send(
+                "Input.dispatchTouchEvent",
+                {
+                    "type": kind,
+                    "touchPoints": [
+                        {"x": x, "y": y, "id": i, "radiusX": 5, "radiusY": 5, "force": 1}
+                        for i, (x, y) in enumerate(pts)
+                    ],
+                },
+            )
 
         n0 = page.evaluate("() => window.pocketray.frameCount")
-        page.evaluate("() => { window.__shown = []; const p = window.pocketray; let last = p.frameCount;"
-                      " (function poll() { if (p.frameCount !== last) { last = p.frameCount;"
-                      " window.__shown.push([performance.now(), p.lastFrame.level]); } requestAnimationFrame(poll); })(); }")
+        page.evaluate(
+            "() => { window.__shown = []; const p = window.pocketray; let last = p.frameCount;"
+            " (function poll() { if (p.frameCount !== last) { last = p.frameCount;"
+            " window.__shown.push([performance.now(), p.lastFrame.level]); } requestAnimationFrame(poll); })(); }"
+        )
         touch("touchStart", [(150, 400)])
         t0 = time.perf_counter()
         for k in range(1, steps + 1):
@@ -124,9 +144,12 @@ def device_latency(browser, url: str, query: str, steps: int = 10) -> dict:
         shown = page.evaluate("() => window.__shown")
         after = [t for t, _ in shown if t >= t_end_page]
         full = [t for t, level in shown if level == "full" and t >= t_end_page]
-        return {"delivered_s": delivered, "first_image_s": (after[0] - t_end_page) / 1e3 if after else None,
-                "full_image_s": (full[-1] - t_end_page) / 1e3 if full else None,
-                "frames_during": len([t for t, _ in shown if t < t_end_page])}
+        return {
+            "delivered_s": delivered,
+            "first_image_s": (after[0] - t_end_page) / 1e3 if after else None,
+            "full_image_s": (full[-1] - t_end_page) / 1e3 if full else None,
+            "frames_during": len([t for t, _ in shown if t < t_end_page]),
+        }
     finally:
         ctx.close()
 
@@ -136,11 +159,15 @@ def main() -> None:
     ap.add_argument("--client-dir", help="serve this client folder instead of client_web/")
     ap.add_argument("--url", help="an already running service (its own client)")
     ap.add_argument("--skip-device", action="store_true", help="only the chrome share")
-    ap.add_argument("--device-query", default="scenario=1&n=512&renderer=device",
-                    help="the page of the drag (the session's defaults: fit resolution, the still profile)")
+    ap.add_argument(
+        "--device-query",
+        default="scenario=1&n=512&renderer=device",
+        help="the page of the drag (the session's defaults: fit resolution, the still profile)",
+    )
     args = ap.parse_args()
 
     from playwright.sync_api import sync_playwright
+
     server = None if args.url else Server(args.client_dir)
     url = args.url or server.url
     out: dict = {}
@@ -149,8 +176,9 @@ def main() -> None:
             browser = pw.chromium.launch(executable_path=CHROMIUM, args=GL_ARGS, headless=True)
             out["chrome_share"] = {
                 "portrait, scenario 1": chrome_share(browser, url, PORTRAIT, f"scenario=1&n=64&{LAYOUT_QUERY}"),
-                "portrait, museum": chrome_share(browser, url, PORTRAIT,
-                                                 f"scenario=museum&n=16&motion=rigid&{LAYOUT_QUERY}"),
+                "portrait, museum": chrome_share(
+                    browser, url, PORTRAIT, f"scenario=museum&n=16&motion=rigid&{LAYOUT_QUERY}"
+                ),
                 "landscape, scenario 1": chrome_share(browser, url, LANDSCAPE, f"scenario=1&n=64&{LAYOUT_QUERY}"),
             }
             if not args.skip_device:

@@ -39,8 +39,15 @@ from bench.latency import Server, server_timing  # a server child process
 
 ROOT = Path(__file__).resolve().parent.parent
 CHROMIUM = os.environ.get("POCKETRAY_CHROMIUM", "/usr/bin/chromium")
-GL_ARGS = ["--no-sandbox", "--disable-background-networking", "--disable-component-update", "--disable-sync",
-           "--no-first-run", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+GL_ARGS = [
+    "--no-sandbox",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+]
 SIZES = ((320, 544), (640, 1088))
 NS = (64, 256, 1024, 4096)
 DEPTH = 3
@@ -93,13 +100,26 @@ def main() -> None:
             if not probe.get("ok"):
                 raise SystemExit(f"no WebGL2 for the tracer in this Chromium: {probe}")
             renderer = probe["renderer"]
-            measured: dict[tuple[str, int, int], float] = {}   # (side, n, width) → one frame, s
+            measured: dict[tuple[str, int, int], float] = {}  # (side, n, width) → one frame, s
             for w, h in SIZES:
                 for n in NS:
-                    sid = http.post("/api/sessions", json={
-                        "scenario": 3, "n": n, "seed": 0, "radius": 1.0,
-                        "settings": {"width": w, "height": h, "max_recursion_depth": DEPTH, "method": "bih",
-                                     "max_prims": 8, "mode": "color"}}).json()["id"]
+                    sid = http.post(
+                        "/api/sessions",
+                        json={
+                            "scenario": 3,
+                            "n": n,
+                            "seed": 0,
+                            "radius": 1.0,
+                            "settings": {
+                                "width": w,
+                                "height": h,
+                                "max_recursion_depth": DEPTH,
+                                "method": "bih",
+                                "max_prims": 8,
+                                "mode": "color",
+                            },
+                        },
+                    ).json()["id"]
                     row = {"n": n, "size": f"{w}×{h}"}
                     for side in ("device", "server"):
                         guess = predict(measured, side, n, w)
@@ -108,18 +128,39 @@ def main() -> None:
                             continue
                         t0 = time.perf_counter()
                         if side == "device":
-                            r = page.evaluate("(p) => window.pocketray.device.bench(p)", {
-                                "session": sid, "width": w, "height": h, "frames": args.frames,
-                                "budgetMs": args.budget * 1e3, "method": "bih", "mode": "color",
-                                "max_recursion_depth": DEPTH, "max_prims": 8})
+                            r = page.evaluate(
+                                "(p) => window.pocketray.device.bench(p)",
+                                {
+                                    "session": sid,
+                                    "width": w,
+                                    "height": h,
+                                    "frames": args.frames,
+                                    "budgetMs": args.budget * 1e3,
+                                    "method": "bih",
+                                    "mode": "color",
+                                    "max_recursion_depth": DEPTH,
+                                    "max_prims": 8,
+                                },
+                            )
                         else:
-                            r = page.evaluate(SERVER_LOOP, {"sid": sid, "width": w, "height": h,
-                                                            "frames": args.frames, "budgetMs": args.budget * 1e3})
+                            r = page.evaluate(
+                                SERVER_LOOP,
+                                {
+                                    "sid": sid,
+                                    "width": w,
+                                    "height": h,
+                                    "frames": args.frames,
+                                    "budgetMs": args.budget * 1e3,
+                                },
+                            )
                         times = r["times"] or [r["first"]]
                         row[side] = {**r, "median": statistics.median(times), "wall": time.perf_counter() - t0}
                         measured[side, n, w] = row[side]["median"] / 1e3
-                        print(f"  {side:6s} n={n:5d} {w}×{h}: {row[side]['median']:8.1f} ms/frame "
-                              f"({len(times)} frames)", file=sys.stderr, flush=True)
+                        print(
+                            f"  {side:6s} n={n:5d} {w}×{h}: {row[side]['median']:8.1f} ms/frame ({len(times)} frames)",
+                            file=sys.stderr,
+                            flush=True,
+                        )
                     rows.append(row)
                     http.delete(f"/api/sessions/{sid}")
             browser.close()
@@ -142,7 +183,7 @@ def write_section(path: Path, section: str) -> None:
     block = f"{BEGIN}\n{section.rstrip()}\n{END}\n"
     text = path.read_text() if path.exists() else ""
     if BEGIN in text and END in text:
-        text = text[:text.index(BEGIN)] + block + text[text.index(END) + len(END):].lstrip("\n")
+        text = text[: text.index(BEGIN)] + block + text[text.index(END) + len(END) :].lstrip("\n")
     else:
         text = (text.rstrip() + "\n\n" if text.strip() else "") + block
     path.write_text(text)
@@ -167,9 +208,11 @@ def fmt(v: float, digits: int = 0) -> str:
 
 
 def markdown(rows: list[dict]) -> str:
-    out = ["| n | size | device ms/frame (p50) | device frames/s | device load ms (fetch + build + upload; + compile the first time) "
-           "| server ms/frame (p50) | server frames/s | server trace ms (p50) | device ÷ server frames/s |",
-           "|---|---|---|---|---|---|---|---|---|"]
+    out = [
+        "| n | size | device ms/frame (p50) | device frames/s | device load ms (fetch + build + upload; + compile the first time) "
+        "| server ms/frame (p50) | server frames/s | server trace ms (p50) | device ÷ server frames/s |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
         d, s = r["device"], r["server"]
         if "skipped" in d:
@@ -181,8 +224,11 @@ def markdown(rows: list[dict]) -> str:
         else:
             trace = [server_timing(t).get("trace") for t in s["timing"] if t]
             trace = [t for t in trace if t is not None]
-            scols = [f"{fmt(s['median'])} ({len(s['times'])})", fmt(1e3 / s["median"], 2),
-                     fmt(statistics.median(trace)) if trace else "–"]
+            scols = [
+                f"{fmt(s['median'])} ({len(s['times'])})",
+                fmt(1e3 / s["median"], 2),
+                fmt(statistics.median(trace)) if trace else "–",
+            ]
         ratio = fmt(s["median"] / d["median"], 2) if "median" in d and "median" in s else "–"
         out.append(f"| {r['n']:,} | {r['size']} | " + " | ".join(dcols + scols) + f" | {ratio} |")
     return "\n".join(out)
@@ -193,7 +239,7 @@ def document(table: str, renderer: str, gl_renderer: str | None, load0: float, l
 
 `bench/device.py` (`.venv/bin/python -m bench.device`): scenario 3, BIH (max_prims 8), colour,
 max_recursion_depth {DEPTH}, the session's home camera; headless Chromium (`/usr/bin/chromium`,
-flags `{' '.join(GL_ARGS)}`). **Device**: the client's WebGL2 renderer, `{renderer}`; one
+flags `{" ".join(GL_ARGS)}`). **Device**: the client's WebGL2 renderer, `{renderer}`; one
 frame = trace (waited for with a one-pixel `readPixels`) + display pass; the data (tree built on
 the server, packed by `renderer.gpu_layout`) and the shader are loaded once — "load" is that one-off
 cost, paid again only when the scene or its settings change, never for a camera move. **Server**:

@@ -20,7 +20,6 @@ import platform
 import statistics
 import time
 
-
 from renderer.accel.bih import build_for_spheres
 from renderer.gl.renderer import GLRenderer
 from renderer.scenarios import scenario

@@ -78,6 +78,7 @@ import httpx
 
 ROOT = Path(__file__).resolve().parent.parent
 from bench.child import ServerChild, free_port
+
 MIB = 1 << 20
 
 
@@ -93,9 +94,11 @@ def scene_body(n: int, bad: bool = False, seed: int = 1) -> bytes:
     if bad:
         return b'{"materials":[{}],"spheres":[' + b",".join([b'{"center":[0,0],"radius":-1,"material":-1}'] * n) + b"]}"
     rnd = random.Random(seed)
-    parts = [b'{"center":[%.4f,%.4f,%.4f],"radius":%.3f}' % (rnd.uniform(-40, 40), rnd.uniform(-40, 40),
-                                                            rnd.uniform(-40, 40), rnd.uniform(0.05, 0.5))
-             for _ in range(n)]
+    parts = [
+        b'{"center":[%.4f,%.4f,%.4f],"radius":%.3f}'
+        % (rnd.uniform(-40, 40), rnd.uniform(-40, 40), rnd.uniform(-40, 40), rnd.uniform(0.05, 0.5))
+        for _ in range(n)
+    ]
     return b'{"materials":[{}],"spheres":[' + b",".join(parts) + b"]}"
 
 
@@ -118,8 +121,14 @@ def part_targets(root: Path, args) -> dict:
     s = Server(root, max_work=str(64 << 20), max_frame_cost="1e9", render_timeout_s="600")
     try:
         with httpx.Client(base_url=s.url, timeout=600) as c:
-            sid = c.post("/api/sessions", json={"scenario": 3, "n": 64, "settings": {
-                "max_recursion_depth": 1, "samples_per_pixel": 1, "format": "jpeg", "min_weight": 0.0}}).json()["id"]
+            sid = c.post(
+                "/api/sessions",
+                json={
+                    "scenario": 3,
+                    "n": 64,
+                    "settings": {"max_recursion_depth": 1, "samples_per_pixel": 1, "format": "jpeg", "min_weight": 0.0},
+                },
+            ).json()["id"]
             idle = s.memory()
             sizes = [args.target_side - 8 * i for i in range(11)]
             times = []
@@ -131,8 +140,13 @@ def part_targets(root: Path, args) -> dict:
                     return {"error": f"{side}²: {r.status_code} {r.text[:300]}"}
             time.sleep(2)
             after = s.memory()
-        return {"sizes": [f"{v}²" for v in sizes], "frame_s": times, "rss_idle_mib": round(idle["VmRSS"]),
-                "rss_after_mib": round(after["VmRSS"]), "rss_peak_mib": round(after["VmHWM"])}
+        return {
+            "sizes": [f"{v}²" for v in sizes],
+            "frame_s": times,
+            "rss_idle_mib": round(idle["VmRSS"]),
+            "rss_after_mib": round(after["VmRSS"]),
+            "rss_peak_mib": round(after["VmHWM"]),
+        }
     finally:
         s.close()
 
@@ -148,10 +162,17 @@ def part_bad(root: Path, args) -> dict:
         time.sleep(1)
         after = s.memory()
         detail = r.json().get("detail") if r.headers.get("content-type", "").startswith("application/json") else None
-        return {"body_mb": round(len(body) / 1e6, 1), "status": r.status_code, "answer_bytes": len(r.content),
-                "errors_listed": len(detail) if isinstance(detail, list) else None, "seconds": round(elapsed, 2),
-                "rss_before_mib": round(before["VmRSS"]), "rss_after_mib": round(after["VmRSS"]),
-                "rss_peak_mib": round(after["VmHWM"]), "peak_above_idle_mib": round(after["VmHWM"] - before["VmRSS"])}
+        return {
+            "body_mb": round(len(body) / 1e6, 1),
+            "status": r.status_code,
+            "answer_bytes": len(r.content),
+            "errors_listed": len(detail) if isinstance(detail, list) else None,
+            "seconds": round(elapsed, 2),
+            "rss_before_mib": round(before["VmRSS"]),
+            "rss_after_mib": round(after["VmRSS"]),
+            "rss_peak_mib": round(after["VmHWM"]),
+            "peak_above_idle_mib": round(after["VmHWM"] - before["VmRSS"]),
+        }
     finally:
         s.close()
 
@@ -160,8 +181,9 @@ def part_largest(root: Path, args) -> dict:
     out = {}
     body, n = largest_scene(args.max_body)
     for count in (1, args.queue):
-        s = Server(root, max_body_bytes=str(args.max_body), queue_size=str(args.queue),
-                   body_slots_per_client="0")      # every body comes from this one address
+        s = Server(
+            root, max_body_bytes=str(args.max_body), queue_size=str(args.queue), body_slots_per_client="0"
+        )  # every body comes from this one address
         try:
             idle = s.memory()
             codes: list[int] = []
@@ -169,6 +191,7 @@ def part_largest(root: Path, args) -> dict:
             def create() -> None:
                 with httpx.Client(base_url=s.url, timeout=600) as c:
                     codes.append(c.post("/api/sessions", content=body, headers=JSON).status_code)
+
             t0 = time.perf_counter()
             threads = [threading.Thread(target=create) for _ in range(count)]
             for t in threads:
@@ -176,10 +199,14 @@ def part_largest(root: Path, args) -> dict:
             for t in threads:
                 t.join()
             mem = s.memory()
-            out[f"x{count}"] = {"codes": sorted(codes), "seconds": round(time.perf_counter() - t0, 1),
-                                "rss_idle_mib": round(idle["VmRSS"]), "rss_peak_mib": round(mem["VmHWM"]),
-                                "peak_above_idle_mib": round(mem["VmHWM"] - idle["VmRSS"]),
-                                "rss_after_mib": round(mem["VmRSS"])}
+            out[f"x{count}"] = {
+                "codes": sorted(codes),
+                "seconds": round(time.perf_counter() - t0, 1),
+                "rss_idle_mib": round(idle["VmRSS"]),
+                "rss_peak_mib": round(mem["VmHWM"]),
+                "peak_above_idle_mib": round(mem["VmHWM"] - idle["VmRSS"]),
+                "rss_after_mib": round(mem["VmRSS"]),
+            }
         finally:
             s.close()
     return {"body_mb": round(len(body) / 1e6, 2), "spheres": n, **out}
@@ -196,8 +223,12 @@ def part_recipe(root: Path, args) -> dict:
 
             def create() -> None:
                 with httpx.Client(base_url=s.url, timeout=900) as c:
-                    codes.append(c.post("/api/sessions", json={"scenario": 3, "n": args.max_spheres,
-                                                               "seed": len(codes)}).status_code)
+                    codes.append(
+                        c.post(
+                            "/api/sessions", json={"scenario": 3, "n": args.max_spheres, "seed": len(codes)}
+                        ).status_code
+                    )
+
             t0 = time.perf_counter()
             threads = [threading.Thread(target=create) for _ in range(count)]
             for t in threads:
@@ -205,9 +236,12 @@ def part_recipe(root: Path, args) -> dict:
             for t in threads:
                 t.join()
             mem = s.memory()
-            out[f"x{count}"] = {"codes": sorted(codes), "seconds": round(time.perf_counter() - t0, 1),
-                                "peak_above_idle_mib": round(mem["VmHWM"] - idle["VmRSS"]),
-                                "rss_after_mib": round(mem["VmRSS"])}
+            out[f"x{count}"] = {
+                "codes": sorted(codes),
+                "seconds": round(time.perf_counter() - t0, 1),
+                "peak_above_idle_mib": round(mem["VmHWM"] - idle["VmRSS"]),
+                "rss_after_mib": round(mem["VmRSS"]),
+            }
         finally:
             s.close()
     return {"n": args.max_spheres, **out}
@@ -215,14 +249,15 @@ def part_recipe(root: Path, args) -> dict:
 
 def part_health(root: Path, args) -> dict:
     extra = {"max_spheres": "1000"} if args.parse_only else {}
-    s = Server(root, max_body_bytes=str(args.max_body), queue_size=str(max(8, args.queue)),
-               body_slots_per_client="0", **extra)      # every body comes from this one address
+    s = Server(
+        root, max_body_bytes=str(args.max_body), queue_size=str(max(8, args.queue)), body_slots_per_client="0", **extra
+    )  # every body comes from this one address
     try:
         body, n = largest_scene(args.max_body)
         codes: list[int] = []
         waits: list[float] = []
         with httpx.Client(base_url=s.url, timeout=60) as c:
-            for _ in range(20):                      # the idle latency, for comparison
+            for _ in range(20):  # the idle latency, for comparison
                 t0 = time.perf_counter()
                 c.get("/api/health")
                 waits.append(time.perf_counter() - t0)
@@ -233,6 +268,7 @@ def part_health(root: Path, args) -> dict:
             def create() -> None:
                 with httpx.Client(base_url=s.url, timeout=600) as cc:
                     codes.append(cc.post("/api/sessions", content=body, headers=JSON).status_code)
+
             threads = [threading.Thread(target=create) for _ in range(6)]
             t_start = time.perf_counter()
             for t in threads:
@@ -246,11 +282,20 @@ def part_health(root: Path, args) -> dict:
                 t.join()
             mem = s.memory()
         w = sorted(waits)
-        return {"bodies": 6, "parse_only": args.parse_only, "body_mb": round(len(body) / 1e6, 2), "spheres": n, "codes": sorted(codes),
-                "seconds": round(time.perf_counter() - t_start, 1), "health_calls": len(w),
-                "idle_p50_ms": round(1e3 * statistics.median(idle), 1),
-                "p50_ms": round(1e3 * statistics.median(w), 1), "p99_ms": round(1e3 * w[int(0.99 * (len(w) - 1))], 1),
-                "max_ms": round(1e3 * w[-1], 1), "rss_peak_above_idle_mib": round(mem["VmHWM"] - idle_mem["VmRSS"])}
+        return {
+            "bodies": 6,
+            "parse_only": args.parse_only,
+            "body_mb": round(len(body) / 1e6, 2),
+            "spheres": n,
+            "codes": sorted(codes),
+            "seconds": round(time.perf_counter() - t_start, 1),
+            "health_calls": len(w),
+            "idle_p50_ms": round(1e3 * statistics.median(idle), 1),
+            "p50_ms": round(1e3 * statistics.median(w), 1),
+            "p99_ms": round(1e3 * w[int(0.99 * (len(w) - 1))], 1),
+            "max_ms": round(1e3 * w[-1], 1),
+            "rss_peak_above_idle_mib": round(mem["VmHWM"] - idle_mem["VmRSS"]),
+        }
     finally:
         s.close()
 
@@ -259,20 +304,25 @@ def part_stalled(root: Path, args) -> dict:
     s = Server(root)
     try:
         sock = socket.create_connection(("127.0.0.1", s.port), timeout=args.stall_wait)
-        sock.sendall(b"PUT /api/sessions/x/scene HTTP/1.1\r\nHost: b\r\ncontent-type: application/json\r\n"
-                     b"content-length: 100000\r\n\r\n{\"mater")
+        sock.sendall(
+            b"PUT /api/sessions/x/scene HTTP/1.1\r\nHost: b\r\ncontent-type: application/json\r\n"
+            b'content-length: 100000\r\n\r\n{"mater'
+        )
         t0 = time.perf_counter()
         got = b""
         try:
             while chunk := sock.recv(65536):
                 got += chunk
             closed = True
-        except socket.timeout:
+        except TimeoutError:
             closed = False
         waited = time.perf_counter() - t0
         sock.close()
-        return {"closed": closed, "seconds": round(waited, 2) if closed else f"> {args.stall_wait:g}",
-                "answer": got.split(b"\r\n", 1)[0].decode(errors="replace") if got else None}
+        return {
+            "closed": closed,
+            "seconds": round(waited, 2) if closed else f"> {args.stall_wait:g}",
+            "answer": got.split(b"\r\n", 1)[0].decode(errors="replace") if got else None,
+        }
     finally:
         s.close()
 
@@ -303,7 +353,7 @@ def part_metrics(root: Path, args) -> dict:
     try:
         with httpx.Client(base_url=s.url, timeout=60) as c:
             _scrape(c)
-            before = _series(_scrape(c)[0].text)           # with the scrape's own series
+            before = _series(_scrape(c)[0].text)  # with the scrape's own series
             rnd = random.Random(24)
             codes: dict[int, int] = {}
             t0 = time.perf_counter()
@@ -316,9 +366,15 @@ def part_metrics(root: Path, args) -> dict:
             seconds = time.perf_counter() - t0
             scrapes = [_scrape(c) for _ in range(3)]
         r = scrapes[-1][0]
-        return {"requests": args.metrics_requests, "codes": codes, "seconds": round(seconds, 1),
-                "series_before": before, "series_after": _series(r.text), "metrics_kib": round(len(r.content) / 1024),
-                "scrape_ms": round(1e3 * statistics.median(dt for _, dt in scrapes), 1)}
+        return {
+            "requests": args.metrics_requests,
+            "codes": codes,
+            "seconds": round(seconds, 1),
+            "series_before": before,
+            "series_after": _series(r.text),
+            "metrics_kib": round(len(r.content) / 1024),
+            "scrape_ms": round(1e3 * statistics.median(dt for _, dt in scrapes), 1),
+        }
     finally:
         s.close()
 
@@ -341,6 +397,7 @@ def part_flood(root: Path, args) -> dict:
                     code = c.post("/api/sessions", json={"scenario": 1, "n": 8, "seed": i}).status_code
                     with lock:
                         codes[code] = codes.get(code, 0) + 1
+
         threads = [threading.Thread(target=flood, args=(i,)) for i in range(4)]
         for t in threads:
             t.start()
@@ -361,20 +418,29 @@ def part_flood(root: Path, args) -> dict:
             text = c.get("/metrics").text
         db = Path(s.tmp.name) / "bench.sqlite3"
         wal = Path(str(db) + "-wal")
-        out["uploads"] = {"quota_mib": round(args.flood_quota / MIB, 1), "body_mb": round(len(body) / 1e6, 2),
-                          "codes": codes, "store_bytes": _gauge(text, "pocketray_store_bytes"),
-                          "sqlite_mib": round((db.stat().st_size + (wal.stat().st_size if wal.exists() else 0)) / MIB,
-                                              1)}
+        out["uploads"] = {
+            "quota_mib": round(args.flood_quota / MIB, 1),
+            "body_mb": round(len(body) / 1e6, 2),
+            "codes": codes,
+            "store_bytes": _gauge(text, "pocketray_store_bytes"),
+            "sqlite_mib": round((db.stat().st_size + (wal.stat().st_size if wal.exists() else 0)) / MIB, 1),
+        }
     finally:
         s.close()
     return out
+
+
 # ---- end of metrics labels and session quotas --------------------------------------------------------------
 
 
 # ---- WebSockets and slow readers (issue #24: ws_keepalive, ws_slots, ws_flood, unread) -------------------
 def _session(url: str, **settings) -> str:
-    body = {"scenario": 3, "n": 64, "seed": 1, "settings": {"width": 48, "height": 64, "max_recursion_depth": 2,
-                                                            "samples_per_pixel": 1, **settings}}
+    body = {
+        "scenario": 3,
+        "n": 64,
+        "seed": 1,
+        "settings": {"width": 48, "height": 64, "max_recursion_depth": 2, "samples_per_pixel": 1, **settings},
+    }
     r = httpx.post(url + "/api/sessions", json=body, timeout=60)
     r.raise_for_status()
     return r.json()["id"]
@@ -386,8 +452,10 @@ def _raw_ws(port: int, sid: str) -> socket.socket:
 
     sock = socket.create_connection(("127.0.0.1", port), timeout=30)
     key = base64.b64encode(os.urandom(16)).decode()
-    sock.sendall(f"GET /api/sessions/{sid}/ws HTTP/1.1\r\nHost: b\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-                 f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n".encode())
+    sock.sendall(
+        f"GET /api/sessions/{sid}/ws HTTP/1.1\r\nHost: b\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+        f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n".encode()
+    )
     head = b""
     while b"\r\n\r\n" not in head:
         head += sock.recv(1)
@@ -404,7 +472,6 @@ def _ws_text_frame(payload: bytes) -> bytes:
 def _read_ws(sock: socket.socket, quiet_s: float, limit_s: float) -> dict:
     """The server's frames until it closes, falls quiet for ``quiet_s`` or ``limit_s`` passes: text
     messages, the close code, and whether HTTP bytes came inside the WebSocket stream."""
-    import struct
 
     buf, texts, code, http_inside = b"", 0, None, False
     t0 = last = time.perf_counter()
@@ -412,7 +479,7 @@ def _read_ws(sock: socket.socket, quiet_s: float, limit_s: float) -> dict:
     while time.perf_counter() - t0 < limit_s and time.perf_counter() - last < quiet_s:
         try:
             chunk = sock.recv(1 << 16)
-        except socket.timeout:
+        except TimeoutError:
             continue
         except ConnectionResetError:
             break
@@ -432,14 +499,13 @@ def _read_ws(sock: socket.socket, quiet_s: float, limit_s: float) -> dict:
                 n = int.from_bytes(buf[2:at], "big")
             if len(buf) < at + n:
                 break
-            payload, buf = buf[at:at + n], buf[at + n:]
+            payload, buf = buf[at : at + n], buf[at + n :]
             texts += opcode == 0x1
             if opcode == 0x8:
                 code = int.from_bytes(payload[:2], "big") if len(payload) >= 2 else 1005
         if code is not None:
             break
-    return {"answers": texts, "close_code": code, "http_in_stream": http_inside,
-            "seconds": round(last - t0, 2)}
+    return {"answers": texts, "close_code": code, "http_in_stream": http_inside, "seconds": round(last - t0, 2)}
 
 
 def part_ws_keepalive(root: Path, args) -> dict:
@@ -467,8 +533,14 @@ def part_ws_keepalive(root: Path, args) -> dict:
         if closed is not None:
             close = closed.rcvd or closed.sent
             code, reason = (close.code, close.reason) if close else (None, None)
-        return {"talk_s": args.ws_talk_s, "answers": answers, "cut": closed is not None,
-                "lived_s": round(lived, 1), "close_code": code, "close_reason": reason}
+        return {
+            "talk_s": args.ws_talk_s,
+            "answers": answers,
+            "cut": closed is not None,
+            "lived_s": round(lived, 1),
+            "close_code": code,
+            "close_reason": reason,
+        }
     finally:
         s.close()
 
@@ -485,13 +557,17 @@ def part_ws_slots(root: Path, args) -> dict:
             try:
                 with connect(f"ws://127.0.0.1:{s.port}/api/sessions/{sid}/ws", open_timeout=30):
                     opened += 1
-            except Exception as e:   # the handshake answered 429
+            except Exception as e:  # the handshake answered 429
                 if first_refused is None:
                     first_refused = {"index": i, "error": str(e)[:120]}
         time.sleep(0.5)
         r = httpx.get(s.url + "/api/health", timeout=10)
-        return {"websockets": args.ws_count, "opened": opened, "first_refused": first_refused,
-                "then_health": r.status_code}
+        return {
+            "websockets": args.ws_count,
+            "opened": opened,
+            "first_refused": first_refused,
+            "then_health": r.status_code,
+        }
     finally:
         s.close()
 
@@ -520,6 +596,7 @@ def part_ws_flood(root: Path, args) -> dict:
                         c.get("/api/health")
                         waits.append(time.perf_counter() - t0)
                         time.sleep(0.02)
+
             sock = _raw_ws(s.port, sid)
             poller = threading.Thread(target=poll)
             poller.start()
@@ -534,10 +611,14 @@ def part_ws_flood(root: Path, args) -> dict:
             poller.join()
             sock.close()
             w = sorted(waits)
-            out[str(count)] = {"sent_s": round(sent_s, 3), **got, "health_calls": len(w),
-                               "health_p50_ms": round(1e3 * statistics.median(w), 1),
-                               "health_p99_ms": round(1e3 * w[int(0.99 * (len(w) - 1))], 1),
-                               "health_max_ms": round(1e3 * w[-1], 1)}
+            out[str(count)] = {
+                "sent_s": round(sent_s, 3),
+                **got,
+                "health_calls": len(w),
+                "health_p50_ms": round(1e3 * statistics.median(w), 1),
+                "health_p99_ms": round(1e3 * w[int(0.99 * (len(w) - 1))], 1),
+                "health_max_ms": round(1e3 * w[-1], 1),
+            }
             print(f"  {count}: {json.dumps(out[str(count)])}", flush=True)
         return {"idle_health_p50_ms": round(1e3 * statistics.median(idle), 1), **out}
     finally:
@@ -549,22 +630,29 @@ def part_unread(root: Path, args) -> dict:
     (SO_RCVBUF 4 KiB): the server's resident memory, peak and --unread-hold-s after the last answer
     started; then each one's status line (peeked) and whether the server still holds it open."""
     side = args.unread_side
-    s = Server(root, max_frame_cost="1e9", render_timeout_s="600", queue_size=str(max(8, args.unread_clients)),
-               max_connections_per_client=str(max(32, args.unread_clients + 4)))
+    s = Server(
+        root,
+        max_frame_cost="1e9",
+        render_timeout_s="600",
+        queue_size=str(max(8, args.unread_clients)),
+        max_connections_per_client=str(max(32, args.unread_clients + 4)),
+    )
     socks: list[socket.socket] = []
     try:
-        sids = [_session(s.url) for _ in range(args.unread_clients)]   # one each: a session's frames supersede
+        sids = [_session(s.url) for _ in range(args.unread_clients)]  # one each: a session's frames supersede
         idle = s.memory()
         t0 = time.perf_counter()
         for sid in sids:
             sock = socket.socket()
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
             sock.connect(("127.0.0.1", s.port))
-            sock.sendall(f"GET /api/sessions/{sid}/frame?width={side}&height={side}&mode=normal&format=npy"
-                         f"&max_recursion_depth=1&samples_per_pixel=1 HTTP/1.1\r\nHost: b\r\n\r\n".encode())
+            sock.sendall(
+                f"GET /api/sessions/{sid}/frame?width={side}&height={side}&mode=normal&format=npy"
+                f"&max_recursion_depth=1&samples_per_pixel=1 HTTP/1.1\r\nHost: b\r\n\r\n".encode()
+            )
             socks.append(sock)
         started: dict[int, float] = {}
-        while len(started) < len(socks) and time.perf_counter() - t0 < 300:   # answers started (peeked)
+        while len(started) < len(socks) and time.perf_counter() - t0 < 300:  # answers started (peeked)
             for i, sock in enumerate(socks):
                 if i in started:
                     continue
@@ -572,7 +660,7 @@ def part_unread(root: Path, args) -> dict:
                 try:
                     if sock.recv(16, socket.MSG_PEEK):
                         started[i] = time.perf_counter() - t0
-                except (socket.timeout, BlockingIOError):
+                except (TimeoutError, BlockingIOError):
                     pass
                 except OSError:
                     started[i] = time.perf_counter() - t0
@@ -587,7 +675,7 @@ def part_unread(root: Path, args) -> dict:
         held = s.memory()
         answers: dict[str, int] = {}
         still_open = 0
-        for sock in socks:                      # the status line (peeked) and whether the server kept it open
+        for sock in socks:  # the status line (peeked) and whether the server kept it open
             sock.settimeout(2)
             try:
                 got = sock.recv(64, socket.MSG_PEEK)
@@ -595,16 +683,24 @@ def part_unread(root: Path, args) -> dict:
                 got = b""
             line = got.split(b"\r\n", 1)[0].decode(errors="replace") or "(nothing)"
             answers[line] = answers.get(line, 0) + 1
-            still_open += sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_INFO, 1)[0] == 1   # TCP_ESTABLISHED
-        return {"clients": args.unread_clients, "frame_mib": round(side * side * 12 / 2**20), "answers": answers,
-                "connections_still_open": still_open, "last_answer_started_s": round(last, 1),
-                "rss_idle_mib": round(idle["VmRSS"]), "rss_peak_above_idle_mib": round(held["VmHWM"] - idle["VmRSS"]),
-                f"rss_above_idle_{args.unread_hold_s:g}s_after_mib": round(held["VmRSS"] - idle["VmRSS"]),
-                "rss_above_idle_trace_mib": rss_trace[::max(1, len(rss_trace) // 12)]}
+            still_open += sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_INFO, 1)[0] == 1  # TCP_ESTABLISHED
+        return {
+            "clients": args.unread_clients,
+            "frame_mib": round(side * side * 12 / 2**20),
+            "answers": answers,
+            "connections_still_open": still_open,
+            "last_answer_started_s": round(last, 1),
+            "rss_idle_mib": round(idle["VmRSS"]),
+            "rss_peak_above_idle_mib": round(held["VmHWM"] - idle["VmRSS"]),
+            f"rss_above_idle_{args.unread_hold_s:g}s_after_mib": round(held["VmRSS"] - idle["VmRSS"]),
+            "rss_above_idle_trace_mib": rss_trace[:: max(1, len(rss_trace) // 12)],
+        }
     finally:
         for sock in socks:
             sock.close()
         s.close()
+
+
 # ---- end of WebSockets and slow readers ---------------------------------------------------------------------
 
 
@@ -614,13 +710,20 @@ def part_frames(root: Path, args) -> dict:
     session each: the server's peak resident memory above idle. A 503 is retried after its
     Retry-After (as a client should), until 300 s have passed; the bodies are read and dropped."""
     side, count = args.frame_side, args.frames
-    s = Server(root, max_work=str(max(side * side, 64 << 20)), max_frame_cost="1e9", render_timeout_s="600",
-               queue_size=str(max(8, count)))
+    s = Server(
+        root,
+        max_work=str(max(side * side, 64 << 20)),
+        max_frame_cost="1e9",
+        render_timeout_s="600",
+        queue_size=str(max(8, count)),
+    )
     try:
         settings = {"max_recursion_depth": 1, "samples_per_pixel": 1, "min_weight": 0.0}
         with httpx.Client(base_url=s.url, timeout=600) as c:
-            sids = [c.post("/api/sessions", json={"scenario": 3, "n": 64, "seed": i, "settings": settings}).json()["id"]
-                    for i in range(count)]
+            sids = [
+                c.post("/api/sessions", json={"scenario": 3, "n": 64, "seed": i, "settings": settings}).json()["id"]
+                for i in range(count)
+            ]
             assert c.get(f"/api/sessions/{sids[0]}/frame", params={"width": 64, "height": 64}).status_code == 200
         time.sleep(1)
         idle = s.memory()
@@ -633,8 +736,11 @@ def part_frames(root: Path, args) -> dict:
             tries = 0
             with httpx.Client(base_url=s.url, timeout=600) as c:
                 while True:
-                    with c.stream("GET", f"/api/sessions/{sid}/frame",
-                                  params={"width": side, "height": side, "mode": "normal", "format": "npy"}) as r:
+                    with c.stream(
+                        "GET",
+                        f"/api/sessions/{sid}/frame",
+                        params={"width": side, "height": side, "mode": "normal", "format": "npy"},
+                    ) as r:
                         size = sum(len(chunk) for chunk in r.iter_bytes(1 << 20))
                         if r.status_code == 503 and time.perf_counter() - t_start < 300:
                             tries += 1
@@ -644,6 +750,7 @@ def part_frames(root: Path, args) -> dict:
                         sizes.append(size)
                         retries.append(tries)
                         return
+
         threads = [threading.Thread(target=frame, args=(sid,)) for sid in sids]
         for t in threads:
             t.start()
@@ -651,10 +758,17 @@ def part_frames(root: Path, args) -> dict:
             t.join()
         seconds = time.perf_counter() - t_start
         mem = s.memory()
-        return {"frames": count, "side": side, "codes": sorted(codes), "retries_503": sum(retries),
-                "body_mib": round(max(sizes) / MIB, 1), "seconds": round(seconds, 1),
-                "rss_idle_mib": round(idle["VmRSS"]), "rss_peak_mib": round(mem["VmHWM"]),
-                "peak_above_idle_mib": round(mem["VmHWM"] - idle["VmRSS"])}
+        return {
+            "frames": count,
+            "side": side,
+            "codes": sorted(codes),
+            "retries_503": sum(retries),
+            "body_mib": round(max(sizes) / MIB, 1),
+            "seconds": round(seconds, 1),
+            "rss_idle_mib": round(idle["VmRSS"]),
+            "rss_peak_mib": round(mem["VmHWM"]),
+            "peak_above_idle_mib": round(mem["VmHWM"] - idle["VmRSS"]),
+        }
     finally:
         s.close()
 
@@ -675,8 +789,10 @@ def part_trickle(root: Path, args) -> dict:
     def trickler() -> None:
         while not stop.is_set():
             sock = socket.create_connection(("127.0.0.1", s.port), timeout=4)
-            sock.sendall(b"POST /api/sessions HTTP/1.1\r\nHost: b\r\ncontent-type: application/json\r\n"
-                         b"content-length: 1000000\r\n\r\n{")
+            sock.sendall(
+                b"POST /api/sessions HTTP/1.1\r\nHost: b\r\ncontent-type: application/json\r\n"
+                b"content-length: 1000000\r\n\r\n{"
+            )
             got = b""
             while not stop.is_set():
                 try:
@@ -684,9 +800,9 @@ def part_trickle(root: Path, args) -> dict:
                     if not chunk:
                         break
                     got += chunk
-                except socket.timeout:
+                except TimeoutError:
                     try:
-                        sock.sendall(b" ")                     # one byte every 4 s
+                        sock.sendall(b" ")  # one byte every 4 s
                     except OSError:
                         break
                 except OSError:
@@ -694,7 +810,7 @@ def part_trickle(root: Path, args) -> dict:
             sock.close()
             if got:
                 trickled.append(got.split(b" ", 2)[1].decode(errors="replace"))
-            stop.wait(1.0)                                    # then again, on a new connection
+            stop.wait(1.0)  # then again, on a new connection
 
     def honest_client() -> None:
         transport = httpx.HTTPTransport(local_address="127.0.0.2")
@@ -708,7 +824,7 @@ def part_trickle(root: Path, args) -> dict:
         attackers = [threading.Thread(target=trickler) for _ in range(8)]
         for t in attackers:
             t.start()
-        time.sleep(1.0)                                       # the trickles take their slots first
+        time.sleep(1.0)  # the trickles take their slots first
         good = threading.Thread(target=honest_client)
         good.start()
         t_end = time.perf_counter() + args.trickle_s
@@ -723,37 +839,57 @@ def part_trickle(root: Path, args) -> dict:
         for t in attackers:
             t.join()
         w = sorted(waits)
-        counts = lambda xs: {str(k): xs.count(k) for k in sorted(set(xs))}   # noqa: E731
-        return {"seconds": args.trickle_s, "honest_body_kb": round(len(body) / 1e3),
-                "honest_answers": counts(honest), "trickle_answers": counts(trickled),
-                "health_calls": len(w), "health_p50_ms": round(1e3 * statistics.median(w), 1),
-                "health_p99_ms": round(1e3 * w[int(0.99 * (len(w) - 1))], 1)}
+        counts = lambda xs: {str(k): xs.count(k) for k in sorted(set(xs))}
+        return {
+            "seconds": args.trickle_s,
+            "honest_body_kb": round(len(body) / 1e3),
+            "honest_answers": counts(honest),
+            "trickle_answers": counts(trickled),
+            "health_calls": len(w),
+            "health_p50_ms": round(1e3 * statistics.median(w), 1),
+            "health_p99_ms": round(1e3 * w[int(0.99 * (len(w) - 1))], 1),
+        }
     finally:
         stop.set()
         s.close()
+
+
 # ---- end of: memory of frames in flight, and trickling large bodies -------------------------------------
 
 
 # ---- model files (issue 24: hostile glTF/GLB bodies; renderer/model_guard.py, server/model_worker.py) -------------
 def accessor_gltf(count: int) -> bytes:
     """~250 bytes: one accessor of ``count`` VEC3 without a bufferView (zeros the file does not hold)."""
-    return json.dumps({"asset": {"version": "2.0"}, "bufferViews": [],
-                       "accessors": [{"componentType": 5126, "count": count, "type": "VEC3"}],
-                       "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "nodes": [{"mesh": 0}],
-                       "scenes": [{"nodes": [0]}], "scene": 0}).encode()
+    return json.dumps(
+        {
+            "asset": {"version": "2.0"},
+            "bufferViews": [],
+            "accessors": [{"componentType": 5126, "count": count, "type": "VEC3"}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+            "nodes": [{"mesh": 0}],
+            "scenes": [{"nodes": [0]}],
+            "scene": 0,
+        }
+    ).encode()
 
 
 def chain_glb(n: int) -> bytes:
     """A GLB of one triangle under a chain of ``n`` nodes (the parser's cost grows with depth²)."""
     import struct
+
     tri = b"".join(struct.pack("<3f", *v) for v in ((0, 0, 0), (1, 0, 0), (0, 1, 0)))
-    doc = {"asset": {"version": "2.0"}, "buffers": [{"byteLength": 36}],
-           "bufferViews": [{"buffer": 0, "byteLength": 36}],
-           "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
-                          "min": [0, 0, 0], "max": [1, 1, 0]}],
-           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
-           "nodes": [{"children": [i + 1]} for i in range(n - 1)] + [{"mesh": 0}],
-           "scenes": [{"nodes": [0]}], "scene": 0}
+    doc = {
+        "asset": {"version": "2.0"},
+        "buffers": [{"byteLength": 36}],
+        "bufferViews": [{"buffer": 0, "byteLength": 36}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}
+        ],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "nodes": [{"children": [i + 1]} for i in range(n - 1)] + [{"mesh": 0}],
+        "scenes": [{"nodes": [0]}],
+        "scene": 0,
+    }
     j = json.dumps(doc).encode()
     j += b" " * (-len(j) % 4)
     body = struct.pack("<I4s", len(j), b"JSON") + j + struct.pack("<I4s", 36, b"BIN\0") + tri
@@ -781,8 +917,13 @@ def children_hwm_mib(pid: int) -> float:
 
 def post_model(url: str, data: bytes, fmt: str, out: list, timeout: float = 600) -> None:
     t0 = time.perf_counter()
-    r = httpx.post(url + "/api/meshes", params={"format": fmt}, content=data,
-                   headers={"content-type": "application/octet-stream"}, timeout=timeout)
+    r = httpx.post(
+        url + "/api/meshes",
+        params={"format": fmt},
+        content=data,
+        headers={"content-type": "application/octet-stream"},
+        timeout=timeout,
+    )
     detail = r.json().get("detail") if r.headers.get("content-type", "").startswith("application/json") else None
     msg = detail[0].get("msg") if isinstance(detail, list) and detail else detail
     out.append((r.status_code, round(time.perf_counter() - t0, 2), str(msg)[:140] if msg else None))
@@ -801,7 +942,7 @@ def part_model_accessor(root: Path, args) -> dict:
                 continue
             s = Server(root)
             try:
-                post_model(s.url, export_box_obj(), "obj", [])     # the first upload starts the parsers
+                post_model(s.url, export_box_obj(), "obj", [])  # the first upload starts the parsers
                 idle = s.memory()
                 got: list = []
                 t0 = time.perf_counter()
@@ -812,10 +953,14 @@ def part_model_accessor(root: Path, args) -> dict:
                     t.join()
                 mem = s.memory()
                 out[f"{count:,} x{k}"] = {
-                    "body_bytes": len(body), "codes": sorted(c for c, _, _ in got),
-                    "seconds": round(time.perf_counter() - t0, 2), "each_s": sorted(x for _, x, _ in got),
+                    "body_bytes": len(body),
+                    "codes": sorted(c for c, _, _ in got),
+                    "seconds": round(time.perf_counter() - t0, 2),
+                    "each_s": sorted(x for _, x, _ in got),
                     "peak_above_idle_mib": round(mem["VmHWM"] - idle["VmRSS"]),
-                    "workers_peak_mib": children_hwm_mib(s.proc.pid), "answer": got[0][2]}
+                    "workers_peak_mib": children_hwm_mib(s.proc.pid),
+                    "answer": got[0][2],
+                }
                 print(f"  {count:,} x{k}: {json.dumps(out[f'{count:,} x{k}'])}", flush=True)
             finally:
                 s.close()
@@ -858,11 +1003,15 @@ def part_model_chain(root: Path, args) -> dict:
                         t.join()
                     w = sorted(waits)
                     out[f"{n:,} x{k}"] = {
-                        "body_mb": round(len(body) / 1e6, 2), "codes": sorted(c_ for c_, _, _ in got),
-                        "each_s": sorted(x for _, x, _ in got), "health_calls": len(w),
+                        "body_mb": round(len(body) / 1e6, 2),
+                        "codes": sorted(c_ for c_, _, _ in got),
+                        "each_s": sorted(x for _, x, _ in got),
+                        "health_calls": len(w),
                         "health_p50_ms": round(1e3 * statistics.median(w), 1) if w else None,
                         "health_p99_ms": round(1e3 * w[int(0.99 * (len(w) - 1))], 1) if w else None,
-                        "health_max_ms": round(1e3 * w[-1], 1) if w else None, "answer": got[0][2]}
+                        "health_max_ms": round(1e3 * w[-1], 1) if w else None,
+                        "answer": got[0][2],
+                    }
                     print(f"  {n:,} x{k}: {json.dumps(out[f'{n:,} x{k}'])}", flush=True)
     finally:
         s.close()
@@ -874,47 +1023,61 @@ def part_model_overhead(root: Path, args) -> dict:
     327,680-triangle PLY (8 MB), median of --model-repeats (one at a time, 0.2 s apart)."""
     from renderer.mesh_io import export_mesh
     from renderer.meshes import icosphere
+
     out = {}
     s = Server(root, max_body_bytes=str(32 * MIB))
     try:
         post_model(s.url, export_box_obj(), "obj", [])
-        for name, data, fmt in (("obj_80_tris", export_mesh(icosphere(1), "obj"), "obj"),
-                                ("ply_327680_tris", export_mesh(icosphere(7), "ply"), "ply")):
+        for name, data, fmt in (
+            ("obj_80_tris", export_mesh(icosphere(1), "obj"), "obj"),
+            ("ply_327680_tris", export_mesh(icosphere(7), "ply"), "ply"),
+        ):
             got: list = []
             for _ in range(args.model_repeats):
                 time.sleep(0.2)
                 post_model(s.url, data, fmt, got)
-            out[name] = {"bytes": len(data), "codes": sorted(set(c for c, _, _ in got)),
-                         "median_s": round(statistics.median(x for _, x, _ in got), 3)}
+            out[name] = {
+                "bytes": len(data),
+                "codes": sorted(set(c for c, _, _ in got)),
+                "median_s": round(statistics.median(x for _, x, _ in got), 3),
+            }
     finally:
         s.close()
     return out
+
+
 # ---- end of model files ---------------------------------------------------------------------------------------------
 
 
 # ---- the stack: its parts fail (80 clients through HAProxy; a render process killed; Redis paused) ----------
-STACK_SETTINGS = {"width": 48, "height": 64, "max_recursion_depth": 2, "samples_per_pixel": 1, "min_weight": 0.0,
-                  "format": "npy"}
+STACK_SETTINGS = {
+    "width": 48,
+    "height": 64,
+    "max_recursion_depth": 2,
+    "samples_per_pixel": 1,
+    "min_weight": 0.0,
+    "format": "npy",
+}
 
 
 def _stack_children(pid: int) -> dict:
     """The stack's children by role, from /proc: {"redis": pid, "haproxy": pid, "renders": {port: pid}}."""
     out: dict = {"redis": None, "haproxy": None, "renders": {}}
     try:
-        kids = [int(k) for t in Path(f"/proc/{pid}/task").iterdir()
-                for k in (t / "children").read_text().split()]
+        kids = [int(k) for t in Path(f"/proc/{pid}/task").iterdir() for k in (t / "children").read_text().split()]
     except OSError:
         return out
     for k in kids:
         try:
             argv = Path(f"/proc/{k}/cmdline").read_bytes().decode(errors="replace").split("\0")
-            state = next(line for line in Path(f"/proc/{k}/status").read_text().splitlines()
-                         if line.startswith("State:"))
+            state = next(
+                line for line in Path(f"/proc/{k}/status").read_text().splitlines() if line.startswith("State:")
+            )
         except (OSError, StopIteration):
             continue
         if "Z" in state.split()[1]:
-            continue                     # exited, not yet reaped
-        if "redis-server" in argv[0]:      # it rewrites its title: "redis-server 127.0.0.1:port"
+            continue  # exited, not yet reaped
+        if "redis-server" in argv[0]:  # it rewrites its title: "redis-server 127.0.0.1:port"
             out["redis"] = k
         elif argv[0].endswith("haproxy"):
             out["haproxy"] = k
@@ -943,17 +1106,38 @@ async def _stack_load(url: str, sids: list[str], t0: float, until: float, log: l
                         r = await c.post(f"/api/sessions/{sid}/gesture", json={"type": "pan", "dx": 2, "dy": -1})
                     else:
                         r = await c.get(f"/api/sessions/{sid}/frame")
-                    log.append((start, time.monotonic() - t0, "gesture" if gesture else "frame", r.status_code,
-                                r.headers.get("content-type", "").startswith("application/json"),
-                                "retry-after" in r.headers, r.headers.get("x-served-by"),
-                                r.json()["version"] if gesture and r.status_code == 200 else None,
-                                None if r.status_code < 400 else r.text[:120], sid))
+                    log.append(
+                        (
+                            start,
+                            time.monotonic() - t0,
+                            "gesture" if gesture else "frame",
+                            r.status_code,
+                            r.headers.get("content-type", "").startswith("application/json"),
+                            "retry-after" in r.headers,
+                            r.headers.get("x-served-by"),
+                            r.json()["version"] if gesture and r.status_code == 200 else None,
+                            None if r.status_code < 400 else r.text[:120],
+                            sid,
+                        )
+                    )
                     ok = r.status_code < 400
                 except httpx.HTTPError as e:
-                    log.append((start, time.monotonic() - t0, "gesture" if gesture else "frame", None, False, False,
-                                None, None, f"{type(e).__name__}: {e}"[:120], sid))
+                    log.append(
+                        (
+                            start,
+                            time.monotonic() - t0,
+                            "gesture" if gesture else "frame",
+                            None,
+                            False,
+                            False,
+                            None,
+                            None,
+                            f"{type(e).__name__}: {e}"[:120],
+                            sid,
+                        )
+                    )
                     ok = False
-                await asyncio.sleep(0.05 if ok else 0.2)   # a finger's pace; a little longer after a refusal
+                await asyncio.sleep(0.05 if ok else 0.2)  # a finger's pace; a little longer after a refusal
 
     await asyncio.gather(*(client(i, sid) for i, sid in enumerate(sids)))
 
@@ -964,13 +1148,20 @@ def _stack_phase(log: list, lo: float, hi: float) -> dict:
     failed = [r for r in rows if r[3] is None or r[3] >= 400]
     kinds: dict[str, int] = {}
     for r in failed:
-        key = ("connection error" if r[3] is None else
-               f"{r[3]} {'service JSON' if r[6] else 'balancer JSON' if r[4] else 'balancer page'}"
-               f"{' +Retry-After' if r[5] else ''}")
+        key = (
+            "connection error"
+            if r[3] is None
+            else f"{r[3]} {'service JSON' if r[6] else 'balancer JSON' if r[4] else 'balancer page'}"
+            f"{' +Retry-After' if r[5] else ''}"
+        )
         kinds[key] = kinds.get(key, 0) + 1
-    return {"requests": len(rows), "failed": len(failed),
-            "failed_pct": round(100 * len(failed) / max(1, len(rows)), 2), "failures": kinds,
-            "examples": sorted({f"{r[2]} {r[8]}" for r in failed if r[8]})[:4]}
+    return {
+        "requests": len(rows),
+        "failed": len(failed),
+        "failed_pct": round(100 * len(failed) / max(1, len(rows)), 2),
+        "failures": kinds,
+        "examples": sorted({f"{r[2]} {r[8]}" for r in failed if r[8]})[:4],
+    }
 
 
 def part_stack(root: Path, args) -> dict:
@@ -984,11 +1175,17 @@ def part_stack(root: Path, args) -> dict:
     tmp = Path(tempfile.mkdtemp(prefix="bench-stack-"))
     port = free_port()
     env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
-    env.update(POCKETRAY_LOG_LEVEL="warning", POCKETRAY_QUEUE_SIZE=str(args.stack_clients),
-               POCKETRAY_REDIS_TIMEOUT_S="2")
+    env.update(
+        POCKETRAY_LOG_LEVEL="warning", POCKETRAY_QUEUE_SIZE=str(args.stack_clients), POCKETRAY_REDIS_TIMEOUT_S="2"
+    )
     err = open(tmp / "stack.err", "wb")
-    proc = subprocess.Popen([sys.executable, "-m", "server.stack", "--port", str(port), "--dir", str(tmp / "stack")],
-                            cwd=root, env=env, stdout=err, stderr=subprocess.STDOUT)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "server.stack", "--port", str(port), "--dir", str(tmp / "stack")],
+        cwd=root,
+        env=env,
+        stdout=err,
+        stderr=subprocess.STDOUT,
+    )
     url = f"http://127.0.0.1:{port}"
     out: dict = {"clients": args.stack_clients}
     try:
@@ -1002,8 +1199,9 @@ def part_stack(root: Path, args) -> dict:
         sids = []
         with httpx.Client(base_url=url, timeout=60) as c:
             while len(sids) < args.stack_clients:
-                r = c.post("/api/sessions", json={"scenario": 3, "n": 64, "seed": len(sids),
-                                                  "settings": STACK_SETTINGS})
+                r = c.post(
+                    "/api/sessions", json={"scenario": 3, "n": 64, "seed": len(sids), "settings": STACK_SETTINGS}
+                )
                 if r.status_code == 201:
                     sids.append(r.json()["id"])
                 else:
@@ -1037,6 +1235,7 @@ def part_stack(root: Path, args) -> dict:
         async def run() -> None:
             t0 = time.monotonic()
             await asyncio.gather(_stack_load(url, sids, t0, t0 + t_end, log), chaos(t0))
+
         asyncio.run(run())
         out["events"] = events
         out["load"] = _stack_phase(log, 0, t_kill)
@@ -1074,12 +1273,18 @@ def part_stack(root: Path, args) -> dict:
                 except httpx.HTTPError:
                     unread += 1
         kids = _stack_children(proc.pid)
-        out["end"] = {"acknowledged_gestures": sum(1 for r in log if r[7] is not None), "lost_writes": lost,
-                      "sessions_unreadable": unread, "stack_running": proc.poll() is None,
-                      "render_processes": len(kids["renders"]), "redis": bool(kids["redis"]),
-                      "haproxy": bool(kids["haproxy"])}
-        out["stack_log"] = [line for line in (tmp / "stack.err").read_text().splitlines()
-                            if line.startswith("stack:")][-6:]
+        out["end"] = {
+            "acknowledged_gestures": sum(1 for r in log if r[7] is not None),
+            "lost_writes": lost,
+            "sessions_unreadable": unread,
+            "stack_running": proc.poll() is None,
+            "render_processes": len(kids["renders"]),
+            "redis": bool(kids["redis"]),
+            "haproxy": bool(kids["haproxy"]),
+        }
+        out["stack_log"] = [line for line in (tmp / "stack.err").read_text().splitlines() if line.startswith("stack:")][
+            -6:
+        ]
         for part in ("load", "kill", "redis_paused", "redis_back"):
             if part in out:
                 print(f"stack {part}: {out[part]}", flush=True)
@@ -1098,20 +1303,32 @@ def part_stack(root: Path, args) -> dict:
                 os.kill(pid, signal.SIGKILL)
         err.close()
         shutil.rmtree(tmp, ignore_errors=True)
+
+
 # ---- end of the stack part --------------------------------------------------------------------------------
 
 
-PARTS = {"targets": part_targets, "bad": part_bad, "largest": part_largest, "recipe": part_recipe,
-         "health": part_health,
-         "stalled": part_stalled,
-         "metrics": part_metrics, "flood": part_flood,
-         # WebSockets and slow readers
-         "ws_keepalive": part_ws_keepalive, "ws_slots": part_ws_slots, "ws_flood": part_ws_flood,
-         "unread": part_unread,
-         "frames": part_frames, "trickle": part_trickle,
-         "model_accessor": part_model_accessor, "model_chain": part_model_chain,
-         "model_overhead": part_model_overhead,
-         "stack": part_stack}
+PARTS = {
+    "targets": part_targets,
+    "bad": part_bad,
+    "largest": part_largest,
+    "recipe": part_recipe,
+    "health": part_health,
+    "stalled": part_stalled,
+    "metrics": part_metrics,
+    "flood": part_flood,
+    # WebSockets and slow readers
+    "ws_keepalive": part_ws_keepalive,
+    "ws_slots": part_ws_slots,
+    "ws_flood": part_ws_flood,
+    "unread": part_unread,
+    "frames": part_frames,
+    "trickle": part_trickle,
+    "model_accessor": part_model_accessor,
+    "model_chain": part_model_chain,
+    "model_overhead": part_model_overhead,
+    "stack": part_stack,
+}
 
 
 def parser() -> argparse.ArgumentParser:
@@ -1123,9 +1340,12 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument("--queue", type=int, default=8, help="POCKETRAY_QUEUE_SIZE (and the bodies at once of largest)")
     ap.add_argument("--target-side", type=int, default=4096, help="targets: the largest of the 11 sizes")
     ap.add_argument("--bad-spheres", type=int, default=150_000, help="bad: the invalid spheres of the body")
-    ap.add_argument("--parse-only", action="store_true",
-                    help="health: POCKETRAY_MAX_SPHERES=1000, so that the bodies are read, parsed, validated and "
-                         "refused (422) — no build")
+    ap.add_argument(
+        "--parse-only",
+        action="store_true",
+        help="health: POCKETRAY_MAX_SPHERES=1000, so that the bodies are read, parsed, validated and "
+        "refused (422) — no build",
+    )
     ap.add_argument("--stall-wait", type=float, default=30.0, help="seconds to wait for a stalled body's close")
     ap.add_argument("--metrics-requests", type=int, default=4000, help="metrics: requests with made-up methods")
     ap.add_argument("--flood-s", type=float, default=10, help="flood: seconds of session creation from one address")
@@ -1134,27 +1354,49 @@ def parser() -> argparse.ArgumentParser:
     # WebSockets and slow readers
     ap.add_argument("--ws-talk-s", type=float, default=20.0, help="ws_keepalive: seconds of a gesture every 0.5 s")
     ap.add_argument("--ws-count", type=int, default=64, help="ws_slots: WebSockets opened and closed in turn")
-    ap.add_argument("--flood", type=int, nargs="+", default=[20_000, 60_000],
-                    help="ws_flood: messages written at once (one run per count)")
+    ap.add_argument(
+        "--flood",
+        type=int,
+        nargs="+",
+        default=[20_000, 60_000],
+        help="ws_flood: messages written at once (one run per count)",
+    )
     ap.add_argument("--unread-clients", type=int, default=10, help="unread: connections that never read")
     ap.add_argument("--unread-side", type=int, default=4096, help="unread: the frame's side (normal npy)")
-    ap.add_argument("--unread-hold-s", type=float, default=45.0,
-                    help="unread: seconds after the last answer started when the memory is read")
+    ap.add_argument(
+        "--unread-hold-s",
+        type=float,
+        default=45.0,
+        help="unread: seconds after the last answer started when the memory is read",
+    )
     ap.add_argument("--frames", type=int, default=8, help="frames: how many at once")
     ap.add_argument("--frame-side", type=int, default=4096, help="frames: their side (normal, npy)")
     ap.add_argument("--trickle-s", type=float, default=30.0, help="trickle: seconds of the attack")
-    ap.add_argument("--accessor-counts", type=lambda v: [int(x) for x in v.split(",")],
-                    default=[30_000_000, 90_000_000], help="model_accessor: the VEC3 counts the glTF claims (comma-separated)")
-    ap.add_argument("--chain-nodes", type=lambda v: [int(x) for x in v.split(",")], default=[25_000, 50_000, 100_000],
-                    help="model_chain: the chains' node counts (comma-separated)")
+    ap.add_argument(
+        "--accessor-counts",
+        type=lambda v: [int(x) for x in v.split(",")],
+        default=[30_000_000, 90_000_000],
+        help="model_accessor: the VEC3 counts the glTF claims (comma-separated)",
+    )
+    ap.add_argument(
+        "--chain-nodes",
+        type=lambda v: [int(x) for x in v.split(",")],
+        default=[25_000, 50_000, 100_000],
+        help="model_chain: the chains' node counts (comma-separated)",
+    )
     ap.add_argument("--model-parallel", type=int, default=3, help="model parts: the bodies sent at once")
     ap.add_argument("--model-repeats", type=int, default=9, help="model_overhead: uploads per file")
-    ap.add_argument("--skip-model", type=lambda v: {(int(c), int(k)) for c, k in (p.split("x") for p in v.split(","))},
-                    default=set(), help="model_accessor: COUNTxK cases not run (e.g. 90000000x3: ~20 GB before)")
+    ap.add_argument(
+        "--skip-model",
+        type=lambda v: {(int(c), int(k)) for c, k in (p.split("x") for p in v.split(","))},
+        default=set(),
+        help="model_accessor: COUNTxK cases not run (e.g. 90000000x3: ~20 GB before)",
+    )
     ap.add_argument("--stack-clients", type=int, default=80, help="stack: concurrent clients (one session each)")
     ap.add_argument("--stack-load-s", type=float, default=15, help="stack: seconds of load before the kill")
-    ap.add_argument("--stack-kill-s", type=float, default=10,
-                    help="stack: seconds after kill -9 of render0 (0: no kill)")
+    ap.add_argument(
+        "--stack-kill-s", type=float, default=10, help="stack: seconds after kill -9 of render0 (0: no kill)"
+    )
     ap.add_argument("--stack-pause-s", type=float, default=5, help="stack: seconds Redis is stopped (and after)")
     ap.add_argument("--json", type=Path, help="write the figures here too")
     return ap
@@ -1166,8 +1408,9 @@ def main() -> None:
     args.parts = args.parts or list(PARTS)
     if set(args.parts) - set(PARTS):
         ap.error(f"unknown part(s) {', '.join(sorted(set(args.parts) - set(PARTS)))}; any of {', '.join(PARTS)}")
-    commit = subprocess.run(["git", "-C", str(args.root), "rev-parse", "--short", "HEAD"], capture_output=True,
-                            text=True).stdout.strip()
+    commit = subprocess.run(
+        ["git", "-C", str(args.root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+    ).stdout.strip()
     results = {"root": str(args.root), "commit": commit, "loadavg": os.getloadavg()[0], "cpus": os.cpu_count()}
     for name in args.parts:
         print(f"--- {name}", flush=True)

@@ -55,8 +55,11 @@ STAGES = ("queue", "build", "upload", "trace", "read", "encode")
 def profile_params(name: str, depth: int) -> dict:
     """The frame query of a render profile, its depth capped at ``depth``."""
     p = PROFILES[name]
-    return {"max_recursion_depth": min(int(p["max_recursion_depth"]), depth),
-            "samples_per_pixel": int(p["samples_per_pixel"]), "min_weight": float(p["min_weight"])}
+    return {
+        "max_recursion_depth": min(int(p["max_recursion_depth"]), depth),
+        "samples_per_pixel": int(p["samples_per_pixel"]),
+        "min_weight": float(p["min_weight"]),
+    }
 
 
 def server_timing(header: str) -> dict[str, float]:
@@ -87,8 +90,9 @@ class Server(ServerChild):
         self.code = tempfile.TemporaryDirectory()
         cwd, pythonpath = ROOT, None
         if base:
-            archive = subprocess.run(["git", "-C", str(ROOT), "archive", base, "renderer", "shaders"], check=True,
-                                     capture_output=True).stdout
+            archive = subprocess.run(
+                ["git", "-C", str(ROOT), "archive", base, "renderer", "shaders"], check=True, capture_output=True
+            ).stdout
             subprocess.run(["tar", "-x", "-C", self.code.name], input=archive, check=True)
             cwd, pythonpath = Path(self.code.name), f"{self.code.name}{os.pathsep}{ROOT}"
         super().__init__(cwd, {"queue_size": queue_size, **settings}, pythonpath=pythonpath, timeout_s=120)
@@ -99,15 +103,23 @@ class Server(ServerChild):
 
 
 def new_session(c: httpx.Client, n: int, depth: int, w: int, h: int) -> str:
-    r = c.post("/api/sessions", json={"scenario": 3, "n": n, "seed": 0, "radius": 1.0,
-                                      "settings": {"width": w, "height": h, "max_recursion_depth": depth,
-                                                   "format": "jpeg", "quality": 85}})
+    r = c.post(
+        "/api/sessions",
+        json={
+            "scenario": 3,
+            "n": n,
+            "seed": 0,
+            "radius": 1.0,
+            "settings": {"width": w, "height": h, "max_recursion_depth": depth, "format": "jpeg", "quality": 85},
+        },
+    )
     r.raise_for_status()
     return r.json()["id"]
 
 
-def run_clients(url: str, clients: int, frames: int, n: int, depth: int, w: int, h: int,
-                profile: str = "interactive") -> dict:
+def run_clients(
+    url: str, clients: int, frames: int, n: int, depth: int, w: int, h: int, profile: str = "interactive"
+) -> dict:
     """``clients`` threads, each its own session, ``frames`` gesture?frame=1 each, with the
     settings of ``profile``."""
     samples: list[tuple[float, dict[str, float]]] = []
@@ -132,6 +144,7 @@ def run_clients(url: str, clients: int, frames: int, n: int, depth: int, w: int,
                     continue
                 with lock:
                     samples.append((dt, server_timing(r.headers.get("server-timing", ""))))
+
     barrier = threading.Barrier(clients + 1)
     threads = [threading.Thread(target=client, args=(i,)) for i in range(clients)]
     for t in threads:
@@ -143,15 +156,25 @@ def run_clients(url: str, clients: int, frames: int, n: int, depth: int, w: int,
     wall = time.perf_counter() - t_start
     lat = [s[0] for s in samples]
     mean_lat = statistics.fmean(lat) if lat else float("nan")
-    shares = {k: statistics.fmean(s[1].get(k, 0.0) for s in samples) / mean_lat * 100 for k in STAGES} \
-        if samples else {}
+    shares = (
+        {k: statistics.fmean(s[1].get(k, 0.0) for s in samples) / mean_lat * 100 for k in STAGES} if samples else {}
+    )
     if shares:
         shares["other"] = 100.0 - sum(shares.values())
-    return {"profile": profile, "size": f"{w}×{h}", "clients": clients, "frames": len(lat), "errors": len(errors),
-            "p50": pct(lat, 0.5), "p95": pct(lat, 0.95), "fps_client": 1000.0 / mean_lat if lat else 0.0,
-            "fps_total": len(lat) / wall if wall > 0 else 0.0, "shares": shares,
-            "server_total_p50": pct([s[1].get("total", 0.0) for s in samples], 0.5),
-            "trace_p50": pct([s[1].get("trace", 0.0) for s in samples], 0.5)}
+    return {
+        "profile": profile,
+        "size": f"{w}×{h}",
+        "clients": clients,
+        "frames": len(lat),
+        "errors": len(errors),
+        "p50": pct(lat, 0.5),
+        "p95": pct(lat, 0.95),
+        "fps_client": 1000.0 / mean_lat if lat else 0.0,
+        "fps_total": len(lat) / wall if wall > 0 else 0.0,
+        "shares": shares,
+        "server_total_p50": pct([s[1].get("total", 0.0) for s in samples], 0.5),
+        "trace_p50": pct([s[1].get("trace", 0.0) for s in samples], 0.5),
+    }
 
 
 def against_base(urls: dict[str, str], frames: int, n: int, depth: int, w: int, h: int, profile: str) -> dict:
@@ -170,7 +193,7 @@ def against_base(urls: dict[str, str], frames: int, n: int, depth: int, w: int, 
         for i in range(frames):
             g = {"type": "pan", "dx": 6.0 if i % 2 == 0 else -6.0, "dy": 0.0}
             bodies = {}
-            for k, c in (clients.items() if i % 2 == 0 else reversed(clients.items())):
+            for k, c in clients.items() if i % 2 == 0 else reversed(clients.items()):
                 t0 = time.perf_counter()
                 r = c.post(f"/api/sessions/{sids[k]}/gesture", params=params, json=g)
                 r.raise_for_status()
@@ -181,8 +204,15 @@ def against_base(urls: dict[str, str], frames: int, n: int, depth: int, w: int, 
     finally:
         for c in clients.values():
             c.close()
-    return {k: {"p50": pct(lat[k], 0.5), "p95": pct(lat[k], 0.95), "trace_p50": pct(trace[k], 0.5),
-                "fps": 1000.0 / statistics.fmean(lat[k])} for k in urls} | {"same_bytes": same, "frames": frames}
+    return {
+        k: {
+            "p50": pct(lat[k], 0.5),
+            "p95": pct(lat[k], 0.95),
+            "trace_p50": pct(trace[k], 0.5),
+            "fps": 1000.0 / statistics.fmean(lat[k]),
+        }
+        for k in urls
+    } | {"same_bytes": same, "frames": frames}
 
 
 def transports(url: str, frames: int, n: int, depth: int, w: int, h: int) -> list[dict]:
@@ -202,8 +232,9 @@ def transports(url: str, frames: int, n: int, depth: int, w: int, h: int) -> lis
                 dt = (time.perf_counter() - t0) * 1e3
                 lat.append(dt)
                 overhead.append(dt - server_total)
-            out.append({"transport": name, "p50": pct(lat, 0.5), "p95": pct(lat, 0.95),
-                        "overhead_p50": pct(overhead, 0.5)})
+            out.append(
+                {"transport": name, "p50": pct(lat, 0.5), "p95": pct(lat, 0.95), "overhead_p50": pct(overhead, 0.5)}
+            )
 
         def two_trips(g) -> float:
             c.post(f"/api/sessions/{sid}/gesture", json=g).raise_for_status()
@@ -230,6 +261,7 @@ def transports(url: str, frames: int, n: int, depth: int, w: int, h: int) -> lis
             out.append({"transport": "WebSocket", "skipped": f"server refused the upgrade ({e})"})
             return out
         with ws:
+
             def over_ws(g) -> float:
                 ws.send(json.dumps({**g, "frame": params}))
                 meta = json.loads(ws.recv())
@@ -237,6 +269,7 @@ def transports(url: str, frames: int, n: int, depth: int, w: int, h: int) -> lis
                     raise RuntimeError(meta)
                 ws.recv()  # the frame
                 return meta["timings"]["total"]
+
             measure("WebSocket: gesture message → meta + frame", over_ws)
     return out
 
@@ -251,9 +284,13 @@ def main() -> None:
     ap.add_argument("--profiles", default="interactive,still", help="render profiles, comma-separated")
     ap.add_argument("--sizes", default="640x1088,320x544", help="frame sizes, comma-separated")
     ap.add_argument("--clients", default="1,4", help="concurrent clients, comma-separated")
-    ap.add_argument("--base", default=None, metavar="COMMIT",
-                    help="also start a server rendering with COMMIT's renderer and shaders (e.g. cda5fce, before "
-                         "issue 18) and compare one client at 320×544, interactive, gestures alternating")
+    ap.add_argument(
+        "--base",
+        default=None,
+        metavar="COMMIT",
+        help="also start a server rendering with COMMIT's renderer and shaders (e.g. cda5fce, before "
+        "issue 18) and compare one client at 320×544, interactive, gestures alternating",
+    )
     args = ap.parse_args()
     profiles = [p for p in args.profiles.split(",") if p]
     sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",") if s]
@@ -263,17 +300,26 @@ def main() -> None:
     url = args.url or server.url
     try:
         info = httpx.get(url + "/api/ready", timeout=10).json()
-        print(f"# gesture → frame latency — scenario 3, n = {args.n}, radius 1, max_recursion_depth ≤ "
-              f"{args.depth}, JPEG q85, BIH max_prims 8")
-        print(f"# GL: {info.get('gl_renderer')} | {info.get('gl_version')} | CPUs: {os.cpu_count()} | "
-              f"load avg before: {os.getloadavg()[0]:.2f}")
+        print(
+            f"# gesture → frame latency — scenario 3, n = {args.n}, radius 1, max_recursion_depth ≤ "
+            f"{args.depth}, JPEG q85, BIH max_prims 8"
+        )
+        print(
+            f"# GL: {info.get('gl_renderer')} | {info.get('gl_version')} | CPUs: {os.cpu_count()} | "
+            f"load avg before: {os.getloadavg()[0]:.2f}"
+        )
         results = []
         for profile in profiles:
             q = profile_params(profile, args.depth)
-            print(f"\n## profile {profile}: depth {q['max_recursion_depth']}, {q['samples_per_pixel']} sample(s) "
-                  f"per pixel, ε = {q['min_weight']:g}\n")
-            print("| size | clients | frames | p50 ms | p95 ms | fps/client | fps total | server trace p50 ms | "
-                  + " | ".join(f"{s} %" for s in (*STAGES, "other")) + " |")
+            print(
+                f"\n## profile {profile}: depth {q['max_recursion_depth']}, {q['samples_per_pixel']} sample(s) "
+                f"per pixel, ε = {q['min_weight']:g}\n"
+            )
+            print(
+                "| size | clients | frames | p50 ms | p95 ms | fps/client | fps total | server trace p50 ms | "
+                + " | ".join(f"{s} %" for s in (*STAGES, "other"))
+                + " |"
+            )
             print("|---|---|---|---|---|---|---|---|" + "---|" * (len(STAGES) + 1))
             for w, h in sizes:
                 frames = args.frames if w * h <= 320 * 544 else max(2, args.frames // 2)
@@ -282,35 +328,47 @@ def main() -> None:
                     r = run_clients(url, clients, per_client, args.n, args.depth, w, h, profile)
                     results.append(r)
                     shed = f" (+{r['errors']} 503)" if r["errors"] else ""
-                    print(f"| {r['size']} | {clients} | {r['frames']}{shed} "
-                          f"| {r['p50']:.0f} | {r['p95']:.0f} | {r['fps_client']:.2f} | {r['fps_total']:.2f} | "
-                          f"{r['trace_p50']:.0f} | "
-                          + " | ".join(f"{r['shares'].get(s, 0):.1f}" for s in (*STAGES, "other")) + " |",
-                          flush=True)
-        one = next((r for r in results if r["size"] == "320×544" and r["clients"] == 1
-                    and r["profile"] == "interactive"), None)
+                    print(
+                        f"| {r['size']} | {clients} | {r['frames']}{shed} "
+                        f"| {r['p50']:.0f} | {r['p95']:.0f} | {r['fps_client']:.2f} | {r['fps_total']:.2f} | "
+                        f"{r['trace_p50']:.0f} | "
+                        + " | ".join(f"{r['shares'].get(s, 0):.1f}" for s in (*STAGES, "other"))
+                        + " |",
+                        flush=True,
+                    )
+        one = next(
+            (r for r in results if r["size"] == "320×544" and r["clients"] == 1 and r["profile"] == "interactive"), None
+        )
         if one is not None:
             verdict = "met" if one["fps_client"] >= 10 else "NOT met"
             print()
-            print(f"Target ≥ 10 frames/s, one client, 320×544, interactive profile, depth "
-                  f"{profile_params('interactive', args.depth)['max_recursion_depth']}: p50 {one['p50']:.0f} ms, "
-                  f"{one['fps_client']:.2f} fps → {verdict}")
+            print(
+                f"Target ≥ 10 frames/s, one client, 320×544, interactive profile, depth "
+                f"{profile_params('interactive', args.depth)['max_recursion_depth']}: p50 {one['p50']:.0f} ms, "
+                f"{one['fps_client']:.2f} fps → {verdict}"
+            )
         if args.base:
             base = Server(queue_size=8, base=args.base)
             try:
-                ab = against_base({"now": url, args.base: base.url}, max(8, args.frames), args.n, args.depth,
-                                  320, 544, "interactive")
+                ab = against_base(
+                    {"now": url, args.base: base.url}, max(8, args.frames), args.n, args.depth, 320, 544, "interactive"
+                )
             finally:
                 base.close()
             print()
-            print("| 320×544, 1 client, interactive, gestures alternating | p50 ms | p95 ms | server trace p50 ms "
-                  "| fps |")
+            print(
+                "| 320×544, 1 client, interactive, gestures alternating | p50 ms | p95 ms | server trace p50 ms | fps |"
+            )
             print("|---|---|---|---|---|")
             for k in ("now", args.base):
-                print(f"| {'this checkout' if k == 'now' else 'renderer and shaders of ' + k} | {ab[k]['p50']:.0f} "
-                      f"| {ab[k]['p95']:.0f} | {ab[k]['trace_p50']:.0f} | {ab[k]['fps']:.2f} |")
-            print(f"\np50 ratio now / {args.base}: {ab['now']['p50'] / ab[args.base]['p50']:.2f}×; "
-                  f"identical JPEG bytes in {ab['same_bytes']} of {ab['frames']} gestures")
+                print(
+                    f"| {'this checkout' if k == 'now' else 'renderer and shaders of ' + k} | {ab[k]['p50']:.0f} "
+                    f"| {ab[k]['p95']:.0f} | {ab[k]['trace_p50']:.0f} | {ab[k]['fps']:.2f} |"
+                )
+            print(
+                f"\np50 ratio now / {args.base}: {ab['now']['p50'] / ab[args.base]['p50']:.2f}×; "
+                f"identical JPEG bytes in {ab['same_bytes']} of {ab['frames']} gestures"
+            )
         if not args.no_transports:
             print()
             print("| transport (320×544, 1 client) | p50 ms | p95 ms | p50 latency − server total, ms |")

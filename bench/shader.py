@@ -41,16 +41,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-BASE_COMMIT = "cda5fce"       # the last commit before issue 18
+BASE_COMMIT = "cda5fce"  # the last commit before issue 18
 
 
 @dataclass(frozen=True)
 class Config:
     name: str
     what: str
-    scene: dict                     # worker scene spec (see _scene)
-    settings: dict                  # RenderSettings keywords
-    quick: dict = field(default_factory=dict)   # overrides with --quick
+    scene: dict  # worker scene spec (see _scene)
+    settings: dict  # RenderSettings keywords
+    quick: dict = field(default_factory=dict)  # overrides with --quick
 
 
 S3 = {"kind": "scenario", "number": 3, "n": 4096}
@@ -60,29 +60,86 @@ PRIMARY = {"width": 640, "height": 1088, "mode": "primid", "format": "npy", "max
 SMALL = {"width": 32, "height": 54}
 
 CONFIGS = (
-    Config("colour_d3", "colour, depth 3, 320 × 544, scenario 3, 4,096 spheres", S3,
-           {**COLOUR, "max_recursion_depth": 3}, SMALL),
-    Config("colour_d5", "colour, depth 5, 320 × 544, scenario 3, 4,096", S3, {**COLOUR, "max_recursion_depth": 5},
-           SMALL),
-    Config("interactive", "interactive profile (depth 3, ε 0.3, 1 spp), 320 × 544, scenario 3, 4,096", S3,
-           {**COLOUR, "max_recursion_depth": 3, "min_weight": 0.3}, SMALL),
-    Config("still", "still profile (depth 3, ε 0.03, 4 spp), 320 × 544, scenario 3, 4,096", S3,
-           {**COLOUR, "max_recursion_depth": 3, "min_weight": 0.03, "samples_per_pixel": 4}, SMALL),
+    Config(
+        "colour_d3",
+        "colour, depth 3, 320 × 544, scenario 3, 4,096 spheres",
+        S3,
+        {**COLOUR, "max_recursion_depth": 3},
+        SMALL,
+    ),
+    Config(
+        "colour_d5", "colour, depth 5, 320 × 544, scenario 3, 4,096", S3, {**COLOUR, "max_recursion_depth": 5}, SMALL
+    ),
+    Config(
+        "interactive",
+        "interactive profile (depth 3, ε 0.3, 1 spp), 320 × 544, scenario 3, 4,096",
+        S3,
+        {**COLOUR, "max_recursion_depth": 3, "min_weight": 0.3},
+        SMALL,
+    ),
+    Config(
+        "still",
+        "still profile (depth 3, ε 0.03, 4 spp), 320 × 544, scenario 3, 4,096",
+        S3,
+        {**COLOUR, "max_recursion_depth": 3, "min_weight": 0.03, "samples_per_pixel": 4},
+        SMALL,
+    ),
     Config("primary", "primary rays (primid), 640 × 1088, scenario 3, 4,096", S3, PRIMARY, SMALL),
-    Config("primary_s2", "primary rays (depth), 640 × 1088, scenario 2, 4,096 (the peers' scene)", S2,
-           {**PRIMARY, "mode": "depth"}, SMALL),
-    Config("primary_64k", "primary rays (primid), 640 × 1088, scenario 2, 65,536 (textures)",
-           {"kind": "scenario", "number": 2, "n": 65536}, PRIMARY, {**SMALL, "n": 1024}),
-    Config("floor_primid", "floor: primid, 640 × 1088, 0 spheres (the plane)", {"kind": "scenario", "number": 1,
-           "n": 0}, PRIMARY, SMALL),
-    Config("floor_colour", "floor: colour depth 3, 640 × 1088, 0 spheres", {"kind": "scenario", "number": 1, "n": 0},
-           {**PRIMARY, "mode": "color", "format": "jpeg", "max_recursion_depth": 3}, SMALL),
-    *(Config(f"{m}_colour", f"{m}: colour depth 3, 320 × 544, scenario 3, 4,096", S3,
-             {**COLOUR, "method": m, "max_recursion_depth": 3}, SMALL) for m in ("bvh", "kdtree", "twolevel")),
-    *(Config(f"{m}_primary", f"{m}: primary rays (primid), 640 × 1088, scenario 3, 4,096", S3,
-             {**PRIMARY, "method": m}, SMALL) for m in ("bvh", "kdtree", "twolevel")),
-    Config("bruteforce", "bruteforce: colour depth 3, 320 × 544, scenario 3, 256", {**S3, "n": 256},
-           {**COLOUR, "method": "bruteforce", "max_recursion_depth": 3}, SMALL),
+    Config(
+        "primary_s2",
+        "primary rays (depth), 640 × 1088, scenario 2, 4,096 (the peers' scene)",
+        S2,
+        {**PRIMARY, "mode": "depth"},
+        SMALL,
+    ),
+    Config(
+        "primary_64k",
+        "primary rays (primid), 640 × 1088, scenario 2, 65,536 (textures)",
+        {"kind": "scenario", "number": 2, "n": 65536},
+        PRIMARY,
+        {**SMALL, "n": 1024},
+    ),
+    Config(
+        "floor_primid",
+        "floor: primid, 640 × 1088, 0 spheres (the plane)",
+        {"kind": "scenario", "number": 1, "n": 0},
+        PRIMARY,
+        SMALL,
+    ),
+    Config(
+        "floor_colour",
+        "floor: colour depth 3, 640 × 1088, 0 spheres",
+        {"kind": "scenario", "number": 1, "n": 0},
+        {**PRIMARY, "mode": "color", "format": "jpeg", "max_recursion_depth": 3},
+        SMALL,
+    ),
+    *(
+        Config(
+            f"{m}_colour",
+            f"{m}: colour depth 3, 320 × 544, scenario 3, 4,096",
+            S3,
+            {**COLOUR, "method": m, "max_recursion_depth": 3},
+            SMALL,
+        )
+        for m in ("bvh", "kdtree", "twolevel")
+    ),
+    *(
+        Config(
+            f"{m}_primary",
+            f"{m}: primary rays (primid), 640 × 1088, scenario 3, 4,096",
+            S3,
+            {**PRIMARY, "method": m},
+            SMALL,
+        )
+        for m in ("bvh", "kdtree", "twolevel")
+    ),
+    Config(
+        "bruteforce",
+        "bruteforce: colour depth 3, 320 × 544, scenario 3, 256",
+        {**S3, "n": 256},
+        {**COLOUR, "method": "bruteforce", "max_recursion_depth": 3},
+        SMALL,
+    ),
 )
 SIDES = {"base": {}, "new": {}, "new/tex": {"uniform_blocks": False}, "new/nobg": {"background": False}}
 
@@ -90,6 +147,7 @@ SIDES = {"base": {}, "new": {}, "new/tex": {"uniform_blocks": False}, "new/nobg"
 # ---- the worker (runs in its own process, the side's code first on PYTHONPATH) ---------------
 def _scene(spec: dict):
     from renderer.scenarios import scenario
+
     if spec["kind"] == "scenario":
         return scenario(spec["number"], spec["n"], seed=spec.get("seed", 0), radius=spec.get("radius", 1.0))
     raise ValueError(spec)
@@ -99,6 +157,7 @@ def worker(renderer_kw: dict) -> None:
     from renderer.gl import GLRenderer
     from renderer.methods import METHODS, resolve_method
     from renderer.settings import RenderSettings
+
     r = GLRenderer(**renderer_kw)
     cache: dict = {}
     print(json.dumps({"ready": True, "renderer": r.info}), flush=True)
@@ -109,8 +168,11 @@ def worker(renderer_kw: dict) -> None:
             scene = _scene(job["scene"])
             settings = RenderSettings(**job["settings"])
             m = METHODS[resolve_method(settings.method, scene.n_spheres)]
-            cache[key] = scene, settings, m.prepare(scene, settings.max_prims, settings.max_tree_depth,
-                                                     r.max_texture_width)
+            cache[key] = (
+                scene,
+                settings,
+                m.prepare(scene, settings.max_prims, settings.max_tree_depth, r.max_texture_width),
+            )
         scene, settings, prepared = cache[key]
         f = r.begin(scene, settings, prepared=prepared)
         aside = [0.0]
@@ -121,16 +183,26 @@ def worker(renderer_kw: dict) -> None:
                 out = fn(*a)
                 aside[0] += time.process_time() - c
                 return out
+
             return run
+
         f._finish_pass = timed(f._finish_pass)
         f._compose = timed(f._compose)
         w0, c0 = time.perf_counter(), time.process_time()
         while not f.step():
             pass
         cpu, wall = time.process_time() - c0, time.perf_counter() - w0
-        print(json.dumps({"trace_ms": (cpu - aside[0]) * 1e3, "read_ms": aside[0] * 1e3, "wall_ms": wall * 1e3,
-                          "stats": {k: v for k, v in f.result().stats.items() if k in ("target", "blocks")}}),
-              flush=True)
+        print(
+            json.dumps(
+                {
+                    "trace_ms": (cpu - aside[0]) * 1e3,
+                    "read_ms": aside[0] * 1e3,
+                    "wall_ms": wall * 1e3,
+                    "stats": {k: v for k, v in f.result().stats.items() if k in ("target", "blocks")},
+                }
+            ),
+            flush=True,
+        )
 
 
 class Side:
@@ -139,9 +211,14 @@ class Side:
     def __init__(self, name: str, code_root: Path, renderer_kw: dict):
         self.name = name
         env = {**os.environ, "PYTHONPATH": str(code_root)}
-        self.proc = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--worker",
-                                      json.dumps(renderer_kw)], cwd=code_root, env=env, text=True,
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        self.proc = subprocess.Popen(
+            [sys.executable, str(Path(__file__).resolve()), "--worker", json.dumps(renderer_kw)],
+            cwd=code_root,
+            env=env,
+            text=True,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+        )
         hello = json.loads(self.proc.stdout.readline())
         self.info = hello["renderer"]
 
@@ -162,25 +239,27 @@ class Side:
 
 def extract(commit: str, into: Path) -> Path:
     """``renderer/`` and ``shaders/`` of ``commit`` under ``into``."""
-    archive = subprocess.run(["git", "-C", str(ROOT), "archive", commit, "renderer", "shaders"], check=True,
-                             capture_output=True).stdout
+    archive = subprocess.run(
+        ["git", "-C", str(ROOT), "archive", commit, "renderer", "shaders"], check=True, capture_output=True
+    ).stdout
     subprocess.run(["tar", "-x", "-C", str(into)], input=archive, check=True)
     return into
 
 
-def measure(configs, sides: list[str], runs: int, quick: bool = False, base: str = BASE_COMMIT,
-            progress=print) -> dict:
+def measure(configs, sides: list[str], runs: int, quick: bool = False, base: str = BASE_COMMIT, progress=print) -> dict:
     """{config name: {side: {"trace": [ms…], "read": [ms…], "stats": …}}}, interleaved."""
     with tempfile.TemporaryDirectory(prefix="pocketray-base-") as tmp:
         roots = {"base": extract(base, Path(tmp)) if "base" in sides else None}
+
         def root_of(side: str) -> Path:
             if side == "base":
                 return roots["base"]
             return Path(side.split("=", 1)[1]) if "=" in side else ROOT
+
         workers = {s: Side(s, root_of(s), SIDES.get(s, {})) for s in sides}
         try:
             out = {c.name: {s: {"trace": [], "read": [], "wall": []} for s in sides} for c in configs}
-            for rep in range(runs + 1):            # rep 0: the untimed warm-up (compiles)
+            for rep in range(runs + 1):  # rep 0: the untimed warm-up (compiles)
                 for c in configs:
                     for s in sides:
                         r = workers[s].run(c, quick)
@@ -202,17 +281,29 @@ def table(data: dict, configs) -> str:
     sides = data["sides"]
     ref = "base" if "base" in sides else sides[0]
     sides_shown = {s: s.split("=", 1)[0] for s in sides}
-    head = ["configuration", *(f"{sides_shown[s]} trace ms" for s in sides),
-            *(f"{sides_shown[s]} / {sides_shown[ref]}" for s in sides if s != ref),
-            *(f"{sides_shown[s]} read ms" for s in sides)]
+    head = [
+        "configuration",
+        *(f"{sides_shown[s]} trace ms" for s in sides),
+        *(f"{sides_shown[s]} / {sides_shown[ref]}" for s in sides if s != ref),
+        *(f"{sides_shown[s]} read ms" for s in sides),
+    ]
     rows = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for c in configs:
         d = data["results"][c.name]
         med = {s: statistics.median(d[s]["trace"]) for s in sides}
         rd = {s: statistics.median(d[s]["read"]) for s in sides}
-        rows.append("| " + " | ".join([c.what, *(f"{med[s]:.1f}" for s in sides),
-                                       *(f"**{med[s] / med[ref]:.2f}×**" for s in sides if s != ref),
-                                       *(f"{rd[s]:.2f}" for s in sides)]) + " |")
+        rows.append(
+            "| "
+            + " | ".join(
+                [
+                    c.what,
+                    *(f"{med[s]:.1f}" for s in sides),
+                    *(f"**{med[s] / med[ref]:.2f}×**" for s in sides if s != ref),
+                    *(f"{rd[s]:.2f}" for s in sides),
+                ]
+            )
+            + " |"
+        )
     return "\n".join(rows)
 
 
@@ -222,8 +313,11 @@ def main(argv=None) -> int:
     ap.add_argument("--runs", type=int, default=7)
     ap.add_argument("--quick", action="store_true", help="tiny images, 1 run")
     ap.add_argument("--only", default="", help="comma-separated configuration names")
-    ap.add_argument("--sides", default="base,new",
-                    help=f"comma-separated, of {', '.join(SIDES)} or NAME=PATH (a directory with renderer/ and shaders/)")
+    ap.add_argument(
+        "--sides",
+        default="base,new",
+        help=f"comma-separated, of {', '.join(SIDES)} or NAME=PATH (a directory with renderer/ and shaders/)",
+    )
     ap.add_argument("--base", default=BASE_COMMIT, help="the commit to compare against")
     ap.add_argument("--json", type=Path, help="write the raw measurements here")
     a = ap.parse_args(argv)

@@ -35,9 +35,9 @@ from pathlib import Path
 
 import httpx
 
-
 ROOT = Path(__file__).resolve().parent.parent
 from bench.child import ServerChild, free_port
+
 FRAME = {"width": 96, "height": 160, "max_recursion_depth": 2, "samples_per_pixel": 1, "format": "jpeg"}
 
 
@@ -72,7 +72,7 @@ class Stats:
 def user(url: str, stop: float, stats: Stats, sessions: dict, index: int) -> None:
     with httpx.Client(base_url=url, timeout=120) as c:
         sid = c.post("/api/sessions", json={"scenario": 3, "n": 512, "seed": index}).json()["id"]
-        sessions[sid] = 0                                  # changes acknowledged so far
+        sessions[sid] = 0  # changes acknowledged so far
 
         def call(kind: str, method: str, path: str, **kw) -> httpx.Response:
             while True:
@@ -81,39 +81,58 @@ def user(url: str, stop: float, stats: Stats, sessions: dict, index: int) -> Non
                 stats.add(kind, time.perf_counter() - t0, r.status_code)
                 if r.status_code in (409, 503) and time.monotonic() < stop:
                     time.sleep(min(5.0, float(r.headers.get("retry-after", 1))) if r.status_code == 503 else 0.05)
-                    continue                              # retried as told
+                    continue  # retried as told
                 return r
+
         step = 0
         while time.monotonic() < stop:
             step += 1
-            if call("gesture", "POST", f"/api/sessions/{sid}/gesture",
-                    json={"type": "pan", "dx": 3, "dy": -2}).status_code == 200:
+            if (
+                call(
+                    "gesture", "POST", f"/api/sessions/{sid}/gesture", json={"type": "pan", "dx": 3, "dy": -2}
+                ).status_code
+                == 200
+            ):
                 sessions[sid] += 1
             call("read", "GET", f"/api/sessions/{sid}")
-            r = call("gesture+frame", "POST", f"/api/sessions/{sid}/gesture", params={"frame": 1},
-                     json={"type": "pinch", "scale": 1.01 if step % 2 else 1 / 1.01})
+            r = call(
+                "gesture+frame",
+                "POST",
+                f"/api/sessions/{sid}/gesture",
+                params={"frame": 1},
+                json={"type": "pinch", "scale": 1.01 if step % 2 else 1 / 1.01},
+            )
             if r.status_code == 200:
                 sessions[sid] += 1
             call("frame", "GET", f"/api/sessions/{sid}/frame")
 
 
 def hostile(url: str, port: int, stop: float, stats: Stats) -> None:
-    bad = b'{"scene":{"materials":[{}],"spheres":[' + b",".join(
-        [b'{"center":[0,0],"radius":-1,"material":-1}'] * 20_000) + b"]}}"
-    bodies = [b'{"type": "pinch", "scale": 2, "scale": 0.5}', b"[" * 1000 + b"]" * 1000,
-              '{"type": "pinch", "scale": 2}'.encode("utf-16"), b'{"type": "pan", "dx": "1", "dy": true}']
+    bad = (
+        b'{"scene":{"materials":[{}],"spheres":['
+        + b",".join([b'{"center":[0,0],"radius":-1,"material":-1}'] * 20_000)
+        + b"]}}"
+    )
+    bodies = [
+        b'{"type": "pinch", "scale": 2, "scale": 0.5}',
+        b"[" * 1000 + b"]" * 1000,
+        '{"type": "pinch", "scale": 2}'.encode("utf-16"),
+        b'{"type": "pan", "dx": "1", "dy": true}',
+    ]
     stalled: list[tuple[float, socket.socket]] = []
     with httpx.Client(base_url=url, timeout=60) as c:
         sid = c.post("/api/sessions", json={"scenario": 1, "n": 8}).json()["id"]
         i = 0
         while time.monotonic() < stop:
             i += 1
-            if len(stalled) < 8:                          # well below the per-address cap the users share
+            if len(stalled) < 8:  # well below the per-address cap the users share
                 s = socket.create_connection(("127.0.0.1", port), timeout=30)
-                s.sendall(b"PUT /api/sessions/x/scene HTTP/1.1\r\nHost: s\r\ncontent-type: application/json\r\n"
-                          b"content-length: 100000\r\n\r\n{\"mat")
+                s.sendall(
+                    b"PUT /api/sessions/x/scene HTTP/1.1\r\nHost: s\r\ncontent-type: application/json\r\n"
+                    b'content-length: 100000\r\n\r\n{"mat'
+                )
                 stalled.append((time.monotonic(), s))
-            for t_open, s in list(stalled):               # the service closes them (408)
+            for t_open, s in list(stalled):  # the service closes them (408)
                 s.setblocking(False)
                 try:
                     got = s.recv(65536)
@@ -132,8 +151,11 @@ def hostile(url: str, port: int, stop: float, stats: Stats) -> None:
                 r = c.post(f"/api/sessions/{sid}/gesture", content=body, headers={"content-type": "application/json"})
                 stats.add("bad body", time.perf_counter() - t0, r.status_code)
             t0 = time.perf_counter()
-            r = c.post(f"/api/sessions/{sid}/gesture", params={"frame": 1, "mode": "cones"},
-                       json={"type": "pan", "dx": 1, "dy": 1})
+            r = c.post(
+                f"/api/sessions/{sid}/gesture",
+                params={"frame": 1, "mode": "cones"},
+                json={"type": "pan", "dx": 1, "dy": 1},
+            )
             stats.add("refused gesture", time.perf_counter() - t0, r.status_code)
             time.sleep(0.5)
         version = c.get(f"/api/sessions/{sid}").json()["version"]
@@ -165,16 +187,16 @@ def run_soak(root: Path, seconds: float, users: int) -> dict:
                 c.get("/api/health")
                 health.append(time.perf_counter() - t0)
                 time.sleep(0.1)
+
     threads = [threading.Thread(target=user, args=(server.url, stop, stats, sessions, i)) for i in range(users)]
-    threads += [threading.Thread(target=hostile, args=(server.url, port, stop, stats)),
-                threading.Thread(target=sample)]
+    threads += [threading.Thread(target=hostile, args=(server.url, port, stop, stats)), threading.Thread(target=sample)]
     load0 = os.getloadavg()[0]
     for t in threads:
         t.start()
     for t in threads:
         t.join()
     elapsed = time.monotonic() - t_start
-    server.kill(signal.SIGKILL)                           # a crash: then every acknowledged change must be there
+    server.kill(signal.SIGKILL)  # a crash: then every acknowledged change must be there
     restarted = Server(root, tmp / "soak.sqlite3", port, tmp / "server.log")
     lost = {}
     with httpx.Client(base_url=restarted.url, timeout=30) as c:
@@ -185,20 +207,40 @@ def run_soak(root: Path, seconds: float, users: int) -> dict:
     restarted.kill(signal.SIGTERM)
     kinds = {}
     for kind, values in stats.latency.items():
-        kinds[kind] = {"n": len(values), "per_s": round(len(values) / elapsed, 2),
-                       "p50_ms": round(1e3 * statistics.median(values), 1), "p99_ms": round(1e3 * pct(values, 0.99), 1),
-                       "codes": {str(k): v for k, v in stats.codes[kind].items()}}
+        kinds[kind] = {
+            "n": len(values),
+            "per_s": round(len(values) / elapsed, 2),
+            "p50_ms": round(1e3 * statistics.median(values), 1),
+            "p99_ms": round(1e3 * pct(values, 0.99), 1),
+            "codes": {str(k): v for k, v in stats.codes[kind].items()},
+        }
     rss = [m for _, m in memory]
-    return {"seconds": round(elapsed), "users": users, "loadavg_start": load0, "loadavg_end": os.getloadavg()[0],
-            "honest_requests_per_s": round(sum(len(stats.latency[k]) for k in ("gesture", "read", "gesture+frame",
-                                                                                 "frame")) / elapsed, 2),
-            "kinds": kinds, "health": {"n": len(health), "p50_ms": round(1e3 * statistics.median(health), 1),
-                                       "p99_ms": round(1e3 * pct(health, 0.99), 1),
-                                       "max_ms": round(1e3 * max(health), 1)},
-            "rss_mib": {"start": rss[0], "max": max(rss), "end": rss[-1],
-                        "every_60_s": [m for t, m in memory if t % 60 < 2]},
-            "memory": memory, "sessions": len(sessions), "acknowledged_changes": sum(sessions.values()),
-            "lost": lost}
+    return {
+        "seconds": round(elapsed),
+        "users": users,
+        "loadavg_start": load0,
+        "loadavg_end": os.getloadavg()[0],
+        "honest_requests_per_s": round(
+            sum(len(stats.latency[k]) for k in ("gesture", "read", "gesture+frame", "frame")) / elapsed, 2
+        ),
+        "kinds": kinds,
+        "health": {
+            "n": len(health),
+            "p50_ms": round(1e3 * statistics.median(health), 1),
+            "p99_ms": round(1e3 * pct(health, 0.99), 1),
+            "max_ms": round(1e3 * max(health), 1),
+        },
+        "rss_mib": {
+            "start": rss[0],
+            "max": max(rss),
+            "end": rss[-1],
+            "every_60_s": [m for t, m in memory if t % 60 < 2],
+        },
+        "memory": memory,
+        "sessions": len(sessions),
+        "acknowledged_changes": sum(sessions.values()),
+        "lost": lost,
+    }
 
 
 def main() -> None:

@@ -39,6 +39,7 @@ _SUFFIX = {".obj": "obj", ".ply": "ply", ".stl": "stl", ".glb": "glb", ".gltf": 
 class MeshData:
     """A model's geometry as parsed: ``vertices`` float64 (V, 3) in the file's units,
     ``triangles`` int64 (T, 3), ``normals`` float64 (V, 3) or None (the file had none)."""
+
     vertices: np.ndarray
     triangles: np.ndarray
     normals: np.ndarray | None = None
@@ -59,6 +60,7 @@ class MeshData:
             normals = None
         elif smooth and normals is None:
             from .meshes import vertex_normals
+
             normals = vertex_normals(self.vertices, self.triangles)
         return make_mesh(self.vertices, self.triangles, material, normals, transform)
 
@@ -78,8 +80,9 @@ def file_type_of(source: str | Path | bytes, file_type: str | None) -> str:
         raise SceneError("format", f"required for a model given as bytes: one of {', '.join(MODEL_FORMATS)}")
     suffix = Path(source).suffix.lower()
     if suffix not in _SUFFIX:
-        raise SceneError("format", f"cannot tell the format of {Path(source).name!r}; name one of "
-                                   f"{', '.join(MODEL_FORMATS)}")
+        raise SceneError(
+            "format", f"cannot tell the format of {Path(source).name!r}; name one of {', '.join(MODEL_FORMATS)}"
+        )
     return _SUFFIX[suffix]
 
 
@@ -97,6 +100,7 @@ def _parts(loaded) -> list[tuple[np.ndarray, np.ndarray, np.ndarray | None]]:
     """(vertices, faces, normals) of every triangle mesh in what trimesh loaded, each placed by
     its scene node's transform (normals by the inverse transpose)."""
     import trimesh
+
     if isinstance(loaded, trimesh.Trimesh):
         return [(np.asarray(loaded.vertices, np.float64), np.asarray(loaded.faces, np.int64), _file_normals(loaded))]
     if not isinstance(loaded, trimesh.Scene):
@@ -106,7 +110,7 @@ def _parts(loaded) -> list[tuple[np.ndarray, np.ndarray, np.ndarray | None]]:
         matrix, name = loaded.graph[node]
         geom = loaded.geometry.get(name)
         if not isinstance(geom, trimesh.Trimesh) or len(geom.faces) == 0:
-            continue           # points, paths: nothing to trace
+            continue  # points, paths: nothing to trace
         m = np.asarray(matrix, np.float64)
         v = np.asarray(geom.vertices, np.float64) @ m[:3, :3].T + m[:3, 3]
         n = _file_normals(geom)
@@ -127,8 +131,13 @@ def _merge_equal(v: np.ndarray, t: np.ndarray, n: np.ndarray | None):
     return v[first], t, (None if n is None else n[first])
 
 
-def load_mesh(source: str | Path | bytes, file_type: str | None = None, *,
-              max_triangles: int = limits.MAX_TRIANGLES, max_vertices: int = limits.MAX_MESH_VERTICES) -> MeshData:
+def load_mesh(
+    source: str | Path | bytes,
+    file_type: str | None = None,
+    *,
+    max_triangles: int = limits.MAX_TRIANGLES,
+    max_vertices: int = limits.MAX_MESH_VERTICES,
+) -> MeshData:
     """Parse a model file (path or bytes; ``file_type`` one of :data:`MODEL_FORMATS`, from the
     suffix when None) into :class:`MeshData`. SceneError ``format`` for an unknown format,
     ``file`` for a file that is not a model of that format, holds no triangle, or exceeds
@@ -139,18 +148,19 @@ def load_mesh(source: str | Path | bytes, file_type: str | None = None, *,
     ft = file_type_of(source, file_type)
     if isinstance(source, (bytes, bytearray, memoryview)):
         data = bytes(source)
-        obj: Any = io.BytesIO(data)                   # in memory, with no resolver: no other file is read
+        obj: Any = io.BytesIO(data)  # in memory, with no resolver: no other file is read
         base_dir = None
     else:
         try:
             data = Path(source).read_bytes()
         except OSError as e:
             raise SceneError("file", f"cannot read {str(source)!r} ({e.strerror or e})") from None
-        obj = str(source)                             # trimesh resolves a path's neighbours itself
+        obj = str(source)  # trimesh resolves a path's neighbours itself
         base_dir = Path(source).parent
     # the file's own counts and lengths first: the parser would allocate whatever they ask for
     check_model(data, ft, max_triangles=max_triangles, max_vertices=max_vertices, base_dir=base_dir)
     import trimesh
+
     try:
         # materials are not read: textures are images to decode, and the tracer needs none
         loaded = trimesh.load(obj, file_type=ft, resolver=None, process=False, skip_materials=True)
@@ -173,14 +183,14 @@ def load_mesh(source: str | Path | bytes, file_type: str | None = None, *,
         base += len(v)
     v = np.concatenate(vs)
     t = np.concatenate(ts)
-    n = np.concatenate(cast(list[np.ndarray], ns)) if with_normals else None   # with_normals: none is None
+    n = np.concatenate(cast(list[np.ndarray], ns)) if with_normals else None  # with_normals: none is None
     if not (np.isfinite(v).all() and (n is None or np.isfinite(n).all())):
         raise SceneError("file", "the model has vertices or normals that are not finite numbers")
     if len(t) and (t.min() < 0 or t.max() >= len(v)):
         raise SceneError("file", "the model has faces that index missing vertices")
     v, t, n = _merge_equal(v, t, n)
     if n is not None and not (np.abs(n).sum(axis=1) > 0).all():
-        n = None      # a zero normal in the file: fall back to flat shading rather than refuse the model
+        n = None  # a zero normal in the file: fall back to flat shading rather than refuse the model
     if len(v) > max_vertices:
         raise SceneError("file", f"the model has {len(v):,} distinct vertices; at most {max_vertices:,} per mesh")
     return MeshData(v, t, n)
@@ -190,11 +200,16 @@ def export_mesh(mesh: Mesh | MeshData, file_type: str) -> bytes:
     """A mesh written in ``file_type`` (OBJ, PLY, STL, GLB; with its normals where the format
     keeps them) — for round trips and for handing scenes to other tools."""
     import trimesh
+
     ft = file_type_of(b"", file_type)
     if ft == "gltf":
         raise SceneError("format", "gltf is several files (JSON and buffers): export glb instead")
-    tm = trimesh.Trimesh(np.asarray(mesh.vertices), np.asarray(mesh.triangles),
-                         vertex_normals=None if mesh.normals is None else np.asarray(mesh.normals), process=False)
+    tm = trimesh.Trimesh(
+        np.asarray(mesh.vertices),
+        np.asarray(mesh.triangles),
+        vertex_normals=None if mesh.normals is None else np.asarray(mesh.normals),
+        process=False,
+    )
     options: dict[str, Any] = {"include_normals": mesh.normals is not None} if ft == "obj" else {}
     data = tm.export(file_type=ft, **options)
     return data.encode() if isinstance(data, str) else bytes(data)
@@ -214,14 +229,36 @@ def fit_transform(data: MeshData, size: float = 30.0, floor: float | None = -20.
     return [[s, 0.0, 0.0, -centre[0] * s], [0.0, s, 0.0, ty], [0.0, 0.0, s, -centre[2] * s], [0.0, 0.0, 0.0, 1.0]]
 
 
-MODEL = Material(color=(0.92, 0.9, 0.85), ambient=0.15, diffuse=0.65, specular=0.4, shininess=60.0,
-                 reflective=0.1, transmissive=0.0, ior=1.0)
-FLOOR = Material(color=(0.9, 0.3, 0.3), ambient=0.30, diffuse=0.30, specular=0.10, shininess=40.0,
-                 reflective=0.30, transmissive=0.0, ior=1.0)     # the thesis's red (Table 4.1)
+MODEL = Material(
+    color=(0.92, 0.9, 0.85),
+    ambient=0.15,
+    diffuse=0.65,
+    specular=0.4,
+    shininess=60.0,
+    reflective=0.1,
+    transmissive=0.0,
+    ior=1.0,
+)
+FLOOR = Material(
+    color=(0.9, 0.3, 0.3),
+    ambient=0.30,
+    diffuse=0.30,
+    specular=0.10,
+    shininess=40.0,
+    reflective=0.30,
+    transmissive=0.0,
+    ior=1.0,
+)  # the thesis's red (Table 4.1)
 
 
-def model_scene(source: str | Path | bytes, file_type: str | None = None, *, size: float = 30.0,
-                smooth: bool | None = None, material: Material = MODEL) -> Scene:
+def model_scene(
+    source: str | Path | bytes,
+    file_type: str | None = None,
+    *,
+    size: float = 30.0,
+    smooth: bool | None = None,
+    material: Material = MODEL,
+) -> Scene:
     """A scene of one model: fitted (:func:`fit_transform`) into the thesis's cube, standing
     on its floor plane (y = −20), the thesis's camera and light — what ``pocketray render
     model.glb`` renders."""
@@ -232,14 +269,21 @@ def model_scene(source: str | Path | bytes, file_type: str | None = None, *, siz
 
 def _stage(meshes: tuple[Mesh, ...], material: Material = MODEL) -> Scene:
     """The thesis's camera, light and floor around ``meshes`` (material 1; the floor is 0)."""
-    return Scene(Camera((0.0, 0.0, 100.0), (0.0, -5.0, 0.0), (0.0, 1.0, 0.0), 40.0),
-                 (Light((20.0, 40.0, 30.0), (1.0, 1.0, 1.0)),), (FLOOR, material),
-                 np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32),
-                 (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),), meshes)
+    return Scene(
+        Camera((0.0, 0.0, 100.0), (0.0, -5.0, 0.0), (0.0, 1.0, 0.0), 40.0),
+        (Light((20.0, 40.0, 30.0), (1.0, 1.0, 1.0)),),
+        (FLOOR, material),
+        np.zeros((0, 3)),
+        np.zeros(0),
+        np.zeros(0, np.int32),
+        (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),),
+        meshes,
+    )
 
 
-def models_scene_json(sources: Sequence[str | Path], *, size: float = 30.0, smooth: bool | None = None,
-                      as_is: bool = False) -> dict:
+def models_scene_json(
+    sources: Sequence[str | Path], *, size: float = 30.0, smooth: bool | None = None, as_is: bool = False
+) -> dict:
     """The scene JSON (docs/FORMATS.md) of the model files ``sources``, in :func:`model_scene`'s
     stage: each mesh's vertices as the file has them and a ``transform`` that fits it —
     ``k`` models side by side along x, each scaled to ``size / k`` (so the row is at most
@@ -251,22 +295,28 @@ def models_scene_json(sources: Sequence[str | Path], *, size: float = 30.0, smoo
     meshes, docs = [], []
     for i, src in enumerate(sources):
         data = load_mesh(src)
-        flat = data.to_mesh(1, None, smooth)            # the file's coordinates, validated
+        flat = data.to_mesh(1, None, smooth)  # the file's coordinates, validated
         doc = flat.to_json()
         transform = None
         if not as_is:
             transform = fit_transform(data, size / k)
             transform[0][3] += -size / 2.0 + (i + 0.5) * size / k
             doc["transform"] = transform
-        meshes.append(data.to_mesh(1, transform, smooth))   # checks the placed mesh too
+        meshes.append(data.to_mesh(1, transform, smooth))  # checks the placed mesh too
         docs.append(doc)
     out = _stage(tuple(meshes)).to_json()
     out["meshes"] = docs
     return out
 
 
-def mesh_json(source: str | Path | bytes, file_type: str | None = None, *, material: int = 0,
-              transform: Any = None, smooth: bool | None = None) -> dict:
+def mesh_json(
+    source: str | Path | bytes,
+    file_type: str | None = None,
+    *,
+    material: int = 0,
+    transform: Any = None,
+    smooth: bool | None = None,
+) -> dict:
     """The mesh JSON (docs/FORMATS.md) of a model file — what ``pocketray scene --mesh
     model.obj`` puts in a scene."""
     return load_mesh(source, file_type).to_json(material, transform, smooth)

@@ -45,14 +45,27 @@ import numpy as np
 from .scene import Mesh, make_mesh
 from .teapot_data import PATCHES, VERTICES
 
-__all__ = ["icosphere", "torus", "box", "teapot", "weld", "orient_outward", "vertex_normals", "signed_volume",
-           "edge_report", "EdgeReport", "MESH_KINDS", "procedural"]
+__all__ = [
+    "icosphere",
+    "torus",
+    "box",
+    "teapot",
+    "weld",
+    "orient_outward",
+    "vertex_normals",
+    "signed_volume",
+    "edge_report",
+    "EdgeReport",
+    "MESH_KINDS",
+    "procedural",
+]
 
-MAX_SUBDIVISIONS = 7       # an icosphere of 20 · 4^7 = 327,680 triangles
-MAX_SEGMENTS = 256         # torus / teapot tessellation per parameter
+MAX_SUBDIVISIONS = 7  # an icosphere of 20 · 4^7 = 327,680 triangles
+MAX_SEGMENTS = 256  # torus / teapot tessellation per parameter
 
 
 # ------------------------------------------------------------------------------ utilities
+
 
 def weld(vertices: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Merge vertices of exactly equal position (bit for bit, after −0.0 → +0.0), drop
@@ -82,6 +95,7 @@ def signed_volume(vertices: np.ndarray, triangles: np.ndarray) -> float:
 class EdgeReport:
     """Edges of a triangle list: used once (boundary), more than twice (non-manifold), or
     twice in the same direction (inconsistent winding). ``closed``: none of them."""
+
     edges: int
     boundary: int
     non_manifold: int
@@ -102,8 +116,12 @@ def edge_report(triangles: np.ndarray) -> EdgeReport:
     und = np.sort(d, axis=1)
     _, count = np.unique(und, axis=0, return_counts=True)
     _, dcount = np.unique(d, axis=0, return_counts=True)
-    return EdgeReport(edges=len(count), boundary=int((count == 1).sum()), non_manifold=int((count > 2).sum()),
-                      inconsistent=int((dcount > 1).sum()))
+    return EdgeReport(
+        edges=len(count),
+        boundary=int((count == 1).sum()),
+        non_manifold=int((count > 2).sum()),
+        inconsistent=int((dcount > 1).sum()),
+    )
 
 
 def orient_outward(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
@@ -188,13 +206,15 @@ def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     return out / np.where(length > 0, length, 1.0)[:, None]
 
 
-def _finish(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray | None, material: int,
-            transform: Any) -> Mesh:
+def _finish(
+    vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray | None, material: int, transform: Any
+) -> Mesh:
     return make_mesh(vertices, triangles, material, normals, transform)
 
 
 def _count(value: Any, name: str, lo: int, hi: int) -> int:
     from .scene import SceneError
+
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= int(value) <= hi:
         raise SceneError(name, f"must be an integer in {lo} … {hi}, got {value!r}")
     return int(value)
@@ -202,35 +222,76 @@ def _count(value: Any, name: str, lo: int, hi: int) -> int:
 
 def _positive(value: Any, name: str) -> float:
     from .scene import finite_number
+
     return finite_number(value, name, lo=0.0, lo_open=True, hi=1e7)
 
 
 # ------------------------------------------------------------------------------ generators
 
-def icosphere(subdivisions: int = 2, radius: float = 1.0, center=(0.0, 0.0, 0.0), *, material: int = 0,
-              smooth: bool = True, transform: Any = None) -> Mesh:
+
+def icosphere(
+    subdivisions: int = 2,
+    radius: float = 1.0,
+    center=(0.0, 0.0, 0.0),
+    *,
+    material: int = 0,
+    smooth: bool = True,
+    transform: Any = None,
+) -> Mesh:
     """A sphere of ``radius`` (world units) about ``center``: an icosahedron whose triangles
     are split in four ``subdivisions`` times (20 · 4^s triangles), vertices on the sphere.
     Smooth normals are the exact radial directions."""
     s = _count(subdivisions, "subdivisions", 0, MAX_SUBDIVISIONS)
     radius = _positive(radius, "radius")
     g = (1.0 + math.sqrt(5.0)) / 2.0
-    v = [(-1, g, 0), (1, g, 0), (-1, -g, 0), (1, -g, 0), (0, -1, g), (0, 1, g), (0, -1, -g), (0, 1, -g),
-         (g, 0, -1), (g, 0, 1), (-g, 0, -1), (-g, 0, 1)]
+    v = [
+        (-1, g, 0),
+        (1, g, 0),
+        (-1, -g, 0),
+        (1, -g, 0),
+        (0, -1, g),
+        (0, 1, g),
+        (0, -1, -g),
+        (0, 1, -g),
+        (g, 0, -1),
+        (g, 0, 1),
+        (-g, 0, -1),
+        (-g, 0, 1),
+    ]
     verts = [np.array(p, dtype=np.float64) / math.sqrt(1.0 + g * g) for p in v]
-    tris = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2),
-            (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5),
-            (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+    tris = [
+        (0, 11, 5),
+        (0, 5, 1),
+        (0, 1, 7),
+        (0, 7, 10),
+        (0, 10, 11),
+        (1, 5, 9),
+        (5, 11, 4),
+        (11, 10, 2),
+        (10, 7, 6),
+        (7, 1, 8),
+        (3, 9, 4),
+        (3, 4, 2),
+        (3, 2, 6),
+        (3, 6, 8),
+        (3, 8, 9),
+        (4, 9, 5),
+        (2, 4, 11),
+        (6, 2, 10),
+        (8, 6, 7),
+        (9, 8, 1),
+    ]
     for _ in range(s):
         mid: dict[tuple[int, int], int] = {}
 
-        def midpoint(a: int, b: int, mid: dict[tuple[int, int], int] = mid) -> int:   # this step's edges
+        def midpoint(a: int, b: int, mid: dict[tuple[int, int], int] = mid) -> int:  # this step's edges
             k = (a, b) if a < b else (b, a)
-            if k not in mid:            # one vertex per edge: both triangles share it exactly
+            if k not in mid:  # one vertex per edge: both triangles share it exactly
                 m = verts[a] + verts[b]
                 verts.append(m / np.linalg.norm(m))
                 mid[k] = len(verts) - 1
             return mid[k]
+
         new = []
         for a, b, c in tris:
             ab, bc, ca = midpoint(a, b), midpoint(b, c), midpoint(c, a)
@@ -242,11 +303,21 @@ def icosphere(subdivisions: int = 2, radius: float = 1.0, center=(0.0, 0.0, 0.0)
     return _finish(pos, t, unit if smooth else None, material, transform)
 
 
-def torus(major: float = 1.0, minor: float = 0.35, segments: int = 48, tube_segments: int = 24, *,
-          center=(0.0, 0.0, 0.0), material: int = 0, smooth: bool = True, transform: Any = None) -> Mesh:
+def torus(
+    major: float = 1.0,
+    minor: float = 0.35,
+    segments: int = 48,
+    tube_segments: int = 24,
+    *,
+    center=(0.0, 0.0, 0.0),
+    material: int = 0,
+    smooth: bool = True,
+    transform: Any = None,
+) -> Mesh:
     """A torus about the y axis through ``center``: a tube of radius ``minor`` around a circle
     of radius ``major`` in the xz-plane, ``segments × tube_segments`` quads."""
     from .scene import SceneError
+
     major, minor = _positive(major, "major"), _positive(minor, "minor")
     if not minor < major:
         raise SceneError("minor", f"must be < major ({major:g}) for a ring with a hole, got {minor:g}")
@@ -268,18 +339,24 @@ def torus(major: float = 1.0, minor: float = 0.35, segments: int = 48, tube_segm
     return _finish(pos + np.asarray(center, dtype=np.float64), t, nrm if smooth else None, material, transform)
 
 
-def box(lo=(-1.0, -1.0, -1.0), hi=(1.0, 1.0, 1.0), *, inward: bool = False, material: int = 0,
-        transform: Any = None) -> Mesh:
+def box(
+    lo=(-1.0, -1.0, -1.0), hi=(1.0, 1.0, 1.0), *, inward: bool = False, material: int = 0, transform: Any = None
+) -> Mesh:
     """An axis-aligned box ``[lo, hi]`` of 12 triangles, flat shaded, wound outwards —
     or inwards (``inward``: the walls of a room, seen from inside)."""
     from .scene import SceneError
+
     lo_a, hi_a = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
     if lo_a.shape != (3,) or hi_a.shape != (3,) or not (np.isfinite(lo_a).all() and np.isfinite(hi_a).all()):
         raise SceneError("lo", "lo and hi must be 3 finite numbers each")
     if not (lo_a < hi_a).all():
         raise SceneError("hi", f"must be > lo on every axis, got lo {lo_a.tolist()} hi {hi_a.tolist()}")
-    corners = np.array([[hi_a[0] if k & 1 else lo_a[0], hi_a[1] if k & 2 else lo_a[1], hi_a[2] if k & 4 else lo_a[2]]
-                        for k in range(8)])
+    corners = np.array(
+        [
+            [hi_a[0] if k & 1 else lo_a[0], hi_a[1] if k & 2 else lo_a[1], hi_a[2] if k & 4 else lo_a[2]]
+            for k in range(8)
+        ]
+    )
     quads = [(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)]
     t = np.array([tri for a, b, c, d in quads for tri in ((a, b, c), (a, c, d))])
     t = orient_outward(corners, t)
@@ -289,6 +366,7 @@ def box(lo=(-1.0, -1.0, -1.0), hi=(1.0, 1.0, 1.0), *, inward: bool = False, mate
 
 
 # ------------------------------------------------------------------------------ teapot
+
 
 def _bernstein(n: int) -> np.ndarray:
     """(n + 1, 4) cubic Bernstein weights at u = k / n (exactly [1,0,0,0] and [0,0,0,1] at the ends)."""
@@ -327,8 +405,7 @@ def _grid_triangles(n: int) -> np.ndarray:
     a, b = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
     i00 = a * (n + 1) + b
     i10, i11, i01 = i00 + (n + 1), i00 + (n + 2), i00 + 1
-    return np.concatenate([np.stack([i00, i10, i11], -1).reshape(-1, 3),
-                           np.stack([i00, i11, i01], -1).reshape(-1, 3)])
+    return np.concatenate([np.stack([i00, i10, i11], -1).reshape(-1, 3), np.stack([i00, i11, i01], -1).reshape(-1, 3)])
 
 
 # z-up (the data) to y-up (pocketray's floor): (x, y, z) → (x, z, −y), a rotation.
@@ -338,7 +415,7 @@ _Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 def teapot_surface(segments: int = 8, closed: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """The teapot's welded, outward-wound (vertices, triangles), y up, in the data's units
     (height 3.15, standing on y = 0). See the module docstring for ``closed``."""
-    n = _count(segments, "segments", 2, MAX_SEGMENTS)   # 1: a tube end of two points has no cap
+    n = _count(segments, "segments", 2, MAX_SEGMENTS)  # 1: a tube end of two points has no cap
     ctrl = np.asarray(VERTICES, dtype=np.float64)
     grids = [_patch_grid(ctrl[np.asarray(p) - 1].reshape(4, 4, 3), n) for p in PATCHES]
     pts, tris, extra = [], [], []
@@ -372,10 +449,10 @@ def teapot_surface(segments: int = 8, closed: bool = True) -> tuple[np.ndarray, 
 
     # the lid's edge (its patches' last row) to the rim's opening (the rim's first row)
     strip([grids[p][n] for p in range(24, 28)], [grids[p][0] for p in range(0, 4)])
-    cap([grids[12][0], grids[13][0]])        # handle, upper end
-    cap([grids[14][n], grids[15][n]])        # handle, lower end
-    cap([grids[16][0], grids[17][0]])        # spout, base
-    cap([grids[18][n], grids[19][n]])        # spout, tip
+    cap([grids[12][0], grids[13][0]])  # handle, upper end
+    cap([grids[14][n], grids[15][n]])  # handle, lower end
+    cap([grids[16][0], grids[17][0]])  # spout, base
+    cap([grids[18][n], grids[19][n]])  # spout, tip
     v = np.concatenate(pts)
     t = np.concatenate(tris)
     added = np.concatenate(extra)
@@ -392,8 +469,15 @@ def teapot_surface(segments: int = 8, closed: bool = True) -> tuple[np.ndarray, 
     return uniq @ _Z_UP_TO_Y_UP.T, t
 
 
-def teapot(segments: int = 8, *, closed: bool = True, size: float = 1.0, material: int = 0, smooth: bool = True,
-           transform: Any = None) -> Mesh:
+def teapot(
+    segments: int = 8,
+    *,
+    closed: bool = True,
+    size: float = 1.0,
+    material: int = 0,
+    smooth: bool = True,
+    transform: Any = None,
+) -> Mesh:
     """The Utah teapot standing on y = 0, spout towards +x, scaled by ``size`` (height
     3.15 · size), ``segments`` × ``segments`` quads per patch; smooth normals are the
     area-weighted face normals. ``closed``: the watertight version (module docstring)."""
@@ -410,6 +494,7 @@ MESH_KINDS = ("icosphere", "torus", "box", "teapot")
 def procedural(kind: str, **kw: Any) -> Mesh:
     """A procedural mesh by name (:data:`MESH_KINDS`) with its generator's keyword arguments."""
     from .scene import SceneError
+
     makers: dict[str, Callable[..., Mesh]] = {"icosphere": icosphere, "torus": torus, "box": box, "teapot": teapot}
     if kind not in makers:
         raise SceneError("kind", f"unknown mesh {kind!r}; one of {', '.join(MESH_KINDS)}")

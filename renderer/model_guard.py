@@ -30,8 +30,14 @@ def _refuse(fmt: str, message: str) -> SceneError:
     return SceneError("file", f"{fmt.upper()}: {message}")
 
 
-def check_model(data: bytes, ft: str, *, max_triangles: int = limits.MAX_TRIANGLES,
-                max_vertices: int = limits.MAX_MESH_VERTICES, base_dir: Path | None = None) -> None:
+def check_model(
+    data: bytes,
+    ft: str,
+    *,
+    max_triangles: int = limits.MAX_TRIANGLES,
+    max_vertices: int = limits.MAX_MESH_VERTICES,
+    base_dir: Path | None = None,
+) -> None:
     """Refuse (SceneError ``file``) a model file of format ``ft`` whose declared counts exceed
     ``max_triangles`` triangles or ``DECLARED_VERTEX_FACTOR × max_vertices`` vertices, or
     disagree with the bytes it holds. ``base_dir``: where a glTF's external buffers are (a
@@ -92,10 +98,11 @@ def _glb_chunks(data: bytes) -> tuple[Any, int | None]:
         raise _refuse("glb", f"the header says {length:,} bytes, the file has {len(data):,}")
     json_len, json_type = struct.unpack_from("<II", data, 12)
     if json_type != 0x4E4F534A or 20 + json_len > length:
-        raise _refuse("glb", f"the first chunk must be JSON within the file ({json_len:,} bytes declared, "
-                             f"{length - 20:,} there)")
+        raise _refuse(
+            "glb", f"the first chunk must be JSON within the file ({json_len:,} bytes declared, {length - 20:,} there)"
+        )
     try:
-        doc = _json(bytes(data[20:20 + json_len]))
+        doc = _json(bytes(data[20 : 20 + json_len]))
     except (UnicodeDecodeError, ValueError) as e:
         raise _refuse("glb", f"its JSON chunk is not JSON ({e})") from None
     bin_len = None
@@ -152,22 +159,29 @@ def _buffer_sizes(doc: dict, bin_len: int | None, base_dir: Path | None, fmt: st
             raise _refuse(fmt, f"{where}.uri must be a string")
         elif uri.startswith("data:"):
             payload = uri.partition(",")[2]
-            have = len(base64.b64decode(payload, validate=False)) if ";base64" in uri.partition(",")[0] \
+            have = (
+                len(base64.b64decode(payload, validate=False))
+                if ";base64" in uri.partition(",")[0]
                 else len(unquote(payload).encode())
+            )
             what = "its data URI"
         else:
             path = (base_dir / unquote(uri)) if base_dir is not None else None
             have = path.stat().st_size if path is not None and path.is_file() else 0
-            what = f"the file {uri!r}" if base_dir is not None else \
-                f"the external file {uri!r}, which a model given as bytes cannot read"
+            what = (
+                f"the file {uri!r}"
+                if base_dir is not None
+                else f"the external file {uri!r}, which a model given as bytes cannot read"
+            )
         if declared > have:
             raise _refuse(fmt, f"{where} declares {declared:,} bytes, {what} holds {have:,}")
         sizes.append(declared)
     return sizes
 
 
-def _check_gltf(doc: Any, bin_len: int | None, base_dir: Path | None, max_triangles: int,
-                max_vertices: int, fmt: str) -> None:
+def _check_gltf(
+    doc: Any, bin_len: int | None, base_dir: Path | None, max_triangles: int, max_vertices: int, fmt: str
+) -> None:
     if not isinstance(doc, dict):
         raise _refuse(fmt, "the JSON document must be an object")
     buffers = _buffer_sizes(doc, bin_len, base_dir, fmt)
@@ -178,17 +192,21 @@ def _check_gltf(doc: Any, bin_len: int | None, base_dir: Path | None, max_triang
         if not isinstance(view, dict):
             raise _refuse(fmt, f"{where} must be an object")
         b = _index(view, "buffer", len(buffers), where, fmt, required=True)
-        assert b is not None    # required
+        assert b is not None  # required
         offset = _count(view, "byteOffset", where, fmt, 0)
         length = _count(view, "byteLength", where, fmt)
         _count(view, "byteStride", where, fmt, 4, limit=252)
         if offset + length > buffers[b]:
-            raise _refuse(fmt, f"{where} spans bytes {offset:,} … {offset + length:,} of buffers[{b}], "
-                               f"which has {buffers[b]:,}")
+            raise _refuse(
+                fmt, f"{where} spans bytes {offset:,} … {offset + length:,} of buffers[{b}], which has {buffers[b]:,}"
+            )
         view_bytes += length
     if view_bytes > limits.MAX_MODEL_ARRAY_BYTES:
-        raise _refuse(fmt, f"its bufferViews add up to {view_bytes:,} bytes; at most "
-                           f"{limits.MAX_MODEL_ARRAY_BYTES:,} allowed (MAX_MODEL_ARRAY_BYTES)")
+        raise _refuse(
+            fmt,
+            f"its bufferViews add up to {view_bytes:,} bytes; at most "
+            f"{limits.MAX_MODEL_ARRAY_BYTES:,} allowed (MAX_MODEL_ARRAY_BYTES)",
+        )
 
     accessors = _list(doc, "accessors", fmt)
     counts, array_bytes, zero_bytes = [], 0, 0
@@ -200,8 +218,9 @@ def _check_gltf(doc: Any, bin_len: int | None, base_dir: Path | None, max_triang
         comp = _COMPONENT_BYTES.get(acc.get("componentType"))
         comps = _TYPE_COMPONENTS.get(acc.get("type"))
         if comp is None or comps is None:
-            raise _refuse(fmt, f"{where} has componentType {acc.get('componentType')!r} / type "
-                               f"{acc.get('type')!r}, not glTF's")
+            raise _refuse(
+                fmt, f"{where} has componentType {acc.get('componentType')!r} / type {acc.get('type')!r}, not glTF's"
+            )
         element = comp * comps
         v = _index(acc, "bufferView", len(views), where, fmt)
         if v is not None:
@@ -209,23 +228,33 @@ def _check_gltf(doc: Any, bin_len: int | None, base_dir: Path | None, max_triang
             offset = _count(acc, "byteOffset", where, fmt, 0)
             need = offset + (stride * (count - 1) + element if count else 0)
             if need > views[v]["byteLength"]:
-                raise _refuse(fmt, f"{where} needs {count:,} × {element} bytes (to byte {need:,}) of "
-                                   f"bufferViews[{v}], which has {views[v]['byteLength']:,}")
+                raise _refuse(
+                    fmt,
+                    f"{where} needs {count:,} × {element} bytes (to byte {need:,}) of "
+                    f"bufferViews[{v}], which has {views[v]['byteLength']:,}",
+                )
         sparse = acc.get("sparse")
-        if sparse is not None and (not isinstance(sparse, dict)
-                                   or _count(sparse, "count", where + ".sparse", fmt) > count):
+        if sparse is not None and (
+            not isinstance(sparse, dict) or _count(sparse, "count", where + ".sparse", fmt) > count
+        ):
             raise _refuse(fmt, f"{where}.sparse must be an object of at most {count:,} elements")
         counts.append(count)
         array_bytes += count * element
         if v is None:
             zero_bytes += count * element
             if zero_bytes > limits.MAX_BUFFERLESS_BYTES:
-                raise _refuse(fmt, f"{where} has no bufferView and {count:,} elements: its accessors without data "
-                                   f"would take {zero_bytes:,} bytes of zeros; at most {limits.MAX_BUFFERLESS_BYTES:,} "
-                                   "allowed (MAX_BUFFERLESS_BYTES)")
+                raise _refuse(
+                    fmt,
+                    f"{where} has no bufferView and {count:,} elements: its accessors without data "
+                    f"would take {zero_bytes:,} bytes of zeros; at most {limits.MAX_BUFFERLESS_BYTES:,} "
+                    "allowed (MAX_BUFFERLESS_BYTES)",
+                )
     if array_bytes > limits.MAX_MODEL_ARRAY_BYTES:
-        raise _refuse(fmt, f"its accessors add up to {array_bytes:,} bytes of arrays; at most "
-                           f"{limits.MAX_MODEL_ARRAY_BYTES:,} allowed (MAX_MODEL_ARRAY_BYTES)")
+        raise _refuse(
+            fmt,
+            f"its accessors add up to {array_bytes:,} bytes of arrays; at most "
+            f"{limits.MAX_MODEL_ARRAY_BYTES:,} allowed (MAX_MODEL_ARRAY_BYTES)",
+        )
 
     # per mesh: the triangles and vertices one instance of it adds
     mesh_cost = []
@@ -264,8 +293,9 @@ def _check_gltf(doc: Any, bin_len: int | None, base_dir: Path | None, max_triang
             if not isinstance(c, int) or isinstance(c, bool) or not 0 <= c < len(nodes):
                 raise _refuse(fmt, f"nodes[{i}].children holds {c!r}, not an index of the {len(nodes)} nodes")
             if c in parent or c == i:
-                raise _refuse(fmt, f"nodes[{c}] is a child of more than one node (or of itself): the node "
-                                   "graph must be a tree")
+                raise _refuse(
+                    fmt, f"nodes[{c}] is a child of more than one node (or of itself): the node graph must be a tree"
+                )
             parent[c] = i
 
     scenes = _list(doc, "scenes", fmt)
@@ -288,8 +318,9 @@ def _check_gltf(doc: Any, bin_len: int | None, base_dir: Path | None, max_triang
     while stack:
         i, depth, counted = stack.pop()
         if depth > limits.MAX_MODEL_NODE_DEPTH:
-            raise _refuse(fmt, f"its node tree is deeper than {limits.MAX_MODEL_NODE_DEPTH} levels "
-                               "(MAX_MODEL_NODE_DEPTH)")
+            raise _refuse(
+                fmt, f"its node tree is deeper than {limits.MAX_MODEL_NODE_DEPTH} levels (MAX_MODEL_NODE_DEPTH)"
+            )
         reached[i] = True
         seen += 1
         m = nodes[i].get("mesh")
@@ -310,8 +341,11 @@ def _check_totals(fmt: str, tris: int, verts: int, max_triangles: int, max_verti
     if tris > max_triangles:
         raise _refuse(fmt, f"the file declares {tris:,} triangles; at most {max_triangles:,} allowed")
     if verts > max_vertices:
-        raise _refuse(fmt, f"the file declares {verts:,} vertices; at most {max_vertices:,} allowed "
-                           f"({limits.DECLARED_VERTEX_FACTOR} per vertex of a mesh before equal ones merge)")
+        raise _refuse(
+            fmt,
+            f"the file declares {verts:,} vertices; at most {max_vertices:,} allowed "
+            f"({limits.DECLARED_VERTEX_FACTOR} per vertex of a mesh before equal ones merge)",
+        )
 
 
 # ---- STL ----------------------------------------------------------------------------------------
@@ -333,24 +367,45 @@ def _check_stl(data: bytes, max_triangles: int) -> None:
             raise _refuse("stl", "a text STL ('solid …') without any facet")
     if count is None:
         raise _refuse("stl", f"{n:,} bytes: shorter than a binary STL's 84-byte header")
-    raise _refuse("stl", f"the binary header says {count:,} triangles, which take 84 + 50 × {count:,} = "
-                         f"{84 + 50 * count:,} bytes; the file has {n:,}")
+    raise _refuse(
+        "stl",
+        f"the binary header says {count:,} triangles, which take 84 + 50 × {count:,} = "
+        f"{84 + 50 * count:,} bytes; the file has {n:,}",
+    )
 
 
 # ---- PLY ----------------------------------------------------------------------------------------
-_PLY_TYPES = {"char": 1, "int8": 1, "uchar": 1, "uint8": 1, "short": 2, "int16": 2, "ushort": 2, "uint16": 2,
-              "int": 4, "int32": 4, "uint": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8}
+_PLY_TYPES = {
+    "char": 1,
+    "int8": 1,
+    "uchar": 1,
+    "uint8": 1,
+    "short": 2,
+    "int16": 2,
+    "ushort": 2,
+    "uint16": 2,
+    "int": 4,
+    "int32": 4,
+    "uint": 4,
+    "uint32": 4,
+    "float": 4,
+    "float32": 4,
+    "double": 8,
+    "float64": 8,
+}
 
 
 def _check_ply(data: bytes, max_triangles: int, max_vertices: int) -> None:
     end = data.find(b"end_header", 0, limits.MAX_PLY_HEADER_BYTES)
     if not data.startswith(b"ply") or end < 0:
-        raise _refuse("ply", f"no PLY header ('ply' … 'end_header' within {limits.MAX_PLY_HEADER_BYTES:,} "
-                             "bytes, MAX_PLY_HEADER_BYTES)")
+        raise _refuse(
+            "ply",
+            f"no PLY header ('ply' … 'end_header' within {limits.MAX_PLY_HEADER_BYTES:,} bytes, MAX_PLY_HEADER_BYTES)",
+        )
     nl = data.find(b"\n", end)
     body_at = len(data) if nl < 0 else nl + 1
     fmt = None
-    elements: list[list] = []         # [name, count, fixed bytes, list count bytes]
+    elements: list[list] = []  # [name, count, fixed bytes, list count bytes]
     for raw in bytes(data[:end]).decode("ascii", "replace").splitlines()[1:]:
         words = raw.split()
         if not words or words[0] in ("comment", "obj_info"):
@@ -384,8 +439,11 @@ def _check_ply(data: bytes, max_triangles: int, max_vertices: int) -> None:
         # each row takes its fixed properties plus each list's count (a list may be empty)
         least = sum(count * (fixed + lists) for _, count, fixed, lists in elements)
         if len(data) - body_at < least:
-            raise _refuse("ply", f"the header declares {declared}, at least {least:,} bytes of data; the file "
-                                 f"holds {len(data) - body_at:,}")
+            raise _refuse(
+                "ply",
+                f"the header declares {declared}, at least {least:,} bytes of data; the file "
+                f"holds {len(data) - body_at:,}",
+            )
 
 
 # ---- OBJ ----------------------------------------------------------------------------------------
@@ -398,6 +456,7 @@ def _check_obj(data: bytes, max_triangles: int, max_vertices: int) -> None:
     before the face)); the triangles its polygons split into within ``max_triangles``. On
     arrays: a 16 MiB file is checked in a fraction of its parse."""
     import numpy as np
+
     vertex_at = np.fromiter((m.start() for m in _OBJ_VERTEX.finditer(data)), np.int64)
     n_vertices = len(vertex_at)
     _check_totals("obj", 0, n_vertices, max_triangles, max_vertices)
@@ -426,17 +485,24 @@ def _check_obj(data: bytes, max_triangles: int, max_vertices: int) -> None:
                 try:
                     int(ref.split(b"/", 1)[0])
                 except ValueError:
-                    raise _refuse("obj", f"face 'f {text.strip().decode(errors='replace')[:60]}': "
-                                         f"{ref.decode(errors='replace')[:20]!r} is not a whole number "
-                                         "(a vertex reference)") from None
+                    raise _refuse(
+                        "obj",
+                        f"face 'f {text.strip().decode(errors='replace')[:60]}': "
+                        f"{ref.decode(errors='replace')[:20]!r} is not a whole number "
+                        "(a vertex reference)",
+                    ) from None
         raise
     face_of = np.repeat(np.arange(len(faces)), sizes)
-    before = np.searchsorted(vertex_at, starts)[face_of]       # vertices defined before each face
+    before = np.searchsorted(vertex_at, starts)[face_of]  # vertices defined before each face
     bad = (refs == 0) | (refs > n_vertices) | (-refs > before)
     if bad.any():
         j = int(np.flatnonzero(bad)[0])
         k, line = int(refs[j]), faces[face_of[j]][1].strip().decode(errors="replace")[:60]
-        why = ("vertex index 0 (OBJ counts from 1; negative indices count back from the last vertex)" if k == 0 else
-               f"vertex {k:,} of the {n_vertices:,} the file has" if k > 0 else
-               f"vertex {k} counts back past the {int(before[j]):,} vertices defined before it")
+        why = (
+            "vertex index 0 (OBJ counts from 1; negative indices count back from the last vertex)"
+            if k == 0
+            else f"vertex {k:,} of the {n_vertices:,} the file has"
+            if k > 0
+            else f"vertex {k} counts back past the {int(before[j]):,} vertices defined before it"
+        )
         raise _refuse("obj", f"face 'f {line}': {why}")

@@ -23,11 +23,20 @@ RAY_TREE_MODES = ("color", "recursion")
 AVERAGED_MODES = ("color", "recursion", "heat", "cones")
 
 # Fig. 4.2f colours of the `recursion` mode, index = level (0 = primary miss: black).
-RECURSION_COLORS = np.array([
-    (0.0, 0.0, 0.0),
-    (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0), (1.0, 1.0, 0.0),
-    (1.0, 0.0, 1.0), (0.0, 1.0, 1.0), (1.0, 1.0, 1.0), (1.0, 0.5, 0.0),
-], dtype=np.float64)
+RECURSION_COLORS = np.array(
+    [
+        (0.0, 0.0, 0.0),
+        (1.0, 0.0, 0.0),
+        (0.0, 1.0, 0.0),
+        (0.0, 0.0, 1.0),
+        (1.0, 1.0, 0.0),
+        (1.0, 0.0, 1.0),
+        (0.0, 1.0, 1.0),
+        (1.0, 1.0, 1.0),
+        (1.0, 0.5, 0.0),
+    ],
+    dtype=np.float64,
+)
 # What the legend calls them.
 RECURSION_COLOR_NAMES = ("black", "red", "green", "blue", "yellow", "magenta", "cyan", "white", "orange")
 # Per-id colour multipliers of the `primid` mode.
@@ -45,9 +54,17 @@ def primid_colors(primid: np.ndarray) -> np.ndarray:
 
 def heat_image(nodes: np.ndarray, gaps: np.ndarray, tests: np.ndarray) -> np.ndarray:
     """Fig. 4.3 colours (…, 3): red 0.05·tests, green 0.2·gaps, blue 0.2·nodes, each clamped to 1."""
-    return np.minimum(np.stack([HEAT_SCALE["tests"] * np.asarray(tests, np.float64),
-                                HEAT_SCALE["gaps"] * np.asarray(gaps, np.float64),
-                                HEAT_SCALE["nodes"] * np.asarray(nodes, np.float64)], axis=-1), 1.0)
+    return np.minimum(
+        np.stack(
+            [
+                HEAT_SCALE["tests"] * np.asarray(tests, np.float64),
+                HEAT_SCALE["gaps"] * np.asarray(gaps, np.float64),
+                HEAT_SCALE["nodes"] * np.asarray(nodes, np.float64),
+            ],
+            axis=-1,
+        ),
+        1.0,
+    )
 
 
 def depth_grey(depth: np.ndarray, target_distance) -> np.ndarray:

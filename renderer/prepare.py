@@ -26,6 +26,7 @@ _BUILD_LOCK = threading.Lock()
 @dataclass
 class PreparedFrame:
     """A posed scene, its method's data (None for the multi-pass methods) and its cost."""
+
     scene: Scene
     settings: RenderSettings
     method: str
@@ -36,15 +37,21 @@ class PreparedFrame:
     stats: dict
 
 
-def prepare_frame(scene: Scene | AnimatedScene, settings: RenderSettings, *, key: Hashable | None = None,
-                  max_width: int = DEFAULT_TEXTURE_WIDTH, model: CostModel = DEFAULT_MODEL) -> PreparedFrame:
+def prepare_frame(
+    scene: Scene | AnimatedScene,
+    settings: RenderSettings,
+    *,
+    key: Hashable | None = None,
+    max_width: int = DEFAULT_TEXTURE_WIDTH,
+    model: CostModel = DEFAULT_MODEL,
+) -> PreparedFrame:
     """Pose ``scene`` at ``settings.time``, build (or update, per ``settings.update`` and the
     animation ``key``) the method's structure and estimate the frame's cost."""
     moving, pose_ms = None, None
     if isinstance(scene, AnimatedScene):
         posed = pose(scene, settings.time)
         scene, moving, pose_ms = posed.scene, posed.moving, posed.pose_ms
-    n_tree = scene.n_spheres + scene.n_triangles       # what a tree would hold (auto's crossover)
+    n_tree = scene.n_spheres + scene.n_triangles  # what a tree would hold (auto's crossover)
     name = resolve_method(settings.method, n_tree)
     method = METHODS[name]
     settings.check_method(n_tree)

@@ -12,7 +12,7 @@ from __future__ import annotations
 from importlib.resources import files
 from pathlib import Path
 
-SOURCE_ROOT = Path(__file__).resolve().parent.parent   # the checkout's root (meaningless in a wheel)
+SOURCE_ROOT = Path(__file__).resolve().parent.parent  # the checkout's root (meaningless in a wheel)
 
 
 def package_dir(package: str, name: str, source_name: str | None = None) -> Path:

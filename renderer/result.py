@@ -20,6 +20,7 @@ class RenderResult:
     timings: milliseconds per stage (``build``, ``upload``, ``trace``, ``read``…).
     stats:  acceleration-structure statistics (JSON-able) or None.
     """
+
     image: np.ndarray
     depth: np.ndarray
     primid: np.ndarray
@@ -52,7 +53,7 @@ class RenderResult:
 TARGET_BYTES_PER_PIXEL = 2 * 4 * 4
 TARGET_BYTES_PER_PIXEL_RGBA8 = 4
 RESULT_BYTES_PER_PIXEL = 3 * 4 + 3 * 4 + 4 + 4
-IMAGE_ONLY_BYTES_PER_PIXEL = 3 + 3       # the 8-bit image cut from the read-back, and its copy for the encoder
+IMAGE_ONLY_BYTES_PER_PIXEL = 3 + 3  # the 8-bit image cut from the read-back, and its copy for the encoder
 
 
 def traced_nbytes(width: int, height: int, supersampling: int = 1, image_only: bool = False) -> int:

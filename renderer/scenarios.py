@@ -24,10 +24,26 @@ CUBE_HALF = 20.0
 CORNER_CUBE_EDGE = 8.0
 SCREEN_WIDTH, SCREEN_HEIGHT = 640, 1088
 
-RED = Material(color=(0.9, 0.3, 0.3), ambient=0.30, diffuse=0.30, specular=0.10, shininess=40.0,
-               reflective=0.30, transmissive=0.0, ior=1.0)
-TRANSPARENT = Material(color=(1.0, 1.0, 1.0), ambient=0.10, diffuse=0.10, specular=0.10, shininess=50.0,
-                       reflective=0.0, transmissive=0.70, ior=0.95)
+RED = Material(
+    color=(0.9, 0.3, 0.3),
+    ambient=0.30,
+    diffuse=0.30,
+    specular=0.10,
+    shininess=40.0,
+    reflective=0.30,
+    transmissive=0.0,
+    ior=1.0,
+)
+TRANSPARENT = Material(
+    color=(1.0, 1.0, 1.0),
+    ambient=0.10,
+    diffuse=0.10,
+    specular=0.10,
+    shininess=50.0,
+    reflective=0.0,
+    transmissive=0.70,
+    ior=0.95,
+)
 TABLE_4_1 = (RED, TRANSPARENT)
 
 
@@ -40,7 +56,7 @@ def grid_centers(n: int, radius: float) -> np.ndarray:
     if n == 0:
         return np.zeros((0, 3))
     k = max(1, math.ceil(round(n ** (1.0 / 3.0), 9)))
-    while k ** 3 < n:
+    while k**3 < n:
         k += 1
     half = CUBE_HALF - radius
     if k == 1:
@@ -114,12 +130,36 @@ def scenario(number: int, n: int, seed: int = 0, radius: float = 1.0) -> Scene:
 MESH_SCENES = ("teapot", "mixed", "room")
 MAX_MESH_DETAIL = 5
 
-PORCELAIN = Material(color=(0.92, 0.9, 0.85), ambient=0.15, diffuse=0.65, specular=0.4, shininess=60.0,
-                     reflective=0.1, transmissive=0.0, ior=1.0)
-GLASS = Material(color=(1.0, 1.0, 1.0), ambient=0.05, diffuse=0.05, specular=0.3, shininess=80.0,
-                 reflective=0.1, transmissive=0.8, ior=1.5)
-WALLS = Material(color=(0.75, 0.72, 0.65), ambient=0.25, diffuse=0.6, specular=0.05, shininess=10.0,
-                 reflective=0.0, transmissive=0.0, ior=1.0)
+PORCELAIN = Material(
+    color=(0.92, 0.9, 0.85),
+    ambient=0.15,
+    diffuse=0.65,
+    specular=0.4,
+    shininess=60.0,
+    reflective=0.1,
+    transmissive=0.0,
+    ior=1.0,
+)
+GLASS = Material(
+    color=(1.0, 1.0, 1.0),
+    ambient=0.05,
+    diffuse=0.05,
+    specular=0.3,
+    shininess=80.0,
+    reflective=0.1,
+    transmissive=0.8,
+    ior=1.5,
+)
+WALLS = Material(
+    color=(0.75, 0.72, 0.65),
+    ambient=0.25,
+    diffuse=0.6,
+    specular=0.05,
+    shininess=10.0,
+    reflective=0.0,
+    transmissive=0.0,
+    ior=1.0,
+)
 
 
 def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True) -> Scene:
@@ -137,6 +177,7 @@ def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True) -> Sc
     segments. ``smooth``: vertex normals (else flat shading). Deterministic.
     """
     from . import meshes as M
+
     if kind not in MESH_SCENES:
         raise SceneError("kind", f"unknown mesh scene {kind!r}; one of {', '.join(MESH_SCENES)}")
     if isinstance(detail, bool) or not isinstance(detail, (int, np.integer)) or not 0 <= detail <= MAX_MESH_DETAIL:
@@ -151,22 +192,51 @@ def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True) -> Sc
     empty = (np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32))
     if kind == "teapot":
         pot = M.teapot(seg, size=5.5, material=1, smooth=smooth, transform=placed(-1.0, -CUBE_HALF, 0.0))
-        return Scene(Camera((0.0, 8.0, 75.0), (0.0, -10.0, 0.0), (0.0, 1.0, 0.0), 45.0), (light,),
-                     (RED, PORCELAIN), *empty, (floor,), (pot,))
+        return Scene(
+            Camera((0.0, 8.0, 75.0), (0.0, -10.0, 0.0), (0.0, 1.0, 0.0), 45.0),
+            (light,),
+            (RED, PORCELAIN),
+            *empty,
+            (floor,),
+            (pot,),
+        )
     if kind == "mixed":
         axis = np.array([-12.0, 0.0, 12.0])
         z, y, x = np.meshgrid(axis, axis + 2.0, axis, indexing="ij")
         centers = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
-        meshes = (M.icosphere(int(detail), radius=5.0, center=(-6.0, -12.0, 6.0), material=1, smooth=smooth),
-                  M.torus(6.0, 1.8, 12 * (int(detail) + 1), 6 * (int(detail) + 1), center=(6.0, -16.0, -4.0),
-                          material=0, smooth=smooth))
-        return Scene(Camera((0.0, 0.0, 100.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 60.0), (light,),
-                     (RED, GLASS), centers, np.full(len(centers), 2.0), np.zeros(len(centers), np.int32),
-                     (floor,), meshes)
+        meshes = (
+            M.icosphere(int(detail), radius=5.0, center=(-6.0, -12.0, 6.0), material=1, smooth=smooth),
+            M.torus(
+                6.0,
+                1.8,
+                12 * (int(detail) + 1),
+                6 * (int(detail) + 1),
+                center=(6.0, -16.0, -4.0),
+                material=0,
+                smooth=smooth,
+            ),
+        )
+        return Scene(
+            Camera((0.0, 0.0, 100.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 60.0),
+            (light,),
+            (RED, GLASS),
+            centers,
+            np.full(len(centers), 2.0),
+            np.zeros(len(centers), np.int32),
+            (floor,),
+            meshes,
+        )
     room = M.box((-CUBE_HALF,) * 3, (CUBE_HALF,) * 3, inward=True, material=0)
     pot = M.teapot(seg, size=3.0, material=1, smooth=smooth, transform=placed(-6.0, -CUBE_HALF, -6.0))
     ball = M.icosphere(int(detail), radius=4.0, center=(8.0, -16.0, -2.0), material=2, smooth=smooth)
     centers = np.array([[-14.0, -17.0, 8.0], [12.0, -18.0, 10.0], [0.0, -17.0, -14.0], [14.0, -17.0, -14.0]])
-    return Scene(Camera((0.0, 0.0, 18.0), (0.0, -8.0, 0.0), (0.0, 1.0, 0.0), 70.0),
-                 (Light((0.0, 18.0, 5.0), (1.0, 1.0, 1.0)),), (WALLS, PORCELAIN, GLASS, RED),
-                 centers, np.full(4, 3.0), np.full(4, 3, np.int32), (), (room, pot, ball))
+    return Scene(
+        Camera((0.0, 0.0, 18.0), (0.0, -8.0, 0.0), (0.0, 1.0, 0.0), 70.0),
+        (Light((0.0, 18.0, 5.0), (1.0, 1.0, 1.0)),),
+        (WALLS, PORCELAIN, GLASS, RED),
+        centers,
+        np.full(4, 3.0),
+        np.full(4, 3, np.int32),
+        (),
+        (room, pot, ball),
+    )

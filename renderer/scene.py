@@ -43,8 +43,15 @@ class SceneError(ValueError):
         self.message = message
 
 
-def finite_number(value: Any, where: str, *, lo: float | None = None, hi: float | None = None,
-            lo_open: bool = False, hi_open: bool = False) -> float:
+def finite_number(
+    value: Any,
+    where: str,
+    *,
+    lo: float | None = None,
+    hi: float | None = None,
+    lo_open: bool = False,
+    hi_open: bool = False,
+) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
         raise SceneError(where, f"expected a number, got {type(value).__name__}")
     x = float(value)
@@ -86,8 +93,9 @@ class Camera:
         object.__setattr__(self, "position", finite_vec3(self.position, "camera.position"))
         object.__setattr__(self, "target", finite_vec3(self.target, "camera.target"))
         object.__setattr__(self, "up", finite_vec3(self.up, "camera.up"))
-        object.__setattr__(self, "fov_y", finite_number(self.fov_y, "camera.fov_y", lo=0.0, hi=180.0,
-                                                  lo_open=True, hi_open=True))
+        object.__setattr__(
+            self, "fov_y", finite_number(self.fov_y, "camera.fov_y", lo=0.0, hi=180.0, lo_open=True, hi_open=True)
+        )
         _unit(self.up, "camera.up")
         fwd = tuple(t - p for t, p in zip(self.target, self.position, strict=True))
         if not (_norm(fwd) > 0.0):
@@ -109,8 +117,7 @@ class Camera:
         return right, true_up, forward
 
     def to_json(self) -> dict:
-        return {"position": list(self.position), "target": list(self.target),
-                "up": list(self.up), "fov_y": self.fov_y}
+        return {"position": list(self.position), "target": list(self.target), "up": list(self.up), "fov_y": self.fov_y}
 
     @staticmethod
     def from_json(d: Any, where: str = "camera") -> Camera:
@@ -122,6 +129,7 @@ class Camera:
 @dataclass(frozen=True)
 class Light:
     """A point light. ``color`` is its RGB intensity (white = 1, 1, 1)."""
+
     position: Vec3 = (0.0, 40.0, 0.0)
     color: Vec3 = (1.0, 1.0, 1.0)
 
@@ -148,6 +156,7 @@ class Material:
     ``reflective`` (kr) and ``transmissive`` (kt) weight the secondary rays;
     ``ior`` is the refraction index of the inside relative to the outside.
     """
+
     color: Vec3 = (0.9, 0.3, 0.3)
     ambient: float = 0.3
     diffuse: float = 0.3
@@ -164,13 +173,22 @@ class Material:
         object.__setattr__(self, "color", col)
         for name in ("ambient", "diffuse", "specular", "reflective", "transmissive"):
             object.__setattr__(self, name, finite_number(getattr(self, name), name, lo=0.0, hi=1.0))
-        object.__setattr__(self, "shininess", finite_number(self.shininess, "shininess", lo=0.0, hi=limits.MAX_SHININESS))
+        object.__setattr__(
+            self, "shininess", finite_number(self.shininess, "shininess", lo=0.0, hi=limits.MAX_SHININESS)
+        )
         object.__setattr__(self, "ior", finite_number(self.ior, "ior", lo=0.0, hi=limits.MAX_IOR, lo_open=True))
 
     def to_json(self) -> dict:
-        return {"color": list(self.color), "ambient": self.ambient, "diffuse": self.diffuse,
-                "specular": self.specular, "shininess": self.shininess,
-                "reflective": self.reflective, "transmissive": self.transmissive, "ior": self.ior}
+        return {
+            "color": list(self.color),
+            "ambient": self.ambient,
+            "diffuse": self.diffuse,
+            "specular": self.specular,
+            "shininess": self.shininess,
+            "reflective": self.reflective,
+            "transmissive": self.transmissive,
+            "ior": self.ior,
+        }
 
     @staticmethod
     def from_json(d: Any, where: str) -> Material:
@@ -233,7 +251,7 @@ def _first_bad_row(value: Sequence, where: str, what: str) -> None:
         for j, x in enumerate(row):
             if isinstance(x, bool) or not isinstance(x, _NUMBER_TYPES):
                 raise SceneError(f"{where}[{i}][{j}]", f"expected a number, got {type(x).__name__}")
-    raise SceneError(where, "expected a list of [x, y, z] rows")   # not reached: a caller saw a bad row
+    raise SceneError(where, "expected a list of [x, y, z] rows")  # not reached: a caller saw a bad row
 
 
 def rows3(value: Any, where: str, what: str = "numbers") -> np.ndarray:
@@ -262,7 +280,7 @@ def rows3(value: Any, where: str, what: str = "numbers") -> np.ndarray:
         _first_bad_row(value, where, what)
     try:
         return np.array(value, dtype=np.float64).reshape(-1, 3)
-    except OverflowError:            # an integer beyond float64 (JSON allows any)
+    except OverflowError:  # an integer beyond float64 (JSON allows any)
         for i, row in enumerate(value):
             try:
                 np.array(row, dtype=np.float64)
@@ -292,6 +310,7 @@ class Mesh:
     index) is kept, so that ids do not move, and is never hit; :attr:`n_degenerate` counts
     them. Build one from JSON-like input, with a transform, with :func:`make_mesh`.
     """
+
     vertices: np.ndarray
     triangles: np.ndarray
     material: int = 0
@@ -302,20 +321,27 @@ class Mesh:
         bad = ~np.isfinite(v).all(axis=1) | (np.abs(v) > MAX_COORDINATE).any(axis=1)
         if bad.any():
             i = _bad_rows(bad)
-            raise SceneError(f"vertices[{i}]", f"must be finite numbers within ±{MAX_COORDINATE:g}, "
-                                               f"got {v[i].tolist()}")
+            raise SceneError(
+                f"vertices[{i}]", f"must be finite numbers within ±{MAX_COORDINATE:g}, got {v[i].tolist()}"
+            )
         if len(v) > limits.MAX_MESH_VERTICES:
             raise SceneError("vertices", f"at most {limits.MAX_MESH_VERTICES} vertices per mesh, got {len(v)}")
         t = rows3(self.triangles, "triangles", "vertex indices")
         if len(t) > limits.MAX_TRIANGLES:
             raise SceneError("triangles", f"at most {limits.MAX_TRIANGLES} triangles allowed, got {len(t)}")
-        bad = ~(np.isfinite(t).all(axis=1) & (t == np.round(t)).all(axis=1) & (t >= 0).all(axis=1)
-                & (t < len(v)).all(axis=1))
+        bad = ~(
+            np.isfinite(t).all(axis=1)
+            & (t == np.round(t)).all(axis=1)
+            & (t >= 0).all(axis=1)
+            & (t < len(v)).all(axis=1)
+        )
         if bad.any():
             i = _bad_rows(bad)
             got = [int(x) if math.isfinite(x) and float(x).is_integer() else x for x in t[i].tolist()]
-            raise SceneError(f"triangles[{i}]", f"vertex indices must be integers in 0 … {len(v) - 1} "
-                                                f"(the mesh has {len(v)} vertices), got {got}")
+            raise SceneError(
+                f"triangles[{i}]",
+                f"vertex indices must be integers in 0 … {len(v) - 1} (the mesh has {len(v)} vertices), got {got}",
+            )
         t = t.astype(np.int32)
         n = None
         if self.normals is not None:
@@ -378,7 +404,11 @@ class Mesh:
             if k not in d:
                 raise SceneError(f"{where}.{k}", "field required")
         m = d.get("material", 0)
-        if isinstance(m, bool) or not isinstance(m, (int, np.integer)) and not (isinstance(m, float) and m.is_integer()):
+        if (
+            isinstance(m, bool)
+            or not isinstance(m, (int, np.integer))
+            and not (isinstance(m, float) and m.is_integer())
+        ):
             raise SceneError(f"{where}.material", "expected an integer material index")
         try:
             return make_mesh(d["vertices"], d["triangles"], int(m), d.get("normals"), d.get("transform"))
@@ -404,8 +434,7 @@ def affine_transform(value: Any, where: str = "transform") -> np.ndarray:
     return out
 
 
-def make_mesh(vertices: Any, triangles: Any, material: int = 0, normals: Any = None,
-              transform: Any = None) -> Mesh:
+def make_mesh(vertices: Any, triangles: Any, material: int = 0, normals: Any = None, transform: Any = None) -> Mesh:
     """A :class:`Mesh` from JSON-like lists or arrays, ``transform`` (4 × 4 row-major affine)
     applied: ``v' = A v + b``, normals by the inverse transpose of ``A``, and — when ``A``
     mirrors (det < 0) — every triangle's winding reversed, so that a closed mesh stays
@@ -426,7 +455,7 @@ def make_mesh(vertices: Any, triangles: Any, material: int = 0, normals: Any = N
     if normals is not None:
         n = rows3(normals, "normals")
         with np.errstate(over="ignore", invalid="ignore"):
-            n = n @ np.linalg.inv(a)            # (A⁻ᵀ n)ᵀ = nᵀ A⁻¹
+            n = n @ np.linalg.inv(a)  # (A⁻ᵀ n)ᵀ = nᵀ A⁻¹
     t = triangles
     if np.linalg.det(a) < 0:
         t = rows3(triangles, "triangles", "vertex indices")[:, [0, 2, 1]]
@@ -450,6 +479,7 @@ class Scene:
     Ids (docs/FORMATS.md): spheres ``0 … n−1``, planes ``n … n+P−1``, then triangle ``j``
     of the flattened list is ``triangle_id_base + j`` (``triangle_id_base = n + P``).
     """
+
     camera: Camera
     lights: tuple[Light, ...]
     materials: tuple[Material, ...]
@@ -470,9 +500,12 @@ class Scene:
     def __post_init__(self) -> None:
         if not self.materials:
             raise SceneError("materials", "at least one material is required")
-        for name, items, cap in (("lights", self.lights, self.MAX_LIGHTS), ("planes", self.planes, self.MAX_PLANES),
-                                 ("materials", self.materials, self.MAX_MATERIALS),
-                                 ("meshes", self.meshes, self.MAX_MESHES)):
+        for name, items, cap in (
+            ("lights", self.lights, self.MAX_LIGHTS),
+            ("planes", self.planes, self.MAX_PLANES),
+            ("materials", self.materials, self.MAX_MATERIALS),
+            ("meshes", self.meshes, self.MAX_MESHES),
+        ):
             if len(items) > cap:
                 raise SceneError(name, f"at most {cap} allowed, got {len(items)}")
         c = np.ascontiguousarray(self.sphere_centers, dtype=np.float64).reshape(-1, 3)
@@ -498,8 +531,10 @@ class Scene:
             bad = (m < 0) | (m >= len(self.materials))
             if bad.any():
                 i = int(np.argmax(bad))
-                raise SceneError(f"spheres[{i}].material",
-                                 f"material index {int(m[i])} out of range (scene has {len(self.materials)} materials)")
+                raise SceneError(
+                    f"spheres[{i}].material",
+                    f"material index {int(m[i])} out of range (scene has {len(self.materials)} materials)",
+                )
         for i, p in enumerate(self.planes):
             _material_index(p.material, f"planes[{i}].material", len(self.materials))
         for i, mesh in enumerate(self.meshes):
@@ -576,8 +611,9 @@ class Scene:
     @cached_property
     def triangle_normals(self) -> np.ndarray:
         """float64 (T, 3, 3): the vertex normals at each corner as given (0 for flat meshes)."""
-        return self._flat(lambda m: m.normals[m.triangles] if m.smooth else np.zeros((m.n_triangles, 3, 3)),
-                          (3, 3), np.float64)
+        return self._flat(
+            lambda m: m.normals[m.triangles] if m.smooth else np.zeros((m.n_triangles, 3, 3)), (3, 3), np.float64
+        )
 
     @cached_property
     def triangle_degenerate(self) -> np.ndarray:
@@ -589,12 +625,25 @@ class Scene:
         start = sum(m.n_triangles for m in self.meshes[:i])
         return range(start, start + self.meshes[i].n_triangles)
 
-    def with_geometry(self, sphere_centers: np.ndarray, sphere_radii: np.ndarray, sphere_materials: np.ndarray,
-                      meshes: Sequence[Mesh] | None = None) -> Scene:
+    def with_geometry(
+        self,
+        sphere_centers: np.ndarray,
+        sphere_radii: np.ndarray,
+        sphere_materials: np.ndarray,
+        meshes: Sequence[Mesh] | None = None,
+    ) -> Scene:
         """The same camera, lights, materials and planes with other spheres (and meshes: the
         same ones unless given), validated."""
-        return Scene(self.camera, self.lights, self.materials, sphere_centers, sphere_radii, sphere_materials,
-                     self.planes, tuple(self.meshes if meshes is None else meshes))
+        return Scene(
+            self.camera,
+            self.lights,
+            self.materials,
+            sphere_centers,
+            sphere_radii,
+            sphere_materials,
+            self.planes,
+            tuple(self.meshes if meshes is None else meshes),
+        )
 
     def with_camera(self, camera: Camera) -> Scene:
         """The same scene seen through ``camera`` (a validated Camera): everything else is shared,
@@ -607,12 +656,20 @@ class Scene:
 
     # ---- JSON (docs/FORMATS.md) -------------------------------------------------
     def to_json(self) -> dict:
-        spheres = [{"center": c, "radius": r, "material": m} for c, r, m in
-                   zip(self.sphere_centers.tolist(), self.sphere_radii.tolist(), self.sphere_materials.tolist(), strict=True)]
-        out = {"camera": self.camera.to_json(), "lights": [light.to_json() for light in self.lights],
-               "materials": [m.to_json() for m in self.materials], "spheres": spheres,
-               "planes": [p.to_json() for p in self.planes]}
-        if self.meshes:       # absent when there are none: a sphere scene's JSON is as it always was
+        spheres = [
+            {"center": c, "radius": r, "material": m}
+            for c, r, m in zip(
+                self.sphere_centers.tolist(), self.sphere_radii.tolist(), self.sphere_materials.tolist(), strict=True
+            )
+        ]
+        out = {
+            "camera": self.camera.to_json(),
+            "lights": [light.to_json() for light in self.lights],
+            "materials": [m.to_json() for m in self.materials],
+            "spheres": spheres,
+            "planes": [p.to_json() for p in self.planes],
+        }
+        if self.meshes:  # absent when there are none: a sphere scene's JSON is as it always was
             out["meshes"] = [m.to_json() for m in self.meshes]
         return out
 
@@ -621,8 +678,9 @@ class Scene:
         d = _object(d, "scene", {"camera", "lights", "materials", "spheres", "planes", "meshes"})
         camera = Camera.from_json(d.get("camera", {}), "camera")
         lights = [Light.from_json(x, f"lights[{i}]") for i, x in enumerate(_list(d.get("lights", []), "lights"))]
-        materials = [Material.from_json(x, f"materials[{i}]")
-                     for i, x in enumerate(_list(d.get("materials", []), "materials"))]
+        materials = [
+            Material.from_json(x, f"materials[{i}]") for i, x in enumerate(_list(d.get("materials", []), "materials"))
+        ]
         spheres = _list(d.get("spheres", []), "spheres")
         if len(spheres) > Scene.MAX_SPHERES:
             raise SceneError("spheres", f"at most {Scene.MAX_SPHERES} spheres allowed, got {len(spheres)}")

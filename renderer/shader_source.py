@@ -22,11 +22,11 @@ from .methods import METHODS
 from .modes import RECURSION_COLORS
 from .resources import shader_dir
 
-SHADER_DIR = shader_dir()   # the package's shaders/ (installed) or the checkout's top-level shaders/
+SHADER_DIR = shader_dir()  # the package's shaders/ (installed) or the checkout's top-level shaders/
 HEADER_MARK = "//@HEADER@"
 METHOD_MARK = "//@METHOD@"
-RECURSION_MARK = "//@RECURSION_COLORS@\n"   # the whole line becomes recursion_color_function()
-INCLUDE_MARK = "//@INCLUDE "   # a line "//@INCLUDE method_bvh.glsl" in a method file inlines that file
+RECURSION_MARK = "//@RECURSION_COLORS@\n"  # the whole line becomes recursion_color_function()
+INCLUDE_MARK = "//@INCLUDE "  # a line "//@INCLUDE method_bvh.glsl" in a method file inlines that file
 # A line "//@TRIANGLES <name>" in the tracer or a traversal: section <name> of TRIANGLES_FILE in a
 # variant that traces triangles, nothing at all in any other (with_triangles).
 TRIANGLES_MARK = "//@TRIANGLES "
@@ -66,41 +66,61 @@ def tracer_header(variant: Variant) -> str:
     unknown = set(variant.blocks) - {b.name for b in tracer_bindings(variant) if b.records}
     if unknown:
         raise ValueError(f"blocks {sorted(unknown)} are not record arrays the {variant.method} variant reads")
-    defines = [f"METHOD_{variant.method.upper()}", f"MODE_{variant.mode.upper()}",
-               f"MAX_RECURSION_DEPTH {int(variant.depth)}", *variant.features, *variant.defines()]
-    for f in variant.features:     # compiled-in counts (renderer.features): PLANES_k → N_PLANES k
+    defines = [
+        f"METHOD_{variant.method.upper()}",
+        f"MODE_{variant.mode.upper()}",
+        f"MAX_RECURSION_DEPTH {int(variant.depth)}",
+        *variant.features,
+        *variant.defines(),
+    ]
+    for f in variant.features:  # compiled-in counts (renderer.features): PLANES_k → N_PLANES k
         for prefix, name in (("PLANES_", "N_PLANES"), ("LIGHTS_", "N_LIGHTS")):
             if f.startswith(prefix):
-                defines.append(f"{name} {int(f[len(prefix):])}")
+                defines.append(f"{name} {int(f[len(prefix) :])}")
     if variant.image_only:
         defines.append("IMAGE_ONLY")
     if not variant.spheres:
         defines.append("BACKGROUND")
     triangles = ""
-    if "TRIANGLES" in variant.features:     # (only there: a sphere variant's text stays as it was)
+    if "TRIANGLES" in variant.features:  # (only there: a sphere variant's text stays as it was)
         triangles = gpu_layout.triangle_constants() + "".join(
-            f"#define READS_{g.upper()}\n" for g in gpu_layout.SILENT_GROUPS if variant.reads(g))
-    return (gpu_layout.glsl_header() + gpu_layout.tracer_constants() + triangles
-            + METHODS[variant.method].glsl_defines()
-            + "".join(f"#define {d}\n" for d in defines)
-            + gpu_layout.declarations(tracer_bindings(variant), tuple(variant.blocks)))
+            f"#define READS_{g.upper()}\n" for g in gpu_layout.SILENT_GROUPS if variant.reads(g)
+        )
+    return (
+        gpu_layout.glsl_header()
+        + gpu_layout.tracer_constants()
+        + triangles
+        + METHODS[variant.method].glsl_defines()
+        + "".join(f"#define {d}\n" for d in defines)
+        + gpu_layout.declarations(tracer_bindings(variant), tuple(variant.blocks))
+    )
 
 
-def tracer_source(method: str, mode: str, max_recursion_depth: int, extra_defines: tuple[str, ...] = (),
-                  blocks: tuple[str, ...] = (), image_only: bool = False, spheres: bool = True) -> str:
+def tracer_source(
+    method: str,
+    mode: str,
+    max_recursion_depth: int,
+    extra_defines: tuple[str, ...] = (),
+    blocks: tuple[str, ...] = (),
+    image_only: bool = False,
+    spheres: bool = True,
+) -> str:
     """The fragment shader of one variant: method × mode × recursion depth × feature defines,
     and the host's choices (record arrays in uniform blocks, one RGBA8 image, the background
     variant without spheres)."""
-    variant = Variant(method, mode, int(max_recursion_depth), tuple(extra_defines), tuple(blocks), image_only,
-                      spheres)
+    variant = Variant(method, mode, int(max_recursion_depth), tuple(extra_defines), tuple(blocks), image_only, spheres)
     return variant_source(variant)
 
 
 def variant_source(variant: Variant) -> str:
     """The fragment shader of ``variant``."""
     method_src = _with_includes(read(method_shader(variant.method)))
-    text = (read("raytrace.frag").replace(HEADER_MARK, tracer_header(variant)).replace(METHOD_MARK, method_src)
-            .replace(RECURSION_MARK, recursion_color_function()))
+    text = (
+        read("raytrace.frag")
+        .replace(HEADER_MARK, tracer_header(variant))
+        .replace(METHOD_MARK, method_src)
+        .replace(RECURSION_MARK, recursion_color_function())
+    )
     return with_triangles(text, traces_triangles(variant))
 
 
@@ -114,8 +134,10 @@ def recursion_color_function() -> str:
     :data:`renderer.modes.RECURSION_COLORS`, and its entry 0 (the primary ray missed) for
     any other level. The colours are defined in Python alone; this is how the tracer (and
     the browser, which compiles the same text) gets them."""
+
     def vec3(c) -> str:
         return "vec3(" + ", ".join(_glsl_float(x) for x in c) + ")"
+
     miss = RECURSION_COLORS[0]
     lines = [f"    if (level == {level}) return {vec3(c)};\n" for level, c in enumerate(RECURSION_COLORS) if level]
     other = f"vec3({_glsl_float(miss[0])})" if miss[0] == miss[1] == miss[2] else vec3(miss)
@@ -135,7 +157,7 @@ def triangle_sections() -> dict[str, str]:
     current: list[str] | None = None
     for line in read(TRIANGLES_FILE).splitlines(keepends=True):
         if line.startswith(SECTION_MARK):
-            current = sections.setdefault(line[len(SECTION_MARK):].strip(), [])
+            current = sections.setdefault(line[len(SECTION_MARK) :].strip(), [])
         elif current is not None:
             current.append(line)
     return {name: "".join(lines).rstrip("\n") + "\n" for name, lines in sections.items()}
@@ -154,7 +176,7 @@ def with_triangles(text: str, triangles: bool) -> str:
     for line in text.splitlines(keepends=True):
         if line.startswith(TRIANGLES_MARK):
             if triangles:
-                out.append(sections[line[len(TRIANGLES_MARK):].strip()])
+                out.append(sections[line[len(TRIANGLES_MARK) :].strip()])
         else:
             out.append(line)
     return "".join(out)
@@ -165,7 +187,7 @@ def _with_includes(text: str) -> str:
     lines = []
     for line in text.splitlines(keepends=True):
         if line.startswith(INCLUDE_MARK):
-            name = line[len(INCLUDE_MARK):].strip()
+            name = line[len(INCLUDE_MARK) :].strip()
             lines.append(f"// ---- {name} ----\n" + read(name) + "\n")
         else:
             lines.append(line)
@@ -181,5 +203,11 @@ def pass_source(name: str, defines: tuple[str, ...] = ()) -> str:
     """A ray-engine shader: ``#version``, the layout constants, the defines, the scene's
     declarations, the common part, then ``name``. (The passes' own ray textures and
     uniforms are declared in their files and bound by :mod:`renderer.gl.ray_engine`.)"""
-    return ("#version 300 es\n" + gpu_layout.glsl_header() + "".join(f"#define {d}\n" for d in defines)
-            + gpu_layout.declarations(gpu_layout.RAY_ENGINE_BINDINGS) + read("rayengine_common.glsl") + read(name))
+    return (
+        "#version 300 es\n"
+        + gpu_layout.glsl_header()
+        + "".join(f"#define {d}\n" for d in defines)
+        + gpu_layout.declarations(gpu_layout.RAY_ENGINE_BINDINGS)
+        + read("rayengine_common.glsl")
+        + read(name)
+    )

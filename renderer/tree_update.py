@@ -38,6 +38,7 @@ class TreeUpdate:
     (:mod:`renderer.accel.primitives`) — True where a motion moves it (the two-level method
     puts the others in its static kd-tree); None = nothing moves.
     """
+
     scheme: str = "rebuild"
     threshold: float = DEFAULT_THRESHOLD
     key: Hashable | None = None

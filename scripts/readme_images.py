@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT / "tests" / "browser"))
 FIGURES = ROOT / "docs" / "figures"
 SCENE = dict(number=3, n=4096, seed=0)
 GALLERY_MODES = ("color", "normal", "depth", "primid", "recursion", "heat", "cones")
-GALLERY_SIZE = (240, 408)   # width, height of one tile (the phone's 640 × 1088 aspect)
+GALLERY_SIZE = (240, 408)  # width, height of one tile (the phone's 640 × 1088 aspect)
 
 
 def scene():
@@ -56,8 +56,10 @@ def modes(renderer) -> Path:
     tiles = []
     for mode in GALLERY_MODES:
         method = "hre" if mode == "cones" else "bih"
-        res = renderer.render(scene(), RenderSettings(method=method, mode=mode, width=w, height=h,
-                                                      max_recursion_depth=5, samples_per_pixel=1))
+        res = renderer.render(
+            scene(),
+            RenderSettings(method=method, mode=mode, width=w, height=h, max_recursion_depth=5, samples_per_pixel=1),
+        )
         tile = Image.fromarray(res.image_u8(), "RGB")
         draw = ImageDraw.Draw(tile)
         label = mode if mode != "cones" else "cones (hre)"
@@ -85,8 +87,9 @@ def phone() -> Path:
         try:
             with sync_playwright() as pw:
                 browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
-                ctx = browser.new_context(viewport={"width": 360, "height": 740}, device_scale_factor=2,
-                                          is_mobile=True, has_touch=True)
+                ctx = browser.new_context(
+                    viewport={"width": 360, "height": 740}, device_scale_factor=2, is_mobile=True, has_touch=True
+                )
                 page = ctx.new_page()
                 page.goto(f"{server.base}/?{query}")
                 # The first frames: wait until the client has shown one and is idle.

@@ -83,17 +83,17 @@ class AllowMethods:
         method = scope["method"]
         headers = dict(scope.get("headers") or [])
         if method == "OPTIONS" and b"access-control-request-method" in headers and b"origin" in headers:
-            await self.app(scope, receive, send)      # a CORS preflight: CORSMiddleware's
+            await self.app(scope, receive, send)  # a CORS preflight: CORSMiddleware's
             return
         app = scope.get("app")
         if method != "OPTIONS" and takes(_routes(app), scope, method):
-            await self.app(scope, receive, send)      # the common case: one matching pass
+            await self.app(scope, receive, send)  # the common case: one matching pass
             return
         methods = allowed_methods(app, scope)
         if method == "OPTIONS" and not methods:
             await _answer(send, 404, b"", json.dumps({"detail": "Not Found"}).encode())
             return
-        if not methods or method in methods:          # a 404, or a static file's GET/HEAD
+        if not methods or method in methods:  # a 404, or a static file's GET/HEAD
             await self.app(scope, receive, send)
             return
         allow = ", ".join(sorted(methods | {"OPTIONS"})).encode()

@@ -41,9 +41,9 @@ from .service import SessionService
 from .shutdown import Drain
 from .store import open_store
 
-GPU_INDEX_ENV = "GLCONTEXT_DEVICE_INDEX"   # glcontext's EGL backend picks its GPU by this index
+GPU_INDEX_ENV = "GLCONTEXT_DEVICE_INDEX"  # glcontext's EGL backend picks its GPU by this index
 
-WARMUP_SIDE = 16       # pixels: the warm-up frame only has to compile the default shader
+WARMUP_SIDE = 16  # pixels: the warm-up frame only has to compile the default shader
 WARMUP_SPHERES = 16
 
 
@@ -63,11 +63,14 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         if config.gpu is not None:
             os.environ[GPU_INDEX_ENV] = str(config.gpu)
-        sys.setswitchinterval(config.switch_interval_s)   # the event loop's turn between busy threads
+        sys.setswitchinterval(config.switch_interval_s)  # the event loop's turn between busy threads
         store = open_store(config)
-        worker = GLWorker(config.queue_size, warmup=warmup_render if config.warmup else None,
-                          renderer_factory=lambda: default_renderer(config.max_target_bytes),
-                          render_timeout_s=config.render_timeout_s)
+        worker = GLWorker(
+            config.queue_size,
+            warmup=warmup_render if config.warmup else None,
+            renderer_factory=lambda: default_renderer(config.max_target_bytes),
+            render_timeout_s=config.render_timeout_s,
+        )
         worker.start()
         app.state.config = config
         app.state.store = store
@@ -85,14 +88,20 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
             store.close()
             metrics.process_exit()
 
-    app = FastAPI(title="pocketray render service", version="0.1.0", lifespan=lifespan,
-                  description="Sessions (Model), gestures (Controller) and frames (View) of the pocketray "
-                              "ray tracer; see docs/API.md.",
-                  docs_url=None, redoc_url=None, openapi_tags=web.OPENAPI_TAGS,
-                  generate_unique_id_function=web.operation_id)
+    app = FastAPI(
+        title="pocketray render service",
+        version="0.1.0",
+        lifespan=lifespan,
+        description="Sessions (Model), gestures (Controller) and frames (View) of the pocketray "
+        "ray tracer; see docs/API.md.",
+        docs_url=None,
+        redoc_url=None,
+        openapi_tags=web.OPENAPI_TAGS,
+        generate_unique_id_function=web.operation_id,
+    )
     # add_middleware wraps what is there: the last added runs first.
     app.add_middleware(BodyLimit, max_bytes=config.max_body_bytes)
-    app.add_middleware(AllowMethods)     # OPTIONS and 405 with the path's real Allow (server/allow.py)
+    app.add_middleware(AllowMethods)  # OPTIONS and 405 with the path's real Allow (server/allow.py)
     web.install_cors(app, config.cors_origins)
     app.add_middleware(RequestContext)
     errors.install(app)

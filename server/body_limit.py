@@ -63,14 +63,24 @@ class BodyLimit:
                 replayed = True
                 return {"type": "http.request", "body": body, "more_body": False}
             return await receive()
+
         await self.app(scope, replay, send)
 
     async def _refuse(self, send, size: int) -> None:
-        detail = (f"body: request body of {size} bytes exceeds the limit of {self.max_bytes} bytes "
-                  f"(POCKETRAY_MAX_BODY_BYTES); send a scenario recipe instead of a large scene")
+        detail = (
+            f"body: request body of {size} bytes exceeds the limit of {self.max_bytes} bytes "
+            f"(POCKETRAY_MAX_BODY_BYTES); send a scenario recipe instead of a large scene"
+        )
         payload = json.dumps({"detail": detail}).encode()
-        await send({"type": "http.response.start", "status": 413,
-                    "headers": [(b"content-type", b"application/json"),
-                                (b"content-length", str(len(payload)).encode()),
-                                (b"connection", b"close")]})
+        await send(
+            {
+                "type": "http.response.start",
+                "status": 413,
+                "headers": [
+                    (b"content-type", b"application/json"),
+                    (b"content-length", str(len(payload)).encode()),
+                    (b"connection", b"close"),
+                ],
+            }
+        )
         await send({"type": "http.response.body", "body": payload})

@@ -44,9 +44,12 @@ def pan(camera: Camera, dx: float, dy: float, viewport_height: float) -> Camera:
     right, up, _ = camera.basis()
     k = world_per_pixel(camera, viewport_height)
     delta = (-float(dx) * right + float(dy) * up) * k
-    return Camera(position=tuple((np.array(camera.position) + delta).tolist()),
-                  target=tuple((np.array(camera.target) + delta).tolist()),
-                  up=camera.up, fov_y=camera.fov_y)
+    return Camera(
+        position=tuple((np.array(camera.position) + delta).tolist()),
+        target=tuple((np.array(camera.target) + delta).tolist()),
+        up=camera.up,
+        fov_y=camera.fov_y,
+    )
 
 
 def pinch(camera: Camera, scale: float, min_distance: float = 1e-3) -> Camera:
@@ -109,8 +112,7 @@ def orbit(camera: Camera, yaw: float, pitch: float) -> Camera:
     right, _, _ = camera.basis()
     offset = _rotate(offset, np.asarray(right, dtype=np.float64), pitch)
     offset = _rotate(offset, up, float(yaw))
-    return Camera(position=tuple((target + offset).tolist()), target=camera.target, up=camera.up,
-                  fov_y=camera.fov_y)
+    return Camera(position=tuple((target + offset).tolist()), target=camera.target, up=camera.up, fov_y=camera.fov_y)
 
 
 def reset(home: Camera) -> Camera:

@@ -55,20 +55,31 @@ from renderer.scene import Camera
 
 MAGIC = b"PRDD"
 FORMAT_VERSION = 1
-ALIGN = 16                     # bytes: every texture starts at a multiple of this
-HEADER_START = 12              # bytes: magic, version, header length
+ALIGN = 16  # bytes: every texture starts at a multiple of this
+HEADER_START = 12  # bytes: magic, version, header length
 DEFAULT_MAX_TEXTURE_SIZE = DEFAULT_TEXTURE_WIDTH
 
 # GL internal format of a PackedTexture by (dtype, components): what WebGL2 and moderngl create.
-INTERNAL_FORMATS = {("f4", 1): "R32F", ("f4", 2): "RG32F", ("f4", 3): "RGB32F", ("f4", 4): "RGBA32F",
-                    ("u4", 1): "R32UI", ("u4", 2): "RG32UI", ("u4", 3): "RGB32UI", ("u4", 4): "RGBA32UI"}
+INTERNAL_FORMATS = {
+    ("f4", 1): "R32F",
+    ("f4", 2): "RG32F",
+    ("f4", 3): "RGB32F",
+    ("f4", 4): "RGBA32F",
+    ("u4", 1): "R32UI",
+    ("u4", 2): "RG32UI",
+    ("u4", 3): "RGB32UI",
+    ("u4", 4): "RGBA32UI",
+}
 
 
 def camera_uniforms(camera: Camera) -> dict[str, Any]:
     """The camera terms of :func:`renderer.gpu_layout.camera_uniforms` that do not depend on
     the image size (the device sets ``u_half_extent`` and ``u_resolution`` per frame)."""
-    return {k: jsonable(v) for k, v in gpu_layout.camera_uniforms(camera, 1, 1).items()
-            if k not in ("u_half_extent", "u_resolution")}
+    return {
+        k: jsonable(v)
+        for k, v in gpu_layout.camera_uniforms(camera, 1, 1).items()
+        if k not in ("u_half_extent", "u_resolution")
+    }
 
 
 def jsonable(v: Any) -> Any:
@@ -96,9 +107,18 @@ def encode_blob(header: dict[str, Any], textures: dict[str, gpu_layout.PackedTex
     for name, tex in textures.items():
         data = np.ascontiguousarray(tex.data, dtype="<f4" if tex.dtype == "f4" else "<u4")
         w, h = tex.size
-        entries.append({"name": name, "width": w, "height": h, "components": tex.components, "dtype": tex.dtype,
-                        "internal_format": INTERNAL_FORMATS[(tex.dtype, tex.components)],
-                        "offset": 0, "nbytes": int(data.nbytes)})
+        entries.append(
+            {
+                "name": name,
+                "width": w,
+                "height": h,
+                "components": tex.components,
+                "dtype": tex.dtype,
+                "internal_format": INTERNAL_FORMATS[(tex.dtype, tex.components)],
+                "offset": 0,
+                "nbytes": int(data.nbytes),
+            }
+        )
         chunks.append(data.tobytes())
     # The offsets depend on the header's length, which depends on the offsets' digits: iterate.
     head = b""
@@ -127,11 +147,15 @@ def decode_blob(blob: bytes) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     version, n = struct.unpack_from("<II", blob, 4)
     if version != FORMAT_VERSION:
         raise ValueError(f"device-data format {version}, expected {FORMAT_VERSION}")
-    header = json.loads(blob[HEADER_START:HEADER_START + n])
+    header = json.loads(blob[HEADER_START : HEADER_START + n])
     arrays = {}
     for t in header["textures"]:
-        a = np.frombuffer(blob, dtype="<f4" if t["dtype"] == "f4" else "<u4",
-                          count=t["height"] * t["width"] * t["components"], offset=t["offset"])
+        a = np.frombuffer(
+            blob,
+            dtype="<f4" if t["dtype"] == "f4" else "<u4",
+            count=t["height"] * t["width"] * t["components"],
+            offset=t["offset"],
+        )
         arrays[t["name"]] = a.reshape(t["height"], t["width"], t["components"])
     return header, arrays
 

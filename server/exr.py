@@ -39,8 +39,7 @@ def encode_exr(result: RenderResult) -> bytes:
     """The bytes of one EXR file holding ``result``."""
     import OpenEXR
 
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage,
-              "pocketray:mode": result.mode}
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, "pocketray:mode": result.mode}
     buf = io.BytesIO()
     OpenEXR.File(header, channels(result)).write(buf)
     return buf.getvalue()

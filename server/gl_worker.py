@@ -75,12 +75,13 @@ class FrameCancelled(Exception):
 class FrameHandle:
     """A frame in flight: wait for its preview and its result, or cancel it."""
 
-    def __init__(self, worker: GLWorker, ticket: Ticket, session: Hashable, start: Callable[[Any], Any],
-                 cost_ms: float):
+    def __init__(
+        self, worker: GLWorker, ticket: Ticket, session: Hashable, start: Callable[[Any], Any], cost_ms: float
+    ):
         self.worker, self.ticket, self.session, self.start = worker, ticket, session, start
         self.cost_ms = float(cost_ms)
-        self.frame: Any = None            # the renderer's frame object, once started (GL thread)
-        self.reason: str | None = None    # why it was cancelled
+        self.frame: Any = None  # the renderer's frame object, once started (GL thread)
+        self.reason: str | None = None  # why it was cancelled
         self.started_at: float | None = None
         self._done = threading.Event()
         self._preview_ready = threading.Event()
@@ -101,8 +102,10 @@ class FrameHandle:
     def poll(self, preview: bool, timeout_s: float | None) -> bool:
         """Wait up to ``timeout_s`` for the frame to finish (or, with ``preview``, for its first
         image); True when it is there. Nothing is cancelled by a timeout here."""
+
         def ready() -> bool:
             return self._done.is_set() or (preview and self._preview_ready.is_set())
+
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
         with self._changed:
             while not ready():
@@ -139,7 +142,7 @@ class FrameHandle:
         if self.poll(preview, timeout_s):
             return
         self.cancel("timeout")
-        self._done.wait(5.0)              # the GL thread drops it at the end of its slice
+        self._done.wait(5.0)  # the GL thread drops it at the end of its slice
         if not self._done.is_set():
             self._finish(error=FrameCancelled("timeout"))
 
@@ -175,8 +178,13 @@ class GLWorker:
     is what :attr:`saturated` compares the queued work with.
     """
 
-    def __init__(self, queue_size: int, warmup: Callable[[Any], None] | None = None,
-                 renderer_factory: Callable[[], Any] | None = None, render_timeout_s: float = 120.0):
+    def __init__(
+        self,
+        queue_size: int,
+        warmup: Callable[[Any], None] | None = None,
+        renderer_factory: Callable[[], Any] | None = None,
+        render_timeout_s: float = 120.0,
+    ):
         self.queue_size = queue_size
         self.render_timeout_s = render_timeout_s
         self._warmup = warmup
@@ -186,9 +194,9 @@ class GLWorker:
         self._admitted = 0
         self._calls: deque[tuple[Callable[[Any], Any], Future]] = deque()
         self._starting: deque[FrameHandle] = deque()
-        self._frames: OrderedDict[Hashable, deque[FrameHandle]] = OrderedDict()   # round-robin by session
+        self._frames: OrderedDict[Hashable, deque[FrameHandle]] = OrderedDict()  # round-robin by session
         self._closing = False
-        self._avg_call_s = 0.5            # moving average of a one-shot call, for Retry-After
+        self._avg_call_s = 0.5  # moving average of a one-shot call, for Retry-After
         self.renderer: Any = None
         self.info: dict[str, str] | None = None
         self.error: str | None = None
@@ -341,7 +349,7 @@ class GLWorker:
             self._avg_call_s = 0.8 * self._avg_call_s + 0.2 * (time.perf_counter() - t0)
 
     def _start_frame(self, h: FrameHandle) -> None:
-        if h.reason is not None:        # cancelled while it waited: it never runs
+        if h.reason is not None:  # cancelled while it waited: it never runs
             metrics.render_started()
             h._finish(error=FrameCancelled(h.reason))
             return
@@ -350,7 +358,7 @@ class GLWorker:
                 raise GLNotReady(self.error or "OpenGL context not created")
             h.started_at = time.perf_counter()
             metrics.render_started()
-            h.frame = h.start(self.renderer)      # uploads: counts as a slice
+            h.frame = h.start(self.renderer)  # uploads: counts as a slice
         except BaseException as e:
             h._finish(error=e)
             h.ticket._release()
@@ -364,7 +372,7 @@ class GLWorker:
             if not self._frames:
                 return
             session, queue = next(iter(self._frames.items()))
-            self._frames.move_to_end(session)          # the next session goes next time
+            self._frames.move_to_end(session)  # the next session goes next time
             h = queue[0]
         done = False
         try:

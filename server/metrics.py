@@ -60,27 +60,51 @@ from renderer.settings import METHOD_NAMES
 
 from .view import TIMING_NAMES
 
-disable_created_metrics()   # no *_created series: they double the exposition and nobody graphs them
+disable_created_metrics()  # no *_created series: they double the exposition and nobody graphs them
 
 log = logging.getLogger("pocketray.metrics")
 
 MULTIPROC_ENV = "PROMETHEUS_MULTIPROC_DIR"
 SESSIONS_CACHE_S = 10.0
-STAGE_BUCKETS_S = (0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0,
-                   60.0, 120.0)
+STAGE_BUCKETS_S = (
+    0.0005,
+    0.001,
+    0.0025,
+    0.005,
+    0.01,
+    0.025,
+    0.05,
+    0.1,
+    0.25,
+    0.5,
+    1.0,
+    2.5,
+    5.0,
+    10.0,
+    30.0,
+    60.0,
+    120.0,
+)
 HTTP_BUCKETS_S = (0.001, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 120.0)
 
-RENDERS_ADMITTED = Gauge("pocketray_renders_admitted", "Renders admitted to the GL queue (running + waiting)",
-                         multiprocess_mode="livesum")
-RENDERS_WAITING = Gauge("pocketray_renders_waiting", "Admitted renders waiting for the GL thread",
-                        multiprocess_mode="livesum")
+RENDERS_ADMITTED = Gauge(
+    "pocketray_renders_admitted", "Renders admitted to the GL queue (running + waiting)", multiprocess_mode="livesum"
+)
+RENDERS_WAITING = Gauge(
+    "pocketray_renders_waiting", "Admitted renders waiting for the GL thread", multiprocess_mode="livesum"
+)
 RENDERS = Counter("pocketray_renders", "Frames rendered", ["method", "mode"])
-STAGE_SECONDS = Histogram("pocketray_render_stage_seconds", "Time of each stage of a frame (Server-Timing)",
-                          ["method", "mode", "stage"], buckets=STAGE_BUCKETS_S)
+STAGE_SECONDS = Histogram(
+    "pocketray_render_stage_seconds",
+    "Time of each stage of a frame (Server-Timing)",
+    ["method", "mode", "stage"],
+    buckets=STAGE_BUCKETS_S,
+)
 UNAVAILABLE = Counter("pocketray_unavailable", "503 answers by cause", ["cause"])
 HTTP_REQUESTS = Counter("pocketray_http_requests", "HTTP requests answered", ["method", "route", "status"])
-HTTP_SECONDS = Histogram("pocketray_http_request_duration_seconds", "HTTP request duration",
-                         ["method", "route"], buckets=HTTP_BUCKETS_S)
+HTTP_SECONDS = Histogram(
+    "pocketray_http_request_duration_seconds", "HTTP request duration", ["method", "route"], buckets=HTTP_BUCKETS_S
+)
 
 # The methods the API answers (server/allow.py's and OPTIONS); any other method is one label value.
 HTTP_METHODS = frozenset(("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"))
@@ -105,10 +129,18 @@ def status_label(status: int) -> str:
     return str(status) if isinstance(status, int) and 100 <= status <= 599 else OTHER
 
 
-METRIC_NAMES = ("pocketray_renders_admitted", "pocketray_renders_waiting", "pocketray_renders_total",
-                "pocketray_render_stage_seconds", "pocketray_unavailable_total", "pocketray_http_requests_total",
-                "pocketray_http_request_duration_seconds", "pocketray_sessions", "pocketray_store_bytes",
-                "pocketray_ready")
+METRIC_NAMES = (
+    "pocketray_renders_admitted",
+    "pocketray_renders_waiting",
+    "pocketray_renders_total",
+    "pocketray_render_stage_seconds",
+    "pocketray_unavailable_total",
+    "pocketray_http_requests_total",
+    "pocketray_http_request_duration_seconds",
+    "pocketray_sessions",
+    "pocketray_store_bytes",
+    "pocketray_ready",
+)
 
 
 def _safe(fn):
@@ -117,6 +149,7 @@ def _safe(fn):
             fn(*args, **kwargs)
         except Exception:  # pragma: no cover - a metric must never fail a request
             log.exception("metrics hook %s failed", fn.__name__)
+
     wrapped.__name__ = fn.__name__
     wrapped.__doc__ = fn.__doc__
     return wrapped
@@ -182,11 +215,17 @@ class _ProcessCollector:
             sessions, used = counted
             yield GaugeMetricFamily("pocketray_sessions", "Sessions in the store (not expired)", value=sessions)
             if used is not None:
-                yield GaugeMetricFamily("pocketray_store_bytes", "Bytes of the stored scenes, as the store's quota "
-                                        "(POCKETRAY_MAX_STORE_BYTES) counts them", value=used)
+                yield GaugeMetricFamily(
+                    "pocketray_store_bytes",
+                    "Bytes of the stored scenes, as the store's quota (POCKETRAY_MAX_STORE_BYTES) counts them",
+                    value=used,
+                )
         ready = getattr(self.state, "is_ready", None)
-        yield GaugeMetricFamily("pocketray_ready", "1 when /api/ready answers 200 in this process",
-                                value=1.0 if (ready() if callable(ready) else False) else 0.0)
+        yield GaugeMetricFamily(
+            "pocketray_ready",
+            "1 when /api/ready answers 200 in this process",
+            value=1.0 if (ready() if callable(ready) else False) else 0.0,
+        )
 
 
 _count_lock = threading.Lock()
@@ -205,7 +244,7 @@ def _session_count(state: Any) -> tuple[int, int | None] | None:
         try:
             n = int(store.count())
             used = int(store.used_bytes()) if hasattr(store, "used_bytes") else None
-        except Exception as e:   # the store is down: say nothing rather than a wrong number
+        except Exception as e:  # the store is down: say nothing rather than a wrong number
             log.warning("metrics: cannot count sessions: %s", e)
             return None
         state._metrics_sessions = (now, (n, used))
@@ -241,8 +280,12 @@ def process_exit() -> None:
 router = APIRouter(tags=["service"])
 
 
-@router.get("/metrics", response_class=Response, operation_id="metrics",
-            summary="Prometheus metrics (text exposition format)",
-            responses={200: {"description": "metrics", "content": {CONTENT_TYPE_LATEST: {"schema": {"type": "string"}}}}})
+@router.get(
+    "/metrics",
+    response_class=Response,
+    operation_id="metrics",
+    summary="Prometheus metrics (text exposition format)",
+    responses={200: {"description": "metrics", "content": {CONTENT_TYPE_LATEST: {"schema": {"type": "string"}}}}},
+)
 def metrics(request: Request) -> Response:
     return Response(exposition(request.app.state), media_type=CONTENT_TYPE_LATEST)

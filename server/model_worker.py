@@ -40,7 +40,7 @@ from pathlib import Path
 from typing import Any
 
 _HEADER = struct.Struct("<Q")
-START_TIMEOUT_S = 60.0      # a fresh worker imports numpy and trimesh: seconds on a loaded machine
+START_TIMEOUT_S = 60.0  # a fresh worker imports numpy and trimesh: seconds on a loaded machine
 
 
 class ParsersBusy(Exception):
@@ -56,14 +56,24 @@ class _Worker:
     """One worker process and its two pipes."""
 
     def __init__(self, memory_bytes: int, cpu_s: float):
-        root = str(Path(__file__).resolve().parent.parent)      # where the renderer and server packages are
-        env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1",
-                   MALLOC_ARENA_MAX="2", PYTHONPATH=os.pathsep.join(
-                       [root] + ([os.environ["PYTHONPATH"]] if os.environ.get("PYTHONPATH") else [])))
-        self.proc = subprocess.Popen([sys.executable, "-m", "server.model_worker", str(memory_bytes), repr(cpu_s)],
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                                     env=env, close_fds=True)
-        assert self.proc.stdin is not None and self.proc.stdout is not None    # both piped
+        root = str(Path(__file__).resolve().parent.parent)  # where the renderer and server packages are
+        env = dict(
+            os.environ,
+            OPENBLAS_NUM_THREADS="1",
+            OMP_NUM_THREADS="1",
+            MKL_NUM_THREADS="1",
+            MALLOC_ARENA_MAX="2",
+            PYTHONPATH=os.pathsep.join([root] + ([os.environ["PYTHONPATH"]] if os.environ.get("PYTHONPATH") else [])),
+        )
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "server.model_worker", str(memory_bytes), repr(cpu_s)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            env=env,
+            close_fds=True,
+        )
+        assert self.proc.stdin is not None and self.proc.stdout is not None  # both piped
         self.stdin, self.stdout = self.proc.stdin, self.proc.stdout
         self.ready = False
 
@@ -133,8 +143,14 @@ class ModelWorkers:
             self._all.add(w)
         return w
 
-    def load(self, data: bytes, fmt: str | None, max_triangles: int, max_vertices: int,
-             busy: Callable[..., Exception] = ParsersBusy):
+    def load(
+        self,
+        data: bytes,
+        fmt: str | None,
+        max_triangles: int,
+        max_vertices: int,
+        busy: Callable[..., Exception] = ParsersBusy,
+    ):
         """:class:`renderer.mesh_io.MeshData` of the file, or SceneError (``format`` or
         ``file``: what is wrong, a limit it exceeds, or the deadline it missed); ``busy`` (503)
         when every worker stays busy for ``timeout_s``."""
@@ -145,25 +161,36 @@ class ModelWorkers:
         try:
             w = self._idle.get(timeout=self.timeout_s)
         except queue.Empty:
-            raise busy(f"model files: all {len(self._all)} parsers busy (POCKETRAY_MODEL_WORKERS); retry",
-                       retry_after_s=max(1, round(self.timeout_s))) from None
+            raise busy(
+                f"model files: all {len(self._all)} parsers busy (POCKETRAY_MODEL_WORKERS); retry",
+                retry_after_s=max(1, round(self.timeout_s)),
+            ) from None
         healthy = False
         try:
             if not w.wait_ready():
-                raise busy(f"model files: a parser process did not start (exit status {w.proc.poll()}; "
-                           f"POCKETRAY_MODEL_MEMORY_BYTES = {self.memory_bytes >> 20} MiB must hold its imports); "
-                           "retry", retry_after_s=5)
+                raise busy(
+                    f"model files: a parser process did not start (exit status {w.proc.poll()}; "
+                    f"POCKETRAY_MODEL_MEMORY_BYTES = {self.memory_bytes >> 20} MiB must hold its imports); "
+                    "retry",
+                    retry_after_s=5,
+                )
             answer = w.run((bytes(data), ft, max_triangles, max_vertices), self.timeout_s)
             healthy = True
         except TimeoutError:
-            raise SceneError("file", f"parsing the {ft.upper()} model took longer than {self.timeout_s:g} s "
-                                     "(POCKETRAY_MODEL_TIMEOUT_S): refused") from None
+            raise SceneError(
+                "file",
+                f"parsing the {ft.upper()} model took longer than {self.timeout_s:g} s "
+                "(POCKETRAY_MODEL_TIMEOUT_S): refused",
+            ) from None
         except EOFError:
             code = w.proc.poll()
-            why = (f"more than {self.timeout_s:g} s of CPU (POCKETRAY_MODEL_TIMEOUT_S)" if code == -signal.SIGXCPU
-                   else f"more than the parser's {self.memory_bytes >> 20} MiB of memory "
-                        "(POCKETRAY_MODEL_MEMORY_BYTES)" if code == -signal.SIGKILL
-                   else f"a parser that stopped (exit status {code})")
+            why = (
+                f"more than {self.timeout_s:g} s of CPU (POCKETRAY_MODEL_TIMEOUT_S)"
+                if code == -signal.SIGXCPU
+                else f"more than the parser's {self.memory_bytes >> 20} MiB of memory (POCKETRAY_MODEL_MEMORY_BYTES)"
+                if code == -signal.SIGKILL
+                else f"a parser that stopped (exit status {code})"
+            )
             raise SceneError("file", f"the {ft.upper()} model needs {why}: refused") from None
         finally:
             if healthy:
@@ -203,12 +230,20 @@ def workers_for(config) -> ModelWorkers | None:
         return pool
 
 
-def load_model(config, data: bytes, fmt: str | None, *, max_triangles: int, max_vertices: int | None = None,
-               busy: Callable[..., Exception] = ParsersBusy):
+def load_model(
+    config,
+    data: bytes,
+    fmt: str | None,
+    *,
+    max_triangles: int,
+    max_vertices: int | None = None,
+    busy: Callable[..., Exception] = ParsersBusy,
+):
     """:func:`renderer.mesh_io.load_mesh` of an uploaded file, in a worker process (above);
     ``busy(message, retry_after_s=)`` is raised when no worker is free."""
     from renderer.limits import MAX_MESH_VERTICES
     from renderer.mesh_io import load_mesh
+
     max_vertices = MAX_MESH_VERTICES if max_vertices is None else max_vertices
     pool = workers_for(config)
     if pool is None:
@@ -228,8 +263,9 @@ def _close_all() -> None:
 # ---- the worker process ------------------------------------------------------------------------
 def _serve(memory_bytes: int, cpu_s: float) -> None:
     import resource
+
     out = os.fdopen(os.dup(1), "wb")
-    os.dup2(2, 1)                      # whatever a library prints goes to stderr, not into the answers
+    os.dup2(2, 1)  # whatever a library prints goes to stderr, not into the answers
     src = os.fdopen(0, "rb")
     resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
     import gc
@@ -238,8 +274,10 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
 
     from renderer.mesh_io import load_mesh
     from renderer.scene import SceneError
+
     try:
         import ctypes
+
         trim = ctypes.CDLL("libc.so.6").malloc_trim
     except (OSError, AttributeError):
         trim = None
@@ -248,7 +286,7 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
     while True:
         head = src.read(_HEADER.size)
         if len(head) < _HEADER.size:
-            return                     # the service closed the pipe: it is gone or closing
+            return  # the service closed the pipe: it is gone or closing
         data, ft, max_triangles, max_vertices = pickle.loads(src.read(_HEADER.unpack(head)[0]))
         large = len(data) > 1 << 20
         used = sum(resource.getrusage(resource.RUSAGE_SELF)[:2])
@@ -260,12 +298,18 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
         except SceneError as e:
             message = e.message
             if "MemoryError" in message:
-                message = (f"the {ft.upper()} model needs more than the parser's {memory_bytes >> 20} MiB of memory "
-                           "(POCKETRAY_MODEL_MEMORY_BYTES)")
+                message = (
+                    f"the {ft.upper()} model needs more than the parser's {memory_bytes >> 20} MiB of memory "
+                    "(POCKETRAY_MODEL_MEMORY_BYTES)"
+                )
             answer = ("error", e.field, message)
         except MemoryError:
-            answer = ("error", "file", f"the {ft.upper()} model needs more than the parser's {memory_bytes >> 20} "
-                                       "MiB of memory (POCKETRAY_MODEL_MEMORY_BYTES)")
+            answer = (
+                "error",
+                "file",
+                f"the {ft.upper()} model needs more than the parser's {memory_bytes >> 20} "
+                "MiB of memory (POCKETRAY_MODEL_MEMORY_BYTES)",
+            )
         del data, m
         payload = pickle.dumps(answer, protocol=pickle.HIGHEST_PROTOCOL)
         del answer
@@ -273,7 +317,7 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
         out.write(payload)
         out.flush()
         del payload
-        if large:                      # give a large file's arrays back to the system (~0.1 s: not for small ones)
+        if large:  # give a large file's arrays back to the system (~0.1 s: not for small ones)
             gc.collect()
             if trim is not None:
                 trim(0)

@@ -31,7 +31,7 @@ REQUEST_ID: contextvars.ContextVar[str | None] = contextvars.ContextVar("pocketr
 SESSION_ID: contextvars.ContextVar[str | None] = contextvars.ContextVar("pocketray_session_id", default=None)
 
 REQUEST_ID_HEADER = "x-request-id"
-SESSION_HEADER = "x-session-id"   # the balancer hashes on it (deploy/haproxy.cfg); the client sends it
+SESSION_HEADER = "x-session-id"  # the balancer hashes on it (deploy/haproxy.cfg); the client sends it
 _TOKEN = re.compile(r"^[A-Za-z0-9._:-]{1,128}$")
 _SESSION_PATH = re.compile(r"^/api/sessions/([A-Za-z0-9_-]{1,64})(?:/|$)")
 _RESERVED = set(vars(logging.LogRecord("", 0, "", 0, "", (), None))) | {"message", "asctime"}
@@ -45,7 +45,9 @@ class JsonFormatter(logging.Formatter):
     def format(self, record: logging.LogRecord) -> str:
         out: dict[str, Any] = {
             "time": datetime.fromtimestamp(record.created, UTC).isoformat(timespec="milliseconds"),
-            "level": record.levelname.lower(), "logger": record.name, "message": record.getMessage(),
+            "level": record.levelname.lower(),
+            "logger": record.name,
+            "message": record.getMessage(),
         }
         rid, sid = REQUEST_ID.get(), SESSION_ID.get()
         if rid:
@@ -98,13 +100,17 @@ def uvicorn_log_config(level: str = "info", fmt: str = "json") -> dict[str, Any]
     """uvicorn's ``log_config``: its own lines (start-up, shutdown, errors) in ``fmt`` on stderr.
     Its access log is off: :class:`RequestContext` writes one line per request instead."""
     return {
-        "version": 1, "disable_existing_loggers": False,
+        "version": 1,
+        "disable_existing_loggers": False,
         "formatters": {"pocketray": {"()": f"{__name__}.{'JsonFormatter' if fmt == 'json' else 'TextFormatter'}"}},
-        "handlers": {"stderr": {"class": "logging.StreamHandler", "formatter": "pocketray",
-                                "stream": "ext://sys.stderr"}},
-        "loggers": {"uvicorn": {"handlers": ["stderr"], "level": level.upper(), "propagate": False},
-                    "uvicorn.error": {"level": level.upper()},
-                    "uvicorn.access": {"handlers": [], "level": "WARNING", "propagate": False}},
+        "handlers": {
+            "stderr": {"class": "logging.StreamHandler", "formatter": "pocketray", "stream": "ext://sys.stderr"}
+        },
+        "loggers": {
+            "uvicorn": {"handlers": ["stderr"], "level": level.upper(), "propagate": False},
+            "uvicorn.error": {"level": level.upper()},
+            "uvicorn.access": {"handlers": [], "level": "WARNING", "propagate": False},
+        },
     }
 
 
@@ -120,7 +126,7 @@ def _header(scope: dict, name: bytes) -> str | None:
 
 def route_template(scope: dict) -> str:
     """The matched route's path template (FastAPI puts the route in the scope), else a fixed label."""
-    context = (scope.get("fastapi") or {}).get("effective_route_context")   # FastAPI ≥ 0.13x: the full path
+    context = (scope.get("fastapi") or {}).get("effective_route_context")  # FastAPI ≥ 0.13x: the full path
     path = getattr(context, "path_format", None) or getattr(scope.get("route"), "path_format", None)
     if path:
         return path
@@ -149,9 +155,9 @@ class RequestContext:
         async def send_with_id(message: dict) -> None:
             if message["type"] == "http.response.start":
                 status["code"] = message["status"]
-                message = {**message, "headers": [*message.get("headers", ()),
-                                                  (b"x-request-id", rid.encode())]}
+                message = {**message, "headers": [*message.get("headers", ()), (b"x-request-id", rid.encode())]}
             await send(message)
+
         try:
             if scope["type"] == "websocket":
                 await self.app(scope, receive, send)
@@ -162,8 +168,18 @@ class RequestContext:
                 dt = time.perf_counter() - t0
                 route = route_template(scope)
                 metrics.http_request(scope["method"], route, status["code"], dt)
-                access_log.info("%s %s %d", scope["method"], scope.get("path", ""), status["code"],
-                                extra={"method": scope["method"], "path": scope.get("path", ""), "route": route,
-                                       "status": status["code"], "duration_ms": round(dt * 1e3, 2)})
+                access_log.info(
+                    "%s %s %d",
+                    scope["method"],
+                    scope.get("path", ""),
+                    status["code"],
+                    extra={
+                        "method": scope["method"],
+                        "path": scope.get("path", ""),
+                        "route": route,
+                        "status": status["code"],
+                        "duration_ms": round(dt * 1e3, 2),
+                    },
+                )
             REQUEST_ID.reset(t_rid)
             SESSION_ID.reset(t_sid)

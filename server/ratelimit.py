@@ -44,12 +44,13 @@ def client_key(host: str | None) -> str:
 class TokenBuckets:
     """``take(key)`` takes a token of ``key``'s bucket or raises :class:`RateLimited`. ``per_min`` 0: no limit."""
 
-    def __init__(self, per_min: float, burst: int, max_clients: int = 65_536,
-                 clock: Callable[[], float] = time.monotonic):
+    def __init__(
+        self, per_min: float, burst: int, max_clients: int = 65_536, clock: Callable[[], float] = time.monotonic
+    ):
         self.per_min, self.burst, self.max_clients = float(per_min), int(burst), int(max_clients)
         self.rate_s = self.per_min / 60.0
         self.clock = clock
-        self._buckets: OrderedDict[str, tuple[float, float]] = OrderedDict()   # key → (tokens, at)
+        self._buckets: OrderedDict[str, tuple[float, float]] = OrderedDict()  # key → (tokens, at)
         self._lock = threading.Lock()
 
     def take(self, key: str) -> None:

@@ -45,9 +45,10 @@ class Drain:
         def hand_over() -> None:
             if callable(previous):
                 previous(signum, frame)
-            elif previous == signal.SIG_DFL:   # nobody else handles it: the default action
+            elif previous == signal.SIG_DFL:  # nobody else handles it: the default action
                 signal.signal(signum, signal.SIG_DFL)
                 signal.raise_signal(signum)
+
         if signum == signal.SIGTERM and self.drain_s > 0 and not again:
             log.info("draining for %.1f s before stopping", self.drain_s)
             self._timer = threading.Timer(self.drain_s, hand_over)

@@ -44,19 +44,19 @@ import httpx
 
 SESSION_HEADER = "X-Session-Id"
 SERVED_BY_HEADER = "X-Served-By"
-HASH_BALANCE_FACTOR = 150      # % of the mean load a server may take before the next one is used
+HASH_BALANCE_FACTOR = 150  # % of the mean load a server may take before the next one is used
 CHECK_INTERVAL_MS = 500
-CONNECT_TIMEOUT_MS = 250       # a render process on this host or the LAN accepts within a millisecond
-CHECK_TIMEOUT_MS = 2000        # /api/ready answers from the event loop; slower than this is a hung process
-CHECK_FALL = 2                 # failed checks before a server is taken out
+CONNECT_TIMEOUT_MS = 250  # a render process on this host or the LAN accepts within a millisecond
+CHECK_TIMEOUT_MS = 2000  # /api/ready answers from the event loop; slower than this is a hung process
+CHECK_FALL = 2  # failed checks before a server is taken out
 CHECK_RISE = 1
-DRAIN_S = 3.0                  # > CHECK_FALL × CHECK_INTERVAL (a draining process fails its checks at once)
-RENDER_TIMEOUT_S = 120         # POCKETRAY_RENDER_TIMEOUT_S's default: the server timeout is above it
-RETRY_AFTER_S = 1              # the balancer's own 429/502/503/504: a process is back or the other takes over
+DRAIN_S = 3.0  # > CHECK_FALL × CHECK_INTERVAL (a draining process fails its checks at once)
+RENDER_TIMEOUT_S = 120  # POCKETRAY_RENDER_TIMEOUT_S's default: the server timeout is above it
+RETRY_AFTER_S = 1  # the balancer's own 429/502/503/504: a process is back or the other takes over
 CAP_ENV = "POCKETRAY_MAX_CONNECTIONS_PER_CLIENT"
 UNSENT_ENV = "POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT"
-RESTART_BACKOFF_S = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 30.0)   # a child's n-th restart in a row waits [n]
-STABLE_S = 30.0                # a child up this long has its restart count reset
+RESTART_BACKOFF_S = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 30.0)  # a child's n-th restart in a row waits [n]
+STABLE_S = 30.0  # a child up this long has its restart count reset
 SUPERVISE_EVERY_S = 0.1
 
 # The balancer's own answers, JSON like the service's ({"detail": …}); Retry-After where a retry helps.
@@ -64,8 +64,11 @@ SUPERVISE_EVERY_S = 0.1
 # pages; neither is worth a retry.)
 BALANCER_ERRORS = {
     429: ("balancer: too many connections from this address (at most {cap}); reuse one", True),
-    502: ("balancer: the render process stopped before it answered; this request may have been applied: "
-          "read the session before repeating it", True),
+    502: (
+        "balancer: the render process stopped before it answered; this request may have been applied: "
+        "read the session before repeating it",
+        True,
+    ),
     503: ("balancer: no render process is available; retry", True),
     504: ("balancer: the render process did not answer in time; retry", True),
 }
@@ -78,8 +81,13 @@ def default_client_cap() -> int:
     return ServerConfig.model_fields["max_connections_per_client"].default
 
 
-def haproxy_config(bind: str, servers: Sequence[tuple[str, str]], stats_bind: str | None = None,
-                   resolvers: str | None = None, client_cap: int | None = None) -> str:
+def haproxy_config(
+    bind: str,
+    servers: Sequence[tuple[str, str]],
+    stats_bind: str | None = None,
+    resolvers: str | None = None,
+    client_cap: int | None = None,
+) -> str:
     """HAProxy's configuration: the frontend on ``bind``, a backend of ``servers`` (name,
     host:port), the stats page on ``stats_bind``; ``resolvers``: a DNS server for container
     names (compose: Docker's ``127.0.0.11:53``), so a render service that starts late or moves
@@ -93,10 +101,7 @@ def haproxy_config(bind: str, servers: Sequence[tuple[str, str]], stats_bind: st
         "",
     ]
     if resolvers:
-        lines += ["resolvers docker",
-                  f"    nameserver dns {resolvers}",
-                  "    hold valid 10s",
-                  ""]
+        lines += ["resolvers docker", f"    nameserver dns {resolvers}", "    hold valid 10s", ""]
     lines += [
         "defaults",
         "    mode http",
@@ -117,8 +122,11 @@ def haproxy_config(bind: str, servers: Sequence[tuple[str, str]], stats_bind: st
     ]
     for status, (detail, retry) in BALANCER_ERRORS.items():
         body = json.dumps({"detail": detail.format(cap=cap)})
-        lines.append(f"    http-error status {status} content-type application/json string '{body}'"
-                     + (f" hdr Retry-After {RETRY_AFTER_S}" if retry else "") + " hdr Connection close")
+        lines.append(
+            f"    http-error status {status} content-type application/json string '{body}'"
+            + (f" hdr Retry-After {RETRY_AFTER_S}" if retry else "")
+            + " hdr Connection close"
+        )
     lines += [
         "",
         "frontend pocketray",
@@ -162,15 +170,25 @@ def haproxy_config(bind: str, servers: Sequence[tuple[str, str]], stats_bind: st
     ]
     lines += [f"    server {name} {address}" for name, address in servers]
     if stats_bind:
-        lines += ["", "frontend stats", f"    bind {stats_bind}", "    stats enable", "    stats uri /",
-                  "    stats refresh 5s"]
+        lines += [
+            "",
+            "frontend stats",
+            f"    bind {stats_bind}",
+            "    stats enable",
+            "    stats uri /",
+            "    stats refresh 5s",
+        ]
     return "\n".join(lines) + "\n"
 
 
 def compose_haproxy_config(renders: int = 2) -> str:
     """``deploy/haproxy.cfg``: the balancer of compose.yaml (services render0 … render{n−1} on 8000)."""
-    return haproxy_config(":8000", [(f"render{i}", f"render{i}:8000") for i in range(renders)],
-                          stats_bind=":8404", resolvers="127.0.0.11:53")
+    return haproxy_config(
+        ":8000",
+        [(f"render{i}", f"render{i}:8000") for i in range(renders)],
+        stats_bind=":8404",
+        resolvers="127.0.0.11:53",
+    )
 
 
 def free_port() -> int:
@@ -180,8 +198,9 @@ def free_port() -> int:
 
 
 def find_executable(name: str) -> str:
-    exe = shutil.which(name) or next((p for p in (f"/usr/sbin/{name}", f"/usr/bin/{name}") if os.access(p, os.X_OK)),
-                                     None)
+    exe = shutil.which(name) or next(
+        (p for p in (f"/usr/sbin/{name}", f"/usr/bin/{name}") if os.access(p, os.X_OK)), None
+    )
     if exe is None:
         raise RuntimeError(f"{name} is not installed (scripts/bootstrap.sh installs it: apt-get install {name})")
     return exe
@@ -196,13 +215,14 @@ class Child:
     proc: subprocess.Popen | None = None
     port: int = 0
     started_at: float = 0.0
-    restarts: int = 0             # restarts in a row (reset once it stayed up STABLE_S)
+    restarts: int = 0  # restarts in a row (reset once it stayed up STABLE_S)
     restart_at: float | None = None
 
     def start(self) -> Child:
         log = open(self.log_path, "ab")
-        self.proc = subprocess.Popen(self.args, stdout=log, stderr=subprocess.STDOUT, env=self.env,
-                                     start_new_session=True)
+        self.proc = subprocess.Popen(
+            self.args, stdout=log, stderr=subprocess.STDOUT, env=self.env, start_new_session=True
+        )
         log.close()
         self.started_at = time.monotonic()
         return self
@@ -222,7 +242,7 @@ class Child:
             return ""
 
     def stop(self, sig: int = signal.SIGTERM, timeout_s: float = 20.0) -> None:
-        proc = self.proc          # this process, not one the supervisor may start meanwhile
+        proc = self.proc  # this process, not one the supervisor may start meanwhile
         if proc is None or proc.poll() is not None:
             return
         proc.send_signal(sig)
@@ -236,17 +256,18 @@ class Child:
 @dataclass
 class Stack:
     """Redis + ``processes`` render processes + HAProxy on loopback; ``start()`` / ``stop()``."""
+
     processes: int = 2
-    port: int = 0                          # the balancer's (0: a free one)
-    workdir: Path | None = None            # logs, redis' AOF, haproxy.cfg (default: a temp dir)
-    env: dict[str, str] = field(default_factory=dict)   # extra POCKETRAY_* for the render processes
+    port: int = 0  # the balancer's (0: a free one)
+    workdir: Path | None = None  # logs, redis' AOF, haproxy.cfg (default: a temp dir)
+    env: dict[str, str] = field(default_factory=dict)  # extra POCKETRAY_* for the render processes
     drain_s: float = DRAIN_S
-    supervise: bool = True                 # restart a child that exits (with back-off) until stop()
+    supervise: bool = True  # restart a child that exits (with back-off) until stop()
     say: Callable[[str], None] = field(default=lambda line: print(line, file=sys.stderr, flush=True))
     redis: Child | None = None
     renders: list[Child] = field(default_factory=list)
     haproxy: Child | None = None
-    restarted: list[tuple[str, int | None]] = field(default_factory=list)   # (child, its exit status), in order
+    restarted: list[tuple[str, int | None]] = field(default_factory=list)  # (child, its exit status), in order
     _own_dir: bool = False
     _stopping: threading.Event = field(default_factory=threading.Event)
     _supervisor: threading.Thread | None = None
@@ -316,8 +337,10 @@ class Stack:
                 if child.restart_at is None:
                     delay = RESTART_BACKOFF_S[min(child.restarts, len(RESTART_BACKOFF_S) - 1)]
                     child.restart_at = now + delay
-                    self.say(f"stack: {child.name} exited with {child.returncode}; restarting it"
-                             + (f" in {delay:g} s" if delay else ""))
+                    self.say(
+                        f"stack: {child.name} exited with {child.returncode}; restarting it"
+                        + (f" in {delay:g} s" if delay else "")
+                    )
                 if now >= child.restart_at and not self._stopping.is_set():
                     self.restarted.append((child.name, child.returncode))
                     child.restarts += 1
@@ -331,10 +354,28 @@ class Stack:
         import redis
 
         port = free_port()
-        self.redis = Child("redis", [find_executable("redis-server"), "--port", str(port), "--bind", "127.0.0.1",
-                                     "--dir", str(self.workdir), "--appendonly", "yes", "--appendfsync", "always",
-                                     "--save", "", "--protected-mode", "yes"],
-                           self._dir / "redis.log", port=port).start()
+        self.redis = Child(
+            "redis",
+            [
+                find_executable("redis-server"),
+                "--port",
+                str(port),
+                "--bind",
+                "127.0.0.1",
+                "--dir",
+                str(self.workdir),
+                "--appendonly",
+                "yes",
+                "--appendfsync",
+                "always",
+                "--save",
+                "",
+                "--protected-mode",
+                "yes",
+            ],
+            self._dir / "redis.log",
+            port=port,
+        ).start()
         client = redis.Redis(host="127.0.0.1", port=port)
         deadline = time.monotonic() + timeout_s
         while True:
@@ -352,15 +393,33 @@ class Stack:
         # Every connection a render process sees is the balancer's: its per-address cap is the balancer's job.
         # So is the count of answer bytes not taken per address (the balancer buffers answers).
         env = {**os.environ, **self.env, CAP_ENV: "0", UNSENT_ENV: "0"}
-        args = [sys.executable, "-m", "server", "serve", "--host", "127.0.0.1", "--port", str(port),
-                "--state-backend", "redis", "--redis-url", self.redis_url, "--drain-s", str(self.drain_s)]
+        args = [
+            sys.executable,
+            "-m",
+            "server",
+            "serve",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--state-backend",
+            "redis",
+            "--redis-url",
+            self.redis_url,
+            "--drain-s",
+            str(self.drain_s),
+        ]
         return Child(f"render{i}", args, self._dir / f"render{i}.log", env=env, port=port).start()
 
     def _start_haproxy(self, timeout_s: float) -> None:
         cfg = self._dir / "haproxy.cfg"
-        cfg.write_text(haproxy_config(f"127.0.0.1:{self.port}",
-                                      [(c.name, f"127.0.0.1:{c.port}") for c in self.renders],
-                                      client_cap=self.client_cap))
+        cfg.write_text(
+            haproxy_config(
+                f"127.0.0.1:{self.port}",
+                [(c.name, f"127.0.0.1:{c.port}") for c in self.renders],
+                client_cap=self.client_cap,
+            )
+        )
         exe = find_executable("haproxy")
         check = subprocess.run([exe, "-c", "-f", str(cfg)], capture_output=True, text=True)
         if check.returncode != 0:
@@ -373,8 +432,9 @@ class Stack:
         seen: set[str] = set()
         while seen != {c.name for c in self.renders}:
             if time.monotonic() > deadline:
-                raise RuntimeError(f"the balancer never reached every process (saw {sorted(seen)}): "
-                                   f"{self.haproxy.log_tail()}")
+                raise RuntimeError(
+                    f"the balancer never reached every process (saw {sorted(seen)}): {self.haproxy.log_tail()}"
+                )
             try:
                 r = httpx.get(self.url + "/api/health", timeout=5.0)
                 seen.add(r.headers.get(SERVED_BY_HEADER, ""))
@@ -406,10 +466,10 @@ class Stack:
         if self._supervisor is not None:
             self._supervisor.join()
         if self.haproxy is not None:
-            self.haproxy.stop(signal.SIGTERM)   # haproxy -db: SIGTERM is a hard stop, SIGUSR1 a soft one
+            self.haproxy.stop(signal.SIGTERM)  # haproxy -db: SIGTERM is a hard stop, SIGUSR1 a soft one
         for child in self.renders:
             if child.proc is not None and child.alive:
-                child.proc.send_signal(signal.SIGINT)   # no drain needed: the balancer is gone
+                child.proc.send_signal(signal.SIGINT)  # no drain needed: the balancer is gone
         for child in self.renders:
             child.stop(signal.SIGTERM, timeout_s=30)
         if self.redis is not None:
@@ -425,26 +485,31 @@ class Stack:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="pocketray stack", description="Redis, render processes and HAProxy on "
-                                                                    "loopback ports, until Ctrl-C")
+    p = argparse.ArgumentParser(
+        prog="pocketray stack", description="Redis, render processes and HAProxy on loopback ports, until Ctrl-C"
+    )
     p.add_argument("--processes", type=int, default=2, help="render processes (default 2)")
     p.add_argument("--port", type=int, default=8080, help="the balancer's port (default 8080)")
     p.add_argument("--dir", type=Path, default=None, help="logs, Redis' AOF, haproxy.cfg (default: var/stack)")
     args = p.parse_args(argv)
     stack = Stack(processes=args.processes, port=args.port, workdir=args.dir or Path.cwd() / "var" / "stack")
-    print(f"stack: starting redis, {args.processes} render processes and haproxy in {stack.workdir} …",
-          file=sys.stderr)
+    print(f"stack: starting redis, {args.processes} render processes and haproxy in {stack.workdir} …", file=sys.stderr)
     stack.start()
-    print(f"stack: the balancer is {stack.url} (Redis {stack.redis_url}; render processes "
-          + ", ".join(f"{c.name} :{c.port}" for c in stack.renders) + "); Ctrl-C stops everything", file=sys.stderr)
+    print(
+        f"stack: the balancer is {stack.url} (Redis {stack.redis_url}; render processes "
+        + ", ".join(f"{c.name} :{c.port}" for c in stack.renders)
+        + "); Ctrl-C stops everything",
+        file=sys.stderr,
+    )
     stop = {"now": False}
 
     def on_signal(signum: int, frame: object) -> None:
         stop["now"] = True
+
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
     try:
-        while not stop["now"]:   # the supervisor restarts a child that exits
+        while not stop["now"]:  # the supervisor restarts a child that exits
             time.sleep(0.2)
     finally:
         stack.stop()

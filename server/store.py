@@ -75,6 +75,7 @@ class StoreCorrupt(StoreUnavailable):
 @dataclass(frozen=True)
 class SessionState:
     """What the Model keeps of one session (JSON-able; units as in the API)."""
+
     id: str
     version: int
     camera: dict[str, Any]
@@ -92,7 +93,7 @@ class SessionState:
     def from_json(text: str | bytes) -> SessionState:
         try:
             return SessionState(**json.loads(text))
-        except (ValueError, TypeError) as e:      # a record someone else wrote, or a torn one
+        except (ValueError, TypeError) as e:  # a record someone else wrote, or a torn one
             raise StoreUnavailable(f"holding a session record that does not decode ({type(e).__name__})") from None
 
 
@@ -170,8 +171,10 @@ END;
 # written with an upsert (an UPDATE) rather than INSERT OR REPLACE, whose implicit delete fires
 # no trigger unless recursive triggers are on. The counter is recounted at every open, so a file
 # written by a version without it (or edited by hand) starts right.
-_UPSERT_SCENE = ("INSERT INTO scenes (id, rev, source) VALUES (?, ?, ?) "
-                 "ON CONFLICT(id) DO UPDATE SET rev = excluded.rev, source = excluded.source")
+_UPSERT_SCENE = (
+    "INSERT INTO scenes (id, rev, source) VALUES (?, ?, ?) "
+    "ON CONFLICT(id) DO UPDATE SET rev = excluded.rev, source = excluded.source"
+)
 SQLITE_HEADER = b"SQLite format 3\x00"
 
 
@@ -189,15 +192,21 @@ class SQLiteStore:
     ``max_bytes``: the quota of all scene sources, bytes (0: none).
     """
 
-    def __init__(self, path: Path | str, ttl_s: float, touch_interval_s: float | None = None,
-                 on_corrupt: str = "refuse", max_bytes: int = 0):
+    def __init__(
+        self,
+        path: Path | str,
+        ttl_s: float,
+        touch_interval_s: float | None = None,
+        on_corrupt: str = "refuse",
+        max_bytes: int = 0,
+    ):
         self.path = Path(path)
         self.max_bytes = int(max_bytes)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.ttl_s = float(ttl_s)
         self.touch_interval_s = min(60.0, self.ttl_s / 10.0) if touch_interval_s is None else touch_interval_s
         self._lock = threading.Lock()
-        self._lost: str | None = None          # why the file is no longer the one opened
+        self._lost: str | None = None  # why the file is no longer the one opened
         self._reported = False
         if not self.path.exists():
             log.info("session store %s does not exist: starting with an empty one", self.path)
@@ -208,17 +217,23 @@ class SQLiteStore:
                 raise StoreStartupError(
                     f"the session store {self.path} is not a readable SQLite database ({e}). Move it aside "
                     f"(mv {self.path} {self.path}.corrupt) to start with an empty store, or set "
-                    "POCKETRAY_SQLITE_ON_CORRUPT=move_aside to have that done at start-up") from None
+                    "POCKETRAY_SQLITE_ON_CORRUPT=move_aside to have that done at start-up"
+                ) from None
             aside = self.path.with_name(f"{self.path.name}.corrupt-{int(time.time())}")
             for suffix in ("", "-wal", "-shm"):
                 part = Path(str(self.path) + suffix)
                 if part.exists():
                     part.rename(Path(str(aside) + suffix))
-            log.error("the session store %s was not a readable SQLite database (%s): moved it to %s and started "
-                      "with an empty store (POCKETRAY_SQLITE_ON_CORRUPT=move_aside)", self.path, e, aside)
+            log.error(
+                "the session store %s was not a readable SQLite database (%s): moved it to %s and started "
+                "with an empty store (POCKETRAY_SQLITE_ON_CORRUPT=move_aside)",
+                self.path,
+                e,
+                aside,
+            )
             self._db = self._open()
         self._identity = self._file_identity()
-        self._fd = os.open(self.path, os.O_RDONLY)      # to read the header of the file opened
+        self._fd = os.open(self.path, os.O_RDONLY)  # to read the header of the file opened
 
     def _open(self) -> sqlite3.Connection:
         db = sqlite3.connect(str(self.path), isolation_level=None, check_same_thread=False, timeout=10.0)
@@ -231,8 +246,10 @@ class SQLiteStore:
             if check != "ok":
                 raise sqlite3.DatabaseError(f"quick_check: {check}")
             db.execute("BEGIN IMMEDIATE")
-            db.execute("INSERT OR REPLACE INTO usage (k, bytes) "
-                       "VALUES ('scenes', (SELECT COALESCE(SUM(length(source)), 0) FROM scenes))")
+            db.execute(
+                "INSERT OR REPLACE INTO usage (k, bytes) "
+                "VALUES ('scenes', (SELECT COALESCE(SUM(length(source)), 0) FROM scenes))"
+            )
             db.execute("COMMIT")
         except sqlite3.DatabaseError as e:
             db.close()
@@ -256,12 +273,16 @@ class SQLiteStore:
             self._lost = "overwritten (it is no SQLite database any more)"
         if self._lost is not None and not self._reported:
             self._reported = True
-            log.error("session store %s was %s while the service ran: every request now answers 503; restart "
-                      "the service (it opens the file found then; docs/API.md, 'Store faults')",
-                      self.path, self._lost)
+            log.error(
+                "session store %s was %s while the service ran: every request now answers 503; restart "
+                "the service (it opens the file found then; docs/API.md, 'Store faults')",
+                self.path,
+                self._lost,
+            )
         if self._lost is not None:
-            raise StoreUnavailable(f"unavailable: its file was {self._lost} while the service ran; the operator "
-                                   "must restart the service")
+            raise StoreUnavailable(
+                f"unavailable: its file was {self._lost} while the service ran; the operator must restart the service"
+            )
 
     # One connection, one lock: each method is one short transaction.
     def _tx(self, fn: Callable[[sqlite3.Connection], Any]) -> Any:
@@ -274,7 +295,7 @@ class SQLiteStore:
                 try:
                     self._db.execute("ROLLBACK")
                 except sqlite3.Error:
-                    pass            # the transaction is gone with the error that ended it
+                    pass  # the transaction is gone with the error that ended it
                 raise
             self._db.execute("COMMIT")
             return out
@@ -315,9 +336,11 @@ class SQLiteStore:
         def tx(db: sqlite3.Connection) -> None:
             self._purge(db, now)
             self._check_quota(db, state.id, source, now)
-            db.execute("INSERT INTO sessions (id, state, accessed_at) VALUES (?, ?, ?)",
-                       (state.id, state.to_json(), now))
+            db.execute(
+                "INSERT INTO sessions (id, state, accessed_at) VALUES (?, ?, ?)", (state.id, state.to_json(), now)
+            )
             db.execute(_UPSERT_SCENE, (state.id, state.scene_rev, source))
+
         self._tx(tx)
 
     def get(self, session_id: str) -> SessionState | None:
@@ -329,6 +352,7 @@ class SQLiteStore:
                 db.execute("UPDATE sessions SET accessed_at = ? WHERE id = ?", (now, session_id))
                 st = replace(st, accessed_at=now)
             return st
+
         return self._tx(tx)
 
     def get_source(self, session_id: str) -> tuple[str, bytes] | None:
@@ -339,6 +363,7 @@ class SQLiteStore:
                 return None
             row = db.execute("SELECT rev, source FROM scenes WHERE id = ?", (session_id,)).fetchone()
             return None if row is None else (row[0], bytes(row[1]))
+
         return self._tx(tx)
 
     def update(self, session_id: str, mutate: Mutation, source: bytes | None = None) -> SessionState | None:
@@ -351,11 +376,11 @@ class SQLiteStore:
             new = _bumped(old, mutate(old), now)
             if source is not None:
                 self._check_quota(db, session_id, source, now)
-            db.execute("UPDATE sessions SET state = ?, accessed_at = ? WHERE id = ?",
-                       (new.to_json(), now, session_id))
+            db.execute("UPDATE sessions SET state = ?, accessed_at = ? WHERE id = ?", (new.to_json(), now, session_id))
             if source is not None:
                 db.execute(_UPSERT_SCENE, (session_id, new.scene_rev, source))
             return new
+
         return self._tx(tx)
 
     def delete(self, session_id: str) -> bool:
@@ -363,6 +388,7 @@ class SQLiteStore:
             n = db.execute("DELETE FROM sessions WHERE id = ?", (session_id,)).rowcount
             db.execute("DELETE FROM scenes WHERE id = ?", (session_id,))
             return n > 0
+
         return self._tx(tx)
 
     def _purge(self, db: sqlite3.Connection, now: float) -> None:
@@ -385,13 +411,14 @@ class SQLiteStore:
             def tx(db: sqlite3.Connection) -> Any:
                 db.execute("INSERT OR REPLACE INTO probe (k, v) VALUES ('ready', ?)", (now,))
                 return db.execute("SELECT v FROM probe WHERE k = 'ready'").fetchone()
+
             if self._tx(tx) != (now,):
                 return "sqlite: the probe record read back differs from the one written"
         except FileNotFoundError:
             return "sqlite: the store file was deleted while the service ran; restart the service"
         except StoreUnavailable as e:
             return f"sqlite: {e}"
-        except (sqlite3.Error, OSError) as e:    # the log has the message (it may name paths)
+        except (sqlite3.Error, OSError) as e:  # the log has the message (it may name paths)
             log.error("session store probe failed: %s: %s", type(e).__name__, e)
             return f"sqlite: {type(e).__name__}"
         return None
@@ -399,8 +426,9 @@ class SQLiteStore:
     def count(self) -> int:
         """Sessions not yet expired (the /metrics gauge)."""
         with self._lock:
-            return self._db.execute("SELECT COUNT(*) FROM sessions WHERE accessed_at >= ?",
-                                    (time.time() - self.ttl_s,)).fetchone()[0]
+            return self._db.execute(
+                "SELECT COUNT(*) FROM sessions WHERE accessed_at >= ?", (time.time() - self.ttl_s,)
+            ).fetchone()[0]
 
     def used_bytes(self) -> int:
         """Bytes of the stored scene sources, the quota's count (expired sessions not yet purged too)."""
@@ -479,9 +507,16 @@ class RedisStore:
     # Sessions whose scene key this process refreshed lately (bounded; an entry only saves a PEXPIRE).
     SCENE_TOUCHES = 4096
 
-    def __init__(self, url: str, ttl_s: float, prefix: str = "pocketray:",
-                 touch_interval_s: float | None = None, max_retries: int = 16, max_bytes: int = 0,
-                 timeout_s: float = 5.0):
+    def __init__(
+        self,
+        url: str,
+        ttl_s: float,
+        prefix: str = "pocketray:",
+        touch_interval_s: float | None = None,
+        max_retries: int = 16,
+        max_bytes: int = 0,
+        timeout_s: float = 5.0,
+    ):
         import redis
 
         self._redis_module = redis
@@ -499,9 +534,21 @@ class RedisStore:
         return f"{self.prefix}state:{session_id}", f"{self.prefix}scene:{session_id}"
 
     def _put_args(self, state: SessionState, source: bytes, new_scene: bool) -> list[Any]:
-        return [_REDIS_PUT, 5, *self._keys(state.id), *self._usage_keys,
-                state.id, state.to_json(), state.scene_rev, source, self.ttl_ms, self.max_bytes,
-                int(time.time() * 1000), f"{self.prefix}scene:", "1" if new_scene else "0"]
+        return [
+            _REDIS_PUT,
+            5,
+            *self._keys(state.id),
+            *self._usage_keys,
+            state.id,
+            state.to_json(),
+            state.scene_rev,
+            source,
+            self.ttl_ms,
+            self.max_bytes,
+            int(time.time() * 1000),
+            f"{self.prefix}scene:",
+            "1" if new_scene else "0",
+        ]
 
     def _written(self, result: Any, wanted: int) -> None:
         """StoreFull when the put script refused (``{0, used}``)."""
@@ -515,7 +562,7 @@ class RedisStore:
 
     def get(self, session_id: str) -> SessionState | None:
         k_state, k_scene = self._keys(session_id)
-        raw = self.client.getex(k_state, px=self.ttl_ms)     # the read refreshes the idle TTL itself
+        raw = self.client.getex(k_state, px=self.ttl_ms)  # the read refreshes the idle TTL itself
         if raw is None:
             return None
         st = SessionState.from_json(raw)
@@ -527,7 +574,7 @@ class RedisStore:
                 self._scene_touched.move_to_end(session_id)
                 while len(self._scene_touched) > self.SCENE_TOUCHES:
                     self._scene_touched.popitem(last=False)
-        if due:      # the scene key lives as long as its state: refreshed at most every touch interval
+        if due:  # the scene key lives as long as its state: refreshed at most every touch interval
             self.client.pexpire(k_scene, self.ttl_ms)
         return st
 
@@ -553,7 +600,7 @@ class RedisStore:
                     old = SessionState.from_json(raw)
                     new = _bumped(old, mutate(old), now)
                     p.multi()
-                    if source is not None:    # state, scene and byte count written (or refused) together
+                    if source is not None:  # state, scene and byte count written (or refused) together
                         p.eval(*self._put_args(new, source, False))
                         result = p.execute()[0]
                         self._written(result, len(source))
@@ -564,8 +611,9 @@ class RedisStore:
                     return new
                 except self._redis_module.WatchError:
                     continue  # someone else changed it first: read again and redo
-        raise StoreUnavailable(f"busy: this session was changed by others {self.max_retries + 1} times while "
-                               "this change was computed")
+        raise StoreUnavailable(
+            f"busy: this session was changed by others {self.max_retries + 1} times while this change was computed"
+        )
 
     def delete(self, session_id: str) -> bool:
         return int(self.client.eval(_REDIS_DELETE, 5, *self._keys(session_id), *self._usage_keys, session_id)) > 0
@@ -581,7 +629,7 @@ class RedisStore:
                 p.set(key, token, px=60_000)
                 p.get(key)
                 _, got = p.execute()
-        except self._redis_module.RedisError as e:   # the log has the message (it names the server)
+        except self._redis_module.RedisError as e:  # the log has the message (it names the server)
             log.error("session store probe failed: %s: %s", type(e).__name__, e)
             return f"redis: {type(e).__name__}"
         return None if got is not None and got.decode() == token else "redis: the probe key read back differs"
@@ -601,8 +649,14 @@ class RedisStore:
 def open_store(config) -> SessionStore:
     """The backend ``config.state_backend`` names (see :class:`server.config.ServerConfig`)."""
     if config.state_backend == "redis":
-        return RedisStore(config.redis_url, config.session_ttl_s, config.redis_prefix,
-                          max_retries=config.redis_max_retries, max_bytes=config.max_store_bytes,
-                          timeout_s=config.redis_timeout_s)
-    return SQLiteStore(config.sqlite_path, config.session_ttl_s, on_corrupt=config.sqlite_on_corrupt,
-                       max_bytes=config.max_store_bytes)
+        return RedisStore(
+            config.redis_url,
+            config.session_ttl_s,
+            config.redis_prefix,
+            max_retries=config.redis_max_retries,
+            max_bytes=config.max_store_bytes,
+            timeout_s=config.redis_timeout_s,
+        )
+    return SQLiteStore(
+        config.sqlite_path, config.session_ttl_s, on_corrupt=config.sqlite_on_corrupt, max_bytes=config.max_store_bytes
+    )

@@ -33,8 +33,10 @@ CORS_MAX_AGE_S = 600
 
 OPENAPI_TAGS = [
     {"name": "sessions", "description": "The Model: a session's scene, camera and render defaults"},
-    {"name": "frames", "description": "The View and the Controller: gestures, frames, build statistics, "
-                                      "stateless renders"},
+    {
+        "name": "frames",
+        "description": "The View and the Controller: gestures, frames, build statistics, stateless renders",
+    },
     {"name": "device", "description": "On-device rendering: packed scene data and the tracer's GLSL"},
     {"name": "service", "description": "Liveness, readiness, capabilities, metrics"},
 ]
@@ -59,10 +61,14 @@ def install_docs(app: FastAPI) -> None:
 
     @app.get("/docs", include_in_schema=False)
     def swagger_ui() -> HTMLResponse:
-        return get_swagger_ui_html(openapi_url=openapi_url, title=f"{title} — Swagger UI",
-                                   swagger_js_url=f"{DOCS_ASSETS}/swagger-ui-bundle.js",
-                                   swagger_css_url=f"{DOCS_ASSETS}/swagger-ui.css",
-                                   swagger_favicon_url=f"{DOCS_ASSETS}/favicon.png", oauth2_redirect_url=oauth_url)
+        return get_swagger_ui_html(
+            openapi_url=openapi_url,
+            title=f"{title} — Swagger UI",
+            swagger_js_url=f"{DOCS_ASSETS}/swagger-ui-bundle.js",
+            swagger_css_url=f"{DOCS_ASSETS}/swagger-ui.css",
+            swagger_favicon_url=f"{DOCS_ASSETS}/favicon.png",
+            oauth2_redirect_url=oauth_url,
+        )
 
     @app.get(oauth_url, include_in_schema=False)
     def swagger_ui_redirect() -> HTMLResponse:
@@ -70,13 +76,22 @@ def install_docs(app: FastAPI) -> None:
 
     @app.get("/redoc", include_in_schema=False)
     def redoc() -> HTMLResponse:
-        return get_redoc_html(openapi_url=openapi_url, title=f"{title} — ReDoc",
-                              redoc_js_url=f"{DOCS_ASSETS}/redoc.standalone.js",
-                              redoc_favicon_url=f"{DOCS_ASSETS}/favicon.png", with_google_fonts=False)
+        return get_redoc_html(
+            openapi_url=openapi_url,
+            title=f"{title} — ReDoc",
+            redoc_js_url=f"{DOCS_ASSETS}/redoc.standalone.js",
+            redoc_favicon_url=f"{DOCS_ASSETS}/favicon.png",
+            with_google_fonts=False,
+        )
 
 
 def install_cors(app: FastAPI, origins: list[str]) -> None:
     allow_all = "*" in origins
-    app.add_middleware(CORSMiddleware, allow_origins=["*"] if allow_all else list(origins),
-                       allow_methods=list(CORS_METHODS), allow_headers=list(CORS_HEADERS),
-                       expose_headers=[*EXPOSED, "X-Request-ID"], max_age=CORS_MAX_AGE_S)
+    app.add_middleware(
+        CORSMiddleware,
+        allow_origins=["*"] if allow_all else list(origins),
+        allow_methods=list(CORS_METHODS),
+        allow_headers=list(CORS_HEADERS),
+        expose_headers=[*EXPOSED, "X-Request-ID"],
+        max_age=CORS_MAX_AGE_S,
+    )

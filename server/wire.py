@@ -74,16 +74,21 @@ log = logging.getLogger("pocketray.wire")
 # h11 one, then the WebSocket one it hands over to.
 _PEERS: weakref.WeakKeyDictionary[Any, dict[str, set[Any]]] = weakref.WeakKeyDictionary()
 
-WRITE_PROGRESS = 64 * 1024   # bytes a client must take per write timeout while an answer waits for it
-WS_FEED = 4096               # bytes of WebSocket input parsed at a time (a flood is refused between slices)
+WRITE_PROGRESS = 64 * 1024  # bytes a client must take per write timeout while an answer waits for it
+WS_FEED = 4096  # bytes of WebSocket input parsed at a time (a flood is refused between slices)
 UNSENT_RETRY_AFTER_S = 1
-EXTENSION = "pocketray.wire"   # the scope extension through which a WebSocket route asks for refusal()
+EXTENSION = "pocketray.wire"  # the scope extension through which a WebSocket route asks for refusal()
 
 
 def _raw_answer(status: int, reason: str, detail: str, extra: Sequence[tuple[str, str]] = ()) -> bytes:
     body = json.dumps({"detail": detail}).encode()
-    head = [f"HTTP/1.1 {status} {reason}", "content-type: application/json", f"content-length: {len(body)}",
-            "connection: close", *(f"{k}: {v}" for k, v in extra)]
+    head = [
+        f"HTTP/1.1 {status} {reason}",
+        "content-type: application/json",
+        f"content-length: {len(body)}",
+        "connection: close",
+        *(f"{k}: {v}" for k, v in extra),
+    ]
     return ("\r\n".join(head) + "\r\n\r\n").encode() + body
 
 
@@ -125,8 +130,10 @@ def unsent_bytes(server_state: Any, host: str) -> int:
 
 
 def _unsent_detail(unsent: int, cap: int) -> str:
-    return (f"too many answer bytes not taken by this address: {unsent / 2**20:.1f} MiB (at most "
-            f"{cap / 2**20:g} MiB, POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT); read the answers you asked for first")
+    return (
+        f"too many answer bytes not taken by this address: {unsent / 2**20:.1f} MiB (at most "
+        f"{cap / 2**20:g} MiB, POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT); read the answers you asked for first"
+    )
 
 
 def refusal(scope: Mapping[str, Any]) -> dict[str, Any] | None:
@@ -140,7 +147,7 @@ def refusal(scope: Mapping[str, Any]) -> dict[str, Any] | None:
 if TYPE_CHECKING:
     import asyncio
 
-    _ProtocolBase = asyncio.Protocol   # what the mixin is mixed into: uvicorn's protocols
+    _ProtocolBase = asyncio.Protocol  # what the mixin is mixed into: uvicorn's protocols
 else:
     _ProtocolBase = object
 
@@ -185,13 +192,17 @@ class _Guard(_ProtocolBase):
         size = self.transport.get_write_buffer_size()
         if size == 0:
             return
-        if self._write_mark - size >= min(WRITE_PROGRESS, self._write_mark):   # slow, but taking
+        if self._write_mark - size >= min(WRITE_PROGRESS, self._write_mark):  # slow, but taking
             self._write_mark = size
             self._write_timer = self.loop.call_later(self.write_s, self._write_check)
             return
-        log.warning("%s: the client took %d of %d answer bytes in %g s: connection aborted "
-                    "(POCKETRAY_WRITE_TIMEOUT_S)", self._host or "?", max(0, self._write_mark - size),
-                    self._write_mark, self.write_s)
+        log.warning(
+            "%s: the client took %d of %d answer bytes in %g s: connection aborted (POCKETRAY_WRITE_TIMEOUT_S)",
+            self._host or "?",
+            max(0, self._write_mark - size),
+            self._write_mark,
+            self.write_s,
+        )
         self._write_abandoned()
         _reset(self.transport)
 
@@ -243,9 +254,15 @@ class GuardedH11Protocol(_Guard, H11Protocol):
             group = _group(self.server_state, host)
             if self.per_client and len(group) >= self.per_client:
                 log.warning("%s: over %d connections from this address: 429", host, self.per_client)
-                transport.write(_raw_answer(
-                    429, "Too Many Requests", f"too many connections from this address (at most {self.per_client}, "
-                    "POCKETRAY_MAX_CONNECTIONS_PER_CLIENT); reuse one", [("retry-after", "1")]))
+                transport.write(
+                    _raw_answer(
+                        429,
+                        "Too Many Requests",
+                        f"too many connections from this address (at most {self.per_client}, "
+                        "POCKETRAY_MAX_CONNECTIONS_PER_CLIENT); reuse one",
+                        [("retry-after", "1")],
+                    )
+                )
                 transport.close()
                 return
             group.add(self)
@@ -277,6 +294,7 @@ class GuardedH11Protocol(_Guard, H11Protocol):
         """``app`` behind the unsent-bytes cap: a request of an address over it is answered 429
         without calling the app; an answer that starts while the address is over it becomes the
         429 (its body dropped instead of buffered)."""
+
         async def admitted(scope, receive, send):
             if scope["type"] != "http":
                 return await app(scope, receive, send)
@@ -297,7 +315,9 @@ class GuardedH11Protocol(_Guard, H11Protocol):
                 elif replaced:
                     return None
                 await send(message)
+
             return await app(scope, receive, guarded_send)
+
         return admitted
 
     def _write_abandoned(self) -> None:
@@ -308,13 +328,13 @@ class GuardedH11Protocol(_Guard, H11Protocol):
     # ---- incomplete requests ------------------------------------------------------------------
     def data_received(self, data: bytes) -> None:
         if self._header_deadline is None and self.conn.their_state is h11.IDLE:
-            self._header_deadline = time.monotonic() + self.header_s    # a new request starts
+            self._header_deadline = time.monotonic() + self.header_s  # a new request starts
         super().data_received(data)
         self._arm()
 
     def on_response_complete(self) -> None:
         super().on_response_complete()
-        self._header_deadline = None    # between requests: uvicorn's keep-alive timeout
+        self._header_deadline = None  # between requests: uvicorn's keep-alive timeout
         self._arm()
 
     def _waiting_for_client(self) -> bool:
@@ -344,20 +364,27 @@ class GuardedH11Protocol(_Guard, H11Protocol):
         self._timer = None
         if self.transport.is_closing() or not self._waiting_for_client():
             return
-        if self.flow.read_paused:          # the app has not read what came: the wait is ours
+        if self.flow.read_paused:  # the app has not read what came: the wait is ours
             self._arm()
             return
         headers = self.conn.their_state is h11.IDLE
-        what = ("its headers did not arrive within the limit" if headers else
-                f"its body stopped arriving for {self.idle_s:g} s")
+        what = (
+            "its headers did not arrive within the limit"
+            if headers
+            else f"its body stopped arriving for {self.idle_s:g} s"
+        )
         log.warning("%s: request timed out, %s: 408", self.client[0] if self.client else "?", what)
         cycle = self.cycle if not headers else None
         if cycle is None or not cycle.response_started:
-            self.transport.write(_raw_answer(
-                408, "Request Timeout",
-                f"request timed out: {what} (POCKETRAY_REQUEST_IDLE_TIMEOUT_S = {self.idle_s:g} s, "
-                f"POCKETRAY_HEADER_TIMEOUT_S = {self.header_s:g} s)"))
-        if cycle is not None:              # the app stops reading and its answer goes nowhere
+            self.transport.write(
+                _raw_answer(
+                    408,
+                    "Request Timeout",
+                    f"request timed out: {what} (POCKETRAY_REQUEST_IDLE_TIMEOUT_S = {self.idle_s:g} s, "
+                    f"POCKETRAY_HEADER_TIMEOUT_S = {self.header_s:g} s)",
+                )
+            )
+        if cycle is not None:  # the app stops reading and its answer goes nowhere
             cycle.disconnected = True
             cycle.message_event.set()
         self.transport.close()
@@ -365,9 +392,17 @@ class GuardedH11Protocol(_Guard, H11Protocol):
 
 async def _send_429(send, detail: str) -> None:
     body = json.dumps({"detail": detail}).encode()
-    await send({"type": "http.response.start", "status": 429,
-                "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode()),
-                            (b"retry-after", str(UNSENT_RETRY_AFTER_S).encode())]})
+    await send(
+        {
+            "type": "http.response.start",
+            "status": 429,
+            "headers": [
+                (b"content-type", b"application/json"),
+                (b"content-length", str(len(body)).encode()),
+                (b"retry-after", str(UNSENT_RETRY_AFTER_S).encode()),
+            ],
+        }
+    )
     await send({"type": "http.response.body", "body": body, "more_body": False})
 
 
@@ -390,7 +425,7 @@ class GuardedWebSocketProtocol(_Guard, WebSocketsSansIOProtocol):
         self._last_activity = time.monotonic()
         self._receiving = False
         self._idle_timer = None
-        self._closed_here = False     # this module closed it (idle, flood, write timeout)
+        self._closed_here = False  # this module closed it (idle, flood, write timeout)
 
     def adopt(self, host: str) -> None:
         """This connection counts for ``host`` from now on (until :meth:`connection_lost`)."""
@@ -408,8 +443,8 @@ class GuardedWebSocketProtocol(_Guard, WebSocketsSansIOProtocol):
     def data_received(self, data: bytes) -> None:
         for start in range(0, len(data), WS_FEED):
             if self._closed_here or self.transport.is_closing():
-                return              # the rest is discarded unparsed
-            super().data_received(data[start:start + WS_FEED])
+                return  # the rest is discarded unparsed
+            super().data_received(data[start : start + WS_FEED])
 
     def _take_token(self) -> bool:
         now = time.monotonic()
@@ -421,10 +456,15 @@ class GuardedWebSocketProtocol(_Guard, WebSocketsSansIOProtocol):
         return True
 
     def _flooded(self) -> None:
-        log.warning("%s: WebSocket over %g messages/s (burst %d): closed 1008", self._host or "?", self.rate,
-                    self.burst)
-        self._close(1008, f"over {self.rate:g} messages/s (POCKETRAY_WS_MESSAGES_PER_S, burst "
-                          f"POCKETRAY_WS_MESSAGE_BURST = {self.burst})", fail=True)
+        log.warning(
+            "%s: WebSocket over %g messages/s (burst %d): closed 1008", self._host or "?", self.rate, self.burst
+        )
+        self._close(
+            1008,
+            f"over {self.rate:g} messages/s (POCKETRAY_WS_MESSAGES_PER_S, burst "
+            f"POCKETRAY_WS_MESSAGE_BURST = {self.burst})",
+            fail=True,
+        )
 
     def send_receive_event_to_app(self) -> None:
         if not self.close_sent and not self._take_token():
@@ -475,9 +515,10 @@ class GuardedWebSocketProtocol(_Guard, WebSocketsSansIOProtocol):
         if self.close_sent or self.transport.is_closing():
             return
         left = self._last_activity + self.ws_idle_s - time.monotonic()
-        if not self._receiving or not self.queue.empty() or left > 0:   # the service is at work, or not yet
-            self._idle_timer = self.loop.call_later(max(left, 0.05) if self._receiving else self.ws_idle_s,
-                                                    self._idle_check)
+        if not self._receiving or not self.queue.empty() or left > 0:  # the service is at work, or not yet
+            self._idle_timer = self.loop.call_later(
+                max(left, 0.05) if self._receiving else self.ws_idle_s, self._idle_check
+            )
             return
         log.info("%s: WebSocket idle for %g s: closed 1001", self._host or "?", self.ws_idle_s)
         self._close(1001, f"idle for {self.ws_idle_s:g} s (POCKETRAY_WS_IDLE_TIMEOUT_S)")
@@ -494,7 +535,7 @@ class GuardedWebSocketProtocol(_Guard, WebSocketsSansIOProtocol):
         if self._closed_here and message["type"] in ("websocket.send", "websocket.close"):
             if message["type"] == "websocket.close":
                 return
-            raise ClientDisconnected()     # the route sees WebSocketDisconnect
+            raise ClientDisconnected()  # the route sees WebSocketDisconnect
         await super().send(message)
         if message["type"] == "websocket.send":
             self._last_activity = time.monotonic()
@@ -502,7 +543,7 @@ class GuardedWebSocketProtocol(_Guard, WebSocketsSansIOProtocol):
     # ---- output ------------------------------------------------------------------------------------
     def _write_abandoned(self) -> None:
         self._closed_here = True
-        while not self.queue.empty():     # connection_lost tells the app; nothing before that
+        while not self.queue.empty():  # connection_lost tells the app; nothing before that
             self.queue.get_nowait()
 
     def _refusal_message(self) -> dict[str, Any] | None:

@@ -31,12 +31,17 @@ pytest_plugins = ("schemathesis.pytest.plugin",)
 # whose GL worker makes one). Names of tests/server/conftest.py, tests/browser/conftest.py
 # and tests/server/test_schemathesis.py: a fixture renamed there must be renamed here (a
 # CPU-only run then fails loudly on the tests it stops marking, see below).
-GL_FIXTURES = frozenset({
-    "gl_renderer",                                        # tests/conftest.py
-    "client", "ready_client", "spawn_server",             # tests/server/conftest.py
-    "api_server",                                         # tests/server/test_schemathesis.py
-    "server", "open_client",                              # tests/browser/conftest.py
-})
+GL_FIXTURES = frozenset(
+    {
+        "gl_renderer",  # tests/conftest.py
+        "client",
+        "ready_client",
+        "spawn_server",  # tests/server/conftest.py
+        "api_server",  # tests/server/test_schemathesis.py
+        "server",
+        "open_client",  # tests/browser/conftest.py
+    }
+)
 BROWSER_FIXTURES = frozenset({"browser", "open_client"})
 # What makes libglvnd's EGL find no driver, and the GLX fallback find no display.
 NO_GL_ENV = {"__EGL_VENDOR_LIBRARY_FILENAMES": "/nonexistent"}
@@ -79,8 +84,10 @@ class _NoGLForCpuOnlyRuns:
 
     def pytest_terminal_summary(self, terminalreporter):
         if self.cpu_only:
-            terminalreporter.write_line("no 'gl' test selected: ran with OpenGL made unavailable "
-                                        f"({', '.join(f'{k}={v}' for k, v in NO_GL_ENV.items())})")
+            terminalreporter.write_line(
+                "no 'gl' test selected: ran with OpenGL made unavailable "
+                f"({', '.join(f'{k}={v}' for k, v in NO_GL_ENV.items())})"
+            )
 
 
 def pytest_configure(config):

@@ -41,14 +41,19 @@ GL_ALLOWED = ("renderer.gl", "renderer.gl.*", "server.gl_worker", "server.*.gl_w
 # The core modules that may name the methods (the registry, the shader assembly, the
 # settings' method validation, the reference tracer's BIH heat mode, and a frame's
 # preparation — pose, build, cost — through the registry).
-CORE_MAY_IMPORT_ACCEL = {"renderer.methods", "renderer.shader_source", "renderer.settings",
-                         "renderer.reference", "renderer.prepare"}
+CORE_MAY_IMPORT_ACCEL = {
+    "renderer.methods",
+    "renderer.shader_source",
+    "renderer.settings",
+    "renderer.reference",
+    "renderer.prepare",
+}
 ACCEL_MUST_NOT_IMPORT = ("renderer.methods", "renderer.settings", "renderer.gl")
 
 
 @dataclass(frozen=True)
 class Import:
-    target: str   # the module depended on (internal: a module of the graph; external: as written)
+    target: str  # the module depended on (internal: a module of the graph; external: as written)
     line: int
 
 
@@ -82,8 +87,12 @@ def _literal_import(node: ast.Call) -> str | None:
     """``importlib.import_module("x")`` / ``__import__("x")`` with a literal name."""
     f = node.func
     called = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else None
-    if called in ("import_module", "__import__") and node.args and isinstance(node.args[0], ast.Constant) \
-            and isinstance(node.args[0].value, str):
+    if (
+        called in ("import_module", "__import__")
+        and node.args
+        and isinstance(node.args[0], ast.Constant)
+        and isinstance(node.args[0].value, str)
+    ):
         return node.args[0].value
     return None
 
@@ -143,7 +152,7 @@ def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
                 color[path.pop()] = 2
                 stack.pop()
             elif color[nxt] == 1:
-                return path[path.index(nxt):] + [nxt]
+                return path[path.index(nxt) :] + [nxt]
             elif color[nxt] == 0:
                 color[nxt] = 1
                 path.append(nxt)
@@ -160,6 +169,7 @@ def _in(name: str, prefix: str) -> bool:
 
 
 # --------------------------------------------------------------------------- the graph itself
+
 
 def test_the_graph_sees_relative_lazy_and_type_checking_imports():
     """The reader finds what the rules depend on (else every rule below passes vacuously)."""
@@ -197,6 +207,7 @@ def test_find_cycle_reports_the_cycle():
 
 
 # ------------------------------------------------------------------------------------- rules
+
 
 def test_no_import_cycle():
     cycle = find_cycle(internal_edges())
@@ -239,8 +250,14 @@ def _offending_chains(sources, forbidden) -> list[str]:
 
 
 def test_core_does_not_import_accel():
-    core = [n for n in modules() if _in(n, "renderer") and not _in(n, "renderer.accel")
-            and not _in(n, "renderer.gl") and n not in CORE_MAY_IMPORT_ACCEL]
+    core = [
+        n
+        for n in modules()
+        if _in(n, "renderer")
+        and not _in(n, "renderer.accel")
+        and not _in(n, "renderer.gl")
+        and n not in CORE_MAY_IMPORT_ACCEL
+    ]
     assert "renderer.scene" in core and "renderer.gpu_layout" in core
     chains = _offending_chains(core, lambda m: _in(m, "renderer.accel"))
     assert not chains, "the core imports renderer.accel:\n" + "\n".join(chains)
@@ -290,11 +307,17 @@ BLOCK_GL = textwrap.dedent("""
 def test_gl_free_modules_import_without_moderngl():
     gl_free = sorted(n for n in modules() if _in(n, "renderer") and not _in(n, "renderer.gl"))
     assert "renderer.accel.bih" in gl_free and "renderer.reference" in gl_free
-    proc = subprocess.run([sys.executable, "-c", BLOCK_GL, str(ROOT), json.dumps(gl_free)],
-                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-c", BLOCK_GL, str(ROOT), json.dumps(gl_free)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout.splitlines()[-1])
     assert out["blocked"], "the meta-path blocker did not stop `import moderngl`"
     assert not out["failures"], "need OpenGL although outside renderer/gl/:\n" + "\n".join(
-        f"{k}:\n{v}" for k, v in out["failures"].items())
+        f"{k}:\n{v}" for k, v in out["failures"].items()
+    )
     assert out["gl_loaded"] == []

@@ -74,7 +74,7 @@ def exists(path: str) -> bool:
     path = path.rstrip("/")
     for pkg, src in ALIASES.items():
         if (path + "/").startswith(pkg):
-            path = src + path[len(pkg):]
+            path = src + path[len(pkg) :]
     pattern = re.sub(r"<[^>]*>", "*", path)
     if "*" in pattern or "{" in pattern:
         glob = re.escape(pattern).replace(r"\*", "[^/]*")
@@ -121,12 +121,13 @@ def module_has(dotted: str) -> bool:
             elif isinstance(node, (ast.If, ast.Try)):
                 out.update(names(node.body))
         return out
+
     found = names(tree.body).get(rest[0])
     if found is None:
         return False
     if len(rest) > 1 and isinstance(found, ast.ClassDef):
         members = names(found.body)
-        for n in ast.walk(found):   # attributes set in methods (self.x = …)
+        for n in ast.walk(found):  # attributes set in methods (self.x = …)
             if isinstance(n, ast.Attribute) and isinstance(n.ctx, ast.Store):
                 members[n.attr] = n
         return rest[1] in members
@@ -167,6 +168,7 @@ def test_every_file_named_in_a_comment_exists():
     def known(name: str) -> bool:
         pattern = re.escape(re.sub(r"<[^>]*>", "*", name)).replace(r"\*", ".*")
         return any(re.fullmatch(pattern, n) for n in names)
+
     missing = [f"{f}:{line}: {p}" for f, line, kind, p in pointers() if kind == "file" and not known(p)]
     assert not missing, "comments name files that do not exist:\n" + "\n".join(missing)
 
@@ -180,6 +182,11 @@ def test_every_python_name_in_a_docstring_exists():
 def test_no_issue_numbers(folder):
     """Code says why; which issue brought a line is in git's history, and the tracker is not
     in the repository. (Every line, strings too: a message must not cite it either.)"""
-    found = [f"{f}:{i}: {line.strip()}" for f in FILES if f.startswith(folder + "/")
-             for i, line in enumerate((ROOT / f).read_text().splitlines(), 1) if ISSUE.search(line)]
+    found = [
+        f"{f}:{i}: {line.strip()}"
+        for f in FILES
+        if f.startswith(folder + "/")
+        for i, line in enumerate((ROOT / f).read_text().splitlines(), 1)
+        if ISSUE.search(line)
+    ]
     assert not found, "issue numbers in production code:\n" + "\n".join(found)

@@ -26,7 +26,7 @@ import pytest
 
 from tests.helpers import ROOT
 
-pytestmark = pytest.mark.gl   # the installed commands render
+pytestmark = pytest.mark.gl  # the installed commands render
 
 
 def tracked(*dirs: str) -> list[str]:
@@ -43,8 +43,11 @@ def wheel(tmp_path_factory) -> Path:
             (src / rel).parent.mkdir(parents=True, exist_ok=True)
             (src / rel).write_bytes((ROOT / rel).read_bytes())
     out = tmp_path_factory.mktemp("wheel")
-    run = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(out), str(src)],
-                         capture_output=True, text=True)
+    run = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(out), str(src)],
+        capture_output=True,
+        text=True,
+    )
     assert run.returncode == 0, run.stdout + run.stderr
     (whl,) = out.glob("pocketray-*.whl")
     return whl
@@ -55,11 +58,20 @@ def venv(wheel, tmp_path_factory) -> Path:
     env_dir = tmp_path_factory.mktemp("venv")
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(env_dir)], check=True)
     py = env_dir / "bin" / "python"
-    site = Path(subprocess.run([str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
-                               capture_output=True, text=True, check=True).stdout.strip())
+    site = Path(
+        subprocess.run(
+            [str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+    )
     (site / "pocketray-deps.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
-    run = subprocess.run([sys.executable, "-m", "pip", "--python", str(py), "install", "--no-deps", "-q",
-                          str(wheel)], capture_output=True, text=True)
+    run = subprocess.run(
+        [sys.executable, "-m", "pip", "--python", str(py), "install", "--no-deps", "-q", str(wheel)],
+        capture_output=True,
+        text=True,
+    )
     assert run.returncode == 0, run.stdout + run.stderr
     return env_dir
 
@@ -68,7 +80,7 @@ def test_the_wheel_holds_every_module_the_shaders_and_the_client(wheel):
     names = set(zipfile.ZipFile(wheel).namelist())
     want = {p for p in tracked("renderer", "server") if p.endswith(".py")}
     want |= {"renderer/shaders/" + Path(p).name for p in tracked("shaders")}
-    want |= {"server/client_web/" + p[len("client_web/"):] for p in tracked("client_web")}
+    want |= {"server/client_web/" + p[len("client_web/") :] for p in tracked("client_web")}
     assert want - names == set()
     entry = zipfile.ZipFile(wheel).read(next(n for n in names if n.endswith("entry_points.txt"))).decode()
     assert "pocketray = server.cli:main" in entry
@@ -77,26 +89,50 @@ def test_the_wheel_holds_every_module_the_shaders_and_the_client(wheel):
 
 def run_cmd(venv: Path, cwd: Path, *args: str, timeout: float = 300) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_") and k != "PYTHONPATH"}
-    return subprocess.run([str(venv / "bin" / "pocketray"), *args], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=timeout)
+    return subprocess.run(
+        [str(venv / "bin" / "pocketray"), *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout
+    )
 
 
 def test_installed_pocketray_renders_from_the_command_line_outside_the_source_tree(venv, tmp_path):
     r = run_cmd(venv, tmp_path, "scenario", "2", "--n", "512", "--seed", "3", "-o", "scene.json")
     assert r.returncode == 0, r.stderr
-    r = run_cmd(venv, tmp_path, "render", "scene.json", "-o", "frame.png", "--width", "64", "--height", "96",
-                "--depth", "2", "--spp", "1")
+    r = run_cmd(
+        venv,
+        tmp_path,
+        "render",
+        "scene.json",
+        "-o",
+        "frame.png",
+        "--width",
+        "64",
+        "--height",
+        "96",
+        "--depth",
+        "2",
+        "--spp",
+        "1",
+    )
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "frame.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    r = run_cmd(venv, tmp_path, "render", "scene.json", "-o", "depth.npy", "--mode", "depth", "--width", "32",
-                "--height", "32")
+    r = run_cmd(
+        venv, tmp_path, "render", "scene.json", "-o", "depth.npy", "--mode", "depth", "--width", "32", "--height", "32"
+    )
     assert r.returncode == 0, r.stderr
     assert np.load(tmp_path / "depth.npy").shape == (32, 32)
     # where the modules and the shaders came from
-    where = subprocess.run([str(venv / "bin" / "python"), "-c",
-                            "import renderer.shader_source as s, server.cli, server.resources as r; "
-                            "print(s.__file__); print(s.SHADER_DIR); print(r.client_dir()); print(server.cli.__file__)"],
-                           cwd=tmp_path, capture_output=True, text=True, check=True).stdout.split()
+    where = subprocess.run(
+        [
+            str(venv / "bin" / "python"),
+            "-c",
+            "import renderer.shader_source as s, server.cli, server.resources as r; "
+            "print(s.__file__); print(s.SHADER_DIR); print(r.client_dir()); print(server.cli.__file__)",
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
     for path in where:
         assert Path(path).is_relative_to(venv), where
 
@@ -109,8 +145,13 @@ def test_installed_pocketray_serves_the_client_and_keeps_state_in_the_working_di
         port = s.getsockname()[1]
     env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_") and k != "PYTHONPATH"}
     log = open(tmp_path / "serve.log", "wb")
-    proc = subprocess.Popen([str(venv / "bin" / "pocketray"), "serve", "--port", str(port), "--log-level", "warning"],
-                            cwd=tmp_path, env=env, stdout=log, stderr=subprocess.STDOUT)
+    proc = subprocess.Popen(
+        [str(venv / "bin" / "pocketray"), "serve", "--port", str(port), "--log-level", "warning"],
+        cwd=tmp_path,
+        env=env,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
     url = f"http://127.0.0.1:{port}"
     try:
         deadline = time.monotonic() + 90
@@ -128,8 +169,14 @@ def test_installed_pocketray_serves_the_client_and_keeps_state_in_the_working_di
             assert index.status_code == 200 and "<html" in index.text.lower()
             assert c.get("/js/api.js").status_code == 200
             assert "void main" in c.get("/shaders/raytrace.frag").text
-            sid = c.post("/api/sessions", json={"scenario": 1, "n": 27, "settings": {
-                "width": 32, "height": 48, "max_recursion_depth": 2, "samples_per_pixel": 1}}).json()["id"]
+            sid = c.post(
+                "/api/sessions",
+                json={
+                    "scenario": 1,
+                    "n": 27,
+                    "settings": {"width": 32, "height": 48, "max_recursion_depth": 2, "samples_per_pixel": 1},
+                },
+            ).json()["id"]
             frame = c.get(f"/api/sessions/{sid}/frame")
             assert frame.status_code == 200 and frame.headers["content-type"] == "image/png"
             assert c.get("/docs").status_code == 200

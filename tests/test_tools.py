@@ -18,8 +18,9 @@ def run_tool(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", *args], cwd=ROOT, capture_output=True, text=True, timeout=600)
 
 
-@pytest.mark.parametrize("args", [("ruff", "check", "."), ("ruff", "format", "--check", ".")],
-                         ids=["ruff-check", "ruff-format"])
+@pytest.mark.parametrize(
+    "args", [("ruff", "check", "."), ("ruff", "format", "--check", ".")], ids=["ruff-check", "ruff-format"]
+)
 def test_ruff(args: tuple[str, ...]) -> None:
     out = run_tool(*args, "--no-cache")
     assert out.returncode == 0, f"{' '.join(args)} found:\n{out.stdout}{out.stderr}"

@@ -16,5 +16,20 @@ measuring. Shared pieces, one job each: ``context`` (the run), ``timing``, ``mac
 """
 
 # In the order they appear in RESULTS.md.
-EXPERIMENTS = ("table_4_2", "fig_4_4", "fig_4_5", "scaling", "crossover", "peers", "pareto", "specialize",
-               "ray_engines", "dynamic", "cost", "scheduling", "shader", "hardening", "meshes")
+EXPERIMENTS = (
+    "table_4_2",
+    "fig_4_4",
+    "fig_4_5",
+    "scaling",
+    "crossover",
+    "peers",
+    "pareto",
+    "specialize",
+    "ray_engines",
+    "dynamic",
+    "cost",
+    "scheduling",
+    "shader",
+    "hardening",
+    "meshes",
+)

@@ -50,9 +50,11 @@ def replot(out: Path, names: list[str]) -> int:
         titles[name] = mod.TITLE
         try:
             saved = load(mod, out / "figures")
-        except FileNotFoundError as e:   # never measured since its data was kept: nothing to write from
-            print(f"  {name:12s} no {e.filename}: section kept as it is (run the experiment to save its data)",
-                  file=sys.stderr)
+        except FileNotFoundError as e:  # never measured since its data was kept: nothing to write from
+            print(
+                f"  {name:12s} no {e.filename}: section kept as it is (run the experiment to save its data)",
+                file=sys.stderr,
+            )
             continue
         try:
             if isinstance(saved, dict) and "run" in saved:
@@ -76,20 +78,32 @@ def replot(out: Path, names: list[str]) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    ap = argparse.ArgumentParser(prog="python -m bench.experiments", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        prog="python -m bench.experiments", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--quick", action="store_true", help="tiny sizes and one run: a smoke test (never writes docs/)")
     ap.add_argument("--only", default="", help="comma-separated experiment names (see --list)")
-    ap.add_argument("--out", type=Path, default=None,
-                    help="directory for RESULTS.md and figures/ (default: docs/, or a temp dir with --quick)")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="directory for RESULTS.md and figures/ (default: docs/, or a temp dir with --quick)",
+    )
     ap.add_argument("--runs", type=int, default=None, help="runs per measured point (default 5; 1 with --quick)")
-    ap.add_argument("--frame-budget", type=float, default=None,
-                    help="seconds one frame may be predicted to take before a measurement is left out "
-                         "(default 10; 0.5 with --quick; 0 = no limit)")
+    ap.add_argument(
+        "--frame-budget",
+        type=float,
+        default=None,
+        help="seconds one frame may be predicted to take before a measurement is left out "
+        "(default 10; 0.5 with --quick; 0 = no limit)",
+    )
     ap.add_argument("--no-progress", action="store_true", help="no progress bars")
     ap.add_argument("--list", action="store_true", help="list the experiments and exit")
-    ap.add_argument("--replot", action="store_true",
-                    help="measure nothing: charts and sections again from figures/*.json (in --out, default docs/)")
+    ap.add_argument(
+        "--replot",
+        action="store_true",
+        help="measure nothing: charts and sections again from figures/*.json (in --out, default docs/)",
+    )
     a = ap.parse_args(argv)
 
     if a.list:
@@ -117,6 +131,7 @@ def main(argv: list[str] | None = None) -> int:
         ctx.frame_budget_s = None
 
     from tqdm import tqdm
+
     print(f"pocketray experiments ({'quick' if a.quick else 'full'}, {runs} run(s) per point) → {out}", flush=True)
     print(f"machine: {ctx.machine_short}; GL: {ctx.gl}", flush=True)
     fragments: dict[str, str] = {}

@@ -13,8 +13,9 @@ import datetime as _dt
 import math
 import sys
 import time
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any
 
 from renderer.scene import Scene
 from renderer.settings import RenderSettings
@@ -26,20 +27,21 @@ from .timing import RenderTiming, Stat, measure
 @dataclasses.dataclass
 class RunInfo:
     """The run behind a section, as its report words it (every table's caption, the budget)."""
+
     machine_short: str
     gl: str
     runs: int
     quick: bool = False
     frame_budget_s: float | None = None
     skipped: list[str] = dataclasses.field(default_factory=list)
-    stamp: str = ""   # the section's last line: when it was produced and in how long
+    stamp: str = ""  # the section's last line: when it was produced and in how long
     notes: list[str] = dataclasses.field(default_factory=list, compare=False)
 
     def to_json(self) -> dict:
         return {k: v for k, v in dataclasses.asdict(self).items() if k != "notes"}
 
     @classmethod
-    def from_json(cls, d: dict) -> "RunInfo":
+    def from_json(cls, d: dict) -> RunInfo:
         return cls(**{f.name: d[f.name] for f in dataclasses.fields(cls) if f.name in d})
 
     @property
@@ -52,11 +54,12 @@ class RunInfo:
         if not self.skipped:
             return ""
         budget = "none" if self.frame_budget_s is None else f"{self.frame_budget_s:g} s"
-        return (f"**Not measured** (a frame predicted to take longer than the frame budget, {budget}; "
-                "`--frame-budget` changes it):\n\n" + "\n".join(f"- {x}" for x in self.skipped) + "\n")
+        return (
+            f"**Not measured** (a frame predicted to take longer than the frame budget, {budget}; "
+            "`--frame-budget` changes it):\n\n" + "\n".join(f"- {x}" for x in self.skipped) + "\n"
+        )
 
-    def caption(self, runs: int | str | None = None, what: str = "median, spread min–max",
-                capped: bool = False) -> str:
+    def caption(self, runs: int | str | None = None, what: str = "median, spread min–max", capped: bool = False) -> str:
         """The line under every table: machine, GL renderer, number of runs.
 
         ``capped``: the table's points were timed with ``point_budget_s`` (slow points may
@@ -66,8 +69,10 @@ class RunInfo:
         if isinstance(r, int) and r > 1 and what:
             runs_txt += f" ({what})"
         if capped and isinstance(r, int) and r > 1 and self.point_budget_s is not None:
-            runs_txt += (f", after one untimed warm-up frame; a point stops after {self.point_budget_s:g} s of timing "
-                         "(≥ 1 run; each point's samples are in the raw data)")
+            runs_txt += (
+                f", after one untimed warm-up frame; a point stops after {self.point_budget_s:g} s of timing "
+                "(≥ 1 run; each point's samples are in the raw data)"
+            )
         return f"*Machine: {self.machine_short}. GL: {self.gl}. Runs: {runs_txt}.*"
 
     def caption_cpu(self, runs: int | str | None = None, what: str = "median, spread min–max") -> str:
@@ -82,8 +87,7 @@ class RunInfo:
 class Context:
     """One run of the experiments: sizes (quick or full), output place, GL renderer, progress."""
 
-    def __init__(self, quick: bool, out: Path, runs: int, progress: bool = True,
-                 frame_budget_s: float | None = None):
+    def __init__(self, quick: bool, out: Path, runs: int, progress: bool = True, frame_budget_s: float | None = None):
         self.quick = quick
         self.out = Path(out)
         self.figures = self.out / "figures"
@@ -108,6 +112,7 @@ class Context:
     def renderer(self):
         if self._renderer is None:
             from renderer.gl.renderer import GLRenderer
+
             self._renderer = GLRenderer()
         return self._renderer
 
@@ -129,17 +134,33 @@ class Context:
     def run_info(self) -> RunInfo:
         """What a report says about this run (machine, GL, runs, budget), with the measurements
         skipped since the last ``take_skipped``; saved with the experiment's data."""
-        return RunInfo(machine_short=self.machine_short, gl=self.gl, runs=self.runs, quick=self.quick,
-                       frame_budget_s=self.frame_budget_s, skipped=self.take_skipped())
+        return RunInfo(
+            machine_short=self.machine_short,
+            gl=self.gl,
+            runs=self.runs,
+            quick=self.quick,
+            frame_budget_s=self.frame_budget_s,
+            skipped=self.take_skipped(),
+        )
 
     # ---- progress and logging
     def bar(self, iterable: Iterable | None = None, desc: str = "", total: int | None = None):
         from tqdm import tqdm
-        return tqdm(iterable, desc=desc, total=total, leave=False, position=1, dynamic_ncols=True,
-                    disable=not self.progress, file=sys.stderr)
+
+        return tqdm(
+            iterable,
+            desc=desc,
+            total=total,
+            leave=False,
+            position=1,
+            dynamic_ncols=True,
+            disable=not self.progress,
+            file=sys.stderr,
+        )
 
     def log(self, msg: str) -> None:
         from tqdm import tqdm
+
         tqdm.write(msg, file=sys.stderr)
 
     # ---- rendering
@@ -174,9 +195,15 @@ class Context:
             return False
         return True
 
-    def time_render(self, scene: Scene, settings: RenderSettings, runs: int | None = None,
-                    warmup: int = 1, budget_s: float | None | str = "point",
-                    post: Callable[[Any], Any] | None = None) -> RenderTiming:
+    def time_render(
+        self,
+        scene: Scene,
+        settings: RenderSettings,
+        runs: int | None = None,
+        warmup: int = 1,
+        budget_s: float | None | str = "point",
+        post: Callable[[Any], Any] | None = None,
+    ) -> RenderTiming:
         """Render ``runs`` frames after ``warmup`` (compile, caches); wall time per frame.
 
         ``budget_s``: stop taking runs after this many seconds of timing (≥ 1 run);
@@ -203,5 +230,6 @@ class Context:
             res = last[0] if isinstance(last, tuple) else last
             for k, v in getattr(res, "timings", {}).items():
                 stages.setdefault(k, []).append(float(v))
+
         total, last = measure(frame, runs, warmup=max(0, warmup - 1), budget_s=budget_s, on_result=record)
         return RenderTiming(total, {k: Stat(v) for k, v in stages.items()}, last, first)

@@ -36,22 +36,45 @@ def cases(quick: bool) -> list[tuple[str, object, RenderSettings]]:
     """(label, scene, settings) of the frames measured."""
     ns = (64, 512) if quick else (64, 512, 4096, 32768)
     sizes = ((64, 108),) if quick else ((160, 272), (320, 544))
-    profiles = [dict(mode="primid", max_recursion_depth=1), dict(mode="color", max_recursion_depth=3),
-                dict(mode="color", max_recursion_depth=8, min_weight=0.03, samples_per_pixel=4)]
+    profiles = [
+        dict(mode="primid", max_recursion_depth=1),
+        dict(mode="color", max_recursion_depth=3),
+        dict(mode="color", max_recursion_depth=8, min_weight=0.03, samples_per_pixel=4),
+    ]
     out = []
     for sc, n, (w, h), prof in itertools.product((1, 2, 3), ns, sizes, profiles):
         scene = scenario(sc, n, seed=0)
         for method in ("bih", "bvh", "kdtree", "twolevel"):
-            out.append((f"s{sc} n={n} {w}×{h} {method} {prof}", scene,
-                        RenderSettings(width=w, height=h, method=method, **prof)))
+            out.append(
+                (
+                    f"s{sc} n={n} {w}×{h} {method} {prof}",
+                    scene,
+                    RenderSettings(width=w, height=h, method=method, **prof),
+                )
+            )
         if n <= 512:
-            out.append((f"s{sc} n={n} {w}×{h} bruteforce {prof}", scene,
-                        RenderSettings(width=w, height=h, method="bruteforce", **prof)))
-        if n <= 4096 and prof["mode"] == "primid":   # degenerate trees: one leaf of n spheres
-            out.append((f"s{sc} n={n} {w}×{h} bih one leaf", scene,
-                        RenderSettings(width=w, height=h, method="bih", max_prims=n, **prof)))
-            out.append((f"s{sc} n={n} {w}×{h} bih depth 1", scene,
-                        RenderSettings(width=w, height=h, method="bih", max_tree_depth=1, **prof)))
+            out.append(
+                (
+                    f"s{sc} n={n} {w}×{h} bruteforce {prof}",
+                    scene,
+                    RenderSettings(width=w, height=h, method="bruteforce", **prof),
+                )
+            )
+        if n <= 4096 and prof["mode"] == "primid":  # degenerate trees: one leaf of n spheres
+            out.append(
+                (
+                    f"s{sc} n={n} {w}×{h} bih one leaf",
+                    scene,
+                    RenderSettings(width=w, height=h, method="bih", max_prims=n, **prof),
+                )
+            )
+            out.append(
+                (
+                    f"s{sc} n={n} {w}×{h} bih depth 1",
+                    scene,
+                    RenderSettings(width=w, height=h, method="bih", max_tree_depth=1, **prof),
+                )
+            )
     # Dense scenes, the service's largest (POCKETRAY_MAX_SPHERES = 2^21): thousands of sphere tests
     # per ray through the hierarchy, which the frames above never reach (without them the fit made
     # small-leaf tests free and estimated a 2^21-sphere frame at a quarter of its time).
@@ -62,8 +85,13 @@ def cases(quick: bool) -> list[tuple[str, object, RenderSettings]]:
     for n, (w, h) in itertools.product((16, 64) if quick else (64, 256), ((48, 80),) if quick else ((96, 160),)):
         scene = scenario(3, n, seed=0)
         for method, mode in itertools.product(("rayengine", "hre"), ("primid", "color")):
-            out.append((f"s3 n={n} {w}×{h} {method} {mode}", scene,
-                        RenderSettings(width=w, height=h, method=method, mode=mode, max_recursion_depth=3)))
+            out.append(
+                (
+                    f"s3 n={n} {w}×{h} {method} {mode}",
+                    scene,
+                    RenderSettings(width=w, height=h, method=method, mode=mode, max_recursion_depth=3),
+                )
+            )
     return out
 
 
@@ -73,14 +101,19 @@ def measure_frames(ctx: Context) -> list[dict]:
     for label, scene, s in ctx.bar(cases(ctx.quick), desc="cost frames"):
         method = METHODS[s.method]
         prepared = method.prepare(scene, s.max_prims, s.max_tree_depth, r.max_texture_width)
-        r.render(scene, s)   # compile the variant, warm the caches
+        r.render(scene, s)  # compile the variant, warm the caches
         res = r.render(scene, s)
         t = res.timings
         gl_ms = t.get("upload", 0.0) + t.get("trace", 0.0) + t.get("read", 0.0)
         mp = method.capabilities.multi_pass
-        rows.append({"label": label, "ms": gl_ms, "multi_pass": mp,
-                     "terms": {str(d): terms(s.method, prepared.stats, scene, s, d, mp)[0].tolist()
-                               for d in DECAYS}})
+        rows.append(
+            {
+                "label": label,
+                "ms": gl_ms,
+                "multi_pass": mp,
+                "terms": {str(d): terms(s.method, prepared.stats, scene, s, d, mp)[0].tolist() for d in DECAYS},
+            }
+        )
     return rows
 
 
@@ -88,6 +121,7 @@ def fit(frames: list[dict]) -> tuple[CostModel, float]:
     """The constants (ns) minimising the relative error over the frames (each with its measured
     ``ms`` and its model terms per level decay), and the median |log(estimate / measured)|."""
     from scipy.optimize import nnls
+
     y = np.array([f["ms"] * 1e6 for f in frames])
     w = 1.0 / np.maximum(y, 1.0)
     best = None
@@ -111,9 +145,21 @@ def measure(ctx: Context) -> dict:
     model, err = fit(frames)
     for f in frames:
         f["est"] = float(np.array(f["terms"][str(model.level_decay)]) @ model.vector()) / 1e6
-    return {"model": model.__dict__, "terms": list(CostModel.TERMS), "median_abs_log_ratio": err,
-            "frames": [{"label": f["label"], "measured_ms": f["ms"], "estimated_ms": f["est"],
-                        "multi_pass": f["multi_pass"], "terms": f["terms"]} for f in frames]}
+    return {
+        "model": model.__dict__,
+        "terms": list(CostModel.TERMS),
+        "median_abs_log_ratio": err,
+        "frames": [
+            {
+                "label": f["label"],
+                "measured_ms": f["ms"],
+                "estimated_ms": f["est"],
+                "multi_pass": f["multi_pass"],
+                "terms": f["terms"],
+            }
+            for f in frames
+        ],
+    }
 
 
 def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
@@ -122,9 +168,10 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     img = "\n".join(image_line(k, v) for k, v in charts.items())
     ratios = np.array([f["est"] / max(f["ms"], 1e-3) for f in frames])
     worst = sorted(frames, key=lambda f: -abs(math.log(max(f["est"], 1e-3) / max(f["ms"], 1e-3))))[:8]
-    table = md_table(["frame", "measured ms", "estimated ms", "ratio"],
-                     [(f["label"], f"{f['ms']:.1f}", f"{f['est']:.1f}", f"{f['est'] / max(f['ms'], 1e-3):.2f}")
-                      for f in worst])
+    table = md_table(
+        ["frame", "measured ms", "estimated ms", "ratio"],
+        [(f["label"], f"{f['ms']:.1f}", f"{f['est']:.1f}", f"{f['est'] / max(f['ms'], 1e-3):.2f}") for f in worst],
+    )
     within2 = float(np.mean((ratios >= 0.5) & (ratios <= 2.0)))
     consts = ", ".join(f"{name} {value:.3g}" for name, value in zip(CostModel.TERMS, model.vector()))
     return f"""## {TITLE}
@@ -157,8 +204,17 @@ def plot(data: dict, figures, quick: bool = False) -> dict[str, str]:
         pts = [(f["measured_ms"], f["estimated_ms"]) for f in frames if bool(f.get("multi_pass")) == mp]
         if pts:
             m, e = zip(*pts)
-            ax.scatter(m, e, s=12, alpha=0.7, **{k: v for k, v in series(label, method="hre" if mp else "bih").items()
-                                                  if k in ("color", "marker", "label")})
+            ax.scatter(
+                m,
+                e,
+                s=12,
+                alpha=0.7,
+                **{
+                    k: v
+                    for k, v in series(label, method="hre" if mp else "bih").items()
+                    if k in ("color", "marker", "label")
+                },
+            )
     lo = max(0.1, min(min(f["measured_ms"] for f in frames), min(f["estimated_ms"] for f in frames)))
     hi = max(max(f["measured_ms"] for f in frames), max(f["estimated_ms"] for f in frames))
     ax.plot([lo, hi], [lo, hi], "k--", lw=0.8, label="estimate = measured")

@@ -71,9 +71,16 @@ def measure(ctx: Context) -> dict:
         t = ctx.time_render(s, base.with_(method=m, max_recursion_depth=d))
         raw[f"{m}/{d}/{sc}/{n}"] = t.to_json()
     xs, c, regret = analyse(ns, raw)
-    return {"size": [w, h], "ns": ns, "max_prims": base.max_prims, "points": raw,
-            "crossover": {f"{d}/{sc}": x for (d, sc), x in xs.items()}, "auto_crossover_n": c, "regret": regret,
-            "auto_crossover_n_in_code": getattr(_methods, "AUTO_CROSSOVER_N", None)}
+    return {
+        "size": [w, h],
+        "ns": ns,
+        "max_prims": base.max_prims,
+        "points": raw,
+        "crossover": {f"{d}/{sc}": x for (d, sc), x in xs.items()},
+        "auto_crossover_n": c,
+        "regret": regret,
+        "auto_crossover_n_in_code": getattr(_methods, "AUTO_CROSSOVER_N", None),
+    }
 
 
 def _series(ns, points: dict, method: str, d: int, sc: int) -> list[float]:
@@ -102,13 +109,13 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
             bf, bih = _series(ns, points, "bruteforce", d, sc), _series(ns, points, "bih", d, sc)
             cases.append((bf, bih))
             rows.append([str(sc), str(d), crossover(ns, bf, bih)[1]] + [f"{f / b:.2f}" for f, b in zip(bf, bih)])
-    table = md_table(["scenario", "depth", "crossover n"] + [f"BF/BIH n = {n}" for n in ns], rows,
-                     "rrl" + "r" * len(ns))
+    table = md_table(
+        ["scenario", "depth", "crossover n"] + [f"BF/BIH n = {n}" for n in ns], rows, "rrl" + "r" * len(ns)
+    )
     c, regret = best_threshold(ns, cases)
     # The value in the code when the data was measured (older data: the value in the code now).
     current = data.get("auto_crossover_n_in_code", getattr(_methods, "AUTO_CROSSOVER_N", None))
-    run.note(f"crossover: AUTO_CROSSOVER_N = {c}  # renderer/methods.py: brute force when n < {c} "
-             f"(current: {current})")
+    run.note(f"crossover: AUTO_CROSSOVER_N = {c}  # renderer/methods.py: brute force when n < {c} (current: {current})")
     img = "\n".join(image_line(k, v) for k, v in charts.items())
     path = f"figures/{NAME}.json"
 
@@ -150,13 +157,20 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
         for i, d in enumerate(depths):
             for m in methods:
                 xs = [n for n in ns if (m, str(d), str(sc), str(n)) in points]
-                ax.plot(xs, [points[(m, str(d), str(sc), str(n))]["total"]["median"] for n in xs],
-                        **series(f"{m}, depth {d}", method=m, variant=i, marker=".",
-                                 ls=(":" if m == "auto" else ("-", "--", "-.")[i % 3])))
+                ax.plot(
+                    xs,
+                    [points[(m, str(d), str(sc), str(n))]["total"]["median"] for n in xs],
+                    **series(
+                        f"{m}, depth {d}",
+                        method=m,
+                        variant=i,
+                        marker=".",
+                        ls=(":" if m == "auto" else ("-", "--", "-.")[i % 3]),
+                    ),
+                )
             x = data["crossover"].get(f"{d}/{sc}")
             if x is not None and math.isfinite(x):
-                ax.axvline(x, color="#d62728", ls=("-", "--", "-.")[i % 3], alpha=0.45,
-                           label=f"crossover, depth {d}")
+                ax.axvline(x, color="#d62728", ls=("-", "--", "-.")[i % 3], alpha=0.45, label=f"crossover, depth {d}")
         ax.axvline(c, color="#2ca02c", lw=2, alpha=0.5, label=f"chosen AUTO_CROSSOVER_N = {c}")
         ax.set_xscale("log", base=2)
         log_axis(ax, "y")

@@ -44,14 +44,21 @@ TITLE = "Dynamic scenes — BVH updates, cost-scaling kd-tree, two levels (Reite
 
 FPS = 25.0
 KINDS = ("rigid", "deformable", "incoherent", "incoherent_appear")
-KIND_TEXT = {"rigid": "rigid groups", "deformable": "deformable (travelling wave)",
-             "incoherent": "incoherent, fixed count (respawning)",
-             "incoherent_appear": "incoherent, appearing/disappearing (20 % absent)"}
-SCHEMES = (("BIH rebuild (thesis)", "bih", "rebuild"), ("BVH rebuild", "bvh", "rebuild"),
-           ("BVH refit", "bvh", "refit"), ("BVH selective +30 %", "bvh", "selective"))
+KIND_TEXT = {
+    "rigid": "rigid groups",
+    "deformable": "deformable (travelling wave)",
+    "incoherent": "incoherent, fixed count (respawning)",
+    "incoherent_appear": "incoherent, appearing/disappearing (20 % absent)",
+}
+SCHEMES = (
+    ("BIH rebuild (thesis)", "bih", "rebuild"),
+    ("BVH rebuild", "bvh", "rebuild"),
+    ("BVH refit", "bvh", "refit"),
+    ("BVH selective +30 %", "bvh", "selective"),
+)
 NS, NS_QUICK = (256, 1024, 4096, 16384, 65536), (256, 1024)
 FRAMES, FRAMES_QUICK = 100, 6
-PLAY_BUDGET_S = 45.0     # one (motion, n, scheme) animation stops taking frames after this long (≥ MIN_FRAMES)
+PLAY_BUDGET_S = 45.0  # one (motion, n, scheme) animation stops taking frames after this long (≥ MIN_FRAMES)
 MIN_FRAMES = 20
 RENDER_EVERY, RENDER_EVERY_QUICK = 10, 3
 SIZE, SIZE_QUICK = (256, 256), (48, 48)
@@ -66,8 +73,10 @@ def make_anim(kind: str, n: int) -> AnimatedScene:
 
 # ------------------------------------------------------------------ Fig. 5.11
 
-def play(ctx: Context, anim: AnimatedScene, method: str, scheme: str, frames: int, every: int,
-         settings: RenderSettings) -> dict:
+
+def play(
+    ctx: Context, anim: AnimatedScene, method: str, scheme: str, frames: int, every: int, settings: RenderSettings
+) -> dict:
     key = ("dynamic", id(anim), method, scheme, time.perf_counter())
     impl = METHODS[method]
     upd, trace, sah = [], [], []
@@ -77,8 +86,9 @@ def play(ctx: Context, anim: AnimatedScene, method: str, scheme: str, frames: in
             break
         frame = pose(anim, f / FPS)
         if method == "bvh":
-            prepared = impl.prepare(frame.scene, MAX_PRIMS, 64, ctx.renderer.max_texture_width,
-                                    TreeUpdate(scheme, key=key))
+            prepared = impl.prepare(
+                frame.scene, MAX_PRIMS, 64, ctx.renderer.max_texture_width, TreeUpdate(scheme, key=key)
+            )
             sah.append(prepared.stats["sah_cost"])
         else:
             prepared = impl.prepare(frame.scene, MAX_PRIMS, 64, ctx.renderer.max_texture_width)
@@ -88,8 +98,15 @@ def play(ctx: Context, anim: AnimatedScene, method: str, scheme: str, frames: in
             trace.append(res.timings["upload"] + res.timings["trace"] + res.timings["read"])
     # frame 0 builds from scratch for every scheme: the means are over the following frames
     u, t = float(np.mean(upd[1:] if len(upd) > 1 else upd)), float(np.mean(trace))
-    return {"update_ms": u, "trace_ms": t, "frame_ms": u + t, "update_samples": upd, "trace_samples": trace,
-            "sah": sah, "frames": len(upd)}
+    return {
+        "update_ms": u,
+        "trace_ms": t,
+        "frame_ms": u + t,
+        "update_samples": upd,
+        "trace_samples": trace,
+        "sah": sah,
+        "frames": len(upd),
+    }
 
 
 def crossover_text(ns, ours, theirs) -> str:
@@ -111,7 +128,7 @@ def measure_fig_5_11(ctx: Context) -> tuple[dict, dict]:
     settings = RenderSettings(width=w, height=h, mode="primid", max_recursion_depth=1, max_prims=MAX_PRIMS)
     data: dict = {}
     warm = make_anim("rigid", 8)
-    for _, method, _ in SCHEMES:      # compile the shader variants before anything is timed
+    for _, method, _ in SCHEMES:  # compile the shader variants before anything is timed
         ctx.renderer.render(warm, settings.with_(method=method))
     jobs = [(k, n, s) for k in KINDS for n in ns for s in SCHEMES]
     for kind, n, (label, method, scheme) in ctx.bar(jobs, desc="fig 5.11"):
@@ -140,16 +157,19 @@ def report_fig_5_11(raw: dict, params: dict, run: RunInfo, img: str) -> str:
                 short = "" if d["frames"] >= frames else f" [{d['frames']} frames]"
                 row.append(f"{d['frame_ms']:,.1f} ({100 * d['update_ms'] / d['frame_ms']:.0f} %){short}")
             rows.append(row)
-        tables.append(f"**{KIND_TEXT[kind]}** — mean ms per frame (share of the update):\n\n"
-                      + md_table(["moving n"] + [s[0] for s in SCHEMES], rows))
+        tables.append(
+            f"**{KIND_TEXT[kind]}** — mean ms per frame (share of the update):\n\n"
+            + md_table(["moving n"] + [s[0] for s in SCHEMES], rows)
+        )
         bih = [data[(kind, n, SCHEMES[0][0])]["frame_ms"] for n in ns]
         cells = [KIND_TEXT[kind]]
         for label in (SCHEMES[2][0], SCHEMES[3][0]):
             txt = crossover_text(ns, [data[(kind, n, label)]["frame_ms"] for n in ns], bih)
             cells.append(txt)
         cross_rows.append(cells)
-    cross = md_table(["kind of motion", "refit beats BIH rebuild from n", "selective beats BIH rebuild from n"],
-                     cross_rows, "lll")
+    cross = md_table(
+        ["kind of motion", "refit beats BIH rebuild from n", "selective beats BIH rebuild from n"], cross_rows, "lll"
+    )
     frag = f"""### Updating schemes (Reiter Fig. 5.11)
 
 Museum-like animation, {frames} frames at {FPS:g} frames/s, primid mode (colour coding of the visible
@@ -173,6 +193,7 @@ BIH rebuild's at that n and every larger measured n):
 
 # ------------------------------------------------------------------- Fig. 5.4
 
+
 def measure_fig_5_4(ctx: Context) -> tuple[dict, dict]:
     """(raw, params): per scene and cost scale the kd-tree's trace, build and size."""
     n = 512 if ctx.quick else 4096
@@ -194,9 +215,15 @@ def measure_fig_5_4(ctx: Context) -> tuple[dict, dict]:
                     builds.append(kd.stats.build_ms)
                 kd_method.cost_scale = s
                 t = ctx.time_render(scene, settings)
-                rec = {"build_ms": float(np.median(builds)), "trace_ms": t.stages["trace"].median,
-                       "bytes": kd.stats.bytes, "nodes": kd.stats.nodes, "depth": kd.stats.depth_max,
-                       "refs_per_prim": kd.stats.refs_per_prim, "sah": kd.stats.sah_cost}
+                rec = {
+                    "build_ms": float(np.median(builds)),
+                    "trace_ms": t.stages["trace"].median,
+                    "bytes": kd.stats.bytes,
+                    "nodes": kd.stats.nodes,
+                    "depth": kd.stats.depth_max,
+                    "refs_per_prim": kd.stats.refs_per_prim,
+                    "sah": kd.stats.sah_cost,
+                }
                 raw[f"{name}/{s}"] = rec
     finally:
         kd_method.cost_scale = saved
@@ -206,17 +233,36 @@ def measure_fig_5_4(ctx: Context) -> tuple[dict, dict]:
 def report_fig_5_4(raw: dict, params: dict, run: RunInfo, img: str) -> str:
     w, h = params["size"]
     rows, bases = [], {}
-    for key, rec in raw.items():   # in the order measured: scene, then the scales from 1 down
+    for key, rec in raw.items():  # in the order measured: scene, then the scales from 1 down
         name, s = key.rsplit("/", 1)
         first = name not in bases
         base = bases.setdefault(name, rec)
-        rows.append([name if first else "", f"{float(s):g}",
-                     f"{rec['trace_ms']:,.1f} ({rec['trace_ms'] / base['trace_ms']:.2f})",
-                     f"{rec['build_ms']:,.1f} ({rec['build_ms'] / base['build_ms']:.2f})",
-                     f"{rec['bytes']:,} ({rec['bytes'] / base['bytes']:.2f})",
-                     f"{rec['nodes']:,}", str(rec["depth"]), f"{rec['refs_per_prim']:.2f}"])
-    table = md_table(["scene", "scale s at max. depth", "trace ms (rel.)", "build ms (rel.)", "bytes (rel.)",
-                      "nodes", "depth", "refs / sphere"], rows, "lrrrrrrr")
+        rows.append(
+            [
+                name if first else "",
+                f"{float(s):g}",
+                f"{rec['trace_ms']:,.1f} ({rec['trace_ms'] / base['trace_ms']:.2f})",
+                f"{rec['build_ms']:,.1f} ({rec['build_ms'] / base['build_ms']:.2f})",
+                f"{rec['bytes']:,} ({rec['bytes'] / base['bytes']:.2f})",
+                f"{rec['nodes']:,}",
+                str(rec["depth"]),
+                f"{rec['refs_per_prim']:.2f}",
+            ]
+        )
+    table = md_table(
+        [
+            "scene",
+            "scale s at max. depth",
+            "trace ms (rel.)",
+            "build ms (rel.)",
+            "bytes (rel.)",
+            "nodes",
+            "depth",
+            "refs / sphere",
+        ],
+        rows,
+        "lrrrrrrr",
+    )
     frag = f"""### Cost-scaling termination criterion (Reiter Fig. 5.4)
 
 SAH kd-tree, leaf cost scaled by s^((depth − 1)/(D − 1)) (D = min(64, 8 + 1.3 log₂ n)); s = 1 is the plain
@@ -233,6 +279,7 @@ SAH criterion, to which the values in brackets are relative. Trace: colour, recu
 
 # ------------------------------------------------------------------- Fig. 5.6
 
+
 def measure_fig_5_6(ctx: Context) -> tuple[dict, dict]:
     """(raw, params): per shading configuration and method the animations' times."""
     n = 256 if ctx.quick else 4096
@@ -240,19 +287,30 @@ def measure_fig_5_6(ctx: Context) -> tuple[dict, dict]:
     w, h = (48, 36) if ctx.quick else (320, 240)
     anim = museum(n, "mixed", seed=2)
     dark = AnimatedScene(dataclasses.replace(anim.scene, lights=()), anim.motions)
-    configs = [("a) primary rays only (no light: ambient)", dark, 1), ("b) with shadows", anim, 1),
-               ("c) reflection and refraction (no light)", dark, 3), ("d) all effects", anim, 3)]
+    configs = [
+        ("a) primary rays only (no light: ambient)", dark, 1),
+        ("b) with shadows", anim, 1),
+        ("c) reflection and refraction (no light)", dark, 3),
+        ("d) all effects", anim, 3),
+    ]
     methods = ("bvh", "twolevel")
     raw = {}
     for label, a, depth in ctx.bar(configs, desc="fig 5.6"):
         totals: dict = {m: [] for m in methods}
         split: dict = {m: {"update": [], "trace": []} for m in methods}
-        for _ in range(ctx.runs):            # the two methods alternate, so drift hits both alike
+        for _ in range(ctx.runs):  # the two methods alternate, so drift hits both alike
             for method in methods:
-                s = RenderSettings(width=w, height=h, mode="color", max_recursion_depth=depth, method=method,
-                                   max_prims=MAX_PRIMS, update="selective")
-                key = ("fig56", label, method, time.perf_counter())   # a fresh animation every run
-                ctx.renderer.render(a, s, key=key)                   # warm-up: first build, shader variant
+                s = RenderSettings(
+                    width=w,
+                    height=h,
+                    mode="color",
+                    max_recursion_depth=depth,
+                    method=method,
+                    max_prims=MAX_PRIMS,
+                    update="selective",
+                )
+                key = ("fig56", label, method, time.perf_counter())  # a fresh animation every run
+                ctx.renderer.render(a, s, key=key)  # warm-up: first build, shader variant
                 upd = trc = 0.0
                 t0 = time.perf_counter()
                 for f in range(frames):
@@ -274,13 +332,32 @@ def report_fig_5_6(raw: dict, params: dict, run: RunInfo, img: str) -> str:
     for label, per_method in raw.items():
         st = {m: Stat(per_method[m]["total_ms"]) for m in methods}
         split = per_method
-        per_frame = {m: f"{float(np.median(split[m]['update'])):,.1f} / {float(np.median(split[m]['trace'])):,.1f}"
-                     for m in methods}
-        rows.append([label, st["bvh"].fmt(0), per_frame["bvh"], st["twolevel"].fmt(0), per_frame["twolevel"],
-                     f"{100 * (st['bvh'].median / st['twolevel'].median - 1):+.1f} %"])
-    table = md_table(["configuration", "BVH only: total ms", "update / trace ms per frame",
-                      "BVH + kd-tree: total ms", "update / trace ms per frame", "speed-up (medians)"],
-                     rows, "lrrrrr")
+        per_frame = {
+            m: f"{float(np.median(split[m]['update'])):,.1f} / {float(np.median(split[m]['trace'])):,.1f}"
+            for m in methods
+        }
+        rows.append(
+            [
+                label,
+                st["bvh"].fmt(0),
+                per_frame["bvh"],
+                st["twolevel"].fmt(0),
+                per_frame["twolevel"],
+                f"{100 * (st['bvh'].median / st['twolevel'].median - 1):+.1f} %",
+            ]
+        )
+    table = md_table(
+        [
+            "configuration",
+            "BVH only: total ms",
+            "update / trace ms per frame",
+            "BVH + kd-tree: total ms",
+            "update / trace ms per frame",
+            "speed-up (medians)",
+        ],
+        rows,
+        "lrrrrr",
+    )
     frag = f"""### Two levels: static spheres in a kd-tree (Reiter Fig. 5.6)
 
 Museum with {n:,} moving spheres (a third each rigid, deformable, incoherent), {frames} frames at
@@ -307,17 +384,21 @@ def plot_fig_5_11(raw: dict, figures: Path, quick: bool = False) -> str:
     kinds = [k for k in KINDS if any(d[0] == k for d in data)]
     labels = [lab for lab, _, _ in SCHEMES if any(d[2] == lab for d in data)]
     method = {lab: m for lab, m, _ in SCHEMES}
-    fig, axes = pyplot.subplots(1, len(kinds), figsize=(4.4 * len(kinds) + 2.5, 4.2), sharey=True,
-                                layout="constrained", squeeze=False)
+    fig, axes = pyplot.subplots(
+        1, len(kinds), figsize=(4.4 * len(kinds) + 2.5, 4.2), sharey=True, layout="constrained", squeeze=False
+    )
     for ax, kind in zip(axes[0], kinds):
         ns = sorted({int(n) for k, n, _ in data if k == kind})
         for lab in labels:
             same = [x for x in labels if method[x] == method[lab]]
             i = same.index(lab)
-            style = series(lab, method=method[lab], variant=i, ls=("-", "--", "-.")[i % 3])   # ':' is the update
+            style = series(lab, method=method[lab], variant=i, ls=("-", "--", "-.")[i % 3])  # ':' is the update
             ax.plot(ns, [data[(kind, str(n), lab)]["frame_ms"] for n in ns], **style)
-            ax.plot(ns, [data[(kind, str(n), lab)]["update_ms"] for n in ns],
-                    **{**style, "ls": ":", "alpha": 0.7, "marker": None, "label": "_update"})
+            ax.plot(
+                ns,
+                [data[(kind, str(n), lab)]["update_ms"] for n in ns],
+                **{**style, "ls": ":", "alpha": 0.7, "marker": None, "label": "_update"},
+            )
         ax.set_xscale("log", base=2)
         log_axis(ax, "y")
         ax.set_title(KIND_TEXT[kind], fontsize=9)
@@ -340,6 +421,7 @@ def plot_fig_5_4(raw: dict, figures: Path, quick: bool = False) -> str:
 
     def rec(name: str, s: float) -> dict:
         return raw.get(f"{name}/{s}") or raw[f"{name}/{s:g}"]
+
     fig, axes = pyplot.subplots(1, 3, figsize=(15, 3.8), sharex=True, layout="constrained")
     for i, name in enumerate(scenes):
         style = series(name, method="kdtree", variant=i)
@@ -367,9 +449,11 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
     return out
 
 
-PARTS = {"fig_5_11": (measure_fig_5_11, report_fig_5_11, "dynamic_fig_5_11"),
-         "fig_5_4": (measure_fig_5_4, report_fig_5_4, "dynamic_fig_5_4"),
-         "fig_5_6": (measure_fig_5_6, report_fig_5_6, None)}
+PARTS = {
+    "fig_5_11": (measure_fig_5_11, report_fig_5_11, "dynamic_fig_5_11"),
+    "fig_5_4": (measure_fig_5_4, report_fig_5_4, "dynamic_fig_5_4"),
+    "fig_5_6": (measure_fig_5_6, report_fig_5_6, None),
+}
 
 
 def measure(ctx: Context) -> dict:
@@ -385,11 +469,20 @@ def measure(ctx: Context) -> dict:
 def legacy_params(run: RunInfo) -> dict:
     """The parameters of data saved before it kept them: those of the run's mode (no standalone overrides)."""
     q = run.quick
-    return {"fig_5_11": {"frames": FRAMES_QUICK if q else FRAMES, "every": RENDER_EVERY_QUICK if q else RENDER_EVERY,
-                         "size": list(SIZE_QUICK if q else SIZE)},
-            "fig_5_4": {"size": list(SIZE_QUICK if q else SIZE)},
-            "fig_5_6": {"n": 256 if q else 4096, "frames": 3 if q else 25,
-                        "size": [48, 36] if q else [320, 240], "runs": run.runs}}
+    return {
+        "fig_5_11": {
+            "frames": FRAMES_QUICK if q else FRAMES,
+            "every": RENDER_EVERY_QUICK if q else RENDER_EVERY,
+            "size": list(SIZE_QUICK if q else SIZE),
+        },
+        "fig_5_4": {"size": list(SIZE_QUICK if q else SIZE)},
+        "fig_5_6": {
+            "n": 256 if q else 4096,
+            "frames": 3 if q else 25,
+            "size": [48, 36] if q else [320, 240],
+            "runs": run.runs,
+        },
+    }
 
 
 def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
@@ -408,6 +501,7 @@ if __name__ == "__main__":
     import tempfile
 
     from .steps import run_one
+
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--out", type=Path, default=None)

@@ -17,8 +17,7 @@ from renderer.scenarios import scenario
 from .context import Context, RunInfo
 from .markdown import md_table
 from .scenes import default_settings, method_names
-from .style import image_line, legend_outside, log_axis, plt, save
-from .style import series as line_style
+from .style import image_line, legend_outside, log_axis, plt, save, series as line_style
 
 NAME = "fig_4_4"
 TITLE = "Fig. 4.4 — frames per second against n, primary rays"
@@ -32,10 +31,11 @@ THESIS_NS = (64, 128, 256)  # the sizes the thesis's "7 out of 9" and speed-ups 
 
 # What the thesis states about its Fig. 4.4 (iPhone 5s). Speed-ups are BIH fps / BF fps.
 THESIS = {
-    "bf_fps_128": 2.14, "bf_fps_256": 1.87,
+    "bf_fps_128": 2.14,
+    "bf_fps_256": 1.87,
     "max_speedup": (14.95, "scenario 2, 128 spheres, MAX_PRIMS 16"),
-    "s2_speedup": (8.59, 12.12, 14.95),   # min (BIH 8, 64 spheres), mean, max
-    "s3_speedup": (7.87, None, 10.74),    # min, -, max
+    "s2_speedup": (8.59, 12.12, 14.95),  # min (BIH 8, 64 spheres), mean, max
+    "s3_speedup": (7.87, None, 10.74),  # min, -, max
     "mp8_best": "7 of 9",
     "best_fps": (60, "BIH 8, scenario 1, 64 spheres (display-capped at 60 fps)"),
 }
@@ -74,8 +74,14 @@ def measure(ctx: Context) -> dict:
             too_slow.add((sc, label))
             continue
         t = ctx.time_render(scene, st)
-        data[f"{sc}/{n}/{label}"] = {"scenario": sc, "n": n, "series": label, "method": method,
-                                     "max_prims": mp, "timing": t.to_json()}
+        data[f"{sc}/{n}/{label}"] = {
+            "scenario": sc,
+            "n": n,
+            "series": label,
+            "method": method,
+            "max_prims": mp,
+            "timing": t.to_json(),
+        }
     return {"size": [w, h], "ns": ns, "runs": ctx.runs, "points": data, "gl": ctx.gl, "labels": [s[0] for s in ser]}
 
 
@@ -117,8 +123,12 @@ def report(saved: dict, run: RunInfo, charts: dict[str, str]) -> str:
                 cells.append("—" if math.isnan(sp) else f"{sp:.2f}× ({best})")
             rows.append(cells)
         hdr = ["n"] + labels + (["best BIH / BF"] if has_bf else [])
-        tables.append(f"**Scenario {sc}** — frames/s (whole frame: build + upload + trace + read back)\n\n"
-                      + md_table(hdr, rows) + "\n\n" + run.caption(capped=True))
+        tables.append(
+            f"**Scenario {sc}** — frames/s (whole frame: build + upload + trace + read back)\n\n"
+            + md_table(hdr, rows)
+            + "\n\n"
+            + run.caption(capped=True)
+        )
     trace_rows = []
     for sc in (1, 2, 3):
         for n in ns:
@@ -135,13 +145,18 @@ def report(saved: dict, run: RunInfo, charts: dict[str, str]) -> str:
                 wins[b] += 1
                 cases += 1
     # Ties go to the higher geometric-mean frame rate over all cases.
-    gmean = {lab: statistics.geometric_mean([x for sc in (1, 2, 3) for n in ns
-                                             if not math.isnan(x := fps(sc, n, lab))] or [1e-9])
-             for lab in bih_labels}
+    gmean = {
+        lab: statistics.geometric_mean(
+            [x for sc in (1, 2, 3) for n in ns if not math.isnan(x := fps(sc, n, lab))] or [1e-9]
+        )
+        for lab in bih_labels
+    }
     sweet = max(bih_labels, key=lambda lab: (wins[lab], gmean[lab]))
     sweet_mp = int(sweet.split()[1])
-    run.note(f"fig_4_4: MAX_PRIMS sweet spot = {sweet_mp} (fastest in {wins[sweet]} of {cases} "
-             f"scenario × n cases) -> RenderSettings.max_prims default")
+    run.note(
+        f"fig_4_4: MAX_PRIMS sweet spot = {sweet_mp} (fastest in {wins[sweet]} of {cases} "
+        f"scenario × n cases) -> RenderSettings.max_prims default"
+    )
 
     # Thesis comparison (only with the sizes the thesis used, where we measured them).
     th_ns = [n for n in THESIS_NS if n in ns]
@@ -151,32 +166,65 @@ def report(saved: dict, run: RunInfo, charts: dict[str, str]) -> str:
             if n in ns:
                 ours = statistics.mean(fps(sc, n, "BF") for sc in (1, 2, 3))
                 if not math.isnan(ours):
-                    comp.append([f"BF frames/s at n = {n} (mean of the 3 scenarios)",
-                                 f"{THESIS[f'bf_fps_{n}']:.2f}", f"{ours:.2f}"])
-        sp = {(sc, n, lab): fps(sc, n, lab) / fps(sc, n, "BF") for sc in (1, 2, 3) for n in ns for lab in bih_labels
-              if not math.isnan(fps(sc, n, lab) / fps(sc, n, "BF"))}
+                    comp.append(
+                        [
+                            f"BF frames/s at n = {n} (mean of the 3 scenarios)",
+                            f"{THESIS[f'bf_fps_{n}']:.2f}",
+                            f"{ours:.2f}",
+                        ]
+                    )
+        sp = {
+            (sc, n, lab): fps(sc, n, lab) / fps(sc, n, "BF")
+            for sc in (1, 2, 3)
+            for n in ns
+            for lab in bih_labels
+            if not math.isnan(fps(sc, n, lab) / fps(sc, n, "BF"))
+        }
         best = max((k for k in sp if k[1] in th_ns), key=sp.get, default=None)
         if best:
-            comp.append(["largest BIH / BF speed-up (n ∈ 64, 128, 256)",
-                         f"{THESIS['max_speedup'][0]:.2f}× ({THESIS['max_speedup'][1]})",
-                         f"{sp[best]:.2f}× (scenario {best[0]}, {best[1]} spheres, MAX_PRIMS {best[2].split()[1]})"])
+            comp.append(
+                [
+                    "largest BIH / BF speed-up (n ∈ 64, 128, 256)",
+                    f"{THESIS['max_speedup'][0]:.2f}× ({THESIS['max_speedup'][1]})",
+                    f"{sp[best]:.2f}× (scenario {best[0]}, {best[1]} spheres, MAX_PRIMS {best[2].split()[1]})",
+                ]
+            )
         for sc, key in ((2, "s2_speedup"), (3, "s3_speedup")):
-            per_n = [max(v for (s2, n2, _), v in sp.items() if (s2, n2) == (sc, n)) for n in th_ns
-                     if any((s2, n2) == (sc, n) for (s2, n2, _) in sp)]
+            per_n = [
+                max(v for (s2, n2, _), v in sp.items() if (s2, n2) == (sc, n))
+                for n in th_ns
+                if any((s2, n2) == (sc, n) for (s2, n2, _) in sp)
+            ]
             if per_n:
                 th = THESIS[key]
                 th_txt = f"{th[0]:.2f}× / " + (f"{th[1]:.2f}×" if th[1] else "—") + f" / {th[2]:.2f}×"
-                comp.append([f"scenario {sc}: best-BIH speed-up, min / mean / max over n ∈ "
-                             f"{', '.join(map(str, th_ns))}", th_txt,
-                             f"{min(per_n):.2f}× / {statistics.mean(per_n):.2f}× / {max(per_n):.2f}×"])
+                comp.append(
+                    [
+                        f"scenario {sc}: best-BIH speed-up, min / mean / max over n ∈ {', '.join(map(str, th_ns))}",
+                        th_txt,
+                        f"{min(per_n):.2f}× / {statistics.mean(per_n):.2f}× / {max(per_n):.2f}×",
+                    ]
+                )
     if th_ns:
         mp8 = sum(best_of(sc, n, bih_labels) == "BIH 8" for sc in (1, 2, 3) for n in th_ns)
-        comp.append([f"MAX_PRIMS 8 fastest (scenario × n ∈ {', '.join(map(str, th_ns))})", THESIS["mp8_best"],
-                     f"{mp8} of {3 * len(th_ns)}"])
-    top = max(((sc, n, lab) for sc in (1, 2, 3) for n in ns for lab in labels if not math.isnan(fps(sc, n, lab))),
-              key=lambda k: fps(*k))
-    comp.append(["fastest configuration", f"{THESIS['best_fps'][0]} fps ({THESIS['best_fps'][1]})",
-                 f"{fps(*top):.1f} fps ({top[2]}, scenario {top[0]}, {top[1]} spheres)"])
+        comp.append(
+            [
+                f"MAX_PRIMS 8 fastest (scenario × n ∈ {', '.join(map(str, th_ns))})",
+                THESIS["mp8_best"],
+                f"{mp8} of {3 * len(th_ns)}",
+            ]
+        )
+    top = max(
+        ((sc, n, lab) for sc in (1, 2, 3) for n in ns for lab in labels if not math.isnan(fps(sc, n, lab))),
+        key=lambda k: fps(*k),
+    )
+    comp.append(
+        [
+            "fastest configuration",
+            f"{THESIS['best_fps'][0]} fps ({THESIS['best_fps'][1]})",
+            f"{fps(*top):.1f} fps ({top[2]}, scenario {top[0]}, {top[1]} spheres)",
+        ]
+    )
     comp_table = md_table(["", "thesis (iPhone 5s)", "ours"], comp, "lll")
 
     path = f"figures/{NAME}.json"
@@ -199,7 +247,7 @@ Trace stage only (draw + finish, no build/upload/read), frames/s:
 
 {skipped_md}
 **MAX_PRIMS sweet spot:** {sweet} is fastest in {wins[sweet]} of {cases} scenario × n cases
-({', '.join(f'{k}: {v}' for k, v in wins.items())}).
+({", ".join(f"{k}: {v}" for k, v in wins.items())}).
 
 **Thesis against ours** (the thesis quotes these numbers in its text; its chart is not reproduced):
 
@@ -224,6 +272,7 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
     def fps(sc: int, n: int, label: str) -> float:
         p = points.get(f"{sc}/{n}/{label}")
         return math.nan if p is None else 1000.0 / p["timing"]["total"]["median"]
+
     bih = [lab for lab in labels if method.get(lab) == "bih"]
     fig, axes = pyplot.subplots(1, 3, figsize=(15, 4.6), sharey=True, layout="constrained")
     for j, sc in enumerate((1, 2, 3)):
@@ -232,13 +281,21 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
             xs = [n for n in ns if not math.isnan(fps(sc, n, lab))]
             if xs:
                 variant = bih.index(lab) if lab in bih else 0
-                ax.plot(xs, [fps(sc, n, lab) for n in xs],
-                        **line_style(lab, method=method.get(lab), variant=variant,
-                                     lw=2.2 if method.get(lab) == "bruteforce" else 1.5))
+                ax.plot(
+                    xs,
+                    [fps(sc, n, lab) for n in xs],
+                    **line_style(
+                        lab, method=method.get(lab), variant=variant, lw=2.2 if method.get(lab) == "bruteforce" else 1.5
+                    ),
+                )
         if "BF" in labels:
-            ax.plot([128, 256], [THESIS["bf_fps_128"], THESIS["bf_fps_256"]], ls="none",
-                    **{k: v for k, v in line_style("thesis BF (iPhone 5s)", method="thesis").items() if k != "ls"},
-                    mew=2)
+            ax.plot(
+                [128, 256],
+                [THESIS["bf_fps_128"], THESIS["bf_fps_256"]],
+                ls="none",
+                **{k: v for k, v in line_style("thesis BF (iPhone 5s)", method="thesis").items() if k != "ls"},
+                mew=2,
+            )
         ax.set_xscale("log", base=2)
         log_axis(ax, "y")
         ax.set_xticks(ns, [str(n) for n in ns])

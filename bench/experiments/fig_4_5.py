@@ -28,7 +28,8 @@ THESIS = {
     "lowest": ("BIH 16, scenario 3, 1,024 spheres", "slightly less than 6.2 kB"),
     "max_reduction": (82.5, "scenario 2, 1,024 spheres"),
     "min_reduction": (73.99, "scenario 1, 2,048 spheres"),
-    "largest_scenario": 2, "smallest_scenario": 1,
+    "largest_scenario": 2,
+    "smallest_scenario": 1,
 }
 
 
@@ -57,19 +58,37 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     rmax = max(red, key=red.get)
     rmin = min(red, key=red.get)
     per_sc = {sc: sum(v for k, v in mem.items() if k[0] == sc) for sc in (1, 2, 3)}
-    comp = md_table(["", "thesis (Fig. 4.5)", "ours"], [
-        ["highest memory", f"{THESIS['highest'][1]} ({THESIS['highest'][0]})",
-         f"{mem[hi]:,} B = {mem[hi] / 1000:.1f} kB (BIH {hi[2]}, scenario {hi[0]}, {hi[1]:,} spheres)"],
-        ["lowest memory", f"{THESIS['lowest'][1]} ({THESIS['lowest'][0]})",
-         f"{mem[lo]:,} B = {mem[lo] / 1000:.2f} kB (BIH {lo[2]}, scenario {lo[0]}, {lo[1]:,} spheres)"],
-        ["largest saving of BIH 16 vs BIH 1", f"{THESIS['max_reduction'][0]} % ({THESIS['max_reduction'][1]})",
-         f"{red[rmax]:.2f} % (scenario {rmax[0]}, {rmax[1]:,} spheres)"],
-        ["smallest saving of BIH 16 vs BIH 1", f"{THESIS['min_reduction'][0]} % ({THESIS['min_reduction'][1]})",
-         f"{red[rmin]:.2f} % (scenario {rmin[0]}, {rmin[1]:,} spheres)"],
-        ["scenario using most / least memory overall",
-         f"{THESIS['largest_scenario']} / {THESIS['smallest_scenario']}",
-         f"{max(per_sc, key=per_sc.get)} / {min(per_sc, key=per_sc.get)}"],
-    ], "lll")
+    comp = md_table(
+        ["", "thesis (Fig. 4.5)", "ours"],
+        [
+            [
+                "highest memory",
+                f"{THESIS['highest'][1]} ({THESIS['highest'][0]})",
+                f"{mem[hi]:,} B = {mem[hi] / 1000:.1f} kB (BIH {hi[2]}, scenario {hi[0]}, {hi[1]:,} spheres)",
+            ],
+            [
+                "lowest memory",
+                f"{THESIS['lowest'][1]} ({THESIS['lowest'][0]})",
+                f"{mem[lo]:,} B = {mem[lo] / 1000:.2f} kB (BIH {lo[2]}, scenario {lo[0]}, {lo[1]:,} spheres)",
+            ],
+            [
+                "largest saving of BIH 16 vs BIH 1",
+                f"{THESIS['max_reduction'][0]} % ({THESIS['max_reduction'][1]})",
+                f"{red[rmax]:.2f} % (scenario {rmax[0]}, {rmax[1]:,} spheres)",
+            ],
+            [
+                "smallest saving of BIH 16 vs BIH 1",
+                f"{THESIS['min_reduction'][0]} % ({THESIS['min_reduction'][1]})",
+                f"{red[rmin]:.2f} % (scenario {rmin[0]}, {rmin[1]:,} spheres)",
+            ],
+            [
+                "scenario using most / least memory overall",
+                f"{THESIS['largest_scenario']} / {THESIS['smallest_scenario']}",
+                f"{max(per_sc, key=per_sc.get)} / {min(per_sc, key=per_sc.get)}",
+            ],
+        ],
+        "lll",
+    )
 
     img = "\n".join(image_line(k, v) for k, v in charts.items())
     path = f"figures/{NAME}.json"
@@ -83,13 +102,13 @@ Bytes of the BIH as the thesis counts them: nodes × 12 + primitives × 4 (index
 
 {table}
 
-{run.caption(1, '')} (Memory does not depend on the machine.)
+{run.caption(1, "")} (Memory does not depend on the machine.)
 
 **Thesis against ours:**
 
 {comp}
 
-{run.caption(1, '')} (Thesis column: as quoted.)
+{run.caption(1, "")} (Thesis column: as quoted.)
 
 Raw data: [`{path}`]({path}).
 """
@@ -110,9 +129,15 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
     for j, sc in enumerate((1, 2, 3)):
         ax = axes[j]
         for i, mp in enumerate(mps):
-            ax.bar(x + (i - (len(mps) - 1) / 2) * wbar, [mem[(sc, n, mp)] / 1000 for n in ns], wbar,
-                   color=series("bih", variant=i)["color"], edgecolor="black", linewidth=0.3,
-                   label=f"BIH, MAX_PRIMS {mp}")
+            ax.bar(
+                x + (i - (len(mps) - 1) / 2) * wbar,
+                [mem[(sc, n, mp)] / 1000 for n in ns],
+                wbar,
+                color=series("bih", variant=i)["color"],
+                edgecolor="black",
+                linewidth=0.3,
+                label=f"BIH, MAX_PRIMS {mp}",
+            )
         ax.set_xticks(x, [f"{n:,}" for n in ns])
         ax.set_title(f"scenario {sc}")
         ax.set_xlabel("spheres n")

@@ -52,7 +52,7 @@ def revision() -> str:
     file naming its git directory; branches may live in the common directory's refs)."""
     try:
         git = ROOT / ".git"
-        if git.is_file():                                   # a linked worktree
+        if git.is_file():  # a linked worktree
             git = (ROOT / git.read_text().split("gitdir:", 1)[1].strip()).resolve()
         common = (git / (git / "commondir").read_text().strip()).resolve() if (git / "commondir").exists() else git
         head = (git / "HEAD").read_text().strip()

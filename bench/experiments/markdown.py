@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import math
-from typing import Any, Iterable, Sequence
+from collections.abc import Iterable, Sequence
+from typing import Any
 
 
 def md_table(headers: Sequence[str], rows: Iterable[Sequence[Any]], align: str | None = None) -> str:
     """A Markdown table; ``align`` is one character per column: l, r or c (default: l then r)."""
+
     def esc(c: Any) -> str:  # a "|" inside a cell (|Δt|) would split it
         return str(c).replace("|", "\\|")
+
     headers = list(headers)
     if align is None:
         align = "l" + "r" * (len(headers) - 1)

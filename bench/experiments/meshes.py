@@ -51,13 +51,12 @@ from .markdown import md_table
 from .peers import MITSUBA_VARIANT, Result, _warm_mitsuba, available, ours_settings, versions
 from .scenes import default_settings
 from .style import image_line, plt, save
-from .timing import Stat
-from .timing import measure as time_it
+from .timing import Stat, measure as time_it
 
 NAME = "meshes"
 TITLE = "Triangle meshes — a million-triangle build, and primary rays beside Embree and Mitsuba 3"
 
-BUILD_COPIES, BUILD_COPIES_QUICK = 49, 1      # level-5 icospheres: 1,003,520 triangles (quick: 20,480)
+BUILD_COPIES, BUILD_COPIES_QUICK = 49, 1  # level-5 icospheres: 1,003,520 triangles (quick: 20,480)
 BUILD_LEVEL, BUILD_LEVEL_QUICK = 5, 4
 TARGETS_S = {"bih": 3.0, "bvh": 6.0}
 OTHER_BUILDS = ("kdtree", "twolevel")
@@ -65,7 +64,7 @@ OTHER_DEADLINE_S = 60.0
 TEAPOT_SEGMENTS, TEAPOT_SEGMENTS_QUICK = 40, 6  # 32 patches × n² × 2 triangles (+ caps)
 SIZE, SIZE_QUICK = (640, 1088), (64, 108)
 OURS = ("bih", "bvh", "bruteforce")
-BF_LOOP_LIMIT = MAX_LOOP_PRIMITIVES   # brute force refuses more (renderer/limits.py: llvmpipe's loop limiter)
+BF_LOOP_LIMIT = MAX_LOOP_PRIMITIVES  # brute force refuses more (renderer/limits.py: llvmpipe's loop limiter)
 CHECK_RAYS = 4096
 
 
@@ -77,6 +76,7 @@ class Deadline(Exception):
 def deadline(seconds: float):
     def on_alarm(signum, frame):
         raise Deadline(f"still running after {seconds:g} s")
+
     old = signal.signal(signal.SIGALRM, on_alarm)
     signal.setitimer(signal.ITIMER_REAL, seconds)
     try:
@@ -87,8 +87,16 @@ def deadline(seconds: float):
 
 
 def _scene(meshes, camera: Camera) -> Scene:
-    return Scene(camera, (Light((40.0, 60.0, 80.0), (1.0, 1.0, 1.0)),), (RED,), np.zeros((0, 3)), np.zeros(0),
-                 np.zeros(0, np.int32), (), tuple(meshes))
+    return Scene(
+        camera,
+        (Light((40.0, 60.0, 80.0), (1.0, 1.0, 1.0)),),
+        (RED,),
+        np.zeros((0, 3)),
+        np.zeros(0),
+        np.zeros(0, np.int32),
+        (),
+        tuple(meshes),
+    )
 
 
 def icosphere_grid(copies: int, level: int) -> Scene:
@@ -110,6 +118,7 @@ def teapot_scene(segments: int) -> Scene:
 
 # --------------------------------------------------------------------------- (a) builds
 
+
 def builds(ctx: Context) -> tuple[dict, int]:
     copies, level = (BUILD_COPIES_QUICK, BUILD_LEVEL_QUICK) if ctx.quick else (BUILD_COPIES, BUILD_LEVEL)
     scene = icosphere_grid(copies, level)
@@ -119,7 +128,7 @@ def builds(ctx: Context) -> tuple[dict, int]:
     runs = 1 if ctx.quick else max(1, min(ctx.runs, 3))
     out: dict[str, dict] = {}
     for m in ("bih", "bvh"):
-        prep = lambda m=m: METHODS[m].prepare(scene, st.max_prims, st.max_tree_depth, width)  # noqa: E731
+        prep = lambda m=m: METHODS[m].prepare(scene, st.max_prims, st.max_tree_depth, width)
         s, _ = time_it(prep, runs, warmup=0)
         out[m] = {"build": s, "target_s": TARGETS_S[m], "runs": runs}
     for m in OTHER_BUILDS:
@@ -138,6 +147,7 @@ def builds(ctx: Context) -> tuple[dict, int]:
 
 # --------------------------------------------------------------------------- (b) primary rays
 
+
 def reference_hits(scene: Scene, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
     """float64 nearest triangle index (−1: miss) and t per ray, and a check of it."""
     corners = scene.triangle_corners
@@ -149,8 +159,11 @@ def reference_hits(scene: Scene, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarr
     pick = rng.choice(len(o), size=min(CHECK_RAYS, len(o)), replace=False)
     bt, bp = brute_force(none_c, none_r, o[pick], d[pick], triangles=corners)
     bp = np.asarray(bp, dtype=np.int64)
-    check = {"rays": len(pick), "ids_differ": int(np.sum(bp != ids[pick])),
-             "t_differ": int(np.sum((bp >= 0) & (np.asarray(bt) != t[pick])))}
+    check = {
+        "rays": len(pick),
+        "ids_differ": int(np.sum(bp != ids[pick])),
+        "t_differ": int(np.sum((bp >= 0) & (np.asarray(bt) != t[pick]))),
+    }
     return ids, t, check
 
 
@@ -167,6 +180,7 @@ def run_ours(ctx: Context, scene: Scene, st) -> Result:
 def run_embree(v32: np.ndarray, f32: np.ndarray, o: np.ndarray, d: np.ndarray, runs: int) -> Result:
     from embreex import rtcore_scene as rtcs
     from embreex.mesh_construction import TriangleMesh
+
     o32, d32 = np.ascontiguousarray(o, np.float32), np.ascontiguousarray(d, np.float32)
     holder: dict = {"mesh_ms": []}
 
@@ -176,38 +190,48 @@ def run_embree(v32: np.ndarray, f32: np.ndarray, o: np.ndarray, d: np.ndarray, r
         TriangleMesh(sc, v32, f32)
         holder["mesh_ms"].append((time.perf_counter() - t0) * 1e3)
         t1 = time.perf_counter()
-        sc.run(o32[:1], d32[:1])      # the first query commits the scene (Embree's BVH build)
+        sc.run(o32[:1], d32[:1])  # the first query commits the scene (Embree's BVH build)
         holder["scene"] = sc
         return (time.perf_counter() - t1) * 1e3
+
     b = Stat([build() for _ in range(max(1, runs))])
     sc = holder["scene"]
     tr, res = time_it(lambda: sc.run(o32, d32, output=1), runs, warmup=1)
     prim = np.asarray(res["primID"]).astype(np.int64)
     t = np.asarray(res["tfar"], dtype=np.float64)
     hit = (prim >= 0) & np.isfinite(t) & (t < 1e30)
-    return Result(b, tr, np.where(hit, t, np.inf), np.where(hit, prim, -1),
-                  note=f"build = commit; mesh copy-in {Stat(holder['mesh_ms']).median:,.0f} ms not counted")
+    return Result(
+        b,
+        tr,
+        np.where(hit, t, np.inf),
+        np.where(hit, prim, -1),
+        note=f"build = commit; mesh copy-in {Stat(holder['mesh_ms']).median:,.0f} ms not counted",
+    )
 
 
 def run_mitsuba(v32: np.ndarray, f32: np.ndarray, o: np.ndarray, d: np.ndarray, runs: int) -> Result:
     import drjit as dr
     import mitsuba as mi
+
     _warm_mitsuba()
     holder = {}
 
     def build():
-        mesh = mi.Mesh("teapot", vertex_count=len(v32), face_count=len(f32), has_vertex_normals=False,
-                       has_vertex_texcoords=False)
+        mesh = mi.Mesh(
+            "teapot", vertex_count=len(v32), face_count=len(f32), has_vertex_normals=False, has_vertex_texcoords=False
+        )
         params = mi.traverse(mesh)
         params["vertex_positions"] = mi.Float(np.ascontiguousarray(v32).ravel())
         params["faces"] = mi.UInt32(np.ascontiguousarray(f32, dtype=np.uint32).ravel())
         params.update()
         holder["scene"] = mi.load_dict({"type": "scene", "m": mesh})
+
     b, _ = time_it(build, runs, warmup=0)
     scene = holder["scene"]
     o32, d32 = o.astype(np.float32), d.astype(np.float32)
-    ray = mi.Ray3f(mi.Point3f(*(mi.Float(o32[:, k]) for k in range(3))),
-                   mi.Vector3f(*(mi.Float(d32[:, k]) for k in range(3))))
+    ray = mi.Ray3f(
+        mi.Point3f(*(mi.Float(o32[:, k]) for k in range(3))), mi.Vector3f(*(mi.Float(d32[:, k]) for k in range(3)))
+    )
     dr.eval(ray)
 
     def trace():
@@ -215,20 +239,29 @@ def run_mitsuba(v32: np.ndarray, f32: np.ndarray, o: np.ndarray, d: np.ndarray, 
         dr.eval(pi.t, pi.prim_index)
         dr.sync_thread()
         return pi
+
     tr, pi = time_it(trace, runs, warmup=1)
     t = np.array(pi.t, dtype=np.float64)
     hit = np.isfinite(t)
-    return Result(b, tr, np.where(hit, t, np.inf), np.where(hit, np.array(pi.prim_index, dtype=np.int64), -1),
-                  note="build = mi.Mesh from the arrays + mi.load_dict")
+    return Result(
+        b,
+        tr,
+        np.where(hit, t, np.inf),
+        np.where(hit, np.array(pi.prim_index, dtype=np.int64), -1),
+        note="build = mi.Mesh from the arrays + mi.load_dict",
+    )
 
 
 def agreement(res: Result, ref_ids: np.ndarray, ref_t: np.ndarray) -> dict:
     same = res.ids == ref_ids
     both = same & (ref_ids >= 0)
     dt = np.abs(res.t[both] - ref_t[both])
-    return {"agree_pct": 100.0 * float(same.mean()), "differ": int((~same).sum()),
-            "max_dt": float(dt.max()) if both.any() else math.nan,
-            "max_rel_dt": float((dt / ref_t[both]).max()) if both.any() else math.nan}
+    return {
+        "agree_pct": 100.0 * float(same.mean()),
+        "differ": int((~same).sum()),
+        "max_dt": float(dt.max()) if both.any() else math.nan,
+        "max_rel_dt": float((dt / ref_t[both]).max()) if both.any() else math.nan,
+    }
 
 
 def primary(ctx: Context) -> dict:
@@ -250,9 +283,11 @@ def primary(ctx: Context) -> dict:
         eng = f"ours: {m}"
         st = ours_settings(m, w, h)
         if m == "bruteforce" and scene.n_triangles > BF_LOOP_LIMIT:
-            skipped.append(f"{eng}: {scene.n_triangles:,} triangles, but on llvmpipe its loop never reaches a "
-                           f"triangle past id {BF_LOOP_LIMIT - 1:,}, so it refuses more than {BF_LOOP_LIMIT:,} "
-                           "primitives (renderer/limits.py, MAX_LOOP_PRIMITIVES)")
+            skipped.append(
+                f"{eng}: {scene.n_triangles:,} triangles, but on llvmpipe its loop never reaches a "
+                f"triangle past id {BF_LOOP_LIMIT - 1:,}, so it refuses more than {BF_LOOP_LIMIT:,} "
+                "primitives (renderer/limits.py, MAX_LOOP_PRIMITIVES)"
+            )
             continue
         # bih and bvh are what this table is for: no frame-budget prediction (from a frame at
         # 1/8 × 1/8 it scales the fixed per-draw cost by 64 and refused the BIH at 8 s); their
@@ -264,31 +299,49 @@ def primary(ctx: Context) -> dict:
             continue
         try:
             rows[eng] = {"res": fn(v32, f32, o, d, runs)}
-        except Exception as e:   # a peer failing must not end the section
+        except Exception as e:  # a peer failing must not end the section
             skipped.append(f"{eng}: {type(e).__name__}: {e}")
     out = {}
     for eng, v in rows.items():
         res = v["res"]
-        out[eng] = {"build": res.build, "trace": res.trace, "mrays": w * h / (res.trace.median / 1e3) / 1e6,
-                    "note": res.note, **agreement(res, ref_ids, ref_t)}
-    return {"size": [w, h], "triangles": scene.n_triangles, "segments": segments, "rows": out,
-            "skipped": skipped + ctx.take_skipped(), "reference_check": check,
-            "ref_hit_pct": 100.0 * float((ref_ids >= 0).mean())}
+        out[eng] = {
+            "build": res.build,
+            "trace": res.trace,
+            "mrays": w * h / (res.trace.median / 1e3) / 1e6,
+            "note": res.note,
+            **agreement(res, ref_ids, ref_t),
+        }
+    return {
+        "size": [w, h],
+        "triangles": scene.n_triangles,
+        "segments": segments,
+        "rows": out,
+        "skipped": skipped + ctx.take_skipped(),
+        "reference_check": check,
+        "ref_hit_pct": 100.0 * float((ref_ids >= 0).mean()),
+    }
 
 
 # --------------------------------------------------------------------------- section
 
+
 def measure(ctx: Context) -> dict:
     b, n_build = builds(ctx)
     p = primary(ctx)
-    return {"build": {"triangles": n_build, "methods": b}, "primary": p, "versions": versions(),
-            "drjit_threads": os.environ.get("DRJIT_NUM_THREADS", "default")}
+    return {
+        "build": {"triangles": n_build, "methods": b},
+        "primary": p,
+        "versions": versions(),
+        "drjit_threads": os.environ.get("DRJIT_NUM_THREADS", "default"),
+    }
 
 
 def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     n_build, p = data["build"]["triangles"], data["primary"]
-    b = {m: {**v, **({"build": Stat.from_json(v["build"])} if "build" in v else {})}
-         for m, v in data["build"]["methods"].items()}
+    b = {
+        m: {**v, **({"build": Stat.from_json(v["build"])} if "build" in v else {})}
+        for m, v in data["build"]["methods"].items()
+    }
     for v in p["rows"].values():
         v["build"], v["trace"] = Stat.from_json(v["build"]), Stat.from_json(v["trace"])
     path = f"figures/{NAME}.json"
@@ -311,11 +364,34 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     trows = []
     for eng, v in p["rows"].items():
         ratios = " · ".join(f"{v['mrays'] / r['mrays']:.2f}× {m}" for m, r in ours_ref.items() if r)
-        trows.append([eng, v["build"].fmt(1), v["trace"].fmt(1), f"{v['mrays']:.2f}", ratios,
-                      f"{v['agree_pct']:.4f} % ({v['differ']:,} of {w * h:,} rays differ)", f"{v['max_dt']:.2e}",
-                      f"{v['max_rel_dt']:.1e}", v["note"]])
-    ttable = md_table(["engine", "build ms", "trace ms", "Mrays/s", "Mrays/s ÷ ours", "nearest triangle = reference",
-                       "max |Δt|", "max rel. |Δt|", "counted / note"], trows, "lrrrllrrl")
+        trows.append(
+            [
+                eng,
+                v["build"].fmt(1),
+                v["trace"].fmt(1),
+                f"{v['mrays']:.2f}",
+                ratios,
+                f"{v['agree_pct']:.4f} % ({v['differ']:,} of {w * h:,} rays differ)",
+                f"{v['max_dt']:.2e}",
+                f"{v['max_rel_dt']:.1e}",
+                v["note"],
+            ]
+        )
+    ttable = md_table(
+        [
+            "engine",
+            "build ms",
+            "trace ms",
+            "Mrays/s",
+            "Mrays/s ÷ ours",
+            "nearest triangle = reference",
+            "max |Δt|",
+            "max rel. |Δt|",
+            "counted / note",
+        ],
+        trows,
+        "lrrrllrrl",
+    )
     skipped = "".join(f"\n- {s}" for s in p["skipped"])
     chk = p["reference_check"]
     vers = ", ".join(f"{k} {v}" for k, v in data["versions"].items()) or "no peers installed"
@@ -330,17 +406,17 @@ two-level method get one attempt each under a {OTHER_DEADLINE_S:g} s deadline.
 
 {btable}
 
-{run.caption_cpu(b['bih']['runs'], 'median')}
+{run.caption_cpu(b["bih"]["runs"], "median")}
 
-**(b) Primary rays on Newell's teapot, {p['triangles']:,} triangles** (flat, {p['segments']} segments
-per patch, no plane; {p['ref_hit_pct']:.1f} % of the rays hit it) at {w} × {h}{size_note}: the same
+**(b) Primary rays on Newell's teapot, {p["triangles"]:,} triangles** (flat, {p["segments"]} segments
+per patch, no plane; {p["ref_hit_pct"]:.1f} % of the rays hit it) at {w} × {h}{size_note}: the same
 rays through our GPU path (mode `depth`, recursion 1), Embree through embreex (one `TriangleMesh`
 of the same float32 vertices and indices) and Mitsuba 3 (`{MITSUBA_VARIANT}`, one `mesh` shape from
 the same arrays, `ray_intersect_preliminary`), in one run. Versions: {vers}; Dr.Jit threads:
-{data['drjit_threads']}. Build = what each needs before the first ray (column "counted");
+{data["drjit_threads"]}. Build = what each needs before the first ray (column "counted");
 trace = the rays only. Agreement: the share of rays whose nearest triangle is the float64
 reference's (the CPU BIH traversal of `renderer/accel/bih_traverse.py`; checked against its float64
-brute force on {chk['rays']:,} random rays: {chk['ids_differ']} id(s) and {chk['t_differ']} t(s)
+brute force on {chk["rays"]:,} random rays: {chk["ids_differ"]} id(s) and {chk["t_differ"]} t(s)
 differ), and |Δt| over the rays where they agree.
 
 {img}
@@ -349,7 +425,7 @@ differ), and |Δt| over the rays where they agree.
 
 {run.caption(capped=True)}
 
-Not run:{skipped or ' —'}
+Not run:{skipped or " —"}
 
 Raw data: [`{path}`]({path}).
 """
@@ -365,16 +441,20 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
     a1.bar(names, secs, color="#4c72b0")
     for i, m in enumerate(names):
         if bm[m].get("target_s"):
-            a1.plot([i - 0.4, i + 0.4], [bm[m]["target_s"]] * 2, color="#c44e52", lw=2,
-                    label="target" if i == 0 else None)
+            a1.plot(
+                [i - 0.4, i + 0.4], [bm[m]["target_s"]] * 2, color="#c44e52", lw=2, label="target" if i == 0 else None
+            )
     a1.set_ylabel("build s")
     a1.set_title(f"(a) build over {data['build']['triangles']:,} triangles")
     if any(bm[m].get("target_s") for m in names):
         a1.legend()
     rows = data["primary"]["rows"]
     engs = list(rows)
-    a2.bar(range(len(engs)), [rows[e]["mrays"] for e in engs],
-           color=["#4c72b0" if e.startswith("ours") else "#dd8452" for e in engs])
+    a2.bar(
+        range(len(engs)),
+        [rows[e]["mrays"] for e in engs],
+        color=["#4c72b0" if e.startswith("ours") else "#dd8452" for e in engs],
+    )
     a2.set_xticks(range(len(engs)), engs, rotation=20, ha="right")
     a2.set_yscale("log")
     w, h = data["primary"]["size"]

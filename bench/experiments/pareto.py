@@ -33,8 +33,7 @@ from .context import Context, RunInfo
 from .images import max_abs, psnr, ssim, upscale
 from .markdown import details, fmt_db, md_table
 from .scenes import default_settings, has_setting, method_names
-from .style import image_line, legend_outside, log_axis, plt, save
-from .style import series as line_style
+from .style import image_line, legend_outside, log_axis, plt, save, series as line_style
 from .timing import Stat
 
 NAME = "pareto"
@@ -48,7 +47,7 @@ SIZE = (320, 544)
 SIZE_QUICK = (64, 108)
 REF_DEPTH = 8
 REF_SS = 4
-SCALES = (1, 2, 4)                 # render at 1/s of the resolution, then upscale
+SCALES = (1, 2, 4)  # render at 1/s of the resolution, then upscale
 SPPS = (1, 4)
 EPSILONS = (0.003, 0.01, 0.03, 0.1, 0.3)
 # Recommendation rules (stated in the section). Quality = worst scenario, time = mean of the scenarios.
@@ -59,7 +58,7 @@ INTERACTIVE_MAX_PSNR_LOSS_DB = 1.0
 INTERACTIVE_MAX_SSIM_LOSS = 0.01
 # "still": the fastest setting within this of the best worst-scenario PSNR measured.
 STILL_WITHIN_DB = 0.5
-EXACT_AT = dict(depth=5, scale=1, spp=1, eps=0.0)   # where methods / MAX_PRIMS are compared
+EXACT_AT = dict(depth=5, scale=1, spp=1, eps=0.0)  # where methods / MAX_PRIMS are compared
 EXACT_MAX_PRIMS = (1, 4, 8, 16)
 
 
@@ -113,15 +112,26 @@ def knob_grid(quick: bool) -> list[Knobs]:
 
 
 def reference_image(sc: int, n: int, w: int, h: int) -> np.ndarray:
-    key = {"what": "pareto reference", "scenario": sc, "n": n, "seed": 0, "radius": 1.0, "w": w, "h": h,
-           "depth": REF_DEPTH, "ss": REF_SS}
+    key = {
+        "what": "pareto reference",
+        "scenario": sc,
+        "n": n,
+        "seed": 0,
+        "radius": 1.0,
+        "w": w,
+        "h": h,
+        "depth": REF_DEPTH,
+        "ss": REF_SS,
+    }
     src = [Path(_reference_module.__file__), Path(_reference_module.__file__).parent / "scenarios.py"]
 
     def compute():
         scene = scenario(sc, n, seed=0, radius=1.0)
-        st = default_settings().with_(width=w, height=h, mode="color", max_recursion_depth=REF_DEPTH,
-                                      method="bruteforce")
+        st = default_settings().with_(
+            width=w, height=h, mode="color", max_recursion_depth=REF_DEPTH, method="bruteforce"
+        )
         return {"image": render_reference(scene, st, supersample=REF_SS).image.astype(np.float32)}
+
     return cached_array(key, compute, src)["image"]
 
 
@@ -172,8 +182,12 @@ def measure(ctx: Context) -> dict:
         scene = scenario(sc, n, seed=0, radius=1.0)
         t = ctx.time_render(scene, settings_for(k), post=post_for(k), budget_s=None)
         img = t.result
-        results[(sc, k)] = {"time": t.total, "psnr": psnr(refs[sc], img), "ssim": ssim(refs[sc], img),
-                            "max_abs": max_abs(refs[sc], img)}
+        results[(sc, k)] = {
+            "time": t.total,
+            "psnr": psnr(refs[sc], img),
+            "ssim": ssim(refs[sc], img),
+            "max_abs": max_abs(refs[sc], img),
+        }
 
     # Methods and MAX_PRIMS at one knob setting: same image, different time.
     ek = Knobs(**EXACT_AT)
@@ -189,20 +203,29 @@ def measure(ctx: Context) -> dict:
             img = t.result
             if first_img is None:
                 first_img = img
-            exact[(sc, label)] = {"time": t.total, "psnr": psnr(refs[sc], img), "ssim": ssim(refs[sc], img),
-                                  "max_abs": max_abs(refs[sc], img),
-                                  "max_diff_vs_first": float(np.max(np.abs(img.astype(np.float64) - first_img))),
-                                  "u8_identical": bool(np.array_equal(to_u8(img), to_u8(first_img)))}
+            exact[(sc, label)] = {
+                "time": t.total,
+                "psnr": psnr(refs[sc], img),
+                "ssim": ssim(refs[sc], img),
+                "max_abs": max_abs(refs[sc], img),
+                "max_diff_vs_first": float(np.max(np.abs(img.astype(np.float64) - first_img))),
+                "u8_identical": bool(np.array_equal(to_u8(img), to_u8(first_img))),
+            }
 
     _, _, interactive, still, _, recommended = recommend(grid, results, scs)
     return {
-        "size": [w, h], "n": n, "reference": {"depth": REF_DEPTH, "ss": REF_SS},
+        "size": [w, h],
+        "n": n,
+        "reference": {"depth": REF_DEPTH, "ss": REF_SS},
         "results": {f"{sc}/{k.label}": {**v, "knobs": dataclasses.asdict(k)} for (sc, k), v in results.items()},
         "exact": {f"{sc}/{lab}": v for (sc, lab), v in exact.items()},
-        "exact_at": dataclasses.asdict(ek), "exact_variants": [lab for lab, _ in exact_variants],
-        "method": base.method, "max_prims": base.max_prims,
+        "exact_at": dataclasses.asdict(ek),
+        "exact_variants": [lab for lab, _ in exact_variants],
+        "method": base.method,
+        "max_prims": base.max_prims,
         "recommended": recommended,
-        "recommended_knobs": {"interactive": dataclasses.asdict(interactive), "still": dataclasses.asdict(still)}}
+        "recommended_knobs": {"interactive": dataclasses.asdict(interactive), "still": dataclasses.asdict(still)},
+    }
 
 
 def exact_variants_of_the_code() -> list[tuple[str, dict]]:
@@ -233,16 +256,22 @@ def recommend(grid: list[Knobs], results: dict, scs) -> tuple[dict, float, Knobs
     and both as settings."""
     agg = {}
     for k in grid:
-        agg[k] = {"time": float(np.mean([results[(sc, k)]["time"].median for sc in scs])),
-                  "psnr": min(results[(sc, k)]["psnr"] for sc in scs),
-                  "ssim": min(results[(sc, k)]["ssim"] for sc in scs)}
+        agg[k] = {
+            "time": float(np.mean([results[(sc, k)]["time"].median for sc in scs])),
+            "psnr": min(results[(sc, k)]["psnr"] for sc in scs),
+            "ssim": min(results[(sc, k)]["ssim"] for sc in scs),
+        }
     best_psnr = max(v["psnr"] for v in agg.values())
     still_ok = [k for k in grid if agg[k]["psnr"] >= best_psnr - STILL_WITHIN_DB]
     still = min(still_ok, key=lambda k: agg[k]["time"])
     baseline = Knobs(**BASELINE)
     b = agg[baseline]
-    inter_ok = [k for k in grid if agg[k]["psnr"] >= b["psnr"] - INTERACTIVE_MAX_PSNR_LOSS_DB
-                and agg[k]["ssim"] >= b["ssim"] - INTERACTIVE_MAX_SSIM_LOSS]  # the baseline itself qualifies
+    inter_ok = [
+        k
+        for k in grid
+        if agg[k]["psnr"] >= b["psnr"] - INTERACTIVE_MAX_PSNR_LOSS_DB
+        and agg[k]["ssim"] >= b["ssim"] - INTERACTIVE_MAX_SSIM_LOSS
+    ]  # the baseline itself qualifies
     interactive = min(inter_ok, key=lambda k: agg[k]["time"])
     recommended = {"interactive": as_settings(interactive), "still": as_settings(still)}
     return agg, best_psnr, interactive, still, baseline, recommended
@@ -253,7 +282,7 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     n = data["n"]
     scs = (1, 2, 3)
     results: dict[tuple[int, Knobs], dict] = {}
-    for key, v in data["results"].items():   # in the order measured: scenario, then the knob grid
+    for key, v in data["results"].items():  # in the order measured: scenario, then the knob grid
         k = Knobs(**v["knobs"])
         results[(int(key.split("/", 1)[0]), k)] = {**v, "time": Stat.from_json(v["time"])}
     grid = list(dict.fromkeys(k for _, k in results))
@@ -262,43 +291,69 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
         sc, lab = key.split("/", 1)
         exact[(int(sc), lab)] = {**v, "time": Stat.from_json(v["time"])}
     # Older data did not keep the variants it tried: those of the code.
-    exact_variants = ([(lab, None) for lab in data["exact_variants"]] if "exact_variants" in data
-                      else exact_variants_of_the_code())
+    exact_variants = (
+        [(lab, None) for lab in data["exact_variants"]] if "exact_variants" in data else exact_variants_of_the_code()
+    )
     ek = Knobs(**data.get("exact_at", EXACT_AT))
     defaults = default_settings()
     method, max_prims = data.get("method", defaults.method), data.get("max_prims", defaults.max_prims)
 
     agg, best_psnr, interactive, still, baseline, recommended = recommend(grid, results, scs)
     b = agg[baseline]
-    inter_rule = (f"the fastest setting at most {INTERACTIVE_MAX_PSNR_LOSS_DB:g} dB PSNR and "
-                  f"{INTERACTIVE_MAX_SSIM_LOSS:g} SSIM below the baseline frame ({baseline.label}, full resolution, "
-                  f"1 spp: {b['time']:,.1f} ms, worst PSNR {fmt_db(b['psnr'])} dB, worst SSIM {b['ssim']:.4f})")
-    run.note(f"pareto: interactive = {json.dumps(recommended['interactive'])}; "
-             f"still = {json.dumps(recommended['still'])}")
+    inter_rule = (
+        f"the fastest setting at most {INTERACTIVE_MAX_PSNR_LOSS_DB:g} dB PSNR and "
+        f"{INTERACTIVE_MAX_SSIM_LOSS:g} SSIM below the baseline frame ({baseline.label}, full resolution, "
+        f"1 spp: {b['time']:,.1f} ms, worst PSNR {fmt_db(b['psnr'])} dB, worst SSIM {b['ssim']:.4f})"
+    )
+    run.note(
+        f"pareto: interactive = {json.dumps(recommended['interactive'])}; still = {json.dumps(recommended['still'])}"
+    )
 
     # ---- chart
 
     # ---- tables
     front_rows = []
-    per_sc_fronts = {sc: {grid[i] for i in pareto_front([(results[(sc, k)]["time"].median,
-                                                          results[(sc, k)]["psnr"]) for k in grid])} for sc in scs}
+    per_sc_fronts = {
+        sc: {grid[i] for i in pareto_front([(results[(sc, k)]["time"].median, results[(sc, k)]["psnr"]) for k in grid])}
+        for sc in scs
+    }
     agg_front = {grid[i] for i in pareto_front([(agg[k]["time"], agg[k]["psnr"]) for k in grid])}
     for k in sorted(agg_front, key=lambda k: agg[k]["time"]):
         mark = " **(interactive)**" if k == interactive else (" **(still)**" if k == still else "")
-        front_rows.append([k.label + mark, f"{agg[k]['time']:,.1f}", fmt_db(agg[k]["psnr"]), f"{agg[k]['ssim']:.4f}",
-                           ", ".join(str(sc) for sc in scs if k in per_sc_fronts[sc]) or "—"])
-    front_table = md_table(["setting", "mean time (ms)", "worst PSNR (dB)", "worst SSIM",
-                            "on the front of scenario"], front_rows, "lrrrl")
+        front_rows.append(
+            [
+                k.label + mark,
+                f"{agg[k]['time']:,.1f}",
+                fmt_db(agg[k]["psnr"]),
+                f"{agg[k]['ssim']:.4f}",
+                ", ".join(str(sc) for sc in scs if k in per_sc_fronts[sc]) or "—",
+            ]
+        )
+    front_table = md_table(
+        ["setting", "mean time (ms)", "worst PSNR (dB)", "worst SSIM", "on the front of scenario"], front_rows, "lrrrl"
+    )
     all_tables = []
     for sc in scs:
         rows = []
         for k in sorted(grid, key=lambda k: results[(sc, k)]["time"].median):
             r = results[(sc, k)]
-            rows.append([k.label + (" ◆" if k in per_sc_fronts[sc] else ""), r["time"].fmt(1), fmt_db(r["psnr"]),
-                         f"{r['max_abs']:.4f}", f"{r['ssim']:.4f}"])
-        all_tables.append(details(f"Scenario {sc}: all {len(grid)} settings (◆ = on this scenario's Pareto front)",
-                                  md_table(["setting", "time ms", "PSNR dB", "max abs err", "SSIM"], rows,
-                                           "lrrrr") + "\n\n" + run.caption()))
+            rows.append(
+                [
+                    k.label + (" ◆" if k in per_sc_fronts[sc] else ""),
+                    r["time"].fmt(1),
+                    fmt_db(r["psnr"]),
+                    f"{r['max_abs']:.4f}",
+                    f"{r['ssim']:.4f}",
+                ]
+            )
+        all_tables.append(
+            details(
+                f"Scenario {sc}: all {len(grid)} settings (◆ = on this scenario's Pareto front)",
+                md_table(["setting", "time ms", "PSNR dB", "max abs err", "SSIM"], rows, "lrrrr")
+                + "\n\n"
+                + run.caption(),
+            )
+        )
     ex_rows = []
     for sc in scs:
         for lab, _ in exact_variants:
@@ -306,10 +361,32 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
                 ex_rows.append([str(sc), lab, "not measured (see below)", "", "", "", "", ""])
                 continue
             e = exact[(sc, lab)]
-            ex_rows.append([str(sc), lab, e["time"].fmt(1), fmt_db(e["psnr"]), f"{e['max_abs']:.4f}",
-                            f"{e['ssim']:.4f}", f"{e['max_diff_vs_first']:.2e}", "yes" if e["u8_identical"] else "**no**"])
-    ex_table = md_table(["scenario", "method", "time ms", "PSNR dB", "max abs err", "SSIM",
-                         f"max |Δ| vs {exact_variants[0][0]}", "same 8-bit image"], ex_rows, "rlrrrrrc")
+            ex_rows.append(
+                [
+                    str(sc),
+                    lab,
+                    e["time"].fmt(1),
+                    fmt_db(e["psnr"]),
+                    f"{e['max_abs']:.4f}",
+                    f"{e['ssim']:.4f}",
+                    f"{e['max_diff_vs_first']:.2e}",
+                    "yes" if e["u8_identical"] else "**no**",
+                ]
+            )
+    ex_table = md_table(
+        [
+            "scenario",
+            "method",
+            "time ms",
+            "PSNR dB",
+            "max abs err",
+            "SSIM",
+            f"max |Δ| vs {exact_variants[0][0]}",
+            "same 8-bit image",
+        ],
+        ex_rows,
+        "rlrrrrrc",
+    )
     by_sc = {sc: [v for (s2, _), v in exact.items() if s2 == sc] for sc in scs}
     spread = max(max(v["psnr"] for v in by_sc[sc]) - min(v["psnr"] for v in by_sc[sc]) for sc in scs)
     tspread = max(max(v["time"].median for v in by_sc[sc]) / min(v["time"].median for v in by_sc[sc]) for sc in scs)
@@ -318,8 +395,11 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     skipped_md = run.skipped_md()
 
     missing = [name for name in ("samples_per_pixel", "min_weight") if not has_setting(name)]
-    missing_txt = (f"\n\n**Not measured:** RenderSettings of this build has no {', '.join(f'`{m}`' for m in missing)}."
-                   if missing else "")
+    missing_txt = (
+        f"\n\n**Not measured:** RenderSettings of this build has no {', '.join(f'`{m}`' for m in missing)}."
+        if missing
+        else ""
+    )
     path = f"figures/{NAME}.json"
     img = "\n".join(image_line(k, v) for k, v in charts.items())
     return f"""## {TITLE}
@@ -340,11 +420,11 @@ timed); samples per pixel; the weight cut-off ε (`min_weight`). Other settings 
 
 **Recommended defaults** (from the table above; the rules are fixed in `bench/experiments/pareto.py`):
 
-- *interactive*: **{interactive.label}** — {inter_rule}: {agg[interactive]['time']:,.1f} ms mean,
-  worst PSNR {fmt_db(agg[interactive]['psnr'])} dB, worst SSIM {agg[interactive]['ssim']:.4f}.
+- *interactive*: **{interactive.label}** — {inter_rule}: {agg[interactive]["time"]:,.1f} ms mean,
+  worst PSNR {fmt_db(agg[interactive]["psnr"])} dB, worst SSIM {agg[interactive]["ssim"]:.4f}.
 - *still*: **{still.label}** — the fastest setting within {STILL_WITHIN_DB:g} dB of the best worst-scenario
-  PSNR measured ({fmt_db(best_psnr)} dB): {agg[still]['time']:,.1f} ms mean, worst PSNR
-  {fmt_db(agg[still]['psnr'])} dB, worst SSIM {agg[still]['ssim']:.4f}.
+  PSNR measured ({fmt_db(best_psnr)} dB): {agg[still]["time"]:,.1f} ms mean, worst PSNR
+  {fmt_db(agg[still]["psnr"])} dB, worst SSIM {agg[still]["ssim"]:.4f}.
 
 ```json
 {json.dumps(recommended, indent=2)}
@@ -352,8 +432,8 @@ timed); samples per pixel; the weight cut-off ε (`min_weight`). Other settings 
 
 **Exact knobs land on the same error.** Methods and `MAX_PRIMS` at {ek.label} (red stars on the chart):
 the PSNR differs by at most {spread:.2e} dB between them in any scenario while the time differs up to
-{tspread:.2f}×; the float images are {'bit-identical' if same_image else 'not all bit-identical'}, the 8-bit
-images {'identical' if same_u8 else 'NOT all identical'} (last two columns).
+{tspread:.2f}×; the float images are {"bit-identical" if same_image else "not all bit-identical"}, the 8-bit
+images {"identical" if same_u8 else "NOT all identical"} (last two columns).
 
 {ex_table}
 
@@ -369,8 +449,12 @@ Raw data: [`{path}`]({path}).
 def _knobs_of(settings: dict) -> Knobs:
     """The Knobs of a recommended profile as saved (``as_settings``)."""
     scale = settings.get("resolution_scale", "1")
-    return Knobs(depth=settings["max_recursion_depth"], scale=int(scale.split("/")[-1]) if "/" in scale else 1,
-                 spp=settings.get("samples_per_pixel", 1), eps=settings.get("min_weight", 0.0))
+    return Knobs(
+        depth=settings["max_recursion_depth"],
+        scale=int(scale.split("/")[-1]) if "/" in scale else 1,
+        spp=settings.get("samples_per_pixel", 1),
+        eps=settings.get("min_weight", 0.0),
+    )
 
 
 def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
@@ -392,13 +476,33 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
     exact = {(int(key.split("/", 1)[0]), key.split("/", 1)[1]): v for key, v in data["exact"].items()}
     exact_labels = list(dict.fromkeys(lab for _, lab in exact))
     ek = Knobs(**data["exact_at"]) if "exact_at" in data else Knobs(**EXACT_AT)
-    marks = {name: Knobs(**kn) for name, kn in data["recommended_knobs"].items()} if "recommended_knobs" in data \
+    marks = (
+        {name: Knobs(**kn) for name, kn in data["recommended_knobs"].items()}
+        if "recommended_knobs" in data
         else {name: _knobs_of(st) for name, st in data["recommended"].items()}
+    )
     families = list(dict.fromkeys(k.family for k in grid))
-    family_colour = {f: c for f, c in zip(families, ("#4c72b0", "#dd8452", "#55a868", "#c44e52", "#8172b3",
-                                                     "#937860", "#da8bc3", "#8c8c8c", "#ccb974", "#64b5cd"))}
-    fig, axes = pyplot.subplots(2, len(scs), figsize=(5.2 * len(scs) + 3, 9), sharex="col", layout="constrained",
-                                squeeze=False)
+    family_colour = {
+        f: c
+        for f, c in zip(
+            families,
+            (
+                "#4c72b0",
+                "#dd8452",
+                "#55a868",
+                "#c44e52",
+                "#8172b3",
+                "#937860",
+                "#da8bc3",
+                "#8c8c8c",
+                "#ccb974",
+                "#64b5cd",
+            ),
+        )
+    }
+    fig, axes = pyplot.subplots(
+        2, len(scs), figsize=(5.2 * len(scs) + 3, 9), sharex="col", layout="constrained", squeeze=False
+    )
     for j, sc in enumerate(scs):
         for row, metric in enumerate(("psnr", "ssim")):
             ax = axes[row, j]
@@ -406,27 +510,59 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
             finite = [(x, y if y is not None and math.isfinite(y) else 100.0) for x, y in pts]
             for fam in families:
                 idx = [i for i, k in enumerate(grid) if k.family == fam]
-                ax.scatter([finite[i][0] for i in idx], [finite[i][1] for i in idx], s=22,
-                           color=family_colour.get(fam, "#8c8c8c"), label=f"knobs: {fam}")
+                ax.scatter(
+                    [finite[i][0] for i in idx],
+                    [finite[i][1] for i in idx],
+                    s=22,
+                    color=family_colour.get(fam, "#8c8c8c"),
+                    label=f"knobs: {fam}",
+                )
             front = pareto_front(finite)
-            ax.step([finite[i][0] for i in front], [finite[i][1] for i in front], where="post", color="black",
-                    lw=1.2, alpha=0.7, label="Pareto front")
-            ax.scatter([finite[i][0] for i in front], [finite[i][1] for i in front], s=70, facecolors="none",
-                       edgecolors="black")
+            ax.step(
+                [finite[i][0] for i in front],
+                [finite[i][1] for i in front],
+                where="post",
+                color="black",
+                lw=1.2,
+                alpha=0.7,
+                label="Pareto front",
+            )
+            ax.scatter(
+                [finite[i][0] for i in front],
+                [finite[i][1] for i in front],
+                s=70,
+                facecolors="none",
+                edgecolors="black",
+            )
             labs = [lab for lab in exact_labels if (sc, lab) in exact]
             bih_labs = [lab for lab in labs if lab.startswith("bih")]
             for lab in labs:
                 e = exact[(sc, lab)]
                 y = e[metric] if e[metric] is not None and math.isfinite(e[metric]) else 100.0
-                st = line_style(lab.replace("bih, MAX_PRIMS ", "BIH "), variant=bih_labs.index(lab) if lab in bih_labs
-                                else 0)
-                ax.scatter([e["time"]["median"]], [y], marker=st["marker"], s=60, color=st["color"],
-                           edgecolors="black", linewidths=0.4, zorder=5,
-                           label=f"{st['label']} at {ek.label}")
+                st = line_style(
+                    lab.replace("bih, MAX_PRIMS ", "BIH "), variant=bih_labs.index(lab) if lab in bih_labs else 0
+                )
+                ax.scatter(
+                    [e["time"]["median"]],
+                    [y],
+                    marker=st["marker"],
+                    s=60,
+                    color=st["color"],
+                    edgecolors="black",
+                    linewidths=0.4,
+                    zorder=5,
+                    label=f"{st['label']} at {ek.label}",
+                )
             for name, k in marks.items():
                 if (sc, k) in results:
-                    ax.annotate(name, (results[(sc, k)]["time"]["median"], results[(sc, k)][metric]), fontsize=8,
-                                xytext=(-10, -16), textcoords="offset points", weight="bold")
+                    ax.annotate(
+                        name,
+                        (results[(sc, k)]["time"]["median"], results[(sc, k)][metric]),
+                        fontsize=8,
+                        xytext=(-10, -16),
+                        textcoords="offset points",
+                        weight="bold",
+                    )
             log_axis(ax, "x")
             ax.grid(True, which="both", alpha=0.3)
             if row == 0:
@@ -437,7 +573,9 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
                 ax.set_ylabel({"psnr": "PSNR vs reference (dB)", "ssim": "SSIM vs reference"}[metric])
     legend_outside(fig, axes)
     ref = data.get("reference", {"depth": REF_DEPTH, "ss": REF_SS})
-    fig.suptitle(f"Error against time, {w} × {h}; reference: float64, depth {ref['depth']}, "
-                 f"{ref['ss']}×{ref['ss']} supersampling")
+    fig.suptitle(
+        f"Error against time, {w} × {h}; reference: float64, depth {ref['depth']}, "
+        f"{ref['ss']}×{ref['ss']} supersampling"
+    )
     save(fig, figures, "pareto", quick)
     return {"pareto": "Error against time to image with the Pareto front, per scenario"}

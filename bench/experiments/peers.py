@@ -40,25 +40,25 @@ from .context import Context, RunInfo
 from .markdown import md_table
 from .scenes import default_settings, method_names
 from .style import image_line, legend_outside, plt, save, series
-from .timing import Stat
-from .timing import measure as time_it
+from .timing import Stat, measure as time_it
 
 NAME = "peers"
 TITLE = "Peers — Mitsuba 3 and Embree beside our tracers"
 
-NS = tuple(64 * 4 ** k for k in range(6))   # 64 … 65,536
+NS = tuple(64 * 4**k for k in range(6))  # 64 … 65,536
 NS_QUICK = (64, 256)
 SCENARIOS = (1, 2, 3)
 SCENARIOS_QUICK = (2,)
 SIZE = (640, 1088)
 SIZE_QUICK = (64, 108)
-ICO_LEVEL = 2                 # 320 triangles per sphere …
-ICO_MAX_TRIANGLES = 8 << 20   # … unless the scene would exceed this; then one level fewer
+ICO_LEVEL = 2  # 320 triangles per sphere …
+ICO_MAX_TRIANGLES = 8 << 20  # … unless the scene would exceed this; then one level fewer
 MITSUBA_VARIANT = "llvm_ad_rgb"
 INSTALL_HINT = "peers not installed: pip install -e .[peers]"
 
 
 # --------------------------------------------------------------------------- availability
+
 
 def available() -> dict[str, str | None]:
     """{'mitsuba': None or why not, 'embreex': None or why not}."""
@@ -69,9 +69,11 @@ def available() -> dict[str, str | None]:
             mi.set_variant(MITSUBA_VARIANT)
             why["mitsuba"] = None
         except Exception as e:  # e.g. no libLLVM: set DRJIT_LIBLLVM_PATH
-            why["mitsuba"] = (f"mitsuba {getattr(mi, '__version__', '?')} is installed but variant "
-                              f"{MITSUBA_VARIANT} failed: {e}. Install a libLLVM (Debian: libllvm19) and "
-                              "point DRJIT_LIBLLVM_PATH at it.")
+            why["mitsuba"] = (
+                f"mitsuba {getattr(mi, '__version__', '?')} is installed but variant "
+                f"{MITSUBA_VARIANT} failed: {e}. Install a libLLVM (Debian: libllvm19) and "
+                "point DRJIT_LIBLLVM_PATH at it."
+            )
     except ImportError as e:
         why["mitsuba"] = f"not importable ({e})"
     try:
@@ -84,6 +86,7 @@ def available() -> dict[str, str | None]:
 
 def versions() -> dict[str, str]:
     from importlib.metadata import PackageNotFoundError, version
+
     out = {}
     for p in ("mitsuba", "drjit", "embreex"):
         try:
@@ -95,14 +98,46 @@ def versions() -> dict[str, str]:
 
 # --------------------------------------------------------------------------- geometry
 
+
 def icosphere(level: int) -> tuple[np.ndarray, np.ndarray]:
     """Unit icosphere: vertices (V, 3) on the sphere, faces (F, 3); F = 20 · 4^level."""
-    t = (1.0 + 5.0 ** 0.5) / 2.0
-    v = [(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t), (0, -1, -t), (0, 1, -t),
-         (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)]
-    f = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2),
-         (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5), (2, 4, 11),
-         (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+    t = (1.0 + 5.0**0.5) / 2.0
+    v = [
+        (-1, t, 0),
+        (1, t, 0),
+        (-1, -t, 0),
+        (1, -t, 0),
+        (0, -1, t),
+        (0, 1, t),
+        (0, -1, -t),
+        (0, 1, -t),
+        (t, 0, -1),
+        (t, 0, 1),
+        (-t, 0, -1),
+        (-t, 0, 1),
+    ]
+    f = [
+        (0, 11, 5),
+        (0, 5, 1),
+        (0, 1, 7),
+        (0, 7, 10),
+        (0, 10, 11),
+        (1, 5, 9),
+        (5, 11, 4),
+        (11, 10, 2),
+        (10, 7, 6),
+        (7, 1, 8),
+        (3, 9, 4),
+        (3, 4, 2),
+        (3, 2, 6),
+        (3, 6, 8),
+        (3, 8, 9),
+        (4, 9, 5),
+        (2, 4, 11),
+        (6, 2, 10),
+        (8, 6, 7),
+        (9, 8, 1),
+    ]
     verts = [np.array(p, float) / np.linalg.norm(p) for p in v]
     faces = list(f)
     for _ in range(level):
@@ -115,6 +150,7 @@ def icosphere(level: int) -> tuple[np.ndarray, np.ndarray]:
                 verts.append(m / np.linalg.norm(m))
                 cache[key] = len(verts) - 1
             return cache[key]
+
         nf = []
         for a, b, c in faces:
             ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
@@ -124,6 +160,7 @@ def icosphere(level: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 # --------------------------------------------------------------------------- engines
+
 
 class Result:
     def __init__(self, build: Stat, trace: Stat, t: np.ndarray, ids: np.ndarray, note: str = ""):
@@ -139,17 +176,29 @@ def _warm_mitsuba() -> None:
     if _MITSUBA_WARM:
         return
     import mitsuba as mi
+
     mi.set_variant(MITSUBA_VARIANT)
     mi.load_dict({"type": "scene", "s": {"type": "sphere", "center": [0, 0, 0], "radius": 1.0}})
-    one = lambda *v: mi.TensorXf(np.array([v], dtype=np.float32))  # noqa: E731
-    mi.load_dict({"type": "scene", "e": {"type": "ellipsoids", "centers": one(0, 0, 0), "scales": one(1, 1, 1),
-                                         "quaternions": one(0, 0, 0, 1), "extent": 1.0}})
+    one = lambda *v: mi.TensorXf(np.array([v], dtype=np.float32))
+    mi.load_dict(
+        {
+            "type": "scene",
+            "e": {
+                "type": "ellipsoids",
+                "centers": one(0, 0, 0),
+                "scales": one(1, 1, 1),
+                "quaternions": one(0, 0, 0, 1),
+                "extent": 1.0,
+            },
+        }
+    )
     _MITSUBA_WARM = True
 
 
 def run_mitsuba(kind: str, centers, radii, o, d, runs: int, budget_s: float | None = 30.0) -> Result:
     import drjit as dr
     import mitsuba as mi
+
     _warm_mitsuba()
     n = len(centers)
     if kind == "spheres":
@@ -158,21 +207,30 @@ def run_mitsuba(kind: str, centers, radii, o, d, runs: int, budget_s: float | No
         for i in range(n):
             desc[f"s{i:0{width}d}"] = {"type": "sphere", "center": centers[i].tolist(), "radius": float(radii[i])}
     else:
-        f32 = lambda a: mi.TensorXf(np.ascontiguousarray(a, dtype=np.float32))  # noqa: E731
-        desc = {"type": "scene", "e": {
-            "type": "ellipsoids", "centers": f32(centers), "scales": f32(np.repeat(radii[:, None], 3, 1)),
-            "quaternions": f32(np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))), "extent": 1.0}}
+        f32 = lambda a: mi.TensorXf(np.ascontiguousarray(a, dtype=np.float32))
+        desc = {
+            "type": "scene",
+            "e": {
+                "type": "ellipsoids",
+                "centers": f32(centers),
+                "scales": f32(np.repeat(radii[:, None], 3, 1)),
+                "quaternions": f32(np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))),
+                "extent": 1.0,
+            },
+        }
     holder = {}
 
     def build():
         holder["scene"] = mi.load_dict(desc)
+
     b, _ = time_it(build, runs, warmup=0, budget_s=budget_s)
     scene = holder["scene"]
     if kind == "spheres":
         index_of_shape = np.array([int(s.id()[1:]) for s in scene.shapes()], dtype=np.int64)
     o32, d32 = o.astype(np.float32), d.astype(np.float32)
-    ray = mi.Ray3f(mi.Point3f(*(mi.Float(o32[:, k]) for k in range(3))),
-                   mi.Vector3f(*(mi.Float(d32[:, k]) for k in range(3))))
+    ray = mi.Ray3f(
+        mi.Point3f(*(mi.Float(o32[:, k]) for k in range(3))), mi.Vector3f(*(mi.Float(d32[:, k]) for k in range(3)))
+    )
     dr.eval(ray)
 
     def trace():
@@ -180,12 +238,14 @@ def run_mitsuba(kind: str, centers, radii, o, d, runs: int, budget_s: float | No
         dr.eval(pi.t, pi.prim_index, pi.shape_index)
         dr.sync_thread()
         return pi
+
     tr, pi = time_it(trace, runs, warmup=1)
     t = np.array(pi.t, dtype=np.float64)
     hit = np.isfinite(t)
     if kind == "spheres":
-        ids = np.where(hit, index_of_shape[np.minimum(np.array(pi.shape_index, dtype=np.int64),
-                                                       len(index_of_shape) - 1)], -1)
+        ids = np.where(
+            hit, index_of_shape[np.minimum(np.array(pi.shape_index, dtype=np.int64), len(index_of_shape) - 1)], -1
+        )
     else:
         ids = np.where(hit, np.array(pi.prim_index, dtype=np.int64), -1)
     return Result(b, tr, np.where(hit, t, np.inf), ids)
@@ -194,9 +254,10 @@ def run_mitsuba(kind: str, centers, radii, o, d, runs: int, budget_s: float | No
 def run_embree(centers, radii, o, d, runs: int, budget_s: float | None = 30.0) -> Result:
     from embreex import rtcore_scene as rtcs
     from embreex.mesh_construction import TriangleMesh
+
     n = len(centers)
     level = ICO_LEVEL
-    while level > 0 and n * 20 * 4 ** level > ICO_MAX_TRIANGLES:
+    while level > 0 and n * 20 * 4**level > ICO_MAX_TRIANGLES:
         level -= 1
     uv, uf = icosphere(level)
     verts = (centers[:, None, :] + radii[:, None, None] * uv[None]).reshape(-1, 3).astype(np.float32)
@@ -215,6 +276,7 @@ def run_embree(centers, radii, o, d, runs: int, budget_s: float | None = 30.0) -
         sc.run(o32[:1], d32[:1])  # the first query commits the scene
         holder["scene"] = sc
         return (time.perf_counter() - t1) * 1e3
+
     samples = []
     spent = 0.0
     for _ in range(max(1, runs)):
@@ -231,8 +293,13 @@ def run_embree(centers, radii, o, d, runs: int, budget_s: float | None = 30.0) -
     hit = (prim >= 0) & np.isfinite(t) & (t < 1e30)
     ids = np.where(hit, prim // per, -1)
     mesh = Stat(holder["mesh_ms"]).median
-    return Result(b, tr, np.where(hit, t, np.inf), ids,
-                  note=f"{per} triangles per sphere; build = commit, mesh copy-in {mesh:,.0f} ms not counted")
+    return Result(
+        b,
+        tr,
+        np.where(hit, t, np.inf),
+        ids,
+        note=f"{per} triangles per sphere; build = commit, mesh copy-in {mesh:,.0f} ms not counted",
+    )
 
 
 def ours_settings(method: str, w: int, h: int):
@@ -264,16 +331,20 @@ def reference_hits(scene, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.
 
 def check_reference(scene, w: int, h: int, ref_ids: np.ndarray, ref_t: np.ndarray) -> dict:
     """Compare the CPU traversal with ``render_reference`` (mode depth): ids and max |Δt|."""
-    ref = render_reference(scene, default_settings().with_(width=w, height=h, mode="depth",
-                                                            max_recursion_depth=1, method="bruteforce"))
+    ref = render_reference(
+        scene, default_settings().with_(width=w, height=h, mode="depth", max_recursion_depth=1, method="bruteforce")
+    )
     n = scene.n_spheres
     ids = ref.primid.reshape(-1).astype(np.int64)
     ids = np.where(ids < n, ids, -1)
     same = (ids == ref_ids) & (ids >= 0)
     # render_reference returns depth as float32: compare at that precision.
     dt = np.abs(ref.depth.reshape(-1).astype(np.float64)[same] - ref_t[same])
-    return {"n": n, "ids_differ": int(np.sum(ids != ref_ids)),
-            "max_rel_dt": float((dt / ref_t[same]).max()) if same.any() else 0.0}
+    return {
+        "n": n,
+        "ids_differ": int(np.sum(ids != ref_ids)),
+        "max_rel_dt": float((dt / ref_t[same]).max()) if same.any() else 0.0,
+    }
 
 
 def errors(res: Result, ref_ids: np.ndarray, ref_t: np.ndarray) -> dict[str, float]:
@@ -281,12 +352,17 @@ def errors(res: Result, ref_ids: np.ndarray, ref_t: np.ndarray) -> dict[str, flo
     same = (res.ids == ref_ids) & (ref_ids >= 0)
     if same.any():
         dt = np.abs(res.t[same] - ref_t[same])
-        return {"mismatch_pct": mismatch, "max_dt": float(dt.max()), "median_dt": float(np.median(dt)),
-                "max_rel_dt": float((dt / ref_t[same]).max())}
+        return {
+            "mismatch_pct": mismatch,
+            "max_dt": float(dt.max()),
+            "median_dt": float(np.median(dt)),
+            "max_rel_dt": float((dt / ref_t[same]).max()),
+        }
     return {"mismatch_pct": mismatch, "max_dt": math.nan, "median_dt": math.nan, "max_rel_dt": math.nan}
 
 
 # --------------------------------------------------------------------------- experiment
+
 
 def measure(ctx: Context) -> dict:
     why = available()
@@ -342,14 +418,26 @@ def measure(ctx: Context) -> dict:
             finally:
                 bar.update(1)
             err = errors(res, ref_ids, ref_t)
-            rows[(sc, n, eng)] = {"build": res.build, "trace": res.trace,
-                                  "mrays": w * h / (res.trace.median / 1e3) / 1e6, "note": res.note, **err}
+            rows[(sc, n, eng)] = {
+                "build": res.build,
+                "trace": res.trace,
+                "mrays": w * h / (res.trace.median / 1e3) / 1e6,
+                "note": res.note,
+                **err,
+            }
     bar.close()
 
-    return {"size": [w, h], "ns": ns, "scenarios": scs, "versions": versions(),
-            "rows": {f"{sc}/{n}/{eng}": v for (sc, n, eng), v in rows.items()},
-            "skipped": skipped, "reference_check": ref_check, "unavailable": {k: v for k, v in why.items() if v},
-            "drjit_threads": os.environ.get("DRJIT_NUM_THREADS", "default")}
+    return {
+        "size": [w, h],
+        "ns": ns,
+        "scenarios": scs,
+        "versions": versions(),
+        "rows": {f"{sc}/{n}/{eng}": v for (sc, n, eng), v in rows.items()},
+        "skipped": skipped,
+        "reference_check": ref_check,
+        "unavailable": {k: v for k, v in why.items() if v},
+        "drjit_threads": os.environ.get("DRJIT_NUM_THREADS", "default"),
+    }
 
 
 def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
@@ -364,7 +452,7 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     w, h = data["size"]
     scs, skipped, ref_check = data["scenarios"], data["skipped"], data["reference_check"]
     rows = {}
-    for key, v in data["rows"].items():   # in the order measured: scenario, n, engine
+    for key, v in data["rows"].items():  # in the order measured: scenario, n, engine
         sc, n, eng = key.split("/", 2)
         rows[(int(sc), int(n), eng)] = {**v, "build": Stat.from_json(v["build"]), "trace": Stat.from_json(v["trace"])}
     tables = []
@@ -373,12 +461,37 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
         for (sc2, n, eng), v in rows.items():
             if sc2 != sc:
                 continue
-            trs.append([f"{n:,}", eng + (f" ({v['note']})" if v["note"] else ""), v["build"].fmt(1),
-                        v["trace"].fmt(1), f"{v['mrays']:.2f}", f"{v['mismatch_pct']:.3f} %",
-                        f"{v['max_dt']:.2e}", f"{v['median_dt']:.2e}"])
-        tables.append(f"**Scenario {sc}**\n\n" + md_table(
-            ["n", "engine", "build ms", "trace ms", "Mrays/s", "nearest sphere ≠ reference", "max |Δt|",
-             "median |Δt|"], trs, "rlrrrrrr") + "\n\n" + run.caption(capped=True))
+            trs.append(
+                [
+                    f"{n:,}",
+                    eng + (f" ({v['note']})" if v["note"] else ""),
+                    v["build"].fmt(1),
+                    v["trace"].fmt(1),
+                    f"{v['mrays']:.2f}",
+                    f"{v['mismatch_pct']:.3f} %",
+                    f"{v['max_dt']:.2e}",
+                    f"{v['median_dt']:.2e}",
+                ]
+            )
+        tables.append(
+            f"**Scenario {sc}**\n\n"
+            + md_table(
+                [
+                    "n",
+                    "engine",
+                    "build ms",
+                    "trace ms",
+                    "Mrays/s",
+                    "nearest sphere ≠ reference",
+                    "max |Δt|",
+                    "median |Δt|",
+                ],
+                trs,
+                "rlrrrrrr",
+            )
+            + "\n\n"
+            + run.caption(capped=True)
+        )
 
     path = f"figures/{NAME}.json"
     img = "\n".join(image_line(name, alt) for name, alt in charts.items())
@@ -386,16 +499,18 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     missing = "".join(f"\n- `{k}` not run: {v}" for k, v in data["unavailable"].items() if v)
     skipped_txt = ("\n\nNot run (errors): " + "; ".join(skipped) + ".") if skipped else ""
     skipped_txt += "\n\n" + run.skipped_md()
-    check_txt = "; ".join(f"scenario {sc}, n = {v['n']:,}: {v['ids_differ']} ray(s) with a different sphere, "
-                          f"max relative |Δt| {v['max_rel_dt']:.1e} (float32 output of render_reference)"
-                          for sc, v in ref_check.items())
+    check_txt = "; ".join(
+        f"scenario {sc}, n = {v['n']:,}: {v['ids_differ']} ray(s) with a different sphere, "
+        f"max relative |Δt| {v['max_rel_dt']:.1e} (float32 output of render_reference)"
+        for sc, v in ref_check.items()
+    )
     threads = data.get("drjit_threads", "default")
     return f"""## {TITLE}
 
 The same primary rays of the thesis's scenes ({w} × {h}, spheres of radius 1, plane left out),
 traced by our GPU path (every method of `METHODS`), by Mitsuba 3 (`{MITSUBA_VARIANT}`; one `sphere`
 shape per sphere, and one `ellipsoids` shape holding them all, via `ray_intersect_preliminary`) and
-by Embree through embreex (spheres as icospheres: {20 * 4 ** ICO_LEVEL} triangles each, one level
+by Embree through embreex (spheres as icospheres: {20 * 4**ICO_LEVEL} triangles each, one level
 fewer where a scene would pass {ICO_MAX_TRIANGLES:,} triangles). Versions: {vers}. Dr.Jit threads:
 {threads}. Build = what each needs before the first ray (our BIH build; `mi.load_dict`; Embree's
 commit — embreex's copying of the mesh is shown apart); trace = the rays only. Hit distances are compared with a float64 reference: the CPU
@@ -413,7 +528,7 @@ Raw data: [`{path}`]({path}).
 def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
     """``peers.png`` from ``peers.json``: Mrays/s, build ms and max |Δt| against n, the median over
     the scenarios per engine; one colour and marker per engine in all three panels."""
-    if "rows" not in data:   # the peers were not installed: nothing to draw
+    if "rows" not in data:  # the peers were not installed: nothing to draw
         return {}
     pyplot = plt()
     w, h = data["size"]
@@ -424,6 +539,7 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
     def med(key: str, n: int, eng: str) -> float:
         vals = [rows[(str(sc), str(n), eng)] for sc in scs if (str(sc), str(n), eng) in rows]
         return float(np.median([v[key]["median"] if isinstance(v[key], dict) else v[key] for v in vals]))
+
     fig, axes = pyplot.subplots(1, 3, figsize=(16, 4.6), layout="constrained")
     for eng in engines:
         xs = [n for n in ns if any((str(sc), str(n), eng) in rows for sc in scs)]
@@ -436,8 +552,9 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
         if bx:
             axes[1].plot(bx, [med("build", n, eng) for n in bx], **style)
         axes[2].plot(xs, [max(med("max_dt", n, eng), 1e-9) for n in xs], **style)
-    for ax, yl in zip(axes, ("Mrays/s (primary rays)", "build ms (brute force builds nothing)",
-                             "max |t − t_ref| (world units)")):
+    for ax, yl in zip(
+        axes, ("Mrays/s (primary rays)", "build ms (brute force builds nothing)", "max |t − t_ref| (world units)")
+    ):
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("spheres n")

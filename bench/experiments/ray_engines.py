@@ -49,7 +49,7 @@ SIZES_QUICK = ((64, 64), (40, 68))
 TILES = (8, 16, 32)
 GENERATIONS = (1, 2, 4, 8)
 DEPTH = 5
-FRAME_BUDGET_S = 10.0        # a method's series stops after a frame slower than this
+FRAME_BUDGET_S = 10.0  # a method's series stops after a frame slower than this
 FRAME_BUDGET_S_QUICK = 10.0
 
 
@@ -66,16 +66,22 @@ def filled_view(n: int, width: int, height: int) -> Scene:
     r = 0.72 * cell
     front = zs[0] + r
     dist = 60.0
-    half = 20.0 - cell / 2                      # the front layer covers [−half, half]² without gaps
+    half = 20.0 - cell / 2  # the front layer covers [−half, half]² without gaps
     tan_y = half / dist * min(1.0, height / width)
     cam = Camera((0.0, 0.0, front + dist), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), math.degrees(2 * math.atan(tan_y)))
-    return Scene(cam, (Light((0.0, 40.0, 60.0), (1.0, 1.0, 1.0)),), (TRANSPARENT,), centers,
-                 np.full(len(centers), r), np.zeros(len(centers), np.int32), ())
+    return Scene(
+        cam,
+        (Light((0.0, 40.0, 60.0), (1.0, 1.0, 1.0)),),
+        (TRANSPARENT,),
+        centers,
+        np.full(len(centers), r),
+        np.zeros(len(centers), np.int32),
+        (),
+    )
 
 
 def _settings(method: str, w: int, h: int, **kw) -> RenderSettings:
-    return RenderSettings(width=w, height=h, method=method, mode="color", max_recursion_depth=DEPTH, max_prims=8,
-                          **kw)
+    return RenderSettings(width=w, height=h, method=method, mode="color", max_recursion_depth=DEPTH, max_prims=8, **kw)
 
 
 def measure_fps(ctx, sizes, ns, budget_s: float) -> dict:
@@ -94,8 +100,12 @@ def measure_fps(ctx, sizes, ns, budget_s: float) -> dict:
                 t = ctx.time_render(scene, _settings(method, w, h), runs=ctx.runs, warmup=0, budget_s=budget_s)
                 res = t.result
                 filled = float((res.primid >= 0).mean())
-                out[key] = {"ms": t.total.to_json(), "fps": 1e3 / t.total.median, "filled": filled,
-                            "stats": {k: v for k, v in (res.stats or {}).items() if isinstance(v, (int, float, str))}}
+                out[key] = {
+                    "ms": t.total.to_json(),
+                    "fps": 1e3 / t.total.median,
+                    "filled": filled,
+                    "stats": {k: v for k, v in (res.stats or {}).items() if isinstance(v, (int, float, str))},
+                }
                 ctx.log(f"{key}: {t.total.median:,.0f} ms")
                 over = t.total.median > budget_s * 1e3
     return out
@@ -109,7 +119,7 @@ def tile_sweep(ctx, size, ns, budget_s: float) -> dict:
         scene = filled_view(n, w, h)
         for ts in TILES:
             s = _settings("hre", w, h, tile_size=ts)
-            r.render(scene, s)   # warm-up (compiles the TILE variant of the cone pass)
+            r.render(scene, s)  # warm-up (compiles the TILE variant of the cone pass)
             samples = []
             for _ in range(max(1, ctx.runs)):
                 res = r.render(scene, s)
@@ -117,16 +127,24 @@ def tile_sweep(ctx, size, ns, budget_s: float) -> dict:
                 if sum(samples) > budget_s * 1e3:
                     break
             med = float(np.median(samples))
-            out[f"{n}/{ts}"] = {"ms": med, "samples": samples, "cull_fraction": res.stats["cull_fraction"],
-                                "build_ms": res.timings["build"]}
+            out[f"{n}/{ts}"] = {
+                "ms": med,
+                "samples": samples,
+                "cull_fraction": res.stats["cull_fraction"],
+                "build_ms": res.timings["build"],
+            }
     return out
 
 
 def cone_images(ctx, size, n: int) -> dict[int, np.ndarray]:
     w, h = size
     scene = filled_view(n, w, h)
-    return {g: ctx.renderer.render(scene, RenderSettings(width=w, height=h, method="hre", mode="cones",
-                                                         max_recursion_depth=g)).image for g in GENERATIONS}
+    return {
+        g: ctx.renderer.render(
+            scene, RenderSettings(width=w, height=h, method="hre", mode="cones", max_recursion_depth=g)
+        ).image
+        for g in GENERATIONS
+    }
 
 
 def twice_as_fast(fps: dict, size) -> tuple[str, list[tuple[int, float]]]:
@@ -148,8 +166,9 @@ def twice_as_fast(fps: dict, size) -> tuple[str, list[tuple[int, float]]]:
     over_100 = [(n, r) for n, r in ratios if n >= 100]
     measured = ", ".join(f"{n:,}" for n, _ in over_100)
     if not over_100:
-        verdict = ("**cannot be decided here**: no n ≥ 100 where both were measured (the ray engine is over "
-                   "budget)" + (f"; ≥ 2× from n = {from_n:,} among the measured n" if from_n else ""))
+        verdict = "**cannot be decided here**: no n ≥ 100 where both were measured (the ray engine is over budget)" + (
+            f"; ≥ 2× from n = {from_n:,} among the measured n" if from_n else ""
+        )
     elif all(r >= 2.0 for _, r in over_100):
         verdict = f"**holds** at every measured n ≥ 100 (n = {measured}); ≥ 2× from n = {from_n:,} on"
     elif from_n is not None:
@@ -169,9 +188,20 @@ def measure(ctx: Context) -> dict:
     sweep = tile_sweep(ctx, sizes[0], sweep_ns, budget)
     cones_n = ns[min(2, len(ns) - 1)]
     cones = cone_images(ctx, sizes[0], cones_n)
-    return {"fps": fps, "tile_sweep": sweep, "sizes": sizes, "ns": ns, "depth": DEPTH, "budget_s": budget,
-            "cones": {"n": cones_n, "size": list(sizes[0]), "tile": DEFAULT_TILE_SIZE,
-                      "tiles": {str(g): tile_grid(img) for g, img in cones.items()}}}
+    return {
+        "fps": fps,
+        "tile_sweep": sweep,
+        "sizes": sizes,
+        "ns": ns,
+        "depth": DEPTH,
+        "budget_s": budget,
+        "cones": {
+            "n": cones_n,
+            "size": list(sizes[0]),
+            "tile": DEFAULT_TILE_SIZE,
+            "tiles": {str(g): tile_grid(img) for g, img in cones.items()},
+        },
+    }
 
 
 def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
@@ -195,8 +225,16 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
         verdicts.append(f"- {size[0]} × {size[1]}: {verdict}. hre / ray engine speed-up: {rs or '—'}.")
 
     sweep_ns = [int(n) for n in dict.fromkeys(k.split("/")[0] for k in sweep)]
-    srows = [[f"{n:,}", *[f"{sweep[f'{n}/{ts}']['ms']:,.0f} ms, {100 * sweep[f'{n}/{ts}']['cull_fraction']:.0f} % culled"
-                          for ts in TILES]] for n in sweep_ns]
+    srows = [
+        [
+            f"{n:,}",
+            *[
+                f"{sweep[f'{n}/{ts}']['ms']:,.0f} ms, {100 * sweep[f'{n}/{ts}']['cull_fraction']:.0f} % culled"
+                for ts in TILES
+            ],
+        ]
+        for n in sweep_ns
+    ]
     stable = md_table(["n", *[f"tile {ts} × {ts}" for ts in TILES]], srows)
 
     path = f"figures/{NAME}.json"
@@ -264,15 +302,19 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
     save(fig, figures, "ray_engines_fps", quick)
 
     cones = data.get("cones")
-    if cones is None:   # data of a run before the cones were saved: render them again
+    if cones is None:  # data of a run before the cones were saved: render them again
         import types
 
         from renderer.gl.renderer import GLRenderer
 
         n = ns[min(2, len(ns) - 1)]
         images = cone_images(types.SimpleNamespace(renderer=GLRenderer()), sizes[0], n)
-        cones = {"n": n, "size": list(sizes[0]), "tile": DEFAULT_TILE_SIZE,
-                 "tiles": {str(g): tile_grid(img) for g, img in images.items()}}
+        cones = {
+            "n": n,
+            "size": list(sizes[0]),
+            "tile": DEFAULT_TILE_SIZE,
+            "tiles": {str(g): tile_grid(img) for g, img in images.items()},
+        }
     gens = sorted(int(g) for g in cones["tiles"])
     fig, axes = pyplot.subplots(1, len(gens), figsize=(3 * len(gens) + 1.5, 3.4), layout="constrained")
     for ax, g in zip(np.atleast_1d(axes), gens):
@@ -282,17 +324,28 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
     # The image's grey is 1 − φ / 90°: white = a narrow cone (good culling), black = 90° or no live ray.
     bar = fig.colorbar(ScalarMappable(Normalize(0, 90), cmap="gray_r"), ax=axes, shrink=0.85, pad=0.02)
     bar.set_label("cone half-angle φ (°)")
-    fig.legend(handles=[Patch(color="black", label="no live ray"), Patch(color=(0.25, 0, 0), label="no useful cone")],
-               loc="outside lower center", ncol=2, fontsize=8, frameon=False)
-    fig.suptitle(f"hre cones per {cones['tile']} × {cones['tile']} tile, {cones['n']:,} spheres, "
-                 f"{cones['size'][0]} × {cones['size'][1]}", fontsize=10)
+    fig.legend(
+        handles=[Patch(color="black", label="no live ray"), Patch(color=(0.25, 0, 0), label="no useful cone")],
+        loc="outside lower center",
+        ncol=2,
+        fontsize=8,
+        frameon=False,
+    )
+    fig.suptitle(
+        f"hre cones per {cones['tile']} × {cones['tile']} tile, {cones['n']:,} spheres, "
+        f"{cones['size'][0]} × {cones['size'][1]}",
+        fontsize=10,
+    )
     save(fig, figures, "ray_engines_cones", quick)
-    return {"ray_engines_fps": "frames per second against primitive count",
-            "ray_engines_cones": "cone angles per tile, generations 1, 2, 4, 8, with the colour scale"}
+    return {
+        "ray_engines_fps": "frames per second against primitive count",
+        "ray_engines_cones": "cone angles per tile, generations 1, 2, 4, 8, with the colour scale",
+    }
 
 
 def main(argv=None) -> None:
     import argparse
+
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="tiny sizes and n: a smoke run")
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "out" / NAME)
@@ -301,6 +354,7 @@ def main(argv=None) -> None:
     ap.add_argument("--budget", type=float, default=None, help="frame budget in s that ends a series")
     a = ap.parse_args(argv)
     from .steps import run_one
+
     ctx = Context(quick=a.quick, out=a.out, runs=a.runs or (1 if a.quick else 3), progress=False)
     if a.sizes:
         ctx.ray_engine_sizes = tuple(tuple(int(v) for v in s.split("x")) for s in a.sizes.split(","))

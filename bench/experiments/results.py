@@ -21,12 +21,19 @@ COMMAND = "./dev bench experiments"
 
 def header(ctx: Context, argv: list[str]) -> str:
     m = ctx.machine
-    quick = ("\n> **Quick smoke run** (`--quick`): tiny images, few sizes, one run per point. "
-             "The numbers show that the scripts work, nothing else.\n" if ctx.quick else "")
+    quick = (
+        "\n> **Quick smoke run** (`--quick`): tiny images, few sizes, one run per point. "
+        "The numbers show that the scripts work, nothing else.\n"
+        if ctx.quick
+        else ""
+    )
     cmd = " ".join([COMMAND, *argv]).strip()
-    budget = ("none" if ctx.frame_budget_s is None else
-              f"{ctx.frame_budget_s:g} s: a configuration whose frame is predicted to take longer is not measured "
-              f"(listed where it applies); a point stops taking runs after {ctx.point_budget_s:g} s of timing")
+    budget = (
+        "none"
+        if ctx.frame_budget_s is None
+        else f"{ctx.frame_budget_s:g} s: a configuration whose frame is predicted to take longer is not measured "
+        f"(listed where it applies); a point stops taking runs after {ctx.point_budget_s:g} s of timing"
+    )
     lines = [
         "# pocketray — experiments",
         "",
@@ -56,8 +63,10 @@ def header(ctx: Context, argv: list[str]) -> str:
 
 def stamp(elapsed_s: float, quick: bool) -> str:
     """The last line of a section: when it was measured and how long that took."""
-    return (f"<sub>Section produced {time.strftime('%Y-%m-%d %H:%M %Z')} in "
-            f"{elapsed_s:.0f} s{' (quick mode)' if quick else ''}.</sub>")
+    return (
+        f"<sub>Section produced {time.strftime('%Y-%m-%d %H:%M %Z')} in "
+        f"{elapsed_s:.0f} s{' (quick mode)' if quick else ''}.</sub>"
+    )
 
 
 def with_stamp(fragment: str, stamp_line: str) -> str:
@@ -126,7 +135,7 @@ def run_info_from_section(section: str, data_runs: int | None = None) -> RunInfo
     m = _CAPTION.search(section)
     machine, gl = m.groups()[:2] if m else ("unknown machine", "unknown GL")
     runs = data_runs
-    if runs is None:   # the run's count is the largest a caption gives (some tables take fewer runs)
+    if runs is None:  # the run's count is the largest a caption gives (some tables take fewer runs)
         counts = [re.match(r"(\d+) runs? per point", c.group(3)) for c in _CAPTION.finditer(section)]
         runs = max((int(r.group(1)) for r in counts if r), default=1)
     b = re.search(r"a point stops after ([\d.]+) s of timing", section)
@@ -137,6 +146,12 @@ def run_info_from_section(section: str, data_runs: int | None = None) -> RunInfo
     if nm:
         skipped = [line[2:] for line in nm.group(1).splitlines() if line.startswith("- ")]
     st = _STAMP.search(section)
-    return RunInfo(machine_short=machine, gl=gl, runs=runs,
-                   quick="(quick mode)" in (st.group(0) if st else ""), frame_budget_s=frame_budget,
-                   skipped=skipped, stamp=st.group(0) if st else "")
+    return RunInfo(
+        machine_short=machine,
+        gl=gl,
+        runs=runs,
+        quick="(quick mode)" in (st.group(0) if st else ""),
+        frame_budget_s=frame_budget,
+        skipped=skipped,
+        stamp=st.group(0) if st else "",
+    )

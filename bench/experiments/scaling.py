@@ -12,24 +12,23 @@ from .context import Context, RunInfo
 from .markdown import md_table
 from .scenes import default_settings, method_names
 from .style import image_line, legend_outside, plt, save, series
-from .timing import Stat, fit_power
-from .timing import measure as time_it
+from .timing import Stat, fit_power, measure as time_it
 
 NAME = "scaling"
 TITLE = "Scaling — build and trace cost against n"
 
-BUILD_NS = tuple(64 * 4 ** k for k in range(8))          # 64 … 1,048,576
+BUILD_NS = tuple(64 * 4**k for k in range(8))  # 64 … 1,048,576
 BUILD_NS_QUICK = (64, 256, 1024, 4096)
 BUILD_MAX_PRIMS = (1, 8)
-TRACE_NS = tuple(64 * 4 ** k for k in range(6))          # 64 … 65,536
+TRACE_NS = tuple(64 * 4**k for k in range(6))  # 64 … 65,536
 TRACE_NS_QUICK = (64, 256)
 TRACE_DEPTHS = (1, 5)
 TRACE_DEPTHS_QUICK = (1,)
-DEEP_METHODS = ("bih", "bruteforce")   # depth > 1 is measured for these only (time: every method at depth 1)
+DEEP_METHODS = ("bih", "bruteforce")  # depth > 1 is measured for these only (time: every method at depth 1)
 SIZE = (640, 1088)
 SIZE_QUICK = (64, 108)
-FIT_FROM = 1024          # fits use n ≥ this (small n is dominated by fixed costs)
-BUILD_BUDGET_S = 20.0    # timing of one build point stops after this much time (≥ 1 run)
+FIT_FROM = 1024  # fits use n ≥ this (small n is dominated by fixed costs)
+BUILD_BUDGET_S = 20.0  # timing of one build point stops after this much time (≥ 1 run)
 
 
 def measure(ctx: Context) -> dict:
@@ -45,9 +44,12 @@ def measure(ctx: Context) -> dict:
     jobs = [(sc, n, mp) for n in b_ns for sc in (1, 2, 3) for mp in BUILD_MAX_PRIMS]
     for sc, n, mp in ctx.bar(jobs, desc="scaling: build"):
         s = scenario(sc, n, seed=0, radius=1.0)
-        build[(sc, n, mp)], _ = time_it(lambda: build_for_spheres(s.sphere_centers, s.sphere_radii, mp),
-                                        ctx.runs, warmup=1 if n <= 65536 else 0,
-                                        budget_s=None if ctx.quick else BUILD_BUDGET_S)
+        build[(sc, n, mp)], _ = time_it(
+            lambda: build_for_spheres(s.sphere_centers, s.sphere_radii, mp),
+            ctx.runs,
+            warmup=1 if n <= 65536 else 0,
+            budget_s=None if ctx.quick else BUILD_BUDGET_S,
+        )
     build_fit = {}
     for sc in (1, 2, 3):
         for mp in BUILD_MAX_PRIMS:
@@ -58,8 +60,9 @@ def measure(ctx: Context) -> dict:
     base = default_settings().with_(width=w, height=h, mode="color")
     methods = method_names()
     trace: dict[tuple[str, int, int, int], dict] = {}
-    jobs = [(m, d, sc, n) for m in methods for d in depths for sc in (1, 2, 3) for n in t_ns
-            if d == 1 or m in DEEP_METHODS]
+    jobs = [
+        (m, d, sc, n) for m in methods for d in depths for sc in (1, 2, 3) for n in t_ns if d == 1 or m in DEEP_METHODS
+    ]
     last_frame: dict[tuple[str, int, int], tuple[int, float]] = {}
     too_slow: set[tuple[str, int, int]] = set()
     for m, d, sc, n in ctx.bar(jobs, desc="scaling: trace"):
@@ -69,8 +72,9 @@ def measure(ctx: Context) -> dict:
             ctx.skipped.append(f"{what}: over the budget at a smaller n")
             continue
         if budget is not None and prev is not None and prev[1] / 1e3 * n / prev[0] > budget:
-            ctx.skipped.append(f"{what}: predicted {prev[1] / 1e3 * n / prev[0]:,.1f} s per frame "
-                               f"(linear in n from n = {prev[0]:,})")
+            ctx.skipped.append(
+                f"{what}: predicted {prev[1] / 1e3 * n / prev[0]:,.1f} s per frame (linear in n from n = {prev[0]:,})"
+            )
             too_slow.add((m, d, sc))
             continue
         s = scenario(sc, n, seed=0, radius=1.0)
@@ -86,16 +90,26 @@ def measure(ctx: Context) -> dict:
     for m in methods:
         for d in depths:
             for sc in (1, 2, 3):
-                pts = [(n, trace[(m, d, sc, n)]["trace"].median) for n in t_ns
-                       if (m, d, sc, n) in trace and n >= (256 if not ctx.quick else 0)]
+                pts = [
+                    (n, trace[(m, d, sc, n)]["trace"].median)
+                    for n in t_ns
+                    if (m, d, sc, n) in trace and n >= (256 if not ctx.quick else 0)
+                ]
                 trace_fit[(m, d, sc)] = fit_power(*zip(*pts)) if len(pts) >= 2 else (math.nan, math.nan)
     return {
         "build": {f"{sc}/{n}/{mp}": v for (sc, n, mp), v in build.items()},
         "build_fit": {f"{sc}/{mp}": v for (sc, mp), v in build_fit.items()},
         "trace": {f"{m}/{d}/{sc}/{n}": v for (m, d, sc, n), v in trace.items()},
         "trace_fit": {f"{m}/{d}/{sc}": v for (m, d, sc), v in trace_fit.items()},
-        "skipped": list(ctx.skipped), "size": [w, h], "fit_from": fit_from, "depths": list(depths),
-        "build_ns": list(b_ns), "trace_ns": list(t_ns), "methods": methods, "max_prims": base.max_prims}
+        "skipped": list(ctx.skipped),
+        "size": [w, h],
+        "fit_from": fit_from,
+        "depths": list(depths),
+        "build_ns": list(b_ns),
+        "trace_ns": list(t_ns),
+        "methods": methods,
+        "max_prims": base.max_prims,
+    }
 
 
 def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
@@ -126,8 +140,11 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
                 cells.append(build[(sc, n, mp)].fmt(2))
         cells.append(str(min(build[(sc, n, mp)].runs for sc in (1, 2, 3) for mp in BUILD_MAX_PRIMS)))
         rows.append(cells)
-    rows.append(["fitted exponent k (ms ∝ n^k)"] +
-                [f"{build_fit[(sc, mp)][0]:.3f}" for sc in (1, 2, 3) for mp in BUILD_MAX_PRIMS] + [""])
+    rows.append(
+        ["fitted exponent k (ms ∝ n^k)"]
+        + [f"{build_fit[(sc, mp)][0]:.3f}" for sc in (1, 2, 3) for mp in BUILD_MAX_PRIMS]
+        + [""]
+    )
     build_table = md_table(["n"] + [f"S{sc} MP{mp}" for sc in (1, 2, 3) for mp in BUILD_MAX_PRIMS] + ["runs"], rows)
 
     t_rows = []
@@ -143,8 +160,11 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
                 k = trace_fit[(m, d, sc)][0]
                 cells.append("—" if math.isnan(k) else f"{k:.3f}")
                 t_rows.append(cells)
-    trace_table = md_table(["method", "depth", "scenario"] + [f"n = {n:,}" for n in t_ns] + ["k (trace ∝ n^k)"],
-                           t_rows, "lrr" + "r" * (len(t_ns) + 1))
+    trace_table = md_table(
+        ["method", "depth", "scenario"] + [f"n = {n:,}" for n in t_ns] + ["k (trace ∝ n^k)"],
+        t_rows,
+        "lrr" + "r" * (len(t_ns) + 1),
+    )
 
     path = f"figures/{NAME}.json"
     img = "\n".join(image_line(k, v) for k, v in charts.items())
@@ -162,13 +182,13 @@ an n log n build shows as slightly above 1.
 
 {build_table}
 
-{run.caption('see the last column')}
+{run.caption("see the last column")}
 
 ### Trace time against n
 
 Trace stage / whole frame (ms) at {w} × {h}, colour, spheres of radius 1, every method of
 `METHODS` at its default `MAX_PRIMS` ({max_prims}) at recursion depth 1, and
-{' and '.join(DEEP_METHODS)} at depth {max(depths)} too; `k` fitted on the trace stage over the measured n ≥ 256.
+{" and ".join(DEEP_METHODS)} at depth {max(depths)} too; `k` fitted on the trace stage over the measured n ≥ 256.
 
 {trace_table}
 
@@ -200,9 +220,17 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
         for mp in mps:
             k = data["build_fit"][f"{sc}/{mp}"][0]
             ys = [build[(sc, n, mp)]["median"] for n in b_ns if (sc, n, mp) in build]
-            ax.plot(b_ns[:len(ys)], ys, **series(f"BIH build, S{sc} MAX_PRIMS {mp}: k = {k:.2f}", method="bih",
-                                                 variant=sc - 1, alpha=1.0 if mp == mps[-1] else 0.55,
-                                                 mfc="none" if mp != mps[-1] else None))
+            ax.plot(
+                b_ns[: len(ys)],
+                ys,
+                **series(
+                    f"BIH build, S{sc} MAX_PRIMS {mp}: k = {k:.2f}",
+                    method="bih",
+                    variant=sc - 1,
+                    alpha=1.0 if mp == mps[-1] else 0.55,
+                    mfc="none" if mp != mps[-1] else None,
+                ),
+            )
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("spheres n")
@@ -218,9 +246,13 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
                     continue
                 k = data["trace_fit"].get(f"{m}/{d}/{sc}", [math.nan])[0]
                 k = math.nan if k is None else k
-                ax.plot(xs, [trace[(m, d, sc, n)]["trace"]["median"] for n in xs],
-                        **series(f"{m} S{sc}, depth {d}" + ("" if math.isnan(k) else f": k = {k:.2f}"), method=m,
-                                 variant=sc - 1))
+                ax.plot(
+                    xs,
+                    [trace[(m, d, sc, n)]["trace"]["median"] for n in xs],
+                    **series(
+                        f"{m} S{sc}, depth {d}" + ("" if math.isnan(k) else f": k = {k:.2f}"), method=m, variant=sc - 1
+                    ),
+                )
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("spheres n")

@@ -21,6 +21,7 @@ def method_names(dispatchers: bool = False) -> list[str]:
     join by themselves). ``dispatchers``: also the names that only pick one of them per scene
     (``auto``), i.e. every ``method`` RenderSettings accepts."""
     from renderer.settings import METHOD_NAMES
+
     names = list(METHODS)
     if dispatchers:
         names += [m for m in METHOD_NAMES if m not in names]

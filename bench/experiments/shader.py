@@ -27,14 +27,14 @@ NAME = "shader"
 TITLE = "The tracer shaped for llvmpipe (issue 18) — CPU time against the shader before it"
 
 SIDES = ["base", "new", "new/tex"]
-TARGETS = {"colour_d3": 0.55, "primary": 0.80}    # issue 18: at most these ratios against the base
+TARGETS = {"colour_d3": 0.55, "primary": 0.80}  # issue 18: at most these ratios against the base
 
 
 def measure(ctx: Context) -> dict:
-    configs = S.CONFIGS if not ctx.quick else [c for c in S.CONFIGS if c.name in ("colour_d3", "primary",
-                                                                                  "floor_primid")]
-    return {"trace": S.measure(configs, SIDES, ctx.runs, quick=ctx.quick, progress=ctx.log),
-            "next": measure_next(ctx)}
+    configs = (
+        S.CONFIGS if not ctx.quick else [c for c in S.CONFIGS if c.name in ("colour_d3", "primary", "floor_primid")]
+    )
+    return {"trace": S.measure(configs, SIDES, ctx.runs, quick=ctx.quick, progress=ctx.log), "next": measure_next(ctx)}
 
 
 def dump(saved: dict, figures) -> None:
@@ -54,47 +54,60 @@ def report(saved: dict, run: RunInfo, charts: dict[str, str]) -> str:
     res = data["results"]
     configs = [c for c in S.CONFIGS if c.name in res]
     med = {c.name: {s: statistics.median(res[c.name][s]["trace"]) for s in SIDES} for c in configs}
-    lines = [f"## {TITLE}", "",
-             "CPU time of one frame's trace (`time.process_time` around the draws and `glFinish`: llvmpipe's "
-             "threads included; read-back apart, last columns) for three sides traced in turn — **base**: "
-             f"renderer, shaders and layouts of `{data['base']}`, the commit before issue 18; **new**: this "
-             "checkout as the service runs it (record arrays in uniform blocks where they fit 64 KiB, one RGBA8 "
-             "target for jpeg frames at 1 sample per pixel); **new/tex**: this checkout with textures only "
-             "(the device's layout, and the server's above 64 KiB). Every image is bit for bit the base's "
-             "(`tests/renderer/gl/test_base_images.py`). Written by `bench/shader.py` (standalone: "
-             "`.venv/bin/python -m bench.shader`).", "",
-             S.table(data, configs), "",
-             run.caption(run.runs, "median, configurations and sides interleaved, one untimed warm-up frame each"),
-             ""]
+    lines = [
+        f"## {TITLE}",
+        "",
+        "CPU time of one frame's trace (`time.process_time` around the draws and `glFinish`: llvmpipe's "
+        "threads included; read-back apart, last columns) for three sides traced in turn — **base**: "
+        f"renderer, shaders and layouts of `{data['base']}`, the commit before issue 18; **new**: this "
+        "checkout as the service runs it (record arrays in uniform blocks where they fit 64 KiB, one RGBA8 "
+        "target for jpeg frames at 1 sample per pixel); **new/tex**: this checkout with textures only "
+        "(the device's layout, and the server's above 64 KiB). Every image is bit for bit the base's "
+        "(`tests/renderer/gl/test_base_images.py`). Written by `bench/shader.py` (standalone: "
+        "`.venv/bin/python -m bench.shader`).",
+        "",
+        S.table(data, configs),
+        "",
+        run.caption(run.runs, "median, configurations and sides interleaved, one untimed warm-up frame each"),
+        "",
+    ]
     verdicts = []
     for name, limit in TARGETS.items():
         if name in med:
             r = med[name]["new"] / med[name]["base"]
             what = next(c.what for c in configs if c.name == name)
-            verdicts.append(f"- {what}: **{r:.2f}×** the base (target ≤ {limit:.2f}×: "
-                            f"{'met' if r <= limit else 'NOT met'})")
+            verdicts.append(
+                f"- {what}: **{r:.2f}×** the base (target ≤ {limit:.2f}×: {'met' if r <= limit else 'NOT met'})"
+            )
     if verdicts:
         lines += ["Targets of issue 18 (same run):", "", *verdicts, ""]
     if "floor_primid" in med:
         f = med["floor_primid"]
-        lines += [f"The floor — what a frame costs with no sphere at all (the plane only, 640 × 1088): "
-                  f"{f['new']:.0f} ms (base {f['base']:.0f} ms) for primid"
-                  + (f", {med['floor_colour']['new']:.0f} ms (base {med['floor_colour']['base']:.0f} ms) for colour "
-                     f"at depth 3" if "floor_colour" in med else "")
-                  + ": ray set-up, the plane, the outputs, and the traversal's loops, which llvmpipe runs once "
-                  "with every lane masked off even when no lane enters them.", ""]
+        lines += [
+            f"The floor — what a frame costs with no sphere at all (the plane only, 640 × 1088): "
+            f"{f['new']:.0f} ms (base {f['base']:.0f} ms) for primid"
+            + (
+                f", {med['floor_colour']['new']:.0f} ms (base {med['floor_colour']['base']:.0f} ms) for colour "
+                f"at depth 3"
+                if "floor_colour" in med
+                else ""
+            )
+            + ": ray set-up, the plane, the outputs, and the traversal's loops, which llvmpipe runs once "
+            "with every lane masked off even when no lane enters them.",
+            "",
+        ]
     lines += report_next(saved["next"], run)
     return "\n".join(lines)
 
 
 # ---- where a primary ray's time goes now -------------------------------------------------------
-TILE = 8      # pixels per side of a tile of the candidate-list estimate
+TILE = 8  # pixels per side of a tile of the candidate-list estimate
 
 
 def _lane_use(a: np.ndarray) -> float:
     """Mean over max of a per-pixel count in groups of 8 pixels (4 × 2: llvmpipe's 8 lanes)."""
     h, w = a.shape
-    g = a[:h // 2 * 2, :w // 4 * 4].reshape(h // 2, 2, w // 4, 4).transpose(0, 2, 1, 3).reshape(-1, 8)
+    g = a[: h // 2 * 2, : w // 4 * 4].reshape(h // 2, 2, w // 4, 4).transpose(0, 2, 1, 3).reshape(-1, 8)
     top = g.max(axis=1).sum()
     return float(g.mean(axis=1).sum() / top) if top else 1.0
 
@@ -115,7 +128,7 @@ def _tile_candidates(scene, w: int, h: int) -> np.ndarray:
         x0, x1 = max(0, int((x - rr) // TILE)), min(tiles.shape[1] - 1, int((x + rr) // TILE))
         y0, y1 = max(0, int((y - rr) // TILE)), min(tiles.shape[0] - 1, int((y + rr) // TILE))
         if x1 >= x0 and y1 >= y0:
-            tiles[y0:y1 + 1, x0:x1 + 1] += 1
+            tiles[y0 : y1 + 1, x0 : x1 + 1] += 1
     return tiles
 
 
@@ -127,6 +140,7 @@ def measure_next(ctx: Context) -> dict:
     from renderer.reference import primary_rays
     from renderer.scenarios import scenario
     from renderer.settings import RenderSettings
+
     w, h = (64, 108) if ctx.quick else (640, 1088)
     n = 256 if ctx.quick else 4096
     r = ctx.renderer
@@ -151,7 +165,7 @@ def measure_next(ctx: Context) -> dict:
 
     floor = cpu_ms(scenario(1, 0), "bih")
     bf0, bf32 = cpu_ms(scenario(2, 0), "bruteforce"), cpu_ms(scenario(2, 32), "bruteforce")
-    per_test = (bf32 - bf0) / 32 / (w * h) * 1e6          # ns of CPU per sphere test per pixel, uniform loop
+    per_test = (bf32 - bf0) / 32 / (w * h) * 1e6  # ns of CPU per sphere test per pixel, uniform loop
     data = {"size": [w, h], "n": n, "floor_ms": floor, "uniform_test_ns": per_test, "scenes": {}}
     for number in (2, 3):
         scene = scenario(number, n)
@@ -166,10 +180,17 @@ def measure_next(ctx: Context) -> dict:
         tiles = _tile_candidates(scene, w, h)
         cand = np.repeat(np.repeat(tiles, TILE, 0), TILE, 1)[:h, :w]
         estimate = floor + float(cand.sum()) * per_test / 1e6
-        data["scenes"][number] = {"hit": float(np.mean(res.prim >= 0)), "nodes": float(nodes.mean()),
-                                  "tests": float(tests.mean()), "lanes_nodes": _lane_use(nodes),
-                                  "lanes_tests": _lane_use(tests), "frame_ms": frame, "step_ns": step_ns,
-                                  "tile_candidates": float(cand.mean()), "tile_estimate_ms": estimate}
+        data["scenes"][number] = {
+            "hit": float(np.mean(res.prim >= 0)),
+            "nodes": float(nodes.mean()),
+            "tests": float(tests.mean()),
+            "lanes_nodes": _lane_use(nodes),
+            "lanes_tests": _lane_use(tests),
+            "frame_ms": frame,
+            "step_ns": step_ns,
+            "tile_candidates": float(cand.mean()),
+            "tile_estimate_ms": estimate,
+        }
     return data
 
 
@@ -179,29 +200,60 @@ def report_next(data: dict, run: RunInfo) -> list[str]:
     rows = []
     for number, e in data["scenes"].items():
         frame, step_ns, estimate = e["frame_ms"], e["step_ns"], e["tile_estimate_ms"]
-        rows.append([f"scenario {number}", f"{e['hit']:.1%}", f"{e['nodes']:.1f}", f"{e['tests']:.1f}",
-                     f"{e['lanes_nodes']:.2f} / {e['lanes_tests']:.2f}", f"{frame:.0f}", f"{floor:.0f}",
-                     f"{step_ns:.1f}", f"{e['tile_candidates']:.1f}", f"{estimate:.0f} ({estimate / frame:.2f}×)"])
+        rows.append(
+            [
+                f"scenario {number}",
+                f"{e['hit']:.1%}",
+                f"{e['nodes']:.1f}",
+                f"{e['tests']:.1f}",
+                f"{e['lanes_nodes']:.2f} / {e['lanes_tests']:.2f}",
+                f"{frame:.0f}",
+                f"{floor:.0f}",
+                f"{step_ns:.1f}",
+                f"{e['tile_candidates']:.1f}",
+                f"{estimate:.0f} ({estimate / frame:.2f}×)",
+            ]
+        )
     ratios = [e["step_ns"] / per_test for e in data["scenes"].values() if per_test > 0 and e["step_ns"] == e["step_ns"]]
-    ratio_txt = (f"{min(ratios):.1f}–{max(ratios):.1f}×" if ratios else "more than")
-    return ["### Where a primary ray's time goes now — the next factor", "",
-            f"Primary rays at {w} × {h}, {n:,} spheres, BIH (max_prims 8). Per ray, from the CPU mirror "
-            "(`bih_traverse`, the shader's decisions): spheres hit, nodes visited and spheres tested; lane use = "
-            "mean ÷ max of those counts over groups of 8 pixels (4 × 2, llvmpipe's lanes: a group runs as long "
-            "as its slowest pixel). Measured here (CPU ms, median): the frame, the floor (no spheres: the "
-            "background variant everywhere, the plane and the outputs), so (frame − floor) ÷ (nodes + tests) "
-            "is the CPU cost of one traversal step. A uniform loop over spheres (brute force, n = 32 against "
-            f"n = 0) costs {per_test:.1f} ns of CPU per sphere and pixel; the estimate is the floor plus that "
-            f"for the spheres whose screen circle overlaps each {TILE} × {TILE}-pixel tile (a per-tile candidate "
-            "list made before the draw, no traversal in the shader).", "",
-            md_table(["scene", "rays hitting", "nodes / ray", "tests / ray", "lane use nodes / tests",
-                      "frame ms", "floor ms", "ns per step", "candidates / pixel", "estimate ms"], rows), "",
-            run.caption(run.runs), "",
-            f"A step of the traversal (a node or a sphere test, with the loops around it and its record fetch) "
-            f"costs {ratio_txt} a test in a loop every lane runs alike: the fetches are gathers lane by lane, "
-            "the loops run as long as the slowest of 8 pixels, and every loop body runs once even when no lane "
-            "needs it. For primary rays the next "
-            "factor is to take the traversal out of the shader: per-tile candidate lists (sorted front to back "
-            "for an early exit), estimated above; for the secondary rays of colour frames, which are most of "
-            "their time and incoherent, passes that sort rays by direction before tracing them (the ray "
-            "engines' passes) would restore the lane use the primary rays have.", ""]
+    ratio_txt = f"{min(ratios):.1f}–{max(ratios):.1f}×" if ratios else "more than"
+    return [
+        "### Where a primary ray's time goes now — the next factor",
+        "",
+        f"Primary rays at {w} × {h}, {n:,} spheres, BIH (max_prims 8). Per ray, from the CPU mirror "
+        "(`bih_traverse`, the shader's decisions): spheres hit, nodes visited and spheres tested; lane use = "
+        "mean ÷ max of those counts over groups of 8 pixels (4 × 2, llvmpipe's lanes: a group runs as long "
+        "as its slowest pixel). Measured here (CPU ms, median): the frame, the floor (no spheres: the "
+        "background variant everywhere, the plane and the outputs), so (frame − floor) ÷ (nodes + tests) "
+        "is the CPU cost of one traversal step. A uniform loop over spheres (brute force, n = 32 against "
+        f"n = 0) costs {per_test:.1f} ns of CPU per sphere and pixel; the estimate is the floor plus that "
+        f"for the spheres whose screen circle overlaps each {TILE} × {TILE}-pixel tile (a per-tile candidate "
+        "list made before the draw, no traversal in the shader).",
+        "",
+        md_table(
+            [
+                "scene",
+                "rays hitting",
+                "nodes / ray",
+                "tests / ray",
+                "lane use nodes / tests",
+                "frame ms",
+                "floor ms",
+                "ns per step",
+                "candidates / pixel",
+                "estimate ms",
+            ],
+            rows,
+        ),
+        "",
+        run.caption(run.runs),
+        "",
+        f"A step of the traversal (a node or a sphere test, with the loops around it and its record fetch) "
+        f"costs {ratio_txt} a test in a loop every lane runs alike: the fetches are gathers lane by lane, "
+        "the loops run as long as the slowest of 8 pixels, and every loop body runs once even when no lane "
+        "needs it. For primary rays the next "
+        "factor is to take the traversal out of the shader: per-tile candidate lists (sorted front to back "
+        "for an early exit), estimated above; for the secondary rays of colour frames, which are most of "
+        "their time and incoherent, passes that sort rays by direction before tracing them (the ray "
+        "engines' passes) would restore the lane use the primary rays have.",
+        "",
+    ]

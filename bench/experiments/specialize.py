@@ -40,7 +40,7 @@ MIN_PSNR = 50.0
 def scenes(quick: bool):
     n3 = THESIS_N_QUICK if quick else THESIS_N
     return [
-        (f"diffuse only (scenario 3, n = 256, kr = kt = 0)", diffuse_only(scenario(3, 256, seed=0, radius=1.0))),
+        ("diffuse only (scenario 3, n = 256, kr = kt = 0)", diffuse_only(scenario(3, 256, seed=0, radius=1.0))),
         ("16 spheres (scenario 1, n = 16)", scenario(1, 16, seed=0, radius=1.0)),
         (f"thesis scenario 3 (n = {n3:,})", scenario(3, n3, seed=0, radius=1.0)),
     ]
@@ -51,12 +51,23 @@ def variants() -> list[tuple[str, dict | None, str]]:
     has_auto = "auto" in method_names(dispatchers=True)
     has_spec = has_setting("specialize")
     out = [("generic (bih, specialize off)", dict(method="bih", **({"specialize": False} if has_spec else {})), "")]
-    out.append(("method auto only", dict(method="auto", **({"specialize": False} if has_spec else {}))
-                if has_auto else None, "no method `auto`"))
-    out.append(("specialize only", dict(method="bih", specialize=True) if has_spec else None,
-                "no setting `specialize`"))
-    out.append(("both (defaults)", dict(method="auto", specialize=True) if has_auto and has_spec else None,
-                "needs `auto` and `specialize`"))
+    out.append(
+        (
+            "method auto only",
+            dict(method="auto", **({"specialize": False} if has_spec else {})) if has_auto else None,
+            "no method `auto`",
+        )
+    )
+    out.append(
+        ("specialize only", dict(method="bih", specialize=True) if has_spec else None, "no setting `specialize`")
+    )
+    out.append(
+        (
+            "both (defaults)",
+            dict(method="auto", specialize=True) if has_auto and has_spec else None,
+            "needs `auto` and `specialize`",
+        )
+    )
     return out
 
 
@@ -79,17 +90,26 @@ def measure(ctx: Context) -> dict:
         p = psnr(g_res.image, res.image)
         ok = same_ids and p >= MIN_PSNR
         speed = g_t.total.median / t.total.median
-        data[f"{label}/{vlabel}"] = {"timing": t.to_json(), "speedup": speed, "primid_identical": same_ids,
-                                     "psnr_vs_generic": p, "ok": ok,
-                                     "stats": {k: v for k, v in (res.stats or {}).items()
-                                               if isinstance(v, (int, float, str, bool))}}
-    return {"size": [w, h], "scenes": [label for label, _ in measured],
-            "max_recursion_depth": base.max_recursion_depth, "max_prims": base.max_prims, "results": data}
+        data[f"{label}/{vlabel}"] = {
+            "timing": t.to_json(),
+            "speedup": speed,
+            "primid_identical": same_ids,
+            "psnr_vs_generic": p,
+            "ok": ok,
+            "stats": {k: v for k, v in (res.stats or {}).items() if isinstance(v, (int, float, str, bool))},
+        }
+    return {
+        "size": [w, h],
+        "scenes": [label for label, _ in measured],
+        "max_recursion_depth": base.max_recursion_depth,
+        "max_prims": base.max_prims,
+        "results": data,
+    }
 
 
 def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     w, h = data["size"]
-    base = default_settings()   # older data did not keep the defaults it ran with
+    base = default_settings()  # older data did not keep the defaults it ran with
     depth, max_prims = data.get("max_recursion_depth", base.max_recursion_depth), data.get("max_prims", base.max_prims)
     results = data["results"]
     labels = data.get("scenes") or list(dict.fromkeys(k.split("/")[0] for k in results))
@@ -103,11 +123,32 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
                 continue
             t = r["timing"]
             all_ok &= r["ok"]
-            rows.append([label, vlabel, Stat.from_json(t["total"]).fmt(1), f"{t['first_ms']:,.0f}",
-                         f"{r['speedup']:.2f}×", "yes" if r["primid_identical"] else "**NO**",
-                         fmt_db(r["psnr_vs_generic"]), "✓" if r["ok"] else "**✗**"])
-    table = md_table(["scene", "path", "frame ms", "first frame ms", "speed-up vs generic", "primid identical",
-                      "colour PSNR vs generic (dB)", f"unchanged (PSNR ≥ {MIN_PSNR:g})"], rows, "llrrrcrc")
+            rows.append(
+                [
+                    label,
+                    vlabel,
+                    Stat.from_json(t["total"]).fmt(1),
+                    f"{t['first_ms']:,.0f}",
+                    f"{r['speedup']:.2f}×",
+                    "yes" if r["primid_identical"] else "**NO**",
+                    fmt_db(r["psnr_vs_generic"]),
+                    "✓" if r["ok"] else "**✗**",
+                ]
+            )
+    table = md_table(
+        [
+            "scene",
+            "path",
+            "frame ms",
+            "first frame ms",
+            "speed-up vs generic",
+            "primid identical",
+            "colour PSNR vs generic (dB)",
+            f"unchanged (PSNR ≥ {MIN_PSNR:g})",
+        ],
+        rows,
+        "llrrrcrc",
+    )
     path = f"figures/{NAME}.json"
     saved = []
     for label in labels:
@@ -116,10 +157,13 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
             gm = results[f"{label}/generic (bih, specialize off)"]["timing"]["total"]["median"]
             bm = results[key]["timing"]["total"]["median"]
             pct = 100 * (1 - bm / gm)
-            saved.append(f"{label}: {gm:,.1f} → {bm:,.1f} ms "
-                         + (f"({pct:.1f} % saved)" if pct >= 0 else f"({-pct:.1f} % slower)"))
-    saved_txt = ("\n".join(f"- {s}" for s in saved) if saved else
-                 "- not measured: this build lacks `auto` and/or `specialize`")
+            saved.append(
+                f"{label}: {gm:,.1f} → {bm:,.1f} ms "
+                + (f"({pct:.1f} % saved)" if pct >= 0 else f"({-pct:.1f} % slower)")
+            )
+    saved_txt = (
+        "\n".join(f"- {s}" for s in saved) if saved else "- not measured: this build lacks `auto` and/or `specialize`"
+    )
     return f"""## {TITLE}
 
 Each switch on its own and all together against the generic path, at {w} × {h}, colour, recursion depth
@@ -135,7 +179,7 @@ Time saved by the defaults (both switches) against the generic path:
 
 {saved_txt}
 
-Images unchanged in every measured row (primid identical and PSNR ≥ {MIN_PSNR:g} dB): **{'yes' if all_ok else 'NO'}**.
+Images unchanged in every measured row (primid identical and PSNR ≥ {MIN_PSNR:g} dB): **{"yes" if all_ok else "NO"}**.
 
 Raw data: [`{path}`]({path}).
 """

@@ -57,7 +57,7 @@ def run_one(ctx: Context, name: str) -> tuple[str, str, bool]:
         saved = data.roundtrip(mod.measure(ctx))
         run = ctx.run_info()
         saved["run"] = run.to_json()
-        dump(mod, saved, ctx.figures)   # saved before writing it up: a failing report keeps the data
+        dump(mod, saved, ctx.figures)  # saved before writing it up: a failing report keeps the data
         run.stamp = stamp(time.perf_counter() - t0, ctx.quick)
         saved["run"] = run.to_json()
         dump(mod, saved, ctx.figures)
@@ -67,6 +67,7 @@ def run_one(ctx: Context, name: str) -> tuple[str, str, bool]:
     except Exception:  # one broken experiment must not lose the others' results
         tb = traceback.format_exc()
         from tqdm import tqdm
+
         tqdm.write(f"{name} FAILED:\n{tb}", file=sys.stderr)
         frag = f"## {title}\n\n**This experiment failed:**\n\n```\n{tb.strip()}\n```\n"
         return title, with_stamp(frag, stamp(time.perf_counter() - t0, ctx.quick)), True

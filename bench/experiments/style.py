@@ -22,31 +22,37 @@ from __future__ import annotations
 
 import hashlib
 import re
+from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 # Methods of renderer.methods and the peers of the peers experiment: colour, marker.
 METHOD_STYLE: dict[str, tuple[str, str]] = {
-    "bih": ("#1f77b4", "o"),          # blue: the thesis's method
-    "bruteforce": ("#000000", "s"),   # black: the baseline
+    "bih": ("#1f77b4", "o"),  # blue: the thesis's method
+    "bruteforce": ("#000000", "s"),  # black: the baseline
     "rayengine": ("#ff7f0e", "^"),
     "hre": ("#d62728", "v"),
     "bvh": ("#2ca02c", "D"),
     "kdtree": ("#9467bd", "P"),
     "twolevel": ("#8c564b", "X"),
     "auto": ("#7f7f7f", "*"),
-    "mitsuba": ("#e377c2", "h"),            # Mitsuba 3, sphere shapes
+    "mitsuba": ("#e377c2", "h"),  # Mitsuba 3, sphere shapes
     "mitsuba-ellipsoids": ("#bcbd22", "p"),
     "embree": ("#17becf", "d"),
-    "thesis": ("#7f7f7f", "x"),             # numbers quoted from the thesis
+    "thesis": ("#7f7f7f", "x"),  # numbers quoted from the thesis
 }
 SPARE_COLOURS = ("#393b79", "#637939", "#8c6d31", "#843c39", "#7b4173", "#3182bd", "#e6550d", "#31a354")
 SPARE_MARKERS = ("o", "s", "^", "v", "D", "P", "X", "h")
 LINESTYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)), (0, (1, 3)))
 DPI, DPI_QUICK = 110, 60
 
-_ALIASES = (("ellipsoid", "mitsuba-ellipsoids"), ("mitsuba", "mitsuba"), ("embree", "embree"),
-            ("brute", "bruteforce"), ("thesis", "thesis"))
+_ALIASES = (
+    ("ellipsoid", "mitsuba-ellipsoids"),
+    ("mitsuba", "mitsuba"),
+    ("embree", "embree"),
+    ("brute", "bruteforce"),
+    ("thesis", "thesis"),
+)
 
 
 def method_of(label: str) -> str:
@@ -59,7 +65,7 @@ def method_of(label: str) -> str:
             return name
     words = re.findall(r"[a-z0-9_]+", text)
     for name in sorted(METHOD_STYLE, key=len, reverse=True):
-        if name != "thesis" and name in words:   # "BIH rebuild (thesis)" is the BIH's
+        if name != "thesis" and name in words:  # "BIH rebuild (thesis)" is the BIH's
             return name
     return words[0] if words else text
 
@@ -75,7 +81,7 @@ def colour_marker(method: str) -> tuple[str, str]:
 def shade(colour: str, amount: float) -> str:
     """``colour`` mixed with white by ``amount`` (0 = itself, 1 = white)."""
     c = colour.lstrip("#")
-    rgb = [int(c[i:i + 2], 16) for i in (0, 2, 4)]
+    rgb = [int(c[i : i + 2], 16) for i in (0, 2, 4)]
     mixed = [round(v + (255 - v) * amount) for v in rgb]
     return "#" + "".join(f"{v:02x}" for v in mixed)
 
@@ -84,14 +90,21 @@ def series(label: str, variant: int = 0, method: str | None = None, **extra: Any
     """``plot()`` keyword arguments of a series: its method's colour and marker; ``variant`` ≥ 1
     (a second MAX_PRIMS, another scheme) changes the line style and lightens the colour."""
     colour, marker = colour_marker(method or method_of(label))
-    style = {"color": shade(colour, min(0.7, 0.15 * variant)) if variant else colour, "marker": marker,
-             "ls": LINESTYLES[variant % len(LINESTYLES)], "label": label, "ms": 5, "lw": 1.5}
+    style = {
+        "color": shade(colour, min(0.7, 0.15 * variant)) if variant else colour,
+        "marker": marker,
+        "ls": LINESTYLES[variant % len(LINESTYLES)],
+        "label": label,
+        "ms": 5,
+        "lw": 1.5,
+    }
     style.update(extra)
     return style
 
 
-def legend_outside(fig: Any, axes: Any = None, title: str | None = None, ncol: int = 1,
-                   extra: Sequence[tuple[Any, str]] = ()) -> None:
+def legend_outside(
+    fig: Any, axes: Any = None, title: str | None = None, ncol: int = 1, extra: Sequence[tuple[Any, str]] = ()
+) -> None:
     """One legend for the figure, to the right of every axes (the figure must use the
     constrained layout, which it is switched to); each label once, in first-seen order."""
     if fig.get_layout_engine() is None or type(fig.get_layout_engine()).__name__ != "ConstrainedLayoutEngine":
@@ -108,8 +121,16 @@ def legend_outside(fig: Any, axes: Any = None, title: str | None = None, ncol: i
     for handle, label in extra:
         seen.setdefault(label, handle)
     if seen:
-        fig.legend(list(seen.values()), list(seen), loc="outside right upper", fontsize=8, ncol=ncol,
-                   title=title, title_fontsize=8, frameon=False)
+        fig.legend(
+            list(seen.values()),
+            list(seen),
+            loc="outside right upper",
+            fontsize=8,
+            ncol=ncol,
+            title=title,
+            title_fontsize=8,
+            frameon=False,
+        )
 
 
 def _flat(axes: Any) -> Iterable[Any]:
@@ -138,6 +159,7 @@ def image_line(name: str, alt: str) -> str:
 def log_axis(ax, which: str = "xy", minor_labels: bool = True) -> None:
     """Log scale with plain-number tick labels (1, 20, 300, 4000 rather than 4×10³)."""
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
     fmt = FuncFormatter(lambda v, _: f"{v:g}")
     for w in which:
         axis = ax.xaxis if w == "x" else ax.yaxis
@@ -150,6 +172,8 @@ def log_axis(ax, which: str = "xy", minor_labels: bool = True) -> None:
 def plt():
     """matplotlib.pyplot with the non-interactive backend."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as pyplot
+
     return pyplot

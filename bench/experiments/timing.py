@@ -6,7 +6,8 @@ import dataclasses
 import math
 import statistics
 import time
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -14,6 +15,7 @@ import numpy as np
 @dataclasses.dataclass
 class Stat:
     """Samples of one measurement (ms unless said otherwise): median and min–max spread."""
+
     samples: list[float]
 
     @property
@@ -45,13 +47,18 @@ class Stat:
         return {"median": self.median, "min": self.lo, "max": self.hi, "samples": self.samples}
 
     @classmethod
-    def from_json(cls, d: dict) -> "Stat":
+    def from_json(cls, d: dict) -> Stat:
         """The Stat that ``to_json`` saved (a report reads its numbers back from the saved data)."""
         return cls(list(d["samples"]))
 
 
-def measure(fn: Callable[[], Any], runs: int, warmup: int = 1, budget_s: float | None = None,
-            on_result: Callable[[Any], None] | None = None) -> tuple[Stat, Any]:
+def measure(
+    fn: Callable[[], Any],
+    runs: int,
+    warmup: int = 1,
+    budget_s: float | None = None,
+    on_result: Callable[[Any], None] | None = None,
+) -> tuple[Stat, Any]:
     """Wall time of ``fn`` in ms over ``runs`` calls after ``warmup`` untimed ones.
 
     With ``budget_s`` the runs stop early once that much time was spent timing
@@ -98,14 +105,18 @@ def crossover_n(ns: Sequence[int], ours: Sequence[float], theirs: Sequence[float
 @dataclasses.dataclass
 class RenderTiming:
     """One render configuration measured: wall time per frame and every stage of ``timings``."""
+
     total: Stat
     stages: dict[str, Stat]
     result: Any  # the last RenderResult
     first_ms: float  # the warm-up frame (shader compile included when the variant was new)
 
     def to_json(self) -> dict:
-        return {"total": self.total.to_json(), "first_ms": self.first_ms,
-                "stages": {k: v.to_json() for k, v in self.stages.items()}}
+        return {
+            "total": self.total.to_json(),
+            "first_ms": self.first_ms,
+            "stages": {k: v.to_json() for k, v in self.stages.items()},
+        }
 
 
 def fit_power(ns: Sequence[float], ys: Sequence[float]) -> tuple[float, float]:

@@ -70,7 +70,7 @@ from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
 from ..limits import MAX_TREE_DEPTH
 
 AXIS_SHIFT = 30
-LEAF_TAG = 3 << AXIS_SHIFT          # both high bits set
+LEAF_TAG = 3 << AXIS_SHIFT  # both high bits set
 CHILD_MASK = (1 << AXIS_SHIFT) - 1  # low 30 bits
 NODE_BYTES = 12
 NODE_WORDS = 3
@@ -83,7 +83,7 @@ STACK_SIZE = MAX_TREE_DEPTH
 # The GPU record's child refs.
 REF_LEAF = 1 << 29
 REF_INDEX = REF_LEAF - 1
-REF_NONE = 0xFFFFFFFF               # "no node" in the shader's loops (has REF_LEAF set)
+REF_NONE = 0xFFFFFFFF  # "no node" in the shader's loops (has REF_LEAF set)
 RECORD_BYTES = 16
 # A cut's empty side (renderer.accel.bih, step 0): its clip plane at ±EMPTY_CLIP (the module's
 # docstring: no ray takes it), and its ref in the GPU record is its sibling's.
@@ -96,8 +96,7 @@ BOX_MIN = Binding("u_box_min", "highp vec3", "BIH global AABB")
 BOX_MAX = Binding("u_box_max", "highp vec3")
 # The triangles' records (gpu_layout, read only by variants with the TRIANGLES data format).
 # (Not u_num_triangles: the tree's leaves say where the triangles are.)
-BINDINGS = (NODES, SPHERES, ROOT, BOX_MIN, BOX_MAX, gpu_layout.TRIANGLES, gpu_layout.TRI_NORMALS,
-            gpu_layout.TRI_BASE)
+BINDINGS = (NODES, SPHERES, ROOT, BOX_MIN, BOX_MAX, gpu_layout.TRIANGLES, gpu_layout.TRI_NORMALS, gpu_layout.TRI_BASE)
 
 
 def empty_nodes(count: int) -> np.ndarray:
@@ -157,12 +156,14 @@ def leaf_order(bih) -> tuple[np.ndarray, np.ndarray]:
 
 def glsl_defines() -> str:
     """The layout as GLSL ES 3.00 ``#define`` lines (shared with the shader)."""
-    return (f"#define BIH_STACK_SIZE {STACK_SIZE}\n"
-            f"#define BIH_AXIS_SHIFT {AXIS_SHIFT}u\n"
-            f"#define BIH_REF_LEAF {REF_LEAF}u\n"
-            f"#define BIH_REF_INDEX {REF_INDEX}u\n"
-            f"#define BIH_REF_MASK {CHILD_MASK}u\n"
-            f"#define BIH_REF_NONE {REF_NONE}u\n")
+    return (
+        f"#define BIH_STACK_SIZE {STACK_SIZE}\n"
+        f"#define BIH_AXIS_SHIFT {AXIS_SHIFT}u\n"
+        f"#define BIH_REF_LEAF {REF_LEAF}u\n"
+        f"#define BIH_REF_INDEX {REF_INDEX}u\n"
+        f"#define BIH_REF_MASK {CHILD_MASK}u\n"
+        f"#define BIH_REF_NONE {REF_NONE}u\n"
+    )
 
 
 def pack_bih(bih, scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
@@ -173,8 +174,12 @@ def pack_bih(bih, scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
     records, root = gpu_records(bih)
     order, last = leaf_order(bih)
     packed = PackedScene(
-        textures={NODES.name: wrap_rows(records, max_width),
-                  SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, order, last), max_width)},
-        uniforms=dict(zip((ROOT.name, BOX_MIN.name, BOX_MAX.name),
-                          (root, *gpu_layout.box_uniform(*bih.global_aabb)), strict=True)))
+        textures={
+            NODES.name: wrap_rows(records, max_width),
+            SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, order, last), max_width),
+        },
+        uniforms=dict(
+            zip((ROOT.name, BOX_MIN.name, BOX_MAX.name), (root, *gpu_layout.box_uniform(*bih.global_aabb)), strict=True)
+        ),
+    )
     return gpu_layout.merged(packed, gpu_layout.pack_triangles(scene, max_width, count=False))

@@ -68,15 +68,22 @@ _BRUTE_CHUNK = 1 << 21
 
 @dataclass
 class TraversalResult:
-    t: np.ndarray              # float64 (R,), inf on a miss
-    prim: np.ndarray           # int64 (R,), sphere id or -1
+    t: np.ndarray  # float64 (R,), inf on a miss
+    prim: np.ndarray  # int64 (R,), sphere id or -1
     nodes_visited: np.ndarray  # int64 (R,)
-    gaps: np.ndarray           # int64 (R,)
-    tests: np.ndarray          # int64 (R,)
+    gaps: np.ndarray  # int64 (R,)
+    tests: np.ndarray  # int64 (R,)
 
 
-def sphere_t(o: Sequence[np.ndarray], d: Sequence[np.ndarray], c: Sequence[np.ndarray], r: np.ndarray,
-             ids: np.ndarray, ignore: np.ndarray, far_only: np.ndarray) -> np.ndarray:
+def sphere_t(
+    o: Sequence[np.ndarray],
+    d: Sequence[np.ndarray],
+    c: Sequence[np.ndarray],
+    r: np.ndarray,
+    ids: np.ndarray,
+    ignore: np.ndarray,
+    far_only: np.ndarray,
+) -> np.ndarray:
     """t of the first accepted hit of ray ``(o, d)`` with sphere ``(c, r)``, inf if none.
 
     ``o, d, c`` are tuples/lists of three broadcastable float64 arrays (x, y, z
@@ -192,8 +199,9 @@ def _prepare(centers, radii, origins, dirs, ignore, far_only):
     return c, r, o, d, ids(ignore, "ignore"), ids(far_only, "far_only")
 
 
-def brute_force(centers, radii, origins, dirs, ignore=None, far_only=None, triangles=None
-                ) -> tuple[np.ndarray, np.ndarray]:
+def brute_force(
+    centers, radii, origins, dirs, ignore=None, far_only=None, triangles=None
+) -> tuple[np.ndarray, np.ndarray]:
     """Nearest hit of every ray over all spheres (and ``triangles``, tree ids after them): ``(t, prim)``.
 
     ``t`` float64 (inf on a miss), ``prim`` int64 (-1 on a miss); exactly
@@ -228,9 +236,9 @@ def brute_force(centers, radii, origins, dirs, ignore=None, far_only=None, trian
         oo = (o[s:e, 0:1], o[s:e, 1:2], o[s:e, 2:3])
         dd = (d[s:e, 0:1], d[s:e, 1:2], d[s:e, 2:3])
         t = sphere_t(oo, dd, cc, rr, ids, ign[s:e, None], far[s:e, None])
-        k = np.argmin(t, axis=1)          # first minimum: the lower id on ties
+        k = np.argmin(t, axis=1)  # first minimum: the lower id on ties
         tk = t[np.arange(e - s), k]
-        better = np.isfinite(tk) & (tk <= t_best[s:e])    # a sphere's id is below every triangle's
+        better = np.isfinite(tk) & (tk <= t_best[s:e])  # a sphere's id is below every triangle's
         t_best[s:e] = np.where(better, tk, t_best[s:e])
         prim[s:e] = np.where(better, k, prim[s:e])
     return t_best, prim
@@ -247,7 +255,7 @@ def _clip_global(box: np.ndarray, o: np.ndarray, d: np.ndarray) -> tuple[np.ndar
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for a in range(3):
             oa, da = o[:, a], d[:, a]
-            zero = da == 0.0                      # +0 and -0
+            zero = da == 0.0  # +0 and -0
             ok &= ~(zero & ((oa < lo[a]) | (oa > hi[a])))
             ta = (lo[a] - oa) / da
             tb = (hi[a] - oa) / da
@@ -259,9 +267,16 @@ def _clip_global(box: np.ndarray, o: np.ndarray, d: np.ndarray) -> tuple[np.ndar
     return ok, t0, t1
 
 
-def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarray, dirs: np.ndarray,
-             ignore: np.ndarray | None = None, far_only: np.ndarray | None = None,
-             triangles: np.ndarray | None = None) -> TraversalResult:
+def traverse(
+    bih: BIH,
+    centers: np.ndarray,
+    radii: np.ndarray,
+    origins: np.ndarray,
+    dirs: np.ndarray,
+    ignore: np.ndarray | None = None,
+    far_only: np.ndarray | None = None,
+    triangles: np.ndarray | None = None,
+) -> TraversalResult:
     """Nearest hit of every ray through ``bih`` (built over these spheres and triangles).
 
     Returns the same ``(t, prim)`` as :func:`brute_force` plus the heat-mode
@@ -365,15 +380,30 @@ def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarr
                     sp_ = np.flatnonzero(pid < n_s)
                     if len(sp_):
                         ry, ps = ray[sp_], pid[sp_]
-                        t[sp_] = sphere_t((o[ry, 0], o[ry, 1], o[ry, 2]), (d[ry, 0], d[ry, 1], d[ry, 2]),
-                                          (cx[ps], cy[ps], cz[ps]), r[ps], ps, ign[ry], far[ry])
+                        t[sp_] = sphere_t(
+                            (o[ry, 0], o[ry, 1], o[ry, 2]),
+                            (d[ry, 0], d[ry, 1], d[ry, 2]),
+                            (cx[ps], cy[ps], cz[ps]),
+                            r[ps],
+                            ps,
+                            ign[ry],
+                            far[ry],
+                        )
                     tp_ = np.flatnonzero(pid >= n_s)
                     if len(tp_):
                         ry, ps = ray[tp_], pid[tp_]
                         j = ps - n_s
                         v0, v1, v2 = (tuple(tv[k][a][j] for a in range(3)) for k in range(3))
-                        t[tp_] = triangle_t((o[ry, 0], o[ry, 1], o[ry, 2]), (d[ry, 0], d[ry, 1], d[ry, 2]),
-                                            v0, v1, v2, ps, ign[ry], valid[j])
+                        t[tp_] = triangle_t(
+                            (o[ry, 0], o[ry, 1], o[ry, 2]),
+                            (d[ry, 0], d[ry, 1], d[ry, 2]),
+                            v0,
+                            v1,
+                            v2,
+                            ps,
+                            ign[ry],
+                            valid[j],
+                        )
                     order_t = np.lexsort((pid, t, ray))
                     ray_s = ray[order_t]
                     first = np.ones(total, dtype=bool)
@@ -431,9 +461,9 @@ def traverse(bih: BIH, centers: np.ndarray, radii: np.ndarray, origins: np.ndarr
                 go_far = ~near_ok & far_ok
                 gn, gf = ir[go_near], ir[go_far]
                 cur[gn] = near_node[go_near]
-                cur_b[gn] = near_hi[go_near]           # cur_a stays a
+                cur_b[gn] = near_hi[go_near]  # cur_a stays a
                 cur[gf] = far_node[go_far]
-                cur_a[gf] = far_lo[go_far]             # cur_b stays b
+                cur_a[gf] = far_lo[go_far]  # cur_b stays b
                 has_cur[ir[~(go_near | go_far)]] = False
 
             live = live[has_cur[live] | (sp[live] > 0)]

@@ -101,18 +101,19 @@ def leaf_order(bvh) -> tuple[np.ndarray, np.ndarray]:
     """Positions in ``bvh.indices`` in leaf order (the index array's own order) and the
     ``last`` flags of their records."""
     leaves = np.flatnonzero(bvh.left < 0)
-    return bvh.indices.astype(np.int64), gpu_layout.leaf_ends(bvh.first[leaves], bvh.count[leaves],
-                                                              bvh.n_primitives)
+    return bvh.indices.astype(np.int64), gpu_layout.leaf_ends(bvh.first[leaves], bvh.count[leaves], bvh.n_primitives)
 
 
 def glsl_defines() -> str:
     """The layout as GLSL ES 3.00 ``#define`` lines (shared with the shader)."""
-    return (f"#define BVH_REF_LEAF {REF_LEAF}u\n"
-            f"#define BVH_REF_INDEX {REF_INDEX}u\n"
-            f"#define BVH_REF_NONE {REF_NONE}u\n"
-            f"#define BVH_STACK_SIZE {STACK_SIZE}\n"
-            f"#define BVH_T_SLACK {T_SLACK!r}\n"
-            f"#define BVH_DIR_EPS {DIR_EPS!r}\n")
+    return (
+        f"#define BVH_REF_LEAF {REF_LEAF}u\n"
+        f"#define BVH_REF_INDEX {REF_INDEX}u\n"
+        f"#define BVH_REF_NONE {REF_NONE}u\n"
+        f"#define BVH_STACK_SIZE {STACK_SIZE}\n"
+        f"#define BVH_T_SLACK {T_SLACK!r}\n"
+        f"#define BVH_DIR_EPS {DIR_EPS!r}\n"
+    )
 
 
 def pack_bvh(bvh, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
@@ -126,8 +127,16 @@ def pack_bvh(bvh, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT
     if ids is not None:
         order = np.asarray(ids, dtype=np.int64)[order]
     packed = PackedScene(
-        textures={NODES.name: wrap_rows(records, max_width),
-                  SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, order, last), max_width)},
-        uniforms=dict(zip((ROOT.name, ROOT_MIN.name, ROOT_MAX.name),
-                          (root, *gpu_layout.box_uniform(bvh.bmin[0], bvh.bmax[0])), strict=True)))
+        textures={
+            NODES.name: wrap_rows(records, max_width),
+            SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, order, last), max_width),
+        },
+        uniforms=dict(
+            zip(
+                (ROOT.name, ROOT_MIN.name, ROOT_MAX.name),
+                (root, *gpu_layout.box_uniform(bvh.bmin[0], bvh.bmax[0])),
+                strict=True,
+            )
+        ),
+    )
     return gpu_layout.merged(packed, gpu_layout.pack_triangles(scene, max_width, count=False))

@@ -39,16 +39,21 @@ __all__ = ["TreePrimitives", "traverse_bvh", "traverse_kdtree", "trace_tree"]
 @dataclass(frozen=True)
 class TreePrimitives:
     """A scene's tree primitives in float64: spheres ``0 … n−1``, then triangles."""
-    centers: np.ndarray     # (n, 3)
-    radii: np.ndarray       # (n,)
-    corners: np.ndarray     # (T, 3, 3)
-    valid: np.ndarray       # (T,) not of zero area
+
+    centers: np.ndarray  # (n, 3)
+    radii: np.ndarray  # (n,)
+    corners: np.ndarray  # (T, 3, 3)
+    valid: np.ndarray  # (T,) not of zero area
 
     @staticmethod
     def of(scene) -> TreePrimitives:
         corners, valid = _corners(scene.triangle_corners)
-        return TreePrimitives(np.asarray(scene.sphere_centers, np.float64).reshape(-1, 3),
-                              np.asarray(scene.sphere_radii, np.float64).reshape(-1), corners, valid)
+        return TreePrimitives(
+            np.asarray(scene.sphere_centers, np.float64).reshape(-1, 3),
+            np.asarray(scene.sphere_radii, np.float64).reshape(-1),
+            corners,
+            valid,
+        )
 
     @property
     def n_spheres(self) -> int:
@@ -65,15 +70,23 @@ class TreePrimitives:
         if len(sph):
             r, p = ray[sph], pid[sph]
             c = self.centers[p]
-            t[sph] = sphere_t((o[r, 0], o[r, 1], o[r, 2]), (d[r, 0], d[r, 1], d[r, 2]), (c[:, 0], c[:, 1], c[:, 2]),
-                              self.radii[p], p, none[sph], none[sph])
+            t[sph] = sphere_t(
+                (o[r, 0], o[r, 1], o[r, 2]),
+                (d[r, 0], d[r, 1], d[r, 2]),
+                (c[:, 0], c[:, 1], c[:, 2]),
+                self.radii[p],
+                p,
+                none[sph],
+                none[sph],
+            )
         tri = np.flatnonzero(pid >= self.n_spheres)
         if len(tri):
             r, p = ray[tri], pid[tri]
             j = p - self.n_spheres
             v0, v1, v2 = (tuple(self.corners[j, k, a] for a in range(3)) for k in range(3))
-            t[tri] = triangle_t((o[r, 0], o[r, 1], o[r, 2]), (d[r, 0], d[r, 1], d[r, 2]), v0, v1, v2, p, none[tri],
-                                self.valid[j])
+            t[tri] = triangle_t(
+                (o[r, 0], o[r, 1], o[r, 2]), (d[r, 0], d[r, 1], d[r, 2]), v0, v1, v2, p, none[tri], self.valid[j]
+            )
         return t
 
 
@@ -123,8 +136,9 @@ def _slab(lo: np.ndarray, hi: np.ndarray, o: np.ndarray, d: np.ndarray) -> tuple
     return ok & (t0 <= t1), t0, t1
 
 
-def traverse_bvh(bvh: BVH, prims: TreePrimitives, origins: np.ndarray, dirs: np.ndarray,
-                 ids: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def traverse_bvh(
+    bvh: BVH, prims: TreePrimitives, origins: np.ndarray, dirs: np.ndarray, ids: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Nearest hit (t, tree primitive id; inf / −1 on a miss) of every ray through ``bvh``.
 
     ``ids`` maps the BVH's primitives to tree primitives (a two-level method's subset);
@@ -170,8 +184,9 @@ def traverse_bvh(bvh: BVH, prims: TreePrimitives, origins: np.ndarray, dirs: np.
     return best_t, best_p
 
 
-def traverse_kdtree(kd: KdTree, prims: TreePrimitives, origins: np.ndarray, dirs: np.ndarray,
-                    ids: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def traverse_kdtree(
+    kd: KdTree, prims: TreePrimitives, origins: np.ndarray, dirs: np.ndarray, ids: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Nearest hit (t, tree primitive id; inf / −1 on a miss) of every ray through ``kd``;
     ``ids`` as :func:`traverse_bvh`."""
     o = np.asarray(origins, np.float64).reshape(-1, 3)
@@ -255,6 +270,7 @@ def trace_tree(tree, scene, origins: np.ndarray, dirs: np.ndarray) -> tuple[np.n
     prims = TreePrimitives.of(scene)
     if tree is None:
         from .bih_traverse import brute_force
+
         t, p = brute_force(prims.centers, prims.radii, o, d, triangles=prims.corners)
     elif isinstance(tree, BIH):
         res = traverse(tree, prims.centers, prims.radii, o, d, triangles=prims.corners)

@@ -44,10 +44,10 @@ import numpy as np
 
 NO_RAYS = -2.0
 NO_CULL = -1.0
-PHI_MAX = 1.4            # radians; must stay below π/2 (convexity)
+PHI_MAX = 1.4  # radians; must stay below π/2 (convexity)
 SIN_MIN = 1.0e-3
-ANGLE_MARGIN = 1.0e-5    # certification margin (radians)
-CONE_ANGLE_MARGIN = 1.0e-4   # the vertex shader's test margin (radians)
+ANGLE_MARGIN = 1.0e-5  # certification margin (radians)
+CONE_ANGLE_MARGIN = 1.0e-4  # the vertex shader's test margin (radians)
 EPS32 = float(np.finfo(np.float32).eps)
 
 
@@ -121,7 +121,7 @@ def build_cones(origins: np.ndarray, dirs: np.ndarray, live: np.ndarray) -> np.n
             if mov.any():
                 small = mov & (sphi < SIN_MIN)
                 sphi[small] = SIN_MIN
-                cphi[small] = np.sqrt(1.0 - SIN_MIN ** 2)
+                cphi[small] = np.sqrt(1.0 - SIN_MIN**2)
                 q = xc[:, None] * x - c
                 ql = np.linalg.norm(q, axis=1)
                 q = np.where((ql > 1e-7 * cl)[:, None], q / np.where(ql > 0, ql, 1.0)[:, None], _perpendicular(x))
@@ -136,8 +136,9 @@ def build_cones(origins: np.ndarray, dirs: np.ndarray, live: np.ndarray) -> np.n
     return certify(o, d, live, a, x, give_up, count)
 
 
-def certify(o: np.ndarray, d: np.ndarray, live: np.ndarray, a: np.ndarray, x: np.ndarray,
-            give_up: np.ndarray, count: np.ndarray) -> np.ndarray:
+def certify(
+    o: np.ndarray, d: np.ndarray, live: np.ndarray, a: np.ndarray, x: np.ndarray, give_up: np.ndarray, count: np.ndarray
+) -> np.ndarray:
     """Step 2: the φ and slack for which every live ray lies in the cone (a, x)."""
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         x = _normalize(x)

@@ -105,14 +105,16 @@ def gpu_records(kd, first: np.ndarray) -> tuple[np.ndarray, int]:
 
 def glsl_defines() -> str:
     """The layout as GLSL ES 3.00 ``#define`` lines (shared with the shader)."""
-    return (f"#define KD_AXIS_SHIFT {AXIS_SHIFT}u\n"
-            f"#define KD_REF_MASK {LOW_MASK}u\n"
-            f"#define KD_REF_LEAF {REF_LEAF}u\n"
-            f"#define KD_REF_EMPTY {REF_EMPTY}u\n"
-            f"#define KD_REF_INDEX {REF_INDEX}u\n"
-            f"#define KD_REF_NONE {REF_NONE}u\n"
-            f"#define KD_STACK_SIZE {STACK_SIZE}\n"
-            f"#define KD_T_SLACK {T_SLACK!r}\n")
+    return (
+        f"#define KD_AXIS_SHIFT {AXIS_SHIFT}u\n"
+        f"#define KD_REF_MASK {LOW_MASK}u\n"
+        f"#define KD_REF_LEAF {REF_LEAF}u\n"
+        f"#define KD_REF_EMPTY {REF_EMPTY}u\n"
+        f"#define KD_REF_INDEX {REF_INDEX}u\n"
+        f"#define KD_REF_NONE {REF_NONE}u\n"
+        f"#define KD_STACK_SIZE {STACK_SIZE}\n"
+        f"#define KD_T_SLACK {T_SLACK!r}\n"
+    )
 
 
 def pack_kdtree(kd, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
@@ -126,8 +128,12 @@ def pack_kdtree(kd, scene, ids: np.ndarray | None = None, max_width: int = DEFAU
     if ids is not None:
         prims = np.asarray(ids, dtype=np.int64)[prims]
     packed = PackedScene(
-        textures={NODES.name: wrap_rows(records, max_width),
-                  SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, prims, last), max_width)},
-        uniforms=dict(zip((ROOT.name, BOX_MIN.name, BOX_MAX.name),
-                          (root, *gpu_layout.box_uniform(*kd.global_box)), strict=True)))
+        textures={
+            NODES.name: wrap_rows(records, max_width),
+            SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, prims, last), max_width),
+        },
+        uniforms=dict(
+            zip((ROOT.name, BOX_MIN.name, BOX_MAX.name), (root, *gpu_layout.box_uniform(*kd.global_box)), strict=True)
+        ),
+    )
     return gpu_layout.merged(packed, gpu_layout.pack_triangles(scene, max_width, count=False))

@@ -22,18 +22,27 @@ SPHERES_AND_PLANES = ("spheres", "planes")
 
 class RayEngine(NoLayout):
     """Carr et al.'s ray engine: every primitive drawn over every ray."""
+
     name = "rayengine"
     hierarchical = False
     # Its passes draw sphere and plane impostors only; triangles would need passes of their own.
-    capabilities = Capabilities(multi_pass=True, modes=SINGLE_PASS_MODES, tests_every_sphere=True,
-                                primitives=SPHERES_AND_PLANES)
-    stencil_bits = STENCIL_BITS   # bits used, one per generation (§5); fewer: fallback beyond them
+    capabilities = Capabilities(
+        multi_pass=True, modes=SINGLE_PASS_MODES, tests_every_sphere=True, primitives=SPHERES_AND_PLANES
+    )
+    stencil_bits = STENCIL_BITS  # bits used, one per generation (§5); fewer: fallback beyond them
 
-    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
-                max_width: int = DEFAULT_TEXTURE_WIDTH, update: TreeUpdate = REBUILD) -> PreparedMethod:
+    def prepare(
+        self,
+        scene: Scene,
+        max_prims: int,
+        max_tree_depth: int,
+        max_width: int = DEFAULT_TEXTURE_WIDTH,
+        update: TreeUpdate = REBUILD,
+    ) -> PreparedMethod:
         """No structure to build: the ray engines need no tree (minimal data for the interface)."""
-        return PreparedMethod(gpu_layout.PackedScene({}), 0.0,
-                              {"method": self.name, "primitives": scene.n_primitives, "multi_pass": True})
+        return PreparedMethod(
+            gpu_layout.PackedScene({}), 0.0, {"method": self.name, "primitives": scene.n_primitives, "multi_pass": True}
+        )
 
     def tile(self, tile_size: int) -> int:
         """The side of a tile of rays: 1 (every ray on its own)."""
@@ -43,10 +52,12 @@ class RayEngine(NoLayout):
 class HierarchicalRayEngine(RayEngine):
     """Szécsi's hierarchical ray engine: tiles of rays, one cone each, culled in the vertex shader.
     Its ``cones`` mode shows the cones."""
+
     name = "hre"
     hierarchical = True
-    capabilities = Capabilities(multi_pass=True, modes=MODES, tests_every_sphere=True, settings=("tile_size",),
-                                primitives=SPHERES_AND_PLANES)
+    capabilities = Capabilities(
+        multi_pass=True, modes=MODES, tests_every_sphere=True, settings=("tile_size",), primitives=SPHERES_AND_PLANES
+    )
 
     def tile(self, tile_size: int) -> int:
         """The tile side, the ``tile_size`` setting (the settings bound it by ``limits``; the

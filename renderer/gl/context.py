@@ -74,4 +74,4 @@ def create_context() -> moderngl.Context:
             ctx = moderngl.create_standalone_context()
         except Exception:
             raise GLUnavailable(f"cannot create an OpenGL context: {egl_error}") from egl_error
-    return cast(moderngl.Context, ReleasingContext(ctx))   # it stands in for the context: every attribute delegated
+    return cast(moderngl.Context, ReleasingContext(ctx))  # it stands in for the context: every attribute delegated

@@ -58,10 +58,10 @@ if TYPE_CHECKING:
     from ..settings import RenderSettings
 
 
-
 @dataclass(frozen=True)
 class Pass:
     """One pass: the pixel centres (``sub`` None) or one sub-pixel of a ``scale``² grid."""
+
     scale: int
     sub: tuple[int, int] | None
 
@@ -130,9 +130,20 @@ class TracerFrame:
     compare against it.
     """
 
-    def __init__(self, renderer, scene: Scene, settings: RenderSettings, variant: Variant,
-                 prepared: PreparedMethod, stats: dict, *, band_rows: int | None = None, one_shot: bool = False,
-                 t_start: float | None = None, slice_ms: float | None = None):
+    def __init__(
+        self,
+        renderer,
+        scene: Scene,
+        settings: RenderSettings,
+        variant: Variant,
+        prepared: PreparedMethod,
+        stats: dict,
+        *,
+        band_rows: int | None = None,
+        one_shot: bool = False,
+        t_start: float | None = None,
+        slice_ms: float | None = None,
+    ):
         self.renderer, self.ctx = renderer, renderer.ctx
         self.scene, self.settings, self.variant, self.prepared = scene, settings, variant, prepared
         self.stats = stats
@@ -143,29 +154,37 @@ class TracerFrame:
         self.passes = [Pass(self.k, None)] if self.one_shot else plan_passes(settings.mode, self.k)
         self.band_rows = band_rows
         self.slice_ms = slice_ms
-        self.prog, self.vao = renderer.program(variant.method, variant.mode, variant.depth, variant.features,
-                                               variant.blocks, variant.image_only)
+        self.prog, self.vao = renderer.program(
+            variant.method, variant.mode, variant.depth, variant.features, variant.blocks, variant.image_only
+        )
         # The pixels whose primary ray can meet no sphere (no primitive at all, when hits spawn
         # rays) are drawn by the background variant.
         self.regions: list[tuple[int, int, int, int, bool]] | None = None
         if getattr(renderer, "background", False) and variant.mode in BACKGROUND_MODES and not self.one_shot:
-            self.regions = gpu_layout.frame_regions(scene, self.width, self.height,
-                                                    planes=variant.mode not in PRIMARY_MODES)
+            self.regions = gpu_layout.frame_regions(
+                scene, self.width, self.height, planes=variant.mode not in PRIMARY_MODES
+            )
             if self.regions is not None:
-                self.bg_prog, self.bg_vao = renderer.program(variant.method, variant.mode, variant.depth,
-                                                             variant.features, (), variant.image_only, False)
+                self.bg_prog, self.bg_vao = renderer.program(
+                    variant.method, variant.mode, variant.depth, variant.features, (), variant.image_only, False
+                )
                 stats["background_pixels"] = sum(w * h for _, _, w, h, tracer in self.regions if not tracer)
         self.textures: list[moderngl.Texture] = []
         self.buffers: list[moderngl.Buffer] = []
         self.fbo: moderngl.Framebuffer | None = None
-        self.timings = {"build": prepared.build_ms, "update": prepared.build_ms, "upload": 0.0, "trace": 0.0,
-                        "read": 0.0}
+        self.timings = {
+            "build": prepared.build_ms,
+            "update": prepared.build_ms,
+            "upload": 0.0,
+            "trace": 0.0,
+            "read": 0.0,
+        }
         self.slices = 0
         self._pass_index = 0
         self._row = 0
         # image, hit of the centre pass (GL rows); an image-only frame reads no hit
         self._centre: tuple[np.ndarray, np.ndarray | None] | None = None
-        self._grid: np.ndarray | None = None                          # kH × kW × 4 sub-pixel images (GL rows)
+        self._grid: np.ndarray | None = None  # kH × kW × 4 sub-pixel images (GL rows)
         self._preview: RenderResult | None = None
         self._result: RenderResult | None = None
         self._upload()
@@ -174,12 +193,16 @@ class TracerFrame:
     def _upload(self) -> None:
         """Upload exactly what the variant declares (see :func:`check_bindings`) and take a target."""
         t0 = time.perf_counter()
-        parts = [gpu_layout.pack_primitives(self.scene, self.renderer.max_texture_width), self.prepared.packed,
-                 PackedScene({}, {gpu_layout.MIN_WEIGHT.name: float(self.settings.min_weight)})]
+        parts = [
+            gpu_layout.pack_primitives(self.scene, self.renderer.max_texture_width),
+            self.prepared.packed,
+            PackedScene({}, {gpu_layout.MIN_WEIGHT.name: float(self.settings.min_weight)}),
+        ]
         tex, self.uniforms = check_bindings(self.variant, parts)
         blocks = {n: t for n, t in tex.items() if n in self.variant.blocks}
-        self.units = upload_textures(self.ctx, PackedScene({n: t for n, t in tex.items() if n not in blocks}),
-                                     self.textures)
+        self.units = upload_textures(
+            self.ctx, PackedScene({n: t for n, t in tex.items() if n not in blocks}), self.textures
+        )
         self.block_units = upload_blocks(self.ctx, blocks, self.buffers)
         w, h = self._target_size()
         self.fbo = self.renderer.targets.acquire(w, h, self.variant.image_only)
@@ -202,7 +225,7 @@ class TracerFrame:
             if name in prog:
                 buf.bind_to_uniform_block(binding)
                 cast(moderngl.UniformBlock, prog[name]).binding = binding
-        if self.one_shot:     # the whole k × k grid in one draw: each fragment is one sub-pixel
+        if self.one_shot:  # the whole k × k grid in one draw: each fragment is one sub-pixel
             grid, pass_terms = self._target_size(), gpu_layout.pass_uniforms(1)
         else:
             grid = (self.width * p.scale, self.height * p.scale)
@@ -263,7 +286,7 @@ class TracerFrame:
                 # as the read-back, and need not wait for the result's arrays to be made.
                 self.release()
                 self._result = self._compose()
-                self._centre = self._grid = None     # (an image-only frame's) the result holds what it needs
+                self._centre = self._grid = None  # (an image-only frame's) the result holds what it needs
         return self.done
 
     def _draws(self, w: int, h: int, y0: int, rows: int) -> list:
@@ -275,8 +298,11 @@ class TracerFrame:
         for x, y, rw, rh, tracer in self.regions:
             a, b = max(y, y0), min(y + rh, y0 + rows)
             if b > a:
-                out.append((self.prog, self.vao, (x, a, rw, b - a)) if tracer else
-                           (self.bg_prog, self.bg_vao, (x, a, rw, b - a)))
+                out.append(
+                    (self.prog, self.vao, (x, a, rw, b - a))
+                    if tracer
+                    else (self.bg_prog, self.bg_vao, (x, a, rw, b - a))
+                )
         return out
 
     def run(self) -> RenderResult:
@@ -305,7 +331,7 @@ class TracerFrame:
             if self._grid is None:
                 self._grid = np.empty((h * p.scale, w * p.scale, 4), np.float32)
             sx, sy = p.sub
-            self._grid[sy::p.scale, sx::p.scale] = img
+            self._grid[sy :: p.scale, sx :: p.scale] = img
         self.timings["read"] += (time.perf_counter() - t0) * 1e3
 
     # ---- results -----------------------------------------------------------------------------
@@ -316,17 +342,22 @@ class TracerFrame:
             timings = {**self.timings, "total": (time.perf_counter() - self.t_start) * 1e3}
             stats = {**self.stats, "tracer_passes": len(self.passes), "slices": self.slices}
             r, scene, settings, prepared = self.renderer, self.scene, self.settings, self.prepared
-            return ImageOnlyResult(u8, settings.mode, timings, stats,
-                                   lambda: r.begin(scene, settings.with_(format="npy"), prepared=prepared).run())
+            return ImageOnlyResult(
+                u8,
+                settings.mode,
+                timings,
+                stats,
+                lambda: r.begin(scene, settings.with_(format="npy"), prepared=prepared).run(),
+            )
         img, hit = self._centre
-        self._centre = None                      # the arrays below are the read-back's last references
+        self._centre = None  # the arrays below are the read-back's last references
         assert hit is not None, "a float frame reads the hit target too"
-        img, hit = img[::-1], hit[::-1]          # image row 0 at the top
+        img, hit = img[::-1], hit[::-1]  # image row 0 at the top
         k, W, H = self.k, self.width, self.height
-        if self.one_shot:                        # the old way: ids from the middle sub-pixel
+        if self.one_shot:  # the old way: ids from the middle sub-pixel
             color = img[..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
-            img, hit = img[k // 2::k, k // 2::k], hit[k // 2::k, k // 2::k]
-        elif self._grid is not None:             # the box filter over the sub-pixel passes
+            img, hit = img[k // 2 :: k, k // 2 :: k], hit[k // 2 :: k, k // 2 :: k]
+        elif self._grid is not None:  # the box filter over the sub-pixel passes
             color = self._grid[::-1][..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
             self._grid = None
         else:
@@ -351,8 +382,15 @@ class TracerFrame:
         stats = {**self.stats, "tracer_passes": len(self.passes), "slices": self.slices}
         if not final:
             stats["preview"] = True
-        return RenderResult(image=image, depth=depth_t, primid=primid, normal=normal, mode=self.settings.mode,
-                            timings=timings, stats=stats)
+        return RenderResult(
+            image=image,
+            depth=depth_t,
+            primid=primid,
+            normal=normal,
+            mode=self.settings.mode,
+            timings=timings,
+            stats=stats,
+        )
 
     @property
     def preview(self) -> RenderResult | None:
@@ -382,7 +420,7 @@ def set_uniform(u, value) -> None:
     """Set a uniform; of an array the compiler shortened (a specialised variant indexes only
     the planes it has), the elements it kept."""
     if isinstance(value, list) and u.array_length < len(value):
-        value = value[0] if u.array_length == 1 else value[:u.array_length]
+        value = value[0] if u.array_length == 1 else value[: u.array_length]
     u.value = value
 
 
@@ -402,8 +440,9 @@ def check_bindings(variant: Variant, parts: list[PackedScene]) -> tuple[dict, di
     for part in parts:
         for name in (*part.textures, *part.uniforms):
             if name not in known:
-                raise KeyError(f"{name!r} is packed but no layout declares it (renderer/gpu_layout.py, "
-                               f"renderer/accel/*_layout.py)")
+                raise KeyError(
+                    f"{name!r} is packed but no layout declares it (renderer/gpu_layout.py, renderer/accel/*_layout.py)"
+                )
         tex.update((n, t) for n, t in part.textures.items() if n in declared)
         uni.update((n, v) for n, v in part.uniforms.items() if n in declared)
     missing = declared - set(tex) - set(uni)

@@ -24,7 +24,7 @@ EGL_VENDOR = 0x3053
 EGL_DRM_DEVICE_FILE_EXT = 0x3233
 EGL_DRM_RENDER_NODE_FILE_EXT = 0x3377
 EGL_RENDERER_EXT = 0x335F
-GPU_INDEX_ENV = "GLCONTEXT_DEVICE_INDEX"   # glcontext's name
+GPU_INDEX_ENV = "GLCONTEXT_DEVICE_INDEX"  # glcontext's name
 MAX_GPUS = 64
 
 
@@ -54,8 +54,14 @@ def list_gpus() -> list[dict[str, Any]]:
     client = (egl.eglQueryString(None, EGL_EXTENSIONS) or b"").decode()
     if "EGL_EXT_device_enumeration" not in client and "EGL_EXT_device_base" not in client:
         return []
-    query_devices = _proc(egl, "eglQueryDevicesEXT", ctypes.c_uint, ctypes.c_int,
-                          ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_int))
+    query_devices = _proc(
+        egl,
+        "eglQueryDevicesEXT",
+        ctypes.c_uint,
+        ctypes.c_int,
+        ctypes.POINTER(ctypes.c_void_p),
+        ctypes.POINTER(ctypes.c_int),
+    )
     query_string = _proc(egl, "eglQueryDeviceStringEXT", ctypes.c_char_p, ctypes.c_void_p, ctypes.c_int)
     if query_devices is None or query_string is None:
         return []
@@ -81,8 +87,15 @@ def list_gpus() -> list[dict[str, Any]]:
         if "EGL_EXT_device_query_name" in ext:
             info["vendor"] = text(dev, EGL_VENDOR)
             info["renderer"] = text(dev, EGL_RENDERER_EXT)
-        info["kind"] = ("software" if "EGL_MESA_device_software" in ext else
-                        "nvidia" if "EGL_NV_device_cuda" in ext else "gpu" if info.get("drm") else "other")
+        info["kind"] = (
+            "software"
+            if "EGL_MESA_device_software" in ext
+            else "nvidia"
+            if "EGL_NV_device_cuda" in ext
+            else "gpu"
+            if info.get("drm")
+            else "other"
+        )
         out.append(info)
     return out
 
@@ -101,8 +114,7 @@ def probe(index: int, timeout_s: float = 60.0) -> dict[str, Any]:
     """``{"gl_renderer", "gl_version"}`` of a context on GPU ``index`` (or ``{"error"}``)."""
     env = {**os.environ, GPU_INDEX_ENV: str(index)}
     try:
-        run = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True,
-                             timeout=timeout_s)
+        run = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, timeout=timeout_s)
     except subprocess.TimeoutExpired:
         return {"error": f"no context within {timeout_s:g} s"}
     lines = [line for line in run.stdout.splitlines() if line.startswith("{")]

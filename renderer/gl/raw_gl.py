@@ -68,12 +68,22 @@ class RawGL:
         self.lib = lib
         u, i = ctypes.c_uint, ctypes.c_int
         sig = {
-            "glEnable": [u], "glDisable": [u], "glStencilFunc": [u, i, u], "glStencilOp": [u, u, u],
-            "glStencilMask": [u], "glClearStencil": [i], "glClear": [u], "glClearDepth": [ctypes.c_double],
-            "glGenRenderbuffers": [i, ctypes.POINTER(u)], "glDeleteRenderbuffers": [i, ctypes.POINTER(u)],
-            "glBindRenderbuffer": [u, u], "glRenderbufferStorage": [u, u, i, i],
-            "glBindFramebuffer": [u, u], "glFramebufferRenderbuffer": [u, u, u, u],
-            "glCheckFramebufferStatus": [u], "glGetIntegerv": [u, ctypes.POINTER(i)],
+            "glEnable": [u],
+            "glDisable": [u],
+            "glStencilFunc": [u, i, u],
+            "glStencilOp": [u, u, u],
+            "glStencilMask": [u],
+            "glClearStencil": [i],
+            "glClear": [u],
+            "glClearDepth": [ctypes.c_double],
+            "glGenRenderbuffers": [i, ctypes.POINTER(u)],
+            "glDeleteRenderbuffers": [i, ctypes.POINTER(u)],
+            "glBindRenderbuffer": [u, u],
+            "glRenderbufferStorage": [u, u, i, i],
+            "glBindFramebuffer": [u, u],
+            "glFramebufferRenderbuffer": [u, u, u, u],
+            "glCheckFramebufferStatus": [u],
+            "glGetIntegerv": [u, ctypes.POINTER(i)],
             "glGetFramebufferAttachmentParameteriv": [u, u, u, ctypes.POINTER(i)],
             "glDepthMask": [ctypes.c_ubyte],
         }
@@ -104,8 +114,9 @@ class RawGL:
     def stencil_bits(self, fbo: moderngl.Framebuffer) -> int:
         v = ctypes.c_int(0)
         self.glBindFramebuffer(GL_FRAMEBUFFER, fbo.glo)
-        self.glGetFramebufferAttachmentParameteriv(GL_FRAMEBUFFER, GL_STENCIL_ATTACHMENT,
-                                                   GL_FRAMEBUFFER_ATTACHMENT_STENCIL_SIZE, ctypes.byref(v))
+        self.glGetFramebufferAttachmentParameteriv(
+            GL_FRAMEBUFFER, GL_STENCIL_ATTACHMENT, GL_FRAMEBUFFER_ATTACHMENT_STENCIL_SIZE, ctypes.byref(v)
+        )
         return int(v.value)
 
     def point_size_max(self) -> float:

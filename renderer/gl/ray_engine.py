@@ -87,33 +87,36 @@ from .textures import upload_textures
 if TYPE_CHECKING:
     from ..settings import RenderSettings
 
-COUNT_LIMIT = 1 << 20       # (tile, sphere) pairs per pass up to which hre's stats mirror its culling
+COUNT_LIMIT = 1 << 20  # (tile, sphere) pairs per pass up to which hre's stats mirror its culling
 
 
 # --------------------------------------------------------------------------- frame
+
 
 @dataclass
 class _Layer:
     rays: tuple[moderngl.Texture, moderngl.Texture]
     level: int
-    branch: str     # path of branches from the primary layer, e.g. "TTR"
+    branch: str  # path of branches from the primary layer, e.g. "TTR"
 
 
 @dataclass
 class FrameLog:
     """What a frame did (``stats``), and per layer what the tests inspect when ``keep`` is set."""
+
     layers: int = 0
     layers_skipped: int = 0
     passes: int = 0
-    tiles_drawn: int = 0            # (tile, primitive) pairs drawn, hre
-    tiles_total: int = 0            # (tile, primitive) pairs a full draw would have
+    tiles_drawn: int = 0  # (tile, primitive) pairs drawn, hre
+    tiles_total: int = 0  # (tile, primitive) pairs a full draw would have
     stencil_fallback_levels: int = 0
-    uncounted_passes: int = 0       # hre passes too large for the cull statistics
+    uncounted_passes: int = 0  # hre passes too large for the cull statistics
     keep: bool = False
     records: list[dict] = field(default_factory=list)
 
 
 # ------------------------------------------------------------------------ the passes
+
 
 class RayEnginePasses:
     """The ray engines' GL side of one renderer: its raw GL calls, compiled programs and a
@@ -135,11 +138,18 @@ class RayEnginePasses:
 
     def release_targets(self, targets: _Targets) -> None:
         self._free.append(targets)
-        while len(self._free) > 1:   # keep the most recent set: most frames repeat a size
+        while len(self._free) > 1:  # keep the most recent set: most frames repeat a size
             self._free.pop(0).release_all()
 
-    def begin(self, method: RayEngine, scene: Scene, settings: RenderSettings, *,
-              log: FrameLog | None = None, batch: int | None = None) -> RayEngineFrame:
+    def begin(
+        self,
+        method: RayEngine,
+        scene: Scene,
+        settings: RenderSettings,
+        *,
+        log: FrameLog | None = None,
+        batch: int | None = None,
+    ) -> RayEngineFrame:
         """A frame of ``method``, uploaded, to be traced slice by slice; ``batch`` primitives
         per draw call (None: each pass in one draw)."""
         return RayEngineFrame(self, method, scene, settings, log=log, batch=batch)
@@ -197,8 +207,16 @@ class RayEngineFrame:
     come from a primary-only frame through the pixel centres, traced first (``centre``).
     """
 
-    def __init__(self, passes: RayEnginePasses, method: RayEngine, scene: Scene, settings: RenderSettings, *,
-                 log: FrameLog | None = None, batch: int | None = None):
+    def __init__(
+        self,
+        passes: RayEnginePasses,
+        method: RayEngine,
+        scene: Scene,
+        settings: RenderSettings,
+        *,
+        log: FrameLog | None = None,
+        batch: int | None = None,
+    ):
         self.t_start = time.perf_counter()
         self.passes, self.method, self.scene, self.settings = passes, method, scene, settings
         self.ctx, self.gl = passes.ctx, passes.gl
@@ -215,23 +233,29 @@ class RayEngineFrame:
             max_level = settings.max_recursion_depth
         self.max_level = max_level
         tg = passes.acquire_targets(wp, hp)
-        self.tg: _Targets | None = tg     # None once released
+        self.tg: _Targets | None = tg  # None once released
         self.textures: list[moderngl.Texture] = []
         self.slices = 0
         self._result: RenderResult | None = None
         self.centre: RayEngineFrame | None = None
         try:
             if self.k > 1:
-                self.centre = RayEngineFrame(passes, method, scene, settings.with_(
-                    mode="primid", samples_per_pixel=1, max_recursion_depth=1), batch=batch)
-            self.frame = _FrameRun(method, self.ctx, self.gl, tg, passes.programs, scene, settings, (w, h),
-                                   self.ts, max_level, self.log)
+                self.centre = RayEngineFrame(
+                    passes,
+                    method,
+                    scene,
+                    settings.with_(mode="primid", samples_per_pixel=1, max_recursion_depth=1),
+                    batch=batch,
+                )
+            self.frame = _FrameRun(
+                method, self.ctx, self.gl, tg, passes.programs, scene, settings, (w, h), self.ts, max_level, self.log
+            )
             self.frame.batch = batch
             self.frame.upload(passes.max_texture_width, self.textures)
         except BaseException:
             self.release()
             raise
-        passes.last_bound = self.frame.bound     # what the frame uploads (tests compare it with the programs)
+        passes.last_bound = self.frame.bound  # what the frame uploads (tests compare it with the programs)
         passes.programs.used.clear()
         self.t_up = time.perf_counter()
         self._neutral()
@@ -311,42 +335,83 @@ class RayEngineFrame:
             color = color.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
             image = image.reshape(settings.height, k, settings.width, k, 3).mean(axis=(1, 3))
             assert self.centre is not None, "a supersampled frame traces its centres"
-            centre = self.centre.result()     # the arrays through the pixel centres
+            centre = self.centre.result()  # the arrays through the pixel centres
             primid, depth_t, normal = centre.primid, centre.depth, centre.normal
         if settings.mode == "color":
             image = color
         ms = lambda a, b: (b - a) * 1e3
-        timings = {"build": frame.build_ms, "upload": ms(self.t_start, self.t_up),
-                   "trace": ms(self.t_up, t_traced) - frame.build_ms - frame.stats_ms, "read": ms(t_traced, t_end),
-                   "total": ms(self.t_start, t_end) - frame.stats_ms}
+        timings = {
+            "build": frame.build_ms,
+            "upload": ms(self.t_start, self.t_up),
+            "trace": ms(self.t_up, t_traced) - frame.build_ms - frame.stats_ms,
+            "read": ms(t_traced, t_end),
+            "total": ms(self.t_start, t_end) - frame.stats_ms,
+        }
         log = self.log
         if method.hierarchical:
             timings["stats"] = frame.stats_ms
-        stats = {"method": method.name, "recursion_depth": self.max_level,
-                 "features_removed": list(self.features.defines()),
-                 "primitives": self.scene.n_primitives, "layers": log.layers, "layers_skipped": log.layers_skipped,
-                 "passes": log.passes, "stencil_bits": min(method.stencil_bits, frame.tg.stencil_bits),
-                 "stencil_fallback_levels": log.stencil_fallback_levels, "slices": self.slices}
+        stats = {
+            "method": method.name,
+            "recursion_depth": self.max_level,
+            "features_removed": list(self.features.defines()),
+            "primitives": self.scene.n_primitives,
+            "layers": log.layers,
+            "layers_skipped": log.layers_skipped,
+            "passes": log.passes,
+            "stencil_bits": min(method.stencil_bits, frame.tg.stencil_bits),
+            "stencil_fallback_levels": log.stencil_fallback_levels,
+            "slices": self.slices,
+        }
         if method.hierarchical:
-            stats.update({"tile_size": self.ts, "tile_prims_drawn": log.tiles_drawn,
-                          "tile_prims_total": log.tiles_total,
-                          "cull_fraction": 1.0 - log.tiles_drawn / log.tiles_total if log.tiles_total else 0.0,
-                          "cull_uncounted_passes": log.uncounted_passes})
-        return RenderResult(image=np.ascontiguousarray(image, dtype=np.float32), depth=depth_t, primid=primid,
-                            normal=np.ascontiguousarray(normal, dtype=np.float32), mode=settings.mode,
-                            timings=timings, stats=stats)
+            stats.update(
+                {
+                    "tile_size": self.ts,
+                    "tile_prims_drawn": log.tiles_drawn,
+                    "tile_prims_total": log.tiles_total,
+                    "cull_fraction": 1.0 - log.tiles_drawn / log.tiles_total if log.tiles_total else 0.0,
+                    "cull_uncounted_passes": log.uncounted_passes,
+                }
+            )
+        return RenderResult(
+            image=np.ascontiguousarray(image, dtype=np.float32),
+            depth=depth_t,
+            primid=primid,
+            normal=np.ascontiguousarray(normal, dtype=np.float32),
+            mode=settings.mode,
+            timings=timings,
+            stats=stats,
+        )
 
 
 # ------------------------------------------------------------------------- one run
 
+
 class _FrameRun:
     """The passes of one frame."""
 
-    def __init__(self, method: RayEngine, ctx, gl: RawGL, tg: _Targets, progs: _Programs, scene: Scene,
-                 settings, size: tuple[int, int], ts: int, max_level: int, log: FrameLog):
+    def __init__(
+        self,
+        method: RayEngine,
+        ctx,
+        gl: RawGL,
+        tg: _Targets,
+        progs: _Programs,
+        scene: Scene,
+        settings,
+        size: tuple[int, int],
+        ts: int,
+        max_level: int,
+        log: FrameLog,
+    ):
         self.m, self.ctx, self.gl, self.tg, self.progs = method, ctx, gl, tg, progs
-        self.scene, self.settings, self.size, self.ts, self.max_level, self.log = \
-            scene, settings, size, ts, max_level, log
+        self.scene, self.settings, self.size, self.ts, self.max_level, self.log = (
+            scene,
+            settings,
+            size,
+            ts,
+            max_level,
+            log,
+        )
         self.hre = method.hierarchical
         self.mode = settings.mode
         self.n_prims = scene.n_primitives
@@ -355,12 +420,12 @@ class _FrameRun:
         self.stats_ms = 0.0
         self.uniforms: dict[str, Any] = {}
         self.units: dict[str, int] = {}
-        self.bound: set[str] = set()      # scene bindings uploaded for this frame
+        self.bound: set[str] = set()  # scene bindings uploaded for this frame
         self.primary: dict[str, np.ndarray] = {}
         self.deepest = np.zeros((tg.size[1], tg.size[0]), np.int32) if self.mode == "recursion" else None
         self.cone_image: np.ndarray | None = None
         self.buffers: list[moderngl.Buffer] = []
-        self.batch: int | None = None     # primitives per draw call (None: all in one)
+        self.batch: int | None = None  # primitives per draw call (None: all in one)
         self.scene_textures: list[moderngl.Texture] = []
         self.heat: np.ndarray | None = None
         if self.hre:
@@ -370,7 +435,9 @@ class _FrameRun:
             self.cone_fbo = ctx.framebuffer(color_attachments=self.cone_targets)
             self.buffers.extend([self.cone_fbo, *self.cone_targets])
             if ts > gl.point_size_max():
-                raise SceneError("tile_size", f"tile size {ts} exceeds this GPU's largest point ({gl.point_size_max():g})")
+                raise SceneError(
+                    "tile_size", f"tile size {ts} exceeds this GPU's largest point ({gl.point_size_max():g})"
+                )
 
     # -- setup ----------------------------------------------------------------------
     def scene_bindings(self) -> list[gpu_layout.Binding]:
@@ -387,21 +454,28 @@ class _FrameRun:
     def upload(self, max_width: int, textures: list) -> None:
         packed = gpu_layout.pack_primitives(self.scene, max_width)
         wanted = {b.name for b in self.scene_bindings()}
-        self.units.update(upload_textures(self.ctx, gpu_layout.PackedScene(
-            {n: t for n, t in packed.textures.items() if n in wanted}), textures))
+        self.units.update(
+            upload_textures(
+                self.ctx, gpu_layout.PackedScene({n: t for n, t in packed.textures.items() if n in wanted}), textures
+            )
+        )
         self.scene_textures = list(textures)
         self.uniforms.update({n: v for n, v in packed.uniforms.items() if n in wanted})
         self.bound = wanted
         self.uniforms.update(gpu_layout.camera_uniforms(self.scene.camera, *self.size))
-        self.uniforms.update({
-            "u_max_level": self.max_level, "u_min_weight": float(self.settings.min_weight),
-            "u_shade": 1 if self.mode == "color" else 0, "u_tile_size": float(self.ts),
-            "u_target": (float(self.tg.size[0]), float(self.tg.size[1])),
-        })
+        self.uniforms.update(
+            {
+                "u_max_level": self.max_level,
+                "u_min_weight": float(self.settings.min_weight),
+                "u_shade": 1 if self.mode == "color" else 0,
+                "u_tile_size": float(self.ts),
+                "u_target": (float(self.tg.size[0]), float(self.tg.size[1])),
+            }
+        )
         self.n_units = len(textures)
 
     def _bind(self, prog: moderngl.Program, samplers: dict[str, moderngl.Texture], **uniforms) -> None:
-        for unit, tex in enumerate(self.scene_textures):   # another frame's slice may have used the units
+        for unit, tex in enumerate(self.scene_textures):  # another frame's slice may have used the units
             tex.use(unit)
         for name, unit in self.units.items():
             if name in prog:
@@ -476,8 +550,9 @@ class _FrameRun:
         cones = np.concatenate([c0, c1], axis=2).reshape(-1, 8)
         live = np.flatnonzero(cones[:, 3] != hre_cones.NO_RAYS)
         jy, ix = np.divmod(live, tx)
-        verts = np.concatenate([np.stack([ix * self.ts, jy * self.ts], axis=1).astype(np.float32),
-                                cones[live]], axis=1).astype(np.float32)
+        verts = np.concatenate(
+            [np.stack([ix * self.ts, jy * self.ts], axis=1).astype(np.float32), cones[live]], axis=1
+        ).astype(np.float32)
         buf = self.ctx.buffer(verts.tobytes()) if len(live) else None
         if buf is not None:
             self.buffers.append(buf)
@@ -538,6 +613,7 @@ class _FrameRun:
             fbo.depth_mask = True
             fbo.use()
             self.gl.stencil_test(bit)
+
         yield from self._draw_prims(prog, tiles, setup)
         fbo.depth_mask = False
 
@@ -548,8 +624,9 @@ class _FrameRun:
         fbo.use()
         fbo.clear(0.0, 0.0, 0.0, -1.0)
         self.gl.stencil_test(bit)
-        self._fullscreen(fbo, "PASS_SURFACE", {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1],
-                                                "u_hit": self.tg.hit})
+        self._fullscreen(
+            fbo, "PASS_SURFACE", {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1], "u_hit": self.tg.hit}
+        )
 
     def _shadows(self, bit: int) -> Iterator[None]:
         for f in self.tg.fbo_blocked:
@@ -572,6 +649,7 @@ class _FrameRun:
                 fbo.color_mask = tuple(i == light % 4 for i in range(4))
                 fbo.use()
                 self.gl.stencil_test(bit)
+
             yield from self._draw_prims(prog, tiles, setup)
             fbo.color_mask = (True, True, True, True)
             yield
@@ -590,15 +668,25 @@ class _FrameRun:
         self.ctx.blend_func = (moderngl.ONE, moderngl.ONE)
         self.ctx.blend_equation = moderngl.FUNC_ADD
         self.gl.stencil_test(bit)
-        self._fullscreen(fbo, "PASS_SHADE", {"u_ray_o": layer.rays[0], "u_ray_d": layer.rays[1], "u_hit": self.tg.hit,
-                                              "u_surf0": self.tg.surf0, "u_surf1": self.tg.surf1,
-                                              "u_blocked0": self.tg.blocked0, "u_blocked1": self.tg.blocked1},
-                         u_level=layer.level)
+        self._fullscreen(
+            fbo,
+            "PASS_SHADE",
+            {
+                "u_ray_o": layer.rays[0],
+                "u_ray_d": layer.rays[1],
+                "u_hit": self.tg.hit,
+                "u_surf0": self.tg.surf0,
+                "u_surf1": self.tg.surf1,
+                "u_blocked0": self.tg.blocked0,
+                "u_blocked1": self.tg.blocked1,
+            },
+            u_level=layer.level,
+        )
         self.ctx.enable_only(moderngl.NOTHING)
         return (_Layer(refl, layer.level + 1, layer.branch + "R"), _Layer(trans, layer.level + 1, layer.branch + "T"))
 
     def _heat(self, layer: _Layer, bit: int, tiles) -> Iterator[None]:
-        fbo = self.tg.fbo_surf   # reuse surf0 as the counter
+        fbo = self.tg.fbo_surf  # reuse surf0 as the counter
         self.ctx.enable_only(moderngl.NOTHING)
         self.gl.stencil_off()
         fbo.use()
@@ -611,6 +699,7 @@ class _FrameRun:
             self.ctx.enable_only(moderngl.BLEND)
             self.ctx.blend_func = (moderngl.ONE, moderngl.ONE)
             self.gl.stencil_test(bit)
+
         yield from self._draw_prims(prog, tiles, setup)
         self.ctx.enable_only(moderngl.NOTHING)
         self.heat = self._read(self.tg.surf0)[..., 0].copy()
@@ -623,9 +712,14 @@ class _FrameRun:
         """Keep what the tests check: rays, cones, tile vertices (only when log.keep)."""
         if not self.log.keep:
             return
-        rec = {"kind": kind, "light": light, "level": layer.level if layer else None,
-               "branch": layer.branch if layer else None, "verts": tiles[1] if tiles else None,
-               "cones": tiles[0] if tiles else None}
+        rec = {
+            "kind": kind,
+            "light": light,
+            "level": layer.level if layer else None,
+            "branch": layer.branch if layer else None,
+            "verts": tiles[1] if tiles else None,
+            "cones": tiles[0] if tiles else None,
+        }
         if kind == "radiance":
             assert layer is not None, "a radiance record is a layer's"
             rec["ray_o"], rec["ray_d"] = self._read(layer.rays[0]).copy(), self._read(layer.rays[1]).copy()
@@ -694,7 +788,7 @@ class _FrameRun:
                     refl, trans = self._shade(layer, bit)
                     yield
                     if layer.level < self.max_level:
-                        stack.extend([refl, trans])     # transmitted first (popped first)
+                        stack.extend([refl, trans])  # transmitted first (popped first)
                     else:
                         tg.release(refl.rays)
                         tg.release(trans.rays)
@@ -720,11 +814,13 @@ class _FrameRun:
     def _count_drawn_now(self, verts) -> int:
         n = self.scene.n_spheres
         cones = verts[:, 2:10].astype(np.float64)
-        drawn = len(verts) * (self.n_prims - n)   # planes: always
+        drawn = len(verts) * (self.n_prims - n)  # planes: always
         if n:
             step = max(1, (1 << 18) // max(1, n))
             for a in range(0, len(cones), step):
-                miss = hre_cones.cone_misses_sphere(cones[a:a + step], self.scene.sphere_centers, self.scene.sphere_radii)
+                miss = hre_cones.cone_misses_sphere(
+                    cones[a : a + step], self.scene.sphere_centers, self.scene.sphere_radii
+                )
                 drawn += int((~miss).sum())
         return drawn
 
@@ -769,7 +865,7 @@ class _FrameRun:
             tests = self.heat[:h, :w][::-1] if self.heat is not None else np.zeros((h, w))
             image = np.stack([np.minimum(0.05 * tests, 1.0), np.zeros_like(tests), np.zeros_like(tests)], axis=2)
         elif mode == "cones":
-            image = (self.cone_image[:h, :w][::-1] if self.cone_image is not None else np.zeros((h, w, 3)))
+            image = self.cone_image[:h, :w][::-1] if self.cone_image is not None else np.zeros((h, w, 3))
         else:
             raise SceneError("mode", f"unknown mode {mode!r}")
         return color, primid, depth, normal, np.asarray(image, dtype=np.float32)

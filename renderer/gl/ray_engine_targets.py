@@ -14,6 +14,7 @@ FULLSCREEN = np.array([-1, -1, 1, -1, 1, 1, -1, -1, 1, 1, -1, 1], dtype=np.float
 
 # ------------------------------------------------------------------------ programs
 
+
 class Programs:
     """Compiled programs of one context, by (vertex, fragment, defines)."""
 
@@ -22,7 +23,7 @@ class Programs:
         self.progs: dict[tuple, moderngl.Program] = {}
         self.quad = ctx.buffer(FULLSCREEN.tobytes())
         self.quad_vaos: dict[tuple, moderngl.VertexArray] = {}
-        self.used: set[tuple] = set()     # keys of the programs the current frame asked for
+        self.used: set[tuple] = set()  # keys of the programs the current frame asked for
 
     def get(self, vert: str, frag: str, defines: tuple[str, ...]) -> moderngl.Program:
         key = (vert, frag, defines)
@@ -41,6 +42,7 @@ class Programs:
 
 
 # ------------------------------------------------------------------------ targets
+
 
 class Targets:
     """The frame's textures on one padded size: shared depth-stencil, hit, surface,

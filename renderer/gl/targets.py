@@ -18,8 +18,8 @@ from collections import OrderedDict
 
 import moderngl
 
-BYTES_PER_PIXEL = 2 * 4 * 4   # two RGBA32F attachments
-BYTES_PER_PIXEL_RGBA8 = 4     # one RGBA8 attachment
+BYTES_PER_PIXEL = 2 * 4 * 4  # two RGBA32F attachments
+BYTES_PER_PIXEL_RGBA8 = 4  # one RGBA8 attachment
 
 
 class TargetPool:

@@ -8,8 +8,9 @@ import numpy as np
 from .. import gpu_layout
 
 
-def upload_textures(ctx: moderngl.Context, packed: gpu_layout.PackedScene,
-                    textures: list[moderngl.Texture]) -> dict[str, int]:
+def upload_textures(
+    ctx: moderngl.Context, packed: gpu_layout.PackedScene, textures: list[moderngl.Texture]
+) -> dict[str, int]:
     """Create the packed textures and bind them to the next free units.
 
     Appends them to ``textures`` (the caller releases them after the frame) and
@@ -27,8 +28,9 @@ def upload_textures(ctx: moderngl.Context, packed: gpu_layout.PackedScene,
     return units
 
 
-def upload_blocks(ctx: moderngl.Context, packed: dict[str, gpu_layout.PackedTexture],
-                  buffers: list[moderngl.Buffer]) -> dict[str, moderngl.Buffer]:
+def upload_blocks(
+    ctx: moderngl.Context, packed: dict[str, gpu_layout.PackedTexture], buffers: list[moderngl.Buffer]
+) -> dict[str, moderngl.Buffer]:
     """Record arrays as uniform-block buffers: the packed texture's elements in order (element
     i is record i), zero-padded to the block's declared size (gpu_layout.BLOCK_BYTES).
 

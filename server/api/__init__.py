@@ -12,8 +12,13 @@ from .routes import device, frames, meta, sessions, ws
 
 api_router = APIRouter(prefix="/api")
 # Tags group the OpenAPI document (server.web.OPENAPI_TAGS); device's router names its own.
-for _routes, _tags in ((sessions, ["sessions"]), (frames, ["frames"]), (meta, ["service"]), (ws, ["frames"]),
-                       (device, [])):
+for _routes, _tags in (
+    (sessions, ["sessions"]),
+    (frames, ["frames"]),
+    (meta, ["service"]),
+    (ws, ["frames"]),
+    (device, []),
+):
     api_router.include_router(_routes.router, tags=[*_tags])
 
 __all__ = ["api_router"]

@@ -69,8 +69,11 @@ class BodiesBusy(Busy):
     """As many large bodies as the process admits are being read: 503 + Retry-After."""
 
     def __init__(self, admitted: int):
-        super().__init__(f"busy: {admitted} large request bodies are being read (POCKETRAY_QUEUE_SIZE); "
-                         f"retry after {BODY_RETRY_AFTER_S} s", BODY_RETRY_AFTER_S)
+        super().__init__(
+            f"busy: {admitted} large request bodies are being read (POCKETRAY_QUEUE_SIZE); "
+            f"retry after {BODY_RETRY_AFTER_S} s",
+            BODY_RETRY_AFTER_S,
+        )
 
 
 def body_too_slow(got: int, declared: str | None, seconds: float, config: ServerConfig) -> StarletteHTTPException:
@@ -78,17 +81,23 @@ def body_too_slow(got: int, declared: str | None, seconds: float, config: Server
     (the rest of the body is never read)."""
     of = f" of {declared}" if declared and declared.isdigit() else ""
     return StarletteHTTPException(
-        408, f"body: {got} bytes{of} arrived in {seconds:.1f} s, slower than {config.body_min_rate_bytes_s} bytes/s "
-             f"after the first {config.body_grace_s:g} s (POCKETRAY_BODY_MIN_RATE_BYTES_S, POCKETRAY_BODY_GRACE_S); "
-             "send the body faster, or a smaller one", {"Connection": "close"})
+        408,
+        f"body: {got} bytes{of} arrived in {seconds:.1f} s, slower than {config.body_min_rate_bytes_s} bytes/s "
+        f"after the first {config.body_grace_s:g} s (POCKETRAY_BODY_MIN_RATE_BYTES_S, POCKETRAY_BODY_GRACE_S); "
+        "send the body faster, or a smaller one",
+        {"Connection": "close"},
+    )
 
 
 def client_share_taken(host: str | None, held: int, config: ServerConfig) -> StarletteHTTPException:
     """429 for an address that already holds its share of the large-body slots."""
     return StarletteHTTPException(
-        429, f"busy: this client address ({host}) already sends {held} large request bodies, its share of the "
-             f"{config.queue_size} slots (POCKETRAY_BODY_SLOTS_PER_CLIENT); retry after {BODY_RETRY_AFTER_S} s, "
-             "once one of them is read", {"Retry-After": str(BODY_RETRY_AFTER_S), "Connection": "close"})
+        429,
+        f"busy: this client address ({host}) already sends {held} large request bodies, its share of the "
+        f"{config.queue_size} slots (POCKETRAY_BODY_SLOTS_PER_CLIENT); retry after {BODY_RETRY_AFTER_S} s, "
+        "once one of them is read",
+        {"Retry-After": str(BODY_RETRY_AFTER_S), "Connection": "close"},
+    )
 
 
 async def read_steadily(request: Request, config: ServerConfig) -> bytes:
@@ -118,7 +127,7 @@ async def read_steadily(request: Request, config: ServerConfig) -> bytes:
         if not message.get("more_body", False):
             break
     body = b"".join(chunks)
-    request._body = body           # what Request.body() returns from now on (FastAPI's handler reads it)
+    request._body = body  # what Request.body() returns from now on (FastAPI's handler reads it)
     return body
 
 
@@ -131,7 +140,7 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     out = dict(pairs)
     if len(out) != len(pairs):
         seen: set[str] = set()
-        for k, _ in pairs:       # the first key given twice
+        for k, _ in pairs:  # the first key given twice
             if k in seen:
                 raise _DuplicateKey(k)
             seen.add(k)
@@ -163,25 +172,31 @@ def parse_json(raw: bytes | str, max_depth: int) -> Any:
         try:
             text = raw.decode("utf-8")
         except UnicodeDecodeError as e:
-            raise BodyError("json_not_utf8", f"not UTF-8 (byte 0x{raw[e.start]:02x} at offset {e.start}); "
-                                             "send JSON encoded as UTF-8") from None
+            raise BodyError(
+                "json_not_utf8",
+                f"not UTF-8 (byte 0x{raw[e.start]:02x} at offset {e.start}); send JSON encoded as UTF-8",
+            ) from None
     else:
         text, raw = raw, raw.encode("utf-8", "surrogatepass")
     if text.startswith("\ufeff"):
         raise BodyError("json_invalid", "starts with a byte-order mark; send UTF-8 JSON without one")
-    too_deep = BodyError("json_too_deep", f"JSON nested deeper than {max_depth} levels "
-                                          "(POCKETRAY_MAX_JSON_DEPTH); no request needs more than 6")
+    too_deep = BodyError(
+        "json_too_deep",
+        f"JSON nested deeper than {max_depth} levels (POCKETRAY_MAX_JSON_DEPTH); no request needs more than 6",
+    )
     try:
         value = json.loads(text, object_pairs_hook=_unique_keys)
     except _DuplicateKey as e:
-        raise BodyError("json_duplicate_key", f"duplicate key {json.dumps(e.key)} in an object; "
-                                              "give each key once") from None
+        raise BodyError(
+            "json_duplicate_key", f"duplicate key {json.dumps(e.key)} in an object; give each key once"
+        ) from None
     except json.JSONDecodeError as e:
-        raise BodyError("json_invalid", f"not valid JSON: {e.msg} at line {e.lineno} column {e.colno} "
-                                        f"(offset {e.pos})") from None
+        raise BodyError(
+            "json_invalid", f"not valid JSON: {e.msg} at line {e.lineno} column {e.colno} (offset {e.pos})"
+        ) from None
     except RecursionError:
         raise too_deep from None
-    except ValueError as e:     # e.g. an integer of more than sys.get_int_max_str_digits() digits
+    except ValueError as e:  # e.g. an integer of more than sys.get_int_max_str_digits() digits
         raise BodyError("json_invalid", f"not a JSON value this service reads ({e})") from None
     if json_depth(raw) > max_depth:
         raise too_deep
@@ -230,7 +245,7 @@ def release_gradually(value: Any, depth: int = 4) -> None:
             release_gradually(item, depth - 1)
     elif isinstance(value, list) and len(value) > FREE_CHUNK:
         for stop in range(len(value) - FREE_CHUNK, -FREE_CHUNK, -FREE_CHUNK):
-            del value[max(stop, 0):]
+            del value[max(stop, 0) :]
 
 
 def validate_body(field: Any, raw: bytes, max_depth: int) -> tuple[Any, Sequence[Any] | None]:
@@ -241,7 +256,7 @@ def validate_body(field: Any, raw: bytes, max_depth: int) -> tuple[Any, Sequence
     except BodyError as e:
         return None, e.validation_error().errors()
     value, errors = field.validate(parsed, {}, loc=("body",))
-    release_gradually(parsed)          # the models hold copies: the JSON's tree goes, a chunk at a time
+    release_gradually(parsed)  # the models hold copies: the JSON's tree goes, a chunk at a time
     return (value, None) if not errors else (None, errors)
 
 
@@ -257,7 +272,7 @@ class BodyParsers:
     def __init__(self, workers: int, admitted: int, per_client: int = 0):
         self.pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pocketray-body")
         self.admitted = admitted
-        self.per_client = per_client        # slots one client address may hold (0: any number)
+        self.per_client = per_client  # slots one client address may hold (0: any number)
         self._in_flight = 0
         self._by_client: dict[str, int] = {}
         self._lock = threading.Lock()
@@ -326,12 +341,12 @@ class JSONBodyRoute(APIRoute):
         handler = super().get_route_handler()
         body_params = self.dependant.body_params
         if self.body_field is None or len(body_params) != 1:
-            return handler             # no body, or an embedded one: FastAPI's own reading
+            return handler  # no body, or an embedded one: FastAPI's own reading
         field = self.body_field
 
         async def route(request: Request) -> Response:
             if not _is_json(request):
-                return await handler(request)       # FastAPI refuses it (a JSON object is expected)
+                return await handler(request)  # FastAPI refuses it (a JSON object is expected)
             config: ServerConfig = request.app.state.config
             declared = request.headers.get("content-length")
             large = declared is None or not declared.isdigit() or int(declared) > INLINE_BODY_BYTES
@@ -355,7 +370,7 @@ class JSONBodyRoute(APIRoute):
                 del raw
                 if errors is None:
                     return await handler(parsed)
-                try:            # FastAPI validates the rest (query, path) and finds the body missing
+                try:  # FastAPI validates the rest (query, path) and finds the body missing
                     return await handler(parsed)
                 except RequestValidationError as e:
                     others = [err for err in e.errors() if not (err.get("loc") or ("",))[0] == "body"]
@@ -363,6 +378,7 @@ class JSONBodyRoute(APIRoute):
             finally:
                 if parsers is not None:
                     parsers.release(client)
+
         return route
 
 

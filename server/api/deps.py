@@ -43,8 +43,9 @@ def session_create_rate(conn: HTTPConnection) -> None:
             limiter = getattr(state, "session_create_buckets", None)
             if limiter is None:
                 config = state.config
-                limiter = state.session_create_buckets = TokenBuckets(config.session_create_per_min,
-                                                                      config.session_create_burst)
+                limiter = state.session_create_buckets = TokenBuckets(
+                    config.session_create_per_min, config.session_create_burst
+                )
     limiter.take(client_key(conn.client.host if conn.client else None))
 
 
@@ -53,8 +54,10 @@ SessionCreateRate = Depends(session_create_rate)
 WorkerDep = Annotated[GLWorker, Depends(get_worker)]
 
 # secrets.token_urlsafe(24) makes 32 characters; 64 leaves room and bounds what is looked up.
-SessionId = Annotated[str, Path(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_-]+$",
-                                description="session token from POST /api/sessions")]
+SessionId = Annotated[
+    str,
+    Path(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_-]+$", description="session token from POST /api/sessions"),
+]
 
 
 def frame_params(query: Annotated[FrameQuery, Query()]) -> dict[str, Any]:

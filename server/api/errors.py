@@ -47,16 +47,19 @@ from ..store import StoreFull, StoreUnavailable
 
 log = logging.getLogger("pocketray.server")
 
-NOT_FOUND = ("session: no session with this id (unknown, deleted, or expired after POCKETRAY_SESSION_TTL_S "
-             "seconds idle); create one with POST /api/sessions")
-GL_RETRY_AFTER_S = 5      # a GL context that failed, or a render that timed out: try again later
-STORE_RETRY_AFTER_S = 1   # the session store is usually back within a second (locked, reconnecting)
-STORE_FULL_RETRY_AFTER_S = 60   # a full store frees space only as sessions are deleted or expire
+NOT_FOUND = (
+    "session: no session with this id (unknown, deleted, or expired after POCKETRAY_SESSION_TTL_S "
+    "seconds idle); create one with POST /api/sessions"
+)
+GL_RETRY_AFTER_S = 5  # a GL context that failed, or a render that timed out: try again later
+STORE_RETRY_AFTER_S = 1  # the session store is usually back within a second (locked, reconnecting)
+STORE_FULL_RETRY_AFTER_S = 60  # a full store frees space only as sessions are deleted or expire
 
 
 @dataclass(frozen=True)
 class ErrorAnswer:
     """One error answer: HTTP status, the ``detail`` of the body, HTTP headers."""
+
     status: int
     detail: Any
     headers: dict[str, str] = field(default_factory=dict)
@@ -113,8 +116,13 @@ def _validation(exc: RequestValidationError, config: ServerConfig) -> ErrorAnswe
         where = summaries[0] if summaries and len(real) <= MAX_LISTED_ERRORS else real[MAX_LISTED_ERRORS]
         loc = [x if isinstance(x, (int, str)) else str(x) for x in where.get("loc", ("body",))]
         loc = loc if where in summaries else loc[:1]
-        errors.append({"loc": loc, "msg": f"{_loc_label(loc)}: {hidden} more errors not listed "
-                                          f"({len(shown) + hidden} in all)", "type": "too_many_errors"})
+        errors.append(
+            {
+                "loc": loc,
+                "msg": f"{_loc_label(loc)}: {hidden} more errors not listed ({len(shown) + hidden} in all)",
+                "type": "too_many_errors",
+            }
+        )
     return ErrorAnswer(422, errors)
 
 
@@ -136,8 +144,11 @@ def _not_found(exc: NotFound, config: ServerConfig) -> ErrorAnswer:
 
 
 def _queue_full(exc: QueueFull, config: ServerConfig) -> ErrorAnswer:
-    return ErrorAnswer(503, f"render queue full ({config.queue_size} admitted, POCKETRAY_QUEUE_SIZE); "
-                            f"retry after {exc.retry_after_s} s", {"Retry-After": str(exc.retry_after_s)})
+    return ErrorAnswer(
+        503,
+        f"render queue full ({config.queue_size} admitted, POCKETRAY_QUEUE_SIZE); retry after {exc.retry_after_s} s",
+        {"Retry-After": str(exc.retry_after_s)},
+    )
 
 
 def _busy(exc: Busy, config: ServerConfig) -> ErrorAnswer:
@@ -165,24 +176,33 @@ def _store_unavailable(exc: Exception, config: ServerConfig) -> ErrorAnswer:
     changed nothing it did not report, and may be retried."""
     log.error("state backend error: %s: %s", type(exc).__name__, exc)
     what = str(exc) if isinstance(exc, StoreUnavailable) else f"not answering ({type(exc).__name__})"
-    return ErrorAnswer(503, f"state: the session store is {what}; retry",
-                       {"Retry-After": str(getattr(exc, "retry_after_s", STORE_RETRY_AFTER_S))})
+    return ErrorAnswer(
+        503,
+        f"state: the session store is {what}; retry",
+        {"Retry-After": str(getattr(exc, "retry_after_s", STORE_RETRY_AFTER_S))},
+    )
 
 
 def _rate_limited(exc: RateLimited, config: ServerConfig) -> ErrorAnswer:
-    return ErrorAnswer(429, f"sessions: this address created its {exc.burst} sessions at once and may create "
-                            f"{exc.per_min:g} a minute (POCKETRAY_SESSION_CREATE_BURST, "
-                            f"POCKETRAY_SESSION_CREATE_PER_MIN); retry after {exc.retry_after_s} s, or go on with a "
-                            "session it has",
-                       {"Retry-After": str(exc.retry_after_s)})
+    return ErrorAnswer(
+        429,
+        f"sessions: this address created its {exc.burst} sessions at once and may create "
+        f"{exc.per_min:g} a minute (POCKETRAY_SESSION_CREATE_BURST, "
+        f"POCKETRAY_SESSION_CREATE_PER_MIN); retry after {exc.retry_after_s} s, or go on with a "
+        "session it has",
+        {"Retry-After": str(exc.retry_after_s)},
+    )
 
 
 def _store_full(exc: StoreFull, config: ServerConfig) -> ErrorAnswer:
     """The store's quota would be passed: nothing was written, existing sessions go on."""
-    return ErrorAnswer(507, f"state: the session store is full ({exc.used} of {exc.limit} bytes used, "
-                            f"POCKETRAY_MAX_STORE_BYTES; this scene needs {exc.wanted} more); space frees as sessions "
-                            f"are deleted or expire (POCKETRAY_SESSION_TTL_S idle): retry later, or delete a session",
-                       {"Retry-After": str(STORE_FULL_RETRY_AFTER_S)})
+    return ErrorAnswer(
+        507,
+        f"state: the session store is full ({exc.used} of {exc.limit} bytes used, "
+        f"POCKETRAY_MAX_STORE_BYTES; this scene needs {exc.wanted} more); space frees as sessions "
+        f"are deleted or expire (POCKETRAY_SESSION_TTL_S idle): retry later, or delete a session",
+        {"Retry-After": str(STORE_FULL_RETRY_AFTER_S)},
+    )
 
 
 def _internal(exc: Exception, config: ServerConfig) -> ErrorAnswer:
@@ -192,6 +212,7 @@ def _internal(exc: Exception, config: ServerConfig) -> ErrorAnswer:
 @dataclass(frozen=True)
 class ErrorRow:
     """Exceptions of ``types`` are answered by ``answer(exc, config)``."""
+
     name: str
     types: tuple[type[Exception], ...]
     answer: Callable[[Any, ServerConfig], ErrorAnswer]
@@ -201,7 +222,7 @@ class ErrorRow:
 ERROR_TABLE: tuple[ErrorRow, ...] = (
     ErrorRow("validation", (RequestValidationError,), _validation),
     ErrorRow("http_exception", (StarletteHTTPException,), _http),
-    ErrorRow("scene", (SceneError,), _scene),   # InputError is a SceneError that knows its loc
+    ErrorRow("scene", (SceneError,), _scene),  # InputError is a SceneError that knows its loc
     ErrorRow("not_found", (NotFound,), _not_found),
     ErrorRow("queue_full", (QueueFull,), _queue_full),
     ErrorRow("busy", (Busy,), _busy),
@@ -248,17 +269,29 @@ def install(app: FastAPI) -> None:
 _RETRY_AFTER_DOC = {"Retry-After": {"description": "seconds", "schema": {"type": "string"}}}
 ERROR_DOCS: dict[int, dict[str, Any]] = {
     404: {"model": ErrorOut, "description": "no such session (unknown, deleted or expired)"},
-    409: {"model": ErrorOut, "description": "the frame was superseded by a newer frame of this session (latest "
-                                            "wins), or the session changed before a gesture could be committed"},
+    409: {
+        "model": ErrorOut,
+        "description": "the frame was superseded by a newer frame of this session (latest "
+        "wins), or the session changed before a gesture could be committed",
+    },
     413: {"model": ErrorOut, "description": "request body too large (POCKETRAY_MAX_BODY_BYTES)"},
-    429: {"model": ErrorOut, "description": "this client address is over its session creation rate "
-                                            "(POCKETRAY_SESSION_CREATE_PER_MIN); see Retry-After",
-          "headers": _RETRY_AFTER_DOC},
-    507: {"model": ErrorOut, "description": "the session store is full (POCKETRAY_MAX_STORE_BYTES); nothing was "
-                                            "written; see Retry-After", "headers": _RETRY_AFTER_DOC},
-    503: {"model": ErrorOut, "description": "render queue full, busy (frames being planned, large bodies being "
-                                            "read), GL or session store not available; see Retry-After",
-          "headers": _RETRY_AFTER_DOC},
+    429: {
+        "model": ErrorOut,
+        "description": "this client address is over its session creation rate "
+        "(POCKETRAY_SESSION_CREATE_PER_MIN); see Retry-After",
+        "headers": _RETRY_AFTER_DOC,
+    },
+    507: {
+        "model": ErrorOut,
+        "description": "the session store is full (POCKETRAY_MAX_STORE_BYTES); nothing was written; see Retry-After",
+        "headers": _RETRY_AFTER_DOC,
+    },
+    503: {
+        "model": ErrorOut,
+        "description": "render queue full, busy (frames being planned, large bodies being "
+        "read), GL or session store not available; see Retry-After",
+        "headers": _RETRY_AFTER_DOC,
+    },
 }
 
 

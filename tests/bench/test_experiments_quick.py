@@ -41,8 +41,14 @@ FIGURES = ("table_4_2_leaves", "fig_4_4_fps", "fig_4_5_memory", "scaling_loglog"
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("experiments")
     env = dict(os.environ, POCKETRAY_BENCH_CACHE=str(out / "cache"))
-    proc = subprocess.run([sys.executable, "-m", "bench.experiments", "--quick", "--out", str(out),
-                           "--no-progress"], cwd=ROOT, env=env, capture_output=True, text=True, timeout=240)
+    proc = subprocess.run(
+        [sys.executable, "-m", "bench.experiments", "--quick", "--out", str(out), "--no-progress"],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
     return out, proc
 
 
@@ -112,7 +118,7 @@ def test_replot_writes_the_runs_sections_from_its_data(quick_run, tmp_path):
     again = sections_of(path)
     for name, text in ran.items():
         if "This experiment failed" in text:
-            continue   # no data to write it from (test_results_markdown_has_every_section fails then)
+            continue  # no data to write it from (test_results_markdown_has_every_section fails then)
         assert again[name] == text, name
     for data in ("table_4_2", "pareto", "dynamic", "shader"):
         assert "run" in json.loads((out / "figures" / f"{data}.json").read_text()), data

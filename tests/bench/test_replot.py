@@ -31,8 +31,9 @@ def spoilt_copy(out, names) -> None:
             shutil.copy(DOCS / "figures" / f"{stem}.json", out / "figures" / f"{stem}.json")
     path = out / "RESULTS.md"
     shutil.copy(DOCS / "RESULTS.md", path)
-    spoilt = {name: "## (stale)\n" + text.split("\n", 1)[1] for name, text in sections_of(path).items()
-              if name in names}
+    spoilt = {
+        name: "## (stale)\n" + text.split("\n", 1)[1] for name, text in sections_of(path).items() if name in names
+    }
     assemble(path, head_of(path), spoilt, {})
 
 

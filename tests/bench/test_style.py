@@ -16,21 +16,35 @@ from tests.helpers import ROOT
 
 
 def test_labels_name_their_method_and_get_its_color_and_marker():
-    cases = {"ours: bih": "bih", "BIH 8": "bih", "BIH rebuild (thesis)": "bih", "bih, MAX_PRIMS 4": "bih",
-             "BF": "bruteforce", "ours: bruteforce": "bruteforce", "bruteforce, depth 5": "bruteforce",
-             "BVH refit": "bvh", "BVH selective +30 %": "bvh", "ours: twolevel": "twolevel", "kdtree S2": "kdtree",
-             "hre S1, depth 5": "hre", "rayengine": "rayengine", "auto, depth 1": "auto",
-             "Mitsuba 3: sphere shapes": "mitsuba", "Mitsuba 3: ellipsoids": "mitsuba-ellipsoids",
-             "Embree: icospheres": "embree", "thesis BF (iPhone 5s)": "thesis"}
+    cases = {
+        "ours: bih": "bih",
+        "BIH 8": "bih",
+        "BIH rebuild (thesis)": "bih",
+        "bih, MAX_PRIMS 4": "bih",
+        "BF": "bruteforce",
+        "ours: bruteforce": "bruteforce",
+        "bruteforce, depth 5": "bruteforce",
+        "BVH refit": "bvh",
+        "BVH selective +30 %": "bvh",
+        "ours: twolevel": "twolevel",
+        "kdtree S2": "kdtree",
+        "hre S1, depth 5": "hre",
+        "rayengine": "rayengine",
+        "auto, depth 1": "auto",
+        "Mitsuba 3: sphere shapes": "mitsuba",
+        "Mitsuba 3: ellipsoids": "mitsuba-ellipsoids",
+        "Embree: icospheres": "embree",
+        "thesis BF (iPhone 5s)": "thesis",
+    }
     for label, method in cases.items():
         assert method_of(label) == method, label
         assert series(label)["color"] == METHOD_STYLE[method][0]
         assert series(label)["marker"] == METHOD_STYLE[method][1]
-    assert set(METHODS) <= set(METHOD_STYLE)   # every registered method has its own entry
+    assert set(METHODS) <= set(METHOD_STYLE)  # every registered method has its own entry
     colors = [c for c, _ in METHOD_STYLE.values()]
-    assert len(colors) == len(set(colors)) + (1 if "thesis" in METHOD_STYLE else 0)   # thesis shares auto's grey
+    assert len(colors) == len(set(colors)) + (1 if "thesis" in METHOD_STYLE else 0)  # thesis shares auto's grey
     assert series("BIH 4", variant=2)["color"] != series("BIH 1")["color"]
-    assert series("new-method")["color"] == series("new-method S2")["color"]   # a stable spare colour
+    assert series("new-method")["color"] == series("new-method S2")["color"]  # a stable spare colour
 
 
 def test_the_legend_is_outside_every_axes():
@@ -51,7 +65,7 @@ def test_the_legend_is_outside_every_axes():
     pyplot.close(fig)
 
 
-@pytest.mark.gl   # ray_engines' data from before the cones were saved renders them again
+@pytest.mark.gl  # ray_engines' data from before the cones were saved renders them again
 def test_every_chart_of_docs_figures_is_redrawn_from_its_saved_data(tmp_path):
     import importlib
 

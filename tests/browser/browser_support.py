@@ -23,8 +23,14 @@ import pytest
 REPO = Path(__file__).resolve().parents[2]
 ARTIFACTS = REPO / "test-artifacts"
 CHROMIUM = os.environ.get("POCKETRAY_CHROMIUM", "/usr/bin/chromium")
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--no-first-run"]
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
 SERVER_START_S = 120.0
 
 # Small, quick renders: full 320×544 png, preview 160×272 jpeg, two recursion levels.
@@ -60,14 +66,20 @@ class Server:
         self.proc: subprocess.Popen | None = None
 
     def start(self) -> None:
-        env = {**os.environ, "POCKETRAY_PORT": str(self.port), "POCKETRAY_HOST": "127.0.0.1",
-               "POCKETRAY_SQLITE_PATH": str(self.tmp / "s.db"), "POCKETRAY_LOG_LEVEL": "warning",
-               # One sample, no cut-off: the client's frames stay comparable with the device's and cheap
-               # (the service's own default is the 'still' profile, tested in tests/server).
-               "POCKETRAY_DEFAULT_RENDER": '{"samples_per_pixel": 1, "min_weight": 0.0}'}
+        env = {
+            **os.environ,
+            "POCKETRAY_PORT": str(self.port),
+            "POCKETRAY_HOST": "127.0.0.1",
+            "POCKETRAY_SQLITE_PATH": str(self.tmp / "s.db"),
+            "POCKETRAY_LOG_LEVEL": "warning",
+            # One sample, no cut-off: the client's frames stay comparable with the device's and cheap
+            # (the service's own default is the 'still' profile, tested in tests/server).
+            "POCKETRAY_DEFAULT_RENDER": '{"samples_per_pixel": 1, "min_weight": 0.0}',
+        }
         log = open(self.log_path, "ab")
-        self.proc = subprocess.Popen([_python(), "-m", "server"], cwd=REPO, env=env,
-                                     stdout=log, stderr=subprocess.STDOUT)
+        self.proc = subprocess.Popen(
+            [_python(), "-m", "server"], cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT
+        )
         deadline = time.monotonic() + SERVER_START_S
         while True:
             if self.proc.poll() is not None:
@@ -107,8 +119,6 @@ class Server:
         return http_json("GET", f"{self.base}/api/sessions/{sid}")
 
 
-
-
 MOBILE = dict(viewport={"width": 360, "height": 640}, device_scale_factor=1, is_mobile=True, has_touch=True)
 DESKTOP = dict(viewport={"width": 960, "height": 640}, device_scale_factor=1)
 # The layouts of issue #19: a phone upright and on its side (390 × 844 CSS px at 3 device pixels
@@ -126,19 +136,25 @@ class Touch:
         self.cdp = page.context.new_cdp_session(page)
 
     def send(self, kind: str, points) -> None:
-        self.cdp.send("Input.dispatchTouchEvent", {
-            "type": kind,
-            "touchPoints": [{"x": x, "y": y, "id": i, "radiusX": 5, "radiusY": 5, "force": 1}
-                            for i, (x, y) in enumerate(points)],
-        })
+        self.cdp.send(
+            "Input.dispatchTouchEvent",
+            {
+                "type": kind,
+                "touchPoints": [
+                    {"x": x, "y": y, "id": i, "radiusX": 5, "radiusY": 5, "force": 1} for i, (x, y) in enumerate(points)
+                ],
+            },
+        )
 
     def gesture(self, starts, ends, steps: int = 8) -> None:
         """Fingers from `starts` to `ends` (lists of (x, y)), in `steps` moves, then lifted."""
         self.send("touchStart", starts)
         for k in range(1, steps + 1):
             a = k / steps
-            self.send("touchMove", [(x0 + (x1 - x0) * a, y0 + (y1 - y0) * a)
-                                    for (x0, y0), (x1, y1) in zip(starts, ends, strict=True)])
+            self.send(
+                "touchMove",
+                [(x0 + (x1 - x0) * a, y0 + (y1 - y0) * a) for (x0, y0), (x1, y1) in zip(starts, ends, strict=True)],
+            )
         self.send("touchEnd", [])
 
     def path(self, frames) -> None:
@@ -179,25 +195,28 @@ class Client:
     def wait_idle(self, min_frames: int = 0, timeout: float = 30_000) -> None:
         """Until a frame count ≥ min_frames, nothing in flight, and the full frame shown."""
         from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
         try:
             self.page.wait_for_function(
                 """n => { const p = window.pocketray;
                           return p && p.idle && p.frameCount >= n && p.lastFrame && p.lastFrame.level === 'full'; }""",
-                arg=min_frames, timeout=timeout)
+                arg=min_frames,
+                timeout=timeout,
+            )
         except PlaywrightTimeout:
             state = self.page.evaluate("""() => { const p = window.pocketray; return p && {
                 status: p.status, idle: p.idle, frameCount: p.frameCount, lastFrame: p.lastFrame && p.lastFrame.level,
                 requests: p.requests, errors: p.errors, notices: p.notices, sessionId: p.sessionId}; }""")
-            raise AssertionError(f"no idle full frame #{min_frames} within {timeout / 1000} s: {state}\n"
-                                 f"console: {self.console_errors}\nserver log:\n{self.server.log_tail(2000)}") from None
+            raise AssertionError(
+                f"no idle full frame #{min_frames} within {timeout / 1000} s: {state}\n"
+                f"console: {self.console_errors}\nserver log:\n{self.server.log_tail(2000)}"
+            ) from None
 
     def camera(self) -> dict:
         return self.server.session(self.hook("sessionId"))["camera"]
 
     def errors(self, allow: tuple[str, ...] = ()) -> list[str]:
         return [e for e in self.console_errors if not any(a in e for a in allow)]
-
-
 
 
 # ---- camera geometry -----------------------------------------------------------------

@@ -25,27 +25,27 @@ def test_play_pause_poses_frames_at_advancing_times(open_client, server):
     n0 = c.frame_count
     p.click("#play-button")
     assert p.get_attribute("#play-button", "aria-pressed") == "true"
-    assert icon() == [False, True] and p.text_content("#play-button .label") == "Pause"   # ❚❚ while playing
+    assert icon() == [False, True] and p.text_content("#play-button .label") == "Pause"  # ❚❚ while playing
     p.wait_for_function(f"() => window.pocketray.frameCount >= {n0 + 4}", timeout=60_000)
     t_a = c.hook("lastFrame.time")
     p.wait_for_function(f"() => window.pocketray.lastFrame.time > {t_a}", timeout=30_000)
     t_b = c.hook("lastFrame.time")
     assert t_b > t_a > 0, (t_a, t_b)
-    assert c.hook("lastFrame.level") == "preview"           # playing: the preview level
+    assert c.hook("lastFrame.level") == "preview"  # playing: the preview level
     field = lambda name: p.text_content(f'#overlay [data-field="{name}"]')
     assert field("anim").endswith("▶")
-    assert field("build") not in ("", "–")                 # Server-Timing "update"
+    assert field("build") not in ("", "–")  # Server-Timing "update"
     assert isinstance(c.hook("lastFrame.timing.update"), (int, float))
 
-    p.click("#play-button")                                 # pause
+    p.click("#play-button")  # pause
     assert p.get_attribute("#play-button", "aria-pressed") == "false"
     assert icon() == [True, False]
     c.wait_idle()
     t_paused = c.hook("lastFrame.time")
-    assert c.hook("lastFrame.level") == "full"              # the full frame after the last one
+    assert c.hook("lastFrame.level") == "full"  # the full frame after the last one
     n_paused = c.frame_count
     time.sleep(1.0)
-    assert c.frame_count == n_paused                        # paused: no more frames
+    assert c.frame_count == n_paused  # paused: no more frames
     assert c.hook("lastFrame.time") == t_paused and t_paused >= t_b
     assert c.errors() == []
 
@@ -55,7 +55,7 @@ def test_update_scheme_from_the_settings_panel(open_client, server):
     p = c.page
     sid = c.hook("sessionId")
     p.click("#settings-toggle")
-    assert p.is_visible("#f-motion")                        # museum: its motion is offered
+    assert p.is_visible("#f-motion")  # museum: its motion is offered
     n0 = c.frame_count
     p.select_option("#f-method", "bvh")
     c.wait_idle(min_frames=n0 + 1)

@@ -61,9 +61,11 @@ def sessions(server):
 
     def get(scenario: int, n: int) -> str:
         if (scenario, n) not in made:
-            made[scenario, n] = http_json("POST", f"{server.base}/api/sessions",
-                                          {"scenario": scenario, "n": n, "seed": 1, "radius": 1.0})["id"]
+            made[scenario, n] = http_json(
+                "POST", f"{server.base}/api/sessions", {"scenario": scenario, "n": n, "seed": 1, "radius": 1.0}
+            )["id"]
         return made[scenario, n]
+
     return get
 
 
@@ -83,7 +85,7 @@ def device_render(c: Client, **params) -> dict:
 
 def psnr(a: np.ndarray, b: np.ndarray) -> float:
     mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
-    return math.inf if mse == 0 else 10 * math.log10(255.0 ** 2 / mse)
+    return math.inf if mse == 0 else 10 * math.log10(255.0**2 / mse)
 
 
 @pytest.mark.parametrize("method", ["bih", "bruteforce", "bvh", "kdtree", "twolevel"])
@@ -99,7 +101,7 @@ def test_device_image_equals_the_servers(device_page, server, sessions, scenario
     assert srv.shape == dev["primid"].shape == (H, W)
     same = float(np.mean(srv == dev["primid"]))
     assert same >= 0.999, f"primary ids agree on {same:.4%} only"
-    assert (srv >= 0).mean() > 0.01       # the frame shows something
+    assert (srv >= 0).mean() > 0.01  # the frame shows something
 
     dev = device_render(device_page, session=sid, mode="color", **common)
     assert dev["infoLog"] == {"vertex": "", "fragment": "", "program": ""}, dev["infoLog"]
@@ -114,9 +116,17 @@ def test_device_renders_the_data_formats(device_page, server, method):
     uniform array), two lights and two planes (compiled-in counts), a material that both
     reflects and transmits (the task stack): the device's picture is the server's."""
     from tests.renderer.gl.base_images import _scenes
+
     scene = _scenes()["both_kr_kt"]
-    many = [{"color": [0.2 + 0.03 * i, 0.9 - 0.04 * i, 0.5], "reflective": 0.3 * (i % 2),
-             "transmissive": 0.5 * (i % 3 == 1), "ior": 1.2} for i in range(20)]
+    many = [
+        {
+            "color": [0.2 + 0.03 * i, 0.9 - 0.04 * i, 0.5],
+            "reflective": 0.3 * (i % 2),
+            "transmissive": 0.5 * (i % 3 == 1),
+            "ior": 1.2,
+        }
+        for i in range(20)
+    ]
     body = scene.to_json()
     rng = np.random.default_rng(5)
     for i, sp in enumerate(body["spheres"]):
@@ -142,8 +152,7 @@ def test_device_renders_the_data_formats(device_page, server, method):
 def test_one_layout_small_textures_and_the_javascript_camera(device_page, server, sessions):
     """A device with MAX_TEXTURE_SIZE 32: narrower rows, the same picture; the JS basis is the server's."""
     sid = sessions(3, 1024)
-    dev = device_render(device_page, session=sid, mode="primid", width=W, height=H, method="bih",
-                        max_texture_size=32)
+    dev = device_render(device_page, session=sid, mode="primid", width=W, height=H, method="bih", max_texture_size=32)
     sizes = {t["name"]: (t["width"], t["height"], t["internal_format"]) for t in dev["textures"]}
     assert sizes["u_spheres"] == (32, 32, "RGBA32F") and sizes["u_sphere_mat"] == (32, 32, "R32UI")
     assert sizes["u_bih_nodes"][0] <= 32 and sizes["u_bih_nodes"][2] == "RGBA32UI"
@@ -161,12 +170,19 @@ def test_controller_port_matches_the_server(device_page):
     from server import controller
 
     cam = {"position": [3.0, -2.0, 80.0], "target": [1.0, 0.5, -4.0], "up": [0.1, 1.0, 0.0], "fov_y": 50.0}
-    got = device_page.page.evaluate("""async (cam) => { const d = await import('/js/device/device.js');
+    got = device_page.page.evaluate(
+        """async (cam) => { const d = await import('/js/device/device.js');
         return [d.panCamera(cam, 37.5, -12.25, 640), d.pinchCamera(cam, 1.7), d.pinchCamera(cam, 0.3),
-                d.pinchCamera(cam, 1e9)]; }""", cam)
+                d.pinchCamera(cam, 1e9)]; }""",
+        cam,
+    )
     c = Camera.from_json(cam)
-    want = [controller.pan(c, 37.5, -12.25, 640.0), controller.pinch(c, 1.7), controller.pinch(c, 0.3),
-            controller.pinch(c, 1e9)]
+    want = [
+        controller.pan(c, 37.5, -12.25, 640.0),
+        controller.pinch(c, 1.7),
+        controller.pinch(c, 0.3),
+        controller.pinch(c, 1e9),
+    ]
     for g, w in zip(got, want, strict=True):
         assert np.allclose(g["position"], w.position, rtol=1e-14, atol=1e-12), (g, w)
         assert np.allclose(g["target"], w.target, rtol=1e-14, atol=1e-12), (g, w)
@@ -197,11 +213,11 @@ def test_device_mode_in_the_client(gl_browser, server):
         log = c.hook("log")[n0:]
         assert log and all(f["renderer"] == "device" for f in log), log
         cam1 = c.camera()
-        assert not np.allclose(cam1["position"], cam0["position"])           # the Model followed
+        assert not np.allclose(cam1["position"], cam0["position"])  # the Model followed
         local = c.page.evaluate("() => window.pocketray.device.camera")
         assert np.allclose(local["position"], cam1["position"], rtol=0, atol=1e-9), (local, cam1)
 
-        n1 = c.frame_count                                    # a setting changes: the data comes again
+        n1 = c.frame_count  # a setting changes: the data comes again
         c.page.click("#settings-toggle")
         c.page.select_option("#f-method", "bruteforce")
         c.wait_idle(min_frames=n1 + 1)
@@ -216,10 +232,10 @@ def test_device_mode_in_the_client(gl_browser, server):
         assert last["renderer"] == "server" and last["renderedBy"].startswith("server ("), last
         shown = c.page.locator('#overlay [data-field="renderer"]')
         assert shown.get_attribute("title") == last["renderedBy"] and shown.text_content().startswith("server (")
-        assert c.camera() == cam1                                           # nothing moved on switching
+        assert c.camera() == cam1  # nothing moved on switching
         shown_server = canvas_rgb(c)
         assert shown_server.shape == shown_device.shape
-        assert psnr(shown_device, shown_server) >= 35.0                     # the same view, both sides
+        assert psnr(shown_device, shown_server) >= 35.0  # the same view, both sides
 
         assert c.errors() == [] and c.hook("errors") == []
 
@@ -235,7 +251,7 @@ def test_device_mode_in_the_client(gl_browser, server):
         assert (last["renderer"], last["method"]) == ("server", "rayengine"), last
         assert "several passes" in c.hook("device.fallback")
         assert c.page.input_value("#f-renderer") == "server"
-        assert c.errors(allow=(FAILED_LOAD,)) == [] and c.hook("errors") == []   # the 422 is the fallback's cause
+        assert c.errors(allow=(FAILED_LOAD,)) == [] and c.hook("errors") == []  # the 422 is the fallback's cause
     finally:
         ctx.close()
 
@@ -254,7 +270,7 @@ def test_without_webgl2_the_client_falls_back_to_the_server(open_client):
     assert last["renderer"] == "server", last
     notices = [n["text"] for n in c.hook("notices")]
     assert any("server" in t and "WebGL2" in t for t in notices), notices
-    assert c.page.locator("#notice").inner_text().count("WebGL2") >= 1       # visible
+    assert c.page.locator("#notice").inner_text().count("WebGL2") >= 1  # visible
     assert c.hook("state.client.renderer") == "server"
     assert c.page.input_value("#f-renderer") == "server"
     assert c.errors() == []
@@ -270,25 +286,33 @@ def test_device_data_is_the_gpu_layout_and_refuses_what_a_device_cannot_run(serv
     from server.device_data import decode_blob
 
     sid = sessions(2, 64)
-    with urllib.request.urlopen(f"{server.base}/api/sessions/{sid}/device-data?max_texture_size=64&method=bih",
-                                timeout=60) as r:
+    with urllib.request.urlopen(
+        f"{server.base}/api/sessions/{sid}/device-data?max_texture_size=64&method=bih", timeout=60
+    ) as r:
         assert r.headers["X-Session-Version"] == "1" and r.headers["X-Method"] == "bih"
         header, arrays = decode_blob(r.read())
     scene = scenario(2, 64, 1, 1.0)
-    want = {**gpu_layout.pack_primitives(scene, 64).textures,
-            **METHODS["bih"].prepare(scene, 8, 64, 64).packed.textures}
+    want = {
+        **gpu_layout.pack_primitives(scene, 64).textures,
+        **METHODS["bih"].prepare(scene, 8, 64, 64).packed.textures,
+    }
     assert set(arrays) == set(want)
     for name, tex in want.items():
         assert np.array_equal(arrays[name], tex.data), name
     assert header["uniforms"]["u_num_spheres"] == 64 and header["camera"]["position"] == [0.0, 0.0, 100.0]
 
     with urllib.request.urlopen(f"{server.base}{header['shader']['url']}", timeout=30) as r:
-        assert r.read().decode() == shader_source("bih", header["shader"]["mode"],
-                                                  header["shader"]["max_recursion_depth"],
-                                                  tuple(header["shader"]["features"]))
-    for query, field, words in (("method=rayengine", "method", "several passes"),
-                                ("max_texture_size=4", "max_texture_size", "does not fit"),
-                                ("float_textures=false", "float_textures", "EXT_color_buffer_float")):
+        assert r.read().decode() == shader_source(
+            "bih",
+            header["shader"]["mode"],
+            header["shader"]["max_recursion_depth"],
+            tuple(header["shader"]["features"]),
+        )
+    for query, field, words in (
+        ("method=rayengine", "method", "several passes"),
+        ("max_texture_size=4", "max_texture_size", "does not fit"),
+        ("float_textures=false", "float_textures", "EXT_color_buffer_float"),
+    ):
         try:
             urllib.request.urlopen(f"{server.base}/api/sessions/{sid}/device-data?{query}", timeout=30)
             raise AssertionError(f"{query} was accepted")
@@ -303,11 +327,16 @@ def test_orbit_port_matches_the_server(device_page):
     from renderer.scene import Camera
     from server import controller
 
-    cams = [{"position": [3.0, -2.0, 80.0], "target": [1.0, 0.5, -4.0], "up": [0.1, 1.0, 0.0], "fov_y": 50.0},
-            {"position": [0.0, 100.0, 1.0], "target": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0], "fov_y": 60.0}]
+    cams = [
+        {"position": [3.0, -2.0, 80.0], "target": [1.0, 0.5, -4.0], "up": [0.1, 1.0, 0.0], "fov_y": 50.0},
+        {"position": [0.0, 100.0, 1.0], "target": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0], "fov_y": 60.0},
+    ]
     turns = [(37.5, -12.25), (-200.0, 0.0), (0.0, 170.0), (15.0, -95.0), (360.0, 360.0)]
-    got = device_page.page.evaluate("""async ([cams, turns]) => { const d = await import('/js/device/device.js');
-        return cams.map((c) => turns.map(([y, p]) => d.orbitCamera(c, y, p))); }""", [cams, turns])
+    got = device_page.page.evaluate(
+        """async ([cams, turns]) => { const d = await import('/js/device/device.js');
+        return cams.map((c) => turns.map(([y, p]) => d.orbitCamera(c, y, p))); }""",
+        [cams, turns],
+    )
     for cam, row in zip(cams, got, strict=True):
         c = Camera.from_json(cam)
         for (yaw, pitch), g in zip(turns, row, strict=True):
@@ -339,8 +368,10 @@ def test_device_frames_agree_with_the_server_at_the_still_profile(device_page, s
     assert device_page.errors() == []
 
 
-KEEP_UP = ("scenario=3&n=256&seed=1&radius=1&width=192&height=320&max_recursion_depth=3&samples_per_pixel=4"
-           "&preview_scale=0.5&refine_ms=0&renderer=device&mode=color")
+KEEP_UP = (
+    "scenario=3&n=256&seed=1&radius=1&width=192&height=320&max_recursion_depth=3&samples_per_pixel=4"
+    "&preview_scale=0.5&refine_ms=0&renderer=device&mode=color"
+)
 
 
 def test_device_mode_keeps_up_with_the_fingers(gl_browser, server):
@@ -352,25 +383,29 @@ def test_device_mode_keeps_up_with_the_fingers(gl_browser, server):
         c = Client(server, ctx, ctx.new_page())
         c.open(KEEP_UP)
         assert c.hook("lastFrame.renderer") == "device"
-        assert c.hook("device.counts.lastBands") > 1                  # a full frame takes several bands
+        assert c.hook("device.counts.lastBands") > 1  # a full frame takes several bands
         p = c.page
         p.focus("#view")
-        p.keyboard.press("ArrowLeft")                                 # a preview, then at once the full frame
-        p.wait_for_function("() => { const j = window.pocketray.device.job; return j && j.level === 'full' && j.rowsDone > 0; }",
-                            timeout=60_000)
+        p.keyboard.press("ArrowLeft")  # a preview, then at once the full frame
+        p.wait_for_function(
+            "() => { const j = window.pocketray.device.job; return j && j.level === 'full' && j.rowsDone > 0; }",
+            timeout=60_000,
+        )
         before = c.hook("device.counts")
         old = c.page.evaluate("() => window.pocketray.device.camera")
         n0 = c.frame_count
-        Touch(p).gesture([(150, 300)], [(200, 300)], steps=6)         # while that frame is being traced
+        Touch(p).gesture([(150, 300)], [(200, 300)], steps=6)  # while that frame is being traced
         c.wait_idle(min_frames=n0 + 1)
         after = c.hook("device.counts")
         assert after["cancelled"] > before["cancelled"], (before, after)
-        shown = c.hook("log")[-(c.frame_count - n0):]
+        shown = c.hook("log")[-(c.frame_count - n0) :]
         assert all(f["camera"] and not np.allclose(f["camera"]["position"], old["position"]) for f in shown), shown
         last = c.hook("lastFrame")
         assert last["level"] == "full" and last["samples"] == 4
         local = p.evaluate("() => window.pocketray.device.camera")
-        assert np.allclose(last["camera"]["position"], local["position"]) and np.allclose(c.camera()["position"], local["position"])
+        assert np.allclose(last["camera"]["position"], local["position"]) and np.allclose(
+            c.camera()["position"], local["position"]
+        )
         field = lambda name: p.text_content(f'#overlay [data-field="{name}"]')
         for name in ("time", "trace", "bands", "display", "samples", "n", "method"):
             assert field(name) not in ("", "–"), name
@@ -388,11 +423,15 @@ def test_device_traces_a_scene_with_meshes(device_page, server, method):
     box, a torus (tests/renderer/gl/test_gpu_meshes.py) — the triangle records and the
     TRIANGLES variant, on ANGLE — give the server's picture."""
     from tests.renderer.gl.test_gpu_meshes import mixed_scene
+
     scene = mixed_scene()
     body = scene.to_json()
     try:
-        sid = http_json("POST", f"{server.base}/api/sessions",
-                        {"scene": body, "settings": {"width": W, "height": H, "max_recursion_depth": 2}})["id"]
+        sid = http_json(
+            "POST",
+            f"{server.base}/api/sessions",
+            {"scene": body, "settings": {"width": W, "height": H, "max_recursion_depth": 2}},
+        )["id"]
     except urllib.error.HTTPError as e:
         pytest.fail(f"{e}: {e.read()[:2000]!r}")
     common = dict(width=W, height=H, method=method, max_recursion_depth=DEPTH)

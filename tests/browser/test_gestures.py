@@ -31,8 +31,10 @@ def assert_new_frames(client, before: int, preview=True) -> None:
     log = client.hook("log")[before:]
     assert log, "no new frame was displayed"
     if preview:
-        assert any(f["level"] == "preview" and (f["width"], f["height"]) == (160, 272)
-                   and f["contentType"] == "image/jpeg" for f in log), log
+        assert any(
+            f["level"] == "preview" and (f["width"], f["height"]) == (160, 272) and f["contentType"] == "image/jpeg"
+            for f in log
+        ), log
     last = log[-1]
     assert (last["level"], last["width"], last["height"], last["contentType"]) == ("full", 320, 544, "image/png"), last
 
@@ -41,7 +43,7 @@ def test_one_finger_drag_pans_the_scene_with_the_finger(open_client):
     c = open_client("mobile")
     touch = Touch(c.page)
     cam0, n0 = c.camera(), c.frame_count
-    touch.gesture([(150, 300)], [(230, 300)])          # 80 CSS px to the right
+    touch.gesture([(150, 300)], [(230, 300)])  # 80 CSS px to the right
     assert_new_frames(c, n0)
     cam1 = c.camera()
     right, up, forward = basis(cam0)
@@ -54,7 +56,7 @@ def test_one_finger_drag_pans_the_scene_with_the_finger(open_client):
     assert np.allclose(moved({"position": cam0["target"]}, {"position": cam1["target"]}), d)
 
     n1 = c.frame_count
-    touch.gesture([(200, 250)], [(200, 330)])          # 80 px down: the camera goes up
+    touch.gesture([(200, 250)], [(200, 330)])  # 80 px down: the camera goes up
     assert_new_frames(c, n1)
     d2 = moved(cam1, c.camera())
     assert np.dot(d2, basis(cam1)[1]) > 0.9 * expected
@@ -66,16 +68,16 @@ def test_two_finger_spread_moves_forward_and_pinch_moves_back(open_client, artif
     c = open_client("mobile")
     touch = Touch(c.page)
     cam0, n0 = c.camera(), c.frame_count
-    touch.gesture([(140, 320), (220, 320)], [(60, 320), (300, 320)])   # spread 80 → 240 px: ×3
+    touch.gesture([(140, 320), (220, 320)], [(60, 320), (300, 320)])  # spread 80 → 240 px: ×3
     assert_new_frames(c, n0)
     cam1 = c.camera()
     assert distance(cam1) < distance(cam0)
     assert math.isclose(distance(cam1), distance(cam0) / 3, rel_tol=0.02), (distance(cam0), distance(cam1))
-    assert np.allclose(cam1["target"], cam0["target"])           # along the view axis only
+    assert np.allclose(cam1["target"], cam0["target"])  # along the view axis only
     assert np.allclose(np.cross(moved(cam0, cam1), basis(cam0)[2]), 0, atol=1e-6)
 
     n1 = c.frame_count
-    touch.gesture([(60, 320), (300, 320)], [(120, 320), (240, 320)])   # pinch 240 → 120 px: ×½
+    touch.gesture([(60, 320), (300, 320)], [(120, 320), (240, 320)])  # pinch 240 → 120 px: ×½
     assert_new_frames(c, n1)
     cam2 = c.camera()
     assert distance(cam2) > distance(cam1)
@@ -108,7 +110,7 @@ def test_mouse_drag_wheel_and_keys_on_the_desktop(open_client):
     cam0, n0 = c.camera(), c.frame_count
     m.move(400, 300)
     m.down()
-    m.move(480, 300, steps=8)                          # drag right
+    m.move(480, 300, steps=8)  # drag right
     m.up()
     assert_new_frames(c, n0)
     cam1 = c.camera()
@@ -118,12 +120,12 @@ def test_mouse_drag_wheel_and_keys_on_the_desktop(open_client):
     assert abs(-np.dot(d, basis(cam0)[0]) - expected) < 0.05 * expected
 
     n1 = c.frame_count
-    m.wheel(0, -100)                                   # wheel up / away: forward
+    m.wheel(0, -100)  # wheel up / away: forward
     assert_new_frames(c, n1, preview=False)
     cam2 = c.camera()
     assert distance(cam2) < distance(cam1)
     n2 = c.frame_count
-    m.wheel(0, 100)                                    # wheel down: back
+    m.wheel(0, 100)  # wheel down: back
     assert_new_frames(c, n2, preview=False)
     assert math.isclose(distance(c.camera()), distance(cam1), rel_tol=1e-6)
 
@@ -156,9 +158,9 @@ def test_gestures_during_a_request_are_merged_and_latest_wins(open_client):
     c.wait_idle(min_frames=1)
     cam1 = c.camera()
     requests = c.hook("requests") - r0
-    assert requests < 40, requests                        # merged, not one request per move
-    expected = 160 * world_per_css_px(c, cam0)            # nothing lost in the merge
+    assert requests < 40, requests  # merged, not one request per move
+    expected = 160 * world_per_css_px(c, cam0)  # nothing lost in the merge
     assert abs(-np.dot(moved(cam0, cam1), basis(cam0)[0]) - expected) < 0.05 * expected
     versions = [f["version"] for f in c.hook("log")]
-    assert versions == sorted(versions)                   # never an older frame after a newer one
+    assert versions == sorted(versions)  # never an older frame after a newer one
     assert c.errors() == []

@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 
 import numpy as np
-
 from browser_support import FAST_QUERY, Touch
 
 LAYOUT_QUERY = "scenario=1&n=64&seed=1&radius=1&width=96&height=160&max_recursion_depth=1&preview_scale=1"
@@ -41,8 +40,11 @@ CHROME_SHARE = """() => {
 
 
 def box(page, selector: str) -> dict:
-    return page.evaluate("""(s) => { const r = document.querySelector(s).getBoundingClientRect();
-        return {left: r.left, top: r.top, right: r.right, bottom: r.bottom, width: r.width, height: r.height}; }""", selector)
+    return page.evaluate(
+        """(s) => { const r = document.querySelector(s).getBoundingClientRect();
+        return {left: r.left, top: r.top, right: r.right, bottom: r.bottom, width: r.width, height: r.height}; }""",
+        selector,
+    )
 
 
 def overlaps(a: dict, b: dict) -> bool:
@@ -60,8 +62,10 @@ def page_zoom(page) -> dict:
 
 
 def dismiss_hint(page) -> None:
-    page.evaluate("() => { const b = document.querySelector('#hint [data-dismiss]');"
-                  " if (b && !document.querySelector('#hint').hidden) b.click(); }")
+    page.evaluate(
+        "() => { const b = document.querySelector('#hint [data-dismiss]');"
+        " if (b && !document.querySelector('#hint').hidden) b.click(); }"
+    )
 
 
 def test_no_control_can_zoom_or_scroll_the_page(open_client):
@@ -97,8 +101,12 @@ def test_no_control_can_zoom_or_scroll_the_page(open_client):
 
 def test_each_layout_keeps_the_chrome_small_and_apart(open_client, artifacts):
     shares = {}
-    for name, kind, query in (("portrait", "portrait", FIGURE_QUERY), ("portrait-museum", "portrait", MUSEUM_QUERY),
-                              ("landscape", "landscape", LAYOUT_QUERY), ("desktop", "wide", LAYOUT_QUERY)):
+    for name, kind, query in (
+        ("portrait", "portrait", FIGURE_QUERY),
+        ("portrait-museum", "portrait", MUSEUM_QUERY),
+        ("landscape", "landscape", LAYOUT_QUERY),
+        ("desktop", "wide", LAYOUT_QUERY),
+    ):
         c = open_client(kind, query)
         p = c.page
         dismiss_hint(p)
@@ -106,10 +114,10 @@ def test_each_layout_keeps_the_chrome_small_and_apart(open_client, artifacts):
             assert p.is_visible("#play-button")
         p.screenshot(path=str(artifacts / f"layout-{name}.png"))
         shares[name] = p.evaluate(CHROME_SHARE)
-        assert shares[name] < 0.08, (name, shares[name])          # before issue #19: 20 % upright, 30 % on its side
+        assert shares[name] < 0.08, (name, shares[name])  # before issue #19: 20 % upright, 30 % on its side
         toolbar = box(p, "#toolbar")
         assert not overlaps(box(p, "#overlay"), toolbar), name
-        p.click("#overlay-summary")                                 # the details never reach the toolbar either
+        p.click("#overlay-summary")  # the details never reach the toolbar either
         assert p.is_visible("#overlay-details")
         assert not overlaps(box(p, "#overlay"), toolbar), name
         assert box(p, "#overlay")["bottom"] <= toolbar["top"], name
@@ -125,7 +133,7 @@ def test_each_layout_keeps_the_chrome_small_and_apart(open_client, artifacts):
         else:
             assert sheet["left"] >= screen["width"] - 381 and sheet["height"] == screen["height"], sheet
         header_bg = p.evaluate("() => getComputedStyle(document.querySelector('#settings header')).backgroundColor")
-        assert header_bg.startswith("rgb(") and not header_bg.startswith("rgba("), header_bg   # opaque
+        assert header_bg.startswith("rgb(") and not header_bg.startswith("rgba("), header_bg  # opaque
         p.screenshot(path=str(artifacts / f"layout-{name}-sheet.png"))
         p.keyboard.press("Escape")
         assert c.errors() == [], name
@@ -146,7 +154,7 @@ def test_the_overlay_is_one_line_until_tapped(open_client):
     p.wait_for_selector("#overlay-details", state="visible")
     assert p.get_attribute("#overlay-summary", "aria-expanded") == "true"
     renderer = '#overlay [data-field="renderer"]'
-    assert p.evaluate(one_line, renderer)                            # "rendered by" on one line …
+    assert p.evaluate(one_line, renderer)  # "rendered by" on one line …
     assert p.get_attribute(renderer, "title").startswith("server (")  # … the whole name as its title
     touch.tap(b["left"] + 10, b["top"] + b["height"] / 2)
     p.wait_for_selector("#overlay-details", state="hidden")
@@ -162,7 +170,13 @@ def test_every_button_says_what_it_does(open_client):
         return {id: b.id, label: l.textContent.trim(),
                 shown: r.width > 0 && r.height > 0 && getComputedStyle(l).visibility === 'visible',
                 aria: b.getAttribute('aria-label') || '', title: b.title}; })""")
-    assert [b["id"] for b in buttons] == ["overlay-toggle", "play-button", "orbit-toggle", "reset-button", "settings-toggle"]
+    assert [b["id"] for b in buttons] == [
+        "overlay-toggle",
+        "play-button",
+        "orbit-toggle",
+        "reset-button",
+        "settings-toggle",
+    ]
     for b in buttons:
         assert b["label"] and b["shown"] and b["aria"] and b["title"], b
     assert {b["label"] for b in buttons} == {"Stats", "Play", "Orbit", "Reset", "Settings"}
@@ -174,7 +188,7 @@ def test_the_gesture_hint_shows_once(open_client):
     assert p.is_visible("#hint")
     text = p.text_content("#hint")
     assert all(w in text for w in ("Drag", "pinch", "twist", "double-tap")), text
-    touch.gesture([(150, 300)], [(200, 300)])                       # the first gesture is enough
+    touch.gesture([(150, 300)], [(200, 300)])  # the first gesture is enough
     assert not p.is_visible("#hint")
     assert p.evaluate("() => localStorage.getItem('pocketray.hintSeen')") == "1"
     c.wait_idle(min_frames=1)
@@ -185,31 +199,46 @@ def test_the_gesture_hint_shows_once(open_client):
 
 
 def legend(page) -> list[tuple[str, str]]:
-    return [tuple(x) for x in page.evaluate("""() => [...document.querySelectorAll('#legend li')].map((li) =>
-        [li.textContent.trim(), getComputedStyle(li.querySelector('.swatch')).backgroundColor])""")]
+    return [
+        tuple(x)
+        for x in page.evaluate("""() => [...document.querySelectorAll('#legend li')].map((li) =>
+        [li.textContent.trim(), getComputedStyle(li.querySelector('.swatch')).backgroundColor])""")
+    ]
 
 
 def test_heat_and_recursion_have_a_legend(open_client):
     from renderer.modes import RECURSION_COLORS
+
     css = [f"rgb({r}, {g}, {b})" for r, g, b in np.floor(255 * RECURSION_COLORS + 0.5).astype(int)]
     c = open_client("portrait", LAYOUT_QUERY + "&mode=recursion")
     p = c.page
-    p.wait_for_selector("#legend li")   # the key comes with GET /api/info
+    p.wait_for_selector("#legend li")  # the key comes with GET /api/info
     assert p.is_visible("#legend")
     # the colours the shader is assembled with (renderer.modes), as the 8-bit frame shows them
     assert legend(p) == [*((str(level), css[level]) for level in range(1, len(css))), ("miss", css[0])]
-    assert legend(p) == [("1", "rgb(255, 0, 0)"), ("2", "rgb(0, 255, 0)"), ("3", "rgb(0, 0, 255)"),
-                         ("4", "rgb(255, 255, 0)"), ("5", "rgb(255, 0, 255)"), ("6", "rgb(0, 255, 255)"),
-                         ("7", "rgb(255, 255, 255)"), ("8", "rgb(255, 128, 0)"), ("miss", "rgb(0, 0, 0)")]
+    assert legend(p) == [
+        ("1", "rgb(255, 0, 0)"),
+        ("2", "rgb(0, 255, 0)"),
+        ("3", "rgb(0, 0, 255)"),
+        ("4", "rgb(255, 255, 0)"),
+        ("5", "rgb(255, 0, 255)"),
+        ("6", "rgb(0, 255, 255)"),
+        ("7", "rgb(255, 255, 255)"),
+        ("8", "rgb(255, 128, 0)"),
+        ("miss", "rgb(0, 0, 0)"),
+    ]
     assert not overlaps(box(p, "#legend"), box(p, "#toolbar"))
     c = open_client("wide", LAYOUT_QUERY + "&mode=heat")
     p = c.page
     p.wait_for_selector("#legend li")
-    assert legend(p) == [("red: 0.05 per sphere test", "rgb(255, 0, 0)"), ("green: 0.2 per gap", "rgb(0, 255, 0)"),
-                         ("blue: 0.2 per node", "rgb(0, 0, 255)")]
+    assert legend(p) == [
+        ("red: 0.05 per sphere test", "rgb(255, 0, 0)"),
+        ("green: 0.2 per gap", "rgb(0, 255, 0)"),
+        ("blue: 0.2 per node", "rgb(0, 0, 255)"),
+    ]
     n0 = c.frame_count
     p.click("#settings-toggle")
-    p.select_option("#f-mode", "color")                             # the key follows the frame on screen
+    p.select_option("#f-mode", "color")  # the key follows the frame on screen
     c.wait_idle(min_frames=n0 + 1)
     assert not p.is_visible("#legend")
     assert c.errors() == []
@@ -221,25 +250,39 @@ def test_settings_that_do_not_apply_are_hidden(open_client):
     p.click("#settings-toggle")
     shown = lambda *names: {n: p.is_visible(f"#f-{n}") for n in names}
     names = ("max_prims", "max_tree_depth", "tile_size", "update", "motion", "radius", "samples_per_pixel")
-    assert shown(*names) == {"max_prims": True, "max_tree_depth": True, "tile_size": False, "update": False,
-                             "motion": False, "radius": True, "samples_per_pixel": True}
+    assert shown(*names) == {
+        "max_prims": True,
+        "max_tree_depth": True,
+        "tile_size": False,
+        "update": False,
+        "motion": False,
+        "radius": True,
+        "samples_per_pixel": True,
+    }
     n0 = c.frame_count
-    p.select_option("#f-method", "kdtree")                          # the SAH decides the leaves
+    p.select_option("#f-method", "kdtree")  # the SAH decides the leaves
     assert shown("max_prims", "max_tree_depth") == {"max_prims": False, "max_tree_depth": True}
     c.wait_idle(min_frames=n0 + 1)
     n1 = c.frame_count
-    p.select_option("#f-method", "bruteforce")                      # no tree at all
-    assert shown("max_prims", "max_tree_depth", "tile_size") == {"max_prims": False, "max_tree_depth": False,
-                                                                  "tile_size": False}
+    p.select_option("#f-method", "bruteforce")  # no tree at all
+    assert shown("max_prims", "max_tree_depth", "tile_size") == {
+        "max_prims": False,
+        "max_tree_depth": False,
+        "tile_size": False,
+    }
     c.wait_idle(min_frames=n1 + 1)
     # Only hre has tiles (checked before its frame: the form decides at once).
     p.select_option("#f-method", "hre")
     assert shown("tile_size", "max_prims") == {"tile_size": True, "max_prims": False}
-    disabled = p.evaluate("() => [...document.querySelectorAll('#f-mode option')].filter((o) => o.disabled).map((o) => o.value)")
-    assert disabled == []                                          # hre draws every mode, cones too
+    disabled = p.evaluate(
+        "() => [...document.querySelectorAll('#f-mode option')].filter((o) => o.disabled).map((o) => o.value)"
+    )
+    assert disabled == []  # hre draws every mode, cones too
     c.wait_idle()
     p.select_option("#f-method", "bih")
-    disabled = p.evaluate("() => [...document.querySelectorAll('#f-mode option')].filter((o) => o.disabled).map((o) => o.value)")
+    disabled = p.evaluate(
+        "() => [...document.querySelectorAll('#f-mode option')].filter((o) => o.disabled).map((o) => o.value)"
+    )
     assert disabled == ["cones"]
     c.wait_idle()
     # The museum: its motion, no radius; the update scheme once a method can follow the motion.

@@ -92,16 +92,16 @@ def test_an_uploaded_obj_joins_the_scene_and_changes_the_frame(open_client, serv
     p.set_input_files(PICKER, files=[{"name": "ball.obj", "mimeType": "text/plain", "buffer": ball}])
     p.wait_for_function("v => window.pocketray.lastFrameVersion > v", arg=before["version"])
     c.wait_idle(min_frames=n0 + 1)
-    assert c.hook("sessionId") == sid                     # the same session, its scene grown
+    assert c.hook("sessionId") == sid  # the same session, its scene grown
     after = server.session(sid)
     assert after["scene_info"]["n_triangles"] == n_tri and after["scene_info"]["n_meshes"] == 1
     assert after["version"] > before["version"] and c.hook("lastFrameVersion") == after["version"]
     assert after["scene_info"]["n_spheres"] == before["scene_info"]["n_spheres"]
-    assert canvas_pixels(p) != pixels                      # the model is in the frame
+    assert canvas_pixels(p) != pixels  # the model is in the frame
     assert p.text_content('#overlay [data-field="triangles"]') == str(n_tri)
     assert f"{n_tri} triangles" in p.get_attribute("#view", "aria-label")
     assert invalid(p, "model") is None
-    assert server.session(sid)["camera"] == before["camera"]            # the camera stays
+    assert server.session(sid)["camera"] == before["camera"]  # the camera stays
     assert c.hook("errors") == [] and c.errors() == []
 
 
@@ -113,8 +113,12 @@ def test_a_corrupt_misnamed_or_too_big_file_is_refused_next_to_the_picker(open_c
     pixels, frames = canvas_pixels(p), c.frame_count
     open_sheet(c)
     # Corrupt: the service's 422, in the panel's words, next to the picker.
-    p.set_input_files(PICKER, files=[{"name": "broken.ply", "mimeType": "application/octet-stream",
-                                      "buffer": b"this is not a ply file\n" * 4}])
+    p.set_input_files(
+        PICKER,
+        files=[
+            {"name": "broken.ply", "mimeType": "application/octet-stream", "buffer": b"this is not a ply file\n" * 4}
+        ],
+    )
     p.wait_for_function("() => window.pocketray.errors.length > 0")
     text = invalid(p, "model")
     assert text and text.startswith("Model: ") and "PLY" in text, text
@@ -122,7 +126,7 @@ def test_a_corrupt_misnamed_or_too_big_file_is_refused_next_to_the_picker(open_c
     err = c.hook("errors")[-1]
     assert err["status"] == 422 and err["inline"] is True and err["field"] == "model"
     c.wait_idle()
-    assert server.session(sid)["version"] == before["version"]            # nothing changed
+    assert server.session(sid)["version"] == before["version"]  # nothing changed
     assert server.session(sid)["scene_info"] == before["scene_info"]
     assert c.hook("sessionId") == sid and c.frame_count == frames and canvas_pixels(p) == pixels
     # Misnamed: refused here, nothing sent.
@@ -156,8 +160,11 @@ def test_upload_refusals_in_the_panel_words(open_client):
               empty: m.modelFileProblem('a.obj', 0, 'obj', ['obj'], 100),
               ok: m.modelFileProblem('a.obj', 10, 'obj', ['obj'], 100)};
     }""")
-    assert got["big"] == {"field": "model", "status": 413,
-                          "text": "Model: the file is too big (70.0 MB; the service takes at most 67.1 MB)"}
+    assert got["big"] == {
+        "field": "model",
+        "status": 413,
+        "text": "Model: the file is too big (70.0 MB; the service takes at most 67.1 MB)",
+    }
     assert got["bad"]["field"] == "model" and got["bad"]["text"].startswith("Model: the model has 2,000,000 triangles")
     assert "POCKETRAY" not in got["bad"]["text"]
     assert got["name"] == "Model: a.dae is not a model file the service reads (.obj, .stl)"
@@ -167,13 +174,19 @@ def test_upload_refusals_in_the_panel_words(open_client):
 def test_in_device_mode_an_uploaded_model_is_traced_by_the_device(browser, server):
     """The device fetches the grown scene's data after an upload (its triangles in the frame)."""
     from browser_support import CHROMIUM, CHROMIUM_ARGS, MOBILE, Client
-    gl = browser.browser_type.launch(executable_path=CHROMIUM, headless=True,
-                                     args=[*CHROMIUM_ARGS, "--use-angle=swiftshader", "--enable-unsafe-swiftshader"])
+
+    gl = browser.browser_type.launch(
+        executable_path=CHROMIUM,
+        headless=True,
+        args=[*CHROMIUM_ARGS, "--use-angle=swiftshader", "--enable-unsafe-swiftshader"],
+    )
     try:
         ctx = gl.new_context(**MOBILE)
         c = Client(server, ctx, ctx.new_page())
-        c.open("scenario=1&n=27&seed=1&radius=1&width=96&height=160&max_recursion_depth=2&preview_scale=1"
-               "&refine_ms=0&renderer=device&mode=color")
+        c.open(
+            "scenario=1&n=27&seed=1&radius=1&width=96&height=160&max_recursion_depth=2&preview_scale=1"
+            "&refine_ms=0&renderer=device&mode=color"
+        )
         p = c.page
         assert c.hook("lastFrame.renderer") == "device"
         sid, pixels = c.hook("sessionId"), canvas_pixels(p)
@@ -201,5 +214,5 @@ def test_a_link_to_a_mesh_scene_opens_it_and_a_reload_keeps_it(open_client, serv
     assert p.eval_on_selector("#f-scenario", "e => e.value") == "mesh:room"
     p.reload()
     c.wait_idle(min_frames=1)
-    assert c.hook("sessionId") == sid                      # the same scene asked for: the stored session
+    assert c.hook("sessionId") == sid  # the same scene asked for: the stored session
     assert c.hook("errors") == [] and c.errors() == []

@@ -9,7 +9,7 @@ import math
 import numpy as np
 from browser_support import Touch, distance
 
-ORBIT_DEGREES_PER_VIEW = 180          # client_web/js/ui/controls.js: a drag the frame's height turns 180°
+ORBIT_DEGREES_PER_VIEW = 180  # client_web/js/ui/controls.js: a drag the frame's height turns 180°
 
 
 def angles(cam: dict) -> tuple[float, float]:
@@ -29,7 +29,7 @@ def shown_height(c) -> float:
 
 
 def assert_orbited(cam0: dict, cam1: dict, yaw: float, pitch: float, tol: float = 0.5) -> None:
-    assert np.allclose(cam1["target"], cam0["target"], atol=1e-9), (cam0, cam1)    # the target stays
+    assert np.allclose(cam1["target"], cam0["target"], atol=1e-9), (cam0, cam1)  # the target stays
     # … and the distance (a twist's pointers move one at a time: pinch ratios that cancel, to rounding)
     assert math.isclose(distance(cam1), distance(cam0), rel_tol=1e-6)
     (a0, p0), (a1, p1) = angles(cam0), angles(cam1)
@@ -42,11 +42,16 @@ def test_a_two_finger_twist_orbits_the_camera_about_its_target(open_client):
     touch = Touch(c.page)
     cam0, n0 = c.camera(), c.frame_count
     cx, cy, r = 180, 320, 70
-    turn = [[(cx - r * math.cos(math.radians(a)), cy - r * math.sin(math.radians(a))),
-             (cx + r * math.cos(math.radians(a)), cy + r * math.sin(math.radians(a)))] for a in range(0, 31, 3)]
-    touch.path(turn)                                             # 30° clockwise on screen, fingers 140 px apart
+    turn = [
+        [
+            (cx - r * math.cos(math.radians(a)), cy - r * math.sin(math.radians(a))),
+            (cx + r * math.cos(math.radians(a)), cy + r * math.sin(math.radians(a))),
+        ]
+        for a in range(0, 31, 3)
+    ]
+    touch.path(turn)  # 30° clockwise on screen, fingers 140 px apart
     c.wait_idle(min_frames=n0 + 1)
-    assert_orbited(cam0, c.camera(), yaw=30.0, pitch=0.0)        # the scene turned the fingers' way
+    assert_orbited(cam0, c.camera(), yaw=30.0, pitch=0.0)  # the scene turned the fingers' way
     assert c.errors() == [] and c.hook("errors") == []
 
 
@@ -58,12 +63,12 @@ def test_orbit_mode_turns_the_camera_with_one_finger(open_client):
     assert p.get_attribute("#orbit-toggle", "aria-pressed") == "true"
     k = ORBIT_DEGREES_PER_VIEW / shown_height(c)
     cam0, n0 = c.camera(), c.frame_count
-    touch.gesture([(120, 300)], [(200, 300)])                     # right by 80 px: the scene turns right
+    touch.gesture([(120, 300)], [(200, 300)])  # right by 80 px: the scene turns right
     c.wait_idle(min_frames=n0 + 1)
     cam1 = c.camera()
     assert_orbited(cam0, cam1, yaw=-80 * k, pitch=0.0)
     n1 = c.frame_count
-    touch.gesture([(180, 250)], [(180, 310)])                     # down by 60 px: the camera rises
+    touch.gesture([(180, 250)], [(180, 310)])  # down by 60 px: the camera rises
     c.wait_idle(min_frames=n1 + 1)
     cam2 = c.camera()
     assert_orbited(cam1, cam2, yaw=0.0, pitch=-60 * k)
@@ -76,7 +81,7 @@ def test_orbit_mode_turns_the_camera_with_one_finger(open_client):
     assert not np.allclose(c.camera()["target"], cam2["target"])  # a pan moves the target with it
     p.reload()
     c.wait_idle(min_frames=1)
-    assert p.get_attribute("#orbit-toggle", "aria-pressed") == "false"   # the choice is remembered
+    assert p.get_attribute("#orbit-toggle", "aria-pressed") == "false"  # the choice is remembered
     assert c.errors() == [] and c.hook("errors") == []
 
 

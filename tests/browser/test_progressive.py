@@ -18,8 +18,8 @@ def test_a_supersampled_full_frame_arrives_as_preview_then_final(open_client):
     parts = parts_at_full(log)
     assert parts[:2] == ["preview", "final"], log
     first, final = (next(e for e in log if e["level"] == "full" and e["part"] == p) for p in ("preview", "final"))
-    assert first["clientMs"] < final["clientMs"]          # the first image came before the refined one
-    assert c.hook("lastFrame.part") == "final"             # the refined image stays on screen
+    assert first["clientMs"] < final["clientMs"]  # the first image came before the refined one
+    assert c.hook("lastFrame.part") == "final"  # the refined image stays on screen
     assert c.errors(allow=(FAILED_LOAD,)) == []
 
 

@@ -33,7 +33,7 @@ def test_overlay_shows_timing_and_tree_and_can_be_hidden(open_client):
     assert c.page.get_attribute("#overlay-toggle", "aria-pressed") == "false"
     c.page.reload()
     c.wait_idle(min_frames=1)
-    assert not c.page.is_visible("#overlay")              # the choice is remembered
+    assert not c.page.is_visible("#overlay")  # the choice is remembered
     c.page.click("#overlay-toggle")
     assert c.page.is_visible("#overlay")
     assert c.errors() == []
@@ -106,8 +106,18 @@ def test_a_declared_setting_is_shown_by_the_settings_sheet(open_client):
     outside its bounds is refused by the sheet, and another is PATCHed as that setting."""
     from renderer.settings import SettingSpec
 
-    extra = SettingSpec("exposure", "number", 1.0, "brightness factor of the image (a test's setting)", "Exposure",
-                        unit="×", bounds=(0.0, 4.0), modes=("color",), sheet=True, client=True).metadata()
+    extra = SettingSpec(
+        "exposure",
+        "number",
+        1.0,
+        "brightness factor of the image (a test's setting)",
+        "Exposure",
+        unit="×",
+        bounds=(0.0, 4.0),
+        modes=("color",),
+        sheet=True,
+        client=True,
+    ).metadata()
 
     def info(route):
         answer = route.fetch()
@@ -119,16 +129,26 @@ def test_a_declared_setting_is_shown_by_the_settings_sheet(open_client):
     p = c.page
     p.route("**/api/info", info)
     sent: list[dict] = []
-    p.on("request", lambda r: sent.append(json.loads(r.post_data or "{}"))
-         if r.method == "PATCH" and r.url.endswith("/settings") else None)
+    p.on(
+        "request",
+        lambda r: (
+            sent.append(json.loads(r.post_data or "{}"))
+            if r.method == "PATCH" and r.url.endswith("/settings")
+            else None
+        ),
+    )
     c.open()
     p.click("#settings-toggle")
     assert p.is_visible("#f-exposure")
     assert p.text_content('label[for="f-exposure"]') == "Exposure (×)"
     assert (p.get_attribute("#f-exposure", "min"), p.get_attribute("#f-exposure", "max")) == ("0", "4")
     assert p.input_value("#f-exposure") == "1"
-    assert p.evaluate("() => document.querySelector('#f-exposure').closest('fieldset').querySelector('legend')"
-                      ".textContent") == "Rendering"
+    assert (
+        p.evaluate(
+            "() => document.querySelector('#f-exposure').closest('fieldset').querySelector('legend').textContent"
+        )
+        == "Rendering"
+    )
 
     p.fill("#f-exposure", "5")
     p.locator("#f-exposure").blur()
@@ -145,7 +165,7 @@ def test_a_declared_setting_is_shown_by_the_settings_sheet(open_client):
     # (this service has no such setting: its 422 is shown next to the field)
     p.wait_for_selector('.field[data-setting="exposure"] .field-error')
 
-    p.fill("#f-exposure", "1")       # back to a value the sheet takes, then a mode that does not read it
+    p.fill("#f-exposure", "1")  # back to a value the sheet takes, then a mode that does not read it
     p.select_option("#f-mode", "depth")
     p.wait_for_function("() => document.querySelector('.field[data-setting=\"exposure\"]').hidden")
     assert not p.is_visible("#f-exposure")
@@ -157,8 +177,8 @@ def test_reload_resumes_the_session_and_an_expired_one_is_replaced(open_client):
     http_json("POST", f"{c.server.base}/api/sessions/{sid}/gesture", {"type": "pinch", "scale": 2})
     c.page.reload()
     c.wait_idle(min_frames=1)
-    assert c.hook("sessionId") == sid                    # localStorage kept it
-    assert abs(c.camera()["position"][2] - 50) < 1e-6    # and the scene's camera with it
+    assert c.hook("sessionId") == sid  # localStorage kept it
+    assert abs(c.camera()["position"][2] - 50) < 1e-6  # and the scene's camera with it
 
     c.page.evaluate("""() => localStorage.setItem('pocketray.session',
         JSON.stringify({id: 'no-such-session', scene: {scenario: 1, n: 64, seed: 1, radius: 1}}))""")
@@ -168,7 +188,7 @@ def test_reload_resumes_the_session_and_an_expired_one_is_replaced(open_client):
     assert new_sid not in (sid, "no-such-session")
     assert any("expired" in n["text"] for n in c.hook("notices"))
     assert c.page.is_visible("#notice")
-    assert c.errors(allow=(FAILED_LOAD,)) == []           # the 404 of the old id is logged by Chromium
+    assert c.errors(allow=(FAILED_LOAD,)) == []  # the 404 of the old id is logged by Chromium
 
 
 def test_a_session_that_expires_while_in_use_is_replaced(open_client, server):
@@ -178,12 +198,12 @@ def test_a_session_that_expires_while_in_use_is_replaced(open_client, server):
     urllib.request.urlopen(req, timeout=10).close()
     n0 = c.frame_count
     c.page.focus("#view")
-    c.page.keyboard.press("ArrowLeft")                    # 404: the session is gone
+    c.page.keyboard.press("ArrowLeft")  # 404: the session is gone
     c.page.wait_for_function("sid => window.pocketray.sessionId !== sid", arg=sid, timeout=10_000)
     c.wait_idle(min_frames=n0 + 1)
     new_sid = c.hook("sessionId")
     info = server.session(new_sid)["scene_info"]
-    assert (info["scenario"], info["n"], info["seed"]) == (1, 64, 1)   # the same scene
+    assert (info["scenario"], info["n"], info["seed"]) == (1, 64, 1)  # the same scene
     assert c.page.evaluate("() => JSON.parse(localStorage.getItem('pocketray.session')).id") == new_sid
     assert any("expired" in n["text"] for n in c.hook("notices"))
     assert c.hook("errors") == []
@@ -199,8 +219,8 @@ def test_unreachable_service_shows_a_banner_and_recovers(open_client):
     c.page.wait_for_selector("#banner", state="visible", timeout=10_000)
     assert "Cannot reach" in c.page.text_content("#banner")
     assert c.hook("status") == "offline"
-    c.page.keyboard.press("ArrowLeft")                   # queued meanwhile
-    time.sleep(0.8)                                      # let it retry at least once more
+    c.page.keyboard.press("ArrowLeft")  # queued meanwhile
+    time.sleep(0.8)  # let it retry at least once more
     c.page.unroute("**/api/**")
     retry_now(c)
     c.wait_idle(min_frames=n0 + 1)
@@ -253,6 +273,6 @@ def test_a_server_restart_resumes_the_same_scene(open_client, server):
     c.wait_idle(min_frames=n1 + 1)
     assert c.hook("sessionId") == sid
     after = c.camera()
-    assert after["position"] != cam["position"]          # the key press applied after the restart
+    assert after["position"] != cam["position"]  # the key press applied after the restart
     assert abs(after["position"][2] - cam["position"][2]) < 1e-6
     assert c.errors(allow=(FAILED_LOAD,)) == []

@@ -30,9 +30,18 @@ FILES = sorted(UNITS.glob("test_*.mjs"))
 # The modules that are DOM or WebGL wiring, checked in Chromium by the other browser tests;
 # every other module of client_web/js has its units/test_<name>.mjs.
 WIRING = {
-    "app.js", "device/device.js", "device/device_gl.js", "device/mode.js",
-    "ui/connection.js", "ui/errors.js", "ui/hint.js", "ui/legend.js", "ui/notices.js", "ui/overlay.js",
-    "ui/panel.js", "ui/player.js",
+    "app.js",
+    "device/device.js",
+    "device/device_gl.js",
+    "device/mode.js",
+    "ui/connection.js",
+    "ui/errors.js",
+    "ui/hint.js",
+    "ui/legend.js",
+    "ui/notices.js",
+    "ui/overlay.js",
+    "ui/panel.js",
+    "ui/player.js",
 }
 # The JavaScript tests there are: the 67 assertions made when they ran inside Chromium, one test each, and
 # the tests of the modules split out of app.js since. The count only grows.
@@ -43,6 +52,7 @@ AT_LEAST = 84
 def declared_settings() -> Path:
     """The render settings' declarations as GET /api/info gives them (units/declared.mjs reads them), in a file."""
     from renderer.settings import SETTINGS
+
     path = Path(tempfile.mkdtemp(prefix="pocketray-units-")) / "settings.json"
     path.write_text(json.dumps([s.metadata() for s in SETTINGS]))
     atexit.register(shutil.rmtree, path.parent, True)
@@ -55,16 +65,26 @@ class NodeRun:
     def __init__(self, path: Path):
         node = shutil.which("node")
         if node is None:
-            pytest.fail("node (Node.js >= 18) is required for the client's unit tests: scripts/bootstrap.sh installs it")
+            pytest.fail(
+                "node (Node.js >= 18) is required for the client's unit tests: scripts/bootstrap.sh installs it"
+            )
         env = {**os.environ, "POCKETRAY_SETTINGS_JSON": str(declared_settings())}
-        r = subprocess.run([node, "--test", "--test-reporter=tap", str(path)], cwd=ROOT, capture_output=True,
-                           text=True, timeout=120, env=env)
+        r = subprocess.run(
+            [node, "--test", "--test-reporter=tap", str(path)],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=120,
+            env=env,
+        )
         self.returncode, self.output = r.returncode, r.stdout + r.stderr
         # A top-level result is "ok N - name" / "not ok N - name" at the start of a line (subtests are indented),
         # followed by its YAML block (the error, expected and actual, the location) up to the next "# Subtest".
         self.results: dict[str, bool] = {}
         self.reports: dict[str, str] = {}
-        for m in re.finditer(r"^(not ok|ok) \d+ - (.*?)(?: # .*)?$(.*?)(?=^# Subtest|^1\.\.|\Z)", r.stdout, re.M | re.S):
+        for m in re.finditer(
+            r"^(not ok|ok) \d+ - (.*?)(?: # .*)?$(.*?)(?=^# Subtest|^1\.\.|\Z)", r.stdout, re.M | re.S
+        ):
             name = m.group(2)
             self.results[name] = m.group(1) == "ok"
             self.reports[name] = m.group(0).rstrip()
@@ -86,13 +106,16 @@ def test_client_module(path: Path):
     if failed or run.returncode != 0 or not run.results:
         names = "\n".join(f"  - {name}" for name in failed) or "  (no test reported a failure; node's output follows)"
         details = "\n\n".join(run.reports[name] for name in failed) or run.output[-6000:]
-        pytest.fail(f"{path.relative_to(ROOT)}: {len(failed)} of {len(run.results)} JavaScript tests failed "
-                    f"(node exited {run.returncode}):\n{names}\n\n{details}", pytrace=False)
+        pytest.fail(
+            f"{path.relative_to(ROOT)}: {len(failed)} of {len(run.results)} JavaScript tests failed "
+            f"(node exited {run.returncode}):\n{names}\n\n{details}",
+            pytrace=False,
+        )
 
 
 def test_every_client_module_with_logic_has_its_unit_tests():
     modules = {p.relative_to(CLIENT).as_posix() for p in CLIENT.rglob("*.js")}
-    tested = {f.stem[len("test_"):] for f in FILES}
+    tested = {f.stem[len("test_") :] for f in FILES}
     by_name = {Path(m).stem: m for m in modules}
     assert tested - set(by_name) == set(), "unit files of no client module"
     assert WIRING - modules == set(), "WIRING names modules that no longer exist"

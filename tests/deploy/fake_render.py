@@ -38,7 +38,7 @@ def main() -> None:
             self.end_headers()
             try:
                 self.wfile.write(data)
-            except OSError:      # a health check that hung up after the status line
+            except OSError:  # a health check that hung up after the status line
                 self.close_connection = True
 
         do_GET = do_POST = do_PATCH = answer
@@ -47,7 +47,7 @@ def main() -> None:
         daemon_threads = True
 
         def handle_error(self, request: object, client_address: object) -> None:
-            pass               # a health check or HAProxy hanging up: nothing to report
+            pass  # a health check or HAProxy hanging up: nothing to report
 
     Server(("127.0.0.1", port), Handler).serve_forever()
 

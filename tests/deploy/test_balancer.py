@@ -44,14 +44,16 @@ class Balancer:
         self.haproxy = None
         try:
             cfg = tmp / "haproxy.cfg"
-            cfg.write_text(haproxy_config(f"127.0.0.1:{self.port}", servers,
-                                          stats_bind=f"127.0.0.1:{self.stats_port}", **config))
-            self.haproxy = subprocess.Popen([find_executable("haproxy"), "-db", "-f", str(cfg)],
-                                            stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+            cfg.write_text(
+                haproxy_config(f"127.0.0.1:{self.port}", servers, stats_bind=f"127.0.0.1:{self.stats_port}", **config)
+            )
+            self.haproxy = subprocess.Popen(
+                [find_executable("haproxy"), "-db", "-f", str(cfg)], stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT
+            )
             self.url = f"http://127.0.0.1:{self.port}"
             up = sum(mode is not None for mode in modes)
             deadline = time.monotonic() + 20
-            while sum(s == "UP" for s in self.status().values()) < up:   # every live stand-in passed a check
+            while sum(s == "UP" for s in self.status().values()) < up:  # every live stand-in passed a check
                 assert time.monotonic() < deadline, self.status()
                 time.sleep(0.05)
         except BaseException:
@@ -65,8 +67,11 @@ class Balancer:
         except httpx.HTTPError:
             return {}
         rows = csv.DictReader(io.StringIO(text.lstrip("# ")))
-        return {r["svname"]: r["status"].split()[0] for r in rows if r["pxname"] == "render"
-                and r["svname"] not in ("FRONTEND", "BACKEND")}
+        return {
+            r["svname"]: r["status"].split()[0]
+            for r in rows
+            if r["pxname"] == "render" and r["svname"] not in ("FRONTEND", "BACKEND")
+        }
 
     def seen(self, i: int) -> list[str]:
         return self.logs[i].read_text().splitlines()
@@ -85,6 +90,7 @@ def balancer(tmp_path):
     def make(modes: list[str | None], **config) -> Balancer:
         made.append(Balancer(tmp_path, modes, **config))
         return made[-1]
+
     yield make
     for b in made:
         b.close()
@@ -94,7 +100,7 @@ def assert_balancer_json(r: httpx.Response, status: int, retry: bool = True) -> 
     assert r.status_code == status, (r.status_code, r.text)
     assert r.headers["content-type"] == "application/json", r.headers
     assert ("retry-after" in r.headers) == retry and r.headers.get("retry-after", "1") == "1", r.headers
-    assert "x-served-by" not in r.headers          # HAProxy's own answer, not a process's
+    assert "x-served-by" not in r.headers  # HAProxy's own answer, not a process's
     detail = r.json()["detail"]
     assert detail.startswith("balancer: "), detail
     return detail
@@ -102,7 +108,7 @@ def assert_balancer_json(r: httpx.Response, status: int, retry: bool = True) -> 
 
 def test_the_balancers_own_errors_are_json_with_retry_after(balancer):
     """Was: HAProxy's HTML pages ("<html><body><h1>503 Service Unavailable</h1>…"), no Retry-After."""
-    b = balancer([None, None])                       # no render process at all
+    b = balancer([None, None])  # no render process at all
     r = httpx.get(b.url + "/api/info", timeout=10)
     assert "no render process" in assert_balancer_json(r, 503)
     assert r.headers["connection"] == "close"
@@ -121,15 +127,15 @@ def test_each_client_address_is_capped_at_the_balancer_with_a_429(balancer):
     b = balancer(["ok"], client_cap=2)
     held = [_hold(b.port, "127.0.0.1") for _ in range(2)]
     assert all(head.startswith(b"HTTP/1.1 200") for _, head in held)
-    over, head = _hold(b.port, "127.0.0.1")          # the third at once from the same address
+    over, head = _hold(b.port, "127.0.0.1")  # the third at once from the same address
     assert head.startswith(b"HTTP/1.1 429"), head
     assert b"retry-after: 1" in head.lower() and b"application/json" in head and b"at most 2" in head
-    other, head = _hold(b.port, "127.0.0.2")         # another client is not affected
+    other, head = _hold(b.port, "127.0.0.2")  # another client is not affected
     assert head.startswith(b"HTTP/1.1 200"), head
     for s in (over, other, *(s for s, _ in held)):
         s.close()
     time.sleep(0.2)
-    assert httpx.get(b.url + "/api/info", timeout=5).status_code == 200   # closed ones no longer count
+    assert httpx.get(b.url + "/api/info", timeout=5).status_code == 200  # closed ones no longer count
 
 
 def test_the_render_processes_learn_each_clients_address(balancer):
@@ -151,13 +157,14 @@ def test_a_dropped_get_is_resent_and_a_dropped_gesture_is_not(balancer):
         assert r.status_code == 200, (i, r.status_code, r.text)
     assert b.seen(0), "no GET reached the dropping process: nothing was tested"
     answers = {}
-    for i in range(12):                              # a new connection each: the first request of one
+    for i in range(12):  # a new connection each: the first request of one
         with httpx.Client(base_url=b.url, timeout=10) as c:
-            answers[i] = c.post(f"/api/sessions/s{i}/gesture", content=f"gesture-{i}",
-                                headers={SESSION_HEADER: f"s{i}"})
+            answers[i] = c.post(
+                f"/api/sessions/s{i}/gesture", content=f"gesture-{i}", headers={SESSION_HEADER: f"s{i}"}
+            )
     sent = [line for i in (0, 1) for line in b.seen(i) if line.startswith("POST")]
     for i, r in answers.items():
-        assert sum(line.endswith(f" gesture-{i}") for line in sent) == 1, (i, sent)   # never twice
+        assert sum(line.endswith(f" gesture-{i}") for line in sent) == 1, (i, sent)  # never twice
         if r.status_code != 200:
             assert "may have been applied" in assert_balancer_json(r, 502)
     assert any(r.status_code == 502 for r in answers.values()), "no gesture reached the dropping process"

@@ -33,8 +33,10 @@ def render_services(doc: dict) -> dict[str, dict]:
 
 def test_compose_file_is_valid_under_the_compose_specification():
     schema = json.loads((ROOT / "tests" / "deploy" / "compose-spec.json").read_text())
-    errors = [f"{'/'.join(map(str, e.instance_path))}: {e.message}"
-              for e in jsonschema_rs.validator_for(schema).iter_errors(compose())]
+    errors = [
+        f"{'/'.join(map(str, e.instance_path))}: {e.message}"
+        for e in jsonschema_rs.validator_for(schema).iter_errors(compose())
+    ]
     assert errors == []
 
 
@@ -56,13 +58,13 @@ def test_compose_topology_redis_with_aof_one_render_service_per_gpu_and_the_bala
         # behind the balancer every connection is the balancer's: the per-address cap is kept there
         assert env["POCKETRAY_MAX_CONNECTIONS_PER_CLIENT"] == "0"
         assert env["POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT"] == "0"
-        assert env["FORWARDED_ALLOW_IPS"] == "*"          # the client's address comes from the balancer
+        assert env["FORWARDED_ALLOW_IPS"] == "*"  # the client's address comes from the balancer
         assert "graphics" in env["NVIDIA_DRIVER_CAPABILITIES"]
         assert s["depends_on"]["redis"]["condition"] == "service_healthy"
         assert "/api/ready" in " ".join(s["healthcheck"]["test"])
         gpu = s["deploy"]["resources"]["reservations"]["devices"][0]
         assert gpu["driver"] == "nvidia" and gpu["capabilities"] == ["gpu"]
-    assert sorted(gpus) == list(range(len(renders)))   # one service per GPU, each its own
+    assert sorted(gpus) == list(range(len(renders)))  # one service per GPU, each its own
     balancer = doc["services"]["balancer"]
     assert balancer["image"].startswith("haproxy:")
     assert "./deploy/haproxy.cfg:/usr/local/etc/haproxy/haproxy.cfg:ro" in balancer["volumes"]
@@ -72,16 +74,25 @@ def test_compose_topology_redis_with_aof_one_render_service_per_gpu_and_the_bala
 
 def test_the_balancer_configuration_is_its_generator_output_and_haproxy_accepts_it():
     renders = render_services(compose())
-    assert HAPROXY_CFG.read_text() == compose_haproxy_config(len(renders)), \
+    assert HAPROXY_CFG.read_text() == compose_haproxy_config(len(renders)), (
         "deploy/haproxy.cfg is stale: write it with server.stack.compose_haproxy_config()"
+    )
     cfg = HAPROXY_CFG.read_text()
     for name in renders:
         assert f"server {name} {name}:8000" in cfg
-    for line in ("balance hash var(txn.session)", "hash-type consistent", "hash-balance-factor 150",
-                 "option httpchk GET /api/ready", "req.hdr(X-Session-Id)", "retry-on conn-failure",
-                 "http-request disable-l7-retry if !METH_GET", "observe layer4 error-limit 1 on-error mark-down",
-                 "http-request deny deny_status 429 if { sc_conn_cur(0) gt 32 }",
-                 "http-error status 503 content-type application/json", "option forwardfor"):
+    for line in (
+        "balance hash var(txn.session)",
+        "hash-type consistent",
+        "hash-balance-factor 150",
+        "option httpchk GET /api/ready",
+        "req.hdr(X-Session-Id)",
+        "retry-on conn-failure",
+        "http-request disable-l7-retry if !METH_GET",
+        "observe layer4 error-limit 1 on-error mark-down",
+        "http-request deny deny_status 429 if { sc_conn_cur(0) gt 32 }",
+        "http-error status 503 content-type application/json",
+        "option forwardfor",
+    ):
         assert line in cfg
     haproxy = find_executable("haproxy")
     check = subprocess.run([haproxy, "-c", "-f", str(HAPROXY_CFG)], capture_output=True, text=True)
@@ -90,8 +101,7 @@ def test_the_balancer_configuration_is_its_generator_output_and_haproxy_accepts_
 
 def test_haproxy_accepts_the_loopback_stacks_configuration(tmp_path):
     cfg = tmp_path / "haproxy.cfg"
-    cfg.write_text(haproxy_config("127.0.0.1:18080", [("render0", "127.0.0.1:18001"),
-                                                      ("render1", "127.0.0.1:18002")]))
+    cfg.write_text(haproxy_config("127.0.0.1:18080", [("render0", "127.0.0.1:18001"), ("render1", "127.0.0.1:18002")]))
     check = subprocess.run([find_executable("haproxy"), "-c", "-f", str(cfg)], capture_output=True, text=True)
     assert check.returncode == 0, check.stdout + check.stderr
 
@@ -124,8 +134,10 @@ def test_lock_files_pin_every_dependency_within_pyproject_ranges_and_the_venv_ha
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     runtime, full = _pins("requirements.lock"), _pins("requirements-test.lock")
     env = default_environment()
-    for reqs, pins in ((project["dependencies"], runtime),
-                       (project["dependencies"] + project["optional-dependencies"]["test"], full)):
+    for reqs, pins in (
+        (project["dependencies"], runtime),
+        (project["dependencies"] + project["optional-dependencies"]["test"], full),
+    ):
         for text in reqs:
             req = Requirement(text)
             name = req.name.lower().replace("_", "-")

@@ -34,9 +34,14 @@ SINGLE_PASS = tuple(name for name, m in METHODS.items() if m.capabilities.shader
 FEATURES = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS")
 # Issue 18's defines (data formats, compiled-in counts, no task stack) with some removals,
 # and the host's choices (every record array in a uniform block; the RGBA8 image).
-SHAPES = (("EQUAL_RADII",), ("MATERIAL_TEXTURE",), ("NO_SPLIT", "PLANES_1", "LIGHTS_1", "EQUAL_RADII"),
-          ("NO_TRANSMISSION", "PLANES_1", "LIGHTS_1", "EQUAL_RADII"), ("NO_LIGHTS", "PLANES_0", "MATERIAL_TEXTURE"),
-          ("PLANES_8", "LIGHTS_8"))
+SHAPES = (
+    ("EQUAL_RADII",),
+    ("MATERIAL_TEXTURE",),
+    ("NO_SPLIT", "PLANES_1", "LIGHTS_1", "EQUAL_RADII"),
+    ("NO_TRANSMISSION", "PLANES_1", "LIGHTS_1", "EQUAL_RADII"),
+    ("NO_LIGHTS", "PLANES_0", "MATERIAL_TEXTURE"),
+    ("PLANES_8", "LIGHTS_8"),
+)
 
 
 def _sha(text: str | bytes) -> str:
@@ -44,11 +49,14 @@ def _sha(text: str | bytes) -> str:
 
 
 def feature_sets() -> list[tuple[str, ...]]:
-    return [tuple(f for f, on in zip(FEATURES, bits, strict=True) if on) for bits in itertools.product((0, 1), repeat=3)]
+    return [
+        tuple(f for f, on in zip(FEATURES, bits, strict=True) if on) for bits in itertools.product((0, 1), repeat=3)
+    ]
 
 
 def tracer_shaders() -> dict[str, str]:
     from renderer.shader_source import tracer_source, vertex_source
+
     out = {"vertex": _sha(vertex_source())}
     for method, mode, depth, feats in itertools.product(SINGLE_PASS, MODES, range(1, 9), feature_sets()):
         out[f"{method}/{mode}/{depth}/{','.join(feats)}"] = _sha(tracer_source(method, mode, depth, feats))
@@ -67,11 +75,15 @@ def tracer_shaders() -> dict[str, str]:
 
 
 def ray_engine_programs() -> list[tuple[str, str, tuple[str, ...]]]:
-    progs = [("fullscreen.vert", "rayengine_pass.frag", (p,))
-             for p in ("PASS_PRIMARY", "PASS_MASK", "PASS_SURFACE", "PASS_SHADE")]
+    progs = [
+        ("fullscreen.vert", "rayengine_pass.frag", (p,))
+        for p in ("PASS_PRIMARY", "PASS_MASK", "PASS_SURFACE", "PASS_SHADE")
+    ]
     for ts in range(2, 65):
-        progs += [("fullscreen.vert", "rayengine_cones.frag", (f"TILE {ts}",)),
-                  ("fullscreen.vert", "rayengine_cones.frag", (f"TILE {ts}", "SHADOW"))]
+        progs += [
+            ("fullscreen.vert", "rayengine_cones.frag", (f"TILE {ts}",)),
+            ("fullscreen.vert", "rayengine_cones.frag", (f"TILE {ts}", "SHADOW")),
+        ]
     for hre, any_hit, count in itertools.product((0, 1), repeat=3):
         d = (("HRE",) if hre else ()) + (("ANY_HIT",) if any_hit else ()) + (("COUNT",) if count else ())
         progs.append(("rayengine_prim.vert", "rayengine_prim.frag", d))
@@ -81,6 +93,7 @@ def ray_engine_programs() -> list[tuple[str, str, tuple[str, ...]]]:
 
 def ray_engine_shaders() -> dict[str, str]:
     from renderer.shader_source import pass_source, vertex_source
+
     out = {}
     for vert, frag, defines in ray_engine_programs():
         vs = vertex_source() if vert == "fullscreen.vert" else pass_source(vert, defines)
@@ -97,6 +110,7 @@ def _uniform_json(uniforms: dict) -> str:
         if isinstance(v, (int, np.integer)):
             return int(v)
         return float(v)
+
     return json.dumps({k: plain(v) for k, v in sorted(uniforms.items())}, sort_keys=True)
 
 
@@ -113,6 +127,7 @@ def _packed_sha(packed) -> str:
 def device_data() -> dict[str, str]:
     from renderer import gpu_layout
     from renderer.scenarios import scenario
+
     out = {}
     for number, n, width in itertools.product((1, 2, 3), (64, 1024), (4096, 256)):
         scene = scenario(number, n, seed=0)

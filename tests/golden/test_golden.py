@@ -18,8 +18,9 @@ RECORDED = json.loads(R.RECORD.read_text())
 
 @pytest.mark.parametrize("part", ["tracer", "ray_engine", "device_data"])
 def test_matches_the_record(part):
-    now = getattr(R, {"tracer": "tracer_shaders", "ray_engine": "ray_engine_shaders",
-                      "device_data": "device_data"}[part])()
+    now = getattr(
+        R, {"tracer": "tracer_shaders", "ray_engine": "ray_engine_shaders", "device_data": "device_data"}[part]
+    )()
     assert set(now) == set(RECORDED[part]), "variants added or removed: rewrite the record on purpose"
     changed = sorted(k for k in now if now[k] != RECORDED[part][k])
     assert not changed, f"{len(changed)} of {len(now)} differ from the record, e.g. {changed[:5]}"

@@ -23,21 +23,26 @@ def base_json(n: int = 16) -> dict:
     return scenario(1, n).to_json()
 
 
-@pytest.mark.parametrize("motion,field", [
-    ({"kind": "wobble", "first": 0, "count": 4}, "motions[0].kind"),
-    ({"kind": "rigid", "first": 0, "count": 4, "spin": 1}, "motions[0].spin"),
-    ({"kind": "rigid", "count": 4}, "motions[0].first"),
-    ({"kind": "rigid", "first": 0, "count": 40}, "motions[0].count"),
-    ({"kind": "rigid", "first": 0, "count": 4, "amplitude": [1, float("inf"), 0]}, "motions[0].amplitude[1]"),
-    ({"kind": "rigid", "first": 0, "count": 4, "axis": [0, 0, 0]}, "motions[0].axis"),
-    ({"kind": "rigid", "first": 0, "count": 4, "pivot": [9e6, 0, 0], "amplitude": [5e6, 0, 0]}, "motions[0]"),
-    ({"kind": "deformable", "first": 0, "count": 4, "amplitude": 2e7}, "motions[0].amplitude"),
-    ({"kind": "deformable", "first": 0, "count": 4, "wavelength": 0}, "motions[0].wavelength"),
-    ({"kind": "incoherent", "first": 0, "count": 4, "box_min": [0, 0, 0], "box_max": [1, -1, 1]},
-     "motions[0].box_max[1]"),
-    ({"kind": "incoherent", "first": 0, "count": 4, "absent": 1.0}, "motions[0].absent"),
-    ({"kind": "incoherent", "first": 0, "count": 4, "lifetime": -2}, "motions[0].lifetime"),
-])
+@pytest.mark.parametrize(
+    "motion,field",
+    [
+        ({"kind": "wobble", "first": 0, "count": 4}, "motions[0].kind"),
+        ({"kind": "rigid", "first": 0, "count": 4, "spin": 1}, "motions[0].spin"),
+        ({"kind": "rigid", "count": 4}, "motions[0].first"),
+        ({"kind": "rigid", "first": 0, "count": 40}, "motions[0].count"),
+        ({"kind": "rigid", "first": 0, "count": 4, "amplitude": [1, float("inf"), 0]}, "motions[0].amplitude[1]"),
+        ({"kind": "rigid", "first": 0, "count": 4, "axis": [0, 0, 0]}, "motions[0].axis"),
+        ({"kind": "rigid", "first": 0, "count": 4, "pivot": [9e6, 0, 0], "amplitude": [5e6, 0, 0]}, "motions[0]"),
+        ({"kind": "deformable", "first": 0, "count": 4, "amplitude": 2e7}, "motions[0].amplitude"),
+        ({"kind": "deformable", "first": 0, "count": 4, "wavelength": 0}, "motions[0].wavelength"),
+        (
+            {"kind": "incoherent", "first": 0, "count": 4, "box_min": [0, 0, 0], "box_max": [1, -1, 1]},
+            "motions[0].box_max[1]",
+        ),
+        ({"kind": "incoherent", "first": 0, "count": 4, "absent": 1.0}, "motions[0].absent"),
+        ({"kind": "incoherent", "first": 0, "count": 4, "lifetime": -2}, "motions[0].lifetime"),
+    ],
+)
 def test_bad_motions_name_the_field(motion, field):
     d = base_json()
     d["motions"] = [motion]

@@ -25,7 +25,8 @@ def test_counts_data_formats_and_the_task_stack():
     never meet in one used material, the data formats in every variant (the generic one
     too), all in FEATURE_DEFINES order; the stats' removals are the NO_* ones."""
     from renderer.features import FEATURE_DEFINES, GENERIC
-    s = scenario(3, 64)                         # red reflects, transparent transmits: never both
+
+    s = scenario(3, 64)  # red reflects, transparent transmits: never both
     f = scene_features(s)
     assert f.defines() == ("NO_SPLIT", "PLANES_1", "LIGHTS_1", "EQUAL_RADII")
     assert f.removed() == ["NO_SPLIT"]
@@ -35,6 +36,7 @@ def test_counts_data_formats_and_the_task_stack():
     radii = s.sphere_radii * np.linspace(0.5, 1.5, s.n_spheres)
     many = tuple(both if i == 0 else TABLE_4_1[i % 2] for i in range(17))
     g = scene_features(Scene(s.camera, (), many, s.sphere_centers, radii, s.sphere_materials % 17, ()))
-    assert g.defines() == ("NO_LIGHTS", "PLANES_0", "MATERIAL_TEXTURE")   # no lights: no LIGHTS_k
-    assert scene_features(Scene(s.camera, s.lights, (both,), s.sphere_centers, s.sphere_radii,
-                                s.sphere_materials * 0, s.planes)).split
+    assert g.defines() == ("NO_LIGHTS", "PLANES_0", "MATERIAL_TEXTURE")  # no lights: no LIGHTS_k
+    assert scene_features(
+        Scene(s.camera, s.lights, (both,), s.sphere_centers, s.sphere_radii, s.sphere_materials * 0, s.planes)
+    ).split

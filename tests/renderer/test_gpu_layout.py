@@ -38,8 +38,11 @@ def texel(tex: PackedTexture, i: int) -> np.ndarray:
 
 # ------------------------------------------------------------------------------- wrap_rows
 
-@pytest.mark.parametrize("count,max_width", [(c, w) for c in (1, 2, 3, 7, 8, 9, 63, 64, 65, 100, 1000)
-                                             for w in (1, 4, 16, 64, 4096) if c <= w * w])
+
+@pytest.mark.parametrize(
+    "count,max_width",
+    [(c, w) for c in (1, 2, 3, 7, 8, 9, 63, 64, 65, 100, 1000) for w in (1, 4, 16, 64, 4096) if c <= w * w],
+)
 def test_element_i_is_texel_i_mod_w_i_div_w(count, max_width):
     e = elements(count)
     tex = wrap_rows(e, max_width)
@@ -67,10 +70,11 @@ def test_width_is_the_smallest_power_of_two_that_holds_a_row(count):
         assert w == DEFAULT_TEXTURE_WIDTH and h == -(-count // w)
 
 
-@pytest.mark.parametrize("max_width,effective", [(1, 1), (2, 2), (3, 2), (100, 64), (128, 128),
-                                                 (4095, 2048), (4096, 4096), (5000, 4096)])
+@pytest.mark.parametrize(
+    "max_width,effective", [(1, 1), (2, 2), (3, 2), (100, 64), (128, 128), (4095, 2048), (4096, 4096), (5000, 4096)]
+)
 def test_max_width_is_rounded_down_to_a_power_of_two(max_width, effective):
-    rows = min(effective, 4)          # enough elements for full rows, within effective²
+    rows = min(effective, 4)  # enough elements for full rows, within effective²
     tex = wrap_rows(elements(effective * rows, 1), max_width)
     assert tex.size == (effective, rows)
 
@@ -79,18 +83,19 @@ def test_arrays_of_the_same_count_get_the_same_width():
     """Spheres (4 floats) and their materials (1 uint) share an index: same texel, same i."""
     for count in (1, 5, 64, 65, 3000):
         for max_width in (8, 64, 4096):
-            if count > max_width ** 2:
+            if count > max_width**2:
                 continue
             a = wrap_rows(elements(count, 4, np.float32), max_width)
             b = wrap_rows(elements(count, 1, np.uint32), max_width)
-            c = wrap_rows(elements(count, 2, np.float32)[:, 0], max_width)   # 1-D
+            c = wrap_rows(elements(count, 2, np.float32)[:, 0], max_width)  # 1-D
             assert a.size == b.size == c.size, (count, max_width)
 
 
-@pytest.mark.parametrize("shape,dtype", [((0, 4), np.float32), ((0,), np.uint32), ((0, 1), np.uint32)],
-                         ids=["rgba-f4", "1d-u4", "r-u4"])
+@pytest.mark.parametrize(
+    "shape,dtype", [((0, 4), np.float32), ((0,), np.uint32), ((0, 1), np.uint32)], ids=["rgba-f4", "1d-u4", "r-u4"]
+)
 def test_an_empty_array_is_a_single_zero_texel(shape, dtype):
-    tex = wrap_rows(np.zeros(shape, dtype))   # textures cannot be empty
+    tex = wrap_rows(np.zeros(shape, dtype))  # textures cannot be empty
     comps = shape[1] if len(shape) > 1 else 1
     assert tex.size == (1, 1) and tex.data.shape == (1, 1, comps)
     assert (tex.data == 0).all() and tex.data.dtype == dtype
@@ -98,7 +103,7 @@ def test_an_empty_array_is_a_single_zero_texel(shape, dtype):
 
 @pytest.mark.parametrize("max_width", [1, 16, 20, 64])
 def test_more_than_max_width_squared_elements_is_an_error(max_width):
-    side = 1 << (max_width.bit_length() - 1)      # what max_width is rounded down to
+    side = 1 << (max_width.bit_length() - 1)  # what max_width is rounded down to
     full = wrap_rows(elements(side * side, 1), max_width)
     assert full.size == (side, side)
     with pytest.raises(ValueError, match=f"{side * side + 1} elements do not fit a {side}×{side} texture"):
@@ -115,15 +120,40 @@ def test_dtype_codes_and_one_dimensional_input():
 
 # -------------------------------------------------------------------------- pack_primitives
 
+
 def small_scene() -> Scene:
-    mats = (Material(color=(0.1, 0.2, 0.3), ambient=0.4, diffuse=0.5, specular=0.6, shininess=7.0,
-                     reflective=0.8, transmissive=0.0, ior=1.0),
-            Material(color=(0.9, 0.8, 0.7), ambient=0.05, diffuse=0.25, specular=0.125, shininess=64.0,
-                     reflective=0.0, transmissive=0.75, ior=1.5))
+    mats = (
+        Material(
+            color=(0.1, 0.2, 0.3),
+            ambient=0.4,
+            diffuse=0.5,
+            specular=0.6,
+            shininess=7.0,
+            reflective=0.8,
+            transmissive=0.0,
+            ior=1.0,
+        ),
+        Material(
+            color=(0.9, 0.8, 0.7),
+            ambient=0.05,
+            diffuse=0.25,
+            specular=0.125,
+            shininess=64.0,
+            reflective=0.0,
+            transmissive=0.75,
+            ior=1.5,
+        ),
+    )
     centers = np.array([[1.0, 2.0, 3.0], [-4.0, 5.5, -6.0], [0.0, 0.0, 1e6], [7.0, -8.0, 9.0], [0.5, 0.5, 0.5]])
-    return Scene(Camera(), (Light((0.0, 40.0, 0.0), (1.0, 0.5, 0.25)), Light((3.0, 4.0, 5.0), (0.2, 0.2, 0.2))),
-                 mats, centers, np.array([1.0, 0.5, 2.0, 0.25, 3.0]), np.array([1, 0, 1, 1, 0]),
-                 (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 1), Plane((0.0, 0.0, -50.0), (0.0, 0.0, 2.0), 0)))
+    return Scene(
+        Camera(),
+        (Light((0.0, 40.0, 0.0), (1.0, 0.5, 0.25)), Light((3.0, 4.0, 5.0), (0.2, 0.2, 0.2))),
+        mats,
+        centers,
+        np.array([1.0, 0.5, 2.0, 0.25, 3.0]),
+        np.array([1, 0, 1, 1, 0]),
+        (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 1), Plane((0.0, 0.0, -50.0), (0.0, 0.0, 2.0), 0)),
+    )
 
 
 def test_pack_primitives_textures():
@@ -132,16 +162,20 @@ def test_pack_primitives_textures():
     t = packed.textures
     assert set(t) == {"u_spheres", "u_sphere_mat", "u_materials"}
     assert (t["u_spheres"].dtype, t["u_sphere_mat"].dtype, t["u_materials"].dtype) == ("f4", "u4", "f4")
-    assert t["u_spheres"].size == t["u_sphere_mat"].size == (4, 2)   # 5 spheres, rows of 4
+    assert t["u_spheres"].size == t["u_sphere_mat"].size == (4, 2)  # 5 spheres, rows of 4
     for i in range(scene.n_spheres):
-        np.testing.assert_array_equal(texel(t["u_spheres"], i),
-                                      np.float32([*scene.sphere_centers[i], scene.sphere_radii[i]]))
+        np.testing.assert_array_equal(
+            texel(t["u_spheres"], i), np.float32([*scene.sphere_centers[i], scene.sphere_radii[i]])
+        )
         assert texel(t["u_sphere_mat"], i).tolist() == [int(scene.sphere_materials[i])]
     assert MATERIAL_TEXELS == 3
     for k, m in enumerate(scene.materials):
         got = [texel(t["u_materials"], MATERIAL_TEXELS * k + j).tolist() for j in range(MATERIAL_TEXELS)]
-        want = [[*m.color, m.ambient], [m.diffuse, m.specular, m.shininess, m.reflective],
-                [m.transmissive, m.ior, 0.0, 0.0]]
+        want = [
+            [*m.color, m.ambient],
+            [m.diffuse, m.specular, m.shininess, m.reflective],
+            [m.transmissive, m.ior, 0.0, 0.0],
+        ]
         np.testing.assert_array_equal(np.float32(got), np.float32(want))
     assert packed.nbytes == sum(x.data.nbytes for x in t.values())
 
@@ -166,7 +200,7 @@ def test_pack_primitives_of_a_scene_without_spheres_planes_or_lights():
     scene = Scene(Camera(), (), (Material(),), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32))
     packed = pack_primitives(scene)
     spheres, mats = packed.textures["u_spheres"], packed.textures["u_sphere_mat"]
-    assert spheres.size == mats.size and spheres.data.size > 0     # textures cannot be empty
+    assert spheres.size == mats.size and spheres.data.size > 0  # textures cannot be empty
     assert (spheres.data == 0).all() and (mats.data == 0).all()
     u = packed.uniforms
     assert (u["u_num_spheres"], u["u_num_planes"], u["u_num_lights"]) == (0, 0, 0)
@@ -175,21 +209,25 @@ def test_pack_primitives_of_a_scene_without_spheres_planes_or_lights():
 
 # ------------------------------------------------------------------------- camera_uniforms
 
-@pytest.mark.parametrize("position,target,up,fov", [
-    ((0.0, 0.0, 100.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 60.0),
-    ((3.0, -7.0, 12.0), (-1.0, 2.0, 0.5), (0.0, 0.0, 1.0), 35.0),
-    ((1e6, 1e6, 1e6), (1e6 + 1.0, 1e6 - 2.0, 1e6 + 0.5), (0.3, 1.0, -0.2), 110.0),
-])
+
+@pytest.mark.parametrize(
+    "position,target,up,fov",
+    [
+        ((0.0, 0.0, 100.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 60.0),
+        ((3.0, -7.0, 12.0), (-1.0, 2.0, 0.5), (0.0, 0.0, 1.0), 35.0),
+        ((1e6, 1e6, 1e6), (1e6 + 1.0, 1e6 - 2.0, 1e6 + 0.5), (0.3, 1.0, -0.2), 110.0),
+    ],
+)
 @pytest.mark.parametrize("width,height", [(320, 544), (640, 480), (1, 1)])
 def test_camera_uniforms(position, target, up, fov, width, height):
     u = camera_uniforms(Camera(position=position, target=target, up=up, fov_y=fov), width, height)
     right, cup, forward = (np.array(u[k]) for k in ("u_cam_right", "u_cam_up", "u_cam_forward"))
     basis = np.stack([right, cup, forward])
-    np.testing.assert_allclose(basis @ basis.T, np.eye(3), atol=1e-12)       # orthonormal
+    np.testing.assert_allclose(basis @ basis.T, np.eye(3), atol=1e-12)  # orthonormal
     to_target = np.subtract(target, position)
     np.testing.assert_allclose(forward, to_target / np.linalg.norm(to_target), atol=1e-12)
     assert cup @ np.array(up) > 0, "the image's up is on the side of the camera's up"
-    np.testing.assert_allclose(np.cross(right, cup), -forward, atol=1e-12)   # right-handed, looking down −z
+    np.testing.assert_allclose(np.cross(right, cup), -forward, atol=1e-12)  # right-handed, looking down −z
     s = math.tan(math.radians(fov) / 2)
     assert u["u_half_extent"] == pytest.approx((s * width / height, s), rel=1e-15)
     assert u["u_resolution"] == (float(width), float(height))
@@ -199,10 +237,14 @@ def test_camera_uniforms(position, target, up, fov, width, height):
 
 def test_glsl_header_states_the_tracers_constants():
     header = glsl_header().splitlines()
-    assert header == [f"#define MAX_PLANES {MAX_PLANES}", f"#define MAX_LIGHTS {MAX_LIGHTS}",
-                      f"#define MATERIAL_TEXELS {MATERIAL_TEXELS}"]
+    assert header == [
+        f"#define MAX_PLANES {MAX_PLANES}",
+        f"#define MAX_LIGHTS {MAX_LIGHTS}",
+        f"#define MATERIAL_TEXELS {MATERIAL_TEXELS}",
+    ]
     # Each traversal stack is one entry per tree level, stated by its method's layout.
     from renderer.accel import bih_layout, bvh_layout, kdtree_layout
+
     assert f"#define BIH_STACK_SIZE {MAX_TREE_DEPTH}" in bih_layout.glsl_defines().splitlines()
     assert f"#define BVH_STACK_SIZE {MAX_TREE_DEPTH}" in bvh_layout.glsl_defines().splitlines()
     assert f"#define KD_STACK_SIZE {MAX_TREE_DEPTH}" in kdtree_layout.glsl_defines().splitlines()
@@ -210,11 +252,13 @@ def test_glsl_header_states_the_tracers_constants():
 
 # ---------------------------------------------------------- issue 18: records, blocks, variants
 
+
 def test_sphere_records_are_centres_and_keys_in_the_given_order():
     """Equal radii: one 16-byte record (centre, id | material << 21 | last); otherwise two
     (centre and radius, then the key); the radius of equal ones is the uniform."""
     from renderer import gpu_layout as G
-    scene = small_scene()                               # unequal radii
+
+    scene = small_scene()  # unequal radii
     order = np.array([3, 0, 4, 1, 2])
     last = np.array([False, True, False, False, True])
     rec = G.sphere_records(scene, order, last)
@@ -228,8 +272,15 @@ def test_sphere_records_are_centres_and_keys_in_the_given_order():
     assert rec[1, 0] == (3 | (1 << G.SPHERE_MAT_SHIFT)) and rec[3, 0] == (0 | (1 << 21) | G.SPHERE_LAST)
     assert not G.equal_radii(scene) and pack_primitives(scene).uniforms["u_sphere_radius"] == 0.0
 
-    same = Scene(scene.camera, scene.lights, scene.materials, scene.sphere_centers, np.full(5, 0.75),
-                 scene.sphere_materials, scene.planes)
+    same = Scene(
+        scene.camera,
+        scene.lights,
+        scene.materials,
+        scene.sphere_centers,
+        np.full(5, 0.75),
+        scene.sphere_materials,
+        scene.planes,
+    )
     assert G.equal_radii(same) and pack_primitives(same).uniforms["u_sphere_radius"] == 0.75
     rec = G.sphere_records(same, order, last)
     assert rec.shape == (5, 4)
@@ -241,19 +292,21 @@ def test_sphere_records_are_centres_and_keys_in_the_given_order():
 
 def test_leaf_ends_flag_the_last_record_of_each_run():
     from renderer.gpu_layout import leaf_ends
+
     assert leaf_ends([0, 3, 4], [3, 1, 2], 6).tolist() == [False, False, True, True, False, True]
-    assert leaf_ends([0, 2, 2], [2, 0, 1], 3).tolist() == [False, True, True]    # an empty leaf flags nothing
+    assert leaf_ends([0, 2, 2], [2, 0, 1], 3).tolist() == [False, True, True]  # an empty leaf flags nothing
     assert leaf_ends([], [], 0).tolist() == []
 
 
 def test_materials_as_uniform_vectors_and_the_empty_box():
     from renderer import gpu_layout as G
+
     scene = small_scene()
     u = pack_primitives(scene).uniforms
     vecs = np.float32(u["u_material_vecs"])
     assert vecs.shape == (MATERIAL_TEXELS * G.MAX_UNIFORM_MATERIALS, 4)
     tex = pack_primitives(scene).textures["u_materials"].data.reshape(-1, 4)
-    np.testing.assert_array_equal(vecs[:len(scene.materials) * MATERIAL_TEXELS], tex[:len(scene.materials) * 3])
+    np.testing.assert_array_equal(vecs[: len(scene.materials) * MATERIAL_TEXELS], tex[: len(scene.materials) * 3])
     assert not G.material_texture(scene)
     assert G.box_uniform([np.inf] * 3, [-np.inf] * 3) == ((1.0, 1.0, 1.0), (-1.0, -1.0, -1.0))
     assert G.box_uniform([0, 1, 2], [3, 4, 5]) == ((0.0, 1.0, 2.0), (3.0, 4.0, 5.0))
@@ -261,9 +314,12 @@ def test_materials_as_uniform_vectors_and_the_empty_box():
 
 def test_a_record_array_is_declared_as_a_texture_or_a_uniform_block():
     from renderer.gpu_layout import Binding, declarations
+
     b = Binding("u_x", doc="records", records=True)
     tex = declarations([b])
-    assert "uniform highp usampler2D u_x;" in tex and "#define u_x_at(i) texelFetch(u_x, texel((i), u_x_shift), 0)" in tex
+    assert (
+        "uniform highp usampler2D u_x;" in tex and "#define u_x_at(i) texelFetch(u_x, texel((i), u_x_shift), 0)" in tex
+    )
     assert "#define LAYOUT_INIT() u_x_shift = row_shift(textureSize(u_x, 0));" in tex
     block = declarations([b], blocks=("u_x",))
     assert "layout(std140) uniform u_x { highp uvec4 u_x_rec[BLOCK_RECORDS]; };" in block
@@ -274,20 +330,32 @@ def test_a_record_array_is_declared_as_a_texture_or_a_uniform_block():
 def test_what_a_variant_reads_follows_its_data_formats_and_counts():
     from renderer import gpu_layout as G
     from renderer.gpu_layout import Variant
+
     plain = Variant("bih", "color", 3)
     fixed = Variant("bih", "color", 3, ("PLANES_1", "LIGHTS_2", "EQUAL_RADII", "MATERIAL_TEXTURE"))
-    for b, in_plain, in_fixed in ((G.NUM_PLANES, True, False), (G.NUM_LIGHTS, True, False),
-                                  (G.SPHERE_RADIUS, False, True), (G.MATERIALS, False, True),
-                                  (G.MATERIAL_VECS, True, False), (G.SPHERES, False, False),
-                                  (G.SPHERE_MAT, False, False), (G.PLANE_POINT, True, True)):
+    for b, in_plain, in_fixed in (
+        (G.NUM_PLANES, True, False),
+        (G.NUM_LIGHTS, True, False),
+        (G.SPHERE_RADIUS, False, True),
+        (G.MATERIALS, False, True),
+        (G.MATERIAL_VECS, True, False),
+        (G.SPHERES, False, False),
+        (G.SPHERE_MAT, False, False),
+        (G.PLANE_POINT, True, True),
+    ):
         assert (plain.reads_binding(b), fixed.reads_binding(b)) == (in_plain, in_fixed), b.name
     assert not Variant("bih", "depth", 1).reads_binding(G.MATERIAL_VECS)
 
 
-@pytest.mark.parametrize("position,target,fov", [((0.0, 0.0, 100.0), (0.0, 0.0, 0.0), 60.0),
-                                                 ((35.0, 28.0, 60.0), (0.0, -3.0, 0.0), 40.0),
-                                                 ((-90.0, 5.0, -10.0), (3.0, 1.0, 2.0), 90.0),
-                                                 ((0.0, 0.0, 45.0), (0.0, 0.0, 0.0), 120.0)])
+@pytest.mark.parametrize(
+    "position,target,fov",
+    [
+        ((0.0, 0.0, 100.0), (0.0, 0.0, 0.0), 60.0),
+        ((35.0, 28.0, 60.0), (0.0, -3.0, 0.0), 40.0),
+        ((-90.0, 5.0, -10.0), (3.0, 1.0, 2.0), 90.0),
+        ((0.0, 0.0, 45.0), (0.0, 0.0, 0.0), 120.0),
+    ],
+)
 def test_no_primary_ray_outside_the_spheres_rectangle_meets_a_sphere(position, target, fov):
     """primary_rect bounds the pixels whose primary ray can meet a sphere (the background
     variant draws the rest); None when the camera is inside or beside the spheres' box."""
@@ -295,6 +363,7 @@ def test_no_primary_ray_outside_the_spheres_rectangle_meets_a_sphere(position, t
     from renderer.gpu_layout import primary_rect
     from renderer.reference import primary_rays
     from renderer.scenarios import scenario
+
     base = scenario(3, 512)
     cam = Camera(position=position, target=target, up=(0.0, 1.0, 0.0), fov_y=fov)
     scene = base.with_camera(cam)
@@ -303,10 +372,10 @@ def test_no_primary_ray_outside_the_spheres_rectangle_meets_a_sphere(position, t
     assert rect is not None
     o, d = primary_rays(cam, w, h)
     _, prim = brute_force(scene.sphere_centers, scene.sphere_radii, o, d)
-    hit = (prim >= 0).reshape(h, w)[::-1]          # GL rows from the bottom
+    hit = (prim >= 0).reshape(h, w)[::-1]  # GL rows from the bottom
     x, y, rw, rh = rect
     inside = np.zeros_like(hit)
-    inside[y:y + rh, x:x + rw] = True
+    inside[y : y + rh, x : x + rw] = True
     assert hit.any() and not (hit & ~inside).any()
     assert 0 <= x and x + rw <= w and 0 <= y and y + rh <= h
     assert primary_rect(scene.with_camera(Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0))), w, h) is None
@@ -314,8 +383,14 @@ def test_no_primary_ray_outside_the_spheres_rectangle_meets_a_sphere(position, t
     assert primary_rect(empty, w, h) == (0, 0, 0, 0)
 
 
-@pytest.mark.parametrize("position,target", [((0.0, 0.0, 100.0), (0.0, 0.0, 0.0)), ((30.0, 45.0, 70.0), (0.0, -5.0, 0.0)),
-                                             ((0.0, -10.0, 80.0), (0.0, 10.0, 0.0))])
+@pytest.mark.parametrize(
+    "position,target",
+    [
+        ((0.0, 0.0, 100.0), (0.0, 0.0, 0.0)),
+        ((30.0, 45.0, 70.0), (0.0, -5.0, 0.0)),
+        ((0.0, -10.0, 80.0), (0.0, 10.0, 0.0)),
+    ],
+)
 @pytest.mark.parametrize("planes", [False, True])
 def test_frame_regions_partition_the_frame_and_skip_only_rays_that_meet_nothing(position, target, planes):
     """frame_regions tiles the frame; where it says background, no primary ray meets a sphere,
@@ -324,30 +399,37 @@ def test_frame_regions_partition_the_frame_and_skip_only_rays_that_meet_nothing(
     from renderer.gpu_layout import frame_regions
     from renderer.reference import primary_rays
     from renderer.scenarios import scenario
+
     cam = Camera(position=position, target=target, up=(0.0, 1.0, 0.0), fov_y=60.0)
     scene = scenario(2, 256).with_camera(cam)
-    scene = Scene(cam, scene.lights, scene.materials, scene.sphere_centers, scene.sphere_radii,
-                  scene.sphere_materials, (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),
-                                           Plane((0.0, 0.0, 500.0), (0.0, 0.1, 1.0), 0)))   # behind the camera
+    scene = Scene(
+        cam,
+        scene.lights,
+        scene.materials,
+        scene.sphere_centers,
+        scene.sphere_radii,
+        scene.sphere_materials,
+        (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0), Plane((0.0, 0.0, 500.0), (0.0, 0.1, 1.0), 0)),
+    )  # behind the camera
     w, h = 57, 75
     regions = frame_regions(scene, w, h, planes)
     assert regions is not None
     cover = np.zeros((h, w), int)
     for x, y, rw, rh, _ in regions:
-        cover[y:y + rh, x:x + rw] += 1
+        cover[y : y + rh, x : x + rw] += 1
     assert (cover == 1).all(), "the regions tile the frame"
     o, d = primary_rays(cam, w, h)
     _, prim = brute_force(scene.sphere_centers, scene.sphere_radii, o, d)
-    meets = (prim >= 0)
+    meets = prim >= 0
     if planes:
         for p in scene.planes:
             n = np.asarray(p.normal)
             with np.errstate(divide="ignore", invalid="ignore"):
                 t = ((np.asarray(p.point) - o) @ n) / (d @ n)
             meets |= t > 0
-    meets = meets.reshape(h, w)[::-1]                 # GL rows from the bottom
+    meets = meets.reshape(h, w)[::-1]  # GL rows from the bottom
     for x, y, rw, rh, tracer in regions:
         if not tracer:
-            assert not meets[y:y + rh, x:x + rw].any(), (x, y, rw, rh)
-    if position == (0.0, 0.0, 100.0):      # the thesis's camera: sky above the horizon, spheres in the middle
+            assert not meets[y : y + rh, x : x + rw].any(), (x, y, rw, rh)
+    if position == (0.0, 0.0, 100.0):  # the thesis's camera: sky above the horizon, spheres in the middle
         assert sum(rw * rh for _, _, rw, rh, t in regions if not t) > (0.25 if planes else 0.5) * w * h

@@ -21,12 +21,23 @@ from renderer.scene import SceneError
 TRIANGLE = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32).tobytes()
 
 
-def gltf_doc(accessors: list[dict], nodes: list[dict] | None = None, roots: list[int] | None = None,
-             buffer_len: int = 0, views: list[dict] | None = None) -> dict:
+def gltf_doc(
+    accessors: list[dict],
+    nodes: list[dict] | None = None,
+    roots: list[int] | None = None,
+    buffer_len: int = 0,
+    views: list[dict] | None = None,
+) -> dict:
     nodes = [{"mesh": 0}] if nodes is None else nodes
-    doc = {"asset": {"version": "2.0"}, "bufferViews": views or [], "accessors": accessors,
-           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "nodes": nodes,
-           "scenes": [{"nodes": [0] if roots is None else roots}], "scene": 0}
+    doc = {
+        "asset": {"version": "2.0"},
+        "bufferViews": views or [],
+        "accessors": accessors,
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "nodes": nodes,
+        "scenes": [{"nodes": [0] if roots is None else roots}],
+        "scene": 0,
+    }
     if buffer_len:
         doc["buffers"] = [{"byteLength": buffer_len}]
     return doc
@@ -64,7 +75,7 @@ def test_a_tiny_gltf_claiming_30_million_vertices_is_refused_without_allocating_
     msg = refused(data, "gltf")
     assert time.perf_counter() - t0 < 1.0
     assert "accessors[0].count = 30,000,000" in msg and f"{limits.MAX_ACCESSOR_COUNT:,}" in msg
-    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 50 * 1024     # KiB: no 360 MB array
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 50 * 1024  # KiB: no 360 MB array
     # within the count cap, zeros the file does not hold are bounded too
     doc = gltf_doc([{"componentType": 5126, "count": 3_000_000, "type": "VEC3"}])
     assert "MAX_BUFFERLESS_BYTES" in refused(json.dumps(doc).encode(), "gltf")
@@ -96,7 +107,7 @@ def test_a_glb_chain_of_100000_nodes_is_refused_in_well_under_a_second():
     data = triangle_glb([{"children": [i + 1]} for i in range(n - 1)] + [{"mesh": 0}], [0])
     t0 = time.perf_counter()
     msg = refused(data, "glb")
-    assert time.perf_counter() - t0 < 1.0          # ~0.1 s here; before: 80 s
+    assert time.perf_counter() - t0 < 1.0  # ~0.1 s here; before: 80 s
     assert f"{n:,} nodes; at most {limits.MAX_MODEL_NODES:,}" in msg
     # within the node cap, the depth is bounded
     n = limits.MAX_MODEL_NODE_DEPTH + 1
@@ -117,14 +128,16 @@ def test_a_node_graph_that_is_not_a_tree_is_refused():
     assert "of itself" in refused(triangle_glb(own, [0]), "glb")
     # a diamond (shared children) would multiply instances exponentially with depth
     assert "child of more than one node" in refused(
-        triangle_glb([{"children": [1, 2]}, {"children": [3]}, {"children": [3]}, {"mesh": 0}], [0]), "glb")
+        triangle_glb([{"children": [1, 2]}, {"children": [3]}, {"children": [3]}, {"mesh": 0}], [0]), "glb"
+    )
     assert "not an index" in refused(triangle_glb([{"children": [7], "mesh": 0}], [0]), "glb")
 
 
 def test_instances_count_against_the_triangle_cap_before_parsing():
     flat = [{"mesh": 0}] * 200
-    assert "200 triangles; at most 100 allowed" in refused(triangle_glb(flat, list(range(200))), "glb",
-                                                           max_triangles=100)
+    assert "200 triangles; at most 100 allowed" in refused(
+        triangle_glb(flat, list(range(200))), "glb", max_triangles=100
+    )
     assert load_mesh(triangle_glb(flat, list(range(200))), "glb").n_triangles == 200
 
 
@@ -148,8 +161,10 @@ def test_an_ascii_stl_is_counted_by_its_facets():
     assert "5 triangles; at most 4" in refused(stl, "stl", max_triangles=4)
 
 
-PLY_HEAD = (b"ply\nformat %s 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-            b"element face %d\nproperty list uchar int vertex_indices\nend_header\n")
+PLY_HEAD = (
+    b"ply\nformat %s 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+    b"element face %d\nproperty list uchar int vertex_indices\nend_header\n"
+)
 
 
 def test_a_ply_declaring_more_faces_than_it_holds_is_refused():
@@ -170,13 +185,16 @@ def test_a_ply_declaring_more_faces_than_it_holds_is_refused():
     assert "not a PLY property" in refused(PLY_HEAD.replace(b"float z", b"quaternion z") % (b"ascii", 1), "ply")
 
 
-@pytest.mark.parametrize("face,why", [
-    (b"f 0 1 2", "vertex index 0 (OBJ counts from 1"),
-    (b"f 1 2 4", "vertex 4 of the 3 the file has"),
-    (b"f 1/1 2/1 0/1", "vertex index 0"),
-    (b"f -1 -2 -4", "vertex -4 counts back past the 3 vertices defined before it"),
-    (b"f 1 2 x", "not a whole number"),
-])
+@pytest.mark.parametrize(
+    "face,why",
+    [
+        (b"f 0 1 2", "vertex index 0 (OBJ counts from 1"),
+        (b"f 1 2 4", "vertex 4 of the 3 the file has"),
+        (b"f 1/1 2/1 0/1", "vertex index 0"),
+        (b"f -1 -2 -4", "vertex -4 counts back past the 3 vertices defined before it"),
+        (b"f 1 2 x", "not a whole number"),
+    ],
+)
 def test_an_obj_face_with_index_0_or_out_of_range_is_refused(face, why):
     """Before: 'f 0 1 2' was accepted (trimesh read index 0 as the last vertex)."""
     msg = refused(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\n" + face + b"\n", "obj")
@@ -187,8 +205,9 @@ def test_obj_negative_indices_count_from_the_vertices_before_the_face():
     obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 0 0 1\nf -4 -3 -1\nf 1/1/1 2//2 4\n"
     assert load_mesh(obj, "obj").n_triangles == 3
     assert "counts back past the 3" in refused(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -4\nv 0 0 1\n", "obj")
-    assert "4 triangles; at most 3" in refused(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3 4 1 2\n", "obj",
-                                               max_triangles=3)
+    assert "4 triangles; at most 3" in refused(
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3 4 1 2\n", "obj", max_triangles=3
+    )
 
 
 def test_valid_files_of_every_format_pass_the_check():
@@ -202,21 +221,25 @@ def test_a_text_model_that_is_not_utf8_loads():
     (pyproject.toml's dependencies), else the file is refused with ModuleNotFoundError."""
     import tomllib
     from pathlib import Path
+
     project = tomllib.loads((Path(__file__).resolve().parents[2] / "pyproject.toml").read_text())["project"]
     assert any(d.replace("_", "-").lower().startswith("charset-normalizer") for d in project["dependencies"])
     obj = "# modèle éprouvé, café\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".encode("latin-1")
     assert load_mesh(obj, "obj").n_triangles == 1
 
 
-@pytest.mark.parametrize("doc", [
-    {"accessors": [{"componentType": [5126], "count": 3, "type": "VEC3"}]},
-    {"accessors": [{"componentType": 5126, "count": -3, "type": "VEC3"}]},
-    {"buffers": [{"byteLength": 3, "uri": "data:x;base64,@@@"}]},
-    {"nodes": [{"children": "0"}]},
-    {"meshes": [{"primitives": [{"attributes": {"POSITION": 5}}]}]},
-    {"scenes": [{"nodes": [0]}], "scene": 3},
-    [1, 2, 3],
-])
+@pytest.mark.parametrize(
+    "doc",
+    [
+        {"accessors": [{"componentType": [5126], "count": 3, "type": "VEC3"}]},
+        {"accessors": [{"componentType": 5126, "count": -3, "type": "VEC3"}]},
+        {"buffers": [{"byteLength": 3, "uri": "data:x;base64,@@@"}]},
+        {"nodes": [{"children": "0"}]},
+        {"meshes": [{"primitives": [{"attributes": {"POSITION": 5}}]}]},
+        {"scenes": [{"nodes": [0]}], "scene": 3},
+        [1, 2, 3],
+    ],
+)
 def test_malformed_gltf_structures_are_refused_as_the_file(doc):
     assert refused(json.dumps(doc).encode(), "gltf").startswith("GLTF: ")
     assert refused(b"[" * 100_000 + b"]" * 100_000, "gltf").startswith("GLTF: ")

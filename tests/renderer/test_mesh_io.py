@@ -28,7 +28,7 @@ def corners_sorted(v: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Triangles as sets of corner positions, order- and start-independent (each triangle's
     corners rotated to start at its smallest, then the triangles sorted)."""
     c = v[t]
-    key = np.round(c, 4)          # ordering by rounded values: float32 storage must not reorder
+    key = np.round(c, 4)  # ordering by rounded values: float32 storage must not reorder
     rolled, keys = [], []
     for tri, kt in zip(c, key, strict=True):
         k = min(range(3), key=lambda i: tuple(kt[i]))
@@ -48,14 +48,19 @@ def test_each_format_round_trips_a_generated_model(fmt, smooth, tmp_path):
             source.write_bytes(data)
         got = load_mesh(source, fmt if isinstance(source, bytes) else None)
         assert got.n_triangles == model.n_triangles and len(got.vertices) == len(model.vertices)
-        np.testing.assert_allclose(corners_sorted(got.vertices, got.triangles),
-                                   corners_sorted(model.vertices, model.triangles), atol=TOLERANCE[fmt] * 3)
+        np.testing.assert_allclose(
+            corners_sorted(got.vertices, got.triangles),
+            corners_sorted(model.vertices, model.triangles),
+            atol=TOLERANCE[fmt] * 3,
+        )
         # the winding (outward) survives: the same signed volume
         assert edge_report(got.triangles).closed
-        assert signed_volume(got.vertices, got.triangles) == pytest.approx(
-            signed_volume(model.vertices, model.triangles), rel=1e-5) and signed_volume(model.vertices,
-                                                                                         model.triangles) > 5
-        if smooth and fmt != "stl":          # STL has no vertex normals
+        assert (
+            signed_volume(got.vertices, got.triangles)
+            == pytest.approx(signed_volume(model.vertices, model.triangles), rel=1e-5)
+            and signed_volume(model.vertices, model.triangles) > 5
+        )
+        if smooth and fmt != "stl":  # STL has no vertex normals
             assert got.normals is not None
             order = np.lexsort(np.round(got.vertices, 4).T[::-1])
             ref = np.lexsort(np.round(model.vertices, 4).T[::-1])
@@ -74,10 +79,14 @@ def test_stl_corners_are_merged_into_shared_vertices():
 
 def test_a_gltf_scene_of_several_meshes_becomes_one_mesh_placed_by_its_nodes():
     import trimesh
+
     a, b = box(), icosphere(1, radius=0.5)
     scene = trimesh.Scene()
-    scene.add_geometry(trimesh.Trimesh(a.vertices, a.triangles, process=False), node_name="a",
-                       transform=trimesh.transformations.translation_matrix([10.0, 0.0, 0.0]))
+    scene.add_geometry(
+        trimesh.Trimesh(a.vertices, a.triangles, process=False),
+        node_name="a",
+        transform=trimesh.transformations.translation_matrix([10.0, 0.0, 0.0]),
+    )
     scene.add_geometry(trimesh.Trimesh(b.vertices, b.triangles, process=False), node_name="b")
     got = load_mesh(scene.export(file_type="glb"), "glb")
     assert got.n_triangles == a.n_triangles + b.n_triangles
@@ -94,15 +103,18 @@ def test_polygons_are_split_and_degenerate_faces_kept():
     assert (np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])[:, 2] > 0).all(), "counter-clockwise stays so"
 
 
-@pytest.mark.parametrize("data,fmt,field", [
-    (b"not a model", "ply", "file"),
-    (b"\x00" * 84, "stl", "file"),
-    (b"glTF garbage", "glb", "file"),
-    (b"v 0 0 0\n", "obj", "file"),                       # no face
-    (b"v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n", "obj", "file"),
-    (b"v 0 0 0\n", "dxf", "format"),
-    (b"v 0 0 0\n", None, "format"),
-])
+@pytest.mark.parametrize(
+    "data,fmt,field",
+    [
+        (b"not a model", "ply", "file"),
+        (b"\x00" * 84, "stl", "file"),
+        (b"glTF garbage", "glb", "file"),
+        (b"v 0 0 0\n", "obj", "file"),  # no face
+        (b"v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n", "obj", "file"),
+        (b"v 0 0 0\n", "dxf", "format"),
+        (b"v 0 0 0\n", None, "format"),
+    ],
+)
 def test_bad_files_are_refused_naming_the_field(data, fmt, field):
     with pytest.raises(SceneError) as e:
         load_mesh(data, fmt)
@@ -112,12 +124,18 @@ def test_bad_files_are_refused_naming_the_field(data, fmt, field):
 def test_a_gltf_cannot_read_other_files_when_given_as_bytes(tmp_path):
     secret = tmp_path / "buffer.bin"
     secret.write_bytes(np.zeros(9, np.float32).tobytes())
-    doc = {"asset": {"version": "2.0"}, "buffers": [{"uri": str(secret), "byteLength": 36}],
-           "bufferViews": [{"buffer": 0, "byteLength": 36}],
-           "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
-                          "min": [0, 0, 0], "max": [0, 0, 0]}],
-           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "nodes": [{"mesh": 0}],
-           "scenes": [{"nodes": [0]}], "scene": 0}
+    doc = {
+        "asset": {"version": "2.0"},
+        "buffers": [{"uri": str(secret), "byteLength": 36}],
+        "bufferViews": [{"buffer": 0, "byteLength": 36}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [0, 0, 0]}
+        ],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "nodes": [{"mesh": 0}],
+        "scenes": [{"nodes": [0]}],
+        "scene": 0,
+    }
     with pytest.raises(SceneError) as e:
         load_mesh(json.dumps(doc).encode(), "gltf")
     assert e.value.field == "file"

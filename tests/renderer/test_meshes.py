@@ -29,20 +29,24 @@ def test_the_teapot_data_is_newells_32_patches_of_306_points():
     assert len(teapot_data.PATCHES) == 32 and len(teapot_data.VERTICES) == 306
     assert all(len(p) == 16 for p in teapot_data.PATCHES)
     used = {i for p in teapot_data.PATCHES for i in p}
-    assert min(used) == 1 and max(used) == 306          # 1-based, as published
+    assert min(used) == 1 and max(used) == 306  # 1-based, as published
     v = np.array(teapot_data.VERTICES)
     # the lid's top and the bottom's centre are single points on the axis
     assert teapot_data.VERTICES[204 - 1] == (0.0, 0.0, 3.15) and teapot_data.VERTICES[270 - 1] == (0.0, 0.0, 0.0)
     assert v[:, 2].min() == 0.0 and v[:, 2].max() == 3.15
-    assert sorted(teapot_data.GROUPS) == sorted(["rim", "upper body", "lower body", "handle", "spout", "lid knob",
-                                                  "lid", "bottom"])
+    assert sorted(teapot_data.GROUPS) == sorted(
+        ["rim", "upper body", "lower body", "handle", "spout", "lid knob", "lid", "bottom"]
+    )
 
 
-@pytest.mark.parametrize("make,volume,rel", [
-    (lambda: icosphere(4, radius=2.0), 4 / 3 * math.pi * 8, 3e-3),
-    (lambda: torus(3.0, 1.0, 96, 48), 2 * math.pi ** 2 * 3.0 * 1.0, 5e-3),
-    (lambda: box((-1, -2, -3), (1, 2, 3)), 2 * 4 * 6, 1e-15),
-])
+@pytest.mark.parametrize(
+    "make,volume,rel",
+    [
+        (lambda: icosphere(4, radius=2.0), 4 / 3 * math.pi * 8, 3e-3),
+        (lambda: torus(3.0, 1.0, 96, 48), 2 * math.pi**2 * 3.0 * 1.0, 5e-3),
+        (lambda: box((-1, -2, -3), (1, 2, 3)), 2 * 4 * 6, 1e-15),
+    ],
+)
 def test_closed_generators_are_closed_outward_and_have_their_volume(make, volume, rel):
     m = make()
     assert edge_report(m.triangles).closed
@@ -53,7 +57,7 @@ def test_closed_generators_are_closed_outward_and_have_their_volume(make, volume
 def test_icosphere_vertices_lie_on_the_sphere_and_counts_follow_the_subdivision():
     for s in range(4):
         m = icosphere(s, radius=3.0, center=(1.0, 2.0, 3.0))
-        assert m.n_triangles == 20 * 4 ** s and len(m.vertices) == 10 * 4 ** s + 2
+        assert m.n_triangles == 20 * 4**s and len(m.vertices) == 10 * 4**s + 2
         np.testing.assert_allclose(np.linalg.norm(m.vertices - (1, 2, 3), axis=1), 3.0, rtol=1e-15)
         np.testing.assert_allclose(m.normals, (m.vertices - (1, 2, 3)) / 3.0, atol=1e-15)
 
@@ -70,7 +74,7 @@ def test_the_closed_teapot_is_three_watertight_pieces_and_the_open_one_is_newell
     assert report.closed, report
     # three edge-connected pieces (pot, handle, spout), each of positive volume
     oriented = orient_outward(v, t)
-    np.testing.assert_array_equal(oriented, t)          # already consistent and outward
+    np.testing.assert_array_equal(oriented, t)  # already consistent and outward
     vo, to = teapot_surface(6, closed=False)
     open_report = edge_report(to)
     # the open surface: the gap ring's two loops (4 patches × 6 segments each) and the four
@@ -81,7 +85,7 @@ def test_the_closed_teapot_is_three_watertight_pieces_and_the_open_one_is_newell
     assert v[:, 1].min() == 0.0 and v[:, 1].max() == pytest.approx(3.15)
     assert v[:, 0].max() > 3.0 and v[:, 0].min() == pytest.approx(-3.0)
     # the pot's volume: between a cylinder of the body's smallest and largest radius
-    assert math.pi * 1.4 ** 2 * 2.4 < signed_volume(v, t) < math.pi * 2.0 ** 2 * 3.15
+    assert math.pi * 1.4**2 * 2.4 < signed_volume(v, t) < math.pi * 2.0**2 * 3.15
 
 
 def test_teapot_mesh_size_normals_and_transform():
@@ -111,9 +115,14 @@ def test_vertex_normals_are_area_weighted_unit_vectors():
 
 
 def test_bad_parameters_name_the_field():
-    for call, field in ((lambda: icosphere(99), "subdivisions"), (lambda: icosphere(1, radius=0), "radius"),
-                        (lambda: torus(1.0, 2.0), "minor"), (lambda: teapot(0), "segments"),
-                        (lambda: box((0, 0, 0), (1, 0, 1)), "hi"), (lambda: procedural("cow"), "kind")):
+    for call, field in (
+        (lambda: icosphere(99), "subdivisions"),
+        (lambda: icosphere(1, radius=0), "radius"),
+        (lambda: torus(1.0, 2.0), "minor"),
+        (lambda: teapot(0), "segments"),
+        (lambda: box((0, 0, 0), (1, 0, 1)), "hi"),
+        (lambda: procedural("cow"), "kind"),
+    ):
         with pytest.raises(SceneError) as e:
             call()
         assert e.value.field == field

@@ -37,8 +37,9 @@ def test_bruteforce_refuses_more_primitives_than_one_shader_loop_runs():
     from renderer.methods import check_primitives
     from renderer.scenarios import scenario
     from renderer.scene import SceneError
+
     check_primitives("bruteforce", scenario(1, MAX_LOOP_PRIMITIVES))
     with pytest.raises(SceneError) as e:
         check_primitives("bruteforce", scenario(1, MAX_LOOP_PRIMITIVES + 1))
     assert e.value.field == "method" and "65,533" in str(e.value)
-    check_primitives("bih", scenario(1, MAX_LOOP_PRIMITIVES + 1))   # a hierarchy has no such loop
+    check_primitives("bih", scenario(1, MAX_LOOP_PRIMITIVES + 1))  # a hierarchy has no such loop

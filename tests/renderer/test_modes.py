@@ -31,8 +31,10 @@ def glsl_recursion_colors(text: str) -> np.ndarray:
     """The colours of ``recursion_color`` in shader text, index = level (0: every other level)."""
     body = re.search(r"vec3 recursion_color\(int level\) \{\n(.*?)\n\}", text, re.S)
     assert body, "no recursion_color() in the shader"
-    levels = {int(m[1]): tuple(map(float, m.groups()[1:]))
-              for m in re.finditer(rf"if \(level == (\d+)\) return {VEC3};", body[1])}
+    levels = {
+        int(m[1]): tuple(map(float, m.groups()[1:]))
+        for m in re.finditer(rf"if \(level == (\d+)\) return {VEC3};", body[1])
+    }
     other = re.search(rf"return (?:vec3\({FLOAT}\)|{VEC3});\s*$", body[1])
     assert other, "recursion_color() has no colour for the other levels"
     miss = (float(other[1]),) * 3 if other[1] is not None else tuple(map(float, other.groups()[1:]))
@@ -71,12 +73,17 @@ def test_primid_and_heat_literals_are_the_python_numbers():
     primid = re.search(rf"fract\(float\(primary_id\) \* {VEC3}\) \* 0\.8 \+ 0\.2", source)
     assert primid, "the primid mode's colour expression changed: update this test and renderer.modes"
     np.testing.assert_array_equal(np.array(primid.groups(), float), PRIMID_FACTORS)
-    heat = re.search(rf"image = min\(vec3\({FLOAT} \* float\(g_counters\.z\), {FLOAT} \* float\(g_counters\.y\), "
-                     rf"{FLOAT} \* float\(g_counters\.x\)\), vec3\(1\.0\)\);", source)
+    heat = re.search(
+        rf"image = min\(vec3\({FLOAT} \* float\(g_counters\.z\), {FLOAT} \* float\(g_counters\.y\), "
+        rf"{FLOAT} \* float\(g_counters\.x\)\), vec3\(1\.0\)\);",
+        source,
+    )
     assert heat, "the heat mode's colour expression changed: update this test and renderer.modes"
     # red: sphere tests (counter z), green: gaps (y), blue: node visits (x), as heat_image
     assert tuple(map(float, heat.groups())) == (HEAT_SCALE["tests"], HEAT_SCALE["gaps"], HEAT_SCALE["nodes"])
-    np.testing.assert_array_equal(heat_image(np.array([1]), np.array([1]), np.array([1]))[0],
-                                  [HEAT_SCALE["tests"], HEAT_SCALE["gaps"], HEAT_SCALE["nodes"]])
+    np.testing.assert_array_equal(
+        heat_image(np.array([1]), np.array([1]), np.array([1]))[0],
+        [HEAT_SCALE["tests"], HEAT_SCALE["gaps"], HEAT_SCALE["nodes"]],
+    )
     x = 7 * PRIMID_FACTORS
     np.testing.assert_allclose(primid_colors(np.array([7, -1])), [(x - np.floor(x)) * 0.8 + 0.2, [0.0, 0.0, 0.0]])

@@ -18,8 +18,7 @@ from renderer.scene import Camera, Light, Material, Plane, Scene
 from renderer.settings import RenderSettings
 
 # Fig. 4.2f, written out independently of the module.
-RECURSION_TABLE = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, 0, 1), (0, 1, 1), (1, 1, 1),
-                   (1, 0.5, 0)]
+RECURSION_TABLE = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, 0, 1), (0, 1, 1), (1, 1, 1), (1, 0.5, 0)]
 BLACK = Material(color=(0.0, 0.0, 0.0), ambient=0.0, diffuse=0.0, specular=0.0, reflective=0.0)
 
 
@@ -45,9 +44,10 @@ def pixel_uv(cam: Camera, w: int, h: int) -> tuple[np.ndarray, np.ndarray]:
 
 # ------------------------------------------------------------------ primary rays
 
+
 def test_primary_rays_unit_centre_and_orientation():
     cam = Camera(position=(1.0, 2.0, 30.0), target=(0.0, -1.0, 0.0), up=(0.0, 1.0, 0.0), fov_y=50.0)
-    w, h = 33, 21                                    # odd: the centre pixel is on the axis
+    w, h = 33, 21  # odd: the centre pixel is on the axis
     o, d = primary_rays(cam, w, h)
     right, up, forward = cam.basis()
     assert o.shape == d.shape == (w * h, 3) and o.dtype == d.dtype == np.float64
@@ -56,7 +56,7 @@ def test_primary_rays_unit_centre_and_orientation():
     centre = (h // 2) * w + w // 2
     np.testing.assert_allclose(d[centre], forward, rtol=0, atol=1e-15)
     grid = d.reshape(h, w, 3)
-    assert (grid[0] @ up > 0).all() and (grid[-1] @ up < 0).all()        # row 0 looks up
+    assert (grid[0] @ up > 0).all() and (grid[-1] @ up < 0).all()  # row 0 looks up
     assert (grid[:, 0] @ right < 0).all() and (grid[:, -1] @ right > 0).all()
     # Corner ray: forward + u right + v up, normalised, with the spec's u, v.
     u, v = pixel_uv(cam, w, h)
@@ -68,6 +68,7 @@ def test_primary_rays_unit_centre_and_orientation():
 
 
 # --------------------------------------------------------------------- geometry
+
 
 def test_single_sphere_exact_geometry_and_disc():
     dist, radius = 100.0, 20.0
@@ -92,7 +93,7 @@ def test_single_sphere_exact_geometry_and_disc():
     assert (res.primid[outside] == -1).all() and np.isinf(res.depth[outside]).all()
     assert (res.normal[outside] == 0).all() and (res.image[outside] == 0).all()
     assert (res.primid[inside] == 0).all()
-    t_exact = dist * cos_a - np.sqrt(np.maximum(radius ** 2 - (dist * sin_a) ** 2, 0))
+    t_exact = dist * cos_a - np.sqrt(np.maximum(radius**2 - (dist * sin_a) ** 2, 0))
     np.testing.assert_allclose(t.reshape(h, w)[inside], t_exact[inside], rtol=1e-9)
     # Normals are unit, outward (towards the camera); depth image is D / (D + t).
     n = res.normal[inside]
@@ -124,8 +125,9 @@ def test_plane_only_depth_is_analytic():
 
 def test_ties_go_to_the_lower_id():
     # Two identical spheres and two identical planes: every hit is an exact tie.
-    scene = make_scene([((0.0, 0.0, 0.0), 30.0, 0), ((0.0, 0.0, 0.0), 30.0, 0)],
-                       planes=[Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0))] * 2)
+    scene = make_scene(
+        [((0.0, 0.0, 0.0), 30.0, 0), ((0.0, 0.0, 0.0), 30.0, 0)], planes=[Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0))] * 2
+    )
     res = render_reference(scene, settings(32, 24, mode="primid"))
     ids = set(np.unique(res.primid).tolist())
     assert ids == {-1, 0, 2}
@@ -134,6 +136,7 @@ def test_ties_go_to_the_lower_id():
 def test_cull_matches_dense_brute_force():
     """The tiled, culled search returns bitwise what testing every pair returns."""
     from renderer.reference import sphere_t
+
     rng = np.random.default_rng(1)
     for offset, scale in ((0.0, 1.0), (1e6, 1e-3)):
         n = 300
@@ -144,9 +147,10 @@ def test_cull_matches_dense_brute_force():
         d = rng.normal(size=(700, 3))
         d /= np.linalg.norm(d, axis=1, keepdims=True)
         t, prim = trace_rays(scene, o, d)
-        tt = sphere_t(np.repeat(o, n, 0), np.repeat(d, n, 0), np.tile(centres, (700, 1)),
-                      np.tile(radii * radii, 700)).reshape(700, n)
-        expect = np.where(np.isfinite(tt.min(1)), tt.argmin(1), -1)   # argmin: first = lowest id
+        tt = sphere_t(
+            np.repeat(o, n, 0), np.repeat(d, n, 0), np.tile(centres, (700, 1)), np.tile(radii * radii, 700)
+        ).reshape(700, n)
+        expect = np.where(np.isfinite(tt.min(1)), tt.argmin(1), -1)  # argmin: first = lowest id
         assert (prim == expect).all()
         assert np.array_equal(t, tt.min(1))
         assert (prim >= 0).sum() > 300
@@ -154,15 +158,18 @@ def test_cull_matches_dense_brute_force():
 
 # ---------------------------------------------------------------------- shading
 
+
 @pytest.mark.parametrize("offset,radius", [(0.0, 10.0), (1e6, 1e-3), (-3e5, 1e3)])
 def test_lit_sphere_centre_pixel_by_hand(offset, radius):
     c = np.array([offset, offset, offset])
     cam = Camera(position=tuple(c + [0, 0, 10 * radius]), target=tuple(c), fov_y=40.0)
-    mat = Material(color=(0.8, 0.5, 0.2), ambient=0.1, diffuse=0.6, specular=0.3, shininess=10.0,
-                   reflective=0.0, transmissive=0.0)
+    mat = Material(
+        color=(0.8, 0.5, 0.2), ambient=0.1, diffuse=0.6, specular=0.3, shininess=10.0, reflective=0.0, transmissive=0.0
+    )
     lp, lc = c + np.array([3.0, 4.0, 10.0]) * radius, np.array([1.0, 0.9, 0.8])
-    scene = make_scene([(tuple(c), radius, 0)], materials=[mat], camera=cam,
-                       lights=[Light(position=tuple(lp), color=tuple(lc))])
+    scene = make_scene(
+        [(tuple(c), radius, 0)], materials=[mat], camera=cam, lights=[Light(position=tuple(lp), color=tuple(lc))]
+    )
     res = render_reference(scene, settings(31, 21, mode="color", max_recursion_depth=5))
     # By hand: p = c + (0, 0, R), N = (0, 0, 1), d = (0, 0, −1).
     N = np.array([0.0, 0.0, 1.0])
@@ -173,7 +180,7 @@ def test_lit_sphere_centre_pixel_by_hand(offset, radius):
     col = np.array(mat.color)
     expect = 0.1 * col + lc * (0.6 * cos * col + 0.3 * spec)
     np.testing.assert_allclose(res.image[10, 15], expect, atol=1e-6)
-    assert res.image[10, 15, 0] > 0.1 * col[0] + 0.05     # clearly lit, not self-shadowed
+    assert res.image[10, 15, 0] > 0.1 * col[0] + 0.05  # clearly lit, not self-shadowed
 
 
 def test_shadow_of_another_sphere_leaves_only_ambient():
@@ -181,8 +188,13 @@ def test_shadow_of_another_sphere_leaves_only_ambient():
     ball_c, ball_r = np.array([0.0, 0.0, 0.0]), 6.0
     lp = np.array([4.0, 40.0, 5.0])
     cam = Camera(position=(0.0, 30.0, 60.0), target=(0.0, -10.0, 0.0), fov_y=50.0)
-    scene = make_scene([(tuple(ball_c), ball_r, 0)], planes=[Plane((0.0, -10.0, 0.0), (0.0, 1.0, 0.0), 0)],
-                       materials=[floor], lights=[Light(position=tuple(lp))], camera=cam)
+    scene = make_scene(
+        [(tuple(ball_c), ball_r, 0)],
+        planes=[Plane((0.0, -10.0, 0.0), (0.0, 1.0, 0.0), 0)],
+        materials=[floor],
+        lights=[Light(position=tuple(lp))],
+        camera=cam,
+    )
     w, h = 64, 48
     res = render_reference(scene, settings(w, h, mode="color"))
     o, d = primary_rays(cam, w, h)
@@ -196,8 +208,7 @@ def test_shadow_of_another_sphere_leaves_only_ambient():
     lit = on_plane & (gap > ball_r * 1.02)
     assert shadow.sum() > 20 and lit.sum() > 200
     img = res.image.reshape(-1, 3)
-    np.testing.assert_allclose(img[shadow], np.broadcast_to(0.25 * np.array(floor.color), (shadow.sum(), 3)),
-                               atol=1e-7)
+    np.testing.assert_allclose(img[shadow], np.broadcast_to(0.25 * np.array(floor.color), (shadow.sum(), 3)), atol=1e-7)
     assert (img[lit, 1] > 0.25 * 0.7 + 1e-3).all()
 
 
@@ -207,23 +218,30 @@ def test_shading_uses_the_normal_facing_the_ray():
     cam = Camera(position=(0.0, 30.0, 60.0), target=(0.0, -10.0, 0.0), fov_y=50.0)
 
     def render(normal: tuple[float, float, float]) -> np.ndarray:
-        scene = make_scene(planes=[Plane((0.0, -10.0, 0.0), normal, 0)], materials=[floor],
-                           lights=[Light(position=(4.0, 40.0, 5.0))], camera=cam)
+        scene = make_scene(
+            planes=[Plane((0.0, -10.0, 0.0), normal, 0)],
+            materials=[floor],
+            lights=[Light(position=(4.0, 40.0, 5.0))],
+            camera=cam,
+        )
         return render_reference(scene, settings(32, 24, mode="color")).image
 
     up, down = render((0.0, 1.0, 0.0)), render((0.0, -1.0, 0.0))
     np.testing.assert_allclose(down, up, atol=1e-7)
-    assert (up[-1, :, 1] > 0.1 * 0.7 + 0.05).all()     # bottom row: on the plane, lit
+    assert (up[-1, :, 1] > 0.1 * 0.7 + 0.05).all()  # bottom row: on the plane, lit
 
 
 # ------------------------------------------------------------------- refraction
 
+
 def test_ior_one_transmission_is_straight():
     """A primary ray through a sphere with ior 1 lands where the straight line does."""
-    glass = Material(color=(1.0, 1.0, 1.0), ambient=0.0, diffuse=0.0, specular=0.0, reflective=0.0,
-                     transmissive=1.0, ior=1.0)
-    scene = make_scene([((0.3, -0.2, 0.0), 10.0, 0)], planes=[Plane((0.0, 0.0, -40.0), (0.0, 0.2, 1.0), 1)],
-                       materials=[glass, BLACK])
+    glass = Material(
+        color=(1.0, 1.0, 1.0), ambient=0.0, diffuse=0.0, specular=0.0, reflective=0.0, transmissive=1.0, ior=1.0
+    )
+    scene = make_scene(
+        [((0.3, -0.2, 0.0), 10.0, 0)], planes=[Plane((0.0, 0.0, -40.0), (0.0, 0.2, 1.0), 1)], materials=[glass, BLACK]
+    )
     rng = np.random.default_rng(5)
     o = np.tile([0.0, 0.0, 100.0], (50, 1))
     # Within the sphere's disc (sin α < R / D = 0.1), so every ray enters it.
@@ -237,7 +255,7 @@ def test_ior_one_transmission_is_straight():
     d1, tir = transmitted_directions(d, n1, np.ones(50))
     assert not tir.any()
     t2, p2 = trace_rays(scene, x1, d1, src=np.zeros(50), far_only=(d1 * n1).sum(1) < 0)
-    assert (p2 == 0).all() and (t2 > 1.0).all()          # the far side of the same sphere
+    assert (p2 == 0).all() and (t2 > 1.0).all()  # the far side of the same sphere
     x2 = x1 + t2[:, None] * d1
     n2 = (x2 - c) / 10.0
     d2, tir = transmitted_directions(d1, n2, np.ones(50))
@@ -258,29 +276,36 @@ def test_ior_one_sphere_is_invisible_in_a_render():
     plane = [Plane((0.0, -10.0, 0.0), (0.0, 1.0, 0.0), 1)]
 
     def image(ior: float | None) -> np.ndarray:
-        glass = Material(color=(1.0, 1.0, 1.0), ambient=0.0, diffuse=0.0, specular=0.0, reflective=0.0,
-                         transmissive=1.0, ior=ior or 1.0)
+        glass = Material(
+            color=(1.0, 1.0, 1.0),
+            ambient=0.0,
+            diffuse=0.0,
+            specular=0.0,
+            reflective=0.0,
+            transmissive=1.0,
+            ior=ior or 1.0,
+        )
         spheres = base + ([((0.0, 0.0, 0.0), 15.0, 2)] if ior else [])
         scene = make_scene(spheres, planes=plane, materials=[red, green, glass], camera=cam)
         return render_reference(scene, settings(48, 36, mode="color", max_recursion_depth=3)).image
 
     without = image(None)
-    assert (without[..., 0] == 1).sum() > 20          # the red ball is visible (behind the glass)
+    assert (without[..., 0] == 1).sum() > 20  # the red ball is visible (behind the glass)
     np.testing.assert_allclose(image(1.0), without, atol=1e-6)
     assert np.abs(image(1.5) - without).max() > 0.5
 
 
 def test_total_internal_reflection_beyond_critical_angle():
     ior = 1.5
-    critical = math.degrees(math.asin(1 / ior))      # 41.8°
-    normal = np.array([[0.0, 0.0, 1.0]] * 4)          # outward normal; the ray is inside, leaving
+    critical = math.degrees(math.asin(1 / ior))  # 41.8°
+    normal = np.array([[0.0, 0.0, 1.0]] * 4)  # outward normal; the ray is inside, leaving
     angles = np.array([20.0, critical - 0.5, critical + 0.5, 70.0])
     a = np.radians(angles)
     d = np.column_stack([np.sin(a), np.zeros(4), np.cos(a)])
     out, tir = transmitted_directions(d, normal, np.full(4, ior))
     assert tir.tolist() == [False, False, True, True]
     np.testing.assert_allclose(out[2:], reflect(d[2:], normal[2:]), atol=1e-15)
-    assert (out[2:, 2] < 0).all()                      # reflected back inside
+    assert (out[2:, 2] < 0).all()  # reflected back inside
     # Below the critical angle: Snell, sin θt = ior · sin θi, leaving along +z.
     np.testing.assert_allclose(out[:2, 0], ior * np.sin(a[:2]), atol=1e-12)
     assert (out[:2, 2] > 0).all()
@@ -293,15 +318,20 @@ def test_total_internal_reflection_beyond_critical_angle():
 
 # ---------------------------------------------------------------- robustness
 
+
 def mirror_box() -> Scene:
-    mirror = Material(color=(0.6, 0.6, 0.9), ambient=0.05, diffuse=0.2, specular=0.3, shininess=20.0,
-                      reflective=0.9)
-    ball = Material(color=(0.9, 0.4, 0.1), ambient=0.2, diffuse=0.5, specular=0.5, reflective=0.5,
-                    transmissive=0.3, ior=1.3)
+    mirror = Material(color=(0.6, 0.6, 0.9), ambient=0.05, diffuse=0.2, specular=0.3, shininess=20.0, reflective=0.9)
+    ball = Material(
+        color=(0.9, 0.4, 0.1), ambient=0.2, diffuse=0.5, specular=0.5, reflective=0.5, transmissive=0.3, ior=1.3
+    )
     planes = [Plane(tuple(-10.0 * n), tuple(n), 0) for n in np.vstack([np.eye(3), -np.eye(3)])]
-    return make_scene([((2.0, -3.0, -1.0), 3.0, 1), ((-4.0, 3.0, 2.0), 2.0, 0)], planes=planes,
-                      materials=[mirror, ball], lights=[Light(position=(0.0, 8.0, 0.0))],
-                      camera=Camera(position=(1.0, 1.0, 8.0), target=(0.0, 0.0, 0.0), fov_y=90.0))
+    return make_scene(
+        [((2.0, -3.0, -1.0), 3.0, 1), ((-4.0, 3.0, 2.0), 2.0, 0)],
+        planes=planes,
+        materials=[mirror, ball],
+        lights=[Light(position=(0.0, 8.0, 0.0))],
+        camera=Camera(position=(1.0, 1.0, 8.0), target=(0.0, 0.0, 0.0), fov_y=90.0),
+    )
 
 
 def test_mirror_box_depth_8():
@@ -327,12 +357,18 @@ def test_scenario3_color_is_finite():
 
 # ------------------------------------------------------------------- modes
 
+
 def test_recursion_mode_one_reflective_sphere():
     shiny = Material(color=(0.5, 0.5, 0.5), reflective=0.8)
     matte = Material(color=(0.3, 0.3, 0.3), reflective=0.0)
     cam = Camera(position=(0.0, 0.0, 60.0), target=(0.0, -5.0, 0.0), fov_y=60.0)
-    scene = make_scene([((0.0, 0.0, 0.0), 10.0, 0)], planes=[Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 1)],
-                       materials=[shiny, matte], lights=[Light((0.0, 40.0, 0.0))], camera=cam)
+    scene = make_scene(
+        [((0.0, 0.0, 0.0), 10.0, 0)],
+        planes=[Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 1)],
+        materials=[shiny, matte],
+        lights=[Light((0.0, 40.0, 0.0))],
+        camera=cam,
+    )
     w, h = 64, 48
     res = render_reference(scene, settings(w, h, mode="recursion", max_recursion_depth=4))
     img = res.image.reshape(-1, 3).astype(np.float64)
@@ -344,9 +380,9 @@ def test_recursion_mode_one_reflective_sphere():
     sphere = prim == 0
     down, up = sphere & (r[:, 1] < -1e-3), sphere & (r[:, 1] > 1e-3)
     assert down.sum() > 50 and up.sum() > 50
-    assert (img[down] == [0, 1, 0]).all()                 # reflection hits the plane: level 2
-    assert (img[up] == [1, 0, 0]).all()                   # reflection escapes: level 1
-    assert (img[prim == 1] == [1, 0, 0]).all()            # matte plane: no secondary ray
+    assert (img[down] == [0, 1, 0]).all()  # reflection hits the plane: level 2
+    assert (img[up] == [1, 0, 0]).all()  # reflection escapes: level 1
+    assert (img[prim == 1] == [1, 0, 0]).all()  # matte plane: no secondary ray
     assert (img[prim == -1] == 0).all() and (prim == -1).any()
     # With max depth 1 nothing can be deeper than level 1.
     res1 = render_reference(scene, settings(w, h, mode="recursion", max_recursion_depth=1))
@@ -358,7 +394,7 @@ def test_primid_normal_depth_images():
     out = {m: render_reference(scene, settings(40, 30, mode=m)) for m in ("primid", "normal", "depth")}
     res = out["primid"]
     hit = res.primid >= 0
-    assert hit.any() and (~hit).any() and (res.primid == 27).any()     # plane id = n
+    assert hit.any() and (~hit).any() and (res.primid == 27).any()  # plane id = n
     ids = res.primid[hit].astype(np.float64)
     for k, f in enumerate((0.6180340, 0.7548777, 0.5698403)):
         x = ids * f
@@ -366,7 +402,7 @@ def test_primid_normal_depth_images():
     np.testing.assert_allclose(out["normal"].image[hit], 0.5 * (res.normal[hit] + 1), atol=1e-6)
     assert (out["normal"].image[~hit] == 0).all() and (out["primid"].image[~hit] == 0).all()
     np.testing.assert_allclose(out["depth"].image[hit][:, 1], 100.0 / (100.0 + res.depth[hit]), rtol=1e-6)
-    for m in out.values():       # depth/primid/normal arrays do not depend on the mode
+    for m in out.values():  # depth/primid/normal arrays do not depend on the mode
         np.testing.assert_array_equal(m.primid, res.primid)
         np.testing.assert_array_equal(m.depth, res.depth)
 
@@ -374,7 +410,7 @@ def test_primid_normal_depth_images():
 def test_method_does_not_change_the_color():
     scene = scenario(2, 40, seed=3)
     a = render_reference(scene, settings(32, 40, method="bruteforce"))
-    b = render_reference(scene, settings(32, 40, method="bih"), chunk_rays=100)   # chunking neither
+    b = render_reference(scene, settings(32, 40, method="bih"), chunk_rays=100)  # chunking neither
     np.testing.assert_array_equal(a.image, b.image)
     np.testing.assert_array_equal(a.depth, b.depth)
 
@@ -388,18 +424,25 @@ def test_heat_bruteforce_is_red_by_sphere_count():
 def test_heat_bih_uses_traversal_counts():
     from renderer.accel import bih_traverse as bt
     from renderer.accel.bih import build_for_spheres
+
     scene = scenario(2, 200, seed=1)
     s = settings(40, 64, mode="heat", method="bih", max_prims=4)
     res = render_reference(scene, s)
     o, d = primary_rays(scene.camera, 40, 64)
-    tr = bt.traverse(build_for_spheres(scene.sphere_centers, scene.sphere_radii, 4, s.max_tree_depth),
-                     scene.sphere_centers, scene.sphere_radii, o, d)
+    tr = bt.traverse(
+        build_for_spheres(scene.sphere_centers, scene.sphere_radii, 4, s.max_tree_depth),
+        scene.sphere_centers,
+        scene.sphere_radii,
+        o,
+        d,
+    )
     expect = np.minimum(np.column_stack([0.05 * tr.tests, 0.2 * tr.gaps, 0.2 * tr.nodes_visited]), 1.0)
     np.testing.assert_allclose(res.image.reshape(-1, 3), expect, atol=1e-7)
     assert (tr.nodes_visited > 0).any() and (tr.tests < 200).all()
     # Spheres only: the traversal's nearest sphere is the reference's, where no plane is nearer.
-    spheres_only = Scene(scene.camera, scene.lights, scene.materials, scene.sphere_centers,
-                         scene.sphere_radii, scene.sphere_materials)
+    spheres_only = Scene(
+        scene.camera, scene.lights, scene.materials, scene.sphere_centers, scene.sphere_radii, scene.sphere_materials
+    )
     t, prim = trace_rays(spheres_only, o, d)
     assert (prim >= 0).sum() > 50
     np.testing.assert_array_equal(np.asarray(tr.prim), prim)

@@ -57,11 +57,11 @@ def inside_triangle(p: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, np.ndar
 def test_depth_primid_and_normal_of_a_flat_triangle_from_both_sides():
     w, h = 48, 40
     o, d = primary_rays(CAM, w, h)
-    t_plane = -o[:, 2] / d[:, 2]                     # z = 0
+    t_plane = -o[:, 2] / d[:, 2]  # z = 0
     inside, _ = inside_triangle(o + t_plane[:, None] * d, TRI)
     outside = ~inside & ~inside_triangle(o + t_plane[:, None] * d, TRI)[1].min(axis=1).__ge__(-1e-6)
     assert inside.sum() > 500 and outside.sum() > 100
-    for order, normal_z in (([0, 1, 2], 1.0), ([0, 2, 1], -1.0)):    # facing the camera, then away: both hit
+    for order, normal_z in (([0, 1, 2], 1.0), ([0, 2, 1], -1.0)):  # facing the camera, then away: both hit
         scene = scene_of([Mesh(TRI, [order])])
         for mode in ("depth", "primid", "normal"):
             res = render_reference(scene, settings(w, h, mode=mode))
@@ -108,7 +108,7 @@ def phong(c, ka, kd, ks, q, n, ldir, view):
     cos = max(np.dot(n, ldir), 0.0)
     r = 2 * cos * n - ldir
     x = np.dot(r, view)
-    return ka * c + kd * cos * c + ks * (x ** q if x > 0 and cos > 0 else 0.0)
+    return ka * c + kd * cos * c + ks * (x**q if x > 0 and cos > 0 else 0.0)
 
 
 @pytest.mark.parametrize("smooth", [False, True])
@@ -185,14 +185,16 @@ def test_refraction_through_a_closed_box_enters_then_leaves_parallel():
     """A slab of glass (ior 1.5): the transmitted ray bends in at the front face (entering
     by the geometric normal), hits the back face from inside and leaves parallel to the
     primary ray — both refractions are right only if entering and leaving are told apart."""
-    glass = Material(color=(1.0, 1.0, 1.0), ambient=0.0, diffuse=0.0, specular=0.0, reflective=0.0,
-                     transmissive=1.0, ior=1.5)
+    glass = Material(
+        color=(1.0, 1.0, 1.0), ambient=0.0, diffuse=0.0, specular=0.0, reflective=0.0, transmissive=1.0, ior=1.5
+    )
     slab = box((-10.0, -10.0, -1.0), (10.0, 10.0, 1.0), material=0)
     g = _Geometry.of(scene_of([slab], materials=[glass]))
     d0 = np.array([[0.3, -0.2, -1.0]])
     d0 /= np.linalg.norm(d0)
-    batch = RayBatch(np.array([[0.0, 0.0, 10.0]]), d0, np.array([0]), np.ones((1, 3)), 1,
-                     np.array([-1]), np.array([False]))
+    batch = RayBatch(
+        np.array([[0.0, 0.0, 10.0]]), d0, np.array([0]), np.ones((1, 3)), 1, np.array([-1]), np.array([False])
+    )
     frame = _Frame.empty(1)
     inside = _trace_batch(g, batch, frame, 4, shade=False)
     assert inside is not None and len(inside) == 1
@@ -213,8 +215,9 @@ def test_refraction_through_a_closed_box_enters_then_leaves_parallel():
 
 
 def test_recursion_through_a_closed_glass_icosphere_counts_both_faces():
-    glass = Material(color=(1.0, 1.0, 1.0), ambient=0.0, diffuse=0.0, specular=0.0, reflective=0.0,
-                     transmissive=0.9, ior=1.3)
+    glass = Material(
+        color=(1.0, 1.0, 1.0), ambient=0.0, diffuse=0.0, specular=0.0, reflective=0.0, transmissive=0.9, ior=1.3
+    )
     wall = Plane((0.0, 0.0, -30.0), (0.0, 0.0, 1.0), 0)
     scene = scene_of([icosphere(3, radius=4.0, material=0)], planes=[wall], materials=[glass])
     res = render_reference(scene, settings(16, 16, mode="recursion", max_recursion_depth=4))
@@ -225,6 +228,7 @@ def test_recursion_through_a_closed_glass_icosphere_counts_both_faces():
 def test_heat_counts_triangle_tests_like_sphere_tests():
     from renderer.accel.bih import build_for_scene
     from renderer.accel.bih_traverse import traverse
+
     scene = scene_of([icosphere(2, radius=3.0)], spheres=[((6.0, 0.0, 0.0), 1.0, 0)])
     n = scene.n_spheres + scene.n_triangles
     bf = render_reference(scene, settings(8, 8, mode="heat"))
@@ -232,8 +236,14 @@ def test_heat_counts_triangle_tests_like_sphere_tests():
     s = settings(24, 24, mode="heat", method="bih", max_prims=2)
     res = render_reference(scene, s)
     o, d = primary_rays(scene.camera, 24, 24)
-    tr = traverse(build_for_scene(scene, 2, s.max_tree_depth), scene.sphere_centers, scene.sphere_radii, o, d,
-                  triangles=scene.triangle_corners)
+    tr = traverse(
+        build_for_scene(scene, 2, s.max_tree_depth),
+        scene.sphere_centers,
+        scene.sphere_radii,
+        o,
+        d,
+        triangles=scene.triangle_corners,
+    )
     np.testing.assert_allclose(res.image.reshape(-1, 3)[:, 0], np.minimum(0.05 * tr.tests, 1.0))
     assert tr.tests.max() > 0 and tr.tests.max() < n
 

@@ -17,8 +17,14 @@ BASE = {
     "materials": [{}, {"color": [0.2, 0.8, 0.2]}],
     "spheres": [{"center": [0, 0, 0], "radius": 1}, {"center": [3, 0, 0], "radius": 1}],
     "planes": [{"point": [0, -20, 0], "normal": [0, 1, 0]}],
-    "meshes": [QUAD, {"vertices": [[0, 0, 5], [1, 0, 5], [0, 1, 5]], "triangles": [[0, 1, 2]],
-                      "normals": [[0, 0, 2], [0, 0, 1], [0.1, 0, 1]]}],
+    "meshes": [
+        QUAD,
+        {
+            "vertices": [[0, 0, 5], [1, 0, 5], [0, 1, 5]],
+            "triangles": [[0, 1, 2]],
+            "normals": [[0, 0, 2], [0, 0, 1], [0.1, 0, 1]],
+        },
+    ],
 }
 
 
@@ -38,7 +44,7 @@ def test_ids_spheres_then_planes_then_triangles_in_mesh_order():
     assert list(s.mesh_triangle_range(1)) == [2]
     # corner k of triangle j is vertex triangles[j][k] of its mesh, in world space
     np.testing.assert_array_equal(s.triangle_corners[1], [[0, 0, 0], [1, 1, 0], [0, 1, 0]])
-    np.testing.assert_array_equal(s.triangle_normals[2, 0], [0, 0, 2])     # as given: normalised when shading
+    np.testing.assert_array_equal(s.triangle_normals[2, 0], [0, 0, 2])  # as given: normalised when shading
     assert (s.triangle_normals[:2] == 0).all()
 
 
@@ -55,8 +61,12 @@ def test_round_trip_is_exact_and_a_sphere_scene_has_no_meshes_key():
 def test_transform_is_applied_once_with_normals_and_mirrors_keep_the_winding_outward():
     # scale x by 2, mirror y, translate z by 10 (row-major, last column = translation)
     m = [[2, 0, 0, 0], [0, -1, 0, 0], [0, 0, 1, 10], [0, 0, 0, 1]]
-    tri = {"vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "triangles": [[0, 1, 2]],
-           "normals": [[1, 1, 0], [0, 0, 1], [0, 0, 1]], "transform": m}
+    tri = {
+        "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]],
+        "triangles": [[0, 1, 2]],
+        "normals": [[1, 1, 0], [0, 0, 1], [0, 0, 1]],
+        "transform": m,
+    }
     s = Scene.from_json(scene_json(meshes=[tri]))
     mesh = s.meshes[0]
     np.testing.assert_array_equal(mesh.vertices, [[0, 0, 10], [2, 0, 10], [0, -1, 10]])
@@ -73,8 +83,11 @@ def test_transform_is_applied_once_with_normals_and_mirrors_keep_the_winding_out
 
 
 def test_degenerate_triangles_are_counted_kept_and_not_fatal():
-    d = scene_json(meshes=[{"vertices": [[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0]],
-                            "triangles": [[0, 1, 2], [0, 0, 3], [0, 1, 3]]}])
+    d = scene_json(
+        meshes=[
+            {"vertices": [[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0]], "triangles": [[0, 1, 2], [0, 0, 3], [0, 1, 3]]}
+        ]
+    )
     s = Scene.from_json(d)
     assert s.n_triangles == 3 and s.n_degenerate_triangles == 2
     np.testing.assert_array_equal(s.triangle_degenerate, [True, True, False])
@@ -85,30 +98,33 @@ def bad_mesh(**fields) -> dict:
     return scene_json(meshes=[copy.deepcopy(QUAD), mesh])
 
 
-@pytest.mark.parametrize("fields,path", [
-    ({"vertices": [[0, 0, 0], [1, 0, math.nan], [1, 1, 0], [0, 1, 0]]}, "meshes[1].vertices[1]"),
-    ({"vertices": [[0, 0, 0], [1, 0, math.inf], [1, 1, 0], [0, 1, 0]]}, "meshes[1].vertices[1]"),
-    ({"vertices": [[0, 0, 0], [2e7, 0, 0], [1, 1, 0], [0, 1, 0]]}, "meshes[1].vertices[1]"),
-    ({"vertices": [[0, 0, 0], [1, 0], [1, 1, 0], [0, 1, 0]]}, "meshes[1].vertices[1]"),
-    ({"vertices": [[0, 0, 0], [1, 0, "x"], [1, 1, 0], [0, 1, 0]]}, "meshes[1].vertices[1][2]"),
-    ({"vertices": [[0, 0, 0], [1, 0, True], [1, 1, 0], [0, 1, 0]]}, "meshes[1].vertices[1][2]"),
-    ({"triangles": [[0, 1, 2], [0, 2, 4]]}, "meshes[1].triangles[1]"),
-    ({"triangles": [[0, 1, 2], [0, -1, 3]]}, "meshes[1].triangles[1]"),
-    ({"triangles": [[0, 1, 2], [0, 1.5, 3]]}, "meshes[1].triangles[1]"),
-    ({"triangles": [[0, 1, 2], [0, 2]]}, "meshes[1].triangles[1]"),
-    ({"triangles": [[0, 1, 2], [0, 2, 3, 1]]}, "meshes[1].triangles[1]"),
-    ({"material": 2}, "meshes[1].material"),
-    ({"material": True}, "meshes[1].material"),
-    ({"normals": [[0, 0, 1]] * 3}, "meshes[1].normals"),
-    ({"normals": [[0, 0, 1], [0, 0, 0], [0, 0, 1], [0, 0, 1]]}, "meshes[1].normals[1]"),
-    ({"normals": [[0, 0, 1], [0, 0, math.nan], [0, 0, 1], [0, 0, 1]]}, "meshes[1].normals[1]"),
-    ({"transform": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0]]}, "meshes[1].transform"),
-    ({"transform": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 1, 1]]}, "meshes[1].transform[3]"),
-    ({"transform": [[1, 0, 0, 0], [0, 1, 0, math.nan], [0, 0, 1, 0], [0, 0, 0, 1]]}, "meshes[1].transform[1][3]"),
-    ({"transform": [[1, 0, 0, 0], [0, 0, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}, "meshes[1].transform"),
-    ({"transform": [[1.5e7, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}, "meshes[1].vertices[1]"),
-    ({"colour": 1}, "meshes[1].colour"),
-])
+@pytest.mark.parametrize(
+    "fields,path",
+    [
+        ({"vertices": [[0, 0, 0], [1, 0, math.nan], [1, 1, 0], [0, 1, 0]]}, "meshes[1].vertices[1]"),
+        ({"vertices": [[0, 0, 0], [1, 0, math.inf], [1, 1, 0], [0, 1, 0]]}, "meshes[1].vertices[1]"),
+        ({"vertices": [[0, 0, 0], [2e7, 0, 0], [1, 1, 0], [0, 1, 0]]}, "meshes[1].vertices[1]"),
+        ({"vertices": [[0, 0, 0], [1, 0], [1, 1, 0], [0, 1, 0]]}, "meshes[1].vertices[1]"),
+        ({"vertices": [[0, 0, 0], [1, 0, "x"], [1, 1, 0], [0, 1, 0]]}, "meshes[1].vertices[1][2]"),
+        ({"vertices": [[0, 0, 0], [1, 0, True], [1, 1, 0], [0, 1, 0]]}, "meshes[1].vertices[1][2]"),
+        ({"triangles": [[0, 1, 2], [0, 2, 4]]}, "meshes[1].triangles[1]"),
+        ({"triangles": [[0, 1, 2], [0, -1, 3]]}, "meshes[1].triangles[1]"),
+        ({"triangles": [[0, 1, 2], [0, 1.5, 3]]}, "meshes[1].triangles[1]"),
+        ({"triangles": [[0, 1, 2], [0, 2]]}, "meshes[1].triangles[1]"),
+        ({"triangles": [[0, 1, 2], [0, 2, 3, 1]]}, "meshes[1].triangles[1]"),
+        ({"material": 2}, "meshes[1].material"),
+        ({"material": True}, "meshes[1].material"),
+        ({"normals": [[0, 0, 1]] * 3}, "meshes[1].normals"),
+        ({"normals": [[0, 0, 1], [0, 0, 0], [0, 0, 1], [0, 0, 1]]}, "meshes[1].normals[1]"),
+        ({"normals": [[0, 0, 1], [0, 0, math.nan], [0, 0, 1], [0, 0, 1]]}, "meshes[1].normals[1]"),
+        ({"transform": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0]]}, "meshes[1].transform"),
+        ({"transform": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 1, 1]]}, "meshes[1].transform[3]"),
+        ({"transform": [[1, 0, 0, 0], [0, 1, 0, math.nan], [0, 0, 1, 0], [0, 0, 0, 1]]}, "meshes[1].transform[1][3]"),
+        ({"transform": [[1, 0, 0, 0], [0, 0, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}, "meshes[1].transform"),
+        ({"transform": [[1.5e7, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}, "meshes[1].vertices[1]"),
+        ({"colour": 1}, "meshes[1].colour"),
+    ],
+)
 def test_validation_names_the_json_path(fields, path):
     with pytest.raises(SceneError) as e:
         Scene.from_json(bad_mesh(**fields))

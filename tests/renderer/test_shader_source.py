@@ -31,6 +31,7 @@ def test_twolevel_shader_inlines_both_traversals():
         body = (ROOT / "shaders" / name).read_text()
         # (as a sphere variant has it: the //@TRIANGLES marks removed, renderer.shader_source)
         from renderer.shader_source import with_triangles
+
         assert src.count(with_triangles(body, False)) == 1
     assert "//@INCLUDE" not in src and "//@TRIANGLES" not in src
 
@@ -40,11 +41,12 @@ def test_triangle_marks_are_filled_only_for_variants_that_trace_triangles():
     all: tests/golden holds its hash); a TRIANGLES variant gets every mark's section, and
     the background variant of a mesh scene none (it has no traversal)."""
     from renderer.shader_source import TRIANGLES_MARK, read, triangle_sections, with_triangles
+
     sections = triangle_sections()
-    for name in ("raytrace.frag", "method_bih.glsl", "method_bruteforce.glsl", "method_bvh.glsl",
-                 "method_kdtree.glsl"):
-        marks = [line[len(TRIANGLES_MARK):].strip() for line in read(name).splitlines()
-                 if line.startswith(TRIANGLES_MARK)]
+    for name in ("raytrace.frag", "method_bih.glsl", "method_bruteforce.glsl", "method_bvh.glsl", "method_kdtree.glsl"):
+        marks = [
+            line[len(TRIANGLES_MARK) :].strip() for line in read(name).splitlines() if line.startswith(TRIANGLES_MARK)
+        ]
         assert marks and set(marks) <= set(sections), (name, marks)
         assert TRIANGLES_MARK not in with_triangles(read(name), False)
     for method in ("bih", "bruteforce", "bvh", "kdtree", "twolevel"):

@@ -72,7 +72,7 @@ def crossing_rays(mesh, rng: np.random.Generator, per_vertex: int, per_edge: int
         mean = cone.sum(axis=0)
         mean /= np.linalg.norm(mean)
         if not (cone @ mean > 0.05).all():
-            continue        # no direction crosses every face here transversally (a sharp saddle)
+            continue  # no direction crosses every face here transversally (a sharp saddle)
         for _ in range(20):
             m = mean + rng.normal(scale=0.3, size=3)
             m /= np.linalg.norm(m)
@@ -124,10 +124,10 @@ def test_axis_rays_through_the_exact_edges_and_vertices_of_a_box_hit_it():
     0, and the exact fallback keeps the edge in both triangles."""
     mesh = box((-1.0, -1.0, -1.0), (1.0, 1.0, 1.0))
     scene = mesh_scene(mesh)
-    s = np.arange(-64, 65) / 64.0                     # exact dyadic points along every edge
-    pts = [np.stack([s, s], 1), np.stack([s, -s], 1)]               # both diagonals of the top face
-    pts += [np.stack([s, np.full_like(s, c)], 1) for c in (-1.0, 1.0)]   # the top face's rim, x along
-    pts += [np.stack([np.full_like(s, c), s], 1) for c in (-1.0, 1.0)]   # and y along
+    s = np.arange(-64, 65) / 64.0  # exact dyadic points along every edge
+    pts = [np.stack([s, s], 1), np.stack([s, -s], 1)]  # both diagonals of the top face
+    pts += [np.stack([s, np.full_like(s, c)], 1) for c in (-1.0, 1.0)]  # the top face's rim, x along
+    pts += [np.stack([np.full_like(s, c), s], 1) for c in (-1.0, 1.0)]  # and y along
     xy = np.unique(np.concatenate(pts), axis=0)
     o = np.concatenate([xy, np.full((len(xy), 1), 5.0)], axis=1)
     d = np.broadcast_to([0.0, 0.0, -1.0], o.shape).copy()
@@ -142,7 +142,10 @@ def test_axis_rays_through_the_exact_edges_and_vertices_of_a_box_hit_it():
     diag = np.flatnonzero(np.abs(xy[:, 0]) == np.abs(xy[:, 1]))
     hits_both = 0
     for i in diag:
-        tt = [triangle_hits(o[i:i + 1], d[i:i + 1], c[j:j + 1, 0], c[j:j + 1, 1], c[j:j + 1, 2])[0][0] for j in top]
+        tt = [
+            triangle_hits(o[i : i + 1], d[i : i + 1], c[j : j + 1, 0], c[j : j + 1, 1], c[j : j + 1, 2])[0][0]
+            for j in top
+        ]
         hits_both += all(x == 4.0 for x in tt)
     assert hits_both > 50
 

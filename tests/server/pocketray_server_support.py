@@ -22,8 +22,14 @@ ROOT = Path(__file__).resolve().parents[2]
 # Small caps for tests: renders of at most 96×128 pixels at depth 2 (or 64×96 at 4).
 # One sample per pixel and no cut-off (not the service's "still" default): frames comparable with references.
 SMALL = {"width": 48, "height": 64, "max_recursion_depth": 2, "samples_per_pixel": 1, "min_weight": 0.0}
-TEST_CAPS = dict(max_work=96 * 128 * 2, max_spheres=4096, max_frame_cost=2_000.0,
-                 queue_size=4, max_body_bytes=256 * 1024, default_render=SMALL)
+TEST_CAPS = dict(
+    max_work=96 * 128 * 2,
+    max_spheres=4096,
+    max_frame_cost=2_000.0,
+    queue_size=4,
+    max_body_bytes=256 * 1024,
+    default_render=SMALL,
+)
 # A test module creates sessions from one address faster than a client does: no creation rate here
 # (tests/server/test_session_quota.py sets and tests it).
 TEST_CAPS["session_create_per_min"] = 0
@@ -77,8 +83,9 @@ class ServerProcess:
 
     def start(self, timeout_s: float = 60.0) -> ServerProcess:
         self.log = open(self.log_path, "ab")
-        self.proc = subprocess.Popen([sys.executable, "-m", "server"], cwd=ROOT, env=self.env,
-                                     stdout=self.log, stderr=subprocess.STDOUT)
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "server"], cwd=ROOT, env=self.env, stdout=self.log, stderr=subprocess.STDOUT
+        )
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             if self.proc.poll() is not None:
@@ -109,14 +116,21 @@ class ServerProcess:
 def cli_env() -> dict[str, str]:
     """The environment of a ``python -m server`` command: no POCKETRAY_* of ours, this checkout first."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
-    env["PYTHONPATH"] = str(ROOT)     # this checkout's server, not whichever one the environment installed
+    env["PYTHONPATH"] = str(ROOT)  # this checkout's server, not whichever one the environment installed
     return env
 
 
 def pocketray(*args: str, cwd: Path, stdin: str | None = None) -> subprocess.CompletedProcess:
     """``pocketray ARGS`` as a user runs it: ``python -m server ARGS``, a process of its own."""
-    return subprocess.run([sys.executable, "-m", "server", *args], cwd=cwd, env=cli_env(), input=stdin,
-                          capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "server", *args],
+        cwd=cwd,
+        env=cli_env(),
+        input=stdin,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 # One process running several commands one after the other, each through server.cli.main as
@@ -145,27 +159,35 @@ print(json.dumps(out))
 """
 
 
-def pocketray_batch(commands: list[tuple[str, ...] | tuple[tuple[str, ...], str]], cwd: Path
-                    ) -> list[subprocess.CompletedProcess]:
+def pocketray_batch(
+    commands: list[tuple[str, ...] | tuple[tuple[str, ...], str]], cwd: Path
+) -> list[subprocess.CompletedProcess]:
     """``pocketray`` commands run in order in one ``python -m``-like process (its start-up, the
     imports, paid once): each gives what :func:`pocketray` would, a CompletedProcess with its
     exit status, stdout and stderr. A command is its arguments, or (arguments, stdin text)."""
-    calls = [(list(c[0]), c[1]) if len(c) == 2 and isinstance(c[0], tuple) else (list(c), None)
-             for c in commands]
-    proc = subprocess.run([sys.executable, "-c", _BATCH], cwd=cwd, env=cli_env(), input=json.dumps(calls),
-                          capture_output=True, text=True, timeout=600)
+    calls = [(list(c[0]), c[1]) if len(c) == 2 and isinstance(c[0], tuple) else (list(c), None) for c in commands]
+    proc = subprocess.run(
+        [sys.executable, "-c", _BATCH],
+        cwd=cwd,
+        env=cli_env(),
+        input=json.dumps(calls),
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert proc.returncode == 0, proc.stderr[-4000:]
     results = json.loads(proc.stdout.strip().splitlines()[-1])
-    return [subprocess.CompletedProcess(["pocketray", *argv], r["returncode"], r["stdout"], r["stderr"])
-            for (argv, _), r in zip(calls, results, strict=True)]
+    return [
+        subprocess.CompletedProcess(["pocketray", *argv], r["returncode"], r["stdout"], r["stderr"])
+        for (argv, _), r in zip(calls, results, strict=True)
+    ]
 
 
 def server_env(sqlite_path: Path, port: int | None = None, **settings) -> dict[str, str]:
     """The environment of a test server process: TEST_CAPS plus ``settings`` as POCKETRAY_*."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
     conf = {**TEST_CAPS, "sqlite_path": str(sqlite_path), "log_level": "warning", **settings}
-    env.update({f"POCKETRAY_{k.upper()}": json.dumps(v) if isinstance(v, dict) else str(v)
-                for k, v in conf.items()})
+    env.update({f"POCKETRAY_{k.upper()}": json.dumps(v) if isinstance(v, dict) else str(v) for k, v in conf.items()})
     env["POCKETRAY_PORT"] = str(port or free_port())
     env["POCKETRAY_HOST"] = "127.0.0.1"
     return env

@@ -22,11 +22,13 @@ FRAME = {"width": 40, "height": 56, "format": "npy", "mode": "primid", "max_recu
 def client(tmp_path_factory):
     """The test app, with room for brute-force frames of the museum's ~600 spheres (the reference here)."""
     import warnings
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         from fastapi.testclient import TestClient
     from server.app import create_app
-    with TestClient(create_app(make_config(tmp_path_factory.mktemp("anim"), max_frame_cost=10 ** 6))) as c:
+
+    with TestClient(create_app(make_config(tmp_path_factory.mktemp("anim"), max_frame_cost=10**6))) as c:
         yield c
 
 
@@ -41,8 +43,9 @@ def timing(header: str) -> dict[str, float]:
 
 
 def museum_session(client, n: int = 48, kind: str = "deformable", **settings) -> dict:
-    r = client.post("/api/sessions", json={"museum": {"n": n, "kind": kind, "seed": 2},
-                                           "settings": {**SMALL, **settings}})
+    r = client.post(
+        "/api/sessions", json={"museum": {"n": n, "kind": kind, "seed": 2}, "settings": {**SMALL, **settings}}
+    )
     assert r.status_code == 201, r.text
     return r.json()
 
@@ -52,8 +55,10 @@ def ids(r) -> np.ndarray:
     return np.load(io.BytesIO(r.content))
 
 
-@pytest.mark.parametrize("kind,method,scheme", [("rigid", "bvh", "refit"), ("incoherent", "bvh", "selective"),
-                                                ("mixed", "twolevel", "refit")])
+@pytest.mark.parametrize(
+    "kind,method,scheme",
+    [("rigid", "bvh", "refit"), ("incoherent", "bvh", "selective"), ("mixed", "twolevel", "refit")],
+)
 def test_session_frames_follow_the_animation_exactly(ready_client, kind, method, scheme):
     """Each frame of a session, updated from the previous one, shows what brute force shows."""
     c = ready_client
@@ -83,7 +88,7 @@ def test_a_frame_is_the_posed_scene(ready_client):
     t = 1.7
     frame = ids(c.get(f"/api/sessions/{sid}/frame", params={**FRAME, "time": t}))
     posed = pose(museum(32, "incoherent", seed=2), t).scene
-    assert posed.n_spheres < 576 + 32                       # incoherent: some spheres are away at t
+    assert posed.n_spheres < 576 + 32  # incoherent: some spheres are away at t
     body = {"scene": posed.to_json(), "settings": {**FRAME, "method": "bruteforce"}}
     ref = ids(c.post("/api/render", json=body))
     assert (frame == ref).mean() >= 0.9999
@@ -92,8 +97,10 @@ def test_a_frame_is_the_posed_scene(ready_client):
 def test_uploaded_scene_with_motions_round_trips(ready_client):
     c = ready_client
     d = scenario(1, 27, 0, 1.0).to_json()
-    d["motions"] = [{"kind": "rigid", "first": 0, "count": 9, "angular_velocity": 1.0},
-                    {"kind": "deformable", "first": 9, "count": 9, "amplitude": 0.5}]
+    d["motions"] = [
+        {"kind": "rigid", "first": 0, "count": 9, "angular_velocity": 1.0},
+        {"kind": "deformable", "first": 9, "count": 9, "amplitude": 0.5},
+    ]
     r = c.post("/api/sessions", json={"scene": d, "settings": SMALL})
     assert r.status_code == 201, r.text
     sid = r.json()["id"]
@@ -116,9 +123,15 @@ def test_sources_keep_the_motions():
     np.testing.assert_array_equal(pose(again, t).scene.sphere_centers, pose(anim, t).scene.sphere_centers)
 
 
-@pytest.mark.parametrize("params,field", [({"time": -1}, "time"), ({"time": "nan"}, "time"),
-                                          ({"update": "sometimes"}, "update"),
-                                          ({"update_threshold": -0.5}, "update_threshold")])
+@pytest.mark.parametrize(
+    "params,field",
+    [
+        ({"time": -1}, "time"),
+        ({"time": "nan"}, "time"),
+        ({"update": "sometimes"}, "update"),
+        ({"update_threshold": -0.5}, "update_threshold"),
+    ],
+)
 def test_bad_frame_settings_are_422_naming_the_field(ready_client, params, field):
     c = ready_client
     sid = museum_session(c)["id"]
@@ -128,30 +141,37 @@ def test_bad_frame_settings_are_422_naming_the_field(ready_client, params, field
     v = c.get(f"/api/sessions/{sid}").json()["version"]
     r = c.patch(f"/api/sessions/{sid}/settings", json={"time": -1e9} if field == "time" else params)
     assert r.status_code == 422 and r.json()["detail"][0]["loc"][-1] == field
-    assert c.get(f"/api/sessions/{sid}").json()["version"] == v      # nothing applied
+    assert c.get(f"/api/sessions/{sid}").json()["version"] == v  # nothing applied
 
 
-@pytest.mark.parametrize("motion,loc", [
-    ({"kind": "rigid", "first": 0, "count": 4, "axis": [0, 0, 0]}, ["body", "scene", "motions", 0, "axis"]),
-    ({"kind": "rigid", "first": 0, "count": 4, "pivot": [9e6, 0, 0], "amplitude": [5e6, 0, 0]},
-     ["body", "scene", "motions", 0]),
-    ({"kind": "deformable", "first": 4, "count": 40}, ["body", "scene", "motions", 0, "count"]),
-    ({"kind": "incoherent", "first": 0, "count": 4, "box_min": [0, 0, 0], "box_max": [1, -1, 1]},
-     ["body", "scene", "motions", 0, "box_max", 1]),
-    ({"kind": "wobble", "first": 0, "count": 4}, ["body", "scene", "motions", 0]),
-])
+@pytest.mark.parametrize(
+    "motion,loc",
+    [
+        ({"kind": "rigid", "first": 0, "count": 4, "axis": [0, 0, 0]}, ["body", "scene", "motions", 0, "axis"]),
+        (
+            {"kind": "rigid", "first": 0, "count": 4, "pivot": [9e6, 0, 0], "amplitude": [5e6, 0, 0]},
+            ["body", "scene", "motions", 0],
+        ),
+        ({"kind": "deformable", "first": 4, "count": 40}, ["body", "scene", "motions", 0, "count"]),
+        (
+            {"kind": "incoherent", "first": 0, "count": 4, "box_min": [0, 0, 0], "box_max": [1, -1, 1]},
+            ["body", "scene", "motions", 0, "box_max", 1],
+        ),
+        ({"kind": "wobble", "first": 0, "count": 4}, ["body", "scene", "motions", 0]),
+    ],
+)
 def test_bad_motions_are_422_naming_the_field(client, motion, loc):
     d = scenario(1, 8, 0, 1.0).to_json()
     d["motions"] = [motion]
     r = client.post("/api/sessions", json={"scene": d, "settings": SMALL})
     assert r.status_code == 422, r.text
     got = r.json()["detail"][0]["loc"]
-    assert got[:len(loc)] == loc, got
+    assert got[: len(loc)] == loc, got
     # PUT scene: the same error one level up, and the session keeps its scene.
     sid = museum_session(client, n=8)["id"]
     before = client.get(f"/api/sessions/{sid}").json()
     r = client.put(f"/api/sessions/{sid}/scene", json=d)
-    assert r.status_code == 422 and r.json()["detail"][0]["loc"][:len(loc) - 1] == ["body", *loc[2:]]
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"][: len(loc) - 1] == ["body", *loc[2:]]
     assert client.get(f"/api/sessions/{sid}").json() == before
 
 
@@ -182,8 +202,9 @@ def test_sessions_stored_before_animation_still_work(ready_client):
     c = ready_client
     sid = c.post("/api/sessions", json={"scenario": 1, "n": 8, "settings": SMALL}).json()["id"]
     new_keys = ("time", "update", "update_threshold")
-    c.app.state.service.store.update(sid, lambda old: dataclasses.replace(
-        old, settings={k: v for k, v in old.settings.items() if k not in new_keys}))
+    c.app.state.service.store.update(
+        sid, lambda old: dataclasses.replace(old, settings={k: v for k, v in old.settings.items() if k not in new_keys})
+    )
     s = c.get(f"/api/sessions/{sid}").json()["settings"]
     assert (s["time"], s["update"]) == (0.0, "rebuild")
     assert c.get(f"/api/sessions/{sid}/stats").status_code == 200

@@ -29,10 +29,10 @@ from pocketray_server_support import SMALL, make_config
 from server.api.body import INLINE_BODY_BYTES, BodyParsers
 from server.app import create_app
 
-pytestmark = pytest.mark.gl     # the app's lifespan starts the GL worker
+pytestmark = pytest.mark.gl  # the app's lifespan starts the GL worker
 
 ATTACKER, HONEST = ("10.0.0.66", 40000), ("10.0.0.7", 40001)
-DECLARED = 100_000                       # over INLINE_BODY_BYTES: each such body takes a slot
+DECLARED = 100_000  # over INLINE_BODY_BYTES: each such body takes a slot
 
 
 def scene_body(min_bytes: int) -> bytes:
@@ -40,8 +40,13 @@ def scene_body(min_bytes: int) -> bytes:
     spheres = []
     body = b""
     while len(body) <= min_bytes:
-        spheres += [{"center": [len(spheres) % 40 - 20, (len(spheres) // 40) % 40 - 20, -30 - len(spheres) // 1600],
-                     "radius": 0.2} for _ in range(200)]
+        spheres += [
+            {
+                "center": [len(spheres) % 40 - 20, (len(spheres) // 40) % 40 - 20, -30 - len(spheres) // 1600],
+                "radius": 0.2,
+            }
+            for _ in range(200)
+        ]
         body = json.dumps({"scene": {"materials": [{}], "spheres": spheres}, "settings": SMALL}).encode()
     return body
 
@@ -60,6 +65,7 @@ def app_with(tmp_path):
         c.__enter__()
         opened.append(c)
         return c
+
     yield make
     for c in opened:
         c.__exit__(None, None, None)
@@ -113,7 +119,7 @@ def test_trickling_bodies_from_one_address_leave_the_other_slots_to_other_client
     assert len(early) == 2 and all(r.status_code == 429 for r in early), [(r.status_code, r.text) for r in early]
     r = early[0]
     assert "POCKETRAY_BODY_SLOTS_PER_CLIENT" in r.json()["detail"] and r.headers["retry-after"] == "1"
-    assert honest.status_code == 201, honest.text[:300]         # was 503: every slot held by the trickles
+    assert honest.status_code == 201, honest.text[:300]  # was 503: every slot held by the trickles
     assert honest_s < 30
     assert slots_held(c) == 0
 
@@ -132,15 +138,17 @@ def test_a_body_below_the_minimum_rate_is_answered_408_and_its_slot_freed(app_wi
     detail = r.json()["detail"]
     assert "POCKETRAY_BODY_MIN_RATE_BYTES_S" in detail and "POCKETRAY_BODY_GRACE_S" in detail, detail
     assert r.headers["connection"] == "close"
-    assert seconds < 5, seconds                     # the grace (1 s) and a little, not the 20 s of the trickle
+    assert seconds < 5, seconds  # the grace (1 s) and a little, not the 20 s of the trickle
     assert slots_held(c) == 0
 
-    async def steady(app):                          # a body that keeps up is read as before
+    async def steady(app):  # a body that keeps up is read as before
         async def chunks():
             for i in range(0, len(HONEST_BODY), 16 * 1024):
                 await asyncio.sleep(0.05)
-                yield HONEST_BODY[i:i + 16 * 1024]
+                yield HONEST_BODY[i : i + 16 * 1024]
+
         return await post(app, HONEST, chunks(), len(HONEST_BODY))
+
     assert run(c, steady).status_code == 201
 
 
@@ -150,6 +158,7 @@ def test_the_slots_one_address_holds_are_counted_back_when_its_bodies_end(app_wi
 
     async def scenario(app):
         return [(await post(app, HONEST, HONEST_BODY)).status_code for _ in range(3)]
+
     assert run(c, scenario) == [201, 201, 201]
     assert slots_held(c) == 0
 
@@ -157,12 +166,14 @@ def test_the_slots_one_address_holds_are_counted_back_when_its_bodies_end(app_wi
 def test_a_trickled_body_is_closed_on_the_wire_with_its_408(spawn_server):
     server = spawn_server(body_grace_s=1.0, body_min_rate_bytes_s=64 * 1024, request_idle_timeout_s=30)
     sock = socket.create_connection(("127.0.0.1", server.port), timeout=15)
-    sock.sendall(b"POST /api/sessions HTTP/1.1\r\nHost: t\r\ncontent-type: application/json\r\n"
-                 b"content-length: %d\r\n\r\n{" % DECLARED)
+    sock.sendall(
+        b"POST /api/sessions HTTP/1.1\r\nHost: t\r\ncontent-type: application/json\r\n"
+        b"content-length: %d\r\n\r\n{" % DECLARED
+    )
     t0 = time.monotonic()
     got = b""
     sock.settimeout(0.3)
-    while time.monotonic() - t0 < 15:               # a byte every 0.3 s: never idle for the idle timeout
+    while time.monotonic() - t0 < 15:  # a byte every 0.3 s: never idle for the idle timeout
         try:
             sock.sendall(b" ")
             chunk = sock.recv(65536)

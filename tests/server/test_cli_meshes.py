@@ -18,7 +18,7 @@ from renderer.meshes import box, icosphere, torus
 from renderer.reference import primary_rays, trace_rays
 from renderer.scene import Scene
 
-pytestmark = pytest.mark.gl   # render runs GLRenderer
+pytestmark = pytest.mark.gl  # render runs GLRenderer
 
 W, H = 48, 40
 MODELS = ["ball.obj", "box.stl", "ring.ply", "ball.glb"]
@@ -48,8 +48,9 @@ def models(tmp_path_factory) -> Path:
 def renders(models) -> dict[str, object]:
     """Every ``render MODEL`` of the tests below, in one process: the primid frame of each model
     (``p-NAME.npy``), and of the ball at --size 10, its normals --flat and --smooth."""
-    commands = {f"p-{name}.npy": ("render", name, "-o", f"p-{name}.npy", "--mode", "primid", *COMMON)
-                for name in MODELS}
+    commands = {
+        f"p-{name}.npy": ("render", name, "-o", f"p-{name}.npy", "--mode", "primid", *COMMON) for name in MODELS
+    }
     commands["small.npy"] = ("render", "ball.obj", "-o", "small.npy", "--size", "10", "--mode", "primid", *COMMON)
     commands["n.npy"] = ("render", "ball.obj", "-o", "n.npy", "--flat", "--mode", "normal", *COMMON)
     commands["s.npy"] = ("render", "ball.obj", "-o", "s.npy", "--smooth", "--mode", "normal", *COMMON)
@@ -65,10 +66,10 @@ def test_render_model_file_agrees_with_the_reference_on_the_fitted_scene(models,
     want = reference_ids(scene)
     n_tri = load_mesh(models / name).n_triangles
     first = scene.triangle_id_base
-    assert first == 1                                      # no sphere, one floor plane (id 0)
+    assert first == 1  # no sphere, one floor plane (id 0)
     on_mesh = (got >= first) & (got < first + n_tri)
-    assert on_mesh.sum() > 0.03 * W * H                    # the model fills a part of the frame (a torus edge-on too)
-    assert (got == 0).any()                                # and stands on the floor, which is seen
+    assert on_mesh.sum() > 0.03 * W * H  # the model fills a part of the frame (a torus edge-on too)
+    assert (got == 0).any()  # and stands on the floor, which is seen
     # The frame's border rows and columns never hold the model: the camera frames it whole.
     border = np.concatenate([got[0], got[-1], got[:, 0], got[:, -1]])
     assert not ((border >= first) & (border < first + n_tri)).any()
@@ -89,24 +90,44 @@ def test_render_model_flags_shading_and_size(models, renders):
 
 def test_render_model_refuses_bad_files_and_flags_naming_them(models):
     (models / "bad.ply").write_text("this is not a ply file\n")
-    cases = [(("render", "bad.ply", "-o", "x.png"), "model:"), (("render", "gone.obj", "-o", "x.png"), "model:"),
-             (("render", "ball.obj", "-o", "x.png", "--size", "0"), "size:"),
-             (("render", "ball.obj", "-o", "x.png", "--width", "0"), "width"),
-             (("render", "ball.obj", "-o", "x.gif"), "output:"),
-             (("scene", "--mesh", "bad.ply", "-o", "x.json"), "mesh:"),
-             (("scene", "--mesh", "ball.obj", "--mesh", "gone.stl", "-o", "x.json"), "mesh:")]
+    cases = [
+        (("render", "bad.ply", "-o", "x.png"), "model:"),
+        (("render", "gone.obj", "-o", "x.png"), "model:"),
+        (("render", "ball.obj", "-o", "x.png", "--size", "0"), "size:"),
+        (("render", "ball.obj", "-o", "x.png", "--width", "0"), "width"),
+        (("render", "ball.obj", "-o", "x.gif"), "output:"),
+        (("scene", "--mesh", "bad.ply", "-o", "x.json"), "mesh:"),
+        (("scene", "--mesh", "ball.obj", "--mesh", "gone.stl", "-o", "x.json"), "mesh:"),
+    ]
     for (args, words), r in zip(cases, pocketray_batch([args for args, _ in cases], cwd=models), strict=True):
         assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr, (args, r.stderr)
     assert not (models / "x.png").exists() and not (models / "x.json").exists()
 
 
 def test_scene_of_meshes_validates_renders_and_places_each_model(models, client):
-    r, out, as_is, std = pocketray_batch([
-        ("scene", "--mesh", "ball.obj", "--mesh", "box.stl", "--mesh", "ring.ply", "-o", "s.json"),
-        ("render", "s.json", "-o", "p.npy", "--mode", "primid", "--width", "128", "--height", "64", "--spp", "1",
-         "--quiet"),
-        ("scene", "--mesh", "box.stl", "--as-is", "-o", "raw.json"),
-        ("scene", "--mesh", "ring.ply")], cwd=models)
+    r, out, as_is, std = pocketray_batch(
+        [
+            ("scene", "--mesh", "ball.obj", "--mesh", "box.stl", "--mesh", "ring.ply", "-o", "s.json"),
+            (
+                "render",
+                "s.json",
+                "-o",
+                "p.npy",
+                "--mode",
+                "primid",
+                "--width",
+                "128",
+                "--height",
+                "64",
+                "--spp",
+                "1",
+                "--quiet",
+            ),
+            ("scene", "--mesh", "box.stl", "--as-is", "-o", "raw.json"),
+            ("scene", "--mesh", "ring.ply"),
+        ],
+        cwd=models,
+    )
     assert r.returncode == 0, r.stderr
     doc = json.loads((models / "s.json").read_text())
     counts = [load_mesh(models / n).n_triangles for n in ("ball.obj", "box.stl", "ring.ply")]
@@ -128,9 +149,10 @@ def test_scene_of_meshes_validates_renders_and_places_each_model(models, client)
     got = np.load(models / "p.npy")
     from server.models import SceneModel
     from server.scenes import scene_from_model
+
     want = reference_ids(scene_from_model(SceneModel.model_validate(doc)), 128, 64)
     first = 1
-    for i, n in enumerate(counts):        # every mesh is seen, mostly where the reference sees it
+    for i, n in enumerate(counts):  # every mesh is seen, mostly where the reference sees it
         lo = first + sum(counts[:i])
         seen, ref = (got >= lo) & (got < lo + n), (want >= lo) & (want < lo + n)
         assert seen.sum() > 10 and (seen != ref).sum() < 0.15 * ref.sum(), i

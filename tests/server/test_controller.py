@@ -122,9 +122,9 @@ def test_orbit_keeps_the_target_and_the_distance(cam, yaw, pitch):
 
 
 def test_orbit_yaw_turns_about_up_towards_the_cameras_right():
-    cam = Camera()                                    # at +z, looking at the origin, up +y
+    cam = Camera()  # at +z, looking at the origin, up +y
     moved = controller.orbit(cam, 90.0, 0.0)
-    assert moved.position == pytest.approx((100.0, 0.0, 0.0), abs=1e-9)   # to its right (+x)
+    assert moved.position == pytest.approx((100.0, 0.0, 0.0), abs=1e-9)  # to its right (+x)
     back = controller.orbit(cam, -90.0, 0.0)
     assert back.position == pytest.approx((-100.0, 0.0, 0.0), abs=1e-9)
     # Any yaw keeps the height along up (a turntable: the horizon stays level).
@@ -140,8 +140,8 @@ def test_orbit_pitch_turns_about_right_and_moves_the_camera_down():
     d = 100.0
     assert moved.position == pytest.approx((0.0, -d * math.sin(math.radians(30)), d * math.cos(math.radians(30))))
     right, _, _ = cam.basis()
-    assert _offset(moved) @ right == pytest.approx(0.0, abs=1e-9)          # the rotation axis is right
-    assert np.allclose(moved.basis()[0], right)                           # … and right stays
+    assert _offset(moved) @ right == pytest.approx(0.0, abs=1e-9)  # the rotation axis is right
+    assert np.allclose(moved.basis()[0], right)  # … and right stays
 
 
 def test_orbit_composes_and_undoes():
@@ -157,7 +157,7 @@ def test_orbit_composes_and_undoes():
 
 @pytest.mark.parametrize("pitch", [89.5, 120.0, 360.0, -89.5, -179.0, -360.0])
 def test_orbit_pitch_stops_short_of_the_poles(pitch):
-    cam = Camera()                                     # polar angle 90°
+    cam = Camera()  # polar angle 90°
     moved = controller.orbit(cam, 0.0, pitch)
     theta = controller.polar_angle(moved)
     assert controller.MIN_POLAR_DEG - 1e-9 <= theta <= 180.0 - controller.MIN_POLAR_DEG + 1e-9
@@ -167,7 +167,7 @@ def test_orbit_pitch_stops_short_of_the_poles(pitch):
 
 
 def test_orbit_from_near_a_pole_may_come_back_but_not_go_further():
-    cam = Camera(position=(0.0, 100.0, 1.0), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0))   # from above: ≈ 0.57°
+    cam = Camera(position=(0.0, 100.0, 1.0), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0))  # from above: ≈ 0.57°
     theta = controller.polar_angle(cam)
     assert theta < controller.MIN_POLAR_DEG
     assert controller.polar_angle(controller.orbit(cam, 0.0, -10.0)) == pytest.approx(theta)

@@ -44,18 +44,19 @@ PINCH = {"type": "pinch", "scale": 2}
 class Case:
     """One way into a row: a gesture (None: a frame without one) with frame settings, or a raw
     message/body; and what the service or the worker is made to do for it."""
+
     row: str
     status: int
     gesture: dict[str, Any] | None = None
     frame: dict[str, Any] = field(default_factory=dict)
-    raw: str | bytes | None = None          # the message / body as sent, instead of gesture + frame
-    session: str | None = None              # default: a live session
-    raises: Exception | None = None         # service.session_frame raises this
-    gl_error: str | None = None             # the GL context "failed" with this
-    full_queue: bool = False                # every queue slot is taken
-    path: str | None = None                 # HTTP only: GET this path instead
-    busy_bodies: bool = False               # HTTP only: every slot of the body parsers is taken
-    busy_planning: bool = False             # every planning slot is taken
+    raw: str | bytes | None = None  # the message / body as sent, instead of gesture + frame
+    session: str | None = None  # default: a live session
+    raises: Exception | None = None  # service.session_frame raises this
+    gl_error: str | None = None  # the GL context "failed" with this
+    full_queue: bool = False  # every queue slot is taken
+    path: str | None = None  # HTTP only: GET this path instead
+    busy_bodies: bool = False  # HTTP only: every slot of the body parsers is taken
+    busy_planning: bool = False  # every planning slot is taken
 
 
 CASES = {
@@ -84,7 +85,7 @@ CASES = {
     "planning slots taken": Case("busy", 503, gesture=PINCH, busy_planning=True),
     "body parsers busy": Case("busy", 503, busy_bodies=True),
 }
-RETRY_STATUSES = (429, 503, 507)     # the answers that say when to retry
+RETRY_STATUSES = (429, 503, 507)  # the answers that say when to retry
 HTTP_ONLY = {
     "no such route": "a WebSocket message has no route to miss",
     "body parsers busy": "messages are small and read by their connection, not by the pool for large bodies",
@@ -106,13 +107,14 @@ def over_http(http: TestClient, sid: str, case: Case):
     base = f"/api/sessions/{sid}"
     if case.path is not None:
         return http.get(case.path)
-    if case.busy_bodies:      # a body over the inline size goes to the pool, whose slots are all taken
+    if case.busy_bodies:  # a body over the inline size goes to the pool, whose slots are all taken
         scene = {"materials": [{}], "spheres": [{"center": [i % 50, 0, 0], "radius": 0.5} for i in range(2000)]}
         return http.put(f"{base}/scene", json=scene)
     if case.raw is not None:
         body = case.raw.encode() if isinstance(case.raw, str) else case.raw
-        return http.post(f"{base}/gesture", params={"frame": 1}, content=body,
-                         headers={"content-type": "application/json"})
+        return http.post(
+            f"{base}/gesture", params={"frame": 1}, content=body, headers={"content-type": "application/json"}
+        )
     if case.gesture is None:
         return http.get(f"{base}/frame", params=case.frame)
     return http.post(f"{base}/gesture", params={"frame": 1, **case.frame}, json=case.gesture)
@@ -146,10 +148,13 @@ def test_http_and_websocket_answer_alike(client, http, sid, monkeypatch, name):
     def spy(exc, config, where):
         rows.append(errors.row_of(exc).name)
         return answer(exc, config, where)
+
     monkeypatch.setattr(errors, "answer", spy)
     if case.raises is not None:
+
         def session_frame(*args, **kwargs):
             raise case.raises
+
         monkeypatch.setattr(service, "session_frame", session_frame)
     if case.gl_error is not None:
         monkeypatch.setattr(worker, "error", case.gl_error)

@@ -31,9 +31,9 @@ from server.app import create_app
 from server.service import frame_nbytes
 from server.view import encode
 
-pytestmark = pytest.mark.gl     # the app's lifespan starts the GL worker
+pytestmark = pytest.mark.gl  # the app's lifespan starts the GL worker
 
-SIDE = 256                                  # a 256² normal npy frame: ~5 MB estimated, over the 1 MiB budget
+SIDE = 256  # a 256² normal npy frame: ~5 MB estimated, over the 1 MiB budget
 BUDGET = 1 << 20
 FRAME = {"width": SIDE, "height": SIDE, "mode": "normal", "format": "npy"}
 
@@ -41,8 +41,9 @@ FRAME = {"width": SIDE, "height": SIDE, "mode": "normal", "format": "npy"}
 @pytest.fixture(scope="module")
 def app(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("frame-memory")
-    with TestClient(create_app(make_config(tmp, max_work=SIDE * SIDE * 2, max_frame_bytes_in_flight=BUDGET,
-                                           queue_size=4))) as c:
+    with TestClient(
+        create_app(make_config(tmp, max_work=SIDE * SIDE * 2, max_frame_bytes_in_flight=BUDGET, queue_size=4))
+    ) as c:
         wait_ready(c.get)
         yield c
 
@@ -55,12 +56,12 @@ def test_frames_past_the_byte_budget_are_never_in_flight_together(app, monkeypat
     """Four frames of four sessions at once, each over half the budget: one at a time from
     its admission to its encoded body (was: all four, as many as POCKETRAY_QUEUE_SIZE admits)."""
     service = service_of(app)
-    monkeypatch.setattr(service, "FRAME_BYTES_WAIT_S", 30.0, raising=False)     # wait their turn, no 503
+    monkeypatch.setattr(service, "FRAME_BYTES_WAIT_S", 30.0, raising=False)  # wait their turn, no 503
     sids = [new_session(app)["id"] for _ in range(4)]
     encode_frame = service.encode_frame
     lock, now, most = threading.Lock(), [0], [0]
 
-    def slow_encode(*args, **kwargs):                            # the stage where all four overlapped
+    def slow_encode(*args, **kwargs):  # the stage where all four overlapped
         with lock:
             now[0] += 1
             most[0] = max(most[0], now[0])
@@ -70,11 +71,13 @@ def test_frames_past_the_byte_budget_are_never_in_flight_together(app, monkeypat
         finally:
             with lock:
                 now[0] -= 1
+
     monkeypatch.setattr(service, "encode_frame", slow_encode)
     codes: list[int] = []
 
     def get(sid: str) -> None:
         codes.append(app.get(f"/api/sessions/{sid}/frame", params=FRAME).status_code)
+
     threads = [threading.Thread(target=get, args=(sid,)) for sid in sids]
     for t in threads:
         t.start()
@@ -89,16 +92,16 @@ def test_a_frame_that_finds_the_budget_taken_gets_503_with_retry_after(app, monk
     service = service_of(app)
     sid = new_session(app)["id"]
     monkeypatch.setattr(service, "FRAME_BYTES_WAIT_S", 0.05)
-    assert service.frame_bytes.acquire(BUDGET, 0)                # another frame holds the whole budget
+    assert service.frame_bytes.acquire(BUDGET, 0)  # another frame holds the whole budget
     try:
         r = app.get(f"/api/sessions/{sid}/frame", params=FRAME)
     finally:
         service.frame_bytes.release(BUDGET)
     assert r.status_code == 503 and int(r.headers["retry-after"]) >= 1, r.text
     assert "POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT" in r.json()["detail"]
-    small = {**FRAME, "width": 16, "height": 16}                 # the budget back: frames are served
+    small = {**FRAME, "width": 16, "height": 16}  # the budget back: frames are served
     assert app.get(f"/api/sessions/{sid}/frame", params=small).status_code == 200
-    assert app.get(f"/api/sessions/{sid}/frame", params=FRAME).status_code == 200   # alone, though over it
+    assert app.get(f"/api/sessions/{sid}/frame", params=FRAME).status_code == 200  # alone, though over it
 
 
 @pytest.mark.parametrize("mode", ["normal", "depth", "primid", "color"])
@@ -111,6 +114,7 @@ def test_the_npy_body_is_the_renderers_array(app, monkeypatch, mode):
     def spy(result, *args, **kwargs):
         seen.append(result.array().copy())
         return encode_frame(result, *args, **kwargs)
+
     monkeypatch.setattr(service, "encode_frame", spy)
     r = app.get(f"/api/sessions/{sid}/frame", params={**FRAME, "mode": mode, "width": 48, "height": 40})
     assert r.status_code == 200, r.text
@@ -123,8 +127,13 @@ def strided_result(side: int) -> RenderResult:
     """A normal result whose array is a strided view (as a read-back's rows turned over are)."""
     rng = np.random.default_rng(1)
     hit = rng.random((side, side, 4), dtype=np.float32)
-    return RenderResult(image=np.zeros((side, side, 3), np.float32), depth=hit[..., 3],
-                        primid=np.zeros((side, side), np.int32), normal=hit[::-1][..., :3], mode="normal")
+    return RenderResult(
+        image=np.zeros((side, side, 3), np.float32),
+        depth=hit[..., 3],
+        primid=np.zeros((side, side), np.int32),
+        normal=hit[::-1][..., :3],
+        mode="normal",
+    )
 
 
 def test_npy_encoding_copies_the_array_once():
@@ -146,14 +155,15 @@ def test_npy_encoding_copies_the_array_once():
 def test_the_estimate_of_a_frame_counts_its_target_read_back_and_body():
     from renderer.gl.targets import BYTES_PER_PIXEL, BYTES_PER_PIXEL_RGBA8, TargetPool
     from renderer.result import TARGET_BYTES_PER_PIXEL, TARGET_BYTES_PER_PIXEL_RGBA8
+
     assert (TARGET_BYTES_PER_PIXEL, TARGET_BYTES_PER_PIXEL_RGBA8) == (BYTES_PER_PIXEL, BYTES_PER_PIXEL_RGBA8)
     pixels = 4096 * 4096
     big = RenderSettings(width=4096, height=4096, mode="normal", format="npy", samples_per_pixel=1)
-    result = 3 * 4 + 3 * 4 + 4 + 4                                                       # image, normal, depth, primid
-    assert frame_nbytes(big) == 2 * TargetPool.nbytes_of(4096, 4096) + (result + 12) * pixels   # 1.69 GiB
+    result = 3 * 4 + 3 * 4 + 4 + 4  # image, normal, depth, primid
+    assert frame_nbytes(big) == 2 * TargetPool.nbytes_of(4096, 4096) + (result + 12) * pixels  # 1.69 GiB
     png = RenderSettings(width=4096, height=4096, format="png", samples_per_pixel=1)
     assert frame_nbytes(png) < frame_nbytes(big) / 3
-    assert traced_nbytes(64, 64, 4) > traced_nbytes(64, 64, 1)                          # the sub-pixel grid
+    assert traced_nbytes(64, 64, 4) > traced_nbytes(64, 64, 1)  # the sub-pixel grid
 
 
 def test_a_traced_frame_keeps_no_target_or_read_back_once_its_result_is_made(gl_renderer):
@@ -163,5 +173,5 @@ def test_a_traced_frame_keeps_no_target_or_read_back_once_its_result_is_made(gl_
     frame = gl_renderer.begin(scenario(3, 64), settings)
     frame.run()
     assert frame.fbo is None
-    assert frame._centre is None and frame._grid is None      # was: the read-back, as large again as the result
+    assert frame._centre is None and frame._grid is None  # was: the read-back, as large again as the result
     assert frame.result().normal.shape == (SMALL["height"], SMALL["width"], 3)

@@ -42,8 +42,10 @@ def state_of(c, sid: str) -> dict:
 
 
 def raw_json(text: str | bytes) -> dict:
-    return {"content": text.encode() if isinstance(text, str) else text,
-            "headers": {"content-type": "application/json"}}
+    return {
+        "content": text.encode() if isinstance(text, str) else text,
+        "headers": {"content-type": "application/json"},
+    }
 
 
 def distance(camera: dict) -> float:
@@ -65,11 +67,14 @@ def test_a_refused_gesture_frame_moves_no_camera(client, method):
     """Was: 422 "mode 'cones' is not available with method 'bih'" after the pan was committed."""
     sid = new_session(client)["id"]
     before = state_of(client, sid)
-    r = client.post(f"/api/sessions/{sid}/gesture", params={"frame": 1, "mode": "cones", "method": method},
-                    json={"type": "pan", "dx": 40, "dy": 0})
+    r = client.post(
+        f"/api/sessions/{sid}/gesture",
+        params={"frame": 1, "mode": "cones", "method": method},
+        json={"type": "pan", "dx": 40, "dy": 0},
+    )
     detail = assert_422(r, "mode")
     assert detail[0]["loc"] == ["query", "mode"] and "hre" in detail[0]["msg"]
-    assert state_of(client, sid) == before                   # version 1, camera where it was
+    assert state_of(client, sid) == before  # version 1, camera where it was
 
 
 def test_patch_and_create_refuse_a_mode_the_method_cannot_draw(client):
@@ -95,11 +100,11 @@ def test_a_timed_out_gesture_frame_retried_as_told_moves_the_camera_once(ready_c
         r = c.post(f"/api/sessions/{sid}/gesture?frame=1", json={"type": "pinch", "scale": 2})
     assert r.status_code == 503 and int(r.headers["retry-after"]) >= 1, r.text
     assert state_of(c, sid) == before
-    r = c.post(f"/api/sessions/{sid}/gesture?frame=1", json={"type": "pinch", "scale": 2})   # the retry
+    r = c.post(f"/api/sessions/{sid}/gesture?frame=1", json={"type": "pinch", "scale": 2})  # the retry
     assert r.status_code == 200 and r.headers["x-session-version"] == str(before["version"] + 1), r.text
     after = state_of(c, sid)
     assert after["version"] == before["version"] + 1
-    assert distance(after["camera"]) == pytest.approx(distance(before["camera"]) / 2)   # once, not /4
+    assert distance(after["camera"]) == pytest.approx(distance(before["camera"]) / 2)  # once, not /4
 
 
 def test_a_gesture_frame_that_fails_on_the_gl_thread_changes_nothing(ready_client, monkeypatch):
@@ -112,6 +117,7 @@ def test_a_gesture_frame_that_fails_on_the_gl_thread_changes_nothing(ready_clien
 
     def lost(*args, **kwargs):
         raise GLNotReady("OpenGL context lost (test)")
+
     monkeypatch.setattr(service, "wait", lost)
     r = c.post(f"/api/sessions/{sid}/gesture?frame=1", json={"type": "orbit", "yaw": 30})
     assert r.status_code == 503 and "retry-after" in r.headers, r.text
@@ -142,13 +148,16 @@ def test_loose_types_are_refused_and_change_nothing(client, method, path, body, 
     assert state_of(client, sid) == before
 
 
-@pytest.mark.parametrize("body,field", [
-    ({"scenario": True, "n": 4}, "scenario"),
-    ({"scenario": 1, "n": 4, "seed": True}, "seed"),
-    ({"scenario": 1, "n": "4"}, "n"),
-    ({"scenario": 1, "n": 4, "radius": "1"}, "radius"),
-    ({"museum": {"n": 4, "kind": "rigid", "absent": "0.1"}}, "absent"),
-])
+@pytest.mark.parametrize(
+    "body,field",
+    [
+        ({"scenario": True, "n": 4}, "scenario"),
+        ({"scenario": 1, "n": 4, "seed": True}, "seed"),
+        ({"scenario": 1, "n": "4"}, "n"),
+        ({"scenario": 1, "n": 4, "radius": "1"}, "radius"),
+        ({"museum": {"n": 4, "kind": "rigid", "absent": "0.1"}}, "absent"),
+    ],
+)
 def test_create_refuses_loose_types(client, body, field):
     assert_422(client.post("/api/sessions", json=body), field)
 
@@ -156,8 +165,9 @@ def test_create_refuses_loose_types(client, body, field):
 def test_an_integer_is_what_json_schema_calls_one(client):
     """4.0 is an integer to JSON Schema (what the OpenAPI schema promises), 4.5 and true are not."""
     sid = new_session(client)["id"]
-    r = client.patch(f"/api/sessions/{sid}/settings", json={"width": 32.0, "samples_per_pixel": 4.0,
-                                                            "max_prims": 6044511.0})
+    r = client.patch(
+        f"/api/sessions/{sid}/settings", json={"width": 32.0, "samples_per_pixel": 4.0, "max_prims": 6044511.0}
+    )
     assert r.status_code == 200, r.text
     got = r.json()
     assert (got["width"], got["samples_per_pixel"], got["max_prims"]) == (32, 4, 6044511)
@@ -167,8 +177,10 @@ def test_an_integer_is_what_json_schema_calls_one(client):
 def test_numbers_in_a_query_are_still_read_from_text(ready_client):
     c = ready_client
     sid = new_session(c)["id"]
-    r = c.get(f"/api/sessions/{sid}/frame", params={"width": "32", "height": "48", "samples_per_pixel": "4",
-                                                      "specialize": "true"})
+    r = c.get(
+        f"/api/sessions/{sid}/frame",
+        params={"width": "32", "height": "48", "samples_per_pixel": "4", "specialize": "true"},
+    )
     assert r.status_code == 200 and r.headers["content-type"] == "image/png", r.text
     assert_422(c.get(f"/api/sessions/{sid}/frame", params={"samples_per_pixel": "2"}), "samples_per_pixel")
 
@@ -176,18 +188,21 @@ def test_numbers_in_a_query_are_still_read_from_text(ready_client):
 PINCH = '{"type": "pinch", "scale": 2}'
 
 
-@pytest.mark.parametrize("content,kind,words", [
-    (PINCH.encode("utf-16"), "json_not_utf8", "not UTF-8"),
-    (PINCH.encode("utf-16-le"), "json_invalid", "not valid JSON"),      # NUL bytes are no JSON
-    (PINCH.encode("utf-32"), "json_not_utf8", "not UTF-8"),
-    (b"\xef\xbb\xbf" + PINCH.encode(), "json_invalid", "byte-order mark"),
-    (b'{"type": "pinch", "scale": 2, "scale": 0.5}', "json_duplicate_key", 'duplicate key "scale"'),
-    (b'{"type": "pan", "dx": 1, "dy": 2, "viewport_height": {"a": 1, "a": 2}}', "json_duplicate_key", '"a"'),
-    (("[" * 1000 + "]" * 1000).encode(), "json_too_deep", "nested deeper than 32"),
-    (('{"a":' * 40 + "1" + "}" * 40).encode(), "json_too_deep", "nested deeper than 32"),
-    (b'{"type": "pinch", "scale": ' + b"9" * 5000 + b"}", "json_invalid", "not a JSON value"),
-    (b'{"type": "pinch", "scale": 2', "json_invalid", "not valid JSON"),
-])
+@pytest.mark.parametrize(
+    "content,kind,words",
+    [
+        (PINCH.encode("utf-16"), "json_not_utf8", "not UTF-8"),
+        (PINCH.encode("utf-16-le"), "json_invalid", "not valid JSON"),  # NUL bytes are no JSON
+        (PINCH.encode("utf-32"), "json_not_utf8", "not UTF-8"),
+        (b"\xef\xbb\xbf" + PINCH.encode(), "json_invalid", "byte-order mark"),
+        (b'{"type": "pinch", "scale": 2, "scale": 0.5}', "json_duplicate_key", 'duplicate key "scale"'),
+        (b'{"type": "pan", "dx": 1, "dy": 2, "viewport_height": {"a": 1, "a": 2}}', "json_duplicate_key", '"a"'),
+        (("[" * 1000 + "]" * 1000).encode(), "json_too_deep", "nested deeper than 32"),
+        (('{"a":' * 40 + "1" + "}" * 40).encode(), "json_too_deep", "nested deeper than 32"),
+        (b'{"type": "pinch", "scale": ' + b"9" * 5000 + b"}", "json_invalid", "not a JSON value"),
+        (b'{"type": "pinch", "scale": 2', "json_invalid", "not valid JSON"),
+    ],
+)
 def test_bodies_that_are_not_strict_json_are_a_clear_422(client, content, kind, words):
     """Was: UTF-16 and duplicate keys taken silently, 1,000 levels "not valid UTF-8 JSON"."""
     sid = new_session(client)["id"]
@@ -201,8 +216,11 @@ def test_bodies_that_are_not_strict_json_are_a_clear_422(client, content, kind, 
 
 JSON_VALUES = st.recursive(
     st.none() | st.booleans() | st.floats(allow_nan=False) | st.text(alphabet='ab"\\[]{}\n/', max_size=6),
-    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(alphabet='k"\\[]{', max_size=4), inner,
-                                                                 max_size=3), max_leaves=20)
+    lambda inner: (
+        st.lists(inner, max_size=3) | st.dictionaries(st.text(alphabet='k"\\[]{', max_size=4), inner, max_size=3)
+    ),
+    max_leaves=20,
+)
 
 
 def nesting(value) -> int:
@@ -249,8 +267,11 @@ def big_bodies(tmp_path_factory):
 
     tmp = tmp_path_factory.mktemp("big")
     defaults = ServerConfig()
-    with TestClient(create_app(make_config(tmp, max_body_bytes=defaults.max_body_bytes,
-                                           max_spheres=defaults.max_spheres, warmup=False))) as c:
+    with TestClient(
+        create_app(
+            make_config(tmp, max_body_bytes=defaults.max_body_bytes, max_spheres=defaults.max_spheres, warmup=False)
+        )
+    ) as c:
         yield c
 
 
@@ -258,7 +279,7 @@ def test_a_body_of_150000_bad_spheres_gets_a_short_422(big_bodies):
     """Was: a 72 MB 422 listing 450,000 errors (+840 MB resident)."""
     from server.models import MAX_LISTED_ERRORS
 
-    bad = '{"center": [0, 0], "radius": -1, "material": -1}'      # three errors each
+    bad = '{"center": [0, 0], "radius": -1, "material": -1}'  # three errors each
     body = '{"scene": {"materials": [{}], "spheres": [' + ",".join([bad] * 150_000) + "]}}"
     r = big_bodies.post("/api/sessions", **raw_json(body))
     assert r.status_code == 422
@@ -272,12 +293,15 @@ def test_a_body_of_150000_bad_spheres_gets_a_short_422(big_bodies):
 def test_a_long_error_list_anywhere_is_cut_to_the_first_errors_and_a_count(client):
     from server.models import MAX_LISTED_ERRORS
 
-    body = {"materials": [{"color": [2, 2, 2], "ambient": -1, "ior": 0}] * 40}   # 5 errors × 40
+    body = {"materials": [{"color": [2, 2, 2], "ambient": -1, "ior": 0}] * 40}  # 5 errors × 40
     r = client.post("/api/render", json={"scene": body})
     detail = r.json()["detail"]
     assert r.status_code == 422 and len(detail) == MAX_LISTED_ERRORS + 1
-    assert detail[-1] == {"loc": ["body"], "msg": f"body: {200 - MAX_LISTED_ERRORS} more errors not listed "
-                                                 "(200 in all)", "type": "too_many_errors"}
+    assert detail[-1] == {
+        "loc": ["body"],
+        "msg": f"body: {200 - MAX_LISTED_ERRORS} more errors not listed (200 in all)",
+        "type": "too_many_errors",
+    }
 
 
 def test_the_render_target_pool_is_bounded_in_bytes_not_entries(ready_client):
@@ -294,18 +318,19 @@ def test_the_render_target_pool_is_bounded_in_bytes_not_entries(ready_client):
         assert renderer.targets.max_bytes == config.max_target_bytes
         pool = TargetPool(renderer.ctx, bound)
         seen = []
-        held = pool.acquire(*sizes[0])                   # busy all along: never released by the pool
+        held = pool.acquire(*sizes[0])  # busy all along: never released by the pool
         for w, h in sizes:
             fbo = pool.acquire(w, h)
             pool.release(fbo)
             seen.append((pool.nbytes - pool.nbytes_of(*sizes[0]), len(pool.sizes)))
-        again = pool.acquire(*sizes[-1])                 # the most recent free size is reused
+        again = pool.acquire(*sizes[-1])  # the most recent free size is reused
         reused = again.glo == fbo.glo
         pool.release(again)
         pool.release(held)
         total = pool.nbytes
         pool.clear()
         return seen, reused, total
+
     with worker.admit() as ticket:
         seen, reused, total = ticket.run(job, 30)
     assert all(free <= bound for free, _ in seen), seen
@@ -325,6 +350,7 @@ def test_large_bodies_are_parsed_on_the_pool_and_small_ones_inline(client, monke
     def spy(*args):
         threads.append(threading.current_thread().name)
         return real(*args)
+
     monkeypatch.setattr(body, "validate_body", spy)
     sid = new_session(client)["id"]
     threads.clear()
@@ -338,18 +364,23 @@ def test_large_bodies_are_parsed_on_the_pool_and_small_ones_inline(client, monke
 def test_health_answers_while_six_large_bodies_are_parsed(spawn_server):
     """Was: one 16 MB scene stalled /api/health 2.4 s, six 15 s. A hang guard only (2 s for six 4 MB
     bodies); bench/hostile.py measures the latency with six maximum bodies."""
-    s = spawn_server(max_body_bytes=16 << 20, max_spheres=1000, queue_size=8,
-                     body_slots_per_client=0)       # all six come from this one address
+    s = spawn_server(
+        max_body_bytes=16 << 20, max_spheres=1000, queue_size=8, body_slots_per_client=0
+    )  # all six come from this one address
     with httpx.Client(base_url=s.url, timeout=60) as c:
         sid = new_session(c)["id"]
     sphere = '{"center": [1.5, -2.25, 3.125], "radius": 0.5, "material": 0}'
-    body = ('{"materials": [{}], "spheres": [' + ",".join([sphere] * 65_000) + "]}").encode()   # 4 MB
+    body = ('{"materials": [{}], "spheres": [' + ",".join([sphere] * 65_000) + "]}").encode()  # 4 MB
     answers: list[int] = []
 
     def put() -> None:
         with httpx.Client(base_url=s.url, timeout=120) as c:
-            answers.append(c.put(f"/api/sessions/{sid}/scene", content=body,
-                                 headers={"content-type": "application/json"}).status_code)
+            answers.append(
+                c.put(
+                    f"/api/sessions/{sid}/scene", content=body, headers={"content-type": "application/json"}
+                ).status_code
+            )
+
     senders = [threading.Thread(target=put) for _ in range(6)]
     waits = []
     with httpx.Client(base_url=s.url, timeout=30) as c:
@@ -362,7 +393,7 @@ def test_health_answers_while_six_large_bodies_are_parsed(spawn_server):
             time.sleep(0.02)
     for t in senders:
         t.join()
-    assert answers == [422] * 6          # parsed and validated; then over max_spheres (1,000)
+    assert answers == [422] * 6  # parsed and validated; then over max_spheres (1,000)
     assert len(waits) >= 3 and max(waits) < 2.0, waits
 
 
@@ -375,8 +406,9 @@ def guarded(tmp_path_factory):
     from pocketray_server_support import ServerProcess, server_env
 
     tmp = tmp_path_factory.mktemp("guarded")
-    env = server_env(tmp / "sessions.sqlite3", request_idle_timeout_s=1.0, header_timeout_s=2.0,
-                     max_connections_per_client=6)
+    env = server_env(
+        tmp / "sessions.sqlite3", request_idle_timeout_s=1.0, header_timeout_s=2.0, max_connections_per_client=6
+    )
     proc = ServerProcess(env, tmp / "server.log").start()
     try:
         yield proc
@@ -400,13 +432,15 @@ def read_all(sock: socket.socket) -> bytes:
 def test_a_stalled_body_is_answered_408_and_closed(guarded):
     """Was: headers with Content-Length: 100000 and a few bytes held the connection forever."""
     sock = connect(guarded)
-    sock.sendall(b"PUT /api/sessions/x/scene HTTP/1.1\r\nHost: t\r\ncontent-type: application/json\r\n"
-                 b"content-length: 100000\r\n\r\n{\"materials\"")
+    sock.sendall(
+        b"PUT /api/sessions/x/scene HTTP/1.1\r\nHost: t\r\ncontent-type: application/json\r\n"
+        b'content-length: 100000\r\n\r\n{"materials"'
+    )
     t0 = time.monotonic()
     answer = read_all(sock)
     assert answer.startswith(b"HTTP/1.1 408 "), answer[:200]
     assert b"connection: close" in answer.lower() and b"POCKETRAY_REQUEST_IDLE_TIMEOUT_S" in answer
-    assert time.monotonic() - t0 < 10                       # hang guard (the setting is 1 s)
+    assert time.monotonic() - t0 < 10  # hang guard (the setting is 1 s)
     sock.close()
 
 
@@ -419,7 +453,7 @@ def test_headers_that_never_complete_are_answered_408(guarded):
     deadline = time.monotonic() + 15
     while time.monotonic() < deadline:
         try:
-            sock.sendall(b"x")                               # every 0.5 s: never idle for 1 s
+            sock.sendall(b"x")  # every 0.5 s: never idle for 1 s
             chunk = sock.recv(65536)
             if not chunk:
                 break
@@ -430,7 +464,7 @@ def test_headers_that_never_complete_are_answered_408(guarded):
             break
     assert got.startswith(b"HTTP/1.1 408 "), got[:200]
     sock.close()
-    silent = connect(guarded)                                # a connection that sends nothing at all
+    silent = connect(guarded)  # a connection that sends nothing at all
     assert read_all(silent).startswith(b"HTTP/1.1 408 ")
     silent.close()
 
@@ -438,14 +472,16 @@ def test_headers_that_never_complete_are_answered_408(guarded):
 def test_slow_but_steady_requests_and_kept_alive_connections_are_not_cut(guarded):
     with httpx.Client(base_url=guarded.url, timeout=30) as c:
         sid = new_session(c)["id"]
-        time.sleep(1.5)                       # idle between requests: the keep-alive timeout's, not ours
+        time.sleep(1.5)  # idle between requests: the keep-alive timeout's, not ours
         assert c.get(f"/api/sessions/{sid}").status_code == 200
     body = json.dumps({"type": "pinch", "scale": 2}).encode()
     sock = connect(guarded)
-    sock.sendall(f"POST /api/sessions/{sid}/gesture HTTP/1.1\r\nHost: t\r\ncontent-type: application/json\r\n"
-                 f"content-length: {len(body)}\r\n\r\n".encode())
-    for i in range(0, len(body), 8):          # 8 bytes every 0.4 s: slower than a second in all
-        sock.sendall(body[i:i + 8])
+    sock.sendall(
+        f"POST /api/sessions/{sid}/gesture HTTP/1.1\r\nHost: t\r\ncontent-type: application/json\r\n"
+        f"content-length: {len(body)}\r\n\r\n".encode()
+    )
+    for i in range(0, len(body), 8):  # 8 bytes every 0.4 s: slower than a second in all
+        sock.sendall(body[i : i + 8])
         time.sleep(0.4)
     answer = sock.recv(65536)
     assert answer.startswith(b"HTTP/1.1 200 "), answer[:300]
@@ -461,7 +497,7 @@ def test_connections_per_client_address_are_bounded(guarded):
     for sock in held:
         sock.close()
     deadline = time.monotonic() + 10
-    while True:                               # the server notices the closes: a client gets in again
+    while True:  # the server notices the closes: a client gets in again
         r = httpx.get(guarded.url + "/api/health", timeout=5)
         if r.status_code == 200 or time.monotonic() > deadline:
             break
@@ -498,7 +534,7 @@ def test_a_store_file_overwritten_with_junk_is_503_and_not_ready(own_store):
     assert wait_ready_status(c, 200)["status"] == 200
     sid = new_session(c)["id"]
     junk = os.urandom(path.stat().st_size)
-    with open(path, "r+b") as f:                 # the same file (inode), its bytes replaced
+    with open(path, "r+b") as f:  # the same file (inode), its bytes replaced
         f.write(junk)
     assert_store_503(c.post(f"/api/sessions/{sid}/gesture", json={"type": "pinch", "scale": 2}))
     assert_store_503(c.get(f"/api/sessions/{sid}"))
@@ -527,12 +563,13 @@ def test_a_corrupt_store_file_at_start_up_is_moved_aside_or_refused(tmp_path):
     with pytest.raises(StoreStartupError) as e:
         SQLiteStore(path, ttl_s=60, on_corrupt="refuse")
     assert "POCKETRAY_SQLITE_ON_CORRUPT=move_aside" in str(e.value) and "mv " in str(e.value)
-    assert path.read_bytes().startswith(b"this is not")          # refused: untouched
+    assert path.read_bytes().startswith(b"this is not")  # refused: untouched
     store = SQLiteStore(path, ttl_s=60, on_corrupt="move_aside")
     (aside,) = tmp_path.glob("sessions.sqlite3.corrupt-*")
     assert aside.read_bytes().startswith(b"this is not") and store.probe() is None
-    store.create(SessionState(id="s", version=1, camera={}, home_camera={}, settings={}, scene_info={},
-                              scene_rev="r"), b"x")
+    store.create(
+        SessionState(id="s", version=1, camera={}, home_camera={}, settings={}, scene_info={}, scene_rev="r"), b"x"
+    )
     assert store.get("s").version == 1
     store.close()
 
@@ -546,8 +583,9 @@ def test_a_server_refusing_a_corrupt_store_says_how_to_recover(tmp_path):
     path = tmp_path / "sessions.sqlite3"
     path.write_bytes(b"junk" * 1000)
     env = server_env(path, sqlite_on_corrupt="refuse", warmup="false")
-    done = subprocess.run([sys.executable, "-m", "server"], cwd=ROOT, env=env, capture_output=True, text=True,
-                          timeout=60)
+    done = subprocess.run(
+        [sys.executable, "-m", "server"], cwd=ROOT, env=env, capture_output=True, text=True, timeout=60
+    )
     assert done.returncode != 0
     assert "is not a readable SQLite database" in done.stderr and "POCKETRAY_SQLITE_ON_CORRUPT" in done.stderr
 
@@ -556,10 +594,15 @@ def test_store_failures_of_every_kind_are_503_never_500(own_store, monkeypatch):
     c, _ = own_store
     store = c.app.state.store
     sid = new_session(c)["id"]
-    for exc in (sqlite3.DatabaseError("file is not a database"), sqlite3.InterfaceError("bad binding"),
-                StoreUnavailable("holding a session record that does not decode (JSONDecodeError)")):
+    for exc in (
+        sqlite3.DatabaseError("file is not a database"),
+        sqlite3.InterfaceError("bad binding"),
+        StoreUnavailable("holding a session record that does not decode (JSONDecodeError)"),
+    ):
+
         def broken(*args, exc=exc, **kwargs):
             raise exc
+
         monkeypatch.setattr(store, "get", broken)
         assert_store_503(c.get(f"/api/sessions/{sid}"))
     monkeypatch.undo()
@@ -576,14 +619,16 @@ def test_redis_change_retries_are_capped_and_end_in_503(redis_url):
     store = RedisStore(redis_url, ttl_s=60, prefix=f"capped-{time.monotonic_ns()}:", max_retries=2)
     other = redis.Redis.from_url(redis_url)
     cam = {"position": [0, 0, 1], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 60}
-    store.create(SessionState(id="s", version=1, camera=cam, home_camera=cam, settings={}, scene_info={},
-                              scene_rev="r"), b"x")
+    store.create(
+        SessionState(id="s", version=1, camera=cam, home_camera=cam, settings={}, scene_info={}, scene_rev="r"), b"x"
+    )
     attempts = []
 
     def collide(old):
         attempts.append(old.version)
-        other.set(f"{store.prefix}state:s", store.client.get(f"{store.prefix}state:s"))   # another process wrote
+        other.set(f"{store.prefix}state:s", store.client.get(f"{store.prefix}state:s"))  # another process wrote
         return old
+
     with pytest.raises(StoreUnavailable) as e:
         store.update("s", collide)
     assert len(attempts) == 3 and "busy" in str(e.value)
@@ -598,8 +643,12 @@ def test_a_redis_read_refreshes_the_ttl_in_one_command(redis_url):
 
     store = RedisStore(redis_url, ttl_s=3600, prefix=f"getex-{time.monotonic_ns()}:", touch_interval_s=60)
     cam = {"position": [0, 0, 1], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 60}
-    store.create(SessionState(id="s", version=1, camera=cam, home_camera=cam, settings={}, scene_info={},
-                              scene_rev="r", accessed_at=0.0), b"x")
+    store.create(
+        SessionState(
+            id="s", version=1, camera=cam, home_camera=cam, settings={}, scene_info={}, scene_rev="r", accessed_at=0.0
+        ),
+        b"x",
+    )
     admin = redis.Redis.from_url(redis_url)
     k_state = f"{store.prefix}state:s"
     admin.pexpire(k_state, 5_000)
@@ -607,27 +656,31 @@ def test_a_redis_read_refreshes_the_ttl_in_one_command(redis_url):
     def calls() -> dict[str, int]:
         stats = admin.info("commandstats")
         return {k.split("_", 1)[1]: v["calls"] for k, v in stats.items()}
-    store.get("s")                               # the first read also refreshes the scene key
+
+    store.get("s")  # the first read also refreshes the scene key
     before = calls()
     for _ in range(5):
         assert store.get("s").version == 1
     after = calls()
     delta = {k: after.get(k, 0) - before.get(k, 0) for k in ("getex", "get", "multi", "exec", "pexpire")}
     assert delta == {"getex": 5, "get": 0, "multi": 0, "exec": 0, "pexpire": 0}, delta
-    assert admin.pttl(k_state) > 3_000_000       # refreshed to the idle TTL (3600 s) by the read
+    assert admin.pttl(k_state) > 3_000_000  # refreshed to the idle TTL (3600 s) by the read
     admin.close()
     store.close()
 
 
 # ---- 7. HTTP basics -------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("path,allow", [
-    ("/api/sessions", "OPTIONS, POST"),
-    ("/api/sessions/abc", "DELETE, GET, OPTIONS"),
-    ("/api/sessions/abc/scene", "GET, OPTIONS, PUT"),
-    ("/api/sessions/abc/settings", "OPTIONS, PATCH"),
-    ("/api/sessions/abc/gesture", "OPTIONS, POST"),
-    ("/api/health", "GET, OPTIONS"),
-])
+@pytest.mark.parametrize(
+    "path,allow",
+    [
+        ("/api/sessions", "OPTIONS, POST"),
+        ("/api/sessions/abc", "DELETE, GET, OPTIONS"),
+        ("/api/sessions/abc/scene", "GET, OPTIONS, PUT"),
+        ("/api/sessions/abc/settings", "OPTIONS, PATCH"),
+        ("/api/sessions/abc/gesture", "OPTIONS, POST"),
+        ("/api/health", "GET, OPTIONS"),
+    ],
+)
 def test_options_answers_the_paths_methods(client, path, allow):
     """Was: 405 with Allow: GET, HEAD (the static files' answer) on every API path."""
     r = client.options(path)
@@ -640,10 +693,12 @@ def test_options_answers_the_paths_methods(client, path, allow):
 
 def test_error_bodies_stay_small_and_carry_no_paths(client):
     sid = new_session(client)["id"]
-    answers = [client.post(f"/api/sessions/{sid}/gesture", **raw_json(b"[" * 5000)),
-               client.post(f"/api/sessions/{sid}/gesture", **raw_json(b"\xff\xfe")),
-               client.get("/api/sessions/no-such-session"),
-               client.put("/api/sessions/x/scene", **raw_json(b'{"materials": [{"a": 1, "a": 2}]}'))]
+    answers = [
+        client.post(f"/api/sessions/{sid}/gesture", **raw_json(b"[" * 5000)),
+        client.post(f"/api/sessions/{sid}/gesture", **raw_json(b"\xff\xfe")),
+        client.get("/api/sessions/no-such-session"),
+        client.put("/api/sessions/x/scene", **raw_json(b'{"materials": [{"a": 1, "a": 2}]}')),
+    ]
     for r in answers:
         assert 400 <= r.status_code < 500 and len(r.content) < 2_000, (r.status_code, len(r.content))
         assert "Traceback" not in r.text and str(Path(__file__).parents[2]) not in r.text

@@ -13,10 +13,17 @@ import string
 
 from server import metrics
 
-SERIES = re.compile(r'^(pocketray_http_[a-z_]+)\{(.*)\} ', re.M)   # a route template has braces too
+SERIES = re.compile(r"^(pocketray_http_[a-z_]+)\{(.*)\} ", re.M)  # a route template has braces too
 LABEL = re.compile(r'(\w+)="((?:[^"\\]|\\.)*)"')
-PATHS = ("/api/sessions", "/api/sessions/{r}", "/api/sessions/{r}/frame", "/api/{r}", "/{r}", "/shaders/{r}",
-         "/{r}/{r}/{r}")
+PATHS = (
+    "/api/sessions",
+    "/api/sessions/{r}",
+    "/api/sessions/{r}/frame",
+    "/api/{r}",
+    "/{r}",
+    "/shaders/{r}",
+    "/{r}/{r}/{r}",
+)
 
 
 def http_series(client) -> set[tuple[str, tuple[tuple[str, str], ...]]]:
@@ -40,16 +47,17 @@ def test_random_methods_and_paths_add_no_series(client):
         for method in ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS", "BREW", "get"):
             client.request(method, path.format(r="x"))
     requests(client, random.Random(1), 60)
-    client.get("/metrics")                       # the scrape's own series
+    client.get("/metrics")  # the scrape's own series
     before = http_series(client)
-    requests(client, random.Random(2), 300)      # 225 made-up methods, 300 made-up paths
+    requests(client, random.Random(2), 300)  # 225 made-up methods, 300 made-up paths
     after = http_series(client)
     assert after - before == set(), sorted(after - before)[:10]
     labels = [dict(lab) for _, lab in after]
     assert {lab["method"] for lab in labels} <= metrics.HTTP_METHODS | {"other"}
     assert "other" in {lab["method"] for lab in labels}
-    routes = set(client.app.openapi()["paths"]) | {r.path_format for r in client.app.routes
-                                                   if getattr(r, "path_format", None)}
+    routes = set(client.app.openapi()["paths"]) | {
+        r.path_format for r in client.app.routes if getattr(r, "path_format", None)
+    }
     assert {lab["route"] for lab in labels} <= routes | {"static", "other"}
     assert all(lab["status"].isdigit() for lab in labels if "status" in lab)
 

@@ -40,14 +40,14 @@ def vm_kib(pid: int | str, key: str) -> int:
 def test_a_parse_past_its_deadline_is_stopped_and_refused_and_the_next_file_is_parsed(large):
     pool = ModelWorkers(1, 0.05, 2 << 30)
     try:
-        assert pool.load(SMALL, "obj", 1 << 20, 1 << 20).n_triangles == 80      # started and warm
+        assert pool.load(SMALL, "obj", 1 << 20, 1 << 20).n_triangles == 80  # started and warm
         (first,) = pool._all
         t0 = time.perf_counter()
         with pytest.raises(SceneError) as e:
             pool.load(large, "ply", 1 << 20, 1 << 20)
         assert time.perf_counter() - t0 < 2.0
         assert e.value.field == "file" and "longer than 0.05 s (POCKETRAY_MODEL_TIMEOUT_S)" in e.value.message
-        assert first.proc.poll() is not None                      # killed, not left running
+        assert first.proc.poll() is not None  # killed, not left running
         (second,) = pool._all
         assert second is not first
         assert pool.load(SMALL, "obj", 1 << 20, 1 << 20).n_triangles == 80
@@ -60,7 +60,7 @@ def test_a_file_that_needs_more_than_the_memory_limit_is_refused_inside_its_work
     try:
         probe.load(SMALL, "obj", 1 << 20, 1 << 20)
         (w,) = probe._all
-        base = vm_kib(w.proc.pid, "VmSize") << 10              # the worker's address space, imports done
+        base = vm_kib(w.proc.pid, "VmSize") << 10  # the worker's address space, imports done
         assert probe.load(large, "ply", 1 << 20, 1 << 20).n_triangles == 400_000
     finally:
         probe.close()

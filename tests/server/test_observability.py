@@ -25,8 +25,9 @@ def families(text: str) -> dict:
 
 
 def sample(fams: dict, family: str, name: str, **labels) -> float:
-    return sum(s.value for s in fams[family].samples
-               if s.name == name and all(s.labels.get(k) == v for k, v in labels.items()))
+    return sum(
+        s.value for s in fams[family].samples if s.name == name and all(s.labels.get(k) == v for k, v in labels.items())
+    )
 
 
 def test_metrics_scrape_with_every_documented_name(ready_client):
@@ -42,13 +43,37 @@ def test_metrics_scrape_with_every_documented_name(ready_client):
         assert family in fams, name
     method = r.headers["x-method"]
     for stage in ("queue", "build", "upload", "trace", "read", "encode", "total"):
-        got = sample(fams, "pocketray_render_stage_seconds", "pocketray_render_stage_seconds_count",
-                     method=method, mode="depth", stage=stage)
-        was = sample(before, "pocketray_render_stage_seconds", "pocketray_render_stage_seconds_count",
-                     method=method, mode="depth", stage=stage) if "pocketray_render_stage_seconds" in before else 0
+        got = sample(
+            fams,
+            "pocketray_render_stage_seconds",
+            "pocketray_render_stage_seconds_count",
+            method=method,
+            mode="depth",
+            stage=stage,
+        )
+        was = (
+            sample(
+                before,
+                "pocketray_render_stage_seconds",
+                "pocketray_render_stage_seconds_count",
+                method=method,
+                mode="depth",
+                stage=stage,
+            )
+            if "pocketray_render_stage_seconds" in before
+            else 0
+        )
         assert got == was + 1, stage
-    assert sample(fams, "pocketray_http_requests", "pocketray_http_requests_total",
-                  route="/api/sessions/{session_id}/frame", status="200") >= 1
+    assert (
+        sample(
+            fams,
+            "pocketray_http_requests",
+            "pocketray_http_requests_total",
+            route="/api/sessions/{session_id}/frame",
+            status="200",
+        )
+        >= 1
+    )
     assert fams["pocketray_sessions"].samples[0].value >= 1
     assert fams["pocketray_ready"].samples[0].value == 1
     assert sample(fams, "pocketray_renders_admitted", "pocketray_renders_admitted") == 0
@@ -58,11 +83,15 @@ def test_metrics_scrape_with_every_documented_name(ready_client):
 def test_503_answers_are_counted_by_cause(ready_client):
     def count(cause: str) -> float:
         fams = families(ready_client.get("/metrics").text)
-        return sample(fams, "pocketray_unavailable", "pocketray_unavailable_total", cause=cause) \
-            if "pocketray_unavailable" in fams else 0.0
+        return (
+            sample(fams, "pocketray_unavailable", "pocketray_unavailable_total", cause=cause)
+            if "pocketray_unavailable" in fams
+            else 0.0
+        )
+
     worker = ready_client.app.state.worker
     before = count("queue_full")
-    held = [worker.admit() for _ in range(worker.queue_size)]   # every slot taken: the next render is refused
+    held = [worker.admit() for _ in range(worker.queue_size)]  # every slot taken: the next render is refused
     try:
         sid = new_session(ready_client)["id"]
         r = ready_client.get(f"/api/sessions/{sid}/frame")
@@ -138,12 +167,12 @@ def test_ready_answers_503_from_the_moment_shutdown_begins(tmp_path):
         t0 = time.monotonic()
         r = httpx.get(url + "/api/ready", timeout=5)
         assert r.status_code == 503 and r.json()["detail"].startswith("draining") and r.headers["retry-after"]
-        with httpx.Client(base_url=url, timeout=30) as c:   # still serving while it drains
+        with httpx.Client(base_url=url, timeout=30) as c:  # still serving while it drains
             assert new_session(c)["version"] == 1
             m = families(c.get("/metrics").text)
             assert m["pocketray_ready"].samples[0].value == 0
             assert sample(m, "pocketray_unavailable", "pocketray_unavailable_total", cause="draining") >= 1
-        assert proc.wait(timeout=30) in (0, -signal.SIGTERM)   # uvicorn re-raises the signal it handled
+        assert proc.wait(timeout=30) in (0, -signal.SIGTERM)  # uvicorn re-raises the signal it handled
         assert time.monotonic() - t0 >= 3.5
         assert any("shutdown begins (SIGTERM)" in line["message"] for line in log_lines(log))
     finally:

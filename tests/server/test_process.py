@@ -54,10 +54,11 @@ def test_twenty_parallel_renders_answer_200_or_503_and_the_service_stays_healthy
     def one(i: int) -> httpx.Response:
         with httpx.Client(base_url=s.url, timeout=60) as c:
             if i % 2:
-                return c.get(f"/api/sessions/{sid}/frame", params={"width": 64, "height": 96,
-                                                                    "max_recursion_depth": 2})
-            return c.post("/api/render", json={"scene": scene, "settings": {"width": 64, "height": 96,
-                                                                            "max_recursion_depth": 2}})
+                return c.get(f"/api/sessions/{sid}/frame", params={"width": 64, "height": 96, "max_recursion_depth": 2})
+            return c.post(
+                "/api/render", json={"scene": scene, "settings": {"width": 64, "height": 96, "max_recursion_depth": 2}}
+            )
+
     with ThreadPoolExecutor(20) as pool:
         answers = list(pool.map(one, range(20)))
     codes = [r.status_code for r in answers]
@@ -101,8 +102,7 @@ def test_scale_out_two_processes_share_sessions_through_redis(spawn_server, redi
         frame_b = np.load(io.BytesIO(cb.get(f"/api/sessions/{sid}/frame", params=q).content))
         assert np.array_equal(frame_a, frame_b) and not np.array_equal(frame_a, first)
         # a scene replaced through B is the one A renders (no stale per-process cache)
-        scene = {"materials": [{}], "spheres": [{"center": [0, 0, 0], "radius": 3},
-                                                {"center": [8, 0, 0], "radius": 2}]}
+        scene = {"materials": [{}], "spheres": [{"center": [0, 0, 0], "radius": 3}, {"center": [8, 0, 0], "radius": 2}]}
         assert cb.put(f"/api/sessions/{sid}/scene", json=scene).json() == {"version": 4}
         r = ca.get(f"/api/sessions/{sid}/frame")
         assert json.loads(r.headers["x-stats"])["primitives"] == 2

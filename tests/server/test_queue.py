@@ -52,6 +52,7 @@ def test_admission_is_bounded_and_slots_come_back():
 def test_failed_context_is_not_ready():
     def broken():
         raise RuntimeError("no EGL here")
+
     w = GLWorker(queue_size=2, renderer_factory=broken)
     w.start().result(5)
     assert not w.ready.is_set() and "no EGL here" in w.error
@@ -63,6 +64,7 @@ def test_failed_context_is_not_ready():
 def test_failed_warmup_is_not_ready():
     def warm(r):
         raise RuntimeError("shader did not compile")
+
     w = GLWorker(queue_size=2, renderer_factory=FakeRenderer, warmup=warm)
     w.start().result(5)
     assert not w.ready.is_set() and "warm-up" in w.error
@@ -76,9 +78,11 @@ def test_full_queue_answers_503_with_retry_after_and_changes_nothing(ready_clien
     held = [worker.admit() for _ in range(worker.queue_size)]
     try:
         before = c.get(f"/api/sessions/{sid}").json()
-        for r in (c.get(f"/api/sessions/{sid}/frame"),
-                  c.post(f"/api/sessions/{sid}/gesture?frame=1", json={"type": "pinch", "scale": 2}),
-                  c.post("/api/render", json={"scene": {"materials": [{}]}})):
+        for r in (
+            c.get(f"/api/sessions/{sid}/frame"),
+            c.post(f"/api/sessions/{sid}/gesture?frame=1", json={"type": "pinch", "scale": 2}),
+            c.post("/api/render", json={"scene": {"materials": [{}]}}),
+        ):
             assert r.status_code == 503, r.text
             assert int(r.headers["retry-after"]) >= 1
             assert "queue" in r.json()["detail"]
@@ -115,4 +119,3 @@ def test_service_answers_while_the_gl_thread_traces(ready_client):
     # for a loaded machine's hiccups (bench/latency.py measures the latency itself).
     assert len(waits) >= 3, f"only {len(waits)} health answers during a {trace_s:.2f} s trace"
     assert max(waits) < 0.5 * trace_s, f"health answered after {max(waits):.3f} s during a {trace_s:.2f} s trace"
-

@@ -16,8 +16,9 @@ from server.scenes import SceneCache, load_source, scene_info, scene_json_chunks
 
 def scene_with_meshes():
     s = mesh_scene("mixed", detail=1)
-    return s.with_geometry(s.sphere_centers, s.sphere_radii, s.sphere_materials,
-                           (*s.meshes, teapot(2, size=2.0, smooth=False)))
+    return s.with_geometry(
+        s.sphere_centers, s.sphere_radii, s.sphere_materials, (*s.meshes, teapot(2, size=2.0, smooth=False))
+    )
 
 
 def test_the_npz_source_keeps_meshes_bit_for_bit_with_their_motions():
@@ -49,7 +50,7 @@ def test_the_streamed_json_is_exactly_the_scene_json():
 
 def test_the_cache_weighs_triangles():
     cache = SceneCache(max_spheres=10_000)
-    scene = scene_with_meshes()                 # ~1,000 triangles: weighs ~4,000
+    scene = scene_with_meshes()  # ~1,000 triangles: weighs ~4,000
     for i in range(4):
         cache.put((f"s{i}", "r"), scene)
     assert cache.get(("s0", "r")) is None and cache.get(("s3", "r")) is scene

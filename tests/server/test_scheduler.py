@@ -68,20 +68,20 @@ def test_sessions_take_turns_slice_by_slice(worker):
     log: list = []
     gate = threading.Event()
     long = worker.admit().frame(lambda r: FakeFrame("long", 50, log, gate), session="A", cost_ms=5000)
-    time.sleep(0.05)                       # the long frame is started and waits at its first slice
+    time.sleep(0.05)  # the long frame is started and waits at its first slice
     short = worker.admit().frame(lambda r: FakeFrame("short", 3, log), session="B", cost_ms=30)
     gate.set()
     assert short.wait(5) == "short done"
     assert long.wait(5) == "long done"
     # The short frame's three slices came before the long one's fifth.
     last_short = max(i for i, (name, _) in enumerate(log) if name == "short")
-    assert [name for name, _ in log[:last_short + 1]].count("long") <= 4
+    assert [name for name, _ in log[: last_short + 1]].count("long") <= 4
     assert [i for name, i in log if name == "long"] == list(range(50))
 
 
 def test_in_flight_names_only_the_sessions_own_frames(worker):
     gate = threading.Event()
-    blocker = worker.admit().submit(lambda r: gate.wait(5))     # the frames below wait to start
+    blocker = worker.admit().submit(lambda r: gate.wait(5))  # the frames below wait to start
     a = worker.admit().frame(lambda r: FakeFrame("a", 1, []), session="A", cost_ms=1)
     b = worker.admit().frame(lambda r: FakeFrame("b", 1, []), session="B", cost_ms=1)
     assert worker.in_flight("A") == [a] and worker.in_flight("B") == [b] and worker.in_flight("C") == []
@@ -98,11 +98,12 @@ def test_a_cancelled_frame_stops_between_slices_and_frees_its_slot_at_once(worke
     def start(r):
         frames.append(FakeFrame("f", 1000, log, gate))
         return frames[-1]
+
     h = worker.admit().frame(start, session="A", cost_ms=1e5)
     time.sleep(0.05)
     assert worker.admitted == 1
     h.cancel("disconnected")
-    assert worker.admitted == 0            # the slot is free before the GL thread even looks
+    assert worker.admitted == 0  # the slot is free before the GL thread even looks
     gate.set()
     with pytest.raises(FrameCancelled) as e:
         h.wait(5)
@@ -115,7 +116,7 @@ def test_a_timeout_cancels_the_frame(worker):
     # The first slice ends 1 s in, well after the 0.2 s timeout, and the GL thread drops the cancelled
     # frame there (without the timer that slice would wait out its gate's 5 s).
     threading.Timer(1.0, gate.set).start()
-    h = worker.admit().frame(lambda r: FakeFrame("slow", 10 ** 6, [], gate), session="A", cost_ms=1e6)
+    h = worker.admit().frame(lambda r: FakeFrame("slow", 10**6, [], gate), session="A", cost_ms=1e6)
     with pytest.raises(FrameCancelled) as e:
         h.wait(0.2)
     gate.set()
@@ -124,13 +125,15 @@ def test_a_timeout_cancels_the_frame(worker):
 
 def test_retry_after_and_saturation_come_from_the_work_queued_ahead(worker):
     gate = threading.Event()
-    handles = [worker.admit().frame(lambda r: FakeFrame("x", 100, [], gate), session=s, cost_ms=ms)
-               for s, ms in (("A", 4_000.0), ("B", 7_500.0))]
+    handles = [
+        worker.admit().frame(lambda r: FakeFrame("x", 100, [], gate), session=s, cost_ms=ms)
+        for s, ms in (("A", 4_000.0), ("B", 7_500.0))
+    ]
     time.sleep(0.1)
     queued = worker.queued_ms()
-    assert 11_000 <= queued <= 11_500      # what is left of both (one slice of one may have run)
+    assert 11_000 <= queued <= 11_500  # what is left of both (one slice of one may have run)
     assert worker.retry_after() == math.ceil(queued / 1e3)
-    assert worker.saturated is True        # 11.5 s of work, over the 10 s render timeout
+    assert worker.saturated is True  # 11.5 s of work, over the 10 s render timeout
     for h in handles:
         h.cancel("test")
     gate.set()
@@ -150,7 +153,7 @@ def test_shutdown_cancels_the_frames_in_flight():
     w = GLWorker(queue_size=4, renderer_factory=FakeRenderer)
     w.start().result(5)
     gate = threading.Event()
-    h = w.admit().frame(lambda r: FakeFrame("s", 10 ** 6, [], gate), session="A", cost_ms=1e6)
+    h = w.admit().frame(lambda r: FakeFrame("s", 10**6, [], gate), session="A", cost_ms=1e6)
     time.sleep(0.05)
     closer = threading.Thread(target=w.close)
     closer.start()
@@ -169,6 +172,7 @@ def estimate_ms(n: int, **settings) -> float:
     from renderer.prepare import prepare_frame
     from renderer.scenarios import scenario
     from renderer.settings import RenderSettings
+
     return prepare_frame(scenario(3, n, seed=1), RenderSettings(**{**SMALL, **FRAME, **settings})).cost.bound_ms
 
 
@@ -177,12 +181,14 @@ def capped(tmp_path_factory):
     """A service whose frame cost cap lies between the BIH's frame and brute force's on 4,096
     spheres (from the model itself, so the test holds whatever the fitted constants)."""
     import warnings
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         from fastapi.testclient import TestClient
     from pocketray_server_support import make_config
 
     from server.app import create_app
+
     bih, bf = estimate_ms(4096), estimate_ms(4096, method="bruteforce")
     assert bf > 4 * bih
     limit = math.sqrt(bih * bf)
@@ -196,9 +202,12 @@ def test_a_frame_over_the_cost_cap_is_refused_naming_the_setting_to_change(cappe
     limit = c.app.state.config.max_frame_cost
     # the session's own frames are FRAME's (the cap lies between the BIH and brute force at that size)
     sid = new_session(c, n=4096, settings={**SMALL, **FRAME})["id"]
-    assert c.get(f"/api/sessions/{sid}/frame", params=FRAME).status_code == 200   # the BIH fits
-    for params, field in (({"method": "bruteforce"}, "method"), ({"max_prims": 4096}, "max_prims"),
-                          ({"max_tree_depth": 1}, "max_tree_depth")):
+    assert c.get(f"/api/sessions/{sid}/frame", params=FRAME).status_code == 200  # the BIH fits
+    for params, field in (
+        ({"method": "bruteforce"}, "method"),
+        ({"max_prims": 4096}, "max_prims"),
+        ({"max_tree_depth": 1}, "max_tree_depth"),
+    ):
         r = c.get(f"/api/sessions/{sid}/frame", params={**FRAME, **params})
         assert r.status_code == 422, r.text
         d = r.json()["detail"][0]
@@ -216,7 +225,7 @@ def test_the_largest_accepted_width_named_is_accepted(capped):
     c = capped
     sid = new_session(c, n=4096)["id"]
     big = {**FRAME, "width": 4096, "height": 128, "max_recursion_depth": 2}
-    c.app.state.config.__dict__["max_work"] = 10 ** 9     # only the cost cap decides here
+    c.app.state.config.__dict__["max_work"] = 10**9  # only the cost cap decides here
     r = c.get(f"/api/sessions/{sid}/frame", params=big)
     assert r.status_code == 422, r.text
     d = r.json()["detail"][0]
@@ -233,13 +242,13 @@ def test_latest_wins_for_the_frames_of_one_session(ready_client):
     sid = new_session(c)["id"]
     state = service.get(sid)
     gate = threading.Event()
-    blocker = worker.admit().submit(lambda r: gate.wait(5))      # the GL thread is busy
+    blocker = worker.admit().submit(lambda r: gate.wait(5))  # the GL thread is busy
     older = service.start_frame(service.plan(service.scene(state), dict(state.settings), "query"), session=state)
     newer: list = []
     t = threading.Thread(target=lambda: newer.append(c.get(f"/api/sessions/{sid}/frame")))
     t.start()
     deadline = time.monotonic() + 5
-    while older.reason is None and time.monotonic() < deadline:   # the newer request supersedes it
+    while older.reason is None and time.monotonic() < deadline:  # the newer request supersedes it
         time.sleep(0.01)
     gate.set()
     t.join(10)
@@ -273,8 +282,8 @@ def test_progressive_frames_stream_the_preview_then_the_final_image(ready_client
     assert [p["headers"]["x-frame-part"] for p in parts] == ["preview", "final"]
     final = c.get(f"/api/sessions/{sid}/frame", params=q)
     centre = c.get(f"/api/sessions/{sid}/frame", params={**q, "samples_per_pixel": 1})
-    assert parts[1]["body"] == final.content           # the final part is the one-shot frame
-    assert parts[0]["body"] == centre.content          # the preview is the pixel-centre frame
+    assert parts[1]["body"] == final.content  # the final part is the one-shot frame
+    assert parts[0]["body"] == centre.content  # the preview is the pixel-centre frame
     # A frame with one pass has one part.
     one = split_multipart(c.get(f"/api/sessions/{sid}/frame", params={"samples_per_pixel": 1, "progressive": 1}))
     assert [p["headers"]["x-frame-part"] for p in one] == ["final"]
@@ -284,8 +293,9 @@ def test_a_progressive_gesture_commits_with_its_final_part(ready_client):
     c = ready_client
     sid = new_session(c)["id"]
     v = c.get(f"/api/sessions/{sid}").json()["version"]
-    r = c.post(f"/api/sessions/{sid}/gesture?frame=1&progressive=1&samples_per_pixel=4",
-               json={"type": "pinch", "scale": 2})
+    r = c.post(
+        f"/api/sessions/{sid}/gesture?frame=1&progressive=1&samples_per_pixel=4", json={"type": "pinch", "scale": 2}
+    )
     parts = split_multipart(r)
     assert [p["headers"].get("x-session-version") for p in parts] == [str(v), str(v + 1)]
     assert c.get(f"/api/sessions/{sid}").json()["version"] == v + 1
@@ -298,7 +308,9 @@ def split_multipart(r) -> list[dict]:
         if chunk.startswith(b"--"):
             break
         head, _, body = chunk.lstrip(b"\r\n").partition(b"\r\n\r\n")
-        headers = {k.strip().lower(): v.strip() for k, v in
-                   (line.split(":", 1) for line in head.decode().split("\r\n") if line)}
-        out.append({"headers": headers, "body": body[:int(headers["content-length"])]})
+        headers = {
+            k.strip().lower(): v.strip()
+            for k, v in (line.split(":", 1) for line in head.decode().split("\r\n") if line)
+        }
+        out.append({"headers": headers, "body": body[: int(headers["content-length"])]})
     return out

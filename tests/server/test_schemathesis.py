@@ -90,30 +90,52 @@ def refused_only_across_fields(ctx, response, case) -> None:
     cases "positive" that it mutated afterwards, so the parts are checked here themselves)."""
     if response.status_code != 422:
         return None
-    body_schema = (case.operation.definition.raw.get("requestBody", {}).get("content", {})
-                   .get("application/json", {}).get("schema"))
+    body_schema = (
+        case.operation.definition.raw.get("requestBody", {})
+        .get("content", {})
+        .get("application/json", {})
+        .get("schema")
+    )
     sent_as = {k.lower(): v for k, v in (case.headers or {}).items()}.get("content-type", case.media_type)
-    body_allowed = (body_schema is not None and case.body is not None and sent_as == "application/json"
-                    and schema_allows(body_schema, case.body))
+    body_allowed = (
+        body_schema is not None
+        and case.body is not None
+        and sent_as == "application/json"
+        and schema_allows(body_schema, case.body)
+    )
     # "too_many_errors" counts the entries past the first 20 (server/models.py); the listed ones are judged.
-    mismatches = [d for d in response.json()["detail"] if d.get("type") not in ("value_error", "too_many_errors") and (
-        (d["loc"][0] == "body" and body_allowed) or
-        (d["loc"][0] == "query" and len(d["loc"]) > 1 and query_allows(case, d["loc"][1])))]
+    mismatches = [
+        d
+        for d in response.json()["detail"]
+        if d.get("type") not in ("value_error", "too_many_errors")
+        and (
+            (d["loc"][0] == "body" and body_allowed)
+            or (d["loc"][0] == "query" and len(d["loc"]) > 1 and query_allows(case, d["loc"][1]))
+        )
+    ]
     assert not mismatches, f"a request the schema allows was refused by a schema rule: {mismatches}"
     return None
 
 
-CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance, response_schema_conformance,
-          response_headers_conformance, negative_data_rejection, unsupported_method, allow_header_conformance,
-          missing_required_header, refused_only_across_fields]
+CHECKS = [
+    not_a_server_error,
+    status_code_conformance,
+    content_type_conformance,
+    response_schema_conformance,
+    response_headers_conformance,
+    negative_data_rejection,
+    unsupported_method,
+    allow_header_conformance,
+    missing_required_header,
+    refused_only_across_fields,
+]
 CONFIG = SchemathesisConfig.from_dict({"checks": {"negative_data_rejection": {"expected-statuses": REFUSALS}}})
 
 
 @pytest.fixture(scope="module")
 def api_server():
     with tempfile.TemporaryDirectory() as tmp:
-        env = server_env(Path(tmp) / "sessions.sqlite3", queue_size=8, max_spheres=256,
-                         max_body_bytes=64 * 1024)
+        env = server_env(Path(tmp) / "sessions.sqlite3", queue_size=8, max_spheres=256, max_body_bytes=64 * 1024)
         proc = ServerProcess(env, Path(tmp) / "server.log").start()
         proc.wait_ready()
         try:
@@ -147,7 +169,9 @@ def test_api_conforms_to_its_schema(case, live_session):
     meta = case.meta
     path_info = meta.components.get(ParameterLocation.PATH) if meta is not None else None
     negative_path = path_info is not None and path_info.mode is GenerationMode.NEGATIVE
-    if "session_id" in params and not negative_path and zlib.crc32(repr((case.body, case.query)).encode()) % 5:  # 4 of 5: live
+    if (
+        "session_id" in params and not negative_path and zlib.crc32(repr((case.body, case.query)).encode()) % 5
+    ):  # 4 of 5: live
         if case.method.upper() == "DELETE":
             with httpx.Client(base_url=live_session["url"], timeout=30) as c:
                 params["session_id"] = new_session(c)["id"]

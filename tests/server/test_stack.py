@@ -20,11 +20,11 @@ from pocketray_server_support import SMALL, TEST_CAPS
 
 from server.stack import SERVED_BY_HEADER, SESSION_HEADER, Stack
 
-pytestmark = pytest.mark.gl   # the render processes make GL contexts
+pytestmark = pytest.mark.gl  # the render processes make GL contexts
 
 SESSIONS = 8
-ROUNDS_BEFORE = 3     # gestures per session before the kill
-ROUNDS_AFTER = 3      # and after it
+ROUNDS_BEFORE = 3  # gestures per session before the kill
+ROUNDS_AFTER = 3  # and after it
 
 
 def stack_env() -> dict[str, str]:
@@ -40,13 +40,17 @@ def stack(tmp_path):
 
 
 def test_sessions_through_the_balancer_survive_a_killed_process(stack, capsys):
-    acked: dict[str, list[dict]] = {}   # session → the camera after each acknowledged write, in order
+    acked: dict[str, list[dict]] = {}  # session → the camera after each acknowledged write, in order
     served = Counter()
-    home: dict[str, str] = {}           # session → the process its requests reach
+    home: dict[str, str] = {}  # session → the process its requests reach
 
     def gesture(c: httpx.Client, sid: str, i: int) -> httpx.Response:
-        r = c.post(f"/api/sessions/{sid}/gesture", params={"frame": 1, "format": "npy", "mode": "primid"},
-                   json={"type": "pan", "dx": 3 + i, "dy": -2}, headers={SESSION_HEADER: sid})
+        r = c.post(
+            f"/api/sessions/{sid}/gesture",
+            params={"frame": 1, "format": "npy", "mode": "primid"},
+            json={"type": "pan", "dx": 3 + i, "dy": -2},
+            headers={SESSION_HEADER: sid},
+        )
         served[r.headers.get(SERVED_BY_HEADER)] += 1
         return r
 
@@ -68,7 +72,7 @@ def test_sessions_through_the_balancer_survive_a_killed_process(stack, capsys):
         assert set(before) == {"render0", "render1"}, f"one process served every session: {before}"
 
         killed_pid = stack.renders[0].proc.pid
-        stack.kill(0)   # SIGKILL: render0's scene cache and refit trees are gone; Redis has the sessions
+        stack.kill(0)  # SIGKILL: render0's scene cache and refit trees are gone; Redis has the sessions
         moved = {sid for sid, owner in home.items() if owner == "render0"}
         after = Counter()
         for i in range(ROUNDS_BEFORE, ROUNDS_BEFORE + ROUNDS_AFTER):
@@ -84,8 +88,9 @@ def test_sessions_through_the_balancer_survive_a_killed_process(stack, capsys):
         assert stack.renders[0].alive and stack.renders[0].proc.pid != killed_pid
         sid0 = next(iter(moved))
         deadline = time.monotonic() + 60
-        while (r := c.get(f"/api/sessions/{sid0}", headers={SESSION_HEADER: sid0})).headers[SERVED_BY_HEADER] \
-                != "render0":
+        while (r := c.get(f"/api/sessions/{sid0}", headers={SESSION_HEADER: sid0})).headers[
+            SERVED_BY_HEADER
+        ] != "render0":
             assert r.status_code == 200, r.text
             assert time.monotonic() < deadline, "render0 never came back"
             time.sleep(0.2)
@@ -102,32 +107,44 @@ def test_sessions_through_the_balancer_survive_a_killed_process(stack, capsys):
     assert writes_found == writes_acked == SESSIONS * (ROUNDS_BEFORE + ROUNDS_AFTER) + 1
     assert (stack.workdir / "appendonlydir").is_dir() or any(stack.workdir.glob("*.aof"))
     with capsys.disabled():
-        print(f"\nstack: requests per process {dict(served)}; sessions per process before the kill "
-              f"{dict(before)}, {len(moved)} moved to render1 while render0 restarted; writes acknowledged "
-              f"{writes_acked}, found {writes_found}")
+        print(
+            f"\nstack: requests per process {dict(served)}; sessions per process before the kill "
+            f"{dict(before)}, {len(moved)} moved to render1 while render0 restarted; writes acknowledged "
+            f"{writes_acked}, found {writes_found}"
+        )
 
 
 def test_a_stopping_process_drains_its_readiness_fails_at_once_and_the_balancer_routes_around_it(stack):
     victim = stack.renders[1]
     with httpx.Client(base_url=stack.url, timeout=60) as c:
-        sids = [c.post("/api/sessions", json={"scenario": 1, "n": 27, "settings": dict(SMALL)}).json()["id"]
-                for _ in range(6)]
-        proc = victim.proc          # the supervisor starts a new one once this one has exited
+        sids = [
+            c.post("/api/sessions", json={"scenario": 1, "n": 27, "settings": dict(SMALL)}).json()["id"]
+            for _ in range(6)
+        ]
+        proc = victim.proc  # the supervisor starts a new one once this one has exited
         proc.send_signal(signal.SIGTERM)
         t0 = time.monotonic()
         r = httpx.get(f"http://127.0.0.1:{victim.port}/api/ready", timeout=5)
         assert r.status_code == 503 and r.json()["detail"].startswith("draining")
         assert httpx.get(f"http://127.0.0.1:{victim.port}/api/health", timeout=5).status_code == 200
         answers = []
-        while proc.poll() is None and time.monotonic() - t0 < 30:   # during the drain and after the exit
+        while proc.poll() is None and time.monotonic() - t0 < 30:  # during the drain and after the exit
             for sid in sids:
-                answers.append(c.post(f"/api/sessions/{sid}/gesture", json={"type": "pinch", "scale": 1.01},
-                                      headers={SESSION_HEADER: sid}))
+                answers.append(
+                    c.post(
+                        f"/api/sessions/{sid}/gesture",
+                        json={"type": "pinch", "scale": 1.01},
+                        headers={SESSION_HEADER: sid},
+                    )
+                )
         proc.wait(timeout=30)
-        assert time.monotonic() - t0 >= stack.drain_s * 0.9   # it served for the drain, then stopped
+        assert time.monotonic() - t0 >= stack.drain_s * 0.9  # it served for the drain, then stopped
         for sid in sids:
-            answers.append(c.post(f"/api/sessions/{sid}/gesture", json={"type": "pinch", "scale": 1.01},
-                                  headers={SESSION_HEADER: sid}))
+            answers.append(
+                c.post(
+                    f"/api/sessions/{sid}/gesture", json={"type": "pinch", "scale": 1.01}, headers={SESSION_HEADER: sid}
+                )
+            )
     assert [r.status_code for r in answers] == [200] * len(answers)
     assert answers[-1].headers[SERVED_BY_HEADER] == "render0"
 
@@ -136,7 +153,7 @@ def test_the_render_processes_run_without_the_per_client_cap_which_the_balancer_
     """Was: each render process capped "client" 127.0.0.1 — the balancer, i.e. every client at once — at
     32 connections: 80 clients through the balancer made both answer 429 and HAProxy eject them."""
     port = stack.renders[0].port
-    conns = [socket.create_connection(("127.0.0.1", port), timeout=10) for _ in range(48)]   # > 32, one address
+    conns = [socket.create_connection(("127.0.0.1", port), timeout=10) for _ in range(48)]  # > 32, one address
     try:
         for s in conns:
             s.sendall(b"GET /api/health HTTP/1.1\r\nHost: render0\r\n\r\n")
@@ -162,18 +179,18 @@ def test_a_stalled_redis_is_the_services_json_503_and_no_process_leaves_the_bala
     with httpx.Client(base_url=stack.url, timeout=5) as c:
         sid = c.post("/api/sessions", json={"scenario": 1, "n": 27, "settings": dict(SMALL)}).json()["id"]
         pan = {"type": "pan", "dx": 1, "dy": 0}
-        stack.redis.proc.send_signal(signal.SIGSTOP)   # Redis stalls: connections open, nothing answered
+        stack.redis.proc.send_signal(signal.SIGSTOP)  # Redis stalls: connections open, nothing answered
         try:
             t0 = time.monotonic()
             r = c.post(f"/api/sessions/{sid}/gesture", json=pan, headers={SESSION_HEADER: sid})
             assert r.status_code == 503 and r.headers["retry-after"], (r.status_code, r.text)
-            assert r.headers[SERVED_BY_HEADER] in ("render0", "render1")   # the service's answer, not HAProxy's
+            assert r.headers[SERVED_BY_HEADER] in ("render0", "render1")  # the service's answer, not HAProxy's
             assert r.json()["detail"].startswith("state: the session store is not answering")
-            time.sleep(max(0.0, 2.5 - (time.monotonic() - t0)))           # > 2 failed checks, were they failing
+            time.sleep(max(0.0, 2.5 - (time.monotonic() - t0)))  # > 2 failed checks, were they failing
             for child in stack.renders:
                 assert httpx.get(f"http://127.0.0.1:{child.port}/api/ready", timeout=5).status_code == 200
             served = Counter()
-            for _ in range(6):                                              # no key: round robin over those in
+            for _ in range(6):  # no key: round robin over those in
                 r = c.get("/api/info")
                 assert r.status_code == 200, r.text
                 served[r.headers[SERVED_BY_HEADER]] += 1
@@ -184,4 +201,4 @@ def test_a_stalled_redis_is_the_services_json_503_and_no_process_leaves_the_bala
         r = c.post(f"/api/sessions/{sid}/gesture", json=pan, headers={SESSION_HEADER: sid})
         assert r.status_code == 200, r.text
         assert time.monotonic() - t_back < 1.0
-        assert r.json()["version"] in (2, 3)   # a refused write whose EXEC had reached Redis is applied after it
+        assert r.json()["version"] in (2, 3)  # a refused write whose EXEC had reached Redis is applied after it

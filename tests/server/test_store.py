@@ -14,8 +14,15 @@ CAM = {"position": [0.0, 0.0, 100.0], "target": [0.0, 0.0, 0.0], "up": [0.0, 1.0
 
 
 def state(sid: str = "s1") -> SessionState:
-    return SessionState(id=sid, version=1, camera=CAM, home_camera=CAM, settings={"width": 8},
-                        scene_info={"n_spheres": 1, "n_planes": 0}, scene_rev="r1")
+    return SessionState(
+        id=sid,
+        version=1,
+        camera=CAM,
+        home_camera=CAM,
+        settings={"width": 8},
+        scene_info={"n_spheres": 1, "n_planes": 0},
+        scene_rev="r1",
+    )
 
 
 @pytest.fixture(params=["sqlite", "redis"])
@@ -46,6 +53,7 @@ def test_failed_mutation_changes_nothing(store):
 
     def boom(old):
         raise ValueError("rejected")
+
     with pytest.raises(ValueError):
         store.update("s1", boom, source=b"other")
     assert store.get("s1").version == 1
@@ -69,12 +77,13 @@ def test_concurrent_updates_lose_nothing(store):
 
     def work():
         done = 0
-        while done < 25:     # a change that collided more than the store's retries is refused: retry it
+        while done < 25:  # a change that collided more than the store's retries is refused: retry it
             try:
                 store.update("s1", lambda old: replace(old, settings={"width": old.settings["width"] + 1}))
                 done += 1
             except StoreUnavailable:
                 pass
+
     threads = [threading.Thread(target=work) for _ in range(4)]
     for t in threads:
         t.start()

@@ -50,8 +50,8 @@ CREATE_CASES = [
     (raw('{"scenario": 3, "n": 10, "radius": Infinity}'), "radius"),
     ({"json": {"scenario": 4, "n": 10}}, "scenario"),
     ({"json": {"scenario": 3}}, "n"),
-    ({"json": {"scenario": 3, "n": 5000}}, "n"),           # over POCKETRAY_MAX_SPHERES of the test app
-    ({"json": {"scenario": 3, "n": 1 << 22}}, "n"),        # over the absolute limit
+    ({"json": {"scenario": 3, "n": 5000}}, "n"),  # over POCKETRAY_MAX_SPHERES of the test app
+    ({"json": {"scenario": 3, "n": 1 << 22}}, "n"),  # over the absolute limit
     ({"json": {"scenario": 3, "n": -1}}, "n"),
     ({"json": {}}, "scenario"),
     ({"json": {"scenario": 1, "n": 2, "scene": scene_with()}}, "scenario"),
@@ -64,15 +64,16 @@ CREATE_CASES = [
     ({"json": {"scene": {**scene_with(), "spheres": [{"center": [0, 0, 0], "radius": -2}]}}}, "radius"),
     (raw(json.dumps({"scene": scene_with()}).replace('"fov_y": 60', '"fov_y": NaN')), "fov_y"),
     (raw('{"scene": {"materials": [{}], "spheres": [{"center": [0, Infinity, 0], "radius": 1}]}}'), "center"),
-    ({"json": {"scene": {**scene_with(), "spheres": [{"center": [0, 0, 0], "radius": 1, "material": 7}]}}},
-     "material"),
+    ({"json": {"scene": {**scene_with(), "spheres": [{"center": [0, 0, 0], "radius": 1, "material": 7}]}}}, "material"),
     ({"json": {"scene": {**scene_with(), "materials": []}}}, "materials"),
     ({"json": {"scenario": 1, "n": 2, "settings": {"width": 0}}}, "width"),
     ({"json": {"scenario": 1, "n": 2, "settings": {"height": 4097}}}, "height"),
     ({"json": {"scenario": 1, "n": 2, "settings": {"method": "no-such-method"}}}, "method"),
     ({"json": {"scenario": 1, "n": 2, "settings": {"mode": "xray"}}}, "mode"),
-    ({"json": {"scenario": 1, "n": 2, "settings": {"width": 96, "height": 128, "max_recursion_depth": 8}}},
-     "max_recursion_depth"),
+    (
+        {"json": {"scenario": 1, "n": 2, "settings": {"width": 96, "height": 128, "max_recursion_depth": 8}}},
+        "max_recursion_depth",
+    ),
     ({"json": {"scenario": 1, "n": 2, "colour": "red"}}, "colour"),
 ]
 
@@ -113,8 +114,12 @@ SESSION_CASES = [
     ("post", "gesture", raw('{"type": "orbit", "yaw": 0, "pitch": Infinity}'), "pitch"),
     ("post", "gesture", {"json": {"type": "orbit", "yaw": "left"}}, "yaw"),
     ("post", "gesture?frame=1&width=0", {"json": {"type": "pinch", "scale": 2}}, "width"),
-    ("post", "gesture?frame=1&width=96&height=128&max_recursion_depth=4", {"json": {"type": "pinch", "scale": 2}},
-     "max_recursion_depth"),
+    (
+        "post",
+        "gesture?frame=1&width=96&height=128&max_recursion_depth=4",
+        {"json": {"type": "pinch", "scale": 2}},
+        "max_recursion_depth",
+    ),
     ("post", "gesture?frame=1&method=nope", {"json": {"type": "reset"}}, "method"),
     ("get", "frame?width=4097", {}, "width"),
     ("get", "frame?height=0", {}, "height"),
@@ -136,18 +141,25 @@ def test_session_change_rejected_changes_nothing(client, sid, method, path, kw, 
 
 def test_pan_out_of_range_is_422_and_changes_nothing(client):
     sid = new_session(client)["id"]
-    client.put(f"/api/sessions/{sid}/camera", json={**GOOD_CAMERA, "position": [9.99e6, 0, 100],
-                                                    "target": [9.99e6, 0, 0]})
+    client.put(
+        f"/api/sessions/{sid}/camera", json={**GOOD_CAMERA, "position": [9.99e6, 0, 100], "target": [9.99e6, 0, 0]}
+    )
     before = snapshot(client, sid)
     r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "pan", "dx": -1e6, "dy": 0})
     assert_422(r, "dx")
     assert snapshot(client, sid) == before
 
 
-@pytest.mark.parametrize("settings,field", [
-    ({"width": 0}, "width"), ({"width": 4097}, "width"), ({"method": "x"}, "method"), ({"mode": "x"}, "mode"),
-    ({"width": 96, "height": 128, "max_recursion_depth": 3}, "max_recursion_depth"),
-])
+@pytest.mark.parametrize(
+    "settings,field",
+    [
+        ({"width": 0}, "width"),
+        ({"width": 4097}, "width"),
+        ({"method": "x"}, "method"),
+        ({"mode": "x"}, "mode"),
+        ({"width": 96, "height": 128, "max_recursion_depth": 3}, "max_recursion_depth"),
+    ],
+)
 def test_stateless_render_rejects(client, settings, field):
     assert_422(client.post("/api/render", json={"scene": scene_with(), "settings": settings}), field)
 
@@ -165,8 +177,11 @@ def test_oversized_body_is_413_and_changes_nothing(client, sid):
     assert r.status_code == 413 and "body" in r.json()["detail"]
     # chunked (no Content-Length) is refused as well
     body = json.dumps(big).encode()
-    r = client.put(f"/api/sessions/{sid}/scene", content=iter([body[:1000], body[1000:]]),
-                   headers={"content-type": "application/json"})
+    r = client.put(
+        f"/api/sessions/{sid}/scene",
+        content=iter([body[:1000], body[1000:]]),
+        headers={"content-type": "application/json"},
+    )
     assert r.status_code == 413
     assert snapshot(client, sid) == before
 
@@ -178,7 +193,8 @@ def test_method_limits_are_checked_before_a_gesture_is_applied(client, sid):
     if "rayengine" not in METHOD_NAMES:
         return  # nothing to check with this renderer
     before = snapshot(client, sid)
-    r = client.post(f"/api/sessions/{sid}/gesture?frame=1&method=rayengine&mode=cones",
-                    json={"type": "pinch", "scale": 2})
+    r = client.post(
+        f"/api/sessions/{sid}/gesture?frame=1&method=rayengine&mode=cones", json={"type": "pinch", "scale": 2}
+    )
     assert_422(r, "mode")
     assert snapshot(client, sid) == before

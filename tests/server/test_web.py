@@ -42,8 +42,11 @@ def test_cors_allows_the_configured_origin_and_exposes_the_frame_headers(cors_cl
 
 
 def test_a_preflight_is_answered_for_the_origin_and_refused_for_others(cors_client):
-    ask = {"Origin": ORIGIN, "Access-Control-Request-Method": "POST",
-           "Access-Control-Request-Headers": "content-type, x-session-id"}
+    ask = {
+        "Origin": ORIGIN,
+        "Access-Control-Request-Method": "POST",
+        "Access-Control-Request-Headers": "content-type, x-session-id",
+    }
     r = cors_client.options("/api/sessions/abc/gesture", headers=ask)
     assert r.status_code == 200 and r.headers["access-control-allow-origin"] == ORIGIN
     assert "POST" in r.headers["access-control-allow-methods"]
@@ -62,17 +65,21 @@ def allow(r) -> list[str]:
 
 def test_plain_options_answers_204_with_the_paths_methods(ready_client):
     sid = new_session(ready_client)["id"]
-    cases = {f"/api/sessions/{sid}": ["DELETE", "GET", "OPTIONS"],      # sorted (server/allow.py)
-             "/api/sessions": ["OPTIONS", "POST"],
-             f"/api/sessions/{sid}/scene": ["GET", "OPTIONS", "PUT"],
-             f"/api/sessions/{sid}/frame": ["GET", "OPTIONS"],
-             "/api/render": ["POST", "OPTIONS"], "/metrics": ["GET", "OPTIONS"],
-             "/": ["GET", "HEAD", "OPTIONS"], "/js/api.js": ["GET", "HEAD", "OPTIONS"],
-             "/shaders/raytrace.frag": ["GET", "HEAD", "OPTIONS"]}
+    cases = {
+        f"/api/sessions/{sid}": ["DELETE", "GET", "OPTIONS"],  # sorted (server/allow.py)
+        "/api/sessions": ["OPTIONS", "POST"],
+        f"/api/sessions/{sid}/scene": ["GET", "OPTIONS", "PUT"],
+        f"/api/sessions/{sid}/frame": ["GET", "OPTIONS"],
+        "/api/render": ["POST", "OPTIONS"],
+        "/metrics": ["GET", "OPTIONS"],
+        "/": ["GET", "HEAD", "OPTIONS"],
+        "/js/api.js": ["GET", "HEAD", "OPTIONS"],
+        "/shaders/raytrace.frag": ["GET", "HEAD", "OPTIONS"],
+    }
     for path, methods in cases.items():
         r = ready_client.options(path)
         assert r.status_code == 204 and allow(r) == sorted(methods), (path, r.status_code, r.headers.get("allow"))
-        for m in methods:   # what Allow says is what the path answers (no 405)
+        for m in methods:  # what Allow says is what the path answers (no 405)
             if m not in ("OPTIONS", "DELETE"):
                 assert ready_client.request(m, path).status_code != 405, (path, m)
     for path in ("/api/nothing-here", "/no-such-file.js"):
@@ -107,8 +114,9 @@ def test_openapi_operation_ids_are_the_route_names_grouped_by_tags(ready_client)
 def test_format_exr_holds_the_npy_arrays_as_float_channels(ready_client):
     sid = new_session(ready_client)["id"]
     for mode, channel in (("depth", "Z"), ("normal", "RGB"), ("primid", "id"), ("color", "RGB")):
-        npy = np.load(io.BytesIO(ready_client.get(f"/api/sessions/{sid}/frame",
-                                                  params={"mode": mode, "format": "npy"}).content))
+        npy = np.load(
+            io.BytesIO(ready_client.get(f"/api/sessions/{sid}/frame", params={"mode": mode, "format": "npy"}).content)
+        )
         r = ready_client.get(f"/api/sessions/{sid}/frame", params={"mode": mode, "format": "exr"})
         assert r.status_code == 200 and r.headers["content-type"] == "image/x-exr"
         got = decode_exr(r.content)
@@ -116,7 +124,7 @@ def test_format_exr_holds_the_npy_arrays_as_float_channels(ready_client):
         arr = got[channel]
         if mode == "primid":
             assert np.array_equal(arr.view(np.int32), npy)
-        elif mode == "color":   # linear floats: quantised they are the 8-bit frame
+        elif mode == "color":  # linear floats: quantised they are the 8-bit frame
             assert arr.dtype == np.float32 and np.array_equal(np.floor(np.clip(arr, 0, 1) * 255 + 0.5), npy)
         else:
             assert np.array_equal(arr, npy)

@@ -30,7 +30,7 @@ from pocketray_server_support import ServerProcess, new_session, server_env
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect as ws_connect
 
-BIG_SIDE = 1024      # a 1024² normal npy frame: 12 MiB, more than loopback's socket buffers hold
+BIG_SIDE = 1024  # a 1024² normal npy frame: 12 MiB, more than loopback's socket buffers hold
 WS_IDLE_S = 2.0
 BURST = 40
 
@@ -39,10 +39,19 @@ BURST = 40
 def server(tmp_path_factory):
     """One server with short wire limits for the tests below (each closes what it opened)."""
     tmp = tmp_path_factory.mktemp("wire_ws")
-    env = server_env(tmp / "sessions.sqlite3", request_idle_timeout_s=1.0, header_timeout_s=2.0,
-                     max_connections_per_client=6, ws_idle_timeout_s=WS_IDLE_S, ws_messages_per_s=20,
-                     ws_message_burst=BURST, write_timeout_s=3.0, max_unsent_bytes_per_client=1 << 20,
-                     max_work=BIG_SIDE * BIG_SIDE, max_frame_cost=1e9)
+    env = server_env(
+        tmp / "sessions.sqlite3",
+        request_idle_timeout_s=1.0,
+        header_timeout_s=2.0,
+        max_connections_per_client=6,
+        ws_idle_timeout_s=WS_IDLE_S,
+        ws_messages_per_s=20,
+        ws_message_burst=BURST,
+        write_timeout_s=3.0,
+        max_unsent_bytes_per_client=1 << 20,
+        max_work=BIG_SIDE * BIG_SIDE,
+        max_frame_cost=1e9,
+    )
     proc = ServerProcess(env, tmp / "server.log").start()
     proc.wait_ready()
     try:
@@ -78,7 +87,7 @@ def test_a_websocket_that_keeps_talking_outlives_the_request_timers(server, sid)
     answers = 0
     with ws_connect(ws_url(server, sid), open_timeout=10) as ws:
         t0 = time.monotonic()
-        while time.monotonic() - t0 < 3.5:          # past the idle (1 s) and header (2 s) limits
+        while time.monotonic() - t0 < 3.5:  # past the idle (1 s) and header (2 s) limits
             ws.send(json.dumps({"type": "pan", "dx": 1, "dy": 0, "frame": {"format": "png"}}))
             meta = json.loads(ws.recv(timeout=30))
             assert "version" in meta, meta
@@ -95,7 +104,7 @@ def test_an_idle_websocket_is_closed_with_1001(server, sid):
         ws.recv(timeout=30)
         t0 = time.monotonic()
         with pytest.raises(ConnectionClosed) as closed:
-            ws.recv(timeout=WS_IDLE_S + 15)             # hang guard
+            ws.recv(timeout=WS_IDLE_S + 15)  # hang guard
         waited = time.monotonic() - t0
     assert closed.value.rcvd is not None and closed.value.rcvd.code == 1001, closed.value
     assert "POCKETRAY_WS_IDLE_TIMEOUT_S" in closed.value.rcvd.reason
@@ -106,7 +115,7 @@ def test_an_idle_websocket_is_closed_with_1001(server, sid):
 def test_websockets_hold_their_connection_slot_while_open_and_give_it_back(server, sid):
     """Was: the slot was given back by the h11 protocol's connection_lost, which never runs after
     the upgrade: after 6 WebSockets (31 by default) every request of the address got 429."""
-    for _ in range(10):                              # more than the cap (6), one after the other
+    for _ in range(10):  # more than the cap (6), one after the other
         with ws_connect(ws_url(server, sid), open_timeout=10) as ws:
             ws.send(json.dumps({"type": "frame"}))
             ws.recv(timeout=30)
@@ -126,12 +135,14 @@ def raw_websocket(server, sid: str, rcvbuf: int | None = None) -> socket.socket:
     (``rcvbuf``: and takes next to nothing of what comes)."""
     sock = socket.socket()
     if rcvbuf is not None:
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)    # before connect: no autotuning
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)  # before connect: no autotuning
     sock.settimeout(30)
     sock.connect(("127.0.0.1", server.port))
     key = base64.b64encode(os.urandom(16)).decode()
-    sock.sendall(f"GET /api/sessions/{sid}/ws HTTP/1.1\r\nHost: t\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-                 f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n".encode())
+    sock.sendall(
+        f"GET /api/sessions/{sid}/ws HTTP/1.1\r\nHost: t\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+        f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n".encode()
+    )
     head = b""
     while b"\r\n\r\n" not in head:
         head += sock.recv(1)
@@ -174,7 +185,7 @@ def read_frames(sock: socket.socket, within_s: float) -> tuple[int, int | None]:
                 n, at = struct.unpack("!Q", buf[2:10])[0], 10
             if len(buf) < at + n:
                 break
-            payload, buf = buf[at:at + n], buf[at + n:]
+            payload, buf = buf[at : at + n], buf[at + n :]
             if opcode == 0x1:
                 texts += 1
             elif opcode == 0x8:
@@ -196,6 +207,7 @@ def test_a_flood_of_invalid_messages_is_cut_after_the_burst(server, sid):
                 c.get("/api/health")
                 waits.append(time.perf_counter() - t0)
                 time.sleep(0.02)
+
     sock = raw_websocket(server, sid)
     poller = threading.Thread(target=poll)
     poller.start()
@@ -209,8 +221,8 @@ def test_a_flood_of_invalid_messages_is_cut_after_the_burst(server, sid):
         poller.join()
         sock.close()
     assert code == 1008, (texts, code)
-    assert texts <= BURST + 20, texts            # the burst (and what the rate refilled), not 60,000
-    assert max(waits) < 2.0, max(waits)          # hang guard: the event loop kept answering
+    assert texts <= BURST + 20, texts  # the burst (and what the rate refilled), not 60,000
+    assert max(waits) < 2.0, max(waits)  # hang guard: the event loop kept answering
     assert health_until(server, 200, within_s=5) == 200
 
 
@@ -219,18 +231,21 @@ def test_an_answer_not_taken_is_abandoned_and_its_bytes_freed(server, sid):
     """Was: a client that never read its frame held its bytes (a 4096² normal npy frame: ~360 MB)
     for as long as it stayed connected; ten such connections +5.97 GB."""
     sock = socket.socket()
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)    # before connect: no autotuning
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # before connect: no autotuning
     sock.settimeout(30)
     sock.connect(("127.0.0.1", server.port))
-    sock.sendall(f"GET /api/sessions/{sid}/frame?width={BIG_SIDE}&height={BIG_SIDE}&mode=normal&format=npy"
-                 f"&max_recursion_depth=1 HTTP/1.1\r\nHost: t\r\n\r\n".encode())
+    sock.sendall(
+        f"GET /api/sessions/{sid}/frame?width={BIG_SIDE}&height={BIG_SIDE}&mode=normal&format=npy"
+        f"&max_recursion_depth=1 HTTP/1.1\r\nHost: t\r\n\r\n".encode()
+    )
     try:
         # While the frame waits in the server's buffer, the address gets no new answers ...
         assert health_until(server, 429, within_s=60) == 429
         r = httpx.get(server.url + "/api/health", timeout=10)
-        assert r.status_code == 429 and "POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT" in r.text and \
-            "retry-after" in r.headers, r.text
-        with ws_connect(ws_url(server, sid), open_timeout=10) as ws:   # nor its WebSocket messages
+        assert (
+            r.status_code == 429 and "POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT" in r.text and "retry-after" in r.headers
+        ), r.text
+        with ws_connect(ws_url(server, sid), open_timeout=10) as ws:  # nor its WebSocket messages
             ws.send(json.dumps({"type": "frame"}))
             refused = json.loads(ws.recv(timeout=30))
         assert refused["status"] == 429 and refused["retry_after"] >= 1, refused
@@ -242,7 +257,7 @@ def test_an_answer_not_taken_is_abandoned_and_its_bytes_freed(server, sid):
                 got += len(chunk)
         except ConnectionResetError:
             reset = True
-        assert reset and got < BIG_SIDE * BIG_SIDE * 12, (reset, got)   # reset before the whole frame came
+        assert reset and got < BIG_SIDE * BIG_SIDE * 12, (reset, got)  # reset before the whole frame came
     finally:
         sock.close()
 
@@ -250,11 +265,24 @@ def test_an_answer_not_taken_is_abandoned_and_its_bytes_freed(server, sid):
 def test_a_websocket_frame_not_taken_is_abandoned_too(server, sid):
     sock = raw_websocket(server, sid, rcvbuf=4096)
     try:
-        sock.sendall(masked_text(json.dumps({"type": "frame", "frame": {
-            "width": BIG_SIDE, "height": BIG_SIDE, "mode": "normal", "format": "npy",
-            "max_recursion_depth": 1}}).encode()))
-        assert health_until(server, 429, within_s=60) == 429      # held ...
-        assert health_until(server, 200, within_s=15) == 200      # ... then dropped
+        sock.sendall(
+            masked_text(
+                json.dumps(
+                    {
+                        "type": "frame",
+                        "frame": {
+                            "width": BIG_SIDE,
+                            "height": BIG_SIDE,
+                            "mode": "normal",
+                            "format": "npy",
+                            "max_recursion_depth": 1,
+                        },
+                    }
+                ).encode()
+            )
+        )
+        assert health_until(server, 429, within_s=60) == 429  # held ...
+        assert health_until(server, 200, within_s=15) == 200  # ... then dropped
         got, reset = 0, False
         try:
             while chunk := sock.recv(1 << 16):

@@ -49,7 +49,7 @@ class Case:
     build: Callable[[], Scene]
     width: int = W
     height: int = H
-    max_prims: int = 1          # deepest trees, most traversal steps; thesis-like scenes use 8
+    max_prims: int = 1  # deepest trees, most traversal steps; thesis-like scenes use 8
     max_tree_depth: int = 64
     max_recursion_depth: int = 5
     min_primid_agreement: float = PRIMID_AGREEMENT
@@ -89,35 +89,79 @@ class Case:
             raise ValueError(f"{self.name}: a depth tolerance above {DEPTH_REL} needs a reason")
         if self.color_psnr_min is not None and self.color_psnr_min < PSNR_MIN and not self.psnr_why:
             raise ValueError(f"{self.name}: a PSNR threshold below {PSNR_MIN} dB needs a reason")
-        relaxed = (self.f32_min_primid_agreement < PRIMID_AGREEMENT or self.f32_max_depth_rel > DEPTH_REL
-                   or (self.f32_color_psnr_min is not None and self.f32_color_psnr_min < PSNR_MIN))
+        relaxed = (
+            self.f32_min_primid_agreement < PRIMID_AGREEMENT
+            or self.f32_max_depth_rel > DEPTH_REL
+            or (self.f32_color_psnr_min is not None and self.f32_color_psnr_min < PSNR_MIN)
+        )
         if relaxed and not self.f32_why:
             raise ValueError(f"{self.name}: a relaxed float32-input threshold needs a reason")
 
 
 # --------------------------------------------------------------------------- materials
 
-MIRROR = Material(color=(0.8, 0.8, 0.8), ambient=0.05, diffuse=0.1, specular=0.2, shininess=60.0,
-                  reflective=0.9, transmissive=0.0, ior=1.0)
-WALL_MIRROR = Material(color=(0.5, 0.7, 0.9), ambient=0.05, diffuse=0.2, specular=0.1, shininess=20.0,
-                       reflective=1.0, transmissive=0.0, ior=1.0)
-MATTE = Material(color=(0.3, 0.8, 0.4), ambient=0.2, diffuse=0.7, specular=0.3, shininess=30.0,
-                 reflective=0.0, transmissive=0.0, ior=1.0)
-HALF_GLASS = Material(color=(1.0, 1.0, 1.0), ambient=0.02, diffuse=0.05, specular=0.2, shininess=80.0,
-                      reflective=0.5, transmissive=0.5, ior=1.5)
+MIRROR = Material(
+    color=(0.8, 0.8, 0.8),
+    ambient=0.05,
+    diffuse=0.1,
+    specular=0.2,
+    shininess=60.0,
+    reflective=0.9,
+    transmissive=0.0,
+    ior=1.0,
+)
+WALL_MIRROR = Material(
+    color=(0.5, 0.7, 0.9),
+    ambient=0.05,
+    diffuse=0.2,
+    specular=0.1,
+    shininess=20.0,
+    reflective=1.0,
+    transmissive=0.0,
+    ior=1.0,
+)
+MATTE = Material(
+    color=(0.3, 0.8, 0.4),
+    ambient=0.2,
+    diffuse=0.7,
+    specular=0.3,
+    shininess=30.0,
+    reflective=0.0,
+    transmissive=0.0,
+    ior=1.0,
+)
+HALF_GLASS = Material(
+    color=(1.0, 1.0, 1.0),
+    ambient=0.02,
+    diffuse=0.05,
+    specular=0.2,
+    shininess=80.0,
+    reflective=0.5,
+    transmissive=0.5,
+    ior=1.5,
+)
 
 
 def glass(ior: float, kt: float = 0.8, kr: float = 0.1) -> Material:
-    return Material(color=(1.0, 1.0, 1.0), ambient=0.05, diffuse=0.05, specular=0.2, shininess=60.0,
-                    reflective=kr, transmissive=kt, ior=ior)
+    return Material(
+        color=(1.0, 1.0, 1.0),
+        ambient=0.05,
+        diffuse=0.05,
+        specular=0.2,
+        shininess=60.0,
+        reflective=kr,
+        transmissive=kt,
+        ior=ior,
+    )
 
 
 FLOOR = Plane(point=(0.0, -20.0, 0.0), normal=(0.0, 1.0, 0.0), material=0)
 LIGHT = Light(position=(0.0, 40.0, 0.0), color=(1.0, 1.0, 1.0))
 
 
-def make_scene(camera: Camera, centers, radii, mats, materials=(RED, TRANSPARENT, MATTE),
-               planes=(FLOOR,), lights=(LIGHT,)) -> Scene:
+def make_scene(
+    camera: Camera, centers, radii, mats, materials=(RED, TRANSPARENT, MATTE), planes=(FLOOR,), lights=(LIGHT,)
+) -> Scene:
     centers = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
     radii = np.broadcast_to(np.asarray(radii, dtype=np.float64), (len(centers),))
     mats = np.broadcast_to(np.asarray(mats, dtype=np.int32), (len(centers),))
@@ -132,8 +176,15 @@ def transformed(scene: Scene, scale: float = 1.0, offset=(0.0, 0.0, 0.0)) -> Sce
     camera = Camera(f(cam.position), f(cam.target), cam.up, cam.fov_y)
     lights = tuple(Light(f(light.position), light.color) for light in scene.lights)
     planes = tuple(Plane(f(p.point), p.normal, p.material) for p in scene.planes)
-    return Scene(camera, lights, scene.materials, scene.sphere_centers * scale + off,
-                 scene.sphere_radii * scale, scene.sphere_materials, planes)
+    return Scene(
+        camera,
+        lights,
+        scene.materials,
+        scene.sphere_centers * scale + off,
+        scene.sphere_radii * scale,
+        scene.sphere_materials,
+        planes,
+    )
 
 
 def float32_inputs(scene: Scene) -> Scene:
@@ -145,16 +196,34 @@ def float32_inputs(scene: Scene) -> Scene:
     pos = np.asarray(f32(cam.position))
     tgt = np.asarray(cam.target) + (pos - np.asarray(cam.position))
     camera = Camera(tuple(pos.tolist()), tuple(tgt.tolist()), cam.up, cam.fov_y)
-    mats = tuple(Material(f32(m.color), *(float(np.float32(getattr(m, k))) for k in
-                          ("ambient", "diffuse", "specular", "shininess", "reflective", "transmissive", "ior")))
-                 for m in scene.materials)
-    return Scene(camera, tuple(Light(f32(light.position), f32(light.color)) for light in scene.lights), mats,
-                 scene.sphere_centers.astype(np.float32).astype(np.float64),
-                 scene.sphere_radii.astype(np.float32).astype(np.float64), scene.sphere_materials,
-                 tuple(Plane(f32(p.point), f32(p.normal), p.material) for p in scene.planes),
-                 tuple(Mesh(m.vertices.astype(np.float32).astype(np.float64), m.triangles, m.material,
-                            None if m.normals is None else m.normals.astype(np.float32).astype(np.float64))
-                       for m in scene.meshes))
+    mats = tuple(
+        Material(
+            f32(m.color),
+            *(
+                float(np.float32(getattr(m, k)))
+                for k in ("ambient", "diffuse", "specular", "shininess", "reflective", "transmissive", "ior")
+            ),
+        )
+        for m in scene.materials
+    )
+    return Scene(
+        camera,
+        tuple(Light(f32(light.position), f32(light.color)) for light in scene.lights),
+        mats,
+        scene.sphere_centers.astype(np.float32).astype(np.float64),
+        scene.sphere_radii.astype(np.float32).astype(np.float64),
+        scene.sphere_materials,
+        tuple(Plane(f32(p.point), f32(p.normal), p.material) for p in scene.planes),
+        tuple(
+            Mesh(
+                m.vertices.astype(np.float32).astype(np.float64),
+                m.triangles,
+                m.material,
+                None if m.normals is None else m.normals.astype(np.float32).astype(np.float64),
+            )
+            for m in scene.meshes
+        ),
+    )
 
 
 def same_scene(a: Scene, b: Scene) -> bool:
@@ -163,12 +232,13 @@ def same_scene(a: Scene, b: Scene) -> bool:
 
 # ------------------------------------------------------------------------------ scenes
 
+
 def axis_grid_spheres() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """5 × 5 × 5 grid at −16, −8, 0, 8, 16 (centres on every axis through 0), radius 1.5."""
     ax = np.array([-16.0, -8.0, 0.0, 8.0, 16.0])
     z, y, x = np.meshgrid(ax, ax, ax, indexing="ij")
     c = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
-    mats = np.arange(len(c)) % 3        # red, glass (ior 0.95), matte
+    mats = np.arange(len(c)) % 3  # red, glass (ior 0.95), matte
     return c, np.full(len(c), 1.5), mats
 
 
@@ -191,6 +261,7 @@ AXIS_CAMERAS = {
 def zero_components(scene: Scene, width: int = W, height: int = H) -> str:
     """How many of the reference's primary rays have direction components exactly +0 / −0."""
     from renderer.reference import primary_rays
+
     _, d = primary_rays(scene.camera, width, height)
     parts = []
     for a, name in enumerate("xyz"):
@@ -198,8 +269,7 @@ def zero_components(scene: Scene, width: int = W, height: int = H) -> str:
         neg = int((z & np.signbit(d[:, a])).sum())
         if z.any():
             parts.append(f"d.{name}: {int(z.sum()) - neg} × +0, {neg} × −0")
-    return ("zero direction components in the reference's primary rays: "
-            + ("; ".join(parts) if parts else "none"))
+    return "zero direction components in the reference's primary rays: " + ("; ".join(parts) if parts else "none")
 
 
 def root_clip(scene_spheres, max_prims: int, which: str, depth: int = 1) -> tuple[int, float]:
@@ -212,7 +282,7 @@ def root_clip(scene_spheres, max_prims: int, which: str, depth: int = 1) -> tupl
     k = int(inner[0])
     cl, cr = L.clips(bih.nodes)
     value = cl[k] if which == "left" else cr[k]
-    return int(L.axis_of(w0[k:k + 1])[0]), float(value)
+    return int(L.axis_of(w0[k : k + 1])[0]), float(value)
 
 
 def clip_plane_scene(which: str, depth: int, inside: bool) -> Scene:
@@ -220,12 +290,12 @@ def clip_plane_scene(which: str, depth: int, inside: bool) -> Scene:
     looking along another axis so the centre row/column is parallel to that plane."""
     c, r, m = axis_grid_spheres()
     axis, value = root_clip((c, r), 1, which, depth)
-    view = (axis + 2) % 3                       # look along another axis
+    view = (axis + 2) % 3  # look along another axis
     pos = np.zeros(3)
     pos[axis] = value
-    pos[view] = 3.5 if inside else 100.0        # inside the global box: between grid layers
+    pos[view] = 3.5 if inside else 100.0  # inside the global box: between grid layers
     tgt = pos.copy()
-    tgt[view] = -100.0                          # exactly along −view: d[axis] = 0 on the centre line
+    tgt[view] = -100.0  # exactly along −view: d[axis] = 0 on the centre line
     up = np.zeros(3)
     up[(view + 1) % 3] = 1.0
     cam = Camera(tuple(pos.tolist()), tuple(tgt.tolist()), tuple(up.tolist()), 100.0 if inside else 40.0)
@@ -236,7 +306,7 @@ def geometric_series(n: int = 80) -> Scene:
     """Centres 20·2^−i·(1, 0.5, 0.25), radii 0.2·20·2^−i: every split peels off one
     sphere, the maximally unbalanced BIH; 80 spheres reach the 64-level limit."""
     i = np.arange(n)
-    s = 20.0 * 0.5 ** i
+    s = 20.0 * 0.5**i
     c = np.stack([s, 0.5 * s, 0.25 * s], axis=1)
     r = 0.2 * s
     # looking from the far side of the accumulation point (the origin): the centre
@@ -260,16 +330,31 @@ def room_planes(half: float, material: int) -> tuple[Plane, ...]:
 
 def mirror_room(glass_spheres: bool, seams: bool = False) -> Scene:
     planes = room_planes(30.0, 0)
-    c = np.array([[-10.0, -10.0, -10.0], [10.0, -12.0, 0.0], [0.0, 8.0, -15.0], [-12.0, 10.0, 12.0],
-                  [14.0, 14.0, -14.0], [0.0, -25.0, 5.0]])
+    c = np.array(
+        [
+            [-10.0, -10.0, -10.0],
+            [10.0, -12.0, 0.0],
+            [0.0, 8.0, -15.0],
+            [-12.0, 10.0, 12.0],
+            [14.0, 14.0, -14.0],
+            [0.0, -25.0, 5.0],
+        ]
+    )
     r = np.array([6.0, 5.0, 7.0, 4.0, 3.0, 5.0])
     m = np.full(len(c), 2 if glass_spheres else 1)
-    if seams:   # 33 × 33, fov 90°: columns 7 and 25 have u = ∓30/55 exactly
+    if seams:  # 33 × 33, fov 90°: columns 7 and 25 have u = ∓30/55 exactly
         cam = Camera((0.0, 0.0, 25.0), (0.0, 0.0, -30.0), (0.0, 1.0, 0.0), 90.0)
     else:
         cam = Camera((0.37, 0.21, 24.3), (-3.1, -1.7, -30.0), (0.0, 1.0, 0.0), 90.0)
-    return make_scene(cam, c, r, m, materials=(WALL_MIRROR, MIRROR, HALF_GLASS), planes=planes,
-                      lights=(Light((5.0, 25.0, 10.0), (1.0, 1.0, 1.0)),))
+    return make_scene(
+        cam,
+        c,
+        r,
+        m,
+        materials=(WALL_MIRROR, MIRROR, HALF_GLASS),
+        planes=planes,
+        lights=(Light((5.0, 25.0, 10.0), (1.0, 1.0, 1.0)),),
+    )
 
 
 def refraction_scene(ior: float) -> Scene:
@@ -286,8 +371,17 @@ def refraction_scene(ior: float) -> Scene:
 
 def nested_scene() -> Scene:
     """Concentric glass shells (ior 1.5, 0.95, 2.4), an off-centre inner sphere and a red core."""
-    c = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [2.5, 1.0, 1.0], [0.0, 0.0, 0.0],
-                  [-15.0, -10.0, -30.0], [15.0, 5.0, -30.0]])
+    c = np.array(
+        [
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0],
+            [2.5, 1.0, 1.0],
+            [0.0, 0.0, 0.0],
+            [-15.0, -10.0, -30.0],
+            [15.0, 5.0, -30.0],
+        ]
+    )
     r = np.array([12.0, 8.0, 5.0, 1.5, 1.0, 8.0, 8.0])
     m = np.array([3, 4, 5, 3, 0, 2, 0])
     cam = Camera((0.0, 4.0, 45.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 45.0)
@@ -297,8 +391,12 @@ def nested_scene() -> Scene:
 def inside_glass() -> Scene:
     """Camera inside a glass sphere (ior 1.5) off its centre: most rays leave at
     oblique angles, beyond the critical angle 41.8° many are totally reflected."""
-    ring = np.array([[25.0 * np.cos(a), 6.0 * np.sin(3 * a), 25.0 * np.sin(a)]
-                     for a in np.linspace(0, 2 * np.pi, 12, endpoint=False)])
+    ring = np.array(
+        [
+            [25.0 * np.cos(a), 6.0 * np.sin(3 * a), 25.0 * np.sin(a)]
+            for a in np.linspace(0, 2 * np.pi, 12, endpoint=False)
+        ]
+    )
     c = np.concatenate([[[0.0, 0.0, 0.0]], ring])
     r = np.concatenate([[12.0], np.full(len(ring), 4.0)])
     m = np.concatenate([[3], np.arange(len(ring)) % 2 * 2])
@@ -312,11 +410,18 @@ def light_leak_room() -> Scene:
     (tangent) and two spheres touch each other; the camera is inside."""
     planes = room_planes(20.0, 2)
     c = np.array([[0.0, -15.0, 0.0], [-8.0, -12.0, -6.0], [-2.0, -12.0, -6.0], [8.0, 5.0, -10.0]])
-    r = np.array([5.0, 3.0, 3.0, 4.0])        # 0 touches the floor, 1 and 2 touch each other
+    r = np.array([5.0, 3.0, 3.0, 4.0])  # 0 touches the floor, 1 and 2 touch each other
     m = np.array([0, 2, 0, 1])
     cam = Camera((3.0, 2.0, 18.0), (-1.0, -8.0, -10.0), (0.0, 1.0, 0.0), 80.0)
-    return make_scene(cam, c, r, m, materials=(RED, TRANSPARENT, MATTE), planes=planes,
-                      lights=(Light((5.0, 35.0, 3.0), (1.0, 1.0, 1.0)),))
+    return make_scene(
+        cam,
+        c,
+        r,
+        m,
+        materials=(RED, TRANSPARENT, MATTE),
+        planes=planes,
+        lights=(Light((5.0, 35.0, 3.0), (1.0, 1.0, 1.0)),),
+    )
 
 
 def no_direct_light(scene, ref, gpu, method) -> list[str]:
@@ -325,10 +430,20 @@ def no_direct_light(scene, ref, gpu, method) -> list[str]:
     reflections only), and nowhere be brighter than the reference."""
     from renderer.reference import render_reference
     from renderer.settings import RenderSettings
+
     h, w = gpu.primid.shape
-    dark = render_reference(Scene(scene.camera, (), scene.materials, scene.sphere_centers, scene.sphere_radii,
-                                  scene.sphere_materials, scene.planes),
-                            RenderSettings(width=w, height=h, max_recursion_depth=5, max_prims=1))
+    dark = render_reference(
+        Scene(
+            scene.camera,
+            (),
+            scene.materials,
+            scene.sphere_centers,
+            scene.sphere_radii,
+            scene.sphere_materials,
+            scene.planes,
+        ),
+        RenderSettings(width=w, height=h, max_recursion_depth=5, max_prims=1),
+    )
     out = []
     if not np.array_equal(ref.image_u8(), dark.image_u8()):
         out.append("the reference itself lets light into the closed room")
@@ -373,9 +488,11 @@ def _light_on_surface() -> Scene:
     c = np.array([[10.0, -12.0, 0.0], [-10.0, -10.0, -5.0]])
     r = np.array([4.0, 6.0])
     cam = Camera((0.0, 60.0, 0.0), (0.0, -20.0, 0.0), (0.0, 0.0, -1.0), 60.0)
-    lights = (Light((0.0, -20.0, 0.0), (1.0, 1.0, 1.0)),        # on the floor, under the centre pixel
-              Light((10.0, -8.0, 0.0), (0.6, 0.6, 0.6)),        # the top of sphere 0
-              Light((0.0, 40.0, 0.0), (0.5, 0.5, 0.5)))
+    lights = (
+        Light((0.0, -20.0, 0.0), (1.0, 1.0, 1.0)),  # on the floor, under the centre pixel
+        Light((10.0, -8.0, 0.0), (0.6, 0.6, 0.6)),  # the top of sphere 0
+        Light((0.0, 40.0, 0.0), (0.5, 0.5, 0.5)),
+    )
     return make_scene(cam, c, r, [0, 2], lights=lights)
 
 
@@ -389,7 +506,7 @@ def _fov(fov: float) -> Scene:
     dist = np.linalg.norm(cam)
     # the tangent point: at angle asin(r / dist) off the axis to the centre
     a = np.arcsin(1.5 / dist)
-    target = cam + (np.cos(a) * w + np.sin(a) * side) * np.sqrt(dist ** 2 - 1.5 ** 2)
+    target = cam + (np.cos(a) * w + np.sin(a) * side) * np.sqrt(dist**2 - 1.5**2)
     return axis_scene(Camera(tuple(cam.tolist()), tuple(target.tolist()), (0.0, 1.0, 0.0), fov))
 
 
@@ -397,6 +514,7 @@ def float32_centre_ray(scene: Scene) -> str:
     """Which spheres the centre pixel's ray hits when its float64 direction is moved by up
     to ±3 float32 ulps per component (the GPU computes it in float32)."""
     from renderer.reference import trace_rays
+
     _, _, fwd = scene.camera.basis()
     base = fwd.astype(np.float32)
     dirs = []
@@ -412,10 +530,14 @@ def float32_centre_ray(scene: Scene) -> str:
     _, ids = trace_rays(scene, o, d)
     _, id64 = trace_rays(scene, o[:1], fwd[None, :])
     hit = ids[ids >= 0]
-    return (f"centre ray (it passes ~1e-6 from the accumulation point): the float64 direction hits "
-            f"{int(id64[0])}; of the {len(d)} float32 directions within ±3 ulps per component, {len(hit)} hit "
-            f"one of spheres {int(hit.min())}…{int(hit.max())} (radii ~1e-6): which one the GPU sees is "
-            "float32 rounding of the direction" if len(hit) else "centre ray: no float32 neighbour hits")
+    return (
+        f"centre ray (it passes ~1e-6 from the accumulation point): the float64 direction hits "
+        f"{int(id64[0])}; of the {len(d)} float32 directions within ±3 ulps per component, {len(hit)} hit "
+        f"one of spheres {int(hit.min())}…{int(hit.max())} (radii ~1e-6): which one the GPU sees is "
+        "float32 rounding of the direction"
+        if len(hit)
+        else "centre ray: no float32 neighbour hits"
+    )
 
 
 def _grid_shifted(offset: float) -> Scene:
@@ -435,15 +557,20 @@ def _one_centre() -> Scene:
 def _concentric() -> Scene:
     n = 64
     cam = Camera((3.0, 4.0, 50.0), (1.25, -0.5, 2.0), (0.0, 1.0, 0.0), 40.0)
-    return make_scene(cam, np.broadcast_to([1.25, -0.5, 2.0], (n, 3)), np.linspace(12.0, 0.25, n),
-                      np.where(np.arange(n) < n - 1, 3, 0), materials=(RED, TRANSPARENT, MATTE, glass(1.2, 0.9, 0.0)))
+    return make_scene(
+        cam,
+        np.broadcast_to([1.25, -0.5, 2.0], (n, 3)),
+        np.linspace(12.0, 0.25, n),
+        np.where(np.arange(n) < n - 1, 3, 0),
+        materials=(RED, TRANSPARENT, MATTE, glass(1.2, 0.9, 0.0)),
+    )
 
 
 def _duplicates() -> Scene:
     s = scenario(1, 64)
     c = np.concatenate([s.sphere_centers, s.sphere_centers])
     r = np.concatenate([s.sphere_radii, s.sphere_radii])
-    m = np.concatenate([np.zeros(64, np.int32), np.full(64, 1, np.int32)])   # copies differ in material
+    m = np.concatenate([np.zeros(64, np.int32), np.full(64, 1, np.int32)])  # copies differ in material
     return Scene(s.camera, s.lights, s.materials, c, r, m, s.planes)
 
 
@@ -471,8 +598,7 @@ def _one_sphere() -> Scene:
 
 def _no_spheres(with_plane: bool) -> Scene:
     cam = Camera((0.0, 5.0, 50.0), (0.0, -10.0, 0.0), (0.0, 1.0, 0.0), 60.0)
-    return make_scene(cam, np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32),
-                      planes=(FLOOR,) if with_plane else ())
+    return make_scene(cam, np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32), planes=(FLOOR,) if with_plane else ())
 
 
 def _inside_box() -> Scene:
@@ -484,7 +610,7 @@ def _inside_opaque_sphere() -> Scene:
     c, r, m = axis_grid_spheres()
     r = r.copy()
     centre = int(np.flatnonzero((c == 0.0).all(axis=1))[0])
-    r[centre] = 5.0                                  # the camera sits inside this one (red)
+    r[centre] = 5.0  # the camera sits inside this one (red)
     m = m.copy()
     m[centre] = 0
     cam = Camera((1.0, 0.5, 0.25), (0.0, 0.0, -20.0), (0.0, 1.0, 0.0), 100.0)
@@ -514,31 +640,36 @@ _BEYOND_FLOAT32 = (
     "measured 99.647 % (14 px): the pixels of the centre row that see the floor at t ≈ 2e39 > 3.4e38, the "
     "largest float32; the GPU cannot represent that distance (and llvmpipe flushes the 1e-38 denormal "
     "direction component to 0, so its ray is parallel to the floor) and reports a miss, the float64 reference "
-    "a hit. The same camera at 1e-37 (t ≈ 2e38, near_axis_1e-37_down) agrees on every pixel.")
+    "a hit. The same camera at 1e-37 (t ≈ 2e38, near_axis_1e-37_down) agrees on every pixel."
+)
 _TINY_AT_1E6 = (
     "measured 0.93 % agreement, depth error 0.97, 16.2 dB: float32's spacing at 1e6 is 0.0625, 62 times the "
     "radius; the GPU's sphere centres move by up to 0.031 (31 radii), so it renders another scene (one "
-    "sphere lands on the camera). Against the float32-input scene every strict threshold holds.")
+    "sphere lands on the camera). Against the float32-input scene every strict threshold holds."
+)
 _SEAMS = (
     "measured 97.888 % (23 px, every one a tie) and 20.0 dB: pixel columns 7, 25 and rows 7, 25 hit an edge "
     "of the room exactly, where two walls are at the same t in exact arithmetic; float32 and float64 "
     "rounding break the tie differently (the lower-id rule needs exactly equal t), and with kr = 1 walls "
     "the whole ray tree of such a pixel differs. The same room from a generic camera (mirror_room_depth8) "
-    "meets every strict threshold.")
+    "meets every strict threshold."
+)
 
 
 _ZOOM = (
     "measured 99.597 % (16 px, all on the silhouette): the pixel pitch is 2.2e-7 rad, 2e-5 world units at "
     "t ≈ 92; float32 resolves the direction to ~6e-8 rad and the sphere test's offset f = oc − b·d to "
     "~93·6e-8 ≈ 5.6e-6, together ~0.5 px, so the GPU's silhouette is jagged by one pixel where the "
-    "reference's is straight. Not a traversal error: bih and bruteforce give the same ids.")
+    "reference's is straight. Not a traversal error: bih and bruteforce give the same ids."
+)
 _COINCIDENT = (
     "why the colour is not exact although every id agrees: a secondary ray leaving sphere i starts exactly "
     "on the coincident spheres j ≠ i, whose near root is 0 in exact arithmetic; SHADING.md's exclusion rule "
     "only covers the source primitive, so the rounded sign of that root decides whether j is hit at t ≈ 0 — "
     "independently in float32 and float64. The reference is as far from itself under a one-ulp camera move "
     "(≈ 36 dB, measured while writing this case); a convention for coincident primitives would be needed to "
-    "do better.")
+    "do better."
+)
 
 
 def only_centre_row_misses(scene, ref, gpu, method) -> list[str]:
@@ -557,7 +688,7 @@ def scene_height_centre(result) -> int:
 
 def only_ties(scene, ref, gpu, method) -> list[str]:
     """Every pixel whose id differs has the same depth on both sides (two surfaces at one t)."""
-    diff = (gpu.primid != ref.primid)
+    diff = gpu.primid != ref.primid
     both = diff & (gpu.primid >= 0) & (ref.primid >= 0)
     rel = np.abs(gpu.depth.astype(np.float64)[diff] - ref.depth[diff]) / ref.depth[diff]
     if not (both == diff).all() or not (rel <= 1e-5).all():
@@ -575,122 +706,287 @@ def _add(*cases: Case) -> None:
 
 
 for _dir, _cam in AXIS_CAMERAS.items():
-    _add(Case(f"axis_down_{_dir}",
-              f"camera exactly down {_dir[0]}{_dir[1]}; the centre column/row has d components exactly 0, "
-              "parallel to split planes: (clip − o)/d = ±inf or NaN",
-              (lambda cam=_cam: axis_scene(cam)), facts=zero_components))
+    _add(
+        Case(
+            f"axis_down_{_dir}",
+            f"camera exactly down {_dir[0]}{_dir[1]}; the centre column/row has d components exactly 0, "
+            "parallel to split planes: (clip − o)/d = ±inf or NaN",
+            (lambda cam=_cam: axis_scene(cam)),
+            facts=zero_components,
+        )
+    )
 
 _add(
-    Case("signed_zero_+z", "target (−0, −0, 0): forward = (−0, −0, 1), so the centre column mixes d.x = +0 and "
-         "d.x = −0; a sign test instead of a zero test would pick the wrong near child",
-         lambda: axis_scene(Camera((0.0, 0.0, -100.0), (-0.0, -0.0, 0.0), (0.0, 1.0, 0.0), 40.0)),
-         facts=zero_components),
-    Case("near_axis_1e-20", "direction components ~1e-20: plane crossings at t ~ 1e21, intervals of huge magnitude",
-         lambda: _near_axis(1e-20), facts=zero_components),
-    Case("near_axis_denormal", "direction components ~1e-38, float32 denormals the GPU may flush to 0 "
-         "(the zero test and the division must then agree)",
-         lambda: _near_axis(1e-38), facts=zero_components),
-    Case("near_axis_1e-37_down", "the centre row points down by ~1e-37: the floor is met at t ≈ 2e38, "
-         "just inside float32's range (and below the shader's 3e38 'no hit' sentinel)",
-         lambda: _near_axis(-1e-37), facts=zero_components),
-    Case("near_axis_denormal_down", "the centre row points down by ~1e-38: the floor is met at t ≈ 2e39, "
-         "beyond float32's range", lambda: _near_axis(-1e-38), facts=zero_components,
-         min_primid_agreement=0.996, f32_min_primid_agreement=0.996,
-         why=_BEYOND_FLOAT32, f32_why=_BEYOND_FLOAT32, checks=(only_centre_row_misses,)),
-    Case("camera_on_plane", "camera exactly on the floor plane, looking along it: t = 0/dot(d, n) is ±0 "
-         "(never a hit), the centre row has dot(d, n) = 0", _camera_on_plane, facts=zero_components),
-    Case("origin_on_clip_left", "camera origin exactly on the root's clip_left, rays parallel to it on the "
-         "centre line: tL = 0/d = ±0, and o == clip in the parallel test",
-         lambda: clip_plane_scene("left", 1, False), facts=zero_components),
-    Case("origin_on_clip_right", "as above on clip_right", lambda: clip_plane_scene("right", 1, False),
-         facts=zero_components),
-    Case("origin_on_inner_clip_inside_box", "camera inside the global box, exactly on a depth-3 node's clip plane",
-         lambda: clip_plane_scene("left", 3, True), facts=zero_components),
-    Case("camera_inside_box", "camera inside the global AABB: t0 = 0, the root interval starts at the origin",
-         _inside_box),
-    Case("camera_inside_sphere", "camera inside an opaque sphere: every primary ray must take the far root; "
-         "shadow rays start inside", _inside_opaque_sphere),
+    Case(
+        "signed_zero_+z",
+        "target (−0, −0, 0): forward = (−0, −0, 1), so the centre column mixes d.x = +0 and "
+        "d.x = −0; a sign test instead of a zero test would pick the wrong near child",
+        lambda: axis_scene(Camera((0.0, 0.0, -100.0), (-0.0, -0.0, 0.0), (0.0, 1.0, 0.0), 40.0)),
+        facts=zero_components,
+    ),
+    Case(
+        "near_axis_1e-20",
+        "direction components ~1e-20: plane crossings at t ~ 1e21, intervals of huge magnitude",
+        lambda: _near_axis(1e-20),
+        facts=zero_components,
+    ),
+    Case(
+        "near_axis_denormal",
+        "direction components ~1e-38, float32 denormals the GPU may flush to 0 "
+        "(the zero test and the division must then agree)",
+        lambda: _near_axis(1e-38),
+        facts=zero_components,
+    ),
+    Case(
+        "near_axis_1e-37_down",
+        "the centre row points down by ~1e-37: the floor is met at t ≈ 2e38, "
+        "just inside float32's range (and below the shader's 3e38 'no hit' sentinel)",
+        lambda: _near_axis(-1e-37),
+        facts=zero_components,
+    ),
+    Case(
+        "near_axis_denormal_down",
+        "the centre row points down by ~1e-38: the floor is met at t ≈ 2e39, beyond float32's range",
+        lambda: _near_axis(-1e-38),
+        facts=zero_components,
+        min_primid_agreement=0.996,
+        f32_min_primid_agreement=0.996,
+        why=_BEYOND_FLOAT32,
+        f32_why=_BEYOND_FLOAT32,
+        checks=(only_centre_row_misses,),
+    ),
+    Case(
+        "camera_on_plane",
+        "camera exactly on the floor plane, looking along it: t = 0/dot(d, n) is ±0 "
+        "(never a hit), the centre row has dot(d, n) = 0",
+        _camera_on_plane,
+        facts=zero_components,
+    ),
+    Case(
+        "origin_on_clip_left",
+        "camera origin exactly on the root's clip_left, rays parallel to it on the "
+        "centre line: tL = 0/d = ±0, and o == clip in the parallel test",
+        lambda: clip_plane_scene("left", 1, False),
+        facts=zero_components,
+    ),
+    Case(
+        "origin_on_clip_right",
+        "as above on clip_right",
+        lambda: clip_plane_scene("right", 1, False),
+        facts=zero_components,
+    ),
+    Case(
+        "origin_on_inner_clip_inside_box",
+        "camera inside the global box, exactly on a depth-3 node's clip plane",
+        lambda: clip_plane_scene("left", 3, True),
+        facts=zero_components,
+    ),
+    Case(
+        "camera_inside_box",
+        "camera inside the global AABB: t0 = 0, the root interval starts at the origin",
+        _inside_box,
+    ),
+    Case(
+        "camera_inside_sphere",
+        "camera inside an opaque sphere: every primary ray must take the far root; shadow rays start inside",
+        _inside_opaque_sphere,
+    ),
     # degenerate distributions
-    Case("all_one_centre", "256 identical spheres at one centre: the build never separates them "
-         "(listing 3.4 loops forever); ties must go to the lowest id", _one_centre, note=_COINCIDENT),
-    Case("concentric_64", "64 spheres at one centre, radii 0.25 … 12, glass: a forced leaf of nested shells",
-         _concentric),
-    Case("duplicate_pairs", "every sphere twice (same centre and radius, other material): bitwise equal t, "
-         "ties to the lower id", _duplicates, note=_COINCIDENT),
-    Case("many_overlapping", "300 heavily overlapping spheres: AABBs straddle every split, empty gaps are rare",
-         _overlapping, max_prims=8),
-    Case("sphere_spans_box", "one sphere as large as the global box among small ones: a primitive that "
-         "straddles every split plane", _spanning),
+    Case(
+        "all_one_centre",
+        "256 identical spheres at one centre: the build never separates them "
+        "(listing 3.4 loops forever); ties must go to the lowest id",
+        _one_centre,
+        note=_COINCIDENT,
+    ),
+    Case(
+        "concentric_64", "64 spheres at one centre, radii 0.25 … 12, glass: a forced leaf of nested shells", _concentric
+    ),
+    Case(
+        "duplicate_pairs",
+        "every sphere twice (same centre and radius, other material): bitwise equal t, ties to the lower id",
+        _duplicates,
+        note=_COINCIDENT,
+    ),
+    Case(
+        "many_overlapping",
+        "300 heavily overlapping spheres: AABBs straddle every split, empty gaps are rare",
+        _overlapping,
+        max_prims=8,
+    ),
+    Case(
+        "sphere_spans_box",
+        "one sphere as large as the global box among small ones: a primitive that straddles every split plane",
+        _spanning,
+    ),
     Case("one_sphere", "a single sphere: the root is a leaf", _one_sphere),
-    Case("root_leaf_max_prims", "125 spheres, max_prims ≥ n: the whole scene in the root leaf",
-         lambda: axis_scene(AXIS_CAMERAS["-z"]), max_prims=1 << 24),
-    Case("max_tree_depth_1", "max_tree_depth = 1: the root is a leaf however many primitives",
-         lambda: axis_scene(AXIS_CAMERAS["-x"]), max_tree_depth=1),
+    Case(
+        "root_leaf_max_prims",
+        "125 spheres, max_prims ≥ n: the whole scene in the root leaf",
+        lambda: axis_scene(AXIS_CAMERAS["-z"]),
+        max_prims=1 << 24,
+    ),
+    Case(
+        "max_tree_depth_1",
+        "max_tree_depth = 1: the root is a leaf however many primitives",
+        lambda: axis_scene(AXIS_CAMERAS["-x"]),
+        max_tree_depth=1,
+    ),
     Case("no_spheres", "empty scene: global box (+inf, −inf), no nodes to fetch", lambda: _no_spheres(False)),
-    Case("only_plane", "no spheres, only the plane: BIH empty, planes still shaded and shadowed",
-         lambda: _no_spheres(True)),
+    Case(
+        "only_plane",
+        "no spheres, only the plane: BIH empty, planes still shaded and shadowed",
+        lambda: _no_spheres(True),
+    ),
     # scales
     Case("offset_1e4", "all coordinates offset by 1e4 (float32 spacing 1e-3)", lambda: _grid_shifted(1e4), max_prims=8),
-    Case("offset_1e6", "all coordinates offset by 1e6 (float32 spacing 0.0625 at 1e6: centres and hit points "
-         "are rounded by up to 3 % of a unit radius)", lambda: _grid_shifted(1e6), max_prims=8,
-         max_depth_rel=2e-3, depth_why="measured 1.4e-3: float32 moves the random sphere centres by up to "
-         "0.031 (half the spacing 0.0625 at 1e6), which shifts t by up to ~0.1 near a silhouette (t ≈ 80); "
-         "against the float32-input scene the depth error is below 1e-6 and every strict threshold holds."),
-    Case("radius_1e-3_at_1e6", "radius 1e-3 at coordinates 1e6: float32 spacing there is 0.0625, 62 radii; "
-         "hit points and normals from them are meaningless", lambda: _tiny_at(1e6),
-         min_primid_agreement=0.009, max_depth_rel=1.0, color_psnr_min=15.0,
-         why=_TINY_AT_1E6, depth_why=_TINY_AT_1E6, psnr_why=_TINY_AT_1E6),
-    Case("radius_1e-3_near_origin", "the same 1e-3 spheres near the origin, seen from 0.03",
-         lambda: _tiny_at(0.0)),
-    Case("radius_1e-3_thesis", "the thesis's memory test (Fig. 4.5): 1024 spheres of radius 1e-3, far below "
-         "a pixel", lambda: scenario(2, 1024, radius=1e-3)),
-    Case("scale_1e-3", "the whole scene scaled by 1e-3 (radius 1e-3, camera at 0.1): secondary rays at tiny scale",
-         lambda: _scaled(1e-3), max_prims=8),
+    Case(
+        "offset_1e6",
+        "all coordinates offset by 1e6 (float32 spacing 0.0625 at 1e6: centres and hit points "
+        "are rounded by up to 3 % of a unit radius)",
+        lambda: _grid_shifted(1e6),
+        max_prims=8,
+        max_depth_rel=2e-3,
+        depth_why="measured 1.4e-3: float32 moves the random sphere centres by up to "
+        "0.031 (half the spacing 0.0625 at 1e6), which shifts t by up to ~0.1 near a silhouette (t ≈ 80); "
+        "against the float32-input scene the depth error is below 1e-6 and every strict threshold holds.",
+    ),
+    Case(
+        "radius_1e-3_at_1e6",
+        "radius 1e-3 at coordinates 1e6: float32 spacing there is 0.0625, 62 radii; "
+        "hit points and normals from them are meaningless",
+        lambda: _tiny_at(1e6),
+        min_primid_agreement=0.009,
+        max_depth_rel=1.0,
+        color_psnr_min=15.0,
+        why=_TINY_AT_1E6,
+        depth_why=_TINY_AT_1E6,
+        psnr_why=_TINY_AT_1E6,
+    ),
+    Case("radius_1e-3_near_origin", "the same 1e-3 spheres near the origin, seen from 0.03", lambda: _tiny_at(0.0)),
+    Case(
+        "radius_1e-3_thesis",
+        "the thesis's memory test (Fig. 4.5): 1024 spheres of radius 1e-3, far below a pixel",
+        lambda: scenario(2, 1024, radius=1e-3),
+    ),
+    Case(
+        "scale_1e-3",
+        "the whole scene scaled by 1e-3 (radius 1e-3, camera at 0.1): secondary rays at tiny scale",
+        lambda: _scaled(1e-3),
+        max_prims=8,
+    ),
     Case("scale_1e3", "the whole scene scaled by 1e3 (radius 1e3, camera at 1e5)", lambda: _scaled(1e3), max_prims=8),
-    Case("radius_1e3_among_unit", "a radius-1e3 sphere cutting the floor under unit spheres: mixed scales, "
-         "one AABB 1000× the others", _huge_among_unit, max_prims=8),
-    Case("geometric_series_depth64", "positions in a geometric series: a maximally unbalanced tree at the "
-         "shader's 64-entry stack limit; the centre ray traverses every level",
-         geometric_series, max_tree_depth=64, min_tree_depth=40, facts=float32_centre_ray),
+    Case(
+        "radius_1e3_among_unit",
+        "a radius-1e3 sphere cutting the floor under unit spheres: mixed scales, one AABB 1000× the others",
+        _huge_among_unit,
+        max_prims=8,
+    ),
+    Case(
+        "geometric_series_depth64",
+        "positions in a geometric series: a maximally unbalanced tree at the "
+        "shader's 64-entry stack limit; the centre ray traverses every level",
+        geometric_series,
+        max_tree_depth=64,
+        min_tree_depth=40,
+        facts=float32_centre_ray,
+    ),
     Case("fov_179", "field of view 179°: tan(89.5°) = 115, rays up to 89.5° off the axis", lambda: _fov(179.0)),
-    Case("fov_1e-3", "field of view 0.001° on a sphere's silhouette: neighbouring pixel rays differ by 2e-7 "
-         "rad, a few float32 ulps of the direction", lambda: _fov(1e-3),
-         min_primid_agreement=0.995, f32_min_primid_agreement=0.995, why=_ZOOM, f32_why=_ZOOM),
+    Case(
+        "fov_1e-3",
+        "field of view 0.001° on a sphere's silhouette: neighbouring pixel rays differ by 2e-7 "
+        "rad, a few float32 ulps of the direction",
+        lambda: _fov(1e-3),
+        min_primid_agreement=0.995,
+        f32_min_primid_agreement=0.995,
+        why=_ZOOM,
+        f32_why=_ZOOM,
+    ),
     # secondary rays
-    Case("light_on_surface", "lights exactly on the floor and on a sphere, under camera rays: dist = 0 "
-         "(l = 0/0) and cos = 0 at the light", _light_on_surface),
-    Case("light_leak_room", "a closed room, light outside: a shadow ray must never escape through the walls, "
-         "the seams, or a sphere resting exactly on the floor", light_leak_room,
-         checks=(no_direct_light,)),
+    Case(
+        "light_on_surface",
+        "lights exactly on the floor and on a sphere, under camera rays: dist = 0 (l = 0/0) and cos = 0 at the light",
+        _light_on_surface,
+    ),
+    Case(
+        "light_leak_room",
+        "a closed room, light outside: a shadow ray must never escape through the walls, "
+        "the seams, or a sphere resting exactly on the floor",
+        light_leak_room,
+        checks=(no_direct_light,),
+    ),
     # refraction
-    *[Case(f"refraction_ior_{ior:g}", f"glass sphere with ior {ior:g}"
-           + {0.95: " (the thesis's): η > 1 on entry, total internal reflection from outside",
-              1.0: ": the transmitted ray continues straight through both surfaces",
-              1.5: ": ordinary glass", 2.4: ": diamond, critical angle 24.6°, much TIR inside"}[ior],
-           (lambda ior=ior: refraction_scene(ior)), max_recursion_depth=6)
-      for ior in (0.95, 1.0, 1.5, 2.4)],
-    Case("tir_inside_glass", "camera inside a glass sphere: rays leave it (η = ior), beyond 41.8° they are "
-         "totally reflected and must take the far root again", inside_glass, max_recursion_depth=6),
-    Case("nested_spheres", "concentric glass shells of different ior with an off-centre inner sphere",
-         nested_scene, max_recursion_depth=8),
+    *[
+        Case(
+            f"refraction_ior_{ior:g}",
+            f"glass sphere with ior {ior:g}"
+            + {
+                0.95: " (the thesis's): η > 1 on entry, total internal reflection from outside",
+                1.0: ": the transmitted ray continues straight through both surfaces",
+                1.5: ": ordinary glass",
+                2.4: ": diamond, critical angle 24.6°, much TIR inside",
+            }[ior],
+            (lambda ior=ior: refraction_scene(ior)),
+            max_recursion_depth=6,
+        )
+        for ior in (0.95, 1.0, 1.5, 2.4)
+    ],
+    Case(
+        "tir_inside_glass",
+        "camera inside a glass sphere: rays leave it (η = ior), beyond 41.8° they are "
+        "totally reflected and must take the far root again",
+        inside_glass,
+        max_recursion_depth=6,
+    ),
+    Case(
+        "nested_spheres",
+        "concentric glass shells of different ior with an off-centre inner sphere",
+        nested_scene,
+        max_recursion_depth=8,
+    ),
     # bounded work
-    Case("mirror_room_exact_seams_depth8", "the mirror room seen so that whole pixel columns and rows hit the "
-         "room's edges exactly (u = ±30/55): two walls at the same t", lambda: mirror_room(False, seams=True),
-         width=33, height=33, max_recursion_depth=8,
-         min_primid_agreement=0.975, color_psnr_min=19.0, f32_min_primid_agreement=0.975,
-         f32_color_psnr_min=19.0, why=_SEAMS, psnr_why=_SEAMS, f32_why=_SEAMS, checks=(only_ties,)),
-    Case("mirror_room_depth8", "six perfect-mirror walls and mirror spheres, recursion depth 8: bounded work, "
-         "no hang", lambda: mirror_room(False), width=33, height=33, max_recursion_depth=8),
-    Case("glass_mirror_room_depth8", "mirror walls with half-mirror half-glass spheres: a full binary ray tree "
-         "(255 rays per pixel) at depth 8", lambda: mirror_room(True), width=33, height=33,
-         max_recursion_depth=8),
+    Case(
+        "mirror_room_exact_seams_depth8",
+        "the mirror room seen so that whole pixel columns and rows hit the "
+        "room's edges exactly (u = ±30/55): two walls at the same t",
+        lambda: mirror_room(False, seams=True),
+        width=33,
+        height=33,
+        max_recursion_depth=8,
+        min_primid_agreement=0.975,
+        color_psnr_min=19.0,
+        f32_min_primid_agreement=0.975,
+        f32_color_psnr_min=19.0,
+        why=_SEAMS,
+        psnr_why=_SEAMS,
+        f32_why=_SEAMS,
+        checks=(only_ties,),
+    ),
+    Case(
+        "mirror_room_depth8",
+        "six perfect-mirror walls and mirror spheres, recursion depth 8: bounded work, no hang",
+        lambda: mirror_room(False),
+        width=33,
+        height=33,
+        max_recursion_depth=8,
+    ),
+    Case(
+        "glass_mirror_room_depth8",
+        "mirror walls with half-mirror half-glass spheres: a full binary ray tree (255 rays per pixel) at depth 8",
+        lambda: mirror_room(True),
+        width=33,
+        height=33,
+        max_recursion_depth=8,
+    ),
 )
 
 
 # ------------------------------------------------------------------------- triangle meshes
 
+
 def _mesh_methods() -> tuple[str, ...]:
     from renderer.methods import METHODS
+
     return tuple(m for m, x in METHODS.items() if "triangles" in x.capabilities.primitives)
 
 
@@ -699,8 +995,16 @@ MESH_LIGHT = Light((40.0, 60.0, 80.0), (1.0, 1.0, 1.0))
 
 
 def _mesh_scene(camera: Camera, *meshes: Mesh, planes=(FLOOR,), materials=(RED, TRANSPARENT, MATTE)) -> Scene:
-    return Scene(camera, (MESH_LIGHT,), tuple(materials), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32),
-                 tuple(planes), tuple(meshes))
+    return Scene(
+        camera,
+        (MESH_LIGHT,),
+        tuple(materials),
+        np.zeros((0, 3)),
+        np.zeros(0),
+        np.zeros(0, np.int32),
+        tuple(planes),
+        tuple(meshes),
+    )
 
 
 def _inside_silhouette(ref_ids: np.ndarray, lo: int, hi: int) -> np.ndarray:
@@ -711,7 +1015,7 @@ def _inside_silhouette(ref_ids: np.ndarray, lo: int, hi: int) -> np.ndarray:
     out = on.copy()
     for dy in (-1, 0, 1):
         for dx in (-1, 0, 1):
-            out &= p[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+            out &= p[1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w]
     return out
 
 
@@ -726,8 +1030,10 @@ def no_leak(scene, ref, gpu, method) -> list[str]:
         leak = inside & ~((gpu.primid >= lo) & (gpu.primid < hi))
         if leak.any():
             ys, xs = np.nonzero(leak)
-            out.append(f"mesh {k}: {int(leak.sum())} of {int(inside.sum())} px inside its silhouette leak "
-                       f"through it (first at x {xs[0]}, y {ys[0]}: GPU id {int(gpu.primid[ys[0], xs[0]])})")
+            out.append(
+                f"mesh {k}: {int(leak.sum())} of {int(inside.sum())} px inside its silhouette leak "
+                f"through it (first at x {xs[0]}, y {ys[0]}: GPU id {int(gpu.primid[ys[0], xs[0]])})"
+            )
     return out
 
 
@@ -768,8 +1074,9 @@ def on_box_seams(scene, ref, gpu, method) -> list[str]:
 
 
 def _mesh_facts(scene: Scene) -> str:
-    return (f"{scene.n_triangles:,} triangles in {len(scene.meshes)} mesh(es), "
-            f"{scene.n_degenerate_triangles} of zero area")
+    return (
+        f"{scene.n_triangles:,} triangles in {len(scene.meshes)} mesh(es), {scene.n_degenerate_triangles} of zero area"
+    )
 
 
 def mesh_box_seams() -> Scene:
@@ -779,15 +1086,20 @@ def mesh_box_seams() -> Scene:
     corners (three faces' shared vertex), and the diagonal pixels (u = v) exactly on the
     front face's diagonal, the edge its two triangles share."""
     from renderer.meshes import box
+
     cam = Camera((0.0, 0.0, 55.0), (0.0, 0.0, -30.0), (0.0, 1.0, 0.0), 90.0)
-    return _mesh_scene(cam, box((-30.0, -30.0, -60.0), (30.0, 30.0, 0.0), material=2),
-                       planes=(Plane((0.0, 0.0, -200.0), (0.0, 0.0, 1.0), 0),))
+    return _mesh_scene(
+        cam,
+        box((-30.0, -30.0, -60.0), (30.0, 30.0, 0.0), material=2),
+        planes=(Plane((0.0, 0.0, -200.0), (0.0, 0.0, 1.0), 0),),
+    )
 
 
 def mesh_box_corner() -> Scene:
     """The box [−10, 10]³ seen along its diagonal: the centre ray goes exactly through the
     corner (10, 10, 10) shared by three faces (and their diagonals: up to six triangles)."""
     from renderer.meshes import box
+
     cam = Camera((50.0, 50.0, 50.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0)
     return _mesh_scene(cam, box((-10.0, -10.0, -10.0), (10.0, 10.0, 10.0), material=0))
 
@@ -798,6 +1110,7 @@ def mesh_icosphere_edges() -> Scene:
     column's rays (d.x = +0/−0, o.x = 0) run exactly along a chain of shared edges, and the
     centre ray through the shared vertex (0, 0, 10) (six triangles)."""
     from renderer.meshes import icosphere
+
     cam = Camera((0.0, 0.0, 60.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0)
     return _mesh_scene(cam, icosphere(3, radius=10.0, material=2, smooth=False))
 
@@ -808,8 +1121,9 @@ def _grid(n: int, half: float, y: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     v = np.stack([x.ravel(), np.full(x.size, y), z.ravel()], axis=1)
     i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
     a = i * (n + 1) + j
-    t = np.concatenate([np.stack([a, a + n + 1, a + 1], -1).reshape(-1, 3),
-                        np.stack([a + 1, a + n + 1, a + n + 2], -1).reshape(-1, 3)])
+    t = np.concatenate(
+        [np.stack([a, a + n + 1, a + 1], -1).reshape(-1, 3), np.stack([a + 1, a + n + 1, a + n + 2], -1).reshape(-1, 3)]
+    )
     return v, t
 
 
@@ -819,10 +1133,10 @@ def mesh_grazing() -> Scene:
     they must reach the icosphere behind), the rows below meet the grid at grazing angles
     down to 1/40 of a pixel's angle from the plane, across its shared edges."""
     from renderer.meshes import icosphere
+
     v, t = _grid(16, 80.0)
     cam = Camera((0.0, 0.0, 100.0), (0.0, 0.0, -100.0), (0.0, 1.0, 0.0), 30.0)
-    return _mesh_scene(cam, Mesh(v, t, 2), icosphere(2, radius=8.0, center=(0.0, 4.0, -40.0), material=0),
-                       planes=())
+    return _mesh_scene(cam, Mesh(v, t, 2), icosphere(2, radius=8.0, center=(0.0, 4.0, -40.0), material=0), planes=())
 
 
 def mesh_needles() -> Scene:
@@ -837,20 +1151,21 @@ def mesh_needles() -> Scene:
         k = len(verts)
         verts.extend([a, b, c])
         tris.append((k, k + 1, k + 2))
+
     for i, w in enumerate(np.geomspace(1e-4, 1e-9, 40)):
         ang = 2 * np.pi * i / 40
         d = np.array([np.cos(ang), np.sin(ang), 0.0])
         n = np.array([-d[1], d[0], 0.0])
         tri((0.0, 0.0, 1.0), tuple(10 * d + w * n + (0, 0, 1)), tuple(10 * d - w * n + (0, 0, 1)))
-    for _ in range(20):                         # zero area: a repeated corner
+    for _ in range(20):  # zero area: a repeated corner
         p = rng.uniform(-12, 12, 3) * (1, 1, 0.1)
         q = rng.uniform(-12, 12, 3) * (1, 1, 0.1)
         tri(tuple(p), tuple(q), tuple(p))
-    for _ in range(20):                         # zero area: collinear, dyadic coordinates
+    for _ in range(20):  # zero area: collinear, dyadic coordinates
         p = np.round(rng.uniform(-12, 12, 3) * 8) / 8
         e = np.round(rng.uniform(-4, 4, 3) * 8) / 8
         tri(tuple(p), tuple(p + e), tuple(p + 2 * e))
-    for _ in range(12):                         # ordinary triangles among them
+    for _ in range(12):  # ordinary triangles among them
         p = rng.uniform(-12, 12, 3) * (1, 1, 0.1)
         tri(tuple(p), tuple(p + rng.uniform(-3, 3, 3)), tuple(p + rng.uniform(-3, 3, 3)))
     front = Mesh(np.array(verts), np.array(tris), 0)
@@ -863,10 +1178,12 @@ def mesh_huge(subdivisions: int = 5, k: int = 4) -> Scene:
     """``k`` icospheres of ``subdivisions`` levels (4 × 20,480 = 81,920 triangles), packed
     in view and overlapping: far more triangles than pixels."""
     from renderer.meshes import icosphere
+
     rng = np.random.default_rng(11)
     c = rng.uniform([-14, -10, -6], [14, 10, 6], (k, 3))
-    meshes = [icosphere(subdivisions, radius=6.0, center=tuple(p), material=i % 3, smooth=False)
-              for i, p in enumerate(c)]
+    meshes = [
+        icosphere(subdivisions, radius=6.0, center=tuple(p), material=i % 3, smooth=False) for i, p in enumerate(c)
+    ]
     return _mesh_scene(Camera((0.0, 0.0, 70.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0), *meshes)
 
 
@@ -874,56 +1191,129 @@ def mesh_offset_1e4() -> Scene:
     """An icosphere (radius 1, 2 subdivisions) and a box 1e4 units from the origin along every
     axis, the camera 6 units from them: float32 spacing there is 1e-3 (0.1 % of the radius)."""
     from renderer.meshes import box, icosphere
+
     o = np.array([1e4, 1e4, 1e4])
     cam = Camera(tuple(o + (0.5, 0.8, 6.0)), tuple(o), (0.0, 1.0, 0.0), 40.0)
-    return _mesh_scene(cam, icosphere(2, radius=1.0, center=tuple(o), material=0, smooth=False),
-                       box(tuple(o + (1.5, -1.5, -2.0)), tuple(o + (2.5, 1.0, -1.0)), material=2),
-                       planes=(Plane(tuple(o + (0.0, -1.0, 0.0)), (0.0, 1.0, 0.0), 2),))
+    return _mesh_scene(
+        cam,
+        icosphere(2, radius=1.0, center=tuple(o), material=0, smooth=False),
+        box(tuple(o + (1.5, -1.5, -2.0)), tuple(o + (2.5, 1.0, -1.0)), material=2),
+        planes=(Plane(tuple(o + (0.0, -1.0, 0.0)), (0.0, 1.0, 0.0), 2),),
+    )
 
 
-_EDGE_TIES = ("a ray exactly through an edge two triangles share meets both at the same t up to float32 "
-              "rounding, so which one wins is a tie that float32 and float64, and traversals that test "
-              "the two in different orders, may decide differently; every differing pixel must be such a "
-              "tie (only_ties) and none a leak (no_leak)")
-_BOX_SEAMS = ("measured: 16 of the 1089 px differ, every one on a seam (13 on the front face's diagonal, "
-              "3 on its rims and corners) and a tie; on the rims the other triangle is a side face seen "
-              "edge-on, whose other normal gives another colour (hence the PSNR). " + _EDGE_TIES)
-_OFFSET_MESH = ("float32 moves the vertices by up to 4.9e-4 (half the spacing 9.8e-4 at 1e4), which shifts "
-                "t by up to ~1.6e-3 relative near the silhouettes and moves a few silhouette pixels to "
-                "another triangle (measured: 11 px, 99.72 %; depth 1.64e-3); against the float32-input "
-                "scene every strict threshold holds.")
+_EDGE_TIES = (
+    "a ray exactly through an edge two triangles share meets both at the same t up to float32 "
+    "rounding, so which one wins is a tie that float32 and float64, and traversals that test "
+    "the two in different orders, may decide differently; every differing pixel must be such a "
+    "tie (only_ties) and none a leak (no_leak)"
+)
+_BOX_SEAMS = (
+    "measured: 16 of the 1089 px differ, every one on a seam (13 on the front face's diagonal, "
+    "3 on its rims and corners) and a tie; on the rims the other triangle is a side face seen "
+    "edge-on, whose other normal gives another colour (hence the PSNR). " + _EDGE_TIES
+)
+_OFFSET_MESH = (
+    "float32 moves the vertices by up to 4.9e-4 (half the spacing 9.8e-4 at 1e4), which shifts "
+    "t by up to ~1.6e-3 relative near the silhouettes and moves a few silhouette pixels to "
+    "another triangle (measured: 11 px, 99.72 %; depth 1.64e-3); against the float32-input "
+    "scene every strict threshold holds."
+)
 _add(
-    Case("mesh_box_seams", "rays exactly on a closed box's shared edges (the front face's diagonal, its rims "
-         "shared with side faces seen edge-on) and on its corners: a ray between two triangles must hit one",
-         mesh_box_seams, width=33, height=33, checks=(no_leak, on_box_seams), facts=_mesh_facts,
-         methods=MESH_METHODS, min_primid_agreement=0.985, color_psnr_min=30.0, why=_BOX_SEAMS,
-         psnr_why=_BOX_SEAMS, f32_min_primid_agreement=0.985, f32_color_psnr_min=30.0, f32_why=_BOX_SEAMS),
-    Case("mesh_box_corner", "the centre ray exactly through a box corner shared by three faces",
-         mesh_box_corner, checks=(no_leak, centre_pixel_hits_mesh, only_ties), facts=_mesh_facts,
-         methods=MESH_METHODS, min_primid_agreement=0.998, why="measured: the BIH takes the other triangle "
-         "on 4 px of one edge (99.90 %); " + _EDGE_TIES, f32_min_primid_agreement=0.998, f32_why=_EDGE_TIES,
-         method_ties_why=_EDGE_TIES),
-    Case("mesh_icosphere_edges", "a column of rays exactly along a chain of an icosphere's shared edges, the "
-         "centre ray through a vertex of six triangles", mesh_icosphere_edges,
-         checks=(no_leak, centre_pixel_hits_mesh, only_ties), facts=_mesh_facts, methods=MESH_METHODS,
-         min_primid_agreement=0.993, why="measured: the BVH takes the other triangle on 24 px, 23 of them in the centre "
-         "column (99.40 %), the kd-tree and two-level on 2; " + _EDGE_TIES, f32_min_primid_agreement=0.993,
-         f32_why=_EDGE_TIES, method_ties_why=_EDGE_TIES),
-    Case("mesh_grazing", "rays in a triangle grid's plane (det = 0) and at grazing angles across its edges",
-         mesh_grazing, checks=(no_leak, only_ties), facts=_mesh_facts, methods=MESH_METHODS,
-         min_primid_agreement=0.997, why="measured: the BVH takes the other triangle on 10 px of the centre "
-         "column (99.75 %), where the grazing rays cross the grid's shared edges; " + _EDGE_TIES,
-         f32_min_primid_agreement=0.997, f32_why=_EDGE_TIES, method_ties_why=_EDGE_TIES),
-    Case("mesh_needles", "needle triangles far thinner than a pixel; zero-area (repeated corner, collinear) "
-         "triangles that must never be hit", mesh_needles, checks=(never_degenerate,), facts=_mesh_facts,
-         methods=MESH_METHODS),
+    Case(
+        "mesh_box_seams",
+        "rays exactly on a closed box's shared edges (the front face's diagonal, its rims "
+        "shared with side faces seen edge-on) and on its corners: a ray between two triangles must hit one",
+        mesh_box_seams,
+        width=33,
+        height=33,
+        checks=(no_leak, on_box_seams),
+        facts=_mesh_facts,
+        methods=MESH_METHODS,
+        min_primid_agreement=0.985,
+        color_psnr_min=30.0,
+        why=_BOX_SEAMS,
+        psnr_why=_BOX_SEAMS,
+        f32_min_primid_agreement=0.985,
+        f32_color_psnr_min=30.0,
+        f32_why=_BOX_SEAMS,
+    ),
+    Case(
+        "mesh_box_corner",
+        "the centre ray exactly through a box corner shared by three faces",
+        mesh_box_corner,
+        checks=(no_leak, centre_pixel_hits_mesh, only_ties),
+        facts=_mesh_facts,
+        methods=MESH_METHODS,
+        min_primid_agreement=0.998,
+        why="measured: the BIH takes the other triangle on 4 px of one edge (99.90 %); " + _EDGE_TIES,
+        f32_min_primid_agreement=0.998,
+        f32_why=_EDGE_TIES,
+        method_ties_why=_EDGE_TIES,
+    ),
+    Case(
+        "mesh_icosphere_edges",
+        "a column of rays exactly along a chain of an icosphere's shared edges, the "
+        "centre ray through a vertex of six triangles",
+        mesh_icosphere_edges,
+        checks=(no_leak, centre_pixel_hits_mesh, only_ties),
+        facts=_mesh_facts,
+        methods=MESH_METHODS,
+        min_primid_agreement=0.993,
+        why="measured: the BVH takes the other triangle on 24 px, 23 of them in the centre "
+        "column (99.40 %), the kd-tree and two-level on 2; " + _EDGE_TIES,
+        f32_min_primid_agreement=0.993,
+        f32_why=_EDGE_TIES,
+        method_ties_why=_EDGE_TIES,
+    ),
+    Case(
+        "mesh_grazing",
+        "rays in a triangle grid's plane (det = 0) and at grazing angles across its edges",
+        mesh_grazing,
+        checks=(no_leak, only_ties),
+        facts=_mesh_facts,
+        methods=MESH_METHODS,
+        min_primid_agreement=0.997,
+        why="measured: the BVH takes the other triangle on 10 px of the centre "
+        "column (99.75 %), where the grazing rays cross the grid's shared edges; " + _EDGE_TIES,
+        f32_min_primid_agreement=0.997,
+        f32_why=_EDGE_TIES,
+        method_ties_why=_EDGE_TIES,
+    ),
+    Case(
+        "mesh_needles",
+        "needle triangles far thinner than a pixel; zero-area (repeated corner, collinear) "
+        "triangles that must never be hit",
+        mesh_needles,
+        checks=(never_degenerate,),
+        facts=_mesh_facts,
+        methods=MESH_METHODS,
+    ),
     # Brute force is left out: past limits.MAX_LOOP_PRIMITIVES (65,533, llvmpipe's loop limiter) it
     # refuses the scene (tests/renderer/test_methods.py), where it used to drop the last triangles.
-    Case("mesh_huge_81920", "81,920 triangles at 25 × 41 (80 per pixel): deep trees, many triangles per "
-         "pixel, past the 65,533 primitives a brute-force loop reaches on llvmpipe (so brute force refuses it)",
-         mesh_huge, width=25, height=41, max_prims=8, checks=(no_leak,), facts=_mesh_facts,
-         methods=tuple(m for m in MESH_METHODS if m != "bruteforce")),
-    Case("mesh_offset_1e4", "meshes 1e4 from the origin, camera 6 units away (float32 spacing 1e-3)",
-         mesh_offset_1e4, max_prims=8, checks=(no_leak,), facts=_mesh_facts, methods=MESH_METHODS,
-         min_primid_agreement=0.997, max_depth_rel=2e-3, why=_OFFSET_MESH, depth_why=_OFFSET_MESH),
+    Case(
+        "mesh_huge_81920",
+        "81,920 triangles at 25 × 41 (80 per pixel): deep trees, many triangles per "
+        "pixel, past the 65,533 primitives a brute-force loop reaches on llvmpipe (so brute force refuses it)",
+        mesh_huge,
+        width=25,
+        height=41,
+        max_prims=8,
+        checks=(no_leak,),
+        facts=_mesh_facts,
+        methods=tuple(m for m in MESH_METHODS if m != "bruteforce"),
+    ),
+    Case(
+        "mesh_offset_1e4",
+        "meshes 1e4 from the origin, camera 6 units away (float32 spacing 1e-3)",
+        mesh_offset_1e4,
+        max_prims=8,
+        checks=(no_leak,),
+        facts=_mesh_facts,
+        methods=MESH_METHODS,
+        min_primid_agreement=0.997,
+        max_depth_rel=2e-3,
+        why=_OFFSET_MESH,
+        depth_why=_OFFSET_MESH,
+    ),
 )

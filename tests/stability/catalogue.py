@@ -44,12 +44,13 @@ from tests.helpers import ROOT, psnr
 from tests.stability.cases import CASES, DEPTH_REL, PRIMID_AGREEMENT, PSNR_MIN, Case, float32_inputs, same_scene
 
 DOC = ROOT / "docs" / "STABILITY.md"
-BUILD_BOUND_S = 10.0     # the BIH build of any catalogue scene
-RENDER_BOUND_S = 60.0    # one GPU frame: generous, a hang guard, not a timing test
-TIE_REL = 1e-5           # ids differ but both depths agree this well: two surfaces at one t
+BUILD_BOUND_S = 10.0  # the BIH build of any catalogue scene
+RENDER_BOUND_S = 60.0  # one GPU frame: generous, a hang guard, not a timing test
+TIE_REL = 1e-5  # ids differ but both depths agree this well: two surfaces at one t
 
 
 # ------------------------------------------------------------------------ helpers
+
 
 class Deadline(Exception):
     pass
@@ -58,8 +59,10 @@ class Deadline(Exception):
 @contextlib.contextmanager
 def deadline(seconds: float, what: str):
     """Raise :class:`Deadline` in the main thread after ``seconds`` (Python code only)."""
+
     def on_alarm(signum, frame):
         raise Deadline(f"{what} still running after {seconds:g} s")
+
     old = signal.signal(signal.SIGALRM, on_alarm)
     signal.setitimer(signal.ITIMER_REAL, seconds)
     try:
@@ -88,9 +91,15 @@ def compare(gpu, ref) -> dict:
 
 
 def settings_of(case: Case, method: str) -> RenderSettings:
-    return RenderSettings(width=case.width, height=case.height, method=method, mode="color",
-                          max_prims=case.max_prims, max_tree_depth=case.max_tree_depth,
-                          max_recursion_depth=case.max_recursion_depth)
+    return RenderSettings(
+        width=case.width,
+        height=case.height,
+        method=method,
+        mode="color",
+        max_prims=case.max_prims,
+        max_tree_depth=case.max_tree_depth,
+        max_recursion_depth=case.max_recursion_depth,
+    )
 
 
 _CACHE: dict[str, dict] = {}
@@ -107,13 +116,19 @@ def prepared(case: Case) -> dict:
             ref64 = render_reference(scene, s)
             scene32 = float32_inputs(scene)
             ref32 = ref64 if same_scene(scene, scene32) else render_reference(scene32, s)
-        _CACHE[case.name] = {"scene": scene, "ref64": ref64, "ref32": ref32,
-                             "exact_inputs": ref32 is ref64, "ref_ms": (time.perf_counter() - t0) * 1e3,
-                             "facts": case.facts(scene) if case.facts else ""}
+        _CACHE[case.name] = {
+            "scene": scene,
+            "ref64": ref64,
+            "ref32": ref32,
+            "exact_inputs": ref32 is ref64,
+            "ref_ms": (time.perf_counter() - t0) * 1e3,
+            "facts": case.facts(scene) if case.facts else "",
+        }
     return _CACHE[case.name]
 
 
 # ------------------------------------------------------------------------- report
+
 
 def methods_of(case: Case) -> list[str]:
     """The methods a case runs with: its own list, or every method of METHODS."""
@@ -161,8 +176,10 @@ def _pins(case: Case) -> list[str]:
     if case.f32_why:
         figures = _pinned_figures(case.f32_min_primid_agreement, case.f32_max_depth_rel, case.f32_color_psnr_min)
         same = case.f32_why in (case.why, case.depth_why, case.psnr_why)
-        out.append(f"pinned against the float32-input scene ({', '.join(figures)}): "
-                   + ("the same reason." if same else case.f32_why))
+        out.append(
+            f"pinned against the float32-input scene ({', '.join(figures)}): "
+            + ("the same reason." if same else case.f32_why)
+        )
     return out
 
 
@@ -216,8 +233,10 @@ def render_doc(rows: dict, gl_info: dict) -> str:
         else:
             notes += [f"{m}: {n}" for m, ns in zip(ran, per_method, strict=True) for n in ns]
         if notes:
-            lines.append(f"- `{case.name}` ({case.width}×{case.height}, max_prims {case.max_prims}, "
-                         f"max_tree_depth {case.max_tree_depth}, recursion {case.max_recursion_depth}):")
+            lines.append(
+                f"- `{case.name}` ({case.width}×{case.height}, max_prims {case.max_prims}, "
+                f"max_tree_depth {case.max_tree_depth}, recursion {case.max_recursion_depth}):"
+            )
             lines += [f"  - {n}" for n in notes]
     lines += [
         "",
@@ -248,6 +267,7 @@ def render_doc(rows: dict, gl_info: dict) -> str:
 
 # ------------------------------------------------------------------------ one case
 
+
 def evaluate(gl_renderer, case: Case, method: str) -> tuple[dict, list[str]]:
     """Run one (case, method): its report row (``row["ok"]``, figures, notes) and failures.
 
@@ -258,15 +278,21 @@ def evaluate(gl_renderer, case: Case, method: str) -> tuple[dict, list[str]]:
     scene, ref64, ref32 = data["scene"], data["ref64"], data["ref32"]
     failures: list[str] = []
     notes: list[str] = []
-    row = {"ok": False, "known": method in dict(case.known_failures), "exact_inputs": data["exact_inputs"], "facts": data["facts"], "notes": notes,
-           "render_ms": float("nan"), "f64": {"agreement": 0.0, "depth_rel": math.inf, "psnr": 0.0},
-           "f32": {"agreement": 0.0, "depth_rel": math.inf, "psnr": 0.0}}
+    row = {
+        "ok": False,
+        "known": method in dict(case.known_failures),
+        "exact_inputs": data["exact_inputs"],
+        "facts": data["facts"],
+        "notes": notes,
+        "render_ms": float("nan"),
+        "f64": {"agreement": 0.0, "depth_rel": math.inf, "psnr": 0.0},
+        "f32": {"agreement": 0.0, "depth_rel": math.inf, "psnr": 0.0},
+    }
     try:
         # the build on its own, under a deadline: listing 3.4 loops forever on degenerate input
         t0 = time.perf_counter()
         with deadline(BUILD_BOUND_S, "the build"):
-            built = METHODS[method].prepare(scene, case.max_prims, case.max_tree_depth,
-                                            gl_renderer.max_texture_width)
+            built = METHODS[method].prepare(scene, case.max_prims, case.max_tree_depth, gl_renderer.max_texture_width)
         build_s = time.perf_counter() - t0
         if build_s > BUILD_BOUND_S:
             failures.append(f"build took {build_s:.1f} s")
@@ -283,9 +309,10 @@ def evaluate(gl_renderer, case: Case, method: str) -> tuple[dict, list[str]]:
         if render_s > RENDER_BOUND_S:
             failures.append(f"render took {render_s:.1f} s")
         st = gpu.stats or {}
-        if "depth_max" in st:     # the tree methods' statistics
+        if "depth_max" in st:  # the tree methods' statistics
             row["tree"] = f"tree depth {st['depth_max']}" + (
-                f", {st['forced_leaves']} forced" if st.get("forced_leaves") else "")
+                f", {st['forced_leaves']} forced" if st.get("forced_leaves") else ""
+            )
 
         for name, arr in (("image", gpu.image), ("normal", gpu.normal)):
             if not np.isfinite(arr).all():
@@ -306,15 +333,19 @@ def evaluate(gl_renderer, case: Case, method: str) -> tuple[dict, list[str]]:
             row[key] = c
             what = "float64 scene" if key == "f64" else "float32-input scene"
             if c["agreement"] < min_agree:
-                failures.append(f"primid agrees with the {what} on {100 * c['agreement']:.3f} % "
-                                f"< {100 * min_agree:.2f} % ({c['disagree']} px, {c['ties']} ties)")
+                failures.append(
+                    f"primid agrees with the {what} on {100 * c['agreement']:.3f} % "
+                    f"< {100 * min_agree:.2f} % ({c['disagree']} px, {c['ties']} ties)"
+                )
             if c["depth_rel"] > max_rel:
                 failures.append(f"depth vs the {what} off by {c['depth_rel']:.2e} relative > {max_rel:.0e}")
             if min_psnr is not None and c["psnr"] < min_psnr:
                 failures.append(f"colour PSNR vs the {what} {c['psnr']:.1f} dB < {min_psnr:g}")
             if c["disagree"]:
-                notes.append(f"{c['disagree']} px differ in id from the {what}, {c['ties']} of them ties "
-                             f"(both depths within {TIE_REL:g})")
+                notes.append(
+                    f"{c['disagree']} px differ in id from the {what}, {c['ties']} of them ties "
+                    f"(both depths within {TIE_REL:g})"
+                )
 
         # the methods against each other: the BIH only prunes, the sphere test is shared,
         # so the ids must be identical (same t bitwise, same tie rule)
@@ -333,7 +364,7 @@ def evaluate(gl_renderer, case: Case, method: str) -> tuple[dict, list[str]]:
                     notes.append(f"ids differ from {other}'s on {n} px, all ties")
             elif n:
                 failures.append(f"ids differ from {other}'s on {n} px")
-        if method not in dict(case.known_failures):     # a known failure is no yardstick for the others
+        if method not in dict(case.known_failures):  # a known failure is no yardstick for the others
             seen[method] = (gpu.primid, gpu.depth)
 
         if case.min_tree_depth is not None and method == "bih":

@@ -25,8 +25,8 @@ from ..body import JSONBodyRoute
 from ..deps import ServiceDep, SessionId
 from ..errors import documented
 
-router = APIRouter(route_class=JSONBodyRoute)   # JSON bodies strict, large ones off the event loop
-WATCH_S = 0.1      # how often a waiting route looks whether its client is still there
+router = APIRouter(route_class=JSONBodyRoute)  # JSON bodies strict, large ones off the event loop
+WATCH_S = 0.1  # how often a waiting route looks whether its client is still there
 
 
 def frame_response(frame: Frame) -> Response:
@@ -62,7 +62,7 @@ async def progressive_response(request: Request, start: Callable[..., Iterator[F
     (Content-Type, Server-Timing, X-Frame-Part, …). An error before the first part is an
     ordinary error answer; the first part starts the stream."""
     cancel = threading.Event()
-    parts = start(*args, cancel=cancel)           # a generator: nothing has run yet
+    parts = start(*args, cancel=cancel)  # a generator: nothing has run yet
     first = await watched(request, cancel, run_in_threadpool(next, parts))
     boundary = "pocketray-" + secrets.token_hex(8)
 
@@ -81,18 +81,30 @@ async def progressive_response(request: Request, start: Callable[..., Iterator[F
                 yield encode(frame)
             yield f"--{boundary}--\r\n".encode()
         except BaseException:
-            cancel.set()                          # the client went away mid-stream: stop the frame
+            cancel.set()  # the client went away mid-stream: stop the frame
             raise
-    headers = {k: v for k, v in frame_headers(first).items()
-               if k in ("Access-Control-Expose-Headers", "Cache-Control", "X-Method")}
+
+    headers = {
+        k: v
+        for k, v in frame_headers(first).items()
+        if k in ("Access-Control-Expose-Headers", "Cache-Control", "X-Method")
+    }
     return StreamingResponse(body(), media_type=f"multipart/mixed; boundary={boundary}", headers=headers)
 
 
-@router.post("/sessions/{session_id}/gesture", response_model=CameraOut,
-             responses={200: FRAME_RESPONSE_DOC, **documented(404, 409, 413, 503)},
-             summary="Apply pan / pinch / reset; with ?frame=1 answer with the new frame")
-async def gesture(request: Request, session_id: SessionId, body: Annotated[Gesture, Body()], service: ServiceDep,
-                  query: Annotated[GestureQuery, Query()]) -> Any:
+@router.post(
+    "/sessions/{session_id}/gesture",
+    response_model=CameraOut,
+    responses={200: FRAME_RESPONSE_DOC, **documented(404, 409, 413, 503)},
+    summary="Apply pan / pinch / reset; with ?frame=1 answer with the new frame",
+)
+async def gesture(
+    request: Request,
+    session_id: SessionId,
+    body: Annotated[Gesture, Body()],
+    service: ServiceDep,
+    query: Annotated[GestureQuery, Query()],
+) -> Any:
     # The frame parameters are validated even without ?frame=1, as they always were.
     if query.frame and query.progressive:
         return await progressive_response(request, service.iter_gesture_frame, session_id, body, query.given())
@@ -102,23 +114,35 @@ async def gesture(request: Request, session_id: SessionId, body: Annotated[Gestu
     return CameraOut(version=state.version, camera=CameraModel(**state.camera))
 
 
-@router.get("/sessions/{session_id}/frame", response_class=Response,
-            responses={200: FRAME_RESPONSE_DOC, **documented(404, 409, 503)},
-            summary="Render the session's current view")
-async def session_frame(request: Request, session_id: SessionId, service: ServiceDep,
-                        query: Annotated[FrameQuery, Query()]) -> Response:
+@router.get(
+    "/sessions/{session_id}/frame",
+    response_class=Response,
+    responses={200: FRAME_RESPONSE_DOC, **documented(404, 409, 503)},
+    summary="Render the session's current view",
+)
+async def session_frame(
+    request: Request, session_id: SessionId, service: ServiceDep, query: Annotated[FrameQuery, Query()]
+) -> Response:
     if query.progressive:
         return await progressive_response(request, service.iter_session_frame, session_id, query.given())
     return frame_response(await cancellable(request, service.session_frame, session_id, query.given()))
 
 
-@router.get("/sessions/{session_id}/stats", response_model=StatsOut, responses=documented(404, 503),
-            summary="Statistics of the acceleration structure for the current (or given) settings")
+@router.get(
+    "/sessions/{session_id}/stats",
+    response_model=StatsOut,
+    responses=documented(404, 503),
+    summary="Statistics of the acceleration structure for the current (or given) settings",
+)
 def session_stats(session_id: SessionId, service: ServiceDep, query: Annotated[StatsQuery, Query()]) -> Any:
     return JSONResponse(service.stats(session_id, query.given()))
 
 
-@router.post("/render", response_class=Response, responses={200: FRAME_RESPONSE_DOC, **documented(413, 503)},
-             summary="Stateless render of a scene with settings (docs/FORMATS.md)")
+@router.post(
+    "/render",
+    response_class=Response,
+    responses={200: FRAME_RESPONSE_DOC, **documented(413, 503)},
+    summary="Stateless render of a scene with settings (docs/FORMATS.md)",
+)
 async def render(request: Request, body: RenderRequest, service: ServiceDep) -> Response:
     return frame_response(await cancellable(request, service.render_stateless, body.scene, body.settings.given()))

@@ -22,8 +22,8 @@ from ..deps import ServiceDep
 
 router = APIRouter()
 
-READY_RETRY_AFTER_S = 1   # the warm-up frame takes about a second on llvmpipe
-SHARED_BACKENDS = {"redis"}   # session stores every process shares: not one process's readiness
+READY_RETRY_AFTER_S = 1  # the warm-up frame takes about a second on llvmpipe
+SHARED_BACKENDS = {"redis"}  # session stores every process shares: not one process's readiness
 
 
 @router.get("/health", response_model=HealthOut, summary="Liveness")
@@ -36,9 +36,13 @@ def health() -> HealthOut:
 _PROBE_LIMITER = anyio.CapacityLimiter(1)
 
 
-@router.get("/ready", response_model=ReadyOut, responses={503: {"model": ReadyOut, "description": "not ready"}},
-            summary="Readiness of this process: GL context created, warm-up render done, not draining or "
-                    "saturated, and its own session store (SQLite) read and written")
+@router.get(
+    "/ready",
+    response_model=ReadyOut,
+    responses={503: {"model": ReadyOut, "description": "not ready"}},
+    summary="Readiness of this process: GL context created, warm-up render done, not draining or "
+    "saturated, and its own session store (SQLite) read and written",
+)
 async def ready(request: Request) -> Any:
     # From the event loop, with no dependency that needs a thread: a balancer's health check is answered
     # while every thread of the pool waits (for a stalled Redis, say), and says what this process can do.
@@ -52,22 +56,33 @@ async def ready(request: Request) -> Any:
     # file). A shared store (Redis) is not: its fault is every process's at once, and taking them all out of
     # the balancer would turn the service's own 503 + Retry-After into the balancer's "no server".
     own_store = service.config.state_backend not in SHARED_BACKENDS
-    store_fault = (await anyio.to_thread.run_sync(service.store.probe, limiter=_PROBE_LIMITER)
-                   if own_store and worker.ready.is_set() else None)
-    out = ReadyOut(ready=not draining and not saturated and worker.ready.is_set() and store_fault is None,
-                   gl_renderer=info.get("renderer"), gl_version=info.get("version"))
+    store_fault = (
+        await anyio.to_thread.run_sync(service.store.probe, limiter=_PROBE_LIMITER)
+        if own_store and worker.ready.is_set()
+        else None
+    )
+    out = ReadyOut(
+        ready=not draining and not saturated and worker.ready.is_set() and store_fault is None,
+        gl_renderer=info.get("renderer"),
+        gl_version=info.get("version"),
+    )
     if out.ready:
         return out
     retry = READY_RETRY_AFTER_S
-    if draining:   # shutdown has begun: a balancer takes this process out of rotation
+    if draining:  # shutdown has begun: a balancer takes this process out of rotation
         out.detail = "draining: the process is shutting down"
-    elif saturated:             # the work queued ahead is more than a render may wait
+    elif saturated:  # the work queued ahead is more than a render may wait
         retry = worker.retry_after()
-        out.detail = (f"saturated: {worker.queued_ms() / 1e3:,.1f} s of GL work queued, over the render timeout "
-                      f"of {worker.render_timeout_s:g} s (POCKETRAY_RENDER_TIMEOUT_S)")
+        out.detail = (
+            f"saturated: {worker.queued_ms() / 1e3:,.1f} s of GL work queued, over the render timeout "
+            f"of {worker.render_timeout_s:g} s (POCKETRAY_RENDER_TIMEOUT_S)"
+        )
     else:
-        out.detail = worker.error or (f"state backend: {store_fault}" if worker.ready.is_set() else
-                                      "starting: creating the GL context and rendering the warm-up frame")
+        out.detail = worker.error or (
+            f"state backend: {store_fault}"
+            if worker.ready.is_set()
+            else "starting: creating the GL context and rendering the warm-up frame"
+        )
     metrics.unavailable("draining" if draining else "saturated" if saturated else "not_ready")
     return JSONResponse(out.model_dump(), status_code=503, headers={"Retry-After": str(retry)})
 
@@ -75,13 +90,29 @@ async def ready(request: Request) -> Any:
 @router.get("/info", response_model=InfoOut, summary="Methods, modes, formats and limits of this service")
 def info(service: ServiceDep) -> InfoOut:
     c = service.config
-    return InfoOut(methods=list(METHOD_NAMES), modes=list(MODES), formats=list(FORMATS), state_backend=c.state_backend,
-                   profiles=PROFILES, update_schemes=list(UPDATE_SCHEMES), museum_kinds=list(MUSEUM_KINDS),
-                   limits=LimitsOut(max_work=c.max_work, max_frame_cost=c.max_frame_cost, slice_ms=c.slice_ms,
-                                    max_spheres=c.max_spheres, max_triangles=c.max_triangles,
-                                    max_body_bytes=c.max_body_bytes,
-                                    max_image_side=MAX_IMAGE_SIDE, queue_size=c.queue_size,
-                                    session_ttl_s=c.session_ttl_s),
-                   recursion_colors=[{"rgb": tuple(rgb), "name": name} for rgb, name
-                                     in zip(RECURSION_COLORS.tolist(), RECURSION_COLOR_NAMES, strict=True)],
-                   heat_scale=HEAT_SCALE, **info_extras(c))
+    return InfoOut(
+        methods=list(METHOD_NAMES),
+        modes=list(MODES),
+        formats=list(FORMATS),
+        state_backend=c.state_backend,
+        profiles=PROFILES,
+        update_schemes=list(UPDATE_SCHEMES),
+        museum_kinds=list(MUSEUM_KINDS),
+        limits=LimitsOut(
+            max_work=c.max_work,
+            max_frame_cost=c.max_frame_cost,
+            slice_ms=c.slice_ms,
+            max_spheres=c.max_spheres,
+            max_triangles=c.max_triangles,
+            max_body_bytes=c.max_body_bytes,
+            max_image_side=MAX_IMAGE_SIDE,
+            queue_size=c.queue_size,
+            session_ttl_s=c.session_ttl_s,
+        ),
+        recursion_colors=[
+            {"rgb": tuple(rgb), "name": name}
+            for rgb, name in zip(RECURSION_COLORS.tolist(), RECURSION_COLOR_NAMES, strict=True)
+        ],
+        heat_scale=HEAT_SCALE,
+        **info_extras(c),
+    )

@@ -69,7 +69,7 @@ async def answer_message(service: SessionService, session_id: str, data: str | b
         raise RequestValidationError(problems)
     if only_frame:
         one = await run_in_threadpool(service.session_frame, session_id, patch.given())
-        frame = cast(Frame, one)      # not progressive: one frame
+        frame = cast(Frame, one)  # not progressive: one frame
     else:
         frame = await run_in_threadpool(service.gesture_frame, session_id, gesture, patch.given())
     state = await run_in_threadpool(service.get, session_id)
@@ -90,18 +90,26 @@ async def session_socket(websocket: WebSocket, session_id: str, service: Service
             data = message.get("text")
             if data is None:
                 data = message.get("bytes") or b""
-            refused = wire.refusal(websocket.scope)    # answers of this address not taken: no new work
+            refused = wire.refusal(websocket.scope)  # answers of this address not taken: no new work
             if refused is not None:
                 await websocket.send_text(json.dumps(refused))
                 continue
             try:
                 frame, camera = await answer_message(service, session_id, data)
-            except Exception as exc:   # every failure is a row of the error table, as over HTTP
+            except Exception as exc:  # every failure is a row of the error table, as over HTTP
                 await websocket.send_text(json.dumps(errors.answer(exc, config, where).ws_message()))
                 continue
-            await websocket.send_text(json.dumps({
-                "version": frame.version, "camera": camera, "timings": frame.timings,
-                "stats": frame.stats, "media_type": frame.media_type}))
+            await websocket.send_text(
+                json.dumps(
+                    {
+                        "version": frame.version,
+                        "camera": camera,
+                        "timings": frame.timings,
+                        "stats": frame.stats,
+                        "media_type": frame.media_type,
+                    }
+                )
+            )
             await websocket.send_bytes(frame.body)
     except WebSocketDisconnect:
         return

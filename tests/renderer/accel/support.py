@@ -13,6 +13,7 @@ from renderer.accel import bih_layout as L, hre_cones
 # ---------------------------------------------------------------------------
 # BIH nodes
 
+
 def decode(bih):
     w0 = bih.nodes[:, 0]
     leaf = L.is_leaf(w0)
@@ -48,8 +49,11 @@ def scenes(draw, max_n=300, f32=False):
         c = pts[rng.integers(0, len(pts), n)]
     elif kind == "line":
         p0 = rng.uniform(-scale, scale, 3)
-        dirn = draw(st.sampled_from([np.array([1.0, 0, 0]), np.array([0, 0, 1.0]), np.array([1.0, 1.0, 1.0]),
-                                     rng.normal(size=3)]))
+        dirn = draw(
+            st.sampled_from(
+                [np.array([1.0, 0, 0]), np.array([0, 0, 1.0]), np.array([1.0, 1.0, 1.0]), rng.normal(size=3)]
+            )
+        )
         c = p0 + rng.uniform(-scale, scale, (n, 1)) * dirn
     elif kind == "grid":
         c = rng.integers(-4, 5, (n, 3)) * (scale / 4)
@@ -73,12 +77,13 @@ def scenes(draw, max_n=300, f32=False):
 # ---------------------------------------------------------------------------
 # scenes of the BVH and kd-tree tests
 
+
 @st.composite
 def sphere_sets(draw, max_n: int = 120):
     """Random, clustered and degenerate sphere sets (centres, radii)."""
     n = draw(st.integers(0, max_n))
     kind = draw(st.sampled_from(["uniform", "clustered", "one_centre", "duplicates", "line", "scales"]))
-    rng = np.random.default_rng(draw(st.integers(0, 2 ** 32 - 1)))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
     if kind == "uniform":
         c = rng.uniform(-20, 20, (n, 3))
         r = rng.uniform(0.05, 3.0, n)
@@ -105,6 +110,7 @@ def sphere_sets(draw, max_n: int = 120):
 # ---------------------------------------------------------------------------
 # hierarchical ray engine: cones
 
+
 def check_contained(o, d, live, cones, scale_points=(0.0, 1e-3, 0.1, 1.0, 10.0, 100.0, 1e4)):
     """Brute force: points p + s·r of every live ray lie within the slack of their tile's cone."""
     for t in range(len(cones)):
@@ -113,7 +119,7 @@ def check_contained(o, d, live, cones, scale_points=(0.0, 1e-3, 0.1, 1.0, 10.0, 
             assert phi == hre_cones.NO_RAYS
             continue
         if phi < 0:
-            continue   # no cull: nothing is promised
+            continue  # no cull: nothing is promised
         p = o[t][live[t]]
         r = d[t][live[t]]
         pts = (p[:, None, :] + np.asarray(scale_points)[None, :, None] * r[:, None, :]).reshape(-1, 3)

@@ -33,6 +33,7 @@ from tests.renderer.accel.support import decode, scenes
 # ---------------------------------------------------------------------------
 # helpers
 
+
 def walk(bih):
     """DFS from the root: per node the number of times it is reached, its depth
     (root = 1) and the tightest ancestor clip bounds: ``upper[node, axis]`` =
@@ -108,7 +109,7 @@ def check_invariants(bih, centers, radii, max_prims, max_tree_depth, boxes=None)
     # primitives inside every ancestor's clip interval
     lo, hi = sphere_aabbs(centers, radii) if boxes is None else boxes
     for k in lv:
-        p = bih.indices[off[k]:off[k] + cnt[k]]
+        p = bih.indices[off[k] : off[k] + cnt[k]]
         assert (hi[p] <= upper[k]).all(), f"leaf {k}: AABB max beyond an ancestor's clip_left"
         assert (lo[p] >= lower[k]).all(), f"leaf {k}: AABB min below an ancestor's clip_right"
 
@@ -132,6 +133,7 @@ def check_invariants(bih, centers, radii, max_prims, max_tree_depth, boxes=None)
 
 # ---------------------------------------------------------------------------
 # build
+
 
 def test_table_4_2_scenario_1():
     sc = scenario(1, 4096)
@@ -187,6 +189,7 @@ def test_empty_cuts_over_triangles(max_prims):
     ico = icosphere(3, radius=1.5, center=(4.0, 1.0, 0.5))
     corners = np.concatenate([pot.vertices[pot.triangles], ico.vertices[ico.triangles]])
     from renderer.accel.primitives import triangle_aabbs
+
     lo, hi = triangle_aabbs(corners)
     bih = build_bih(lo, hi, max_prims=max_prims, empty_cuts=True)
     check_invariants(bih, None, None, max_prims, 64, boxes=(lo, hi))
@@ -195,7 +198,7 @@ def test_empty_cuts_over_triangles(max_prims):
     leaf, _, _, _, _, off, cnt = decode(bih)
     rmin, rmax = _regions(bih)
     for k in np.flatnonzero(leaf & (cnt > 0) & (bih.node_depths < 64)):
-        p = bih.indices[off[k]:off[k] + cnt[k]]
+        p = bih.indices[off[k] : off[k] + cnt[k]]
         tmin, tmax = lo[p].min(axis=0), hi[p].max(axis=0)
         assert (rmin[k] <= tmin).all() and (tmax <= rmax[k]).all()
         ext = (rmax[k] - rmin[k]).astype(np.float64)
@@ -206,6 +209,7 @@ def test_empty_cuts_over_triangles(max_prims):
 
     # primary rays at a teapot-like view: exact, and far fewer tests than without cuts
     from renderer.scene import Camera
+
     cam = Camera((2.0, 4.0, 9.0), (1.5, 0.8, 0.0), (0.0, 1.0, 0.0), 40.0)
     o, d = primary_rays(cam, 48, 40)
     none = (np.zeros((0, 3)), np.zeros(0))
@@ -240,6 +244,7 @@ def test_empty_scene():
 # regression: a float64 sphere whose centre is not float32-representable used
 # to stick out of its box by up to one float32 step, and the float64 traversal
 # then pruned a hit that brute force finds
+
 
 def test_float64_sphere_inside_its_aabb():
     c = np.array([[2.0**20 + 0.0625 + 1e-9, 0.0, 0.0]])

@@ -28,6 +28,7 @@ from tests.renderer.accel.support import decode, scenes
 # ---------------------------------------------------------------------------
 # scalar oracle: SHADING.md's pseudo-code transcribed one ray at a time
 
+
 def _sphere_scalar(o, d, c, r, far_only):
     px, py, pz = o[0] - c[0], o[1] - c[1], o[2] - c[2]
     b = px * d[0] + py * d[1] + pz * d[2]
@@ -112,6 +113,7 @@ def traverse_scalar(bih, c, r, o, d, ignore=-1, far_only=-1):
 
 # ---------------------------------------------------------------------------
 # traversal
+
 
 def _unit(v):
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
@@ -204,7 +206,8 @@ def check_traversal(scene, max_prims, max_tree_depth, seed, per_kind=10, oracle=
         raise AssertionError(
             f"{int(bad.sum())} of {len(o)} rays differ; first: o={o[i].tolist()} d={d[i].tolist()} "
             f"ignore={ign[i]} far_only={far[i]}: traverse ({res.t[i]!r}, {res.prim[i]}) "
-            f"brute ({bt[i]!r}, {bp[i]})")
+            f"brute ({bt[i]!r}, {bp[i]})"
+        )
     assert res.t.dtype == np.float64 and res.prim.dtype == np.int64
     if oracle:
         for i in range(len(o)):
@@ -220,31 +223,47 @@ def check_traversal(scene, max_prims, max_tree_depth, seed, per_kind=10, oracle=
 
 
 @settings(max_examples=100, **HYP)
-@given(scene=scenes(f32=True), max_prims=st.integers(1, 16), max_tree_depth=st.integers(1, 64),
-       seed=st.integers(0, 2**32 - 1))
+@given(
+    scene=scenes(f32=True),
+    max_prims=st.integers(1, 16),
+    max_tree_depth=st.integers(1, 64),
+    seed=st.integers(0, 2**32 - 1),
+)
 def test_traverse_matches_brute_force(scene, max_prims, max_tree_depth, seed):
     check_traversal(scene, max_prims, max_tree_depth, seed)
 
 
 @pytest.mark.slow
 @settings(max_examples=5000, **HYP)
-@given(scene=scenes(f32=True), max_prims=st.integers(1, 16), max_tree_depth=st.integers(1, 64),
-       seed=st.integers(0, 2**32 - 1))
+@given(
+    scene=scenes(f32=True),
+    max_prims=st.integers(1, 16),
+    max_tree_depth=st.integers(1, 64),
+    seed=st.integers(0, 2**32 - 1),
+)
 def test_traverse_matches_brute_force_slow(scene, max_prims, max_tree_depth, seed):
     check_traversal(scene, max_prims, max_tree_depth, seed)
 
 
 @settings(max_examples=100, **HYP)
-@given(scene=scenes(f32=True), max_prims=st.integers(1, 16), max_tree_depth=st.integers(1, 64),
-       seed=st.integers(0, 2**32 - 1))
+@given(
+    scene=scenes(f32=True),
+    max_prims=st.integers(1, 16),
+    max_tree_depth=st.integers(1, 64),
+    seed=st.integers(0, 2**32 - 1),
+)
 def test_traverse_with_empty_cuts_matches_brute_force(scene, max_prims, max_tree_depth, seed):
     check_traversal(scene, max_prims, max_tree_depth, seed, empty_cuts=True)
 
 
 @pytest.mark.slow
 @settings(max_examples=2000, **HYP)
-@given(scene=scenes(f32=True), max_prims=st.integers(1, 16), max_tree_depth=st.integers(1, 64),
-       seed=st.integers(0, 2**32 - 1))
+@given(
+    scene=scenes(f32=True),
+    max_prims=st.integers(1, 16),
+    max_tree_depth=st.integers(1, 64),
+    seed=st.integers(0, 2**32 - 1),
+)
 def test_traverse_with_empty_cuts_matches_brute_force_slow(scene, max_prims, max_tree_depth, seed):
     check_traversal(scene, max_prims, max_tree_depth, seed, empty_cuts=True)
 
@@ -286,10 +305,14 @@ def test_counters_scenario_1():
     sc = scenario(1, 64)  # 4×4×4 grid, centres at ±5, ±15, radius 1
     c, r = sc.sphere_centers, sc.sphere_radii
     bih = build_for_spheres(c, r, max_prims=1)
-    o = np.array([[0.0, 0.0, 100.0],     # down the z axis, between the spheres
-                  [0.0, 50.0, 100.0],    # misses the global box
-                  [5.0, 5.0, 100.0],     # straight onto sphere (5, 5, 15)
-                  [10.0, 10.0, 100.0]])  # between columns of spheres, off-axis
+    o = np.array(
+        [
+            [0.0, 0.0, 100.0],  # down the z axis, between the spheres
+            [0.0, 50.0, 100.0],  # misses the global box
+            [5.0, 5.0, 100.0],  # straight onto sphere (5, 5, 15)
+            [10.0, 10.0, 100.0],
+        ]
+    )  # between columns of spheres, off-axis
     d = np.array([[0.0, -0.0, -1.0], [0.0, 0.0, -1.0], [0.0, 0.0, -1.0], [-0.0, 0.0, -1.0]])
     res = traverse(bih, c, r, o, d)
     assert res.nodes_visited[1] == 0 and res.tests[1] == 0 and res.prim[1] == -1
@@ -337,7 +360,11 @@ def test_secondary_rules():
     res = traverse(bih, c, r, o, d)
     assert res.prim.tolist() == [0, 0, -1] and res.t.tolist() == [2.0, 2.0, np.inf]
     assert brute_force(c, r, o, d)[1].tolist() == [0, 0, -1]
-    assert brute_force(c, r, o, d, ignore=np.array([-1, 0, 0]), far_only=np.array([0, -1, -1]))[1].tolist() == [0, 1, -1]
+    assert brute_force(c, r, o, d, ignore=np.array([-1, 0, 0]), far_only=np.array([0, -1, -1]))[1].tolist() == [
+        0,
+        1,
+        -1,
+    ]
 
 
 @settings(max_examples=60, **HYP)
@@ -348,6 +375,7 @@ def test_gpu_records_are_the_built_tree(scene, max_prims, max_tree_depth, empty_
     record, or the first sphere record of a leaf, whose run ends (flag) after its count; a
     cut's empty child (a leaf of no primitives) is named by its sibling's ref."""
     from renderer.accel import bih_layout as L
+
     c, r = scene
     bih = build_bih(*sphere_aabbs(c, r), max_prims, max_tree_depth, empty_cuts=empty_cuts)
     leaf, axis, left, cl, cr, off, cnt = decode(bih)
@@ -362,6 +390,7 @@ def test_gpu_records_are_the_built_tree(scene, max_prims, max_tree_depth, empty_
         if leaf[node] and cnt[node] == 0 and sibling is not None:
             return ref_of(sibling)
         return (L.REF_LEAF | int(off[node])) if leaf[node] else rec_of[int(node)]
+
     assert root == ref_of(0)
     for k, node in enumerate(inner):
         x, y, z, w = (int(v) for v in records[k])
@@ -370,6 +399,6 @@ def test_gpu_records_are_the_built_tree(scene, max_prims, max_tree_depth, empty_
         assert np.uint32(y).view(np.float32) == cl[node] and np.uint32(z).view(np.float32) == cr[node]
     for node in np.flatnonzero(leaf):
         if cnt[node]:
-            run = last[off[node]:off[node] + cnt[node]]
+            run = last[off[node] : off[node] + cnt[node]]
             assert run[-1] and not run[:-1].any(), "a leaf's run ends at its last record"
     assert last.sum() == (cnt[leaf] > 0).sum()

@@ -28,10 +28,11 @@ def motion(c: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
         return c + rng.uniform(-5, 5, 3)
     if kind == "deformable":
         return c + rng.normal(0, 0.3, c.shape)
-    return rng.uniform(-30, 30, c.shape)          # incoherent: every sphere teleports
+    return rng.uniform(-30, 30, c.shape)  # incoherent: every sphere teleports
 
 
 # ---------------------------------------------------------------- BVH invariants
+
 
 def check_bvh(b, lo: np.ndarray, hi: np.ndarray, max_tree_depth: int) -> None:
     n = len(lo)
@@ -73,6 +74,7 @@ def check_bvh(b, lo: np.ndarray, hi: np.ndarray, max_tree_depth: int) -> None:
 
     def ref_of(node: int) -> int:
         return (bvh_layout.REF_LEAF | int(b.first[node])) if b.left[node] < 0 else rec_of[int(node)]
+
     assert root == ref_of(0) and records.shape == (4 * len(inner), 4)
     rec = records.reshape(-1, 4, 4)
     f = lambda a: a.copy().view(np.float32)
@@ -103,9 +105,14 @@ def test_bvh_build_invariants(spheres, max_prims, max_tree_depth):
 
 
 @settings(max_examples=30, **HYP)
-@given(sphere_sets(max_n=100), st.integers(1, 8), st.integers(2, 64),
-       st.lists(st.sampled_from(["rigid", "deformable", "incoherent"]), min_size=1, max_size=4),
-       st.sampled_from(["refit", "selective"]), st.integers(0, 2 ** 31))
+@given(
+    sphere_sets(max_n=100),
+    st.integers(1, 8),
+    st.integers(2, 64),
+    st.lists(st.sampled_from(["rigid", "deformable", "incoherent"]), min_size=1, max_size=4),
+    st.sampled_from(["refit", "selective"]),
+    st.integers(0, 2**31),
+)
 def test_bvh_invariants_after_updates(spheres, max_prims, max_tree_depth, motions, scheme, seed):
     c, r = spheres
     rng = np.random.default_rng(seed)
@@ -129,7 +136,7 @@ def test_refit_keeps_structure_and_selective_rebuilds_degraded_subtrees():
     rng = np.random.default_rng(1)
     b = build_bvh(lo, hi, 4)
     left0 = b.left.copy()
-    c2 = rng.uniform(-20, 20, s.sphere_centers.shape)      # incoherent
+    c2 = rng.uniform(-20, 20, s.sphere_centers.shape)  # incoherent
     lo2, hi2 = sphere_aabbs(c2, s.sphere_radii)
     r = refit(b, lo2, hi2)
     np.testing.assert_array_equal(r.left, left0)
@@ -155,7 +162,7 @@ def test_updater_rebuilds_on_topology_change_and_rejects_unknown_scheme():
     up = BVHUpdater(4)
     c = np.random.default_rng(0).uniform(-5, 5, (50, 3))
     up.update(c, np.ones(50), "refit")
-    b = up.update(c[:40], np.ones(40), "refit")            # spheres disappeared
+    b = up.update(c[:40], np.ones(40), "refit")  # spheres disappeared
     assert b.n_primitives == 40 and "topology" in b.stats.scheme
     check_bvh(b, *sphere_aabbs(c[:40], np.ones(40)), 64)
     with pytest.raises(ValueError, match="scheme"):
@@ -191,7 +198,7 @@ def test_bvh_boxes_are_tight_where_the_bins_give_them():
         b = build_bvh(lo, hi, 2)
         check_bvh(b, lo, hi, 64)
         for node in range(b.n_nodes):
-            p = b.indices[b.first[node]:b.first[node] + b.count[node]]
+            p = b.indices[b.first[node] : b.first[node] + b.count[node]]
             np.testing.assert_array_equal(b.bmin[node], lo[p].min(axis=0), err_msg=f"{name} node {node}")
             np.testing.assert_array_equal(b.bmax[node], hi[p].max(axis=0), err_msg=f"{name} node {node}")
         assert b.stats.leaves > len(lo) // 4, f"{name}: the bins found splits"

@@ -24,16 +24,16 @@ def coherent_tiles(rng, n_tiles: int, k: int):
         jitter = rng.normal(scale=0.01, size=(k, 3))
         dirs = base + jitter
         dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-        if kind == 0:      # one origin (a camera)
+        if kind == 0:  # one origin (a camera)
             o[t] = rng.normal(scale=50, size=3)
             d[t] = dirs
-        elif kind == 1:    # reflections: origins on a sphere patch, directions mirrored
+        elif kind == 1:  # reflections: origins on a sphere patch, directions mirrored
             c = rng.normal(scale=20, size=3)
             nrm = -base + rng.normal(scale=0.02, size=(k, 3))
             nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
             o[t] = c + 3.0 * nrm
             d[t] = dirs - 2.0 * np.einsum("ij,ij->i", dirs, nrm)[:, None] * nrm
-        else:              # shadow rays towards a light from a surface patch
+        else:  # shadow rays towards a light from a surface patch
             light = rng.normal(scale=40, size=3)
             o[t] = rng.normal(scale=2, size=3) + rng.normal(scale=0.3, size=(k, 3))
             v = light - o[t]
@@ -46,7 +46,7 @@ def test_python_cones_hold_every_ray():
     k = 64
     o, d = coherent_tiles(rng, 60, k)
     live = rng.random((60, k)) < 0.8
-    live[5] = False                          # an empty tile
+    live[5] = False  # an empty tile
     cones = hre_cones.build_cones(o, d, live)
     check_contained(o, d, live, cones)
     useful = cones[:, 3] >= 0

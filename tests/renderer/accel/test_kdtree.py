@@ -83,6 +83,7 @@ def check_kdtree(kd, lo: np.ndarray, hi: np.ndarray, max_tree_depth: int) -> Non
         if kd.axis[node] >= 0:
             return rec_of[int(node)]
         return kdtree_layout.REF_LEAF | (int(first[node]) if kd.count[node] else kdtree_layout.REF_EMPTY)
+
     assert root == ref_of(0) and records.shape == (len(inner), 4)
     for i, node in enumerate(inner):
         x, y, z, w = (int(v) for v in records[i])
@@ -90,16 +91,18 @@ def check_kdtree(kd, lo: np.ndarray, hi: np.ndarray, max_tree_depth: int) -> Non
         assert (x & kdtree_layout.LOW_MASK, z) == (ref_of(kd.left[node]), ref_of(kd.left[node] + 1))
         assert np.uint32(y).view(np.float32) == kd.split[node]
     for node in leaves:
-        run = prims[first[node]:first[node] + kd.count[node]]
+        run = prims[first[node] : first[node] + kd.count[node]]
         np.testing.assert_array_equal(run, kd.leaf_prims(node))
         if kd.count[node]:
-            assert last[first[node] + kd.count[node] - 1] and not last[first[node]:first[node] + kd.count[node] - 1].any()
+            assert (
+                last[first[node] + kd.count[node] - 1]
+                and not last[first[node] : first[node] + kd.count[node] - 1].any()
+            )
     assert len(prims) == kd.count[leaves].sum()
 
 
 @settings(max_examples=40, **HYP)
-@given(sphere_sets(max_n=90), st.integers(1, 64), st.sampled_from([1.0, 0.9, 0.5, 0.1]),
-       st.sampled_from([0, 4, 1000]))
+@given(sphere_sets(max_n=90), st.integers(1, 64), st.sampled_from([1.0, 0.9, 0.5, 0.1]), st.sampled_from([0, 4, 1000]))
 def test_kdtree_invariants(spheres, max_tree_depth, cost_scale, window):
     c, r = spheres
     lo, hi = sphere_aabbs(c, r)

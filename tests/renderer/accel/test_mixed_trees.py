@@ -27,7 +27,7 @@ from renderer.settings import RenderSettings
 from renderer.tree_update import TreeUpdate
 
 TREE_METHODS = ("bih", "bvh", "kdtree", "twolevel", "bruteforce")
-W, H = 100, 100          # 10,000 primary rays: 99.99 % allows one ray
+W, H = 100, 100  # 10,000 primary rays: 99.99 % allows one ray
 
 
 def mixed_scene():
@@ -35,9 +35,13 @@ def mixed_scene():
     each other and the spheres, filling most of the view."""
     base = mesh_scene("mixed", detail=2)
     pot = teapot(4, size=4.0, material=0, transform=[[1, 0, 0, 0.0], [0, 1, 0, -20.0], [0, 0, 1, 0.0], [0, 0, 0, 1]])
-    meshes = (pot, icosphere(2, radius=6.0, center=(-10.0, -4.0, 8.0), material=1),
-              torus(6.0, 2.0, 24, 12, center=(9.0, -9.0, 6.0)), icosphere(1, radius=2.5, center=(12.0, 2.0, 12.0)),
-              torus(3.0, 1.0, 16, 8, center=(0.0, 6.0, 6.0)))
+    meshes = (
+        pot,
+        icosphere(2, radius=6.0, center=(-10.0, -4.0, 8.0), material=1),
+        torus(6.0, 2.0, 24, 12, center=(9.0, -9.0, 6.0)),
+        icosphere(1, radius=2.5, center=(12.0, 2.0, 12.0)),
+        torus(3.0, 1.0, 16, 8, center=(0.0, 6.0, 6.0)),
+    )
     cam = Camera((0.0, 2.0, 40.0), (0.0, -6.0, 0.0), (0.0, 1.0, 0.0), 62.0)
     return base.with_geometry(base.sphere_centers, base.sphere_radii, base.sphere_materials, meshes).with_camera(cam)
 
@@ -60,11 +64,11 @@ def reference_ids(scene):
 
 def prepared(name, scene, **kw):
     update = TreeUpdate()
-    if name == "twolevel":       # the first mesh and every third sphere "move": both trees hold both kinds
+    if name == "twolevel":  # the first mesh and every third sphere "move": both trees hold both kinds
         moving = np.zeros(scene.n_spheres + scene.n_triangles, bool)
-        moving[:scene.n_spheres:3] = True
+        moving[: scene.n_spheres : 3] = True
         r = scene.mesh_triangle_range(0)
-        moving[scene.n_spheres + r.start:scene.n_spheres + r.stop] = True
+        moving[scene.n_spheres + r.start : scene.n_spheres + r.stop] = True
         update = TreeUpdate(moving=moving)
     return METHODS[name].prepare(scene, kw.get("max_prims", 4), kw.get("max_tree_depth", 64), update=update)
 
@@ -86,21 +90,25 @@ def test_primary_ids_through_each_tree_match_brute_force_and_the_reference(name,
     assert METHODS[name].capabilities.meshes_on_gpu
     assert not isinstance(prep.packed, NotOnGPU)
     tex = prep.packed.textures
-    tri = tex["u_triangles"].data.reshape(-1, 4)[:3 * scene.n_triangles]
+    tri = tex["u_triangles"].data.reshape(-1, 4)[: 3 * scene.n_triangles]
     corners = tri[:, :3].copy().view(np.float32).reshape(-1, 3, 3)
     np.testing.assert_array_equal(corners, scene.triangle_corners.astype(np.float32))
     assert prep.packed.uniforms["u_tri_base"] == scene.triangle_id_base
-    if name == "bih":       # the leaf-order records decode to the tree's own order
+    if name == "bih":  # the leaf-order records decode to the tree's own order
         from renderer import gpu_layout
         from renderer.accel import bih_layout
+
         order, last = bih_layout.leaf_order(prep.tree)
         per = 1 if gpu_layout.equal_radii(scene) else 2
-        rec = tex["u_bih_spheres"].data.reshape(-1, 4)[:per * len(order)]
+        rec = tex["u_bih_spheres"].data.reshape(-1, 4)[: per * len(order)]
         key = rec[:, 3] if per == 1 else rec[1::2, 0]
         is_tri = (key & np.uint32(gpu_layout.TRI_SLOT)) != 0
         np.testing.assert_array_equal(is_tri, order >= scene.n_spheres)
-        index = np.where(is_tri, (key & np.uint32(gpu_layout.TRI_INDEX_MASK)).astype(np.int64) + scene.n_spheres,
-                         (key & np.uint32(gpu_layout.SPHERE_ID_MASK)).astype(np.int64))
+        index = np.where(
+            is_tri,
+            (key & np.uint32(gpu_layout.TRI_INDEX_MASK)).astype(np.int64) + scene.n_spheres,
+            (key & np.uint32(gpu_layout.SPHERE_ID_MASK)).astype(np.int64),
+        )
         np.testing.assert_array_equal(index, order)
         np.testing.assert_array_equal((key & np.uint32(gpu_layout.SPHERE_LAST)) != 0, last)
 
@@ -114,7 +122,7 @@ def inside_rays(scene):
     o = rng.uniform(-22, 22, (n, 3))
     d = rng.normal(size=(n, 3))
     aim = scene.triangle_corners[rng.integers(0, scene.n_triangles, n // 2)].mean(axis=1)
-    d[n // 2:] = aim - o[n // 2:]                 # half of them towards a triangle
+    d[n // 2 :] = aim - o[n // 2 :]  # half of them towards a triangle
     d[:600, 1:] = 0.0
     d[600:1200, :2] = 0.0
     d /= np.linalg.norm(d, axis=1, keepdims=True)
@@ -145,16 +153,24 @@ def test_a_ray_leaving_a_triangle_ignores_it_in_the_traversal_and_in_the_referen
     w = rng.dirichlet((1, 1, 1), len(j))
     p = np.einsum("ik,ikj->ij", w, c[j])
     n = np.cross(c[j, 1] - c[j, 0], c[j, 2] - c[j, 0])
-    d = n / np.linalg.norm(n, axis=1, keepdims=True)      # straight off the surface, outwards
+    d = n / np.linalg.norm(n, axis=1, keepdims=True)  # straight off the surface, outwards
     ignore = scene.n_spheres + j
-    res = traverse(METHODS["bih"].prepare(scene, 4, 64).tree, scene.sphere_centers, scene.sphere_radii, p, d,
-                   ignore=ignore, triangles=c)
+    res = traverse(
+        METHODS["bih"].prepare(scene, 4, 64).tree,
+        scene.sphere_centers,
+        scene.sphere_radii,
+        p,
+        d,
+        ignore=ignore,
+        triangles=c,
+    )
     assert not (res.prim == ignore).any()
     t_ref, id_ref = trace_rays(scene, p, d, src=scene.triangle_id_base + j)
-    not_plane = id_ref != scene.n_spheres      # the plane (id n) is outside the BIH
+    not_plane = id_ref != scene.n_spheres  # the plane (id n) is outside the BIH
     assert not_plane.sum() > 100
-    np.testing.assert_array_equal(tree_to_scene_ids(res.prim, scene.n_spheres, len(scene.planes))[not_plane],
-                                  id_ref[not_plane])
+    np.testing.assert_array_equal(
+        tree_to_scene_ids(res.prim, scene.n_spheres, len(scene.planes))[not_plane], id_ref[not_plane]
+    )
 
 
 def test_triangle_boxes_hold_the_triangle_in_both_precisions():
@@ -164,7 +180,7 @@ def test_triangle_boxes_hold_the_triangle_in_both_precisions():
     assert lo.dtype == hi.dtype == np.float32
     for corners in (c, c.astype(np.float32).astype(np.float64)):
         assert (lo[:, None, :] <= corners).all() and (corners <= hi[:, None, :]).all()
-    assert (lo < c.min(axis=1)).all() and (hi > c.max(axis=1)).all()       # strictly: rounded outwards
+    assert (lo < c.min(axis=1)).all() and (hi > c.max(axis=1)).all()  # strictly: rounded outwards
 
 
 def test_the_tree_index_space_is_spheres_then_triangles_and_maps_to_scene_ids(scene):
@@ -172,23 +188,23 @@ def test_the_tree_index_space_is_spheres_then_triangles_and_maps_to_scene_ids(sc
     assert len(lo) == scene.n_spheres + scene.n_triangles
     tree_ids = np.array([-1, 0, scene.n_spheres - 1, scene.n_spheres, scene.n_spheres + 5])
     ids = tree_to_scene_ids(tree_ids, scene.n_spheres, len(scene.planes))
-    np.testing.assert_array_equal(ids, [-1, 0, scene.n_spheres - 1, scene.triangle_id_base,
-                                        scene.triangle_id_base + 5])
+    np.testing.assert_array_equal(ids, [-1, 0, scene.n_spheres - 1, scene.triangle_id_base, scene.triangle_id_base + 5])
     np.testing.assert_array_equal(scene_to_tree_ids(ids, scene.n_spheres, len(scene.planes)), tree_ids)
-    assert scene_to_tree_ids(np.array([scene.n_spheres]), scene.n_spheres, 1)[0] == -1     # a plane
+    assert scene_to_tree_ids(np.array([scene.n_spheres]), scene.n_spheres, 1)[0] == -1  # a plane
 
 
 def test_a_method_whose_layout_packs_spheres_only_would_refuse_meshes(scene):
     """NotOnGPU (no method needs it since every layout holds triangles): reading it raises
     SceneError("meshes") naming the method and the methods that trace meshes."""
     from renderer.accel.base import MESH_METHODS, gpu_data
+
     packed = gpu_data(scene, lambda: None, meshes_on_gpu=False, method="newtree")
     assert isinstance(packed, NotOnGPU)
     with pytest.raises(SceneError) as e:
         _ = packed.textures
     assert e.value.field == "meshes" and "'newtree'" in e.value.message
     assert ", ".join(MESH_METHODS) in e.value.message and f"{scene.n_triangles:,} triangles" in e.value.message
-    assert gpu_data(scenario(2, 8), lambda: "packed", meshes_on_gpu=False) == "packed"   # spheres only: packed
+    assert gpu_data(scenario(2, 8), lambda: "packed", meshes_on_gpu=False) == "packed"  # spheres only: packed
 
 
 @pytest.mark.parametrize("name", TREE_METHODS)
@@ -212,11 +228,12 @@ def test_degenerate_triangles_sit_in_the_trees_but_are_never_hit():
     d = np.array([[0.0, -1.0, 0.0], [0.0, -1.0, 0.0]])
     for name in ("bih", "bvh", "kdtree"):
         t, ids = trace_tree(prepared(name, s).tree, s, o, d)
-        np.testing.assert_array_equal(ids, [0, 0])        # the floor plane (id 0), through the segment
+        np.testing.assert_array_equal(ids, [0, 0])  # the floor plane (id 0), through the segment
 
 
 def test_prepare_frame_refuses_the_ray_engines_on_a_scene_with_meshes_and_resolves_auto_with_triangles(scene):
     from renderer.prepare import prepare_frame
+
     for name in ("rayengine", "hre"):
         assert "triangles" not in METHODS[name].capabilities.primitives
         with pytest.raises(SceneError) as e:
@@ -224,5 +241,5 @@ def test_prepare_frame_refuses_the_ray_engines_on_a_scene_with_meshes_and_resolv
         assert e.value.field == "method" and "spheres and planes only" in e.value.message
     few_spheres = scene.with_geometry(np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32))
     frame = prepare_frame(few_spheres, RenderSettings(width=8, height=8, method="auto"))
-    assert frame.method == "bih"            # thousands of triangles: past the brute-force crossover
+    assert frame.method == "bih"  # thousands of triangles: past the brute-force crossover
     assert frame.cost.ms > 0 and frame.stats["triangles"] == scene.n_triangles

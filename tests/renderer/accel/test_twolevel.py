@@ -29,10 +29,10 @@ def test_static_spheres_in_the_kd_tree_moving_ones_in_the_bvh(kind):
     equal = gpu_layout.equal_radii(scene)
     # the BVH holds each moving sphere exactly once, as its scene id, with its centre
     bvh = gpu_layout.unpack_sphere_records(prep.packed.textures["u_bvh_spheres"].data, equal)
-    ids = bvh["id"][:len(moving_ids)]
+    ids = bvh["id"][: len(moving_ids)]
     assert sorted(ids.tolist()) == sorted(moving_ids)
-    np.testing.assert_array_equal(bvh["centre"][:len(ids)], scene.sphere_centers[ids].astype(np.float32))
-    assert bvh["last"][len(ids) - 1] and not bvh["last"][len(ids):].any()
+    np.testing.assert_array_equal(bvh["centre"][: len(ids)], scene.sphere_centers[ids].astype(np.float32))
+    assert bvh["last"][len(ids) - 1] and not bvh["last"][len(ids) :].any()
     # the kd-tree may list a sphere in several leaves, but only static ones, and all of them
     kd = set(gpu_layout.unpack_sphere_records(prep.packed.textures["u_kd_spheres"].data, equal)["id"].tolist())
     assert static_ids <= kd and kd <= static_ids | {0}, "kd records are static scene ids (0 pads the last row)"
@@ -53,8 +53,15 @@ def test_the_static_tree_is_built_once_per_static_set():
     assert again.stats["kd_cached"] is False
     c = f.scene.sphere_centers.copy()
     c[np.flatnonzero(~f.moving)[0]] += 0.5
-    moved = Scene(f.scene.camera, f.scene.lights, f.scene.materials, c, f.scene.sphere_radii,
-                  f.scene.sphere_materials, f.scene.planes)
+    moved = Scene(
+        f.scene.camera,
+        f.scene.lights,
+        f.scene.materials,
+        c,
+        f.scene.sphere_radii,
+        f.scene.sphere_materials,
+        f.scene.planes,
+    )
     prep = method.prepare(moved, 4, 64, update=TreeUpdate(scheme="refit", key="anim", moving=f.moving))
     assert prep.stats["kd_cached"] is False
 

@@ -34,7 +34,7 @@ ROOT = Path(__file__).resolve().parents[3]
 # The last commit before issue 18 (the shader, layouts and packers the record comes from).
 BASE_COMMIT = "cda5fce"
 
-W, H = 49, 81                       # odd: the centre row and column have direction components ±0
+W, H = 49, 81  # odd: the centre row and column have direction components ±0
 METHODS = ("bih", "bruteforce", "bvh", "kdtree", "twolevel")
 AVERAGED = ("color", "recursion", "heat")
 PRIMARY = ("depth", "primid", "normal")
@@ -47,24 +47,55 @@ def _scenes() -> dict:
     from renderer.scene import Light, Material, Plane, Scene
 
     def replace(scene, **kw):
-        d = dict(camera=scene.camera, lights=scene.lights, materials=scene.materials,
-                 sphere_centers=scene.sphere_centers, sphere_radii=scene.sphere_radii,
-                 sphere_materials=scene.sphere_materials, planes=scene.planes)
+        d = dict(
+            camera=scene.camera,
+            lights=scene.lights,
+            materials=scene.materials,
+            sphere_centers=scene.sphere_centers,
+            sphere_radii=scene.sphere_radii,
+            sphere_materials=scene.sphere_materials,
+            planes=scene.planes,
+        )
         d.update(kw)
         return Scene(**d)
 
     rng = np.random.default_rng(18)
     s3 = scenario(3, 1024)
-    both = Material(color=(0.6, 0.8, 1.0), ambient=0.1, diffuse=0.2, specular=0.3, shininess=60.0,
-                    reflective=0.3, transmissive=0.6, ior=1.3)
-    mirror = Material(color=(0.8, 0.8, 0.8), ambient=0.05, diffuse=0.1, specular=0.5, shininess=200.0,
-                      reflective=0.8, transmissive=0.0)
+    both = Material(
+        color=(0.6, 0.8, 1.0),
+        ambient=0.1,
+        diffuse=0.2,
+        specular=0.3,
+        shininess=60.0,
+        reflective=0.3,
+        transmissive=0.6,
+        ior=1.3,
+    )
+    mirror = Material(
+        color=(0.8, 0.8, 0.8),
+        ambient=0.05,
+        diffuse=0.1,
+        specular=0.5,
+        shininess=200.0,
+        reflective=0.8,
+        transmissive=0.0,
+    )
     s2 = scenario(2, 256, seed=3)
     lights2 = (Light((0.0, 40.0, 0.0), (1.0, 1.0, 1.0)), Light((30.0, 10.0, 40.0), (0.4, 0.3, 0.2)))
     planes2 = (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0), Plane((0.0, 0.0, -30.0), (0.0, 0.0, 1.0), 3))
-    many = tuple(Material(color=(0.2 + 0.03 * i, 0.9 - 0.04 * i, 0.5), ambient=0.2, diffuse=0.5, specular=0.2,
-                          shininess=10.0 + i, reflective=0.05 * (i % 5), transmissive=0.1 * (i % 3), ior=1.1)
-                 for i in range(20))
+    many = tuple(
+        Material(
+            color=(0.2 + 0.03 * i, 0.9 - 0.04 * i, 0.5),
+            ambient=0.2,
+            diffuse=0.5,
+            specular=0.2,
+            shininess=10.0 + i,
+            reflective=0.05 * (i % 5),
+            transmissive=0.1 * (i % 3),
+            ior=1.1,
+        )
+        for i in range(20)
+    )
     s1 = scenario(1, 125)
     empty = np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32)
     return {
@@ -72,17 +103,33 @@ def _scenes() -> dict:
         "s2_1024": scenario(2, 1024),
         "s3_4096": scenario(3, 4096),
         "s3_1024_radii": replace(s3, sphere_radii=rng.uniform(0.3, 1.7, s3.n_spheres)),
-        "both_kr_kt": replace(s2, materials=(RED, TRANSPARENT, both, mirror), lights=lights2, planes=planes2,
-                              sphere_materials=(np.arange(256) % 4).astype(np.int32)),
+        "both_kr_kt": replace(
+            s2,
+            materials=(RED, TRANSPARENT, both, mirror),
+            lights=lights2,
+            planes=planes2,
+            sphere_materials=(np.arange(256) % 4).astype(np.int32),
+        ),
         "no_lights": replace(scenario(1, 64), lights=()),
-        "many_materials": replace(s1, materials=many, sphere_materials=(np.arange(125) % 20).astype(np.int32),
-                                  planes=(Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 19),)),
-        "no_spheres": replace(scenario(1, 0), sphere_centers=empty[0], sphere_radii=empty[1],
-                              sphere_materials=empty[2]),
-        "planes_only": replace(scenario(1, 0), materials=(RED, mirror), lights=lights2,
-                               planes=(Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),
-                                       Plane((0.0, 0.0, -30.0), (0.0, 0.0, 1.0), 1),
-                                       Plane((0.0, 25.0, 0.0), (0.0, -1.0, 0.0), 1))),
+        "many_materials": replace(
+            s1,
+            materials=many,
+            sphere_materials=(np.arange(125) % 20).astype(np.int32),
+            planes=(Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 19),),
+        ),
+        "no_spheres": replace(
+            scenario(1, 0), sphere_centers=empty[0], sphere_radii=empty[1], sphere_materials=empty[2]
+        ),
+        "planes_only": replace(
+            scenario(1, 0),
+            materials=(RED, mirror),
+            lights=lights2,
+            planes=(
+                Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),
+                Plane((0.0, 0.0, -30.0), (0.0, 0.0, 1.0), 1),
+                Plane((0.0, 25.0, 0.0), (0.0, -1.0, 0.0), 1),
+            ),
+        ),
         "museum_mixed": museum(96, "mixed"),
     }
 
@@ -98,30 +145,57 @@ def cases() -> list[tuple[str, object, dict]]:
                 base["time"] = 0.7
             for mode in AVERAGED:
                 for spp in (1, 4):
-                    out.append((f"{name}/{method}/{mode}/spp{spp}", scene,
-                                dict(base, mode=mode, max_recursion_depth=5, samples_per_pixel=spp)))
+                    out.append(
+                        (
+                            f"{name}/{method}/{mode}/spp{spp}",
+                            scene,
+                            dict(base, mode=mode, max_recursion_depth=5, samples_per_pixel=spp),
+                        )
+                    )
             for mode in PRIMARY:
                 out.append((f"{name}/{method}/{mode}/spp1", scene, dict(base, mode=mode, max_recursion_depth=5)))
-            if name in ("s3_4096", "both_kr_kt"):      # the interactive profile's cut-off, and depth 3
-                out.append((f"{name}/{method}/color/d3_w0.3", scene,
-                            dict(base, mode="color", max_recursion_depth=3, min_weight=0.3)))
-            if name == "both_kr_kt":                   # the generic variant (nothing specialised away)
-                out.append((f"{name}/{method}/color/generic", scene,
-                            dict(base, mode="color", max_recursion_depth=4, specialize=False)))
-    sys.path.insert(0, str(ROOT))   # tests.stability (the catalogue) from this checkout; renderer stays first
+            if name in ("s3_4096", "both_kr_kt"):  # the interactive profile's cut-off, and depth 3
+                out.append(
+                    (
+                        f"{name}/{method}/color/d3_w0.3",
+                        scene,
+                        dict(base, mode="color", max_recursion_depth=3, min_weight=0.3),
+                    )
+                )
+            if name == "both_kr_kt":  # the generic variant (nothing specialised away)
+                out.append(
+                    (
+                        f"{name}/{method}/color/generic",
+                        scene,
+                        dict(base, mode="color", max_recursion_depth=4, specialize=False),
+                    )
+                )
+    sys.path.insert(0, str(ROOT))  # tests.stability (the catalogue) from this checkout; renderer stays first
     try:
         from tests.stability.cases import CASES
     finally:
         sys.path.pop(0)
     for case in CASES:
         scene = case.build()
-        if getattr(scene, "n_triangles", 0):   # meshes came after the base (issue 20): nothing to compare
-            continue                           # with; tests/renderer/gl/test_gpu_meshes.py holds them
+        if getattr(scene, "n_triangles", 0):  # meshes came after the base (issue 20): nothing to compare
+            continue  # with; tests/renderer/gl/test_gpu_meshes.py holds them
         for method in METHODS:
-            out.append((f"catalogue/{case.name}/{method}", scene,
-                        dict(width=case.width, height=case.height, method=method, mode="color", format="npy",
-                             max_prims=case.max_prims, max_tree_depth=case.max_tree_depth,
-                             max_recursion_depth=case.max_recursion_depth)))
+            out.append(
+                (
+                    f"catalogue/{case.name}/{method}",
+                    scene,
+                    dict(
+                        width=case.width,
+                        height=case.height,
+                        method=method,
+                        mode="color",
+                        format="npy",
+                        max_prims=case.max_prims,
+                        max_tree_depth=case.max_tree_depth,
+                        max_recursion_depth=case.max_recursion_depth,
+                    ),
+                )
+            )
     return out
 
 
@@ -135,36 +209,50 @@ def hashes(result, arrays: bool = True) -> dict[str, str]:
     ``arrays=False``: the uint8 image only."""
     if not arrays:
         return {"u8": _h(result.image_u8())}
-    return {"image": _h(result.image.astype(np.float32)), "u8": _h(result.image_u8()),
-            "depth": _h(result.depth.astype(np.float32)), "primid": _h(result.primid.astype(np.int32)),
-            "normal": _h(result.normal.astype(np.float32))}
+    return {
+        "image": _h(result.image.astype(np.float32)),
+        "u8": _h(result.image_u8()),
+        "depth": _h(result.depth.astype(np.float32)),
+        "primid": _h(result.primid.astype(np.int32)),
+        "normal": _h(result.normal.astype(np.float32)),
+    }
 
 
 def emit() -> dict[str, dict[str, str]]:
     """Render every case with the renderer on sys.path (the base commit's, under --write)."""
     from renderer.gl import GLRenderer
     from renderer.settings import RenderSettings
+
     r = GLRenderer()
     return {key: hashes(r.render(scene, RenderSettings(**kw))) for key, scene, kw in cases()}
 
 
 def write() -> None:
     with tempfile.TemporaryDirectory() as tmp:
-        archive = subprocess.run(["git", "-C", str(ROOT), "archive", BASE_COMMIT, "renderer", "shaders"],
-                                 check=True, capture_output=True).stdout
+        archive = subprocess.run(
+            ["git", "-C", str(ROOT), "archive", BASE_COMMIT, "renderer", "shaders"], check=True, capture_output=True
+        ).stdout
         subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
         env = {**os.environ, "PYTHONPATH": tmp}
-        out = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--emit"], cwd=tmp, env=env,
-                             check=True, capture_output=True, text=True).stdout
+        out = subprocess.run(
+            [sys.executable, str(Path(__file__).resolve()), "--emit"],
+            cwd=tmp,
+            env=env,
+            check=True,
+            capture_output=True,
+            text=True,
+        ).stdout
     data = json.loads(out)
-    RECORD.write_text(json.dumps({"base_commit": BASE_COMMIT, "size": [W, H], "frames": data},
-                                 indent=0, sort_keys=True) + "\n")
+    RECORD.write_text(
+        json.dumps({"base_commit": BASE_COMMIT, "size": [W, H], "frames": data}, indent=0, sort_keys=True) + "\n"
+    )
     print(f"wrote {RECORD}: {len(data)} frames of {BASE_COMMIT}")
 
 
 if __name__ == "__main__":
     if "--emit" in sys.argv:
         import renderer
+
         assert not str(Path(renderer.__file__).resolve()).startswith(str(ROOT)), "not the base commit's renderer"
         print(json.dumps(emit()))
     elif "--write" in sys.argv:

@@ -43,6 +43,7 @@ TREE_CHANGED = ("bvh", "twolevel")
 def _tree_dependent(key: str, kw: dict) -> bool:
     return kw["method"] in TREE_CHANGED and kw.get("mode") == "heat"
 
+
 CASES = B.cases()
 GROUPS: dict[str, list] = defaultdict(list)
 for _key, _scene, _kw in CASES:
@@ -58,6 +59,7 @@ def test_the_record_is_the_base_commits_and_covers_every_case():
 def textures_only(gl_renderer):
     """Another renderer on the same context (a second context would become the current one)."""
     from renderer.gl import GLRenderer
+
     return GLRenderer(gl_renderer.ctx, max_texture_width=128, uniform_blocks=False)
 
 
@@ -68,7 +70,7 @@ _PREPARED: dict[tuple, object] = {}
 
 
 def render(renderer, scene, settings: RenderSettings):
-    if not isinstance(scene, Scene):     # the animated museum: posed and built per frame, as render() does
+    if not isinstance(scene, Scene):  # the animated museum: posed and built per frame, as render() does
         return renderer.render(scene, settings)
     key = (id(scene), settings.method, settings.max_prims, settings.max_tree_depth, renderer.max_texture_width)
     if key not in _PREPARED:
@@ -76,8 +78,9 @@ def render(renderer, scene, settings: RenderSettings):
     return renderer.render(scene, settings, prepared=_PREPARED[key])
 
 
-def _mismatches(renderer, group: str, fields=("image", "u8", "depth", "primid", "normal"), skip=None,
-                **over) -> list[str]:
+def _mismatches(
+    renderer, group: str, fields=("image", "u8", "depth", "primid", "normal"), skip=None, **over
+) -> list[str]:
     bad = []
     for key, scene, kw in GROUPS[group]:
         if _tree_dependent(key, kw) or (skip and skip(key, kw)):
@@ -101,8 +104,11 @@ def test_frames_equal_the_base_shaders(gl_renderer, group):
 def test_frames_with_textures_only_equal_the_base_shaders(textures_only, group):
     # Brute force's one record array wraps alike at every n: its large scenes are left to
     # the test above (they take most of the time).
-    bad = _mismatches(textures_only, group, skip=lambda key, kw: kw["method"] == "bruteforce"
-                      and group in ("s3_4096", "s2_1024", "s3_1024_radii"))
+    bad = _mismatches(
+        textures_only,
+        group,
+        skip=lambda key, kw: kw["method"] == "bruteforce" and group in ("s3_4096", "s2_1024", "s3_1024_radii"),
+    )
     assert not bad, f"{len(bad)} frames differ (textures only, 128-texel rows): {bad[:6]}"
 
 
@@ -116,8 +122,11 @@ def test_png_frames_have_the_base_shaders_bytes(gl_renderer, group):
         res = render(gl_renderer, scene, RenderSettings(**{**kw, "format": "png"}))
         assert res.stats["target"] == "rgba8", key
         n += 1
-        want = (B.hashes(gl_renderer.render(scene, RenderSettings(**kw)))["u8"] if _tree_dependent(key, kw)
-                else RECORD[key]["u8"])
+        want = (
+            B.hashes(gl_renderer.render(scene, RenderSettings(**kw)))["u8"]
+            if _tree_dependent(key, kw)
+            else RECORD[key]["u8"]
+        )
         if B.hashes(res, arrays=False)["u8"] != want:
             bad.append(key)
     assert not bad, f"{len(bad)} of {n} png frames differ in their bytes: {bad[:6]}"

@@ -37,12 +37,36 @@ from renderer.settings import RenderSettings
 from tests.helpers import psnr
 
 W, H = 160, 120
-GLASS = Material(color=(1.0, 1.0, 1.0), ambient=0.05, diffuse=0.05, specular=0.3, shininess=80.0,
-                 reflective=0.1, transmissive=0.8, ior=1.5)
-MIRROR = Material(color=(0.9, 0.9, 0.9), ambient=0.05, diffuse=0.2, specular=0.5, shininess=40.0,
-                  reflective=0.6, transmissive=0.0, ior=1.0)
-MATTE = Material(color=(0.8, 0.3, 0.2), ambient=0.1, diffuse=0.8, specular=0.2, shininess=20.0,
-                 reflective=0.0, transmissive=0.0, ior=1.0)
+GLASS = Material(
+    color=(1.0, 1.0, 1.0),
+    ambient=0.05,
+    diffuse=0.05,
+    specular=0.3,
+    shininess=80.0,
+    reflective=0.1,
+    transmissive=0.8,
+    ior=1.5,
+)
+MIRROR = Material(
+    color=(0.9, 0.9, 0.9),
+    ambient=0.05,
+    diffuse=0.2,
+    specular=0.5,
+    shininess=40.0,
+    reflective=0.6,
+    transmissive=0.0,
+    ior=1.0,
+)
+MATTE = Material(
+    color=(0.8, 0.3, 0.2),
+    ambient=0.1,
+    diffuse=0.8,
+    specular=0.2,
+    shininess=20.0,
+    reflective=0.0,
+    transmissive=0.0,
+    ior=1.0,
+)
 
 
 def placed(x: float, y: float, z: float, s: float = 1.0) -> list:
@@ -57,15 +81,23 @@ def mixed_scene(smooth: bool = True) -> Scene:
     centers = rng.uniform([-18, -14, -12], [18, 14, 4], (24, 3))
     radii = rng.choice([1.0, 1.5, 2.5], 24)
     mats = rng.integers(0, 3, 24).astype(np.int32)
-    meshes = (teapot(4, size=4.0, material=2, smooth=smooth, transform=placed(0.0, -20.0, 0.0)),
-              icosphere(2, radius=6.0, center=(-10.0, -6.0, 8.0), material=1, smooth=smooth),
-              box((6.0, -18.0, 2.0), (14.0, -8.0, 10.0), material=0),
-              torus(5.0, 1.6, 24, 12, center=(9.0, 6.0, 4.0), material=2, smooth=smooth),
-              icosphere(1, radius=2.5, center=(-2.0, 8.0, 12.0), material=2, smooth=False))
-    return Scene(Camera((0.0, 2.0, 42.0), (0.0, -4.0, 0.0), (0.0, 1.0, 0.0), 62.0),
-                 (Light((20.0, 40.0, 30.0), (1.0, 1.0, 1.0)), Light((-25.0, 10.0, 20.0), (0.4, 0.4, 0.5))),
-                 (MIRROR, GLASS, MATTE), centers, radii, mats,
-                 (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 2),), meshes)
+    meshes = (
+        teapot(4, size=4.0, material=2, smooth=smooth, transform=placed(0.0, -20.0, 0.0)),
+        icosphere(2, radius=6.0, center=(-10.0, -6.0, 8.0), material=1, smooth=smooth),
+        box((6.0, -18.0, 2.0), (14.0, -8.0, 10.0), material=0),
+        torus(5.0, 1.6, 24, 12, center=(9.0, 6.0, 4.0), material=2, smooth=smooth),
+        icosphere(1, radius=2.5, center=(-2.0, 8.0, 12.0), material=2, smooth=False),
+    )
+    return Scene(
+        Camera((0.0, 2.0, 42.0), (0.0, -4.0, 0.0), (0.0, 1.0, 0.0), 62.0),
+        (Light((20.0, 40.0, 30.0), (1.0, 1.0, 1.0)), Light((-25.0, 10.0, 20.0), (0.4, 0.4, 0.5))),
+        (MIRROR, GLASS, MATTE),
+        centers,
+        radii,
+        mats,
+        (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 2),),
+        meshes,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -90,6 +122,7 @@ def reference(scene):
             s = RenderSettings(width=W, height=H, mode=mode, method=method, max_recursion_depth=depth, max_prims=4)
             cache[key] = render_reference(scene if sc is None else sc, s)
         return cache[key]
+
     return get
 
 
@@ -114,6 +147,7 @@ def primid_frames(gl_renderer, textures_only, scene):
             r = gl_renderer if blocks else textures_only
             cache[method, blocks] = r.render(scene, settings(mode="primid", method=method))
         return cache[method, blocks]
+
     return get
 
 
@@ -123,7 +157,7 @@ def test_the_scene_has_every_kind_of_primitive_in_view(scene, cpu_ids):
     assert len(set(scene.sphere_radii.tolist())) == 3, "different radii: 32-byte sphere records and slots"
     assert (cpu_ids >= base).mean() > 0.15 and ((cpu_ids >= 0) & (cpu_ids < base - 1)).mean() > 0.03
     assert (cpu_ids == base - 1).mean() > 0.05 and (cpu_ids == -1).any()
-    for m in range(len(scene.meshes)):     # every mesh is seen
+    for m in range(len(scene.meshes)):  # every mesh is seen
         r = scene.mesh_triangle_range(m)
         assert ((cpu_ids >= base + r.start) & (cpu_ids < base + r.stop)).sum() > 20, m
 
@@ -136,7 +170,7 @@ def test_primary_ids_match_the_reference_and_cpu_brute_force(primid_frames, cpu_
     g = primid_frames(method, blocks)
     assert g.stats["method"] == ("bih" if method == "auto" else method)
     assert "TRIANGLES" in g.stats["shader_features"] and "SMOOTH_TRIANGLES" in g.stats["shader_features"]
-    assert bool(g.stats["blocks"]) == blocks or (blocks and method == "bvh")    # (its nodes are 64 B: a texture)
+    assert bool(g.stats["blocks"]) == blocks or (blocks and method == "bvh")  # (its nodes are 64 B: a texture)
     ref = reference("primid")
     agree_ref = (g.primid == ref.primid).mean()
     agree_cpu = (g.primid == cpu_ids).mean()
@@ -159,10 +193,11 @@ def test_twolevel_with_moving_meshes_and_spheres(gl_renderer, scene, cpu_ids, re
     sphere in the BVH, the rest in the kd-tree."""
     from renderer.methods import METHODS
     from renderer.tree_update import TreeUpdate
+
     moving = np.zeros(scene.n_spheres + scene.n_triangles, bool)
-    moving[:scene.n_spheres:3] = True
+    moving[: scene.n_spheres : 3] = True
     r = scene.mesh_triangle_range(0)
-    moving[scene.n_spheres + r.start:scene.n_spheres + r.stop] = True
+    moving[scene.n_spheres + r.start : scene.n_spheres + r.stop] = True
     prep = METHODS["twolevel"].prepare(scene, 4, 64, update=TreeUpdate(moving=moving))
     g = gl_renderer.render(scene, settings(mode="primid", method="twolevel"), prepared=prep)
     assert (g.primid == cpu_ids).mean() >= 0.9999
@@ -199,6 +234,7 @@ def teapot_normals():
             sc = mesh_scene("teapot", 2, smooth=smooth)
             cache[smooth] = sc, render_reference(sc, settings(mode="normal", method="bih"))
         return cache[smooth]
+
     return get
 
 
@@ -210,7 +246,7 @@ def test_flat_and_smooth_normals_match_the_reference(gl_renderer, teapot_normals
     s = settings(mode="normal", method="bih")
     g = gl_renderer.render(sc, s)
     assert (g.primid == ref.primid).mean() >= 0.999
-    ok = (g.primid == ref.primid) & (ref.primid >= sc.triangle_id_base)     # the teapot's pixels
+    ok = (g.primid == ref.primid) & (ref.primid >= sc.triangle_id_base)  # the teapot's pixels
     assert ok.sum() > 0.05 * W * H
     err = np.abs(g.normal[ok].astype(np.float64) - ref.normal[ok]).max(axis=1)
     assert np.quantile(err, 0.999) <= 1e-3, f"smooth={smooth}: normals off by {err.max():.2e}"
@@ -242,9 +278,11 @@ def test_heat_counts_match_the_cpu_traversal(gl_renderer, scene, reference):
 
 # ---- watertightness ---------------------------------------------------------------------------
 def closed_meshes() -> dict[str, object]:
-    return {"icosphere": icosphere(2, radius=3.0, center=(0.25, -0.5, 0.125)),
-            "box": box((-2.0, -2.0, -2.0), (2.0, 2.0, 2.0)),
-            "teapot": teapot(4, size=1.2, transform=placed(0.0, -1.5, 0.0))}
+    return {
+        "icosphere": icosphere(2, radius=3.0, center=(0.25, -0.5, 0.125)),
+        "box": box((-2.0, -2.0, -2.0), (2.0, 2.0, 2.0)),
+        "teapot": teapot(4, size=1.2, transform=placed(0.0, -1.5, 0.0)),
+    }
 
 
 def directions(count: int) -> np.ndarray:
@@ -254,7 +292,7 @@ def directions(count: int) -> np.ndarray:
     diag = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
     k = np.arange(count) + 0.5
     phi = np.arccos(1 - 2 * k / count)
-    theta = np.pi * (1 + 5 ** 0.5) * k
+    theta = np.pi * (1 + 5**0.5) * k
     fib = np.stack([np.cos(theta) * np.sin(phi), np.cos(phi), np.sin(theta) * np.sin(phi)], axis=1)
     out = np.concatenate([axes, diag, fib])
     return out / np.linalg.norm(out, axis=1, keepdims=True)
@@ -273,12 +311,21 @@ def leak_views():
             for i, d in enumerate(directions(10)):
                 pos = tuple(float(x) for x in 9.0 * d)
                 up = (0.0, 0.0, 1.0) if abs(d[1]) > 0.9 else (0.0, 1.0, 0.0)
-                sc = Scene(Camera(pos, (0.0, 0.0, 0.0), up, 40.0 if i % 2 else 37.0), (), (MATTE,),
-                           np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32), (), (mesh,))
+                sc = Scene(
+                    Camera(pos, (0.0, 0.0, 0.0), up, 40.0 if i % 2 else 37.0),
+                    (),
+                    (MATTE,),
+                    np.zeros((0, 3)),
+                    np.zeros(0),
+                    np.zeros(0, np.int32),
+                    (),
+                    (mesh,),
+                )
                 s = RenderSettings(width=w, height=h, mode="primid", method="bruteforce", max_prims=4)
                 views.append((sc, render_reference(sc, s).primid))
             cache[kind] = views
         return cache[kind]
+
     return get
 
 
@@ -295,7 +342,7 @@ def test_no_ray_leaks_through_a_closed_mesh(gl_renderer, leak_views, kind, metho
         inside = np.ones_like(hit)
         for dy in (-1, 0, 1):
             for dx in (-1, 0, 1):
-                inside &= pad[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+                inside &= pad[1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w]
         leaks += int((inside & (g < 0)).sum())
         differ += int((hit != (g >= 0)).sum())
         inside_total += int(inside.sum())
@@ -309,6 +356,7 @@ def test_a_method_that_packs_spheres_only_refuses_meshes_naming_those_that_do(gl
     """NotOnGPU stands for a method without ``meshes_on_gpu``: the frame's upload refuses."""
     from renderer.accel import base
     from renderer.methods import METHODS
+
     prep = METHODS["bih"].prepare(scene, 4, 64)
     prep.packed = base.gpu_data(scene, lambda: prep.packed, meshes_on_gpu=False, method="bih")
     with pytest.raises(SceneError) as e:
@@ -322,11 +370,22 @@ def test_zero_area_triangles_keep_their_ids_and_are_never_hit(gl_renderer):
     on the GPU, the box behind them seen as the reference sees it."""
     from renderer import gpu_layout
     from renderer.scene import Mesh
-    sliver = Mesh(np.array([[-5.0, 0.0, 0.0], [0.0, 0.0, 0.0], [5.0, 0.0, 0.0], [0.0, 3.0, 0.0]]),
-                  [[0, 1, 2], [0, 3, 3], [0, 1, 3]])           # collinear, repeated corner, a real one
+
+    sliver = Mesh(
+        np.array([[-5.0, 0.0, 0.0], [0.0, 0.0, 0.0], [5.0, 0.0, 0.0], [0.0, 3.0, 0.0]]),
+        [[0, 1, 2], [0, 3, 3], [0, 1, 3]],
+    )  # collinear, repeated corner, a real one
     cube = box((-6.0, -6.0, -9.0), (6.0, 6.0, -7.0))
-    sc = Scene(Camera((0.0, 0.0, 12.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 60.0), (), (MATTE,),
-               np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32), (), (sliver, cube))
+    sc = Scene(
+        Camera((0.0, 0.0, 12.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 60.0),
+        (),
+        (MATTE,),
+        np.zeros((0, 3)),
+        np.zeros(0),
+        np.zeros(0, np.int32),
+        (),
+        (sliver, cube),
+    )
     assert sc.n_degenerate_triangles == 2
     rec = gpu_layout.triangle_records(sc).reshape(-1, 3, 4)
     np.testing.assert_array_equal((rec[:, 0, 3] & np.uint32(gpu_layout.TRI_DEGENERATE)) != 0, sc.triangle_degenerate)

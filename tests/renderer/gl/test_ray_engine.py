@@ -37,6 +37,7 @@ def size_for(n: int) -> tuple[int, int]:
 
 # ------------------------------------------------------------------------ exactness
 
+
 @pytest.mark.parametrize("depth", [1, 5])
 @pytest.mark.parametrize("n", [64, 1024])
 @pytest.mark.parametrize("sc", [1, 2, 3])
@@ -72,6 +73,7 @@ def test_reference_agreement_of_bruteforce_is_the_bar(gl_renderer):
 
 
 # ------------------------------------------------------------------------ cones (GPU)
+
 
 def _trace(gl_renderer, method, scene, settings, log=None):
     """One whole frame of a ray-engine ``method`` object (not the registry's: a test may set
@@ -147,11 +149,11 @@ def test_culled_tiles_hold_no_hit(gl_renderer, hre_log):
             if not lv.any():
                 continue
             ro, rd = o[sl][lv], d[sl][lv]
-            for s in np.flatnonzero(~drawn[ti, :scene.n_spheres]):
+            for s in np.flatnonzero(~drawn[ti, : scene.n_spheres]):
                 culled_total += 1
                 hits = any_hit(ro, rd, scene.sphere_centers[s], scene.sphere_radii[s])
                 assert not hits.any(), f"{rec['kind']} pass, tile {ti}: culled sphere {s} is hit"
-        assert drawn[:, scene.n_spheres:].all(), "planes are never culled"
+        assert drawn[:, scene.n_spheres :].all(), "planes are never culled"
     assert culled_total > 1000, "the test should see many culled pairs"
 
 
@@ -197,7 +199,7 @@ def test_heat_counts_primitives_drawn(gl_renderer):
     s = RenderSettings(width=48, height=80, mode="heat")
     re_ = gl_renderer.render(scene, s.with_(method="rayengine")).image
     hre = gl_renderer.render(scene, s.with_(method="hre")).image
-    assert np.allclose(re_[..., 0], 1.0) and np.allclose(re_[..., 1:], 0.0)   # 64 spheres · 0.05 > 1
+    assert np.allclose(re_[..., 0], 1.0) and np.allclose(re_[..., 1:], 0.0)  # 64 spheres · 0.05 > 1
     assert (hre[..., 0] < 1.0).mean() > 0.5, "most tiles should draw fewer than 20 spheres"
 
 

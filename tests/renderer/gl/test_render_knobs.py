@@ -24,14 +24,25 @@ W, H = 96, 160
 
 def diffuse_only(n: int) -> Scene:
     s = scenario(3, n)
-    matte = Material(color=(0.2, 0.6, 0.9), ambient=0.2, diffuse=0.7, specular=0.1, shininess=20,
-                     reflective=0.0, transmissive=0.0)
-    return Scene(s.camera, s.lights, (matte,), s.sphere_centers, s.sphere_radii,
-                 np.zeros(s.n_spheres, np.int32), tuple(p.__class__(p.point, p.normal, 0) for p in s.planes))
+    matte = Material(
+        color=(0.2, 0.6, 0.9), ambient=0.2, diffuse=0.7, specular=0.1, shininess=20, reflective=0.0, transmissive=0.0
+    )
+    return Scene(
+        s.camera,
+        s.lights,
+        (matte,),
+        s.sphere_centers,
+        s.sphere_radii,
+        np.zeros(s.n_spheres, np.int32),
+        tuple(p.__class__(p.point, p.normal, 0) for p in s.planes),
+    )
 
 
-SCENES = {"diffuse-only": lambda: diffuse_only(64), "16 spheres": lambda: scenario(2, 16),
-          "scenario 3": lambda: scenario(3, 256)}
+SCENES = {
+    "diffuse-only": lambda: diffuse_only(64),
+    "16 spheres": lambda: scenario(2, 16),
+    "scenario 3": lambda: scenario(3, 256),
+}
 
 
 @pytest.mark.parametrize("name", list(SCENES))
@@ -107,6 +118,7 @@ def test_png_frames_at_one_sample_read_one_rgba8_target(gl_renderer):
         np.testing.assert_array_equal(getattr(png, field), getattr(npy, field))
     assert gl_renderer.render(scene, s.with_(format="jpeg", samples_per_pixel=4)).stats["target"] == "float"
     from renderer.gl import GLRenderer
+
     assert GLRenderer(gl_renderer.ctx, image_targets=False).render(scene, s).stats["target"] == "float"
 
 
@@ -116,6 +128,7 @@ def test_frames_draw_the_background_variant_where_rays_meet_no_sphere(gl_rendere
     no plane either) a frame is drawn by the variant without traversal: the same pixels, bit
     for bit, in bands too; a camera inside the box draws every pixel with the tracer."""
     from renderer.gl import GLRenderer
+
     full = GLRenderer(gl_renderer.ctx, background=False)
     scene = scenario(3, 256)
     s = RenderSettings(width=64, height=96, mode=mode, format="npy", max_recursion_depth=4)
@@ -131,5 +144,6 @@ def test_frames_draw_the_background_variant_where_rays_meet_no_sphere(gl_rendere
         for field in ("image", "depth", "primid", "normal"):
             np.testing.assert_array_equal(getattr(res, field), getattr(want, field), err_msg=field)
     from renderer.scene import Camera
+
     inside = scene.with_camera(Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0)))
     assert "background_pixels" not in gl_renderer.render(inside, s).stats

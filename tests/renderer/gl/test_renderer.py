@@ -39,6 +39,7 @@ def reference_frames():
             s = RenderSettings(width=W, height=H, max_recursion_depth=5, method="bruteforce")
             cache[(sc, n)] = render_reference(scenario(sc, n), s)
         return cache[(sc, n)]
+
     return get
 
 
@@ -111,14 +112,15 @@ def test_npy_arrays_follow_spec(gl_renderer):
 
 # ---------------------------------------------------------------- methods bvh and kdtree
 
-TREE_W, TREE_H = 96, 160     # 24 cases × 2 methods: smaller frames than the reference's above
+TREE_W, TREE_H = 96, 160  # 24 cases × 2 methods: smaller frames than the reference's above
 _REF: dict = {}
 
 
 def tree_reference(sc: int, n: int, depth: int):
     if (sc, n, depth) not in _REF:
-        _REF[(sc, n, depth)] = render_reference(scenario(sc, n), RenderSettings(
-            width=TREE_W, height=TREE_H, max_recursion_depth=depth, method="bruteforce"))
+        _REF[(sc, n, depth)] = render_reference(
+            scenario(sc, n), RenderSettings(width=TREE_W, height=TREE_H, max_recursion_depth=depth, method="bruteforce")
+        )
     return _REF[(sc, n, depth)]
 
 
@@ -156,7 +158,7 @@ def test_gpu_refit_after_incoherent_motion_is_exact(gl_renderer):
             assert agree >= 0.9999, f"{scheme}, frame {frame}: {agree:.6f}"
             if frame:
                 assert g.stats["scheme"] == scheme
-            c = rng.uniform(-20, 20, c.shape)      # every sphere teleports
+            c = rng.uniform(-20, 20, c.shape)  # every sphere teleports
 
 
 # -------------------------------------------------------------------- animated scenes
@@ -173,8 +175,9 @@ def test_every_frame_matches_brute_force(gl_renderer, kind):
         bf = gl_renderer.render(anim, base.with_(method="bruteforce", time=t))
         assert (bf.primid >= 0).mean() > 0.5
         for method, scheme in variants:
-            g = gl_renderer.render(anim, base.with_(method=method, time=t, update=scheme),
-                                   key=("test", kind, method, scheme))
+            g = gl_renderer.render(
+                anim, base.with_(method=method, time=t, update=scheme), key=("test", kind, method, scheme)
+            )
             agree = (g.primid == bf.primid).mean()
             assert agree >= 0.9999, f"{kind} t={t} {method}/{scheme}: ids agree on {agree:.6f}"
             assert np.isfinite(g.image).all()
