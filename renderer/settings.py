@@ -11,6 +11,7 @@ flags, ``GET /api/info``'s ``settings`` (what the client's settings sheet is bui
 
 from __future__ import annotations
 
+import builtins
 import dataclasses
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, replace
@@ -72,7 +73,7 @@ class SettingSpec:
             raise ValueError(f"setting {self.name}: a number has bounds or choices")
 
     @property
-    def python_type(self) -> type:
+    def python_type(self) -> builtins.type:  # `type` here is the field above
         return TYPES[self.type]
 
     def methods(self) -> list[str]:
@@ -95,13 +96,15 @@ class SettingSpec:
             if v not in self.choices or isinstance(v, bool):
                 raise SceneError(name, f"must be one of {self.choices}, got {v!r}")
         elif self.type == "integer":
-            lo, hi = self.bounds or (None, None)
+            assert self.bounds is not None  # __post_init__: a number has bounds or choices
+            lo, hi = self.bounds
             if isinstance(v, bool) or not isinstance(v, int):
                 raise SceneError(name, f"expected an integer, got {v!r}")
             if not lo <= v <= hi:
                 raise SceneError(name, f"must be in {lo} … {hi}, got {v}")
         else:
-            lo, hi = self.bounds or (None, None)
+            assert self.bounds is not None
+            lo, hi = self.bounds
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo <= float(v) <= hi):
                 raise SceneError(name, f"must be a number in [{lo:g}, {hi:g}], got {v!r}")
 

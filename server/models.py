@@ -327,7 +327,7 @@ def setting_type(spec: SettingSpec) -> Any:
     JSON Schema has them (:data:`Integral`)."""
     described = Field(description=spec.doc)
     if spec.choices is not None:
-        values = Literal[spec.choices]  # type: ignore[valid-type]
+        values = Literal[spec.choices]  # type: ignore[name-defined]  # a Literal of the declared choices, made at run time
         return Annotated[values, Integral, described] if spec.type == "integer" else Annotated[values, described]
     if spec.type == "boolean":
         return Annotated[bool, described]
