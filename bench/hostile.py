@@ -76,8 +76,9 @@ from pathlib import Path
 
 import httpx
 
-ROOT = Path(__file__).resolve().parent.parent
 from bench.child import ServerChild, free_port
+
+ROOT = Path(__file__).resolve().parent.parent
 
 MIB = 1 << 20
 
