@@ -360,7 +360,7 @@ def part_metrics(root: Path, args) -> dict:
             t0 = time.perf_counter()
             for _ in range(args.metrics_requests):
                 method = "".join(rnd.choices("ABCDEFGHIJKLMNOPQRSTUVWXYZ", k=8))
-                tok = "%08x" % rnd.getrandbits(32)
+                tok = f"{rnd.getrandbits(32):08x}"
                 path = rnd.choice(("/api/sessions", f"/api/sessions/{tok}", f"/{tok}", f"/api/{tok}/{tok}"))
                 code = c.request(method, path).status_code
                 codes[code] = codes.get(code, 0) + 1

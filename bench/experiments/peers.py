@@ -513,7 +513,8 @@ shape per sphere, and one `ellipsoids` shape holding them all, via `ray_intersec
 by Embree through embreex (spheres as icospheres: {20 * 4**ICO_LEVEL} triangles each, one level
 fewer where a scene would pass {ICO_MAX_TRIANGLES:,} triangles). Versions: {vers}. Dr.Jit threads:
 {threads}. Build = what each needs before the first ray (our BIH build; `mi.load_dict`; Embree's
-commit — embreex's copying of the mesh is shown apart); trace = the rays only. Hit distances are compared with a float64 reference: the CPU
+commit — embreex's copying of the mesh is shown apart); trace = the rays only. \
+Hit distances are compared with a float64 reference: the CPU
 BIH traversal of `renderer/bih_traverse.py` (exact: the same `t` as a float64 brute force), itself
 checked against `render_reference` at the smallest n — {check_txt}.{missing}
 
