@@ -140,17 +140,18 @@ def icosphere(level: int) -> tuple[np.ndarray, np.ndarray]:
     ]
     verts = [np.array(p, float) / np.linalg.norm(p) for p in v]
     faces = list(f)
+    cache: dict[tuple[int, int], int] = {}  # an edge's midpoint vertex, within one level
+
+    def mid(a: int, b: int) -> int:
+        key = (min(a, b), max(a, b))
+        if key not in cache:
+            m = verts[a] + verts[b]
+            verts.append(m / np.linalg.norm(m))
+            cache[key] = len(verts) - 1
+        return cache[key]
+
     for _ in range(level):
-        cache: dict[tuple[int, int], int] = {}
-
-        def mid(a: int, b: int) -> int:
-            key = (min(a, b), max(a, b))
-            if key not in cache:
-                m = verts[a] + verts[b]
-                verts.append(m / np.linalg.norm(m))
-                cache[key] = len(verts) - 1
-            return cache[key]
-
+        cache.clear()
         nf = []
         for a, b, c in faces:
             ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)

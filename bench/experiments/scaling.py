@@ -45,7 +45,7 @@ def measure(ctx: Context) -> dict:
     for sc, n, mp in ctx.bar(jobs, desc="scaling: build"):
         s = scenario(sc, n, seed=0, radius=1.0)
         build[(sc, n, mp)], _ = time_it(
-            lambda: build_for_spheres(s.sphere_centers, s.sphere_radii, mp),
+            lambda s=s, mp=mp: build_for_spheres(s.sphere_centers, s.sphere_radii, mp),
             ctx.runs,
             warmup=1 if n <= 65536 else 0,
             budget_s=None if ctx.quick else BUILD_BUDGET_S,
