@@ -555,7 +555,9 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
             axes[1].plot(bx, [med("build", n, eng) for n in bx], **style)
         axes[2].plot(xs, [max(med("max_dt", n, eng), 1e-9) for n in xs], **style)
     for ax, yl in zip(
-        axes, ("Mrays/s (primary rays)", "build ms (brute force builds nothing)", "max |t − t_ref| (world units)")
+        axes,
+        ("Mrays/s (primary rays)", "build ms (brute force builds nothing)", "max |t − t_ref| (world units)"),
+        strict=True,
     ):
         ax.set_xscale("log")
         ax.set_yscale("log")
