@@ -32,8 +32,9 @@ import os
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
 from bench.child import ServerChild
+
+ROOT = Path(__file__).resolve().parent.parent
 
 CHROMIUM = os.environ.get("POCKETRAY_CHROMIUM", "/usr/bin/chromium")
 GL_ARGS = [

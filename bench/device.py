@@ -209,7 +209,8 @@ def fmt(v: float, digits: int = 0) -> str:
 
 def markdown(rows: list[dict]) -> str:
     out = [
-        "| n | size | device ms/frame (p50) | device frames/s | device load ms (fetch + build + upload; + compile the first time) "
+        "| n | size | device ms/frame (p50) | device frames/s "
+        "| device load ms (fetch + build + upload; + compile the first time) "
         "| server ms/frame (p50) | server frames/s | server trace ms (p50) | device ÷ server frames/s |",
         "|---|---|---|---|---|---|---|---|---|",
     ]

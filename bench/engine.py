@@ -31,7 +31,7 @@ def machine() -> str:
 
 
 def build_table(ns: list[int], runs: int) -> None:
-    print("\n### BIH build time (ms, median of %d runs)\n" % runs)
+    print(f"\n### BIH build time (ms, median of {runs} runs)\n")
     print("| n | sc1 mp1 | sc1 mp8 | sc2 mp1 | sc2 mp8 | sc3 mp1 | sc3 mp8 |")
     print("|---:|---:|---:|---:|---:|---:|---:|")
     for n in ns:

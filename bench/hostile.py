@@ -76,8 +76,9 @@ from pathlib import Path
 
 import httpx
 
-ROOT = Path(__file__).resolve().parent.parent
 from bench.child import ServerChild, free_port
+
+ROOT = Path(__file__).resolve().parent.parent
 
 MIB = 1 << 20
 
@@ -188,12 +189,12 @@ def part_largest(root: Path, args) -> dict:
             idle = s.memory()
             codes: list[int] = []
 
-            def create() -> None:
-                with httpx.Client(base_url=s.url, timeout=600) as c:
+            def create(url: str, codes: list[int]) -> None:
+                with httpx.Client(base_url=url, timeout=600) as c:
                     codes.append(c.post("/api/sessions", content=body, headers=JSON).status_code)
 
             t0 = time.perf_counter()
-            threads = [threading.Thread(target=create) for _ in range(count)]
+            threads = [threading.Thread(target=create, args=(s.url, codes)) for _ in range(count)]
             for t in threads:
                 t.start()
             for t in threads:
@@ -221,8 +222,8 @@ def part_recipe(root: Path, args) -> dict:
             idle = s.memory()
             codes: list[int] = []
 
-            def create() -> None:
-                with httpx.Client(base_url=s.url, timeout=900) as c:
+            def create(url: str, codes: list[int]) -> None:
+                with httpx.Client(base_url=url, timeout=900) as c:
                     codes.append(
                         c.post(
                             "/api/sessions", json={"scenario": 3, "n": args.max_spheres, "seed": len(codes)}
@@ -230,7 +231,7 @@ def part_recipe(root: Path, args) -> dict:
                     )
 
             t0 = time.perf_counter()
-            threads = [threading.Thread(target=create) for _ in range(count)]
+            threads = [threading.Thread(target=create, args=(s.url, codes)) for _ in range(count)]
             for t in threads:
                 t.start()
             for t in threads:
@@ -359,7 +360,7 @@ def part_metrics(root: Path, args) -> dict:
             t0 = time.perf_counter()
             for _ in range(args.metrics_requests):
                 method = "".join(rnd.choices("ABCDEFGHIJKLMNOPQRSTUVWXYZ", k=8))
-                tok = "%08x" % rnd.getrandbits(32)
+                tok = f"{rnd.getrandbits(32):08x}"
                 path = rnd.choice(("/api/sessions", f"/api/sessions/{tok}", f"/{tok}", f"/api/{tok}/{tok}"))
                 code = c.request(method, path).status_code
                 codes[code] = codes.get(code, 0) + 1
@@ -589,7 +590,7 @@ def part_ws_flood(root: Path, args) -> dict:
             waits: list[float] = []
             stop = threading.Event()
 
-            def poll() -> None:
+            def poll(stop: threading.Event, waits: list[float]) -> None:
                 with httpx.Client(base_url=s.url, timeout=120) as c:
                     while not stop.is_set():
                         t0 = time.perf_counter()
@@ -598,7 +599,7 @@ def part_ws_flood(root: Path, args) -> dict:
                         time.sleep(0.02)
 
             sock = _raw_ws(s.port, sid)
-            poller = threading.Thread(target=poll)
+            poller = threading.Thread(target=poll, args=(stop, waits))
             poller.start()
             time.sleep(0.3)
             flood = _ws_text_frame(b"x") * count

@@ -45,9 +45,10 @@ from pathlib import Path
 
 import httpx
 
-ROOT = Path(__file__).resolve().parent.parent
 from bench.child import ServerChild
 from renderer.profiles import PROFILES
+
+ROOT = Path(__file__).resolve().parent.parent
 
 STAGES = ("queue", "build", "upload", "trace", "read", "encode")
 

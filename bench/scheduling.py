@@ -32,9 +32,9 @@ from pathlib import Path
 
 import httpx
 
-ROOT = Path(__file__).resolve().parent.parent
-
 from bench.latency import Server, pct
+
+ROOT = Path(__file__).resolve().parent.parent
 
 PHONE = (502, 1088)  # 390 × 844 CSS px at DPR 3, fitted to a long side of 1,088 device px
 STILL = {"max_recursion_depth": 8, "samples_per_pixel": 4, "min_weight": 0.03}

@@ -153,6 +153,18 @@ def _scene(spec: dict):
     raise ValueError(spec)
 
 
+def _timed(fn, aside: list[float]):
+    """``fn``, its process time added to ``aside[0]`` (the part of a frame spent outside the tracer)."""
+
+    def run(*a):
+        c = time.process_time()
+        out = fn(*a)
+        aside[0] += time.process_time() - c
+        return out
+
+    return run
+
+
 def worker(renderer_kw: dict) -> None:
     from renderer.gl import GLRenderer
     from renderer.methods import METHODS, resolve_method
@@ -176,18 +188,8 @@ def worker(renderer_kw: dict) -> None:
         scene, settings, prepared = cache[key]
         f = r.begin(scene, settings, prepared=prepared)
         aside = [0.0]
-
-        def timed(fn):
-            def run(*a):
-                c = time.process_time()
-                out = fn(*a)
-                aside[0] += time.process_time() - c
-                return out
-
-            return run
-
-        f._finish_pass = timed(f._finish_pass)
-        f._compose = timed(f._compose)
+        f._finish_pass = _timed(f._finish_pass, aside)
+        f._compose = _timed(f._compose, aside)
         w0, c0 = time.perf_counter(), time.process_time()
         while not f.step():
             pass

@@ -35,8 +35,9 @@ from pathlib import Path
 
 import httpx
 
-ROOT = Path(__file__).resolve().parent.parent
 from bench.child import ServerChild, free_port
+
+ROOT = Path(__file__).resolve().parent.parent
 
 FRAME = {"width": 96, "height": 160, "max_recursion_depth": 2, "samples_per_pixel": 1, "format": "jpeg"}
 

@@ -173,7 +173,7 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
         [(f["label"], f"{f['ms']:.1f}", f"{f['est']:.1f}", f"{f['est'] / max(f['ms'], 1e-3):.2f}") for f in worst],
     )
     within2 = float(np.mean((ratios >= 0.5) & (ratios <= 2.0)))
-    consts = ", ".join(f"{name} {value:.3g}" for name, value in zip(CostModel.TERMS, model.vector()))
+    consts = ", ".join(f"{name} {value:.3g}" for name, value in zip(CostModel.TERMS, model.vector(), strict=True))
     return f"""## {TITLE}
 
 {run.caption(1, "one frame after a warm-up per configuration")}
@@ -203,7 +203,7 @@ def plot(data: dict, figures, quick: bool = False) -> dict[str, str]:
     for mp, label in ((False, "one-pass methods"), (True, "ray engines")):
         pts = [(f["measured_ms"], f["estimated_ms"]) for f in frames if bool(f.get("multi_pass")) == mp]
         if pts:
-            m, e = zip(*pts)
+            m, e = zip(*pts, strict=True)
             ax.scatter(
                 m,
                 e,

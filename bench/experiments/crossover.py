@@ -49,7 +49,7 @@ def best_threshold(ns, cases: list[tuple[list[float], list[float]]]) -> tuple[in
     for c in candidates:
         loss = 0.0
         for bf, bih in cases:
-            for n, f, b in zip(ns, bf, bih):
+            for n, f, b in zip(ns, bf, bih, strict=True):
                 chosen = f if n < c else b
                 loss += chosen / min(f, b) - 1.0
         regret[c] = loss
@@ -108,7 +108,9 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
         for sc in (1, 2, 3):
             bf, bih = _series(ns, points, "bruteforce", d, sc), _series(ns, points, "bih", d, sc)
             cases.append((bf, bih))
-            rows.append([str(sc), str(d), crossover(ns, bf, bih)[1]] + [f"{f / b:.2f}" for f, b in zip(bf, bih)])
+            rows.append(
+                [str(sc), str(d), crossover(ns, bf, bih)[1]] + [f"{f / b:.2f}" for f, b in zip(bf, bih, strict=True)]
+            )
     table = md_table(
         ["scenario", "depth", "crossover n"] + [f"BF/BIH n = {n}" for n in ns], rows, "rrl" + "r" * len(ns)
     )

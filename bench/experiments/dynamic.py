@@ -387,7 +387,7 @@ def plot_fig_5_11(raw: dict, figures: Path, quick: bool = False) -> str:
     fig, axes = pyplot.subplots(
         1, len(kinds), figsize=(4.4 * len(kinds) + 2.5, 4.2), sharey=True, layout="constrained", squeeze=False
     )
-    for ax, kind in zip(axes[0], kinds):
+    for ax, kind in zip(axes[0], kinds, strict=True):
         ns = sorted({int(n) for k, n, _ in data if k == kind})
         for lab in labels:
             same = [x for x in labels if method[x] == method[lab]]
@@ -425,10 +425,10 @@ def plot_fig_5_4(raw: dict, figures: Path, quick: bool = False) -> str:
     fig, axes = pyplot.subplots(1, 3, figsize=(15, 3.8), sharex=True, layout="constrained")
     for i, name in enumerate(scenes):
         style = series(name, method="kdtree", variant=i)
-        for ax, key in zip(axes, ("trace_ms", "build_ms", "bytes")):
+        for ax, key in zip(axes, ("trace_ms", "build_ms", "bytes"), strict=True):
             b = rec(name, scales[0])[key]
             ax.plot(scales, [rec(name, s)[key] / b for s in scales], **style)
-    for ax, t in zip(axes, ("trace time", "build time", "tree bytes")):
+    for ax, t in zip(axes, ("trace time", "build time", "tree bytes"), strict=True):
         ax.set_xscale("log")
         ax.invert_xaxis()
         ax.set_title(f"{t} relative to plain SAH")

@@ -398,7 +398,8 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     size_note = "" if run.quick else f" (the peers section's phone portrait size, {w} × {h}: not reduced)"
     return f"""## {TITLE}
 
-**(a) Build over {n_build:,} triangles** (flat level-{BUILD_LEVEL_QUICK if run.quick else BUILD_LEVEL} icospheres of 20 · 4^level triangles on a grid):
+**(a) Build over {n_build:,} triangles** (flat level-{BUILD_LEVEL_QUICK if run.quick else BUILD_LEVEL} \
+icospheres of 20 · 4^level triangles on a grid):
 the method's `prepare` with the default `max_prims` / `max_tree_depth` — the tree over the
 triangles' float32 AABBs, its statistics and the packing of its GPU records; the scene's
 flattened corners are made before the clock starts. The kd-tree and the

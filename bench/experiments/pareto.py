@@ -498,6 +498,7 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
                 "#ccb974",
                 "#64b5cd",
             ),
+            strict=False,  # a palette, not a list per family: families past its end are grey (.get below)
         )
     }
     fig, axes = pyplot.subplots(

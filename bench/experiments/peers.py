@@ -140,17 +140,18 @@ def icosphere(level: int) -> tuple[np.ndarray, np.ndarray]:
     ]
     verts = [np.array(p, float) / np.linalg.norm(p) for p in v]
     faces = list(f)
+    cache: dict[tuple[int, int], int] = {}  # an edge's midpoint vertex, within one level
+
+    def mid(a: int, b: int) -> int:
+        key = (min(a, b), max(a, b))
+        if key not in cache:
+            m = verts[a] + verts[b]
+            verts.append(m / np.linalg.norm(m))
+            cache[key] = len(verts) - 1
+        return cache[key]
+
     for _ in range(level):
-        cache: dict[tuple[int, int], int] = {}
-
-        def mid(a: int, b: int) -> int:
-            key = (min(a, b), max(a, b))
-            if key not in cache:
-                m = verts[a] + verts[b]
-                verts.append(m / np.linalg.norm(m))
-                cache[key] = len(verts) - 1
-            return cache[key]
-
+        cache.clear()
         nf = []
         for a, b, c in faces:
             ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
@@ -513,7 +514,8 @@ shape per sphere, and one `ellipsoids` shape holding them all, via `ray_intersec
 by Embree through embreex (spheres as icospheres: {20 * 4**ICO_LEVEL} triangles each, one level
 fewer where a scene would pass {ICO_MAX_TRIANGLES:,} triangles). Versions: {vers}. Dr.Jit threads:
 {threads}. Build = what each needs before the first ray (our BIH build; `mi.load_dict`; Embree's
-commit — embreex's copying of the mesh is shown apart); trace = the rays only. Hit distances are compared with a float64 reference: the CPU
+commit — embreex's copying of the mesh is shown apart); trace = the rays only. \
+Hit distances are compared with a float64 reference: the CPU
 BIH traversal of `renderer/bih_traverse.py` (exact: the same `t` as a float64 brute force), itself
 checked against `render_reference` at the smallest n — {check_txt}.{missing}
 
@@ -553,7 +555,9 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
             axes[1].plot(bx, [med("build", n, eng) for n in bx], **style)
         axes[2].plot(xs, [max(med("max_dt", n, eng), 1e-9) for n in xs], **style)
     for ax, yl in zip(
-        axes, ("Mrays/s (primary rays)", "build ms (brute force builds nothing)", "max |t − t_ref| (world units)")
+        axes,
+        ("Mrays/s (primary rays)", "build ms (brute force builds nothing)", "max |t − t_ref| (world units)"),
+        strict=True,
     ):
         ax.set_xscale("log")
         ax.set_yscale("log")

@@ -288,11 +288,11 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
     fps = data["fps"]
     methods = list(dict.fromkeys(k.split("/")[1] for k in fps)) or list(METHODS)
     fig, axes = pyplot.subplots(1, len(sizes), figsize=(6 * len(sizes) + 2, 4), squeeze=False, layout="constrained")
-    for ax, (w, h) in zip(axes[0], sizes):
+    for ax, (w, h) in zip(axes[0], sizes, strict=True):
         for method in methods:
             pts = [(n, fps[f"{w}x{h}/{method}/{n}"]["fps"]) for n in ns if fps.get(f"{w}x{h}/{method}/{n}")]
             if pts:
-                ax.plot(*zip(*pts), **series(method))
+                ax.plot(*zip(*pts, strict=True), **series(method))
         log_axis(ax)
         ax.set_xlabel("primitives (refractive spheres)")
         ax.set_ylabel("frames / s")
@@ -317,7 +317,7 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
         }
     gens = sorted(int(g) for g in cones["tiles"])
     fig, axes = pyplot.subplots(1, len(gens), figsize=(3 * len(gens) + 1.5, 3.4), layout="constrained")
-    for ax, g in zip(np.atleast_1d(axes), gens):
+    for ax, g in zip(np.atleast_1d(axes), gens, strict=True):
         ax.imshow(np.clip(np.asarray(cones["tiles"][str(g)], dtype=float), 0, 1), interpolation="nearest")
         ax.set_title(f"generation {g}")
         ax.axis("off")

@@ -45,7 +45,7 @@ def measure(ctx: Context) -> dict:
     for sc, n, mp in ctx.bar(jobs, desc="scaling: build"):
         s = scenario(sc, n, seed=0, radius=1.0)
         build[(sc, n, mp)], _ = time_it(
-            lambda: build_for_spheres(s.sphere_centers, s.sphere_radii, mp),
+            lambda s=s, mp=mp: build_for_spheres(s.sphere_centers, s.sphere_radii, mp),
             ctx.runs,
             warmup=1 if n <= 65536 else 0,
             budget_s=None if ctx.quick else BUILD_BUDGET_S,
@@ -54,7 +54,7 @@ def measure(ctx: Context) -> dict:
     for sc in (1, 2, 3):
         for mp in BUILD_MAX_PRIMS:
             pts = [(n, build[(sc, n, mp)].median) for n in b_ns if n >= fit_from]
-            build_fit[(sc, mp)] = fit_power(*zip(*pts))
+            build_fit[(sc, mp)] = fit_power(*zip(*pts, strict=True))
 
     # ---- trace
     base = default_settings().with_(width=w, height=h, mode="color")
@@ -95,7 +95,7 @@ def measure(ctx: Context) -> dict:
                     for n in t_ns
                     if (m, d, sc, n) in trace and n >= (256 if not ctx.quick else 0)
                 ]
-                trace_fit[(m, d, sc)] = fit_power(*zip(*pts)) if len(pts) >= 2 else (math.nan, math.nan)
+                trace_fit[(m, d, sc)] = fit_power(*zip(*pts, strict=True)) if len(pts) >= 2 else (math.nan, math.nan)
     return {
         "build": {f"{sc}/{n}/{mp}": v for (sc, n, mp), v in build.items()},
         "build_fit": {f"{sc}/{mp}": v for (sc, mp), v in build_fit.items()},

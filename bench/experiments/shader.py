@@ -124,7 +124,7 @@ def _tile_candidates(scene, w: int, h: int) -> np.ndarray:
     row = (1 - (v @ up) / z / s) * h / 2
     rad = r / np.sqrt(np.maximum(z * z - r * r, 1e-12)) / s * h / 2 * 1.05 + 1.0
     tiles = np.zeros((-(-h // TILE), -(-w // TILE)), np.int64)
-    for x, y, rr in zip(px[front], row[front], rad[front]):
+    for x, y, rr in zip(px[front], row[front], rad[front], strict=True):
         x0, x1 = max(0, int((x - rr) // TILE)), min(tiles.shape[1] - 1, int((x + rr) // TILE))
         y0, y1 = max(0, int((y - rr) // TILE)), min(tiles.shape[0] - 1, int((y + rr) // TILE))
         if x1 >= x0 and y1 >= y0:

@@ -78,7 +78,7 @@ def measure(ctx: Context) -> dict:
     measured = scenes(ctx.quick)
     jobs = [(label, scene, v) for label, scene in measured for v in variants()]
     generic = {}
-    for label, scene, (vlabel, over, why) in ctx.bar(jobs, desc="specialize"):
+    for label, scene, (vlabel, over, _why) in ctx.bar(jobs, desc="specialize"):
         if over is None:
             continue
         t = ctx.time_render(scene, base.with_(**over))
@@ -116,7 +116,7 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     rows = []
     all_ok = True
     for label in labels:
-        for vlabel, over, why in variants():
+        for vlabel, _over, why in variants():
             r = results.get(f"{label}/{vlabel}")
             if r is None:
                 rows.append([label, vlabel, "—", "—", "—", "—", "—", f"not available: {why}"])

@@ -115,7 +115,7 @@ def legend_outside(
         old = ax.get_legend()
         if old is not None:
             old.remove()
-        for handle, label in zip(*ax.get_legend_handles_labels()):
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
             if label and not label.startswith("_") and label not in seen:
                 seen[label] = handle
     for handle, label in extra:

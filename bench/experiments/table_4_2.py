@@ -87,7 +87,7 @@ def measure(ctx: Context) -> dict:
     ours: dict[str, dict] = {}
     for sc, mp in ctx.bar(CONFIGS, desc="Table 4.2"):
         s = scenario(sc, N, seed=0, radius=RADIUS)
-        t, bih = time_it(lambda: build_for_spheres(s.sphere_centers, s.sphere_radii, mp), ctx.runs)
+        t, bih = time_it(lambda s=s, mp=mp: build_for_spheres(s.sphere_centers, s.sphere_radii, mp), ctx.runs)
         ours[f"s{sc}_mp{mp}"] = {"stats": bih.stats.to_json(), "build": t}
     return {
         "n": N,

@@ -90,7 +90,7 @@ def crossover_n(ns: Sequence[int], ours: Sequence[float], theirs: Sequence[float
     log(ours / theirs) = 0 between ``ns[i-1]`` and ``ns[i]`` in log n. ``i = 0``: ours is
     smaller everywhere (n = ns[0]); ``i = len(ns)``: not at the largest n (n = inf).
     """
-    faster = [a < b for a, b in zip(ours, theirs)]
+    faster = [a < b for a, b in zip(ours, theirs, strict=True)]
     if all(faster):
         return float(ns[0]), 0
     if not faster[-1]:
