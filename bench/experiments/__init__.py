@@ -31,5 +31,6 @@ EXPERIMENTS = (
     "scheduling",
     "shader",
     "hardening",
+    "hardening2",
     "meshes",
 )
