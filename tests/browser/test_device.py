@@ -416,13 +416,13 @@ def test_device_mode_keeps_up_with_the_fingers(gl_browser, server):
 
 
 # Brute force is left out here (21 s on SwiftShader: every pixel tests every triangle); its triangle
-# loop is the same text on the server, checked against the reference in tests/renderer/gl/test_gpu_meshes.py.
+# loop is the same text on the server, checked against the reference in tests/renderer/gl/test_renderer.py.
 @pytest.mark.parametrize("method", ["bih", "bvh", "kdtree", "twolevel"])
 def test_device_traces_a_scene_with_meshes(device_page, server, method):
     """Issue #20: spheres of three radii, a plane, a smooth teapot, a glass icosphere, a mirror
-    box, a torus (tests/renderer/gl/test_gpu_meshes.py) — the triangle records and the
+    box, a torus (tests/renderer/gl/test_renderer.py) — the triangle records and the
     TRIANGLES variant, on ANGLE — give the server's picture."""
-    from tests.renderer.gl.test_gpu_meshes import mixed_scene
+    from tests.renderer.gl.test_renderer import mixed_scene
 
     scene = mixed_scene()
     body = scene.to_json()

@@ -1,6 +1,6 @@
 """Scene features (renderer.features): what the specialised shader may leave out follows
 the materials the scene's primitives use and whether it has lights. That the specialised
-variant renders exactly like the generic one is tested in ``tests/renderer/gl/test_render_knobs.py``."""
+variant renders exactly like the generic one is tested in ``tests/renderer/gl/test_frame.py``."""
 
 from __future__ import annotations
 

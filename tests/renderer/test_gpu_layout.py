@@ -20,8 +20,19 @@ import math
 import numpy as np
 import pytest
 
-from renderer.gpu_layout import MATERIAL_TEXELS, PackedTexture, camera_uniforms, glsl_header, pack_primitives, wrap_rows
+from renderer import gpu_layout
+from renderer.gpu_layout import (
+    MATERIAL_TEXELS,
+    PackedTexture,
+    Variant,
+    camera_uniforms,
+    glsl_header,
+    pack_primitives,
+    wrap_rows,
+)
 from renderer.limits import DEFAULT_TEXTURE_WIDTH, MAX_LIGHTS, MAX_PLANES, MAX_TREE_DEPTH
+from renderer.methods import METHODS
+from renderer.scenarios import mesh_scene, scenario
 from renderer.scene import Camera, Light, Material, Plane, Scene
 
 
@@ -329,7 +340,6 @@ def test_a_record_array_is_declared_as_a_texture_or_a_uniform_block():
 
 def test_what_a_variant_reads_follows_its_data_formats_and_counts():
     from renderer import gpu_layout as G
-    from renderer.gpu_layout import Variant
 
     plain = Variant("bih", "color", 3)
     fixed = Variant("bih", "color", 3, ("PLANES_1", "LIGHTS_2", "EQUAL_RADII", "MATERIAL_TEXTURE"))
@@ -433,3 +443,19 @@ def test_frame_regions_partition_the_frame_and_skip_only_rays_that_meet_nothing(
             assert not meets[y : y + rh, x : x + rw].any(), (x, y, rw, rh)
     if position == (0.0, 0.0, 100.0):  # the thesis's camera: sky above the horizon, spheres in the middle
         assert sum(rw * rh for _, _, rw, rh, t in regions if not t) > (0.25 if planes else 0.5) * w * h
+
+
+ONE_PASS = [name for name, m in METHODS.items() if not m.capabilities.multi_pass]
+
+
+@pytest.mark.parametrize("method", ONE_PASS)
+def test_what_a_method_packs_is_what_its_shader_declares(method):
+    packed = METHODS[method].prepare(scenario(3, 64), 8, 64).packed
+    names = set(packed.textures) | set(packed.uniforms)
+    assert names == {b.name for b in METHODS[method].bindings if b.needs is None}, "a sphere scene: no triangles"
+    if METHODS[method].capabilities.meshes_on_gpu:  # a smooth mesh scene: the triangles' too
+        packed = METHODS[method].prepare(mesh_scene("mixed", 1), 8, 64).packed
+        names = set(packed.textures) | set(packed.uniforms)
+        assert names == {b.name for b in METHODS[method].bindings}
+    prims = gpu_layout.pack_primitives(scenario(3, 64))
+    assert set(prims.textures) | set(prims.uniforms) == {b.name for b in gpu_layout.SCENE_BINDINGS}

@@ -3,6 +3,25 @@
 Expected values are computed here by hand / analytically from the camera and scene
 parameters, not with the tracer's own helpers, except where a test says otherwise.
 Images are small (a few thousand pixels) so that each test takes well under a second.
+
+The float64 reference tracer on triangles (docs/SHADING.md, "Triangles"): every output mode,
+flat and smooth shading, both sides, exclusion of the source triangle, refraction through a
+closed mesh. Expected values are computed here from the geometry, not with the tracer.
+
+Watertightness of the triangle test on closed meshes: no ray that enters a closed mesh's
+silhouette gets through it (docs/SHADING.md, "Triangles").
+
+The rays are made without the tracer: each aims at a point ``q`` on the surface — a vertex,
+a point of a shared edge, a point inside a triangle — from outside, along a direction that
+makes a positive angle with every face around ``q`` (so the ray crosses the surface at
+``q``, it does not graze it). Such a ray must hit the mesh at or before ``q``. Rays
+through the exact edges and vertices of an axis-aligned box, along the axes, make the edge
+functions exactly 0 and exercise the exact fallback. A second, independent check: a line
+through a closed mesh crosses it an even number of times.
+
+The float64 reference (renderer.reference) and the BIH traversal's CPU mirror
+(renderer.accel.bih_traverse) are both checked. The figures (rays, leaks) are printed
+with ``-s``.
 """
 
 from __future__ import annotations
@@ -12,9 +31,24 @@ import math
 import numpy as np
 import pytest
 
-from renderer.reference import primary_rays, reflect, render_reference, trace_rays, transmitted_directions
+from renderer.accel.bih import build_for_scene
+from renderer.accel.bih_traverse import traverse
+from renderer.meshes import box, icosphere, teapot, torus
+from renderer.modes import RECURSION_COLORS
+from renderer.reference import (
+    RayBatch,
+    _Frame,
+    _Geometry,
+    _trace_batch,
+    primary_rays,
+    reflect,
+    render_reference,
+    trace_rays,
+    transmitted_directions,
+    triangle_hits,
+)
 from renderer.scenarios import scenario
-from renderer.scene import Camera, Light, Material, Plane, Scene
+from renderer.scene import Camera, Light, Material, Mesh, Plane, Scene
 from renderer.settings import RenderSettings
 
 # Fig. 4.2f, written out independently of the module.
@@ -447,3 +481,379 @@ def test_heat_bih_uses_traversal_counts():
     assert (prim >= 0).sum() > 50
     np.testing.assert_array_equal(np.asarray(tr.prim), prim)
     np.testing.assert_allclose(np.asarray(tr.t)[prim >= 0], t[prim >= 0], rtol=1e-12)
+
+
+CAM = Camera(position=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), fov_y=60.0)
+# one big triangle in the plane z = 0 around the view axis, wound counter-clockwise seen from +z
+TRI = np.array([[-8.0, -6.0, 0.0], [8.0, -6.0, 0.0], [0.0, 9.0, 0.0]])
+
+
+def scene_of(meshes=(), spheres=(), planes=(), materials=(BLACK,), lights=(), camera=CAM) -> Scene:
+    c = np.array([s[0] for s in spheres], dtype=np.float64).reshape(-1, 3)
+    r = np.array([s[1] for s in spheres], dtype=np.float64)
+    m = np.array([s[2] for s in spheres], dtype=np.int32)
+    return Scene(camera, tuple(lights), tuple(materials), c, r, m, tuple(planes), tuple(meshes))
+
+
+def inside_triangle(p: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(strictly inside by a margin, barycentric weights) of points p (k, 3) in the plane of tri."""
+    a, b, c = tri
+    n = np.cross(b - a, c - a)
+    area = np.dot(n, n)
+    w0 = np.einsum("ij,j->i", np.cross(c - b, p - b), n) / area
+    w1 = np.einsum("ij,j->i", np.cross(a - c, p - c), n) / area
+    w2 = 1.0 - w0 - w1
+    w = np.stack([w0, w1, w2], axis=1)
+    return (w > 1e-6).all(axis=1), w
+
+
+def test_depth_primid_and_normal_of_a_flat_triangle_from_both_sides():
+    w, h = 48, 40
+    o, d = primary_rays(CAM, w, h)
+    t_plane = -o[:, 2] / d[:, 2]  # z = 0
+    inside, _ = inside_triangle(o + t_plane[:, None] * d, TRI)
+    outside = ~inside & ~inside_triangle(o + t_plane[:, None] * d, TRI)[1].min(axis=1).__ge__(-1e-6)
+    assert inside.sum() > 500 and outside.sum() > 100
+    for order, normal_z in (([0, 1, 2], 1.0), ([0, 2, 1], -1.0)):  # facing the camera, then away: both hit
+        scene = scene_of([Mesh(TRI, [order])])
+        for mode in ("depth", "primid", "normal"):
+            res = render_reference(scene, settings(w, h, mode=mode))
+            assert (res.primid.ravel()[inside] == 0).all() and (res.primid.ravel()[outside] == -1).all()
+            np.testing.assert_allclose(res.depth.ravel()[inside], t_plane[inside], rtol=1e-6)
+            # the normal mode shows the outward normal of the winding, whichever side is seen
+            np.testing.assert_array_equal(res.normal.reshape(-1, 3)[inside], [[0.0, 0.0, normal_z]] * inside.sum())
+        img = render_reference(scene, settings(w, h, mode="normal")).image.reshape(-1, 3)
+        np.testing.assert_allclose(img[inside], [[0.5, 0.5, 0.5 * (normal_z + 1)]] * inside.sum(), atol=1e-7)
+    t64, _ = trace_rays(scene_of([Mesh(TRI, [[0, 1, 2]])]), o, d)
+    np.testing.assert_allclose(t64[inside], t_plane[inside], rtol=1e-14)
+
+
+def test_triangle_ids_follow_the_spheres_and_planes_and_degenerate_ones_are_never_hit():
+    far_plane = Plane((0.0, 0.0, -50.0), (0.0, 0.0, 1.0))
+    flat = Mesh(np.array([[-1.0, 0, 0], [0, 0, 0], [1.0, 0, 0], [0, 1, 0]]), [[0, 1, 2], [0, 2, 3]])
+    big = Mesh(TRI * 2 + [0, 0, -1.0], [[0, 1, 2]])
+    scene = scene_of([flat, big], spheres=[((30.0, 30.0, 0.0), 1.0, 0)], planes=[far_plane])
+    assert scene.n_degenerate_triangles == 1
+    res = render_reference(scene, settings(32, 24, mode="primid"))
+    ids = set(np.unique(res.primid).tolist())
+    # sphere 0 (out of view), plane 1, then triangles 2 (degenerate: never), 3, 4
+    assert ids == {1, 3, 4}
+
+
+def test_smooth_normals_are_the_normalised_barycentric_blend():
+    normals = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, -1.0, 2.0]])
+    scene = scene_of([Mesh(TRI, [[0, 1, 2]], 0, normals)])
+    w, h = 40, 40
+    res = render_reference(scene, settings(w, h, mode="normal"))
+    o, d = primary_rays(CAM, w, h)
+    p = o + (-o[:, 2] / d[:, 2])[:, None] * d
+    inside, bary = inside_triangle(p, TRI)
+    unit = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    blend = bary @ unit
+    blend /= np.linalg.norm(blend, axis=1, keepdims=True)
+    np.testing.assert_allclose(res.normal.reshape(-1, 3)[inside], blend[inside], atol=2e-6)
+    # corners' directions are reached near the corners, so the blend really varies
+    assert np.ptp(res.normal.reshape(-1, 3)[inside][:, 0]) > 0.3
+
+
+def phong(c, ka, kd, ks, q, n, ldir, view):
+    """SHADING.md's local term for one light of colour 1 in direction ldir, n facing the viewer."""
+    cos = max(np.dot(n, ldir), 0.0)
+    r = 2 * cos * n - ldir
+    x = np.dot(r, view)
+    return ka * c + kd * cos * c + ks * (x**q if x > 0 and cos > 0 else 0.0)
+
+
+@pytest.mark.parametrize("smooth", [False, True])
+def test_color_uses_the_shading_normal_turned_to_the_geometric_side(smooth):
+    mat = Material(color=(0.8, 0.6, 0.4), ambient=0.1, diffuse=0.6, specular=0.3, shininess=20.0, reflective=0.0)
+    light = Light((3.0, 4.0, 8.0), (1.0, 1.0, 1.0))
+    normals = np.array([[0.2, 0.0, 1.0], [0.0, 0.3, 1.0], [-0.1, -0.1, 1.0]]) if smooth else None
+    # wound away from the camera: the geometric normal is −z, the camera sees its back, so
+    # Nf is the (smooth or flat) normal flipped to +z
+    back = [[0, 2, 1]]
+    scene = scene_of([Mesh(TRI, back, 0, None if normals is None else -normals)], materials=[mat], lights=[light])
+    w, h = 24, 20
+    res = render_reference(scene, settings(w, h, mode="color", max_recursion_depth=1))
+    o, d = primary_rays(CAM, w, h)
+    p = o + (-o[:, 2] / d[:, 2])[:, None] * d
+    inside, bary = inside_triangle(p, TRI)
+    img = res.image.reshape(-1, 3)
+    for i in np.flatnonzero(inside)[::7]:
+        if smooth:
+            unit = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+            n = bary[i] @ unit
+            n /= np.linalg.norm(n)
+        else:
+            n = np.array([0.0, 0.0, 1.0])
+        ldir = np.array(light.position) - p[i]
+        ldir /= np.linalg.norm(ldir)
+        expect = phong(np.array(mat.color), mat.ambient, mat.diffuse, mat.specular, mat.shininess, n, ldir, -d[i])
+        np.testing.assert_allclose(img[i], np.clip(expect, 0, 1), atol=2e-6)
+
+
+def test_a_triangle_casts_a_shadow_and_a_shadow_ray_leaving_a_triangle_ignores_it():
+    mat = Material(color=(1.0, 1.0, 1.0), ambient=0.2, diffuse=0.8, specular=0.0, reflective=0.0)
+    cam = Camera(position=(0.0, 30.0, 0.01), target=(0.0, 0.0, 0.0), fov_y=60.0)
+    light = Light((0.0, 20.0, 0.0), (1.0, 1.0, 1.0))
+    floor = Plane((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 0)
+    roof = Mesh(np.array([[-3.0, 10.0, -3.0], [3.0, 10.0, -3.0], [0.0, 10.0, 4.0]]), [[0, 2, 1]])  # faces +y
+    scene = scene_of([roof], planes=[floor], materials=[mat], lights=[light], camera=cam)
+    w = h = 32
+    res = render_reference(scene, settings(w, h, mode="color", max_recursion_depth=1))
+    prim = render_reference(scene, settings(w, h, mode="primid")).primid
+    img = res.image.reshape(h, w, 3)
+    o, d = primary_rays(cam, w, h)
+    floor_pix = prim.ravel() == 0
+    t = -o[:, 1] / d[:, 1]
+    q = o + t[:, None] * d
+    # seen from the floor point the light is blocked iff the segment to it crosses the roof at y = 10
+    s = (10.0 - q[:, 1]) / (20.0 - q[:, 1])
+    x = q + s[:, None] * (np.array(light.position) - q)
+    blocked, _ = inside_triangle(x, roof.corners[0])
+    shadowed = floor_pix & blocked
+    lit = floor_pix & ~inside_triangle(x, roof.corners[0])[1].min(axis=1).__ge__(-1e-3)
+    assert shadowed.sum() > 10 and lit.sum() > 100
+    np.testing.assert_allclose(img.reshape(-1, 3)[shadowed], 0.2, atol=1e-12)
+    assert (img.reshape(-1, 3)[lit][:, 0] > 0.2 + 1e-3).all()
+    # the roof itself is lit from above: its shadow ray starts exactly on it and ignores it
+    roof_pix = prim.ravel() == 1
+    assert roof_pix.sum() > 10 and (img.reshape(-1, 3)[roof_pix][:, 0] > 0.9).all()
+
+
+def test_a_reflected_ray_leaves_its_triangle_and_sees_what_is_in_front():
+    mirror_mat = Material(color=(0.0, 0.0, 0.0), ambient=0.0, diffuse=0.0, specular=0.0, reflective=1.0)
+    red = Material(color=(1.0, 0.0, 0.0), ambient=1.0, diffuse=0.0, specular=0.0, reflective=0.0)
+    mirror = Mesh(TRI * 3 + [0.0, 0.0, -2.0], [[0, 1, 2]])
+    # a red sphere behind the camera: only the mirror shows it
+    scene = scene_of([mirror], spheres=[((0.0, 0.0, 14.0), 3.0, 1)], materials=[mirror_mat, red])
+    res = render_reference(scene, settings(16, 16, mode="color", max_recursion_depth=2))
+    centre = res.image[8, 8]
+    np.testing.assert_allclose(centre, [1.0, 0.0, 0.0])
+    rec = render_reference(scene, settings(16, 16, mode="recursion", max_recursion_depth=2)).image[8, 8]
+    np.testing.assert_array_equal(rec, RECURSION_COLORS[2])
+
+
+def test_refraction_through_a_closed_box_enters_then_leaves_parallel():
+    """A slab of glass (ior 1.5): the transmitted ray bends in at the front face (entering
+    by the geometric normal), hits the back face from inside and leaves parallel to the
+    primary ray — both refractions are right only if entering and leaving are told apart."""
+    glass = Material(
+        color=(1.0, 1.0, 1.0), ambient=0.0, diffuse=0.0, specular=0.0, reflective=0.0, transmissive=1.0, ior=1.5
+    )
+    slab = box((-10.0, -10.0, -1.0), (10.0, 10.0, 1.0), material=0)
+    g = _Geometry.of(scene_of([slab], materials=[glass]))
+    d0 = np.array([[0.3, -0.2, -1.0]])
+    d0 /= np.linalg.norm(d0)
+    batch = RayBatch(
+        np.array([[0.0, 0.0, 10.0]]), d0, np.array([0]), np.ones((1, 3)), 1, np.array([-1]), np.array([False])
+    )
+    frame = _Frame.empty(1)
+    inside = _trace_batch(g, batch, frame, 4, shade=False)
+    assert inside is not None and len(inside) == 1
+    # Snell at the front face z = 1: sin θt = sin θi / 1.5
+    sin_i = math.hypot(d0[0, 0], d0[0, 1])
+    sin_t = math.hypot(inside.dirs[0, 0], inside.dirs[0, 1])
+    assert sin_t == pytest.approx(sin_i / 1.5, rel=1e-12) and inside.dirs[0, 2] < 0
+    out = _trace_batch(g, inside, frame, 4, shade=False)
+    assert out is not None and out.origins[0, 2] == pytest.approx(-1.0, abs=1e-12)
+    np.testing.assert_allclose(out.dirs[0], d0[0], atol=1e-12)
+    # and transmitted_directions honours an explicit entering flag (a smooth normal's side)
+    n = np.array([[0.0, 0.0, 1.0]])
+    a, _ = transmitted_directions(d0, n, np.array([1.5]), np.array([True]))
+    b, _ = transmitted_directions(d0, n, np.array([1.5]))
+    np.testing.assert_array_equal(a, b)
+    c, _ = transmitted_directions(d0, n, np.array([1.5]), np.array([False]))
+    assert not np.allclose(a, c)
+
+
+def test_recursion_through_a_closed_glass_icosphere_counts_both_faces():
+    glass = Material(
+        color=(1.0, 1.0, 1.0), ambient=0.0, diffuse=0.0, specular=0.0, reflective=0.0, transmissive=0.9, ior=1.3
+    )
+    wall = Plane((0.0, 0.0, -30.0), (0.0, 0.0, 1.0), 0)
+    scene = scene_of([icosphere(3, radius=4.0, material=0)], planes=[wall], materials=[glass])
+    res = render_reference(scene, settings(16, 16, mode="recursion", max_recursion_depth=4))
+    # the centre ray: sphere front (1), back from inside (2), the wall (3)
+    np.testing.assert_array_equal(res.image[8, 8], RECURSION_COLORS[3])
+
+
+def test_heat_counts_triangle_tests_like_sphere_tests():
+    from renderer.accel.bih import build_for_scene
+    from renderer.accel.bih_traverse import traverse
+
+    scene = scene_of([icosphere(2, radius=3.0)], spheres=[((6.0, 0.0, 0.0), 1.0, 0)])
+    n = scene.n_spheres + scene.n_triangles
+    bf = render_reference(scene, settings(8, 8, mode="heat"))
+    np.testing.assert_allclose(bf.image[..., 0], min(1.0, 0.05 * n))
+    s = settings(24, 24, mode="heat", method="bih", max_prims=2)
+    res = render_reference(scene, s)
+    o, d = primary_rays(scene.camera, 24, 24)
+    tr = traverse(
+        build_for_scene(scene, 2, s.max_tree_depth),
+        scene.sphere_centers,
+        scene.sphere_radii,
+        o,
+        d,
+        triangles=scene.triangle_corners,
+    )
+    np.testing.assert_allclose(res.image.reshape(-1, 3)[:, 0], np.minimum(0.05 * tr.tests, 1.0))
+    assert tr.tests.max() > 0 and tr.tests.max() < n
+
+
+def test_the_side_seen_is_the_geometric_one_even_when_the_normals_disagree():
+    """Vertex normals towards +z on a triangle wound towards −z, seen from +z: the ray sees
+    the back (geometric rule), Nf is the shading normal turned away (−z), and a light at
+    +z adds nothing: ambient only. Deciding the side by the shading normal would light it."""
+    mat = Material(color=(1.0, 1.0, 1.0), ambient=0.25, diffuse=0.75, specular=0.0, reflective=0.0)
+    up = np.array([[0.0, 0.0, 1.0]] * 3)
+    scene = scene_of([Mesh(TRI, [[0, 2, 1]], 0, up)], materials=[mat], lights=[Light((0.0, 0.0, 8.0))])
+    img = render_reference(scene, settings(9, 9, mode="color", max_recursion_depth=1)).image
+    np.testing.assert_allclose(img[4, 4], [0.25, 0.25, 0.25])
+    # the normal mode still shows the (outward, smooth) shading normal
+    np.testing.assert_allclose(render_reference(scene, settings(9, 9, mode="normal")).normal[4, 4], [0, 0, 1])
+
+
+MIN_RAYS = 10_000
+
+
+def mesh_scene(mesh) -> Scene:
+    return Scene(Camera(), (), (Material(),), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32), (), (mesh,))
+
+
+def face_normals(mesh) -> np.ndarray:
+    c = mesh.corners
+    n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def crossing_rays(mesh, rng: np.random.Generator, per_vertex: int, per_edge: int, per_face: int):
+    """(origins, directions, distance to the aimed point) of rays that cross the surface at a
+    vertex, a shared edge or a face point, each from outside the mesh's bounding ball."""
+    v, t = mesh.vertices, mesh.triangles.astype(np.int64)
+    fn = face_normals(mesh)
+    span = float(np.linalg.norm(v.max(0) - v.min(0)))
+    # faces around each vertex and each edge
+    around_v: list[list[int]] = [[] for _ in range(len(v))]
+    for f, tri in enumerate(t.tolist()):
+        for i in tri:
+            around_v[i].append(f)
+    edges: dict[tuple[int, int], list[int]] = {}
+    for f, (a, b, c) in enumerate(t.tolist()):
+        for e in ((a, b), (b, c), (c, a)):
+            edges.setdefault((min(e), max(e)), []).append(f)
+    targets, cones = [], []
+    for i, faces in enumerate(around_v):
+        targets += [v[i]] * per_vertex
+        cones += [fn[faces]] * per_vertex
+    for (a, b), faces in edges.items():
+        for k in range(per_edge):
+            s = 0.5 if k == 0 else rng.uniform(0.05, 0.95)
+            targets.append(v[a] + s * (v[b] - v[a]))
+            cones.append(fn[faces])
+    for f in range(len(t)):
+        for _ in range(per_face):
+            w = rng.dirichlet((1.0, 1.0, 1.0))
+            targets.append(w @ v[t[f]])
+            cones.append(fn[[f]])
+    origins, dirs, dist = [], [], []
+    for q, cone in zip(targets, cones, strict=True):
+        mean = cone.sum(axis=0)
+        mean /= np.linalg.norm(mean)
+        if not (cone @ mean > 0.05).all():
+            continue  # no direction crosses every face here transversally (a sharp saddle)
+        for _ in range(20):
+            m = mean + rng.normal(scale=0.3, size=3)
+            m /= np.linalg.norm(m)
+            if (cone @ m > 0.05).all():
+                break
+        else:
+            m = mean
+        o = q + 2.0 * span * m
+        d = q - o
+        L = np.linalg.norm(d)
+        origins.append(o)
+        dirs.append(d / L)
+        dist.append(L)
+    return np.array(origins), np.array(dirs), np.array(dist)
+
+
+def leaks(scene: Scene, o: np.ndarray, d: np.ndarray, dist: np.ndarray) -> tuple[int, int]:
+    """Rays that miss, or first hit beyond the aimed point: (reference, BIH traversal)."""
+    t, prim = trace_rays(scene, o, d)
+    bih = build_for_scene(scene, 4, 64)
+    tr = traverse(bih, scene.sphere_centers, scene.sphere_radii, o, d, triangles=scene.triangle_corners)
+    limit = dist * (1.0 + 1e-12)
+    return int((~(t <= limit)).sum()), int((~(tr.t <= limit)).sum())
+
+
+CLOSED = {
+    "icosphere": (lambda: icosphere(3, radius=7.0, center=(1.0, -2.0, 3.0)), 3, 3, 3),
+    "teapot-closed": (lambda: teapot(6, size=3.0), 2, 1, 2),
+    "torus": (lambda: torus(5.0, 1.5, 32, 16), 5, 3, 3),
+    "box": (lambda: box((-1.5, -0.5, -2.0), (2.5, 1.0, 0.25)), 1000, 600, 600),
+}
+
+
+@pytest.mark.parametrize("name", sorted(CLOSED))
+def test_no_ray_through_a_closed_mesh_leaks(name):
+    make, per_vertex, per_edge, per_face = CLOSED[name]
+    mesh = make()
+    rng = np.random.default_rng(20)
+    o, d, dist = crossing_rays(mesh, rng, per_vertex, per_edge, per_face)
+    assert len(o) >= MIN_RAYS, f"{name}: only {len(o)} rays"
+    ref, cpu = leaks(mesh_scene(mesh), o, d, dist)
+    print(f"\n{name}: {len(o)} rays through vertices, edges and faces; leaks: reference {ref}, BIH traversal {cpu}")
+    assert (ref, cpu) == (0, 0)
+
+
+def test_axis_rays_through_the_exact_edges_and_vertices_of_a_box_hit_it():
+    """Along −z through points exactly on the box's edges (face diagonals included) and
+    corners: the sheared coordinates are exact, the edge function of that edge is exactly
+    0, and the exact fallback keeps the edge in both triangles."""
+    mesh = box((-1.0, -1.0, -1.0), (1.0, 1.0, 1.0))
+    scene = mesh_scene(mesh)
+    s = np.arange(-64, 65) / 64.0  # exact dyadic points along every edge
+    pts = [np.stack([s, s], 1), np.stack([s, -s], 1)]  # both diagonals of the top face
+    pts += [np.stack([s, np.full_like(s, c)], 1) for c in (-1.0, 1.0)]  # the top face's rim, x along
+    pts += [np.stack([np.full_like(s, c), s], 1) for c in (-1.0, 1.0)]  # and y along
+    xy = np.unique(np.concatenate(pts), axis=0)
+    o = np.concatenate([xy, np.full((len(xy), 1), 5.0)], axis=1)
+    d = np.broadcast_to([0.0, 0.0, -1.0], o.shape).copy()
+    t, prim = trace_rays(scene, o, d)
+    assert (prim >= 0).all() and np.all(t == 4.0), "every axis ray through the top face's edges hits it at z = 1"
+    bih = build_for_scene(scene, 1, 64)
+    tr = traverse(bih, scene.sphere_centers, scene.sphere_radii, o, d, triangles=scene.triangle_corners)
+    assert np.all(tr.t == 4.0)
+    # and the edge functions really were 0: the two triangles of the top face both claim the diagonal
+    c = scene.triangle_corners
+    top = np.flatnonzero((c[:, :, 2] == 1.0).all(axis=1))
+    diag = np.flatnonzero(np.abs(xy[:, 0]) == np.abs(xy[:, 1]))
+    hits_both = 0
+    for i in diag:
+        tt = [
+            triangle_hits(o[i : i + 1], d[i : i + 1], c[j : j + 1, 0], c[j : j + 1, 1], c[j : j + 1, 2])[0][0]
+            for j in top
+        ]
+        hits_both += all(x == 4.0 for x in tt)
+    assert hits_both > 50
+
+
+@pytest.mark.parametrize("name", ["icosphere", "teapot-closed", "torus"])
+def test_lines_cross_a_closed_mesh_an_even_number_of_times(name):
+    mesh = CLOSED[name][0]()
+    c = mesh.corners
+    rng = np.random.default_rng(3)
+    lo, hi = mesh.vertices.min(0), mesh.vertices.max(0)
+    span = float(np.linalg.norm(hi - lo))
+    n = 1500
+    aim = rng.uniform(lo, hi, (n, 3))
+    dirs = rng.normal(size=(n, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    o = aim - 2.0 * span * dirs
+    ri = np.repeat(np.arange(n), len(c))
+    ti = np.tile(np.arange(len(c)), n)
+    t, _, _, _ = triangle_hits(o[ri], dirs[ri], c[ti, 0], c[ti, 1], c[ti, 2])
+    crossings = np.bincount(ri, weights=np.isfinite(t), minlength=n).astype(int)
+    assert (crossings % 2 == 0).all(), f"odd crossings on {(crossings % 2).sum()} of {n} lines"
+    assert (crossings > 0).sum() > n // 4

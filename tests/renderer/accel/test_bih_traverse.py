@@ -21,6 +21,9 @@ from hypothesis import given, settings, strategies as st
 
 from renderer.accel.bih import build_bih, build_for_spheres, sphere_aabbs
 from renderer.accel.bih_traverse import brute_force, traverse
+from renderer.accel.primitives import tree_to_scene_ids
+from renderer.methods import METHODS
+from renderer.reference import trace_rays
 from renderer.scenarios import scenario
 from tests.helpers import HYP
 from tests.renderer.accel.support import decode, scenes
@@ -367,38 +370,29 @@ def test_secondary_rules():
     ]
 
 
-@settings(max_examples=60, **HYP)
-@given(scene=scenes(), max_prims=st.integers(1, 16), max_tree_depth=st.integers(1, 64), empty_cuts=st.booleans())
-def test_gpu_records_are_the_built_tree(scene, max_prims, max_tree_depth, empty_cuts):
-    """The GPU layout (bih_layout.gpu_records, leaf_order) says what the thesis's nodes say:
-    every inner node has a record with its axis and clips; its child refs name the child's
-    record, or the first sphere record of a leaf, whose run ends (flag) after its count; a
-    cut's empty child (a leaf of no primitives) is named by its sibling's ref."""
-    from renderer.accel import bih_layout as L
-
-    c, r = scene
-    bih = build_bih(*sphere_aabbs(c, r), max_prims, max_tree_depth, empty_cuts=empty_cuts)
-    leaf, axis, left, cl, cr, off, cnt = decode(bih)
-    records, root = L.gpu_records(bih)
-    order, last = L.leaf_order(bih)
-    inner = np.flatnonzero(~leaf)
-    assert len(records) == len(inner) and records.shape[1] == 4
-    np.testing.assert_array_equal(order, bih.indices)
-    rec_of = {int(node): k for k, node in enumerate(inner)}
-
-    def ref_of(node: int, sibling: int | None = None) -> int:
-        if leaf[node] and cnt[node] == 0 and sibling is not None:
-            return ref_of(sibling)
-        return (L.REF_LEAF | int(off[node])) if leaf[node] else rec_of[int(node)]
-
-    assert root == ref_of(0)
-    for k, node in enumerate(inner):
-        x, y, z, w = (int(v) for v in records[k])
-        assert x >> L.AXIS_SHIFT == axis[node]
-        assert (x & L.CHILD_MASK, w) == (ref_of(left[node], left[node] + 1), ref_of(left[node] + 1, left[node]))
-        assert np.uint32(y).view(np.float32) == cl[node] and np.uint32(z).view(np.float32) == cr[node]
-    for node in np.flatnonzero(leaf):
-        if cnt[node]:
-            run = last[off[node] : off[node] + cnt[node]]
-            assert run[-1] and not run[:-1].any(), "a leaf's run ends at its last record"
-    assert last.sum() == (cnt[leaf] > 0).sum()
+def test_a_ray_leaving_a_triangle_ignores_it_in_the_traversal_and_in_the_reference(mixed_trees_scene):
+    c = mixed_trees_scene.triangle_corners
+    rng = np.random.default_rng(2)
+    j = rng.choice(np.flatnonzero(~mixed_trees_scene.triangle_degenerate), 500, replace=False)
+    w = rng.dirichlet((1, 1, 1), len(j))
+    p = np.einsum("ik,ikj->ij", w, c[j])
+    n = np.cross(c[j, 1] - c[j, 0], c[j, 2] - c[j, 0])
+    d = n / np.linalg.norm(n, axis=1, keepdims=True)  # straight off the surface, outwards
+    ignore = mixed_trees_scene.n_spheres + j
+    res = traverse(
+        METHODS["bih"].prepare(mixed_trees_scene, 4, 64).tree,
+        mixed_trees_scene.sphere_centers,
+        mixed_trees_scene.sphere_radii,
+        p,
+        d,
+        ignore=ignore,
+        triangles=c,
+    )
+    assert not (res.prim == ignore).any()
+    t_ref, id_ref = trace_rays(mixed_trees_scene, p, d, src=mixed_trees_scene.triangle_id_base + j)
+    not_plane = id_ref != mixed_trees_scene.n_spheres  # the plane (id n) is outside the BIH
+    assert not_plane.sum() > 100
+    np.testing.assert_array_equal(
+        tree_to_scene_ids(res.prim, mixed_trees_scene.n_spheres, len(mixed_trees_scene.planes))[not_plane],
+        id_ref[not_plane],
+    )

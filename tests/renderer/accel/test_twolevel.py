@@ -10,10 +10,20 @@ import numpy as np
 import pytest
 
 from renderer import gpu_layout
+from renderer.accel.cpu_trace import trace_tree
 from renderer.accel.twolevel import TwoLevelMethod
-from renderer.animation import museum, pose
+from renderer.animation import (
+    AnimatedScene,
+    RigidGroup,
+    museum,
+    pose,
+)
+from renderer.methods import METHODS
+from renderer.reference import primary_rays
 from renderer.scene import Scene
+from renderer.settings import RenderSettings
 from renderer.tree_update import TreeUpdate
+from tests.renderer.test_animation import two_mesh_scene
 
 
 @pytest.mark.parametrize("kind", ["rigid", "deformable", "incoherent"])
@@ -72,3 +82,27 @@ def test_a_plain_scene_is_all_static_and_a_bad_mask_is_refused():
     assert (prep.stats["static"], prep.stats["moving"]) == (scene.n_spheres, 0)
     with pytest.raises(ValueError, match="moving mask"):
         TwoLevelMethod().prepare(scene, 4, 64, update=TreeUpdate(moving=np.zeros(scene.n_spheres + 1, bool)))
+
+
+def test_a_mask_of_the_wrong_length_is_refused_by_twolevel(mixed_trees_scene):
+    with pytest.raises(ValueError, match="triangles"):
+        METHODS["twolevel"].prepare(
+            mixed_trees_scene, 4, 64, update=TreeUpdate(moving=np.zeros(mixed_trees_scene.n_spheres, bool))
+        )
+
+
+def test_twolevel_puts_a_moving_mesh_in_its_bvh_and_follows_it_between_frames():
+    from renderer.prepare import prepare_frame
+
+    s = two_mesh_scene()
+    anim = AnimatedScene(s, (RigidGroup(0, 0, mesh=2, angular_velocity=0.5),))
+    n_moving = s.meshes[2].n_triangles
+    for t in (0.0, 0.4, 0.8):
+        rs = RenderSettings(width=8, height=8, method="twolevel", update="refit", time=t)
+        frame = prepare_frame(anim, rs, key="mesh-anim")
+        assert frame.stats["moving"] == n_moving and frame.stats["static"] == s.n_spheres + s.n_triangles - n_moving
+        o, d = primary_rays(frame.scene.camera, 24, 24)
+        _, ids = trace_tree(frame.prepared.tree, frame.scene, o, d)
+        _, bf = trace_tree(None, frame.scene, o, d)
+        np.testing.assert_array_equal(ids, bf)
+    assert frame.stats["kd_cached"] is True and frame.stats["scheme"] == "refit"

@@ -178,7 +178,7 @@ def cases() -> list[tuple[str, object, dict]]:
     for case in CASES:
         scene = case.build()
         if getattr(scene, "n_triangles", 0):  # meshes came after the base (issue 20): nothing to compare
-            continue  # with; tests/renderer/gl/test_gpu_meshes.py holds them
+            continue  # with; tests/renderer/gl/test_renderer.py holds them
         for method in METHODS:
             out.append(
                 (

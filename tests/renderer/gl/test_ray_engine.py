@@ -18,15 +18,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from renderer import gpu_layout
 from renderer.accel import hre_cones
 from renderer.accel.ray_engine import HierarchicalRayEngine, RayEngine
 from renderer.gl.ray_engine import FrameLog
+from renderer.methods import METHODS
 from renderer.reference import render_reference
 from renderer.scenarios import scenario
 from renderer.scene import SceneError
 from renderer.settings import RenderSettings
+from renderer.shader_source import known_bindings
 from tests.helpers import psnr
 from tests.renderer.accel.support import any_hit, check_contained
+from tests.renderer.gl.support import active
 
 ENGINES = ("rayengine", "hre")
 
@@ -226,3 +230,25 @@ def test_supersampling_and_min_weight_as_the_fragment_tracer(gl_renderer):
             assert got.image.shape == bf.image.shape
             np.testing.assert_array_equal(got.primid, bf.primid)
             assert psnr(got.image_u8(), bf.image_u8()) >= 50.0, f"{method} {extra}"
+
+
+MULTI_PASS = [name for name, m in METHODS.items() if m.capabilities.multi_pass]
+
+
+@pytest.mark.parametrize("method", MULTI_PASS)
+@pytest.mark.parametrize("mode", ["color", "depth", "primid", "normal", "recursion", "heat", "cones"])
+@pytest.mark.parametrize("depth", [1, 3])
+def test_ray_engine_frames_upload_only_what_their_passes_read(gl_renderer, method, mode, depth):
+    if mode not in METHODS[method].capabilities.modes:
+        return
+    passes = gl_renderer.ray_engine
+    gl_renderer.render(
+        scenario(3, 64), RenderSettings(width=32, height=32, method=method, mode=mode, max_recursion_depth=depth)
+    )
+    used = set().union(*(active(passes.programs.progs[k]) for k in passes.programs.used))
+    declared = {b.name for b in gpu_layout.RAY_ENGINE_BINDINGS}
+    assert used & known_bindings() <= declared
+    bound = passes.last_bound
+    assert bound <= used, (method, mode, depth, sorted(bound - used))
+    # Only the cones of the primary layer need no scene data at all.
+    assert bool(bound) == (mode != "cones" or depth > 1)

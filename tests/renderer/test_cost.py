@@ -1,0 +1,65 @@
+"""What a frame will cost, estimated before it is traced (renderer.cost): the estimate grows
+with what the frame traces, its bound is above it, and the largest accepted settings fit the
+limit they were asked for. (How the service admits and schedules by it is tested in
+``tests/server/test_scheduler.py``.)"""
+
+from __future__ import annotations
+
+import pytest
+
+from renderer.cost import DEFAULT_MODEL, coverage, estimate, largest_accepted
+from renderer.methods import METHODS
+from renderer.scenarios import scenario
+from renderer.scene import Camera
+from renderer.settings import RenderSettings
+
+
+@pytest.fixture(scope="module")
+def frame():
+    scene = scenario(3, 256, seed=1)
+    return scene, METHODS["bih"].prepare(scene, 4, 64).stats
+
+
+def cost(frame, **kw):
+    scene, stats = frame
+    return estimate("bih", stats, scene, RenderSettings(**{"width": 64, "height": 64, **kw}))
+
+
+def test_the_estimate_grows_with_pixels_samples_and_depth(frame):
+    base = cost(frame)
+    assert base.pixels == 64 * 64 and base.passes >= 1 and 0.0 < base.coverage <= 1.0
+    assert base.bound_ms == pytest.approx(base.ms * DEFAULT_MODEL.upper) and base.bound_ms > base.ms > 0
+    assert cost(frame, width=128).ms > base.ms
+    assert cost(frame, samples_per_pixel=4).ms > base.ms
+    assert cost(frame, max_recursion_depth=1).rays_per_pixel < base.rays_per_pixel
+    assert not base.degenerate
+    assert set(base.to_json()) == set(base.__dict__)
+
+
+def test_coverage_is_the_share_of_the_image_that_sees_the_scenes_box(frame):
+    scene, _ = frame
+    assert 0.0 < coverage(scene, 64, 64) < 1.0
+    inside = scene.with_camera(Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0)))
+    assert coverage(inside, 64, 64) == 1.0
+    cam = scene.camera
+    far = scene.with_camera(Camera(tuple(10.0 * p for p in cam.position), cam.target, cam.up, cam.fov_y))
+    assert 0.0 < coverage(far, 64, 64) < coverage(scene, 64, 64)
+
+
+def test_the_largest_accepted_settings_fit_the_limit(frame):
+    scene, stats = frame
+    settings = RenderSettings(width=256, height=256, samples_per_pixel=16, max_recursion_depth=8)
+    limit = estimate("bih", stats, scene, settings.with_(width=128)).bound_ms
+    best = largest_accepted("bih", stats, scene, settings, limit)
+    assert 128 <= best["width"] < 256  # each setting alone, the others as requested
+    for name in ("height", "samples_per_pixel", "max_recursion_depth"):
+        if best[name] is not None:
+            assert estimate("bih", stats, scene, settings.with_(**{name: best[name]})).bound_ms <= limit
+    assert estimate("bih", stats, scene, settings.with_(width=best["width"])).bound_ms <= limit
+    assert estimate("bih", stats, scene, settings.with_(width=best["width"] + 1)).bound_ms > limit
+    assert largest_accepted("bih", stats, scene, settings, 1e6) == {
+        "width": 256,
+        "height": 256,
+        "samples_per_pixel": 16,
+        "max_recursion_depth": 8,
+    }
