@@ -224,6 +224,13 @@ def render(data: dict) -> str:
         if part not in a and part not in b:
             continue
         rows.append([finding, attack, fmt(b.get(part)), fmt(a.get(part))])
+    other = {part: c for part, c in (a.get("commits") or {}).items() if c != a.get("commit")}
+    commits = (
+        "The after column's parts " + ", ".join(f"`{p}`" for p in other) + f" ran at `{next(iter(other.values()))}`, "
+        "the same service code."
+        if other
+        else ""
+    )
     table = md_table(["#", "attack", f"before (`{b.get('commit', '—')}`)", f"after (`{a.get('commit')}`)"], rows)
     return f"""## {TITLE}
 
@@ -237,6 +244,13 @@ finding has a test in `tests/` that reproduces it (docs/API.md, "Hardening", nam
 settings that bound each attack).
 
 {table}
+
+Finding 6 (a binary STL whose count disagrees with its length answered with a missing module's name;
+a PLY short of its declared faces and an OBJ face of index 0 accepted) is about correctness, not load:
+`tests/renderer/test_model_guard.py` holds those files. The frames of row 8 all come from one address:
+once one 192 MiB answer waits for its client, that address's next requests get 429
+(`POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT`); from several addresses they queue in the frame byte budget
+(503 + Retry-After, as the 9 refused of row 7). {commits}
 
 What changed, in short: WebSockets keep their connection slot and lose the request timers through the
 upgrade, and are closed on idleness (1001) or a message flood (1008); model files are checked against
