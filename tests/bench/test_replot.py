@@ -18,7 +18,7 @@ from bench.experiments.__main__ import main
 from bench.experiments.results import assemble, head_of, sections_of
 from tests.helpers import ROOT
 
-SECTIONS = ("table_4_2", "scaling", "specialize", "hardening", "shader")
+SECTIONS = ("table_4_2", "scaling", "specialize", "hardening", "hardening2", "shader")
 DATA = {"shader": ("shader", "shader_next")}
 DOCS = ROOT / "docs"
 
