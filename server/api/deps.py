@@ -13,10 +13,10 @@ from typing import Annotated, Any
 from fastapi import Depends, Path, Query
 from starlette.requests import HTTPConnection
 
-from ..gl_worker import GLWorker
-from ..models import FrameQuery
-from ..ratelimit import TokenBuckets, client_key
-from ..service import SessionService
+from ..frames.trace import GLWorker
+from ..sessions.ratelimit import TokenBuckets, client_key
+from ..sessions.service import SessionService
+from .schemas import FrameQuery
 
 
 def get_service(conn: HTTPConnection) -> SessionService:
@@ -34,7 +34,7 @@ _limiter_lock = threading.Lock()
 
 def session_create_rate(conn: HTTPConnection) -> None:
     """Takes a token of the client address's bucket (POCKETRAY_SESSION_CREATE_PER_MIN, _BURST);
-    :class:`server.ratelimit.RateLimited` (429) when it has none. The buckets are made on first
+    :class:`server.sessions.ratelimit.RateLimited` (429) when it has none. The buckets are made on first
     use, one set per app, like everything else on ``app.state``."""
     state = conn.app.state
     limiter = getattr(state, "session_create_buckets", None)

@@ -37,13 +37,13 @@ from starlette.responses import Response
 
 from renderer.scene import SceneError
 
-from .. import metrics
 from ..config import ServerConfig
-from ..gl_worker import GLNotReady, QueueFull
-from ..models import MAX_LISTED_ERRORS, ErrorOut
-from ..ratelimit import RateLimited
-from ..service import Busy, InputError, NotFound, RenderTimeout, Superseded, field_path
-from ..store import StoreFull, StoreUnavailable
+from ..frames.trace import GLNotReady, QueueFull
+from ..http import metrics
+from ..sessions.ratelimit import RateLimited
+from ..sessions.service import Busy, InputError, NotFound, RenderTimeout, Superseded, field_path
+from ..sessions.store import StoreFull, StoreUnavailable
+from .schemas import MAX_LISTED_ERRORS, ErrorOut
 
 log = logging.getLogger("pocketray.server")
 

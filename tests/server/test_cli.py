@@ -1,4 +1,4 @@
-"""``pocketray`` (server/cli.py): scenario → scene JSON as the API writes it, render with the
+"""``pocketray`` (server/tools/cli.py): scenario → scene JSON as the API writes it, render with the
 API's settings and validation (png, jpeg, npy, exr), the serve flags from ServerConfig, the
 GPU list, and ``serve --workers 2`` (uvicorn by import string: two processes, two GL
 contexts, one /metrics summing both)."""
@@ -21,13 +21,13 @@ import pytest
 from PIL import Image
 from pocketray_server_support import ROOT, free_port, pocketray, pocketray_batch
 
-from server import cli
-from server.exr import decode_exr
+from server.frames.exr import decode_exr
+from server.tools import cli
 
 pytestmark = pytest.mark.gl  # render runs GLRenderer, serve a GL worker
 
 # Commands whose subject is what they write or refuse run several to a process (pocketray_batch:
-# server.cli.main as ``python -m server`` calls it, the start-up paid once); ``pocketray`` itself as
+# server.tools.cli.main as ``python -m server`` calls it, the start-up paid once); ``pocketray`` itself as
 # a process of its own (its exit status from sys.exit included) is run by the serve and devices
 # tests below.
 

@@ -1,4 +1,4 @@
-"""``pocketray render MODEL`` and ``pocketray scene --mesh`` (server/cli.py): a model file
+"""``pocketray render MODEL`` and ``pocketray scene --mesh`` (server/tools/cli.py): a model file
 rendered directly (fitted, on the floor, framed) agrees with the float64 reference tracer
 on the same scene; the scene JSON of model files passes the service's validation, renders
 with ``render scene.json``, and places each model where its transform says; bad files and
@@ -22,7 +22,7 @@ pytestmark = pytest.mark.gl  # render runs GLRenderer
 
 W, H = 48, 40
 MODELS = ["ball.obj", "box.stl", "ring.ply", "ball.glb"]
-# The commands run several to a process (pocketray_batch: server.cli.main as ``python -m server``
+# The commands run several to a process (pocketray_batch: server.tools.cli.main as ``python -m server``
 # calls it; tests/server/test_cli.py runs the command as a process of its own).
 COMMON = ("--width", str(W), "--height", str(H), "--spp", "1", "--quiet")
 
@@ -147,8 +147,8 @@ def test_scene_of_meshes_validates_renders_and_places_each_model(models, client)
     # render scene.json: the triangles where the float64 reference sees them
     assert out.returncode == 0, out.stderr
     got = np.load(models / "p.npy")
-    from server.models import SceneModel
-    from server.scenes import scene_from_model
+    from server.api.schemas import SceneModel
+    from server.sessions.scenes import scene_from_model
 
     want = reference_ids(scene_from_model(SceneModel.model_validate(doc)), 128, 64)
     first = 1

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from renderer.scene import Camera, SceneError
-from server import controller
+from server.sessions import controller
 
 
 def project(cam: Camera, point, width: float, height: float) -> tuple[float, float]:

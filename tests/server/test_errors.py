@@ -32,9 +32,9 @@ from pocketray_server_support import SMALL, new_session
 from renderer.scene import SceneError
 from server.api import errors
 from server.api.body import BodyParsers
-from server.ratelimit import RateLimited
-from server.service import RenderTimeout, Superseded
-from server.store import StoreFull
+from server.sessions.ratelimit import RateLimited
+from server.sessions.service import RenderTimeout, Superseded
+from server.sessions.store import StoreFull
 
 UNKNOWN_SESSION = "no-such-session"
 PINCH = {"type": "pinch", "scale": 2}

@@ -28,8 +28,8 @@ from pocketray_server_support import SMALL, make_config, new_session, wait_ready
 from renderer.result import RenderResult, traced_nbytes
 from renderer.settings import RenderSettings
 from server.app import create_app
-from server.service import frame_nbytes
-from server.view import encode
+from server.frames.encode import encode
+from server.sessions.service import frame_nbytes
 
 pytestmark = pytest.mark.gl  # the app's lifespan starts the GL worker
 

@@ -11,7 +11,7 @@ import random
 import re
 import string
 
-from server import metrics
+from server.http import metrics
 
 SERIES = re.compile(r"^(pocketray_http_[a-z_]+)\{(.*)\} ", re.M)  # a route template has braces too
 LABEL = re.compile(r'(\w+)="((?:[^"\\]|\\.)*)"')

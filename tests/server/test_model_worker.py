@@ -1,4 +1,4 @@
-"""Uploaded model files are parsed in worker processes (server/model_worker.py): a parse past
+"""Uploaded model files are parsed in worker processes (server/sessions/model_worker.py): a parse past
 its deadline is stopped (the worker killed and replaced) and refused with 422 naming
 POCKETRAY_MODEL_TIMEOUT_S; one that needs more memory than POCKETRAY_MODEL_MEMORY_BYTES
 fails inside its worker, refused naming that setting, while the service's memory does not
@@ -17,7 +17,7 @@ from renderer.mesh_io import MeshData, export_mesh
 from renderer.meshes import icosphere
 from renderer.scene import SceneError
 from server.config import ServerConfig
-from server.model_worker import ModelWorkers, load_model, workers_for
+from server.sessions.model_worker import ModelWorkers, load_model, workers_for
 
 SMALL = export_mesh(icosphere(1), "obj")
 

@@ -1,6 +1,6 @@
 """/metrics in the Prometheus text format, JSON log lines with request and session ids however
-the app is started, and /api/ready during shutdown (server/metrics.py, server/observability.py,
-server/shutdown.py)."""
+the app is started, and /api/ready during shutdown (server/http/metrics.py, server/http/observability.py,
+server/http/drain.py)."""
 
 from __future__ import annotations
 
@@ -15,9 +15,9 @@ import pytest
 from pocketray_server_support import ROOT, new_session, server_env
 from prometheus_client.parser import text_string_to_metric_families
 
-from server import metrics
 from server.api import errors
-from server.gl_worker import QueueFull
+from server.frames.trace import QueueFull
+from server.http import metrics
 
 
 def families(text: str) -> dict:
@@ -181,7 +181,7 @@ def test_ready_answers_503_from_the_moment_shutdown_begins(tmp_path):
 
 
 def test_sigint_hands_over_at_once_and_without_a_main_thread_nothing_is_installed():
-    from server.shutdown import Drain
+    from server.http.drain import Drain
 
     d = Drain(drain_s=100)
     called = []

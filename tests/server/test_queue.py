@@ -8,7 +8,7 @@ import time
 import pytest
 from pocketray_server_support import new_session
 
-from server.gl_worker import GLNotReady, GLWorker, QueueFull
+from server.frames.trace import GLNotReady, GLWorker, QueueFull
 
 
 class FakeRenderer:

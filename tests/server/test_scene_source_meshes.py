@@ -1,4 +1,4 @@
-"""A session's scene source with meshes (server.scenes): stored, loaded bit for bit, and
+"""A session's scene source with meshes (server.sessions.scenes): stored, loaded bit for bit, and
 streamed as exactly the scene JSON — without a server (no GL)."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from renderer.animation import AnimatedScene, Deformable, RigidGroup
 from renderer.meshes import teapot
 from renderer.scenarios import mesh_scene
 from renderer.scene import Camera
-from server.scenes import SceneCache, load_source, scene_info, scene_json_chunks, scene_source
+from server.sessions.scenes import SceneCache, load_source, scene_info, scene_json_chunks, scene_source
 
 
 def scene_with_meshes():

@@ -10,7 +10,7 @@ import time
 import pytest
 from pocketray_server_support import SMALL, new_session
 
-from server.gl_worker import FrameCancelled, GLWorker
+from server.frames.trace import FrameCancelled, GLWorker
 
 
 class FakeRenderer:

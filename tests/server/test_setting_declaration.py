@@ -52,7 +52,7 @@ SCRIPT = textwrap.dedent("""
     from server import cli
     from server.app import create_app
 
-    from server.service import SessionService
+    from server.sessions.service import SessionService
 
     # the engine's settings: a field with its default, validated
     out = {"engine": [declared.RenderSettings().exposure, SessionService.render_settings({"exposure": 2.5}).exposure]}

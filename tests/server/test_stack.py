@@ -1,4 +1,4 @@
-"""The scale-out topology on loopback (server/stack.py, ``./dev stack``): Redis with its AOF,
+"""The scale-out topology on loopback (server/tools/stack.py, ``./dev stack``): Redis with its AOF,
 two render processes and HAProxy hashing on X-Session-Id. Sessions are driven through the
 balancer: both processes serve, each session stays on one process, a killed process is routed
 around (its sessions move to the other, from Redis, with nothing lost) and restarted, every
@@ -18,7 +18,7 @@ import httpx
 import pytest
 from pocketray_server_support import SMALL, TEST_CAPS
 
-from server.stack import SERVED_BY_HEADER, SESSION_HEADER, Stack
+from server.tools.stack import SERVED_BY_HEADER, SESSION_HEADER, Stack
 
 pytestmark = pytest.mark.gl  # the render processes make GL contexts
 

@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import pytest
 
-from server.store import RedisStore, SessionState, SQLiteStore, StoreUnavailable
+from server.sessions.store import RedisStore, SessionState, SQLiteStore, StoreUnavailable
 
 CAM = {"position": [0.0, 0.0, 100.0], "target": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0], "fov_y": 60.0}
 

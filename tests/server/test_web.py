@@ -1,4 +1,4 @@
-"""Web basics (server/web.py): CORS from POCKETRAY_CORS_ORIGINS, plain OPTIONS with a correct
+"""Web basics (server/http/cors_docs.py): CORS from POCKETRAY_CORS_ORIGINS, plain OPTIONS with a correct
 Allow header, /docs and /redoc without a CDN, readable operation ids and tags; format=exr; the
 WebSocket route served by uvicorn over a real socket."""
 
@@ -19,7 +19,7 @@ with warnings.catch_warnings():
 from pocketray_server_support import SMALL, make_config, new_session, wait_ready
 
 from server.app import create_app
-from server.exr import decode_exr
+from server.frames.exr import decode_exr
 
 ORIGIN = "http://phone.example:5173"
 
@@ -66,7 +66,7 @@ def allow(r) -> list[str]:
 def test_plain_options_answers_204_with_the_paths_methods(ready_client):
     sid = new_session(ready_client)["id"]
     cases = {
-        f"/api/sessions/{sid}": ["DELETE", "GET", "OPTIONS"],  # sorted (server/allow.py)
+        f"/api/sessions/{sid}": ["DELETE", "GET", "OPTIONS"],  # sorted (server/http/allow.py)
         "/api/sessions": ["OPTIONS", "POST"],
         f"/api/sessions/{sid}/scene": ["GET", "OPTIONS", "PUT"],
         f"/api/sessions/{sid}/frame": ["GET", "OPTIONS"],

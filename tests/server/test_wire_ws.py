@@ -1,4 +1,4 @@
-"""WebSockets and slow readers against a real ``python -m server`` on loopback (server/wire.py).
+"""WebSockets and slow readers against a real ``python -m server`` on loopback (server/http/wire.py).
 
 1. a WebSocket that keeps talking is not cut by the request timers of its upgrade request (they
    wrote a 408 into the WebSocket stream: close 1002), and an idle one is closed with 1001;

@@ -4,9 +4,9 @@ Two routes; the browser client's ``client_web/js/device/device.js`` uses both.
 
 ``GET /api/sessions/{id}/device-data``
     The session's scene and the chosen method's acceleration data as one blob of
-    :mod:`server.device_data`'s format, wrapped to the device's ``max_texture_size``.
+    :mod:`server.frames.device_data`'s format, wrapped to the device's ``max_texture_size``.
     The tree is built for this request, as for every frame. Query
-    (:class:`~server.models.DeviceDataQuery`): the render settings the data is for
+    (:class:`~server.api.schemas.DeviceDataQuery`): the render settings the data is for
     (missing: the session's), ``max_texture_size`` and ``float_textures`` (false → 422:
     the tracer cannot run there). Multi-pass methods (``rayengine``, ``hre``) draw several
     passes on the server and are a 422, as are scenes whose arrays do not fit the device's
@@ -41,17 +41,24 @@ from renderer.methods import METHODS, resolve_method
 from renderer.modes import SINGLE_PASS_MODES
 from renderer.shader_source import tracer_source, vertex_source
 
-from ...device_data import FEATURE_DEFINES, FORMAT_VERSION, camera_uniforms, encode_blob, jsonable, jsonable_stats
-from ...models import DeviceDataQuery, ShaderQuery
-from ...service import InputError
-from ...view import EXPOSED, stats_header
+from ...frames.device_data import (
+    FEATURE_DEFINES,
+    FORMAT_VERSION,
+    camera_uniforms,
+    encode_blob,
+    jsonable,
+    jsonable_stats,
+)
+from ...frames.encode import EXPOSED, stats_header
+from ...sessions.service import InputError
 from ..deps import ServiceDep, SessionId
 from ..errors import documented
+from ..schemas import DeviceDataQuery, ShaderQuery
 
 router = APIRouter(tags=["device"])
 
 _DATA_DOC: dict[str, Any] = {
-    "description": "the packed scene and acceleration data (binary; format in server/device_data.py)",
+    "description": "the packed scene and acceleration data (binary; format in server/frames/device_data.py)",
     "content": {"application/octet-stream": {"schema": {"type": "string", "format": "binary"}}},
     "headers": {
         "X-Session-Version": {"description": "the session version the data shows", "schema": {"type": "string"}},

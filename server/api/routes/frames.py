@@ -19,11 +19,11 @@ from fastapi import APIRouter, Body, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse, StreamingResponse
 
-from ...models import CameraModel, CameraOut, FrameQuery, Gesture, GestureQuery, RenderRequest, StatsOut, StatsQuery
-from ...view import FRAME_RESPONSE_DOC, Frame, frame_headers
+from ...frames.encode import FRAME_RESPONSE_DOC, Frame, frame_headers
 from ..body import JSONBodyRoute
 from ..deps import ServiceDep, SessionId
 from ..errors import documented
+from ..schemas import CameraModel, CameraOut, FrameQuery, Gesture, GestureQuery, RenderRequest, StatsOut, StatsQuery
 
 router = APIRouter(route_class=JSONBodyRoute)  # JSON bodies strict, large ones off the event loop
 WATCH_S = 0.1  # how often a waiting route looks whether its client is still there

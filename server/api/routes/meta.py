@@ -15,10 +15,10 @@ from renderer.profiles import PROFILES
 from renderer.settings import FORMATS, METHOD_NAMES, MODES
 from renderer.tree_update import UPDATE_SCHEMES
 
-from ... import metrics
-from ...models import HealthOut, InfoOut, LimitsOut, ReadyOut
-from ...service import info_extras
+from ...http import metrics
+from ...sessions.service import info_extras
 from ..deps import ServiceDep
+from ..schemas import HealthOut, InfoOut, LimitsOut, ReadyOut
 
 router = APIRouter()
 

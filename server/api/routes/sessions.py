@@ -12,8 +12,14 @@ from starlette.concurrency import run_in_threadpool
 from renderer.mesh_io import MODEL_FORMATS, fit_transform
 from renderer.scene import SceneError
 
-from ...model_worker import load_model
-from ...models import (
+from ...sessions.model_worker import load_model
+from ...sessions.scenes import scene_json_chunks
+from ...sessions.service import Busy, InputError
+from ...sessions.store import SessionState
+from ..body import JSONBodyRoute
+from ..deps import ServiceDep, SessionCreateRate, SessionId
+from ..errors import documented
+from ..schemas import (
     CameraModel,
     CameraOut,
     FullSettings,
@@ -28,12 +34,6 @@ from ...models import (
     SettingsPatch,
     VersionOut,
 )
-from ...scenes import scene_json_chunks
-from ...service import Busy, InputError
-from ...store import SessionState
-from ..body import JSONBodyRoute
-from ..deps import ServiceDep, SessionCreateRate, SessionId
-from ..errors import documented
 
 router = APIRouter(route_class=JSONBodyRoute)  # JSON bodies strict, large ones off the event loop
 

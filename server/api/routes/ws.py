@@ -8,8 +8,8 @@ frame as one binary message; on an error one text JSON ``{"status", "detail"}`` 
 ``"retry_after"``, seconds, where HTTP sends Retry-After) — the very answer the HTTP
 route gives (:mod:`server.api.errors`), and the connection stays open. While the client's
 address has more answer bytes not taken than ``POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT``, a
-message is answered ``{"status": 429, …}`` without any work (:func:`server.wire.refusal`);
-the connection's idle time, message rate and write timeout are :mod:`server.wire`'s.
+message is answered ``{"status": 429, …}`` without any work (:func:`server.http.wire.refusal`);
+the connection's idle time, message rate and write timeout are :mod:`server.http.wire`'s.
 
 A message is read and validated as FastAPI reads a request: its JSON as the body
 (``loc`` ``["body", …]``), its ``"frame"`` settings as the query (``["query", …]``), all
@@ -26,12 +26,12 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.exceptions import RequestValidationError
 from pydantic import TypeAdapter, ValidationError
 
-from ... import wire
-from ...models import Gesture, SettingsPatch
-from ...service import SessionService
-from ...view import Frame
+from ...frames.encode import Frame
+from ...http import wire
+from ...sessions.service import SessionService
 from .. import body, errors
 from ..deps import ServiceDep
+from ..schemas import Gesture, SettingsPatch
 
 router = APIRouter()
 

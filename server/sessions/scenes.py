@@ -33,7 +33,7 @@ from renderer.animation import AnimatedScene, motion_from_json, motion_to_json, 
 from renderer.scenarios import scenario
 from renderer.scene import Camera, Mesh, Scene, SceneError, make_mesh
 
-from .models import CameraModel, SceneModel
+from ..api.schemas import CameraModel, SceneModel
 
 _RECIPE = b"R"
 _ARRAYS = b"A"

@@ -4,7 +4,7 @@
   (default none: the client is served by the service itself, same origin); a preflight
   (``OPTIONS`` with ``Origin`` and ``Access-Control-Request-Method``) is answered by it; the
   frame headers (``Server-Timing``, ``X-Stats``, …) are exposed to the caller's script.
-- **Plain OPTIONS** (no preflight) and 405s: :mod:`server.allow`.
+- **Plain OPTIONS** (no preflight) and 405s: :mod:`server.http.allow`.
 - **/docs and /redoc offline**: Swagger UI's and ReDoc's files come from the
   ``fastapi-offline`` package (its ``static/``), served at ``/docs-assets/``.
 - **OpenAPI**: operation ids are the route functions' names (``create_session``,
@@ -23,8 +23,8 @@ from fastapi.routing import APIRoute
 from starlette.middleware.cors import CORSMiddleware
 from starlette.staticfiles import StaticFiles
 
+from ..frames.encode import EXPOSED
 from .observability import REQUEST_ID_HEADER, SESSION_HEADER
-from .view import EXPOSED
 
 DOCS_ASSETS = "/docs-assets"
 CORS_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")

@@ -4,7 +4,7 @@ A session is two records:
 
 - its *state* (small JSON: version, camera, home camera, render defaults, scene
   info, the scene's revision token) — rewritten by every change;
-- its *scene source* (bytes, see :mod:`server.scenes`) — written only when the
+- its *scene source* (bytes, see :mod:`server.sessions.scenes`) — written only when the
   scene is created or replaced, so a gesture writes a few hundred bytes, not
   the scene.
 

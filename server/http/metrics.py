@@ -41,10 +41,7 @@ import time
 from collections.abc import Iterable
 from typing import Any
 
-from fastapi import APIRouter, Request
-from fastapi.responses import Response
 from prometheus_client import (
-    CONTENT_TYPE_LATEST,
     REGISTRY,
     CollectorRegistry,
     Counter,
@@ -58,7 +55,7 @@ from prometheus_client.core import GaugeMetricFamily
 from renderer.modes import MODES
 from renderer.settings import METHOD_NAMES
 
-from .view import TIMING_NAMES
+from ..frames.encode import TIMING_NAMES
 
 disable_created_metrics()  # no *_created series: they double the exposition and nobody graphs them
 
@@ -106,7 +103,7 @@ HTTP_SECONDS = Histogram(
     "pocketray_http_request_duration_seconds", "HTTP request duration", ["method", "route"], buckets=HTTP_BUCKETS_S
 )
 
-# The methods the API answers (server/allow.py's and OPTIONS); any other method is one label value.
+# The methods the API answers (server/http/allow.py's and OPTIONS); any other method is one label value.
 HTTP_METHODS = frozenset(("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"))
 OTHER = "other"
 STAGES = frozenset(TIMING_NAMES)
@@ -158,7 +155,7 @@ def _safe(fn):
 # ---- hooks --------------------------------------------------------------------------------
 @_safe
 def render_admitted() -> None:
-    """A render took a slot of the GL queue (server.gl_worker)."""
+    """A render took a slot of the GL queue (server.frames.trace)."""
     RENDERS_ADMITTED.inc()
     RENDERS_WAITING.inc()
 
@@ -275,17 +272,3 @@ def process_exit() -> None:
             multiprocess.mark_process_dead(os.getpid())
         except Exception:  # pragma: no cover
             pass
-
-
-router = APIRouter(tags=["service"])
-
-
-@router.get(
-    "/metrics",
-    response_class=Response,
-    operation_id="metrics",
-    summary="Prometheus metrics (text exposition format)",
-    responses={200: {"description": "metrics", "content": {CONTENT_TYPE_LATEST: {"schema": {"type": "string"}}}}},
-)
-def metrics(request: Request) -> Response:
-    return Response(exposition(request.app.state), media_type=CONTENT_TYPE_LATEST)

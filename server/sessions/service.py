@@ -43,11 +43,7 @@ from renderer.scene import Camera, Scene, SceneError
 from renderer.settings import RenderSettings
 from renderer.tree_update import TreeUpdate
 
-from . import controller, metrics
-from .config import ServerConfig
-from .gl_worker import FrameCancelled, FrameHandle, GLWorker, QueueFull, Ticket
-from .model_worker import load_model
-from .models import (
+from ..api.schemas import (
     MeshUploadQuery,
     OrbitGesture,
     PanGesture,
@@ -57,6 +53,12 @@ from .models import (
     SessionCreate,
     SettingsPatch,
 )
+from ..config import ServerConfig
+from ..frames.encode import MEDIA_TYPES, Frame, encode, encoded_nbytes
+from ..frames.trace import FrameCancelled, FrameHandle, GLWorker, QueueFull, Ticket
+from ..http import metrics
+from . import controller
+from .model_worker import load_model
 from .scenes import (
     SceneCache,
     SessionScene,
@@ -69,7 +71,6 @@ from .scenes import (
     scene_source,
 )
 from .store import SessionState, SessionStore, StoreUnavailable
-from .view import MEDIA_TYPES, Frame, encode, encoded_nbytes
 
 _PATH_TOKEN = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
 
@@ -744,7 +745,7 @@ class SessionService:
                 f"render: not done within {self.config.render_timeout_s:g} s", self.worker.retry_after()
             )
         if e.reason == "shutdown":
-            from .gl_worker import GLNotReady
+            from ..frames.trace import GLNotReady
 
             return GLNotReady("the service is shutting down")
         return Superseded(f"frame: stopped, {e.reason} (a newer frame of this session, or the client went away)")

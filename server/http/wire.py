@@ -45,7 +45,7 @@ Behind a reverse proxy every connection comes from the proxy's address: set
 above the proxy's pool) and let the proxy bound clients and their timeouts (nginx: ``limit_conn``,
 ``client_header_timeout``, ``client_body_timeout``, ``send_timeout``; docs/API.md, "Hardening").
 
-``pocketray serve`` (:mod:`server.cli`) runs uvicorn with both protocols.
+``pocketray serve`` (:mod:`server.tools.cli`) runs uvicorn with both protocols.
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ from uvicorn.protocols.http.h11_impl import H11Protocol
 from uvicorn.protocols.utils import ClientDisconnected
 from uvicorn.protocols.websockets.websockets_sansio_impl import WebSocketsSansIOProtocol
 
-from .config import ServerConfig
+from ..config import ServerConfig
 
 log = logging.getLogger("pocketray.wire")
 

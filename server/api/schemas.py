@@ -61,7 +61,7 @@ from renderer.mesh_io import MODEL_FORMATS
 from renderer.scenarios import CUBE_HALF, MAX_MESH_DETAIL, MESH_SCENES
 from renderer.settings import SettingSpec, setting
 
-from .device_data import DEFAULT_MAX_TEXTURE_SIZE, FEATURE_DEFINES
+from ..frames.device_data import DEFAULT_MAX_TEXTURE_SIZE, FEATURE_DEFINES
 
 MuseumKind = Literal[MUSEUM_KINDS]
 ModelFormat = Literal[MODEL_FORMATS]
@@ -707,7 +707,7 @@ class LimitsOut(BaseModel):
 
 
 class MethodSettingsOut(BaseModel):
-    """Which settings a method reads, so that a client shows only those (server.service.method_settings)."""
+    """Which settings a method reads, so that a client shows only those (server.sessions.service.method_settings)."""
 
     settings: list[str] = Field(
         description="settings its build or passes read: max_prims, max_tree_depth, tile_size, update"

@@ -10,7 +10,7 @@
     pocketray scenario 1|2|3 --n N [--seed S] [--radius R] -o scene.json
     pocketray scenario museum --n N [--kind mixed] [--absent A] [--seed S] -o scene.json
     pocketray gpus [--probe]
-    pocketray stack [--processes N] [--port P]     (Redis + render processes + HAProxy, server/stack.py)
+    pocketray stack [--processes N] [--port P]     (Redis + render processes + HAProxy, server/tools/stack.py)
 
 ``serve`` takes a flag for every field of :class:`server.config.ServerConfig` (``--queue-size``,
 ``--cors-origins``, ``--drain-s`` …): each is put in the environment as its ``POCKETRAY_*``
@@ -19,10 +19,10 @@ uvicorn gets the app as the import string ``server.app:create_app`` (a factory),
 ``--workers N`` starts N processes, each with its own app and GL context; with more than one
 the Prometheus metrics go through a shared directory (multiprocess mode).
 
-``render`` takes the settings of the API's frame query (:class:`server.models.FrameQuery`,
+``render`` takes the settings of the API's frame query (:class:`server.api.schemas.FrameQuery`,
 validated by the same models and by ``RenderSettings``, with ``--spp`` for
 ``samples_per_pixel`` and ``--depth`` for ``max_recursion_depth``) and the scene JSON of
-docs/FORMATS.md (:class:`server.models.SceneModel`). The output format follows the file's
+docs/FORMATS.md (:class:`server.api.schemas.SceneModel`). The output format follows the file's
 extension. Errors are the API's 422 messages (``width: …``), exit status 2.
 
 ``render`` also takes a model file (any format :mod:`renderer.mesh_io` loads, told by its
@@ -60,7 +60,7 @@ class UsageError(Exception):
 
 # ---- serve ------------------------------------------------------------------------------------
 def _config_fields() -> dict[str, Any]:
-    from .config import ServerConfig
+    from ..config import ServerConfig
 
     return dict(ServerConfig.model_fields)
 
@@ -97,9 +97,9 @@ def _add_serve(sub: argparse._SubParsersAction) -> None:
 def serve(args: argparse.Namespace) -> int:
     import uvicorn
 
-    from .config import ServerConfig
-    from .observability import configure_logging, uvicorn_log_config
-    from .wire import GuardedH11Protocol, GuardedWebSocketProtocol
+    from ..config import ServerConfig
+    from ..http.observability import configure_logging, uvicorn_log_config
+    from ..http.wire import GuardedH11Protocol, GuardedWebSocketProtocol
 
     for name in _config_fields():
         value = getattr(args, f"cfg_{name}")
@@ -121,7 +121,7 @@ def serve(args: argparse.Namespace) -> int:
     try:
         # GuardedH11Protocol: 408 for stalled requests, connections per client, write timeout, unsent
         # bytes per client; GuardedWebSocketProtocol: the same through the upgrade, idle and flooding
-        # WebSockets (server/wire.py). The classes, not subclasses per config, so that --workers can
+        # WebSockets (server/http/wire.py). The classes, not subclasses per config, so that --workers can
         # hand them to each worker process.
         uvicorn.run(
             APP_FACTORY,
@@ -144,7 +144,7 @@ def serve(args: argparse.Namespace) -> int:
 
 # ---- render ---------------------------------------------------------------------------------
 def _add_render(sub: argparse._SubParsersAction) -> None:
-    from .models import RenderParams
+    from ..api.schemas import RenderParams
 
     p = sub.add_parser(
         "render",
@@ -244,11 +244,11 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
 
     from renderer.scene import SceneError
 
-    from .config import ServerConfig
-    from .models import FrameQuery, SceneModel
-    from .scenes import scene_from_model
-    from .service import SessionService
-    from .view import encode
+    from ..api.schemas import FrameQuery, SceneModel
+    from ..config import ServerConfig
+    from ..frames.encode import encode
+    from ..sessions.scenes import scene_from_model
+    from ..sessions.service import SessionService
 
     fmt = EXTENSIONS.get(output.suffix.lower())
     if fmt is None:
@@ -367,7 +367,7 @@ def scenario_scene(
 
 
 def write_scenario(args: argparse.Namespace) -> int:
-    from .scenes import scene_json_chunks
+    from ..sessions.scenes import scene_json_chunks
 
     scene = scenario_scene(args.which, args.n, args.seed, args.radius, args.kind, args.absent)
     if args.output == "-":
@@ -407,8 +407,8 @@ def models_scene(paths: list[str], size: float = 30.0, smooth: bool | None = Non
     from renderer.mesh_io import models_scene_json
     from renderer.scene import SceneError
 
-    from .models import SceneModel
-    from .scenes import scene_from_model
+    from ..api.schemas import SceneModel
+    from ..sessions.scenes import scene_from_model
 
     for path in paths:
         if not Path(path).is_file():
@@ -487,7 +487,8 @@ def _add_stack(sub: argparse._SubParsersAction) -> None:
     sub.add_parser(
         "stack",
         add_help=False,
-        help="Redis + render processes + HAProxy on loopback ports (server/stack.py; needs redis-server and haproxy)",
+        help="Redis + render processes + HAProxy on loopback ports "
+        "(server/tools/stack.py; needs redis-server and haproxy)",
     )
 
 

@@ -3,7 +3,7 @@
 Formats (docs/FORMATS.md): ``png`` and ``jpeg`` carry what the render mode shows as 8-bit
 RGB; ``npy`` is one ``.npy`` array (colour uint8 H×W×3, depth float32 H×W with
 inf on a miss, primid int32 H×W with −1 on a miss, normal float32 H×W×3); ``exr`` is one
-OpenEXR file of float channels (colour linear and unquantised; :mod:`server.exr`).
+OpenEXR file of float channels (colour linear and unquantised; :mod:`server.frames.exr`).
 
 Headers of every frame:
 

@@ -76,7 +76,7 @@ BALANCER_ERRORS = {
 
 def default_client_cap() -> int:
     """POCKETRAY_MAX_CONNECTIONS_PER_CLIENT's default (server/config.py), the balancer's per-address cap."""
-    from .config import ServerConfig
+    from ..config import ServerConfig
 
     return ServerConfig.model_fields["max_connections_per_client"].default
 
@@ -95,7 +95,7 @@ def haproxy_config(
     POCKETRAY_MAX_CONNECTIONS_PER_CLIENT's), which the render processes cannot count behind it."""
     cap = default_client_cap() if client_cap is None else client_cap
     lines = [
-        "# pocketray's balancer (server/stack.py:haproxy_config writes this; docs/DEPLOY.md explains it)",
+        "# pocketray's balancer (server/tools/stack.py:haproxy_config writes this; docs/DEPLOY.md explains it)",
         "global",
         "    maxconn 4096",
         "",

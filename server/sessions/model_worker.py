@@ -15,7 +15,7 @@ another. The file's declared counts are checked first in the worker
 The protocol is a pipe each way: 8-byte length, then a pickle — the job ``(bytes, format,
 max_triangles, max_vertices)`` one way, ``("ok", vertices, triangles, normals)`` or
 ``("error", field, message)`` the other (pickles only between this module and the processes
-it started). A worker is ``python -m server.model_worker``: it imports the renderer's core and
+it started). A worker is ``python -m server.sessions.model_worker``: it imports the renderer's core and
 nothing of the service.
 
 Every upload pays the copy of its bytes to the worker and of the arrays back (a few ms per MB;
@@ -66,7 +66,7 @@ class _Worker:
             PYTHONPATH=os.pathsep.join([root] + ([os.environ["PYTHONPATH"]] if os.environ.get("PYTHONPATH") else [])),
         )
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "server.model_worker", str(memory_bytes), repr(cpu_s)],
+            [sys.executable, "-m", "server.sessions.model_worker", str(memory_bytes), repr(cpu_s)],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=subprocess.DEVNULL,

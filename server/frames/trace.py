@@ -33,7 +33,7 @@ from collections.abc import Callable, Hashable
 from concurrent.futures import Future
 from typing import Any, TypeVar
 
-from . import metrics
+from ..http import metrics
 
 log = logging.getLogger("pocketray.gl")
 T = TypeVar("T")
