@@ -34,6 +34,7 @@ from renderer.settings import RenderSettings
 from .api import errors
 from .api.routes import api_router, metrics as metrics_route
 from .config import ServerConfig
+from .frames.pipeline import FramePipeline
 from .frames.trace import GLWorker, default_renderer
 from .http import cors_docs, metrics
 from .http.allow import AllowMethods
@@ -77,7 +78,8 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
         app.state.config = config
         app.state.store = store
         app.state.worker = worker
-        app.state.service = SessionService(config, store, worker)
+        app.state.frames = FramePipeline(config, worker)
+        app.state.service = SessionService(config, store, app.state.frames)
         app.state.drain = drain
         app.state.is_ready = lambda: worker.ready.is_set() and not drain.draining.is_set()
         drain.install()

@@ -38,10 +38,10 @@ from starlette.responses import Response
 from renderer.scene import SceneError
 
 from ..config import ServerConfig
+from ..faults import Busy, InputError, NotFound, RenderTimeout, Superseded, field_path
 from ..frames.trace import GLNotReady, QueueFull
 from ..http import metrics
 from ..sessions.ratelimit import RateLimited
-from ..sessions.service import Busy, InputError, NotFound, RenderTimeout, Superseded, field_path
 from ..sessions.store import StoreFull, StoreUnavailable
 from .schemas import MAX_LISTED_ERRORS, ErrorOut
 

@@ -707,7 +707,7 @@ class LimitsOut(BaseModel):
 
 
 class MethodSettingsOut(BaseModel):
-    """Which settings a method reads, so that a client shows only those (server.sessions.service.method_settings)."""
+    """Which settings a method reads, so that a client shows only those (server.api.routes.meta.method_settings)."""
 
     settings: list[str] = Field(
         description="settings its build or passes read: max_prims, max_tree_depth, tile_size, update"

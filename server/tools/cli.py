@@ -247,8 +247,8 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
     from ..api.schemas import FrameQuery, SceneModel
     from ..config import ServerConfig
     from ..frames.encode import encode
+    from ..frames.pipeline import render_settings
     from ..sessions.scenes import scene_from_model
-    from ..sessions.service import SessionService
 
     fmt = EXTENSIONS.get(output.suffix.lower())
     if fmt is None:
@@ -270,7 +270,7 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
     config = ServerConfig()
     settings = {**config.default_settings(), **patch}
     try:
-        rs = SessionService.render_settings(settings)
+        rs = render_settings(settings)
         rs.check_method(scene.n_spheres)
     except (SceneError, TypeError) as e:
         raise UsageError(f"{getattr(e, 'field', 'settings')}: {getattr(e, 'message', e)}") from None

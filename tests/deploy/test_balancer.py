@@ -3,7 +3,7 @@ stand-in render processes (tests/deploy/fake_render.py: no GL, killed in millise
 errors are JSON with Retry-After, each client address is capped with a 429, a request a process
 dropped is re-sent only when that is harmless (a GET) — a gesture is never applied twice — and a
 process whose port refuses is out of rotation at once, not after its health checks fail. The
-whole stack with render processes runs in tests/server/test_stack.py."""
+whole stack with render processes runs in tests/server/tools/test_stack.py."""
 
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 the Compose Specification's JSON schema (tests/deploy/compose-spec.json, from
 github.com/compose-spec/compose-spec, Apache 2.0), its topology, deploy/haproxy.cfg against
 its generator and HAProxy's own check, the Dockerfile, and the lock files. The same topology
-runs for real, on loopback, in tests/server/test_stack.py."""
+runs for real, on loopback, in tests/server/tools/test_stack.py."""
 
 from __future__ import annotations
 

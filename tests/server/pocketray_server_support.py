@@ -139,7 +139,7 @@ def pocketray(*args: str, cwd: Path, stdin: str | None = None) -> subprocess.Com
 # on stderr for any other exception; stdin, stdout and stderr are the command's own.
 _BATCH = r"""
 import contextlib, io, json, sys, traceback
-from server import cli
+from server.tools import cli
 out = []
 for argv, stdin in json.loads(sys.stdin.read()):
     so, se = io.TextIOWrapper(io.BytesIO(), encoding="utf-8"), io.StringIO()   # stdout has a .buffer

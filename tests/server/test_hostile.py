@@ -111,14 +111,14 @@ def test_a_gesture_frame_that_fails_on_the_gl_thread_changes_nothing(ready_clien
     from server.frames.trace import GLNotReady
 
     c = ready_client
-    service = c.app.state.service
+    frames = c.app.state.frames
     sid = new_session(c)["id"]
     before = state_of(c, sid)
 
     def lost(*args, **kwargs):
         raise GLNotReady("OpenGL context lost (test)")
 
-    monkeypatch.setattr(service, "wait", lost)
+    monkeypatch.setattr(frames, "wait", lost)
     r = c.post(f"/api/sessions/{sid}/gesture?frame=1", json={"type": "orbit", "yaw": 30})
     assert r.status_code == 503 and "retry-after" in r.headers, r.text
     assert state_of(c, sid) == before

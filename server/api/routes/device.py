@@ -41,6 +41,7 @@ from renderer.methods import METHODS, resolve_method
 from renderer.modes import SINGLE_PASS_MODES
 from renderer.shader_source import tracer_source, vertex_source
 
+from ...faults import InputError
 from ...frames.device_data import (
     FEATURE_DEFINES,
     FORMAT_VERSION,
@@ -50,8 +51,7 @@ from ...frames.device_data import (
     jsonable_stats,
 )
 from ...frames.encode import EXPOSED, stats_header
-from ...sessions.service import InputError
-from ..deps import ServiceDep, SessionId
+from ..deps import FramesDep, ServiceDep, SessionId
 from ..errors import documented
 from ..schemas import DeviceDataQuery, ShaderQuery
 
@@ -127,7 +127,9 @@ def shader_url(method: str, mode: str, depth: int, features: tuple[str, ...]) ->
     responses={200: _DATA_DOC, **documented(404, 503)},
     summary="The session's scene and acceleration data packed for a device (WebGL2)",
 )
-def device_data(session_id: SessionId, service: ServiceDep, query: Annotated[DeviceDataQuery, Query()]) -> Response:
+def device_data(
+    session_id: SessionId, service: ServiceDep, frames: FramesDep, query: Annotated[DeviceDataQuery, Query()]
+) -> Response:
     t0 = time.perf_counter()
     if not query.float_textures:
         raise InputError(
@@ -136,7 +138,7 @@ def device_data(session_id: SessionId, service: ServiceDep, query: Annotated[Dev
             "EXT_color_buffer_float); this device cannot run it: use server mode",
         )
     state = service.get(session_id)
-    settings = service.merge_settings(state.settings, query.given(), "query")
+    settings = service.caps.merge_settings(state.settings, query.given(), "query")
     n_triangles = state.scene_info.get("n_triangles", 0)
     n = state.scene_info.get("n_spheres", 0) + n_triangles  # auto's crossover, as prepare_frame
     method_name = resolve_method(settings["method"], n)
@@ -151,10 +153,10 @@ def device_data(session_id: SessionId, service: ServiceDep, query: Annotated[Dev
         )
     check_single_pass_mode(settings["mode"])
     width = 1 << (int(query.max_texture_size).bit_length() - 1)  # the power of two at most the device's
-    with service.admit():  # a queue slot for back-pressure; the work is NumPy, on this thread
+    with frames.admit():  # a queue slot for back-pressure; the work is NumPy, on this thread
         # An animated scene is posed here; the tree is rebuilt (updates between frames
         # belong to the GL thread's renders, whose tree caches are not shared with this thread).
-        scene, update = service.posed(service.scene(state), settings)
+        scene, update = frames.posed(service.scene(state), settings)
         t_built0 = time.perf_counter()
         try:
             prepared = meth.prepare(scene, settings["max_prims"], settings["max_tree_depth"], width, update)

@@ -12,9 +12,9 @@ from starlette.concurrency import run_in_threadpool
 from renderer.mesh_io import MODEL_FORMATS, fit_transform
 from renderer.scene import SceneError
 
+from ...faults import Busy, InputError
 from ...sessions.model_worker import load_model
 from ...sessions.scenes import scene_json_chunks
-from ...sessions.service import Busy, InputError
 from ...sessions.store import SessionState
 from ..body import JSONBodyRoute
 from ..deps import ServiceDep, SessionCreateRate, SessionId

@@ -32,8 +32,8 @@ from pocketray_server_support import SMALL, new_session
 from renderer.scene import SceneError
 from server.api import errors
 from server.api.body import BodyParsers
+from server.faults import RenderTimeout, Superseded
 from server.sessions.ratelimit import RateLimited
-from server.sessions.service import RenderTimeout, Superseded
 from server.sessions.store import StoreFull
 
 UNKNOWN_SESSION = "no-such-session"
@@ -51,7 +51,7 @@ class Case:
     frame: dict[str, Any] = field(default_factory=dict)
     raw: str | bytes | None = None  # the message / body as sent, instead of gesture + frame
     session: str | None = None  # default: a live session
-    raises: Exception | None = None  # service.session_frame raises this
+    raises: Exception | None = None  # service.frame_request raises this
     gl_error: str | None = None  # the GL context "failed" with this
     full_queue: bool = False  # every queue slot is taken
     path: str | None = None  # HTTP only: GET this path instead
@@ -141,7 +141,7 @@ def test_every_row_of_the_table_is_checked():
 @pytest.mark.parametrize("name", list(CASES))
 def test_http_and_websocket_answer_alike(client, http, sid, monkeypatch, name):
     case = CASES[name]
-    service, worker = client.app.state.service, client.app.state.worker
+    service, frames, worker = client.app.state.service, client.app.state.frames, client.app.state.worker
     rows: list[str] = []
     answer = errors.answer
 
@@ -152,18 +152,18 @@ def test_http_and_websocket_answer_alike(client, http, sid, monkeypatch, name):
     monkeypatch.setattr(errors, "answer", spy)
     if case.raises is not None:
 
-        def session_frame(*args, **kwargs):
+        def frame_request(*args, **kwargs):
             raise case.raises
 
-        monkeypatch.setattr(service, "session_frame", session_frame)
+        monkeypatch.setattr(service, "frame_request", frame_request)
     if case.gl_error is not None:
         monkeypatch.setattr(worker, "error", case.gl_error)
     held = [worker.admit() for _ in range(worker.queue_size)] if case.full_queue else []
     parsers = BodyParsers.of(SimpleNamespace(app=client.app))
     bodies = [parsers.try_admit() for _ in range(parsers.admitted)] if case.busy_bodies else []
-    planning = [service._planning.acquire() for _ in range(service.config.queue_size)] if case.busy_planning else []
+    planning = [frames._planning.acquire() for _ in range(frames.config.queue_size)] if case.busy_planning else []
     if planning:
-        monkeypatch.setattr(service, "PLAN_WAIT_S", 0.01)
+        monkeypatch.setattr(frames, "PLAN_WAIT_S", 0.01)
     try:
         r = over_http(http, case.session or sid, case)
         http_rows, rows[:] = list(rows), []
@@ -174,7 +174,7 @@ def test_http_and_websocket_answer_alike(client, http, sid, monkeypatch, name):
         for _ in bodies:
             parsers.release()
         for _ in planning:
-            service._planning.release()
+            frames._planning.release()
 
     assert http_rows == [case.row] and rows == ([] if name in HTTP_ONLY else [case.row])  # through the one row
     assert r.status_code == case.status, r.text

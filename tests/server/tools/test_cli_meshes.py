@@ -23,7 +23,7 @@ pytestmark = pytest.mark.gl  # render runs GLRenderer
 W, H = 48, 40
 MODELS = ["ball.obj", "box.stl", "ring.ply", "ball.glb"]
 # The commands run several to a process (pocketray_batch: server.tools.cli.main as ``python -m server``
-# calls it; tests/server/test_cli.py runs the command as a process of its own).
+# calls it; tests/server/tools/test_cli.py runs the command as a process of its own).
 COMMON = ("--width", str(W), "--height", str(H), "--spp", "1", "--quiet")
 
 

@@ -11,6 +11,7 @@ import pytest
 from pocketray_server_support import SMALL, new_session
 
 from server.frames.trace import FrameCancelled, GLWorker
+from server.sessions.service import owner
 
 
 class FakeRenderer:
@@ -238,12 +239,12 @@ def test_the_largest_accepted_width_named_is_accepted(capped):
 
 def test_latest_wins_for_the_frames_of_one_session(ready_client):
     c = ready_client
-    service, worker = c.app.state.service, c.app.state.worker
+    service, frames, worker = c.app.state.service, c.app.state.frames, c.app.state.worker
     sid = new_session(c)["id"]
     state = service.get(sid)
     gate = threading.Event()
     blocker = worker.admit().submit(lambda r: gate.wait(5))  # the GL thread is busy
-    older = service.start_frame(service.plan(service.scene(state), dict(state.settings), "query"), session=state)
+    older = frames.start_frame(frames.plan(service.scene(state), dict(state.settings), "query"), owner=owner(state))
     newer: list = []
     t = threading.Thread(target=lambda: newer.append(c.get(f"/api/sessions/{sid}/frame")))
     t.start()
