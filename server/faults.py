@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterable
+from enum import StrEnum
 
 from renderer.scene import SceneError
 
@@ -17,24 +18,45 @@ def field_path(field: str) -> list[str | int]:
     return [int(i) if i else name for name, i in _PATH_TOKEN.findall(field)]
 
 
+class Where(StrEnum):
+    """The part of a request an input came in: the first item of FastAPI's ``loc``."""
+
+    BODY = "body"
+    QUERY = "query"
+    PATH = "path"
+
+
 class InputError(SceneError):
-    """A rejected input: ``loc`` as FastAPI's errors (``("query", "width")``)."""
+    """A rejected input. ``loc`` is as FastAPI's errors (``("query", "width")``) once it starts with
+    the part of the request (:class:`Where`); the service's parts raise it relative to the part the
+    route names (``("width",)``) and the route places it (:meth:`at`, :func:`server.api.errors.located`);
+    an input whose part the route cannot know (a gesture's field in a request whose settings are its
+    query) is raised placed."""
 
     def __init__(self, loc: Iterable[str | int], message: str):
         loc = tuple(loc)
-        inner = loc[1:] if loc and loc[0] in ("body", "query", "path") else loc
+        inner = loc[1:] if loc and loc[0] in _PARTS else loc
         field = ""
         for part in inner:  # the JSON path as the renderer writes it: scene.meshes[0].triangles[12]
             field += f"[{part}]" if isinstance(part, int) else (f".{part}" if field else str(part))
         super().__init__(field or "body", message)
         self.loc = loc
 
+    @property
+    def placed(self) -> bool:
+        return bool(self.loc) and self.loc[0] in _PARTS
 
-def relocate(e: SceneError, where: str) -> InputError:
-    """A SceneError from the renderer, placed in the request (``where``: body | query)."""
-    if isinstance(e, InputError):
-        return e
-    return InputError((where, *field_path(e.field)), e.message)
+    def at(self, where: Where) -> InputError:
+        """This error in the request's ``where`` (itself when it is placed already)."""
+        return self if self.placed else InputError((where, *self.loc), self.message)
+
+
+_PARTS = frozenset(w.value for w in Where)
+
+
+def input_error(e: SceneError) -> InputError:
+    """A SceneError of the renderer as a rejected input at its field (relative: the route places it)."""
+    return e if isinstance(e, InputError) else InputError(field_path(e.field), e.message)
 
 
 class NotFound(Exception):

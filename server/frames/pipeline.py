@@ -42,7 +42,7 @@ from renderer.settings import RenderSettings
 from renderer.tree_update import TreeUpdate
 
 from ..config import ServerConfig
-from ..faults import Busy, InputError, RenderTimeout, Superseded, relocate
+from ..faults import Busy, InputError, RenderTimeout, Superseded, input_error
 from ..http import metrics
 from .encode import MEDIA_TYPES, Frame, encode, encoded_nbytes
 from .trace import FrameCancelled, FrameHandle, GLWorker, Ticket
@@ -112,8 +112,7 @@ class FrameOwner(NamedTuple):
 
 @dataclass(frozen=True)
 class FrameRequest:
-    """One frame to make. ``where`` is where the request names the settings (``"body"`` or
-    ``"query"``: a refused setting is reported there); ``progressive``: the preview (a supersampled
+    """One frame to make. ``progressive``: the preview (a supersampled
     frame's pixel-centre pass) first when there is one; ``commit(result)`` runs when the final image
     is ready and returns the session version to report; ``cancel`` (set when the client goes away)
     stops the frame."""
@@ -121,7 +120,6 @@ class FrameRequest:
     scene: Scene | AnimatedScene
     settings: dict[str, Any]
     owner: FrameOwner | None = None
-    where: str = "query"
     progressive: bool = False
     commit: Callable[[Any], int] | None = None
     cancel: threading.Event | None = None
@@ -173,17 +171,11 @@ class FramePipeline:
         and ``twolevel`` can refit the tree of its previous frame. A frame without a session
         has no previous frame: it always rebuilds.
         """
-        scene, settings, owner, where, cancel = (
-            request.scene,
-            request.settings,
-            request.owner,
-            request.where,
-            request.cancel,
-        )
+        scene, settings, owner, cancel = request.scene, request.settings, request.owner, request.cancel
         t_admit = time.perf_counter()
         key = (owner.id, owner.scene_rev) if owner is not None else None
-        frame = self.plan(scene, settings, where, key=key)
-        self.check_traceable(frame, where)
+        frame = self.plan(scene, settings, key=key)
+        self.check_traceable(frame)
         with self.frame_memory(frame.settings):  # from before its target exists to its encoded body
             t_queued = time.perf_counter()
             handle = self.start_frame(frame, owner=owner)
@@ -255,7 +247,6 @@ class FramePipeline:
         self,
         scene: Scene | AnimatedScene,
         settings: dict[str, Any],
-        where: str,
         *,
         key: Any = None,
         n_field: tuple | None = None,
@@ -263,7 +254,8 @@ class FramePipeline:
         """Pose, build and estimate the frame on this thread; 422 when its estimated cost is
         over POCKETRAY_MAX_FRAME_COST, naming the setting to change and its accepted value
         (``n_field``: where the request names the sphere count, when it does: a scene whose
-        spheres crowd every ray is refused there)."""
+        spheres crowd every ray is refused there). Its refusals are relative to the part of the
+        request that holds the settings (:class:`server.faults.InputError`)."""
         rs = render_settings(settings)
         if key is None:
             rs = rs.with_(update="rebuild")  # no animation to follow: never touch a kept tree
@@ -271,14 +263,14 @@ class FramePipeline:
             with self.planning():
                 frame = prepare_frame(scene, rs, key=key, max_width=self.max_texture_width)
         except SceneError as e:
-            raise relocate(e, where) from None
+            raise input_error(e) from None
         limit = self.config.max_frame_cost
         if frame.cost.bound_ms > limit:
-            raise InputError(*self._too_costly(frame, where, limit, n_field))
+            raise InputError(*self._too_costly(frame, limit, n_field))
         return frame
 
     @staticmethod
-    def check_traceable(frame: PreparedFrame, where: str) -> None:
+    def check_traceable(frame: PreparedFrame) -> None:
         """422 (``meshes``) before admission for a frame its method cannot trace on the GPU: one
         with triangles for a one-pass method whose layout holds spheres only
         (``Capabilities.meshes_on_gpu`` False — none since every one-pass layout holds triangles,
@@ -287,16 +279,14 @@ class FramePipeline:
         earlier, naming the ``method`` (prepare_frame's check_primitives)."""
         if frame.scene.n_triangles and not frame.multi_pass and not METHODS[frame.method].capabilities.meshes_on_gpu:
             raise InputError(
-                (where, "meshes"),
+                ("meshes",),
                 f"method {frame.method!r}: {NOT_ON_GPU}; this scene has "
                 f"{len(frame.scene.meshes)} mesh(es) of "
                 f"{frame.scene.n_triangles:,} triangles — its scene, statistics and "
                 f"meshes are served, its frames with those methods",
             )
 
-    def _too_costly(
-        self, frame: PreparedFrame, where: str, limit: float, n_field: tuple | None = None
-    ) -> tuple[tuple, str]:
+    def _too_costly(self, frame: PreparedFrame, limit: float, n_field: tuple | None = None) -> tuple[tuple, str]:
         """Where to point and what to say of a frame estimated over the cost cap."""
         s, c = frame.settings, frame.cost
         n = frame.scene.n_spheres
@@ -314,14 +304,14 @@ class FramePipeline:
         if c.degenerate:
             field = "max_prims" if s.max_prims >= max(2, n // 4) else "max_tree_depth"
             return (
-                (where, field),
+                (field,),
                 f"{head}: the {frame.method} tree is (nearly) one leaf of {n:,} spheres — "
                 f"a smaller max_prims (≤ 16) or a larger max_tree_depth (≥ "
                 f"{max(2, n.bit_length())}) builds a real hierarchy",
             )
         if capabilities(frame.method).tests_every_sphere:
             return (
-                (where, "method"),
+                ("method",),
                 f"{head}: method {frame.method} tests every sphere on every ray; "
                 f"use method=bih (a hierarchy) or a smaller frame",
             )
@@ -338,7 +328,7 @@ class FramePipeline:
         largest = best.get(field)
         say = f"{field}: at most {largest}" if largest is not None else f"{field}: no value fits"
         return (
-            (where, field),
+            (field,),
             f"{head}; {say} at these settings"
             + (f" (or {', '.join(o for o in options if not o.startswith(field))})" if len(options) > 1 else ""),
         )

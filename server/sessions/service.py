@@ -4,7 +4,10 @@ sessions ask for, as requests to the frame pipeline.
 Every operation first checks its whole input (pydantic did the per-field part; here the input
 caps, :class:`server.sessions.caps.InputCaps`, and the frame's cost through the pipeline's plan),
 then hands one ``mutate`` function to the store, which applies it in a single transaction and bumps
-the version. A rejected request therefore changes nothing.
+the version. A rejected request therefore changes nothing. A refused input names its field
+relative to the part of the request the route names (``("scene", "spheres")``; the route places it in
+the body or the query, :func:`server.api.errors.located`); one whose part the route cannot know (a
+gesture's field, a model upload's query) is named with its part (:class:`server.faults.Where`).
 
 A frame is one :class:`server.frames.pipeline.FrameRequest` made here (the session's scene and
 settings, the frame query's patch merged and checked) and run by
@@ -38,7 +41,7 @@ from ..api.schemas import (
     SettingsPatch,
 )
 from ..config import ServerConfig
-from ..faults import Busy, InputError, NotFound, Superseded, relocate
+from ..faults import Busy, InputError, NotFound, Superseded, Where, input_error
 from ..frames.pipeline import FrameOwner, FramePipeline, FrameRequest
 from . import controller
 from .caps import InputCaps
@@ -96,9 +99,9 @@ class SessionService:
             if given
         ]
         if len(sources) > 1:
-            where = recipe_given[0] if recipe_given else sources[1]
+            field = recipe_given[0] if recipe_given else sources[1]
             raise InputError(
-                ("body", where),
+                (field,),
                 "give one of a scenario (scenario, n, seed, radius), a museum, "
                 f"a mesh_scene or a scene, not {' and '.join(sources)}",
             )
@@ -109,7 +112,7 @@ class SessionService:
             scene = mesh_scene(r.kind, r.detail, r.smooth)
             if scene.n_triangles > self.config.max_triangles:
                 raise InputError(
-                    ("body", "mesh_scene", "detail"),
+                    ("mesh_scene", "detail"),
                     f"{scene.n_triangles} triangles; at most {self.config.max_triangles} allowed "
                     "(POCKETRAY_MAX_TRIANGLES)",
                 )
@@ -117,16 +120,16 @@ class SessionService:
             source = scene_source(scene)
         elif body.museum is not None:
             m = body.museum
-            self.caps.check_spheres(m.n + MUSEUM_ROOM_SPHERES, ("body", "museum", "n"))
+            self.caps.check_spheres(m.n + MUSEUM_ROOM_SPHERES, ("museum", "n"))
             scene = museum(m.n, m.kind, m.seed, m.absent)
             recipe = {"museum": m.model_dump()}
             source = museum_source(m.n, m.kind, m.seed, m.absent)
         elif body.scene is None:
             if body.scenario is None:
-                raise InputError(("body", "scenario"), "required: a scenario 1, 2 or 3 with n, or a full scene")
+                raise InputError(("scenario",), "required: a scenario 1, 2 or 3 with n, or a full scene")
             if body.n is None:
-                raise InputError(("body", "n"), "required with scenario: the number of spheres")
-            self.caps.check_spheres(body.n, ("body", "n"))
+                raise InputError(("n",), "required with scenario: the number of spheres")
+            self.caps.check_spheres(body.n, ("n",))
             recipe = {
                 "scenario": body.scenario,
                 "n": body.n,
@@ -136,26 +139,26 @@ class SessionService:
             try:
                 scene = scenario(recipe["scenario"], recipe["n"], recipe["seed"], recipe["radius"])
             except SceneError as e:
-                raise relocate(e, "body") from None
+                raise input_error(e) from None
             source = scenario_source(recipe["scenario"], recipe["n"], recipe["seed"], recipe["radius"])
         else:
-            scene = self.caps.checked_scene(body.scene, ("body", "scene"))
+            scene = self.caps.checked_scene(body.scene, ("scene",))
             recipe = None
             source = scene_source(scene)
         patch = body.settings.given() if body.settings else {}
-        settings = self.caps.merge_settings(self.default_settings(), patch, "body")
-        self.caps.check_work(settings, scene.n_spheres, "body")
+        settings = self.caps.merge_settings(self.default_settings(), patch)
+        self.caps.check_work(settings, scene.n_spheres)
         # A session no frame could render is refused now (the sphere count named where it was asked for).
         n_field = (
-            ("body", "museum", "n")
+            ("museum", "n")
             if body.museum is not None
-            else ("body", "mesh_scene", "detail")
+            else ("mesh_scene", "detail")
             if body.mesh_scene is not None
-            else ("body", "n")
+            else ("n",)
             if recipe
             else None
         )
-        self.frames.plan(scene, settings, "body", n_field=n_field)
+        self.frames.plan(scene, settings, n_field=n_field)
         camera = scene.camera.to_json()
         state = SessionState(
             id=secrets.token_urlsafe(24),
@@ -204,7 +207,7 @@ class SessionService:
         return base if base.camera == camera else base.with_camera(camera)
 
     def replace_scene(self, session_id: str, model: SceneModel) -> SessionState:
-        scene = self.caps.checked_scene(model, ("body",))
+        scene = self.caps.checked_scene(model, ())
         source = scene_source(scene)
         rev = secrets.token_hex(8)
         camera = scene.camera.to_json()
@@ -227,7 +230,7 @@ class SessionService:
         room = self.config.max_triangles - rest.n_triangles
         if room <= 0 or not data:
             raise InputError(
-                ("body",),
+                (Where.BODY,),
                 "the scene already holds the most triangles allowed "
                 f"({self.config.max_triangles}, POCKETRAY_MAX_TRIANGLES)"
                 if data
@@ -236,9 +239,9 @@ class SessionService:
         try:
             parsed = load_model(self.config, data, query.format, max_triangles=min(room, MAX_TRIANGLES), busy=Busy)
         except SceneError as e:
-            where = ("query", "format") if e.field == "format" else ("body",)
+            loc = (Where.QUERY, "format") if e.field == "format" else (Where.BODY,)
             raise InputError(
-                where,
+                loc,
                 f"{e.message}"
                 + (
                     f" (POCKETRAY_MAX_TRIANGLES = {self.config.max_triangles}, {rest.n_triangles} in the scene)"
@@ -248,7 +251,7 @@ class SessionService:
             ) from None
         if query.material >= len(rest.materials):
             raise InputError(
-                ("query", "material"),
+                (Where.QUERY, "material"),
                 f"material index {query.material} out of range (the scene has {len(rest.materials)} materials)",
             )
         try:
@@ -260,7 +263,7 @@ class SessionService:
             )
             scene: SessionScene = AnimatedScene(grown, old.motions) if isinstance(old, AnimatedScene) else grown
         except SceneError as e:
-            raise InputError(("body",), f"the model does not fit the scene: {e.field}: {e.message}") from None
+            raise InputError((Where.BODY,), f"the model does not fit the scene: {e.field}: {e.message}") from None
         source = scene_source(scene)
         rev = secrets.token_hex(8)
 
@@ -279,7 +282,7 @@ class SessionService:
         try:
             camera = camera_from_model(model)
         except SceneError as e:
-            raise relocate(e, "body") from None
+            raise input_error(e) from None
         return self._update(session_id, lambda old: replace(old, camera=camera.to_json()))
 
     def patch_settings(self, session_id: str, patch: SettingsPatch) -> SessionState:
@@ -287,15 +290,15 @@ class SessionService:
         included, which needs a build) are refused before anything changes."""
         given = patch.given()
         state = self.get(session_id)
-        checked = self.caps.merge_settings(state.settings, given, "body")
-        self.caps.check_work(checked, state.scene_info.get("n_spheres", 0), "body")
-        self.frames.plan(self.scene(state), checked, "body")
+        checked = self.caps.merge_settings(state.settings, given)
+        self.caps.check_work(checked, state.scene_info.get("n_spheres", 0))
+        self.frames.plan(self.scene(state), checked)
 
         def mutate(old: SessionState) -> SessionState:
-            merged = self.caps.merge_settings(old.settings, given, "body")
-            self.caps.check_work(merged, old.scene_info.get("n_spheres", 0), "body")
+            merged = self.caps.merge_settings(old.settings, given)
+            self.caps.check_work(merged, old.scene_info.get("n_spheres", 0))
             if merged != checked:  # another change came between: check what is stored now
-                self.frames.plan(self.scene(old), merged, "body")
+                self.frames.plan(self.scene(old), merged)
             return replace(old, settings=merged)
 
         return self._update(session_id, mutate)
@@ -306,8 +309,8 @@ class SessionService:
         gesture: PanGesture | PinchGesture | OrbitGesture | ResetGesture,
         frame_patch: dict[str, Any] | None = None,
     ) -> Camera:
-        """The camera after ``gesture`` (InputError naming the gesture's field when the move
-        would leave the coordinate range)."""
+        """The camera after ``gesture`` (InputError naming the gesture's field, in the body, when the
+        move would leave the coordinate range: the frame a gesture asks for has its settings in the query)."""
         cam = Camera.from_json(old.camera)
         try:
             if isinstance(gesture, PanGesture):
@@ -321,7 +324,7 @@ class SessionService:
         except SceneError as e:
             field = {"pan": "dx", "pinch": "scale", "orbit": "yaw", "reset": "type"}[gesture.type]
             raise InputError(
-                ("body", field), f"the {gesture.type} would move the camera out of range ({e.field}: {e.message})"
+                (Where.BODY, field), f"the {gesture.type} would move the camera out of range ({e.field}: {e.message})"
             ) from None
 
     def gesture(
@@ -332,8 +335,8 @@ class SessionService:
 
     # ---- the frames a session asks for (run by the frame pipeline) --------------------------
     def frame_settings(self, state: SessionState, patch: dict[str, Any]) -> dict[str, Any]:
-        merged = self.caps.merge_settings(state.settings, patch, "query")
-        self.caps.check_work(merged, state.scene_info.get("n_spheres", 0), "query")
+        merged = self.caps.merge_settings(state.settings, patch)
+        self.caps.check_work(merged, state.scene_info.get("n_spheres", 0))
         return merged
 
     def frame_request(
@@ -348,7 +351,7 @@ class SessionService:
         ``progressive`` its preview first)."""
         state = self.get(session_id)
         settings = self.frame_settings(state, patch)
-        return FrameRequest(self.scene(state), settings, owner(state), "query", progressive=progressive, cancel=cancel)
+        return FrameRequest(self.scene(state), settings, owner(state), progressive=progressive, cancel=cancel)
 
     def gesture_request(
         self,
@@ -380,24 +383,22 @@ class SessionService:
 
             return self._update(session_id, mutate).version
 
-        return FrameRequest(
-            view, settings, owner(state), "query", progressive=progressive, commit=commit, cancel=cancel
-        )
+        return FrameRequest(view, settings, owner(state), progressive=progressive, commit=commit, cancel=cancel)
 
     def stateless_request(
         self, scene_model: SceneModel, patch: dict[str, Any], *, cancel: threading.Event | None = None
     ) -> FrameRequest:
         """A frame of a scene sent with the request, no session (its settings are the body's)."""
-        scene = self.caps.checked_scene(scene_model, ("body", "scene"))  # its body was bounded by the body parsers
-        settings = self.caps.merge_settings(self.default_settings(), patch, "body")
-        self.caps.check_work(settings, scene.n_spheres, "body")
-        return FrameRequest(scene, settings, None, "body", cancel=cancel)
+        scene = self.caps.checked_scene(scene_model, ("scene",))  # its body was bounded by the body parsers
+        settings = self.caps.merge_settings(self.default_settings(), patch)
+        self.caps.check_work(settings, scene.n_spheres)
+        return FrameRequest(scene, settings, None, cancel=cancel)
 
     def stats(self, session_id: str, patch: dict[str, Any]) -> dict:
         """Statistics of the acceleration structure for the session's current (or given)
         settings: the last build's, or a build made now (without rendering)."""
         state = self.get(session_id)
-        settings = self.caps.merge_settings(state.settings, patch, "query")
+        settings = self.caps.merge_settings(state.settings, patch)
         scene = self.scene(state)
         n = state.scene_info.get("n_spheres", 0) + state.scene_info.get("n_triangles", 0)
-        return self.frames.stats(FrameRequest(scene, settings, owner(state), "query"), n)
+        return self.frames.stats(FrameRequest(scene, settings, owner(state)), n)

@@ -41,7 +41,7 @@ from renderer.methods import METHODS, resolve_method
 from renderer.modes import SINGLE_PASS_MODES
 from renderer.shader_source import tracer_source, vertex_source
 
-from ...faults import InputError
+from ...faults import InputError, Where
 from ...frames.device_data import (
     FEATURE_DEFINES,
     FORMAT_VERSION,
@@ -52,7 +52,7 @@ from ...frames.device_data import (
 )
 from ...frames.encode import EXPOSED, stats_header
 from ..deps import FramesDep, ServiceDep, SessionId
-from ..errors import documented
+from ..errors import documented, located
 from ..schemas import DeviceDataQuery, ShaderQuery
 
 router = APIRouter(tags=["device"])
@@ -138,7 +138,8 @@ def device_data(
             "EXT_color_buffer_float); this device cannot run it: use server mode",
         )
     state = service.get(session_id)
-    settings = service.caps.merge_settings(state.settings, query.given(), "query")
+    with located(Where.QUERY):
+        settings = service.caps.merge_settings(state.settings, query.given())
     n_triangles = state.scene_info.get("n_triangles", 0)
     n = state.scene_info.get("n_spheres", 0) + n_triangles  # auto's crossover, as prepare_frame
     method_name = resolve_method(settings["method"], n)

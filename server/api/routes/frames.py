@@ -13,18 +13,19 @@ from __future__ import annotations
 import asyncio
 import secrets
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse, StreamingResponse
 
+from ...faults import Where
 from ...frames.encode import FRAME_RESPONSE_DOC, Frame, frame_headers
 from ...frames.pipeline import FramePipeline, FrameRequest, final
 from ..body import JSONBodyRoute
 from ..deps import FramesDep, ServiceDep, SessionId
-from ..errors import documented
+from ..errors import documented, located
 from ..schemas import CameraModel, CameraOut, FrameQuery, Gesture, GestureQuery, RenderRequest, StatsOut, StatsQuery
 
 router = APIRouter(route_class=JSONBodyRoute)  # JSON bodies strict, large ones off the event loop
@@ -56,19 +57,29 @@ async def watched(request: Request, cancel: threading.Event, work: Any) -> Any:
 MakeRequest = Callable[[threading.Event], FrameRequest]  # the request, given the event that cancels it
 
 
-async def frame_answer(request: Request, frames: FramePipeline, make: MakeRequest) -> Response:
+def located_parts(where: Where, frames: FramePipeline, make: MakeRequest, cancel: threading.Event) -> Iterator[Frame]:
+    """The parts of the frame request ``make(cancel)``, its refused inputs placed at ``where`` (the
+    part of the request that holds the frame's settings)."""
+    with located(where):
+        yield from frames.run(make(cancel))
+
+
+async def frame_answer(request: Request, frames: FramePipeline, where: Where, make: MakeRequest) -> Response:
     """The final image of the frame request ``make(cancel)``: made and run on a worker thread,
     watched (:func:`watched`)."""
     cancel = threading.Event()
-    return frame_response(await watched(request, cancel, run_in_threadpool(lambda: final(frames.run(make(cancel))))))
+    parts = located_parts(where, frames, make, cancel)  # a generator: nothing has run yet
+    return frame_response(await watched(request, cancel, run_in_threadpool(final, parts)))
 
 
-async def progressive_response(request: Request, frames: FramePipeline, make: MakeRequest) -> Response:
+async def progressive_response(request: Request, frames: FramePipeline, where: Where, make: MakeRequest) -> Response:
     """The parts of a progressive frame as ``multipart/mixed``, each with the frame headers
     (Content-Type, Server-Timing, X-Frame-Part, …). An error before the first part is an
     ordinary error answer; the first part starts the stream."""
     cancel = threading.Event()
-    parts = frames.run(make(cancel))  # a generator: nothing has run yet
+    with located(where):
+        request_ = make(cancel)  # the session read and the settings checked, as the route is called
+    parts = located_parts(where, frames, lambda _: request_, cancel)  # a generator: nothing has run yet
     first = await watched(request, cancel, run_in_threadpool(next, parts))
     boundary = "pocketray-" + secrets.token_hex(8)
 
@@ -119,6 +130,7 @@ async def gesture(
         return await (progressive_response if progressive else frame_answer)(
             request,
             frames,
+            Where.QUERY,
             lambda cancel: service.gesture_request(session_id, body, patch, cancel=cancel, progressive=progressive),
         )
     state = await run_in_threadpool(service.gesture, session_id, body)
@@ -142,6 +154,7 @@ async def session_frame(
     return await (progressive_response if progressive else frame_answer)(
         request,
         frames,
+        Where.QUERY,
         lambda cancel: service.frame_request(session_id, patch, cancel=cancel, progressive=progressive),
     )
 
@@ -153,7 +166,8 @@ async def session_frame(
     summary="Statistics of the acceleration structure for the current (or given) settings",
 )
 def session_stats(session_id: SessionId, service: ServiceDep, query: Annotated[StatsQuery, Query()]) -> Any:
-    return JSONResponse(service.stats(session_id, query.given()))
+    with located(Where.QUERY):
+        return JSONResponse(service.stats(session_id, query.given()))
 
 
 @router.post(
@@ -165,5 +179,5 @@ def session_stats(session_id: SessionId, service: ServiceDep, query: Annotated[S
 async def render(request: Request, body: RenderRequest, service: ServiceDep, frames: FramesDep) -> Response:
     patch = body.settings.given()
     return await frame_answer(
-        request, frames, lambda cancel: service.stateless_request(body.scene, patch, cancel=cancel)
+        request, frames, Where.BODY, lambda cancel: service.stateless_request(body.scene, patch, cancel=cancel)
     )

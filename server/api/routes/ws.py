@@ -26,6 +26,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.exceptions import RequestValidationError
 from pydantic import TypeAdapter, ValidationError
 
+from ...faults import Where
 from ...frames.encode import Frame
 from ...frames.pipeline import FramePipeline, final
 from ...http import wire
@@ -70,12 +71,13 @@ async def answer_message(
     gesture = None if only_frame else _validated(_gesture_adapter, msg, "body", problems)
     if problems:
         raise RequestValidationError(problems)
-    if only_frame:
-        frame = await run_in_threadpool(lambda: final(frames.run(service.frame_request(session_id, patch.given()))))
-    else:
-        frame = await run_in_threadpool(
-            lambda: final(frames.run(service.gesture_request(session_id, gesture, patch.given())))
-        )
+    with errors.located(Where.QUERY):  # the message's "frame" is the query of a frame request
+        if only_frame:
+            frame = await run_in_threadpool(lambda: final(frames.run(service.frame_request(session_id, patch.given()))))
+        else:
+            frame = await run_in_threadpool(
+                lambda: final(frames.run(service.gesture_request(session_id, gesture, patch.given())))
+            )
     state = await run_in_threadpool(service.get, session_id)
     return frame, state.camera
 

@@ -244,7 +244,7 @@ def test_latest_wins_for_the_frames_of_one_session(ready_client):
     state = service.get(sid)
     gate = threading.Event()
     blocker = worker.admit().submit(lambda r: gate.wait(5))  # the GL thread is busy
-    older = frames.start_frame(frames.plan(service.scene(state), dict(state.settings), "query"), owner=owner(state))
+    older = frames.start_frame(frames.plan(service.scene(state), dict(state.settings)), owner=owner(state))
     newer: list = []
     t = threading.Thread(target=lambda: newer.append(c.get(f"/api/sessions/{sid}/frame")))
     t.start()
