@@ -24,7 +24,7 @@ from __future__ import annotations
 import threading
 import time
 from collections import OrderedDict, deque
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from concurrent.futures import TimeoutError as FutureTimeout
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -48,10 +48,25 @@ from .encode import MEDIA_TYPES, Frame, encode, encoded_nbytes
 from .trace import FrameCancelled, FrameHandle, GLWorker, Ticket
 
 
-def render_settings(settings: dict[str, Any]) -> RenderSettings:
+def render_settings(settings: Mapping[str, Any]) -> RenderSettings:
     """RenderSettings of a stored settings dict (keys a session predates take their defaults; the
     service's own, such as quality, are not the engine's)."""
     return RenderSettings(**{k: settings[k] for k in RenderSettings.names() if k in settings})
+
+
+@dataclass(frozen=True)
+class FrameSettings:
+    """A frame's settings, typed: the engine's (RenderSettings) and the service's own (the JPEG
+    quality; None: POCKETRAY_DEFAULT_JPEG_QUALITY). A session keeps its settings as the JSON the API
+    answers with; a frame request carries them typed."""
+
+    render: RenderSettings
+    quality: int | None = None
+
+    @classmethod
+    def of(cls, settings: Mapping[str, Any]) -> FrameSettings:
+        """Of a session's (or a request's merged) settings, validated already."""
+        return cls(render_settings(settings), settings.get("quality"))
 
 
 class FrameBytes:
@@ -118,7 +133,7 @@ class FrameRequest:
     stops the frame."""
 
     scene: Scene | AnimatedScene
-    settings: dict[str, Any]
+    settings: FrameSettings
     owner: FrameOwner | None = None
     progressive: bool = False
     commit: Callable[[Any], int] | None = None
@@ -174,7 +189,7 @@ class FramePipeline:
         scene, settings, owner, cancel = request.scene, request.settings, request.owner, request.cancel
         t_admit = time.perf_counter()
         key = (owner.id, owner.scene_rev) if owner is not None else None
-        frame = self.plan(scene, settings, key=key)
+        frame = self.plan(scene, settings.render, key=key)
         self.check_traceable(frame)
         with self.frame_memory(frame.settings):  # from before its target exists to its encoded body
             t_queued = time.perf_counter()
@@ -246,7 +261,7 @@ class FramePipeline:
     def plan(
         self,
         scene: Scene | AnimatedScene,
-        settings: dict[str, Any],
+        settings: RenderSettings,
         *,
         key: Any = None,
         n_field: tuple | None = None,
@@ -256,7 +271,7 @@ class FramePipeline:
         (``n_field``: where the request names the sphere count, when it does: a scene whose
         spheres crowd every ray is refused there). Its refusals are relative to the part of the
         request that holds the settings (:class:`server.faults.InputError`)."""
-        rs = render_settings(settings)
+        rs = settings
         if key is None:
             rs = rs.with_(update="rebuild")  # no animation to follow: never touch a kept tree
         try:
@@ -416,7 +431,7 @@ class FramePipeline:
         self,
         result,
         frame: PreparedFrame,
-        settings: dict[str, Any],
+        settings: FrameSettings,
         t_admit: float,
         t_started: float | None,
         *,
@@ -429,7 +444,10 @@ class FramePipeline:
         rs = frame.settings
         t_queued = t_queued if t_queued is not None else t_admit
         body, encode_ms = encode(
-            result, rs.format, settings.get("quality", self.config.default_jpeg_quality), self.config.png_compress_level
+            result,
+            rs.format,
+            self.config.default_jpeg_quality if settings.quality is None else settings.quality,
+            self.config.png_compress_level,
         )
         t_end = time.perf_counter()
         timings = {
@@ -464,12 +482,12 @@ class FramePipeline:
         return float(t) if isinstance(scene, AnimatedScene) else 0.0
 
     @staticmethod
-    def posed(scene: Scene | AnimatedScene, settings: dict[str, Any]) -> tuple[Scene, TreeUpdate]:
-        """The scene posed at the settings' ``time`` and a rebuild request that knows which
+    def posed(scene: Scene | AnimatedScene, t: float) -> tuple[Scene, TreeUpdate]:
+        """The scene posed at time ``t`` (the settings' ``time``) and a rebuild request that knows which
         spheres move (for a method's ``prepare`` outside a render: stats, device data)."""
         if not isinstance(scene, AnimatedScene):
             return scene, TreeUpdate()
-        frame = pose(scene, settings.get("time", 0.0))
+        frame = pose(scene, t)
         return frame.scene, TreeUpdate(moving=frame.moving)
 
     def _remember_stats(self, key: StatsKey, stats: dict) -> None:
@@ -484,15 +502,10 @@ class FramePipeline:
         of its session, or a build made now (without rendering). ``n_primitives``: the session's
         spheres and triangles as stored (``auto`` resolves on them, as prepare_frame does)."""
         assert request.owner is not None, "statistics are a session's"
-        scene, settings, owner = request.scene, request.settings, request.owner
-        method_name = resolve_method(settings["method"], n_primitives)  # auto as prepare_frame does
+        scene, s, owner = request.scene, request.settings.render, request.owner
+        method_name = resolve_method(s.method, n_primitives)  # auto as prepare_frame does
         key = StatsKey(
-            owner.id,
-            owner.scene_rev,
-            method_name,
-            settings["max_prims"],
-            settings["max_tree_depth"],
-            self._pose_time(scene, settings.get("time", 0.0)),
+            owner.id, owner.scene_rev, method_name, s.max_prims, s.max_tree_depth, self._pose_time(scene, s.time)
         )
         with self._stats_lock:
             cached = self._stats.get(key)
@@ -501,10 +514,8 @@ class FramePipeline:
         method = METHODS[method_name]
 
         def job(renderer):
-            posed, update = self.posed(scene, settings)
-            return method.prepare(
-                posed, settings["max_prims"], settings["max_tree_depth"], renderer.max_texture_width, update
-            ).stats
+            posed, update = self.posed(scene, s.time)
+            return method.prepare(posed, s.max_prims, s.max_tree_depth, renderer.max_texture_width, update).stats
 
         with self.admit() as ticket:
             try:

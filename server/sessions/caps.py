@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import Any
 
 from renderer.scene import SceneError
+from renderer.settings import RenderSettings
 
 from ..api.schemas import SceneModel
 from ..config import ServerConfig
@@ -34,11 +35,10 @@ class InputCaps:
             raise input_error(e) from None
         return merged
 
-    def check_work(self, settings: dict[str, Any], n_spheres: int) -> None:
+    def check_work(self, settings: RenderSettings, n_spheres: int) -> None:
         """The caps that need no build: POCKETRAY_MAX_WORK, and the modes the method can draw.
         (The cost of a frame, POCKETRAY_MAX_FRAME_COST, is checked by the pipeline's plan.)"""
-        w, h, d = settings["width"], settings["height"], settings["max_recursion_depth"]
-        spp = settings.get("samples_per_pixel", 1)
+        w, h, d, spp = settings.width, settings.height, settings.max_recursion_depth, settings.samples_per_pixel
         work = w * h * d * spp
         if work > self.config.max_work:
             raise InputError(
@@ -48,7 +48,7 @@ class InputCaps:
                 f"height, max_recursion_depth or samples_per_pixel",
             )
         try:
-            render_settings(settings).check_method(n_spheres)  # the modes the method can draw
+            settings.check_method(n_spheres)  # the modes the method can draw
         except SceneError as e:
             raise input_error(e) from None
 

@@ -42,7 +42,7 @@ from ..api.schemas import (
 )
 from ..config import ServerConfig
 from ..faults import Busy, InputError, NotFound, Superseded, Where, input_error
-from ..frames.pipeline import FrameOwner, FramePipeline, FrameRequest
+from ..frames.pipeline import FrameOwner, FramePipeline, FrameRequest, FrameSettings, render_settings
 from . import controller
 from .caps import InputCaps
 from .model_worker import load_model
@@ -147,7 +147,8 @@ class SessionService:
             source = scene_source(scene)
         patch = body.settings.given() if body.settings else {}
         settings = self.caps.merge_settings(self.default_settings(), patch)
-        self.caps.check_work(settings, scene.n_spheres)
+        rs = render_settings(settings)
+        self.caps.check_work(rs, scene.n_spheres)
         # A session no frame could render is refused now (the sphere count named where it was asked for).
         n_field = (
             ("museum", "n")
@@ -158,7 +159,7 @@ class SessionService:
             if recipe
             else None
         )
-        self.frames.plan(scene, settings, n_field=n_field)
+        self.frames.plan(scene, rs, n_field=n_field)
         camera = scene.camera.to_json()
         state = SessionState(
             id=secrets.token_urlsafe(24),
@@ -291,14 +292,16 @@ class SessionService:
         given = patch.given()
         state = self.get(session_id)
         checked = self.caps.merge_settings(state.settings, given)
-        self.caps.check_work(checked, state.scene_info.get("n_spheres", 0))
-        self.frames.plan(self.scene(state), checked)
+        rs = render_settings(checked)
+        self.caps.check_work(rs, state.scene_info.get("n_spheres", 0))
+        self.frames.plan(self.scene(state), rs)
 
         def mutate(old: SessionState) -> SessionState:
             merged = self.caps.merge_settings(old.settings, given)
-            self.caps.check_work(merged, old.scene_info.get("n_spheres", 0))
+            rs = render_settings(merged)
+            self.caps.check_work(rs, old.scene_info.get("n_spheres", 0))
             if merged != checked:  # another change came between: check what is stored now
-                self.frames.plan(self.scene(old), merged)
+                self.frames.plan(self.scene(old), rs)
             return replace(old, settings=merged)
 
         return self._update(session_id, mutate)
@@ -334,10 +337,11 @@ class SessionService:
         return self._update(session_id, lambda old: replace(old, camera=self.moved_camera(old, gesture).to_json()))
 
     # ---- the frames a session asks for (run by the frame pipeline) --------------------------
-    def frame_settings(self, state: SessionState, patch: dict[str, Any]) -> dict[str, Any]:
-        merged = self.caps.merge_settings(state.settings, patch)
-        self.caps.check_work(merged, state.scene_info.get("n_spheres", 0))
-        return merged
+    def frame_settings(self, state: SessionState, patch: dict[str, Any]) -> FrameSettings:
+        """The session's settings with the frame query's ``patch``, checked against the caps."""
+        settings = FrameSettings.of(self.caps.merge_settings(state.settings, patch))
+        self.caps.check_work(settings.render, state.scene_info.get("n_spheres", 0))
+        return settings
 
     def frame_request(
         self,
@@ -390,15 +394,15 @@ class SessionService:
     ) -> FrameRequest:
         """A frame of a scene sent with the request, no session (its settings are the body's)."""
         scene = self.caps.checked_scene(scene_model, ("scene",))  # its body was bounded by the body parsers
-        settings = self.caps.merge_settings(self.default_settings(), patch)
-        self.caps.check_work(settings, scene.n_spheres)
+        settings = FrameSettings.of(self.caps.merge_settings(self.default_settings(), patch))
+        self.caps.check_work(settings.render, scene.n_spheres)
         return FrameRequest(scene, settings, None, cancel=cancel)
 
     def stats(self, session_id: str, patch: dict[str, Any]) -> dict:
         """Statistics of the acceleration structure for the session's current (or given)
         settings: the last build's, or a build made now (without rendering)."""
         state = self.get(session_id)
-        settings = self.caps.merge_settings(state.settings, patch)
+        settings = FrameSettings.of(self.caps.merge_settings(state.settings, patch))
         scene = self.scene(state)
         n = state.scene_info.get("n_spheres", 0) + state.scene_info.get("n_triangles", 0)
         return self.frames.stats(FrameRequest(scene, settings, owner(state)), n)

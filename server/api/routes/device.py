@@ -157,7 +157,7 @@ def device_data(
     with frames.admit():  # a queue slot for back-pressure; the work is NumPy, on this thread
         # An animated scene is posed here; the tree is rebuilt (updates between frames
         # belong to the GL thread's renders, whose tree caches are not shared with this thread).
-        scene, update = frames.posed(service.scene(state), settings)
+        scene, update = frames.posed(service.scene(state), settings.get("time", 0.0))
         t_built0 = time.perf_counter()
         try:
             prepared = meth.prepare(scene, settings["max_prims"], settings["max_tree_depth"], width, update)

@@ -10,6 +10,7 @@ import time
 import pytest
 from pocketray_server_support import SMALL, new_session
 
+from server.frames.pipeline import render_settings
 from server.frames.trace import FrameCancelled, GLWorker
 from server.sessions.service import owner
 
@@ -244,7 +245,7 @@ def test_latest_wins_for_the_frames_of_one_session(ready_client):
     state = service.get(sid)
     gate = threading.Event()
     blocker = worker.admit().submit(lambda r: gate.wait(5))  # the GL thread is busy
-    older = frames.start_frame(frames.plan(service.scene(state), dict(state.settings)), owner=owner(state))
+    older = frames.start_frame(frames.plan(service.scene(state), render_settings(state.settings)), owner=owner(state))
     newer: list = []
     t = threading.Thread(target=lambda: newer.append(c.get(f"/api/sessions/{sid}/frame")))
     t.start()
