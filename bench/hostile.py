@@ -857,7 +857,7 @@ def part_trickle(root: Path, args) -> dict:
 # ---- end of: memory of frames in flight, and trickling large bodies -------------------------------------
 
 
-# ---- model files (issue 24: hostile glTF/GLB bodies; renderer/model_guard.py, server/sessions/model_worker.py) --------
+# ---- model files (issue 24: hostile glTF/GLB bodies; renderer/model_guard.py, server/sessions/model_worker.py) -------
 def accessor_gltf(count: int) -> bytes:
     """~250 bytes: one accessor of ``count`` VEC3 without a bufferView (zeros the file does not hold)."""
     return json.dumps(
