@@ -40,7 +40,7 @@ the peak):
 - ``model_chain``: GLB chains of ``--chain-nodes`` nodes over one triangle: time to the answer,
   ``/api/health`` meanwhile;
 - ``model_overhead``: what a valid upload costs (``--model-repeats`` each);
-- ``stack``: ``python -m server.stack`` (Redis, two render processes, HAProxy) and
+- ``stack``: ``python -m server.tools.stack`` (Redis, two render processes, HAProxy) and
   ``--stack-clients`` clients (80), each from its own loopback address with its own session, a
   gesture then a small frame (48 × 64) every 50 ms: ``--stack-load-s`` (15) of load, then
   ``kill -9`` of render0 and ``--stack-kill-s`` (10) more, then Redis stopped (SIGSTOP) for
@@ -858,7 +858,7 @@ def part_trickle(root: Path, args) -> dict:
 # ---- end of: memory of frames in flight, and trickling large bodies -------------------------------------
 
 
-# ---- model files (issue 24: hostile glTF/GLB bodies; renderer/model_guard.py, server/model_worker.py) -------------
+# ---- model files (issue 24: hostile glTF/GLB bodies; renderer/model_guard.py, server/sessions/model_worker.py) -------
 def accessor_gltf(count: int) -> bytes:
     """~250 bytes: one accessor of ``count`` VEC3 without a bufferView (zeros the file does not hold)."""
     return json.dumps(
@@ -1166,7 +1166,7 @@ def _stack_phase(log: list, lo: float, hi: float) -> dict:
 
 
 def part_stack(root: Path, args) -> dict:
-    """``python -m server.stack`` of ``root`` (Redis, two render processes, HAProxy); ``--stack-clients``
+    """``python -m server.tools.stack`` of ``root`` (Redis, two render processes, HAProxy); ``--stack-clients``
     clients for ``--stack-load-s``, then ``kill -9`` of render0 and ``--stack-kill-s`` more, then Redis
     stopped (SIGSTOP) for ``--stack-pause-s`` and ``--stack-pause-s`` more after it is back."""
     import asyncio
@@ -1181,7 +1181,7 @@ def part_stack(root: Path, args) -> dict:
     )
     err = open(tmp / "stack.err", "wb")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "server.stack", "--port", str(port), "--dir", str(tmp / "stack")],
+        [sys.executable, "-m", "server.tools.stack", "--port", str(port), "--dir", str(tmp / "stack")],
         cwd=root,
         env=env,
         stdout=err,

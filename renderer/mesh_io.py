@@ -12,7 +12,7 @@ scene counts them). Vertices of exactly equal position (and normal) are merged
 triangle's corners apart, and only shared vertices make a mesh watertight for the tracer —
 exact equality keeps every coordinate as the file has it.
 
-The ``pocketray`` command line (``server/cli.py``) calls :func:`model_scene` for ``render
+The ``pocketray`` command line (``server/tools/cli.py``) calls :func:`model_scene` for ``render
 model.glb`` and :func:`models_scene_json` for ``scene --mesh model.obj -o scene.json``.
 """
 
@@ -144,7 +144,7 @@ def load_mesh(
     ``max_triangles`` / ``max_vertices`` (after merging equal vertices). The file's declared
     counts, lengths and node tree are checked first (:func:`renderer.model_guard.check_model`),
     so a parser never allocates what the file only claims; parse in a worker process with a
-    deadline when the file comes from someone else (``server/model_worker.py``)."""
+    deadline when the file comes from someone else (``server/sessions/model_worker.py``)."""
     ft = file_type_of(source, file_type)
     if isinstance(source, (bytes, bytearray, memoryview)):
         data = bytes(source)

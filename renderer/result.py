@@ -62,7 +62,7 @@ def traced_nbytes(width: int, height: int, supersampling: int = 1, image_only: b
     not all live at once — the read-back goes as the result is made — but on llvmpipe the memory
     of a released target stays with the driver until the next target takes it.) The frame budget
     of the service (POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT) adds these up; the encoded body comes on
-    top (server/view.py)."""
+    top (server/frames/encode.py)."""
     pixels = int(width) * int(height)
     if image_only:
         return pixels * (2 * TARGET_BYTES_PER_PIXEL_RGBA8 + IMAGE_ONLY_BYTES_PER_PIXEL)

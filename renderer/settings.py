@@ -3,7 +3,7 @@
 
 A setting's :class:`SettingSpec` is all that is said of it anywhere: its name, type, bounds or
 choices, default, unit, which methods and modes read it, the client's label and a one-line doc.
-The API's query, patch and response models (:mod:`server.models`), the ``pocketray render``
+The API's query, patch and response models (:mod:`server.api.schemas`), the ``pocketray render``
 flags, ``GET /api/info``'s ``settings`` (what the client's settings sheet is built from) and
 :class:`RenderSettings` are all generated from the table; adding a setting is one entry here
 (and the code that reads it).
@@ -27,7 +27,7 @@ from .tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
 # The names a request may give as ``method``: the registry's, and "auto" (brute force below the
 # measured crossover n, BIH above it).
 METHOD_NAMES = (*METHODS, AUTO_METHOD)
-FORMATS = ("png", "jpeg", "npy", "exr")  # exr: float channels (server/exr.py)
+FORMATS = ("png", "jpeg", "npy", "exr")  # exr: float channels (server/frames/exr.py)
 
 # The JSON types a setting can have (as JSON Schema names them) and their Python types.
 TYPES: dict[str, type] = {"integer": int, "number": float, "boolean": bool, "string": str}

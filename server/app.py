@@ -8,11 +8,12 @@ get the service through ``Depends(get_service)`` (it lives on ``app.state``), ne
 through globals.
 
 ``uvicorn server.app:app`` serves the module's app (configured from the environment);
-``pocketray serve`` (:mod:`server.cli`) runs ``server.app:create_app`` as a factory, so that
+``pocketray serve`` (:mod:`server.tools.cli`) runs ``server.app:create_app`` as a factory, so that
 ``--workers N`` works: each worker makes its own app, and with it its own GL context.
 
 Middleware, outermost first: request id / session id / access log / HTTP metrics
-(:mod:`server.observability`), CORS (:mod:`server.web`), OPTIONS and 405 (:mod:`server.allow`), the body limit.
+(:mod:`server.http.observability`), CORS (:mod:`server.http.cors_docs`), OPTIONS and 405
+(:mod:`server.http.allow`), the body limit.
 """
 
 from __future__ import annotations
@@ -30,16 +31,18 @@ from fastapi.staticfiles import StaticFiles
 from renderer.scenarios import scenario
 from renderer.settings import RenderSettings
 
-from . import api, metrics, web
-from .allow import AllowMethods
 from .api import errors
-from .body_limit import BodyLimit
+from .api.routes import api_router, metrics as metrics_route
 from .config import ServerConfig
-from .gl_worker import GLWorker, default_renderer
-from .observability import RequestContext, configure_logging
-from .service import SessionService
-from .shutdown import Drain
-from .store import open_store
+from .frames.pipeline import FramePipeline
+from .frames.trace import GLWorker, default_renderer
+from .http import cors_docs, metrics
+from .http.allow import AllowMethods
+from .http.body_limit import BodyLimit
+from .http.drain import Drain
+from .http.observability import RequestContext, configure_logging
+from .sessions.service import SessionService
+from .sessions.store import open_store
 
 GPU_INDEX_ENV = "GLCONTEXT_DEVICE_INDEX"  # glcontext's EGL backend picks its GPU by this index
 
@@ -75,7 +78,8 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
         app.state.config = config
         app.state.store = store
         app.state.worker = worker
-        app.state.service = SessionService(config, store, worker)
+        app.state.frames = FramePipeline(config, worker)
+        app.state.service = SessionService(config, store, app.state.frames)
         app.state.drain = drain
         app.state.is_ready = lambda: worker.ready.is_set() and not drain.draining.is_set()
         drain.install()
@@ -96,18 +100,18 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
         "ray tracer; see docs/API.md.",
         docs_url=None,
         redoc_url=None,
-        openapi_tags=web.OPENAPI_TAGS,
-        generate_unique_id_function=web.operation_id,
+        openapi_tags=cors_docs.OPENAPI_TAGS,
+        generate_unique_id_function=cors_docs.operation_id,
     )
     # add_middleware wraps what is there: the last added runs first.
     app.add_middleware(BodyLimit, max_bytes=config.max_body_bytes)
-    app.add_middleware(AllowMethods)  # OPTIONS and 405 with the path's real Allow (server/allow.py)
-    web.install_cors(app, config.cors_origins)
+    app.add_middleware(AllowMethods)  # OPTIONS and 405 with the path's real Allow (server/http/allow.py)
+    cors_docs.install_cors(app, config.cors_origins)
     app.add_middleware(RequestContext)
     errors.install(app)
-    app.include_router(api.api_router)
-    app.include_router(metrics.router)
-    web.install_docs(app)
+    app.include_router(api_router)
+    app.include_router(metrics_route.router)
+    cors_docs.install_docs(app)
     if not config.client_dir.is_dir():
         config.client_dir.mkdir(parents=True, exist_ok=True)
     if config.shader_dir.is_dir():

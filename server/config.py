@@ -154,7 +154,7 @@ class ServerConfig(BaseSettings):
         "every client is the proxy's address: raise it or set 0, and let the proxy limit clients",
     )
 
-    # --- WebSockets and slow readers (server/wire.py; docs/API.md, "Hardening") -------------
+    # --- WebSockets and slow readers (server/http/wire.py; docs/API.md, "Hardening") -------------
     ws_idle_timeout_s: float = Field(
         60.0,
         gt=0,
@@ -221,7 +221,7 @@ class ServerConfig(BaseSettings):
         "address: set 0 or POCKETRAY_QUEUE_SIZE and let the proxy bound each client",
     )
 
-    # --- model files (server/model_worker.py): parsed in worker processes with a deadline and a memory limit
+    # --- model files (server/sessions/model_worker.py): parsed in worker processes with a deadline and a memory limit
     model_workers: int = Field(
         2,
         ge=0,

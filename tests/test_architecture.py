@@ -36,8 +36,15 @@ from tests.helpers import ROOT
 PACKAGES = ("renderer", "server")
 GL_LIBRARIES = ("moderngl", "glcontext")
 # Who may import the GL libraries: the GL package, and the server's GL worker (the one
-# thread that owns the context) under whatever sub-package the server keeps it in.
-GL_ALLOWED = ("renderer.gl", "renderer.gl.*", "server.gl_worker", "server.*.gl_worker")
+# thread that owns the context, server/frames/trace.py).
+GL_ALLOWED = ("renderer.gl", "renderer.gl.*", "server.frames.trace")
+# The service's parts, top down: the commands (server.tools), the application (server.app), the API
+# (routes, deps, errors, bodies), and below it the parts the API calls: sessions (the Model), frames
+# (the View) and the HTTP guards. Those never reach up; the API's schemas are the contract every part
+# may read.
+SERVER_PARTS = ("server.sessions", "server.frames", "server.http")
+SERVER_ABOVE_PARTS = ("server.tools", "server.app", "server.api")
+SERVER_CONTRACT = "server.api.schemas"
 # The core modules that may name the methods (the registry, the shader assembly, the
 # settings' method validation, the reference tracer's BIH heat mode, and a frame's
 # preparation — pose, build, cost — through the registry).
@@ -177,7 +184,7 @@ def test_the_graph_sees_relative_lazy_and_type_checking_imports():
     assert "renderer.gl.context" in g["renderer.gl"], "from .context import … in renderer/gl/__init__.py"
     assert "renderer.accel.bvh_layout" in g["renderer.accel.bvh"], "from . import bvh_layout"
     assert "renderer.gpu_layout" in g["renderer.accel.base"], "from .. import gpu_layout"
-    assert "renderer.gl.renderer" in g["server.gl_worker"], "the GL worker's import inside a function"
+    assert "renderer.gl.renderer" in g["server.frames.trace"], "the GL worker's import inside a function"
     gl_engine = {imp.target for imp in imports_of("renderer.gl.ray_engine")}
     assert "moderngl" in gl_engine
     assert sum(len(v) for v in g.values()) > 50
@@ -268,6 +275,36 @@ def test_accel_does_not_import_registry_settings_or_gl():
     assert "renderer.accel.bih" in accel
     chains = _offending_chains(accel, lambda m: any(_in(m, up) for up in ACCEL_MUST_NOT_IMPORT))
     assert not chains, "renderer.accel reaches up a layer:\n" + "\n".join(chains)
+
+
+def test_server_parts_do_not_reach_up_to_the_api():
+    parts = [n for n in modules() if any(_in(n, p) for p in SERVER_PARTS)]
+    assert "server.sessions.service" in parts and "server.frames.trace" in parts and "server.http.wire" in parts
+
+    def above(m: str) -> bool:
+        return m != "server.api" and m != SERVER_CONTRACT and any(_in(m, up) for up in SERVER_ABOVE_PARTS)
+
+    chains = _offending_chains(parts, above)
+    assert not chains, "a part of the service imports the API, the app or the commands:\n" + "\n".join(chains)
+
+
+def test_frames_do_not_import_sessions():
+    """A frame is made from what it is given (scene, camera, settings), never by reading a session."""
+    frames = [n for n in modules() if _in(n, "server.frames")]
+    assert "server.frames.encode" in frames
+    chains = _offending_chains(frames, lambda m: _in(m, "server.sessions"))
+    assert not chains, "server.frames imports server.sessions:\n" + "\n".join(chains)
+
+
+def test_server_packages_import_nothing_of_the_server_on_import():
+    """A sub-package's ``__init__`` imports none of the service's modules (the routes' package excepted,
+    which assembles the router): importing ``server.api.schemas`` from a session then never runs the
+    routes that import the sessions back."""
+    inits = [n for n in modules() if modules()[n].name == "__init__.py" and _in(n, "server")]
+    assert "server.sessions" in inits and "server.api" in inits
+    g = internal_edges()
+    offenders = [f"{n} imports {sorted(g[n])}" for n in inits if n != "server.api.routes" and g[n]]
+    assert not offenders, "\n".join(offenders)
 
 
 def test_chain_to_finds_the_shortest_chain():

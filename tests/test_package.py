@@ -83,7 +83,7 @@ def test_the_wheel_holds_every_module_the_shaders_and_the_client(wheel):
     want |= {"server/client_web/" + p[len("client_web/") :] for p in tracked("client_web")}
     assert want - names == set()
     entry = zipfile.ZipFile(wheel).read(next(n for n in names if n.endswith("entry_points.txt"))).decode()
-    assert "pocketray = server.cli:main" in entry
+    assert "pocketray = server.tools.cli:main" in entry
     assert not any(n.startswith(("tests/", "bench/", "shaders/", "client_web/")) for n in names)
 
 
@@ -125,8 +125,8 @@ def test_installed_pocketray_renders_from_the_command_line_outside_the_source_tr
         [
             str(venv / "bin" / "python"),
             "-c",
-            "import renderer.shader_source as s, server.cli, server.resources as r; "
-            "print(s.__file__); print(s.SHADER_DIR); print(r.client_dir()); print(server.cli.__file__)",
+            "import renderer.shader_source as s, server.tools.cli, server.resources as r; "
+            "print(s.__file__); print(s.SHADER_DIR); print(r.client_dir()); print(server.tools.cli.__file__)",
         ],
         cwd=tmp_path,
         capture_output=True,

@@ -1,24 +1,8 @@
-"""The HTTP and WebSocket API: dependencies, the error table, and the routes by resource.
+"""The HTTP and WebSocket API: dependencies, the error table, the schemas and the routes by resource.
 
-:data:`api_router` holds every route under ``/api``; :func:`server.app.create_app` includes it
-and installs :func:`server.api.errors.install` (docs/API.md describes the API).
+:data:`server.api.routes.api_router` holds every route under ``/api`` (and
+:mod:`server.api.routes.metrics` the one outside it); :func:`server.app.create_app` includes both
+and installs :func:`server.api.errors.install` (docs/API.md describes the API). This package's
+``__init__`` imports nothing: the sessions and frames read :mod:`server.api.schemas` without
+loading the routes that call them.
 """
-
-from __future__ import annotations
-
-from fastapi import APIRouter
-
-from .routes import device, frames, meta, sessions, ws
-
-api_router = APIRouter(prefix="/api")
-# Tags group the OpenAPI document (server.web.OPENAPI_TAGS); device's router names its own.
-for _routes, _tags in (
-    (sessions, ["sessions"]),
-    (frames, ["frames"]),
-    (meta, ["service"]),
-    (ws, ["frames"]),
-    (device, []),
-):
-    api_router.include_router(_routes.router, tags=[*_tags])
-
-__all__ = ["api_router"]

@@ -43,7 +43,7 @@ from starlette.requests import ClientDisconnect, Request
 from starlette.responses import Response
 
 from ..config import ServerConfig
-from ..service import Busy
+from ..faults import Busy
 
 # Bodies up to this size are read on the event loop: a gesture or a settings patch is a few
 # hundred bytes (parsed in microseconds) and must not wait behind a large scene in the pool;

@@ -1,7 +1,7 @@
-"""What routes depend on: the process's service and GL worker, the session-id path
+"""What routes depend on: the process's session service, frame pipeline and GL worker, the session-id path
 parameter, and the frame parameters of a query.
 
-The service and the worker live on ``app.state`` (the lifespan makes them), never in
+The service, the pipeline and the worker live on ``app.state`` (the lifespan makes them), never in
 globals, so every app of a test process has its own.
 """
 
@@ -13,15 +13,21 @@ from typing import Annotated, Any
 from fastapi import Depends, Path, Query
 from starlette.requests import HTTPConnection
 
-from ..gl_worker import GLWorker
-from ..models import FrameQuery
-from ..ratelimit import TokenBuckets, client_key
-from ..service import SessionService
+from ..frames.pipeline import FramePipeline
+from ..frames.trace import GLWorker
+from ..sessions.ratelimit import TokenBuckets, client_key
+from ..sessions.service import SessionService
+from .schemas import FrameQuery
 
 
 def get_service(conn: HTTPConnection) -> SessionService:
     """The process's SessionService (created by the lifespan)."""
     return conn.app.state.service
+
+
+def get_frames(conn: HTTPConnection) -> FramePipeline:
+    """The process's frame pipeline (created by the lifespan)."""
+    return conn.app.state.frames
 
 
 def get_worker(conn: HTTPConnection) -> GLWorker:
@@ -34,7 +40,7 @@ _limiter_lock = threading.Lock()
 
 def session_create_rate(conn: HTTPConnection) -> None:
     """Takes a token of the client address's bucket (POCKETRAY_SESSION_CREATE_PER_MIN, _BURST);
-    :class:`server.ratelimit.RateLimited` (429) when it has none. The buckets are made on first
+    :class:`server.sessions.ratelimit.RateLimited` (429) when it has none. The buckets are made on first
     use, one set per app, like everything else on ``app.state``."""
     state = conn.app.state
     limiter = getattr(state, "session_create_buckets", None)
@@ -50,6 +56,7 @@ def session_create_rate(conn: HTTPConnection) -> None:
 
 
 ServiceDep = Annotated[SessionService, Depends(get_service)]
+FramesDep = Annotated[FramePipeline, Depends(get_frames)]
 SessionCreateRate = Depends(session_create_rate)
 WorkerDep = Annotated[GLWorker, Depends(get_worker)]
 

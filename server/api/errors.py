@@ -8,7 +8,9 @@ over the WebSocket as one text message ``{"status", "detail"}`` plus ``"retry_af
 
 - 422: bad input. ``detail`` is a list of ``{"loc", "msg", "type"}``, ``msg`` starting with
   the field's path (``camera.fov_y: …``): pydantic's errors, the renderer's ``SceneError``
-  (with its field) and bodies that are not even JSON (FastAPI would say 400).
+  (with its field) and bodies that are not even JSON (FastAPI would say 400). The service's
+  parts name the field; the route names the part of the request it is in, once
+  (:func:`located`: ``with located(Where.QUERY): …``).
 - 404: no such session. 409: the frame was superseded (a newer frame of the session,
   latest wins) or the session changed under a gesture's frame: nothing was committed.
   503 + ``Retry-After``: queue full, busy (planning slots, large-body slots), GL
@@ -22,7 +24,8 @@ from __future__ import annotations
 
 import logging
 import sqlite3
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -37,13 +40,13 @@ from starlette.responses import Response
 
 from renderer.scene import SceneError
 
-from .. import metrics
 from ..config import ServerConfig
-from ..gl_worker import GLNotReady, QueueFull
-from ..models import MAX_LISTED_ERRORS, ErrorOut
-from ..ratelimit import RateLimited
-from ..service import Busy, InputError, NotFound, RenderTimeout, Superseded, field_path
-from ..store import StoreFull, StoreUnavailable
+from ..faults import Busy, NotFound, RenderTimeout, Superseded, Where, input_error
+from ..frames.trace import GLNotReady, QueueFull
+from ..http import metrics
+from ..sessions.ratelimit import RateLimited
+from ..sessions.store import StoreFull, StoreUnavailable
+from .schemas import MAX_LISTED_ERRORS, ErrorOut
 
 log = logging.getLogger("pocketray.server")
 
@@ -134,8 +137,22 @@ def _http(exc: StarletteHTTPException, config: ServerConfig) -> ErrorAnswer:
     return ErrorAnswer(exc.status_code, exc.detail, dict(exc.headers or {}))
 
 
+@contextmanager
+def located(where: Where) -> Iterator[None]:
+    """The part of the request (body or query) of the input errors raised inside: the service's parts
+    name the field (``("width",)``), the route the part, once. An error placed already keeps its place."""
+    try:
+        yield
+    except SceneError as e:
+        placed = input_error(e).at(where)
+        if placed is e:
+            raise
+        raise placed from None
+
+
 def _scene(exc: SceneError, config: ServerConfig) -> ErrorAnswer:
-    loc = list(exc.loc) if isinstance(exc, InputError) else ["body", *field_path(exc.field)]
+    # a refusal no route placed is the body's (a request's input is its body unless the route says)
+    loc = list(input_error(exc).at(Where.BODY).loc)
     return _invalid(loc, f"{exc.field}: {exc.message}", "value_error")
 
 

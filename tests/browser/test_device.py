@@ -165,9 +165,9 @@ def test_one_layout_small_textures_and_the_javascript_camera(device_page, server
 
 
 def test_controller_port_matches_the_server(device_page):
-    """device.js's pan / pinch are server/controller.py's (the local camera moves as the Model's)."""
+    """device.js's pan / pinch are server/sessions/controller.py's (the local camera moves as the Model's)."""
     from renderer.scene import Camera
-    from server import controller
+    from server.sessions import controller
 
     cam = {"position": [3.0, -2.0, 80.0], "target": [1.0, 0.5, -4.0], "up": [0.1, 1.0, 0.0], "fov_y": 50.0}
     got = device_page.page.evaluate(
@@ -283,7 +283,7 @@ def test_device_data_is_the_gpu_layout_and_refuses_what_a_device_cannot_run(serv
     from renderer.methods import METHODS
     from renderer.scenarios import scenario
     from renderer.shader_source import tracer_source as shader_source
-    from server.device_data import decode_blob
+    from server.frames.device_data import decode_blob
 
     sid = sessions(2, 64)
     with urllib.request.urlopen(
@@ -323,9 +323,9 @@ def test_device_data_is_the_gpu_layout_and_refuses_what_a_device_cannot_run(serv
 
 
 def test_orbit_port_matches_the_server(device_page):
-    """device.js's orbit is server/controller.py's, pole clamping included."""
+    """device.js's orbit is server/sessions/controller.py's, pole clamping included."""
     from renderer.scene import Camera
-    from server import controller
+    from server.sessions import controller
 
     cams = [
         {"position": [3.0, -2.0, 80.0], "target": [1.0, 0.5, -4.0], "up": [0.1, 1.0, 0.0], "fov_y": 50.0},

@@ -1,9 +1,9 @@
-"""The balancer's configuration (server/stack.py:haproxy_config) run by the real HAProxy in front of
+"""The balancer's configuration (server/tools/stack.py:haproxy_config) run by the real HAProxy in front of
 stand-in render processes (tests/deploy/fake_render.py: no GL, killed in milliseconds): its own
 errors are JSON with Retry-After, each client address is capped with a 429, a request a process
 dropped is re-sent only when that is harmless (a GET) — a gesture is never applied twice — and a
 process whose port refuses is out of rotation at once, not after its health checks fail. The
-whole stack with render processes runs in tests/server/test_stack.py."""
+whole stack with render processes runs in tests/server/tools/test_stack.py."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from server.stack import SESSION_HEADER, find_executable, free_port, haproxy_config
+from server.tools.stack import SESSION_HEADER, find_executable, free_port, haproxy_config
 
 FAKE = Path(__file__).with_name("fake_render.py")
 

@@ -2,7 +2,7 @@
 the Compose Specification's JSON schema (tests/deploy/compose-spec.json, from
 github.com/compose-spec/compose-spec, Apache 2.0), its topology, deploy/haproxy.cfg against
 its generator and HAProxy's own check, the Dockerfile, and the lock files. The same topology
-runs for real, on loopback, in tests/server/test_stack.py."""
+runs for real, on loopback, in tests/server/tools/test_stack.py."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ import yaml
 from packaging.markers import default_environment
 from packaging.requirements import Requirement
 
-from server.stack import compose_haproxy_config, find_executable, haproxy_config
+from server.tools.stack import compose_haproxy_config, find_executable, haproxy_config
 from tests.helpers import ROOT
 
 COMPOSE = ROOT / "compose.yaml"
@@ -75,7 +75,7 @@ def test_compose_topology_redis_with_aof_one_render_service_per_gpu_and_the_bala
 def test_the_balancer_configuration_is_its_generator_output_and_haproxy_accepts_it():
     renders = render_services(compose())
     assert HAPROXY_CFG.read_text() == compose_haproxy_config(len(renders)), (
-        "deploy/haproxy.cfg is stale: write it with server.stack.compose_haproxy_config()"
+        "deploy/haproxy.cfg is stale: write it with server.tools.stack.compose_haproxy_config()"
     )
     cfg = HAPROXY_CFG.read_text()
     for name in renders:

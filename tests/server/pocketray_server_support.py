@@ -133,13 +133,13 @@ def pocketray(*args: str, cwd: Path, stdin: str | None = None) -> subprocess.Com
     )
 
 
-# One process running several commands one after the other, each through server.cli.main as
+# One process running several commands one after the other, each through server.tools.cli.main as
 # ``python -m server`` runs it (server/__main__.py: sys.exit(main(argv))): its exit status is
 # main's return value, or SystemExit's code (argparse's usage errors), or 1 with the traceback
 # on stderr for any other exception; stdin, stdout and stderr are the command's own.
 _BATCH = r"""
 import contextlib, io, json, sys, traceback
-from server import cli
+from server.tools import cli
 out = []
 for argv, stdin in json.loads(sys.stdin.read()):
     so, se = io.TextIOWrapper(io.BytesIO(), encoding="utf-8"), io.StringIO()   # stdout has a .buffer

@@ -12,8 +12,8 @@ from pocketray_server_support import SMALL, make_config, wait_ready
 
 from renderer.animation import museum, pose
 from renderer.scenarios import scenario
-from server.device_data import decode_blob
-from server.scenes import load_source, scene_source
+from server.frames.device_data import decode_blob
+from server.sessions.scenes import load_source, scene_source
 
 FRAME = {"width": 40, "height": 56, "format": "npy", "mode": "primid", "max_recursion_depth": 2}
 

@@ -28,8 +28,8 @@ from pocketray_server_support import SMALL, make_config, new_session, wait_ready
 from renderer.result import RenderResult, traced_nbytes
 from renderer.settings import RenderSettings
 from server.app import create_app
-from server.service import frame_nbytes
-from server.view import encode
+from server.frames.encode import encode
+from server.frames.pipeline import frame_nbytes
 
 pytestmark = pytest.mark.gl  # the app's lifespan starts the GL worker
 
@@ -48,17 +48,17 @@ def app(tmp_path_factory):
         yield c
 
 
-def service_of(c: TestClient):
-    return c.app.state.service
+def frames_of(c: TestClient):
+    return c.app.state.frames
 
 
 def test_frames_past_the_byte_budget_are_never_in_flight_together(app, monkeypatch):
     """Four frames of four sessions at once, each over half the budget: one at a time from
     its admission to its encoded body (was: all four, as many as POCKETRAY_QUEUE_SIZE admits)."""
-    service = service_of(app)
-    monkeypatch.setattr(service, "FRAME_BYTES_WAIT_S", 30.0, raising=False)  # wait their turn, no 503
+    frames = frames_of(app)
+    monkeypatch.setattr(frames, "FRAME_BYTES_WAIT_S", 30.0, raising=False)  # wait their turn, no 503
     sids = [new_session(app)["id"] for _ in range(4)]
-    encode_frame = service.encode_frame
+    encode_frame = frames.encode_frame
     lock, now, most = threading.Lock(), [0], [0]
 
     def slow_encode(*args, **kwargs):  # the stage where all four overlapped
@@ -72,7 +72,7 @@ def test_frames_past_the_byte_budget_are_never_in_flight_together(app, monkeypat
             with lock:
                 now[0] -= 1
 
-    monkeypatch.setattr(service, "encode_frame", slow_encode)
+    monkeypatch.setattr(frames, "encode_frame", slow_encode)
     codes: list[int] = []
 
     def get(sid: str) -> None:
@@ -85,18 +85,18 @@ def test_frames_past_the_byte_budget_are_never_in_flight_together(app, monkeypat
         t.join(60)
     assert codes == [200] * 4
     assert most[0] == 1, most[0]
-    assert service.frame_bytes.used == 0
+    assert frames.frame_bytes.used == 0
 
 
 def test_a_frame_that_finds_the_budget_taken_gets_503_with_retry_after(app, monkeypatch):
-    service = service_of(app)
+    frames = frames_of(app)
     sid = new_session(app)["id"]
-    monkeypatch.setattr(service, "FRAME_BYTES_WAIT_S", 0.05)
-    assert service.frame_bytes.acquire(BUDGET, 0)  # another frame holds the whole budget
+    monkeypatch.setattr(frames, "FRAME_BYTES_WAIT_S", 0.05)
+    assert frames.frame_bytes.acquire(BUDGET, 0)  # another frame holds the whole budget
     try:
         r = app.get(f"/api/sessions/{sid}/frame", params=FRAME)
     finally:
-        service.frame_bytes.release(BUDGET)
+        frames.frame_bytes.release(BUDGET)
     assert r.status_code == 503 and int(r.headers["retry-after"]) >= 1, r.text
     assert "POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT" in r.json()["detail"]
     small = {**FRAME, "width": 16, "height": 16}  # the budget back: frames are served
@@ -106,16 +106,16 @@ def test_a_frame_that_finds_the_budget_taken_gets_503_with_retry_after(app, monk
 
 @pytest.mark.parametrize("mode", ["normal", "depth", "primid", "color"])
 def test_the_npy_body_is_the_renderers_array(app, monkeypatch, mode):
-    service = service_of(app)
+    frames = frames_of(app)
     sid = new_session(app)["id"]
     seen = []
-    encode_frame = service.encode_frame
+    encode_frame = frames.encode_frame
 
     def spy(result, *args, **kwargs):
         seen.append(result.array().copy())
         return encode_frame(result, *args, **kwargs)
 
-    monkeypatch.setattr(service, "encode_frame", spy)
+    monkeypatch.setattr(frames, "encode_frame", spy)
     r = app.get(f"/api/sessions/{sid}/frame", params={**FRAME, "mode": mode, "width": 48, "height": 40})
     assert r.status_code == 200, r.text
     got = np.load(io.BytesIO(r.content), allow_pickle=False)

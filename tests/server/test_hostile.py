@@ -32,7 +32,7 @@ with warnings.catch_warnings():  # as in conftest.py: the TestClient still speak
 from pocketray_server_support import make_config, new_session
 
 from server.app import create_app
-from server.store import RedisStore, SessionState, SQLiteStore, StoreStartupError, StoreUnavailable
+from server.sessions.store import RedisStore, SessionState, SQLiteStore, StoreStartupError, StoreUnavailable
 
 CONE_METHODS = ["bih", "bvh", "kdtree", "twolevel", "bruteforce", "auto"]
 
@@ -108,17 +108,17 @@ def test_a_timed_out_gesture_frame_retried_as_told_moves_the_camera_once(ready_c
 
 
 def test_a_gesture_frame_that_fails_on_the_gl_thread_changes_nothing(ready_client, monkeypatch):
-    from server.gl_worker import GLNotReady
+    from server.frames.trace import GLNotReady
 
     c = ready_client
-    service = c.app.state.service
+    frames = c.app.state.frames
     sid = new_session(c)["id"]
     before = state_of(c, sid)
 
     def lost(*args, **kwargs):
         raise GLNotReady("OpenGL context lost (test)")
 
-    monkeypatch.setattr(service, "wait", lost)
+    monkeypatch.setattr(frames, "wait", lost)
     r = c.post(f"/api/sessions/{sid}/gesture?frame=1", json={"type": "orbit", "yaw": 30})
     assert r.status_code == 503 and "retry-after" in r.headers, r.text
     assert state_of(c, sid) == before
@@ -277,7 +277,7 @@ def big_bodies(tmp_path_factory):
 
 def test_a_body_of_150000_bad_spheres_gets_a_short_422(big_bodies):
     """Was: a 72 MB 422 listing 450,000 errors (+840 MB resident)."""
-    from server.models import MAX_LISTED_ERRORS
+    from server.api.schemas import MAX_LISTED_ERRORS
 
     bad = '{"center": [0, 0], "radius": -1, "material": -1}'  # three errors each
     body = '{"scene": {"materials": [{}], "spheres": [' + ",".join([bad] * 150_000) + "]}}"
@@ -291,7 +291,7 @@ def test_a_body_of_150000_bad_spheres_gets_a_short_422(big_bodies):
 
 
 def test_a_long_error_list_anywhere_is_cut_to_the_first_errors_and_a_count(client):
-    from server.models import MAX_LISTED_ERRORS
+    from server.api.schemas import MAX_LISTED_ERRORS
 
     body = {"materials": [{"color": [2, 2, 2], "ambient": -1, "ior": 0}] * 40}  # 5 errors × 40
     r = client.post("/api/render", json={"scene": body})

@@ -104,7 +104,7 @@ def test_device_data_of_a_scene_with_meshes_holds_the_triangles(api):
     sid = create(api, mesh_scene_json()).json()["id"]
     r = api.get(f"/api/sessions/{sid}/device-data")
     assert r.status_code == 200, r.text
-    from server.device_data import decode_blob
+    from server.frames.device_data import decode_blob
 
     header, textures = decode_blob(r.content)
     assert "TRIANGLES" in header["shader"]["features"] and "u_triangles" in textures

@@ -23,8 +23,8 @@ with warnings.catch_warnings():  # as in conftest.py: the TestClient still speak
 from pocketray_server_support import SMALL, make_config, new_session
 
 from server.app import create_app
-from server.ratelimit import RateLimited, TokenBuckets, client_key
-from server.store import RedisStore, SessionState, SQLiteStore, StoreFull
+from server.sessions.ratelimit import RateLimited, TokenBuckets, client_key
+from server.sessions.store import RedisStore, SessionState, SQLiteStore, StoreFull
 
 CAM = {"position": [0.0, 0.0, 100.0], "target": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0], "fov_y": 60.0}
 

@@ -49,13 +49,13 @@ SCRIPT = textwrap.dedent("""
         warnings.simplefilter("ignore")
         from fastapi.testclient import TestClient
     from pocketray_server_support import make_config
-    from server import cli
+    from server.tools import cli
     from server.app import create_app
 
-    from server.service import SessionService
+    from server.frames.pipeline import render_settings
 
     # the engine's settings: a field with its default, validated
-    out = {"engine": [declared.RenderSettings().exposure, SessionService.render_settings({"exposure": 2.5}).exposure]}
+    out = {"engine": [declared.RenderSettings().exposure, render_settings({"exposure": 2.5}).exposure]}
     try:
         declared.RenderSettings(exposure=9.0)
     except declared.SceneError as e:

@@ -1,4 +1,4 @@
-// The Controller's camera math (server/controller.py), ported for device mode: the local
+// The Controller's camera math (server/sessions/controller.py), ported for device mode: the local
 // camera moves at display rate and must end where the server's Model does. Float64 and
 // the same order of operations as the Python, so both agree to rounding
 // (tests/browser/test_device.py compares them).

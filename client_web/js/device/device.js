@@ -3,10 +3,10 @@
 // One shader, one tree layout: the fragment shader is the text the server compiles
 // (GET /api/shader), the textures and uniforms are what renderer.gpu_layout packs for
 // moderngl, delivered as one binary blob (GET /api/sessions/{id}/device-data, format in
-// server/device_data.py). The tree is still built by the server, per data request.
+// server/frames/device_data.py). The tree is still built by the server, per data request.
 //
 // DeviceView, the device mode of the client:
-//  - gestures move a local camera at once (camera.js: server/controller.py's math) and
+//  - gestures move a local camera at once (camera.js: server/sessions/controller.py's math) and
 //    still go to the server's Model through the app's FrameScheduler, so switching back
 //    to server mode shows the same view;
 //  - frames are traced in bands of rows, one band per requestAnimationFrame callback

@@ -13,7 +13,7 @@
 // readback() returns the resolve targets as the server's npy arrays.
 //
 // Texture formats: the blob's (dtype, components) → RGBA32F/FLOAT, R32UI/RED_INTEGER, …,
-// NEAREST filtering, as server/device_data.py documents.
+// NEAREST filtering, as server/frames/device_data.py documents.
 
 export class DeviceUnavailable extends Error {}
 

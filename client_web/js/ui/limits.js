@@ -19,7 +19,7 @@ const FALLBACK_METHODS = Object.freeze({
 });
 const DEFAULT_LIMITS = Object.freeze({ max_image_side: 4096, max_spheres: 1 << 21, max_work: Infinity, max_bruteforce_work: Infinity });
 const MUSEUM_ROOM = 576;            // renderer.animation.MUSEUM_ROOM_SPHERES, when /api/info does not say
-const MUSEUM_N_MAX = (1 << 21) - 1024;  // server.models.MuseumRecipe.n's bound
+const MUSEUM_N_MAX = (1 << 21) - 1024;  // server.api.schemas.MuseumRecipe.n's bound
 const SUBPIXELS = { 1: 1, 4: 2, 9: 3, 16: 4 };
 
 const fmt = (x) => (Number.isFinite(x) ? Math.floor(x).toLocaleString('en') : String(x));

@@ -4,9 +4,9 @@ Two routes; the browser client's ``client_web/js/device/device.js`` uses both.
 
 ``GET /api/sessions/{id}/device-data``
     The session's scene and the chosen method's acceleration data as one blob of
-    :mod:`server.device_data`'s format, wrapped to the device's ``max_texture_size``.
+    :mod:`server.frames.device_data`'s format, wrapped to the device's ``max_texture_size``.
     The tree is built for this request, as for every frame. Query
-    (:class:`~server.models.DeviceDataQuery`): the render settings the data is for
+    (:class:`~server.api.schemas.DeviceDataQuery`): the render settings the data is for
     (missing: the session's), ``max_texture_size`` and ``float_textures`` (false → 422:
     the tracer cannot run there). Multi-pass methods (``rayengine``, ``hre``) draw several
     passes on the server and are a 422, as are scenes whose arrays do not fit the device's
@@ -41,17 +41,24 @@ from renderer.methods import METHODS, resolve_method
 from renderer.modes import SINGLE_PASS_MODES
 from renderer.shader_source import tracer_source, vertex_source
 
-from ...device_data import FEATURE_DEFINES, FORMAT_VERSION, camera_uniforms, encode_blob, jsonable, jsonable_stats
-from ...models import DeviceDataQuery, ShaderQuery
-from ...service import InputError
-from ...view import EXPOSED, stats_header
-from ..deps import ServiceDep, SessionId
-from ..errors import documented
+from ...faults import InputError, Where
+from ...frames.device_data import (
+    FEATURE_DEFINES,
+    FORMAT_VERSION,
+    camera_uniforms,
+    encode_blob,
+    jsonable,
+    jsonable_stats,
+)
+from ...frames.encode import EXPOSED, stats_header
+from ..deps import FramesDep, ServiceDep, SessionId
+from ..errors import documented, located
+from ..schemas import DeviceDataQuery, ShaderQuery
 
 router = APIRouter(tags=["device"])
 
 _DATA_DOC: dict[str, Any] = {
-    "description": "the packed scene and acceleration data (binary; format in server/device_data.py)",
+    "description": "the packed scene and acceleration data (binary; format in server/frames/device_data.py)",
     "content": {"application/octet-stream": {"schema": {"type": "string", "format": "binary"}}},
     "headers": {
         "X-Session-Version": {"description": "the session version the data shows", "schema": {"type": "string"}},
@@ -120,7 +127,9 @@ def shader_url(method: str, mode: str, depth: int, features: tuple[str, ...]) ->
     responses={200: _DATA_DOC, **documented(404, 503)},
     summary="The session's scene and acceleration data packed for a device (WebGL2)",
 )
-def device_data(session_id: SessionId, service: ServiceDep, query: Annotated[DeviceDataQuery, Query()]) -> Response:
+def device_data(
+    session_id: SessionId, service: ServiceDep, frames: FramesDep, query: Annotated[DeviceDataQuery, Query()]
+) -> Response:
     t0 = time.perf_counter()
     if not query.float_textures:
         raise InputError(
@@ -129,7 +138,8 @@ def device_data(session_id: SessionId, service: ServiceDep, query: Annotated[Dev
             "EXT_color_buffer_float); this device cannot run it: use server mode",
         )
     state = service.get(session_id)
-    settings = service.merge_settings(state.settings, query.given(), "query")
+    with located(Where.QUERY):
+        settings = service.caps.merge_settings(state.settings, query.given())
     n_triangles = state.scene_info.get("n_triangles", 0)
     n = state.scene_info.get("n_spheres", 0) + n_triangles  # auto's crossover, as prepare_frame
     method_name = resolve_method(settings["method"], n)
@@ -144,10 +154,10 @@ def device_data(session_id: SessionId, service: ServiceDep, query: Annotated[Dev
         )
     check_single_pass_mode(settings["mode"])
     width = 1 << (int(query.max_texture_size).bit_length() - 1)  # the power of two at most the device's
-    with service.admit():  # a queue slot for back-pressure; the work is NumPy, on this thread
+    with frames.admit():  # a queue slot for back-pressure; the work is NumPy, on this thread
         # An animated scene is posed here; the tree is rebuilt (updates between frames
         # belong to the GL thread's renders, whose tree caches are not shared with this thread).
-        scene, update = service.posed(service.scene(state), settings)
+        scene, update = frames.posed(service.scene(state), settings.get("time", 0.0))
         t_built0 = time.perf_counter()
         try:
             prepared = meth.prepare(scene, settings["max_prims"], settings["max_tree_depth"], width, update)

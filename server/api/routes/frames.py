@@ -1,8 +1,9 @@
 """Frames (the View) and what the Controller's gestures ask for: a gesture (optionally
 answered with the new frame), a session's frame, its build statistics, a stateless render.
 
-Frame routes run the service on a worker thread and watch the connection meanwhile: a
-client that goes away cancels its frame between slices (docs/API.md, "Cancellation").
+Frame routes ask the session service for a frame request and run it through the frame pipeline
+(:meth:`server.frames.pipeline.FramePipeline.run`) on a worker thread, watching the connection
+meanwhile: a client that goes away cancels its frame between slices (docs/API.md, "Cancellation").
 With ``progressive=1`` the answer is ``multipart/mixed``: the preview part as soon as it
 exists, then the final part (docs/API.md, "Progressive frames").
 """
@@ -19,11 +20,13 @@ from fastapi import APIRouter, Body, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse, StreamingResponse
 
-from ...models import CameraModel, CameraOut, FrameQuery, Gesture, GestureQuery, RenderRequest, StatsOut, StatsQuery
-from ...view import FRAME_RESPONSE_DOC, Frame, frame_headers
+from ...faults import Where
+from ...frames.encode import FRAME_RESPONSE_DOC, Frame, frame_headers
+from ...frames.pipeline import FramePipeline, FrameRequest, final
 from ..body import JSONBodyRoute
-from ..deps import ServiceDep, SessionId
-from ..errors import documented
+from ..deps import FramesDep, ServiceDep, SessionId
+from ..errors import documented, located
+from ..schemas import CameraModel, CameraOut, FrameQuery, Gesture, GestureQuery, RenderRequest, StatsOut, StatsQuery
 
 router = APIRouter(route_class=JSONBodyRoute)  # JSON bodies strict, large ones off the event loop
 WATCH_S = 0.1  # how often a waiting route looks whether its client is still there
@@ -51,18 +54,32 @@ async def watched(request: Request, cancel: threading.Event, work: Any) -> Any:
         raise
 
 
-async def cancellable(request: Request, fn: Callable[..., Any], *args: Any) -> Any:
-    """``fn(*args, cancel=event)`` on a worker thread, watched (:func:`watched`)."""
+MakeRequest = Callable[[threading.Event], FrameRequest]  # the request, given the event that cancels it
+
+
+def located_parts(where: Where, frames: FramePipeline, make: MakeRequest, cancel: threading.Event) -> Iterator[Frame]:
+    """The parts of the frame request ``make(cancel)``, its refused inputs placed at ``where`` (the
+    part of the request that holds the frame's settings)."""
+    with located(where):
+        yield from frames.run(make(cancel))
+
+
+async def frame_answer(request: Request, frames: FramePipeline, where: Where, make: MakeRequest) -> Response:
+    """The final image of the frame request ``make(cancel)``: made and run on a worker thread,
+    watched (:func:`watched`)."""
     cancel = threading.Event()
-    return await watched(request, cancel, run_in_threadpool(fn, *args, cancel=cancel))
+    parts = located_parts(where, frames, make, cancel)  # a generator: nothing has run yet
+    return frame_response(await watched(request, cancel, run_in_threadpool(final, parts)))
 
 
-async def progressive_response(request: Request, start: Callable[..., Iterator[Frame]], *args: Any) -> Response:
+async def progressive_response(request: Request, frames: FramePipeline, where: Where, make: MakeRequest) -> Response:
     """The parts of a progressive frame as ``multipart/mixed``, each with the frame headers
     (Content-Type, Server-Timing, X-Frame-Part, …). An error before the first part is an
     ordinary error answer; the first part starts the stream."""
     cancel = threading.Event()
-    parts = start(*args, cancel=cancel)  # a generator: nothing has run yet
+    with located(where):
+        request_ = make(cancel)  # the session read and the settings checked, as the route is called
+    parts = located_parts(where, frames, lambda _: request_, cancel)  # a generator: nothing has run yet
     first = await watched(request, cancel, run_in_threadpool(next, parts))
     boundary = "pocketray-" + secrets.token_hex(8)
 
@@ -103,13 +120,19 @@ async def gesture(
     session_id: SessionId,
     body: Annotated[Gesture, Body()],
     service: ServiceDep,
+    frames: FramesDep,
     query: Annotated[GestureQuery, Query()],
 ) -> Any:
     # The frame parameters are validated even without ?frame=1, as they always were.
-    if query.frame and query.progressive:
-        return await progressive_response(request, service.iter_gesture_frame, session_id, body, query.given())
+    patch = query.given()
     if query.frame:
-        return frame_response(await cancellable(request, service.gesture_frame, session_id, body, query.given()))
+        progressive = query.progressive
+        return await (progressive_response if progressive else frame_answer)(
+            request,
+            frames,
+            Where.QUERY,
+            lambda cancel: service.gesture_request(session_id, body, patch, cancel=cancel, progressive=progressive),
+        )
     state = await run_in_threadpool(service.gesture, session_id, body)
     return CameraOut(version=state.version, camera=CameraModel(**state.camera))
 
@@ -121,11 +144,19 @@ async def gesture(
     summary="Render the session's current view",
 )
 async def session_frame(
-    request: Request, session_id: SessionId, service: ServiceDep, query: Annotated[FrameQuery, Query()]
+    request: Request,
+    session_id: SessionId,
+    service: ServiceDep,
+    frames: FramesDep,
+    query: Annotated[FrameQuery, Query()],
 ) -> Response:
-    if query.progressive:
-        return await progressive_response(request, service.iter_session_frame, session_id, query.given())
-    return frame_response(await cancellable(request, service.session_frame, session_id, query.given()))
+    patch, progressive = query.given(), query.progressive
+    return await (progressive_response if progressive else frame_answer)(
+        request,
+        frames,
+        Where.QUERY,
+        lambda cancel: service.frame_request(session_id, patch, cancel=cancel, progressive=progressive),
+    )
 
 
 @router.get(
@@ -135,7 +166,8 @@ async def session_frame(
     summary="Statistics of the acceleration structure for the current (or given) settings",
 )
 def session_stats(session_id: SessionId, service: ServiceDep, query: Annotated[StatsQuery, Query()]) -> Any:
-    return JSONResponse(service.stats(session_id, query.given()))
+    with located(Where.QUERY):
+        return JSONResponse(service.stats(session_id, query.given()))
 
 
 @router.post(
@@ -144,5 +176,8 @@ def session_stats(session_id: SessionId, service: ServiceDep, query: Annotated[S
     responses={200: FRAME_RESPONSE_DOC, **documented(413, 503)},
     summary="Stateless render of a scene with settings (docs/FORMATS.md)",
 )
-async def render(request: Request, body: RenderRequest, service: ServiceDep) -> Response:
-    return frame_response(await cancellable(request, service.render_stateless, body.scene, body.settings.given()))
+async def render(request: Request, body: RenderRequest, service: ServiceDep, frames: FramesDep) -> Response:
+    patch = body.settings.given()
+    return await frame_answer(
+        request, frames, Where.BODY, lambda cancel: service.stateless_request(body.scene, patch, cancel=cancel)
+    )

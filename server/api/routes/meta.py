@@ -8,19 +8,50 @@ import anyio
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 
-from renderer.animation import MUSEUM_KINDS
-from renderer.limits import MAX_IMAGE_SIDE
+from renderer.animation import MUSEUM_KINDS, MUSEUM_ROOM_SPHERES
+from renderer.limits import MAX_IMAGE_SIDE, SAMPLES_PER_PIXEL
+from renderer.methods import AUTO_METHOD, METHODS, resolve_method
 from renderer.modes import HEAT_SCALE, RECURSION_COLOR_NAMES, RECURSION_COLORS
 from renderer.profiles import PROFILES
-from renderer.settings import FORMATS, METHOD_NAMES, MODES
+from renderer.settings import FORMATS, METHOD_NAMES, MODES, SETTINGS
 from renderer.tree_update import UPDATE_SCHEMES
 
-from ... import metrics
-from ...models import HealthOut, InfoOut, LimitsOut, ReadyOut
-from ...service import info_extras
+from ...config import ServerConfig
+from ...http import metrics
 from ..deps import ServiceDep
+from ..schemas import HealthOut, InfoOut, LimitsOut, ReadyOut
 
 router = APIRouter()
+
+
+def method_settings(name: str) -> dict[str, Any]:
+    """What a client needs to show only the settings that apply to method ``name``: the
+    settings its build or passes read, its modes, its update schemes, whether a browser can
+    trace it and whether it traces meshes on the GPU (``auto`` answers for the BIH it picks
+    above the crossover)."""
+    caps = METHODS[resolve_method(name, 1 << 30)].capabilities
+    return {
+        "settings": list(caps.settings),
+        "modes": list(caps.modes),
+        "update_schemes": list(caps.update_schemes),
+        "device": caps.device,
+        "tests_every_sphere": caps.tests_every_sphere,
+        "auto": name == AUTO_METHOD,
+        "primitives": list(caps.primitives),
+        "meshes_on_gpu": caps.meshes_on_gpu,
+    }
+
+
+def info_extras(config: ServerConfig) -> dict[str, Any]:
+    """The parts of GET /api/info a client's settings form needs beyond the lists and limits."""
+    return {
+        "samples_per_pixel": list(SAMPLES_PER_PIXEL),
+        "render_timeout_s": config.render_timeout_s,
+        "museum_room_spheres": MUSEUM_ROOM_SPHERES,
+        "method_settings": {name: method_settings(name) for name in METHOD_NAMES},
+        "settings": [s.metadata() for s in SETTINGS],
+    }
+
 
 READY_RETRY_AFTER_S = 1  # the warm-up frame takes about a second on llvmpipe
 SHARED_BACKENDS = {"redis"}  # session stores every process shares: not one process's readiness

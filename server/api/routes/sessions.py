@@ -12,8 +12,14 @@ from starlette.concurrency import run_in_threadpool
 from renderer.mesh_io import MODEL_FORMATS, fit_transform
 from renderer.scene import SceneError
 
-from ...model_worker import load_model
-from ...models import (
+from ...faults import Busy, InputError, Where
+from ...sessions.model_worker import load_model
+from ...sessions.scenes import scene_json_chunks
+from ...sessions.store import SessionState
+from ..body import JSONBodyRoute
+from ..deps import ServiceDep, SessionCreateRate, SessionId
+from ..errors import documented, located
+from ..schemas import (
     CameraModel,
     CameraOut,
     FullSettings,
@@ -28,12 +34,6 @@ from ...models import (
     SettingsPatch,
     VersionOut,
 )
-from ...scenes import scene_json_chunks
-from ...service import Busy, InputError
-from ...store import SessionState
-from ..body import JSONBodyRoute
-from ..deps import ServiceDep, SessionCreateRate, SessionId
-from ..errors import documented
 
 router = APIRouter(route_class=JSONBodyRoute)  # JSON bodies strict, large ones off the event loop
 
@@ -61,7 +61,8 @@ def session_out(state: SessionState) -> SessionOut:
     summary="Create a session from a thesis scenario, an animated museum or a full scene",
 )
 def create_session(body: SessionCreate, service: ServiceDep) -> SessionOut:
-    return session_out(service.create(body))
+    with located(Where.BODY):
+        return session_out(service.create(body))
 
 
 @router.get(
@@ -105,14 +106,16 @@ def read_scene(session_id: SessionId, service: ServiceDep) -> Response:
     summary="Replace the scene (its camera becomes the current and the reset camera)",
 )
 def replace_scene(session_id: SessionId, scene: Annotated[SceneModel, Body()], service: ServiceDep) -> VersionOut:
-    return VersionOut(version=service.replace_scene(session_id, scene).version)
+    with located(Where.BODY):
+        return VersionOut(version=service.replace_scene(session_id, scene).version)
 
 
 @router.put(
     "/sessions/{session_id}/camera", response_model=CameraOut, responses=ERR_SESSION_BODY, summary="Set the camera"
 )
 def set_camera(session_id: SessionId, camera: Annotated[CameraModel, Body()], service: ServiceDep) -> CameraOut:
-    state = service.set_camera(session_id, camera)
+    with located(Where.BODY):
+        state = service.set_camera(session_id, camera)
     return CameraOut(version=state.version, camera=CameraModel(**state.camera))
 
 
@@ -123,7 +126,8 @@ def set_camera(session_id: SessionId, camera: Annotated[CameraModel, Body()], se
     summary="Change render defaults (all of them or some)",
 )
 def patch_settings(session_id: SessionId, patch: Annotated[SettingsPatch, Body()], service: ServiceDep) -> SettingsOut:
-    state = service.patch_settings(session_id, patch)
+    with located(Where.BODY):
+        state = service.patch_settings(session_id, patch)
     return SettingsOut(**state.settings, version=state.version)
 
 

@@ -8,8 +8,8 @@ frame as one binary message; on an error one text JSON ``{"status", "detail"}`` 
 ``"retry_after"``, seconds, where HTTP sends Retry-After) — the very answer the HTTP
 route gives (:mod:`server.api.errors`), and the connection stays open. While the client's
 address has more answer bytes not taken than ``POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT``, a
-message is answered ``{"status": 429, …}`` without any work (:func:`server.wire.refusal`);
-the connection's idle time, message rate and write timeout are :mod:`server.wire`'s.
+message is answered ``{"status": 429, …}`` without any work (:func:`server.http.wire.refusal`);
+the connection's idle time, message rate and write timeout are :mod:`server.http.wire`'s.
 
 A message is read and validated as FastAPI reads a request: its JSON as the body
 (``loc`` ``["body", …]``), its ``"frame"`` settings as the query (``["query", …]``), all
@@ -19,19 +19,21 @@ errors of both in one 422.
 from __future__ import annotations
 
 import json
-from typing import Any, cast
+from typing import Any
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from fastapi.concurrency import run_in_threadpool
 from fastapi.exceptions import RequestValidationError
 from pydantic import TypeAdapter, ValidationError
 
-from ... import wire
-from ...models import Gesture, SettingsPatch
-from ...service import SessionService
-from ...view import Frame
+from ...faults import Where
+from ...frames.encode import Frame
+from ...frames.pipeline import FramePipeline, final
+from ...http import wire
+from ...sessions.service import SessionService
 from .. import body, errors
-from ..deps import ServiceDep
+from ..deps import FramesDep, ServiceDep
+from ..schemas import Gesture, SettingsPatch
 
 router = APIRouter()
 
@@ -57,7 +59,9 @@ def _validated(adapter: TypeAdapter, value: Any, where: str, problems: list[dict
         return None
 
 
-async def answer_message(service: SessionService, session_id: str, data: str | bytes) -> tuple[Frame, dict]:
+async def answer_message(
+    service: SessionService, frames: FramePipeline, session_id: str, data: str | bytes
+) -> tuple[Frame, dict]:
     """The frame one message asks for and the session's camera after it."""
     msg = parse_json(data, service.config.max_json_depth)
     frame_settings = (msg.pop("frame", None) if isinstance(msg, dict) else None) or {}
@@ -67,17 +71,19 @@ async def answer_message(service: SessionService, session_id: str, data: str | b
     gesture = None if only_frame else _validated(_gesture_adapter, msg, "body", problems)
     if problems:
         raise RequestValidationError(problems)
-    if only_frame:
-        one = await run_in_threadpool(service.session_frame, session_id, patch.given())
-        frame = cast(Frame, one)  # not progressive: one frame
-    else:
-        frame = await run_in_threadpool(service.gesture_frame, session_id, gesture, patch.given())
+    with errors.located(Where.QUERY):  # the message's "frame" is the query of a frame request
+        if only_frame:
+            frame = await run_in_threadpool(lambda: final(frames.run(service.frame_request(session_id, patch.given()))))
+        else:
+            frame = await run_in_threadpool(
+                lambda: final(frames.run(service.gesture_request(session_id, gesture, patch.given())))
+            )
     state = await run_in_threadpool(service.get, session_id)
     return frame, state.camera
 
 
 @router.websocket("/sessions/{session_id}/ws")
-async def session_socket(websocket: WebSocket, session_id: str, service: ServiceDep) -> None:
+async def session_socket(websocket: WebSocket, session_id: str, service: ServiceDep, frames: FramesDep) -> None:
     """One connection: each message is answered by a frame or by one error message."""
     await websocket.accept()
     config = websocket.app.state.config
@@ -95,7 +101,7 @@ async def session_socket(websocket: WebSocket, session_id: str, service: Service
                 await websocket.send_text(json.dumps(refused))
                 continue
             try:
-                frame, camera = await answer_message(service, session_id, data)
+                frame, camera = await answer_message(service, frames, session_id, data)
             except Exception as exc:  # every failure is a row of the error table, as over HTTP
                 await websocket.send_text(json.dumps(errors.answer(exc, config, where).ws_message()))
                 continue

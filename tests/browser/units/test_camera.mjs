@@ -1,4 +1,4 @@
-// device/camera.js (server/controller.py's camera moves, ported): orbit keeps target and distance, never flips.
+// device/camera.js (server/sessions/controller.py's camera moves, ported): orbit keeps target and distance, never flips.
 
 import { test } from 'node:test';
 import * as cam from '../../../client_web/js/device/camera.js';

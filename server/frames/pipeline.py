@@ -1,0 +1,526 @@
+"""The frame pipeline: plan → admit → trace → encode, one entry point for every frame.
+
+:meth:`FramePipeline.run` takes a :class:`FrameRequest` — a scene, its settings, the session it
+belongs to (if any), whether the preview comes first, what to commit when the final image is
+ready — and yields the frame's parts: a session's frame, a gesture's frame, a progressive frame,
+a WebSocket frame and a stateless render are all one request to it (the session's side,
+:class:`server.sessions.service.SessionService`, makes the requests).
+
+A frame is planned on the request's thread — the scene posed, the method's structure built, the
+frame's cost estimated (:mod:`renderer.prepare`, :mod:`renderer.cost`); over
+``POCKETRAY_MAX_FRAME_COST`` it is a 422 — then, its estimated bytes reserved in
+``POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT`` (:class:`FrameBytes`) until it is encoded, admitted to the
+GL worker's bounded queue (503 when full) and traced there in slices. A newer frame of a session
+supersedes its older ones (latest wins). A gesture's frame is rendered with its new camera
+*before* the gesture is committed (``commit`` runs once the final image is ready; docs/API.md,
+"Gestures with a frame").
+
+The statistics of the builds are kept here too (:meth:`FramePipeline.stats`): the last frame's
+build answers ``GET …/stats`` without building again.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import OrderedDict, deque
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from concurrent.futures import TimeoutError as FutureTimeout
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+from renderer.accel.base import NOT_ON_GPU
+from renderer.animation import AnimatedScene, pose
+from renderer.cost import largest_accepted
+from renderer.limits import DEFAULT_TEXTURE_WIDTH
+from renderer.methods import METHODS, capabilities, resolve_method
+from renderer.prepare import PreparedFrame, band_rows, batch_size, prepare_frame
+from renderer.result import traced_nbytes
+from renderer.scene import Scene, SceneError
+from renderer.settings import RenderSettings
+from renderer.tree_update import TreeUpdate
+
+from ..config import ServerConfig
+from ..faults import Busy, InputError, RenderTimeout, Superseded, input_error
+from ..http import metrics
+from .encode import MEDIA_TYPES, Frame, encode, encoded_nbytes
+from .trace import FrameCancelled, FrameHandle, GLWorker, Ticket
+
+
+def render_settings(settings: Mapping[str, Any]) -> RenderSettings:
+    """RenderSettings of a stored settings dict (keys a session predates take their defaults; the
+    service's own, such as quality, are not the engine's)."""
+    return RenderSettings(**{k: settings[k] for k in RenderSettings.names() if k in settings})
+
+
+@dataclass(frozen=True)
+class FrameSettings:
+    """A frame's settings, typed: the engine's (RenderSettings) and the service's own (the JPEG
+    quality; None: POCKETRAY_DEFAULT_JPEG_QUALITY). A session keeps its settings as the JSON the API
+    answers with; a frame request carries them typed."""
+
+    render: RenderSettings
+    quality: int | None = None
+
+    @classmethod
+    def of(cls, settings: Mapping[str, Any]) -> FrameSettings:
+        """Of a session's (or a request's merged) settings, validated already."""
+        return cls(render_settings(settings), settings.get("quality"))
+
+
+class FrameBytes:
+    """The bytes the frames admitted at once may hold together (POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT).
+
+    Eight 4096² normal npy frames held their render targets at once (the GL thread starts every
+    admitted frame before it traces any slice), then their read-backs, arrays and bodies: 5.5 GB
+    resident for a budget of 3 GiB. A frame reserves its estimated bytes here before it is handed
+    to the GL thread and gives them back once it is encoded; one that does not fit waits, and a
+    frame is always admitted when none holds any bytes (else one larger than the budget never
+    ran)."""
+
+    def __init__(self, limit: int):
+        self.limit = int(limit)
+        self.used = 0
+        self._cv = threading.Condition()
+
+    def acquire(self, nbytes: int, timeout_s: float) -> bool:
+        deadline = time.monotonic() + timeout_s
+        with self._cv:
+            while self.used > 0 and self.used + nbytes > self.limit:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return False
+                self._cv.wait(left)
+            self.used += nbytes
+            return True
+
+    def release(self, nbytes: int) -> None:
+        with self._cv:
+            self.used -= nbytes
+            self._cv.notify_all()
+
+
+def frame_nbytes(settings: RenderSettings) -> int:
+    """What one frame of these settings holds at most, from its render target to its encoded body."""
+    s = settings
+    return traced_nbytes(s.width, s.height, s.supersampling, image_only(s)) + encoded_nbytes(
+        s.format, s.mode, s.width, s.height
+    )
+
+
+def image_only(settings: RenderSettings) -> bool:
+    """Whether the frame is traced into one 8-bit target (renderer.gl.frame.image_only, which the
+    service may not import: png or jpeg at one sample per pixel)."""
+    return settings.format in ("png", "jpeg") and settings.samples_per_pixel == 1
+
+
+class FrameOwner(NamedTuple):
+    """The session a frame belongs to, as the pipeline needs it: its id (latest wins among its
+    frames; fair scheduling), its scene revision (a tree kept from its previous frame) and the
+    version to report."""
+
+    id: str
+    scene_rev: str
+    version: int
+
+
+@dataclass(frozen=True)
+class FrameRequest:
+    """One frame to make. ``progressive``: the preview (a supersampled
+    frame's pixel-centre pass) first when there is one; ``commit(result)`` runs when the final image
+    is ready and returns the session version to report; ``cancel`` (set when the client goes away)
+    stops the frame."""
+
+    scene: Scene | AnimatedScene
+    settings: FrameSettings
+    owner: FrameOwner | None = None
+    progressive: bool = False
+    commit: Callable[[Any], int] | None = None
+    cancel: threading.Event | None = None
+
+
+def final(parts: Iterable[Frame]) -> Frame:
+    """The last part of a frame (its final image), every part before it run and dropped."""
+    (last,) = deque(parts, maxlen=1)  # a frame has at least its final image
+    return last
+
+
+class StatsKey(NamedTuple):
+    """What a build's statistics depend on: the geometry (session, scene revision) and the build."""
+
+    session: str
+    rev: str
+    method: str
+    max_prims: int
+    max_tree_depth: int
+    time: float  # an animated scene's pose (0 for a static one)
+
+
+class FramePipeline:
+    """The View's frames for one process: every frame through :meth:`run`, and the builds' statistics."""
+
+    PLAN_WAIT_S = 1.0  # a burst of small frames waits this long for a planning slot; then 503
+    FRAME_BYTES_WAIT_S = 1.0  # a frame waits this long for room in POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT; then 503
+    # A ray through a good hierarchy tests a few dozen spheres; this many means they crowd it.
+    CROWDED_TESTS = 1000
+
+    def __init__(self, config: ServerConfig, worker: GLWorker):
+        self.config = config
+        self.worker = worker
+        self._stats: OrderedDict[StatsKey, dict] = OrderedDict()
+        self._stats_lock = threading.Lock()
+        # Planning (a scene made from a recipe, posed, its structure built, the frame's cost) holds
+        # the memory of the largest requests — ~500 MB for 2^21 spheres — on the request's thread,
+        # before the GL queue bounds anything: at most POCKETRAY_QUEUE_SIZE plan at once.
+        self._planning = threading.BoundedSemaphore(config.queue_size)
+        self._planning_depth = threading.local()
+        self.frame_bytes = FrameBytes(config.max_frame_bytes_in_flight)
+
+    # ---- the one entry point ----------------------------------------------------------------
+    def run(self, request: FrameRequest) -> Iterator[Frame]:
+        """Plan, admit, trace and encode the frame; yields its parts in order — the preview when
+        ``request.progressive`` and there is one, then the final image. Timings in ms.
+
+        A session's frames are one animation (key: session and scene revision), so ``bvh``
+        and ``twolevel`` can refit the tree of its previous frame. A frame without a session
+        has no previous frame: it always rebuilds.
+        """
+        scene, settings, owner, cancel = request.scene, request.settings, request.owner, request.cancel
+        t_admit = time.perf_counter()
+        key = (owner.id, owner.scene_rev) if owner is not None else None
+        frame = self.plan(scene, settings.render, key=key)
+        self.check_traceable(frame)
+        with self.frame_memory(frame.settings):  # from before its target exists to its encoded body
+            t_queued = time.perf_counter()
+            handle = self.start_frame(frame, owner=owner)
+            version = owner.version if owner is not None else None
+            first = None
+            try:
+                if request.progressive:
+                    first = self.wait(handle, t_admit, preview=True, cancel=cancel)
+                    if first is not None:
+                        yield self.encode_frame(
+                            first,
+                            frame,
+                            settings,
+                            t_admit,
+                            handle.started_at,
+                            version=version,
+                            final=False,
+                            t_queued=t_queued,
+                        )
+                result = self.wait(handle, t_admit, cancel=cancel)
+            except BaseException:
+                handle.cancel("disconnected")
+                raise
+            if request.commit is not None:
+                version = request.commit(result)
+            if owner is not None and result.stats:
+                rs = frame.settings
+                self._remember_stats(
+                    StatsKey(
+                        owner.id,
+                        owner.scene_rev,
+                        frame.method,
+                        rs.max_prims,
+                        rs.max_tree_depth,
+                        self._pose_time(scene, rs.time),
+                    ),
+                    result.stats,
+                )
+            last = self.encode_frame(
+                result, frame, settings, t_admit, handle.started_at, version=version, t_queued=t_queued
+            )
+            result = handle = first = None  # type: ignore[assignment]  # the arrays go now, not when the generator does
+        yield last
+
+    # ---- plan -------------------------------------------------------------------------------
+    @contextmanager
+    def planning(self):
+        """One of the POCKETRAY_QUEUE_SIZE planning slots for the work inside (re-entrant per thread);
+        :class:`Busy` when none frees within PLAN_WAIT_S."""
+        depth = getattr(self._planning_depth, "n", 0)
+        if depth == 0 and not self._planning.acquire(timeout=self.PLAN_WAIT_S):
+            raise Busy(
+                f"busy: {self.config.queue_size} frames are being planned (POCKETRAY_QUEUE_SIZE); retry after 1 s"
+            )
+        self._planning_depth.n = depth + 1
+        try:
+            yield
+        finally:
+            self._planning_depth.n = depth
+            if depth == 0:
+                self._planning.release()
+
+    @property
+    def max_texture_width(self) -> int:
+        renderer = self.worker.renderer
+        return getattr(renderer, "max_texture_width", DEFAULT_TEXTURE_WIDTH)
+
+    def plan(
+        self,
+        scene: Scene | AnimatedScene,
+        settings: RenderSettings,
+        *,
+        key: Any = None,
+        n_field: tuple | None = None,
+    ) -> PreparedFrame:
+        """Pose, build and estimate the frame on this thread; 422 when its estimated cost is
+        over POCKETRAY_MAX_FRAME_COST, naming the setting to change and its accepted value
+        (``n_field``: where the request names the sphere count, when it does: a scene whose
+        spheres crowd every ray is refused there). Its refusals are relative to the part of the
+        request that holds the settings (:class:`server.faults.InputError`)."""
+        rs = settings
+        if key is None:
+            rs = rs.with_(update="rebuild")  # no animation to follow: never touch a kept tree
+        try:
+            with self.planning():
+                frame = prepare_frame(scene, rs, key=key, max_width=self.max_texture_width)
+        except SceneError as e:
+            raise input_error(e) from None
+        limit = self.config.max_frame_cost
+        if frame.cost.bound_ms > limit:
+            raise InputError(*self._too_costly(frame, limit, n_field))
+        return frame
+
+    @staticmethod
+    def check_traceable(frame: PreparedFrame) -> None:
+        """422 (``meshes``) before admission for a frame its method cannot trace on the GPU: one
+        with triangles for a one-pass method whose layout holds spheres only
+        (``Capabilities.meshes_on_gpu`` False — none since every one-pass layout holds triangles,
+        the check stays for a method added without them; its trees are built, its
+        cost is known, the GL frame would refuse it too). The ray engines refuse meshes
+        earlier, naming the ``method`` (prepare_frame's check_primitives)."""
+        if frame.scene.n_triangles and not frame.multi_pass and not METHODS[frame.method].capabilities.meshes_on_gpu:
+            raise InputError(
+                ("meshes",),
+                f"method {frame.method!r}: {NOT_ON_GPU}; this scene has "
+                f"{len(frame.scene.meshes)} mesh(es) of "
+                f"{frame.scene.n_triangles:,} triangles — its scene, statistics and "
+                f"meshes are served, its frames with those methods",
+            )
+
+    def _too_costly(self, frame: PreparedFrame, limit: float, n_field: tuple | None = None) -> tuple[tuple, str]:
+        """Where to point and what to say of a frame estimated over the cost cap."""
+        s, c = frame.settings, frame.cost
+        n = frame.scene.n_spheres
+        head = (
+            f"this frame of {n:,} primitives is estimated at up to {c.bound_ms:,.0f} ms of GL time, over the "
+            f"limit of {limit:,.0f} ms (POCKETRAY_MAX_FRAME_COST; {c.passes} pass(es) of {c.pixels:,} pixels, "
+            f"{c.rays_per_pixel:.1f} rays per pixel, {c.tests_per_ray:,.0f} sphere tests per ray)"
+        )
+        if n_field is not None and not c.degenerate and c.tests_per_ray > self.CROWDED_TESTS:
+            return (
+                n_field,
+                f"{head}: the spheres crowd every ray even through the hierarchy; lower n "
+                f"(or the radius), the resolution, samples_per_pixel or max_recursion_depth",
+            )
+        if c.degenerate:
+            field = "max_prims" if s.max_prims >= max(2, n // 4) else "max_tree_depth"
+            return (
+                (field,),
+                f"{head}: the {frame.method} tree is (nearly) one leaf of {n:,} spheres — "
+                f"a smaller max_prims (≤ 16) or a larger max_tree_depth (≥ "
+                f"{max(2, n.bit_length())}) builds a real hierarchy",
+            )
+        if capabilities(frame.method).tests_every_sphere:
+            return (
+                ("method",),
+                f"{head}: method {frame.method} tests every sphere on every ray; "
+                f"use method=bih (a hierarchy) or a smaller frame",
+            )
+        best = largest_accepted(frame.method, frame.stats, frame.scene, s, limit, multi_pass=frame.multi_pass)
+        options = [f"{k} ≤ {v}" for k, v in best.items() if v is not None and v != getattr(s, k)]
+        field = next(
+            (
+                k
+                for k in ("width", "samples_per_pixel", "max_recursion_depth", "height")
+                if best.get(k) is not None and best[k] != getattr(s, k)
+            ),
+            "width",
+        )
+        largest = best.get(field)
+        say = f"{field}: at most {largest}" if largest is not None else f"{field}: no value fits"
+        return (
+            (field,),
+            f"{head}; {say} at these settings"
+            + (f" (or {', '.join(o for o in options if not o.startswith(field))})" if len(options) > 1 else ""),
+        )
+
+    # ---- admit ------------------------------------------------------------------------------
+    @contextmanager
+    def frame_memory(self, settings: RenderSettings):
+        """The frame's estimated bytes reserved in POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT for the work
+        inside; :class:`Busy` (Retry-After: the GL work queued ahead) when they do not fit within
+        FRAME_BYTES_WAIT_S."""
+        nbytes = frame_nbytes(settings)
+        if not self.frame_bytes.acquire(nbytes, self.FRAME_BYTES_WAIT_S):
+            retry = self.worker.retry_after()
+            raise Busy(
+                f"busy: the frames in flight hold the {self.config.max_frame_bytes_in_flight} bytes of "
+                f"POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT; this {settings.width} × {settings.height} "
+                f"{settings.mode} {settings.format} frame needs ~{nbytes} bytes; retry after {retry} s "
+                f"(or ask for a smaller frame)",
+                retry,
+            )
+        try:
+            yield
+        finally:
+            self.frame_bytes.release(nbytes)
+
+    def admit(self) -> Ticket:
+        """A slot in the GL queue (QueueFull → 503)."""
+        return self.worker.admit()
+
+    # ---- trace ------------------------------------------------------------------------------
+    def start_frame(self, frame: PreparedFrame, *, owner: FrameOwner | None) -> FrameHandle:
+        """Admit the planned frame (503 when full), supersede the session's older frames, and
+        hand it to the GL thread to be traced in slices."""
+        ticket = self.admit()
+        if owner is not None:
+            for older in self.worker.in_flight(owner.id):  # latest wins
+                older.cancel("superseded")
+        s = frame.settings
+        rows = band_rows(frame.cost, self.config.slice_ms, s.width, s.height)
+        batch = batch_size(frame.cost, self.config.slice_ms, frame.scene.n_primitives)
+
+        def start(renderer):
+            return renderer.start(frame, band_rows=rows, batch=batch, slice_ms=self.config.slice_ms)
+
+        return ticket.frame(start, session=owner.id if owner is not None else None, cost_ms=frame.cost.ms)
+
+    def wait(
+        self, handle: FrameHandle, t_admit: float, *, preview: bool = False, cancel: threading.Event | None = None
+    ):
+        """The frame's result (or, with ``preview``, its first image: None when there is none),
+        within what is left of the render timeout; ``cancel`` (set when the client goes
+        away) stops it."""
+        deadline = t_admit + self.config.render_timeout_s
+        while True:
+            left = deadline - time.perf_counter()
+            if left <= 0:
+                handle.cancel("timeout")
+                raise RenderTimeout(
+                    f"render: not done within {self.config.render_timeout_s:g} s", self.worker.retry_after()
+                )
+            if cancel is not None and cancel.is_set():
+                handle.cancel("disconnected")
+            if handle.poll(preview, min(0.25, left)):
+                if preview and handle.preview_result() is not None:
+                    return handle.preview_result()
+                try:
+                    result = handle.result()
+                except FrameCancelled as e:
+                    raise self._cancelled(e) from None
+                return None if preview else result
+
+    def _cancelled(self, e: FrameCancelled) -> Exception:
+        if e.reason == "timeout":
+            return RenderTimeout(
+                f"render: not done within {self.config.render_timeout_s:g} s", self.worker.retry_after()
+            )
+        if e.reason == "shutdown":
+            from .trace import GLNotReady
+
+            return GLNotReady("the service is shutting down")
+        return Superseded(f"frame: stopped, {e.reason} (a newer frame of this session, or the client went away)")
+
+    # ---- encode -----------------------------------------------------------------------------
+    def encode_frame(
+        self,
+        result,
+        frame: PreparedFrame,
+        settings: FrameSettings,
+        t_admit: float,
+        t_started: float | None,
+        *,
+        version: int | None,
+        final: bool = True,
+        t_queued: float | None = None,
+    ) -> Frame:
+        """``queue`` is the wait from ``t_queued`` (the frame handed to the GL thread, after its
+        planning, whose pose and build are stages of their own) to its first slice."""
+        rs = frame.settings
+        t_queued = t_queued if t_queued is not None else t_admit
+        body, encode_ms = encode(
+            result,
+            rs.format,
+            self.config.default_jpeg_quality if settings.quality is None else settings.quality,
+            self.config.png_compress_level,
+        )
+        t_end = time.perf_counter()
+        timings = {
+            "queue": max(0.0, ((t_started or t_queued) - t_queued) * 1e3),
+            **{
+                k: float(v)
+                for k, v in result.timings.items()
+                if k in ("pose", "update", "build", "upload", "trace", "read")
+            },
+            "encode": encode_ms,
+            "total": (t_end - t_admit) * 1e3,
+        }
+        if frame.pose_ms is not None:
+            timings["pose"] = frame.pose_ms
+        if final:
+            metrics.observe_stages(frame.method, rs.mode, timings)
+        return Frame(
+            body=body,
+            media_type=MEDIA_TYPES[rs.format],
+            method=frame.method,
+            timings=timings,
+            stats=result.stats,
+            version=version,
+            width=rs.width,
+            height=rs.height,
+            final=final,
+        )
+
+    # ---- poses and statistics ---------------------------------------------------------------
+    @staticmethod
+    def _pose_time(scene: Scene | AnimatedScene, t: float) -> float:
+        return float(t) if isinstance(scene, AnimatedScene) else 0.0
+
+    @staticmethod
+    def posed(scene: Scene | AnimatedScene, t: float) -> tuple[Scene, TreeUpdate]:
+        """The scene posed at time ``t`` (the settings' ``time``) and a rebuild request that knows which
+        spheres move (for a method's ``prepare`` outside a render: stats, device data)."""
+        if not isinstance(scene, AnimatedScene):
+            return scene, TreeUpdate()
+        frame = pose(scene, t)
+        return frame.scene, TreeUpdate(moving=frame.moving)
+
+    def _remember_stats(self, key: StatsKey, stats: dict) -> None:
+        with self._stats_lock:
+            self._stats[key] = stats
+            self._stats.move_to_end(key)
+            while len(self._stats) > 256:
+                self._stats.popitem(last=False)
+
+    def stats(self, request: FrameRequest, n_primitives: int) -> dict:
+        """Statistics of the acceleration structure for the request's settings: the last build's
+        of its session, or a build made now (without rendering). ``n_primitives``: the session's
+        spheres and triangles as stored (``auto`` resolves on them, as prepare_frame does)."""
+        assert request.owner is not None, "statistics are a session's"
+        scene, s, owner = request.scene, request.settings.render, request.owner
+        method_name = resolve_method(s.method, n_primitives)  # auto as prepare_frame does
+        key = StatsKey(
+            owner.id, owner.scene_rev, method_name, s.max_prims, s.max_tree_depth, self._pose_time(scene, s.time)
+        )
+        with self._stats_lock:
+            cached = self._stats.get(key)
+        if cached is not None:
+            return cached
+        method = METHODS[method_name]
+
+        def job(renderer):
+            posed, update = self.posed(scene, s.time)
+            return method.prepare(posed, s.max_prims, s.max_tree_depth, renderer.max_texture_width, update).stats
+
+        with self.admit() as ticket:
+            try:
+                stats = ticket.run(job, self.config.render_timeout_s)
+            except FutureTimeout:
+                raise RenderTimeout(f"build: not done within {self.config.render_timeout_s:g} s") from None
+        self._remember_stats(key, stats)
+        return stats

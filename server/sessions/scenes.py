@@ -1,0 +1,262 @@
+"""Scenes of sessions: request bodies → validated ``Scene``, stored *sources*, a cache.
+
+A session's scene is stored as a *source*, not re-serialised for every change:
+
+- a thesis scenario is its recipe ``{"scenario", "n", "seed", "radius"}`` (a few
+  bytes; ``renderer.scenarios.scenario`` is deterministic), and an animated Museum
+  its recipe ``{"museum": {"n", "kind", "seed", "absent"}}``;
+- an uploaded scene is its small parts (and motions) as JSON plus the sphere arrays and
+  the meshes' arrays (world-space vertices, triangles, normals, each mesh's rows
+  concatenated; the JSON says how many rows are whose), in one compressed ``.npz``.
+
+An animated scene (one with motions) is an :class:`~renderer.animation.AnimatedScene`;
+``SessionScene`` is either kind. The renderer poses it at the frame's ``time``.
+
+The camera is not part of the source (it lives in the session state), so a
+gesture never rewrites the scene. ``SceneCache`` keeps recently used scenes per
+process, keyed by the session's scene revision token, so a frame does not
+rebuild its scene from the source either.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import threading
+from collections import OrderedDict
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+
+from renderer.animation import AnimatedScene, motion_from_json, motion_to_json, museum
+from renderer.scenarios import scenario
+from renderer.scene import Camera, Mesh, Scene, SceneError, make_mesh
+
+from ..api.schemas import CameraModel, SceneModel
+
+_RECIPE = b"R"
+_ARRAYS = b"A"
+
+SessionScene = Scene | AnimatedScene
+
+
+def scene_from_model(model: SceneModel, where: str = "scene") -> SessionScene:
+    """A validated Scene — an AnimatedScene when it has motions — from a request body
+    (SceneError names the JSON field)."""
+    small = model.model_dump(exclude={"spheres", "motions", "meshes"})
+    try:
+        base = Scene.from_json(small)
+        n = len(model.spheres)
+        centers = np.array([s.center for s in model.spheres], dtype=np.float64).reshape(n, 3)
+        radii = np.array([s.radius for s in model.spheres], dtype=np.float64).reshape(n)
+        mats = np.array([s.material for s in model.spheres], dtype=np.int64).reshape(n)
+        meshes = []
+        for i, m in enumerate(model.meshes):
+            try:
+                meshes.append(make_mesh(m.vertices, m.triangles, m.material, m.normals, m.transform))
+            except SceneError as e:
+                raise SceneError(f"meshes[{i}].{e.field}", e.message) from None
+        scene = Scene(base.camera, base.lights, base.materials, centers, radii, mats, base.planes, tuple(meshes))
+        return with_motions(scene, [m.model_dump(exclude_none=True) for m in model.motions])
+    except SceneError as e:
+        raise SceneError(f"{where}.{e.field}" if where else e.field, e.message) from None
+
+
+def with_motions(scene: Scene, motions: list[dict]) -> SessionScene:
+    """``scene`` animated by the motions' JSON (SceneError ``motions[i].<field>``); no motions: ``scene``."""
+    if not motions:
+        return scene
+    return AnimatedScene(scene, tuple(motion_from_json(m, f"motions[{i}]") for i, m in enumerate(motions)))
+
+
+def museum_source(n: int, kind: str, seed: int, absent: float) -> bytes:
+    return _RECIPE + json.dumps({"museum": {"n": n, "kind": kind, "seed": seed, "absent": absent}}).encode()
+
+
+def camera_from_model(model: CameraModel, where: str = "camera") -> Camera:
+    """A validated Camera (SceneError with ``camera.<field>``)."""
+    return Camera.from_json(model.model_dump(), where)
+
+
+def scenario_source(number: int, n: int, seed: int, radius: float) -> bytes:
+    return _RECIPE + json.dumps({"scenario": number, "n": n, "seed": seed, "radius": radius}).encode()
+
+
+def scene_source(scene: SessionScene) -> bytes:
+    """Lights, materials, planes, motions and how the meshes are cut as JSON; spheres and mesh
+    rows as arrays (compressed npz). The meshes are stored in world space, as the scene
+    holds them, so that a stored scene loads bit for bit as it was."""
+    motions = [motion_to_json(m) for m in scene.motions] if isinstance(scene, AnimatedScene) else []
+    if isinstance(scene, AnimatedScene):
+        scene = scene.scene
+    small = {
+        "lights": [x.to_json() for x in scene.lights],
+        "materials": [m.to_json() for m in scene.materials],
+        "planes": [p.to_json() for p in scene.planes],
+        "motions": motions,
+    }
+    arrays: dict[str, Any] = {
+        "centers": scene.sphere_centers,
+        "radii": scene.sphere_radii,
+        "materials": scene.sphere_materials,
+    }
+    if scene.meshes:
+        small["meshes"] = [
+            {"material": m.material, "vertices": len(m.vertices), "triangles": m.n_triangles, "smooth": m.smooth}
+            for m in scene.meshes
+        ]
+        arrays["mesh_vertices"] = np.concatenate([m.vertices for m in scene.meshes])
+        arrays["mesh_triangles"] = np.concatenate([m.triangles for m in scene.meshes])
+        smooth = [m.normals for m in scene.meshes if m.normals is not None]  # the smooth ones
+        arrays["mesh_normals"] = np.concatenate(smooth) if smooth else np.zeros((0, 3))
+    buf = io.BytesIO()
+    np.savez_compressed(buf, meta=np.frombuffer(json.dumps(small).encode(), dtype=np.uint8), **arrays)
+    return _ARRAYS + buf.getvalue()
+
+
+def _stored_meshes(cut: list[dict], z) -> tuple[Mesh, ...]:
+    """The meshes of a stored source: ``cut`` says how many rows of each array are whose."""
+    out, v0, t0, n0 = [], 0, 0, 0
+    for m in cut:
+        nv, nt = m["vertices"], m["triangles"]
+        normals = None
+        if m["smooth"]:
+            normals = z["mesh_normals"][n0 : n0 + nv]
+            n0 += nv
+        out.append(Mesh(z["mesh_vertices"][v0 : v0 + nv], z["mesh_triangles"][t0 : t0 + nt], m["material"], normals))
+        v0, t0 = v0 + nv, t0 + nt
+    return tuple(out)
+
+
+def load_source(source: bytes, camera: Camera) -> SessionScene:
+    """The scene a source describes, seen through ``camera``."""
+    kind, body = source[:1], source[1:]
+    if kind == _RECIPE:
+        r = json.loads(body)
+        if "museum" in r:
+            return museum(**r["museum"]).with_camera(camera)
+        return scenario(r["scenario"], r["n"], r["seed"], r["radius"]).with_camera(camera)
+    if kind == _ARRAYS:
+        with np.load(io.BytesIO(body), allow_pickle=False) as z:
+            small = json.loads(z["meta"].tobytes())
+            motions = small.pop("motions", [])
+            meshes = _stored_meshes(small.pop("meshes", []), z)
+            base = Scene.from_json({**small, "camera": camera.to_json()})
+            scene = Scene(
+                camera, base.lights, base.materials, z["centers"], z["radii"], z["materials"], base.planes, meshes
+            )
+            return with_motions(scene, motions)
+    raise ValueError("unknown scene source")
+
+
+def _rows_json(rows: np.ndarray, per_chunk: int) -> Iterator[str]:
+    """A JSON list of rows (``[[…],[…]]``, compact) in pieces of ``per_chunk`` rows."""
+    yield "["
+    for start in range(0, len(rows), per_chunk):
+        text = json.dumps(rows[start : start + per_chunk].tolist(), separators=(",", ":"), allow_nan=False)[1:-1]
+        yield text if start == 0 else "," + text
+    yield "]"
+
+
+def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> Iterator[bytes]:
+    """The scene JSON (docs/FORMATS.md) of ``scene`` (exactly ``json.dumps(scene.to_json())``, compact) in
+    pieces, so that a scene of 2^21 spheres (or 2^20 triangles) is sent without building it in memory.
+    An animated scene is its rest pose plus ``motions``."""
+
+    def dumps(obj: Any) -> str:
+        return json.dumps(obj, separators=(",", ":"), allow_nan=False)
+
+    tail = ""
+    if isinstance(scene, AnimatedScene):
+        tail = ',"motions":' + dumps([motion_to_json(m) for m in scene.motions])
+        scene = scene.scene
+    small = {
+        "camera": scene.camera.to_json(),
+        "lights": [x.to_json() for x in scene.lights],
+        "materials": [m.to_json() for m in scene.materials],
+    }
+    yield (dumps(small)[:-1] + ',"spheres":[').encode()
+    n = scene.n_spheres
+    for start in range(0, n, spheres_per_chunk):
+        stop = min(n, start + spheres_per_chunk)
+        part = [
+            {"center": c, "radius": r, "material": m}
+            for c, r, m in zip(
+                scene.sphere_centers[start:stop].tolist(),
+                scene.sphere_radii[start:stop].tolist(),
+                scene.sphere_materials[start:stop].tolist(),
+                strict=True,
+            )
+        ]
+        text = dumps(part)[1:-1]
+        yield (text if start == 0 else "," + text).encode()
+    yield ('],"planes":' + dumps([p.to_json() for p in scene.planes])).encode()
+    if scene.meshes:  # as Mesh.to_json: vertices, triangles, material, normals
+        rows = max(1, spheres_per_chunk * 2)
+        yield b',"meshes":['
+        for i, m in enumerate(scene.meshes):
+            yield (("," if i else "") + '{"vertices":').encode()
+            yield from (x.encode() for x in _rows_json(m.vertices, rows))
+            yield b',"triangles":'
+            yield from (x.encode() for x in _rows_json(m.triangles, rows))
+            yield f',"material":{m.material}'.encode()
+            if m.normals is not None:
+                yield b',"normals":'
+                yield from (x.encode() for x in _rows_json(m.normals, rows))
+            yield b"}"
+        yield b"]"
+    yield (tail + "}").encode()
+
+
+def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dict[str, Any]:
+    rest = scene.scene if isinstance(scene, AnimatedScene) else scene
+    info: dict[str, Any] = {"n_spheres": rest.n_spheres, "n_planes": len(rest.planes)}
+    if rest.meshes:  # (absent for a sphere scene: the stored state stays as it was)
+        info.update(
+            n_meshes=len(rest.meshes), n_triangles=rest.n_triangles, n_degenerate_triangles=rest.n_degenerate_triangles
+        )
+    if isinstance(scene, AnimatedScene):
+        info.update(animated=True, n_moving=int(scene.moving.sum()))
+        if rest.meshes:
+            info["n_moving_meshes"] = int(scene.moving_meshes.sum())
+    if recipe:
+        info.update(recipe)
+    return info
+
+
+def _weight(scene: SessionScene) -> int:
+    rest = scene.scene if isinstance(scene, AnimatedScene) else scene
+    return rest.n_spheres + 4 * rest.n_triangles
+
+
+class SceneCache:
+    """Least-recently-used scenes of this process, keyed by (session id, scene revision).
+
+    Bounded by the total number of spheres and triangles held (memory ≈ 36 bytes per sphere,
+    about 150 per triangle: its mesh's arrays and the flattened corners — counted as 4).
+    """
+
+    def __init__(self, max_spheres: int = 8 << 20):
+        self.max_spheres = max_spheres
+        self._items: OrderedDict[tuple[str, str], SessionScene] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, key: tuple[str, str]) -> SessionScene | None:
+        with self._lock:
+            scene = self._items.get(key)
+            if scene is not None:
+                self._items.move_to_end(key)
+            return scene
+
+    def put(self, key: tuple[str, str], scene: SessionScene) -> None:
+        with self._lock:
+            self._items[key] = scene
+            self._items.move_to_end(key)
+            while len(self._items) > 1 and sum(_weight(s) for s in self._items.values()) > self.max_spheres:
+                self._items.popitem(last=False)
+
+    def drop_session(self, session_id: str) -> None:
+        with self._lock:
+            for key in [k for k in self._items if k[0] == session_id]:
+                del self._items[key]

@@ -1,0 +1,408 @@
+"""Session operations: validate fully, then change the Model in one atomic write; and the frames
+sessions ask for, as requests to the frame pipeline.
+
+Every operation first checks its whole input (pydantic did the per-field part; here the input
+caps, :class:`server.sessions.caps.InputCaps`, and the frame's cost through the pipeline's plan),
+then hands one ``mutate`` function to the store, which applies it in a single transaction and bumps
+the version. A rejected request therefore changes nothing. A refused input names its field
+relative to the part of the request the route names (``("scene", "spheres")``; the route places it in
+the body or the query, :func:`server.api.errors.located`); one whose part the route cannot know (a
+gesture's field, a model upload's query) is named with its part (:class:`server.faults.Where`).
+
+A frame is one :class:`server.frames.pipeline.FrameRequest` made here (the session's scene and
+settings, the frame query's patch merged and checked) and run by
+:meth:`server.frames.pipeline.FramePipeline.run`. A gesture's frame is rendered with its new camera
+*before* the gesture is committed, and committed only when the frame is ready and the session has not
+changed meanwhile: a refused, failed, timed-out or cancelled frame leaves the session as it was
+(docs/API.md, "Gestures with a frame").
+"""
+
+from __future__ import annotations
+
+import secrets
+import threading
+from dataclasses import replace
+from typing import Any
+
+from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum
+from renderer.limits import MAX_TRIANGLES
+from renderer.mesh_io import fit_transform
+from renderer.scenarios import mesh_scene, scenario
+from renderer.scene import Camera, Scene, SceneError
+
+from ..api.schemas import (
+    MeshUploadQuery,
+    OrbitGesture,
+    PanGesture,
+    PinchGesture,
+    ResetGesture,
+    SceneModel,
+    SessionCreate,
+    SettingsPatch,
+)
+from ..config import ServerConfig
+from ..faults import Busy, InputError, NotFound, Superseded, Where, input_error
+from ..frames.pipeline import FrameOwner, FramePipeline, FrameRequest, FrameSettings, render_settings
+from . import controller
+from .caps import InputCaps
+from .model_worker import load_model
+from .scenes import (
+    SceneCache,
+    SessionScene,
+    camera_from_model,
+    load_source,
+    museum_source,
+    scenario_source,
+    scene_info,
+    scene_source,
+)
+from .store import SessionState, SessionStore, StoreUnavailable
+
+
+def owner(state: SessionState) -> FrameOwner:
+    """The session as its frames know it."""
+    return FrameOwner(state.id, state.scene_rev, state.version)
+
+
+class SessionService:
+    """The Model's operations for one process, and the frame requests of its sessions."""
+
+    def __init__(
+        self, config: ServerConfig, store: SessionStore, frames: FramePipeline, cache: SceneCache | None = None
+    ):
+        self.config = config
+        self.store = store
+        self.frames = frames
+        self.cache = cache or SceneCache()
+        self.caps = InputCaps(config)
+
+    def default_settings(self) -> dict[str, Any]:
+        return self.config.default_settings()
+
+    # ---- sessions (the Model) -----------------------------------------------------------
+    def create(self, body: SessionCreate) -> SessionState:
+        """A new session; its scene is made (a recipe's too) and its first frame planned in one
+        planning slot."""
+        with self.frames.planning():
+            return self._create(body)
+
+    def _create(self, body: SessionCreate) -> SessionState:
+        recipe_given = [k for k in ("scenario", "n", "seed", "radius") if getattr(body, k) is not None]
+        sources = [
+            k
+            for k, given in (
+                ("scenario", bool(recipe_given)),
+                ("museum", body.museum is not None),
+                ("mesh_scene", body.mesh_scene is not None),
+                ("scene", body.scene is not None),
+            )
+            if given
+        ]
+        if len(sources) > 1:
+            field = recipe_given[0] if recipe_given else sources[1]
+            raise InputError(
+                (field,),
+                "give one of a scenario (scenario, n, seed, radius), a museum, "
+                f"a mesh_scene or a scene, not {' and '.join(sources)}",
+            )
+        scene: Scene | AnimatedScene
+        recipe: dict[str, Any] | None
+        if body.mesh_scene is not None:
+            r = body.mesh_scene
+            scene = mesh_scene(r.kind, r.detail, r.smooth)
+            if scene.n_triangles > self.config.max_triangles:
+                raise InputError(
+                    ("mesh_scene", "detail"),
+                    f"{scene.n_triangles} triangles; at most {self.config.max_triangles} allowed "
+                    "(POCKETRAY_MAX_TRIANGLES)",
+                )
+            recipe = {"mesh_scene": r.model_dump()}
+            source = scene_source(scene)
+        elif body.museum is not None:
+            m = body.museum
+            self.caps.check_spheres(m.n + MUSEUM_ROOM_SPHERES, ("museum", "n"))
+            scene = museum(m.n, m.kind, m.seed, m.absent)
+            recipe = {"museum": m.model_dump()}
+            source = museum_source(m.n, m.kind, m.seed, m.absent)
+        elif body.scene is None:
+            if body.scenario is None:
+                raise InputError(("scenario",), "required: a scenario 1, 2 or 3 with n, or a full scene")
+            if body.n is None:
+                raise InputError(("n",), "required with scenario: the number of spheres")
+            self.caps.check_spheres(body.n, ("n",))
+            recipe = {
+                "scenario": body.scenario,
+                "n": body.n,
+                "seed": body.seed or 0,
+                "radius": float(body.radius if body.radius is not None else 1.0),
+            }
+            try:
+                scene = scenario(recipe["scenario"], recipe["n"], recipe["seed"], recipe["radius"])
+            except SceneError as e:
+                raise input_error(e) from None
+            source = scenario_source(recipe["scenario"], recipe["n"], recipe["seed"], recipe["radius"])
+        else:
+            scene = self.caps.checked_scene(body.scene, ("scene",))
+            recipe = None
+            source = scene_source(scene)
+        patch = body.settings.given() if body.settings else {}
+        settings = self.caps.merge_settings(self.default_settings(), patch)
+        rs = render_settings(settings)
+        self.caps.check_work(rs, scene.n_spheres)
+        # A session no frame could render is refused now (the sphere count named where it was asked for).
+        n_field = (
+            ("museum", "n")
+            if body.museum is not None
+            else ("mesh_scene", "detail")
+            if body.mesh_scene is not None
+            else ("n",)
+            if recipe
+            else None
+        )
+        self.frames.plan(scene, rs, n_field=n_field)
+        camera = scene.camera.to_json()
+        state = SessionState(
+            id=secrets.token_urlsafe(24),
+            version=1,
+            camera=camera,
+            home_camera=camera,
+            settings=settings,
+            scene_info=scene_info(scene, recipe),
+            scene_rev=secrets.token_hex(8),
+        )
+        self.store.create(state, source)
+        self.cache.put((state.id, state.scene_rev), scene)
+        return state
+
+    def get(self, session_id: str) -> SessionState:
+        state = self.store.get(session_id)
+        if state is None:
+            raise NotFound(session_id)
+        return state
+
+    def _update(self, session_id: str, mutate, source: bytes | None = None) -> SessionState:
+        state = self.store.update(session_id, mutate, source)
+        if state is None:
+            raise NotFound(session_id)
+        return state
+
+    def delete(self, session_id: str) -> None:
+        if not self.store.delete(session_id):
+            raise NotFound(session_id)
+        self.cache.drop_session(session_id)
+
+    def scene(self, state: SessionState) -> SessionScene:
+        """The session's scene (animated or not) seen through its current camera (cached per process)."""
+        camera = Camera.from_json(state.camera)
+        base = self.cache.get((state.id, state.scene_rev))
+        if base is None:
+            got = self.store.get_source(state.id)
+            if got is None:
+                raise NotFound(state.id)
+            rev, source = got
+            try:
+                base = load_source(source, camera)
+            except Exception as e:  # bytes the store holds that are no scene: a store fault, not a bug
+                raise StoreUnavailable(f"holding a scene that does not decode ({type(e).__name__})") from None
+            self.cache.put((state.id, rev), base)
+        return base if base.camera == camera else base.with_camera(camera)
+
+    def replace_scene(self, session_id: str, model: SceneModel) -> SessionState:
+        scene = self.caps.checked_scene(model, ())
+        source = scene_source(scene)
+        rev = secrets.token_hex(8)
+        camera = scene.camera.to_json()
+
+        def mutate(old: SessionState) -> SessionState:
+            return replace(old, camera=camera, home_camera=camera, scene_rev=rev, scene_info=scene_info(scene, None))
+
+        state = self._update(session_id, mutate, source)
+        self.cache.put((state.id, rev), scene)
+        return state
+
+    def add_mesh(self, session_id: str, data: bytes, query: MeshUploadQuery) -> tuple[SessionState, int, int]:
+        """Parse a model file (in memory: nothing is written) and add it to the session's scene
+        as a new mesh, its last; the camera stays. Returns the state, the mesh's index and its
+        first triangle's primitive id. 422 naming ``body`` (the file), ``query.format``,
+        ``query.material``, or the triangle cap (POCKETRAY_MAX_TRIANGLES, with the scene's own)."""
+        state = self.get(session_id)
+        old = self.scene(state)
+        rest = old.scene if isinstance(old, AnimatedScene) else old
+        room = self.config.max_triangles - rest.n_triangles
+        if room <= 0 or not data:
+            raise InputError(
+                (Where.BODY,),
+                "the scene already holds the most triangles allowed "
+                f"({self.config.max_triangles}, POCKETRAY_MAX_TRIANGLES)"
+                if data
+                else "empty body: send the model file's bytes",
+            )
+        try:
+            parsed = load_model(self.config, data, query.format, max_triangles=min(room, MAX_TRIANGLES), busy=Busy)
+        except SceneError as e:
+            loc = (Where.QUERY, "format") if e.field == "format" else (Where.BODY,)
+            raise InputError(
+                loc,
+                f"{e.message}"
+                + (
+                    f" (POCKETRAY_MAX_TRIANGLES = {self.config.max_triangles}, {rest.n_triangles} in the scene)"
+                    if "triangles" in e.message
+                    else ""
+                ),
+            ) from None
+        if query.material >= len(rest.materials):
+            raise InputError(
+                (Where.QUERY, "material"),
+                f"material index {query.material} out of range (the scene has {len(rest.materials)} materials)",
+            )
+        try:
+            mesh = parsed.to_mesh(
+                query.material, fit_transform(parsed, query.size) if query.size else None, query.smooth
+            )
+            grown = rest.with_geometry(
+                rest.sphere_centers, rest.sphere_radii, rest.sphere_materials, (*rest.meshes, mesh)
+            )
+            scene: SessionScene = AnimatedScene(grown, old.motions) if isinstance(old, AnimatedScene) else grown
+        except SceneError as e:
+            raise InputError((Where.BODY,), f"the model does not fit the scene: {e.field}: {e.message}") from None
+        source = scene_source(scene)
+        rev = secrets.token_hex(8)
+
+        def mutate(current: SessionState) -> SessionState:
+            if current.scene_rev != state.scene_rev:
+                raise Superseded("session: its scene changed while the model was read; send it again")
+            # no recipe any more: a scenario with a model in it is a scene of its own
+            return replace(current, scene_rev=rev, scene_info=scene_info(scene, None))
+
+        new = self._update(session_id, mutate, source)
+        self.cache.put((new.id, rev), scene)
+        index = len(grown.meshes) - 1
+        return new, index, grown.triangle_id_base + grown.mesh_triangle_range(index).start
+
+    def set_camera(self, session_id: str, model) -> SessionState:
+        try:
+            camera = camera_from_model(model)
+        except SceneError as e:
+            raise input_error(e) from None
+        return self._update(session_id, lambda old: replace(old, camera=camera.to_json()))
+
+    def patch_settings(self, session_id: str, patch: SettingsPatch) -> SessionState:
+        """Change render defaults; settings no frame could render (over the frame cost cap
+        included, which needs a build) are refused before anything changes."""
+        given = patch.given()
+        state = self.get(session_id)
+        checked = self.caps.merge_settings(state.settings, given)
+        rs = render_settings(checked)
+        self.caps.check_work(rs, state.scene_info.get("n_spheres", 0))
+        self.frames.plan(self.scene(state), rs)
+
+        def mutate(old: SessionState) -> SessionState:
+            merged = self.caps.merge_settings(old.settings, given)
+            rs = render_settings(merged)
+            self.caps.check_work(rs, old.scene_info.get("n_spheres", 0))
+            if merged != checked:  # another change came between: check what is stored now
+                self.frames.plan(self.scene(old), rs)
+            return replace(old, settings=merged)
+
+        return self._update(session_id, mutate)
+
+    def moved_camera(
+        self,
+        old: SessionState,
+        gesture: PanGesture | PinchGesture | OrbitGesture | ResetGesture,
+        frame_patch: dict[str, Any] | None = None,
+    ) -> Camera:
+        """The camera after ``gesture`` (InputError naming the gesture's field, in the body, when the
+        move would leave the coordinate range: the frame a gesture asks for has its settings in the query)."""
+        cam = Camera.from_json(old.camera)
+        try:
+            if isinstance(gesture, PanGesture):
+                height = gesture.viewport_height or (frame_patch or {}).get("height") or old.settings["height"]
+                return controller.pan(cam, gesture.dx, gesture.dy, float(height))
+            if isinstance(gesture, PinchGesture):
+                return controller.pinch(cam, gesture.scale, self.config.min_target_distance)
+            if isinstance(gesture, OrbitGesture):
+                return controller.orbit(cam, gesture.yaw, gesture.pitch)
+            return controller.reset(Camera.from_json(old.home_camera))
+        except SceneError as e:
+            field = {"pan": "dx", "pinch": "scale", "orbit": "yaw", "reset": "type"}[gesture.type]
+            raise InputError(
+                (Where.BODY, field), f"the {gesture.type} would move the camera out of range ({e.field}: {e.message})"
+            ) from None
+
+    def gesture(
+        self, session_id: str, gesture: PanGesture | PinchGesture | OrbitGesture | ResetGesture
+    ) -> SessionState:
+        """Apply a gesture (no frame)."""
+        return self._update(session_id, lambda old: replace(old, camera=self.moved_camera(old, gesture).to_json()))
+
+    # ---- the frames a session asks for (run by the frame pipeline) --------------------------
+    def frame_settings(self, state: SessionState, patch: dict[str, Any]) -> FrameSettings:
+        """The session's settings with the frame query's ``patch``, checked against the caps."""
+        settings = FrameSettings.of(self.caps.merge_settings(state.settings, patch))
+        self.caps.check_work(settings.render, state.scene_info.get("n_spheres", 0))
+        return settings
+
+    def frame_request(
+        self,
+        session_id: str,
+        patch: dict[str, Any],
+        *,
+        cancel: threading.Event | None = None,
+        progressive: bool = False,
+    ) -> FrameRequest:
+        """The session's current view with the query's ``patch`` (the final image; with
+        ``progressive`` its preview first)."""
+        state = self.get(session_id)
+        settings = self.frame_settings(state, patch)
+        return FrameRequest(self.scene(state), settings, owner(state), progressive=progressive, cancel=cancel)
+
+    def gesture_request(
+        self,
+        session_id: str,
+        gesture,
+        patch: dict[str, Any],
+        *,
+        cancel: threading.Event | None = None,
+        progressive: bool = False,
+    ) -> FrameRequest:
+        """A gesture answered with its new frame: rendered with the new camera first, the
+        gesture committed when the final image is ready (and only if the session is still
+        the version it was computed from; else 409 and nothing changes)."""
+        state = self.get(session_id)
+        settings = self.frame_settings(state, patch)  # 422 before anything else
+        camera = self.moved_camera(state, gesture, patch)  # 422 for a move out of range
+        view = self.scene(state)
+        view = view if view.camera == camera else view.with_camera(camera)
+        moved = replace(state, camera=camera.to_json())
+
+        def commit(_result) -> int:
+            def mutate(old: SessionState) -> SessionState:
+                if old.version != state.version:
+                    raise Superseded(
+                        f"session: changed while the frame was traced (version {state.version} → "
+                        f"{old.version}); the gesture was not applied — send it again"
+                    )
+                return replace(old, camera=moved.camera)
+
+            return self._update(session_id, mutate).version
+
+        return FrameRequest(view, settings, owner(state), progressive=progressive, commit=commit, cancel=cancel)
+
+    def stateless_request(
+        self, scene_model: SceneModel, patch: dict[str, Any], *, cancel: threading.Event | None = None
+    ) -> FrameRequest:
+        """A frame of a scene sent with the request, no session (its settings are the body's)."""
+        scene = self.caps.checked_scene(scene_model, ("scene",))  # its body was bounded by the body parsers
+        settings = FrameSettings.of(self.caps.merge_settings(self.default_settings(), patch))
+        self.caps.check_work(settings.render, scene.n_spheres)
+        return FrameRequest(scene, settings, None, cancel=cancel)
+
+    def stats(self, session_id: str, patch: dict[str, Any]) -> dict:
+        """Statistics of the acceleration structure for the session's current (or given)
+        settings: the last build's, or a build made now (without rendering)."""
+        state = self.get(session_id)
+        settings = FrameSettings.of(self.caps.merge_settings(state.settings, patch))
+        scene = self.scene(state)
+        n = state.scene_info.get("n_spheres", 0) + state.scene_info.get("n_triangles", 0)
+        return self.frames.stats(FrameRequest(scene, settings, owner(state)), n)

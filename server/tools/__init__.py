@@ -1,0 +1,1 @@
+"""The commands: ``pocketray`` (cli) and the loopback scale-out stack."""

@@ -1,0 +1,525 @@
+"""``pocketray``: the one command (console script of the package; ``python -m server`` too).
+
+::
+
+    pocketray serve [--host H] [--port P] [--workers N] [--state-backend sqlite|redis] [--gpu I] …
+    pocketray render SCENE.json -o OUT.png|.jpg|.npy|.exr [--width W --height H --method M --mode M
+                     --spp S --depth D …]
+    pocketray render MODEL.obj|.ply|.stl|.glb|.gltf -o OUT.png [--size S --smooth|--flat] [the same flags]
+    pocketray scene --mesh MODEL [--mesh MODEL …] [--size S] [--as-is] [-o scene.json]
+    pocketray scenario 1|2|3 --n N [--seed S] [--radius R] -o scene.json
+    pocketray scenario museum --n N [--kind mixed] [--absent A] [--seed S] -o scene.json
+    pocketray gpus [--probe]
+    pocketray stack [--processes N] [--port P]     (Redis + render processes + HAProxy, server/tools/stack.py)
+
+``serve`` takes a flag for every field of :class:`server.config.ServerConfig` (``--queue-size``,
+``--cors-origins``, ``--drain-s`` …): each is put in the environment as its ``POCKETRAY_*``
+variable, so the flags are read and validated exactly as the variables are, by every worker.
+uvicorn gets the app as the import string ``server.app:create_app`` (a factory), so that
+``--workers N`` starts N processes, each with its own app and GL context; with more than one
+the Prometheus metrics go through a shared directory (multiprocess mode).
+
+``render`` takes the settings of the API's frame query (:class:`server.api.schemas.FrameQuery`,
+validated by the same models and by ``RenderSettings``, with ``--spp`` for
+``samples_per_pixel`` and ``--depth`` for ``max_recursion_depth``) and the scene JSON of
+docs/FORMATS.md (:class:`server.api.schemas.SceneModel`). The output format follows the file's
+extension. Errors are the API's 422 messages (``width: …``), exit status 2.
+
+``render`` also takes a model file (any format :mod:`renderer.mesh_io` loads, told by its
+suffix): :func:`renderer.mesh_io.model_scene` makes its scene — the model scaled so that its
+longest side is ``--size`` (default 30) world units, centred on the y axis and standing on the
+floor plane y = −20, seen by a camera that frames that box, under one light — the scene a
+model uploaded with ``POST /api/sessions/{id}/meshes?size=…`` stands in. ``scene --mesh``
+writes the scene JSON of one or more models (each as the file has it, with a ``transform``
+that fits it: the same box, side by side along x), to edit and ``render``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+EXTENSIONS = {".png": "png", ".jpg": "jpeg", ".jpeg": "jpeg", ".npy": "npy", ".exr": "exr"}
+ENV_PREFIX = "POCKETRAY_"
+# Short names of the render flags (the API's names work too).
+RENDER_ALIASES = {"samples_per_pixel": ["--spp"], "max_recursion_depth": ["--depth"]}
+APP_FACTORY = "server.app:create_app"
+
+
+class UsageError(Exception):
+    """A bad flag or input: printed, exit status 2."""
+
+
+# ---- serve ------------------------------------------------------------------------------------
+def _config_fields() -> dict[str, Any]:
+    from ..config import ServerConfig
+
+    return dict(ServerConfig.model_fields)
+
+
+def _add_serve(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "serve",
+        help="run the render service (uvicorn)",
+        description="Run the render service. Every flag below but --workers is the "
+        "POCKETRAY_<NAME> variable of the same name (docs/API.md).",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="uvicorn worker processes, each with its own GL context (default 1); with more "
+        "than one use --state-backend redis, or they share one SQLite file",
+    )
+    for name, field in _config_fields().items():
+        flag = "--" + name.replace("_", "-")
+        default = field.get_default(call_default_factory=False)
+        shown = "" if default is None or callable(default) or field.default_factory else f" (default {default})"
+        p.add_argument(
+            flag,
+            dest=f"cfg_{name}",
+            metavar=name.upper(),
+            default=None,
+            help=f"{field.description or name}{shown}".replace("%", "%%"),
+        )
+    # The GPU index's old flag, kept working for deployments that pass it (deprecated).
+    p.add_argument("--gl-device", dest="cfg_gpu", default=None, help=argparse.SUPPRESS)
+
+
+def serve(args: argparse.Namespace) -> int:
+    import uvicorn
+
+    from ..config import ServerConfig
+    from ..http.observability import configure_logging, uvicorn_log_config
+    from ..http.wire import GuardedH11Protocol, GuardedWebSocketProtocol
+
+    for name in _config_fields():
+        value = getattr(args, f"cfg_{name}")
+        if value is not None:
+            os.environ[ENV_PREFIX + name.upper()] = value
+    try:
+        config = ServerConfig()  # what every worker will read: fail here, once, with the message
+    except Exception as e:
+        raise UsageError(f"configuration: {e}") from None
+    if args.workers < 1:
+        raise UsageError("--workers: at least 1")
+    configure_logging(config.log_level, config.log_format)
+    multiproc_dir = None
+    if args.workers > 1 and not os.environ.get("PROMETHEUS_MULTIPROC_DIR"):
+        multiproc_dir = tempfile.mkdtemp(prefix="pocketray-metrics-")
+        os.environ["PROMETHEUS_MULTIPROC_DIR"] = multiproc_dir
+    if config.gpu is not None:
+        os.environ["GLCONTEXT_DEVICE_INDEX"] = str(config.gpu)
+    try:
+        # GuardedH11Protocol: 408 for stalled requests, connections per client, write timeout, unsent
+        # bytes per client; GuardedWebSocketProtocol: the same through the upgrade, idle and flooding
+        # WebSockets (server/http/wire.py). The classes, not subclasses per config, so that --workers can
+        # hand them to each worker process.
+        uvicorn.run(
+            APP_FACTORY,
+            factory=True,
+            host=config.host,
+            port=config.port,
+            workers=args.workers,
+            http=GuardedH11Protocol,
+            ws=GuardedWebSocketProtocol,
+            log_level=config.log_level,
+            log_config=uvicorn_log_config(config.log_level, config.log_format),
+            access_log=False,
+            timeout_graceful_shutdown=max(30, int(config.drain_s) + 30),
+        )
+    finally:
+        if multiproc_dir:
+            shutil.rmtree(multiproc_dir, ignore_errors=True)
+    return 0
+
+
+# ---- render ---------------------------------------------------------------------------------
+def _add_render(sub: argparse._SubParsersAction) -> None:
+    from ..api.schemas import RenderParams
+
+    p = sub.add_parser(
+        "render",
+        help="render a scene JSON file or a model file to an image or array",
+        description="Render SCENE (scene JSON, docs/FORMATS.md; - for stdin) or a model file "
+        "(.obj .ply .stl .glb .gltf: fitted, on the floor, framed by the camera) with "
+        "the API's settings. The output's extension picks the format: .png .jpg .npy .exr.",
+    )
+    p.add_argument("scene", help="scene JSON file (docs/FORMATS.md), - for standard input, or a model file")
+    _add_model_flags(p)
+    p.add_argument("-o", "--output", required=True, help="output file: .png, .jpg/.jpeg, .npy or .exr")
+    for name, field in RenderParams.model_fields.items():
+        if name == "format":
+            continue
+        flags = [*RENDER_ALIASES.get(name, []), "--" + name.replace("_", "-")]
+        p.add_argument(
+            *flags,
+            dest=f"set_{name}",
+            metavar=name.upper(),
+            default=None,
+            help=(field.description or name).replace("%", "%%"),
+        )
+    p.add_argument("--quiet", action="store_true", help="print nothing on success")
+
+
+def _add_model_flags(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--size",
+        type=float,
+        default=30.0,
+        help="models: longest side (scene: the row's width) in world units (default 30)",
+    )
+    shade = p.add_mutually_exclusive_group()
+    shade.add_argument(
+        "--smooth",
+        dest="smooth",
+        action="store_const",
+        const=True,
+        default=None,
+        help="models: smooth shading (the file's normals, else area-weighted ones)",
+    )
+    shade.add_argument(
+        "--flat",
+        dest="smooth",
+        action="store_const",
+        const=False,
+        help="models: flat shading (default: the file's normals if it has them)",
+    )
+
+
+def is_model(path: str) -> bool:
+    from renderer.mesh_io import MODEL_FORMATS
+
+    return Path(path).suffix.lower().lstrip(".") in MODEL_FORMATS
+
+
+def _size(size: float) -> float:
+    from renderer.scenarios import CUBE_HALF
+
+    if not (0.0 < size <= 2 * CUBE_HALF):  # what the upload's size takes (MeshUploadQuery)
+        raise UsageError(f"size: greater than 0 and at most {2 * CUBE_HALF:g}")
+    return size
+
+
+def model_file_scene(path: str, size: float = 30.0, smooth: bool | None = None) -> Any:
+    """The scene ``render MODEL`` renders (:func:`renderer.mesh_io.model_scene`). UsageError
+    naming ``model`` for a file that cannot be read or is not a model."""
+    from renderer.mesh_io import model_scene
+    from renderer.scene import SceneError
+
+    if not Path(path).is_file():
+        raise UsageError(f"model: cannot read {path}: no such file")
+    try:
+        return model_scene(path, size=_size(size), smooth=smooth)
+    except SceneError as e:
+        raise UsageError(f"model: {e.message}") from None
+
+
+def _validation_message(e: Exception) -> str:
+    from pydantic import ValidationError
+
+    if isinstance(e, ValidationError):
+        out = []
+        for err in e.errors():
+            loc = ".".join(str(x) for x in err.get("loc", ()))
+            out.append(f"{loc or 'input'}: {err.get('msg')}")
+        return "; ".join(out)
+    return str(e)
+
+
+def render_file(scene_text: str | None, output: Path, flags: dict[str, str], scene: Any = None) -> dict[str, Any]:
+    """Render ``scene_text`` (scene JSON; or the ready ``scene``, a model's) with the settings
+    ``flags`` (text, as in a query) into ``output``.
+
+    Returns what was done (method, size, format, timings in ms). UsageError on bad input."""
+    from pydantic import ValidationError
+
+    from renderer.scene import SceneError
+
+    from ..api.schemas import FrameQuery, SceneModel
+    from ..config import ServerConfig
+    from ..frames.encode import encode
+    from ..frames.pipeline import render_settings
+    from ..sessions.scenes import scene_from_model
+
+    fmt = EXTENSIONS.get(output.suffix.lower())
+    if fmt is None:
+        raise UsageError(f"output: unknown extension {output.suffix!r}; use one of {', '.join(EXTENSIONS)}")
+    try:
+        patch = FrameQuery.model_validate({**flags, "format": fmt}).given()
+    except ValidationError as e:
+        raise UsageError(_validation_message(e)) from None
+    if scene is None:
+        assert scene_text is not None, "the scene's text or the scene"
+        try:
+            model = SceneModel.model_validate_json(scene_text)
+        except ValidationError as e:
+            raise UsageError("scene." + _validation_message(e).replace("; ", "; scene.")) from None
+        try:
+            scene = scene_from_model(model)
+        except SceneError as e:
+            raise UsageError(f"scene.{e.field}: {e.message}") from None
+    config = ServerConfig()
+    settings = {**config.default_settings(), **patch}
+    try:
+        rs = render_settings(settings)
+        rs.check_method(scene.n_spheres)
+    except (SceneError, TypeError) as e:
+        raise UsageError(f"{getattr(e, 'field', 'settings')}: {getattr(e, 'message', e)}") from None
+
+    from renderer.gl import GLRenderer
+
+    t0 = time.perf_counter()
+    renderer = GLRenderer()
+    t_ctx = time.perf_counter()
+    result = renderer.render(scene, rs.with_(update="rebuild"))
+    body, encode_ms = encode(
+        result, fmt, settings.get("quality", config.default_jpeg_quality), config.png_compress_level
+    )
+    output.parent.mkdir(parents=True, exist_ok=True)
+    output.write_bytes(body)
+    method = (result.stats or {}).get("method", rs.method)
+    return {
+        "output": str(output),
+        "format": fmt,
+        "bytes": len(body),
+        "width": rs.width,
+        "height": rs.height,
+        "method": method,
+        "mode": rs.mode,
+        "context_ms": round((t_ctx - t0) * 1e3, 1),
+        "timings_ms": {k: round(float(v), 2) for k, v in {**result.timings, "encode": encode_ms}.items()},
+        "gl_renderer": dict(getattr(renderer, "info", {}) or {}).get("renderer"),
+    }
+
+
+def render(args: argparse.Namespace) -> int:
+    flags = {k[4:]: v for k, v in vars(args).items() if k.startswith("set_") and v is not None}
+    if args.scene != "-" and is_model(args.scene):
+        done = render_file(None, Path(args.output), flags, scene=model_file_scene(args.scene, args.size, args.smooth))
+    else:
+        text = sys.stdin.read() if args.scene == "-" else _read(args.scene)
+        done = render_file(text, Path(args.output), flags)
+    if not args.quiet:
+        t = done["timings_ms"]
+        print(
+            f"{done['output']}: {done['width']}×{done['height']} {done['mode']} {done['format']}, "
+            f"{done['bytes']} bytes; method {done['method']}; build {t.get('build', 0):.1f} ms, "
+            f"trace {t.get('trace', 0):.1f} ms, encode {t.get('encode', 0):.1f} ms ({done['gl_renderer']})",
+            file=sys.stderr,
+        )
+    return 0
+
+
+def _read(path: str) -> str:
+    try:
+        return Path(path).read_text()
+    except OSError as e:
+        raise UsageError(f"scene: cannot read {path}: {e.strerror}") from None
+
+
+# ---- scenario -----------------------------------------------------------------------------------
+def _add_scenario(sub: argparse._SubParsersAction) -> None:
+    from renderer.animation import MUSEUM_KINDS
+
+    p = sub.add_parser(
+        "scenario",
+        help="write a thesis scenario (1, 2, 3) or the museum as scene JSON",
+        description="Write the scene JSON (docs/FORMATS.md) of the thesis's scenario 1, 2 or 3, "
+        "or of the animated museum (its motions included).",
+    )
+    p.add_argument("which", choices=["1", "2", "3", "museum"], help="scenario number, or museum")
+    p.add_argument("--n", type=int, required=True, help="spheres (museum: the moving ones)")
+    p.add_argument("--seed", type=int, default=0, help="placement seed (default 0)")
+    p.add_argument("--radius", type=float, default=1.0, help="sphere radius of scenarios 1–3 (default 1)")
+    p.add_argument("--kind", choices=list(MUSEUM_KINDS), default="mixed", help="museum motion (default mixed)")
+    p.add_argument(
+        "--absent", type=float, default=0.2, help="museum: share of incoherent spheres absent at a time (default 0.2)"
+    )
+    p.add_argument("-o", "--output", default="-", help="output file (default: standard output)")
+
+
+def scenario_scene(
+    which: str, n: int, seed: int = 0, radius: float = 1.0, kind: str = "mixed", absent: float = 0.2
+) -> Any:
+    """The scene (or animated scene) the ``scenario`` command writes; validated as the API does."""
+    from renderer.animation import MUSEUM_ROOM_SPHERES, museum
+    from renderer.limits import MAX_SPHERES
+    from renderer.scenarios import scenario
+    from renderer.scene import SceneError
+
+    if n < 0 or n + (MUSEUM_ROOM_SPHERES if which == "museum" else 0) > MAX_SPHERES:
+        raise UsageError(f"n: 0 … {MAX_SPHERES} spheres")
+    try:
+        if which == "museum":
+            return museum(n, kind, seed, absent)
+        return scenario(int(which), n, seed, radius)
+    except SceneError as e:
+        raise UsageError(f"{e.field}: {e.message}") from None
+
+
+def write_scenario(args: argparse.Namespace) -> int:
+    from ..sessions.scenes import scene_json_chunks
+
+    scene = scenario_scene(args.which, args.n, args.seed, args.radius, args.kind, args.absent)
+    if args.output == "-":
+        for chunk in scene_json_chunks(scene):
+            sys.stdout.buffer.write(chunk)
+        sys.stdout.buffer.write(b"\n")
+        sys.stdout.flush()
+        return 0
+    out = Path(args.output)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with out.open("wb") as f:
+        for chunk in scene_json_chunks(scene):
+            f.write(chunk)
+    print(f"{out}: scenario {args.which}, {args.n} spheres", file=sys.stderr)
+    return 0
+
+
+# ---- scene --mesh ---------------------------------------------------------------------------
+def _add_scene(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "scene",
+        help="write a scene JSON of model files (to edit, and render)",
+        description="Write the scene JSON (docs/FORMATS.md) of one or more model files (.obj .ply "
+        ".stl .glb .gltf): each mesh as the file has it with a transform that fits it, "
+        "side by side along x on the floor, the camera and light of render MODEL.",
+    )
+    p.add_argument("--mesh", action="append", required=True, metavar="MODEL", help="a model file (repeat for more)")
+    p.add_argument("--as-is", action="store_true", help="no transform: the files' coordinates are world units")
+    _add_model_flags(p)
+    p.add_argument("-o", "--output", default="-", help="output file (default: standard output)")
+
+
+def models_scene(paths: list[str], size: float = 30.0, smooth: bool | None = None, as_is: bool = False) -> dict:
+    """The scene JSON ``scene --mesh`` writes, validated as the API validates a scene."""
+    from pydantic import ValidationError
+
+    from renderer.mesh_io import models_scene_json
+    from renderer.scene import SceneError
+
+    from ..api.schemas import SceneModel
+    from ..sessions.scenes import scene_from_model
+
+    for path in paths:
+        if not Path(path).is_file():
+            raise UsageError(f"mesh: cannot read {path}: no such file")
+    try:
+        doc = models_scene_json(paths, size=_size(size), smooth=smooth, as_is=as_is)
+    except SceneError as e:
+        raise UsageError(f"mesh: {e.message}") from None
+    try:
+        scene_from_model(SceneModel.model_validate(doc))
+    except (ValidationError, SceneError) as e:  # e.g. --as-is with coordinates beyond the limits
+        msg = _validation_message(e) if isinstance(e, ValidationError) else f"{e.field}: {e.message}"
+        raise UsageError(f"scene.{msg}") from None
+    return doc
+
+
+def write_models_scene(args: argparse.Namespace) -> int:
+    doc = models_scene(args.mesh, args.size, args.smooth, args.as_is)
+    text = json.dumps(doc, separators=(",", ":"), allow_nan=False)
+    if args.output == "-":
+        sys.stdout.write(text + "\n")
+        sys.stdout.flush()
+        return 0
+    out = Path(args.output)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(text)
+    n = sum(len(m["triangles"]) for m in doc["meshes"])
+    print(f"{out}: {len(doc['meshes'])} meshes, {n} triangles", file=sys.stderr)
+    return 0
+
+
+# ---- gpus ---------------------------------------------------------------------------------------
+def _add_gpus(sub: argparse._SubParsersAction) -> None:
+    # ("devices" is its old name, kept working: "device" is the browser client's own tracer now.)
+    p = sub.add_parser(
+        "gpus", aliases=["devices"], help="list the GPUs as EGL lists them (serve --gpu picks one by index)"
+    )
+    p.add_argument("--probe", action="store_true", help="also create a context on each and print its renderer")
+    p.add_argument("--json", action="store_true", help="print JSON")
+
+
+def gpus(args: argparse.Namespace) -> int:
+    from renderer.gl.gpus import list_gpus, probe
+
+    found = list_gpus()
+    if args.probe:
+        for d in found:
+            d.update(probe(d["index"]))
+    if args.json:
+        print(json.dumps(found, indent=2))
+        return 0
+    if not found:
+        print("no GPUs listed by EGL (EGL_EXT_device_enumeration missing, or no libEGL)")
+    for d in found:
+        extra = f"  → {d['gl_renderer']}" if d.get("gl_renderer") else (f"  → {d['error']}" if d.get("error") else "")
+        print(f"{d['index']}: {d.get('kind', '?'):8} {d.get('drm') or d.get('renderer') or ''}{extra}")
+    return 0
+
+
+# ---- main -------------------------------------------------------------------------------------
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="pocketray", description="pocketray: the render service, and renders from the command line"
+    )
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_serve(sub)
+    _add_render(sub)
+    _add_scenario(sub)
+    _add_scene(sub)
+    _add_gpus(sub)
+    _add_stack(sub)
+    return p
+
+
+def _add_stack(sub: argparse._SubParsersAction) -> None:
+    sub.add_parser(
+        "stack",
+        add_help=False,
+        help="Redis + render processes + HAProxy on loopback ports "
+        "(server/tools/stack.py; needs redis-server and haproxy)",
+    )
+
+
+def stack(args: argparse.Namespace) -> int:
+    from .stack import main as stack_main
+
+    return stack_main(args.rest)
+
+
+COMMANDS = {
+    "serve": serve,
+    "render": render,
+    "scenario": write_scenario,
+    "scene": write_models_scene,
+    "gpus": gpus,
+    "devices": gpus,
+    "stack": stack,
+}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args, rest = parser().parse_known_args(argv)
+    if args.command != "stack" and rest:
+        parser().parse_args(argv)  # the usual error for unknown arguments
+    args.rest = rest
+    try:
+        return COMMANDS[args.command](args)
+    except UsageError as e:
+        print(f"pocketray {args.command}: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

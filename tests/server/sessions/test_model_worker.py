@@ -1,0 +1,88 @@
+"""Uploaded model files are parsed in worker processes (server/sessions/model_worker.py): a parse past
+its deadline is stopped (the worker killed and replaced) and refused with 422 naming
+POCKETRAY_MODEL_TIMEOUT_S; one that needs more memory than POCKETRAY_MODEL_MEMORY_BYTES
+fails inside its worker, refused naming that setting, while the service's memory does not
+move; the next file is parsed as usual. Before, the parse ran in the service's own thread,
+with neither bound (a GLB of 100,000 chained nodes held a core for 80 s)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from renderer.mesh_io import MeshData, export_mesh
+from renderer.meshes import icosphere
+from renderer.scene import SceneError
+from server.config import ServerConfig
+from server.sessions.model_worker import ModelWorkers, load_model, workers_for
+
+SMALL = export_mesh(icosphere(1), "obj")
+
+
+@pytest.fixture(scope="module")
+def large() -> bytes:
+    """400,000 random triangles over 200,000 vertices as binary PLY (7.2 MB): ~0.3 s to parse,
+    over 100 MiB of the worker's memory."""
+    rng = np.random.default_rng(1)
+    return export_mesh(MeshData(rng.random((200_000, 3)), rng.integers(0, 200_000, (400_000, 3))), "ply")
+
+
+def vm_kib(pid: int | str, key: str) -> int:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith(key + ":"):
+            return int(line.split()[1])
+    raise AssertionError(key)
+
+
+def test_a_parse_past_its_deadline_is_stopped_and_refused_and_the_next_file_is_parsed(large):
+    pool = ModelWorkers(1, 0.05, 2 << 30)
+    try:
+        assert pool.load(SMALL, "obj", 1 << 20, 1 << 20).n_triangles == 80  # started and warm
+        (first,) = pool._all
+        t0 = time.perf_counter()
+        with pytest.raises(SceneError) as e:
+            pool.load(large, "ply", 1 << 20, 1 << 20)
+        assert time.perf_counter() - t0 < 2.0
+        assert e.value.field == "file" and "longer than 0.05 s (POCKETRAY_MODEL_TIMEOUT_S)" in e.value.message
+        assert first.proc.poll() is not None  # killed, not left running
+        (second,) = pool._all
+        assert second is not first
+        assert pool.load(SMALL, "obj", 1 << 20, 1 << 20).n_triangles == 80
+    finally:
+        pool.close()
+
+
+def test_a_file_that_needs_more_than_the_memory_limit_is_refused_inside_its_worker(large):
+    probe = ModelWorkers(1, 30, 2 << 30)
+    try:
+        probe.load(SMALL, "obj", 1 << 20, 1 << 20)
+        (w,) = probe._all
+        base = vm_kib(w.proc.pid, "VmSize") << 10  # the worker's address space, imports done
+        assert probe.load(large, "ply", 1 << 20, 1 << 20).n_triangles == 400_000
+    finally:
+        probe.close()
+    pool = ModelWorkers(1, 30, base + (48 << 20))
+    try:
+        assert pool.load(SMALL, "obj", 1 << 20, 1 << 20).n_triangles == 80
+        hwm = vm_kib("self", "VmHWM")
+        with pytest.raises(SceneError) as e:
+            pool.load(large, "ply", 1 << 20, 1 << 20)
+        assert e.value.field == "file" and "POCKETRAY_MODEL_MEMORY_BYTES" in e.value.message
+        assert vm_kib("self", "VmHWM") - hwm < 64 << 10
+        assert pool.load(SMALL, "obj", 1 << 20, 1 << 20).n_triangles == 80
+    finally:
+        pool.close()
+
+
+def test_the_service_settings_pick_the_workers(tmp_path):
+    config = ServerConfig(sqlite_path=tmp_path / "s.sqlite3", model_workers=1, model_timeout_s=7.0)
+    pool = workers_for(config)
+    assert pool is workers_for(config) and pool.timeout_s == 7.0
+    assert load_model(config, SMALL, "obj", max_triangles=100).n_triangles == 80
+    with pytest.raises(SceneError, match="80 triangles; at most 10 allowed"):
+        load_model(config, SMALL, "obj", max_triangles=10)
+    inline = ServerConfig(sqlite_path=tmp_path / "s.sqlite3", model_workers=0)
+    assert workers_for(inline) is None and load_model(inline, SMALL, "obj", max_triangles=100).n_triangles == 80

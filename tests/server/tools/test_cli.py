@@ -1,0 +1,219 @@
+"""``pocketray`` (server/tools/cli.py): scenario → scene JSON as the API writes it, render with the
+API's settings and validation (png, jpeg, npy, exr), the serve flags from ServerConfig, the
+GPU list, and ``serve --workers 2`` (uvicorn by import string: two processes, two GL
+contexts, one /metrics summing both)."""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+from PIL import Image
+from pocketray_server_support import ROOT, free_port, pocketray, pocketray_batch
+
+from server.frames.exr import decode_exr
+from server.tools import cli
+
+pytestmark = pytest.mark.gl  # render runs GLRenderer, serve a GL worker
+
+# Commands whose subject is what they write or refuse run several to a process (pocketray_batch:
+# server.tools.cli.main as ``python -m server`` calls it, the start-up paid once); ``pocketray`` itself as
+# a process of its own (its exit status from sys.exit included) is run by the serve and devices
+# tests below.
+
+
+def test_scenario_writes_the_scene_json_the_api_serves(tmp_path, client):
+    written, museum = pocketray_batch(
+        [
+            ("scenario", "3", "--n", "100", "--seed", "7", "-o", "s.json"),
+            ("scenario", "museum", "--n", "32", "--kind", "rigid"),
+        ],
+        cwd=tmp_path,
+    )
+    assert written.returncode == 0, written.stderr
+    written = json.loads((tmp_path / "s.json").read_text())
+    sid = client.post("/api/sessions", json={"scenario": 3, "n": 100, "seed": 7}).json()["id"]
+    assert written == client.get(f"/api/sessions/{sid}/scene").json()
+    doc = json.loads(museum.stdout)
+    assert doc["motions"] and doc["motions"][0]["kind"] == "rigid" and len(doc["spheres"]) > 32
+
+
+def test_render_writes_each_format_and_agrees_with_the_api(tmp_path, client):
+    scene = {"materials": [{}], "spheres": [{"center": [0, 0, 0], "radius": 20}, {"center": [25, 5, 0], "radius": 6}]}
+    (tmp_path / "scene.json").write_text(json.dumps(scene))
+    common = ["--width", "40", "--height", "30", "--depth", "2", "--spp", "1"]
+    outs = ("a.png", "a.jpg", "a.npy", "p.npy", "z.exr", "n.exr", "c.exr", "i.exr")
+    modes = [{"p": "primid", "z": "depth", "n": "normal", "i": "primid"}.get(out[0], "color") for out in outs]
+    done = pocketray_batch(
+        [
+            ("render", "scene.json", "-o", out, "--mode", mode, *common, "--quiet")
+            for out, mode in zip(outs, modes, strict=True)
+        ],
+        cwd=tmp_path,
+    )
+    for out, r in zip(outs, done, strict=True):
+        assert r.returncode == 0 and r.stderr == "", (out, r.stderr)
+    assert Image.open(tmp_path / "a.png").size == (40, 30) and Image.open(tmp_path / "a.jpg").format == "JPEG"
+    api = client.post(
+        "/api/render",
+        json={
+            "scene": scene,
+            "settings": {"width": 40, "height": 30, "max_recursion_depth": 2, "samples_per_pixel": 1, "format": "npy"},
+        },
+    )
+    assert np.array_equal(np.load(tmp_path / "a.npy"), np.load(io.BytesIO(api.content)))
+    primid = np.load(tmp_path / "p.npy")
+    assert np.array_equal(decode_exr((tmp_path / "i.exr").read_bytes())["id"].view(np.int32), primid)
+    z = decode_exr((tmp_path / "z.exr").read_bytes())["Z"]
+    assert z.shape == (30, 40) and np.isinf(z[primid < 0]).all() and np.isfinite(z[primid >= 0]).all()
+    assert decode_exr((tmp_path / "n.exr").read_bytes())["RGB"].shape == (30, 40, 3)
+    color = decode_exr((tmp_path / "c.exr").read_bytes())["RGB"]
+    assert (
+        color.dtype == np.float32
+        and np.abs(np.floor(np.clip(color, 0, 1) * 255 + 0.5) - np.load(tmp_path / "a.npy")).max() == 0
+    )
+
+
+def test_render_rejects_what_the_api_rejects_naming_the_field(tmp_path):
+    (tmp_path / "s.json").write_text(json.dumps({"materials": [{}], "spheres": [{"center": [0, 0, 0], "radius": 1}]}))
+    cases = {
+        ("--width", "0"): "width",
+        ("--spp", "3"): "samples_per_pixel",
+        ("--method", "nope"): "method",
+        ("--mode", "cones"): "mode",
+        ("--min-weight", "nan"): "min_weight",
+    }
+    *refused, bad, gif = pocketray_batch(
+        [("render", "s.json", "-o", "x.png", *flags) for flags in cases]
+        + [
+            (
+                ("render", "-", "-o", "x.png"),
+                json.dumps({"materials": [{}], "spheres": [{"center": [0, 0, 0], "radius": -1}]}),
+            ),
+            ("render", "s.json", "-o", "x.gif"),
+        ],
+        cwd=tmp_path,
+    )
+    for (flags, field), r in zip(cases.items(), refused, strict=True):
+        assert r.returncode == 2 and field in r.stderr, (flags, r.stderr)
+    assert bad.returncode == 2 and "scene.spheres.0.radius" in bad.stderr
+    assert gif.returncode == 2
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_serve_has_a_flag_for_every_config_field_and_validates_them_before_starting(tmp_path):
+    text = cli.parser().format_help() + pocketray("serve", "--help", cwd=tmp_path).stdout
+    for name in (
+        "--workers",
+        "--host",
+        "--port",
+        "--state-backend",
+        "--gpu",
+        "--cors-origins",
+        "--drain-s",
+        "--queue-size",
+        "--log-format",
+    ):
+        assert name in text
+    r = pocketray("serve", "--state-backend", "mongodb", cwd=tmp_path)  # a process's exit status 2
+    assert r.returncode == 2 and "state_backend" in r.stderr
+
+
+def test_gpus_lists_the_gpu_the_context_uses(tmp_path):
+    r = pocketray("gpus", "--probe", "--json", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    found = json.loads(r.stdout)
+    assert found and found[0]["index"] == 0 and found[0]["gl_renderer"]
+    old = pocketray("devices", "--json", cwd=tmp_path)  # the command's old name still works
+    assert old.returncode == 0 and [d["index"] for d in json.loads(old.stdout)] == [d["index"] for d in found]
+
+
+def test_the_gpu_index_keeps_its_old_names(monkeypatch):
+    """POCKETRAY_GPU / --gpu were POCKETRAY_GL_DEVICE / --gl-device: deployed configurations
+    that set the old names keep working ("device" is the browser's own tracer now)."""
+    from server.config import ServerConfig
+
+    for name in ("POCKETRAY_GPU", "POCKETRAY_GL_DEVICE"):
+        monkeypatch.delenv(name, raising=False)
+    assert ServerConfig().gpu is None and ServerConfig(gpu=2).gpu == 2
+    monkeypatch.setenv("POCKETRAY_GL_DEVICE", "1")
+    assert ServerConfig().gpu == 1
+    monkeypatch.setenv("POCKETRAY_GPU", "3")  # the new name wins
+    assert ServerConfig().gpu == 3
+    p = cli.parser()
+    assert p.parse_args(["serve", "--gl-device", "1"]).cfg_gpu == "1"
+    assert p.parse_args(["serve", "--gpu", "2"]).cfg_gpu == "2"
+    commands = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction)).choices
+    assert "--gpu" in commands["serve"].format_help() and "--gl-device" not in commands["serve"].format_help()
+
+
+def test_serve_with_two_workers_runs_two_gl_processes_and_one_metrics_endpoint(tmp_path):
+    port = free_port()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
+    log = open(tmp_path / "serve.log", "wb")
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "server",
+            "serve",
+            "--workers",
+            "2",
+            "--port",
+            str(port),
+            "--sqlite-path",
+            str(tmp_path / "s.sqlite3"),
+            "--default-render",
+            '{"width": 32, "height": 32, "max_recursion_depth": 2, "samples_per_pixel": 1}',
+        ],
+        cwd=ROOT,
+        env=env,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
+    url = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + 120
+        while True:
+            text = (tmp_path / "serve.log").read_text()
+            if text.count('"OpenGL: ') >= 2 and text.count("warm-up render took") >= 2:
+                break
+            assert proc.poll() is None and time.monotonic() < deadline, text[-3000:]
+            time.sleep(0.2)
+        children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()
+        workers = [pid for pid in children if b"resource_tracker" not in Path(f"/proc/{pid}/cmdline").read_bytes()]
+        assert len(workers) == 2
+        frames = 6
+        with httpx.Client(base_url=url, timeout=60) as c:
+            sid = c.post("/api/sessions", json={"scenario": 1, "n": 8}).json()["id"]
+            for _ in range(frames):
+                assert c.get(f"/api/sessions/{sid}/frame").status_code == 200
+        rendered = 0.0
+        for _ in range(4):  # whichever worker answers the scrape, it reports both
+            with httpx.Client(base_url=url, timeout=30) as c:  # a new connection: maybe the other worker
+                text = c.get("/metrics").text
+            rendered = sum(
+                float(line.rsplit(" ", 1)[1])
+                for line in text.splitlines()
+                if line.startswith("pocketray_renders_total{")
+            )
+            assert rendered == frames, text
+        lines = [json.loads(line) for line in (tmp_path / "serve.log").read_text().splitlines() if line.startswith("{")]
+        assert any(line.get("logger", "").startswith("uvicorn") for line in lines)  # uvicorn's lines are JSON too
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+        log.close()
