@@ -2,7 +2,7 @@
 and the loopback stack, before and after.
 
 Every part is one of ``bench/hostile.py``'s, run against real ``python -m server`` processes (and,
-for ``stack``, ``python -m server.stack``: Redis, two render processes and HAProxy) on loopback.
+for ``stack``, ``python -m server.tools.stack``: Redis, two render processes and HAProxy) on loopback.
 "Before" is the code before these fixes: measured when ``POCKETRAY_BEFORE`` names a checkout of it
 (``git worktree add --detach /tmp/before 88a5747``), else carried over from the last run's
 ``figures/hardening2.json`` with the commit it was measured at.
@@ -235,7 +235,7 @@ def render(data: dict) -> str:
     return f"""## {TITLE}
 
 The attacks of the second review, each a part of `python -m bench.hostile` against real servers on
-loopback (default settings, a temporary SQLite file; the stack's parts against `python -m server.stack`
+loopback (default settings, a temporary SQLite file; the stack's parts against `python -m server.tools.stack`
 with `POCKETRAY_QUEUE_SIZE` 80 and `POCKETRAY_REDIS_TIMEOUT_S` 2). Load average
 {a.get("loadavg")}–{a.get("loadavg_end")} during the "after" run, {b.get("loadavg", "—")}–{b.get("loadavg_end", "—")}
 during the "before" run, on a machine shared with other work. Memory is the server process's resident
