@@ -15,6 +15,7 @@ from pathlib import Path
 import httpx
 import pytest
 
+from renderer.scenarios import scenario
 from server.config import ServerConfig
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -191,3 +192,47 @@ def server_env(sqlite_path: Path, port: int | None = None, **settings) -> dict[s
     env["POCKETRAY_PORT"] = str(port or free_port())
     env["POCKETRAY_HOST"] = "127.0.0.1"
     return env
+
+
+def timing(header: str) -> dict[str, float]:
+    out = {}
+    for entry in header.split(","):
+        name, *params = entry.strip().split(";")
+        for p in params:
+            k, v = p.split("=")
+            if k == "dur":
+                out[name] = float(v)
+    return out
+
+
+def small_scene_json(n: int = 8) -> dict:
+    return scenario(1, n, 0, 1.0).to_json()
+
+
+GOOD_CAMERA = {"position": [0, 0, 100], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 60}
+
+
+def scene_with(**camera) -> dict:
+    s = scenario(1, 2, 0, 1.0).to_json()
+    s["camera"] = {**GOOD_CAMERA, **camera}
+    return s
+
+
+def raw(text: str) -> dict:
+    """A JSON body the way a careless client writes it (NaN / Infinity literals allowed)."""
+    return {"content": text.encode(), "headers": {"content-type": "application/json"}}
+
+
+def assert_422(r, field: str) -> None:
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"]
+    msgs = [d["msg"] for d in detail] if isinstance(detail, list) else [detail]
+    assert any(field in m for m in msgs), f"{field!r} not named in {msgs}"
+    if isinstance(detail, list):
+        assert all({"loc", "msg", "type"} <= set(d) for d in detail)
+
+
+def snapshot(client, sid: str) -> tuple:
+    s = client.get(f"/api/sessions/{sid}").json()
+    scene = client.get(f"/api/sessions/{sid}/scene").json()
+    return s, scene

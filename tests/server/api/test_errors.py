@@ -93,11 +93,6 @@ HTTP_ONLY = {
 
 
 @pytest.fixture(scope="module")
-def sid(client) -> str:
-    return new_session(client)["id"]
-
-
-@pytest.fixture(scope="module")
 def http(client) -> TestClient:
     """The same app, answering a bug with its 500 instead of raising it into the test."""
     return TestClient(client.app, raise_server_exceptions=False)

@@ -7,6 +7,7 @@ import time
 from dataclasses import replace
 
 import pytest
+from pocketray_server_support import new_session
 
 from server.sessions.store import RedisStore, SessionState, SQLiteStore, StoreUnavailable
 
@@ -116,3 +117,18 @@ def test_redis_idle_expiry(redis_url):
     time.sleep(0.5)
     assert s.get("gone") is None and s.get_source("gone") is None
     s.close()
+
+
+def test_sessions_expire_after_the_idle_time(tmp_path):
+    from fastapi.testclient import TestClient
+    from pocketray_server_support import make_config
+
+    from server.app import create_app
+
+    with TestClient(create_app(make_config(tmp_path, session_ttl_s=1.0, warmup=False))) as c:
+        idle = new_session(c)["id"]
+        busy = new_session(c)["id"]
+        for _ in range(6):
+            time.sleep(0.25)
+            assert c.get(f"/api/sessions/{busy}").status_code == 200  # use keeps it alive
+        assert c.get(f"/api/sessions/{idle}").status_code == 404

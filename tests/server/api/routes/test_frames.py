@@ -1,0 +1,186 @@
+"""The frame routes (server/api/routes/frames.py): gestures, session frames, stateless renders."""
+
+from __future__ import annotations
+
+import io
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+from pocketray_server_support import (
+    GOOD_CAMERA,
+    assert_422,
+    new_session,
+    raw,
+    scene_with,
+    small_scene_json,
+    snapshot,
+    timing,
+)
+
+
+def test_gestures_json(client):
+    sid = new_session(client)["id"]
+    r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "pan", "dx": 64, "dy": 0})
+    assert r.status_code == 200
+    body = r.json()
+    assert body["version"] == 2
+    # finger right → camera left; 64 px of a 64 px high view = 2·100·tan 30° world units
+    assert body["camera"]["position"][0] == pytest.approx(-2 * 100 * np.tan(np.radians(30)))
+    assert body["camera"]["target"][0] == pytest.approx(body["camera"]["position"][0])
+    r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "pinch", "scale": 4})
+    assert r.json()["camera"]["position"][2] == pytest.approx(25.0) and r.json()["version"] == 3
+    r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "pan", "dx": 0, "dy": 100, "viewport_height": 200})
+    assert r.json()["camera"]["position"][1] == pytest.approx(0.5 * 2 * 25 * np.tan(np.radians(30)))
+    r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "reset"})
+    assert r.json() == {
+        "version": 5,
+        "camera": {"position": [0.0, 0.0, 100.0], "target": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0], "fov_y": 60.0},
+    }
+
+
+def test_orbit_gesture_turns_the_camera_about_its_target(client):
+    sid = new_session(client)["id"]
+    r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "orbit", "yaw": 90, "pitch": 0})
+    assert r.status_code == 200, r.text
+    body = r.json()
+    assert body["version"] == 2
+    assert body["camera"]["position"] == pytest.approx([100.0, 0.0, 0.0], abs=1e-9)  # to the camera's right
+    assert body["camera"]["target"] == [0.0, 0.0, 0.0] and body["camera"]["up"] == [0.0, 1.0, 0.0]
+    r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "orbit", "pitch": 30})  # yaw defaults to 0
+    p = r.json()["camera"]["position"]
+    assert p == pytest.approx([100 * np.cos(np.radians(30)), -50.0, 0.0], abs=1e-9)  # down by 30°
+    assert np.linalg.norm(p) == pytest.approx(100.0)
+    r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "orbit", "yaw": 0, "pitch": 300})
+    pos = np.array(r.json()["camera"]["position"])
+    polar = np.degrees(np.arccos(pos[1] / np.linalg.norm(pos)))
+    assert polar == pytest.approx(179.0)  # clamped short of −up
+    assert client.get(f"/api/sessions/{sid}").json()["version"] == 4
+
+
+def test_frame_png_headers_and_image(ready_client):
+    c = ready_client
+    sid = new_session(c)["id"]
+    r = c.get(f"/api/sessions/{sid}/frame", params={"width": 40, "height": 24})
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"] == "image/png"
+    img = Image.open(io.BytesIO(r.content))
+    assert img.size == (40, 24) and img.mode == "RGB"
+    t = timing(r.headers["server-timing"])
+    assert {"build", "upload", "trace", "encode", "total"} <= set(t)
+    assert all(v >= 0 for v in t.values()) and t["total"] >= t["trace"]
+    assert r.headers["x-session-version"] == "1" and r.headers["x-method"] == "bih"
+    stats = json.loads(r.headers["x-stats"])
+    assert stats["method"] == "bih" and stats["primitives"] == 64
+    assert stats["leaves"] == stats["inner_nodes"] + 1 and stats["depth_max"] >= 1
+    exposed = r.headers["access-control-expose-headers"]
+    for h in ("Server-Timing", "X-Session-Version", "X-Method", "X-Stats"):
+        assert h in exposed
+    full = c.get(f"/api/sessions/{sid}/stats").json()
+    assert full["inner_nodes"] == stats["inner_nodes"] and "leaf_histogram" in full
+
+
+def test_frame_formats_jpeg_and_npy(ready_client):
+    c = ready_client
+    sid = new_session(c)["id"]
+    r = c.get(f"/api/sessions/{sid}/frame", params={"format": "jpeg", "quality": 50, "width": 32, "height": 32})
+    assert r.headers["content-type"] == "image/jpeg" and r.content[:2] == b"\xff\xd8"
+    r = c.get(f"/api/sessions/{sid}/frame", params={"format": "npy", "width": 32, "height": 16})
+    assert r.headers["content-type"] == "application/octet-stream"
+    a = np.load(io.BytesIO(r.content))
+    assert a.shape == (16, 32, 3) and a.dtype == np.uint8
+    r = c.get(f"/api/sessions/{sid}/frame", params={"format": "npy", "mode": "depth", "width": 32, "height": 16})
+    d = np.load(io.BytesIO(r.content))
+    assert d.shape == (16, 32) and d.dtype == np.float32 and np.isfinite(d).any()
+    r = c.get(f"/api/sessions/{sid}/frame", params={"format": "npy", "mode": "primid", "width": 32, "height": 16})
+    p = np.load(io.BytesIO(r.content))
+    assert p.dtype == np.int32 and p.min() >= -1 and p.max() <= 64
+
+
+def test_gesture_with_frame_is_one_round_trip(ready_client):
+    c = ready_client
+    sid = new_session(c)["id"]
+    r = c.post(
+        f"/api/sessions/{sid}/gesture",
+        params={"frame": 1, "width": 32, "height": 48, "format": "jpeg"},
+        json={"type": "pinch", "scale": 2},
+    )
+    assert r.status_code == 200, r.text
+    assert r.headers["content-type"] == "image/jpeg"
+    assert r.headers["x-session-version"] == "2"
+    assert "trace;dur=" in r.headers["server-timing"]
+    assert c.get(f"/api/sessions/{sid}").json()["camera"]["position"] == [0.0, 0.0, 50.0]
+
+
+def test_gesture_frame_shows_the_moved_camera(ready_client):
+    """A frame after a pan equals a frame rendered with the moved camera set directly."""
+    c = ready_client
+    a = new_session(c)["id"]
+    b = new_session(c)["id"]
+    q = {"frame": 1, "format": "npy", "mode": "primid", "width": 32, "height": 48}
+    moved = c.post(f"/api/sessions/{a}/gesture", params=q, json={"type": "pan", "dx": 5, "dy": -3})
+    cam = c.get(f"/api/sessions/{a}").json()["camera"]
+    c.put(f"/api/sessions/{b}/camera", json=cam)
+    direct = c.get(f"/api/sessions/{b}/frame", params={k: v for k, v in q.items() if k != "frame"})
+    assert np.array_equal(np.load(io.BytesIO(moved.content)), np.load(io.BytesIO(direct.content)))
+
+
+def test_stateless_render(ready_client):
+    c = ready_client
+    body = {
+        "scene": small_scene_json(8),
+        "settings": {"width": 24, "height": 16, "format": "npy", "max_recursion_depth": 2, "mode": "primid"},
+    }
+    r = c.post("/api/render", json=body)
+    assert r.status_code == 200, r.text
+    a = np.load(io.BytesIO(r.content))
+    assert a.shape == (16, 24) and a.dtype == np.int32
+    assert "x-session-version" not in r.headers and r.headers["x-method"] == "bih"
+    r = c.post("/api/render", json={"scene": small_scene_json(8), "settings": {"method": "bruteforce"}})
+    assert r.status_code == 200 and r.headers["content-type"] == "image/png"
+    assert r.headers["x-method"] == "bruteforce"
+
+
+def test_pan_out_of_range_is_422_and_changes_nothing(client):
+    sid = new_session(client)["id"]
+    client.put(
+        f"/api/sessions/{sid}/camera", json={**GOOD_CAMERA, "position": [9.99e6, 0, 100], "target": [9.99e6, 0, 0]}
+    )
+    before = snapshot(client, sid)
+    r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "pan", "dx": -1e6, "dy": 0})
+    assert_422(r, "dx")
+    assert snapshot(client, sid) == before
+
+
+@pytest.mark.parametrize(
+    "settings,field",
+    [
+        ({"width": 0}, "width"),
+        ({"width": 4097}, "width"),
+        ({"method": "x"}, "method"),
+        ({"mode": "x"}, "mode"),
+        ({"width": 96, "height": 128, "max_recursion_depth": 3}, "max_recursion_depth"),
+    ],
+)
+def test_stateless_render_rejects(client, settings, field):
+    assert_422(client.post("/api/render", json={"scene": scene_with(), "settings": settings}), field)
+
+
+def test_stateless_render_rejects_bad_scene(client):
+    assert_422(client.post("/api/render", json={"scene": scene_with(up=[0, 0, 0])}), "camera.up")
+    assert_422(client.post("/api/render", **raw('{"scene": {"materials": [{"ior": NaN}]}}')), "ior")
+
+
+def test_method_limits_are_checked_before_a_gesture_is_applied(client, sid):
+    """A method's own limits (here: mode 'cones' needs method 'hre') are a 422 up front."""
+    from renderer.settings import METHOD_NAMES
+
+    if "rayengine" not in METHOD_NAMES:
+        return  # nothing to check with this renderer
+    before = snapshot(client, sid)
+    r = client.post(
+        f"/api/sessions/{sid}/gesture?frame=1&method=rayengine&mode=cones", json={"type": "pinch", "scale": 2}
+    )
+    assert_422(r, "mode")
+    assert snapshot(client, sid) == before
