@@ -236,3 +236,23 @@ def snapshot(client, sid: str) -> tuple:
     s = client.get(f"/api/sessions/{sid}").json()
     scene = client.get(f"/api/sessions/{sid}/scene").json()
     return s, scene
+
+
+def state_of(c, sid: str) -> dict:
+    return c.get(f"/api/sessions/{sid}").json()
+
+
+def raw_json(text: str | bytes) -> dict:
+    return {
+        "content": text.encode() if isinstance(text, str) else text,
+        "headers": {"content-type": "application/json"},
+    }
+
+
+def assert_422_listing(r, field: str, kind: str | None = None) -> list[dict]:
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"]
+    assert any(field in d["msg"] for d in detail), f"{field!r} not named in {detail}"
+    if kind is not None:
+        assert any(d["type"] == kind for d in detail), detail
+    return detail

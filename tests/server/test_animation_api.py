@@ -13,7 +13,6 @@ from pocketray_server_support import SMALL, make_config, wait_ready
 from renderer.animation import museum, pose
 from renderer.scenarios import scenario
 from server.frames.device_data import decode_blob
-from server.sessions.scenes import load_source, scene_source
 
 FRAME = {"width": 40, "height": 56, "format": "npy", "mode": "primid", "max_recursion_depth": 2}
 
@@ -111,16 +110,6 @@ def test_uploaded_scene_with_motions_round_trips(ready_client):
     a = ids(c.get(f"/api/sessions/{sid}/frame", params={**FRAME, "time": 0.0}))
     b = ids(c.get(f"/api/sessions/{sid}/frame", params={**FRAME, "time": 1.0}))
     assert (a != b).any()
-
-
-def test_sources_keep_the_motions():
-    """What the store keeps (and a restarted process reads) is the same animation."""
-    anim = museum(20, "mixed", seed=4)
-    again = load_source(scene_source(anim), anim.camera)
-    assert again.motions == anim.motions
-    np.testing.assert_array_equal(again.scene.sphere_centers, anim.scene.sphere_centers)
-    t = 0.8
-    np.testing.assert_array_equal(pose(again, t).scene.sphere_centers, pose(anim, t).scene.sphere_centers)
 
 
 @pytest.mark.parametrize(

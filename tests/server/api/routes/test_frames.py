@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 
 import numpy as np
 import pytest
@@ -11,11 +12,13 @@ from PIL import Image
 from pocketray_server_support import (
     GOOD_CAMERA,
     assert_422,
+    assert_422_listing,
     new_session,
     raw,
     scene_with,
     small_scene_json,
     snapshot,
+    state_of,
     timing,
 )
 
@@ -184,3 +187,60 @@ def test_method_limits_are_checked_before_a_gesture_is_applied(client, sid):
     )
     assert_422(r, "mode")
     assert snapshot(client, sid) == before
+
+
+CONE_METHODS = ["bih", "bvh", "kdtree", "twolevel", "bruteforce", "auto"]
+
+
+def distance(camera: dict) -> float:
+    return math.dist(camera["position"], camera["target"])
+
+
+@pytest.mark.parametrize("method", CONE_METHODS)
+def test_a_refused_gesture_frame_moves_no_camera(client, method):
+    """Was: 422 "mode 'cones' is not available with method 'bih'" after the pan was committed."""
+    sid = new_session(client)["id"]
+    before = state_of(client, sid)
+    r = client.post(
+        f"/api/sessions/{sid}/gesture",
+        params={"frame": 1, "mode": "cones", "method": method},
+        json={"type": "pan", "dx": 40, "dy": 0},
+    )
+    detail = assert_422_listing(r, "mode")
+    assert detail[0]["loc"] == ["query", "mode"] and "hre" in detail[0]["msg"]
+    assert state_of(client, sid) == before  # version 1, camera where it was
+
+
+def test_a_timed_out_gesture_frame_retried_as_told_moves_the_camera_once(ready_client, monkeypatch):
+    """Was: the 503 came after the gesture was committed, so the retry applied it twice."""
+    c = ready_client
+    service = c.app.state.service
+    sid = new_session(c)["id"]
+    before = state_of(c, sid)
+    with monkeypatch.context() as m:
+        m.setattr(service.config, "__dict__", {**service.config.__dict__, "render_timeout_s": 0.0})
+        r = c.post(f"/api/sessions/{sid}/gesture?frame=1", json={"type": "pinch", "scale": 2})
+    assert r.status_code == 503 and int(r.headers["retry-after"]) >= 1, r.text
+    assert state_of(c, sid) == before
+    r = c.post(f"/api/sessions/{sid}/gesture?frame=1", json={"type": "pinch", "scale": 2})  # the retry
+    assert r.status_code == 200 and r.headers["x-session-version"] == str(before["version"] + 1), r.text
+    after = state_of(c, sid)
+    assert after["version"] == before["version"] + 1
+    assert distance(after["camera"]) == pytest.approx(distance(before["camera"]) / 2)  # once, not /4
+
+
+def test_a_gesture_frame_that_fails_on_the_gl_thread_changes_nothing(ready_client, monkeypatch):
+    from server.frames.trace import GLNotReady
+
+    c = ready_client
+    frames = c.app.state.frames
+    sid = new_session(c)["id"]
+    before = state_of(c, sid)
+
+    def lost(*args, **kwargs):
+        raise GLNotReady("OpenGL context lost (test)")
+
+    monkeypatch.setattr(frames, "wait", lost)
+    r = c.post(f"/api/sessions/{sid}/gesture?frame=1", json={"type": "orbit", "yaw": 30})
+    assert r.status_code == 503 and "retry-after" in r.headers, r.text
+    assert state_of(c, sid) == before

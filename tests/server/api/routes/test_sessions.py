@@ -10,11 +10,13 @@ from pocketray_server_support import (
     GOOD_CAMERA,
     SMALL,
     assert_422,
+    assert_422_listing,
     new_session,
     raw,
     scene_with,
     small_scene_json,
     snapshot,
+    state_of,
 )
 
 from renderer.scenarios import scenario
@@ -264,3 +266,17 @@ def test_session_change_rejected_changes_nothing(client, sid, method, path, kw, 
     r = client.request(method.upper(), f"/api/sessions/{sid}/{path}", **kw)
     assert_422(r, field)
     assert snapshot(client, sid) == before
+
+
+def test_patch_and_create_refuse_a_mode_the_method_cannot_draw(client):
+    """Was: accepted, and every later frame of the session failed."""
+    sid = new_session(client)["id"]
+    before = state_of(client, sid)
+    assert_422_listing(client.patch(f"/api/sessions/{sid}/settings", json={"mode": "cones"}), "mode")
+    assert state_of(client, sid) == before
+    assert_422_listing(
+        client.post("/api/sessions", json={"scenario": 3, "n": 16, "settings": {"mode": "cones"}}), "mode"
+    )
+    # The combination that can draw cones is accepted.
+    r = client.patch(f"/api/sessions/{sid}/settings", json={"method": "hre", "mode": "cones"})
+    assert r.status_code == 200 and r.json()["version"] == before["version"] + 1, r.text
