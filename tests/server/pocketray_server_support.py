@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import signal
@@ -13,8 +14,10 @@ from collections.abc import Callable
 from pathlib import Path
 
 import httpx
+import numpy as np
 import pytest
 
+from renderer.meshes import box, icosphere
 from renderer.scenarios import scenario
 from server.config import ServerConfig
 
@@ -194,6 +197,9 @@ def server_env(sqlite_path: Path, port: int | None = None, **settings) -> dict[s
     return env
 
 
+# ---- helpers of the route and body tests ------------------------------------------------------------
+
+
 def timing(header: str) -> dict[str, float]:
     out = {}
     for entry in header.split(","):
@@ -224,6 +230,7 @@ def raw(text: str) -> dict:
 
 
 def assert_422(r, field: str) -> None:
+    """422 naming ``field`` in a message (a list of errors with loc/msg/type, or one detail)."""
     assert r.status_code == 422, r.text
     detail = r.json()["detail"]
     msgs = [d["msg"] for d in detail] if isinstance(detail, list) else [detail]
@@ -250,9 +257,60 @@ def raw_json(text: str | bytes) -> dict:
 
 
 def assert_422_listing(r, field: str, kind: str | None = None) -> list[dict]:
+    """422 whose list of errors names ``field`` (and has one of type ``kind``); the list back."""
     assert r.status_code == 422, r.text
     detail = r.json()["detail"]
     assert any(field in d["msg"] for d in detail), f"{field!r} not named in {detail}"
     if kind is not None:
         assert any(d["type"] == kind for d in detail), detail
     return detail
+
+
+# ---- the meshes and the museum through the API (api/routes/conftest.py's apps) ------------------------
+
+MAX_TRIANGLES = 3000  # POCKETRAY_MAX_TRIANGLES of the meshes app (api/routes/conftest.py's ``api``)
+MAX_BODY = 256 * 1024  # and its POCKETRAY_MAX_BODY_BYTES
+
+
+def mesh_scene_json(**mesh) -> dict:
+    ball = icosphere(1, radius=5.0).to_json()
+    cube = {
+        "vertices": box((-1, -1, -1), (1, 1, 1)).vertices.tolist(),
+        "triangles": box((-1, -1, -1), (1, 1, 1)).triangles.tolist(),
+        "material": 1,
+        "transform": [[2, 0, 0, 10], [0, 2, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1]],
+    }
+    cube.update(mesh)
+    return {
+        "materials": [{}, {"color": [0.2, 0.5, 0.9]}],
+        "spheres": [{"center": [-12, 0, 0], "radius": 2}],
+        "planes": [{"point": [0, -20, 0], "normal": [0, 1, 0]}],
+        "meshes": [ball, cube],
+    }
+
+
+def create(api, scene: dict, **settings):
+    return api.post("/api/sessions", json={"scene": scene, "settings": {**SMALL, **settings}})
+
+
+def assert_422_msgs(r, field: str) -> None:
+    """422 whose list of errors names ``field`` in a message."""
+    assert r.status_code == 422, r.text
+    msgs = [d["msg"] for d in r.json()["detail"]]
+    assert any(field in m for m in msgs), f"{field!r} not named in {msgs}"
+
+
+MUSEUM_FRAME = {"width": 40, "height": 56, "format": "npy", "mode": "primid", "max_recursion_depth": 2}
+
+
+def museum_session(client, n: int = 48, kind: str = "deformable", **settings) -> dict:
+    r = client.post(
+        "/api/sessions", json={"museum": {"n": n, "kind": kind, "seed": 2}, "settings": {**SMALL, **settings}}
+    )
+    assert r.status_code == 201, r.text
+    return r.json()
+
+
+def ids(r) -> np.ndarray:
+    assert r.status_code == 200, r.text
+    return np.load(io.BytesIO(r.content))

@@ -11,8 +11,15 @@ import pytest
 from PIL import Image
 from pocketray_server_support import (
     GOOD_CAMERA,
+    MUSEUM_FRAME,
+    SMALL,
     assert_422,
     assert_422_listing,
+    assert_422_msgs,
+    create,
+    ids,
+    mesh_scene_json,
+    museum_session,
     new_session,
     raw,
     scene_with,
@@ -21,6 +28,10 @@ from pocketray_server_support import (
     state_of,
     timing,
 )
+
+from renderer.animation import museum, pose
+
+pytestmark = pytest.mark.gl  # every test here runs an app, whose lifespan starts the GL worker
 
 
 def test_gestures_json(client):
@@ -244,3 +255,100 @@ def test_a_gesture_frame_that_fails_on_the_gl_thread_changes_nothing(ready_clien
     r = c.post(f"/api/sessions/{sid}/gesture?frame=1", json={"type": "orbit", "yaw": 30})
     assert r.status_code == 503 and "retry-after" in r.headers, r.text
     assert state_of(c, sid) == before
+
+
+@pytest.mark.parametrize("method", ["bih", "bruteforce", "bvh", "kdtree", "twolevel", "auto"])
+def test_frames_of_a_scene_with_meshes_are_served_by_the_methods_that_trace_triangles(api, method):
+    sid = create(api, mesh_scene_json(), method=method, mode="primid").json()["id"]
+    r = api.get(f"/api/sessions/{sid}/frame", params={"format": "npy"})
+    assert r.status_code == 200, r.text
+    ids = np.load(io.BytesIO(r.content))
+    # sphere 0, plane 1, the icosphere's triangles 2 … 81, the box's 82 … 93 (FORMATS.md)
+    assert ids.shape == (SMALL["height"], SMALL["width"])
+    assert (ids >= 2).any() and (ids == 0).any(), np.unique(ids)
+    assert ids.max() <= 1 + 80 + 12
+
+
+def test_a_method_without_meshes_on_gpu_is_refused_with_422_meshes(api, monkeypatch):
+    """The per-method refusal (Capabilities.meshes_on_gpu), for a method whose layout would
+    hold spheres only — none does today, so bvh pretends: frames, renders and device data
+    of a mesh scene are 422 'meshes' naming the methods that trace meshes."""
+    import dataclasses
+
+    from renderer.methods import METHODS
+
+    monkeypatch.setattr(
+        METHODS["bvh"], "capabilities", dataclasses.replace(METHODS["bvh"].capabilities, meshes_on_gpu=False)
+    )
+    sid = create(api, mesh_scene_json(), method="bvh").json()["id"]
+    r = api.get(f"/api/sessions/{sid}/frame")
+    assert_422_msgs(r, "meshes")
+    assert "'bvh'" in r.text and "bih, bruteforce" in r.text
+    assert_422_msgs(api.get(f"/api/sessions/{sid}/device-data"), "meshes")
+    assert_422_msgs(
+        api.post("/api/render", json={"scene": mesh_scene_json(), "settings": {**SMALL, "method": "bvh"}}), "meshes"
+    )
+
+
+def server_timing(header: str) -> dict[str, float]:
+    return {e.split(";")[0].strip(): float(e.split("dur=")[1]) for e in header.split(",")}
+
+
+@pytest.mark.parametrize(
+    "kind,method,scheme",
+    [("rigid", "bvh", "refit"), ("incoherent", "bvh", "selective"), ("mixed", "twolevel", "refit")],
+)
+def test_session_frames_follow_the_animation_exactly(museum_ready_client, kind, method, scheme):
+    """Each frame of a session, updated from the previous one, shows what brute force shows."""
+    c = museum_ready_client
+    s = museum_session(c, kind=kind, method=method, update=scheme)
+    sid = s["id"]
+    assert s["scene_info"]["animated"] and s["scene_info"]["n_moving"] == 48
+    assert s["scene_info"]["n_spheres"] == 576 + 48
+    previous = None
+    for t in (0.0, 0.3, 0.6, 0.9):
+        r = c.get(f"/api/sessions/{sid}/frame", params={**MUSEUM_FRAME, "time": t})
+        got = ids(r)
+        stats = r.headers["x-stats"]
+        assert f'"time":{t}' in stats.replace(" ", "")
+        bf = ids(c.get(f"/api/sessions/{sid}/frame", params={**MUSEUM_FRAME, "time": t, "method": "bruteforce"}))
+        assert (got == bf).mean() >= 0.9999, f"{kind} t={t}"
+        st = server_timing(r.headers["server-timing"])
+        assert {"pose", "update", "trace"} <= set(st) and st["update"] >= 0
+        if previous is not None:
+            assert (got != previous).any(), "the scene moved between frames"
+        previous = got
+
+
+def test_a_frame_is_the_posed_scene(museum_ready_client):
+    """A session frame at t equals a stateless brute-force render of ``pose(museum, t)``."""
+    c = museum_ready_client
+    sid = museum_session(c, n=32, kind="incoherent")["id"]
+    t = 1.7
+    frame = ids(c.get(f"/api/sessions/{sid}/frame", params={**MUSEUM_FRAME, "time": t}))
+    posed = pose(museum(32, "incoherent", seed=2), t).scene
+    assert posed.n_spheres < 576 + 32  # incoherent: some spheres are away at t
+    body = {"scene": posed.to_json(), "settings": {**MUSEUM_FRAME, "method": "bruteforce"}}
+    ref = ids(c.post("/api/render", json=body))
+    assert (frame == ref).mean() >= 0.9999
+
+
+@pytest.mark.parametrize(
+    "params,field",
+    [
+        ({"time": -1}, "time"),
+        ({"time": "nan"}, "time"),
+        ({"update": "sometimes"}, "update"),
+        ({"update_threshold": -0.5}, "update_threshold"),
+    ],
+)
+def test_bad_frame_settings_are_422_naming_the_field(museum_ready_client, params, field):
+    c = museum_ready_client
+    sid = museum_session(c)["id"]
+    r = c.get(f"/api/sessions/{sid}/frame", params=params)
+    assert r.status_code == 422
+    assert r.json()["detail"][0]["loc"] == ["query", field]
+    v = c.get(f"/api/sessions/{sid}").json()["version"]
+    r = c.patch(f"/api/sessions/{sid}/settings", json={"time": -1e9} if field == "time" else params)
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"][-1] == field
+    assert c.get(f"/api/sessions/{sid}").json()["version"] == v  # nothing applied

@@ -2,6 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
+import pytest
+from pocketray_server_support import MAX_TRIANGLES
+
+pytestmark = pytest.mark.gl  # every test here runs an app, whose lifespan starts the GL worker
+
 
 def test_health_ready_info(ready_client):
     c = ready_client
@@ -45,3 +52,19 @@ def test_info_hands_out_the_measured_profiles(client):
     assert info["profiles"] == {"interactive": INTERACTIVE, "still": STILL}
     for _name, profile in info["profiles"].items():  # each is a valid set of render settings
         RenderSettings(**{k: v for k, v in profile.items() if k != "resolution_scale"})
+
+
+def test_info_states_the_triangle_cap_and_what_each_method_traces(api):
+    info = api.get("/api/info").json()
+    assert info["limits"]["max_triangles"] == MAX_TRIANGLES
+    assert info["method_settings"]["rayengine"]["primitives"] == ["spheres", "planes"]
+    assert "triangles" in info["method_settings"]["bih"]["primitives"]
+    assert {m for m, x in info["method_settings"].items() if x["meshes_on_gpu"]} == {
+        "bih",
+        "bruteforce",
+        "bvh",
+        "kdtree",
+        "twolevel",
+        "auto",
+    }
+    assert math.isfinite(api.get("/api/info").json()["limits"]["max_frame_cost"])
