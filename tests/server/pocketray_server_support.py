@@ -35,7 +35,7 @@ TEST_CAPS = dict(
     default_render=SMALL,
 )
 # A test module creates sessions from one address faster than a client does: no creation rate here
-# (tests/server/test_session_quota.py sets and tests it).
+# (tests/server/sessions/test_ratelimit.py sets and tests it).
 TEST_CAPS["session_create_per_min"] = 0
 
 
