@@ -3,6 +3,7 @@
 - ``client``: one in-process app (httpx via Starlette's TestClient, lifespan run)
   on a temporary SQLite file, shared by the module that asks for it; its caps
   are small so every render stays cheap.
+- ``sid``: one session of that app, shared by the module.
 - ``spawn_server``: real ``python -m server`` processes (uvicorn) on free
   loopback ports, configured through POCKETRAY_* variables; killed at the end.
 - ``redis_url``: a local redis-server on a free loopback port in a temp dir.
@@ -26,7 +27,7 @@ with warnings.catch_warnings():  # Starlette nudges towards httpx2; the TestClie
     warnings.simplefilter("ignore")
     from fastapi.testclient import TestClient
 
-from pocketray_server_support import ServerProcess, free_port, make_config, server_env, wait_ready
+from pocketray_server_support import ServerProcess, free_port, make_config, new_session, server_env, wait_ready
 
 from server.app import create_app
 
@@ -42,6 +43,12 @@ def client(tmp_path_factory) -> Iterator[TestClient]:
 def ready_client(client) -> TestClient:
     wait_ready(client.get)
     return client
+
+
+@pytest.fixture(scope="module")
+def sid(client) -> str:
+    """A session of the module's ``client``, for tests that check a refusal changes nothing."""
+    return new_session(client)["id"]
 
 
 @pytest.fixture

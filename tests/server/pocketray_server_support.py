@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import signal
@@ -13,8 +14,11 @@ from collections.abc import Callable
 from pathlib import Path
 
 import httpx
+import numpy as np
 import pytest
 
+from renderer.meshes import box, icosphere
+from renderer.scenarios import scenario
 from server.config import ServerConfig
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -31,7 +35,7 @@ TEST_CAPS = dict(
     default_render=SMALL,
 )
 # A test module creates sessions from one address faster than a client does: no creation rate here
-# (tests/server/test_session_quota.py sets and tests it).
+# (tests/server/sessions/test_ratelimit.py sets and tests it).
 TEST_CAPS["session_create_per_min"] = 0
 
 
@@ -191,3 +195,122 @@ def server_env(sqlite_path: Path, port: int | None = None, **settings) -> dict[s
     env["POCKETRAY_PORT"] = str(port or free_port())
     env["POCKETRAY_HOST"] = "127.0.0.1"
     return env
+
+
+# ---- helpers of the route and body tests ------------------------------------------------------------
+
+
+def timing(header: str) -> dict[str, float]:
+    out = {}
+    for entry in header.split(","):
+        name, *params = entry.strip().split(";")
+        for p in params:
+            k, v = p.split("=")
+            if k == "dur":
+                out[name] = float(v)
+    return out
+
+
+def small_scene_json(n: int = 8) -> dict:
+    return scenario(1, n, 0, 1.0).to_json()
+
+
+GOOD_CAMERA = {"position": [0, 0, 100], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 60}
+
+
+def scene_with(**camera) -> dict:
+    s = scenario(1, 2, 0, 1.0).to_json()
+    s["camera"] = {**GOOD_CAMERA, **camera}
+    return s
+
+
+def raw(text: str) -> dict:
+    """A JSON body the way a careless client writes it (NaN / Infinity literals allowed)."""
+    return {"content": text.encode(), "headers": {"content-type": "application/json"}}
+
+
+def assert_422(r, field: str) -> None:
+    """422 naming ``field`` in a message (a list of errors with loc/msg/type, or one detail)."""
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"]
+    msgs = [d["msg"] for d in detail] if isinstance(detail, list) else [detail]
+    assert any(field in m for m in msgs), f"{field!r} not named in {msgs}"
+    if isinstance(detail, list):
+        assert all({"loc", "msg", "type"} <= set(d) for d in detail)
+
+
+def snapshot(client, sid: str) -> tuple:
+    s = client.get(f"/api/sessions/{sid}").json()
+    scene = client.get(f"/api/sessions/{sid}/scene").json()
+    return s, scene
+
+
+def state_of(c, sid: str) -> dict:
+    return c.get(f"/api/sessions/{sid}").json()
+
+
+def raw_json(text: str | bytes) -> dict:
+    return {
+        "content": text.encode() if isinstance(text, str) else text,
+        "headers": {"content-type": "application/json"},
+    }
+
+
+def assert_422_listing(r, field: str, kind: str | None = None) -> list[dict]:
+    """422 whose list of errors names ``field`` (and has one of type ``kind``); the list back."""
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"]
+    assert any(field in d["msg"] for d in detail), f"{field!r} not named in {detail}"
+    if kind is not None:
+        assert any(d["type"] == kind for d in detail), detail
+    return detail
+
+
+# ---- the meshes and the museum through the API (api/routes/conftest.py's apps) ------------------------
+
+MAX_TRIANGLES = 3000  # POCKETRAY_MAX_TRIANGLES of the meshes app (api/routes/conftest.py's ``api``)
+MAX_BODY = 256 * 1024  # and its POCKETRAY_MAX_BODY_BYTES
+
+
+def mesh_scene_json(**mesh) -> dict:
+    ball = icosphere(1, radius=5.0).to_json()
+    cube = {
+        "vertices": box((-1, -1, -1), (1, 1, 1)).vertices.tolist(),
+        "triangles": box((-1, -1, -1), (1, 1, 1)).triangles.tolist(),
+        "material": 1,
+        "transform": [[2, 0, 0, 10], [0, 2, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1]],
+    }
+    cube.update(mesh)
+    return {
+        "materials": [{}, {"color": [0.2, 0.5, 0.9]}],
+        "spheres": [{"center": [-12, 0, 0], "radius": 2}],
+        "planes": [{"point": [0, -20, 0], "normal": [0, 1, 0]}],
+        "meshes": [ball, cube],
+    }
+
+
+def create(api, scene: dict, **settings):
+    return api.post("/api/sessions", json={"scene": scene, "settings": {**SMALL, **settings}})
+
+
+def assert_422_msgs(r, field: str) -> None:
+    """422 whose list of errors names ``field`` in a message."""
+    assert r.status_code == 422, r.text
+    msgs = [d["msg"] for d in r.json()["detail"]]
+    assert any(field in m for m in msgs), f"{field!r} not named in {msgs}"
+
+
+MUSEUM_FRAME = {"width": 40, "height": 56, "format": "npy", "mode": "primid", "max_recursion_depth": 2}
+
+
+def museum_session(client, n: int = 48, kind: str = "deformable", **settings) -> dict:
+    r = client.post(
+        "/api/sessions", json={"museum": {"n": n, "kind": kind, "seed": 2}, "settings": {**SMALL, **settings}}
+    )
+    assert r.status_code == 201, r.text
+    return r.json()
+
+
+def ids(r) -> np.ndarray:
+    assert r.status_code == 200, r.text
+    return np.load(io.BytesIO(r.content))

@@ -24,12 +24,13 @@ with warnings.catch_warnings():
     warnings.simplefilter("ignore")
     from fastapi.testclient import TestClient
 
-from pocketray_server_support import SMALL, make_config
+import threading
+
+from hypothesis import given, settings, strategies as st
+from pocketray_server_support import SMALL, assert_422_listing, make_config, new_session, raw_json, state_of
 
 from server.api.body import INLINE_BODY_BYTES, BodyParsers
 from server.app import create_app
-
-pytestmark = pytest.mark.gl  # the app's lifespan starts the GL worker
 
 ATTACKER, HONEST = ("10.0.0.66", 40000), ("10.0.0.7", 40001)
 DECLARED = 100_000  # over INLINE_BODY_BYTES: each such body takes a slot
@@ -98,6 +99,7 @@ def slots_held(c: TestClient) -> int:
     return BodyParsers.of(type("R", (), {"app": c.app})())._in_flight
 
 
+@pytest.mark.gl  # app_with's app: its lifespan starts the GL worker
 def test_trickling_bodies_from_one_address_leave_the_other_slots_to_other_clients(app_with):
     """Four trickling bodies from one address (four slots): it gets two (its share), the other
     two are answered 429 at once, and an honest large body from another address is served."""
@@ -124,6 +126,7 @@ def test_trickling_bodies_from_one_address_leave_the_other_slots_to_other_client
     assert slots_held(c) == 0
 
 
+@pytest.mark.gl  # app_with's app: its lifespan starts the GL worker
 def test_a_body_below_the_minimum_rate_is_answered_408_and_its_slot_freed(app_with):
     c = app_with(queue_size=2, body_slots_per_client=0, body_grace_s=1.0, body_min_rate_bytes_s=64 * 1024)
 
@@ -152,6 +155,7 @@ def test_a_body_below_the_minimum_rate_is_answered_408_and_its_slot_freed(app_wi
     assert run(c, steady).status_code == 201
 
 
+@pytest.mark.gl  # app_with's app: its lifespan starts the GL worker
 def test_the_slots_one_address_holds_are_counted_back_when_its_bodies_end(app_with):
     """The share is of bodies being read: one address sends any number of bodies in turn."""
     c = app_with(queue_size=2, body_slots_per_client=1)
@@ -188,3 +192,186 @@ def test_a_trickled_body_is_closed_on_the_wire_with_its_408(spawn_server):
     assert got.startswith(b"HTTP/1.1 408 "), got[:300]
     assert b"POCKETRAY_BODY_MIN_RATE_BYTES_S" in got
     assert time.monotonic() - t0 < 10
+
+
+LOOSE = [
+    ("post", "gesture", {"type": "pan", "dx": "1", "dy": 0}, "dx"),
+    ("post", "gesture", {"type": "pan", "dx": True, "dy": 0}, "dx"),
+    ("post", "gesture", {"type": "pinch", "scale": "2"}, "scale"),
+    ("post", "gesture", {"type": "orbit", "yaw": 0, "pitch": False}, "pitch"),
+    ("patch", "settings", {"width": "48"}, "width"),
+    ("patch", "settings", {"width": 48.5}, "width"),
+    ("patch", "settings", {"specialize": 1}, "specialize"),
+    ("patch", "settings", {"samples_per_pixel": True}, "samples_per_pixel"),
+    ("patch", "settings", {"update_threshold": False}, "update_threshold"),
+    ("put", "camera", {"position": [True, 0, 100], "fov_y": 60}, "position"),
+    ("put", "camera", {"fov_y": "60"}, "fov_y"),
+]
+
+
+PINCH = '{"type": "pinch", "scale": 2}'
+
+
+JSON_VALUES = st.recursive(
+    st.none() | st.booleans() | st.floats(allow_nan=False) | st.text(alphabet='ab"\\[]{}\n/', max_size=6),
+    lambda inner: (
+        st.lists(inner, max_size=3) | st.dictionaries(st.text(alphabet='k"\\[]{', max_size=4), inner, max_size=3)
+    ),
+    max_leaves=20,
+)
+
+
+def nesting(value) -> int:
+    if isinstance(value, dict):
+        value = list(value.values())
+    return 1 + max(map(nesting, value), default=0) if isinstance(value, list) else 0
+
+
+@pytest.mark.parametrize("method,path,body,field", LOOSE)
+def test_loose_types_are_refused_and_change_nothing(client, method, path, body, field):
+    sid = new_session(client)["id"]
+    before = state_of(client, sid)
+    assert_422_listing(client.request(method.upper(), f"/api/sessions/{sid}/{path}", json=body), field)
+    assert state_of(client, sid) == before
+
+
+@pytest.mark.parametrize(
+    "body,field",
+    [
+        ({"scenario": True, "n": 4}, "scenario"),
+        ({"scenario": 1, "n": 4, "seed": True}, "seed"),
+        ({"scenario": 1, "n": "4"}, "n"),
+        ({"scenario": 1, "n": 4, "radius": "1"}, "radius"),
+        ({"museum": {"n": 4, "kind": "rigid", "absent": "0.1"}}, "absent"),
+    ],
+)
+def test_create_refuses_loose_types(client, body, field):
+    assert_422_listing(client.post("/api/sessions", json=body), field)
+
+
+def test_an_integer_is_what_json_schema_calls_one(client):
+    """4.0 is an integer to JSON Schema (what the OpenAPI schema promises), 4.5 and true are not."""
+    sid = new_session(client)["id"]
+    r = client.patch(
+        f"/api/sessions/{sid}/settings", json={"width": 32.0, "samples_per_pixel": 4.0, "max_prims": 6044511.0}
+    )
+    assert r.status_code == 200, r.text
+    got = r.json()
+    assert (got["width"], got["samples_per_pixel"], got["max_prims"]) == (32, 4, 6044511)
+    assert all(type(got[k]) is int for k in ("width", "samples_per_pixel", "max_prims"))
+
+
+def test_numbers_in_a_query_are_still_read_from_text(ready_client):
+    c = ready_client
+    sid = new_session(c)["id"]
+    r = c.get(
+        f"/api/sessions/{sid}/frame",
+        params={"width": "32", "height": "48", "samples_per_pixel": "4", "specialize": "true"},
+    )
+    assert r.status_code == 200 and r.headers["content-type"] == "image/png", r.text
+    assert_422_listing(c.get(f"/api/sessions/{sid}/frame", params={"samples_per_pixel": "2"}), "samples_per_pixel")
+
+
+@pytest.mark.parametrize(
+    "content,kind,words",
+    [
+        (PINCH.encode("utf-16"), "json_not_utf8", "not UTF-8"),
+        (PINCH.encode("utf-16-le"), "json_invalid", "not valid JSON"),  # NUL bytes are no JSON
+        (PINCH.encode("utf-32"), "json_not_utf8", "not UTF-8"),
+        (b"\xef\xbb\xbf" + PINCH.encode(), "json_invalid", "byte-order mark"),
+        (b'{"type": "pinch", "scale": 2, "scale": 0.5}', "json_duplicate_key", 'duplicate key "scale"'),
+        (b'{"type": "pan", "dx": 1, "dy": 2, "viewport_height": {"a": 1, "a": 2}}', "json_duplicate_key", '"a"'),
+        (("[" * 1000 + "]" * 1000).encode(), "json_too_deep", "nested deeper than 32"),
+        (('{"a":' * 40 + "1" + "}" * 40).encode(), "json_too_deep", "nested deeper than 32"),
+        (b'{"type": "pinch", "scale": ' + b"9" * 5000 + b"}", "json_invalid", "not a JSON value"),
+        (b'{"type": "pinch", "scale": 2', "json_invalid", "not valid JSON"),
+    ],
+)
+def test_bodies_that_are_not_strict_json_are_a_clear_422(client, content, kind, words):
+    """Was: UTF-16 and duplicate keys taken silently, 1,000 levels "not valid UTF-8 JSON"."""
+    sid = new_session(client)["id"]
+    before = state_of(client, sid)
+    r = client.post(f"/api/sessions/{sid}/gesture", **raw_json(content))
+    assert r.status_code == 422, r.text
+    (entry,) = r.json()["detail"]
+    assert entry["type"] == kind and entry["loc"] == ["body"] and words in entry["msg"], entry
+    assert state_of(client, sid) == before
+
+
+@settings(max_examples=300, deadline=None)
+@given(JSON_VALUES)
+def test_the_depth_check_counts_what_the_parser_nests(value):
+    """The depth is counted on the bytes (no regex: it held the GIL through a 16 MiB body); brackets
+    and escaped quotes inside strings must not count."""
+    from server.api.body import json_depth
+
+    for text in (json.dumps(value), json.dumps(value, ensure_ascii=False), json.dumps(value, indent=1)):
+        assert json_depth(text.encode()) == nesting(value), text
+
+
+def test_a_large_body_is_read_as_strictly_as_a_small_one(client):
+    """Bodies over the inline size go to the parser pool: the same rules hold there."""
+    from server.api.body import INLINE_BODY_BYTES
+
+    sid = new_session(client)["id"]
+    spheres = ",".join('{"center": [' + str(i % 40) + ', 0, 0], "radius": 0.5}' for i in range(2200))
+    text = '{"materials": [{}], "spheres": [' + spheres + '], "materials": [{}]}'
+    assert INLINE_BODY_BYTES < len(text) < client.app.state.config.max_body_bytes
+    r = client.put(f"/api/sessions/{sid}/scene", **raw_json(text))
+    assert r.status_code == 422 and r.json()["detail"][0]["type"] == "json_duplicate_key", r.text
+
+
+def test_large_bodies_are_parsed_on_the_pool_and_small_ones_inline(client, monkeypatch):
+    import server.api.body as body
+
+    threads: list[str] = []
+    real = body.validate_body
+
+    def spy(*args):
+        threads.append(threading.current_thread().name)
+        return real(*args)
+
+    monkeypatch.setattr(body, "validate_body", spy)
+    sid = new_session(client)["id"]
+    threads.clear()
+    scene = {"materials": [{}], "spheres": [{"center": [i % 40, 0, 0], "radius": 0.5} for i in range(2200)]}
+    assert client.put(f"/api/sessions/{sid}/scene", json=scene).status_code == 200
+    assert client.post(f"/api/sessions/{sid}/gesture", json={"type": "pinch", "scale": 2}).status_code == 200
+    assert len(threads) == 2 and threads[0].startswith("pocketray-body"), threads
+    assert threads[1] == threading.main_thread().name or not threads[1].startswith("pocketray-body"), threads
+
+
+def test_health_answers_while_six_large_bodies_are_parsed(spawn_server):
+    """Was: one 16 MB scene stalled /api/health 2.4 s, six 15 s. A hang guard only (2 s for six 4 MB
+    bodies); bench/hostile.py measures the latency with six maximum bodies."""
+    s = spawn_server(
+        max_body_bytes=16 << 20, max_spheres=1000, queue_size=8, body_slots_per_client=0
+    )  # all six come from this one address
+    with httpx.Client(base_url=s.url, timeout=60) as c:
+        sid = new_session(c)["id"]
+    sphere = '{"center": [1.5, -2.25, 3.125], "radius": 0.5, "material": 0}'
+    body = ('{"materials": [{}], "spheres": [' + ",".join([sphere] * 65_000) + "]}").encode()  # 4 MB
+    answers: list[int] = []
+
+    def put() -> None:
+        with httpx.Client(base_url=s.url, timeout=120) as c:
+            answers.append(
+                c.put(
+                    f"/api/sessions/{sid}/scene", content=body, headers={"content-type": "application/json"}
+                ).status_code
+            )
+
+    senders = [threading.Thread(target=put) for _ in range(6)]
+    waits = []
+    with httpx.Client(base_url=s.url, timeout=30) as c:
+        for t in senders:
+            t.start()
+        while any(t.is_alive() for t in senders):
+            t0 = time.perf_counter()
+            assert c.get("/api/health").status_code == 200
+            waits.append(time.perf_counter() - t0)
+            time.sleep(0.02)
+    for t in senders:
+        t.join()
+    assert answers == [422] * 6  # parsed and validated; then over max_spheres (1,000)
+    assert len(waits) >= 3 and max(waits) < 2.0, waits

@@ -27,11 +27,14 @@ with warnings.catch_warnings():  # as in conftest.py: the TestClient still speak
     warnings.simplefilter("ignore")
     from fastapi.testclient import TestClient
 
-from pocketray_server_support import SMALL, new_session
+from pathlib import Path
+
+from pocketray_server_support import SMALL, make_config, new_session, raw_json
 
 from renderer.scene import SceneError
 from server.api import errors
 from server.api.body import BodyParsers
+from server.app import create_app
 from server.faults import RenderTimeout, Superseded
 from server.sessions.ratelimit import RateLimited
 from server.sessions.store import StoreFull
@@ -90,11 +93,6 @@ HTTP_ONLY = {
     "no such route": "a WebSocket message has no route to miss",
     "body parsers busy": "messages are small and read by their connection, not by the pool for large bodies",
 }
-
-
-@pytest.fixture(scope="module")
-def sid(client) -> str:
-    return new_session(client)["id"]
 
 
 @pytest.fixture(scope="module")
@@ -206,3 +204,60 @@ def test_the_connection_stays_open_after_an_error(ready_client):
         meta = json.loads(ws.receive_text())
         assert meta["version"] == 1 and meta["media_type"] == "image/png"
         assert ws.receive_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def big_bodies(tmp_path_factory):
+    """An app that takes bodies of the default size (16 MiB) and the default sphere cap."""
+    from server.config import ServerConfig
+
+    tmp = tmp_path_factory.mktemp("big")
+    defaults = ServerConfig()
+    with TestClient(
+        create_app(
+            make_config(tmp, max_body_bytes=defaults.max_body_bytes, max_spheres=defaults.max_spheres, warmup=False)
+        )
+    ) as c:
+        yield c
+
+
+def test_a_body_of_150000_bad_spheres_gets_a_short_422(big_bodies):
+    """Was: a 72 MB 422 listing 450,000 errors (+840 MB resident)."""
+    from server.api.schemas import MAX_LISTED_ERRORS
+
+    bad = '{"center": [0, 0], "radius": -1, "material": -1}'  # three errors each
+    body = '{"scene": {"materials": [{}], "spheres": [' + ",".join([bad] * 150_000) + "]}}"
+    r = big_bodies.post("/api/sessions", **raw_json(body))
+    assert r.status_code == 422
+    assert len(r.content) < 16_000, len(r.content)
+    detail = r.json()["detail"]
+    assert len(detail) == MAX_LISTED_ERRORS + 1
+    assert [d["loc"][:4] for d in detail[:3]] == [["body", "scene", "spheres", 0]] * 3
+    assert detail[-1]["type"] == "too_many_errors" and "(450000 in all)" in detail[-1]["msg"], detail[-1]
+
+
+def test_a_long_error_list_anywhere_is_cut_to_the_first_errors_and_a_count(client):
+    from server.api.schemas import MAX_LISTED_ERRORS
+
+    body = {"materials": [{"color": [2, 2, 2], "ambient": -1, "ior": 0}] * 40}  # 5 errors × 40
+    r = client.post("/api/render", json={"scene": body})
+    detail = r.json()["detail"]
+    assert r.status_code == 422 and len(detail) == MAX_LISTED_ERRORS + 1
+    assert detail[-1] == {
+        "loc": ["body"],
+        "msg": f"body: {200 - MAX_LISTED_ERRORS} more errors not listed (200 in all)",
+        "type": "too_many_errors",
+    }
+
+
+def test_error_bodies_stay_small_and_carry_no_paths(client):
+    sid = new_session(client)["id"]
+    answers = [
+        client.post(f"/api/sessions/{sid}/gesture", **raw_json(b"[" * 5000)),
+        client.post(f"/api/sessions/{sid}/gesture", **raw_json(b"\xff\xfe")),
+        client.get("/api/sessions/no-such-session"),
+        client.put("/api/sessions/x/scene", **raw_json(b'{"materials": [{"a": 1, "a": 2}]}')),
+    ]
+    for r in answers:
+        assert 400 <= r.status_code < 500 and len(r.content) < 2_000, (r.status_code, len(r.content))
+        assert "Traceback" not in r.text and str(Path(__file__).parents[2]) not in r.text

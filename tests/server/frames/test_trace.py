@@ -10,6 +10,7 @@ import time
 import pytest
 from pocketray_server_support import SMALL, new_session
 
+from renderer.settings import RenderSettings
 from server.frames.pipeline import render_settings
 from server.frames.trace import FrameCancelled, GLWorker
 from server.sessions.service import owner
@@ -316,3 +317,14 @@ def split_multipart(r) -> list[dict]:
         }
         out.append({"headers": headers, "body": body[: int(headers["content-length"])]})
     return out
+
+
+def test_a_traced_frame_keeps_no_target_or_read_back_once_its_result_is_made(gl_renderer):
+    from renderer.scenarios import scenario
+
+    settings = RenderSettings(**{**SMALL, "mode": "normal", "format": "npy"})
+    frame = gl_renderer.begin(scenario(3, 64), settings)
+    frame.run()
+    assert frame.fbo is None
+    assert frame._centre is None and frame._grid is None  # was: the read-back, as large again as the result
+    assert frame.result().normal.shape == (SMALL["height"], SMALL["width"], 3)

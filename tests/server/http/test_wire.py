@@ -292,3 +292,110 @@ def test_a_websocket_frame_not_taken_is_abandoned_too(server, sid):
         assert reset and got < BIG_SIDE * BIG_SIDE * 12, (reset, got)
     finally:
         sock.close()
+
+
+@pytest.fixture(scope="module")
+def guarded(tmp_path_factory):
+    """One server with short wire limits for the tests below (each closes what it opened)."""
+    import signal
+
+    from pocketray_server_support import ServerProcess, server_env
+
+    tmp = tmp_path_factory.mktemp("guarded")
+    env = server_env(
+        tmp / "sessions.sqlite3", request_idle_timeout_s=1.0, header_timeout_s=2.0, max_connections_per_client=6
+    )
+    proc = ServerProcess(env, tmp / "server.log").start()
+    try:
+        yield proc
+    finally:
+        proc.kill(signal.SIGTERM)
+
+
+def connect(server, timeout: float = 15.0) -> socket.socket:
+    sock = socket.create_connection(("127.0.0.1", server.port), timeout=timeout)
+    return sock
+
+
+def read_all(sock: socket.socket) -> bytes:
+    """Everything until the server closes (the socket timeout is the hang guard)."""
+    out = b""
+    while chunk := sock.recv(65536):
+        out += chunk
+    return out
+
+
+def test_a_stalled_body_is_answered_408_and_closed(guarded):
+    """Was: headers with Content-Length: 100000 and a few bytes held the connection forever."""
+    sock = connect(guarded)
+    sock.sendall(
+        b"PUT /api/sessions/x/scene HTTP/1.1\r\nHost: t\r\ncontent-type: application/json\r\n"
+        b'content-length: 100000\r\n\r\n{"materials"'
+    )
+    t0 = time.monotonic()
+    answer = read_all(sock)
+    assert answer.startswith(b"HTTP/1.1 408 "), answer[:200]
+    assert b"connection: close" in answer.lower() and b"POCKETRAY_REQUEST_IDLE_TIMEOUT_S" in answer
+    assert time.monotonic() - t0 < 10  # hang guard (the setting is 1 s)
+    sock.close()
+
+
+def test_headers_that_never_complete_are_answered_408(guarded):
+    """A trickle of header bytes, each within the idle limit, runs into the header deadline."""
+    sock = connect(guarded)
+    sock.sendall(b"GET /api/health HTTP/1.1\r\nHost: t\r\n")
+    got = b""
+    sock.settimeout(0.5)
+    deadline = time.monotonic() + 15
+    while time.monotonic() < deadline:
+        try:
+            sock.sendall(b"x")  # every 0.5 s: never idle for 1 s
+            chunk = sock.recv(65536)
+            if not chunk:
+                break
+            got += chunk
+        except TimeoutError:
+            continue
+        except (BrokenPipeError, ConnectionResetError):
+            break
+    assert got.startswith(b"HTTP/1.1 408 "), got[:200]
+    sock.close()
+    silent = connect(guarded)  # a connection that sends nothing at all
+    assert read_all(silent).startswith(b"HTTP/1.1 408 ")
+    silent.close()
+
+
+def test_slow_but_steady_requests_and_kept_alive_connections_are_not_cut(guarded):
+    with httpx.Client(base_url=guarded.url, timeout=30) as c:
+        sid = new_session(c)["id"]
+        time.sleep(1.5)  # idle between requests: the keep-alive timeout's, not ours
+        assert c.get(f"/api/sessions/{sid}").status_code == 200
+    body = json.dumps({"type": "pinch", "scale": 2}).encode()
+    sock = connect(guarded)
+    sock.sendall(
+        f"POST /api/sessions/{sid}/gesture HTTP/1.1\r\nHost: t\r\ncontent-type: application/json\r\n"
+        f"content-length: {len(body)}\r\n\r\n".encode()
+    )
+    for i in range(0, len(body), 8):  # 8 bytes every 0.4 s: slower than a second in all
+        sock.sendall(body[i : i + 8])
+        time.sleep(0.4)
+    answer = sock.recv(65536)
+    assert answer.startswith(b"HTTP/1.1 200 "), answer[:300]
+    sock.close()
+
+
+def test_connections_per_client_address_are_bounded(guarded):
+    """Was: 1,100 stalled connections exhausted the descriptors and locked every client out."""
+    held = [connect(guarded) for _ in range(6)]
+    extra = connect(guarded)
+    answer = read_all(extra)
+    assert answer.startswith(b"HTTP/1.1 429 ") and b"POCKETRAY_MAX_CONNECTIONS_PER_CLIENT" in answer, answer[:300]
+    for sock in held:
+        sock.close()
+    deadline = time.monotonic() + 10
+    while True:  # the server notices the closes: a client gets in again
+        r = httpx.get(guarded.url + "/api/health", timeout=5)
+        if r.status_code == 200 or time.monotonic() > deadline:
+            break
+        time.sleep(0.1)
+    assert r.status_code == 200

@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 
-from renderer.animation import AnimatedScene, Deformable, RigidGroup
+from renderer.animation import AnimatedScene, Deformable, RigidGroup, museum, pose
 from renderer.meshes import teapot
 from renderer.scenarios import mesh_scene
 from renderer.scene import Camera
@@ -54,3 +54,13 @@ def test_the_cache_weighs_triangles():
     for i in range(4):
         cache.put((f"s{i}", "r"), scene)
     assert cache.get(("s0", "r")) is None and cache.get(("s3", "r")) is scene
+
+
+def test_sources_keep_the_motions():
+    """What the store keeps (and a restarted process reads) is the same animation."""
+    anim = museum(20, "mixed", seed=4)
+    again = load_source(scene_source(anim), anim.camera)
+    assert again.motions == anim.motions
+    np.testing.assert_array_equal(again.scene.sphere_centers, anim.scene.sphere_centers)
+    t = 0.8
+    np.testing.assert_array_equal(pose(again, t).scene.sphere_centers, pose(anim, t).scene.sphere_centers)

@@ -1,4 +1,5 @@
-"""The memory of frames in flight (docs/API.md, "Memory budget").
+"""The frame pipeline (server/frames/pipeline.py): the memory of frames in flight (docs/API.md,
+"Memory budget").
 
 Was: eight concurrent 4096 × 4096 ``normal`` ``npy`` frames peaked at 5.49 GB resident, for a
 budget of 3 GiB: every admitted frame held its render target at once (two RGBA32F attachments,
@@ -13,22 +14,20 @@ from __future__ import annotations
 import io
 import threading
 import time
-import tracemalloc
 import warnings
 
 import numpy as np
 import pytest
 
-with warnings.catch_warnings():
+with warnings.catch_warnings():  # as in conftest.py: the TestClient still speaks httpx
     warnings.simplefilter("ignore")
     from fastapi.testclient import TestClient
 
-from pocketray_server_support import SMALL, make_config, new_session, wait_ready
+from pocketray_server_support import make_config, new_session, wait_ready
 
-from renderer.result import RenderResult, traced_nbytes
+from renderer.result import traced_nbytes
 from renderer.settings import RenderSettings
 from server.app import create_app
-from server.frames.encode import encode
 from server.frames.pipeline import frame_nbytes
 
 pytestmark = pytest.mark.gl  # the app's lifespan starts the GL worker
@@ -123,35 +122,6 @@ def test_the_npy_body_is_the_renderers_array(app, monkeypatch, mode):
     assert got.dtype == want.dtype and got.shape == want.shape and got.tobytes() == want.tobytes()
 
 
-def strided_result(side: int) -> RenderResult:
-    """A normal result whose array is a strided view (as a read-back's rows turned over are)."""
-    rng = np.random.default_rng(1)
-    hit = rng.random((side, side, 4), dtype=np.float32)
-    return RenderResult(
-        image=np.zeros((side, side, 3), np.float32),
-        depth=hit[..., 3],
-        primid=np.zeros((side, side), np.int32),
-        normal=hit[::-1][..., :3],
-        mode="normal",
-    )
-
-
-def test_npy_encoding_copies_the_array_once():
-    """Was: a contiguous copy of the array, then np.save's copy of it, then the buffer: the
-    encoder's peak was 2-3 times the body; now the body and a 1 MiB chunk."""
-    result = strided_result(1024)
-    tracemalloc.start()
-    try:
-        body, _ = encode(result, "npy", 85)
-        _, peak = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
-    assert peak < 1.2 * len(body), (peak, len(body))
-    want = io.BytesIO()
-    np.save(want, np.ascontiguousarray(result.normal), allow_pickle=False)
-    assert body == want.getvalue()
-
-
 def test_the_estimate_of_a_frame_counts_its_target_read_back_and_body():
     from renderer.gl.targets import BYTES_PER_PIXEL, BYTES_PER_PIXEL_RGBA8, TargetPool
     from renderer.result import TARGET_BYTES_PER_PIXEL, TARGET_BYTES_PER_PIXEL_RGBA8
@@ -164,14 +134,3 @@ def test_the_estimate_of_a_frame_counts_its_target_read_back_and_body():
     png = RenderSettings(width=4096, height=4096, format="png", samples_per_pixel=1)
     assert frame_nbytes(png) < frame_nbytes(big) / 3
     assert traced_nbytes(64, 64, 4) > traced_nbytes(64, 64, 1)  # the sub-pixel grid
-
-
-def test_a_traced_frame_keeps_no_target_or_read_back_once_its_result_is_made(gl_renderer):
-    from renderer.scenarios import scenario
-
-    settings = RenderSettings(**{**SMALL, "mode": "normal", "format": "npy"})
-    frame = gl_renderer.begin(scenario(3, 64), settings)
-    frame.run()
-    assert frame.fbo is None
-    assert frame._centre is None and frame._grid is None  # was: the read-back, as large again as the result
-    assert frame.result().normal.shape == (SMALL["height"], SMALL["width"], 3)

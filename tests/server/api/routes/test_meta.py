@@ -1,0 +1,70 @@
+"""The liveness, readiness and info routes (server/api/routes/meta.py)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from pocketray_server_support import MAX_TRIANGLES
+
+pytestmark = pytest.mark.gl  # every test here runs an app, whose lifespan starts the GL worker
+
+
+def test_health_ready_info(ready_client):
+    c = ready_client
+    assert c.get("/api/health").json() == {"status": "ok"}
+    r = c.get("/api/ready")
+    assert r.status_code == 200
+    body = r.json()
+    assert body["ready"] is True and body["gl_renderer"] and body["gl_version"]
+    info = c.get("/api/info").json()
+    assert "bih" in info["methods"] and info["limits"]["max_work"] == 96 * 128 * 2
+    # What the client's form needs to show only the settings that apply (issue #19).
+    ms = info["method_settings"]
+    assert set(ms) == set(info["methods"])
+    assert ms["bih"]["settings"] == ["max_prims", "max_tree_depth"] and ms["bih"]["device"] is True
+    assert ms["kdtree"]["settings"] == ["max_tree_depth"]  # the SAH decides the leaves
+    assert ms["bvh"]["settings"] == ["max_prims", "max_tree_depth", "update"]
+    assert ms["bruteforce"]["settings"] == [] and ms["rayengine"]["settings"] == []
+    assert ms["hre"]["settings"] == ["tile_size"] and ms["hre"]["device"] is False and "cones" in ms["hre"]["modes"]
+    assert ms["auto"]["auto"] is True and ms["auto"]["settings"] == ms["bih"]["settings"]
+    assert ms["bruteforce"]["tests_every_sphere"] and not ms["bih"]["tests_every_sphere"]
+    assert info["samples_per_pixel"] == [1, 4, 9, 16] and info["render_timeout_s"] > 0
+    assert info["museum_room_spheres"] == 576
+
+
+def test_info_gives_the_legend_the_colors_of_the_modes(client):
+    """The client's legend shows the colours of renderer.modes, which the shader is assembled with."""
+    from renderer.modes import HEAT_SCALE, RECURSION_COLOR_NAMES, RECURSION_COLORS
+
+    info = client.get("/api/info").json()
+    assert [c["rgb"] for c in info["recursion_colors"]] == RECURSION_COLORS.tolist()
+    assert [c["name"] for c in info["recursion_colors"]] == list(RECURSION_COLOR_NAMES)
+    assert info["recursion_colors"][0] == {"rgb": [0.0, 0.0, 0.0], "name": "black"}  # level 0: a miss
+    assert info["heat_scale"] == HEAT_SCALE
+
+
+def test_info_hands_out_the_measured_profiles(client):
+    from renderer.profiles import INTERACTIVE, STILL
+    from renderer.settings import RenderSettings
+
+    info = client.get("/api/info").json()
+    assert info["profiles"] == {"interactive": INTERACTIVE, "still": STILL}
+    for _name, profile in info["profiles"].items():  # each is a valid set of render settings
+        RenderSettings(**{k: v for k, v in profile.items() if k != "resolution_scale"})
+
+
+def test_info_states_the_triangle_cap_and_what_each_method_traces(api):
+    info = api.get("/api/info").json()
+    assert info["limits"]["max_triangles"] == MAX_TRIANGLES
+    assert info["method_settings"]["rayengine"]["primitives"] == ["spheres", "planes"]
+    assert "triangles" in info["method_settings"]["bih"]["primitives"]
+    assert {m for m, x in info["method_settings"].items() if x["meshes_on_gpu"]} == {
+        "bih",
+        "bruteforce",
+        "bvh",
+        "kdtree",
+        "twolevel",
+        "auto",
+    }
+    assert math.isfinite(api.get("/api/info").json()["limits"]["max_frame_cost"])
