@@ -184,7 +184,7 @@ def render(data: dict) -> str:
 a temporary SQLite file; load average {a.get("loadavg")}–{a.get("loadavg_end")} during the "after"
 run, {b.get("loadavg", "—")}–{b.get("loadavg_end", "—")} during the "before" run, on a machine shared
 with other work). Resident memory is the server process's (`/proc/PID/status`: VmRSS after, VmHWM
-the peak); the idle process is ≈ 170 MiB. `tests/server/test_hostile.py` reproduces every defect.
+the peak); the idle process is ≈ 170 MiB. A test under `tests/server/` reproduces every defect.
 
 {table}
 

@@ -1,7 +1,7 @@
 """The render modes' colours are written once (renderer/modes.py): the tracer is assembled
 with them, and its other false-colour numbers are the same as the Python ones.
 
-(The legend's side is tests/server/test_api.py, ``/api/info``, and tests/browser/test_layout.py.)
+(The legend's side is tests/server/api/routes/test_meta.py, ``/api/info``, and tests/browser/test_layout.py.)
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The two measured render profiles (renderer.profiles): valid render settings, interactive
 cheaper than still. (That ``/api/info`` hands them out and new sessions start at ``STILL`` is
-tested in ``tests/server/test_api.py``.)"""
+tested in ``tests/server/api/routes/test_meta.py``.)"""
 
 from __future__ import annotations
 

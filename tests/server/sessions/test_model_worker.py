@@ -38,7 +38,9 @@ def vm_kib(pid: int | str, key: str) -> int:
 
 
 def test_a_parse_past_its_deadline_is_stopped_and_refused_and_the_next_file_is_parsed(large):
-    pool = ModelWorkers(1, 0.05, 2 << 30)
+    # 0.2 s: the 80-triangle file parses in a few ms even on a loaded machine, the 400,000-triangle
+    # one takes ~0.35 s on a quiet one
+    pool = ModelWorkers(1, 0.2, 2 << 30)
     try:
         assert pool.load(SMALL, "obj", 1 << 20, 1 << 20).n_triangles == 80  # started and warm
         (first,) = pool._all
@@ -46,7 +48,7 @@ def test_a_parse_past_its_deadline_is_stopped_and_refused_and_the_next_file_is_p
         with pytest.raises(SceneError) as e:
             pool.load(large, "ply", 1 << 20, 1 << 20)
         assert time.perf_counter() - t0 < 2.0
-        assert e.value.field == "file" and "longer than 0.05 s (POCKETRAY_MODEL_TIMEOUT_S)" in e.value.message
+        assert e.value.field == "file" and "longer than 0.2 s (POCKETRAY_MODEL_TIMEOUT_S)" in e.value.message
         assert first.proc.poll() is not None  # killed, not left running
         (second,) = pool._all
         assert second is not first
