@@ -358,3 +358,15 @@ def test_gl_free_modules_import_without_moderngl():
         f"{k}:\n{v}" for k, v in out["failures"].items()
     )
     assert out["gl_loaded"] == []
+
+
+def test_test_modules_outside_packages_have_unique_names():
+    """pytest imports a test file outside a package by its base name: two such files of one name are
+    one module, and which one a run collects depends on the order its worker meets them."""
+    tests = Path(__file__).resolve().parent
+    seen: dict[str, list[str]] = {}
+    for path in tests.rglob("test_*.py"):
+        if (path.parent / "__init__.py").exists():
+            continue
+        seen.setdefault(path.name, []).append(str(path.relative_to(tests)))
+    assert {name: where for name, where in seen.items() if len(where) > 1} == {}

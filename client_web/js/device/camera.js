@@ -1,7 +1,7 @@
 // The Controller's camera math (server/sessions/controller.py), ported for device mode: the local
 // camera moves at display rate and must end where the server's Model does. Float64 and
 // the same order of operations as the Python, so both agree to rounding
-// (tests/browser/test_device.py compares them).
+// (tests/browser/test_device_mode.py compares them).
 
 export const MIN_TARGET_DISTANCE = 1e-3;   // POCKETRAY_MIN_TARGET_DISTANCE's default
 export const MAX_COORDINATE = 1e7;         // renderer.scene.MAX_COORDINATE
