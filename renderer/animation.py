@@ -418,7 +418,7 @@ def pose(anim: AnimatedScene, t: float) -> PosedFrame:
         alive[sl] = m.alive(t, ids)
     keep = np.flatnonzero(alive)
     scene = Scene(base.camera, base.lights, base.materials, c[keep], base.sphere_radii[keep],
-                  base.sphere_materials[keep], base.planes, tuple(meshes))
+                  base.sphere_materials[keep], base.planes, tuple(meshes), base.environment)
     tri_moving = np.repeat(anim.moving_meshes, [mesh.n_triangles for mesh in base.meshes]) if base.meshes else \
         np.zeros(0, bool)
     moving = np.concatenate([anim.moving[keep], tri_moving])

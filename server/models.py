@@ -23,8 +23,8 @@ from pydantic.fields import FieldInfo
 from pydantic_core import InitErrorDetails, PydanticCustomError, PydanticKnownError
 
 from renderer.animation import MUSEUM_KINDS
-from renderer.limits import (MAX_ABSENT, MAX_ANGULAR_VELOCITY, MAX_COORDINATE, MAX_DEVICE_TEXTURE_SIZE, MAX_IOR,
-                             MAX_LIFETIME, MAX_LIGHT_INTENSITY, MAX_LIGHTS, MAX_MATERIALS, MAX_MESH_VERTICES,
+from renderer.limits import (MAX_ABSENT, MAX_ANGULAR_VELOCITY, MAX_COORDINATE, MAX_DEVICE_TEXTURE_SIZE, MAX_EMISSION,
+                             MAX_IOR, MAX_LIFETIME, MAX_LIGHT_INTENSITY, MAX_LIGHTS, MAX_MATERIALS, MAX_MESH_VERTICES,
                              MAX_MESHES, MAX_MOTION_SEED, MAX_MOTIONS, MAX_MUSEUM_MOVING, MAX_PERIOD, MAX_PLANES,
                              MAX_SHININESS, MAX_SPEED, MAX_SPHERES, MAX_TRIANGLES, MAX_WAVELENGTH)
 from renderer.mesh_io import MODEL_FORMATS
@@ -87,6 +87,8 @@ Rgb = Annotated[list[Unit], Field(min_length=3, max_length=3, description="RGB, 
 Intensity = Annotated[list[Annotated[float, Field(ge=0.0, le=MAX_LIGHT_INTENSITY)]],
                       Field(min_length=3, max_length=3,
                             description=f"RGB intensity, each 0 … {MAX_LIGHT_INTENSITY:g}")]
+Radiance = Annotated[list[Annotated[float, Field(ge=0.0, le=MAX_EMISSION)]],
+                     Field(min_length=3, max_length=3, description=f"linear RGB radiance, each 0 … {MAX_EMISSION:g}")]
 MaterialIndex = Annotated[int, Field(ge=0, lt=MAX_MATERIALS, description="index into materials"), Integral]
 
 
@@ -116,6 +118,14 @@ class MaterialModel(Strict):
     reflective: Unit = 0.3
     transmissive: Unit = 0.0
     ior: float = Field(1.0, gt=0.0, le=MAX_IOR, description="refraction index inside / outside")
+    emission: Radiance = Field(default_factory=lambda: [0.0, 0.0, 0.0],
+                               description="radiance emitted on the side the normal faces (an area light)")
+    roughness: Unit = Field(0.0, description="GGX α of the path integrator's reflection lobe (0: a mirror)")
+
+
+class EnvironmentModel(Strict):
+    """What a ray that meets nothing sees: a constant radiance (black: none)."""
+    color: Radiance = Field(default_factory=lambda: [0.0, 0.0, 0.0])
 
 
 class SphereModel(Strict):
@@ -224,6 +234,7 @@ class SceneModel(Strict):
     meshes: list[MeshModel] = Field(default_factory=list, max_length=MAX_MESHES,
                                     description=f"triangle meshes; at most {MAX_TRIANGLES} triangles in all")
     motions: list[Motion] = Field(default_factory=list, max_length=MAX_MOTIONS)
+    environment: EnvironmentModel = Field(default_factory=EnvironmentModel)
 
     @field_validator("spheres", mode="wrap")
     @classmethod

@@ -454,7 +454,7 @@ class BoundingIntervalHierarchy:
     """Method ``bih``: the thesis's BIH (listings 3.3–3.5), rebuilt per request and traced
     by ``shaders/method_bih.glsl``."""
     name = "bih"
-    capabilities = Capabilities(shader="method_bih.glsl", settings=("max_prims", "max_tree_depth"),
+    capabilities = Capabilities(shader="method_bih.glsl", settings=("max_prims", "max_tree_depth", "integrator"),
                                 meshes_on_gpu=True)
     bindings = L.BINDINGS
     glsl_defines = staticmethod(L.glsl_defines)

@@ -704,7 +704,8 @@ class BVHMethod:
     """
     name = "bvh"
     capabilities = Capabilities(shader="method_bvh.glsl", update_schemes=UPDATE_SCHEMES,
-                                settings=("max_prims", "max_tree_depth", "update"), meshes_on_gpu=True)
+                                settings=("max_prims", "max_tree_depth", "update", "integrator"),
+                                meshes_on_gpu=True)
     bindings = L.BINDINGS
     glsl_defines = staticmethod(L.glsl_defines)
     CACHE_SLOTS = 8

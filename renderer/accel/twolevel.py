@@ -36,7 +36,8 @@ class TwoLevelMethod:
     """
     name = "twolevel"
     capabilities = Capabilities(shader="method_twolevel.glsl", update_schemes=UPDATE_SCHEMES,
-                                settings=("max_prims", "max_tree_depth", "update"), meshes_on_gpu=True)
+                                settings=("max_prims", "max_tree_depth", "update", "integrator"),
+                                meshes_on_gpu=True)
     # Both trees' bindings; the triangles' records, which both list, once.
     bindings = (*kdtree_layout.BINDINGS,
                 *(b for b in bvh_layout.BINDINGS if b not in kdtree_layout.TRIANGLE_BINDINGS), KD_COUNT, BVH_COUNT)
