@@ -96,12 +96,20 @@ def traversal_work(method: str, stats: dict[str, Any], n_spheres: int) -> tuple[
                  for k in ("sah_nodes", "sah_tests", "sah_big_tests"))
 
 
+PATH_MEAN_SEGMENTS = 3.0
+
+
 def ray_tree(scene: Scene, settings, decay: float = DEFAULT_MODEL.level_decay) -> tuple[int, float]:
     """(levels, radiance rays per pixel) of the ray tree the settings trace in this scene."""
     if settings.mode not in RAY_TREE_MODES:
         return 1, 1.0
-    features = scene_features(scene) if settings.specialize else GENERIC
+    features = (scene_features(scene) if settings.specialize else GENERIC).with_integrator(settings.integrator,
+                                                                                           settings.mode)
     levels = features.recursion_depth(settings.max_recursion_depth)
+    if features.path:
+        # Not fitted yet: a path's expected segments taken as min(depth, PATH_MEAN_SEGMENTS) (Russian
+        # roulette ends most paths within a few bounces), each sample one path.
+        return levels, settings.samples_per_pixel * min(float(levels), PATH_MEAN_SEGMENTS)
     used = (set(np.unique(scene.sphere_materials).tolist()) | {p.material for p in scene.planes}
             | {m.material for m in scene.meshes})
     mats = [scene.materials[i] for i in used] or list(scene.materials)

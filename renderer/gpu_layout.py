@@ -162,7 +162,7 @@ class Binding:
 
 
 # Groups of bindings a variant may not read; each has a READS_<GROUP> define in the shader.
-GROUPS = ("materials", "lights", "min_weight", "target_distance")
+GROUPS = ("materials", "lights", "min_weight", "target_distance", "emission", "environment", "path")
 # Groups whose READS_<GROUP> define only variants with triangles get (renderer/shader_source.py),
 # so no sphere variant's text changes for them: the smooth triangles' vertex normals.
 SILENT_GROUPS = ("shading_normals",)
@@ -195,6 +195,11 @@ class Variant:
         """Whether a hit can spawn a reflected or transmitted ray."""
         return self.traced_depth > 1 and not {"NO_REFLECTION", "NO_TRANSMISSION"} <= set(self.features)
 
+    @property
+    def path(self) -> bool:
+        """Whether the variant traces paths (the ``integrator`` setting ``path``; colour frames only)."""
+        return self.mode == "color" and "PATH" in self.features
+
     def reads(self, group: str) -> bool:
         """Whether the variant's shader reads the bindings of ``group``."""
         if group == "always":
@@ -207,6 +212,14 @@ class Variant:
             return self.spawns
         if group == "target_distance":
             return self.mode == "depth"
+        # Emitting materials, a non-black environment and the path integrator: only variants of scenes
+        # (frames) that have them read these, so no other variant's text changes for them.
+        if group == "emission":
+            return self.mode == "color" and "EMISSION" in self.features
+        if group == "environment":
+            return self.mode == "color" and "ENVIRONMENT" in self.features
+        if group == "path":
+            return self.path
         if group == "shading_normals":   # a hit's shading normal: the hit target, or the image
             if not self.image_only:
                 return True
@@ -244,6 +257,14 @@ PLANE_MAT = Binding("u_plane_mat", "highp int", length="MAX_PLANES", group="mate
 NUM_LIGHTS = Binding("u_num_lights", "highp int", group="lights", unless="LIGHTS_")
 LIGHT_POS = Binding("u_light_pos", "highp vec3", length="MAX_LIGHTS", group="lights")
 LIGHT_COLOR = Binding("u_light_color", "highp vec3", length="MAX_LIGHTS", group="lights")
+EMISSION = Binding("u_emission", "highp sampler2D", "(emitted radiance rgb, 0) per material", group="emission")
+ENVIRONMENT = Binding("u_environment", "highp vec3", "radiance a ray that meets nothing sees", group="environment")
+# The path integrator: the samples this pass traces of each pixel, and the point lights' scale.
+SAMPLE_START = Binding("u_sample_start", "highp int", "index of this pass's first sample of each pixel", group="path")
+SAMPLE_COUNT = Binding("u_sample_count", "highp int", "samples of each pixel this pass traces (≥ 1)", group="path")
+LIGHT_SCALE = Binding("u_light_scale", "highp float", "π·d², d = |target − position|: a point light's radiant "
+                      "intensity per unit of its color (docs/SHADING.md)", group="path")
+PATH_BINDINGS = (SAMPLE_START, SAMPLE_COUNT)   # set per pass
 # The triangles (only with the TRIANGLES data format): listed among the bindings of each method
 # that traces them, packed by its packer with pack_triangles, so that they may be uniform blocks.
 TRIANGLES = Binding("u_triangles", doc="TRIANGLE_TEXELS records per triangle: corners, material", records=True,
@@ -256,7 +277,7 @@ NUM_TRIANGLES = Binding("u_num_triangles", "highp int", needs="TRIANGLES", trave
 TRIANGLE_BINDINGS = (TRIANGLES, TRI_NORMALS, TRI_BASE, NUM_TRIANGLES)
 # Everything pack_primitives packs (the tracer's and the ray engines' scene data).
 SCENE_BINDINGS = (SPHERES, SPHERE_MAT, MATERIALS, MATERIAL_VECS, SPHERE_RADIUS, NUM_SPHERES, NUM_PLANES,
-                  PLANE_POINT, PLANE_NORMAL, PLANE_MAT, NUM_LIGHTS, LIGHT_POS, LIGHT_COLOR)
+                  PLANE_POINT, PLANE_NORMAL, PLANE_MAT, NUM_LIGHTS, LIGHT_POS, LIGHT_COLOR, EMISSION, ENVIRONMENT)
 
 CAM_POS = Binding("u_cam_pos", "highp vec3")
 CAM_RIGHT = Binding("u_cam_right", "highp vec3")
@@ -274,7 +295,7 @@ MIN_WEIGHT = Binding("u_min_weight", "highp float", "ε: secondary rays of small
 PASS_SCALE = Binding("u_pass_scale", "highp float", "sub-pixels per pixel side of this pass's grid")
 PASS_OFFSET = Binding("u_pass_offset", "highp vec2", "(sx, sy) + 0.5: the sub-pixel this pass traces")
 PASS_BINDINGS = (PASS_SCALE, PASS_OFFSET)
-TRACER_BINDINGS = (*SCENE_BINDINGS, *CAMERA_BINDINGS, *PASS_BINDINGS, MIN_WEIGHT)
+TRACER_BINDINGS = (*SCENE_BINDINGS, *CAMERA_BINDINGS, *PASS_BINDINGS, MIN_WEIGHT, LIGHT_SCALE, *PATH_BINDINGS)
 # The ray engines draw planes as instances after the spheres (the instance count carries the
 # number of primitives), so they never read u_num_planes; their depth image is made on the CPU.
 # Their materials are the texture, their spheres the per-id textures.
@@ -507,12 +528,16 @@ def pack_primitives(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> Pac
     for i, m in enumerate(scene.materials):
         mats[3 * i] = (*m.color, m.ambient)
         mats[3 * i + 1] = (m.diffuse, m.specular, m.shininess, m.reflective)
-        mats[3 * i + 2] = (m.transmissive, m.ior, 0.0, 0.0)
+        mats[3 * i + 2] = (m.transmissive, m.ior, m.roughness, 0.0)   # (the Whitted shader reads x, y)
     textures = {
         SPHERES.name: wrap_rows(spheres, max_width),
         SPHERE_MAT.name: wrap_rows(scene.sphere_materials.astype(np.uint32), max_width),
         MATERIALS.name: wrap_rows(mats, max_width),
     }
+    # Only a scene with them packs its emission and environment: every other scene's data stay as before.
+    if any(m.emits for m in scene.materials):
+        textures[EMISSION.name] = wrap_rows(np.array([(*m.emission, 0.0) for m in scene.materials], np.float32),
+                                            max_width)
     planes = scene.planes
     lights = scene.lights
     vecs = np.zeros((MATERIAL_TEXELS * MAX_UNIFORM_MATERIALS, 4), dtype=np.float32)
@@ -530,7 +555,23 @@ def pack_primitives(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> Pac
         LIGHT_POS.name: _fixed([l.position for l in lights], MAX_LIGHTS, (0.0, 0.0, 0.0)),
         LIGHT_COLOR.name: _fixed([l.color for l in lights], MAX_LIGHTS, (0.0, 0.0, 0.0)),
     }
+    if any(scene.environment):
+        uniforms[ENVIRONMENT.name] = tuple(float(x) for x in scene.environment)
     return PackedScene(textures, uniforms)
+
+
+def light_scale(scene: Scene) -> float:
+    """A point light's radiant intensity per unit of its ``color`` in the path integrator: π·d²
+    with d the camera's distance to its target. A Lambertian surface of albedo ρ facing the light
+    at distance d then has radiance ρ·color, what Whitted's diffuse term gives it at any distance:
+    a thesis scene keeps its exposure when the integrator is switched (docs/SHADING.md)."""
+    d = float(np.linalg.norm(np.subtract(scene.camera.target, scene.camera.position)))
+    return math.pi * d * d
+
+
+def path_uniforms(start: int, count: int) -> dict[str, object]:
+    """The path integrator's pass uniforms: samples ``start … start + count − 1`` of every pixel."""
+    return {SAMPLE_START.name: int(start), SAMPLE_COUNT.name: int(count)}
 
 
 def _fixed(items: list, length: int, filler) -> list:

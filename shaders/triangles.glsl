@@ -130,6 +130,9 @@ void triangle_surface(vec3 d, Hit h, inout Surface s) {
 //@SECTION entering
                 entering = dot(k.d, s.ng) < 0.0;   // enters by the geometric normal, bends about n
 
+//@SECTION path_ng
+            ng = s.ng;   // emission and the side a path meets: by the geometric normal
+
 //@SECTION bih_box
     // The tree holds spheres and triangles (at least one triangle): u_num_spheres may be 0.
     if (!slab_interval(q.o, q.d, u_box_min, u_box_max, t0, t1) || !(t0 <= t1)) return;

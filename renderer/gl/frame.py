@@ -48,6 +48,7 @@ import numpy as np
 from .. import gpu_layout
 from ..gpu_layout import PackedScene, Variant
 from ..methods import PreparedMethod
+from ..limits import PATH_SAMPLES_PER_PASS
 from ..modes import AVERAGED_MODES
 from ..result import RenderResult
 from ..scene import Scene
@@ -61,19 +62,24 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class Pass:
-    """One pass: the pixel centres (``sub`` None) or one sub-pixel of a ``scale``² grid."""
+    """One pass: the pixel centres (``sub`` None) or one sub-pixel of a ``scale``² grid; of the
+    path integrator, ``samples`` = (first, count): those samples of every pixel, summed."""
     scale: int
     sub: tuple[int, int] | None
+    samples: tuple[int, int] | None = None
 
     @property
     def name(self) -> str:
+        if self.samples is not None:
+            return f"samples {self.samples[0]}…{self.samples[0] + self.samples[1] - 1}"
         return "centre" if self.sub is None else f"sample {self.sub[0]},{self.sub[1]}"
 
 
 def image_only(settings: "RenderSettings") -> bool:
     """Whether a frame needs only its 8-bit image: png or jpeg at one sample per pixel (a
     supersampled frame keeps float sub-pixels, so its box filter is the same)."""
-    return settings.format in ("png", "jpeg") and settings.samples_per_pixel == 1
+    return (settings.format in ("png", "jpeg") and settings.samples_per_pixel == 1
+            and not (settings.integrator == "path" and settings.mode == "color"))   # radiance, tone-mapped later
 
 
 class ImageOnlyResult(RenderResult):
@@ -108,6 +114,14 @@ BACKGROUND_MODES = ("depth", "primid", "normal", "color", "recursion")
 PRIMARY_MODES = ("depth", "primid", "normal")
 
 
+def plan_path_passes(samples: int, per_pass: int) -> list[Pass]:
+    """The path integrator's passes: ``samples`` per pixel, at most ``per_pass`` in each. A pixel's
+    sample i is the same path in whichever pass traces it (its random numbers depend on the pixel
+    and i alone), so the frame's sum is the same however it is cut (up to float rounding)."""
+    per_pass = max(1, int(per_pass))
+    return [Pass(1, None, (s, min(per_pass, samples - s))) for s in range(0, samples, per_pass)]
+
+
 def plan_passes(mode: str, k: int) -> list[Pass]:
     """The passes of a frame of ``mode`` at k × k samples per pixel (sy from the bottom)."""
     passes = [Pass(1, None)]
@@ -131,7 +145,8 @@ class TracerFrame:
 
     def __init__(self, renderer, scene: Scene, settings: "RenderSettings", variant: Variant,
                  prepared: PreparedMethod, stats: dict, *, band_rows: int | None = None, one_shot: bool = False,
-                 t_start: float | None = None, slice_ms: float | None = None):
+                 t_start: float | None = None, slice_ms: float | None = None,
+                 samples_per_pass: int = PATH_SAMPLES_PER_PASS):
         self.renderer, self.ctx = renderer, renderer.ctx
         self.scene, self.settings, self.variant, self.prepared = scene, settings, variant, prepared
         self.stats = stats
@@ -139,7 +154,12 @@ class TracerFrame:
         self.k = settings.supersampling
         self.one_shot = one_shot and self.k > 1
         self.width, self.height = settings.width, settings.height
-        self.passes = [Pass(self.k, None)] if self.one_shot else plan_passes(settings.mode, self.k)
+        self.path = variant.path
+        if self.path:
+            self.passes = plan_path_passes(settings.samples_per_pixel, samples_per_pass)
+        else:
+            self.passes = [Pass(self.k, None)] if self.one_shot else plan_passes(settings.mode, self.k)
+        self._sum: np.ndarray | None = None   # the path integrator's sum of samples (GL rows), float64
         self.band_rows = band_rows
         self.slice_ms = slice_ms
         self.prog, self.vao = renderer.program(variant.method, variant.mode, variant.depth, variant.features,
@@ -147,7 +167,9 @@ class TracerFrame:
         # The pixels whose primary ray can meet no sphere (no primitive at all, when hits spawn
         # rays) are drawn by the background variant.
         self.regions: list[tuple[int, int, int, int, bool]] | None = None
-        if getattr(renderer, "background", False) and variant.mode in BACKGROUND_MODES and not self.one_shot:
+        # (Not for paths: their primary rays are spread over the pixel, and the environment lights every miss.)
+        if (getattr(renderer, "background", False) and variant.mode in BACKGROUND_MODES and not self.one_shot
+                and not self.path):
             self.regions = gpu_layout.frame_regions(scene, self.width, self.height,
                                                     planes=variant.mode not in PRIMARY_MODES)
             if self.regions is not None:
@@ -173,7 +195,8 @@ class TracerFrame:
         """Upload exactly what the variant declares (see :func:`check_bindings`) and take a target."""
         t0 = time.perf_counter()
         parts = [gpu_layout.pack_primitives(self.scene, self.renderer.max_texture_width), self.prepared.packed,
-                 PackedScene({}, {gpu_layout.MIN_WEIGHT.name: float(self.settings.min_weight)})]
+                 PackedScene({}, {gpu_layout.MIN_WEIGHT.name: float(self.settings.min_weight),
+                                  gpu_layout.LIGHT_SCALE.name: gpu_layout.light_scale(self.scene)})]
         tex, self.uniforms = check_bindings(self.variant, parts)
         blocks = {n: t for n, t in tex.items() if n in self.variant.blocks}
         self.units = upload_textures(self.ctx, PackedScene({n: t for n, t in tex.items() if n not in blocks}),
@@ -206,6 +229,8 @@ class TracerFrame:
             grid = (self.width * p.scale, self.height * p.scale)
             pass_terms = gpu_layout.pass_uniforms(p.scale, p.sub or (0, 0))
         camera = gpu_layout.camera_uniforms(self.scene.camera, *grid)
+        if p.samples is not None:
+            pass_terms = {**pass_terms, **gpu_layout.path_uniforms(*p.samples)}
         for name, value in {**self.uniforms, **camera, **pass_terms}.items():
             if name in prog:
                 set_uniform(prog[name], value)
@@ -292,7 +317,16 @@ class TracerFrame:
             self.timings["read"] += (time.perf_counter() - t0) * 1e3
             return
         img = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=0), np.float32).reshape(h, w, 4)
-        if p.sub is None:
+        if p.samples is not None:
+            # Sums of each pass's samples, added in float64: the frame's sum does not depend on
+            # how its samples are cut into passes beyond the float32 sums of the passes.
+            if self._sum is None:
+                self._sum = img[..., :3].astype(np.float64)
+                hit = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(h, w, 4)
+                self._centre = (img, hit)     # primid, normal and depth: the first sample's primary ray
+            else:
+                self._sum += img[..., :3]
+        elif p.sub is None:
             hit = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(h, w, 4)
             self._centre = (img, hit)
             if len(self.passes) > 1:
@@ -320,6 +354,9 @@ class TracerFrame:
         if self.one_shot:                        # the old way: ids from the middle sub-pixel
             color = img[..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
             img, hit = img[k // 2::k, k // 2::k], hit[k // 2::k, k // 2::k]
+        elif self._sum is not None:              # the mean of the path samples: a box filter over the pixel
+            color = (self._sum[::-1] / self.settings.samples_per_pixel).astype(np.float32)
+            self._sum = None
         elif self._grid is not None:             # the box filter over the sub-pixel passes
             color = self._grid[::-1][..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
             self._grid = None
@@ -389,7 +426,7 @@ def check_bindings(variant: Variant, parts: list[PackedScene]) -> tuple[dict, di
     uniforms are set per pass.)
     """
     known = known_bindings()
-    per_pass = {b.name for b in (*gpu_layout.CAMERA_BINDINGS, *gpu_layout.PASS_BINDINGS)}
+    per_pass = {b.name for b in (*gpu_layout.CAMERA_BINDINGS, *gpu_layout.PASS_BINDINGS, *gpu_layout.PATH_BINDINGS)}
     declared = {b.name for b in tracer_bindings(variant)} - per_pass
     tex, uni = {}, {}
     for part in parts:
