@@ -132,7 +132,8 @@ class GLRenderer:
               samples_per_pass: int = PATH_SAMPLES_PER_PASS) -> TracerFrame:
         """A frame of the one-pass tracer for the posed ``scene``, uploaded and ready to be
         traced slice by slice (:class:`~renderer.gl.frame.TracerFrame`); ``band_rows``
-        sizes its slices, ``samples_per_pass`` the path integrator's passes. Builds the method's structure first unless ``prepared`` is given."""
+        sizes its slices, ``samples_per_pass`` the path integrator's passes. Builds the method's
+        structure first unless ``prepared`` is given."""
         t_start = time.perf_counter()
         # auto's crossover counts what a tree would hold, spheres and triangles (as prepare_frame)
         method_name = resolve_method(settings.method, scene.n_spheres + scene.n_triangles)
