@@ -382,8 +382,9 @@ class TracerFrame:
         stats = {**self.stats, "tracer_passes": len(self.passes), "slices": self.slices}
         if not final:
             stats["preview"] = True
+        display = (self.settings.tone_map, float(self.settings.exposure)) if self.path else None
         return RenderResult(image=image, depth=depth_t, primid=primid, normal=normal, mode=self.settings.mode,
-                            timings=timings, stats=stats)
+                            timings=timings, stats=stats, display=display)
 
     @property
     def preview(self) -> RenderResult | None:
