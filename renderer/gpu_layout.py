@@ -94,7 +94,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .limits import DEFAULT_TEXTURE_WIDTH, MAX_LIGHTS, MAX_MATERIALS, MAX_PLANES, MAX_SPHERES, MAX_TRIANGLES
+from .limits import (DEFAULT_TEXTURE_WIDTH, MAX_LIGHTS, MAX_MATERIALS, MAX_PLANES, MAX_SAMPLED_SPHERES, MAX_SPHERES,
+                     MAX_TRIANGLES)
 from .modes import RAY_TREE_MODES
 from .scene import Camera, Scene
 
@@ -265,6 +266,16 @@ SAMPLE_COUNT = Binding("u_sample_count", "highp int", "samples of each pixel thi
 LIGHT_SCALE = Binding("u_light_scale", "highp float", "π·d², d = |target − position|: a point light's radiant "
                       "intensity per unit of its color (docs/SHADING.md)", group="path")
 PATH_BINDINGS = (SAMPLE_START, SAMPLE_COUNT)   # set per pass
+# The emitting spheres next-event estimation samples (the first MAX_SAMPLED_SPHERES by id; the others
+# are met by BSDF sampling alone).
+NUM_EMITTERS = Binding("u_num_emitters", "highp int", "emitting spheres sampled", group="path")
+EMITTER_LAST = Binding("u_emitter_last", "highp int", "id of the last sampled emitting sphere (−1: none)",
+                       group="path")
+EMITTER_SPHERE = Binding("u_emitter_sphere", "highp vec4", "(centre, radius) of each", length="MAX_SAMPLED_SPHERES",
+                         group="path")
+EMITTER_RADIANCE = Binding("u_emitter_radiance", "highp vec3", "emission of each", length="MAX_SAMPLED_SPHERES",
+                           group="path")
+EMITTER_BINDINGS = (NUM_EMITTERS, EMITTER_LAST, EMITTER_SPHERE, EMITTER_RADIANCE)
 # The triangles (only with the TRIANGLES data format): listed among the bindings of each method
 # that traces them, packed by its packer with pack_triangles, so that they may be uniform blocks.
 TRIANGLES = Binding("u_triangles", doc="TRIANGLE_TEXELS records per triangle: corners, material", records=True,
@@ -295,7 +306,8 @@ MIN_WEIGHT = Binding("u_min_weight", "highp float", "ε: secondary rays of small
 PASS_SCALE = Binding("u_pass_scale", "highp float", "sub-pixels per pixel side of this pass's grid")
 PASS_OFFSET = Binding("u_pass_offset", "highp vec2", "(sx, sy) + 0.5: the sub-pixel this pass traces")
 PASS_BINDINGS = (PASS_SCALE, PASS_OFFSET)
-TRACER_BINDINGS = (*SCENE_BINDINGS, *CAMERA_BINDINGS, *PASS_BINDINGS, MIN_WEIGHT, LIGHT_SCALE, *PATH_BINDINGS)
+TRACER_BINDINGS = (*SCENE_BINDINGS, *CAMERA_BINDINGS, *PASS_BINDINGS, MIN_WEIGHT, LIGHT_SCALE, *EMITTER_BINDINGS,
+                   *PATH_BINDINGS)
 # The ray engines draw planes as instances after the spheres (the instance count carries the
 # number of primitives), so they never read u_num_planes; their depth image is made on the CPU.
 # Their materials are the texture, their spheres the per-id textures.
@@ -569,6 +581,17 @@ def light_scale(scene: Scene) -> float:
     return math.pi * d * d
 
 
+def emitter_uniforms(scene: Scene) -> dict[str, object]:
+    """The emitting spheres the path integrator samples: the first MAX_SAMPLED_SPHERES by id."""
+    emits = np.array([m.emits for m in scene.materials], dtype=bool)
+    ids = np.flatnonzero(emits[scene.sphere_materials])[:MAX_SAMPLED_SPHERES] if scene.n_spheres else np.zeros(0, int)
+    spheres = [(*scene.sphere_centers[i].tolist(), float(scene.sphere_radii[i])) for i in ids]
+    radiance = [tuple(scene.materials[scene.sphere_materials[i]].emission) for i in ids]
+    return {NUM_EMITTERS.name: len(ids), EMITTER_LAST.name: int(ids[-1]) if len(ids) else -1,
+            EMITTER_SPHERE.name: _fixed(spheres, MAX_SAMPLED_SPHERES, (0.0, 0.0, 0.0, 1.0)),
+            EMITTER_RADIANCE.name: _fixed(radiance, MAX_SAMPLED_SPHERES, (0.0, 0.0, 0.0))}
+
+
 def path_uniforms(start: int, count: int) -> dict[str, object]:
     """The path integrator's pass uniforms: samples ``start … start + count − 1`` of every pixel."""
     return {SAMPLE_START.name: int(start), SAMPLE_COUNT.name: int(count)}
@@ -722,6 +745,11 @@ def tracer_constants() -> str:
             f"#define SPHERE_MAT_SHIFT {SPHERE_MAT_SHIFT}u\n"
             f"#define SPHERE_MAT_MASK {SPHERE_MAT_MASK}u\n"
             f"#define SPHERE_LAST {SPHERE_LAST}u\n")
+
+
+def path_constants() -> str:
+    """The path integrator's constants: emitted only into its variants (no other's text changes)."""
+    return f"#define MAX_SAMPLED_SPHERES {MAX_SAMPLED_SPHERES}\n"
 
 
 def triangle_constants() -> str:

@@ -85,6 +85,8 @@ def tracer_header(variant: Variant) -> str:
     if "TRIANGLES" in variant.features:     # (only there: a sphere variant's text stays as it was)
         triangles = gpu_layout.triangle_constants() + "".join(
             f"#define READS_{g.upper()}\n" for g in gpu_layout.SILENT_GROUPS if variant.reads(g))
+    if variant.path:
+        triangles += gpu_layout.path_constants()
     return (gpu_layout.glsl_header() + gpu_layout.tracer_constants() + triangles
             + METHODS[variant.method].glsl_defines()
             + "".join(f"#define {d}\n" for d in defines)

@@ -123,6 +123,10 @@ void path_main() {
     bool vertex = false;     // the path stands on a surface and may go on from it
     bool front = false;      // … on the side its normal faces
     float roughness = 0.0;
+    int emitter = 0;             // the next emitting sphere to sample at the current vertex
+    bool emitter_shadow = false; // the shadow ray in flight is an emitting sphere's
+    vec3 prev_p = vec3(0.0);     // the vertex the current segment left, and the pdf (solid angle) with
+    float prev_pdf_d = 0.0;      // which its diffuse lobe chose it (0: another lobe, or the camera)
     while (true) {
         if (start) {
             uint i = uint(u_sample_start + done);
@@ -137,14 +141,14 @@ void path_main() {
             o = u_cam_pos;
             d = normalize(u_cam_forward + u * u_cam_right + v * u_cam_up);
             skip = NO_PRIM; far_id = NO_PRIM;
-            L = vec3(0.0); beta = vec3(1.0); segments = 1;
+            L = vec3(0.0); beta = vec3(1.0); segments = 1; prev_pdf_d = 0.0;
             q = Query(o, d, skip, far_id, BIG, false);
             start = false;
         }
         Hit hq = intersect_scene(q);
         if (q.any_hit) {
             if (hq.id == NO_PRIM) L += contrib;   // the light is visible
-            light++;
+            if (emitter_shadow) emitter++; else light++;
         } else if (hq.id == NO_PRIM) {
             L += beta * ENV_RADIANCE;
             vertex = false;
@@ -160,7 +164,21 @@ void path_main() {
             roughness = roughness_at(s.mat);
             front = dot(d, ng) < 0.0;
             nf = front ? s.n : -s.n;
-            if (front) L += beta * emission_at(s.mat);   // emitters are met by BSDF sampling alone
+            if (front) {
+                // An emitting sphere that next-event estimation samples too: the power heuristic's weight
+                // of BSDF sampling (its diffuse lobe's pdf against the sphere's cone); every other
+                // emitter (planes, triangles, spheres past the sampled ones) is met by BSDF sampling alone.
+                float w = 1.0;
+                if (prev_pdf_d > 0.0 && h.id < u_num_spheres && h.id <= u_emitter_last) {
+                    vec3 to_c = h.sphere.xyz - prev_p;
+                    float sin2 = h.sphere.w * h.sphere.w / dot(to_c, to_c);
+                    if (sin2 < 1.0) {
+                        float p_l = 1.0 / (2.0 * PI * (sin2 / (1.0 + sqrt(1.0 - sin2))));
+                        w = prev_pdf_d * prev_pdf_d / (prev_pdf_d * prev_pdf_d + p_l * p_l);
+                    }
+                }
+                L += w * beta * emission_at(s.mat);
+            }
             // Lobe weights: diffuse, reflective, transmissive; scaled to sum 1 where they exceed it.
             w_diffuse = m.diffuse; w_reflect = 0.0; w_transmit = 0.0;
 #ifndef NO_REFLECTION
@@ -172,6 +190,7 @@ void path_main() {
             float total = w_diffuse + w_reflect + w_transmit;
             if (total > 1.0) { w_diffuse /= total; w_reflect /= total; w_transmit /= total; }
             light = 0;
+            emitter = 0;
             vertex = segments < MAX_RECURSION_DEPTH;   // a next segment (shadow or bounce) fits
         }
 #ifdef SHADOW_RAYS
@@ -195,18 +214,57 @@ void path_main() {
                     break;
                 }
             }
+            emitter_shadow = false;
             if (shadow) continue;
         }
 #endif
+        // Next-event estimation to the emitting spheres: a direction in the cone the sphere fills
+        // (uniform in solid angle), weighted by the power heuristic against BSDF sampling.
+        if (vertex && w_diffuse > 0.0) {
+            bool shadow = false;
+            for (; emitter < MAX_SAMPLED_SPHERES; emitter++) {
+                if (emitter >= u_num_emitters) break;
+                vec4 e = u_emitter_sphere[emitter];
+                vec3 to_c = e.xyz - s.p;
+                float dist2 = dot(to_c, to_c);
+                float sin2 = e.w * e.w / dist2;
+                float u1 = rnd(), u2 = rnd();
+                if (!(sin2 < 1.0)) continue;   // the vertex is inside (or on) it: not sampled
+                float cone = sin2 / (1.0 + sqrt(1.0 - sin2));   // 1 − cos θmax, without cancellation
+                float cos_t = 1.0 - u1 * cone;
+                float sin_t = sqrt(max(0.0, 1.0 - cos_t * cos_t));
+                float phi = 2.0 * PI * u2;
+                vec3 t, b;
+                basis(to_c * inversesqrt(dist2), t, b);
+                vec3 l = normalize(sin_t * cos(phi) * t + sin_t * sin(phi) * b + cos_t * to_c * inversesqrt(dist2));
+                float cos_l = dot(nf, l);
+                float te = intersect_sphere(s.p, l, e, false);
+                if (cos_l <= 0.0 || te >= BIG) continue;
+                float p_l = 1.0 / (2.0 * PI * cone);
+                float p_b = w_diffuse * cos_l / PI;
+                float w = p_l * p_l / (p_l * p_l + p_b * p_b);
+                contrib = beta * (w_diffuse / PI) * m.color * u_emitter_radiance[emitter] * (cos_l * w / p_l);
+                int sk, fa;
+                exclusion(h.id, s.n, l, sk, fa);
+                q = Query(s.p, l, sk, fa, te * (1.0 - 1e-4), true);   // blockers before the sphere
+                shadow = true;
+                break;
+            }
+            emitter_shadow = true;
+            if (shadow) continue;
+        }
         if (vertex) {
             // BSDF sampling: one lobe, chosen with its weight's probability (none: absorbed).
             float pick = rnd();
             float u1 = rnd(), u2 = rnd();
             vec3 nd = vec3(0.0);
             bool go = true;
+            prev_pdf_d = 0.0;
+            prev_p = s.p;
             if (pick < w_diffuse) {
                 nd = cosine_direction(nf, u1, u2);
                 beta *= m.color;
+                prev_pdf_d = w_diffuse * max(dot(nf, nd), 0.0) / PI;
             } else if (pick < w_diffuse + w_reflect) {
                 if (roughness > 0.0) {
                     // GGX (α = roughness): a microfacet normal from D(m)·cos θm, weight F·G·(o·m)/((n·o)(n·m)), F = 1.

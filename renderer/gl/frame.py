@@ -196,7 +196,8 @@ class TracerFrame:
         t0 = time.perf_counter()
         parts = [gpu_layout.pack_primitives(self.scene, self.renderer.max_texture_width), self.prepared.packed,
                  PackedScene({}, {gpu_layout.MIN_WEIGHT.name: float(self.settings.min_weight),
-                                  gpu_layout.LIGHT_SCALE.name: gpu_layout.light_scale(self.scene)})]
+                                  gpu_layout.LIGHT_SCALE.name: gpu_layout.light_scale(self.scene),
+                                  **gpu_layout.emitter_uniforms(self.scene)})]
         tex, self.uniforms = check_bindings(self.variant, parts)
         blocks = {n: t for n, t in tex.items() if n in self.variant.blocks}
         self.units = upload_textures(self.ctx, PackedScene({n: t for n, t in tex.items() if n not in blocks}),

@@ -189,3 +189,27 @@ def test_refusals():
         Scene.from_json({"materials": [{}], "environment": {"colour": [1, 1, 1]}})
     assert e.value.field == "environment.colour"
     assert Scene.from_json({"materials": [{}], "lights": []}).lights == ()
+
+
+def test_sampling_emitting_spheres_changes_the_noise_not_the_mean(gl_renderer, monkeypatch):
+    """Next-event estimation to an emitting sphere, weighted by MIS against BSDF sampling, has the
+    mean of BSDF sampling alone (which the frame falls back to with no sphere sampled), and less noise."""
+    from renderer import gpu_layout
+
+    scene = Scene.from_json({
+        "camera": {"position": [0, 3, 6], "target": [0, 0, 0], "fov_y": 40}, "lights": [],
+        "materials": [{"color": [0.8, 0.8, 0.8], "diffuse": 1.0, "reflective": 0, "ambient": 0},
+                      {"color": [0, 0, 0], "diffuse": 0, "reflective": 0, "emission": [10, 10, 10]}],
+        "planes": [{"point": [0, 0, 0], "normal": [0, 1, 0], "material": 0}],
+        "spheres": [{"center": [0, 1.5, 0], "radius": 0.3, "material": 1},
+                    {"center": [1, 0.5, 0], "radius": 0.5, "material": 0}]})
+    s = path(width=24, height=24, spp=2048, depth=8)
+    sampled = gl_renderer.render(scene, s).image
+    original = gpu_layout.emitter_uniforms
+    monkeypatch.setattr(gpu_layout, "emitter_uniforms", lambda sc: {**original(sc), gpu_layout.NUM_EMITTERS.name: 0,
+                                                                    gpu_layout.EMITTER_LAST.name: -1})
+    alone = gl_renderer.render(scene, s).image
+    floor = np.s_[15:]
+    np.testing.assert_allclose(sampled[floor].mean(), alone[floor].mean(), rtol=0.02)
+    np.testing.assert_allclose(sampled.mean(), alone.mean(), rtol=0.01)
+    assert sampled[floor].std() < alone[floor].std()
