@@ -452,8 +452,10 @@ class MuseumRecipe(Strict):
 class MeshSceneRecipe(Strict):
     """A demo scene with triangle meshes (renderer.scenarios.mesh_scene): ``teapot`` (the
     closed Utah teapot on the floor), ``mixed`` (27 spheres, a glass icosphere and a torus),
-    ``room`` (a box room seen from inside with a teapot, an icosphere and four spheres)."""
-    kind: Literal[MESH_SCENES] = Field("teapot", description="teapot, mixed or room")  # type: ignore[valid-type]
+    ``room`` (a box room seen from inside with a teapot, an icosphere and four spheres), ``cornell``
+    (a Cornell box lit by an emitting ceiling panel, with a mirror and a glass sphere and a teapot:
+    for ``integrator=path``)."""
+    kind: Literal[MESH_SCENES] = Field("teapot", description="teapot, mixed, room or cornell")  # type: ignore[valid-type]
     detail: Annotated[int, Integral] = Field(2, ge=0, le=MAX_MESH_DETAIL,
                                              description="tessellation: teapot 2 + 2·detail segments per patch, "
                                                          "icosphere subdivisions, torus 12 (detail + 1) segments")

@@ -213,3 +213,17 @@ def test_sampling_emitting_spheres_changes_the_noise_not_the_mean(gl_renderer, m
     np.testing.assert_allclose(sampled[floor].mean(), alone[floor].mean(), rtol=0.02)
     np.testing.assert_allclose(sampled.mean(), alone.mean(), rtol=0.01)
     assert sampled[floor].std() < alone[floor].std()
+
+
+def test_the_cornell_box(gl_renderer):
+    """The demo scene: lit by its ceiling panel alone, both integrators draw it, the path
+    integrator's frame is finite and brighter where the panel shines (floor) than at the back's top."""
+    from renderer.scenarios import mesh_scene
+
+    scene = mesh_scene("cornell", 0)
+    assert scene.lights == () and any(m.emits for m in scene.materials)
+    r = gl_renderer.render(scene, path(width=32, height=32, spp=16, depth=8))
+    assert np.isfinite(r.image).all() and r.image.mean() > 0.05
+    assert r.image[26:30, 8:24].mean() > r.image[4:8, 2:6].mean()
+    w = gl_renderer.render(scene, RenderSettings(width=32, height=32, format="npy"))
+    assert (w.primid >= 0).all(), "the walls close the view"
