@@ -281,7 +281,7 @@ def _add_scenario(sub: argparse._SubParsersAction) -> None:
                                    "or of the animated museum (its motions included).")
     p.add_argument("which", choices=["1", "2", "3", "museum", *MESH_SCENES],
                    help="scenario number, museum, or a mesh scene (" + ", ".join(MESH_SCENES) + ")")
-    p.add_argument("--n", type=int, default=None, help="spheres (museum: the moving ones); required but for mesh scenes")
+    p.add_argument("--n", type=int, default=None, help="spheres (museum: the moving ones); not for mesh scenes")
     p.add_argument("--seed", type=int, default=0, help="placement seed (default 0)")
     p.add_argument("--radius", type=float, default=1.0, help="sphere radius of scenarios 1–3 (default 1)")
     p.add_argument("--kind", choices=list(MUSEUM_KINDS), default="mixed", help="museum motion (default mixed)")
