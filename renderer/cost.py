@@ -233,8 +233,15 @@ def largest_accepted(method: str, stats: dict[str, Any], scene: Scene, settings,
             else:
                 hi = mid - 1
         out[name] = lo or None
-    out["samples_per_pixel"] = next((s for s in (16, 9, 4, 1) if s <= settings.samples_per_pixel
-                                     and fits(samples_per_pixel=s)), None)
+    if getattr(settings, "integrator", "whitted") == "path":     # any count: bisect it as the sides
+        lo, hi = 0, settings.samples_per_pixel
+        while lo < hi:
+            mid = (lo + hi + 1) // 2
+            lo, hi = (mid, hi) if fits(samples_per_pixel=mid) else (lo, mid - 1)
+        out["samples_per_pixel"] = lo or None
+    else:
+        out["samples_per_pixel"] = next((s for s in (16, 9, 4, 1) if s <= settings.samples_per_pixel
+                                         and fits(samples_per_pixel=s)), None)
     out["max_recursion_depth"] = next((d for d in range(settings.max_recursion_depth, 0, -1)
                                        if fits(max_recursion_depth=d)), None)
     return out
