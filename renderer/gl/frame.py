@@ -325,6 +325,9 @@ class TracerFrame:
                 self._sum = img[..., :3].astype(np.float64)
                 hit = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(h, w, 4)
                 self._centre = (img, hit)     # primid, normal and depth: the first sample's primary ray
+                if len(self.passes) > 1:      # the first pass's mean: the preview of a progressive frame
+                    mean = (img[::-1][..., :3] / p.samples[1]).astype(np.float32)
+                    self._preview = self._result_of([img[::-1], hit[::-1], mean], final=False)
             else:
                 self._sum += img[..., :3]
         elif p.sub is None:

@@ -227,3 +227,16 @@ def test_the_cornell_box(gl_renderer):
     assert r.image[26:30, 8:24].mean() > r.image[4:8, 2:6].mean()
     w = gl_renderer.render(scene, RenderSettings(width=32, height=32, format="npy"))
     assert (w.primid >= 0).all(), "the walls close the view"
+
+
+def test_a_progressive_frame_previews_its_first_pass(gl_renderer):
+    """A frame of several passes offers the mean of its first pass as its preview (the service
+    shows it while the rest is traced): the image of a frame of that many samples."""
+    scene = furnace({**DIFFUSE, "reflective": 0.4, "roughness": 0.2}, (0.5, 0.7, 1.0),
+                    lights=[{"position": [2, 3, 3], "color": [1, 1, 1]}])
+    frame = gl_renderer.begin(scene, path(spp=20), samples_per_pass=8)
+    while frame.preview is None:
+        assert not frame.step()
+    first = gl_renderer.render(scene, path(spp=8)).image
+    np.testing.assert_allclose(frame.preview.image, first, rtol=1e-5, atol=1e-6)
+    assert frame.preview.stats["preview"] and frame.run().stats["tracer_passes"] == 3
