@@ -205,7 +205,8 @@ class _RenderSettingsBase:
         path = getattr(self, "integrator", "whitted") == "path"
         for spec in self._checks:
             spec.check(getattr(self, spec.name))
-            if spec.name == "max_recursion_depth" and not path and self.max_recursion_depth > limits.MAX_RECURSION_DEPTH:
+            if (spec.name == "max_recursion_depth" and self.max_recursion_depth > limits.MAX_RECURSION_DEPTH
+                    and (not path or self.mode == "recursion")):    # (the recursion mode draws Whitted's tree)
                 raise SceneError(spec.name, f"must be in 1 … {limits.MAX_RECURSION_DEPTH}, got "
                                  f"{self.max_recursion_depth} (up to {MAX_PATH_DEPTH} with integrator 'path')")
             if spec.name == "samples_per_pixel" and not path and self.samples_per_pixel not in SAMPLES_PER_PIXEL:
