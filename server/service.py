@@ -157,7 +157,11 @@ def frame_nbytes(settings: RenderSettings) -> int:
     """What one frame of these settings holds at most, from its render target to its encoded body."""
     s = settings
     return (traced_nbytes(s.width, s.height, s.supersampling, image_only(s))
-            + encoded_nbytes(s.format, "radiance" if radiance(s) else s.mode, s.width, s.height))
+            + encoded_nbytes(s.format, "radiance" if radiance(s) else s.mode, s.width, s.height)
+            + (s.width * s.height * PATH_SUM_BYTES_PER_PIXEL if radiance(s) else 0))
+
+
+PATH_SUM_BYTES_PER_PIXEL = 3 * 8    # a path frame's float64 sum of its passes (renderer/gl/frame.py)
 
 
 def radiance(settings: RenderSettings) -> bool:
