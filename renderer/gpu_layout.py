@@ -94,8 +94,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .limits import (DEFAULT_TEXTURE_WIDTH, MAX_LIGHTS, MAX_MATERIALS, MAX_PLANES, MAX_SAMPLED_SPHERES, MAX_SPHERES,
-                     MAX_TRIANGLES)
+from .limits import (DEFAULT_TEXTURE_WIDTH, MAX_LIGHTS, MAX_MATERIALS, MAX_PLANES, MAX_SAMPLED_SPHERES,
+                     MAX_SAMPLED_TRIANGLES, MAX_SPHERES, MAX_TRIANGLES)
 from .modes import RAY_TREE_MODES
 from .scene import Camera, Scene
 
@@ -275,7 +275,20 @@ EMITTER_SPHERE = Binding("u_emitter_sphere", "highp vec4", "(centre, radius) of 
                          group="path")
 EMITTER_RADIANCE = Binding("u_emitter_radiance", "highp vec3", "emission of each", length="MAX_SAMPLED_SPHERES",
                            group="path")
-EMITTER_BINDINGS = (NUM_EMITTERS, EMITTER_LAST, EMITTER_SPHERE, EMITTER_RADIANCE)
+# The emitting triangles next-event estimation samples, one picked by area: all of them when there are
+# at most MAX_SAMPLED_TRIANGLES (else none: BSDF sampling alone meets them).
+NUM_EMIT_TRIS = Binding("u_num_emit_tris", "highp int", "emitting triangles sampled (0: none)", group="path")
+EMIT_TRI_AREA = Binding("u_emit_tri_area", "highp float", "their total area", group="path")
+EMIT_TRI_V0 = Binding("u_emit_tri_v0", "highp vec3", "corner v0 of each", length="MAX_SAMPLED_TRIANGLES",
+                      group="path")
+EMIT_TRI_E1 = Binding("u_emit_tri_e1", "highp vec3", "v1 − v0 of each", length="MAX_SAMPLED_TRIANGLES", group="path")
+EMIT_TRI_E2 = Binding("u_emit_tri_e2", "highp vec3", "v2 − v0 of each", length="MAX_SAMPLED_TRIANGLES", group="path")
+EMIT_TRI_RADIANCE = Binding("u_emit_tri_radiance", "highp vec3", "emission of each", length="MAX_SAMPLED_TRIANGLES",
+                            group="path")
+EMIT_TRI_CDF = Binding("u_emit_tri_cdf", "highp float", "area up to and with each, over the total",
+                       length="MAX_SAMPLED_TRIANGLES", group="path")
+EMITTER_BINDINGS = (NUM_EMITTERS, EMITTER_LAST, EMITTER_SPHERE, EMITTER_RADIANCE, NUM_EMIT_TRIS, EMIT_TRI_AREA,
+                    EMIT_TRI_V0, EMIT_TRI_E1, EMIT_TRI_E2, EMIT_TRI_RADIANCE, EMIT_TRI_CDF)
 # The triangles (only with the TRIANGLES data format): listed among the bindings of each method
 # that traces them, packed by its packer with pack_triangles, so that they may be uniform blocks.
 TRIANGLES = Binding("u_triangles", doc="TRIANGLE_TEXELS records per triangle: corners, material", records=True,
@@ -587,9 +600,33 @@ def emitter_uniforms(scene: Scene) -> dict[str, object]:
     ids = np.flatnonzero(emits[scene.sphere_materials])[:MAX_SAMPLED_SPHERES] if scene.n_spheres else np.zeros(0, int)
     spheres = [(*scene.sphere_centers[i].tolist(), float(scene.sphere_radii[i])) for i in ids]
     radiance = [tuple(scene.materials[scene.sphere_materials[i]].emission) for i in ids]
-    return {NUM_EMITTERS.name: len(ids), EMITTER_LAST.name: int(ids[-1]) if len(ids) else -1,
-            EMITTER_SPHERE.name: _fixed(spheres, MAX_SAMPLED_SPHERES, (0.0, 0.0, 0.0, 1.0)),
-            EMITTER_RADIANCE.name: _fixed(radiance, MAX_SAMPLED_SPHERES, (0.0, 0.0, 0.0))}
+    out = {NUM_EMITTERS.name: len(ids), EMITTER_LAST.name: int(ids[-1]) if len(ids) else -1,
+           EMITTER_SPHERE.name: _fixed(spheres, MAX_SAMPLED_SPHERES, (0.0, 0.0, 0.0, 1.0)),
+           EMITTER_RADIANCE.name: _fixed(radiance, MAX_SAMPLED_SPHERES, (0.0, 0.0, 0.0))}
+    tris = np.zeros((0, 3, 3))
+    mats = np.zeros(0, dtype=np.int64)
+    if scene.n_triangles:
+        lit = np.flatnonzero(emits[np.asarray(scene.triangle_materials, dtype=np.int64)])
+        tris, mats = np.asarray(scene.triangle_corners, dtype=np.float64)[lit], np.asarray(scene.triangle_materials)[lit]
+        area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+        keep = area > 0.0
+        tris, mats = tris[keep], mats[keep]
+        if len(tris) > MAX_SAMPLED_TRIANGLES:
+            tris, mats = tris[:0], mats[:0]
+    area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+    total = float(area.sum())
+    cdf = (np.cumsum(area) / total).tolist() if len(area) else []
+    if cdf:
+        cdf[-1] = 1.0
+    vec = lambda a: [tuple(float(x) for x in v) for v in a]   # noqa: E731
+    out.update({NUM_EMIT_TRIS.name: len(tris), EMIT_TRI_AREA.name: total,
+                EMIT_TRI_V0.name: _fixed(vec(tris[:, 0]), MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)),
+                EMIT_TRI_E1.name: _fixed(vec(tris[:, 1] - tris[:, 0]), MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)),
+                EMIT_TRI_E2.name: _fixed(vec(tris[:, 2] - tris[:, 0]), MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)),
+                EMIT_TRI_RADIANCE.name: _fixed([tuple(scene.materials[int(m)].emission) for m in mats],
+                                               MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)),
+                EMIT_TRI_CDF.name: _fixed([float(c) for c in cdf], MAX_SAMPLED_TRIANGLES, 2.0)})
+    return out
 
 
 def path_uniforms(start: int, count: int) -> dict[str, object]:
@@ -749,7 +786,7 @@ def tracer_constants() -> str:
 
 def path_constants() -> str:
     """The path integrator's constants: emitted only into its variants (no other's text changes)."""
-    return f"#define MAX_SAMPLED_SPHERES {MAX_SAMPLED_SPHERES}\n"
+    return f"#define MAX_SAMPLED_SPHERES {MAX_SAMPLED_SPHERES}\n#define MAX_SAMPLED_TRIANGLES {MAX_SAMPLED_TRIANGLES}\n"
 
 
 def triangle_constants() -> str:

@@ -35,6 +35,7 @@ SAMPLES_PER_PIXEL = (1, 4, 9, 16)   # stratified supersampling: √s × √s sub
 MAX_PATH_SAMPLES = 4096        # the path integrator: samples per pixel, any count 1 … this
 PATH_SAMPLES_PER_PASS = 16     # the path integrator: samples per pixel one draw traces (a frame's passes)
 MAX_SAMPLED_SPHERES = 8        # the path integrator: emitting spheres sampled by next-event estimation
+MAX_SAMPLED_TRIANGLES = 16     # … emitting triangles (a scene with more samples none of them)
 EXPOSURE_RANGE = (-20.0, 20.0)  # stops: the path integrator's png/jpeg are tone-mapped from 2^exposure × radiance
 MIN_WEIGHT_RANGE = (0.0, 1.0)  # ε cut-off of secondary rays
 MIN_TILE_SIZE = 2              # hre: tile side in pixels

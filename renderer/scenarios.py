@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from .scene import Camera, Light, Material, Plane, Scene, SceneError
+from .scene import Camera, Light, Material, Plane, Scene, SceneError, make_mesh
 
 CUBE_HALF = 20.0
 # Edge of each of scenario 2's eight corner cubes.
@@ -133,7 +133,7 @@ def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True) -> Sc
       a teapot, a glass icosphere and four spheres;
     - ``cornell``: a Cornell box for the path integrator (``integrator=path``): five wall
       planes (red left, green right, white floor, ceiling and back; the front open onto a
-      black environment), an emitting panel under the ceiling (a thin box, its only light:
+      black environment), an emitting panel under the ceiling (a quad, its only light:
       ``lights`` is empty), a mirror sphere, a glass sphere (its caustic on the floor) and a
       diffuse teapot.
 
@@ -204,7 +204,8 @@ def _cornell(M, seg: int, smooth: bool, placed) -> Scene:
     planes = (Plane((0.0, -h, 0.0), (0.0, 1.0, 0.0), 0), Plane((0.0, h, 0.0), (0.0, -1.0, 0.0), 0),
               Plane((0.0, 0.0, -h), (0.0, 0.0, 1.0), 0), Plane((-h, 0.0, 0.0), (1.0, 0.0, 0.0), 1),
               Plane((h, 0.0, 0.0), (-1.0, 0.0, 0.0), 2))
-    panel = M.box((-5.0, h - 0.5, -5.0), (5.0, h - 0.01, 5.0), material=3)   # emits downwards (and at its rims)
+    y = h - 0.01                                # a quad just under the ceiling, wound to face down
+    panel = make_mesh([[-5.0, y, -5.0], [5.0, y, -5.0], [5.0, y, 5.0], [-5.0, y, 5.0]], [[0, 1, 2], [0, 2, 3]], 3)
     pot = M.teapot(seg, size=3.2, material=6, smooth=smooth, transform=placed(0.0, -h, -10.0))
     centers = np.array([[-9.0, -h + 6.0, -4.0], [8.0, -h + 6.0, 6.0]])
     # The camera sees the open front exactly: 2h wide at 2h·(1 + 1/tan(fov/2)) / 2 from the back.

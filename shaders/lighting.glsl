@@ -124,7 +124,8 @@ void path_main() {
     bool front = false;      // … on the side its normal faces
     float roughness = 0.0;
     int emitter = 0;             // the next emitting sphere to sample at the current vertex
-    bool emitter_shadow = false; // the shadow ray in flight is an emitting sphere's
+    int shadow_kind = 0;         // the shadow ray in flight: 0 a point light's, 1 a sphere's, 2 a triangle's
+    bool tri_done = false;       // the vertex's emitting-triangle sample is taken
     vec3 prev_p = vec3(0.0);     // the vertex the current segment left, and the pdf (solid angle) with
     float prev_pdf_d = 0.0;      // which its diffuse lobe chose it (0: another lobe, or the camera)
     while (true) {
@@ -148,7 +149,9 @@ void path_main() {
         Hit hq = intersect_scene(q);
         if (q.any_hit) {
             if (hq.id == NO_PRIM) L += contrib;   // the light is visible
-            if (emitter_shadow) emitter++; else light++;
+            if (shadow_kind == 0) light++;
+            else if (shadow_kind == 1) emitter++;
+            else tri_done = true;
         } else if (hq.id == NO_PRIM) {
             L += beta * ENV_RADIANCE;
             vertex = false;
@@ -177,6 +180,7 @@ void path_main() {
                         w = prev_pdf_d * prev_pdf_d / (prev_pdf_d * prev_pdf_d + p_l * p_l);
                     }
                 }
+//@TRIANGLES path_emit_mis
                 L += w * beta * emission_at(s.mat);
             }
             // Lobe weights: diffuse, reflective, transmissive; scaled to sum 1 where they exceed it.
@@ -191,6 +195,7 @@ void path_main() {
             if (total > 1.0) { w_diffuse /= total; w_reflect /= total; w_transmit /= total; }
             light = 0;
             emitter = 0;
+            tri_done = false;
             vertex = segments < MAX_RECURSION_DEPTH;   // a next segment (shadow or bounce) fits
         }
 #ifdef SHADOW_RAYS
@@ -214,7 +219,7 @@ void path_main() {
                     break;
                 }
             }
-            emitter_shadow = false;
+            shadow_kind = 0;
             if (shadow) continue;
         }
 #endif
@@ -250,8 +255,41 @@ void path_main() {
                 shadow = true;
                 break;
             }
-            emitter_shadow = true;
+            shadow_kind = 1;
             if (shadow) continue;
+        }
+        // … and to the emitting triangles: one, picked with probability ∝ its area, a point uniform on it
+        // (pdf in solid angle dist² / (A cos θ_light), A their total area), the power heuristic again.
+        if (vertex && w_diffuse > 0.0 && !tri_done && u_num_emit_tris > 0) {
+            float pick = rnd(), b1 = rnd(), b2 = rnd();
+            tri_done = true;
+            int k = 0;
+            for (int i = 0; i < MAX_SAMPLED_TRIANGLES; i++) {
+                if (i >= u_num_emit_tris || pick < u_emit_tri_cdf[i]) break;
+                k = i + 1;
+            }
+            k = min(k, u_num_emit_tris - 1);
+            float su = sqrt(b1);
+            vec3 e1 = u_emit_tri_e1[k], e2 = u_emit_tri_e2[k];
+            vec3 x = u_emit_tri_v0[k] + su * (1.0 - b2) * e1 + su * b2 * e2;   // uniform in the triangle
+            vec3 to_x = x - s.p;
+            float dist2 = dot(to_x, to_x);
+            float dist = sqrt(dist2);
+            vec3 l = to_x / dist;
+            vec3 ng_l = normalize(cross(e1, e2));
+            float cos_light = -dot(l, ng_l);             // > 0: the side its winding faces, which emits
+            float cos_l = dot(nf, l);
+            if (dist > 0.0 && cos_light > 0.0 && cos_l > 0.0) {
+                float p_l = dist2 / (u_emit_tri_area * cos_light);
+                float p_b = w_diffuse * cos_l / PI;
+                float w = p_l * p_l / (p_l * p_l + p_b * p_b);
+                contrib = beta * (w_diffuse / PI) * m.color * u_emit_tri_radiance[k] * (cos_l * w / p_l);
+                int sk, fa;
+                exclusion(h.id, s.n, l, sk, fa);
+                q = Query(s.p, l, sk, fa, dist * (1.0 - 1e-4), true);
+                shadow_kind = 2;
+                continue;
+            }
         }
         if (vertex) {
             // BSDF sampling: one lobe, chosen with its weight's probability (none: absorbed).

@@ -7,7 +7,8 @@ Per scene, 32 × 32 pixels, max_depth 8: ours at 1,024 samples against Mitsuba's
   estimates, so the PSNR is bounded by their noise; measured, ours at 1,024 samples reaches
   43.6 dB on the noisiest scene (the glass sphere's caustic) and 48–58 dB on the others, so 40 dB
   leaves room for another seed while a wrong lobe, a missing light path or a wrong Fresnel
-  term (errors of several percent over whole regions) lands far below it.
+  term (errors of several percent over whole regions) lands far below it. The Cornell box: 36 dB
+  against Mitsuba's 2,048 samples (below).
 - The image means agree within 0.5 % (a global bias that the PSNR would hide: measured ≤ 0.15 %).
 - Unbiased convergence: from 256 to 1,024 samples the PSNR rises by ≥ 4 dB on the noisy scenes
   (N^-1/2 gives 6.0 dB; Mitsuba's own noise takes a little: measured 5.3 … 6.4 dB).
@@ -21,6 +22,7 @@ import numpy as np
 import pytest
 
 from renderer import mitsuba_scene
+from renderer.scenarios import mesh_scene
 from renderer.scene import Scene
 from renderer.settings import RenderSettings
 
@@ -50,7 +52,12 @@ SCENES = {
                                      "triangles": [[0, 2, 1], [0, 3, 2], [1, 2, 3], [0, 1, 3]], "material": 0}],
                          "environment": {"color": [0.1, 0.1, 0.15]}},
 }
-NOISY = ("mirror", "glass_caustic", "rough_conductor")
+NOISY = ("mirror", "glass_caustic", "rough_conductor", "cornell")
+# The Cornell box (mesh_scene "cornell", flat): its light an emitting quad of triangles, sampled by
+# next-event estimation; Mitsuba at 2,048 samples there (its frame costs 5× the others'), so both
+# estimates' noise bound the PSNR lower: measured 39.3 dB (+6.0 dB from 256 samples), threshold 36.
+PSNR_MIN = {"cornell": 36.0}
+REFERENCE_SPP = {"cornell": 2048}
 
 
 def psnr(a: np.ndarray, b: np.ndarray) -> float:
@@ -59,14 +66,14 @@ def psnr(a: np.ndarray, b: np.ndarray) -> float:
     return math.inf if mse == 0 else -10.0 * math.log10(mse)
 
 
-@pytest.mark.parametrize("name", list(SCENES))
+@pytest.mark.parametrize("name", [*SCENES, "cornell"])
 def test_agrees_with_mitsuba(gl_renderer, name):
-    scene = Scene.from_json(SCENES[name])
-    reference = mitsuba_scene.render(scene, W, H, 4096, DEPTH)
+    scene = mesh_scene("cornell", 0, smooth=False) if name == "cornell" else Scene.from_json(SCENES[name])
+    reference = mitsuba_scene.render(scene, W, H, REFERENCE_SPP.get(name, 4096), DEPTH)
     ours = {spp: gl_renderer.render(scene, RenderSettings(width=W, height=H, integrator="path", samples_per_pixel=spp,
                                                           max_recursion_depth=DEPTH, format="npy")).image
             for spp in (256, 1024)}
-    assert psnr(ours[1024], reference) >= 40.0, (name, psnr(ours[1024], reference))
+    assert psnr(ours[1024], reference) >= PSNR_MIN.get(name, 40.0), (name, psnr(ours[1024], reference))
     np.testing.assert_allclose(ours[1024].mean(), reference.mean(), rtol=0.005)
     if name in NOISY:
         gain = psnr(ours[1024], reference) - psnr(ours[256], reference)
