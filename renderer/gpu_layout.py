@@ -607,7 +607,8 @@ def emitter_uniforms(scene: Scene) -> dict[str, object]:
     mats = np.zeros(0, dtype=np.int64)
     if scene.n_triangles:
         lit = np.flatnonzero(emits[np.asarray(scene.triangle_materials, dtype=np.int64)])
-        tris, mats = np.asarray(scene.triangle_corners, dtype=np.float64)[lit], np.asarray(scene.triangle_materials)[lit]
+        tris = np.asarray(scene.triangle_corners, dtype=np.float64)[lit]
+        mats = np.asarray(scene.triangle_materials)[lit]
         area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
         keep = area > 0.0
         tris, mats = tris[keep], mats[keep]

@@ -454,7 +454,8 @@ class KdTreeMethod:
     """Method ``kdtree``: the SAH kd-tree of this module (cost scaling on), rebuilt per request,
     traced by ``shaders/method_kdtree.glsl``. ``max_prims`` is not used: the SAH decides."""
     name = "kdtree"
-    capabilities = Capabilities(shader="method_kdtree.glsl", settings=("max_tree_depth", "integrator"),   # the SAH decides leaves
+    # (no max_prims: the SAH decides leaves)
+    capabilities = Capabilities(shader="method_kdtree.glsl", settings=("max_tree_depth", "integrator"),
                                 meshes_on_gpu=True)
     bindings = L.BINDINGS
     glsl_defines = staticmethod(L.glsl_defines)
