@@ -136,8 +136,17 @@ def _size(scene: Scene) -> float:
 def render(scene: Scene, width: int, height: int, spp: int, max_depth: int, variant: str = "scalar_rgb",
            seed: int = 0) -> np.ndarray:
     """Mitsuba 3's ``path`` image of ``scene``: float32 H × W × 3 linear radiance, row 0 at the top."""
+    import os
+
     import mitsuba as mi
 
     mi.set_variant(variant)
-    image = mi.render(mi.load_dict(scene_dict(scene, width, height, spp, max_depth, seed)), spp=spp, seed=seed)
+    d = scene_dict(scene, width, height, spp, max_depth, seed)
+    try:
+        loaded = mi.load_dict(d)
+    finally:   # the meshes' temporary OBJ files are read by now
+        for v in d.values():
+            if isinstance(v, dict) and v.get("type") == "obj":
+                os.unlink(v["filename"])
+    image = mi.render(loaded, spp=spp, seed=seed)
     return np.asarray(image, dtype=np.float32)[..., :3]
