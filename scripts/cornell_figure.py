@@ -1,4 +1,4 @@
-"""``docs/figures/cornell_path_mitsuba.png``: the Cornell-box demo scene (``mesh_scene("cornell")``,
+"""``docs/figures/readme_cornell_path_mitsuba.png``: the Cornell-box demo scene (``mesh_scene("cornell")``,
 flat-shaded so both renderers see the same triangles) by our path integrator (left) and by
 Mitsuba 3's ``path`` integrator (right, ``scalar_rgb``, the scene made by
 ``renderer/mitsuba_scene.py``), 192², 1,024 samples, depth 8, both tone-mapped with ACES; prints
@@ -22,7 +22,7 @@ from renderer.scenarios import mesh_scene
 from renderer.settings import RenderSettings
 from renderer.tonemap import display_u8
 
-OUT = Path(__file__).resolve().parent.parent / "docs" / "figures" / "cornell_path_mitsuba.png"
+OUT = Path(__file__).resolve().parent.parent / "docs" / "figures" / "readme_cornell_path_mitsuba.png"
 SIDE, SPP, DEPTH = 192, 1024, 8
 
 
