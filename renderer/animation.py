@@ -48,10 +48,9 @@ from typing import Any
 import numpy as np
 
 from . import limits
-from .limits import MAX_TIME  # noqa: F401  (re-exported: seconds, the largest time a scene can be posed at)
+from .limits import MAX_TIME
 from .scenarios import RED, TRANSPARENT
 from .scene import MAX_COORDINATE, Camera, Light, Material, Plane, Scene, SceneError, finite_number, finite_vec3
-
 
 
 def _num(v: Any, where: str, lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> float:
@@ -97,12 +96,14 @@ def _uniform(seed: int, i: np.ndarray, k: np.ndarray, salt: int) -> np.ndarray:
 
 # ------------------------------------------------------------------------ motions
 
+
 @dataclass(frozen=True)
 class RigidGroup:
     """Spheres ``first … first+count−1`` move as one rigid body.
 
     centre(t) = pivot + R(axis, angular_velocity · t) (c₀ − pivot) + amplitude · sin(2π t / period)
     """
+
     first: int
     count: int
     pivot: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -113,15 +114,23 @@ class RigidGroup:
     mesh: int | None = None
     kind = "rigid"
 
-    def validate(self, where: str) -> "RigidGroup":
+    def validate(self, where: str) -> RigidGroup:
         axis = _vec(self.axis, f"{where}.axis")
         if not math.sqrt(sum(a * a for a in axis)) > 1e-12:
             raise SceneError(f"{where}.axis", "must be a non-zero vector")
-        return replace(self, pivot=_vec(self.pivot, f"{where}.pivot"), axis=axis,
-                       angular_velocity=_num(self.angular_velocity, f"{where}.angular_velocity",
-                                              -limits.MAX_ANGULAR_VELOCITY, limits.MAX_ANGULAR_VELOCITY),
-                       amplitude=_vec(self.amplitude, f"{where}.amplitude"),
-                       period=_num(self.period, f"{where}.period", 0.0, limits.MAX_PERIOD, lo_open=True))
+        return replace(
+            self,
+            pivot=_vec(self.pivot, f"{where}.pivot"),
+            axis=axis,
+            angular_velocity=_num(
+                self.angular_velocity,
+                f"{where}.angular_velocity",
+                -limits.MAX_ANGULAR_VELOCITY,
+                limits.MAX_ANGULAR_VELOCITY,
+            ),
+            amplitude=_vec(self.amplitude, f"{where}.amplitude"),
+            period=_num(self.period, f"{where}.period", 0.0, limits.MAX_PERIOD, lo_open=True),
+        )
 
     def reach(self, c0: np.ndarray) -> float:
         """The largest coordinate magnitude any sphere centre can take."""
@@ -149,6 +158,7 @@ class Deformable:
     centre(t) = c₀ + amplitude · (sin(k(y₀+z₀) − ωt), sin(k(z₀+x₀) − ωt + 2.1), sin(k(x₀+y₀) − ωt + 4.2)),
     k = 2π / wavelength, ω = k · speed.
     """
+
     first: int
     count: int
     amplitude: float = 1.0
@@ -157,10 +167,13 @@ class Deformable:
     mesh: int | None = None
     kind = "deformable"
 
-    def validate(self, where: str) -> "Deformable":
-        return replace(self, amplitude=_num(self.amplitude, f"{where}.amplitude", 0.0, MAX_COORDINATE),
-                       wavelength=_num(self.wavelength, f"{where}.wavelength", 0.0, limits.MAX_WAVELENGTH, lo_open=True),
-                       speed=_num(self.speed, f"{where}.speed", -limits.MAX_SPEED, limits.MAX_SPEED))
+    def validate(self, where: str) -> Deformable:
+        return replace(
+            self,
+            amplitude=_num(self.amplitude, f"{where}.amplitude", 0.0, MAX_COORDINATE),
+            wavelength=_num(self.wavelength, f"{where}.wavelength", 0.0, limits.MAX_WAVELENGTH, lo_open=True),
+            speed=_num(self.speed, f"{where}.speed", -limits.MAX_SPEED, limits.MAX_SPEED),
+        )
 
     def reach(self, c0: np.ndarray) -> float:
         return float(np.abs(c0).max(initial=0.0) + self.amplitude)
@@ -182,6 +195,7 @@ class Incoherent:
     respawning at a random place and direction every ``lifetime`` seconds (its own phase);
     for the last ``absent`` fraction of each lifetime it is gone from the scene.
     The first lifetime starts at the sphere's rest position."""
+
     first: int
     count: int
     box_min: tuple[float, float, float] = (-15.0, -15.0, -15.0)
@@ -193,16 +207,21 @@ class Incoherent:
     mesh: int | None = None
     kind = "incoherent"
 
-    def validate(self, where: str) -> "Incoherent":
+    def validate(self, where: str) -> Incoherent:
         lo = _vec(self.box_min, f"{where}.box_min")
         hi = _vec(self.box_max, f"{where}.box_max")
         for a in range(3):
             if not lo[a] < hi[a]:
                 raise SceneError(f"{where}.box_max[{a}]", f"must be > box_min[{a}] ({lo[a]:g}), got {hi[a]:g}")
-        return replace(self, box_min=lo, box_max=hi, speed=_num(self.speed, f"{where}.speed", 0.0, limits.MAX_SPEED),
-                       lifetime=_num(self.lifetime, f"{where}.lifetime", 0.0, limits.MAX_LIFETIME, lo_open=True),
-                       absent=_num(self.absent, f"{where}.absent", 0.0, limits.MAX_ABSENT),
-                       seed=_int(self.seed, f"{where}.seed", 0, limits.MAX_MOTION_SEED))
+        return replace(
+            self,
+            box_min=lo,
+            box_max=hi,
+            speed=_num(self.speed, f"{where}.speed", 0.0, limits.MAX_SPEED),
+            lifetime=_num(self.lifetime, f"{where}.lifetime", 0.0, limits.MAX_LIFETIME, lo_open=True),
+            absent=_num(self.absent, f"{where}.absent", 0.0, limits.MAX_ABSENT),
+            seed=_int(self.seed, f"{where}.seed", 0, limits.MAX_MOTION_SEED),
+        )
 
     def reach(self, c0: np.ndarray) -> float:
         return float(max(np.abs(self.box_min).max(), np.abs(self.box_max).max()))
@@ -212,17 +231,22 @@ class Incoherent:
         phase = _uniform(self.seed, ids, np.zeros(len(ids)), 1) * self.lifetime
         u = t + phase
         cycle = np.floor(u / self.lifetime)
-        tau = np.where(cycle == 0, t, u - cycle * self.lifetime)       # time since this lifetime began
+        tau = np.where(cycle == 0, t, u - cycle * self.lifetime)  # time since this lifetime began
         start = lo + (hi - lo) * np.stack([_uniform(self.seed, ids, cycle, 2 + a) for a in range(3)], axis=1)
         start = np.where((cycle == 0)[:, None], c0, start)
         g = np.stack([_uniform(self.seed, ids, cycle, 5 + a) for a in range(3)], axis=1)
-        v = np.stack([np.sqrt(-2 * np.log(1 - g[:, 0])) * np.cos(2 * math.pi * g[:, 1]),
-                      np.sqrt(-2 * np.log(1 - g[:, 0])) * np.sin(2 * math.pi * g[:, 1]),
-                      2 * g[:, 2] - 1], axis=1)
+        v = np.stack(
+            [
+                np.sqrt(-2 * np.log(1 - g[:, 0])) * np.cos(2 * math.pi * g[:, 1]),
+                np.sqrt(-2 * np.log(1 - g[:, 0])) * np.sin(2 * math.pi * g[:, 1]),
+                2 * g[:, 2] - 1,
+            ],
+            axis=1,
+        )
         v = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12) * self.speed
         x = start + v * tau[:, None]
         size = hi - lo
-        w = np.mod(x - lo, 2 * size)                                   # reflect at the walls
+        w = np.mod(x - lo, 2 * size)  # reflect at the walls
         return lo + np.where(w <= size, w, 2 * size - w)
 
     def alive(self, t: float, ids: np.ndarray) -> np.ndarray:
@@ -264,8 +288,9 @@ def motion_from_json(d: Any, where: str) -> Motion:
     if d.get("mesh") is not None:
         both = [k for k in ("first", "count") if k in d]
         if both:
-            raise SceneError(f"{where}.{both[0]}", "a motion moves either a mesh (mesh) or a sphere range "
-                                                   "(first, count), not both")
+            raise SceneError(
+                f"{where}.{both[0]}", "a motion moves either a mesh (mesh) or a sphere range (first, count), not both"
+            )
         d = {**d, "first": 0, "count": 0}
     for req in ("first", "count"):
         if req not in d:
@@ -276,9 +301,11 @@ def motion_from_json(d: Any, where: str) -> Motion:
 
 # ------------------------------------------------------------------ animated scene
 
+
 @dataclass(frozen=True)
 class AnimatedScene:
     """A scene (rest pose) and the motions of some of its spheres; validated on construction."""
+
     scene: Scene
     motions: tuple = ()
 
@@ -296,16 +323,20 @@ class AnimatedScene:
                     raise SceneError(f"{where}.mesh", "the scene has no meshes")
                 k = _int(m.mesh, f"{where}.mesh", 0, len(self.scene.meshes) - 1)
                 if isinstance(m, Incoherent):
-                    raise SceneError(f"{where}.mesh", "an incoherent motion moves spheres only (its vertices would "
-                                                      "fly apart); use rigid or deformable for a mesh")
+                    raise SceneError(
+                        f"{where}.mesh",
+                        "an incoherent motion moves spheres only (its vertices would "
+                        "fly apart); use rigid or deformable for a mesh",
+                    )
                 if meshes[k]:
                     raise SceneError(f"{where}.mesh", f"mesh {k} is moved by another motion")
                 meshes[k] = True
                 m = m.validate(where)
                 reach = m.reach(self.scene.meshes[k].vertices)
                 if not reach <= MAX_COORDINATE:
-                    raise SceneError(where, f"would move mesh {k} to coordinates of {reach:.3g}, beyond "
-                                            f"±{MAX_COORDINATE:g}")
+                    raise SceneError(
+                        where, f"would move mesh {k} to coordinates of {reach:.3g}, beyond ±{MAX_COORDINATE:g}"
+                    )
                 out.append(m)
                 continue
             first = _int(m.first, f"{where}.first", 0, max(n - 1, 0))
@@ -344,7 +375,7 @@ class AnimatedScene:
         """Spheres at rest (a pose may hide some)."""
         return self.scene.n_spheres
 
-    def with_camera(self, camera: Camera) -> "AnimatedScene":
+    def with_camera(self, camera: Camera) -> AnimatedScene:
         """The same animation seen through ``camera`` (the motions are not validated again)."""
         seen = object.__new__(AnimatedScene)
         object.__setattr__(seen, "scene", self.scene.with_camera(camera))
@@ -382,6 +413,7 @@ class PosedFrame:
     """A posed scene, the animated-scene id of each of its spheres, and which of its tree
     primitives move: ``moving`` is bool over the posed spheres, then the triangles
     (:mod:`renderer.accel.primitives`' index space)."""
+
     scene: Scene
     ids: np.ndarray
     moving: np.ndarray
@@ -393,6 +425,7 @@ def _posed_mesh(mesh, m: Motion, t: float):
     """A mesh moved by motion ``m`` at time t: rigidly (normals turned), or deformed (smooth
     normals recomputed from the deformed triangles, area-weighted)."""
     from .meshes import vertex_normals
+
     v = m.centers(mesh.vertices, t, np.arange(len(mesh.vertices), dtype=np.int64))
     normals = None
     if mesh.normals is not None:
@@ -417,19 +450,37 @@ def pose(anim: AnimatedScene, t: float) -> PosedFrame:
         c[sl] = m.centers(base.sphere_centers[sl], t, ids)
         alive[sl] = m.alive(t, ids)
     keep = np.flatnonzero(alive)
-    scene = Scene(base.camera, base.lights, base.materials, c[keep], base.sphere_radii[keep],
-                  base.sphere_materials[keep], base.planes, tuple(meshes), base.environment)
-    tri_moving = np.repeat(anim.moving_meshes, [mesh.n_triangles for mesh in base.meshes]) if base.meshes else \
-        np.zeros(0, bool)
+    scene = Scene(
+        base.camera,
+        base.lights,
+        base.materials,
+        c[keep],
+        base.sphere_radii[keep],
+        base.sphere_materials[keep],
+        base.planes,
+        tuple(meshes),
+        base.environment,
+    )
+    tri_moving = (
+        np.repeat(anim.moving_meshes, [mesh.n_triangles for mesh in base.meshes]) if base.meshes else np.zeros(0, bool)
+    )
     moving = np.concatenate([anim.moving[keep], tri_moving])
     return PosedFrame(scene, keep, moving, t, (_time.perf_counter() - t0) * 1e3)
 
 
 # ---------------------------------------------------------------- Museum generator
 
-WALL = Material(color=(0.75, 0.72, 0.65), ambient=0.25, diffuse=0.6, specular=0.05, shininess=10.0,
-                reflective=0.15, transmissive=0.0, ior=1.0)
-SCULPTURE, GLASS = RED, TRANSPARENT   # Table 4.1's materials (renderer.scenarios)
+WALL = Material(
+    color=(0.75, 0.72, 0.65),
+    ambient=0.25,
+    diffuse=0.6,
+    specular=0.05,
+    shininess=10.0,
+    reflective=0.15,
+    transmissive=0.0,
+    ior=1.0,
+)
+SCULPTURE, GLASS = RED, TRANSPARENT  # Table 4.1's materials (renderer.scenarios)
 MUSEUM_KINDS = ("rigid", "deformable", "incoherent", "mixed")
 
 
@@ -439,11 +490,11 @@ def museum_static(seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     u = np.linspace(-18.0, 18.0, 12)
     v = np.linspace(-18.0, 18.0, 12)
     uu, vv = np.meshgrid(u, v)
-    out_c.append(np.stack([uu.ravel(), vv.ravel(), np.full(uu.size, -22.0)], axis=1))     # back wall
-    out_c.append(np.stack([np.full(uu.size, -22.0), vv.ravel(), uu.ravel()], axis=1))     # left wall
-    out_c.append(np.stack([np.full(uu.size, 22.0), vv.ravel(), uu.ravel()], axis=1))      # right wall
+    out_c.append(np.stack([uu.ravel(), vv.ravel(), np.full(uu.size, -22.0)], axis=1))  # back wall
+    out_c.append(np.stack([np.full(uu.size, -22.0), vv.ravel(), uu.ravel()], axis=1))  # left wall
+    out_c.append(np.stack([np.full(uu.size, 22.0), vv.ravel(), uu.ravel()], axis=1))  # right wall
     out_r.append(np.full(3 * uu.size, 1.6))
-    for x in (-14.0, 14.0):                                                              # pillars
+    for x in (-14.0, 14.0):  # pillars
         for z in (-12.0, 0.0, 12.0):
             y = np.linspace(-19.0, 19.0, 24)
             out_c.append(np.stack([np.full(24, x), y, np.full(24, z)], axis=1))
@@ -451,7 +502,7 @@ def museum_static(seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(out_c), np.concatenate(out_r)
 
 
-MUSEUM_ROOM_SPHERES = len(museum_static()[0])   # 576
+MUSEUM_ROOM_SPHERES = len(museum_static()[0])  # 576
 
 
 def museum(n_moving: int, kind: str = "deformable", seed: int = 0, absent: float = 0.2) -> AnimatedScene:
@@ -478,10 +529,15 @@ def museum(n_moving: int, kind: str = "deformable", seed: int = 0, absent: float
     c = np.concatenate([sc, mc])
     r = np.concatenate([sr, mr])
     mats = np.concatenate([np.zeros(ns, np.int32), np.where(np.arange(n_moving) % 4 == 3, 2, 1).astype(np.int32)])
-    scene = Scene(camera=Camera((0.0, 6.0, 62.0), (0.0, -3.0, 0.0), (0.0, 1.0, 0.0), 55.0),
-                  lights=(Light((0.0, 40.0, 20.0), (1.0, 1.0, 1.0)),),
-                  materials=(WALL, SCULPTURE, GLASS), sphere_centers=c, sphere_radii=r, sphere_materials=mats,
-                  planes=(Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),))
+    scene = Scene(
+        camera=Camera((0.0, 6.0, 62.0), (0.0, -3.0, 0.0), (0.0, 1.0, 0.0), 55.0),
+        lights=(Light((0.0, 40.0, 20.0), (1.0, 1.0, 1.0)),),
+        materials=(WALL, SCULPTURE, GLASS),
+        sphere_centers=c,
+        sphere_radii=r,
+        sphere_materials=mats,
+        planes=(Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),),
+    )
 
     def rigid(first: int, count: int) -> list:
         out, q = [], max(count // 4, 1)
@@ -490,16 +546,39 @@ def museum(n_moving: int, kind: str = "deformable", seed: int = 0, absent: float
             a = first + j * q
             b = first + count if j == 3 else min(first + (j + 1) * q, first + count)
             if b > a:
-                out.append(RigidGroup(a, b - a, pivot=tuple(centre), axis=axes[j], angular_velocity=0.6 + 0.3 * j,
-                                      amplitude=(2.0 * (j - 1.5), 1.5, 0.0), period=3.0 + j))
+                out.append(
+                    RigidGroup(
+                        a,
+                        b - a,
+                        pivot=tuple(centre),
+                        axis=axes[j],
+                        angular_velocity=0.6 + 0.3 * j,
+                        amplitude=(2.0 * (j - 1.5), 1.5, 0.0),
+                        period=3.0 + j,
+                    )
+                )
         return out
 
     def deformable(first: int, count: int) -> list:
         return [Deformable(first, count, amplitude=1.5, wavelength=9.0, speed=4.0)] if count else []
 
     def incoherent(first: int, count: int) -> list:
-        return [Incoherent(first, count, box_min=(-12.0, -16.0, -10.0), box_max=(12.0, 8.0, 10.0), speed=6.0,
-                           lifetime=2.5, absent=absent, seed=seed)] if count else []
+        return (
+            [
+                Incoherent(
+                    first,
+                    count,
+                    box_min=(-12.0, -16.0, -10.0),
+                    box_max=(12.0, 8.0, 10.0),
+                    speed=6.0,
+                    lifetime=2.5,
+                    absent=absent,
+                    seed=seed,
+                )
+            ]
+            if count
+            else []
+        )
 
     makers = {"rigid": rigid, "deformable": deformable, "incoherent": incoherent}
     if kind == "mixed":

@@ -39,22 +39,33 @@ from .scene import Scene
 @dataclass(frozen=True)
 class CostModel:
     """Nanoseconds per unit of work on the reference machine (the terms of :func:`terms`)."""
-    ns_frame: float = 1.0e6        # per frame: uploads, draw set-up, read-back
-    ns_pixel: float = 150.0        # per fragment and traced ray: generation, shading, writes
-    ns_node: float = 2.0           # per node visit of a ray inside the scene's box
-    ns_test: float = 4.0           # per sphere test in small leaves (the SAH's count; a ray stops early)
-    ns_leaf_test: float = 20.0     # per sphere test in leaves of more than BIG_LEAF (every one is made)
-    ns_bf_test: float = 10.0       # brute force: per sphere test (every ray tests every sphere)
-    ns_pass: float = 50.0          # ray engines: per full-screen pass and pixel
-    ns_raster: float = 3.0         # ray engines: per primitive drawn over one ray
-    level_decay: float = 0.7       # share of rays whose path goes on to the next level
-    upper: float = 2.5             # measured / estimated that 90 % of the fitted frames stay below
+
+    ns_frame: float = 1.0e6  # per frame: uploads, draw set-up, read-back
+    ns_pixel: float = 150.0  # per fragment and traced ray: generation, shading, writes
+    ns_node: float = 2.0  # per node visit of a ray inside the scene's box
+    ns_test: float = 4.0  # per sphere test in small leaves (the SAH's count; a ray stops early)
+    ns_leaf_test: float = 20.0  # per sphere test in leaves of more than BIG_LEAF (every one is made)
+    ns_bf_test: float = 10.0  # brute force: per sphere test (every ray tests every sphere)
+    ns_pass: float = 50.0  # ray engines: per full-screen pass and pixel
+    ns_raster: float = 3.0  # ray engines: per primitive drawn over one ray
+    level_decay: float = 0.7  # share of rays whose path goes on to the next level
+    upper: float = 2.5  # measured / estimated that 90 % of the fitted frames stay below
 
     TERMS = ("frame", "pixel", "node", "test", "leaf_test", "bf_test", "pass", "raster")
 
     def vector(self) -> np.ndarray:
-        return np.array([self.ns_frame, self.ns_pixel, self.ns_node, self.ns_test, self.ns_leaf_test,
-                         self.ns_bf_test, self.ns_pass, self.ns_raster])
+        return np.array(
+            [
+                self.ns_frame,
+                self.ns_pixel,
+                self.ns_node,
+                self.ns_test,
+                self.ns_leaf_test,
+                self.ns_bf_test,
+                self.ns_pass,
+                self.ns_raster,
+            ]
+        )
 
 
 # Fitted by bench/experiments/cost.py to 368 frames of every method on this project's
@@ -62,24 +73,35 @@ class CostModel:
 # median frame is estimated right; rerun it on another machine.
 # Refitted for the shader shaped for llvmpipe (its frames are 0.3-0.6x the ones of the first fit, which
 # refused the phone client's default still frame), with dense scenes up to 2^21 spheres.
-DEFAULT_MODEL = CostModel(ns_frame=7.27e6, ns_pixel=76.0, ns_node=3.30, ns_test=0.0, ns_leaf_test=1.43,
-                          ns_bf_test=1.91, ns_pass=52.6, ns_raster=2.45, level_decay=0.7, upper=2.13)
+DEFAULT_MODEL = CostModel(
+    ns_frame=7.27e6,
+    ns_pixel=76.0,
+    ns_node=3.30,
+    ns_test=0.0,
+    ns_leaf_test=1.43,
+    ns_bf_test=1.91,
+    ns_pass=52.6,
+    ns_raster=2.45,
+    level_decay=0.7,
+    upper=2.13,
+)
 
 
 @dataclass(frozen=True)
 class FrameCost:
     """The estimate of one frame. ``ms`` is the whole frame; ``ms_per_pixel`` one fragment
     of one pass (what a band of rows costs per pixel)."""
+
     passes: int
-    pixels: int                 # fragments per pass
-    rays_per_pixel: float       # radiance and shadow rays of one fragment
+    pixels: int  # fragments per pass
+    rays_per_pixel: float  # radiance and shadow rays of one fragment
     nodes_per_ray: float
     tests_per_ray: float
-    coverage: float             # share of the primary rays that enter the scene's box
+    coverage: float  # share of the primary rays that enter the scene's box
     ms: float
     ms_per_pixel: float
-    bound_ms: float             # what 90 % of such frames stay below: ms × the model's ``upper``
-    degenerate: bool            # the hierarchy tests (nearly) every sphere on every ray
+    bound_ms: float  # what 90 % of such frames stay below: ms × the model's ``upper``
+    degenerate: bool  # the hierarchy tests (nearly) every sphere on every ray
 
     def to_json(self) -> dict[str, Any]:
         return {k: (round(v, 4) if isinstance(v, float) else v) for k, v in self.__dict__.items()}
@@ -92,8 +114,10 @@ def traversal_work(method: str, stats: dict[str, Any], n_spheres: int) -> tuple[
     if method in ("bruteforce", "rayengine", "hre") or not stats:
         return 0.0, float(n_spheres), float(n_spheres)
     parts = [stats.get("kd") or {}, stats.get("bvh") or {}] if method == "twolevel" else [stats]
-    return tuple(sum(float(p.get(k, 0.0)) for p in parts)  # type: ignore[return-value]
-                 for k in ("sah_nodes", "sah_tests", "sah_big_tests"))
+    return tuple(
+        sum(float(p.get(k, 0.0)) for p in parts)  # type: ignore[return-value]
+        for k in ("sah_nodes", "sah_tests", "sah_big_tests")
+    )
 
 
 PATH_MEAN_SEGMENTS = 3.0
@@ -103,31 +127,38 @@ def ray_tree(scene: Scene, settings, decay: float = DEFAULT_MODEL.level_decay) -
     """(levels, radiance rays per pixel) of the ray tree the settings trace in this scene."""
     if settings.mode not in RAY_TREE_MODES:
         return 1, 1.0
-    features = (scene_features(scene) if settings.specialize else GENERIC).with_integrator(settings.integrator,
-                                                                                           settings.mode)
+    features = (scene_features(scene) if settings.specialize else GENERIC).with_integrator(
+        settings.integrator, settings.mode
+    )
     levels = features.recursion_depth(settings.max_recursion_depth)
     if features.path:
         # Not fitted yet: a path's expected segments taken as min(depth, PATH_MEAN_SEGMENTS) (Russian
         # roulette ends most paths within a few bounces), each sample one path.
         return levels, settings.samples_per_pixel * min(float(levels), PATH_MEAN_SEGMENTS)
-    used = (set(np.unique(scene.sphere_materials).tolist()) | {p.material for p in scene.planes}
-            | {m.material for m in scene.meshes})
+    used = (
+        set(np.unique(scene.sphere_materials).tolist())
+        | {p.material for p in scene.planes}
+        | {m.material for m in scene.meshes}
+    )
     mats = [scene.materials[i] for i in used] or list(scene.materials)
     k_max = max((max(m.reflective, m.transmissive) for m in mats), default=0.0)
-    if settings.min_weight > 0 and 0 < k_max < 1:   # ε stops a path once its weight k_max^(L−1) < ε
+    if settings.min_weight > 0 and 0 < k_max < 1:  # ε stops a path once its weight k_max^(L−1) < ε
         levels = min(levels, 1 + int(math.floor(math.log(settings.min_weight) / math.log(k_max) + 1e-9)))
     if k_max == 0:
         levels = 1
     branching = 2.0 if any(m.reflective > 0 and m.transmissive > 0 for m in mats) else 1.0
     g = branching * decay
-    return levels, sum(g ** level for level in range(levels))
+    return levels, sum(g**level for level in range(levels))
 
 
 def _branching(scene: Scene) -> int:
     """Child layers a ray-engine layer makes: 2 where some material reflects and another (or
     the same) transmits, else 1."""
-    used = (set(np.unique(scene.sphere_materials).tolist()) | {p.material for p in scene.planes}
-            | {m.material for m in scene.meshes})
+    used = (
+        set(np.unique(scene.sphere_materials).tolist())
+        | {p.material for p in scene.planes}
+        | {m.material for m in scene.meshes}
+    )
     mats = [scene.materials[i] for i in used]
     return 2 if any(m.reflective > 0 for m in mats) and any(m.transmissive > 0 for m in mats) else 1
 
@@ -137,7 +168,10 @@ def coverage(scene: Scene, width: int, height: int) -> float:
     projection onto the image (1 when the camera is inside or beside it, 0 for none)."""
     boxes = []
     if scene.n_spheres:
-        boxes += [scene.sphere_centers - scene.sphere_radii[:, None], scene.sphere_centers + scene.sphere_radii[:, None]]
+        boxes += [
+            scene.sphere_centers - scene.sphere_radii[:, None],
+            scene.sphere_centers + scene.sphere_radii[:, None],
+        ]
     if scene.n_triangles:
         boxes.append(scene.triangle_corners.reshape(-1, 3))
     if not boxes:
@@ -159,8 +193,9 @@ def coverage(scene: Scene, width: int, height: int) -> float:
     return float(w_ * h_ / 4.0)
 
 
-def terms(method: str, stats: dict[str, Any], scene: Scene, settings, decay: float,
-          multi_pass: bool = False) -> tuple[np.ndarray, dict[str, Any]]:
+def terms(
+    method: str, stats: dict[str, Any], scene: Scene, settings, decay: float, multi_pass: bool = False
+) -> tuple[np.ndarray, dict[str, Any]]:
     """The frame's work in the model's units (:attr:`CostModel.TERMS`), and what it is made of."""
     k = settings.supersampling
     averaged = settings.mode in AVERAGED_MODES
@@ -168,7 +203,7 @@ def terms(method: str, stats: dict[str, Any], scene: Scene, settings, decay: flo
     levels, radiance = ray_tree(scene, settings, decay)
     lights = len(scene.lights) if settings.mode == "color" else 0
     rays = radiance * (1 + lights)
-    n, planes = scene.n_spheres + scene.n_triangles, len(scene.planes)   # a triangle test costs as a sphere's
+    n, planes = scene.n_spheres + scene.n_triangles, len(scene.planes)  # a triangle test costs as a sphere's
     nodes, tests, big = traversal_work(method, stats, n)
     c = coverage(scene, w, h)
     # Primary rays enter the box where it covers the image; the others start on surfaces in it.
@@ -181,13 +216,19 @@ def terms(method: str, stats: dict[str, Any], scene: Scene, settings, decay: flo
         # (mask, surface, shade, one per light) and every primitive drawn over the grid once,
         # and once more per light.
         grid = w * h * (k * k if averaged else 1)
-        centre = w * h if averaged and k > 1 else 0      # the pixel-centre frame of the arrays
+        centre = w * h if averaged and k > 1 else 0  # the pixel-centre frame of the arrays
         layers = sum(_branching(scene) ** level for level in range(levels)) if settings.mode in RAY_TREE_MODES else 1
         t[1] = grid * rays + centre
         t[6] = grid * layers * (4 + lights) + 4 * centre
         t[7] = (grid * layers * (1 + lights) + centre) * (n + planes)
-        meta = {"passes": 1 + (1 if centre else 0), "pixels": grid, "rays": rays, "nodes": 0.0,
-                "tests": float(n + planes), "coverage": c}
+        meta = {
+            "passes": 1 + (1 if centre else 0),
+            "pixels": grid,
+            "rays": rays,
+            "nodes": 0.0,
+            "tests": float(n + planes),
+            "coverage": c,
+        }
         return t, meta
     passes = 1 + (k * k if averaged and k > 1 else 0)
     px = passes * w * h
@@ -199,49 +240,75 @@ def terms(method: str, stats: dict[str, Any], scene: Scene, settings, decay: flo
         t[2] = px * rays_in_box * nodes
         t[3] = px * (rays_in_box * (tests - big) + rays * planes)
         t[4] = px * rays_in_box * big
-    meta = {"passes": passes, "pixels": w * h, "rays": rays, "nodes": nodes, "tests": tests + planes,
-            "coverage": c}
+    meta = {"passes": passes, "pixels": w * h, "rays": rays, "nodes": nodes, "tests": tests + planes, "coverage": c}
     return t, meta
 
 
-def estimate(method: str, stats: dict[str, Any], scene: Scene, settings, model: CostModel = DEFAULT_MODEL,
-             multi_pass: bool = False) -> FrameCost:
+def estimate(
+    method: str,
+    stats: dict[str, Any],
+    scene: Scene,
+    settings,
+    model: CostModel = DEFAULT_MODEL,
+    multi_pass: bool = False,
+) -> FrameCost:
     """The cost of tracing ``scene`` with ``settings`` by ``method`` whose build reported ``stats``."""
     t, m = terms(method, stats, scene, settings, model.level_decay, multi_pass)
     total = float(t @ model.vector())
     frags = m["passes"] * m["pixels"]
     n = scene.n_spheres + scene.n_triangles
-    degenerate = (not multi_pass and method != "bruteforce" and n >= 64 and m["tests"] >= 0.5 * n)
-    return FrameCost(m["passes"], m["pixels"], m["rays"], m["nodes"], m["tests"], m["coverage"], total / 1e6,
-                     (total - model.ns_frame) / max(1, frags) / 1e6, total / 1e6 * model.upper, degenerate)
+    degenerate = not multi_pass and method != "bruteforce" and n >= 64 and m["tests"] >= 0.5 * n
+    return FrameCost(
+        m["passes"],
+        m["pixels"],
+        m["rays"],
+        m["nodes"],
+        m["tests"],
+        m["coverage"],
+        total / 1e6,
+        (total - model.ns_frame) / max(1, frags) / 1e6,
+        total / 1e6 * model.upper,
+        degenerate,
+    )
 
 
-def largest_accepted(method: str, stats: dict[str, Any], scene: Scene, settings, limit_ms: float,
-                     model: CostModel = DEFAULT_MODEL, multi_pass: bool = False) -> dict[str, Any]:
+def largest_accepted(
+    method: str,
+    stats: dict[str, Any],
+    scene: Scene,
+    settings,
+    limit_ms: float,
+    model: CostModel = DEFAULT_MODEL,
+    multi_pass: bool = False,
+) -> dict[str, Any]:
     """For each setting that makes a frame cheaper without a new build, the value closest to
     the requested one whose frame fits ``limit_ms``: the largest width, height, samples per
     pixel and recursion depth (None where even the smallest does not fit)."""
+
     def fits(**kw) -> bool:
         return estimate(method, stats, scene, replace(settings, **kw), model, multi_pass).bound_ms <= limit_ms
+
     out: dict[str, Any] = {}
     for name in ("width", "height"):
         lo, hi = 0, getattr(settings, name)
-        while lo < hi:                       # cost grows with the side: bisect the largest that fits
+        while lo < hi:  # cost grows with the side: bisect the largest that fits
             mid = (lo + hi + 1) // 2
             if fits(**{name: mid}):
                 lo = mid
             else:
                 hi = mid - 1
         out[name] = lo or None
-    if getattr(settings, "integrator", "whitted") == "path":     # any count: bisect it as the sides
+    if getattr(settings, "integrator", "whitted") == "path":  # any count: bisect it as the sides
         lo, hi = 0, settings.samples_per_pixel
         while lo < hi:
             mid = (lo + hi + 1) // 2
             lo, hi = (mid, hi) if fits(samples_per_pixel=mid) else (lo, mid - 1)
         out["samples_per_pixel"] = lo or None
     else:
-        out["samples_per_pixel"] = next((s for s in (16, 9, 4, 1) if s <= settings.samples_per_pixel
-                                         and fits(samples_per_pixel=s)), None)
-    out["max_recursion_depth"] = next((d for d in range(settings.max_recursion_depth, 0, -1)
-                                       if fits(max_recursion_depth=d)), None)
+        out["samples_per_pixel"] = next(
+            (s for s in (16, 9, 4, 1) if s <= settings.samples_per_pixel and fits(samples_per_pixel=s)), None
+        )
+    out["max_recursion_depth"] = next(
+        (d for d in range(settings.max_recursion_depth, 0, -1) if fits(max_recursion_depth=d)), None
+    )
     return out

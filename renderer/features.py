@@ -32,7 +32,7 @@ from .scene import Scene
 # What a specialised variant removes (the stats' ``features_removed``), then the counts.
 REMOVALS = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS", "NO_SPLIT")
 PLANE_COUNTS = tuple(f"PLANES_{k}" for k in range(MAX_PLANES + 1))
-LIGHT_COUNTS = tuple(f"LIGHTS_{k}" for k in range(1, MAX_LIGHTS + 1))   # no lights: NO_LIGHTS
+LIGHT_COUNTS = tuple(f"LIGHTS_{k}" for k in range(1, MAX_LIGHTS + 1))  # no lights: NO_LIGHTS
 DATA_FORMATS = ("EQUAL_RADII", "MATERIAL_TEXTURE", "TRIANGLES", "SMOOTH_TRIANGLES")
 # What the light of a frame needs beyond the thesis's, never specialised away either (a scene without
 # them carries none, so its variants' text is the one before them): some used material emits
@@ -49,10 +49,10 @@ class SceneFeatures:
     reflection: bool
     transmission: bool
     lights: bool
-    split: bool = True                # a used material both reflects and transmits
-    n_planes: int | None = None       # compiled-in counts (None: read from uniforms)
+    split: bool = True  # a used material both reflects and transmits
+    n_planes: int | None = None  # compiled-in counts (None: read from uniforms)
     n_lights: int | None = None
-    equal_radii: bool = False         # data formats (gpu_layout), never specialised away
+    equal_radii: bool = False  # data formats (gpu_layout), never specialised away
     material_texture: bool = False
     triangles: bool = False
     smooth_triangles: bool = False
@@ -98,15 +98,22 @@ class SceneFeatures:
         every surface, so the path integrator's depth is the one requested."""
         return requested if (self.reflection or self.transmission or self.path) else 1
 
-    def with_integrator(self, integrator: str, mode: str) -> "SceneFeatures":
+    def with_integrator(self, integrator: str, mode: str) -> SceneFeatures:
         """The features of a frame of this scene with ``integrator`` in ``mode`` (paths: colour only)."""
         return replace(self, path=integrator == "path" and mode == "color")
 
-    def generic(self) -> "SceneFeatures":
+    def generic(self) -> SceneFeatures:
         """The generic variant for the same data: nothing removed, counts read at run time."""
-        return replace(GENERIC, equal_radii=self.equal_radii, material_texture=self.material_texture,
-                       triangles=self.triangles, smooth_triangles=self.smooth_triangles, emission=self.emission,
-                       environment=self.environment, path=self.path)
+        return replace(
+            GENERIC,
+            equal_radii=self.equal_radii,
+            material_texture=self.material_texture,
+            triangles=self.triangles,
+            smooth_triangles=self.smooth_triangles,
+            emission=self.emission,
+            environment=self.environment,
+            path=self.path,
+        )
 
 
 GENERIC = SceneFeatures(reflection=True, transmission=True, lights=True)
@@ -115,16 +122,23 @@ GENERIC = SceneFeatures(reflection=True, transmission=True, lights=True)
 def scene_features(scene: Scene) -> SceneFeatures:
     """Features of the materials that primitives actually use, the counts of planes and
     lights, and the scene's data formats."""
-    used = (set(np.unique(scene.sphere_materials).tolist()) | {p.material for p in scene.planes}
-            | {m.material for m in scene.meshes})
+    used = (
+        set(np.unique(scene.sphere_materials).tolist())
+        | {p.material for p in scene.planes}
+        | {m.material for m in scene.meshes}
+    )
     mats = [scene.materials[i] for i in used]
-    return SceneFeatures(reflection=any(m.reflective > 0 for m in mats),
-                         transmission=any(m.transmissive > 0 for m in mats),
-                         lights=len(scene.lights) > 0,
-                         split=any(m.reflective > 0 and m.transmissive > 0 for m in mats),
-                         n_planes=len(scene.planes), n_lights=len(scene.lights),
-                         equal_radii=gpu_layout.equal_radii(scene),
-                         material_texture=gpu_layout.material_texture(scene),
-                         triangles=gpu_layout.has_triangles(scene),
-                         smooth_triangles=gpu_layout.smooth_triangles(scene),
-                         emission=any(m.emits for m in mats), environment=any(scene.environment))
+    return SceneFeatures(
+        reflection=any(m.reflective > 0 for m in mats),
+        transmission=any(m.transmissive > 0 for m in mats),
+        lights=len(scene.lights) > 0,
+        split=any(m.reflective > 0 and m.transmissive > 0 for m in mats),
+        n_planes=len(scene.planes),
+        n_lights=len(scene.lights),
+        equal_radii=gpu_layout.equal_radii(scene),
+        material_texture=gpu_layout.material_texture(scene),
+        triangles=gpu_layout.has_triangles(scene),
+        smooth_triangles=gpu_layout.smooth_triangles(scene),
+        emission=any(m.emits for m in mats),
+        environment=any(scene.environment),
+    )

@@ -94,8 +94,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .limits import (DEFAULT_TEXTURE_WIDTH, MAX_LIGHTS, MAX_MATERIALS, MAX_PLANES, MAX_SAMPLED_SPHERES,
-                     MAX_SAMPLED_TRIANGLES, MAX_SPHERES, MAX_TRIANGLES)
+from .limits import (
+    DEFAULT_TEXTURE_WIDTH,
+    MAX_LIGHTS,
+    MAX_MATERIALS,
+    MAX_PLANES,
+    MAX_SAMPLED_SPHERES,
+    MAX_SAMPLED_TRIANGLES,
+    MAX_SPHERES,
+    MAX_TRIANGLES,
+)
 from .modes import RAY_TREE_MODES
 from .scene import Camera, Scene
 
@@ -108,18 +116,18 @@ MAX_UNIFORM_MATERIALS = 16
 BLOCK_RECORDS = 4096
 BLOCK_BYTES = 16 * BLOCK_RECORDS
 # The key word of a sphere record.
-SPHERE_ID_BITS = 21                     # ids < MAX_SPHERES = 2^21
+SPHERE_ID_BITS = 21  # ids < MAX_SPHERES = 2^21
 SPHERE_ID_MASK = (1 << SPHERE_ID_BITS) - 1
 SPHERE_MAT_SHIFT = SPHERE_ID_BITS
-SPHERE_MAT_MASK = 0xFF                  # materials < MAX_MATERIALS = 256
-SPHERE_LAST = 1 << 31                   # the last record of a leaf
+SPHERE_MAT_MASK = 0xFF  # materials < MAX_MATERIALS = 256
+SPHERE_LAST = 1 << 31  # the last record of a leaf
 assert MAX_SPHERES <= 1 << SPHERE_ID_BITS and MAX_MATERIALS <= SPHERE_MAT_MASK + 1
 # A triangle's slot among the leaf-order records (the module's docstring): bit 30 (never set
 # in a sphere key: ids take bits 20..0, materials 28..21) and the triangle index below it.
 TRI_SLOT = 1 << 30
 TRI_INDEX_MASK = TRI_SLOT - 1
-TRI_DEGENERATE = 1 << 31                # in the material word of a triangle's first record
-TRIANGLE_TEXELS = 3                     # records per triangle in u_triangles and u_tri_normals
+TRI_DEGENERATE = 1 << 31  # in the material word of a triangle's first record
+TRIANGLE_TEXELS = 3  # records per triangle in u_triangles and u_tri_normals
 assert MAX_TRIANGLES <= TRI_SLOT
 
 
@@ -136,10 +144,11 @@ class Binding:
     for every define it begins (``PLANES_``: a compiled-in count). ``tracer``: False for what
     only the ray engines read. ``records``: an array of ``uvec4`` records that the host may
     place in a uniform block (the module's docstring); its GLSL type is then implied."""
+
     name: str
     glsl_type: str = "highp usampler2D"
     doc: str = ""
-    length: str | None = None   # GLSL constant of a uniform array's length
+    length: str | None = None  # GLSL constant of a uniform array's length
     group: str = "always"
     needs: str | None = None
     unless: str | None = None
@@ -155,11 +164,15 @@ class Binding:
             arr = f"[{self.length}]" if self.length else ""
             return f"uniform {self.glsl_type} {self.name}{arr};" + doc
         if block:
-            return (f"layout(std140) uniform {self.name} {{ highp uvec4 {self.name}_rec[BLOCK_RECORDS]; }};{doc}\n"
-                    f"#define {self.name}_at(i) {self.name}_rec[i]")
-        return (f"uniform highp usampler2D {self.name};{doc}\n"
-                f"int {self.name}_shift;\n"
-                f"#define {self.name}_at(i) texelFetch({self.name}, texel((i), {self.name}_shift), 0)")
+            return (
+                f"layout(std140) uniform {self.name} {{ highp uvec4 {self.name}_rec[BLOCK_RECORDS]; }};{doc}\n"
+                f"#define {self.name}_at(i) {self.name}_rec[i]"
+            )
+        return (
+            f"uniform highp usampler2D {self.name};{doc}\n"
+            f"int {self.name}_shift;\n"
+            f"#define {self.name}_at(i) texelFetch({self.name}, texel((i), {self.name}_shift), 0)"
+        )
 
 
 # Groups of bindings a variant may not read; each has a READS_<GROUP> define in the shader.
@@ -178,6 +191,7 @@ class Variant:
     spheres at all (``spheres`` False: the *background* variant of a primary-ray frame,
     drawn where no primary ray can meet a sphere, :func:`primary_rect`; it reads none of
     the method's bindings)."""
+
     method: str
     mode: str
     depth: int
@@ -205,11 +219,11 @@ class Variant:
         """Whether the variant's shader reads the bindings of ``group``."""
         if group == "always":
             return True
-        if group == "materials":    # the ambient colour, or kr / kt of the rays a hit spawns
+        if group == "materials":  # the ambient colour, or kr / kt of the rays a hit spawns
             return self.mode == "color" or (self.mode == "recursion" and self.spawns)
-        if group == "lights":       # shadow rays and the diffuse and specular terms
+        if group == "lights":  # shadow rays and the diffuse and specular terms
             return self.mode == "color" and "NO_LIGHTS" not in self.features
-        if group == "min_weight":   # the ε cut-off of spawned rays
+        if group == "min_weight":  # the ε cut-off of spawned rays
             return self.spawns
         if group == "target_distance":
             return self.mode == "depth"
@@ -221,20 +235,29 @@ class Variant:
             return self.mode == "color" and "ENVIRONMENT" in self.features
         if group == "path":
             return self.path
-        if group == "shading_normals":   # a hit's shading normal: the hit target, or the image
+        if group == "shading_normals":  # a hit's shading normal: the hit target, or the image
             if not self.image_only:
                 return True
-            return (self.mode == "normal" or (self.mode == "color" and (self.reads("lights") or self.spawns))
-                    or (self.mode == "recursion" and self.spawns))
+            return (
+                self.mode == "normal"
+                or (self.mode == "color" and (self.reads("lights") or self.spawns))
+                or (self.mode == "recursion" and self.spawns)
+            )
         raise ValueError(f"unknown binding group {group!r}")
 
     def reads_binding(self, b: Binding) -> bool:
         """Whether the variant's shader declares and reads ``b``."""
+
         def carries(define: str) -> bool:
             return any(f == define or (define.endswith("_") and f.startswith(define)) for f in self.features)
-        return (b.tracer and self.reads(b.group) and (self.spheres or not b.traversal)
-                and (b.needs is None or carries(b.needs))
-                and (b.unless is None or not carries(b.unless)))
+
+        return (
+            b.tracer
+            and self.reads(b.group)
+            and (self.spheres or not b.traversal)
+            and (b.needs is None or carries(b.needs))
+            and (b.unless is None or not carries(b.unless))
+        )
 
     def defines(self) -> list[str]:
         """``READS_<GROUP>`` for each group read: the shader guards its uses with them."""
@@ -242,14 +265,27 @@ class Variant:
 
 
 SPHERES = Binding("u_spheres", "highp sampler2D", "(centre.xyz, radius) per sphere id", tracer=False)
-SPHERE_MAT = Binding("u_sphere_mat", "highp usampler2D", "material index per sphere id", group="materials",
-                     tracer=False)
-MATERIALS = Binding("u_materials", "highp sampler2D", "MATERIAL_TEXELS texels per material", group="materials",
-                    needs="MATERIAL_TEXTURE")
-MATERIAL_VECS = Binding("u_material_vecs", "highp vec4", "MATERIAL_TEXELS vectors per material",
-                        length="MATERIAL_VECS", group="materials", unless="MATERIAL_TEXTURE")
-SPHERE_RADIUS = Binding("u_sphere_radius", "highp float", "the radius of every sphere (EQUAL_RADII records)",
-                        needs="EQUAL_RADII", traversal=True)
+SPHERE_MAT = Binding(
+    "u_sphere_mat", "highp usampler2D", "material index per sphere id", group="materials", tracer=False
+)
+MATERIALS = Binding(
+    "u_materials", "highp sampler2D", "MATERIAL_TEXELS texels per material", group="materials", needs="MATERIAL_TEXTURE"
+)
+MATERIAL_VECS = Binding(
+    "u_material_vecs",
+    "highp vec4",
+    "MATERIAL_TEXELS vectors per material",
+    length="MATERIAL_VECS",
+    group="materials",
+    unless="MATERIAL_TEXTURE",
+)
+SPHERE_RADIUS = Binding(
+    "u_sphere_radius",
+    "highp float",
+    "the radius of every sphere (EQUAL_RADII records)",
+    needs="EQUAL_RADII",
+    traversal=True,
+)
 NUM_SPHERES = Binding("u_num_spheres", "highp int")
 NUM_PLANES = Binding("u_num_planes", "highp int", unless="PLANES_")
 PLANE_POINT = Binding("u_plane_point", "highp vec3", length="MAX_PLANES")
@@ -263,45 +299,93 @@ ENVIRONMENT = Binding("u_environment", "highp vec3", "radiance a ray that meets 
 # The path integrator: the samples this pass traces of each pixel, and the point lights' scale.
 SAMPLE_START = Binding("u_sample_start", "highp int", "index of this pass's first sample of each pixel", group="path")
 SAMPLE_COUNT = Binding("u_sample_count", "highp int", "samples of each pixel this pass traces (≥ 1)", group="path")
-LIGHT_SCALE = Binding("u_light_scale", "highp float", "π·d², d = |target − position|: a point light's radiant "
-                      "intensity per unit of its color (docs/SHADING.md)", group="path")
-PATH_BINDINGS = (SAMPLE_START, SAMPLE_COUNT)   # set per pass
+LIGHT_SCALE = Binding(
+    "u_light_scale",
+    "highp float",
+    "π·d², d = |target − position|: a point light's radiant intensity per unit of its color (docs/SHADING.md)",
+    group="path",
+)
+PATH_BINDINGS = (SAMPLE_START, SAMPLE_COUNT)  # set per pass
 # The emitting spheres next-event estimation samples (the first MAX_SAMPLED_SPHERES by id; the others
 # are met by BSDF sampling alone).
 NUM_EMITTERS = Binding("u_num_emitters", "highp int", "emitting spheres sampled", group="path")
-EMITTER_LAST = Binding("u_emitter_last", "highp int", "id of the last sampled emitting sphere (−1: none)",
-                       group="path")
-EMITTER_SPHERE = Binding("u_emitter_sphere", "highp vec4", "(centre, radius) of each", length="MAX_SAMPLED_SPHERES",
-                         group="path")
-EMITTER_RADIANCE = Binding("u_emitter_radiance", "highp vec3", "emission of each", length="MAX_SAMPLED_SPHERES",
-                           group="path")
+EMITTER_LAST = Binding("u_emitter_last", "highp int", "id of the last sampled emitting sphere (−1: none)", group="path")
+EMITTER_SPHERE = Binding(
+    "u_emitter_sphere", "highp vec4", "(centre, radius) of each", length="MAX_SAMPLED_SPHERES", group="path"
+)
+EMITTER_RADIANCE = Binding(
+    "u_emitter_radiance", "highp vec3", "emission of each", length="MAX_SAMPLED_SPHERES", group="path"
+)
 # The emitting triangles next-event estimation samples, one picked by area: all of them when there are
 # at most MAX_SAMPLED_TRIANGLES (else none: BSDF sampling alone meets them).
 NUM_EMIT_TRIS = Binding("u_num_emit_tris", "highp int", "emitting triangles sampled (0: none)", group="path")
 EMIT_TRI_AREA = Binding("u_emit_tri_area", "highp float", "their total area", group="path")
-EMIT_TRI_V0 = Binding("u_emit_tri_v0", "highp vec3", "corner v0 of each", length="MAX_SAMPLED_TRIANGLES",
-                      group="path")
+EMIT_TRI_V0 = Binding("u_emit_tri_v0", "highp vec3", "corner v0 of each", length="MAX_SAMPLED_TRIANGLES", group="path")
 EMIT_TRI_E1 = Binding("u_emit_tri_e1", "highp vec3", "v1 − v0 of each", length="MAX_SAMPLED_TRIANGLES", group="path")
 EMIT_TRI_E2 = Binding("u_emit_tri_e2", "highp vec3", "v2 − v0 of each", length="MAX_SAMPLED_TRIANGLES", group="path")
-EMIT_TRI_RADIANCE = Binding("u_emit_tri_radiance", "highp vec3", "emission of each", length="MAX_SAMPLED_TRIANGLES",
-                            group="path")
-EMIT_TRI_CDF = Binding("u_emit_tri_cdf", "highp float", "area up to and with each, over the total",
-                       length="MAX_SAMPLED_TRIANGLES", group="path")
-EMITTER_BINDINGS = (NUM_EMITTERS, EMITTER_LAST, EMITTER_SPHERE, EMITTER_RADIANCE, NUM_EMIT_TRIS, EMIT_TRI_AREA,
-                    EMIT_TRI_V0, EMIT_TRI_E1, EMIT_TRI_E2, EMIT_TRI_RADIANCE, EMIT_TRI_CDF)
+EMIT_TRI_RADIANCE = Binding(
+    "u_emit_tri_radiance", "highp vec3", "emission of each", length="MAX_SAMPLED_TRIANGLES", group="path"
+)
+EMIT_TRI_CDF = Binding(
+    "u_emit_tri_cdf",
+    "highp float",
+    "area up to and with each, over the total",
+    length="MAX_SAMPLED_TRIANGLES",
+    group="path",
+)
+EMITTER_BINDINGS = (
+    NUM_EMITTERS,
+    EMITTER_LAST,
+    EMITTER_SPHERE,
+    EMITTER_RADIANCE,
+    NUM_EMIT_TRIS,
+    EMIT_TRI_AREA,
+    EMIT_TRI_V0,
+    EMIT_TRI_E1,
+    EMIT_TRI_E2,
+    EMIT_TRI_RADIANCE,
+    EMIT_TRI_CDF,
+)
 # The triangles (only with the TRIANGLES data format): listed among the bindings of each method
 # that traces them, packed by its packer with pack_triangles, so that they may be uniform blocks.
-TRIANGLES = Binding("u_triangles", doc="TRIANGLE_TEXELS records per triangle: corners, material", records=True,
-                    needs="TRIANGLES", traversal=True)
-TRI_NORMALS = Binding("u_tri_normals", doc="TRIANGLE_TEXELS records per triangle: vertex normals", records=True,
-                      group="shading_normals", needs="SMOOTH_TRIANGLES", traversal=True)
-TRI_BASE = Binding("u_tri_base", "highp int", "scene id of triangle 0 (spheres + planes)", needs="TRIANGLES",
-                   traversal=True)
+TRIANGLES = Binding(
+    "u_triangles",
+    doc="TRIANGLE_TEXELS records per triangle: corners, material",
+    records=True,
+    needs="TRIANGLES",
+    traversal=True,
+)
+TRI_NORMALS = Binding(
+    "u_tri_normals",
+    doc="TRIANGLE_TEXELS records per triangle: vertex normals",
+    records=True,
+    group="shading_normals",
+    needs="SMOOTH_TRIANGLES",
+    traversal=True,
+)
+TRI_BASE = Binding(
+    "u_tri_base", "highp int", "scene id of triangle 0 (spheres + planes)", needs="TRIANGLES", traversal=True
+)
 NUM_TRIANGLES = Binding("u_num_triangles", "highp int", needs="TRIANGLES", traversal=True)
 TRIANGLE_BINDINGS = (TRIANGLES, TRI_NORMALS, TRI_BASE, NUM_TRIANGLES)
 # Everything pack_primitives packs (the tracer's and the ray engines' scene data).
-SCENE_BINDINGS = (SPHERES, SPHERE_MAT, MATERIALS, MATERIAL_VECS, SPHERE_RADIUS, NUM_SPHERES, NUM_PLANES,
-                  PLANE_POINT, PLANE_NORMAL, PLANE_MAT, NUM_LIGHTS, LIGHT_POS, LIGHT_COLOR, EMISSION, ENVIRONMENT)
+SCENE_BINDINGS = (
+    SPHERES,
+    SPHERE_MAT,
+    MATERIALS,
+    MATERIAL_VECS,
+    SPHERE_RADIUS,
+    NUM_SPHERES,
+    NUM_PLANES,
+    PLANE_POINT,
+    PLANE_NORMAL,
+    PLANE_MAT,
+    NUM_LIGHTS,
+    LIGHT_POS,
+    LIGHT_COLOR,
+    EMISSION,
+    ENVIRONMENT,
+)
 
 CAM_POS = Binding("u_cam_pos", "highp vec3")
 CAM_RIGHT = Binding("u_cam_right", "highp vec3")
@@ -309,25 +393,47 @@ CAM_UP = Binding("u_cam_up", "highp vec3")
 CAM_FORWARD = Binding("u_cam_forward", "highp vec3")
 HALF_EXTENT = Binding("u_half_extent", "highp vec2", "(tan(fov_y/2)·W/H, tan(fov_y/2))")
 RESOLUTION = Binding("u_resolution", "highp vec2", "(W, H) of the render target")
-TARGET_DISTANCE = Binding("u_target_distance", "highp float", "|target − position|, for the depth image",
-                          group="target_distance")
+TARGET_DISTANCE = Binding(
+    "u_target_distance", "highp float", "|target − position|, for the depth image", group="target_distance"
+)
 CAMERA_BINDINGS = (CAM_POS, CAM_RIGHT, CAM_UP, CAM_FORWARD, HALF_EXTENT, RESOLUTION, TARGET_DISTANCE)
-MIN_WEIGHT = Binding("u_min_weight", "highp float", "ε: secondary rays of smaller path weight are not traced",
-                     group="min_weight")
+MIN_WEIGHT = Binding(
+    "u_min_weight", "highp float", "ε: secondary rays of smaller path weight are not traced", group="min_weight"
+)
 # A frame is traced in passes: the pixel centres (scale 1, offset 0.5), then for supersampled
 # images one pass per sub-pixel (sx, sy) of the √s-times finer grid (scale √s, offset s + 0.5).
 PASS_SCALE = Binding("u_pass_scale", "highp float", "sub-pixels per pixel side of this pass's grid")
 PASS_OFFSET = Binding("u_pass_offset", "highp vec2", "(sx, sy) + 0.5: the sub-pixel this pass traces")
 PASS_BINDINGS = (PASS_SCALE, PASS_OFFSET)
-TRACER_BINDINGS = (*SCENE_BINDINGS, *CAMERA_BINDINGS, *PASS_BINDINGS, MIN_WEIGHT, LIGHT_SCALE, *EMITTER_BINDINGS,
-                   *PATH_BINDINGS)
+TRACER_BINDINGS = (
+    *SCENE_BINDINGS,
+    *CAMERA_BINDINGS,
+    *PASS_BINDINGS,
+    MIN_WEIGHT,
+    LIGHT_SCALE,
+    *EMITTER_BINDINGS,
+    *PATH_BINDINGS,
+)
 # The ray engines draw planes as instances after the spheres (the instance count carries the
 # number of primitives), so they never read u_num_planes; their depth image is made on the CPU.
 # Their materials are the texture, their spheres the per-id textures.
-RAY_ENGINE_SCENE_BINDINGS = (SPHERES, SPHERE_MAT, MATERIALS, NUM_SPHERES, PLANE_POINT, PLANE_NORMAL, PLANE_MAT,
-                             NUM_LIGHTS, LIGHT_POS, LIGHT_COLOR)
-RAY_ENGINE_BINDINGS = (*RAY_ENGINE_SCENE_BINDINGS, *(b for b in CAMERA_BINDINGS if b is not TARGET_DISTANCE),
-                       MIN_WEIGHT)
+RAY_ENGINE_SCENE_BINDINGS = (
+    SPHERES,
+    SPHERE_MAT,
+    MATERIALS,
+    NUM_SPHERES,
+    PLANE_POINT,
+    PLANE_NORMAL,
+    PLANE_MAT,
+    NUM_LIGHTS,
+    LIGHT_POS,
+    LIGHT_COLOR,
+)
+RAY_ENGINE_BINDINGS = (
+    *RAY_ENGINE_SCENE_BINDINGS,
+    *(b for b in CAMERA_BINDINGS if b is not TARGET_DISTANCE),
+    MIN_WEIGHT,
+)
 
 
 def declarations(bindings: tuple[Binding, ...] | list[Binding], blocks: tuple[str, ...] = ()) -> str:
@@ -337,8 +443,9 @@ def declarations(bindings: tuple[Binding, ...] | list[Binding], blocks: tuple[st
     text = "".join(b.declaration(b.name in blocks) + "\n" for b in bindings)
     shifts = [b.name for b in bindings if b.records and b.name not in blocks]
     if shifts:
-        text += ("#define LAYOUT_INIT() " + " ".join(f"{n}_shift = row_shift(textureSize({n}, 0));" for n in shifts)
-                 + "\n")
+        text += (
+            "#define LAYOUT_INIT() " + " ".join(f"{n}_shift = row_shift(textureSize({n}, 0));" for n in shifts) + "\n"
+        )
     elif any(b.records for b in bindings):
         text += "#define LAYOUT_INIT()\n"
     return text
@@ -347,6 +454,7 @@ def declarations(bindings: tuple[Binding, ...] | list[Binding], blocks: tuple[st
 @dataclass
 class PackedTexture:
     """A 1-D array wrapped into rows: ``data`` is (height, width, components)."""
+
     data: np.ndarray
     dtype: str  # moderngl / numpy dtype code: 'f4' or 'u4'
 
@@ -372,7 +480,7 @@ def wrap_rows(elements: np.ndarray, max_width: int = DEFAULT_TEXTURE_WIDTH) -> P
         elements = elements[:, None]
     count, comps = elements.shape
     max_width = 1 << (int(max_width).bit_length() - 1)
-    width = min(1 << max(0, count - 1).bit_length(), max_width)   # count 0 → one texel
+    width = min(1 << max(0, count - 1).bit_length(), max_width)  # count 0 → one texel
     height = max(1, -(-count // width))
     if height > max_width:
         raise ValueError(f"{count} elements do not fit a {max_width}×{max_width} texture")
@@ -385,6 +493,7 @@ def wrap_rows(elements: np.ndarray, max_width: int = DEFAULT_TEXTURE_WIDTH) -> P
 @dataclass
 class PackedScene:
     """Textures and uniforms for one frame, independent of any GL context."""
+
     textures: dict[str, PackedTexture]
     uniforms: dict[str, object] = field(default_factory=dict)
 
@@ -434,11 +543,15 @@ def unpack_sphere_records(records: np.ndarray, equal: bool) -> dict[str, np.ndar
     if equal:
         centre, radius, key = r[:, :3].copy().view(np.float32), np.full(len(r), np.nan, np.float32), r[:, 3]
     else:
-        r = r[:len(r) // 2 * 2].reshape(-1, 2, 4)
+        r = r[: len(r) // 2 * 2].reshape(-1, 2, 4)
         centre, radius, key = r[:, 0, :3].copy().view(np.float32), r[:, 0, 3].copy().view(np.float32), r[:, 1, 0]
-    return {"centre": centre, "radius": radius, "id": (key & np.uint32(SPHERE_ID_MASK)).astype(np.int64),
-            "material": ((key >> np.uint32(SPHERE_MAT_SHIFT)) & np.uint32(SPHERE_MAT_MASK)).astype(np.int64),
-            "last": (key & np.uint32(SPHERE_LAST)) != 0}
+    return {
+        "centre": centre,
+        "radius": radius,
+        "id": (key & np.uint32(SPHERE_ID_MASK)).astype(np.int64),
+        "material": ((key >> np.uint32(SPHERE_MAT_SHIFT)) & np.uint32(SPHERE_MAT_MASK)).astype(np.int64),
+        "last": (key & np.uint32(SPHERE_LAST)) != 0,
+    }
 
 
 def has_triangles(scene: Scene) -> bool:
@@ -486,8 +599,9 @@ def triangle_records(scene: Scene) -> np.ndarray:
     degenerate = np.asarray(scene.triangle_degenerate, dtype=bool)
     out = np.zeros((len(c), 3, 4), dtype=np.uint32)
     out[:, :, :3] = np.ascontiguousarray(c, dtype=np.float32).view(np.uint32)
-    out[:, 0, 3] = (np.asarray(scene.triangle_materials, dtype=np.uint32)
-                    | np.where(degenerate, np.uint32(TRI_DEGENERATE), np.uint32(0)))
+    out[:, 0, 3] = np.asarray(scene.triangle_materials, dtype=np.uint32) | np.where(
+        degenerate, np.uint32(TRI_DEGENERATE), np.uint32(0)
+    )
     return out.reshape(-1, 4)
 
 
@@ -553,7 +667,7 @@ def pack_primitives(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> Pac
     for i, m in enumerate(scene.materials):
         mats[3 * i] = (*m.color, m.ambient)
         mats[3 * i + 1] = (m.diffuse, m.specular, m.shininess, m.reflective)
-        mats[3 * i + 2] = (m.transmissive, m.ior, m.roughness, 0.0)   # (the Whitted shader reads x, y)
+        mats[3 * i + 2] = (m.transmissive, m.ior, m.roughness, 0.0)  # (the Whitted shader reads x, y)
     textures = {
         SPHERES.name: wrap_rows(spheres, max_width),
         SPHERE_MAT.name: wrap_rows(scene.sphere_materials.astype(np.uint32), max_width),
@@ -561,12 +675,13 @@ def pack_primitives(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> Pac
     }
     # Only a scene with them packs its emission and environment: every other scene's data stay as before.
     if any(m.emits for m in scene.materials):
-        textures[EMISSION.name] = wrap_rows(np.array([(*m.emission, 0.0) for m in scene.materials], np.float32),
-                                            max_width)
+        textures[EMISSION.name] = wrap_rows(
+            np.array([(*m.emission, 0.0) for m in scene.materials], np.float32), max_width
+        )
     planes = scene.planes
     lights = scene.lights
     vecs = np.zeros((MATERIAL_TEXELS * MAX_UNIFORM_MATERIALS, 4), dtype=np.float32)
-    vecs[:min(len(mats), len(vecs))] = mats[:len(vecs)]
+    vecs[: min(len(mats), len(vecs))] = mats[: len(vecs)]
     radius = float(scene.sphere_radii.astype(np.float32)[0]) if scene.n_spheres and equal_radii(scene) else 0.0
     uniforms: dict[str, object] = {
         MATERIAL_VECS.name: [tuple(float(x) for x in v) for v in vecs],
@@ -600,9 +715,12 @@ def emitter_uniforms(scene: Scene) -> dict[str, object]:
     ids = np.flatnonzero(emits[scene.sphere_materials])[:MAX_SAMPLED_SPHERES] if scene.n_spheres else np.zeros(0, int)
     spheres = [(*scene.sphere_centers[i].tolist(), float(scene.sphere_radii[i])) for i in ids]
     radiance = [tuple(scene.materials[scene.sphere_materials[i]].emission) for i in ids]
-    out = {NUM_EMITTERS.name: len(ids), EMITTER_LAST.name: int(ids[-1]) if len(ids) else -1,
-           EMITTER_SPHERE.name: _fixed(spheres, MAX_SAMPLED_SPHERES, (0.0, 0.0, 0.0, 1.0)),
-           EMITTER_RADIANCE.name: _fixed(radiance, MAX_SAMPLED_SPHERES, (0.0, 0.0, 0.0))}
+    out = {
+        NUM_EMITTERS.name: len(ids),
+        EMITTER_LAST.name: int(ids[-1]) if len(ids) else -1,
+        EMITTER_SPHERE.name: _fixed(spheres, MAX_SAMPLED_SPHERES, (0.0, 0.0, 0.0, 1.0)),
+        EMITTER_RADIANCE.name: _fixed(radiance, MAX_SAMPLED_SPHERES, (0.0, 0.0, 0.0)),
+    }
     tris = np.zeros((0, 3, 3))
     mats = np.zeros(0, dtype=np.int64)
     if scene.n_triangles:
@@ -619,14 +737,20 @@ def emitter_uniforms(scene: Scene) -> dict[str, object]:
     cdf = (np.cumsum(area) / total).tolist() if len(area) else []
     if cdf:
         cdf[-1] = 1.0
-    vec = lambda a: [tuple(float(x) for x in v) for v in a]   # noqa: E731
-    out.update({NUM_EMIT_TRIS.name: len(tris), EMIT_TRI_AREA.name: total,
-                EMIT_TRI_V0.name: _fixed(vec(tris[:, 0]), MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)),
-                EMIT_TRI_E1.name: _fixed(vec(tris[:, 1] - tris[:, 0]), MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)),
-                EMIT_TRI_E2.name: _fixed(vec(tris[:, 2] - tris[:, 0]), MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)),
-                EMIT_TRI_RADIANCE.name: _fixed([tuple(scene.materials[int(m)].emission) for m in mats],
-                                               MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)),
-                EMIT_TRI_CDF.name: _fixed([float(c) for c in cdf], MAX_SAMPLED_TRIANGLES, 2.0)})
+    vec = lambda a: [tuple(float(x) for x in v) for v in a]
+    out.update(
+        {
+            NUM_EMIT_TRIS.name: len(tris),
+            EMIT_TRI_AREA.name: total,
+            EMIT_TRI_V0.name: _fixed(vec(tris[:, 0]), MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)),
+            EMIT_TRI_E1.name: _fixed(vec(tris[:, 1] - tris[:, 0]), MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)),
+            EMIT_TRI_E2.name: _fixed(vec(tris[:, 2] - tris[:, 0]), MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)),
+            EMIT_TRI_RADIANCE.name: _fixed(
+                [tuple(scene.materials[int(m)].emission) for m in mats], MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)
+            ),
+            EMIT_TRI_CDF.name: _fixed([float(c) for c in cdf], MAX_SAMPLED_TRIANGLES, 2.0),
+        }
+    )
     return out
 
 
@@ -651,7 +775,9 @@ def camera_uniforms(camera: Camera, width: int, height: int) -> dict[str, object
     right, up, forward = camera.basis()
     s = math.tan(math.radians(camera.fov_y) / 2.0)
     return {
-        CAM_POS.name: tuple(camera.position), CAM_RIGHT.name: tuple(right), CAM_UP.name: tuple(up),
+        CAM_POS.name: tuple(camera.position),
+        CAM_RIGHT.name: tuple(right),
+        CAM_UP.name: tuple(up),
         CAM_FORWARD.name: tuple(forward),
         HALF_EXTENT.name: (s * width / height, s),
         RESOLUTION.name: (float(width), float(height)),
@@ -691,19 +817,20 @@ def primary_rect(scene: Scene, width: int, height: int, margin: int = 2) -> tupl
     if not (z > 1e-6 * np.linalg.norm(v, axis=1)).all():
         return None
     s = math.tan(math.radians(scene.camera.fov_y) / 2.0)
-    px = ((v @ right) / z / (s * width / height) + 1.0) * width / 2.0        # u = (2 px / W − 1) · hx
-    row = (1.0 - (v @ up) / z / s) * height / 2.0                           # v = (1 − 2 row / H) · hy
+    px = ((v @ right) / z / (s * width / height) + 1.0) * width / 2.0  # u = (2 px / W − 1) · hx
+    row = (1.0 - (v @ up) / z / s) * height / 2.0  # v = (1 − 2 row / H) · hy
     x0 = max(0, math.floor(px.min()) - margin)
     x1 = min(width, math.ceil(px.max()) + margin)
-    y0 = max(0, math.floor(height - row.max()) - margin)                    # GL rows grow upwards
+    y0 = max(0, math.floor(height - row.max()) - margin)  # GL rows grow upwards
     y1 = min(height, math.ceil(height - row.min()) + margin)
     if x1 <= x0 or y1 <= y0:
         return (0, 0, 0, 0)
     return (x0, y0, x1 - x0, y1 - y0)
 
 
-def frame_regions(scene: Scene, width: int, height: int, planes: bool, margin: int = 2
-                  ) -> list[tuple[int, int, int, int, bool]] | None:
+def frame_regions(
+    scene: Scene, width: int, height: int, planes: bool, margin: int = 2
+) -> list[tuple[int, int, int, int, bool]] | None:
     """A partition of a ``width × height`` frame into rectangles ``(x, y, w, h, tracer)``
     (GL coordinates, rows from the bottom): ``tracer`` False where no primary ray can meet
     a sphere (outside :func:`primary_rect`) — and, with ``planes``, no plane either — so
@@ -720,28 +847,28 @@ def frame_regions(scene: Scene, width: int, height: int, planes: bool, margin: i
     if rect is None:
         return None
     sx, sy, sw, sh = rect
-    miss = np.ones(height, dtype=bool)              # GL row y: its whole row may skip the tracer
+    miss = np.ones(height, dtype=bool)  # GL row y: its whole row may skip the tracer
     if planes and scene.planes:
         right, up, forward = scene.camera.basis()
         cam = np.asarray(scene.camera.position, dtype=np.float64)
         s = math.tan(math.radians(scene.camera.fov_y) / 2.0)
         hx, hy = s * width / height, s
         y = np.arange(height, dtype=np.float64)
-        rows = np.stack([height - (y + 0.5 + margin), height - (y + 0.5 - margin)], axis=1)   # from the top
+        rows = np.stack([height - (y + 0.5 + margin), height - (y + 0.5 - margin)], axis=1)  # from the top
         cols = np.array([0.5 - margin, width - 0.5 + margin])
         u = (2.0 * cols / width - 1.0) * hx
-        v = (1.0 - 2.0 * rows / height) * hy                                                   # (H, 2)
+        v = (1.0 - 2.0 * rows / height) * hy  # (H, 2)
         for p in scene.planes:
             n = np.asarray(p.normal, dtype=np.float64)
             side = float(np.dot(np.asarray(p.point, dtype=np.float64) - cam, n))
             if abs(side) <= 1e-6 * (np.abs(cam).max() + np.abs(p.point).max() + 1.0):
                 return None
-            dn = (forward @ n) + u[None, :, None] * (right @ n) + v[:, None, :] * (up @ n)    # (H, 2, 2)
+            dn = (forward @ n) + u[None, :, None] * (right @ n) + v[:, None, :] * (up @ n)  # (H, 2, 2)
             norm = 1.0 + abs(hx) + abs(hy)
             miss &= (np.sign(side) * dn < -1e-5 * norm).all(axis=(1, 2))
     out: list[tuple[int, int, int, int, bool]] = []
     y0 = 0
-    while y0 < height:                               # runs of rows of one kind
+    while y0 < height:  # runs of rows of one kind
         y1 = y0 + 1
         while y1 < height and miss[y1] == miss[y0]:
             y1 += 1
@@ -752,9 +879,13 @@ def frame_regions(scene: Scene, width: int, height: int, planes: bool, margin: i
             if sw <= 0 or sh <= 0 or b <= a:
                 out.append((0, y0, width, y1 - y0, False))
             else:
-                out += [(0, y0, width, a - y0, False), (0, b, width, y1 - b, False),
-                        (0, a, sx, b - a, False), (sx + sw, a, width - sx - sw, b - a, False),
-                        (sx, a, sw, b - a, True)]
+                out += [
+                    (0, y0, width, a - y0, False),
+                    (0, b, width, y1 - b, False),
+                    (0, a, sx, b - a, False),
+                    (sx + sw, a, width - sx - sw, b - a, False),
+                    (sx, a, sw, b - a, True),
+                ]
         y0 = y1
     return [r for r in out if r[2] > 0 and r[3] > 0]
 
@@ -769,20 +900,22 @@ def pass_uniforms(scale: int = 1, sub: tuple[int, int] = (0, 0)) -> dict[str, ob
 
 def glsl_header() -> str:
     """The scene's layout constants (the tracer's and the ray engines' headers, after ``#version``)."""
-    return (f"#define MAX_PLANES {MAX_PLANES}\n"
-            f"#define MAX_LIGHTS {MAX_LIGHTS}\n"
-            f"#define MATERIAL_TEXELS {MATERIAL_TEXELS}\n")
+    return (
+        f"#define MAX_PLANES {MAX_PLANES}\n#define MAX_LIGHTS {MAX_LIGHTS}\n#define MATERIAL_TEXELS {MATERIAL_TEXELS}\n"
+    )
 
 
 def tracer_constants() -> str:
     """The tracer's own constants beside :func:`glsl_header`: the uniform material array,
     uniform blocks and the sphere records' key."""
-    return (f"#define MATERIAL_VECS {MATERIAL_TEXELS * MAX_UNIFORM_MATERIALS}\n"
-            f"#define BLOCK_RECORDS {BLOCK_RECORDS}\n"
-            f"#define SPHERE_ID_MASK {SPHERE_ID_MASK}u\n"
-            f"#define SPHERE_MAT_SHIFT {SPHERE_MAT_SHIFT}u\n"
-            f"#define SPHERE_MAT_MASK {SPHERE_MAT_MASK}u\n"
-            f"#define SPHERE_LAST {SPHERE_LAST}u\n")
+    return (
+        f"#define MATERIAL_VECS {MATERIAL_TEXELS * MAX_UNIFORM_MATERIALS}\n"
+        f"#define BLOCK_RECORDS {BLOCK_RECORDS}\n"
+        f"#define SPHERE_ID_MASK {SPHERE_ID_MASK}u\n"
+        f"#define SPHERE_MAT_SHIFT {SPHERE_MAT_SHIFT}u\n"
+        f"#define SPHERE_MAT_MASK {SPHERE_MAT_MASK}u\n"
+        f"#define SPHERE_LAST {SPHERE_LAST}u\n"
+    )
 
 
 def path_constants() -> str:
@@ -793,7 +926,9 @@ def path_constants() -> str:
 def triangle_constants() -> str:
     """The triangle records' constants: emitted only into variants with the TRIANGLES data
     format, so a sphere-only variant's text stays what it was before meshes."""
-    return (f"#define TRI_SLOT {TRI_SLOT}u\n"
-            f"#define TRI_INDEX_MASK {TRI_INDEX_MASK}u\n"
-            f"#define TRI_DEGENERATE {TRI_DEGENERATE}u\n"
-            f"#define TRIANGLE_TEXELS {TRIANGLE_TEXELS}\n")
+    return (
+        f"#define TRI_SLOT {TRI_SLOT}u\n"
+        f"#define TRI_INDEX_MASK {TRI_INDEX_MASK}u\n"
+        f"#define TRI_DEGENERATE {TRI_DEGENERATE}u\n"
+        f"#define TRIANGLE_TEXELS {TRIANGLE_TEXELS}\n"
+    )

@@ -23,22 +23,22 @@ Why each bound is what it is:
 from __future__ import annotations
 
 # ---- trees ---------------------------------------------------------------------------------
-MAX_TREE_DEPTH = 64            # levels (the root counts as 1) = entries of the traversal stack
-MAX_PRIMS = 1 << 24            # largest leaf-size limit a build accepts
-MAX_RETRIES = 64               # BIH: retries (box halvings / shrinks) of one node before it is a leaf
+MAX_TREE_DEPTH = 64  # levels (the root counts as 1) = entries of the traversal stack
+MAX_PRIMS = 1 << 24  # largest leaf-size limit a build accepts
+MAX_RETRIES = 64  # BIH: retries (box halvings / shrinks) of one node before it is a leaf
 
 # ---- frames --------------------------------------------------------------------------------
-MAX_IMAGE_SIDE = 4096          # pixels, of the render target (after supersampling)
-MAX_RECURSION_DEPTH = 8        # levels of the ray tree; 1 = primary rays only
-MAX_PATH_DEPTH = 16            # the path integrator: segments of a path (docs/SHADING.md, "Path integrator")
-SAMPLES_PER_PIXEL = (1, 4, 9, 16)   # stratified supersampling: √s × √s sub-pixels
-MAX_PATH_SAMPLES = 4096        # the path integrator: samples per pixel, any count 1 … this
-PATH_SAMPLES_PER_PASS = 16     # the path integrator: samples per pixel one draw traces (a frame's passes)
-MAX_SAMPLED_SPHERES = 8        # the path integrator: emitting spheres sampled by next-event estimation
-MAX_SAMPLED_TRIANGLES = 16     # … emitting triangles (a scene with more samples none of them)
+MAX_IMAGE_SIDE = 4096  # pixels, of the render target (after supersampling)
+MAX_RECURSION_DEPTH = 8  # levels of the ray tree; 1 = primary rays only
+MAX_PATH_DEPTH = 16  # the path integrator: segments of a path (docs/SHADING.md, "Path integrator")
+SAMPLES_PER_PIXEL = (1, 4, 9, 16)  # stratified supersampling: √s × √s sub-pixels
+MAX_PATH_SAMPLES = 4096  # the path integrator: samples per pixel, any count 1 … this
+PATH_SAMPLES_PER_PASS = 16  # the path integrator: samples per pixel one draw traces (a frame's passes)
+MAX_SAMPLED_SPHERES = 8  # the path integrator: emitting spheres sampled by next-event estimation
+MAX_SAMPLED_TRIANGLES = 16  # … emitting triangles (a scene with more samples none of them)
 EXPOSURE_RANGE = (-20.0, 20.0)  # stops: the path integrator's png/jpeg are tone-mapped from 2^exposure × radiance
 MIN_WEIGHT_RANGE = (0.0, 1.0)  # ε cut-off of secondary rays
-MIN_TILE_SIZE = 2              # hre: tile side in pixels
+MIN_TILE_SIZE = 2  # hre: tile side in pixels
 MAX_TILE_SIZE = 64
 DEFAULT_TILE_SIZE = 16
 JPEG_QUALITY_RANGE = (1, 100)
@@ -49,15 +49,15 @@ JPEG_QUALITY_RANGE = (1, 100)
 MAX_LOOP_PRIMITIVES = 65_533
 
 # ---- animation -----------------------------------------------------------------------------
-MAX_TIME = 1.0e6               # seconds: the largest time a scene can be posed at
-UPDATE_THRESHOLD_RANGE = (0.0, 100.0)   # selective rebuild: cost growth, 0.3 = +30 %
-MAX_ANGULAR_VELOCITY = 1e3     # radians per second (rigid motion)
-MAX_PERIOD = 1e6               # seconds (rigid motion's oscillation)
-MAX_WAVELENGTH = 1e9           # world units (deformable motion)
-MAX_SPEED = 1e6                # world units per second (deformable, incoherent motion)
-MAX_LIFETIME = 1e6             # seconds (incoherent motion)
-MAX_ABSENT = 0.95              # fraction of a lifetime a sphere is gone (incoherent motion)
-MAX_MOTION_SEED = 2 ** 63 - 1
+MAX_TIME = 1.0e6  # seconds: the largest time a scene can be posed at
+UPDATE_THRESHOLD_RANGE = (0.0, 100.0)  # selective rebuild: cost growth, 0.3 = +30 %
+MAX_ANGULAR_VELOCITY = 1e3  # radians per second (rigid motion)
+MAX_PERIOD = 1e6  # seconds (rigid motion's oscillation)
+MAX_WAVELENGTH = 1e9  # world units (deformable motion)
+MAX_SPEED = 1e6  # world units per second (deformable, incoherent motion)
+MAX_LIFETIME = 1e6  # seconds (incoherent motion)
+MAX_ABSENT = 0.95  # fraction of a lifetime a sphere is gone (incoherent motion)
+MAX_MOTION_SEED = 2**63 - 1
 
 # ---- scenes --------------------------------------------------------------------------------
 # 24 bits of mantissa: beyond 1e7 a unit sphere cannot be represented at all.
@@ -67,37 +67,37 @@ MAX_PLANES = 8
 MAX_LIGHTS = 8
 MAX_MATERIALS = 256
 MAX_MOTIONS = 1024
-MAX_LIGHT_INTENSITY = 1e3      # per RGB channel
-MAX_EMISSION = 1e6             # radiance per RGB channel (materials' emission, the environment)
-MAX_SHININESS = 1e4            # Phong exponent
-MAX_IOR = 10.0                 # refraction index
-MAX_MUSEUM_MOVING = MAX_SPHERES - 1024   # the Museum's moving spheres: room for its static room
+MAX_LIGHT_INTENSITY = 1e3  # per RGB channel
+MAX_EMISSION = 1e6  # radiance per RGB channel (materials' emission, the environment)
+MAX_SHININESS = 1e4  # Phong exponent
+MAX_IOR = 10.0  # refraction index
+MAX_MUSEUM_MOVING = MAX_SPHERES - 1024  # the Museum's moving spheres: room for its static room
 # Triangle meshes (docs/FORMATS.md, "Meshes"). A tree indexes spheres then triangles: with
 # MAX_SPHERES + MAX_TRIANGLES < 2^22 every primitive index fits the BIH's 30-bit child
 # index with room to spare, and a scene's arrays stay under ~100 MiB (72 B per triangle
 # for its world-space corners, as many again for smooth normals).
-MAX_TRIANGLES = 1 << 20        # per scene, all meshes together
-MAX_MESH_VERTICES = 1 << 20    # per mesh
-MAX_MESHES = 256               # per scene
+MAX_TRIANGLES = 1 << 20  # per scene, all meshes together
+MAX_MESH_VERTICES = 1 << 20  # per mesh
+MAX_MESHES = 256  # per scene
 
 # ---- model files ---------------------------------------------------------------------------
 # renderer/model_guard.py checks a model file's own numbers (counts, lengths, the node tree)
 # against these before a parser allocates what they ask for: a 250-byte glTF may claim 30
 # million vertices, a 2 MB GLB a chain of 100,000 nodes (the parser's cost grows with the
 # square of the depth). Each bound is far above what a model of MAX_TRIANGLES needs.
-MAX_MODEL_NODES = 16_384       # glTF nodes (a flat scene of this many parses in ~0.6 s)
-MAX_MODEL_NODE_DEPTH = 256     # glTF node-tree levels (the root counts as 1)
-MAX_ACCESSOR_COUNT = 3 * MAX_TRIANGLES      # glTF elements of one accessor (the indices of MAX_TRIANGLES)
-MAX_MODEL_ARRAY_BYTES = 256 << 20           # glTF: the bufferViews' bytes, and the accessors', each summed
-MAX_BUFFERLESS_BYTES = 16 << 20             # glTF: accessors without a bufferView (zeros the file does not hold)
+MAX_MODEL_NODES = 16_384  # glTF nodes (a flat scene of this many parses in ~0.6 s)
+MAX_MODEL_NODE_DEPTH = 256  # glTF node-tree levels (the root counts as 1)
+MAX_ACCESSOR_COUNT = 3 * MAX_TRIANGLES  # glTF elements of one accessor (the indices of MAX_TRIANGLES)
+MAX_MODEL_ARRAY_BYTES = 256 << 20  # glTF: the bufferViews' bytes, and the accessors', each summed
+MAX_BUFFERLESS_BYTES = 16 << 20  # glTF: accessors without a bufferView (zeros the file does not hold)
 # Vertices a file may declare per vertex of MAX_MESH_VERTICES (before equal ones are merged: an
 # STL stores three per triangle, a glTF repeats them per instance).
 DECLARED_VERTEX_FACTOR = 3
-MAX_PLY_HEADER_BYTES = 64 << 10             # a PLY header (text up to end_header)
+MAX_PLY_HEADER_BYTES = 64 << 10  # a PLY header (text up to end_header)
 
 # ---- GPU data ------------------------------------------------------------------------------
-DEFAULT_TEXTURE_WIDTH = 4096   # texture rows; WebGL2 guarantees 2048, most phones have 4096
-MAX_DEVICE_TEXTURE_SIZE = 1 << 16   # the largest MAX_TEXTURE_SIZE a device may report (GPUs: ≤ 32,768)
-STENCIL_BITS = 8               # ray engines: one stencil bit per generation (≥ MAX_RECURSION_DEPTH)
+DEFAULT_TEXTURE_WIDTH = 4096  # texture rows; WebGL2 guarantees 2048, most phones have 4096
+MAX_DEVICE_TEXTURE_SIZE = 1 << 16  # the largest MAX_TEXTURE_SIZE a device may report (GPUs: ≤ 32,768)
+STENCIL_BITS = 8  # ray engines: one stencil bit per generation (≥ MAX_RECURSION_DEPTH)
 
 assert STENCIL_BITS >= MAX_RECURSION_DEPTH

@@ -17,15 +17,18 @@ from .accel.ray_engine import HierarchicalRayEngine, RayEngine
 from .accel.twolevel import TwoLevelMethod
 from .scene import SceneError
 
-METHODS: dict[str, AccelerationMethod] = {m.name: m for m in (
-    BoundingIntervalHierarchy(),
-    BruteForce(),
-    RayEngine(),
-    HierarchicalRayEngine(),
-    BVHMethod(),
-    KdTreeMethod(),
-    TwoLevelMethod(),
-)}
+METHODS: dict[str, AccelerationMethod] = {
+    m.name: m
+    for m in (
+        BoundingIntervalHierarchy(),
+        BruteForce(),
+        RayEngine(),
+        HierarchicalRayEngine(),
+        BVHMethod(),
+        KdTreeMethod(),
+        TwoLevelMethod(),
+    )
+}
 
 AUTO_METHOD = "auto"
 # Below this many spheres brute force traces a frame faster than the BIH
@@ -58,11 +61,17 @@ def check_primitives(name: str, scene) -> None:
     caps = METHODS[name].capabilities
     if scene.n_triangles and "triangles" not in caps.primitives:
         able = [m for m, x in METHODS.items() if "triangles" in x.capabilities.primitives]
-        raise SceneError("method", f"method {name!r} traces {' and '.join(caps.primitives)} only; this scene has "
-                                   f"{len(scene.meshes)} mesh(es) of {scene.n_triangles:,} triangles: use one of "
-                                   f"{', '.join(able)}")
+        raise SceneError(
+            "method",
+            f"method {name!r} traces {' and '.join(caps.primitives)} only; this scene has "
+            f"{len(scene.meshes)} mesh(es) of {scene.n_triangles:,} triangles: use one of "
+            f"{', '.join(able)}",
+        )
     n = scene.n_spheres + scene.n_triangles
     if caps.max_primitives is not None and n > caps.max_primitives:
-        raise SceneError("method", f"method {name!r} traces at most {caps.max_primitives:,} primitives (one shader loop "
-                                   f"over them all; llvmpipe ends longer loops early); this scene has {n:,}: use a "
-                                   f"hierarchy (bih, bvh, kdtree, twolevel)")
+        raise SceneError(
+            "method",
+            f"method {name!r} traces at most {caps.max_primitives:,} primitives (one shader loop "
+            f"over them all; llvmpipe ends longer loops early); this scene has {n:,}: use a "
+            f"hierarchy (bih, bvh, kdtree, twolevel)",
+        )

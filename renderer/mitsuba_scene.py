@@ -26,7 +26,7 @@ import numpy as np
 from .gpu_layout import light_scale
 from .scene import Material, Scene
 
-PLANE_EXTENT = 1e4      # a plane's square, in units of the scene's size
+PLANE_EXTENT = 1e4  # a plane's square, in units of the scene's size
 
 
 def _rgb(c) -> dict:
@@ -43,15 +43,19 @@ def _bsdf(m: Material) -> dict:
     if wd > 0:
         lobes.append((wd, {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": _rgb(m.color)}}))
     if wr > 0:
-        metal = ({"type": "roughconductor", "material": "none", "distribution": "ggx", "alpha": float(m.roughness)}
-                 if m.roughness > 0 else {"type": "conductor", "material": "none"})
+        metal = (
+            {"type": "roughconductor", "material": "none", "distribution": "ggx", "alpha": float(m.roughness)}
+            if m.roughness > 0
+            else {"type": "conductor", "material": "none"}
+        )
         lobes.append((wr, {"type": "twosided", "bsdf": metal}))
     if wt > 0:
         lobes.append((wt, {"type": "dielectric", "int_ior": float(m.ior), "ext_ior": 1.0}))
     rest = 1.0 - sum(w for w, _ in lobes)
     if rest > 1e-12 or not lobes:
-        lobes.append((rest if lobes else 1.0,
-                      {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": _rgb((0, 0, 0))}}))
+        lobes.append(
+            (rest if lobes else 1.0, {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": _rgb((0, 0, 0))}})
+        )
     # Fold right to left: blend(b, A, B) = (1 − b)·A + b·B.
     weight, bsdf = lobes[-1]
     for w, b in reversed(lobes[:-1]):
@@ -77,22 +81,38 @@ def scene_dict(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
     out: dict[str, Any] = {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": int(max_depth), "hide_emitters": False},
-        "sensor": {"type": "perspective", "fov": float(cam.fov_y), "fov_axis": "y",
-                   "to_world": mi.ScalarTransform4f().look_at(origin=list(cam.position), target=list(cam.target),
-                                                              up=list(cam.up)),
-                   "film": {"type": "hdrfilm", "width": int(width), "height": int(height),
-                            "rfilter": {"type": "box"}, "pixel_format": "rgb"},
-                   "sampler": {"type": "independent", "sample_count": int(spp), "seed": int(seed)}},
+        "sensor": {
+            "type": "perspective",
+            "fov": float(cam.fov_y),
+            "fov_axis": "y",
+            "to_world": mi.ScalarTransform4f().look_at(
+                origin=list(cam.position), target=list(cam.target), up=list(cam.up)
+            ),
+            "film": {
+                "type": "hdrfilm",
+                "width": int(width),
+                "height": int(height),
+                "rfilter": {"type": "box"},
+                "pixel_format": "rgb",
+            },
+            "sampler": {"type": "independent", "sample_count": int(spp), "seed": int(seed)},
+        },
     }
     if any(scene.environment):
         out["environment"] = {"type": "constant", "radiance": _rgb(scene.environment)}
     for i, light in enumerate(scene.lights):
-        out[f"light_{i}"] = {"type": "point", "position": list(light.position),
-                             "intensity": _rgb(np.asarray(light.color) * light_scale(scene))}
+        out[f"light_{i}"] = {
+            "type": "point",
+            "position": list(light.position),
+            "intensity": _rgb(np.asarray(light.color) * light_scale(scene)),
+        }
     for i in range(scene.n_spheres):
-        out[f"sphere_{i}"] = {"type": "sphere", "center": scene.sphere_centers[i].tolist(),
-                              "radius": float(scene.sphere_radii[i]),
-                              **_shape_extras(scene, int(scene.sphere_materials[i]))}
+        out[f"sphere_{i}"] = {
+            "type": "sphere",
+            "center": scene.sphere_centers[i].tolist(),
+            "radius": float(scene.sphere_radii[i]),
+            **_shape_extras(scene, int(scene.sphere_materials[i])),
+        }
     size = _size(scene)
     for i, p in enumerate(scene.planes):
         n = np.asarray(p.normal, dtype=np.float64)
@@ -101,14 +121,22 @@ def scene_dict(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
         angle = math.degrees(math.atan2(float(np.linalg.norm(axis)), float(n[2])))
         if np.linalg.norm(axis) < 1e-12:
             axis = np.array([1.0, 0.0, 0.0])
-        to_world = (mi.ScalarTransform4f().translate(list(p.point)).rotate(axis.tolist(), angle)
-                    .scale([PLANE_EXTENT * size] * 3))
+        to_world = (
+            mi.ScalarTransform4f()
+            .translate(list(p.point))
+            .rotate(axis.tolist(), angle)
+            .scale([PLANE_EXTENT * size] * 3)
+        )
         out[f"plane_{i}"] = {"type": "rectangle", "to_world": to_world, **_shape_extras(scene, p.material)}
     for i, mesh in enumerate(scene.meshes):
-        r = scene.mesh_triangle_range(i)      # flat: a smooth mesh's vertex normals are not carried over
-        tris = np.asarray(scene.triangle_corners[r.start:r.stop], dtype=np.float64).reshape(-1, 3, 3)
-        out[f"mesh_{i}"] = {"type": "obj", "filename": _obj_file(tris), "face_normals": True,
-                            **_shape_extras(scene, mesh.material)}
+        r = scene.mesh_triangle_range(i)  # flat: a smooth mesh's vertex normals are not carried over
+        tris = np.asarray(scene.triangle_corners[r.start : r.stop], dtype=np.float64).reshape(-1, 3, 3)
+        out[f"mesh_{i}"] = {
+            "type": "obj",
+            "filename": _obj_file(tris),
+            "face_normals": True,
+            **_shape_extras(scene, mesh.material),
+        }
     return out
 
 
@@ -133,8 +161,9 @@ def _size(scene: Scene) -> float:
     return float(max(1.0, np.abs(pts).max()))
 
 
-def render(scene: Scene, width: int, height: int, spp: int, max_depth: int, variant: str = "scalar_rgb",
-           seed: int = 0) -> np.ndarray:
+def render(
+    scene: Scene, width: int, height: int, spp: int, max_depth: int, variant: str = "scalar_rgb", seed: int = 0
+) -> np.ndarray:
     """Mitsuba 3's ``path`` image of ``scene``: float32 H × W × 3 linear radiance, row 0 at the top."""
     import os
 
@@ -144,7 +173,7 @@ def render(scene: Scene, width: int, height: int, spp: int, max_depth: int, vari
     d = scene_dict(scene, width, height, spp, max_depth, seed)
     try:
         loaded = mi.load_dict(d)
-    finally:   # the meshes' temporary OBJ files are read by now
+    finally:  # the meshes' temporary OBJ files are read by now
         for v in d.values():
             if isinstance(v, dict) and v.get("type") == "obj":
                 os.unlink(v["filename"])

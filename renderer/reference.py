@@ -36,7 +36,7 @@ import numpy as np
 
 from .accel.bih import build_for_scene
 from .accel.bih_traverse import traverse
-from .modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, heat_image, primid_colors  # noqa: F401
+from .modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, heat_image, primid_colors
 from .result import RenderResult
 from .scene import Camera, Scene
 from .settings import RenderSettings
@@ -48,8 +48,8 @@ _RAY_TILE = 1024
 _PAIR_BUDGET = 1 << 18
 
 
-
 # --------------------------------------------------------------------------- rays
+
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise dot product of two (k, 3) arrays."""
@@ -63,7 +63,7 @@ def _pixel_rays(camera: Camera, width: int, height: int, pix: np.ndarray) -> tup
     y = (pix // width).astype(np.float64)
     s = np.tan(np.radians(camera.fov_y) / 2.0)
     u = (2.0 * (x + 0.5) / width - 1.0) * s * width / height
-    v = (1.0 - 2.0 * (y + 0.5) / height) * s   # row 0 is the top row: v > 0
+    v = (1.0 - 2.0 * (y + 0.5) / height) * s  # row 0 is the top row: v > 0
     d = forward[None, :] + u[:, None] * right[None, :] + v[:, None] * up[None, :]
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     o = np.broadcast_to(np.array(camera.position, dtype=np.float64), d.shape).copy()
@@ -83,8 +83,9 @@ def reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
     return d - 2.0 * _dot(d, n)[:, None] * n
 
 
-def transmitted_directions(d: np.ndarray, normal: np.ndarray, ior: np.ndarray, entering: np.ndarray | None = None
-                           ) -> tuple[np.ndarray, np.ndarray]:
+def transmitted_directions(
+    d: np.ndarray, normal: np.ndarray, ior: np.ndarray, entering: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Transmitted directions (SHADING.md § Secondary rays) and the total-internal-reflection mask.
 
     ``d`` unit incoming directions (k, 3), ``normal`` the outward normals N (k, 3), ``ior``
@@ -108,16 +109,18 @@ def transmitted_directions(d: np.ndarray, normal: np.ndarray, ior: np.ndarray, e
 
 # ----------------------------------------------------------------------- geometry
 
+
 @dataclass(frozen=True)
 class _Balls:
     """Spheres for the conservative cull (the scene's spheres, or bounding balls of triangles)."""
-    centers_t: np.ndarray       # (3, k) contiguous, for the cull's matrix products
-    cc: np.ndarray              # (k,) |c|²
-    r2: np.ndarray              # (k,) r²
-    extent: float               # max |c| + max r: bounds the cull's rounding error
+
+    centers_t: np.ndarray  # (3, k) contiguous, for the cull's matrix products
+    cc: np.ndarray  # (k,) |c|²
+    r2: np.ndarray  # (k,) r²
+    extent: float  # max |c| + max r: bounds the cull's rounding error
 
     @staticmethod
-    def of(c: np.ndarray, r: np.ndarray) -> "_Balls":
+    def of(c: np.ndarray, r: np.ndarray) -> _Balls:
         extent = float(np.sqrt(_dot(c, c).max()) + r.max()) if len(r) else 0.0
         return _Balls(np.ascontiguousarray(c.T), _dot(c, c), r * r, extent)
 
@@ -128,18 +131,19 @@ class _Balls:
 @dataclass(frozen=True)
 class _Triangles:
     """The triangles flattened in id order (``base + j``), world space, float64."""
-    base: int                   # id of triangle 0 (spheres + planes)
-    v0: np.ndarray              # (T, 3) corners …
+
+    base: int  # id of triangle 0 (spheres + planes)
+    v0: np.ndarray  # (T, 3) corners …
     v1: np.ndarray
     v2: np.ndarray
-    geo_normal: np.ndarray      # (T, 3) unit (v1 − v0) × (v2 − v0); 0 for a degenerate triangle
+    geo_normal: np.ndarray  # (T, 3) unit (v1 − v0) × (v2 − v0); 0 for a degenerate triangle
     vertex_normals: np.ndarray  # (T, 3, 3) unit shading normals at the corners (smooth ones)
-    smooth: np.ndarray          # (T,) bool
-    valid: np.ndarray           # (T,) bool: not degenerate (a zero-area triangle is never hit)
-    balls: _Balls               # bounding balls for the cull
+    smooth: np.ndarray  # (T,) bool
+    valid: np.ndarray  # (T,) bool: not degenerate (a zero-area triangle is never hit)
+    balls: _Balls  # bounding balls for the cull
 
     @staticmethod
-    def of(scene: Scene) -> "_Triangles":
+    def of(scene: Scene) -> _Triangles:
         c = np.asarray(scene.triangle_corners, dtype=np.float64).reshape(-1, 3, 3)
         v0, v1, v2 = (np.ascontiguousarray(c[:, k]) for k in range(3))
         cross = np.cross(v1 - v0, v2 - v0)
@@ -152,11 +156,21 @@ class _Triangles:
         centre = (v0 + v1 + v2) / 3.0
         # The ball must hold the float64 triangle: the largest corner distance, inflated far
         # beyond its rounding error (relative 1e-16), so no vertex lies on the ball's surface.
-        radius = np.sqrt(np.max([_dot(v - centre, v - centre) for v in (v0, v1, v2)], axis=0)) if len(c) else \
-            np.zeros(0)
+        radius = (
+            np.sqrt(np.max([_dot(v - centre, v - centre) for v in (v0, v1, v2)], axis=0)) if len(c) else np.zeros(0)
+        )
         radius = radius * (1.0 + 1e-9) + 1e-300
-        return _Triangles(scene.triangle_id_base, v0, v1, v2, geo, vn, np.asarray(scene.triangle_smooth, bool),
-                          valid, _Balls.of(centre, radius))
+        return _Triangles(
+            scene.triangle_id_base,
+            v0,
+            v1,
+            v2,
+            geo,
+            vn,
+            np.asarray(scene.triangle_smooth, bool),
+            valid,
+            _Balls.of(centre, radius),
+        )
 
     def __len__(self) -> int:
         return len(self.v0)
@@ -165,17 +179,18 @@ class _Triangles:
 @dataclass(frozen=True)
 class _Geometry:
     """The scene flattened into float64 arrays, indexed by primitive / material id."""
-    n: int                      # spheres; ids 0 … n−1, planes n …, triangles after the planes
-    centers: np.ndarray         # (n, 3)
-    centers_t: np.ndarray       # (3, n) contiguous, for the cull's matrix products
-    cc: np.ndarray              # (n,) |c|²
-    r2: np.ndarray              # (n,) r²
-    radii: np.ndarray           # (n,)
-    extent: float               # max |c| + max r: bounds the cull's rounding error
-    plane_points: np.ndarray    # (P, 3)
-    plane_normals: np.ndarray   # (P, 3) unit
-    prim_material: np.ndarray   # (n + P + T,) material index of each primitive
-    color: np.ndarray           # (M, 3) material tables …
+
+    n: int  # spheres; ids 0 … n−1, planes n …, triangles after the planes
+    centers: np.ndarray  # (n, 3)
+    centers_t: np.ndarray  # (3, n) contiguous, for the cull's matrix products
+    cc: np.ndarray  # (n,) |c|²
+    r2: np.ndarray  # (n,) r²
+    radii: np.ndarray  # (n,)
+    extent: float  # max |c| + max r: bounds the cull's rounding error
+    plane_points: np.ndarray  # (P, 3)
+    plane_normals: np.ndarray  # (P, 3) unit
+    prim_material: np.ndarray  # (n + P + T,) material index of each primitive
+    color: np.ndarray  # (M, 3) material tables …
     ka: np.ndarray
     kd: np.ndarray
     ks: np.ndarray
@@ -183,30 +198,42 @@ class _Geometry:
     kr: np.ndarray
     kt: np.ndarray
     ior: np.ndarray
-    light_pos: np.ndarray       # (L, 3)
-    light_col: np.ndarray       # (L, 3)
+    light_pos: np.ndarray  # (L, 3)
+    light_col: np.ndarray  # (L, 3)
     tris: _Triangles
-    emission: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))   # (M, 3) radiance per material
-    environment: np.ndarray = field(default_factory=lambda: np.zeros(3))    # what a ray meeting nothing sees
+    emission: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (M, 3) radiance per material
+    environment: np.ndarray = field(default_factory=lambda: np.zeros(3))  # what a ray meeting nothing sees
 
     @staticmethod
-    def of(scene: Scene) -> "_Geometry":
+    def of(scene: Scene) -> _Geometry:
         c = np.asarray(scene.sphere_centers, dtype=np.float64).reshape(-1, 3)
         r = np.asarray(scene.sphere_radii, dtype=np.float64).reshape(-1)
         mats = scene.materials
         extent = float(np.sqrt(_dot(c, c).max()) + r.max()) if len(r) else 0.0
         return _Geometry(
-            n=len(r), centers=c, centers_t=np.ascontiguousarray(c.T), cc=_dot(c, c), r2=r * r, radii=r,
+            n=len(r),
+            centers=c,
+            centers_t=np.ascontiguousarray(c.T),
+            cc=_dot(c, c),
+            r2=r * r,
+            radii=r,
             extent=extent,
             plane_points=np.array([p.point for p in scene.planes], dtype=np.float64).reshape(-1, 3),
             plane_normals=np.array([p.normal for p in scene.planes], dtype=np.float64).reshape(-1, 3),
-            prim_material=np.concatenate([np.asarray(scene.sphere_materials, dtype=np.int64),
-                                          np.array([p.material for p in scene.planes], dtype=np.int64),
-                                          np.asarray(scene.triangle_materials, dtype=np.int64)]),
+            prim_material=np.concatenate(
+                [
+                    np.asarray(scene.sphere_materials, dtype=np.int64),
+                    np.array([p.material for p in scene.planes], dtype=np.int64),
+                    np.asarray(scene.triangle_materials, dtype=np.int64),
+                ]
+            ),
             color=np.array([m.color for m in mats], dtype=np.float64).reshape(-1, 3),
-            ka=np.array([m.ambient for m in mats]), kd=np.array([m.diffuse for m in mats]),
-            ks=np.array([m.specular for m in mats]), shininess=np.array([m.shininess for m in mats]),
-            kr=np.array([m.reflective for m in mats]), kt=np.array([m.transmissive for m in mats]),
+            ka=np.array([m.ambient for m in mats]),
+            kd=np.array([m.diffuse for m in mats]),
+            ks=np.array([m.specular for m in mats]),
+            shininess=np.array([m.shininess for m in mats]),
+            kr=np.array([m.reflective for m in mats]),
+            kt=np.array([m.transmissive for m in mats]),
             ior=np.array([m.ior for m in mats]),
             light_pos=np.array([l.position for l in scene.lights], dtype=np.float64).reshape(-1, 3),
             light_col=np.array([l.color for l in scene.lights], dtype=np.float64).reshape(-1, 3),
@@ -215,8 +242,9 @@ class _Geometry:
             environment=np.array(scene.environment, dtype=np.float64),
         )
 
-    def normals(self, prim: np.ndarray, p: np.ndarray, o: np.ndarray | None = None, d: np.ndarray | None = None
-                ) -> tuple[np.ndarray, np.ndarray]:
+    def normals(
+        self, prim: np.ndarray, p: np.ndarray, o: np.ndarray | None = None, d: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(geometric, shading) outward unit normals at points ``p`` of primitives ``prim``.
 
         Sphere: both ``(p − c)/r``; plane: both its normal; triangle: the geometric normal
@@ -312,9 +340,9 @@ def _cull(balls: _Balls, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.n
         ct = balls.centers_t[:, s0:s1]
         # einsum, not `@`: a K = 3 BLAS product is slow and multi-threaded (contention).
         h2 = np.einsum("ik,kj->ij", d, ct)
-        np.subtract(od[:, None], h2, out=h2)   # b = o·d − c·d
-        h2 *= h2                               # b²
-        q = np.einsum("ik,kj->ij", o, ct)      # |o − c|² = |o|² − 2 o·c + |c|²
+        np.subtract(od[:, None], h2, out=h2)  # b = o·d − c·d
+        h2 *= h2  # b²
+        q = np.einsum("ik,kj->ij", o, ct)  # |o − c|² = |o|² − 2 o·c + |c|²
         q *= -2.0
         q += oo[:, None]
         q += balls.cc[None, s0:s1]
@@ -326,22 +354,24 @@ def _cull(balls: _Balls, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.n
     return np.concatenate(rays), np.concatenate(sph)
 
 
-def _sphere_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _sphere_candidates(
+    g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ray, t, sphere id) of every sphere hit with t > 0, the source sphere excluded
     (candidates from :func:`_cull`, then the robust quadratic)."""
     if g.n == 0 or len(o) == 0:
         return _NO_PAIRS
     ri, si = _cull(_Balls(g.centers_t, g.cc, g.r2, g.extent), o, d)
-    keep = si != src[ri]        # the source sphere is handled by the exclusion rule
+    keep = si != src[ri]  # the source sphere is handled by the exclusion rule
     ri, si = ri[keep], si[keep]
     t = sphere_t(o[ri], d[ri], g.centers[si], g.r2[si])
     ok = np.isfinite(t)
     return ri[ok], t[ok], si[ok]
 
 
-def _far_root_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray, far_only: np.ndarray
-                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _far_root_candidates(
+    g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray, far_only: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ray, t, id) of the far-side hit of the source sphere for rays entering it."""
     ri = np.nonzero(far_only)[0]
     if len(ri) == 0:
@@ -352,8 +382,9 @@ def _far_root_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.nda
     return ri[ok], t[ok], si[ok]
 
 
-def _plane_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _plane_candidates(
+    g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ray, t, id) of every plane hit with t > 0; a ray leaving a plane ignores it."""
     rays, ts, ids = [], [], []
     for j in range(len(g.plane_normals)):
@@ -373,6 +404,7 @@ def _plane_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarra
 
 
 # ------------------------------------------------------------------- triangles
+
 
 def _exact_edge(qx: float, py: float, qy: float, px: float) -> float:
     """``qx·py − qy·px`` exactly (rational arithmetic on the float64 inputs), as a float of
@@ -400,8 +432,9 @@ def _edge(qx: np.ndarray, py: np.ndarray, qy: np.ndarray, px: np.ndarray) -> np.
     return e
 
 
-def triangle_hits(o: np.ndarray, d: np.ndarray, v0: np.ndarray, v1: np.ndarray, v2: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def triangle_hits(
+    o: np.ndarray, d: np.ndarray, v0: np.ndarray, v1: np.ndarray, v2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Woop, Benthin & Wald's watertight ray/triangle test, row-wise over (k, 3) arrays.
 
     Returns ``(t, b0, b1, b2)``: ``t`` of the hit (``inf`` when none or ``t ≤ 0``) and the
@@ -442,8 +475,9 @@ def triangle_hits(o: np.ndarray, d: np.ndarray, v0: np.ndarray, v1: np.ndarray, 
     return t, u * inv, v * inv, w * inv
 
 
-def _triangle_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray
-                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _triangle_candidates(
+    g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ray, t, id) of every triangle hit with t > 0; a ray leaving a triangle ignores it
     (flat: it cannot meet its own plane again). Candidates from the bounding balls' cull."""
     tr = g.tris
@@ -457,8 +491,7 @@ def _triangle_candidates(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.nda
     return ri[ok], t[ok], tr.base + ti[ok]
 
 
-def _reduce_nearest(count: int, rays: np.ndarray, ts: np.ndarray, ids: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def _reduce_nearest(count: int, rays: np.ndarray, ts: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per ray the smallest t; among exactly equal t the lowest id. (inf, −1) without candidates."""
     t = np.full(count, np.inf)
     np.minimum.at(t, rays, ts)
@@ -469,8 +502,9 @@ def _reduce_nearest(count: int, rays: np.ndarray, ts: np.ndarray, ids: np.ndarra
     return t, best
 
 
-def nearest_hit(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray, far_only: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray]:
+def nearest_hit(
+    g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray, far_only: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Nearest hit of each ray: (t float64, primitive id int64), (inf, −1) on a miss.
 
     ``src`` is the primitive each ray leaves (−1 for primary rays) and ``far_only`` is
@@ -482,17 +516,24 @@ def nearest_hit(g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray, far
     id_out = np.full(len(o), -1, dtype=np.int64)
     for a in range(0, len(o), _RAY_TILE):
         sl = slice(a, min(len(o), a + _RAY_TILE))
-        parts = [_sphere_candidates(g, o[sl], d[sl], src[sl]),
-                 _far_root_candidates(g, o[sl], d[sl], src[sl], far_only[sl]),
-                 _plane_candidates(g, o[sl], d[sl], src[sl]),
-                 _triangle_candidates(g, o[sl], d[sl], src[sl])]
+        parts = [
+            _sphere_candidates(g, o[sl], d[sl], src[sl]),
+            _far_root_candidates(g, o[sl], d[sl], src[sl], far_only[sl]),
+            _plane_candidates(g, o[sl], d[sl], src[sl]),
+            _triangle_candidates(g, o[sl], d[sl], src[sl]),
+        ]
         rays, ts, ids = (np.concatenate([p[k] for p in parts]) for k in range(3))
         t_out[sl], id_out[sl] = _reduce_nearest(sl.stop - sl.start, rays, ts, ids)
     return t_out, id_out
 
 
-def trace_rays(scene: Scene, origins: np.ndarray, dirs: np.ndarray, src: np.ndarray | None = None,
-               far_only: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def trace_rays(
+    scene: Scene,
+    origins: np.ndarray,
+    dirs: np.ndarray,
+    src: np.ndarray | None = None,
+    far_only: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Nearest hits (t float64, id int64; inf/−1 on a miss) of arbitrary rays in ``scene``.
 
     ``dirs`` should be unit vectors (t is then a distance). Without ``src`` the rays are
@@ -507,8 +548,15 @@ def trace_rays(scene: Scene, origins: np.ndarray, dirs: np.ndarray, src: np.ndar
 
 # ------------------------------------------------------------------------ shading
 
-def local_color(g: _Geometry, p: np.ndarray, d: np.ndarray, normal: np.ndarray, prim: np.ndarray,
-                 geo_normal: np.ndarray | None = None) -> np.ndarray:
+
+def local_color(
+    g: _Geometry,
+    p: np.ndarray,
+    d: np.ndarray,
+    normal: np.ndarray,
+    prim: np.ndarray,
+    geo_normal: np.ndarray | None = None,
+) -> np.ndarray:
     """Phong ``local`` term of SHADING.md at hits (p, prim) of rays with direction d, (k, 3).
 
     ``normal`` is the shading normal, ``geo_normal`` the geometric one (the same for
@@ -520,7 +568,7 @@ def local_color(g: _Geometry, p: np.ndarray, d: np.ndarray, normal: np.ndarray, 
     mat = g.prim_material[prim]
     c = g.color[mat]
     local = g.ka[mat][:, None] * c
-    facing = np.where((_dot(d, geo) < 0.0)[:, None], normal, -normal)   # Nf
+    facing = np.where((_dot(d, geo) < 0.0)[:, None], normal, -normal)  # Nf
     is_sphere = prim < g.n
     for lp, lc in zip(g.light_pos, g.light_col):
         to_light = lp[None, :] - p
@@ -546,6 +594,7 @@ def local_color(g: _Geometry, p: np.ndarray, d: np.ndarray, normal: np.ndarray, 
 
 # ---------------------------------------------------------------------- ray tree
 
+
 @dataclass
 class RayBatch:
     """One generation of rays: all at recursion ``level`` (primary = 1).
@@ -554,6 +603,7 @@ class RayBatch:
     of kr/kt along its path, ``src`` the primitive it leaves (−1: camera), ``far_only``
     whether it enters that source sphere (far-root rule).
     """
+
     origins: np.ndarray
     dirs: np.ndarray
     pix: np.ndarray
@@ -565,30 +615,46 @@ class RayBatch:
     def __len__(self) -> int:
         return len(self.pix)
 
-    def split(self, size: int) -> list["RayBatch"]:
+    def split(self, size: int) -> list[RayBatch]:
         """Pieces of at most ``size`` rays (memory bound)."""
-        return [RayBatch(self.origins[a:a + size], self.dirs[a:a + size], self.pix[a:a + size],
-                         self.weight[a:a + size], self.level, self.src[a:a + size], self.far_only[a:a + size])
-                for a in range(0, len(self), size)]
+        return [
+            RayBatch(
+                self.origins[a : a + size],
+                self.dirs[a : a + size],
+                self.pix[a : a + size],
+                self.weight[a : a + size],
+                self.level,
+                self.src[a : a + size],
+                self.far_only[a : a + size],
+            )
+            for a in range(0, len(self), size)
+        ]
 
 
 @dataclass
 class _Frame:
     """Per-pixel accumulators (flat, row-major)."""
-    color: np.ndarray      # (P, 3) float64 Whitted sum
-    depth: np.ndarray      # (P,) t of the primary hit
-    primid: np.ndarray     # (P,)
-    normal: np.ndarray     # (P, 3)
-    deepest: np.ndarray    # (P,) deepest level whose ray hit something (0: primary miss)
+
+    color: np.ndarray  # (P, 3) float64 Whitted sum
+    depth: np.ndarray  # (P,) t of the primary hit
+    primid: np.ndarray  # (P,)
+    normal: np.ndarray  # (P, 3)
+    deepest: np.ndarray  # (P,) deepest level whose ray hit something (0: primary miss)
 
     @staticmethod
-    def empty(pixels: int) -> "_Frame":
-        return _Frame(np.zeros((pixels, 3)), np.full(pixels, np.inf), np.full(pixels, -1, dtype=np.int64),
-                      np.zeros((pixels, 3)), np.zeros(pixels, dtype=np.int64))
+    def empty(pixels: int) -> _Frame:
+        return _Frame(
+            np.zeros((pixels, 3)),
+            np.full(pixels, np.inf),
+            np.full(pixels, -1, dtype=np.int64),
+            np.zeros((pixels, 3)),
+            np.zeros(pixels, dtype=np.int64),
+        )
 
 
-def _secondary_rays(g: _Geometry, batch: RayBatch, hit: np.ndarray, p: np.ndarray, normal: np.ndarray,
-                    prim: np.ndarray, geo: np.ndarray) -> RayBatch | None:
+def _secondary_rays(
+    g: _Geometry, batch: RayBatch, hit: np.ndarray, p: np.ndarray, normal: np.ndarray, prim: np.ndarray, geo: np.ndarray
+) -> RayBatch | None:
     """Reflected (kr > 0) and transmitted (kt > 0) children of the hits ``hit`` of ``batch``.
 
     Directions bend about the shading normal ``normal``; whether a transmitted ray enters
@@ -600,8 +666,7 @@ def _secondary_rays(g: _Geometry, batch: RayBatch, hit: np.ndarray, p: np.ndarra
     t_sel = np.nonzero(kt > 0.0)[0]
     if len(r_sel) + len(t_sel) == 0:
         return None
-    t_dirs, _ = transmitted_directions(d[t_sel], normal[t_sel], g.ior[mat[t_sel]],
-                                       _dot(d[t_sel], geo[t_sel]) < 0.0)
+    t_dirs, _ = transmitted_directions(d[t_sel], normal[t_sel], g.ior[mat[t_sel]], _dot(d[t_sel], geo[t_sel]) < 0.0)
     sel = np.concatenate([r_sel, t_sel])
     dirs = np.concatenate([reflect(d[r_sel], normal[r_sel]), t_dirs])
     weight = w[sel] * np.concatenate([kr[r_sel], kt[t_sel]])[:, None]
@@ -614,38 +679,48 @@ def _trace_batch(g: _Geometry, batch: RayBatch, frame: _Frame, max_level: int, s
     """Trace one generation: record primary data, add weighted local colour, return children."""
     t, prim = nearest_hit(g, batch.origins, batch.dirs, batch.src, batch.far_only)
     hit = np.nonzero(prim >= 0)[0]
-    if shade and g.environment.any():    # a ray that meets nothing sees the environment
+    if shade and g.environment.any():  # a ray that meets nothing sees the environment
         miss = np.nonzero(prim < 0)[0]
         np.add.at(frame.color, batch.pix[miss], batch.weight[miss] * g.environment)
     if len(hit) == 0:
-        return None      # a miss is black: nothing to add
+        return None  # a miss is black: nothing to add
     prim_h, pix_h = prim[hit], batch.pix[hit]
     p = batch.origins[hit] + t[hit, None] * batch.dirs[hit]
     geo, normal = g.normals(prim_h, p, batch.origins[hit], batch.dirs[hit])
     frame.deepest[pix_h] = np.maximum(frame.deepest[pix_h], batch.level)
-    if batch.level == 1:     # primary rays: one per pixel
+    if batch.level == 1:  # primary rays: one per pixel
         frame.depth[pix_h] = t[hit]
         frame.primid[pix_h] = prim_h
         frame.normal[pix_h] = normal
     if shade:
         local = local_color(g, p, batch.dirs[hit], normal, prim_h, geo)
-        if g.emission.any():             # emitted on the side the (geometric) normal faces
+        if g.emission.any():  # emitted on the side the (geometric) normal faces
             front = _dot(batch.dirs[hit], geo) < 0.0
             local = local + np.where(front[:, None], g.emission[g.prim_material[prim_h]], 0.0)
         np.add.at(frame.color, pix_h, batch.weight[hit] * local)
     if batch.level >= max_level:
-        return None      # the deepest level returns `local` only
+        return None  # the deepest level returns `local` only
     return _secondary_rays(g, batch, hit, p, normal, prim_h, geo)
 
 
-def _trace_pixels(g: _Geometry, camera: Camera, w: int, h: int, frame: _Frame,
-                  chunk_rays: int, max_level: int, shade: bool) -> None:
+def _trace_pixels(
+    g: _Geometry, camera: Camera, w: int, h: int, frame: _Frame, chunk_rays: int, max_level: int, shade: bool
+) -> None:
     """Evaluate the ray trees of all w × h pixels, one chunk of primary rays at a time, depth first."""
     for a in range(0, w * h, chunk_rays):
         pix = np.arange(a, min(w * h, a + chunk_rays), dtype=np.int64)
         o, d = _pixel_rays(camera, w, h, pix)
-        stack = [RayBatch(o, d, pix, np.ones((len(pix), 3)), 1, np.full(len(pix), -1, dtype=np.int64),
-                          np.zeros(len(pix), dtype=bool))]
+        stack = [
+            RayBatch(
+                o,
+                d,
+                pix,
+                np.ones((len(pix), 3)),
+                1,
+                np.full(len(pix), -1, dtype=np.int64),
+                np.zeros(len(pix), dtype=bool),
+            )
+        ]
         while stack:
             child = _trace_batch(g, stack.pop(), frame, max_level, shade)
             if child is not None:
@@ -654,8 +729,10 @@ def _trace_pixels(g: _Geometry, camera: Camera, w: int, h: int, frame: _Frame,
 
 # ------------------------------------------------------------------------- modes
 
-def heat_counts(scene: Scene, settings: RenderSettings, o: np.ndarray, d: np.ndarray, chunk_rays: int = 4096
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+
+def heat_counts(
+    scene: Scene, settings: RenderSettings, o: np.ndarray, d: np.ndarray, chunk_rays: int = 4096
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(nodes visited, gaps, primitive tests) per primary ray for ``settings.method``.
 
     Brute force tests every sphere and triangle and visits no node. ``bih`` counts come from
@@ -665,21 +742,29 @@ def heat_counts(scene: Scene, settings: RenderSettings, o: np.ndarray, d: np.nda
     """
     n_rays = len(o)
     if settings.method == "bruteforce":
-        return (np.zeros(n_rays, np.int64), np.zeros(n_rays, np.int64),
-                np.full(n_rays, scene.n_spheres + scene.n_triangles, dtype=np.int64))
+        return (
+            np.zeros(n_rays, np.int64),
+            np.zeros(n_rays, np.int64),
+            np.full(n_rays, scene.n_spheres + scene.n_triangles, dtype=np.int64),
+        )
     bih = build_for_scene(scene, settings.max_prims, settings.max_tree_depth)
     nodes, gaps, tests = [], [], []
     for a in range(0, n_rays, chunk_rays):
-        res = traverse(bih, scene.sphere_centers, scene.sphere_radii, o[a:a + chunk_rays], d[a:a + chunk_rays],
-                       triangles=scene.triangle_corners)
+        res = traverse(
+            bih,
+            scene.sphere_centers,
+            scene.sphere_radii,
+            o[a : a + chunk_rays],
+            d[a : a + chunk_rays],
+            triangles=scene.triangle_corners,
+        )
         nodes.append(np.asarray(res.nodes_visited))
         gaps.append(np.asarray(res.gaps))
         tests.append(np.asarray(res.tests))
     return np.concatenate(nodes), np.concatenate(gaps), np.concatenate(tests)
 
 
-def _mode_image(scene: Scene, settings: RenderSettings, frame: _Frame, chunk_rays: int, w: int, h: int
-                ) -> np.ndarray:
+def _mode_image(scene: Scene, settings: RenderSettings, frame: _Frame, chunk_rays: int, w: int, h: int) -> np.ndarray:
     """The flat (P, 3) float64 image the render mode shows (SHADING.md § Output modes)."""
     mode = settings.mode
     hit = (frame.primid >= 0)[:, None]
@@ -700,8 +785,9 @@ def _mode_image(scene: Scene, settings: RenderSettings, frame: _Frame, chunk_ray
     raise ValueError(f"unknown mode {mode!r}")
 
 
-def render_reference(scene: Scene, settings: RenderSettings, *, chunk_rays: int = 4096,
-                     supersample: int | None = None) -> RenderResult:
+def render_reference(
+    scene: Scene, settings: RenderSettings, *, chunk_rays: int = 4096, supersample: int | None = None
+) -> RenderResult:
     """Render ``scene`` with the float64 reference tracer (SHADING.md), whatever ``settings.method``.
 
     ``chunk_rays`` bounds the rays traced together (memory ∝ chunk_rays × recursion depth).
@@ -726,8 +812,16 @@ def render_reference(scene: Scene, settings: RenderSettings, *, chunk_rays: int 
     max_level = settings.max_recursion_depth if whitted else 1
     # The pixel centres: every mode's arrays, and the whole image of the modes not averaged.
     centre = _Frame.empty(w * h)
-    _trace_pixels(g, scene.camera, w, h, centre, chunk_rays, 1 if averaged and k > 1 else max_level,
-                  shade=settings.mode == "color" and not (averaged and k > 1))
+    _trace_pixels(
+        g,
+        scene.camera,
+        w,
+        h,
+        centre,
+        chunk_rays,
+        1 if averaged and k > 1 else max_level,
+        shade=settings.mode == "color" and not (averaged and k > 1),
+    )
     depth = centre.depth.reshape(h, w)
     primid = centre.primid.reshape(h, w)
     normal = centre.normal.reshape(h, w, 3)

@@ -25,6 +25,7 @@ class RenderResult:
     display: (tone-mapping operator, exposure) when ``image`` is radiance (the path integrator):
             :meth:`image_u8` tone-maps it (renderer/tonemap.py), :meth:`array` gives it as it is.
     """
+
     image: np.ndarray
     depth: np.ndarray
     primid: np.ndarray
@@ -50,7 +51,7 @@ class RenderResult:
             return self.primid.astype(np.int32, copy=False)
         if self.mode == "normal":
             return self.normal.astype(np.float32, copy=False)
-        if self.display is not None:      # the path integrator: linear radiance, float32 H×W×3
+        if self.display is not None:  # the path integrator: linear radiance, float32 H×W×3
             return self.image.astype(np.float32, copy=False)
         return self.image_u8()
 
@@ -63,7 +64,7 @@ class RenderResult:
 TARGET_BYTES_PER_PIXEL = 2 * 4 * 4
 TARGET_BYTES_PER_PIXEL_RGBA8 = 4
 RESULT_BYTES_PER_PIXEL = 3 * 4 + 3 * 4 + 4 + 4
-IMAGE_ONLY_BYTES_PER_PIXEL = 3 + 3       # the 8-bit image cut from the read-back, and its copy for the encoder
+IMAGE_ONLY_BYTES_PER_PIXEL = 3 + 3  # the 8-bit image cut from the read-back, and its copy for the encoder
 
 
 def traced_nbytes(width: int, height: int, supersampling: int = 1, image_only: bool = False) -> int:

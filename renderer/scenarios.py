@@ -24,10 +24,26 @@ CUBE_HALF = 20.0
 CORNER_CUBE_EDGE = 8.0
 SCREEN_WIDTH, SCREEN_HEIGHT = 640, 1088
 
-RED = Material(color=(0.9, 0.3, 0.3), ambient=0.30, diffuse=0.30, specular=0.10, shininess=40.0,
-               reflective=0.30, transmissive=0.0, ior=1.0)
-TRANSPARENT = Material(color=(1.0, 1.0, 1.0), ambient=0.10, diffuse=0.10, specular=0.10, shininess=50.0,
-                       reflective=0.0, transmissive=0.70, ior=0.95)
+RED = Material(
+    color=(0.9, 0.3, 0.3),
+    ambient=0.30,
+    diffuse=0.30,
+    specular=0.10,
+    shininess=40.0,
+    reflective=0.30,
+    transmissive=0.0,
+    ior=1.0,
+)
+TRANSPARENT = Material(
+    color=(1.0, 1.0, 1.0),
+    ambient=0.10,
+    diffuse=0.10,
+    specular=0.10,
+    shininess=50.0,
+    reflective=0.0,
+    transmissive=0.70,
+    ior=0.95,
+)
 TABLE_4_1 = (RED, TRANSPARENT)
 
 
@@ -40,7 +56,7 @@ def grid_centers(n: int, radius: float) -> np.ndarray:
     if n == 0:
         return np.zeros((0, 3))
     k = max(1, math.ceil(round(n ** (1.0 / 3.0), 9)))
-    while k ** 3 < n:
+    while k**3 < n:
         k += 1
     half = CUBE_HALF - radius
     if k == 1:
@@ -114,12 +130,36 @@ def scenario(number: int, n: int, seed: int = 0, radius: float = 1.0) -> Scene:
 MESH_SCENES = ("teapot", "mixed", "room", "cornell")
 MAX_MESH_DETAIL = 5
 
-PORCELAIN = Material(color=(0.92, 0.9, 0.85), ambient=0.15, diffuse=0.65, specular=0.4, shininess=60.0,
-                     reflective=0.1, transmissive=0.0, ior=1.0)
-GLASS = Material(color=(1.0, 1.0, 1.0), ambient=0.05, diffuse=0.05, specular=0.3, shininess=80.0,
-                 reflective=0.1, transmissive=0.8, ior=1.5)
-WALLS = Material(color=(0.75, 0.72, 0.65), ambient=0.25, diffuse=0.6, specular=0.05, shininess=10.0,
-                 reflective=0.0, transmissive=0.0, ior=1.0)
+PORCELAIN = Material(
+    color=(0.92, 0.9, 0.85),
+    ambient=0.15,
+    diffuse=0.65,
+    specular=0.4,
+    shininess=60.0,
+    reflective=0.1,
+    transmissive=0.0,
+    ior=1.0,
+)
+GLASS = Material(
+    color=(1.0, 1.0, 1.0),
+    ambient=0.05,
+    diffuse=0.05,
+    specular=0.3,
+    shininess=80.0,
+    reflective=0.1,
+    transmissive=0.8,
+    ior=1.5,
+)
+WALLS = Material(
+    color=(0.75, 0.72, 0.65),
+    ambient=0.25,
+    diffuse=0.6,
+    specular=0.05,
+    shininess=10.0,
+    reflective=0.0,
+    transmissive=0.0,
+    ior=1.0,
+)
 
 
 def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True) -> Scene:
@@ -142,6 +182,7 @@ def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True) -> Sc
     segments. ``smooth``: vertex normals (else flat shading). Deterministic.
     """
     from . import meshes as M
+
     if kind not in MESH_SCENES:
         raise SceneError("kind", f"unknown mesh scene {kind!r}; one of {', '.join(MESH_SCENES)}")
     if isinstance(detail, bool) or not isinstance(detail, (int, np.integer)) or not 0 <= detail <= MAX_MESH_DETAIL:
@@ -156,60 +197,134 @@ def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True) -> Sc
     empty = (np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32))
     if kind == "teapot":
         pot = M.teapot(seg, size=5.5, material=1, smooth=smooth, transform=placed(-1.0, -CUBE_HALF, 0.0))
-        return Scene(Camera((0.0, 8.0, 75.0), (0.0, -10.0, 0.0), (0.0, 1.0, 0.0), 45.0), (light,),
-                     (RED, PORCELAIN), *empty, (floor,), (pot,))
+        return Scene(
+            Camera((0.0, 8.0, 75.0), (0.0, -10.0, 0.0), (0.0, 1.0, 0.0), 45.0),
+            (light,),
+            (RED, PORCELAIN),
+            *empty,
+            (floor,),
+            (pot,),
+        )
     if kind == "mixed":
         axis = np.array([-12.0, 0.0, 12.0])
         z, y, x = np.meshgrid(axis, axis + 2.0, axis, indexing="ij")
         centers = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
-        meshes = (M.icosphere(int(detail), radius=5.0, center=(-6.0, -12.0, 6.0), material=1, smooth=smooth),
-                  M.torus(6.0, 1.8, 12 * (int(detail) + 1), 6 * (int(detail) + 1), center=(6.0, -16.0, -4.0),
-                          material=0, smooth=smooth))
-        return Scene(Camera((0.0, 0.0, 100.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 60.0), (light,),
-                     (RED, GLASS), centers, np.full(len(centers), 2.0), np.zeros(len(centers), np.int32),
-                     (floor,), meshes)
+        meshes = (
+            M.icosphere(int(detail), radius=5.0, center=(-6.0, -12.0, 6.0), material=1, smooth=smooth),
+            M.torus(
+                6.0,
+                1.8,
+                12 * (int(detail) + 1),
+                6 * (int(detail) + 1),
+                center=(6.0, -16.0, -4.0),
+                material=0,
+                smooth=smooth,
+            ),
+        )
+        return Scene(
+            Camera((0.0, 0.0, 100.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 60.0),
+            (light,),
+            (RED, GLASS),
+            centers,
+            np.full(len(centers), 2.0),
+            np.zeros(len(centers), np.int32),
+            (floor,),
+            meshes,
+        )
     if kind == "cornell":
         return _cornell(M, seg, smooth, placed)
     room = M.box((-CUBE_HALF,) * 3, (CUBE_HALF,) * 3, inward=True, material=0)
     pot = M.teapot(seg, size=3.0, material=1, smooth=smooth, transform=placed(-6.0, -CUBE_HALF, -6.0))
     ball = M.icosphere(int(detail), radius=4.0, center=(8.0, -16.0, -2.0), material=2, smooth=smooth)
     centers = np.array([[-14.0, -17.0, 8.0], [12.0, -18.0, 10.0], [0.0, -17.0, -14.0], [14.0, -17.0, -14.0]])
-    return Scene(Camera((0.0, 0.0, 18.0), (0.0, -8.0, 0.0), (0.0, 1.0, 0.0), 70.0),
-                 (Light((0.0, 18.0, 5.0), (1.0, 1.0, 1.0)),), (WALLS, PORCELAIN, GLASS, RED),
-                 centers, np.full(4, 3.0), np.full(4, 3, np.int32), (), (room, pot, ball))
+    return Scene(
+        Camera((0.0, 0.0, 18.0), (0.0, -8.0, 0.0), (0.0, 1.0, 0.0), 70.0),
+        (Light((0.0, 18.0, 5.0), (1.0, 1.0, 1.0)),),
+        (WALLS, PORCELAIN, GLASS, RED),
+        centers,
+        np.full(4, 3.0),
+        np.full(4, 3, np.int32),
+        (),
+        (room, pot, ball),
+    )
 
 
 def _matte(color, ambient: float = 0.3) -> Material:
     """A Lambertian wall (path integrator: albedo ``color``; Whitted: ambient and diffuse only)."""
-    return Material(color=color, ambient=ambient, diffuse=1.0, specular=0.0, shininess=1.0, reflective=0.0,
-                    transmissive=0.0, ior=1.0)
+    return Material(
+        color=color,
+        ambient=ambient,
+        diffuse=1.0,
+        specular=0.0,
+        shininess=1.0,
+        reflective=0.0,
+        transmissive=0.0,
+        ior=1.0,
+    )
 
 
 CORNELL_MATERIALS = (
-    _matte((0.73, 0.73, 0.73)),                       # 0 white: floor, ceiling, back wall
-    _matte((0.63, 0.065, 0.05)),                      # 1 red: the left wall
-    _matte((0.14, 0.45, 0.091)),                      # 2 green: the right wall
-    Material(color=(1.0, 1.0, 1.0), ambient=0.0, diffuse=0.0, specular=0.0, shininess=1.0, reflective=0.0,
-             transmissive=0.0, ior=1.0, emission=(17.0, 12.0, 4.0)),      # 3 the ceiling panel
-    Material(color=(1.0, 1.0, 1.0), ambient=0.0, diffuse=0.0, specular=0.5, shininess=200.0, reflective=1.0,
-             transmissive=0.0, ior=1.0),                                   # 4 mirror
-    Material(color=(1.0, 1.0, 1.0), ambient=0.0, diffuse=0.0, specular=0.5, shininess=200.0, reflective=0.0,
-             transmissive=1.0, ior=1.5),                                   # 5 clear glass
-    _matte((0.8, 0.75, 0.6)),                         # 6 the teapot
+    _matte((0.73, 0.73, 0.73)),  # 0 white: floor, ceiling, back wall
+    _matte((0.63, 0.065, 0.05)),  # 1 red: the left wall
+    _matte((0.14, 0.45, 0.091)),  # 2 green: the right wall
+    Material(
+        color=(1.0, 1.0, 1.0),
+        ambient=0.0,
+        diffuse=0.0,
+        specular=0.0,
+        shininess=1.0,
+        reflective=0.0,
+        transmissive=0.0,
+        ior=1.0,
+        emission=(17.0, 12.0, 4.0),
+    ),  # 3 the ceiling panel
+    Material(
+        color=(1.0, 1.0, 1.0),
+        ambient=0.0,
+        diffuse=0.0,
+        specular=0.5,
+        shininess=200.0,
+        reflective=1.0,
+        transmissive=0.0,
+        ior=1.0,
+    ),  # 4 mirror
+    Material(
+        color=(1.0, 1.0, 1.0),
+        ambient=0.0,
+        diffuse=0.0,
+        specular=0.5,
+        shininess=200.0,
+        reflective=0.0,
+        transmissive=1.0,
+        ior=1.5,
+    ),  # 5 clear glass
+    _matte((0.8, 0.75, 0.6)),  # 6 the teapot
 )
 
 
 def _cornell(M, seg: int, smooth: bool, placed) -> Scene:
     h = CUBE_HALF
-    planes = (Plane((0.0, -h, 0.0), (0.0, 1.0, 0.0), 0), Plane((0.0, h, 0.0), (0.0, -1.0, 0.0), 0),
-              Plane((0.0, 0.0, -h), (0.0, 0.0, 1.0), 0), Plane((-h, 0.0, 0.0), (1.0, 0.0, 0.0), 1),
-              Plane((h, 0.0, 0.0), (-1.0, 0.0, 0.0), 2))
-    y = h - 0.01                                # a quad just under the ceiling, wound to face down
+    planes = (
+        Plane((0.0, -h, 0.0), (0.0, 1.0, 0.0), 0),
+        Plane((0.0, h, 0.0), (0.0, -1.0, 0.0), 0),
+        Plane((0.0, 0.0, -h), (0.0, 0.0, 1.0), 0),
+        Plane((-h, 0.0, 0.0), (1.0, 0.0, 0.0), 1),
+        Plane((h, 0.0, 0.0), (-1.0, 0.0, 0.0), 2),
+    )
+    y = h - 0.01  # a quad just under the ceiling, wound to face down
     panel = make_mesh([[-5.0, y, -5.0], [5.0, y, -5.0], [5.0, y, 5.0], [-5.0, y, 5.0]], [[0, 1, 2], [0, 2, 3]], 3)
     pot = M.teapot(seg, size=3.2, material=6, smooth=smooth, transform=placed(0.0, -h, -10.0))
     centers = np.array([[-9.0, -h + 6.0, -4.0], [8.0, -h + 6.0, 6.0]])
     # The camera sees the open front exactly: 2h wide at 2h·(1 + 1/tan(fov/2)) / 2 from the back.
     fov = 40.0
     z = h + h / np.tan(np.radians(fov / 2.0))
-    return Scene(Camera((0.0, 0.0, float(z)), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), fov), (), CORNELL_MATERIALS,
-                 centers, np.array([6.0, 6.0]), np.array([4, 5], np.int32), planes, (panel, pot))
+    return Scene(
+        Camera((0.0, 0.0, float(z)), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), fov),
+        (),
+        CORNELL_MATERIALS,
+        centers,
+        np.array([6.0, 6.0]),
+        np.array([4, 5], np.int32),
+        planes,
+        (panel, pot),
+    )

@@ -19,15 +19,17 @@ from __future__ import annotations
 import copy
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from . import limits
+
 # Largest coordinate magnitude accepted (float32 resolves a unit sphere up to it; limits.py).
-from .limits import MAX_COORDINATE  # noqa: F401  (re-exported)
+from .limits import MAX_COORDINATE
 
 Vec3 = tuple[float, float, float]
 
@@ -41,8 +43,15 @@ class SceneError(ValueError):
         self.message = message
 
 
-def finite_number(value: Any, where: str, *, lo: float | None = None, hi: float | None = None,
-            lo_open: bool = False, hi_open: bool = False) -> float:
+def finite_number(
+    value: Any,
+    where: str,
+    *,
+    lo: float | None = None,
+    hi: float | None = None,
+    lo_open: bool = False,
+    hi_open: bool = False,
+) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
         raise SceneError(where, f"expected a number, got {type(value).__name__}")
     x = float(value)
@@ -83,8 +92,9 @@ class Camera:
         object.__setattr__(self, "position", finite_vec3(self.position, "camera.position"))
         object.__setattr__(self, "target", finite_vec3(self.target, "camera.target"))
         object.__setattr__(self, "up", finite_vec3(self.up, "camera.up"))
-        object.__setattr__(self, "fov_y", finite_number(self.fov_y, "camera.fov_y", lo=0.0, hi=180.0,
-                                                  lo_open=True, hi_open=True))
+        object.__setattr__(
+            self, "fov_y", finite_number(self.fov_y, "camera.fov_y", lo=0.0, hi=180.0, lo_open=True, hi_open=True)
+        )
         _unit(self.up, "camera.up")
         fwd = tuple(t - p for t, p in zip(self.target, self.position))
         if not (_norm(fwd) > 0.0):
@@ -106,11 +116,10 @@ class Camera:
         return right, true_up, forward
 
     def to_json(self) -> dict:
-        return {"position": list(self.position), "target": list(self.target),
-                "up": list(self.up), "fov_y": self.fov_y}
+        return {"position": list(self.position), "target": list(self.target), "up": list(self.up), "fov_y": self.fov_y}
 
     @staticmethod
-    def from_json(d: Any, where: str = "camera") -> "Camera":
+    def from_json(d: Any, where: str = "camera") -> Camera:
         d = _object(d, where, {"position", "target", "up", "fov_y"})
         kw = {k: d[k] for k in ("position", "target", "up", "fov_y") if k in d}
         return _construct(Camera, kw, where)
@@ -119,6 +128,7 @@ class Camera:
 @dataclass(frozen=True)
 class Light:
     """A point light. ``color`` is its RGB intensity (white = 1, 1, 1)."""
+
     position: Vec3 = (0.0, 40.0, 0.0)
     color: Vec3 = (1.0, 1.0, 1.0)
 
@@ -133,7 +143,7 @@ class Light:
         return {"position": list(self.position), "color": list(self.color)}
 
     @staticmethod
-    def from_json(d: Any, where: str) -> "Light":
+    def from_json(d: Any, where: str) -> Light:
         d = _object(d, where, {"position", "color"})
         return _construct(Light, {k: d[k] for k in ("position", "color") if k in d}, where)
 
@@ -149,6 +159,7 @@ class Material:
     α of the path integrator's reflection lobe (0: a mirror). Both are absent from the
     JSON when 0, so a scene without them reads and writes as it always did.
     """
+
     color: Vec3 = (0.9, 0.3, 0.3)
     ambient: float = 0.3
     diffuse: float = 0.3
@@ -172,7 +183,9 @@ class Material:
         object.__setattr__(self, "color", col)
         for name in ("ambient", "diffuse", "specular", "reflective", "transmissive"):
             object.__setattr__(self, name, finite_number(getattr(self, name), name, lo=0.0, hi=1.0))
-        object.__setattr__(self, "shininess", finite_number(self.shininess, "shininess", lo=0.0, hi=limits.MAX_SHININESS))
+        object.__setattr__(
+            self, "shininess", finite_number(self.shininess, "shininess", lo=0.0, hi=limits.MAX_SHININESS)
+        )
         object.__setattr__(self, "ior", finite_number(self.ior, "ior", lo=0.0, hi=limits.MAX_IOR, lo_open=True))
 
     @property
@@ -180,9 +193,16 @@ class Material:
         return any(c > 0.0 for c in self.emission)
 
     def to_json(self) -> dict:
-        out = {"color": list(self.color), "ambient": self.ambient, "diffuse": self.diffuse,
-               "specular": self.specular, "shininess": self.shininess,
-               "reflective": self.reflective, "transmissive": self.transmissive, "ior": self.ior}
+        out = {
+            "color": list(self.color),
+            "ambient": self.ambient,
+            "diffuse": self.diffuse,
+            "specular": self.specular,
+            "shininess": self.shininess,
+            "reflective": self.reflective,
+            "transmissive": self.transmissive,
+            "ior": self.ior,
+        }
         if self.emits:
             out["emission"] = list(self.emission)
         if self.roughness:
@@ -190,9 +210,19 @@ class Material:
         return out
 
     @staticmethod
-    def from_json(d: Any, where: str) -> "Material":
-        keys = ("color", "ambient", "diffuse", "specular", "shininess", "reflective", "transmissive", "ior",
-                "emission", "roughness")
+    def from_json(d: Any, where: str) -> Material:
+        keys = (
+            "color",
+            "ambient",
+            "diffuse",
+            "specular",
+            "shininess",
+            "reflective",
+            "transmissive",
+            "ior",
+            "emission",
+            "roughness",
+        )
         d = _object(d, where, set(keys))
         return _construct(Material, {k: d[k] for k in keys if k in d}, where)
 
@@ -251,7 +281,7 @@ def _first_bad_row(value: Sequence, where: str, what: str) -> None:
         for j, x in enumerate(row):
             if isinstance(x, bool) or not isinstance(x, _NUMBER_TYPES):
                 raise SceneError(f"{where}[{i}][{j}]", f"expected a number, got {type(x).__name__}")
-    raise SceneError(where, "expected a list of [x, y, z] rows")   # not reached: a caller saw a bad row
+    raise SceneError(where, "expected a list of [x, y, z] rows")  # not reached: a caller saw a bad row
 
 
 def rows3(value: Any, where: str, what: str = "numbers") -> np.ndarray:
@@ -280,7 +310,7 @@ def rows3(value: Any, where: str, what: str = "numbers") -> np.ndarray:
         _first_bad_row(value, where, what)
     try:
         return np.array(value, dtype=np.float64).reshape(-1, 3)
-    except OverflowError:            # an integer beyond float64 (JSON allows any)
+    except OverflowError:  # an integer beyond float64 (JSON allows any)
         for i, row in enumerate(value):
             try:
                 np.array(row, dtype=np.float64)
@@ -310,6 +340,7 @@ class Mesh:
     index) is kept, so that ids do not move, and is never hit; :attr:`n_degenerate` counts
     them. Build one from JSON-like input, with a transform, with :func:`make_mesh`.
     """
+
     vertices: np.ndarray
     triangles: np.ndarray
     material: int = 0
@@ -320,20 +351,27 @@ class Mesh:
         bad = ~np.isfinite(v).all(axis=1) | (np.abs(v) > MAX_COORDINATE).any(axis=1)
         if bad.any():
             i = _bad_rows(bad)
-            raise SceneError(f"vertices[{i}]", f"must be finite numbers within ±{MAX_COORDINATE:g}, "
-                                               f"got {v[i].tolist()}")
+            raise SceneError(
+                f"vertices[{i}]", f"must be finite numbers within ±{MAX_COORDINATE:g}, got {v[i].tolist()}"
+            )
         if len(v) > limits.MAX_MESH_VERTICES:
             raise SceneError("vertices", f"at most {limits.MAX_MESH_VERTICES} vertices per mesh, got {len(v)}")
         t = rows3(self.triangles, "triangles", "vertex indices")
         if len(t) > limits.MAX_TRIANGLES:
             raise SceneError("triangles", f"at most {limits.MAX_TRIANGLES} triangles allowed, got {len(t)}")
-        bad = ~(np.isfinite(t).all(axis=1) & (t == np.round(t)).all(axis=1) & (t >= 0).all(axis=1)
-                & (t < len(v)).all(axis=1))
+        bad = ~(
+            np.isfinite(t).all(axis=1)
+            & (t == np.round(t)).all(axis=1)
+            & (t >= 0).all(axis=1)
+            & (t < len(v)).all(axis=1)
+        )
         if bad.any():
             i = _bad_rows(bad)
             got = [int(x) if math.isfinite(x) and float(x).is_integer() else x for x in t[i].tolist()]
-            raise SceneError(f"triangles[{i}]", f"vertex indices must be integers in 0 … {len(v) - 1} "
-                                                f"(the mesh has {len(v)} vertices), got {got}")
+            raise SceneError(
+                f"triangles[{i}]",
+                f"vertex indices must be integers in 0 … {len(v) - 1} (the mesh has {len(v)} vertices), got {got}",
+            )
         t = t.astype(np.int32)
         n = None
         if self.normals is not None:
@@ -378,7 +416,7 @@ class Mesh:
     def n_degenerate(self) -> int:
         return int(self.degenerate.sum())
 
-    def with_vertices(self, vertices: np.ndarray, normals: np.ndarray | None = None) -> "Mesh":
+    def with_vertices(self, vertices: np.ndarray, normals: np.ndarray | None = None) -> Mesh:
         """The same triangles and material on moved vertices (an animation's pose)."""
         return Mesh(vertices, self.triangles, self.material, normals)
 
@@ -390,13 +428,17 @@ class Mesh:
         return d
 
     @staticmethod
-    def from_json(d: Any, where: str) -> "Mesh":
+    def from_json(d: Any, where: str) -> Mesh:
         d = _object(d, where, {"vertices", "triangles", "material", "normals", "transform"})
         for k in ("vertices", "triangles"):
             if k not in d:
                 raise SceneError(f"{where}.{k}", "field required")
         m = d.get("material", 0)
-        if isinstance(m, bool) or not isinstance(m, (int, np.integer)) and not (isinstance(m, float) and m.is_integer()):
+        if (
+            isinstance(m, bool)
+            or not isinstance(m, (int, np.integer))
+            and not (isinstance(m, float) and m.is_integer())
+        ):
             raise SceneError(f"{where}.material", "expected an integer material index")
         try:
             return make_mesh(d["vertices"], d["triangles"], int(m), d.get("normals"), d.get("transform"))
@@ -422,8 +464,7 @@ def affine_transform(value: Any, where: str = "transform") -> np.ndarray:
     return out
 
 
-def make_mesh(vertices: Any, triangles: Any, material: int = 0, normals: Any = None,
-              transform: Any = None) -> Mesh:
+def make_mesh(vertices: Any, triangles: Any, material: int = 0, normals: Any = None, transform: Any = None) -> Mesh:
     """A :class:`Mesh` from JSON-like lists or arrays, ``transform`` (4 × 4 row-major affine)
     applied: ``v' = A v + b``, normals by the inverse transpose of ``A``, and — when ``A``
     mirrors (det < 0) — every triangle's winding reversed, so that a closed mesh stays
@@ -444,7 +485,7 @@ def make_mesh(vertices: Any, triangles: Any, material: int = 0, normals: Any = N
     if normals is not None:
         n = rows3(normals, "normals")
         with np.errstate(over="ignore", invalid="ignore"):
-            n = n @ np.linalg.inv(a)            # (A⁻ᵀ n)ᵀ = nᵀ A⁻¹
+            n = n @ np.linalg.inv(a)  # (A⁻ᵀ n)ᵀ = nᵀ A⁻¹
     t = triangles
     if np.linalg.det(a) < 0:
         t = rows3(triangles, "triangles", "vertex indices")[:, [0, 2, 1]]
@@ -468,6 +509,7 @@ class Scene:
     Ids (docs/FORMATS.md): spheres ``0 … n−1``, planes ``n … n+P−1``, then triangle ``j``
     of the flattened list is ``triangle_id_base + j`` (``triangle_id_base = n + P``).
     """
+
     camera: Camera
     lights: tuple[Light, ...]
     materials: tuple[Material, ...]
@@ -476,7 +518,7 @@ class Scene:
     sphere_materials: np.ndarray
     planes: tuple[Plane, ...] = field(default_factory=tuple)
     meshes: tuple[Mesh, ...] = field(default_factory=tuple)
-    environment: Vec3 = (0.0, 0.0, 0.0)   # the radiance a ray that meets nothing sees (black: none)
+    environment: Vec3 = (0.0, 0.0, 0.0)  # the radiance a ray that meets nothing sees (black: none)
 
     # Upper bounds that keep one scene from exhausting the service.
     MAX_SPHERES = limits.MAX_SPHERES
@@ -489,9 +531,12 @@ class Scene:
     def __post_init__(self) -> None:
         if not self.materials:
             raise SceneError("materials", "at least one material is required")
-        for name, items, cap in (("lights", self.lights, self.MAX_LIGHTS), ("planes", self.planes, self.MAX_PLANES),
-                                 ("materials", self.materials, self.MAX_MATERIALS),
-                                 ("meshes", self.meshes, self.MAX_MESHES)):
+        for name, items, cap in (
+            ("lights", self.lights, self.MAX_LIGHTS),
+            ("planes", self.planes, self.MAX_PLANES),
+            ("materials", self.materials, self.MAX_MATERIALS),
+            ("meshes", self.meshes, self.MAX_MESHES),
+        ):
             if len(items) > cap:
                 raise SceneError(name, f"at most {cap} allowed, got {len(items)}")
         c = np.ascontiguousarray(self.sphere_centers, dtype=np.float64).reshape(-1, 3)
@@ -517,8 +562,10 @@ class Scene:
             bad = (m < 0) | (m >= len(self.materials))
             if bad.any():
                 i = int(np.argmax(bad))
-                raise SceneError(f"spheres[{i}].material",
-                                 f"material index {int(m[i])} out of range (scene has {len(self.materials)} materials)")
+                raise SceneError(
+                    f"spheres[{i}].material",
+                    f"material index {int(m[i])} out of range (scene has {len(self.materials)} materials)",
+                )
         for i, p in enumerate(self.planes):
             _material_index(p.material, f"planes[{i}].material", len(self.materials))
         for i, mesh in enumerate(self.meshes):
@@ -599,8 +646,9 @@ class Scene:
     @cached_property
     def triangle_normals(self) -> np.ndarray:
         """float64 (T, 3, 3): the vertex normals at each corner as given (0 for flat meshes)."""
-        return self._flat(lambda m: m.normals[m.triangles] if m.smooth else np.zeros((m.n_triangles, 3, 3)),
-                          (3, 3), np.float64)
+        return self._flat(
+            lambda m: m.normals[m.triangles] if m.smooth else np.zeros((m.n_triangles, 3, 3)), (3, 3), np.float64
+        )
 
     @cached_property
     def triangle_degenerate(self) -> np.ndarray:
@@ -612,14 +660,28 @@ class Scene:
         start = sum(m.n_triangles for m in self.meshes[:i])
         return range(start, start + self.meshes[i].n_triangles)
 
-    def with_geometry(self, sphere_centers: np.ndarray, sphere_radii: np.ndarray, sphere_materials: np.ndarray,
-                      meshes: Sequence[Mesh] | None = None) -> "Scene":
+    def with_geometry(
+        self,
+        sphere_centers: np.ndarray,
+        sphere_radii: np.ndarray,
+        sphere_materials: np.ndarray,
+        meshes: Sequence[Mesh] | None = None,
+    ) -> Scene:
         """The same camera, lights, materials and planes with other spheres (and meshes: the
         same ones unless given), validated."""
-        return Scene(self.camera, self.lights, self.materials, sphere_centers, sphere_radii, sphere_materials,
-                     self.planes, tuple(self.meshes if meshes is None else meshes), self.environment)
+        return Scene(
+            self.camera,
+            self.lights,
+            self.materials,
+            sphere_centers,
+            sphere_radii,
+            sphere_materials,
+            self.planes,
+            tuple(self.meshes if meshes is None else meshes),
+            self.environment,
+        )
 
-    def with_camera(self, camera: Camera) -> "Scene":
+    def with_camera(self, camera: Camera) -> Scene:
         """The same scene seen through ``camera`` (a validated Camera): everything else is shared,
         already validated and read-only, so nothing is checked again (O(1), not O(n))."""
         if not isinstance(camera, Camera):
@@ -630,26 +692,33 @@ class Scene:
 
     # ---- JSON (docs/FORMATS.md) -------------------------------------------------
     def to_json(self) -> dict:
-        spheres = [{"center": c, "radius": r, "material": m} for c, r, m in
-                   zip(self.sphere_centers.tolist(), self.sphere_radii.tolist(), self.sphere_materials.tolist())]
-        out = {"camera": self.camera.to_json(), "lights": [l.to_json() for l in self.lights],
-               "materials": [m.to_json() for m in self.materials], "spheres": spheres,
-               "planes": [p.to_json() for p in self.planes]}
-        if self.meshes:       # absent when there are none: a sphere scene's JSON is as it always was
+        spheres = [
+            {"center": c, "radius": r, "material": m}
+            for c, r, m in zip(self.sphere_centers.tolist(), self.sphere_radii.tolist(), self.sphere_materials.tolist())
+        ]
+        out = {
+            "camera": self.camera.to_json(),
+            "lights": [l.to_json() for l in self.lights],
+            "materials": [m.to_json() for m in self.materials],
+            "spheres": spheres,
+            "planes": [p.to_json() for p in self.planes],
+        }
+        if self.meshes:  # absent when there are none: a sphere scene's JSON is as it always was
             out["meshes"] = [m.to_json() for m in self.meshes]
-        if any(self.environment):   # absent when black, as it was before environments
+        if any(self.environment):  # absent when black, as it was before environments
             out["environment"] = {"color": list(self.environment)}
         return out
 
     @staticmethod
-    def from_json(d: Any) -> "Scene":
+    def from_json(d: Any) -> Scene:
         d = _object(d, "scene", {"camera", "lights", "materials", "spheres", "planes", "meshes", "environment"})
         env = _object(d.get("environment", {}), "environment", {"color"})
         environment = finite_vec3(env.get("color", [0.0, 0.0, 0.0]), "environment.color")
         camera = Camera.from_json(d.get("camera", {}), "camera")
         lights = [Light.from_json(x, f"lights[{i}]") for i, x in enumerate(_list(d.get("lights", []), "lights"))]
-        materials = [Material.from_json(x, f"materials[{i}]")
-                     for i, x in enumerate(_list(d.get("materials", []), "materials"))]
+        materials = [
+            Material.from_json(x, f"materials[{i}]") for i, x in enumerate(_list(d.get("materials", []), "materials"))
+        ]
         spheres = _list(d.get("spheres", []), "spheres")
         if len(spheres) > Scene.MAX_SPHERES:
             raise SceneError("spheres", f"at most {Scene.MAX_SPHERES} spheres allowed, got {len(spheres)}")
@@ -678,8 +747,9 @@ class Scene:
             mesh = Mesh.from_json(x, f"meshes[{i}]")
             _material_index(mesh.material, f"meshes[{i}].material", max(len(materials), 1))
             meshes.append(mesh)
-        return Scene(camera, tuple(lights), tuple(materials), centers, radii, mats, tuple(planes), tuple(meshes),
-                     environment)
+        return Scene(
+            camera, tuple(lights), tuple(materials), centers, radii, mats, tuple(planes), tuple(meshes), environment
+        )
 
 
 def _list(v: Any, where: str) -> Sequence:

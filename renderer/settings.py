@@ -12,8 +12,9 @@ flags, ``GET /api/info``'s ``settings`` (what the client's settings sheet is bui
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, replace
-from typing import TYPE_CHECKING, Any, Iterable
+from typing import TYPE_CHECKING, Any
 
 from . import limits
 from .limits import MAX_IMAGE_SIDE, MAX_PATH_DEPTH, MAX_PATH_SAMPLES, MAX_TIME, SAMPLES_PER_PIXEL
@@ -25,7 +26,7 @@ from .tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
 # The names a request may give as ``method``: the registry's, and "auto" (brute force below the
 # measured crossover n, BIH above it).
 METHOD_NAMES = (*METHODS, AUTO_METHOD)
-FORMATS = ("png", "jpeg", "npy", "exr")   # exr: float channels (server/exr.py)
+FORMATS = ("png", "jpeg", "npy", "exr")  # exr: float channels (server/exr.py)
 # How a frame's colour is computed (docs/SHADING.md): the thesis's Whitted ray tree, or unidirectional
 # path tracing of the same scene (one-pass methods only: Capabilities.integrators).
 INTEGRATORS = ("whitted", "path")
@@ -51,6 +52,7 @@ class SettingSpec:
     older sessions). sheet: the client's settings sheet offers it. client: the client keeps it
     with its session's settings and carries it to a new session.
     """
+
     name: str
     type: str
     default: Any
@@ -110,70 +112,229 @@ class SettingSpec:
 
     def metadata(self) -> dict[str, Any]:
         """What ``GET /api/info`` says of it (``settings``): a client builds its form from this."""
-        return {"name": self.name, "type": self.type, "default": self.default,
-                "minimum": self.bounds[0] if self.bounds else None,
-                "maximum": self.bounds[1] if self.bounds else None,
-                "choices": list(self.choices) if self.choices is not None else None,
-                "unit": self.unit, "label": self.label, "doc": self.doc, "methods": self.methods(),
-                "modes": list(self.modes) if self.modes is not None else list(MODES),
-                "engine": self.engine, "sheet": self.sheet, "client": self.client}
+        return {
+            "name": self.name,
+            "type": self.type,
+            "default": self.default,
+            "minimum": self.bounds[0] if self.bounds else None,
+            "maximum": self.bounds[1] if self.bounds else None,
+            "choices": list(self.choices) if self.choices is not None else None,
+            "unit": self.unit,
+            "label": self.label,
+            "doc": self.doc,
+            "methods": self.methods(),
+            "modes": list(self.modes) if self.modes is not None else list(MODES),
+            "engine": self.engine,
+            "sheet": self.sheet,
+            "client": self.client,
+        }
 
 
 # Every render setting, in the order of the render-settings JSON (and of the API's models).
 SETTINGS: tuple[SettingSpec, ...] = (
-    SettingSpec("width", "integer", 640, f"pixels, 1 … {MAX_IMAGE_SIDE}", "Width", unit="pixels",
-                bounds=(1, MAX_IMAGE_SIDE), stored_since_first=True, sheet=True, client=True),
-    SettingSpec("height", "integer", 1088, f"pixels, 1 … {MAX_IMAGE_SIDE}", "Height", unit="pixels",
-                bounds=(1, MAX_IMAGE_SIDE), stored_since_first=True, sheet=True, client=True),
-    SettingSpec("method", "string", "bih",
-                "acceleration method; auto: brute force below the measured crossover, bih above it", "Method",
-                choices=METHOD_NAMES, stored_since_first=True, sheet=True, client=True),
-    SettingSpec("mode", "string", "color", "what the image shows (docs/SHADING.md)", "Mode",
-                choices=MODES, stored_since_first=True, sheet=True, client=True),
-    SettingSpec("max_prims", "integer", 8, "BIH leaf size limit", "Max primitives per leaf", unit="primitives",
-                bounds=(1, limits.MAX_PRIMS), capability="max_prims", stored_since_first=True, sheet=True,
-                client=True),
-    SettingSpec("max_tree_depth", "integer", limits.MAX_TREE_DEPTH, "BIH depth limit (root = 1)", "Max tree depth",
-                unit="levels", bounds=(1, limits.MAX_TREE_DEPTH), capability="max_tree_depth",
-                stored_since_first=True, sheet=True, client=True),
-    SettingSpec("max_recursion_depth", "integer", 5,
-                f"1 = primary rays only; each reflection/refraction +1 (whitted: ≤ {limits.MAX_RECURSION_DEPTH}; "
-                f"path: segments of a path, Mitsuba's max_depth, ≤ {MAX_PATH_DEPTH})",
-                "Recursion depth", unit="levels", bounds=(1, MAX_PATH_DEPTH), modes=RAY_TREE_MODES,
-                stored_since_first=True, sheet=True, client=True),
-    SettingSpec("format", "string", "png",
-                "encoding of the frame: png, jpeg, npy (one array) or exr (OpenEXR, float channels)", "Format",
-                choices=FORMATS, stored_since_first=True, client=True),
-    SettingSpec("quality", "integer", 85, f"JPEG quality {limits.JPEG_QUALITY_RANGE[0]} … "
-                f"{limits.JPEG_QUALITY_RANGE[1]} (ignored by png and npy)", "JPEG quality",
-                bounds=limits.JPEG_QUALITY_RANGE, engine=False, stored_since_first=True, client=True),
-    SettingSpec("samples_per_pixel", "integer", 1,
-                f"whitted: stratified supersampling, {', '.join(map(str, SAMPLES_PER_PIXEL))} (traced at √s× the "
-                f"resolution and box-filtered); path: paths per pixel, 1 … {MAX_PATH_SAMPLES}",
-                "Quality (samples per pixel)", unit="samples", bounds=(1, MAX_PATH_SAMPLES), sheet=True, client=True),
-    SettingSpec("integrator", "string", "whitted",
-                "whitted: the thesis's ray tree (point lights, Phong); path: unidirectional path tracing (one-pass "
-                "methods)", "Integrator", choices=INTEGRATORS, capability="integrator", modes=("color",)),
-    SettingSpec("tone_map", "string", "clamp",
-                "path integrator's png/jpeg: clamp, reinhard (L/(1+L)) or aces (Narkowicz's fit), then sRGB",
-                "Tone mapping", choices=TONE_MAPS, modes=("color",)),
-    SettingSpec("exposure", "number", 0.0, "path integrator's png/jpeg: stops, radiance × 2^exposure before "
-                "tone mapping", "Exposure", unit="stops", bounds=limits.EXPOSURE_RANGE, modes=("color",)),
-    SettingSpec("min_weight", "number", 0.0, "ε: reflected/refracted rays of smaller path weight are not traced",
-                "Minimum path weight", bounds=limits.MIN_WEIGHT_RANGE, modes=RAY_TREE_MODES, client=True),
-    SettingSpec("specialize", "boolean", True, "shader variant with only the scene's features (exact)",
-                "Specialised shader"),
-    SettingSpec("tile_size", "integer", limits.DEFAULT_TILE_SIZE, "hre's tile edge in pixels", "Tile size",
-                unit="pixels", bounds=(limits.MIN_TILE_SIZE, limits.MAX_TILE_SIZE), capability="tile_size",
-                sheet=True, client=True),
-    SettingSpec("time", "number", 0.0, "seconds: the time an animated scene is posed at", "Time", unit="seconds",
-                bounds=(0.0, MAX_TIME)),
-    SettingSpec("update", "string", "rebuild",
-                "how bvh/twolevel follow the motion between frames: rebuild, refit or selective",
-                "Between animation frames", choices=UPDATE_SCHEMES, capability="update", sheet=True, client=True),
-    SettingSpec("update_threshold", "number", DEFAULT_THRESHOLD, "selective rebuild: SAH cost growth, 0.3 = +30 %",
-                "Selective rebuild threshold", unit="fraction", bounds=limits.UPDATE_THRESHOLD_RANGE,
-                capability="update"),
+    SettingSpec(
+        "width",
+        "integer",
+        640,
+        f"pixels, 1 … {MAX_IMAGE_SIDE}",
+        "Width",
+        unit="pixels",
+        bounds=(1, MAX_IMAGE_SIDE),
+        stored_since_first=True,
+        sheet=True,
+        client=True,
+    ),
+    SettingSpec(
+        "height",
+        "integer",
+        1088,
+        f"pixels, 1 … {MAX_IMAGE_SIDE}",
+        "Height",
+        unit="pixels",
+        bounds=(1, MAX_IMAGE_SIDE),
+        stored_since_first=True,
+        sheet=True,
+        client=True,
+    ),
+    SettingSpec(
+        "method",
+        "string",
+        "bih",
+        "acceleration method; auto: brute force below the measured crossover, bih above it",
+        "Method",
+        choices=METHOD_NAMES,
+        stored_since_first=True,
+        sheet=True,
+        client=True,
+    ),
+    SettingSpec(
+        "mode",
+        "string",
+        "color",
+        "what the image shows (docs/SHADING.md)",
+        "Mode",
+        choices=MODES,
+        stored_since_first=True,
+        sheet=True,
+        client=True,
+    ),
+    SettingSpec(
+        "max_prims",
+        "integer",
+        8,
+        "BIH leaf size limit",
+        "Max primitives per leaf",
+        unit="primitives",
+        bounds=(1, limits.MAX_PRIMS),
+        capability="max_prims",
+        stored_since_first=True,
+        sheet=True,
+        client=True,
+    ),
+    SettingSpec(
+        "max_tree_depth",
+        "integer",
+        limits.MAX_TREE_DEPTH,
+        "BIH depth limit (root = 1)",
+        "Max tree depth",
+        unit="levels",
+        bounds=(1, limits.MAX_TREE_DEPTH),
+        capability="max_tree_depth",
+        stored_since_first=True,
+        sheet=True,
+        client=True,
+    ),
+    SettingSpec(
+        "max_recursion_depth",
+        "integer",
+        5,
+        f"1 = primary rays only; each reflection/refraction +1 (whitted: ≤ {limits.MAX_RECURSION_DEPTH}; "
+        f"path: segments of a path, Mitsuba's max_depth, ≤ {MAX_PATH_DEPTH})",
+        "Recursion depth",
+        unit="levels",
+        bounds=(1, MAX_PATH_DEPTH),
+        modes=RAY_TREE_MODES,
+        stored_since_first=True,
+        sheet=True,
+        client=True,
+    ),
+    SettingSpec(
+        "format",
+        "string",
+        "png",
+        "encoding of the frame: png, jpeg, npy (one array) or exr (OpenEXR, float channels)",
+        "Format",
+        choices=FORMATS,
+        stored_since_first=True,
+        client=True,
+    ),
+    SettingSpec(
+        "quality",
+        "integer",
+        85,
+        f"JPEG quality {limits.JPEG_QUALITY_RANGE[0]} … {limits.JPEG_QUALITY_RANGE[1]} (ignored by png and npy)",
+        "JPEG quality",
+        bounds=limits.JPEG_QUALITY_RANGE,
+        engine=False,
+        stored_since_first=True,
+        client=True,
+    ),
+    SettingSpec(
+        "samples_per_pixel",
+        "integer",
+        1,
+        f"whitted: stratified supersampling, {', '.join(map(str, SAMPLES_PER_PIXEL))} (traced at √s× the "
+        f"resolution and box-filtered); path: paths per pixel, 1 … {MAX_PATH_SAMPLES}",
+        "Quality (samples per pixel)",
+        unit="samples",
+        bounds=(1, MAX_PATH_SAMPLES),
+        sheet=True,
+        client=True,
+    ),
+    SettingSpec(
+        "integrator",
+        "string",
+        "whitted",
+        "whitted: the thesis's ray tree (point lights, Phong); path: unidirectional path tracing (one-pass methods)",
+        "Integrator",
+        choices=INTEGRATORS,
+        capability="integrator",
+        modes=("color",),
+    ),
+    SettingSpec(
+        "tone_map",
+        "string",
+        "clamp",
+        "path integrator's png/jpeg: clamp, reinhard (L/(1+L)) or aces (Narkowicz's fit), then sRGB",
+        "Tone mapping",
+        choices=TONE_MAPS,
+        modes=("color",),
+    ),
+    SettingSpec(
+        "exposure",
+        "number",
+        0.0,
+        "path integrator's png/jpeg: stops, radiance × 2^exposure before tone mapping",
+        "Exposure",
+        unit="stops",
+        bounds=limits.EXPOSURE_RANGE,
+        modes=("color",),
+    ),
+    SettingSpec(
+        "min_weight",
+        "number",
+        0.0,
+        "ε: reflected/refracted rays of smaller path weight are not traced",
+        "Minimum path weight",
+        bounds=limits.MIN_WEIGHT_RANGE,
+        modes=RAY_TREE_MODES,
+        client=True,
+    ),
+    SettingSpec(
+        "specialize", "boolean", True, "shader variant with only the scene's features (exact)", "Specialised shader"
+    ),
+    SettingSpec(
+        "tile_size",
+        "integer",
+        limits.DEFAULT_TILE_SIZE,
+        "hre's tile edge in pixels",
+        "Tile size",
+        unit="pixels",
+        bounds=(limits.MIN_TILE_SIZE, limits.MAX_TILE_SIZE),
+        capability="tile_size",
+        sheet=True,
+        client=True,
+    ),
+    SettingSpec(
+        "time",
+        "number",
+        0.0,
+        "seconds: the time an animated scene is posed at",
+        "Time",
+        unit="seconds",
+        bounds=(0.0, MAX_TIME),
+    ),
+    SettingSpec(
+        "update",
+        "string",
+        "rebuild",
+        "how bvh/twolevel follow the motion between frames: rebuild, refit or selective",
+        "Between animation frames",
+        choices=UPDATE_SCHEMES,
+        capability="update",
+        sheet=True,
+        client=True,
+    ),
+    SettingSpec(
+        "update_threshold",
+        "number",
+        DEFAULT_THRESHOLD,
+        "selective rebuild: SAH cost growth, 0.3 = +30 %",
+        "Selective rebuild threshold",
+        unit="fraction",
+        bounds=limits.UPDATE_THRESHOLD_RANGE,
+        capability="update",
+    ),
 )
 
 
@@ -194,9 +355,10 @@ class _RenderSettingsBase:
     """The behaviour of :class:`RenderSettings`; its fields are the engine settings of :data:`SETTINGS`."""
 
     _specs: tuple[SettingSpec, ...] = ()
-    _checks: tuple[SettingSpec, ...] = ()     # _specs in the order they are checked
+    _checks: tuple[SettingSpec, ...] = ()  # _specs in the order they are checked
 
-    if TYPE_CHECKING:   # the fields are made from SETTINGS at run time
+    if TYPE_CHECKING:  # the fields are made from SETTINGS at run time
+
         def __init__(self, **kw: Any) -> None: ...
 
         def __getattr__(self, name: str) -> Any: ...
@@ -205,19 +367,31 @@ class _RenderSettingsBase:
         path = getattr(self, "integrator", "whitted") == "path"
         for spec in self._checks:
             spec.check(getattr(self, spec.name))
-            if (spec.name == "max_recursion_depth" and self.max_recursion_depth > limits.MAX_RECURSION_DEPTH
-                    and (not path or self.mode == "recursion")):    # (the recursion mode draws Whitted's tree)
-                raise SceneError(spec.name, f"must be in 1 … {limits.MAX_RECURSION_DEPTH}, got "
-                                 f"{self.max_recursion_depth} (up to {MAX_PATH_DEPTH} with integrator 'path')")
+            if (
+                spec.name == "max_recursion_depth"
+                and self.max_recursion_depth > limits.MAX_RECURSION_DEPTH
+                and (not path or self.mode == "recursion")
+            ):  # (the recursion mode draws Whitted's tree)
+                raise SceneError(
+                    spec.name,
+                    f"must be in 1 … {limits.MAX_RECURSION_DEPTH}, got "
+                    f"{self.max_recursion_depth} (up to {MAX_PATH_DEPTH} with integrator 'path')",
+                )
             if spec.name == "samples_per_pixel" and not path and self.samples_per_pixel not in SAMPLES_PER_PIXEL:
-                raise SceneError(spec.name, f"must be one of {SAMPLES_PER_PIXEL}, got {self.samples_per_pixel!r} "
-                                 f"(any count 1 … {MAX_PATH_SAMPLES} with integrator 'path')")
+                raise SceneError(
+                    spec.name,
+                    f"must be one of {SAMPLES_PER_PIXEL}, got {self.samples_per_pixel!r} "
+                    f"(any count 1 … {MAX_PATH_SAMPLES} with integrator 'path')",
+                )
             if spec.name == "samples_per_pixel":
                 k = self.supersampling
                 if max(self.width, self.height) * k > MAX_IMAGE_SIDE:
-                    raise SceneError("samples_per_pixel", f"{self.width}×{self.height} at {self.samples_per_pixel} "
-                                     f"samples needs {self.width * k}×{self.height * k}, over the "
-                                     f"{MAX_IMAGE_SIDE} limit")
+                    raise SceneError(
+                        "samples_per_pixel",
+                        f"{self.width}×{self.height} at {self.samples_per_pixel} "
+                        f"samples needs {self.width * k}×{self.height * k}, over the "
+                        f"{MAX_IMAGE_SIDE} limit",
+                    )
         self.check_method()
 
     def check_method(self, n_spheres: int = 0) -> None:
@@ -226,11 +400,17 @@ class _RenderSettingsBase:
         able = capabilities(self.method, n_spheres).modes
         integrator = getattr(self, "integrator", "whitted")
         if integrator not in capabilities(self.method, n_spheres).integrators:
-            raise SceneError("integrator", f"integrator {integrator!r} is not available with method "
-                             f"{self.method!r}; the methods that trace it: {', '.join(integrator_methods(integrator))}")
+            raise SceneError(
+                "integrator",
+                f"integrator {integrator!r} is not available with method "
+                f"{self.method!r}; the methods that trace it: {', '.join(integrator_methods(integrator))}",
+            )
         if self.mode not in able:
-            hint = " (it shows the hierarchical ray engine's cones: use method 'hre')" if self.mode == "cones" else \
-                f"; its modes: {', '.join(able)}"
+            hint = (
+                " (it shows the hierarchical ray engine's cones: use method 'hre')"
+                if self.mode == "cones"
+                else f"; its modes: {', '.join(able)}"
+            )
             raise SceneError("mode", f"mode {self.mode!r} is not available with method {self.method!r}{hint}")
 
     @property
@@ -240,7 +420,7 @@ class _RenderSettingsBase:
             return 1
         return {1: 1, 4: 2, 9: 3, 16: 4}.get(self.samples_per_pixel, 1)
 
-    def with_(self, **kw: Any) -> "RenderSettings":
+    def with_(self, **kw: Any) -> RenderSettings:
         return replace(self, **kw)  # type: ignore[type-var]  # a dataclass, made by build_render_settings
 
     def to_json(self) -> dict:
@@ -252,7 +432,7 @@ class _RenderSettingsBase:
         return tuple(s.name for s in cls._specs)
 
     @classmethod
-    def from_json(cls, d: Any) -> "RenderSettings":
+    def from_json(cls, d: Any) -> RenderSettings:
         if not isinstance(d, dict):
             raise SceneError("settings", "expected an object")
         names = set(cls.names())
@@ -285,10 +465,13 @@ def build_render_settings(specs: Iterable[SettingSpec] | None = None) -> type:
     their order, with their defaults."""
     specs = tuple(s for s in (SETTINGS if specs is None else specs) if s.engine)
     cls = dataclasses.make_dataclass(
-        "RenderSettings", [(s.name, s.python_type, dataclasses.field(default=s.default)) for s in specs],
-        bases=(_RenderSettingsBase,), frozen=True, namespace={"__doc__": _DOC, "_specs": specs,
-                                                                 "_checks": tuple(sorted(specs, key=_check_order))})
-    cls.__module__ = __name__   # pickled by name, as a class written here would be
+        "RenderSettings",
+        [(s.name, s.python_type, dataclasses.field(default=s.default)) for s in specs],
+        bases=(_RenderSettingsBase,),
+        frozen=True,
+        namespace={"__doc__": _DOC, "_specs": specs, "_checks": tuple(sorted(specs, key=_check_order))},
+    )
+    cls.__module__ = __name__  # pickled by name, as a class written here would be
     return cls
 
 

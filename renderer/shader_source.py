@@ -14,7 +14,7 @@ pass's own file. The same text serves moderngl and the browser (WebGL2, ``GET
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 from . import gpu_layout
 from .features import LIGHTING
@@ -23,11 +23,11 @@ from .methods import METHODS
 from .modes import RECURSION_COLORS
 from .resources import shader_dir
 
-SHADER_DIR = shader_dir()   # the package's shaders/ (installed) or the checkout's top-level shaders/
+SHADER_DIR = shader_dir()  # the package's shaders/ (installed) or the checkout's top-level shaders/
 HEADER_MARK = "//@HEADER@"
 METHOD_MARK = "//@METHOD@"
-RECURSION_MARK = "//@RECURSION_COLORS@\n"   # the whole line becomes recursion_color_function()
-INCLUDE_MARK = "//@INCLUDE "   # a line "//@INCLUDE method_bvh.glsl" in a method file inlines that file
+RECURSION_MARK = "//@RECURSION_COLORS@\n"  # the whole line becomes recursion_color_function()
+INCLUDE_MARK = "//@INCLUDE "  # a line "//@INCLUDE method_bvh.glsl" in a method file inlines that file
 # A line "//@TRIANGLES <name>" in the tracer or a traversal: section <name> of TRIANGLES_FILE in a
 # variant that traces triangles, nothing at all in any other (with_triangles).
 TRIANGLES_MARK = "//@TRIANGLES "
@@ -39,7 +39,7 @@ LIGHTING_MARK = "//@LIGHTING "
 LIGHTING_FILE = "lighting.glsl"
 
 
-@lru_cache(maxsize=None)
+@cache
 def read(name: str) -> str:
     """The text of ``shaders/<name>`` (read once per process)."""
     return (SHADER_DIR / name).read_text()
@@ -60,7 +60,7 @@ def tracer_bindings(variant: Variant) -> list[Binding]:
     return [b for b in (*gpu_layout.TRACER_BINDINGS, *method) if variant.reads_binding(b)]
 
 
-@lru_cache(maxsize=None)
+@cache
 def known_bindings() -> frozenset[str]:
     """Every binding name a layout declares: the tracer's and every method's."""
     return frozenset(b.name for b in (*gpu_layout.TRACER_BINDINGS, *(b for m in METHODS.values() for b in m.bindings)))
@@ -71,43 +71,63 @@ def tracer_header(variant: Variant) -> str:
     unknown = set(variant.blocks) - {b.name for b in tracer_bindings(variant) if b.records}
     if unknown:
         raise ValueError(f"blocks {sorted(unknown)} are not record arrays the {variant.method} variant reads")
-    defines = [f"METHOD_{variant.method.upper()}", f"MODE_{variant.mode.upper()}",
-               f"MAX_RECURSION_DEPTH {int(variant.depth)}", *variant.features, *variant.defines()]
-    for f in variant.features:     # compiled-in counts (renderer.features): PLANES_k → N_PLANES k
+    defines = [
+        f"METHOD_{variant.method.upper()}",
+        f"MODE_{variant.mode.upper()}",
+        f"MAX_RECURSION_DEPTH {int(variant.depth)}",
+        *variant.features,
+        *variant.defines(),
+    ]
+    for f in variant.features:  # compiled-in counts (renderer.features): PLANES_k → N_PLANES k
         for prefix, name in (("PLANES_", "N_PLANES"), ("LIGHTS_", "N_LIGHTS")):
             if f.startswith(prefix):
-                defines.append(f"{name} {int(f[len(prefix):])}")
+                defines.append(f"{name} {int(f[len(prefix) :])}")
     if variant.image_only:
         defines.append("IMAGE_ONLY")
     if not variant.spheres:
         defines.append("BACKGROUND")
     triangles = ""
-    if "TRIANGLES" in variant.features:     # (only there: a sphere variant's text stays as it was)
+    if "TRIANGLES" in variant.features:  # (only there: a sphere variant's text stays as it was)
         triangles = gpu_layout.triangle_constants() + "".join(
-            f"#define READS_{g.upper()}\n" for g in gpu_layout.SILENT_GROUPS if variant.reads(g))
+            f"#define READS_{g.upper()}\n" for g in gpu_layout.SILENT_GROUPS if variant.reads(g)
+        )
     if variant.path:
         triangles += gpu_layout.path_constants()
-    return (gpu_layout.glsl_header() + gpu_layout.tracer_constants() + triangles
-            + METHODS[variant.method].glsl_defines()
-            + "".join(f"#define {d}\n" for d in defines)
-            + gpu_layout.declarations(tracer_bindings(variant), tuple(variant.blocks)))
+    return (
+        gpu_layout.glsl_header()
+        + gpu_layout.tracer_constants()
+        + triangles
+        + METHODS[variant.method].glsl_defines()
+        + "".join(f"#define {d}\n" for d in defines)
+        + gpu_layout.declarations(tracer_bindings(variant), tuple(variant.blocks))
+    )
 
 
-def tracer_source(method: str, mode: str, max_recursion_depth: int, extra_defines: tuple[str, ...] = (),
-                  blocks: tuple[str, ...] = (), image_only: bool = False, spheres: bool = True) -> str:
+def tracer_source(
+    method: str,
+    mode: str,
+    max_recursion_depth: int,
+    extra_defines: tuple[str, ...] = (),
+    blocks: tuple[str, ...] = (),
+    image_only: bool = False,
+    spheres: bool = True,
+) -> str:
     """The fragment shader of one variant: method × mode × recursion depth × feature defines,
     and the host's choices (record arrays in uniform blocks, one RGBA8 image, the background
     variant without spheres)."""
-    variant = Variant(method, mode, int(max_recursion_depth), tuple(extra_defines), tuple(blocks), image_only,
-                      spheres)
+    variant = Variant(method, mode, int(max_recursion_depth), tuple(extra_defines), tuple(blocks), image_only, spheres)
     return variant_source(variant)
 
 
 def variant_source(variant: Variant) -> str:
     """The fragment shader of ``variant``."""
     method_src = _with_includes(read(method_shader(variant.method)))
-    text = (read("raytrace.frag").replace(HEADER_MARK, tracer_header(variant)).replace(METHOD_MARK, method_src)
-            .replace(RECURSION_MARK, recursion_color_function()))
+    text = (
+        read("raytrace.frag")
+        .replace(HEADER_MARK, tracer_header(variant))
+        .replace(METHOD_MARK, method_src)
+        .replace(RECURSION_MARK, recursion_color_function())
+    )
     text = with_sections(text, LIGHTING_MARK, LIGHTING_FILE, any(f in LIGHTING for f in variant.features))
     return with_triangles(text, traces_triangles(variant))
 
@@ -122,8 +142,10 @@ def recursion_color_function() -> str:
     :data:`renderer.modes.RECURSION_COLORS`, and its entry 0 (the primary ray missed) for
     any other level. The colours are defined in Python alone; this is how the tracer (and
     the browser, which compiles the same text) gets them."""
+
     def vec3(c) -> str:
         return "vec3(" + ", ".join(_glsl_float(x) for x in c) + ")"
+
     miss = RECURSION_COLORS[0]
     lines = [f"    if (level == {level}) return {vec3(c)};\n" for level, c in enumerate(RECURSION_COLORS) if level]
     other = f"vec3({_glsl_float(miss[0])})" if miss[0] == miss[1] == miss[2] else vec3(miss)
@@ -136,20 +158,20 @@ def traces_triangles(variant: Variant) -> bool:
     return "TRIANGLES" in variant.features and variant.spheres
 
 
-@lru_cache(maxsize=None)
+@cache
 def triangle_sections() -> dict[str, str]:
     """``shaders/triangles.glsl`` cut at its ``//@SECTION <name>`` lines: name → text."""
     return sections_of(TRIANGLES_FILE)
 
 
-@lru_cache(maxsize=None)
+@cache
 def sections_of(name: str) -> dict[str, str]:
     """``shaders/<name>`` cut at its ``//@SECTION <name>`` lines: name → text."""
     sections: dict[str, list[str]] = {}
     current: list[str] | None = None
     for line in read(name).splitlines(keepends=True):
         if line.startswith(SECTION_MARK):
-            current = sections.setdefault(line[len(SECTION_MARK):].strip(), [])
+            current = sections.setdefault(line[len(SECTION_MARK) :].strip(), [])
         elif current is not None:
             current.append(line)
     return {name: "".join(lines).rstrip("\n") + "\n" for name, lines in sections.items()}
@@ -174,7 +196,7 @@ def with_sections(text: str, mark: str, name: str, on: bool) -> str:
     for line in text.splitlines(keepends=True):
         if line.startswith(mark):
             if on:
-                out.append(sections[line[len(mark):].strip()])
+                out.append(sections[line[len(mark) :].strip()])
         else:
             out.append(line)
     return "".join(out)
@@ -185,7 +207,7 @@ def _with_includes(text: str) -> str:
     lines = []
     for line in text.splitlines(keepends=True):
         if line.startswith(INCLUDE_MARK):
-            name = line[len(INCLUDE_MARK):].strip()
+            name = line[len(INCLUDE_MARK) :].strip()
             lines.append(f"// ---- {name} ----\n" + read(name) + "\n")
         else:
             lines.append(line)
@@ -201,5 +223,11 @@ def pass_source(name: str, defines: tuple[str, ...] = ()) -> str:
     """A ray-engine shader: ``#version``, the layout constants, the defines, the scene's
     declarations, the common part, then ``name``. (The passes' own ray textures and
     uniforms are declared in their files and bound by :mod:`renderer.gl.ray_engine`.)"""
-    return ("#version 300 es\n" + gpu_layout.glsl_header() + "".join(f"#define {d}\n" for d in defines)
-            + gpu_layout.declarations(gpu_layout.RAY_ENGINE_BINDINGS) + read("rayengine_common.glsl") + read(name))
+    return (
+        "#version 300 es\n"
+        + gpu_layout.glsl_header()
+        + "".join(f"#define {d}\n" for d in defines)
+        + gpu_layout.declarations(gpu_layout.RAY_ENGINE_BINDINGS)
+        + read("rayengine_common.glsl")
+        + read(name)
+    )

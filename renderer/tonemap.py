@@ -11,9 +11,9 @@ import numpy as np
 
 # operator name → f(x) for x ≥ 0 (radiance × 2^exposure), in [0, 1] after the final clamp.
 OPERATORS = {
-    "clamp": lambda x: x,                                  # the radiance itself, 1 and above white
-    "reinhard": lambda x: x / (1.0 + x),                   # Reinhard et al. 2002, the global operator
-    "aces": lambda x: (x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14),   # Narkowicz 2015's fit
+    "clamp": lambda x: x,  # the radiance itself, 1 and above white
+    "reinhard": lambda x: x / (1.0 + x),  # Reinhard et al. 2002, the global operator
+    "aces": lambda x: (x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14),  # Narkowicz 2015's fit
 }
 
 

@@ -29,18 +29,41 @@ SIDE, SPP, DEPTH = 192, 1024, 8
 def main() -> None:
     scene = mesh_scene("cornell", 2, smooth=False)
     t = time.perf_counter()
-    ours = GLRenderer().render(scene, RenderSettings(width=SIDE, height=SIDE, integrator="path", samples_per_pixel=SPP,
-                                                     max_recursion_depth=DEPTH, format="npy")).image
+    ours = (
+        GLRenderer()
+        .render(
+            scene,
+            RenderSettings(
+                width=SIDE,
+                height=SIDE,
+                integrator="path",
+                samples_per_pixel=SPP,
+                max_recursion_depth=DEPTH,
+                format="npy",
+            ),
+        )
+        .image
+    )
     t_ours = time.perf_counter() - t
     t = time.perf_counter()
     ref = mitsuba_scene.render(scene, SIDE, SIDE, SPP, DEPTH)
     t_mi = time.perf_counter() - t
     mse = float(np.mean((np.clip(ours, 0, 1) - np.clip(ref, 0, 1)) ** 2))
-    print(json.dumps({"ours_s": t_ours, "mitsuba_s": t_mi, "psnr_db": -10 * np.log10(mse),
-                      "mean_ours": float(ours.mean()), "mean_mitsuba": float(ref.mean())}))
+    print(
+        json.dumps(
+            {
+                "ours_s": t_ours,
+                "mitsuba_s": t_mi,
+                "psnr_db": -10 * np.log10(mse),
+                "mean_ours": float(ours.mean()),
+                "mean_mitsuba": float(ref.mean()),
+            }
+        )
+    )
     gap = np.full((SIDE, 4, 3), 255, np.uint8)
-    Image.fromarray(np.concatenate([display_u8(ours, "aces", 0.0), gap, display_u8(ref, "aces", 0.0)], axis=1)
-                    ).save(OUT)
+    Image.fromarray(np.concatenate([display_u8(ours, "aces", 0.0), gap, display_u8(ref, "aces", 0.0)], axis=1)).save(
+        OUT
+    )
 
 
 if __name__ == "__main__":

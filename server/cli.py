@@ -44,8 +44,9 @@ import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 EXTENSIONS = {".png": "png", ".jpg": "jpeg", ".jpeg": "jpeg", ".npy": "npy", ".exr": "exr"}
 ENV_PREFIX = "POCKETRAY_"
@@ -66,18 +67,30 @@ def _config_fields() -> dict[str, Any]:
 
 
 def _add_serve(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("serve", help="run the render service (uvicorn)",
-                       description="Run the render service. Every flag below but --workers is the "
-                                   "POCKETRAY_<NAME> variable of the same name (docs/API.md).")
-    p.add_argument("--workers", type=int, default=1,
-                   help="uvicorn worker processes, each with its own GL context (default 1); with more "
-                        "than one use --state-backend redis, or they share one SQLite file")
+    p = sub.add_parser(
+        "serve",
+        help="run the render service (uvicorn)",
+        description="Run the render service. Every flag below but --workers is the "
+        "POCKETRAY_<NAME> variable of the same name (docs/API.md).",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="uvicorn worker processes, each with its own GL context (default 1); with more "
+        "than one use --state-backend redis, or they share one SQLite file",
+    )
     for name, field in _config_fields().items():
         flag = "--" + name.replace("_", "-")
         default = field.get_default(call_default_factory=False)
         shown = "" if default is None or callable(default) or field.default_factory else f" (default {default})"
-        p.add_argument(flag, dest=f"cfg_{name}", metavar=name.upper(), default=None,
-                       help=f"{field.description or name}{shown}".replace("%", "%%"))
+        p.add_argument(
+            flag,
+            dest=f"cfg_{name}",
+            metavar=name.upper(),
+            default=None,
+            help=f"{field.description or name}{shown}".replace("%", "%%"),
+        )
     # The GPU index's old flag, kept working for deployments that pass it (deprecated).
     p.add_argument("--gl-device", dest="cfg_gpu", default=None, help=argparse.SUPPRESS)
 
@@ -94,7 +107,7 @@ def serve(args: argparse.Namespace) -> int:
         if value is not None:
             os.environ[ENV_PREFIX + name.upper()] = value
     try:
-        config = ServerConfig()   # what every worker will read: fail here, once, with the message
+        config = ServerConfig()  # what every worker will read: fail here, once, with the message
     except Exception as e:
         raise UsageError(f"configuration: {e}") from None
     if args.workers < 1:
@@ -111,10 +124,19 @@ def serve(args: argparse.Namespace) -> int:
         # bytes per client; GuardedWebSocketProtocol: the same through the upgrade, idle and flooding
         # WebSockets (server/wire.py). The classes, not subclasses per config, so that --workers can
         # hand them to each worker process.
-        uvicorn.run(APP_FACTORY, factory=True, host=config.host, port=config.port, workers=args.workers,
-                    http=GuardedH11Protocol, ws=GuardedWebSocketProtocol,
-                    log_level=config.log_level, log_config=uvicorn_log_config(config.log_level, config.log_format),
-                    access_log=False, timeout_graceful_shutdown=max(30, int(config.drain_s) + 30))
+        uvicorn.run(
+            APP_FACTORY,
+            factory=True,
+            host=config.host,
+            port=config.port,
+            workers=args.workers,
+            http=GuardedH11Protocol,
+            ws=GuardedWebSocketProtocol,
+            log_level=config.log_level,
+            log_config=uvicorn_log_config(config.log_level, config.log_format),
+            access_log=False,
+            timeout_graceful_shutdown=max(30, int(config.drain_s) + 30),
+        )
     finally:
         if multiproc_dir:
             shutil.rmtree(multiproc_dir, ignore_errors=True)
@@ -125,10 +147,13 @@ def serve(args: argparse.Namespace) -> int:
 def _add_render(sub: argparse._SubParsersAction) -> None:
     from .models import RenderParams
 
-    p = sub.add_parser("render", help="render a scene JSON file or a model file to an image or array",
-                       description="Render SCENE (scene JSON, docs/FORMATS.md; - for stdin) or a model file "
-                                   "(.obj .ply .stl .glb .gltf: fitted, on the floor, framed by the camera) with "
-                                   "the API's settings. The output's extension picks the format: .png .jpg .npy .exr.")
+    p = sub.add_parser(
+        "render",
+        help="render a scene JSON file or a model file to an image or array",
+        description="Render SCENE (scene JSON, docs/FORMATS.md; - for stdin) or a model file "
+        "(.obj .ply .stl .glb .gltf: fitted, on the floor, framed by the camera) with "
+        "the API's settings. The output's extension picks the format: .png .jpg .npy .exr.",
+    )
     p.add_argument("scene", help="scene JSON file (docs/FORMATS.md), - for standard input, or a model file")
     _add_model_flags(p)
     p.add_argument("-o", "--output", required=True, help="output file: .png, .jpg/.jpeg, .npy or .exr")
@@ -136,19 +161,39 @@ def _add_render(sub: argparse._SubParsersAction) -> None:
         if name == "format":
             continue
         flags = [*RENDER_ALIASES.get(name, []), "--" + name.replace("_", "-")]
-        p.add_argument(*flags, dest=f"set_{name}", metavar=name.upper(), default=None,
-                       help=(field.description or name).replace("%", "%%"))
+        p.add_argument(
+            *flags,
+            dest=f"set_{name}",
+            metavar=name.upper(),
+            default=None,
+            help=(field.description or name).replace("%", "%%"),
+        )
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
 
 
 def _add_model_flags(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--size", type=float, default=30.0,
-                   help="models: longest side (scene: the row's width) in world units (default 30)")
+    p.add_argument(
+        "--size",
+        type=float,
+        default=30.0,
+        help="models: longest side (scene: the row's width) in world units (default 30)",
+    )
     shade = p.add_mutually_exclusive_group()
-    shade.add_argument("--smooth", dest="smooth", action="store_const", const=True, default=None,
-                       help="models: smooth shading (the file's normals, else area-weighted ones)")
-    shade.add_argument("--flat", dest="smooth", action="store_const", const=False,
-                       help="models: flat shading (default: the file's normals if it has them)")
+    shade.add_argument(
+        "--smooth",
+        dest="smooth",
+        action="store_const",
+        const=True,
+        default=None,
+        help="models: smooth shading (the file's normals, else area-weighted ones)",
+    )
+    shade.add_argument(
+        "--flat",
+        dest="smooth",
+        action="store_const",
+        const=False,
+        help="models: flat shading (default: the file's normals if it has them)",
+    )
 
 
 def is_model(path: str) -> bool:
@@ -160,7 +205,7 @@ def is_model(path: str) -> bool:
 def _size(size: float) -> float:
     from renderer.scenarios import CUBE_HALF
 
-    if not (0.0 < size <= 2 * CUBE_HALF):   # what the upload's size takes (MeshUploadQuery)
+    if not (0.0 < size <= 2 * CUBE_HALF):  # what the upload's size takes (MeshUploadQuery)
         raise UsageError(f"size: greater than 0 and at most {2 * CUBE_HALF:g}")
     return size
 
@@ -236,31 +281,41 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
     renderer = GLRenderer()
     t_ctx = time.perf_counter()
     result = renderer.render(scene, rs.with_(update="rebuild"))
-    body, encode_ms = encode(result, fmt, settings.get("quality", config.default_jpeg_quality),
-                             config.png_compress_level)
+    body, encode_ms = encode(
+        result, fmt, settings.get("quality", config.default_jpeg_quality), config.png_compress_level
+    )
     output.parent.mkdir(parents=True, exist_ok=True)
     output.write_bytes(body)
     method = (result.stats or {}).get("method", rs.method)
-    return {"output": str(output), "format": fmt, "bytes": len(body), "width": rs.width, "height": rs.height,
-            "method": method, "mode": rs.mode, "context_ms": round((t_ctx - t0) * 1e3, 1),
-            "timings_ms": {k: round(float(v), 2) for k, v in {**result.timings, "encode": encode_ms}.items()},
-            "gl_renderer": dict(getattr(renderer, "info", {}) or {}).get("renderer")}
+    return {
+        "output": str(output),
+        "format": fmt,
+        "bytes": len(body),
+        "width": rs.width,
+        "height": rs.height,
+        "method": method,
+        "mode": rs.mode,
+        "context_ms": round((t_ctx - t0) * 1e3, 1),
+        "timings_ms": {k: round(float(v), 2) for k, v in {**result.timings, "encode": encode_ms}.items()},
+        "gl_renderer": dict(getattr(renderer, "info", {}) or {}).get("renderer"),
+    }
 
 
 def render(args: argparse.Namespace) -> int:
     flags = {k[4:]: v for k, v in vars(args).items() if k.startswith("set_") and v is not None}
     if args.scene != "-" and is_model(args.scene):
-        done = render_file(None, Path(args.output), flags,
-                           scene=model_file_scene(args.scene, args.size, args.smooth))
+        done = render_file(None, Path(args.output), flags, scene=model_file_scene(args.scene, args.size, args.smooth))
     else:
         text = sys.stdin.read() if args.scene == "-" else _read(args.scene)
         done = render_file(text, Path(args.output), flags)
     if not args.quiet:
         t = done["timings_ms"]
-        print(f"{done['output']}: {done['width']}×{done['height']} {done['mode']} {done['format']}, "
-              f"{done['bytes']} bytes; method {done['method']}; build {t.get('build', 0):.1f} ms, "
-              f"trace {t.get('trace', 0):.1f} ms, encode {t.get('encode', 0):.1f} ms ({done['gl_renderer']})",
-              file=sys.stderr)
+        print(
+            f"{done['output']}: {done['width']}×{done['height']} {done['mode']} {done['format']}, "
+            f"{done['bytes']} bytes; method {done['method']}; build {t.get('build', 0):.1f} ms, "
+            f"trace {t.get('trace', 0):.1f} ms, encode {t.get('encode', 0):.1f} ms ({done['gl_renderer']})",
+            file=sys.stderr,
+        )
     return 0
 
 
@@ -276,22 +331,30 @@ def _add_scenario(sub: argparse._SubParsersAction) -> None:
     from renderer.animation import MUSEUM_KINDS
     from renderer.scenarios import MESH_SCENES
 
-    p = sub.add_parser("scenario", help="write a thesis scenario (1, 2, 3) or the museum as scene JSON",
-                       description="Write the scene JSON (docs/FORMATS.md) of the thesis's scenario 1, 2 or 3, "
-                                   "or of the animated museum (its motions included).")
-    p.add_argument("which", choices=["1", "2", "3", "museum", *MESH_SCENES],
-                   help="scenario number, museum, or a mesh scene (" + ", ".join(MESH_SCENES) + ")")
+    p = sub.add_parser(
+        "scenario",
+        help="write a thesis scenario (1, 2, 3) or the museum as scene JSON",
+        description="Write the scene JSON (docs/FORMATS.md) of the thesis's scenario 1, 2 or 3, "
+        "or of the animated museum (its motions included).",
+    )
+    p.add_argument(
+        "which",
+        choices=["1", "2", "3", "museum", *MESH_SCENES],
+        help="scenario number, museum, or a mesh scene (" + ", ".join(MESH_SCENES) + ")",
+    )
     p.add_argument("--n", type=int, default=None, help="spheres (museum: the moving ones); not for mesh scenes")
     p.add_argument("--seed", type=int, default=0, help="placement seed (default 0)")
     p.add_argument("--radius", type=float, default=1.0, help="sphere radius of scenarios 1–3 (default 1)")
     p.add_argument("--kind", choices=list(MUSEUM_KINDS), default="mixed", help="museum motion (default mixed)")
-    p.add_argument("--absent", type=float, default=0.2, help="museum: share of incoherent spheres absent "
-                                                             "at a time (default 0.2)")
+    p.add_argument(
+        "--absent", type=float, default=0.2, help="museum: share of incoherent spheres absent at a time (default 0.2)"
+    )
     p.add_argument("-o", "--output", default="-", help="output file (default: standard output)")
 
 
-def scenario_scene(which: str, n: int | None, seed: int = 0, radius: float = 1.0, kind: str = "mixed",
-                   absent: float = 0.2) -> Any:
+def scenario_scene(
+    which: str, n: int | None, seed: int = 0, radius: float = 1.0, kind: str = "mixed", absent: float = 0.2
+) -> Any:
     """The scene (or animated scene) the ``scenario`` command writes; validated as the API does."""
     from renderer.animation import MUSEUM_ROOM_SPHERES, museum
     from renderer.limits import MAX_SPHERES
@@ -333,12 +396,14 @@ def write_scenario(args: argparse.Namespace) -> int:
 
 # ---- scene --mesh ---------------------------------------------------------------------------
 def _add_scene(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("scene", help="write a scene JSON of model files (to edit, and render)",
-                       description="Write the scene JSON (docs/FORMATS.md) of one or more model files (.obj .ply "
-                                   ".stl .glb .gltf): each mesh as the file has it with a transform that fits it, "
-                                   "side by side along x on the floor, the camera and light of render MODEL.")
-    p.add_argument("--mesh", action="append", required=True, metavar="MODEL",
-                   help="a model file (repeat for more)")
+    p = sub.add_parser(
+        "scene",
+        help="write a scene JSON of model files (to edit, and render)",
+        description="Write the scene JSON (docs/FORMATS.md) of one or more model files (.obj .ply "
+        ".stl .glb .gltf): each mesh as the file has it with a transform that fits it, "
+        "side by side along x on the floor, the camera and light of render MODEL.",
+    )
+    p.add_argument("--mesh", action="append", required=True, metavar="MODEL", help="a model file (repeat for more)")
     p.add_argument("--as-is", action="store_true", help="no transform: the files' coordinates are world units")
     _add_model_flags(p)
     p.add_argument("-o", "--output", default="-", help="output file (default: standard output)")
@@ -363,7 +428,7 @@ def models_scene(paths: list[str], size: float = 30.0, smooth: bool | None = Non
         raise UsageError(f"mesh: {e.message}") from None
     try:
         scene_from_model(SceneModel.model_validate(doc))
-    except (ValidationError, SceneError) as e:   # e.g. --as-is with coordinates beyond the limits
+    except (ValidationError, SceneError) as e:  # e.g. --as-is with coordinates beyond the limits
         msg = _validation_message(e) if isinstance(e, ValidationError) else f"{e.field}: {e.message}"
         raise UsageError(f"scene.{msg}") from None
     return doc
@@ -387,8 +452,9 @@ def write_models_scene(args: argparse.Namespace) -> int:
 # ---- gpus ---------------------------------------------------------------------------------------
 def _add_gpus(sub: argparse._SubParsersAction) -> None:
     # ("devices" is its old name, kept working: "device" is the browser client's own tracer now.)
-    p = sub.add_parser("gpus", aliases=["devices"], help="list the GPUs as EGL lists them (serve --gpu picks one "
-                                                         "by index)")
+    p = sub.add_parser(
+        "gpus", aliases=["devices"], help="list the GPUs as EGL lists them (serve --gpu picks one by index)"
+    )
     p.add_argument("--probe", action="store_true", help="also create a context on each and print its renderer")
     p.add_argument("--json", action="store_true", help="print JSON")
 
@@ -413,8 +479,9 @@ def gpus(args: argparse.Namespace) -> int:
 
 # ---- main -------------------------------------------------------------------------------------
 def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="pocketray", description="pocketray: the render service, and renders "
-                                                              "from the command line")
+    p = argparse.ArgumentParser(
+        prog="pocketray", description="pocketray: the render service, and renders from the command line"
+    )
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_serve(sub)
     _add_render(sub)
@@ -426,8 +493,11 @@ def parser() -> argparse.ArgumentParser:
 
 
 def _add_stack(sub: argparse._SubParsersAction) -> None:
-    sub.add_parser("stack", add_help=False, help="Redis + render processes + HAProxy on loopback ports "
-                                                 "(server/stack.py; needs redis-server and haproxy)")
+    sub.add_parser(
+        "stack",
+        add_help=False,
+        help="Redis + render processes + HAProxy on loopback ports (server/stack.py; needs redis-server and haproxy)",
+    )
 
 
 def stack(args: argparse.Namespace) -> int:
@@ -436,14 +506,21 @@ def stack(args: argparse.Namespace) -> int:
     return stack_main(args.rest)
 
 
-COMMANDS = {"serve": serve, "render": render, "scenario": write_scenario, "scene": write_models_scene,
-            "gpus": gpus, "devices": gpus, "stack": stack}
+COMMANDS = {
+    "serve": serve,
+    "render": render,
+    "scenario": write_scenario,
+    "scene": write_models_scene,
+    "gpus": gpus,
+    "devices": gpus,
+    "stack": stack,
+}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args, rest = parser().parse_known_args(argv)
     if args.command != "stack" and rest:
-        parser().parse_args(argv)   # the usual error for unknown arguments
+        parser().parse_args(argv)  # the usual error for unknown arguments
     args.rest = rest
     try:
         return COMMANDS[args.command](args)

@@ -15,21 +15,51 @@ and ``dx``/``dy`` in pixels.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Iterable, Literal, Union, get_args
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, get_args
 
-from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, TypeAdapter, ValidationError, create_model,
-                      field_validator, model_validator)
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    TypeAdapter,
+    ValidationError,
+    create_model,
+    field_validator,
+    model_validator,
+)
 from pydantic.fields import FieldInfo
 from pydantic_core import InitErrorDetails, PydanticCustomError, PydanticKnownError
 
+from renderer import settings as declared
 from renderer.animation import MUSEUM_KINDS
-from renderer.limits import (MAX_ABSENT, MAX_ANGULAR_VELOCITY, MAX_COORDINATE, MAX_DEVICE_TEXTURE_SIZE, MAX_EMISSION,
-                             MAX_IOR, MAX_LIFETIME, MAX_LIGHT_INTENSITY, MAX_LIGHTS, MAX_MATERIALS, MAX_MESH_VERTICES,
-                             MAX_MESHES, MAX_MOTION_SEED, MAX_MOTIONS, MAX_MUSEUM_MOVING, MAX_PERIOD, MAX_PLANES,
-                             MAX_SHININESS, MAX_SPEED, MAX_SPHERES, MAX_TRIANGLES, MAX_WAVELENGTH)
+from renderer.limits import (
+    MAX_ABSENT,
+    MAX_ANGULAR_VELOCITY,
+    MAX_COORDINATE,
+    MAX_DEVICE_TEXTURE_SIZE,
+    MAX_EMISSION,
+    MAX_IOR,
+    MAX_LIFETIME,
+    MAX_LIGHT_INTENSITY,
+    MAX_LIGHTS,
+    MAX_MATERIALS,
+    MAX_MESH_VERTICES,
+    MAX_MESHES,
+    MAX_MOTION_SEED,
+    MAX_MOTIONS,
+    MAX_MUSEUM_MOVING,
+    MAX_PERIOD,
+    MAX_PLANES,
+    MAX_SHININESS,
+    MAX_SPEED,
+    MAX_SPHERES,
+    MAX_TRIANGLES,
+    MAX_WAVELENGTH,
+)
 from renderer.mesh_io import MODEL_FORMATS
 from renderer.scenarios import CUBE_HALF, MAX_MESH_DETAIL, MESH_SCENES
-from renderer import settings as declared
 from renderer.settings import SettingSpec, setting
 
 from .device_data import DEFAULT_MAX_TEXTURE_SIZE, FEATURE_DEFINES
@@ -38,10 +68,10 @@ MuseumKind = Literal[MUSEUM_KINDS]  # type: ignore[valid-type]
 ModelFormat = Literal[MODEL_FORMATS]  # type: ignore[valid-type]
 
 # The API's own bound: a 32-bit placement seed (the renderer takes any non-negative one).
-MAX_SEED = 2 ** 32 - 1
+MAX_SEED = 2**32 - 1
 # The incoherent motion's seed as JSON carries it: integers beyond 2^53 are not exact in JavaScript nor
 # in JSON Schema validators that compare as doubles (2^63 − 1 + 192 passed as ≤ 2^63 − 1).
-MAX_JSON_MOTION_SEED = min(MAX_MOTION_SEED, 2 ** 53)
+MAX_JSON_MOTION_SEED = min(MAX_MOTION_SEED, 2**53)
 # A 422 lists at most this many errors, then one entry counting the rest: a body of 150,000 bad
 # spheres is answered in a few kB, not 72 MB.
 MAX_LISTED_ERRORS = 20
@@ -62,6 +92,7 @@ class Strict(BaseModel):
     """A JSON body's model: unknown fields are errors; NaN and ±inf are rejected everywhere; types are
     strict — a number is a JSON number (``"1"`` and ``true`` are not), an integer an integral JSON number
     (an int field refuses ``1.5`` and ``true``), a boolean ``true``/``false``."""
+
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
 
 
@@ -84,11 +115,14 @@ Coordinate = Annotated[float, Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)]
 Vec3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3, description="[x, y, z], world units")]
 Unit = Annotated[float, Field(ge=0.0, le=1.0)]
 Rgb = Annotated[list[Unit], Field(min_length=3, max_length=3, description="RGB, each 0 … 1")]
-Intensity = Annotated[list[Annotated[float, Field(ge=0.0, le=MAX_LIGHT_INTENSITY)]],
-                      Field(min_length=3, max_length=3,
-                            description=f"RGB intensity, each 0 … {MAX_LIGHT_INTENSITY:g}")]
-Radiance = Annotated[list[Annotated[float, Field(ge=0.0, le=MAX_EMISSION)]],
-                     Field(min_length=3, max_length=3, description=f"linear RGB radiance, each 0 … {MAX_EMISSION:g}")]
+Intensity = Annotated[
+    list[Annotated[float, Field(ge=0.0, le=MAX_LIGHT_INTENSITY)]],
+    Field(min_length=3, max_length=3, description=f"RGB intensity, each 0 … {MAX_LIGHT_INTENSITY:g}"),
+]
+Radiance = Annotated[
+    list[Annotated[float, Field(ge=0.0, le=MAX_EMISSION)]],
+    Field(min_length=3, max_length=3, description=f"linear RGB radiance, each 0 … {MAX_EMISSION:g}"),
+]
 MaterialIndex = Annotated[int, Field(ge=0, lt=MAX_MATERIALS, description="index into materials"), Integral]
 
 
@@ -96,6 +130,7 @@ MaterialIndex = Annotated[int, Field(ge=0, lt=MAX_MATERIALS, description="index 
 class CameraModel(Strict):
     """Pinhole camera. ``target`` must differ from ``position``; ``up`` must be non-zero
     and not parallel to the viewing direction."""
+
     position: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 100.0])
     target: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     up: Vec3 = Field(default_factory=lambda: [0.0, 1.0, 0.0])
@@ -104,12 +139,14 @@ class CameraModel(Strict):
 
 class LightModel(Strict):
     """Point light."""
+
     position: Vec3 = Field(default_factory=lambda: [0.0, 40.0, 0.0])
     color: Intensity = Field(default_factory=lambda: [1.0, 1.0, 1.0])
 
 
 class MaterialModel(Strict):
     """Whitted/Phong material (thesis Table 4.1)."""
+
     color: Rgb = Field(default_factory=lambda: [0.9, 0.3, 0.3])
     ambient: Unit = 0.3
     diffuse: Unit = 0.3
@@ -118,13 +155,16 @@ class MaterialModel(Strict):
     reflective: Unit = 0.3
     transmissive: Unit = 0.0
     ior: float = Field(1.0, gt=0.0, le=MAX_IOR, description="refraction index inside / outside")
-    emission: Radiance = Field(default_factory=lambda: [0.0, 0.0, 0.0],
-                               description="radiance emitted on the side the normal faces (an area light)")
+    emission: Radiance = Field(
+        default_factory=lambda: [0.0, 0.0, 0.0],
+        description="radiance emitted on the side the normal faces (an area light)",
+    )
     roughness: Unit = Field(0.0, description="GGX α of the path integrator's reflection lobe (0: a mirror)")
 
 
 class EnvironmentModel(Strict):
     """What a ray that meets nothing sees: a constant radiance (black: none)."""
+
     color: Radiance = Field(default_factory=lambda: [0.0, 0.0, 0.0])
 
 
@@ -144,8 +184,9 @@ class PlaneModel(Strict):
 # the vertex); here they only have to be finite.
 Row3 = Annotated[list[float], Field(min_length=3, max_length=3, description="[x, y, z]")]
 VertexIndex = Annotated[int, Field(ge=0, lt=MAX_MESH_VERTICES, description="index into the mesh's vertices"), Integral]
-Triangle = Annotated[list[VertexIndex], Field(min_length=3, max_length=3,
-                                              description="[i, j, k], counter-clockwise seen from outside")]
+Triangle = Annotated[
+    list[VertexIndex], Field(min_length=3, max_length=3, description="[i, j, k], counter-clockwise seen from outside")
+]
 Row4 = Annotated[list[float], Field(min_length=4, max_length=4)]
 
 
@@ -153,30 +194,35 @@ class MeshModel(Strict):
     """A triangle mesh (docs/FORMATS.md, "Meshes"). Every vertex within ±MAX_COORDINATE after
     ``transform``; triangle indices < len(vertices); ``normals`` one per vertex, non-zero
     (smooth shading); zero-area triangles are kept and counted (never hit)."""
+
     vertices: list[Row3] = Field(max_length=MAX_MESH_VERTICES, description="world units (before the transform)")
     triangles: list[Triangle] = Field(max_length=MAX_TRIANGLES)
     material: MaterialIndex = 0
-    normals: list[Row3] | None = Field(None, max_length=MAX_MESH_VERTICES,
-                                       description="per-vertex shading normals (smooth); none: flat shading")
+    normals: list[Row3] | None = Field(
+        None, max_length=MAX_MESH_VERTICES, description="per-vertex shading normals (smooth); none: flat shading"
+    )
     transform: Annotated[list[Row4], Field(min_length=4, max_length=4)] | None = Field(
-        None, description="4 × 4 row-major affine (last row [0, 0, 0, 1]) applied to the vertices on input")
+        None, description="4 × 4 row-major affine (last row [0, 0, 0, 1]) applied to the vertices on input"
+    )
 
 
 # ---- motion (renderer.animation) --------------------------------------------------
 SphereIndex = Annotated[int, Field(ge=0, lt=MAX_SPHERES, description="id of the first sphere moved"), Integral]
 SphereCount = Annotated[int, Field(ge=0, le=MAX_SPHERES, description="number of spheres moved"), Integral]
-MeshIndex = Annotated[int, Field(ge=0, lt=MAX_MESHES, description="index of the mesh moved (instead of first, count)"),
-                      Integral]
+MeshIndex = Annotated[
+    int, Field(ge=0, lt=MAX_MESHES, description="index of the mesh moved (instead of first, count)"), Integral
+]
 
 
 class MotionTarget(Strict):
     """What a motion moves: the spheres ``first … first+count−1``, or the mesh ``mesh``."""
+
     first: SphereIndex | None = None
     count: SphereCount | None = None
     mesh: MeshIndex | None = None
 
     @model_validator(mode="after")
-    def _one_target(self) -> "MotionTarget":
+    def _one_target(self) -> MotionTarget:
         if self.mesh is not None:
             if self.first is not None or self.count is not None:
                 raise ValueError("give either mesh or first and count, not both")
@@ -188,11 +234,13 @@ class MotionTarget(Strict):
 class RigidMotion(MotionTarget):
     """Spheres ``first … first+count−1`` (or mesh ``mesh``) move as one rigid body: centre(t) =
     pivot + R(axis, angular_velocity·t)(c₀ − pivot) + amplitude·sin(2πt / period)."""
+
     kind: Literal["rigid"]
     pivot: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
     axis: Vec3 = Field(default_factory=lambda: [0.0, 1.0, 0.0], description="non-zero")
-    angular_velocity: float = Field(0.5, ge=-MAX_ANGULAR_VELOCITY, le=MAX_ANGULAR_VELOCITY,
-                                    description="radians per second")
+    angular_velocity: float = Field(
+        0.5, ge=-MAX_ANGULAR_VELOCITY, le=MAX_ANGULAR_VELOCITY, description="radians per second"
+    )
     amplitude: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="oscillation, world units")
     period: float = Field(4.0, gt=0.0, le=MAX_PERIOD, description="seconds")
 
@@ -200,6 +248,7 @@ class RigidMotion(MotionTarget):
 class DeformableMotion(MotionTarget):
     """Coherent local motion: a travelling wave moves each sphere (or each vertex of mesh
     ``mesh``) by at most ``amplitude`` per axis."""
+
     kind: Literal["deformable"]
     amplitude: float = Field(1.0, ge=0.0, le=MAX_COORDINATE, description="world units")
     wavelength: float = Field(10.0, gt=0.0, le=MAX_WAVELENGTH, description="world units")
@@ -210,6 +259,7 @@ class IncoherentMotion(MotionTarget):
     """Every sphere flies alone inside [box_min, box_max] and respawns every ``lifetime`` seconds;
     for the last ``absent`` fraction of each lifetime it is gone (spheres appear and disappear).
     Spheres only: a mesh is refused."""
+
     kind: Literal["incoherent"]
     box_min: Vec3 = Field(default_factory=lambda: [-15.0, -15.0, -15.0])
     box_max: Vec3 = Field(default_factory=lambda: [15.0, 15.0, 15.0], description="> box_min on every axis")
@@ -219,20 +269,24 @@ class IncoherentMotion(MotionTarget):
     seed: Annotated[int, Integral] = Field(0, ge=0, le=MAX_JSON_MOTION_SEED)
 
 
-Motion = Annotated[Union[RigidMotion, DeformableMotion, IncoherentMotion], Field(discriminator="kind")]
+Motion = Annotated[RigidMotion | DeformableMotion | IncoherentMotion, Field(discriminator="kind")]
 
 
 class SceneModel(Strict):
     """A whole scene (docs/FORMATS.md). Material indices must be < len(materials). ``motions`` (optional)
     animate sphere ranges that must not overlap, or meshes; the render setting ``time`` poses the
     scene. Primitive ids: spheres, then planes, then the triangles of each mesh."""
+
     camera: CameraModel = Field(default_factory=CameraModel)
     lights: list[LightModel] = Field(default_factory=list, max_length=MAX_LIGHTS)
     materials: list[MaterialModel] = Field(min_length=1, max_length=MAX_MATERIALS)
     spheres: list[SphereModel] = Field(default_factory=list, max_length=MAX_SPHERES)
     planes: list[PlaneModel] = Field(default_factory=list, max_length=MAX_PLANES)
-    meshes: list[MeshModel] = Field(default_factory=list, max_length=MAX_MESHES,
-                                    description=f"triangle meshes; at most {MAX_TRIANGLES} triangles in all")
+    meshes: list[MeshModel] = Field(
+        default_factory=list,
+        max_length=MAX_MESHES,
+        description=f"triangle meshes; at most {MAX_TRIANGLES} triangles in all",
+    )
     motions: list[Motion] = Field(default_factory=list, max_length=MAX_MOTIONS)
     environment: EnvironmentModel = Field(default_factory=EnvironmentModel)
 
@@ -244,29 +298,41 @@ class SceneModel(Strict):
         if not isinstance(value, list) or len(value) <= SPHERE_CHUNK:
             return handler(value)
         if len(value) > MAX_SPHERES:
-            raise PydanticKnownError("too_long", {"field_type": "List", "max_length": MAX_SPHERES,
-                                                  "actual_length": len(value)})
+            raise PydanticKnownError(
+                "too_long", {"field_type": "List", "max_length": MAX_SPHERES, "actual_length": len(value)}
+            )
         out: list[Any] = []
         listed: list[InitErrorDetails] = []
         count = 0
         for start in range(0, len(value), SPHERE_CHUNK):
             try:
-                out.extend(handler(value[start:start + SPHERE_CHUNK]))
+                out.extend(handler(value[start : start + SPHERE_CHUNK]))
             except ValidationError as e:
                 count += e.error_count()
                 if len(listed) < MAX_LISTED_ERRORS:
-                    for err in e.errors(include_url=False, include_context=False)[:MAX_LISTED_ERRORS - len(listed)]:
+                    for err in e.errors(include_url=False, include_context=False)[: MAX_LISTED_ERRORS - len(listed)]:
                         index, *rest = err["loc"]
-                        listed.append(InitErrorDetails(
-                            type=PydanticCustomError(err["type"], "{msg}", {"msg": err["msg"]}),
-                            loc=(int(index) + start, *rest), input=err["input"]))
+                        listed.append(
+                            InitErrorDetails(
+                                type=PydanticCustomError(err["type"], "{msg}", {"msg": err["msg"]}),
+                                loc=(int(index) + start, *rest),
+                                input=err["input"],
+                            )
+                        )
         if not count:
             return out
         if count > len(listed):
-            listed.append(InitErrorDetails(
-                type=PydanticCustomError("too_many_errors", "{more} more errors in these spheres not listed "
-                                         "({total} in all)", {"more": count - len(listed), "total": count}),
-                loc=(), input=None))
+            listed.append(
+                InitErrorDetails(
+                    type=PydanticCustomError(
+                        "too_many_errors",
+                        "{more} more errors in these spheres not listed ({total} in all)",
+                        {"more": count - len(listed), "total": count},
+                    ),
+                    loc=(),
+                    input=None,
+                )
+            )
         raise ValidationError.from_exception_data("spheres", listed)
 
 
@@ -291,6 +357,7 @@ def setting_type(spec: SettingSpec) -> Any:
 
 class RenderParamsBase(BaseModel):
     """What :func:`build_render_params` adds the settings' fields to."""
+
     model_config = ConfigDict(allow_inf_nan=False)
     setting_names: ClassVar[tuple[str, ...]] = ()
 
@@ -303,8 +370,12 @@ def build_render_params(specs: Iterable[SettingSpec] | None = None) -> type[Rend
     """Every setting of ``specs`` (default: renderer.settings.SETTINGS as it is now), optional: what a request
     names (body or query)."""
     specs = tuple(declared.SETTINGS if specs is None else specs)
-    model = create_model("RenderParams", __base__=RenderParamsBase, __module__=__name__,
-                         **{s.name: (optional(setting_type(s)), None) for s in specs})  # type: ignore[call-overload]
+    model = create_model(
+        "RenderParams",
+        __base__=RenderParamsBase,
+        __module__=__name__,
+        **{s.name: (optional(setting_type(s)), None) for s in specs},
+    )  # type: ignore[call-overload]
     model.__doc__ = """Render settings a request names; the ones left out (or null) keep their value.
 
     Declared once for the body (:class:`SettingsPatch`) and the query of a frame
@@ -317,15 +388,19 @@ def build_full_settings(specs: Iterable[SettingSpec] | None = None) -> type[Base
     """Every setting of ``specs`` (default: renderer.settings.SETTINGS as it is now) as a session has it; those
     added after the first sessions were stored take their default when a stored session lacks them."""
     specs = tuple(declared.SETTINGS if specs is None else specs)
-    return create_model("FullSettings", __module__=__name__, __doc__=FULL_SETTINGS_DOC,  # type: ignore[call-overload]
-                        **{s.name: (s.python_type, ... if s.stored_since_first else s.default) for s in specs})
+    return create_model(
+        "FullSettings",
+        __module__=__name__,
+        __doc__=FULL_SETTINGS_DOC,  # type: ignore[call-overload]
+        **{s.name: (s.python_type, ... if s.stored_since_first else s.default) for s in specs},
+    )
 
 
-FULL_SETTINGS_DOC = ("All render settings of a session (the render-settings JSON of docs/FORMATS.md plus "
-                     "``quality``).")
+FULL_SETTINGS_DOC = "All render settings of a session (the render-settings JSON of docs/FORMATS.md plus ``quality``)."
 SETTING_TYPES: dict[str, Any] = {s.name: setting_type(s) for s in declared.SETTINGS}
 MaxPrims, TreeDepth, RecursionDepth, Time, Method, Mode = (
-    SETTING_TYPES[k] for k in ("max_prims", "max_tree_depth", "max_recursion_depth", "time", "method", "mode"))
+    SETTING_TYPES[k] for k in ("max_prims", "max_tree_depth", "max_recursion_depth", "time", "method", "mode")
+)
 MethodName = get_args(Method)[0]
 ModeName = get_args(Mode)[0]
 
@@ -338,6 +413,7 @@ else:
 class SettingsPatch(RenderParams):
     """Some render settings; the ones left out (or null) keep their value. A JSON body: strict
     types as :class:`Strict` (the query, :class:`FrameQuery`, reads the same fields from text)."""
+
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
 
 
@@ -346,6 +422,7 @@ class QueryModel(BaseModel):
     """Query parameters: unknown ones are ignored (links may carry the client's own); no NaN or ±inf.
     ``null`` for an optional parameter — what the schema allows there, and what a generic client sends
     for it — is the parameter left out."""
+
     model_config = ConfigDict(extra="ignore", allow_inf_nan=False)
 
     @model_validator(mode="before")
@@ -362,10 +439,14 @@ _INT = TypeAdapter(int)
 
 class FrameQuery(RenderParams, QueryModel):
     """A frame's render settings in the query; missing ones come from the session's."""
+
     model_config = ConfigDict(extra="ignore", allow_inf_nan=False)
-    progressive: bool = Field(False, description="answer multipart/mixed: first the preview (the pixel centres "
-                                                 "of a supersampled frame) as soon as it exists, then the final "
-                                                 "image (docs/API.md, 'Progressive frames')")
+    progressive: bool = Field(
+        False,
+        description="answer multipart/mixed: first the preview (the pixel centres "
+        "of a supersampled frame) as soon as it exists, then the final "
+        "image (docs/API.md, 'Progressive frames')",
+    )
 
     @model_validator(mode="before")
     @classmethod
@@ -382,11 +463,13 @@ class FrameQuery(RenderParams, QueryModel):
 
 class GestureQuery(FrameQuery):
     """A gesture's query: ``frame`` asks for the new frame, rendered with the other parameters."""
+
     frame: bool = Field(False, description="answer with the new frame (image) instead of JSON")
 
 
 class StatsQuery(QueryModel):
     """The build whose statistics are asked for; missing parameters: the session's."""
+
     method: optional(Method) = None
     max_prims: optional(MaxPrims) = None
     max_tree_depth: optional(TreeDepth) = None
@@ -398,20 +481,25 @@ class StatsQuery(QueryModel):
 
 class DeviceDataQuery(QueryModel):
     """What the device-data is packed for; the settings left out are the session's."""
+
     method: MethodName | None = Field(None, description="default: the session's")
     mode: ModeName | None = Field(None, description="names the shader variant; default: the session's")
     max_prims: optional(MaxPrims) = None
     max_tree_depth: optional(TreeDepth) = None
     max_recursion_depth: optional(RecursionDepth) = None
     time: optional(Time) = None
-    max_texture_size: int = Field(DEFAULT_MAX_TEXTURE_SIZE, ge=1, le=MAX_DEVICE_TEXTURE_SIZE,
-                                  description="the device's MAX_TEXTURE_SIZE")
+    max_texture_size: int = Field(
+        DEFAULT_MAX_TEXTURE_SIZE, ge=1, le=MAX_DEVICE_TEXTURE_SIZE, description="the device's MAX_TEXTURE_SIZE"
+    )
     float_textures: bool = Field(True, description="the device renders to RGBA32F (WebGL2: EXT_color_buffer_float)")
 
     def given(self) -> dict[str, Any]:
         """The render settings named (not the device's own parameters)."""
-        return {k: v for k in ("method", "mode", "max_prims", "max_tree_depth", "max_recursion_depth", "time")
-                if (v := getattr(self, k)) is not None}
+        return {
+            k: v
+            for k in ("method", "mode", "max_prims", "max_tree_depth", "max_recursion_depth", "time")
+            if (v := getattr(self, k)) is not None
+        }
 
 
 # What server.api.routes.device.parse_features reads: names from FEATURE_DEFINES, commas, whitespace.
@@ -421,11 +509,13 @@ _FEATURES_PATTERN = rf"^\s*(?:{_FEATURE}\s*)?(?:,\s*(?:{_FEATURE}\s*)?)*$"
 
 class ShaderQuery(QueryModel):
     """The shader variant asked for."""
+
     method: Method = "bih"
     mode: Mode = "color"
     max_recursion_depth: RecursionDepth = setting("max_recursion_depth").default
-    features: str | None = Field(None, max_length=200, pattern=_FEATURES_PATTERN,
-                                 description="comma-separated: " + ", ".join(FEATURE_DEFINES))
+    features: str | None = Field(
+        None, max_length=200, pattern=_FEATURES_PATTERN, description="comma-separated: " + ", ".join(FEATURE_DEFINES)
+    )
     stage: str = Field("fragment", pattern="^(fragment|vertex)$", description="fragment (the tracer) or vertex")
 
 
@@ -443,6 +533,7 @@ class SettingsOut(FullSettings):
 class MuseumRecipe(Strict):
     """Reiter's BART-Museum analogue (renderer.animation.museum): ``n`` moving spheres in a
     static room of 576 spheres and the floor."""
+
     n: Annotated[int, Integral] = Field(ge=0, le=MAX_MUSEUM_MOVING, description="moving spheres")
     kind: MuseumKind = Field("deformable", description="rigid, deformable, incoherent or mixed (a third each)")
     seed: Annotated[int, Integral] = Field(0, ge=0, le=MAX_SEED)
@@ -455,10 +546,15 @@ class MeshSceneRecipe(Strict):
     ``room`` (a box room seen from inside with a teapot, an icosphere and four spheres), ``cornell``
     (a Cornell box lit by an emitting ceiling panel, with a mirror and a glass sphere and a teapot:
     for ``integrator=path``)."""
+
     kind: Literal[MESH_SCENES] = Field("teapot", description="teapot, mixed, room or cornell")  # type: ignore[valid-type]
-    detail: Annotated[int, Integral] = Field(2, ge=0, le=MAX_MESH_DETAIL,
-                                             description="tessellation: teapot 2 + 2·detail segments per patch, "
-                                                         "icosphere subdivisions, torus 12 (detail + 1) segments")
+    detail: Annotated[int, Integral] = Field(
+        2,
+        ge=0,
+        le=MAX_MESH_DETAIL,
+        description="tessellation: teapot 2 + 2·detail segments per patch, "
+        "icosphere subdivisions, torus 12 (detail + 1) segments",
+    )
     smooth: bool = Field(True, description="vertex normals (smooth shading); false: flat")
 
 
@@ -466,12 +562,14 @@ class SessionCreate(Strict):
     """Either a thesis scenario (``scenario`` and ``n``; ``seed``, ``radius`` optional),
     an animated ``museum``, a ``mesh_scene`` or a full ``scene``; optionally the session's
     first render settings."""
+
     scenario: Annotated[Literal[1, 2, 3], Integral] | None = Field(None, description="thesis scenario 1, 2 or 3")
     # The bounds inside the Annotated: on an optional field pydantic would write them to the schema
     # as "ge"/"le", which JSON Schema does not know (the schema said nothing of n's range).
     n: Annotated[int, Field(ge=0, le=MAX_SPHERES), Integral] | None = Field(None, description="number of spheres")
     seed: Annotated[int, Field(ge=0, le=MAX_SEED), Integral] | None = Field(
-        None, description="random placement seed (default 0)")
+        None, description="random placement seed (default 0)"
+    )
     radius: float | None = Field(None, gt=0.0, le=CUBE_HALF, description="sphere radius, world units (default 1)")
     museum: MuseumRecipe | None = None
     mesh_scene: MeshSceneRecipe | None = None
@@ -489,8 +587,9 @@ class SceneInfo(BaseModel):
     animated: bool = False
     n_moving: int = Field(0, description="spheres some motion moves")
     museum: MuseumRecipe | None = None
-    mesh_scene: MeshSceneRecipe | None = Field(None, description="the mesh scene recipe it was made from (until a "
-                                                                  "model is added or the scene replaced)")
+    mesh_scene: MeshSceneRecipe | None = Field(
+        None, description="the mesh scene recipe it was made from (until a model is added or the scene replaced)"
+    )
     n_meshes: int = 0
     n_triangles: int = Field(0, description="triangles of all meshes (ids after the planes)")
     n_degenerate_triangles: int = Field(0, description="zero-area triangles: kept, never hit")
@@ -518,18 +617,22 @@ class CameraOut(BaseModel):
 class PanGesture(Strict):
     """One finger dragged by (dx, dy) screen pixels, right/down positive: the scene
     follows the finger at the target's distance."""
+
     type: Literal["pan"]
     dx: float = Field(ge=-1e6, le=1e6, description="pixels, right positive")
     dy: float = Field(ge=-1e6, le=1e6, description="pixels, down positive")
     viewport_height: float | None = Field(
-        None, gt=0.0, le=1e5,
-        description="height in the same pixels as dx/dy of the view showing the frame; "
-                    "default: the frame's height")
+        None,
+        gt=0.0,
+        le=1e5,
+        description="height in the same pixels as dx/dy of the view showing the frame; default: the frame's height",
+    )
 
 
 class PinchGesture(Strict):
     """Two fingers: ``scale`` = new distance / old distance. > 1 (spread) moves the camera
     forward to distance / scale, < 1 back; it never reaches the target."""
+
     type: Literal["pinch"]
     scale: float = Field(ge=1e-3, le=1e3, description="finger distance ratio")
 
@@ -542,30 +645,44 @@ class OrbitGesture(Strict):
     camera's ``up`` vector, ``pitch`` degrees about its ``right`` vector (right-handed: yaw > 0
     moves the camera to its right, pitch > 0 moves it down). Pitch is clamped so that the
     view never passes over the up vector."""
+
     type: Literal["orbit"]
     yaw: float = Field(0.0, ge=-MAX_ORBIT_DEG, le=MAX_ORBIT_DEG, description="degrees about up, −360 … 360")
-    pitch: float = Field(0.0, ge=-MAX_ORBIT_DEG, le=MAX_ORBIT_DEG,
-                         description="degrees about right, −360 … 360 (clamped short of the poles)")
+    pitch: float = Field(
+        0.0,
+        ge=-MAX_ORBIT_DEG,
+        le=MAX_ORBIT_DEG,
+        description="degrees about right, −360 … 360 (clamped short of the poles)",
+    )
 
 
 class ResetGesture(Strict):
     """Back to the camera the scene was created (or last replaced) with."""
+
     type: Literal["reset"]
 
 
-Gesture = Annotated[Union[PanGesture, PinchGesture, OrbitGesture, ResetGesture], Field(discriminator="type")]
+Gesture = Annotated[PanGesture | PinchGesture | OrbitGesture | ResetGesture, Field(discriminator="type")]
 
 
 # ---- stateless render ------------------------------------------------------------------
 class MeshUploadQuery(QueryModel):
     """How an uploaded model file (the request body, bytes) becomes a mesh."""
+
     format: ModelFormat = Field(description="the file's format: " + ", ".join(MODEL_FORMATS))
     material: MaterialIndex = Field(0, description="index into the scene's materials")
-    smooth: bool | None = Field(None, description="shading: the file's normals (default), true: smooth (the file's "
-                                                  "or area-weighted normals), false: flat")
-    size: float | None = Field(None, gt=0.0, le=2 * CUBE_HALF,
-                               description="scale the model so that its longest side is this many world units, "
-                                           "centred on the y axis, standing on the floor y = −20 (default: as is)")
+    smooth: bool | None = Field(
+        None,
+        description="shading: the file's normals (default), true: smooth (the file's "
+        "or area-weighted normals), false: flat",
+    )
+    size: float | None = Field(
+        None,
+        gt=0.0,
+        le=2 * CUBE_HALF,
+        description="scale the model so that its longest side is this many world units, "
+        "centred on the y axis, standing on the floor y = −20 (default: as is)",
+    )
 
 
 class MeshAdded(BaseModel):
@@ -610,30 +727,39 @@ class LimitsOut(BaseModel):
 
 class MethodSettingsOut(BaseModel):
     """Which settings a method reads, so that a client shows only those (server.service.method_settings)."""
-    settings: list[str] = Field(description="settings its build or passes read: max_prims, max_tree_depth, "
-                                            "tile_size, update")
+
+    settings: list[str] = Field(
+        description="settings its build or passes read: max_prims, max_tree_depth, tile_size, update"
+    )
     modes: list[str]
     update_schemes: list[str]
     device: bool = Field(description="a browser can trace it (device mode)")
     tests_every_sphere: bool = Field(False, description="no hierarchy: POCKETRAY_MAX_BRUTEFORCE_WORK applies")
-    primitives: list[str] = Field(default_factory=lambda: ["spheres", "planes", "triangles"],
-                                  description="the kinds of primitive it traces (a scene with another is a 422)")
-    meshes_on_gpu: bool = Field(False, description="its GPU layout holds triangles: it traces frames of scenes "
-                                                   "with meshes (every one-pass method and auto); a method without "
-                                                   "it would answer those with 422 'meshes'")
+    primitives: list[str] = Field(
+        default_factory=lambda: ["spheres", "planes", "triangles"],
+        description="the kinds of primitive it traces (a scene with another is a 422)",
+    )
+    meshes_on_gpu: bool = Field(
+        False,
+        description="its GPU layout holds triangles: it traces frames of scenes "
+        "with meshes (every one-pass method and auto); a method without "
+        "it would answer those with 422 'meshes'",
+    )
     auto: bool = Field(False, description="resolved per scene: brute force below the crossover, else bih")
 
 
 class SettingInfoOut(BaseModel):
     """One render setting as it is declared (renderer.settings.SETTINGS): what a client builds its settings
     form from."""
+
     name: str
     type: Literal["integer", "number", "boolean", "string"]
     default: Any
     minimum: int | float | None = Field(None, description="smallest value (integer, number)")
     maximum: int | float | None = Field(None, description="largest value (integer, number)")
-    choices: list[Any] | None = Field(None, description="the values allowed (string, and an integer such as "
-                                                        "samples_per_pixel)")
+    choices: list[Any] | None = Field(
+        None, description="the values allowed (string, and an integer such as samples_per_pixel)"
+    )
     unit: str = ""
     label: str = Field(description="the client's word for it")
     doc: str = Field(description="one line: what it does")
@@ -641,8 +767,9 @@ class SettingInfoOut(BaseModel):
     modes: list[str] = Field(description="the modes that read it")
     engine: bool = Field(True, description="the renderer reads it (false: the service's own, e.g. JPEG quality)")
     sheet: bool = Field(False, description="the client's settings sheet offers it")
-    client: bool = Field(False, description="the client keeps it with the session's settings and carries it to "
-                                            "a new session")
+    client: bool = Field(
+        False, description="the client keeps it with the session's settings and carries it to a new session"
+    )
 
 
 class ModeColorOut(BaseModel):
@@ -659,29 +786,43 @@ class InfoOut(BaseModel):
     update_schemes: list[str] = Field(default_factory=list, description="values of the setting 'update'")
     museum_kinds: list[str] = Field(default_factory=list, description="motions of POST /api/sessions {museum}")
     profiles: dict[str, dict[str, Any]] = Field(
-        default_factory=dict, description="render profiles measured by the Pareto experiment: 'still' (the "
-                                          "session default) and 'interactive' (frames during a gesture)")
-    samples_per_pixel: list[int] = Field(default_factory=list, description="values of samples_per_pixel; "
-                                         "a frame's longest side × √samples must stay ≤ limits.max_image_side")
-    render_timeout_s: float | None = Field(None, description="longest a frame may take; a frame that alone "
-                                           "takes longer is answered with 422 (scene.n)")
-    museum_room_spheres: int | None = Field(None, description="static spheres of the museum's room; they count "
-                                            "against limits.max_spheres with its n moving ones")
-    method_settings: dict[str, MethodSettingsOut] = Field(default_factory=dict,
-                                                          description="per method: the settings that apply")
-    settings: list[SettingInfoOut] = Field(default_factory=list,
-                                           description="every render setting, declared once: type, bounds or "
-                                                       "choices, default, unit, label, doc, who reads it")
-    recursion_colors: list[ModeColorOut] = Field(default_factory=list,
-                                                 description="mode 'recursion': the colour of each ray level, "
-                                                             "index = level (0: the primary ray missed)")
-    heat_scale: dict[str, float] = Field(default_factory=dict,
-                                         description="mode 'heat': what each event adds to its channel (red "
-                                                     "'tests', green 'gaps', blue 'nodes'), clamped at 1")
+        default_factory=dict,
+        description="render profiles measured by the Pareto experiment: 'still' (the "
+        "session default) and 'interactive' (frames during a gesture)",
+    )
+    samples_per_pixel: list[int] = Field(
+        default_factory=list,
+        description="values of samples_per_pixel; a frame's longest side × √samples must stay ≤ limits.max_image_side",
+    )
+    render_timeout_s: float | None = Field(
+        None, description="longest a frame may take; a frame that alone takes longer is answered with 422 (scene.n)"
+    )
+    museum_room_spheres: int | None = Field(
+        None,
+        description="static spheres of the museum's room; they count against limits.max_spheres with its n moving ones",
+    )
+    method_settings: dict[str, MethodSettingsOut] = Field(
+        default_factory=dict, description="per method: the settings that apply"
+    )
+    settings: list[SettingInfoOut] = Field(
+        default_factory=list,
+        description="every render setting, declared once: type, bounds or "
+        "choices, default, unit, label, doc, who reads it",
+    )
+    recursion_colors: list[ModeColorOut] = Field(
+        default_factory=list,
+        description="mode 'recursion': the colour of each ray level, index = level (0: the primary ray missed)",
+    )
+    heat_scale: dict[str, float] = Field(
+        default_factory=dict,
+        description="mode 'heat': what each event adds to its channel (red "
+        "'tests', green 'gaps', blue 'nodes'), clamped at 1",
+    )
 
 
 class StatsOut(BaseModel):
     """Statistics of the last build; the fields beyond ``method`` depend on the method
     (bih: renderer.accel.bih.BIHStats — primitives, inner_nodes, leaves, depth_max, …)."""
+
     model_config = ConfigDict(extra="allow")
     method: str

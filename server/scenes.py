@@ -24,7 +24,8 @@ import io
 import json
 import threading
 from collections import OrderedDict
-from typing import Any, Iterator
+from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 
@@ -56,8 +57,9 @@ def scene_from_model(model: SceneModel, where: str = "scene") -> SessionScene:
                 meshes.append(make_mesh(m.vertices, m.triangles, m.material, m.normals, m.transform))
             except SceneError as e:
                 raise SceneError(f"meshes[{i}].{e.field}", e.message) from None
-        scene = Scene(base.camera, base.lights, base.materials, centers, radii, mats, base.planes, tuple(meshes),
-                      base.environment)
+        scene = Scene(
+            base.camera, base.lights, base.materials, centers, radii, mats, base.planes, tuple(meshes), base.environment
+        )
         return with_motions(scene, [m.model_dump(exclude_none=True) for m in model.motions])
     except SceneError as e:
         raise SceneError(f"{where}.{e.field}" if where else e.field, e.message) from None
@@ -90,12 +92,18 @@ def scene_source(scene: SessionScene) -> bytes:
     motions = [motion_to_json(m) for m in scene.motions] if isinstance(scene, AnimatedScene) else []
     if isinstance(scene, AnimatedScene):
         scene = scene.scene
-    small = {"lights": [x.to_json() for x in scene.lights], "materials": [m.to_json() for m in scene.materials],
-             "planes": [p.to_json() for p in scene.planes], "motions": motions}
+    small = {
+        "lights": [x.to_json() for x in scene.lights],
+        "materials": [m.to_json() for m in scene.materials],
+        "planes": [p.to_json() for p in scene.planes],
+        "motions": motions,
+    }
     arrays = {"centers": scene.sphere_centers, "radii": scene.sphere_radii, "materials": scene.sphere_materials}
     if scene.meshes:
-        small["meshes"] = [{"material": m.material, "vertices": len(m.vertices), "triangles": m.n_triangles,
-                            "smooth": m.smooth} for m in scene.meshes]
+        small["meshes"] = [
+            {"material": m.material, "vertices": len(m.vertices), "triangles": m.n_triangles, "smooth": m.smooth}
+            for m in scene.meshes
+        ]
         arrays["mesh_vertices"] = np.concatenate([m.vertices for m in scene.meshes])
         arrays["mesh_triangles"] = np.concatenate([m.triangles for m in scene.meshes])
         smooth = [m.normals for m in scene.meshes if m.smooth]
@@ -112,9 +120,9 @@ def _stored_meshes(cut: list[dict], z) -> tuple[Mesh, ...]:
         nv, nt = m["vertices"], m["triangles"]
         normals = None
         if m["smooth"]:
-            normals = z["mesh_normals"][n0:n0 + nv]
+            normals = z["mesh_normals"][n0 : n0 + nv]
             n0 += nv
-        out.append(Mesh(z["mesh_vertices"][v0:v0 + nv], z["mesh_triangles"][t0:t0 + nt], m["material"], normals))
+        out.append(Mesh(z["mesh_vertices"][v0 : v0 + nv], z["mesh_triangles"][t0 : t0 + nt], m["material"], normals))
         v0, t0 = v0 + nv, t0 + nt
     return tuple(out)
 
@@ -133,8 +141,17 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
             motions = small.pop("motions", [])
             meshes = _stored_meshes(small.pop("meshes", []), z)
             base = Scene.from_json({**small, "camera": camera.to_json()})
-            scene = Scene(camera, base.lights, base.materials, z["centers"], z["radii"], z["materials"], base.planes,
-                          meshes, base.environment)
+            scene = Scene(
+                camera,
+                base.lights,
+                base.materials,
+                z["centers"],
+                z["radii"],
+                z["materials"],
+                base.planes,
+                meshes,
+                base.environment,
+            )
             return with_motions(scene, motions)
     raise ValueError("unknown scene source")
 
@@ -143,7 +160,7 @@ def _rows_json(rows: np.ndarray, per_chunk: int) -> Iterator[str]:
     """A JSON list of rows (``[[…],[…]]``, compact) in pieces of ``per_chunk`` rows."""
     yield "["
     for start in range(0, len(rows), per_chunk):
-        text = json.dumps(rows[start:start + per_chunk].tolist(), separators=(",", ":"), allow_nan=False)[1:-1]
+        text = json.dumps(rows[start : start + per_chunk].tolist(), separators=(",", ":"), allow_nan=False)[1:-1]
         yield text if start == 0 else "," + text
     yield "]"
 
@@ -152,25 +169,35 @@ def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> It
     """The scene JSON (docs/FORMATS.md) of ``scene`` (exactly ``json.dumps(scene.to_json())``, compact) in
     pieces, so that a scene of 2^21 spheres (or 2^20 triangles) is sent without building it in memory.
     An animated scene is its rest pose plus ``motions``."""
+
     def dumps(obj: Any) -> str:
         return json.dumps(obj, separators=(",", ":"), allow_nan=False)
+
     tail = ""
     if isinstance(scene, AnimatedScene):
         tail = ',"motions":' + dumps([motion_to_json(m) for m in scene.motions])
         scene = scene.scene
-    small = {"camera": scene.camera.to_json(), "lights": [x.to_json() for x in scene.lights],
-             "materials": [m.to_json() for m in scene.materials]}
+    small = {
+        "camera": scene.camera.to_json(),
+        "lights": [x.to_json() for x in scene.lights],
+        "materials": [m.to_json() for m in scene.materials],
+    }
     yield (dumps(small)[:-1] + ',"spheres":[').encode()
     n = scene.n_spheres
     for start in range(0, n, spheres_per_chunk):
         stop = min(n, start + spheres_per_chunk)
-        part = [{"center": c, "radius": r, "material": m} for c, r, m in
-                zip(scene.sphere_centers[start:stop].tolist(), scene.sphere_radii[start:stop].tolist(),
-                    scene.sphere_materials[start:stop].tolist())]
+        part = [
+            {"center": c, "radius": r, "material": m}
+            for c, r, m in zip(
+                scene.sphere_centers[start:stop].tolist(),
+                scene.sphere_radii[start:stop].tolist(),
+                scene.sphere_materials[start:stop].tolist(),
+            )
+        ]
         text = dumps(part)[1:-1]
-        yield ((text if start == 0 else "," + text)).encode()
+        yield (text if start == 0 else "," + text).encode()
     yield ('],"planes":' + dumps([p.to_json() for p in scene.planes])).encode()
-    if scene.meshes:       # as Mesh.to_json: vertices, triangles, material, normals
+    if scene.meshes:  # as Mesh.to_json: vertices, triangles, material, normals
         rows = max(1, spheres_per_chunk * 2)
         yield b',"meshes":['
         for i, m in enumerate(scene.meshes):
@@ -190,9 +217,10 @@ def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> It
 def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dict[str, Any]:
     rest = scene.scene if isinstance(scene, AnimatedScene) else scene
     info: dict[str, Any] = {"n_spheres": rest.n_spheres, "n_planes": len(rest.planes)}
-    if rest.meshes:         # (absent for a sphere scene: the stored state stays as it was)
-        info.update(n_meshes=len(rest.meshes), n_triangles=rest.n_triangles,
-                    n_degenerate_triangles=rest.n_degenerate_triangles)
+    if rest.meshes:  # (absent for a sphere scene: the stored state stays as it was)
+        info.update(
+            n_meshes=len(rest.meshes), n_triangles=rest.n_triangles, n_degenerate_triangles=rest.n_degenerate_triangles
+        )
     if isinstance(scene, AnimatedScene):
         info.update(animated=True, n_moving=int(scene.moving.sum()))
         if rest.meshes:

@@ -34,14 +34,26 @@ from .exr import MEDIA_TYPE as EXR_MEDIA_TYPE, encode_exr
 
 MEDIA_TYPES = {"png": "image/png", "jpeg": "image/jpeg", "npy": "application/octet-stream", "exr": EXR_MEDIA_TYPE}
 TIMING_NAMES = ("queue", "pose", "update", "build", "upload", "trace", "read", "encode", "total")
-STATS_HEADER_KEYS = ("method", "time", "scheme", "n_spheres", "primitives", "inner_nodes", "leaves", "depth_max",
-                     "optimized_nodes", "forced_leaves", "build_ms")
+STATS_HEADER_KEYS = (
+    "method",
+    "time",
+    "scheme",
+    "n_spheres",
+    "primitives",
+    "inner_nodes",
+    "leaves",
+    "depth_max",
+    "optimized_nodes",
+    "forced_leaves",
+    "build_ms",
+)
 EXPOSED = ("Server-Timing", "X-Session-Version", "X-Method", "X-Stats", "X-Frame-Part", "Retry-After")
 
 
 @dataclass
 class Frame:
     """Encoded image plus what the headers say about it. Timings in ms."""
+
     body: bytes
     media_type: str
     method: str
@@ -50,7 +62,7 @@ class Frame:
     version: int | None = None
     width: int = 0
     height: int = 0
-    final: bool = True       # False: the preview of a progressive frame, the final image follows
+    final: bool = True  # False: the preview of a progressive frame, the final image follows
 
 
 def encode(result: RenderResult, fmt: str, quality: int, png_level: int = 1) -> tuple[bytes, float]:
@@ -81,19 +93,19 @@ def npy_bytes(array: np.ndarray) -> bytes:
     over the buffer itself."""
     buf = io.BytesIO()
     header = np.lib.format.header_data_from_array_1_0(array)
-    header["fortran_order"] = False          # the rows below are written in C order, whatever the strides
+    header["fortran_order"] = False  # the rows below are written in C order, whatever the strides
     np.lib.format.write_array_header_1_0(buf, header)
     if array.ndim == 0 or array.size == 0:
         buf.write(array.tobytes())
         return buf.getvalue()
     rows = max(1, NPY_CHUNK_BYTES // max(1, array[0].nbytes))
     for i in range(0, len(array), rows):
-        buf.write(np.ascontiguousarray(array[i:i + rows]).data)
+        buf.write(np.ascontiguousarray(array[i : i + rows]).data)
     return buf.getvalue()
 
 
 # Bytes per pixel of the npy array of each mode (docs/FORMATS.md); the other modes are 8-bit RGB.
-NPY_BYTES_PER_PIXEL = {"depth": 4, "primid": 4, "normal": 12, "radiance": 12}   # radiance: the path integrator's
+NPY_BYTES_PER_PIXEL = {"depth": 4, "primid": 4, "normal": 12, "radiance": 12}  # radiance: the path integrator's
 
 
 def encoded_nbytes(fmt: str, mode: str, width: int, height: int) -> int:
@@ -114,8 +126,9 @@ def server_timing(timings: dict[str, float]) -> str:
 
 
 def stats_header(stats: dict[str, Any] | None) -> str:
-    picked = {k: (round(v, 3) if isinstance(v, float) else v) for k, v in (stats or {}).items()
-              if k in STATS_HEADER_KEYS}
+    picked = {
+        k: (round(v, 3) if isinstance(v, float) else v) for k, v in (stats or {}).items() if k in STATS_HEADER_KEYS
+    }
     return json.dumps(picked, separators=(",", ":"))
 
 
@@ -135,22 +148,30 @@ def frame_headers(frame: Frame) -> dict[str, str]:
 
 FRAME_RESPONSE_DOC: dict[str, Any] = {
     "description": "the frame: PNG, JPEG, one .npy array (format=npy) or an OpenEXR file of float channels "
-                   "(format=exr)",
+    "(format=exr)",
     "content": {
         "image/png": {"schema": {"type": "string", "format": "binary"}},
         "image/jpeg": {"schema": {"type": "string", "format": "binary"}},
         "application/octet-stream": {"schema": {"type": "string", "format": "binary"}},
-        "multipart/mixed": {"schema": {"type": "string", "format": "binary"},
-                            "description": "progressive=1: the preview part, then the final part"},
+        "multipart/mixed": {
+            "schema": {"type": "string", "format": "binary"},
+            "description": "progressive=1: the preview part, then the final part",
+        },
         EXR_MEDIA_TYPE: {"schema": {"type": "string", "format": "binary"}},
     },
     "headers": {
-        "Server-Timing": {"description": "queue, pose, update, build, upload, trace, read, encode, total as name;dur=ms",
-                          "schema": {"type": "string"}},
+        "Server-Timing": {
+            "description": "queue, pose, update, build, upload, trace, read, encode, total as name;dur=ms",
+            "schema": {"type": "string"},
+        },
         "X-Method": {"description": "acceleration method used", "schema": {"type": "string"}},
-        "X-Stats": {"description": "compact JSON: method, primitives, inner_nodes, leaves, depth_max, …",
-                    "schema": {"type": "string"}},
-        "X-Session-Version": {"description": "session version the frame shows (session frames only)",
-                              "schema": {"type": "string"}},
+        "X-Stats": {
+            "description": "compact JSON: method, primitives, inner_nodes, leaves, depth_max, …",
+            "schema": {"type": "string"},
+        },
+        "X-Session-Version": {
+            "description": "session version the frame shows (session frames only)",
+            "schema": {"type": "string"},
+        },
     },
 }

@@ -14,15 +14,15 @@ from ``capabilities.multi_pass``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 from .. import gpu_layout
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..modes import SINGLE_PASS_MODES
 from ..scene import Scene, SceneError
 from ..tree_update import REBUILD, TreeUpdate
-
 
 # A ray stops at its nearest hit, so it rarely reaches every leaf the SAH counts, but it tests
 # every primitive of a leaf it enters: the builds report the SAH's tests in leaves this big
@@ -40,6 +40,7 @@ class PreparedMethod:
     packs spheres only (``Capabilities.meshes_on_gpu`` False; every one-pass method's
     layout holds triangles, so none today: the refusal stays for a
     method added without them)."""
+
     packed: gpu_layout.PackedScene
     build_ms: float
     stats: dict[str, Any] = field(default_factory=dict)
@@ -49,8 +50,10 @@ class PreparedMethod:
 # The one-pass methods whose GPU layouts hold triangles (Capabilities.meshes_on_gpu), named in
 # the refusal of any other; auto resolves to one of them.
 MESH_METHODS = ("bih", "bruteforce", "bvh", "kdtree", "twolevel", "auto")
-NOT_ON_GPU = ("this method's GPU layout holds spheres only: its frames of a scene with triangle meshes are "
-              f"not traced on the GPU; the methods that trace meshes are {', '.join(MESH_METHODS)}")
+NOT_ON_GPU = (
+    "this method's GPU layout holds spheres only: its frames of a scene with triangle meshes are "
+    f"not traced on the GPU; the methods that trace meshes are {', '.join(MESH_METHODS)}"
+)
 
 
 class NotOnGPU:
@@ -61,8 +64,9 @@ class NotOnGPU:
 
     def __init__(self, scene: Scene, method: str = ""):
         who = f"method {method!r}: " if method else ""
-        self.detail = (f"{who}{NOT_ON_GPU}; this scene has {len(scene.meshes)} mesh(es) of "
-                       f"{scene.n_triangles:,} triangles")
+        self.detail = (
+            f"{who}{NOT_ON_GPU}; this scene has {len(scene.meshes)} mesh(es) of {scene.n_triangles:,} triangles"
+        )
 
     def _refuse(self) -> None:
         raise SceneError("meshes", self.detail)
@@ -83,8 +87,9 @@ class NotOnGPU:
         return 0
 
 
-def gpu_data(scene: Scene, pack: Callable[[], gpu_layout.PackedScene], meshes_on_gpu: bool = False,
-             method: str = "") -> gpu_layout.PackedScene:
+def gpu_data(
+    scene: Scene, pack: Callable[[], gpu_layout.PackedScene], meshes_on_gpu: bool = False, method: str = ""
+) -> gpu_layout.PackedScene:
     """``pack()``, or — for a scene with triangles and a method whose layout packs spheres
     only (``meshes_on_gpu`` False) — :class:`NotOnGPU`."""
     if scene.n_triangles and not meshes_on_gpu:
@@ -97,12 +102,16 @@ def mesh_stats(scene: Scene) -> dict[str, int]:
     statistics stay as they were): tree primitives are spheres then triangles."""
     if not scene.n_triangles:
         return {}
-    return {"spheres": scene.n_spheres, "triangles": scene.n_triangles,
-            "degenerate_triangles": scene.n_degenerate_triangles}
+    return {
+        "spheres": scene.n_spheres,
+        "triangles": scene.n_triangles,
+        "degenerate_triangles": scene.n_degenerate_triangles,
+    }
 
 
 class NoLayout:
     """Mixin of methods without a layout of their own (no bindings, no defines)."""
+
     bindings: tuple[gpu_layout.Binding, ...] = ()
 
     @staticmethod
@@ -133,6 +142,7 @@ class Capabilities:
     max_primitives: the most primitives (spheres + triangles) it traces; more are refused with
     422 ``method`` (brute force: one shader loop over them all, ``limits.MAX_LOOP_PRIMITIVES``).
     """
+
     multi_pass: bool = False
     shader: str | None = None
     modes: tuple[str, ...] = SINGLE_PASS_MODES
@@ -159,6 +169,7 @@ class Capabilities:
 class AccelerationMethod(Protocol):
     """A method of tracing the spheres: a name, its capabilities, the GPU bindings and layout
     constants its traversal reads (declared into the shader header from here), and ``prepare``."""
+
     name: str
     capabilities: Capabilities
     bindings: tuple[gpu_layout.Binding, ...]
@@ -167,7 +178,13 @@ class AccelerationMethod(Protocol):
     def glsl_defines() -> str:
         """The method's layout constants as ``#define`` lines ("" when it has none)."""
 
-    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
-                max_width: int = DEFAULT_TEXTURE_WIDTH, update: TreeUpdate = REBUILD) -> PreparedMethod:
+    def prepare(
+        self,
+        scene: Scene,
+        max_prims: int,
+        max_tree_depth: int,
+        max_width: int = DEFAULT_TEXTURE_WIDTH,
+        update: TreeUpdate = REBUILD,
+    ) -> PreparedMethod:
         """The frame's acceleration data for the posed ``scene``; ``update`` says whether and
         how the previous frame's tree of the same animation may be updated instead."""

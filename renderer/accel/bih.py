@@ -89,6 +89,7 @@ class BIHStats:
     global AABB (24 B), the thesis's layout (the GPU reads ``bih_layout``'s records:
     16 B per inner node and a 16- or 32-byte sphere record per primitive).
     """
+
     primitives: int
     inner_nodes: int
     leaves: int
@@ -107,8 +108,8 @@ class BIHStats:
     bytes: int
     sah_nodes: float = 0.0
     sah_tests: float = 0.0
-    sah_big_tests: float = 0.0      # of sah_tests, those in leaves of more than BIG_LEAF spheres
-    cut_nodes: int = 0              # step 0's cuts: inner nodes whose other child is an empty leaf
+    sah_big_tests: float = 0.0  # of sah_tests, those in leaves of more than BIG_LEAF spheres
+    cut_nodes: int = 0  # step 0's cuts: inner nodes whose other child is an empty leaf
 
     def to_json(self) -> dict:
         return asdict(self)
@@ -123,6 +124,7 @@ class BIH:
     global_aabb: float32 (2, 3) min and max; for n = 0 min = +inf, max = -inf.
     node_depths: int32 depth of every node, inner and leaf; the root is depth 1.
     """
+
     nodes: np.ndarray
     indices: np.ndarray
     global_aabb: np.ndarray
@@ -132,8 +134,13 @@ class BIH:
     stats: BIHStats
 
 
-def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
-              max_tree_depth: int = MAX_TREE_DEPTH, empty_cuts: bool = False) -> BIH:
+def build_bih(
+    aabb_min: np.ndarray,
+    aabb_max: np.ndarray,
+    max_prims: int = 8,
+    max_tree_depth: int = MAX_TREE_DEPTH,
+    empty_cuts: bool = False,
+) -> BIH:
     """Build a BIH over primitives given by float32 AABBs ``(n, 3)``.
 
     Returns the node array, the sorted index array, the global AABB and the
@@ -164,9 +171,17 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
     else:
         gbox = np.stack([pmin.min(axis=0), pmax.max(axis=0)])
     box0 = (gbox[:1].copy(), gbox[1:].copy()) if n else (np.zeros((1, 3), np.float32),) * 2
-    op = _Open(slot=np.zeros(1, np.int64), lo=np.zeros(1, np.int64), hi=np.full(1, n, np.int64),
-               bmin=box0[0].copy(), bmax=box0[1].copy(), rmin=box0[0].copy(), rmax=box0[1].copy(),
-               depth=np.ones(1, np.int64), retries=np.zeros(1, np.int64))
+    op = _Open(
+        slot=np.zeros(1, np.int64),
+        lo=np.zeros(1, np.int64),
+        hi=np.full(1, n, np.int64),
+        bmin=box0[0].copy(),
+        bmax=box0[1].copy(),
+        rmin=box0[0].copy(),
+        rmax=box0[1].copy(),
+        depth=np.ones(1, np.int64),
+        retries=np.zeros(1, np.int64),
+    )
     optimized = one_sided = forced = rounds = cuts = 0
     leaf_slots: list[np.ndarray] = []
 
@@ -261,11 +276,14 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
             clip_r = np.minimum.reduceat(np.where(left, np.float32(np.inf), emin), starts)[sp]
             # Element i of a node whose elements start at s: ``lo + (lefts before i in the
             # node)`` when it goes left, else ``lo + n_left + (rights before it in the node)``.
-            before = np.cumsum(left, dtype=np.int64) - left      # lefts before i, all nodes
+            before = np.cumsum(left, dtype=np.int64) - left  # lefts before i, all nodes
             base_l = op.lo - before[starts]
             base_r = op.lo + n_left - starts + before[starts]
-            dest = np.where(left, before + np.repeat(base_l, count),
-                            np.arange(len(left), dtype=np.int64) - before + np.repeat(base_r, count))
+            dest = np.where(
+                left,
+                before + np.repeat(base_l, count),
+                np.arange(len(left), dtype=np.int64) - before + np.repeat(base_r, count),
+            )
             if len(sp) == k:
                 indices[dest] = prim
             else:
@@ -295,19 +313,39 @@ def build_bih(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 8,
     hist = [float(np.mean(counts == i)) for i in range(5)] + [float(np.mean(counts > 4))]
     build_ms = (time.perf_counter() - t0) * 1e3
     stats = BIHStats(
-        primitives=n, inner_nodes=int(len(nodes) - len(leaves) - cuts), leaves=int(len(leaves)),
-        prims_per_leaf_min=float(counts.min()), prims_per_leaf_avg=float(counts.mean()),
+        primitives=n,
+        inner_nodes=int(len(nodes) - len(leaves) - cuts),
+        leaves=int(len(leaves)),
+        prims_per_leaf_min=float(counts.min()),
+        prims_per_leaf_avg=float(counts.mean()),
         prims_per_leaf_max=float(counts.max()),
-        depth_min=int(depths.min()), depth_avg=float(depths.mean()), depth_max=int(depths.max()),
-        leaf_histogram=hist, optimized_nodes=optimized, one_sided_retries=one_sided, forced_leaves=forced,
-        rounds=rounds, build_ms=build_ms, bytes=int(len(nodes) * L.NODE_BYTES + n * 4 + 24), cut_nodes=cuts,
-        **_expected_work(area["inner"], area["leaf_prims"], area["big_prims"], gbox, n))
-    return BIH(nodes=nodes, indices=indices, global_aabb=gbox.astype(np.float32), node_depths=node_depth,
-               max_prims=max_prims, max_tree_depth=max_tree_depth, stats=stats)
+        depth_min=int(depths.min()),
+        depth_avg=float(depths.mean()),
+        depth_max=int(depths.max()),
+        leaf_histogram=hist,
+        optimized_nodes=optimized,
+        one_sided_retries=one_sided,
+        forced_leaves=forced,
+        rounds=rounds,
+        build_ms=build_ms,
+        bytes=int(len(nodes) * L.NODE_BYTES + n * 4 + 24),
+        cut_nodes=cuts,
+        **_expected_work(area["inner"], area["leaf_prims"], area["big_prims"], gbox, n),
+    )
+    return BIH(
+        nodes=nodes,
+        indices=indices,
+        global_aabb=gbox.astype(np.float32),
+        node_depths=node_depth,
+        max_prims=max_prims,
+        max_tree_depth=max_tree_depth,
+        stats=stats,
+    )
 
 
-def _cut_empty_space(op: "_Open", tmin: np.ndarray, tmax: np.ndarray, store: "_NodeStore",
-                     max_tree_depth: int, area: dict) -> int:
+def _cut_empty_space(
+    op: _Open, tmin: np.ndarray, tmax: np.ndarray, store: _NodeStore, max_tree_depth: int, area: dict
+) -> int:
     """Step 0 of the module's docstring on the open nodes ``op`` (their primitives' tight
     boxes ``tmin``/``tmax``): while the best cut of a node — the side of its region, on any
     axis, whose empty slab takes the most surface area off it — takes more than
@@ -350,6 +388,7 @@ class _Open:
     (float32 (k, 3) ``bmin``/``bmax``: where listing 3.4's rules put the split), region
     (``rmin``/``rmax``: what the traversal's intervals bound there, the box before the
     thesis's silent shrinks and halvings), depth (root = 1), retries."""
+
     slot: np.ndarray
     lo: np.ndarray
     hi: np.ndarray
@@ -360,12 +399,12 @@ class _Open:
     depth: np.ndarray
     retries: np.ndarray
 
-    def select(self, which) -> "_Open":
+    def select(self, which) -> _Open:
         """The nodes ``which`` (a mask, indices or a slice), as copies."""
         return _Open(*(np.array(getattr(self, f.name)[which]) for f in fields(self)))
 
     @staticmethod
-    def concat(parts: list["_Open"]) -> "_Open":
+    def concat(parts: list[_Open]) -> _Open:
         return _Open(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(_Open)))
 
 
@@ -376,7 +415,7 @@ class _NodeStore:
     def __init__(self, capacity: int):
         self.nodes = L.empty_nodes(capacity)
         self.depth = np.zeros(capacity, dtype=np.int32)
-        self.used = 1          # the root
+        self.used = 1  # the root
 
     def _pairs(self, m: int) -> np.ndarray:
         need = self.used + 2 * m
@@ -415,7 +454,7 @@ class _NodeStore:
         return child + ~top
 
     def done(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.nodes[:self.used], self.depth[:self.used]
+        return self.nodes[: self.used], self.depth[: self.used]
 
 
 def _half_area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -423,8 +462,9 @@ def _half_area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0]
 
 
-def _expected_work(area_inner: float, area_leaf_prims: float, area_big_prims: float, gbox: np.ndarray,
-                   n: int) -> dict[str, float]:
+def _expected_work(
+    area_inner: float, area_leaf_prims: float, area_big_prims: float, gbox: np.ndarray, n: int
+) -> dict[str, float]:
     """``sah_nodes``, ``sah_tests``: node visits and primitive tests a ray through the root box
     can expect (areas relative to the root's); ``sah_big_tests`` the part of the tests in
     leaves of more than BIG_LEAF primitives. A root of no area (all primitives at one point)
@@ -435,8 +475,9 @@ def _expected_work(area_inner: float, area_leaf_prims: float, area_big_prims: fl
     return {"sah_nodes": area_inner / root, "sah_tests": area_leaf_prims / root, "sah_big_tests": area_big_prims / root}
 
 
-def build_for_spheres(centers: np.ndarray, radii: np.ndarray, max_prims: int = 8,
-                      max_tree_depth: int = MAX_TREE_DEPTH) -> BIH:
+def build_for_spheres(
+    centers: np.ndarray, radii: np.ndarray, max_prims: int = 8, max_tree_depth: int = MAX_TREE_DEPTH
+) -> BIH:
     """Listing 3.3: sphere AABBs, the global AABB, then the subdivision."""
     lo, hi = sphere_aabbs(centers, radii)
     return build_bih(lo, hi, max_prims=max_prims, max_tree_depth=max_tree_depth)
@@ -453,16 +494,28 @@ def build_for_scene(scene: Scene, max_prims: int = 8, max_tree_depth: int = MAX_
 class BoundingIntervalHierarchy:
     """Method ``bih``: the thesis's BIH (listings 3.3–3.5), rebuilt per request and traced
     by ``shaders/method_bih.glsl``."""
+
     name = "bih"
-    capabilities = Capabilities(shader="method_bih.glsl", settings=("max_prims", "max_tree_depth", "integrator"),
-                                meshes_on_gpu=True)
+    capabilities = Capabilities(
+        shader="method_bih.glsl", settings=("max_prims", "max_tree_depth", "integrator"), meshes_on_gpu=True
+    )
     bindings = L.BINDINGS
     glsl_defines = staticmethod(L.glsl_defines)
 
-    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
-                max_width: int = limits.DEFAULT_TEXTURE_WIDTH, update: TreeUpdate = REBUILD) -> PreparedMethod:
+    def prepare(
+        self,
+        scene: Scene,
+        max_prims: int,
+        max_tree_depth: int,
+        max_width: int = limits.DEFAULT_TEXTURE_WIDTH,
+        update: TreeUpdate = REBUILD,
+    ) -> PreparedMethod:
         t0 = time.perf_counter()
         bih = build_for_scene(scene, max_prims, max_tree_depth)
         build_ms = (time.perf_counter() - t0) * 1e3
-        return PreparedMethod(gpu_data(scene, lambda: L.pack_bih(bih, scene, max_width), True), build_ms,
-                              {"method": self.name, **bih.stats.to_json(), **mesh_stats(scene)}, tree=bih)
+        return PreparedMethod(
+            gpu_data(scene, lambda: L.pack_bih(bih, scene, max_width), True),
+            build_ms,
+            {"method": self.name, **bih.stats.to_json(), **mesh_stats(scene)},
+            tree=bih,
+        )

@@ -24,21 +24,35 @@ SPHERES = Binding("u_bf_spheres", doc="spheres in id order (gpu_layout.sphere_re
 
 class BruteForce:
     name = "bruteforce"
-    capabilities = Capabilities(shader="method_bruteforce.glsl", tests_every_sphere=True, meshes_on_gpu=True,
-                                settings=("integrator",),
-                                max_primitives=MAX_LOOP_PRIMITIVES)
+    capabilities = Capabilities(
+        shader="method_bruteforce.glsl",
+        tests_every_sphere=True,
+        meshes_on_gpu=True,
+        settings=("integrator",),
+        max_primitives=MAX_LOOP_PRIMITIVES,
+    )
     bindings = (SPHERES, *gpu_layout.TRIANGLE_BINDINGS)
 
     @staticmethod
     def glsl_defines() -> str:
         return ""
 
-    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int,
-                max_width: int = DEFAULT_TEXTURE_WIDTH, update: TreeUpdate = REBUILD) -> PreparedMethod:
+    def prepare(
+        self,
+        scene: Scene,
+        max_prims: int,
+        max_tree_depth: int,
+        max_width: int = DEFAULT_TEXTURE_WIDTH,
+        update: TreeUpdate = REBUILD,
+    ) -> PreparedMethod:
         def pack() -> gpu_layout.PackedScene:
             spheres = gpu_layout.PackedScene(
-                {SPHERES.name: wrap_rows(gpu_layout.sphere_records(scene, np.arange(scene.n_spheres)), max_width)})
+                {SPHERES.name: wrap_rows(gpu_layout.sphere_records(scene, np.arange(scene.n_spheres)), max_width)}
+            )
             return gpu_layout.merged(spheres, gpu_layout.pack_triangles(scene, max_width))
+
         return PreparedMethod(
             gpu_data(scene, pack, True),
-            0.0, {"method": self.name, "primitives": scene.n_spheres + scene.n_triangles, **mesh_stats(scene)})
+            0.0,
+            {"method": self.name, "primitives": scene.n_spheres + scene.n_triangles, **mesh_stats(scene)},
+        )

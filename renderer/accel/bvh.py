@@ -78,6 +78,7 @@ class BVHStats:
     ``rebuilt_subtrees`` / ``rebuilt_primitives``: what the latest selective
     rebuild rebuilt (0 after refit, all after a rebuild).
     """
+
     primitives: int
     nodes: int
     inner_nodes: int
@@ -115,6 +116,7 @@ class BVH:
     indices: int64 (n,) primitive ids in leaf order. prim_lo/prim_hi: the float32
     primitive boxes the tree was last fitted to.
     """
+
     bmin: np.ndarray
     bmax: np.ndarray
     left: np.ndarray
@@ -141,6 +143,7 @@ class BVH:
 
 # ----------------------------------------------------------------------------- helpers
 
+
 def _half_area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """Half the surface area of boxes (…, 3), float64 (empty boxes give garbage: mask them)."""
     d = hi.astype(np.float64) - lo.astype(np.float64)
@@ -161,7 +164,7 @@ class _Nodes:
         self.next = 0
 
     @staticmethod
-    def of(bvh: BVH, extra: int) -> "_Nodes":
+    def of(bvh: BVH, extra: int) -> _Nodes:
         nodes = _Nodes(bvh.n_nodes + extra)
         m = bvh.n_nodes
         nodes.bmin[:m], nodes.bmax[:m] = bvh.bmin, bvh.bmax
@@ -181,7 +184,7 @@ def _rows(plo: np.ndarray, phi: np.ndarray, ids: np.ndarray) -> np.ndarray:
     """(n, ROW) rows of primitives ``ids`` in that order."""
     rows = np.empty((len(ids), ROW), np.float32)
     rows[:, LO], rows[:, HI] = plo[ids], phi[ids]
-    rows[:, CEN] = rows[:, LO] * np.float32(0.5) + rows[:, HI] * np.float32(0.5)   # no overflow near ±3e38
+    rows[:, CEN] = rows[:, LO] * np.float32(0.5) + rows[:, HI] * np.float32(0.5)  # no overflow near ±3e38
     return rows
 
 
@@ -198,9 +201,10 @@ def _set_boxes(nodes: _Nodes, rows: np.ndarray, slot: np.ndarray, lo: np.ndarray
 @dataclass
 class _Split:
     """The cheapest SAH split of each node (between two of its bins)."""
-    cost: np.ndarray          # (k,) (A_L n_L + A_R n_R), inf: none exists
-    bin: np.ndarray           # (k,) last bin of the left child
-    left_lo: np.ndarray       # (k, 3) float32 child boxes
+
+    cost: np.ndarray  # (k,) (A_L n_L + A_R n_R), inf: none exists
+    bin: np.ndarray  # (k,) last bin of the left child
+    left_lo: np.ndarray  # (k, 3) float32 child boxes
     left_hi: np.ndarray
     right_lo: np.ndarray
     right_hi: np.ndarray
@@ -217,14 +221,14 @@ def _bins(r: np.ndarray, seg: np.ndarray, starts: np.ndarray, width: int) -> np.
     bins of the centroid bounds; all in bin 0 where every centroid coincides)."""
     c = r[:, CEN]
     cmin = np.minimum.reduceat(c, starts, axis=0).astype(np.float64)
-    spread = np.maximum.reduceat(c, starts, axis=0) - cmin      # float64: no overflow
+    spread = np.maximum.reduceat(c, starts, axis=0) - cmin  # float64: no overflow
     axis = np.argmax(spread, axis=1)
     k = np.arange(len(starts))
     ext, base = spread[k, axis], cmin[k, axis]
     scale = np.where(ext > 0, width / np.where(ext > 0, ext, 1.0), 0.0)
     a = axis[seg]
     ce = np.where(a == 0, c[:, 0], np.where(a == 1, c[:, 1], c[:, 2]))
-    b = ((ce - base[seg]) * scale[seg]).astype(np.int64)        # ≥ 0: truncation is the floor
+    b = ((ce - base[seg]) * scale[seg]).astype(np.int64)  # ≥ 0: truncation is the floor
     np.clip(b, 0, width - 1, out=b)
     return b
 
@@ -261,9 +265,8 @@ def _cheapest_split(r: np.ndarray, seg: np.ndarray, b: np.ndarray, count: np.nda
         cost = np.where((n_l > 0) & (n_r > 0), (a_l * n_l + a_r * n_r) * balance, np.inf)
     j = np.argmin(cost, axis=0)
     at, nxt = j * k + np.arange(k), (j + 1) * k + np.arange(k)
-    flat = lambda x: x.reshape(3, width * k)  # noqa: E731
-    return _Split(cost.reshape(-1)[at], j, flat(pl)[:, at].T, flat(ph)[:, at].T, flat(sl)[:, nxt].T,
-                  flat(sh)[:, nxt].T)
+    flat = lambda x: x.reshape(3, width * k)
+    return _Split(cost.reshape(-1)[at], j, flat(pl)[:, at].T, flat(ph)[:, at].T, flat(sl)[:, nxt].T, flat(sh)[:, nxt].T)
 
 
 def _scan(x: np.ndarray, op: np.ufunc, reverse: bool = False) -> np.ndarray:
@@ -277,14 +280,23 @@ def _scan(x: np.ndarray, op: np.ufunc, reverse: bool = False) -> np.ndarray:
     return out
 
 
-def _partition(rows: np.ndarray, ids: np.ndarray, r: np.ndarray, pos: np.ndarray, seg: np.ndarray,
-               starts: np.ndarray, local: np.ndarray, lo: np.ndarray, left: np.ndarray) -> np.ndarray:
+def _partition(
+    rows: np.ndarray,
+    ids: np.ndarray,
+    r: np.ndarray,
+    pos: np.ndarray,
+    seg: np.ndarray,
+    starts: np.ndarray,
+    local: np.ndarray,
+    lo: np.ndarray,
+    left: np.ndarray,
+) -> np.ndarray:
     """Partition the rows (and ids) of each range stably, ``left`` ones first; ``r`` are the
     rows at ``pos``, the ranges' elements in order (``local``: each one's place in its range).
     Returns each range's left count."""
     cs = np.cumsum(left, dtype=np.int64)
     n_left = np.add.reduceat(left.astype(np.int64), starts)
-    before = cs[starts] - left[starts]                    # left primitives of the earlier ranges
+    before = cs[starts] - left[starts]  # left primitives of the earlier ranges
     # the k-th left primitive of a range goes to lo + k, the k-th right one to lo + n_left + k;
     # with cs the running left count, both are one add away
     dest = np.where(left, (lo - before - 1)[seg] + cs, (lo + n_left + before)[seg] + local - cs)
@@ -296,8 +308,17 @@ def _partition(rows: np.ndarray, ids: np.ndarray, r: np.ndarray, pos: np.ndarray
     return n_left
 
 
-def _grow(nodes: _Nodes, rows: np.ndarray, ids: np.ndarray, slot: np.ndarray, lo: np.ndarray,
-          hi: np.ndarray, depth: np.ndarray, max_prims: int, max_depth: int) -> dict:
+def _grow(
+    nodes: _Nodes,
+    rows: np.ndarray,
+    ids: np.ndarray,
+    slot: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    depth: np.ndarray,
+    max_prims: int,
+    max_depth: int,
+) -> dict:
     """Build subtrees top-down from open nodes ``slot`` over position ranges [lo, hi).
 
     ``rows`` (:func:`_rows`) and ``ids`` (primitive ids) are in position order and are
@@ -326,7 +347,7 @@ def _grow(nodes: _Nodes, rows: np.ndarray, ids: np.ndarray, slot: np.ndarray, lo
         cand, width = cand[order], width[order]
         clo, cnt = lo[cand], count[cand]
         seg, pos, starts = expand(clo, cnt)
-        r = rows.take(pos, axis=0)      # take: twice as fast as fancy indexing of rows
+        r = rows.take(pos, axis=0)  # take: twice as fast as fancy indexing of rows
         # (2) the cheapest split of each node, group by group
         b = np.empty(len(pos), np.int64)
         parts = []
@@ -344,7 +365,7 @@ def _grow(nodes: _Nodes, rows: np.ndarray, ids: np.ndarray, slot: np.ndarray, lo
         with np.errstate(invalid="ignore", divide="ignore"):
             sah_split = C_TRAV + C_ISECT * best.cost / np.where(area > 0, area, 1.0)
         do_sah = has & ((cnt > max_prims) | (sah_split < C_ISECT * cnt))
-        do_median = ~has & (cnt > max_prims)     # every centroid coincides: the object median
+        do_median = ~has & (cnt > max_prims)  # every centroid coincides: the object median
         median += int(do_median.sum())
         split = np.flatnonzero(do_sah | do_median)
         if not len(split):
@@ -362,9 +383,14 @@ def _grow(nodes: _Nodes, rows: np.ndarray, ids: np.ndarray, slot: np.ndarray, lo
         nodes.bmin[child], nodes.bmax[child] = best.left_lo[split], best.left_hi[split]
         nodes.bmin[child + 1], nodes.bmax[child + 1] = best.right_lo[split], best.right_hi[split]
         med = np.flatnonzero(do_median[split])
-        if len(med):      # median splits have no bin boxes
-            _set_boxes(nodes, rows, np.concatenate([child[med], child[med] + 1]),
-                       np.concatenate([slo[med], mid[med]]), np.concatenate([mid[med], slo[med] + scnt[med]]))
+        if len(med):  # median splits have no bin boxes
+            _set_boxes(
+                nodes,
+                rows,
+                np.concatenate([child[med], child[med] + 1]),
+                np.concatenate([slo[med], mid[med]]),
+                np.concatenate([mid[med], slo[med] + scnt[med]]),
+            )
         slot = np.concatenate([child, child + 1])
         lo = np.concatenate([slo, mid])
         hi = np.concatenate([mid, slo + scnt])
@@ -398,8 +424,14 @@ def near_masks(bmin: np.ndarray, bmax: np.ndarray, left: np.ndarray) -> np.ndarr
                 left_l, left_u = np.maximum(lL[a], int_l), np.minimum(lU[a], int_u)
                 right_l, right_u = np.maximum(rL[a], int_l), np.minimum(rU[a], int_u)
                 di = np.maximum(np.minimum(left_u, right_u) - np.maximum(left_l, right_l), zero)
-                terms[a, neg] = (left_l <= left_u, right_l <= right_u, left_u - left_l, right_u - right_l,
-                                 di, right_front)
+                terms[a, neg] = (
+                    left_l <= left_u,
+                    right_l <= right_u,
+                    left_u - left_l,
+                    right_u - right_l,
+                    di,
+                    right_front,
+                )
         mask = np.zeros(len(inner), dtype=np.uint8)
         for s in range(8):
             t = [terms[a, (s >> a) & 1] for a in range(3)]
@@ -411,11 +443,17 @@ def near_masks(bmin: np.ndarray, bmax: np.ndarray, left: np.ndarray) -> np.ndarr
             both = lvalid & rvalid
             occl = (di[1] * di[2], di[0] * di[2], di[0] * di[1])
             front = [both & x[5] for x in t]
-            la = la - (np.where(front[0], occl[0], zero) + np.where(front[1], occl[1], zero)
-                       + np.where(front[2], occl[2], zero))
-            ra = ra - (np.where(both & ~t[0][5], occl[0], zero) + np.where(both & ~t[1][5], occl[1], zero)
-                       + np.where(both & ~t[2][5], occl[2], zero))
-            mask |= ((la < ra).astype(np.uint8) << np.uint8(s))
+            la = la - (
+                np.where(front[0], occl[0], zero)
+                + np.where(front[1], occl[1], zero)
+                + np.where(front[2], occl[2], zero)
+            )
+            ra = ra - (
+                np.where(both & ~t[0][5], occl[0], zero)
+                + np.where(both & ~t[1][5], occl[1], zero)
+                + np.where(both & ~t[2][5], occl[2], zero)
+            )
+            mask |= (la < ra).astype(np.uint8) << np.uint8(s)
     out[inner] = mask
     return out
 
@@ -428,7 +466,10 @@ def split_costs(bvh_or_arrays) -> np.ndarray:
     if len(inner):
         li = b.left[inner]
         a = _half_area(b.bmin[inner], b.bmax[inner])
-        num = _half_area(b.bmin[li], b.bmax[li]) * b.count[li] + _half_area(b.bmin[li + 1], b.bmax[li + 1]) * b.count[li + 1]
+        num = (
+            _half_area(b.bmin[li], b.bmax[li]) * b.count[li]
+            + _half_area(b.bmin[li + 1], b.bmax[li + 1]) * b.count[li + 1]
+        )
         with np.errstate(invalid="ignore", divide="ignore"):
             out[inner] = np.where(a > 0, num / np.where(a > 0, a, 1.0), np.inf)
     return out
@@ -458,39 +499,72 @@ def expected_work(bvh: BVH) -> dict[str, float]:
         return {"sah_nodes": 0.0, "sah_tests": float(n), "sah_big_tests": float(n if n > BIG_LEAF else 0)}
     inner = bvh.left >= 0
     leaf_work = a[~inner] * bvh.count[~inner]
-    return {"sah_nodes": float(a[inner].sum() / root), "sah_tests": float(leaf_work.sum() / root),
-            "sah_big_tests": float(leaf_work[bvh.count[~inner] > BIG_LEAF].sum() / root)}
+    return {
+        "sah_nodes": float(a[inner].sum() / root),
+        "sah_tests": float(leaf_work.sum() / root),
+        "sah_big_tests": float(leaf_work[bvh.count[~inner] > BIG_LEAF].sum() / root),
+    }
 
 
-def _finish(nodes: _Nodes, indices: np.ndarray, plo: np.ndarray, phi: np.ndarray, max_prims: int,
-            max_tree_depth: int, split_cost: np.ndarray | None) -> BVH:
+def _finish(
+    nodes: _Nodes,
+    indices: np.ndarray,
+    plo: np.ndarray,
+    phi: np.ndarray,
+    max_prims: int,
+    max_tree_depth: int,
+    split_cost: np.ndarray | None,
+) -> BVH:
     m = nodes.next
-    bvh = BVH(bmin=nodes.bmin[:m].copy(), bmax=nodes.bmax[:m].copy(), left=nodes.left[:m].copy(),
-              first=nodes.first[:m].copy(), count=nodes.count[:m].copy(), depth=nodes.depth[:m].copy(),
-              split_cost=np.full(m, np.nan) if split_cost is None else split_cost[:m].copy(),
-              near_mask=np.zeros(m, np.uint8), indices=indices, prim_lo=plo, prim_hi=phi,
-              max_prims=max_prims, max_tree_depth=max_tree_depth)
+    bvh = BVH(
+        bmin=nodes.bmin[:m].copy(),
+        bmax=nodes.bmax[:m].copy(),
+        left=nodes.left[:m].copy(),
+        first=nodes.first[:m].copy(),
+        count=nodes.count[:m].copy(),
+        depth=nodes.depth[:m].copy(),
+        split_cost=np.full(m, np.nan) if split_cost is None else split_cost[:m].copy(),
+        near_mask=np.zeros(m, np.uint8),
+        indices=indices,
+        prim_lo=plo,
+        prim_hi=phi,
+        max_prims=max_prims,
+        max_tree_depth=max_tree_depth,
+    )
     bvh.near_mask = near_masks(bvh.bmin, bvh.bmax, bvh.left)
     return bvh
 
 
-def _stats(bvh: BVH, scheme: str, counters: dict, rebuilt: tuple[int, int], build_ms: float,
-           update_ms: float) -> BVHStats:
+def _stats(
+    bvh: BVH, scheme: str, counters: dict, rebuilt: tuple[int, int], build_ms: float, update_ms: float
+) -> BVHStats:
     leaf = bvh.left < 0
     counts = bvh.count[leaf]
     depths = bvh.depth[leaf]
     return BVHStats(
-        primitives=bvh.n_primitives, nodes=bvh.n_nodes, inner_nodes=int((~leaf).sum()), leaves=int(leaf.sum()),
-        depth_max=int(bvh.depth.max(initial=1)), depth_avg=float(depths.mean()) if len(depths) else 0.0,
+        primitives=bvh.n_primitives,
+        nodes=bvh.n_nodes,
+        inner_nodes=int((~leaf).sum()),
+        leaves=int(leaf.sum()),
+        depth_max=int(bvh.depth.max(initial=1)),
+        depth_avg=float(depths.mean()) if len(depths) else 0.0,
         prims_per_leaf_avg=float(counts.mean()) if len(counts) else 0.0,
-        prims_per_leaf_max=int(counts.max(initial=0)), sah_cost=sah_cost(bvh), **expected_work(bvh),
+        prims_per_leaf_max=int(counts.max(initial=0)),
+        sah_cost=sah_cost(bvh),
+        **expected_work(bvh),
         median_splits=int(counters.get("median_splits", 0)),
-        depth_limited_leaves=int(counters.get("depth_limited_leaves", 0)), scheme=scheme,
-        rebuilt_subtrees=rebuilt[0], rebuilt_primitives=rebuilt[1], build_ms=build_ms, update_ms=update_ms,
-        bytes=int(bvh.n_nodes * L.NODE_BYTES + bvh.n_primitives * 4))
+        depth_limited_leaves=int(counters.get("depth_limited_leaves", 0)),
+        scheme=scheme,
+        rebuilt_subtrees=rebuilt[0],
+        rebuilt_primitives=rebuilt[1],
+        build_ms=build_ms,
+        update_ms=update_ms,
+        bytes=int(bvh.n_nodes * L.NODE_BYTES + bvh.n_primitives * 4),
+    )
 
 
 # ------------------------------------------------------------------------------- build
+
 
 def _check_params(max_prims: int, max_tree_depth: int) -> None:
     if max_prims < 1:
@@ -499,8 +573,9 @@ def _check_params(max_prims: int, max_tree_depth: int) -> None:
         raise ValueError(f"max_tree_depth must be in 1 … {L.STACK_SIZE}")
 
 
-def build_bvh(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 4,
-              max_tree_depth: int = L.STACK_SIZE) -> BVH:
+def build_bvh(
+    aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 4, max_tree_depth: int = L.STACK_SIZE
+) -> BVH:
     """Binned-SAH BVH over float32 primitive boxes ``(n, 3)``; terminates for any finite input."""
     t0 = time.perf_counter()
     _check_params(max_prims, max_tree_depth)
@@ -516,8 +591,17 @@ def build_bvh(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 4,
     if n == 0:
         nodes.bmin[0], nodes.bmax[0] = np.inf, -np.inf
     else:
-        counters = _grow(nodes, _rows(plo, phi, indices), indices, np.zeros(1, np.int64), np.zeros(1, np.int64),
-                         np.full(1, n, np.int64), np.ones(1, np.int64), max_prims, max_tree_depth)
+        counters = _grow(
+            nodes,
+            _rows(plo, phi, indices),
+            indices,
+            np.zeros(1, np.int64),
+            np.zeros(1, np.int64),
+            np.full(1, n, np.int64),
+            np.ones(1, np.int64),
+            max_prims,
+            max_tree_depth,
+        )
     bvh = _finish(nodes, indices, plo, phi, max_prims, max_tree_depth, None)
     bvh.split_cost = split_costs(bvh)
     ms = (time.perf_counter() - t0) * 1e3
@@ -525,8 +609,9 @@ def build_bvh(aabb_min: np.ndarray, aabb_max: np.ndarray, max_prims: int = 4,
     return bvh
 
 
-def build_for_spheres(centers: np.ndarray, radii: np.ndarray, max_prims: int = 4,
-                      max_tree_depth: int = L.STACK_SIZE) -> BVH:
+def build_for_spheres(
+    centers: np.ndarray, radii: np.ndarray, max_prims: int = 4, max_tree_depth: int = L.STACK_SIZE
+) -> BVH:
     lo, hi = sphere_aabbs(centers, radii)
     return build_bvh(lo, hi, max_prims, max_tree_depth)
 
@@ -538,6 +623,7 @@ def build_for_scene(scene, max_prims: int = 4, max_tree_depth: int = L.STACK_SIZ
 
 
 # ------------------------------------------------------------------------------ update
+
 
 def _levels(bvh: BVH) -> list[np.ndarray]:
     """Inner nodes grouped by depth, deepest first."""
@@ -580,10 +666,22 @@ def _relayout(bvh: BVH) -> BVH:
     new_id = np.full(bvh.n_nodes, -1, np.int64)
     new_id[o] = np.arange(len(o))
     left = bvh.left[o]
-    return BVH(bmin=bvh.bmin[o], bmax=bvh.bmax[o], left=np.where(left >= 0, new_id[np.maximum(left, 0)], -1),
-               first=bvh.first[o], count=bvh.count[o], depth=bvh.depth[o], split_cost=bvh.split_cost[o],
-               near_mask=bvh.near_mask[o], indices=bvh.indices, prim_lo=bvh.prim_lo, prim_hi=bvh.prim_hi,
-               max_prims=bvh.max_prims, max_tree_depth=bvh.max_tree_depth, stats=bvh.stats)
+    return BVH(
+        bmin=bvh.bmin[o],
+        bmax=bvh.bmax[o],
+        left=np.where(left >= 0, new_id[np.maximum(left, 0)], -1),
+        first=bvh.first[o],
+        count=bvh.count[o],
+        depth=bvh.depth[o],
+        split_cost=bvh.split_cost[o],
+        near_mask=bvh.near_mask[o],
+        indices=bvh.indices,
+        prim_lo=bvh.prim_lo,
+        prim_hi=bvh.prim_hi,
+        max_prims=bvh.max_prims,
+        max_tree_depth=bvh.max_tree_depth,
+        stats=bvh.stats,
+    )
 
 
 def refit(bvh: BVH, aabb_min: np.ndarray, aabb_max: np.ndarray) -> BVH:
@@ -601,8 +699,9 @@ def refit(bvh: BVH, aabb_min: np.ndarray, aabb_max: np.ndarray) -> BVH:
     return bvh
 
 
-def selective_rebuild(bvh: BVH, aabb_min: np.ndarray, aabb_max: np.ndarray,
-                      threshold: float = DEFAULT_THRESHOLD) -> BVH:
+def selective_rebuild(
+    bvh: BVH, aabb_min: np.ndarray, aabb_max: np.ndarray, threshold: float = DEFAULT_THRESHOLD
+) -> BVH:
     """Refit, then rebuild every topmost subtree whose split cost grew beyond ``1 + threshold``.
 
     Returns a new (compacted) BVH; ``bvh`` itself is refitted in place.
@@ -633,15 +732,24 @@ def selective_rebuild(bvh: BVH, aabb_min: np.ndarray, aabb_max: np.ndarray,
         nodes = _Nodes.of(bvh, 2 * int(bvh.count[roots].sum()))
         split_cost = np.concatenate([bvh.split_cost, np.full(nodes.bmin.shape[0] - bvh.n_nodes, np.nan)])
         indices = bvh.indices.copy()
-        counters = _grow(nodes, _rows(plo, phi, indices), indices, roots.astype(np.int64), lo, hi,
-                         bvh.depth[roots].copy(), bvh.max_prims, bvh.max_tree_depth)
+        counters = _grow(
+            nodes,
+            _rows(plo, phi, indices),
+            indices,
+            roots.astype(np.int64),
+            lo,
+            hi,
+            bvh.depth[roots].copy(),
+            bvh.max_prims,
+            bvh.max_tree_depth,
+        )
         grown = _finish(nodes, indices, plo, phi, bvh.max_prims, bvh.max_tree_depth, split_cost)
         grown.stats = bvh.stats
         # record the split costs of the new splits (the kept nodes keep their original ones)
         fresh = split_costs(grown)
         new_nodes = np.zeros(grown.n_nodes, dtype=bool)
         new_nodes[roots] = True
-        new_nodes[bvh.n_nodes:] = True
+        new_nodes[bvh.n_nodes :] = True
         grown.split_cost = np.where(new_nodes, fresh, grown.split_cost)
         out = _relayout(grown)
     else:
@@ -649,8 +757,14 @@ def selective_rebuild(bvh: BVH, aabb_min: np.ndarray, aabb_max: np.ndarray,
         out = bvh
     ms = (time.perf_counter() - t0) * 1e3
     old = bvh.stats
-    out.stats = _stats(out, "selective", counters, (len(roots), int(bvh.count[roots].sum()) if len(roots) else 0),
-                       old.build_ms if old else 0.0, ms)
+    out.stats = _stats(
+        out,
+        "selective",
+        counters,
+        (len(roots), int(bvh.count[roots].sum()) if len(roots) else 0),
+        old.build_ms if old else 0.0,
+        ms,
+    )
     return out
 
 
@@ -664,8 +778,7 @@ class BVHUpdater:
     frame.
     """
 
-    def __init__(self, max_prims: int = 4, max_tree_depth: int = L.STACK_SIZE,
-                 threshold: float = DEFAULT_THRESHOLD):
+    def __init__(self, max_prims: int = 4, max_tree_depth: int = L.STACK_SIZE, threshold: float = DEFAULT_THRESHOLD):
         _check_params(max_prims, max_tree_depth)
         self.max_prims = max_prims
         self.max_tree_depth = max_tree_depth
@@ -693,6 +806,7 @@ class BVHUpdater:
 
 # ------------------------------------------------------------------------------ method
 
+
 class BVHMethod:
     """Method ``bvh``: the BVH of this module, traced by ``shaders/method_bvh.glsl``.
 
@@ -702,10 +816,14 @@ class BVHMethod:
     slot when None) is updated instead, as long as the sphere count and build limits
     are unchanged. The last ``CACHE_SLOTS`` keys are kept.
     """
+
     name = "bvh"
-    capabilities = Capabilities(shader="method_bvh.glsl", update_schemes=UPDATE_SCHEMES,
-                                settings=("max_prims", "max_tree_depth", "update", "integrator"),
-                                meshes_on_gpu=True)
+    capabilities = Capabilities(
+        shader="method_bvh.glsl",
+        update_schemes=UPDATE_SCHEMES,
+        settings=("max_prims", "max_tree_depth", "update", "integrator"),
+        meshes_on_gpu=True,
+    )
     bindings = L.BINDINGS
     glsl_defines = staticmethod(L.glsl_defines)
     CACHE_SLOTS = 8
@@ -716,7 +834,7 @@ class BVHMethod:
     def updater(self, key, max_prims: int, max_tree_depth: int, threshold: float = DEFAULT_THRESHOLD) -> BVHUpdater:
         k = (key, max_prims, max_tree_depth, threshold)
         up = self._updaters.pop(k, None) or BVHUpdater(max_prims, max_tree_depth, threshold)
-        self._updaters[k] = up                       # most recent last
+        self._updaters[k] = up  # most recent last
         while len(self._updaters) > self.CACHE_SLOTS:
             self._updaters.pop(next(iter(self._updaters)))
         return up
@@ -727,20 +845,26 @@ class BVHMethod:
         lo, hi = scene_aabbs(scene)
         return self.build_boxes(lo, hi, max_prims, max_tree_depth, update)
 
-    def build_boxes(self, lo: np.ndarray, hi: np.ndarray, max_prims: int, max_tree_depth: int,
-                    update: TreeUpdate = REBUILD) -> BVH:
+    def build_boxes(
+        self, lo: np.ndarray, hi: np.ndarray, max_prims: int, max_tree_depth: int, update: TreeUpdate = REBUILD
+    ) -> BVH:
         """The same over primitive boxes (float32 (n, 3)): the two-level method's moving part."""
         if update.scheme == "rebuild":
             return build_bvh(lo, hi, max_prims, max_tree_depth)
-        return self.updater(update.key, max_prims, max_tree_depth, update.threshold).update_boxes(
-            lo, hi, update.scheme)
+        return self.updater(update.key, max_prims, max_tree_depth, update.threshold).update_boxes(lo, hi, update.scheme)
 
-    def prepare(self, scene, max_prims: int, max_tree_depth: int, max_width: int = DEFAULT_TEXTURE_WIDTH,
-                update: TreeUpdate = REBUILD) -> PreparedMethod:
+    def prepare(
+        self,
+        scene,
+        max_prims: int,
+        max_tree_depth: int,
+        max_width: int = DEFAULT_TEXTURE_WIDTH,
+        update: TreeUpdate = REBUILD,
+    ) -> PreparedMethod:
         t0 = time.perf_counter()
         bvh = self.build(scene, max_prims, max_tree_depth, update)
         ms = (time.perf_counter() - t0) * 1e3
-        packed = gpu_data(scene, meshes_on_gpu=True, method=self.name,
-                          pack=lambda: L.pack_bvh(bvh, scene, None, max_width))
-        return PreparedMethod(packed, ms,
-                              {"method": self.name, **bvh.stats.to_json(), **mesh_stats(scene)}, tree=bvh)
+        packed = gpu_data(
+            scene, meshes_on_gpu=True, method=self.name, pack=lambda: L.pack_bvh(bvh, scene, None, max_width)
+        )
+        return PreparedMethod(packed, ms, {"method": self.name, **bvh.stats.to_json(), **mesh_stats(scene)}, tree=bvh)

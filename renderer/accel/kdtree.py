@@ -69,6 +69,7 @@ class KdStats:
     "size" (the build's layout; the GPU's, ``kdtree_layout``, holds a sphere record per
     reference); ``sah_cost``: ``(C_TRAV Σ_inner A + C_ISECT Σ_leaf A·n) / A_root``.
     """
+
     primitives: int
     nodes: int
     inner_nodes: int
@@ -104,6 +105,7 @@ class KdTree:
     leaf's range of ``indices`` (ranges of different leaves may overlap after
     compaction). depth: root = 1. vmin/vmax: float32 voxel of every node.
     """
+
     axis: np.ndarray
     left: np.ndarray
     split: np.ndarray
@@ -123,7 +125,7 @@ class KdTree:
         return len(self.axis)
 
     def leaf_prims(self, node: int) -> np.ndarray:
-        return self.indices[self.offset[node]:self.offset[node] + self.count[node]]
+        return self.indices[self.offset[node] : self.offset[node] + self.count[node]]
 
 
 def _first_in_group(keys: np.ndarray) -> np.ndarray:
@@ -131,9 +133,14 @@ def _first_in_group(keys: np.ndarray) -> np.ndarray:
     return np.searchsorted(keys, keys, side="left")
 
 
-def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int = L.STACK_SIZE,
-                 cost_scale: float = DEFAULT_COST_SCALE, compaction_window: int = COMPACTION_WINDOW,
-                 max_depth: int | None = None) -> KdTree:
+def build_kdtree(
+    aabb_min: np.ndarray,
+    aabb_max: np.ndarray,
+    max_tree_depth: int = L.STACK_SIZE,
+    cost_scale: float = DEFAULT_COST_SCALE,
+    compaction_window: int = COMPACTION_WINDOW,
+    max_depth: int | None = None,
+) -> KdTree:
     """SAH kd-tree over float32 primitive boxes ``(n, 3)``; terminates for any finite input.
 
     ``max_depth`` overrides the automatic depth limit (still capped by ``max_tree_depth``).
@@ -172,10 +179,15 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
         order = np.argsort(pos, kind="stable")
         ev_pos.append(pos[order])
         ev_ref.append(np.concatenate([ref_prim, ref_prim])[order])
-        ev_st.append((order < n))
+        ev_st.append(order < n)
     if n == 0:
-        f_slot.append(slot); f_axis.append(np.full(1, -1)); f_left.append(np.full(1, -1))
-        f_split.append(np.zeros(1, np.float32)); f_depth.append(depth); f_vmin.append(vmin); f_vmax.append(vmax)
+        f_slot.append(slot)
+        f_axis.append(np.full(1, -1))
+        f_left.append(np.full(1, -1))
+        f_split.append(np.zeros(1, np.float32))
+        f_depth.append(depth)
+        f_vmin.append(vmin)
+        f_vmax.append(vmax)
         slot = slot[:0]
 
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
@@ -186,7 +198,7 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
             best = np.full(k, np.inf)
             best_axis = np.zeros(k, np.int64)
             best_pos = np.zeros(k, np.float32)
-            may_split = (depth < D)
+            may_split = depth < D
             if len(ref_node) > MAX_REFS_PER_PRIM * n + 1024:
                 blowup += int(may_split.sum())
                 may_split[:] = False
@@ -203,10 +215,10 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
                     ne = ref_node[er]
                     m = len(ep)
                     st_i = es.astype(np.int64)
-                    cs = np.cumsum(st_i) - st_i                  # starts strictly before
+                    cs = np.cumsum(st_i) - st_i  # starts strictly before
                     s_before = cs - cs[e_base][ne]
                     en_i = 1 - st_i
-                    ce = np.cumsum(en_i)                         # ends up to and including
+                    ce = np.cumsum(en_i)  # ends up to and including
                     e_incl = ce - (ce - en_i)[e_base][ne]
                     gs = np.empty(m, dtype=bool)
                     gs[0] = True
@@ -246,7 +258,10 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
             split = np.isfinite(best) & (best < C_ISECT * N * scale) & may_split
 
             # record every open node; leaves get their references
-            f_slot.append(slot); f_depth.append(depth); f_vmin.append(vmin.copy()); f_vmax.append(vmax.copy())
+            f_slot.append(slot)
+            f_depth.append(depth)
+            f_vmin.append(vmin.copy())
+            f_vmax.append(vmax.copy())
             f_axis.append(np.where(split, best_axis, -1))
             f_split.append(np.where(split, best_pos, np.float32(0)).astype(np.float32))
             sp = np.flatnonzero(split)
@@ -278,8 +293,9 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
                 go_r[er[em]] = ep[em] > pn[em]
 
             # children: interleaved (left, right) per splitting node; empty ones are leaves now
-            c_cnt = np.stack([np.bincount(ref_node[go_l], minlength=k)[sp],
-                              np.bincount(ref_node[go_r], minlength=k)[sp]], axis=1).ravel()
+            c_cnt = np.stack(
+                [np.bincount(ref_node[go_l], minlength=k)[sp], np.bincount(ref_node[go_r], minlength=k)[sp]], axis=1
+            ).ravel()
             c_slot = np.stack([child, child + 1], axis=1).ravel()
             c_depth = np.repeat(depth[sp] + 1, 2)
             c_vmin = np.repeat(vmin[sp], 2, axis=0)
@@ -290,8 +306,12 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
             empty = c_cnt == 0
             if empty.any():
                 e = np.flatnonzero(empty)
-                f_slot.append(c_slot[e]); f_depth.append(c_depth[e]); f_vmin.append(c_vmin[e]); f_vmax.append(c_vmax[e])
-                f_axis.append(np.full(len(e), -1)); f_left.append(np.full(len(e), -1))
+                f_slot.append(c_slot[e])
+                f_depth.append(c_depth[e])
+                f_vmin.append(c_vmin[e])
+                f_vmax.append(c_vmax[e])
+                f_axis.append(np.full(len(e), -1))
+                f_left.append(np.full(len(e), -1))
                 f_split.append(np.zeros(len(e), np.float32))
             keep = ~empty
             new_id = np.cumsum(keep) - 1
@@ -391,7 +411,7 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
             win = 4 * int(compaction_window)
             offs = np.empty(len(starts), np.int64)
             for i, (s0, c) in enumerate(zip(starts.tolist(), counts.tolist())):
-                key = buf[4 * s0:4 * (s0 + c)]
+                key = buf[4 * s0 : 4 * (s0 + c)]
                 j = glob.find(key, max(0, len(glob) - win))
                 while j != -1 and j % 4:
                     j = glob.find(key, j + 1)
@@ -409,42 +429,76 @@ def build_kdtree(aabb_min: np.ndarray, aabb_max: np.ndarray, max_tree_depth: int
         indices = np.zeros(0, np.int64)
     compaction_ms = (time.perf_counter() - t_comp) * 1e3
 
-    kd = KdTree(axis=axis, left=left, split=split_pos, count=count, offset=offset, depth=ndepth,
-                vmin=nvmin, vmax=nvmax, indices=indices, global_box=gbox.astype(np.float32), max_depth=D,
-                cost_scale=float(cost_scale))
+    kd = KdTree(
+        axis=axis,
+        left=left,
+        split=split_pos,
+        count=count,
+        offset=offset,
+        depth=ndepth,
+        vmin=nvmin,
+        vmax=nvmax,
+        indices=indices,
+        global_box=gbox.astype(np.float32),
+        max_depth=D,
+        cost_scale=float(cost_scale),
+    )
     leaf = axis < 0
     vd = nvmax.astype(np.float64) - nvmin.astype(np.float64)
     area = vd[:, 0] * vd[:, 1] + vd[:, 1] * vd[:, 2] + vd[:, 2] * vd[:, 0]
-    sah = float((C_TRAV * area[~leaf].sum() + C_ISECT * (area[leaf] * count[leaf]).sum()) / area[0]) \
-        if n and area[0] > 0 else float(C_ISECT * n)
+    sah = (
+        float((C_TRAV * area[~leaf].sum() + C_ISECT * (area[leaf] * count[leaf]).sum()) / area[0])
+        if n and area[0] > 0
+        else float(C_ISECT * n)
+    )
     # The SAH's terms apart, for the cost model (renderer/cost.py).
     sah_nodes = float(area[~leaf].sum() / area[0]) if n and area[0] > 0 else 0.0
     sah_tests = float((area[leaf] * count[leaf]).sum() / area[0]) if n and area[0] > 0 else float(n)
     big = leaf & (count > BIG_LEAF)
-    sah_big_tests = float((area[big] * count[big]).sum() / area[0]) if n and area[0] > 0 else \
-        float(n if n > BIG_LEAF else 0)
+    sah_big_tests = (
+        float((area[big] * count[big]).sum() / area[0]) if n and area[0] > 0 else float(n if n > BIG_LEAF else 0)
+    )
     nonempty = leaf & (count > 0)
     build_ms = (time.perf_counter() - t_start) * 1e3
     kd.stats = KdStats(
-        primitives=n, nodes=m, inner_nodes=int((~leaf).sum()), leaves=int(leaf.sum()),
-        empty_leaves=int((leaf & (count == 0)).sum()), depth_max=int(ndepth.max(initial=1)),
-        depth_avg=float(ndepth[leaf].mean()) if leaf.any() else 1.0, max_depth=D, cost_scale=float(cost_scale),
-        references=references, indices=len(indices), refs_per_prim=references / n if n else 0.0,
-        prims_per_leaf_avg=float(count[nonempty].mean()) if nonempty.any() else 0.0, sah_cost=sah,
-        sah_nodes=sah_nodes, sah_tests=sah_tests, sah_big_tests=sah_big_tests,
-        rounds=rounds, blowup_stops=blowup, build_ms=build_ms, compaction_ms=compaction_ms,
-        bytes=int(m * L.NODE_BYTES + len(indices) * 4 + 24))
+        primitives=n,
+        nodes=m,
+        inner_nodes=int((~leaf).sum()),
+        leaves=int(leaf.sum()),
+        empty_leaves=int((leaf & (count == 0)).sum()),
+        depth_max=int(ndepth.max(initial=1)),
+        depth_avg=float(ndepth[leaf].mean()) if leaf.any() else 1.0,
+        max_depth=D,
+        cost_scale=float(cost_scale),
+        references=references,
+        indices=len(indices),
+        refs_per_prim=references / n if n else 0.0,
+        prims_per_leaf_avg=float(count[nonempty].mean()) if nonempty.any() else 0.0,
+        sah_cost=sah,
+        sah_nodes=sah_nodes,
+        sah_tests=sah_tests,
+        sah_big_tests=sah_big_tests,
+        rounds=rounds,
+        blowup_stops=blowup,
+        build_ms=build_ms,
+        compaction_ms=compaction_ms,
+        bytes=int(m * L.NODE_BYTES + len(indices) * 4 + 24),
+    )
     return kd
 
 
-def build_for_spheres(centers: np.ndarray, radii: np.ndarray, max_tree_depth: int = L.STACK_SIZE,
-                      cost_scale: float = DEFAULT_COST_SCALE, **kw) -> KdTree:
+def build_for_spheres(
+    centers: np.ndarray,
+    radii: np.ndarray,
+    max_tree_depth: int = L.STACK_SIZE,
+    cost_scale: float = DEFAULT_COST_SCALE,
+    **kw,
+) -> KdTree:
     lo, hi = sphere_aabbs(centers, radii)
     return build_kdtree(lo, hi, max_tree_depth=max_tree_depth, cost_scale=cost_scale, **kw)
 
 
-def build_for_scene(scene, max_tree_depth: int = L.STACK_SIZE, cost_scale: float = DEFAULT_COST_SCALE,
-                    **kw) -> KdTree:
+def build_for_scene(scene, max_tree_depth: int = L.STACK_SIZE, cost_scale: float = DEFAULT_COST_SCALE, **kw) -> KdTree:
     """A kd-tree over the scene's spheres then triangles (:mod:`renderer.accel.primitives`)."""
     lo, hi = scene_aabbs(scene)
     return build_kdtree(lo, hi, max_tree_depth=max_tree_depth, cost_scale=cost_scale, **kw)
@@ -453,21 +507,29 @@ def build_for_scene(scene, max_tree_depth: int = L.STACK_SIZE, cost_scale: float
 class KdTreeMethod:
     """Method ``kdtree``: the SAH kd-tree of this module (cost scaling on), rebuilt per request,
     traced by ``shaders/method_kdtree.glsl``. ``max_prims`` is not used: the SAH decides."""
+
     name = "kdtree"
     # (no max_prims: the SAH decides leaves)
-    capabilities = Capabilities(shader="method_kdtree.glsl", settings=("max_tree_depth", "integrator"),
-                                meshes_on_gpu=True)
+    capabilities = Capabilities(
+        shader="method_kdtree.glsl", settings=("max_tree_depth", "integrator"), meshes_on_gpu=True
+    )
     bindings = L.BINDINGS
     glsl_defines = staticmethod(L.glsl_defines)
     cost_scale = DEFAULT_COST_SCALE
 
-    def prepare(self, scene, max_prims: int, max_tree_depth: int, max_width: int = DEFAULT_TEXTURE_WIDTH,
-                update: TreeUpdate = REBUILD) -> PreparedMethod:
+    def prepare(
+        self,
+        scene,
+        max_prims: int,
+        max_tree_depth: int,
+        max_width: int = DEFAULT_TEXTURE_WIDTH,
+        update: TreeUpdate = REBUILD,
+    ) -> PreparedMethod:
         """Builds a fresh tree every frame: a kd-tree is not refitted (``update`` is ignored)."""
         t0 = time.perf_counter()
         kd = build_for_scene(scene, max_tree_depth, self.cost_scale)
         ms = (time.perf_counter() - t0) * 1e3
-        packed = gpu_data(scene, meshes_on_gpu=True, method=self.name,
-                          pack=lambda: L.pack_kdtree(kd, scene, None, max_width))
-        return PreparedMethod(packed, ms,
-                              {"method": self.name, **kd.stats.to_json(), **mesh_stats(scene)}, tree=kd)
+        packed = gpu_data(
+            scene, meshes_on_gpu=True, method=self.name, pack=lambda: L.pack_kdtree(kd, scene, None, max_width)
+        )
+        return PreparedMethod(packed, ms, {"method": self.name, **kd.stats.to_json(), **mesh_stats(scene)}, tree=kd)

@@ -9,9 +9,9 @@ import numpy as np
 from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene
 from ..scene import Scene
 from ..tree_update import REBUILD, UPDATE_SCHEMES, TreeUpdate
+from . import bvh_layout, kdtree_layout
 from .base import Capabilities, PreparedMethod, gpu_data, mesh_stats
 from .bvh import BVHMethod
-from . import bvh_layout, kdtree_layout
 from .bvh_layout import pack_bvh
 from .kdtree import DEFAULT_COST_SCALE, build_kdtree
 from .kdtree_layout import pack_kdtree
@@ -34,17 +34,26 @@ class TwoLevelMethod:
     prepared method is ``(kd, static_ids, bvh, moving_ids)``, each structure built over its
     subset (its primitive ``i`` is tree primitive ``ids[i]``).
     """
+
     name = "twolevel"
-    capabilities = Capabilities(shader="method_twolevel.glsl", update_schemes=UPDATE_SCHEMES,
-                                settings=("max_prims", "max_tree_depth", "update", "integrator"),
-                                meshes_on_gpu=True)
+    capabilities = Capabilities(
+        shader="method_twolevel.glsl",
+        update_schemes=UPDATE_SCHEMES,
+        settings=("max_prims", "max_tree_depth", "update", "integrator"),
+        meshes_on_gpu=True,
+    )
     # Both trees' bindings; the triangles' records, which both list, once.
-    bindings = (*kdtree_layout.BINDINGS,
-                *(b for b in bvh_layout.BINDINGS if b not in kdtree_layout.TRIANGLE_BINDINGS), KD_COUNT, BVH_COUNT)
+    bindings = (
+        *kdtree_layout.BINDINGS,
+        *(b for b in bvh_layout.BINDINGS if b not in kdtree_layout.TRIANGLE_BINDINGS),
+        KD_COUNT,
+        BVH_COUNT,
+    )
 
     @staticmethod
     def glsl_defines() -> str:
         return bvh_layout.glsl_defines() + kdtree_layout.glsl_defines()
+
     CACHE_SLOTS = 8
 
     def __init__(self) -> None:
@@ -65,14 +74,21 @@ class TwoLevelMethod:
             self._kd.pop(next(iter(self._kd)))
         return hit, fresh
 
-    def prepare(self, scene: Scene, max_prims: int, max_tree_depth: int, max_width: int = DEFAULT_TEXTURE_WIDTH,
-                update: TreeUpdate = REBUILD) -> PreparedMethod:
+    def prepare(
+        self,
+        scene: Scene,
+        max_prims: int,
+        max_tree_depth: int,
+        max_width: int = DEFAULT_TEXTURE_WIDTH,
+        update: TreeUpdate = REBUILD,
+    ) -> PreparedMethod:
         t0 = time.perf_counter()
         n = scene.n_spheres + scene.n_triangles
         mv = np.zeros(n, dtype=bool) if update.moving is None else np.asarray(update.moving, dtype=bool).reshape(-1)
         if len(mv) != n:
-            raise ValueError(f"moving mask has {len(mv)} entries for {scene.n_spheres} spheres and "
-                             f"{scene.n_triangles} triangles")
+            raise ValueError(
+                f"moving mask has {len(mv)} entries for {scene.n_spheres} spheres and {scene.n_triangles} triangles"
+            )
         static_ids = np.flatnonzero(~mv)
         moving_ids = np.flatnonzero(mv)
         lo, hi = scene_aabbs(scene)
@@ -80,18 +96,31 @@ class TwoLevelMethod:
         t1 = time.perf_counter()
         bvh = self._bvh.build_boxes(lo[moving_ids], hi[moving_ids], max_prims, max_tree_depth, update)
         t2 = time.perf_counter()
-        packed = gpu_data(scene, meshes_on_gpu=True, method=self.name,
-                          pack=lambda: pack_twolevel(kd, static_ids, bvh, moving_ids, scene, max_width))
-        stats = {"method": self.name, "static": int(len(static_ids)), "moving": int(len(moving_ids)),
-                 "kd_build_ms": (t1 - t0) * 1e3 if fresh else 0.0, "kd_cached": not fresh,
-                 "bvh_update_ms": (t2 - t1) * 1e3, "scheme": bvh.stats.scheme,
-                 "kd": kd.stats.to_json(), "bvh": bvh.stats.to_json(),
-                 "bytes": kd.stats.bytes + bvh.stats.bytes, **mesh_stats(scene)}
+        packed = gpu_data(
+            scene,
+            meshes_on_gpu=True,
+            method=self.name,
+            pack=lambda: pack_twolevel(kd, static_ids, bvh, moving_ids, scene, max_width),
+        )
+        stats = {
+            "method": self.name,
+            "static": int(len(static_ids)),
+            "moving": int(len(moving_ids)),
+            "kd_build_ms": (t1 - t0) * 1e3 if fresh else 0.0,
+            "kd_cached": not fresh,
+            "bvh_update_ms": (t2 - t1) * 1e3,
+            "scheme": bvh.stats.scheme,
+            "kd": kd.stats.to_json(),
+            "bvh": bvh.stats.to_json(),
+            "bytes": kd.stats.bytes + bvh.stats.bytes,
+            **mesh_stats(scene),
+        }
         return PreparedMethod(packed, (t2 - t0) * 1e3, stats, tree=(kd, static_ids, bvh, moving_ids))
 
 
-def pack_twolevel(kd, kd_ids: np.ndarray, bvh, bvh_ids: np.ndarray, scene: Scene,
-                  max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
+def pack_twolevel(
+    kd, kd_ids: np.ndarray, bvh, bvh_ids: np.ndarray, scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH
+) -> PackedScene:
     """Two levels: the kd-tree over the spheres ``kd_ids`` and the BVH over ``bvh_ids``.
 
     Each structure was built over its subset (primitive ``i`` = tree primitive ``ids[i]``: a
@@ -101,6 +130,12 @@ def pack_twolevel(kd, kd_ids: np.ndarray, bvh, bvh_ids: np.ndarray, scene: Scene
     """
     kd_part = pack_kdtree(kd, scene, kd_ids, max_width)
     bvh_part = pack_bvh(bvh, scene, bvh_ids, max_width)
-    return PackedScene(textures={**kd_part.textures, **bvh_part.textures},
-                       uniforms={**kd_part.uniforms, **bvh_part.uniforms, KD_COUNT.name: int(len(kd_ids)),
-                                 BVH_COUNT.name: int(len(bvh_ids))})
+    return PackedScene(
+        textures={**kd_part.textures, **bvh_part.textures},
+        uniforms={
+            **kd_part.uniforms,
+            **bvh_part.uniforms,
+            KD_COUNT.name: int(len(kd_ids)),
+            BVH_COUNT.name: int(len(bvh_ids)),
+        },
+    )

@@ -47,8 +47,8 @@ import numpy as np
 
 from .. import gpu_layout
 from ..gpu_layout import PackedScene, Variant
-from ..methods import PreparedMethod
 from ..limits import PATH_SAMPLES_PER_PASS
+from ..methods import PreparedMethod
 from ..modes import AVERAGED_MODES
 from ..result import RenderResult
 from ..scene import Scene
@@ -59,11 +59,11 @@ if TYPE_CHECKING:
     from ..settings import RenderSettings
 
 
-
 @dataclass(frozen=True)
 class Pass:
     """One pass: the pixel centres (``sub`` None) or one sub-pixel of a ``scale``² grid; of the
     path integrator, ``samples`` = (first, count): those samples of every pixel, summed."""
+
     scale: int
     sub: tuple[int, int] | None
     samples: tuple[int, int] | None = None
@@ -75,11 +75,14 @@ class Pass:
         return "centre" if self.sub is None else f"sample {self.sub[0]},{self.sub[1]}"
 
 
-def image_only(settings: "RenderSettings") -> bool:
+def image_only(settings: RenderSettings) -> bool:
     """Whether a frame needs only its 8-bit image: png or jpeg at one sample per pixel (a
     supersampled frame keeps float sub-pixels, so its box filter is the same)."""
-    return (settings.format in ("png", "jpeg") and settings.samples_per_pixel == 1
-            and not (settings.integrator == "path" and settings.mode == "color"))   # radiance, tone-mapped later
+    return (
+        settings.format in ("png", "jpeg")
+        and settings.samples_per_pixel == 1
+        and not (settings.integrator == "path" and settings.mode == "color")
+    )  # radiance, tone-mapped later
 
 
 class ImageOnlyResult(RenderResult):
@@ -143,10 +146,21 @@ class TracerFrame:
     compare against it.
     """
 
-    def __init__(self, renderer, scene: Scene, settings: "RenderSettings", variant: Variant,
-                 prepared: PreparedMethod, stats: dict, *, band_rows: int | None = None, one_shot: bool = False,
-                 t_start: float | None = None, slice_ms: float | None = None,
-                 samples_per_pass: int = PATH_SAMPLES_PER_PASS):
+    def __init__(
+        self,
+        renderer,
+        scene: Scene,
+        settings: RenderSettings,
+        variant: Variant,
+        prepared: PreparedMethod,
+        stats: dict,
+        *,
+        band_rows: int | None = None,
+        one_shot: bool = False,
+        t_start: float | None = None,
+        slice_ms: float | None = None,
+        samples_per_pass: int = PATH_SAMPLES_PER_PASS,
+    ):
         self.renderer, self.ctx = renderer, renderer.ctx
         self.scene, self.settings, self.variant, self.prepared = scene, settings, variant, prepared
         self.stats = stats
@@ -159,33 +173,45 @@ class TracerFrame:
             self.passes = plan_path_passes(settings.samples_per_pixel, samples_per_pass)
         else:
             self.passes = [Pass(self.k, None)] if self.one_shot else plan_passes(settings.mode, self.k)
-        self._sum: np.ndarray | None = None   # the path integrator's sum of samples (GL rows), float64
+        self._sum: np.ndarray | None = None  # the path integrator's sum of samples (GL rows), float64
         self.band_rows = band_rows
         self.slice_ms = slice_ms
-        self.prog, self.vao = renderer.program(variant.method, variant.mode, variant.depth, variant.features,
-                                               variant.blocks, variant.image_only)
+        self.prog, self.vao = renderer.program(
+            variant.method, variant.mode, variant.depth, variant.features, variant.blocks, variant.image_only
+        )
         # The pixels whose primary ray can meet no sphere (no primitive at all, when hits spawn
         # rays) are drawn by the background variant.
         self.regions: list[tuple[int, int, int, int, bool]] | None = None
         # (Not for paths: their primary rays are spread over the pixel, and the environment lights every miss.)
-        if (getattr(renderer, "background", False) and variant.mode in BACKGROUND_MODES and not self.one_shot
-                and not self.path):
-            self.regions = gpu_layout.frame_regions(scene, self.width, self.height,
-                                                    planes=variant.mode not in PRIMARY_MODES)
+        if (
+            getattr(renderer, "background", False)
+            and variant.mode in BACKGROUND_MODES
+            and not self.one_shot
+            and not self.path
+        ):
+            self.regions = gpu_layout.frame_regions(
+                scene, self.width, self.height, planes=variant.mode not in PRIMARY_MODES
+            )
             if self.regions is not None:
-                self.bg_prog, self.bg_vao = renderer.program(variant.method, variant.mode, variant.depth,
-                                                             variant.features, (), variant.image_only, False)
+                self.bg_prog, self.bg_vao = renderer.program(
+                    variant.method, variant.mode, variant.depth, variant.features, (), variant.image_only, False
+                )
                 stats["background_pixels"] = sum(w * h for _, _, w, h, tracer in self.regions if not tracer)
         self.textures: list[moderngl.Texture] = []
         self.buffers: list[moderngl.Buffer] = []
         self.fbo: moderngl.Framebuffer | None = None
-        self.timings = {"build": prepared.build_ms, "update": prepared.build_ms, "upload": 0.0, "trace": 0.0,
-                        "read": 0.0}
+        self.timings = {
+            "build": prepared.build_ms,
+            "update": prepared.build_ms,
+            "upload": 0.0,
+            "trace": 0.0,
+            "read": 0.0,
+        }
         self.slices = 0
         self._pass_index = 0
         self._row = 0
-        self._centre: tuple[np.ndarray, np.ndarray] | None = None   # image, hit of the centre pass (GL rows)
-        self._grid: np.ndarray | None = None                          # kH × kW × 4 sub-pixel images (GL rows)
+        self._centre: tuple[np.ndarray, np.ndarray] | None = None  # image, hit of the centre pass (GL rows)
+        self._grid: np.ndarray | None = None  # kH × kW × 4 sub-pixel images (GL rows)
         self._preview: RenderResult | None = None
         self._result: RenderResult | None = None
         self._upload()
@@ -194,14 +220,23 @@ class TracerFrame:
     def _upload(self) -> None:
         """Upload exactly what the variant declares (see :func:`check_bindings`) and take a target."""
         t0 = time.perf_counter()
-        parts = [gpu_layout.pack_primitives(self.scene, self.renderer.max_texture_width), self.prepared.packed,
-                 PackedScene({}, {gpu_layout.MIN_WEIGHT.name: float(self.settings.min_weight),
-                                  gpu_layout.LIGHT_SCALE.name: gpu_layout.light_scale(self.scene),
-                                  **gpu_layout.emitter_uniforms(self.scene)})]
+        parts = [
+            gpu_layout.pack_primitives(self.scene, self.renderer.max_texture_width),
+            self.prepared.packed,
+            PackedScene(
+                {},
+                {
+                    gpu_layout.MIN_WEIGHT.name: float(self.settings.min_weight),
+                    gpu_layout.LIGHT_SCALE.name: gpu_layout.light_scale(self.scene),
+                    **gpu_layout.emitter_uniforms(self.scene),
+                },
+            ),
+        ]
         tex, self.uniforms = check_bindings(self.variant, parts)
         blocks = {n: t for n, t in tex.items() if n in self.variant.blocks}
-        self.units = upload_textures(self.ctx, PackedScene({n: t for n, t in tex.items() if n not in blocks}),
-                                     self.textures)
+        self.units = upload_textures(
+            self.ctx, PackedScene({n: t for n, t in tex.items() if n not in blocks}), self.textures
+        )
         self.block_units = upload_blocks(self.ctx, blocks, self.buffers)
         w, h = self._target_size()
         self.fbo = self.renderer.targets.acquire(w, h, self.variant.image_only)
@@ -224,7 +259,7 @@ class TracerFrame:
             if name in prog:
                 buf.bind_to_uniform_block(binding)
                 prog[name].binding = binding
-        if self.one_shot:     # the whole k × k grid in one draw: each fragment is one sub-pixel
+        if self.one_shot:  # the whole k × k grid in one draw: each fragment is one sub-pixel
             grid, pass_terms = self._target_size(), gpu_layout.pass_uniforms(1)
         else:
             grid = (self.width * p.scale, self.height * p.scale)
@@ -286,7 +321,7 @@ class TracerFrame:
                 # as the read-back, and need not wait for the result's arrays to be made.
                 self.release()
                 self._result = self._compose()
-                self._centre = self._grid = None     # (an image-only frame's) the result holds what it needs
+                self._centre = self._grid = None  # (an image-only frame's) the result holds what it needs
         return self.done
 
     def _draws(self, w: int, h: int, y0: int, rows: int) -> list:
@@ -298,8 +333,11 @@ class TracerFrame:
         for x, y, rw, rh, tracer in self.regions:
             a, b = max(y, y0), min(y + rh, y0 + rows)
             if b > a:
-                out.append((self.prog, self.vao, (x, a, rw, b - a)) if tracer else
-                           (self.bg_prog, self.bg_vao, (x, a, rw, b - a)))
+                out.append(
+                    (self.prog, self.vao, (x, a, rw, b - a))
+                    if tracer
+                    else (self.bg_prog, self.bg_vao, (x, a, rw, b - a))
+                )
         return out
 
     def run(self) -> RenderResult:
@@ -324,8 +362,8 @@ class TracerFrame:
             if self._sum is None:
                 self._sum = img[..., :3].astype(np.float64)
                 hit = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(h, w, 4)
-                self._centre = (img, hit)     # primid, normal and depth: the first sample's primary ray
-                if len(self.passes) > 1:      # the first pass's mean: the preview of a progressive frame
+                self._centre = (img, hit)  # primid, normal and depth: the first sample's primary ray
+                if len(self.passes) > 1:  # the first pass's mean: the preview of a progressive frame
                     mean = (img[::-1][..., :3] / p.samples[1]).astype(np.float32)
                     self._preview = self._result_of([img[::-1], hit[::-1], mean], final=False)
             else:
@@ -339,7 +377,7 @@ class TracerFrame:
             if self._grid is None:
                 self._grid = np.empty((h * p.scale, w * p.scale, 4), np.float32)
             sx, sy = p.sub
-            self._grid[sy::p.scale, sx::p.scale] = img
+            self._grid[sy :: p.scale, sx :: p.scale] = img
         self.timings["read"] += (time.perf_counter() - t0) * 1e3
 
     # ---- results -----------------------------------------------------------------------------
@@ -349,19 +387,24 @@ class TracerFrame:
             timings = {**self.timings, "total": (time.perf_counter() - self.t_start) * 1e3}
             stats = {**self.stats, "tracer_passes": len(self.passes), "slices": self.slices}
             r, scene, settings, prepared = self.renderer, self.scene, self.settings, self.prepared
-            return ImageOnlyResult(u8, settings.mode, timings, stats,
-                                   lambda: r.begin(scene, settings.with_(format="npy"), prepared=prepared).run())
+            return ImageOnlyResult(
+                u8,
+                settings.mode,
+                timings,
+                stats,
+                lambda: r.begin(scene, settings.with_(format="npy"), prepared=prepared).run(),
+            )
         img, hit = self._centre
-        self._centre = None                      # the arrays below are the read-back's last references
-        img, hit = img[::-1], hit[::-1]          # image row 0 at the top
+        self._centre = None  # the arrays below are the read-back's last references
+        img, hit = img[::-1], hit[::-1]  # image row 0 at the top
         k, W, H = self.k, self.width, self.height
-        if self.one_shot:                        # the old way: ids from the middle sub-pixel
+        if self.one_shot:  # the old way: ids from the middle sub-pixel
             color = img[..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
-            img, hit = img[k // 2::k, k // 2::k], hit[k // 2::k, k // 2::k]
-        elif self._sum is not None:              # the mean of the path samples: a box filter over the pixel
+            img, hit = img[k // 2 :: k, k // 2 :: k], hit[k // 2 :: k, k // 2 :: k]
+        elif self._sum is not None:  # the mean of the path samples: a box filter over the pixel
             color = (self._sum[::-1] / self.settings.samples_per_pixel).astype(np.float32)
             self._sum = None
-        elif self._grid is not None:             # the box filter over the sub-pixel passes
+        elif self._grid is not None:  # the box filter over the sub-pixel passes
             color = self._grid[::-1][..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
             self._grid = None
         else:
@@ -387,8 +430,16 @@ class TracerFrame:
         if not final:
             stats["preview"] = True
         display = (self.settings.tone_map, float(self.settings.exposure)) if self.path else None
-        return RenderResult(image=image, depth=depth_t, primid=primid, normal=normal, mode=self.settings.mode,
-                            timings=timings, stats=stats, display=display)
+        return RenderResult(
+            image=image,
+            depth=depth_t,
+            primid=primid,
+            normal=normal,
+            mode=self.settings.mode,
+            timings=timings,
+            stats=stats,
+            display=display,
+        )
 
     @property
     def preview(self) -> RenderResult | None:
@@ -418,7 +469,7 @@ def set_uniform(u, value) -> None:
     """Set a uniform; of an array the compiler shortened (a specialised variant indexes only
     the planes it has), the elements it kept."""
     if isinstance(value, list) and u.array_length < len(value):
-        value = value[0] if u.array_length == 1 else value[:u.array_length]
+        value = value[0] if u.array_length == 1 else value[: u.array_length]
     u.value = value
 
 
@@ -437,8 +488,9 @@ def check_bindings(variant: Variant, parts: list[PackedScene]) -> tuple[dict, di
     for part in parts:
         for name in (*part.textures, *part.uniforms):
             if name not in known:
-                raise KeyError(f"{name!r} is packed but no layout declares it (renderer/gpu_layout.py, "
-                               f"renderer/accel/*_layout.py)")
+                raise KeyError(
+                    f"{name!r} is packed but no layout declares it (renderer/gpu_layout.py, renderer/accel/*_layout.py)"
+                )
         tex.update((n, t) for n, t in part.textures.items() if n in declared)
         uni.update((n, v) for n, v in part.uniforms.items() if n in declared)
     missing = declared - set(tex) - set(uni)

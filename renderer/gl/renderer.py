@@ -16,20 +16,20 @@ one dedicated thread).
 from __future__ import annotations
 
 import time
-from typing import Hashable
+from collections.abc import Hashable
 
 import moderngl
 import numpy as np
 
-from ..animation import AnimatedScene
 from .. import gpu_layout
+from ..animation import AnimatedScene
 from ..features import scene_features
+from ..gpu_layout import Variant
 from ..limits import DEFAULT_TEXTURE_WIDTH, PATH_SAMPLES_PER_PASS
 from ..methods import METHODS, PreparedMethod, check_primitives, resolve_method
 from ..prepare import PreparedFrame, prepare_frame
 from ..result import RenderResult
 from ..scene import Scene, SceneError
-from ..gpu_layout import Variant
 from ..settings import RenderSettings
 from ..shader_source import tracer_bindings, tracer_source, vertex_source
 from ..tree_update import TreeUpdate
@@ -42,9 +42,15 @@ from .targets import TargetPool
 class GLRenderer:
     """Renders scenes with the GLSL ES 3.00 tracer. Programs are cached per variant."""
 
-    def __init__(self, ctx: moderngl.Context | None = None,
-                 max_texture_width: int = DEFAULT_TEXTURE_WIDTH, max_target_bytes: int = 256 << 20,
-                 uniform_blocks: bool = True, image_targets: bool = True, background: bool = True):
+    def __init__(
+        self,
+        ctx: moderngl.Context | None = None,
+        max_texture_width: int = DEFAULT_TEXTURE_WIDTH,
+        max_target_bytes: int = 256 << 20,
+        uniform_blocks: bool = True,
+        image_targets: bool = True,
+        background: bool = True,
+    ):
         """``uniform_blocks``: read record arrays that fit from uniform blocks (False:
         textures only, the device's layout). ``image_targets``: RGBA8 targets for png/jpeg
         frames at one sample per pixel (False: always the float targets). ``background``:
@@ -52,9 +58,11 @@ class GLRenderer:
         background variant (False: the whole frame with the tracer)."""
         self.ctx = ctx or create_context()
         self.max_texture_width = min(max_texture_width, self.ctx.info["GL_MAX_TEXTURE_SIZE"])
-        self.max_blocks = (int(self.ctx.info["GL_MAX_FRAGMENT_UNIFORM_BLOCKS"])
-                           if uniform_blocks and self.ctx.info["GL_MAX_UNIFORM_BLOCK_SIZE"] >= gpu_layout.BLOCK_BYTES
-                           else 0)
+        self.max_blocks = (
+            int(self.ctx.info["GL_MAX_FRAGMENT_UNIFORM_BLOCKS"])
+            if uniform_blocks and self.ctx.info["GL_MAX_UNIFORM_BLOCK_SIZE"] >= gpu_layout.BLOCK_BYTES
+            else 0
+        )
         self.image_targets = image_targets
         self.background = background
         self._programs: dict[tuple, moderngl.Program] = {}
@@ -76,22 +84,36 @@ class GLRenderer:
     def info(self) -> dict[str, str]:
         return {"renderer": self.ctx.info["GL_RENDERER"], "version": self.ctx.info["GL_VERSION"]}
 
-    def program(self, method: str, mode: str, max_recursion_depth: int, features: tuple[str, ...] = (),
-                blocks: tuple[str, ...] = (), image_only: bool = False, spheres: bool = True
-                ) -> tuple[moderngl.Program, moderngl.VertexArray]:
+    def program(
+        self,
+        method: str,
+        mode: str,
+        max_recursion_depth: int,
+        features: tuple[str, ...] = (),
+        blocks: tuple[str, ...] = (),
+        image_only: bool = False,
+        spheres: bool = True,
+    ) -> tuple[moderngl.Program, moderngl.VertexArray]:
         """The compiled variant, cached by method × mode × recursion depth × feature set ×
         the host's choices (record arrays in uniform blocks, RGBA8 image, background)."""
         key = (method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only), bool(spheres))
         if key not in self._programs:
-            src = tracer_source(method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only),
-                                bool(spheres))
+            src = tracer_source(
+                method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only), bool(spheres)
+            )
             prog = self.ctx.program(vertex_shader=vertex_source(), fragment_shader=src)
             self._programs[key] = prog
             self._vaos[key] = self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
         return self._programs[key], self._vaos[key]
 
-    def render(self, scene: Scene | AnimatedScene, settings: RenderSettings, *, key: Hashable | None = None,
-               prepared: PreparedMethod | None = None) -> RenderResult:
+    def render(
+        self,
+        scene: Scene | AnimatedScene,
+        settings: RenderSettings,
+        *,
+        key: Hashable | None = None,
+        prepared: PreparedMethod | None = None,
+    ) -> RenderResult:
         """Trace one frame. Timings in ms: build, upload, trace, read, total.
 
         An :class:`AnimatedScene` is first posed at ``settings.time`` (timing ``pose``);
@@ -107,14 +129,20 @@ class GLRenderer:
         ``features`` removed for this scene and, when animated, the ``time``.
         """
         t_start = time.perf_counter()
-        if prepared is not None:      # the caller built it: trace with it (a static scene)
+        if prepared is not None:  # the caller built it: trace with it (a static scene)
             return self.begin(scene, settings, prepared=prepared).run()
-        frame = self.start(prepare_frame(scene, settings, key=key, max_width=self.max_texture_width),
-                           t_start=t_start)
+        frame = self.start(prepare_frame(scene, settings, key=key, max_width=self.max_texture_width), t_start=t_start)
         return frame.run()
 
-    def start(self, frame: PreparedFrame, *, band_rows: int | None = None, batch: int | None = None,
-              t_start: float | None = None, slice_ms: float | None = None) -> "StartedFrame":
+    def start(
+        self,
+        frame: PreparedFrame,
+        *,
+        band_rows: int | None = None,
+        batch: int | None = None,
+        t_start: float | None = None,
+        slice_ms: float | None = None,
+    ) -> StartedFrame:
         """A prepared frame (:func:`renderer.prepare.prepare_frame`) uploaded and ready to be
         traced slice by slice: bands of ``band_rows`` rows (the tracer) or batches of
         ``batch`` primitives (the ray engines)."""
@@ -122,14 +150,23 @@ class GLRenderer:
         if frame.multi_pass:
             inner = self.ray_engine.begin(METHODS[frame.method], frame.scene, frame.settings, batch=batch)
         else:
-            inner = self.begin(frame.scene, frame.settings, prepared=frame.prepared, band_rows=band_rows,
-                               slice_ms=slice_ms)
+            inner = self.begin(
+                frame.scene, frame.settings, prepared=frame.prepared, band_rows=band_rows, slice_ms=slice_ms
+            )
         return StartedFrame(inner, frame, t_start)
 
-    def begin(self, scene: Scene, settings: RenderSettings, *, update: TreeUpdate = TreeUpdate(),
-              prepared: PreparedMethod | None = None, band_rows: int | None = None,
-              one_shot: bool = False, slice_ms: float | None = None,
-              samples_per_pass: int = PATH_SAMPLES_PER_PASS) -> TracerFrame:
+    def begin(
+        self,
+        scene: Scene,
+        settings: RenderSettings,
+        *,
+        update: TreeUpdate = TreeUpdate(),
+        prepared: PreparedMethod | None = None,
+        band_rows: int | None = None,
+        one_shot: bool = False,
+        slice_ms: float | None = None,
+        samples_per_pass: int = PATH_SAMPLES_PER_PASS,
+    ) -> TracerFrame:
         """A frame of the one-pass tracer for the posed ``scene``, uploaded and ready to be
         traced slice by slice (:class:`~renderer.gl.frame.TracerFrame`); ``band_rows``
         sizes its slices, ``samples_per_pass`` the path integrator's passes. Builds the method's
@@ -142,24 +179,43 @@ class GLRenderer:
             raise ValueError(f"method {method_name!r} draws its frames in passes of its own: use render()")
         if settings.mode not in method.capabilities.modes:
             raise SceneError("mode", f"mode {settings.mode!r} is not available with method {method_name!r}")
-        check_primitives(method_name, scene)    # e.g. brute force past the shader's loop limit
+        check_primitives(method_name, scene)  # e.g. brute force past the shader's loop limit
         if prepared is None:
-            prepared = method.prepare(scene, settings.max_prims, settings.max_tree_depth,
-                                      self.max_texture_width, update)
+            prepared = method.prepare(
+                scene, settings.max_prims, settings.max_tree_depth, self.max_texture_width, update
+            )
         features = scene_features(scene).with_integrator(settings.integrator, settings.mode)
         if not settings.specialize:
             features = features.generic()
         depth = features.recursion_depth(settings.max_recursion_depth)
         image = self.image_targets and image_only(settings)
         variant = Variant(method_name, settings.mode, depth, features.defines(), image_only=image)
-        variant = Variant(method_name, settings.mode, depth, features.defines(), self.blocks_for(variant, prepared),
-                          image)
-        stats = {**prepared.stats, "method": method_name, "recursion_depth": depth,
-                 "features_removed": features.removed(), "shader_features": list(features.defines()),
-                 "blocks": list(variant.blocks), "target": "rgba8" if image else "float",
-                 "n_spheres": scene.n_spheres}
-        return TracerFrame(self, scene, settings, variant, prepared, stats, band_rows=band_rows,
-                           one_shot=one_shot, t_start=t_start, slice_ms=slice_ms, samples_per_pass=samples_per_pass)
+        variant = Variant(
+            method_name, settings.mode, depth, features.defines(), self.blocks_for(variant, prepared), image
+        )
+        stats = {
+            **prepared.stats,
+            "method": method_name,
+            "recursion_depth": depth,
+            "features_removed": features.removed(),
+            "shader_features": list(features.defines()),
+            "blocks": list(variant.blocks),
+            "target": "rgba8" if image else "float",
+            "n_spheres": scene.n_spheres,
+        }
+        return TracerFrame(
+            self,
+            scene,
+            settings,
+            variant,
+            prepared,
+            stats,
+            band_rows=band_rows,
+            one_shot=one_shot,
+            t_start=t_start,
+            slice_ms=slice_ms,
+            samples_per_pass=samples_per_pass,
+        )
 
     def blocks_for(self, variant: Variant, prepared: PreparedMethod) -> tuple[str, ...]:
         """The method's record arrays this variant reads whose packed data fit a uniform
@@ -167,8 +223,12 @@ class GLRenderer:
         out = []
         for b in tracer_bindings(variant):
             tex = prepared.packed.textures.get(b.name)
-            if b.records and tex is not None and len(out) < self.max_blocks \
-                    and tex.data.shape[0] * tex.data.shape[1] <= gpu_layout.BLOCK_RECORDS:
+            if (
+                b.records
+                and tex is not None
+                and len(out) < self.max_blocks
+                and tex.data.shape[0] * tex.data.shape[1] <= gpu_layout.BLOCK_RECORDS
+            ):
                 out.append(b.name)
         return tuple(out)
 

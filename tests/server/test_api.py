@@ -9,11 +9,10 @@ import time
 import numpy as np
 import pytest
 from PIL import Image
+from pocketray_server_support import SMALL, new_session
 
 from renderer.scenarios import scenario
 from renderer.settings import SETTINGS
-
-from pocketray_server_support import SMALL, new_session
 
 SESSION_KEYS = {"id", "version", "settings", "scene_info", "camera"}
 # A session's settings are exactly the declared ones (renderer.settings.SETTINGS).
@@ -49,7 +48,7 @@ def test_health_ready_info(ready_client):
     assert set(ms) == set(info["methods"])
     # (integrator: the one-pass methods trace paths too; the ray engines do not)
     assert ms["bih"]["settings"] == ["max_prims", "max_tree_depth", "integrator"] and ms["bih"]["device"] is True
-    assert ms["kdtree"]["settings"] == ["max_tree_depth", "integrator"]      # the SAH decides the leaves
+    assert ms["kdtree"]["settings"] == ["max_tree_depth", "integrator"]  # the SAH decides the leaves
     assert ms["bvh"]["settings"] == ["max_prims", "max_tree_depth", "update", "integrator"]
     assert ms["bruteforce"]["settings"] == ["integrator"] and ms["rayengine"]["settings"] == []
     assert ms["hre"]["settings"] == ["tile_size"] and ms["hre"]["device"] is False and "cones" in ms["hre"]["modes"]
@@ -62,10 +61,11 @@ def test_health_ready_info(ready_client):
 def test_info_gives_the_legend_the_colors_of_the_modes(client):
     """The client's legend shows the colours of renderer.modes, which the shader is assembled with."""
     from renderer.modes import HEAT_SCALE, RECURSION_COLOR_NAMES, RECURSION_COLORS
+
     info = client.get("/api/info").json()
     assert [c["rgb"] for c in info["recursion_colors"]] == RECURSION_COLORS.tolist()
     assert [c["name"] for c in info["recursion_colors"]] == list(RECURSION_COLOR_NAMES)
-    assert info["recursion_colors"][0] == {"rgb": [0.0, 0.0, 0.0], "name": "black"}   # level 0: a miss
+    assert info["recursion_colors"][0] == {"rgb": [0.0, 0.0, 0.0], "name": "black"}  # level 0: a miss
     assert info["heat_scale"] == HEAT_SCALE
 
 
@@ -76,14 +76,32 @@ def test_create_from_scenario_and_read(client):
     assert s["version"] == 1
     assert set(s["settings"]) == SETTING_KEYS
     assert s["settings"]["width"] == SMALL["width"]
-    assert s["scene_info"] == {"n_spheres": 100, "n_planes": 1, "scenario": 3, "n": 100, "seed": 7, "radius": 0.5,
-                               "animated": False, "n_moving": 0, "museum": None, "mesh_scene": None, "n_meshes": 0,
-                               "n_triangles": 0, "n_degenerate_triangles": 0, "n_moving_meshes": 0}
+    assert s["scene_info"] == {
+        "n_spheres": 100,
+        "n_planes": 1,
+        "scenario": 3,
+        "n": 100,
+        "seed": 7,
+        "radius": 0.5,
+        "animated": False,
+        "n_moving": 0,
+        "museum": None,
+        "mesh_scene": None,
+        "n_meshes": 0,
+        "n_triangles": 0,
+        "n_degenerate_triangles": 0,
+        "n_moving_meshes": 0,
+    }
     got = client.get(f"/api/sessions/{s['id']}").json()
-    assert got["camera"] == {"position": [0.0, 0.0, 100.0], "target": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0],
-                             "fov_y": 60.0}
-    assert {k: got[k] for k in ("id", "version", "settings", "scene_info")} == \
-        {k: s[k] for k in ("id", "version", "settings", "scene_info")}
+    assert got["camera"] == {
+        "position": [0.0, 0.0, 100.0],
+        "target": [0.0, 0.0, 0.0],
+        "up": [0.0, 1.0, 0.0],
+        "fov_y": 60.0,
+    }
+    assert {k: got[k] for k in ("id", "version", "settings", "scene_info")} == {
+        k: s[k] for k in ("id", "version", "settings", "scene_info")
+    }
     scene = client.get(f"/api/sessions/{s['id']}/scene").json()
     assert len(scene["spheres"]) == 100 and scene["spheres"] == scenario(3, 100, 7, 0.5).to_json()["spheres"]
 
@@ -91,8 +109,7 @@ def test_create_from_scenario_and_read(client):
 def test_create_from_scene_with_settings(client):
     scene = small_scene_json(8)
     scene["camera"] = {"position": [5, 5, 60], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 50}
-    r = client.post("/api/sessions", json={"scene": scene, "settings": {"width": 32, "format": "jpeg",
-                                                                        "quality": 70}})
+    r = client.post("/api/sessions", json={"scene": scene, "settings": {"width": 32, "format": "jpeg", "quality": 70}})
     assert r.status_code == 201, r.text
     s = r.json()
     assert s["scene_info"]["n_spheres"] == 8 and s["scene_info"].get("scenario") is None
@@ -133,12 +150,13 @@ def test_gestures_json(client):
     assert body["camera"]["target"][0] == pytest.approx(body["camera"]["position"][0])
     r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "pinch", "scale": 4})
     assert r.json()["camera"]["position"][2] == pytest.approx(25.0) and r.json()["version"] == 3
-    r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "pan", "dx": 0, "dy": 100,
-                                                          "viewport_height": 200})
+    r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "pan", "dx": 0, "dy": 100, "viewport_height": 200})
     assert r.json()["camera"]["position"][1] == pytest.approx(0.5 * 2 * 25 * np.tan(np.radians(30)))
     r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "reset"})
-    assert r.json() == {"version": 5, "camera": {"position": [0.0, 0.0, 100.0], "target": [0.0, 0.0, 0.0],
-                                                 "up": [0.0, 1.0, 0.0], "fov_y": 60.0}}
+    assert r.json() == {
+        "version": 5,
+        "camera": {"position": [0.0, 0.0, 100.0], "target": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0], "fov_y": 60.0},
+    }
 
 
 def test_orbit_gesture_turns_the_camera_about_its_target(client):
@@ -147,16 +165,16 @@ def test_orbit_gesture_turns_the_camera_about_its_target(client):
     assert r.status_code == 200, r.text
     body = r.json()
     assert body["version"] == 2
-    assert body["camera"]["position"] == pytest.approx([100.0, 0.0, 0.0], abs=1e-9)   # to the camera's right
+    assert body["camera"]["position"] == pytest.approx([100.0, 0.0, 0.0], abs=1e-9)  # to the camera's right
     assert body["camera"]["target"] == [0.0, 0.0, 0.0] and body["camera"]["up"] == [0.0, 1.0, 0.0]
-    r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "orbit", "pitch": 30})     # yaw defaults to 0
+    r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "orbit", "pitch": 30})  # yaw defaults to 0
     p = r.json()["camera"]["position"]
-    assert p == pytest.approx([100 * np.cos(np.radians(30)), -50.0, 0.0], abs=1e-9)          # down by 30°
+    assert p == pytest.approx([100 * np.cos(np.radians(30)), -50.0, 0.0], abs=1e-9)  # down by 30°
     assert np.linalg.norm(p) == pytest.approx(100.0)
     r = client.post(f"/api/sessions/{sid}/gesture", json={"type": "orbit", "yaw": 0, "pitch": 300})
     pos = np.array(r.json()["camera"]["position"])
     polar = np.degrees(np.arccos(pos[1] / np.linalg.norm(pos)))
-    assert polar == pytest.approx(179.0)                              # clamped short of −up
+    assert polar == pytest.approx(179.0)  # clamped short of −up
     assert client.get(f"/api/sessions/{sid}").json()["version"] == 4
 
 
@@ -202,8 +220,11 @@ def test_frame_formats_jpeg_and_npy(ready_client):
 def test_gesture_with_frame_is_one_round_trip(ready_client):
     c = ready_client
     sid = new_session(c)["id"]
-    r = c.post(f"/api/sessions/{sid}/gesture", params={"frame": 1, "width": 32, "height": 48, "format": "jpeg"},
-               json={"type": "pinch", "scale": 2})
+    r = c.post(
+        f"/api/sessions/{sid}/gesture",
+        params={"frame": 1, "width": 32, "height": 48, "format": "jpeg"},
+        json={"type": "pinch", "scale": 2},
+    )
     assert r.status_code == 200, r.text
     assert r.headers["content-type"] == "image/jpeg"
     assert r.headers["x-session-version"] == "2"
@@ -226,8 +247,10 @@ def test_gesture_frame_shows_the_moved_camera(ready_client):
 
 def test_stateless_render(ready_client):
     c = ready_client
-    body = {"scene": small_scene_json(8), "settings": {"width": 24, "height": 16, "format": "npy",
-                                                       "max_recursion_depth": 2, "mode": "primid"}}
+    body = {
+        "scene": small_scene_json(8),
+        "settings": {"width": 24, "height": 16, "format": "npy", "max_recursion_depth": 2, "mode": "primid"},
+    }
     r = c.post("/api/render", json=body)
     assert r.status_code == 200, r.text
     a = np.load(io.BytesIO(r.content))
@@ -253,13 +276,27 @@ def test_isolation_between_sessions(client):
     assert client.get(f"/api/sessions/{b['id']}").status_code == 200
 
 
-@pytest.mark.parametrize("method,path", [
-    ("get", ""), ("get", "/scene"), ("put", "/scene"), ("put", "/camera"), ("patch", "/settings"),
-    ("post", "/gesture"), ("get", "/frame"), ("get", "/stats"), ("delete", ""),
-])
+@pytest.mark.parametrize(
+    "method,path",
+    [
+        ("get", ""),
+        ("get", "/scene"),
+        ("put", "/scene"),
+        ("put", "/camera"),
+        ("patch", "/settings"),
+        ("post", "/gesture"),
+        ("get", "/frame"),
+        ("get", "/stats"),
+        ("delete", ""),
+    ],
+)
 def test_unknown_session_is_404(client, method, path):
-    bodies = {"/scene": small_scene_json(1), "/camera": {"position": [0, 0, 5]}, "/settings": {"width": 8},
-              "/gesture": {"type": "reset"}}
+    bodies = {
+        "/scene": small_scene_json(1),
+        "/camera": {"position": [0, 0, 5]},
+        "/settings": {"width": 8},
+        "/gesture": {"type": "reset"},
+    }
     kw = {"json": bodies[path]} if method in ("put", "patch", "post") else {}
     r = client.request(method.upper(), f"/api/sessions/doesNotExist123/{path.lstrip('/')}".rstrip("/"), **kw)
     assert r.status_code == 404
@@ -283,9 +320,10 @@ def test_static_client_shaders_and_docs(client):
 
 
 def test_sessions_expire_after_the_idle_time(tmp_path):
-    from pocketray_server_support import make_config
-    from server.app import create_app
     from fastapi.testclient import TestClient
+    from pocketray_server_support import make_config
+
+    from server.app import create_app
 
     with TestClient(create_app(make_config(tmp_path, session_ttl_s=1.0, warmup=False))) as c:
         idle = new_session(c)["id"]
@@ -300,8 +338,7 @@ def test_websocket_gesture_to_frame(ready_client):
     c = ready_client
     sid = new_session(c)["id"]
     with c.websocket_connect(f"/api/sessions/{sid}/ws") as ws:
-        ws.send_text(json.dumps({"type": "pinch", "scale": 2, "frame": {"width": 32, "height": 48,
-                                                                         "format": "jpeg"}}))
+        ws.send_text(json.dumps({"type": "pinch", "scale": 2, "frame": {"width": 32, "height": 48, "format": "jpeg"}}))
         meta = json.loads(ws.receive_text())
         assert meta["version"] == 2 and meta["camera"]["position"] == [0.0, 0.0, 50.0]
         assert meta["media_type"] == "image/jpeg" and "trace" in meta["timings"]
@@ -315,16 +352,22 @@ def test_websocket_gesture_to_frame(ready_client):
 def test_render_knobs_through_the_api(client):
     """samples_per_pixel, min_weight, specialize and tile_size are settings like the others."""
     sid = client.post("/api/sessions", json={"scenario": 2, "n": 16}).json()["id"]
-    r = client.patch(f"/api/sessions/{sid}/settings",
-                     json={"samples_per_pixel": 4, "min_weight": 0.05, "specialize": False, "tile_size": 8})
+    r = client.patch(
+        f"/api/sessions/{sid}/settings",
+        json={"samples_per_pixel": 4, "min_weight": 0.05, "specialize": False, "tile_size": 8},
+    )
     assert r.status_code == 200, r.text
     body = r.json()
     assert (body["samples_per_pixel"], body["min_weight"], body["specialize"], body["tile_size"]) == (4, 0.05, False, 8)
-    frame = client.get(f"/api/sessions/{sid}/frame", params={"width": 24, "height": 40, "format": "npy",
-                                                             "samples_per_pixel": 4})
+    frame = client.get(
+        f"/api/sessions/{sid}/frame", params={"width": 24, "height": 40, "format": "npy", "samples_per_pixel": 4}
+    )
     assert frame.status_code == 200, frame.text
-    for bad, field in [({"samples_per_pixel": 3}, "samples_per_pixel"), ({"min_weight": 2}, "min_weight"),
-                       ({"tile_size": 1}, "tile_size")]:
+    for bad, field in [
+        ({"samples_per_pixel": 3}, "samples_per_pixel"),
+        ({"min_weight": 2}, "min_weight"),
+        ({"tile_size": 1}, "tile_size"),
+    ]:
         r = client.patch(f"/api/sessions/{sid}/settings", json=bad)
         assert r.status_code == 422 and field in r.text
     assert client.get(f"/api/sessions/{sid}").json()["settings"]["samples_per_pixel"] == 4

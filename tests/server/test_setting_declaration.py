@@ -15,13 +15,23 @@ import subprocess
 import sys
 import textwrap
 
-from renderer.settings import SETTINGS, SettingSpec
-
 from pocketray_server_support import ROOT
 
+from renderer.settings import SETTINGS, SettingSpec
+
 # The setting the test declares: a number with bounds, read in one mode, offered by the sheet.
-EXTRA = dict(name="gain", type="number", default=1.0, doc="brightness factor of the image (a test's setting)",
-             label="Exposure", unit="×", bounds=(0.0, 4.0), modes=("color",), sheet=True, client=True)
+EXTRA = dict(
+    name="gain",
+    type="number",
+    default=1.0,
+    doc="brightness factor of the image (a test's setting)",
+    label="Exposure",
+    unit="×",
+    bounds=(0.0, 4.0),
+    modes=("color",),
+    sheet=True,
+    client=True,
+)
 
 SCRIPT = textwrap.dedent("""
     import contextlib, io, json, sys, tempfile, warnings
@@ -79,9 +89,14 @@ def test_a_setting_added_to_the_declaration_reaches_the_api_info_and_cli(tmp_pat
     assert EXTRA["name"] not in {s.name for s in SETTINGS}
     SettingSpec(**{**EXTRA, "bounds": tuple(EXTRA["bounds"]), "modes": tuple(EXTRA["modes"])})  # a valid entry
     result = tmp_path / "out.json"
-    p = subprocess.run([sys.executable, "-c", SCRIPT, json.dumps(EXTRA), str(result)], cwd=ROOT,
-                       capture_output=True, text=True, timeout=300,
-                       env={**os.environ, "COLUMNS": "200", "PYTHONPATH": str(ROOT)})
+    p = subprocess.run(
+        [sys.executable, "-c", SCRIPT, json.dumps(EXTRA), str(result)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "COLUMNS": "200", "PYTHONPATH": str(ROOT)},
+    )
     assert p.returncode == 0, p.stderr[-4000:]
     out = json.loads(result.read_text())
 
@@ -90,11 +105,30 @@ def test_a_setting_added_to_the_declaration_reaches_the_api_info_and_cli(tmp_pat
     assert out["engine_refuses"] == ["gain", "must be a number in [0, 4], got 9.0"]
     # GET /api/info lists it with what the sheet builds its field from
     [info] = out["info"]
-    assert {k: info[k] for k in ("name", "type", "default", "minimum", "maximum", "label", "doc", "unit",
-                                 "sheet", "client", "modes", "choices")} == \
-        {**{k: EXTRA[k] for k in ("name", "type", "default", "label", "doc", "unit", "sheet", "client")},
-         "minimum": 0.0, "maximum": 4.0, "modes": ["color"], "choices": None}
-    assert "bih" in info["methods"] and "hre" in info["methods"]      # read by every method
+    assert {
+        k: info[k]
+        for k in (
+            "name",
+            "type",
+            "default",
+            "minimum",
+            "maximum",
+            "label",
+            "doc",
+            "unit",
+            "sheet",
+            "client",
+            "modes",
+            "choices",
+        )
+    } == {
+        **{k: EXTRA[k] for k in ("name", "type", "default", "label", "doc", "unit", "sheet", "client")},
+        "minimum": 0.0,
+        "maximum": 4.0,
+        "modes": ["color"],
+        "choices": None,
+    }
+    assert "bih" in info["methods"] and "hre" in info["methods"]  # read by every method
     # the API's models: an optional bounded number in the patch (and the query), a field of the settings
     assert {"type": "number", "maximum": 4.0, "minimum": 0.0}.items() <= out["patch_schema"]["anyOf"][0].items()
     assert out["patch_schema"]["description"] == EXTRA["doc"]
@@ -106,7 +140,7 @@ def test_a_setting_added_to_the_declaration_reaches_the_api_info_and_cli(tmp_pat
     assert status == 422 and body["detail"][0]["loc"] == ["body", "gain"]
     assert body["detail"][0]["msg"] == "gain: Input should be less than or equal to 4"
     status, body = out["patched_text"]
-    assert status == 422 and body["detail"][0]["loc"] == ["body", "gain"]    # a body is strict JSON
+    assert status == 422 and body["detail"][0]["loc"] == ["body", "gain"]  # a body is strict JSON
     status, body = out["query_under"]
     assert status == 422 and body["detail"][0]["loc"] == ["query", "gain"]
     assert body["detail"][0]["msg"] == "gain: Input should be greater than or equal to 0"

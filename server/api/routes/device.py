@@ -35,16 +35,14 @@ from fastapi import APIRouter, Query, Response
 from fastapi.responses import PlainTextResponse
 
 from renderer import gpu_layout
-from renderer.accel.base import AccelerationMethod
+from renderer.accel.base import NOT_ON_GPU, AccelerationMethod
 from renderer.features import scene_features
-from renderer.accel.base import NOT_ON_GPU
-from renderer.methods import METHODS, resolve_method
 from renderer.limits import MAX_RECURSION_DEPTH
+from renderer.methods import METHODS, resolve_method
 from renderer.modes import SINGLE_PASS_MODES
 from renderer.shader_source import tracer_source, vertex_source
 
-from ...device_data import (FEATURE_DEFINES, FORMAT_VERSION, camera_uniforms, encode_blob, jsonable,
-                            jsonable_stats)
+from ...device_data import FEATURE_DEFINES, FORMAT_VERSION, camera_uniforms, encode_blob, jsonable, jsonable_stats
 from ...models import DeviceDataQuery, ShaderQuery
 from ...service import InputError
 from ...view import EXPOSED, stats_header
@@ -63,8 +61,10 @@ _DATA_DOC: dict[str, Any] = {
         "Server-Timing": {"description": "build, pack, total as name;dur=ms", "schema": {"type": "string"}},
     },
 }
-_SHADER_DOC: dict[str, Any] = {"description": "GLSL ES 3.00 source",
-                               "content": {"text/plain": {"schema": {"type": "string"}}}}
+_SHADER_DOC: dict[str, Any] = {
+    "description": "GLSL ES 3.00 source",
+    "content": {"text/plain": {"schema": {"type": "string"}}},
+}
 
 
 # ---- the variant --------------------------------------------------------------------------------
@@ -80,16 +80,21 @@ def single_pass_method(name: str, where: tuple[str, ...]) -> AccelerationMethod:
         raise InputError(where, f"unknown method {name!r}")
     if not method.capabilities.device:
         able = ", ".join(device_methods())
-        raise InputError(where, f"method {name!r} draws several passes on the server and cannot run on the "
-                                f"device; device mode supports {able} (or use server mode)")
+        raise InputError(
+            where,
+            f"method {name!r} draws several passes on the server and cannot run on the "
+            f"device; device mode supports {able} (or use server mode)",
+        )
     return method
 
 
 def check_single_pass_mode(mode: str) -> None:
     """A 422 for a mode only the multi-pass ray engines draw."""
     if mode not in SINGLE_PASS_MODES:
-        raise InputError(("query", "mode"), f"mode {mode!r} is not a mode of the one-pass tracer; "
-                                            f"one of {', '.join(SINGLE_PASS_MODES)}")
+        raise InputError(
+            ("query", "mode"),
+            f"mode {mode!r} is not a mode of the one-pass tracer; one of {', '.join(SINGLE_PASS_MODES)}",
+        )
 
 
 def parse_features(features: str | None) -> tuple[str, ...]:
@@ -110,28 +115,36 @@ def shader_url(method: str, mode: str, depth: int, features: tuple[str, ...]) ->
 
 
 # ---- routes ----------------------------------------------------------------------------------
-@router.get("/sessions/{session_id}/device-data", response_class=Response,
-            responses={200: _DATA_DOC, **documented(404, 503)},
-            summary="The session's scene and acceleration data packed for a device (WebGL2)")
+@router.get(
+    "/sessions/{session_id}/device-data",
+    response_class=Response,
+    responses={200: _DATA_DOC, **documented(404, 503)},
+    summary="The session's scene and acceleration data packed for a device (WebGL2)",
+)
 def device_data(session_id: SessionId, service: ServiceDep, query: Annotated[DeviceDataQuery, Query()]) -> Response:
     t0 = time.perf_counter()
     if not query.float_textures:
-        raise InputError(("query", "float_textures"),
-                         "the tracer reads RGBA32F textures and writes two RGBA32F targets (WebGL2 needs "
-                         "EXT_color_buffer_float); this device cannot run it: use server mode")
+        raise InputError(
+            ("query", "float_textures"),
+            "the tracer reads RGBA32F textures and writes two RGBA32F targets (WebGL2 needs "
+            "EXT_color_buffer_float); this device cannot run it: use server mode",
+        )
     state = service.get(session_id)
     settings = service.merge_settings(state.settings, query.given(), "query")
     n_triangles = state.scene_info.get("n_triangles", 0)
-    n = state.scene_info.get("n_spheres", 0) + n_triangles      # auto's crossover, as prepare_frame
+    n = state.scene_info.get("n_spheres", 0) + n_triangles  # auto's crossover, as prepare_frame
     method_name = resolve_method(settings["method"], n)
     meth = single_pass_method(method_name, ("query", "method"))
     if n_triangles and not meth.capabilities.meshes_on_gpu:
         # The device runs the server's shader on the server's layout: what the GPU cannot trace
         # with this method (Capabilities.meshes_on_gpu), a device cannot either.
-        raise InputError(("query", "meshes"), f"method {method_name!r}: {NOT_ON_GPU}: a device cannot trace this "
-                                              f"scene's {n_triangles:,} triangles with it")
+        raise InputError(
+            ("query", "meshes"),
+            f"method {method_name!r}: {NOT_ON_GPU}: a device cannot trace this "
+            f"scene's {n_triangles:,} triangles with it",
+        )
     check_single_pass_mode(settings["mode"])
-    width = 1 << (int(query.max_texture_size).bit_length() - 1)   # the power of two at most the device's
+    width = 1 << (int(query.max_texture_size).bit_length() - 1)  # the power of two at most the device's
     with service.admit():  # a queue slot for back-pressure; the work is NumPy, on this thread
         # An animated scene is posed here; the tree is rebuilt (updates between frames
         # belong to the GL thread's renders, whose tree caches are not shared with this thread).
@@ -141,8 +154,9 @@ def device_data(session_id: SessionId, service: ServiceDep, query: Annotated[Dev
             prepared = meth.prepare(scene, settings["max_prims"], settings["max_tree_depth"], width, update)
             prims = gpu_layout.pack_primitives(scene, width)
         except ValueError as e:
-            raise InputError(("query", "max_texture_size"),
-                             f"the scene does not fit this device's textures ({e}); use server mode") from None
+            raise InputError(
+                ("query", "max_texture_size"), f"the scene does not fit this device's textures ({e}); use server mode"
+            ) from None
     features = scene_features(scene)
     # A device traces Whitted's tree (the path integrator is the server's): its depth bound.
     depth = features.recursion_depth(min(settings["max_recursion_depth"], MAX_RECURSION_DEPTH))
@@ -150,35 +164,58 @@ def device_data(session_id: SessionId, service: ServiceDep, query: Annotated[Dev
     uniforms = {k: jsonable(v) for k, v in {**prims.uniforms, **prepared.packed.uniforms}.items()}
     uniforms.update(camera_uniforms(scene.camera))
     uniforms["u_min_weight"] = 0.0
-    stats = {**prepared.stats, "method": method_name, "recursion_depth": depth,
-             "features_removed": list(defines)}
+    stats = {**prepared.stats, "method": method_name, "recursion_depth": depth, "features_removed": list(defines)}
     t_packed = time.perf_counter()
     header = {
-        "format": "pocketray-device-data", "format_version": FORMAT_VERSION,
+        "format": "pocketray-device-data",
+        "format_version": FORMAT_VERSION,
         "session": {"id": state.id, "version": state.version, "scene_rev": state.scene_rev},
         "method": method_name,
-        "settings": {**{k: settings[k] for k in ("mode", "max_prims", "max_tree_depth", "max_recursion_depth",
-                                                 "width", "height")},
-                     "time": settings.get("time", 0.0)},   # sessions stored before animation have no time
-        "shader": {"method": method_name, "mode": settings["mode"], "max_recursion_depth": depth,
-                   "features": list(defines), "url": shader_url(method_name, settings["mode"], depth, defines)},
+        "settings": {
+            **{
+                k: settings[k]
+                for k in ("mode", "max_prims", "max_tree_depth", "max_recursion_depth", "width", "height")
+            },
+            "time": settings.get("time", 0.0),
+        },  # sessions stored before animation have no time
+        "shader": {
+            "method": method_name,
+            "mode": settings["mode"],
+            "max_recursion_depth": depth,
+            "features": list(defines),
+            "url": shader_url(method_name, settings["mode"], depth, defines),
+        },
         "max_texture_size": width,
-        "camera": state.camera, "home_camera": state.home_camera,
+        "camera": state.camera,
+        "home_camera": state.home_camera,
         "uniforms": uniforms,
-        "stats": jsonable_stats(stats), "build_ms": prepared.build_ms,
+        "stats": jsonable_stats(stats),
+        "build_ms": prepared.build_ms,
         "pack_ms": ((t_packed - t_built0) * 1e3 - prepared.build_ms),
     }
     blob = encode_blob(header, {**prims.textures, **prepared.packed.textures})
     total = (time.perf_counter() - t0) * 1e3
     timing = f"build;dur={prepared.build_ms:.2f}, pack;dur={header['pack_ms']:.2f}, total;dur={total:.2f}"
-    return Response(content=blob, media_type="application/octet-stream", headers={
-        "X-Session-Version": str(state.version), "X-Method": method_name, "X-Stats": stats_header(stats),
-        "Server-Timing": timing, "Cache-Control": "no-store",
-        "Access-Control-Expose-Headers": ", ".join(EXPOSED)})
+    return Response(
+        content=blob,
+        media_type="application/octet-stream",
+        headers={
+            "X-Session-Version": str(state.version),
+            "X-Method": method_name,
+            "X-Stats": stats_header(stats),
+            "Server-Timing": timing,
+            "Cache-Control": "no-store",
+            "Access-Control-Expose-Headers": ", ".join(EXPOSED),
+        },
+    )
 
 
-@router.get("/shader", response_class=PlainTextResponse, responses={200: _SHADER_DOC},
-            summary="The tracer's GLSL ES 3.00 source of one variant, as the server compiles it")
+@router.get(
+    "/shader",
+    response_class=PlainTextResponse,
+    responses={200: _SHADER_DOC},
+    summary="The tracer's GLSL ES 3.00 source of one variant, as the server compiles it",
+)
 def shader(query: Annotated[ShaderQuery, Query()]) -> PlainTextResponse:
     if query.stage == "vertex":
         return PlainTextResponse(vertex_source(), headers={"Cache-Control": "no-cache"})

@@ -28,8 +28,13 @@ from renderer.shader_source import known_bindings, tracer_bindings
 FEATURES = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS")
 FEATURE_SETS = [tuple(f for f, on in zip(FEATURES, bits) if on) for bits in itertools.product((0, 1), repeat=3)]
 # Data formats and compiled-in counts, each with some of the removals (features' order).
-SHAPES = [("EQUAL_RADII",), ("MATERIAL_TEXTURE",), ("NO_SPLIT", "PLANES_1", "LIGHTS_2", "EQUAL_RADII"),
-          ("NO_LIGHTS", "PLANES_0", "MATERIAL_TEXTURE"), ("NO_REFLECTION", "PLANES_3", "LIGHTS_1")]
+SHAPES = [
+    ("EQUAL_RADII",),
+    ("MATERIAL_TEXTURE",),
+    ("NO_SPLIT", "PLANES_1", "LIGHTS_2", "EQUAL_RADII"),
+    ("NO_LIGHTS", "PLANES_0", "MATERIAL_TEXTURE"),
+    ("NO_REFLECTION", "PLANES_3", "LIGHTS_1"),
+]
 ONE_PASS = [name for name, m in METHODS.items() if not m.capabilities.multi_pass]
 MULTI_PASS = [name for name, m in METHODS.items() if m.capabilities.multi_pass]
 
@@ -39,15 +44,36 @@ def active(prog) -> set[str]:
 
 
 def check_variant(gl_renderer, variant: Variant) -> None:
-    prog, _ = gl_renderer.program(variant.method, variant.mode, variant.depth, variant.features, variant.blocks,
-                                  variant.image_only, variant.spheres)
+    prog, _ = gl_renderer.program(
+        variant.method,
+        variant.mode,
+        variant.depth,
+        variant.features,
+        variant.blocks,
+        variant.image_only,
+        variant.spheres,
+    )
     declared = full = {b.name for b in tracer_bindings(variant)}
     if variant.image_only and variant.mode == "heat" and METHODS[variant.method].capabilities.tests_every_sphere:
         # Brute force's heat image is n sphere tests whatever the ray, and an image-only
         # variant writes nothing else: the compiler drops the ray and what makes it.
-        declared = {n for n in declared if not n.startswith(("u_cam_", "u_plane_", "u_num_planes", "u_half_",
-                                                             "u_resolution", "u_pass_", "u_bf_", "u_sphere_",
-                                                             "u_tri"))}
+        declared = {
+            n
+            for n in declared
+            if not n.startswith(
+                (
+                    "u_cam_",
+                    "u_plane_",
+                    "u_num_planes",
+                    "u_half_",
+                    "u_resolution",
+                    "u_pass_",
+                    "u_bf_",
+                    "u_sphere_",
+                    "u_tri",
+                )
+            )
+        }
     assert declared <= active(prog), (variant, sorted(declared - active(prog)))
     assert active(prog) & known_bindings() <= full, variant
     for b in tracer_bindings(variant):
@@ -59,8 +85,11 @@ def check_variant(gl_renderer, variant: Variant) -> None:
 
 
 # The triangles' data formats (issue #20), for the methods that trace meshes on the GPU.
-TRIANGLE_SHAPES = [("TRIANGLES",), ("EQUAL_RADII", "TRIANGLES", "SMOOTH_TRIANGLES"),
-                   ("NO_SPLIT", "PLANES_1", "LIGHTS_1", "MATERIAL_TEXTURE", "TRIANGLES", "SMOOTH_TRIANGLES")]
+TRIANGLE_SHAPES = [
+    ("TRIANGLES",),
+    ("EQUAL_RADII", "TRIANGLES", "SMOOTH_TRIANGLES"),
+    ("NO_SPLIT", "PLANES_1", "LIGHTS_1", "MATERIAL_TEXTURE", "TRIANGLES", "SMOOTH_TRIANGLES"),
+]
 
 
 @pytest.mark.parametrize("method", ONE_PASS)
@@ -72,13 +101,13 @@ def test_every_declared_binding_of_every_variant_is_active(gl_renderer, method, 
     for depth, features, image in itertools.product((1, 3), SHAPES[:3], (False, True)):
         check_variant(gl_renderer, Variant(method, mode, depth, features, records, image))
         check_variant(gl_renderer, Variant(method, mode, depth, features, records[:1], image))
-        if mode != "heat":     # the background variant reads none of the method's
+        if mode != "heat":  # the background variant reads none of the method's
             check_variant(gl_renderer, Variant(method, mode, depth, features, (), image, spheres=False))
     if not METHODS[method].capabilities.meshes_on_gpu:
         return
     for depth, features, image in itertools.product((1, 3), TRIANGLE_SHAPES, (False, True)):
         v = Variant(method, mode, depth, features, (), image)
-        blocks = tuple(b.name for b in tracer_bindings(v) if b.records)     # every record array it reads
+        blocks = tuple(b.name for b in tracer_bindings(v) if b.records)  # every record array it reads
         check_variant(gl_renderer, Variant(method, mode, depth, features, (), image))
         check_variant(gl_renderer, Variant(method, mode, depth, features, blocks, image))
         if mode != "heat":
@@ -89,6 +118,7 @@ def test_record_arrays_in_blocks_are_the_renderers_choice(gl_renderer):
     """A record array that fits 64 KiB is read from a uniform block, a larger one from a
     texture; a renderer without blocks uses textures only; the device's data are textures."""
     from renderer.gl import GLRenderer
+
     small = gl_renderer.render(scenario(3, 1024), RenderSettings(width=8, height=8, format="npy"))
     assert set(small.stats["blocks"]) == {"u_bih_nodes", "u_bih_spheres"}
     big = gl_renderer.render(scenario(3, 8192), RenderSettings(width=8, height=8, format="npy"))
@@ -104,12 +134,12 @@ def test_what_a_method_packs_is_what_its_shader_declares(method):
     packed = METHODS[method].prepare(scenario(3, 64), 8, 64).packed
     names = set(packed.textures) | set(packed.uniforms)
     assert names == {b.name for b in METHODS[method].bindings if b.needs is None}, "a sphere scene: no triangles"
-    if METHODS[method].capabilities.meshes_on_gpu:     # a smooth mesh scene: the triangles' too
+    if METHODS[method].capabilities.meshes_on_gpu:  # a smooth mesh scene: the triangles' too
         packed = METHODS[method].prepare(mesh_scene("mixed", 1), 8, 64).packed
         names = set(packed.textures) | set(packed.uniforms)
         assert names == {b.name for b in METHODS[method].bindings}
     prims = gpu_layout.pack_primitives(scenario(3, 64))
-    lit = {gpu_layout.EMISSION.name, gpu_layout.ENVIRONMENT.name}    # only a scene with emission, environment
+    lit = {gpu_layout.EMISSION.name, gpu_layout.ENVIRONMENT.name}  # only a scene with emission, environment
     assert set(prims.textures) | set(prims.uniforms) == {b.name for b in gpu_layout.SCENE_BINDINGS} - lit
     scene = scenario(3, 64).to_json()
     scene["materials"][0]["emission"] = [1.0, 2.0, 3.0]
@@ -126,6 +156,7 @@ def test_a_misspelt_packed_name_is_an_error(gl_renderer, monkeypatch):
         packed = real(scene, max_width)
         packed.uniforms["u_num_sphere"] = packed.uniforms.pop("u_num_spheres")
         return packed
+
     monkeypatch.setattr(gpu_layout, "pack_primitives", misspelt)
     with pytest.raises(KeyError, match="u_num_sphere"):
         gl_renderer.render(scenario(1, 8), RenderSettings(width=8, height=8, method="bruteforce"))
@@ -138,8 +169,9 @@ def test_ray_engine_frames_upload_only_what_their_passes_read(gl_renderer, metho
     if mode not in METHODS[method].capabilities.modes:
         return
     passes = gl_renderer.ray_engine
-    gl_renderer.render(scenario(3, 64), RenderSettings(width=32, height=32, method=method, mode=mode,
-                                                       max_recursion_depth=depth))
+    gl_renderer.render(
+        scenario(3, 64), RenderSettings(width=32, height=32, method=method, mode=mode, max_recursion_depth=depth)
+    )
     used = set().union(*(active(passes.programs.progs[k]) for k in passes.programs.used))
     declared = {b.name for b in gpu_layout.RAY_ENGINE_BINDINGS}
     assert used & known_bindings() <= declared

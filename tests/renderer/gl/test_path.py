@@ -26,14 +26,28 @@ GLASS = {"color": [1, 1, 1], "diffuse": 0.0, "reflective": 0.0, "transmissive": 
 
 def furnace(material: dict, environment=(1.0, 1.0, 1.0), **extra) -> Scene:
     """One unit sphere of ``material`` inside a constant environment, filling most of the view."""
-    return Scene.from_json({"camera": {"position": [0, 0, 4], "target": [0, 0, 0], "fov_y": 34}, "lights": [],
-                            "materials": [material], "spheres": [{"center": [0, 0, 0], "radius": 1.0}],
-                            "environment": {"color": list(environment)}, **extra})
+    return Scene.from_json(
+        {
+            "camera": {"position": [0, 0, 4], "target": [0, 0, 0], "fov_y": 34},
+            "lights": [],
+            "materials": [material],
+            "spheres": [{"center": [0, 0, 0], "radius": 1.0}],
+            "environment": {"color": list(environment)},
+            **extra,
+        }
+    )
 
 
 def path(width=32, height=32, spp=32, depth=16, **kw) -> RenderSettings:
-    return RenderSettings(width=width, height=height, integrator="path", samples_per_pixel=spp,
-                          max_recursion_depth=depth, format="npy", **kw)
+    return RenderSettings(
+        width=width,
+        height=height,
+        integrator="path",
+        samples_per_pixel=spp,
+        max_recursion_depth=depth,
+        format="npy",
+        **kw,
+    )
 
 
 def inside(result) -> np.ndarray:
@@ -61,8 +75,9 @@ def test_lobe_weights_over_one_are_normalised(gl_renderer):
     albedo 0.5 gives 0.5·0.5 + 0.5·1 = 0.75 in the furnace, not 1.5."""
     r = gl_renderer.render(furnace({**DIFFUSE, "color": [0.5, 0.5, 0.5], "reflective": 1.0}), path(spp=256))
     np.testing.assert_allclose(r.image[inside(r)].mean(), 0.75, rtol=0.01)
-    r = gl_renderer.render(furnace({**GLASS, "diffuse": 1.0, "reflective": 1.0, "color": [0.2, 0.2, 0.2]}),
-                           path(spp=64))
+    r = gl_renderer.render(
+        furnace({**GLASS, "diffuse": 1.0, "reflective": 1.0, "color": [0.2, 0.2, 0.2]}), path(spp=64)
+    )
     assert r.image[inside(r)].mean() <= 1.0 + 0.01
 
 
@@ -81,22 +96,37 @@ def test_rough_mirror_loses_no_more_than_it_should(gl_renderer):
 def test_batches_equal_one_batch_and_frames_repeat(gl_renderer):
     """Sample i of a pixel is the same path in whichever pass traces it: 20 samples as 20, as
     7 + 7 + 6 and as 1 × 20 give one image up to float rounding; the same frame twice is equal."""
-    scene = furnace({**DIFFUSE, "reflective": 0.3, "transmissive": 0.2, "roughness": 0.3}, (0.8, 0.9, 1.0),
-                    planes=[{"point": [0, -1, 0], "normal": [0, 1, 0], "material": 0}],
-                    lights=[{"position": [2, 3, 3], "color": [1, 1, 1]}])
+    scene = furnace(
+        {**DIFFUSE, "reflective": 0.3, "transmissive": 0.2, "roughness": 0.3},
+        (0.8, 0.9, 1.0),
+        planes=[{"point": [0, -1, 0], "normal": [0, 1, 0], "material": 0}],
+        lights=[{"position": [2, 3, 3], "color": [1, 1, 1]}],
+    )
     s = path(spp=20)
     images = [gl_renderer.begin(scene, s, samples_per_pass=k).run().image for k in (20, 7, 1)]
     for img in images[1:]:
         np.testing.assert_allclose(img, images[0], rtol=1e-5, atol=1e-6)
-    assert np.array_equal(gl_renderer.render(scene, s).image, gl_renderer.begin(scene, s, samples_per_pass=16)
-                          .run().image)
+    assert np.array_equal(
+        gl_renderer.render(scene, s).image, gl_renderer.begin(scene, s, samples_per_pass=16).run().image
+    )
     assert np.array_equal(gl_renderer.render(scene, s).image, gl_renderer.render(scene, s).image)
     assert gl_renderer.render(scene, s).image.std() > 0
 
 
-@pytest.mark.parametrize("name", ["camera_inside_sphere", "tir_inside_glass", "nested_spheres", "offset_1e6",
-                                  "radius_1e-3_at_1e6", "light_on_surface", "fov_179", "glass_mirror_room_depth8",
-                                  "camera_on_plane"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "camera_inside_sphere",
+        "tir_inside_glass",
+        "nested_spheres",
+        "offset_1e6",
+        "radius_1e-3_at_1e6",
+        "light_on_surface",
+        "fov_179",
+        "glass_mirror_room_depth8",
+        "camera_on_plane",
+    ],
+)
 def test_no_nan_or_infinity_reaches_a_pixel(gl_renderer, name):
     case = next(c for c in CASES if c.name == name)
     scene = case.build()
@@ -104,8 +134,9 @@ def test_no_nan_or_infinity_reaches_a_pixel(gl_renderer, name):
     data["environment"] = {"color": [0.5, 0.5, 0.5]}
     lit = Scene.from_json(data) if not scene.meshes else scene
     for sc in (scene, lit):
-        r = gl_renderer.render(sc, path(width=32, height=32, spp=8, max_prims=case.max_prims,
-                                        max_tree_depth=case.max_tree_depth))
+        r = gl_renderer.render(
+            sc, path(width=32, height=32, spp=8, max_prims=case.max_prims, max_tree_depth=case.max_tree_depth)
+        )
         assert np.isfinite(r.image).all() and (r.image >= 0).all(), name
 
 
@@ -113,11 +144,14 @@ def test_point_lights_keep_the_thesis_exposure(gl_renderer):
     """A Lambertian floor under a point light at the camera's target distance has the radiance
     Whitted's diffuse term gives it (the light's radiant intensity is π·d²·color)."""
     d = 10.0
-    scene = Scene.from_json({"camera": {"position": [0, d, 0.001], "target": [0, 0, 0], "fov_y": 10},
-                             "lights": [{"position": [0, d, 0], "color": [1, 1, 1]}],
-                             "materials": [{"color": [0.5, 0.5, 0.5], "diffuse": 0.8, "reflective": 0, "ambient": 0,
-                                            "specular": 0}],
-                             "planes": [{"point": [0, 0, 0], "normal": [0, 1, 0]}]})
+    scene = Scene.from_json(
+        {
+            "camera": {"position": [0, d, 0.001], "target": [0, 0, 0], "fov_y": 10},
+            "lights": [{"position": [0, d, 0], "color": [1, 1, 1]}],
+            "materials": [{"color": [0.5, 0.5, 0.5], "diffuse": 0.8, "reflective": 0, "ambient": 0, "specular": 0}],
+            "planes": [{"point": [0, 0, 0], "normal": [0, 1, 0]}],
+        }
+    )
     whitted = gl_renderer.render(scene, RenderSettings(width=16, height=16, format="npy", max_recursion_depth=1))
     traced = gl_renderer.render(scene, path(width=16, height=16, spp=4, depth=2))
     centre = (slice(6, 10), slice(6, 10))
@@ -127,12 +161,18 @@ def test_point_lights_keep_the_thesis_exposure(gl_renderer):
 def test_emission_and_environment_in_both_integrators(gl_renderer):
     """An emitting sphere is seen directly (its front side) and the environment on a miss, by the
     Whitted tracer as by the reference, and by the path integrator."""
-    glow = {"color": [0.2, 0.2, 0.2], "ambient": 0.0, "diffuse": 0.0, "specular": 0.0, "reflective": 0.0,
-            "emission": [2.0, 0.5, 0.25]}
+    glow = {
+        "color": [0.2, 0.2, 0.2],
+        "ambient": 0.0,
+        "diffuse": 0.0,
+        "specular": 0.0,
+        "reflective": 0.0,
+        "emission": [2.0, 0.5, 0.25],
+    }
     scene = furnace(glow, (0.1, 0.2, 0.3))
     s = RenderSettings(width=24, height=24, format="npy")
     gpu, ref = gl_renderer.render(scene, s), render_reference(scene, s)
-    np.testing.assert_allclose(np.clip(gpu.image, 0, 1), ref.image, atol=1e-5)   # (the reference's is clamped)
+    np.testing.assert_allclose(np.clip(gpu.image, 0, 1), ref.image, atol=1e-5)  # (the reference's is clamped)
     hit = gpu.primid >= 0
     assert np.allclose(gpu.image[hit], [2.0, 0.5, 0.25], atol=1e-6)
     assert np.allclose(gpu.image[~hit], [0.1, 0.2, 0.3], atol=1e-6)
@@ -142,12 +182,21 @@ def test_emission_and_environment_in_both_integrators(gl_renderer):
 
 def test_a_mesh_emits_on_the_side_its_winding_faces(gl_renderer):
     """A triangle's emission is seen from its front (counter-clockwise) side only."""
-    quad = {"vertices": [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], "triangles": [[0, 1, 2], [0, 2, 3]],
-            "material": 0}
+    quad = {
+        "vertices": [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]],
+        "triangles": [[0, 1, 2], [0, 2, 3]],
+        "material": 0,
+    }
     mat = {"color": [0, 0, 0], "diffuse": 0.0, "reflective": 0.0, "ambient": 0.0, "emission": [1.0, 1.0, 1.0]}
     for z, lit in ((4, True), (-4, False)):
-        scene = Scene.from_json({"camera": {"position": [0, 0, z], "target": [0, 0, 0], "fov_y": 20}, "lights": [],
-                                 "materials": [mat], "meshes": [quad]})
+        scene = Scene.from_json(
+            {
+                "camera": {"position": [0, 0, z], "target": [0, 0, 0], "fov_y": 20},
+                "lights": [],
+                "materials": [mat],
+                "meshes": [quad],
+            }
+        )
         r = gl_renderer.render(scene, path(width=16, height=16, spp=2))
         assert (r.primid >= 0).all()
         assert np.allclose(r.image, 1.0 if lit else 0.0), z
@@ -174,7 +223,7 @@ def test_refusals():
     RenderSettings(method="auto", integrator="path", samples_per_pixel=4096, max_recursion_depth=16)
     for kw in ({"samples_per_pixel": 5}, {"max_recursion_depth": 9}):
         with pytest.raises(SceneError) as e:
-            RenderSettings(**kw)                 # Whitted's bounds are as they were
+            RenderSettings(**kw)  # Whitted's bounds are as they were
         assert e.value.field == next(iter(kw))
     for kw in ({"samples_per_pixel": 4097}, {"max_recursion_depth": 17}):
         with pytest.raises(SceneError):
@@ -196,18 +245,29 @@ def test_sampling_emitting_spheres_changes_the_noise_not_the_mean(gl_renderer, m
     mean of BSDF sampling alone (which the frame falls back to with no sphere sampled), and less noise."""
     from renderer import gpu_layout
 
-    scene = Scene.from_json({
-        "camera": {"position": [0, 3, 6], "target": [0, 0, 0], "fov_y": 40}, "lights": [],
-        "materials": [{"color": [0.8, 0.8, 0.8], "diffuse": 1.0, "reflective": 0, "ambient": 0},
-                      {"color": [0, 0, 0], "diffuse": 0, "reflective": 0, "emission": [10, 10, 10]}],
-        "planes": [{"point": [0, 0, 0], "normal": [0, 1, 0], "material": 0}],
-        "spheres": [{"center": [0, 1.5, 0], "radius": 0.3, "material": 1},
-                    {"center": [1, 0.5, 0], "radius": 0.5, "material": 0}]})
+    scene = Scene.from_json(
+        {
+            "camera": {"position": [0, 3, 6], "target": [0, 0, 0], "fov_y": 40},
+            "lights": [],
+            "materials": [
+                {"color": [0.8, 0.8, 0.8], "diffuse": 1.0, "reflective": 0, "ambient": 0},
+                {"color": [0, 0, 0], "diffuse": 0, "reflective": 0, "emission": [10, 10, 10]},
+            ],
+            "planes": [{"point": [0, 0, 0], "normal": [0, 1, 0], "material": 0}],
+            "spheres": [
+                {"center": [0, 1.5, 0], "radius": 0.3, "material": 1},
+                {"center": [1, 0.5, 0], "radius": 0.5, "material": 0},
+            ],
+        }
+    )
     s = path(width=24, height=24, spp=2048, depth=8)
     sampled = gl_renderer.render(scene, s).image
     original = gpu_layout.emitter_uniforms
-    monkeypatch.setattr(gpu_layout, "emitter_uniforms", lambda sc: {**original(sc), gpu_layout.NUM_EMITTERS.name: 0,
-                                                                    gpu_layout.EMITTER_LAST.name: -1})
+    monkeypatch.setattr(
+        gpu_layout,
+        "emitter_uniforms",
+        lambda sc: {**original(sc), gpu_layout.NUM_EMITTERS.name: 0, gpu_layout.EMITTER_LAST.name: -1},
+    )
     alone = gl_renderer.render(scene, s).image
     floor = np.s_[15:]
     np.testing.assert_allclose(sampled[floor].mean(), alone[floor].mean(), rtol=0.02)
@@ -232,8 +292,11 @@ def test_the_cornell_box(gl_renderer):
 def test_a_progressive_frame_previews_its_first_pass(gl_renderer):
     """A frame of several passes offers the mean of its first pass as its preview (the service
     shows it while the rest is traced): the image of a frame of that many samples."""
-    scene = furnace({**DIFFUSE, "reflective": 0.4, "roughness": 0.2}, (0.5, 0.7, 1.0),
-                    lights=[{"position": [2, 3, 3], "color": [1, 1, 1]}])
+    scene = furnace(
+        {**DIFFUSE, "reflective": 0.4, "roughness": 0.2},
+        (0.5, 0.7, 1.0),
+        lights=[{"position": [2, 3, 3], "color": [1, 1, 1]}],
+    )
     frame = gl_renderer.begin(scene, path(spp=20), samples_per_pass=8)
     while frame.preview is None:
         assert not frame.step()
@@ -258,4 +321,4 @@ def test_sampling_emitting_triangles_changes_the_noise_not_the_mean(gl_renderer,
     np.testing.assert_allclose(sampled.mean(), alone.mean(), rtol=0.02)
     floor = np.s_[18:, 4:20]
     np.testing.assert_allclose(sampled[floor].mean(), alone[floor].mean(), rtol=0.04)
-    assert np.abs(sampled - alone).mean() < 0.1     # (the noise: tests/renderer/gl/test_mitsuba.py, Cornell box)
+    assert np.abs(sampled - alone).mean() < 0.1  # (the noise: tests/renderer/gl/test_mitsuba.py, Cornell box)
