@@ -459,6 +459,7 @@ def pose(anim: AnimatedScene, t: float) -> PosedFrame:
         base.sphere_materials[keep],
         base.planes,
         tuple(meshes),
+        base.environment,
     )
     tri_moving = (
         np.repeat(anim.moving_meshes, [mesh.n_triangles for mesh in base.meshes]) if base.meshes else np.zeros(0, bool)

@@ -120,12 +120,21 @@ def traversal_work(method: str, stats: dict[str, Any], n_spheres: int) -> tuple[
     return nodes, tests, big_tests
 
 
+PATH_MEAN_SEGMENTS = 3.0
+
+
 def ray_tree(scene: Scene, settings, decay: float = DEFAULT_MODEL.level_decay) -> tuple[int, float]:
     """(levels, radiance rays per pixel) of the ray tree the settings trace in this scene."""
     if settings.mode not in RAY_TREE_MODES:
         return 1, 1.0
-    features = scene_features(scene) if settings.specialize else GENERIC
+    features = (scene_features(scene) if settings.specialize else GENERIC).with_integrator(
+        settings.integrator, settings.mode
+    )
     levels = features.recursion_depth(settings.max_recursion_depth)
+    if features.path:
+        # Not fitted yet: a path's expected segments taken as min(depth, PATH_MEAN_SEGMENTS) (Russian
+        # roulette ends most paths within a few bounces), each sample one path.
+        return levels, settings.samples_per_pixel * min(float(levels), PATH_MEAN_SEGMENTS)
     used = (
         set(np.unique(scene.sphere_materials).tolist())
         | {p.material for p in scene.planes}
@@ -289,9 +298,16 @@ def largest_accepted(
             else:
                 hi = mid - 1
         out[name] = lo or None
-    out["samples_per_pixel"] = next(
-        (s for s in (16, 9, 4, 1) if s <= settings.samples_per_pixel and fits(samples_per_pixel=s)), None
-    )
+    if getattr(settings, "integrator", "whitted") == "path":  # any count: bisect it as the sides
+        lo, hi = 0, settings.samples_per_pixel
+        while lo < hi:
+            mid = (lo + hi + 1) // 2
+            lo, hi = (mid, hi) if fits(samples_per_pixel=mid) else (lo, mid - 1)
+        out["samples_per_pixel"] = lo or None
+    else:
+        out["samples_per_pixel"] = next(
+            (s for s in (16, 9, 4, 1) if s <= settings.samples_per_pixel and fits(samples_per_pixel=s)), None
+        )
     out["max_recursion_depth"] = next(
         (d for d in range(settings.max_recursion_depth, 0, -1) if fits(max_recursion_depth=d)), None
     )

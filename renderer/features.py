@@ -34,9 +34,14 @@ REMOVALS = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS", "NO_SPLIT")
 PLANE_COUNTS = tuple(f"PLANES_{k}" for k in range(MAX_PLANES + 1))
 LIGHT_COUNTS = tuple(f"LIGHTS_{k}" for k in range(1, MAX_LIGHTS + 1))  # no lights: NO_LIGHTS
 DATA_FORMATS = ("EQUAL_RADII", "MATERIAL_TEXTURE", "TRIANGLES", "SMOOTH_TRIANGLES")
+# What the light of a frame needs beyond the thesis's, never specialised away either (a scene without
+# them carries none, so its variants' text is the one before them): some used material emits
+# (EMISSION), the environment is not black (ENVIRONMENT), the frame traces paths (PATH: the
+# ``integrator`` setting, in colour frames).
+LIGHTING = ("EMISSION", "ENVIRONMENT", "PATH")
 # The defines a variant may carry, in the order they are emitted (the server's shader query
 # accepts these, in this order).
-FEATURE_DEFINES = (*REMOVALS, *PLANE_COUNTS, *LIGHT_COUNTS, *DATA_FORMATS)
+FEATURE_DEFINES = (*REMOVALS, *PLANE_COUNTS, *LIGHT_COUNTS, *DATA_FORMATS, *LIGHTING)
 
 
 @dataclass(frozen=True)
@@ -51,6 +56,9 @@ class SceneFeatures:
     material_texture: bool = False
     triangles: bool = False
     smooth_triangles: bool = False
+    emission: bool = False
+    environment: bool = False
+    path: bool = False
 
     def defines(self) -> tuple[str, ...]:
         """The variant's defines, in FEATURE_DEFINES order: what the scene cannot use removed,
@@ -76,6 +84,9 @@ class SceneFeatures:
             on.add("TRIANGLES")
         if self.smooth_triangles:
             on.add("SMOOTH_TRIANGLES")
+        for name in LIGHTING:
+            if getattr(self, name.lower()):
+                on.add(name)
         return tuple(d for d in FEATURE_DEFINES if d in on)
 
     def removed(self) -> list[str]:
@@ -83,8 +94,13 @@ class SceneFeatures:
         return [d for d in self.defines() if d in REMOVALS]
 
     def recursion_depth(self, requested: int) -> int:
-        """The deepest level a ray tree can reach in this scene (≤ requested)."""
-        return requested if (self.reflection or self.transmission) else 1
+        """The deepest level a ray tree can reach in this scene (≤ requested); a path bounces off
+        every surface, so the path integrator's depth is the one requested."""
+        return requested if (self.reflection or self.transmission or self.path) else 1
+
+    def with_integrator(self, integrator: str, mode: str) -> SceneFeatures:
+        """The features of a frame of this scene with ``integrator`` in ``mode`` (paths: colour only)."""
+        return replace(self, path=integrator == "path" and mode == "color")
 
     def generic(self) -> SceneFeatures:
         """The generic variant for the same data: nothing removed, counts read at run time."""
@@ -94,6 +110,9 @@ class SceneFeatures:
             material_texture=self.material_texture,
             triangles=self.triangles,
             smooth_triangles=self.smooth_triangles,
+            emission=self.emission,
+            environment=self.environment,
+            path=self.path,
         )
 
 
@@ -120,4 +139,6 @@ def scene_features(scene: Scene) -> SceneFeatures:
         material_texture=gpu_layout.material_texture(scene),
         triangles=gpu_layout.has_triangles(scene),
         smooth_triangles=gpu_layout.smooth_triangles(scene),
+        emission=any(m.emits for m in mats),
+        environment=any(scene.environment),
     )

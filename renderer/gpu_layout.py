@@ -94,7 +94,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .limits import DEFAULT_TEXTURE_WIDTH, MAX_LIGHTS, MAX_MATERIALS, MAX_PLANES, MAX_SPHERES, MAX_TRIANGLES
+from .limits import (
+    DEFAULT_TEXTURE_WIDTH,
+    MAX_LIGHTS,
+    MAX_MATERIALS,
+    MAX_PLANES,
+    MAX_SAMPLED_SPHERES,
+    MAX_SAMPLED_TRIANGLES,
+    MAX_SPHERES,
+    MAX_TRIANGLES,
+)
 from .modes import RAY_TREE_MODES
 from .scene import Camera, Scene
 
@@ -167,7 +176,7 @@ class Binding:
 
 
 # Groups of bindings a variant may not read; each has a READS_<GROUP> define in the shader.
-GROUPS = ("materials", "lights", "min_weight", "target_distance")
+GROUPS = ("materials", "lights", "min_weight", "target_distance", "emission", "environment", "path")
 # Groups whose READS_<GROUP> define only variants with triangles get (renderer/shader_source.py),
 # so no sphere variant's text changes for them: the smooth triangles' vertex normals.
 SILENT_GROUPS = ("shading_normals",)
@@ -201,6 +210,11 @@ class Variant:
         """Whether a hit can spawn a reflected or transmitted ray."""
         return self.traced_depth > 1 and not {"NO_REFLECTION", "NO_TRANSMISSION"} <= set(self.features)
 
+    @property
+    def path(self) -> bool:
+        """Whether the variant traces paths (the ``integrator`` setting ``path``; colour frames only)."""
+        return self.mode == "color" and "PATH" in self.features
+
     def reads(self, group: str) -> bool:
         """Whether the variant's shader reads the bindings of ``group``."""
         if group == "always":
@@ -213,6 +227,14 @@ class Variant:
             return self.spawns
         if group == "target_distance":
             return self.mode == "depth"
+        # Emitting materials, a non-black environment and the path integrator: only variants of scenes
+        # (frames) that have them read these, so no other variant's text changes for them.
+        if group == "emission":
+            return self.mode == "color" and "EMISSION" in self.features
+        if group == "environment":
+            return self.mode == "color" and "ENVIRONMENT" in self.features
+        if group == "path":
+            return self.path
         if group == "shading_normals":  # a hit's shading normal: the hit target, or the image
             if not self.image_only:
                 return True
@@ -272,6 +294,58 @@ PLANE_MAT = Binding("u_plane_mat", "highp int", length="MAX_PLANES", group="mate
 NUM_LIGHTS = Binding("u_num_lights", "highp int", group="lights", unless="LIGHTS_")
 LIGHT_POS = Binding("u_light_pos", "highp vec3", length="MAX_LIGHTS", group="lights")
 LIGHT_COLOR = Binding("u_light_color", "highp vec3", length="MAX_LIGHTS", group="lights")
+EMISSION = Binding("u_emission", "highp sampler2D", "(emitted radiance rgb, 0) per material", group="emission")
+ENVIRONMENT = Binding("u_environment", "highp vec3", "radiance a ray that meets nothing sees", group="environment")
+# The path integrator: the samples this pass traces of each pixel, and the point lights' scale.
+SAMPLE_START = Binding("u_sample_start", "highp int", "index of this pass's first sample of each pixel", group="path")
+SAMPLE_COUNT = Binding("u_sample_count", "highp int", "samples of each pixel this pass traces (≥ 1)", group="path")
+LIGHT_SCALE = Binding(
+    "u_light_scale",
+    "highp float",
+    "π·d², d = |target − position|: a point light's radiant intensity per unit of its color (docs/SHADING.md)",
+    group="path",
+)
+PATH_BINDINGS = (SAMPLE_START, SAMPLE_COUNT)  # set per pass
+# The emitting spheres next-event estimation samples (the first MAX_SAMPLED_SPHERES by id; the others
+# are met by BSDF sampling alone).
+NUM_EMITTERS = Binding("u_num_emitters", "highp int", "emitting spheres sampled", group="path")
+EMITTER_LAST = Binding("u_emitter_last", "highp int", "id of the last sampled emitting sphere (−1: none)", group="path")
+EMITTER_SPHERE = Binding(
+    "u_emitter_sphere", "highp vec4", "(centre, radius) of each", length="MAX_SAMPLED_SPHERES", group="path"
+)
+EMITTER_RADIANCE = Binding(
+    "u_emitter_radiance", "highp vec3", "emission of each", length="MAX_SAMPLED_SPHERES", group="path"
+)
+# The emitting triangles next-event estimation samples, one picked by area: all of them when there are
+# at most MAX_SAMPLED_TRIANGLES (else none: BSDF sampling alone meets them).
+NUM_EMIT_TRIS = Binding("u_num_emit_tris", "highp int", "emitting triangles sampled (0: none)", group="path")
+EMIT_TRI_AREA = Binding("u_emit_tri_area", "highp float", "their total area", group="path")
+EMIT_TRI_V0 = Binding("u_emit_tri_v0", "highp vec3", "corner v0 of each", length="MAX_SAMPLED_TRIANGLES", group="path")
+EMIT_TRI_E1 = Binding("u_emit_tri_e1", "highp vec3", "v1 − v0 of each", length="MAX_SAMPLED_TRIANGLES", group="path")
+EMIT_TRI_E2 = Binding("u_emit_tri_e2", "highp vec3", "v2 − v0 of each", length="MAX_SAMPLED_TRIANGLES", group="path")
+EMIT_TRI_RADIANCE = Binding(
+    "u_emit_tri_radiance", "highp vec3", "emission of each", length="MAX_SAMPLED_TRIANGLES", group="path"
+)
+EMIT_TRI_CDF = Binding(
+    "u_emit_tri_cdf",
+    "highp float",
+    "area up to and with each, over the total",
+    length="MAX_SAMPLED_TRIANGLES",
+    group="path",
+)
+EMITTER_BINDINGS = (
+    NUM_EMITTERS,
+    EMITTER_LAST,
+    EMITTER_SPHERE,
+    EMITTER_RADIANCE,
+    NUM_EMIT_TRIS,
+    EMIT_TRI_AREA,
+    EMIT_TRI_V0,
+    EMIT_TRI_E1,
+    EMIT_TRI_E2,
+    EMIT_TRI_RADIANCE,
+    EMIT_TRI_CDF,
+)
 # The triangles (only with the TRIANGLES data format): listed among the bindings of each method
 # that traces them, packed by its packer with pack_triangles, so that they may be uniform blocks.
 TRIANGLES = Binding(
@@ -309,6 +383,8 @@ SCENE_BINDINGS = (
     NUM_LIGHTS,
     LIGHT_POS,
     LIGHT_COLOR,
+    EMISSION,
+    ENVIRONMENT,
 )
 
 CAM_POS = Binding("u_cam_pos", "highp vec3")
@@ -329,7 +405,15 @@ MIN_WEIGHT = Binding(
 PASS_SCALE = Binding("u_pass_scale", "highp float", "sub-pixels per pixel side of this pass's grid")
 PASS_OFFSET = Binding("u_pass_offset", "highp vec2", "(sx, sy) + 0.5: the sub-pixel this pass traces")
 PASS_BINDINGS = (PASS_SCALE, PASS_OFFSET)
-TRACER_BINDINGS = (*SCENE_BINDINGS, *CAMERA_BINDINGS, *PASS_BINDINGS, MIN_WEIGHT)
+TRACER_BINDINGS = (
+    *SCENE_BINDINGS,
+    *CAMERA_BINDINGS,
+    *PASS_BINDINGS,
+    MIN_WEIGHT,
+    LIGHT_SCALE,
+    *EMITTER_BINDINGS,
+    *PATH_BINDINGS,
+)
 # The ray engines draw planes as instances after the spheres (the instance count carries the
 # number of primitives), so they never read u_num_planes; their depth image is made on the CPU.
 # Their materials are the texture, their spheres the per-id textures.
@@ -587,12 +671,17 @@ def pack_primitives(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> Pac
     for i, m in enumerate(scene.materials):
         mats[3 * i] = (*m.color, m.ambient)
         mats[3 * i + 1] = (m.diffuse, m.specular, m.shininess, m.reflective)
-        mats[3 * i + 2] = (m.transmissive, m.ior, 0.0, 0.0)
+        mats[3 * i + 2] = (m.transmissive, m.ior, m.roughness, 0.0)  # (the Whitted shader reads x, y)
     textures = {
         SPHERES.name: wrap_rows(spheres, max_width),
         SPHERE_MAT.name: wrap_rows(scene.sphere_materials.astype(np.uint32), max_width),
         MATERIALS.name: wrap_rows(mats, max_width),
     }
+    # Only a scene with them packs its emission and environment: every other scene's data stay as before.
+    if any(m.emits for m in scene.materials):
+        textures[EMISSION.name] = wrap_rows(
+            np.array([(*m.emission, 0.0) for m in scene.materials], np.float32), max_width
+        )
     planes = scene.planes
     lights = scene.lights
     vecs = np.zeros((MATERIAL_TEXELS * MAX_UNIFORM_MATERIALS, 4), dtype=np.float32)
@@ -610,7 +699,68 @@ def pack_primitives(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> Pac
         LIGHT_POS.name: _fixed([light.position for light in lights], MAX_LIGHTS, (0.0, 0.0, 0.0)),
         LIGHT_COLOR.name: _fixed([light.color for light in lights], MAX_LIGHTS, (0.0, 0.0, 0.0)),
     }
+    if any(scene.environment):
+        uniforms[ENVIRONMENT.name] = tuple(float(x) for x in scene.environment)
     return PackedScene(textures, uniforms)
+
+
+def light_scale(scene: Scene) -> float:
+    """A point light's radiant intensity per unit of its ``color`` in the path integrator: π·d²
+    with d the camera's distance to its target. A Lambertian surface of albedo ρ facing the light
+    at distance d then has radiance ρ·color, what Whitted's diffuse term gives it at any distance:
+    a thesis scene keeps its exposure when the integrator is switched (docs/SHADING.md)."""
+    d = float(np.linalg.norm(np.subtract(scene.camera.target, scene.camera.position)))
+    return math.pi * d * d
+
+
+def emitter_uniforms(scene: Scene) -> dict[str, object]:
+    """The emitting spheres the path integrator samples: the first MAX_SAMPLED_SPHERES by id."""
+    emits = np.array([m.emits for m in scene.materials], dtype=bool)
+    ids = np.flatnonzero(emits[scene.sphere_materials])[:MAX_SAMPLED_SPHERES] if scene.n_spheres else np.zeros(0, int)
+    spheres = [(*scene.sphere_centers[i].tolist(), float(scene.sphere_radii[i])) for i in ids]
+    radiance = [tuple(scene.materials[scene.sphere_materials[i]].emission) for i in ids]
+    out = {
+        NUM_EMITTERS.name: len(ids),
+        EMITTER_LAST.name: int(ids[-1]) if len(ids) else -1,
+        EMITTER_SPHERE.name: _fixed(spheres, MAX_SAMPLED_SPHERES, (0.0, 0.0, 0.0, 1.0)),
+        EMITTER_RADIANCE.name: _fixed(radiance, MAX_SAMPLED_SPHERES, (0.0, 0.0, 0.0)),
+    }
+    tris = np.zeros((0, 3, 3))
+    mats = np.zeros(0, dtype=np.int64)
+    if scene.n_triangles:
+        lit = np.flatnonzero(emits[np.asarray(scene.triangle_materials, dtype=np.int64)])
+        tris = np.asarray(scene.triangle_corners, dtype=np.float64)[lit]
+        mats = np.asarray(scene.triangle_materials)[lit]
+        area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+        keep = area > 0.0
+        tris, mats = tris[keep], mats[keep]
+        if len(tris) > MAX_SAMPLED_TRIANGLES:
+            tris, mats = tris[:0], mats[:0]
+    area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+    total = float(area.sum())
+    cdf = (np.cumsum(area) / total).tolist() if len(area) else []
+    if cdf:
+        cdf[-1] = 1.0
+    vec = lambda a: [tuple(float(x) for x in v) for v in a]
+    out.update(
+        {
+            NUM_EMIT_TRIS.name: len(tris),
+            EMIT_TRI_AREA.name: total,
+            EMIT_TRI_V0.name: _fixed(vec(tris[:, 0]), MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)),
+            EMIT_TRI_E1.name: _fixed(vec(tris[:, 1] - tris[:, 0]), MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)),
+            EMIT_TRI_E2.name: _fixed(vec(tris[:, 2] - tris[:, 0]), MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)),
+            EMIT_TRI_RADIANCE.name: _fixed(
+                [tuple(scene.materials[int(m)].emission) for m in mats], MAX_SAMPLED_TRIANGLES, (0.0, 0.0, 0.0)
+            ),
+            EMIT_TRI_CDF.name: _fixed([float(c) for c in cdf], MAX_SAMPLED_TRIANGLES, 2.0),
+        }
+    )
+    return out
+
+
+def path_uniforms(start: int, count: int) -> dict[str, object]:
+    """The path integrator's pass uniforms: samples ``start … start + count − 1`` of every pixel."""
+    return {SAMPLE_START.name: int(start), SAMPLE_COUNT.name: int(count)}
 
 
 def _fixed(items: list, length: int, filler) -> list:
@@ -770,6 +920,11 @@ def tracer_constants() -> str:
         f"#define SPHERE_MAT_MASK {SPHERE_MAT_MASK}u\n"
         f"#define SPHERE_LAST {SPHERE_LAST}u\n"
     )
+
+
+def path_constants() -> str:
+    """The path integrator's constants: emitted only into its variants (no other's text changes)."""
+    return f"#define MAX_SAMPLED_SPHERES {MAX_SAMPLED_SPHERES}\n#define MAX_SAMPLED_TRIANGLES {MAX_SAMPLED_TRIANGLES}\n"
 
 
 def triangle_constants() -> str:

@@ -9,6 +9,9 @@ Why each bound is what it is:
 - ``MAX_RECURSION_DEPTH`` bounds the Whitted ray tree (the shader's task stack holds one
   entry per level plus one), and the ray engines spend one stencil bit per generation:
   8 bits of stencil cover exactly these 8 levels.
+- ``MAX_PATH_DEPTH``: the path integrator keeps no ray tree (one path, one shadow ray at a time),
+  so its bound is a cost bound only: 16 segments carry all but a negligible part of the
+  light of the scenes here (a clear glass sphere needs ~8 for 99.9 %).
 - ``MAX_IMAGE_SIDE`` is a render target's side *after* supersampling (so a frame of
   ``width × √samples_per_pixel`` must fit too); GL guarantees 4,096 on this machine
   and on most phones.
@@ -27,7 +30,13 @@ MAX_RETRIES = 64  # BIH: retries (box halvings / shrinks) of one node before it 
 # ---- frames --------------------------------------------------------------------------------
 MAX_IMAGE_SIDE = 4096  # pixels, of the render target (after supersampling)
 MAX_RECURSION_DEPTH = 8  # levels of the ray tree; 1 = primary rays only
+MAX_PATH_DEPTH = 16  # the path integrator: segments of a path (docs/SHADING.md, "Path integrator")
 SAMPLES_PER_PIXEL = (1, 4, 9, 16)  # stratified supersampling: √s × √s sub-pixels
+MAX_PATH_SAMPLES = 4096  # the path integrator: samples per pixel, any count 1 … this
+PATH_SAMPLES_PER_PASS = 16  # the path integrator: samples per pixel one draw traces (a frame's passes)
+MAX_SAMPLED_SPHERES = 8  # the path integrator: emitting spheres sampled by next-event estimation
+MAX_SAMPLED_TRIANGLES = 16  # … emitting triangles (a scene with more samples none of them)
+EXPOSURE_RANGE = (-20.0, 20.0)  # stops: the path integrator's png/jpeg are tone-mapped from 2^exposure × radiance
 MIN_WEIGHT_RANGE = (0.0, 1.0)  # ε cut-off of secondary rays
 MIN_TILE_SIZE = 2  # hre: tile side in pixels
 MAX_TILE_SIZE = 64
@@ -59,6 +68,7 @@ MAX_LIGHTS = 8
 MAX_MATERIALS = 256
 MAX_MOTIONS = 1024
 MAX_LIGHT_INTENSITY = 1e3  # per RGB channel
+MAX_EMISSION = 1e6  # radiance per RGB channel (materials' emission, the environment)
 MAX_SHININESS = 1e4  # Phong exponent
 MAX_IOR = 10.0  # refraction index
 MAX_MUSEUM_MOVING = MAX_SPHERES - 1024  # the Museum's moving spheres: room for its static room

@@ -49,6 +49,12 @@ def capabilities(name: str, n_spheres: int = 0) -> Capabilities:
     return METHODS[resolve_method(name, n_spheres)].capabilities
 
 
+def integrator_methods(integrator: str) -> list[str]:
+    """The method names (``auto`` included) that can trace frames with ``integrator``."""
+    names = [n for n, m in METHODS.items() if integrator in m.capabilities.integrators]
+    return names + [AUTO_METHOD] if integrator in capabilities(AUTO_METHOD).integrators else names
+
+
 def check_primitives(name: str, scene) -> None:
     """Refuse (SceneError ``method``) a scene with a kind of primitive the method does not
     trace (``Capabilities.primitives``): the ray engines draw spheres and planes only."""

@@ -29,7 +29,7 @@ the same way by their bounding spheres, and the candidates go through the exact 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from fractions import Fraction
 
 import numpy as np
@@ -201,6 +201,8 @@ class _Geometry:
     light_pos: np.ndarray  # (L, 3)
     light_col: np.ndarray  # (L, 3)
     tris: _Triangles
+    emission: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (M, 3) radiance per material
+    environment: np.ndarray = field(default_factory=lambda: np.zeros(3))  # what a ray meeting nothing sees
 
     @staticmethod
     def of(scene: Scene) -> _Geometry:
@@ -236,6 +238,8 @@ class _Geometry:
             light_pos=np.array([light.position for light in scene.lights], dtype=np.float64).reshape(-1, 3),
             light_col=np.array([light.color for light in scene.lights], dtype=np.float64).reshape(-1, 3),
             tris=_Triangles.of(scene),
+            emission=np.array([m.emission for m in mats], dtype=np.float64).reshape(-1, 3),
+            environment=np.array(scene.environment, dtype=np.float64),
         )
 
     def normals(
@@ -675,6 +679,9 @@ def _trace_batch(g: _Geometry, batch: RayBatch, frame: _Frame, max_level: int, s
     """Trace one generation: record primary data, add weighted local colour, return children."""
     t, prim = nearest_hit(g, batch.origins, batch.dirs, batch.src, batch.far_only)
     hit = np.nonzero(prim >= 0)[0]
+    if shade and g.environment.any():  # a ray that meets nothing sees the environment
+        miss = np.nonzero(prim < 0)[0]
+        np.add.at(frame.color, batch.pix[miss], batch.weight[miss] * g.environment)
     if len(hit) == 0:
         return None  # a miss is black: nothing to add
     prim_h, pix_h = prim[hit], batch.pix[hit]
@@ -687,6 +694,9 @@ def _trace_batch(g: _Geometry, batch: RayBatch, frame: _Frame, max_level: int, s
         frame.normal[pix_h] = normal
     if shade:
         local = local_color(g, p, batch.dirs[hit], normal, prim_h, geo)
+        if g.emission.any():  # emitted on the side the (geometric) normal faces
+            front = _dot(batch.dirs[hit], geo) < 0.0
+            local = local + np.where(front[:, None], g.emission[g.prim_material[prim_h]], 0.0)
         np.add.at(frame.color, pix_h, batch.weight[hit] * local)
     if batch.level >= max_level:
         return None  # the deepest level returns `local` only

@@ -7,18 +7,23 @@ from typing import Any
 
 import numpy as np
 
+from .tonemap import display_u8
+
 
 @dataclass
 class RenderResult:
     """One rendered frame. Row 0 of every array is the top row of the image.
 
-    image:  float32 H×W×3 in [0, 1], what the render mode shows (docs/SHADING.md).
+    image:  float32 H×W×3 in [0, 1], what the render mode shows (docs/SHADING.md); of the path
+            integrator (``display`` set), linear radiance ≥ 0, unbounded.
     depth:  float32 H×W, t of the primary hit, ``inf`` on a miss.
     primid: int32 H×W, primitive id of the primary hit, -1 on a miss.
     normal: float32 H×W×3, outward normal at the primary hit (0 on a miss).
     mode:   the render mode ``image`` shows.
     timings: milliseconds per stage (``build``, ``upload``, ``trace``, ``read``…).
     stats:  acceleration-structure statistics (JSON-able) or None.
+    display: (tone-mapping operator, exposure) when ``image`` is radiance (the path integrator):
+            :meth:`image_u8` tone-maps it (renderer/tonemap.py), :meth:`array` gives it as it is.
     """
 
     image: np.ndarray
@@ -28,9 +33,13 @@ class RenderResult:
     mode: str
     timings: dict[str, float] = field(default_factory=dict)
     stats: dict[str, Any] | None = None
+    display: tuple[str, float] | None = None
 
     def image_u8(self) -> np.ndarray:
-        """The image as uint8 H×W×3: ``floor(255 · clamp(c, 0, 1) + 0.5)``."""
+        """The image as uint8 H×W×3: ``floor(255 · clamp(c, 0, 1) + 0.5)``; radiance tone-mapped
+        and sRGB-encoded."""
+        if self.display is not None:
+            return display_u8(self.image, *self.display)
         return np.floor(np.clip(self.image, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
 
     def array(self) -> np.ndarray:
@@ -42,6 +51,8 @@ class RenderResult:
             return self.primid.astype(np.int32, copy=False)
         if self.mode == "normal":
             return self.normal.astype(np.float32, copy=False)
+        if self.display is not None:  # the path integrator: linear radiance, float32 H×W×3
+            return self.image.astype(np.float32, copy=False)
         return self.image_u8()
 
 

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from .scene import Camera, Light, Material, Plane, Scene, SceneError
+from .scene import Camera, Light, Material, Plane, Scene, SceneError, make_mesh
 
 CUBE_HALF = 20.0
 # Edge of each of scenario 2's eight corner cubes.
@@ -127,7 +127,7 @@ def scenario(number: int, n: int, seed: int = 0, radius: float = 1.0) -> Scene:
 
 
 # ---- scenes with triangle meshes -------------------------------------------------------
-MESH_SCENES = ("teapot", "mixed", "room")
+MESH_SCENES = ("teapot", "mixed", "room", "cornell")
 MAX_MESH_DETAIL = 5
 
 PORCELAIN = Material(
@@ -170,7 +170,12 @@ def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True) -> Sc
     - ``mixed``: a grid of 27 red spheres above the floor, a glass icosphere and a red
       torus among them (spheres, planes and triangles together, the ids of every kind);
     - ``room``: a closed box room seen from inside (walls wound inwards, no plane), with
-      a teapot, a glass icosphere and four spheres.
+      a teapot, a glass icosphere and four spheres;
+    - ``cornell``: a Cornell box for the path integrator (``integrator=path``): five wall
+      planes (red left, green right, white floor, ceiling and back; the front open onto a
+      black environment), an emitting panel under the ceiling (a quad, its only light:
+      ``lights`` is empty), a mirror sphere, a glass sphere (its caustic on the floor) and a
+      diffuse teapot.
 
     ``detail`` (0 … MAX_MESH_DETAIL) sets the tessellation: teapot ``2 + 2·detail``
     segments per patch, icosphere subdivisions ``detail``, torus ``12 (detail + 1)``
@@ -226,6 +231,8 @@ def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True) -> Sc
             (floor,),
             meshes,
         )
+    if kind == "cornell":
+        return _cornell(M, seg, smooth, placed)
     room = M.box((-CUBE_HALF,) * 3, (CUBE_HALF,) * 3, inward=True, material=0)
     pot = M.teapot(seg, size=3.0, material=1, smooth=smooth, transform=placed(-6.0, -CUBE_HALF, -6.0))
     ball = M.icosphere(int(detail), radius=4.0, center=(8.0, -16.0, -2.0), material=2, smooth=smooth)
@@ -239,4 +246,85 @@ def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True) -> Sc
         np.full(4, 3, np.int32),
         (),
         (room, pot, ball),
+    )
+
+
+def _matte(color, ambient: float = 0.3) -> Material:
+    """A Lambertian wall (path integrator: albedo ``color``; Whitted: ambient and diffuse only)."""
+    return Material(
+        color=color,
+        ambient=ambient,
+        diffuse=1.0,
+        specular=0.0,
+        shininess=1.0,
+        reflective=0.0,
+        transmissive=0.0,
+        ior=1.0,
+    )
+
+
+CORNELL_MATERIALS = (
+    _matte((0.73, 0.73, 0.73)),  # 0 white: floor, ceiling, back wall
+    _matte((0.63, 0.065, 0.05)),  # 1 red: the left wall
+    _matte((0.14, 0.45, 0.091)),  # 2 green: the right wall
+    Material(
+        color=(1.0, 1.0, 1.0),
+        ambient=0.0,
+        diffuse=0.0,
+        specular=0.0,
+        shininess=1.0,
+        reflective=0.0,
+        transmissive=0.0,
+        ior=1.0,
+        emission=(17.0, 12.0, 4.0),
+    ),  # 3 the ceiling panel
+    Material(
+        color=(1.0, 1.0, 1.0),
+        ambient=0.0,
+        diffuse=0.0,
+        specular=0.5,
+        shininess=200.0,
+        reflective=1.0,
+        transmissive=0.0,
+        ior=1.0,
+    ),  # 4 mirror
+    Material(
+        color=(1.0, 1.0, 1.0),
+        ambient=0.0,
+        diffuse=0.0,
+        specular=0.5,
+        shininess=200.0,
+        reflective=0.0,
+        transmissive=1.0,
+        ior=1.5,
+    ),  # 5 clear glass
+    _matte((0.8, 0.75, 0.6)),  # 6 the teapot
+)
+
+
+def _cornell(M, seg: int, smooth: bool, placed) -> Scene:
+    h = CUBE_HALF
+    planes = (
+        Plane((0.0, -h, 0.0), (0.0, 1.0, 0.0), 0),
+        Plane((0.0, h, 0.0), (0.0, -1.0, 0.0), 0),
+        Plane((0.0, 0.0, -h), (0.0, 0.0, 1.0), 0),
+        Plane((-h, 0.0, 0.0), (1.0, 0.0, 0.0), 1),
+        Plane((h, 0.0, 0.0), (-1.0, 0.0, 0.0), 2),
+    )
+    y = h - 0.01  # a quad just under the ceiling, wound to face down
+    panel = make_mesh([[-5.0, y, -5.0], [5.0, y, -5.0], [5.0, y, 5.0], [-5.0, y, 5.0]], [[0, 1, 2], [0, 2, 3]], 3)
+    pot = M.teapot(seg, size=3.2, material=6, smooth=smooth, transform=placed(0.0, -h, -10.0))
+    centers = np.array([[-9.0, -h + 6.0, -4.0], [8.0, -h + 6.0, 6.0]])
+    # The camera sees the open front exactly: 2h wide at 2h·(1 + 1/tan(fov/2)) / 2 from the back.
+    fov = 40.0
+    z = h + h / np.tan(np.radians(fov / 2.0))
+    return Scene(
+        Camera((0.0, 0.0, float(z)), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), fov),
+        (),
+        CORNELL_MATERIALS,
+        centers,
+        np.array([6.0, 6.0]),
+        np.array([4, 5], np.int32),
+        planes,
+        (panel, pot),
     )

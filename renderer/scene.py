@@ -155,6 +155,10 @@ class Material:
 
     ``reflective`` (kr) and ``transmissive`` (kt) weight the secondary rays;
     ``ior`` is the refraction index of the inside relative to the outside.
+    ``emission``: linear RGB radiance the surface emits on the side its normal faces (seen
+    directly by both integrators; an area light of the path integrator). ``roughness``: GGX
+    α of the path integrator's reflection lobe (0: a mirror). Both are absent from the
+    JSON when 0, so a scene without them reads and writes as it always did.
     """
 
     color: Vec3 = (0.9, 0.3, 0.3)
@@ -165,9 +169,16 @@ class Material:
     reflective: float = 0.3
     transmissive: float = 0.0
     ior: float = 1.0
+    emission: Vec3 = (0.0, 0.0, 0.0)
+    roughness: float = 0.0
 
     def __post_init__(self) -> None:
         col = finite_vec3(self.color, "color")
+        em = finite_vec3(self.emission, "emission")
+        for i, c in enumerate(em):
+            finite_number(c, f"emission[{i}]", lo=0.0, hi=limits.MAX_EMISSION)
+        object.__setattr__(self, "emission", em)
+        object.__setattr__(self, "roughness", finite_number(self.roughness, "roughness", lo=0.0, hi=1.0))
         for i, c in enumerate(col):
             finite_number(c, f"color[{i}]", lo=0.0, hi=1.0)
         object.__setattr__(self, "color", col)
@@ -178,8 +189,12 @@ class Material:
         )
         object.__setattr__(self, "ior", finite_number(self.ior, "ior", lo=0.0, hi=limits.MAX_IOR, lo_open=True))
 
+    @property
+    def emits(self) -> bool:
+        return any(c > 0.0 for c in self.emission)
+
     def to_json(self) -> dict:
-        return {
+        out = {
             "color": list(self.color),
             "ambient": self.ambient,
             "diffuse": self.diffuse,
@@ -189,10 +204,26 @@ class Material:
             "transmissive": self.transmissive,
             "ior": self.ior,
         }
+        if self.emits:
+            out["emission"] = list(self.emission)
+        if self.roughness:
+            out["roughness"] = self.roughness
+        return out
 
     @staticmethod
     def from_json(d: Any, where: str) -> Material:
-        keys = ("color", "ambient", "diffuse", "specular", "shininess", "reflective", "transmissive", "ior")
+        keys = (
+            "color",
+            "ambient",
+            "diffuse",
+            "specular",
+            "shininess",
+            "reflective",
+            "transmissive",
+            "ior",
+            "emission",
+            "roughness",
+        )
         d = _object(d, where, set(keys))
         return _construct(Material, {k: d[k] for k in keys if k in d}, where)
 
@@ -488,6 +519,7 @@ class Scene:
     sphere_materials: np.ndarray
     planes: tuple[Plane, ...] = field(default_factory=tuple)
     meshes: tuple[Mesh, ...] = field(default_factory=tuple)
+    environment: Vec3 = (0.0, 0.0, 0.0)  # the radiance a ray that meets nothing sees (black: none)
 
     # Upper bounds that keep one scene from exhausting the service.
     MAX_SPHERES = limits.MAX_SPHERES
@@ -554,6 +586,10 @@ class Scene:
         object.__setattr__(self, "materials", tuple(self.materials))
         object.__setattr__(self, "planes", tuple(self.planes))
         object.__setattr__(self, "meshes", tuple(self.meshes))
+        env = finite_vec3(self.environment, "environment.color")
+        for i, x in enumerate(env):
+            finite_number(x, f"environment.color[{i}]", lo=0.0, hi=limits.MAX_EMISSION)
+        object.__setattr__(self, "environment", env)
 
     @property
     def n_spheres(self) -> int:
@@ -643,6 +679,7 @@ class Scene:
             sphere_materials,
             self.planes,
             tuple(self.meshes if meshes is None else meshes),
+            self.environment,
         )
 
     def with_camera(self, camera: Camera) -> Scene:
@@ -671,11 +708,15 @@ class Scene:
         }
         if self.meshes:  # absent when there are none: a sphere scene's JSON is as it always was
             out["meshes"] = [m.to_json() for m in self.meshes]
+        if any(self.environment):  # absent when black, as it was before environments
+            out["environment"] = {"color": list(self.environment)}
         return out
 
     @staticmethod
     def from_json(d: Any) -> Scene:
-        d = _object(d, "scene", {"camera", "lights", "materials", "spheres", "planes", "meshes"})
+        d = _object(d, "scene", {"camera", "lights", "materials", "spheres", "planes", "meshes", "environment"})
+        env = _object(d.get("environment", {}), "environment", {"color"})
+        environment = finite_vec3(env.get("color", [0.0, 0.0, 0.0]), "environment.color")
         camera = Camera.from_json(d.get("camera", {}), "camera")
         lights = [Light.from_json(x, f"lights[{i}]") for i, x in enumerate(_list(d.get("lights", []), "lights"))]
         materials = [
@@ -709,7 +750,9 @@ class Scene:
             mesh = Mesh.from_json(x, f"meshes[{i}]")
             _material_index(mesh.material, f"meshes[{i}].material", max(len(materials), 1))
             meshes.append(mesh)
-        return Scene(camera, tuple(lights), tuple(materials), centers, radii, mats, tuple(planes), tuple(meshes))
+        return Scene(
+            camera, tuple(lights), tuple(materials), centers, radii, mats, tuple(planes), tuple(meshes), environment
+        )
 
 
 def _list(v: Any, where: str) -> Sequence:

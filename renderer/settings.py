@@ -18,8 +18,8 @@ from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 from . import limits
-from .limits import MAX_IMAGE_SIDE, MAX_TIME, SAMPLES_PER_PIXEL
-from .methods import AUTO_METHOD, METHODS, capabilities
+from .limits import MAX_IMAGE_SIDE, MAX_PATH_DEPTH, MAX_PATH_SAMPLES, MAX_TIME, SAMPLES_PER_PIXEL
+from .methods import AUTO_METHOD, METHODS, capabilities, integrator_methods
 from .modes import MODES, RAY_TREE_MODES
 from .scene import SceneError
 from .tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
@@ -28,6 +28,11 @@ from .tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
 # measured crossover n, BIH above it).
 METHOD_NAMES = (*METHODS, AUTO_METHOD)
 FORMATS = ("png", "jpeg", "npy", "exr")  # exr: float channels (server/frames/exr.py)
+# How a frame's colour is computed (docs/SHADING.md): the thesis's Whitted ray tree, or unidirectional
+# path tracing of the same scene (one-pass methods only: Capabilities.integrators).
+INTEGRATORS = ("whitted", "path")
+# How the path integrator's radiance becomes a png/jpeg pixel (docs/SHADING.md, "Tone mapping").
+TONE_MAPS = ("clamp", "reinhard", "aces")
 
 # The JSON types a setting can have (as JSON Schema names them) and their Python types.
 TYPES: dict[str, type] = {"integer": int, "number": float, "boolean": bool, "string": str}
@@ -206,10 +211,11 @@ SETTINGS: tuple[SettingSpec, ...] = (
         "max_recursion_depth",
         "integer",
         5,
-        "1 = primary rays only; each reflection/refraction +1",
+        f"1 = primary rays only; each reflection/refraction +1 (whitted: ≤ {limits.MAX_RECURSION_DEPTH}; "
+        f"path: segments of a path, Mitsuba's max_depth, ≤ {MAX_PATH_DEPTH})",
         "Recursion depth",
         unit="levels",
-        bounds=(1, limits.MAX_RECURSION_DEPTH),
+        bounds=(1, MAX_PATH_DEPTH),
         modes=RAY_TREE_MODES,
         stored_since_first=True,
         sheet=True,
@@ -240,12 +246,42 @@ SETTINGS: tuple[SettingSpec, ...] = (
         "samples_per_pixel",
         "integer",
         1,
-        "stratified supersampling: traced at √s× the resolution and box-filtered",
+        f"whitted: stratified supersampling, {', '.join(map(str, SAMPLES_PER_PIXEL))} (traced at √s× the "
+        f"resolution and box-filtered); path: paths per pixel, 1 … {MAX_PATH_SAMPLES}",
         "Quality (samples per pixel)",
         unit="samples",
-        choices=SAMPLES_PER_PIXEL,
+        bounds=(1, MAX_PATH_SAMPLES),
         sheet=True,
         client=True,
+    ),
+    SettingSpec(
+        "integrator",
+        "string",
+        "whitted",
+        "whitted: the thesis's ray tree (point lights, Phong); path: unidirectional path tracing (one-pass methods)",
+        "Integrator",
+        choices=INTEGRATORS,
+        capability="integrator",
+        modes=("color",),
+    ),
+    SettingSpec(
+        "tone_map",
+        "string",
+        "clamp",
+        "path integrator's png/jpeg: clamp, reinhard (L/(1+L)) or aces (Narkowicz's fit), then sRGB",
+        "Tone mapping",
+        choices=TONE_MAPS,
+        modes=("color",),
+    ),
+    SettingSpec(
+        "exposure",
+        "number",
+        0.0,
+        "path integrator's png/jpeg: stops, radiance × 2^exposure before tone mapping",
+        "Exposure",
+        unit="stops",
+        bounds=limits.EXPOSURE_RANGE,
+        modes=("color",),
     ),
     SettingSpec(
         "min_weight",
@@ -314,7 +350,7 @@ def _check_order(spec: SettingSpec) -> int:
     """The order settings are checked in (the first bad one is the one named): integers, the
     integer choices (then the supersampled size), numbers, booleans, strings."""
     if spec.type == "integer":
-        return 0 if spec.choices is None else 1
+        return 0 if spec.choices is None and spec.name != "samples_per_pixel" else 1
     return {"number": 2, "boolean": 3, "string": 4}[spec.type]
 
 
@@ -331,8 +367,25 @@ class _RenderSettingsBase:
         def __getattr__(self, name: str) -> Any: ...
 
     def __post_init__(self) -> None:
+        path = getattr(self, "integrator", "whitted") == "path"
         for spec in self._checks:
             spec.check(getattr(self, spec.name))
+            if (
+                spec.name == "max_recursion_depth"
+                and self.max_recursion_depth > limits.MAX_RECURSION_DEPTH
+                and (not path or self.mode == "recursion")
+            ):  # (the recursion mode draws Whitted's tree)
+                raise SceneError(
+                    spec.name,
+                    f"must be in 1 … {limits.MAX_RECURSION_DEPTH}, got "
+                    f"{self.max_recursion_depth} (up to {MAX_PATH_DEPTH} with integrator 'path')",
+                )
+            if spec.name == "samples_per_pixel" and not path and self.samples_per_pixel not in SAMPLES_PER_PIXEL:
+                raise SceneError(
+                    spec.name,
+                    f"must be one of {SAMPLES_PER_PIXEL}, got {self.samples_per_pixel!r} "
+                    f"(any count 1 … {MAX_PATH_SAMPLES} with integrator 'path')",
+                )
             if spec.name == "samples_per_pixel":
                 k = self.supersampling
                 if max(self.width, self.height) * k > MAX_IMAGE_SIDE:
@@ -348,6 +401,13 @@ class _RenderSettingsBase:
         """The method can draw the mode (``auto`` resolved for ``n_spheres``): no frame of
         these settings is refused later for a combination known now."""
         able = capabilities(self.method, n_spheres).modes
+        integrator = getattr(self, "integrator", "whitted")
+        if integrator not in capabilities(self.method, n_spheres).integrators:
+            raise SceneError(
+                "integrator",
+                f"integrator {integrator!r} is not available with method "
+                f"{self.method!r}; the methods that trace it: {', '.join(integrator_methods(integrator))}",
+            )
         if self.mode not in able:
             hint = (
                 " (it shows the hierarchical ray engine's cones: use method 'hre')"
@@ -358,7 +418,9 @@ class _RenderSettingsBase:
 
     @property
     def supersampling(self) -> int:
-        """Sub-pixels per side: √samples_per_pixel."""
+        """Sub-pixels per side: √samples_per_pixel (the path integrator: 1, its samples are paths)."""
+        if getattr(self, "integrator", "whitted") == "path":
+            return 1
         return {1: 1, 4: 2, 9: 3, 16: 4}.get(self.samples_per_pixel, 1)
 
     def with_(self, **kw: Any) -> RenderSettings:

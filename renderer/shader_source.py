@@ -17,6 +17,7 @@ from __future__ import annotations
 from functools import cache
 
 from . import gpu_layout
+from .features import LIGHTING
 from .gpu_layout import Binding, Variant
 from .methods import METHODS
 from .modes import RECURSION_COLORS
@@ -32,6 +33,10 @@ INCLUDE_MARK = "//@INCLUDE "  # a line "//@INCLUDE method_bvh.glsl" in a method 
 TRIANGLES_MARK = "//@TRIANGLES "
 TRIANGLES_FILE = "triangles.glsl"
 SECTION_MARK = "//@SECTION "
+# Likewise "//@LIGHTING <name>": section <name> of LIGHTING_FILE in a variant that carries one of
+# renderer.features.LIGHTING (emission, an environment, the path integrator), nothing in any other.
+LIGHTING_MARK = "//@LIGHTING "
+LIGHTING_FILE = "lighting.glsl"
 
 
 @cache
@@ -86,6 +91,8 @@ def tracer_header(variant: Variant) -> str:
         triangles = gpu_layout.triangle_constants() + "".join(
             f"#define READS_{g.upper()}\n" for g in gpu_layout.SILENT_GROUPS if variant.reads(g)
         )
+    if variant.path:
+        triangles += gpu_layout.path_constants()
     return (
         gpu_layout.glsl_header()
         + gpu_layout.tracer_constants()
@@ -121,6 +128,7 @@ def variant_source(variant: Variant) -> str:
         .replace(METHOD_MARK, method_src)
         .replace(RECURSION_MARK, recursion_color_function())
     )
+    text = with_sections(text, LIGHTING_MARK, LIGHTING_FILE, any(f in LIGHTING for f in variant.features))
     return with_triangles(text, traces_triangles(variant))
 
 
@@ -153,9 +161,15 @@ def traces_triangles(variant: Variant) -> bool:
 @cache
 def triangle_sections() -> dict[str, str]:
     """``shaders/triangles.glsl`` cut at its ``//@SECTION <name>`` lines: name → text."""
+    return sections_of(TRIANGLES_FILE)
+
+
+@cache
+def sections_of(name: str) -> dict[str, str]:
+    """``shaders/<name>`` cut at its ``//@SECTION <name>`` lines: name → text."""
     sections: dict[str, list[str]] = {}
     current: list[str] | None = None
-    for line in read(TRIANGLES_FILE).splitlines(keepends=True):
+    for line in read(name).splitlines(keepends=True):
         if line.startswith(SECTION_MARK):
             current = sections.setdefault(line[len(SECTION_MARK) :].strip(), [])
         elif current is not None:
@@ -169,14 +183,20 @@ def with_triangles(text: str, triangles: bool) -> str:
     triangles is then byte for byte the text it was before meshes (tests/golden), so
     sphere-only frames compile to the same program and render the same pixels. A mark
     without a section is an error (KeyError)."""
-    if TRIANGLES_MARK not in text:
+    return with_sections(text, TRIANGLES_MARK, TRIANGLES_FILE, triangles)
+
+
+def with_sections(text: str, mark: str, name: str, on: bool) -> str:
+    """The ``<mark><section>`` lines of ``text`` replaced by those sections of ``shaders/<name>``
+    (``on``), or removed, line and all."""
+    if mark not in text:
         return text
-    sections = triangle_sections() if triangles else {}
+    sections = sections_of(name) if on else {}
     out = []
     for line in text.splitlines(keepends=True):
-        if line.startswith(TRIANGLES_MARK):
-            if triangles:
-                out.append(sections[line[len(TRIANGLES_MARK) :].strip()])
+        if line.startswith(mark):
+            if on:
+                out.append(sections[line[len(mark) :].strip()])
         else:
             out.append(line)
     return "".join(out)

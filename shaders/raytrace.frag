@@ -293,12 +293,15 @@ Surface surface_at(vec3 o, vec3 d, Hit h) {
     return s;
 }
 
+//@LIGHTING functions
 void main() {
     LAYOUT_INIT();
     method_init();
 #if defined(READS_MATERIALS) && defined(MATERIAL_TEXTURE)
     g_mat_shift = row_shift(textureSize(u_materials, 0));
 #endif
+//@LIGHTING init
+//@LIGHTING main_begin
     // The point of the frame's sample grid (u_resolution) this fragment traces: a pass
     // traces one sub-pixel of every pixel (renderer/gpu_layout.py, PASS_BINDINGS); the
     // pixel-centre pass has scale 1 and offset 0.5, so px is gl_FragCoord.x itself. Every
@@ -345,6 +348,7 @@ void main() {
             live = true;
         } else {
             live = hq.id != NO_PRIM;
+//@LIGHTING whitted_miss
             if (live) {
                 h = hq;
                 s = surface_at(k.o, k.d, h);
@@ -358,6 +362,7 @@ void main() {
 #ifdef MODE_COLOR
                 color += k.weight * m.ambient * m.color;   // Phong's ambient term
 #endif
+//@LIGHTING whitted_emission
                 light = 0;
             }
         }
@@ -454,4 +459,5 @@ void main() {
     o_image = vec4(image, float(primary_id));
     o_hit = vec4(primary_n, primary_t);
 #endif
+//@LIGHTING main_end
 }

@@ -31,9 +31,10 @@ export const SCENARIOS = Object.freeze([
   { value: 'mesh:teapot', label: 'Teapot — triangles (Newell)' },
   { value: 'mesh:mixed', label: 'Icosphere, torus and spheres' },
   { value: 'mesh:room', label: 'Mesh room — teapot, icosphere, spheres' },
+  { value: 'mesh:cornell', label: 'Cornell box — for the path integrator' },
 ]);
 // A mesh scene's kind ('mesh:teapot' → 'teapot'), or null for the sphere scenes.
-export const meshKind = (scenario) => (/^mesh:(teapot|mixed|room)$/.exec(String(scenario ?? '')) || [])[1] || null;
+export const meshKind = (scenario) => (/^mesh:(teapot|mixed|room|cornell)$/.exec(String(scenario ?? '')) || [])[1] || null;
 // Model files the settings sheet uploads (POST /api/sessions/{id}/meshes?format=…), by suffix.
 export const MODEL_FORMATS = Object.freeze(['obj', 'ply', 'stl', 'glb', 'gltf']);
 // An uploaded model is fitted into this many world units, standing on the floor (the endpoint's size).

@@ -154,6 +154,13 @@ class Capabilities:
     max_primitives: int | None = None
 
     @property
+    def integrators(self) -> tuple[str, ...]:
+        """How it can compute a frame's colour: the Whitted ray tree, and the path integrator where
+        it reads the ``integrator`` setting (one pass of ``raytrace.frag``: its paths are traced
+        in the same loop as the traversal's rays)."""
+        return ("whitted", "path") if "integrator" in self.settings else ("whitted",)
+
+    @property
     def device(self) -> bool:
         """Whether a browser can trace it (one pass of the shared shader)."""
         return not self.multi_pass and self.shader is not None

@@ -497,7 +497,9 @@ class BoundingIntervalHierarchy:
     by ``shaders/method_bih.glsl``."""
 
     name = "bih"
-    capabilities = Capabilities(shader="method_bih.glsl", settings=("max_prims", "max_tree_depth"), meshes_on_gpu=True)
+    capabilities = Capabilities(
+        shader="method_bih.glsl", settings=("max_prims", "max_tree_depth", "integrator"), meshes_on_gpu=True
+    )
     bindings = L.BINDINGS
     glsl_defines = staticmethod(L.glsl_defines)
 

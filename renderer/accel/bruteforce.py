@@ -25,7 +25,11 @@ SPHERES = Binding("u_bf_spheres", doc="spheres in id order (gpu_layout.sphere_re
 class BruteForce:
     name = "bruteforce"
     capabilities = Capabilities(
-        shader="method_bruteforce.glsl", tests_every_sphere=True, meshes_on_gpu=True, max_primitives=MAX_LOOP_PRIMITIVES
+        shader="method_bruteforce.glsl",
+        tests_every_sphere=True,
+        meshes_on_gpu=True,
+        settings=("integrator",),
+        max_primitives=MAX_LOOP_PRIMITIVES,
     )
     bindings = (SPHERES, *gpu_layout.TRIANGLE_BINDINGS)
 

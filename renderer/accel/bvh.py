@@ -821,7 +821,7 @@ class BVHMethod:
     capabilities = Capabilities(
         shader="method_bvh.glsl",
         update_schemes=UPDATE_SCHEMES,
-        settings=("max_prims", "max_tree_depth", "update"),
+        settings=("max_prims", "max_tree_depth", "update", "integrator"),
         meshes_on_gpu=True,
     )
     bindings = L.BINDINGS

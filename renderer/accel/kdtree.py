@@ -509,10 +509,9 @@ class KdTreeMethod:
     traced by ``shaders/method_kdtree.glsl``. ``max_prims`` is not used: the SAH decides."""
 
     name = "kdtree"
+    # (no max_prims: the SAH decides leaves)
     capabilities = Capabilities(
-        shader="method_kdtree.glsl",
-        settings=("max_tree_depth",),  # the SAH decides leaves
-        meshes_on_gpu=True,
+        shader="method_kdtree.glsl", settings=("max_tree_depth", "integrator"), meshes_on_gpu=True
     )
     bindings = L.BINDINGS
     glsl_defines = staticmethod(L.glsl_defines)

@@ -39,7 +39,7 @@ class TwoLevelMethod:
     capabilities = Capabilities(
         shader="method_twolevel.glsl",
         update_schemes=UPDATE_SCHEMES,
-        settings=("max_prims", "max_tree_depth", "update"),
+        settings=("max_prims", "max_tree_depth", "update", "integrator"),
         meshes_on_gpu=True,
     )
     # Both trees' bindings; the triangles' records, which both list, once.

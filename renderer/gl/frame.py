@@ -47,6 +47,7 @@ import numpy as np
 
 from .. import gpu_layout
 from ..gpu_layout import PackedScene, Variant
+from ..limits import PATH_SAMPLES_PER_PASS
 from ..methods import PreparedMethod
 from ..modes import AVERAGED_MODES
 from ..result import RenderResult
@@ -60,20 +61,28 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class Pass:
-    """One pass: the pixel centres (``sub`` None) or one sub-pixel of a ``scale``² grid."""
+    """One pass: the pixel centres (``sub`` None) or one sub-pixel of a ``scale``² grid; of the
+    path integrator, ``samples`` = (first, count): those samples of every pixel, summed."""
 
     scale: int
     sub: tuple[int, int] | None
+    samples: tuple[int, int] | None = None
 
     @property
     def name(self) -> str:
+        if self.samples is not None:
+            return f"samples {self.samples[0]}…{self.samples[0] + self.samples[1] - 1}"
         return "centre" if self.sub is None else f"sample {self.sub[0]},{self.sub[1]}"
 
 
 def image_only(settings: RenderSettings) -> bool:
     """Whether a frame needs only its 8-bit image: png or jpeg at one sample per pixel (a
     supersampled frame keeps float sub-pixels, so its box filter is the same)."""
-    return settings.format in ("png", "jpeg") and settings.samples_per_pixel == 1
+    return (
+        settings.format in ("png", "jpeg")
+        and settings.samples_per_pixel == 1
+        and not (settings.integrator == "path" and settings.mode == "color")
+    )  # radiance, tone-mapped later
 
 
 class ImageOnlyResult(RenderResult):
@@ -107,6 +116,14 @@ class ImageOnlyResult(RenderResult):
 # every ray); of those, the modes that trace the primary ray only.
 BACKGROUND_MODES = ("depth", "primid", "normal", "color", "recursion")
 PRIMARY_MODES = ("depth", "primid", "normal")
+
+
+def plan_path_passes(samples: int, per_pass: int) -> list[Pass]:
+    """The path integrator's passes: ``samples`` per pixel, at most ``per_pass`` in each. A pixel's
+    sample i is the same path in whichever pass traces it (its random numbers depend on the pixel
+    and i alone), so the frame's sum is the same however it is cut (up to float rounding)."""
+    per_pass = max(1, int(per_pass))
+    return [Pass(1, None, (s, min(per_pass, samples - s))) for s in range(0, samples, per_pass)]
 
 
 def plan_passes(mode: str, k: int) -> list[Pass]:
@@ -143,6 +160,7 @@ class TracerFrame:
         one_shot: bool = False,
         t_start: float | None = None,
         slice_ms: float | None = None,
+        samples_per_pass: int = PATH_SAMPLES_PER_PASS,
     ):
         self.renderer, self.ctx = renderer, renderer.ctx
         self.scene, self.settings, self.variant, self.prepared = scene, settings, variant, prepared
@@ -151,7 +169,12 @@ class TracerFrame:
         self.k = settings.supersampling
         self.one_shot = one_shot and self.k > 1
         self.width, self.height = settings.width, settings.height
-        self.passes = [Pass(self.k, None)] if self.one_shot else plan_passes(settings.mode, self.k)
+        self.path = variant.path
+        if self.path:
+            self.passes = plan_path_passes(settings.samples_per_pixel, samples_per_pass)
+        else:
+            self.passes = [Pass(self.k, None)] if self.one_shot else plan_passes(settings.mode, self.k)
+        self._sum: np.ndarray | None = None  # the path integrator's sum of samples (GL rows), float64
         self.band_rows = band_rows
         self.slice_ms = slice_ms
         self.prog, self.vao = renderer.program(
@@ -160,7 +183,13 @@ class TracerFrame:
         # The pixels whose primary ray can meet no sphere (no primitive at all, when hits spawn
         # rays) are drawn by the background variant.
         self.regions: list[tuple[int, int, int, int, bool]] | None = None
-        if getattr(renderer, "background", False) and variant.mode in BACKGROUND_MODES and not self.one_shot:
+        # (Not for paths: their primary rays are spread over the pixel, and the environment lights every miss.)
+        if (
+            getattr(renderer, "background", False)
+            and variant.mode in BACKGROUND_MODES
+            and not self.one_shot
+            and not self.path
+        ):
             self.regions = gpu_layout.frame_regions(
                 scene, self.width, self.height, planes=variant.mode not in PRIMARY_MODES
             )
@@ -196,7 +225,14 @@ class TracerFrame:
         parts = [
             gpu_layout.pack_primitives(self.scene, self.renderer.max_texture_width),
             self.prepared.packed,
-            PackedScene({}, {gpu_layout.MIN_WEIGHT.name: float(self.settings.min_weight)}),
+            PackedScene(
+                {},
+                {
+                    gpu_layout.MIN_WEIGHT.name: float(self.settings.min_weight),
+                    gpu_layout.LIGHT_SCALE.name: gpu_layout.light_scale(self.scene),
+                    **gpu_layout.emitter_uniforms(self.scene),
+                },
+            ),
         ]
         tex, self.uniforms = check_bindings(self.variant, parts)
         blocks = {n: t for n, t in tex.items() if n in self.variant.blocks}
@@ -231,6 +267,8 @@ class TracerFrame:
             grid = (self.width * p.scale, self.height * p.scale)
             pass_terms = gpu_layout.pass_uniforms(p.scale, p.sub or (0, 0))
         camera = gpu_layout.camera_uniforms(self.scene.camera, *grid)
+        if p.samples is not None:
+            pass_terms = {**pass_terms, **gpu_layout.path_uniforms(*p.samples)}
         for name, value in {**self.uniforms, **camera, **pass_terms}.items():
             if name in prog:
                 set_uniform(prog[name], value)
@@ -322,7 +360,19 @@ class TracerFrame:
             self.timings["read"] += (time.perf_counter() - t0) * 1e3
             return
         img = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=0), np.float32).reshape(h, w, 4)
-        if p.sub is None:
+        if p.samples is not None:
+            # Sums of each pass's samples, added in float64: the frame's sum does not depend on
+            # how its samples are cut into passes beyond the float32 sums of the passes.
+            if self._sum is None:
+                self._sum = img[..., :3].astype(np.float64)
+                hit = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(h, w, 4)
+                self._centre = (img, hit)  # primid, normal and depth: the first sample's primary ray
+                if len(self.passes) > 1:  # the first pass's mean: the preview of a progressive frame
+                    mean = (img[::-1][..., :3] / p.samples[1]).astype(np.float32)
+                    self._preview = self._result_of([img[::-1], hit[::-1], mean], final=False)
+            else:
+                self._sum += img[..., :3]
+        elif p.sub is None:
             hit = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(h, w, 4)
             self._centre = (img, hit)
             if len(self.passes) > 1:
@@ -357,6 +407,9 @@ class TracerFrame:
         if self.one_shot:  # the old way: ids from the middle sub-pixel
             color = img[..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
             img, hit = img[k // 2 :: k, k // 2 :: k], hit[k // 2 :: k, k // 2 :: k]
+        elif self._sum is not None:  # the mean of the path samples: a box filter over the pixel
+            color = (self._sum[::-1] / self.settings.samples_per_pixel).astype(np.float32)
+            self._sum = None
         elif self._grid is not None:  # the box filter over the sub-pixel passes
             color = self._grid[::-1][..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
             self._grid = None
@@ -382,6 +435,7 @@ class TracerFrame:
         stats = {**self.stats, "tracer_passes": len(self.passes), "slices": self.slices}
         if not final:
             stats["preview"] = True
+        display = (self.settings.tone_map, float(self.settings.exposure)) if self.path else None
         return RenderResult(
             image=image,
             depth=depth_t,
@@ -390,6 +444,7 @@ class TracerFrame:
             mode=self.settings.mode,
             timings=timings,
             stats=stats,
+            display=display,
         )
 
     @property
@@ -433,7 +488,7 @@ def check_bindings(variant: Variant, parts: list[PackedScene]) -> tuple[dict, di
     uniforms are set per pass.)
     """
     known = known_bindings()
-    per_pass = {b.name for b in (*gpu_layout.CAMERA_BINDINGS, *gpu_layout.PASS_BINDINGS)}
+    per_pass = {b.name for b in (*gpu_layout.CAMERA_BINDINGS, *gpu_layout.PASS_BINDINGS, *gpu_layout.PATH_BINDINGS)}
     declared = {b.name for b in tracer_bindings(variant)} - per_pass
     tex: dict[str, Any] = {}
     uni: dict[str, Any] = {}

@@ -27,7 +27,7 @@ from ..accel.ray_engine import RayEngine
 from ..animation import AnimatedScene
 from ..features import scene_features
 from ..gpu_layout import Variant
-from ..limits import DEFAULT_TEXTURE_WIDTH
+from ..limits import DEFAULT_TEXTURE_WIDTH, PATH_SAMPLES_PER_PASS
 from ..methods import METHODS, PreparedMethod, check_primitives, resolve_method
 from ..prepare import PreparedFrame, prepare_frame
 from ..result import RenderResult
@@ -170,10 +170,12 @@ class GLRenderer:
         band_rows: int | None = None,
         one_shot: bool = False,
         slice_ms: float | None = None,
+        samples_per_pass: int = PATH_SAMPLES_PER_PASS,
     ) -> TracerFrame:
         """A frame of the one-pass tracer for the posed ``scene``, uploaded and ready to be
         traced slice by slice (:class:`~renderer.gl.frame.TracerFrame`); ``band_rows``
-        sizes its slices. Builds the method's structure first unless ``prepared`` is given."""
+        sizes its slices, ``samples_per_pass`` the path integrator's passes. Builds the method's
+        structure first unless ``prepared`` is given."""
         t_start = time.perf_counter()
         # auto's crossover counts what a tree would hold, spheres and triangles (as prepare_frame)
         method_name = resolve_method(settings.method, scene.n_spheres + scene.n_triangles)
@@ -187,7 +189,7 @@ class GLRenderer:
             prepared = method.prepare(
                 scene, settings.max_prims, settings.max_tree_depth, self.max_texture_width, update
             )
-        features = scene_features(scene)
+        features = scene_features(scene).with_integrator(settings.integrator, settings.mode)
         if not settings.specialize:
             features = features.generic()
         depth = features.recursion_depth(settings.max_recursion_depth)
@@ -217,6 +219,7 @@ class GLRenderer:
             one_shot=one_shot,
             t_start=t_start,
             slice_ms=slice_ms,
+            samples_per_pass=samples_per_pass,
         )
 
     def blocks_for(self, variant: Variant, prepared: PreparedMethod) -> tuple[str, ...]:

@@ -39,6 +39,7 @@ from renderer.limits import (
     MAX_ANGULAR_VELOCITY,
     MAX_COORDINATE,
     MAX_DEVICE_TEXTURE_SIZE,
+    MAX_EMISSION,
     MAX_IOR,
     MAX_LIFETIME,
     MAX_LIGHT_INTENSITY,
@@ -118,6 +119,10 @@ Intensity = Annotated[
     list[Annotated[float, Field(ge=0.0, le=MAX_LIGHT_INTENSITY)]],
     Field(min_length=3, max_length=3, description=f"RGB intensity, each 0 … {MAX_LIGHT_INTENSITY:g}"),
 ]
+Radiance = Annotated[
+    list[Annotated[float, Field(ge=0.0, le=MAX_EMISSION)]],
+    Field(min_length=3, max_length=3, description=f"linear RGB radiance, each 0 … {MAX_EMISSION:g}"),
+]
 MaterialIndex = Annotated[int, Field(ge=0, lt=MAX_MATERIALS, description="index into materials"), Integral]
 
 
@@ -150,6 +155,17 @@ class MaterialModel(Strict):
     reflective: Unit = 0.3
     transmissive: Unit = 0.0
     ior: float = Field(1.0, gt=0.0, le=MAX_IOR, description="refraction index inside / outside")
+    emission: Radiance = Field(
+        default_factory=lambda: [0.0, 0.0, 0.0],
+        description="radiance emitted on the side the normal faces (an area light)",
+    )
+    roughness: Unit = Field(0.0, description="GGX α of the path integrator's reflection lobe (0: a mirror)")
+
+
+class EnvironmentModel(Strict):
+    """What a ray that meets nothing sees: a constant radiance (black: none)."""
+
+    color: Radiance = Field(default_factory=lambda: [0.0, 0.0, 0.0])
 
 
 class SphereModel(Strict):
@@ -272,6 +288,7 @@ class SceneModel(Strict):
         description=f"triangle meshes; at most {MAX_TRIANGLES} triangles in all",
     )
     motions: list[Motion] = Field(default_factory=list, max_length=MAX_MOTIONS)
+    environment: EnvironmentModel = Field(default_factory=EnvironmentModel)
 
     @field_validator("spheres", mode="wrap")
     @classmethod
@@ -526,9 +543,11 @@ class MuseumRecipe(Strict):
 class MeshSceneRecipe(Strict):
     """A demo scene with triangle meshes (renderer.scenarios.mesh_scene): ``teapot`` (the
     closed Utah teapot on the floor), ``mixed`` (27 spheres, a glass icosphere and a torus),
-    ``room`` (a box room seen from inside with a teapot, an icosphere and four spheres)."""
+    ``room`` (a box room seen from inside with a teapot, an icosphere and four spheres), ``cornell``
+    (a Cornell box lit by an emitting ceiling panel, with a mirror and a glass sphere and a teapot:
+    for ``integrator=path``)."""
 
-    kind: Literal[MESH_SCENES] = Field("teapot", description="teapot, mixed or room")
+    kind: Literal[MESH_SCENES] = Field("teapot", description="teapot, mixed, room or cornell")
     detail: Annotated[int, Integral] = Field(
         2,
         ge=0,

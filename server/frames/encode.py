@@ -105,7 +105,7 @@ def npy_bytes(array: np.ndarray) -> bytes:
 
 
 # Bytes per pixel of the npy array of each mode (docs/FORMATS.md); the other modes are 8-bit RGB.
-NPY_BYTES_PER_PIXEL = {"depth": 4, "primid": 4, "normal": 12}
+NPY_BYTES_PER_PIXEL = {"depth": 4, "primid": 4, "normal": 12, "radiance": 12}  # radiance: the path integrator's
 
 
 def encoded_nbytes(fmt: str, mode: str, width: int, height: int) -> int:

@@ -104,15 +104,25 @@ class FrameBytes:
 def frame_nbytes(settings: RenderSettings) -> int:
     """What one frame of these settings holds at most, from its render target to its encoded body."""
     s = settings
-    return traced_nbytes(s.width, s.height, s.supersampling, image_only(s)) + encoded_nbytes(
-        s.format, s.mode, s.width, s.height
+    return (
+        traced_nbytes(s.width, s.height, s.supersampling, image_only(s))
+        + encoded_nbytes(s.format, "radiance" if radiance(s) else s.mode, s.width, s.height)
+        + (s.width * s.height * PATH_SUM_BYTES_PER_PIXEL if radiance(s) else 0)
     )
+
+
+PATH_SUM_BYTES_PER_PIXEL = 3 * 8  # a path frame's float64 sum of its passes (renderer/gl/frame.py)
+
+
+def radiance(settings: RenderSettings) -> bool:
+    """Whether the frame's image is the path integrator's float radiance (npy: 12 bytes a pixel)."""
+    return settings.integrator == "path" and settings.mode == "color"
 
 
 def image_only(settings: RenderSettings) -> bool:
     """Whether the frame is traced into one 8-bit target (renderer.gl.frame.image_only, which the
-    service may not import: png or jpeg at one sample per pixel)."""
-    return settings.format in ("png", "jpeg") and settings.samples_per_pixel == 1
+    service may not import: png or jpeg at one sample per pixel, not the path integrator's radiance)."""
+    return settings.format in ("png", "jpeg") and settings.samples_per_pixel == 1 and not radiance(settings)
 
 
 class FrameOwner(NamedTuple):

@@ -57,7 +57,9 @@ def scene_from_model(model: SceneModel, where: str = "scene") -> SessionScene:
                 meshes.append(make_mesh(m.vertices, m.triangles, m.material, m.normals, m.transform))
             except SceneError as e:
                 raise SceneError(f"meshes[{i}].{e.field}", e.message) from None
-        scene = Scene(base.camera, base.lights, base.materials, centers, radii, mats, base.planes, tuple(meshes))
+        scene = Scene(
+            base.camera, base.lights, base.materials, centers, radii, mats, base.planes, tuple(meshes), base.environment
+        )
         return with_motions(scene, [m.model_dump(exclude_none=True) for m in model.motions])
     except SceneError as e:
         raise SceneError(f"{where}.{e.field}" if where else e.field, e.message) from None
@@ -144,7 +146,15 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
             meshes = _stored_meshes(small.pop("meshes", []), z)
             base = Scene.from_json({**small, "camera": camera.to_json()})
             scene = Scene(
-                camera, base.lights, base.materials, z["centers"], z["radii"], z["materials"], base.planes, meshes
+                camera,
+                base.lights,
+                base.materials,
+                z["centers"],
+                z["radii"],
+                z["materials"],
+                base.planes,
+                meshes,
+                base.environment,
             )
             return with_motions(scene, motions)
     raise ValueError("unknown scene source")

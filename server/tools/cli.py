@@ -9,6 +9,7 @@
     pocketray scene --mesh MODEL [--mesh MODEL …] [--size S] [--as-is] [-o scene.json]
     pocketray scenario 1|2|3 --n N [--seed S] [--radius R] -o scene.json
     pocketray scenario museum --n N [--kind mixed] [--absent A] [--seed S] -o scene.json
+    pocketray scenario teapot|mixed|room|cornell -o scene.json
     pocketray gpus [--probe]
     pocketray stack [--processes N] [--port P]     (Redis + render processes + HAProxy, server/tools/stack.py)
 
@@ -329,6 +330,7 @@ def _read(path: str) -> str:
 # ---- scenario -----------------------------------------------------------------------------------
 def _add_scenario(sub: argparse._SubParsersAction) -> None:
     from renderer.animation import MUSEUM_KINDS
+    from renderer.scenarios import MESH_SCENES
 
     p = sub.add_parser(
         "scenario",
@@ -336,8 +338,12 @@ def _add_scenario(sub: argparse._SubParsersAction) -> None:
         description="Write the scene JSON (docs/FORMATS.md) of the thesis's scenario 1, 2 or 3, "
         "or of the animated museum (its motions included).",
     )
-    p.add_argument("which", choices=["1", "2", "3", "museum"], help="scenario number, or museum")
-    p.add_argument("--n", type=int, required=True, help="spheres (museum: the moving ones)")
+    p.add_argument(
+        "which",
+        choices=["1", "2", "3", "museum", *MESH_SCENES],
+        help="scenario number, museum, or a mesh scene (" + ", ".join(MESH_SCENES) + ")",
+    )
+    p.add_argument("--n", type=int, default=None, help="spheres (museum: the moving ones); not for mesh scenes")
     p.add_argument("--seed", type=int, default=0, help="placement seed (default 0)")
     p.add_argument("--radius", type=float, default=1.0, help="sphere radius of scenarios 1–3 (default 1)")
     p.add_argument("--kind", choices=list(MUSEUM_KINDS), default="mixed", help="museum motion (default mixed)")
@@ -348,14 +354,18 @@ def _add_scenario(sub: argparse._SubParsersAction) -> None:
 
 
 def scenario_scene(
-    which: str, n: int, seed: int = 0, radius: float = 1.0, kind: str = "mixed", absent: float = 0.2
+    which: str, n: int | None, seed: int = 0, radius: float = 1.0, kind: str = "mixed", absent: float = 0.2
 ) -> Any:
     """The scene (or animated scene) the ``scenario`` command writes; validated as the API does."""
     from renderer.animation import MUSEUM_ROOM_SPHERES, museum
     from renderer.limits import MAX_SPHERES
-    from renderer.scenarios import scenario
+    from renderer.scenarios import MESH_SCENES, mesh_scene, scenario
     from renderer.scene import SceneError
 
+    if which in MESH_SCENES:
+        return mesh_scene(which)
+    if n is None:
+        raise UsageError("n: required for scenarios 1–3 and the museum")
     if n < 0 or n + (MUSEUM_ROOM_SPHERES if which == "museum" else 0) > MAX_SPHERES:
         raise UsageError(f"n: 0 … {MAX_SPHERES} spheres")
     try:
@@ -381,7 +391,7 @@ def write_scenario(args: argparse.Namespace) -> int:
     with out.open("wb") as f:
         for chunk in scene_json_chunks(scene):
             f.write(chunk)
-    print(f"{out}: scenario {args.which}, {args.n} spheres", file=sys.stderr)
+    print(f"{out}: scenario {args.which}" + (f", {args.n} spheres" if args.n is not None else ""), file=sys.stderr)
     return 0
 
 

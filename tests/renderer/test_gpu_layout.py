@@ -458,4 +458,10 @@ def test_what_a_method_packs_is_what_its_shader_declares(method):
         names = set(packed.textures) | set(packed.uniforms)
         assert names == {b.name for b in METHODS[method].bindings}
     prims = gpu_layout.pack_primitives(scenario(3, 64))
+    lit = {gpu_layout.EMISSION.name, gpu_layout.ENVIRONMENT.name}  # only a scene with emission, environment
+    assert set(prims.textures) | set(prims.uniforms) == {b.name for b in gpu_layout.SCENE_BINDINGS} - lit
+    scene = scenario(3, 64).to_json()
+    scene["materials"][0]["emission"] = [1.0, 2.0, 3.0]
+    scene["environment"] = {"color": [0.5, 0.5, 0.5]}
+    prims = gpu_layout.pack_primitives(Scene.from_json(scene))
     assert set(prims.textures) | set(prims.uniforms) == {b.name for b in gpu_layout.SCENE_BINDINGS}

@@ -119,22 +119,22 @@ def test_a_setting_added_to_the_declaration_is_validated():
     """One entry in the table is a RenderSettings field with its default, bounds and messages."""
     from renderer.settings import SETTINGS, SettingSpec, build_render_settings
 
-    extra = SettingSpec("exposure", "number", 1.0, "brightness factor of the image", "Exposure", bounds=(0.0, 4.0))
+    extra = SettingSpec("gain", "number", 1.0, "brightness factor of the image", "Gain", bounds=(0.0, 4.0))
     choice = SettingSpec("tonemap", "string", "none", "tone mapping", "Tone mapping", choices=("none", "reinhard"))
     Settings = build_render_settings((*SETTINGS, extra, choice))
-    s = Settings(exposure=2.5)
-    assert (s.exposure, s.tonemap, s.width) == (2.5, "none", 640)
+    s = Settings(gain=2.5)
+    assert (s.gain, s.tonemap, s.width) == (2.5, "none", 640)
     assert Settings.from_json(s.to_json()) == s
     for kw, message in [
-        ({"exposure": 5.0}, "must be a number in [0, 4], got 5.0"),
-        ({"exposure": True}, "must be a number in [0, 4], got True"),
+        ({"gain": 5.0}, "must be a number in [0, 4], got 5.0"),
+        ({"gain": True}, "must be a number in [0, 4], got True"),
         ({"tonemap": "aces"}, "unknown tonemap 'aces'; one of none, reinhard"),
     ]:
         with pytest.raises(SceneError) as e:
             Settings(**kw)
         assert (e.value.field, e.value.message) == (next(iter(kw)), message)
     with pytest.raises(SceneError) as e:
-        RenderSettings.from_json({"exposure": 2.0})  # the table as it is has no such setting
-    assert e.value.field == "exposure"
+        RenderSettings.from_json({"gain": 2.0})  # the table as it is has no such setting
+    assert e.value.field == "gain"
     with pytest.raises(ValueError):
         SettingSpec("bad", "string", "x", "a string without choices", "Bad")

@@ -21,7 +21,7 @@ from renderer.settings import SETTINGS, SettingSpec
 
 # The setting the test declares: a number with bounds, read in one mode, offered by the sheet.
 EXTRA = dict(
-    name="exposure",
+    name="gain",
     type="number",
     default=1.0,
     doc="brightness factor of the image (a test's setting)",
@@ -55,9 +55,9 @@ SCRIPT = textwrap.dedent("""
     from server.frames.pipeline import render_settings
 
     # the engine's settings: a field with its default, validated
-    out = {"engine": [declared.RenderSettings().exposure, render_settings({"exposure": 2.5}).exposure]}
+    out = {"engine": [declared.RenderSettings().gain, render_settings({"gain": 2.5}).gain]}
     try:
-        declared.RenderSettings(exposure=9.0)
+        declared.RenderSettings(gain=9.0)
     except declared.SceneError as e:
         out["engine_refuses"] = [e.field, e.message]
     with TestClient(create_app(make_config(Path(tempfile.mkdtemp())))) as c:
@@ -102,7 +102,7 @@ def test_a_setting_added_to_the_declaration_reaches_the_api_info_and_cli(tmp_pat
 
     # RenderSettings (what the renderer gets) has it, validated
     assert out["engine"] == [1.0, 2.5]
-    assert out["engine_refuses"] == ["exposure", "must be a number in [0, 4], got 9.0"]
+    assert out["engine_refuses"] == ["gain", "must be a number in [0, 4], got 9.0"]
     # GET /api/info lists it with what the sheet builds its field from
     [info] = out["info"]
     assert {
@@ -137,16 +137,16 @@ def test_a_setting_added_to_the_declaration_reaches_the_api_info_and_cli(tmp_pat
     assert out["created"] == 1.0
     assert out["patched"] == [200, 2.5]
     status, body = out["patched_over"]
-    assert status == 422 and body["detail"][0]["loc"] == ["body", "exposure"]
-    assert body["detail"][0]["msg"] == "exposure: Input should be less than or equal to 4"
+    assert status == 422 and body["detail"][0]["loc"] == ["body", "gain"]
+    assert body["detail"][0]["msg"] == "gain: Input should be less than or equal to 4"
     status, body = out["patched_text"]
-    assert status == 422 and body["detail"][0]["loc"] == ["body", "exposure"]  # a body is strict JSON
+    assert status == 422 and body["detail"][0]["loc"] == ["body", "gain"]  # a body is strict JSON
     status, body = out["query_under"]
-    assert status == 422 and body["detail"][0]["loc"] == ["query", "exposure"]
-    assert body["detail"][0]["msg"] == "exposure: Input should be greater than or equal to 0"
+    assert status == 422 and body["detail"][0]["loc"] == ["query", "gain"]
+    assert body["detail"][0]["msg"] == "gain: Input should be greater than or equal to 0"
     assert out["session"] == 2.5
     # offered by pocketray render --help, with its doc
-    assert "--exposure EXPOSURE" in out["help"]
+    assert "--gain GAIN" in out["help"]
     assert EXTRA["doc"] in " ".join(out["help"].split())
 
 

@@ -37,6 +37,7 @@ from fastapi.responses import PlainTextResponse
 from renderer import gpu_layout
 from renderer.accel.base import NOT_ON_GPU, AccelerationMethod
 from renderer.features import scene_features
+from renderer.limits import MAX_RECURSION_DEPTH
 from renderer.methods import METHODS, resolve_method
 from renderer.modes import SINGLE_PASS_MODES
 from renderer.shader_source import tracer_source, vertex_source
@@ -167,7 +168,8 @@ def device_data(
                 ("query", "max_texture_size"), f"the scene does not fit this device's textures ({e}); use server mode"
             ) from None
     features = scene_features(scene)
-    depth = features.recursion_depth(settings["max_recursion_depth"])
+    # A device traces Whitted's tree (the path integrator is the server's): its depth bound.
+    depth = features.recursion_depth(min(settings["max_recursion_depth"], MAX_RECURSION_DEPTH))
     defines = features.defines()
     uniforms = {k: jsonable(v) for k, v in {**prims.uniforms, **prepared.packed.uniforms}.items()}
     uniforms.update(camera_uniforms(scene.camera))

@@ -22,10 +22,11 @@ def test_health_ready_info(ready_client):
     # What the client's form needs to show only the settings that apply (issue #19).
     ms = info["method_settings"]
     assert set(ms) == set(info["methods"])
-    assert ms["bih"]["settings"] == ["max_prims", "max_tree_depth"] and ms["bih"]["device"] is True
-    assert ms["kdtree"]["settings"] == ["max_tree_depth"]  # the SAH decides the leaves
-    assert ms["bvh"]["settings"] == ["max_prims", "max_tree_depth", "update"]
-    assert ms["bruteforce"]["settings"] == [] and ms["rayengine"]["settings"] == []
+    # (integrator: the one-pass methods trace paths too; the ray engines do not)
+    assert ms["bih"]["settings"] == ["max_prims", "max_tree_depth", "integrator"] and ms["bih"]["device"] is True
+    assert ms["kdtree"]["settings"] == ["max_tree_depth", "integrator"]  # the SAH decides the leaves
+    assert ms["bvh"]["settings"] == ["max_prims", "max_tree_depth", "update", "integrator"]
+    assert ms["bruteforce"]["settings"] == ["integrator"] and ms["rayengine"]["settings"] == []
     assert ms["hre"]["settings"] == ["tile_size"] and ms["hre"]["device"] is False and "cones" in ms["hre"]["modes"]
     assert ms["auto"]["auto"] is True and ms["auto"]["settings"] == ms["bih"]["settings"]
     assert ms["bruteforce"]["tests_every_sphere"] and not ms["bih"]["tests_every_sphere"]

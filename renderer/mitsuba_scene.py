@@ -1,0 +1,181 @@
+"""Our scene JSON as a Mitsuba 3 scene, for checking the path integrator against an independent
+renderer (docs/SHADING.md, "Path integrator"; ``tests/renderer/gl/test_mitsuba.py``).
+
+What is translated, term by term, so both renderers estimate the same integral:
+
+- the pinhole camera (``perspective``, vertical ``fov_y``, ``look_at``), a box pixel filter;
+- ``path`` with ``max_depth`` = our ``max_recursion_depth`` (the same count of segments);
+- a material's lobes — weights ``diffuse``, ``reflective``, ``transmissive`` divided by their sum
+  where it exceeds 1, the rest absorbed — as nested ``blendbsdf`` of a two-sided ``diffuse``
+  (albedo ``color``), a two-sided ``conductor`` of reflectance 1 (``roughconductor`` GGX,
+  ``alpha = roughness``, when rough), a ``dielectric`` of ``int_ior = ior``, and black;
+- ``emission`` as an ``area`` emitter (the side the normal faces, as ours), the environment as a
+  ``constant`` emitter, a point light of ``color`` C as a ``point`` of intensity π·D²·C;
+- spheres, meshes (their world-space triangles) and planes (a square 10⁴ × the scene's size).
+
+Needs the ``mitsuba`` package (a test dependency); imported when called.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .gpu_layout import light_scale
+from .scene import Material, Scene
+
+PLANE_EXTENT = 1e4  # a plane's square, in units of the scene's size
+
+
+def _rgb(c) -> dict:
+    return {"type": "rgb", "value": [float(x) for x in c]}
+
+
+def _bsdf(m: Material) -> dict:
+    """The material's lobes as Mitsuba BSDFs (module docstring)."""
+    wd, wr, wt = m.diffuse, m.reflective, m.transmissive
+    total = wd + wr + wt
+    if total > 1.0:
+        wd, wr, wt = wd / total, wr / total, wt / total
+    lobes: list[tuple[float, dict]] = []
+    if wd > 0:
+        lobes.append((wd, {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": _rgb(m.color)}}))
+    if wr > 0:
+        metal = (
+            {"type": "roughconductor", "material": "none", "distribution": "ggx", "alpha": float(m.roughness)}
+            if m.roughness > 0
+            else {"type": "conductor", "material": "none"}
+        )
+        lobes.append((wr, {"type": "twosided", "bsdf": metal}))
+    if wt > 0:
+        lobes.append((wt, {"type": "dielectric", "int_ior": float(m.ior), "ext_ior": 1.0}))
+    rest = 1.0 - sum(w for w, _ in lobes)
+    if rest > 1e-12 or not lobes:
+        lobes.append(
+            (rest if lobes else 1.0, {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": _rgb((0, 0, 0))}})
+        )
+    # Fold right to left: blend(b, A, B) = (1 − b)·A + b·B.
+    weight, bsdf = lobes[-1]
+    for w, b in reversed(lobes[:-1]):
+        share = weight / (weight + w) if weight + w > 0 else 0.0
+        bsdf = {"type": "blendbsdf", "weight": share, "bsdf_0": b, "bsdf_1": bsdf}
+        weight += w
+    return bsdf
+
+
+def _shape_extras(scene: Scene, mat: int) -> dict:
+    m = scene.materials[mat]
+    out: dict[str, Any] = {"bsdf": _bsdf(m)}
+    if m.emits:
+        out["emitter"] = {"type": "area", "radiance": _rgb(m.emission)}
+    return out
+
+
+def scene_dict(scene: Scene, width: int, height: int, spp: int, max_depth: int, seed: int = 0) -> dict:
+    """The Mitsuba 3 scene dictionary (``mi.load_dict``) of ``scene``."""
+    import mitsuba as mi
+
+    cam = scene.camera
+    out: dict[str, Any] = {
+        "type": "scene",
+        "integrator": {"type": "path", "max_depth": int(max_depth), "hide_emitters": False},
+        "sensor": {
+            "type": "perspective",
+            "fov": float(cam.fov_y),
+            "fov_axis": "y",
+            "to_world": mi.ScalarTransform4f().look_at(
+                origin=list(cam.position), target=list(cam.target), up=list(cam.up)
+            ),
+            "film": {
+                "type": "hdrfilm",
+                "width": int(width),
+                "height": int(height),
+                "rfilter": {"type": "box"},
+                "pixel_format": "rgb",
+            },
+            "sampler": {"type": "independent", "sample_count": int(spp), "seed": int(seed)},
+        },
+    }
+    if any(scene.environment):
+        out["environment"] = {"type": "constant", "radiance": _rgb(scene.environment)}
+    for i, light in enumerate(scene.lights):
+        out[f"light_{i}"] = {
+            "type": "point",
+            "position": list(light.position),
+            "intensity": _rgb(np.asarray(light.color) * light_scale(scene)),
+        }
+    for i in range(scene.n_spheres):
+        out[f"sphere_{i}"] = {
+            "type": "sphere",
+            "center": scene.sphere_centers[i].tolist(),
+            "radius": float(scene.sphere_radii[i]),
+            **_shape_extras(scene, int(scene.sphere_materials[i])),
+        }
+    size = _size(scene)
+    for i, p in enumerate(scene.planes):
+        n = np.asarray(p.normal, dtype=np.float64)
+        # A rectangle faces +z: rotate +z onto n, about their cross product.
+        axis = np.cross([0.0, 0.0, 1.0], n)
+        angle = math.degrees(math.atan2(float(np.linalg.norm(axis)), float(n[2])))
+        if np.linalg.norm(axis) < 1e-12:
+            axis = np.array([1.0, 0.0, 0.0])
+        to_world = (
+            mi.ScalarTransform4f()
+            .translate(list(p.point))
+            .rotate(axis.tolist(), angle)
+            .scale([PLANE_EXTENT * size] * 3)
+        )
+        out[f"plane_{i}"] = {"type": "rectangle", "to_world": to_world, **_shape_extras(scene, p.material)}
+    for i, mesh in enumerate(scene.meshes):
+        r = scene.mesh_triangle_range(i)  # flat: a smooth mesh's vertex normals are not carried over
+        tris = np.asarray(scene.triangle_corners[r.start : r.stop], dtype=np.float64).reshape(-1, 3, 3)
+        out[f"mesh_{i}"] = {
+            "type": "obj",
+            "filename": _obj_file(tris),
+            "face_normals": True,
+            **_shape_extras(scene, mesh.material),
+        }
+    return out
+
+
+def _obj_file(tris: np.ndarray) -> str:
+    """A temporary OBJ file of the triangles (corners in order, so each face's winding is kept)."""
+    import tempfile
+
+    lines = [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in tris.reshape(-1, 3)]
+    lines += [f"f {3 * k + 1} {3 * k + 2} {3 * k + 3}" for k in range(len(tris))]
+    with tempfile.NamedTemporaryFile("w", suffix=".obj", delete=False) as f:
+        f.write("\n".join(lines) + "\n")
+    return f.name
+
+
+def _size(scene: Scene) -> float:
+    pts = [np.asarray(scene.camera.position)]
+    if scene.n_spheres:
+        pts += list(scene.sphere_centers)
+    if scene.n_triangles:
+        pts += list(scene.triangle_corners.reshape(-1, 3))
+    return float(max(1.0, np.abs(np.asarray(pts)).max()))
+
+
+def render(
+    scene: Scene, width: int, height: int, spp: int, max_depth: int, variant: str = "scalar_rgb", seed: int = 0
+) -> np.ndarray:
+    """Mitsuba 3's ``path`` image of ``scene``: float32 H × W × 3 linear radiance, row 0 at the top."""
+    import os
+
+    import mitsuba as mi
+
+    mi.set_variant(variant)
+    d = scene_dict(scene, width, height, spp, max_depth, seed)
+    try:
+        loaded = mi.load_dict(d)
+    finally:  # the meshes' temporary OBJ files are read by now
+        for v in d.values():
+            if isinstance(v, dict) and v.get("type") == "obj":
+                os.unlink(v["filename"])
+    # The stubs ask a UInt32 seed: in the scalar variants that is a Python int.
+    image = mi.render(loaded, spp=spp, seed=seed)  # type: ignore[arg-type]
+    return np.asarray(image, dtype=np.float32)[..., :3]

@@ -1,0 +1,388 @@
+// Sections of raytrace.frag for the light beyond the thesis's (docs/SHADING.md): emitting
+// materials, the environment and the path integrator. renderer/shader_source.py puts each at
+// its "//@LIGHTING <name>" mark in a variant that carries EMISSION, ENVIRONMENT or PATH, and
+// removes the marks from every other variant, whose text is then the one before them.
+// A section runs from its "//@SECTION <name>" line to the next one.
+
+//@SECTION functions
+#ifdef READS_EMISSION
+int g_emission_shift;
+// The radiance material m emits on the side its surface's normal faces.
+vec3 emission_at(int m) { return texelFetch(u_emission, texel(m, g_emission_shift), 0).rgb; }
+#define EMISSION_INIT() g_emission_shift = row_shift(textureSize(u_emission, 0))
+#else
+vec3 emission_at(int m) { return vec3(0.0); }
+#define EMISSION_INIT()
+#endif
+#ifdef READS_ENVIRONMENT
+#define ENV_RADIANCE u_environment
+#else
+#define ENV_RADIANCE vec3(0.0)
+#endif
+
+#ifdef PATH
+// ---- the path integrator (docs/SHADING.md, "Path integrator") ----------------------------
+const float PI = 3.14159265358979;
+
+// Random numbers: a function of (pixel, sample index, dimension) alone, so sample i of a pixel
+// is the same path in whichever pass traces it. The pixel's position in it: the R2 rank-1
+// lattice (Roberts) in the sample index, Cranley–Patterson-rotated per pixel; every other
+// dimension an integer hash (Wellons's lowbias32) of all three.
+uint hash_u(uint x) {
+    x ^= x >> 16; x *= 0x7feb352du;
+    x ^= x >> 15; x *= 0x846ca68bu;
+    x ^= x >> 16;
+    return x;
+}
+uint g_pixel_seed;
+uint g_sample_seed;
+uint g_dim;
+float unit_float(uint h) { return float(h >> 8) * (1.0 / 16777216.0); }   // [0, 1), 24 bits
+float rnd() {
+    g_dim += 1u;
+    return unit_float(hash_u(g_sample_seed ^ hash_u(g_dim * 0x9e3779b9u + g_pixel_seed)));
+}
+vec2 pixel_jitter(uint i) {
+    // i · (1/φ₂, 1/φ₂²) mod 1 in 32-bit fixed point (exact for every i), plus the pixel's rotation.
+    uvec2 a = uvec2(3242174889u, 2447445414u) * i;
+    vec2 shift = vec2(unit_float(hash_u(g_pixel_seed ^ 0xa511e9b3u)), unit_float(hash_u(g_pixel_seed ^ 0x63d83595u)));
+    return fract(vec2(a >> 8u) * (1.0 / 16777216.0) + shift);
+}
+
+// The GGX α of material m's reflection lobe (the third texel's z; Whitted's Material has no use for it).
+float roughness_at(int m) {
+#ifdef MATERIAL_TEXTURE
+    return texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 2, g_mat_shift), 0).z;
+#else
+    return u_material_vecs[m * MATERIAL_TEXELS + 2].z;
+#endif
+}
+
+// An orthonormal basis around unit n (Duff et al. 2017).
+void basis(vec3 n, out vec3 t, out vec3 b) {
+    float sgn = n.z >= 0.0 ? 1.0 : -1.0;
+    float a = -1.0 / (sgn + n.z);
+    float c = n.x * n.y * a;
+    t = vec3(1.0 + sgn * n.x * n.x * a, sgn * c, -sgn * n.x);
+    b = vec3(c, sgn + n.y * n.y * a, -n.y);
+}
+
+vec3 cosine_direction(vec3 n, float u1, float u2) {
+    float r = sqrt(u1);
+    float phi = 2.0 * PI * u2;
+    vec3 t, b;
+    basis(n, t, b);
+    return normalize(r * cos(phi) * t + r * sin(phi) * b + sqrt(max(0.0, 1.0 - u1)) * n);
+}
+
+// Smith's masking of GGX (α) for a direction at cos θ = c to the normal.
+float smith_g1(float c, float alpha) {
+    float c2 = c * c;
+    float tan2 = max(0.0, 1.0 - c2) / max(c2, 1e-12);
+    return 2.0 / (1.0 + sqrt(1.0 + alpha * alpha * tan2));
+}
+
+// Fresnel reflectance of a smooth dielectric: cos_i > 0 the incident cosine, eta = n_i / n_t.
+float fresnel_dielectric(float cos_i, float eta) {
+    float sin2_t = eta * eta * max(0.0, 1.0 - cos_i * cos_i);
+    if (sin2_t >= 1.0) return 1.0;   // total internal reflection
+    float cos_t = sqrt(1.0 - sin2_t);
+    float rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    float rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+// A sample's radiance as it reaches the pixel: NaN, infinity or a negative value (a float
+// accident, never light) counts as 0, so no such value reaches an image.
+vec3 valid_radiance(vec3 c) {
+    return all(lessThan(abs(c), vec3(BIG))) ? max(c, vec3(0.0)) : vec3(0.0);
+}
+
+void path_main() {
+    g_pixel_seed = hash_u(uint(gl_FragCoord.x) ^ hash_u(uint(gl_FragCoord.y) + 0x632be5abu));
+    vec3 sum = vec3(0.0);
+    float primary_t = -1.0;
+    int primary_id = NO_PRIM;
+    vec3 primary_n = vec3(0.0);
+
+    int done = 0;            // samples of this pass finished
+    bool start = true;       // the next iteration begins sample u_sample_start + done
+    vec3 L = vec3(0.0);      // the sample's radiance so far
+    vec3 beta = vec3(1.0);   // its path throughput
+    int segments = 0;        // segments of the path traced so far (the camera's is 1)
+    int light = 0;           // the next point light to try at the current vertex
+    vec3 o = vec3(0.0), d = vec3(0.0);
+    int skip = NO_PRIM, far_id = NO_PRIM;
+    Query q;
+    Hit h;
+    Surface s;
+    Material m;
+    vec3 nf = vec3(0.0);
+    float w_diffuse = 0.0, w_reflect = 0.0, w_transmit = 0.0;   // the vertex's lobe weights, summing ≤ 1
+    vec3 contrib = vec3(0.0);
+    bool vertex = false;     // the path stands on a surface and may go on from it
+    bool front = false;      // … on the side its normal faces
+    float roughness = 0.0;
+    int emitter = 0;             // the next emitting sphere to sample at the current vertex
+    int shadow_kind = 0;         // the shadow ray in flight: 0 a point light's, 1 a sphere's, 2 a triangle's
+    bool tri_done = false;       // the vertex's emitting-triangle sample is taken
+    vec3 prev_p = vec3(0.0);     // the vertex the current segment left, and the pdf (solid angle) with
+    float prev_pdf_d = 0.0;      // which its diffuse lobe chose it (0: another lobe, or the camera)
+    while (true) {
+        if (start) {
+            uint i = uint(u_sample_start + done);
+            g_sample_seed = hash_u(i ^ 0x27d4eb2fu);
+            g_dim = 0u;
+            vec2 j = pixel_jitter(i);
+            // The pixel's box: its lower-left corner (in rows from the top) plus the jitter.
+            float px = floor(gl_FragCoord.x) + j.x;
+            float row = u_resolution.y - (floor(gl_FragCoord.y) + j.y);
+            float u = (2.0 * px / u_resolution.x - 1.0) * u_half_extent.x;
+            float v = (1.0 - 2.0 * row / u_resolution.y) * u_half_extent.y;
+            o = u_cam_pos;
+            d = normalize(u_cam_forward + u * u_cam_right + v * u_cam_up);
+            skip = NO_PRIM; far_id = NO_PRIM;
+            L = vec3(0.0); beta = vec3(1.0); segments = 1; prev_pdf_d = 0.0;
+            q = Query(o, d, skip, far_id, BIG, false);
+            start = false;
+        }
+        Hit hq = intersect_scene(q);
+        if (q.any_hit) {
+            if (hq.id == NO_PRIM) L += contrib;   // the light is visible
+            if (shadow_kind == 0) light++;
+            else if (shadow_kind == 1) emitter++;
+            else tri_done = true;
+        } else if (hq.id == NO_PRIM) {
+            L += beta * ENV_RADIANCE;
+            vertex = false;
+        } else {
+            h = hq;
+            s = surface_at(o, d, h);
+            vec3 ng = s.n;
+//@TRIANGLES path_ng
+            if (segments == 1 && done == 0) {   // the pass's first sample gives primid, normal, depth
+                primary_t = h.t; primary_id = h.id; primary_n = s.n;
+            }
+            m = material_at(s.mat);
+            roughness = roughness_at(s.mat);
+            front = dot(d, ng) < 0.0;
+            nf = front ? s.n : -s.n;
+            if (front) {
+                // An emitting sphere that next-event estimation samples too: the power heuristic's weight
+                // of BSDF sampling (its diffuse lobe's pdf against the sphere's cone); every other
+                // emitter (planes, triangles, spheres past the sampled ones) is met by BSDF sampling alone.
+                float w = 1.0;
+                if (prev_pdf_d > 0.0 && h.id < u_num_spheres && h.id <= u_emitter_last) {
+                    vec3 to_c = h.sphere.xyz - prev_p;
+                    float sin2 = h.sphere.w * h.sphere.w / dot(to_c, to_c);
+                    if (sin2 < 1.0) {
+                        float p_l = 1.0 / (2.0 * PI * (sin2 / (1.0 + sqrt(1.0 - sin2))));
+                        w = prev_pdf_d * prev_pdf_d / (prev_pdf_d * prev_pdf_d + p_l * p_l);
+                    }
+                }
+//@TRIANGLES path_emit_mis
+                L += w * beta * emission_at(s.mat);
+            }
+            // Lobe weights: diffuse, reflective, transmissive; scaled to sum 1 where they exceed it.
+            w_diffuse = m.diffuse; w_reflect = 0.0; w_transmit = 0.0;
+#ifndef NO_REFLECTION
+            w_reflect = m.reflective;
+#endif
+#ifndef NO_TRANSMISSION
+            w_transmit = m.transmissive;
+#endif
+            float total = w_diffuse + w_reflect + w_transmit;
+            if (total > 1.0) { w_diffuse /= total; w_reflect /= total; w_transmit /= total; }
+            light = 0;
+            emitter = 0;
+            tri_done = false;
+            vertex = segments < MAX_RECURSION_DEPTH;   // a next segment (shadow or bounce) fits
+        }
+#ifdef SHADOW_RAYS
+        // Next-event estimation: the next point light that lights the diffuse lobe.
+        if (vertex && w_diffuse > 0.0) {
+            bool shadow = false;
+            for (; light < LIGHT_LOOP; light++) {
+                if (LIGHTS_END(light)) break;
+                vec3 to_light = u_light_pos[light] - s.p;
+                float dist2 = dot(to_light, to_light);
+                float dist = sqrt(dist2);
+                vec3 l = to_light / dist;
+                float cos_l = dot(nf, l);
+                if (cos_l > 0.0 && dist > 0.0) {
+                    // f = w_d · color / π, intensity I = color_light · u_light_scale, E = I cos / r².
+                    contrib = beta * (w_diffuse / PI) * m.color * u_light_color[light] * (u_light_scale * cos_l / dist2);
+                    int sk, fa;
+                    exclusion(h.id, s.n, l, sk, fa);
+                    q = Query(s.p, l, sk, fa, dist, true);
+                    shadow = true;
+                    break;
+                }
+            }
+            shadow_kind = 0;
+            if (shadow) continue;
+        }
+#endif
+        // Next-event estimation to the emitting spheres: a direction in the cone the sphere fills
+        // (uniform in solid angle), weighted by the power heuristic against BSDF sampling.
+        if (vertex && w_diffuse > 0.0) {
+            bool shadow = false;
+            for (; emitter < MAX_SAMPLED_SPHERES; emitter++) {
+                if (emitter >= u_num_emitters) break;
+                vec4 e = u_emitter_sphere[emitter];
+                vec3 to_c = e.xyz - s.p;
+                float dist2 = dot(to_c, to_c);
+                float sin2 = e.w * e.w / dist2;
+                float u1 = rnd(), u2 = rnd();
+                if (!(sin2 < 1.0)) continue;   // the vertex is inside (or on) it: not sampled
+                float cone = sin2 / (1.0 + sqrt(1.0 - sin2));   // 1 − cos θmax, without cancellation
+                float cos_t = 1.0 - u1 * cone;
+                float sin_t = sqrt(max(0.0, 1.0 - cos_t * cos_t));
+                float phi = 2.0 * PI * u2;
+                vec3 t, b;
+                basis(to_c * inversesqrt(dist2), t, b);
+                vec3 l = normalize(sin_t * cos(phi) * t + sin_t * sin(phi) * b + cos_t * to_c * inversesqrt(dist2));
+                float cos_l = dot(nf, l);
+                float te = intersect_sphere(s.p, l, e, false);
+                if (cos_l <= 0.0 || te >= BIG) continue;
+                float p_l = 1.0 / (2.0 * PI * cone);
+                float p_b = w_diffuse * cos_l / PI;
+                float w = p_l * p_l / (p_l * p_l + p_b * p_b);
+                contrib = beta * (w_diffuse / PI) * m.color * u_emitter_radiance[emitter] * (cos_l * w / p_l);
+                int sk, fa;
+                exclusion(h.id, s.n, l, sk, fa);
+                q = Query(s.p, l, sk, fa, te * (1.0 - 1e-4), true);   // blockers before the sphere
+                shadow = true;
+                break;
+            }
+            shadow_kind = 1;
+            if (shadow) continue;
+        }
+        // … and to the emitting triangles: one, picked with probability ∝ its area, a point uniform on it
+        // (pdf in solid angle dist² / (A cos θ_light), A their total area), the power heuristic again.
+        if (vertex && w_diffuse > 0.0 && !tri_done && u_num_emit_tris > 0) {
+            float pick = rnd(), b1 = rnd(), b2 = rnd();
+            tri_done = true;
+            int k = 0;
+            for (int i = 0; i < MAX_SAMPLED_TRIANGLES; i++) {
+                if (i >= u_num_emit_tris || pick < u_emit_tri_cdf[i]) break;
+                k = i + 1;
+            }
+            k = min(k, u_num_emit_tris - 1);
+            float su = sqrt(b1);
+            vec3 e1 = u_emit_tri_e1[k], e2 = u_emit_tri_e2[k];
+            vec3 x = u_emit_tri_v0[k] + su * (1.0 - b2) * e1 + su * b2 * e2;   // uniform in the triangle
+            vec3 to_x = x - s.p;
+            float dist2 = dot(to_x, to_x);
+            float dist = sqrt(dist2);
+            vec3 l = to_x / dist;
+            vec3 ng_l = normalize(cross(e1, e2));
+            float cos_light = -dot(l, ng_l);             // > 0: the side its winding faces, which emits
+            float cos_l = dot(nf, l);
+            if (dist > 0.0 && cos_light > 0.0 && cos_l > 0.0) {
+                float p_l = dist2 / (u_emit_tri_area * cos_light);
+                float p_b = w_diffuse * cos_l / PI;
+                float w = p_l * p_l / (p_l * p_l + p_b * p_b);
+                contrib = beta * (w_diffuse / PI) * m.color * u_emit_tri_radiance[k] * (cos_l * w / p_l);
+                int sk, fa;
+                exclusion(h.id, s.n, l, sk, fa);
+                q = Query(s.p, l, sk, fa, dist * (1.0 - 1e-4), true);
+                shadow_kind = 2;
+                continue;
+            }
+        }
+        if (vertex) {
+            // BSDF sampling: one lobe, chosen with its weight's probability (none: absorbed).
+            float pick = rnd();
+            float u1 = rnd(), u2 = rnd();
+            vec3 nd = vec3(0.0);
+            bool go = true;
+            prev_pdf_d = 0.0;
+            prev_p = s.p;
+            if (pick < w_diffuse) {
+                nd = cosine_direction(nf, u1, u2);
+                beta *= m.color;
+                prev_pdf_d = w_diffuse * max(dot(nf, nd), 0.0) / PI;
+            } else if (pick < w_diffuse + w_reflect) {
+                if (roughness > 0.0) {
+                    // GGX (α = roughness): a microfacet normal from D(m)·cos θm, weight F·G·(o·m)/((n·o)(n·m)), F = 1.
+                    float a = roughness;
+                    float tan2 = a * a * u1 / max(1.0 - u1, 1e-7);
+                    float cos_m = inversesqrt(1.0 + tan2);
+                    float sin_m = sqrt(max(0.0, 1.0 - cos_m * cos_m));
+                    float phi = 2.0 * PI * u2;
+                    vec3 t, b;
+                    basis(nf, t, b);
+                    vec3 mh = sin_m * cos(phi) * t + sin_m * sin(phi) * b + cos_m * nf;
+                    vec3 wo = -d;
+                    float o_m = dot(wo, mh);
+                    nd = 2.0 * o_m * mh - wo;
+                    float n_o = dot(nf, wo), n_i = dot(nf, nd);
+                    if (o_m <= 0.0 || n_i <= 0.0 || n_o <= 0.0) go = false;
+                    else beta *= smith_g1(n_o, a) * smith_g1(n_i, a) * o_m / (n_o * cos_m);
+                } else {
+                    nd = d - 2.0 * dot(d, s.n) * s.n;
+                }
+            } else if (pick < w_diffuse + w_reflect + w_transmit) {
+                // A smooth dielectric: reflect with Fresnel's probability, else refract.
+                bool entering = front;
+                float eta = entering ? 1.0 / m.ior : m.ior;
+                vec3 nn = entering ? s.n : -s.n;
+                float cos_i = -dot(d, nn);
+                float f = fresnel_dielectric(abs(cos_i), eta);
+                if (u1 < f) {
+                    nd = d - 2.0 * dot(d, nn) * nn;
+                } else {
+                    float k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+                    nd = normalize(eta * d + (eta * cos_i - sqrt(max(k, 0.0))) * nn);
+                }
+            } else {
+                go = false;
+            }
+            // Russian roulette from the fourth segment on: survive with p, weight 1/p (unbiased).
+            if (go && segments >= 3) {
+                float p = min(max(beta.r, max(beta.g, beta.b)), 0.95);
+                if (rnd() >= p) go = false;
+                else beta /= p;
+            }
+            vertex = false;
+            if (go) {
+                exclusion(h.id, s.n, nd, skip, far_id);
+                o = s.p;
+                d = nd;
+                segments++;
+                q = Query(o, d, skip, far_id, BIG, false);
+                continue;
+            }
+        }
+        // The path has ended (missed, absorbed, out of segments or of roulette): the next sample.
+        sum += valid_radiance(L);
+        done++;
+        if (done >= u_sample_count) break;
+        start = true;
+    }
+    o_image = vec4(sum, float(primary_id));
+    o_hit = vec4(primary_n, primary_t);
+}
+#endif
+
+//@SECTION main_begin
+#ifdef PATH
+    path_main();
+#else
+
+//@SECTION main_end
+#endif
+
+//@SECTION whitted_emission
+#ifdef READS_EMISSION
+                if (dot(nf, s.n) > 0.0) color += k.weight * emission_at(s.mat);   // the side its normal faces
+#endif
+
+//@SECTION whitted_miss
+#ifdef READS_ENVIRONMENT
+            if (!live) color += k.weight * u_environment;   // what a ray that meets nothing sees
+#endif
+
+//@SECTION init
+    EMISSION_INIT();
