@@ -107,11 +107,11 @@ def test_a_declared_setting_is_shown_by_the_settings_sheet(open_client):
     from renderer.settings import SettingSpec
 
     extra = SettingSpec(
-        "exposure",
+        "gain",
         "number",
         1.0,
         "brightness factor of the image (a test's setting)",
-        "Exposure",
+        "Gain",
         unit="×",
         bounds=(0.0, 4.0),
         modes=("color",),
@@ -139,36 +139,36 @@ def test_a_declared_setting_is_shown_by_the_settings_sheet(open_client):
     )
     c.open()
     p.click("#settings-toggle")
-    assert p.is_visible("#f-exposure")
-    assert p.text_content('label[for="f-exposure"]') == "Exposure (×)"
-    assert (p.get_attribute("#f-exposure", "min"), p.get_attribute("#f-exposure", "max")) == ("0", "4")
-    assert p.input_value("#f-exposure") == "1"
+    assert p.is_visible("#f-gain")
+    assert p.text_content('label[for="f-gain"]') == "Gain (×)"
+    assert (p.get_attribute("#f-gain", "min"), p.get_attribute("#f-gain", "max")) == ("0", "4")
+    assert p.input_value("#f-gain") == "1"
     assert (
         p.evaluate(
-            "() => document.querySelector('#f-exposure').closest('fieldset').querySelector('legend').textContent"
+            "() => document.querySelector('#f-gain').closest('fieldset').querySelector('legend').textContent"
         )
         == "Rendering"
     )
 
-    p.fill("#f-exposure", "5")
-    p.locator("#f-exposure").blur()
-    assert p.get_attribute("#f-exposure", "aria-invalid") == "true"
-    assert p.text_content('.field[data-setting="exposure"] .field-error') == "Exposure: a number 0 … 4"
-    assert not any("exposure" in body for body in sent)
+    p.fill("#f-gain", "5")
+    p.locator("#f-gain").blur()
+    assert p.get_attribute("#f-gain", "aria-invalid") == "true"
+    assert p.text_content('.field[data-setting="gain"] .field-error') == "Gain: a number 0 … 4"
+    assert not any("gain" in body for body in sent)
 
-    p.fill("#f-exposure", "2.5")
-    p.locator("#f-exposure").blur()
+    p.fill("#f-gain", "2.5")
+    p.locator("#f-gain").blur()
     deadline = time.monotonic() + 10
-    while not any("exposure" in body for body in sent) and time.monotonic() < deadline:
+    while not any("gain" in body for body in sent) and time.monotonic() < deadline:
         p.wait_for_timeout(50)
-    assert [body for body in sent if "exposure" in body] == [{"exposure": 2.5}]
+    assert [body for body in sent if "gain" in body] == [{"gain": 2.5}]
     # (this service has no such setting: its 422 is shown next to the field)
-    p.wait_for_selector('.field[data-setting="exposure"] .field-error')
+    p.wait_for_selector('.field[data-setting="gain"] .field-error')
 
-    p.fill("#f-exposure", "1")  # back to a value the sheet takes, then a mode that does not read it
+    p.fill("#f-gain", "1")  # back to a value the sheet takes, then a mode that does not read it
     p.select_option("#f-mode", "depth")
-    p.wait_for_function("() => document.querySelector('.field[data-setting=\"exposure\"]').hidden")
-    assert not p.is_visible("#f-exposure")
+    p.wait_for_function("() => document.querySelector('.field[data-setting=\"gain\"]').hidden")
+    assert not p.is_visible("#f-gain")
 
 
 def test_reload_resumes_the_session_and_an_expired_one_is_replaced(open_client):
