@@ -144,9 +144,7 @@ def test_a_declared_setting_is_shown_by_the_settings_sheet(open_client):
     assert (p.get_attribute("#f-gain", "min"), p.get_attribute("#f-gain", "max")) == ("0", "4")
     assert p.input_value("#f-gain") == "1"
     assert (
-        p.evaluate(
-            "() => document.querySelector('#f-gain').closest('fieldset').querySelector('legend').textContent"
-        )
+        p.evaluate("() => document.querySelector('#f-gain').closest('fieldset').querySelector('legend').textContent")
         == "Rendering"
     )
 
