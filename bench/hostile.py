@@ -248,6 +248,23 @@ def part_recipe(root: Path, args) -> dict:
     return {"n": args.max_spheres, **out}
 
 
+def health_while(c: httpx.Client, threads: list[threading.Thread], limit_s: float = 600) -> list[float]:
+    """Start ``threads``, time ``/api/health`` every 20 ms while any runs (``limit_s`` at most), join them:
+    the answers' seconds."""
+    waits: list[float] = []
+    t_start = time.perf_counter()
+    for t in threads:
+        t.start()
+    while any(t.is_alive() for t in threads) and time.perf_counter() - t_start < limit_s:
+        t0 = time.perf_counter()
+        c.get("/api/health")
+        waits.append(time.perf_counter() - t0)
+        time.sleep(0.02)
+    for t in threads:
+        t.join()
+    return waits
+
+
 def part_health(root: Path, args) -> dict:
     extra = {"max_spheres": "1000"} if args.parse_only else {}
     s = Server(
@@ -272,15 +289,7 @@ def part_health(root: Path, args) -> dict:
 
             threads = [threading.Thread(target=create) for _ in range(6)]
             t_start = time.perf_counter()
-            for t in threads:
-                t.start()
-            while any(t.is_alive() for t in threads) and time.perf_counter() - t_start < 600:
-                t0 = time.perf_counter()
-                c.get("/api/health")
-                waits.append(time.perf_counter() - t0)
-                time.sleep(0.02)
-            for t in threads:
-                t.join()
+            waits += health_while(c, threads)
             mem = s.memory()
         w = sorted(waits)
         return {
@@ -991,17 +1000,7 @@ def part_model_chain(root: Path, args) -> dict:
                 for k in sorted({1, args.model_parallel}) if n == min(args.chain_nodes) else (1,):
                     got: list = []
                     threads = [threading.Thread(target=post_model, args=(s.url, body, "glb", got)) for _ in range(k)]
-                    waits = []
-                    t_start = time.perf_counter()
-                    for t in threads:
-                        t.start()
-                    while any(t.is_alive() for t in threads) and time.perf_counter() - t_start < 600:
-                        t0 = time.perf_counter()
-                        c.get("/api/health")
-                        waits.append(time.perf_counter() - t0)
-                        time.sleep(0.02)
-                    for t in threads:
-                        t.join()
+                    waits = health_while(c, threads)
                     w = sorted(waits)
                     out[f"{n:,} x{k}"] = {
                         "body_mb": round(len(body) / 1e6, 2),
