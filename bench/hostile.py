@@ -63,6 +63,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import random
 import shutil
@@ -248,6 +249,23 @@ def part_recipe(root: Path, args) -> dict:
     return {"n": args.max_spheres, **out}
 
 
+def wait_stats(waits: list[float], prefix: str = "health_") -> dict:
+    """Calls, p50, p99 (nearest rank: never below p50) and max of /api/health waits, in ms."""
+    w = sorted(waits)
+    if not w:
+        return {"health_calls": 0, f"{prefix}p50_ms": None, f"{prefix}p99_ms": None, f"{prefix}max_ms": None}
+
+    def ms(x: float) -> float:
+        return round(1e3 * x, 1)
+
+    return {
+        "health_calls": len(w),
+        f"{prefix}p50_ms": ms(statistics.median(w)),
+        f"{prefix}p99_ms": ms(w[math.ceil(0.99 * len(w)) - 1]),
+        f"{prefix}max_ms": ms(w[-1]),
+    }
+
+
 def health_while(c: httpx.Client, threads: list[threading.Thread], limit_s: float = 600) -> list[float]:
     """Start ``threads``, time ``/api/health`` every 20 ms while any runs (``limit_s`` at most), join them:
     the answers' seconds."""
@@ -299,11 +317,8 @@ def part_health(root: Path, args) -> dict:
             "spheres": n,
             "codes": sorted(codes),
             "seconds": round(time.perf_counter() - t_start, 1),
-            "health_calls": len(w),
             "idle_p50_ms": round(1e3 * statistics.median(idle), 1),
-            "p50_ms": round(1e3 * statistics.median(w), 1),
-            "p99_ms": round(1e3 * w[int(0.99 * (len(w) - 1))], 1),
-            "max_ms": round(1e3 * w[-1], 1),
+            **wait_stats(w, prefix=""),
             "rss_peak_above_idle_mib": round(mem["VmHWM"] - idle_mem["VmRSS"]),
         }
     finally:
@@ -624,10 +639,7 @@ def part_ws_flood(root: Path, args) -> dict:
             out[str(count)] = {
                 "sent_s": round(sent_s, 3),
                 **got,
-                "health_calls": len(w),
-                "health_p50_ms": round(1e3 * statistics.median(w), 1),
-                "health_p99_ms": round(1e3 * w[int(0.99 * (len(w) - 1))], 1),
-                "health_max_ms": round(1e3 * w[-1], 1),
+                **wait_stats(w),
             }
             print(f"  {count}: {json.dumps(out[str(count)])}", flush=True)
         return {"idle_health_p50_ms": round(1e3 * statistics.median(idle), 1), **out}
@@ -855,9 +867,7 @@ def part_trickle(root: Path, args) -> dict:
             "honest_body_kb": round(len(body) / 1e3),
             "honest_answers": counts(honest),
             "trickle_answers": counts(trickled),
-            "health_calls": len(w),
-            "health_p50_ms": round(1e3 * statistics.median(w), 1),
-            "health_p99_ms": round(1e3 * w[int(0.99 * (len(w) - 1))], 1),
+            **{k: v for k, v in wait_stats(w).items() if k != "health_max_ms"},
         }
     finally:
         stop.set()
@@ -1006,10 +1016,7 @@ def part_model_chain(root: Path, args) -> dict:
                         "body_mb": round(len(body) / 1e6, 2),
                         "codes": sorted(c_ for c_, _, _ in got),
                         "each_s": sorted(x for _, x, _ in got),
-                        "health_calls": len(w),
-                        "health_p50_ms": round(1e3 * statistics.median(w), 1) if w else None,
-                        "health_p99_ms": round(1e3 * w[int(0.99 * (len(w) - 1))], 1) if w else None,
-                        "health_max_ms": round(1e3 * w[-1], 1) if w else None,
+                        **wait_stats(w),
                         "answer": got[0][2],
                     }
                     print(f"  {n:,} x{k}: {json.dumps(out[f'{n:,} x{k}'])}", flush=True)
