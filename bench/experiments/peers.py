@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from renderer import meshes
 from renderer.accel.bih import build_for_spheres
 from renderer.accel.bih_traverse import traverse
 from renderer.reference import primary_rays, render_reference
@@ -100,64 +101,10 @@ def versions() -> dict[str, str]:
 
 
 def icosphere(level: int) -> tuple[np.ndarray, np.ndarray]:
-    """Unit icosphere: vertices (V, 3) on the sphere, faces (F, 3); F = 20 · 4^level."""
-    t = (1.0 + 5.0**0.5) / 2.0
-    v = [
-        (-1, t, 0),
-        (1, t, 0),
-        (-1, -t, 0),
-        (1, -t, 0),
-        (0, -1, t),
-        (0, 1, t),
-        (0, -1, -t),
-        (0, 1, -t),
-        (t, 0, -1),
-        (t, 0, 1),
-        (-t, 0, -1),
-        (-t, 0, 1),
-    ]
-    f = [
-        (0, 11, 5),
-        (0, 5, 1),
-        (0, 1, 7),
-        (0, 7, 10),
-        (0, 10, 11),
-        (1, 5, 9),
-        (5, 11, 4),
-        (11, 10, 2),
-        (10, 7, 6),
-        (7, 1, 8),
-        (3, 9, 4),
-        (3, 4, 2),
-        (3, 2, 6),
-        (3, 6, 8),
-        (3, 8, 9),
-        (4, 9, 5),
-        (2, 4, 11),
-        (6, 2, 10),
-        (8, 6, 7),
-        (9, 8, 1),
-    ]
-    verts = [np.array(p, float) / np.linalg.norm(p) for p in v]
-    faces = list(f)
-    cache: dict[tuple[int, int], int] = {}  # an edge's midpoint vertex, within one level
-
-    def mid(a: int, b: int) -> int:
-        key = (min(a, b), max(a, b))
-        if key not in cache:
-            m = verts[a] + verts[b]
-            verts.append(m / np.linalg.norm(m))
-            cache[key] = len(verts) - 1
-        return cache[key]
-
-    for _ in range(level):
-        cache.clear()
-        nf = []
-        for a, b, c in faces:
-            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
-            nf += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
-        faces = nf
-    return np.array(verts), np.array(faces, dtype=np.int64)
+    """Unit icosphere: vertices (V, 3) on the sphere, faces (F, 3); F = 20 · 4^level (the scene
+    module's, so the peers trace the very triangles our meshes would)."""
+    mesh = meshes.icosphere(level, smooth=False)
+    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.triangles, dtype=np.int64)
 
 
 # --------------------------------------------------------------------------- engines
