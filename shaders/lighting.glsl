@@ -332,9 +332,10 @@ void path_main() {
                     // A rough dielectric (Walter et al. 2007), GGX of α = roughness as the reflective lobe's: a
                     // microfacet normal m from the normals visible from wo (Heitz 2018), reflection about it
                     // with the Fresnel probability F(wo·m), else refraction through it. F and 1 − F cancel
-                    // against their probabilities, D and G1(wo) against the density: the weight is G1(wi),
-                    // never above 1. A direction on the wrong side of the surface for its kind (reflected
-                    // below it, refracted above) is masked: the path ends there.
+                    // against their probabilities, D and G1(wo) against the density: the weight is G1 of the
+                    // new direction nd, never above 1 (Mitsuba's roughdielectric with sample_visible). A
+                    // direction on the wrong side of the surface for its kind (reflected below it, refracted
+                    // above it) is masked: the path ends there.
                     float a = roughness;
                     vec3 t, b;
                     basis(nn, t, b);
