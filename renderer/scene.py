@@ -157,7 +157,8 @@ class Material:
     ``ior`` is the refraction index of the inside relative to the outside.
     ``emission``: linear RGB radiance the surface emits on the side its normal faces (seen
     directly by both integrators; an area light of the path integrator). ``roughness``: GGX
-    α of the path integrator's reflection lobe (0: a mirror). Both are absent from the
+    α of the path integrator's reflective and transmissive lobes (0: a mirror, smooth glass;
+    above: a rough conductor, a rough dielectric). Both are absent from the
     JSON when 0, so a scene without them reads and writes as it always did.
     """
 

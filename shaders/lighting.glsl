@@ -49,7 +49,8 @@ vec2 pixel_jitter(uint i) {
     return fract(vec2(a >> 8u) * (1.0 / 16777216.0) + shift);
 }
 
-// The GGX α of material m's reflection lobe (the third texel's z; Whitted's Material has no use for it).
+// The GGX α of material m's reflective and transmissive lobes (the third texel's z; Whitted's Material
+// has no use for it).
 float roughness_at(int m) {
 #ifdef MATERIAL_TEXTURE
     return texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 2, g_mat_shift), 0).z;
@@ -324,17 +325,55 @@ void path_main() {
                     nd = d - 2.0 * dot(d, s.n) * s.n;
                 }
             } else if (pick < w_diffuse + w_reflect + w_transmit) {
-                // A smooth dielectric: reflect with Fresnel's probability, else refract.
                 bool entering = front;
                 float eta = entering ? 1.0 / m.ior : m.ior;
                 vec3 nn = entering ? s.n : -s.n;
-                float cos_i = -dot(d, nn);
-                float f = fresnel_dielectric(abs(cos_i), eta);
-                if (u1 < f) {
-                    nd = d - 2.0 * dot(d, nn) * nn;
+                if (roughness > 0.0) {
+                    // A rough dielectric (Walter et al. 2007), GGX of α = roughness as the reflective lobe's: a
+                    // microfacet normal m from the normals visible from wo (Heitz 2018), reflection about it
+                    // with the Fresnel probability F(wo·m), else refraction through it. F and 1 − F cancel
+                    // against their probabilities, D and G1(wo) against the density: the weight is G1 of the
+                    // new direction nd, never above 1 (Mitsuba's roughdielectric with sample_visible). A
+                    // direction on the wrong side of the surface for its kind (reflected below it, refracted
+                    // above it) is masked: the path ends there.
+                    float a = roughness;
+                    vec3 t, b;
+                    basis(nn, t, b);
+                    vec3 wo = -d;
+                    float n_o = dot(nn, wo);
+                    vec3 vh = normalize(vec3(a * dot(wo, t), a * dot(wo, b), n_o));   // wo, stretched to α = 1
+                    float len2 = vh.x * vh.x + vh.y * vh.y;
+                    vec3 t1 = len2 > 0.0 ? vec3(-vh.y, vh.x, 0.0) * inversesqrt(len2) : vec3(1.0, 0.0, 0.0);
+                    vec3 t2 = cross(vh, t1);
+                    float r = sqrt(u1), phi = 2.0 * PI * u2;
+                    float p1 = r * cos(phi), p2 = r * sin(phi);
+                    float sv = 0.5 * (1.0 + vh.z);
+                    p2 = (1.0 - sv) * sqrt(max(0.0, 1.0 - p1 * p1)) + sv * p2;
+                    vec3 nh = p1 * t1 + p2 * t2 + sqrt(max(0.0, 1.0 - p1 * p1 - p2 * p2)) * vh;
+                    vec3 ml = normalize(vec3(a * nh.x, a * nh.y, max(nh.z, 0.0)));
+                    vec3 mh = ml.x * t + ml.y * b + ml.z * nn;
+                    float o_m = dot(wo, mh);
+                    float u3 = rnd();
+                    if (o_m <= 0.0 || n_o <= 0.0) {
+                        go = false;
+                    } else {
+                        float k = 1.0 - eta * eta * (1.0 - o_m * o_m);
+                        bool reflect_m = k <= 0.0 || u3 < fresnel_dielectric(o_m, eta);
+                        nd = reflect_m ? 2.0 * o_m * mh - wo : normalize(eta * d + (eta * o_m - sqrt(max(k, 0.0))) * mh);
+                        float n_i = dot(nn, nd);
+                        if (reflect_m ? n_i <= 0.0 : n_i >= 0.0) go = false;
+                        else beta *= smith_g1(abs(n_i), a);
+                    }
                 } else {
-                    float k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
-                    nd = normalize(eta * d + (eta * cos_i - sqrt(max(k, 0.0))) * nn);
+                    // A smooth dielectric: reflect with Fresnel's probability, else refract.
+                    float cos_i = -dot(d, nn);
+                    float f = fresnel_dielectric(abs(cos_i), eta);
+                    if (u1 < f) {
+                        nd = d - 2.0 * dot(d, nn) * nn;
+                    } else {
+                        float k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+                        nd = normalize(eta * d + (eta * cos_i - sqrt(max(k, 0.0))) * nn);
+                    }
                 }
             } else {
                 go = false;

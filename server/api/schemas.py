@@ -159,7 +159,9 @@ class MaterialModel(Strict):
         default_factory=lambda: [0.0, 0.0, 0.0],
         description="radiance emitted on the side the normal faces (an area light)",
     )
-    roughness: Unit = Field(0.0, description="GGX α of the path integrator's reflection lobe (0: a mirror)")
+    roughness: Unit = Field(
+        0.0, description="GGX α of the path integrator's reflective and transmissive lobes (0: a mirror, smooth glass)"
+    )
 
 
 class EnvironmentModel(Strict):

@@ -47,3 +47,41 @@ def test_path_frames_through_the_api(ready_client):
     assert declared["integrator"]["choices"] == ["whitted", "path"]
     assert declared["samples_per_pixel"]["maximum"] == 4096 and declared["max_recursion_depth"]["maximum"] == 16
     assert {"tone_map", "exposure"} <= set(declared)
+
+
+def test_the_path_settings_contract_through_the_api(ready_client):
+    """integrator ∈ {whitted, path}; with path any samples_per_pixel 1 … 4096 and max_recursion_depth
+    1 … 16, each refused past its bound with a 422 naming it, and refused as a whole when width ×
+    height × depth × samples exceeds POCKETRAY_MAX_WORK (a 422 naming that cap); a material's
+    roughness ∈ [0, 1] and emission ≥ 0 refused naming the field; rough glass renders."""
+    c = ready_client
+    base = {"integrator": "path", "width": 8, "height": 8, "format": "npy", "samples_per_pixel": 4}
+
+    def post(settings=None, material=None):
+        scene = {**FURNACE, "materials": [{**FURNACE["materials"][0], **(material or {})}]}
+        return c.post("/api/render", json={"scene": scene, "settings": {**base, **(settings or {})}})
+
+    for ok in ({"samples_per_pixel": 1}, {"samples_per_pixel": 37}, {"max_recursion_depth": 16}):
+        assert post(ok).status_code == 200, (ok, post(ok).text)
+    refused = {
+        ("integrator", "bidirectional"): "integrator",
+        ("samples_per_pixel", 4097): "samples_per_pixel",
+        ("samples_per_pixel", 0): "samples_per_pixel",
+        ("max_recursion_depth", 17): "max_recursion_depth",
+    }
+    for (name, value), field in refused.items():
+        r = post({name: value})
+        assert r.status_code == 422 and r.json()["detail"][0]["loc"][-1] == field, (name, value, r.text)
+    r = post({"integrator": "whitted", "samples_per_pixel": 37})  # Whitted's supersampling grids only
+    assert r.status_code == 422 and "samples_per_pixel" in r.json()["detail"][0]["msg"]
+    r = post({"samples_per_pixel": 4096, "max_recursion_depth": 16})  # 8 × 8 × 16 × 4096 > the test cap
+    assert r.status_code == 422 and "POCKETRAY_MAX_WORK" in r.json()["detail"][0]["msg"], r.text
+    for material, loc in (
+        ({"roughness": 1.5}, ["materials", 0, "roughness"]),
+        ({"roughness": -0.1}, ["materials", 0, "roughness"]),
+        ({"emission": [1, -1, 0]}, ["materials", 0, "emission", 1]),
+    ):
+        r = post(material=material)
+        assert r.status_code == 422 and r.json()["detail"][0]["loc"][-len(loc) :] == loc, (material, r.text)
+    r = post(material={"diffuse": 0, "transmissive": 1, "ior": 1.5, "roughness": 1.0})
+    assert r.status_code == 200 and np.isfinite(np.load(io.BytesIO(r.content))).all()

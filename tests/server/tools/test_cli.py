@@ -217,3 +217,33 @@ def test_serve_with_two_workers_runs_two_gl_processes_and_one_metrics_endpoint(t
         except subprocess.TimeoutExpired:
             proc.kill()
         log.close()
+
+
+def test_render_traces_paths_to_exr(tmp_path):
+    """``pocketray render scene.json --integrator path --spp 64 -o out.exr``: linear radiance, the
+    environment where rays miss, a diffuse sphere's albedo in the white furnace (no variance: every
+    bounce leaves the convex sphere); the ray engines and Whitted's bounds refuse it naming the field."""
+    scene = {
+        "camera": {"position": [0, 0, 4], "target": [0, 0, 0], "fov_y": 34},
+        "lights": [],
+        "materials": [{"color": [0.5, 0.6, 0.7], "diffuse": 1, "reflective": 0, "ambient": 0}],
+        "spheres": [{"center": [0, 0, 0], "radius": 1}],
+        "environment": {"color": [1, 1, 1]},
+    }
+    (tmp_path / "scene.json").write_text(json.dumps(scene))
+    size = ("--width", "16", "--height", "12")
+    done, engine, whitted = pocketray_batch(
+        [
+            ("render", "scene.json", "--integrator", "path", "--spp", "64", "-o", "out.exr", *size, "--quiet"),
+            ("render", "scene.json", "--integrator", "path", "--method", "hre", "-o", "no.exr", *size),
+            ("render", "scene.json", "--spp", "64", "-o", "no.exr", *size),
+        ],
+        cwd=tmp_path,
+    )
+    assert done.returncode == 0 and done.stderr == "", done.stderr
+    rgb = decode_exr((tmp_path / "out.exr").read_bytes())["RGB"]
+    assert rgb.dtype == np.float32 and rgb.shape == (12, 16, 3)
+    assert np.allclose(rgb[0, 0], 1.0) and np.allclose(rgb[6, 8], [0.5, 0.6, 0.7], rtol=1e-5)
+    assert engine.returncode == 2 and "integrator" in engine.stderr and "bih" in engine.stderr
+    assert whitted.returncode == 2 and "samples_per_pixel" in whitted.stderr
+    assert not (tmp_path / "no.exr").exists()
