@@ -22,12 +22,16 @@ shaded). A sphere-only scene carries neither, so its shader text is the one befo
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from . import gpu_layout
 from .limits import MAX_LIGHTS, MAX_PLANES
 from .scene import Scene
+
+if TYPE_CHECKING:
+    from .settings import RenderSettings
 
 # What a specialised variant removes (the stats' ``features_removed``), then the counts.
 REMOVALS = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS", "NO_SPLIT")
@@ -142,3 +146,15 @@ def scene_features(scene: Scene) -> SceneFeatures:
         emission=any(m.emits for m in mats),
         environment=any(scene.environment),
     )
+
+
+def frame_features(scene: Scene, settings: RenderSettings) -> tuple[SceneFeatures, int]:
+    """The features and the recursion depth (levels, or a path's segments) of the one-pass
+    variant that traces a frame of the posed ``scene`` with ``settings``: the scene's features,
+    with the path integrator where the settings ask for it, generic unless ``specialize``. The
+    server's frames and the device's data both choose their variant here, so a browser compiles
+    the very text the server does."""
+    features = scene_features(scene).with_integrator(settings.integrator, settings.mode)
+    if not settings.specialize:
+        features = features.generic()
+    return features, features.recursion_depth(settings.max_recursion_depth)
