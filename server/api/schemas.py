@@ -515,11 +515,7 @@ class DeviceDataQuery(QueryModel):
 
     def given(self) -> dict[str, Any]:
         """The render settings named (not the device's own parameters)."""
-        return {
-            k: v
-            for k in DEVICE_SETTINGS
-            if (v := getattr(self, k)) is not None
-        }
+        return {k: v for k in DEVICE_SETTINGS if (v := getattr(self, k)) is not None}
 
 
 # What server.api.routes.device.parse_features reads: names from FEATURE_DEFINES, commas, whitespace.
