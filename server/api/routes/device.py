@@ -7,8 +7,10 @@ Two routes; the browser client's ``client_web/js/device/device.js`` uses both.
     :mod:`server.frames.device_data`'s format, wrapped to the device's ``max_texture_size``.
     The tree is built for this request, as for every frame. Query
     (:class:`~server.api.schemas.DeviceDataQuery`): the render settings the data is for
-    (missing: the session's), ``max_texture_size`` and ``float_textures`` (false → 422:
-    the tracer cannot run there). Multi-pass methods (``rayengine``, ``hre``) draw several
+    (missing: the session's; ``integrator=path`` gives the path integrator's variant and
+    uniforms, ``tone_map``, ``exposure`` and ``samples_per_pixel`` go to the header for its
+    display), ``max_texture_size`` and ``float_textures`` (false → 422: the tracer cannot run
+    there). Multi-pass methods (``rayengine``, ``hre``) draw several
     passes on the server and are a 422, as are scenes whose arrays do not fit the device's
     textures. Headers: ``X-Session-Version``, ``X-Method``, ``X-Stats``, ``Server-Timing``
     (``build``, ``pack``, ``total``).
