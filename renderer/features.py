@@ -22,16 +22,13 @@ shaded). A sphere-only scene carries neither, so its shader text is the one befo
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from . import gpu_layout
 from .limits import MAX_LIGHTS, MAX_PLANES
 from .scene import Scene
-
-if TYPE_CHECKING:
-    from .settings import RenderSettings
 
 # What a specialised variant removes (the stats' ``features_removed``), then the counts.
 REMOVALS = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS", "NO_SPLIT")
@@ -148,7 +145,17 @@ def scene_features(scene: Scene) -> SceneFeatures:
     )
 
 
-def frame_features(scene: Scene, settings: RenderSettings) -> tuple[SceneFeatures, int]:
+class FrameSettings(Protocol):
+    """What of a frame's settings chooses its variant (:class:`renderer.settings.RenderSettings` has
+    it; named here so that the core's features need not import the settings and the methods)."""
+
+    integrator: str
+    mode: str
+    specialize: bool
+    max_recursion_depth: int
+
+
+def frame_features(scene: Scene, settings: FrameSettings) -> tuple[SceneFeatures, int]:
     """The features and the recursion depth (levels, or a path's segments) of the one-pass
     variant that traces a frame of the posed ``scene`` with ``settings``: the scene's features,
     with the path integrator where the settings ask for it, generic unless ``specialize``. The
