@@ -142,11 +142,14 @@ def test_device_mode_in_the_client_path_traces(gl_browser, server):
         assert c.hook("state.render.integrator") == "path" and c.hook("state.render.tone_map") == "reinhard"
         assert c.hook("device.path") == {"samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS}
         assert last["samples"] == 16
-        assert c.page.locator("#f-integrator").input_value() == "path"
         shown_device = canvas_rgb(c)
+        c.page.click("#settings-toggle")
+        assert c.page.locator("#f-integrator").input_value() == "path"
+        assert c.page.locator("#f-tone_map").input_value() == "reinhard"
+        tone_field = c.page.locator('.field[data-setting="tone_map"]')
+        assert not tone_field.is_hidden()  # shown with the path integrator (ui/limits.js: only there)
 
         n1 = c.frame_count  # the same view from the server: the same tone-mapped picture
-        c.page.click("#settings-toggle")
         c.page.select_option("#f-renderer", "server")
         c.wait_idle(min_frames=n1 + 1)
         assert c.hook("lastFrame.renderer") == "server"
@@ -155,9 +158,17 @@ def test_device_mode_in_the_client_path_traces(gl_browser, server):
         assert psnr(shown_device, shown_server) >= 40.0, psnr(shown_device, shown_server)
         assert c.errors() == [] and c.hook("errors") == []
 
-        # A ray engine cannot trace paths: the service's 422 names the integrator, next to its field.
+        # Whitted's image is not tone-mapped: the sheet hides tone map and exposure then.
+        n2 = c.frame_count
+        c.page.select_option("#f-integrator", "whitted")
+        c.wait_idle(min_frames=n2 + 1)
+        assert c.hook("state.render.integrator") == "whitted" and tone_field.is_hidden()
+        c.page.select_option("#f-integrator", "path")
+        c.wait_idle(min_frames=n2 + 2)
+
+        # A ray engine cannot trace paths: the service's 422 names the integrator, in a notice (its
+        # field is hidden with a ray engine, which does not read it).
         c.page.select_option("#f-method", "rayengine")
-        # (The integrator's field is hidden with a ray engine, which does not read it: a notice says it.)
         c.page.wait_for_selector("#notice:not(:empty)")
         said = c.page.locator("#notice").inner_text()
         assert "integrator 'path' is not available with method 'rayengine'" in said, said
