@@ -22,6 +22,7 @@ shaded). A sphere-only scene carries neither, so its shader text is the one befo
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Protocol
 
 import numpy as np
 
@@ -142,3 +143,25 @@ def scene_features(scene: Scene) -> SceneFeatures:
         emission=any(m.emits for m in mats),
         environment=any(scene.environment),
     )
+
+
+class FrameSettings(Protocol):
+    """What of a frame's settings chooses its variant (:class:`renderer.settings.RenderSettings` has
+    it; named here so that the core's features need not import the settings and the methods)."""
+
+    integrator: str
+    mode: str
+    specialize: bool
+    max_recursion_depth: int
+
+
+def frame_features(scene: Scene, settings: FrameSettings) -> tuple[SceneFeatures, int]:
+    """The features and the recursion depth (levels, or a path's segments) of the one-pass
+    variant that traces a frame of the posed ``scene`` with ``settings``: the scene's features,
+    with the path integrator where the settings ask for it, generic unless ``specialize``. The
+    server's frames and the device's data both choose their variant here, so a browser compiles
+    the very text the server does."""
+    features = scene_features(scene).with_integrator(settings.integrator, settings.mode)
+    if not settings.specialize:
+        features = features.generic()
+    return features, features.recursion_depth(settings.max_recursion_depth)

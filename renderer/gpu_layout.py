@@ -758,6 +758,17 @@ def emitter_uniforms(scene: Scene) -> dict[str, object]:
     return out
 
 
+def frame_uniforms(scene: Scene, min_weight: float) -> dict[str, object]:
+    """The uniforms of a frame beside the scene's (:func:`pack_primitives`) and the method's packs:
+    the ε cut-off and the path integrator's light terms. The server's frames upload them and the
+    device-data carries them, so a browser's paths are the server's."""
+    return {
+        MIN_WEIGHT.name: float(min_weight),
+        LIGHT_SCALE.name: light_scale(scene),
+        **emitter_uniforms(scene),
+    }
+
+
 def path_uniforms(start: int, count: int) -> dict[str, object]:
     """The path integrator's pass uniforms: samples ``start … start + count − 1`` of every pixel."""
     return {SAMPLE_START.name: int(start), SAMPLE_COUNT.name: int(count)}

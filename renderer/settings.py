@@ -263,6 +263,8 @@ SETTINGS: tuple[SettingSpec, ...] = (
         choices=INTEGRATORS,
         capability="integrator",
         modes=("color",),
+        sheet=True,
+        client=True,
     ),
     SettingSpec(
         "tone_map",
@@ -272,6 +274,8 @@ SETTINGS: tuple[SettingSpec, ...] = (
         "Tone mapping",
         choices=TONE_MAPS,
         modes=("color",),
+        sheet=True,
+        client=True,
     ),
     SettingSpec(
         "exposure",
@@ -282,6 +286,8 @@ SETTINGS: tuple[SettingSpec, ...] = (
         unit="stops",
         bounds=limits.EXPOSURE_RANGE,
         modes=("color",),
+        sheet=True,
+        client=True,
     ),
     SettingSpec(
         "min_weight",

@@ -225,14 +225,7 @@ class TracerFrame:
         parts = [
             gpu_layout.pack_primitives(self.scene, self.renderer.max_texture_width),
             self.prepared.packed,
-            PackedScene(
-                {},
-                {
-                    gpu_layout.MIN_WEIGHT.name: float(self.settings.min_weight),
-                    gpu_layout.LIGHT_SCALE.name: gpu_layout.light_scale(self.scene),
-                    **gpu_layout.emitter_uniforms(self.scene),
-                },
-            ),
+            PackedScene({}, gpu_layout.frame_uniforms(self.scene, self.settings.min_weight)),
         ]
         tex, self.uniforms = check_bindings(self.variant, parts)
         blocks = {n: t for n, t in tex.items() if n in self.variant.blocks}

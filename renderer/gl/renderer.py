@@ -25,7 +25,7 @@ import numpy as np
 from .. import gpu_layout
 from ..accel.ray_engine import RayEngine
 from ..animation import AnimatedScene
-from ..features import scene_features
+from ..features import frame_features
 from ..gpu_layout import Variant
 from ..limits import DEFAULT_TEXTURE_WIDTH, PATH_SAMPLES_PER_PASS
 from ..methods import METHODS, PreparedMethod, check_primitives, resolve_method
@@ -189,10 +189,7 @@ class GLRenderer:
             prepared = method.prepare(
                 scene, settings.max_prims, settings.max_tree_depth, self.max_texture_width, update
             )
-        features = scene_features(scene).with_integrator(settings.integrator, settings.mode)
-        if not settings.specialize:
-            features = features.generic()
-        depth = features.recursion_depth(settings.max_recursion_depth)
+        features, depth = frame_features(scene, settings)
         image = self.image_targets and image_only(settings)
         variant = Variant(method_name, settings.mode, depth, features.defines(), image_only=image)
         variant = Variant(

@@ -481,6 +481,22 @@ class StatsQuery(QueryModel):
         return {k: v for k, v in self.model_dump().items() if v is not None}
 
 
+# The render settings a device-data query may name: those that choose the data and the shader
+# variant, and what the device's display of a path-traced frame reads (samples, tone map, exposure).
+DEVICE_SETTINGS = (
+    "method",
+    "mode",
+    "max_prims",
+    "max_tree_depth",
+    "max_recursion_depth",
+    "time",
+    "integrator",
+    "tone_map",
+    "exposure",
+    "samples_per_pixel",
+)
+
+
 class DeviceDataQuery(QueryModel):
     """What the device-data is packed for; the settings left out are the session's."""
 
@@ -490,6 +506,10 @@ class DeviceDataQuery(QueryModel):
     max_tree_depth: optional(TreeDepth) = None
     max_recursion_depth: optional(RecursionDepth) = None
     time: optional(Time) = None
+    integrator: optional(SETTING_TYPES["integrator"]) = None
+    tone_map: optional(SETTING_TYPES["tone_map"]) = None
+    exposure: optional(SETTING_TYPES["exposure"]) = None
+    samples_per_pixel: optional(SETTING_TYPES["samples_per_pixel"]) = None
     max_texture_size: int = Field(
         DEFAULT_MAX_TEXTURE_SIZE, ge=1, le=MAX_DEVICE_TEXTURE_SIZE, description="the device's MAX_TEXTURE_SIZE"
     )
@@ -497,11 +517,7 @@ class DeviceDataQuery(QueryModel):
 
     def given(self) -> dict[str, Any]:
         """The render settings named (not the device's own parameters)."""
-        return {
-            k: v
-            for k in ("method", "mode", "max_prims", "max_tree_depth", "max_recursion_depth", "time")
-            if (v := getattr(self, k)) is not None
-        }
+        return {k: v for k in DEVICE_SETTINGS if (v := getattr(self, k)) is not None}
 
 
 # What server.api.routes.device.parse_features reads: names from FEATURE_DEFINES, commas, whitespace.

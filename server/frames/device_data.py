@@ -20,8 +20,10 @@ The JSON header::
     {"format": "pocketray-device-data", "format_version": 1,
      "session": {"id", "version", "scene_rev"},
      "method": "bih",                       # auto resolved
-     "settings": {"mode", "max_prims", "max_tree_depth", "max_recursion_depth", "width", "height", "time"},
+     "settings": {"mode", "max_prims", "max_tree_depth", "max_recursion_depth", "width", "height", "time",
+                  "samples_per_pixel", "integrator", "tone_map", "exposure"},
      "shader": {"method", "mode", "max_recursion_depth", "features": ["NO_TRANSMISSION", …], "url"},
+     "path": {"samples_per_pass": 4} | null,  # the path integrator's variant (features has PATH), else null
      "max_texture_size": 4096,              # the power of two the textures were wrapped to
      "camera": {...}, "home_camera": {...}, # camera JSON of docs/FORMATS.md (current, and the reset one)
      "uniforms": {"u_num_spheres": 64, "u_plane_point": [[0, -20, 0], …], …,
@@ -31,11 +33,24 @@ The JSON header::
                    "internal_format": "RGBA32F", "offset", "nbytes"}, …],
      "stats": {...}, "build_ms": 1.2, "pack_ms": 0.3, "nbytes": …}
 
-``uniforms`` are every uniform of :func:`gpu_layout.pack_primitives` and of the
-method's ``prepare(...).packed`` (fixed-length arrays as lists), plus the camera
-terms that do not depend on the image size (:func:`camera_uniforms`; ``u_half_extent``
-and ``u_resolution`` do, and the device sets them as ``gpu_layout.camera_uniforms``
-computes them). Each texture is ``height × width × components`` elements of ``dtype``
+``uniforms`` are every uniform of :func:`gpu_layout.pack_primitives`, of the
+method's ``prepare(...).packed`` and of :func:`gpu_layout.frame_uniforms` (the ε cut-off,
+0 here: the device sets its frame's; the path integrator's ``u_light_scale`` and emitters),
+fixed-length arrays as lists, plus the camera terms that do not depend on the image size
+(:func:`camera_uniforms`; ``u_half_extent`` and ``u_resolution`` do, and the device sets
+them as ``gpu_layout.camera_uniforms`` computes them).
+
+The shader variant is the one the server's frame of the same settings compiles
+(:func:`renderer.features.frame_features`): with ``integrator`` ``path`` in colour mode it
+carries ``PATH`` and its ``max_recursion_depth`` is a path's segments (up to
+``MAX_PATH_DEPTH``). Such a variant's ``o_image.rgb`` is the *sum* of the radiance of the
+``u_sample_count`` samples from ``u_sample_start`` on (``gpu_layout.path_uniforms``, set per
+draw): the device draws passes of at most ``path.samples_per_pass`` samples
+(``limits.DEVICE_PATH_SAMPLES_PER_PASS``), adds them up, divides by ``samples_per_pixel`` and
+shows the mean as ``renderer/tonemap.py`` does with the header's ``tone_map`` and
+``exposure``. The ``settings`` a session stored before a setting existed read as its default.
+Fields were only added to the header since format version 1 (a reader ignores those it does
+not know), so the version stays 1. Each texture is ``height × width × components`` elements of ``dtype``
 (``f4``: float32, ``u4``: uint32), row 0 first — exactly ``PackedTexture.data``; the
 device uploads them with NEAREST filtering, as the server does.
 """

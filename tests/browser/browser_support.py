@@ -6,6 +6,7 @@ Failures to start (server, Chromium) are pytest failures, never skips.
 
 from __future__ import annotations
 
+import base64
 import json
 import os
 import signal
@@ -31,6 +32,9 @@ CHROMIUM_ARGS = [
     "--disable-sync",
     "--no-first-run",
 ]
+# WebGL2 in headless Chromium without a GPU: ANGLE on SwiftShader (explicit, so that a
+# Chromium that stops falling back to it by itself still gets it).
+GL_ARGS = [*CHROMIUM_ARGS, "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 SERVER_START_S = 120.0
 
 # Small, quick renders: full 320×544 png, preview 160×272 jpeg, two recursion levels.
@@ -234,3 +238,12 @@ def distance(cam: dict) -> float:
 
 def moved(before: dict, after: dict) -> np.ndarray:
     return np.subtract(after["position"], before["position"])
+
+
+def canvas_rgb(c: Client) -> np.ndarray:
+    """The picture on the page's #view canvas, H×W×3 uint8."""
+    w, h, data = c.page.evaluate("""() => { const cv = document.getElementById('view');
+        const d = cv.getContext('2d').getImageData(0, 0, cv.width, cv.height).data;
+        let s = ''; for (let i = 0; i < d.length; i += 0x8000) s += String.fromCharCode(...d.subarray(i, i + 0x8000));
+        return [cv.width, cv.height, btoa(s)]; }""")
+    return np.frombuffer(base64.b64decode(data), np.uint8).reshape(h, w, 4)[..., :3]

@@ -3,7 +3,8 @@
 - ``server``: ``python -m server`` on a free port with a temporary SQLite file; waits
   for ``GET /api/ready`` = 200. ``server.stop()`` / ``server.start()`` restart it on
   the same port and state (sessions survive).
-- ``browser``: Playwright driving the system Chromium (never a downloaded one).
+- ``browser``: Playwright driving the system Chromium (never a downloaded one); ``gl_browser``
+  a second one of the same Playwright with WebGL2 on SwiftShader (device mode).
 - ``open_client``: a page on the client with console errors collected; helpers
   to wait for frames and read the session's camera from the API.
 
@@ -16,7 +17,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from browser_support import ARTIFACTS, CHROMIUM, CHROMIUM_ARGS, FAST_QUERY, PROFILES, Client, Server
+from browser_support import ARTIFACTS, CHROMIUM, CHROMIUM_ARGS, FAST_QUERY, GL_ARGS, PROFILES, Client, Server
 
 
 @pytest.fixture(scope="session")
@@ -42,6 +43,17 @@ def browser():
     yield b
     b.close()
     pw.stop()
+
+
+@pytest.fixture(scope="session")
+def gl_browser(browser):
+    """A second Chromium of the same Playwright (one sync Playwright per process), with the GL flags."""
+    try:
+        b = browser.browser_type.launch(executable_path=CHROMIUM, args=GL_ARGS, headless=True)
+    except Exception as e:
+        pytest.fail(f"Chromium could not start from {CHROMIUM} with {GL_ARGS}: {e}")
+    yield b
+    b.close()
 
 
 @pytest.fixture

@@ -22,25 +22,11 @@ import urllib.request
 
 import numpy as np
 import pytest
-from browser_support import CHROMIUM, CHROMIUM_ARGS, FAILED_LOAD, MOBILE, Client, Touch, http_json
+from browser_support import FAILED_LOAD, GL_ARGS, MOBILE, Client, Touch, canvas_rgb, http_json
 
-# WebGL2 in headless Chromium without a GPU: ANGLE on SwiftShader (explicit, so that a
-# Chromium that stops falling back to it by itself still gets it).
-GL_ARGS = [*CHROMIUM_ARGS, "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 W, H = 64, 108
 DEPTH = 5
 SMALL = "scenario=1&n=64&seed=1&radius=1&width=96&height=160&max_recursion_depth=2&preview_scale=1&refine_ms=0"
-
-
-@pytest.fixture(scope="module")
-def gl_browser(browser):
-    """A second Chromium of the same Playwright (one sync Playwright per process), with the GL flags."""
-    try:
-        b = browser.browser_type.launch(executable_path=CHROMIUM, args=GL_ARGS, headless=True)
-    except Exception as e:
-        pytest.fail(f"Chromium could not start from {CHROMIUM} with {GL_ARGS}: {e}")
-    yield b
-    b.close()
 
 
 @pytest.fixture(scope="module")
@@ -254,14 +240,6 @@ def test_device_mode_in_the_client(gl_browser, server):
         assert c.errors(allow=(FAILED_LOAD,)) == [] and c.hook("errors") == []  # the 422 is the fallback's cause
     finally:
         ctx.close()
-
-
-def canvas_rgb(c: Client) -> np.ndarray:
-    w, h, data = c.page.evaluate("""() => { const cv = document.getElementById('view');
-        const d = cv.getContext('2d').getImageData(0, 0, cv.width, cv.height).data;
-        let s = ''; for (let i = 0; i < d.length; i += 0x8000) s += String.fromCharCode(...d.subarray(i, i + 0x8000));
-        return [cv.width, cv.height, btoa(s)]; }""")
-    return np.frombuffer(base64.b64decode(data), np.uint8).reshape(h, w, 4)[..., :3]
 
 
 def test_without_webgl2_the_client_falls_back_to_the_server(open_client):

@@ -16,6 +16,10 @@
 //    session's samples_per_pixel (√s × √s sub-pixels, box-filtered; ids from the centre
 //    one) and ε cut-off (min_weight), preview frames with the service's 'interactive'
 //    profile at the preview scale, as the server's previews;
+//  - with integrator 'path' (colour frames) the same shader traces paths: samples_per_pixel
+//    of them per pixel, in passes of the data's path.samples_per_pass, summed, their mean
+//    shown tone-mapped (tone_map, exposure) as the server's png; the mean of the first
+//    passes is the frame's preview;
 //  - anything missing (WebGL2, EXT_color_buffer_float, a texture size the scene needs, a
 //    method that needs several passes) → the app falls back to server mode with a notice.
 //
@@ -138,13 +142,19 @@ export class DeviceView {
     return !this.raf && this.refineTimer === null && !this.loading && !this.job;
   }
 
+  // The settings data for `params` starts from: the page's session's, or none for another session
+  // (the server fills in that session's own).
+  _base(s, params) {
+    return params.session && params.session !== s.sessionId ? {} : s.render || {};
+  }
+
   _dataKey(s, params) {
-    const r = { ...s.render, ...params };
+    const r = { ...this._base(s, params), ...params };
     // An animated scene's data is posed by the server at the frame's time: a new time is new data.
     const t = params.time ?? (s.anim && s.anim.animated ? s.anim.time : '');
     // sceneRev: the session's scene grew (a model was added, session.js): its data is new too.
     return [params.session ?? s.sessionId, r.method, r.mode, r.max_prims, r.max_tree_depth, r.max_recursion_depth,
-      params.max_texture_size ?? this.renderer.maxTextureSize, t, s.sceneRev ?? 0].join('|');
+      params.max_texture_size ?? this.renderer.maxTextureSize, t, s.sceneRev ?? 0, r.integrator ?? 'whitted'].join('|');
   }
 
   // Fetch (when the key changed), upload and compile. `params` override the session's settings.
@@ -161,8 +171,11 @@ export class DeviceView {
         max_texture_size: params.max_texture_size ?? this.renderer.maxTextureSize,
         float_textures: this.renderer.colorBufferFloat ? 'true' : 'false',
       };
-      for (const k of ['method', 'mode', 'max_prims', 'max_tree_depth', 'max_recursion_depth']) {
-        const v = params[k] ?? s.render[k];
+      // (samples_per_pixel, tone_map, exposure: the header's display settings; the live view
+      // reads its own state's, so changing them needs no new data.)
+      for (const k of ['method', 'mode', 'max_prims', 'max_tree_depth', 'max_recursion_depth', 'integrator',
+        'samples_per_pixel', 'tone_map', 'exposure']) {
+        const v = params[k] ?? this._base(s, params)[k];
         if (v !== undefined && v !== null) q[k] = v;
       }
       const t = params.time ?? (s.anim && s.anim.animated ? s.anim.time : undefined);
@@ -183,6 +196,7 @@ export class DeviceView {
       this.stats = h.stats;
       this.method = h.method;
       this.mode = h.shader.mode;
+      this.path = h.path;   // {samples_per_pass} of a path-traced variant, else null
       this.n = h.uniforms.u_num_spheres;
       this.home = h.home_camera;
       // The data's camera is the server's: adopt it unless local gestures happened meanwhile.
@@ -213,6 +227,9 @@ export class DeviceView {
       : previewSize(render.width, render.height, client.previewScale);
     const samples = full ? render.samples_per_pixel ?? 1 : fast.samples_per_pixel ?? render.samples_per_pixel ?? 1;
     const minWeight = full ? render.min_weight ?? 0 : fast.min_weight ?? render.min_weight ?? 0;
+    if (this.path) {   // paths: any count of samples, each over the whole pixel (no sub-pixel grid)
+      return { width, height, k: 1, samples, minWeight, path: this._path(samples), display: this._display(render) };
+    }
     // depth, primid and normal are one ray through each pixel centre at any samples per pixel
     // (docs/FORMATS.md); the averaged images trace the sub-pixels.
     const averaged = AVERAGED_MODES.includes(render.mode);
@@ -220,10 +237,21 @@ export class DeviceView {
     return { width, height, k, samples: k * k, minWeight };
   }
 
+  // A path-traced frame's passes: `samples` per pixel, the data's samples per pass.
+  _path(samples) {
+    return this.path ? { samples, perPass: this.path.samples_per_pass } : null;
+  }
+
+  // How a path-traced frame is shown: `render`'s tone map and exposure (else the data's).
+  _display(render = {}) {
+    const h = (this.renderer && this.renderer.header && this.renderer.header.settings) || {};
+    return { toneMap: render.tone_map ?? h.tone_map ?? 'clamp', exposure: render.exposure ?? h.exposure ?? 0 };
+  }
+
   // Whether a preview differs from the full frame (else gestures trace full frames directly).
   previewDiffers() {
     const a = this._profile('preview'), b = this._profile('full');
-    return a.width !== b.width || a.k !== b.k || a.minWeight !== b.minWeight;
+    return a.width !== b.width || a.k !== b.k || a.minWeight !== b.minWeight || a.samples !== b.samples;
   }
 
   // Render the local camera at `level` (the app's transport.frame in device mode). → a frame
@@ -244,7 +272,9 @@ export class DeviceView {
     if (this.job) this._cancel(this.job);
     const p = this._profile(level);
     const uniforms = { ...cameraUniforms(this.camera, p.width * p.k, p.height * p.k), u_min_weight: p.minWeight };
-    const trace = this.renderer.beginTrace(this.prog, { width: p.width, height: p.height, k: p.k, uniforms });
+    const trace = this.renderer.beginTrace(this.prog, {
+      width: p.width, height: p.height, k: p.k, uniforms, path: p.path, display: p.display,
+    });
     const inputAt = this.pendingInputAt;
     this.pendingInputAt = null;
     const data = this.dataMs;
@@ -271,8 +301,8 @@ export class DeviceView {
       this.counts.bands++;
       this.counts.lastRows = Math.max(this.counts.lastRows, rows);
       job.rowsDone = t.rowsDoneTotal;
-      if (!t.done && t.k > 1 && t.phase === 1 && !job.previewed && job.onPreview) {
-        // The pixel centres are traced: show them while the sub-pixels follow.
+      if (!job.previewed && job.onPreview && this.renderer.previewReady(t)) {
+        // The pixel centres (or the first paths) are traced: show them while the rest follows.
         job.previewed = true;
         const displayMs = this.renderer.showCentre(t);
         job.onPreview({ ...this._frameOf(job, displayMs), part: 'preview' });
@@ -404,13 +434,14 @@ export class DeviceView {
     this.stop();
     this.key = null;
     const t0 = performance.now();
-    await this.ensure(rest);
+    await this.ensure({ ...rest, samples_per_pixel: spp });
     const load = { total: performance.now() - t0, ...this.dataMs };
     const camera = this.renderer.header.camera;
-    const k = subpixels(spp, width, height, this.renderer.maxTextureSize);
+    const path = this._path(spp), display = this._display(rest);
+    const k = path ? 1 : subpixels(spp, width, height, this.renderer.maxTextureSize);
     const uniforms = { ...cameraUniforms(camera, width * k, height * k), u_min_weight: eps };
     const one = () => {
-      const ms = this.renderer.render(this.prog, { width, height, k, uniforms });
+      const ms = this.renderer.render(this.prog, { width, height, k, uniforms, path, display });
       return ms.trace + ms.display;
     };
     const first = one();           // some drivers compile lazily, at the first draw
@@ -437,14 +468,15 @@ export class DeviceView {
     const { width, height, samples_per_pixel: spp = 1, min_weight: eps = 0, band_ms: bandMs, between = 'frame', ...rest } = params;
     this.stop();
     this.key = null;                       // the live view reloads its own data afterwards
-    await this.ensure(rest);
+    await this.ensure({ ...rest, samples_per_pixel: spp });
     const planner = bandMs ? new BandPlanner({ budgetMs: bandMs }) : this.planner;
     const wait = between === 'task' ? nextTask : nextAnimationFrame;
     const t0 = performance.now();
     const camera = this.renderer.header.camera;
-    const k = subpixels(spp, width, height, this.renderer.maxTextureSize);
+    const path = this._path(spp), display = this._display(rest);
+    const k = path ? 1 : subpixels(spp, width, height, this.renderer.maxTextureSize);
     const uniforms = { ...cameraUniforms(camera, width * k, height * k), u_min_weight: eps };
-    const trace = this.renderer.beginTrace(this.prog, { width, height, k, uniforms });
+    const trace = this.renderer.beginTrace(this.prog, { width, height, k, uniforms, path, display });
     while (!trace.done) {
       const rows = planner.rows(trace.tw, trace.th - trace.rowsDone);
       planner.record(rows * trace.tw, this.renderer.traceBand(trace, rows));
@@ -457,6 +489,7 @@ export class DeviceView {
     const h = this.renderer.header;
     return {
       width: rb.width, height: rb.height, primid: toBase64(rb.primid), color: toBase64(rb.color),
+      radiance: rb.radiance ? toBase64(rb.radiance) : null, path, display,
       infoLog: this.prog.logs, renderer: `WebGL2 ${this.renderer.rendererName}`, textures: h.textures.map(
         ({ name, width: w, height: hh, internal_format }) => ({ name, width: w, height: hh, internal_format })),
       shader: h.shader, camera, basis: cameraBasis(camera), serverUniforms: h.uniforms, bands: trace.bands, ms,

@@ -12,6 +12,15 @@
 //  3. display: location 0 of the resolve, clamped to [0, 1], onto this.canvas.
 // readback() returns the resolve targets as the server's npy arrays.
 //
+// The path integrator (a PATH variant, integrator=path) instead traces passes of W × H, each
+// u_sample_count samples of every pixel from u_sample_start on (the shader's o_image.rgb is
+// their SUM), in bands as above; after each pass an accumulate draw adds it to a float sum
+// (ping-pong between two RGBA32F targets: blending into float targets needs EXT_float_blend,
+// which phones often lack), which keeps the first pass's id, normal and t. The resolve divides
+// the sum by the samples traced (the mean, as renderer/gl/frame.py's float64 sum / count), and
+// the display scales it by 2^exposure, tone-maps and sRGB-encodes it exactly as
+// renderer/tonemap.py's display_u8 does (DISPLAY_FS: the tone map's one GLSL copy).
+//
 // Texture formats: the blob's (dtype, components) → RGBA32F/FLOAT, R32UI/RED_INTEGER, …,
 // NEAREST filtering, as server/frames/device_data.py documents.
 
@@ -40,6 +49,7 @@ uniform highp sampler2D u_trace1;
 uniform highp sampler2D u_centre0;   // the pixel-centre pass (k > 1; else the trace itself)
 uniform highp sampler2D u_centre1;
 uniform int u_k;
+uniform float u_scale;               // 1 / (k·k); the path integrator's: 1 / samples traced
 layout(location = 0) out vec4 o_image;
 layout(location = 1) out vec4 o_hit;
 void main() {
@@ -53,16 +63,69 @@ void main() {
     }
   }
   ivec2 c = ivec2(gl_FragCoord.xy);
-  o_image = vec4(sum / float(u_k * u_k), texelFetch(u_centre0, c, 0).a);
+  o_image = vec4(sum * u_scale, texelFetch(u_centre0, c, 0).a);
   o_hit = texelFetch(u_centre1, c, 0);
 }`;
 
+// The path integrator's sum: this pass's samples added to the sum so far (u_first: the first
+// pass, whose id, normal and t the frame keeps, as the server keeps its first pass's).
+const ACCUMULATE_FS = `#version 300 es
+precision highp float;
+precision highp int;
+precision highp sampler2D;
+uniform highp sampler2D u_pass0;
+uniform highp sampler2D u_pass1;
+uniform highp sampler2D u_sum0;
+uniform highp sampler2D u_sum1;
+uniform int u_first;
+layout(location = 0) out vec4 o_image;
+layout(location = 1) out vec4 o_hit;
+void main() {
+  ivec2 c = ivec2(gl_FragCoord.xy);
+  vec4 p = texelFetch(u_pass0, c, 0);
+  if (u_first == 1) {
+    o_image = p;
+    o_hit = texelFetch(u_pass1, c, 0);
+  } else {
+    vec4 s = texelFetch(u_sum0, c, 0);
+    o_image = vec4(s.rgb + p.rgb, s.a);
+    o_hit = texelFetch(u_sum1, c, 0);
+  }
+}`;
+
+// renderer/tonemap.py's operators by name → u_tone_map (the display's branch).
+export const TONE_MAPS = Object.freeze({ clamp: 0, reinhard: 1, aces: 2 });
+
+// Whitted's image is display values already: clamped. The path integrator's mean radiance is
+// renderer/tonemap.py's display_u8: max(L, 0) · 2^exposure, the operator, clamp to [0, 1], the
+// sRGB transfer function, then floor(255·c + 0.5) / 255 (the canvas stores k / 255 as k exactly).
 const DISPLAY_FS = `#version 300 es
 precision highp float;
+precision highp int;
 precision highp sampler2D;
 uniform highp sampler2D u_image;
+uniform int u_path;
+uniform int u_tone_map;
+uniform float u_exposure_scale;
 out vec4 o_color;
-void main() { o_color = vec4(clamp(texelFetch(u_image, ivec2(gl_FragCoord.xy), 0).rgb, 0.0, 1.0), 1.0); }`;
+vec3 tone_map(vec3 x) {
+  if (u_tone_map == 1) return x / (1.0 + x);
+  if (u_tone_map == 2) return (x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14);
+  return x;
+}
+vec3 srgb_encode(vec3 c) {
+  vec3 curve = 1.055 * pow(max(c, vec3(0.0031308)), vec3(1.0 / 2.4)) - 0.055;
+  return mix(curve, 12.92 * c, lessThanEqual(c, vec3(0.0031308)));
+}
+void main() {
+  vec3 v = texelFetch(u_image, ivec2(gl_FragCoord.xy), 0).rgb;
+  if (u_path == 1) {
+    vec3 c = clamp(tone_map(max(v, vec3(0.0)) * u_exposure_scale), 0.0, 1.0);
+    o_color = vec4(floor(srgb_encode(c) * 255.0 + 0.5) / 255.0, 1.0);
+  } else {
+    o_color = vec4(clamp(v, 0.0, 1.0), 1.0);
+  }
+}`;
 
 export class DeviceRenderer {
   // Throws DeviceUnavailable (with a message for the notice) when this browser cannot run the tracer.
@@ -101,6 +164,7 @@ export class DeviceRenderer {
     gl.bindVertexArray(null);
     this.resolveProgram = this.program(QUAD_VS, RESOLVE_FS);
     this.displayProgram = this.program(QUAD_VS, DISPLAY_FS);
+    this.accumulateProgram = this.program(QUAD_VS, ACCUMULATE_FS);
   }
 
   get info() {
@@ -167,7 +231,7 @@ export class DeviceRenderer {
   _targets(width, height, role = 'trace') {
     const gl = this.gl, key = `${role}:${width}x${height}`;
     if (this.targets.has(key)) return this.targets.get(key);
-    if (this.targets.size >= 8) {   // bound the cache: release the oldest size
+    if (this.targets.size >= 16) {   // bound the cache (roles × the full and preview sizes): release the oldest
       const [oldKey, old] = this.targets.entries().next().value;
       gl.deleteFramebuffer(old.fbo);
       old.tex.forEach((t) => gl.deleteTexture(t));
@@ -201,20 +265,64 @@ export class DeviceRenderer {
   // A frame of width × height at k × k sub-pixels per pixel, to be traced band by band.
   // uniforms: the camera's and the per-frame ones (u_min_weight), on top of the data's.
   // At k > 1 the pixel centres are a phase of their own, traced first (W × H, their camera).
-  beginTrace(prog, { width, height, k = 1, uniforms }) {
+  // path ({samples, perPass}: a PATH variant): phases of W × H of at most perPass samples each,
+  // summed (k is 1). display: {toneMap, exposure}, how a path-traced frame is shown.
+  beginTrace(prog, { width, height, k = 1, uniforms, path = null, display = null }) {
     this._check();
     const phases = [];
-    if (k > 1) phases.push({ role: 'centre', tw: width, th: height, uniforms: { ...uniforms, u_resolution: [width, height] } });
-    phases.push({ role: 'trace', tw: width * k, th: height * k, uniforms });
+    if (path) {
+      for (let s = 0; s < path.samples; s += path.perPass) {
+        const count = Math.min(path.perPass, path.samples - s);
+        phases.push({ role: 'trace', tw: width, th: height, samples: [s, count],
+          uniforms: { ...uniforms, u_sample_start: s, u_sample_count: count } });
+      }
+      k = 1;
+    } else {
+      if (k > 1) phases.push({ role: 'centre', tw: width, th: height, uniforms: { ...uniforms, u_resolution: [width, height] } });
+      phases.push({ role: 'trace', tw: width * k, th: height * k, uniforms });
+    }
     phases.forEach((p) => this._targets(p.tw, p.th, p.role));
     const trace = {
       prog, width, height, k, phases, phase: 0, rowsDone: 0, rowsDoneTotal: 0, bands: 0, traceMs: 0,
+      path: !!path, display: display || { toneMap: 'clamp', exposure: 0 }, sum: null, samplesDone: 0,
       rowsTotal: phases.reduce((n, p) => n + p.th, 0),
       get tw() { return this.phases[Math.min(this.phase, this.phases.length - 1)].tw; },
       get th() { return this.phases[Math.min(this.phase, this.phases.length - 1)].th; },
       get done() { return this.phase >= this.phases.length; },
     };
     return trace;
+  }
+
+  // The path integrator: add the pass just traced to the frame's sum (ping-pong 'sum0'/'sum1').
+  _accumulate(trace, phase) {
+    const gl = this.gl;
+    const first = trace.sum === null;
+    const dstRole = trace.sum === 'sum0' ? 'sum1' : 'sum0', srcRole = dstRole === 'sum0' ? 'sum1' : 'sum0';
+    const pass = this._targets(trace.width, trace.height, 'trace');
+    const src = this._targets(trace.width, trace.height, srcRole);
+    const dst = this._targets(trace.width, trace.height, dstRole);
+    gl.bindVertexArray(this.vao);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, dst.fbo);
+    gl.viewport(0, 0, trace.width, trace.height);
+    const a = this.accumulateProgram;
+    gl.useProgram(a.program);
+    [...pass.tex, ...src.tex].forEach((t, i) => {
+      gl.activeTexture(gl.TEXTURE0 + i);
+      gl.bindTexture(gl.TEXTURE_2D, t);
+    });
+    [['u_pass0', 0], ['u_pass1', 1], ['u_sum0', 2], ['u_sum1', 3]].forEach(([name, unit]) => {
+      const u = a.uniforms.get(name);
+      if (u) gl.uniform1i(u.loc, unit);
+    });
+    gl.uniform1i(a.uniforms.get('u_first').loc, first ? 1 : 0);
+    gl.drawArrays(gl.TRIANGLES, 0, 6);
+    [0, 1, 2, 3].forEach((i) => {
+      gl.activeTexture(gl.TEXTURE0 + i);
+      gl.bindTexture(gl.TEXTURE_2D, null);
+    });
+    gl.bindVertexArray(null);
+    trace.sum = dstRole;
+    trace.samplesDone += phase.samples[1];
   }
 
   // Bind the tracer, its textures and uniforms (every band: other passes change the state between).
@@ -270,19 +378,38 @@ export class DeviceRenderer {
     trace.bands++;
     trace.traceMs += ms;
     if (trace.rowsDone >= trace.th) {   // this phase is traced: the next one starts at its top
+      const phase = trace.phases[trace.phase];
+      if (phase.samples) this._accumulate(trace, phase);
       trace.phase++;
       trace.rowsDone = 0;
     }
     return ms;
   }
 
-  // All bands traced: resolve the sub-pixels and show the frame on this.canvas. → ms.
+  // All bands traced: resolve the sub-pixels (or the paths' sum) and show the frame on this.canvas. → ms.
   finishTrace(trace) {
     this._check();
-    const gl = this.gl, t0 = performance.now();
-    const grid = trace.phases[trace.phases.length - 1];
-    const src = this._targets(grid.tw, grid.th, grid.role);
-    const centre = trace.k > 1 ? this._targets(trace.width, trace.height, 'centre') : src;
+    const t0 = performance.now();
+    this._resolve(trace);
+    this._display(trace, this._targets(trace.width, trace.height, 'resolve').tex[0], trace.path);
+    this.last = { width: trace.width, height: trace.height, path: trace.path };
+    return performance.now() - t0;
+  }
+
+  // The resolve targets: the box filter of the sub-pixels, or the mean of the paths traced so far.
+  _resolve(trace) {
+    const gl = this.gl;
+    let src, centre, k = trace.k, scale;
+    if (trace.path) {
+      src = centre = this._targets(trace.width, trace.height, trace.sum);
+      k = 1;
+      scale = 1 / trace.samplesDone;
+    } else {
+      const grid = trace.phases[trace.phases.length - 1];
+      src = this._targets(grid.tw, grid.th, grid.role);
+      centre = trace.k > 1 ? this._targets(trace.width, trace.height, 'centre') : src;
+      scale = 1 / (trace.k * trace.k);
+    }
     const dst = this._targets(trace.width, trace.height, 'resolve');
     gl.bindVertexArray(this.vao);
     gl.bindFramebuffer(gl.FRAMEBUFFER, dst.fbo);
@@ -298,34 +425,19 @@ export class DeviceRenderer {
       const u = r.uniforms.get(name);
       if (u) gl.uniform1i(u.loc, unit);
     });
-    gl.uniform1i(r.uniforms.get('u_k').loc, trace.k);
+    gl.uniform1i(r.uniforms.get('u_k').loc, k);
+    gl.uniform1f(r.uniforms.get('u_scale').loc, scale);
     gl.drawArrays(gl.TRIANGLES, 0, 6);
-    if (this.canvas.width !== trace.width || this.canvas.height !== trace.height) {
-      this.canvas.width = trace.width;
-      this.canvas.height = trace.height;
-    }
-    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
-    gl.viewport(0, 0, trace.width, trace.height);
-    const d = this.displayProgram;
-    gl.useProgram(d.program);
-    gl.activeTexture(gl.TEXTURE0 + 4);
-    gl.bindTexture(gl.TEXTURE_2D, dst.tex[0]);
-    gl.uniform1i(d.uniforms.get('u_image').loc, 4);
-    gl.drawArrays(gl.TRIANGLES, 0, 6);
-    [0, 1, 2, 3, 4].forEach((i) => {
+    [0, 1, 2, 3].forEach((i) => {
       gl.activeTexture(gl.TEXTURE0 + i);
       gl.bindTexture(gl.TEXTURE_2D, null);
     });
     gl.bindVertexArray(null);
-    this.last = { width: trace.width, height: trace.height };
-    return performance.now() - t0;
   }
 
-  // The pixel-centre phase of a supersampled frame onto this.canvas (its preview). → ms.
-  showCentre(trace) {
-    this._check();
-    const gl = this.gl, t0 = performance.now();
-    const centre = this._targets(trace.width, trace.height, 'centre');
+  // `image` (an RGBA32F texture of the frame's size) onto this.canvas: clamped, or (path) tone-mapped.
+  _display(trace, image, path) {
+    const gl = this.gl;
     if (this.canvas.width !== trace.width || this.canvas.height !== trace.height) {
       this.canvas.width = trace.width;
       this.canvas.height = trace.height;
@@ -336,41 +448,79 @@ export class DeviceRenderer {
     const d = this.displayProgram;
     gl.useProgram(d.program);
     gl.activeTexture(gl.TEXTURE0 + 4);
-    gl.bindTexture(gl.TEXTURE_2D, centre.tex[0]);
+    gl.bindTexture(gl.TEXTURE_2D, image);
     gl.uniform1i(d.uniforms.get('u_image').loc, 4);
+    gl.uniform1i(d.uniforms.get('u_path').loc, path ? 1 : 0);
+    const op = TONE_MAPS[trace.display.toneMap];
+    if (op === undefined) throw new Error(`unknown tone map ${trace.display.toneMap}`);
+    gl.uniform1i(d.uniforms.get('u_tone_map').loc, op);
+    gl.uniform1f(d.uniforms.get('u_exposure_scale').loc, Math.pow(2, Number(trace.display.exposure) || 0));
     gl.drawArrays(gl.TRIANGLES, 0, 6);
     gl.bindTexture(gl.TEXTURE_2D, null);
     gl.bindVertexArray(null);
+  }
+
+  // Whether a traced phase can be shown before the frame is done: the pixel centres of a
+  // supersampled frame, or the mean of a path-traced frame's first passes.
+  previewReady(trace) {
+    return !trace.done && (trace.path ? trace.samplesDone > 0 : trace.k > 1 && trace.phase >= 1);
+  }
+
+  // The preview of a frame in progress onto this.canvas (previewReady). → ms.
+  showCentre(trace) {
+    this._check();
+    const t0 = performance.now();
+    if (trace.path) {
+      this._resolve(trace);
+      this._display(trace, this._targets(trace.width, trace.height, 'resolve').tex[0], true);
+    } else {
+      this._display(trace, this._targets(trace.width, trace.height, 'centre').tex[0], false);
+    }
     return performance.now() - t0;
   }
 
   // A whole frame at once (benchmarks): one band of every row. → {trace, display} ms.
-  render(prog, { width, height, k = 1, uniforms }) {
-    const trace = this.beginTrace(prog, { width, height, k, uniforms });
+  render(prog, { width, height, k = 1, uniforms, path = null, display = null }) {
+    const trace = this.beginTrace(prog, { width, height, k, uniforms, path, display });
     let ms = 0;
     while (!trace.done) ms += this.traceBand(trace, trace.th);
     return { trace: ms, display: this.finishTrace(trace) };
   }
 
   // The last frame as the server's npy arrays: primid Int32Array (H×W, −1 miss), colour
-  // Uint8Array (H×W×3, floor(255·clamp(c)+0.5)), row 0 = top.
+  // Uint8Array (H×W×3, floor(255·clamp(c)+0.5)), row 0 = top. A path-traced frame's colour is
+  // the canvas's tone-mapped sRGB bytes (what the server's png holds), and radiance
+  // (Float32Array H×W×3) its linear mean (what the server's npy holds).
   readback() {
-    const gl = this.gl, { width: w, height: h } = this.last;
+    const gl = this.gl, { width: w, height: h, path } = this.last;
     const px = new Float32Array(w * h * 4);
     gl.bindFramebuffer(gl.FRAMEBUFFER, this._targets(w, h, 'resolve').fbo);
     gl.readBuffer(gl.COLOR_ATTACHMENT0);
     gl.readPixels(0, 0, w, h, gl.RGBA, gl.FLOAT, px);
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    let shown = null;
+    if (path) {
+      shown = new Uint8Array(w * h * 4);
+      gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, shown);
+    }
     const primid = new Int32Array(w * h), color = new Uint8Array(w * h * 3);
+    const radiance = path ? new Float32Array(w * h * 3) : null;
     for (let y = 0; y < h; y++) {
       const src = (h - 1 - y) * w;   // GL row 0 is the bottom
       for (let x = 0; x < w; x++) {
         const i = (src + x) * 4, o = y * w + x;
         primid[o] = px[i + 3] | 0;
-        for (let c = 0; c < 3; c++) color[o * 3 + c] = Math.floor(255 * Math.min(1, Math.max(0, px[i + c])) + 0.5);
+        for (let c = 0; c < 3; c++) {
+          if (path) {
+            radiance[o * 3 + c] = px[i + c];
+            color[o * 3 + c] = shown[i + c];
+          } else {
+            color[o * 3 + c] = Math.floor(255 * Math.min(1, Math.max(0, px[i + c])) + 0.5);
+          }
+        }
       }
     }
-    return { width: w, height: h, primid, color };
+    return { width: w, height: h, primid, color, radiance };
   }
 
   _dummy(type) {

@@ -7,8 +7,10 @@ Two routes; the browser client's ``client_web/js/device/device.js`` uses both.
     :mod:`server.frames.device_data`'s format, wrapped to the device's ``max_texture_size``.
     The tree is built for this request, as for every frame. Query
     (:class:`~server.api.schemas.DeviceDataQuery`): the render settings the data is for
-    (missing: the session's), ``max_texture_size`` and ``float_textures`` (false → 422:
-    the tracer cannot run there). Multi-pass methods (``rayengine``, ``hre``) draw several
+    (missing: the session's; ``integrator=path`` gives the path integrator's variant and
+    uniforms, ``tone_map``, ``exposure`` and ``samples_per_pixel`` go to the header for its
+    display), ``max_texture_size`` and ``float_textures`` (false → 422: the tracer cannot run
+    there). Multi-pass methods (``rayengine``, ``hre``) draw several
     passes on the server and are a 422, as are scenes whose arrays do not fit the device's
     textures. Headers: ``X-Session-Version``, ``X-Method``, ``X-Stats``, ``Server-Timing``
     (``build``, ``pack``, ``total``).
@@ -36,8 +38,8 @@ from fastapi.responses import PlainTextResponse
 
 from renderer import gpu_layout
 from renderer.accel.base import NOT_ON_GPU, AccelerationMethod
-from renderer.features import scene_features
-from renderer.limits import MAX_RECURSION_DEPTH
+from renderer.features import frame_features
+from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
 from renderer.methods import METHODS, resolve_method
 from renderer.modes import SINGLE_PASS_MODES
 from renderer.shader_source import tracer_source, vertex_source
@@ -52,6 +54,7 @@ from ...frames.device_data import (
     jsonable_stats,
 )
 from ...frames.encode import EXPOSED, stats_header
+from ...frames.pipeline import render_settings
 from ..deps import FramesDep, ServiceDep, SessionId
 from ..errors import documented, located
 from ..schemas import DeviceDataQuery, ShaderQuery
@@ -167,13 +170,15 @@ def device_data(
             raise InputError(
                 ("query", "max_texture_size"), f"the scene does not fit this device's textures ({e}); use server mode"
             ) from None
-    features = scene_features(scene)
-    # A device traces Whitted's tree (the path integrator is the server's): its depth bound.
-    depth = features.recursion_depth(min(settings["max_recursion_depth"], MAX_RECURSION_DEPTH))
+    # The variant the server's frame of these settings compiles: Whitted's tree, or with
+    # integrator 'path' the path integrator (its depth: segments of a path, up to MAX_PATH_DEPTH).
+    chosen = render_settings(settings)
+    features, depth = frame_features(scene, chosen)
     defines = features.defines()
-    uniforms = {k: jsonable(v) for k, v in {**prims.uniforms, **prepared.packed.uniforms}.items()}
+    # u_min_weight (ε) is the device's per frame, as its camera's image-size terms.
+    packed = {**prims.uniforms, **prepared.packed.uniforms, **gpu_layout.frame_uniforms(scene, 0.0)}
+    uniforms = {k: jsonable(v) for k, v in packed.items()}
     uniforms.update(camera_uniforms(scene.camera))
-    uniforms["u_min_weight"] = 0.0
     stats = {**prepared.stats, "method": method_name, "recursion_depth": depth, "features_removed": list(defines)}
     t_packed = time.perf_counter()
     header = {
@@ -186,8 +191,9 @@ def device_data(
                 k: settings[k]
                 for k in ("mode", "max_prims", "max_tree_depth", "max_recursion_depth", "width", "height")
             },
-            "time": settings.get("time", 0.0),
-        },  # sessions stored before animation have no time
+            # sessions stored before animation (or the path integrator) have none of these: defaults
+            **{k: getattr(chosen, k) for k in ("time", "samples_per_pixel", "integrator", "tone_map", "exposure")},
+        },
         "shader": {
             "method": method_name,
             "mode": settings["mode"],
@@ -195,6 +201,7 @@ def device_data(
             "features": list(defines),
             "url": shader_url(method_name, settings["mode"], depth, defines),
         },
+        "path": {"samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS} if features.path else None,
         "max_texture_size": width,
         "camera": state.camera,
         "home_camera": state.home_camera,

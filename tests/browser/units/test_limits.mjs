@@ -55,6 +55,12 @@ test('what applies', () => {
   [false, true, false, true, false, true, false, false]);
 });
 
+test('tone map and exposure apply to the path integrator only', () => {
+  same(['tone_map', 'exposure'].flatMap((name) => [
+    lim.applies(name, ctx()), lim.applies(name, ctx({ integrator: 'whitted' })), lim.applies(name, ctx({ integrator: 'path' }))]),
+  [false, false, true, false, false, true]);
+});
+
 test('valid values pass', () => {
   same([lim.check('width', 320, ctx({ width: 320 })), lim.check('n', 64, ctx({}, { n: 64 })),
     lim.check('samples_per_pixel', 4, ctx())], [null, null, null]);

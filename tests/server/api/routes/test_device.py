@@ -6,6 +6,10 @@ import pytest
 from pocketray_server_support import create, mesh_scene_json, museum_session
 
 from renderer.animation import museum, pose
+from renderer.features import frame_features
+from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
+from renderer.scenarios import mesh_scene
+from renderer.settings import RenderSettings
 from server.frames.device_data import decode_blob
 
 pytestmark = pytest.mark.gl  # every test here runs an app, whose lifespan starts the GL worker
@@ -32,3 +36,47 @@ def test_stats_and_device_data_pose_the_scene(museum_ready_client):
     header, _ = decode_blob(r.content)
     assert header["settings"]["time"] == 1.7
     assert header["stats"]["primitives"] == pose(museum(32, "incoherent", seed=2), 1.7).scene.n_spheres
+
+
+def test_device_data_for_path_carries_the_servers_variant_and_light(api):
+    """integrator=path (here the query's, over the session's whitted): the shader variant the server's
+    frame compiles, a path's depth past Whitted's bound, the path
+    integrator's uniforms and the display's tone map and exposure."""
+    sid = api.post("/api/sessions", json={"mesh_scene": {"kind": "cornell", "detail": 1}}).json()["id"]
+    q = {"integrator": "path", "max_recursion_depth": 12, "samples_per_pixel": 5, "tone_map": "aces", "exposure": -1}
+    r = api.get(f"/api/sessions/{sid}/device-data", params=q)
+    assert r.status_code == 200, r.text
+    header, _ = decode_blob(r.content)
+    # the server's variant: the scene's features and the path integrator (GLRenderer.begin's choice)
+    settings = RenderSettings(**{**q, "width": 8, "height": 8})
+    features, depth = frame_features(mesh_scene("cornell", detail=1), settings)
+    assert {"PATH", "EMISSION", "TRIANGLES"} <= set(header["shader"]["features"])
+    assert header["shader"]["features"] == list(features.defines())
+    assert header["shader"]["max_recursion_depth"] == depth == header["stats"]["recursion_depth"] == 12
+    assert {k: header["settings"][k] for k in ("integrator", "tone_map", "exposure")} == {
+        "integrator": "path",
+        "tone_map": "aces",
+        "exposure": -1.0,
+    }
+    assert header["settings"]["samples_per_pixel"] == 5
+    assert header["path"] == {"samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS}
+    u = header["uniforms"]
+    assert u["u_num_emit_tris"] == 2 and u["u_emit_tri_area"] > 0 and u["u_light_scale"] > 0
+    src = api.get(header["shader"]["url"])
+    assert src.status_code == 200 and "u_sample_start" in src.text and "#define PATH" in src.text
+
+
+def test_device_data_for_whitted_has_no_path(api):
+    sid = create(api, mesh_scene_json()).json()["id"]
+    header, _ = decode_blob(api.get(f"/api/sessions/{sid}/device-data").content)
+    assert "PATH" not in header["shader"]["features"] and header["path"] is None
+    assert header["settings"]["integrator"] == "whitted"
+
+
+@pytest.mark.parametrize("method", ["rayengine", "hre"])
+def test_the_ray_engines_refuse_path_on_the_device_and_the_server(api, method):
+    sid = create(api, mesh_scene_json()).json()["id"]
+    r = api.get(f"/api/sessions/{sid}/device-data", params={"integrator": "path", "method": method})
+    assert r.status_code == 422, r.text
+    r = api.patch(f"/api/sessions/{sid}/settings", json={"integrator": "path", "method": method})
+    assert r.status_code == 422 and "integrator" in r.text, r.text
