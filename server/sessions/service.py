@@ -190,6 +190,7 @@ class SessionService:
         if not self.store.delete(session_id):
             raise NotFound(session_id)
         self.cache.drop_session(session_id)
+        self.frames.accumulations.drop_session(session_id)
 
     def scene(self, state: SessionState) -> SessionScene:
         """The session's scene (animated or not) seen through its current camera (cached per process)."""
@@ -350,12 +351,15 @@ class SessionService:
         *,
         cancel: threading.Event | None = None,
         progressive: bool = False,
+        accumulate: bool = False,
     ) -> FrameRequest:
         """The session's current view with the query's ``patch`` (the final image; with
-        ``progressive`` its preview first)."""
+        ``progressive`` its preview first; with ``accumulate`` added to the session's accumulation)."""
         state = self.get(session_id)
         settings = self.frame_settings(state, patch)
-        return FrameRequest(self.scene(state), settings, owner(state), progressive=progressive, cancel=cancel)
+        return FrameRequest(
+            self.scene(state), settings, owner(state), progressive=progressive, cancel=cancel, accumulate=accumulate
+        )
 
     def gesture_request(
         self,
