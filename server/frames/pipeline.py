@@ -40,6 +40,7 @@ from typing import Any, NamedTuple
 from renderer.accel.base import NOT_ON_GPU
 from renderer.animation import AnimatedScene, pose
 from renderer.cost import largest_accepted
+from renderer.denoise import denoise_result
 from renderer.limits import DEFAULT_TEXTURE_WIDTH
 from renderer.methods import METHODS, capabilities, resolve_method
 from renderer.prepare import PreparedFrame, band_rows, batch_size, prepare_frame
@@ -486,6 +487,8 @@ class FramePipeline:
         planning, whose pose and build are stages of their own) to its first slice."""
         rs = frame.settings
         t_queued = t_queued if t_queued is not None else t_admit
+        if radiance(rs):  # the mean this answer shows (an accumulation keeps its own sum, undenoised)
+            result = denoise_result(result, frame.scene, rs.denoise)
         body, encode_ms = encode(
             result,
             rs.format,

@@ -58,6 +58,8 @@ from .scenes import (
 )
 from .store import SessionState, SessionStore, StoreUnavailable
 
+LINEAR_FORMATS = ("npy", "exr")  # radiance as traced: denoised only when a request asks for it
+
 
 def owner(state: SessionState) -> FrameOwner:
     """The session as its frames know it."""
@@ -339,8 +341,13 @@ class SessionService:
 
     # ---- the frames a session asks for (run by the frame pipeline) --------------------------
     def frame_settings(self, state: SessionState, patch: dict[str, Any]) -> FrameSettings:
-        """The session's settings with the frame query's ``patch``, checked against the caps."""
-        settings = FrameSettings.of(self.caps.merge_settings(state.settings, patch))
+        """The session's settings with the frame query's ``patch``, checked against the caps. The
+        linear formats (npy, exr) are denoised only when the query itself names ``denoise``: the
+        session's ``denoise`` is for the images it shows."""
+        merged = self.caps.merge_settings(state.settings, patch)
+        if merged.get("format") in LINEAR_FORMATS and "denoise" not in patch:
+            merged = {**merged, "denoise": "off"}
+        settings = FrameSettings.of(merged)
         self.caps.check_work(settings.render, state.scene_info.get("n_spheres", 0))
         return settings
 
