@@ -51,7 +51,7 @@ def measure(width: int, height: int, reference_spp: int, max_spp: int, depth: in
     renderer = GLRenderer()
     scene = mesh_scene("cornell", 0)
 
-    def settings(spp: int) -> RenderSettings:
+    def settings(spp: int) -> RenderSettings:  # denoise on: the frames write the guides (radiance unchanged)
         return RenderSettings(
             width=width,
             height=height,
@@ -59,6 +59,7 @@ def measure(width: int, height: int, reference_spp: int, max_spp: int, depth: in
             samples_per_pixel=spp,
             max_recursion_depth=depth,
             format="npy",
+            denoise="oidn",
         )
 
     denoise_result(renderer.render(scene, settings(1)), scene, "oidn")  # warm-up: programs, OIDN's device

@@ -1,13 +1,16 @@
 """The path integrator's denoiser: Intel Open Image Denoise (``pyoidn``, whose wheel ships the
 library) on the frame's linear radiance, guided by the albedo and the normal of the first hit.
 
-Both guides come from the frame's own trace: the normal is the first sample's primary hit's
-(``RenderResult.normal``, the hit target the shader writes), and the albedo is that same hit's
-material as the path integrator's lobes see it — ``w_d · color + w_r + w_t``, the lobe weights
-scaled to sum at most 1 as the shader scales them (``shaders/lighting.glsl``; the mirror and
-glass lobes are white, so a perfect specular surface has albedo 1, as OIDN asks) — looked up
-from ``RenderResult.primid``: no pass of its own, no change to any shader. A ray that meets nothing
-sees the environment: its albedo is the environment clamped to [0, 1], its normal 0.
+Both guides come from the frame's own trace: a path frame with ``denoise`` on is traced by the
+variant with ``GUIDES`` (``shaders/lighting.glsl``), which also sums over its samples the first
+hit's outward normal and its material's albedo as the path integrator's lobes see it —
+``w_d · color + w_r + w_t``, the lobe weights scaled to sum at most 1 as the shader scales them
+(the mirror and glass lobes are white, so a perfect specular surface has albedo 1, as OIDN asks);
+a ray that meets nothing: the environment clamped to [0, 1], normal 0. Their means
+(``RenderResult.guides``) are anti-aliased as the radiance is, which OIDN wants. A result without
+them (traced with ``denoise`` off) is guided by the same albedo looked up on the CPU from its
+first sample's primary hit (``primid``) and that hit's normal — aliased, measured worse than no
+guides at all (``bench/denoise.py``), kept only so that any radiance can be denoised.
 
 Denoising is applied to the mean a frame answers (an accumulation's included: never to what it
 holds), on the request's thread, after the GL thread is done with the frame (docs/API.md,
@@ -61,8 +64,11 @@ def denoise_result(result: RenderResult, scene: Scene, denoiser: str) -> RenderR
 
     t0 = time.perf_counter()
     color = np.ascontiguousarray(result.image, np.float32)
-    albedo = first_hit_albedo(scene, result.primid)
-    normal = np.ascontiguousarray(result.normal, np.float32)
+    if result.guides is not None:
+        albedo, normal = (np.ascontiguousarray(g, np.float32) for g in result.guides)
+    else:
+        albedo = first_hit_albedo(scene, result.primid)
+        normal = np.ascontiguousarray(result.normal, np.float32)
     image = np.asarray(pyoidn.denoise(color, albedo, normal, hdr=True), np.float32)
     stats = {**(result.stats or {}), "denoise": denoiser, "denoise_ms": (time.perf_counter() - t0) * 1e3}
     return dataclasses.replace(result, image=np.maximum(image, 0.0), stats=stats)

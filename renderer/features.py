@@ -37,8 +37,9 @@ DATA_FORMATS = ("EQUAL_RADII", "MATERIAL_TEXTURE", "TRIANGLES", "SMOOTH_TRIANGLE
 # What the light of a frame needs beyond the thesis's, never specialised away either (a scene without
 # them carries none, so its variants' text is the one before them): some used material emits
 # (EMISSION), the environment is not black (ENVIRONMENT), the frame traces paths (PATH: the
-# ``integrator`` setting, in colour frames).
-LIGHTING = ("EMISSION", "ENVIRONMENT", "PATH")
+# ``integrator`` setting, in colour frames) and writes the denoiser's guides (GUIDES: a path frame
+# with ``denoise`` on; renderer/denoise.py).
+LIGHTING = ("EMISSION", "ENVIRONMENT", "PATH", "GUIDES")
 # The defines a variant may carry, in the order they are emitted (the server's shader query
 # accepts these, in this order).
 FEATURE_DEFINES = (*REMOVALS, *PLANE_COUNTS, *LIGHT_COUNTS, *DATA_FORMATS, *LIGHTING)
@@ -59,6 +60,7 @@ class SceneFeatures:
     emission: bool = False
     environment: bool = False
     path: bool = False
+    guides: bool = False
 
     def defines(self) -> tuple[str, ...]:
         """The variant's defines, in FEATURE_DEFINES order: what the scene cannot use removed,
@@ -98,9 +100,11 @@ class SceneFeatures:
         every surface, so the path integrator's depth is the one requested."""
         return requested if (self.reflection or self.transmission or self.path) else 1
 
-    def with_integrator(self, integrator: str, mode: str) -> SceneFeatures:
-        """The features of a frame of this scene with ``integrator`` in ``mode`` (paths: colour only)."""
-        return replace(self, path=integrator == "path" and mode == "color")
+    def with_integrator(self, integrator: str, mode: str, guides: bool = False) -> SceneFeatures:
+        """The features of a frame of this scene with ``integrator`` in ``mode`` (paths: colour only);
+        ``guides``: a path frame writes the denoiser's guides too."""
+        path = integrator == "path" and mode == "color"
+        return replace(self, path=path, guides=path and guides)
 
     def generic(self) -> SceneFeatures:
         """The generic variant for the same data: nothing removed, counts read at run time."""
@@ -113,6 +117,7 @@ class SceneFeatures:
             emission=self.emission,
             environment=self.environment,
             path=self.path,
+            guides=self.guides,
         )
 
 

@@ -28,6 +28,9 @@ class RenderResult:
             accumulation's: all it holds); None otherwise.
     sample_sum: of a frame that went on from an accumulation, float32 H×W×3, the sum of those
             ``samples`` (what the accumulation holds next); None otherwise.
+    guides: of a path frame traced for the denoiser (``denoise`` on), (albedo, normal), float32
+            H×W×3 each: the means over the frame's samples of their first hit's albedo and normal
+            (renderer/denoise.py); None otherwise.
     """
 
     image: np.ndarray
@@ -40,6 +43,7 @@ class RenderResult:
     display: tuple[str, float] | None = None
     samples: int | None = None
     sample_sum: np.ndarray | None = None
+    guides: tuple[np.ndarray, ...] | None = None
 
     def image_u8(self) -> np.ndarray:
         """The image as uint8 H×W×3: ``floor(255 · clamp(c, 0, 1) + 0.5)``; radiance tone-mapped

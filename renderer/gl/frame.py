@@ -182,6 +182,9 @@ class TracerFrame:
         else:
             self.passes = [Pass(self.k, None)] if self.one_shot else plan_passes(settings.mode, self.k)
         self._sum: np.ndarray | None = None  # the path integrator's sum of samples (GL rows), float64
+        # A path frame with the denoiser's guides: their sums over this frame's samples (GL rows).
+        self.guides = self.path and "GUIDES" in variant.features
+        self._guide_sums: list[np.ndarray] | None = None
         self.band_rows = band_rows
         self.slice_ms = slice_ms
         self.prog, self.vao = renderer.program(
@@ -224,6 +227,7 @@ class TracerFrame:
         self._preview: RenderResult | None = None
         self._result: RenderResult | None = None
         self._sample_sum: np.ndarray | None = None  # an accumulation's new float32 sum (image rows)
+        self._guides: tuple[np.ndarray, ...] | None = None  # the denoiser's (albedo, normal), image rows
         self._upload()
 
     # ---- set-up ------------------------------------------------------------------------------
@@ -249,7 +253,7 @@ class TracerFrame:
         )
         self.block_units = upload_blocks(self.ctx, blocks, self.buffers)
         w, h = self._target_size()
-        self.fbo = self.renderer.targets.acquire(w, h, self.variant.image_only)
+        self.fbo = self.renderer.targets.acquire(w, h, self.variant.image_only, self.guides)
         self.ctx.finish()
         self.timings["upload"] = (time.perf_counter() - t0) * 1e3
 
@@ -386,6 +390,18 @@ class TracerFrame:
                     self._preview = self._result_of([img[::-1], hit[::-1], mean], final=False)
             else:
                 self._sum += img[..., :3]
+            if self.guides:  # albedo and normal sums of the pass's samples
+                sums = [
+                    np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=a), np.float32).reshape(h, w, 4)[
+                        ..., :3
+                    ]
+                    for a in (2, 3)
+                ]
+                if self._guide_sums is None:
+                    self._guide_sums = [x.astype(np.float64) for x in sums]
+                else:
+                    for total, x in zip(self._guide_sums, sums, strict=True):
+                        total += x
         elif p.sub is None:
             hit = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(h, w, 4)
             self._centre = (img, hit)
@@ -426,6 +442,10 @@ class TracerFrame:
             if self.accumulated is not None:  # what the accumulation holds next (committed by the caller)
                 self._sample_sum = self._sum[::-1].astype(np.float32)
             self._sum = None
+            if self._guide_sums is not None:  # means over this frame's samples (an accumulation's too)
+                n = self.settings.samples_per_pixel
+                self._guides = tuple((g[::-1] / n).astype(np.float32) for g in self._guide_sums)
+                self._guide_sums = None
         elif self._grid is not None:  # the box filter over the sub-pixel passes
             color = self._grid[::-1][..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
             self._grid = None
@@ -468,6 +488,7 @@ class TracerFrame:
             display=display,
             samples=samples,
             sample_sum=self._sample_sum if final else None,
+            guides=self._guides if final else None,
         )
 
     @property

@@ -200,7 +200,9 @@ class GLRenderer:
             prepared = method.prepare(
                 scene, settings.max_prims, settings.max_tree_depth, self.max_texture_width, update
             )
-        features = scene_features(scene).with_integrator(settings.integrator, settings.mode)
+        features = scene_features(scene).with_integrator(
+            settings.integrator, settings.mode, guides=settings.denoise != "off"
+        )
         if not settings.specialize:
             features = features.generic()
         depth = features.recursion_depth(settings.max_recursion_depth)

@@ -119,11 +119,15 @@ def frame_nbytes(settings: RenderSettings, accumulate: bool = False) -> int:
         + encoded_nbytes(s.format, "radiance" if radiance(s) else s.mode, s.width, s.height)
         + (s.width * s.height * PATH_SUM_BYTES_PER_PIXEL if radiance(s) else 0)
         + (s.width * s.height * ACCUMULATION_BYTES_PER_PIXEL if accumulate else 0)
+        + (s.width * s.height * GUIDE_BYTES_PER_PIXEL if radiance(s) and s.denoise != "off" else 0)
     )
 
 
 PATH_SUM_BYTES_PER_PIXEL = 3 * 8  # a path frame's float64 sum of its passes (renderer/gl/frame.py)
 ACCUMULATION_BYTES_PER_PIXEL = 3 * 4  # an accumulation's float32 sum (server/frames/accumulate.py)
+# The denoiser's guides (renderer/denoise.py): two more RGBA32F attachments, their read-backs, their
+# float64 sums and the float32 means; OIDN's own buffers of the same size come on top.
+GUIDE_BYTES_PER_PIXEL = 2 * 16 + 2 * 16 + 2 * 24 + 2 * 12
 
 
 def radiance(settings: RenderSettings) -> bool:
