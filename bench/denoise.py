@@ -21,6 +21,7 @@ import argparse
 import math
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -44,11 +45,21 @@ def colour_only(image: np.ndarray) -> np.ndarray:
     return np.asarray(pyoidn.denoise(np.ascontiguousarray(image, np.float32), hdr=True), np.float32)
 
 
-def measure(width: int, height: int, reference_spp: int, max_spp: int, depth: int, out: Callable[[str], None]) -> dict:
-    """The curves (rows: total samples, seconds, dB of each) and the time each reaches TARGET_DB."""
-    from renderer.gl.renderer import GLRenderer
+def measure(
+    width: int,
+    height: int,
+    reference_spp: int,
+    max_spp: int,
+    depth: int,
+    out: Callable[[str], None],
+    renderer: Any = None,
+) -> dict:
+    """The curves (rows: total samples, seconds, dB of each) and the time each reaches TARGET_DB;
+    ``out`` gets the table's lines as they are measured."""
+    if renderer is None:
+        from renderer.gl.renderer import GLRenderer
 
-    renderer = GLRenderer()
+        renderer = GLRenderer()
     scene = mesh_scene("cornell", 0)
 
     def settings(spp: int) -> RenderSettings:  # denoise on: the frames write the guides (radiance unchanged)
@@ -129,11 +140,19 @@ def main(argv: list[str] | None = None) -> int:
     print(f"Cornell box, {args.width} × {args.height}, depth {args.depth}; PSNR against the converged image")
     data = measure(args.width, args.height, args.reference_spp, args.max_spp, args.depth, print)
     print()
-    for name, label in (("noisy", "noisy"), ("oidn", "oidn (albedo + normal)"), ("colour", "oidn (colour only)")):
-        got = data["reach"][name]
-        said = f"not within {args.max_spp} samples" if got is None else f"{got[0]:,} samples, {got[1]:.2f} s"
-        print(f"- {TARGET_DB:g} dB, {label}: {said}")
+    for line in reached(data, args.max_spp):
+        print(line)
     return 0
+
+
+def reached(data: dict, max_spp: int) -> list[str]:
+    """When each curve first reaches TARGET_DB, as Markdown list items."""
+    lines = []
+    for name, label in (("noisy", "noisy"), ("oidn", "OIDN, albedo + normal guides"), ("colour", "OIDN, colour only")):
+        got = data["reach"][name]
+        said = f"not within {max_spp:,} samples" if got is None else f"{got[0]:,} samples, {got[1]:.2f} s"
+        lines.append(f"- {TARGET_DB:g} dB, {label}: {said}")
+    return lines
 
 
 if __name__ == "__main__":
