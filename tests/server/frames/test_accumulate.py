@@ -101,6 +101,10 @@ def test_k_requests_equal_one_request_of_all_their_samples(app):
     # tone mapping and the encoding are applied to the mean: they keep the samples
     r = app.get(f"/api/sessions/{sid}/frame", params={**PATH, "accumulate": 1, "format": "png", "exposure": 1})
     assert r.status_code == 200 and r.headers["x-samples"] == "64"
+    # … and so is the denoiser: the mean is denoised, the accumulation keeps its samples
+    r = app.get(f"/api/sessions/{sid}/frame", params={**PATH, "accumulate": 1, "format": "png", "denoise": "oidn"})
+    assert r.status_code == 200 and r.headers["x-samples"] == "80"
+    assert frame(app, sid)[1] == 96
 
 
 @pytest.mark.gl
