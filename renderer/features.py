@@ -38,8 +38,9 @@ DATA_FORMATS = ("EQUAL_RADII", "MATERIAL_TEXTURE", "TRIANGLES", "SMOOTH_TRIANGLE
 # What the light of a frame needs beyond the thesis's, never specialised away either (a scene without
 # them carries none, so its variants' text is the one before them): some used material emits
 # (EMISSION), the environment is not black (ENVIRONMENT), the frame traces paths (PATH: the
-# ``integrator`` setting, in colour frames).
-LIGHTING = ("EMISSION", "ENVIRONMENT", "PATH")
+# ``integrator`` setting, in colour frames) and writes the denoiser's guides (GUIDES: a path frame
+# with ``denoise`` on; renderer/denoise.py).
+LIGHTING = ("EMISSION", "ENVIRONMENT", "PATH", "GUIDES")
 # The defines a variant may carry, in the order they are emitted (the server's shader query
 # accepts these, in this order).
 FEATURE_DEFINES = (*REMOVALS, *PLANE_COUNTS, *LIGHT_COUNTS, *DATA_FORMATS, *LIGHTING)
@@ -60,6 +61,7 @@ class SceneFeatures:
     emission: bool = False
     environment: bool = False
     path: bool = False
+    guides: bool = False
 
     def defines(self) -> tuple[str, ...]:
         """The variant's defines, in FEATURE_DEFINES order: what the scene cannot use removed,
@@ -99,9 +101,11 @@ class SceneFeatures:
         every surface, so the path integrator's depth is the one requested."""
         return requested if (self.reflection or self.transmission or self.path) else 1
 
-    def with_integrator(self, integrator: str, mode: str) -> SceneFeatures:
-        """The features of a frame of this scene with ``integrator`` in ``mode`` (paths: colour only)."""
-        return replace(self, path=integrator == "path" and mode == "color")
+    def with_integrator(self, integrator: str, mode: str, guides: bool = False) -> SceneFeatures:
+        """The features of a frame of this scene with ``integrator`` in ``mode`` (paths: colour only);
+        ``guides``: a path frame writes the denoiser's guides too."""
+        path = integrator == "path" and mode == "color"
+        return replace(self, path=path, guides=path and guides)
 
     def generic(self) -> SceneFeatures:
         """The generic variant for the same data: nothing removed, counts read at run time."""
@@ -114,6 +118,7 @@ class SceneFeatures:
             emission=self.emission,
             environment=self.environment,
             path=self.path,
+            guides=self.guides,
         )
 
 
@@ -155,13 +160,14 @@ class FrameSettings(Protocol):
     max_recursion_depth: int
 
 
-def frame_features(scene: Scene, settings: FrameSettings) -> tuple[SceneFeatures, int]:
+def frame_features(scene: Scene, settings: FrameSettings, guides: bool = False) -> tuple[SceneFeatures, int]:
     """The features and the recursion depth (levels, or a path's segments) of the one-pass
     variant that traces a frame of the posed ``scene`` with ``settings``: the scene's features,
     with the path integrator where the settings ask for it, generic unless ``specialize``. The
     server's frames and the device's data both choose their variant here, so a browser compiles
-    the very text the server does."""
-    features = scene_features(scene).with_integrator(settings.integrator, settings.mode)
+    the very text the server does. ``guides``: a path frame writes the denoiser's guides too (the
+    server's, never a device's)."""
+    features = scene_features(scene).with_integrator(settings.integrator, settings.mode, guides=guides)
     if not settings.specialize:
         features = features.generic()
     return features, features.recursion_depth(settings.max_recursion_depth)

@@ -35,6 +35,10 @@ SAMPLES_PER_PIXEL = (1, 4, 9, 16)  # stratified supersampling: √s × √s sub-
 MAX_PATH_SAMPLES = 4096  # the path integrator: samples per pixel, any count 1 … this
 PATH_SAMPLES_PER_PASS = 16  # the path integrator: samples per pixel one draw traces (a frame's passes)
 DEVICE_PATH_SAMPLES_PER_PASS = 4  # … one draw of a browser (device mode) traces: a phone's bands stay short
+# A session's accumulation (docs/API.md, "Accumulation") grows to this many samples per pixel; past
+# it, frames answer the held mean with their own samples added but keep nothing more (the sample
+# index stays far inside the sampler's exact integers).
+MAX_ACCUMULATED_SAMPLES = 1 << 20
 MAX_SAMPLED_SPHERES = 8  # the path integrator: emitting spheres sampled by next-event estimation
 MAX_SAMPLED_TRIANGLES = 16  # … emitting triangles (a scene with more samples none of them)
 EXPOSURE_RANGE = (-20.0, 20.0)  # stops: the path integrator's png/jpeg are tone-mapped from 2^exposure × radiance

@@ -24,6 +24,13 @@ class RenderResult:
     stats:  acceleration-structure statistics (JSON-able) or None.
     display: (tone-mapping operator, exposure) when ``image`` is radiance (the path integrator):
             :meth:`image_u8` tone-maps it (renderer/tonemap.py), :meth:`array` gives it as it is.
+    samples: of the path integrator, the samples per pixel ``image`` is the mean of (an
+            accumulation's: all it holds); None otherwise.
+    sample_sum: of a frame that went on from an accumulation, float32 H×W×3, the sum of those
+            ``samples`` (what the accumulation holds next); None otherwise.
+    guides: of a path frame traced for the denoiser (``denoise`` on), (albedo, normal), float32
+            H×W×3 each: the means over the frame's samples of their first hit's albedo and normal
+            (renderer/denoise.py); None otherwise.
     """
 
     image: np.ndarray
@@ -34,6 +41,9 @@ class RenderResult:
     timings: dict[str, float] = field(default_factory=dict)
     stats: dict[str, Any] | None = None
     display: tuple[str, float] | None = None
+    samples: int | None = None
+    sample_sum: np.ndarray | None = None
+    guides: tuple[np.ndarray, ...] | None = None
 
     def image_u8(self) -> np.ndarray:
         """The image as uint8 H×W×3: ``floor(255 · clamp(c, 0, 1) + 0.5)``; radiance tone-mapped

@@ -33,6 +33,8 @@ FORMATS = ("png", "jpeg", "npy", "exr")  # exr: float channels (server/frames/ex
 INTEGRATORS = ("whitted", "path")
 # How the path integrator's radiance becomes a png/jpeg pixel (docs/SHADING.md, "Tone mapping").
 TONE_MAPS = ("clamp", "reinhard", "aces")
+# The path integrator's denoiser (renderer/denoise.py): none, or Intel Open Image Denoise.
+DENOISERS = ("off", "oidn")
 
 # The JSON types a setting can have (as JSON Schema names them) and their Python types.
 TYPES: dict[str, type] = {"integer": int, "number": float, "boolean": bool, "string": str}
@@ -288,6 +290,16 @@ SETTINGS: tuple[SettingSpec, ...] = (
         modes=("color",),
         sheet=True,
         client=True,
+    ),
+    SettingSpec(
+        "denoise",
+        "string",
+        "off",
+        "path integrator's radiance: off, or oidn (Intel Open Image Denoise, guided by the first hit's albedo "
+        "and normal); npy and exr stay undenoised unless the request itself names it",
+        "Denoiser",
+        choices=DENOISERS,
+        modes=("color",),
     ),
     SettingSpec(
         "min_weight",

@@ -197,6 +197,13 @@ class ServerConfig(BaseSettings):
         "Retry-After. One frame is always admitted when none is in flight (a 4096² normal npy "
         "frame is estimated at 1.7 GiB)",
     )
+    max_accumulation_bytes: int = Field(
+        256 << 20,
+        ge=0,
+        description="bytes that the sessions' accumulations (frames asked with accumulate=1: a float32 sum "
+        "of 12 bytes a pixel each) may hold together; past it the least recently used is dropped "
+        "first (0: no accumulation is kept, every accumulate frame starts over)",
+    )
     body_min_rate_bytes_s: int = Field(
         16 * 1024,
         ge=1,

@@ -23,6 +23,13 @@ vec3 emission_at(int m) { return vec3(0.0); }
 #ifdef PATH
 // ---- the path integrator (docs/SHADING.md, "Path integrator") ----------------------------
 const float PI = 3.14159265358979;
+#ifdef GUIDES
+// The denoiser's guides (renderer/denoise.py), sums over the pass's samples: the first hit's albedo
+// as its lobes reflect (w_d · colour + w_r + w_t; a miss: the environment clamped to [0, 1]) and
+// its outward normal (a miss: 0).
+layout(location = 2) out vec4 o_albedo;
+layout(location = 3) out vec4 o_normal;
+#endif
 
 // Random numbers: a function of (pixel, sample index, dimension) alone, so sample i of a pixel
 // is the same path in whichever pass traces it. The pixel's position in it: the R2 rank-1
@@ -105,6 +112,9 @@ void path_main() {
     float primary_t = -1.0;
     int primary_id = NO_PRIM;
     vec3 primary_n = vec3(0.0);
+#ifdef GUIDES
+    vec3 albedo_sum = vec3(0.0), normal_sum = vec3(0.0);
+#endif
 
     int done = 0;            // samples of this pass finished
     bool start = true;       // the next iteration begins sample u_sample_start + done
@@ -155,6 +165,9 @@ void path_main() {
             else tri_done = true;
         } else if (hq.id == NO_PRIM) {
             L += beta * ENV_RADIANCE;
+#ifdef GUIDES
+            if (segments == 1) albedo_sum += clamp(ENV_RADIANCE, 0.0, 1.0);
+#endif
             vertex = false;
         } else {
             h = hq;
@@ -194,6 +207,12 @@ void path_main() {
 #endif
             float total = w_diffuse + w_reflect + w_transmit;
             if (total > 1.0) { w_diffuse /= total; w_reflect /= total; w_transmit /= total; }
+#ifdef GUIDES
+            if (segments == 1) {
+                albedo_sum += w_diffuse * m.color + vec3(w_reflect + w_transmit);
+                normal_sum += s.n;
+            }
+#endif
             light = 0;
             emitter = 0;
             tri_done = false;
@@ -402,6 +421,10 @@ void path_main() {
     }
     o_image = vec4(sum, float(primary_id));
     o_hit = vec4(primary_n, primary_t);
+#ifdef GUIDES
+    o_albedo = vec4(albedo_sum, 0.0);
+    o_normal = vec4(normal_sum, 0.0);
+#endif
 }
 #endif
 

@@ -118,12 +118,14 @@ BACKGROUND_MODES = ("depth", "primid", "normal", "color", "recursion")
 PRIMARY_MODES = ("depth", "primid", "normal")
 
 
-def plan_path_passes(samples: int, per_pass: int) -> list[Pass]:
-    """The path integrator's passes: ``samples`` per pixel, at most ``per_pass`` in each. A pixel's
-    sample i is the same path in whichever pass traces it (its random numbers depend on the pixel
-    and i alone), so the frame's sum is the same however it is cut (up to float rounding)."""
+def plan_path_passes(samples: int, per_pass: int, first: int = 0) -> list[Pass]:
+    """The path integrator's passes: ``samples`` per pixel from sample index ``first`` on, at most
+    ``per_pass`` in each. A pixel's sample i is the same path in whichever pass (or frame) traces it
+    (its random numbers depend on the pixel and i alone), so the frame's sum is the same however it
+    is cut (up to float rounding) — and frames that go on from ``first`` = the samples held sum to
+    one frame of them all (an accumulation, ``TracerFrame(accumulated=…)``)."""
     per_pass = max(1, int(per_pass))
-    return [Pass(1, None, (s, min(per_pass, samples - s))) for s in range(0, samples, per_pass)]
+    return [Pass(1, None, (first + s, min(per_pass, samples - s))) for s in range(0, samples, per_pass)]
 
 
 def plan_passes(mode: str, k: int) -> list[Pass]:
@@ -161,6 +163,7 @@ class TracerFrame:
         t_start: float | None = None,
         slice_ms: float | None = None,
         samples_per_pass: int = PATH_SAMPLES_PER_PASS,
+        accumulated: tuple[np.ndarray | None, int] | None = None,
     ):
         self.renderer, self.ctx = renderer, renderer.ctx
         self.scene, self.settings, self.variant, self.prepared = scene, settings, variant, prepared
@@ -170,11 +173,18 @@ class TracerFrame:
         self.one_shot = one_shot and self.k > 1
         self.width, self.height = settings.width, settings.height
         self.path = variant.path
+        # An accumulation goes on from the samples it holds: (their float32 sum, image rows, or None
+        # when it holds none yet; their count); the result hands the new sum back.
+        self.accumulated = accumulated if self.path else None
+        self._held = 0 if self.accumulated is None else int(self.accumulated[1])
         if self.path:
-            self.passes = plan_path_passes(settings.samples_per_pixel, samples_per_pass)
+            self.passes = plan_path_passes(settings.samples_per_pixel, samples_per_pass, self._held)
         else:
             self.passes = [Pass(self.k, None)] if self.one_shot else plan_passes(settings.mode, self.k)
         self._sum: np.ndarray | None = None  # the path integrator's sum of samples (GL rows), float64
+        # A path frame with the denoiser's guides: their sums over this frame's samples (GL rows).
+        self.guides = self.path and "GUIDES" in variant.features
+        self._guide_sums: list[np.ndarray] | None = None
         self.band_rows = band_rows
         self.slice_ms = slice_ms
         self.prog, self.vao = renderer.program(
@@ -216,6 +226,8 @@ class TracerFrame:
         self._grid: np.ndarray | None = None  # kH × kW × 4 sub-pixel images (GL rows)
         self._preview: RenderResult | None = None
         self._result: RenderResult | None = None
+        self._sample_sum: np.ndarray | None = None  # an accumulation's new float32 sum (image rows)
+        self._guides: tuple[np.ndarray, ...] | None = None  # the denoiser's (albedo, normal), image rows
         self._upload()
 
     # ---- set-up ------------------------------------------------------------------------------
@@ -234,7 +246,7 @@ class TracerFrame:
         )
         self.block_units = upload_blocks(self.ctx, blocks, self.buffers)
         w, h = self._target_size()
-        self.fbo = self.renderer.targets.acquire(w, h, self.variant.image_only)
+        self.fbo = self.renderer.targets.acquire(w, h, self.variant.image_only, self.guides)
         self.ctx.finish()
         self.timings["upload"] = (time.perf_counter() - t0) * 1e3
 
@@ -360,11 +372,29 @@ class TracerFrame:
                 self._sum = img[..., :3].astype(np.float64)
                 hit = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(h, w, 4)
                 self._centre = (img, hit)  # primid, normal and depth: the first sample's primary ray
-                if len(self.passes) > 1:  # the first pass's mean: the preview of a progressive frame
+                held = None if self.accumulated is None else self.accumulated[0]
+                if held is not None:  # the samples held before this frame's
+                    self._sum += held[::-1]
+                    if len(self.passes) > 1:
+                        mean = (self._sum[::-1] / (self._held + p.samples[1])).astype(np.float32)
+                        self._preview = self._result_of([img[::-1], hit[::-1], mean], final=False)
+                elif len(self.passes) > 1:  # the first pass's mean: the preview of a progressive frame
                     mean = (img[::-1][..., :3] / p.samples[1]).astype(np.float32)
                     self._preview = self._result_of([img[::-1], hit[::-1], mean], final=False)
             else:
                 self._sum += img[..., :3]
+            if self.guides:  # albedo and normal sums of the pass's samples
+                sums = [
+                    np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=a), np.float32).reshape(h, w, 4)[
+                        ..., :3
+                    ]
+                    for a in (2, 3)
+                ]
+                if self._guide_sums is None:
+                    self._guide_sums = [x.astype(np.float64) for x in sums]
+                else:
+                    for total, x in zip(self._guide_sums, sums, strict=True):
+                        total += x
         elif p.sub is None:
             hit = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(h, w, 4)
             self._centre = (img, hit)
@@ -401,8 +431,14 @@ class TracerFrame:
             color = img[..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
             img, hit = img[k // 2 :: k, k // 2 :: k], hit[k // 2 :: k, k // 2 :: k]
         elif self._sum is not None:  # the mean of the path samples: a box filter over the pixel
-            color = (self._sum[::-1] / self.settings.samples_per_pixel).astype(np.float32)
+            color = (self._sum[::-1] / (self._held + self.settings.samples_per_pixel)).astype(np.float32)
+            if self.accumulated is not None:  # what the accumulation holds next (committed by the caller)
+                self._sample_sum = self._sum[::-1].astype(np.float32)
             self._sum = None
+            if self._guide_sums is not None:  # means over this frame's samples (an accumulation's too)
+                n = self.settings.samples_per_pixel
+                self._guides = tuple((g[::-1] / n).astype(np.float32) for g in self._guide_sums)
+                self._guide_sums = None
         elif self._grid is not None:  # the box filter over the sub-pixel passes
             color = self._grid[::-1][..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
             self._grid = None
@@ -429,6 +465,11 @@ class TracerFrame:
         if not final:
             stats["preview"] = True
         display = (self.settings.tone_map, float(self.settings.exposure)) if self.path else None
+        samples = None
+        if self.path:  # samples per pixel the image is the mean of (an accumulation's included)
+            first = self.passes[0].samples or (0, 0)  # a preview is the first pass's mean
+            samples = self._held + (self.settings.samples_per_pixel if final else first[1])
+            stats["samples"] = samples
         return RenderResult(
             image=image,
             depth=depth_t,
@@ -438,6 +479,9 @@ class TracerFrame:
             timings=timings,
             stats=stats,
             display=display,
+            samples=samples,
+            sample_sum=self._sample_sum if final else None,
+            guides=self._guides if final else None,
         )
 
     @property

@@ -144,10 +144,14 @@ class GLRenderer:
         batch: int | None = None,
         t_start: float | None = None,
         slice_ms: float | None = None,
+        accumulated: tuple[np.ndarray | None, int] | None = None,
     ) -> StartedFrame:
         """A prepared frame (:func:`renderer.prepare.prepare_frame`) uploaded and ready to be
         traced slice by slice: bands of ``band_rows`` rows (the tracer) or batches of
-        ``batch`` primitives (the ray engines)."""
+        ``batch`` primitives (the ray engines). ``accumulated``: of a path frame, the samples
+        held so far (their float32 sum, image rows — None when none yet — and count): the frame goes
+        on from them and its result hands the new sum back
+        (:class:`~renderer.gl.frame.TracerFrame`)."""
         t_start = t_start if t_start is not None else time.perf_counter()
         inner: RayEngineFrame | TracerFrame
         if frame.multi_pass:  # a ray engine
@@ -156,7 +160,12 @@ class GLRenderer:
             )
         else:
             inner = self.begin(
-                frame.scene, frame.settings, prepared=frame.prepared, band_rows=band_rows, slice_ms=slice_ms
+                frame.scene,
+                frame.settings,
+                prepared=frame.prepared,
+                band_rows=band_rows,
+                slice_ms=slice_ms,
+                accumulated=accumulated,
             )
         return StartedFrame(inner, frame, t_start)
 
@@ -171,11 +180,13 @@ class GLRenderer:
         one_shot: bool = False,
         slice_ms: float | None = None,
         samples_per_pass: int = PATH_SAMPLES_PER_PASS,
+        accumulated: tuple[np.ndarray | None, int] | None = None,
     ) -> TracerFrame:
         """A frame of the one-pass tracer for the posed ``scene``, uploaded and ready to be
         traced slice by slice (:class:`~renderer.gl.frame.TracerFrame`); ``band_rows``
-        sizes its slices, ``samples_per_pass`` the path integrator's passes. Builds the method's
-        structure first unless ``prepared`` is given."""
+        sizes its slices, ``samples_per_pass`` the path integrator's passes, ``accumulated`` the
+        samples a path frame goes on from (their float32 sum, image rows, or None, and count). Builds the
+        method's structure first unless ``prepared`` is given."""
         t_start = time.perf_counter()
         # auto's crossover counts what a tree would hold, spheres and triangles (as prepare_frame)
         method_name = resolve_method(settings.method, scene.n_spheres + scene.n_triangles)
@@ -189,7 +200,7 @@ class GLRenderer:
             prepared = method.prepare(
                 scene, settings.max_prims, settings.max_tree_depth, self.max_texture_width, update
             )
-        features, depth = frame_features(scene, settings)
+        features, depth = frame_features(scene, settings, guides=settings.denoise != "off")
         image = self.image_targets and image_only(settings)
         variant = Variant(method_name, settings.mode, depth, features.defines(), image_only=image)
         variant = Variant(
@@ -217,6 +228,7 @@ class GLRenderer:
             t_start=t_start,
             slice_ms=slice_ms,
             samples_per_pass=samples_per_pass,
+            accumulated=accumulated,
         )
 
     def blocks_for(self, variant: Variant, prepared: PreparedMethod) -> tuple[str, ...]:

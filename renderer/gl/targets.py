@@ -1,7 +1,8 @@
 """Render targets of the tracer, reused between frames and bounded in bytes.
 
 A target is a framebuffer with two RGBA32F attachments (the mode image with the primary
-id, and the primary normal with t), or, for a frame that needs only its 8-bit image (png
+id, and the primary normal with t) — four for a path frame that writes the denoiser's guides
+(their albedo and normal sums) — or, for a frame that needs only its 8-bit image (png
 and jpeg at one sample per pixel), one RGBA8 attachment: its read-back costs
 0.4 ms at 320 × 544 against 4.7 ms for the two float ones. Frames in flight each hold their own (frames of the
 same size may be traced in turns, slice by slice), so the pool hands out a free one of
@@ -19,6 +20,7 @@ from collections import OrderedDict
 import moderngl
 
 BYTES_PER_PIXEL = 2 * 4 * 4  # two RGBA32F attachments
+GUIDE_BYTES_PER_PIXEL = 2 * 4 * 4  # … and two more for the denoiser's guides
 BYTES_PER_PIXEL_RGBA8 = 4  # one RGBA8 attachment
 
 
@@ -28,13 +30,14 @@ class TargetPool:
     def __init__(self, ctx: moderngl.Context, max_bytes: int):
         self.ctx = ctx
         self.max_bytes = int(max_bytes)
-        # glo → ((width, height, image_only), framebuffer)
-        self._free: OrderedDict[int, tuple[tuple[int, int, bool], moderngl.Framebuffer]] = OrderedDict()
-        self._busy: dict[int, tuple[tuple[int, int, bool], moderngl.Framebuffer]] = {}
+        # glo → ((width, height, image_only, guides), framebuffer)
+        self._free: OrderedDict[int, tuple[tuple[int, int, bool, bool], moderngl.Framebuffer]] = OrderedDict()
+        self._busy: dict[int, tuple[tuple[int, int, bool, bool], moderngl.Framebuffer]] = {}
 
     @staticmethod
-    def nbytes_of(width: int, height: int, image_only: bool = False) -> int:
-        return int(width) * int(height) * (BYTES_PER_PIXEL_RGBA8 if image_only else BYTES_PER_PIXEL)
+    def nbytes_of(width: int, height: int, image_only: bool = False, guides: bool = False) -> int:
+        per_pixel = BYTES_PER_PIXEL_RGBA8 if image_only else BYTES_PER_PIXEL + (GUIDE_BYTES_PER_PIXEL if guides else 0)
+        return int(width) * int(height) * per_pixel
 
     @property
     def nbytes(self) -> int:
@@ -45,9 +48,10 @@ class TargetPool:
     def sizes(self) -> list[tuple[int, int]]:
         return [kind[:2] for kind, _ in (*self._free.values(), *self._busy.values())]
 
-    def acquire(self, width: int, height: int, image_only: bool = False) -> moderngl.Framebuffer:
-        """A target of that size: two RGBA32F attachments, or one RGBA8 with ``image_only``."""
-        kind = (int(width), int(height), bool(image_only))
+    def acquire(self, width: int, height: int, image_only: bool = False, guides: bool = False) -> moderngl.Framebuffer:
+        """A target of that size: two RGBA32F attachments (four with ``guides``), or one RGBA8 with
+        ``image_only``."""
+        kind = (int(width), int(height), bool(image_only), bool(guides) and not image_only)
         for key, (k, fbo) in self._free.items():
             if k == kind:
                 del self._free[key]
@@ -57,7 +61,7 @@ class TargetPool:
         if image_only:
             attachments = [self.ctx.texture(kind[:2], 4, dtype="f1")]
         else:
-            attachments = [self.ctx.texture(kind[:2], 4, dtype="f4") for _ in range(2)]
+            attachments = [self.ctx.texture(kind[:2], 4, dtype="f4") for _ in range(4 if kind[3] else 2)]
         fbo = self.ctx.framebuffer(color_attachments=attachments)
         self._busy[fbo.glo] = (kind, fbo)
         return fbo

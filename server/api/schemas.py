@@ -23,6 +23,7 @@ from pydantic import (
     BeforeValidator,
     ConfigDict,
     Field,
+    StrictBool,
     TypeAdapter,
     ValidationError,
     create_model,
@@ -461,6 +462,26 @@ class FrameQuery(RenderParams, QueryModel):
             except ValidationError:
                 pass  # not a number: the Literal's error names the allowed values
         return data
+
+
+class SessionFrameQuery(FrameQuery):
+    """A session frame's query: ``accumulate`` adds the frame's samples to the session's accumulation."""
+
+    accumulate: bool = Field(
+        False,
+        description="path integrator (colour): go on from the samples the session's accumulation holds "
+        "for this same image (scene, camera, settings, time, size) and answer their mean with this "
+        "frame's samples added (X-Samples: how many); yields to interactive frames (docs/API.md, "
+        "'Accumulation')",
+    )
+
+
+class FrameMessage(BaseModel):
+    """A WebSocket message that asks for a frame without a gesture (its settings are its ``frame``)."""
+
+    model_config = ConfigDict(extra="ignore")
+    type: Literal["frame"]
+    accumulate: StrictBool = Field(False, description="as the session frame's accumulate=1")
 
 
 class GestureQuery(FrameQuery):

@@ -14,7 +14,8 @@ Headers of every frame:
   ``build`` (kept for clients that read it);
 - ``X-Session-Version`` (frames of a session), ``X-Method``, ``X-Stats``
   (compact JSON of the main BIH statistics), ``X-Frame-Part`` (``preview`` or ``final``:
-  the parts of a progressive frame, docs/API.md) and ``Access-Control-Expose-Headers``.
+  the parts of a progressive frame, docs/API.md), ``X-Samples`` (the samples per pixel the image
+  is the mean of: an accumulation's, all it holds) and ``Access-Control-Expose-Headers``.
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ STATS_HEADER_KEYS = (
     "forced_leaves",
     "build_ms",
 )
-EXPOSED = ("Server-Timing", "X-Session-Version", "X-Method", "X-Stats", "X-Frame-Part", "Retry-After")
+EXPOSED = ("Server-Timing", "X-Session-Version", "X-Method", "X-Stats", "X-Frame-Part", "X-Samples", "Retry-After")
 
 
 @dataclass
@@ -63,6 +64,7 @@ class Frame:
     width: int = 0
     height: int = 0
     final: bool = True  # False: the preview of a progressive frame, the final image follows
+    samples: int | None = None  # samples per pixel the image is the mean of (an accumulation's: all it holds)
 
 
 def encode(result: RenderResult, fmt: str, quality: int, png_level: int = 1) -> tuple[bytes, float]:
@@ -143,6 +145,8 @@ def frame_headers(frame: Frame) -> dict[str, str]:
     if frame.version is not None:
         headers["X-Session-Version"] = str(frame.version)
     headers["X-Frame-Part"] = "final" if frame.final else "preview"
+    if frame.samples is not None:
+        headers["X-Samples"] = str(frame.samples)
     return headers
 
 
@@ -171,6 +175,11 @@ FRAME_RESPONSE_DOC: dict[str, Any] = {
         },
         "X-Session-Version": {
             "description": "session version the frame shows (session frames only)",
+            "schema": {"type": "string"},
+        },
+        "X-Samples": {
+            "description": "samples per pixel the image is the mean of (accumulate=1: all the session's "
+            "accumulation holds)",
             "schema": {"type": "string"},
         },
     },

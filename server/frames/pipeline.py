@@ -15,12 +15,19 @@ supersedes its older ones (latest wins). A gesture's frame is rendered with its 
 *before* the gesture is committed (``commit`` runs once the final image is ready; docs/API.md,
 "Gestures with a frame").
 
+A session's frame asked with ``accumulate`` (a path frame's radiance) goes on from the samples its
+session's accumulation holds and commits the new sum once it is done (:mod:`server.frames.accumulate`);
+it is a *background* frame: it gets GL slices only when no interactive frame waits, it supersedes
+only the session's older accumulation frames, and any newer interactive frame of the session
+supersedes it.
+
 The statistics of the builds are kept here too (:meth:`FramePipeline.stats`): the last frame's
 build answers ``GET …/stats`` without building again.
 """
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 from collections import OrderedDict, deque
@@ -33,6 +40,7 @@ from typing import Any, NamedTuple
 from renderer.accel.base import NOT_ON_GPU
 from renderer.animation import AnimatedScene, pose
 from renderer.cost import largest_accepted
+from renderer.denoise import denoise_result
 from renderer.limits import DEFAULT_TEXTURE_WIDTH
 from renderer.methods import METHODS, capabilities, resolve_method
 from renderer.prepare import PreparedFrame, band_rows, batch_size, prepare_frame
@@ -44,6 +52,7 @@ from renderer.tree_update import TreeUpdate
 from ..config import ServerConfig
 from ..faults import Busy, InputError, RenderTimeout, Superseded, input_error
 from ..http import metrics
+from .accumulate import AccumulationKey, Accumulations, accumulation_key
 from .encode import MEDIA_TYPES, Frame, encode, encoded_nbytes
 from .trace import FrameCancelled, FrameHandle, GLWorker, Ticket
 
@@ -101,17 +110,24 @@ class FrameBytes:
             self._cv.notify_all()
 
 
-def frame_nbytes(settings: RenderSettings) -> int:
-    """What one frame of these settings holds at most, from its render target to its encoded body."""
+def frame_nbytes(settings: RenderSettings, accumulate: bool = False) -> int:
+    """What one frame of these settings holds at most, from its render target to its encoded body
+    (``accumulate``: and the new float32 sum it hands to its session's accumulation)."""
     s = settings
     return (
         traced_nbytes(s.width, s.height, s.supersampling, image_only(s))
         + encoded_nbytes(s.format, "radiance" if radiance(s) else s.mode, s.width, s.height)
         + (s.width * s.height * PATH_SUM_BYTES_PER_PIXEL if radiance(s) else 0)
+        + (s.width * s.height * ACCUMULATION_BYTES_PER_PIXEL if accumulate else 0)
+        + (s.width * s.height * GUIDE_BYTES_PER_PIXEL if radiance(s) and s.denoise != "off" else 0)
     )
 
 
 PATH_SUM_BYTES_PER_PIXEL = 3 * 8  # a path frame's float64 sum of its passes (renderer/gl/frame.py)
+ACCUMULATION_BYTES_PER_PIXEL = 3 * 4  # an accumulation's float32 sum (server/frames/accumulate.py)
+# The denoiser's guides (renderer/denoise.py): two more RGBA32F attachments, their read-backs, their
+# float64 sums and the float32 means; OIDN's own buffers of the same size come on top.
+GUIDE_BYTES_PER_PIXEL = 2 * 16 + 2 * 16 + 2 * 24 + 2 * 12
 
 
 def radiance(settings: RenderSettings) -> bool:
@@ -140,7 +156,8 @@ class FrameRequest:
     """One frame to make. ``progressive``: the preview (a supersampled
     frame's pixel-centre pass) first when there is one; ``commit(result)`` runs when the final image
     is ready and returns the session version to report; ``cancel`` (set when the client goes away)
-    stops the frame."""
+    stops the frame. ``accumulate``: a session's path frame goes on from (and adds to) its
+    accumulation, as a background frame (:mod:`server.frames.accumulate`); other frames ignore it."""
 
     scene: Scene | AnimatedScene
     settings: FrameSettings
@@ -148,6 +165,7 @@ class FrameRequest:
     progressive: bool = False
     commit: Callable[[Any], int] | None = None
     cancel: threading.Event | None = None
+    accumulate: bool = False
 
 
 def final(parts: Iterable[Frame]) -> Frame:
@@ -186,6 +204,7 @@ class FramePipeline:
         self._planning = threading.BoundedSemaphore(config.queue_size)
         self._planning_depth = threading.local()
         self.frame_bytes = FrameBytes(config.max_frame_bytes_in_flight)
+        self.accumulations = Accumulations(config.max_accumulation_bytes)
 
     # ---- the one entry point ----------------------------------------------------------------
     def run(self, request: FrameRequest) -> Iterator[Frame]:
@@ -201,9 +220,15 @@ class FramePipeline:
         key = (owner.id, owner.scene_rev) if owner is not None else None
         frame = self.plan(scene, settings.render, key=key)
         self.check_traceable(frame)
-        with self.frame_memory(frame.settings):  # from before its target exists to its encoded body
+        acc_key: AccumulationKey | None = None
+        held: tuple[Any, int] | None = None
+        if request.accumulate and owner is not None and radiance(settings.render) and not frame.multi_pass:
+            camera = json.dumps(frame.scene.camera.to_json(), sort_keys=True)
+            acc_key = accumulation_key(owner.scene_rev, camera, settings.render)
+            held = self.accumulations.start(owner.id, acc_key)
+        with self.frame_memory(frame.settings, held is not None):  # from before its target exists to its body
             t_queued = time.perf_counter()
-            handle = self.start_frame(frame, owner=owner)
+            handle = self.start_frame(frame, owner=owner, accumulated=held)
             version = owner.version if owner is not None else None
             first = None
             try:
@@ -242,6 +267,9 @@ class FramePipeline:
             last = self.encode_frame(
                 result, frame, settings, t_admit, handle.started_at, version=version, t_queued=t_queued
             )
+            if acc_key is not None and held is not None and result.sample_sum is not None:
+                assert owner is not None, "only a session accumulates"
+                self.accumulations.commit(owner.id, acc_key, held[1], result.sample_sum, result.samples)
             result = handle = first = None  # type: ignore[assignment]  # the arrays go now, not when the generator does
         yield last
 
@@ -360,11 +388,11 @@ class FramePipeline:
 
     # ---- admit ------------------------------------------------------------------------------
     @contextmanager
-    def frame_memory(self, settings: RenderSettings):
+    def frame_memory(self, settings: RenderSettings, accumulate: bool = False):
         """The frame's estimated bytes reserved in POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT for the work
         inside; :class:`Busy` (Retry-After: the GL work queued ahead) when they do not fit within
         FRAME_BYTES_WAIT_S."""
-        nbytes = frame_nbytes(settings)
+        nbytes = frame_nbytes(settings, accumulate)
         if not self.frame_bytes.acquire(nbytes, self.FRAME_BYTES_WAIT_S):
             retry = self.worker.retry_after()
             raise Busy(
@@ -384,21 +412,31 @@ class FramePipeline:
         return self.worker.admit()
 
     # ---- trace ------------------------------------------------------------------------------
-    def start_frame(self, frame: PreparedFrame, *, owner: FrameOwner | None) -> FrameHandle:
+    def start_frame(
+        self, frame: PreparedFrame, *, owner: FrameOwner | None, accumulated: tuple[Any, int] | None = None
+    ) -> FrameHandle:
         """Admit the planned frame (503 when full), supersede the session's older frames, and
-        hand it to the GL thread to be traced in slices."""
+        hand it to the GL thread to be traced in slices. ``accumulated``: the samples an
+        accumulation frame goes on from (sum or None, count); such a frame is a background one and
+        supersedes only the session's older background frames."""
         ticket = self.admit()
+        background = accumulated is not None
         if owner is not None:
             for older in self.worker.in_flight(owner.id):  # latest wins
-                older.cancel("superseded")
+                if older.background or not background:
+                    older.cancel("superseded")
         s = frame.settings
         rows = band_rows(frame.cost, self.config.slice_ms, s.width, s.height)
         batch = batch_size(frame.cost, self.config.slice_ms, frame.scene.n_primitives)
 
         def start(renderer):
-            return renderer.start(frame, band_rows=rows, batch=batch, slice_ms=self.config.slice_ms)
+            return renderer.start(
+                frame, band_rows=rows, batch=batch, slice_ms=self.config.slice_ms, accumulated=accumulated
+            )
 
-        return ticket.frame(start, session=owner.id if owner is not None else None, cost_ms=frame.cost.ms)
+        return ticket.frame(
+            start, session=owner.id if owner is not None else None, cost_ms=frame.cost.ms, background=background
+        )
 
     def wait(
         self, handle: FrameHandle, t_admit: float, *, preview: bool = False, cancel: threading.Event | None = None
@@ -453,6 +491,8 @@ class FramePipeline:
         planning, whose pose and build are stages of their own) to its first slice."""
         rs = frame.settings
         t_queued = t_queued if t_queued is not None else t_admit
+        if radiance(rs):  # the mean this answer shows (an accumulation keeps its own sum, undenoised)
+            result = denoise_result(result, frame.scene, rs.denoise)
         body, encode_ms = encode(
             result,
             rs.format,
@@ -484,6 +524,7 @@ class FramePipeline:
             width=rs.width,
             height=rs.height,
             final=final,
+            samples=getattr(result, "samples", None) or rs.samples_per_pixel,
         )
 
     # ---- poses and statistics ---------------------------------------------------------------

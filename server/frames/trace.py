@@ -15,7 +15,10 @@ which the API turns into 503 + Retry-After), then runs its job with it:
 
 The thread takes one slice at a time, round-robin over the *sessions* that have frames in
 flight (frames of one session in order), so a small frame of one session is answered
-within a few slices while another session's long frame runs. A frame stops between
+within a few slices while another session's long frame runs. *Background* frames (an
+accumulation's, docs/API.md "Accumulation") get a slice only when no session's next frame is an
+interactive one: they never hold up a preview or a gesture's frame by more than the slice that
+is running. A frame stops between
 slices when it is cancelled — its request timed out, its client went away, or a newer
 frame of the same session superseded it — and its GPU memory and queue slot are given back
 at once. Back-pressure tells the truth: ``Retry-After`` is the estimated work queued
@@ -76,10 +79,17 @@ class FrameHandle:
     """A frame in flight: wait for its preview and its result, or cancel it."""
 
     def __init__(
-        self, worker: GLWorker, ticket: Ticket, session: Hashable, start: Callable[[Any], Any], cost_ms: float
+        self,
+        worker: GLWorker,
+        ticket: Ticket,
+        session: Hashable,
+        start: Callable[[Any], Any],
+        cost_ms: float,
+        background: bool = False,
     ):
         self.worker, self.ticket, self.session, self.start = worker, ticket, session, start
         self.cost_ms = float(cost_ms)
+        self.background = background  # sliced only when no interactive frame waits
         self.frame: Any = None  # the renderer's frame object, once started (GL thread)
         self.reason: str | None = None  # why it was cancelled
         self.started_at: float | None = None
@@ -367,11 +377,16 @@ class GLWorker:
             self._frames.setdefault(h.session, deque()).append(h)
 
     def _slice(self) -> None:
-        """One slice of the next session's frame, round-robin."""
+        """One slice of the next session's frame, round-robin; background frames only when no
+        session's next frame is interactive."""
         with self._lock:
             if not self._frames:
                 return
-            session, queue = next(iter(self._frames.items()))
+            # (a cancelled background frame goes at once: an interactive frame of its session waits behind it)
+            session, queue = next(
+                ((s, q) for s, q in self._frames.items() if not q[0].background or q[0].reason is not None),
+                next(iter(self._frames.items())),
+            )
             self._frames.move_to_end(session)  # the next session goes next time
             h = queue[0]
         done = False
@@ -448,11 +463,21 @@ class Ticket:
         """``submit`` and wait (TimeoutError after ``timeout_s`` seconds)."""
         return self.submit(fn).result(timeout=timeout_s)
 
-    def frame(self, start: Callable[[Any], Any], *, session: Hashable = None, cost_ms: float = 0.0) -> FrameHandle:
+    def frame(
+        self,
+        start: Callable[[Any], Any],
+        *,
+        session: Hashable = None,
+        cost_ms: float = 0.0,
+        background: bool = False,
+    ) -> FrameHandle:
         """Trace a frame in slices: ``start(renderer)`` (on the GL thread) returns the frame
-        object; frames of one ``session`` go in order, sessions take turns."""
+        object; frames of one ``session`` go in order, sessions take turns; a ``background``
+        frame's turns go to any interactive frame that waits."""
         self._claim()
-        handle = FrameHandle(self._worker, self, session if session is not None else object(), start, cost_ms)
+        handle = FrameHandle(
+            self._worker, self, session if session is not None else object(), start, cost_ms, background
+        )
         self._worker._submit_frame(handle)
         return handle
 

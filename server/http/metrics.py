@@ -15,6 +15,11 @@ The names (docs/API.md, "Metrics"):
 - ``pocketray_http_requests_total{method, route, status}`` and
   ``pocketray_http_request_duration_seconds{method, route}`` — every request, by route
   template (``/api/sessions/{session_id}/frame``), never by raw path.
+- ``pocketray_accumulation_bytes`` — bytes the sessions' accumulations hold (their float32 sums,
+  bounded by ``POCKETRAY_MAX_ACCUMULATION_BYTES``), and
+  ``pocketray_accumulations_dropped_total{reason}`` — accumulations dropped: ``change`` (a frame
+  of the session changed what the image depends on), ``budget`` (least recently used, to make
+  room), ``deleted`` (its session was).
 - ``pocketray_sessions`` — sessions in the store (all processes', not expired), and
   ``pocketray_store_bytes`` — the bytes its quota counts (``POCKETRAY_MAX_STORE_BYTES``), both
   read at most every :data:`SESSIONS_CACHE_S` seconds; ``pocketray_ready`` — 1 when this process
@@ -103,6 +108,13 @@ HTTP_SECONDS = Histogram(
     "pocketray_http_request_duration_seconds", "HTTP request duration", ["method", "route"], buckets=HTTP_BUCKETS_S
 )
 
+ACCUMULATION_BYTES = Gauge(
+    "pocketray_accumulation_bytes", "Bytes the sessions' accumulations hold", multiprocess_mode="livesum"
+)
+ACCUMULATION_DROP_REASONS = ("change", "budget", "deleted")
+ACCUMULATIONS_DROPPED = Counter("pocketray_accumulations_dropped", "Accumulations dropped, by reason", ["reason"])
+for _reason in ACCUMULATION_DROP_REASONS:  # every series from the start: a scrape shows the zeros
+    ACCUMULATIONS_DROPPED.labels(_reason)
 # The methods the API answers (server/http/allow.py's and OPTIONS); any other method is one label value.
 HTTP_METHODS = frozenset(("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"))
 OTHER = "other"
@@ -134,6 +146,8 @@ METRIC_NAMES = (
     "pocketray_unavailable_total",
     "pocketray_http_requests_total",
     "pocketray_http_request_duration_seconds",
+    "pocketray_accumulation_bytes",
+    "pocketray_accumulations_dropped_total",
     "pocketray_sessions",
     "pocketray_store_bytes",
     "pocketray_ready",
@@ -183,6 +197,18 @@ def observe_stages(method: str, mode: str, timings_ms: dict[str, float]) -> None
     for stage, ms in timings_ms.items():
         if stage in STAGES:
             STAGE_SECONDS.labels(method, mode, stage).observe(max(0.0, float(ms)) / 1e3)
+
+
+@_safe
+def accumulation_bytes(nbytes: int) -> None:
+    """What this process's accumulations hold now (server.frames.accumulate)."""
+    ACCUMULATION_BYTES.set(nbytes)
+
+
+@_safe
+def accumulation_dropped(reason: str) -> None:
+    """An accumulation dropped: ``change``, ``budget`` or ``deleted``."""
+    ACCUMULATIONS_DROPPED.labels(reason if reason in ACCUMULATION_DROP_REASONS else OTHER).inc()
 
 
 @_safe

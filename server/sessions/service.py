@@ -58,6 +58,8 @@ from .scenes import (
 )
 from .store import SessionState, SessionStore, StoreUnavailable
 
+LINEAR_FORMATS = ("npy", "exr")  # radiance as traced: denoised only when a request asks for it
+
 
 def owner(state: SessionState) -> FrameOwner:
     """The session as its frames know it."""
@@ -190,6 +192,7 @@ class SessionService:
         if not self.store.delete(session_id):
             raise NotFound(session_id)
         self.cache.drop_session(session_id)
+        self.frames.accumulations.drop_session(session_id)
 
     def scene(self, state: SessionState) -> SessionScene:
         """The session's scene (animated or not) seen through its current camera (cached per process)."""
@@ -338,8 +341,13 @@ class SessionService:
 
     # ---- the frames a session asks for (run by the frame pipeline) --------------------------
     def frame_settings(self, state: SessionState, patch: dict[str, Any]) -> FrameSettings:
-        """The session's settings with the frame query's ``patch``, checked against the caps."""
-        settings = FrameSettings.of(self.caps.merge_settings(state.settings, patch))
+        """The session's settings with the frame query's ``patch``, checked against the caps. The
+        linear formats (npy, exr) are denoised only when the query itself names ``denoise``: the
+        session's ``denoise`` is for the images it shows."""
+        merged = self.caps.merge_settings(state.settings, patch)
+        if merged.get("format") in LINEAR_FORMATS and "denoise" not in patch:
+            merged = {**merged, "denoise": "off"}
+        settings = FrameSettings.of(merged)
         self.caps.check_work(settings.render, state.scene_info.get("n_spheres", 0))
         return settings
 
@@ -350,12 +358,15 @@ class SessionService:
         *,
         cancel: threading.Event | None = None,
         progressive: bool = False,
+        accumulate: bool = False,
     ) -> FrameRequest:
         """The session's current view with the query's ``patch`` (the final image; with
-        ``progressive`` its preview first)."""
+        ``progressive`` its preview first; with ``accumulate`` added to the session's accumulation)."""
         state = self.get(session_id)
         settings = self.frame_settings(state, patch)
-        return FrameRequest(self.scene(state), settings, owner(state), progressive=progressive, cancel=cancel)
+        return FrameRequest(
+            self.scene(state), settings, owner(state), progressive=progressive, cancel=cancel, accumulate=accumulate
+        )
 
     def gesture_request(
         self,

@@ -282,6 +282,10 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
     renderer = GLRenderer()
     t_ctx = time.perf_counter()
     result = renderer.render(scene, rs.with_(update="rebuild"))
+    if rs.denoise != "off":  # the flag names it: png, jpeg, npy and exr alike
+        from renderer.denoise import denoise_result
+
+        result = denoise_result(result, scene, rs.denoise)
     body, encode_ms = encode(
         result, fmt, settings.get("quality", config.default_jpeg_quality), config.png_compress_level
     )

@@ -85,3 +85,30 @@ def test_the_path_settings_contract_through_the_api(ready_client):
         assert r.status_code == 422 and r.json()["detail"][0]["loc"][-len(loc) :] == loc, (material, r.text)
     r = post(material={"diffuse": 0, "transmissive": 1, "ior": 1.5, "roughness": 1.0})
     assert r.status_code == 200 and np.isfinite(np.load(io.BytesIO(r.content))).all()
+
+
+def test_denoise_applies_to_the_images_and_to_npy_only_when_asked(ready_client):
+    """``denoise=off`` is the frame as it always was (byte for byte); ``oidn`` changes png and, when
+    the query names it, npy; a session's own ``denoise`` leaves its npy and exr radiance as traced."""
+    c = ready_client
+    settings = {"integrator": "path", "width": 16, "height": 12, "samples_per_pixel": 8, "max_recursion_depth": 4}
+    r = c.post("/api/sessions", json={"scene": {**FURNACE, "lights": []}, "settings": settings})
+    assert r.status_code == 201, r.text
+    sid = r.json()["id"]
+
+    def frame(**params) -> bytes:
+        r = c.get(f"/api/sessions/{sid}/frame", params=params)
+        assert r.status_code == 200, r.text
+        return r.content
+
+    plain = frame(format="png")
+    assert frame(format="png", denoise="off") == plain
+    assert frame(format="png", denoise="oidn") != plain
+    raw = np.load(io.BytesIO(frame(format="npy")))
+    denoised = np.load(io.BytesIO(frame(format="npy", denoise="oidn")))
+    assert denoised.shape == raw.shape and not np.array_equal(denoised, raw)
+    assert c.patch(f"/api/sessions/{sid}/settings", json={"denoise": "oidn"}).status_code == 200
+    assert np.array_equal(np.load(io.BytesIO(frame(format="npy"))), raw), "npy: the radiance as traced"
+    assert frame(format="png") == frame(format="png", denoise="oidn") != plain
+    r = c.get(f"/api/sessions/{sid}/frame", params={"denoise": "nlm"})
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["query", "denoise"]

@@ -26,7 +26,16 @@ from ...frames.pipeline import FramePipeline, FrameRequest, final
 from ..body import JSONBodyRoute
 from ..deps import FramesDep, ServiceDep, SessionId
 from ..errors import documented, located
-from ..schemas import CameraModel, CameraOut, FrameQuery, Gesture, GestureQuery, RenderRequest, StatsOut, StatsQuery
+from ..schemas import (
+    CameraModel,
+    CameraOut,
+    Gesture,
+    GestureQuery,
+    RenderRequest,
+    SessionFrameQuery,
+    StatsOut,
+    StatsQuery,
+)
 
 router = APIRouter(route_class=JSONBodyRoute)  # JSON bodies strict, large ones off the event loop
 WATCH_S = 0.1  # how often a waiting route looks whether its client is still there
@@ -148,14 +157,16 @@ async def session_frame(
     session_id: SessionId,
     service: ServiceDep,
     frames: FramesDep,
-    query: Annotated[FrameQuery, Query()],
+    query: Annotated[SessionFrameQuery, Query()],
 ) -> Response:
-    patch, progressive = query.given(), query.progressive
+    patch, progressive, accumulate = query.given(), query.progressive, query.accumulate
     return await (progressive_response if progressive else frame_answer)(
         request,
         frames,
         Where.QUERY,
-        lambda cancel: service.frame_request(session_id, patch, cancel=cancel, progressive=progressive),
+        lambda cancel: service.frame_request(
+            session_id, patch, cancel=cancel, progressive=progressive, accumulate=accumulate
+        ),
     )
 
 

@@ -1,9 +1,10 @@
 """Gestures in, frames out, on one WebSocket (measured against ?frame=1, see docs/API.md).
 
 Client → a text (or UTF-8 binary) JSON message: a gesture (``{"type": "pan", "dx", "dy"}``
-…, or ``{"type": "frame"}`` for a frame without a gesture) with an optional
+…, or ``{"type": "frame"}`` for a frame without a gesture, ``{"type": "frame", "accumulate":
+true}`` for one added to the session's accumulation) with an optional
 ``"frame": {settings}`` — the settings ``POST …/gesture?frame=1`` takes in its query.
-Server → text JSON ``{"version", "camera", "timings", "stats", "media_type"}`` then the
+Server → text JSON ``{"version", "camera", "timings", "stats", "media_type", "samples"}`` then the
 frame as one binary message; on an error one text JSON ``{"status", "detail"}`` (and
 ``"retry_after"``, seconds, where HTTP sends Retry-After) — the very answer the HTTP
 route gives (:mod:`server.api.errors`), and the connection stays open. While the client's
@@ -33,12 +34,13 @@ from ...http import wire
 from ...sessions.service import SessionService
 from .. import body, errors
 from ..deps import FramesDep, ServiceDep
-from ..schemas import Gesture, SettingsPatch
+from ..schemas import FrameMessage, Gesture, SettingsPatch
 
 router = APIRouter()
 
 _gesture_adapter = TypeAdapter(Gesture)
 _patch_adapter = TypeAdapter(SettingsPatch)
+_frame_adapter = TypeAdapter(FrameMessage)
 
 
 def parse_json(data: str | bytes, max_depth: int) -> Any:
@@ -68,12 +70,16 @@ async def answer_message(
     problems: list[dict[str, Any]] = []
     patch = _validated(_patch_adapter, frame_settings, "query", problems)
     only_frame = isinstance(msg, dict) and msg.get("type") == "frame"
+    asked = _validated(_frame_adapter, msg, "body", problems) if only_frame else None
+    accumulate = bool(asked is not None and asked.accumulate)
     gesture = None if only_frame else _validated(_gesture_adapter, msg, "body", problems)
     if problems:
         raise RequestValidationError(problems)
     with errors.located(Where.QUERY):  # the message's "frame" is the query of a frame request
         if only_frame:
-            frame = await run_in_threadpool(lambda: final(frames.run(service.frame_request(session_id, patch.given()))))
+            frame = await run_in_threadpool(
+                lambda: final(frames.run(service.frame_request(session_id, patch.given(), accumulate=accumulate)))
+            )
         else:
             frame = await run_in_threadpool(
                 lambda: final(frames.run(service.gesture_request(session_id, gesture, patch.given())))
@@ -113,6 +119,7 @@ async def session_socket(websocket: WebSocket, session_id: str, service: Service
                         "timings": frame.timings,
                         "stats": frame.stats,
                         "media_type": frame.media_type,
+                        "samples": frame.samples,
                     }
                 )
             )

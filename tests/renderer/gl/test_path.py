@@ -405,3 +405,22 @@ def test_a_diffuse_plane_under_an_emitting_plane_has_the_closed_form(gl_renderer
         np.testing.assert_allclose(r.image.mean(), want, rtol=0.01, err_msg=f"c={ceiling_albedo} depth={depth}")
         if not ceiling_albedo:  # one bounce that always meets the emitter: no variance at all
             np.testing.assert_allclose(r.image, want, rtol=1e-5)
+
+
+def test_frames_that_go_on_from_held_samples_equal_one_frame(gl_renderer):
+    """An accumulation: frames of 16, 16 and 8 samples, each going on from the sum and count the
+    last one left, give the image of one 40-sample frame (up to float rounding) and say so."""
+    from renderer.scenarios import mesh_scene
+
+    scene = mesh_scene("cornell", 0)
+    held = (None, 0)  # an accumulation that holds nothing yet
+    for spp in (16, 16, 8):
+        r = gl_renderer.begin(scene, path(width=24, height=24, spp=spp, depth=6), accumulated=held).run()
+        assert r.sample_sum is not None and r.sample_sum.dtype == np.float32
+        held = (r.sample_sum, r.samples)
+    one = gl_renderer.render(scene, path(width=24, height=24, spp=40, depth=6))
+    assert r.samples == one.samples == 40 and r.stats["samples"] == 40
+    np.testing.assert_allclose(r.image, one.image, rtol=1e-5, atol=1e-6)
+    assert one.sample_sum is None, "a frame that holds nothing hands no sum back"
+    first = gl_renderer.begin(scene, path(width=24, height=24, spp=16, depth=6)).run().image
+    assert np.abs(r.image - first).max() > 1e-3, "the later frames added samples of their own"

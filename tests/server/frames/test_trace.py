@@ -328,3 +328,18 @@ def test_a_traced_frame_keeps_no_target_or_read_back_once_its_result_is_made(gl_
     assert frame.fbo is None
     assert frame._centre is None and frame._grid is None  # was: the read-back, as large again as the result
     assert frame.result().normal.shape == (SMALL["height"], SMALL["width"], 3)
+
+
+def test_a_background_frame_yields_every_slice_to_interactive_ones(worker):
+    """An accumulation's frame (background) gets no slice while an interactive frame of any
+    session waits: once one arrives, the background frame takes at most the slice running."""
+    log: list = []
+    gate = threading.Event()
+    bg = worker.admit().frame(lambda r: FakeFrame("bg", 20, log, gate), session="A", cost_ms=2000, background=True)
+    time.sleep(0.05)  # the background frame is started and waits at its first slice
+    fg = worker.admit().frame(lambda r: FakeFrame("fg", 5, log), session="B", cost_ms=50)
+    time.sleep(0.05)
+    gate.set()
+    assert fg.wait(5) == "fg done" and bg.wait(5) == "bg done"
+    names = [name for name, _ in log]
+    assert names[:6] == ["bg", "fg", "fg", "fg", "fg", "fg"], names[:8]

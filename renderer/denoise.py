@@ -1,0 +1,74 @@
+"""The path integrator's denoiser: Intel Open Image Denoise (``pyoidn``, whose wheel ships the
+library) on the frame's linear radiance, guided by the albedo and the normal of the first hit.
+
+Both guides come from the frame's own trace: a path frame with ``denoise`` on is traced by the
+variant with ``GUIDES`` (``shaders/lighting.glsl``), which also sums over its samples the first
+hit's outward normal and its material's albedo as the path integrator's lobes see it —
+``w_d · color + w_r + w_t``, the lobe weights scaled to sum at most 1 as the shader scales them
+(the mirror and glass lobes are white, so a perfect specular surface has albedo 1, as OIDN asks);
+a ray that meets nothing: the environment clamped to [0, 1], normal 0. Their means
+(``RenderResult.guides``) are anti-aliased as the radiance is, which OIDN wants. A result without
+them (traced with ``denoise`` off) is guided by the same albedo looked up on the CPU from its
+first sample's primary hit (``primid``) and that hit's normal — aliased, measured worse than no
+guides at all (``bench/denoise.py``), kept only so that any radiance can be denoised.
+
+Denoising is applied to the mean a frame answers (an accumulation's included: never to what it
+holds), on the request's thread, after the GL thread is done with the frame (docs/API.md,
+"Denoising").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from .result import RenderResult
+from .scene import Scene
+
+
+def material_albedos(scene: Scene) -> np.ndarray:
+    """float32 (M, 3): each material's albedo as the path integrator's lobes see it."""
+    out = np.zeros((len(scene.materials), 3), np.float32)
+    for i, m in enumerate(scene.materials):
+        w = np.array([m.diffuse, m.reflective, m.transmissive], np.float64)
+        w /= max(1.0, float(w.sum()))  # the shader's weights: scaled to sum 1 where they exceed it
+        out[i] = w[0] * np.asarray(m.color) + w[1] + w[2]
+    return out
+
+
+def first_hit_albedo(scene: Scene, primid: np.ndarray) -> np.ndarray:
+    """float32 H×W×3: the albedo of the primary hit ``primid`` (int32 H×W, −1 on a miss) names."""
+    plane_materials = np.array([p.material for p in scene.planes], np.int32)
+    material_of = np.concatenate(
+        [np.asarray(scene.sphere_materials, np.int32), plane_materials, np.asarray(scene.triangle_materials, np.int32)]
+    )
+    albedos = material_albedos(scene)
+    hit = primid >= 0
+    out = np.empty((*primid.shape, 3), np.float32)
+    out[...] = np.clip(np.asarray(scene.environment, np.float32), 0.0, 1.0)
+    out[hit] = albedos[material_of[primid[hit]]]
+    return out
+
+
+def denoise_result(result: RenderResult, scene: Scene, denoiser: str) -> RenderResult:
+    """``result`` with its radiance denoised by ``denoiser`` (``off``: ``result`` itself); the
+    statistics say which and how long it took (``denoise``, ``denoise_ms``). ``scene``: the
+    (posed) scene the frame was traced of."""
+    if denoiser == "off" or result.display is None:
+        return result
+    if denoiser != "oidn":
+        raise ValueError(f"unknown denoiser {denoiser!r}")  # renderer/settings.py's DENOISERS
+    import pyoidn  # ships the library in its wheel; imported when a frame first asks for it
+
+    t0 = time.perf_counter()
+    color = np.ascontiguousarray(result.image, np.float32)
+    if result.guides is not None:
+        albedo, normal = (np.ascontiguousarray(g, np.float32) for g in result.guides)
+    else:
+        albedo = first_hit_albedo(scene, result.primid)
+        normal = np.ascontiguousarray(result.normal, np.float32)
+    image = np.asarray(pyoidn.denoise(color, albedo, normal, hdr=True), np.float32)
+    stats = {**(result.stats or {}), "denoise": denoiser, "denoise_ms": (time.perf_counter() - t0) * 1e3}
+    return dataclasses.replace(result, image=np.maximum(image, 0.0), stats=stats)
