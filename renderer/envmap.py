@@ -6,9 +6,10 @@ beyond the rotation): +y is up; a world direction d (unit) has
 
     u = atan2(d.x, −d.z) / 2π + rotation_deg / 360   (mod 1),    v = acos(d.y) / π
 
-so (unrotated) u = 0 looks along −z, u = ¼ along +x, and row 0 of the image is the zenith, the last row the
-nadir; ``rotation_deg`` turns the image about +y by the right-hand rule. Radiance between texels is bilinear the way Mitsuba interpolates: column i sits at
-u = (i + ½) / W (wrapping around), row j at v = j / (H − 1).
+so (unrotated) u = 0 looks along −z, u = ¼ along +x, and row 0 of the image is the zenith, the
+last row the nadir; ``rotation_deg`` turns the image about +y by the right-hand rule. Radiance
+between texels is bilinear the way Mitsuba interpolates: column i sits at u = (i + ½) / W
+(wrapping around), row j at v = j / (H − 1).
 
 Importance sampling: the W × (H − 1) bilinear *patches* (between columns i, i + 1 and rows j,
 j + 1) are picked with probability ∝ their corners' mean luminance × the solid angle of their

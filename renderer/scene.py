@@ -19,10 +19,9 @@ from __future__ import annotations
 import copy
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
