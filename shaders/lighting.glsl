@@ -163,6 +163,23 @@ float smith_g1(float c, float alpha) {
     return 2.0 / (1.0 + sqrt(1.0 + alpha * alpha * tan2));
 }
 
+#ifdef READS_ENVIRONMENT_SAMPLING
+// The GGX lobe (α, F = 1, separable Smith masking) for wo → wi about n: (f, pdf per steradian of its
+// sampling, D(m)·cos θm / (4 o·m)); (0, 0) below either horizon.
+vec2 ggx_eval(vec3 n, vec3 wo, vec3 wi, float alpha) {
+    float n_o = dot(n, wo), n_i = dot(n, wi);
+    if (n_o <= 0.0 || n_i <= 0.0) return vec2(0.0);
+    vec3 mh = normalize(wo + wi);
+    float n_m = dot(n, mh), o_m = dot(wo, mh);
+    if (n_m <= 0.0 || o_m <= 0.0) return vec2(0.0);
+    float a2 = alpha * alpha;
+    float k = n_m * n_m * (a2 - 1.0) + 1.0;
+    float dm = a2 / (PI * k * k);
+    float f = dm * smith_g1(n_o, alpha) * smith_g1(n_i, alpha) / (4.0 * n_o * n_i);
+    return vec2(f, dm * n_m / (4.0 * o_m));
+}
+#endif
+
 // Fresnel reflectance of a smooth dielectric: cos_i > 0 the incident cosine, eta = n_i / n_t.
 float fresnel_dielectric(float cos_i, float eta) {
     float sin2_t = eta * eta * max(0.0, 1.0 - cos_i * cos_i);
@@ -212,6 +229,9 @@ void path_main() {
 #endif
     vec3 prev_p = vec3(0.0);     // the vertex the current segment left, and the pdf (solid angle) with
     float prev_pdf_d = 0.0;      // which its diffuse lobe chose it (0: another lobe, or the camera)
+#ifdef READS_ENVIRONMENT_SAMPLING
+    float prev_pdf_env = 0.0;    // … and the pdf of its diffuse and GGX lobes together (0: a smooth lobe)
+#endif
     while (true) {
         if (start) {
             uint i = uint(u_sample_start + done);
@@ -227,6 +247,9 @@ void path_main() {
             d = normalize(u_cam_forward + u * u_cam_right + v * u_cam_up);
             skip = NO_PRIM; far_id = NO_PRIM;
             L = vec3(0.0); beta = vec3(1.0); segments = 1; prev_pdf_d = 0.0;
+#ifdef READS_ENVIRONMENT_SAMPLING
+            prev_pdf_env = 0.0;
+#endif
             q = Query(o, d, skip, far_id, BIG, false);
             start = false;
         }
@@ -239,11 +262,11 @@ void path_main() {
         } else if (hq.id == NO_PRIM) {
 #ifdef READS_ENVIRONMENT_SAMPLING
             // The image is sampled by next-event estimation too: the power heuristic's weight of
-            // BSDF sampling where the diffuse lobe chose the direction.
+            // BSDF sampling where the diffuse or the GGX lobe chose the direction.
             float w_env = 1.0;
-            if (prev_pdf_d > 0.0) {
+            if (prev_pdf_env > 0.0) {
                 float p_l = env_pdf(d);
-                w_env = prev_pdf_d * prev_pdf_d / (prev_pdf_d * prev_pdf_d + p_l * p_l);
+                w_env = prev_pdf_env * prev_pdf_env / (prev_pdf_env * prev_pdf_env + p_l * p_l);
             }
             L += w_env * beta * ENV_RADIANCE_AT(d);
 #else
@@ -390,18 +413,25 @@ void path_main() {
             }
         }
 #ifdef READS_ENVIRONMENT_SAMPLING
-        // … and to the environment image: one direction from its importance sampling, the power
-        // heuristic against the diffuse lobe (a shadow ray to infinity).
-        if (vertex && w_diffuse > 0.0 && !env_done) {
+        // … and to the environment image: one direction from its importance sampling, lighting the
+        // diffuse and the GGX lobe, the power heuristic against their sampling together (a bright
+        // sun seen in a rough metal is found this way), a shadow ray to infinity.
+        if (vertex && (w_diffuse > 0.0 || (w_reflect > 0.0 && roughness > 0.0)) && !env_done) {
             env_done = true;
             float u1 = rnd(), u2 = rnd();
             float p_l;
             vec3 l = env_sample(u1, u2, p_l);
             float cos_l = dot(nf, l);
             if (p_l > 0.0 && cos_l > 0.0) {
+                vec3 f = (w_diffuse / PI) * m.color;
                 float p_b = w_diffuse * cos_l / PI;
+                if (w_reflect > 0.0 && roughness > 0.0) {
+                    vec2 g = ggx_eval(nf, -d, l, roughness);
+                    f += vec3(w_reflect * g.x);
+                    p_b += w_reflect * g.y;
+                }
                 float w = p_l * p_l / (p_l * p_l + p_b * p_b);
-                contrib = beta * (w_diffuse / PI) * m.color * ENV_RADIANCE_AT(l) * (cos_l * w / p_l);
+                contrib = beta * f * ENV_RADIANCE_AT(l) * (cos_l * w / p_l);
                 int sk, fa;
                 exclusion(h.id, s.n, l, sk, fa);
                 q = Query(s.p, l, sk, fa, BIG, true);
@@ -418,6 +448,9 @@ void path_main() {
             bool go = true;
             prev_pdf_d = 0.0;
             prev_p = s.p;
+#ifdef READS_ENVIRONMENT_SAMPLING
+            prev_pdf_env = 0.0;
+#endif
             if (pick < w_diffuse) {
                 nd = cosine_direction(nf, u1, u2);
                 beta *= m.color;
@@ -458,6 +491,12 @@ void path_main() {
             } else {
                 go = false;
             }
+#ifdef READS_ENVIRONMENT_SAMPLING
+            if (go && (pick < w_diffuse || (pick < w_diffuse + w_reflect && roughness > 0.0))) {
+                prev_pdf_env = w_diffuse * max(dot(nf, nd), 0.0) / PI;
+                if (w_reflect > 0.0 && roughness > 0.0) prev_pdf_env += w_reflect * ggx_eval(nf, -d, nd, roughness).y;
+            }
+#endif
             // Russian roulette from the fourth segment on: survive with p, weight 1/p (unbiased).
             if (go && segments >= 3) {
                 float p = min(max(beta.r, max(beta.g, beta.b)), 0.95);
