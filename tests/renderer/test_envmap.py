@@ -120,7 +120,9 @@ def test_texel_values_are_checked():
 def test_convention_is_mitsubas():
     """u = 0 along −z, u = ¼ along +x, row 0 the zenith; the rotation turns about +y (right hand)."""
     m = EnvironmentMap("t", TEXELS)
-    np.testing.assert_allclose(m.uv(np.array([[0, 0, -1.0], [1.0, 0, 0], [0, 1.0, 0]])), [[0, 0.5], [0.25, 0.5], [0.5, 0]], atol=1e-12)
+    np.testing.assert_allclose(
+        m.uv(np.array([[0, 0, -1.0], [1.0, 0, 0], [0, 1.0, 0]])), [[0, 0.5], [0.25, 0.5], [0.5, 0]], atol=1e-12
+    )
     turned = EnvironmentMap("t", TEXELS, rotation_deg=90.0)
     # turning by +90° about +y carries what was seen along −z to −x
     np.testing.assert_allclose(turned.radiance(np.array([-1.0, 0, 0])), m.radiance(np.array([0, 0, -1.0])))
