@@ -35,13 +35,13 @@ from pydantic_core import InitErrorDetails, PydanticCustomError, PydanticKnownEr
 from renderer import settings as declared
 from renderer.animation import MUSEUM_KINDS
 from renderer.limits import (
-    MAX_ENV_ROTATION_DEG,
-    MAX_ENV_SCALE,
     MAX_ABSENT,
     MAX_ANGULAR_VELOCITY,
     MAX_COORDINATE,
     MAX_DEVICE_TEXTURE_SIZE,
     MAX_EMISSION,
+    MAX_ENV_ROTATION_DEG,
+    MAX_ENV_SCALE,
     MAX_IOR,
     MAX_LIFETIME,
     MAX_LIGHT_INTENSITY,

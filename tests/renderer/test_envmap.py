@@ -4,7 +4,6 @@ the limits checked before allocation, the equirect convention and the sampling's
 from __future__ import annotations
 
 import io
-import struct
 
 import numpy as np
 import pytest
