@@ -25,7 +25,7 @@ from dataclasses import replace
 from typing import Any
 
 from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum
-from renderer.envmap import EnvironmentMap, image_ref, read_image
+from renderer.envmap import EnvironmentMap, image_ref
 from renderer.limits import MAX_TRIANGLES
 from renderer.mesh_io import fit_transform
 from renderer.scenarios import mesh_scene, scenario
@@ -46,7 +46,7 @@ from ..faults import Busy, InputError, NotFound, Superseded, Where, input_error
 from ..frames.pipeline import FrameOwner, FramePipeline, FrameRequest, FrameSettings, render_settings
 from . import controller
 from .caps import InputCaps
-from .model_worker import load_model
+from .model_worker import load_env_image, load_model
 from .scenes import (
     SceneCache,
     SessionScene,
@@ -294,7 +294,7 @@ class SessionService:
         naming ``body`` (the file) or ``query.format``; nothing is written when the file is refused."""
         state = self.get(session_id)
         try:
-            texels = read_image(data, fmt)
+            texels = load_env_image(self.config, data, fmt, busy=Busy)
             env = EnvironmentMap(image_ref(texels), texels, scale, rotation_deg)
         except SceneError as e:
             raise InputError((Where.QUERY, "format") if e.field == "format" else (Where.BODY,), e.message) from None
