@@ -164,3 +164,19 @@ def test_the_sky_has_its_sun_where_it_says():
     sun = sky.radiance(SUN_DIRECTION)
     assert sun.min() > 100 * sky.radiance(np.array([0.0, 1.0, 0.0])).max()
     assert sky_texels().shape == (128, 256, 3) and not sky_texels().flags.writeable
+
+
+def test_only_a_scene_with_an_image_carries_its_define():
+    from renderer.features import scene_features
+    from renderer.gpu_layout import Variant
+    from renderer.scenarios import scenario
+
+    assert "ENVIRONMENT_MAP" in scene_features(scenario(1, 8, sky=True)).defines()
+    plain = scene_features(scenario(1, 8)).defines()
+    assert not {"ENVIRONMENT_MAP", "ENVIRONMENT"} & set(plain)
+    # Whitted reads the image; only the path integrator reads its sampling tables
+    whitted = Variant("bih", "color", 3, ("ENVIRONMENT_MAP",))
+    path = Variant("bih", "color", 3, ("PATH", "ENVIRONMENT_MAP"))
+    assert whitted.reads("environment_map") and not whitted.reads("environment_sampling")
+    assert path.reads("environment_map") and path.reads("environment_sampling")
+    assert not Variant("bih", "depth", 3, ("ENVIRONMENT_MAP",)).reads("environment_map")
