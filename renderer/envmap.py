@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from . import limits
-from .scene import SceneError
+from .errors import SceneError
 
 ENV_FORMATS = ("hdr", "exr")
 LUMINANCE = (0.2126, 0.7152, 0.0722)  # Rec. 709 weights: what the sampling is proportional to
@@ -176,7 +176,8 @@ def exr_header(data: bytes) -> dict[str, Any]:
         raise SceneError("body", f"EXR version {flags & 0xFF}: only version 2 is read")
     if flags & 0x1800:
         raise SceneError("body", "a multi-part or deep EXR file: only single-part flat images are read")
-    pos, out = 8, {}
+    pos = 8
+    out: dict[str, Any] = {}
     limit = min(len(data), 8 + limits.MAX_ENV_HEADER_BYTES)
     while True:
         if pos >= limit:

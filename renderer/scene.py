@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import limits
+from .errors import SceneError  # re-exported: where the scene's callers import it
 
 # Largest coordinate magnitude accepted (float32 resolves a unit sphere up to it; limits.py).
 from .limits import MAX_COORDINATE  # re-exported
@@ -35,15 +36,6 @@ if TYPE_CHECKING:
     from .envmap import EnvironmentMap
 
 Vec3 = tuple[float, float, float]
-
-
-class SceneError(ValueError):
-    """Invalid scene or render input. ``field`` is the JSON path of the culprit."""
-
-    def __init__(self, field: str, message: str):
-        super().__init__(f"{field}: {message}")
-        self.field = field
-        self.message = message
 
 
 def finite_number(

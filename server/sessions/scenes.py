@@ -108,7 +108,7 @@ def scene_source(scene: SessionScene) -> bytes:
     motions = [motion_to_json(m) for m in scene.motions] if isinstance(scene, AnimatedScene) else []
     if isinstance(scene, AnimatedScene):
         scene = scene.scene
-    small = {
+    small: dict[str, Any] = {
         "lights": [x.to_json() for x in scene.lights],
         "materials": [m.to_json() for m in scene.materials],
         "planes": [p.to_json() for p in scene.planes],
