@@ -43,14 +43,20 @@ def path(width=32, height=32, spp=32, depth=16, **kw) -> RenderSettings:
     )
 
 
-def test_white_furnace_of_an_image(gl_renderer):
+def test_white_furnace_of_an_image(gl_renderer, monkeypatch):
     """A diffuse sphere of albedo ρ in a constant image of radiance 1 converges to ρ (within 1 %):
-    next-event estimation of the image and BSDF sampling, weighted by MIS, add up to the integral;
-    a rough conductor (F = 1) keeps what GGX's single scattering keeps; missed rays see 1."""
+    next-event estimation of the image and BSDF sampling, weighted by MIS, add up to the integral,
+    and so does BSDF sampling alone (the image's sampling compiled out); a rough conductor (F = 1)
+    keeps what GGX's single scattering keeps; missed rays see 1."""
     r = gl_renderer.render(furnace(DIFFUSE, {"image": "one"}, {"one": ONES}), path())
     px = binary_erosion(r.primid >= 0, iterations=2)
     assert px.sum() > 200
     np.testing.assert_allclose(r.image[px].mean(axis=0), DIFFUSE["color"], rtol=0.01)
+    with monkeypatch.context() as m:
+        reads = gpu_layout.Variant.reads
+        m.setattr(gpu_layout.Variant, "reads", lambda v, g: g != "environment_sampling" and reads(v, g))
+        alone = gl_renderer.render(furnace(DIFFUSE, {"image": "one"}, {"one": ONES}), path())
+    np.testing.assert_allclose(alone.image[px].mean(axis=0), DIFFUSE["color"], rtol=0.01)
     outside = ~binary_dilation(r.primid >= 0, iterations=2)
     np.testing.assert_allclose(r.image[outside], 1.0, rtol=1e-5)
     rough = {"color": [1, 1, 1], "diffuse": 0.0, "reflective": 1.0, "roughness": 0.3}
