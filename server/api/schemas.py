@@ -598,7 +598,7 @@ class SceneInfo(BaseModel):
     n: int | None = None
     seed: int | None = None
     radius: float | None = None
-    sky: bool | None = Field(None, description="the scenario is under the procedural sky")
+    sky: bool = Field(False, description="the scenario is under the procedural sky")
     animated: bool = False
     n_moving: int = Field(0, description="spheres some motion moves")
     museum: MuseumRecipe | None = None
