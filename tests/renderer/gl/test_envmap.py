@@ -148,3 +148,16 @@ def test_agrees_with_mitsuba_under_a_sky(gl_renderer):
     ours = gl_renderer.render(scene, path(spp=1024, depth=8)).image
     assert psnr(ours, reference) >= 37.0, psnr(ours, reference)
     np.testing.assert_allclose(ours.mean(), reference.mean(), rtol=0.005)
+
+
+def test_whitted_under_the_sky_matches_the_reference(gl_renderer):
+    """Scenario 1 under the sky (reflective spheres see it in their reflections, misses directly):
+    the tracer's image is the float64 reference tracer's (renderer/reference.py) within 1e-3."""
+    from renderer.reference import render_reference
+    from renderer.scenarios import scenario
+
+    scene = scenario(1, 27, radius=4.0, sky=True)
+    s = RenderSettings(width=48, height=32, format="npy", samples_per_pixel=1, max_recursion_depth=4)
+    got, want = gl_renderer.render(scene, s).image, render_reference(scene, s).image
+    assert want.mean() > 0.3  # the sky is there
+    np.testing.assert_allclose(got, want, atol=1e-3)
