@@ -90,10 +90,13 @@ packs its own structure with the layout beside its build through :func:`wrap_row
 from __future__ import annotations
 
 import math
+import threading
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .envmap import EnvironmentMap
 from .limits import (
     DEFAULT_TEXTURE_WIDTH,
     MAX_LIGHTS,
@@ -738,13 +741,37 @@ def pack_primitives(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> Pac
         uniforms[ENVIRONMENT.name] = tuple(float(x) for x in scene.environment)
     env = scene.environment_map
     if env is not None:
-        textures[ENV_MAP.name] = wrap_rows(env.texels.reshape(-1, 3), max_width)
-        cond, marg = env.sampling_tables
-        textures[ENV_CDF.name] = wrap_rows(np.concatenate([cond.reshape(-1), marg]).astype(np.float32), max_width)
+        textures[ENV_MAP.name], textures[ENV_CDF.name] = env_textures(env, max_width)
         uniforms[ENV_SIZE.name] = (env.width, env.height)
         uniforms[ENV_SCALE.name] = env.scale
         uniforms[ENV_U_OFFSET.name] = env.rotation_deg / 360.0
     return PackedScene(textures, uniforms)
+
+
+# The packed textures of the environment images in use (up to 128 MiB each: packed once, not per
+# frame), held as long as their image is (a scene in the session cache).
+_ENV_PACKED: weakref.WeakKeyDictionary[EnvironmentMap, dict[int, tuple[PackedTexture, PackedTexture]]] = (
+    weakref.WeakKeyDictionary()
+)
+_ENV_LOCK = threading.Lock()
+
+
+def env_textures(env: EnvironmentMap, max_width: int = DEFAULT_TEXTURE_WIDTH) -> tuple[PackedTexture, PackedTexture]:
+    """``u_env_map`` (the texels) and ``u_env_cdf`` (the conditional CDFs, then the marginal) of
+    ``env``, wrapped into rows of at most ``max_width``."""
+    with _ENV_LOCK:
+        got = _ENV_PACKED.get(env, {}).get(max_width)
+    if got is None:
+        cond, marg = env.sampling_tables
+        got = (
+            wrap_rows(env.texels.reshape(-1, 3), max_width),
+            wrap_rows(np.concatenate([cond.reshape(-1), marg]).astype(np.float32), max_width),
+        )
+        for t in got:
+            t.data.setflags(write=False)  # shared by every frame of the image
+        with _ENV_LOCK:
+            _ENV_PACKED.setdefault(env, {})[max_width] = got
+    return got
 
 
 def light_scale(scene: Scene) -> float:
