@@ -81,3 +81,22 @@ def test_device_data_carries_the_image(ready_client):
     header = json.loads(r.content[12 : 12 + n])
     assert {"u_env_map", "u_env_cdf"} <= {t["name"] for t in header["textures"]}
     assert header["uniforms"]["u_env_size"] == [256, 128]
+
+
+def test_an_image_counts_against_the_store_quota(tmp_path):
+    """The image is stored beside the scene: one the quota cannot hold is a 507, and nothing is written."""
+    from fastapi.testclient import TestClient
+    from pocketray_server_support import make_config
+
+    from server.app import create_app
+
+    app = create_app(make_config(tmp_path, warmup=False, max_store_bytes=16 * 1024))
+    noise = np.random.default_rng(0).random((64, 128, 3)).astype(np.float32)  # ~100 kB: does not compress
+    with TestClient(app) as c:
+        sid = new_session(c)
+        used = app.state.store.used_bytes()
+        r = c.put(f"/api/sessions/{sid}/environment?format=hdr", content=write_hdr(noise))
+        assert r.status_code == 507, r.text
+        assert c.get(f"/api/sessions/{sid}").json()["version"] == 1 and app.state.store.used_bytes() == used
+        r = c.put(f"/api/sessions/{sid}/environment?format=hdr", content=write_hdr(TEXELS))  # small: fits
+        assert r.status_code == 200 and app.state.store.used_bytes() > used
