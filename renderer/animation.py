@@ -460,6 +460,7 @@ def pose(anim: AnimatedScene, t: float) -> PosedFrame:
         base.planes,
         tuple(meshes),
         base.environment,
+        base.environment_map,
     )
     tri_moving = (
         np.repeat(anim.moving_meshes, [mesh.n_triangles for mesh in base.meshes]) if base.meshes else np.zeros(0, bool)

@@ -38,9 +38,9 @@ DATA_FORMATS = ("EQUAL_RADII", "MATERIAL_TEXTURE", "TRIANGLES", "SMOOTH_TRIANGLE
 # What the light of a frame needs beyond the thesis's, never specialised away either (a scene without
 # them carries none, so its variants' text is the one before them): some used material emits
 # (EMISSION), the environment is not black (ENVIRONMENT), the frame traces paths (PATH: the
-# ``integrator`` setting, in colour frames) and writes the denoiser's guides (GUIDES: a path frame
-# with ``denoise`` on; renderer/denoise.py).
-LIGHTING = ("EMISSION", "ENVIRONMENT", "PATH", "GUIDES")
+# ``integrator`` setting, in colour frames), the environment is an image (ENVIRONMENT_MAP), and a
+# path frame writes the denoiser's guides (GUIDES: ``denoise`` on; renderer/denoise.py).
+LIGHTING = ("EMISSION", "ENVIRONMENT", "PATH", "ENVIRONMENT_MAP", "GUIDES")
 # The defines a variant may carry, in the order they are emitted (the server's shader query
 # accepts these, in this order).
 FEATURE_DEFINES = (*REMOVALS, *PLANE_COUNTS, *LIGHT_COUNTS, *DATA_FORMATS, *LIGHTING)
@@ -61,6 +61,7 @@ class SceneFeatures:
     emission: bool = False
     environment: bool = False
     path: bool = False
+    environment_map: bool = False
     guides: bool = False
 
     def defines(self) -> tuple[str, ...]:
@@ -118,6 +119,7 @@ class SceneFeatures:
             emission=self.emission,
             environment=self.environment,
             path=self.path,
+            environment_map=self.environment_map,
             guides=self.guides,
         )
 
@@ -147,6 +149,7 @@ def scene_features(scene: Scene) -> SceneFeatures:
         smooth_triangles=gpu_layout.smooth_triangles(scene),
         emission=any(m.emits for m in mats),
         environment=any(scene.environment),
+        environment_map=scene.environment_map is not None,
     )
 
 

@@ -90,10 +90,13 @@ packs its own structure with the layout beside its build through :func:`wrap_row
 from __future__ import annotations
 
 import math
+import threading
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .envmap import EnvironmentMap
 from .limits import (
     DEFAULT_TEXTURE_WIDTH,
     MAX_LIGHTS,
@@ -176,7 +179,17 @@ class Binding:
 
 
 # Groups of bindings a variant may not read; each has a READS_<GROUP> define in the shader.
-GROUPS = ("materials", "lights", "min_weight", "target_distance", "emission", "environment", "path")
+GROUPS = (
+    "materials",
+    "lights",
+    "min_weight",
+    "target_distance",
+    "emission",
+    "environment",
+    "path",
+    "environment_map",
+    "environment_sampling",
+)
 # Groups whose READS_<GROUP> define only variants with triangles get (renderer/shader_source.py),
 # so no sphere variant's text changes for them: the smooth triangles' vertex normals.
 SILENT_GROUPS = ("shading_normals",)
@@ -235,6 +248,10 @@ class Variant:
             return self.mode == "color" and "ENVIRONMENT" in self.features
         if group == "path":
             return self.path
+        if group == "environment_map":  # an image seen by rays that meet nothing
+            return self.mode == "color" and "ENVIRONMENT_MAP" in self.features
+        if group == "environment_sampling":  # … and sampled by the path integrator's NEE
+            return self.path and "ENVIRONMENT_MAP" in self.features
         if group == "shading_normals":  # a hit's shading normal: the hit target, or the image
             if not self.image_only:
                 return True
@@ -296,6 +313,26 @@ LIGHT_POS = Binding("u_light_pos", "highp vec3", length="MAX_LIGHTS", group="lig
 LIGHT_COLOR = Binding("u_light_color", "highp vec3", length="MAX_LIGHTS", group="lights")
 EMISSION = Binding("u_emission", "highp sampler2D", "(emitted radiance rgb, 0) per material", group="emission")
 ENVIRONMENT = Binding("u_environment", "highp vec3", "radiance a ray that meets nothing sees", group="environment")
+# An environment image (renderer/envmap.py): its texels and sampling tables, each a 1-D array
+# wrapped into rows like every other, so a device's MAX_TEXTURE_SIZE only changes the packing.
+ENV_MAP = Binding(
+    "u_env_map",
+    "highp sampler2D",
+    "equirect texels (rgb): texel j·W + i is column i of row j, row 0 the zenith",
+    group="environment_map",
+)
+ENV_SIZE = Binding("u_env_size", "highp ivec2", "(W, H) of the environment image", group="environment_map")
+ENV_SCALE = Binding("u_env_scale", "highp float", "the environment image's radiance factor", group="environment_map")
+ENV_U_OFFSET = Binding(
+    "u_env_u_offset", "highp float", "rotation_deg / 360, added to a direction's u", group="environment_map"
+)
+ENV_CDF = Binding(
+    "u_env_cdf",
+    "highp sampler2D",
+    "(r) CDFs: texel j·W + i of patch row j's conditional, then (H − 1)·W + j the rows' marginal",
+    group="environment_sampling",
+)
+ENV_BINDINGS = (ENV_MAP, ENV_SIZE, ENV_SCALE, ENV_U_OFFSET, ENV_CDF)
 # The path integrator: the samples this pass traces of each pixel, and the point lights' scale.
 SAMPLE_START = Binding("u_sample_start", "highp int", "index of this pass's first sample of each pixel", group="path")
 SAMPLE_COUNT = Binding("u_sample_count", "highp int", "samples of each pixel this pass traces (≥ 1)", group="path")
@@ -385,6 +422,7 @@ SCENE_BINDINGS = (
     LIGHT_COLOR,
     EMISSION,
     ENVIRONMENT,
+    *ENV_BINDINGS,
 )
 
 CAM_POS = Binding("u_cam_pos", "highp vec3")
@@ -701,7 +739,39 @@ def pack_primitives(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> Pac
     }
     if any(scene.environment):
         uniforms[ENVIRONMENT.name] = tuple(float(x) for x in scene.environment)
+    env = scene.environment_map
+    if env is not None:
+        textures[ENV_MAP.name], textures[ENV_CDF.name] = env_textures(env, max_width)
+        uniforms[ENV_SIZE.name] = (env.width, env.height)
+        uniforms[ENV_SCALE.name] = env.scale
+        uniforms[ENV_U_OFFSET.name] = env.rotation_deg / 360.0
     return PackedScene(textures, uniforms)
+
+
+# The packed textures of the environment images in use (up to 128 MiB each: packed once, not per
+# frame), held as long as their image is (a scene in the session cache).
+_ENV_PACKED: weakref.WeakKeyDictionary[EnvironmentMap, dict[int, tuple[PackedTexture, PackedTexture]]] = (
+    weakref.WeakKeyDictionary()
+)
+_ENV_LOCK = threading.Lock()
+
+
+def env_textures(env: EnvironmentMap, max_width: int = DEFAULT_TEXTURE_WIDTH) -> tuple[PackedTexture, PackedTexture]:
+    """``u_env_map`` (the texels) and ``u_env_cdf`` (the conditional CDFs, then the marginal) of
+    ``env``, wrapped into rows of at most ``max_width``."""
+    with _ENV_LOCK:
+        got = _ENV_PACKED.get(env, {}).get(max_width)
+    if got is None:
+        cond, marg = env.sampling_tables
+        got = (
+            wrap_rows(env.texels.reshape(-1, 3), max_width),
+            wrap_rows(np.concatenate([cond.reshape(-1), marg]).astype(np.float32), max_width),
+        )
+        for t in got:
+            t.data.setflags(write=False)  # shared by every frame of the image
+        with _ENV_LOCK:
+            _ENV_PACKED.setdefault(env, {})[max_width] = got
+    return got
 
 
 def light_scale(scene: Scene) -> float:

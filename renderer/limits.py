@@ -100,6 +100,17 @@ MAX_BUFFERLESS_BYTES = 16 << 20  # glTF: accessors without a bufferView (zeros t
 DECLARED_VERTEX_FACTOR = 3
 MAX_PLY_HEADER_BYTES = 64 << 10  # a PLY header (text up to end_header)
 
+# ---- environment images --------------------------------------------------------------------
+# An equirectangular HDR image (renderer/envmap.py): its declared size is checked against these
+# before a texel is allocated. 4096 × 2048 float RGB is 96 MiB on the GPU (and as much again in
+# the session store, compressed), the most one scene may ask for.
+MAX_ENV_WIDTH = 4096
+MAX_ENV_HEIGHT = 2048
+MIN_ENV_SIDE = 2  # the bilinear lookup and the sampling patches need two rows and two columns
+MAX_ENV_HEADER_BYTES = 64 << 10  # a .hdr header (text up to the resolution line), an .exr header
+MAX_ENV_SCALE = 1e6  # the image's radiance factor
+MAX_ENV_ROTATION_DEG = 360.0  # about +y, either way
+
 # ---- GPU data ------------------------------------------------------------------------------
 DEFAULT_TEXTURE_WIDTH = 4096  # texture rows; WebGL2 guarantees 2048, most phones have 4096
 MAX_DEVICE_TEXTURE_SIZE = 1 << 16  # the largest MAX_TEXTURE_SIZE a device may report (GPUs: ≤ 32,768)

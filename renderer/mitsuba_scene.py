@@ -11,7 +11,7 @@ What is translated, term by term, so both renderers estimate the same integral:
   ``alpha = roughness``, when rough), a ``dielectric`` of ``int_ior = ior`` (``roughdielectric`` GGX,
   ``alpha = roughness``, visible normals sampled as ours, when rough), and black;
 - ``emission`` as an ``area`` emitter (the side the normal faces, as ours), the environment as a
-  ``constant`` emitter, a point light of ``color`` C as a ``point`` of intensity π·D²·C;
+  ``constant`` emitter (an image as an ``envmap``), a point light of ``color`` C as a ``point`` of intensity π·D²·C;
 - spheres, meshes (their world-space triangles) and planes (a square 10⁴ × the scene's size).
 
 Needs the ``mitsuba`` package (a test dependency); imported when called.
@@ -109,6 +109,15 @@ def scene_dict(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
     }
     if any(scene.environment):
         out["environment"] = {"type": "constant", "radiance": _rgb(scene.environment)}
+    env = scene.environment_map
+    if env is not None:
+        # Our equirect convention and rotation sense are Mitsuba's envmap's (renderer/envmap.py).
+        out["environment"] = {
+            "type": "envmap",
+            "bitmap": mi.Bitmap(np.array(env.texels, dtype=np.float32)),  # (a writable copy)
+            "scale": env.scale,
+            "to_world": mi.ScalarTransform4f().rotate([0.0, 1.0, 0.0], env.rotation_deg),
+        }
     for i, light in enumerate(scene.lights):
         out[f"light_{i}"] = {
             "type": "point",

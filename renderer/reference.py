@@ -36,6 +36,7 @@ import numpy as np
 
 from .accel.bih import build_for_scene
 from .accel.bih_traverse import traverse
+from .envmap import EnvironmentMap
 from .modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, heat_image, primid_colors
 from .result import RenderResult
 from .scene import Camera, Scene
@@ -203,6 +204,7 @@ class _Geometry:
     tris: _Triangles
     emission: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (M, 3) radiance per material
     environment: np.ndarray = field(default_factory=lambda: np.zeros(3))  # what a ray meeting nothing sees
+    environment_map: EnvironmentMap | None = None  # … or this image (its float64 bilinear lookup)
 
     @staticmethod
     def of(scene: Scene) -> _Geometry:
@@ -240,6 +242,7 @@ class _Geometry:
             tris=_Triangles.of(scene),
             emission=np.array([m.emission for m in mats], dtype=np.float64).reshape(-1, 3),
             environment=np.array(scene.environment, dtype=np.float64),
+            environment_map=scene.environment_map,
         )
 
     def normals(
@@ -682,6 +685,10 @@ def _trace_batch(g: _Geometry, batch: RayBatch, frame: _Frame, max_level: int, s
     if shade and g.environment.any():  # a ray that meets nothing sees the environment
         miss = np.nonzero(prim < 0)[0]
         np.add.at(frame.color, batch.pix[miss], batch.weight[miss] * g.environment)
+    if shade and g.environment_map is not None:  # … or the image along the ray
+        miss = np.nonzero(prim < 0)[0]
+        seen = g.environment_map.radiance(batch.dirs[miss])
+        np.add.at(frame.color, batch.pix[miss], batch.weight[miss] * seen)
     if len(hit) == 0:
         return None  # a miss is black: nothing to add
     prim_h, pix_h = prim[hit], batch.pix[hit]

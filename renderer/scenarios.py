@@ -93,12 +93,34 @@ def corner_centers(n: int, radius: float, rng: np.random.Generator) -> np.ndarra
     return np.concatenate(out) if out else np.zeros((0, 3))
 
 
-def scenario(number: int, n: int, seed: int = 0, radius: float = 1.0) -> Scene:
+def with_sky(scene: Scene) -> Scene:
+    """``scene`` under the procedural daylight sky (renderer/sky.py) instead of its environment colour."""
+    from .envmap import SKY_REF, EnvironmentMap
+    from .sky import sky_texels
+
+    return Scene(
+        scene.camera,
+        scene.lights,
+        scene.materials,
+        scene.sphere_centers,
+        scene.sphere_radii,
+        scene.sphere_materials,
+        scene.planes,
+        scene.meshes,
+        (0.0, 0.0, 0.0),
+        EnvironmentMap(SKY_REF, sky_texels()),
+    )
+
+
+def scenario(number: int, n: int, seed: int = 0, radius: float = 1.0, sky: bool = False) -> Scene:
     """Scenario 1, 2 or 3 of the thesis with n spheres of the given radius.
 
     Scenario 3 is n // 2 spheres as scenario 1 followed by n - n // 2 as
-    scenario 2. ``seed`` drives the random placement (scenarios 2 and 3).
+    scenario 2. ``seed`` drives the random placement (scenarios 2 and 3). ``sky``: under the
+    procedural sky (:func:`with_sky`; the thesis's scenes have a black background).
     """
+    if sky:
+        return with_sky(scenario(number, n, seed, radius))
     if number not in (1, 2, 3):
         raise SceneError("scenario", f"must be 1, 2 or 3, got {number!r}")
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 0 <= n <= Scene.MAX_SPHERES:
@@ -162,7 +184,7 @@ WALLS = Material(
 )
 
 
-def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True) -> Scene:
+def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True, sky: bool = False) -> Scene:
     """A scene with triangle meshes inside the thesis's cube [−20, 20]³, for demos and tests.
 
     - ``teapot``: the closed Utah teapot (:func:`renderer.meshes.teapot`, 5.5 units to the
@@ -179,8 +201,11 @@ def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True) -> Sc
 
     ``detail`` (0 … MAX_MESH_DETAIL) sets the tessellation: teapot ``2 + 2·detail``
     segments per patch, icosphere subdivisions ``detail``, torus ``12 (detail + 1)``
-    segments. ``smooth``: vertex normals (else flat shading). Deterministic.
+    segments. ``smooth``: vertex normals (else flat shading). ``sky``: under the procedural sky
+    (:func:`with_sky`). Deterministic.
     """
+    if sky:
+        return with_sky(mesh_scene(kind, detail, smooth))
     from . import meshes as M
 
     if kind not in MESH_SCENES:

@@ -19,28 +19,23 @@ from __future__ import annotations
 import copy
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from . import limits
+from .errors import SceneError  # re-exported: where the scene's callers import it
 
 # Largest coordinate magnitude accepted (float32 resolves a unit sphere up to it; limits.py).
 from .limits import MAX_COORDINATE  # re-exported
 
+if TYPE_CHECKING:
+    from .envmap import EnvironmentMap
+
 Vec3 = tuple[float, float, float]
-
-
-class SceneError(ValueError):
-    """Invalid scene or render input. ``field`` is the JSON path of the culprit."""
-
-    def __init__(self, field: str, message: str):
-        super().__init__(f"{field}: {message}")
-        self.field = field
-        self.message = message
 
 
 def finite_number(
@@ -521,6 +516,7 @@ class Scene:
     planes: tuple[Plane, ...] = field(default_factory=tuple)
     meshes: tuple[Mesh, ...] = field(default_factory=tuple)
     environment: Vec3 = (0.0, 0.0, 0.0)  # the radiance a ray that meets nothing sees (black: none)
+    environment_map: EnvironmentMap | None = None  # … or an image (renderer/envmap.py; the colour black)
 
     # Upper bounds that keep one scene from exhausting the service.
     MAX_SPHERES = limits.MAX_SPHERES
@@ -591,6 +587,15 @@ class Scene:
         for i, x in enumerate(env):
             finite_number(x, f"environment.color[{i}]", lo=0.0, hi=limits.MAX_EMISSION)
         object.__setattr__(self, "environment", env)
+        if self.environment_map is not None:
+            from .envmap import EnvironmentMap
+
+            if not isinstance(self.environment_map, EnvironmentMap):
+                raise SceneError(
+                    "environment.image", f"expected an EnvironmentMap, got {type(self.environment_map).__name__}"
+                )
+            if any(env):
+                raise SceneError("environment", "a color or an image, not both")
 
     @property
     def n_spheres(self) -> int:
@@ -681,6 +686,7 @@ class Scene:
             self.planes,
             tuple(self.meshes if meshes is None else meshes),
             self.environment,
+            self.environment_map,
         )
 
     def with_camera(self, camera: Camera) -> Scene:
@@ -711,13 +717,18 @@ class Scene:
             out["meshes"] = [m.to_json() for m in self.meshes]
         if any(self.environment):  # absent when black, as it was before environments
             out["environment"] = {"color": list(self.environment)}
+        if self.environment_map is not None:
+            out["environment"] = self.environment_map.to_json()
         return out
 
     @staticmethod
-    def from_json(d: Any) -> Scene:
+    def from_json(d: Any, images: Mapping[str, np.ndarray] | None = None) -> Scene:
+        """The scene of scene JSON; ``images``: the texels of the environment images a reference
+        may name (an uploaded image's, beside the scene in the session store)."""
         d = _object(d, "scene", {"camera", "lights", "materials", "spheres", "planes", "meshes", "environment"})
-        env = _object(d.get("environment", {}), "environment", {"color"})
+        env = _object(d.get("environment", {}), "environment", {"color", "image", "scale", "rotation_deg"})
         environment = finite_vec3(env.get("color", [0.0, 0.0, 0.0]), "environment.color")
+        environment_map = environment_map_from_json(env, images)
         camera = Camera.from_json(d.get("camera", {}), "camera")
         lights = [Light.from_json(x, f"lights[{i}]") for i, x in enumerate(_list(d.get("lights", []), "lights"))]
         materials = [
@@ -752,8 +763,45 @@ class Scene:
             _material_index(mesh.material, f"meshes[{i}].material", max(len(materials), 1))
             meshes.append(mesh)
         return Scene(
-            camera, tuple(lights), tuple(materials), centers, radii, mats, tuple(planes), tuple(meshes), environment
+            camera,
+            tuple(lights),
+            tuple(materials),
+            centers,
+            radii,
+            mats,
+            tuple(planes),
+            tuple(meshes),
+            environment,
+            environment_map,
         )
+
+
+def environment_map_from_json(env: dict, images: Mapping[str, np.ndarray] | None = None) -> EnvironmentMap | None:
+    """The image of an ``environment`` object (None without ``image``): ``"sky"`` is the procedural
+    sky (renderer/sky.py), any other reference one of ``images``."""
+    from .envmap import SKY_REF, EnvironmentMap
+
+    if "image" not in env:
+        for k in ("scale", "rotation_deg"):
+            if k in env:
+                raise SceneError(f"environment.{k}", "only with an image")
+        return None
+    ref = env["image"]
+    if not isinstance(ref, str):
+        raise SceneError("environment.image", f"expected a string, got {type(ref).__name__}")
+    if ref == SKY_REF:
+        from .sky import sky_texels
+
+        texels = sky_texels()
+    elif images is not None and ref in images:
+        texels = images[ref]
+    else:
+        raise SceneError(
+            "environment.image",
+            f"unknown image {ref[:64]!r}: 'sky', or the reference of an image uploaded to the session "
+            "(PUT /api/sessions/{id}/environment)",
+        )
+    return EnvironmentMap(ref, texels, env.get("scale", 1.0), env.get("rotation_deg", 0.0))
 
 
 def _list(v: Any, where: str) -> Sequence:

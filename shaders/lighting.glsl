@@ -19,6 +19,87 @@ vec3 emission_at(int m) { return vec3(0.0); }
 #else
 #define ENV_RADIANCE vec3(0.0)
 #endif
+#ifdef READS_ENVIRONMENT_MAP
+// An equirectangular environment image (docs/FORMATS.md, "Environment"; renderer/envmap.py, whose
+// NumPy twin of each function the tests compare with): u = atan2(x, −z)/2π + rotation, v = acos(y)/π;
+// bilinear between texels as Mitsuba's envmap (column i at u = (i + ½)/W, row j at v = j/(H − 1)).
+const float ENV_PI = 3.14159265358979;
+int g_env_shift;
+vec3 env_texel(int i, int j) { return texelFetch(u_env_map, texel(j * u_env_size.x + i, g_env_shift), 0).rgb; }
+vec2 env_uv(vec3 d) {
+    float u = atan(d.x, -d.z) * (0.5 / ENV_PI) + u_env_u_offset;
+    return vec2(u - floor(u), acos(clamp(d.y, -1.0, 1.0)) * (1.0 / ENV_PI));
+}
+vec3 env_lookup(vec2 uv) {
+    int w = u_env_size.x, h = u_env_size.y;
+    float s = uv.x * float(w) - 0.5;
+    float fs = floor(s);
+    int i0 = int(fs);
+    i0 = i0 < 0 ? i0 + w : (i0 >= w ? i0 - w : i0);
+    int i1 = i0 + 1 == w ? 0 : i0 + 1;
+    float t = uv.y * float(h - 1);
+    int j0 = clamp(int(floor(t)), 0, h - 2);
+    float fx = s - fs, fy = t - float(j0);
+    vec3 a = mix(env_texel(i0, j0), env_texel(i1, j0), fx);
+    vec3 b = mix(env_texel(i0, j0 + 1), env_texel(i1, j0 + 1), fx);
+    return u_env_scale * mix(a, b, fy);
+}
+#define ENV_RADIANCE_AT(d) env_lookup(env_uv(d))
+#define ENV_MAP_INIT() g_env_shift = row_shift(textureSize(u_env_map, 0))
+#else
+#define ENV_RADIANCE_AT(d) ENV_RADIANCE
+#define ENV_MAP_INIT()
+#endif
+#ifdef READS_ENVIRONMENT_SAMPLING
+// Importance sampling of the image (renderer/envmap.py): a patch row from the marginal CDF, a patch
+// from the row's conditional one (binary searches), then a point uniform in the patch's (u, v).
+int g_env_cdf_shift;
+float env_cdf(int k) { return texelFetch(u_env_cdf, texel(k, g_env_cdf_shift), 0).r; }
+// The first index in [base, base + n) whose CDF value exceeds x (n − 1 if none).
+int env_search(int base, int n, float x) {
+    int lo = 0, hi = n - 1;
+    for (int k = 0; k < 13; k++) {   // 2^13 > MAX_ENV_WIDTH
+        if (lo >= hi) break;
+        int mid = (lo + hi) / 2;
+        if (env_cdf(base + mid) > x) hi = mid; else lo = mid + 1;
+    }
+    return lo;
+}
+// The pdf per steradian of direction d (P(patch) · W · (H − 1) / (2π² sin θ)).
+float env_pdf(vec3 d) {
+    int w = u_env_size.x, rows = u_env_size.y - 1;
+    vec2 uv = env_uv(d);
+    float sin_t = sqrt(max(0.0, 1.0 - d.y * d.y));
+    if (sin_t <= 0.0) return 0.0;
+    float s = uv.x * float(w) - 0.5;
+    int i = int(floor(s));
+    i = i < 0 ? i + w : (i >= w ? i - w : i);
+    int j = clamp(int(floor(uv.y * float(rows))), 0, rows - 1);
+    int m = rows * w;
+    float pm = env_cdf(m + j) - (j > 0 ? env_cdf(m + j - 1) : 0.0);
+    float pc = env_cdf(j * w + i) - (i > 0 ? env_cdf(j * w + i - 1) : 0.0);
+    return pm * pc * float(w * rows) / (2.0 * ENV_PI * ENV_PI * sin_t);
+}
+vec3 env_sample(float u1, float u2, out float pdf) {
+    int w = u_env_size.x, rows = u_env_size.y - 1;
+    int m = rows * w;
+    int j = env_search(m, rows, u1);
+    float lo = j > 0 ? env_cdf(m + j - 1) : 0.0;
+    float fy = clamp((u1 - lo) / max(env_cdf(m + j) - lo, 1e-30), 0.0, 1.0);
+    int i = env_search(j * w, w, u2);
+    lo = i > 0 ? env_cdf(j * w + i - 1) : 0.0;
+    float fx = clamp((u2 - lo) / max(env_cdf(j * w + i) - lo, 1e-30), 0.0, 1.0);
+    float u = (float(i) + 0.5 + fx) / float(w) - u_env_u_offset;
+    float theta = ENV_PI * (float(j) + fy) / float(rows);
+    float phi = 2.0 * ENV_PI * u;
+    vec3 d = vec3(sin(theta) * sin(phi), cos(theta), -sin(theta) * cos(phi));
+    pdf = env_pdf(d);
+    return d;
+}
+#define ENV_CDF_INIT() g_env_cdf_shift = row_shift(textureSize(u_env_cdf, 0))
+#else
+#define ENV_CDF_INIT()
+#endif
 
 #ifdef PATH
 // ---- the path integrator (docs/SHADING.md, "Path integrator") ----------------------------
@@ -90,6 +171,23 @@ float smith_g1(float c, float alpha) {
     return 2.0 / (1.0 + sqrt(1.0 + alpha * alpha * tan2));
 }
 
+#ifdef READS_ENVIRONMENT_SAMPLING
+// The GGX lobe (α, F = 1, separable Smith masking) for wo → wi about n: (f, pdf per steradian of its
+// sampling, D(m)·cos θm / (4 o·m)); (0, 0) below either horizon.
+vec2 ggx_eval(vec3 n, vec3 wo, vec3 wi, float alpha) {
+    float n_o = dot(n, wo), n_i = dot(n, wi);
+    if (n_o <= 0.0 || n_i <= 0.0) return vec2(0.0);
+    vec3 mh = normalize(wo + wi);
+    float n_m = dot(n, mh), o_m = dot(wo, mh);
+    if (n_m <= 0.0 || o_m <= 0.0) return vec2(0.0);
+    float a2 = alpha * alpha;
+    float k = n_m * n_m * (a2 - 1.0) + 1.0;
+    float dm = a2 / (PI * k * k);
+    float f = dm * smith_g1(n_o, alpha) * smith_g1(n_i, alpha) / (4.0 * n_o * n_i);
+    return vec2(f, dm * n_m / (4.0 * o_m));
+}
+#endif
+
 // Fresnel reflectance of a smooth dielectric: cos_i > 0 the incident cosine, eta = n_i / n_t.
 float fresnel_dielectric(float cos_i, float eta) {
     float sin2_t = eta * eta * max(0.0, 1.0 - cos_i * cos_i);
@@ -137,8 +235,14 @@ void path_main() {
     int emitter = 0;             // the next emitting sphere to sample at the current vertex
     int shadow_kind = 0;         // the shadow ray in flight: 0 a point light's, 1 a sphere's, 2 a triangle's
     bool tri_done = false;       // the vertex's emitting-triangle sample is taken
+#ifdef READS_ENVIRONMENT_SAMPLING
+    bool env_done = false;       // … and its environment-image sample (shadow kind 3)
+#endif
     vec3 prev_p = vec3(0.0);     // the vertex the current segment left, and the pdf (solid angle) with
     float prev_pdf_d = 0.0;      // which its diffuse lobe chose it (0: another lobe, or the camera)
+#ifdef READS_ENVIRONMENT_SAMPLING
+    float prev_pdf_env = 0.0;    // … and the pdf of its diffuse and GGX lobes together (0: a smooth lobe)
+#endif
     while (true) {
         if (start) {
             uint i = uint(u_sample_start + done);
@@ -154,6 +258,9 @@ void path_main() {
             d = normalize(u_cam_forward + u * u_cam_right + v * u_cam_up);
             skip = NO_PRIM; far_id = NO_PRIM;
             L = vec3(0.0); beta = vec3(1.0); segments = 1; prev_pdf_d = 0.0;
+#ifdef READS_ENVIRONMENT_SAMPLING
+            prev_pdf_env = 0.0;
+#endif
             q = Query(o, d, skip, far_id, BIG, false);
             start = false;
         }
@@ -164,9 +271,20 @@ void path_main() {
             else if (shadow_kind == 1) emitter++;
             else tri_done = true;
         } else if (hq.id == NO_PRIM) {
-            L += beta * ENV_RADIANCE;
+#ifdef READS_ENVIRONMENT_SAMPLING
+            // The image is sampled by next-event estimation too: the power heuristic's weight of
+            // BSDF sampling where the diffuse or the GGX lobe chose the direction.
+            float w_env = 1.0;
+            if (prev_pdf_env > 0.0) {
+                float p_l = env_pdf(d);
+                w_env = prev_pdf_env * prev_pdf_env / (prev_pdf_env * prev_pdf_env + p_l * p_l);
+            }
+            L += w_env * beta * ENV_RADIANCE_AT(d);
+#else
+            L += beta * ENV_RADIANCE_AT(d);
+#endif
 #ifdef GUIDES
-            if (segments == 1) albedo_sum += clamp(ENV_RADIANCE, 0.0, 1.0);
+            if (segments == 1) albedo_sum += clamp(ENV_RADIANCE_AT(d), 0.0, 1.0);
 #endif
             vertex = false;
         } else {
@@ -216,6 +334,9 @@ void path_main() {
             light = 0;
             emitter = 0;
             tri_done = false;
+#ifdef READS_ENVIRONMENT_SAMPLING
+            env_done = false;
+#endif
             vertex = segments < MAX_RECURSION_DEPTH;   // a next segment (shadow or bounce) fits
         }
 #ifdef SHADOW_RAYS
@@ -311,6 +432,34 @@ void path_main() {
                 continue;
             }
         }
+#ifdef READS_ENVIRONMENT_SAMPLING
+        // … and to the environment image: one direction from its importance sampling, lighting the
+        // diffuse and the GGX lobe, the power heuristic against their sampling together (a bright
+        // sun seen in a rough metal is found this way), a shadow ray to infinity.
+        if (vertex && (w_diffuse > 0.0 || (w_reflect > 0.0 && roughness > 0.0)) && !env_done) {
+            env_done = true;
+            float u1 = rnd(), u2 = rnd();
+            float p_l;
+            vec3 l = env_sample(u1, u2, p_l);
+            float cos_l = dot(nf, l);
+            if (p_l > 0.0 && cos_l > 0.0) {
+                vec3 f = (w_diffuse / PI) * m.color;
+                float p_b = w_diffuse * cos_l / PI;
+                if (w_reflect > 0.0 && roughness > 0.0) {
+                    vec2 g = ggx_eval(nf, -d, l, roughness);
+                    f += vec3(w_reflect * g.x);
+                    p_b += w_reflect * g.y;
+                }
+                float w = p_l * p_l / (p_l * p_l + p_b * p_b);
+                contrib = beta * f * ENV_RADIANCE_AT(l) * (cos_l * w / p_l);
+                int sk, fa;
+                exclusion(h.id, s.n, l, sk, fa);
+                q = Query(s.p, l, sk, fa, BIG, true);
+                shadow_kind = 3;
+                continue;
+            }
+        }
+#endif
         if (vertex) {
             // BSDF sampling: one lobe, chosen with its weight's probability (none: absorbed).
             float pick = rnd();
@@ -319,6 +468,9 @@ void path_main() {
             bool go = true;
             prev_pdf_d = 0.0;
             prev_p = s.p;
+#ifdef READS_ENVIRONMENT_SAMPLING
+            prev_pdf_env = 0.0;
+#endif
             if (pick < w_diffuse) {
                 nd = cosine_direction(nf, u1, u2);
                 beta *= m.color;
@@ -397,6 +549,12 @@ void path_main() {
             } else {
                 go = false;
             }
+#ifdef READS_ENVIRONMENT_SAMPLING
+            if (go && (pick < w_diffuse || (pick < w_diffuse + w_reflect && roughness > 0.0))) {
+                prev_pdf_env = w_diffuse * max(dot(nf, nd), 0.0) / PI;
+                if (w_reflect > 0.0 && roughness > 0.0) prev_pdf_env += w_reflect * ggx_eval(nf, -d, nd, roughness).y;
+            }
+#endif
             // Russian roulette from the fourth segment on: survive with p, weight 1/p (unbiased).
             if (go && segments >= 3) {
                 float p = min(max(beta.r, max(beta.g, beta.b)), 0.95);
@@ -445,6 +603,11 @@ void path_main() {
 #ifdef READS_ENVIRONMENT
             if (!live) color += k.weight * u_environment;   // what a ray that meets nothing sees
 #endif
+#ifdef READS_ENVIRONMENT_MAP
+            if (!live) color += k.weight * ENV_RADIANCE_AT(k.d);   // … or the image, along the ray
+#endif
 
 //@SECTION init
     EMISSION_INIT();
+    ENV_MAP_INIT();
+    ENV_CDF_INIT();

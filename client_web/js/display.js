@@ -5,7 +5,7 @@
 // settings of a request still on its way.
 
 import { recordFrame } from './hook.js';
-import { meshKind } from './settings.js';
+import { meshKind, skyScenario } from './settings.js';
 
 // Where a frame of aspect `aspect` (width / height) is drawn inside a box of width × height
 // (object-fit: contain), CSS pixels.
@@ -26,7 +26,9 @@ export function sceneLabel(meta, { n, triangles, mode, scenario }) {
   return meta.scenario === 'museum'
     ? `Ray-traced animated museum: ${n} spheres (${meta.motion}), ${mode} mode`
     : kind ? `Ray-traced mesh scene: ${kind}, ${n} spheres${withTriangles}, ${mode} mode`
-      : `Ray-traced scene: scenario ${meta.scenario ?? scenario}, ${n} spheres${withTriangles}, ${mode} mode`;
+      : skyScenario(meta.scenario ?? scenario)
+        ? `Ray-traced scene: scenario ${skyScenario(meta.scenario ?? scenario)} under the sky, ${n} spheres${withTriangles}, ${mode} mode`
+        : `Ray-traced scene: scenario ${meta.scenario ?? scenario}, ${n} spheres${withTriangles}, ${mode} mode`;
 }
 
 // A frame shown at `level` on a canvas of `size`, `now` (ms, the clock of frame.t0):

@@ -6,7 +6,7 @@
 
 import { ApiError, loadStoredSession, sameScene, storeSession } from './api.js';
 import {
-  DEFAULT_SCENE, MODEL_SIZE, fitResolution, meshKind, parseResolution, saveClientSettings, settingNames,
+  DEFAULT_SCENE, MODEL_SIZE, fitResolution, meshKind, parseResolution, saveClientSettings, settingNames, skyScenario,
 } from './settings.js';
 
 // The render settings the client keeps of a session's settings (and carries to a new session):
@@ -22,7 +22,8 @@ export function sceneOf(info, scene) {
   const museum = info.museum || null;
   const mesh = info.mesh_scene || null;
   return {
-    scenario: museum ? 'museum' : mesh ? `mesh:${mesh.kind}` : info.scenario ?? scene.scenario,
+    scenario: museum ? 'museum' : mesh ? `mesh:${mesh.kind}` : info.sky && info.scenario ? `sky:${info.scenario}`
+      : info.scenario ?? scene.scenario,
     n: museum ? museum.n : info.n ?? info.n_spheres ?? scene.n,
     seed: museum ? museum.seed : info.seed ?? scene.seed, radius: info.radius ?? scene.radius,
     motion: museum ? museum.kind : scene.motion, n_spheres: info.n_spheres, animated: !!info.animated,
@@ -44,6 +45,8 @@ export function sceneBody(scene) {
   if (scene.scenario === 'museum') {
     return { museum: { n: scene.n, kind: scene.motion || 'deformable', seed: scene.seed || 0 } };
   }
+  const sky = skyScenario(scene.scenario);
+  if (sky) return { scenario: sky, n: scene.n, seed: scene.seed, radius: scene.radius, sky: true };
   return { scenario: scene.scenario, n: scene.n, seed: scene.seed, radius: scene.radius };
 }
 

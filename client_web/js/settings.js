@@ -26,6 +26,8 @@ export const SCENARIOS = Object.freeze([
   { value: 1, label: '1 — grid' },
   { value: 2, label: '2 — eight corner clusters' },
   { value: 3, label: '3 — half grid, half clusters' },
+  // A thesis scenario under the procedural daylight sky (POST /api/sessions {scenario, sky: true}).
+  { value: 'sky:2', label: '2 under the sky — for the path integrator' },
   { value: 'museum', label: 'Museum — animated (Reiter)' },
   // Scenes of triangle meshes (POST /api/sessions {mesh_scene: {kind}}, renderer/scenarios.py).
   { value: 'mesh:teapot', label: 'Teapot — triangles (Newell)' },
@@ -35,6 +37,8 @@ export const SCENARIOS = Object.freeze([
 ]);
 // A mesh scene's kind ('mesh:teapot' → 'teapot'), or null for the sphere scenes.
 export const meshKind = (scenario) => (/^mesh:(teapot|mixed|room|cornell)$/.exec(String(scenario ?? '')) || [])[1] || null;
+// A sky scenario's number ('sky:2' → 2), or null for every other scene.
+export const skyScenario = (scenario) => Number((/^sky:([123])$/.exec(String(scenario ?? '')) || [])[1]) || null;
 // Model files the settings sheet uploads (POST /api/sessions/{id}/meshes?format=…), by suffix.
 export const MODEL_FORMATS = Object.freeze(['obj', 'ply', 'stl', 'glb', 'gltf']);
 // An uploaded model is fitted into this many world units, standing on the floor (the endpoint's size).
@@ -151,7 +155,7 @@ export function readUrlParams(search, specs = renderSettings) {
   const num = (k) => (INT_KEYS.has(k) ? parseInt(q.get(k), 10) : parseFloat(q.get(k)));
   for (const k of ['scenario', 'n', 'seed', 'radius']) if (q.has(k) && Number.isFinite(num(k))) scene[k] = num(k);
   if (q.get('scenario') === 'museum') scene.scenario = 'museum';
-  if (meshKind(q.get('scenario'))) scene.scenario = q.get('scenario');
+  if (meshKind(q.get('scenario')) || skyScenario(q.get('scenario'))) scene.scenario = q.get('scenario');
   if (MUSEUM_KINDS.some((m) => m.value === q.get('motion'))) scene.motion = q.get('motion');
   for (const spec of specs) {
     if (!spec.sheet || !q.has(spec.name)) continue;

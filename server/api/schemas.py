@@ -41,6 +41,8 @@ from renderer.limits import (
     MAX_COORDINATE,
     MAX_DEVICE_TEXTURE_SIZE,
     MAX_EMISSION,
+    MAX_ENV_ROTATION_DEG,
+    MAX_ENV_SCALE,
     MAX_IOR,
     MAX_LIFETIME,
     MAX_LIGHT_INTENSITY,
@@ -166,9 +168,19 @@ class MaterialModel(Strict):
 
 
 class EnvironmentModel(Strict):
-    """What a ray that meets nothing sees: a constant radiance (black: none)."""
+    """What a ray that meets nothing sees: a constant radiance (black: none), or an equirectangular
+    image (docs/FORMATS.md, "Environment"): ``"sky"``, or the reference of the image uploaded to
+    the session (PUT /api/sessions/{id}/environment), times ``scale``, turned by ``rotation_deg``."""
 
     color: Radiance = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    image: str | None = Field(None, max_length=64, description="'sky', or an uploaded image's reference")
+    scale: float | None = Field(None, ge=0.0, le=MAX_ENV_SCALE, description="the image's radiance factor (1)")
+    rotation_deg: float | None = Field(
+        None,
+        ge=-MAX_ENV_ROTATION_DEG,
+        le=MAX_ENV_ROTATION_DEG,
+        description="the image turned about +y, degrees, right-handed (0)",
+    )
 
 
 class SphereModel(Strict):
@@ -595,6 +607,7 @@ class MeshSceneRecipe(Strict):
         "icosphere subdivisions, torus 12 (detail + 1) segments",
     )
     smooth: bool = Field(True, description="vertex normals (smooth shading); false: flat")
+    sky: bool = Field(False, description="under the procedural daylight sky (environment 'sky')")
 
 
 class SessionCreate(Strict):
@@ -610,6 +623,7 @@ class SessionCreate(Strict):
         None, description="random placement seed (default 0)"
     )
     radius: float | None = Field(None, gt=0.0, le=CUBE_HALF, description="sphere radius, world units (default 1)")
+    sky: bool | None = Field(None, description="a scenario under the procedural daylight sky (default false)")
     museum: MuseumRecipe | None = None
     mesh_scene: MeshSceneRecipe | None = None
     scene: SceneModel | None = None
@@ -623,6 +637,7 @@ class SceneInfo(BaseModel):
     n: int | None = None
     seed: int | None = None
     radius: float | None = None
+    sky: bool = Field(False, description="the scenario is under the procedural sky")
     animated: bool = False
     n_moving: int = Field(0, description="spheres some motion moves")
     museum: MuseumRecipe | None = None
@@ -645,6 +660,23 @@ class SessionOut(BaseModel):
 
 class VersionOut(BaseModel):
     version: int
+
+
+class EnvironmentOut(BaseModel):
+    version: int
+    image: str = Field(description="the uploaded image's reference (scene JSON's environment.image)")
+    width: int
+    height: int
+
+
+class EnvironmentUploadQuery(QueryModel):
+    """How an uploaded environment image (the request body, bytes) lights the scene."""
+
+    format: Literal["hdr", "exr"] = Field(description="the file's format: hdr (Radiance RGBE) or exr (OpenEXR)")
+    scale: float = Field(1.0, ge=0.0, le=MAX_ENV_SCALE, description="radiance factor")
+    rotation_deg: float = Field(
+        0.0, ge=-MAX_ENV_ROTATION_DEG, le=MAX_ENV_ROTATION_DEG, description="turned about +y, degrees, right-handed"
+    )
 
 
 class CameraOut(BaseModel):

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from renderer.scene import SceneError
 from renderer.settings import RenderSettings
 
@@ -64,14 +66,16 @@ class InputCaps:
                 loc, f"at most {self.config.max_triangles} triangles per scene (POCKETRAY_MAX_TRIANGLES), got {n}"
             )
 
-    def checked_scene(self, model: SceneModel, loc: tuple[str, ...]) -> SessionScene:
+    def checked_scene(
+        self, model: SceneModel, loc: tuple[str, ...], images: dict[str, np.ndarray] | None = None
+    ) -> SessionScene:
         """The request's scene (at ``loc`` in its part of the request) as arrays. Its sphere models
         are released here, a chunk at a time: nothing reads them after, and the 300,000 of a 16 MiB
         body, freed at once where the request ends (on the event loop), held the GIL ~60 ms."""
         try:
             self.check_spheres(len(model.spheres), (*loc, "spheres"))
             self.check_triangles(sum(len(m.triangles) for m in model.meshes), (*loc, "meshes"))
-            return scene_from_model(model, ".".join(loc))
+            return scene_from_model(model, ".".join(loc), images)
         except SceneError as e:
             raise input_error(e) from None
         finally:

@@ -12,11 +12,15 @@ waits at most ``POCKETRAY_MODEL_TIMEOUT_S`` for the answer, then kills the worke
 another. The file's declared counts are checked first in the worker
 (:mod:`renderer.model_guard`), so most malformed files are refused in milliseconds.
 
+Environment images (``PUT /api/sessions/{id}/environment``: ``.hdr``, ``.exr``) are read by
+:func:`renderer.envmap.read_image` in the same workers, under the same limits: a run-length
+encoded ``.hdr`` is decoded run by run, so a file of a million one-byte runs is seconds of CPU.
+
 The protocol is a pipe each way: 8-byte length, then a pickle — the job ``(bytes, format,
-max_triangles, max_vertices)`` one way, ``("ok", vertices, triangles, normals)`` or
-``("error", field, message)`` the other (pickles only between this module and the processes
-it started). A worker is ``python -m server.sessions.model_worker``: it imports the renderer's core and
-nothing of the service.
+max_triangles, max_vertices)`` or ``("image", bytes, format)`` one way, ``("ok", vertices,
+triangles, normals)``, ``("ok", texels)`` or ``("error", field, message)`` the other
+(pickles only between this module and the processes it started). A worker is ``python -m
+server.sessions.model_worker``: it imports the renderer's core and nothing of the service.
 
 Every upload pays the copy of its bytes to the worker and of the arrays back (a few ms per MB;
 docs/API.md, "Hardening", gives the measured overhead).
@@ -155,9 +159,26 @@ class ModelWorkers:
         ``file``: what is wrong, a limit it exceeds, or the deadline it missed); ``busy`` (503)
         when every worker stays busy for ``timeout_s``."""
         from renderer.mesh_io import MeshData, file_type_of
-        from renderer.scene import SceneError
 
         ft = file_type_of(data, fmt)
+        answer = self._run((bytes(data), ft, max_triangles, max_vertices), f"the {ft.upper()} model", busy)
+        return MeshData(*answer[1:])
+
+    def load_image(self, data: bytes, fmt: str, busy: Callable[..., Exception] = ParsersBusy):
+        """:func:`renderer.envmap.read_image` of the file in a worker: texels, or SceneError as
+        :meth:`load` (``body``, ``format``; the deadline, the memory limit)."""
+        from renderer.envmap import ENV_FORMATS
+        from renderer.scene import SceneError
+
+        if fmt not in ENV_FORMATS:  # (refused here: no worker needed)
+            raise SceneError("format", f"unknown image format {fmt!r}; accepted: {', '.join(ENV_FORMATS)}")
+        return self._run(("image", bytes(data), fmt), f"the {fmt.upper()} image", busy, field="body")[1]
+
+    def _run(self, job: tuple, what: str, busy: Callable[..., Exception], field: str = "file") -> tuple:
+        """``job`` in an idle worker: its ``("ok", …)`` answer, else SceneError (the worker's own,
+        or ``field`` naming the deadline or memory limit ``what`` passed)."""
+        from renderer.scene import SceneError
+
         try:
             w = self._idle.get(timeout=self.timeout_s)
         except queue.Empty:
@@ -174,13 +195,12 @@ class ModelWorkers:
                     "retry",
                     retry_after_s=5,
                 )
-            answer = w.run((bytes(data), ft, max_triangles, max_vertices), self.timeout_s)
+            answer = w.run(job, self.timeout_s)
             healthy = True
         except TimeoutError:
             raise SceneError(
-                "file",
-                f"parsing the {ft.upper()} model took longer than {self.timeout_s:g} s "
-                "(POCKETRAY_MODEL_TIMEOUT_S): refused",
+                field,
+                f"parsing {what} took longer than {self.timeout_s:g} s (POCKETRAY_MODEL_TIMEOUT_S): refused",
             ) from None
         except EOFError:
             code = w.proc.poll()
@@ -191,7 +211,7 @@ class ModelWorkers:
                 if code == -signal.SIGKILL
                 else f"a parser that stopped (exit status {code})"
             )
-            raise SceneError("file", f"the {ft.upper()} model needs {why}: refused") from None
+            raise SceneError(field, f"{what} needs {why}: refused") from None
         finally:
             if healthy:
                 self._idle.put(w)
@@ -203,7 +223,7 @@ class ModelWorkers:
                     self._idle.put(self._start())
         if answer[0] == "error":
             raise SceneError(answer[1], answer[2])
-        return MeshData(*answer[1:])
+        return answer
 
     def close(self) -> None:
         self._closed = True
@@ -251,6 +271,17 @@ def load_model(
     return pool.load(data, fmt, max_triangles, max_vertices, busy)
 
 
+def load_env_image(config, data: bytes, fmt: str, *, busy: Callable[..., Exception] = ParsersBusy):
+    """:func:`renderer.envmap.read_image` of an uploaded environment image, in a worker process as
+    model files are (in this process when ``model_workers`` is 0)."""
+    from renderer.envmap import read_image
+
+    pool = workers_for(config)
+    if pool is None:
+        return read_image(data, fmt)
+    return pool.load_image(data, fmt, busy)
+
+
 @atexit.register
 def _close_all() -> None:
     with _pools_lock:
@@ -272,6 +303,7 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
 
     import trimesh  # noqa: F401 - imported once, before the first file
 
+    from renderer.envmap import read_image
     from renderer.mesh_io import load_mesh
     from renderer.scene import SceneError
 
@@ -287,28 +319,38 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
         head = src.read(_HEADER.size)
         if len(head) < _HEADER.size:
             return  # the service closed the pipe: it is gone or closing
-        data, ft, max_triangles, max_vertices = pickle.loads(src.read(_HEADER.unpack(head)[0]))
+        job = pickle.loads(src.read(_HEADER.unpack(head)[0]))
+        image = job[0] == "image"
+        if image:
+            _, data, ft = job
+        else:
+            data, ft, max_triangles, max_vertices = job
+        del job
+        what = f"the {ft.upper()} {'image' if image else 'model'}"
         large = len(data) > 1 << 20
         used = sum(resource.getrusage(resource.RUSAGE_SELF)[:2])
         resource.setrlimit(resource.RLIMIT_CPU, (int(used + cpu_s) + 1, resource.RLIM_INFINITY))
         m = None
         try:
-            m = load_mesh(data, ft, max_triangles=max_triangles, max_vertices=max_vertices)
-            answer: tuple = ("ok", m.vertices, m.triangles, m.normals)
+            if image:
+                answer: tuple = ("ok", read_image(data, ft))
+            else:
+                m = load_mesh(data, ft, max_triangles=max_triangles, max_vertices=max_vertices)
+                answer = ("ok", m.vertices, m.triangles, m.normals)
         except SceneError as e:
             message = e.message
             if "MemoryError" in message:
                 message = (
-                    f"the {ft.upper()} model needs more than the parser's {memory_bytes >> 20} MiB of memory "
+                    f"{what} needs more than the parser's {memory_bytes >> 20} MiB of memory "
                     "(POCKETRAY_MODEL_MEMORY_BYTES)"
                 )
             answer = ("error", e.field, message)
         except MemoryError:
             answer = (
                 "error",
-                "file",
-                f"the {ft.upper()} model needs more than the parser's {memory_bytes >> 20} "
-                "MiB of memory (POCKETRAY_MODEL_MEMORY_BYTES)",
+                "body" if image else "file",
+                f"{what} needs more than the parser's {memory_bytes >> 20} MiB of memory "
+                "(POCKETRAY_MODEL_MEMORY_BYTES)",
             )
         del data, m
         payload = pickle.dumps(answer, protocol=pickle.HIGHEST_PROTOCOL)

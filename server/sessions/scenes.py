@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from renderer.animation import AnimatedScene, motion_from_json, motion_to_json, museum
+from renderer.envmap import SKY_REF
 from renderer.scenarios import scenario
 from renderer.scene import Camera, Mesh, Scene, SceneError, make_mesh
 
@@ -41,12 +42,15 @@ _ARRAYS = b"A"
 SessionScene = Scene | AnimatedScene
 
 
-def scene_from_model(model: SceneModel, where: str = "scene") -> SessionScene:
+def scene_from_model(
+    model: SceneModel, where: str = "scene", images: dict[str, np.ndarray] | None = None
+) -> SessionScene:
     """A validated Scene — an AnimatedScene when it has motions — from a request body
-    (SceneError names the JSON field)."""
+    (SceneError names the JSON field); ``images``: the environment images its JSON may name."""
     small = model.model_dump(exclude={"spheres", "motions", "meshes"})
+    small["environment"] = {k: v for k, v in small["environment"].items() if v is not None}
     try:
-        base = Scene.from_json(small)
+        base = Scene.from_json(small, images)
         n = len(model.spheres)
         centers = np.array([s.center for s in model.spheres], dtype=np.float64).reshape(n, 3)
         radii = np.array([s.radius for s in model.spheres], dtype=np.float64).reshape(n)
@@ -58,7 +62,16 @@ def scene_from_model(model: SceneModel, where: str = "scene") -> SessionScene:
             except SceneError as e:
                 raise SceneError(f"meshes[{i}].{e.field}", e.message) from None
         scene = Scene(
-            base.camera, base.lights, base.materials, centers, radii, mats, base.planes, tuple(meshes), base.environment
+            base.camera,
+            base.lights,
+            base.materials,
+            centers,
+            radii,
+            mats,
+            base.planes,
+            tuple(meshes),
+            base.environment,
+            base.environment_map,
         )
         return with_motions(scene, [m.model_dump(exclude_none=True) for m in model.motions])
     except SceneError as e:
@@ -81,8 +94,11 @@ def camera_from_model(model: CameraModel, where: str = "camera") -> Camera:
     return Camera.from_json(model.model_dump(), where)
 
 
-def scenario_source(number: int, n: int, seed: int, radius: float) -> bytes:
-    return _RECIPE + json.dumps({"scenario": number, "n": n, "seed": seed, "radius": radius}).encode()
+def scenario_source(number: int, n: int, seed: int, radius: float, sky: bool = False) -> bytes:
+    recipe: dict[str, Any] = {"scenario": number, "n": n, "seed": seed, "radius": radius}
+    if sky:  # (absent otherwise: a source stored before skies reads the same)
+        recipe["sky"] = True
+    return _RECIPE + json.dumps(recipe).encode()
 
 
 def scene_source(scene: SessionScene) -> bytes:
@@ -92,7 +108,7 @@ def scene_source(scene: SessionScene) -> bytes:
     motions = [motion_to_json(m) for m in scene.motions] if isinstance(scene, AnimatedScene) else []
     if isinstance(scene, AnimatedScene):
         scene = scene.scene
-    small = {
+    small: dict[str, Any] = {
         "lights": [x.to_json() for x in scene.lights],
         "materials": [m.to_json() for m in scene.materials],
         "planes": [p.to_json() for p in scene.planes],
@@ -103,6 +119,13 @@ def scene_source(scene: SessionScene) -> bytes:
         "radii": scene.sphere_radii,
         "materials": scene.sphere_materials,
     }
+    env = environment_json(scene)
+    if env is not None:
+        small["environment"] = env
+    if scene.environment_map is not None and scene.environment_map.ref != SKY_REF:
+        # an uploaded image is stored beside the scene (and counts against the store's quota); the
+        # sky is made again from its name
+        arrays["env_texels"] = scene.environment_map.texels
     if scene.meshes:
         small["meshes"] = [
             {"material": m.material, "vertices": len(m.vertices), "triangles": m.n_triangles, "smooth": m.smooth}
@@ -115,6 +138,13 @@ def scene_source(scene: SessionScene) -> bytes:
     buf = io.BytesIO()
     np.savez_compressed(buf, meta=np.frombuffer(json.dumps(small).encode(), dtype=np.uint8), **arrays)
     return _ARRAYS + buf.getvalue()
+
+
+def environment_json(scene: Scene) -> dict[str, Any] | None:
+    """The scene's ``environment`` object of scene JSON (None: black, absent)."""
+    if scene.environment_map is not None:
+        return scene.environment_map.to_json()
+    return {"color": list(scene.environment)} if any(scene.environment) else None
 
 
 def _stored_meshes(cut: list[dict], z) -> tuple[Mesh, ...]:
@@ -138,13 +168,15 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
         r = json.loads(body)
         if "museum" in r:
             return museum(**r["museum"]).with_camera(camera)
-        return scenario(r["scenario"], r["n"], r["seed"], r["radius"]).with_camera(camera)
+        return scenario(r["scenario"], r["n"], r["seed"], r["radius"], r.get("sky", False)).with_camera(camera)
     if kind == _ARRAYS:
         with np.load(io.BytesIO(body), allow_pickle=False) as z:
             small = json.loads(z["meta"].tobytes())
             motions = small.pop("motions", [])
             meshes = _stored_meshes(small.pop("meshes", []), z)
-            base = Scene.from_json({**small, "camera": camera.to_json()})
+            env = small.get("environment", {})
+            images = {env["image"]: z["env_texels"]} if "env_texels" in z.files and "image" in env else None
+            base = Scene.from_json({**small, "camera": camera.to_json()}, images)
             scene = Scene(
                 camera,
                 base.lights,
@@ -155,6 +187,7 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
                 base.planes,
                 meshes,
                 base.environment,
+                base.environment_map,
             )
             return with_motions(scene, motions)
     raise ValueError("unknown scene source")
@@ -216,6 +249,9 @@ def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> It
                 yield from (x.encode() for x in _rows_json(m.normals, rows))
             yield b"}"
         yield b"]"
+    env = environment_json(scene)
+    if env is not None:
+        yield (',"environment":' + dumps(env)).encode()
     yield (tail + "}").encode()
 
 

@@ -25,6 +25,7 @@ from dataclasses import replace
 from typing import Any
 
 from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum
+from renderer.envmap import EnvironmentMap, image_ref
 from renderer.limits import MAX_TRIANGLES
 from renderer.mesh_io import fit_transform
 from renderer.scenarios import mesh_scene, scenario
@@ -45,7 +46,7 @@ from ..faults import Busy, InputError, NotFound, Superseded, Where, input_error
 from ..frames.pipeline import FrameOwner, FramePipeline, FrameRequest, FrameSettings, render_settings
 from . import controller
 from .caps import InputCaps
-from .model_worker import load_model
+from .model_worker import load_env_image, load_model
 from .scenes import (
     SceneCache,
     SessionScene,
@@ -89,7 +90,7 @@ class SessionService:
             return self._create(body)
 
     def _create(self, body: SessionCreate) -> SessionState:
-        recipe_given = [k for k in ("scenario", "n", "seed", "radius") if getattr(body, k) is not None]
+        recipe_given = [k for k in ("scenario", "n", "seed", "radius", "sky") if getattr(body, k) is not None]
         sources = [
             k
             for k, given in (
@@ -111,7 +112,7 @@ class SessionService:
         recipe: dict[str, Any] | None
         if body.mesh_scene is not None:
             r = body.mesh_scene
-            scene = mesh_scene(r.kind, r.detail, r.smooth)
+            scene = mesh_scene(r.kind, r.detail, r.smooth, r.sky)
             if scene.n_triangles > self.config.max_triangles:
                 raise InputError(
                     ("mesh_scene", "detail"),
@@ -138,11 +139,13 @@ class SessionService:
                 "seed": body.seed or 0,
                 "radius": float(body.radius if body.radius is not None else 1.0),
             }
+            if body.sky:  # (absent otherwise: the scene info stays as it was)
+                recipe["sky"] = True
             try:
-                scene = scenario(recipe["scenario"], recipe["n"], recipe["seed"], recipe["radius"])
+                scene = scenario(recipe["scenario"], recipe["n"], recipe["seed"], recipe["radius"], bool(body.sky))
             except SceneError as e:
                 raise input_error(e) from None
-            source = scenario_source(recipe["scenario"], recipe["n"], recipe["seed"], recipe["radius"])
+            source = scenario_source(recipe["scenario"], recipe["n"], recipe["seed"], recipe["radius"], bool(body.sky))
         else:
             scene = self.caps.checked_scene(body.scene, ("scene",))
             recipe = None
@@ -211,7 +214,11 @@ class SessionService:
         return base if base.camera == camera else base.with_camera(camera)
 
     def replace_scene(self, session_id: str, model: SceneModel) -> SessionState:
-        scene = self.caps.checked_scene(model, ())
+        # An environment image the session holds may be named by its reference (GET …/scene gives it).
+        old = self.scene(self.get(session_id))
+        held = (old.scene if isinstance(old, AnimatedScene) else old).environment_map
+        images = {held.ref: held.texels} if held is not None else None
+        scene = self.caps.checked_scene(model, (), images)
         source = scene_source(scene)
         rev = secrets.token_hex(8)
         camera = scene.camera.to_json()
@@ -281,6 +288,53 @@ class SessionService:
         self.cache.put((new.id, rev), scene)
         index = len(grown.meshes) - 1
         return new, index, grown.triangle_id_base + grown.mesh_triangle_range(index).start
+
+    def set_environment(
+        self, session_id: str, data: bytes, fmt: str, scale: float, rotation_deg: float
+    ) -> tuple[SessionState, EnvironmentMap]:
+        """An equirectangular HDR image (the file's bytes, ``hdr`` or ``exr``) as the session's
+        environment, stored beside its scene (the store's quota counts it); the camera stays. 422
+        naming ``body`` (the file) or ``query.format``; nothing is written when the file is refused."""
+        state = self.get(session_id)
+        try:
+            texels = load_env_image(self.config, data, fmt, busy=Busy)
+            env = EnvironmentMap(image_ref(texels), texels, scale, rotation_deg)
+        except SceneError as e:
+            raise InputError((Where.QUERY, "format") if e.field == "format" else (Where.BODY,), e.message) from None
+        return self._with_environment(state, env), env
+
+    def clear_environment(self, session_id: str) -> SessionState:
+        """The session's environment back to a colour: black."""
+        return self._with_environment(self.get(session_id), None)
+
+    def _with_environment(self, state: SessionState, env: EnvironmentMap | None) -> SessionState:
+        old = self.scene(state)
+        rest = old.scene if isinstance(old, AnimatedScene) else old
+        lit = Scene(
+            rest.camera,
+            rest.lights,
+            rest.materials,
+            rest.sphere_centers,
+            rest.sphere_radii,
+            rest.sphere_materials,
+            rest.planes,
+            rest.meshes,
+            (0.0, 0.0, 0.0),
+            env,
+        )
+        scene: SessionScene = AnimatedScene(lit, old.motions) if isinstance(old, AnimatedScene) else lit
+        source = scene_source(scene)
+        rev = secrets.token_hex(8)
+
+        def mutate(current: SessionState) -> SessionState:
+            if current.scene_rev != state.scene_rev:
+                raise Superseded("session: its scene changed while the image was read; send it again")
+            # no recipe any more: a scenario under another environment is a scene of its own
+            return replace(current, scene_rev=rev, scene_info=scene_info(scene, None))
+
+        new = self._update(state.id, mutate, source)
+        self.cache.put((new.id, rev), scene)
+        return new
 
     def set_camera(self, session_id: str, model) -> SessionState:
         try:

@@ -7,9 +7,9 @@
                      --spp S --depth D …]
     pocketray render MODEL.obj|.ply|.stl|.glb|.gltf -o OUT.png [--size S --smooth|--flat] [the same flags]
     pocketray scene --mesh MODEL [--mesh MODEL …] [--size S] [--as-is] [-o scene.json]
-    pocketray scenario 1|2|3 --n N [--seed S] [--radius R] -o scene.json
+    pocketray scenario 1|2|3 --n N [--seed S] [--radius R] [--sky] -o scene.json
     pocketray scenario museum --n N [--kind mixed] [--absent A] [--seed S] -o scene.json
-    pocketray scenario teapot|mixed|room|cornell -o scene.json
+    pocketray scenario teapot|mixed|room|cornell [--sky] -o scene.json
     pocketray gpus [--probe]
     pocketray stack [--processes N] [--port P]     (Redis + render processes + HAProxy, server/tools/stack.py)
 
@@ -354,11 +354,22 @@ def _add_scenario(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--absent", type=float, default=0.2, help="museum: share of incoherent spheres absent at a time (default 0.2)"
     )
+    p.add_argument(
+        "--sky",
+        action="store_true",
+        help="under the procedural daylight sky (environment 'sky'): light for integrator=path; not the museum",
+    )
     p.add_argument("-o", "--output", default="-", help="output file (default: standard output)")
 
 
 def scenario_scene(
-    which: str, n: int | None, seed: int = 0, radius: float = 1.0, kind: str = "mixed", absent: float = 0.2
+    which: str,
+    n: int | None,
+    seed: int = 0,
+    radius: float = 1.0,
+    kind: str = "mixed",
+    absent: float = 0.2,
+    sky: bool = False,
 ) -> Any:
     """The scene (or animated scene) the ``scenario`` command writes; validated as the API does."""
     from renderer.animation import MUSEUM_ROOM_SPHERES, museum
@@ -367,7 +378,9 @@ def scenario_scene(
     from renderer.scene import SceneError
 
     if which in MESH_SCENES:
-        return mesh_scene(which)
+        return mesh_scene(which, sky=sky)
+    if sky and which == "museum":
+        raise UsageError("sky: for scenarios 1–3 and the mesh scenes, not the museum")
     if n is None:
         raise UsageError("n: required for scenarios 1–3 and the museum")
     if n < 0 or n + (MUSEUM_ROOM_SPHERES if which == "museum" else 0) > MAX_SPHERES:
@@ -375,7 +388,7 @@ def scenario_scene(
     try:
         if which == "museum":
             return museum(n, kind, seed, absent)
-        return scenario(int(which), n, seed, radius)
+        return scenario(int(which), n, seed, radius, sky)
     except SceneError as e:
         raise UsageError(f"{e.field}: {e.message}") from None
 
@@ -383,7 +396,7 @@ def scenario_scene(
 def write_scenario(args: argparse.Namespace) -> int:
     from ..sessions.scenes import scene_json_chunks
 
-    scene = scenario_scene(args.which, args.n, args.seed, args.radius, args.kind, args.absent)
+    scene = scenario_scene(args.which, args.n, args.seed, args.radius, args.kind, args.absent, args.sky)
     if args.output == "-":
         for chunk in scene_json_chunks(scene):
             sys.stdout.buffer.write(chunk)

@@ -458,10 +458,23 @@ def test_what_a_method_packs_is_what_its_shader_declares(method):
         names = set(packed.textures) | set(packed.uniforms)
         assert names == {b.name for b in METHODS[method].bindings}
     prims = gpu_layout.pack_primitives(scenario(3, 64))
-    lit = {gpu_layout.EMISSION.name, gpu_layout.ENVIRONMENT.name}  # only a scene with emission, environment
+    # only a scene with emission, an environment colour, an environment image
+    image = {b.name for b in gpu_layout.ENV_BINDINGS}
+    lit = {gpu_layout.EMISSION.name, gpu_layout.ENVIRONMENT.name} | image
     assert set(prims.textures) | set(prims.uniforms) == {b.name for b in gpu_layout.SCENE_BINDINGS} - lit
     scene = scenario(3, 64).to_json()
     scene["materials"][0]["emission"] = [1.0, 2.0, 3.0]
     scene["environment"] = {"color": [0.5, 0.5, 0.5]}
     prims = gpu_layout.pack_primitives(Scene.from_json(scene))
-    assert set(prims.textures) | set(prims.uniforms) == {b.name for b in gpu_layout.SCENE_BINDINGS}
+    assert set(prims.textures) | set(prims.uniforms) == {b.name for b in gpu_layout.SCENE_BINDINGS} - image
+    scene["environment"] = {"image": "sky"}
+    prims = gpu_layout.pack_primitives(Scene.from_json(scene))
+    want = {b.name for b in gpu_layout.SCENE_BINDINGS} - {gpu_layout.ENVIRONMENT.name}
+    assert set(prims.textures) | set(prims.uniforms) == want
+    # the image's texels and its CDFs (W·(H − 1) conditional, then H − 1 marginal), wrapped into rows
+    env = Scene.from_json(scene).environment_map
+    assert prims.textures[gpu_layout.ENV_MAP.name].data.reshape(-1, 3)[: 256 * 128].tolist() == (
+        env.texels.reshape(-1, 3).tolist()
+    )
+    cdf = prims.textures[gpu_layout.ENV_CDF.name].data.reshape(-1)
+    assert cdf[256 * 127 - 1] == 1.0 and cdf[256 * 127 + 126] == 1.0

@@ -15,7 +15,7 @@
 import { applies, check, modesOf, range, samplesAllowed } from './limits.js';
 import {
   DEFAULT_MUSEUM_N, DEFAULT_SCENE, FALLBACK_METHODS, FIELD_LABELS, METHOD_LABELS, MODE_LABELS, MODES, MODEL_FORMATS,
-  MUSEUM_KINDS, PREVIEW_SCALES, RESOLUTIONS, SAMPLES, SCENARIOS, UPDATE_SCHEMES, learnSettings, meshKind,
+  MUSEUM_KINDS, PREVIEW_SCALES, RESOLUTIONS, SAMPLES, SCENARIOS, UPDATE_SCHEMES, learnSettings, meshKind, skyScenario,
   parseResolution, renderSettings, settingValue,
 } from '../settings.js';
 import { modelFileProblem } from './messages.js';
@@ -222,8 +222,8 @@ export class SettingsPanel {
   // The scene as the form has it now.
   _formScene() {
     const f = this.form.elements;
-    const scenario = isMuseum(f.scenario.value) ? 'museum' : meshKind(f.scenario.value) ? f.scenario.value
-      : parseInt(f.scenario.value, 10);
+    const scenario = isMuseum(f.scenario.value) ? 'museum'
+      : meshKind(f.scenario.value) || skyScenario(f.scenario.value) ? f.scenario.value : parseInt(f.scenario.value, 10);
     return {
       scenario, n: Number(f.n.value),
       seed: Number(f.seed.value), radius: Number(f.radius.value), motion: f.motion.value,

@@ -22,6 +22,8 @@ from ..errors import documented, located
 from ..schemas import (
     CameraModel,
     CameraOut,
+    EnvironmentOut,
+    EnvironmentUploadQuery,
     FullSettings,
     MeshAdded,
     MeshModel,
@@ -157,6 +159,40 @@ async def add_mesh(
     data = await request.body()
     state, index, first_id = await run_in_threadpool(service.add_mesh, session_id, data, query)
     return MeshAdded(version=state.version, scene_info=SceneInfo(**state.scene_info), mesh=index, first_id=first_id)
+
+
+@router.put(
+    "/sessions/{session_id}/environment",
+    response_model=EnvironmentOut,
+    responses=documented(404, 409, 413, 503, 507),
+    openapi_extra={
+        "requestBody": {
+            "required": True,
+            "description": "an equirectangular HDR image's bytes (.hdr Radiance RGBE, .exr OpenEXR; "
+            "docs/FORMATS.md, 'Environment'); at most POCKETRAY_MAX_BODY_BYTES (else 413)",
+            "content": {"application/octet-stream": {"schema": {"type": "string", "format": "binary"}}},
+        }
+    },
+    summary="Light the session's scene by an HDR image (the body): its environment, importance sampled",
+)
+async def set_environment(
+    session_id: SessionId, request: Request, query: Annotated[EnvironmentUploadQuery, Query()], service: ServiceDep
+) -> EnvironmentOut:
+    data = await request.body()
+    state, env = await run_in_threadpool(
+        service.set_environment, session_id, data, query.format, query.scale, query.rotation_deg
+    )
+    return EnvironmentOut(version=state.version, image=env.ref, width=env.width, height=env.height)
+
+
+@router.delete(
+    "/sessions/{session_id}/environment",
+    response_model=VersionOut,
+    responses=documented(404, 409, 503, 507),
+    summary="The session's environment back to a colour (black)",
+)
+def clear_environment(session_id: SessionId, service: ServiceDep) -> VersionOut:
+    return VersionOut(version=service.clear_environment(session_id).version)
 
 
 @router.post(

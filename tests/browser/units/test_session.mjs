@@ -13,6 +13,11 @@ test('a thesis scenario, the museum and a mesh scene as state.scene', () => {
   same(sceneOf({ n_spheres: 832, museum: { n: 256, kind: 'rigid', seed: 0 }, animated: true }, before),
     { scenario: 'museum', n: 256, seed: 0, radius: 1, motion: 'rigid', n_spheres: 832, animated: true, n_triangles: 0, n_meshes: 0 });
   same(sceneOf({ n_spheres: 3, mesh_scene: { kind: 'teapot' }, n_triangles: 6320, n_meshes: 1 }, before).scenario, 'mesh:teapot');
+  same(sceneOf({ scenario: 2, n: 64, n_spheres: 64, sky: true }, before).scenario, 'sky:2');
+});
+
+test('a scenario under the sky asks for its recipe with sky: true', () => {
+  same(sceneBody({ ...before, scenario: 'sky:2' }), { scenario: 2, n: 512, seed: 1, radius: 1, sky: true });
 });
 
 test('the POST /api/sessions body of each kind of scene', () => {

@@ -88,3 +88,26 @@ def test_the_service_settings_pick_the_workers(tmp_path):
         load_model(config, SMALL, "obj", max_triangles=10)
     inline = ServerConfig(sqlite_path=tmp_path / "s.sqlite3", model_workers=0)
     assert workers_for(inline) is None and load_model(inline, SMALL, "obj", max_triangles=100).n_triangles == 80
+
+
+def test_an_environment_image_is_read_in_a_worker_under_its_deadline():
+    """An .hdr of one-byte runs (legal, slow to decode: ~1 s per million runs) past the deadline is
+    refused naming ``body`` and POCKETRAY_MODEL_TIMEOUT_S; a small image is read there as in process."""
+    from renderer.envmap import read_image, write_hdr
+
+    w, h = 1024, 512  # 2 million runs
+    runs = (bytes([2, 2, w >> 8, w & 255]) + bytes([1, 77]) * (4 * w)) * h
+    slow = b"#?RADIANCE\n\n" + f"-Y {h} +X {w}\n".encode() + runs
+    small = write_hdr(np.linspace(0, 3, 4 * 8 * 3).reshape(4, 8, 3))
+    pool = ModelWorkers(1, 0.3, 2 << 30)
+    try:
+        np.testing.assert_array_equal(pool.load_image(small, "hdr"), read_image(small, "hdr"))
+        with pytest.raises(SceneError) as e:
+            pool.load_image(slow, "hdr")
+        assert e.value.field == "body" and "longer than 0.3 s (POCKETRAY_MODEL_TIMEOUT_S)" in e.value.message
+        with pytest.raises(SceneError) as e:
+            pool.load_image(small, "png")
+        assert e.value.field == "format"
+        np.testing.assert_array_equal(pool.load_image(small, "hdr"), read_image(small, "hdr"))
+    finally:
+        pool.close()

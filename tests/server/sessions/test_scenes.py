@@ -3,6 +3,7 @@ streamed as exactly the scene JSON — without a server (no GL)."""
 
 from __future__ import annotations
 
+import io
 import json
 
 import numpy as np
@@ -64,3 +65,28 @@ def test_sources_keep_the_motions():
     np.testing.assert_array_equal(again.scene.sphere_centers, anim.scene.sphere_centers)
     t = 0.8
     np.testing.assert_array_equal(pose(again, t).scene.sphere_centers, pose(anim, t).scene.sphere_centers)
+
+
+def test_the_environment_is_stored_and_streamed():
+    """An uploaded image's texels are stored beside the scene (the sky by its name alone), an
+    environment colour too; the streamed JSON names them as scene JSON does."""
+    from renderer.envmap import SKY_REF, EnvironmentMap, image_ref
+    from renderer.scenarios import scenario, with_sky
+    from renderer.scene import Scene
+
+    texels = np.random.default_rng(0).random((4, 8, 3)).astype(np.float32)
+    base = scenario(1, 8)
+    lit = Scene(*(getattr(base, f) for f in ("camera", "lights", "materials", "sphere_centers")),
+                base.sphere_radii, base.sphere_materials, base.planes, base.meshes, (0.0, 0.0, 0.0),
+                EnvironmentMap(image_ref(texels), texels, 2.0, 10.0))  # fmt: skip
+    sky, coloured = with_sky(base), Scene.from_json({**base.to_json(), "environment": {"color": [0.1, 0.2, 0.3]}})
+    for scene in (lit, sky, coloured):
+        source = scene_source(scene)
+        back = load_source(source, scene.camera)
+        assert back.to_json()["environment"] == scene.to_json()["environment"]
+        assert json.loads(b"".join(scene_json_chunks(back))) == json.loads(json.dumps(scene.to_json()))
+    np.testing.assert_array_equal(load_source(scene_source(lit), lit.camera).environment_map.texels, texels)
+    for scene, stored in ((lit, True), (sky, False)):  # the source: a kind byte, then the npz
+        with np.load(io.BytesIO(scene_source(scene)[1:])) as z:
+            assert ("env_texels" in z.files) == stored
+    assert sky.environment_map.ref == SKY_REF

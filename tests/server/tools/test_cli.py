@@ -33,10 +33,12 @@ pytestmark = pytest.mark.gl  # render runs GLRenderer, serve a GL worker
 
 
 def test_scenario_writes_the_scene_json_the_api_serves(tmp_path, client):
-    written, museum = pocketray_batch(
+    written, museum, sky, no_sky = pocketray_batch(
         [
             ("scenario", "3", "--n", "100", "--seed", "7", "-o", "s.json"),
             ("scenario", "museum", "--n", "32", "--kind", "rigid"),
+            ("scenario", "2", "--n", "16", "--sky", "-o", "sky.json"),
+            ("scenario", "museum", "--n", "32", "--sky"),
         ],
         cwd=tmp_path,
     )
@@ -44,6 +46,11 @@ def test_scenario_writes_the_scene_json_the_api_serves(tmp_path, client):
     written = json.loads((tmp_path / "s.json").read_text())
     sid = client.post("/api/sessions", json={"scenario": 3, "n": 100, "seed": 7}).json()["id"]
     assert written == client.get(f"/api/sessions/{sid}/scene").json()
+    # the sky: the same scene JSON as the API's recipe; not for the museum
+    assert sky.returncode == 0, sky.stderr
+    sid = client.post("/api/sessions", json={"scenario": 2, "n": 16, "sky": True}).json()["id"]
+    assert json.loads((tmp_path / "sky.json").read_text()) == client.get(f"/api/sessions/{sid}/scene").json()
+    assert no_sky.returncode != 0 and "not the museum" in no_sky.stderr
     doc = json.loads(museum.stdout)
     assert doc["motions"] and doc["motions"][0]["kind"] == "rigid" and len(doc["spheres"]) > 32
 

@@ -59,6 +59,7 @@ def test_create_from_scenario_and_read(client):
         "n": 100,
         "seed": 7,
         "radius": 0.5,
+        "sky": False,
         "animated": False,
         "n_moving": 0,
         "museum": None,
@@ -462,7 +463,7 @@ def test_a_mesh_scene_recipe_makes_a_session_of_its_triangles(api):
     assert r.status_code == 201, r.text
     info = r.json()["scene_info"]
     want = mesh_scene("mixed", 1)
-    assert info["mesh_scene"] == {"kind": "mixed", "detail": 1, "smooth": True}
+    assert info["mesh_scene"] == {"kind": "mixed", "detail": 1, "smooth": True, "sky": False}
     assert info["n_triangles"] == want.n_triangles and info["n_meshes"] == 2 and info["n_spheres"] == 27
     sid = r.json()["id"]
     frame = api.get(f"/api/sessions/{sid}/frame", params={"mode": "primid", "format": "npy"})

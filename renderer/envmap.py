@@ -1,0 +1,378 @@
+"""Environment images: an equirectangular HDR image a ray that meets nothing sees (docs/FORMATS.md,
+"Environment").
+
+The convention is Mitsuba 3's ``envmap`` (so ``renderer/mitsuba_scene.py`` needs no transform
+beyond the rotation): +y is up; a world direction d (unit) has
+
+    u = atan2(d.x, −d.z) / 2π + rotation_deg / 360   (mod 1),    v = acos(d.y) / π
+
+so (unrotated) u = 0 looks along −z, u = ¼ along +x, and row 0 of the image is the zenith, the
+last row the nadir; ``rotation_deg`` turns the image about +y by the right-hand rule. Radiance
+between texels is bilinear the way Mitsuba interpolates: column i sits at u = (i + ½) / W
+(wrapping around), row j at v = j / (H − 1).
+
+Importance sampling: the W × (H − 1) bilinear *patches* (between columns i, i + 1 and rows j,
+j + 1) are picked with probability ∝ their corners' mean luminance × the solid angle of their
+row band (cos θ_j − cos θ_j+1), then a point uniform in (u, v) inside the patch: a marginal CDF
+over the patch rows and one conditional CDF per row (:meth:`EnvironmentMap.sampling_tables`). The
+pdf in solid angle is P(patch) · W · (H − 1) / (2π² sin θ). Every patch with a lit corner has
+P > 0, so the sampling reaches all the light there is.
+
+Readers (``.hdr`` Radiance RGBE, ``.exr`` OpenEXR) check the size the file declares against
+``renderer/limits.py`` before a texel is allocated, and every texel after: finite, ≥ 0, at most
+MAX_EMISSION. A refused file raises :class:`~renderer.scene.SceneError` whose field is ``body``
+(the file) or ``format``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import math
+import struct
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+
+from . import limits
+from .errors import SceneError
+
+ENV_FORMATS = ("hdr", "exr")
+LUMINANCE = (0.2126, 0.7152, 0.0722)  # Rec. 709 weights: what the sampling is proportional to
+SKY_REF = "sky"  # the procedural sky's reference (renderer/sky.py): nothing stored, made again
+
+
+def check_size(width: int, height: int) -> None:
+    """SceneError (``body``) unless an image of ``width × height`` texels is within the limits."""
+    lo, w_max, h_max = limits.MIN_ENV_SIDE, limits.MAX_ENV_WIDTH, limits.MAX_ENV_HEIGHT
+    if not (lo <= width <= w_max and lo <= height <= h_max):
+        raise SceneError(
+            "body",
+            f"the image declares {width} × {height} texels; accepted: {lo}–{w_max} wide, {lo}–{h_max} high",
+        )
+
+
+def check_texels(rgb: np.ndarray) -> np.ndarray:
+    """``rgb`` (H, W, 3) as read-only float32 once every texel is finite, ≥ 0 and ≤ MAX_EMISSION
+    (SceneError ``body`` naming the first that is not)."""
+    a = np.asarray(rgb)
+    if a.ndim != 3 or a.shape[2] != 3:
+        raise SceneError("body", f"expected H × W × 3 texels, got shape {a.shape}")
+    check_size(a.shape[1], a.shape[0])
+    a = np.ascontiguousarray(a, dtype=np.float32)
+    bad = ~(np.isfinite(a) & (a >= 0) & (a <= limits.MAX_EMISSION)).all(axis=2)
+    if bad.any():
+        j, i = (int(x) for x in np.argwhere(bad)[0])
+        raise SceneError(
+            "body",
+            f"texel (row {j}, column {i}) is {a[j, i].tolist()}: radiance must be finite, "
+            f"0–{limits.MAX_EMISSION:g} per channel",
+        )
+    a.setflags(write=False)
+    return a
+
+
+# ---- Radiance .hdr ---------------------------------------------------------------------------
+def read_hdr(data: bytes) -> np.ndarray:
+    """The texels of a Radiance RGBE file (``#?RADIANCE``, ``FORMAT=32-bit_rle_rgbe``, the standard
+    orientation ``-Y H +X W``; flat or run-length encoded scanlines): float32 (H, W, 3), row 0 at
+    the top, divided by the header's EXPOSURE."""
+    if not (data.startswith(b"#?RADIANCE") or data.startswith(b"#?RGBE")):
+        raise SceneError("body", "not a Radiance .hdr file: it must begin with #?RADIANCE")
+    end = data.find(b"\n\n", 0, limits.MAX_ENV_HEADER_BYTES)
+    if end < 0:
+        raise SceneError(
+            "body", f"no end of the .hdr header (an empty line) in its first {limits.MAX_ENV_HEADER_BYTES} bytes"
+        )
+    exposure = 1.0
+    for line in data[:end].decode("latin-1").split("\n")[1:]:
+        key, _, value = line.partition("=")
+        if key.strip() == "FORMAT" and value.strip() != "32-bit_rle_rgbe":
+            raise SceneError("body", f"FORMAT={value.strip()}: only 32-bit_rle_rgbe (RGB) is read")
+        if key.strip() == "EXPOSURE":
+            try:
+                exposure *= float(value)
+            except ValueError:
+                raise SceneError("body", f"EXPOSURE={value.strip()} is not a number") from None
+    if not (math.isfinite(exposure) and exposure > 0):
+        raise SceneError("body", "EXPOSURE must be a finite number > 0")
+    pos = end + 2
+    nl = data.find(b"\n", pos, pos + 64)
+    words = data[pos : nl if nl >= 0 else pos].decode("latin-1").split()
+    if len(words) != 4 or words[0] != "-Y" or words[2] != "+X" or not (words[1].isdigit() and words[3].isdigit()):
+        raise SceneError("body", "the resolution line must be '-Y <height> +X <width>' (the standard orientation)")
+    height, width = int(words[1]), int(words[3])
+    check_size(width, height)  # before anything of that size exists
+    pos = nl + 1
+    n = len(data)
+    out = np.empty((height, width, 4), dtype=np.uint8)
+    for y in range(height):
+        if 8 <= width < 32768 and data[pos : pos + 2] == b"\x02\x02" and pos + 4 <= n:
+            if (data[pos + 2] << 8 | data[pos + 3]) != width:
+                raise SceneError("body", f"scanline {y}: its run-length header says another width")
+            pos += 4
+            for c in range(4):
+                row = bytearray()
+                while len(row) < width:
+                    if pos >= n:
+                        raise SceneError("body", f"the file ends inside scanline {y}")
+                    count = data[pos]
+                    if count > 128:
+                        count -= 128
+                        if len(row) + count > width or pos + 1 >= n:
+                            raise SceneError("body", f"scanline {y}: a run passes the end of the line")
+                        row += data[pos + 1 : pos + 2] * count
+                        pos += 2
+                    else:
+                        if count == 0 or len(row) + count > width or pos + 1 + count > n:
+                            raise SceneError("body", f"scanline {y}: a run passes the end of the line")
+                        row += data[pos + 1 : pos + 1 + count]
+                        pos += 1 + count
+                out[y, :, c] = np.frombuffer(bytes(row), dtype=np.uint8)
+        else:
+            if data[pos : pos + 3] == b"\x01\x01\x01":
+                raise SceneError("body", "old-style run-length encoding is not read: save the file again")
+            if pos + 4 * width > n:
+                raise SceneError("body", f"the file ends inside scanline {y}")
+            out[y] = np.frombuffer(data, dtype=np.uint8, count=4 * width, offset=pos).reshape(width, 4)
+            pos += 4 * width
+    e = out[..., 3].astype(np.int32)
+    # m · 2^(e − 128 − 8), as Ward's reader; in float32 (2^−136 is a subnormal there, exact), so a
+    # 4096 × 2048 image takes 100 MiB, not twice that
+    f = np.where(e > 0, np.ldexp(np.float32(1.0), e - 136), np.float32(0.0)).astype(np.float32)
+    del e
+    rgb = out[..., :3].astype(np.float32)
+    del out
+    rgb *= f[..., None]
+    if exposure != 1.0:
+        rgb /= np.float32(exposure)
+    return check_texels(rgb)
+
+
+def write_hdr(rgb: np.ndarray) -> bytes:
+    """A flat (not run-length encoded) Radiance file of ``rgb`` (H, W, 3) ≥ 0 (tests, tools)."""
+    a = np.asarray(rgb, dtype=np.float64)
+    h, w = a.shape[:2]
+    top = a.max(axis=2)
+    mant, exp = np.frexp(top)
+    scale = np.where(top > 1e-32, mant * 256.0 / np.where(top > 0, top, 1.0), 0.0)
+    px = np.zeros((h, w, 4), dtype=np.uint8)
+    px[..., :3] = np.clip(a * scale[..., None], 0, 255).astype(np.uint8)
+    px[..., 3] = np.where(top > 1e-32, exp + 128, 0).astype(np.uint8)
+    return b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n" + f"-Y {h} +X {w}\n".encode() + px.tobytes()
+
+
+# ---- OpenEXR ---------------------------------------------------------------------------------
+def exr_header(data: bytes) -> dict[str, Any]:
+    """The attributes of a single-part scan-line or tiled EXR file that say its size and channels
+    (``dataWindow``: (xmin, ymin, xmax, ymax); ``channels``: name → pixel type), read from the
+    bytes without the library, so the size is checked before it allocates anything."""
+    if len(data) < 8 or data[:4] != b"\x76\x2f\x31\x01":
+        raise SceneError("body", "not an OpenEXR file (its magic number is missing)")
+    flags = struct.unpack_from("<I", data, 4)[0]
+    if flags & 0xFF != 2:
+        raise SceneError("body", f"EXR version {flags & 0xFF}: only version 2 is read")
+    if flags & 0x1800:
+        raise SceneError("body", "a multi-part or deep EXR file: only single-part flat images are read")
+    pos = 8
+    out: dict[str, Any] = {}
+    limit = min(len(data), 8 + limits.MAX_ENV_HEADER_BYTES)
+    while True:
+        if pos >= limit:
+            raise SceneError("body", "the EXR header does not end (or is too long)")
+        if data[pos] == 0:
+            break
+        try:
+            name_end = data.index(b"\0", pos, limit)
+            type_end = data.index(b"\0", name_end + 1, limit)
+        except ValueError:
+            raise SceneError("body", "the EXR header is cut short") from None
+        name = data[pos:name_end].decode("latin-1")
+        if type_end + 5 > limit:
+            raise SceneError("body", "the EXR header is cut short")
+        size = struct.unpack_from("<i", data, type_end + 1)[0]
+        start = type_end + 5
+        if size < 0 or start + size > limit:
+            raise SceneError("body", f"the EXR attribute {name!r} passes the end of the header")
+        value = data[start : start + size]
+        if name == "dataWindow" and size == 16:
+            out["dataWindow"] = struct.unpack("<4i", value)
+        elif name == "channels":
+            chans, k = {}, 0
+            while k < len(value) and value[k] != 0:
+                e = value.find(b"\0", k)
+                if e < 0 or e + 17 > len(value):
+                    raise SceneError("body", "the EXR channel list is cut short")
+                # name NUL, int32 pixel type, uint8 pLinear, 3 reserved, int32 x and y sampling
+                ptype = struct.unpack_from("<i", value, e + 1)[0]
+                xs, ys = struct.unpack_from("<ii", value, e + 9)
+                chans[value[k:e].decode("latin-1")] = (ptype, xs, ys)
+                k = e + 17
+            out["channels"] = chans
+        pos = start + size
+    if "dataWindow" not in out or "channels" not in out:
+        raise SceneError("body", "the EXR header has no dataWindow or no channels")
+    return out
+
+
+def read_exr(data: bytes) -> np.ndarray:
+    """The R, G, B channels (HALF or FLOAT, any compression OpenEXR reads) of a single-part EXR
+    file: float32 (H, W, 3), row 0 at the top (the data window's)."""
+    head = exr_header(data)
+    x0, y0, x1, y1 = head["dataWindow"]
+    check_size(x1 - x0 + 1, y1 - y0 + 1)
+    for c in "RGB":
+        kind = head["channels"].get(c)
+        if kind is None:
+            raise SceneError("body", f"the EXR file has no {c} channel (R, G and B are read)")
+        if kind[0] not in (1, 2) or kind[1:] != (1, 1):
+            raise SceneError("body", f"channel {c}: only HALF or FLOAT samples, one per pixel, are read")
+    import OpenEXR
+
+    try:
+        with OpenEXR.File(io.BytesIO(data), separate_channels=True) as f:
+            ch = f.channels()
+            rgb = np.stack([np.asarray(ch[c].pixels, dtype=np.float32) for c in "RGB"], axis=2)
+    except Exception as e:  # the library's own errors: the file is damaged past its header
+        raise SceneError("body", f"the EXR file does not decode ({type(e).__name__}: {e})") from None
+    return check_texels(rgb)
+
+
+def read_image(data: bytes, fmt: str) -> np.ndarray:
+    """An environment image's texels from a file's bytes in ``fmt`` (``hdr`` or ``exr``)."""
+    if fmt not in ENV_FORMATS:
+        raise SceneError("format", f"unknown image format {fmt!r}; accepted: {', '.join(ENV_FORMATS)}")
+    if not data:
+        raise SceneError("body", "empty body: send the image file's bytes")
+    return read_hdr(data) if fmt == "hdr" else read_exr(data)
+
+
+def image_ref(texels: np.ndarray) -> str:
+    """An uploaded image's reference in scene JSON: a digest of its texels."""
+    return "image-" + hashlib.sha256(np.ascontiguousarray(texels, dtype=np.float32).tobytes()).hexdigest()[:16]
+
+
+# ---- the map ---------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class EnvironmentMap:
+    """An equirectangular image as the environment: ``texels`` float32 (H, W, 3) (the module's
+    convention), times ``scale``, turned by ``rotation_deg`` about +y. ``ref``: how scene JSON
+    names the image (:data:`SKY_REF`, or an uploaded image's :func:`image_ref`)."""
+
+    ref: str
+    texels: np.ndarray = field(repr=False)
+    scale: float = 1.0
+    rotation_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.ref, str) or not self.ref or len(self.ref) > 64:
+            raise SceneError("environment.image", "expected a reference of 1–64 characters")
+        object.__setattr__(self, "texels", check_texels(self.texels))
+        for name, lo, hi in (
+            ("scale", 0.0, limits.MAX_ENV_SCALE),
+            ("rotation_deg", -limits.MAX_ENV_ROTATION_DEG, limits.MAX_ENV_ROTATION_DEG),
+        ):
+            x = getattr(self, name)
+            if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) or not lo <= x <= hi:
+                raise SceneError(f"environment.{name}", f"must be a number in [{lo:g}, {hi:g}], got {x!r}")
+            object.__setattr__(self, name, float(x))
+
+    @property
+    def width(self) -> int:
+        return int(self.texels.shape[1])
+
+    @property
+    def height(self) -> int:
+        return int(self.texels.shape[0])
+
+    def to_json(self) -> dict[str, Any]:
+        return {"image": self.ref, "scale": self.scale, "rotation_deg": self.rotation_deg}
+
+    # ---- directions ↔ image ----
+    def uv(self, d: np.ndarray) -> np.ndarray:
+        """(…, 2) image coordinates of unit directions ``d`` (…, 3)."""
+        d = np.asarray(d, dtype=np.float64)
+        u = np.arctan2(d[..., 0], -d[..., 2]) / (2 * math.pi) + self.rotation_deg / 360.0
+        v = np.arccos(np.clip(d[..., 1], -1.0, 1.0)) / math.pi
+        return np.stack([u - np.floor(u), v], axis=-1)
+
+    def direction(self, uv: np.ndarray) -> np.ndarray:
+        """The unit directions (…, 3) of image coordinates ``uv`` (…, 2)."""
+        uv = np.asarray(uv, dtype=np.float64)
+        phi = 2 * math.pi * (uv[..., 0] - self.rotation_deg / 360.0)
+        theta = math.pi * uv[..., 1]
+        s = np.sin(theta)
+        return np.stack([s * np.sin(phi), np.cos(theta), -s * np.cos(phi)], axis=-1)
+
+    def radiance(self, d: np.ndarray) -> np.ndarray:
+        """The radiance (…, 3) float64 seen along unit directions ``d``: bilinear, times ``scale``."""
+        uv = self.uv(d)
+        w, h = self.width, self.height
+        s = uv[..., 0] * w - 0.5
+        fs = np.floor(s)
+        fx = (s - fs)[..., None]
+        i0 = fs.astype(np.int64) % w
+        i1 = (i0 + 1) % w
+        t = uv[..., 1] * (h - 1)
+        j0 = np.minimum(np.floor(t).astype(np.int64), h - 2)
+        fy = (t - j0)[..., None]
+        tx = self.texels.astype(np.float64)
+        a = tx[j0, i0] * (1 - fx) + tx[j0, i1] * fx
+        b = tx[j0 + 1, i0] * (1 - fx) + tx[j0 + 1, i1] * fx
+        return self.scale * (a * (1 - fy) + b * fy)
+
+    # ---- sampling ----
+    @cached_property
+    def patch_weights(self) -> np.ndarray:
+        """float64 (H − 1, W): each patch's mean corner luminance × its row band's solid angle / 2π."""
+        lum = self.texels.astype(np.float64) @ np.asarray(LUMINANCE)
+        corners = lum[:-1] + lum[1:]
+        mean = 0.25 * (corners + np.roll(corners, -1, axis=1))
+        cos = np.cos(np.pi * np.arange(self.height) / (self.height - 1))
+        weights = mean * (cos[:-1] - cos[1:])[:, None]
+        return weights if weights.sum() > 0 else np.ones_like(weights)  # a black image: uniform
+
+    @cached_property
+    def sampling_tables(self) -> tuple[np.ndarray, np.ndarray]:
+        """(conditional, marginal): float32 (H − 1, W) CDFs of each row's patches, and (H − 1,) of
+        the rows; each ends at exactly 1 (a row without light: uniform)."""
+        wts = self.patch_weights
+        rows = wts.sum(axis=1)
+        safe = np.where(rows > 0, rows, 1.0)[:, None]
+        cond = np.where(rows[:, None] > 0, np.cumsum(wts, axis=1) / safe, np.arange(1, self.width + 1) / self.width)
+        cond[:, -1] = 1.0
+        marg = np.cumsum(rows) / rows.sum()
+        marg[-1] = 1.0
+        return cond.astype(np.float32), marg.astype(np.float32)
+
+    def pdf(self, d: np.ndarray) -> np.ndarray:
+        """The sampling's pdf (per steradian) of unit directions ``d``, from the float32 tables as
+        the shader has them."""
+        cond, marg = self.sampling_tables
+        uv = self.uv(d)
+        w, h = self.width, self.height
+        i = np.floor(uv[..., 0] * w - 0.5).astype(np.int64) % w
+        j = np.minimum(np.floor(uv[..., 1] * (h - 1)).astype(np.int64), h - 2)
+        pm = marg[j].astype(np.float64) - np.where(j > 0, marg[np.maximum(j - 1, 0)], 0.0)
+        pc = cond[j, i].astype(np.float64) - np.where(i > 0, cond[j, np.maximum(i - 1, 0)], 0.0)
+        sin = np.sin(np.pi * uv[..., 1])
+        return np.where(sin > 0, pm * pc * w * (h - 1) / (2 * np.pi**2 * np.where(sin > 0, sin, 1.0)), 0.0)
+
+    def sample(self, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+        """Unit directions (…, 3) for uniform numbers ``u1``, ``u2`` (as the shader samples)."""
+        cond, marg = self.sampling_tables
+        w, h = self.width, self.height
+        u1, u2 = np.asarray(u1, dtype=np.float64), np.asarray(u2, dtype=np.float64)
+        j = np.minimum(np.searchsorted(marg, u1, side="right"), h - 2)
+        lo = np.where(j > 0, marg[np.maximum(j - 1, 0)], 0.0)
+        fy = np.clip((u1 - lo) / np.maximum(marg[j] - lo, 1e-30), 0, 1)
+        rows = cond[j]
+        i = np.minimum((rows <= u2[..., None]).sum(axis=-1), w - 1)
+        lo = np.where(i > 0, np.take_along_axis(rows, np.maximum(i - 1, 0)[..., None], -1)[..., 0], 0.0)
+        hi = np.take_along_axis(rows, i[..., None], -1)[..., 0]
+        fx = np.clip((u2 - lo) / np.maximum(hi - lo, 1e-30), 0, 1)
+        u = ((i + 0.5 + fx) / w) % 1.0
+        v = (j + fy) / (h - 1)
+        return self.direction(np.stack([u, v], axis=-1))
