@@ -56,7 +56,7 @@ SCENES_QUICK = {"cornell": (20, 34), "glass_caustic": (40, 68)}
 DEPTH = 8
 SPPS = (16, 64, 256, 1024)
 SPPS_QUICK = (16, 64)
-REPS = {16: 3, 64: 3, 256: 2, 1024: 1}  # interleaved repetitions per spp (at most --runs)
+REPS = {16: 3, 64: 2, 256: 1, 1024: 1}  # interleaved repetitions per spp (at most --runs)
 REF_SPP = 16384
 REF_SPP_QUICK = 1024
 REF_CHUNK = 1024  # reference samples per mi.render call (seed REF_SEED + chunk)
@@ -66,7 +66,8 @@ RR_DEPTH = 3  # Mitsuba's rr_depth where ours starts the roulette (docs/SHADING.
 TARGETS_DB = (30.0, 35.0)
 SPEED_TARGET = 0.25  # ours / Mitsuba, time to the same PSNR
 PSNR_TARGET_DB = 35.0  # ours at 1,024 spp against the reference
-POINT_BUDGET_S = 15.0  # an engine's frame predicted longer (from its last spp) is not measured
+POINT_BUDGET_S = 15.0  # an engine's frame predicted longer (from its last spp) … (see measure)
+OUTLIER = 2.0  # … and longer than this × every other engine's is not measured
 MITSUBA_VARIANT = "llvm_ad_rgb"
 MITSUBA = "Mitsuba 3 llvm"
 COUNT_SPP = 64  # samples per pixel of the counting frame
@@ -274,14 +275,16 @@ def measure(ctx: Context) -> dict:
         rows: dict[str, dict[str, Any]] = {e: {"spp": [], "ms": [], "psnr": [], "samples": []} for e in engines}
         last_s: dict[str, tuple[int, float]] = {}
         for spp in ctx.bar(spps, desc=f"path: {name}"):
+            # An engine far slower than the others (brute force) stops once its next frame is predicted
+            # over the budget and over OUTLIER × the others' slowest: the run's time stays bounded, while
+            # a machine made slow by its load leaves out nothing.
+            guess = {e: t * spp / s0 for e, (s0, t) in last_s.items()}
             live = []
             for eng in engines:
-                if eng in last_s:
-                    s0, t_prev = last_s[eng]
-                    guess = t_prev * spp / s0
-                    if guess > POINT_BUDGET_S:
-                        skipped.append(f"{eng}, {name}, {spp} spp: predicted {guess:,.0f} s per frame")
-                        continue
+                others = max((g for e, g in guess.items() if e != eng), default=0.0)
+                if eng in guess and guess[eng] > max(POINT_BUDGET_S, OUTLIER * others):
+                    skipped.append(f"{eng}, {name}, {spp} spp: predicted {guess[eng]:,.0f} s per frame")
+                    continue
                 live.append(eng)
             samples: dict[str, list[float]] = {e: [] for e in live}
             images: dict[str, np.ndarray] = {}
