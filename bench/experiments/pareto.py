@@ -243,6 +243,7 @@ def measure(ctx: Context) -> dict:
 def measure_path(ctx: Context) -> dict:
     """The path integrator's points: the Cornell box at samples per pixel × depth with the default
     method, PSNR against the path experiment's Mitsuba reference (depth ``path.DEPTH``), time to image."""
+    import os
     import time
 
     from renderer.path_scenes import path_scene
@@ -268,6 +269,7 @@ def measure_path(ctx: Context) -> dict:
         "method": method,
         "points": points,
         "measured": time.strftime("%Y-%m-%d %H:%M %Z"),
+        "load": [round(x, 2) for x in os.getloadavg()],
     }
 
 
@@ -287,11 +289,12 @@ def path_front_md(data: dict, run: RunInfo) -> str:
         for i, q in sorted(enumerate(pts), key=lambda iq: iq[1]["time"]["median"])
     ]
     w, h = p["size"]
+    load = f", load average {' / '.join(map(str, p['load']))} (1, 5, 15 min)" if "load" in p else ""
     return f"""**The path integrator** (`integrator=path`, its own panel: it estimates light transport, so its
 reference is Mitsuba 3's `path` at {p["ref_spp"]:,} samples, depth {p["ref_depth"]}, of the {p["scene"]} box
 at {w} × {h} — the path experiment's — not the Whitted reference above). Knobs: samples per pixel and
 max_recursion_depth (shorter paths: faster, darker — biased); method `{p["method"]}`; ◆ = on the front.
-Measured {p["measured"]}.
+Measured {p["measured"]}{load}.
 
 {md_table(["setting", "time ms", "PSNR dB"], rows, "lrr")}
 
