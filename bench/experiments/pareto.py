@@ -689,8 +689,8 @@ def plot_path(p: dict, figures: Path, quick: bool) -> str:
     ax.grid(True, which="both", alpha=0.3)
     ax.set_xlabel("time to image (ms, median)")
     ax.set_ylabel(f"PSNR vs Mitsuba {p['ref_spp']:,} spp, depth {p['ref_depth']} (dB)")
-    legend_outside(fig, ax, title="path integrator (spp marked)")
+    legend_outside(fig, ax, title="spp marked")
     w, h = p["size"]
-    fig.suptitle(f"Path integrator, {p['scene']} {w} × {h}: samples per pixel × depth")
+    fig.suptitle(f"Path integrator, {p['scene']} {w} × {h}")
     save(fig, figures, "pareto_path", quick)
     return "The path integrator's PSNR against time: samples per pixel and depth, with the Pareto front"
