@@ -69,8 +69,9 @@ EXACT_MAX_PRIMS = (1, 4, 8, 16)
 PATH_SCENE = "cornell"
 PATH_SPPS = (16, 64, 256)
 PATH_SPPS_QUICK = (16,)
-PATH_DEPTHS = (2, 3, 4, 8)
+PATH_DEPTHS = (2, 4, 8)
 PATH_DEPTHS_QUICK = (2, 8)
+PATH_RUNS = 2  # runs per path point (after the warm-up frame)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -259,7 +260,7 @@ def measure_path(ctx: Context) -> dict:
     for spp in ctx.bar(PATH_SPPS_QUICK if ctx.quick else PATH_SPPS, desc="pareto: path"):
         for depth in PATH_DEPTHS_QUICK if ctx.quick else PATH_DEPTHS:
             st = path.ours_settings(method, w, h, spp, depth)
-            t = ctx.time_render(scene, st, runs=min(ctx.runs, 3), post=lambda res: res.image, budget_s=None)
+            t = ctx.time_render(scene, st, runs=min(ctx.runs, PATH_RUNS), post=lambda res: res.image, budget_s=None)
             points.append({"spp": spp, "depth": depth, "time": t.total, "psnr": psnr(ref, t.result)})
     return {
         "scene": PATH_SCENE,
@@ -298,7 +299,7 @@ Measured {p["measured"]}{load}.
 
 {md_table(["setting", "time ms", "PSNR dB"], rows, "lrr")}
 
-{run.caption(runs=min(run.runs, 3))}
+{run.caption(runs=min(run.runs, PATH_RUNS))}
 """
 
 
