@@ -125,8 +125,8 @@ def traversal_work(method: str, stats: dict[str, Any], n_spheres: int) -> tuple[
 # segment at D = 1, each further one adding a share RATE of what is left. Fitted by the path
 # experiment (bench/experiments/path.py; docs/RESULTS.md, "Path integrator") to the scene whose
 # paths trace the most rays, the closed Cornell box; the open scenes measured trace about half.
-PATH_SEGMENTS_LIMIT = 6.54
-PATH_SEGMENTS_RATE = 0.641
+PATH_SEGMENTS_LIMIT = 6.58
+PATH_SEGMENTS_RATE = 0.644
 
 
 def path_segments(depth: int) -> float:

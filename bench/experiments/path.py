@@ -1,8 +1,8 @@
 """The path integrator beside Mitsuba 3's (``llvm_ad_rgb``): error against time, rays per second.
 
-Scenes: the Cornell box (``mesh_scene("cornell")``, flat) and three of the scenes the path
-integrator is checked on against Mitsuba (``renderer/path_scenes.py``: a diffuse sphere under an
-area light, a glass sphere's caustic, a rough conductor). Per scene:
+Scenes: the Cornell box (``mesh_scene("cornell")``, flat) and two of the scenes the path
+integrator is checked on against Mitsuba (``renderer/path_scenes.py``: a glass sphere's caustic,
+a rough conductor). Per scene:
 
 - reference: Mitsuba 3 ``llvm_ad_rgb`` at ``REF_SPP`` samples (passes of ``REF_CHUNK`` samples,
   each its own seed, averaged), cached on disk (``bench/experiments/cache.py``);
@@ -72,6 +72,14 @@ MITSUBA_VARIANT = "llvm_ad_rgb"
 MITSUBA = "Mitsuba 3 llvm"
 COUNT_SPP = 64  # samples per pixel of the counting frame
 COUNT_DEPTHS = (1, 2, 3, 4, 5, 6, 8, 10, 12, 16)  # the depths whose rays per sample are counted (at 16 spp)
+
+
+SCENE_WORDS = {
+    "cornell": "the Cornell box",
+    "area_light": "a diffuse sphere under an area light",
+    "glass_caustic": "a glass sphere's caustic",
+    "rough_conductor": "a rough conductor (GGX)",
+}
 
 
 # --------------------------------------------------------------------------- ray counting
@@ -490,6 +498,7 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
         else "no 1,024-spp frame measured"
     )
     depth_txt = depth_fit_md(data, run)
+    scenes_txt = ", ".join(f"{SCENE_WORDS.get(n, n)} (`{n}`)" for n in data["scenes"])
     vers = ", ".join(f"{k} {v}" for k, v in data["versions"].items())
     img = "\n".join(image_line(k, v) for k, v in charts.items())
     skipped = ("\n\n**Not measured:** " + "; ".join(data["skipped"]) + ".") if data["skipped"] else ""
@@ -499,9 +508,8 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
 
 Our path integrator (`integrator=path`, every one-pass method) and Mitsuba 3's `path` integrator
 (`{MITSUBA_VARIANT}`, {vers}; libLLVM `{data["libllvm"]}`) on the same scenes, made from our scene JSON
-by `renderer/mitsuba_scene.py`: the Cornell box and three scenes of `renderer/path_scenes.py`
-(diffuse sphere under an area light, a glass sphere's caustic, a rough conductor; sizes in the
-table — the Cornell box's closed room costs 10–15× per pixel, so it has a quarter of the pixels).
+by `renderer/mitsuba_scene.py`: {scenes_txt} (`renderer/path_scenes.py`; sizes in the table — the
+Cornell box's closed room costs 10–15× per pixel, so it has a quarter of the pixels).
 Equal depth: our `max_recursion_depth` {depth} = Mitsuba's `max_depth` {depth} (both count the
 camera's segment and a shadow ray as a path's last segment, docs/SHADING.md, "Path length"), and
 Mitsuba's Russian roulette from the same segment as ours (`rr_depth` {data["rr_depth"]}; its default
