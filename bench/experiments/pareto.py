@@ -71,7 +71,7 @@ PATH_SPPS = (16, 64, 256)
 PATH_SPPS_QUICK = (16,)
 PATH_DEPTHS = (2, 4, 8)
 PATH_DEPTHS_QUICK = (2, 8)
-PATH_RUNS = 2  # runs per path point (after the warm-up frame)
+PATH_RUNS = 3  # runs per path point (after the warm-up frame)
 
 
 @dataclasses.dataclass(frozen=True)
