@@ -120,7 +120,31 @@ def traversal_work(method: str, stats: dict[str, Any], n_spheres: int) -> tuple[
     return nodes, tests, big_tests
 
 
-PATH_MEAN_SEGMENTS = 3.0
+# The path integrator: expected segments of one sample (its shadow rays counted, as docs/SHADING.md
+# counts a path's segments) at max_recursion_depth D, S(D) = LIMIT − (LIMIT − 1) · RATE^(D − 1): one
+# segment at D = 1, each further one adding a share RATE of what is left. Fitted by the path
+# experiment (bench/experiments/path.py; docs/RESULTS.md, "Path integrator") to the scene whose
+# paths trace the most rays, the closed Cornell box; the open scenes measured trace about half.
+PATH_SEGMENTS_LIMIT = 6.58
+PATH_SEGMENTS_RATE = 0.644
+
+
+def path_segments(depth: int) -> float:
+    """Expected segments (rays, shadow rays included) one path sample traces at max_recursion_depth
+    ``depth``: the fit above, never more than the path can have (one bounce and one shadow ray per
+    vertex: 2·depth − 1)."""
+    d = max(1, int(depth))
+    return min(2.0 * d - 1.0, PATH_SEGMENTS_LIMIT - (PATH_SEGMENTS_LIMIT - 1.0) * PATH_SEGMENTS_RATE ** (d - 1))
+
+
+def request_work(width: int, height: int, max_recursion_depth: int, samples_per_pixel: int, path: bool) -> float:
+    """What ``POCKETRAY_MAX_WORK`` caps, before any build: the Whitted tracer's width × height ×
+    max_recursion_depth × samples_per_pixel (a ray tree's levels); the path integrator's expected
+    segments, width × height × samples_per_pixel × :func:`path_segments` (a path's length saturates
+    with depth where the ray tree's levels do not)."""
+    if path:
+        return width * height * samples_per_pixel * path_segments(max_recursion_depth)
+    return float(width * height * max_recursion_depth * samples_per_pixel)
 
 
 def ray_tree(scene: Scene, settings, decay: float = DEFAULT_MODEL.level_decay) -> tuple[int, float]:
@@ -131,10 +155,8 @@ def ray_tree(scene: Scene, settings, decay: float = DEFAULT_MODEL.level_decay) -
         settings.integrator, settings.mode
     )
     levels = features.recursion_depth(settings.max_recursion_depth)
-    if features.path:
-        # Not fitted yet: a path's expected segments taken as min(depth, PATH_MEAN_SEGMENTS) (Russian
-        # roulette ends most paths within a few bounces), each sample one path.
-        return levels, settings.samples_per_pixel * min(float(levels), PATH_MEAN_SEGMENTS)
+    if features.path:  # each sample one path of path_segments(levels) rays, shadow rays included
+        return levels, settings.samples_per_pixel * path_segments(levels)
     used = (
         set(np.unique(scene.sphere_materials).tolist())
         | {p.material for p in scene.planes}
@@ -201,13 +223,16 @@ def terms(
     averaged = settings.mode in AVERAGED_MODES
     w, h = settings.width, settings.height
     levels, radiance = ray_tree(scene, settings, decay)
-    lights = len(scene.lights) if settings.mode == "color" else 0
+    # A path's shadow rays are among its counted segments (path_segments); Whitted's are one per light.
+    path = getattr(settings, "integrator", "whitted") == "path"
+    lights = len(scene.lights) if settings.mode == "color" and not path else 0
     rays = radiance * (1 + lights)
     n, planes = scene.n_spheres + scene.n_triangles, len(scene.planes)  # a triangle test costs as a sphere's
     nodes, tests, big = traversal_work(method, stats, n)
     c = coverage(scene, w, h)
     # Primary rays enter the box where it covers the image; the others start on surfaces in it.
-    rays_in_box = (c + max(0.0, radiance - 1.0)) * (1 + lights)
+    primary = float(settings.samples_per_pixel) if path else 1.0  # a path sample's camera ray
+    rays_in_box = (c * primary + max(0.0, radiance - primary)) * (1 + lights)
     t = np.zeros(len(CostModel.TERMS))
     t[0] = 1.0
     if multi_pass:

@@ -82,14 +82,27 @@ def _shape_extras(scene: Scene, mat: int) -> dict:
     return out
 
 
-def scene_dict(scene: Scene, width: int, height: int, spp: int, max_depth: int, seed: int = 0) -> dict:
-    """The Mitsuba 3 scene dictionary (``mi.load_dict``) of ``scene``."""
+def scene_dict(
+    scene: Scene,
+    width: int,
+    height: int,
+    spp: int,
+    max_depth: int,
+    seed: int = 0,
+    rr_depth: int | None = None,
+) -> dict:
+    """The Mitsuba 3 scene dictionary (``mi.load_dict``) of ``scene``. ``rr_depth``: the path
+    integrator's Russian roulette start (None: Mitsuba's default, 5; 3 starts it where ours does,
+    docs/SHADING.md)."""
     import mitsuba as mi
 
     cam = scene.camera
+    integrator: dict[str, Any] = {"type": "path", "max_depth": int(max_depth), "hide_emitters": False}
+    if rr_depth is not None:
+        integrator["rr_depth"] = int(rr_depth)
     out: dict[str, Any] = {
         "type": "scene",
-        "integrator": {"type": "path", "max_depth": int(max_depth), "hide_emitters": False},
+        "integrator": integrator,
         "sensor": {
             "type": "perspective",
             "fov": float(cam.fov_y),
@@ -178,22 +191,39 @@ def _size(scene: Scene) -> float:
     return float(max(1.0, np.abs(np.asarray(pts)).max()))
 
 
-def render(
-    scene: Scene, width: int, height: int, spp: int, max_depth: int, variant: str = "scalar_rgb", seed: int = 0
-) -> np.ndarray:
-    """Mitsuba 3's ``path`` image of ``scene``: float32 H × W × 3 linear radiance, row 0 at the top."""
+def load(
+    scene: Scene,
+    width: int,
+    height: int,
+    spp: int,
+    max_depth: int,
+    variant: str = "scalar_rgb",
+    seed: int = 0,
+    rr_depth: int | None = None,
+) -> Any:
+    """``scene`` loaded into Mitsuba 3 (``mi.Scene``, its variant set to ``variant``), ready for
+    ``mi.render``; the arguments as :func:`scene_dict`'s."""
     import os
 
     import mitsuba as mi
 
     mi.set_variant(variant)
-    d = scene_dict(scene, width, height, spp, max_depth, seed)
+    d = scene_dict(scene, width, height, spp, max_depth, seed, rr_depth)
     try:
-        loaded = mi.load_dict(d)
+        return mi.load_dict(d)
     finally:  # the meshes' temporary OBJ files are read by now
         for v in d.values():
             if isinstance(v, dict) and v.get("type") == "obj":
                 os.unlink(v["filename"])
+
+
+def render(
+    scene: Scene, width: int, height: int, spp: int, max_depth: int, variant: str = "scalar_rgb", seed: int = 0
+) -> np.ndarray:
+    """Mitsuba 3's ``path`` image of ``scene``: float32 H × W × 3 linear radiance, row 0 at the top."""
+    import mitsuba as mi
+
+    loaded = load(scene, width, height, spp, max_depth, variant, seed)
     # The stubs ask a UInt32 seed: in the scalar variants that is a Python int.
     image = mi.render(loaded, spp=spp, seed=seed)  # type: ignore[arg-type]
     return np.asarray(image, dtype=np.float32)[..., :3]

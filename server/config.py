@@ -14,6 +14,7 @@ from typing import Annotated, Any, Literal
 from pydantic import AliasChoices, Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
+from renderer.cost import request_work
 from renderer.limits import JPEG_QUALITY_RANGE, MAX_SPHERES, MAX_TREE_DEPTH, MAX_TRIANGLES
 from renderer.profiles import STILL
 
@@ -86,7 +87,9 @@ class ServerConfig(BaseSettings):
         FIT_SIDE * FIT_SIDE * STILL["max_recursion_depth"] * STILL["samples_per_pixel"],
         ge=1,
         description="cap on width × height × max_recursion_depth × samples_per_pixel of one "
-        f"render (default: the 'still' profile — depth {STILL['max_recursion_depth']}, "
+        "render; for integrator 'path', on width × height × samples_per_pixel × the expected segments of "
+        "a path at its depth (renderer/cost.py, path_segments) "
+        f"(default: the 'still' profile — depth {STILL['max_recursion_depth']}, "
         f"{STILL['samples_per_pixel']} spp — on a {FIT_SIDE} × {FIT_SIDE} frame, the "
         "client's largest 'fit' size)",
     )
@@ -353,12 +356,15 @@ class ServerConfig(BaseSettings):
             raise ValueError(f"default_render: {e}") from None
         if not (isinstance(d["quality"], int) and QUALITY_MIN <= d["quality"] <= QUALITY_MAX):
             raise ValueError(f"default_render: quality must be an integer {QUALITY_MIN} … {QUALITY_MAX}")
-        work = d["width"] * d["height"] * d["max_recursion_depth"] * d["samples_per_pixel"]
+        path = d.get("integrator", "whitted") == "path"
+        work = request_work(d["width"], d["height"], d["max_recursion_depth"], d["samples_per_pixel"], path)
         if work > self.max_work:
-            raise ValueError(
-                f"default_render: width × height × max_recursion_depth × samples_per_pixel = {work} "
-                f"exceeds max_work = {self.max_work}"
+            what = (
+                "width × height × samples_per_pixel × expected segments of a path"
+                if path
+                else "width × height × max_recursion_depth × samples_per_pixel"
             )
+            raise ValueError(f"default_render: {what} = {work:.0f} exceeds max_work = {self.max_work}")
         return self
 
     def default_settings(self) -> dict[str, Any]:

@@ -15,6 +15,10 @@ measuring. Shared pieces, one job each: ``context`` (the run), ``timing``, ``mac
 ``markdown``, ``style`` (charts), ``results`` (RESULTS.md).
 """
 
+from .llvm import use_llvm19
+
+use_llvm19()  # before anything imports mitsuba (bench/experiments/llvm.py says why)
+
 # In the order they appear in RESULTS.md.
 EXPERIMENTS = (
     "table_4_2",
@@ -24,6 +28,7 @@ EXPERIMENTS = (
     "crossover",
     "peers",
     "pareto",
+    "path",
     "specialize",
     "ray_engines",
     "dynamic",

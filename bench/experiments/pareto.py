@@ -9,6 +9,11 @@ supersampling (rendered at 4W × 4H, clamped, box-filtered), cached on disk. Kno
 - the weight cut-off ε (``RenderSettings.min_weight``): secondary rays whose path weight
   is below ε are not traced.
 
+The path integrator (``integrator=path``) estimates another image — light transport, not the
+Whitted tracer's — so it has its own panel and reference: the Cornell box against Mitsuba 3 at
+16,384 samples (the path experiment's cached reference, ``bench/experiments/path.py``), its knobs
+samples per pixel and max_recursion_depth (a shorter path is faster and darker: biased).
+
 Time to image = wall time of the whole frame (build, upload, trace, read back, upscale),
 median of the runs with min–max spread. Error against the reference: PSNR, max absolute
 error, SSIM (scikit-image). Methods and BIH parameters do not change the image: they are
@@ -60,6 +65,13 @@ INTERACTIVE_MAX_SSIM_LOSS = 0.01
 STILL_WITHIN_DB = 0.5
 EXACT_AT = dict(depth=5, scale=1, spp=1, eps=0.0)  # where methods / MAX_PRIMS are compared
 EXACT_MAX_PRIMS = (1, 4, 8, 16)
+# The path integrator's panel: the Cornell box, its knobs samples per pixel × depth.
+PATH_SCENE = "cornell"
+PATH_SPPS = (16, 64, 256)
+PATH_SPPS_QUICK = (16,)
+PATH_DEPTHS = (2, 4, 8)
+PATH_DEPTHS_QUICK = (2, 8)
+PATH_RUNS = 3  # runs per path point (after the warm-up frame)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -214,6 +226,7 @@ def measure(ctx: Context) -> dict:
 
     _, _, interactive, still, _, recommended = recommend(grid, results, scs)
     return {
+        "path": measure_path(ctx),
         "size": [w, h],
         "n": n,
         "reference": {"depth": REF_DEPTH, "ss": REF_SS},
@@ -226,6 +239,68 @@ def measure(ctx: Context) -> dict:
         "recommended": recommended,
         "recommended_knobs": {"interactive": dataclasses.asdict(interactive), "still": dataclasses.asdict(still)},
     }
+
+
+def measure_path(ctx: Context) -> dict:
+    """The path integrator's points: the Cornell box at samples per pixel × depth with the default
+    method, PSNR against the path experiment's Mitsuba reference (depth ``path.DEPTH``), time to image."""
+    import os
+    import time
+
+    from renderer.path_scenes import path_scene
+
+    from . import path
+
+    w, h = path.SCENES_QUICK[PATH_SCENE] if ctx.quick else path.SCENES[PATH_SCENE]
+    ref_spp = path.REF_SPP_QUICK if ctx.quick else path.REF_SPP
+    scene = path_scene(PATH_SCENE)
+    ref, _ = path.reference(PATH_SCENE, scene, w, h, ref_spp)
+    method = default_settings().method
+    points = []
+    for spp in ctx.bar(PATH_SPPS_QUICK if ctx.quick else PATH_SPPS, desc="pareto: path"):
+        for depth in PATH_DEPTHS_QUICK if ctx.quick else PATH_DEPTHS:
+            st = path.ours_settings(method, w, h, spp, depth)
+            t = ctx.time_render(scene, st, runs=min(ctx.runs, PATH_RUNS), post=lambda res: res.image, budget_s=None)
+            points.append({"spp": spp, "depth": depth, "time": t.total, "psnr": psnr(ref, t.result)})
+    return {
+        "scene": PATH_SCENE,
+        "size": [w, h],
+        "ref_spp": ref_spp,
+        "ref_depth": path.DEPTH,
+        "method": method,
+        "points": points,
+        "measured": time.strftime("%Y-%m-%d %H:%M %Z"),
+        "load": [round(x, 2) for x in os.getloadavg()],
+    }
+
+
+def path_front_md(data: dict, run: RunInfo) -> str:
+    """The path integrator's points and their Pareto front (empty for data measured before it)."""
+    p = data.get("path")
+    if not p:
+        return ""
+    pts = p["points"]
+    front = set(pareto_front([(q["time"]["median"], q["psnr"]) for q in pts]))
+    rows = [
+        [
+            f"{q['spp']} spp, depth {q['depth']}" + (" ◆" if i in front else ""),
+            Stat.from_json(q["time"]).fmt(1),
+            fmt_db(q["psnr"]),
+        ]
+        for i, q in sorted(enumerate(pts), key=lambda iq: iq[1]["time"]["median"])
+    ]
+    w, h = p["size"]
+    load = f", load average {' / '.join(map(str, p['load']))} (1, 5, 15 min)" if "load" in p else ""
+    return f"""**The path integrator** (`integrator=path`, its own panel: it estimates light transport, so its
+reference is Mitsuba 3's `path` at {p["ref_spp"]:,} samples, depth {p["ref_depth"]}, of the {p["scene"]} box
+at {w} × {h} — the path experiment's — not the Whitted reference above). Knobs: samples per pixel and
+max_recursion_depth (shorter paths: faster, darker — biased); method `{p["method"]}`; ◆ = on the front.
+Measured {p["measured"]}{load}.
+
+{md_table(["setting", "time ms", "PSNR dB"], rows, "lrr")}
+
+{run.caption(runs=min(run.runs, PATH_RUNS))}
+"""
 
 
 def exact_variants_of_the_code() -> list[tuple[str, dict]]:
@@ -439,6 +514,7 @@ images {"identical" if same_u8 else "NOT all identical"} (last two columns).
 
 {run.caption()}
 
+{path_front_md(data, run)}
 {skipped_md}
 
 {chr(10).join(t + chr(10) for t in all_tables)}
@@ -579,4 +655,43 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
         f"{ref['ss']}×{ref['ss']} supersampling"
     )
     save(fig, figures, "pareto", quick)
-    return {"pareto": "Error against time to image with the Pareto front, per scenario"}
+    charts = {"pareto": "Error against time to image with the Pareto front, per scenario"}
+    if data.get("path"):
+        charts["pareto_path"] = plot_path(data["path"], figures, quick)
+    return charts
+
+
+def plot_path(p: dict, figures: Path, quick: bool) -> str:
+    """``pareto_path.png``: the path integrator's PSNR against time, one line per depth, the front."""
+    pyplot = plt()
+    fig, ax = pyplot.subplots(figsize=(7.5, 4.4), layout="constrained")
+    pts = p["points"]
+    depths = sorted({q["depth"] for q in pts})
+    for i, depth in enumerate(depths):
+        qs = sorted((q for q in pts if q["depth"] == depth), key=lambda q: q["spp"])
+        st = line_style(f"{p['method']}: depth {depth}", variant=i, method=p["method"])
+        ax.plot([q["time"]["median"] for q in qs], [q["psnr"] for q in qs], **st)
+        for q in qs:
+            ax.annotate(
+                f"{q['spp']}", (q["time"]["median"], q["psnr"]), fontsize=7, xytext=(3, 3), textcoords="offset points"
+            )
+    finite = [(q["time"]["median"], q["psnr"]) for q in pts]
+    front = pareto_front(finite)
+    ax.step(
+        [finite[i][0] for i in front],
+        [finite[i][1] for i in front],
+        where="post",
+        color="black",
+        lw=1.2,
+        alpha=0.7,
+        label="Pareto front",
+    )
+    log_axis(ax, "x")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.set_xlabel("time to image (ms, median)")
+    ax.set_ylabel(f"PSNR vs Mitsuba {p['ref_spp']:,} spp, depth {p['ref_depth']} (dB)")
+    legend_outside(fig, ax, title="spp marked")
+    w, h = p["size"]
+    fig.suptitle(f"Path integrator, {p['scene']} {w} × {h}")
+    save(fig, figures, "pareto_path", quick)
+    return "The path integrator's PSNR against time: samples per pixel and depth, with the Pareto front"

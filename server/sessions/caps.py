@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from renderer.cost import path_segments, request_work
 from renderer.scene import SceneError
 from renderer.settings import RenderSettings
 
@@ -38,15 +39,24 @@ class InputCaps:
         return merged
 
     def check_work(self, settings: RenderSettings, n_spheres: int) -> None:
-        """The caps that need no build: POCKETRAY_MAX_WORK, and the modes the method can draw.
+        """The caps that need no build: POCKETRAY_MAX_WORK (a path frame's expected segments,
+        ``renderer.cost.request_work``), and the modes the method can draw.
         (The cost of a frame, POCKETRAY_MAX_FRAME_COST, is checked by the pipeline's plan.)"""
         w, h, d, spp = settings.width, settings.height, settings.max_recursion_depth, settings.samples_per_pixel
-        work = w * h * d * spp
+        path = settings.integrator == "path"
+        work = request_work(w, h, d, spp, path)
         if work > self.config.max_work:
+            if path:  # the expected segments of its paths (renderer/cost.py, path_segments)
+                raise InputError(
+                    ("samples_per_pixel",),
+                    f"width × height × samples_per_pixel × expected segments of a path at max_recursion_depth "
+                    f"{d} = {w} × {h} × {spp} × {path_segments(d):.2f} = {work:,.0f} exceeds the limit "
+                    f"{self.config.max_work} (POCKETRAY_MAX_WORK); lower samples_per_pixel, width or height",
+                )
             raise InputError(
                 ("width",),
                 f"width × height × max_recursion_depth × samples_per_pixel = {w} × {h} × {d} × {spp} "
-                f"= {work} exceeds the limit {self.config.max_work} (POCKETRAY_MAX_WORK); lower width, "
+                f"= {work:.0f} exceeds the limit {self.config.max_work} (POCKETRAY_MAX_WORK); lower width, "
                 f"height, max_recursion_depth or samples_per_pixel",
             )
         try:

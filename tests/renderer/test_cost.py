@@ -63,3 +63,19 @@ def test_the_largest_accepted_settings_fit_the_limit(frame):
         "samples_per_pixel": 16,
         "max_recursion_depth": 8,
     }
+
+
+def test_a_path_sample_traces_the_fitted_segments_saturating_with_depth(frame):
+    from renderer.cost import PATH_SEGMENTS_LIMIT, path_segments, request_work
+
+    seg = [path_segments(d) for d in range(1, 17)]
+    assert seg[0] == 1.0  # the camera's segment only
+    assert all(b > a for a, b in zip(seg, seg[1:], strict=False))  # more with depth …
+    assert all(s <= min(PATH_SEGMENTS_LIMIT, 2 * d - 1) for d, s in enumerate(seg, 1))  # … but bounded
+    assert seg[15] < 1.1 * seg[7]  # saturated by depth 8: the roulette ends the paths
+    # The frame's rays and the work cap count them per sample.
+    assert cost(frame, integrator="path", samples_per_pixel=32, max_recursion_depth=8).rays_per_pixel == (
+        pytest.approx(32 * path_segments(8))
+    )
+    assert request_work(64, 64, 8, 32, path=True) == pytest.approx(64 * 64 * 32 * path_segments(8))
+    assert request_work(64, 64, 8, 4, path=False) == 64 * 64 * 8 * 4

@@ -1,5 +1,6 @@
 """The path integrator against an independent renderer: Mitsuba 3's ``path`` integrator
-(``scalar_rgb``) on the same scenes, made from our scene JSON by ``renderer/mitsuba_scene.py``.
+(``scalar_rgb``) on the same scenes (``renderer/path_scenes.py``), made from our scene JSON by
+``renderer/mitsuba_scene.py``.
 
 Per scene, 32 × 32 pixels, max_depth 8: ours at 1,024 samples against Mitsuba's at 4,096.
 
@@ -24,74 +25,12 @@ import numpy as np
 import pytest
 
 from renderer import mitsuba_scene
-from renderer.scenarios import mesh_scene
+from renderer.path_scenes import NAMES, path_scene
 from renderer.scene import Scene
 from renderer.settings import RenderSettings
 
 W = H = 32
 DEPTH = 8
-MATS = [
-    {"color": [0.7, 0.7, 0.7], "diffuse": 1.0, "reflective": 0, "ambient": 0},
-    {"color": [0, 0, 0], "diffuse": 0, "reflective": 0, "emission": [8, 7, 6]},
-]
-BASE = {
-    "camera": {"position": [0, 3, 8], "target": [0, 0.5, 0], "fov_y": 40},
-    "lights": [],
-    "materials": MATS,
-    "planes": [{"point": [0, 0, 0], "normal": [0, 1, 0], "material": 0}],
-}
-LAMP = {"center": [0, 2.5, -1], "radius": 0.5, "material": 1}
-SCENES = {
-    "area_light": {
-        **BASE,
-        "spheres": [
-            {"center": [0, 2.5, 0], "radius": 0.5, "material": 1},
-            {"center": [1.2, 0.6, 0], "radius": 0.6, "material": 0},
-        ],
-    },
-    "mirror": {
-        **BASE,
-        "materials": MATS + [{"color": [1, 1, 1], "diffuse": 0, "reflective": 1}],
-        "spheres": [LAMP, {"center": [0.5, 0.8, 0.5], "radius": 0.8, "material": 2}],
-        "environment": {"color": [0.2, 0.3, 0.4]},
-    },
-    "glass_caustic": {
-        **BASE,
-        "materials": MATS + [{"color": [1, 1, 1], "diffuse": 0, "reflective": 0, "transmissive": 1, "ior": 1.5}],
-        "spheres": [
-            {"center": [0, 3, 0], "radius": 0.5, "material": 1},
-            {"center": [0, 1.0, 0.5], "radius": 0.8, "material": 2},
-        ],
-    },
-    "rough_conductor": {
-        **BASE,
-        "materials": MATS + [{"color": [1, 1, 1], "diffuse": 0.3, "reflective": 0.7, "roughness": 0.3}],
-        "spheres": [LAMP, {"center": [0, 0.8, 0.5], "radius": 0.8, "material": 2}],
-        "environment": {"color": [0.3, 0.3, 0.3]},
-    },
-    "rough_glass": {
-        **BASE,
-        "materials": MATS
-        + [{"color": [1, 1, 1], "diffuse": 0, "reflective": 0, "transmissive": 1, "ior": 1.5, "roughness": 0.3}],
-        "spheres": [
-            {"center": [0, 3, 0], "radius": 0.5, "material": 1},
-            {"center": [0, 1.0, 0.5], "radius": 0.8, "material": 2},
-        ],
-        "environment": {"color": [0.2, 0.3, 0.4]},
-    },
-    "mesh_point_light": {
-        **BASE,
-        "lights": [{"position": [2, 4, 3], "color": [1, 1, 1]}],
-        "meshes": [
-            {
-                "vertices": [[-1, 0.01, -1], [1, 0.01, -1], [0, 1.5, 0], [0, 0.01, 1]],
-                "triangles": [[0, 2, 1], [0, 3, 2], [1, 2, 3], [0, 1, 3]],
-                "material": 0,
-            }
-        ],
-        "environment": {"color": [0.1, 0.1, 0.15]},
-    },
-}
 NOISY = ("mirror", "glass_caustic", "rough_conductor", "rough_glass", "cornell")
 # The Cornell box (mesh_scene "cornell", flat): its light an emitting quad of triangles, sampled by
 # next-event estimation; Mitsuba at 2,048 samples there (its frame costs 5× the others'), so both
@@ -106,9 +45,9 @@ def psnr(a: np.ndarray, b: np.ndarray) -> float:
     return math.inf if mse == 0 else -10.0 * math.log10(mse)
 
 
-@pytest.mark.parametrize("name", [*SCENES, "cornell"])
+@pytest.mark.parametrize("name", NAMES)
 def test_agrees_with_mitsuba(gl_renderer, name):
-    scene = mesh_scene("cornell", 0, smooth=False) if name == "cornell" else Scene.from_json(SCENES[name])
+    scene = path_scene(name)
     reference = mitsuba_scene.render(scene, W, H, REFERENCE_SPP.get(name, 4096), DEPTH)
     ours = {
         spp: gl_renderer.render(
