@@ -140,7 +140,7 @@ def test_device_mode_in_the_client_path_traces(gl_browser, server):
         last = c.hook("lastFrame")
         assert last["renderer"] == "device", last
         assert c.hook("state.render.integrator") == "path" and c.hook("state.render.tone_map") == "reinhard"
-        assert c.hook("device.path") == {"samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS}
+        assert c.hook("device.path") == {"samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS, "guides": False}
         assert last["samples"] == 16
         shown_device = canvas_rgb(c)
         c.page.click("#settings-toggle")
