@@ -69,6 +69,18 @@ def atrous(color: np.ndarray, albedo: np.ndarray, normal: np.ndarray) -> np.ndar
     return c.astype(np.float32)
 
 
+def parameters() -> dict[str, object]:
+    """The filter's parameters as JSON (device-data's ``path.atrous``: the device's GLSL copy reads
+    them, so that they are declared here alone)."""
+    return {
+        "iterations": ATROUS_ITERATIONS,
+        "kernel": list(ATROUS_KERNEL),
+        "sigma_color": ATROUS_SIGMA_COLOR,
+        "sigma_normal": ATROUS_SIGMA_NORMAL,
+        "sigma_albedo": ATROUS_SIGMA_ALBEDO,
+    }
+
+
 def _span(size: int, d: int) -> tuple[slice, slice]:
     """The slice of pixels whose tap ``d`` away is inside ``range(size)``, and the taps' slice."""
     lo, hi = max(0, -d), min(size, size - d)

@@ -24,7 +24,8 @@ The JSON header::
                   "samples_per_pixel", "integrator", "tone_map", "exposure", "denoise"},
      "shader": {"method", "mode", "max_recursion_depth", "features": ["NO_TRANSMISSION", …], "url"},
      "path": {"samples_per_pass": 4, "guides": false} | null,  # the path integrator's variant (features
-                                            # has PATH), else null; guides: it writes them (GUIDES)
+                                            # has PATH), else null; guides: it writes them (GUIDES),
+                                            # then also "atrous": renderer/atrous.py's parameters()
      "max_texture_size": 4096,              # the power of two the textures were wrapped to
      "camera": {...}, "home_camera": {...}, # camera JSON of docs/FORMATS.md (current, and the reset one)
      "uniforms": {"u_num_spheres": 64, "u_plane_point": [[0, -20, 0], …], …,

@@ -88,7 +88,7 @@ def test_device_path_frame_equals_the_servers(path_page, server, method):
     dev = device_path_render(path_page, session=cornell, mode="color", **common, **TONE)
     assert dev["infoLog"] == {"vertex": "", "fragment": "", "program": ""}, dev["infoLog"]
     assert "PATH" in dev["shader"]["features"] and dev["shader"]["max_recursion_depth"] == DEPTH
-    assert dev["path"] == {"samples": spp, "perPass": DEVICE_PATH_SAMPLES_PER_PASS}
+    assert dev["path"] == {"samples": spp, "perPass": DEVICE_PATH_SAMPLES_PER_PASS, "guides": False}
     assert dev["bands"] >= spp // DEVICE_PATH_SAMPLES_PER_PASS  # one pass per 4 samples, each in bands
 
     radiance = np.load(io.BytesIO(server_frame(server, cornell, format="npy", mode="color", **common)))

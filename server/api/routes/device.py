@@ -37,7 +37,7 @@ from urllib.parse import urlencode
 from fastapi import APIRouter, Query, Response
 from fastapi.responses import PlainTextResponse
 
-from renderer import gpu_layout
+from renderer import atrous, gpu_layout
 from renderer.accel.base import NOT_ON_GPU, AccelerationMethod
 from renderer.features import frame_features
 from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
@@ -207,9 +207,15 @@ def device_data(
             "features": list(defines),
             "url": shader_url(method_name, settings["mode"], depth, defines),
         },
-        "path": {"samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS, "guides": features.guides}
-        if features.path
-        else None,
+        "path": (
+            {
+                "samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS,
+                "guides": features.guides,
+                **({"atrous": atrous.parameters()} if features.guides else {}),
+            }
+            if features.path
+            else None
+        ),
         "max_texture_size": width,
         "camera": state.camera,
         "home_camera": state.home_camera,

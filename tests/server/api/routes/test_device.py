@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 from pocketray_server_support import create, mesh_scene_json, museum_session
 
+from renderer import atrous
 from renderer.animation import museum, pose
 from renderer.features import frame_features
 from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
@@ -77,6 +78,7 @@ def test_device_data_with_a_denoiser_writes_the_guides(api, denoise):
     features, _ = frame_features(mesh_scene("cornell", detail=0), RenderSettings(**q), guides=True)
     assert "GUIDES" in header["shader"]["features"] and header["shader"]["features"] == list(features.defines())
     assert header["path"]["guides"] is True and header["settings"]["denoise"] == denoise
+    assert header["path"]["atrous"] == atrous.parameters()  # the filter's parameters, declared once
     src = api.get(header["shader"]["url"])
     assert src.status_code == 200 and "#define GUIDES" in src.text
     bad = api.get(f"/api/sessions/{sid}/device-data", params={**q, "denoise": "median"})
