@@ -104,7 +104,7 @@ export class Session {
   // it cannot.
   begin(ready = Promise.resolve()) {
     this.scheduler.enqueue(async () => { await ready; return this.start(); }).then(
-      () => this.scheduler.invalidate(),
+      () => this.scheduler.invalidate(true),   // a quick preview first: nothing is on screen yet
       (e) => {
         this.hook.status = 'failed';
         this.refusals.record(e, 'start');
@@ -169,12 +169,13 @@ export class Session {
       const s = await this.api.createSession(sceneBody(scene), state.render);
       this.adopt(s);
       this.pendingScene = { prev, id: s.id };
-    }).then(() => scheduler.invalidate(), () => this.panel.show(state));
+    }).then(() => scheduler.invalidate(true), () => this.panel.show(state));
   }
 
-  // A frame of `meta` (transport.js's requestMeta) is on screen.
-  shown(meta) {
-    if (this.pendingScene && meta.sessionId === this.pendingScene.id) this.pendingScene = null;   // the new scene is on screen
+  // A frame of `meta` (transport.js's requestMeta) is on screen at `level`. Only a full frame settles
+  // a new scene: its quick preview may pass where the full frame is refused (too heavy).
+  shown(meta, level = 'full') {
+    if (this.pendingScene && meta.sessionId === this.pendingScene.id && level === 'full') this.pendingScene = null;
   }
 
   // The scheduler's onError: a request of `what` ('frame', 'gesture', a task) failed with e.
@@ -205,7 +206,7 @@ export class Session {
       const s = await this.api.createSession(sceneBody(this.state.scene), this.state.render);
       this.adopt(s);
       this.notice('The session had expired; a new one was started with the same scene (the camera is reset).', 'warn');
-    }).then(() => scheduler.invalidate(), () => {}).finally(() => { this.replacing = false; });
+    }).then(() => scheduler.invalidate(true), () => {}).finally(() => { this.replacing = false; });
   }
 
   // A model file chosen in the sheet: added to this session's scene (POST …/meshes, the raw
