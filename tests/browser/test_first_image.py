@@ -21,7 +21,7 @@ def requests_of(c, part: str) -> list:
 
 def test_the_first_image_after_load_is_a_small_preview_then_the_full_frame(open_client):
     c = open_client(query=None)
-    frames = requests_of(c, "/frame")
+    frames = requests_of(c, "/api/sessions/")
     c.open(PAGE)
     c.wait_idle(min_frames=2)
     log = c.hook("log")
@@ -30,7 +30,7 @@ def test_the_first_image_after_load_is_a_small_preview_then_the_full_frame(open_
     assert first["width"] * first["height"] < 320 * 544 / 4, log  # ¼ of the sides at most: a 16th of the pixels
     assert (last["level"], last["part"], last["width"], last["height"]) == ("full", "final", 320, 544), log
     # The preview was asked first, at the service's interactive profile (one sample per pixel).
-    urls = [r.url for r in frames]
+    urls = [r.url for r in frames if "/frame?" in r.url]
     assert "samples_per_pixel=1" in urls[0] and f"width={first['width']}" in urls[0], urls
     assert "width=320" in urls[1], urls
     assert c.errors(allow=(FAILED_LOAD,)) == []
