@@ -33,4 +33,5 @@ EXPERIMENTS = (
     "hardening",
     "hardening2",
     "meshes",
+    "client",
 )
