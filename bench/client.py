@@ -1,6 +1,6 @@
-"""The phone client's footprint and device-mode latency (issue #19), in headless Chromium.
+"""The phone client's footprint, device-mode latency and the service's frames, in headless Chromium.
 
-Two measurements, on a phone profile (390 × 844 CSS px at device pixel ratio 3, touch
+Three measurements, on a phone profile (390 × 844 CSS px at device pixel ratio 3, touch
 through the DevTools protocol, as the browser tests):
 
 - **chrome share**: the part of the screen the controls cover — the union of the
@@ -13,6 +13,13 @@ through the DevTools protocol, as the browser tests):
   page has taken the event, so a main thread blocked by a frame delays it); then the
   time from the last touch to the first frame showing the moved camera and to the full
   frame. ``delivered`` = the drag's ten moves from the first to the last.
+- **the service's frames** (``server_timeline``, ``--only server``): navigation → the first image
+  → the final (supersampled) one, from the navigation's start on the page's clock; a 10-step
+  one-finger drag → the first image asked for after its last move, and the full frame; a 4 s drag
+  (a touch move every 16 ms) → the previews shown per second and their sizes — for the default
+  page (Whitted) and ``?scenario=mesh:cornell&integrator=path`` (``SERVER_PAGES``).
+  ``python -m bench.experiments --only client`` runs it for this client and the one before and
+  writes its section of ``docs/RESULTS.md``.
 
 ``--client-dir DIR`` serves another client (e.g. an older one exported with
 ``git archive <rev> client_web | tar -x -C /tmp/old``) from the same service, for a
@@ -21,6 +28,7 @@ before/after comparison.
 Usage::
 
     .venv/bin/python -m bench.client                         # this client
+    .venv/bin/python -m bench.client --only server --move-s 4  # only the service's frames
     .venv/bin/python -m bench.client --client-dir /tmp/old/client_web
 """
 
