@@ -6,8 +6,9 @@ with a notice."""
 from __future__ import annotations
 
 import json
+from urllib.parse import parse_qs, urlparse
 
-from browser_support import FAILED_LOAD
+from browser_support import FAILED_LOAD, Touch
 
 # No preview_scale: the client's own choice (auto: the first preview at ¼ of the frame's sides).
 PAGE = "scenario=1&n=64&seed=1&radius=1&width=320&height=544&max_recursion_depth=2"
@@ -68,3 +69,20 @@ def test_invalid_link_values_are_ignored_with_a_notice(open_client, server):
     s = server.session(c.hook("sessionId"))["settings"]
     assert (s["exposure"], s["tone_map"], s["samples_per_pixel"]) == (1.0, "clamp", 1), s  # the valid one taken
     assert c.hook("lastFrame.level") == "full"
+
+
+def test_previews_while_moving_are_at_the_measured_scale(open_client):
+    c = open_client(query=None)
+    sent = requests_of(c, "/gesture?")
+    c.open(PAGE)
+    Touch(c.page).gesture([(150, 300)], [(230, 300)], steps=12)
+    c.wait_idle(min_frames=3)
+    sizes = [(int(q["width"][0]), int(q["height"][0])) for q in (parse_qs(urlparse(r.url).query) for r in sent)]
+    assert sizes, "no gesture asked for a frame"
+    # Each on the sizer's ladder (2^(−k/4) of the frame's sides, ⅛ … 1), none larger than the frame.
+    ladder = {(max(8, round(320 * 2 ** (-k / 4))), max(8, round(544 * 2 ** (-k / 4)))) for k in range(13)}
+    assert set(sizes) <= ladder, sizes
+    # The first at the sizer's start, ¼ (the load's quick preview is not a gesture's: not counted).
+    assert sizes[0] == (80, 136), sizes
+    scale = c.hook("previewScale")
+    assert 0.125 <= scale <= 1 and (round(320 * scale), round(544 * scale)) in ladder, scale
