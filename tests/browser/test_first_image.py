@@ -86,3 +86,14 @@ def test_previews_while_moving_are_at_the_measured_scale(open_client):
     assert sizes[0] == (80, 136), sizes
     scale = c.hook("previewScale")
     assert 0.125 <= scale <= 1 and (round(320 * scale), round(544 * scale)) in ladder, scale
+
+
+def test_the_sheet_offers_auto_and_a_fixed_scale_turns_it_off(open_client):
+    c = open_client(query=PAGE)
+    p = c.page
+    p.click("#settings-toggle")
+    assert p.input_value("#f-previewScale") == "auto"
+    p.select_option("#f-previewScale", "0.5")
+    assert (c.hook("state.client.previewAuto"), c.hook("previewScale")) == (False, 0.5)
+    p.select_option("#f-previewScale", "auto")
+    assert (c.hook("state.client.previewAuto"), c.hook("previewScale")) == (True, 0.25)
