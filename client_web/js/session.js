@@ -99,11 +99,10 @@ export class Session {
     return changed(want, current);
   }
 
-  // Start (or resume) the session, then its first frame, once `ready` (the service's declarations of
-  // its settings: what a link may set and what a session carries); the hook's status says 'failed' if
-  // it cannot.
+  // Start (or resume) the session, then its first frame; `ready`: the service's declarations of its
+  // settings (what a link may set and what a session carries). The hook's status says 'failed' if it cannot.
   begin(ready = Promise.resolve()) {
-    this.scheduler.enqueue(async () => { await ready; return this.start(); }).then(
+    this.scheduler.enqueue(() => this.start(ready)).then(
       () => this.scheduler.invalidate(true),   // a quick preview first: nothing is on screen yet
       (e) => {
         this.hook.status = 'failed';
@@ -112,7 +111,31 @@ export class Session {
     );
   }
 
-  async start() {
+  // The session is asked for (resumed, or made with the scene and the size) while `ready` is on its
+  // way — one round trip less before the first image —; the link's render settings, which need the
+  // service's declarations, follow as one PATCH. A setting the service refuses there is said (the
+  // session keeps its own).
+  async start(ready = Promise.resolve()) {
+    const opened = this.open();
+    opened.catch(() => {});   // awaited below, after `ready`
+    await ready;
+    const s = await opened;
+    this.adopt(s);
+    const diff = this.wantedRender(this.state.render);
+    if (Object.keys(diff).length) {
+      try {
+        this.adopt({ ...s, settings: await this.patch(diff) });
+      } catch (e) {
+        if (!(e instanceof ApiError && e.status === 422)) throw e;
+        this.refusals.record(e, 'start');
+      }
+    }
+    this.hook.status = 'ready';
+  }
+
+  // The stored session when it still exists and shows the link's scene, else a new one (the default
+  // scene when the service refuses the link's).
+  async open() {
     const { api, url } = this;
     const stored = loadStoredSession();
     let s = null, expired = false;
@@ -125,24 +148,18 @@ export class Session {
         expired = true;
       }
     }
-    if (!s) {
-      const scene = { ...DEFAULT_SCENE, ...(stored && stored.scene), ...url.scene };
-      try {
-        s = await api.createSession(sceneBody(scene), this.wantedRender(null));
-      } catch (e) {
-        if (!(e instanceof ApiError && e.status === 422)) throw e;
-        this.refusals.record(e, 'start');  // e.g. a link with parameters the service refuses
-        this.notice('Starting the default scene instead.', 'warn');
-        s = await api.createSession(sceneBody(DEFAULT_SCENE), this.wantedSize() || {});
-      }
-      if (expired) this.notice('Your previous session had expired; a new one was started with the same scene.', 'warn');
-      this.adopt(s);
-    } else {
-      this.adopt(s);
-      const diff = this.wantedRender(this.state.render);
-      if (Object.keys(diff).length) this.adopt({ ...s, settings: await this.patch(diff) });
+    if (s) return s;
+    const scene = { ...DEFAULT_SCENE, ...(stored && stored.scene), ...url.scene };
+    try {
+      s = await api.createSession(sceneBody(scene), this.wantedSize() || {});
+    } catch (e) {
+      if (!(e instanceof ApiError && e.status === 422)) throw e;
+      this.refusals.record(e, 'start');  // e.g. a link with a scene the service refuses
+      this.notice('Starting the default scene instead.', 'warn');
+      s = await api.createSession(sceneBody(DEFAULT_SCENE), this.wantedSize() || {});
     }
-    this.hook.status = 'ready';
+    if (expired) this.notice('Your previous session had expired; a new one was started with the same scene.', 'warn');
+    return s;
   }
 
   async patch(partial) {
