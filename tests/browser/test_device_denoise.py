@@ -63,7 +63,7 @@ def filtered(page, server) -> dict:
 
 
 def test_the_glsl_filter_is_the_numpy_port(filtered):
-    mine = atrous(filtered["radiance"], filtered["albedo"], filtered["normal"])
+    mine = atrous(filtered["radiance"], filtered["albedo"], filtered["normal"], 16)
     got = filtered["denoised"]
     # float32 on both sides, exp() and the sums' order differ: relative 1e-4 of the image's scale.
     scale = float(np.abs(mine).max())

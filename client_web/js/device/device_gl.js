@@ -534,7 +534,8 @@ export class DeviceRenderer {
       gl.bindFramebuffer(gl.FRAMEBUFFER, dst.fbo);
       const units = [['u_color', src], ['u_albedo', resolved.tex[2]], ['u_normal', resolved.tex[3]]];
       this._bindUnits(prog, units);
-      const sigma = f.sigma_color * Math.pow(0.5, i);   // halved each pass (renderer/atrous.py)
+      // renderer/atrous.py's color_sigma: σ_c·√(sigma_samples / samples), halved each pass.
+      const sigma = f.sigma_color * Math.sqrt(f.sigma_samples / Math.max(1, trace.samplesDone)) * Math.pow(0.5, i);
       gl.uniform1i(prog.uniforms.get('u_step').loc, 1 << i);
       gl.uniform1f(prog.uniforms.get('u_inv_color').loc, 1 / (sigma * sigma));
       gl.drawArrays(gl.TRIANGLES, 0, 6);
