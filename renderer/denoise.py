@@ -70,7 +70,7 @@ def denoise_result(result: RenderResult, scene: Scene, denoiser: str) -> RenderR
         albedo = first_hit_albedo(scene, result.primid)
         normal = np.ascontiguousarray(result.normal, np.float32)
     if denoiser == "atrous":
-        image = atrous(color, albedo, normal, result.samples)
+        image = atrous(color, albedo, normal, result.samples or 1)  # a path frame says its samples
     else:
         import pyoidn  # ships the library in its wheel; imported when a frame first asks for it
 
