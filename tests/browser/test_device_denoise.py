@@ -136,3 +136,34 @@ def test_the_resting_view_accumulates_passes_into_the_servers_frame(gl_browser, 
         assert c.errors() == [] and c.hook("errors") == []
     finally:
         ctx.close()
+
+
+def test_the_resting_view_shows_each_mean_filtered_with_a_denoiser(gl_browser, server):
+    """A link's denoise=atrous: the data's variant writes the guides and every mean shown is the
+    filter's output, tone-mapped (the canvas is display_u8 of the filtered mean)."""
+    side, spp = 24, 2 * DEVICE_PATH_SAMPLES_PER_PASS
+    ctx = gl_browser.new_context(**MOBILE)
+    try:
+        c = Client(server, ctx, ctx.new_page())
+        c.open(
+            f"scenario=mesh:cornell&width={side}&height={side}&integrator=path&samples_per_pixel={spp}"
+            "&max_recursion_depth=4&preview_scale=1&refine_ms=0&renderer=device&mode=color&denoise=atrous"
+        )
+        c.page.wait_for_function(
+            f"() => window.pocketray.idle && window.pocketray.device.accumulation?.samples === {spp}"
+        )
+        assert c.hook("device.path")["guides"] is True  # the session's denoise: the data's variant has GUIDES
+        assert c.hook("device.accumulation")["shown"] == [DEVICE_PATH_SAMPLES_PER_PASS, spp]
+        rb = c.hook("device.readback()")
+        arrays = {
+            k: np.frombuffer(base64.b64decode(rb[k]), np.float32).reshape(side, side, 3)
+            for k in ("radiance", "albedo", "normal", "denoised")
+        }
+        mine = atrous(arrays["radiance"], arrays["albedo"], arrays["normal"], spp)
+        assert np.abs(arrays["denoised"] - mine).max() <= 1e-4 * float(np.abs(mine).max())
+        shown = np.frombuffer(base64.b64decode(rb["color"]), np.uint8).reshape(side, side, 3)
+        diff = np.abs(shown.astype(int) - display_u8(arrays["denoised"], "clamp", 0.0).astype(int))
+        assert diff.max() <= 1 and (diff == 0).mean() >= 0.98, (diff.max(), (diff == 0).mean())
+        assert c.errors() == [] and c.hook("errors") == []
+    finally:
+        ctx.close()
