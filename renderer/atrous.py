@@ -41,40 +41,36 @@ def atrous(color: np.ndarray, albedo: np.ndarray, normal: np.ndarray, samples: i
     filtered with the guides ``albedo`` and ``normal`` (H×W×3 each, the means the GUIDES variant
     writes)."""
     c = np.asarray(color, np.float32)
-    a = np.asarray(albedo, np.float32)
-    n = np.asarray(normal, np.float32)
     h, w = c.shape[:2]
     kernel = np.asarray(ATROUS_KERNEL, np.float32)
     sigma_c = color_sigma(samples)
+    # The guides scaled by 1/σ once: a tap's guide term is then a squared distance of 6 channels.
+    guides = np.concatenate(
+        [np.asarray(normal, np.float32) / ATROUS_SIGMA_NORMAL, np.asarray(albedo, np.float32) / ATROUS_SIGMA_ALBEDO],
+        axis=-1,
+    )
     for i in range(ATROUS_ITERATIONS):
         step = 1 << i
-        inv_c = np.float32(1.0 / (sigma_c * 0.5**i) ** 2)
-        inv_n = np.float32(1.0 / ATROUS_SIGMA_NORMAL**2)
-        inv_a = np.float32(1.0 / ATROUS_SIGMA_ALBEDO**2)
-        cc = c / (np.float32(1.0) + np.maximum(c, np.float32(0.0)))
-        total = np.zeros_like(c)
-        weights = np.zeros((h, w, 1), np.float32)
-        for j in range(5):
-            dy = (j - 2) * step
-            for k in range(5):
-                dx = (k - 2) * step
-                # The pixels whose tap (y + dy, x + dx) lies inside the image, and those taps.
-                ys, yd = _span(h, dy)
-                xs, xd = _span(w, dx)
-                if ys.start >= ys.stop or xs.start >= xs.stop:
-                    continue
-                d_c = cc[yd, xd] - cc[ys, xs]
-                d_n = n[yd, xd] - n[ys, xs]
-                d_a = a[yd, xd] - a[ys, xs]
-                e = (
-                    np.sum(d_c * d_c, axis=-1, keepdims=True) * inv_c
-                    + np.sum(d_n * d_n, axis=-1, keepdims=True) * inv_n
-                    + np.sum(d_a * d_a, axis=-1, keepdims=True) * inv_a
-                )
-                wt = kernel[j] * kernel[k] * np.exp(-e)
-                total[ys, xs] += wt * c[yd, xd]
-                weights[ys, xs] += wt
-        c = total / weights  # the centre tap weighs h(0)² > 0: never 0
+        scaled = c / (np.float32(1.0) + np.maximum(c, np.float32(0.0))) / np.float32(sigma_c * 0.5**i)
+        features = np.concatenate([scaled, guides], axis=-1)
+        total = c * kernel[2] * kernel[2]  # the centre tap: weight h(0)², distance 0
+        weights = np.full((h, w, 1), kernel[2] * kernel[2], np.float32)
+        # A tap's weight is symmetric (w(p, q) = w(q, p), h(j)·h(k) = h(4−j)·h(4−k)): each pair of
+        # pixels d apart is weighed once and added to both.
+        for j, k in _HALF:
+            dy, dx = (j - 2) * step, (k - 2) * step
+            # The pixels whose tap (y + dy, x + dx) lies inside the image, and those taps.
+            ys, yd = _span(h, dy)
+            xs, xd = _span(w, dx)
+            if ys.start >= ys.stop or xs.start >= xs.stop:
+                continue
+            d = features[yd, xd] - features[ys, xs]
+            wt = kernel[j] * kernel[k] * np.exp(-np.einsum("...k,...k->...", d, d))[..., None]
+            total[ys, xs] += wt * c[yd, xd]
+            weights[ys, xs] += wt
+            total[yd, xd] += wt * c[ys, xs]
+            weights[yd, xd] += wt
+        c = total / weights
     return c.astype(np.float32)
 
 
@@ -94,6 +90,10 @@ def parameters() -> dict[str, object]:
         "sigma_normal": ATROUS_SIGMA_NORMAL,
         "sigma_albedo": ATROUS_SIGMA_ALBEDO,
     }
+
+
+# One tap of each symmetric pair of the 5 × 5 kernel (the 12 before the centre in row order).
+_HALF = [(j, k) for j in range(5) for k in range(5) if (j, k) < (2, 2)]
 
 
 def _span(size: int, d: int) -> tuple[slice, slice]:
