@@ -174,7 +174,7 @@ float smith_g1(float c, float alpha) {
 // A GGX (α) microfacet normal drawn from the normals visible from wo about n (Heitz 2018,
 // "Sampling the GGX Distribution of Visible Normals"): density D_wo(m) = G1(wo) max(0, wo·m) D(m) / (n·wo).
 // Against the full distribution D(m) cos θm, the weights of the lobes that use it are bounded
-// (G1 of the new direction) instead of growing as 1 / (n·wo) at grazing incidence.
+// (G1 of the new direction) instead of growing as (wo·m) / (n·m) for the rare m far from n.
 vec3 ggx_visible_normal(vec3 n, vec3 wo, float a, float u1, float u2) {
     vec3 t, b;
     basis(n, t, b);
