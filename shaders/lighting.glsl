@@ -191,7 +191,6 @@ vec3 ggx_visible_normal(vec3 n, vec3 wo, float a, float u1, float u2) {
     return ml.x * t + ml.y * b + ml.z * n;
 }
 
-#ifdef READS_ENVIRONMENT_SAMPLING
 // The GGX lobe (α, F = 1, separable Smith masking) for wo → wi about n: (f, pdf per steradian of its
 // sampling, D_wo(m) / (4 o·m) = G1(wo) D(m) / (4 n·o), the visible normals); (0, 0) below either horizon.
 vec2 ggx_eval(vec3 n, vec3 wo, vec3 wi, float alpha) {
@@ -206,7 +205,19 @@ vec2 ggx_eval(vec3 n, vec3 wo, vec3 wi, float alpha) {
     float f = dm * smith_g1(n_o, alpha) * smith_g1(n_i, alpha) / (4.0 * n_o * n_i);
     return vec2(f, dm * smith_g1(n_o, alpha) / (4.0 * n_o));
 }
-#endif
+// The lobes next-event estimation lights, the diffuse and the GGX one together, for wo → wi about nf:
+// (f, the pdf with which BSDF sampling chooses wi — each lobe with its weight's probability). The
+// smooth mirror and glass are deltas: no light sample can meet them.
+vec4 lobes_eval(vec3 nf, vec3 wo, vec3 wi, float w_d, vec3 albedo, float w_r, float alpha) {
+    vec3 f = (w_d / PI) * albedo;
+    float pdf = w_d * max(dot(nf, wi), 0.0) / PI;
+    if (w_r > 0.0 && alpha > 0.0) {
+        vec2 g = ggx_eval(nf, wo, wi, alpha);
+        f += vec3(w_r * g.x);
+        pdf += w_r * g.y;
+    }
+    return vec4(f, pdf);
+}
 
 // Fresnel reflectance of a smooth dielectric: cos_i > 0 the incident cosine, eta = n_i / n_t.
 float fresnel_dielectric(float cos_i, float eta) {
@@ -259,10 +270,8 @@ void path_main() {
     bool env_done = false;       // … and its environment-image sample (shadow kind 3)
 #endif
     vec3 prev_p = vec3(0.0);     // the vertex the current segment left, and the pdf (solid angle) with
-    float prev_pdf_d = 0.0;      // which its diffuse lobe chose it (0: another lobe, or the camera)
-#ifdef READS_ENVIRONMENT_SAMPLING
-    float prev_pdf_env = 0.0;    // … and the pdf of its diffuse and GGX lobes together (0: a smooth lobe)
-#endif
+    float prev_pdf = 0.0;        // which its diffuse and GGX lobes together chose it (0: a smooth lobe, the camera)
+    bool lit = false;            // the vertex has a lobe that next-event estimation lights (diffuse, GGX)
     while (true) {
         if (start) {
             uint i = uint(u_sample_start + done);
@@ -277,10 +286,7 @@ void path_main() {
             o = u_cam_pos;
             d = normalize(u_cam_forward + u * u_cam_right + v * u_cam_up);
             skip = NO_PRIM; far_id = NO_PRIM;
-            L = vec3(0.0); beta = vec3(1.0); segments = 1; prev_pdf_d = 0.0;
-#ifdef READS_ENVIRONMENT_SAMPLING
-            prev_pdf_env = 0.0;
-#endif
+            L = vec3(0.0); beta = vec3(1.0); segments = 1; prev_pdf = 0.0;
             q = Query(o, d, skip, far_id, BIG, false);
             start = false;
         }
@@ -295,9 +301,9 @@ void path_main() {
             // The image is sampled by next-event estimation too: the power heuristic's weight of
             // BSDF sampling where the diffuse or the GGX lobe chose the direction.
             float w_env = 1.0;
-            if (prev_pdf_env > 0.0) {
+            if (prev_pdf > 0.0) {
                 float p_l = env_pdf(d);
-                w_env = prev_pdf_env * prev_pdf_env / (prev_pdf_env * prev_pdf_env + p_l * p_l);
+                w_env = prev_pdf * prev_pdf / (prev_pdf * prev_pdf + p_l * p_l);
             }
             L += w_env * beta * ENV_RADIANCE_AT(d);
 #else
@@ -321,15 +327,15 @@ void path_main() {
             nf = front ? s.n : -s.n;
             if (front) {
                 // An emitting sphere that next-event estimation samples too: the power heuristic's weight
-                // of BSDF sampling (its diffuse lobe's pdf against the sphere's cone); every other
+                // of BSDF sampling (its diffuse and GGX lobes' pdf against the sphere's cone); every other
                 // emitter (planes, triangles, spheres past the sampled ones) is met by BSDF sampling alone.
                 float w = 1.0;
-                if (prev_pdf_d > 0.0 && h.id < u_num_spheres && h.id <= u_emitter_last) {
+                if (prev_pdf > 0.0 && h.id < u_num_spheres && h.id <= u_emitter_last) {
                     vec3 to_c = h.sphere.xyz - prev_p;
                     float sin2 = h.sphere.w * h.sphere.w / dot(to_c, to_c);
                     if (sin2 < 1.0) {
                         float p_l = 1.0 / (2.0 * PI * (sin2 / (1.0 + sqrt(1.0 - sin2))));
-                        w = prev_pdf_d * prev_pdf_d / (prev_pdf_d * prev_pdf_d + p_l * p_l);
+                        w = prev_pdf * prev_pdf / (prev_pdf * prev_pdf + p_l * p_l);
                     }
                 }
 //@TRIANGLES path_emit_mis
@@ -358,10 +364,11 @@ void path_main() {
             env_done = false;
 #endif
             vertex = segments < MAX_RECURSION_DEPTH;   // a next segment (shadow or bounce) fits
+            lit = w_diffuse > 0.0 || (w_reflect > 0.0 && roughness > 0.0);
         }
 #ifdef SHADOW_RAYS
-        // Next-event estimation: the next point light that lights the diffuse lobe.
-        if (vertex && w_diffuse > 0.0) {
+        // Next-event estimation: the next point light, lighting the diffuse and GGX lobes (a delta light: no MIS).
+        if (vertex && lit) {
             bool shadow = false;
             for (; light < LIGHT_LOOP; light++) {
                 if (LIGHTS_END(light)) break;
@@ -372,7 +379,8 @@ void path_main() {
                 float cos_l = dot(nf, l);
                 if (cos_l > 0.0 && dist > 0.0) {
                     // f = w_d · color / π, intensity I = color_light · u_light_scale, E = I cos / r².
-                    contrib = beta * (w_diffuse / PI) * m.color * u_light_color[light] * (u_light_scale * cos_l / dist2);
+                    vec3 f = lobes_eval(nf, -d, l, w_diffuse, m.color, w_reflect, roughness).rgb;
+                    contrib = beta * f * u_light_color[light] * (u_light_scale * cos_l / dist2);
                     int sk, fa;
                     exclusion(h.id, s.n, l, sk, fa);
                     q = Query(s.p, l, sk, fa, dist, true);
@@ -386,7 +394,7 @@ void path_main() {
 #endif
         // Next-event estimation to the emitting spheres: a direction in the cone the sphere fills
         // (uniform in solid angle), weighted by the power heuristic against BSDF sampling.
-        if (vertex && w_diffuse > 0.0) {
+        if (vertex && lit) {
             bool shadow = false;
             for (; emitter < MAX_SAMPLED_SPHERES; emitter++) {
                 if (emitter >= u_num_emitters) break;
@@ -407,9 +415,9 @@ void path_main() {
                 float te = intersect_sphere(s.p, l, e, false);
                 if (cos_l <= 0.0 || te >= BIG) continue;
                 float p_l = 1.0 / (2.0 * PI * cone);
-                float p_b = w_diffuse * cos_l / PI;
-                float w = p_l * p_l / (p_l * p_l + p_b * p_b);
-                contrib = beta * (w_diffuse / PI) * m.color * u_emitter_radiance[emitter] * (cos_l * w / p_l);
+                vec4 fl = lobes_eval(nf, -d, l, w_diffuse, m.color, w_reflect, roughness);
+                float w = p_l * p_l / (p_l * p_l + fl.w * fl.w);
+                contrib = beta * fl.rgb * u_emitter_radiance[emitter] * (cos_l * w / p_l);
                 int sk, fa;
                 exclusion(h.id, s.n, l, sk, fa);
                 q = Query(s.p, l, sk, fa, te * (1.0 - 1e-4), true);   // blockers before the sphere
@@ -421,7 +429,7 @@ void path_main() {
         }
         // … and to the emitting triangles: one, picked with probability ∝ its area, a point uniform on it
         // (pdf in solid angle dist² / (A cos θ_light), A their total area), the power heuristic again.
-        if (vertex && w_diffuse > 0.0 && !tri_done && u_num_emit_tris > 0) {
+        if (vertex && lit && !tri_done && u_num_emit_tris > 0) {
             float pick = rnd(), b1 = rnd(), b2 = rnd();
             tri_done = true;
             int k = 0;
@@ -442,9 +450,9 @@ void path_main() {
             float cos_l = dot(nf, l);
             if (dist > 0.0 && cos_light > 0.0 && cos_l > 0.0) {
                 float p_l = dist2 / (u_emit_tri_area * cos_light);
-                float p_b = w_diffuse * cos_l / PI;
-                float w = p_l * p_l / (p_l * p_l + p_b * p_b);
-                contrib = beta * (w_diffuse / PI) * m.color * u_emit_tri_radiance[k] * (cos_l * w / p_l);
+                vec4 fl = lobes_eval(nf, -d, l, w_diffuse, m.color, w_reflect, roughness);
+                float w = p_l * p_l / (p_l * p_l + fl.w * fl.w);
+                contrib = beta * fl.rgb * u_emit_tri_radiance[k] * (cos_l * w / p_l);
                 int sk, fa;
                 exclusion(h.id, s.n, l, sk, fa);
                 q = Query(s.p, l, sk, fa, dist * (1.0 - 1e-4), true);
@@ -456,22 +464,16 @@ void path_main() {
         // … and to the environment image: one direction from its importance sampling, lighting the
         // diffuse and the GGX lobe, the power heuristic against their sampling together (a bright
         // sun seen in a rough metal is found this way), a shadow ray to infinity.
-        if (vertex && (w_diffuse > 0.0 || (w_reflect > 0.0 && roughness > 0.0)) && !env_done) {
+        if (vertex && lit && !env_done) {
             env_done = true;
             float u1 = rnd(), u2 = rnd();
             float p_l;
             vec3 l = env_sample(u1, u2, p_l);
             float cos_l = dot(nf, l);
             if (p_l > 0.0 && cos_l > 0.0) {
-                vec3 f = (w_diffuse / PI) * m.color;
-                float p_b = w_diffuse * cos_l / PI;
-                if (w_reflect > 0.0 && roughness > 0.0) {
-                    vec2 g = ggx_eval(nf, -d, l, roughness);
-                    f += vec3(w_reflect * g.x);
-                    p_b += w_reflect * g.y;
-                }
-                float w = p_l * p_l / (p_l * p_l + p_b * p_b);
-                contrib = beta * f * ENV_RADIANCE_AT(l) * (cos_l * w / p_l);
+                vec4 fl = lobes_eval(nf, -d, l, w_diffuse, m.color, w_reflect, roughness);
+                float w = p_l * p_l / (p_l * p_l + fl.w * fl.w);
+                contrib = beta * fl.rgb * ENV_RADIANCE_AT(l) * (cos_l * w / p_l);
                 int sk, fa;
                 exclusion(h.id, s.n, l, sk, fa);
                 q = Query(s.p, l, sk, fa, BIG, true);
@@ -486,15 +488,11 @@ void path_main() {
             float u1 = rnd(), u2 = rnd();
             vec3 nd = vec3(0.0);
             bool go = true;
-            prev_pdf_d = 0.0;
+            prev_pdf = 0.0;
             prev_p = s.p;
-#ifdef READS_ENVIRONMENT_SAMPLING
-            prev_pdf_env = 0.0;
-#endif
             if (pick < w_diffuse) {
                 nd = cosine_direction(nf, u1, u2);
                 beta *= m.color;
-                prev_pdf_d = w_diffuse * max(dot(nf, nd), 0.0) / PI;
             } else if (pick < w_diffuse + w_reflect) {
                 if (roughness > 0.0) {
                     // GGX (α = roughness), F = 1: a microfacet normal from the normals visible from wo
@@ -554,12 +552,8 @@ void path_main() {
             } else {
                 go = false;
             }
-#ifdef READS_ENVIRONMENT_SAMPLING
-            if (go && (pick < w_diffuse || (pick < w_diffuse + w_reflect && roughness > 0.0))) {
-                prev_pdf_env = w_diffuse * max(dot(nf, nd), 0.0) / PI;
-                if (w_reflect > 0.0 && roughness > 0.0) prev_pdf_env += w_reflect * ggx_eval(nf, -d, nd, roughness).y;
-            }
-#endif
+            if (go && (pick < w_diffuse || (pick < w_diffuse + w_reflect && roughness > 0.0)))
+                prev_pdf = lobes_eval(nf, -d, nd, w_diffuse, m.color, w_reflect, roughness).w;
             // Russian roulette from the fourth segment on: survive with p, weight 1/p (unbiased).
             if (go && segments >= 3) {
                 float p = min(max(beta.r, max(beta.g, beta.b)), 0.95);

@@ -135,10 +135,10 @@ void triangle_surface(vec3 d, Hit h, inout Surface s) {
 
 //@SECTION path_emit_mis
                 // An emitting triangle that next-event estimation samples (all are, when any is).
-                if (prev_pdf_d > 0.0 && h.id >= u_tri_base && u_num_emit_tris > 0) {
+                if (prev_pdf > 0.0 && h.id >= u_tri_base && u_num_emit_tris > 0) {
                     float cos_light = -dot(d, ng);
                     float p_l = h.t * h.t / (u_emit_tri_area * max(cos_light, 1e-12));
-                    w = prev_pdf_d * prev_pdf_d / (prev_pdf_d * prev_pdf_d + p_l * p_l);
+                    w = prev_pdf * prev_pdf / (prev_pdf * prev_pdf + p_l * p_l);
                 }
 
 //@SECTION bih_box
