@@ -24,6 +24,7 @@ from pydantic import (
     ConfigDict,
     Field,
     StrictBool,
+    StrictInt,
     TypeAdapter,
     ValidationError,
     create_model,
@@ -60,6 +61,8 @@ from renderer.limits import (
     MAX_SPHERES,
     MAX_TRIANGLES,
     MAX_WAVELENGTH,
+    REFINE_MS_RANGE,
+    REFINE_SAMPLES_RANGE,
 )
 from renderer.mesh_io import MODEL_FORMATS
 from renderer.scenarios import CUBE_HALF, MAX_MESH_DETAIL, MESH_SCENES
@@ -486,6 +489,12 @@ class SessionFrameQuery(FrameQuery):
         "frame's samples added (X-Samples: how many); yields to interactive frames (docs/API.md, "
         "'Accumulation')",
     )
+    refine: bool = Field(
+        False,
+        description="answer the session's refinement stream as multipart/mixed: accumulation frames of the "
+        "resting view until refine_samples or refine_ms (X-Refine: where the stream stands; docs/API.md, "
+        "'Refinement')",
+    )
 
 
 class FrameMessage(BaseModel):
@@ -494,6 +503,26 @@ class FrameMessage(BaseModel):
     model_config = ConfigDict(extra="ignore")
     type: Literal["frame"]
     accumulate: StrictBool = Field(False, description="as the session frame's accumulate=1")
+
+
+class RefineMessage(BaseModel):
+    """A WebSocket message that asks for the session's refinement stream (docs/API.md, "Refinement");
+    its settings are its ``frame``, the targets default to the session's refine_samples and refine_ms."""
+
+    model_config = ConfigDict(extra="ignore")
+    type: Literal["refine"]
+    target_samples: StrictInt | None = Field(
+        None,
+        ge=REFINE_SAMPLES_RANGE[0],
+        le=REFINE_SAMPLES_RANGE[1],
+        description="samples per pixel to refine to (default: refine_samples)",
+    )
+    target_ms: StrictInt | None = Field(
+        None,
+        ge=REFINE_MS_RANGE[0],
+        le=REFINE_MS_RANGE[1],
+        description="longest refinement, ms; 0: no time limit (default: refine_ms)",
+    )
 
 
 class GestureQuery(FrameQuery):
