@@ -39,4 +39,5 @@ EXPERIMENTS = (
     "hardening2",
     "meshes",
     "denoise",
+    "client",
 )

@@ -8,7 +8,8 @@ import { Display, displayedSize } from './display.js';
 import { FrameScheduler } from './frames.js';
 import { createHook, observe } from './hook.js';
 import { Session } from './session.js';
-import { readUrlParams } from './settings.js';
+import { PreviewSizer } from './preview_size.js';
+import { ignoredNotice, readUrlParams } from './settings.js';
 import { createState } from './state.js';
 import { Transport } from './transport.js';
 import { DeviceView } from './device/device.js';
@@ -42,21 +43,25 @@ const overlay = new Overlay($('#overlay'), $('#overlay-toggle')), legend = new L
 if (url.client.overlay !== undefined) overlay.setHidden(!url.client.overlay);
 const display = new Display({
   canvas, state, hook, overlay, legend,
-  onShown(meta) {
-    session.shown(meta);
+  onShown(meta, level) {
+    session.shown(meta, level);
     if (state.anim.playing) scheduler.animate();   // the next frame as soon as this one is shown
   },
 });
 const show = (frame, level) => display.show(frame, level);
 const device = new DeviceView({ api, getState: () => state, viewportHeight, display: show,
   onFallback: (reason) => renderers.fallBack(reason) });
-const transport = new Transport({ state, api, device, activity: $('#activity'), viewportHeight,
+// The service's previews keep ≥ 10 frames/s: their size follows their measured time (from ¼, the
+// size of the first image after load).
+const sizer = new PreviewSizer({ start: 0.25 });
+const transport = new Transport({ state, api, device, activity: $('#activity'), viewportHeight, sizer,
   pending: () => scheduler.pending, onFallback: (reason, redraw) => renderers.fallBack(reason, redraw) });
 const scheduler = new FrameScheduler({
   transport, display: show, refineDelayMs: state.client.refineDelayMs,
   onError: (e, what) => session.failed(e, what),
 });
 observe(hook, { scheduler, device });
+Object.defineProperty(hook, 'previewScale', { get: () => transport.previewScale, enumerable: true });
 
 const panel = new SettingsPanel($('#settings'), $('#settings-toggle'), {
   onScene: (scene) => session.newScene(scene),
@@ -77,5 +82,12 @@ session.followScreen();
 fetch('/api/ready', { cache: 'no-store' }).then((r) => r.json())
   .then((j) => { hook.serverRenderer = j.gl_renderer || null; }, () => {});
 const infoReady = api.info().then((info) => { legend.setInfo(info); session.offered(info); });
-// A link's render settings are those the service declares: read them again once it has said which.
-session.begin(infoReady.then(() => Object.assign(url.render, readUrlParams(location.search).render)));
+// A link's render settings are those the service declares: read them again once it has said which,
+// and say which parameters were not taken.
+session.begin(infoReady.then(() => {
+  const again = readUrlParams(location.search);
+  Object.assign(url.render, again.render);
+  hook.ignoredParams = again.ignored;
+  const text = ignoredNotice(again.ignored);
+  if (text) notice(text, 'warn', 12000);
+}));

@@ -62,7 +62,7 @@ export function describeFrame(frame, level, { width, height }, state, serverRend
   };
 }
 
-// onShown(meta): after each frame (the session learns its new scene is on screen; an animation asks for the next).
+// onShown(meta, level): after each frame (the session learns its new scene is on screen; an animation asks for the next).
 export class Display {
   constructor({ canvas, state, hook, legend, overlay, onShown = () => {} }) {
     this.canvas = canvas;
@@ -85,6 +85,6 @@ export class Display {
     canvas.setAttribute('aria-label', d.label);
     this.legend.show(d.legend);
     this.overlay.frame(d.overlay);
-    this.onShown(frame.meta || {});
+    this.onShown(frame.meta || {}, level);
   }
 }

@@ -9,6 +9,10 @@
 //  - While the finger moves, frames come at the *preview* level (reduced
 //    resolution, jpeg); `refineDelayMs` after the last gesture one *full* frame
 //    (full resolution, png) replaces it.
+//  - A new page or scene (`invalidate(true)`) shows a quick preview first, then the full frame,
+//    when the transport says its previews are smaller (transport.quickFirst()).
+//  - Each preview is timed from its request to the screen and the time handed to
+//    transport.previewTaken(ms, frame) (the preview's size follows it: preview_size.js).
 //  - While an animation plays, `animate()` asks for its next frame at the preview
 //    level (gestures still go first); the full frame follows `refineDelayMs`
 //    after the last one, when the animation is paused.
@@ -20,6 +24,8 @@
 //   transport.frame(level, onPreview) → frame            level: 'preview' | 'full'; a progressive
 //                                       frame hands its first image to onPreview first (optional)
 //   transport.refineNeeded()          → false when both levels are the same (optional)
+//   transport.quickFirst()            → whether a first preview is worth it (optional)
+//   transport.previewTaken(ms, frame) → a preview's time from request to screen (optional)
 //   display(frame, level)             → shows it (may be async)
 //   onError(error, what)              → what: 'gesture' | 'frame' | 'task'
 // A frame is {version, ...anything display needs}.
@@ -76,6 +82,7 @@ export class FrameScheduler {
     this.pending = null;        // merged gestures not yet sent
     this.tasks = [];            // queued exclusive jobs (settings, sessions)
     this.needFull = false;      // a full frame is due
+    this.needQuick = false;     // a quick preview is due before it (a new page or scene)
     this.needAnimation = false; // the next frame of a playing animation is due
     this.inFlight = false;
     this.refineTimer = null;
@@ -90,8 +97,8 @@ export class FrameScheduler {
   }
 
   get idle() {
-    return !this.inFlight && !this.pending && this.tasks.length === 0 && !this.needFull && !this.needAnimation &&
-      this.refineTimer === null;
+    return !this.inFlight && !this.pending && this.tasks.length === 0 && !this.needFull && !this.needQuick &&
+      !this.needAnimation && this.refineTimer === null;
   }
 
   // A gesture from the user: {type: 'pan', dx, dy} | {type: 'pinch', scale} | {type: 'orbit', yaw, pitch}
@@ -104,9 +111,11 @@ export class FrameScheduler {
     this._pump();
   }
 
-  // The image on screen is out of date (settings changed, new session): render a full frame.
-  invalidate() {
+  // The image on screen is out of date (settings changed, new session): render a full frame; with
+  // `quick` (a new page or scene: nothing of it on screen yet) a preview first, when it is smaller.
+  invalidate(quick = false) {
     this.needFull = true;
+    if (quick && this.transport.quickFirst && this.transport.quickFirst()) this.needQuick = true;
     this._cancelRefine();
     this._pump();
   }
@@ -192,14 +201,24 @@ export class FrameScheduler {
     return true;
   }
 
-  // One frame at `level` (transport.frame), shown if it is still the newest.
-  async _frame(level) {
+  // A preview asked for at `t0` is on screen: its time goes to the transport.
+  _timed(t0, frame, shown) {
+    if (shown && this.transport.previewTaken) this.transport.previewTaken(this.timers.now() - t0, frame);
+  }
+
+  // One frame at `level` (transport.frame), shown if it is still the newest; `timed`: a preview whose
+  // time counts (a gesture's or an animation's, not a new scene's first one, which builds and compiles).
+  async _frame(level, timed = false) {
     this.inFlight = true;
     const seq = ++this.seq;
     try {
       this.requests++;
+      const t0 = this.timers.now();
       const frame = await this.transport.frame(level, (preview) => this._offerPreview(preview, seq, level));
-      if (frame) await this._offer(frame, seq, level);   // null: cancelled by a gesture (device mode)
+      if (frame) {   // null: cancelled by a gesture (device mode)
+        const shown = await this._offer(frame, seq, level);
+        if (timed) this._timed(t0, frame, shown);
+      }
     } catch (e) {
       this.onError(e, 'frame');
     } finally {
@@ -230,13 +249,14 @@ export class FrameScheduler {
       const seq = ++this.seq;
       try {
         let frame = null;
+        const t0 = this.timers.now();
         for (let i = 0; i < ops.length; i++) {
           const last = i === ops.length - 1;
           this.requests++;
           const r = await this.transport.gesture(ops[i], last ? 'preview' : null);
           if (last) frame = r;
         }
-        if (frame) await this._offer(frame, seq, 'preview');   // null: nothing to show (device mode)
+        if (frame) this._timed(t0, frame, await this._offer(frame, seq, 'preview'));   // null: nothing to show (device mode)
       } catch (e) {
         this.onError(e, 'gesture');
       } finally {
@@ -247,8 +267,13 @@ export class FrameScheduler {
     }
     if (this.needAnimation) {
       this.needAnimation = false;
-      await this._frame('preview');
+      await this._frame('preview', true);
       if (!this.pending && !this.needAnimation) this._scheduleRefine();
+      return this._pump();
+    }
+    if (this.needQuick) {
+      this.needQuick = false;
+      if (this.needFull) await this._frame('preview');
       return this._pump();
     }
     if (this.needFull) {

@@ -102,12 +102,11 @@ export class Session {
     return changed(want, current);
   }
 
-  // Start (or resume) the session, then its first frame, once `ready` (the service's declarations of
-  // its settings: what a link may set and what a session carries); the hook's status says 'failed' if
-  // it cannot.
+  // Start (or resume) the session, then its first frame; `ready`: the service's declarations of its
+  // settings (what a link may set and what a session carries). The hook's status says 'failed' if it cannot.
   begin(ready = Promise.resolve()) {
-    this.scheduler.enqueue(async () => { await ready; return this.start(); }).then(
-      () => this.scheduler.invalidate(),
+    this.scheduler.enqueue(() => this.start(ready)).then(
+      () => this.scheduler.invalidate(true),   // a quick preview first: nothing is on screen yet
       (e) => {
         this.hook.status = 'failed';
         this.refusals.record(e, 'start');
@@ -115,7 +114,31 @@ export class Session {
     );
   }
 
-  async start() {
+  // The session is asked for (resumed, or made with the scene and the size) while `ready` is on its
+  // way — one round trip less before the first image —; the link's render settings, which need the
+  // service's declarations, follow as one PATCH. A setting the service refuses there is said (the
+  // session keeps its own).
+  async start(ready = Promise.resolve()) {
+    const opened = this.open();
+    opened.catch(() => {});   // awaited below, after `ready`
+    await ready;
+    const s = await opened;
+    this.adopt(s);
+    const diff = this.wantedRender(this.state.render);
+    if (Object.keys(diff).length) {
+      try {
+        this.adopt({ ...s, settings: await this.patch(diff) });
+      } catch (e) {
+        if (!(e instanceof ApiError && e.status === 422)) throw e;
+        this.refusals.record(e, 'start');
+      }
+    }
+    this.hook.status = 'ready';
+  }
+
+  // The stored session when it still exists and shows the link's scene, else a new one (the default
+  // scene when the service refuses the link's).
+  async open() {
     const { api, url } = this;
     const stored = loadStoredSession();
     let s = null, expired = false;
@@ -128,24 +151,18 @@ export class Session {
         expired = true;
       }
     }
-    if (!s) {
-      const scene = { ...DEFAULT_SCENE, ...(stored && stored.scene), ...url.scene };
-      try {
-        s = await api.createSession(sceneBody(scene), this.wantedRender(null));
-      } catch (e) {
-        if (!(e instanceof ApiError && e.status === 422)) throw e;
-        this.refusals.record(e, 'start');  // e.g. a link with parameters the service refuses
-        this.notice('Starting the default scene instead.', 'warn');
-        s = await api.createSession(sceneBody(DEFAULT_SCENE), this.wantedSize() || {});
-      }
-      if (expired) this.notice('Your previous session had expired; a new one was started with the same scene.', 'warn');
-      this.adopt(s);
-    } else {
-      this.adopt(s);
-      const diff = this.wantedRender(this.state.render);
-      if (Object.keys(diff).length) this.adopt({ ...s, settings: await this.patch(diff) });
+    if (s) return s;
+    const scene = { ...DEFAULT_SCENE, ...(stored && stored.scene), ...url.scene };
+    try {
+      s = await api.createSession(sceneBody(scene), this.wantedSize() || {});
+    } catch (e) {
+      if (!(e instanceof ApiError && e.status === 422)) throw e;
+      this.refusals.record(e, 'start');  // e.g. a link with a scene the service refuses
+      this.notice('Starting the default scene instead.', 'warn');
+      s = await api.createSession(sceneBody(DEFAULT_SCENE), this.wantedSize() || {});
     }
-    this.hook.status = 'ready';
+    if (expired) this.notice('Your previous session had expired; a new one was started with the same scene.', 'warn');
+    return s;
   }
 
   async patch(partial) {
@@ -172,12 +189,13 @@ export class Session {
       const s = await this.api.createSession(sceneBody(scene), state.render);
       this.adopt(s);
       this.pendingScene = { prev, id: s.id };
-    }).then(() => scheduler.invalidate(), () => this.panel.show(state));
+    }).then(() => scheduler.invalidate(true), () => this.panel.show(state));
   }
 
-  // A frame of `meta` (transport.js's requestMeta) is on screen.
-  shown(meta) {
-    if (this.pendingScene && meta.sessionId === this.pendingScene.id) this.pendingScene = null;   // the new scene is on screen
+  // A frame of `meta` (transport.js's requestMeta) is on screen at `level`. Only a full frame settles
+  // a new scene: its quick preview may pass where the full frame is refused (too heavy).
+  shown(meta, level = 'full') {
+    if (this.pendingScene && meta.sessionId === this.pendingScene.id && level === 'full') this.pendingScene = null;
   }
 
   // The scheduler's onError: a request of `what` ('frame', 'gesture', a task) failed with e.
@@ -208,7 +226,7 @@ export class Session {
       const s = await this.api.createSession(sceneBody(this.state.scene), this.state.render);
       this.adopt(s);
       this.notice('The session had expired; a new one was started with the same scene (the camera is reset).', 'warn');
-    }).then(() => scheduler.invalidate(), () => {}).finally(() => { this.replacing = false; });
+    }).then(() => scheduler.invalidate(true), () => {}).finally(() => { this.replacing = false; });
   }
 
   // A model file chosen in the sheet: added to this session's scene (POST …/meshes, the raw

@@ -71,6 +71,7 @@ export const SAMPLES = Object.freeze([
   { value: 16, label: '16 — finest' },
 ]);
 export const PREVIEW_SCALES = Object.freeze([
+  { value: 'auto', label: 'Auto (≥ 10 frames/s)' },   // client.previewAuto: preview_size.js
   { value: 1, label: 'Full (no preview)' },
   { value: 0.5, label: '½' },
   { value: 1 / 3, label: '⅓' },
@@ -119,7 +120,8 @@ export function settingValue(spec, text) {
 }
 export const DEFAULT_CLIENT = Object.freeze({
   resolution: 'fit',       // 'fit' | 'WxH' | 'custom'
-  previewScale: 0.5,       // preview resolution = full × this, while a gesture goes on
+  previewAuto: true,       // server mode: the preview's scale from its measured rate (preview_size.js)
+  previewScale: 0.5,       // else (and in device mode) preview resolution = full × this, while a gesture goes on
   previewFormat: 'jpeg',
   previewQuality: 70,
   fullFormat: 'png',
@@ -128,7 +130,6 @@ export const DEFAULT_CLIENT = Object.freeze({
   maxFitSide: 1088,        // 'fit': the long side at most this many pixels
   renderer: 'server',      // 'server' | 'device' (the same tracer in WebGL2)
 });
-const INT_KEYS = new Set(['scenario', 'n', 'seed']);
 
 const CLIENT_KEY = 'pocketray.client';
 
@@ -146,32 +147,97 @@ export function saveClientSettings(c) {
   } catch { /* ignore */ }
 }
 
-// URL parameters → {scene, render, client}: e.g. ?scenario=2&n=128&width=320&height=544&preview_scale=0.5
-// The render settings a link can set are those the sheet offers (`specs`: GET /api/info's settings); a
-// string one must be one of its choices (the service's). width and height also make the resolution.
+// A setting's value from a link's text, checked against its declaration: {value} or {why} (the
+// accepted values, in the panel's words).
+export function checkSetting(spec, text) {
+  const bounds = () => {
+    const lo = spec.minimum ?? null, hi = spec.maximum ?? null;
+    return lo !== null && hi !== null ? `${lo} … ${hi}` : lo !== null ? `≥ ${lo}` : hi !== null ? `≤ ${hi}` : 'any';
+  };
+  const kind = { integer: 'a whole number', number: 'a number', boolean: 'true or false' }[spec.type];
+  let value;
+  if (spec.type === 'integer') value = /^[+-]?\d+$/.test(text) ? parseInt(text, 10) : undefined;
+  else if (spec.type === 'number') value = /^[+-]?(\d+\.?\d*|\.\d+)(e[+-]?\d+)?$/i.test(text) ? parseFloat(text) : undefined;
+  else value = settingValue(spec, text);
+  if (value === undefined) return { why: `${kind || 'text'}${spec.type === 'boolean' ? '' : ` ${bounds()}`}` };
+  if (spec.type === 'string' && spec.choices && !spec.choices.includes(value)) return { why: `one of ${spec.choices.join(', ')}` };
+  if ((spec.minimum != null && value < spec.minimum) || (spec.maximum != null && value > spec.maximum)) {
+    return { why: `${kind} ${bounds()}` };
+  }
+  return { value };
+}
+
+// The link's parameters that are not render settings: the scene's and this browser's.
+const SCENE_PARAMS = ['scenario', 'n', 'seed', 'radius', 'motion'];
+const CLIENT_PARAMS = ['preview_scale', 'preview_format', 'preview_quality', 'refine_ms', 'overlay', 'renderer'];
+
+// URL parameters → {scene, render, client, ignored}: e.g. ?scenario=mesh:cornell&integrator=path&exposure=1
+// &width=320&height=544&preview_scale=auto. Every render setting the service declares (`specs`: GET
+// /api/info's settings) can be set, checked against its declaration (type, bounds, choices); the demo
+// scenes by `scenario` (1, 2, 3, museum, mesh:teapot, …). width and height also make the resolution.
+// `ignored`: [{name, value, why}] — the parameters not taken (a value out of range, a name that is
+// nothing), for the page to say so; render settings are only judged once `specs` are known.
 export function readUrlParams(search, specs = renderSettings) {
   const q = new URLSearchParams(search);
-  const scene = {}, render = {}, client = {};
-  const num = (k) => (INT_KEYS.has(k) ? parseInt(q.get(k), 10) : parseFloat(q.get(k)));
-  for (const k of ['scenario', 'n', 'seed', 'radius']) if (q.has(k) && Number.isFinite(num(k))) scene[k] = num(k);
-  if (q.get('scenario') === 'museum') scene.scenario = 'museum';
-  if (meshKind(q.get('scenario')) || skyScenario(q.get('scenario'))) scene.scenario = q.get('scenario');
-  if (MUSEUM_KINDS.some((m) => m.value === q.get('motion'))) scene.motion = q.get('motion');
-  for (const spec of specs) {
-    if (!spec.sheet || !q.has(spec.name)) continue;
-    const v = settingValue(spec, q.get(spec.name));
-    if (v !== undefined && (spec.type !== 'string' || !spec.choices || spec.choices.includes(v))) render[spec.name] = v;
+  const scene = {}, render = {}, client = {}, ignored = [];
+  const skip = (name, why) => ignored.push({ name, value: q.get(name), why });
+  const int = (k) => (/^[+-]?\d+$/.test(q.get(k)) ? parseInt(q.get(k), 10) : NaN);
+  const f = (k) => (q.get(k) !== '' ? Number(q.get(k)) : NaN);
+  if (q.has('scenario')) {
+    const v = q.get('scenario'), known = SCENARIOS.find((x) => String(x.value) === v);
+    if (known) scene.scenario = known.value;
+    else skip('scenario', `one of ${SCENARIOS.map((x) => x.value).join(', ')}`);
+  }
+  for (const k of ['n', 'seed']) {
+    if (!q.has(k)) continue;
+    if (int(k) >= (k === 'n' ? 1 : 0)) scene[k] = int(k);
+    else skip(k, k === 'n' ? 'a whole number ≥ 1' : 'a whole number ≥ 0');
+  }
+  if (q.has('radius')) { if (f('radius') > 0) scene.radius = f('radius'); else skip('radius', 'a number > 0'); }
+  if (q.has('motion')) {
+    if (MUSEUM_KINDS.some((m) => m.value === q.get('motion'))) scene.motion = q.get('motion');
+    else skip('motion', `one of ${MUSEUM_KINDS.map((m) => m.value).join(', ')}`);
+  }
+  for (const name of new Set(q.keys())) {
+    if (SCENE_PARAMS.includes(name) || CLIENT_PARAMS.includes(name)) continue;
+    const spec = specs.find((x) => x.name === name);
+    if (!spec) {
+      if (specs.length) skip(name, 'not a setting of this service');
+      continue;
+    }
+    const r = checkSetting(spec, q.get(name));
+    if (r.why) skip(name, r.why);
+    else render[name] = r.value;
   }
   const side = (k) => parseInt(q.get(k), 10);
   if (side('width') && side('height')) client.resolution = `${side('width')}x${side('height')}`;
-  const f = (k) => parseFloat(q.get(k));
-  if (q.has('preview_scale') && f('preview_scale') > 0 && f('preview_scale') <= 1) client.previewScale = f('preview_scale');
-  if (['jpeg', 'png'].includes(q.get('preview_format'))) client.previewFormat = q.get('preview_format');
-  if (q.has('preview_quality') && f('preview_quality') >= 1) client.previewQuality = Math.min(100, Math.round(f('preview_quality')));
-  if (q.has('refine_ms') && f('refine_ms') >= 0) client.refineDelayMs = f('refine_ms');
+  if (q.has('preview_scale')) {
+    if (q.get('preview_scale') === 'auto') client.previewAuto = true;
+    else if (f('preview_scale') > 0 && f('preview_scale') <= 1) Object.assign(client, { previewScale: f('preview_scale'), previewAuto: false });
+    else skip('preview_scale', 'auto, or a number > 0 and ≤ 1');
+  }
+  if (q.has('preview_format')) {
+    if (['jpeg', 'png'].includes(q.get('preview_format'))) client.previewFormat = q.get('preview_format');
+    else skip('preview_format', 'jpeg or png');
+  }
+  if (q.has('preview_quality')) {
+    if (f('preview_quality') >= 1 && f('preview_quality') <= 100) client.previewQuality = Math.round(f('preview_quality'));
+    else skip('preview_quality', 'a number 1 … 100');
+  }
+  if (q.has('refine_ms')) { if (f('refine_ms') >= 0) client.refineDelayMs = f('refine_ms'); else skip('refine_ms', 'a number ≥ 0'); }
   if (q.has('overlay')) client.overlay = q.get('overlay') !== '0';
-  if (['server', 'device'].includes(q.get('renderer'))) client.renderer = q.get('renderer');
-  return { scene, render, client };
+  if (q.has('renderer')) {
+    if (['server', 'device'].includes(q.get('renderer'))) client.renderer = q.get('renderer');
+    else skip('renderer', 'server or device');
+  }
+  return { scene, render, client, ignored };
+}
+
+// The notice for a link's ignored parameters (readUrlParams), or null when there are none.
+export function ignoredNotice(ignored) {
+  if (!ignored || !ignored.length) return null;
+  const label = (name) => (FIELD_LABELS[name] ? `${FIELD_LABELS[name]}: ` : '');
+  return `Ignored in the link: ${ignored.map((x) => `${x.name}=${x.value} — ${label(x.name)}${x.why}`).join('; ')}.`;
 }
 
 // 'fit': the frame has the aspect of the screen area, at device pixels, long side ≤ maxSide.

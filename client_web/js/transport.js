@@ -8,8 +8,9 @@ import { sceneTime } from './clock.js';
 import { previewSize } from './settings.js';
 import { explain } from './ui/messages.js';
 
-// The query of a frame at `level` ('full' | 'preview'); an animated scene's at the clock's time at `now`.
-export function frameParams(state, level, now = performance.now()) {
+// The query of a frame at `level` ('full' | 'preview'); an animated scene's at the clock's time at `now`;
+// a preview at `scale` of the full frame's width and height.
+export function frameParams(state, level, now = performance.now(), scale = state.client.previewScale) {
   const r = state.render, c = state.client;
   const timed = state.anim.animated ? { time: sceneTime(state.anim, now) } : {};
   if (level === 'full') {
@@ -17,7 +18,7 @@ export function frameParams(state, level, now = performance.now()) {
     if (c.fullFormat === 'jpeg') p.quality = c.fullQuality;
     return p;
   }
-  const { width, height } = previewSize(r.width, r.height, c.previewScale);
+  const { width, height } = previewSize(r.width, r.height, scale);
   const p = { width, height, format: c.previewFormat, ...timed };
   if (c.previewFormat === 'jpeg') p.quality = c.previewQuality;
   // The service's measured "interactive" profile (GET /api/info): cheaper rays while the finger moves.
@@ -44,16 +45,34 @@ export function requestMeta(state, level) {
 
 // state, api, device (DeviceView); activity: the element lit while requests are out (after
 // 250 ms); viewportHeight(): the frame's displayed height; pending(): whether gestures wait to
-// be sent; onFallback(reason, redraw): device mode failed, the service draws from now on.
+// be sent; onFallback(reason, redraw): device mode failed, the service draws from now on;
+// sizer: the preview's scale from its measured rate (preview_size.js), used with client.previewAuto.
 export class Transport {
-  constructor({ state, api, device, activity, viewportHeight, pending, onFallback }) {
-    Object.assign(this, { state, api, device, activity, viewportHeight, pending, onFallback });
+  constructor({ state, api, device, activity, viewportHeight, pending, onFallback, sizer = null }) {
+    Object.assign(this, { state, api, device, activity, viewportHeight, pending, onFallback, sizer });
     this.out = 0;
     this.activityTimer = null;
   }
 
   get deviceMode() {
     return this.state.client.renderer === 'device';
+  }
+
+  // The linear scale of the service's previews now.
+  get previewScale() {
+    const c = this.state.client;
+    return c.previewAuto && this.sizer ? this.sizer.scale : c.previewScale;
+  }
+
+  // A preview at `scale` took `ms` from its request to the screen (the scheduler measures it).
+  previewTaken(ms, frame) {
+    if (this.sizer && this.state.client.previewAuto && !this.deviceMode && frame && frame.scale) this.sizer.observe(ms, frame.scale);
+  }
+
+  // Whether a new scene's (or page's) first frame should come as a small preview before the full
+  // one: the service's previews are smaller than the frame (device mode draws its own).
+  quickFirst() {
+    return !this.deviceMode && this.previewScale < 1;
   }
 
   gesture(op, level) {
@@ -67,7 +86,15 @@ export class Transport {
       });
     }
     const meta = level ? requestMeta(state, level) : null;
-    return this.timed(() => api.gesture(state.sessionId, body, level ? frameParams(state, level) : null), meta);
+    const scale = this.previewScale;
+    return this.timed(() => api.gesture(state.sessionId, body, level ? frameParams(state, level, undefined, scale) : null), meta)
+      .then((frame) => this.scaled(frame, level, scale));
+  }
+
+  // A preview frame is stamped with the scale it was asked at (what the sizer's time is of).
+  scaled(frame, level, scale) {
+    if (frame && level === 'preview') frame.scale = scale;
+    return frame;
   }
 
   async frame(level, onPreview = null) {
@@ -85,13 +112,15 @@ export class Transport {
     // Full frames come progressively: the pixel centres first, then the supersampled image.
     const t0 = performance.now();
     const preview = onPreview && level === 'full' ? (f) => onPreview({ ...f, t0, meta }) : null;
-    return this.timed(() => api.frame(state.sessionId, frameParams(state, level), preview), meta);
+    const scale = this.previewScale;
+    return this.timed(() => api.frame(state.sessionId, frameParams(state, level, undefined, scale), preview), meta)
+      .then((frame) => this.scaled(frame, level, scale));
   }
 
   refineNeeded() {
     if (this.deviceMode) return false;
     const c = this.state.client;
-    return c.previewScale < 1 || c.previewFormat !== c.fullFormat;
+    return this.previewScale < 1 || c.previewFormat !== c.fullFormat;
   }
 
   // fn() → a frame (or anything): stamped with t0 and meta, the activity indicator lit meanwhile.

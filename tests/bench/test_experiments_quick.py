@@ -33,6 +33,7 @@ SECTIONS = {  # experiment name → heading start
     "specialize": "## Model no more than the scene needs",
     "shader": "## The tracer shaped for llvmpipe",
     "meshes": "## Triangle meshes",
+    "client": "## The phone client",
 }
 FIGURES = ("table_4_2_leaves", "fig_4_4_fps", "fig_4_5_memory", "scaling_loglog", "crossover", "pareto")
 

@@ -125,3 +125,32 @@ def test_every_client_module_with_logic_has_its_unit_tests():
 def test_the_unit_tests_keep_every_assertion():
     total = sum(len(node_run(p).results) for p in FILES)
     assert total >= AT_LEAST, total
+
+
+def imported_modules(entry: Path) -> list[str]:
+    """The modules ``entry`` imports, directly or not, as paths relative to client_web/ (``js/…``)."""
+    seen: list[str] = []
+    todo = [entry.resolve()]
+    while todo:
+        path = todo.pop()
+        rel = path.relative_to(CLIENT.parent).as_posix()
+        if rel in seen:
+            continue
+        seen.append(rel)
+        for m in re.finditer(
+            r"^\s*(?:import|export)\b[^;]*?\bfrom\s+'(\.[^']+)'|^\s*import\s+'(\.[^']+)'", path.read_text(), re.M
+        ):
+            todo.append((path.parent / (m.group(1) or m.group(2))).resolve())
+    return seen
+
+
+def test_the_page_preloads_every_module_it_imports():
+    # index.html asks for the whole import graph at once (<link rel="modulepreload">): a module
+    # missing there is found level by level again, a round trip later each (the first image later).
+    html = (CLIENT.parent / "index.html").read_text()
+    preloaded = set(re.findall(r'<link rel="modulepreload" href="([^"]+)">', html))
+    graph = set(imported_modules(CLIENT / "app.js")) - {"js/app.js"}
+    assert graph - preloaded == set(), "add to index.html: " + " ".join(
+        f'<link rel="modulepreload" href="{m}">' for m in sorted(graph - preloaded)
+    )
+    assert preloaded - graph == set(), "index.html preloads modules the page does not import"

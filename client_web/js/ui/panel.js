@@ -176,7 +176,7 @@ export class SettingsPanel {
       o.textContent = `×${client.previewScale}`;
       this.el('previewScale').append(o);
     }
-    set('previewScale', scale ? scale.value : client.previewScale);
+    set('previewScale', client.previewAuto ? 'auto' : scale ? scale.value : client.previewScale);
     for (const k of ['previewFormat', 'previewQuality', 'refineDelayMs', 'renderer']) set(k, client[k]);
     this._layout();
   }
@@ -327,7 +327,8 @@ export class SettingsPanel {
     } else if (CLIENT_KEYS.includes(name)) {
       if (this._problem(name, v, this._ctx())) return;
       const value = name === 'previewScale' ? parseFloat(v) : ['previewQuality', 'refineDelayMs'].includes(name) ? parseInt(v, 10) : v;
-      this.cb.onClient({ [name]: value });
+      if (name === 'previewScale') this.cb.onClient(v === 'auto' ? { previewAuto: true } : { previewScale: value, previewAuto: false });
+      else this.cb.onClient({ [name]: value });
       this._layout();
     }
   }

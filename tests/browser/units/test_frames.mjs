@@ -138,3 +138,47 @@ test('idle after the animation', async () => {
   release(); await tick(); await tick();
   same(sch.idle, true);
 });
+
+// ---- a new page or scene: a quick preview first; each gesture's preview timed ----
+function quickStory({ quickFirst }) {
+  const log = [], taken = [];
+  let clock = 0, next = null;
+  const tr = {
+    quickFirst: () => quickFirst,
+    previewTaken: (ms, fr) => taken.push([ms, fr.level]),
+    gesture: (op, level) => new Promise((res) => { log.push(['gesture', level]); next = () => { clock += 40; res({ version: 1, level }); }; }),
+    frame: (level) => new Promise((res) => { log.push(['frame', level]); next = () => { clock += level === 'full' ? 900 : 30; res({ version: 1, level }); }; }),
+  };
+  const seen = [];
+  const s = new f.FrameScheduler({
+    transport: tr, display: (fr, level) => seen.push(level), refineDelayMs: 0,
+    timers: { set: () => 1, clear: () => {}, now: () => clock },
+  });
+  return { s, log, taken, seen, release: async () => { next(); await tick(); await tick(); await tick(); } };
+}
+
+test('a new page: a quick preview, then the full frame; the preview\'s time is not a gesture\'s', async () => {
+  const q = quickStory({ quickFirst: true });
+  q.s.invalidate(true);
+  same(q.log, [['frame', 'preview']]);
+  await q.release();
+  same([q.log, q.seen], [[['frame', 'preview'], ['frame', 'full']], ['preview']]);
+  await q.release();
+  same([q.seen, q.taken, q.s.idle], [['preview', 'full'], [], true]);
+});
+
+test('no quick preview where the transport says it is not smaller, nor for a plain invalidate', async () => {
+  const q = quickStory({ quickFirst: false });
+  q.s.invalidate(true);
+  same(q.log, [['frame', 'full']]);
+  const r = quickStory({ quickFirst: true });
+  r.s.invalidate();
+  same(r.log, [['frame', 'full']]);
+});
+
+test('a gesture\'s preview is timed from its request to the screen', async () => {
+  const q = quickStory({ quickFirst: true });
+  q.s.gesture({ type: 'pan', dx: 1, dy: 0 });
+  await q.release();
+  same(q.taken, [[40, 'preview']]);
+});

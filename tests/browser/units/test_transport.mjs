@@ -1,7 +1,8 @@
 // transport.js: the query of a frame (levels, the interactive profile, the scene time) and what it was asked with.
 
 import { test } from 'node:test';
-import { frameParams, requestMeta } from '../../../client_web/js/transport.js';
+import { Transport, frameParams, requestMeta } from '../../../client_web/js/transport.js';
+import { PreviewSizer } from '../../../client_web/js/preview_size.js';
 import { same } from './same.mjs';
 
 const state = (o = {}) => ({
@@ -27,4 +28,19 @@ test('previews at the service\'s interactive profile, the depth no deeper than t
 test('an animated scene\'s frames carry the scene time', () => {
   const s = state({ anim: { animated: true, playing: true, time: 0, time0: 1, clock0: 0 } });
   same(frameParams(s, 'full', 500), { width: 320, height: 544, format: 'png', time: 1.5 });
+});
+
+test('previews at the sizer\'s scale with auto (server mode), else at the chosen one', () => {
+  const sizer = new PreviewSizer({ start: 0.25 });
+  const auto = new Transport({ state: state({ client: { ...state().client, previewAuto: true } }), sizer });
+  same([auto.previewScale, auto.quickFirst(), auto.refineNeeded()], [0.25, true, true]);
+  same(frameParams(auto.state, 'preview', 0, auto.previewScale), { width: 80, height: 136, format: 'jpeg', quality: 70 });
+  auto.previewTaken(500, { scale: 0.25 });   // slow: smaller next time
+  same(auto.previewScale < 0.25, true);
+  const fixed = new Transport({ state: state(), sizer: new PreviewSizer({ start: 0.25 }) });
+  same(fixed.previewScale, 0.5);
+  fixed.previewTaken(500, { scale: 0.5 });
+  same(fixed.previewScale, 0.5);
+  const device = new Transport({ state: state({ client: { ...state().client, previewAuto: true, renderer: 'device' } }), sizer });
+  same([device.quickFirst(), device.refineNeeded()], [false, false]);
 });
