@@ -106,7 +106,7 @@ def main() -> None:
         sids = [session(c, CORNELL, path) for _ in range(args.sessions)]
         before = server.memory() if server else {}
         counts: list[list[int]] = [[] for _ in sids]
-        params = {"refine_samples": args.samples, "refine_ms": 0}
+        params = {"refine_samples": args.samples, "refine_time_ms": 0}
         threads = [
             threading.Thread(target=refine_until_done, args=(url, s, params, counts[i])) for i, s in enumerate(sids)
         ]
@@ -144,7 +144,7 @@ def main() -> None:
         busy = [session(c, CORNELL, path) for _ in range(args.busy)]
         stop = threading.Event()
         seen: list[list[int]] = [[] for _ in busy]
-        long = {"refine_samples": 65536, "refine_ms": 600_000}
+        long = {"refine_samples": 65536, "refine_time_ms": 600_000}
         threads = [
             threading.Thread(target=refine_until_done, args=(url, s, long, seen[i], stop), daemon=True)
             for i, s in enumerate(busy)

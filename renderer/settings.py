@@ -318,7 +318,7 @@ SETTINGS: tuple[SettingSpec, ...] = (
         client=True,
     ),
     SettingSpec(
-        "refine_ms",
+        "refine_time_ms",
         "integer",
         10_000,
         "path integrator: … or until it has refined this long (0: no time limit)",

@@ -492,7 +492,7 @@ class SessionFrameQuery(FrameQuery):
     refine: bool = Field(
         False,
         description="answer the session's refinement stream as multipart/mixed: accumulation frames of the "
-        "resting view until refine_samples or refine_ms (X-Refine: where the stream stands; docs/API.md, "
+        "resting view until refine_samples or refine_time_ms (X-Refine: where the stream stands; docs/API.md, "
         "'Refinement')",
     )
 
@@ -507,7 +507,7 @@ class FrameMessage(BaseModel):
 
 class RefineMessage(BaseModel):
     """A WebSocket message that asks for the session's refinement stream (docs/API.md, "Refinement");
-    its settings are its ``frame``, the targets default to the session's refine_samples and refine_ms."""
+    its settings are its ``frame``, the targets default to the session's refine_samples and refine_time_ms."""
 
     model_config = ConfigDict(extra="ignore")
     type: Literal["refine"]
@@ -521,7 +521,7 @@ class RefineMessage(BaseModel):
         None,
         ge=REFINE_MS_RANGE[0],
         le=REFINE_MS_RANGE[1],
-        description="longest refinement, ms; 0: no time limit (default: refine_ms)",
+        description="longest refinement, ms; 0: no time limit (default: refine_time_ms)",
     )
 
 

@@ -81,12 +81,12 @@ def refine(
     cancel: threading.Event | None = None,
 ) -> Iterator[RefineStep]:
     """The refinement stream of the session's current view with the frame query's ``patch``; the
-    targets default to the session's ``refine_samples`` and ``refine_ms`` (with the patch's)."""
+    targets default to the session's ``refine_samples`` and ``refine_time_ms`` (with the patch's)."""
     t0 = time.perf_counter()
     state = service.get(session_id)
     settings = service.caps.merge_settings(state.settings, patch)
     goal_samples = int(target_samples if target_samples is not None else settings["refine_samples"])
-    goal_ms = int(target_ms if target_ms is not None else settings["refine_ms"])
+    goal_ms = int(target_ms if target_ms is not None else settings["refine_time_ms"])
     version = state.version
 
     def step(frame: Frame, held: int, done: bool, reason: str | None) -> RefineStep:

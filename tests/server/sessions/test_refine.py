@@ -125,7 +125,8 @@ def parts(r) -> list[tuple[dict[str, str], bytes]]:
 def test_the_http_stream_has_the_same_parts(app):
     sid = cornell(app)
     r = app.get(
-        f"/api/sessions/{sid}/frame", params={**PATH, "refine": 1, "refine_samples": FIRST_SLICE + 2, "refine_ms": 0}
+        f"/api/sessions/{sid}/frame",
+        params={**PATH, "refine": 1, "refine_samples": FIRST_SLICE + 2, "refine_time_ms": 0},
     )
     assert r.status_code == 200 and r.headers["content-type"].startswith("multipart/mixed"), r.text
     got = parts(r)
