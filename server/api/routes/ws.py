@@ -26,7 +26,7 @@ from __future__ import annotations
 import asyncio
 import json
 import threading
-from collections.abc import Iterator
+from collections.abc import Generator
 from typing import Any
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
@@ -99,7 +99,7 @@ async def answer_message(
 
 def refine_request(
     service: SessionService, session_id: str, data: str | bytes, cancel: threading.Event
-) -> Iterator[RefineStep] | None:
+) -> Generator[RefineStep, None, None] | None:
     """The refinement stream a ``refine`` message asks for (validated now, nothing run yet), or
     None for any other message."""
     msg = parse_json(data, service.config.max_json_depth)
@@ -115,7 +115,7 @@ def refine_request(
     with errors.located(Where.QUERY):
         service.frame_settings(service.get(session_id), given)  # a refused setting is answered now
 
-    def steps() -> Iterator[RefineStep]:
+    def steps() -> Generator[RefineStep, None, None]:
         with errors.located(Where.QUERY):
             yield from refine(
                 service,
@@ -163,7 +163,7 @@ async def session_socket(websocket: WebSocket, session_id: str, service: Service
             await websocket.send_bytes(data)
             return True
 
-    async def stream(steps: Iterator[RefineStep], stopped: threading.Event) -> None:
+    async def stream(steps: Generator[RefineStep, None, None], stopped: threading.Event) -> None:
         try:
             while True:
                 step = await run_in_threadpool(next, steps, None)
