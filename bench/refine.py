@@ -35,7 +35,7 @@ ROOT = Path(__file__).resolve().parent.parent
 CORNELL = {"mesh_scene": {"kind": "cornell", "detail": 0}}
 LIGHT = {"scenario": 1, "n": 16, "seed": 0, "radius": 1.0}
 # Room for the sessions' frames at once (the service's defaults admit fewer frames in flight).
-SERVER_SETTINGS = {"queue_size": 16, "max_frame_bytes_in_flight": 1 << 30}
+SERVER_SETTINGS = {"queue_size": 16, "max_frame_bytes_in_flight": 1 << 30, "max_refine_ms": 600_000}
 
 
 def pct(values: list[float], q: float) -> float:
@@ -104,7 +104,7 @@ def measure(
         sids = [session(c, CORNELL, path) for _ in range(sessions)]
         before = server.memory() if server else {}
         counts: list[list[int]] = [[] for _ in sids]
-        params = {"refine_samples": samples, "refine_time_ms": 0}
+        params = {"refine_samples": samples, "refine_time_ms": 600_000}
         threads = [
             threading.Thread(target=refine_until_done, args=(url, s, params, counts[i])) for i, s in enumerate(sids)
         ]

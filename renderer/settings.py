@@ -321,7 +321,7 @@ SETTINGS: tuple[SettingSpec, ...] = (
         "refine_time_ms",
         "integer",
         10_000,
-        "path integrator: … or until it has refined this long (0: no time limit)",
+        "path integrator: … or until it has refined this long (at most POCKETRAY_MAX_REFINE_MS)",
         "Refine for at most",
         unit="ms",
         bounds=limits.REFINE_MS_RANGE,

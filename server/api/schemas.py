@@ -521,7 +521,7 @@ class RefineMessage(BaseModel):
         None,
         ge=REFINE_MS_RANGE[0],
         le=REFINE_MS_RANGE[1],
-        description="longest refinement, ms; 0: no time limit (default: refine_time_ms)",
+        description="longest refinement, ms (default: refine_time_ms; at most POCKETRAY_MAX_REFINE_MS)",
     )
 
 

@@ -10,7 +10,7 @@ of GL time (the first takes :data:`FIRST_SLICE` samples; the next at most :data:
 never past the target nor past what the caps accept (halved until a frame is accepted).
 
 The stream ends after the frame that reaches ``target_samples``, or the first to end at or past
-``target_ms``, or when the accumulation did not grow (its byte budget or
+``target_ms`` (at most POCKETRAY_MAX_REFINE_MS), or when the accumulation did not grow (its byte budget or
 MAX_ACCUMULATED_SAMPLES), or — without a frame — when the session changed (a gesture, new settings)
 or ``cancel`` is set (the client went away, a WebSocket's next message).
 
@@ -86,7 +86,7 @@ def refine(
     state = service.get(session_id)
     settings = service.caps.merge_settings(state.settings, patch)
     goal_samples = int(target_samples if target_samples is not None else settings["refine_samples"])
-    goal_ms = int(target_ms if target_ms is not None else settings["refine_time_ms"])
+    goal_ms = min(int(target_ms if target_ms is not None else settings["refine_time_ms"]), service.config.max_refine_ms)
     version = state.version
 
     def step(frame: Frame, held: int, done: bool, reason: str | None) -> RefineStep:
@@ -125,7 +125,7 @@ def refine(
         if not kept:
             yield step(frame, held, True, "held")
             return
-        if goal_ms and elapsed_ms >= goal_ms:
+        if elapsed_ms >= goal_ms:
             yield step(frame, held, True, "time")
             return
         yield step(frame, held, False, None)

@@ -11,7 +11,7 @@ from browser_support import Touch
 # The Cornell box path-traced, small; a target the stream does not reach while the test looks.
 QUERY = (
     "scenario=mesh:cornell&width=64&height=64&preview_scale=0.5&integrator=path&samples_per_pixel=1"
-    "&max_recursion_depth=3&refine_samples=65536&refine_time_ms=0"
+    "&max_recursion_depth=3&refine_samples=65536&refine_time_ms=600000"
 )
 
 

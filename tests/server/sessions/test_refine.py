@@ -22,6 +22,7 @@ from server.app import create_app
 from server.sessions.refine import FIRST_SLICE, GROWTH, next_slice
 
 SIDE = 16
+MAX_REFINE_MS = 30_000  # the service's bound of a stream's time (POCKETRAY_MAX_REFINE_MS)
 PATH = {
     "integrator": "path",
     "width": SIDE,
@@ -43,7 +44,7 @@ def test_a_slice_is_sized_to_the_time_it_aims_at():
 def app(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("refine")
     # slices of about one sample: a stream of many frames within a few samples
-    config = make_config(tmp, max_work=SIDE * SIDE * 4 * 64, refine_slice_ms=0.001)
+    config = make_config(tmp, max_work=SIDE * SIDE * 4 * 64, refine_slice_ms=0.001, max_refine_ms=MAX_REFINE_MS)
     with TestClient(create_app(config)) as c:
         wait_ready(c.get)
         yield c
@@ -61,7 +62,7 @@ def test_a_refine_stream_rises_to_its_target_and_ends_as_one_frame_of_its_sample
     target = FIRST_SLICE + 3
     heads, image = [], None
     with app.websocket_connect(f"/api/sessions/{sid}/ws") as ws:
-        ws.send_json({"type": "refine", "target_samples": target, "target_ms": 0, "frame": PATH})
+        ws.send_json({"type": "refine", "target_samples": target, "target_ms": 600_000, "frame": PATH})
         while True:
             head = ws.receive_json()
             assert "refine" in head, head
@@ -75,6 +76,7 @@ def test_a_refine_stream_rises_to_its_target_and_ends_as_one_frame_of_its_sample
     assert [h["refine"]["samples"] for h in heads] == counts
     assert heads[-1]["refine"]["reason"] == "samples" and not any(h["refine"]["done"] for h in heads[:-1])
     assert all(h["refine"]["target_samples"] == target for h in heads)
+    assert all(h["refine"]["target_ms"] == MAX_REFINE_MS for h in heads), "600 s asked, the service's bound kept"
     r = app.get(f"/api/sessions/{sid}/frame", params={**PATH, "samples_per_pixel": target})
     one = np.load(io.BytesIO(r.content))
     assert image is not None and np.abs(image - one).max() < 1e-5, "k slices are one frame of all their samples"
@@ -85,7 +87,7 @@ def test_a_refine_stream_rises_to_its_target_and_ends_as_one_frame_of_its_sample
 def test_the_next_message_stops_the_stream(app):
     sid = cornell(app)
     with app.websocket_connect(f"/api/sessions/{sid}/ws") as ws:
-        ws.send_json({"type": "refine", "target_samples": 4096, "target_ms": 0, "frame": PATH})
+        ws.send_json({"type": "refine", "target_samples": 4096, "target_ms": 600_000, "frame": PATH})
         first = ws.receive_json()
         assert first["refine"]["done"] is False, first
         ws.receive_bytes()
@@ -108,6 +110,17 @@ def test_the_next_message_stops_the_stream(app):
         assert refused["status"] == 422 and refused["detail"][0]["loc"] == ["body", "target_samples"]
 
 
+@pytest.mark.gl
+def test_a_stream_ends_at_its_time(app):
+    sid = cornell(app)
+    with app.websocket_connect(f"/api/sessions/{sid}/ws") as ws:
+        ws.send_json({"type": "refine", "target_samples": 4096, "target_ms": 1, "frame": PATH})
+        head = ws.receive_json()
+        ws.receive_bytes()
+    assert head["refine"]["done"] and head["refine"]["reason"] == "time", head
+    assert head["refine"]["elapsed_ms"] >= 1 and head["samples"] == FIRST_SLICE
+
+
 def parts(r) -> list[tuple[dict[str, str], bytes]]:
     """The parts of a multipart/mixed answer (each with Content-Length)."""
     boundary = r.headers["content-type"].split("boundary=")[1].encode()
@@ -126,7 +139,7 @@ def test_the_http_stream_has_the_same_parts(app):
     sid = cornell(app)
     r = app.get(
         f"/api/sessions/{sid}/frame",
-        params={**PATH, "refine": 1, "refine_samples": FIRST_SLICE + 2, "refine_time_ms": 0},
+        params={**PATH, "refine": 1, "refine_samples": FIRST_SLICE + 2, "refine_time_ms": 600_000},
     )
     assert r.status_code == 200 and r.headers["content-type"].startswith("multipart/mixed"), r.text
     got = parts(r)
