@@ -331,6 +331,20 @@ SETTINGS: tuple[SettingSpec, ...] = (
         client=True,
     ),
     SettingSpec(
+        "refine_noise",
+        "number",
+        0.0,
+        "path integrator: … or until its estimated relative noise (RMS error over the mean) is this low "
+        "(0: no noise target)",
+        "Refine to noise",
+        unit="fraction",
+        bounds=limits.REFINE_NOISE_RANGE,
+        modes=("color",),
+        engine=False,
+        sheet=True,
+        client=True,
+    ),
+    SettingSpec(
         "min_weight",
         "number",
         0.0,

@@ -62,6 +62,7 @@ from renderer.limits import (
     MAX_TRIANGLES,
     MAX_WAVELENGTH,
     REFINE_MS_RANGE,
+    REFINE_NOISE_RANGE,
     REFINE_SAMPLES_RANGE,
 )
 from renderer.mesh_io import MODEL_FORMATS
@@ -507,7 +508,8 @@ class FrameMessage(BaseModel):
 
 class RefineMessage(BaseModel):
     """A WebSocket message that asks for the session's refinement stream (docs/API.md, "Refinement");
-    its settings are its ``frame``, the targets default to the session's refine_samples and refine_time_ms."""
+    its settings are its ``frame``, the targets default to the session's refine_samples, refine_time_ms and
+    refine_noise."""
 
     model_config = ConfigDict(extra="ignore")
     type: Literal["refine"]
@@ -522,6 +524,13 @@ class RefineMessage(BaseModel):
         ge=REFINE_MS_RANGE[0],
         le=REFINE_MS_RANGE[1],
         description="longest refinement, ms (default: refine_time_ms; at most POCKETRAY_MAX_REFINE_MS)",
+    )
+    target_noise: float | None = Field(
+        None,
+        ge=REFINE_NOISE_RANGE[0],
+        le=REFINE_NOISE_RANGE[1],
+        allow_inf_nan=False,
+        description="estimated relative noise to refine to, 0: none (default: refine_noise)",
     )
 
 

@@ -10,9 +10,11 @@ of GL time (the first takes :data:`FIRST_SLICE` samples; the next at most :data:
 never past the target nor past what the caps accept (halved until a frame is accepted).
 
 The stream ends after the frame that reaches ``target_samples``, or the first to end at or past
-``target_ms`` (at most POCKETRAY_MAX_REFINE_MS), or when the accumulation did not grow (its byte budget or
-MAX_ACCUMULATED_SAMPLES), or — without a frame — when the session changed (a gesture, new settings)
-or ``cancel`` is set (the client went away, a WebSocket's next message).
+``target_ms`` (at most POCKETRAY_MAX_REFINE_MS), or the first whose estimated relative noise is at
+most ``target_noise`` (:func:`server.frames.accumulate.relative_noise`; 0: none), or when the
+accumulation did not grow (its byte budget or MAX_ACCUMULATED_SAMPLES), or — without a frame — when
+the session changed (a gesture, new settings) or ``cancel`` is set (the client went away, a
+WebSocket's next message).
 
 A frame that does not read samples this way (the Whitted integrator, a mode other than colour) is
 answered once: its image does not change with more frames.
@@ -40,7 +42,8 @@ GROWTH = 4  # a frame adds at most this many times its predecessor's samples (it
 @dataclass(frozen=True)
 class RefineStep:
     """One frame of a refinement stream and where the stream stands after it. ``reason`` (when
-    ``done``): ``samples`` (target reached), ``time`` (target time spent), ``held`` (the accumulation
+    ``done``): ``samples`` (target reached), ``time`` (target time spent), ``noise`` (the noise
+    estimated at most the target), ``held`` (the accumulation
     did not grow: its byte budget, or MAX_ACCUMULATED_SAMPLES) or ``one_frame`` (not a path frame)."""
 
     frame: Frame
@@ -50,6 +53,8 @@ class RefineStep:
     elapsed_ms: float
     done: bool
     reason: str | None = None
+    noise: float | None = None  # the image's relative noise as estimated (None: not yet)
+    target_noise: float = 0.0
 
     def progress(self) -> dict[str, Any]:
         """What the WebSocket's ``refine`` object and the HTTP part's ``X-Refine`` say."""
@@ -60,6 +65,8 @@ class RefineStep:
             "elapsed_ms": round(self.elapsed_ms, 1),
             "done": self.done,
             "reason": self.reason,
+            "noise": None if self.noise is None else round(self.noise, 5),
+            "target_noise": self.target_noise,
         }
 
 
@@ -78,19 +85,24 @@ def refine(
     *,
     target_samples: int | None = None,
     target_ms: int | None = None,
+    target_noise: float | None = None,
     cancel: threading.Event | None = None,
 ) -> Iterator[RefineStep]:
     """The refinement stream of the session's current view with the frame query's ``patch``; the
-    targets default to the session's ``refine_samples`` and ``refine_time_ms`` (with the patch's)."""
+    targets default to the session's ``refine_samples``, ``refine_time_ms`` and ``refine_noise``
+    (with the patch's)."""
     t0 = time.perf_counter()
     state = service.get(session_id)
     settings = service.caps.merge_settings(state.settings, patch)
     goal_samples = int(target_samples if target_samples is not None else settings["refine_samples"])
     goal_ms = min(int(target_ms if target_ms is not None else settings["refine_time_ms"]), service.config.max_refine_ms)
+    goal_noise = float(target_noise if target_noise is not None else settings["refine_noise"])
     version = state.version
+    noise: float | None = None
 
     def step(frame: Frame, held: int, done: bool, reason: str | None) -> RefineStep:
-        return RefineStep(frame, held, goal_samples, goal_ms, (time.perf_counter() - t0) * 1e3, done, reason)
+        elapsed = (time.perf_counter() - t0) * 1e3
+        return RefineStep(frame, held, goal_samples, goal_ms, elapsed, done, reason, noise, goal_noise)
 
     if not radiance(service.frame_settings(state, patch).render):
         frame = final(service.frames.run(service.frame_request(session_id, patch, cancel=cancel)))
@@ -118,12 +130,16 @@ def refine(
             return  # the session's next interactive frame (or the client) stopped it
         held = int(frame.samples or 0)
         kept = service.frames.accumulations.count(session_id) == held
+        noise = service.frames.accumulations.noise(session_id) if kept else None
         elapsed_ms = (time.perf_counter() - t0) * 1e3
         if held >= goal_samples:
             yield step(frame, held, True, "samples")
             return
         if not kept:
             yield step(frame, held, True, "held")
+            return
+        if goal_noise > 0 and noise is not None and noise <= goal_noise:
+            yield step(frame, held, True, "noise")
             return
         if elapsed_ms >= goal_ms:
             yield step(frame, held, True, "time")

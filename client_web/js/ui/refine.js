@@ -10,6 +10,7 @@ export function refineText(p) {
   if (!p.done) return of;
   if (p.reason === 'time') return `${p.samples} samples (${Math.round(p.target_ms / 1000)} s)`;
   if (p.reason === 'held') return `${p.samples} samples (memory full)`;
+  if (p.reason === 'noise') return `${p.samples} samples (noise ${(100 * p.noise).toFixed(1)} %)`;
   return `${p.samples} samples`;
 }
 

@@ -3,11 +3,11 @@
 Client → a text (or UTF-8 binary) JSON message: a gesture (``{"type": "pan", "dx", "dy"}``
 …, or ``{"type": "frame"}`` for a frame without a gesture, ``{"type": "frame", "accumulate":
 true}`` for one added to the session's accumulation, ``{"type": "refine", "target_samples"?,
-"target_ms"?}`` for the session's refinement stream) with an optional ``"frame": {settings}`` — the
+"target_ms"?, "target_noise"?}`` for the session's refinement stream) with an optional ``"frame": {settings}`` — the
 settings ``POST …/gesture?frame=1`` takes in its query.
 Server → text JSON ``{"version", "camera", "timings", "stats", "media_type", "samples"}`` then the
 frame as one binary message; a refinement stream's frames so, each with ``"refine": {"samples",
-"target_samples", "target_ms", "elapsed_ms", "done", "reason"}``, until its target
+"target_samples", "target_ms", "elapsed_ms", "done", "reason", "noise", "target_noise"}``, until its target
 (:mod:`server.sessions.refine`) or the connection's next message, which stops it at once: no frame
 of the stream is sent after that message is read; on an error one text JSON ``{"status", "detail"}`` (and
 ``"retry_after"``, seconds, where HTTP sends Retry-After) — the very answer the HTTP
@@ -123,6 +123,7 @@ def refine_request(
                 given,
                 target_samples=asked.target_samples,
                 target_ms=asked.target_ms,
+                target_noise=asked.target_noise,
                 cancel=cancel,
             )
 

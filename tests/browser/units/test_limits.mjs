@@ -56,7 +56,7 @@ test('what applies', () => {
 });
 
 test('tone map, exposure, denoiser and refinement apply to the path integrator only', () => {
-  const names = ['tone_map', 'exposure', 'denoise', 'refine_samples', 'refine_time_ms'];
+  const names = ['tone_map', 'exposure', 'denoise', 'refine_samples', 'refine_time_ms', 'refine_noise'];
   same(names.flatMap((name) => [
     lim.applies(name, ctx()), lim.applies(name, ctx({ integrator: 'whitted' })), lim.applies(name, ctx({ integrator: 'path' }))]),
   names.flatMap(() => [false, false, true]));

@@ -15,6 +15,7 @@ test('a finished stream says why it stopped', () => {
   assert.equal(refineText(p({ samples: 256, done: true, reason: 'samples' })), '256 samples');
   assert.equal(refineText(p({ samples: 96, done: true, reason: 'time' })), '96 samples (10 s)');
   assert.equal(refineText(p({ done: true, reason: 'held' })), '64 samples (memory full)');
+  assert.equal(refineText(p({ done: true, reason: 'noise', noise: 0.0123 })), '64 samples (noise 1.2 %)');
 });
 
 test('the bar follows the samples, or the time when that is further', () => {

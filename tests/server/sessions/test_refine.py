@@ -121,6 +121,43 @@ def test_a_stream_ends_at_its_time(app):
     assert head["refine"]["elapsed_ms"] >= 1 and head["samples"] == FIRST_SLICE
 
 
+def stream_to(app, sid: str, samples: int, **params) -> list[tuple[dict, np.ndarray]]:
+    """A refinement stream over HTTP: each part's progress and image."""
+    r = app.get(
+        f"/api/sessions/{sid}/frame",
+        params={**PATH, "refine": 1, "refine_samples": samples, "refine_time_ms": 600_000, **params},
+    )
+    assert r.status_code == 200, r.text
+    return [(json.loads(h["X-Refine"]), np.load(io.BytesIO(body))) for h, body in parts(r)]
+
+
+@pytest.mark.gl
+def test_the_noise_estimate_is_the_error_against_a_converged_image(app):
+    """The estimate from the held samples and the last frame's (server/frames/accumulate.py) against the
+    relative RMS error measured against the same view at 16× the samples (the estimator is under test,
+    not the integrator; the sampler is deterministic, so is this comparison). The estimate takes the
+    samples as independent; the pixel positions' lattice (shaders/lighting.glsl) converges faster, so
+    it is conservative: above the error, within 4×."""
+    sid = cornell(app)
+    for _ in range(32):  # 1,024 samples in 32 accumulation frames
+        r = app.get(f"/api/sessions/{sid}/frame", params={**PATH, "samples_per_pixel": 32, "accumulate": 1})
+    assert r.headers["x-samples"] == "1024"
+    reference = np.load(io.BytesIO(r.content))
+    got = stream_to(app, cornell(app), 64)
+    progress, image = got[-1]
+    assert got[0][0]["noise"] is None, "one frame has no second part to compare with"
+    estimated = progress["noise"]
+    measured = float(np.sqrt(np.mean((image - reference) ** 2)) / np.mean(reference))
+    assert 1.0 <= estimated / measured < 4.0, (estimated, measured)
+    noises = [p["noise"] for p, _ in got[1:]]
+    assert noises[-1] < noises[0], noises
+
+    # a noise target ends the stream before its samples
+    target = min(1.0, 1.2 * estimated)  # (reached by 64 samples: the same samples as above)
+    ended = stream_to(app, cornell(app), 4096, refine_noise=target)[-1][0]
+    assert ended["reason"] == "noise" and ended["noise"] <= target and ended["samples"] <= 64, ended
+
+
 def parts(r) -> list[tuple[dict[str, str], bytes]]:
     """The parts of a multipart/mixed answer (each with Content-Length)."""
     boundary = r.headers["content-type"].split("boundary=")[1].encode()
