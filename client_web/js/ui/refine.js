@@ -3,10 +3,12 @@
 // ("64 / 256 samples") and a bar; it goes at the next gesture. Made here, inside the stage, so
 // the page's markup needs nothing for it.
 
-// The counter's words for a stream's progress {samples, target_samples, target_ms, elapsed_ms, done, reason}.
+// The counter's words for a stream's progress {samples, target_samples, target_ms, elapsed_ms, done,
+// reason, noise, target_noise}: the noise estimate is said when the stream has a noise target.
 export function refineText(p) {
   if (!p) return '';
-  const of = `${p.samples} / ${p.target_samples} samples`;
+  const noise = p.target_noise > 0 && p.noise != null ? ` · noise ${(100 * p.noise).toFixed(1)} %` : '';
+  const of = `${p.samples} / ${p.target_samples} samples${noise}`;
   if (!p.done) return of;
   if (p.reason === 'time') return `${p.samples} samples (${Math.round(p.target_ms / 1000)} s)`;
   if (p.reason === 'held') return `${p.samples} samples (memory full)`;

@@ -9,6 +9,8 @@ const p = (o) => ({ samples: 64, target_samples: 256, target_ms: 10000, elapsed_
 test('the counter says the samples of the target while the stream goes on', () => {
   assert.equal(refineText(p({})), '64 / 256 samples');
   assert.equal(refineText(null), '');
+  assert.equal(refineText(p({ noise: 0.031, target_noise: 0.02 })), '64 / 256 samples · noise 3.1 %');
+  assert.equal(refineText(p({ noise: 0.031, target_noise: 0 })), '64 / 256 samples');
 });
 
 test('a finished stream says why it stopped', () => {
