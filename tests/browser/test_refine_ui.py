@@ -55,3 +55,15 @@ def test_a_resting_view_is_refined_until_the_next_gesture(open_client):
     after = parts(c)[before:]
     assert after[0]["samples"] <= samples[0], (samples, after)
     assert c.errors() == []
+
+
+def test_the_sheet_offers_the_denoiser_and_the_targets_with_the_path_integrator(open_client):
+    c = open_client(query=QUERY.replace("refine_samples=65536", "refine_samples=128"))
+    c.wait_idle(min_frames=1, timeout=60_000)
+    c.page.click("#settings-toggle")
+    fields = ("#f-denoise", "#f-refine_samples", "#f-refine_time_ms", "#f-refine_noise")
+    assert all(c.page.locator(f).is_visible() for f in fields)
+    assert c.page.locator("#f-refine_samples").input_value() == "128"
+    c.page.select_option("#f-integrator", "whitted")
+    c.page.wait_for_function("() => window.pocketray.state.render.integrator === 'whitted'")
+    assert not any(c.page.locator(f).is_visible() for f in fields), "Whitted frames are neither denoised nor refined"
