@@ -1,5 +1,6 @@
-"""The path integrator's denoiser: Intel Open Image Denoise (``pyoidn``, whose wheel ships the
-library) on the frame's linear radiance, guided by the albedo and the normal of the first hit.
+"""The path integrator's denoisers: Intel Open Image Denoise (``pyoidn``, whose wheel ships the
+library) or the edge-avoiding à-trous filter (renderer/atrous.py, the one device mode runs in
+WebGL2) on the frame's linear radiance, guided by the albedo and the normal of the first hit.
 
 Both guides come from the frame's own trace: a path frame with ``denoise`` on is traced by the
 variant with ``GUIDES`` (``shaders/lighting.glsl``), which also sums over its samples the first
@@ -24,6 +25,7 @@ import time
 
 import numpy as np
 
+from .atrous import atrous
 from .result import RenderResult
 from .scene import Scene
 
@@ -58,10 +60,8 @@ def denoise_result(result: RenderResult, scene: Scene, denoiser: str) -> RenderR
     (posed) scene the frame was traced of."""
     if denoiser == "off" or result.display is None:
         return result
-    if denoiser != "oidn":
+    if denoiser not in ("oidn", "atrous"):
         raise ValueError(f"unknown denoiser {denoiser!r}")  # renderer/settings.py's DENOISERS
-    import pyoidn  # ships the library in its wheel; imported when a frame first asks for it
-
     t0 = time.perf_counter()
     color = np.ascontiguousarray(result.image, np.float32)
     if result.guides is not None:
@@ -69,6 +69,11 @@ def denoise_result(result: RenderResult, scene: Scene, denoiser: str) -> RenderR
     else:
         albedo = first_hit_albedo(scene, result.primid)
         normal = np.ascontiguousarray(result.normal, np.float32)
-    image = np.asarray(pyoidn.denoise(color, albedo, normal, hdr=True), np.float32)
+    if denoiser == "atrous":
+        image = atrous(color, albedo, normal, result.samples or 1)  # a path frame says its samples
+    else:
+        import pyoidn  # ships the library in its wheel; imported when a frame first asks for it
+
+        image = np.asarray(pyoidn.denoise(color, albedo, normal, hdr=True), np.float32)
     stats = {**(result.stats or {}), "denoise": denoiser, "denoise_ms": (time.perf_counter() - t0) * 1e3}
     return dataclasses.replace(result, image=np.maximum(image, 0.0), stats=stats)

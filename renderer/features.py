@@ -168,8 +168,8 @@ def frame_features(scene: Scene, settings: FrameSettings, guides: bool = False) 
     variant that traces a frame of the posed ``scene`` with ``settings``: the scene's features,
     with the path integrator where the settings ask for it, generic unless ``specialize``. The
     server's frames and the device's data both choose their variant here, so a browser compiles
-    the very text the server does. ``guides``: a path frame writes the denoiser's guides too (the
-    server's, never a device's)."""
+    the very text the server does. ``guides``: a path frame writes the denoiser's guides too (a server's frame with
+    ``denoise`` on, or a device's, whose à-trous filter reads them)."""
     features = scene_features(scene).with_integrator(settings.integrator, settings.mode, guides=guides)
     if not settings.specialize:
         features = features.generic()

@@ -9,7 +9,7 @@ What is translated, term by term, so both renderers estimate the same integral:
   where it exceeds 1, the rest absorbed — as nested ``blendbsdf`` of a two-sided ``diffuse``
   (albedo ``color``), a two-sided ``conductor`` of reflectance 1 (``roughconductor`` GGX,
   ``alpha = roughness``, when rough), a ``dielectric`` of ``int_ior = ior`` (``roughdielectric`` GGX,
-  ``alpha = roughness``, visible normals sampled as ours, when rough), and black;
+  ``alpha = roughness``, when rough), and black; both rough lobes sample the visible normals as ours;
 - ``emission`` as an ``area`` emitter (the side the normal faces, as ours), the environment as a
   ``constant`` emitter (an image as an ``envmap``), a point light of ``color`` C as a ``point`` of intensity π·D²·C;
 - spheres, meshes (their world-space triangles) and planes (a square 10⁴ × the scene's size).
@@ -45,7 +45,13 @@ def _bsdf(m: Material) -> dict:
         lobes.append((wd, {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": _rgb(m.color)}}))
     if wr > 0:
         metal = (
-            {"type": "roughconductor", "material": "none", "distribution": "ggx", "alpha": float(m.roughness)}
+            {
+                "type": "roughconductor",
+                "material": "none",
+                "distribution": "ggx",
+                "alpha": float(m.roughness),
+                "sample_visible": True,  # Mitsuba's default, said here: the noise comparisons need it as ours
+            }
             if m.roughness > 0
             else {"type": "conductor", "material": "none"}
         )

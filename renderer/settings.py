@@ -33,8 +33,9 @@ FORMATS = ("png", "jpeg", "npy", "exr")  # exr: float channels (server/frames/ex
 INTEGRATORS = ("whitted", "path")
 # How the path integrator's radiance becomes a png/jpeg pixel (docs/SHADING.md, "Tone mapping").
 TONE_MAPS = ("clamp", "reinhard", "aces")
-# The path integrator's denoiser (renderer/denoise.py): none, or Intel Open Image Denoise.
-DENOISERS = ("off", "oidn")
+# The path integrator's denoiser (renderer/denoise.py): none, Intel Open Image Denoise, or the
+# edge-avoiding à-trous filter (renderer/atrous.py; the one a browser runs in device mode).
+DENOISERS = ("off", "oidn", "atrous")
 
 # The JSON types a setting can have (as JSON Schema names them) and their Python types.
 TYPES: dict[str, type] = {"integer": int, "number": float, "boolean": bool, "string": str}
@@ -295,8 +296,9 @@ SETTINGS: tuple[SettingSpec, ...] = (
         "denoise",
         "string",
         "off",
-        "path integrator's radiance: off, or oidn (Intel Open Image Denoise, guided by the first hit's albedo "
-        "and normal); npy and exr stay undenoised unless the request itself names it",
+        "path integrator's radiance: off, oidn (Intel Open Image Denoise) or atrous (edge-avoiding à-trous "
+        "filter, the device's), both guided by the first hit's albedo and normal; npy and exr stay undenoised "
+        "unless the request itself names it",
         "Denoiser",
         choices=DENOISERS,
         modes=("color",),

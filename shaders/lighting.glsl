@@ -171,9 +171,29 @@ float smith_g1(float c, float alpha) {
     return 2.0 / (1.0 + sqrt(1.0 + alpha * alpha * tan2));
 }
 
+// A GGX (α) microfacet normal drawn from the normals visible from wo about n (Heitz 2018,
+// "Sampling the GGX Distribution of Visible Normals"): density D_wo(m) = G1(wo) max(0, wo·m) D(m) / (n·wo).
+// Against the full distribution D(m) cos θm, the weights of the lobes that use it are bounded
+// (G1 of the new direction) instead of growing as (wo·m) / (n·m) for the rare m far from n.
+vec3 ggx_visible_normal(vec3 n, vec3 wo, float a, float u1, float u2) {
+    vec3 t, b;
+    basis(n, t, b);
+    vec3 vh = normalize(vec3(a * dot(wo, t), a * dot(wo, b), dot(n, wo)));   // wo, stretched to α = 1
+    float len2 = vh.x * vh.x + vh.y * vh.y;
+    vec3 t1 = len2 > 0.0 ? vec3(-vh.y, vh.x, 0.0) * inversesqrt(len2) : vec3(1.0, 0.0, 0.0);
+    vec3 t2 = cross(vh, t1);
+    float r = sqrt(u1), phi = 2.0 * PI * u2;
+    float p1 = r * cos(phi), p2 = r * sin(phi);
+    float sv = 0.5 * (1.0 + vh.z);
+    p2 = (1.0 - sv) * sqrt(max(0.0, 1.0 - p1 * p1)) + sv * p2;
+    vec3 nh = p1 * t1 + p2 * t2 + sqrt(max(0.0, 1.0 - p1 * p1 - p2 * p2)) * vh;
+    vec3 ml = normalize(vec3(a * nh.x, a * nh.y, max(nh.z, 0.0)));
+    return ml.x * t + ml.y * b + ml.z * n;
+}
+
 #ifdef READS_ENVIRONMENT_SAMPLING
 // The GGX lobe (α, F = 1, separable Smith masking) for wo → wi about n: (f, pdf per steradian of its
-// sampling, D(m)·cos θm / (4 o·m)); (0, 0) below either horizon.
+// sampling, D_wo(m) / (4 o·m) = G1(wo) D(m) / (4 n·o), the visible normals); (0, 0) below either horizon.
 vec2 ggx_eval(vec3 n, vec3 wo, vec3 wi, float alpha) {
     float n_o = dot(n, wo), n_i = dot(n, wi);
     if (n_o <= 0.0 || n_i <= 0.0) return vec2(0.0);
@@ -184,7 +204,7 @@ vec2 ggx_eval(vec3 n, vec3 wo, vec3 wi, float alpha) {
     float k = n_m * n_m * (a2 - 1.0) + 1.0;
     float dm = a2 / (PI * k * k);
     float f = dm * smith_g1(n_o, alpha) * smith_g1(n_i, alpha) / (4.0 * n_o * n_i);
-    return vec2(f, dm * n_m / (4.0 * o_m));
+    return vec2(f, dm * smith_g1(n_o, alpha) / (4.0 * n_o));
 }
 #endif
 
@@ -477,21 +497,18 @@ void path_main() {
                 prev_pdf_d = w_diffuse * max(dot(nf, nd), 0.0) / PI;
             } else if (pick < w_diffuse + w_reflect) {
                 if (roughness > 0.0) {
-                    // GGX (α = roughness): a microfacet normal from D(m)·cos θm, weight F·G·(o·m)/((n·o)(n·m)), F = 1.
+                    // GGX (α = roughness), F = 1: a microfacet normal from the normals visible from wo
+                    // (Heitz 2018), reflection about it; D and G1(wo) cancel against the density, so the
+                    // weight is G1 of the new direction, never above 1 (Mitsuba's roughconductor with
+                    // sample_visible).
                     float a = roughness;
-                    float tan2 = a * a * u1 / max(1.0 - u1, 1e-7);
-                    float cos_m = inversesqrt(1.0 + tan2);
-                    float sin_m = sqrt(max(0.0, 1.0 - cos_m * cos_m));
-                    float phi = 2.0 * PI * u2;
-                    vec3 t, b;
-                    basis(nf, t, b);
-                    vec3 mh = sin_m * cos(phi) * t + sin_m * sin(phi) * b + cos_m * nf;
                     vec3 wo = -d;
+                    vec3 mh = ggx_visible_normal(nf, wo, a, u1, u2);
                     float o_m = dot(wo, mh);
                     nd = 2.0 * o_m * mh - wo;
                     float n_o = dot(nf, wo), n_i = dot(nf, nd);
                     if (o_m <= 0.0 || n_i <= 0.0 || n_o <= 0.0) go = false;
-                    else beta *= smith_g1(n_o, a) * smith_g1(n_i, a) * o_m / (n_o * cos_m);
+                    else beta *= smith_g1(n_i, a);
                 } else {
                     nd = d - 2.0 * dot(d, s.n) * s.n;
                 }
@@ -508,21 +525,9 @@ void path_main() {
                     // direction on the wrong side of the surface for its kind (reflected below it, refracted
                     // above it) is masked: the path ends there.
                     float a = roughness;
-                    vec3 t, b;
-                    basis(nn, t, b);
                     vec3 wo = -d;
                     float n_o = dot(nn, wo);
-                    vec3 vh = normalize(vec3(a * dot(wo, t), a * dot(wo, b), n_o));   // wo, stretched to α = 1
-                    float len2 = vh.x * vh.x + vh.y * vh.y;
-                    vec3 t1 = len2 > 0.0 ? vec3(-vh.y, vh.x, 0.0) * inversesqrt(len2) : vec3(1.0, 0.0, 0.0);
-                    vec3 t2 = cross(vh, t1);
-                    float r = sqrt(u1), phi = 2.0 * PI * u2;
-                    float p1 = r * cos(phi), p2 = r * sin(phi);
-                    float sv = 0.5 * (1.0 + vh.z);
-                    p2 = (1.0 - sv) * sqrt(max(0.0, 1.0 - p1 * p1)) + sv * p2;
-                    vec3 nh = p1 * t1 + p2 * t2 + sqrt(max(0.0, 1.0 - p1 * p1 - p2 * p2)) * vh;
-                    vec3 ml = normalize(vec3(a * nh.x, a * nh.y, max(nh.z, 0.0)));
-                    vec3 mh = ml.x * t + ml.y * b + ml.z * nn;
+                    vec3 mh = ggx_visible_normal(nn, wo, a, u1, u2);
                     float o_m = dot(wo, mh);
                     float u3 = rnd();
                     if (o_m <= 0.0 || n_o <= 0.0) {

@@ -32,7 +32,9 @@ export function observe(hook, { scheduler, device }) {
     bench: (params) => device.bench(params),
     probe: () => device.probe(),
     get camera() { return device.camera; },
-    get path() { return device.path ?? null; },   // the loaded data's path integrator ({samples_per_pass}) or null
+    get path() { return device.path ?? null; },   // the loaded data's path integrator ({samples_per_pass, guides}) or null
+    get accumulation() { return device.accumulation; },   // the resting view's sum: {samples, target, shown} or null
+    readback: () => device.readback(),   // the last device frame's arrays (base64)
     get fallback() { return hook.deviceFallback ?? null; },
     get counts() { return { ...device.counts }; },
     get job() { return device.job && { level: device.job.level, rowsDone: device.job.rowsDone, rowsTotal: device.job.rowsTotal }; },

@@ -553,7 +553,8 @@ class StatsQuery(QueryModel):
 
 
 # The render settings a device-data query may name: those that choose the data and the shader
-# variant, and what the device's display of a path-traced frame reads (samples, tone map, exposure).
+# variant, and what the device's display of a path-traced frame reads (samples, tone map, exposure;
+# denoise: on, the variant writes the guides and the device filters its mean).
 DEVICE_SETTINGS = (
     "method",
     "mode",
@@ -565,6 +566,7 @@ DEVICE_SETTINGS = (
     "tone_map",
     "exposure",
     "samples_per_pixel",
+    "denoise",
 )
 
 
@@ -581,6 +583,7 @@ class DeviceDataQuery(QueryModel):
     tone_map: optional(SETTING_TYPES["tone_map"]) = None
     exposure: optional(SETTING_TYPES["exposure"]) = None
     samples_per_pixel: optional(SETTING_TYPES["samples_per_pixel"]) = None
+    denoise: optional(SETTING_TYPES["denoise"]) = None
     max_texture_size: int = Field(
         DEFAULT_MAX_TEXTURE_SIZE, ge=1, le=MAX_DEVICE_TEXTURE_SIZE, description="the device's MAX_TEXTURE_SIZE"
     )

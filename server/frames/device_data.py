@@ -21,9 +21,11 @@ The JSON header::
      "session": {"id", "version", "scene_rev"},
      "method": "bih",                       # auto resolved
      "settings": {"mode", "max_prims", "max_tree_depth", "max_recursion_depth", "width", "height", "time",
-                  "samples_per_pixel", "integrator", "tone_map", "exposure"},
+                  "samples_per_pixel", "integrator", "tone_map", "exposure", "denoise"},
      "shader": {"method", "mode", "max_recursion_depth", "features": ["NO_TRANSMISSION", …], "url"},
-     "path": {"samples_per_pass": 4} | null,  # the path integrator's variant (features has PATH), else null
+     "path": {"samples_per_pass": 4, "guides": false} | null,  # the path integrator's variant (features
+                                            # has PATH), else null; guides: it writes them (GUIDES),
+                                            # then also "atrous": renderer/atrous.py's parameters()
      "max_texture_size": 4096,              # the power of two the textures were wrapped to
      "camera": {...}, "home_camera": {...}, # camera JSON of docs/FORMATS.md (current, and the reset one)
      "uniforms": {"u_num_spheres": 64, "u_plane_point": [[0, -20, 0], …], …,
@@ -48,7 +50,11 @@ carries ``PATH`` and its ``max_recursion_depth`` is a path's segments (up to
 draw): the device draws passes of at most ``path.samples_per_pass`` samples
 (``limits.DEVICE_PATH_SAMPLES_PER_PASS``), adds them up, divides by ``samples_per_pixel`` and
 shows the mean as ``renderer/tonemap.py`` does with the header's ``tone_map`` and
-``exposure``. The ``settings`` a session stored before a setting existed read as its default.
+``exposure``. With ``denoise`` on (any denoiser) the variant also carries ``GUIDES``: it writes
+the sums of the first hit's albedo and normal at locations 2 and 3 (two more RGBA32F targets),
+which the device adds up as the radiance and hands, as means, to its à-trous filter
+(``renderer/atrous.py``'s GLSL copy) before tone mapping. The ``settings`` a session stored
+before a setting existed read as its default.
 Fields were only added to the header since format version 1 (a reader ignores those it does
 not know), so the version stays 1. Each texture is ``height × width × components`` elements of ``dtype``
 (``f4``: float32, ``u4``: uint32), row 0 first — exactly ``PackedTexture.data``; the

@@ -88,7 +88,7 @@ def test_device_path_frame_equals_the_servers(path_page, server, method):
     dev = device_path_render(path_page, session=cornell, mode="color", **common, **TONE)
     assert dev["infoLog"] == {"vertex": "", "fragment": "", "program": ""}, dev["infoLog"]
     assert "PATH" in dev["shader"]["features"] and dev["shader"]["max_recursion_depth"] == DEPTH
-    assert dev["path"] == {"samples": spp, "perPass": DEVICE_PATH_SAMPLES_PER_PASS}
+    assert dev["path"] == {"samples": spp, "perPass": DEVICE_PATH_SAMPLES_PER_PASS, "guides": False}
     assert dev["bands"] >= spp // DEVICE_PATH_SAMPLES_PER_PASS  # one pass per 4 samples, each in bands
 
     radiance = np.load(io.BytesIO(server_frame(server, cornell, format="npy", mode="color", **common)))
@@ -140,7 +140,7 @@ def test_device_mode_in_the_client_path_traces(gl_browser, server):
         last = c.hook("lastFrame")
         assert last["renderer"] == "device", last
         assert c.hook("state.render.integrator") == "path" and c.hook("state.render.tone_map") == "reinhard"
-        assert c.hook("device.path") == {"samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS}
+        assert c.hook("device.path") == {"samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS, "guides": False}
         assert last["samples"] == 16
         shown_device = canvas_rgb(c)
         c.page.click("#settings-toggle")

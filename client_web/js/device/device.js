@@ -20,6 +20,12 @@
 //    of them per pixel, in passes of the data's path.samples_per_pass, summed, their mean
 //    shown tone-mapped (tone_map, exposure) as the server's png; the mean of the first
 //    passes is the frame's preview;
+//  - accumulation: while the view rests, full path-traced frames are steps of one pass each
+//    (the next sample indices, added to the same sum), each mean shown as it grows, up to the
+//    session's samples_per_pixel; any change of camera, settings, data or size starts a new sum
+//    (the step's signature, _accumulationKey). With a denoiser (denoise not off) the data's
+//    variant writes the guides and every mean shown is filtered by the à-trous filter
+//    (device_gl.js; the one filter a browser runs, whichever denoiser is named);
 //  - anything missing (WebGL2, EXT_color_buffer_float, a texture size the scene needs, a
 //    method that needs several passes) → the app falls back to server mode with a notice.
 //
@@ -124,6 +130,13 @@ export class DeviceView {
     this.planner = new BandPlanner();
     this.dataMs = { build: null, upload: null, fetch: null };
     this.counts = { traced: 0, cancelled: 0, bands: 0, lastBands: 0, lastRows: 0 };
+    this.accum = null;             // {key, trace, target, shown: [samples of each mean shown]} while resting
+  }
+
+  // The accumulation in progress (tests): samples summed, the target, the sample counts shown.
+  get accumulation() {
+    const a = this.accum;
+    return a && { samples: a.trace.samplesDone, target: a.target, shown: [...a.shown] };
   }
 
   // Can this browser run the tracer? {ok, reason?, renderer?, maxTextureSize?, colorBufferFloat?}
@@ -154,7 +167,8 @@ export class DeviceView {
     const t = params.time ?? (s.anim && s.anim.animated ? s.anim.time : '');
     // sceneRev: the session's scene grew (a model was added, session.js): its data is new too.
     return [params.session ?? s.sessionId, r.method, r.mode, r.max_prims, r.max_tree_depth, r.max_recursion_depth,
-      params.max_texture_size ?? this.renderer.maxTextureSize, t, s.sceneRev ?? 0, r.integrator ?? 'whitted'].join('|');
+      params.max_texture_size ?? this.renderer.maxTextureSize, t, s.sceneRev ?? 0, r.integrator ?? 'whitted',
+      (r.denoise ?? 'off') !== 'off'].join('|');
   }
 
   // Fetch (when the key changed), upload and compile. `params` override the session's settings.
@@ -172,9 +186,10 @@ export class DeviceView {
         float_textures: this.renderer.colorBufferFloat ? 'true' : 'false',
       };
       // (samples_per_pixel, tone_map, exposure: the header's display settings; the live view
-      // reads its own state's, so changing them needs no new data.)
+      // reads its own state's, so changing them needs no new data; denoise: on, the variant with
+      // the guides, which changing it on or off needs.)
       for (const k of ['method', 'mode', 'max_prims', 'max_tree_depth', 'max_recursion_depth', 'integrator',
-        'samples_per_pixel', 'tone_map', 'exposure']) {
+        'samples_per_pixel', 'tone_map', 'exposure', 'denoise']) {
         const v = params[k] ?? this._base(s, params)[k];
         if (v !== undefined && v !== null) q[k] = v;
       }
@@ -196,7 +211,7 @@ export class DeviceView {
       this.stats = h.stats;
       this.method = h.method;
       this.mode = h.shader.mode;
-      this.path = h.path;   // {samples_per_pass} of a path-traced variant, else null
+      this.path = h.path;   // {samples_per_pass, guides, atrous?} of a path-traced variant, else null
       this.n = h.uniforms.u_num_spheres;
       this.home = h.home_camera;
       // The data's camera is the server's: adopt it unless local gestures happened meanwhile.
@@ -237,15 +252,23 @@ export class DeviceView {
     return { width, height, k, samples: k * k, minWeight };
   }
 
-  // A path-traced frame's passes: `samples` per pixel, the data's samples per pass.
+  // A path-traced frame's passes: `samples` per pixel, the data's samples per pass and guides.
   _path(samples) {
-    return this.path ? { samples, perPass: this.path.samples_per_pass } : null;
+    return this.path ? { samples, perPass: this.path.samples_per_pass, guides: !!this.path.guides } : null;
   }
 
-  // How a path-traced frame is shown: `render`'s tone map and exposure (else the data's).
+  // How a path-traced frame is shown: `render`'s tone map, exposure and denoiser (else the data's);
+  // atrous: the filter's parameters when a denoiser is on and the data's variant writes the guides.
   _display(render = {}) {
     const h = (this.renderer && this.renderer.header && this.renderer.header.settings) || {};
-    return { toneMap: render.tone_map ?? h.tone_map ?? 'clamp', exposure: render.exposure ?? h.exposure ?? 0 };
+    const denoise = render.denoise ?? h.denoise ?? 'off';
+    const atrous = denoise !== 'off' && this.path && this.path.guides ? this.path.atrous : null;
+    return { toneMap: render.tone_map ?? h.tone_map ?? 'clamp', exposure: render.exposure ?? h.exposure ?? 0, atrous };
+  }
+
+  // What a resting frame's mean depends on: data, camera, size, ε, display. Equal → its sum grows.
+  _accumulationKey(p) {
+    return JSON.stringify([this.key, this.camera, p.width, p.height, p.minWeight, p.display]);
   }
 
   // Whether a preview differs from the full frame (else gestures trace full frames directly).
@@ -271,10 +294,11 @@ export class DeviceView {
   _start(level, t0, onPreview = null) {
     if (this.job) this._cancel(this.job);
     const p = this._profile(level);
-    const uniforms = { ...cameraUniforms(this.camera, p.width * p.k, p.height * p.k), u_min_weight: p.minWeight };
-    const trace = this.renderer.beginTrace(this.prog, {
-      width: p.width, height: p.height, k: p.k, uniforms, path: p.path, display: p.display,
+    const trace = this._accumulate(level, p) ?? this.renderer.beginTrace(this.prog, {
+      width: p.width, height: p.height, k: p.k, path: p.path, display: p.display,
+      uniforms: { ...cameraUniforms(this.camera, p.width * p.k, p.height * p.k), u_min_weight: p.minWeight },
     });
+    if (this.accum && this.accum.trace === null) this.accum.trace = trace;
     const inputAt = this.pendingInputAt;
     this.pendingInputAt = null;
     const data = this.dataMs;
@@ -288,6 +312,33 @@ export class DeviceView {
     this.job = job;
     this._band(job);   // the first band now; the others one per animation frame
     return job.promise;
+  }
+
+  // A full path-traced frame at rest is one step of the accumulation: the next pass of the sum
+  // kept (continueTrace) while nothing it depends on changed, else the first pass of a new sum
+  // (→ null after setting p.path to that one pass: the caller begins that trace). Anything else
+  // ends the accumulation. A step cancelled half-way loses that pass alone (the sum holds whole
+  // passes).
+  _accumulate(level, p) {
+    if (!p.path || level !== 'full') {
+      this.accum = null;
+      return null;
+    }
+    const key = this._accumulationKey(p), a = this.accum;
+    if (a && a.key === key && a.trace.samplesDone < p.samples) {
+      const step = Math.min(p.path.perPass, p.samples - a.trace.samplesDone);
+      const trace = this.renderer.continueTrace(a.trace, step);
+      if (trace) return trace;
+    }
+    p.path = { ...p.path, samples: Math.min(p.path.perPass, p.samples) };
+    this.accum = { key, trace: null, target: p.samples, shown: [] };
+    return null;
+  }
+
+  // Whether the accumulation wants another step (the last one was shown, the target not reached).
+  _accumulating() {
+    const a = this.accum;
+    return !!(a && a.trace && !this.job && a.trace.samplesDone < a.target && a.trace.done);
   }
 
   _band(job) {
@@ -316,7 +367,11 @@ export class DeviceView {
       if (this.job === job) this.job = null;
       this.counts.traced++;
       this.counts.lastBands = t.bands;
+      const a = this.accum;
+      if (a && a.trace === t) a.shown.push(t.samplesDone);
       job.resolve(this._frameOf(job, displayMs));
+      // At rest: the next step follows (its own frame), unless a gesture or new settings came first.
+      if (this._accumulating()) this._schedule('full');
     } catch (e) {
       job.done = true;
       if (this.job === job) this.job = null;
@@ -344,7 +399,7 @@ export class DeviceView {
       camera: job.camera,
       meta: {
         sessionId: this.key ? this.key.split('|')[0] : null, n: this.n, mode: this.mode, method: this.method,
-        samples: p.samples, minWeight: p.minWeight,
+        samples: t.path ? t.samplesDone : p.samples, minWeight: p.minWeight,
       },
       timing: {
         build: job.data.build, upload: job.data.upload, network: job.data.fetch,
@@ -420,6 +475,15 @@ export class DeviceView {
     this.raf = null;
     this.level = null;
     if (this.job) this._cancel(this.job);
+    this.accum = null;
+  }
+
+  // The last frame shown, read back (tests): base64 of renderer.readback()'s arrays.
+  readback() {
+    const rb = this.renderer.readback();
+    const out = { width: rb.width, height: rb.height };
+    for (const k of ['primid', 'color', 'radiance', 'albedo', 'normal', 'denoised']) out[k] = rb[k] ? toBase64(rb[k]) : null;
+    return out;
   }
 
   // ---- test and benchmark hooks: window.pocketray.device -------------------------------------
@@ -490,6 +554,7 @@ export class DeviceView {
     return {
       width: rb.width, height: rb.height, primid: toBase64(rb.primid), color: toBase64(rb.color),
       radiance: rb.radiance ? toBase64(rb.radiance) : null, path, display,
+      ...Object.fromEntries(['albedo', 'normal', 'denoised'].map((k) => [k, rb[k] ? toBase64(rb[k]) : null])),
       infoLog: this.prog.logs, renderer: `WebGL2 ${this.renderer.rendererName}`, textures: h.textures.map(
         ({ name, width: w, height: hh, internal_format }) => ({ name, width: w, height: hh, internal_format })),
       shader: h.shader, camera, basis: cameraBasis(camera), serverUniforms: h.uniforms, bands: trace.bands, ms,

@@ -20,6 +20,12 @@
 // the sum by the samples traced (the mean, as renderer/gl/frame.py's float64 sum / count), and
 // the display scales it by 2^exposure, tone-maps and sRGB-encodes it exactly as
 // renderer/tonemap.py's display_u8 does (DISPLAY_FS: the tone map's one GLSL copy).
+// A variant with GUIDES (a denoiser named) also writes the sums of the first hit's albedo and
+// normal (locations 2 and 3): the trace, sum and resolve targets then have four attachments, and
+// before the display the edge-avoiding à-trous filter (ATROUS_FS, renderer/atrous.py's GLSL copy,
+// its parameters from the data's header) runs its passes on the mean, guided by their means.
+// continueTrace adds passes to a path-traced frame already shown (the sum kept: the device's
+// accumulation while the view rests).
 //
 // Texture formats: the blob's (dtype, components) → RGBA32F/FLOAT, R32UI/RED_INTEGER, …,
 // NEAREST filtering, as server/frames/device_data.py documents.
@@ -39,7 +45,13 @@ const QUAD_VS = `#version 300 es
 in vec2 a_position;
 void main() { gl_Position = vec4(a_position, 0.0, 1.0); }`;
 
-// Up to 4 × 4 sub-pixels (16 samples per pixel, the server's largest).
+// A fragment shader's text with `#define GUIDES` after its version line (the guides' variant).
+function withGuides(src) {
+  return src.replace('#version 300 es\n', '#version 300 es\n#define GUIDES\n');
+}
+
+// Up to 4 × 4 sub-pixels (16 samples per pixel, the server's largest). GUIDES (paths only): the
+// albedo and normal sums divided by the samples too.
 const RESOLVE_FS = `#version 300 es
 precision highp float;
 precision highp int;
@@ -52,6 +64,12 @@ uniform int u_k;
 uniform float u_scale;               // 1 / (k·k); the path integrator's: 1 / samples traced
 layout(location = 0) out vec4 o_image;
 layout(location = 1) out vec4 o_hit;
+#ifdef GUIDES
+uniform highp sampler2D u_trace2;
+uniform highp sampler2D u_trace3;
+layout(location = 2) out vec4 o_albedo;
+layout(location = 3) out vec4 o_normal;
+#endif
 void main() {
   ivec2 base = ivec2(gl_FragCoord.xy) * u_k;
   vec3 sum = vec3(0.0);
@@ -65,10 +83,15 @@ void main() {
   ivec2 c = ivec2(gl_FragCoord.xy);
   o_image = vec4(sum * u_scale, texelFetch(u_centre0, c, 0).a);
   o_hit = texelFetch(u_centre1, c, 0);
+#ifdef GUIDES
+  o_albedo = vec4(texelFetch(u_trace2, c, 0).rgb * u_scale, 0.0);
+  o_normal = vec4(texelFetch(u_trace3, c, 0).rgb * u_scale, 0.0);
+#endif
 }`;
 
 // The path integrator's sum: this pass's samples added to the sum so far (u_first: the first
-// pass, whose id, normal and t the frame keeps, as the server keeps its first pass's).
+// pass, whose id, normal and t the frame keeps, as the server keeps its first pass's). GUIDES: the
+// albedo and normal sums are added up as the radiance.
 const ACCUMULATE_FS = `#version 300 es
 precision highp float;
 precision highp int;
@@ -80,9 +103,25 @@ uniform highp sampler2D u_sum1;
 uniform int u_first;
 layout(location = 0) out vec4 o_image;
 layout(location = 1) out vec4 o_hit;
+#ifdef GUIDES
+uniform highp sampler2D u_pass2;
+uniform highp sampler2D u_pass3;
+uniform highp sampler2D u_sum2;
+uniform highp sampler2D u_sum3;
+layout(location = 2) out vec4 o_albedo;
+layout(location = 3) out vec4 o_normal;
+#endif
 void main() {
   ivec2 c = ivec2(gl_FragCoord.xy);
   vec4 p = texelFetch(u_pass0, c, 0);
+#ifdef GUIDES
+  o_albedo = texelFetch(u_pass2, c, 0);
+  o_normal = texelFetch(u_pass3, c, 0);
+  if (u_first == 0) {
+    o_albedo += texelFetch(u_sum2, c, 0);
+    o_normal += texelFetch(u_sum3, c, 0);
+  }
+#endif
   if (u_first == 1) {
     o_image = p;
     o_hit = texelFetch(u_pass1, c, 0);
@@ -91,6 +130,48 @@ void main() {
     o_image = vec4(s.rgb + p.rgb, s.a);
     o_hit = texelFetch(u_sum1, c, 0);
   }
+}`;
+
+// renderer/atrous.py's filter, one pass (step u_step): the 5 × 5 B3-spline kernel with holes, each
+// tap weighted by exp(−|c_p−c_q|²/σ_c² − |n_p−n_q|²/σ_n² − |a_p−a_q|²/σ_a²) (c: the colour as
+// c/(1+c); n, a: the normal and albedo guides), taps outside the image left out, Σ w·c / Σ w.
+// The σ's (1/σ² here) and the kernel come from the data's header (path.atrous): declared once.
+const ATROUS_FS = `#version 300 es
+precision highp float;
+precision highp int;
+precision highp sampler2D;
+uniform highp sampler2D u_color;
+uniform highp sampler2D u_albedo;
+uniform highp sampler2D u_normal;
+uniform int u_step;
+uniform float u_inv_color;
+uniform float u_inv_normal;
+uniform float u_inv_albedo;
+uniform float u_kernel[5];
+layout(location = 0) out vec4 o_color;
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  ivec2 size = textureSize(u_color, 0);
+  vec4 cp4 = texelFetch(u_color, p, 0);
+  vec3 cp = cp4.rgb, ccp = cp / (1.0 + max(cp, vec3(0.0)));
+  vec3 np = texelFetch(u_normal, p, 0).rgb, ap = texelFetch(u_albedo, p, 0).rgb;
+  vec3 total = vec3(0.0);
+  float weights = 0.0;
+  for (int j = 0; j < 5; j++) {
+    for (int i = 0; i < 5; i++) {
+      ivec2 q = p + ivec2(i - 2, j - 2) * u_step;
+      if (q.x < 0 || q.y < 0 || q.x >= size.x || q.y >= size.y) continue;
+      vec3 cq = texelFetch(u_color, q, 0).rgb;
+      vec3 dc = cq / (1.0 + max(cq, vec3(0.0))) - ccp;
+      vec3 dn = texelFetch(u_normal, q, 0).rgb - np;
+      vec3 da = texelFetch(u_albedo, q, 0).rgb - ap;
+      float e = dot(dc, dc) * u_inv_color + dot(dn, dn) * u_inv_normal + dot(da, da) * u_inv_albedo;
+      float w = u_kernel[j] * u_kernel[i] * exp(-e);
+      total += w * cq;
+      weights += w;
+    }
+  }
+  o_color = vec4(total / weights, cp4.a);
 }`;
 
 // renderer/tonemap.py's operators by name → u_tone_map (the display's branch).
@@ -165,6 +246,7 @@ export class DeviceRenderer {
     this.resolveProgram = this.program(QUAD_VS, RESOLVE_FS);
     this.displayProgram = this.program(QUAD_VS, DISPLAY_FS);
     this.accumulateProgram = this.program(QUAD_VS, ACCUMULATE_FS);
+    this.sumOwner = null;          // the path-traced trace whose sum the 'sum0'/'sum1' targets hold
   }
 
   get info() {
@@ -226,12 +308,13 @@ export class DeviceRenderer {
     if (err !== gl.NO_ERROR) throw new DeviceUnavailable(`texture upload failed (GL error 0x${err.toString(16)})`);
   }
 
-  // Two RGBA32F targets of width × height for `role` ('trace' or 'resolve': never the same
-  // textures, even at one sample per pixel, since the resolve reads the trace's), cached.
-  _targets(width, height, role = 'trace') {
-    const gl = this.gl, key = `${role}:${width}x${height}`;
+  // `n` RGBA32F targets (1, 2 or 4: with the guides) of width × height for `role` ('trace',
+  // 'resolve', …: never the same textures, even at one sample per pixel, since the resolve reads
+  // the trace's), cached.
+  _targets(width, height, role = 'trace', n = 2) {
+    const gl = this.gl, key = `${role}:${n}:${width}x${height}`;
     if (this.targets.has(key)) return this.targets.get(key);
-    if (this.targets.size >= 16) {   // bound the cache (roles × the full and preview sizes): release the oldest
+    if (this.targets.size >= 24) {   // bound the cache (roles × the full and preview sizes): release the oldest
       const [oldKey, old] = this.targets.entries().next().value;
       gl.deleteFramebuffer(old.fbo);
       old.tex.forEach((t) => gl.deleteTexture(t));
@@ -239,7 +322,7 @@ export class DeviceRenderer {
     }
     const fbo = gl.createFramebuffer();
     gl.bindFramebuffer(gl.FRAMEBUFFER, fbo);
-    const tex = [0, 1].map((i) => {
+    const tex = [...Array(n).keys()].map((i) => {
       const t = gl.createTexture();
       gl.bindTexture(gl.TEXTURE_2D, t);
       nearest(gl);
@@ -248,10 +331,10 @@ export class DeviceRenderer {
       return t;
     });
     gl.bindTexture(gl.TEXTURE_2D, null);
-    gl.drawBuffers([gl.COLOR_ATTACHMENT0, gl.COLOR_ATTACHMENT1]);
+    gl.drawBuffers(tex.map((_, i) => gl.COLOR_ATTACHMENT0 + i));
     const status = gl.checkFramebufferStatus(gl.FRAMEBUFFER);
     if (status !== gl.FRAMEBUFFER_COMPLETE) {
-      throw new DeviceUnavailable(`two RGBA32F render targets are not supported here (0x${status.toString(16)})`);
+      throw new DeviceUnavailable(`${n} RGBA32F render targets are not supported here (0x${status.toString(16)})`);
     }
     const entry = { width, height, fbo, tex };
     this.targets.set(key, entry);
@@ -265,26 +348,25 @@ export class DeviceRenderer {
   // A frame of width × height at k × k sub-pixels per pixel, to be traced band by band.
   // uniforms: the camera's and the per-frame ones (u_min_weight), on top of the data's.
   // At k > 1 the pixel centres are a phase of their own, traced first (W × H, their camera).
-  // path ({samples, perPass}: a PATH variant): phases of W × H of at most perPass samples each,
-  // summed (k is 1). display: {toneMap, exposure}, how a path-traced frame is shown.
+  // path ({samples, perPass, guides}: a PATH variant, guides: it has GUIDES): phases of W × H of
+  // at most perPass samples each, summed (k is 1). display: {toneMap, exposure, atrous}, how a
+  // path-traced frame is shown (atrous: the filter's parameters, the data's path.atrous, or null).
   beginTrace(prog, { width, height, k = 1, uniforms, path = null, display = null }) {
     this._check();
-    const phases = [];
+    const n = path && path.guides ? 4 : 2;   // attachments of the trace, sum and resolve targets
+    let phases = [];
     if (path) {
-      for (let s = 0; s < path.samples; s += path.perPass) {
-        const count = Math.min(path.perPass, path.samples - s);
-        phases.push({ role: 'trace', tw: width, th: height, samples: [s, count],
-          uniforms: { ...uniforms, u_sample_start: s, u_sample_count: count } });
-      }
+      phases = this._passes(0, path.samples, path.perPass, width, height, uniforms);
       k = 1;
     } else {
       if (k > 1) phases.push({ role: 'centre', tw: width, th: height, uniforms: { ...uniforms, u_resolution: [width, height] } });
       phases.push({ role: 'trace', tw: width * k, th: height * k, uniforms });
     }
-    phases.forEach((p) => this._targets(p.tw, p.th, p.role));
+    phases.forEach((p) => this._targets(p.tw, p.th, p.role, n));
     const trace = {
-      prog, width, height, k, phases, phase: 0, rowsDone: 0, rowsDoneTotal: 0, bands: 0, traceMs: 0,
+      prog, width, height, k, phases, phase: 0, rowsDone: 0, rowsDoneTotal: 0, bands: 0, traceMs: 0, n,
       path: !!path, display: display || { toneMap: 'clamp', exposure: 0 }, sum: null, samplesDone: 0,
+      samplesAtStart: 0, perPass: path ? path.perPass : 0, uniforms,
       rowsTotal: phases.reduce((n, p) => n + p.th, 0),
       get tw() { return this.phases[Math.min(this.phase, this.phases.length - 1)].tw; },
       get th() { return this.phases[Math.min(this.phase, this.phases.length - 1)].th; },
@@ -293,42 +375,76 @@ export class DeviceRenderer {
     return trace;
   }
 
+  // Passes of `count` samples from sample `start` on, at most perPass each (W × H each).
+  _passes(start, count, perPass, width, height, uniforms) {
+    const phases = [];
+    for (let s = start; s < start + count; s += perPass) {
+      const c = Math.min(perPass, start + count - s);
+      phases.push({ role: 'trace', tw: width, th: height, samples: [s, c],
+        uniforms: { ...uniforms, u_sample_start: s, u_sample_count: c } });
+    }
+    return phases;
+  }
+
+  // `samples` more of a path-traced frame (its sum kept, the next sample indices: what one frame of
+  // all of them traces), band by band again. → the trace, or null when its sum is gone (another
+  // path-traced frame summed into the targets since): trace a new frame then.
+  continueTrace(trace, samples) {
+    this._check();
+    if (!trace.path || this.sumOwner !== trace || trace.samplesDone === 0) return null;
+    trace.phases = this._passes(trace.samplesDone, samples, trace.perPass, trace.width, trace.height, trace.uniforms);
+    Object.assign(trace, { phase: 0, rowsDone: 0, rowsDoneTotal: 0, bands: 0, traceMs: 0,
+      samplesAtStart: trace.samplesDone, rowsTotal: trace.phases.length * trace.height });
+    return trace;
+  }
+
   // The path integrator: add the pass just traced to the frame's sum (ping-pong 'sum0'/'sum1').
   _accumulate(trace, phase) {
     const gl = this.gl;
-    const first = trace.sum === null;
+    const first = trace.sum === null, n = trace.n;
     const dstRole = trace.sum === 'sum0' ? 'sum1' : 'sum0', srcRole = dstRole === 'sum0' ? 'sum1' : 'sum0';
-    const pass = this._targets(trace.width, trace.height, 'trace');
-    const src = this._targets(trace.width, trace.height, srcRole);
-    const dst = this._targets(trace.width, trace.height, dstRole);
+    const pass = this._targets(trace.width, trace.height, 'trace', n);
+    const src = this._targets(trace.width, trace.height, srcRole, n);
+    const dst = this._targets(trace.width, trace.height, dstRole, n);
     gl.bindVertexArray(this.vao);
     gl.bindFramebuffer(gl.FRAMEBUFFER, dst.fbo);
     gl.viewport(0, 0, trace.width, trace.height);
-    const a = this.accumulateProgram;
+    const a = n === 4 ? this.program(QUAD_VS, withGuides(ACCUMULATE_FS)) : this.accumulateProgram;
     gl.useProgram(a.program);
-    [...pass.tex, ...src.tex].forEach((t, i) => {
-      gl.activeTexture(gl.TEXTURE0 + i);
-      gl.bindTexture(gl.TEXTURE_2D, t);
-    });
-    [['u_pass0', 0], ['u_pass1', 1], ['u_sum0', 2], ['u_sum1', 3]].forEach(([name, unit]) => {
-      const u = a.uniforms.get(name);
-      if (u) gl.uniform1i(u.loc, unit);
-    });
+    const units = [...pass.tex.map((t, i) => [`u_pass${i}`, t]), ...src.tex.map((t, i) => [`u_sum${i}`, t])];
+    this._bindUnits(a, units);
     gl.uniform1i(a.uniforms.get('u_first').loc, first ? 1 : 0);
     gl.drawArrays(gl.TRIANGLES, 0, 6);
-    [0, 1, 2, 3].forEach((i) => {
-      gl.activeTexture(gl.TEXTURE0 + i);
-      gl.bindTexture(gl.TEXTURE_2D, null);
-    });
+    this._unbindUnits(units.length);
     gl.bindVertexArray(null);
     trace.sum = dstRole;
+    this.sumOwner = trace;
     trace.samplesDone += phase.samples[1];
+  }
+
+  // [[sampler name, texture], …] on units 0, 1, … of `prog` (a name it lacks is skipped).
+  _bindUnits(prog, units) {
+    const gl = this.gl;
+    units.forEach(([name, t], i) => {
+      gl.activeTexture(gl.TEXTURE0 + i);
+      gl.bindTexture(gl.TEXTURE_2D, t);
+      const u = prog.uniforms.get(name);
+      if (u) gl.uniform1i(u.loc, i);
+    });
+  }
+
+  _unbindUnits(count) {
+    const gl = this.gl;
+    for (let i = 0; i < count; i++) {
+      gl.activeTexture(gl.TEXTURE0 + i);
+      gl.bindTexture(gl.TEXTURE_2D, null);
+    }
   }
 
   // Bind the tracer, its textures and uniforms (every band: other passes change the state between).
   _bindTrace(trace) {
     const gl = this.gl, prog = trace.prog, phase = trace.phases[trace.phase];
-    gl.bindFramebuffer(gl.FRAMEBUFFER, this._targets(trace.tw, trace.th, phase.role).fbo);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, this._targets(trace.tw, trace.th, phase.role, trace.n).fbo);
     gl.viewport(0, 0, trace.tw, trace.th);
     gl.useProgram(prog.program);
     // Textures: one unit each; samplers the data does not fill get a 1×1 dummy of their kind.
@@ -386,14 +502,48 @@ export class DeviceRenderer {
     return ms;
   }
 
-  // All bands traced: resolve the sub-pixels (or the paths' sum) and show the frame on this.canvas. → ms.
+  // All bands traced: resolve the sub-pixels (or the paths' sum), filter (the path integrator's mean,
+  // with a denoiser) and show the frame on this.canvas. → ms.
   finishTrace(trace) {
     this._check();
     const t0 = performance.now();
     this._resolve(trace);
-    this._display(trace, this._targets(trace.width, trace.height, 'resolve').tex[0], trace.path);
-    this.last = { width: trace.width, height: trace.height, path: trace.path };
+    const filtered = this._filter(trace);
+    this._display(trace, filtered ?? this._targets(trace.width, trace.height, 'resolve', trace.n).tex[0], trace.path);
+    this.last = { width: trace.width, height: trace.height, path: trace.path, n: trace.n, filtered };
     return performance.now() - t0;
+  }
+
+  // The à-trous filter's passes on the resolved mean, guided by the resolved albedo and normal
+  // (ping-pong 'atrous0'/'atrous1'). → the filtered texture, or null (no guides or no filter).
+  _filter(trace) {
+    const f = trace.display.atrous;
+    if (!trace.path || trace.n !== 4 || !f) return null;
+    const gl = this.gl, { width: w, height: h } = trace;
+    const resolved = this._targets(w, h, 'resolve', 4);
+    const prog = this.program(QUAD_VS, ATROUS_FS);
+    gl.bindVertexArray(this.vao);
+    gl.useProgram(prog.program);
+    gl.viewport(0, 0, w, h);
+    gl.uniform1f(prog.uniforms.get('u_inv_normal').loc, 1 / (f.sigma_normal * f.sigma_normal));
+    gl.uniform1f(prog.uniforms.get('u_inv_albedo').loc, 1 / (f.sigma_albedo * f.sigma_albedo));
+    gl.uniform1fv(prog.uniforms.get('u_kernel').loc, new Float32Array(f.kernel));
+    let src = resolved.tex[0];
+    for (let i = 0; i < f.iterations; i++) {
+      const dst = this._targets(w, h, `atrous${i % 2}`, 1);
+      gl.bindFramebuffer(gl.FRAMEBUFFER, dst.fbo);
+      const units = [['u_color', src], ['u_albedo', resolved.tex[2]], ['u_normal', resolved.tex[3]]];
+      this._bindUnits(prog, units);
+      // renderer/atrous.py's color_sigma: σ_c·√(sigma_samples / samples), halved each pass.
+      const sigma = f.sigma_color * Math.sqrt(f.sigma_samples / Math.max(1, trace.samplesDone)) * Math.pow(0.5, i);
+      gl.uniform1i(prog.uniforms.get('u_step').loc, 1 << i);
+      gl.uniform1f(prog.uniforms.get('u_inv_color').loc, 1 / (sigma * sigma));
+      gl.drawArrays(gl.TRIANGLES, 0, 6);
+      this._unbindUnits(units.length);
+      src = dst.tex[0];
+    }
+    gl.bindVertexArray(null);
+    return src;
   }
 
   // The resolve targets: the box filter of the sub-pixels, or the mean of the paths traced so far.
@@ -401,7 +551,7 @@ export class DeviceRenderer {
     const gl = this.gl;
     let src, centre, k = trace.k, scale;
     if (trace.path) {
-      src = centre = this._targets(trace.width, trace.height, trace.sum);
+      src = centre = this._targets(trace.width, trace.height, trace.sum, trace.n);
       k = 1;
       scale = 1 / trace.samplesDone;
     } else {
@@ -410,28 +560,19 @@ export class DeviceRenderer {
       centre = trace.k > 1 ? this._targets(trace.width, trace.height, 'centre') : src;
       scale = 1 / (trace.k * trace.k);
     }
-    const dst = this._targets(trace.width, trace.height, 'resolve');
+    const dst = this._targets(trace.width, trace.height, 'resolve', trace.n);
     gl.bindVertexArray(this.vao);
     gl.bindFramebuffer(gl.FRAMEBUFFER, dst.fbo);
     gl.viewport(0, 0, trace.width, trace.height);
-    const r = this.resolveProgram;
+    const r = trace.n === 4 ? this.program(QUAD_VS, withGuides(RESOLVE_FS)) : this.resolveProgram;
     gl.useProgram(r.program);
-    [...src.tex, ...centre.tex].forEach((t, i) => {
-      gl.activeTexture(gl.TEXTURE0 + i);
-      gl.bindTexture(gl.TEXTURE_2D, t);
-    });
     // (u_trace1 is not read: the normal and t come from the pixel centres.)
-    [['u_trace0', 0], ['u_trace1', 1], ['u_centre0', 2], ['u_centre1', 3]].forEach(([name, unit]) => {
-      const u = r.uniforms.get(name);
-      if (u) gl.uniform1i(u.loc, unit);
-    });
+    const units = [...src.tex.map((t, i) => [`u_trace${i}`, t]), ['u_centre0', centre.tex[0]], ['u_centre1', centre.tex[1]]];
+    this._bindUnits(r, units);
     gl.uniform1i(r.uniforms.get('u_k').loc, k);
     gl.uniform1f(r.uniforms.get('u_scale').loc, scale);
     gl.drawArrays(gl.TRIANGLES, 0, 6);
-    [0, 1, 2, 3].forEach((i) => {
-      gl.activeTexture(gl.TEXTURE0 + i);
-      gl.bindTexture(gl.TEXTURE_2D, null);
-    });
+    this._unbindUnits(units.length);
     gl.bindVertexArray(null);
   }
 
@@ -447,9 +588,9 @@ export class DeviceRenderer {
     gl.viewport(0, 0, trace.width, trace.height);
     const d = this.displayProgram;
     gl.useProgram(d.program);
-    gl.activeTexture(gl.TEXTURE0 + 4);
+    gl.activeTexture(gl.TEXTURE0 + 6);
     gl.bindTexture(gl.TEXTURE_2D, image);
-    gl.uniform1i(d.uniforms.get('u_image').loc, 4);
+    gl.uniform1i(d.uniforms.get('u_image').loc, 6);
     gl.uniform1i(d.uniforms.get('u_path').loc, path ? 1 : 0);
     const op = TONE_MAPS[trace.display.toneMap];
     if (op === undefined) throw new Error(`unknown tone map ${trace.display.toneMap}`);
@@ -461,9 +602,10 @@ export class DeviceRenderer {
   }
 
   // Whether a traced phase can be shown before the frame is done: the pixel centres of a
-  // supersampled frame, or the mean of a path-traced frame's first passes.
+  // supersampled frame, or the mean of a path-traced frame's first passes (of this trace's: a
+  // continued frame's mean before them is on screen already).
   previewReady(trace) {
-    return !trace.done && (trace.path ? trace.samplesDone > 0 : trace.k > 1 && trace.phase >= 1);
+    return !trace.done && (trace.path ? trace.samplesDone > trace.samplesAtStart : trace.k > 1 && trace.phase >= 1);
   }
 
   // The preview of a frame in progress onto this.canvas (previewReady). → ms.
@@ -472,7 +614,8 @@ export class DeviceRenderer {
     const t0 = performance.now();
     if (trace.path) {
       this._resolve(trace);
-      this._display(trace, this._targets(trace.width, trace.height, 'resolve').tex[0], true);
+      const filtered = this._filter(trace);
+      this._display(trace, filtered ?? this._targets(trace.width, trace.height, 'resolve', trace.n).tex[0], true);
     } else {
       this._display(trace, this._targets(trace.width, trace.height, 'centre').tex[0], false);
     }
@@ -490,13 +633,24 @@ export class DeviceRenderer {
   // The last frame as the server's npy arrays: primid Int32Array (H×W, −1 miss), colour
   // Uint8Array (H×W×3, floor(255·clamp(c)+0.5)), row 0 = top. A path-traced frame's colour is
   // the canvas's tone-mapped sRGB bytes (what the server's png holds), and radiance
-  // (Float32Array H×W×3) its linear mean (what the server's npy holds).
+  // (Float32Array H×W×3) its linear mean (what the server's npy holds); with the guides also
+  // albedo and normal (their means) and, filtered, denoised (the à-trous filter's output), H×W×3.
   readback() {
-    const gl = this.gl, { width: w, height: h, path } = this.last;
+    const gl = this.gl, { width: w, height: h, path, n, filtered } = this.last;
+    const resolved = this._targets(w, h, 'resolve', n);
     const px = new Float32Array(w * h * 4);
-    gl.bindFramebuffer(gl.FRAMEBUFFER, this._targets(w, h, 'resolve').fbo);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, resolved.fbo);
     gl.readBuffer(gl.COLOR_ATTACHMENT0);
     gl.readPixels(0, 0, w, h, gl.RGBA, gl.FLOAT, px);
+    const extra = {};
+    if (n === 4) {
+      extra.albedo = this._rgbRows(resolved.fbo, 2, w, h);
+      extra.normal = this._rgbRows(resolved.fbo, 3, w, h);
+    }
+    if (filtered) {
+      const fbo = [0, 1].map((i) => this._targets(w, h, `atrous${i}`, 1)).find((t) => t.tex[0] === filtered).fbo;
+      extra.denoised = this._rgbRows(fbo, 0, w, h);
+    }
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
     let shown = null;
     if (path) {
@@ -520,7 +674,22 @@ export class DeviceRenderer {
         }
       }
     }
-    return { width: w, height: h, primid, color, radiance };
+    return { width: w, height: h, primid, color, radiance, ...extra };
+  }
+
+  // Attachment `i` of `fbo` (w × h, RGBA32F) as a Float32Array H×W×3, row 0 = top.
+  _rgbRows(fbo, i, w, h) {
+    const gl = this.gl, px = new Float32Array(w * h * 4), out = new Float32Array(w * h * 3);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, fbo);
+    gl.readBuffer(gl.COLOR_ATTACHMENT0 + i);
+    gl.readPixels(0, 0, w, h, gl.RGBA, gl.FLOAT, px);
+    for (let y = 0; y < h; y++) {
+      for (let x = 0; x < w; x++) {
+        const s = ((h - 1 - y) * w + x) * 4, o = (y * w + x) * 3;
+        out[o] = px[s]; out[o + 1] = px[s + 1]; out[o + 2] = px[s + 2];
+      }
+    }
+    return out;
   }
 
   _dummy(type) {

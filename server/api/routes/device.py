@@ -9,8 +9,9 @@ Two routes; the browser client's ``client_web/js/device/device.js`` uses both.
     (:class:`~server.api.schemas.DeviceDataQuery`): the render settings the data is for
     (missing: the session's; ``integrator=path`` gives the path integrator's variant and
     uniforms, ``tone_map``, ``exposure`` and ``samples_per_pixel`` go to the header for its
-    display), ``max_texture_size`` and ``float_textures`` (false → 422: the tracer cannot run
-    there). Multi-pass methods (``rayengine``, ``hre``) draw several
+    display; ``denoise`` other than ``off`` gives the variant that writes the denoiser's guides,
+    which the device's à-trous filter reads), ``max_texture_size`` and ``float_textures``
+    (false → 422: the tracer cannot run there). Multi-pass methods (``rayengine``, ``hre``) draw several
     passes on the server and are a 422, as are scenes whose arrays do not fit the device's
     textures. Headers: ``X-Session-Version``, ``X-Method``, ``X-Stats``, ``Server-Timing``
     (``build``, ``pack``, ``total``).
@@ -36,7 +37,7 @@ from urllib.parse import urlencode
 from fastapi import APIRouter, Query, Response
 from fastapi.responses import PlainTextResponse
 
-from renderer import gpu_layout
+from renderer import atrous, gpu_layout
 from renderer.accel.base import NOT_ON_GPU, AccelerationMethod
 from renderer.features import frame_features
 from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
@@ -173,7 +174,9 @@ def device_data(
     # The variant the server's frame of these settings compiles: Whitted's tree, or with
     # integrator 'path' the path integrator (its depth: segments of a path, up to MAX_PATH_DEPTH).
     chosen = render_settings(settings)
-    features, depth = frame_features(scene, chosen)
+    # With a denoiser the variant writes the guides too (two more targets); a device filters with
+    # à-trous whichever denoiser is named (OIDN does not run in a browser).
+    features, depth = frame_features(scene, chosen, guides=chosen.denoise != "off")
     defines = features.defines()
     # u_min_weight (ε) is the device's per frame, as its camera's image-size terms.
     packed = {**prims.uniforms, **prepared.packed.uniforms, **gpu_layout.frame_uniforms(scene, 0.0)}
@@ -192,7 +195,10 @@ def device_data(
                 for k in ("mode", "max_prims", "max_tree_depth", "max_recursion_depth", "width", "height")
             },
             # sessions stored before animation (or the path integrator) have none of these: defaults
-            **{k: getattr(chosen, k) for k in ("time", "samples_per_pixel", "integrator", "tone_map", "exposure")},
+            **{
+                k: getattr(chosen, k)
+                for k in ("time", "samples_per_pixel", "integrator", "tone_map", "exposure", "denoise")
+            },
         },
         "shader": {
             "method": method_name,
@@ -201,7 +207,15 @@ def device_data(
             "features": list(defines),
             "url": shader_url(method_name, settings["mode"], depth, defines),
         },
-        "path": {"samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS} if features.path else None,
+        "path": (
+            {
+                "samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS,
+                "guides": features.guides,
+                **({"atrous": atrous.parameters()} if features.guides else {}),
+            }
+            if features.path
+            else None
+        ),
         "max_texture_size": width,
         "camera": state.camera,
         "home_camera": state.home_camera,

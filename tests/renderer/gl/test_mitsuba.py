@@ -15,10 +15,13 @@ Per scene, 32 × 32 pixels, max_depth 8: ours at 1,024 samples against Mitsuba's
 - The image means agree within 0.5 % (a global bias that the PSNR would hide: measured ≤ 0.15 %).
 - Unbiased convergence: from 256 to 1,024 samples the PSNR rises by ≥ 4 dB on the noisy scenes
   (N^-1/2 gives 6.0 dB; Mitsuba's own noise takes a little: measured 5.3 … 6.4 dB).
+- The rough conductor's noise at equal samples: below what sampling the full GGX distribution gave
+  (``test_the_rough_conductor_samples_visible_normals``).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -45,10 +48,16 @@ def psnr(a: np.ndarray, b: np.ndarray) -> float:
     return math.inf if mse == 0 else -10.0 * math.log10(mse)
 
 
+@functools.cache
+def mitsuba_reference(name: str) -> np.ndarray:
+    """Mitsuba's image of path scene ``name`` (W × H, DEPTH), made once per test process."""
+    return mitsuba_scene.render(path_scene(name), W, H, REFERENCE_SPP.get(name, 4096), DEPTH)
+
+
 @pytest.mark.parametrize("name", NAMES)
 def test_agrees_with_mitsuba(gl_renderer, name):
     scene = path_scene(name)
-    reference = mitsuba_scene.render(scene, W, H, REFERENCE_SPP.get(name, 4096), DEPTH)
+    reference = mitsuba_reference(name)
     ours = {
         spp: gl_renderer.render(
             scene,
@@ -98,3 +107,29 @@ def test_rough_glass_loses_what_mitsuba_loses(gl_renderer, alpha, ior):
     for k in range(3):
         sel = on & (ring == k)
         np.testing.assert_allclose(ours.image[sel].mean(), reference[sel].mean(), rtol=0.02, err_msg=f"ring {k}")
+
+
+def test_the_rough_conductor_samples_visible_normals(gl_renderer):
+    """The rough conductor's GGX lobe samples the normals visible from the outgoing direction (Heitz
+    2018): its weight is G1 of the new direction, at most 1, where sampling the full distribution
+    D(m) cos θm weighs G·(o·m)/((n·o)(n·m)), unbounded as m tilts away from n where o is grazing (the
+    sphere's rim, the sphere seen from the floor) — a heavy tail of rare bright samples. So at
+    equal samples the noise against Mitsuba falls. One frame's PSNR swings by ±2 dB with those rare
+    samples, so the measure is the mean squared error of 64 frames of 64 samples each (independent
+    sample ranges), as a PSNR. Measured: 37.1 dB (36.95 … 37.2 over quarters of the frames) against
+    36.1 dB (35.8 … 36.6) sampling the full distribution; the mean stays Mitsuba's within 0.5 %."""
+    frames, spp = 64, 64
+    scene = path_scene("rough_conductor")
+    reference = mitsuba_reference("rough_conductor")
+    settings = RenderSettings(
+        width=W, height=H, integrator="path", samples_per_pixel=spp, max_recursion_depth=DEPTH, format="npy"
+    )
+    images = []
+    for k in range(frames):  # samples k·spp … (k + 1)·spp − 1: an accumulation that holds none of them
+        r = gl_renderer.begin(scene, settings, accumulated=(None, k * spp)).run()
+        assert r.sample_sum is not None
+        images.append(r.sample_sum / spp)
+    clipped = np.clip(np.stack(images).astype(np.float64), 0, 1)
+    mse = float(np.mean((clipped - np.clip(reference, 0, 1)) ** 2))
+    assert -10.0 * math.log10(mse) >= 36.6, -10.0 * math.log10(mse)
+    np.testing.assert_allclose(np.mean(images), reference.mean(), rtol=0.005)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 from pocketray_server_support import create, mesh_scene_json, museum_session
 
+from renderer import atrous
 from renderer.animation import museum, pose
 from renderer.features import frame_features
 from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
@@ -59,11 +60,29 @@ def test_device_data_for_path_carries_the_servers_variant_and_light(api):
         "exposure": -1.0,
     }
     assert header["settings"]["samples_per_pixel"] == 5
-    assert header["path"] == {"samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS}
+    assert header["path"] == {"samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS, "guides": False}
+    assert "GUIDES" not in header["shader"]["features"] and header["settings"]["denoise"] == "off"
     u = header["uniforms"]
     assert u["u_num_emit_tris"] == 2 and u["u_emit_tri_area"] > 0 and u["u_light_scale"] > 0
     src = api.get(header["shader"]["url"])
     assert src.status_code == 200 and "u_sample_start" in src.text and "#define PATH" in src.text
+
+
+@pytest.mark.parametrize("denoise", ["atrous", "oidn"])
+def test_device_data_with_a_denoiser_writes_the_guides(api, denoise):
+    """denoise on: the variant that writes the first hit's albedo and normal (the server's frame of
+    the same settings compiles it too), which the device's à-trous filter reads."""
+    sid = api.post("/api/sessions", json={"mesh_scene": {"kind": "cornell", "detail": 0}}).json()["id"]
+    q = {"integrator": "path", "denoise": denoise}
+    header, _ = decode_blob(api.get(f"/api/sessions/{sid}/device-data", params=q).content)
+    features, _ = frame_features(mesh_scene("cornell", detail=0), RenderSettings(**q), guides=True)
+    assert "GUIDES" in header["shader"]["features"] and header["shader"]["features"] == list(features.defines())
+    assert header["path"]["guides"] is True and header["settings"]["denoise"] == denoise
+    assert header["path"]["atrous"] == atrous.parameters()  # the filter's parameters, declared once
+    src = api.get(header["shader"]["url"])
+    assert src.status_code == 200 and "#define GUIDES" in src.text
+    bad = api.get(f"/api/sessions/{sid}/device-data", params={**q, "denoise": "median"})
+    assert bad.status_code == 422 and "denoise" in bad.text
 
 
 def test_device_data_for_whitted_has_no_path(api):
