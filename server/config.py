@@ -115,6 +115,21 @@ class ServerConfig(BaseSettings):
         description="estimated GL time of one slice of a frame, milliseconds: the GL thread takes slices "
         "round-robin from the sessions' frames (bench/latency.py measures the trade-off)",
     )
+    max_refine_ms: int = Field(
+        60_000,
+        ge=1,
+        le=600_000,
+        description="longest refinement stream, milliseconds: a stream ends by then whatever its refine_time_ms "
+        "(docs/API.md, 'Refinement')",
+    )
+    refine_slice_ms: float = Field(
+        300.0,
+        gt=0,
+        le=10_000,
+        description="GL time one frame of a refinement stream aims at, milliseconds: its samples per pixel "
+        "are sized from the stream's previous frame so the image updates about this often (docs/API.md, "
+        "'Refinement')",
+    )
     max_target_bytes: int = Field(
         256 << 20, ge=0, description="render targets kept for reuse on the GPU, bytes (frames in flight hold their own)"
     )

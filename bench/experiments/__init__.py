@@ -40,4 +40,5 @@ EXPERIMENTS = (
     "meshes",
     "denoise",
     "client",
+    "refine",
 )

@@ -93,7 +93,9 @@ export class Api {
   }
 
   // One request, retried while the failure is transient. Returns the Response (ok).
-  async request(method, path, { body, raw, params, headers = {} } = {}) {
+  // `signal` (optional): the caller's abort, which ends the request (and the reading of its body) at
+  // once and is not retried.
+  async request(method, path, { body, raw, params, headers = {}, signal = null } = {}) {
     const url = this.base + path + query(params);
     const init = { method, headers: { ...headers }, cache: 'no-store' };
     // The balancer hashes on X-Session-Id (docs/DEPLOY.md): a session's requests reach the
@@ -108,12 +110,15 @@ export class Api {
       init.headers['Content-Type'] = 'application/octet-stream';
     }
     for (let attempt = 1; ; attempt++) {
+      if (signal && signal.aborted) throw new DOMException('The request was stopped', 'AbortError');
       let res = null, failure = null;
       const ctl = new AbortController();
       const timer = setTimeout(() => ctl.abort(), this.timeoutMs);
+      if (signal) signal.addEventListener('abort', () => ctl.abort(), { once: true });
       try {
         res = await this.fetch(url, { ...init, signal: ctl.signal });
       } catch (e) {
+        if (signal && signal.aborted) throw e;
         failure = e.name === 'AbortError' ? 'The render service did not answer in time' : 'Cannot reach the render service';
       } finally {
         clearTimeout(timer);
@@ -190,6 +195,28 @@ export class Api {
     if (!onPreview) return readFrame(await this.request('GET', path, { params }));
     const res = await this.request('GET', path, { params: { ...params, progressive: 1 } });
     return readParts(res, onPreview);
+  }
+
+  // The session's refinement stream (docs/API.md, "Refinement"): each frame, with `refine` (the
+  // stream's progress: samples, target_samples, target_ms, elapsed_ms, done, reason), handed to
+  // onPart(frame) as it arrives; resolves when the stream ends; `signal` stops it.
+  async refine(id, params, onPart, signal) {
+    const path = `/api/sessions/${encodeURIComponent(id)}/frame`;
+    const res = await this.request('GET', path, { params: { ...params, refine: 1 }, signal });
+    const type = res.headers.get('Content-Type') || '';
+    const m = /boundary=([^;]+)/.exec(type);
+    if (!type.startsWith('multipart/') || !m) return;   // 204: the session changed before a first frame
+    for await (const part of multipartParts(res.body, m[1])) {
+      const headers = part.headers;
+      const frame = frameOf(new Blob([part.body], { type: headers['content-type'] }), (n) => headers[n.toLowerCase()]);
+      try {
+        frame.refine = JSON.parse(headers['x-refine'] || 'null');
+      } catch {
+        frame.refine = null;
+      }
+      if (signal && signal.aborted) return;
+      await onPart(frame);
+    }
   }
 
   // What the server offers (GET /api/info: methods, modes, formats, limits), or null.

@@ -23,6 +23,7 @@ import { Banner, Notices } from './ui/notices.js';
 import { Overlay } from './ui/overlay.js';
 import { SettingsPanel } from './ui/panel.js';
 import { Player } from './ui/player.js';
+import { RefineBadge } from './ui/refine.js';
 
 const $ = (sel) => document.querySelector(sel);
 const canvas = $('#view'), stage = $('#stage');
@@ -56,9 +57,17 @@ const device = new DeviceView({ api, getState: () => state, viewportHeight, disp
 const sizer = new PreviewSizer({ start: 0.25 });
 const transport = new Transport({ state, api, device, activity: $('#activity'), viewportHeight, sizer,
   pending: () => scheduler.pending, onFallback: (reason, redraw) => renderers.fallBack(reason, redraw) });
+// The refinement stream's counter ("64 / 256 samples" and a bar); the hook keeps its parts.
+const refineBadge = new RefineBadge(stage);
+hook.refinement = { parts: [], stopped: 0 };
 const scheduler = new FrameScheduler({
   transport, display: show, refineDelayMs: state.client.refineDelayMs,
   onError: (e, what) => session.failed(e, what),
+  onRefinement(p) {
+    refineBadge.show(p);
+    if (p) hook.refinement.parts.push({ samples: p.samples, target: p.target_samples, done: p.done, reason: p.reason });
+    else hook.refinement.stopped++;
+  },
 });
 observe(hook, { scheduler, device });
 Object.defineProperty(hook, 'previewScale', { get: () => transport.previewScale, enumerable: true });

@@ -16,6 +16,10 @@
 //  - While an animation plays, `animate()` asks for its next frame at the preview
 //    level (gestures still go first); the full frame follows `refineDelayMs`
 //    after the last one, when the animation is paused.
+//  - Once the full frame is on screen and the transport says so (the path integrator), a
+//    *refinement stream* follows: ever better frames of the resting view, each shown as it comes,
+//    until its target; the next gesture, animation frame, full frame or task stops it first (it is
+//    no request in flight: nothing waits for it).
 //  - A frame is shown only when it is newer than the one on screen: a higher
 //    request sequence number and a session version not lower than the shown one.
 //
@@ -24,6 +28,10 @@
 //   transport.frame(level, onPreview) → frame            level: 'preview' | 'full'; a progressive
 //                                       frame hands its first image to onPreview first (optional)
 //   transport.refineNeeded()          → false when both levels are the same (optional)
+//   transport.refinement()            → whether the view at rest is refined by a stream (optional)
+//   transport.refinementStream(signal, onPart) → the stream's frames to onPart as they come; ends
+//                                       when the stream does; `signal` stops it
+//   onRefinement(progress|null)       → a stream's frame is on screen (its progress), or it stopped
 //   transport.quickFirst()            → whether a first preview is worth it (optional)
 //   transport.previewTaken(ms, frame) → a preview's time from request to screen (optional)
 //   display(frame, level)             → shows it (may be async)
@@ -68,8 +76,14 @@ export function gestureOps(acc, eps = 1e-6) {
 }
 
 export class FrameScheduler {
-  constructor({ transport, display, onError = () => {}, onIdle = () => {}, refineDelayMs = 200, timers = null }) {
+  constructor({
+    transport, display, onError = () => {}, onIdle = () => {}, onRefinement = () => {}, refineDelayMs = 200, timers = null,
+  }) {
     this.transport = transport;
+    this.onRefinement = onRefinement;
+    this.refining = null;       // the refinement stream on its way: its AbortController
+    this.needStream = false;    // a refinement stream is due (the full frame is on screen)
+    this.streamParts = 0;       // refinement frames shown
     this.display = display;
     this.onError = onError;
     this.onIdle = onIdle;
@@ -108,6 +122,7 @@ export class FrameScheduler {
     if (gestureOps(this.pending).length === 0) this.pending = null;
     this.lastGestureAt = this.timers.now();
     this._cancelRefine();
+    this._stopRefinement();
     this._pump();
   }
 
@@ -117,6 +132,7 @@ export class FrameScheduler {
     this.needFull = true;
     if (quick && this.transport.quickFirst && this.transport.quickFirst()) this.needQuick = true;
     this._cancelRefine();
+    this._stopRefinement();
     this._pump();
   }
 
@@ -125,6 +141,7 @@ export class FrameScheduler {
     this.needAnimation = true;
     this.lastGestureAt = this.timers.now();
     this._cancelRefine();
+    this._stopRefinement();
     this._pump();
   }
 
@@ -133,6 +150,7 @@ export class FrameScheduler {
   enqueue(fn) {
     return new Promise((resolve, reject) => {
       this.tasks.push({ fn, resolve, reject });
+      this._stopRefinement();
       this._pump();
     });
   }
@@ -165,13 +183,47 @@ export class FrameScheduler {
 
   _scheduleRefine() {
     this._cancelRefine();
-    if (this.transport.refineNeeded && !this.transport.refineNeeded()) return;
+    const full = !this.transport.refineNeeded || this.transport.refineNeeded();
+    if (!full && !this._streams()) return;
     const wait = Math.max(0, this.refineDelayMs - (this.timers.now() - this.lastGestureAt));
     this.refineTimer = this.timers.set(() => {
       this.refineTimer = null;
-      this.needFull = true;
+      if (full) this.needFull = true;
+      else this.needStream = true;   // the preview is the full frame: the stream follows it at once
       this._pump();
     }, wait);
+  }
+
+  _streams() {
+    return !!(this.transport.refinement && this.transport.refinement());
+  }
+
+  // The refinement stream of the view on screen: each frame shown as it comes (when nothing newer
+  // is), until the stream ends or is stopped.
+  _startRefinement() {
+    this._stopRefinement();
+    if (!this._streams()) return;
+    const ctl = new AbortController();
+    this.refining = ctl;
+    const onPart = async (frame) => {
+      if (ctl.signal.aborted) return;
+      if (await this._offer(frame, ++this.seq, 'full')) {
+        this.streamParts++;
+        this.onRefinement(frame.refine || null);
+      }
+    };
+    this.transport.refinementStream(ctl.signal, onPart).catch((e) => {
+      if (!ctl.signal.aborted) this.onError(e, 'frame');
+    }).finally(() => {
+      if (this.refining === ctl) this.refining = null;
+    });
+  }
+
+  _stopRefinement() {
+    if (this.refining === null) return;
+    this.refining.abort();
+    this.refining = null;
+    this.onRefinement(null);
   }
 
   // The first image of a progressive frame: shown when nothing newer is on screen, without
@@ -279,7 +331,12 @@ export class FrameScheduler {
     if (this.needFull) {
       this.needFull = false;
       await this._frame('full');
+      if (!this.pending && !this.needAnimation && !this.needFull && !this.tasks.length) this.needStream = true;
       return this._pump();
+    }
+    if (this.needStream) {
+      this.needStream = false;
+      this._startRefinement();
     }
     if (this.idle) this.onIdle();
   }

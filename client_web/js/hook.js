@@ -25,6 +25,7 @@ export function observe(hook, { scheduler, device }) {
     idle: { get: () => scheduler.idle && device.idle && hook.status === 'ready', enumerable: true },
     requests: { get: () => scheduler.requests, enumerable: true },
     dropped: { get: () => scheduler.dropped, enumerable: true },
+    refining: { get: () => !!scheduler.refining, enumerable: true },   // a refinement stream is on its way
   });
   hook.device = {
     renderOnce: (params) => device.renderOnce(params),

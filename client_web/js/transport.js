@@ -117,6 +117,22 @@ export class Transport {
       .then((frame) => this.scaled(frame, level, scale));
   }
 
+  // Whether the view at rest is refined by the service's stream (docs/API.md, "Refinement"): it
+  // draws the path integrator's colour, whose image gets better with every sample.
+  refinement() {
+    const r = this.state.render;
+    return !this.deviceMode && r.integrator === 'path' && (r.mode ?? 'color') === 'color';
+  }
+
+  // The refinement stream of the view on screen, at the full level: onPart(frame) for each of its
+  // frames (frame.refine: the stream's progress); resolves when it ends, `signal` stops it.
+  refinementStream(signal, onPart) {
+    const { state, api } = this;
+    const meta = requestMeta(state, 'full'), t0 = performance.now();
+    const part = (f) => onPart({ ...f, t0, meta: { ...meta, samples: f.refine ? f.refine.samples : meta.samples } });
+    return api.refine(state.sessionId, frameParams(state, 'full'), part, signal);
+  }
+
   refineNeeded() {
     if (this.deviceMode) return false;
     const c = this.state.client;

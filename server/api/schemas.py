@@ -24,6 +24,7 @@ from pydantic import (
     ConfigDict,
     Field,
     StrictBool,
+    StrictInt,
     TypeAdapter,
     ValidationError,
     create_model,
@@ -60,6 +61,9 @@ from renderer.limits import (
     MAX_SPHERES,
     MAX_TRIANGLES,
     MAX_WAVELENGTH,
+    REFINE_MS_RANGE,
+    REFINE_NOISE_RANGE,
+    REFINE_SAMPLES_RANGE,
 )
 from renderer.mesh_io import MODEL_FORMATS
 from renderer.scenarios import CUBE_HALF, MAX_MESH_DETAIL, MESH_SCENES
@@ -486,6 +490,12 @@ class SessionFrameQuery(FrameQuery):
         "frame's samples added (X-Samples: how many); yields to interactive frames (docs/API.md, "
         "'Accumulation')",
     )
+    refine: bool = Field(
+        False,
+        description="answer the session's refinement stream as multipart/mixed: accumulation frames of the "
+        "resting view until refine_samples or refine_time_ms (X-Refine: where the stream stands; docs/API.md, "
+        "'Refinement')",
+    )
 
 
 class FrameMessage(BaseModel):
@@ -494,6 +504,34 @@ class FrameMessage(BaseModel):
     model_config = ConfigDict(extra="ignore")
     type: Literal["frame"]
     accumulate: StrictBool = Field(False, description="as the session frame's accumulate=1")
+
+
+class RefineMessage(BaseModel):
+    """A WebSocket message that asks for the session's refinement stream (docs/API.md, "Refinement");
+    its settings are its ``frame``, the targets default to the session's refine_samples, refine_time_ms and
+    refine_noise."""
+
+    model_config = ConfigDict(extra="ignore")
+    type: Literal["refine"]
+    target_samples: StrictInt | None = Field(
+        None,
+        ge=REFINE_SAMPLES_RANGE[0],
+        le=REFINE_SAMPLES_RANGE[1],
+        description="samples per pixel to refine to (default: refine_samples)",
+    )
+    target_ms: StrictInt | None = Field(
+        None,
+        ge=REFINE_MS_RANGE[0],
+        le=REFINE_MS_RANGE[1],
+        description="longest refinement, ms (default: refine_time_ms; at most POCKETRAY_MAX_REFINE_MS)",
+    )
+    target_noise: float | None = Field(
+        None,
+        ge=REFINE_NOISE_RANGE[0],
+        le=REFINE_NOISE_RANGE[1],
+        allow_inf_nan=False,
+        description="estimated relative noise to refine to, 0: none (default: refine_noise)",
+    )
 
 
 class GestureQuery(FrameQuery):

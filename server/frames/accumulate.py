@@ -8,6 +8,11 @@ samples (sample indices go on from the count, so k frames are one frame of all t
 :func:`renderer.gl.frame.plan_path_passes`) and the request commits the new sum here once the frame
 is done: a failed, cancelled or timed-out frame commits nothing.
 
+Each commit also estimates the mean's noise (:func:`relative_noise`): the samples held before and
+the frame's own are two independent estimates of every pixel, so their difference measures the
+variance without keeping anything more — a refinement stream may stop at a noise level
+(:mod:`server.sessions.refine`).
+
 A session holds at most one accumulation: a frame of another key drops the old one (``change``).
 Together they hold at most POCKETRAY_MAX_ACCUMULATION_BYTES; past it the least recently used go
 first (``budget``). Both drops, and the bytes held, are metrics (docs/API.md, "Metrics").
@@ -47,13 +52,31 @@ def accumulation_key(scene_rev: str, camera_json: str, settings: RenderSettings)
     return AccumulationKey(scene_rev, camera_json, fields)
 
 
+def relative_noise(held_sum: np.ndarray, held: int, new_sum: np.ndarray, count: int) -> float | None:
+    """The relative RMS error of the mean of ``count`` samples (sum ``new_sum``), estimated from the
+    ``held`` samples it went on from (sum ``held_sum``) and the frame's own: two means of n_a and n_b
+    independent samples differ by a variance σ²(1/n_a + 1/n_b), the mean of all has σ²/(n_a + n_b),
+    so its variance is (m_a − m_b)² n_a n_b / (n_a + n_b)² — averaged over pixels and channels, its
+    root over the image's mean. None without two parts (or for a black image)."""
+    n_a, n_b = held, count - held
+    if n_a <= 0 or n_b <= 0:
+        return None
+    m_a = held_sum / n_a
+    m_b = (new_sum - held_sum) / n_b
+    variance = float(np.mean(np.square(m_a - m_b, dtype=np.float64))) * n_a * n_b / (n_a + n_b) ** 2
+    level = float(np.mean(new_sum, dtype=np.float64)) / count
+    return float(np.sqrt(variance) / level) if level > 0 else None
+
+
 @dataclass
 class Held:
-    """One session's accumulation: its key, the float32 sum of its samples and their count."""
+    """One session's accumulation: its key, the float32 sum of its samples and their count, and
+    the estimate of its mean's relative noise at its last commit (None: not yet known)."""
 
     key: AccumulationKey
     sum: np.ndarray
     count: int
+    noise: float | None = None
 
     @property
     def nbytes(self) -> int:
@@ -92,11 +115,13 @@ class Accumulations:
             now = 0 if held is None or held.key != key else held.count
             if now != base_count or count > MAX_ACCUMULATED_SAMPLES or nbytes > self.max_bytes:
                 return False
+            noise = None
             if held is not None:
+                noise = relative_noise(held.sum, held.count, new_sum, int(count))
                 self._drop(session, None)
             while self._held and self.bytes + nbytes > self.max_bytes:
                 self._drop(next(iter(self._held)), "budget")
-            self._held[session] = Held(key, new_sum, int(count))
+            self._held[session] = Held(key, new_sum, int(count), noise)
             self.bytes += nbytes
             metrics.accumulation_bytes(self.bytes)
             return True
@@ -112,6 +137,12 @@ class Accumulations:
         with self._lock:
             held = self._held.get(session)
             return 0 if held is None else held.count
+
+    def noise(self, session: str) -> float | None:
+        """The relative noise estimated at the session's last commit (None: none held, or not known)."""
+        with self._lock:
+            held = self._held.get(session)
+            return None if held is None else held.noise
 
     def __len__(self) -> int:
         return len(self._held)

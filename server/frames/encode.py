@@ -14,7 +14,8 @@ Headers of every frame:
   ``build`` (kept for clients that read it);
 - ``X-Session-Version`` (frames of a session), ``X-Method``, ``X-Stats``
   (compact JSON of the main BIH statistics), ``X-Frame-Part`` (``preview`` or ``final``:
-  the parts of a progressive frame, docs/API.md), ``X-Samples`` (the samples per pixel the image
+  the parts of a progressive frame, docs/API.md; ``refine``: a refinement stream's part before its
+  last, whose ``X-Refine`` says where the stream stands), ``X-Samples`` (the samples per pixel the image
   is the mean of: an accumulation's, all it holds) and ``Access-Control-Expose-Headers``.
 """
 
@@ -48,7 +49,16 @@ STATS_HEADER_KEYS = (
     "forced_leaves",
     "build_ms",
 )
-EXPOSED = ("Server-Timing", "X-Session-Version", "X-Method", "X-Stats", "X-Frame-Part", "X-Samples", "Retry-After")
+EXPOSED = (
+    "Server-Timing",
+    "X-Session-Version",
+    "X-Method",
+    "X-Stats",
+    "X-Frame-Part",
+    "X-Samples",
+    "X-Refine",
+    "Retry-After",
+)
 
 
 @dataclass

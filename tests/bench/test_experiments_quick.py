@@ -34,6 +34,7 @@ SECTIONS = {  # experiment name → heading start
     "shader": "## The tracer shaped for llvmpipe",
     "meshes": "## Triangle meshes",
     "client": "## The phone client",
+    "refine": "## Refinement while still",
 }
 FIGURES = ("table_4_2_leaves", "fig_4_4_fps", "fig_4_5_memory", "scaling_loglog", "crossover", "pareto")
 

@@ -94,7 +94,7 @@ def test_render_settings_are_the_declared_engine_settings():
     engine = [s for s in SETTINGS if s.engine]
     assert [(f.name, f.default) for f in fields(RenderSettings)] == [(s.name, s.default) for s in engine]
     assert RenderSettings.names() == tuple(s.name for s in engine)
-    assert [s.name for s in SETTINGS if not s.engine] == ["quality"]
+    assert [s.name for s in SETTINGS if not s.engine] == ["quality", "refine_samples", "refine_time_ms", "refine_noise"]
     assert RenderSettings().to_json() == {s.name: s.default for s in engine}
     for s in SETTINGS:
         s.check(s.default)  # every default is one of its values

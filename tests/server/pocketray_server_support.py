@@ -34,6 +34,8 @@ TEST_CAPS = dict(
     max_body_bytes=256 * 1024,
     default_render=SMALL,
 )
+# A refinement stream a generated request asks for (the schemathesis test) ends within 2 s.
+TEST_CAPS["max_refine_ms"] = 2000
 # A test module creates sessions from one address faster than a client does: no creation rate here
 # (tests/server/sessions/test_ratelimit.py sets and tests it).
 TEST_CAPS["session_create_per_min"] = 0

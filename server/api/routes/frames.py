@@ -5,12 +5,15 @@ Frame routes ask the session service for a frame request and run it through the 
 (:meth:`server.frames.pipeline.FramePipeline.run`) on a worker thread, watching the connection
 meanwhile: a client that goes away cancels its frame between slices (docs/API.md, "Cancellation").
 With ``progressive=1`` the answer is ``multipart/mixed``: the preview part as soon as it
-exists, then the final part (docs/API.md, "Progressive frames").
+exists, then the final part (docs/API.md, "Progressive frames"). With ``refine=1`` it is the
+session's refinement stream, one part per frame (:mod:`server.sessions.refine`; docs/API.md,
+"Refinement").
 """
 
 from __future__ import annotations
 
 import asyncio
+import json
 import secrets
 import threading
 from collections.abc import Callable, Iterator
@@ -23,6 +26,8 @@ from fastapi.responses import JSONResponse, StreamingResponse
 from ...faults import Where
 from ...frames.encode import FRAME_RESPONSE_DOC, Frame, frame_headers
 from ...frames.pipeline import FramePipeline, FrameRequest, final
+from ...sessions.refine import RefineStep, refine
+from ...sessions.service import SessionService
 from ..body import JSONBodyRoute
 from ..deps import FramesDep, ServiceDep, SessionId
 from ..errors import documented, located
@@ -93,9 +98,7 @@ async def progressive_response(request: Request, frames: FramePipeline, where: W
     boundary = "pocketray-" + secrets.token_hex(8)
 
     def encode(frame: Frame) -> bytes:
-        head = {"Content-Type": frame.media_type, "Content-Length": str(len(frame.body)), **frame_headers(frame)}
-        lines = "".join(f"{k}: {v}\r\n" for k, v in head.items())
-        return f"--{boundary}\r\n{lines}\r\n".encode() + frame.body + b"\r\n"
+        return part_bytes(boundary, frame, {})
 
     async def body():
         try:
@@ -110,12 +113,58 @@ async def progressive_response(request: Request, frames: FramePipeline, where: W
             cancel.set()  # the client went away mid-stream: stop the frame
             raise
 
-    headers = {
-        k: v
-        for k, v in frame_headers(first).items()
-        if k in ("Access-Control-Expose-Headers", "Cache-Control", "X-Method")
-    }
-    return StreamingResponse(body(), media_type=f"multipart/mixed; boundary={boundary}", headers=headers)
+    return multipart(body(), boundary, frame_headers(first))
+
+
+def multipart(body: Any, boundary: str, first: dict[str, str]) -> StreamingResponse:
+    """A multipart/mixed answer of ``body``'s parts, with the headers of its first part that hold for all."""
+    headers = {k: v for k, v in first.items() if k in ("Access-Control-Expose-Headers", "Cache-Control", "X-Method")}
+    return StreamingResponse(body, media_type=f"multipart/mixed; boundary={boundary}", headers=headers)
+
+
+def part_bytes(boundary: str, frame: Frame, extra: dict[str, str]) -> bytes:
+    """One part: the frame with its headers (and ``extra``)."""
+    head = {"Content-Type": frame.media_type, "Content-Length": str(len(frame.body)), **frame_headers(frame), **extra}
+    lines = "".join(f"{k}: {v}\r\n" for k, v in head.items())
+    return f"--{boundary}\r\n{lines}\r\n".encode() + frame.body + b"\r\n"
+
+
+async def refine_response(request: Request, service: SessionService, session_id: str, patch: dict) -> Response:
+    """The session's refinement stream as ``multipart/mixed``: one part per frame, ``X-Frame-Part:
+    refine`` before the last (``final``), each with ``X-Refine`` (JSON: samples, targets, elapsed ms,
+    done, reason). An error before the first part is an ordinary error answer; a client that goes
+    away (the next gesture) stops the stream at once."""
+    cancel = threading.Event()
+
+    def steps() -> Iterator[RefineStep]:
+        with located(Where.QUERY):
+            yield from refine(service, session_id, patch, cancel=cancel)
+
+    parts = steps()
+    with located(Where.QUERY):
+        service.frame_settings(service.get(session_id), patch)  # a refused setting: 422, not a stream
+    first = await watched(request, cancel, run_in_threadpool(next, parts, None))
+    if first is None:  # stopped before its first frame (the session changed): nothing to stream
+        return Response(status_code=204)
+    boundary = "pocketray-" + secrets.token_hex(8)
+
+    def encode(step: RefineStep) -> bytes:
+        extra = {"X-Frame-Part": "final" if step.done else "refine", "X-Refine": json.dumps(step.progress())}
+        return part_bytes(boundary, step.frame, extra)
+
+    async def body():
+        try:
+            step: RefineStep | None = first
+            while step is not None:
+                yield encode(step)
+                if step.done:
+                    break
+                step = await watched(request, cancel, run_in_threadpool(next, parts, None))
+            yield f"--{boundary}--\r\n".encode()
+        finally:
+            cancel.set()  # done, or the client went away mid-stream: the stream stops at its next slice
+
+    return multipart(body(), boundary, frame_headers(first.frame))
 
 
 @router.post(
@@ -160,6 +209,8 @@ async def session_frame(
     query: Annotated[SessionFrameQuery, Query()],
 ) -> Response:
     patch, progressive, accumulate = query.given(), query.progressive, query.accumulate
+    if query.refine:
+        return await refine_response(request, service, session_id, patch)
     return await (progressive_response if progressive else frame_answer)(
         request,
         frames,

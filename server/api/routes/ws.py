@@ -2,10 +2,14 @@
 
 Client → a text (or UTF-8 binary) JSON message: a gesture (``{"type": "pan", "dx", "dy"}``
 …, or ``{"type": "frame"}`` for a frame without a gesture, ``{"type": "frame", "accumulate":
-true}`` for one added to the session's accumulation) with an optional
-``"frame": {settings}`` — the settings ``POST …/gesture?frame=1`` takes in its query.
+true}`` for one added to the session's accumulation, ``{"type": "refine", "target_samples"?,
+"target_ms"?, "target_noise"?}`` for the session's refinement stream) with an optional ``"frame": {settings}`` — the
+settings ``POST …/gesture?frame=1`` takes in its query.
 Server → text JSON ``{"version", "camera", "timings", "stats", "media_type", "samples"}`` then the
-frame as one binary message; on an error one text JSON ``{"status", "detail"}`` (and
+frame as one binary message; a refinement stream's frames so, each with ``"refine": {"samples",
+"target_samples", "target_ms", "elapsed_ms", "done", "reason", "noise", "target_noise"}``, until its target
+(:mod:`server.sessions.refine`) or the connection's next message, which stops it at once: no frame
+of the stream is sent after that message is read; on an error one text JSON ``{"status", "detail"}`` (and
 ``"retry_after"``, seconds, where HTTP sends Retry-After) — the very answer the HTTP
 route gives (:mod:`server.api.errors`), and the connection stays open. While the client's
 address has more answer bytes not taken than ``POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT``, a
@@ -19,7 +23,10 @@ errors of both in one 422.
 
 from __future__ import annotations
 
+import asyncio
 import json
+import threading
+from collections.abc import Generator
 from typing import Any
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
@@ -31,16 +38,18 @@ from ...faults import Where
 from ...frames.encode import Frame
 from ...frames.pipeline import FramePipeline, final
 from ...http import wire
+from ...sessions.refine import RefineStep, refine
 from ...sessions.service import SessionService
 from .. import body, errors
 from ..deps import FramesDep, ServiceDep
-from ..schemas import FrameMessage, Gesture, SettingsPatch
+from ..schemas import FrameMessage, Gesture, RefineMessage, SettingsPatch
 
 router = APIRouter()
 
 _gesture_adapter = TypeAdapter(Gesture)
 _patch_adapter = TypeAdapter(SettingsPatch)
 _frame_adapter = TypeAdapter(FrameMessage)
+_refine_adapter = TypeAdapter(RefineMessage)
 
 
 def parse_json(data: str | bytes, max_depth: int) -> Any:
@@ -88,41 +97,127 @@ async def answer_message(
     return frame, state.camera
 
 
+def refine_request(
+    service: SessionService, session_id: str, data: str | bytes, cancel: threading.Event
+) -> Generator[RefineStep, None, None] | None:
+    """The refinement stream a ``refine`` message asks for (validated now, nothing run yet), or
+    None for any other message."""
+    msg = parse_json(data, service.config.max_json_depth)
+    if not (isinstance(msg, dict) and msg.get("type") == "refine"):
+        return None
+    frame_settings = msg.pop("frame", None) or {}
+    problems: list[dict[str, Any]] = []
+    patch = _validated(_patch_adapter, frame_settings, "query", problems)
+    asked = _validated(_refine_adapter, msg, "body", problems)
+    if problems:
+        raise RequestValidationError(problems)
+    given = patch.given()
+    with errors.located(Where.QUERY):
+        service.frame_settings(service.get(session_id), given)  # a refused setting is answered now
+
+    def steps() -> Generator[RefineStep, None, None]:
+        with errors.located(Where.QUERY):
+            yield from refine(
+                service,
+                session_id,
+                given,
+                target_samples=asked.target_samples,
+                target_ms=asked.target_ms,
+                target_noise=asked.target_noise,
+                cancel=cancel,
+            )
+
+    return steps()
+
+
+def frame_head(frame: Frame, camera: dict, refined: RefineStep | None = None) -> str:
+    """The text message before a frame's bytes."""
+    head = {
+        "version": frame.version,
+        "camera": camera,
+        "timings": frame.timings,
+        "stats": frame.stats,
+        "media_type": frame.media_type,
+        "samples": frame.samples,
+    }
+    if refined is not None:
+        head["refine"] = refined.progress()
+    return json.dumps(head)
+
+
 @router.websocket("/sessions/{session_id}/ws")
 async def session_socket(websocket: WebSocket, session_id: str, service: ServiceDep, frames: FramesDep) -> None:
-    """One connection: each message is answered by a frame or by one error message."""
+    """One connection: each message is answered by a frame or by one error message; a ``refine``
+    message by its stream of frames, which the next message stops."""
     await websocket.accept()
     config = websocket.app.state.config
     where = f"WS {websocket.url.path}"
+    sending = asyncio.Lock()  # a frame's two messages go together
+    refining: asyncio.Task | None = None
+    stop = threading.Event()
+
+    async def send_frame(head: str, data: bytes, stopped: threading.Event | None = None) -> bool:
+        async with sending:
+            if stopped is not None and stopped.is_set():
+                return False
+            await websocket.send_text(head)
+            await websocket.send_bytes(data)
+            return True
+
+    async def stream(steps: Generator[RefineStep, None, None], stopped: threading.Event) -> None:
+        try:
+            while True:
+                step = await run_in_threadpool(next, steps, None)
+                if step is None:
+                    return
+                state = await run_in_threadpool(service.get, session_id)
+                if not await send_frame(frame_head(step.frame, state.camera, step), step.frame.body, stopped):
+                    return
+                if step.done:
+                    return
+        except Exception as exc:  # as a message's failure: one error message (unless stopped meanwhile)
+            async with sending:
+                if not stopped.is_set():
+                    try:
+                        await websocket.send_text(json.dumps(errors.answer(exc, config, where).ws_message()))
+                    except Exception:  # the connection is gone: nobody to tell
+                        pass
+        finally:
+            await run_in_threadpool(steps.close)  # (next has returned: the generator is not running)
+
+    def stop_refining() -> None:
+        nonlocal refining
+        stop.set()  # its frame in flight stops between slices, and nothing more of it is sent
+        refining = None
+
     try:
         while True:
             message = await websocket.receive()
             if message["type"] == "websocket.disconnect":
                 return
+            if refining is not None:
+                stop_refining()
             data = message.get("text")
             if data is None:
                 data = message.get("bytes") or b""
             refused = wire.refusal(websocket.scope)  # answers of this address not taken: no new work
             if refused is not None:
-                await websocket.send_text(json.dumps(refused))
+                async with sending:
+                    await websocket.send_text(json.dumps(refused))
                 continue
             try:
+                stop = threading.Event()
+                steps = await run_in_threadpool(refine_request, service, session_id, data, stop)
+                if steps is not None:
+                    refining = asyncio.ensure_future(stream(steps, stop))
+                    continue
                 frame, camera = await answer_message(service, frames, session_id, data)
             except Exception as exc:  # every failure is a row of the error table, as over HTTP
-                await websocket.send_text(json.dumps(errors.answer(exc, config, where).ws_message()))
+                async with sending:
+                    await websocket.send_text(json.dumps(errors.answer(exc, config, where).ws_message()))
                 continue
-            await websocket.send_text(
-                json.dumps(
-                    {
-                        "version": frame.version,
-                        "camera": camera,
-                        "timings": frame.timings,
-                        "stats": frame.stats,
-                        "media_type": frame.media_type,
-                        "samples": frame.samples,
-                    }
-                )
-            )
-            await websocket.send_bytes(frame.body)
+            await send_frame(frame_head(frame, camera), frame.body)
     except WebSocketDisconnect:
         return
+    finally:
+        stop.set()  # a stream still running ends at its next frame's slice, sending nothing

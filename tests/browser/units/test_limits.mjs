@@ -55,10 +55,11 @@ test('what applies', () => {
   [false, true, false, true, false, true, false, false]);
 });
 
-test('tone map and exposure apply to the path integrator only', () => {
-  same(['tone_map', 'exposure'].flatMap((name) => [
+test('tone map, exposure, denoiser and refinement apply to the path integrator only', () => {
+  const names = ['tone_map', 'exposure', 'denoise', 'refine_samples', 'refine_time_ms', 'refine_noise'];
+  same(names.flatMap((name) => [
     lim.applies(name, ctx()), lim.applies(name, ctx({ integrator: 'whitted' })), lim.applies(name, ctx({ integrator: 'path' }))]),
-  [false, false, true, false, false, true]);
+  names.flatMap(() => [false, false, true]));
 });
 
 test('valid values pass', () => {

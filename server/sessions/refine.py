@@ -1,0 +1,148 @@
+"""Refinement while still: a resting camera's session frames, each adding samples to its accumulation,
+until a target (docs/API.md, "Refinement").
+
+:func:`refine` yields one :class:`RefineStep` per frame: the frame (the mean of every sample the
+session's accumulation holds) and where the stream stands. Each frame is an accumulation frame
+(:mod:`server.frames.accumulate`): a background frame, so the GL thread serves every interactive
+frame first, and one the session's next interactive frame supersedes. Its samples per pixel are
+sized from the stream's previous frame so that one frame takes about ``POCKETRAY_REFINE_SLICE_MS``
+of GL time (the first takes :data:`FIRST_SLICE` samples; the next at most :data:`GROWTH` × as many),
+never past the target nor past what the caps accept (halved until a frame is accepted).
+
+The stream ends after the frame that reaches ``target_samples``, or the first to end at or past
+``target_ms`` (at most POCKETRAY_MAX_REFINE_MS), or the first whose estimated relative noise is at
+most ``target_noise`` (:func:`server.frames.accumulate.relative_noise`; 0: none), or when the
+accumulation did not grow (its byte budget or MAX_ACCUMULATED_SAMPLES), or — without a frame — when
+the session changed (a gesture, new settings) or ``cancel`` is set (the client went away, a
+WebSocket's next message).
+
+A frame that does not read samples this way (the Whitted integrator, a mode other than colour) is
+answered once: its image does not change with more frames.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+from renderer.limits import MAX_PATH_SAMPLES
+
+from ..faults import InputError, Superseded
+from ..frames.encode import Frame
+from ..frames.pipeline import final, radiance
+from .service import SessionService
+
+FIRST_SLICE = 4  # samples per pixel of a stream's first frame: the first better image comes soon
+GROWTH = 4  # a frame adds at most this many times its predecessor's samples (its timing is one measurement)
+
+
+@dataclass(frozen=True)
+class RefineStep:
+    """One frame of a refinement stream and where the stream stands after it. ``reason`` (when
+    ``done``): ``samples`` (target reached), ``time`` (target time spent), ``noise`` (the noise
+    estimated at most the target), ``held`` (the accumulation
+    did not grow: its byte budget, or MAX_ACCUMULATED_SAMPLES) or ``one_frame`` (not a path frame)."""
+
+    frame: Frame
+    samples: int  # samples per pixel the image holds
+    target_samples: int
+    target_ms: int
+    elapsed_ms: float
+    done: bool
+    reason: str | None = None
+    noise: float | None = None  # the image's relative noise as estimated (None: not yet)
+    target_noise: float = 0.0
+
+    def progress(self) -> dict[str, Any]:
+        """What the WebSocket's ``refine`` object and the HTTP part's ``X-Refine`` say."""
+        return {
+            "samples": self.samples,
+            "target_samples": self.target_samples,
+            "target_ms": self.target_ms,
+            "elapsed_ms": round(self.elapsed_ms, 1),
+            "done": self.done,
+            "reason": self.reason,
+            "noise": None if self.noise is None else round(self.noise, 5),
+            "target_noise": self.target_noise,
+        }
+
+
+def next_slice(samples: int, trace_ms: float, slice_ms: float, left: int) -> int:
+    """Samples per pixel of the next frame: about ``slice_ms`` at the previous frame's ``trace_ms``
+    for ``samples``, at most GROWTH × as many, within 1 … ``left`` and MAX_PATH_SAMPLES."""
+    per_sample = max(trace_ms, 1e-3) / max(samples, 1)
+    k = int(slice_ms / per_sample)
+    return max(1, min(k, GROWTH * samples, left, MAX_PATH_SAMPLES))
+
+
+def refine(
+    service: SessionService,
+    session_id: str,
+    patch: dict[str, Any],
+    *,
+    target_samples: int | None = None,
+    target_ms: int | None = None,
+    target_noise: float | None = None,
+    cancel: threading.Event | None = None,
+) -> Iterator[RefineStep]:
+    """The refinement stream of the session's current view with the frame query's ``patch``; the
+    targets default to the session's ``refine_samples``, ``refine_time_ms`` and ``refine_noise``
+    (with the patch's)."""
+    t0 = time.perf_counter()
+    state = service.get(session_id)
+    settings = service.caps.merge_settings(state.settings, patch)
+    goal_samples = int(target_samples if target_samples is not None else settings["refine_samples"])
+    goal_ms = min(int(target_ms if target_ms is not None else settings["refine_time_ms"]), service.config.max_refine_ms)
+    goal_noise = float(target_noise if target_noise is not None else settings["refine_noise"])
+    version = state.version
+    noise: float | None = None
+
+    def step(frame: Frame, held: int, done: bool, reason: str | None) -> RefineStep:
+        elapsed = (time.perf_counter() - t0) * 1e3
+        return RefineStep(frame, held, goal_samples, goal_ms, elapsed, done, reason, noise, goal_noise)
+
+    if not radiance(service.frame_settings(state, patch).render):
+        frame = final(service.frames.run(service.frame_request(session_id, patch, cancel=cancel)))
+        yield step(frame, frame.samples or 1, True, "one_frame")
+        return
+    held = service.frames.accumulations.count(session_id)  # (of this view or not: the first frame says)
+    k = FIRST_SLICE
+    while True:
+        if cancel is not None and cancel.is_set():
+            return
+        if service.get(session_id).version != version:
+            return  # a gesture or a settings change: the stream was of the view before it
+        k = max(1, min(k, goal_samples - held)) if held < goal_samples else 1
+        try:
+            request = service.frame_request(
+                session_id, {**patch, "samples_per_pixel": k}, cancel=cancel, accumulate=True
+            )
+            frame = final(service.frames.run(request))
+        except InputError:
+            if k == 1:
+                raise
+            k //= 2  # over a cap (work, cost): a smaller slice
+            continue
+        except Superseded:
+            return  # the session's next interactive frame (or the client) stopped it
+        held = int(frame.samples or 0)
+        kept = service.frames.accumulations.count(session_id) == held
+        noise = service.frames.accumulations.noise(session_id) if kept else None
+        elapsed_ms = (time.perf_counter() - t0) * 1e3
+        if held >= goal_samples:
+            yield step(frame, held, True, "samples")
+            return
+        if not kept:
+            yield step(frame, held, True, "held")
+            return
+        if goal_noise > 0 and noise is not None and noise <= goal_noise:
+            yield step(frame, held, True, "noise")
+            return
+        if elapsed_ms >= goal_ms:
+            yield step(frame, held, True, "time")
+            return
+        yield step(frame, held, False, None)
+        k = next_slice(k, frame.timings.get("trace", 0.0), service.config.refine_slice_ms, goal_samples - held)
