@@ -49,7 +49,7 @@ def quick_run(tmp_path_factory):
         env=env,
         capture_output=True,
         text=True,
-        timeout=240,
+        timeout=600,  # a hang guard: the quick run of every experiment takes 2–4 min on 2 loaded cores
     )
     return out, proc
 

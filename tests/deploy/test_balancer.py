@@ -53,8 +53,11 @@ class Balancer:
             self.url = f"http://127.0.0.1:{self.port}"
             up = sum(mode is not None for mode in modes)
             deadline = time.monotonic() + 20
-            while sum(s == "UP" for s in self.status().values()) < up:  # every live stand-in passed a check
-                assert time.monotonic() < deadline, self.status()
+            # HAProxy listens (its stats page lists every server: it bound its ports, the front one too)
+            # and every live stand-in passed a check; with none live, the first alone (a loaded machine
+            # may take a while to start it).
+            while len(st := self.status()) < len(modes) or sum(s == "UP" for s in st.values()) < up:
+                assert time.monotonic() < deadline, st
                 time.sleep(0.05)
         except BaseException:
             self.close()
