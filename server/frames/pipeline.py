@@ -15,7 +15,8 @@ supersedes its older ones (latest wins). A gesture's frame is rendered with its 
 *before* the gesture is committed (``commit`` runs once the final image is ready; docs/API.md,
 "Gestures with a frame").
 
-A session's frame asked with ``accumulate`` (a path frame's radiance) goes on from the samples its
+A session's frame asked with ``accumulate`` (a colour frame: the path integrator's radiance, or one
+jittered slice of Whitted's sub-pixel grid, :func:`accumulates`) goes on from the samples its
 session's accumulation holds and commits the new sum once it is done (:mod:`server.frames.accumulate`);
 it is a *background* frame: it gets GL slices only when no interactive frame waits, it supersedes
 only the session's older accumulation frames, and any newer interactive frame of the session
@@ -115,7 +116,7 @@ def frame_nbytes(settings: RenderSettings, accumulate: bool = False) -> int:
     (``accumulate``: and the new float32 sum it hands to its session's accumulation)."""
     s = settings
     return (
-        traced_nbytes(s.width, s.height, s.supersampling, image_only(s))
+        traced_nbytes(s.width, s.height, s.supersampling, image_only(s) and not accumulate)
         + encoded_nbytes(s.format, "radiance" if radiance(s) else s.mode, s.width, s.height)
         + (s.width * s.height * PATH_SUM_BYTES_PER_PIXEL if radiance(s) else 0)
         + (s.width * s.height * ACCUMULATION_BYTES_PER_PIXEL if accumulate else 0)
@@ -133,6 +134,13 @@ GUIDE_BYTES_PER_PIXEL = 2 * 16 + 2 * 16 + 2 * 24 + 2 * 12
 def radiance(settings: RenderSettings) -> bool:
     """Whether the frame's image is the path integrator's float radiance (npy: 12 bytes a pixel)."""
     return settings.integrator == "path" and settings.mode == "color"
+
+
+def accumulates(settings: RenderSettings) -> bool:
+    """Whether a frame of these settings adds samples to an accumulation: colour, of either
+    integrator (Whitted's: a jittered slice of its sub-pixel grid; docs/API.md, "Accumulation");
+    the data modes and heat and recursion images stay one frame."""
+    return settings.mode == "color"
 
 
 def image_only(settings: RenderSettings) -> bool:
@@ -222,7 +230,7 @@ class FramePipeline:
         self.check_traceable(frame)
         acc_key: AccumulationKey | None = None
         held: tuple[Any, int] | None = None
-        if request.accumulate and owner is not None and radiance(settings.render) and not frame.multi_pass:
+        if request.accumulate and owner is not None and accumulates(settings.render) and not frame.multi_pass:
             camera = json.dumps(frame.scene.camera.to_json(), sort_keys=True)
             acc_key = accumulation_key(owner.scene_rev, camera, settings.render)
             held = self.accumulations.start(owner.id, acc_key)

@@ -16,8 +16,11 @@ accumulation did not grow (its byte budget or MAX_ACCUMULATED_SAMPLES), or — w
 the session changed (a gesture, new settings) or ``cancel`` is set (the client went away, a
 WebSocket's next message).
 
-A frame that does not read samples this way (the Whitted integrator, a mode other than colour) is
-answered once: its image does not change with more frames.
+A Whitted colour frame refines the same way, a frame per jittered slice of its √s × √s sub-pixel
+grid (s = its ``samples_per_pixel``: s more samples a frame, the first the plain frame's image;
+:func:`renderer.gl.frame.plan_whitted_slices`) — stochastic anti-aliasing past 16 samples. A frame
+of another mode (depth, primid, normal, heat, recursion) is answered once: its image does not
+change with more frames.
 """
 
 from __future__ import annotations
@@ -32,7 +35,7 @@ from renderer.limits import MAX_PATH_SAMPLES
 
 from ..faults import InputError, Superseded
 from ..frames.encode import Frame
-from ..frames.pipeline import final, radiance
+from ..frames.pipeline import accumulates, final, radiance
 from .service import SessionService
 
 FIRST_SLICE = 4  # samples per pixel of a stream's first frame: the first better image comes soon
@@ -44,7 +47,7 @@ class RefineStep:
     """One frame of a refinement stream and where the stream stands after it. ``reason`` (when
     ``done``): ``samples`` (target reached), ``time`` (target time spent), ``noise`` (the noise
     estimated at most the target), ``held`` (the accumulation
-    did not grow: its byte budget, or MAX_ACCUMULATED_SAMPLES) or ``one_frame`` (not a path frame)."""
+    did not grow: its byte budget, or MAX_ACCUMULATED_SAMPLES) or ``one_frame`` (not a colour frame)."""
 
     frame: Frame
     samples: int  # samples per pixel the image holds
@@ -104,10 +107,12 @@ def refine(
         elapsed = (time.perf_counter() - t0) * 1e3
         return RefineStep(frame, held, goal_samples, goal_ms, elapsed, done, reason, noise, goal_noise)
 
-    if not radiance(service.frame_settings(state, patch).render):
+    render = service.frame_settings(state, patch).render
+    if not accumulates(render):
         frame = final(service.frames.run(service.frame_request(session_id, patch, cancel=cancel)))
         yield step(frame, frame.samples or 1, True, "one_frame")
         return
+    path = radiance(render)  # else Whitted: each frame one slice of the session's own grid
     held = service.frames.accumulations.count(session_id)  # (of this view or not: the first frame says)
     k = FIRST_SLICE
     while True:
@@ -117,12 +122,11 @@ def refine(
             return  # a gesture or a settings change: the stream was of the view before it
         k = max(1, min(k, goal_samples - held)) if held < goal_samples else 1
         try:
-            request = service.frame_request(
-                session_id, {**patch, "samples_per_pixel": k}, cancel=cancel, accumulate=True
-            )
+            slice_patch = {**patch, "samples_per_pixel": k} if path else patch
+            request = service.frame_request(session_id, slice_patch, cancel=cancel, accumulate=True)
             frame = final(service.frames.run(request))
         except InputError:
-            if k == 1:
+            if k == 1 or not path:
                 raise
             k //= 2  # over a cap (work, cost): a smaller slice
             continue

@@ -1,6 +1,7 @@
 """Refinement while still (server/sessions/refine.py; docs/API.md, "Refinement"): a refine stream's
 sample counts rise to its target, its last image is one frame of all those samples, the next
-message (a gesture) stops it, and the HTTP twin streams the same parts."""
+message (a gesture) stops it, the HTTP twin streams the same parts, and a Whitted colour view refines by
+jittered slices of its sub-pixel grid."""
 
 from __future__ import annotations
 
@@ -189,8 +190,19 @@ def test_the_http_stream_has_the_same_parts(app):
 
 
 @pytest.mark.gl
-def test_a_whitted_frame_is_answered_once(app):
+def test_a_whitted_colour_frame_refines_by_jittered_slices(app):
+    """Each frame of a Whitted stream is one jittered slice of the session's 2 × 2 grid: the counts rise
+    by 4 to the target, the first image is the plain frame's bit for bit, the later ones differ from it
+    (the sub-pixels' points moved); a Whitted data mode is answered once."""
+    whitted = {"integrator": "whitted", "samples_per_pixel": 4}
     sid = cornell(app)
-    r = app.get(f"/api/sessions/{sid}/frame", params={**PATH, "integrator": "whitted", "refine": 1})
-    got = parts(r)
-    assert len(got) == 1 and json.loads(got[0][0]["X-Refine"])["reason"] == "one_frame"
+    plain = np.load(io.BytesIO(app.get(f"/api/sessions/{sid}/frame", params={**PATH, **whitted}).content))
+    got = stream_to(app, sid, 16, **whitted)
+    assert [p["samples"] for p, _ in got] == [4, 8, 12, 16], [p for p, _ in got]
+    assert got[-1][0]["done"] and got[-1][0]["reason"] == "samples"
+    assert np.array_equal(got[0][1], plain), "the first slice is the plain frame"
+    assert np.abs(got[-1][1] - plain).max() > 1e-3, "the later slices traced other sub-pixel points"
+    assert app.app.state.frames.accumulations.count(sid) == 16
+    r = app.get(f"/api/sessions/{sid}/frame", params={**PATH, **whitted, "mode": "depth", "refine": 1})
+    got_depth = parts(r)
+    assert len(got_depth) == 1 and json.loads(got_depth[0][0]["X-Refine"])["reason"] == "one_frame"
