@@ -309,8 +309,8 @@ SETTINGS: tuple[SettingSpec, ...] = (
         "refine_samples",
         "integer",
         256,
-        "colour (path integrator, or Whitted's jittered slices): a resting camera's refinement stream goes on until its image holds this many "
-        "samples per pixel",
+        "colour (path integrator, or Whitted's jittered slices): a resting camera's refinement stream "
+        "goes on until its image holds this many samples per pixel",
         "Refine to (samples)",
         unit="samples",
         bounds=limits.REFINE_SAMPLES_RANGE,
@@ -336,8 +336,7 @@ SETTINGS: tuple[SettingSpec, ...] = (
         "refine_noise",
         "number",
         0.0,
-        "colour: … or until its estimated relative noise (RMS error over the mean) is this low "
-        "(0: no noise target)",
+        "colour: … or until its estimated relative noise (RMS error over the mean) is this low (0: no noise target)",
         "Refine to noise",
         unit="fraction",
         bounds=limits.REFINE_NOISE_RANGE,
