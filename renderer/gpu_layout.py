@@ -439,11 +439,11 @@ MIN_WEIGHT = Binding(
     "u_min_weight", "highp float", "ε: secondary rays of smaller path weight are not traced", group="min_weight"
 )
 # A frame is traced in passes: the pixel centres (scale 1, offset 0.5), then for supersampled
-# images one pass per sub-pixel (sx, sy) of the √s-times finer grid (scale √s, offset s + 0.5).
+# images one pass per sub-pixel (sx, sy) of the √s-times finer grid (scale √s, offset s + 0.5);
+# a Whitted accumulation's jittered slice moves the 0.5 to its point of the cell (subpixel_cell).
+# (The descriptions are the shader's comments: every recorded shader text holds them.)
 PASS_SCALE = Binding("u_pass_scale", "highp float", "sub-pixels per pixel side of this pass's grid")
-PASS_OFFSET = Binding(
-    "u_pass_offset", "highp vec2", "(sx, sy) + the point in that sub-pixel (its centre, 0.5, but in a jittered slice)"
-)
+PASS_OFFSET = Binding("u_pass_offset", "highp vec2", "(sx, sy) + 0.5: the sub-pixel this pass traces")
 PASS_BINDINGS = (PASS_SCALE, PASS_OFFSET)
 TRACER_BINDINGS = (
     *SCENE_BINDINGS,
