@@ -16,9 +16,10 @@ accumulation did not grow (its byte budget or MAX_ACCUMULATED_SAMPLES), or — w
 the session changed (a gesture, new settings) or ``cancel`` is set (the client went away, a
 WebSocket's next message).
 
-A Whitted colour frame refines the same way, a frame per jittered slice of its √s × √s sub-pixel
-grid (s = its ``samples_per_pixel``: s more samples a frame, the first the plain frame's image;
-:func:`renderer.gl.frame.plan_whitted_slices`) — stochastic anti-aliasing past 16 samples. A frame
+A Whitted colour frame refines the same way by jittered slices of its √s × √s sub-pixel grid
+(s = its ``samples_per_pixel``; :func:`renderer.gl.frame.plan_whitted_slices`) — stochastic
+anti-aliasing past 16 samples: its first frame is one slice (the plain frame's image), the next
+are sized in slices as a path stream's in samples, each adding s samples per pixel a slice. A frame
 of another mode (depth, primid, normal, heat, recursion) is answered once: its image does not
 change with more frames.
 """
@@ -112,23 +113,34 @@ def refine(
         frame = final(service.frames.run(service.frame_request(session_id, patch, cancel=cancel)))
         yield step(frame, frame.samples or 1, True, "one_frame")
         return
-    path = radiance(render)  # else Whitted: each frame one slice of the session's own grid
+    # A path frame adds k samples; a Whitted frame k jittered slices of the session's own grid, each
+    # of `unit` samples (its first frame one slice: the plain frame's image, as soon as it).
+    path = radiance(render)
+    unit = 1 if path else render.samples_per_pixel
     held = service.frames.accumulations.count(session_id)  # (of this view or not: the first frame says)
-    k = FIRST_SLICE
+    k = FIRST_SLICE if path else 1
+
+    def left(held: int) -> int:  # increments (samples, or slices) to the target
+        return -(-(goal_samples - held) // unit)
+
     while True:
         if cancel is not None and cancel.is_set():
             return
         if service.get(session_id).version != version:
             return  # a gesture or a settings change: the stream was of the view before it
-        k = max(1, min(k, goal_samples - held)) if held < goal_samples else 1
+        k = max(1, min(k, left(held))) if held < goal_samples else 1
         try:
-            slice_patch = {**patch, "samples_per_pixel": k} if path else patch
-            request = service.frame_request(session_id, slice_patch, cancel=cancel, accumulate=True)
+            if path:
+                request = service.frame_request(
+                    session_id, {**patch, "samples_per_pixel": k}, cancel=cancel, accumulate=True
+                )
+            else:
+                request = service.frame_request(session_id, patch, cancel=cancel, accumulate=True, slices=k)
             frame = final(service.frames.run(request))
         except InputError:
             if k == 1 or not path:
                 raise
-            k //= 2  # over a cap (work, cost): a smaller slice
+            k //= 2  # over a cap (work, cost): a smaller slice (the caps see a Whitted frame's grid alone)
             continue
         except Superseded:
             return  # the session's next interactive frame (or the client) stopped it
@@ -149,4 +161,4 @@ def refine(
             yield step(frame, held, True, "time")
             return
         yield step(frame, held, False, None)
-        k = next_slice(k, frame.timings.get("trace", 0.0), service.config.refine_slice_ms, goal_samples - held)
+        k = next_slice(k, frame.timings.get("trace", 0.0), service.config.refine_slice_ms, left(held))

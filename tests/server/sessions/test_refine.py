@@ -206,3 +206,28 @@ def test_a_whitted_colour_frame_refines_by_jittered_slices(app):
     r = app.get(f"/api/sessions/{sid}/frame", params={**PATH, **whitted, "mode": "depth", "refine": 1})
     got_depth = parts(r)
     assert len(got_depth) == 1 and json.loads(got_depth[0][0]["X-Refine"])["reason"] == "one_frame"
+
+
+@pytest.fixture(scope="module")
+def timed_app(tmp_path_factory):
+    """Slices sized to 300 ms of GL time: a 16 × 16 frame's grow GROWTH× each frame."""
+    config = make_config(tmp_path_factory.mktemp("refine-timed"), max_work=SIDE * SIDE * 4 * 64, refine_slice_ms=300)
+    with TestClient(create_app(config)) as c:
+        wait_ready(c.get)
+        yield c
+
+
+@pytest.mark.gl
+def test_a_whitted_stream_sizes_its_frames_in_slices(timed_app):
+    """A Whitted stream's frames grow by whole slices as a path stream's by samples; its last image is
+    the accumulation of as many one-slice frames (up to float rounding)."""
+    whitted = {"integrator": "whitted", "samples_per_pixel": 4}
+    got = stream_to(timed_app, cornell(timed_app), 64, **whitted)
+    counts = [p["samples"] for p, _ in got]
+    assert counts[0] == 4 and counts[-1] == 64 and all(c % 4 == 0 for c in counts), counts
+    assert len(counts) < 16 and counts[1] - counts[0] > 4, "later frames hold several slices"
+    sid = cornell(timed_app)
+    for _ in range(16):
+        r = timed_app.get(f"/api/sessions/{sid}/frame", params={**PATH, **whitted, "accumulate": 1})
+    assert r.headers["x-samples"] == "64"
+    np.testing.assert_allclose(got[-1][1], np.load(io.BytesIO(r.content)), rtol=1e-5, atol=1e-6)
