@@ -484,16 +484,17 @@ class TracerFrame:
             color = self._grid[::-1][..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
             if self.whitted_acc:  # one slice, the first: the plain frame's image, and its sum
                 total = self._grid[::-1][..., :3].reshape(H, k, W, k, 3).sum(axis=(1, 3), dtype=np.float64)
-                self._sample_sum = self._whitted_total(total)
+                self._sample_sum = self._whitted_total(total).astype(np.float32)
             self._grid = None
         elif self._wsum is not None:  # a Whitted accumulation: the mean of all its samples
-            total = self._wsum[::-1]
+            total = self._whitted_total(self._wsum[::-1])
             self._wsum = None
-            self._sample_sum = self._whitted_total(total)
+            self._sample_sum = total.astype(np.float32)
             if self._held == 0 and self._new == 1:  # slice 0 at k = 1 alone: the centres as they are
                 color = img[..., :3]
             else:
-                color = (self._sample_sum / (self._held + self._new)).astype(np.float32)
+                color = (total / (self._held + self._new)).astype(np.float32)
+            del total
         else:
             color = img[..., :3]
         arrays = [img, hit, color]
@@ -501,12 +502,10 @@ class TracerFrame:
         return self._result_of(arrays, final=True)
 
     def _whitted_total(self, total: np.ndarray) -> np.ndarray:
-        """A Whitted accumulation's new float32 sum (image rows): the held one plus ``total``, this
+        """A Whitted accumulation's new sum (float64, image rows): the held one plus ``total``, this
         frame's sum of samples (float64, image rows)."""
         held = None if self.accumulated is None else self.accumulated[0]
-        if held is not None:
-            total = total + held
-        return total.astype(np.float32)
+        return total if held is None else total + held
 
     def _result_of(self, arrays: list[np.ndarray], final: bool) -> RenderResult:
         """The result made of ``[img, hit, colour]`` (image rows, top first), which it empties: each
