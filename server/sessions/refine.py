@@ -13,7 +13,7 @@ The stream ends after the frame that reaches ``target_samples``, or the first to
 ``target_ms`` (at most POCKETRAY_MAX_REFINE_MS), or the first whose estimated relative noise is at
 most ``target_noise`` (:func:`server.frames.accumulate.relative_noise`; 0: none), or when the
 accumulation did not grow (its byte budget or MAX_ACCUMULATED_SAMPLES), or — without a frame — when
-the session changed (a gesture, new settings) or ``cancel`` is set (the client went away, a
+the session changed (a gesture, new settings) or was deleted, or ``cancel`` is set (the client went away, a
 WebSocket's next message).
 
 A Whitted colour frame refines the same way by jittered slices of its √s × √s sub-pixel grid
@@ -34,7 +34,7 @@ from typing import Any
 
 from renderer.limits import MAX_PATH_SAMPLES
 
-from ..faults import InputError, Superseded
+from ..faults import InputError, NotFound, Superseded
 from ..frames.encode import Frame
 from ..frames.pipeline import accumulates, final, radiance
 from .service import SessionService
@@ -126,8 +126,11 @@ def refine(
     while True:
         if cancel is not None and cancel.is_set():
             return
-        if service.get(session_id).version != version:
-            return  # a gesture or a settings change: the stream was of the view before it
+        try:
+            if service.get(session_id).version != version:
+                return  # a gesture or a settings change: the stream was of the view before it
+        except NotFound:
+            return  # the session was deleted (or expired) meanwhile: its stream ends as for a change
         k = max(1, min(k, left(held))) if held < goal_samples else 1
         try:
             if path:
@@ -142,8 +145,8 @@ def refine(
                 raise
             k //= 2  # over a cap (work, cost): a smaller slice (the caps see a Whitted frame's grid alone)
             continue
-        except Superseded:
-            return  # the session's next interactive frame (or the client) stopped it
+        except (Superseded, NotFound):
+            return  # the session's next interactive frame (or the client, or its deletion) stopped it
         held = int(frame.samples or 0)
         kept = service.frames.accumulations.count(session_id) == held
         noise = service.frames.accumulations.noise(session_id) if kept else None

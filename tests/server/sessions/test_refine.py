@@ -231,3 +231,17 @@ def test_a_whitted_stream_sizes_its_frames_in_slices(timed_app):
         r = timed_app.get(f"/api/sessions/{sid}/frame", params={**PATH, **whitted, "accumulate": 1})
     assert r.headers["x-samples"] == "64"
     np.testing.assert_allclose(got[-1][1], np.load(io.BytesIO(r.content)), rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.gl
+def test_a_deleted_session_ends_its_stream_without_an_error(app):
+    """The session deleted between two frames (or expired): the stream ends as for a gesture, so a
+    client sees the end of its stream, never a broken connection."""
+    from server.sessions.refine import refine
+
+    service = app.app.state.service
+    sid = cornell(app)
+    steps = refine(service, sid, {**PATH, "integrator": "whitted"}, target_samples=4096, target_ms=600_000)
+    assert next(steps).samples == 4
+    assert app.delete(f"/api/sessions/{sid}").status_code == 204
+    assert next(steps, None) is None
