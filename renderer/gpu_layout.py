@@ -439,7 +439,9 @@ MIN_WEIGHT = Binding(
     "u_min_weight", "highp float", "ε: secondary rays of smaller path weight are not traced", group="min_weight"
 )
 # A frame is traced in passes: the pixel centres (scale 1, offset 0.5), then for supersampled
-# images one pass per sub-pixel (sx, sy) of the √s-times finer grid (scale √s, offset s + 0.5).
+# images one pass per sub-pixel (sx, sy) of the √s-times finer grid (scale √s, offset s + 0.5);
+# a Whitted accumulation's jittered slice moves the 0.5 to its point of the cell (subpixel_cell).
+# (The descriptions are the shader's comments: every recorded shader text holds them.)
 PASS_SCALE = Binding("u_pass_scale", "highp float", "sub-pixels per pixel side of this pass's grid")
 PASS_OFFSET = Binding("u_pass_offset", "highp vec2", "(sx, sy) + 0.5: the sub-pixel this pass traces")
 PASS_BINDINGS = (PASS_SCALE, PASS_OFFSET)
@@ -975,12 +977,29 @@ def frame_regions(
     return [r for r in out if r[2] > 0 and r[3] > 0]
 
 
-def pass_uniforms(scale: int = 1, sub: tuple[int, int] = (0, 0)) -> dict[str, object]:
+def pass_uniforms(
+    scale: int = 1, sub: tuple[int, int] = (0, 0), cell: tuple[float, float] = (0.5, 0.5)
+) -> dict[str, object]:
     """The pass uniforms: the pixel centres (scale 1), or sub-pixel ``sub`` = (sx, sy) of a
-    ``scale × scale`` grid per pixel (sy counts from the bottom, as GL's rows do)."""
-    if scale == 1:
-        return {PASS_SCALE.name: 1.0, PASS_OFFSET.name: (0.5, 0.5)}
-    return {PASS_SCALE.name: float(scale), PASS_OFFSET.name: (sub[0] + 0.5, sub[1] + 0.5)}
+    ``scale × scale`` grid per pixel (sy counts from the bottom, as GL's rows do); ``cell``: where
+    in its sub-pixel (0 … 1 each side) the ray goes, the centre but in a jittered slice
+    (:func:`subpixel_cell`)."""
+    return {PASS_SCALE.name: float(scale), PASS_OFFSET.name: (sub[0] + cell[0], sub[1] + cell[1])}
+
+
+# The R2 sequence's steps (Roberts 2018, the plastic number g: g³ = g + 1): its points
+# frac(0.5 + n (1/g, 1/g²)) fill the unit square evenly for every prefix, so any count of slices
+# spreads its samples over each sub-pixel, and point 0 is the centre.
+_PLASTIC = 1.324717957244746
+R2_STEP = (1.0 / _PLASTIC, 1.0 / _PLASTIC**2)
+
+
+def subpixel_cell(slice_index: int) -> tuple[float, float]:
+    """Where in its sub-pixel (0 … 1 each side) slice ``slice_index`` of a Whitted accumulation
+    traces every sub-pixel of every pixel: the R2 sequence's point, (0.5, 0.5) for slice 0 (so a
+    first slice is the frame of cell centres, bit for bit)."""
+    n = int(slice_index)
+    return ((0.5 + n * R2_STEP[0]) % 1.0, (0.5 + n * R2_STEP[1]) % 1.0)
 
 
 def glsl_header() -> str:

@@ -309,8 +309,8 @@ SETTINGS: tuple[SettingSpec, ...] = (
         "refine_samples",
         "integer",
         256,
-        "path integrator: a resting camera's refinement stream goes on until its image holds this many "
-        "samples per pixel",
+        "colour (path integrator, or Whitted's jittered slices): a resting camera's refinement stream "
+        "goes on until its image holds this many samples per pixel",
         "Refine to (samples)",
         unit="samples",
         bounds=limits.REFINE_SAMPLES_RANGE,
@@ -323,7 +323,7 @@ SETTINGS: tuple[SettingSpec, ...] = (
         "refine_time_ms",
         "integer",
         10_000,
-        "path integrator: … or until it has refined this long (at most POCKETRAY_MAX_REFINE_MS)",
+        "colour: … or until it has refined this long (at most POCKETRAY_MAX_REFINE_MS)",
         "Refine for at most",
         unit="ms",
         bounds=limits.REFINE_MS_RANGE,
@@ -336,8 +336,7 @@ SETTINGS: tuple[SettingSpec, ...] = (
         "refine_noise",
         "number",
         0.0,
-        "path integrator: … or until its estimated relative noise (RMS error over the mean) is this low "
-        "(0: no noise target)",
+        "colour: … or until its estimated relative noise (RMS error over the mean) is this low (0: no noise target)",
         "Refine to noise",
         unit="fraction",
         bounds=limits.REFINE_NOISE_RANGE,

@@ -118,10 +118,11 @@ export class Transport {
   }
 
   // Whether the view at rest is refined by the service's stream (docs/API.md, "Refinement"): it
-  // draws the path integrator's colour, whose image gets better with every sample.
+  // draws colour: the path integrator's, whose image gets better with every sample, or Whitted's,
+  // whose edges do with every jittered slice of its sub-pixel grid.
   refinement() {
     const r = this.state.render;
-    return !this.deviceMode && r.integrator === 'path' && (r.mode ?? 'color') === 'color';
+    return !this.deviceMode && (r.mode ?? 'color') === 'color';
   }
 
   // The refinement stream of the view on screen, at the full level: onPart(frame) for each of its

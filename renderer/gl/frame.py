@@ -62,11 +62,13 @@ if TYPE_CHECKING:
 @dataclass(frozen=True)
 class Pass:
     """One pass: the pixel centres (``sub`` None) or one sub-pixel of a ``scale``² grid; of the
-    path integrator, ``samples`` = (first, count): those samples of every pixel, summed."""
+    path integrator, ``samples`` = (first, count): those samples of every pixel, summed; ``cell``:
+    where in its sub-pixel the ray goes (a Whitted accumulation's jittered slice; None: the centre)."""
 
     scale: int
     sub: tuple[int, int] | None
     samples: tuple[int, int] | None = None
+    cell: tuple[float, float] | None = None
 
     @property
     def name(self) -> str:
@@ -128,6 +130,22 @@ def plan_path_passes(samples: int, per_pass: int, first: int = 0) -> list[Pass]:
     return [Pass(1, None, (first + s, min(per_pass, samples - s))) for s in range(0, samples, per_pass)]
 
 
+def plan_whitted_slices(k: int, first: int, count: int) -> list[Pass]:
+    """A Whitted accumulation's passes after the pixel centres: slices ``first`` … ``first + count − 1``,
+    each the k × k sub-pixel grid with every sub-pixel's ray at the slice's point of the R2 sequence
+    inside it (:func:`renderer.gpu_layout.subpixel_cell`: the same for every pixel and sub-pixel).
+    Slice 0 is the cell centres — the passes of today's frame (at k = 1 the centre pass itself, so
+    none here) — and every slice adds k² samples per pixel."""
+    out: list[Pass] = []
+    for j in range(first, first + count):
+        if j == 0:
+            out += [Pass(k, (sx, sy)) for sy in range(k) for sx in range(k)] if k > 1 else []
+        else:
+            cell = gpu_layout.subpixel_cell(j)
+            out += [Pass(k, (sx, sy), cell=cell) for sy in range(k) for sx in range(k)]
+    return out
+
+
 def plan_passes(mode: str, k: int) -> list[Pass]:
     """The passes of a frame of ``mode`` at k × k samples per pixel (sy from the bottom)."""
     passes = [Pass(1, None)]
@@ -147,6 +165,12 @@ class TracerFrame:
     supersampled image the way it was before passes existed — one draw of the whole
     ``kW × kH`` grid, ids from its middle sub-pixel — for tests and benchmarks that
     compare against it.
+
+    ``accumulated`` (the path integrator's colour, or Whitted's): the samples an accumulation
+    holds (their float32 sum, image rows, or None; their count) — the frame goes on from them and
+    its result hands the new sum back. A Whitted colour frame then traces ``slices`` jittered
+    slices of its k × k grid (:func:`plan_whitted_slices`), from slice count ÷ k² on, so frames of
+    one slice each add up to one frame of them all; its first slice alone is the plain frame.
     """
 
     def __init__(
@@ -164,6 +188,7 @@ class TracerFrame:
         slice_ms: float | None = None,
         samples_per_pass: int = PATH_SAMPLES_PER_PASS,
         accumulated: tuple[np.ndarray | None, int] | None = None,
+        slices: int = 1,
     ):
         self.renderer, self.ctx = renderer, renderer.ctx
         self.scene, self.settings, self.variant, self.prepared = scene, settings, variant, prepared
@@ -175,10 +200,18 @@ class TracerFrame:
         self.path = variant.path
         # An accumulation goes on from the samples it holds: (their float32 sum, image rows, or None
         # when it holds none yet; their count); the result hands the new sum back.
-        self.accumulated = accumulated if self.path else None
+        self.whitted_acc = accumulated is not None and not self.path and settings.mode == "color" and not one_shot
+        self.accumulated = accumulated if self.path or self.whitted_acc else None
         self._held = 0 if self.accumulated is None else int(self.accumulated[1])
+        self._wsum: np.ndarray | None = None  # a Whitted accumulation's sum of this frame's samples (GL rows)
+        self._new = 0  # … and their count per pixel
         if self.path:
             self.passes = plan_path_passes(settings.samples_per_pixel, samples_per_pass, self._held)
+        elif self.whitted_acc:
+            s, n = self.k * self.k, max(1, int(slices))
+            self._first_slice = self._held // s
+            self._new = n * s
+            self.passes = [Pass(1, None), *plan_whitted_slices(self.k, self._first_slice, n)]
         else:
             self.passes = [Pass(self.k, None)] if self.one_shot else plan_passes(settings.mode, self.k)
         self._sum: np.ndarray | None = None  # the path integrator's sum of samples (GL rows), float64
@@ -270,7 +303,7 @@ class TracerFrame:
             grid, pass_terms = self._target_size(), gpu_layout.pass_uniforms(1)
         else:
             grid = (self.width * p.scale, self.height * p.scale)
-            pass_terms = gpu_layout.pass_uniforms(p.scale, p.sub or (0, 0))
+            pass_terms = gpu_layout.pass_uniforms(p.scale, p.sub or (0, 0), p.cell or (0.5, 0.5))
         camera = gpu_layout.camera_uniforms(self.scene.camera, *grid)
         if p.samples is not None:
             pass_terms = {**pass_terms, **gpu_layout.path_uniforms(*p.samples)}
@@ -398,8 +431,16 @@ class TracerFrame:
         elif p.sub is None:
             hit = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=1), np.float32).reshape(h, w, 4)
             self._centre = (img, hit)
-            if len(self.passes) > 1:
+            if self.whitted_acc and self.k == 1 and self._first_slice == 0:  # slice 0 at k = 1: the centres
+                self._wsum = img[..., :3].astype(np.float64)
+            if len(self.passes) > 1 and not (self.whitted_acc and self._held):  # (not below what is held)
                 self._preview = self._result_of([img[::-1], hit[::-1], img[::-1][..., :3]], final=False)
+        elif self.whitted_acc and not (self._first_slice == 0 and len(self.passes) == 1 + self.k * self.k):
+            # a jittered slice's sub-pixel (or slice 0's beside others): only its sum is kept
+            if self._wsum is None:
+                self._wsum = img[..., :3].astype(np.float64)
+            else:
+                self._wsum += img[..., :3]
         else:
             if self._grid is None:
                 self._grid = np.empty((h * p.scale, w * p.scale, 4), np.float32)
@@ -441,12 +482,30 @@ class TracerFrame:
                 self._guide_sums = None
         elif self._grid is not None:  # the box filter over the sub-pixel passes
             color = self._grid[::-1][..., :3].reshape(H, k, W, k, 3).mean(axis=(1, 3))
+            if self.whitted_acc:  # one slice, the first: the plain frame's image, and its sum
+                total = self._grid[::-1][..., :3].reshape(H, k, W, k, 3).sum(axis=(1, 3), dtype=np.float64)
+                self._sample_sum = self._whitted_total(total).astype(np.float32)
             self._grid = None
+        elif self._wsum is not None:  # a Whitted accumulation: the mean of all its samples
+            total = self._whitted_total(self._wsum[::-1])
+            self._wsum = None
+            self._sample_sum = total.astype(np.float32)
+            if self._held == 0 and self._new == 1:  # slice 0 at k = 1 alone: the centres as they are
+                color = img[..., :3]
+            else:
+                color = (total / (self._held + self._new)).astype(np.float32)
+            del total
         else:
             color = img[..., :3]
         arrays = [img, hit, color]
         del img, hit, color
         return self._result_of(arrays, final=True)
+
+    def _whitted_total(self, total: np.ndarray) -> np.ndarray:
+        """A Whitted accumulation's new sum (float64, image rows): the held one plus ``total``, this
+        frame's sum of samples (float64, image rows)."""
+        held = None if self.accumulated is None else self.accumulated[0]
+        return total if held is None else total + held
 
     def _result_of(self, arrays: list[np.ndarray], final: bool) -> RenderResult:
         """The result made of ``[img, hit, colour]`` (image rows, top first), which it empties: each
@@ -469,6 +528,9 @@ class TracerFrame:
         if self.path:  # samples per pixel the image is the mean of (an accumulation's included)
             first = self.passes[0].samples or (0, 0)  # a preview is the first pass's mean
             samples = self._held + (self.settings.samples_per_pixel if final else first[1])
+            stats["samples"] = samples
+        elif self.whitted_acc and final:  # sub-pixel samples per pixel the accumulation's mean holds
+            samples = self._held + self._new
             stats["samples"] = samples
         return RenderResult(
             image=image,

@@ -145,10 +145,11 @@ class GLRenderer:
         t_start: float | None = None,
         slice_ms: float | None = None,
         accumulated: tuple[np.ndarray | None, int] | None = None,
+        slices: int = 1,
     ) -> StartedFrame:
         """A prepared frame (:func:`renderer.prepare.prepare_frame`) uploaded and ready to be
         traced slice by slice: bands of ``band_rows`` rows (the tracer) or batches of
-        ``batch`` primitives (the ray engines). ``accumulated``: of a path frame, the samples
+        ``batch`` primitives (the ray engines). ``accumulated``: of an accumulation frame, the samples
         held so far (their float32 sum, image rows — None when none yet — and count): the frame goes
         on from them and its result hands the new sum back
         (:class:`~renderer.gl.frame.TracerFrame`)."""
@@ -166,6 +167,7 @@ class GLRenderer:
                 band_rows=band_rows,
                 slice_ms=slice_ms,
                 accumulated=accumulated,
+                slices=slices,
             )
         return StartedFrame(inner, frame, t_start)
 
@@ -181,11 +183,13 @@ class GLRenderer:
         slice_ms: float | None = None,
         samples_per_pass: int = PATH_SAMPLES_PER_PASS,
         accumulated: tuple[np.ndarray | None, int] | None = None,
+        slices: int = 1,
     ) -> TracerFrame:
         """A frame of the one-pass tracer for the posed ``scene``, uploaded and ready to be
         traced slice by slice (:class:`~renderer.gl.frame.TracerFrame`); ``band_rows``
         sizes its slices, ``samples_per_pass`` the path integrator's passes, ``accumulated`` the
-        samples a path frame goes on from (their float32 sum, image rows, or None, and count). Builds the
+        samples an accumulation frame goes on from (their float32 sum, image rows, or None, and count;
+        a Whitted colour frame's: ``slices`` jittered slices of its grid). Builds the
         method's structure first unless ``prepared`` is given."""
         t_start = time.perf_counter()
         # auto's crossover counts what a tree would hold, spheres and triangles (as prepare_frame)
@@ -201,7 +205,7 @@ class GLRenderer:
                 scene, settings.max_prims, settings.max_tree_depth, self.max_texture_width, update
             )
         features, depth = frame_features(scene, settings, guides=settings.denoise != "off")
-        image = self.image_targets and image_only(settings)
+        image = self.image_targets and image_only(settings) and accumulated is None  # (a sum needs floats)
         variant = Variant(method_name, settings.mode, depth, features.defines(), image_only=image)
         variant = Variant(
             method_name, settings.mode, depth, features.defines(), self.blocks_for(variant, prepared), image
@@ -229,6 +233,7 @@ class GLRenderer:
             slice_ms=slice_ms,
             samples_per_pass=samples_per_pass,
             accumulated=accumulated,
+            slices=slices,
         )
 
     def blocks_for(self, variant: Variant, prepared: PreparedMethod) -> tuple[str, ...]:

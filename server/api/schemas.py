@@ -485,7 +485,8 @@ class SessionFrameQuery(FrameQuery):
 
     accumulate: bool = Field(
         False,
-        description="path integrator (colour): go on from the samples the session's accumulation holds "
+        description="colour (the path integrator's samples, or a jittered slice of Whitted's sub-pixel grid): "
+        "go on from the samples the session's accumulation holds "
         "for this same image (scene, camera, settings, time, size) and answer their mean with this "
         "frame's samples added (X-Samples: how many); yields to interactive frames (docs/API.md, "
         "'Accumulation')",

@@ -1,4 +1,5 @@
-"""Accumulations: a session's path-integrator samples, added up across frame requests.
+"""Accumulations: a session's colour samples, added up across frame requests — the path integrator's
+paths, or Whitted's jittered slices of its sub-pixel grid (:func:`renderer.gl.frame.plan_whitted_slices`).
 
 A frame asked with ``accumulate`` (docs/API.md, "Accumulation") goes on from the samples its
 session's accumulation holds — their float32 sum (image rows, H × W × 3) and count — when nothing
@@ -47,8 +48,11 @@ class AccumulationKey:
 
 
 def accumulation_key(scene_rev: str, camera_json: str, settings: RenderSettings) -> AccumulationKey:
-    """The key of a frame of ``settings`` through ``camera_json`` of the scene revision ``scene_rev``."""
-    fields = tuple((k, getattr(settings, k)) for k in sorted(RenderSettings.names()) if k not in NOT_IMAGE_SETTINGS)
+    """The key of a frame of ``settings`` through ``camera_json`` of the scene revision ``scene_rev``
+    (a Whitted frame's ``samples_per_pixel`` is its sub-pixel grid, whose slices the count numbers:
+    part of the key)."""
+    skip = NOT_IMAGE_SETTINGS if settings.integrator == "path" else NOT_IMAGE_SETTINGS - {"samples_per_pixel"}
+    fields = tuple((k, getattr(settings, k)) for k in sorted(RenderSettings.names()) if k not in skip)
     return AccumulationKey(scene_rev, camera_json, fields)
 
 

@@ -15,7 +15,8 @@ supersedes its older ones (latest wins). A gesture's frame is rendered with its 
 *before* the gesture is committed (``commit`` runs once the final image is ready; docs/API.md,
 "Gestures with a frame").
 
-A session's frame asked with ``accumulate`` (a path frame's radiance) goes on from the samples its
+A session's frame asked with ``accumulate`` (a colour frame: the path integrator's radiance, or one
+jittered slice of Whitted's sub-pixel grid, :func:`accumulates`) goes on from the samples its
 session's accumulation holds and commits the new sum once it is done (:mod:`server.frames.accumulate`);
 it is a *background* frame: it gets GL slices only when no interactive frame waits, it supersedes
 only the session's older accumulation frames, and any newer interactive frame of the session
@@ -115,15 +116,17 @@ def frame_nbytes(settings: RenderSettings, accumulate: bool = False) -> int:
     (``accumulate``: and the new float32 sum it hands to its session's accumulation)."""
     s = settings
     return (
-        traced_nbytes(s.width, s.height, s.supersampling, image_only(s))
+        traced_nbytes(s.width, s.height, s.supersampling, image_only(s) and not accumulate)
         + encoded_nbytes(s.format, "radiance" if radiance(s) else s.mode, s.width, s.height)
-        + (s.width * s.height * PATH_SUM_BYTES_PER_PIXEL if radiance(s) else 0)
+        + (s.width * s.height * PATH_SUM_BYTES_PER_PIXEL if radiance(s) or accumulate else 0)
         + (s.width * s.height * ACCUMULATION_BYTES_PER_PIXEL if accumulate else 0)
         + (s.width * s.height * GUIDE_BYTES_PER_PIXEL if radiance(s) and s.denoise != "off" else 0)
     )
 
 
-PATH_SUM_BYTES_PER_PIXEL = 3 * 8  # a path frame's float64 sum of its passes (renderer/gl/frame.py)
+PATH_SUM_BYTES_PER_PIXEL = (
+    3 * 8
+)  # a path (or Whitted accumulation) frame's float64 sum of its passes (renderer/gl/frame.py)
 ACCUMULATION_BYTES_PER_PIXEL = 3 * 4  # an accumulation's float32 sum (server/frames/accumulate.py)
 # The denoiser's guides (renderer/denoise.py): two more RGBA32F attachments, their read-backs, their
 # float64 sums and the float32 means; OIDN's own buffers of the same size come on top.
@@ -133,6 +136,13 @@ GUIDE_BYTES_PER_PIXEL = 2 * 16 + 2 * 16 + 2 * 24 + 2 * 12
 def radiance(settings: RenderSettings) -> bool:
     """Whether the frame's image is the path integrator's float radiance (npy: 12 bytes a pixel)."""
     return settings.integrator == "path" and settings.mode == "color"
+
+
+def accumulates(settings: RenderSettings) -> bool:
+    """Whether a frame of these settings adds samples to an accumulation: colour, of either
+    integrator (Whitted's: a jittered slice of its sub-pixel grid; docs/API.md, "Accumulation");
+    the data modes and heat and recursion images stay one frame."""
+    return settings.mode == "color"
 
 
 def image_only(settings: RenderSettings) -> bool:
@@ -156,8 +166,10 @@ class FrameRequest:
     """One frame to make. ``progressive``: the preview (a supersampled
     frame's pixel-centre pass) first when there is one; ``commit(result)`` runs when the final image
     is ready and returns the session version to report; ``cancel`` (set when the client goes away)
-    stops the frame. ``accumulate``: a session's path frame goes on from (and adds to) its
-    accumulation, as a background frame (:mod:`server.frames.accumulate`); other frames ignore it."""
+    stops the frame. ``accumulate``: a session's colour frame goes on from (and adds to) its
+    accumulation, as a background frame (:mod:`server.frames.accumulate`); other frames ignore it.
+    ``slices``: of a Whitted accumulation frame, the jittered slices of its grid it adds (the
+    refinement stream sizes them to its time per frame; a path frame's count is its samples)."""
 
     scene: Scene | AnimatedScene
     settings: FrameSettings
@@ -166,6 +178,7 @@ class FrameRequest:
     commit: Callable[[Any], int] | None = None
     cancel: threading.Event | None = None
     accumulate: bool = False
+    slices: int = 1
 
 
 def final(parts: Iterable[Frame]) -> Frame:
@@ -222,13 +235,14 @@ class FramePipeline:
         self.check_traceable(frame)
         acc_key: AccumulationKey | None = None
         held: tuple[Any, int] | None = None
-        if request.accumulate and owner is not None and radiance(settings.render) and not frame.multi_pass:
+        if request.accumulate and owner is not None and accumulates(settings.render) and not frame.multi_pass:
             camera = json.dumps(frame.scene.camera.to_json(), sort_keys=True)
             acc_key = accumulation_key(owner.scene_rev, camera, settings.render)
             held = self.accumulations.start(owner.id, acc_key)
         with self.frame_memory(frame.settings, held is not None):  # from before its target exists to its body
             t_queued = time.perf_counter()
-            handle = self.start_frame(frame, owner=owner, accumulated=held)
+            slices = 1 if radiance(settings.render) else max(1, int(request.slices))
+            handle = self.start_frame(frame, owner=owner, accumulated=held, slices=slices)
             version = owner.version if owner is not None else None
             first = None
             try:
@@ -413,12 +427,18 @@ class FramePipeline:
 
     # ---- trace ------------------------------------------------------------------------------
     def start_frame(
-        self, frame: PreparedFrame, *, owner: FrameOwner | None, accumulated: tuple[Any, int] | None = None
+        self,
+        frame: PreparedFrame,
+        *,
+        owner: FrameOwner | None,
+        accumulated: tuple[Any, int] | None = None,
+        slices: int = 1,
     ) -> FrameHandle:
         """Admit the planned frame (503 when full), supersede the session's older frames, and
         hand it to the GL thread to be traced in slices. ``accumulated``: the samples an
         accumulation frame goes on from (sum or None, count); such a frame is a background one and
-        supersedes only the session's older background frames."""
+        supersedes only the session's older background frames. ``slices``: a Whitted accumulation
+        frame's jittered slices."""
         ticket = self.admit()
         background = accumulated is not None
         if owner is not None:
@@ -431,7 +451,12 @@ class FramePipeline:
 
         def start(renderer):
             return renderer.start(
-                frame, band_rows=rows, batch=batch, slice_ms=self.config.slice_ms, accumulated=accumulated
+                frame,
+                band_rows=rows,
+                batch=batch,
+                slice_ms=self.config.slice_ms,
+                accumulated=accumulated,
+                slices=slices,
             )
 
         return ticket.frame(

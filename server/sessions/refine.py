@@ -13,11 +13,15 @@ The stream ends after the frame that reaches ``target_samples``, or the first to
 ``target_ms`` (at most POCKETRAY_MAX_REFINE_MS), or the first whose estimated relative noise is at
 most ``target_noise`` (:func:`server.frames.accumulate.relative_noise`; 0: none), or when the
 accumulation did not grow (its byte budget or MAX_ACCUMULATED_SAMPLES), or — without a frame — when
-the session changed (a gesture, new settings) or ``cancel`` is set (the client went away, a
+the session changed (a gesture, new settings) or was deleted, or ``cancel`` is set (the client went away, a
 WebSocket's next message).
 
-A frame that does not read samples this way (the Whitted integrator, a mode other than colour) is
-answered once: its image does not change with more frames.
+A Whitted colour frame refines the same way by jittered slices of its √s × √s sub-pixel grid
+(s = its ``samples_per_pixel``; :func:`renderer.gl.frame.plan_whitted_slices`) — stochastic
+anti-aliasing past 16 samples: its first frame is one slice (the plain frame's image), the next
+are sized in slices as a path stream's in samples, each adding s samples per pixel a slice. A frame
+of another mode (depth, primid, normal, heat, recursion) is answered once: its image does not
+change with more frames.
 """
 
 from __future__ import annotations
@@ -30,9 +34,9 @@ from typing import Any
 
 from renderer.limits import MAX_PATH_SAMPLES
 
-from ..faults import InputError, Superseded
+from ..faults import InputError, NotFound, Superseded
 from ..frames.encode import Frame
-from ..frames.pipeline import final, radiance
+from ..frames.pipeline import accumulates, final, radiance
 from .service import SessionService
 
 FIRST_SLICE = 4  # samples per pixel of a stream's first frame: the first better image comes soon
@@ -44,7 +48,7 @@ class RefineStep:
     """One frame of a refinement stream and where the stream stands after it. ``reason`` (when
     ``done``): ``samples`` (target reached), ``time`` (target time spent), ``noise`` (the noise
     estimated at most the target), ``held`` (the accumulation
-    did not grow: its byte budget, or MAX_ACCUMULATED_SAMPLES) or ``one_frame`` (not a path frame)."""
+    did not grow: its byte budget, or MAX_ACCUMULATED_SAMPLES) or ``one_frame`` (not a colour frame)."""
 
     frame: Frame
     samples: int  # samples per pixel the image holds
@@ -104,30 +108,45 @@ def refine(
         elapsed = (time.perf_counter() - t0) * 1e3
         return RefineStep(frame, held, goal_samples, goal_ms, elapsed, done, reason, noise, goal_noise)
 
-    if not radiance(service.frame_settings(state, patch).render):
+    render = service.frame_settings(state, patch).render
+    if not accumulates(render):
         frame = final(service.frames.run(service.frame_request(session_id, patch, cancel=cancel)))
         yield step(frame, frame.samples or 1, True, "one_frame")
         return
+    # A path frame adds k samples; a Whitted frame k jittered slices of the session's own grid, each
+    # of `unit` samples (its first frame one slice: the plain frame's image, as soon as it).
+    path = radiance(render)
+    unit = 1 if path else render.samples_per_pixel
     held = service.frames.accumulations.count(session_id)  # (of this view or not: the first frame says)
-    k = FIRST_SLICE
+    k = FIRST_SLICE if path else 1
+
+    def left(held: int) -> int:  # increments (samples, or slices) to the target
+        return -(-(goal_samples - held) // unit)
+
     while True:
         if cancel is not None and cancel.is_set():
             return
-        if service.get(session_id).version != version:
-            return  # a gesture or a settings change: the stream was of the view before it
-        k = max(1, min(k, goal_samples - held)) if held < goal_samples else 1
         try:
-            request = service.frame_request(
-                session_id, {**patch, "samples_per_pixel": k}, cancel=cancel, accumulate=True
-            )
+            if service.get(session_id).version != version:
+                return  # a gesture or a settings change: the stream was of the view before it
+        except NotFound:
+            return  # the session was deleted (or expired) meanwhile: its stream ends as for a change
+        k = max(1, min(k, left(held))) if held < goal_samples else 1
+        try:
+            if path:
+                request = service.frame_request(
+                    session_id, {**patch, "samples_per_pixel": k}, cancel=cancel, accumulate=True
+                )
+            else:
+                request = service.frame_request(session_id, patch, cancel=cancel, accumulate=True, slices=k)
             frame = final(service.frames.run(request))
         except InputError:
-            if k == 1:
+            if k == 1 or not path:
                 raise
-            k //= 2  # over a cap (work, cost): a smaller slice
+            k //= 2  # over a cap (work, cost): a smaller slice (the caps see a Whitted frame's grid alone)
             continue
-        except Superseded:
-            return  # the session's next interactive frame (or the client) stopped it
+        except (Superseded, NotFound):
+            return  # the session's next interactive frame (or the client, or its deletion) stopped it
         held = int(frame.samples or 0)
         kept = service.frames.accumulations.count(session_id) == held
         noise = service.frames.accumulations.noise(session_id) if kept else None
@@ -145,4 +164,4 @@ def refine(
             yield step(frame, held, True, "time")
             return
         yield step(frame, held, False, None)
-        k = next_slice(k, frame.timings.get("trace", 0.0), service.config.refine_slice_ms, goal_samples - held)
+        k = next_slice(k, frame.timings.get("trace", 0.0), service.config.refine_slice_ms, left(held))

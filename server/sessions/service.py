@@ -413,13 +413,21 @@ class SessionService:
         cancel: threading.Event | None = None,
         progressive: bool = False,
         accumulate: bool = False,
+        slices: int = 1,
     ) -> FrameRequest:
         """The session's current view with the query's ``patch`` (the final image; with
-        ``progressive`` its preview first; with ``accumulate`` added to the session's accumulation)."""
+        ``progressive`` its preview first; with ``accumulate`` added to the session's accumulation,
+        a Whitted frame by ``slices`` jittered slices of its grid)."""
         state = self.get(session_id)
         settings = self.frame_settings(state, patch)
         return FrameRequest(
-            self.scene(state), settings, owner(state), progressive=progressive, cancel=cancel, accumulate=accumulate
+            self.scene(state),
+            settings,
+            owner(state),
+            progressive=progressive,
+            cancel=cancel,
+            accumulate=accumulate,
+            slices=slices,
         )
 
     def gesture_request(

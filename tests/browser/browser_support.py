@@ -216,6 +216,12 @@ class Client:
                 f"console: {self.console_errors}\nserver log:\n{self.server.log_tail(2000)}"
             ) from None
 
+    def wait_rest(self, timeout: float = 60_000) -> None:
+        """:meth:`wait_idle`, then until the resting view's refinement stream (a colour view's, Whitted's
+        too) has ended: from then on no frame comes without a gesture or a change."""
+        self.wait_idle(timeout=timeout)
+        self.page.wait_for_function("() => !window.pocketray.refining", timeout=timeout)
+
     def camera(self) -> dict:
         return self.server.session(self.hook("sessionId"))["camera"]
 

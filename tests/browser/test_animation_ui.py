@@ -43,9 +43,10 @@ def test_play_pause_poses_frames_at_advancing_times(open_client, server):
     c.wait_idle()
     t_paused = c.hook("lastFrame.time")
     assert c.hook("lastFrame.level") == "full"  # the full frame after the last one
+    c.wait_rest()  # the paused view at rest is refined (a colour view's stream: frames of the same time) …
     n_paused = c.frame_count
     time.sleep(1.0)
-    assert c.frame_count == n_paused  # paused: no more frames
+    assert c.frame_count == n_paused  # … and then, paused: no more frames
     assert c.hook("lastFrame.time") == t_paused and t_paused >= t_b
     assert c.errors() == []
 

@@ -107,6 +107,7 @@ def test_an_uploaded_obj_joins_the_scene_and_changes_the_frame(open_client, serv
 
 def test_a_corrupt_misnamed_or_too_big_file_is_refused_next_to_the_picker(open_client, server):
     c = open_client("mobile")
+    c.wait_rest()  # the first view's refinement done: nothing changes the canvas but the upload
     p = c.page
     sid = c.hook("sessionId")
     before = server.session(sid)

@@ -478,3 +478,15 @@ def test_what_a_method_packs_is_what_its_shader_declares(method):
     )
     cdf = prims.textures[gpu_layout.ENV_CDF.name].data.reshape(-1)
     assert cdf[256 * 127 - 1] == 1.0 and cdf[256 * 127 + 126] == 1.0
+
+
+def test_the_jittered_slices_start_at_the_centre_and_fill_the_cell():
+    """Slice 0 of a Whitted accumulation is the cell centre (the pass uniforms of the plain frame);
+    the R2 points of the first 64 slices fall in every sixteenth of the cell, 2 to 5 in each."""
+    assert gpu_layout.subpixel_cell(0) == (0.5, 0.5)
+    assert gpu_layout.pass_uniforms(4, (1, 2), gpu_layout.subpixel_cell(0)) == gpu_layout.pass_uniforms(4, (1, 2))
+    assert gpu_layout.pass_uniforms(4, (1, 2))["u_pass_offset"] == (1.5, 2.5)
+    points = np.array([gpu_layout.subpixel_cell(j) for j in range(64)])
+    assert ((points >= 0) & (points < 1)).all()
+    counts, _, _ = np.histogram2d(points[:, 0], points[:, 1], bins=4, range=[[0, 1], [0, 1]])
+    assert counts.min() >= 2 and counts.max() <= 5, counts

@@ -51,10 +51,12 @@ export function applies(name, ctx) {
     case 'n': case 'seed': return !mesh;
     case 'update': return !!ctx.animated && m.settings.includes('update');
     case 'max_prims': case 'max_tree_depth': case 'tile_size': return m.settings.includes(name);
-    // How the path integrator's radiance is shown (Whitted's image is display values already),
-    // denoised and refined while the camera rests (Whitted's frames do not improve with more).
-    case 'tone_map': case 'exposure': case 'denoise': case 'refine_samples': case 'refine_time_ms': case 'refine_noise':
+    // How the path integrator's radiance is shown and denoised (Whitted's image is display values
+    // already); both integrators' colour is refined while the camera rests (Whitted's by jittered slices).
+    case 'tone_map': case 'exposure': case 'denoise':
       return ctx.render.integrator === 'path';
+    case 'refine_samples': case 'refine_time_ms': case 'refine_noise':
+      return (ctx.render.mode ?? 'color') === 'color';
     case 'previewFormat': case 'previewQuality':
       // The device draws its previews itself: no image format to choose.
       return ctx.renderer !== 'device' && (name === 'previewFormat' || ctx.client?.previewFormat === 'jpeg');

@@ -55,11 +55,12 @@ test('what applies', () => {
   [false, true, false, true, false, true, false, false]);
 });
 
-test('tone map, exposure, denoiser and refinement apply to the path integrator only', () => {
-  const names = ['tone_map', 'exposure', 'denoise', 'refine_samples', 'refine_time_ms', 'refine_noise'];
-  same(names.flatMap((name) => [
-    lim.applies(name, ctx()), lim.applies(name, ctx({ integrator: 'whitted' })), lim.applies(name, ctx({ integrator: 'path' }))]),
-  names.flatMap(() => [false, false, true]));
+test('tone map, exposure and denoiser apply to the path integrator only, refinement to colour', () => {
+  const display = ['tone_map', 'exposure', 'denoise'], refine = ['refine_samples', 'refine_time_ms', 'refine_noise'];
+  const cases = (name) => [lim.applies(name, ctx()), lim.applies(name, ctx({ integrator: 'whitted' })),
+    lim.applies(name, ctx({ integrator: 'path' })), lim.applies(name, ctx({ integrator: 'whitted', mode: 'depth' }))];
+  same(display.flatMap(cases), display.flatMap(() => [false, false, true, false]));
+  same(refine.flatMap(cases), refine.flatMap(() => [true, true, true, false]));
 });
 
 test('valid values pass', () => {

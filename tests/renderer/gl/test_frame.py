@@ -147,3 +147,57 @@ def test_frames_draw_the_background_variant_where_rays_meet_no_sphere(gl_rendere
 
     inside = scene.with_camera(Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0)))
     assert "background_pixels" not in gl_renderer.render(inside, s).stats
+
+
+def whitted_slices(gl_renderer, scene: Scene, s: RenderSettings, n: int, per_frame: int = 1):
+    """A Whitted accumulation of ``n`` slices, ``per_frame`` a frame, each frame going on from the
+    sum and count the last one left; its last result."""
+    held: tuple = (None, 0)
+    for _ in range(0, n, per_frame):
+        r = gl_renderer.begin(scene, s, accumulated=held, slices=per_frame).run()
+        assert r.sample_sum is not None and r.sample_sum.dtype == np.float32
+        held = (r.sample_sum, r.samples)
+    return r
+
+
+@pytest.mark.parametrize("spp", [1, 4])
+def test_whitted_slices_add_up_to_one_frame_of_their_jittered_samples(gl_renderer, spp):
+    """Frames of one jittered slice each, going on from the accumulation, equal one frame of all the
+    slices (up to float rounding); the first slice alone is the plain frame, bit for bit."""
+    scene = scenario(2, 16)
+    s = RenderSettings(width=24, height=20, max_recursion_depth=3, samples_per_pixel=spp, format="npy")
+    plain = gl_renderer.render(scene, s)
+    first = gl_renderer.begin(scene, s, accumulated=(None, 0)).run()
+    assert np.array_equal(first.image, plain.image) and first.samples == spp
+    assert np.array_equal(first.primid, plain.primid) and np.array_equal(first.depth, plain.depth)
+    np.testing.assert_allclose(first.sample_sum / spp, plain.image, rtol=1e-6, atol=1e-7)
+    apart = whitted_slices(gl_renderer, scene, s, 4)
+    together = gl_renderer.begin(scene, s, accumulated=(None, 0), slices=4).run()
+    assert apart.samples == together.samples == 4 * spp == together.stats["samples"]
+    np.testing.assert_allclose(apart.image, together.image, rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(apart.sample_sum, together.sample_sum, rtol=1e-6, atol=1e-5)
+    assert np.array_equal(apart.primid, plain.primid), "the ids stay the pixel centres'"
+    assert np.abs(apart.image - plain.image).max() > 1e-3, "the later slices traced other points"
+    # a png frame at one sample (an 8-bit target otherwise) accumulates in floats too
+    png = gl_renderer.begin(scene, s.with_(format="png"), accumulated=(None, 0), slices=4).run()
+    np.testing.assert_allclose(png.image, together.image, rtol=1e-6, atol=1e-6)
+
+
+def test_whitted_accumulation_converges_to_the_pixel_integral(gl_renderer):
+    """Near the spheres' silhouettes a pixel's mean over its area differs from any fixed grid's;
+    the jittered slices' mean approaches the float64 reference's 32 × 32 sub-pixel mean as they
+    grow (the R2 points fill the cells evenly), well past the 16-sample grid's error."""
+    scene = scenario(2, 16)
+    s = RenderSettings(width=20, height=16, max_recursion_depth=2, samples_per_pixel=4, format="npy")
+    ref = render_reference(scene, s, supersample=32).image.astype(np.float64)
+    centre = render_reference(scene, s, supersample=1).image
+    edge = np.abs(ref - centre).max(axis=2) > 0.01  # the pixels the sub-pixel grid matters to
+    assert edge.sum() >= 8
+
+    def error(img: np.ndarray) -> float:
+        return float(np.abs(img.astype(np.float64) - ref)[edge].mean())
+
+    grid16 = error(gl_renderer.render(scene, s.with_(samples_per_pixel=16)).image)
+    errs = {n: error(gl_renderer.begin(scene, s, accumulated=(None, 0), slices=n).run().image) for n in (1, 4, 64)}
+    assert errs[1] > errs[4] > errs[64], errs
+    assert errs[64] < 0.5 * grid16, (errs, grid16)

@@ -64,6 +64,15 @@ def test_the_store_keeps_one_per_session_within_its_bytes():
     assert store.commit("d", key, 0, s, 16) and store.count("c") == 0 and store.count("b") == 16
 
 
+def test_a_whitted_key_holds_its_grid():
+    """Whitted's samples_per_pixel is its sub-pixel grid, whose slices the count numbers: another grid
+    starts over; the path integrator's is only the frame's increment."""
+    whitted = {**PATH, "integrator": "whitted"}
+    key = accumulation_key("rev", "{}", RenderSettings(**whitted))
+    assert accumulation_key("rev", "{}", RenderSettings(**{**whitted, "samples_per_pixel": 4})) != key
+    assert accumulation_key("rev", "{}", RenderSettings(**{**whitted, "format": "png"})) == key
+
+
 @pytest.fixture(scope="module")
 def app(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("accumulate")
@@ -168,3 +177,22 @@ def test_the_websocket_says_the_samples_it_holds(app):
         ws.send_json({"type": "frame", "accumulate": "yes", "frame": PATH})
         refused = ws.receive_json()
         assert refused["status"] == 422 and refused["detail"][0]["loc"] == ["body", "accumulate"]
+
+
+@pytest.mark.gl
+def test_whitted_colour_frames_accumulate_jittered_slices(app):
+    """A Whitted colour frame with accumulate adds one jittered slice of its grid (s samples); the first
+    is the plain frame; another grid starts over; a data mode accumulates nothing."""
+    whitted = {"integrator": "whitted", "samples_per_pixel": 4}
+    sid = cornell(app)
+    plain, _ = frame(app, sid, accumulate=0, **whitted)
+    first, n1 = frame(app, sid, **whitted)
+    assert n1 == 4 and np.array_equal(first, plain)
+    second, n2 = frame(app, sid, **whitted)
+    assert n2 == 8 and np.abs(second - plain).max() > 1e-3
+    assert frame(app, sid, integrator="whitted", samples_per_pixel=1)[1] == 1, "another grid starts over"
+    one = {"integrator": "whitted", "samples_per_pixel": 1}
+    r = app.get(f"/api/sessions/{sid}/frame", params={**PATH, **one, "accumulate": 1, "format": "png"})
+    assert r.status_code == 200 and r.headers["x-samples"] == "2", "a png frame (an 8-bit target alone) goes on too"
+    r = app.get(f"/api/sessions/{sid}/frame", params={**PATH, **one, "accumulate": 1, "mode": "depth"})
+    assert r.status_code == 200 and app.app.state.frames.accumulations.count(sid) == 2

@@ -1,6 +1,7 @@
 """Refinement while still (server/sessions/refine.py; docs/API.md, "Refinement"): a refine stream's
 sample counts rise to its target, its last image is one frame of all those samples, the next
-message (a gesture) stops it, and the HTTP twin streams the same parts."""
+message (a gesture) stops it, the HTTP twin streams the same parts, and a Whitted colour view refines by
+jittered slices of its sub-pixel grid."""
 
 from __future__ import annotations
 
@@ -189,8 +190,58 @@ def test_the_http_stream_has_the_same_parts(app):
 
 
 @pytest.mark.gl
-def test_a_whitted_frame_is_answered_once(app):
+def test_a_whitted_colour_frame_refines_by_jittered_slices(app):
+    """Each frame of a Whitted stream is one jittered slice of the session's 2 × 2 grid: the counts rise
+    by 4 to the target, the first image is the plain frame's bit for bit, the later ones differ from it
+    (the sub-pixels' points moved); a Whitted data mode is answered once."""
+    whitted = {"integrator": "whitted", "samples_per_pixel": 4}
     sid = cornell(app)
-    r = app.get(f"/api/sessions/{sid}/frame", params={**PATH, "integrator": "whitted", "refine": 1})
-    got = parts(r)
-    assert len(got) == 1 and json.loads(got[0][0]["X-Refine"])["reason"] == "one_frame"
+    plain = np.load(io.BytesIO(app.get(f"/api/sessions/{sid}/frame", params={**PATH, **whitted}).content))
+    got = stream_to(app, sid, 16, **whitted)
+    assert [p["samples"] for p, _ in got] == [4, 8, 12, 16], [p for p, _ in got]
+    assert got[-1][0]["done"] and got[-1][0]["reason"] == "samples"
+    assert np.array_equal(got[0][1], plain), "the first slice is the plain frame"
+    assert np.abs(got[-1][1] - plain).max() > 1e-3, "the later slices traced other sub-pixel points"
+    assert app.app.state.frames.accumulations.count(sid) == 16
+    r = app.get(f"/api/sessions/{sid}/frame", params={**PATH, **whitted, "mode": "depth", "refine": 1})
+    got_depth = parts(r)
+    assert len(got_depth) == 1 and json.loads(got_depth[0][0]["X-Refine"])["reason"] == "one_frame"
+
+
+@pytest.fixture(scope="module")
+def timed_app(tmp_path_factory):
+    """Slices sized to 300 ms of GL time: a 16 × 16 frame's grow GROWTH× each frame."""
+    config = make_config(tmp_path_factory.mktemp("refine-timed"), max_work=SIDE * SIDE * 4 * 64, refine_slice_ms=300)
+    with TestClient(create_app(config)) as c:
+        wait_ready(c.get)
+        yield c
+
+
+@pytest.mark.gl
+def test_a_whitted_stream_sizes_its_frames_in_slices(timed_app):
+    """A Whitted stream's frames grow by whole slices as a path stream's by samples; its last image is
+    the accumulation of as many one-slice frames (up to float rounding)."""
+    whitted = {"integrator": "whitted", "samples_per_pixel": 4}
+    got = stream_to(timed_app, cornell(timed_app), 64, **whitted)
+    counts = [p["samples"] for p, _ in got]
+    assert counts[0] == 4 and counts[-1] == 64 and all(c % 4 == 0 for c in counts), counts
+    assert len(counts) < 16 and counts[1] - counts[0] > 4, "later frames hold several slices"
+    sid = cornell(timed_app)
+    for _ in range(16):
+        r = timed_app.get(f"/api/sessions/{sid}/frame", params={**PATH, **whitted, "accumulate": 1})
+    assert r.headers["x-samples"] == "64"
+    np.testing.assert_allclose(got[-1][1], np.load(io.BytesIO(r.content)), rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.gl
+def test_a_deleted_session_ends_its_stream_without_an_error(app):
+    """The session deleted between two frames (or expired): the stream ends as for a gesture, so a
+    client sees the end of its stream, never a broken connection."""
+    from server.sessions.refine import refine
+
+    service = app.app.state.service
+    sid = cornell(app)
+    steps = refine(service, sid, {**PATH, "integrator": "whitted"}, target_samples=4096, target_ms=600_000)
+    assert next(steps).samples == 4
+    assert app.delete(f"/api/sessions/{sid}").status_code == 204
+    assert next(steps, None) is None
