@@ -17,7 +17,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from browser_support import ARTIFACTS, CHROMIUM, CHROMIUM_ARGS, FAST_QUERY, GL_ARGS, PROFILES, Client, Server
+from browser_support import ARTIFACTS, CHROMIUM, CHROMIUM_ARGS, FAST_QUERY, GL_ARGS, MOBILE, PROFILES, Client, Server
 
 
 @pytest.fixture(scope="session")
@@ -54,6 +54,19 @@ def gl_browser(browser):
         pytest.fail(f"Chromium could not start from {CHROMIUM} with {GL_ARGS}: {e}")
     yield b
     b.close()
+
+
+@pytest.fixture(scope="module")
+def device_page(gl_browser, server):
+    """A client page (server mode, phone-sized) on a WebGL2 Chromium, whose device renderer renders any
+    session by id (window.pocketray.device.renderOnce): the device-mode tests' page."""
+    ctx = gl_browser.new_context(**MOBILE)
+    c = Client(server, ctx, ctx.new_page())
+    c.open("scenario=1&n=64&seed=1&radius=1&width=32&height=32&max_recursion_depth=1")
+    probe = c.page.evaluate("() => window.pocketray.device.probe()")
+    assert probe["ok"], f"no WebGL2 for the tracer in this Chromium ({GL_ARGS}): {probe}"
+    yield c
+    ctx.close()
 
 
 @pytest.fixture

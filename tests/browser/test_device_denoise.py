@@ -19,7 +19,7 @@ import urllib.request
 
 import numpy as np
 import pytest
-from browser_support import GL_ARGS, MOBILE, Client, Touch, http_json
+from browser_support import MOBILE, Client, Touch, http_json
 
 from renderer import mitsuba_scene
 from renderer.atrous import atrous
@@ -35,25 +35,14 @@ MITSUBA_SPP = 256  # its own noise bounds both PSNRs: the bar is a gain, not a l
 
 
 @pytest.fixture(scope="module")
-def page(gl_browser, server):
-    ctx = gl_browser.new_context(**MOBILE)
-    c = Client(server, ctx, ctx.new_page())
-    c.open("scenario=1&n=64&seed=1&radius=1&width=32&height=32&max_recursion_depth=1")
-    probe = c.page.evaluate("() => window.pocketray.device.probe()")
-    assert probe["ok"], f"no WebGL2 for the tracer in this Chromium ({GL_ARGS}): {probe}"
-    yield c
-    ctx.close()
-
-
-@pytest.fixture(scope="module")
-def filtered(page, server) -> dict:
+def filtered(device_page, server) -> dict:
     """A 16-sample Cornell box traced by the device with denoise=atrous, its arrays read back."""
     sid = http_json("POST", f"{server.base}/api/sessions", CORNELL)["id"]
     params = dict(
         session=sid, width=SIDE, height=SIDE, method="bih", mode="color", integrator="path",
         max_recursion_depth=DEPTH, samples_per_pixel=16, denoise="atrous",
     )  # fmt: skip
-    r = page.page.evaluate("(p) => window.pocketray.device.renderOnce(p)", params)
+    r = device_page.page.evaluate("(p) => window.pocketray.device.renderOnce(p)", params)
     assert r["infoLog"] == {"vertex": "", "fragment": "", "program": ""}, r["infoLog"]
     assert "GUIDES" in r["shader"]["features"] and r["path"]["guides"] is True
     for k in ("radiance", "albedo", "normal", "denoised"):

@@ -22,23 +22,11 @@ import urllib.request
 
 import numpy as np
 import pytest
-from browser_support import FAILED_LOAD, GL_ARGS, MOBILE, Client, Touch, canvas_rgb, http_json
+from browser_support import FAILED_LOAD, MOBILE, Client, Touch, canvas_rgb, http_json
 
 W, H = 64, 108
 DEPTH = 5
 SMALL = "scenario=1&n=64&seed=1&radius=1&width=96&height=160&max_recursion_depth=2&preview_scale=1&refine_ms=0"
-
-
-@pytest.fixture(scope="module")
-def device_page(gl_browser, server):
-    """A client page (server mode) whose device renderer renders any session by id."""
-    ctx = gl_browser.new_context(**MOBILE)
-    c = Client(server, ctx, ctx.new_page())
-    c.open("scenario=1&n=64&seed=1&radius=1&width=32&height=32&max_recursion_depth=1")
-    probe = c.page.evaluate("() => window.pocketray.device.probe()")
-    assert probe["ok"], f"no WebGL2 for the tracer in this Chromium ({GL_ARGS}): {probe}"
-    yield c
-    ctx.close()
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,7 @@ import urllib.request
 
 import numpy as np
 import pytest
-from browser_support import GL_ARGS, MOBILE, Client, canvas_rgb, http_json
+from browser_support import MOBILE, Client, canvas_rgb, http_json
 from PIL import Image
 
 from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
@@ -31,18 +31,6 @@ SPP = 64
 DEPTH = 6
 TONE = dict(tone_map="aces", exposure=0.5)
 CORNELL = {"mesh_scene": {"kind": "cornell", "detail": 1}}
-
-
-@pytest.fixture(scope="module")
-def path_page(gl_browser, server):
-    """A client page (server mode) whose device renderer renders any session by id."""
-    ctx = gl_browser.new_context(**MOBILE)
-    c = Client(server, ctx, ctx.new_page())
-    c.open("scenario=1&n=64&seed=1&radius=1&width=32&height=32&max_recursion_depth=1")
-    probe = c.page.evaluate("() => window.pocketray.device.probe()")
-    assert probe["ok"], f"no WebGL2 for the tracer in this Chromium ({GL_ARGS}): {probe}"
-    yield c
-    ctx.close()
 
 
 @pytest.fixture(scope="module")
@@ -78,14 +66,14 @@ CASES = {
 
 
 @pytest.mark.parametrize("method", list(CASES))
-def test_device_path_frame_equals_the_servers(path_page, server, method):
+def test_device_path_frame_equals_the_servers(device_page, server, method):
     detail, side, spp = CASES[method]
     body = {"mesh_scene": {"kind": "cornell", "detail": detail}}
     cornell = http_json("POST", f"{server.base}/api/sessions", body)["id"]
     common = dict(
         width=side, height=side, method=method, integrator="path", max_recursion_depth=DEPTH, samples_per_pixel=spp
     )
-    dev = device_path_render(path_page, session=cornell, mode="color", **common, **TONE)
+    dev = device_path_render(device_page, session=cornell, mode="color", **common, **TONE)
     assert dev["infoLog"] == {"vertex": "", "fragment": "", "program": ""}, dev["infoLog"]
     assert "PATH" in dev["shader"]["features"] and dev["shader"]["max_recursion_depth"] == DEPTH
     assert dev["path"] == {"samples": spp, "perPass": DEVICE_PATH_SAMPLES_PER_PASS, "guides": False}
@@ -109,16 +97,16 @@ def test_device_path_frame_equals_the_servers(path_page, server, method):
     mine = display_u8(dev["radiance"], TONE["tone_map"], TONE["exposure"])
     diff = np.abs(dev["color"].astype(int) - mine.astype(int))
     assert diff.max() <= 1 and (diff == 0).mean() >= 0.99, (diff.max(), (diff == 0).mean())
-    assert path_page.errors() == []
+    assert device_page.errors() == []
 
 
 @pytest.mark.parametrize("tone_map", ["clamp", "reinhard", "aces"])
-def test_the_display_tone_maps_as_the_server(path_page, server, cornell, tone_map):
+def test_the_display_tone_maps_as_the_server(device_page, server, cornell, tone_map):
     """Each operator at a bright and a dark exposure: the canvas is display_u8 of the radiance."""
     common = dict(width=24, height=24, method="bih", integrator="path", max_recursion_depth=3, samples_per_pixel=4)
     for exposure in (2.0, -1.5):
         dev = device_path_render(
-            path_page, session=cornell, mode="color", tone_map=tone_map, exposure=exposure, **common
+            device_page, session=cornell, mode="color", tone_map=tone_map, exposure=exposure, **common
         )
         mine = display_u8(dev["radiance"], tone_map, exposure)
         diff = np.abs(dev["color"].astype(int) - mine.astype(int))
