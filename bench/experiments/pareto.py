@@ -163,6 +163,21 @@ def pareto_front(points: list[tuple[float, float]]) -> list[int]:
     return front
 
 
+def step_front(ax, points: list[tuple[float, float]]) -> list[int]:
+    """Draw the Pareto front of (time, PSNR) points as a black step line; its indices."""
+    front = pareto_front(points)
+    ax.step(
+        [points[i][0] for i in front],
+        [points[i][1] for i in front],
+        where="post",
+        color="black",
+        lw=1.2,
+        alpha=0.7,
+        label="Pareto front",
+    )
+    return front
+
+
 def measure(ctx: Context) -> dict:
     n = N_QUICK if ctx.quick else N
     w, h = SIZE_QUICK if ctx.quick else SIZE
@@ -594,16 +609,7 @@ def plot(data: dict, figures: Path, quick: bool = False) -> dict[str, str]:
                     color=family_colour.get(fam, "#8c8c8c"),
                     label=f"knobs: {fam}",
                 )
-            front = pareto_front(finite)
-            ax.step(
-                [finite[i][0] for i in front],
-                [finite[i][1] for i in front],
-                where="post",
-                color="black",
-                lw=1.2,
-                alpha=0.7,
-                label="Pareto front",
-            )
+            front = step_front(ax, finite)
             ax.scatter(
                 [finite[i][0] for i in front],
                 [finite[i][1] for i in front],
@@ -675,17 +681,7 @@ def plot_path(p: dict, figures: Path, quick: bool) -> str:
             ax.annotate(
                 f"{q['spp']}", (q["time"]["median"], q["psnr"]), fontsize=7, xytext=(3, 3), textcoords="offset points"
             )
-    finite = [(q["time"]["median"], q["psnr"]) for q in pts]
-    front = pareto_front(finite)
-    ax.step(
-        [finite[i][0] for i in front],
-        [finite[i][1] for i in front],
-        where="post",
-        color="black",
-        lw=1.2,
-        alpha=0.7,
-        label="Pareto front",
-    )
+    step_front(ax, [(q["time"]["median"], q["psnr"]) for q in pts])
     log_axis(ax, "x")
     ax.grid(True, which="both", alpha=0.3)
     ax.set_xlabel("time to image (ms, median)")
