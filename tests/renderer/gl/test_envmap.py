@@ -13,6 +13,7 @@ from renderer import gpu_layout, mitsuba_scene
 from renderer.envmap import EnvironmentMap
 from renderer.scene import Scene
 from renderer.settings import RenderSettings
+from tests.renderer.gl.support import path
 
 DIFFUSE = {"color": [0.5, 0.6, 0.7], "diffuse": 1.0, "reflective": 0.0, "ambient": 0.0}
 ONES = np.ones((8, 16, 3), np.float32)
@@ -28,18 +29,6 @@ def furnace(material: dict, environment: dict, images=None) -> Scene:
             "environment": environment,
         },
         images=images,
-    )
-
-
-def path(width=32, height=32, spp=32, depth=16, **kw) -> RenderSettings:
-    return RenderSettings(
-        width=width,
-        height=height,
-        integrator="path",
-        samples_per_pixel=spp,
-        max_recursion_depth=depth,
-        format="npy",
-        **kw,
     )
 
 

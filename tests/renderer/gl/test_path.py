@@ -14,6 +14,7 @@ from renderer.reference import render_reference
 from renderer.scene import Scene, SceneError
 from renderer.settings import RenderSettings
 from renderer.tonemap import display_u8
+from tests.renderer.gl.support import path
 from tests.stability.cases import CASES
 
 ONE_PASS = [n for n, m in METHODS.items() if "path" in m.capabilities.integrators]
@@ -35,18 +36,6 @@ def furnace(material: dict, environment=(1.0, 1.0, 1.0), **extra) -> Scene:
             "environment": {"color": list(environment)},
             **extra,
         }
-    )
-
-
-def path(width=32, height=32, spp=32, depth=16, **kw) -> RenderSettings:
-    return RenderSettings(
-        width=width,
-        height=height,
-        integrator="path",
-        samples_per_pixel=spp,
-        max_recursion_depth=depth,
-        format="npy",
-        **kw,
     )
 
 
