@@ -259,10 +259,10 @@ def server_timeline(browser, url: str, query: str, move_s: float = 4.0, client_d
         ctx.close()
 
 
-# The convergence pages: the Cornell box with the path integrator at a quarter of the fit resolution
-# (503 × 1,088 / 4: the client's first image's size) so that a reference of 1,024 samples takes a minute
-# on llvmpipe, refined to 256 samples (no time target short of the service's longest stream).
-CONVERGE_SIZE = "width=126&height=272"
+# The convergence pages: the Cornell box with the path integrator at an eighth of the fit resolution
+# (503 × 1,088 / 8: the client's smallest preview) so that a reference of 1,024 samples takes a minute
+# on a loaded llvmpipe, refined to 256 samples (no time target short of the service's longest stream).
+CONVERGE_SIZE = "width=63&height=136"
 CONVERGE_PAGES = {
     "path": f"scenario=mesh:cornell&integrator=path&{CONVERGE_SIZE}&refine_samples=256&refine_time_ms=60000",
     "path, oidn": f"scenario=mesh:cornell&integrator=path&{CONVERGE_SIZE}&refine_samples=256&refine_time_ms=60000"
@@ -364,7 +364,7 @@ def convergence_timeline(
     refs = {} if refs is None else refs
 
     def reference(page, sid: str) -> tuple[object, int, float]:
-        key = json.dumps(page.evaluate("() => window.pocketray.lastFrame.camera"), sort_keys=True)
+        key = json.dumps(httpx.get(f"{url}/api/sessions/{sid}").json()["camera"], sort_keys=True)
         if key not in refs:
             refs[key] = reference_png(url, sid, ref_samples)
         return refs[key]

@@ -167,12 +167,13 @@ def _converge_section(conv: dict) -> str:
     trace = []
     for page, samples in conv.items():
         pts = samples[-1]["gesture_images"]
-        marks = [p for p in pts if p["part"] == "final" or p["samples"] in (4, 16, 64, 256)]
+        # the first frame holding at least 4, 16, 64 and 256 samples
+        marks = [m for m in (next((p for p in pts if p["samples"] >= n), None) for n in (4, 16, 64, 256)) if m]
         trace.append(f"{page}: " + ", ".join(f"{p['samples']} spp {p['psnr_db']:.1f} dB" for p in marks[:8]))
     refs = conv["path"][-1]
     return f"""
 **Convergence** (`bench/client.py`'s `convergence_timeline`): the Cornell box, `integrator=path`, at
-126 × 272 (a quarter of the fit resolution, the size of the client's first image) on the same phone
+63 × 136 (an eighth of the fit resolution, the client's smallest preview) on the same phone
 viewport, refined to 256 samples (`refine_samples=256&refine_time_ms=60000`), without and with
 `denoise=oidn`. The page's hook logs every frame shown (time, samples of `refinement.parts`) and the
 canvas's pixels; each frame the size of the reference is compared with the same view at
