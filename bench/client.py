@@ -35,6 +35,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import base64
 import json
 import math
 import os
@@ -253,6 +254,173 @@ def server_timeline(browser, url: str, query: str, move_s: float = 4.0, client_d
             "moving_preview_sizes": sorted({f"{e[3]}x{e[4]}" for e in during}),
             "touch_moves": k,
             "integrator_set_by": set_by,
+        }
+    finally:
+        ctx.close()
+
+
+# The convergence pages: the Cornell box with the path integrator at an eighth of the fit resolution
+# (503 × 1,088 / 8: the client's smallest preview) so that a reference of 1,024 samples takes a minute
+# on a loaded llvmpipe, refined to 256 samples (no time target short of the service's longest stream).
+CONVERGE_SIZE = "width=63&height=136"
+CONVERGE_PAGES = {
+    "path": f"scenario=mesh:cornell&integrator=path&{CONVERGE_SIZE}&refine_samples=256&refine_time_ms=60000",
+    "path, oidn": f"scenario=mesh:cornell&integrator=path&{CONVERGE_SIZE}&refine_samples=256&refine_time_ms=60000"
+    "&denoise=oidn",
+}
+# Every frame shown: its time, level, part, size, samples, the refinement parts so far, and the canvas's
+# pixels (RGBA, kept in the page until read) — the canvas shows the service's tone-mapped image as is.
+CANVAS_LOG = """() => { window.__shown = []; window.__pixels = []; const poll = () => { const p = window.pocketray;
+  if (p && p.frameCount !== (window.__last || 0)) { window.__last = p.frameCount; const f = p.lastFrame;
+  const c = document.querySelector('#view'); let k = -1;
+  if (window.__capture) { k = window.__pixels.length;
+    window.__pixels.push(c.getContext('2d').getImageData(0, 0, c.width, c.height).data.slice()); }
+  window.__shown.push([performance.now(), f.level, f.part || 'final', f.width, f.height, f.clientMs,
+    f.samples ?? null, p.refinement ? p.refinement.parts.length : 0, k, c.width, c.height]); }
+  requestAnimationFrame(poll); }; poll(); }"""
+PIXELS = """k => { const a = window.__pixels[k]; let s = ''; const B = 0x8000;
+  for (let i = 0; i < a.length; i += B) s += String.fromCharCode.apply(null, a.subarray(i, i + B));
+  window.__pixels[k] = null; return btoa(s); }"""
+
+
+def _psnr_8bit(a, b) -> float:
+    import numpy as np
+
+    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2)) / 255.0**2
+    return math.inf if mse == 0 else -10.0 * math.log10(mse)
+
+
+def reference_png(url: str, sid: str, samples: int, step: int = 16) -> tuple[object, int, float]:
+    """The session's view at ``samples`` samples per pixel, without a denoiser, as the service tone-maps
+    it (png → RGB uint8): ``accumulate=1`` frames of ``step`` samples each add to the session's
+    accumulation until it holds ``samples`` (samples are the same paths whichever frame traces them, so
+    it goes on from the ones the refinement traced when the key is the same). Returns (image, samples, s)."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    t0 = time.perf_counter()
+    held, body = 0, b""
+    with httpx.Client(timeout=600) as http:
+        while held < samples:
+            r = http.get(
+                f"{url}/api/sessions/{sid}/frame",
+                params={"accumulate": 1, "samples_per_pixel": step, "denoise": "off", "format": "png"},
+            )
+            r.raise_for_status()
+            held, body = int(r.headers["x-samples"]), r.content
+    image = np.asarray(Image.open(io.BytesIO(body)).convert("RGB"))
+    return image, held, time.perf_counter() - t0
+
+
+def _images(page, shown: list, reference) -> list[dict]:
+    """Each captured frame of ``shown`` at the reference's size: its time, samples and PSNR (dB)."""
+    import numpy as np
+
+    out = []
+    h, w = reference.shape[:2]
+    for e in shown:
+        if e[8] < 0:
+            continue
+        data = base64.b64decode(page.evaluate(PIXELS, e[8]))
+        if (e[9], e[10]) != (w, h):
+            continue  # a preview (a smaller frame): shown, not compared
+        rgb = np.frombuffer(data, np.uint8).reshape(h, w, 4)[..., :3]
+        out.append({"t_ms": e[0], "part": e[2], "samples": e[6], "parts": e[7], "psnr_db": _psnr_8bit(rgb, reference)})
+    return out
+
+
+def wait_refined(page, parts: int, timeout_ms: float = 300_000) -> None:
+    """Until the refinement stream has ended after at least ``parts`` parts (the last one ``done``)."""
+    page.wait_for_function(
+        """n => { const r = window.pocketray.refinement; const p = r.parts;
+                  return p.length >= n && p[p.length - 1].done && !window.pocketray.refining; }""",
+        arg=parts,
+        timeout=timeout_ms,
+    )
+
+
+def warm(browser, url: str, query: str) -> None:
+    """Load ``query``'s page once, refined to a few samples: the service compiles the page's variants."""
+    ctx = browser.new_context(**PORTRAIT)
+    try:
+        page = ctx.new_page()
+        page.goto(f"{url}/?{query.replace('refine_samples=256', 'refine_samples=8')}")
+        wait_full(page, 1)
+        wait_refined(page, 1)
+    finally:
+        ctx.close()
+
+
+def convergence_timeline(
+    browser, url: str, query: str, ref_samples: int = 1024, db: float = 30.0, refs: dict | None = None
+) -> dict:
+    """The path integrator's frames converging on the phone viewport: load → first image → each
+    refinement frame (its arrival, samples, PSNR of the canvas against the session's view at
+    ``ref_samples`` samples, no denoiser) → the stream's end; then a 10-step drag → first image →
+    the first frame ≥ ``db`` against the new view's reference, and the stream's end. ``refs``: the
+    references already made, by camera (the same drag gives the same view: made once for all pages)."""
+    refs = {} if refs is None else refs
+
+    def reference(page, sid: str) -> tuple[object, int, float]:
+        key = json.dumps(httpx.get(f"{url}/api/sessions/{sid}").json()["camera"], sort_keys=True)
+        if key not in refs:
+            refs[key] = reference_png(url, sid, ref_samples)
+        return refs[key]
+
+    ctx = browser.new_context(**PORTRAIT)
+    try:
+        ctx.add_init_script(f"window.__capture = true; ({CANVAS_LOG})()")
+        page = ctx.new_page()
+        page.goto(f"{url}/?{query}")
+        wait_full(page, 1)
+        wait_refined(page, 1)
+        load = page.evaluate("() => window.__shown")
+        load_parts = page.evaluate("() => window.pocketray.refinement.parts")
+        sid = page.evaluate("() => window.pocketray.sessionId")
+        ref, ref_n, ref_s = reference(page, sid)
+        load_images = _images(page, load, ref)
+        dismiss_hint(page)
+        n_shown = len(load)
+        n_parts = len(load_parts)
+        touch = Touch(ctx.new_cdp_session(page))
+        touch.send("touchStart", [(150, 400)])
+        for k in range(1, 10):
+            touch.send("touchMove", [(150 + 8 * k, 400)])
+        t_end = page.evaluate("() => performance.now()")
+        touch.send("touchMove", [(230, 400)])
+        touch.send("touchEnd", [])
+        wait_refined(page, n_parts + 1)
+        shown = page.evaluate("() => window.__shown")[n_shown:]
+        gesture_parts = page.evaluate("() => window.pocketray.refinement.parts")[n_parts:]
+        gref, gref_n, gref_s = reference(page, sid)
+        after = [e for e in shown if e[0] - e[5] >= t_end]
+        gesture_images = _images(page, after, gref)
+
+        def first_at(images: list[dict], t0: float) -> float | None:
+            return next(((i["t_ms"] - t0) / 1e3 for i in images if i["psnr_db"] >= db), None)
+
+        def last(images: list[dict]) -> dict | None:
+            return images[-1] if images else None
+
+        return {
+            "load_first_image_s": load[0][0] / 1e3 if load else None,
+            "load_first_size": f"{load[0][3]}x{load[0][4]}" if load else None,
+            "load_db_s": first_at(load_images, 0.0),
+            "load_converged_s": load_images[-1]["t_ms"] / 1e3 if load_images else None,
+            "load_final_samples": (load_parts[-1]["samples"] if load_parts else None),
+            "load_final_db": (last(load_images) or {}).get("psnr_db"),
+            "load_reason": load_parts[-1]["reason"] if load_parts else None,
+            "load_images": load_images,
+            "gesture_first_image_s": (after[0][0] - t_end) / 1e3 if after else None,
+            "gesture_db_s": first_at(gesture_images, t_end),
+            "gesture_converged_s": (gesture_images[-1]["t_ms"] - t_end) / 1e3 if gesture_images else None,
+            "gesture_final_samples": gesture_parts[-1]["samples"] if gesture_parts else None,
+            "gesture_final_db": (last(gesture_images) or {}).get("psnr_db"),
+            "gesture_images": gesture_images,
+            "reference_samples": [ref_n, gref_n],
+            "reference_s": [ref_s, gref_s],
         }
     finally:
         ctx.close()

@@ -33,6 +33,7 @@ MAX_RECURSION_DEPTH = 8  # levels of the ray tree; 1 = primary rays only
 MAX_PATH_DEPTH = 16  # the path integrator: segments of a path (docs/SHADING.md, "Path integrator")
 SAMPLES_PER_PIXEL = (1, 4, 9, 16)  # stratified supersampling: √s × √s sub-pixels
 MAX_PATH_SAMPLES = 4096  # the path integrator: samples per pixel, any count 1 … this
+PATH_SAMPLE_CHOICES = (1, 4, 16, 64, 256, 1024)  # the counts the client's settings sheet offers the path integrator
 PATH_SAMPLES_PER_PASS = 16  # the path integrator: samples per pixel one draw traces (a frame's passes)
 DEVICE_PATH_SAMPLES_PER_PASS = 4  # … one draw of a browser (device mode) traces: a phone's bands stay short
 # A session's accumulation (docs/API.md, "Accumulation") grows to this many samples per pixel; past

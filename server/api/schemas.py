@@ -838,6 +838,17 @@ class LimitsOut(BaseModel):
     session_ttl_s: float
 
 
+class PathInfoOut(BaseModel):
+    """What a client needs to offer the path integrator's settings and count a path frame's work as the
+    service does (renderer/cost.py, ``request_work``)."""
+
+    samples_per_pixel: list[int] = Field(description="the sample counts a settings sheet offers (any 1 … max_samples)")
+    max_samples: int = Field(description="most samples per pixel of one frame")
+    max_depth: int = Field(description="most segments of a path (max_recursion_depth with integrator 'path')")
+    segments_limit: float = Field(description="a sample's expected segments at depth D: L − (L − 1) · R^(D − 1), L")
+    segments_rate: float = Field(description="… R; never more than 2·D − 1 (one bounce and one shadow ray a vertex)")
+
+
 class MethodSettingsOut(BaseModel):
     """Which settings a method reads, so that a client shows only those (server.api.routes.meta.method_settings)."""
 
@@ -906,6 +917,10 @@ class InfoOut(BaseModel):
     samples_per_pixel: list[int] = Field(
         default_factory=list,
         description="values of samples_per_pixel; a frame's longest side × √samples must stay ≤ limits.max_image_side",
+    )
+    max_recursion_depth: int | None = Field(None, description="most levels of the Whitted tracer's ray tree")
+    path: PathInfoOut | None = Field(
+        None, description="the path integrator's sample counts, depth and work per sample (limits.max_work counts it)"
     )
     render_timeout_s: float | None = Field(
         None, description="longest a frame may take; a frame that alone takes longer is answered with 422 (scene.n)"

@@ -21,6 +21,12 @@ const DEFAULT_LIMITS = Object.freeze({ max_image_side: 4096, max_spheres: 1 << 2
 const MUSEUM_ROOM = 576;            // renderer.animation.MUSEUM_ROOM_SPHERES, when /api/info does not say
 const MUSEUM_N_MAX = (1 << 21) - 1024;  // server.api.schemas.MuseumRecipe.n's bound
 const SUBPIXELS = { 1: 1, 4: 2, 9: 3, 16: 4 };
+const WHITTED_SAMPLES = [1, 4, 9, 16];
+const WHITTED_DEPTH = 8;            // renderer.limits.MAX_RECURSION_DEPTH, when /api/info does not say
+// The path integrator's counts, depth and segments per sample (renderer/cost.py), when /api/info does not say.
+const DEFAULT_PATH = Object.freeze({
+  samples_per_pixel: [1, 4, 16, 64, 256, 1024], max_samples: 4096, max_depth: 16, segments_limit: 6.58, segments_rate: 0.644,
+});
 
 const fmt = (x) => (Number.isFinite(x) ? Math.floor(x).toLocaleString('en') : String(x));
 const label = (name) => FIELD_LABELS[name] || name;
@@ -32,6 +38,38 @@ export function methodInfo(info, method) {
 
 function limitsOf(info) {
   return { ...DEFAULT_LIMITS, ...((info && info.limits) || {}) };
+}
+
+export function pathInfo(info) {
+  return { ...DEFAULT_PATH, ...((info && info.path) || {}) };
+}
+
+const isPath = (render) => render.integrator === 'path';
+
+// Segments (rays, shadow rays included) one path sample is expected to trace at max_recursion_depth
+// `depth`: renderer/cost.py's path_segments, with /api/info's numbers.
+export function pathSegments(depth, info) {
+  const p = pathInfo(info), d = Math.max(1, Math.floor(depth));
+  return Math.min(2 * d - 1, p.segments_limit - (p.segments_limit - 1) * p.segments_rate ** (d - 1));
+}
+
+// What the service's max_work caps (renderer/cost.py's request_work): Whitted's width × height × depth ×
+// samples (a ray tree's levels); a path frame's expected segments, width × height × samples × segments(depth).
+export function requestWork(render, info, { spp = render.samples_per_pixel || 1, depth = render.max_recursion_depth || 1 } = {}) {
+  const px = render.width * render.height;
+  return isPath(render) ? px * spp * pathSegments(depth, info) : px * depth * spp;
+}
+
+// The sample counts the sheet offers for the integrator at hand.
+export function sampleChoices(ctx) {
+  if (isPath(ctx.render)) return pathInfo(ctx.info).samples_per_pixel;
+  const listed = ctx.info && ctx.info.samples_per_pixel;
+  return Array.isArray(listed) && listed.length ? listed : WHITTED_SAMPLES;
+}
+
+// The deepest max_recursion_depth the integrator allows (before the work cap).
+export function maxDepth(ctx) {
+  return isPath(ctx.render) ? pathInfo(ctx.info).max_depth : (ctx.info && ctx.info.max_recursion_depth) || WHITTED_DEPTH;
 }
 
 // Spheres the scene has (the museum's n counts moving ones, on top of its room).
@@ -69,17 +107,19 @@ export function modesOf(ctx) {
   return methodInfo(ctx.info, ctx.render.method).modes;
 }
 
-// Samples per pixel a frame of width × height at this depth can have.
-export function samplesAllowed(ctx, values = [1, 4, 9, 16]) {
-  const L = limitsOf(ctx.info), r = ctx.render;
-  return values.filter((s) => (SUBPIXELS[s] || 1) * Math.max(r.width, r.height) <= L.max_image_side &&
-    r.width * r.height * r.max_recursion_depth * s <= L.max_work);
+// Samples per pixel a frame of width × height at this depth can have (the path integrator's samples
+// are paths, not sub-pixels: only the work cap bounds them).
+export function samplesAllowed(ctx, values = sampleChoices(ctx)) {
+  const L = limitsOf(ctx.info), r = ctx.render, path = isPath(r);
+  return values.filter((s) => (path ? s <= pathInfo(ctx.info).max_samples
+    : (SUBPIXELS[s] || 1) * Math.max(r.width, r.height) <= L.max_image_side) &&
+    requestWork(r, ctx.info, { spp: s }) <= L.max_work);
 }
 
 // {min, max, why} of a numeric setting, given the others in ctx.
 export function range(name, ctx) {
   const L = limitsOf(ctx.info), r = ctx.render;
-  const spp = r.samples_per_pixel || 1, k = SUBPIXELS[spp] || 1, d = r.max_recursion_depth || 1;
+  const spp = r.samples_per_pixel || 1, k = isPath(r) ? 1 : SUBPIXELS[spp] || 1, d = r.max_recursion_depth || 1;
   const bf = methodInfo(ctx.info, r.method).tests_every_sphere;
   const spheres = sceneSpheres(ctx);
   switch (name) {
@@ -102,19 +142,24 @@ export function range(name, ctx) {
     case 'width': case 'height': {
       const other = name === 'width' ? r.height : r.width;
       const bySide = Math.floor(L.max_image_side / k);
-      const byWork = Math.floor(L.max_work / (other * d * spp));
+      const byWork = Math.floor(L.max_work / (other * requestWork({ ...r, width: 1, height: 1 }, ctx.info)));
       const byBf = bf ? Math.floor(L.max_bruteforce_work / (other * d * spheres)) : Infinity;
       const max = Math.min(bySide, byWork, byBf);
       const why = max === bySide ? (k > 1 ? `at ${spp} samples per pixel (${k} × the side is traced, at most ${fmt(L.max_image_side)})` : '')
-        : max === byWork ? `at ${label(name === 'width' ? 'height' : 'width').toLowerCase()} ${other}, recursion depth ${d} and ${spp} samples per pixel`
+        : max === byWork ? `at ${label(name === 'width' ? 'height' : 'width').toLowerCase()} ${other}, recursion depth ${d} and ${spp} samples per pixel${isPath(r) ? ' (paths)' : ''}`
           : `${r.method} tests every sphere: at ${fmt(spheres)} spheres, ${label(name === 'width' ? 'height' : 'width').toLowerCase()} ${other} and recursion depth ${d}`;
       return { min: 8, max, why };
     }
     case 'max_recursion_depth': {
-      const byWork = Math.floor(L.max_work / (r.width * r.height * spp));
+      // The deepest the work cap admits: a path's segments grow with depth but saturate, so count up.
+      const top = maxDepth(ctx);
+      let byWork = 0;
+      while (byWork < top && requestWork(r, ctx.info, { depth: byWork + 1 }) <= L.max_work) byWork++;
+      byWork = byWork === top ? Infinity : byWork;
       const byBf = bf ? Math.floor(L.max_bruteforce_work / (r.width * r.height * spheres)) : Infinity;
-      const max = Math.min(8, byWork, byBf);
-      const why = max === 8 ? '' : max === byWork ? `at ${r.width} × ${r.height} and ${spp} samples per pixel`
+      const max = Math.min(top, byWork, byBf);
+      const why = max === top ? (isPath(r) ? '' : `with the Whitted tracer (up to ${pathInfo(ctx.info).max_depth} with the path integrator)`)
+        : max === byWork ? `at ${r.width} × ${r.height} and ${spp} samples per pixel`
         : `${r.method} tests every sphere: at ${fmt(spheres)} spheres and ${r.width} × ${r.height}`;
       return { min: 1, max, why };
     }
@@ -144,9 +189,17 @@ export function check(name, value, ctx) {
     return `${label(name)}: ${kind}${lo} … ${fmt(rg.max)}${rg.why ? ` ${rg.why}` : ''}`;
   }
   if (name === 'samples_per_pixel') {
+    const r = ctx.render, x = Number(value);
+    if (isPath(r)) {
+      // Any count of paths (a link may ask for one the sheet does not list), within the work cap.
+      const P = pathInfo(ctx.info), L = limitsOf(ctx.info);
+      if (Number.isInteger(x) && x >= 1 && x <= P.max_samples && requestWork(r, ctx.info, { spp: x }) <= L.max_work) return null;
+      const most = Math.min(P.max_samples, Math.floor(L.max_work / requestWork(r, ctx.info, { spp: 1 })));
+      return `${label(name)}: a whole number 1 … ${fmt(most)} for a ${r.width} × ${r.height} frame at recursion depth ` +
+        `${r.max_recursion_depth} with the path integrator (at most ${fmt(L.max_work)} expected path segments a frame)`;
+    }
     const allowed = samplesAllowed(ctx);
-    if (allowed.includes(Number(value))) return null;
-    const r = ctx.render;
+    if (allowed.includes(x)) return null;
     return `${label(name)}: ${allowed.join(', ') || 'none'} for a ${r.width} × ${r.height} frame at recursion depth ` +
       `${r.max_recursion_depth} (the traced frame may be at most ${fmt(limitsOf(ctx.info).max_image_side)} a side)`;
   }

@@ -12,7 +12,7 @@
 // their names, types and labels come from there; a declared setting the page has no field for gets
 // one, made from its declaration (a number input within its bounds, or a select of its choices).
 
-import { applies, check, modesOf, range, samplesAllowed } from './limits.js';
+import { applies, check, modesOf, range, sampleChoices, samplesAllowed } from './limits.js';
 import {
   DEFAULT_MUSEUM_N, DEFAULT_SCENE, FALLBACK_METHODS, FIELD_LABELS, METHOD_LABELS, MODE_LABELS, MODES, MODEL_FORMATS,
   MUSEUM_KINDS, PREVIEW_SCALES, RESOLUTIONS, SAMPLES, SCENARIOS, UPDATE_SCHEMES, learnSettings, meshKind, skyScenario,
@@ -164,6 +164,7 @@ export class SettingsPanel {
       el.value = String(v);
     };
     for (const k of SCENE_KEYS) if (!mesh || k === 'scenario' || k === 'motion') set(k, scene[k]);
+    this._fillSamples(render);
     for (const spec of this._specs()) set(spec.name, render[spec.name]);
     const known = RESOLUTIONS.some((r) => r.value === client.resolution);
     set('resolution', known ? client.resolution : 'custom');
@@ -206,10 +207,26 @@ export class SettingsPanel {
       el.min = String(rg.min);
       el.max = String(Math.max(rg.min, rg.max));
     }
+    this._fillSamples(ctx.render);
     const allowed = samplesAllowed(ctx, [...this.el('samples_per_pixel').options].map((o) => Number(o.value)));
     for (const o of this.el('samples_per_pixel').options) o.disabled = !allowed.includes(Number(o.value));
     const modes = modesOf(ctx);
     for (const o of this.el('mode').options) o.disabled = !!modes && !modes.includes(o.value);
+  }
+
+  // The samples select offers the integrator's counts — Whitted's sub-pixel grids, the path
+  // integrator's paths (GET /api/info's `path`) — and the session's own count of paths when a link
+  // asked for one the list does not have.
+  _fillSamples(render) {
+    const select = this.el('samples_per_pixel');
+    const path = render.integrator === 'path';
+    const values = [...sampleChoices({ info: this.info, render })];
+    const own = Number(render.samples_per_pixel);
+    if (path && Number.isInteger(own) && own > 0 && !values.includes(own)) values.push(own);
+    values.sort((a, b) => a - b);
+    const have = [...select.options].map((o) => Number(o.value));
+    if (have.length === values.length && have.every((v, i) => v === values[i])) return;
+    fillSelect(select, values.map((v) => (!path && SAMPLES.find((x) => x.value === v)) || { value: v, label: String(v) }));
   }
 
   // Whether the method and mode at hand read a setting (its declaration names them).
@@ -303,6 +320,16 @@ export class SettingsPanel {
       if (name === 'method') {
         const modes = modesOf(ctx);
         if (modes && !modes.includes(ctx.render.mode)) render.mode = 'color';
+      }
+      // Another integrator: samples and depth it cannot take go to the nearest it can, in the same change.
+      if (name === 'integrator') {
+        const spp = ctx.render.samples_per_pixel;
+        if (check('samples_per_pixel', spp, ctx)) {
+          const ok = samplesAllowed(ctx).filter((x) => x <= spp);
+          render.samples_per_pixel = ok.length ? ok[ok.length - 1] : 1;
+        }
+        const rg = range('max_recursion_depth', this._ctx({ render }));
+        if (ctx.render.max_recursion_depth > rg.max) render.max_recursion_depth = Math.max(1, rg.max);
       }
       this._layout();
       this.cb.onRender(render);

@@ -9,7 +9,15 @@ from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 
 from renderer.animation import MUSEUM_KINDS, MUSEUM_ROOM_SPHERES
-from renderer.limits import MAX_IMAGE_SIDE, SAMPLES_PER_PIXEL
+from renderer.cost import PATH_SEGMENTS_LIMIT, PATH_SEGMENTS_RATE
+from renderer.limits import (
+    MAX_IMAGE_SIDE,
+    MAX_PATH_DEPTH,
+    MAX_PATH_SAMPLES,
+    MAX_RECURSION_DEPTH,
+    PATH_SAMPLE_CHOICES,
+    SAMPLES_PER_PIXEL,
+)
 from renderer.methods import AUTO_METHOD, METHODS, resolve_method
 from renderer.modes import HEAT_SCALE, RECURSION_COLOR_NAMES, RECURSION_COLORS
 from renderer.profiles import PROFILES
@@ -46,6 +54,14 @@ def info_extras(config: ServerConfig) -> dict[str, Any]:
     """The parts of GET /api/info a client's settings form needs beyond the lists and limits."""
     return {
         "samples_per_pixel": list(SAMPLES_PER_PIXEL),
+        "max_recursion_depth": MAX_RECURSION_DEPTH,
+        "path": {
+            "samples_per_pixel": list(PATH_SAMPLE_CHOICES),
+            "max_samples": MAX_PATH_SAMPLES,
+            "max_depth": MAX_PATH_DEPTH,
+            "segments_limit": PATH_SEGMENTS_LIMIT,
+            "segments_rate": PATH_SEGMENTS_RATE,
+        },
         "render_timeout_s": config.render_timeout_s,
         "museum_room_spheres": MUSEUM_ROOM_SPHERES,
         "method_settings": {name: method_settings(name) for name in METHOD_NAMES},

@@ -67,3 +67,43 @@ test('valid values pass', () => {
   same([lim.check('width', 320, ctx({ width: 320 })), lim.check('n', 64, ctx({}, { n: 64 })),
     lim.check('samples_per_pixel', 4, ctx())], [null, null, null]);
 });
+
+// The path integrator: its sample counts are paths, its depth goes to 16, and a frame's work is
+// counted as the service counts it (renderer/cost.py's path_segments / request_work, from /api/info).
+const pathInfo = { ...info, max_recursion_depth: 8,
+  path: { samples_per_pixel: [1, 4, 16, 64, 256, 1024], max_samples: 4096, max_depth: 16, segments_limit: 6.58, segments_rate: 0.644 } };
+const pctx = (render = {}) => ({ ...ctx({ integrator: 'path', width: 126, height: 272, samples_per_pixel: 64, ...render }), info: pathInfo });
+
+test("a path sample's segments are the service's (renderer/cost.py's path_segments at depths 1, 2, 4, 8, 16)", () => {
+  const want = [1.0, 2.98648, 5.0896378892800005, 6.3236488497546715, 6.572415582889342];
+  [1, 2, 4, 8, 16].forEach((d, i) => assert.ok(Math.abs(lim.pathSegments(d, pathInfo) - want[i]) < 1e-12, `${d}`));
+});
+
+test('the sheet offers the path counts with the path integrator, the sub-pixel grids without', () => {
+  same([lim.sampleChoices(pctx()), lim.sampleChoices({ ...ctx(), info: { ...pathInfo, samples_per_pixel: [1, 4, 9, 16] } })],
+    [[1, 4, 16, 64, 256, 1024], [1, 4, 9, 16]]);
+});
+
+test('path counts the work cap admits: 126 × 272 at depth 8 up to 64, 503 × 1088 up to 4', () => {
+  same([lim.samplesAllowed(pctx()), lim.samplesAllowed(pctx({ width: 503, height: 1088 }))], [[1, 4, 16, 64], [1, 4]]);
+});
+
+test('path depth: up to 16, unless the work cap stops it (503 × 1088 × 16 paths: 3); Whitted stops at 8', () => {
+  same([lim.range('max_recursion_depth', pctx()).max,
+    lim.range('max_recursion_depth', pctx({ width: 503, height: 1088, samples_per_pixel: 16 })).max,
+    lim.range('max_recursion_depth', { ...ctx({ width: 126, height: 272 }), info: pathInfo }).max], [16, 3, 8]);
+  assert.match(lim.check('max_recursion_depth', 12, { ...ctx({ width: 126, height: 272, max_recursion_depth: 12 }), info: pathInfo }),
+    /Recursion depth: a whole number 1 … 8 with the Whitted tracer \(up to 16 with the path integrator\)/);
+  same(lim.check('max_recursion_depth', 16, pctx({ max_recursion_depth: 16 })), null);
+});
+
+test('any path count within the cap passes (a link may ask for 100); past it, the range is named', () => {
+  same([lim.check('samples_per_pixel', 100, pctx({ samples_per_pixel: 100 })), lim.check('samples_per_pixel', 64, pctx())], [null, null]);
+  assert.match(lim.check('samples_per_pixel', 256, pctx({ samples_per_pixel: 256 })),
+    /\(samples per pixel\): a whole number 1 … 174 for a 126 × 272 frame at recursion depth 8 with the path integrator/);
+});
+
+test('the path integrator traces no sub-pixels: its width is bounded by the work, not by 4096 / √samples', () => {
+  same(lim.range('width', pctx({ height: 16, samples_per_pixel: 16 })).max, 4096);
+  same(lim.range('width', pctx({ height: 1088, samples_per_pixel: 16 })).max, Math.floor(37879808 / (1088 * 16 * lim.pathSegments(8, pathInfo))));
+});

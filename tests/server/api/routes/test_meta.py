@@ -69,3 +69,19 @@ def test_info_states_the_triangle_cap_and_what_each_method_traces(api):
         "auto",
     }
     assert math.isfinite(api.get("/api/info").json()["limits"]["max_frame_cost"])
+
+
+def test_info_gives_a_client_the_path_counts_and_how_the_service_counts_a_path_frames_work(client):
+    """A settings sheet offers the path integrator's sample counts and depths and refuses what the work
+    cap refuses: the segments a sample traces at each depth, computed from /api/info's numbers as the
+    client does (ui/limits.js), are renderer/cost.py's, the cap's count."""
+    from renderer.cost import path_segments, request_work
+
+    info = client.get("/api/info").json()
+    p = info["path"]
+    assert p["samples_per_pixel"] == [1, 4, 16, 64, 256, 1024] and p["max_depth"] == 16 and p["max_samples"] == 4096
+    assert info["max_recursion_depth"] == 8
+    for d in range(1, p["max_depth"] + 1):
+        mine = min(2 * d - 1, p["segments_limit"] - (p["segments_limit"] - 1) * p["segments_rate"] ** (d - 1))
+        assert mine == pytest.approx(path_segments(d), rel=1e-12)
+        assert 126 * 272 * 64 * mine == pytest.approx(request_work(126, 272, d, 64, path=True), rel=1e-12)
