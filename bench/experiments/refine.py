@@ -85,8 +85,6 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     verdict = "meets" if lat["during_p90_ms"] <= 500 else "misses"
     return f"""## {TITLE}
 
-{run.caption(1, "")}
-
 A `python -m server` process (`POCKETRAY_QUEUE_SIZE=16`). **Memory**: {m["sessions"]} Cornell-box
 sessions (`integrator=path`, depth {m["depth"]}, png) refine at once, each through
 `GET …/frame?refine=1` to {m["samples"]} samples per pixel (docs/API.md, "Refinement"): the
@@ -96,6 +94,8 @@ pixel (within `POCKETRAY_MAX_ACCUMULATION_BYTES`, 256 MiB).
 
 {memory}
 
+{run.caption(1, "")}
+
 **Latency**: a light session (scenario 1, 16 spheres, Whitted, depth 2) asks 32 × 32 png frames
 one after another, alone and then while {lat["busy"]} Cornell-box sessions of the same size refine
 (streams to 65,536 samples, each past its first frame before the light frames start): client-side
@@ -104,4 +104,6 @@ frame first and holds it up by at most the slice in progress. Target: ≤ 0.5 s;
 {verdict} it at p90.
 
 {latency}
+
+{run.caption(f"{lat['frames']} frames each (median, p90, max)")}
 """

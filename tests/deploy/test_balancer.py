@@ -178,11 +178,15 @@ def test_a_killed_process_is_out_of_rotation_at_once(balancer):
     b = balancer(["ok", "ok"])
     b.procs[0].send_signal(signal.SIGKILL)
     b.procs[0].wait()
+    codes, waits = [], []
     with httpx.Client(base_url=b.url, timeout=10) as c:
-        t0 = time.monotonic()
-        codes = [c.get(f"/api/sessions/s{i}", headers={SESSION_HEADER: f"s{i}"}).status_code for i in range(8)]
-        elapsed = time.monotonic() - t0
+        for i in range(8):
+            t0 = time.monotonic()
+            codes.append(c.get(f"/api/sessions/s{i}", headers={SESSION_HEADER: f"s{i}"}).status_code)
+            waits.append(time.monotonic() - t0)
     status = b.status()
     assert codes == [200] * 8
-    assert status["render0"] == "DOWN" and status["render1"] == "UP", (status, f"{elapsed:.2f} s")
-    assert elapsed < 0.8, "a refused connection waited a second before it went to the other process"
+    assert status["render0"] == "DOWN" and status["render1"] == "UP", (status, waits)
+    # HAProxy's retry after a refused connection waits a whole second (its fixed turn-around) unless
+    # it redispatches at once: a request that took that second is the defect, however loaded the machine.
+    assert max(waits) < 1.0, f"a refused connection waited a second before it went to the other process: {waits}"
