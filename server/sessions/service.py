@@ -275,17 +275,8 @@ class SessionService:
             scene: SessionScene = AnimatedScene(grown, old.motions) if isinstance(old, AnimatedScene) else grown
         except SceneError as e:
             raise InputError((Where.BODY,), f"the model does not fit the scene: {e.field}: {e.message}") from None
-        source = scene_source(scene)
-        rev = secrets.token_hex(8)
-
-        def mutate(current: SessionState) -> SessionState:
-            if current.scene_rev != state.scene_rev:
-                raise Superseded("session: its scene changed while the model was read; send it again")
-            # no recipe any more: a scenario with a model in it is a scene of its own
-            return replace(current, scene_rev=rev, scene_info=scene_info(scene, None))
-
-        new = self._update(session_id, mutate, source)
-        self.cache.put((new.id, rev), scene)
+        # no recipe any more: a scenario with a model in it is a scene of its own
+        new = self._replace_scene(state, scene, "the model")
         index = len(grown.meshes) - 1
         return new, index, grown.triangle_id_base + grown.mesh_triangle_range(index).start
 
@@ -323,13 +314,19 @@ class SessionService:
             env,
         )
         scene: SessionScene = AnimatedScene(lit, old.motions) if isinstance(old, AnimatedScene) else lit
+        # no recipe any more: a scenario under another environment is a scene of its own
+        return self._replace_scene(state, scene, "the image")
+
+    def _replace_scene(self, state: SessionState, scene: SessionScene, read: str) -> SessionState:
+        """``scene`` (made from ``state``'s scene and something ``read`` meanwhile: a model file, an
+        image) as the session's scene, recipe-less, unless its scene changed since ``state``
+        (Superseded: nothing is written)."""
         source = scene_source(scene)
         rev = secrets.token_hex(8)
 
         def mutate(current: SessionState) -> SessionState:
             if current.scene_rev != state.scene_rev:
-                raise Superseded("session: its scene changed while the image was read; send it again")
-            # no recipe any more: a scenario under another environment is a scene of its own
+                raise Superseded(f"session: its scene changed while {read} was read; send it again")
             return replace(current, scene_rev=rev, scene_info=scene_info(scene, None))
 
         new = self._update(state.id, mutate, source)
