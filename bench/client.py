@@ -183,6 +183,18 @@ SHOWN_LOG = """() => { window.__shown = []; const poll = () => { const p = windo
   requestAnimationFrame(poll); }; poll(); }"""
 
 
+def short_drag(page, touch: Touch) -> float:
+    """A one-finger drag of 80 px in ten moves across the view; the page's clock (ms) just before
+    the last move: a frame asked for after it shows where the finger stopped."""
+    touch.send("touchStart", [(150, 400)])
+    for k in range(1, 10):
+        touch.send("touchMove", [(150 + 8 * k, 400)])
+    t_end = page.evaluate("() => performance.now()")
+    touch.send("touchMove", [(230, 400)])
+    touch.send("touchEnd", [])
+    return t_end
+
+
 def server_timeline(browser, url: str, query: str, move_s: float = 4.0, client_dir: str | None = None) -> dict:
     """The service's frames on the phone viewport: navigation → first image → final image (from the
     navigation's start, the page's clock); a 10-step one-finger drag → the first image after the
@@ -210,12 +222,7 @@ def server_timeline(browser, url: str, query: str, move_s: float = 4.0, client_d
         touch = Touch(ctx.new_cdp_session(page))
         # A gesture → its first image and the full frame.
         n0 = page.evaluate("() => window.pocketray.frameCount")
-        touch.send("touchStart", [(150, 400)])
-        for k in range(1, 10):
-            touch.send("touchMove", [(150 + 8 * k, 400)])
-        t_end = page.evaluate("() => performance.now()")
-        touch.send("touchMove", [(230, 400)])
-        touch.send("touchEnd", [])
+        t_end = short_drag(page, touch)
         wait_full(page, n0 + 1)
         page.wait_for_function("() => window.pocketray.lastFrame.part !== 'preview'", timeout=300_000)
         # The images asked for after the last move reached the page (shown − its time since the request):
@@ -385,12 +392,7 @@ def convergence_timeline(
         n_shown = len(load)
         n_parts = len(load_parts)
         touch = Touch(ctx.new_cdp_session(page))
-        touch.send("touchStart", [(150, 400)])
-        for k in range(1, 10):
-            touch.send("touchMove", [(150 + 8 * k, 400)])
-        t_end = page.evaluate("() => performance.now()")
-        touch.send("touchMove", [(230, 400)])
-        touch.send("touchEnd", [])
+        t_end = short_drag(page, touch)
         wait_refined(page, n_parts + 1)
         shown = page.evaluate("() => window.__shown")[n_shown:]
         gesture_parts = page.evaluate("() => window.pocketray.refinement.parts")[n_parts:]

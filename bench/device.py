@@ -74,6 +74,20 @@ SERVER_LOOP = """async (p) => {
 }"""
 
 
+def device_page(pw, url: str):
+    """A WebGL2 Chromium (GL_ARGS) with a small client page of the service at ``url`` ready, whose device
+    renderer renders any session by id: (browser, page, the device's probe). Exits when this Chromium
+    has no WebGL2 for the tracer."""
+    browser = pw.chromium.launch(executable_path=CHROMIUM, args=GL_ARGS, headless=True)
+    page = browser.new_page(viewport={"width": 360, "height": 640})
+    page.goto(f"{url}/?scenario=1&n=8&width=16&height=16&max_recursion_depth=1&renderer=server")
+    page.wait_for_function("() => window.pocketray && window.pocketray.status === 'ready'", timeout=120_000)
+    probe = page.evaluate("() => window.pocketray.device.probe()")
+    if not probe.get("ok"):
+        raise SystemExit(f"no WebGL2 for the tracer in this Chromium: {probe}")
+    return browser, page, probe
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--url", help="an already running service (default: start one)")
@@ -92,13 +106,7 @@ def main() -> None:
     try:
         with sync_playwright() as pw, httpx.Client(base_url=url, timeout=300) as http:
             gl_renderer = http.get("/api/ready").json().get("gl_renderer")
-            browser = pw.chromium.launch(executable_path=CHROMIUM, args=GL_ARGS, headless=True)
-            page = browser.new_page(viewport={"width": 360, "height": 640})
-            page.goto(f"{url}/?scenario=1&n=8&width=16&height=16&max_recursion_depth=1&renderer=server")
-            page.wait_for_function("() => window.pocketray && window.pocketray.status === 'ready'", timeout=120_000)
-            probe = page.evaluate("() => window.pocketray.device.probe()")
-            if not probe.get("ok"):
-                raise SystemExit(f"no WebGL2 for the tracer in this Chromium: {probe}")
+            browser, page, probe = device_page(pw, url)
             renderer = probe["renderer"]
             measured: dict[tuple[str, int, int], float] = {}  # (side, n, width) → one frame, s
             for w, h in SIZES:

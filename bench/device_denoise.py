@@ -25,7 +25,7 @@ import os
 import httpx
 import numpy as np
 
-from bench.device import CHROMIUM, GL_ARGS
+from bench.device import device_page
 from bench.latency import Server
 from renderer import mitsuba_scene
 from renderer.scenarios import mesh_scene
@@ -54,13 +54,7 @@ def main() -> None:
     load0 = os.getloadavg()[0]
     try:
         with sync_playwright() as pw, httpx.Client(base_url=server.url, timeout=300) as http:
-            browser = pw.chromium.launch(executable_path=CHROMIUM, args=GL_ARGS, headless=True)
-            page = browser.new_page(viewport={"width": 360, "height": 640})
-            page.goto(f"{server.url}/?scenario=1&n=8&width=16&height=16&max_recursion_depth=1&renderer=server")
-            page.wait_for_function("() => window.pocketray && window.pocketray.status === 'ready'", timeout=120_000)
-            probe = page.evaluate("() => window.pocketray.device.probe()")
-            if not probe.get("ok"):
-                raise SystemExit(f"no WebGL2 for the tracer in this Chromium: {probe}")
+            browser, page, probe = device_page(pw, server.url)
             sid = http.post("/api/sessions", json={"mesh_scene": CORNELL}).json()["id"]
 
             def frame(spp: int, denoise: str) -> tuple[float, np.ndarray]:
