@@ -106,9 +106,15 @@ class Shapes:
             raise SceneError("shapes", "not in id order (cylinders, cones, disks, tori)")
         if m.dtype.kind not in "iu":
             raise SceneError("shapes", f"material: expected integer indices, got {m.dtype}")
-        first = {k: int(np.searchsorted(kind, k)) for k in range(4)}
-        for i in range(len(kind)):
-            _check_row(p[i], int(kind[i]), i - first[int(kind[i])])
+        # The common case at C speed; only a bad record is walked in Python, to name its field.
+        bad = np.flatnonzero(~_rows_ok(p, kind))
+        if len(bad):
+            i = int(bad[0])
+            _check_row(p[i].copy(), int(kind[i]), i - int(np.searchsorted(kind, kind[i])))
+            raise AssertionError(f"shape {i} failed the fast check only")  # the two checks disagree
+        n = np.sqrt(_dot(p[:, 4:7], p[:, 4:7]))
+        off = np.abs(n - 1.0) > 4 * _EPS  # a unit axis stays as it is: JSON round trips are exact
+        p[off, 4:7] /= n[off, None]
         m = m.astype(np.int32)
         for a in (kind, p, m):
             a.setflags(write=False)
@@ -244,8 +250,28 @@ def _row_from_json(x: Any, k: int, j: int) -> list[float]:
     return row
 
 
+def _rows_ok(p: np.ndarray, kind: np.ndarray) -> np.ndarray:
+    """bool (N,): the records :func:`_check_row` accepts, all at once."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        ok = np.isfinite(p[:, :10]).all(axis=1) & (np.abs(p[:, 0:3]) <= MAX_COORDINATE).all(axis=1)
+        ok &= (p[:, 10] == kind) & (p[:, 11] == 0.0)
+        n = np.sqrt(_dot(p[:, 4:7], p[:, 4:7]))
+        ok &= (n > 1e-12) & np.isfinite(n)
+        r0, r1, h, caps = p[:, 3], p[:, 7], p[:, 8], p[:, 9]
+        in_range = (r0 <= MAX_COORDINATE) & (r1 <= MAX_COORDINATE)
+        tube = (kind == CYLINDER) | (kind == CONE)
+        ok &= np.where(
+            tube, (h > 0.0) & (h <= MAX_COORDINATE) & ((caps == 0.0) | (caps == 1.0)), (h == 0) & (caps == 0)
+        )
+        ok &= np.where(kind == CYLINDER, (r0 > 0.0) & (r1 == r0) & in_range, True)
+        ok &= np.where(kind == CONE, (r0 >= 0.0) & (r1 >= 0.0) & ((r0 > 0.0) | (r1 > 0.0)) & in_range, True)
+        ok &= np.where(kind == DISK, (r0 > 0.0) & in_range & (r1 >= 0.0) & (r1 < r0), True)
+        ok &= np.where(kind == TORUS, (r0 > 0.0) & in_range & (r1 > 0.0) & (r1 < r0), True)
+    return ok
+
+
 def _check_row(p: np.ndarray, k: int, j: int) -> None:
-    """Validate record ``p`` of shape ``j`` of kind ``k`` in place (its axis normalised)."""
+    """Validate record ``p`` of shape ``j`` of kind ``k``: a SceneError names its first bad field."""
     names = _FIELDS[k]
     for c in range(10):
         if not math.isfinite(p[c]):
@@ -258,8 +284,6 @@ def _check_row(p: np.ndarray, k: int, j: int) -> None:
     n = math.sqrt(float(p[4] * p[4] + p[5] * p[5] + p[6] * p[6]))
     if not n > 1e-12 or not math.isfinite(n):
         raise SceneError(_where(k, j, names[4]), "must be a non-zero vector")
-    if abs(n - 1.0) > 4 * _EPS:  # a unit axis stays as it is: JSON round trips are exact
-        p[4:7] /= n
 
     def radius(c: int, *, zero: bool = False, below: float | None = None, what: str = "") -> None:
         x = float(p[c])
@@ -570,13 +594,6 @@ def intersect(
     if len(hit):
         n_out[hit] = normals(shapes, id_out[hit], o[hit] + t_out[hit, None] * d[hit])
     return t_out, id_out, n_out
-
-
-def shape_rows(shapes: Shapes, kind: int) -> range:
-    """Indices of the shapes of one kind (they are contiguous: id order)."""
-    a = int(np.searchsorted(shapes.kind, kind))
-    b = int(np.searchsorted(shapes.kind, kind, side="right"))
-    return range(a, b)
 
 
 def reach(shapes: Shapes) -> np.ndarray:

@@ -438,6 +438,26 @@ def test_a_bad_shape_is_refused_naming_its_field_and_the_range(key, item, field,
     assert says in e.value.message
 
 
+def test_records_made_as_arrays_are_checked_as_json_is():
+    good = shapes_of(cylinders=[CYL], tori=[TORUS_])
+    p = good.params.copy()
+    p[0, 7] = 2.0  # a cylinder's number 7 must repeat its radius
+    with pytest.raises(SceneError) as e:
+        Shapes(good.kind, p, good.material)
+    assert e.value.field == "cylinders[0].radius"
+    p = good.params.copy()
+    p[1, 7] = 3.0  # the torus's minor radius past its major one
+    with pytest.raises(SceneError) as e:
+        Shapes(good.kind, p, good.material)
+    assert e.value.field == "tori[0].minor_radius"
+    with pytest.raises(SceneError) as e:
+        Shapes(good.kind[::-1].copy(), good.params[::-1], good.material)
+    assert e.value.field == "shapes" and "id order" in e.value.message
+    p = good.params.copy()
+    p[1, 4:7] = [0.0, 0.0, 2.0]
+    assert Shapes(good.kind, p, good.material).params[1, 4:7].tolist() == [0.0, 0.0, 1.0]
+
+
 def test_too_many_shapes_are_refused(monkeypatch):
     monkeypatch.setattr(limits, "MAX_SHAPES", 3)
     with pytest.raises(SceneError) as e:
