@@ -22,8 +22,13 @@ A motion covers a contiguous range of sphere ids ``first … first + count − 1
 the mesh as one body (its normals turn with it), a deformable one displaces each vertex by
 the wave of its rest position (smooth normals are then recomputed from the deformed
 triangles); an incoherent motion moves spheres only (flying vertices would tear a mesh
-apart). Ranges of different motions must not overlap, nor two motions move one mesh;
-spheres and meshes no motion covers are static.
+apart). With ``over: "shapes"`` the range ``first … first + count − 1`` is one of analytic
+shapes (:mod:`renderer.shapes`, in their id order) instead: a rigid motion moves their origins
+as it moves sphere centres and turns their axes with the body, a deformable one displaces
+each origin by the wave of its rest origin (the shape itself keeps its form and axis); an
+incoherent motion moves spheres only here too. Ranges of different motions over the same
+kind must not overlap, nor two motions move one mesh; spheres, meshes and shapes no motion
+covers are static.
 :func:`pose` evaluates all motions at a time ``t ≥ 0`` and returns the posed
 :class:`~renderer.scene.Scene` (absent spheres removed, so later ids shift down) together
 with, per posed sphere, its id in the animated scene and whether it moves.
@@ -51,6 +56,7 @@ from . import limits
 from .limits import MAX_TIME  # re-exported: seconds, the largest time a scene can be posed at
 from .scenarios import RED, TRANSPARENT
 from .scene import MAX_COORDINATE, Camera, Light, Material, Plane, Scene, SceneError, finite_number, finite_vec3
+from .shapes import reach as shape_reach
 
 
 def _num(v: Any, where: str, lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> float:
@@ -112,6 +118,7 @@ class RigidGroup:
     amplitude: tuple[float, float, float] = (0.0, 0.0, 0.0)
     period: float = 4.0
     mesh: int | None = None
+    over: str = "spheres"  # what first … first + count − 1 counts: "spheres" or "shapes"
     kind = "rigid"
 
     def validate(self, where: str) -> RigidGroup:
@@ -165,6 +172,7 @@ class Deformable:
     wavelength: float = 10.0
     speed: float = 4.0
     mesh: int | None = None
+    over: str = "spheres"
     kind = "deformable"
 
     def validate(self, where: str) -> Deformable:
@@ -205,6 +213,7 @@ class Incoherent:
     absent: float = 0.0
     seed: int = 0
     mesh: int | None = None
+    over: str = "spheres"
     kind = "incoherent"
 
     def validate(self, where: str) -> Incoherent:
@@ -263,9 +272,12 @@ Motion = RigidGroup | Deformable | Incoherent
 
 
 def motion_to_json(m: Motion) -> dict:
-    """A motion's JSON: ``first``/``count`` for a sphere range, ``mesh`` for a mesh (never both)."""
+    """A motion's JSON: ``first``/``count`` for a sphere range (``over: "shapes"``: a range of
+    analytic shapes; absent for spheres), ``mesh`` for a mesh (never both)."""
     d: dict[str, Any] = {"kind": m.kind}
-    skip = {"first", "count"} if m.mesh is not None else {"mesh"}
+    skip = {"first", "count", "over"} if m.mesh is not None else {"mesh"}
+    if m.over == "spheres":
+        skip.add("over")
     for f in fields(m):
         if f.name in skip:
             continue
@@ -286,7 +298,7 @@ def motion_from_json(d: Any, where: str) -> Motion:
     if unknown:
         raise SceneError(f"{where}.{sorted(unknown)[0]}", f"unknown field (allowed: kind, {', '.join(sorted(names))})")
     if d.get("mesh") is not None:
-        both = [k for k in ("first", "count") if k in d]
+        both = [k for k in ("first", "count", "over") if k in d]
         if both:
             raise SceneError(
                 f"{where}.{both[0]}", "a motion moves either a mesh (mesh) or a sphere range (first, count), not both"
@@ -314,10 +326,16 @@ class AnimatedScene:
         out: list[Motion] = []
         covered = np.zeros(n, dtype=bool)
         meshes = np.zeros(len(self.scene.meshes), dtype=bool)
+        shapes = np.zeros(self.scene.n_shapes, dtype=bool)
         for i, m in enumerate(self.motions):
             where = f"motions[{i}]"
             if not isinstance(m, (RigidGroup, Deformable, Incoherent)):
                 raise SceneError(where, "expected a motion")
+            if m.over not in ("spheres", "shapes"):
+                raise SceneError(f"{where}.over", f"one of spheres, shapes; got {m.over!r}")
+            if m.over == "shapes" and m.mesh is None:
+                out.append(self._shape_motion(m, where, shapes))
+                continue
             if m.mesh is not None:
                 if not self.scene.meshes:
                     raise SceneError(f"{where}.mesh", "the scene has no meshes")
@@ -353,8 +371,32 @@ class AnimatedScene:
         object.__setattr__(self, "motions", tuple(out))
         covered.setflags(write=False)
         meshes.setflags(write=False)
+        shapes.setflags(write=False)
         object.__setattr__(self, "_moving", covered)
         object.__setattr__(self, "_moving_meshes", meshes)
+        object.__setattr__(self, "_moving_shapes", shapes)
+
+    def _shape_motion(self, m: Motion, where: str, covered: np.ndarray) -> Motion:
+        """A motion over a range of analytic shapes, validated; marks the range in ``covered``."""
+        n = self.scene.n_shapes
+        if isinstance(m, Incoherent):
+            raise SceneError(
+                f"{where}.over", "an incoherent motion moves spheres only; use rigid or deformable for shapes"
+            )
+        if not n:
+            raise SceneError(f"{where}.over", "the scene has no analytic shapes")
+        first = _int(m.first, f"{where}.first", 0, n - 1)
+        _int(m.count, f"{where}.count", 0, n - first)
+        m = m.validate(where)
+        sl = slice(m.first, m.first + m.count)
+        if covered[sl].any():
+            raise SceneError(f"{where}.first", "the shape range overlaps another motion's")
+        covered[sl] = True
+        origins = self.scene.shapes.params[sl, 0:3]
+        reach = m.reach(origins) + float(shape_reach(self.scene.shapes)[sl].max(initial=0.0))
+        if not reach <= MAX_COORDINATE:
+            raise SceneError(where, f"would move shapes to coordinates of {reach:.3g}, beyond ±{MAX_COORDINATE:g}")
+        return m
 
     @property
     def moving(self) -> np.ndarray:
@@ -365,6 +407,11 @@ class AnimatedScene:
     def moving_meshes(self) -> np.ndarray:
         """bool (meshes,): meshes some motion moves."""
         return self._moving_meshes  # type: ignore[attr-defined]  # set by __post_init__, not a field
+
+    @property
+    def moving_shapes(self) -> np.ndarray:
+        """bool (analytic shapes,): shapes some motion moves."""
+        return self._moving_shapes  # type: ignore[attr-defined]  # set by __post_init__, not a field
 
     @property
     def camera(self) -> Camera:
@@ -382,6 +429,7 @@ class AnimatedScene:
         object.__setattr__(seen, "motions", self.motions)
         object.__setattr__(seen, "_moving", self._moving)  # type: ignore[attr-defined]  # set by __post_init__, not a field
         object.__setattr__(seen, "_moving_meshes", self._moving_meshes)  # type: ignore[attr-defined]  # set by __post_init__, not a field
+        object.__setattr__(seen, "_moving_shapes", self._moving_shapes)  # type: ignore[attr-defined]  # set by __post_init__, not a field
         return seen
 
     def to_json(self) -> dict:
@@ -412,7 +460,7 @@ def animated_scene_from_json(d: Any) -> AnimatedScene:
 class PosedFrame:
     """A posed scene, the animated-scene id of each of its spheres, and which of its tree
     primitives move: ``moving`` is bool over the posed spheres, then the triangles
-    (:mod:`renderer.accel.primitives`' index space)."""
+    (:mod:`renderer.accel.primitives`' index space; the analytic shapes are in no tree yet)."""
 
     scene: Scene
     ids: np.ndarray
@@ -441,9 +489,17 @@ def pose(anim: AnimatedScene, t: float) -> PosedFrame:
     c = base.sphere_centers.copy()
     alive = np.ones(base.n_spheres, dtype=bool)
     meshes = list(base.meshes)
+    origins = base.shapes.params[:, 0:3].copy()
+    axes = base.shapes.params[:, 4:7].copy()
     for m in anim.motions:
         if m.mesh is not None:
             meshes[m.mesh] = _posed_mesh(base.meshes[m.mesh], m, t)
+            continue
+        if m.over == "shapes":
+            sl = slice(m.first, m.first + m.count)
+            origins[sl] = m.centers(base.shapes.params[sl, 0:3], t, np.arange(m.first, m.first + m.count))
+            if isinstance(m, RigidGroup):  # the body turns: so do its shapes' axes
+                axes[sl] = base.shapes.params[sl, 4:7] @ m.rotation(t).T
             continue
         sl = slice(m.first, m.first + m.count)
         ids = np.arange(m.first, m.first + m.count, dtype=np.int64)
@@ -461,6 +517,7 @@ def pose(anim: AnimatedScene, t: float) -> PosedFrame:
         tuple(meshes),
         base.environment,
         base.environment_map,
+        base.shapes.with_placement(origins, axes) if anim.moving_shapes.any() else base.shapes,
     )
     tri_moving = (
         np.repeat(anim.moving_meshes, [mesh.n_triangles for mesh in base.meshes]) if base.meshes else np.zeros(0, bool)

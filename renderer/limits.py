@@ -91,6 +91,10 @@ MAX_MUSEUM_MOVING = MAX_SPHERES - 1024  # the Museum's moving spheres: room for 
 MAX_TRIANGLES = 1 << 20  # per scene, all meshes together
 MAX_MESH_VERTICES = 1 << 20  # per mesh
 MAX_MESHES = 256  # per scene
+# Analytic shapes (docs/FORMATS.md, "Analytic shapes"): cylinders, cones, disks and tori together.
+# Each is one 96-byte record; with MAX_SPHERES + MAX_TRIANGLES + MAX_SHAPES < 2^22 a tree index
+# over all three still fits the BIH's child index, as above.
+MAX_SHAPES = 1 << 16  # per scene
 
 # ---- model files ---------------------------------------------------------------------------
 # renderer/model_guard.py checks a model file's own numbers (counts, lengths, the node tree)

@@ -57,8 +57,17 @@ def integrator_methods(integrator: str) -> list[str]:
 
 def check_primitives(name: str, scene) -> None:
     """Refuse (SceneError ``method``) a scene with a kind of primitive the method does not
-    trace (``Capabilities.primitives``): the ray engines draw spheres and planes only."""
+    trace (``Capabilities.primitives``): the ray engines draw spheres and planes only; and
+    (SceneError ``shapes``) one with analytic shapes, which no GPU method traces yet."""
     caps = METHODS[name].capabilities
+    if scene.n_shapes:
+        # No shader intersects them yet: refused, not drawn without them.
+        raise SceneError(
+            "shapes",
+            f"not yet traced by the GPU methods: this scene has {scene.n_shapes:,} analytic shape(s) "
+            f"({', '.join(f'{n} {k}' for k, n in scene.shapes.counts().items() if n)}); "
+            "the float64 reference (renderer/reference.py) traces them",
+        )
     if scene.n_triangles and "triangles" not in caps.primitives:
         able = [m for m, x in METHODS.items() if "triangles" in x.capabilities.primitives]
         raise SceneError(

@@ -12,7 +12,11 @@ What is translated, term by term, so both renderers estimate the same integral:
   ``alpha = roughness``, when rough), and black; both rough lobes sample the visible normals as ours;
 - ``emission`` as an ``area`` emitter (the side the normal faces, as ours), the environment as a
   ``constant`` emitter (an image as an ``envmap``), a point light of ``color`` C as a ``point`` of intensity π·D²·C;
-- spheres, meshes (their world-space triangles) and planes (a square 10⁴ × the scene's size).
+- spheres, meshes (their world-space triangles) and planes (a square 10⁴ × the scene's size);
+- analytic shapes: a cylinder as Mitsuba's ``cylinder`` (an open tube) and its caps as two
+  ``disk`` s, a disk as a ``disk``. An annulus (``inner_radius`` > 0), a cone and a torus have
+  no Mitsuba 3 shape: a scene with one is refused (:class:`NoMitsubaShape`), not drawn
+  without it.
 
 Needs the ``mitsuba`` package (a test dependency); imported when called.
 """
@@ -25,7 +29,8 @@ from typing import Any
 import numpy as np
 
 from .gpu_layout import light_scale
-from .scene import Material, Scene
+from .scene import Material, Scene, SceneError
+from .shapes import CONE, CYLINDER, DISK, TORUS
 
 PLANE_EXTENT = 1e4  # a plane's square, in units of the scene's size
 
@@ -78,6 +83,50 @@ def _bsdf(m: Material) -> dict:
         bsdf = {"type": "blendbsdf", "weight": share, "bsdf_0": b, "bsdf_1": bsdf}
         weight += w
     return bsdf
+
+
+class NoMitsubaShape(SceneError):
+    """A shape of our scene that Mitsuba 3 has no form for (``field`` names it)."""
+
+
+def _placed(mi: Any, point: Any, n: np.ndarray, scale: float) -> Any:
+    """translate(point) · rotation of +z onto the unit vector n · scale: Mitsuba's disk and
+    rectangle face +z."""
+    axis = np.cross([0.0, 0.0, 1.0], n)
+    length = float(np.linalg.norm(axis))
+    angle = math.degrees(math.atan2(length, float(n[2])))
+    # Mitsuba's rotate takes the axis as given: a non-unit one makes a skewed transform.
+    axis = axis / length if length >= 1e-12 else np.array([1.0, 0.0, 0.0])
+    return mi.ScalarTransform4f().translate(list(point)).rotate(axis.tolist(), angle).scale([scale] * 3)
+
+
+def _disk(mi: Any, center: np.ndarray, normal: np.ndarray, radius: float, extras: dict) -> dict:
+    """Mitsuba's ``disk`` (the unit disk at z = 0 facing +z) placed at ``center`` facing ``normal``."""
+    return {"type": "disk", "to_world": _placed(mi, center.tolist(), normal, radius), **extras}
+
+
+def _shapes(mi: Any, scene: Scene) -> dict:
+    """The analytic shapes as Mitsuba shapes (module docstring); NoMitsubaShape for the others."""
+    out: dict[str, Any] = {}
+    sh = scene.shapes
+    for i in range(len(sh)):
+        p, kind, where = sh.params[i], int(sh.kind[i]), sh.where(i)
+        if kind in (CONE, TORUS):
+            raise NoMitsubaShape(where, f"Mitsuba 3 has no {'cone' if kind == CONE else 'torus'} shape")
+        if kind == DISK and p[7] > 0.0:
+            raise NoMitsubaShape(f"{where}.inner_radius", "Mitsuba 3 has no annulus (a disk with a hole)")
+        extras = _shape_extras(scene, int(sh.material[i]))
+        base, axis, radius = p[0:3], p[4:7], float(p[3])
+        if kind == DISK:
+            out[f"shape_{i}"] = _disk(mi, base, axis, radius, extras)
+            continue
+        assert kind == CYLINDER
+        top = base + p[8] * axis
+        out[f"shape_{i}"] = {"type": "cylinder", "p0": base.tolist(), "p1": top.tolist(), "radius": radius, **extras}
+        if p[9]:
+            out[f"shape_{i}_base"] = _disk(mi, base, -axis, radius, _shape_extras(scene, int(sh.material[i])))
+            out[f"shape_{i}_top"] = _disk(mi, top, axis, radius, _shape_extras(scene, int(sh.material[i])))
+    return out
 
 
 def _shape_extras(scene: Scene, mat: int) -> dict:
@@ -154,16 +203,7 @@ def scene_dict(
     for i, p in enumerate(scene.planes):
         n = np.asarray(p.normal, dtype=np.float64)
         # A rectangle faces +z: rotate +z onto n, about their cross product.
-        axis = np.cross([0.0, 0.0, 1.0], n)
-        angle = math.degrees(math.atan2(float(np.linalg.norm(axis)), float(n[2])))
-        if np.linalg.norm(axis) < 1e-12:
-            axis = np.array([1.0, 0.0, 0.0])
-        to_world = (
-            mi.ScalarTransform4f()
-            .translate(list(p.point))
-            .rotate(axis.tolist(), angle)
-            .scale([PLANE_EXTENT * size] * 3)
-        )
+        to_world = _placed(mi, p.point, n, PLANE_EXTENT * size)
         out[f"plane_{i}"] = {"type": "rectangle", "to_world": to_world, **_shape_extras(scene, p.material)}
     for i, mesh in enumerate(scene.meshes):
         r = scene.mesh_triangle_range(i)  # flat: a smooth mesh's vertex normals are not carried over
@@ -174,6 +214,7 @@ def scene_dict(
             "face_normals": True,
             **_shape_extras(scene, mesh.material),
         }
+    out.update(_shapes(mi, scene))
     return out
 
 

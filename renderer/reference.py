@@ -6,8 +6,11 @@ It implements ``docs/SHADING.md`` literally and independently of the shader:
 - brute force over every sphere, plane and triangle, nearest ``t > 0``, ties to the lower id;
 - triangles by the watertight test of Woop, Benthin & Wald (2013), written here on its own
   (:func:`triangle_hits`; SHADING.md, "Triangles");
+- analytic shapes (cylinders, cones, disks, tori) by :func:`renderer.shapes.intersect`, their
+  closed forms and the torus's bracketed quartic (SHADING.md, "Analytic shapes");
 - secondary rays start exactly at the hit point, self-intersection excluded by the
-  primitive-exclusion / far-root rule (no epsilon anywhere);
+  primitive-exclusion / far-root rule (an analytic shape: its root nearest 0 is dropped;
+  no epsilon anywhere);
 - Whitted/Phong shading with one shadow ray per light per hit, reflection and
   refraction up to ``settings.max_recursion_depth`` levels (1 = primary only);
 - every output mode of SHADING.md.
@@ -41,6 +44,7 @@ from .modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, heat_image, pri
 from .result import RenderResult
 from .scene import Camera, Scene
 from .settings import RenderSettings
+from .shapes import Shapes, intersect as shape_intersect, normals as shape_normals
 
 _EPS = float(np.finfo(np.float64).eps)
 # Rays intersected together (one reduction); bounds the candidate lists.
@@ -205,6 +209,8 @@ class _Geometry:
     emission: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (M, 3) radiance per material
     environment: np.ndarray = field(default_factory=lambda: np.zeros(3))  # what a ray meeting nothing sees
     environment_map: EnvironmentMap | None = None  # … or this image (its float64 bilinear lookup)
+    shapes: Shapes = field(default_factory=Shapes.empty)  # analytic shapes, ids shape_base …
+    shape_base: int = 0  # id of shape 0 (spheres + planes + triangles)
 
     @staticmethod
     def of(scene: Scene) -> _Geometry:
@@ -227,6 +233,7 @@ class _Geometry:
                     np.asarray(scene.sphere_materials, dtype=np.int64),
                     np.array([p.material for p in scene.planes], dtype=np.int64),
                     np.asarray(scene.triangle_materials, dtype=np.int64),
+                    np.asarray(scene.shapes.material, dtype=np.int64),
                 ]
             ),
             color=np.array([m.color for m in mats], dtype=np.float64).reshape(-1, 3),
@@ -243,6 +250,8 @@ class _Geometry:
             emission=np.array([m.emission for m in mats], dtype=np.float64).reshape(-1, 3),
             environment=np.array(scene.environment, dtype=np.float64),
             environment_map=scene.environment_map,
+            shapes=scene.shapes,
+            shape_base=scene.shape_id_base,
         )
 
     def normals(
@@ -254,14 +263,18 @@ class _Geometry:
         of its winding, and — smooth meshes — the normalised barycentric blend of its corner
         normals at the hit of ray (o, d) (the same test that found it gives the weights),
         flat ones the geometric normal. A blend that cancels to zero falls back to the
-        geometric normal."""
+        geometric normal. An analytic shape: both its outward normal at p
+        (:func:`renderer.shapes.normals`)."""
         sph = prim < self.n
-        tri = prim >= self.tris.base
+        shp = prim >= self.shape_base if len(self.shapes) else np.zeros(len(prim), bool)
+        tri = (prim >= self.tris.base) & ~shp
         geo = np.empty_like(p)
         i = prim[sph]
         geo[sph] = (p[sph] - self.centers[i]) / self.radii[i][:, None]
-        pl = ~sph & ~tri
+        pl = ~sph & ~tri & ~shp
         geo[pl] = self.plane_normals[prim[pl] - self.n]
+        if shp.any():
+            geo[shp] = shape_normals(self.shapes, prim[shp] - self.shape_base, p[shp])
         shade = geo.copy()
         if tri.any():
             j = prim[tri] - self.tris.base
@@ -494,6 +507,19 @@ def _triangle_candidates(
     return ri[ok], t[ok], tr.base + ti[ok]
 
 
+def _shape_candidates(
+    g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(ray, t, id) of each ray's nearest analytic shape with t > 0; a ray leaving a shape
+    ignores that shape's root nearest 0 (its own origin), not its other roots."""
+    if len(g.shapes) == 0 or len(o) == 0:
+        return _NO_PAIRS
+    own = np.where(src >= g.shape_base, src - g.shape_base, -1)
+    t, k, _ = shape_intersect(g.shapes, o, d, src=own)
+    ri = np.flatnonzero(k >= 0)
+    return ri, t[ri], g.shape_base + k[ri]
+
+
 def _reduce_nearest(count: int, rays: np.ndarray, ts: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per ray the smallest t; among exactly equal t the lowest id. (inf, −1) without candidates."""
     t = np.full(count, np.inf)
@@ -512,8 +538,8 @@ def nearest_hit(
 
     ``src`` is the primitive each ray leaves (−1 for primary rays) and ``far_only`` is
     True where that primitive is a sphere the ray enters (``dot(d, N) < 0``): for it only
-    the far root counts. Any other source primitive (a plane, a triangle) is ignored
-    (SHADING.md, no epsilon).
+    the far root counts. Any other source primitive (a plane, a triangle) is ignored, and a
+    source analytic shape's root nearest 0 (SHADING.md, no epsilon).
     """
     t_out = np.full(len(o), np.inf)
     id_out = np.full(len(o), -1, dtype=np.int64)
@@ -524,6 +550,7 @@ def nearest_hit(
             _far_root_candidates(g, o[sl], d[sl], src[sl], far_only[sl]),
             _plane_candidates(g, o[sl], d[sl], src[sl]),
             _triangle_candidates(g, o[sl], d[sl], src[sl]),
+            _shape_candidates(g, o[sl], d[sl], src[sl]),
         ]
         rays, ts, ids = (np.concatenate([p[k] for p in parts]) for k in range(3))
         t_out[sl], id_out[sl] = _reduce_nearest(sl.stop - sl.start, rays, ts, ids)
@@ -742,17 +769,17 @@ def heat_counts(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(nodes visited, gaps, primitive tests) per primary ray for ``settings.method``.
 
-    Brute force tests every sphere and triangle and visits no node. ``bih`` counts come from
-    the BIH traversal of docs/SHADING.md (:mod:`renderer.accel.bih_traverse`, the CPU mirror
-    of the shader's) over the spheres and triangles; a triangle test counts as a sphere
-    test does.
+    Brute force tests every sphere, triangle and analytic shape and visits no node. ``bih``
+    counts come from the BIH traversal of docs/SHADING.md (:mod:`renderer.accel.bih_traverse`,
+    the CPU mirror of the shader's) over the spheres and triangles (the analytic shapes are in
+    no tree yet: not counted); a triangle test counts as a sphere test does.
     """
     n_rays = len(o)
     if settings.method == "bruteforce":
         return (
             np.zeros(n_rays, np.int64),
             np.zeros(n_rays, np.int64),
-            np.full(n_rays, scene.n_spheres + scene.n_triangles, dtype=np.int64),
+            np.full(n_rays, scene.n_spheres + scene.n_triangles + scene.n_shapes, dtype=np.int64),
         )
     bih = build_for_scene(scene, settings.max_prims, settings.max_tree_depth)
     nodes, gaps, tests = [], [], []

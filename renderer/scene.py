@@ -9,7 +9,9 @@ Conventions (docs/FORMATS.md):
 - right-handed world, the camera is a pinhole at ``position`` looking at
   ``target``; ``fov_y`` is the vertical field of view in degrees;
 - primitive ids: spheres ``0 … n-1`` in scene order, then the planes, then the
-  triangles of each mesh in mesh order; -1 = no hit (:attr:`Scene.triangle_id_base`);
+  triangles of each mesh in mesh order, then the analytic shapes (cylinders, cones, disks,
+  tori: :mod:`renderer.shapes`); -1 = no hit (:attr:`Scene.triangle_id_base`,
+  :attr:`Scene.shape_id_base`);
 - a mesh is kept in world space: its optional ``transform`` is applied when it is made,
   so every tracer and tree sees the same float64 vertices (:class:`Mesh`).
 """
@@ -31,6 +33,7 @@ from .errors import SceneError  # re-exported: where the scene's callers import 
 
 # Largest coordinate magnitude accepted (float32 resolves a unit sphere up to it; limits.py).
 from .limits import MAX_COORDINATE  # re-exported
+from .shapes import KINDS as SHAPE_KINDS, Shapes
 
 if TYPE_CHECKING:
     from .envmap import EnvironmentMap
@@ -504,7 +507,8 @@ class Scene:
     (and the per-triangle arrays beside it).
 
     Ids (docs/FORMATS.md): spheres ``0 … n−1``, planes ``n … n+P−1``, then triangle ``j``
-    of the flattened list is ``triangle_id_base + j`` (``triangle_id_base = n + P``).
+    of the flattened list is ``triangle_id_base + j`` (``triangle_id_base = n + P``), then
+    analytic shape ``k`` of ``shapes`` is ``shape_id_base + k`` (``shape_id_base = n + P + T``).
     """
 
     camera: Camera
@@ -517,6 +521,7 @@ class Scene:
     meshes: tuple[Mesh, ...] = field(default_factory=tuple)
     environment: Vec3 = (0.0, 0.0, 0.0)  # the radiance a ray that meets nothing sees (black: none)
     environment_map: EnvironmentMap | None = None  # … or an image (renderer/envmap.py; the colour black)
+    shapes: Shapes = field(default_factory=Shapes.empty)  # cylinders, cones, disks, tori (renderer/shapes.py)
 
     # Upper bounds that keep one scene from exhausting the service.
     MAX_SPHERES = limits.MAX_SPHERES
@@ -573,6 +578,20 @@ class Scene:
         n_tri = sum(mesh.n_triangles for mesh in self.meshes)
         if n_tri > self.MAX_TRIANGLES:
             raise SceneError("meshes", f"at most {self.MAX_TRIANGLES} triangles per scene, got {n_tri}")
+        if not isinstance(self.shapes, Shapes):
+            raise SceneError("shapes", f"expected Shapes, got {type(self.shapes).__name__}")
+        bad = self.shapes.material >= len(self.materials)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise SceneError(
+                f"{self.shapes.where(i)}.material",
+                f"material index {int(self.shapes.material[i])} out of range "
+                f"(scene has {len(self.materials)} materials)",
+            )
+        bad = self.shapes.material < 0
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise SceneError(f"{self.shapes.where(i)}.material", f"must be >= 0, got {int(self.shapes.material[i])}")
         m = m.astype(np.int32)
         for a in (c, r, m):
             a.setflags(write=False)
@@ -611,8 +630,18 @@ class Scene:
         return sum(m.n_degenerate for m in self.meshes)
 
     @property
+    def n_shapes(self) -> int:
+        """Analytic shapes (cylinders, cones, disks, tori)."""
+        return len(self.shapes)
+
+    @property
     def n_primitives(self) -> int:
-        """Spheres + planes + triangles: one past the largest primitive id."""
+        """Spheres + planes + triangles + analytic shapes: one past the largest primitive id."""
+        return self.n_spheres + len(self.planes) + self.n_triangles + self.n_shapes
+
+    @property
+    def shape_id_base(self) -> int:
+        """The id of the first analytic shape: after the spheres, the planes and the triangles."""
         return self.n_spheres + len(self.planes) + self.n_triangles
 
     @property
@@ -673,9 +702,10 @@ class Scene:
         sphere_radii: np.ndarray,
         sphere_materials: np.ndarray,
         meshes: Sequence[Mesh] | None = None,
+        shapes: Shapes | None = None,
     ) -> Scene:
-        """The same camera, lights, materials and planes with other spheres (and meshes: the
-        same ones unless given), validated."""
+        """The same camera, lights, materials and planes with other spheres (and meshes and
+        analytic shapes: the same ones unless given), validated."""
         return Scene(
             self.camera,
             self.lights,
@@ -687,6 +717,7 @@ class Scene:
             tuple(self.meshes if meshes is None else meshes),
             self.environment,
             self.environment_map,
+            self.shapes if shapes is None else shapes,
         )
 
     def with_camera(self, camera: Camera) -> Scene:
@@ -715,6 +746,7 @@ class Scene:
         }
         if self.meshes:  # absent when there are none: a sphere scene's JSON is as it always was
             out["meshes"] = [m.to_json() for m in self.meshes]
+        out.update(self.shapes.to_json())  # each kind's key only when it has shapes
         if any(self.environment):  # absent when black, as it was before environments
             out["environment"] = {"color": list(self.environment)}
         if self.environment_map is not None:
@@ -725,7 +757,9 @@ class Scene:
     def from_json(d: Any, images: Mapping[str, np.ndarray] | None = None) -> Scene:
         """The scene of scene JSON; ``images``: the texels of the environment images a reference
         may name (an uploaded image's, beside the scene in the session store)."""
-        d = _object(d, "scene", {"camera", "lights", "materials", "spheres", "planes", "meshes", "environment"})
+        d = _object(
+            d, "scene", {"camera", "lights", "materials", "spheres", "planes", "meshes", "environment", *SHAPE_KINDS}
+        )
         env = _object(d.get("environment", {}), "environment", {"color", "image", "scale", "rotation_deg"})
         environment = finite_vec3(env.get("color", [0.0, 0.0, 0.0]), "environment.color")
         environment_map = environment_map_from_json(env, images)
@@ -762,6 +796,7 @@ class Scene:
             mesh = Mesh.from_json(x, f"meshes[{i}]")
             _material_index(mesh.material, f"meshes[{i}].material", max(len(materials), 1))
             meshes.append(mesh)
+        shapes = Shapes.from_json(d)
         return Scene(
             camera,
             tuple(lights),
@@ -773,6 +808,7 @@ class Scene:
             tuple(meshes),
             environment,
             environment_map,
+            shapes,
         )
 
 
