@@ -177,9 +177,13 @@ const int TORUS_ROOT_STEPS = 24;
 // minimum; −1: a concave one, its maximum): an end when sg·D' has one sign, else the root
 // of D' by Newton safeguarded with bisection.
 float torus_extremum(TorusRay tr, float lo, float hi, float sg) {
-    float glo = sg * torus_dD(tr, lo).x;
+    // An end on the axis (rho = 0) is the kink of a ray through it: D' jumps there from
+    // +2R·sqrt(k) to −2R·sqrt(k), so it is the end of a convex piece with the one-sided sign.
+    vec3 qlo = tr.qs + lo * tr.dq;
+    vec3 qhi = tr.qs + hi * tr.dq;
+    float glo = dot(qlo, qlo) > 0.0 ? sg * torus_dD(tr, lo).x : -1.0;
     if (glo >= 0.0) return lo;
-    float ghi = sg * torus_dD(tr, hi).x;
+    float ghi = dot(qhi, qhi) > 0.0 ? sg * torus_dD(tr, hi).x : 1.0;
     if (ghi <= 0.0) return hi;
     float x = 0.5 * (lo + hi);
     for (int i = 0; i < TORUS_EXTREMUM_STEPS; i++) {
@@ -275,7 +279,7 @@ float intersect_torus_bracket(vec3 o, vec3 d, vec4 v0, vec4 v1, vec4 v2, float t
         float x = tr.R * L2;
         float rc = x > 0.0 ? exp2(log2(x) / 3.0) : 0.0;
         float sc2 = (rc * rc - rm2) / k;
-        if (sc2 > 0.0) {
+        if (sc2 >= 0.0) {  // = 0: the ray meets the axis, D's kink there is the concave piece
             float sc = sqrt(sc2);
             b1 = clamp(sm - sc, lo, hi);
             b2 = clamp(sm + sc, lo, hi);

