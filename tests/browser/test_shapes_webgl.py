@@ -75,7 +75,15 @@ def test_shapes_glsl_compiles_in_webgl2_and_meets_the_oracle(webgl_page, name):
     o = np.concatenate([case.o[idx], np.zeros((n, 1), np.float32)], 1)
     d = np.concatenate([case.d[idx], np.zeros((n, 1), np.float32)], 1)
     res = webgl_page.evaluate(
-        RUN, [VERTEX, fragment_source("intersect_shape"), o.ravel().tolist(), d.ravel().tolist(), case.shape.ravel().tolist(), SIDE]
+        RUN,
+        [
+            VERTEX,
+            fragment_source("intersect_shape"),
+            o.ravel().tolist(),
+            d.ravel().tolist(),
+            case.shape.ravel().tolist(),
+            SIDE,
+        ],
     )
     assert "error" not in res, res.get("error")
     t = np.asarray(res["t"], dtype=np.float64)

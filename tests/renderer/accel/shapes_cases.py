@@ -532,4 +532,3 @@ def reference(name: str) -> tuple[np.ndarray, np.ndarray]:
     """A case's oracle (t, n), computed once per process."""
     c = BY_NAME[name]
     return oracle(c.o, c.d, c.shape)
-

@@ -12,8 +12,8 @@ from tests.renderer.accel.shapes_cases import (
     AGREEMENT,
     CASES,
     DEPTH_REL,
-    _torus_E,
     _local,
+    _torus_E,
     oracle,
     oracle_torus,
     pack,
@@ -80,7 +80,9 @@ def test_the_torus_oracle_agrees_with_dense_sampling():
     s = np.linspace(0, 10, 20001)
     first = np.full(200, np.inf)
     for i in range(200):
-        e = _torus_E(np.repeat(p[i : i + 1], len(s), 0), np.repeat(dl[i : i + 1], len(s), 0), s.astype(np.longdouble), 1.0, 0.3)[0]
+        e = _torus_E(
+            np.repeat(p[i : i + 1], len(s), 0), np.repeat(dl[i : i + 1], len(s), 0), s.astype(np.longdouble), 1.0, 0.3
+        )[0]
         ch = np.flatnonzero(np.diff(np.sign(e.astype(np.float64))) != 0)
         if ch.size:
             first[i] = s[ch[0]]

@@ -31,12 +31,12 @@ def fragment_source(function: str = "intersect_shape") -> str:
         "uniform sampler2D u_o;\nuniform sampler2D u_d;\n"
         "uniform vec4 u_v0;\nuniform vec4 u_v1;\nuniform vec4 u_v2;\nuniform float u_tmax;\n"
         "out vec4 o_hit;\n"
-        "const float BIG = 3.0e38;\n"
-        + (shader_dir() / "shapes.glsl").read_text()
-        + "\nvoid main() {\n"
+        "const float BIG = 3.0e38;\n" + (shader_dir() / "shapes.glsl").read_text() + "\nvoid main() {\n"
         "    ivec2 p = ivec2(gl_FragCoord.xy);\n"
         "    vec3 n;\n"
-        f"    float t = {function}(texelFetch(u_o, p, 0).xyz, texelFetch(u_d, p, 0).xyz, u_v0, u_v1, u_v2, u_tmax, n);\n"
+        "    vec3 o = texelFetch(u_o, p, 0).xyz;\n"
+        "    vec3 d = texelFetch(u_d, p, 0).xyz;\n"
+        f"    float t = {function}(o, d, u_v0, u_v1, u_v2, u_tmax, n);\n"
         "    o_hit = vec4(n, t);\n"
         "}\n"
     )
@@ -60,7 +60,13 @@ class ShapesGL:
         return self.programs[function]
 
     def run(
-        self, o: np.ndarray, d: np.ndarray, shape: np.ndarray, function: str = "intersect_shape", t_max: float = 1e30, repeat: int = 0
+        self,
+        o: np.ndarray,
+        d: np.ndarray,
+        shape: np.ndarray,
+        function: str = "intersect_shape",
+        t_max: float = 1e30,
+        repeat: int = 0,
     ) -> tuple[np.ndarray, np.ndarray, float]:
         """(t, n, seconds per draw) for rays o, d (N = side², float32) and the shape's (3, 4) records.
         With ``repeat`` > 0 the draw is timed over that many more draws (bench only)."""

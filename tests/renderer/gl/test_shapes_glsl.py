@@ -43,7 +43,10 @@ def test_each_kind_by_name_and_by_the_dispatcher(shapes_gl):
         "intersect_cylinder": (pack(S.CYLINDER, (0, 0, -1), (0, 0, 1), 0.5, 0.5, 2.0, True), [2.5, 4.0]),
         "intersect_cone": (pack(S.CONE, (0, 0, -1), (0, 0, 1), 1.0, 0.5, 2.0, True), [3.0 - 0.725, 4.0]),
         "intersect_disk": (pack(S.DISK, (0, 0, 0), (0, 0, 1), 1.0, 0.0), [S.BIG, 5.0]),
-        "intersect_torus": (pack(S.TORUS, (0, 0, 0), (0, 0, 1), 1.0, 0.25), [3.0 - 1.25 + 0.25 - np.sqrt(0.25**2 - 0.1**2), S.BIG]),
+        "intersect_torus": (
+            pack(S.TORUS, (0, 0, 0), (0, 0, 1), 1.0, 0.25),
+            [3.0 - 1.25 + 0.25 - np.sqrt(0.25**2 - 0.1**2), S.BIG],
+        ),
     }
     for name, (shape, want) in shapes.items():
         for fn in (name, "intersect_shape"):
