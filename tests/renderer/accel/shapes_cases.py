@@ -112,12 +112,12 @@ def oracle_quadric(o, d, v, t_max: float = T_MAX) -> tuple[np.ndarray, np.ndarra
     ts, ns = [], []
 
     def cap(zc, r_out, r_in, normal):
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             t = (zc - p[:, 2]) / dl[:, 2]
-        x = p[:, 0] + t * dl[:, 0]
-        y = p[:, 1] + t * dl[:, 1]
-        rr = x * x + y * y
-        ok = (dl[:, 2] != 0) & (rr <= r_out * r_out) & (rr >= r_in * r_in)
+            x = p[:, 0] + t * dl[:, 0]
+            y = p[:, 1] + t * dl[:, 1]
+            rr = x * x + y * y
+            ok = (dl[:, 2] != 0) & (rr <= r_out * r_out) & (rr >= r_in * r_in)
         ts.append(np.where(ok, t, np.inf))
         ns.append(np.broadcast_to(normal, (n_shape, 3)))
 
