@@ -28,6 +28,8 @@ def test_the_float32_copy_agrees_with_the_float64_oracle(case):
     assert t.dtype == np.float32 and n.dtype == np.float32
     sc = score(t, n, *reference(case.name))
     assert sc.agreement >= case.min_agreement, (case.name, sc)
+    exact = score(t, n, *reference(case.name, exact=True))
+    assert exact.agreement >= case.f64_min_agreement, (case.name, exact)
     hit = t < S.BIG
     assert np.allclose(np.linalg.norm(n[hit], axis=1), 1.0, atol=1e-5)
     assert np.isfinite(t).all() and np.isfinite(n).all()

@@ -1,7 +1,8 @@
 """shaders/shapes.glsl on the GPU (llvmpipe): every stability case of
 tests/renderer/accel/shapes_cases.py, one ray per pixel, against the float64 oracle (the
 target: ≥ 99.99 % of rays agree on hit/miss with depth within 1e-4 relative, unless the case
-pins a figure with its reason) and against the NumPy float32 copy (renderer/accel/shapes_f32.py)."""
+pins a figure with its reason; against the inputs as float32 stores them and as built in
+float64) and against the NumPy float32 copy (renderer/accel/shapes_f32.py)."""
 
 from __future__ import annotations
 
@@ -23,6 +24,8 @@ def test_the_shader_agrees_with_the_float64_oracle_and_the_float32_copy(shapes_g
     t, n, _ = shapes_gl.run(case.o, case.d, case.shape, "intersect_shape")
     sc = score(t, n, *reference(case.name))
     assert sc.agreement >= case.min_agreement, (case.name, sc)
+    exact = score(t, n, *reference(case.name, exact=True))
+    assert exact.agreement >= case.f64_min_agreement, (case.name, exact)
     assert np.isfinite(t).all() and np.isfinite(n).all()
     if case.why:  # a pinned case is beyond float32: two float32 codes round it differently
         return
