@@ -177,6 +177,7 @@ const int TORUS_ROOT_STEPS = 24;
 // minimum; −1: a concave one, its maximum): an end when sg·D' has one sign, else the root
 // of D' by Newton safeguarded with bisection.
 float torus_extremum(TorusRay tr, float lo, float hi, float sg) {
+    float tol = 1e-6 * (tr.R + tr.r);
     // An end on the axis (rho = 0) is the kink of a ray through it: D' jumps there from
     // +2R·sqrt(k) to −2R·sqrt(k), so it is the end of a convex piece with the one-sided sign.
     vec3 qlo = tr.qs + lo * tr.dq;
@@ -185,35 +186,53 @@ float torus_extremum(TorusRay tr, float lo, float hi, float sg) {
     if (glo >= 0.0) return lo;
     float ghi = dot(qhi, qhi) > 0.0 ? sg * torus_dD(tr, hi).x : 1.0;
     if (ghi <= 0.0) return hi;
-    float x = 0.5 * (lo + hi);
+    float x = lo + (hi - lo) * (-glo / (ghi - glo));  // the secant's zero
     for (int i = 0; i < TORUS_EXTREMUM_STEPS; i++) {
         vec2 g = sg * torus_dD(tr, x);
         if (g.x == 0.0) break;
         if (g.x < 0.0) lo = x; else hi = x;
         float xn = g.y > 0.0 ? x - g.x / g.y : 0.5 * (lo + hi);
-        if (!(xn > lo && xn < hi)) xn = 0.5 * (lo + hi);
-        if (xn == x || hi - lo <= 1e-7 * max(abs(lo), abs(hi))) break;
-        x = xn;
+        // Converged far below what decides a grazing pair: a dip of E deeper than E's own
+        // rounding (~1e-7·R·r) is at least 3e-4·sqrt(R·r) wide. Tested before the bracket:
+        // a converged step lands on the bracket's end, which must not trigger a bisection.
+        if (abs(xn - x) <= tol) {
+            x = clamp(xn, lo, hi);
+            break;
+        }
+        x = (xn > lo && xn < hi) ? xn : 0.5 * (lo + hi);
     }
     return x;
 }
 
-// The one root of E in [lo, hi], where E is monotone and changes sign: Newton from the end
-// where sg·E > 0 (Fourier's condition: on a convex piece (sg = +1) from the positive side,
-// on a concave one from the negative), which converges from that side without overshoot;
-// the bracket guards against rounding.
-float torus_root(TorusRay tr, float lo, float hi, float elo, float sg) {
+// The one root of E in [lo, hi], where E is monotone and changes sign, one end the piece's
+// extremum m (side = +1: m = lo, −1: m = hi), by Newton kept in the bracket. The start: the
+// root of E's quadratic model at m, E(m) + D''(m)/2·(s − m)², which lands next to the near
+// root of a grazing pair (Newton from the far end would halve the distance for many steps);
+// else the end where sg·E > 0 (Fourier's condition: from there Newton does not overshoot).
+float torus_root(TorusRay tr, float lo, float hi, float elo, float sg, float m, float em, float side) {
+    float tol = 1e-7 * (tr.R + tr.r);
     float x = sg * elo > 0.0 ? lo : hi;
+    float q = -em / torus_dD(tr, m).y;
+    if (q > 0.0) {
+        float xq = m + side * sqrt(q);
+        if (xq > lo && xq < hi) x = xq;
+    }
     bool neg_lo = elo < 0.0;
+    float last = 3.0e38;
     for (int i = 0; i < TORUS_ROOT_STEPS; i++) {
         float e = torus_E(tr, x);
         if (e == 0.0) break;
         if ((e < 0.0) == neg_lo) lo = x; else hi = x;
         float g = 2.0 * torus_dD(tr, x).x;
         float xn = g != 0.0 ? x - e / g : 0.5 * (lo + hi);
-        if (!(xn >= lo && xn <= hi)) xn = 0.5 * (lo + hi);
-        if (xn == x) break;
-        x = xn;
+        float step = abs(xn - x);
+        // Converged, or at E's rounding floor (a near-double root: the step stops shrinking).
+        if (step <= tol || (i > 1 && step >= last)) {
+            x = clamp(xn, lo, hi);
+            break;
+        }
+        last = step;
+        x = (xn >= lo && xn <= hi) ? xn : 0.5 * (lo + hi);
     }
     return x;
 }
@@ -296,11 +315,11 @@ float intersect_torus_bracket(vec3 o, vec3 d, vec4 v0, vec4 v1, vec4 v2, float t
             float em = torus_E(tr, m);
             float eb = torus_E(tr, b_);
             if ((ea < 0.0) != (em < 0.0) && m > a_) {
-                s_hit = torus_root(tr, a_, m, ea, sg);
+                s_hit = torus_root(tr, a_, m, ea, sg, m, em, -1.0);
                 break;
             }
             if ((em < 0.0) != (eb < 0.0) && b_ > m) {
-                s_hit = torus_root(tr, m, b_, em, sg);
+                s_hit = torus_root(tr, m, b_, em, sg, m, em, 1.0);
                 break;
             }
         }

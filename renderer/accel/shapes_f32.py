@@ -202,7 +202,7 @@ def torus_extremum(tr: TorusRay, lo: Arr, hi: Arr, sg: Arr) -> Arr:
     ghi = np.where(_dot(qhi, qhi) > 0, sg * torus_dD(tr, hi)[0], F(1))
     res = np.where(glo >= 0, lo, hi).astype(F)
     act = np.flatnonzero((glo < 0) & (ghi > 0))
-    x = (F(0.5) * (lo + hi)).astype(F)
+    x = (lo + (hi - lo) * _div(-glo, ghi - glo)).astype(F)  # the secant's zero (glo < 0 < ghi)
     for _ in range(TORUS_EXTREMUM_STEPS):
         if act.size == 0:
             break
@@ -213,22 +213,28 @@ def torus_extremum(tr: TorusRay, lo: Arr, hi: Arr, sg: Arr) -> Arr:
         stop = g1 == 0
         la = np.where(g1 < 0, xa, la)
         ha = np.where(g1 < 0, ha, xa)
-        xn = np.where(g2 > 0, xa - _div(g1, g2), F(0.5) * (la + ha))
-        xn = np.where((xn > la) & (xn < ha), xn, F(0.5) * (la + ha)).astype(F)
-        stop |= (xn == xa) | (ha - la <= F(1e-7) * np.maximum(np.abs(la), np.abs(ha)))
+        xn = np.where(g2 > 0, xa - _div(g1, g2), F(0.5) * (la + ha)).astype(F)
+        done = ~stop & (np.abs(xn - xa) <= F(1e-6) * (sub.R + sub.r))  # before the bracket (see the GLSL)
+        xb = np.where((xn > la) & (xn < ha), xn, F(0.5) * (la + ha))
         lo[act], hi[act] = la, ha
-        x[act] = np.where(stop, xa, xn)
-        act = act[~stop]
+        x[act] = np.where(stop, xa, np.where(done, np.clip(xn, la, ha), xb)).astype(F)
+        act = act[~(stop | done)]
     return np.where((glo < 0) & (ghi > 0), x, res).astype(F)
 
 
-def torus_root(tr: TorusRay, lo: Arr, hi: Arr, elo: Arr, sg: Arr) -> Arr:
-    """The one root of E in [lo, hi] (monotone there): Newton from Fourier's end, bracketed."""
+def torus_root(tr: TorusRay, lo: Arr, hi: Arr, elo: Arr, sg: Arr, m: Arr, em: Arr, side: Arr) -> Arr:
+    """The one root of E in [lo, hi] (monotone there, the extremum m at the end ``side``): Newton
+    in the bracket from the root of E's quadratic model at m, else from Fourier's end."""
     lo, hi = lo.copy(), hi.copy()
     x = np.where(sg * elo > 0, lo, hi).astype(F)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = -em / torus_dD(tr, m)[1]
+        xq = (m + side * np.sqrt(np.where(q > 0, q, F(0)))).astype(F)
+    x = np.where((q > 0) & (xq > lo) & (xq < hi), xq, x).astype(F)
     neg_lo = elo < 0
     act = np.arange(len(x))
-    for _ in range(TORUS_ROOT_STEPS):
+    last = np.full(len(x), BIG, dtype=F)
+    for i in range(TORUS_ROOT_STEPS):
         if act.size == 0:
             break
         sub = _take(tr, act)
@@ -239,12 +245,14 @@ def torus_root(tr: TorusRay, lo: Arr, hi: Arr, elo: Arr, sg: Arr) -> Arr:
         la = np.where(left, xa, la)
         ha = np.where(left, ha, xa)
         g = F(2) * torus_dD(sub, xa)[0]
-        xn = np.where(g != 0, xa - _div(e, g), F(0.5) * (la + ha))
-        xn = np.where((xn >= la) & (xn <= ha), xn, F(0.5) * (la + ha)).astype(F)
-        stop |= xn == xa
+        xn = np.where(g != 0, xa - _div(e, g), F(0.5) * (la + ha)).astype(F)
+        step = np.abs(xn - xa)
+        done = ~stop & ((step <= F(1e-7) * (sub.R + sub.r)) | ((i > 1) & (step >= last[act])))
+        last[act] = step
+        xb = np.where((xn >= la) & (xn <= ha), xn, F(0.5) * (la + ha))
         lo[act], hi[act] = la, ha
-        x[act] = np.where(stop, xa, xn)
-        act = act[~stop]
+        x[act] = np.where(stop, xa, np.where(done, np.clip(xn, la, ha), xb)).astype(F)
+        act = act[~(stop | done)]
     return x
 
 
@@ -331,7 +339,10 @@ def intersect_torus_bracket(o, d, v0, v1, v2, t_max) -> tuple[Arr, Arr]:
             hit = first | second
             if hit.any():
                 h_idx = np.flatnonzero(hit)
-                roots = torus_root(_take(sub, h_idx), lo_r[h_idx], hi_r[h_idx], e_r[h_idx], sg[h_idx])
+                side = np.where(first, F(-1), F(1))
+                roots = torus_root(
+                    _take(sub, h_idx), lo_r[h_idx], hi_r[h_idx], e_r[h_idx], sg[h_idx], m[h_idx], em[h_idx], side[h_idx]
+                )
                 s_hit[live[h_idx]] = roots
                 todo[live[h_idx]] = False
         a_ = np.maximum(a_, b_)
