@@ -203,7 +203,10 @@ class Variant:
     (``image_only``: png/jpeg frames at one sample per pixel), and whether it traces the
     spheres at all (``spheres`` False: the *background* variant of a primary-ray frame,
     drawn where no primary ray can meet a sphere, :func:`primary_rect`; it reads none of
-    the method's bindings)."""
+    the method's bindings). ``first_hits``: a pass of a frame whose first hits are rasterised
+    (:mod:`renderer.first_hits`; with ``spheres`` False): ``"planes"`` — the planes and misses,
+    everywhere — or ``"spheres"`` — one sphere per instance of its screen quad; both write
+    the hit's depth."""
 
     method: str
     mode: str
@@ -212,6 +215,7 @@ class Variant:
     blocks: tuple[str, ...] = ()
     image_only: bool = False
     spheres: bool = True
+    first_hits: str = ""
 
     @property
     def traced_depth(self) -> int:
@@ -553,13 +557,20 @@ def material_texture(scene: Scene) -> bool:
     return len(scene.materials) > MAX_UNIFORM_MATERIALS
 
 
+def sphere_keys(scene: Scene, ids: np.ndarray | None = None) -> np.ndarray:
+    """The record keys (id | material << SPHERE_MAT_SHIFT) of spheres ``ids`` (default: all,
+    in id order), uint32; without the leaf's ``last`` flag."""
+    ids = np.arange(scene.n_spheres, dtype=np.int64) if ids is None else ids
+    return ids.astype(np.uint32) | (scene.sphere_materials[ids].astype(np.uint32) << np.uint32(SPHERE_MAT_SHIFT))
+
+
 def sphere_records(scene: Scene, order: np.ndarray, last: np.ndarray | None = None) -> np.ndarray:
     """The records of spheres ``order`` (scene ids, in the order a method's leaves list them),
     ``last`` flagging the last record of each leaf: uint32 (k, 4), or (2k, 4) when the radii
     differ (the module's docstring)."""
     ids = np.asarray(order, dtype=np.int64).reshape(-1)
     k = len(ids)
-    key = ids.astype(np.uint32) | (scene.sphere_materials[ids].astype(np.uint32) << np.uint32(SPHERE_MAT_SHIFT))
+    key = sphere_keys(scene, ids)
     if last is not None:
         key |= np.where(np.asarray(last, dtype=bool), np.uint32(SPHERE_LAST), np.uint32(0))
     centres = np.ascontiguousarray(scene.sphere_centers[ids], dtype=np.float32).view(np.uint32)

@@ -75,6 +75,9 @@ MAX_MOTION_SEED = 2**63 - 1
 # 24 bits of mantissa: beyond 1e7 a unit sphere cannot be represented at all.
 MAX_COORDINATE = 1.0e7
 MAX_SPHERES = 1 << 21
+# first_hits=auto weighs rasterised first hits against the traversal up to this many spheres (past it the
+# quads' fragments, which grow with n, have always cost more: docs/RESULTS.md, "Peers").
+FIRST_HITS_AUTO_MAX_SPHERES = 65536
 MAX_PLANES = 8
 MAX_LIGHTS = 8
 MAX_MATERIALS = 256

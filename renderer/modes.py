@@ -18,6 +18,8 @@ MODES = ("color", "depth", "primid", "normal", "recursion", "heat", "cones")
 SINGLE_PASS_MODES = ("color", "depth", "primid", "normal", "recursion", "heat")
 # Modes that trace the whole ray tree (the others trace the primary ray only).
 RAY_TREE_MODES = ("color", "recursion")
+# Modes that show the primary hit alone (no shading, no spawned rays).
+PRIMARY_MODES = ("depth", "primid", "normal")
 # Modes whose image is the mean of √s × √s sub-pixels at samples_per_pixel = s; the others
 # (and every mode's depth, primid and normal arrays) show the ray through the pixel centre.
 AVERAGED_MODES = ("color", "recursion", "heat", "cones")

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 from . import limits
 from .limits import MAX_IMAGE_SIDE, MAX_PATH_DEPTH, MAX_PATH_SAMPLES, MAX_TIME, SAMPLES_PER_PIXEL
 from .methods import AUTO_METHOD, METHODS, capabilities, integrator_methods
-from .modes import MODES, RAY_TREE_MODES
+from .modes import MODES, PRIMARY_MODES, RAY_TREE_MODES
 from .scene import SceneError
 from .tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
 
@@ -36,6 +36,9 @@ TONE_MAPS = ("clamp", "reinhard", "aces")
 # The path integrator's denoiser (renderer/denoise.py): none, Intel Open Image Denoise, or the
 # edge-avoiding à-trous filter (renderer/atrous.py; the one a browser runs in device mode).
 DENOISERS = ("off", "oidn", "atrous")
+
+# How a primary-ray frame finds its first hits (renderer/first_hits.py).
+FIRST_HITS = ("auto", "trace", "raster")
 
 # The JSON types a setting can have (as JSON Schema names them) and their Python types.
 TYPES: dict[str, type] = {"integer": int, "number": float, "boolean": bool, "string": str}
@@ -183,6 +186,17 @@ SETTINGS: tuple[SettingSpec, ...] = (
         stored_since_first=True,
         sheet=True,
         client=True,
+    ),
+    SettingSpec(
+        "first_hits",
+        "string",
+        "auto",
+        "how primary-ray frames (depth, primid, normal) find first hits: trace (the method's traversal per "
+        "pixel), raster (each sphere's screen rectangle drawn, its fragments testing that sphere; not with "
+        "meshes) or auto (the cheaper by the cost model); the same ids and distances either way",
+        "First hits",
+        choices=FIRST_HITS,
+        modes=PRIMARY_MODES,
     ),
     SettingSpec(
         "max_prims",

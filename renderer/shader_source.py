@@ -86,6 +86,8 @@ def tracer_header(variant: Variant) -> str:
         defines.append("IMAGE_ONLY")
     if not variant.spheres:
         defines.append("BACKGROUND")
+    if variant.first_hits:
+        defines += ["FIRST_HITS", f"FIRST_HITS_{variant.first_hits.upper()}"]
     triangles = ""
     if "TRIANGLES" in variant.features:  # (only there: a sphere variant's text stays as it was)
         triangles = gpu_layout.triangle_constants() + "".join(
@@ -111,11 +113,14 @@ def tracer_source(
     blocks: tuple[str, ...] = (),
     image_only: bool = False,
     spheres: bool = True,
+    first_hits: str = "",
 ) -> str:
     """The fragment shader of one variant: method × mode × recursion depth × feature defines,
     and the host's choices (record arrays in uniform blocks, one RGBA8 image, the background
-    variant without spheres)."""
-    variant = Variant(method, mode, int(max_recursion_depth), tuple(extra_defines), tuple(blocks), image_only, spheres)
+    variant without spheres, a pass of rasterised first hits)."""
+    variant = Variant(
+        method, mode, int(max_recursion_depth), tuple(extra_defines), tuple(blocks), image_only, spheres, first_hits
+    )
     return variant_source(variant)
 
 
@@ -123,7 +128,7 @@ def variant_source(variant: Variant) -> str:
     """The fragment shader of ``variant``."""
     method_src = _with_includes(read(method_shader(variant.method)))
     text = (
-        read("raytrace.frag")
+        _with_includes(read("raytrace.frag"))
         .replace(HEADER_MARK, tracer_header(variant))
         .replace(METHOD_MARK, method_src)
         .replace(RECURSION_MARK, recursion_color_function())
@@ -214,9 +219,10 @@ def _with_includes(text: str) -> str:
     return "".join(lines)
 
 
-def vertex_source() -> str:
-    """The full-screen quad's vertex shader (the tracer and the ray engines' full-screen passes)."""
-    return read("fullscreen.vert")
+def vertex_source(first_hits: str = "") -> str:
+    """The full-screen quad's vertex shader (the tracer and the ray engines' full-screen passes),
+    or the spheres' screen quads of rasterised first hits (``first_hits`` ``"spheres"``)."""
+    return read("first_hits.vert" if first_hits == "spheres" else "fullscreen.vert")
 
 
 def pass_source(name: str, defines: tuple[str, ...] = ()) -> str:
@@ -228,6 +234,6 @@ def pass_source(name: str, defines: tuple[str, ...] = ()) -> str:
         + gpu_layout.glsl_header()
         + "".join(f"#define {d}\n" for d in defines)
         + gpu_layout.declarations(gpu_layout.RAY_ENGINE_BINDINGS)
-        + read("rayengine_common.glsl")
+        + _with_includes(read("rayengine_common.glsl"))
         + read(name)
     )

@@ -81,16 +81,7 @@ void decode_code(float code, out int skip, out int far_id) {
     else { skip = NO_PRIM; far_id = -c - 2; }
 }
 
-// A depth monotonic in t, exact: the bits of a positive float32 are ordered as
-// the floats, so t in [2^-62, 2^64) maps one-to-one onto the normal floats of
-// [2^-126, 1) by shifting the exponent by 64 (no rounding; clear depth 1.0
-// means "no hit"). t outside that range is clamped to its ends, where two
-// different t can tie (the lower id wins, as for exactly equal t).
-float depth_of(float t) {
-    uint b = floatBitsToUint(t);
-    b = clamp(b, 65u << 23, (191u << 23) - 1u);
-    return uintBitsToFloat(b - (64u << 23));
-}
+//@INCLUDE depth_order.glsl
 
 // The shadow ray of `light` from the surface texel px (SHADING.md):
 // false when there is no surface or the light does not face it.

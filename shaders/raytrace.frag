@@ -22,6 +22,14 @@ precision highp usampler2D;
 
 //@HEADER@
 
+#ifdef FIRST_HITS_SPHERES
+// First hits by rasterisation (renderer/first_hits.py): this fragment lies in one sphere's screen
+// rectangle, drawn as an instance of shaders/first_hits.vert; it tests that sphere alone and the
+// depth test (≤, instances in descending id order) keeps the nearest, lower id on a tie.
+flat in vec4 v_sphere;
+flat in uint v_key;
+#endif
+
 #ifdef IMAGE_ONLY
 layout(location = 0) out vec4 o_image;  // rgb = mode image rounded to 8 bits (an RGBA8 target)
 #else
@@ -36,6 +44,10 @@ const int NO_PRIM = -1;
 // is texel (i & mask, i >> shift): integer division per fetch costs llvmpipe
 // half of a brute-force frame. The shifts are read once per fragment (LAYOUT_INIT).
 int g_mat_shift;
+
+#ifdef FIRST_HITS
+//@INCLUDE depth_order.glsl
+#endif
 
 int row_shift(ivec2 size) { return int(log2(float(size.x)) + 0.5); }  // exact: a power of two
 
@@ -320,11 +332,21 @@ void main() {
     vec3 primary_n = vec3(0.0);
 
 #ifdef PRIMARY_ONLY
+#ifdef FIRST_HITS_SPHERES
+    // The primary ray's test of intersect_scene (test_sphere, no ray to skip), for one sphere.
+    Hit h0 = Hit(intersect_sphere(u_cam_pos, dir, v_sphere, false), SPHERE_ID(v_key), v_sphere, v_key);
+    if (h0.t >= BIG) discard;
+#else
     Hit h0 = intersect_scene(Query(u_cam_pos, dir, NO_PRIM, NO_PRIM, BIG, false));
+#endif
     if (h0.id != NO_PRIM) {
         Surface s0 = surface_at(u_cam_pos, dir, h0);
         primary_t = h0.t; primary_id = h0.id; primary_n = s0.n; deepest = 1;
     }
+#ifdef FIRST_HITS
+    // t's order as depth (shaders/depth_order.glsl): exact, so ≤ keeps what closer() keeps.
+    gl_FragDepth = h0.id == NO_PRIM ? 1.0 : depth_of(h0.t);
+#endif
 #else
 #ifdef TASK_STACK
     Task tasks[MAX_TASKS];

@@ -45,14 +45,15 @@ from typing import TYPE_CHECKING, Any, cast
 import moderngl
 import numpy as np
 
-from .. import gpu_layout
+from .. import first_hits, gpu_layout
 from ..gpu_layout import PackedScene, Variant
 from ..limits import PATH_SAMPLES_PER_PASS
 from ..methods import PreparedMethod
-from ..modes import AVERAGED_MODES
+from ..modes import AVERAGED_MODES, PRIMARY_MODES
 from ..result import RenderResult
 from ..scene import Scene
 from ..shader_source import known_bindings, tracer_bindings
+from .first_hits import FirstHitDraws
 from .textures import upload_blocks, upload_textures
 
 if TYPE_CHECKING:
@@ -117,7 +118,6 @@ class ImageOnlyResult(RenderResult):
 # plane) owe nothing to the spheres (heat is left out: brute force counts its tests on
 # every ray); of those, the modes that trace the primary ray only.
 BACKGROUND_MODES = ("depth", "primid", "normal", "color", "recursion")
-PRIMARY_MODES = ("depth", "primid", "normal")
 
 
 def plan_path_passes(samples: int, per_pass: int, first: int = 0) -> list[Pass]:
@@ -244,6 +244,15 @@ class TracerFrame:
         self.textures: list[moderngl.Texture] = []
         self.buffers: list[moderngl.Buffer] = []
         self.fbo: moderngl.Framebuffer | None = None
+        # Rasterised first hits (renderer/first_hits.py) instead of the traversal, when chosen.
+        self.raster = not self.one_shot and first_hits.chosen(
+            scene, settings, variant.path, variant.method, prepared.stats
+        )
+        if self.raster:
+            self.regions = None
+        if variant.mode in PRIMARY_MODES and not self.one_shot:
+            stats["first_hits"] = "raster" if self.raster else "trace"
+        self.first_hits: FirstHitDraws | None = None
         self.timings = {
             "build": prepared.build_ms,
             "update": prepared.build_ms,
@@ -280,6 +289,8 @@ class TracerFrame:
         self.block_units = upload_blocks(self.ctx, blocks, self.buffers)
         w, h = self._target_size()
         self.fbo = self.renderer.targets.acquire(w, h, self.variant.image_only, self.guides)
+        if self.raster:
+            self.first_hits = FirstHitDraws(self.renderer, self.scene, self.variant, self.fbo)
         self.ctx.finish()
         self.timings["upload"] = (time.perf_counter() - t0) * 1e3
 
@@ -338,11 +349,14 @@ class TracerFrame:
         rows = h - self._row if self.band_rows is None else min(max(1, int(self.band_rows)), h - self._row)
         t0 = time.perf_counter()
         assert self.fbo is not None, "the target is held until the last pass"
-        self.fbo.use()
-        for prog, vao, scissor in self._draws(w, h, self._row, rows):
-            self._bind(p, prog)
-            self.fbo.scissor = scissor
-            vao.render(moderngl.TRIANGLES)
+        if self.first_hits is not None:
+            self._raster_band(p, w, h, rows)
+        else:
+            self.fbo.use()
+            for prog, vao, scissor in self._draws(w, h, self._row, rows):
+                self._bind(p, prog)
+                self.fbo.scissor = scissor
+                vao.render(moderngl.TRIANGLES)
         self.ctx.finish()
         ms = (time.perf_counter() - t0) * 1e3
         self.timings["trace"] += ms
@@ -364,6 +378,24 @@ class TracerFrame:
                 self._result = self._compose()
                 self._centre = self._grid = None  # (an image-only frame's) the result holds what it needs
         return self.done
+
+    def _raster_band(self, p: Pass, w: int, h: int, rows: int) -> None:
+        """One band of a frame with rasterised first hits: the planes' pass, then the spheres' quads."""
+        fh = self.first_hits
+        assert fh is not None
+        if self._row == 0:
+            grid = (self.width * p.scale, self.height * p.scale)
+            offset = (p.sub or (0, 0))[0] + (p.cell or (0.5, 0.5))[0], (p.sub or (0, 0))[1] + (p.cell or (0.5, 0.5))[1]
+            fh.begin_pass(grid, float(p.scale), offset)
+        fh.depth_on()
+        fh.fbo.scissor = (0, self._row, w, rows) if rows < h else None
+        for prog, vao, instances in fh.draws():
+            self._bind(p, prog)
+            if instances:
+                vao.render(moderngl.TRIANGLES, instances=instances)
+            else:
+                vao.render(moderngl.TRIANGLES)
+        fh.depth_off()
 
     def _draws(self, w: int, h: int, y0: int, rows: int) -> list:
         """(program, vertex array, scissor) of the draws of one band of rows: the tracer, or
@@ -564,6 +596,11 @@ class TracerFrame:
         for b in self.buffers:
             b.release()
         self.buffers = []
+        if self.first_hits is not None:
+            self.stats["first_hit_quads"] = self.first_hits.count
+            self.stats["first_hit_fragments"] = round(self.first_hits.fragments)
+            self.first_hits.release()
+            self.first_hits = None
         if self.fbo is not None:
             self.fbo.scissor = None  # type: ignore[assignment]  # None: no scissor (moderngl's stubs omit it)
             self.renderer.targets.release(self.fbo)

@@ -37,6 +37,7 @@ from ..shader_source import tracer_bindings, tracer_source, vertex_source
 from ..tree_update import TreeUpdate
 from .context import GLUnavailable, create_context  # noqa: F401 - re-exported
 from .frame import TracerFrame, image_only
+from .raw_gl import RawGL
 from .ray_engine import RayEngineFrame, RayEnginePasses
 from .targets import TargetPool
 
@@ -74,6 +75,7 @@ class GLRenderer:
         quad = np.array([-1, -1, 1, -1, 1, 1, -1, -1, 1, 1, -1, 1], dtype=np.float32)
         self._quad = self.ctx.buffer(quad.tobytes())
         self._ray_engine: RayEnginePasses | None = None
+        self._raw_gl: RawGL | None = None
 
     @property
     def ray_engine(self) -> RayEnginePasses:
@@ -81,6 +83,13 @@ class GLRenderer:
         if self._ray_engine is None:
             self._ray_engine = RayEnginePasses(self.ctx, self.max_texture_width)
         return self._ray_engine
+
+    @property
+    def raw_gl(self) -> RawGL:
+        """The GL calls moderngl does not wrap (a float depth buffer for rasterised first hits)."""
+        if self._raw_gl is None:
+            self._raw_gl = RawGL()
+        return self._raw_gl
 
     @property
     def info(self) -> dict[str, str]:
@@ -95,18 +104,22 @@ class GLRenderer:
         blocks: tuple[str, ...] = (),
         image_only: bool = False,
         spheres: bool = True,
-    ) -> tuple[moderngl.Program, moderngl.VertexArray]:
+        first_hits: str = "",
+    ) -> tuple[moderngl.Program, moderngl.VertexArray | None]:
         """The compiled variant, cached by method × mode × recursion depth × feature set ×
-        the host's choices (record arrays in uniform blocks, RGBA8 image, background)."""
-        key = (method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only), bool(spheres))
+        the host's choices (record arrays in uniform blocks, RGBA8 image, background, a pass of
+        rasterised first hits), and its full-screen vertex array (None for the spheres' quads:
+        their instances are the frame's, :mod:`renderer.gl.first_hits`)."""
+        key = (method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only), bool(spheres), first_hits)
         if key not in self._programs:
             src = tracer_source(
-                method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only), bool(spheres)
+                method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only), bool(spheres), first_hits
             )
-            prog = self.ctx.program(vertex_shader=vertex_source(), fragment_shader=src)
+            prog = self.ctx.program(vertex_shader=vertex_source(first_hits), fragment_shader=src)
             self._programs[key] = prog
-            self._vaos[key] = self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
-        return self._programs[key], self._vaos[key]
+            if first_hits != "spheres":
+                self._vaos[key] = self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
+        return self._programs[key], self._vaos.get(key)
 
     def render(
         self,

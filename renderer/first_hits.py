@@ -1,0 +1,162 @@
+"""First hits by rasterisation: a primary-ray frame without a traversal per pixel.
+
+Every sphere's primary rays fill a region of the image; its bounding rectangle is drawn as a
+quad (one instance per sphere, ``shaders/first_hits.vert``) whose fragments test that sphere
+alone with the tracer's own ray and test (``FIRST_HITS_SPHERES`` in ``shaders/raytrace.frag``).
+The depth test keeps the nearest: the depth is t's exact order (``shaders/depth_order.glsl``)
+and the instances come in descending id order under ≤, so on a tie the lower id, drawn later,
+wins — :func:`closer`'s rule. A pass of the planes (and misses) comes first, writing their
+depth. The same ids and distances as the traversal, bit for bit (tests/renderer/gl/
+test_first_hits.py): the fragment computes the same float32 ray and the same test.
+
+The rectangle is exact in float64: with the camera's orthonormal (right, up, forward) and a
+sphere at (x, y, z) in that frame, radius r, the rays of image-plane coordinate u (directions
+forward + u·right + v·up) form the plane x' = u·z' through the eye; it meets the sphere when
+|x − u z| ≤ r √(1 + u²), so u lies between the roots of (z² − r²) u² − 2xz u + x² − r² = 0 (the
+same in v with y). A sphere reaching the camera's plane (z ≤ r) has no such bound and covers the
+whole frame; one wholly behind it (z < −r) is dropped. The rectangle is widened by one fragment
+for the float32 rounding of rays and spheres.
+
+GL-free: the quads are data for :mod:`renderer.gl.frame`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Protocol
+
+import numpy as np
+
+from . import cost, gpu_layout, limits
+from .modes import PRIMARY_MODES
+from .scene import Scene
+
+
+class FrameSettings(Protocol):
+    """What of a frame's settings the choice reads (:class:`renderer.settings.RenderSettings` has it;
+    named here so that the core need not import the settings and the methods)."""
+
+    first_hits: str
+    mode: str
+    width: int
+    height: int
+
+    @property
+    def supersampling(self) -> int: ...
+
+
+# The per-instance record of shaders/first_hits.vert (total: 36 bytes): the quad's corners in
+# normalised device coordinates, the sphere as float32 (centre, radius), its record key.
+INSTANCE = np.dtype([("rect", "<f4", 4), ("sphere", "<f4", 4), ("key", "<u4")])
+INSTANCE_FORMAT = "4f 4f 1u/i"
+INSTANCE_ATTRIBUTES = ("a_rect", "a_sphere", "a_key")
+# A sphere this close to the camera's plane (z ≤ r · (1 + NEAR_SLACK)) covers the whole frame.
+NEAR_SLACK = 1e-6
+MARGIN = 1.0  # fragments the rectangle is widened by on every side
+
+
+def eligible(scene: Scene, mode: str, path: bool) -> bool:
+    """Whether a frame can take its first hits from rasterised spheres: primary rays only (the
+    modes of :data:`~renderer.modes.PRIMARY_MODES`), spheres and planes only (no triangles)."""
+    return mode in PRIMARY_MODES and not path and scene.n_triangles == 0
+
+
+def chosen(scene: Scene, settings: FrameSettings, path: bool, method: str, stats: dict[str, Any]) -> bool:
+    """Whether the frame rasterises its first hits: the ``first_hits`` setting, ``auto`` by
+    :func:`cheaper` (``method`` and its build's ``stats``: the traversal's estimate)."""
+    how = getattr(settings, "first_hits", "trace")
+    if how == "trace" or not eligible(scene, settings.mode, path):
+        return False
+    return how == "raster" or cheaper(scene, settings, method, stats)
+
+
+def cheaper(scene: Scene, settings: FrameSettings, method: str, stats: dict[str, Any]) -> bool:
+    """The cost model's choice for ``auto`` (:func:`renderer.cost.first_hits_ms` against
+    :func:`renderer.cost.traversal_ms`). Not past ``FIRST_HITS_AUTO_MAX_SPHERES`` spheres (their
+    quads would cost more to make than most frames to trace), nor without spheres (nothing to win)."""
+    n = scene.n_spheres
+    if n == 0 or n > limits.FIRST_HITS_AUTO_MAX_SPHERES:
+        return False
+    w, h, k = settings.width, settings.height, settings.supersampling
+    passes = 1 if settings.mode in PRIMARY_MODES else k * k
+    fragments = covered_fragments(instances(scene, (w, h), (w, h)), (w, h)) * passes
+    raster = cost.first_hits_ms(fragments, w * h * passes, bool(scene.planes))
+    return raster < cost.traversal_ms(method, stats, scene, settings)
+
+
+def image_bounds(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per sphere, the image-plane ranges its primary rays can have: ``u`` (n, 2) and ``v`` (n, 2)
+    (the coordinates of :func:`renderer.gpu_layout.camera_uniforms`: u = (2x/W − 1)·half_extent.x),
+    and ``state`` (n,) int8: 0 bounded, 1 the whole frame (reaches the camera's plane), −1 none
+    (wholly behind the camera). float64, from the float32 spheres the records hold."""
+    c = scene.sphere_centers.astype(np.float32).astype(np.float64)
+    r = scene.sphere_radii.astype(np.float32).astype(np.float64)
+    right, up, forward = scene.camera.basis()
+    p = c - np.asarray(scene.camera.position, dtype=np.float32).astype(np.float64)
+    x, y, z = p @ right, p @ up, p @ forward
+    state = np.zeros(len(r), dtype=np.int8)
+    state[z <= r * (1.0 + NEAR_SLACK)] = 1
+    state[z < -r] = -1
+    a = np.where(state == 0, z * z - r * r, 1.0)
+
+    def roots(w: np.ndarray) -> np.ndarray:
+        s = r * np.sqrt(np.maximum(w * w + z * z - r * r, 0.0))
+        return np.stack([(w * z - s) / a, (w * z + s) / a], axis=1)
+
+    return roots(x), roots(y), state
+
+
+def instances(
+    scene: Scene,
+    grid: tuple[int, int],
+    target: tuple[int, int],
+    scale: float = 1.0,
+    offset: tuple[float, float] = (0.5, 0.5),
+    keys: np.ndarray | None = None,
+    bounds: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
+    """The quads of one pass (:data:`INSTANCE` records, descending id, off-frame ones dropped).
+
+    ``grid``: the pass's ray grid (W, H) (``u_resolution``); ``target``: the window (fragments);
+    ``scale`` and ``offset``: the pass uniforms (a fragment at x traces grid column
+    (x − ½)·scale + offset.x, rows from the top). ``keys``: the spheres' record keys (default: id |
+    material, as :func:`renderer.gpu_layout.sphere_records`); ``bounds``: :func:`image_bounds`,
+    when the caller has it already."""
+    n = scene.n_spheres
+    if n == 0:
+        return np.zeros(0, dtype=INSTANCE)
+    u, v, state = image_bounds(scene) if bounds is None else bounds
+    gw, gh = float(grid[0]), float(grid[1])
+    tw, th = float(target[0]), float(target[1])
+    s = math.tan(math.radians(scene.camera.fov_y) / 2.0)
+    hx, hy = s * gw / gh, s
+    px = (u / hx + 1.0) * gw / 2.0  # grid columns, (n, 2) ascending
+    row = (1.0 - v[:, ::-1] / hy) * gh / 2.0  # grid rows from the top, ascending
+    fx = (px - offset[0]) / scale + 0.5  # fragment x of those columns
+    fy = (gh - row[:, ::-1] - offset[1]) / scale + 0.5  # fragment y (from the bottom), ascending
+    x0 = np.clip(fx[:, 0] - MARGIN, 0.0, tw)
+    x1 = np.clip(fx[:, 1] + MARGIN, 0.0, tw)
+    y0 = np.clip(fy[:, 0] - MARGIN, 0.0, th)
+    y1 = np.clip(fy[:, 1] + MARGIN, 0.0, th)
+    whole = state == 1
+    x0[whole], y0[whole], x1[whole], y1[whole] = 0.0, 0.0, tw, th
+    keep = (state >= 0) & (x1 > x0) & (y1 > y0)
+    ids = np.flatnonzero(keep)[::-1]
+    out = np.empty(len(ids), dtype=INSTANCE)
+    out["rect"] = np.stack(
+        [2.0 * x0[ids] / tw - 1.0, 2.0 * y0[ids] / th - 1.0, 2.0 * x1[ids] / tw - 1.0, 2.0 * y1[ids] / th - 1.0], axis=1
+    )
+    out["sphere"][:, :3] = scene.sphere_centers[ids]
+    out["sphere"][:, 3] = scene.sphere_radii[ids]
+    if keys is None:
+        keys = gpu_layout.sphere_keys(scene)
+    out["key"] = keys[ids]
+    return out
+
+
+def covered_fragments(quads: np.ndarray, target: tuple[int, int]) -> float:
+    """Fragments the quads of one pass shade (their areas in the window; overlaps counted each time)."""
+    if len(quads) == 0:
+        return 0.0
+    r = quads["rect"].astype(np.float64)
+    return float(np.sum((r[:, 2] - r[:, 0]) * (r[:, 3] - r[:, 1])) * target[0] * target[1] / 4.0)
