@@ -27,6 +27,7 @@ EXPERIMENTS = (
     "scaling",
     "crossover",
     "peers",
+    "peers_path",
     "pareto",
     "path",
     "specialize",
