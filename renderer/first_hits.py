@@ -49,7 +49,7 @@ class FrameSettings(Protocol):
 # normalised device coordinates, the sphere as float32 (centre, radius), its record key.
 INSTANCE = np.dtype([("rect", "<f4", 4), ("sphere", "<f4", 4), ("key", "<u4")])
 INSTANCE_FORMAT = "4f 4f 1u/i"
-INSTANCE_ATTRIBUTES = ("a_rect", "a_sphere", "a_key")
+INSTANCE_ATTRIBUTES: tuple[str, ...] = ("a_rect", "a_sphere", "a_key")
 # A sphere this close to the camera's plane (z ≤ r · (1 + NEAR_SLACK)) covers the whole frame.
 NEAR_SLACK = 1e-6
 MARGIN = 1.0  # fragments the rectangle is widened by on every side
@@ -64,28 +64,36 @@ def eligible(scene: Scene, mode: str, path: bool) -> bool:
 def chosen(scene: Scene, settings: FrameSettings, path: bool, method: str, stats: dict[str, Any]) -> str:
     """How the frame finds its first hits if not by the traversal: ``"raster"`` (a quad per sphere),
     ``"tiles"`` (a quad per tile and its list) or ``""`` (the traversal) — the ``first_hits``
-    setting, ``auto`` by :func:`cheaper` (``method`` and its build's ``stats``: the traversal's
+    setting, ``auto`` by :func:`cheapest` (``method`` and its build's ``stats``: the traversal's
     estimate)."""
     how = getattr(settings, "first_hits", "trace")
     if how == "trace" or not eligible(scene, settings.mode, path):
         return ""
     if how in ("raster", "tiles"):
         return how
-    return "raster" if cheaper(scene, settings, method, stats) else ""
+    return cheapest(scene, settings, method, stats)
 
 
-def cheaper(scene: Scene, settings: FrameSettings, method: str, stats: dict[str, Any]) -> bool:
-    """The cost model's choice for ``auto`` (:func:`renderer.cost.first_hits_ms` against
-    :func:`renderer.cost.traversal_ms`). Not past ``FIRST_HITS_AUTO_MAX_SPHERES`` spheres (their
-    quads would cost more to make than most frames to trace), nor without spheres (nothing to win)."""
+def cheapest(scene: Scene, settings: FrameSettings, method: str, stats: dict[str, Any]) -> str:
+    """The cost model's choice for ``auto``: ``"raster"``, ``"tiles"`` or ``""`` (the traversal) —
+    :func:`renderer.cost.first_hits_ms` and :func:`renderer.cost.tiles_ms` against
+    :func:`renderer.cost.traversal_ms`. The traversal past ``FIRST_HITS_AUTO_MAX_SPHERES`` spheres
+    (their quads would cost more to make than most frames to trace), and without spheres (nothing
+    to win)."""
     n = scene.n_spheres
     if n == 0 or n > limits.FIRST_HITS_AUTO_MAX_SPHERES:
-        return False
+        return ""
     w, h, k = settings.width, settings.height, settings.supersampling
     passes = 1 if settings.mode in PRIMARY_MODES else k * k
-    fragments = covered_fragments(instances(scene, (w, h), (w, h)), (w, h)) * passes
-    raster = cost.first_hits_ms(fragments, w * h * passes, bool(scene.planes))
-    return raster < cost.traversal_ms(method, stats, scene, settings)
+    quads = instances(scene, (w, h), (w, h))
+    pairs, tile_pixels = tile_counts(quads, (w, h))
+    planes = bool(scene.planes)
+    options = {
+        "": cost.traversal_ms(method, stats, scene, settings),
+        "raster": cost.first_hits_ms(covered_fragments(quads, (w, h)) * passes, w * h * passes, planes),
+        "tiles": cost.tiles_ms(pairs * passes, tile_pixels * passes, w * h * passes, planes),
+    }
+    return min(options, key=options.__getitem__)
 
 
 def image_bounds(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -175,8 +183,39 @@ TILE = 16
 # first entry and length in the entries' texture.
 TILE_INSTANCE = np.dtype([("rect", "<f4", 4), ("list", "<u4", 2)])
 TILE_FORMAT = "4f 2u/i"
-TILE_ATTRIBUTES = ("a_rect", "a_list")
+TILE_ATTRIBUTES: tuple[str, ...] = ("a_rect", "a_list")
 ENTRY_TEXELS = 2  # per entry: (centre, radius) as float bits; (key, t_near as float bits, 0, 0)
+
+
+def tile_spans(quads: np.ndarray, target: tuple[int, int]) -> tuple[np.ndarray, ...]:
+    """Per quad, the tiles its rectangle meets: columns x0 … x1 − 1 and rows y0 … y1 − 1 (int32)."""
+    tw, th = int(target[0]), int(target[1])
+    rect = quads["rect"].astype(np.float64)
+    x0 = np.floor((rect[:, 0] + 1.0) * tw / 2.0 / TILE).astype(np.int32)
+    x1 = np.ceil((rect[:, 2] + 1.0) * tw / 2.0 / TILE).astype(np.int32)  # exclusive
+    y0 = np.floor((rect[:, 1] + 1.0) * th / 2.0 / TILE).astype(np.int32)
+    y1 = np.ceil((rect[:, 3] + 1.0) * th / 2.0 / TILE).astype(np.int32)
+    return x0, x1, y0, y1
+
+
+def tile_counts(quads: np.ndarray, target: tuple[int, int]) -> tuple[int, float]:
+    """What :func:`tile_lists` would make of ``quads``, without making it: its (tile, sphere) pairs and
+    the pixels of the tiles with a list (the rectangles summed on a grid of tiles)."""
+    if len(quads) == 0:
+        return 0, 0.0
+    tw, th = int(target[0]), int(target[1])
+    x0, x1, y0, y1 = tile_spans(quads, target)
+    nx, ny = -(-tw // TILE), -(-th // TILE)
+    marks = np.zeros((ny + 1, nx + 1), dtype=np.int64)
+    np.add.at(marks, (y0, x0), 1)
+    np.add.at(marks, (y0, x1), -1)
+    np.add.at(marks, (y1, x0), -1)
+    np.add.at(marks, (y1, x1), 1)
+    listed = np.cumsum(np.cumsum(marks, axis=0), axis=1)[:ny, :nx] > 0
+    cols = np.minimum(np.arange(1, nx + 1) * TILE, tw) - np.arange(nx) * TILE
+    rows = np.minimum(np.arange(1, ny + 1) * TILE, th) - np.arange(ny) * TILE
+    pixels = float((listed * rows[:, None] * cols[None, :]).sum())
+    return int(((x1 - x0) * (y1 - y0)).sum()), pixels
 
 
 def near_bounds(scene: Scene) -> np.ndarray:
@@ -205,7 +244,6 @@ def tile_lists(
     tw, th = int(target[0]), int(target[1])
     if len(quads) == 0:
         return np.zeros(0, dtype=TILE_INSTANCE), np.zeros((ENTRY_TEXELS, 4), dtype=np.uint32)
-    rect = quads["rect"].astype(np.float64)
     ids = (quads["key"] & np.uint32(gpu_layout.SPHERE_ID_MASK)).astype(np.int64)
     near = near_bounds(scene)[ids]
     table = np.zeros((len(quads), ENTRY_TEXELS, 4), dtype=np.uint32)  # each quad's entry
@@ -214,11 +252,7 @@ def tile_lists(
     table[:, 1, 1] = near.view(np.uint32)
     # The quads in list order (near bound, then id): one stable sort by tile then orders every list.
     rank = np.lexsort((ids, near))
-    rect = rect[rank]
-    x0 = np.floor((rect[:, 0] + 1.0) * tw / 2.0 / TILE).astype(np.int32)
-    x1 = np.ceil((rect[:, 2] + 1.0) * tw / 2.0 / TILE).astype(np.int32)  # exclusive
-    y0 = np.floor((rect[:, 1] + 1.0) * th / 2.0 / TILE).astype(np.int32)
-    y1 = np.ceil((rect[:, 3] + 1.0) * th / 2.0 / TILE).astype(np.int32)
+    x0, x1, y0, y1 = (a[rank] for a in tile_spans(quads, target))
     nx = np.int32(-(-tw // TILE))
     wx = x1 - x0
     per = wx * (y1 - y0)

@@ -27,6 +27,7 @@ EXPERIMENTS = (
     "scaling",
     "crossover",
     "peers",
+    "first_hits",
     "pareto",
     "path",
     "specialize",

@@ -10,6 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from renderer import limits
 from renderer.prepare import prepare_frame
 from renderer.reference import render_reference
 from renderer.scenarios import scenario
@@ -116,10 +117,16 @@ def test_png_frames_and_bands(gl_renderer, how):
 
 
 def test_auto_chooses_by_the_cost_model(gl_renderer):
+    """A few spheres: rasterised (the model puts both ways far below a traversal's per-pixel cost);
+    past FIRST_HITS_AUTO_MAX_SPHERES or without spheres: the traversal; the same pixels either way."""
     sparse = dataclasses.replace(scenario(1, 64), planes=())
-    dense = scenario(2, 16384)
-    st = RenderSettings(width=640, height=1088, mode="depth", method="bih")
-    assert gl_renderer.render(sparse, st).stats["first_hits"] == "raster"
-    assert gl_renderer.render(dense, st).stats["first_hits"] == "trace"
+    st = RenderSettings(width=640, height=1088, mode="depth", method="bih", format="npy")
+    auto = gl_renderer.render(sparse, st)
+    assert auto.stats["first_hits"] in ("raster", "tiles")
+    assert np.array_equal(auto.primid, gl_renderer.render(sparse, st.with_(first_hits="trace")).primid)
+    many = scenario(2, limits.FIRST_HITS_AUTO_MAX_SPHERES + 1)
+    assert gl_renderer.render(many, st.with_(width=32, height=32)).stats["first_hits"] == "trace"
+    none = dataclasses.replace(scenario(1, 0), planes=())
+    assert gl_renderer.render(none, st.with_(width=32, height=32)).stats["first_hits"] == "trace"
     # colour frames and meshes always trace
     assert "first_hits" not in gl_renderer.render(sparse, st.with_(mode="color", width=32, height=32)).stats
