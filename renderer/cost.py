@@ -105,6 +105,25 @@ def first_hits_ms(fragments: float, pixels: float, planes: bool) -> float:
     ) / 1e6
 
 
+# … and per tile (first_hits=tiles): a fixed part, the (tile, sphere) pairs the host sorts into lists, the
+# pixels of tiles with a list, the full-screen pass when the scene has planes. Fitted alike.
+TILES_NS_FRAME = 9.18e6
+TILES_NS_PAIR = 100.0
+TILES_NS_TILE_PIXEL = 40.0
+TILES_NS_PLANE_PIXEL = 10.7
+
+
+def tiles_ms(pairs: float, tile_pixels: float, pixels: float, planes: bool) -> float:
+    """The trace stage of a frame whose first hits come from tile lists, in ms: ``pairs`` (tile, sphere)
+    entries and ``tile_pixels`` pixels in listed tiles over all its passes, ``pixels`` its passes' pixels."""
+    return (
+        TILES_NS_FRAME
+        + TILES_NS_PAIR * pairs
+        + TILES_NS_TILE_PIXEL * tile_pixels
+        + (TILES_NS_PLANE_PIXEL * pixels if planes else 0.0)
+    ) / 1e6
+
+
 def traversal_ms(method: str, stats: dict[str, Any], scene: Scene, settings, model: CostModel = DEFAULT_MODEL) -> float:
     """The trace stage of the same frame by the method's traversal, in ms (:func:`estimate` less its
     per-frame part: uploads and read-back are the same either way)."""

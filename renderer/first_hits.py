@@ -49,7 +49,7 @@ class FrameSettings(Protocol):
 # normalised device coordinates, the sphere as float32 (centre, radius), its record key.
 INSTANCE = np.dtype([("rect", "<f4", 4), ("sphere", "<f4", 4), ("key", "<u4")])
 INSTANCE_FORMAT = "4f 4f 1u/i"
-INSTANCE_ATTRIBUTES = ("a_rect", "a_sphere", "a_key")
+INSTANCE_ATTRIBUTES: tuple[str, ...] = ("a_rect", "a_sphere", "a_key")
 # A sphere this close to the camera's plane (z ≤ r · (1 + NEAR_SLACK)) covers the whole frame.
 NEAR_SLACK = 1e-6
 MARGIN = 1.0  # fragments the rectangle is widened by on every side
@@ -61,27 +61,39 @@ def eligible(scene: Scene, mode: str, path: bool) -> bool:
     return mode in PRIMARY_MODES and not path and scene.n_triangles == 0
 
 
-def chosen(scene: Scene, settings: FrameSettings, path: bool, method: str, stats: dict[str, Any]) -> bool:
-    """Whether the frame rasterises its first hits: the ``first_hits`` setting, ``auto`` by
-    :func:`cheaper` (``method`` and its build's ``stats``: the traversal's estimate)."""
+def chosen(scene: Scene, settings: FrameSettings, path: bool, method: str, stats: dict[str, Any]) -> str:
+    """How the frame finds its first hits if not by the traversal: ``"raster"`` (a quad per sphere),
+    ``"tiles"`` (a quad per tile and its list) or ``""`` (the traversal) — the ``first_hits``
+    setting, ``auto`` by :func:`cheapest` (``method`` and its build's ``stats``: the traversal's
+    estimate)."""
     how = getattr(settings, "first_hits", "trace")
     if how == "trace" or not eligible(scene, settings.mode, path):
-        return False
-    return how == "raster" or cheaper(scene, settings, method, stats)
+        return ""
+    if how in ("raster", "tiles"):
+        return how
+    return cheapest(scene, settings, method, stats)
 
 
-def cheaper(scene: Scene, settings: FrameSettings, method: str, stats: dict[str, Any]) -> bool:
-    """The cost model's choice for ``auto`` (:func:`renderer.cost.first_hits_ms` against
-    :func:`renderer.cost.traversal_ms`). Not past ``FIRST_HITS_AUTO_MAX_SPHERES`` spheres (their
-    quads would cost more to make than most frames to trace), nor without spheres (nothing to win)."""
+def cheapest(scene: Scene, settings: FrameSettings, method: str, stats: dict[str, Any]) -> str:
+    """The cost model's choice for ``auto``: ``"raster"``, ``"tiles"`` or ``""`` (the traversal) —
+    :func:`renderer.cost.first_hits_ms` and :func:`renderer.cost.tiles_ms` against
+    :func:`renderer.cost.traversal_ms`. The traversal past ``FIRST_HITS_AUTO_MAX_SPHERES`` spheres
+    (their quads would cost more to make than most frames to trace), and without spheres (nothing
+    to win)."""
     n = scene.n_spheres
     if n == 0 or n > limits.FIRST_HITS_AUTO_MAX_SPHERES:
-        return False
+        return ""
     w, h, k = settings.width, settings.height, settings.supersampling
     passes = 1 if settings.mode in PRIMARY_MODES else k * k
-    fragments = covered_fragments(instances(scene, (w, h), (w, h)), (w, h)) * passes
-    raster = cost.first_hits_ms(fragments, w * h * passes, bool(scene.planes))
-    return raster < cost.traversal_ms(method, stats, scene, settings)
+    quads = instances(scene, (w, h), (w, h))
+    pairs, tile_pixels = tile_counts(quads, (w, h))
+    planes = bool(scene.planes)
+    options = {
+        "": cost.traversal_ms(method, stats, scene, settings),
+        "raster": cost.first_hits_ms(covered_fragments(quads, (w, h)) * passes, w * h * passes, planes),
+        "tiles": cost.tiles_ms(pairs * passes, tile_pixels * passes, w * h * passes, planes),
+    }
+    return min(options, key=options.__getitem__)
 
 
 def image_bounds(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -160,3 +172,104 @@ def covered_fragments(quads: np.ndarray, target: tuple[int, int]) -> float:
         return 0.0
     r = quads["rect"].astype(np.float64)
     return float(np.sum((r[:, 2] - r[:, 0]) * (r[:, 3] - r[:, 1])) * target[0] * target[1] / 4.0)
+
+
+# --------------------------------------------------------------------------- tiles
+# The per-tile variant: the window cut into TILE × TILE tiles, each listing the spheres whose
+# rectangle meets it, nearest-possible first; a tile's fragments test its list in that order and
+# stop once the next sphere cannot start before the best hit.
+TILE = 16
+# Per tile (total: 24 bytes): its rectangle (normalised device coordinates), and its list's
+# first entry and length in the entries' texture.
+TILE_INSTANCE = np.dtype([("rect", "<f4", 4), ("list", "<u4", 2)])
+TILE_FORMAT = "4f 2u/i"
+TILE_ATTRIBUTES: tuple[str, ...] = ("a_rect", "a_list")
+ENTRY_TEXELS = 2  # per entry: (centre, radius) as float bits; (key, t_near as float bits, 0, 0)
+
+
+def tile_spans(quads: np.ndarray, target: tuple[int, int]) -> tuple[np.ndarray, ...]:
+    """Per quad, the tiles its rectangle meets: columns x0 … x1 − 1 and rows y0 … y1 − 1 (int32)."""
+    tw, th = int(target[0]), int(target[1])
+    rect = quads["rect"].astype(np.float64)
+    x0 = np.floor((rect[:, 0] + 1.0) * tw / 2.0 / TILE).astype(np.int32)
+    x1 = np.ceil((rect[:, 2] + 1.0) * tw / 2.0 / TILE).astype(np.int32)  # exclusive
+    y0 = np.floor((rect[:, 1] + 1.0) * th / 2.0 / TILE).astype(np.int32)
+    y1 = np.ceil((rect[:, 3] + 1.0) * th / 2.0 / TILE).astype(np.int32)
+    return x0, x1, y0, y1
+
+
+def tile_counts(quads: np.ndarray, target: tuple[int, int]) -> tuple[int, float]:
+    """What :func:`tile_lists` would make of ``quads``, without making it: its (tile, sphere) pairs and
+    the pixels of the tiles with a list (the rectangles summed on a grid of tiles)."""
+    if len(quads) == 0:
+        return 0, 0.0
+    tw, th = int(target[0]), int(target[1])
+    x0, x1, y0, y1 = tile_spans(quads, target)
+    nx, ny = -(-tw // TILE), -(-th // TILE)
+    marks = np.zeros((ny + 1, nx + 1), dtype=np.int64)
+    np.add.at(marks, (y0, x0), 1)
+    np.add.at(marks, (y0, x1), -1)
+    np.add.at(marks, (y1, x0), -1)
+    np.add.at(marks, (y1, x1), 1)
+    listed = np.cumsum(np.cumsum(marks, axis=0), axis=1)[:ny, :nx] > 0
+    cols = np.minimum(np.arange(1, nx + 1) * TILE, tw) - np.arange(nx) * TILE
+    rows = np.minimum(np.arange(1, ny + 1) * TILE, th) - np.arange(ny) * TILE
+    pixels = float((listed * rows[:, None] * cols[None, :]).sum())
+    return int(((x1 - x0) * (y1 - y0)).sum()), pixels
+
+
+def near_bounds(scene: Scene) -> np.ndarray:
+    """Per sphere, float32 bounds below every t its float32 test can return for a primary ray: the
+    eye's distance to the centre less the radius, lowered by a relative 1e-5 (the test's rounding is
+    far below it), 0 for a sphere around the eye."""
+    c = scene.sphere_centers.astype(np.float32).astype(np.float64)
+    r = scene.sphere_radii.astype(np.float32).astype(np.float64)
+    eye = np.asarray(scene.camera.position, dtype=np.float32).astype(np.float64)
+    d = np.linalg.norm(c - eye, axis=1) - r
+    return np.maximum(d - 1e-5 * (d + r + np.abs(c).max(axis=1, initial=0.0)), 0.0).astype(np.float32)
+
+
+def tile_lists(
+    scene: Scene,
+    grid: tuple[int, int],
+    target: tuple[int, int],
+    scale: float = 1.0,
+    offset: tuple[float, float] = (0.5, 0.5),
+    bounds: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The tiles of one pass that some sphere's rectangle meets (:data:`TILE_INSTANCE`) and their
+    lists' entries (uint32, (k · ENTRY_TEXELS, 4)): per tile, its spheres by increasing near bound,
+    then id. The rectangles are :func:`instances`'."""
+    quads = instances(scene, grid, target, scale, offset, bounds=bounds)
+    tw, th = int(target[0]), int(target[1])
+    if len(quads) == 0:
+        return np.zeros(0, dtype=TILE_INSTANCE), np.zeros((ENTRY_TEXELS, 4), dtype=np.uint32)
+    ids = (quads["key"] & np.uint32(gpu_layout.SPHERE_ID_MASK)).astype(np.int64)
+    near = near_bounds(scene)[ids]
+    table = np.zeros((len(quads), ENTRY_TEXELS, 4), dtype=np.uint32)  # each quad's entry
+    table[:, 0] = quads["sphere"].view(np.uint32).reshape(-1, 4)
+    table[:, 1, 0] = quads["key"]
+    table[:, 1, 1] = near.view(np.uint32)
+    # The quads in list order (near bound, then id): one stable sort by tile then orders every list.
+    rank = np.lexsort((ids, near))
+    x0, x1, y0, y1 = (a[rank] for a in tile_spans(quads, target))
+    nx = np.int32(-(-tw // TILE))
+    wx = x1 - x0
+    per = wx * (y1 - y0)
+    r = np.repeat(np.arange(len(rank), dtype=np.int32), per)  # the (ranked) quad of each (tile, sphere) pair
+    k = np.arange(len(r), dtype=np.int32) - np.repeat((np.cumsum(per) - per).astype(np.int32), per)
+    wxr = wx[r]
+    tile = (y0[r] + k // wxr) * nx + (x0[r] + k % wxr)
+    order = np.argsort(tile, kind="stable")
+    tile = tile[order]
+    entries = table[rank[r[order]]]
+    first = np.flatnonzero(np.r_[True, tile[1:] != tile[:-1]])
+    counts = np.diff(np.r_[first, len(tile)])
+    t = tile[first].astype(np.int64)
+    tx, ty = t % int(nx), t // int(nx)
+    tiles = np.empty(len(t), dtype=TILE_INSTANCE)
+    fx0, fy0 = tx * TILE, ty * TILE
+    fx1, fy1 = np.minimum(fx0 + TILE, tw), np.minimum(fy0 + TILE, th)
+    tiles["rect"] = np.stack([fx0 / tw, fy0 / th, fx1 / tw, fy1 / th], 1) * 2.0 - 1.0
+    tiles["list"] = np.stack([first, counts], 1)
+    return tiles, entries.reshape(-1, 4)

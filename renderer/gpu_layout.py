@@ -205,7 +205,8 @@ class Variant:
     drawn where no primary ray can meet a sphere, :func:`primary_rect`; it reads none of
     the method's bindings). ``first_hits``: a pass of a frame whose first hits are rasterised
     (:mod:`renderer.first_hits`; with ``spheres`` False): ``"planes"`` — the planes and misses,
-    everywhere — or ``"spheres"`` — one sphere per instance of its screen quad; both write
+    everywhere — or ``"spheres"`` — one sphere per instance of its screen quad — or ``"tiles"`` —
+    one tile of the window per instance, testing its list of spheres; each writes
     the hit's depth."""
 
     method: str

@@ -38,7 +38,7 @@ TONE_MAPS = ("clamp", "reinhard", "aces")
 DENOISERS = ("off", "oidn", "atrous")
 
 # How a primary-ray frame finds its first hits (renderer/first_hits.py).
-FIRST_HITS = ("auto", "trace", "raster")
+FIRST_HITS = ("auto", "trace", "raster", "tiles")
 
 # The JSON types a setting can have (as JSON Schema names them) and their Python types.
 TYPES: dict[str, type] = {"integer": int, "number": float, "boolean": bool, "string": str}
@@ -192,8 +192,9 @@ SETTINGS: tuple[SettingSpec, ...] = (
         "string",
         "auto",
         "how primary-ray frames (depth, primid, normal) find first hits: trace (the method's traversal per "
-        "pixel), raster (each sphere's screen rectangle drawn, its fragments testing that sphere; not with "
-        "meshes) or auto (the cheaper by the cost model); the same ids and distances either way",
+        "pixel), raster (each sphere's screen rectangle drawn, its fragments testing that sphere), tiles "
+        "(each screen tile's spheres tested nearest first; neither with meshes) or auto (the cheapest by the "
+        "cost model); the same ids and distances either way",
         "First hits",
         choices=FIRST_HITS,
         modes=PRIMARY_MODES,

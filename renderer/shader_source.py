@@ -221,8 +221,9 @@ def _with_includes(text: str) -> str:
 
 def vertex_source(first_hits: str = "") -> str:
     """The full-screen quad's vertex shader (the tracer and the ray engines' full-screen passes),
-    or the spheres' screen quads of rasterised first hits (``first_hits`` ``"spheres"``)."""
-    return read("first_hits.vert" if first_hits == "spheres" else "fullscreen.vert")
+    or the spheres' screen quads of rasterised first hits (``first_hits`` ``"spheres"``), or their
+    tiles' quads (``"tiles"``)."""
+    return read({"spheres": "first_hits.vert", "tiles": "first_hit_tiles.vert"}.get(first_hits, "fullscreen.vert"))
 
 
 def pass_source(name: str, defines: tuple[str, ...] = ()) -> str:

@@ -29,6 +29,12 @@ precision highp usampler2D;
 flat in vec4 v_sphere;
 flat in uint v_key;
 #endif
+#ifdef FIRST_HITS_TILES
+// … or in one tile (shaders/first_hit_tiles.vert): its list of spheres, nearest-possible first
+// (ENTRY_TEXELS texels each: centre and radius; key and the near bound, as float bits).
+flat in uvec2 v_list;   // first entry, count
+uniform highp usampler2D u_tile_entries;
+#endif
 
 #ifdef IMAGE_ONLY
 layout(location = 0) out vec4 o_image;  // rgb = mode image rounded to 8 bits (an RGBA8 target)
@@ -336,6 +342,20 @@ void main() {
     // The primary ray's test of intersect_scene (test_sphere, no ray to skip), for one sphere.
     Hit h0 = Hit(intersect_sphere(u_cam_pos, dir, v_sphere, false), SPHERE_ID(v_key), v_sphere, v_key);
     if (h0.t >= BIG) discard;
+#elif defined(FIRST_HITS_TILES)
+    // The tile's spheres in order of their near bounds: once the next one's bound lies beyond the
+    // best hit, neither it nor any after it can be nearer (a bound equal to it may still tie).
+    Hit h0 = Hit(BIG, NO_PRIM, vec4(0.0), 0u);
+    int entry_shift = row_shift(textureSize(u_tile_entries, 0));
+    int end = int(v_list.x + v_list.y);
+    for (int i = int(v_list.x); i < end; i++) {
+        uvec4 b = texelFetch(u_tile_entries, texel(2 * i + 1, entry_shift), 0);
+        if (uintBitsToFloat(b.y) > h0.t) break;
+        vec4 sp = uintBitsToFloat(texelFetch(u_tile_entries, texel(2 * i, entry_shift), 0));
+        float t = intersect_sphere(u_cam_pos, dir, sp, false);
+        int id = SPHERE_ID(b.x);
+        if (closer(t, id, h0.t, h0.id)) h0 = Hit(t, id, sp, b.x);
+    }
 #else
     Hit h0 = intersect_scene(Query(u_cam_pos, dir, NO_PRIM, NO_PRIM, BIG, false));
 #endif

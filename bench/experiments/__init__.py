@@ -28,6 +28,7 @@ EXPERIMENTS = (
     "crossover",
     "peers",
     "peers_path",
+    "first_hits",
     "pareto",
     "path",
     "specialize",

@@ -23,7 +23,7 @@ CORNERS = np.array([0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1], dtype=np.float32)  # tw
 class FirstHitDraws:
     """What one frame draws its rasterised first hits with (made by :class:`~renderer.gl.frame.TracerFrame`)."""
 
-    def __init__(self, renderer, scene: Scene, variant: Variant, target: moderngl.Framebuffer):
+    def __init__(self, renderer, scene: Scene, variant: Variant, target: moderngl.Framebuffer, how: str = "spheres"):
         self.ctx: moderngl.Context = renderer.ctx
         self.renderer, self.scene = renderer, scene
         self.gl: RawGL = renderer.raw_gl
@@ -35,7 +35,9 @@ class FirstHitDraws:
         self.fbo.depth_mask = True
         args = (variant.method, variant.mode, variant.depth, variant.features, (), variant.image_only, False)
         self.planes = renderer.program(*args, first_hits="planes") if scene.planes else None
-        self.spheres_prog, _ = renderer.program(*args, first_hits="spheres")
+        self.how = how  # "spheres": a quad per sphere; "tiles": a quad per tile and its list
+        self.spheres_prog, _ = renderer.program(*args, first_hits=how)
+        self.entries: moderngl.Texture | None = None
         self.corners = self.ctx.buffer(CORNERS.tobytes())
         self.bounds = fh.image_bounds(scene) if scene.n_spheres else None
         self.keys = gpu_layout.sphere_keys(scene)
@@ -48,21 +50,35 @@ class FirstHitDraws:
 
     def begin_pass(self, grid: tuple[int, int], scale: float, offset: tuple[float, float]) -> None:
         """The pass's quads (its ray grid and sub-pixel), and its target cleared."""
-        quads = fh.instances(self.scene, grid, self.size, scale, offset, self.keys, self.bounds)
-        self.fragments += fh.covered_fragments(quads, self.size)
         self._release_quads()
+        if self.how == "tiles":
+            quads, entries = fh.tile_lists(self.scene, grid, self.size, scale, offset, self.bounds)
+            fmt, names = fh.TILE_FORMAT, fh.TILE_ATTRIBUTES
+            packed = gpu_layout.wrap_rows(entries, self.renderer.max_texture_width)
+            self.entries = self.ctx.texture(packed.size, packed.components, packed.data.tobytes(), dtype=packed.dtype)
+            self.entries.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        else:
+            quads = fh.instances(self.scene, grid, self.size, scale, offset, self.keys, self.bounds)
+            fmt, names = fh.INSTANCE_FORMAT, fh.INSTANCE_ATTRIBUTES
+        self.fragments += fh.covered_fragments(quads, self.size)
         self.count = len(quads)
         if self.count:
             self.instances = self.ctx.buffer(quads.tobytes())
             self.vao = self.ctx.vertex_array(
                 self.spheres_prog,
-                [(self.corners, "2f", "a_corner"), (self.instances, fh.INSTANCE_FORMAT, *fh.INSTANCE_ATTRIBUTES)],
+                [(self.corners, "2f", "a_corner"), (self.instances, fmt, *names)],
                 skip_errors=True,  # a mode that needs no sphere record (none yet) lets the compiler drop it
             )
         self.fbo.scissor = None
         self.fbo.use()
         self.fbo.clear(*self.miss)
         self.gl.clear_depth()
+
+    def bind(self, prog: moderngl.Program, unit: int) -> None:
+        """The tiles' entries on texture ``unit`` (after the frame's own), for ``prog``."""
+        if self.entries is not None and "u_tile_entries" in prog:
+            self.entries.use(unit)
+            prog["u_tile_entries"].value = unit  # type: ignore[union-attr]  # a sampler: a Uniform
 
     def draws(self) -> list[tuple[moderngl.Program, moderngl.VertexArray, int]]:
         """(program, vertex array, instances) of a band, in order: planes (instances 0: one
@@ -88,7 +104,9 @@ class FirstHitDraws:
             self.vao.release()
         if self.instances is not None:
             self.instances.release()
-        self.vao = self.instances = None
+        if self.entries is not None:
+            self.entries.release()
+        self.vao = self.instances = self.entries = None
 
     def release(self) -> None:
         self._release_quads()

@@ -245,13 +245,13 @@ class TracerFrame:
         self.buffers: list[moderngl.Buffer] = []
         self.fbo: moderngl.Framebuffer | None = None
         # Rasterised first hits (renderer/first_hits.py) instead of the traversal, when chosen.
-        self.raster = not self.one_shot and first_hits.chosen(
-            scene, settings, variant.path, variant.method, prepared.stats
+        self.raster = (
+            "" if self.one_shot else first_hits.chosen(scene, settings, variant.path, variant.method, prepared.stats)
         )
         if self.raster:
             self.regions = None
         if variant.mode in PRIMARY_MODES and not self.one_shot:
-            stats["first_hits"] = "raster" if self.raster else "trace"
+            stats["first_hits"] = self.raster or "trace"
         self.first_hits: FirstHitDraws | None = None
         self.timings = {
             "build": prepared.build_ms,
@@ -290,7 +290,8 @@ class TracerFrame:
         w, h = self._target_size()
         self.fbo = self.renderer.targets.acquire(w, h, self.variant.image_only, self.guides)
         if self.raster:
-            self.first_hits = FirstHitDraws(self.renderer, self.scene, self.variant, self.fbo)
+            how = "tiles" if self.raster == "tiles" else "spheres"
+            self.first_hits = FirstHitDraws(self.renderer, self.scene, self.variant, self.fbo, how)
         self.ctx.finish()
         self.timings["upload"] = (time.perf_counter() - t0) * 1e3
 
@@ -391,6 +392,7 @@ class TracerFrame:
         fh.fbo.scissor = (0, self._row, w, rows) if rows < h else None
         for prog, vao, instances in fh.draws():
             self._bind(p, prog)
+            fh.bind(prog, len(self.textures))
             if instances:
                 vao.render(moderngl.TRIANGLES, instances=instances)
             else:

@@ -117,7 +117,7 @@ class GLRenderer:
             )
             prog = self.ctx.program(vertex_shader=vertex_source(first_hits), fragment_shader=src)
             self._programs[key] = prog
-            if first_hits != "spheres":
+            if first_hits not in ("spheres", "tiles"):
                 self._vaos[key] = self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
         return self._programs[key], self._vaos.get(key)
 

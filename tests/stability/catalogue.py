@@ -370,11 +370,12 @@ def evaluate(gl_renderer, case: Case, method: str) -> tuple[dict, list[str]]:
         # Rasterised first hits (renderer/first_hits.py; the method does not matter to them) against
         # this traversal's primary rays: the same ray and sphere test, so the same ids and t bitwise.
         if method == "bih" and scene.n_triangles == 0 and scene.n_spheres:
-            with deadline(RENDER_BOUND_S, "the rasterised first hits"):
-                raster = gl_renderer.render(scene, settings_of(case, method).with_(mode="depth", first_hits="raster"))
-            n = int((raster.primid != gpu.primid).sum())
-            if n or not np.array_equal(raster.depth, gpu.depth):
-                failures.append(f"rasterised first hits differ from the traversal: {n} ids, or depths")
+            for how in ("raster", "tiles"):
+                with deadline(RENDER_BOUND_S, "the rasterised first hits"):
+                    raster = gl_renderer.render(scene, settings_of(case, method).with_(mode="depth", first_hits=how))
+                n = int((raster.primid != gpu.primid).sum())
+                if n or not np.array_equal(raster.depth, gpu.depth):
+                    failures.append(f"rasterised first hits ({how}) differ from the traversal: {n} ids, or depths")
 
         if case.min_tree_depth is not None and method == "bih":
             if gpu.stats["depth_max"] < case.min_tree_depth:

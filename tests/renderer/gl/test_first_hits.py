@@ -1,7 +1,7 @@
-"""Rasterised first hits (renderer/first_hits.py): the same ids, distances and images as the
-traversal, bit for bit, and the float64 reference's ids — including where a quad's bound is
-hardest (a sphere around or beside the camera, behind it, far away, tiny, coincident spheres,
-a plane cutting spheres) and in sub-pixel passes."""
+"""Rasterised first hits (renderer/first_hits.py), a quad per sphere (``raster``) or per tile and
+its list (``tiles``): the same ids, distances and images as the traversal, bit for bit, and the
+float64 reference's ids — including where a quad's bound is hardest (a sphere around or beside the
+camera, behind it, far away, tiny, coincident spheres, a plane cutting spheres)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,8 @@ import dataclasses
 import numpy as np
 import pytest
 
+from renderer import limits
+from renderer.prepare import prepare_frame
 from renderer.reference import render_reference
 from renderer.scenarios import scenario
 from renderer.scene import Camera, Material, Plane, Scene
@@ -63,22 +65,27 @@ def frame(gl_renderer, scene: Scene, how: str, mode: str, **kw) -> tuple:
     return res, st
 
 
+HOWS = ("raster", "tiles")
+
+
+@pytest.mark.parametrize("how", HOWS)
 @pytest.mark.parametrize("name", list(SCENES))
-def test_raster_is_the_traversal_bit_for_bit(gl_renderer, name):
+def test_raster_is_the_traversal_bit_for_bit(gl_renderer, name, how):
     scene = SCENES[name]()
     for mode in MODES:
         traced, _ = frame(gl_renderer, scene, "trace", mode)
-        raster, _ = frame(gl_renderer, scene, "raster", mode)
-        assert traced.stats["first_hits"] == "trace" and raster.stats["first_hits"] == "raster"
+        raster, _ = frame(gl_renderer, scene, how, mode)
+        assert traced.stats["first_hits"] == "trace" and raster.stats["first_hits"] == how
         for field in ("primid", "depth", "normal", "image"):
             a, b = getattr(traced, field), getattr(raster, field)
             assert np.array_equal(a, b, equal_nan=True), f"{name}, {mode}: {field} differs"
 
 
+@pytest.mark.parametrize("how", HOWS)
 @pytest.mark.parametrize("name", list(SCENES))
-def test_raster_ids_are_the_float64_references(gl_renderer, name):
+def test_raster_ids_are_the_float64_references(gl_renderer, name, how):
     scene = SCENES[name]()
-    raster, st = frame(gl_renderer, scene, "raster", "depth")
+    raster, st = frame(gl_renderer, scene, how, "depth")
     ref = render_reference(scene, st)
     same = raster.primid == ref.primid
     # Where they differ, two surfaces are at one t within float32 (the reference's own tie).
@@ -88,32 +95,38 @@ def test_raster_ids_are_the_float64_references(gl_renderer, name):
     assert rel.max(initial=0.0) < 1e-4
 
 
-def test_coincident_spheres_go_to_the_lower_id(gl_renderer):
+@pytest.mark.parametrize("how", HOWS)
+def test_coincident_spheres_go_to_the_lower_id(gl_renderer, how):
     scene = SCENES["coincident"]()
-    raster, _ = frame(gl_renderer, scene, "raster", "primid")
+    raster, _ = frame(gl_renderer, scene, how, "primid")
     ids = set(np.unique(raster.primid).tolist())
     assert ids <= {-1, 0, 2} and 0 in ids and 2 in ids
 
 
-def test_png_frames_and_bands(gl_renderer):
+@pytest.mark.parametrize("how", HOWS)
+def test_png_frames_and_bands(gl_renderer, how):
     """The RGBA8 target (png at one sample) and a frame traced in bands give the same bytes."""
     scene = scenario(1, 64)
     st = RenderSettings(width=96, height=72, mode="depth", format="png", method="bih")
     a = gl_renderer.render(scene, st.with_(first_hits="trace")).image_u8()
-    b = gl_renderer.render(scene, st.with_(first_hits="raster")).image_u8()
+    b = gl_renderer.render(scene, st.with_(first_hits=how)).image_u8()
     assert np.array_equal(a, b)
-    from renderer.prepare import prepare_frame
-
-    started = gl_renderer.start(prepare_frame(scene, st.with_(first_hits="raster")), band_rows=7)
+    started = gl_renderer.start(prepare_frame(scene, st.with_(first_hits=how)), band_rows=7)
     c = started.run()
     assert c.stats["slices"] > 1 and np.array_equal(c.image_u8(), a)
 
 
 def test_auto_chooses_by_the_cost_model(gl_renderer):
+    """A few spheres: rasterised (the model puts both ways far below a traversal's per-pixel cost);
+    past FIRST_HITS_AUTO_MAX_SPHERES or without spheres: the traversal; the same pixels either way."""
     sparse = dataclasses.replace(scenario(1, 64), planes=())
-    dense = scenario(2, 16384)
-    st = RenderSettings(width=640, height=1088, mode="depth", method="bih")
-    assert gl_renderer.render(sparse, st).stats["first_hits"] == "raster"
-    assert gl_renderer.render(dense, st).stats["first_hits"] == "trace"
+    st = RenderSettings(width=640, height=1088, mode="depth", method="bih", format="npy")
+    auto = gl_renderer.render(sparse, st)
+    assert auto.stats["first_hits"] in ("raster", "tiles")
+    assert np.array_equal(auto.primid, gl_renderer.render(sparse, st.with_(first_hits="trace")).primid)
+    many = scenario(2, limits.FIRST_HITS_AUTO_MAX_SPHERES + 1)
+    assert gl_renderer.render(many, st.with_(width=32, height=32)).stats["first_hits"] == "trace"
+    none = dataclasses.replace(scenario(1, 0), planes=())
+    assert gl_renderer.render(none, st.with_(width=32, height=32)).stats["first_hits"] == "trace"
     # colour frames and meshes always trace
     assert "first_hits" not in gl_renderer.render(sparse, st.with_(mode="color", width=32, height=32)).stats
