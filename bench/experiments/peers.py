@@ -65,9 +65,13 @@ MITSUBA_VARIANT = "llvm_ad_rgb"
 MITSUBA_LABELS = {"spheres": "Mitsuba 3: sphere shapes", "ellipsoids": "Mitsuba 3: ellipsoids"}
 EMBREE_LABEL = "Embree: icospheres"
 # Our engines beyond one per method: (label, method, RenderSettings fields to change), one line each.
-OURS_VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = ()
+OURS_VARIANTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    ("ours: bih, first hits auto", "bih", {"first_hits": "auto"}),  # what a frame gets by default
+    ("ours: first hits raster", "bih", {"first_hits": "raster"}),
+    ("ours: first hits tiles", "bih", {"first_hits": "tiles"}),
+)
 # The targets: ours (TARGET_ENGINE) / the faster Mitsuba engine, rays per second, in one scenario.
-TARGET_ENGINE = "ours: bih"
+TARGET_ENGINE = "ours: bih, first hits auto"
 TARGET_SCENARIO = 2
 TARGET_NS = (256, 4096, 65536)
 TARGET_RATIO = 0.5
@@ -136,7 +140,9 @@ class Result:
 def ours_engines() -> list[tuple[str, str, dict[str, Any]]]:
     """Our engines of the race: (label, method, settings beyond ``ours_settings``), every method of
     ``METHODS`` and then :data:`OURS_VARIANTS`."""
-    return [(f"ours: {m}", m, {}) for m in method_names()] + [(lab, m, dict(x)) for lab, m, x in OURS_VARIANTS]
+    return [(f"ours: {m}", m, {"first_hits": "trace"}) for m in method_names()] + [
+        (lab, m, dict(x)) for lab, m, x in OURS_VARIANTS
+    ]
 
 
 _MITSUBA_WARM = False
