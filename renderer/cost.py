@@ -88,13 +88,14 @@ DEFAULT_MODEL = CostModel(
 
 
 # Rasterised first hits (renderer/first_hits.py): a primary-ray frame's trace is a fixed part, one
-# full-screen pass when the scene has planes, and its spheres' quads' fragments. Nanoseconds of the
-# reference machine in this model's units, fitted to 30 frames (scenarios 1-3, n = 64 … 65,536, with
-# and without the plane, 640 × 1088) traced both ways in one run; the choice it makes agreed with
-# the measured faster one in 29 of them (the other within 12 %).
-RASTER_NS_FRAME = 9.18e6
-RASTER_NS_FRAGMENT = 37.4
-RASTER_NS_PLANE_PIXEL = 10.7
+# full-screen pass when the scene has planes, and its spheres' quads' fragments. Nanoseconds in this
+# model's units, fitted (least squares, no negative term) by bench/experiments/first_hits.py to 36 frames
+# (scenarios 1-3, n = 64 … 65,536, with and without the plane, 640 × 1088) traced every way in one run
+# (docs/RESULTS.md, "First hits without a traversal per pixel"); with the traversal's estimate, the
+# cheapest of the three was the fastest measured, or within 10 % of it, in 32 of them.
+RASTER_NS_FRAME = 3.85e6
+RASTER_NS_FRAGMENT = 35.7
+RASTER_NS_PLANE_PIXEL = 39.0
 
 
 def first_hits_ms(fragments: float, pixels: float, planes: bool) -> float:
@@ -106,11 +107,12 @@ def first_hits_ms(fragments: float, pixels: float, planes: bool) -> float:
 
 
 # … and per tile (first_hits=tiles): a fixed part, the (tile, sphere) pairs the host sorts into lists, the
-# pixels of tiles with a list, the full-screen pass when the scene has planes. Fitted alike.
-TILES_NS_FRAME = 9.18e6
-TILES_NS_PAIR = 100.0
-TILES_NS_TILE_PIXEL = 40.0
-TILES_NS_PLANE_PIXEL = 10.7
+# pixels of tiles with a list (their term fitted to 0: the lists' early exit keeps them cheap, the fixed
+# part holds the rest), the full-screen pass when the scene has planes. The same fit.
+TILES_NS_FRAME = 11.86e6
+TILES_NS_PAIR = 566.0
+TILES_NS_TILE_PIXEL = 0.0
+TILES_NS_PLANE_PIXEL = 50.3
 
 
 def tiles_ms(pairs: float, tile_pixels: float, pixels: float, planes: bool) -> float:

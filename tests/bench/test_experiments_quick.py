@@ -30,6 +30,7 @@ SECTIONS = {  # experiment name → heading start
     "crossover": "## Crossover",
     "peers": "## Peers —",
     "peers_path": "## Peers, full paths",
+    "first_hits": "## First hits without a traversal",
     "pareto": "## Speed against accuracy",
     "specialize": "## Model no more than the scene needs",
     "shader": "## The tracer shaped for llvmpipe",
