@@ -50,7 +50,11 @@ class RenderResult:
         and sRGB-encoded."""
         if self.display is not None:
             return display_u8(self.image, *self.display)
-        return np.floor(np.clip(self.image, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+        # The same operations in place on clip's copy: no three more image-sized temporaries.
+        x = np.clip(self.image, 0.0, 1.0)
+        x *= 255.0
+        x += 0.5
+        return np.floor(x, out=x).astype(np.uint8)
 
     def image_rows_rgbx(self) -> np.ndarray | None:
         """The bytes of :meth:`image_u8` as the frame already holds them, where it holds them so:
