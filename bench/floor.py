@@ -18,16 +18,17 @@ RGBA32F targets). Each frame as the service makes it (``GLRenderer.render``, the
 Sides: ``before`` — the renderer, shaders and service of ``--base`` (default: the commit this
 work started from), extracted from git into a temporary directory; ``after`` — this checkout.
 Each side is a worker process with its own GL context; one untimed warm-up frame per
-configuration (the compile), then ``--runs`` frames; medians.
+configuration (the compile), then ``--runs`` frames; ``--rounds`` rounds of the two sides in
+turn (a shared machine's load drifts); medians over all of a side's frames.
 
 ``limit``: what llvmpipe and the libraries here need at least for the same bytes, measured in
 the same run — a trivial fragment shader (a constant into the same target(s), once per pass) for
 ``trace``; a memcpy of the bytes read back for ``read`` and ``compose``; PIL's encoder alone on
-an image it holds already (libjpeg-turbo; zlib-ng at the service's level) for ``encode``.
+the same image, held already (libjpeg-turbo; zlib-ng at the service's level), for ``encode``.
 
-    .venv/bin/python -m bench.floor                 # 9 runs, before and after
-    .venv/bin/python -m bench.floor --quick         # 2 runs, small frames (smoke)
-    .venv/bin/python -m bench.floor --base 0221c09 --runs 15 --json out.json
+    .venv/bin/python -m bench.floor                 # 3 rounds × 5 runs, before and after
+    .venv/bin/python -m bench.floor --quick         # 1 × 2 runs, small frames (smoke)
+    .venv/bin/python -m bench.floor --base 0221c09 --rounds 5 --json out.json
 """
 
 from __future__ import annotations
@@ -88,6 +89,10 @@ def _scene(name: str):
 def worker(width: int, height: int, runs: int) -> dict:
     """Every scene × configuration with the ``renderer`` and ``server`` on sys.path: medians (ms) of
     each stage."""
+    import io
+
+    from PIL import Image
+
     from renderer.gl import frame as gl_frame
     from renderer.gl.renderer import GLRenderer
     from renderer.settings import RenderSettings
@@ -110,7 +115,7 @@ def worker(width: int, height: int, runs: int) -> dict:
         scene = _scene(scene_name)
         for name, kw, _, _ in CONFIGS:
             settings = RenderSettings(width=width, height=height, **kw)
-            rows: dict[str, list[float]] = {k: [] for k in STAGES}
+            rows: dict[str, list[float]] = {k: [] for k in (*STAGES, "encoder")}
             for i in range(runs + 1):
                 compose_ms.clear()
                 t0 = time.perf_counter()
@@ -127,23 +132,25 @@ def worker(width: int, height: int, runs: int) -> dict:
                 rows["encode"].append(enc)
                 rows["frame"].append(frame)
                 rows["set-up"].append(frame - t["trace"] - t["read"] - comp - enc)
-            out[f"{scene_name} / {name}"] = {k: statistics.median(v) for k, v in rows.items()} | {"bytes": len(body)}
+                # The encoder alone, on this frame's image held by PIL already (the limit of ``encode``).
+                held = Image.fromarray(result.image_u8(), "RGB")
+                opts = {"quality": JPEG_QUALITY} if settings.format == "jpeg" else {"compress_level": PNG_LEVEL}
+                t1 = time.perf_counter()
+                held.save(io.BytesIO(), settings.format.upper(), **opts)
+                rows["encoder"].append((time.perf_counter() - t1) * 1e3)
+            out[f"{scene_name} / {name}"] = {k: v for k, v in rows.items()} | {"bytes": len(body)}
     return out
 
 
 def limits(width: int, height: int, runs: int) -> dict:
     """The physical limits here (ms): a constant fragment shader into one RGBA8 target and into two
-    RGBA32F ones (draw + glFinish), a memcpy of their bytes, PIL's encoders on a held image of
-    each scene's colour frame."""
-    import io
+    RGBA32F ones (draw + glFinish), a memcpy of their bytes (the encoders' are the workers':
+    ``encoder``)."""
 
     import moderngl
     import numpy as np
-    from PIL import Image
 
     from renderer.gl.context import create_context
-    from renderer.gl.renderer import GLRenderer
-    from renderer.settings import RenderSettings
 
     def median_ms(f) -> float:
         ts = []
@@ -187,16 +194,10 @@ def limits(width: int, height: int, runs: int) -> dict:
     src32 = np.zeros((height, width, 8), np.float32)
     out["memcpy rgba8"] = median_ms(lambda: np.copyto(np.empty_like(src8), src8))
     out["memcpy rgba32f"] = median_ms(lambda: np.copyto(np.empty_like(src32), src32))
-    renderer = GLRenderer(ctx)
-    for scene_name in SCENES:
-        result = renderer.render(_scene(scene_name), RenderSettings(width=width, height=height, format="npy"))
-        img = Image.fromarray(result.image_u8(), "RGB")
-        for fmt, kw in (("jpeg", {"quality": JPEG_QUALITY}), ("png", {"compress_level": PNG_LEVEL})):
-            out[f"{scene_name} {fmt}"] = median_ms(lambda img=img, fmt=fmt, kw=kw: img.save(io.BytesIO(), fmt, **kw))
     return out
 
 
-def limit_of(lim: dict, scene: str, config: tuple, stage: str) -> float | None:
+def limit_of(lim: dict, after: dict, config: tuple, stage: str) -> float | None:
     name, kw, passes, floats = config
     target = "rgba32f" if floats else "rgba8"
     if stage == "trace":
@@ -206,10 +207,18 @@ def limit_of(lim: dict, scene: str, config: tuple, stage: str) -> float | None:
     if stage == "compose":
         return 0.0 if not floats else lim[f"memcpy {target}"]  # image-only: nothing to make
     if stage == "encode":
-        return lim[f"{scene} {kw['format']}"]
+        return after["encoder"]
     if stage == "frame":
-        return sum(limit_of(lim, scene, config, s) or 0.0 for s in ("trace", "read", "compose", "encode"))
+        return sum(limit_of(lim, after, config, s) or 0.0 for s in ("trace", "read", "compose", "encode"))
     return None
+
+
+def _medians(rounds: list[dict]) -> dict:
+    """Each frame's stages: the medians over every round's runs."""
+    return {
+        key: {k: statistics.median(x for r in rounds for x in r[key][k]) for k in rounds[0][key] if k != "bytes"}
+        for key in rounds[0]
+    }
 
 
 def _run_side(tree: Path, what: str, width: int, height: int, runs: int) -> dict:
@@ -239,7 +248,7 @@ def table(before: dict, after: dict, lim: dict) -> str:
             key = f"{scene} / {config[0]}"
             for stage in STAGES:
                 b, a = before[key][stage], after[key][stage]
-                li = limit_of(lim, scene, config, stage)
+                li = limit_of(lim, after[key], config, stage)
                 lines.append(
                     f"| {key if stage == STAGES[0] else ''} | {stage} | {b:.2f} | {a:.2f} | "
                     f"{'—' if li is None else f'{li:.2f}'} |"
@@ -250,24 +259,33 @@ def table(before: dict, after: dict, lim: dict) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--base", default=BASE_COMMIT, help="the commit of the 'before' side")
-    ap.add_argument("--runs", type=int, default=9)
+    ap.add_argument("--runs", type=int, default=5, help="frames per configuration in each round")
+    ap.add_argument("--rounds", type=int, default=3, help="rounds of both sides in turn")
     ap.add_argument("--size", default="640x1088", help="W x H")
     ap.add_argument("--quick", action="store_true", help="64 × 108, 2 runs (smoke)")
     ap.add_argument("--json", help="also write the figures here")
     args = ap.parse_args()
     w, h = (64, 108) if args.quick else map(int, args.size.lower().split("x"))
     runs = 2 if args.quick else args.runs
+    args.rounds = 1 if args.quick else args.rounds
+    sides: dict[str, list[dict]] = {"before": [], "after": []}
     with tempfile.TemporaryDirectory(prefix="pocketray-floor-") as tmp:
         base = Path(tmp)
         _extract(args.base, base)
-        before = _run_side(base, "worker", w, h, runs)
-    after = _run_side(ROOT, "worker", w, h, runs)
+        # Rounds of both sides in turn: a shared machine's load drifts, and each side sees it alike.
+        for _ in range(args.rounds):
+            sides["before"].append(_run_side(base, "worker", w, h, runs))
+            sides["after"].append(_run_side(ROOT, "worker", w, h, runs))
     lim = _run_side(ROOT, "limits", w, h, runs)
-    print(f"Frame floor at {w} × {h}, medians of {runs} runs; before = {args.base}, after = this checkout.")
+    before, after = (_medians(sides[k]) for k in ("before", "after"))
+    print(
+        f"Frame floor at {w} × {h}, medians of {args.rounds} × {runs} runs (rounds of the sides in turn); "
+        f"before = {args.base}, after = this checkout."
+    )
     print(table(before, after, lim))
     print(f"load average {os.getloadavg()[0]:.2f}")
     if args.json:
-        Path(args.json).write_text(json.dumps({"before": before, "after": after, "limits": lim}, indent=1))
+        Path(args.json).write_text(json.dumps({"rounds": sides, "limits": lim}, indent=1))
 
 
 if __name__ == "__main__":
