@@ -586,7 +586,7 @@ def box_filter(subs: dict[tuple[int, int], np.ndarray], k: int, dtype: type = np
     and divides as ``mean`` does; done here pass by pass, without the 4 × k² bytes-a-pixel grid and its
     strided reduction (0.2 s of a 640 × 1088 frame at 2 × 2)."""
     order = [subs[(sx, sy)][::-1, :, :3] for sy in reversed(range(k)) for sx in range(k)]
-    acc = order[0].astype(dtype)  # a contiguous copy
+    acc: np.ndarray = order[0].astype(dtype)  # a contiguous copy
     for img in order[1:]:
         np.add(acc, img, out=acc, dtype=dtype)
     if dtype is np.float32:
