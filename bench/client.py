@@ -29,6 +29,7 @@ Usage::
 
     .venv/bin/python -m bench.client                         # this client
     .venv/bin/python -m bench.client --only server --move-s 4  # only the service's frames
+    .venv/bin/python -m bench.client --only dense              # previews/s at 4,096 spheres
     .venv/bin/python -m bench.client --client-dir /tmp/old/client_web
 """
 
@@ -177,10 +178,27 @@ def device_latency(browser, url: str, query: str, steps: int = 10) -> dict:
 # The server-mode pages: the default page (scenario 1, 512 spheres, the fit resolution, the service's
 # still profile) and the Cornell box with the path integrator, each a link.
 SERVER_PAGES = {"whitted": "", "path": "scenario=mesh:cornell&integrator=path"}
+# Every frame shown: its time, level, part, size, request → screen ms, and the service's total and trace ms
+# (its Server-Timing; null where the client does not keep it).
 SHOWN_LOG = """() => { window.__shown = []; const poll = () => { const p = window.pocketray;
   if (p && p.frameCount !== (window.__last || 0)) { window.__last = p.frameCount; const f = p.lastFrame;
-  window.__shown.push([performance.now(), f.level, f.part || 'final', f.width, f.height, f.clientMs]); }
+  const t = f.timing || {};
+  window.__shown.push([performance.now(), f.level, f.part || 'final', f.width, f.height, f.clientMs,
+    t.total ?? null, t.trace ?? null]); }
   requestAnimationFrame(poll); }; poll(); }"""
+
+
+# Dense scenes on the phone viewport (the default page's settings otherwise): previews per second while
+# a finger moves, the client asking for the service's interactive profile (``--only dense``).
+DENSE_PAGES = {
+    "whitted, scenario 3, 4,096 spheres": "scenario=3&n=4096",
+    "whitted, scenario 2, 4,096 spheres": "scenario=2&n=4096",
+}
+
+
+def _median(xs: list) -> float | None:
+    xs = sorted(x for x in xs if x is not None)
+    return None if not xs else (xs[len(xs) // 2] + xs[(len(xs) - 1) // 2]) / 2
 
 
 def short_drag(page, touch: Touch) -> float:
@@ -259,6 +277,11 @@ def server_timeline(browser, url: str, query: str, move_s: float = 4.0, client_d
             "moving_previews_per_s": len(during) / ((t_move1 - t_move0) / 1e3),
             "moving_previews_per_s_2nd_half": len(half) / ((t_move1 - t_move0) / 2e3),
             "moving_preview_sizes": sorted({f"{e[3]}x{e[4]}" for e in during}),
+            # Where a preview's time goes (medians over the drag): request → screen on the page, and
+            # the service's part of it (admission → encoded body) and its trace.
+            "moving_client_ms": _median([e[5] for e in during]),
+            "moving_server_ms": _median([e[6] for e in during if len(e) > 6]),
+            "moving_trace_ms": _median([e[7] for e in during if len(e) > 7]),
             "touch_moves": k,
             "integrator_set_by": set_by,
         }
@@ -434,7 +457,9 @@ def main() -> None:
     ap.add_argument("--url", help="an already running service (its own client)")
     ap.add_argument("--skip-device", action="store_true", help="no device-mode drag")
     ap.add_argument(
-        "--only", default="share,device,server", help="parts: share (chrome share), device (drag), server (timelines)"
+        "--only",
+        default="share,device,server",
+        help="parts: share (chrome share), device (drag), server (timelines), dense (4,096 spheres' previews)",
     )
     ap.add_argument("--move-s", type=float, default=4.0, help="the long drag's duration (server timelines)")
     ap.add_argument(
@@ -458,6 +483,11 @@ def main() -> None:
                 for name, query in SERVER_PAGES.items():
                     server_timeline(browser, url, query, move_s=0.5)  # warm: the service compiles its variants
                     out["server"][name] = server_timeline(browser, url, query, move_s=args.move_s)
+            if "dense" in parts:
+                out["dense"] = {}
+                for name, query in DENSE_PAGES.items():
+                    server_timeline(browser, url, query, move_s=0.5)  # warm: the service compiles its variants
+                    out["dense"][name] = server_timeline(browser, url, query, move_s=args.move_s)
             if "share" in parts:
                 out["chrome_share"] = {
                     "portrait, scenario 1": chrome_share(browser, url, PORTRAIT, f"scenario=1&n=64&{LAYOUT_QUERY}"),

@@ -50,7 +50,18 @@ class RenderResult:
         and sRGB-encoded."""
         if self.display is not None:
             return display_u8(self.image, *self.display)
-        return np.floor(np.clip(self.image, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+        # The same operations in place on clip's copy: no three more image-sized temporaries.
+        x = np.clip(self.image, 0.0, 1.0)
+        x *= 255.0
+        x += 0.5
+        return np.floor(x, out=x).astype(np.uint8)
+
+    def image_rows_rgbx(self) -> np.ndarray | None:
+        """The bytes of :meth:`image_u8` as the frame already holds them, where it holds them so:
+        uint8 H×W×4 (RGB and a pad byte) with row 0 the *bottom* row (an image-only GPU frame's
+        read-back, renderer/gl/frame.py). An encoder reads them flipped and unpadded as it unpacks
+        them, without the copy :meth:`image_u8` makes. None: use :meth:`image_u8`."""
+        return None
 
     def array(self) -> np.ndarray:
         """The ``format=npy`` array of this result's mode (docs/FORMATS.md): the result's own

@@ -86,12 +86,24 @@ def encode(result: RenderResult, fmt: str, quality: int, png_level: int = 1) -> 
     if fmt == "npy":
         return npy_bytes(result.array()), (time.perf_counter() - t0) * 1e3
     else:
-        img = Image.fromarray(result.image_u8(), "RGB")
+        img = pil_image(result)
         if fmt == "jpeg":
             img.save(buf, format="JPEG", quality=int(quality))
         else:
             img.save(buf, format="PNG", compress_level=int(png_level))
     return buf.getvalue(), (time.perf_counter() - t0) * 1e3
+
+
+def pil_image(result: RenderResult) -> Image.Image:
+    """``result.image_u8()`` as a PIL image. PIL keeps an RGB image as four bytes a pixel and
+    unpacks whatever it is given into them: from the read-back of an image-only frame (RGBA, bottom
+    row first; RenderResult.image_rows_rgbx) its raw decoder takes the rows in reverse and skips the
+    pad byte in that one pass, so the flipped RGB copy image_u8 would make first is never made."""
+    rows = result.image_rows_rgbx()
+    if rows is None:
+        return Image.fromarray(result.image_u8(), "RGB")
+    h, w = rows.shape[:2]
+    return Image.frombytes("RGB", (w, h), np.ascontiguousarray(rows), "raw", "RGBX", 0, -1)
 
 
 NPY_CHUNK_BYTES = 1 << 20

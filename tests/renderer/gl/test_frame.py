@@ -201,3 +201,30 @@ def test_whitted_accumulation_converges_to_the_pixel_integral(gl_renderer):
     errs = {n: error(gl_renderer.begin(scene, s, accumulated=(None, 0), slices=n).run().image) for n in (1, 4, 64)}
     assert errs[1] > errs[4] > errs[64], errs
     assert errs[64] < 0.5 * grid16, (errs, grid16)
+
+
+@pytest.mark.parametrize("k", [2, 3, 4])
+@pytest.mark.parametrize("size", [(37, 23), (160, 96)])
+def test_the_box_filter_adds_sub_pixels_as_the_interleaved_grid_did(k, size):
+    """The box filter reads each sub-pixel pass's image where it was read back: bit for bit the mean
+    (and the float64 sum) of the kH × kW grid they interleave into, whose reduction order it follows."""
+    from renderer.gl.frame import box_filter
+
+    h, w = size
+    rng = np.random.default_rng(k)
+    # Magnitudes spread over many binades, so that any other order of the additions rounds differently.
+    subs = {
+        (sx, sy): (rng.random((h, w, 4)) * 10.0 ** rng.integers(-6, 4, (h, w, 4))).astype(np.float32)
+        for sy in range(k)
+        for sx in range(k)
+    }
+    grid = np.empty((h * k, w * k, 4), np.float32)
+    for (sx, sy), img in subs.items():
+        grid[sy::k, sx::k] = img
+    cells = grid[::-1][..., :3].reshape(h, k, w, k, 3)
+    mean = box_filter(subs, k)
+    assert mean.dtype == np.float32 and mean.shape == (h, w, 3)
+    np.testing.assert_array_equal(mean, cells.mean(axis=(1, 3)))
+    np.testing.assert_array_equal(box_filter(subs, k, np.float64), cells.sum(axis=(1, 3), dtype=np.float64))
+    other = [subs[(sx, sy)][::-1, :, :3] for sy in range(k) for sx in range(k)]  # another order: not the same
+    assert not np.array_equal(sum(other[1:], other[0]) / np.float32(k * k), mean)

@@ -38,3 +38,25 @@ def test_npy_encoding_copies_the_array_once():
     want = io.BytesIO()
     np.save(want, np.ascontiguousarray(result.normal), allow_pickle=False)
     assert body == want.getvalue()
+
+
+def test_an_image_only_frame_encodes_from_its_read_back_as_from_image_u8():
+    """An image-only frame hands the encoder its RGBA8 read-back as it came (bottom row first, a
+    pad byte): the png and jpeg bodies are byte for byte those of its image_u8 (flipped, RGB)."""
+    from renderer.gl.frame import ImageOnlyResult
+
+    rng = np.random.default_rng(2)
+    rows = rng.integers(0, 256, (37, 53, 4), dtype=np.uint8)  # odd sizes: no row padding hides a slip
+    only = ImageOnlyResult(rows, "color", {}, {}, None)
+    u8 = rows[::-1, :, :3]
+    np.testing.assert_array_equal(only.image_u8(), u8)
+    assert only.image_rows_rgbx() is rows
+
+    class Plain(RenderResult):
+        def image_u8(self) -> np.ndarray:
+            return np.ascontiguousarray(u8)
+
+    plain = Plain(image=np.zeros((37, 53, 3), np.float32), depth=None, primid=None, normal=None, mode="color")  # type: ignore[arg-type]
+    assert plain.image_rows_rgbx() is None
+    for fmt in ("png", "jpeg"):
+        assert encode(only, fmt, 85)[0] == encode(plain, fmt, 85)[0], fmt
