@@ -456,7 +456,18 @@ def test_what_a_method_packs_is_what_its_shader_declares(method):
     if METHODS[method].capabilities.meshes_on_gpu:  # a smooth mesh scene: the triangles' too
         packed = METHODS[method].prepare(mesh_scene("mixed", 1), 8, 64).packed
         names = set(packed.textures) | set(packed.uniforms)
-        assert names == {b.name for b in METHODS[method].bindings}
+        assert names == {b.name for b in METHODS[method].bindings if b.needs != "SHAPES"}
+    # a scene with analytic shapes: their records and base id (brute force: their count too)
+    shapes = Scene.from_json(
+        {
+            "materials": [{}],
+            "spheres": [{"center": [0, 0, 0], "radius": 1}],
+            "tori": [{"center": [3, 0, 0], "axis": [0, 1, 0], "major_radius": 1, "minor_radius": 0.2}],
+        }
+    )
+    packed = METHODS[method].prepare(shapes, 8, 64).packed
+    names = set(packed.textures) | set(packed.uniforms)
+    assert names == {b.name for b in METHODS[method].bindings if b.needs in (None, "SHAPES")}
     prims = gpu_layout.pack_primitives(scenario(3, 64))
     # only a scene with emission, an environment colour, an environment image
     image = {b.name for b in gpu_layout.ENV_BINDINGS}

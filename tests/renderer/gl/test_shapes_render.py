@@ -24,38 +24,6 @@ from tests.renderer.gl.support import path
 ONE_PASS = [n for n, m in METHODS.items() if not m.capabilities.multi_pass]
 W, H = 64, 48
 
-RED = {"color": [0.8, 0.3, 0.2], "ambient": 0.1, "diffuse": 0.7, "specular": 0.3, "shininess": 20}
-MIRROR = {
-    "color": [0.9, 0.9, 0.9],
-    "ambient": 0.05,
-    "diffuse": 0.3,
-    "specular": 0.2,
-    "shininess": 40,
-    "reflective": 0.6,
-}
-GLASS = {"color": [1, 1, 1], "diffuse": 0.1, "specular": 0.3, "shininess": 60, "transmissive": 0.8, "ior": 1.5}
-EVERY_KIND = {
-    "camera": {"position": [0, 3, 14], "target": [0, 0, 0], "fov_y": 50},
-    "lights": [{"position": [5, 10, 10], "color": [1, 1, 1]}],
-    "materials": [RED, MIRROR, GLASS],
-    "spheres": [
-        {"center": [-3, 1.5, -1], "radius": 1.0, "material": 1},
-        {"center": [3.2, 2.5, 0], "radius": 0.7, "material": 0},
-    ],
-    "planes": [{"point": [0, -2, 0], "normal": [0, 1, 0], "material": 0}],
-    "cylinders": [
-        {"base": [-3, -2, 1], "axis": [0, 1, 0], "radius": 0.8, "height": 2.0, "caps": True, "material": 0},
-        {"base": [3, -2, 1], "axis": [0.2, 1, 0.1], "radius": 0.7, "height": 2.5, "caps": False, "material": 1},
-    ],
-    "cones": [
-        {"base": [0, -2, 3], "axis": [0, 1, 0], "base_radius": 1.0, "top_radius": 0.4, "height": 1.5, "material": 2}
-    ],
-    "disks": [
-        {"center": [-1.5, 2.5, 0], "normal": [0, 0.3, 1], "radius": 0.8, "material": 0},
-        {"center": [1.5, 2.5, 0], "normal": [0.2, 0, 1], "radius": 0.9, "inner_radius": 0.4, "material": 1},
-    ],
-    "tori": [{"center": [0, 0, 0], "axis": [0.3, 1, 0.2], "major_radius": 1.6, "minor_radius": 0.45, "material": 2}],
-}
 MODES = ("primid", "depth", "normal", "color")
 
 
@@ -64,8 +32,8 @@ def settings(mode: str, method: str = "bruteforce") -> RenderSettings:
 
 
 @pytest.fixture(scope="module")
-def scene() -> Scene:
-    return Scene.from_json(EVERY_KIND)
+def scene(every_shape_scene) -> Scene:
+    return every_shape_scene
 
 
 @pytest.fixture(scope="module")
