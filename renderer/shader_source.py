@@ -6,7 +6,9 @@ defines after ``#version`` (at ``//@HEADER@``) and the method's traversal
 colours (:data:`renderer.modes.RECURSION_COLORS`) at ``//@RECURSION_COLORS@``; in a variant that traces
 triangles (the ``TRIANGLES`` data format) the ``//@TRIANGLES <name>`` marks of both get the
 sections of ``shaders/triangles.glsl``, in every other variant they are removed, so a
-sphere-only variant's text is exactly the one before meshes. A ray-engine pass is
+sphere-only variant's text is exactly the one before meshes; likewise the ``//@SHAPES <name>``
+marks get ``shaders/shapes_tracer.glsl``'s sections (and ``shaders/shapes.glsl``) in a
+variant that traces analytic shapes (the ``SHAPES`` data format) only. A ray-engine pass is
 ``#version``, the same header, the pass's defines, ``rayengine_common.glsl`` and the
 pass's own file. The same text serves moderngl and the browser (WebGL2, ``GET
 /api/shader``); nothing here touches OpenGL.

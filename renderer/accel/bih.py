@@ -485,9 +485,10 @@ def build_for_spheres(
 
 
 def build_for_scene(scene: Scene, max_prims: int = 8, max_tree_depth: int = MAX_TREE_DEPTH) -> BIH:
-    """A BIH over the scene's spheres and triangles (tree primitive ``i``: sphere ``i``, then
-    triangle ``i − n_spheres``; :mod:`renderer.accel.primitives`), with step 0's empty-space
-    cuts when there are triangles. Spheres only: the same tree as :func:`build_for_spheres`."""
+    """A BIH over the scene's spheres, triangles and analytic shapes (tree primitive ``i``:
+    sphere ``i``, then the triangles, then the shapes; :mod:`renderer.accel.primitives`), with
+    step 0's empty-space cuts when there are triangles or shapes. Spheres only: the same tree
+    as :func:`build_for_spheres`."""
     lo, hi = scene_aabbs(scene)
     return build_bih(
         lo, hi, max_prims=max_prims, max_tree_depth=max_tree_depth, empty_cuts=scene.n_triangles + scene.n_shapes > 0

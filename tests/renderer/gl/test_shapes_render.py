@@ -130,3 +130,12 @@ def test_white_furnaces_of_each_kind(gl_renderer, method):
         assert px.sum() > 100, key
         np.testing.assert_allclose(r.image[px].mean(axis=0), want, rtol=0.01, err_msg=f"{method}: {key} {item}")
         assert np.isfinite(r.image).all()
+
+
+def test_the_bih_heat_counts_shape_tests_as_its_cpu_mirror(gl_renderer, scene):
+    """Heat mode: the shader's node and primitive counts over a tree with shapes are those of
+    the CPU traversal (renderer/accel/bih_traverse.py) the reference uses."""
+    st = RenderSettings(width=32, height=24, mode="heat", method="bih")
+    got, ref = gl_renderer.render(scene, st), render_reference(scene, st)
+    assert ref.image.max() > 0
+    np.testing.assert_array_equal(got.image, ref.image)
