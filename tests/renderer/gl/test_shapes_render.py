@@ -139,3 +139,18 @@ def test_the_bih_heat_counts_shape_tests_as_its_cpu_mirror(gl_renderer, scene):
     got, ref = gl_renderer.render(scene, st), render_reference(scene, st)
     assert ref.image.max() > 0
     np.testing.assert_array_equal(got.image, ref.image)
+
+
+@pytest.mark.parametrize("method", ["bih", "bruteforce"])
+def test_the_shape_records_read_from_textures_as_from_uniform_blocks(gl_renderer, scene, reference, method):
+    """Record arrays in textures (a device's storage; rows of 8 texels, so a shape's three
+    records wrap), not uniform blocks: the same frame."""
+    from renderer.gl.renderer import GLRenderer
+
+    narrow = GLRenderer(gl_renderer.ctx, max_texture_width=8, uniform_blocks=False)
+    got = narrow.render(scene, settings("color", method))
+    blocked = gl_renderer.render(scene, settings("color", method))
+    assert got.stats["blocks"] == [] and "u_shapes" in blocked.stats["blocks"]
+    assert "SHAPES" in got.stats["shader_features"]
+    np.testing.assert_array_equal(got.primid, blocked.primid)
+    np.testing.assert_allclose(got.image, blocked.image, atol=1e-6)
