@@ -459,8 +459,8 @@ def animated_scene_from_json(d: Any) -> AnimatedScene:
 @dataclass
 class PosedFrame:
     """A posed scene, the animated-scene id of each of its spheres, and which of its tree
-    primitives move: ``moving`` is bool over the posed spheres, then the triangles
-    (:mod:`renderer.accel.primitives`' index space; the analytic shapes are in no tree yet)."""
+    primitives move: ``moving`` is bool over the posed spheres, then the triangles, then the
+    analytic shapes (:mod:`renderer.accel.primitives`' index space)."""
 
     scene: Scene
     ids: np.ndarray
@@ -522,7 +522,7 @@ def pose(anim: AnimatedScene, t: float) -> PosedFrame:
     tri_moving = (
         np.repeat(anim.moving_meshes, [mesh.n_triangles for mesh in base.meshes]) if base.meshes else np.zeros(0, bool)
     )
-    moving = np.concatenate([anim.moving[keep], tri_moving])
+    moving = np.concatenate([anim.moving[keep], tri_moving, np.asarray(anim.moving_shapes, dtype=bool)])
     return PosedFrame(scene, keep, moving, t, (_time.perf_counter() - t0) * 1e3)
 
 

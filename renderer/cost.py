@@ -34,6 +34,7 @@ import numpy as np
 from .features import GENERIC, scene_features
 from .modes import AVERAGED_MODES, RAY_TREE_MODES
 from .scene import Scene
+from .shapes import bounds as shape_bounds
 
 
 @dataclass(frozen=True)
@@ -241,6 +242,8 @@ def coverage(scene: Scene, width: int, height: int) -> float:
         ]
     if scene.n_triangles:
         boxes.append(scene.triangle_corners.reshape(-1, 3))
+    if scene.n_shapes:
+        boxes.append(shape_bounds(scene.shapes).reshape(-1, 3))
     if not boxes:
         return 0.0
     points = np.concatenate(boxes)
@@ -272,7 +275,8 @@ def terms(
     path = getattr(settings, "integrator", "whitted") == "path"
     lights = len(scene.lights) if settings.mode == "color" and not path else 0
     rays = radiance * (1 + lights)
-    n, planes = scene.n_spheres + scene.n_triangles, len(scene.planes)  # a triangle test costs as a sphere's
+    # A triangle test costs as a sphere's; so, unmeasured, does an analytic shape's (a torus's is dearer).
+    n, planes = scene.n_spheres + scene.n_triangles + scene.n_shapes, len(scene.planes)
     nodes, tests, big = traversal_work(method, stats, n)
     c = coverage(scene, w, h)
     # Primary rays enter the box where it covers the image; the others start on surfaces in it.
@@ -326,7 +330,7 @@ def estimate(
     t, m = terms(method, stats, scene, settings, model.level_decay, multi_pass)
     total = float(t @ model.vector())
     frags = m["passes"] * m["pixels"]
-    n = scene.n_spheres + scene.n_triangles
+    n = scene.n_spheres + scene.n_triangles + scene.n_shapes
     degenerate = not multi_pass and method != "bruteforce" and n >= 64 and m["tests"] >= 0.5 * n
     return FrameCost(
         m["passes"],

@@ -17,6 +17,7 @@ carried by every variant, the generic one too, because the packers follow them:
 ``TRIANGLES`` (the triangle records, Woop et al.'s test and the triangles' shading compiled
 in) and ``SMOOTH_TRIANGLES`` (some mesh has vertex normals: they are read when a hit is
 shaded). A sphere-only scene carries neither, so its shader text is the one before meshes.
+Likewise ``SHAPES``: the scene has analytic shapes (their records, tests and shading).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from .scene import Scene
 REMOVALS = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS", "NO_SPLIT")
 PLANE_COUNTS = tuple(f"PLANES_{k}" for k in range(MAX_PLANES + 1))
 LIGHT_COUNTS = tuple(f"LIGHTS_{k}" for k in range(1, MAX_LIGHTS + 1))  # no lights: NO_LIGHTS
-DATA_FORMATS = ("EQUAL_RADII", "MATERIAL_TEXTURE", "TRIANGLES", "SMOOTH_TRIANGLES")
+DATA_FORMATS = ("EQUAL_RADII", "MATERIAL_TEXTURE", "TRIANGLES", "SMOOTH_TRIANGLES", "SHAPES")
 # What the light of a frame needs beyond the thesis's, never specialised away either (a scene without
 # them carries none, so its variants' text is the one before them): some used material emits
 # (EMISSION), the environment is not black (ENVIRONMENT), the frame traces paths (PATH: the
@@ -58,6 +59,7 @@ class SceneFeatures:
     material_texture: bool = False
     triangles: bool = False
     smooth_triangles: bool = False
+    shapes: bool = False
     emission: bool = False
     environment: bool = False
     path: bool = False
@@ -88,6 +90,8 @@ class SceneFeatures:
             on.add("TRIANGLES")
         if self.smooth_triangles:
             on.add("SMOOTH_TRIANGLES")
+        if self.shapes:
+            on.add("SHAPES")
         for name in LIGHTING:
             if getattr(self, name.lower()):
                 on.add(name)
@@ -116,6 +120,7 @@ class SceneFeatures:
             material_texture=self.material_texture,
             triangles=self.triangles,
             smooth_triangles=self.smooth_triangles,
+            shapes=self.shapes,
             emission=self.emission,
             environment=self.environment,
             path=self.path,
@@ -134,6 +139,7 @@ def scene_features(scene: Scene) -> SceneFeatures:
         set(np.unique(scene.sphere_materials).tolist())
         | {p.material for p in scene.planes}
         | {m.material for m in scene.meshes}
+        | set(np.unique(scene.shapes.material).tolist())
     )
     mats = [scene.materials[i] for i in used]
     return SceneFeatures(
@@ -147,6 +153,7 @@ def scene_features(scene: Scene) -> SceneFeatures:
         material_texture=gpu_layout.material_texture(scene),
         triangles=gpu_layout.has_triangles(scene),
         smooth_triangles=gpu_layout.smooth_triangles(scene),
+        shapes=gpu_layout.has_shapes(scene),
         emission=any(m.emits for m in mats),
         environment=any(scene.environment),
         environment_map=scene.environment_map is not None,

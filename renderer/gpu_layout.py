@@ -64,6 +64,29 @@ With ``SMOOTH_TRIANGLES`` the vertex normals follow in
             w  1 for a smooth triangle, 0 for a flat one (its normals are zero)
                                                                         total: 48 bytes
 
+**Analytic shapes** (scenes with cylinders, cones, disks or tori only: the variant carries
+the data-format define ``SHAPES``; every other variant's text is the one before them). A
+shape's slot among the leaf-order records, the size of a sphere record like a triangle's,
+is (:func:`leaf_records`)::
+
+    key (where a sphere record has its key): bit 29 SHAPE_SLOT, bits 28..0 the shape
+        index k (scene order, < MAX_SHAPES), bit 31 last of its leaf; the rest zero
+        (bit 29 is never set in a sphere key, ids and materials take bits 28..0, nor in a
+        triangle's, whose index is below MAX_TRIANGLES = 2^20)
+
+and the shape itself lives in the scene's shape records (:func:`shape_records`,
+``u_shapes``, a record array indexed by k; the 12 numbers of renderer/shapes.py's record as
+shaders/shapes.glsl's three vec4)::
+
+    3k      x, y, z  float32 bits of the origin;      w  r0
+    3k + 1  x, y, z  float32 bits of the unit axis;   w  r1
+    3k + 2  x  height, y  caps (1.0 / 0.0), z  kind (0.0 … 3.0) as float32 bits;
+            w  material (bits 7..0, an integer)                        total: 48 bytes
+
+``u_shape_base`` is the scene id of shape 0 (``Scene.shape_id_base``: spheres + planes +
+triangles). The methods that trace shapes list :data:`SHAPE_BINDINGS` (brute force also
+``u_num_shapes``; a tree's leaves say where its shapes are).
+
 ``u_tri_base`` is the scene id of triangle 0 (``Scene.triangle_id_base``: spheres +
 planes), so a hit writes scene ids. The methods that trace triangles list
 :data:`TRIANGLE_BINDINGS` among their own bindings, so these record arrays, like the
@@ -104,11 +127,13 @@ from .limits import (
     MAX_PLANES,
     MAX_SAMPLED_SPHERES,
     MAX_SAMPLED_TRIANGLES,
+    MAX_SHAPES,
     MAX_SPHERES,
     MAX_TRIANGLES,
 )
 from .modes import RAY_TREE_MODES
 from .scene import Camera, Scene
+from .shapes import bounds as shape_bounds
 
 MATERIAL_TEXELS = 3
 # The tracer reads materials from a uniform array when the scene has at most this many
@@ -132,6 +157,13 @@ TRI_INDEX_MASK = TRI_SLOT - 1
 TRI_DEGENERATE = 1 << 31  # in the material word of a triangle's first record
 TRIANGLE_TEXELS = 3  # records per triangle in u_triangles and u_tri_normals
 assert MAX_TRIANGLES <= TRI_SLOT
+# An analytic shape's slot (the module's docstring): bit 29, never set in a sphere's key nor in a
+# triangle's (its index is below MAX_TRIANGLES), checked before TRI_SLOT by the traversals.
+SHAPE_SLOT = 1 << 29
+SHAPE_INDEX_MASK = SHAPE_SLOT - 1
+SHAPE_TEXELS = 3  # records per shape in u_shapes
+SHAPE_MAT_MASK = 0xFF  # the material in w of a shape's third record
+assert MAX_TRIANGLES < SHAPE_SLOT and MAX_SHAPES <= SHAPE_SLOT and SPHERE_MAT_SHIFT + 8 <= 29
 
 
 # ---- bindings and variants -----------------------------------------------------------------
@@ -410,6 +442,21 @@ TRI_BASE = Binding(
 )
 NUM_TRIANGLES = Binding("u_num_triangles", "highp int", needs="TRIANGLES", traversal=True)
 TRIANGLE_BINDINGS = (TRIANGLES, TRI_NORMALS, TRI_BASE, NUM_TRIANGLES)
+# The analytic shapes (only with the SHAPES data format): listed among the bindings of each method
+# that traces them, packed by its packer with pack_shapes, so that they may be uniform blocks.
+SHAPES = Binding(
+    "u_shapes",
+    doc="SHAPE_TEXELS records per shape: origin r0, axis r1, height caps kind material",
+    records=True,
+    needs="SHAPES",
+    traversal=True,
+)
+SHAPE_BASE = Binding(
+    "u_shape_base", "highp int", "scene id of shape 0 (spheres + planes + triangles)", needs="SHAPES", traversal=True
+)
+NUM_SHAPES = Binding("u_num_shapes", "highp int", needs="SHAPES", traversal=True)
+SHAPE_BINDINGS = (SHAPES, SHAPE_BASE, NUM_SHAPES)
+TREE_SHAPE_BINDINGS = (SHAPES, SHAPE_BASE)  # (a tree's leaves say where its shapes are)
 # Everything pack_primitives packs (the tracer's and the ray engines' scene data).
 SCENE_BINDINGS = (
     SPHERES,
@@ -620,14 +667,19 @@ def smooth_triangles(scene: Scene) -> bool:
     return bool(scene.n_triangles and np.asarray(scene.triangle_smooth, dtype=bool).any())
 
 
+def has_shapes(scene: Scene) -> bool:
+    """The SHAPES data format: the scene has analytic shapes."""
+    return scene.n_shapes > 0
+
+
 def leaf_records(scene: Scene, order: np.ndarray, last: np.ndarray | None = None) -> np.ndarray:
     """The records of tree primitives ``order`` (tree indices in leaf order: ``i < n_spheres``
-    sphere ``i``, else triangle ``i − n_spheres``, renderer/accel/primitives.py): a sphere's
-    record as :func:`sphere_records`, a triangle's slot of the same size (the module's
-    docstring). Without triangles this is :func:`sphere_records` itself."""
+    sphere ``i``, then the triangles, then the analytic shapes, renderer/accel/primitives.py):
+    a sphere's record as :func:`sphere_records`, a triangle's or a shape's slot of the same
+    size (the module's docstring). Without either this is :func:`sphere_records` itself."""
     order = np.asarray(order, dtype=np.int64).reshape(-1)
     n = scene.n_spheres
-    if not scene.n_triangles:
+    if not scene.n_triangles and not scene.n_shapes:
         return sphere_records(scene, order, last)
     is_tri = order >= n
     # Spheres' records with a placeholder id where a triangle goes, then the slots overwritten.
@@ -636,9 +688,12 @@ def leaf_records(scene: Scene, order: np.ndarray, last: np.ndarray | None = None
     if out is None:
         out = np.zeros((per * len(order), 4), dtype=np.uint32)
     key = (order - n).astype(np.uint32) | np.uint32(TRI_SLOT)
+    first_shape = n + scene.n_triangles
+    is_shape = order >= first_shape
+    key = np.where(is_shape, (order - first_shape).astype(np.uint32) | np.uint32(SHAPE_SLOT), key)
     if last is not None:
         key |= np.where(np.asarray(last, dtype=bool), np.uint32(SPHERE_LAST), np.uint32(0))
-    rows = np.flatnonzero(is_tri)
+    rows = np.flatnonzero(is_tri)  # (the shapes' slots too: their tree indices come after the triangles')
     if per == 1:
         out[rows] = 0
         out[rows, 3] = key[rows]
@@ -647,6 +702,26 @@ def leaf_records(scene: Scene, order: np.ndarray, last: np.ndarray | None = None
         out[2 * rows + 1] = 0
         out[2 * rows + 1, 0] = key[rows]
     return out
+
+
+def shape_records(scene: Scene) -> np.ndarray:
+    """``u_shapes``: uint32 (3 S, 4), the module's docstring."""
+    p = np.asarray(scene.shapes.params, dtype=np.float64).reshape(-1, 12)
+    out = np.ascontiguousarray(p, dtype=np.float32).view(np.uint32).reshape(-1, 3, 4).copy()
+    out[:, 2, 3] = np.asarray(scene.shapes.material, dtype=np.uint32)
+    return out.reshape(-1, 4)
+
+
+def pack_shapes(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH, count: bool = True) -> PackedScene:
+    """What :data:`SHAPE_BINDINGS` read: nothing for a scene without shapes (its variant declares
+    none of them); ``count`` False leaves out ``u_num_shapes`` (a tree's leaves say where its
+    shapes are)."""
+    if not scene.n_shapes:
+        return PackedScene({}, {})
+    uniforms: dict[str, object] = {SHAPE_BASE.name: int(scene.shape_id_base)}
+    if count:
+        uniforms[NUM_SHAPES.name] = int(scene.n_shapes)
+    return PackedScene({SHAPES.name: wrap_rows(shape_records(scene), max_width)}, uniforms)
 
 
 def triangle_records(scene: Scene) -> np.ndarray:
@@ -894,15 +969,17 @@ def primary_rect(scene: Scene, width: int, height: int, margin: int = 2) -> tupl
 
     The box is the float64 one widened by a relative 1e-6, so it holds every sphere as
     float32 stores it; the margin covers the float32 rounding of the rays' directions."""
-    if scene.n_spheres == 0 and scene.n_triangles == 0:
+    if scene.n_spheres == 0 and scene.n_triangles == 0 and scene.n_shapes == 0:
         return (0, 0, 0, 0)
-    if scene.n_triangles == 0:
+    if scene.n_triangles == 0 and scene.n_shapes == 0:
         c, r = scene.sphere_centers, scene.sphere_radii[:, None]
         slack = 1e-6 * (np.abs(c) + r).max()
         lo, hi = (c - r).min(axis=0) - slack, (c + r).max(axis=0) + slack
     else:
         # The triangles' corners too (a triangle is their convex hull), with the same slack.
         parts = [np.asarray(scene.triangle_corners, dtype=np.float64).reshape(-1, 3)]
+        if scene.n_shapes:  # (an analytic shape's exact box: its corners)
+            parts.append(shape_bounds(scene.shapes).reshape(-1, 3))
         if scene.n_spheres:
             c, r = scene.sphere_centers, scene.sphere_radii[:, None]
             parts += [c - r, c + r]
@@ -1037,6 +1114,16 @@ def tracer_constants() -> str:
 def path_constants() -> str:
     """The path integrator's constants: emitted only into its variants (no other's text changes)."""
     return f"#define MAX_SAMPLED_SPHERES {MAX_SAMPLED_SPHERES}\n#define MAX_SAMPLED_TRIANGLES {MAX_SAMPLED_TRIANGLES}\n"
+
+
+def shape_constants() -> str:
+    """The shape records' constants: emitted only into variants with the SHAPES data format."""
+    return (
+        f"#define SHAPE_SLOT {SHAPE_SLOT}u\n"
+        f"#define SHAPE_INDEX_MASK {SHAPE_INDEX_MASK}u\n"
+        f"#define SHAPE_MAT_MASK {SHAPE_MAT_MASK}u\n"
+        f"#define SHAPE_TEXELS {SHAPE_TEXELS}\n"
+    )
 
 
 def triangle_constants() -> str:

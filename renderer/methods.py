@@ -57,16 +57,17 @@ def integrator_methods(integrator: str) -> list[str]:
 
 def check_primitives(name: str, scene) -> None:
     """Refuse (SceneError ``method``) a scene with a kind of primitive the method does not
-    trace (``Capabilities.primitives``): the ray engines draw spheres and planes only; and
-    (SceneError ``shapes``) one with analytic shapes, which no GPU method traces yet."""
+    trace (``Capabilities.primitives``): the ray engines draw spheres and planes only, so a
+    scene with triangle meshes or analytic shapes needs a one-pass method."""
     caps = METHODS[name].capabilities
-    if scene.n_shapes:
-        # No shader intersects them yet: refused, not drawn without them.
+    if scene.n_shapes and "shapes" not in caps.primitives:
+        able = [m for m, x in METHODS.items() if "shapes" in x.capabilities.primitives]
         raise SceneError(
-            "shapes",
-            f"not yet traced by the GPU methods: this scene has {scene.n_shapes:,} analytic shape(s) "
-            f"({', '.join(f'{n} {k}' for k, n in scene.shapes.counts().items() if n)}); "
-            "the float64 reference (renderer/reference.py) traces them",
+            "method",
+            f"method {name!r} traces {' and '.join(caps.primitives)} only; this scene has "
+            f"{scene.n_shapes:,} analytic shape(s) "
+            f"({', '.join(f'{n} {k}' for k, n in scene.shapes.counts().items() if n)}): use one of "
+            f"{', '.join(able)}",
         )
     if scene.n_triangles and "triangles" not in caps.primitives:
         able = [m for m, x in METHODS.items() if "triangles" in x.capabilities.primitives]
@@ -76,7 +77,7 @@ def check_primitives(name: str, scene) -> None:
             f"{len(scene.meshes)} mesh(es) of {scene.n_triangles:,} triangles: use one of "
             f"{', '.join(able)}",
         )
-    n = scene.n_spheres + scene.n_triangles
+    n = scene.n_spheres + scene.n_triangles + scene.n_shapes
     if caps.max_primitives is not None and n > caps.max_primitives:
         raise SceneError(
             "method",

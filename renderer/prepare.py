@@ -51,7 +51,7 @@ def prepare_frame(
     if isinstance(scene, AnimatedScene):
         posed = pose(scene, settings.time)
         scene, moving, pose_ms = posed.scene, posed.moving, posed.pose_ms
-    n_tree = scene.n_spheres + scene.n_triangles  # what a tree would hold (auto's crossover)
+    n_tree = scene.n_spheres + scene.n_triangles + scene.n_shapes  # what a tree would hold (auto's crossover)
     name = resolve_method(settings.method, n_tree)
     method = METHODS[name]
     settings.check_method(n_tree)

@@ -771,8 +771,8 @@ def heat_counts(
 
     Brute force tests every sphere, triangle and analytic shape and visits no node. ``bih``
     counts come from the BIH traversal of docs/SHADING.md (:mod:`renderer.accel.bih_traverse`,
-    the CPU mirror of the shader's) over the spheres and triangles (the analytic shapes are in
-    no tree yet: not counted); a triangle test counts as a sphere test does.
+    the CPU mirror of the shader's) over the spheres, triangles and analytic shapes; a
+    triangle's or a shape's test counts as a sphere test does.
     """
     n_rays = len(o)
     if settings.method == "bruteforce":
@@ -791,6 +791,7 @@ def heat_counts(
             o[a : a + chunk_rays],
             d[a : a + chunk_rays],
             triangles=scene.triangle_corners,
+            shapes=scene.shapes,
         )
         nodes.append(np.asarray(res.nodes_visited))
         gaps.append(np.asarray(res.gaps))

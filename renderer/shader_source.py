@@ -6,7 +6,9 @@ defines after ``#version`` (at ``//@HEADER@``) and the method's traversal
 colours (:data:`renderer.modes.RECURSION_COLORS`) at ``//@RECURSION_COLORS@``; in a variant that traces
 triangles (the ``TRIANGLES`` data format) the ``//@TRIANGLES <name>`` marks of both get the
 sections of ``shaders/triangles.glsl``, in every other variant they are removed, so a
-sphere-only variant's text is exactly the one before meshes. A ray-engine pass is
+sphere-only variant's text is exactly the one before meshes; likewise the ``//@SHAPES <name>``
+marks get ``shaders/shapes_tracer.glsl``'s sections (and ``shaders/shapes.glsl``) in a
+variant that traces analytic shapes (the ``SHAPES`` data format) only. A ray-engine pass is
 ``#version``, the same header, the pass's defines, ``rayengine_common.glsl`` and the
 pass's own file. The same text serves moderngl and the browser (WebGL2, ``GET
 /api/shader``); nothing here touches OpenGL.
@@ -33,6 +35,14 @@ INCLUDE_MARK = "//@INCLUDE "  # a line "//@INCLUDE method_bvh.glsl" in a method 
 TRIANGLES_MARK = "//@TRIANGLES "
 TRIANGLES_FILE = "triangles.glsl"
 SECTION_MARK = "//@SECTION "
+# Likewise "//@SHAPES <name>": section <name> of SHAPES_FILE (section "library": shaders/shapes.glsl, the
+# intersection tests) in a variant that traces analytic shapes (the SHAPES data format), nothing in any
+# other (with_shapes). A tree method's sections that open its traversal to trees without spheres
+# (TREE_SECTIONS of TRIANGLES_FILE) serve a variant with shapes but no triangles too.
+SHAPES_MARK = "//@SHAPES "
+SHAPES_FILE = "shapes_tracer.glsl"
+SHAPES_LIBRARY = "shapes.glsl"
+TREE_SECTIONS = frozenset({"bih_box", "if0", "end_if0"})
 # Likewise "//@LIGHTING <name>": section <name> of LIGHTING_FILE in a variant that carries one of
 # renderer.features.LIGHTING (emission, an environment, the path integrator), nothing in any other.
 LIGHTING_MARK = "//@LIGHTING "
@@ -93,6 +103,8 @@ def tracer_header(variant: Variant) -> str:
         triangles = gpu_layout.triangle_constants() + "".join(
             f"#define READS_{g.upper()}\n" for g in gpu_layout.SILENT_GROUPS if variant.reads(g)
         )
+    if "SHAPES" in variant.features:
+        triangles += gpu_layout.shape_constants()
     if variant.path:
         triangles += gpu_layout.path_constants()
     return (
@@ -134,6 +146,10 @@ def variant_source(variant: Variant) -> str:
         .replace(RECURSION_MARK, recursion_color_function())
     )
     text = with_sections(text, LIGHTING_MARK, LIGHTING_FILE, any(f in LIGHTING for f in variant.features))
+    shapes = traces_shapes(variant)
+    text = with_shapes(text, shapes)
+    if shapes and not traces_triangles(variant):  # a tree of spheres and shapes: may have no sphere
+        return with_sections(text, TRIANGLES_MARK, TRIANGLES_FILE, True, only=TREE_SECTIONS)
     return with_triangles(text, traces_triangles(variant))
 
 
@@ -191,17 +207,44 @@ def with_triangles(text: str, triangles: bool) -> str:
     return with_sections(text, TRIANGLES_MARK, TRIANGLES_FILE, triangles)
 
 
-def with_sections(text: str, mark: str, name: str, on: bool) -> str:
+def traces_shapes(variant: Variant) -> bool:
+    """Whether the variant traces analytic shapes: the SHAPES data format, not the background variant."""
+    return "SHAPES" in variant.features and variant.spheres
+
+
+@cache
+def shape_sections() -> dict[str, str]:
+    """``shaders/shapes_tracer.glsl``'s sections, and ``library``: ``shaders/shapes.glsl`` whole."""
+    return {**sections_of(SHAPES_FILE), "library": read(SHAPES_LIBRARY).rstrip("\n") + "\n"}
+
+
+def with_shapes(text: str, shapes: bool) -> str:
+    """The ``//@SHAPES <name>`` marks of ``text`` replaced by their sections (``shapes``), or
+    removed, line and all: a variant without shapes is byte for byte the text it was before."""
+    return with_sections(text, SHAPES_MARK, SHAPES_FILE, shapes, sections=shape_sections())
+
+
+def with_sections(
+    text: str,
+    mark: str,
+    name: str,
+    on: bool,
+    only: frozenset[str] | None = None,
+    sections: dict[str, str] | None = None,
+) -> str:
     """The ``<mark><section>`` lines of ``text`` replaced by those sections of ``shaders/<name>``
-    (``on``), or removed, line and all."""
+    (``on``; ``only``: just the sections named there, the other marks removed), or removed,
+    line and all. ``sections``: the sections to use instead of the file's."""
     if mark not in text:
         return text
-    sections = sections_of(name) if on else {}
+    if sections is None:
+        sections = sections_of(name) if on else {}
     out = []
     for line in text.splitlines(keepends=True):
         if line.startswith(mark):
-            if on:
-                out.append(sections[line[len(mark) :].strip()])
+            section = line[len(mark) :].strip()
+            if on and (only is None or section in only):
+                out.append(sections[section])
         else:
             out.append(line)
     return "".join(out)

@@ -483,6 +483,25 @@ def _roots(shapes: Shapes, idx: np.ndarray, o: np.ndarray, d: np.ndarray) -> np.
     return out
 
 
+def pair_t(shapes: Shapes, idx: np.ndarray, o: np.ndarray, d: np.ndarray, src: np.ndarray | None = None) -> np.ndarray:
+    """t (K,) of the nearest hit with ``t > 0`` of ray k (``o[k]``, ``d[k]``) with shape ``idx[k]``
+    (inf: none); ``src`` (K,): the shape each ray leaves (−1: none), whose root nearest 0 is
+    ignored as :func:`intersect` ignores it. (The CPU traversals' per-pair test.)"""
+    idx = np.asarray(idx, dtype=np.int64).reshape(-1)
+    o = np.asarray(o, dtype=np.float64).reshape(-1, 3)
+    d = np.asarray(d, dtype=np.float64).reshape(-1, 3)
+    if not len(idx):
+        return np.zeros(0)
+    roots = _roots(shapes, idx, o, d)
+    if src is not None:
+        own = np.flatnonzero(np.asarray(src, dtype=np.int64).reshape(-1) == idx)
+        if len(own):
+            nearest = np.argmin(np.where(np.isnan(roots[own]), np.inf, np.abs(roots[own])), axis=1)
+            roots[own, nearest] = np.nan
+    with np.errstate(invalid="ignore"):
+        return np.where(roots > 0.0, roots, np.inf).min(axis=1)
+
+
 def normals(shapes: Shapes, idx: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Outward unit normals (K, 3) at points ``x`` (K, 3) on shapes ``idx`` (K,).
 

@@ -339,6 +339,7 @@ void path_main() {
                     }
                 }
 //@TRIANGLES path_emit_mis
+//@SHAPES path_emit_mis
                 L += w * beta * emission_at(s.mat);
             }
             // Lobe weights: diffuse, reflective, transmissive; scaled to sum 1 where they exceed it.

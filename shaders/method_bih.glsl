@@ -77,6 +77,7 @@ void intersect_spheres(Query q, inout Hit h) {
             int p = int(ref & BIH_REF_INDEX);
             while (true) {
                 Sphere s = SPHERE_AT(u_bih_spheres_at, p);
+//@SHAPES leaf_slot
 //@TRIANGLES leaf_slot
                 test_sphere(q, s, h);
                 if (q.any_hit && h.t < q.t_max) return;

@@ -10,4 +10,5 @@ void intersect_spheres(Query q, inout Hit h) {
         if (q.any_hit && h.id != NO_PRIM) return;
     }
 //@TRIANGLES bruteforce_loop
+//@SHAPES bruteforce_loop
 }

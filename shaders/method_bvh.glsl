@@ -75,6 +75,7 @@ void bvh_intersect(Query q, inout Hit h) {
             int p = int(ref & BVH_REF_INDEX);
             while (true) {
                 Sphere s = SPHERE_AT(u_bvh_spheres_at, p);
+//@SHAPES leaf_slot
 //@TRIANGLES leaf_slot
                 test_sphere(q, s, h);
                 if (q.any_hit && h.t < q.t_max) return;

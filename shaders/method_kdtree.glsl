@@ -73,6 +73,7 @@ void kd_intersect(Query q, inout Hit h) {
             int p = int(ref & KD_REF_INDEX);
             while (true) {
                 Sphere s = SPHERE_AT(u_kd_spheres_at, p);
+//@SHAPES leaf_slot
 //@TRIANGLES leaf_slot
                 test_sphere(q, s, h);
                 if (q.any_hit && h.t < q.t_max) return;

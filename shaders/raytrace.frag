@@ -160,6 +160,8 @@ bool slab_interval(vec3 o, vec3 d, vec3 bmin, vec3 bmax, out float t0, out float
 }
 
 //@TRIANGLES functions
+//@SHAPES library
+//@SHAPES functions
 #ifndef BACKGROUND
 //@METHOD@
 #else
@@ -301,10 +303,12 @@ struct Surface {
 //@TRIANGLES surface_field
 };
 //@TRIANGLES surface_function
+//@SHAPES surface_function
 
 Surface surface_at(vec3 o, vec3 d, Hit h) {
     Surface s;
     s.p = o + h.t * d;
+//@SHAPES surface_at
 //@TRIANGLES surface_at
     if (h.id < u_num_spheres) {
         // From the centre's offset (o − c) + t·d, not from p − c: far from the origin

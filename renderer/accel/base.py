@@ -99,14 +99,15 @@ def gpu_data(
 
 def mesh_stats(scene: Scene) -> dict[str, int]:
     """What a build's statistics add for a scene with meshes (nothing for spheres only, whose
-    statistics stay as they were): tree primitives are spheres then triangles."""
-    if not scene.n_triangles:
+    statistics stay as they were): tree primitives are spheres, triangles, then analytic shapes."""
+    if not scene.n_triangles and not scene.n_shapes:
         return {}
-    return {
-        "spheres": scene.n_spheres,
-        "triangles": scene.n_triangles,
-        "degenerate_triangles": scene.n_degenerate_triangles,
-    }
+    out = {"spheres": scene.n_spheres, "triangles": scene.n_triangles}
+    if scene.n_triangles:
+        out["degenerate_triangles"] = scene.n_degenerate_triangles
+    if scene.n_shapes:
+        out["shapes"] = scene.n_shapes
+    return out
 
 
 class NoLayout:
@@ -149,7 +150,7 @@ class Capabilities:
     tests_every_sphere: bool = False
     update_schemes: tuple[str, ...] = ("rebuild",)
     settings: tuple[str, ...] = ()
-    primitives: tuple[str, ...] = ("spheres", "planes", "triangles")
+    primitives: tuple[str, ...] = ("spheres", "planes", "triangles", "shapes")
     meshes_on_gpu: bool = False
     max_primitives: int | None = None
 

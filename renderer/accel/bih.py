@@ -5,7 +5,7 @@ all nodes of one round at once with NumPy instead of one node per recursive
 call, so that a per-request rebuild is fast in Python. Each round takes every
 open node and does what one pass of listing 3.4's body does for it:
 
-0. *(trees over triangles only, ``empty_cuts``; beyond the thesis)* cut off empty space:
+0. *(trees over triangles or analytic shapes only, ``empty_cuts``; beyond the thesis)* cut off empty space:
    while the node's **region** — the part of space the traversal's intervals bound there,
    the global box clipped by every ancestor's planes — has, on some axis, an empty slab
    above or below its primitives' tight box whose removal takes more than
@@ -485,11 +485,14 @@ def build_for_spheres(
 
 
 def build_for_scene(scene: Scene, max_prims: int = 8, max_tree_depth: int = MAX_TREE_DEPTH) -> BIH:
-    """A BIH over the scene's spheres and triangles (tree primitive ``i``: sphere ``i``, then
-    triangle ``i − n_spheres``; :mod:`renderer.accel.primitives`), with step 0's empty-space
-    cuts when there are triangles. Spheres only: the same tree as :func:`build_for_spheres`."""
+    """A BIH over the scene's spheres, triangles and analytic shapes (tree primitive ``i``:
+    sphere ``i``, then the triangles, then the shapes; :mod:`renderer.accel.primitives`), with
+    step 0's empty-space cuts when there are triangles or shapes. Spheres only: the same tree
+    as :func:`build_for_spheres`."""
     lo, hi = scene_aabbs(scene)
-    return build_bih(lo, hi, max_prims=max_prims, max_tree_depth=max_tree_depth, empty_cuts=scene.n_triangles > 0)
+    return build_bih(
+        lo, hi, max_prims=max_prims, max_tree_depth=max_tree_depth, empty_cuts=scene.n_triangles + scene.n_shapes > 0
+    )
 
 
 class BoundingIntervalHierarchy:

@@ -96,7 +96,18 @@ BOX_MIN = Binding("u_box_min", "highp vec3", "BIH global AABB")
 BOX_MAX = Binding("u_box_max", "highp vec3")
 # The triangles' records (gpu_layout, read only by variants with the TRIANGLES data format).
 # (Not u_num_triangles: the tree's leaves say where the triangles are.)
-BINDINGS = (NODES, SPHERES, ROOT, BOX_MIN, BOX_MAX, gpu_layout.TRIANGLES, gpu_layout.TRI_NORMALS, gpu_layout.TRI_BASE)
+# The analytic shapes' records likewise (the SHAPES data format).
+BINDINGS = (
+    NODES,
+    SPHERES,
+    ROOT,
+    BOX_MIN,
+    BOX_MAX,
+    gpu_layout.TRIANGLES,
+    gpu_layout.TRI_NORMALS,
+    gpu_layout.TRI_BASE,
+    *gpu_layout.TREE_SHAPE_BINDINGS,
+)
 
 
 def empty_nodes(count: int) -> np.ndarray:
@@ -182,4 +193,8 @@ def pack_bih(bih, scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
             zip((ROOT.name, BOX_MIN.name, BOX_MAX.name), (root, *gpu_layout.box_uniform(*bih.global_aabb)), strict=True)
         ),
     )
-    return gpu_layout.merged(packed, gpu_layout.pack_triangles(scene, max_width, count=False))
+    return gpu_layout.merged(
+        packed,
+        gpu_layout.pack_triangles(scene, max_width, count=False),
+        gpu_layout.pack_shapes(scene, max_width, count=False),
+    )

@@ -57,6 +57,7 @@ from fractions import Fraction
 
 import numpy as np
 
+from ..shapes import Shapes, pair_t
 from . import bih_layout as L
 from .bih import BIH
 
@@ -199,10 +200,19 @@ def _prepare(centers, radii, origins, dirs, ignore, far_only):
     return c, r, o, d, ids(ignore, "ignore"), ids(far_only, "far_only")
 
 
+def _shape_t(shapes: Shapes | None, n_before: int, o, d, ray: np.ndarray, pid: np.ndarray, ign) -> np.ndarray:
+    """t of rays ``ray`` with tree primitives ``pid`` that are analytic shapes (tree index
+    ``n_before + k``: shape ``k``), a ray leaving one (``ign``) dropping its root at the origin."""
+    assert shapes is not None  # (a tree primitive past the triangles is a shape)
+    k = pid - n_before
+    return pair_t(shapes, k, o[ray], d[ray], np.where(ign[ray] == pid, k, -1))
+
+
 def brute_force(
-    centers, radii, origins, dirs, ignore=None, far_only=None, triangles=None
+    centers, radii, origins, dirs, ignore=None, far_only=None, triangles=None, shapes: Shapes | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest hit of every ray over all spheres (and ``triangles``, tree ids after them): ``(t, prim)``.
+    """Nearest hit of every ray over all spheres (and ``triangles``, then analytic ``shapes``,
+    tree ids after them): ``(t, prim)``.
 
     ``t`` float64 (inf on a miss), ``prim`` int64 (-1 on a miss); exactly
     equal ``t`` goes to the lower id.
@@ -212,6 +222,16 @@ def brute_force(
     t_best = np.full(n_rays, np.inf)
     prim = np.full(n_rays, -1, dtype=np.int64)
     tri, valid = _corners(triangles)
+    if shapes is not None and len(shapes) and n_rays:
+        # The shapes' ids come last: a triangle's or a sphere's equal t wins below.
+        first = n + len(tri)
+        ray = np.repeat(np.arange(n_rays, dtype=np.int64), len(shapes))
+        pid = first + np.tile(np.arange(len(shapes), dtype=np.int64), n_rays)
+        t = _shape_t(shapes, first, o, d, ray, pid, ign).reshape(n_rays, len(shapes))
+        k = np.argmin(t, axis=1)
+        tk = t[np.arange(n_rays), k]
+        t_best = tk
+        prim = np.where(np.isfinite(tk), first + k, -1)
     if len(tri) and n_rays:
         ids = (n + np.arange(len(tri), dtype=np.int64))[None, :]
         v0, v1, v2 = (tuple(tri[None, :, k, a] for a in range(3)) for k in range(3))
@@ -223,8 +243,9 @@ def brute_force(
             t = triangle_t(oo, dd, v0, v1, v2, ids, ign[s:e, None], valid[None, :])
             k = np.argmin(t, axis=1)
             tk = t[np.arange(e - s), k]
-            t_best[s:e] = tk
-            prim[s:e] = np.where(np.isfinite(tk), n + k, -1)
+            better = np.isfinite(tk) & (tk <= t_best[s:e])  # a triangle's id is below every shape's
+            t_best[s:e] = np.where(better, tk, t_best[s:e])
+            prim[s:e] = np.where(better, n + k, prim[s:e])
     if n == 0 or n_rays == 0:
         return t_best, prim
     ids = np.arange(n, dtype=np.int64)[None, :]
@@ -276,6 +297,7 @@ def traverse(
     ignore: np.ndarray | None = None,
     far_only: np.ndarray | None = None,
     triangles: np.ndarray | None = None,
+    shapes: Shapes | None = None,
 ) -> TraversalResult:
     """Nearest hit of every ray through ``bih`` (built over these spheres and triangles).
 
@@ -294,11 +316,15 @@ def traverse(
     gaps = np.zeros(n_rays, dtype=np.int64)
     tests = np.zeros(n_rays, dtype=np.int64)
     result = TraversalResult(best_t, best_p, visited, gaps, tests)
-    n = n_s + len(tri)
+    n_t = n_s + len(tri)  # (the first shape's tree index)
+    n = n_t + (len(shapes) if shapes is not None else 0)
     if n == 0 or n_rays == 0:
         return result
     if len(bih.indices) != n:
-        raise ValueError(f"BIH built over {len(bih.indices)} primitives, got {n_s} spheres and {len(tri)} triangles")
+        raise ValueError(
+            f"BIH built over {len(bih.indices)} primitives, got {n_s} spheres, {len(tri)} triangles "
+            f"and {n - n_t} shapes"
+        )
 
     # The GPU layout, decoded: inner records, and the spheres in leaf order with the end
     # of each record's run.
@@ -389,7 +415,10 @@ def traverse(
                             ign[ry],
                             far[ry],
                         )
-                    tp_ = np.flatnonzero(pid >= n_s)
+                    kp_ = np.flatnonzero(pid >= n_t)
+                    if len(kp_):
+                        t[kp_] = _shape_t(shapes, n_t, o, d, ray[kp_], pid[kp_], ign)
+                    tp_ = np.flatnonzero((pid >= n_s) & (pid < n_t))
                     if len(tp_):
                         ry, ps = ray[tp_], pid[tp_]
                         j = ps - n_s

@@ -1,11 +1,12 @@
-"""Method ``bruteforce``: every ray tests every sphere (the thesis's "BF" series) and every
-triangle.
+"""Method ``bruteforce``: every ray tests every sphere (the thesis's "BF" series), every
+triangle and every analytic shape.
 
 No structure: ``shaders/method_bruteforce.glsl`` loops over the sphere records in id
 order (``u_bf_spheres``, :func:`renderer.gpu_layout.sphere_records`: 16 bytes a sphere
 when the radii are equal, else 32), a record array the host may put in a uniform block,
 then — in a variant with the TRIANGLES data format — over the triangle records in id order
-(``u_triangles``, :func:`renderer.gpu_layout.triangle_records`).
+(``u_triangles``, :func:`renderer.gpu_layout.triangle_records`), and with SHAPES over the
+analytic shapes' (``u_shapes``, :func:`renderer.gpu_layout.shape_records`).
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ class BruteForce:
         settings=("integrator",),
         max_primitives=MAX_LOOP_PRIMITIVES,
     )
-    bindings = (SPHERES, *gpu_layout.TRIANGLE_BINDINGS)
+    bindings = (SPHERES, *gpu_layout.TRIANGLE_BINDINGS, *gpu_layout.SHAPE_BINDINGS)
 
     @staticmethod
     def glsl_defines() -> str:
@@ -49,10 +50,16 @@ class BruteForce:
             spheres = gpu_layout.PackedScene(
                 {SPHERES.name: wrap_rows(gpu_layout.sphere_records(scene, np.arange(scene.n_spheres)), max_width)}
             )
-            return gpu_layout.merged(spheres, gpu_layout.pack_triangles(scene, max_width))
+            return gpu_layout.merged(
+                spheres, gpu_layout.pack_triangles(scene, max_width), gpu_layout.pack_shapes(scene, max_width)
+            )
 
         return PreparedMethod(
             gpu_data(scene, pack, True),
             0.0,
-            {"method": self.name, "primitives": scene.n_spheres + scene.n_triangles, **mesh_stats(scene)},
+            {
+                "method": self.name,
+                "primitives": scene.n_spheres + scene.n_triangles + scene.n_shapes,
+                **mesh_stats(scene),
+            },
         )

@@ -73,7 +73,13 @@ ROOT = Binding("u_bvh_root", "highp uint", "the root's ref")
 ROOT_MIN = Binding("u_bvh_root_min", "highp vec3", "the root's box")
 ROOT_MAX = Binding("u_bvh_root_max", "highp vec3")
 # The triangles' records (gpu_layout; only variants with the TRIANGLES data format read them).
-TRIANGLE_BINDINGS = (gpu_layout.TRIANGLES, gpu_layout.TRI_NORMALS, gpu_layout.TRI_BASE)
+# … and the analytic shapes' (the SHAPES data format).
+TRIANGLE_BINDINGS = (
+    gpu_layout.TRIANGLES,
+    gpu_layout.TRI_NORMALS,
+    gpu_layout.TRI_BASE,
+    *gpu_layout.TREE_SHAPE_BINDINGS,
+)
 BINDINGS = (NODES, SPHERES, ROOT, ROOT_MIN, ROOT_MAX, *TRIANGLE_BINDINGS)
 
 
@@ -139,4 +145,8 @@ def pack_bvh(bvh, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT
             )
         ),
     )
-    return gpu_layout.merged(packed, gpu_layout.pack_triangles(scene, max_width, count=False))
+    return gpu_layout.merged(
+        packed,
+        gpu_layout.pack_triangles(scene, max_width, count=False),
+        gpu_layout.pack_shapes(scene, max_width, count=False),
+    )

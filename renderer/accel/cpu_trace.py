@@ -3,10 +3,10 @@
 The GPU traverses these trees in ``shaders/method_bvh.glsl`` / ``method_kdtree.glsl``; this
 module is their float64 counterpart on the CPU, vectorised over rays in lockstep like
 :mod:`renderer.accel.bih_traverse` (each step, every live ray pops an entry or visits one
-node), so that the trees built over spheres *and triangles* can be checked against brute
-force before the GPU traces triangles. Primitive tests are those of ``bih_traverse``
-(:func:`~renderer.accel.bih_traverse.sphere_t`, :func:`~renderer.accel.bih_traverse.triangle_t`),
-nearest ``t > 0``, exactly equal ``t`` to the lower id.
+node), so that the trees built over spheres, triangles *and analytic shapes* can be checked
+against brute force. Primitive tests are those of ``bih_traverse``
+(:func:`~renderer.accel.bih_traverse.sphere_t`, :func:`~renderer.accel.bih_traverse.triangle_t`)
+and :func:`renderer.shapes.pair_t`, nearest ``t > 0``, exactly equal ``t`` to the lower id.
 
 - BVH: a stack of nodes; a node is entered when the ray's slab interval through its box
   meets ``[0, best t]`` (closed: a hit exactly at the best t may still be a lower id).
@@ -23,10 +23,11 @@ does).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..shapes import Shapes, pair_t
 from .bih import BIH
 from .bih_traverse import _corners, sphere_t, traverse, triangle_t
 from .bvh import BVH
@@ -38,12 +39,13 @@ __all__ = ["TreePrimitives", "traverse_bvh", "traverse_kdtree", "trace_tree"]
 
 @dataclass(frozen=True)
 class TreePrimitives:
-    """A scene's tree primitives in float64: spheres ``0 … n−1``, then triangles."""
+    """A scene's tree primitives in float64: spheres ``0 … n−1``, then triangles, then analytic shapes."""
 
     centers: np.ndarray  # (n, 3)
     radii: np.ndarray  # (n,)
     corners: np.ndarray  # (T, 3, 3)
     valid: np.ndarray  # (T,) not of zero area
+    shapes: Shapes = field(default_factory=Shapes.empty)
 
     @staticmethod
     def of(scene) -> TreePrimitives:
@@ -53,6 +55,7 @@ class TreePrimitives:
             np.asarray(scene.sphere_radii, np.float64).reshape(-1),
             corners,
             valid,
+            scene.shapes,
         )
 
     @property
@@ -60,7 +63,7 @@ class TreePrimitives:
         return len(self.radii)
 
     def __len__(self) -> int:
-        return len(self.radii) + len(self.corners)
+        return len(self.radii) + len(self.corners) + len(self.shapes)
 
     def hits(self, o: np.ndarray, d: np.ndarray, ray: np.ndarray, pid: np.ndarray) -> np.ndarray:
         """t of ray ``ray[k]`` with tree primitive ``pid[k]`` (inf: no hit with t > 0)."""
@@ -79,7 +82,11 @@ class TreePrimitives:
                 none[sph],
                 none[sph],
             )
-        tri = np.flatnonzero(pid >= self.n_spheres)
+        first_shape = self.n_spheres + len(self.corners)
+        shp = np.flatnonzero(pid >= first_shape)
+        if len(shp):
+            t[shp] = pair_t(self.shapes, pid[shp] - first_shape, o[ray[shp]], d[ray[shp]])
+        tri = np.flatnonzero((pid >= self.n_spheres) & (pid < first_shape))
         if len(tri):
             r, p = ray[tri], pid[tri]
             j = p - self.n_spheres
@@ -271,9 +278,9 @@ def trace_tree(tree, scene, origins: np.ndarray, dirs: np.ndarray) -> tuple[np.n
     if tree is None:
         from .bih_traverse import brute_force
 
-        t, p = brute_force(prims.centers, prims.radii, o, d, triangles=prims.corners)
+        t, p = brute_force(prims.centers, prims.radii, o, d, triangles=prims.corners, shapes=prims.shapes)
     elif isinstance(tree, BIH):
-        res = traverse(tree, prims.centers, prims.radii, o, d, triangles=prims.corners)
+        res = traverse(tree, prims.centers, prims.radii, o, d, triangles=prims.corners, shapes=prims.shapes)
         t, p = res.t, res.prim
     elif isinstance(tree, BVH):
         t, p = traverse_bvh(tree, prims, o, d)
@@ -287,6 +294,6 @@ def trace_tree(tree, scene, origins: np.ndarray, dirs: np.ndarray) -> tuple[np.n
         t, p = np.where(take, t2, t), np.where(take, p2, p)
     ids = tree_to_scene_ids(p, scene.n_spheres, len(scene.planes))
     tp, pp = _planes(scene, o, d)
-    # a plane's id lies between the spheres' and the triangles'
+    # a plane's id lies between the spheres' and the triangles' (and shapes')
     take = (tp < t) | ((tp == t) & np.isfinite(tp) & ((ids < 0) | (pp < ids)))
     return np.where(take, tp, t), np.where(take, pp, ids)

@@ -69,7 +69,13 @@ ROOT = Binding("u_kd_root", "highp uint", "the root's ref")
 BOX_MIN = Binding("u_kd_box_min", "highp vec3", "the root's voxel")
 BOX_MAX = Binding("u_kd_box_max", "highp vec3")
 # The triangles' records (gpu_layout; only variants with the TRIANGLES data format read them).
-TRIANGLE_BINDINGS = (gpu_layout.TRIANGLES, gpu_layout.TRI_NORMALS, gpu_layout.TRI_BASE)
+# … and the analytic shapes' (the SHAPES data format).
+TRIANGLE_BINDINGS = (
+    gpu_layout.TRIANGLES,
+    gpu_layout.TRI_NORMALS,
+    gpu_layout.TRI_BASE,
+    *gpu_layout.TREE_SHAPE_BINDINGS,
+)
 BINDINGS = (NODES, SPHERES, ROOT, BOX_MIN, BOX_MAX, *TRIANGLE_BINDINGS)
 
 
@@ -136,4 +142,8 @@ def pack_kdtree(kd, scene, ids: np.ndarray | None = None, max_width: int = DEFAU
             zip((ROOT.name, BOX_MIN.name, BOX_MAX.name), (root, *gpu_layout.box_uniform(*kd.global_box)), strict=True)
         ),
     )
-    return gpu_layout.merged(packed, gpu_layout.pack_triangles(scene, max_width, count=False))
+    return gpu_layout.merged(
+        packed,
+        gpu_layout.pack_triangles(scene, max_width, count=False),
+        gpu_layout.pack_shapes(scene, max_width, count=False),
+    )

@@ -1,15 +1,19 @@
 """Boxes of primitives, shared by every hierarchy's build, and the trees' primitive index space.
 
-A tree holds the scene's spheres and triangles (the planes stay outside every tree and are
-tested on their own): tree primitive ``i`` is sphere ``i`` for ``i < n_spheres`` and
-triangle ``i − n_spheres`` (in the scene's flattened id order) otherwise. Its scene
-primitive id (docs/FORMATS.md) is ``i`` for a sphere and ``i + n_planes`` for a triangle
-(:func:`tree_to_scene_ids`), since the planes' ids come between.
+A tree holds the scene's spheres, triangles and analytic shapes (the planes stay outside
+every tree and are tested on their own): tree primitive ``i`` is sphere ``i`` for
+``i < n_spheres``, triangle ``i − n_spheres`` (in the scene's flattened id order) for
+``i < n_spheres + n_triangles``, and analytic shape ``i − n_spheres − n_triangles`` after
+them. Its scene primitive id (docs/FORMATS.md) is ``i`` for a sphere and ``i + n_planes``
+for a triangle or a shape (:func:`tree_to_scene_ids`), since the planes' ids come between
+and the shapes' ids follow the triangles' in both spaces.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from ..shapes import bounds as shape_bounds
 
 
 def sphere_aabbs(centers: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -44,13 +48,38 @@ def triangle_aabbs(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
+def shape_aabbs(shapes) -> tuple[np.ndarray, np.ndarray]:
+    """float32 AABBs of analytic shapes (renderer/shapes.py ``bounds``), widened so that they hold
+    each shape in both precisions and every root the float32 tests find.
+
+    The GPU sees the record rounded to float32 (origin, unit axis, radii: a relative 6e-8
+    each, the axis's error moved by the height) and finds its roots to a relative 1e-7 of
+    the shape's size (the torus's Newton tolerance); a widening of 1e-5 of the shape's
+    extent plus its distance from the origin is far beyond both and still a tight box."""
+    box = shape_bounds(shapes)
+    size = np.abs(box).max(axis=(1, 2)) + (box[:, 1] - box[:, 0]).max(axis=1)
+    slack = (1e-5 * size)[:, None]
+    lo = np.nextafter((box[:, 0] - slack).astype(np.float32), np.float32(-np.inf))
+    hi = np.nextafter((box[:, 1] + slack).astype(np.float32), np.float32(np.inf))
+    return lo, hi
+
+
 def scene_aabbs(scene) -> tuple[np.ndarray, np.ndarray]:
-    """The boxes of a scene's tree primitives: its spheres, then its triangles (float32, (n + T, 3))."""
+    """The boxes of a scene's tree primitives: its spheres, then its triangles, then its analytic
+    shapes (float32, (n + T + S, 3))."""
     slo, shi = sphere_aabbs(scene.sphere_centers, scene.sphere_radii)
-    if not scene.n_triangles:
+    if not scene.n_triangles and not scene.n_shapes:
         return slo, shi
-    tlo, thi = triangle_aabbs(scene.triangle_corners)
-    return np.concatenate([slo, tlo]), np.concatenate([shi, thi])
+    los, his = [slo], [shi]
+    if scene.n_triangles:
+        tlo, thi = triangle_aabbs(scene.triangle_corners)
+        los.append(tlo)
+        his.append(thi)
+    if scene.n_shapes:
+        klo, khi = shape_aabbs(scene.shapes)
+        los.append(klo)
+        his.append(khi)
+    return np.concatenate(los), np.concatenate(his)
 
 
 def tree_to_scene_ids(tree_ids: np.ndarray, n_spheres: int, n_planes: int) -> np.ndarray:

@@ -85,6 +85,9 @@ class TwoLevelMethod:
         t0 = time.perf_counter()
         n = scene.n_spheres + scene.n_triangles
         mv = np.zeros(n, dtype=bool) if update.moving is None else np.asarray(update.moving, dtype=bool).reshape(-1)
+        if len(mv) == n:  # a mask without the analytic shapes: they stay in the static tree
+            mv = np.concatenate([mv, np.zeros(scene.n_shapes, dtype=bool)])
+        n += scene.n_shapes
         if len(mv) != n:
             raise ValueError(
                 f"moving mask has {len(mv)} entries for {scene.n_spheres} spheres and {scene.n_triangles} triangles"

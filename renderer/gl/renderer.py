@@ -206,7 +206,7 @@ class GLRenderer:
         method's structure first unless ``prepared`` is given."""
         t_start = time.perf_counter()
         # auto's crossover counts what a tree would hold, spheres and triangles (as prepare_frame)
-        method_name = resolve_method(settings.method, scene.n_spheres + scene.n_triangles)
+        method_name = resolve_method(settings.method, scene.n_spheres + scene.n_triangles + scene.n_shapes)
         method = METHODS[method_name]
         if method.capabilities.multi_pass:
             raise ValueError(f"method {method_name!r} draws its frames in passes of its own: use render()")

@@ -456,7 +456,18 @@ def test_what_a_method_packs_is_what_its_shader_declares(method):
     if METHODS[method].capabilities.meshes_on_gpu:  # a smooth mesh scene: the triangles' too
         packed = METHODS[method].prepare(mesh_scene("mixed", 1), 8, 64).packed
         names = set(packed.textures) | set(packed.uniforms)
-        assert names == {b.name for b in METHODS[method].bindings}
+        assert names == {b.name for b in METHODS[method].bindings if b.needs != "SHAPES"}
+    # a scene with analytic shapes: their records and base id (brute force: their count too)
+    shapes = Scene.from_json(
+        {
+            "materials": [{}],
+            "spheres": [{"center": [0, 0, 0], "radius": 1}],
+            "tori": [{"center": [3, 0, 0], "axis": [0, 1, 0], "major_radius": 1, "minor_radius": 0.2}],
+        }
+    )
+    packed = METHODS[method].prepare(shapes, 8, 64).packed
+    names = set(packed.textures) | set(packed.uniforms)
+    assert names == {b.name for b in METHODS[method].bindings if b.needs in (None, "SHAPES")}
     prims = gpu_layout.pack_primitives(scenario(3, 64))
     # only a scene with emission, an environment colour, an environment image
     image = {b.name for b in gpu_layout.ENV_BINDINGS}
@@ -490,3 +501,27 @@ def test_the_jittered_slices_start_at_the_centre_and_fill_the_cell():
     assert ((points >= 0) & (points < 1)).all()
     counts, _, _ = np.histogram2d(points[:, 0], points[:, 1], bins=4, range=[[0, 1], [0, 1]])
     assert counts.min() >= 2 and counts.max() <= 5, counts
+
+
+def test_primary_rect_and_the_cost_coverage_hold_analytic_shapes():
+    """A scene of shapes alone: the tracer's rectangle holds every pixel whose reference ray
+    meets a shape (outside it the background variant draws), and the cost model sees them."""
+    from renderer.cost import coverage
+    from renderer.reference import render_reference
+    from renderer.settings import RenderSettings
+
+    scene = Scene.from_json(
+        {
+            "camera": {"position": [0, 2, 8], "target": [1, 0, 0], "fov_y": 50},
+            "materials": [{}],
+            "cylinders": [{"base": [2, -1, 0], "axis": [0, 1, 0.3], "radius": 0.5, "height": 2}],
+            "tori": [{"center": [-1, 0, 0], "axis": [0.3, 1, 0], "major_radius": 1, "minor_radius": 0.3}],
+        }
+    )
+    w, h = 48, 32
+    x, y, rw, rh = gpu_layout.primary_rect(scene, w, h)
+    ids = render_reference(scene, RenderSettings(width=w, height=h, mode="primid")).primid[::-1]  # GL rows
+    hit_rows, hit_cols = np.nonzero(ids >= 0)
+    assert len(hit_rows) > 50 and rw * rh < w * h
+    assert (hit_cols >= x).all() and (hit_cols < x + rw).all() and (hit_rows >= y).all() and (hit_rows < y + rh).all()
+    assert 0.0 < coverage(scene, w, h) < 1.0

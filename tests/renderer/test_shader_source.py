@@ -29,11 +29,11 @@ def test_twolevel_shader_inlines_both_traversals():
     src = shader_source("twolevel", "color", 1)
     for name in ("method_bvh.glsl", "method_kdtree.glsl"):
         body = (ROOT / "shaders" / name).read_text()
-        # (as a sphere variant has it: the //@TRIANGLES marks removed, renderer.shader_source)
-        from renderer.shader_source import with_triangles
+        # (as a sphere variant has it: the //@TRIANGLES and //@SHAPES marks removed, renderer.shader_source)
+        from renderer.shader_source import with_shapes, with_triangles
 
-        assert src.count(with_triangles(body, False)) == 1
-    assert "//@INCLUDE" not in src and "//@TRIANGLES" not in src
+        assert src.count(with_shapes(with_triangles(body, False), False)) == 1
+    assert "//@INCLUDE" not in src and "//@TRIANGLES" not in src and "//@SHAPES" not in src
 
 
 def test_triangle_marks_are_filled_only_for_variants_that_trace_triangles():

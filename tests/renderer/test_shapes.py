@@ -708,19 +708,16 @@ def test_mitsuba_has_no_cone_torus_nor_annulus_and_says_so(key, item, field):
     assert e.value.field == field and "Mitsuba 3 has no" in e.value.message
 
 
-def test_the_gpu_methods_refuse_a_scene_with_shapes():
+def test_the_one_pass_methods_take_shapes_and_the_ray_engines_refuse_them():
     scene = Scene.from_json({**BASE, "spheres": [{"center": [0, 0, 0], "radius": 1}], "tori": [TORUS_]})
-    for name in METHODS:
-        with pytest.raises(SceneError) as e:
+    for name, m in METHODS.items():
+        if m.capabilities.multi_pass:
+            with pytest.raises(SceneError) as e:
+                check_primitives(name, scene)
+            assert e.value.field == "method" and "1 tori" in e.value.message and "bih" in e.value.message
+        else:
             check_primitives(name, scene)
-        assert e.value.field == "shapes" and "not yet traced by the GPU" in e.value.message
     with pytest.raises(SceneError) as e:
-        prepare_frame(scene, RenderSettings(width=8, height=8))
-    assert e.value.field == "shapes" and "1 tori" in e.value.message
-
-
-def test_the_gl_renderer_refuses_a_scene_with_shapes(gl_renderer):
-    scene = Scene.from_json({**BASE, "disks": [DISK_]})
-    with pytest.raises(SceneError) as e:
-        gl_renderer.render(scene, RenderSettings(width=8, height=8, method="bruteforce"))
-    assert e.value.field == "shapes"
+        prepare_frame(scene, RenderSettings(width=8, height=8, method="rayengine"))
+    assert e.value.field == "method"
+    prepare_frame(scene, RenderSettings(width=8, height=8))

@@ -35,6 +35,7 @@ from renderer.accel import bih_layout as L
 from renderer.accel.bih import build_for_spheres
 from renderer.scenarios import RED, TRANSPARENT, scenario
 from renderer.scene import Camera, Light, Material, Mesh, Plane, Scene
+from renderer.shapes import Shapes
 
 PRIMID_AGREEMENT = 0.999
 DEPTH_REL = 1e-4
@@ -222,6 +223,9 @@ def float32_inputs(scene: Scene) -> Scene:
                 None if m.normals is None else m.normals.astype(np.float32).astype(np.float64),
             )
             for m in scene.meshes
+        ),
+        shapes=Shapes(
+            scene.shapes.kind, scene.shapes.params.astype(np.float32).astype(np.float64), scene.shapes.material
         ),
     )
 
@@ -1315,5 +1319,123 @@ _add(
         max_depth_rel=2e-3,
         why=_OFFSET_MESH,
         depth_why=_OFFSET_MESH,
+    ),
+)
+
+
+# ------------------------------------------------------------------------ analytic shapes
+# The hard cases of shaders/shapes.glsl (tests/renderer/accel/shapes_cases.py, there as ray
+# sets against the closed forms) as scenes: trees over shapes, shading, the rays that leave them.
+
+
+def _shape_methods() -> tuple[str, ...]:
+    from renderer.methods import METHODS
+
+    return tuple(m for m, x in METHODS.items() if "shapes" in x.capabilities.primitives)
+
+
+SHAPE_METHODS = _shape_methods()
+
+
+def _shapes_scene(camera: Camera, shapes: dict, spheres=(), planes=(FLOOR,)) -> Scene:
+    """A scene of ``shapes`` (the JSON keys) lit by MESH_LIGHT, materials RED, TRANSPARENT, MIRROR."""
+    d = {
+        "camera": {"position": list(camera.position), "target": list(camera.target), "fov_y": camera.fov_y},
+        "lights": [{"position": list(MESH_LIGHT.position), "color": list(MESH_LIGHT.color)}],
+        "materials": [m.to_json() for m in (RED, TRANSPARENT, MIRROR)],
+        "spheres": [{"center": list(c), "radius": r, "material": m} for c, r, m in spheres],
+        "planes": [p.to_json() for p in planes],
+        **shapes,
+    }
+    return Scene.from_json(d)
+
+
+def shape_torus_far() -> Scene:
+    """A torus (R = 100, r = 25) 1e4 from the camera at the origin, and a glass one inside it."""
+    c = [0.0, 0.0, -1e4]
+    return _shapes_scene(
+        Camera((0.0, 0.0, 0.0), tuple(c), (0.0, 1.0, 0.0), 1.8),
+        {
+            "tori": [
+                {"center": c, "axis": [0.2, 1.0, 0.3], "major_radius": 100.0, "minor_radius": 25.0},
+                {"center": c, "axis": [1.0, 0.1, 0.0], "major_radius": 40.0, "minor_radius": 12.0, "material": 1},
+            ]
+        },
+        planes=(),
+    )
+
+
+def shape_torus_thin() -> Scene:
+    """Thin tori (r/R = 1e-2, 3e-3) seen obliquely, a mirror torus reflecting them."""
+    return _shapes_scene(
+        Camera((0.0, 2.0, 4.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 50.0),
+        {
+            "tori": [
+                {"center": [0, 0, 0], "axis": [0.2, 1.0, 0.3], "major_radius": 1.0, "minor_radius": 1e-2},
+                {"center": [0, 0, 0], "axis": [1.0, 0.2, 0.0], "major_radius": 0.8, "minor_radius": 3e-3},
+                {"center": [0, -0.8, -1], "axis": [0, 1, 0], "major_radius": 1.2, "minor_radius": 0.3, "material": 2},
+            ]
+        },
+    )
+
+
+def shape_coin_and_tubes() -> Scene:
+    """A capped cylinder of height 1e-6 (a coin), a glass tube seen along its axis, an open
+    mirror tube the camera looks into, a cone with an apex."""
+    return _shapes_scene(
+        Camera((0.0, 1.0, 6.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 50.0),
+        {
+            "cylinders": [
+                {"base": [-1.2, 0.5, 0], "axis": [0.1, 1, 0.8], "radius": 0.8, "height": 1e-6, "caps": True},
+                {"base": [0, 0, -3], "axis": [0, 1 / 6, 1], "radius": 0.5, "height": 2.5, "caps": True, "material": 1},
+                {"base": [1.5, -1, 0], "axis": [0, 0.3, 1], "radius": 0.6, "height": 2.0, "caps": False, "material": 2},
+            ],
+            "cones": [{"base": [0, -1.5, 1], "axis": [0, 1, 0], "base_radius": 0.6, "top_radius": 0.0, "height": 1.0}],
+        },
+        spheres=(((0.0, 0.0, -6.0), 1.0, 0),),
+        planes=(Plane((0.0, -1.5, 0.0), (0.0, 1.0, 0.0), 0),),
+    )
+
+
+def shape_disk_edge_on() -> Scene:
+    """Annuli and a disk seen from 0.01 above their plane, 3 away; a disk exactly edge-on."""
+    return _shapes_scene(
+        Camera((0.0, 0.01, 3.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0),
+        {
+            "disks": [
+                {"center": [0, 0, 0], "normal": [0, 1, 0], "radius": 1.0, "inner_radius": 0.3},
+                {"center": [0, 0.5, -1], "normal": [0, 1, 0.05], "radius": 0.8, "material": 2},
+                {"center": [0.8, 0.01, -0.5], "normal": [0, 1, 0], "radius": 0.4},
+            ]
+        },
+        planes=(),
+    )
+
+
+_add(
+    Case(
+        "shape_torus_far",
+        "tori 1e4 from the camera (f = p0 − b·d carries ~1e-3 of rounding), one of glass inside the other",
+        shape_torus_far,
+        methods=SHAPE_METHODS,
+    ),
+    Case(
+        "shape_torus_thin",
+        "thin tori (r/R = 1e-2, 3e-3: the quartic's coefficients cancel) and their reflections",
+        shape_torus_thin,
+        methods=SHAPE_METHODS,
+    ),
+    Case(
+        "shape_coin_and_tubes",
+        "a cylinder 1e-6 high, a glass tube along its axis (the lateral quadratic degenerates), "
+        "the inside of an open mirror tube, a cone's apex",
+        shape_coin_and_tubes,
+        methods=SHAPE_METHODS,
+    ),
+    Case(
+        "shape_disk_edge_on",
+        "annuli seen from 1e-2 above their plane, a disk in the camera's plane (dz = 0 rays)",
+        shape_disk_edge_on,
+        methods=SHAPE_METHODS,
     ),
 )

@@ -191,6 +191,11 @@ def _shading_section() -> str:
     return body
 
 
+def _kind(case: Case) -> str:
+    """What the methods a case leaves out cannot trace."""
+    return "analytic shapes" if case.build().n_shapes else "triangles"
+
+
 def render_doc(rows: dict, gl_info: dict) -> str:
     methods = list(METHODS)
     lines = [
@@ -214,7 +219,8 @@ def render_doc(rows: dict, gl_info: dict) -> str:
         "|---|---|" + "---|" * len(methods),
     ]
     for case in CASES:
-        cells = [_cell(rows[(case.name, m)]) if (case.name, m) in rows else "— (no triangles)" for m in methods]
+        absent = f"— (no {_kind(case)})"
+        cells = [_cell(rows[(case.name, m)]) if (case.name, m) in rows else absent for m in methods]
         what = case.what_can_go_wrong.replace("|", "\\|")
         lines.append(f"| `{case.name}` | {what} | " + " | ".join(cells) + " |")
     lines += ["", "## Facts, pins and notes per case", ""]
@@ -226,7 +232,7 @@ def render_doc(rows: dict, gl_info: dict) -> str:
             notes.append(first["facts"])
         notes += _pins(case)
         if case.methods is not None:
-            notes.append("run with " + ", ".join(ran) + " only: the other methods do not trace triangles")
+            notes.append("run with " + ", ".join(ran) + f" only: the other methods do not trace {_kind(case)}")
         per_method = [rows[(case.name, m)]["notes"] for m in ran]
         if all(n == per_method[0] for n in per_method):
             notes += [f"every method: {n}" for n in per_method[0]]

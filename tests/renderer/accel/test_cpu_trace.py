@@ -137,3 +137,58 @@ def test_degenerate_triangles_sit_in_the_trees_but_are_never_hit():
     for name in ("bih", "bvh", "kdtree"):
         t, ids = trace_tree(prepared(name, s).tree, s, o, d)
         np.testing.assert_array_equal(ids, [0, 0])  # the floor plane (id 0), through the segment
+
+
+@pytest.mark.parametrize("name", TREE_METHODS)
+def test_trees_over_analytic_shapes_trace_as_the_reference(name, every_shape_scene):
+    """Every kind of shape in the trees (after the spheres, tree ids as scene ids), the CPU
+    traversals on them against the float64 reference's ids; the leaf slots decode to shapes."""
+    scene = every_shape_scene
+    o, d = primary_rays(scene.camera, 64, 48)
+    ref = render_reference(scene, RenderSettings(width=64, height=48, mode="primid")).primid.ravel()
+    prep = METHODS[name].prepare(scene, 2, 64)
+    t, ids = trace_tree(prep.tree, scene, o, d)
+    assert set(range(scene.shape_id_base, scene.shape_id_base + scene.n_shapes)) <= set(ids.tolist())
+    assert np.mean(ids == ref) >= 0.9999, f"{name}: {np.sum(ids != ref)} differ"
+    assert prep.packed.uniforms["u_shape_base"] == scene.shape_id_base
+    rec = prep.packed.textures["u_shapes"].data.reshape(-1, 4)[: 3 * scene.n_shapes].reshape(-1, 3, 4)
+    np.testing.assert_array_equal(
+        rec[:, :, :4].copy().view(np.float32).reshape(-1, 12)[:, :11], scene.shapes.params.astype(np.float32)[:, :11]
+    )
+    np.testing.assert_array_equal(rec[:, 2, 3], scene.shapes.material)
+    if name == "bih":
+        from renderer import gpu_layout
+        from renderer.accel import bih_layout
+
+        order, _ = bih_layout.leaf_order(prep.tree)
+        key = prep.packed.textures["u_bih_spheres"].data.reshape(-1, 4)[: len(order) * 2][1::2, 0]  # radii differ
+        is_shape = (key & np.uint32(gpu_layout.SHAPE_SLOT)) != 0
+        np.testing.assert_array_equal(is_shape, order >= scene.n_spheres)
+        np.testing.assert_array_equal(
+            (key[is_shape] & np.uint32(gpu_layout.SHAPE_INDEX_MASK)).astype(np.int64), order[is_shape] - scene.n_spheres
+        )
+
+
+def test_rays_leaving_a_shape_on_the_cpu_drop_only_its_root_at_the_origin(every_shape_scene):
+    """From points on the torus and the open cylinder, inwards and outwards: brute force with
+    ``ignore`` = the shape left finds what the reference's nearest_hit finds."""
+    from renderer.reference import trace_rays
+
+    scene = every_shape_scene
+    o, d = primary_rays(scene.camera, 48, 36)
+    t0, p0 = trace_rays(scene, o, d)
+    on = np.flatnonzero(p0 >= scene.shape_id_base)
+    assert len(on) > 100
+    x = o[on] + t0[on, None] * d[on]
+    rng = np.random.default_rng(3)
+    nd = rng.normal(size=(len(on), 3))
+    nd /= np.linalg.norm(nd, axis=1, keepdims=True)
+    src = p0[on]
+    t_ref, p_ref = trace_rays(scene, x, nd, src)
+    prims = TreePrimitives.of(scene)
+    tree_src = src - len(scene.planes)  # (shapes: tree index = scene id − planes)
+    t, p = brute_force(prims.centers, prims.radii, x, nd, ignore=tree_src, shapes=prims.shapes)
+    ids = np.where(p >= scene.n_spheres, p + len(scene.planes), p)
+    planes_hit = (p_ref >= scene.n_spheres) & (p_ref < scene.shape_id_base)
+    assert np.mean((ids == p_ref)[~planes_hit]) >= 0.999
+    assert (ids == src).sum() > 10  # some rays meet the shape they leave again

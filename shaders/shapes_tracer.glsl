@@ -1,0 +1,231 @@
+// Analytic shapes in the tracer: the sections the assembler (renderer/shader_source.py) puts
+// at the "//@SHAPES <name>" marks of raytrace.frag, lighting.glsl and the methods'
+// traversals — in variants with the SHAPES data format that trace (not the background
+// variant) only; every other variant has the marks removed, line and all, so its text is
+// byte for byte the one before shapes (tests/golden's record). Section "library" is
+// shaders/shapes.glsl itself (the intersection tests, standalone there). A section runs
+// from its "//@SECTION <name>" line to the next one.
+
+//@SECTION functions
+// Record i of shape k (renderer/gpu_layout.py, shape_records): (origin, r0), (axis, r1),
+// (height, caps, kind, material bits).
+#define SHAPE_RECORD(k, i) u_shapes_at(SHAPE_TEXELS * (k) + (i))
+
+// The ray leaving a shape ignores that shape's root nearest 0 — the one at its own origin,
+// which float32 puts a little before or after 0 — and no other (renderer/shapes.py, the
+// reference's rule; docs/SHADING.md, "Secondary rays"): a ray inside a cylinder meets its
+// far wall, a ray leaving a torus may meet it again. So the tests below find every root
+// of the shape, signed, drop the one of least |t| and keep the nearest in (0, t_max).
+
+// A frustum's (cylinder's, cone's) signed roots: the side's two, then the base cap's and the
+// top cap's, BIG where none (the side's as shape_lateral forms them).
+vec4 frustum_roots(ShapeRay s, vec4 v0, vec4 v1, vec4 v2) {
+    vec4 roots = vec4(BIG);
+    float h = v2.x;
+    float r0 = v0.w;
+    float m = h > 0.0 ? (v1.w - v0.w) / h : 0.0;
+    float k = dot(s.dq, s.dq);
+    float s0 = k > 1e-30 ? -dot(s.q0, s.dq) / k : 0.0;
+    vec3 q1 = s.q0 + s0 * s.dq;
+    float z1 = s.z0 + s0 * s.dz;
+    float beta = dot(q1, s.dq);
+    float w1 = r0 + m * z1;
+    float rho1 = sqrt(dot(q1, q1));
+    float mdz = m * s.dz;
+    float A = k - mdz * mdz;
+    float B = beta - mdz * w1;
+    float C = (rho1 - w1) * (rho1 + w1);
+    float disc = k * ((w1 - rho1) * (w1 + rho1)) + beta * (beta - 2.0 * mdz * w1) + mdz * mdz * rho1 * rho1;
+    if (disc >= 0.0) {
+        float sq = sqrt(disc);
+        float qq = -(B + (B >= 0.0 ? sq : -sq));
+        if (qq != 0.0) {
+            for (int i = 0; i < 2; i++) {
+                if (i == 0 && A == 0.0) continue;
+                float u = i == 0 ? qq / A : C / qq;
+                float z = z1 + u * s.dz;
+                if (z >= 0.0 && z <= h && r0 + m * z >= 0.0) roots[i] = s0 + u;
+            }
+        }
+    }
+    if (v2.y > 0.5 && s.dz != 0.0) {
+        for (int i = 0; i < 2; i++) {
+            float zc = i == 0 ? 0.0 : h;
+            float rc = i == 0 ? v0.w : v1.w;
+            float t = (zc - s.z0) / s.dz;
+            vec3 q = s.q0 + t * s.dq;
+            if (rc > 0.0 && dot(q, q) <= rc * rc) roots[2 + i] = t;
+        }
+    }
+    return roots;
+}
+
+float frustum_leaving(vec3 o, vec3 d, vec4 v0, vec4 v1, vec4 v2, float t_max, out vec3 n) {
+    n = vec3(0.0);
+    vec3 a = v1.xyz;
+    ShapeRay s = shape_ray(o - v0.xyz, d, a);
+    vec4 roots = frustum_roots(s, v0, v1, v2);
+    int own = 0;
+    for (int i = 1; i < 4; i++) {
+        if (abs(roots[i]) < abs(roots[own])) own = i;
+    }
+    float best = BIG;
+    int part = -1;
+    for (int i = 0; i < 4; i++) {
+        float t = roots[i];
+        if (i != own && t > 0.0 && t < t_max && t < best) { best = t; part = i; }
+    }
+    if (part == 2) n = -a;
+    else if (part == 3) n = a;
+    else if (part >= 0) {
+        // The side's normal, as shape_lateral's.
+        float m = v2.x > 0.0 ? (v1.w - v0.w) / v2.x : 0.0;
+        vec3 q = s.q0 + best * s.dq;
+        float rho = sqrt(dot(q, q));
+        vec3 er = rho > 0.0 ? q / rho : vec3(0.0);
+        vec3 g = er - m * a;
+        float gl = sqrt(dot(g, g));
+        n = gl > 0.0 ? g / gl : a;
+    }
+    return best;
+}
+
+// A torus's roots, all of them along its bounding sphere (t < 0 too), found as
+// intersect_torus_bracket finds the first: at most one per monotone half of each piece.
+float torus_leaving(vec3 o, vec3 d, vec4 v0, vec4 v1, float t_max, out vec3 n) {
+    n = vec3(0.0);
+    // torus_setup's ray and bounds, but the whole chord of the padded bounding sphere and
+    // slab, not cut at t = 0.
+    vec3 a = v1.xyz;
+    float R = v0.w;
+    float r = v1.w;
+    vec3 p0 = o - v0.xyz;
+    float b = dot(p0, d);
+    vec3 f = p0 - b * d;
+    float rb = (R + r) * 1.0001;
+    float zb = r + 1e-4 * (R + r);
+    float h2 = rb * rb - dot(f, f);
+    if (h2 < 0.0) return BIG;
+    float tf = -b;
+    float zs = dot(f, a);
+    float dz = dot(d, a);
+    TorusRay tr = TorusRay(f - zs * a, d - dz * a, zs, dz, R, r);
+    float hi = sqrt(h2);
+    float lo = -hi;
+    if (dz != 0.0) {
+        float s1 = (-zb - zs) / dz;
+        float s2 = (zb - zs) / dz;
+        lo = max(lo, min(s1, s2));
+        hi = min(hi, max(s1, s2));
+    } else if (abs(zs) > zb) {
+        return BIG;
+    }
+    if (!(lo < hi)) return BIG;
+    float k = dot(tr.dq, tr.dq);
+    float b1 = hi;
+    float b2 = hi;
+    if (k > 1e-12) {
+        vec3 c = cross(tr.qs, tr.dq);
+        float L2 = dot(c, c);
+        float sm = -dot(tr.qs, tr.dq) / k;
+        float rm2 = L2 / k;
+        float x = tr.R * L2;
+        float rc = x > 0.0 ? exp2(log2(x) / 3.0) : 0.0;
+        float sc2 = (rc * rc - rm2) / k;
+        if (sc2 >= 0.0) {
+            float sc = sqrt(sc2);
+            b1 = clamp(sm - sc, lo, hi);
+            b2 = clamp(sm + sc, lo, hi);
+        }
+    }
+    // The roots come in increasing s; the one of least |t| is the ray's origin.
+    float rs[6];
+    int nr = 0;
+    float a_ = lo;
+    for (int p = 0; p < 3; p++) {
+        float b_ = p == 0 ? b1 : (p == 1 ? b2 : hi);
+        float sg = p == 1 ? -1.0 : 1.0;
+        if (b_ > a_) {
+            float m = torus_extremum(tr, a_, b_, sg);
+            float ea = torus_E(tr, a_);
+            float em = torus_E(tr, m);
+            float eb = torus_E(tr, b_);
+            if ((ea < 0.0) != (em < 0.0) && m > a_) { rs[nr] = torus_root(tr, a_, m, ea, sg, m, em, -1.0); nr++; }
+            if ((em < 0.0) != (eb < 0.0) && b_ > m) { rs[nr] = torus_root(tr, m, b_, em, sg, m, em, 1.0); nr++; }
+        }
+        a_ = max(a_, b_);
+    }
+    int own = -1;
+    float own_abs = BIG;
+    for (int i = 0; i < nr; i++) {
+        if (abs(tf + rs[i]) < own_abs) { own_abs = abs(tf + rs[i]); own = i; }
+    }
+    float s_hit = BIG;
+    for (int i = 0; i < nr; i++) {
+        float t = tf + rs[i];
+        if (i != own && t > 0.0 && t < t_max) { s_hit = rs[i]; break; }
+    }
+    if (s_hit >= BIG) return BIG;
+    vec3 q = tr.qs + s_hit * tr.dq;
+    float z = tr.zs + s_hit * tr.dz;
+    float rho = sqrt(dot(q, q));
+    vec3 g = (rho > 0.0 ? (rho - tr.R) / rho : 0.0) * q + z * v1.xyz;
+    float gl = sqrt(dot(g, g));
+    n = gl > 0.0 ? g / gl : v1.xyz;
+    return tf + s_hit;
+}
+
+// Shape k (scene id u_shape_base + k) against the query's ray; a ray leaving it (q.skip)
+// ignores only its root at the origin (above): a disk, flat, has no other. The hit keeps
+// the outward normal in h.sphere.xyz (the shading needs no second test) and k in h.key.
+void test_shape(Query q, int k, inout Hit h) {
+    COUNT(z);
+    int id = u_shape_base + k;
+    vec4 v0 = uintBitsToFloat(SHAPE_RECORD(k, 0));
+    vec4 v1 = uintBitsToFloat(SHAPE_RECORD(k, 1));
+    vec4 v2 = vec4(uintBitsToFloat(SHAPE_RECORD(k, 2).xyz), 0.0);
+    vec3 n;
+    float t;
+    if (id != q.skip) {
+        t = intersect_shape(q.o, q.d, v0, v1, v2, h.t, n);
+    } else {
+        int kind = int(v2.z + 0.5);
+        n = vec3(0.0);
+        t = kind == SHAPE_TORUS ? torus_leaving(q.o, q.d, v0, v1, h.t, n)
+          : kind == SHAPE_DISK ? BIG
+          : frustum_leaving(q.o, q.d, v0, v1, v2, h.t, n);
+    }
+    if (closer(t, id, h.t, h.id)) { h.t = t; h.id = id; h.sphere = vec4(n, 0.0); h.key = uint(k); }
+}
+
+//@SECTION surface_function
+// A shape's surface: the normal its test found (one normal: the geometric one too).
+void shape_surface(Hit h, inout Surface s) {
+    s.n = h.sphere.xyz;
+#ifdef TRIANGLES
+    s.ng = s.n;
+#endif
+#ifdef READS_MATERIALS
+    s.mat = int(SHAPE_RECORD(int(h.key), 2).w & SHAPE_MAT_MASK);
+#endif
+}
+
+//@SECTION surface_at
+    if (h.id >= u_shape_base) { shape_surface(h, s); return s; }
+
+//@SECTION path_emit_mis
+                // Emitting shapes are met by BSDF sampling alone (next-event estimation samples none).
+                if (h.id >= u_shape_base) w = 1.0;
+
+//@SECTION leaf_slot
+                // A shape's slot (renderer/gpu_layout.py, leaf_records): its index; its
+                // record is in u_shapes.
+                if ((s.key & SHAPE_SLOT) != 0u) test_shape(q, int(s.key & SHAPE_INDEX_MASK), h);
+                else
+
+//@SECTION bruteforce_loop
+    // Then every analytic shape, in id order (u_shapes, renderer/gpu_layout.py).
+    for (int k = 0; k < u_num_shapes; k++) {
+        test_shape(q, k, h);
+        if (q.any_hit && h.id != NO_PRIM) return;
+    }
