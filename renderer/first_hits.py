@@ -57,8 +57,9 @@ MARGIN = 1.0  # fragments the rectangle is widened by on every side
 
 def eligible(scene: Scene, mode: str, path: bool) -> bool:
     """Whether a frame can take its first hits from rasterised spheres: primary rays only (the
-    modes of :data:`~renderer.modes.PRIMARY_MODES`), spheres and planes only (no triangles)."""
-    return mode in PRIMARY_MODES and not path and scene.n_triangles == 0
+    modes of :data:`~renderer.modes.PRIMARY_MODES`), spheres and planes only (no triangles, no
+    analytic shapes: their first hits come from the traversal)."""
+    return mode in PRIMARY_MODES and not path and scene.n_triangles == 0 and scene.n_shapes == 0
 
 
 def chosen(scene: Scene, settings: FrameSettings, path: bool, method: str, stats: dict[str, Any]) -> str:

@@ -193,7 +193,7 @@ SETTINGS: tuple[SettingSpec, ...] = (
         "auto",
         "how primary-ray frames (depth, primid, normal) find first hits: trace (the method's traversal per "
         "pixel), raster (each sphere's screen rectangle drawn, its fragments testing that sphere), tiles "
-        "(each screen tile's spheres tested nearest first; neither with meshes) or auto (the cheapest by the "
+        "(each screen tile's spheres tested nearest first; neither with meshes or analytic shapes, which trace) or auto (the cheapest by the "
         "cost model); the same ids and distances either way",
         "First hits",
         choices=FIRST_HITS,

@@ -375,7 +375,7 @@ def evaluate(gl_renderer, case: Case, method: str) -> tuple[dict, list[str]]:
 
         # Rasterised first hits (renderer/first_hits.py; the method does not matter to them) against
         # this traversal's primary rays: the same ray and sphere test, so the same ids and t bitwise.
-        if method == "bih" and scene.n_triangles == 0 and scene.n_spheres:
+        if method == "bih" and scene.n_triangles == 0 and scene.n_shapes == 0 and scene.n_spheres:
             for how in ("raster", "tiles"):
                 with deadline(RENDER_BOUND_S, "the rasterised first hits"):
                     raster = gl_renderer.render(scene, settings_of(case, method).with_(mode="depth", first_hits=how))

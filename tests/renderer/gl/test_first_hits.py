@@ -130,3 +130,17 @@ def test_auto_chooses_by_the_cost_model(gl_renderer):
     assert gl_renderer.render(none, st.with_(width=32, height=32)).stats["first_hits"] == "trace"
     # colour frames and meshes always trace
     assert "first_hits" not in gl_renderer.render(sparse, st.with_(mode="color", width=32, height=32)).stats
+
+
+def test_scenes_with_shapes_trace(gl_renderer):
+    """Meshes and analytic shapes have no quads: asking for rasterised first hits traces them."""
+    scene = Scene.from_json(
+        {
+            **spheres(CAM, [[4.0, 3.0, 0.0]], [1.0]).to_json(),
+            "tori": [{"center": [0, 0, 0], "axis": [0, 0, 1], "major_radius": 3, "minor_radius": 1, "material": 0}],
+        }
+    )
+    st = RenderSettings(width=48, height=36, mode="primid", method="bih", first_hits="raster")
+    res = gl_renderer.render(scene, st)
+    assert res.stats["first_hits"] == "trace"
+    assert (res.primid == scene.shape_id_base).any()
