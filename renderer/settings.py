@@ -193,8 +193,8 @@ SETTINGS: tuple[SettingSpec, ...] = (
         "auto",
         "how primary-ray frames (depth, primid, normal) find first hits: trace (the method's traversal per "
         "pixel), raster (each sphere's screen rectangle drawn, its fragments testing that sphere), tiles "
-        "(each screen tile's spheres tested nearest first; neither with meshes or analytic shapes, which trace) or auto (the cheapest by the "
-        "cost model); the same ids and distances either way",
+        "(each screen tile's spheres tested nearest first; a scene with meshes or analytic shapes traces) or "
+        "auto (the cheapest by the cost model); the same ids and distances either way",
         "First hits",
         choices=FIRST_HITS,
         modes=PRIMARY_MODES,
