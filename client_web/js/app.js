@@ -52,7 +52,7 @@ const display = new Display({
 const show = (frame, level) => display.show(frame, level);
 const device = new DeviceView({ api, getState: () => state, viewportHeight, display: show,
   onFallback: (reason) => renderers.fallBack(reason) });
-// The service's previews keep ≥ 10 frames/s: their size follows their measured time (from ¼, the
+// The service's previews keep ≥ 15 frames/s: their size follows their measured time (from ¼, the
 // size of the first image after load).
 const sizer = new PreviewSizer({ start: 0.25 });
 const transport = new Transport({ state, api, device, activity: $('#activity'), viewportHeight, sizer,

@@ -1,7 +1,7 @@
 // The preview's size while a finger moves, from the measured rate (server mode): the client
 // times each preview from its request to the image on screen and picks the linear scale of the
-// next ones so that they keep coming at `targetMs` or faster (10 frames/s = 100 ms each; the
-// default aims at 80 ms, a margin for the jitter of a shared machine and of a phone's network).
+// next ones so that they keep coming at `targetMs` or faster (15 frames/s = 67 ms each; the
+// default aims at 60 ms, a margin for the jitter of a shared machine and of a phone's network).
 //
 // The scale moves on a ladder of 2^(−1/4) steps (each one ≈ 0.71 × the pixels of the one above)
 // between `min` and `max`, so that sizes do not wander from one frame to the next:
@@ -16,7 +16,7 @@
 export const LADDER_STEP = 2 ** -0.25;
 
 export class PreviewSizer {
-  constructor({ targetMs = 80, min = 0.125, max = 1, start = 0.25, upShare = 0.7, settle = 3, smoothing = 0.5 } = {}) {
+  constructor({ targetMs = 60, min = 0.125, max = 1, start = 0.25, upShare = 0.7, settle = 3, smoothing = 0.5 } = {}) {
     Object.assign(this, { targetMs, min, max, upShare, settle, smoothing });
     // Steps below 1: scale = 2^(−step/4) (exact at ½, ¼, ⅛).
     this.maxStep = Math.ceil(Math.log(min) / Math.log(LADDER_STEP) - 1e-9);

@@ -71,7 +71,7 @@ export const SAMPLES = Object.freeze([
   { value: 16, label: '16 — finest' },
 ]);
 export const PREVIEW_SCALES = Object.freeze([
-  { value: 'auto', label: 'Auto (≥ 10 frames/s)' },   // client.previewAuto: preview_size.js
+  { value: 'auto', label: 'Auto (≥ 15 frames/s)' },   // client.previewAuto: preview_size.js
   { value: 1, label: 'Full (no preview)' },
   { value: 0.5, label: '½' },
   { value: 1 / 3, label: '⅓' },

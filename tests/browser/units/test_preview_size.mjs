@@ -67,3 +67,7 @@ test('one slow outlier among fast previews is smoothed, not obeyed in full', () 
   s.observe(200, s.scale);   // mean 130 ms: down, but by the mean's steps, not the outlier's
   assert.ok(Math.abs(s.scale - 0.5 * LADDER_STEP ** 2) < 1e-12, s.scale);
 });
+
+test('the default aims at 15 previews a second or more, with a margin', () => {
+  assert.ok(new PreviewSizer().targetMs < 1000 / 15, new PreviewSizer().targetMs);
+});
