@@ -267,7 +267,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--spp", type=int, default=SPP)
     ap.add_argument("--depth", type=int, default=DEPTH)
     ap.add_argument("--runs", type=int, default=RUNS)
-    ap.add_argument("--methods", default=",".join(path_methods()), help="comma-separated (bruteforce too if named)")
+    ap.add_argument(
+        "--methods",
+        default=",".join(m for m in path_methods() if m != "bruteforce"),
+        help="comma-separated (bruteforce only if named: it is no contender)",
+    )
     ap.add_argument("--no-mitsuba", action="store_true")
     ap.add_argument("--no-speed", action="store_true", help="the profile only")
     ap.add_argument("--no-profile", action="store_true")
