@@ -16,7 +16,9 @@ upload, passes, read-back), Mitsuba ``mi.render`` and the read-back of its image
 second = width × height × spp / time; the ratio is ours / Mitsuba's from the same run.
 
 **Profile** (``bih``): the frame traced by variants of its own shader text, each changed in one
-place (:data:`PATCHES`; an anchor that is not found once fails the run), timed interleaved:
+place (:data:`PATCHES`; an anchor that is not found once fails the run), timed interleaved in
+process CPU time (llvmpipe's threads included; the wall clock of a shared machine moves more
+than the differences measured):
 
 - ``coherent``: every lane of a 4 × 4 block of pixels traces the block's first pixel's samples
   (the same pixel seed and camera rays), so llvmpipe's lanes — 8 pixels run as one — do the same
@@ -144,6 +146,14 @@ def _timed(fn) -> float:
     return time.perf_counter() - t0
 
 
+def _cpu(fn) -> float:
+    """Process CPU time of ``fn`` (llvmpipe's threads included): unlike the wall clock, it does not
+    grow with the other jobs of a shared machine, which a difference of two frames cannot afford."""
+    t0 = time.process_time()
+    fn()
+    return time.process_time() - t0
+
+
 def speed(methods: list[str], w: int, h: int, spp: int, depth: int, runs: int, mitsuba: bool, log) -> dict:
     """Median seconds per frame per engine (interleaved), and the samples' mean radiance of each."""
     scene = path_scene(SCENE)
@@ -180,7 +190,7 @@ def speed(methods: list[str], w: int, h: int, spp: int, depth: int, runs: int, m
 
 
 def profile(w: int, h: int, spp: int, depth: int, runs: int, log) -> dict:
-    """The profile's frames (median seconds, interleaved), the fixed cost, rays and lane use."""
+    """The profile's frames (median CPU seconds, interleaved), the fixed cost, rays and lane use."""
     scene = path_scene(SCENE)
     settings = ours_settings("bih", w, h, spp, depth)
     plain = PatchedRenderer(lambda s: s)
@@ -199,8 +209,8 @@ def profile(w: int, h: int, spp: int, depth: int, runs: int, log) -> dict:
     times: dict[str, list[float]] = {n: [] for n in jobs}
     for k in range(runs):
         for name, fn in jobs.items():
-            times[name].append(_timed(fn))
-            log(f"profile run {k + 1}/{runs} {name}: {times[name][-1]:.2f} s")
+            times[name].append(_cpu(fn))
+            log(f"profile run {k + 1}/{runs} {name}: {times[name][-1]:.2f} s CPU")
     # Rays per sample (all, and path segments) over the frame; the loop's lane use over one pass.
     img = counter.render(scene, settings).image.astype(np.float64)
     rays, segments = float(img[..., 0].mean()), float(img[..., 1].mean())
@@ -244,7 +254,7 @@ def profile_table(p: dict, w: int, h: int, spp: int) -> str:
         ("shading and loop (surfaces, materials, NEE, BSDF, bookkeeping)", shading),
         ("lane idle (frame − coherent)", idle),
     ]
-    lines = [_row(["part of the frame", "s", "share"]), "|:---|---:|---:|"]
+    lines = [_row(["part of the frame", "CPU s", "share"]), "|:---|---:|---:|"]
     for name, t in rows:
         lines.append(_row([name, f"{t:.2f}", f"{t / frame:.0%}"]))
     lines.append(_row(["**frame**", f"**{frame:.2f}**", "100%"]))
@@ -253,9 +263,9 @@ def profile_table(p: dict, w: int, h: int, spp: int) -> str:
     variants = ", ".join(f"{k} {v:.2f}" for k, v in med.items())
     lines.append("")
     lines.append(
-        f"Variants (median s): {variants}. Rays per sample {p['rays']:.2f} ({p['segments']:.2f} path segments, "
-        f"{p['rays'] - p['segments']:.2f} shadow rays): {rays / frame / 1e6:.2f} Mrays/s; per ray "
-        f"{frame / rays * 1e9:.0f} ns of wall clock, of them traversal {trav / rays * 1e9:.0f} ns. Loop lane use "
+        f"Variants (median CPU s): {variants}. Rays per sample {p['rays']:.2f} ({p['segments']:.2f} path segments, "
+        f"{p['rays'] - p['segments']:.2f} shadow rays): {rays / frame / 1e6:.2f} Mrays per CPU second; per ray "
+        f"{frame / rays * 1e9:.0f} ns of CPU, of them traversal {trav / rays * 1e9:.0f} ns. Loop lane use "
         f"(rays per 16-sample pass, mean ÷ max over 4 × 2 pixels): {p['lane_use']:.2f}."
     )
     return "\n".join(lines)
