@@ -42,9 +42,16 @@ DATA_FORMATS = ("EQUAL_RADII", "MATERIAL_TEXTURE", "TRIANGLES", "SMOOTH_TRIANGLE
 # ``integrator`` setting, in colour frames), the environment is an image (ENVIRONMENT_MAP), and a
 # path frame writes the denoiser's guides (GUIDES: ``denoise`` on; renderer/denoise.py).
 LIGHTING = ("EMISSION", "ENVIRONMENT", "PATH", "ENVIRONMENT_MAP", "GUIDES")
+# What a path variant removes beside REMOVALS (the path integrator runs every lane through all of
+# its loop's code, so a lobe or a light kind the scene lacks costs every ray): the GGX lobes where no
+# used material is rough, next-event estimation of emitting spheres or of emitting triangles where
+# none emits. Emitted only where they say something: NO_ROUGHNESS where something reflects or
+# transmits, the light kinds where something emits (the shader infers them otherwise), so the
+# shader query of a variant stays short.
+PATH_REMOVALS = ("NO_ROUGHNESS", "NO_SPHERE_LIGHTS", "NO_TRIANGLE_LIGHTS")
 # The defines a variant may carry, in the order they are emitted (the server's shader query
 # accepts these, in this order).
-FEATURE_DEFINES = (*REMOVALS, *PLANE_COUNTS, *LIGHT_COUNTS, *DATA_FORMATS, *LIGHTING)
+FEATURE_DEFINES = (*REMOVALS, *PLANE_COUNTS, *LIGHT_COUNTS, *DATA_FORMATS, *LIGHTING, *PATH_REMOVALS)
 
 
 @dataclass(frozen=True)
@@ -65,6 +72,9 @@ class SceneFeatures:
     path: bool = False
     environment_map: bool = False
     guides: bool = False
+    roughness: bool = True  # a used material is rough (path variants: the GGX lobes)
+    emitting_spheres: bool = True  # a sphere emits (path variants: its next-event estimation)
+    emitting_triangles: bool = True  # … a triangle emits
 
     def defines(self) -> tuple[str, ...]:
         """The variant's defines, in FEATURE_DEFINES order: what the scene cannot use removed,
@@ -95,11 +105,18 @@ class SceneFeatures:
         for name in LIGHTING:
             if getattr(self, name.lower()):
                 on.add(name)
+        if self.path and not self.roughness and (self.reflection or self.transmission):
+            on.add("NO_ROUGHNESS")
+        if self.path and self.emission:
+            if not self.emitting_spheres:
+                on.add("NO_SPHERE_LIGHTS")
+            if not self.emitting_triangles:
+                on.add("NO_TRIANGLE_LIGHTS")
         return tuple(d for d in FEATURE_DEFINES if d in on)
 
     def removed(self) -> list[str]:
         """What the variant leaves out (``features_removed`` of a frame's stats)."""
-        return [d for d in self.defines() if d in REMOVALS]
+        return [d for d in self.defines() if d in REMOVALS or d in PATH_REMOVALS]
 
     def recursion_depth(self, requested: int) -> int:
         """The deepest level a ray tree can reach in this scene (≤ requested); a path bounces off
@@ -142,6 +159,7 @@ def scene_features(scene: Scene) -> SceneFeatures:
         | set(np.unique(scene.shapes.material).tolist())
     )
     mats = [scene.materials[i] for i in used]
+    spheres = set(np.unique(scene.sphere_materials).tolist())
     return SceneFeatures(
         reflection=any(m.reflective > 0 for m in mats),
         transmission=any(m.transmissive > 0 for m in mats),
@@ -157,6 +175,9 @@ def scene_features(scene: Scene) -> SceneFeatures:
         emission=any(m.emits for m in mats),
         environment=any(scene.environment),
         environment_map=scene.environment_map is not None,
+        roughness=any(m.roughness > 0 for m in mats),
+        emitting_spheres=any(scene.materials[i].emits for i in spheres),
+        emitting_triangles=any(scene.materials[m.material].emits for m in scene.meshes),
     )
 
 

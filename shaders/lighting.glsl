@@ -104,6 +104,16 @@ vec3 env_sample(float u1, float u2, out float pdf) {
 #ifdef PATH
 // ---- the path integrator (docs/SHADING.md, "Path integrator") ----------------------------
 const float PI = 3.14159265358979;
+// What the scene lacks is not compiled in (renderer/features.py, PATH_REMOVALS): every lane runs
+// all of the loop's code, used or not. The host names a removal only where it says something; the
+// rest follow here: no rough lobe where nothing reflects or transmits, no light kind where nothing emits.
+#if defined(NO_REFLECTION) && defined(NO_TRANSMISSION) && !defined(NO_ROUGHNESS)
+#define NO_ROUGHNESS
+#endif
+#ifndef READS_EMISSION
+#define NO_SPHERE_LIGHTS
+#define NO_TRIANGLE_LIGHTS
+#endif
 #ifdef GUIDES
 // The denoiser's guides (renderer/denoise.py), sums over the pass's samples: the first hit's albedo
 // as its lobes reflect (w_d · colour + w_r + w_t; a miss: the environment clamped to [0, 1]) and
@@ -138,9 +148,11 @@ vec2 pixel_jitter(uint i) {
 }
 
 // The GGX α of material m's reflective and transmissive lobes (the third texel's z; Whitted's Material
-// has no use for it).
+// has no use for it). 0 where no material is rough: the GGX code then folds away.
 float roughness_at(int m) {
-#ifdef MATERIAL_TEXTURE
+#if defined(NO_ROUGHNESS)
+    return 0.0;
+#elif defined(MATERIAL_TEXTURE)
     return texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 2, g_mat_shift), 0).z;
 #else
     return u_material_vecs[m * MATERIAL_TEXELS + 2].z;
@@ -330,6 +342,7 @@ void path_main() {
                 // of BSDF sampling (its diffuse and GGX lobes' pdf against the sphere's cone); every other
                 // emitter (planes, triangles, spheres past the sampled ones) is met by BSDF sampling alone.
                 float w = 1.0;
+#ifndef NO_SPHERE_LIGHTS
                 if (prev_pdf > 0.0 && h.id < u_num_spheres && h.id <= u_emitter_last) {
                     vec3 to_c = h.sphere.xyz - prev_p;
                     float sin2 = h.sphere.w * h.sphere.w / dot(to_c, to_c);
@@ -338,6 +351,7 @@ void path_main() {
                         w = prev_pdf * prev_pdf / (prev_pdf * prev_pdf + p_l * p_l);
                     }
                 }
+#endif
 //@TRIANGLES path_emit_mis
 //@SHAPES path_emit_mis
                 L += w * beta * emission_at(s.mat);
@@ -393,6 +407,7 @@ void path_main() {
             if (shadow) continue;
         }
 #endif
+#ifndef NO_SPHERE_LIGHTS
         // Next-event estimation to the emitting spheres: a direction in the cone the sphere fills
         // (uniform in solid angle), weighted by the power heuristic against BSDF sampling.
         if (vertex && lit) {
@@ -428,8 +443,10 @@ void path_main() {
             shadow_kind = 1;
             if (shadow) continue;
         }
+#endif
         // … and to the emitting triangles: one, picked with probability ∝ its area, a point uniform on it
         // (pdf in solid angle dist² / (A cos θ_light), A their total area), the power heuristic again.
+#ifndef NO_TRIANGLE_LIGHTS
         if (vertex && lit && !tri_done && u_num_emit_tris > 0) {
             float pick = rnd(), b1 = rnd(), b2 = rnd();
             tri_done = true;
@@ -461,6 +478,7 @@ void path_main() {
                 continue;
             }
         }
+#endif
 #ifdef READS_ENVIRONMENT_SAMPLING
         // … and to the environment image: one direction from its importance sampling, lighting the
         // diffuse and the GGX lobe, the power heuristic against their sampling together (a bright
