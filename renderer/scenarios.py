@@ -109,6 +109,7 @@ def with_sky(scene: Scene) -> Scene:
         scene.meshes,
         (0.0, 0.0, 0.0),
         EnvironmentMap(SKY_REF, sky_texels()),
+        scene.shapes,
     )
 
 
