@@ -704,13 +704,14 @@ class MuseumRecipe(Strict):
 
 
 class MeshSceneRecipe(Strict):
-    """A demo scene with triangle meshes (renderer.scenarios.mesh_scene): ``teapot`` (the
-    closed Utah teapot on the floor), ``mixed`` (27 spheres, a glass icosphere and a torus),
-    ``room`` (a box room seen from inside with a teapot, an icosphere and four spheres), ``cornell``
-    (a Cornell box lit by an emitting ceiling panel, with a mirror and a glass sphere and a teapot:
-    for ``integrator=path``)."""
+    """A demo scene (renderer.scenarios.mesh_scene): ``teapot`` (the closed Utah teapot on the
+    floor), ``mixed`` (27 spheres, a glass icosphere and a torus), ``room`` (a box room seen from
+    inside with a teapot, an icosphere and four spheres), ``cornell`` (a Cornell box lit by an
+    emitting ceiling panel, with a mirror and a glass sphere and a teapot: for ``integrator=path``),
+    ``table`` (analytic shapes only: a table with a torus, a can, a glass lens and a lamp whose
+    shade holds an emitting disk; Whitted or ``integrator=path``)."""
 
-    kind: Literal[MESH_SCENES] = Field("teapot", description="teapot, mixed, room or cornell")
+    kind: Literal[MESH_SCENES] = Field("teapot", description="teapot, mixed, room, cornell or table")
     detail: Annotated[int, Integral] = Field(
         2,
         ge=0,
