@@ -205,8 +205,10 @@ def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True, sky: 
       with a torus, a metal can (a capped cylinder), a glass lens (a short wide capped glass
       cylinder standing on its rim: its caps are the lens's two flat faces, its tube the rim)
       and a table lamp — a cone foot, a cylinder stand and a lampshade (an open cone frustum)
-      with an emitting disk inside facing down. Lit by a point light (Whitted) and by that
-      disk (``integrator=path``: the lamp's pool of light on the table).
+      with an emitting disk inside facing down (as wide as the shade allows: the path
+      integrator meets an emitting shape by BSDF sampling alone, and a wider one is met more
+      often). Lit by a point light, and with ``integrator=path`` by that disk too (the lamp's
+      pool of light on the table).
 
     ``detail`` (0 … MAX_MESH_DETAIL) sets the tessellation: teapot ``2 + 2·detail``
     segments per patch, icosphere subdivisions ``detail``, torus ``12 (detail + 1)``
@@ -401,7 +403,7 @@ TABLE_MATERIALS = (
         reflective=0.0,
         transmissive=0.0,
         ior=1.0,
-        emission=(32.0, 25.0, 16.0),
+        emission=(15.0, 12.0, 7.5),
     ),  # 6 the lamp's bulb: a disk facing down
 )
 TABLE_TOP = -8.0  # the table top's height
@@ -443,7 +445,7 @@ def _table(light: Light, floor: Plane) -> Scene:
                 # the top, both sides (its underside closes the edge), and the bulb under the stand's end
                 {"center": [0.0, top, 0.0], "normal": up, "radius": r, "material": 1},
                 {"center": [0.0, top - 0.8, 0.0], "normal": up, "radius": r, "material": 1},
-                {"center": [lamp[0], top + 7.5, lamp[1]], "normal": [0.0, -1.0, 0.0], "radius": 1.9, "material": 6},
+                {"center": [lamp[0], top + 7.5, lamp[1]], "normal": [0.0, -1.0, 0.0], "radius": 2.8, "material": 6},
             ],
             "tori": [
                 {"center": [-6.0, top + 0.9, 3.0], "axis": up, "major_radius": 2.6, "minor_radius": 0.9, "material": 2},
