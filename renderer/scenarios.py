@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from .scene import Camera, Light, Material, Plane, Scene, SceneError, make_mesh
+from .shapes import Shapes
 
 CUBE_HALF = 20.0
 # Edge of each of scenario 2's eight corner cubes.
@@ -109,6 +110,7 @@ def with_sky(scene: Scene) -> Scene:
         scene.meshes,
         (0.0, 0.0, 0.0),
         EnvironmentMap(SKY_REF, sky_texels()),
+        scene.shapes,
     )
 
 
@@ -149,7 +151,7 @@ def scenario(number: int, n: int, seed: int = 0, radius: float = 1.0, sky: bool 
 
 
 # ---- scenes with triangle meshes -------------------------------------------------------
-MESH_SCENES = ("teapot", "mixed", "room", "cornell")
+MESH_SCENES = ("teapot", "mixed", "room", "cornell", "table")
 MAX_MESH_DETAIL = 5
 
 PORCELAIN = Material(
@@ -197,7 +199,16 @@ def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True, sky: 
       planes (red left, green right, white floor, ceiling and back; the front open onto a
       black environment), an emitting panel under the ceiling (a quad, its only light:
       ``lights`` is empty), a mirror sphere, a glass sphere (its caustic on the floor) and a
-      diffuse teapot.
+      diffuse teapot;
+    - ``table``: analytic shapes only (:mod:`renderer.shapes`, no triangle): a round table (a
+      disk top with an open cylinder as its edge, on four cylinder legs) on the floor plane,
+      with a torus, a metal can (a capped cylinder), a glass lens (a short wide capped glass
+      cylinder standing on its rim: its caps are the lens's two flat faces, its tube the rim)
+      and a table lamp — a cone foot, a cylinder stand and a lampshade (an open cone frustum)
+      with an emitting disk inside facing down (as wide as the shade allows: the path
+      integrator meets an emitting shape by BSDF sampling alone, and a wider one is met more
+      often). Lit by a point light, and with ``integrator=path`` by that disk too (the lamp's
+      pool of light on the table).
 
     ``detail`` (0 … MAX_MESH_DETAIL) sets the tessellation: teapot ``2 + 2·detail``
     segments per patch, icosphere subdivisions ``detail``, torus ``12 (detail + 1)``
@@ -258,6 +269,8 @@ def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True, sky: 
         )
     if kind == "cornell":
         return _cornell(M, seg, smooth, placed)
+    if kind == "table":
+        return _table(light, floor)
     room = M.box((-CUBE_HALF,) * 3, (CUBE_HALF,) * 3, inward=True, material=0)
     pot = M.teapot(seg, size=3.0, material=1, smooth=smooth, transform=placed(-6.0, -CUBE_HALF, -6.0))
     ball = M.icosphere(int(detail), radius=4.0, center=(8.0, -16.0, -2.0), material=2, smooth=smooth)
@@ -352,4 +365,102 @@ def _cornell(M, seg: int, smooth: bool, placed) -> Scene:
         np.array([4, 5], np.int32),
         planes,
         (panel, pot),
+    )
+
+
+TABLE_MATERIALS = (
+    _matte((0.55, 0.55, 0.6), ambient=0.25),  # 0 the floor
+    Material(
+        color=(0.55, 0.34, 0.18),
+        ambient=0.25,
+        diffuse=0.7,
+        specular=0.2,
+        shininess=30.0,
+        reflective=0.05,
+        transmissive=0.0,
+        ior=1.0,
+    ),  # 1 the table's wood
+    _matte((0.8, 0.2, 0.15)),  # 2 the torus
+    GLASS,  # 3 the lens
+    Material(
+        color=(0.85, 0.85, 0.9),
+        ambient=0.1,
+        diffuse=0.3,
+        specular=0.6,
+        shininess=120.0,
+        reflective=0.6,
+        transmissive=0.0,
+        ior=1.0,
+        roughness=0.15,
+    ),  # 4 brushed metal: the can, the lamp's foot and stand
+    _matte((0.92, 0.86, 0.7)),  # 5 the lampshade
+    Material(
+        color=(1.0, 1.0, 1.0),
+        ambient=0.0,
+        diffuse=0.0,
+        specular=0.0,
+        shininess=1.0,
+        reflective=0.0,
+        transmissive=0.0,
+        ior=1.0,
+        emission=(15.0, 12.0, 7.5),
+    ),  # 6 the lamp's bulb: a disk facing down
+)
+TABLE_TOP = -8.0  # the table top's height
+TABLE_RADIUS = 12.0
+
+
+def _table(light: Light, floor: Plane) -> Scene:
+    """``mesh_scene("table")``: see there. Every object stands on the top or the floor."""
+    top, r = TABLE_TOP, TABLE_RADIUS
+    up = [0.0, 1.0, 0.0]
+    legs = [
+        {"base": [x, -CUBE_HALF, z], "axis": up, "radius": 0.7, "height": top - 0.8 + CUBE_HALF, "material": 1}
+        for x, z in ((-7.5, -7.5), (7.5, -7.5), (-7.5, 7.5), (7.5, 7.5))
+    ]
+    lamp = (6.0, -6.0)  # the lamp's place on the top (x, z)
+    shapes = Shapes.from_json(
+        {
+            "cylinders": [
+                {"base": [0.0, top - 0.8, 0.0], "axis": up, "radius": r, "height": 0.8, "caps": False, "material": 1},
+                *legs,
+                {"base": [5.0, top, 5.0], "axis": up, "radius": 1.5, "height": 3.5, "material": 4},  # the can
+                # the lens: 6 wide, 0.8 thick, on its rim, its faces turned towards the camera's left
+                {
+                    "base": [-0.3, top + 3.0, 0.5],
+                    "axis": [0.5, 0.0, 0.866],
+                    "radius": 3.0,
+                    "height": 0.8,
+                    "material": 3,
+                },
+                {"base": [lamp[0], top + 0.6, lamp[1]], "axis": up, "radius": 0.3, "height": 6.8, "material": 4},
+            ],
+            "cones": [
+                {"base": [lamp[0], top, lamp[1]], "axis": up, "base_radius": 2.2, "top_radius": 0.3, "height": 0.6}
+                | {"material": 4},  # the lamp's foot
+                {"base": [lamp[0], top + 6.0, lamp[1]], "axis": up, "base_radius": 4.0, "top_radius": 2.0}
+                | {"height": 3.5, "caps": False, "material": 5},  # the shade, open at both ends
+            ],
+            "disks": [
+                # the top, both sides (its underside closes the edge), and the bulb under the stand's end
+                {"center": [0.0, top, 0.0], "normal": up, "radius": r, "material": 1},
+                {"center": [0.0, top - 0.8, 0.0], "normal": up, "radius": r, "material": 1},
+                {"center": [lamp[0], top + 7.5, lamp[1]], "normal": [0.0, -1.0, 0.0], "radius": 2.8, "material": 6},
+            ],
+            "tori": [
+                {"center": [-6.0, top + 0.9, 3.0], "axis": up, "major_radius": 2.6, "minor_radius": 0.9, "material": 2},
+            ],
+        }
+    )
+    empty = (np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32))
+    return Scene(
+        Camera((0.0, 10.0, 42.0), (0.0, -6.0, 0.0), (0.0, 1.0, 0.0), 45.0),
+        (light,),
+        TABLE_MATERIALS,
+        *empty,
+        (floor,),
+        (),
+        (0.02, 0.02, 0.025),  # a faint sky: the path integrator's image is not black beyond the lamp's light
+        None,
+        shapes,
     )

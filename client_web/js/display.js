@@ -21,7 +21,8 @@ export function displayedSize(stage, render) {
 
 // The canvas's aria-label: the scene and mode of the frame on screen.
 export function sceneLabel(meta, { n, triangles, mode, scenario }) {
-  const withTriangles = triangles ? `, ${triangles} triangles in ${meta.meshes || 1} mesh${meta.meshes > 1 ? 'es' : ''}` : '';
+  const withTriangles = (triangles ? `, ${triangles} triangles in ${meta.meshes || 1} mesh${meta.meshes > 1 ? 'es' : ''}` : '')
+    + (meta.shapes ? `, ${meta.shapes} analytic shape${meta.shapes > 1 ? 's' : ''}` : '');
   const kind = meshKind(meta.scenario);
   return meta.scenario === 'museum'
     ? `Ray-traced animated museum: ${n} spheres (${meta.motion}), ${mode} mode`

@@ -27,7 +27,7 @@ export function sceneOf(info, scene) {
     n: museum ? museum.n : info.n ?? info.n_spheres ?? scene.n,
     seed: museum ? museum.seed : info.seed ?? scene.seed, radius: info.radius ?? scene.radius,
     motion: museum ? museum.kind : scene.motion, n_spheres: info.n_spheres, animated: !!info.animated,
-    n_triangles: info.n_triangles || 0, n_meshes: info.n_meshes || 0,
+    n_triangles: info.n_triangles || 0, n_meshes: info.n_meshes || 0, n_shapes: info.n_shapes || 0,
   };
 }
 

@@ -34,9 +34,11 @@ export const SCENARIOS = Object.freeze([
   { value: 'mesh:mixed', label: 'Icosphere, torus and spheres' },
   { value: 'mesh:room', label: 'Mesh room — teapot, icosphere, spheres' },
   { value: 'mesh:cornell', label: 'Cornell box — for the path integrator' },
+  // Analytic shapes, no triangle (the same recipe: POST /api/sessions {mesh_scene: {kind: 'table'}}).
+  { value: 'mesh:table', label: 'Table and lamp — cylinders, cones, disks, a torus' },
 ]);
 // A mesh scene's kind ('mesh:teapot' → 'teapot'), or null for the sphere scenes.
-export const meshKind = (scenario) => (/^mesh:(teapot|mixed|room|cornell)$/.exec(String(scenario ?? '')) || [])[1] || null;
+export const meshKind = (scenario) => (/^mesh:(teapot|mixed|room|cornell|table)$/.exec(String(scenario ?? '')) || [])[1] || null;
 // A sky scenario's number ('sky:2' → 2), or null for every other scene.
 export const skyScenario = (scenario) => Number((/^sky:([123])$/.exec(String(scenario ?? '')) || [])[1]) || null;
 // Model files the settings sheet uploads (POST /api/sessions/{id}/meshes?format=…), by suffix.

@@ -39,7 +39,7 @@ export function requestMeta(state, level) {
     sessionId: state.sessionId, n: state.scene.n_spheres ?? state.scene.n, mode: r.mode, method: r.method,
     samples: (fast && fast.samples_per_pixel) ?? r.samples_per_pixel ?? 1, minWeight: (fast && fast.min_weight) ?? r.min_weight,
     scenario: state.scene.scenario, motion: state.scene.motion, triangles: state.scene.n_triangles || 0,
-    meshes: state.scene.n_meshes || 0,
+    meshes: state.scene.n_meshes || 0, shapes: state.scene.n_shapes || 0,
   };
 }
 

@@ -56,6 +56,7 @@ from renderer.limits import (
     MAX_MUSEUM_MOVING,
     MAX_PERIOD,
     MAX_PLANES,
+    MAX_SHAPES,
     MAX_SHININESS,
     MAX_SPEED,
     MAX_SPHERES,
@@ -225,6 +226,66 @@ class MeshModel(Strict):
     )
 
 
+# ---- analytic shapes (renderer.shapes; docs/FORMATS.md, "Analytic shapes") --------------------
+# What needs two fields (inner_radius < radius, minor_radius < major_radius, a cone with one radius
+# > 0) and a non-zero axis are the renderer's checks, answered with the same 422 shape.
+Axis = Annotated[list[Coordinate], Field(min_length=3, max_length=3, description="non-zero; normalised on input")]
+Length = Annotated[float, Field(gt=0.0, le=MAX_COORDINATE, description="world units, > 0")]
+Radius0 = Annotated[float, Field(ge=0.0, le=MAX_COORDINATE, description="world units, >= 0")]
+
+
+class CylinderModel(Strict):
+    """The tube of ``radius`` about the segment from ``base`` to ``base + height·axis``; ``caps``:
+    closed by its two end disks."""
+
+    base: Vec3
+    axis: Axis
+    radius: Length
+    height: Length
+    caps: bool = True
+    material: MaterialIndex = 0
+
+
+class ConeModel(Strict):
+    """A frustum: ``base_radius`` at ``base``, ``top_radius`` at ``base + height·axis`` (one of
+    them may be 0, not both); ``caps`` as the cylinder's."""
+
+    base: Vec3
+    axis: Axis
+    base_radius: Radius0
+    top_radius: Radius0
+    height: Length
+    caps: bool = True
+    material: MaterialIndex = 0
+
+
+class DiskModel(Strict):
+    """The disk of ``radius`` about ``center`` in the plane of ``normal`` (both sides are hit); an
+    annulus when ``inner_radius`` > 0 (< radius)."""
+
+    center: Vec3
+    normal: Axis
+    radius: Length
+    inner_radius: Radius0 = Field(0.0, description="world units, 0 <= inner_radius < radius (0: a full disk)")
+    material: MaterialIndex = 0
+
+
+class TorusModel(Strict):
+    """The tube of ``minor_radius`` about the circle of ``major_radius`` about ``center`` in the plane
+    of ``axis`` (a ring torus: 0 < minor_radius < major_radius)."""
+
+    center: Vec3
+    axis: Axis
+    major_radius: Length
+    minor_radius: Annotated[
+        float, Field(gt=0.0, le=MAX_COORDINATE, description="world units, 0 < minor_radius < major_radius")
+    ]
+    material: MaterialIndex = 0
+
+
+SHAPES_DOC = f"at most {MAX_SHAPES} analytic shapes in all (cylinders, cones, disks, tori together)"
+
+
 # ---- motion (renderer.animation) --------------------------------------------------
 SphereIndex = Annotated[int, Field(ge=0, lt=MAX_SPHERES, description="id of the first sphere moved"), Integral]
 SphereCount = Annotated[int, Field(ge=0, le=MAX_SPHERES, description="number of spheres moved"), Integral]
@@ -234,16 +295,20 @@ MeshIndex = Annotated[
 
 
 class MotionTarget(Strict):
-    """What a motion moves: the spheres ``first … first+count−1``, or the mesh ``mesh``."""
+    """What a motion moves: the spheres ``first … first+count−1`` (``over: "shapes"``: those analytic
+    shapes, in their id order), or the mesh ``mesh``."""
 
     first: SphereIndex | None = None
     count: SphereCount | None = None
     mesh: MeshIndex | None = None
+    over: Literal["spheres", "shapes"] | None = Field(
+        None, description="what first and count count: spheres (the default) or analytic shapes"
+    )
 
     @model_validator(mode="after")
     def _one_target(self) -> MotionTarget:
         if self.mesh is not None:
-            if self.first is not None or self.count is not None:
+            if self.first is not None or self.count is not None or self.over is not None:
                 raise ValueError("give either mesh or first and count, not both")
         elif self.first is None or self.count is None:
             raise ValueError("first and count are required (or mesh)")
@@ -294,7 +359,8 @@ Motion = Annotated[RigidMotion | DeformableMotion | IncoherentMotion, Field(disc
 class SceneModel(Strict):
     """A whole scene (docs/FORMATS.md). Material indices must be < len(materials). ``motions`` (optional)
     animate sphere ranges that must not overlap, or meshes; the render setting ``time`` poses the
-    scene. Primitive ids: spheres, then planes, then the triangles of each mesh."""
+    scene. Primitive ids: spheres, then planes, then the triangles of each mesh, then the analytic shapes
+    (cylinders, cones, disks, tori)."""
 
     camera: CameraModel = Field(default_factory=CameraModel)
     lights: list[LightModel] = Field(default_factory=list, max_length=MAX_LIGHTS)
@@ -306,6 +372,10 @@ class SceneModel(Strict):
         max_length=MAX_MESHES,
         description=f"triangle meshes; at most {MAX_TRIANGLES} triangles in all",
     )
+    cylinders: list[CylinderModel] = Field(default_factory=list, max_length=MAX_SHAPES, description=SHAPES_DOC)
+    cones: list[ConeModel] = Field(default_factory=list, max_length=MAX_SHAPES, description=SHAPES_DOC)
+    disks: list[DiskModel] = Field(default_factory=list, max_length=MAX_SHAPES, description=SHAPES_DOC)
+    tori: list[TorusModel] = Field(default_factory=list, max_length=MAX_SHAPES, description=SHAPES_DOC)
     motions: list[Motion] = Field(default_factory=list, max_length=MAX_MOTIONS)
     environment: EnvironmentModel = Field(default_factory=EnvironmentModel)
 
@@ -634,13 +704,14 @@ class MuseumRecipe(Strict):
 
 
 class MeshSceneRecipe(Strict):
-    """A demo scene with triangle meshes (renderer.scenarios.mesh_scene): ``teapot`` (the
-    closed Utah teapot on the floor), ``mixed`` (27 spheres, a glass icosphere and a torus),
-    ``room`` (a box room seen from inside with a teapot, an icosphere and four spheres), ``cornell``
-    (a Cornell box lit by an emitting ceiling panel, with a mirror and a glass sphere and a teapot:
-    for ``integrator=path``)."""
+    """A demo scene (renderer.scenarios.mesh_scene): ``teapot`` (the closed Utah teapot on the
+    floor), ``mixed`` (27 spheres, a glass icosphere and a torus), ``room`` (a box room seen from
+    inside with a teapot, an icosphere and four spheres), ``cornell`` (a Cornell box lit by an
+    emitting ceiling panel, with a mirror and a glass sphere and a teapot: for ``integrator=path``),
+    ``table`` (analytic shapes only: a table with a torus, a can, a glass lens and a lamp whose
+    shade holds an emitting disk; Whitted or ``integrator=path``)."""
 
-    kind: Literal[MESH_SCENES] = Field("teapot", description="teapot, mixed, room or cornell")
+    kind: Literal[MESH_SCENES] = Field("teapot", description="teapot, mixed, room, cornell or table")
     detail: Annotated[int, Integral] = Field(
         2,
         ge=0,
@@ -690,6 +761,8 @@ class SceneInfo(BaseModel):
     n_triangles: int = Field(0, description="triangles of all meshes (ids after the planes)")
     n_degenerate_triangles: int = Field(0, description="zero-area triangles: kept, never hit")
     n_moving_meshes: int = Field(0, description="meshes some motion moves")
+    n_shapes: int = Field(0, description="analytic shapes: cylinders, cones, disks, tori (ids after the triangles)")
+    n_moving_shapes: int = Field(0, description="analytic shapes some motion moves")
 
 
 class SessionOut(BaseModel):

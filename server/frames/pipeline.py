@@ -576,7 +576,7 @@ class FramePipeline:
     def stats(self, request: FrameRequest, n_primitives: int) -> dict:
         """Statistics of the acceleration structure for the request's settings: the last build's
         of its session, or a build made now (without rendering). ``n_primitives``: the session's
-        spheres and triangles as stored (``auto`` resolves on them, as prepare_frame does)."""
+        spheres, triangles and analytic shapes as stored (``auto`` resolves on them, as prepare_frame does)."""
         assert request.owner is not None, "statistics are a session's"
         scene, s, owner = request.scene, request.settings.render, request.owner
         method_name = resolve_method(s.method, n_primitives)  # auto as prepare_frame does

@@ -5,9 +5,11 @@ A session's scene is stored as a *source*, not re-serialised for every change:
 - a thesis scenario is its recipe ``{"scenario", "n", "seed", "radius"}`` (a few
   bytes; ``renderer.scenarios.scenario`` is deterministic), and an animated Museum
   its recipe ``{"museum": {"n", "kind", "seed", "absent"}}``;
-- an uploaded scene is its small parts (and motions) as JSON plus the sphere arrays and
+- an uploaded scene is its small parts (and motions) as JSON plus the sphere arrays,
   the meshes' arrays (world-space vertices, triangles, normals, each mesh's rows
-  concatenated; the JSON says how many rows are whose), in one compressed ``.npz``.
+  concatenated; the JSON says how many rows are whose) and the analytic shapes' records
+  (kind, 12 numbers, material: :class:`renderer.shapes.Shapes` as it holds them), in one
+  compressed ``.npz``.
 
 An animated scene (one with motions) is an :class:`~renderer.animation.AnimatedScene`;
 ``SessionScene`` is either kind. The renderer poses it at the frame's ``time``.
@@ -33,6 +35,7 @@ from renderer.animation import AnimatedScene, motion_from_json, motion_to_json, 
 from renderer.envmap import SKY_REF
 from renderer.scenarios import scenario
 from renderer.scene import Camera, Mesh, Scene, SceneError, make_mesh
+from renderer.shapes import Shapes
 
 from ..api.schemas import CameraModel, SceneModel
 
@@ -46,7 +49,8 @@ def scene_from_model(
     model: SceneModel, where: str = "scene", images: dict[str, np.ndarray] | None = None
 ) -> SessionScene:
     """A validated Scene — an AnimatedScene when it has motions — from a request body
-    (SceneError names the JSON field); ``images``: the environment images its JSON may name."""
+    (SceneError names the JSON field); ``images``: the environment images its JSON may name. The
+    analytic shapes are read by the renderer from the small part (``Shapes.from_json``)."""
     small = model.model_dump(exclude={"spheres", "motions", "meshes"})
     small["environment"] = {k: v for k, v in small["environment"].items() if v is not None}
     try:
@@ -72,6 +76,7 @@ def scene_from_model(
             tuple(meshes),
             base.environment,
             base.environment_map,
+            base.shapes,
         )
         return with_motions(scene, [m.model_dump(exclude_none=True) for m in model.motions])
     except SceneError as e:
@@ -102,9 +107,10 @@ def scenario_source(number: int, n: int, seed: int, radius: float, sky: bool = F
 
 
 def scene_source(scene: SessionScene) -> bytes:
-    """Lights, materials, planes, motions and how the meshes are cut as JSON; spheres and mesh
-    rows as arrays (compressed npz). The meshes are stored in world space, as the scene
-    holds them, so that a stored scene loads bit for bit as it was."""
+    """Lights, materials, planes, motions and how the meshes are cut as JSON; spheres, mesh
+    rows and shape records as arrays (compressed npz). The meshes are stored in world space, as
+    the scene holds them, and the shapes as their float64 records, so that a stored scene loads
+    bit for bit as it was."""
     motions = [motion_to_json(m) for m in scene.motions] if isinstance(scene, AnimatedScene) else []
     if isinstance(scene, AnimatedScene):
         scene = scene.scene
@@ -135,6 +141,10 @@ def scene_source(scene: SessionScene) -> bytes:
         arrays["mesh_triangles"] = np.concatenate([m.triangles for m in scene.meshes])
         smooth = [m.normals for m in scene.meshes if m.normals is not None]  # the smooth ones
         arrays["mesh_normals"] = np.concatenate(smooth) if smooth else np.zeros((0, 3))
+    if scene.n_shapes:  # (absent for a scene without: a source stored before shapes reads the same)
+        arrays["shape_kind"] = scene.shapes.kind
+        arrays["shape_params"] = scene.shapes.params
+        arrays["shape_materials"] = scene.shapes.material
     buf = io.BytesIO()
     np.savez_compressed(buf, meta=np.frombuffer(json.dumps(small).encode(), dtype=np.uint8), **arrays)
     return _ARRAYS + buf.getvalue()
@@ -177,6 +187,11 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
             env = small.get("environment", {})
             images = {env["image"]: z["env_texels"]} if "env_texels" in z.files and "image" in env else None
             base = Scene.from_json({**small, "camera": camera.to_json()}, images)
+            shapes = (
+                Shapes(z["shape_kind"], z["shape_params"], z["shape_materials"])
+                if "shape_kind" in z.files
+                else Shapes.empty()
+            )
             scene = Scene(
                 camera,
                 base.lights,
@@ -188,6 +203,7 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
                 meshes,
                 base.environment,
                 base.environment_map,
+                shapes,
             )
             return with_motions(scene, motions)
     raise ValueError("unknown scene source")
@@ -249,6 +265,8 @@ def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> It
                 yield from (x.encode() for x in _rows_json(m.normals, rows))
             yield b"}"
         yield b"]"
+    for key, records in scene.shapes.to_json().items():  # each kind only when it has shapes, as Scene.to_json
+        yield (f',"{key}":' + dumps(records)).encode()
     env = environment_json(scene)
     if env is not None:
         yield (',"environment":' + dumps(env)).encode()
@@ -262,10 +280,14 @@ def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dic
         info.update(
             n_meshes=len(rest.meshes), n_triangles=rest.n_triangles, n_degenerate_triangles=rest.n_degenerate_triangles
         )
+    if rest.n_shapes:  # (absent without: as the meshes')
+        info["n_shapes"] = rest.n_shapes
     if isinstance(scene, AnimatedScene):
         info.update(animated=True, n_moving=int(scene.moving.sum()))
         if rest.meshes:
             info["n_moving_meshes"] = int(scene.moving_meshes.sum())
+        if rest.n_shapes:
+            info["n_moving_shapes"] = int(scene.moving_shapes.sum())
     if recipe:
         info.update(recipe)
     return info
@@ -273,14 +295,15 @@ def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dic
 
 def _weight(scene: SessionScene) -> int:
     rest = scene.scene if isinstance(scene, AnimatedScene) else scene
-    return rest.n_spheres + 4 * rest.n_triangles
+    return rest.n_spheres + 4 * rest.n_triangles + 4 * rest.n_shapes
 
 
 class SceneCache:
     """Least-recently-used scenes of this process, keyed by (session id, scene revision).
 
-    Bounded by the total number of spheres and triangles held (memory ≈ 36 bytes per sphere,
-    about 150 per triangle: its mesh's arrays and the flattened corners — counted as 4).
+    Bounded by the total number of spheres, triangles and shapes held (memory ≈ 36 bytes per
+    sphere, about 150 per triangle: its mesh's arrays and the flattened corners — counted as 4;
+    about 100 per analytic shape: its record — counted as 4 too).
     """
 
     def __init__(self, max_spheres: int = 8 << 20):

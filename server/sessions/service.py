@@ -312,6 +312,7 @@ class SessionService:
             rest.meshes,
             (0.0, 0.0, 0.0),
             env,
+            rest.shapes,
         )
         scene: SessionScene = AnimatedScene(lit, old.motions) if isinstance(old, AnimatedScene) else lit
         # no recipe any more: a scenario under another environment is a scene of its own
@@ -474,5 +475,6 @@ class SessionService:
         state = self.get(session_id)
         settings = FrameSettings.of(self.caps.merge_settings(state.settings, patch))
         scene = self.scene(state)
-        n = state.scene_info.get("n_spheres", 0) + state.scene_info.get("n_triangles", 0)
+        info = state.scene_info
+        n = info.get("n_spheres", 0) + info.get("n_triangles", 0) + info.get("n_shapes", 0)  # what a tree would hold
         return self.frames.stats(FrameRequest(scene, settings, owner(state)), n)

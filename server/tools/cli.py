@@ -9,7 +9,7 @@
     pocketray scene --mesh MODEL [--mesh MODEL …] [--size S] [--as-is] [-o scene.json]
     pocketray scenario 1|2|3 --n N [--seed S] [--radius R] [--sky] -o scene.json
     pocketray scenario museum --n N [--kind mixed] [--absent A] [--seed S] -o scene.json
-    pocketray scenario teapot|mixed|room|cornell [--sky] -o scene.json
+    pocketray scenario teapot|mixed|room|cornell|table [--sky] -o scene.json
     pocketray gpus [--probe]
     pocketray stack [--processes N] [--port P]     (Redis + render processes + HAProxy, server/tools/stack.py)
 

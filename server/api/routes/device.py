@@ -146,7 +146,8 @@ def device_data(
     with located(Where.QUERY):
         settings = service.caps.merge_settings(state.settings, query.given())
     n_triangles = state.scene_info.get("n_triangles", 0)
-    n = state.scene_info.get("n_spheres", 0) + n_triangles  # auto's crossover, as prepare_frame
+    # auto's crossover, as prepare_frame: what a tree would hold
+    n = state.scene_info.get("n_spheres", 0) + n_triangles + state.scene_info.get("n_shapes", 0)
     method_name = resolve_method(settings["method"], n)
     meth = single_pass_method(method_name, ("query", "method"))
     if n_triangles and not meth.capabilities.meshes_on_gpu:

@@ -20,13 +20,15 @@ test('the label names the scene of the frame on screen', () => {
     sceneLabel({ scenario: 'mesh:teapot', meshes: 1 }, { n: 3, triangles: 6320, mode: 'color' }),
     sceneLabel({ scenario: 'mesh:mixed', meshes: 3 }, { n: 4, triangles: 9, mode: 'depth' }),
     sceneLabel({}, { n: 8, triangles: 0, mode: 'color', scenario: 3 }),
-    sceneLabel({ scenario: 'sky:2' }, { n: 64, triangles: 0, mode: 'color' })],
+    sceneLabel({ scenario: 'sky:2' }, { n: 64, triangles: 0, mode: 'color' }),
+    sceneLabel({ scenario: 'mesh:table', shapes: 14 }, { n: 0, triangles: 0, mode: 'color' })],
   ['Ray-traced scene: scenario 2, 64 spheres, heat mode',
     'Ray-traced animated museum: 832 spheres (rigid), color mode',
     'Ray-traced mesh scene: teapot, 3 spheres, 6320 triangles in 1 mesh, color mode',
     'Ray-traced mesh scene: mixed, 4 spheres, 9 triangles in 3 meshes, depth mode',
     'Ray-traced scene: scenario 3, 8 spheres, color mode',
-    'Ray-traced scene: scenario 2 under the sky, 64 spheres, color mode']);
+    'Ray-traced scene: scenario 2 under the sky, 64 spheres, color mode',
+    'Ray-traced mesh scene: table, 0 spheres, 14 analytic shapes, color mode']);
 });
 
 test('a server frame: its stats first, then what it was asked with', () => {

@@ -9,11 +9,13 @@ const before = { scenario: 1, n: 512, seed: 1, radius: 1, motion: 'deformable' }
 
 test('a thesis scenario, the museum and a mesh scene as state.scene', () => {
   same(sceneOf({ scenario: 2, n: 128, n_spheres: 128, seed: 3, radius: 0.5 }, before),
-    { scenario: 2, n: 128, seed: 3, radius: 0.5, motion: 'deformable', n_spheres: 128, animated: false, n_triangles: 0, n_meshes: 0 });
+    { scenario: 2, n: 128, seed: 3, radius: 0.5, motion: 'deformable', n_spheres: 128, animated: false, n_triangles: 0, n_meshes: 0, n_shapes: 0 });
   same(sceneOf({ n_spheres: 832, museum: { n: 256, kind: 'rigid', seed: 0 }, animated: true }, before),
-    { scenario: 'museum', n: 256, seed: 0, radius: 1, motion: 'rigid', n_spheres: 832, animated: true, n_triangles: 0, n_meshes: 0 });
+    { scenario: 'museum', n: 256, seed: 0, radius: 1, motion: 'rigid', n_spheres: 832, animated: true, n_triangles: 0, n_meshes: 0, n_shapes: 0 });
   same(sceneOf({ n_spheres: 3, mesh_scene: { kind: 'teapot' }, n_triangles: 6320, n_meshes: 1 }, before).scenario, 'mesh:teapot');
   same(sceneOf({ scenario: 2, n: 64, n_spheres: 64, sky: true }, before).scenario, 'sky:2');
+  const table = sceneOf({ n_spheres: 0, mesh_scene: { kind: 'table' }, n_shapes: 14 }, before);
+  same([table.scenario, table.n_shapes, sceneBody(table)], ['mesh:table', 14, { mesh_scene: { kind: 'table' } }]);
 });
 
 test('a scenario under the sky asks for its recipe with sky: true', () => {

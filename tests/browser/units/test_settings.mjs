@@ -19,7 +19,7 @@ test('url params', () => {
 });
 
 test('the demo scenes by their scenario', () => {
-  for (const v of ['mesh:cornell', 'mesh:teapot', 'mesh:mixed', 'mesh:room', 'museum', '3']) {
+  for (const v of ['mesh:cornell', 'mesh:teapot', 'mesh:mixed', 'mesh:room', 'mesh:table', 'museum', '3']) {
     same(s.readUrlParams(`?scenario=${v}`).scene.scenario, v === '3' ? 3 : v);
   }
   same(s.readUrlParams('?scenario=mesh:nothing').ignored.map((x) => x.name), ['scenario']);

@@ -90,3 +90,30 @@ def test_the_environment_is_stored_and_streamed():
         with np.load(io.BytesIO(scene_source(scene)[1:])) as z:
             assert ("env_texels" in z.files) == stored
     assert sky.environment_map.ref == SKY_REF
+
+
+def test_the_analytic_shapes_are_stored_bit_for_bit_streamed_and_counted():
+    """A source keeps the shapes' float64 records (a restarted process reads the same scene), a
+    motion over them, and a sphere scene's source holds no shape arrays at all."""
+    table = mesh_scene("table")
+    skewed = table.shapes.with_placement(table.shapes.params[:, 0:3] + 1.0 / 3.0)  # every bit of a float64 in use
+    scene = table.with_geometry(table.sphere_centers, table.sphere_radii, table.sphere_materials, shapes=skewed)
+    anim = AnimatedScene(scene, (Deformable(0, 2, over="shapes"),))
+    back = load_source(scene_source(anim), scene.camera)
+    assert isinstance(back, AnimatedScene) and back.motions == anim.motions
+    for name in ("kind", "params", "material"):
+        np.testing.assert_array_equal(getattr(back.scene.shapes, name), getattr(scene.shapes, name))
+    info = scene_info(back)
+    assert info == scene_info(anim) and info["n_shapes"] == scene.n_shapes and info["n_moving_shapes"] == 2
+    np.testing.assert_array_equal(pose(back, 0.7).scene.shapes.params, pose(anim, 0.7).scene.shapes.params)
+    text = b"".join(scene_json_chunks(scene)).decode()
+    assert text == json.dumps(scene.to_json(), separators=(",", ":")) and '"tori":' in text
+    plain = mesh_scene("teapot", detail=0)
+    with np.load(io.BytesIO(scene_source(plain)[1:])) as z:
+        assert not any(f.startswith("shape") for f in z.files)
+    assert "n_shapes" not in scene_info(plain)
+    # the cache weighs each shape as 4 (two such scenes do not fit in 4·n + 1)
+    cache = SceneCache(max_spheres=4 * scene.n_shapes + 1)
+    cache.put(("a", "r"), scene)
+    cache.put(("b", "r"), scene)
+    assert cache.get(("a", "r")) is None and cache.get(("b", "r")) is scene

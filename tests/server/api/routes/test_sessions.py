@@ -68,6 +68,8 @@ def test_create_from_scenario_and_read(client):
         "n_triangles": 0,
         "n_degenerate_triangles": 0,
         "n_moving_meshes": 0,
+        "n_shapes": 0,
+        "n_moving_shapes": 0,
     }
     got = client.get(f"/api/sessions/{s['id']}").json()
     assert got["camera"] == {
