@@ -9,6 +9,11 @@ wins — :func:`closer`'s rule. A pass of the planes (and misses) comes first, w
 depth. The same ids and distances as the traversal, bit for bit (tests/renderer/gl/
 test_first_hits.py): the fragment computes the same float32 ray and the same test.
 
+Or per tile (:func:`tile_lists`, ``FIRST_HITS_TILES``): one quad per screen tile that some
+sphere's rectangle meets, listing those spheres by a near bound; its fragments test the list in
+that order and stop once the next bound passes the best hit — one fragment per pixel, no depth
+test among spheres, the same exact result.
+
 The rectangle is exact in float64: with the camera's orthonormal (right, up, forward) and a
 sphere at (x, y, z) in that frame, radius r, the rays of image-plane coordinate u (directions
 forward + u·right + v·up) form the plane x' = u·z' through the eye; it meets the sphere when
@@ -41,9 +46,6 @@ class FrameSettings(Protocol):
     width: int
     height: int
 
-    @property
-    def supersampling(self) -> int: ...
-
 
 # The per-instance record of shaders/first_hits.vert (total: 36 bytes): the quad's corners in
 # normalised device coordinates, the sphere as float32 (centre, radius), its record key.
@@ -66,10 +68,13 @@ def chosen(scene: Scene, settings: FrameSettings, path: bool, method: str, stats
     """How the frame finds its first hits if not by the traversal: ``"raster"`` (a quad per sphere),
     ``"tiles"`` (a quad per tile and its list) or ``""`` (the traversal) — the ``first_hits``
     setting, ``auto`` by :func:`cheapest` (``method`` and its build's ``stats``: the traversal's
-    estimate)."""
-    how = getattr(settings, "first_hits", "trace")
+    estimate). Tiles whose lists would pass ``MAX_TILE_PAIRS`` entries trace instead."""
+    how = settings.first_hits
     if how == "trace" or not eligible(scene, settings.mode, path):
         return ""
+    size = (settings.width, settings.height)
+    if how == "tiles" and tile_counts(instances(scene, size, size), size)[0] > limits.MAX_TILE_PAIRS:
+        return ""  # lists too long to make (spheres that each cover much of the frame): the traversal
     if how in ("raster", "tiles"):
         return how
     return cheapest(scene, settings, method, stats)
@@ -84,16 +89,16 @@ def cheapest(scene: Scene, settings: FrameSettings, method: str, stats: dict[str
     n = scene.n_spheres
     if n == 0 or n > limits.FIRST_HITS_AUTO_MAX_SPHERES:
         return ""
-    w, h, k = settings.width, settings.height, settings.supersampling
-    passes = 1 if settings.mode in PRIMARY_MODES else k * k
+    w, h = settings.width, settings.height  # one pass: the modes that show primary hits trace pixel centres
     quads = instances(scene, (w, h), (w, h))
     pairs, tile_pixels = tile_counts(quads, (w, h))
     planes = bool(scene.planes)
     options = {
         "": cost.traversal_ms(method, stats, scene, settings),
-        "raster": cost.first_hits_ms(covered_fragments(quads, (w, h)) * passes, w * h * passes, planes),
-        "tiles": cost.tiles_ms(pairs * passes, tile_pixels * passes, w * h * passes, planes),
+        "raster": cost.first_hits_ms(covered_fragments(quads, (w, h)), w * h, planes),
     }
+    if pairs <= limits.MAX_TILE_PAIRS:
+        options["tiles"] = cost.tiles_ms(pairs, tile_pixels, w * h, planes)
     return min(options, key=options.__getitem__)
 
 
@@ -222,12 +227,15 @@ def tile_counts(quads: np.ndarray, target: tuple[int, int]) -> tuple[int, float]
 def near_bounds(scene: Scene) -> np.ndarray:
     """Per sphere, float32 bounds below every t its float32 test can return for a primary ray: the
     eye's distance to the centre less the radius, lowered by a relative 1e-5 (the test's rounding is
-    far below it), 0 for a sphere around the eye."""
+    far below it, and by 1e-5 of the coordinates' size, which o − c is rounded at), 0 for a sphere
+    around the eye."""
     c = scene.sphere_centers.astype(np.float32).astype(np.float64)
     r = scene.sphere_radii.astype(np.float32).astype(np.float64)
     eye = np.asarray(scene.camera.position, dtype=np.float32).astype(np.float64)
     d = np.linalg.norm(c - eye, axis=1) - r
-    return np.maximum(d - 1e-5 * (d + r + np.abs(c).max(axis=1, initial=0.0)), 0.0).astype(np.float32)
+    # The test's o − c rounds at float32's spacing of the larger coordinates, eye's or centre's.
+    size = np.maximum(np.abs(c).max(axis=1, initial=0.0), np.abs(eye).max())
+    return np.maximum(d - 1e-5 * (d + r + size), 0.0).astype(np.float32)
 
 
 def tile_lists(
@@ -261,7 +269,10 @@ def tile_lists(
     k = np.arange(len(r), dtype=np.int32) - np.repeat((np.cumsum(per) - per).astype(np.int32), per)
     wxr = wx[r]
     tile = (y0[r] + k // wxr) * nx + (x0[r] + k % wxr)
-    order = np.argsort(tile, kind="stable")
+    # Tile numbers fit 16 bits at any accepted image size ((MAX_IMAGE_SIDE / TILE)² = 2^16), where
+    # NumPy's stable sort is a radix sort: linear in the pairs.
+    small = int(nx) * -(-th // TILE) <= 1 << 16
+    order = np.argsort(tile.astype(np.uint16) if small else tile, kind="stable")
     tile = tile[order]
     entries = table[rank[r[order]]]
     first = np.flatnonzero(np.r_[True, tile[1:] != tile[:-1]])

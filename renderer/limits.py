@@ -78,6 +78,10 @@ MAX_SPHERES = 1 << 21
 # first_hits=auto weighs rasterised first hits against the traversal up to this many spheres (past it the
 # quads' fragments, which grow with n, have always cost more: docs/RESULTS.md, "Peers").
 FIRST_HITS_AUTO_MAX_SPHERES = 65536
+# … and first_hits=tiles lists at most this many (tile, sphere) pairs (32 bytes each on the GPU, a few
+# times that while they are sorted): past it a frame traces, so no scene of spheres that each cover much
+# of the frame makes the host sort billions of entries.
+MAX_TILE_PAIRS = 1 << 22
 MAX_PLANES = 8
 MAX_LIGHTS = 8
 MAX_MATERIALS = 256

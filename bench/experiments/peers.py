@@ -558,7 +558,7 @@ def targets_md(data: dict, rows: dict) -> str:
         ours = rows[(TARGET_SCENARIO, n, TARGET_ENGINE)]["mrays"]
         verdict = "met" if ratio >= TARGET_RATIO else "NOT met"
         parts.append(
-            f"n = {n:,}: {ours:.2f} / {best[1]:.2f} Mrays/s ({best[0]}) = **{ratio:.2f}×**, "
+            f"n = {n:,}: {ours:.2f} / {best[1]:.2f} Mrays/s ({best[0]}) = **{ratio:.3f}×**, "
             f"target ≥ {TARGET_RATIO:g}× {verdict}"
         )
     w, h = data["size"]

@@ -139,7 +139,7 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     target = rate.get(TARGET_ENGINE, math.nan) / mit
     target_txt = (
         f"`{TARGET_ENGINE.split(': ', 1)[-1]}` {rate[TARGET_ENGINE]:.3f} / Mitsuba {mit:.3f} Msamples/s = "
-        f"**{target:.2f}×**, target ≥ {TARGET_RATIO:g}× {'met' if target >= TARGET_RATIO else 'NOT met'}"
+        f"**{target:.3f}×**, target ≥ {TARGET_RATIO:g}× {'met' if target >= TARGET_RATIO else 'NOT met'}"
         if math.isfinite(target)
         else "not measured in this run"
     )

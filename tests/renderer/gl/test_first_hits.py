@@ -144,3 +144,14 @@ def test_scenes_with_shapes_trace(gl_renderer):
     res = gl_renderer.render(scene, st)
     assert res.stats["first_hits"] == "trace"
     assert (res.primid == scene.shape_id_base).any()
+
+
+def test_tiles_past_the_pair_limit_trace(gl_renderer, monkeypatch):
+    """Lists longer than MAX_TILE_PAIRS are not made: the frame traces (the same pixels)."""
+    scene = SCENES["scenario 1, 64"]()
+    st = RenderSettings(width=96, height=72, mode="primid", method="bih", first_hits="tiles", format="npy")
+    assert gl_renderer.render(scene, st).stats["first_hits"] == "tiles"
+    monkeypatch.setattr(limits, "MAX_TILE_PAIRS", 10)
+    res = gl_renderer.render(scene, st)
+    assert res.stats["first_hits"] == "trace"
+    assert np.array_equal(res.primid, gl_renderer.render(scene, st.with_(first_hits="trace")).primid)
