@@ -38,6 +38,7 @@ EXPERIMENTS = (
     "hardening",
     "hardening2",
     "meshes",
+    "shapes",
     "denoise",
     "client",
     "refine",
