@@ -35,7 +35,7 @@ from renderer.methods import METHODS
 from renderer.reference import render_reference
 from renderer.scenarios import RED
 from renderer.scene import Camera, Light, Mesh, Scene
-from renderer.shapes import CONE, CYLINDER, DISK, TORUS, Shapes
+from renderer.shapes import CONE, CYLINDER, DISK, TORUS, Shapes, bounds
 
 from .context import Context, RunInfo
 from .markdown import md_table
@@ -235,8 +235,6 @@ def scenes_of(name: str, levels, size: tuple[int, int], quick: bool) -> tuple[Sc
     """The analytic scene and, per level, its tessellation (one mesh per object)."""
     rows = rows_of(name, quick)
     shapes = Shapes(rows[:, 10].astype(np.int8), rows, np.zeros(len(rows), np.int32))
-    from renderer.shapes import bounds
-
     box = bounds(shapes)
     lo, hi = box[:, 0].min(axis=0), box[:, 1].max(axis=0)
     centre = (lo + hi) / 2
@@ -302,7 +300,7 @@ def measure(ctx: Context) -> dict:
     errs: dict[int, dict] = {}
     rounds = 1 + max(1, ctx.runs)
     for r in ctx.bar(range(rounds), desc="shapes rounds"):
-        for i, (name, level, m, scene) in enumerate(ctx.bar(configs, desc=f"round {r}")):
+        for i, (name, _level, m, scene) in enumerate(ctx.bar(configs, desc=f"round {r}")):
             t0 = time.perf_counter()
             res = ctx.renderer.render(scene, st.with_(method=m))
             wall = (time.perf_counter() - t0) * 1e3
@@ -446,9 +444,9 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     for name, g in groups.items():
         label = KIND_LABELS.get(name, MANY_LABEL if not run.quick else "tori on a grid")
         n_ref = next(iter(g["rows"].values()))["ref_hit_px"]
+        levels = "segments around the axis" + (" × around the tube" if name in ("torus", "many") else "")
         tables.append(
-            f"**{label}** ({n_ref:,} pixels of {w * h:,} hit in the reference; levels: "
-            f"{'segments around the axis × around the tube' if name in ('torus', 'many') else 'segments around the axis'})"
+            f"**{label}** ({n_ref:,} pixels of {w * h:,} hit in the reference; levels: {levels})"
             f"\n\n{group_table(name, g, methods)}\n\n{caption}"
         )
     body = "\n\n".join(tables)
