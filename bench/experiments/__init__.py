@@ -40,6 +40,7 @@ EXPERIMENTS = (
     "hardening",
     "hardening2",
     "meshes",
+    "shapes",
     "denoise",
     "client",
     "refine",

@@ -35,6 +35,7 @@ SECTIONS = {  # experiment name → heading start
     "specialize": "## Model no more than the scene needs",
     "shader": "## The tracer shaped for llvmpipe",
     "meshes": "## Triangle meshes",
+    "shapes": "## Analytic shapes against their tessellations",
     "client": "## The phone client",
     "refine": "## Refinement while still",
 }

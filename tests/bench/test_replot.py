@@ -3,9 +3,9 @@ gives back the committed sections word for word (the run each came from is in it
 data saved before it was, read back from the section's captions, budget list and stamp).
 
 The sections chosen cover one chart drawn from its data (table_4_2, scaling), tables only
-(specialize, hardening), two data files (shader) and a list of what the frame budget left out
-(scaling). Each copied section's heading is spoilt first, so a section that was not written
-again cannot pass.
+(specialize, hardening), two data files (shader), tables from many groups of rows (shapes) and a
+list of what the frame budget left out (scaling). Each copied section's heading is spoilt first,
+so a section that was not written again cannot pass.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from bench.experiments.__main__ import main
 from bench.experiments.results import assemble, head_of, sections_of
 from tests.helpers import ROOT
 
-SECTIONS = ("table_4_2", "scaling", "specialize", "hardening", "hardening2", "shader")
+SECTIONS = ("table_4_2", "scaling", "specialize", "hardening", "hardening2", "shader", "shapes")
 DATA = {"shader": ("shader", "shader_next")}
 DOCS = ROOT / "docs"
 
