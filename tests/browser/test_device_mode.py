@@ -411,3 +411,25 @@ def test_device_traces_a_scene_with_meshes(device_page, server, method):
     srv = server_array(server, sid, mode="color", **common)
     assert psnr(dev["color"], srv) >= 35.0, psnr(dev["color"], srv)
     assert device_page.errors() == []
+
+
+@pytest.mark.parametrize("method", ["bih", "bvh"])
+def test_device_traces_analytic_shapes(device_page, server, method):
+    """The demo table (cylinders, cones, disks, a torus, a glass lens, renderer/scenarios.py): the
+    shape records and the SHAPES variant (shaders/shapes_tracer.glsl) on ANGLE give the server's
+    picture."""
+    from renderer.scenarios import mesh_scene
+
+    scene = mesh_scene("table")
+    sid = http_json("POST", f"{server.base}/api/sessions", {"mesh_scene": {"kind": "table"}})["id"]
+    common = dict(width=W, height=H, method=method, max_recursion_depth=DEPTH)
+    dev = device_render(device_page, session=sid, mode="primid", **common)
+    assert dev["infoLog"] == {"vertex": "", "fragment": "", "program": ""}, dev["infoLog"]
+    assert "SHAPES" in set(dev["shader"]["features"]), dev["shader"]
+    srv = server_array(server, sid, mode="primid", **common)
+    assert np.mean(srv == dev["primid"]) >= 0.999
+    assert (srv >= scene.shape_id_base).mean() > 0.1, "the shapes are in view"
+    dev = device_render(device_page, session=sid, mode="color", **common)
+    srv = server_array(server, sid, mode="color", **common)
+    assert psnr(dev["color"], srv) >= 35.0, psnr(dev["color"], srv)
+    assert device_page.errors() == []
