@@ -84,10 +84,12 @@ def cheapest(scene: Scene, settings: FrameSettings, method: str, stats: dict[str
     """The cost model's choice for ``auto``: ``"raster"``, ``"tiles"`` or ``""`` (the traversal) —
     :func:`renderer.cost.first_hits_ms` and :func:`renderer.cost.tiles_ms` against
     :func:`renderer.cost.traversal_ms`. The traversal past ``FIRST_HITS_AUTO_MAX_SPHERES`` spheres
-    (their quads would cost more to make than most frames to trace), and without spheres (nothing
-    to win)."""
+    (their quads would cost more to make than most frames to trace); without spheres, the traversal
+    where there are planes (the same full-screen pass) and a clear where there are none."""
     n = scene.n_spheres
-    if n == 0 or n > limits.FIRST_HITS_AUTO_MAX_SPHERES:
+    if n == 0:  # nothing to rasterise: a frame without planes either is then one clear, not a pass
+        return "" if scene.planes else "raster"
+    if n > limits.FIRST_HITS_AUTO_MAX_SPHERES:
         return ""
     w, h = settings.width, settings.height  # one pass: the modes that show primary hits trace pixel centres
     quads = instances(scene, (w, h), (w, h))

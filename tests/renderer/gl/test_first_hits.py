@@ -118,7 +118,7 @@ def test_png_frames_and_bands(gl_renderer, how):
 
 def test_auto_chooses_by_the_cost_model(gl_renderer):
     """A few spheres: rasterised (the model puts both ways far below a traversal's per-pixel cost);
-    past FIRST_HITS_AUTO_MAX_SPHERES or without spheres: the traversal; the same pixels either way."""
+    past FIRST_HITS_AUTO_MAX_SPHERES, or planes and no spheres: the traversal; nothing at all: a clear."""
     sparse = dataclasses.replace(scenario(1, 64), planes=())
     st = RenderSettings(width=640, height=1088, mode="depth", method="bih", format="npy")
     auto = gl_renderer.render(sparse, st)
@@ -126,8 +126,11 @@ def test_auto_chooses_by_the_cost_model(gl_renderer):
     assert np.array_equal(auto.primid, gl_renderer.render(sparse, st.with_(first_hits="trace")).primid)
     many = scenario(2, limits.FIRST_HITS_AUTO_MAX_SPHERES + 1)
     assert gl_renderer.render(many, st.with_(width=32, height=32)).stats["first_hits"] == "trace"
-    none = dataclasses.replace(scenario(1, 0), planes=())
-    assert gl_renderer.render(none, st.with_(width=32, height=32)).stats["first_hits"] == "trace"
+    nothing = dataclasses.replace(scenario(1, 0), planes=())  # one clear: black, ids −1
+    empty = gl_renderer.render(nothing, st.with_(width=32, height=32))
+    assert empty.stats["first_hits"] == "raster" and (empty.primid == -1).all() and not empty.image.any()
+    plane_only = scenario(1, 0)
+    assert gl_renderer.render(plane_only, st.with_(width=32, height=32)).stats["first_hits"] == "trace"
     # colour frames and meshes always trace
     assert "first_hits" not in gl_renderer.render(sparse, st.with_(mode="color", width=32, height=32)).stats
 
