@@ -301,11 +301,9 @@ def _matte(color, ambient: float = 0.3) -> Material:
     )
 
 
-CORNELL_MATERIALS = (
-    _matte((0.73, 0.73, 0.73)),  # 0 white: floor, ceiling, back wall
-    _matte((0.63, 0.065, 0.05)),  # 1 red: the left wall
-    _matte((0.14, 0.45, 0.091)),  # 2 green: the right wall
-    Material(
+def _emitter(emission) -> Material:
+    """A light's surface: it emits ``emission`` and reflects nothing."""
+    return Material(
         color=(1.0, 1.0, 1.0),
         ambient=0.0,
         diffuse=0.0,
@@ -314,8 +312,15 @@ CORNELL_MATERIALS = (
         reflective=0.0,
         transmissive=0.0,
         ior=1.0,
-        emission=(17.0, 12.0, 4.0),
-    ),  # 3 the ceiling panel
+        emission=emission,
+    )
+
+
+CORNELL_MATERIALS = (
+    _matte((0.73, 0.73, 0.73)),  # 0 white: floor, ceiling, back wall
+    _matte((0.63, 0.065, 0.05)),  # 1 red: the left wall
+    _matte((0.14, 0.45, 0.091)),  # 2 green: the right wall
+    _emitter((17.0, 12.0, 4.0)),  # 3 the ceiling panel
     Material(
         color=(1.0, 1.0, 1.0),
         ambient=0.0,
@@ -394,17 +399,7 @@ TABLE_MATERIALS = (
         roughness=0.15,
     ),  # 4 brushed metal: the can, the lamp's foot and stand
     _matte((0.92, 0.86, 0.7)),  # 5 the lampshade
-    Material(
-        color=(1.0, 1.0, 1.0),
-        ambient=0.0,
-        diffuse=0.0,
-        specular=0.0,
-        shininess=1.0,
-        reflective=0.0,
-        transmissive=0.0,
-        ior=1.0,
-        emission=(15.0, 12.0, 7.5),
-    ),  # 6 the lamp's bulb: a disk facing down
+    _emitter((15.0, 12.0, 7.5)),  # 6 the lamp's bulb: a disk facing down
 )
 TABLE_TOP = -8.0  # the table top's height
 TABLE_RADIUS = 12.0

@@ -52,39 +52,60 @@ float shape_cap(ShapeRay s, float zc, float r_out, float r_in, float t_max) {
 // beta terms) has its difference of squares as a product, exact near the silhouette
 // where the textbook B² − AC cancels. The roots by the stable quadratic (no subtraction
 // of nearly equal terms either).
-float shape_lateral(ShapeRay s, vec3 a, float r0, float m, float h, float t_max, out vec3 n) {
-    n = vec3(0.0);
+// The side's roots as offsets u from s0, the ray's closest approach to the axis (t = s0 + u; the
+// shifted point q1 and height z1 there): u1 only where A ≠ 0 (`two`; else BIG). False where the ray
+// misses the side's surface, or runs along one of its axis-parallel lines (B = disc = 0).
+struct SideRoots {
+    float s0;
+    vec3 q1;
+    float z1;
+    bool two;
+    float u1;
+    float u2;
+};
+
+bool side_roots(ShapeRay s, float r0, float m, out SideRoots sr) {
     float k = dot(s.dq, s.dq);
-    float s0 = k > 1e-30 ? -dot(s.q0, s.dq) / k : 0.0;
-    vec3 q1 = s.q0 + s0 * s.dq;
-    float z1 = s.z0 + s0 * s.dz;
-    float beta = dot(q1, s.dq);
-    float w1 = r0 + m * z1;
-    float rho1 = sqrt(dot(q1, q1));
+    sr.s0 = k > 1e-30 ? -dot(s.q0, s.dq) / k : 0.0;
+    sr.q1 = s.q0 + sr.s0 * s.dq;
+    sr.z1 = s.z0 + sr.s0 * s.dz;
+    float beta = dot(sr.q1, s.dq);
+    float w1 = r0 + m * sr.z1;
+    float rho1 = sqrt(dot(sr.q1, sr.q1));
     float mdz = m * s.dz;
     float A = k - mdz * mdz;
     float B = beta - mdz * w1;
     float C = (rho1 - w1) * (rho1 + w1);
     float disc = k * ((w1 - rho1) * (w1 + rho1)) + beta * (beta - 2.0 * mdz * w1) + mdz * mdz * rho1 * rho1;
-    if (disc < 0.0) return BIG;
+    sr.two = A != 0.0;
+    sr.u1 = BIG;
+    sr.u2 = BIG;
+    if (disc < 0.0) return false;
     float sq = sqrt(disc);
     float qq = -(B + (B >= 0.0 ? sq : -sq));
-    if (qq == 0.0) return BIG;  // B = disc = 0: a ray along the surface's axis-parallel line
-    float u1 = A != 0.0 ? qq / A : BIG;
-    float u2 = C / qq;
+    if (qq == 0.0) return false;
+    if (sr.two) sr.u1 = qq / A;
+    sr.u2 = C / qq;
+    return true;
+}
+
+float shape_lateral(ShapeRay s, vec3 a, float r0, float m, float h, float t_max, out vec3 n) {
+    n = vec3(0.0);
+    SideRoots sr;
+    if (!side_roots(s, r0, m, sr)) return BIG;
     float best = BIG;
     float bu = 0.0;
     for (int i = 0; i < 2; i++) {
-        float u = i == 0 ? u1 : u2;
-        float t = s0 + u;
-        float z = z1 + u * s.dz;
+        float u = i == 0 ? sr.u1 : sr.u2;
+        float t = sr.s0 + u;
+        float z = sr.z1 + u * s.dz;
         if (t > 0.0 && t < t_max && t < best && z >= 0.0 && z <= h && r0 + m * z >= 0.0) {
             best = t;
             bu = u;
         }
     }
     if (best < BIG) {
-        vec3 q = q1 + bu * s.dq;
+        vec3 q = sr.q1 + bu * s.dq;
         float rho = sqrt(dot(q, q));
         // The apex (rho = 0) has no normal: the axis stands in.
         vec3 er = rho > 0.0 ? q / rho : vec3(0.0);

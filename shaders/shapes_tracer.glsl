@@ -18,34 +18,19 @@
 // of the shape, signed, drop the one of least |t| and keep the nearest in (0, t_max).
 
 // A frustum's (cylinder's, cone's) signed roots: the side's two, then the base cap's and the
-// top cap's, BIG where none (the side's as shape_lateral forms them).
+// top cap's, BIG where none (the side's from side_roots, as shape_lateral's).
 vec4 frustum_roots(ShapeRay s, vec4 v0, vec4 v1, vec4 v2) {
     vec4 roots = vec4(BIG);
     float h = v2.x;
     float r0 = v0.w;
     float m = h > 0.0 ? (v1.w - v0.w) / h : 0.0;
-    float k = dot(s.dq, s.dq);
-    float s0 = k > 1e-30 ? -dot(s.q0, s.dq) / k : 0.0;
-    vec3 q1 = s.q0 + s0 * s.dq;
-    float z1 = s.z0 + s0 * s.dz;
-    float beta = dot(q1, s.dq);
-    float w1 = r0 + m * z1;
-    float rho1 = sqrt(dot(q1, q1));
-    float mdz = m * s.dz;
-    float A = k - mdz * mdz;
-    float B = beta - mdz * w1;
-    float C = (rho1 - w1) * (rho1 + w1);
-    float disc = k * ((w1 - rho1) * (w1 + rho1)) + beta * (beta - 2.0 * mdz * w1) + mdz * mdz * rho1 * rho1;
-    if (disc >= 0.0) {
-        float sq = sqrt(disc);
-        float qq = -(B + (B >= 0.0 ? sq : -sq));
-        if (qq != 0.0) {
-            for (int i = 0; i < 2; i++) {
-                if (i == 0 && A == 0.0) continue;
-                float u = i == 0 ? qq / A : C / qq;
-                float z = z1 + u * s.dz;
-                if (z >= 0.0 && z <= h && r0 + m * z >= 0.0) roots[i] = s0 + u;
-            }
+    SideRoots sr;
+    if (side_roots(s, r0, m, sr)) {
+        for (int i = 0; i < 2; i++) {
+            if (i == 0 && !sr.two) continue;
+            float u = i == 0 ? sr.u1 : sr.u2;
+            float z = sr.z1 + u * s.dz;
+            if (z >= 0.0 && z <= h && r0 + m * z >= 0.0) roots[i] = sr.s0 + u;
         }
     }
     if (v2.y > 0.5 && s.dz != 0.0) {

@@ -177,8 +177,10 @@ def cases() -> list[tuple[str, object, dict]]:
         sys.path.pop(0)
     for case in CASES:
         scene = case.build()
-        if getattr(scene, "n_triangles", 0):  # meshes came after the base (issue 20): nothing to compare
-            continue  # with; tests/renderer/gl/test_renderer.py holds them
+        if getattr(scene, "n_triangles", 0) or getattr(scene, "n_shapes", 0):
+            # Meshes and analytic shapes came after the base: nothing to compare with;
+            # tests/renderer/gl/test_renderer.py and test_shapes_render.py hold them.
+            continue
         for method in METHODS:
             out.append(
                 (
