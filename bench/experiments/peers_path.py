@@ -28,6 +28,7 @@ import numpy as np
 
 from renderer.path_scenes import path_scene
 
+from .. import path_speed
 from . import path
 from .context import Context, RunInfo
 from .markdown import md_table
@@ -45,6 +46,8 @@ SPP = 64
 SPP_QUICK = 4
 DEPTH = path.DEPTH
 REPS = 3  # interleaved repetitions (at most --runs)
+PROFILE_SIZE = (160, 272)  # the profile's frames: a quarter of the pixels, the same spp and depth
+PROFILE_RUNS = 3
 WARM_SPP = 4  # our warm-up frame compiles the variant; its sample count does not change it
 # Our engines: (label, method, RenderSettings fields to change), one line each.
 OURS: tuple[tuple[str, str, dict[str, Any]], ...] = (
@@ -105,7 +108,17 @@ def measure(ctx: Context) -> dict:
         "versions": {k: v for k, v in versions().items() if k in ("mitsuba", "drjit")},
         "libllvm": os.environ.get("DRJIT_LIBLLVM_PATH", "Dr.Jit's default"),
         "load": {"before": load_before, "after": [round(x, 2) for x in os.getloadavg()]},
+        "profile": profile_of(ctx, spp),
     }
+
+
+def profile_of(ctx: Context, spp: int) -> dict:
+    """Where our bih frame's time goes (bench/path_speed.py's profile: stripped variants of the shader,
+    process CPU time, interleaved), at PROFILE_SIZE."""
+    pw, ph = SIZE_QUICK if ctx.quick else PROFILE_SIZE
+    runs = 1 if ctx.quick else PROFILE_RUNS
+    prof = path_speed.profile(pw, ph, spp, DEPTH, runs, lambda _msg: None)
+    return {"size": [pw, ph], "spp": spp, "runs": runs, **prof}
 
 
 def rates(data: dict) -> dict[str, float]:
@@ -171,8 +184,28 @@ after (1, 5, 15 min).
 {table}
 
 {run.caption(runs=data["reps"], what="median, spread min–max; engines interleaved")}
-
+{profile_md(data, run)}
 Raw data: [`{raw}`]({raw}).
+"""
+
+
+def profile_md(data: dict, run: RunInfo) -> str:
+    """The profile's paragraph and table (none in data saved before it was measured)."""
+    p = data.get("profile")
+    if not p:
+        return ""
+    pw, ph = p["size"]
+    return f"""
+**Where our frame's time goes** (`bih`, {pw} × {ph}, {p["spp"]} spp, depth {data["depth"]}; `bench/path_speed.py`'s
+profile: copies of our shader changed in one place each, process CPU time, {p["runs"]} interleaved run(s)):
+*coherent* is the frame with every lane of a 4 × 2 pixel group tracing the same samples (what the lanes would cost
+if they never waited on each other), *trace ×2* and *rnd ×2* double the traversal's and the sampler's work. What
+remains to Mitsuba is mostly *lane idle*: llvmpipe runs 8 pixels in lock step and a traversal loop runs as long as
+its slowest lane; sharing samples across a group would recover it but correlate the noise in 4 × 2 blocks.
+
+{path_speed.profile_table(p, pw, ph, p["spp"])}
+
+{run.caption_cpu(runs=p["runs"], what="median process CPU seconds, variants interleaved")}
 """
 
 

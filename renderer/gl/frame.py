@@ -394,9 +394,9 @@ class TracerFrame:
         fh = self.first_hits
         assert fh is not None
         if self._row == 0:
+            sub, cell = p.sub or (0, 0), p.cell or (0.5, 0.5)  # as _bind's pass uniforms
             grid = (self.width * p.scale, self.height * p.scale)
-            offset = (p.sub or (0, 0))[0] + (p.cell or (0.5, 0.5))[0], (p.sub or (0, 0))[1] + (p.cell or (0.5, 0.5))[1]
-            fh.begin_pass(grid, float(p.scale), offset)
+            fh.begin_pass(grid, float(p.scale), (sub[0] + cell[0], sub[1] + cell[1]))
         fh.depth_on()
         fh.fbo.scissor = (0, self._row, w, rows) if rows < h else None
         for prog, vao, instances in fh.draws():
