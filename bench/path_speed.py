@@ -52,7 +52,6 @@ from bench.experiments.path import _QUERY, MITSUBA_VARIANT, RR_DEPTH, counting_s
 from renderer import mitsuba_scene
 from renderer.gl.renderer import GLRenderer
 from renderer.path_scenes import path_scene
-from renderer.shader_source import tracer_source, vertex_source
 
 SCENE = "cornell"
 SIZE = (320, 544)
@@ -122,18 +121,8 @@ class PatchedRenderer(GLRenderer):
         super().__init__(**kw)
         self._patch = patch
 
-    def program(self, method, mode, max_recursion_depth, features=(), blocks=(), image_only=False, spheres=True):
-        key = (method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only), bool(spheres))
-        if key not in self._programs:
-            src = tracer_source(
-                method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only), bool(spheres)
-            )
-            if "PATH" in features:
-                src = self._patch(src)
-            prog = self.ctx.program(vertex_shader=vertex_source(), fragment_shader=src)
-            self._programs[key] = prog
-            self._vaos[key] = self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
-        return self._programs[key], self._vaos[key]
+    def fragment_text(self, src: str, features: tuple[str, ...]) -> str:
+        return self._patch(src) if "PATH" in features else src
 
 
 def _load() -> float:
@@ -189,11 +178,13 @@ def speed(methods: list[str], w: int, h: int, spp: int, depth: int, runs: int, m
     return {"times": times, "mean": means, "load": loads}
 
 
-def profile(w: int, h: int, spp: int, depth: int, runs: int, log) -> dict:
-    """The profile's frames (median CPU seconds, interleaved), the fixed cost, rays and lane use."""
+def profile(w: int, h: int, spp: int, depth: int, runs: int, log, ctx=None) -> dict:
+    """The profile's frames (median CPU seconds, interleaved), the fixed cost, rays and lane use.
+    ``ctx``: the GL context to draw with (a caller's own: a new context would become the current one
+    in this thread, under the caller's renderer)."""
     scene = path_scene(SCENE)
     settings = ours_settings("bih", w, h, spp, depth)
-    plain = PatchedRenderer(lambda s: s)
+    plain = PatchedRenderer(lambda s: s, ctx=ctx)
     renderers = {name: PatchedRenderer(lambda s, p=p: patched(s, p), ctx=plain.ctx) for name, p in PROFILE.items()}
     fixed = ours_settings("bih", w, h, 1, 1)
     counter = PatchedRenderer(counting_source, ctx=plain.ctx)

@@ -113,20 +113,10 @@ def counting_source(src: str) -> str:
 def ray_counter(renderer: Any) -> Any:
     """A GLRenderer on ``renderer``'s context whose path variants count rays (its own programs)."""
     from renderer.gl.renderer import GLRenderer
-    from renderer.shader_source import tracer_source, vertex_source
 
     class RayCounter(GLRenderer):
-        def program(self, method, mode, max_recursion_depth, features=(), blocks=(), image_only=False, spheres=True):
-            key = (method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only), bool(spheres))
-            if key not in self._programs:
-                src = tracer_source(
-                    method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only), bool(spheres)
-                )
-                src = counting_source(src) if "PATH" in features else src
-                prog = self.ctx.program(vertex_shader=vertex_source(), fragment_shader=src)
-                self._programs[key] = prog
-                self._vaos[key] = self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
-            return self._programs[key], self._vaos[key]
+        def fragment_text(self, src: str, features: tuple[str, ...]) -> str:
+            return counting_source(src) if "PATH" in features else src
 
     return RayCounter(ctx=renderer.ctx)
 

@@ -117,7 +117,7 @@ def profile_of(ctx: Context, spp: int) -> dict:
     process CPU time, interleaved), at PROFILE_SIZE."""
     pw, ph = SIZE_QUICK if ctx.quick else PROFILE_SIZE
     runs = 1 if ctx.quick else PROFILE_RUNS
-    prof = path_speed.profile(pw, ph, spp, DEPTH, runs, lambda _msg: None)
+    prof = path_speed.profile(pw, ph, spp, DEPTH, runs, lambda _msg: None, ctx=ctx.renderer.ctx)
     return {"size": [pw, ph], "spp": spp, "runs": runs, **prof}
 
 

@@ -115,11 +115,17 @@ class GLRenderer:
             src = tracer_source(
                 method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only), bool(spheres), first_hits
             )
+            src = self.fragment_text(src, features)
             prog = self.ctx.program(vertex_shader=vertex_source(first_hits), fragment_shader=src)
             self._programs[key] = prog
             if first_hits not in ("spheres", "tiles"):
                 self._vaos[key] = self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
         return self._programs[key], self._vaos.get(key)
+
+    def fragment_text(self, src: str, features: tuple[str, ...]) -> str:
+        """A variant's fragment shader as compiled: ``src`` itself (a benchmark's renderer patches
+        it here — bench/path_speed.py, bench/experiments/path.py)."""
+        return src
 
     def render(
         self,
