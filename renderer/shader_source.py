@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from functools import cache
 
-from . import gpu_layout
+from . import first_hits, gpu_layout
 from .features import LIGHTING
 from .gpu_layout import Binding, Variant
 from .methods import METHODS
@@ -98,6 +98,8 @@ def tracer_header(variant: Variant) -> str:
         defines.append("BACKGROUND")
     if variant.first_hits:
         defines += ["FIRST_HITS", f"FIRST_HITS_{variant.first_hits.upper()}"]
+    if variant.first_hits == "tiles":  # the tile lists' layout (renderer/first_hits.py)
+        defines.append(f"TILE_ENTRY_TEXELS {first_hits.ENTRY_TEXELS}")
     triangles = ""
     if "TRIANGLES" in variant.features:  # (only there: a sphere variant's text stays as it was)
         triangles = gpu_layout.triangle_constants() + "".join(

@@ -31,7 +31,7 @@ flat in uint v_key;
 #endif
 #ifdef FIRST_HITS_TILES
 // … or in one tile (shaders/first_hit_tiles.vert): its list of spheres, nearest-possible first
-// (ENTRY_TEXELS texels each: centre and radius; key and the near bound, as float bits).
+// (TILE_ENTRY_TEXELS texels each: centre and radius; key and the near bound, as float bits).
 flat in uvec2 v_list;   // first entry, count
 uniform highp usampler2D u_tile_entries;
 #endif
@@ -369,9 +369,9 @@ void main() {
     int entry_shift = row_shift(textureSize(u_tile_entries, 0));
     int end = int(v_list.x + v_list.y);
     for (int i = int(v_list.x); i < end; i++) {
-        uvec4 b = texelFetch(u_tile_entries, texel(2 * i + 1, entry_shift), 0);
+        uvec4 b = texelFetch(u_tile_entries, texel(TILE_ENTRY_TEXELS * i + 1, entry_shift), 0);
         if (uintBitsToFloat(b.y) > h0.t) break;
-        vec4 sp = uintBitsToFloat(texelFetch(u_tile_entries, texel(2 * i, entry_shift), 0));
+        vec4 sp = uintBitsToFloat(texelFetch(u_tile_entries, texel(TILE_ENTRY_TEXELS * i, entry_shift), 0));
         float t = intersect_sphere(u_cam_pos, dir, sp, false);
         int id = SPHERE_ID(b.x);
         if (closer(t, id, h0.t, h0.id)) h0 = Hit(t, id, sp, b.x);
