@@ -293,8 +293,10 @@ def _torus_normal(tr: TorusRay, s: Arr, a: Arr) -> Arr:
     return np.where(_col(gl > 0), g / _col(np.where(gl > 0, gl, F(1))), a).astype(F)
 
 
-def intersect_torus_bracket(o, d, v0, v1, v2, t_max) -> tuple[Arr, Arr]:
-    """Method B: the range cut where D changes curvature, each piece's extremum, one root per monotone half."""
+def _torus_rays(o, d, v0, v1, v2, t_max):
+    """What both torus methods start from: the axis records (``v1``, as ``_records`` makes them), the
+    outputs (no hit yet), the rays that can meet the torus (``idx``) and, for those, the shifted ray,
+    its range and each ray's t_max."""
     o, d, v0, v1, v2 = _records(o, d, v0, v1, v2)
     nr = len(o)
     t_out = np.full(nr, BIG, dtype=F)
@@ -302,9 +304,16 @@ def intersect_torus_bracket(o, d, v0, v1, v2, t_max) -> tuple[Arr, Arr]:
     ok, tr, tf, lo, hi = torus_setup(o, d, v0, v1, t_max)
     idx = np.flatnonzero(ok)
     if idx.size == 0:
-        return t_out, n_out
-    tr, tf, lo, hi = _take(tr, idx), tf[idx], lo[idx], hi[idx]
+        return v1, t_out, n_out, idx, tr, tf, lo, hi, None
     tmx = np.broadcast_to(_f(t_max), (nr,))[idx]
+    return v1, t_out, n_out, idx, _take(tr, idx), tf[idx], lo[idx], hi[idx], tmx
+
+
+def intersect_torus_bracket(o, d, v0, v1, v2, t_max) -> tuple[Arr, Arr]:
+    """Method B: the range cut where D changes curvature, each piece's extremum, one root per monotone half."""
+    v1, t_out, n_out, idx, tr, tf, lo, hi, tmx = _torus_rays(o, d, v0, v1, v2, t_max)
+    if idx.size == 0:
+        return t_out, n_out
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         k = _dot(tr.dq, tr.dq)
         c = _cross(tr.qs, tr.dq)
@@ -390,16 +399,9 @@ def torus_cubic_max(a: Arr, b: Arr, c: Arr) -> Arr:
 
 def intersect_torus_closed(o, d, v0, v1, v2, t_max) -> tuple[Arr, Arr]:
     """Method A: the depressed quartic by Descartes' factorisation, the nearest root polished by Newton on E."""
-    o, d, v0, v1, v2 = _records(o, d, v0, v1, v2)
-    nr = len(o)
-    t_out = np.full(nr, BIG, dtype=F)
-    n_out = np.zeros((nr, 3), dtype=F)
-    ok, tr, tf, lo, hi = torus_setup(o, d, v0, v1, t_max)
-    idx = np.flatnonzero(ok)
+    v1, t_out, n_out, idx, tr, tf, lo, hi, tmx = _torus_rays(o, d, v0, v1, v2, t_max)
     if idx.size == 0:
         return t_out, n_out
-    tr, tf, lo, hi = _take(tr, idx), tf[idx], lo[idx], hi[idx]
-    tmx = np.broadcast_to(_f(t_max), (nr,))[idx]
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         R, r = tr.R, tr.r
         k = _dot(tr.dq, tr.dq)
