@@ -77,6 +77,7 @@ from pathlib import Path
 
 import httpx
 
+from bench import hostile_parts
 from bench.child import ServerChild, free_port
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -1335,6 +1336,8 @@ PARTS = {
     "model_chain": part_model_chain,
     "model_overhead": part_model_overhead,
     "stack": part_stack,
+    # the later passes' attacks, one module each (bench/hostile_parts/)
+    **hostile_parts.parts(),
 }
 
 
@@ -1406,6 +1409,7 @@ def parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--stack-pause-s", type=float, default=5, help="stack: seconds Redis is stopped (and after)")
     ap.add_argument("--json", type=Path, help="write the figures here too")
+    hostile_parts.add_arguments(ap)
     return ap
 
 
