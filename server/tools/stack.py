@@ -1,8 +1,10 @@
 """The scale-out topology on one machine, without containers: Redis, N render processes and
 HAProxy on loopback ports (``./dev stack``, ``pocketray stack``; its test drives sessions
 through it). ``compose.yaml`` runs the same topology in containers, one render service per
-GPU; both use the HAProxy configuration made by :func:`haproxy_config` (``deploy/haproxy.cfg``
-is its output for compose, and a test keeps the two equal). docs/DEPLOY.md explains it.
+GPU, and ``deploy/k8s`` on a Kubernetes cluster; all use the HAProxy configuration made by
+:func:`haproxy_config` (``deploy/haproxy.cfg`` is its output for compose,
+``deploy/k8s/base/haproxy.cfg`` for the cluster, and tests keep them equal). docs/DEPLOY.md
+explains it.
 
 - **Redis** with the append-only file, fsynced at every write (``appendfsync always``): an
   acknowledged change survives a crash of Redis too.
