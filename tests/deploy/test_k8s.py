@@ -163,7 +163,9 @@ def test_the_balancer_configuration_is_its_generator_output_and_haproxy_accepts_
         assert "parse-resolv-conf" in cfg and "resolvers kube" in cfg  # names resolved again as pods come and go
     path = tmp_path / "haproxy.cfg"
     path.write_text(committed)
-    check = subprocess.run([find_executable("haproxy"), "-c", "-f", str(path)], capture_output=True, text=True)
+    check = subprocess.run(
+        [find_executable("haproxy"), "-c", "-f", str(path)], capture_output=True, text=True, timeout=120
+    )
     assert check.returncode == 0, check.stdout + check.stderr
 
 
@@ -212,7 +214,7 @@ def test_the_configmap_settings_are_the_services_own_and_its_configuration_accep
     assert int(port) == redis["spec"]["ports"][0]["port"]
 
 
-def test_a_setting_the_service_does_not_know_is_refused_by_the_check(monkeypatch):
+def test_the_settings_check_knows_the_names_and_aliases_and_the_service_refuses_a_bad_value(monkeypatch):
     # ServerConfig ignores unknown POCKETRAY_ variables: the test above compares the names itself
     assert "POCKETRAY_DRAIN_SECONDS" not in _env_names() and "POCKETRAY_DRAIN_S" in _env_names()
     assert "POCKETRAY_GL_DEVICE" in _env_names()  # an alias is a setting too
