@@ -127,6 +127,22 @@ def test_every_manifest_of_each_overlay_is_valid_against_the_kubernetes_schemas(
         kubernetes_validate.validate(wrong, version, strict=True)
 
 
+@pytest.mark.parametrize("overlay", OVERLAYS)
+def test_every_container_names_a_tagged_image_and_a_numeric_user_where_it_must_not_be_root(overlay):
+    workloads = [d for d in rendered(overlay) if d["kind"] in ("Deployment", "StatefulSet")]
+    assert len(workloads) == 3
+    for workload in workloads:
+        pod = workload["spec"]["template"]["spec"]
+        for c in pod["containers"]:
+            name, tag = c["image"].rsplit(":", 1)
+            assert name and tag and tag != "latest", c["image"]
+            context = {**pod.get("securityContext", {}), **c.get("securityContext", {})}
+            # the schemas accept runAsNonRoot alone, but the kubelet refuses to start a container whose
+            # image names its user (haproxy, redis) unless runAsUser gives the number
+            if context.get("runAsNonRoot"):
+                assert isinstance(context.get("runAsUser"), int) and context["runAsUser"] > 0, workload["metadata"]
+
+
 def test_the_balancer_configuration_is_its_generator_output_and_haproxy_accepts_it(tmp_path):
     committed = (K8S / "base" / "haproxy.cfg").read_text()
     assert committed == cluster_haproxy_config(), (
