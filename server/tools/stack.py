@@ -1,8 +1,10 @@
 """The scale-out topology on one machine, without containers: Redis, N render processes and
 HAProxy on loopback ports (``./dev stack``, ``pocketray stack``; its test drives sessions
 through it). ``compose.yaml`` runs the same topology in containers, one render service per
-GPU; both use the HAProxy configuration made by :func:`haproxy_config` (``deploy/haproxy.cfg``
-is its output for compose, and a test keeps the two equal). docs/DEPLOY.md explains it.
+GPU, and ``deploy/k8s`` on a Kubernetes cluster; all use the HAProxy configuration made by
+:func:`haproxy_config` (``deploy/haproxy.cfg`` is its output for compose,
+``deploy/k8s/base/haproxy.cfg`` for the cluster, and tests keep them equal). docs/DEPLOY.md
+explains it.
 
 - **Redis** with the append-only file, fsynced at every write (``appendfsync always``): an
   acknowledged change survives a crash of Redis too.
@@ -52,6 +54,11 @@ CHECK_FALL = 2  # failed checks before a server is taken out
 CHECK_RISE = 1
 DRAIN_S = 3.0  # > CHECK_FALL × CHECK_INTERVAL (a draining process fails its checks at once)
 RENDER_TIMEOUT_S = 120  # POCKETRAY_RENDER_TIMEOUT_S's default: the server timeout is above it
+RESOLV_CONF = "resolv.conf"  # haproxy_config(resolvers=…): the balancer's own nameservers
+# The cluster's render pods (deploy/k8s): their StatefulSet (and headless Service) and namespace, and
+# the most pods the balancer sends to (the autoscaler's maxReplicas fits in these slots).
+CLUSTER_RENDER = ("pocketray-render", "pocketray")
+CLUSTER_RENDER_SLOTS = 16
 RETRY_AFTER_S = 1  # the balancer's own 429/502/503/504: a process is back or the other takes over
 CAP_ENV = "POCKETRAY_MAX_CONNECTIONS_PER_CLIENT"
 UNSENT_ENV = "POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT"
@@ -90,9 +97,11 @@ def haproxy_config(
 ) -> str:
     """HAProxy's configuration: the frontend on ``bind``, a backend of ``servers`` (name,
     host:port), the stats page on ``stats_bind``; ``resolvers``: a DNS server for container
-    names (compose: Docker's ``127.0.0.11:53``), so a render service that starts late or moves
-    is found again; ``client_cap``: open connections per client address (0: none; default
-    POCKETRAY_MAX_CONNECTIONS_PER_CLIENT's), which the render processes cannot count behind it."""
+    names (compose: Docker's ``127.0.0.11:53``), or :data:`RESOLV_CONF` (the nameservers of
+    the balancer's own ``/etc/resolv.conf``: a Kubernetes pod's), so a render service that starts
+    late or moves is found again; ``client_cap``: open connections per client address (0: none;
+    default POCKETRAY_MAX_CONNECTIONS_PER_CLIENT's), which the render processes cannot count
+    behind it."""
     cap = default_client_cap() if client_cap is None else client_cap
     lines = [
         "# pocketray's balancer (server/tools/stack.py:haproxy_config writes this; docs/DEPLOY.md explains it)",
@@ -100,8 +109,13 @@ def haproxy_config(
         "    maxconn 4096",
         "",
     ]
-    if resolvers:
-        lines += ["resolvers docker", f"    nameserver dns {resolvers}", "    hold valid 10s", ""]
+    resolvers_name = "kube" if resolvers == RESOLV_CONF else "docker"
+    if resolvers == RESOLV_CONF:
+        # HAProxy applies no search domain: the template's name is a full one (…svc.cluster.local)
+        lines += [f"resolvers {resolvers_name}", "    parse-resolv-conf", "    hold valid 10s"]
+        lines += ["    accepted_payload_size 8192", ""]  # one A record per render pod, beyond 512 bytes
+    elif resolvers:
+        lines += [f"resolvers {resolvers_name}", f"    nameserver dns {resolvers}", "    hold valid 10s", ""]
     lines += [
         "defaults",
         "    mode http",
@@ -166,7 +180,7 @@ def haproxy_config(
         "    # checks fail; the checks bring it back when its /api/ready says 200",
         f"    default-server check inter {CHECK_INTERVAL_MS}ms fall {CHECK_FALL} rise {CHECK_RISE} "
         "observe layer4 error-limit 1 on-error mark-down "
-        + ("init-addr last,libc,none resolvers docker" if resolvers else "init-addr last,libc,none"),
+        + (f"init-addr last,libc,none resolvers {resolvers_name}" if resolvers else "init-addr last,libc,none"),
     ]
     lines += [f"    server {name} {address}" for name, address in servers]
     if stats_bind:
@@ -189,6 +203,19 @@ def compose_haproxy_config(renders: int = 2) -> str:
         stats_bind=":8404",
         resolvers="127.0.0.11:53",
     )
+
+
+def cluster_haproxy_config(slots: int = CLUSTER_RENDER_SLOTS) -> str:
+    """``deploy/k8s/base/haproxy.cfg``: the balancer of the Kubernetes manifests. The render pods are
+    a StatefulSet's, so each has a stable DNS name (``pocketray-render-I`` under the headless Service,
+    present while the pod is ready): one server line per name, ``slots`` of them (the autoscaler's
+    maxReplicas stays within it; a name without a pod is a server that is down). Every balancer
+    replica then hashes a session onto the same ring of names, whichever pods run."""
+    statefulset, namespace = CLUSTER_RENDER
+    servers = [
+        (f"render{i}", f"{statefulset}-{i}.{statefulset}.{namespace}.svc.cluster.local:8000") for i in range(slots)
+    ]
+    return haproxy_config(":8000", servers, stats_bind=":8404", resolvers=RESOLV_CONF)
 
 
 def free_port() -> int:
