@@ -11,9 +11,10 @@ through globals.
 ``pocketray serve`` (:mod:`server.tools.cli`) runs ``server.app:create_app`` as a factory, so that
 ``--workers N`` works: each worker makes its own app, and with it its own GL context.
 
-Middleware, outermost first: request id / session id / access log / HTTP metrics
-(:mod:`server.http.observability`), CORS (:mod:`server.http.cors_docs`), OPTIONS and 405
-(:mod:`server.http.allow`), the body limit.
+Middleware, outermost first: the security headers (:mod:`server.http.security`), request id /
+session id / access log / HTTP metrics (:mod:`server.http.observability`), the refusal of requests
+framed by both Content-Length and Transfer-Encoding (:mod:`server.http.framing`), CORS
+(:mod:`server.http.cors_docs`), OPTIONS and 405 (:mod:`server.http.allow`), the body limit.
 """
 
 from __future__ import annotations
@@ -40,7 +41,9 @@ from .http import cors_docs, metrics
 from .http.allow import AllowMethods
 from .http.body_limit import BodyLimit
 from .http.drain import Drain
+from .http.framing import SingleFraming
 from .http.observability import RequestContext, configure_logging
+from .http.security import SecurityHeaders
 from .sessions.service import SessionService
 from .sessions.store import open_store
 
@@ -107,7 +110,9 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
     app.add_middleware(BodyLimit, max_bytes=config.max_body_bytes)
     app.add_middleware(AllowMethods)  # OPTIONS and 405 with the path's real Allow (server/http/allow.py)
     cors_docs.install_cors(app, config.cors_origins)
+    app.add_middleware(SingleFraming)  # before the body limit, which trusts Content-Length
     app.add_middleware(RequestContext)
+    app.add_middleware(SecurityHeaders)
     errors.install(app)
     app.include_router(api_router)
     app.include_router(metrics_route.router)

@@ -569,20 +569,19 @@ class SessionFrameQuery(FrameQuery):
     )
 
 
-class FrameMessage(BaseModel):
-    """A WebSocket message that asks for a frame without a gesture (its settings are its ``frame``)."""
+class FrameMessage(Strict):
+    """A WebSocket message that asks for a frame without a gesture (its settings are its ``frame``);
+    read as a JSON body is (:class:`Strict`: an unknown field is a 422 naming it)."""
 
-    model_config = ConfigDict(extra="ignore")
     type: Literal["frame"]
     accumulate: StrictBool = Field(False, description="as the session frame's accumulate=1")
 
 
-class RefineMessage(BaseModel):
+class RefineMessage(Strict):
     """A WebSocket message that asks for the session's refinement stream (docs/API.md, "Refinement");
     its settings are its ``frame``, the targets default to the session's refine_samples, refine_time_ms and
-    refine_noise."""
+    refine_noise. Read as a JSON body is (:class:`Strict`: an unknown field is a 422 naming it)."""
 
-    model_config = ConfigDict(extra="ignore")
     type: Literal["refine"]
     target_samples: StrictInt | None = Field(
         None,

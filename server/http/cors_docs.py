@@ -6,7 +6,8 @@
   frame headers (``Server-Timing``, ``X-Stats``, …) are exposed to the caller's script.
 - **Plain OPTIONS** (no preflight) and 405s: :mod:`server.http.allow`.
 - **/docs and /redoc offline**: Swagger UI's and ReDoc's files come from the
-  ``fastapi-offline`` package (its ``static/``), served at ``/docs-assets/``.
+  ``fastapi-offline`` package (its ``static/``), served at ``/docs-assets/``; their pages carry
+  their own Content-Security-Policy (:func:`server.http.security.docs_policy`).
 - **OpenAPI**: operation ids are the route functions' names (``create_session``,
   ``session_frame``), grouped by the tags of :data:`OPENAPI_TAGS`.
 """
@@ -25,6 +26,7 @@ from starlette.staticfiles import StaticFiles
 
 from ..frames.encode import EXPOSED
 from .observability import REQUEST_ID_HEADER, SESSION_HEADER
+from .security import CSP, docs_policy
 
 DOCS_ASSETS = "/docs-assets"
 CORS_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
@@ -52,6 +54,12 @@ def docs_assets_dir() -> Path:
     return Path(str(files("fastapi_offline").joinpath("static")))
 
 
+def with_docs_policy(page: HTMLResponse) -> HTMLResponse:
+    """``page`` with the docs' Content-Security-Policy (its inline scripts allowed by their hashes)."""
+    page.headers[CSP] = docs_policy(bytes(page.body))
+    return page
+
+
 def install_docs(app: FastAPI) -> None:
     """``/docs`` (Swagger UI) and ``/redoc`` from the service's own files (call before the ``/`` mount)."""
     title = app.title
@@ -61,27 +69,31 @@ def install_docs(app: FastAPI) -> None:
 
     @app.get("/docs", include_in_schema=False)
     def swagger_ui() -> HTMLResponse:
-        return get_swagger_ui_html(
-            openapi_url=openapi_url,
-            title=f"{title} — Swagger UI",
-            swagger_js_url=f"{DOCS_ASSETS}/swagger-ui-bundle.js",
-            swagger_css_url=f"{DOCS_ASSETS}/swagger-ui.css",
-            swagger_favicon_url=f"{DOCS_ASSETS}/favicon.png",
-            oauth2_redirect_url=oauth_url,
+        return with_docs_policy(
+            get_swagger_ui_html(
+                openapi_url=openapi_url,
+                title=f"{title} — Swagger UI",
+                swagger_js_url=f"{DOCS_ASSETS}/swagger-ui-bundle.js",
+                swagger_css_url=f"{DOCS_ASSETS}/swagger-ui.css",
+                swagger_favicon_url=f"{DOCS_ASSETS}/favicon.png",
+                oauth2_redirect_url=oauth_url,
+            )
         )
 
     @app.get(oauth_url, include_in_schema=False)
     def swagger_ui_redirect() -> HTMLResponse:
-        return get_swagger_ui_oauth2_redirect_html()
+        return with_docs_policy(get_swagger_ui_oauth2_redirect_html())
 
     @app.get("/redoc", include_in_schema=False)
     def redoc() -> HTMLResponse:
-        return get_redoc_html(
-            openapi_url=openapi_url,
-            title=f"{title} — ReDoc",
-            redoc_js_url=f"{DOCS_ASSETS}/redoc.standalone.js",
-            redoc_favicon_url=f"{DOCS_ASSETS}/favicon.png",
-            with_google_fonts=False,
+        return with_docs_policy(
+            get_redoc_html(
+                openapi_url=openapi_url,
+                title=f"{title} — ReDoc",
+                redoc_js_url=f"{DOCS_ASSETS}/redoc.standalone.js",
+                redoc_favicon_url=f"{DOCS_ASSETS}/favicon.png",
+                with_google_fonts=False,
+            )
         )
 
 

@@ -5,19 +5,23 @@ Client → a text (or UTF-8 binary) JSON message: a gesture (``{"type": "pan", "
 true}`` for one added to the session's accumulation, ``{"type": "refine", "target_samples"?,
 "target_ms"?, "target_noise"?}`` for the session's refinement stream) with an optional ``"frame": {settings}`` — the
 settings ``POST …/gesture?frame=1`` takes in its query.
-Server → text JSON ``{"version", "camera", "timings", "stats", "media_type", "samples"}`` then the
-frame as one binary message; a refinement stream's frames so, each with ``"refine": {"samples",
-"target_samples", "target_ms", "elapsed_ms", "done", "reason", "noise", "target_noise"}``, until its target
-(:mod:`server.sessions.refine`) or the connection's next message, which stops it at once: no frame
-of the stream is sent after that message is read; on an error one text JSON ``{"status", "detail"}`` (and
-``"retry_after"``, seconds, where HTTP sends Retry-After) — the very answer the HTTP
-route gives (:mod:`server.api.errors`), and the connection stays open. While the client's
-address has more answer bytes not taken than ``POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT``, a
-message is answered ``{"status": 429, …}`` without any work (:func:`server.http.wire.refusal`);
+Server → text JSON ``{"version", "camera", "settings", "timings", "stats", "media_type", "samples"}``
+then the frame as one binary message: ``camera`` and ``settings`` are those the frame was rendered
+with — its request's snapshot of the session, the one ``version`` names, never the session read again
+after the frame (another client may have moved it meanwhile); a refinement stream's frames so,
+each with ``"refine": {"samples", "target_samples", "target_ms", "elapsed_ms", "done", "reason",
+"noise", "target_noise"}``, until its target (:mod:`server.sessions.refine`) or the connection's
+next message, which stops it at once: no frame of the stream is sent after that message is read;
+on an error one text JSON ``{"status", "detail"}`` (and ``"retry_after"``, seconds, where HTTP
+sends Retry-After) — the very answer the HTTP route gives (:mod:`server.api.errors`), and the
+connection stays open. While the client's address has more answer bytes not taken than
+``POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT``, a message is answered ``{"status": 429, …}`` without
+any work (:func:`server.http.wire.refusal`);
 the connection's idle time, message rate and write timeout are :mod:`server.http.wire`'s.
 
 A message is read and validated as FastAPI reads a request: its JSON as the body
-(``loc`` ``["body", …]``), its ``"frame"`` settings as the query (``["query", …]``), all
+(``loc`` ``["body", …]``: strict, an unknown field of any message type is a 422
+``extra_forbidden`` naming it), its ``"frame"`` settings as the query (``["query", …]``), all
 errors of both in one 422.
 """
 
@@ -27,7 +31,7 @@ import asyncio
 import json
 import threading
 from collections.abc import Generator
-from typing import Any
+from typing import Any, cast
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from fastapi.concurrency import run_in_threadpool
@@ -36,7 +40,7 @@ from pydantic import TypeAdapter, ValidationError
 
 from ...faults import Where
 from ...frames.encode import Frame
-from ...frames.pipeline import FramePipeline, final
+from ...frames.pipeline import FramePipeline, FrameRequest, final
 from ...http import wire
 from ...sessions.refine import RefineStep, refine
 from ...sessions.service import SessionService
@@ -70,10 +74,37 @@ def _validated(adapter: TypeAdapter, value: Any, where: str, problems: list[dict
         return None
 
 
+def frame_view(request: FrameRequest) -> dict[str, Any]:
+    """The camera and the settings a frame was rendered with: its request's snapshot of the session
+    (the settings as the session's JSON has them: the engine's and ``quality``)."""
+    settings = request.settings.render.to_json()
+    if request.settings.quality is not None:
+        settings["quality"] = request.settings.quality
+    return {"camera": request.scene.camera.to_json(), "settings": settings}
+
+
+class NotedRequests:
+    """The session service as :func:`server.sessions.refine.refine` uses it, noting the frame request it
+    made last. A stream makes its frames one at a time, each from the request made just before it, so
+    when a step is yielded :attr:`last` is the request of the step's frame: its view is the one the
+    frame was rendered with (the session itself may have moved on)."""
+
+    def __init__(self, service: SessionService):
+        self._service = service
+        self.last: FrameRequest | None = None
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._service, name)
+
+    def frame_request(self, *args: Any, **kwargs: Any) -> FrameRequest:
+        self.last = self._service.frame_request(*args, **kwargs)
+        return self.last
+
+
 async def answer_message(
     service: SessionService, frames: FramePipeline, session_id: str, data: str | bytes
-) -> tuple[Frame, dict]:
-    """The frame one message asks for and the session's camera after it."""
+) -> tuple[Frame, dict[str, Any]]:
+    """The frame one message asks for and the view it was rendered with (:func:`frame_view`)."""
     msg = parse_json(data, service.config.max_json_depth)
     frame_settings = (msg.pop("frame", None) if isinstance(msg, dict) else None) or {}
     problems: list[dict[str, Any]] = []
@@ -86,22 +117,21 @@ async def answer_message(
         raise RequestValidationError(problems)
     with errors.located(Where.QUERY):  # the message's "frame" is the query of a frame request
         if only_frame:
-            frame = await run_in_threadpool(
-                lambda: final(frames.run(service.frame_request(session_id, patch.given(), accumulate=accumulate)))
+            request = await run_in_threadpool(
+                lambda: service.frame_request(session_id, patch.given(), accumulate=accumulate)
             )
         else:
-            frame = await run_in_threadpool(
-                lambda: final(frames.run(service.gesture_request(session_id, gesture, patch.given())))
-            )
-    state = await run_in_threadpool(service.get, session_id)
-    return frame, state.camera
+            request = await run_in_threadpool(lambda: service.gesture_request(session_id, gesture, patch.given()))
+        frame = await run_in_threadpool(lambda: final(frames.run(request)))
+    return frame, frame_view(request)
 
 
 def refine_request(
     service: SessionService, session_id: str, data: str | bytes, cancel: threading.Event
-) -> Generator[RefineStep, None, None] | None:
-    """The refinement stream a ``refine`` message asks for (validated now, nothing run yet), or
-    None for any other message."""
+) -> Generator[tuple[RefineStep, dict[str, Any]], None, None] | None:
+    """The refinement stream a ``refine`` message asks for (validated now, nothing run yet) — each
+    step with the view its frame was rendered with (:func:`frame_view`) — or None for any other
+    message."""
     msg = parse_json(data, service.config.max_json_depth)
     if not (isinstance(msg, dict) and msg.get("type") == "refine"):
         return None
@@ -115,26 +145,31 @@ def refine_request(
     with errors.located(Where.QUERY):
         service.frame_settings(service.get(session_id), given)  # a refused setting is answered now
 
-    def steps() -> Generator[RefineStep, None, None]:
+    noted = NotedRequests(service)
+
+    def steps() -> Generator[tuple[RefineStep, dict[str, Any]], None, None]:
         with errors.located(Where.QUERY):
-            yield from refine(
-                service,
+            for step in refine(
+                cast(SessionService, noted),
                 session_id,
                 given,
                 target_samples=asked.target_samples,
                 target_ms=asked.target_ms,
                 target_noise=asked.target_noise,
                 cancel=cancel,
-            )
+            ):
+                assert noted.last is not None  # a step's frame was made from a request
+                yield step, frame_view(noted.last)
 
     return steps()
 
 
-def frame_head(frame: Frame, camera: dict, refined: RefineStep | None = None) -> str:
-    """The text message before a frame's bytes."""
+def frame_head(frame: Frame, view: dict[str, Any], refined: RefineStep | None = None) -> str:
+    """The text message before a frame's bytes; ``view``: the camera and settings it was rendered with."""
     head = {
         "version": frame.version,
-        "camera": camera,
+        "camera": view["camera"],
+        "settings": view["settings"],
         "timings": frame.timings,
         "stats": frame.stats,
         "media_type": frame.media_type,
@@ -164,14 +199,14 @@ async def session_socket(websocket: WebSocket, session_id: str, service: Service
             await websocket.send_bytes(data)
             return True
 
-    async def stream(steps: Generator[RefineStep, None, None], stopped: threading.Event) -> None:
+    async def stream(steps: Generator[tuple[RefineStep, dict[str, Any]], None, None], stopped: threading.Event) -> None:
         try:
             while True:
-                step = await run_in_threadpool(next, steps, None)
-                if step is None:
+                got = await run_in_threadpool(next, steps, None)
+                if got is None:
                     return
-                state = await run_in_threadpool(service.get, session_id)
-                if not await send_frame(frame_head(step.frame, state.camera, step), step.frame.body, stopped):
+                step, view = got
+                if not await send_frame(frame_head(step.frame, view, step), step.frame.body, stopped):
                     return
                 if step.done:
                     return
@@ -211,12 +246,12 @@ async def session_socket(websocket: WebSocket, session_id: str, service: Service
                 if steps is not None:
                     refining = asyncio.ensure_future(stream(steps, stop))
                     continue
-                frame, camera = await answer_message(service, frames, session_id, data)
+                frame, view = await answer_message(service, frames, session_id, data)
             except Exception as exc:  # every failure is a row of the error table, as over HTTP
                 async with sending:
                     await websocket.send_text(json.dumps(errors.answer(exc, config, where).ws_message()))
                 continue
-            await send_frame(frame_head(frame, camera), frame.body)
+            await send_frame(frame_head(frame, view), frame.body)
     except WebSocketDisconnect:
         return
     finally:
