@@ -44,11 +44,11 @@ DATA_FORMATS = ("EQUAL_RADII", "MATERIAL_TEXTURE", "TRIANGLES", "SMOOTH_TRIANGLE
 LIGHTING = ("EMISSION", "ENVIRONMENT", "PATH", "ENVIRONMENT_MAP", "GUIDES")
 # What a path variant removes beside REMOVALS (the path integrator runs every lane through all of
 # its loop's code, so a lobe or a light kind the scene lacks costs every ray): the GGX lobes where no
-# used material is rough, next-event estimation of emitting spheres or of emitting triangles where
+# used material is rough, next-event estimation of emitting spheres, triangles or analytic shapes where
 # none emits. Emitted only where they say something: NO_ROUGHNESS where something reflects or
 # transmits, the light kinds where something emits (the shader infers them otherwise), so the
 # shader query of a variant stays short.
-PATH_REMOVALS = ("NO_ROUGHNESS", "NO_SPHERE_LIGHTS", "NO_TRIANGLE_LIGHTS")
+PATH_REMOVALS = ("NO_ROUGHNESS", "NO_SPHERE_LIGHTS", "NO_TRIANGLE_LIGHTS", "NO_SHAPE_LIGHTS")
 # The defines a variant may carry, in the order they are emitted (the server's shader query
 # accepts these, in this order).
 FEATURE_DEFINES = (*REMOVALS, *PLANE_COUNTS, *LIGHT_COUNTS, *DATA_FORMATS, *LIGHTING, *PATH_REMOVALS)
@@ -75,6 +75,7 @@ class SceneFeatures:
     roughness: bool = True  # a used material is rough (path variants: the GGX lobes)
     emitting_spheres: bool = True  # a sphere emits (path variants: its next-event estimation)
     emitting_triangles: bool = True  # … a triangle emits
+    emitting_shapes: bool = True  # … an analytic shape emits
 
     def defines(self) -> tuple[str, ...]:
         """The variant's defines, in FEATURE_DEFINES order: what the scene cannot use removed,
@@ -112,6 +113,8 @@ class SceneFeatures:
                 on.add("NO_SPHERE_LIGHTS")
             if not self.emitting_triangles:
                 on.add("NO_TRIANGLE_LIGHTS")
+            if not self.emitting_shapes:
+                on.add("NO_SHAPE_LIGHTS")
         return tuple(d for d in FEATURE_DEFINES if d in on)
 
     def removed(self) -> list[str]:
@@ -178,6 +181,7 @@ def scene_features(scene: Scene) -> SceneFeatures:
         roughness=any(m.roughness > 0 for m in mats),
         emitting_spheres=any(scene.materials[i].emits for i in spheres),
         emitting_triangles=any(scene.materials[m.material].emits for m in scene.meshes),
+        emitting_shapes=any(scene.materials[int(m)].emits for m in np.unique(scene.shapes.material)),
     )
 
 

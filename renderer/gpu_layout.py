@@ -125,6 +125,7 @@ from .limits import (
     MAX_LIGHTS,
     MAX_MATERIALS,
     MAX_PLANES,
+    MAX_SAMPLED_SHAPE_PATCHES,
     MAX_SAMPLED_SPHERES,
     MAX_SAMPLED_TRIANGLES,
     MAX_SHAPES,
@@ -133,7 +134,7 @@ from .limits import (
 )
 from .modes import RAY_TREE_MODES
 from .scene import Camera, Scene
-from .shapes import bounds as shape_bounds
+from .shapes import CONE as SHAPE_CONE, CYLINDER as SHAPE_CYLINDER, DISK as SHAPE_DISK, bounds as shape_bounds
 
 MATERIAL_TEXELS = 3
 # The tracer reads materials from a uniform array when the scene has at most this many
@@ -407,6 +408,46 @@ EMIT_TRI_CDF = Binding(
     length="MAX_SAMPLED_TRIANGLES",
     group="path",
 )
+# The surfaces of the emitting analytic shapes next-event estimation samples, one picked by area and a
+# point uniform on it (all of them when there are at most MAX_SAMPLED_SHAPE_PATCHES, else none):
+# a cylinder's or cone's side and each of its caps, a disk (annulus), a torus (shape_patches).
+NUM_EMIT_PATCHES = Binding(
+    "u_num_emit_patches", "highp int", "surfaces of emitting shapes sampled (0: none)", group="path"
+)
+EMIT_PATCH_AREA = Binding("u_emit_patch_area", "highp float", "their total area", group="path")
+EMIT_PATCH_A = Binding(
+    "u_emit_patch_a",
+    "highp vec4",
+    "(origin, r0) of each: a side's base centre and radius, a disk's centre and radius, a torus's centre and "
+    "major radius",
+    length="MAX_SAMPLED_SHAPE_PATCHES",
+    group="path",
+)
+EMIT_PATCH_B = Binding(
+    "u_emit_patch_b",
+    "highp vec4",
+    "(unit axis, r1) of each: a side's axis and top radius, a disk's normal and inner radius, a torus's axis "
+    "and minor radius",
+    length="MAX_SAMPLED_SHAPE_PATCHES",
+    group="path",
+)
+EMIT_PATCH_C = Binding(
+    "u_emit_patch_c",
+    "highp vec4",
+    "(height, kind, area, 0) of each: kind 0 a side, 1 a disk, 2 a torus (PATCH_SIDE, PATCH_DISK, PATCH_TORUS)",
+    length="MAX_SAMPLED_SHAPE_PATCHES",
+    group="path",
+)
+EMIT_PATCH_RADIANCE = Binding(
+    "u_emit_patch_radiance", "highp vec3", "emission of each", length="MAX_SAMPLED_SHAPE_PATCHES", group="path"
+)
+EMIT_PATCH_CDF = Binding(
+    "u_emit_patch_cdf",
+    "highp float",
+    "area up to and with each, over the total",
+    length="MAX_SAMPLED_SHAPE_PATCHES",
+    group="path",
+)
 EMITTER_BINDINGS = (
     NUM_EMITTERS,
     EMITTER_LAST,
@@ -419,6 +460,13 @@ EMITTER_BINDINGS = (
     EMIT_TRI_E2,
     EMIT_TRI_RADIANCE,
     EMIT_TRI_CDF,
+    NUM_EMIT_PATCHES,
+    EMIT_PATCH_AREA,
+    EMIT_PATCH_A,
+    EMIT_PATCH_B,
+    EMIT_PATCH_C,
+    EMIT_PATCH_RADIANCE,
+    EMIT_PATCH_CDF,
 )
 # The triangles (only with the TRIANGLES data format): listed among the bindings of each method
 # that traces them, packed by its packer with pack_triangles, so that they may be uniform blocks.
@@ -914,7 +962,67 @@ def emitter_uniforms(scene: Scene) -> dict[str, object]:
             EMIT_TRI_CDF.name: _fixed([float(c) for c in cdf], MAX_SAMPLED_TRIANGLES, 2.0),
         }
     )
+    out.update(_patch_uniforms(scene, emits))
     return out
+
+
+PATCH_SIDE, PATCH_DISK, PATCH_TORUS = 0, 1, 2  # the kinds of u_emit_patch_c.y
+
+
+def shape_patches(scene: Scene, emits: np.ndarray) -> list[tuple[tuple, tuple, tuple, tuple]]:
+    """The surfaces of the scene's emitting analytic shapes, in id order, each as next-event
+    estimation samples it: ((origin, r0), (axis, r1), (height, kind, area, 0), emission). A cylinder
+    or cone is its side and, when closed, its caps (a cap's normal points out: −axis at the base,
+    +axis at the top); a disk is an annulus; a torus is whole. Surfaces of no area are left out."""
+    sh = scene.shapes
+    out: list[tuple[tuple, tuple, tuple, tuple]] = []
+    for i in np.flatnonzero(emits[np.asarray(sh.material, dtype=np.int64)]) if len(sh) else ():
+        p = sh.params[i]
+        o, r0, a, r1, h = p[0:3], float(p[3]), p[4:7], float(p[7]), float(p[8])
+        radiance = tuple(float(x) for x in scene.materials[int(sh.material[i])].emission)
+        kind = int(sh.kind[i])
+        parts: list[tuple[np.ndarray, float, np.ndarray, float, float, int, float]] = []
+        if kind in (SHAPE_CYLINDER, SHAPE_CONE):
+            parts.append((o, r0, a, r1, h, PATCH_SIDE, math.pi * (r0 + r1) * math.hypot(h, r1 - r0)))
+            if p[9] != 0.0:
+                parts.append((o, r0, -a, 0.0, 0.0, PATCH_DISK, math.pi * r0 * r0))
+                parts.append((o + h * a, r1, a, 0.0, 0.0, PATCH_DISK, math.pi * r1 * r1))
+        elif kind == SHAPE_DISK:
+            parts.append((o, r0, a, r1, 0.0, PATCH_DISK, math.pi * (r0 * r0 - r1 * r1)))
+        else:
+            parts.append((o, r0, a, r1, 0.0, PATCH_TORUS, 4.0 * math.pi * math.pi * r0 * r1))
+        for po, pr0, pa, pr1, ph, pk, area in parts:
+            if area > 0.0:
+                out.append(
+                    (
+                        (*(float(x) for x in po), pr0),
+                        (*(float(x) for x in pa), pr1),
+                        (ph, float(pk), area, 0.0),
+                        radiance,
+                    )
+                )
+    return out
+
+
+def _patch_uniforms(scene: Scene, emits: np.ndarray) -> dict[str, object]:
+    patches = shape_patches(scene, emits)
+    if len(patches) > MAX_SAMPLED_SHAPE_PATCHES:
+        patches = []
+    area = np.array([c[2] for _, _, c, _ in patches], dtype=np.float64)
+    total = float(area.sum())
+    cdf = (np.cumsum(area) / total).tolist() if len(area) else []
+    if cdf:
+        cdf[-1] = 1.0
+    n = MAX_SAMPLED_SHAPE_PATCHES
+    return {
+        NUM_EMIT_PATCHES.name: len(patches),
+        EMIT_PATCH_AREA.name: total,
+        EMIT_PATCH_A.name: _fixed([a for a, _, _, _ in patches], n, (0.0, 0.0, 0.0, 0.0)),
+        EMIT_PATCH_B.name: _fixed([b for _, b, _, _ in patches], n, (0.0, 0.0, 1.0, 0.0)),
+        EMIT_PATCH_C.name: _fixed([c for _, _, c, _ in patches], n, (0.0, 0.0, 0.0, 0.0)),
+        EMIT_PATCH_RADIANCE.name: _fixed([e for _, _, _, e in patches], n, (0.0, 0.0, 0.0)),
+        EMIT_PATCH_CDF.name: _fixed([float(c) for c in cdf], n, 2.0),
+    }
 
 
 def frame_uniforms(scene: Scene, min_weight: float) -> dict[str, object]:
@@ -1113,7 +1221,11 @@ def tracer_constants() -> str:
 
 def path_constants() -> str:
     """The path integrator's constants: emitted only into its variants (no other's text changes)."""
-    return f"#define MAX_SAMPLED_SPHERES {MAX_SAMPLED_SPHERES}\n#define MAX_SAMPLED_TRIANGLES {MAX_SAMPLED_TRIANGLES}\n"
+    return (
+        f"#define MAX_SAMPLED_SPHERES {MAX_SAMPLED_SPHERES}\n#define MAX_SAMPLED_TRIANGLES {MAX_SAMPLED_TRIANGLES}\n"
+        f"#define MAX_SAMPLED_SHAPE_PATCHES {MAX_SAMPLED_SHAPE_PATCHES}\n"
+        f"#define PATCH_SIDE {PATCH_SIDE}\n#define PATCH_DISK {PATCH_DISK}\n#define PATCH_TORUS {PATCH_TORUS}\n"
+    )
 
 
 def shape_constants() -> str:

@@ -48,6 +48,9 @@ REFINE_MS_RANGE = (1, 600_000)
 REFINE_NOISE_RANGE = (0.0, 1.0)  # relative RMS error of the mean; 0: no noise target
 MAX_SAMPLED_SPHERES = 8  # the path integrator: emitting spheres sampled by next-event estimation
 MAX_SAMPLED_TRIANGLES = 16  # … emitting triangles (a scene with more samples none of them)
+# … the surfaces of emitting analytic shapes (a cylinder's or cone's side and each cap, a disk, a
+# torus: a closed cylinder is three); a scene with more samples none of them
+MAX_SAMPLED_SHAPE_PATCHES = 12
 EXPOSURE_RANGE = (-20.0, 20.0)  # stops: the path integrator's png/jpeg are tone-mapped from 2^exposure × radiance
 MIN_WEIGHT_RANGE = (0.0, 1.0)  # ε cut-off of secondary rays
 MIN_TILE_SIZE = 2  # hre: tile side in pixels

@@ -113,6 +113,7 @@ const float PI = 3.14159265358979;
 #ifndef READS_EMISSION
 #define NO_SPHERE_LIGHTS
 #define NO_TRIANGLE_LIGHTS
+#define NO_SHAPE_LIGHTS
 #endif
 #ifdef GUIDES
 // The denoiser's guides (renderer/denoise.py), sums over the pass's samples: the first hit's albedo
@@ -175,6 +176,42 @@ vec3 cosine_direction(vec3 n, float u1, float u2) {
     basis(n, t, b);
     return normalize(r * cos(phi) * t + r * sin(phi) * b + sqrt(max(0.0, 1.0 - u1)) * n);
 }
+
+#ifndef NO_SHAPE_LIGHTS
+// A point uniform in area on emitting surface k (u_emit_patch_*, renderer/gpu_layout.py
+// shape_patches) and its outward normal n.
+vec3 patch_point(int k, float u1, float u2, out vec3 n) {
+    vec4 a = u_emit_patch_a[k], b = u_emit_patch_b[k], c = u_emit_patch_c[k];
+    vec3 t, bt;
+    basis(b.xyz, t, bt);
+    float phi = 2.0 * PI * u2;
+    vec3 radial = cos(phi) * t + sin(phi) * bt;
+    int kind = int(c.y);
+    if (kind == PATCH_DISK) {
+        // An annulus: r² uniform between the inner and the outer radius's squares.
+        n = b.xyz;
+        return a.xyz + sqrt(mix(b.w * b.w, a.w * a.w, u1)) * radial;
+    }
+    if (kind == PATCH_SIDE) {
+        // A frustum's side: the area at height z grows with the radius there, linear in z, so r² is
+        // uniform between the end radii's squares (a cylinder, or all but one: z uniform).
+        float dr = b.w - a.w;
+        float r = sqrt(mix(a.w * a.w, b.w * b.w, u1));
+        float z = abs(dr) > 1e-3 * max(a.w, b.w) ? (r - a.w) / dr * c.x : u1 * c.x;
+        n = normalize(c.x * radial - dr * b.xyz);
+        return a.xyz + z * b.xyz + r * radial;
+    }
+    // A torus: the tube's angle v with density ∝ R + r·cos v (the area element), by rejection
+    // (each try is accepted with probability ≥ (R − r) / (R + r); the last is kept after 16).
+    float v = 2.0 * PI * u1;
+    for (int i = 0; i < 16; i++) {
+        if (rnd() * (a.w + b.w) <= a.w + b.w * cos(v)) break;
+        v = 2.0 * PI * rnd();
+    }
+    n = cos(v) * radial + sin(v) * b.xyz;
+    return a.xyz + a.w * radial + b.w * n;
+}
+#endif
 
 // Smith's masking of GGX (α) for a direction at cos θ = c to the normal.
 float smith_g1(float c, float alpha) {
@@ -278,6 +315,7 @@ void path_main() {
     int emitter = 0;             // the next emitting sphere to sample at the current vertex
     int shadow_kind = 0;         // the shadow ray in flight: 0 a point light's, 1 a sphere's, 2 a triangle's
     bool tri_done = false;       // the vertex's emitting-triangle sample is taken
+    bool patch_done = false;     // … and its emitting-shape sample (shadow kind 4)
 #ifdef READS_ENVIRONMENT_SAMPLING
     bool env_done = false;       // … and its environment-image sample (shadow kind 3)
 #endif
@@ -375,6 +413,7 @@ void path_main() {
             light = 0;
             emitter = 0;
             tri_done = false;
+            patch_done = false;
 #ifdef READS_ENVIRONMENT_SAMPLING
             env_done = false;
 #endif
@@ -475,6 +514,38 @@ void path_main() {
                 exclusion(h.id, s.n, l, sk, fa);
                 q = Query(s.p, l, sk, fa, dist * (1.0 - 1e-4), true);
                 shadow_kind = 2;
+                continue;
+            }
+        }
+#endif
+#ifndef NO_SHAPE_LIGHTS
+        // … and to the emitting analytic shapes: one of their surfaces (a side, a cap, a disk, a torus),
+        // picked with probability ∝ its area, a point uniform on it: the same pdf as the triangles'.
+        if (vertex && lit && !patch_done && u_num_emit_patches > 0) {
+            float pick = rnd(), u1 = rnd(), u2 = rnd();
+            patch_done = true;
+            int k = 0;
+            for (int i = 0; i < MAX_SAMPLED_SHAPE_PATCHES; i++) {
+                if (i >= u_num_emit_patches || pick < u_emit_patch_cdf[i]) break;
+                k = i + 1;
+            }
+            k = min(k, u_num_emit_patches - 1);
+            vec3 ng_l;
+            vec3 to_x = patch_point(k, u1, u2, ng_l) - s.p;
+            float dist2 = dot(to_x, to_x);
+            float dist = sqrt(dist2);
+            vec3 l = to_x / dist;
+            float cos_light = -dot(l, ng_l);             // > 0: the side its normal faces, which emits
+            float cos_l = dot(nf, l);
+            if (dist > 0.0 && cos_light > 0.0 && cos_l > 0.0) {
+                float p_l = dist2 / (u_emit_patch_area * cos_light);
+                vec4 fl = lobes_eval(nf, -d, l, w_diffuse, m.color, w_reflect, roughness);
+                float w = p_l * p_l / (p_l * p_l + fl.w * fl.w);
+                contrib = beta * fl.rgb * u_emit_patch_radiance[k] * (cos_l * w / p_l);
+                int sk, fa;
+                exclusion(h.id, s.n, l, sk, fa);
+                q = Query(s.p, l, sk, fa, dist * (1.0 - 1e-4), true);
+                shadow_kind = 4;
                 continue;
             }
         }

@@ -1,6 +1,6 @@
 """The path integrator's variant holds only what the scene needs (renderer/features.py,
 PATH_REMOVALS): the GGX lobes where nothing is rough, next-event estimation of emitting spheres or
-triangles where none emits. Each removal is exact: the specialised variant renders the generic
+triangles or analytic shapes where none emits. Each removal is exact: the specialised variant renders the generic
 one's image (the same samples, the same paths)."""
 
 from __future__ import annotations
@@ -14,11 +14,11 @@ from tests.renderer.gl.support import path
 
 # scene → the path removals its variant carries
 EXPECTED = {
-    "cornell": {"NO_ROUGHNESS", "NO_SPHERE_LIGHTS"},  # smooth mirror and glass, an emitting quad
-    "rough_conductor": {"NO_TRIANGLE_LIGHTS"},  # GGX, an emitting sphere, no mesh
-    "glass_caustic": {"NO_ROUGHNESS", "NO_TRIANGLE_LIGHTS"},
+    "cornell": {"NO_ROUGHNESS", "NO_SPHERE_LIGHTS", "NO_SHAPE_LIGHTS"},  # smooth mirror and glass, an emitting quad
+    "rough_conductor": {"NO_TRIANGLE_LIGHTS", "NO_SHAPE_LIGHTS"},  # GGX, an emitting sphere, no mesh
+    "glass_caustic": {"NO_ROUGHNESS", "NO_TRIANGLE_LIGHTS", "NO_SHAPE_LIGHTS"},
     "mesh_point_light": set(),  # nothing emits (a point light): the shader infers the light kinds
-    "area_light": {"NO_TRIANGLE_LIGHTS"},  # nothing reflects or transmits: the shader infers NO_ROUGHNESS
+    "area_light": {"NO_TRIANGLE_LIGHTS", "NO_SHAPE_LIGHTS"},  # nothing reflects or transmits: NO_ROUGHNESS inferred
 }
 
 
