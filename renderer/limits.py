@@ -40,11 +40,11 @@ DEVICE_PATH_SAMPLES_PER_PASS = 4  # … one draw of a browser (device mode) trac
 # it, frames answer the held mean with their own samples added but keep nothing more (the sample
 # index stays far inside the sampler's exact integers).
 MAX_ACCUMULATED_SAMPLES = 1 << 20
-# Refinement while still (docs/API.md, "Refinement"): the samples per pixel and the time a session's
-# refinement stream goes on to, each bounded so one resting camera cannot hold the GL thread for long
-# (the service may bound the time further: POCKETRAY_MAX_REFINE_MS).
+# Refinement while still (docs/API.md, "Refinement"): the samples per pixel and the wall-clock time
+# a session's refinement stream goes on to (0: no time of its own: until its samples, the next change,
+# or the service's bound of the GL time one resting view may take, POCKETRAY_MAX_REFINE_MS).
 REFINE_SAMPLES_RANGE = (1, 1 << 16)
-REFINE_MS_RANGE = (1, 600_000)
+REFINE_MS_RANGE = (0, 600_000)
 REFINE_NOISE_RANGE = (0.0, 1.0)  # relative RMS error of the mean; 0: no noise target
 MAX_SAMPLED_SPHERES = 8  # the path integrator: emitting spheres sampled by next-event estimation
 MAX_SAMPLED_TRIANGLES = 16  # … emitting triangles (a scene with more samples none of them)

@@ -337,8 +337,9 @@ SETTINGS: tuple[SettingSpec, ...] = (
     SettingSpec(
         "refine_time_ms",
         "integer",
-        10_000,
-        "colour: … or until it has refined this long (at most POCKETRAY_MAX_REFINE_MS)",
+        0,
+        "colour: … or until it has refined this long, wall-clock (0: no time of its own — the view refines "
+        "until its samples or the next change, within the service's POCKETRAY_MAX_REFINE_MS of GL time)",
         "Refine for at most",
         unit="ms",
         bounds=limits.REFINE_MS_RANGE,

@@ -116,11 +116,12 @@ class ServerConfig(BaseSettings):
         "round-robin from the sessions' frames (bench/latency.py measures the trade-off)",
     )
     max_refine_ms: int = Field(
-        60_000,
+        600_000,
         ge=1,
-        le=600_000,
-        description="longest refinement stream, milliseconds: a stream ends by then whatever its refine_time_ms "
-        "(docs/API.md, 'Refinement')",
+        le=3_600_000,
+        description="GL time one resting view's refinement may take, milliseconds (its frames' trace time: a "
+        "stream waiting its turn behind other sessions' frames spends none of it); a stream ends there whatever "
+        "its refine_time_ms (docs/API.md, 'Refinement')",
     )
     refine_slice_ms: float = Field(
         300.0,

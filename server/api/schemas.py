@@ -593,7 +593,8 @@ class RefineMessage(Strict):
         None,
         ge=REFINE_MS_RANGE[0],
         le=REFINE_MS_RANGE[1],
-        description="longest refinement, ms (default: refine_time_ms; at most POCKETRAY_MAX_REFINE_MS)",
+        description="longest refinement, wall-clock ms (default: refine_time_ms; 0: none; its GL time at most "
+        "POCKETRAY_MAX_REFINE_MS)",
     )
     target_noise: float | None = Field(
         None,

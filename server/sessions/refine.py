@@ -10,7 +10,9 @@ of GL time (the first takes :data:`FIRST_SLICE` samples; the next at most :data:
 never past the target nor past what the caps accept (halved until a frame is accepted).
 
 The stream ends after the frame that reaches ``target_samples``, or the first to end at or past
-``target_ms`` (at most POCKETRAY_MAX_REFINE_MS), or the first whose estimated relative noise is at
+``target_ms`` of wall-clock time (0: none), or the first whose frames' GL time reaches the service's
+POCKETRAY_MAX_REFINE_MS (the GL time, not the wall: resting sessions share the GL thread, and a
+stream that waits its turn spends none of it), or the first whose estimated relative noise is at
 most ``target_noise`` (:func:`server.frames.accumulate.relative_noise`; 0: none), or when the
 accumulation did not grow (its byte budget or MAX_ACCUMULATED_SAMPLES), or — without a frame — when
 the session changed (a gesture, new settings) or was deleted, or ``cancel`` is set (the client went away, a
@@ -47,18 +49,21 @@ GROWTH = 4  # a frame adds at most this many times its predecessor's samples (it
 class RefineStep:
     """One frame of a refinement stream and where the stream stands after it. ``reason`` (when
     ``done``): ``samples`` (target reached), ``time`` (target time spent), ``noise`` (the noise
-    estimated at most the target), ``held`` (the accumulation
-    did not grow: its byte budget, or MAX_ACCUMULATED_SAMPLES) or ``one_frame`` (not a colour frame)."""
+    estimated at most the target), ``held`` (the accumulation did not grow: its byte budget, or
+    MAX_ACCUMULATED_SAMPLES), ``budget`` (the service's GL time for one resting view spent) or
+    ``one_frame`` (not a colour frame)."""
 
     frame: Frame
     samples: int  # samples per pixel the image holds
     target_samples: int
-    target_ms: int
+    target_ms: int  # wall-clock target (0: none)
     elapsed_ms: float
     done: bool
     reason: str | None = None
     noise: float | None = None  # the image's relative noise as estimated (None: not yet)
     target_noise: float = 0.0
+    gl_ms: float = 0.0  # GL time the stream's frames took so far
+    budget_ms: int = 0  # … and the most it may take (POCKETRAY_MAX_REFINE_MS)
 
     def progress(self) -> dict[str, Any]:
         """What the WebSocket's ``refine`` object and the HTTP part's ``X-Refine`` say."""
@@ -71,6 +76,8 @@ class RefineStep:
             "reason": self.reason,
             "noise": None if self.noise is None else round(self.noise, 5),
             "target_noise": self.target_noise,
+            "gl_ms": round(self.gl_ms, 1),
+            "budget_ms": self.budget_ms,
         }
 
 
@@ -99,14 +106,18 @@ def refine(
     state = service.get(session_id)
     settings = service.caps.merge_settings(state.settings, patch)
     goal_samples = int(target_samples if target_samples is not None else settings["refine_samples"])
-    goal_ms = min(int(target_ms if target_ms is not None else settings["refine_time_ms"]), service.config.max_refine_ms)
+    goal_ms = int(target_ms if target_ms is not None else settings["refine_time_ms"])
+    budget_ms = service.config.max_refine_ms
+    gl_ms = 0.0
     goal_noise = float(target_noise if target_noise is not None else settings["refine_noise"])
     version = state.version
     noise: float | None = None
 
     def step(frame: Frame, held: int, done: bool, reason: str | None) -> RefineStep:
         elapsed = (time.perf_counter() - t0) * 1e3
-        return RefineStep(frame, held, goal_samples, goal_ms, elapsed, done, reason, noise, goal_noise)
+        return RefineStep(
+            frame, held, goal_samples, goal_ms, elapsed, done, reason, noise, goal_noise, gl_ms, budget_ms
+        )
 
     render = service.frame_settings(state, patch).render
     if not accumulates(render):
@@ -148,6 +159,7 @@ def refine(
         except (Superseded, NotFound):
             return  # the session's next interactive frame (or the client, or its deletion) stopped it
         held = int(frame.samples or 0)
+        gl_ms += frame.timings.get("trace", 0.0)
         kept = service.frames.accumulations.count(session_id) == held
         noise = service.frames.accumulations.noise(session_id) if kept else None
         elapsed_ms = (time.perf_counter() - t0) * 1e3
@@ -160,8 +172,11 @@ def refine(
         if goal_noise > 0 and noise is not None and noise <= goal_noise:
             yield step(frame, held, True, "noise")
             return
-        if elapsed_ms >= goal_ms:
+        if goal_ms and elapsed_ms >= goal_ms:
             yield step(frame, held, True, "time")
+            return
+        if gl_ms >= budget_ms:
+            yield step(frame, held, True, "budget")
             return
         yield step(frame, held, False, None)
         k = next_slice(k, frame.timings.get("trace", 0.0), service.config.refine_slice_ms, left(held))

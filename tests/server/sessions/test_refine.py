@@ -23,7 +23,7 @@ from server.app import create_app
 from server.sessions.refine import FIRST_SLICE, GROWTH, next_slice
 
 SIDE = 16
-MAX_REFINE_MS = 30_000  # the service's bound of a stream's time (POCKETRAY_MAX_REFINE_MS)
+MAX_REFINE_MS = 30_000  # the service's bound of a stream's GL time (POCKETRAY_MAX_REFINE_MS)
 PATH = {
     "integrator": "path",
     "width": SIDE,
@@ -77,7 +77,9 @@ def test_a_refine_stream_rises_to_its_target_and_ends_as_one_frame_of_its_sample
     assert [h["refine"]["samples"] for h in heads] == counts
     assert heads[-1]["refine"]["reason"] == "samples" and not any(h["refine"]["done"] for h in heads[:-1])
     assert all(h["refine"]["target_samples"] == target for h in heads)
-    assert all(h["refine"]["target_ms"] == MAX_REFINE_MS for h in heads), "600 s asked, the service's bound kept"
+    assert all(h["refine"]["target_ms"] == 600_000 for h in heads), "the wall-clock target as asked"
+    assert all(h["refine"]["budget_ms"] == MAX_REFINE_MS for h in heads), "the service's bound of its GL time"
+    assert all(0 < a["refine"]["gl_ms"] < b["refine"]["gl_ms"] for a, b in zip(heads, heads[1:], strict=False))
     r = app.get(f"/api/sessions/{sid}/frame", params={**PATH, "samples_per_pixel": target})
     one = np.load(io.BytesIO(r.content))
     assert image is not None and np.abs(image - one).max() < 1e-5, "k slices are one frame of all their samples"
@@ -120,6 +122,23 @@ def test_a_stream_ends_at_its_time(app):
         ws.receive_bytes()
     assert head["refine"]["done"] and head["refine"]["reason"] == "time", head
     assert head["refine"]["elapsed_ms"] >= 1 and head["samples"] == FIRST_SLICE
+
+
+@pytest.mark.gl
+def test_a_stream_without_a_time_of_its_own_ends_at_the_services_gl_budget(tmp_path):
+    """refine_time_ms 0 (the default): no wall-clock end; the stream's frames' GL time, summed, meets the
+    service's POCKETRAY_MAX_REFINE_MS (here 1 ms: the first frame)."""
+    config = make_config(tmp_path, max_work=SIDE * SIDE * 4 * 64, max_refine_ms=1)
+    with TestClient(create_app(config)) as c:
+        wait_ready(c.get)
+        sid = cornell(c)
+        with c.websocket_connect(f"/api/sessions/{sid}/ws") as ws:
+            ws.send_json({"type": "refine", "target_samples": 4096, "frame": PATH})
+            head = ws.receive_json()
+            ws.receive_bytes()
+    assert head["refine"]["done"] and head["refine"]["reason"] == "budget", head
+    assert head["refine"]["target_ms"] == 0 and head["refine"]["budget_ms"] == 1
+    assert head["refine"]["gl_ms"] >= 1 and head["samples"] == FIRST_SLICE
 
 
 def stream_to(app, sid: str, samples: int, **params) -> list[tuple[dict, np.ndarray]]:
