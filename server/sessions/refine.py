@@ -38,7 +38,7 @@ from renderer.limits import MAX_PATH_SAMPLES
 
 from ..faults import InputError, NotFound, Superseded
 from ..frames.encode import Frame
-from ..frames.pipeline import accumulates, final, radiance
+from ..frames.pipeline import FrameRequest, accumulates, final, radiance
 from .service import SessionService
 
 FIRST_SLICE = 4  # samples per pixel of a stream's first frame: the first better image comes soon
@@ -64,6 +64,7 @@ class RefineStep:
     target_noise: float = 0.0
     gl_ms: float = 0.0  # GL time the stream's frames took so far
     budget_ms: int = 0  # … and the most it may take (POCKETRAY_MAX_REFINE_MS)
+    request: FrameRequest | None = None  # the frame's request: the view it was rendered with
 
     def progress(self) -> dict[str, Any]:
         """What the WebSocket's ``refine`` object and the HTTP part's ``X-Refine`` say."""
@@ -112,16 +113,18 @@ def refine(
     goal_noise = float(target_noise if target_noise is not None else settings["refine_noise"])
     version = state.version
     noise: float | None = None
+    request: FrameRequest | None = None  # the request of the frame made last
 
     def step(frame: Frame, held: int, done: bool, reason: str | None) -> RefineStep:
         elapsed = (time.perf_counter() - t0) * 1e3
         return RefineStep(
-            frame, held, goal_samples, goal_ms, elapsed, done, reason, noise, goal_noise, gl_ms, budget_ms
+            frame, held, goal_samples, goal_ms, elapsed, done, reason, noise, goal_noise, gl_ms, budget_ms, request
         )
 
     render = service.frame_settings(state, patch).render
     if not accumulates(render):
-        frame = final(service.frames.run(service.frame_request(session_id, patch, cancel=cancel)))
+        request = service.frame_request(session_id, patch, cancel=cancel)
+        frame = final(service.frames.run(request))
         yield step(frame, frame.samples or 1, True, "one_frame")
         return
     # A path frame adds k samples; a Whitted frame k jittered slices of the session's own grid, each

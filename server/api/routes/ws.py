@@ -31,7 +31,7 @@ import asyncio
 import json
 import threading
 from collections.abc import Generator
-from typing import Any, cast
+from typing import Any
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from fastapi.concurrency import run_in_threadpool
@@ -83,24 +83,6 @@ def frame_view(request: FrameRequest) -> dict[str, Any]:
     return {"camera": request.scene.camera.to_json(), "settings": settings}
 
 
-class NotedRequests:
-    """The session service as :func:`server.sessions.refine.refine` uses it, noting the frame request it
-    made last. A stream makes its frames one at a time, each from the request made just before it, so
-    when a step is yielded :attr:`last` is the request of the step's frame: its view is the one the
-    frame was rendered with (the session itself may have moved on)."""
-
-    def __init__(self, service: SessionService):
-        self._service = service
-        self.last: FrameRequest | None = None
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._service, name)
-
-    def frame_request(self, *args: Any, **kwargs: Any) -> FrameRequest:
-        self.last = self._service.frame_request(*args, **kwargs)
-        return self.last
-
-
 async def answer_message(
     service: SessionService, frames: FramePipeline, session_id: str, data: str | bytes
 ) -> tuple[Frame, dict[str, Any]]:
@@ -145,12 +127,10 @@ def refine_request(
     with errors.located(Where.QUERY):
         service.frame_settings(service.get(session_id), given)  # a refused setting is answered now
 
-    noted = NotedRequests(service)
-
     def steps() -> Generator[tuple[RefineStep, dict[str, Any]], None, None]:
         with errors.located(Where.QUERY):
             for step in refine(
-                cast(SessionService, noted),
+                service,
                 session_id,
                 given,
                 target_samples=asked.target_samples,
@@ -158,8 +138,8 @@ def refine_request(
                 target_noise=asked.target_noise,
                 cancel=cancel,
             ):
-                assert noted.last is not None  # a step's frame was made from a request
-                yield step, frame_view(noted.last)
+                assert step.request is not None  # a step's frame was made from a request
+                yield step, frame_view(step.request)
 
     return steps()
 
