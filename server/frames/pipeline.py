@@ -28,6 +28,7 @@ build answers ``GET …/stats`` without building again.
 
 from __future__ import annotations
 
+import ctypes
 import json
 import math
 import threading
@@ -152,6 +153,29 @@ GUIDE_BYTES_PER_PIXEL = 2 * 16 + 2 * 16 + 2 * 24 + 2 * 12
 # clipped float32 copy and the bytes (12 + 3); of radiance, the tone mapping's float64 temporaries
 # (renderer/tonemap.py: display_u8), measured 144.3–144.7 B/px of VmHWM at 1024² and 512².
 DISPLAY_BYTES_PER_PIXEL = {False: 12 + 3, True: 145}
+
+
+# A frame that reserved this much gives glibc's free heap back to the system once it is done: its
+# arrays under glibc's mmap threshold (which grows to 32 MiB as large arrays are freed) come from the
+# heap arenas, which glibc otherwise keeps: three 1349² denoised accumulation frames left 325 MiB
+# resident above the idle process without it, 219 MiB with it (181 MiB of it their accumulations and
+# the kept render target; docs/API.md, "Memory budget").
+TRIM_AFTER_BYTES = 64 << 20
+_libc: Any = None
+
+
+def trim_heap() -> None:
+    """glibc's ``malloc_trim(0)``: the free memory of every arena back to the system (nothing where
+    the C library is not glibc)."""
+    global _libc
+    if _libc is None:
+        try:
+            _libc = ctypes.CDLL("libc.so.6")
+            _libc.malloc_trim.argtypes = [ctypes.c_size_t]
+        except (OSError, AttributeError):
+            _libc = False
+    if _libc:
+        _libc.malloc_trim(0)
 
 
 def radiance(settings: RenderSettings) -> bool:
@@ -309,6 +333,8 @@ class FramePipeline:
                 assert owner is not None, "only a session accumulates"
                 self.accumulations.commit(owner.id, acc_key, held[1], result.sample_sum, result.samples)
             result = handle = first = None  # type: ignore[assignment]  # the arrays go now, not when the generator does
+        if nbytes >= TRIM_AFTER_BYTES:
+            trim_heap()
         yield last
 
     # ---- plan -------------------------------------------------------------------------------
