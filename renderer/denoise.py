@@ -16,18 +16,43 @@ guides at all (``bench/denoise.py``), kept only so that any radiance can be deno
 Denoising is applied to the mean a frame answers (an accumulation's included: never to what it
 holds), on the request's thread, after the GL thread is done with the frame (docs/API.md,
 "Denoising").
+
+What a denoise holds beyond the frame's own arrays is :func:`denoise_nbytes`, which the service
+counts in a frame's reservation (server/frames/pipeline.py). OIDN's scratch is the largest part
+(576 bytes a pixel): its filter is released after every frame, so that no frame's scratch outlives
+it (a kept filter holds the last frame's scratch, and its images, until the next call — 2.3 GiB
+after one 2048² frame); its device is kept, and one frame is denoised at a time.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import threading
 import time
+from typing import Any
 
 import numpy as np
 
 from .atrous import atrous
 from .result import RenderResult
 from .scene import Scene
+
+# Bytes a pixel one denoise holds beyond the frame's own arrays (its colour and guides), measured on
+# the 2-core development machine as the rise of VmHWM over one call, one process per size:
+# - OIDN 2.5.1 (pyoidn, CPU device, quality high, hdr, albedo and normal): 588.0 B/px at 256², 512²,
+#   1024² and 2048² alike — its scratch, 576, and the output image, 12
+#   (``python -m bench.hostile admission_oidn_bytes``);
+# - à-trous (renderer/atrous.py): 216 B/px at 1024², 233 at 512² (its features, sums, weights and
+#   taps' temporaries, float32), rounded up.
+OIDN_BYTES_PER_PIXEL = 576 + 12
+ATROUS_BYTES_PER_PIXEL = 240
+
+
+def denoise_nbytes(denoiser: str, width: int, height: int) -> int:
+    """At most the bytes a ``denoiser`` adds while it denoises a ``width`` × ``height`` frame and
+    that its output holds after (``off``: 0)."""
+    per_pixel = {"oidn": OIDN_BYTES_PER_PIXEL, "atrous": ATROUS_BYTES_PER_PIXEL}.get(denoiser, 0)
+    return int(width) * int(height) * per_pixel
 
 
 def material_albedos(scene: Scene) -> np.ndarray:
@@ -72,8 +97,44 @@ def denoise_result(result: RenderResult, scene: Scene, denoiser: str) -> RenderR
     if denoiser == "atrous":
         image = atrous(color, albedo, normal, result.samples or 1)  # a path frame says its samples
     else:
-        import pyoidn  # ships the library in its wheel; imported when a frame first asks for it
-
-        image = np.asarray(pyoidn.denoise(color, albedo, normal, hdr=True), np.float32)
+        image = oidn(color, albedo, normal)
+    np.maximum(image, 0.0, out=image)  # (its own array: no copy of the frame's size)
     stats = {**(result.stats or {}), "denoise": denoiser, "denoise_ms": (time.perf_counter() - t0) * 1e3}
-    return dataclasses.replace(result, image=np.maximum(image, 0.0), stats=stats)
+    return dataclasses.replace(result, image=image, stats=stats)
+
+
+_oidn_lock = threading.Lock()  # one denoise at a time: one scratch in the process
+_oidn_device: Any = None  # kept (its threads and weights); filters are not
+
+
+def oidn(color: np.ndarray, albedo: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """float32 H×W×3: OIDN's RT filter (quality high, HDR) of ``color`` guided by ``albedo`` and
+    ``normal`` (float32 H×W×3, contiguous), through a filter made for this call and released after
+    it, so that its scratch (OIDN_BYTES_PER_PIXEL) goes with it."""
+    import pyoidn  # ships the library in its wheel; imported when a frame first asks for it
+
+    global _oidn_device
+    out = np.empty_like(color)
+    with _oidn_lock:
+        if _oidn_device is None:
+            device = pyoidn.Device()
+            device.commit()
+            if (error := device.get_error()) is not None:
+                device.release()
+                raise RuntimeError(f"OIDN: no device: {error}")
+            _oidn_device = device
+        device = _oidn_device
+        flt = pyoidn.Filter(device, pyoidn.OIDN_FILTER_TYPE_RT)
+        try:
+            for name, image in (("color", color), ("albedo", albedo), ("normal", normal), ("output", out)):
+                flt.set_image(name, image, pyoidn.OIDN_FORMAT_FLOAT3)
+            flt.set_bool("hdr", True)
+            flt.set_quality(pyoidn.OIDN_QUALITY_HIGH)
+            flt.commit()
+            flt.execute()
+            error = device.get_error()
+        finally:
+            flt.release()
+    if error is not None:
+        raise RuntimeError(f"OIDN: {error}")
+    return out

@@ -212,9 +212,18 @@ class ServerConfig(BaseSettings):
         ge=1 << 20,
         description="bytes that the frames admitted at once may hold together, estimated from each frame's "
         "size, mode and format (render target, its read-back, the result's arrays, the encoded "
-        "body); a frame past it waits up to 1 s for earlier frames to finish, then 503 with "
-        "Retry-After. One frame is always admitted when none is in flight (a 4096² normal npy "
-        "frame is estimated at 1.7 GiB)",
+        "body; a path frame's sums, denoiser and tone mapping); a frame past it waits up to 1 s for "
+        "earlier frames to finish, then 503 with Retry-After. One frame alone may take at most "
+        "POCKETRAY_MAX_FRAME_BYTES of it",
+    )
+    max_frame_bytes: int = Field(
+        1792 << 20,
+        ge=1 << 20,
+        description="bytes one frame may reserve in POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT (at most that budget: "
+        "the smaller of the two applies), estimated as there and counting what a path frame adds (its sums, "
+        "the denoiser's guides and working memory, the tone mapping); a frame over it is refused up front, "
+        "422 naming the largest width and square side accepted at its settings. The rest of the budget "
+        "stays for the other sessions' frames meanwhile (a 4096² normal npy frame: 1.7 GiB)",
     )
     max_accumulation_bytes: int = Field(
         256 << 20,

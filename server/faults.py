@@ -54,6 +54,12 @@ class InputError(SceneError):
 _PARTS = frozenset(w.value for w in Where)
 
 
+class FrameTooLarge(InputError):
+    """A frame whose estimated memory alone is over what one frame may hold (POCKETRAY_MAX_FRAME_BYTES):
+    no smaller slice of its samples fits better (the size is the pixels'), so a refinement stream
+    stops at it."""
+
+
 def input_error(e: SceneError) -> InputError:
     """A SceneError of the renderer as a rejected input at its field (relative: the route places it)."""
     return e if isinstance(e, InputError) else InputError(field_path(e.field), e.message)

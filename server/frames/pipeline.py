@@ -28,7 +28,9 @@ build answers ``GET …/stats`` without building again.
 
 from __future__ import annotations
 
+import ctypes
 import json
+import math
 import threading
 import time
 from collections import OrderedDict, deque
@@ -41,7 +43,7 @@ from typing import Any, NamedTuple
 from renderer.accel.base import NOT_ON_GPU
 from renderer.animation import AnimatedScene, pose
 from renderer.cost import largest_accepted
-from renderer.denoise import denoise_result
+from renderer.denoise import denoise_nbytes, denoise_result
 from renderer.limits import DEFAULT_TEXTURE_WIDTH
 from renderer.methods import METHODS, capabilities, resolve_method
 from renderer.prepare import PreparedFrame, band_rows, batch_size, prepare_frame
@@ -51,7 +53,7 @@ from renderer.settings import RenderSettings
 from renderer.tree_update import TreeUpdate
 
 from ..config import ServerConfig
-from ..faults import Busy, InputError, RenderTimeout, Superseded, input_error
+from ..faults import Busy, FrameTooLarge, InputError, RenderTimeout, Superseded, input_error
 from ..http import metrics
 from .accumulate import AccumulationKey, Accumulations, accumulation_key
 from .encode import MEDIA_TYPES, Frame, encode, encoded_nbytes
@@ -85,9 +87,9 @@ class FrameBytes:
     Eight 4096² normal npy frames held their render targets at once (the GL thread starts every
     admitted frame before it traces any slice), then their read-backs, arrays and bodies: 5.5 GB
     resident for a budget of 3 GiB. A frame reserves its estimated bytes here before it is handed
-    to the GL thread and gives them back once it is encoded; one that does not fit waits, and a
-    frame is always admitted when none holds any bytes (else one larger than the budget never
-    ran)."""
+    to the GL thread and gives them back once it is encoded; one that does not fit waits. A frame
+    never asks for more than POCKETRAY_MAX_FRAME_BYTES (:meth:`FramePipeline.check_size` refuses it
+    before): one frame alone never holds the whole budget against everyone else."""
 
     def __init__(self, limit: int):
         self.limit = int(limit)
@@ -97,7 +99,7 @@ class FrameBytes:
     def acquire(self, nbytes: int, timeout_s: float) -> bool:
         deadline = time.monotonic() + timeout_s
         with self._cv:
-            while self.used > 0 and self.used + nbytes > self.limit:
+            while self.used + nbytes > self.limit:
                 left = deadline - time.monotonic()
                 if left <= 0:
                     return False
@@ -112,25 +114,68 @@ class FrameBytes:
 
 
 def frame_nbytes(settings: RenderSettings, accumulate: bool = False) -> int:
-    """What one frame of these settings holds at most, from its render target to its encoded body
-    (``accumulate``: and the new float32 sum it hands to its session's accumulation)."""
+    """What one frame of these settings holds at most, from its render target to its encoded body:
+    the target, its read-back and the result's arrays (:func:`renderer.result.traced_nbytes`), a
+    path (or accumulation) frame's float64 sum and the float64 quotient its mean is cut from, the
+    denoiser's guides and the denoiser itself (:func:`renderer.denoise.denoise_nbytes`), the tone
+    mapping of radiance or the 8-bit copy of a float image, and the encoding (``accumulate``: and
+    the new float32 sum it hands to its session's accumulation, with a Whitted accumulation's
+    float64 total). The samples an accumulation holds already are counted in
+    POCKETRAY_MAX_ACCUMULATION_BYTES, not here."""
     s = settings
+    path = radiance(s)
+    only_image = image_only(s) and not accumulate
+    per_pixel = (
+        (PATH_SUM_BYTES_PER_PIXEL + MEAN_BYTES_PER_PIXEL if path or accumulate else 0)
+        + (ACCUMULATION_BYTES_PER_PIXEL if accumulate else 0)
+        + (WHITTED_TOTAL_BYTES_PER_PIXEL if accumulate and not path else 0)
+        + (GUIDE_BYTES_PER_PIXEL if path and s.denoise != "off" else 0)
+        + (DISPLAY_BYTES_PER_PIXEL[path] if s.format in ("png", "jpeg") and not only_image else 0)
+    )
     return (
-        traced_nbytes(s.width, s.height, s.supersampling, image_only(s) and not accumulate)
-        + encoded_nbytes(s.format, "radiance" if radiance(s) else s.mode, s.width, s.height)
-        + (s.width * s.height * PATH_SUM_BYTES_PER_PIXEL if radiance(s) or accumulate else 0)
-        + (s.width * s.height * ACCUMULATION_BYTES_PER_PIXEL if accumulate else 0)
-        + (s.width * s.height * GUIDE_BYTES_PER_PIXEL if radiance(s) and s.denoise != "off" else 0)
+        traced_nbytes(s.width, s.height, s.supersampling, only_image)
+        + encoded_nbytes(s.format, "radiance" if path else s.mode, s.width, s.height)
+        + s.width * s.height * per_pixel
+        + (denoise_nbytes(s.denoise, s.width, s.height) if path else 0)
     )
 
 
 PATH_SUM_BYTES_PER_PIXEL = (
     3 * 8
 )  # a path (or Whitted accumulation) frame's float64 sum of its passes (renderer/gl/frame.py)
+MEAN_BYTES_PER_PIXEL = 3 * 8  # … the sum divided by the count, float64, before the mean's float32 cast
 ACCUMULATION_BYTES_PER_PIXEL = 3 * 4  # an accumulation's float32 sum (server/frames/accumulate.py)
+WHITTED_TOTAL_BYTES_PER_PIXEL = 3 * 8  # a Whitted accumulation's held sum plus its own, float64
 # The denoiser's guides (renderer/denoise.py): two more RGBA32F attachments, their read-backs, their
-# float64 sums and the float32 means; OIDN's own buffers of the same size come on top.
+# float64 sums and the float32 means (the denoiser's own working memory: renderer.denoise.denoise_nbytes).
 GUIDE_BYTES_PER_PIXEL = 2 * 16 + 2 * 16 + 2 * 24 + 2 * 12
+# png/jpeg of a float image: the uint8 copy made of it (result.image_u8) — of a float frame, its
+# clipped float32 copy and the bytes (12 + 3); of radiance, the tone mapping's float64 temporaries
+# (renderer/tonemap.py: display_u8), measured 144.3–144.7 B/px of VmHWM at 1024² and 512².
+DISPLAY_BYTES_PER_PIXEL = {False: 12 + 3, True: 145}
+
+
+# A frame that reserved this much gives glibc's free heap back to the system once it is done: its
+# arrays under glibc's mmap threshold (which grows to 32 MiB as large arrays are freed) come from the
+# heap arenas, which glibc otherwise keeps: three 1349² denoised accumulation frames left 325 MiB
+# resident above the idle process without it, 219 MiB with it (181 MiB of it their accumulations and
+# the kept render target; docs/API.md, "Memory budget").
+TRIM_AFTER_BYTES = 64 << 20
+_libc: Any = None
+
+
+def trim_heap() -> None:
+    """glibc's ``malloc_trim(0)``: the free memory of every arena back to the system (nothing where
+    the C library is not glibc)."""
+    global _libc
+    if _libc is None:
+        try:
+            _libc = ctypes.CDLL("libc.so.6")
+            _libc.malloc_trim.argtypes = [ctypes.c_size_t]
+        except (OSError, AttributeError):
+            _libc = False
+    if _libc:
+        _libc.malloc_trim(0)
 
 
 def radiance(settings: RenderSettings) -> bool:
@@ -233,13 +278,16 @@ class FramePipeline:
         key = (owner.id, owner.scene_rev) if owner is not None else None
         frame = self.plan(scene, settings.render, key=key)
         self.check_traceable(frame)
+        accumulate = request.accumulate and owner is not None and accumulates(settings.render) and not frame.multi_pass
+        nbytes = self.check_size(frame.settings, accumulate)  # before anything of the session changes
         acc_key: AccumulationKey | None = None
         held: tuple[Any, int] | None = None
-        if request.accumulate and owner is not None and accumulates(settings.render) and not frame.multi_pass:
+        if accumulate:
+            assert owner is not None, "only a session accumulates"
             camera = json.dumps(frame.scene.camera.to_json(), sort_keys=True)
             acc_key = accumulation_key(owner.scene_rev, camera, settings.render)
             held = self.accumulations.start(owner.id, acc_key)
-        with self.frame_memory(frame.settings, held is not None):  # from before its target exists to its body
+        with self.frame_memory(frame.settings, nbytes):  # from before its target exists to its body
             t_queued = time.perf_counter()
             slices = 1 if radiance(settings.render) else max(1, int(request.slices))
             handle = self.start_frame(frame, owner=owner, accumulated=held, slices=slices)
@@ -285,6 +333,8 @@ class FramePipeline:
                 assert owner is not None, "only a session accumulates"
                 self.accumulations.commit(owner.id, acc_key, held[1], result.sample_sum, result.samples)
             result = handle = first = None  # type: ignore[assignment]  # the arrays go now, not when the generator does
+        if nbytes >= TRIM_AFTER_BYTES:
+            trim_heap()
         yield last
 
     # ---- plan -------------------------------------------------------------------------------
@@ -401,12 +451,47 @@ class FramePipeline:
         )
 
     # ---- admit ------------------------------------------------------------------------------
-    @contextmanager
-    def frame_memory(self, settings: RenderSettings, accumulate: bool = False):
-        """The frame's estimated bytes reserved in POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT for the work
-        inside; :class:`Busy` (Retry-After: the GL work queued ahead) when they do not fit within
-        FRAME_BYTES_WAIT_S."""
+    @property
+    def max_frame_bytes(self) -> int:
+        """The most one frame may reserve, bytes: POCKETRAY_MAX_FRAME_BYTES, within the budget of all."""
+        return min(self.config.max_frame_bytes, self.config.max_frame_bytes_in_flight)
+
+    def check_size(self, settings: RenderSettings, accumulate: bool = False) -> int:
+        """The bytes a frame of ``settings`` reserves (:func:`frame_nbytes`); :class:`FrameTooLarge`
+        (422, ``width``) when they alone are over :attr:`max_frame_bytes`, naming the largest
+        width at its height and the largest square at its other settings (every term of the
+        estimate grows with the pixels, so the largest frame is the bytes over the bytes a pixel)."""
         nbytes = frame_nbytes(settings, accumulate)
+        limit = self.max_frame_bytes
+        if nbytes <= limit:
+            return nbytes
+        s = settings
+        per_pixel = nbytes // (s.width * s.height)
+        pixels = limit // per_pixel
+        kind = "path" if radiance(s) else s.mode
+        extras = [
+            x
+            for x in (
+                "accumulate" if accumulate else "",
+                f"denoise={s.denoise}" if radiance(s) and s.denoise != "off" else "",
+            )
+            if x
+        ]
+        raise FrameTooLarge(
+            ("width",),
+            f"this {s.width} × {s.height} {kind} {s.format} frame"
+            + (f" ({', '.join(extras)})" if extras else "")
+            + f" would hold ~{nbytes:,} bytes ({per_pixel} a pixel: render target, read-back, arrays, sums, "
+            f"denoiser, encoding), over the {limit:,} one frame may hold (POCKETRAY_MAX_FRAME_BYTES); at these "
+            f"settings at most {pixels:,} pixels: width: at most {pixels // s.height} at height {s.height}, "
+            f"or {math.isqrt(pixels)} × {math.isqrt(pixels)}",
+        )
+
+    @contextmanager
+    def frame_memory(self, settings: RenderSettings, nbytes: int):
+        """``nbytes`` (the frame's estimate, :meth:`check_size`) reserved in
+        POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT for the work inside; :class:`Busy` (Retry-After: the GL
+        work queued ahead) when they do not fit within FRAME_BYTES_WAIT_S."""
         if not self.frame_bytes.acquire(nbytes, self.FRAME_BYTES_WAIT_S):
             retry = self.worker.retry_after()
             raise Busy(

@@ -36,7 +36,7 @@ from typing import Any
 
 from renderer.limits import MAX_PATH_SAMPLES
 
-from ..faults import InputError, NotFound, Superseded
+from ..faults import FrameTooLarge, InputError, NotFound, Superseded
 from ..frames.encode import Frame
 from ..frames.pipeline import FrameRequest, accumulates, final, radiance
 from .service import SessionService
@@ -154,8 +154,8 @@ def refine(
             else:
                 request = service.frame_request(session_id, patch, cancel=cancel, accumulate=True, slices=k)
             frame = final(service.frames.run(request))
-        except InputError:
-            if k == 1 or not path:
+        except InputError as e:
+            if k == 1 or not path or isinstance(e, FrameTooLarge):
                 raise
             k //= 2  # over a cap (work, cost): a smaller slice (the caps see a Whitted frame's grid alone)
             continue

@@ -6,7 +6,10 @@ budget of 3 GiB: every admitted frame held its render target at once (two RGBA32
 host memory on llvmpipe), then its read-back, its result's arrays and three copies of the npy
 array. Frames now reserve their estimated bytes in POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT, a
 frame lets go of its target and read-back as soon as it can, and the npy body is the one copy
-of the array. The tests use a 1 MiB budget and small frames, not 4096² ones.
+of the array. A frame whose estimate alone is over POCKETRAY_MAX_FRAME_BYTES is refused up front
+(was: admitted when no other frame held bytes, so that it held more than the whole budget and
+every other session's frame got 503 for its whole run). The tests use an 8 MiB budget and small
+frames, not 4096² ones.
 """
 
 from __future__ import annotations
@@ -25,15 +28,16 @@ with warnings.catch_warnings():  # as in conftest.py: the TestClient still speak
 
 from pocketray_server_support import make_config, new_session, wait_ready
 
+from renderer.denoise import ATROUS_BYTES_PER_PIXEL, OIDN_BYTES_PER_PIXEL, denoise_nbytes
 from renderer.result import traced_nbytes
 from renderer.settings import RenderSettings
 from server.app import create_app
-from server.frames.pipeline import frame_nbytes
+from server.frames.pipeline import GUIDE_BYTES_PER_PIXEL, frame_nbytes
 
 pytestmark = pytest.mark.gl  # the app's lifespan starts the GL worker
 
-SIDE = 256  # a 256² normal npy frame: ~5 MB estimated, over the 1 MiB budget
-BUDGET = 1 << 20
+SIDE = 256  # a 256² normal npy frame: ~7 MB estimated, over half the 8 MiB budget
+BUDGET = 8 << 20
 FRAME = {"width": SIDE, "height": SIDE, "mode": "normal", "format": "npy"}
 
 
@@ -41,7 +45,7 @@ FRAME = {"width": SIDE, "height": SIDE, "mode": "normal", "format": "npy"}
 def app(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("frame-memory")
     with TestClient(
-        create_app(make_config(tmp, max_work=SIDE * SIDE * 2, max_frame_bytes_in_flight=BUDGET, queue_size=4))
+        create_app(make_config(tmp, max_work=SIDE * SIDE * 16, max_frame_bytes_in_flight=BUDGET, queue_size=4))
     ) as c:
         wait_ready(c.get)
         yield c
@@ -100,7 +104,7 @@ def test_a_frame_that_finds_the_budget_taken_gets_503_with_retry_after(app, monk
     assert "POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT" in r.json()["detail"]
     small = {**FRAME, "width": 16, "height": 16}  # the budget back: frames are served
     assert app.get(f"/api/sessions/{sid}/frame", params=small).status_code == 200
-    assert app.get(f"/api/sessions/{sid}/frame", params=FRAME).status_code == 200  # alone, though over it
+    assert app.get(f"/api/sessions/{sid}/frame", params=FRAME).status_code == 200  # alone, within it
 
 
 @pytest.mark.parametrize("mode", ["normal", "depth", "primid", "color"])
@@ -134,3 +138,79 @@ def test_the_estimate_of_a_frame_counts_its_target_read_back_and_body():
     png = RenderSettings(width=4096, height=4096, format="png", samples_per_pixel=1)
     assert frame_nbytes(png) < frame_nbytes(big) / 3
     assert traced_nbytes(64, 64, 4) > traced_nbytes(64, 64, 1)  # the sub-pixel grid
+
+
+# A path colour jpeg frame with accumulate: ~308 bytes a pixel (target, read-back, arrays, sums, tone
+# mapping), 20 MB at 256² — alone over the 8 MiB budget.
+OVER = {"width": SIDE, "height": SIDE, "mode": "color", "format": "jpeg", "integrator": "path", "accumulate": 1}
+
+
+def test_a_frame_over_the_budget_alone_is_refused_up_front_and_others_are_served(app, monkeypatch):
+    """An accumulation frame whose estimate alone is over the budget: 422 naming its size and the
+    largest accepted, nothing of its session changed (its accumulation of another view is kept);
+    another session's small frame meanwhile is served (was: the large frame was admitted alone,
+    held more than the budget, and the small one waited its 1 s and got 503)."""
+    frames = frames_of(app)
+    monkeypatch.setattr(frames, "FRAME_BYTES_WAIT_S", 0.05)
+    sid, other = new_session(app)["id"], new_session(app)["id"]
+    small_acc = {**OVER, "width": 16, "height": 16}
+    assert app.get(f"/api/sessions/{sid}/frame", params=small_acc).status_code == 200
+    held = frames.accumulations.count(sid)
+    version = app.get(f"/api/sessions/{sid}").json()["version"]
+    assert held > 0
+    encode_frame, in_encode = frames.encode_frame, threading.Event()
+
+    def slow_encode(result, frame, *args, **kwargs):  # the large frame (if admitted) stays in flight
+        if frame.settings.width == SIDE:
+            in_encode.set()
+            time.sleep(1.0)
+        return encode_frame(result, frame, *args, **kwargs)
+
+    monkeypatch.setattr(frames, "encode_frame", slow_encode)
+    big: list = []
+    t = threading.Thread(target=lambda: big.append(app.get(f"/api/sessions/{sid}/frame", params=OVER)))
+    t.start()
+    deadline = time.monotonic() + 30  # until it is refused, or (admitted) in flight
+    while t.is_alive() and not in_encode.is_set() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    small = app.get(f"/api/sessions/{other}/frame", params={**FRAME, "width": 16, "height": 16})
+    t.join(60)
+    assert small.status_code == 200, small.text
+    r = big[0]
+    assert r.status_code == 422, r.text
+    (error,) = r.json()["detail"]
+    assert error["loc"] == ["query", "width"], error
+    message = error["msg"]
+    assert f"{SIDE} × {SIDE}" in message and "POCKETRAY_MAX_FRAME_BYTES" in message, message
+
+    def over(**change) -> RenderSettings:
+        return RenderSettings(**{**{k: v for k, v in OVER.items() if k != "accumulate"}, **change})
+
+    need = frame_nbytes(over(), True)
+    per_pixel = need // (SIDE * SIDE)
+    largest = BUDGET // per_pixel
+    assert f"~{need:,} bytes" in message and f"at most {largest // SIDE} at height {SIDE}" in message, message
+    assert (
+        frame_nbytes(over(width=largest // SIDE), True) <= BUDGET < frame_nbytes(over(width=largest // SIDE + 1), True)
+    )
+    # nothing committed: the accumulation of the session's other view, its version, the budget
+    assert frames.accumulations.count(sid) == held
+    assert app.get(f"/api/sessions/{sid}").json()["version"] == version
+    assert frames.frame_bytes.used == 0
+
+
+def test_the_estimate_of_a_denoised_path_frame_counts_the_denoiser():
+    """A denoised path frame's reservation counts its guides and the denoiser's own working memory
+    (OIDN's scratch: 576 bytes a pixel measured, and its output), which it did not."""
+    assert OIDN_BYTES_PER_PIXEL >= 576 + 12 and ATROUS_BYTES_PER_PIXEL >= 216
+    path = dict(width=640, height=480, mode="color", format="jpeg", integrator="path", samples_per_pixel=4)
+    pixels = 640 * 480
+    off = frame_nbytes(RenderSettings(**path, denoise="off"))
+    for denoiser, own in (("oidn", OIDN_BYTES_PER_PIXEL), ("atrous", ATROUS_BYTES_PER_PIXEL)):
+        assert denoise_nbytes(denoiser, 640, 480) == own * pixels
+        on = frame_nbytes(RenderSettings(**path, denoise=denoiser))
+        assert on - off == (GUIDE_BYTES_PER_PIXEL + own) * pixels, denoiser
+    assert denoise_nbytes("off", 640, 480) == 0
+    assert frame_nbytes(RenderSettings(**path, denoise="oidn"), accumulate=True) > frame_nbytes(
+        RenderSettings(**path, denoise="oidn")
+    )

@@ -264,3 +264,28 @@ def test_a_deleted_session_ends_its_stream_without_an_error(app):
     assert next(steps).samples == 4
     assert app.delete(f"/api/sessions/{sid}").status_code == 204
     assert next(steps, None) is None
+
+
+@pytest.mark.gl
+def test_a_frame_over_one_frames_bytes_ends_the_stream_at_once(app, monkeypatch):
+    """A view whose frame alone is over POCKETRAY_MAX_FRAME_BYTES: the stream's first frame is refused
+    (422 at width) and no smaller slice of samples is tried — the size is its pixels'."""
+    from server.faults import FrameTooLarge
+    from server.sessions.refine import refine
+
+    service, frames = app.app.state.service, app.app.state.frames
+    monkeypatch.setattr(type(frames), "max_frame_bytes", property(lambda self: 64 << 10))
+    checked: list[int] = []
+    check_size = frames.check_size
+
+    def counted(settings, accumulate=False):
+        checked.append(settings.samples_per_pixel)
+        return check_size(settings, accumulate)
+
+    monkeypatch.setattr(frames, "check_size", counted)
+    sid = cornell(app)
+    with pytest.raises(FrameTooLarge) as refused:
+        list(refine(service, sid, {**PATH, "width": 32, "height": 32}, target_samples=64))
+    assert refused.value.loc == ("width",) and "POCKETRAY_MAX_FRAME_BYTES" in refused.value.message
+    assert checked == [FIRST_SLICE], checked
+    assert frames.accumulations.count(sid) == 0
