@@ -347,11 +347,14 @@ CLAY = Material(
 )
 PLACEMENT_GAP = 0.1  # of the model's longest side (at least 0.5 world units): free floor around it
 PLACEMENT_RINGS = 16  # rings of candidate places searched around the scene's centre
-PLACEMENT_SHRINK = (1.0, 0.6, 0.35)  # scales tried, in order, where walls leave less room than the model
+PLACEMENT_SHRINK = (1.0, 0.6, 0.35, 0.2)  # scales tried, in order, where walls leave less room than the model
 
 
-def _overlaps(box: np.ndarray, boxes: np.ndarray) -> bool:
-    return bool(np.any(np.all(boxes[:, 0] < box[1], axis=1) & np.all(box[0] < boxes[:, 1], axis=1)))
+def _column_meets(lo: np.ndarray, hi: np.ndarray, footprints: np.ndarray) -> bool:
+    """Whether the floor's rectangle ``lo``…``hi`` (x, z) meets any of ``footprints`` ((4, N):
+    x and z lows, then highs): what stands on or hangs over it."""
+    x0, z0, x1, z1 = footprints
+    return bool(np.any((x0 < hi[0]) & (lo[0] < x1) & (z0 < hi[1]) & (lo[1] < z1)))
 
 
 def free_floor_spot(scene: Scene, extent: np.ndarray) -> tuple[np.ndarray, float] | None:
@@ -360,9 +363,11 @@ def free_floor_spot(scene: Scene, extent: np.ndarray) -> tuple[np.ndarray, float
 
     The floor is the highest upward facing plane under the scene (else its content's bottom);
     candidates lie on rings around the content's centre, nearest first, each box kept off every
-    object's box by a gap, in front of every other plane (a Cornell box's walls, its ceiling) and
-    inside a room the camera is in. Where that fails at full size, smaller sizes are tried; without
-    walls the rings reach past the content, so a place is always found."""
+    object's box by a gap (and nothing over it: a model under a table top is out of sight), in
+    front of every other plane (a Cornell box's walls, its ceiling) and inside a room the camera
+    is in. Between walls a place inside the content's footprint is sought
+    first, at full size and then smaller; then one anywhere at full size (the rings reach past the
+    content, so without walls a place is always found)."""
     box = content_box(scene)
     boxes = object_boxes(scene)
     if box.enclosure is not None:  # the room itself is no obstacle: its inside is the floor
@@ -370,26 +375,47 @@ def free_floor_spot(scene: Scene, extent: np.ndarray) -> tuple[np.ndarray, float
         boxes = boxes[keep]
     ups = [p.point[1] for p in scene.planes if p.normal[1] > 0.999 and p.point[1] <= box.lo[1] + 1e-9]
     floor = max(ups) if ups else (box.enclosure[0][1] if box.enclosure is not None else float(box.lo[1]))
+    standing = boxes[boxes[:, 1, 1] > floor]  # (what lies under the floor is no obstacle)
+    footprints = np.concatenate([standing[:, 0][:, [0, 2]], standing[:, 1][:, [0, 2]]], axis=1).T.copy()
     walls = [p for p in scene.planes if not (p.normal[1] > 0.999 and p.point[1] == floor)]
     centre = (box.lo + box.hi) / 2.0
     content_reach = float(np.max((box.hi - box.lo)[[0, 2]])) / 2.0
-    eye = np.asarray(scene.camera.position, dtype=np.float64)
-    for scale in PLACEMENT_SHRINK if (walls or box.enclosure is not None) else (1.0,):
+    right, _, forward = scene.camera.basis()
+    ahead = forward[[0, 2]] / (np.hypot(*forward[[0, 2]]) or 1.0)
+    # Between walls (or in a room) the model is first sought a place among them, shrunk if need be;
+    # then, at its size, anywhere (the open side of a Cornell box).
+    region = (box.enclosure if box.enclosure is not None else np.stack([box.lo, box.hi]))[:, [0, 2]]
+    tries = [(k, True) for k in PLACEMENT_SHRINK] if (walls or box.enclosure is not None) else []
+    for scale, within in [*tries, (1.0, False)]:
         size = extent * scale
         gap = max(0.5, PLACEMENT_GAP * float(size.max()))
         half = np.array([size[0] / 2.0 + gap, 0.0, size[2] / 2.0 + gap])
-        step = max(float(max(size[0], size[2])) / 2.0, 0.5)
+        step = max(float(max(size[0], size[2])) / 2.0, 0.5, content_reach / PLACEMENT_RINGS)
         rings = PLACEMENT_RINGS + int(content_reach / step) + 2
         spots = [np.array([centre[0], floor, centre[2]])]
         for k in range(1, rings + 1):
             for a in np.linspace(0.0, 2.0 * np.pi, 8 * k, endpoint=False):
                 spots.append(np.array([centre[0] + k * step * np.cos(a), floor, centre[2] + k * step * np.sin(a)]))
-        # nearest the centre first; at one distance, the side towards the camera
-        spots.sort(key=lambda p: (round(float(np.hypot(*(p - centre)[[0, 2]])), 6), float(np.sum((p - eye) ** 2))))
+
+        # nearest the centre first, the camera's sides counting nearer than its front and back (beside
+        # the scene, neither hiding it nor hidden by it); at one distance, its right hand side first
+        def order(p: np.ndarray) -> tuple[float, float]:
+            away = (p - centre)[[0, 2]]
+            dist = float(np.hypot(*away))
+            along = abs(float(away @ ahead)) / dist if dist > 0 else 0.0
+            return round(dist * (1.0 + 0.5 * along), 6), -float((p - centre) @ right)
+
+        spots.sort(key=order)
         for spot in spots:
             cand = np.stack([spot - half, spot + half + np.array([0.0, size[1], 0.0])])
             cand[0, 1] = floor + 1e-6  # standing on the floor touches nothing else
-            if len(boxes) and _overlaps(cand, boxes):
+            if within and not (np.all(cand[0][[0, 2]] >= region[0]) and np.all(cand[1][[0, 2]] <= region[1])):
+                continue
+            # free floor: nothing stands on it or hangs over it (a table top); every object stands
+            # within the content's footprint, so a place outside it is free at once
+            lo2, hi2 = cand[0][[0, 2]], cand[1][[0, 2]]
+            inside = np.all(lo2 < box.hi[[0, 2]]) and np.all(box.lo[[0, 2]] < hi2)
+            if inside and _column_meets(lo2, hi2, footprints):
                 continue
             if box.enclosure is not None and not (
                 np.all(cand[0] >= box.enclosure[0]) and np.all(cand[1] <= box.enclosure[1])
