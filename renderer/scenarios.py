@@ -515,7 +515,8 @@ def _spheres() -> Scene:
     base = scenario(1, SPHERES_N, seed=1, radius=1.0)
     i = np.arange(SPHERES_N)
     glass = len(SPHERES_MATERIALS) - 1
-    materials = np.where(i % 4 == 3, glass, 1 + (i // 4) % len(SPHERES_PALETTE)).astype(np.int32)
+    # colours run diagonally through the grid (8 to a row, 64 to a layer): no row or column of one colour
+    materials = np.where(i % 4 == 3, glass, 1 + (i + i // 8 + i // 64) % len(SPHERES_PALETTE)).astype(np.int32)
     coloured = Scene(
         Camera((0.0, 18.0, 95.0), (0.0, -2.0, 0.0), (0.0, 1.0, 0.0), 50.0),
         (Light(position=(25.0, 60.0, 40.0), color=(1.0, 1.0, 1.0)),),

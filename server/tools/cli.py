@@ -9,7 +9,7 @@
     pocketray scene --mesh MODEL [--mesh MODEL …] [--size S] [--as-is] [-o scene.json]
     pocketray scenario 1|2|3 --n N [--seed S] [--radius R] [--sky] -o scene.json
     pocketray scenario museum --n N [--kind mixed] [--absent A] [--seed S] -o scene.json
-    pocketray scenario spheres|teapot|mixed|room|cornell|table [--sky] -o scene.json   (every demo scene)
+    pocketray scenario spheres|teapot|mixed|room|cornell|table [--sky] [--aspect W/H] -o scene.json
     pocketray gpus [--probe]
     pocketray stack [--processes N] [--port P]     (Redis + render processes + HAProxy, server/tools/stack.py)
 
@@ -423,6 +423,13 @@ def _add_scenario(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="under the procedural daylight sky (environment 'sky'): light for integrator=path; not the museum",
     )
+    p.add_argument(
+        "--aspect",
+        type=float,
+        default=None,
+        help="the camera framed for an image of this width / height (0.5625 for 360 × 640); "
+        "default: the scene's own camera",
+    )
     p.add_argument("-o", "--output", default="-", help="output file (default: standard output)")
 
 
@@ -461,6 +468,15 @@ def write_scenario(args: argparse.Namespace) -> int:
     from ..sessions.scenes import scene_json_chunks
 
     scene = scenario_scene(args.which, args.n, args.seed, args.radius, args.kind, args.absent, args.sky)
+    if args.aspect is not None:
+        from renderer.limits import ASPECT_RANGE
+        from renderer.scenarios import framed
+
+        lo, hi = ASPECT_RANGE
+        if not lo <= args.aspect <= hi:
+            raise UsageError(f"aspect: width / height in {lo:g} … {hi:g}, got {args.aspect:g}")
+        rest = getattr(scene, "scene", scene)  # an animated scene is framed at rest
+        scene = scene.with_camera(framed(rest, args.aspect).camera)
     if args.output == "-":
         for chunk in scene_json_chunks(scene):
             sys.stdout.buffer.write(chunk)
