@@ -13,6 +13,7 @@ the same n has the same mix.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -703,3 +704,15 @@ def demo_for_recipe(
     else:
         return None
     return next((d for d in DEMO_SCENES if d.value == value), None)
+
+
+def demo_scenes_markdown() -> str:
+    """The README's list of the demo scenes (between its ``demo-scenes`` markers), made from
+    :data:`DEMO_SCENES`: a test keeps the two the same."""
+    rows = ["| scene (`?scenario=`) | POST /api/sessions | opens with |", "|---|---|---|"]
+    for d in DEMO_SCENES:
+        recipe = json.dumps(dict(d.recipe), separators=(", ", ": "))
+        settings = ", ".join(f"`{k}={v}`" for k, v in d.settings.items()) or "the service's defaults"
+        mark = " (the default: an empty body)" if d.default else ""
+        rows.append(f"| *{d.label}* (`{d.value}`){mark} | `{recipe}` | {settings} |")
+    return "\n".join(rows)

@@ -157,3 +157,14 @@ def test_the_registry_recommends_the_path_integrator_where_a_scene_is_made_for_i
     assert demo_for_recipe(scenario_number=2, sky=True) is by["sky:2"]
     assert demo_for_recipe(scenario_number=2) is by[2] and demo_for_recipe(museum=True) is by["museum"]
     assert demo_for_recipe(scenario_number=1, sky=True) is None
+
+
+def test_the_readme_lists_the_demo_scenes_of_the_registry():
+    from pathlib import Path
+
+    from renderer.scenarios import demo_scenes_markdown
+
+    text = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    start = text.index("<!-- demo-scenes")
+    block = text[text.index("\n", start) + 1 : text.index("<!-- /demo-scenes -->")].strip()
+    assert block == demo_scenes_markdown(), "README's demo scenes differ; paste:\n" + demo_scenes_markdown()
