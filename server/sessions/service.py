@@ -136,6 +136,7 @@ class SessionService:
         if body.mesh_scene is not None:
             r = body.mesh_scene
             scene = mesh_scene(r.kind, r.detail, r.smooth, r.sky)
+            self.caps.check_spheres(scene.n_spheres, ("mesh_scene", "kind"))
             if scene.n_triangles > self.config.max_triangles:
                 raise InputError(
                     ("mesh_scene", "detail"),
