@@ -207,7 +207,7 @@ class SessionService:
             settings=settings,
             scene_info=scene_info(scene, recipe),
             scene_rev=secrets.token_hex(8),
-            aspect=body.aspect,
+            aspect=body.aspect if recipe else None,  # (a full scene's camera stays its author's, on reset too)
         )
         self.store.create(state, source)
         self.cache.put((state.id, state.scene_rev), scene)
@@ -258,7 +258,9 @@ class SessionService:
         camera = scene.camera.to_json()
 
         def mutate(old: SessionState) -> SessionState:
-            return replace(old, camera=camera, home_camera=camera, scene_rev=rev, scene_info=scene_info(scene, None))
+            return replace(
+                old, camera=camera, home_camera=camera, scene_rev=rev, scene_info=scene_info(scene, None), aspect=None
+            )
 
         state = self._update(session_id, mutate, source)
         self.cache.put((state.id, rev), scene)

@@ -694,6 +694,12 @@ def test_a_session_made_for_an_aspect_is_framed_for_it_and_a_reset_frames_again(
     assert client.get(f"/api/sessions/{sid}").json()["camera"] == framed(mesh_scene("table"), 16 / 9).camera.to_json()
     # without an aspect a recipe keeps its own camera (the benchmarks' and the thesis's)
     assert new_session(client)["camera"] == scenario(3, 64, 1).camera.to_json()
+    # a full scene's camera is its author's, on reset too
+    full = client.post("/api/sessions", json={"scene": small_scene_json(), "settings": SMALL, "aspect": PORTRAIT})
+    assert full.status_code == 201 and full.json()["camera"] == small_scene_json()["camera"], full.text
+    fid = full.json()["id"]
+    client.post(f"/api/sessions/{fid}/gesture", json={"type": "reset"})
+    assert client.get(f"/api/sessions/{fid}").json()["camera"] == small_scene_json()["camera"]
 
 
 @pytest.mark.parametrize("aspect", [0.1, 6.0, "wide"])
