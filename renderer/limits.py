@@ -132,6 +132,11 @@ MAX_ENV_HEADER_BYTES = 64 << 10  # a .hdr header (text up to the resolution line
 MAX_ENV_SCALE = 1e6  # the image's radiance factor
 MAX_ENV_ROTATION_DEG = 360.0  # about +y, either way
 
+# ---- framing -------------------------------------------------------------------------------
+# A screen's aspect (width / height) a demo scene's camera is framed for (renderer/scenarios.py):
+# from a tall phone held upright (0.2) to a wide desktop window (5).
+ASPECT_RANGE = (0.2, 5.0)
+
 # ---- GPU data ------------------------------------------------------------------------------
 DEFAULT_TEXTURE_WIDTH = 4096  # texture rows; WebGL2 guarantees 2048, most phones have 4096
 MAX_DEVICE_TEXTURE_SIZE = 1 << 16  # the largest MAX_TEXTURE_SIZE a device may report (GPUs: ≤ 32,768)

@@ -13,7 +13,11 @@ the same n has the same mix.
 
 from __future__ import annotations
 
+import json
 import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -151,7 +155,7 @@ def scenario(number: int, n: int, seed: int = 0, radius: float = 1.0, sky: bool 
 
 
 # ---- scenes with triangle meshes -------------------------------------------------------
-MESH_SCENES = ("teapot", "mixed", "room", "cornell", "table")
+MESH_SCENES = ("spheres", "teapot", "mixed", "room", "cornell", "table")
 MAX_MESH_DETAIL = 5
 
 PORCELAIN = Material(
@@ -267,20 +271,24 @@ def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True, sky: 
             (floor,),
             meshes,
         )
+    if kind == "spheres":
+        return _spheres()
     if kind == "cornell":
         return _cornell(M, seg, smooth, placed)
     if kind == "table":
         return _table(light, floor)
     room = M.box((-CUBE_HALF,) * 3, (CUBE_HALF,) * 3, inward=True, material=0)
-    pot = M.teapot(seg, size=3.0, material=1, smooth=smooth, transform=placed(-6.0, -CUBE_HALF, -6.0))
-    ball = M.icosphere(int(detail), radius=4.0, center=(8.0, -16.0, -2.0), material=2, smooth=smooth)
-    centers = np.array([[-14.0, -17.0, 8.0], [12.0, -18.0, 10.0], [0.0, -17.0, -14.0], [14.0, -17.0, -14.0]])
+    # The furniture stands together at the back, seen from high by the front wall: a portrait
+    # screen shows all of it from inside the room (framing never puts the camera through a wall).
+    pot = M.teapot(seg, size=2.2, material=1, smooth=smooth, transform=placed(-2.0, -CUBE_HALF, -8.0))
+    ball = M.icosphere(int(detail), radius=3.0, center=(6.0, -17.0, -13.0), material=2, smooth=smooth)
+    centers = np.array([[-8.0, -17.5, -1.0], [7.0, -17.5, -3.0], [-7.0, -17.5, -14.0], [0.0, -17.5, -16.0]])
     return Scene(
-        Camera((0.0, 0.0, 18.0), (0.0, -8.0, 0.0), (0.0, 1.0, 0.0), 70.0),
+        Camera((0.0, 14.0, 18.0), (0.0, -16.0, -6.0), (0.0, 1.0, 0.0), 70.0),
         (Light((0.0, 18.0, 5.0), (1.0, 1.0, 1.0)),),
         (WALLS, PORCELAIN, GLASS, RED),
         centers,
-        np.full(4, 3.0),
+        np.full(4, 2.5),
         np.full(4, 3, np.int32),
         (),
         (room, pot, ball),
@@ -459,3 +467,252 @@ def _table(light: Light, floor: Plane) -> Scene:
         None,
         shapes,
     )
+
+
+# ---- the default scene: the thesis's grid in colour, under the sky ---------------------
+SPHERES_N = 512  # the phone client's first scene: scenario 1's grid of 512 (8 × 8 × 8)
+SPHERES_PALETTE = (
+    (0.95, 0.45, 0.2),  # orange
+    (0.2, 0.55, 0.95),  # blue
+    (0.3, 0.8, 0.35),  # green
+    (0.95, 0.8, 0.2),  # yellow
+    (0.75, 0.35, 0.85),  # violet
+)
+
+
+def _glossy(color) -> Material:
+    return Material(
+        color=color,
+        ambient=0.25,
+        diffuse=0.7,
+        specular=0.5,
+        shininess=60.0,
+        reflective=0.15,
+        transmissive=0.0,
+        ior=1.0,
+    )
+
+
+SPHERES_MATERIALS = (
+    Material(
+        color=(0.78, 0.78, 0.74),
+        ambient=0.35,
+        diffuse=0.6,
+        specular=0.05,
+        shininess=10.0,
+        reflective=0.1,
+        transmissive=0.0,
+        ior=1.0,
+    ),  # 0 the floor: light stone, so that coloured spheres stand out on it
+    *(_glossy(c) for c in SPHERES_PALETTE),  # 1 … 5
+    GLASS,  # 6: every fourth sphere, as the thesis's quarter of transparent ones
+)
+
+
+def _spheres() -> Scene:
+    """``mesh_scene("spheres")``: scenario 1's geometry (512 spheres, radius 1, the floor) exactly,
+    in colours on a light floor under the procedural sky: the thesis's red-on-red under a black
+    sky reads badly on a phone."""
+    base = scenario(1, SPHERES_N, seed=1, radius=1.0)
+    i = np.arange(SPHERES_N)
+    glass = len(SPHERES_MATERIALS) - 1
+    # colours run diagonally through the grid (8 to a row, 64 to a layer): no row or column of one colour
+    materials = np.where(i % 4 == 3, glass, 1 + (i + i // 8 + i // 64) % len(SPHERES_PALETTE)).astype(np.int32)
+    coloured = Scene(
+        Camera((0.0, 18.0, 95.0), (0.0, -2.0, 0.0), (0.0, 1.0, 0.0), 50.0),
+        (Light(position=(25.0, 60.0, 40.0), color=(1.0, 1.0, 1.0)),),
+        SPHERES_MATERIALS,
+        base.sphere_centers,
+        base.sphere_radii,
+        materials,
+        base.planes,
+    )
+    return with_sky(coloured)
+
+
+# ---- framing: a camera that shows a box on a screen of any aspect --------------------------
+FRAME_MARGIN = 0.06  # of the half-frame, each side: the content never touches the screen's edge
+MAX_FRAMING_FOV_Y = 100.0  # degrees: the widest view framing opens inside an enclosure (beyond: fisheye-like)
+WALL_INSET = 1.0  # world units: a framed camera inside an enclosure stays this far from its walls
+
+
+def object_boxes(scene: Scene) -> np.ndarray:
+    """float64 (K, 2, 3): the (min, max) box of every sphere, mesh and analytic shape of ``scene``
+    (planes are unbounded: none)."""
+    from .shapes import bounds as shape_bounds
+
+    c, r = scene.sphere_centers, scene.sphere_radii[:, None]
+    parts = [np.stack([c - r, c + r], axis=1)] if len(c) else []
+    parts += [np.stack([m.vertices.min(axis=0), m.vertices.max(axis=0)])[None] for m in scene.meshes if len(m.vertices)]
+    if scene.n_shapes:
+        parts.append(shape_bounds(scene.shapes))
+    return np.concatenate(parts).astype(np.float64) if parts else np.zeros((0, 2, 3))
+
+
+@dataclass(frozen=True)
+class ContentBox:
+    """What framing must show: ``lo``/``hi`` (world units), and ``enclosure``, the box of a mesh
+    the camera is inside of (a room seen from inside), which the camera may not leave."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    enclosure: np.ndarray | None = field(default=None)
+
+
+def content_box(scene: Scene, camera: Camera | None = None) -> ContentBox:
+    """The box framing shows: every object's box, except a mesh's that holds the camera (an
+    enclosure), grown to the axis-aligned planes that face it (a Cornell box's walls, a floor).
+    An empty scene: the thesis's cube."""
+    eye = np.array((camera or scene.camera).position, dtype=np.float64)
+    boxes = object_boxes(scene)
+    enclosure = None
+    if scene.meshes:
+        mesh_rows = range(scene.n_spheres, scene.n_spheres + len(scene.meshes))
+        holds = [k for k in mesh_rows if np.all(boxes[k, 0] < eye) and np.all(eye < boxes[k, 1])]
+        if holds:
+            enclosure = boxes[holds[0]]
+            boxes = np.delete(boxes, holds, axis=0)
+    if not len(boxes):
+        lo, hi = np.full(3, -CUBE_HALF), np.full(3, CUBE_HALF)
+    else:
+        lo, hi = boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)
+    reach = float(np.max(hi - lo))
+    for plane in scene.planes:
+        n = np.asarray(plane.normal, dtype=np.float64)
+        axis = int(np.argmax(np.abs(n)))
+        if abs(n[axis]) < 0.999:  # a slanted plane bounds no axis
+            continue
+        at = float(plane.point[axis])
+        if n[axis] > 0 and lo[axis] - reach <= at <= lo[axis]:
+            lo[axis] = at
+        elif n[axis] < 0 and hi[axis] <= at <= hi[axis] + reach:
+            hi[axis] = at
+    return ContentBox(lo, hi, enclosure)
+
+
+def fit_camera(
+    box: ContentBox,
+    aspect: float,
+    fov_y: float,
+    view_from: Sequence[float],
+    up: Sequence[float] = (0.0, 1.0, 0.0),
+    margin: float = FRAME_MARGIN,
+) -> Camera:
+    """A camera looking at the box's centre from direction ``view_from`` (towards the camera) whose
+    frame of ``aspect`` (width / height) and vertical field of view ``fov_y`` (degrees) holds all
+    eight corners, each at least ``margin`` of the half-frame inside its edges: as near as that
+    allows. Inside an enclosure the camera stops ``WALL_INSET`` short of its walls and opens its
+    field of view instead (up to ``MAX_FRAMING_FOV_Y``)."""
+    centre = (box.lo + box.hi) / 2.0
+    back = np.asarray(view_from, dtype=np.float64)
+    back = back / np.linalg.norm(back)
+    forward = -back
+    right = np.cross(forward, np.asarray(up, dtype=np.float64))
+    right /= np.linalg.norm(right)
+    true_up = np.cross(right, forward)
+    corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=np.float64)
+    corners = box.lo + corners * (box.hi - box.lo) - centre
+    x, y, z = np.abs(corners @ right), np.abs(corners @ true_up), corners @ forward
+    keep = 1.0 - margin
+
+    def distance(tan_half: float) -> float:
+        need = np.maximum(x / (tan_half * aspect * keep), y / (tan_half * keep)) - z
+        size = float(np.max(box.hi - box.lo)) or 1.0
+        return max(float(np.max(need)), float(np.max(-z)) + 1e-3 * size)
+
+    tan_half = math.tan(math.radians(fov_y) / 2.0)
+    d = distance(tan_half)
+    if box.enclosure is not None:
+        lo, hi = box.enclosure[0] + WALL_INSET, box.enclosure[1] - WALL_INSET
+        with np.errstate(divide="ignore"):
+            exits = np.where(back > 0, (hi - centre) / back, np.where(back < 0, (lo - centre) / back, np.inf))
+        room = float(np.min(exits))
+        if d > room and np.all(room + z > 0):
+            depth = (room + z) * keep
+            tan_half = min(
+                float(np.max(np.maximum(x / (aspect * depth), y / depth))),
+                math.tan(math.radians(MAX_FRAMING_FOV_Y) / 2.0),
+            )
+            d = room
+            fov_y = math.degrees(2.0 * math.atan(tan_half))
+    position = centre + d * back
+    return Camera(tuple(position.tolist()), tuple(centre.tolist()), tuple(np.asarray(up, float).tolist()), fov_y)
+
+
+def framed(scene: Scene, aspect: float, camera: Camera | None = None) -> Scene:
+    """``scene`` through a camera fitted to its content (:func:`content_box`) for a screen of
+    ``aspect`` (width / height), from the direction, field of view and up of ``camera`` (default:
+    the scene's)."""
+    cam = camera or scene.camera
+    view_from = tuple(p - t for p, t in zip(cam.position, cam.target, strict=True))
+    return scene.with_camera(fit_camera(content_box(scene, cam), aspect, cam.fov_y, view_from, cam.up))
+
+
+# ---- the demo scenes: one registry for the API, the client's picker, the CLI and the README ----
+@dataclass(frozen=True)
+class DemoScene:
+    """One entry of the scene picker: ``value`` (the client's scenario value), ``label``, ``recipe``
+    (the body of POST /api/sessions that makes it) and ``settings`` (its recommended render
+    settings: names of :data:`renderer.settings.SETTINGS`; a session's body wins over them)."""
+
+    value: int | str
+    label: str
+    recipe: Mapping[str, Any]
+    settings: Mapping[str, Any] = field(default_factory=dict)
+    default: bool = False
+
+    def to_json(self) -> dict[str, Any]:
+        out = {"value": self.value, "label": self.label, "recipe": dict(self.recipe), "settings": dict(self.settings)}
+        if self.default:
+            out["default"] = True
+        return out
+
+
+PATH_DENOISED = {"integrator": "path", "denoise": "oidn"}
+_THESIS = {"n": 512, "seed": 1}
+DEMO_SCENES: tuple[DemoScene, ...] = (
+    DemoScene("mesh:spheres", "Spheres under the sky", {"mesh_scene": {"kind": "spheres"}}, default=True),
+    DemoScene(1, "1 — grid", {"scenario": 1, **_THESIS}),
+    DemoScene(2, "2 — eight corner clusters", {"scenario": 2, **_THESIS}),
+    DemoScene(3, "3 — half grid, half clusters", {"scenario": 3, **_THESIS}),
+    DemoScene("sky:2", "2 under the sky — path traced", {"scenario": 2, **_THESIS, "sky": True}, PATH_DENOISED),
+    DemoScene("museum", "Museum — animated (Reiter)", {"museum": {"n": 64}}),
+    DemoScene("mesh:teapot", "Teapot — triangles (Newell)", {"mesh_scene": {"kind": "teapot"}}),
+    DemoScene("mesh:mixed", "Icosphere, torus and spheres", {"mesh_scene": {"kind": "mixed"}}),
+    DemoScene("mesh:room", "Mesh room — teapot, icosphere, spheres", {"mesh_scene": {"kind": "room"}}),
+    DemoScene("mesh:cornell", "Cornell box — path traced", {"mesh_scene": {"kind": "cornell"}}, PATH_DENOISED),
+    DemoScene(
+        "mesh:table",
+        "Table and lamp — cylinders, cones, disks, a torus; path traced",
+        {"mesh_scene": {"kind": "table"}},
+        PATH_DENOISED,
+    ),
+)
+DEFAULT_DEMO = next(d for d in DEMO_SCENES if d.default)
+
+
+def demo_for_recipe(
+    scenario_number: int | None = None, sky: bool = False, museum: bool = False, mesh_kind: str | None = None
+) -> DemoScene | None:
+    """The registry's entry a session's recipe makes (its recommended settings apply), or None."""
+    if mesh_kind is not None:
+        value: int | str | None = f"mesh:{mesh_kind}"
+    elif museum:
+        value = "museum"
+    elif scenario_number is not None:
+        value = f"sky:{scenario_number}" if sky else scenario_number
+    else:
+        return None
+    return next((d for d in DEMO_SCENES if d.value == value), None)
+
+
+def demo_scenes_markdown() -> str:
+    """The README's list of the demo scenes (between its ``demo-scenes`` markers), made from
+    :data:`DEMO_SCENES`: a test keeps the two the same."""
+    rows = ["| scene (`?scenario=`) | POST /api/sessions | opens with |", "|---|---|---|"]
+    for d in DEMO_SCENES:
+        recipe = json.dumps(dict(d.recipe), separators=(", ", ": "))
+        settings = ", ".join(f"`{k}={v}`" for k, v in d.settings.items()) or "the service's defaults"
+        mark = " (the default: an empty body)" if d.default else ""
+        rows.append(f"| *{d.label}* (`{d.value}`){mark} | `{recipe}` | {settings} |")
+    return "\n".join(rows)

@@ -37,6 +37,7 @@ from pydantic_core import InitErrorDetails, PydanticCustomError, PydanticKnownEr
 from renderer import settings as declared
 from renderer.animation import MUSEUM_KINDS
 from renderer.limits import (
+    ASPECT_RANGE,
     MAX_ABSENT,
     MAX_ANGULAR_VELOCITY,
     MAX_COORDINATE,
@@ -704,14 +705,15 @@ class MuseumRecipe(Strict):
 
 
 class MeshSceneRecipe(Strict):
-    """A demo scene (renderer.scenarios.mesh_scene): ``teapot`` (the closed Utah teapot on the
+    """A demo scene (renderer.scenarios.mesh_scene): ``spheres`` (scenario 1's 512 spheres in
+    colour under the sky: the default scene), ``teapot`` (the closed Utah teapot on the
     floor), ``mixed`` (27 spheres, a glass icosphere and a torus), ``room`` (a box room seen from
     inside with a teapot, an icosphere and four spheres), ``cornell`` (a Cornell box lit by an
     emitting ceiling panel, with a mirror and a glass sphere and a teapot: for ``integrator=path``),
     ``table`` (analytic shapes only: a table with a torus, a can, a glass lens and a lamp whose
     shade holds an emitting disk; Whitted or ``integrator=path``)."""
 
-    kind: Literal[MESH_SCENES] = Field("teapot", description="teapot, mixed, room, cornell or table")
+    kind: Literal[MESH_SCENES] = Field("teapot", description=", ".join(MESH_SCENES))
     detail: Annotated[int, Integral] = Field(
         2,
         ge=0,
@@ -740,7 +742,16 @@ class SessionCreate(Strict):
     museum: MuseumRecipe | None = None
     mesh_scene: MeshSceneRecipe | None = None
     scene: SceneModel | None = None
-    settings: SettingsPatch | None = None
+    settings: SettingsPatch | None = Field(
+        None, description="render settings; a demo scene's recommended ones (GET /api/info's scenes) lie under them"
+    )
+    aspect: float | None = Field(
+        None,
+        ge=ASPECT_RANGE[0],
+        le=ASPECT_RANGE[1],
+        description=f"the client's canvas width / height ({ASPECT_RANGE[0]:g} … {ASPECT_RANGE[1]:g}): a recipe's "
+        "camera is framed for it (its content's bounds inside the frame); a reset gesture frames again for it",
+    )
 
 
 class SceneInfo(BaseModel):
@@ -843,9 +854,17 @@ class OrbitGesture(Strict):
 
 
 class ResetGesture(Strict):
-    """Back to the camera the scene was created (or last replaced) with."""
+    """Back to the camera the scene was created (or last replaced) with; for a session made with
+    an ``aspect`` (or a reset that names one), that camera fitted to the whole scene (added models
+    too) for the aspect."""
 
     type: Literal["reset"]
+    aspect: float | None = Field(
+        None,
+        ge=ASPECT_RANGE[0],
+        le=ASPECT_RANGE[1],
+        description=f"the canvas's width / height ({ASPECT_RANGE[0]:g} … {ASPECT_RANGE[1]:g}); default: the session's",
+    )
 
 
 Gesture = Annotated[PanGesture | PinchGesture | OrbitGesture | ResetGesture, Field(discriminator="type")]
@@ -856,7 +875,9 @@ class MeshUploadQuery(QueryModel):
     """How an uploaded model file (the request body, bytes) becomes a mesh."""
 
     format: ModelFormat = Field(description="the file's format: " + ", ".join(MODEL_FORMATS))
-    material: MaterialIndex = Field(0, description="index into the scene's materials")
+    material: MaterialIndex | None = Field(
+        None, description="index into the scene's materials (default: a neutral clay of its own, added to them)"
+    )
     smooth: bool | None = Field(
         None,
         description="shading: the file's normals (default), true: smooth (the file's "
@@ -876,6 +897,11 @@ class MeshAdded(BaseModel):
     scene_info: SceneInfo
     mesh: int = Field(description="index of the new mesh in the scene's meshes")
     first_id: int = Field(description="primitive id of its first triangle")
+    placed: tuple[float, float, float] | None = Field(
+        None, description="where the model's box's bottom centre went (world units): free floor beside the scene"
+    )
+    camera: CameraModel | None = Field(None, description="the session's camera, framed to show the model and the scene")
+    notice: str | None = Field(None, description="a sentence for the user: where the model went")
 
 
 class RenderRequest(Strict):
@@ -974,6 +1000,17 @@ class ModeColorOut(BaseModel):
     name: str
 
 
+class DemoSceneOut(BaseModel):
+    value: int | str = Field(description="the client's scenario value: 1, 2, 3, 'sky:2', 'museum', 'mesh:KIND'")
+    label: str
+    recipe: dict[str, Any] = Field(description="the body of POST /api/sessions that makes it")
+    settings: dict[str, Any] = Field(
+        description="recommended render settings (names of 'settings'); "
+        "POST /api/sessions applies them under its body's"
+    )
+    default: bool = Field(False, description="the scene POST /api/sessions makes from an empty body")
+
+
 class InfoOut(BaseModel):
     methods: list[str]
     modes: list[str]
@@ -1009,6 +1046,9 @@ class InfoOut(BaseModel):
         default_factory=list,
         description="every render setting, declared once: type, bounds or "
         "choices, default, unit, label, doc, who reads it",
+    )
+    scenes: list[DemoSceneOut] = Field(
+        default_factory=list, description="the demo scenes, in picker order (renderer/scenarios.py DEMO_SCENES)"
     )
     recursion_colors: list[ModeColorOut] = Field(
         default_factory=list,

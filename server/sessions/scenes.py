@@ -33,8 +33,8 @@ import numpy as np
 
 from renderer.animation import AnimatedScene, motion_from_json, motion_to_json, museum
 from renderer.envmap import SKY_REF
-from renderer.scenarios import scenario
-from renderer.scene import Camera, Mesh, Scene, SceneError, make_mesh
+from renderer.scenarios import content_box, object_boxes, scenario
+from renderer.scene import Camera, Material, Mesh, Scene, SceneError, make_mesh
 from renderer.shapes import Shapes
 
 from ..api.schemas import CameraModel, SceneModel
@@ -329,3 +329,115 @@ class SceneCache:
         with self._lock:
             for key in [k for k in self._items if k[0] == session_id]:
                 del self._items[key]
+
+
+# ---- uploaded models: where they land -------------------------------------------------------
+# A model's own material until model files' materials are read: a neutral clay, unlike any demo
+# scene's, so that the model reads as added (Whitted: ambient, diffuse and a soft highlight;
+# the path integrator: a light grey Lambertian).
+CLAY = Material(
+    color=(0.72, 0.72, 0.75),
+    ambient=0.25,
+    diffuse=0.75,
+    specular=0.15,
+    shininess=20.0,
+    reflective=0.0,
+    transmissive=0.0,
+    ior=1.0,
+)
+PLACEMENT_GAP = 0.1  # of the model's longest side (at least 0.5 world units): free floor around it
+PLACEMENT_RINGS = 16  # rings of candidate places searched around the scene's centre
+PLACEMENT_SHRINK = (1.0, 0.6, 0.35, 0.2)  # scales tried, in order, where walls leave less room than the model
+
+
+def _column_meets(lo: np.ndarray, hi: np.ndarray, footprints: np.ndarray) -> bool:
+    """Whether the floor's rectangle ``lo``…``hi`` (x, z) meets any of ``footprints`` ((4, N):
+    x and z lows, then highs): what stands on or hangs over it."""
+    x0, z0, x1, z1 = footprints
+    return bool(np.any((x0 < hi[0]) & (lo[0] < x1) & (z0 < hi[1]) & (lo[1] < z1)))
+
+
+def free_floor_spot(scene: Scene, extent: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """Where a model of box ``extent`` (x, y, z, world units) stands beside ``scene``'s objects:
+    its box's bottom centre and the scale it gets, or None when no free floor is found.
+
+    The floor is the highest upward facing plane under the scene (else its content's bottom);
+    candidates lie on rings around the content's centre, nearest first, each box kept off every
+    object's box by a gap (and nothing over it: a model under a table top is out of sight), in
+    front of every other plane (a Cornell box's walls, its ceiling) and inside a room the camera
+    is in. Between walls a place inside the content's footprint is sought
+    first, at full size and then smaller; then one anywhere at full size (the rings reach past the
+    content, so without walls a place is always found)."""
+    box = content_box(scene)
+    boxes = object_boxes(scene)
+    if box.enclosure is not None:  # the room itself is no obstacle: its inside is the floor
+        keep = ~np.all(np.isclose(boxes, box.enclosure), axis=(1, 2))
+        boxes = boxes[keep]
+    ups = [p.point[1] for p in scene.planes if p.normal[1] > 0.999 and p.point[1] <= box.lo[1] + 1e-9]
+    floor = max(ups) if ups else (box.enclosure[0][1] if box.enclosure is not None else float(box.lo[1]))
+    standing = boxes[boxes[:, 1, 1] > floor]  # (what lies under the floor is no obstacle)
+    footprints = np.concatenate([standing[:, 0][:, [0, 2]], standing[:, 1][:, [0, 2]]], axis=1).T.copy()
+    walls = [p for p in scene.planes if not (p.normal[1] > 0.999 and p.point[1] == floor)]
+    centre = (box.lo + box.hi) / 2.0
+    content_reach = float(np.max((box.hi - box.lo)[[0, 2]])) / 2.0
+    right, _, forward = scene.camera.basis()
+    ahead = forward[[0, 2]] / (np.hypot(*forward[[0, 2]]) or 1.0)
+    # Between walls (or in a room) the model is first sought a place among them, shrunk if need be;
+    # then, at its size, anywhere (the open side of a Cornell box).
+    region = (box.enclosure if box.enclosure is not None else np.stack([box.lo, box.hi]))[:, [0, 2]]
+    tries = [(k, True) for k in PLACEMENT_SHRINK] if (walls or box.enclosure is not None) else []
+    for scale, within in [*tries, (1.0, False)]:
+        size = extent * scale
+        gap = max(0.5, PLACEMENT_GAP * float(size.max()))
+        half = np.array([size[0] / 2.0 + gap, 0.0, size[2] / 2.0 + gap])
+        step = max(float(max(size[0], size[2])) / 2.0, 0.5, content_reach / PLACEMENT_RINGS)
+        rings = PLACEMENT_RINGS + int(content_reach / step) + 2
+        spots = [np.array([centre[0], floor, centre[2]])]
+        for k in range(1, rings + 1):
+            for a in np.linspace(0.0, 2.0 * np.pi, 8 * k, endpoint=False):
+                spots.append(np.array([centre[0] + k * step * np.cos(a), floor, centre[2] + k * step * np.sin(a)]))
+
+        # nearest the centre first, the camera's sides counting nearer than its front and back (beside
+        # the scene, neither hiding it nor hidden by it); at one distance, its right hand side first
+        def order(p: np.ndarray) -> tuple[float, float]:
+            away = (p - centre)[[0, 2]]
+            dist = float(np.hypot(*away))
+            along = abs(float(away @ ahead)) / dist if dist > 0 else 0.0
+            return round(dist * (1.0 + 0.5 * along), 6), -float((p - centre) @ right)
+
+        spots.sort(key=order)
+        for spot in spots:
+            cand = np.stack([spot - half, spot + half + np.array([0.0, size[1], 0.0])])
+            cand[0, 1] = floor + 1e-6  # standing on the floor touches nothing else
+            if within and not (np.all(cand[0][[0, 2]] >= region[0]) and np.all(cand[1][[0, 2]] <= region[1])):
+                continue
+            # free floor: nothing stands on it or hangs over it (a table top); every object stands
+            # within the content's footprint, so a place outside it is free at once
+            lo2, hi2 = cand[0][[0, 2]], cand[1][[0, 2]]
+            inside = np.all(lo2 < box.hi[[0, 2]]) and np.all(box.lo[[0, 2]] < hi2)
+            if inside and _column_meets(lo2, hi2, footprints):
+                continue
+            if box.enclosure is not None and not (
+                np.all(cand[0] >= box.enclosure[0]) and np.all(cand[1] <= box.enclosure[1])
+            ):
+                continue
+            corners = np.array([[cand[i, 0], cand[j, 1], cand[k, 2]] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+            if all(np.all((corners - p.point) @ np.asarray(p.normal) >= 0.0) for p in walls):
+                return spot, scale
+    return None
+
+
+def placed_mesh(scene: Scene, mesh: Mesh) -> tuple[Mesh, np.ndarray]:
+    """``mesh`` moved (and, where walls leave no room, shrunk) onto free floor beside ``scene``'s
+    objects (:func:`free_floor_spot`); else to the right of everything, on the floor. Returns the
+    mesh and its box's bottom centre."""
+    lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+    bottom = np.array([(lo[0] + hi[0]) / 2.0, lo[1], (lo[2] + hi[2]) / 2.0])
+    found = free_floor_spot(scene, hi - lo)
+    if found is None:
+        box = content_box(scene)
+        spot, scale = np.array([box.hi[0] + (hi[0] - lo[0]) / 2.0 + 1.0, box.lo[1], bottom[2]]), 1.0
+    else:
+        spot, scale = found
+    vertices = (mesh.vertices - bottom) * scale + spot
+    return Mesh(vertices, mesh.triangles, mesh.material, mesh.normals), spot

@@ -21,14 +21,14 @@ from __future__ import annotations
 
 import secrets
 import threading
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum
 from renderer.envmap import EnvironmentMap, image_ref
 from renderer.limits import MAX_TRIANGLES
 from renderer.mesh_io import fit_transform
-from renderer.scenarios import mesh_scene, scenario
+from renderer.scenarios import DEFAULT_DEMO, demo_for_recipe, framed, mesh_scene, scenario
 from renderer.scene import Camera, Scene, SceneError
 
 from ..api.schemas import (
@@ -48,11 +48,13 @@ from . import controller
 from .caps import InputCaps
 from .model_worker import load_env_image, load_model
 from .scenes import (
+    CLAY,
     SceneCache,
     SessionScene,
     camera_from_model,
     load_source,
     museum_source,
+    placed_mesh,
     scenario_source,
     scene_info,
     scene_source,
@@ -60,6 +62,24 @@ from .scenes import (
 from .store import SessionState, SessionStore, StoreUnavailable
 
 LINEAR_FORMATS = ("npy", "exr")  # radiance as traced: denoised only when a request asks for it
+
+
+@dataclass(frozen=True)
+class MeshPlaced:
+    """A model added to a session: the new state, the mesh's index and first primitive id, where
+    its box's bottom centre went (world units) and the sentence that says so."""
+
+    state: SessionState
+    index: int
+    first_id: int
+    placed: tuple[float, float, float]
+    notice: str
+
+
+def _framed(scene: SessionScene, aspect: float, camera: Camera | None = None) -> SessionScene:
+    """``scene`` (animated or not: its rest pose) seen through a camera fitted for ``aspect``."""
+    rest = scene.scene if isinstance(scene, AnimatedScene) else scene
+    return scene.with_camera(framed(rest, aspect, camera).camera)
 
 
 def owner(state: SessionState) -> FrameOwner:
@@ -90,6 +110,9 @@ class SessionService:
             return self._create(body)
 
     def _create(self, body: SessionCreate) -> SessionState:
+        named = ("scenario", "n", "seed", "radius", "sky", "museum", "mesh_scene", "scene")
+        if all(getattr(body, k) is None for k in named):  # no scene named: the default demo scene
+            body = SessionCreate.model_validate({**DEFAULT_DEMO.recipe, **body.model_dump(exclude_none=True)})
         recipe_given = [k for k in ("scenario", "n", "seed", "radius", "sky") if getattr(body, k) is not None]
         sources = [
             k
@@ -113,6 +136,7 @@ class SessionService:
         if body.mesh_scene is not None:
             r = body.mesh_scene
             scene = mesh_scene(r.kind, r.detail, r.smooth, r.sky)
+            self.caps.check_spheres(scene.n_spheres, ("mesh_scene", "kind"))
             if scene.n_triangles > self.config.max_triangles:
                 raise InputError(
                     ("mesh_scene", "detail"),
@@ -150,7 +174,14 @@ class SessionService:
             scene = self.caps.checked_scene(body.scene, ("scene",))
             recipe = None
             source = scene_source(scene)
-        patch = body.settings.given() if body.settings else {}
+        demo = demo_for_recipe(
+            body.scenario,
+            bool(body.sky),
+            body.museum is not None,
+            body.mesh_scene.kind if body.mesh_scene is not None else None,
+        )
+        # the demo scene's recommended settings, under the body's own
+        patch = {**(demo.settings if demo else {}), **(body.settings.given() if body.settings else {})}
         settings = self.caps.merge_settings(self.default_settings(), patch)
         rs = render_settings(settings)
         self.caps.check_work(rs, scene.n_spheres)
@@ -164,6 +195,8 @@ class SessionService:
             if recipe
             else None
         )
+        if body.aspect is not None and recipe:  # a full scene's camera is its author's
+            scene = _framed(scene, body.aspect)
         self.frames.plan(scene, rs, n_field=n_field)
         camera = scene.camera.to_json()
         state = SessionState(
@@ -174,6 +207,7 @@ class SessionService:
             settings=settings,
             scene_info=scene_info(scene, recipe),
             scene_rev=secrets.token_hex(8),
+            aspect=body.aspect if recipe else None,  # (a full scene's camera stays its author's, on reset too)
         )
         self.store.create(state, source)
         self.cache.put((state.id, state.scene_rev), scene)
@@ -224,16 +258,20 @@ class SessionService:
         camera = scene.camera.to_json()
 
         def mutate(old: SessionState) -> SessionState:
-            return replace(old, camera=camera, home_camera=camera, scene_rev=rev, scene_info=scene_info(scene, None))
+            return replace(
+                old, camera=camera, home_camera=camera, scene_rev=rev, scene_info=scene_info(scene, None), aspect=None
+            )
 
         state = self._update(session_id, mutate, source)
         self.cache.put((state.id, rev), scene)
         return state
 
-    def add_mesh(self, session_id: str, data: bytes, query: MeshUploadQuery) -> tuple[SessionState, int, int]:
+    def add_mesh(self, session_id: str, data: bytes, query: MeshUploadQuery) -> MeshPlaced:
         """Parse a model file (in memory: nothing is written) and add it to the session's scene
-        as a new mesh, its last; the camera stays. Returns the state, the mesh's index and its
-        first triangle's primitive id. 422 naming ``body`` (the file), ``query.format``,
+        as a new mesh, its last, standing on free floor beside the scene's objects (its box
+        overlaps none of theirs), in a clay material of its own unless ``query.material`` names
+        one; the camera is framed again to show it and the scene (for the session's aspect, else
+        its settings' width / height). 422 naming ``body`` (the file), ``query.format``,
         ``query.material``, or the triangle cap (POCKETRAY_MAX_TRIANGLES, with the scene's own)."""
         state = self.get(session_id)
         old = self.scene(state)
@@ -260,25 +298,55 @@ class SessionService:
                     else ""
                 ),
             ) from None
-        if query.material >= len(rest.materials):
+        materials = rest.materials
+        if query.material is not None and query.material >= len(materials):
             raise InputError(
                 (Where.QUERY, "material"),
-                f"material index {query.material} out of range (the scene has {len(rest.materials)} materials)",
+                f"material index {query.material} out of range (the scene has {len(materials)} materials)",
             )
+        material = query.material
+        if material is None:  # the clay, added once: later models share it
+            if CLAY not in materials:
+                if len(materials) >= Scene.MAX_MATERIALS:
+                    raise InputError(
+                        (Where.QUERY, "material"),
+                        f"the scene holds {len(materials)} materials, the most allowed: name one of them (0 … "
+                        f"{len(materials) - 1}) for the model",
+                    )
+                materials = (*materials, CLAY)
+            material = materials.index(CLAY)
         try:
-            mesh = parsed.to_mesh(
-                query.material, fit_transform(parsed, query.size) if query.size else None, query.smooth
+            mesh = parsed.to_mesh(material, fit_transform(parsed, query.size) if query.size else None, query.smooth)
+            mesh, spot = placed_mesh(rest, mesh)
+            grown = Scene(
+                rest.camera,
+                rest.lights,
+                materials,
+                rest.sphere_centers,
+                rest.sphere_radii,
+                rest.sphere_materials,
+                rest.planes,
+                (*rest.meshes, mesh),
+                rest.environment,
+                rest.environment_map,
+                rest.shapes,
             )
-            grown = rest.with_geometry(
-                rest.sphere_centers, rest.sphere_radii, rest.sphere_materials, (*rest.meshes, mesh)
-            )
+            aspect = state.aspect or state.settings["width"] / state.settings["height"]
+            grown = framed(grown, aspect)
             scene: SessionScene = AnimatedScene(grown, old.motions) if isinstance(old, AnimatedScene) else grown
         except SceneError as e:
             raise InputError((Where.BODY,), f"the model does not fit the scene: {e.field}: {e.message}") from None
         # no recipe any more: a scenario with a model in it is a scene of its own
-        new = self._replace_scene(state, scene, "the model")
+        new = self._replace_scene(state, scene, "the model", camera=grown.camera.to_json())
         index = len(grown.meshes) - 1
-        return new, index, grown.triangle_id_base + grown.mesh_triangle_range(index).start
+        x, y, z = (round(float(v), 1) for v in spot)
+        return MeshPlaced(
+            new,
+            index,
+            grown.triangle_id_base + grown.mesh_triangle_range(index).start,
+            (x, y, z),
+            f"placed at x {x:g}, z {z:g} beside the scene, standing on y {y:g}; the camera shows it",
+        )
 
     def set_environment(
         self, session_id: str, data: bytes, fmt: str, scale: float, rotation_deg: float
@@ -318,17 +386,20 @@ class SessionService:
         # no recipe any more: a scenario under another environment is a scene of its own
         return self._replace_scene(state, scene, "the image")
 
-    def _replace_scene(self, state: SessionState, scene: SessionScene, read: str) -> SessionState:
+    def _replace_scene(
+        self, state: SessionState, scene: SessionScene, read: str, camera: dict[str, Any] | None = None
+    ) -> SessionState:
         """``scene`` (made from ``state``'s scene and something ``read`` meanwhile: a model file, an
         image) as the session's scene, recipe-less, unless its scene changed since ``state``
-        (Superseded: nothing is written)."""
+        (Superseded: nothing is written); ``camera``: the session's camera with it."""
         source = scene_source(scene)
         rev = secrets.token_hex(8)
 
         def mutate(current: SessionState) -> SessionState:
             if current.scene_rev != state.scene_rev:
                 raise Superseded(f"session: its scene changed while {read} was read; send it again")
-            return replace(current, scene_rev=rev, scene_info=scene_info(scene, None))
+            moved = replace(current, scene_rev=rev, scene_info=scene_info(scene, None))
+            return moved if camera is None else replace(moved, camera=camera)
 
         new = self._update(state.id, mutate, source)
         self.cache.put((new.id, rev), scene)
@@ -378,7 +449,12 @@ class SessionService:
                 return controller.pinch(cam, gesture.scale, self.config.min_target_distance)
             if isinstance(gesture, OrbitGesture):
                 return controller.orbit(cam, gesture.yaw, gesture.pitch)
-            return controller.reset(Camera.from_json(old.home_camera))
+            home = controller.reset(Camera.from_json(old.home_camera))
+            aspect = gesture.aspect or old.aspect
+            if aspect is None:
+                return home
+            scene = self.scene(old)
+            return framed(scene.scene if isinstance(scene, AnimatedScene) else scene, aspect, home).camera
         except SceneError as e:
             field = {"pan": "dx", "pinch": "scale", "orbit": "yaw", "reset": "type"}[gesture.type]
             raise InputError(

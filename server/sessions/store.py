@@ -84,6 +84,8 @@ class SessionState:
     scene_info: dict[str, Any]
     scene_rev: str
     created_at: float = field(default_factory=time.time)
+    # the canvas's width / height the session's camera is framed for (None: the recipe's own camera)
+    aspect: float | None = None
     accessed_at: float = field(default_factory=time.time)
 
     def to_json(self) -> str:

@@ -9,7 +9,7 @@
     pocketray scene --mesh MODEL [--mesh MODEL …] [--size S] [--as-is] [-o scene.json]
     pocketray scenario 1|2|3 --n N [--seed S] [--radius R] [--sky] -o scene.json
     pocketray scenario museum --n N [--kind mixed] [--absent A] [--seed S] -o scene.json
-    pocketray scenario teapot|mixed|room|cornell|table [--sky] -o scene.json
+    pocketray scenario spheres|teapot|mixed|room|cornell|table [--sky] [--aspect W/H] -o scene.json
     pocketray gpus [--probe]
     pocketray stack [--processes N] [--port P]     (Redis + render processes + HAProxy, server/tools/stack.py)
 
@@ -95,6 +95,17 @@ def _add_serve(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--gl-device", dest="cfg_gpu", default=None, help=argparse.SUPPRESS)
 
 
+def start_line(host: str, port: int) -> str:
+    """The one human line ``serve`` prints before the JSON logs: the address to open."""
+    if host in ("0.0.0.0", "::", ""):  # every interface: this machine's own address is one of them
+        return (
+            f"pocketray: open http://127.0.0.1:{port}/ here, or http://<this machine's address>:{port}/ "
+            "from a phone on the same network (API: /docs)"
+        )
+    shown = f"[{host}]" if ":" in host else host
+    return f"pocketray: open http://{shown}:{port}/ (API: /docs)"
+
+
 def serve(args: argparse.Namespace) -> int:
     import uvicorn
 
@@ -113,6 +124,7 @@ def serve(args: argparse.Namespace) -> int:
     if args.workers < 1:
         raise UsageError("--workers: at least 1")
     configure_logging(config.log_level, config.log_format)
+    print(start_line(config.host, config.port), file=sys.stderr, flush=True)
     multiproc_dir = None
     if args.workers > 1 and not os.environ.get("PROMETHEUS_MULTIPROC_DIR"):
         multiproc_dir = tempfile.mkdtemp(prefix="pocketray-metrics-")
@@ -166,9 +178,34 @@ def _add_render(sub: argparse._SubParsersAction) -> None:
             dest=f"set_{name}",
             metavar=name.upper(),
             default=None,
-            help=(field.description or name).replace("%", "%%"),
+            help=((field.description or name) + _RENDER_NOTES.get(name, "")).replace("%", "%%"),
         )
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
+
+
+def _render_notes() -> dict[str, str]:
+    """What a render flag's help adds to the API's description: the command's defaults and the
+    limit they meet."""
+    from renderer.limits import MAX_IMAGE_SIDE, SAMPLES_PER_PIXEL
+    from renderer.profiles import STILL
+
+    from ..config import ServerConfig
+
+    d = ServerConfig().default_settings()
+    w, h, spp = d["width"], d["height"], STILL["samples_per_pixel"]
+    side = max(w, h)
+    fits = [s for s in SAMPLES_PER_PIXEL if side * round(s**0.5) <= MAX_IMAGE_SIDE]
+    return {
+        "samples_per_pixel": f". Default {spp} (the 'still' profile), whitted and path alike. Whitted traces "
+        f"√spp × the size, whose longest side must stay ≤ {MAX_IMAGE_SIDE} pixels: at the default "
+        f"{w}×{h}, --spp {' or '.join(map(str, fits))} (16 needs a side ≤ {MAX_IMAGE_SIDE // 4}); path samples "
+        "are paths, not sub-pixels: no such limit",
+        "width": f". Default {w}",
+        "height": f". Default {h}",
+    }
+
+
+_RENDER_NOTES = _render_notes()
 
 
 def _add_model_flags(p: argparse.ArgumentParser) -> None:
@@ -332,21 +369,48 @@ def _read(path: str) -> str:
 
 
 # ---- scenario -----------------------------------------------------------------------------------
+def scenario_names() -> dict[str, list[Any]]:
+    """The ``scenario`` command's choices, made from the demo scenes' registry
+    (:data:`renderer.scenarios.DEMO_SCENES`): each name and the entries it writes (``2`` is
+    scenario 2 and, with ``--sky``, ``sky:2``)."""
+    from renderer.scenarios import DEMO_SCENES
+
+    names: dict[str, list[Any]] = {}
+    for d in DEMO_SCENES:
+        r = d.recipe
+        name = r["mesh_scene"]["kind"] if "mesh_scene" in r else "museum" if "museum" in r else str(r["scenario"])
+        names.setdefault(name, []).append(d)
+    return names
+
+
+def _scenario_epilog() -> str:
+    lines = ["demo scenes (the client's picker, GET /api/info's scenes):"]
+    for name, entries in scenario_names().items():
+        for d in entries:
+            r = d.recipe
+            flags = " --sky" if r.get("sky") or r.get("mesh_scene", {}).get("sky") else ""
+            flags += f" --n {r['n']}" if "scenario" in r else ""
+            flags += f" --n {r['museum']['n']}" if "museum" in r else ""
+            line = f"  {name + flags:<16} {d.label}"
+            if d.settings:
+                line += "; render it with " + " ".join(f"--{k.replace('_', '-')} {v}" for k, v in d.settings.items())
+            lines.append(line)
+    return "\n".join(lines)
+
+
 def _add_scenario(sub: argparse._SubParsersAction) -> None:
     from renderer.animation import MUSEUM_KINDS
-    from renderer.scenarios import MESH_SCENES
 
+    names = list(scenario_names())
     p = sub.add_parser(
         "scenario",
-        help="write a thesis scenario (1, 2, 3) or the museum as scene JSON",
-        description="Write the scene JSON (docs/FORMATS.md) of the thesis's scenario 1, 2 or 3, "
-        "or of the animated museum (its motions included).",
+        help="write a demo scene as scene JSON: " + ", ".join(names),
+        description="Write the scene JSON (docs/FORMATS.md) of a demo scene: the thesis's scenario 1, "
+        "2 or 3, the animated museum (its motions included) or a scene of meshes or analytic shapes.",
+        epilog=_scenario_epilog(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument(
-        "which",
-        choices=["1", "2", "3", "museum", *MESH_SCENES],
-        help="scenario number, museum, or a mesh scene (" + ", ".join(MESH_SCENES) + ")",
-    )
+    p.add_argument("which", choices=names, help="the demo scene: " + ", ".join(names))
     p.add_argument("--n", type=int, default=None, help="spheres (museum: the moving ones); not for mesh scenes")
     p.add_argument("--seed", type=int, default=0, help="placement seed (default 0)")
     p.add_argument("--radius", type=float, default=1.0, help="sphere radius of scenarios 1–3 (default 1)")
@@ -358,6 +422,13 @@ def _add_scenario(sub: argparse._SubParsersAction) -> None:
         "--sky",
         action="store_true",
         help="under the procedural daylight sky (environment 'sky'): light for integrator=path; not the museum",
+    )
+    p.add_argument(
+        "--aspect",
+        type=float,
+        default=None,
+        help="the camera framed for an image of this width / height (0.5625 for 360 × 640); "
+        "default: the scene's own camera",
     )
     p.add_argument("-o", "--output", default="-", help="output file (default: standard output)")
 
@@ -397,6 +468,15 @@ def write_scenario(args: argparse.Namespace) -> int:
     from ..sessions.scenes import scene_json_chunks
 
     scene = scenario_scene(args.which, args.n, args.seed, args.radius, args.kind, args.absent, args.sky)
+    if args.aspect is not None:
+        from renderer.limits import ASPECT_RANGE
+        from renderer.scenarios import framed
+
+        lo, hi = ASPECT_RANGE
+        if not lo <= args.aspect <= hi:
+            raise UsageError(f"aspect: width / height in {lo:g} … {hi:g}, got {args.aspect:g}")
+        rest = getattr(scene, "scene", scene)  # an animated scene is framed at rest
+        scene = scene.with_camera(framed(rest, args.aspect).camera)
     if args.output == "-":
         for chunk in scene_json_chunks(scene):
             sys.stdout.buffer.write(chunk)

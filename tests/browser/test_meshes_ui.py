@@ -101,7 +101,8 @@ def test_an_uploaded_obj_joins_the_scene_and_changes_the_frame(open_client, serv
     assert p.text_content('#overlay [data-field="triangles"]') == str(n_tri)
     assert f"{n_tri} triangles" in p.get_attribute("#view", "aria-label")
     assert invalid(p, "model") is None
-    assert server.session(sid)["camera"] == before["camera"]  # the camera stays
+    # the service framed the camera again to show the model beside the scene
+    assert server.session(sid)["camera"] != before["camera"]
     assert c.hook("errors") == [] and c.errors() == []
 
 

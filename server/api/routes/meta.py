@@ -21,6 +21,7 @@ from renderer.limits import (
 from renderer.methods import AUTO_METHOD, METHODS, resolve_method
 from renderer.modes import HEAT_SCALE, RECURSION_COLOR_NAMES, RECURSION_COLORS
 from renderer.profiles import PROFILES
+from renderer.scenarios import DEMO_SCENES
 from renderer.settings import FORMATS, METHOD_NAMES, MODES, SETTINGS
 from renderer.tree_update import UPDATE_SCHEMES
 
@@ -66,6 +67,7 @@ def info_extras(config: ServerConfig) -> dict[str, Any]:
         "museum_room_spheres": MUSEUM_ROOM_SPHERES,
         "method_settings": {name: method_settings(name) for name in METHOD_NAMES},
         "settings": [s.metadata() for s in SETTINGS],
+        "scenes": [d.to_json() for d in DEMO_SCENES],
     }
 
 

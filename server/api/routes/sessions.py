@@ -157,8 +157,17 @@ async def add_mesh(
     session_id: SessionId, request: Request, query: Annotated[MeshUploadQuery, Query()], service: ServiceDep
 ) -> MeshAdded:
     data = await request.body()
-    state, index, first_id = await run_in_threadpool(service.add_mesh, session_id, data, query)
-    return MeshAdded(version=state.version, scene_info=SceneInfo(**state.scene_info), mesh=index, first_id=first_id)
+    added = await run_in_threadpool(service.add_mesh, session_id, data, query)
+    state = added.state
+    return MeshAdded(
+        version=state.version,
+        scene_info=SceneInfo(**state.scene_info),
+        mesh=added.index,
+        first_id=added.first_id,
+        placed=added.placed,
+        camera=CameraModel(**state.camera),
+        notice=added.notice,
+    )
 
 
 @router.put(
@@ -211,7 +220,7 @@ async def convert_mesh(request: Request, query: Annotated[MeshUploadQuery, Query
                 service.config, data, query.format, max_triangles=service.config.max_triangles, busy=Busy
             )
             mesh = parsed.to_json(
-                query.material, fit_transform(parsed, query.size) if query.size else None, query.smooth
+                query.material or 0, fit_transform(parsed, query.size) if query.size else None, query.smooth
             )
         except SceneError as e:
             raise InputError(("query", "format") if e.field == "format" else ("body",), e.message) from None

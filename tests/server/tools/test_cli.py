@@ -254,3 +254,53 @@ def test_render_traces_paths_to_exr(tmp_path):
     assert engine.returncode == 2 and "integrator" in engine.stderr and "bih" in engine.stderr
     assert whitted.returncode == 2 and "samples_per_pixel" in whitted.stderr
     assert not (tmp_path / "no.exr").exists()
+
+
+def test_scenario_help_lists_every_demo_scene_and_writes_each(tmp_path):
+    from renderer.scenarios import DEMO_SCENES
+
+    text = pocketray("scenario", "--help", cwd=tmp_path).stdout
+    for name in ("spheres", "teapot", "mixed", "room", "cornell", "table", "museum"):
+        assert name in text, name
+    for d in DEMO_SCENES:
+        assert d.label in text, d.label
+    assert "--integrator path --denoise oidn" in text  # the Cornell box's and the table's recommendation
+    spheres = pocketray_batch([("scenario", "spheres", "-o", str(tmp_path / "s.json"))], cwd=tmp_path)[0]
+    assert spheres.returncode == 0, spheres.stderr
+    assert json.loads((tmp_path / "s.json").read_text())["environment"]["image"] == "sky"
+
+
+def test_render_help_states_the_spp_default_and_the_side_limit(tmp_path):
+    text = " ".join(pocketray("render", "--help", cwd=tmp_path).stdout.split())
+    assert "Default 4" in text and "≤ 4096 pixels" in text and "16 needs a side ≤ 1024" in text
+
+
+def test_the_start_line_names_the_address_to_open():
+    assert cli.start_line("127.0.0.1", 8000) == "pocketray: open http://127.0.0.1:8000/ (API: /docs)"
+    assert "http://127.0.0.1:8123/" in cli.start_line("0.0.0.0", 8123)
+    assert "this machine's address" in cli.start_line("0.0.0.0", 8123)
+    assert cli.start_line("::1", 9) == "pocketray: open http://[::1]:9/ (API: /docs)"
+
+
+def test_serve_prints_the_address_before_its_json_logs(tmp_path):
+    port = free_port()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("POCKETRAY_")}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "server", "serve", "--port", str(port), "--sqlite-path", str(tmp_path / "s.sqlite3")],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stderr is not None
+        first = proc.stderr.readline().strip()
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    assert first == f"pocketray: open http://127.0.0.1:{port}/ (API: /docs)"

@@ -43,7 +43,9 @@ def test_device_data_for_path_carries_the_servers_variant_and_light(api):
     """integrator=path (here the query's, over the session's whitted): the shader variant the server's
     frame compiles, a path's depth past Whitted's bound, the path
     integrator's uniforms and the display's tone map and exposure."""
-    sid = api.post("/api/sessions", json={"mesh_scene": {"kind": "cornell", "detail": 1}}).json()["id"]
+    # (the body's settings over the Cornell box's recommended path + oidn)
+    body = {"mesh_scene": {"kind": "cornell", "detail": 1}, "settings": {"integrator": "whitted", "denoise": "off"}}
+    sid = api.post("/api/sessions", json=body).json()["id"]
     q = {"integrator": "path", "max_recursion_depth": 12, "samples_per_pixel": 5, "tone_map": "aces", "exposure": -1}
     r = api.get(f"/api/sessions/{sid}/device-data", params=q)
     assert r.status_code == 200, r.text

@@ -85,3 +85,20 @@ def test_info_gives_a_client_the_path_counts_and_how_the_service_counts_a_path_f
         mine = min(2 * d - 1, p["segments_limit"] - (p["segments_limit"] - 1) * p["segments_rate"] ** (d - 1))
         assert mine == pytest.approx(path_segments(d), rel=1e-12)
         assert 126 * 272 * 64 * mine == pytest.approx(request_work(126, 272, d, 64, path=True), rel=1e-12)
+
+
+def test_info_lists_the_demo_scenes_in_picker_order_with_their_settings(client):
+    from renderer.scenarios import DEMO_SCENES
+
+    scenes = client.get("/api/info").json()["scenes"]
+    assert [s["value"] for s in scenes] == [d.value for d in DEMO_SCENES]
+    by = {s["value"]: s for s in scenes}
+    assert by["mesh:cornell"]["settings"] == {"integrator": "path", "denoise": "oidn"}
+    assert by["mesh:table"]["settings"]["integrator"] == "path" and by["sky:2"]["settings"]["integrator"] == "path"
+    assert by[1]["settings"] == {} and by[1]["recipe"]["scenario"] == 1
+    assert [s["value"] for s in scenes if s.get("default")] == ["mesh:spheres"]
+    # each recipe is a body POST /api/sessions takes
+    for s in scenes:
+        r = client.post("/api/sessions", json={**s["recipe"], "settings": {"width": 48, "height": 64}, "aspect": 0.5})
+        assert r.status_code == 201, (s["value"], r.text)
+        assert all(r.json()["settings"][k] == v for k, v in s["settings"].items())

@@ -201,7 +201,7 @@ CREATE_CASES = [
     ({"json": {"scenario": 3, "n": 5000}}, "n"),  # over POCKETRAY_MAX_SPHERES of the test app
     ({"json": {"scenario": 3, "n": 1 << 22}}, "n"),  # over the absolute limit
     ({"json": {"scenario": 3, "n": -1}}, "n"),
-    ({"json": {}}, "scenario"),
+    ({"json": {"seed": 1}}, "scenario"),  # (an empty body is the default demo scene)
     ({"json": {"scenario": 1, "n": 2, "scene": scene_with()}}, "scenario"),
     ({"json": {"scene": scene_with(target=[0, 0, 100])}}, "camera.target"),
     ({"json": {"scene": scene_with(up=[0, 0, 0])}}, "camera.up"),
@@ -398,7 +398,8 @@ def test_a_model_file_is_added_to_the_session_scene(api, fmt):
     added = np.array(scene["meshes"][2]["vertices"])
     assert (added.max(0) - added.min(0)).max() == pytest.approx(10.0) and added[:, 1].min() == pytest.approx(-20.0)
     assert scene["meshes"][2]["material"] == 1 and ("normals" in scene["meshes"][2]) == (fmt != "stl")
-    assert api.get(f"/api/sessions/{sid}").json()["camera"] == camera
+    # the camera is framed again to show the model: the answer says so
+    assert api.get(f"/api/sessions/{sid}").json()["camera"] == out["camera"] != camera
 
 
 def test_bad_uploads_are_refused_and_change_nothing(api):
@@ -627,3 +628,141 @@ def test_sessions_stored_before_animation_still_work(museum_ready_client):
     assert c.get(f"/api/sessions/{sid}/stats").status_code == 200
     assert c.get(f"/api/sessions/{sid}/device-data").status_code == 200
     assert c.get(f"/api/sessions/{sid}/frame", params={"format": "npy"}).status_code == 200
+
+
+# ---- demo scenes: defaults, framing for the client's aspect, models that land in view ------------
+PORTRAIT = 390 / 844
+
+
+def object_boxes_of(scene_json: dict) -> list[np.ndarray]:
+    """Each sphere's and mesh's box, read from scene JSON (what GET …/scene answers)."""
+    boxes = [
+        np.array([np.subtract(s["center"], s["radius"]), np.add(s["center"], s["radius"])])
+        for s in scene_json["spheres"]
+    ]
+    for m in scene_json.get("meshes", []):
+        v = np.array(m["vertices"], dtype=float)
+        boxes.append(np.array([v.min(axis=0), v.max(axis=0)]))
+    return boxes
+
+
+def boxes_overlap(a: np.ndarray, b: np.ndarray) -> bool:
+    return bool(np.all(a[0] < b[1]) and np.all(b[0] < a[1]))
+
+
+def test_an_empty_body_makes_the_default_demo_scene(client):
+    from renderer.scenarios import DEFAULT_DEMO
+
+    r = client.post("/api/sessions", json={"settings": SMALL})
+    assert r.status_code == 201, r.text
+    info = r.json()["scene_info"]
+    assert {"mesh_scene": info["mesh_scene"]["kind"]} == {"mesh_scene": DEFAULT_DEMO.recipe["mesh_scene"]["kind"]}
+    assert info["n_spheres"] == 512 and r.json()["settings"]["width"] == SMALL["width"]
+    scene = client.get(f"/api/sessions/{r.json()['id']}/scene").json()
+    assert scene["environment"]["image"] == "sky"
+
+
+def test_a_demo_scene_opens_with_its_recommended_settings_and_the_body_wins(client):
+    r = client.post("/api/sessions", json={"mesh_scene": {"kind": "cornell", "detail": 0}, "settings": SMALL})
+    assert r.status_code == 201, r.text
+    assert r.json()["settings"]["integrator"] == "path" and r.json()["settings"]["denoise"] == "oidn"
+    mine = {**SMALL, "integrator": "whitted"}
+    r = client.post("/api/sessions", json={"mesh_scene": {"kind": "cornell", "detail": 0}, "settings": mine})
+    assert r.status_code == 201 and r.json()["settings"]["integrator"] == "whitted", r.text
+    assert r.json()["settings"]["denoise"] == "oidn"  # the ones the body does not name still apply
+    # a scene with no recommendation keeps the service's defaults
+    plain = new_session(client)
+    assert plain["settings"]["integrator"] == "whitted" and plain["settings"]["denoise"] == "off"
+
+
+def test_a_session_made_for_an_aspect_is_framed_for_it_and_a_reset_frames_again(client):
+    from renderer.scenarios import framed, mesh_scene
+
+    body = {"mesh_scene": {"kind": "table"}, "settings": SMALL, "aspect": PORTRAIT}
+    r = client.post("/api/sessions", json=body)
+    assert r.status_code == 201, r.text
+    want = framed(mesh_scene("table"), PORTRAIT).camera.to_json()
+    assert r.json()["camera"] == want
+    assert r.json()["camera"] != mesh_scene("table").camera.to_json()  # the recipe's own is for landscape
+    sid = r.json()["id"]
+    client.post(f"/api/sessions/{sid}/gesture", json={"type": "orbit", "yaw": 40})
+    back = client.post(f"/api/sessions/{sid}/gesture", json={"type": "reset"})
+    assert back.status_code == 200, back.text
+    assert client.get(f"/api/sessions/{sid}").json()["camera"] == want
+    wide = client.post(f"/api/sessions/{sid}/gesture", json={"type": "reset", "aspect": 16 / 9})
+    assert wide.status_code == 200, wide.text
+    assert client.get(f"/api/sessions/{sid}").json()["camera"] == framed(mesh_scene("table"), 16 / 9).camera.to_json()
+    # without an aspect a recipe keeps its own camera (the benchmarks' and the thesis's)
+    assert new_session(client)["camera"] == scenario(3, 64, 1).camera.to_json()
+    # a full scene's camera is its author's, on reset too
+    full = client.post("/api/sessions", json={"scene": small_scene_json(), "settings": SMALL, "aspect": PORTRAIT})
+    assert full.status_code == 201 and full.json()["camera"] == small_scene_json()["camera"], full.text
+    fid = full.json()["id"]
+    client.post(f"/api/sessions/{fid}/gesture", json={"type": "reset"})
+    assert client.get(f"/api/sessions/{fid}").json()["camera"] == small_scene_json()["camera"]
+
+
+@pytest.mark.parametrize("aspect", [0.1, 6.0, "wide"])
+def test_an_aspect_out_of_range_is_refused_naming_the_range(client, aspect):
+    r = client.post("/api/sessions", json={"mesh_scene": {"kind": "table"}, "settings": SMALL, "aspect": aspect})
+    assert r.status_code == 422, r.text
+    assert any("aspect" in [str(x) for x in d["loc"]] for d in r.json()["detail"]), r.text
+    if not isinstance(aspect, str):
+        assert any("0.2" in d["msg"] or "5" in d["msg"] for d in r.json()["detail"]), r.text
+
+
+def test_uploaded_models_stand_on_free_floor_in_their_own_material_and_in_view(api):
+    r = api.post(
+        "/api/sessions", json={"mesh_scene": {"kind": "teapot", "detail": 0}, "settings": SMALL, "aspect": PORTRAIT}
+    )
+    assert r.status_code == 201, r.text
+    sid = r.json()["id"]
+    before = api.get(f"/api/sessions/{sid}/scene").json()
+    model = export_mesh(box((0, 0, 0), (2, 3, 1)), "obj")
+    answers = [upload(api, sid, model, format="obj", size=12) for _ in range(2)]
+    for a in answers:
+        assert a.status_code == 201, a.text
+        assert a.json()["notice"].startswith("placed at x ") and "beside the scene" in a.json()["notice"]
+    scene = api.get(f"/api/sessions/{sid}/scene").json()
+    boxes = object_boxes_of(scene)
+    assert len(boxes) == len(object_boxes_of(before)) + 2
+    for new in (-2, -1):  # each model's box overlaps no other object's box, the other model's included
+        others = [b for i, b in enumerate(boxes) if i != len(boxes) + new]
+        assert not any(boxes_overlap(boxes[new], b) for b in others), (boxes[new], others)
+        assert boxes[new][0][1] == pytest.approx(-20.0)  # standing on the floor
+        placed = answers[new].json()["placed"]
+        assert placed[0] == pytest.approx((boxes[new][0][0] + boxes[new][1][0]) / 2, abs=0.06)
+    # a material of their own, neutral, not one of the scene's
+    materials = scene["materials"]
+    assert len(materials) == len(before["materials"]) + 1
+    assert [m["material"] for m in scene["meshes"][-2:]] == [len(materials) - 1] * 2
+    clay = np.array(materials[-1]["color"])
+    assert clay.max() - clay.min() < 0.1 and materials[-1] not in before["materials"]
+    # the camera shows the models and the teapot (every object box inside the portrait frame)
+    cam = answers[-1].json()["camera"]
+    assert cam == api.get(f"/api/sessions/{sid}").json()["camera"]
+    p, t = np.array(cam["position"]), np.array(cam["target"])
+    f = (t - p) / np.linalg.norm(t - p)
+    right = np.cross(f, cam["up"])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, f)
+    half = np.tan(np.radians(cam["fov_y"]) / 2)
+    for b in boxes:
+        for corner in np.array(np.meshgrid(*b.T)).T.reshape(-1, 3):
+            q = corner - p
+            assert abs(q @ right / (q @ f)) <= half * PORTRAIT and abs(q @ up / (q @ f)) <= half
+    # a material the query names is still used as named
+    named = upload(api, sid, model, format="obj", size=4, material=0)
+    assert named.status_code == 201 and api.get(f"/api/sessions/{sid}/scene").json()["meshes"][-1]["material"] == 0
+
+
+def test_a_model_in_the_cornell_box_lands_inside_its_walls(api):
+    r = api.post("/api/sessions", json={"mesh_scene": {"kind": "cornell", "detail": 0}, "settings": SMALL})
+    sid = r.json()["id"]
+    added = upload(api, sid, export_mesh(box((0, 0, 0), (1, 1, 1)), "obj"), format="obj", size=30)
+    assert added.status_code == 201, added.text
+    scene = api.get(f"/api/sessions/{sid}/scene").json()
+    boxes = object_boxes_of(scene)
+    new = boxes[-1]
+    assert np.all(new[0] >= -20.0) and np.all(new[1] <= 20.0), new  # inside the box's walls, not behind one
+    assert not any(boxes_overlap(new, b) for b in boxes[:-1])
