@@ -97,7 +97,13 @@ export class Transport {
     return frame;
   }
 
-  async frame(level, onPreview = null) {
+  // Whether a frame in flight may be abandoned for a gesture: the service's may (the gesture's
+  // request supersedes it there, latest wins); the device's tracer cancels its own bands.
+  abortable() {
+    return !this.deviceMode;
+  }
+
+  async frame(level, onPreview = null, signal = null) {
     const { state, api, device } = this;
     if (this.deviceMode) {
       if (state.anim.animated) sceneTime(state.anim, performance.now());   // the device's data is posed at state.anim.time
@@ -113,7 +119,7 @@ export class Transport {
     const t0 = performance.now();
     const preview = onPreview && level === 'full' ? (f) => onPreview({ ...f, t0, meta }) : null;
     const scale = this.previewScale;
-    return this.timed(() => api.frame(state.sessionId, frameParams(state, level, undefined, scale), preview), meta)
+    return this.timed(() => api.frame(state.sessionId, frameParams(state, level, undefined, scale), preview, signal), meta)
       .then((frame) => this.scaled(frame, level, scale));
   }
 
