@@ -37,8 +37,60 @@ export const SCENARIOS = Object.freeze([
   // Analytic shapes, no triangle (the same recipe: POST /api/sessions {mesh_scene: {kind: 'table'}}).
   { value: 'mesh:table', label: 'Table and lamp — cylinders, cones, disks, a torus' },
 ]);
-// A mesh scene's kind ('mesh:teapot' → 'teapot'), or null for the sphere scenes.
-export const meshKind = (scenario) => (/^mesh:(teapot|mixed|room|cornell|table)$/.exec(String(scenario ?? '')) || [])[1] || null;
+// A mesh scene's kind ('mesh:teapot' → 'teapot'), or null for the sphere scenes: any kind the
+// service's registry names (GET /api/info's scenes), not only those of the list above.
+export const meshKind = (scenario) => (/^mesh:([a-z][a-z0-9_]*)$/.exec(String(scenario ?? '')) || [])[1] || null;
+
+// The picker's scenes, in its order: GET /api/info's `scenes` (renderer/scenarios.py's registry:
+// {value, label, settings}, `settings` the scene's recommended render settings) once it answered,
+// SCENARIOS (no recommended settings) from a service that does not list them.
+export const pickerScenes = SCENARIOS.map((x) => ({ ...x, settings: {} }));
+
+// A scene value as the client keeps it: the thesis scenarios as numbers, the rest as text.
+export const sceneValue = (v) => (/^\d+$/.test(String(v)) ? Number(v) : String(v));
+
+// Take the service's list (info.scenes); a list that is not one, or empty, keeps the one before.
+export function learnScenes(list) {
+  if (!Array.isArray(list)) return false;
+  const entries = list.filter((x) => x && (typeof x.value === 'string' || typeof x.value === 'number'))
+    .map((x) => ({
+      value: sceneValue(x.value), label: typeof x.label === 'string' && x.label ? x.label : String(x.value),
+      settings: x.settings && typeof x.settings === 'object' ? { ...x.settings } : {},
+    }));
+  if (!entries.length) return false;
+  pickerScenes.splice(0, pickerScenes.length, ...entries);
+  return true;
+}
+
+export const sceneEntry = (value, scenes = pickerScenes) => scenes.find((x) => String(x.value) === String(value)) || null;
+
+// The render settings a session of the scene `to` is made with when the picker changes the scene from
+// `from` (entries of pickerScenes, or null): the session's own, with `to`'s recommended settings over
+// them; what `from` recommended and `to` does not goes back to its declared default (the Cornell box's
+// path integrator does not follow into a thesis scene); the link's own settings (`named`) win over
+// both. With the path integrator at rest the denoiser is on (Intel Open Image Denoise), unless the
+// scene, the link or the session chose another.
+export function sceneSettings(render, from, to, named = {}, specs = renderSettings) {
+  const out = { ...render };
+  const rec = (to && to.settings) || {};
+  for (const k of Object.keys((from && from.settings) || {})) {
+    if (k in rec) continue;
+    const spec = specs.find((x) => x.name === k);
+    if (spec && spec.default !== undefined) out[k] = spec.default;
+  }
+  Object.assign(out, rec, named);
+  return withRestDenoiser(out, { ...rec, ...named }, specs);
+}
+
+// `settings` with the denoiser on for the path integrator, unless `chosen` names `denoise` or the
+// service offers no Open Image Denoise; the denoiser is for the resting image (previews stay fast,
+// they are small).
+export function withRestDenoiser(settings, chosen = {}, specs = renderSettings) {
+  const spec = specs.find((x) => x.name === 'denoise');
+  if (!spec || !Array.isArray(spec.choices) || !spec.choices.includes('oidn') || 'denoise' in chosen) return settings;
+  if (settings.integrator !== 'path' || (settings.denoise !== undefined && settings.denoise !== 'off')) return settings;
+  return { ...settings, denoise: 'oidn' };
+}
 // A sky scenario's number ('sky:2' → 2), or null for every other scene.
 export const skyScenario = (scenario) => Number((/^sky:([123])$/.exec(String(scenario ?? '')) || [])[1]) || null;
 // Model files the settings sheet uploads (POST /api/sessions/{id}/meshes?format=…), by suffix.
@@ -186,9 +238,10 @@ export function readUrlParams(search, specs = renderSettings) {
   const int = (k) => (/^[+-]?\d+$/.test(q.get(k)) ? parseInt(q.get(k), 10) : NaN);
   const f = (k) => (q.get(k) !== '' ? Number(q.get(k)) : NaN);
   if (q.has('scenario')) {
-    const v = q.get('scenario'), known = SCENARIOS.find((x) => String(x.value) === v);
+    const v = q.get('scenario'), known = sceneEntry(v);
     if (known) scene.scenario = known.value;
-    else skip('scenario', `one of ${SCENARIOS.map((x) => x.value).join(', ')}`);
+    else if (meshKind(v) && specs === renderSettings && !specs.length) scene.scenario = v;   // the service's list is on its way
+    else skip('scenario', `one of ${pickerScenes.map((x) => x.value).join(', ')}`);
   }
   for (const k of ['n', 'seed']) {
     if (!q.has(k)) continue;

@@ -115,11 +115,18 @@ export class Transport {
       }
     }
     const meta = requestMeta(state, level);
+    const scale = this.previewScale, params = frameParams(state, level, undefined, scale);
+    // A path-traced view at rest starts from one sample per pixel, kept in the session's
+    // accumulation: the refinement stream goes on from it, so the full-size image comes in the time
+    // of one sample, not of the session's samples_per_pixel.
+    if (level === 'full' && this.accumulates()) {
+      Object.assign(params, { samples_per_pixel: 1, accumulate: 1 });
+      meta.samples = 1;
+    }
     // Full frames come progressively: the pixel centres first, then the supersampled image.
     const t0 = performance.now();
     const preview = onPreview && level === 'full' ? (f) => onPreview({ ...f, t0, meta }) : null;
-    const scale = this.previewScale;
-    return this.timed(() => api.frame(state.sessionId, frameParams(state, level, undefined, scale), preview, signal), meta)
+    return this.timed(() => api.frame(state.sessionId, params, preview, signal), meta)
       .then((frame) => this.scaled(frame, level, scale));
   }
 
@@ -129,6 +136,13 @@ export class Transport {
   refinement() {
     const r = this.state.render;
     return !this.deviceMode && (r.mode ?? 'color') === 'color';
+  }
+
+  // Whether the full frame is the first sample of an accumulation the refinement stream goes on
+  // with: the service's path-traced colour.
+  accumulates() {
+    const r = this.state.render;
+    return this.refinement() && r.integrator === 'path';
   }
 
   // The refinement stream of the view on screen, at the full level: onPart(frame) for each of its
