@@ -19,7 +19,7 @@ export const METHOD_LABELS = Object.freeze({
 });
 export const MODES = Object.freeze(['color', 'depth', 'primid', 'normal', 'recursion', 'heat']);
 export const MODE_LABELS = Object.freeze({
-  color: 'Colour (Whitted)', depth: 'Depth', primid: 'Primitive id', normal: 'Normal',
+  color: 'Colour', depth: 'Depth', primid: 'Primitive id', normal: 'Normal',
   recursion: 'Recursion depth (Fig. 4.2f)', heat: 'Traversal heat (Fig. 4.3)', cones: 'Tile cones (hre only)',
 });
 export const SCENARIOS = Object.freeze([

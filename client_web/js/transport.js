@@ -37,7 +37,9 @@ export function requestMeta(state, level) {
   const r = state.render, fast = level === 'full' ? null : state.profiles && state.profiles.interactive;
   return {
     sessionId: state.sessionId, n: state.scene.n_spheres ?? state.scene.n, mode: r.mode, method: r.method,
-    samples: (fast && fast.samples_per_pixel) ?? r.samples_per_pixel ?? 1, minWeight: (fast && fast.min_weight) ?? r.min_weight,
+    samples: (fast && fast.samples_per_pixel) ?? r.samples_per_pixel ?? 1, integrator: r.integrator ?? 'whitted',
+    // the ray cut-off ε is Whitted's: a path's length is its depth and Russian roulette
+    minWeight: r.integrator === 'path' ? null : (fast && fast.min_weight) ?? r.min_weight,
     scenario: state.scene.scenario, motion: state.scene.motion, triangles: state.scene.n_triangles || 0,
     meshes: state.scene.n_meshes || 0, shapes: state.scene.n_shapes || 0,
   };

@@ -118,7 +118,8 @@ export class SettingsPanel {
     wrap.dataset.declared = '';
     const label = document.createElement('label');
     label.htmlFor = id;
-    label.textContent = spec.unit ? `${spec.label} (${spec.unit})` : spec.label;
+    // the unit once: a label may say it already ("Refine to (samples)")
+    label.textContent = spec.unit && !spec.label.includes(`(${spec.unit})`) ? `${spec.label} (${spec.unit})` : spec.label;
     if (spec.doc) label.title = spec.doc;
     let input;
     if (spec.choices || spec.type === 'boolean') {
@@ -214,7 +215,11 @@ export class SettingsPanel {
     const allowed = samplesAllowed(ctx, [...this.el('samples_per_pixel').options].map((o) => Number(o.value)));
     for (const o of this.el('samples_per_pixel').options) o.disabled = !allowed.includes(Number(o.value));
     const modes = modesOf(ctx);
-    for (const o of this.el('mode').options) o.disabled = !!modes && !modes.includes(o.value);
+    for (const o of this.el('mode').options) {
+      o.disabled = !!modes && !modes.includes(o.value);
+      // colour is the integrator's: its name with it (the other modes are the first hit's)
+      if (o.value === 'color') o.textContent = `${MODE_LABELS.color} (${ctx.render.integrator === 'path' ? 'path traced' : 'Whitted'})`;
+    }
   }
 
   // The samples select offers the integrator's counts — Whitted's sub-pixel grids, the path

@@ -20,7 +20,7 @@ test('full frames at the session size and full format; previews scaled, with the
 test('previews at the service\'s interactive profile, the depth no deeper than the session\'s', () => {
   const s = state({ profiles: { interactive: { max_recursion_depth: 10, samples_per_pixel: 1, min_weight: 0.1 } } });
   same(frameParams(s, 'preview'), { width: 160, height: 272, format: 'jpeg', quality: 70, max_recursion_depth: 8, samples_per_pixel: 1, min_weight: 0.1 });
-  same(requestMeta(s, 'preview'), { sessionId: 's1', n: 128, mode: 'heat', method: 'bih', samples: 1, minWeight: 0.1, scenario: 2,
+  same(requestMeta(s, 'preview'), { sessionId: 's1', n: 128, mode: 'heat', method: 'bih', samples: 1, integrator: 'whitted', minWeight: 0.1, scenario: 2,
     motion: undefined, triangles: 0, meshes: 0, shapes: 0 });
   same([requestMeta(s, 'full').samples, requestMeta(s, 'full').minWeight], [4, 0.03]);
 });
