@@ -27,15 +27,15 @@ export const SCENARIOS = Object.freeze([
   { value: 2, label: '2 — eight corner clusters' },
   { value: 3, label: '3 — half grid, half clusters' },
   // A thesis scenario under the procedural daylight sky (POST /api/sessions {scenario, sky: true}).
-  { value: 'sky:2', label: '2 under the sky — for the path integrator' },
+  { value: 'sky:2', label: '2 under the sky (path)' },
   { value: 'museum', label: 'Museum — animated (Reiter)' },
   // Scenes of triangle meshes (POST /api/sessions {mesh_scene: {kind}}, renderer/scenarios.py).
   { value: 'mesh:teapot', label: 'Teapot — triangles (Newell)' },
   { value: 'mesh:mixed', label: 'Icosphere, torus and spheres' },
-  { value: 'mesh:room', label: 'Mesh room — teapot, icosphere, spheres' },
-  { value: 'mesh:cornell', label: 'Cornell box — for the path integrator' },
+  { value: 'mesh:room', label: 'Mesh room' },
+  { value: 'mesh:cornell', label: 'Cornell box (path)' },
   // Analytic shapes, no triangle (the same recipe: POST /api/sessions {mesh_scene: {kind: 'table'}}).
-  { value: 'mesh:table', label: 'Table and lamp — cylinders, cones, disks, a torus' },
+  { value: 'mesh:table', label: 'Table and lamp (shapes)' },
 ]);
 // A mesh scene's kind ('mesh:teapot' → 'teapot'), or null for the sphere scenes: any kind the
 // service's registry names (GET /api/info's scenes), not only those of the list above.
@@ -125,7 +125,7 @@ export const SAMPLES = Object.freeze([
   { value: 16, label: '16 — finest' },
 ]);
 export const PREVIEW_SCALES = Object.freeze([
-  { value: 'auto', label: 'Auto (≥ 15 frames/s)' },   // client.previewAuto: preview_size.js
+  { value: 'auto', label: 'Auto (≥ 15 fps)' },   // client.previewAuto: preview_size.js
   { value: 1, label: 'Full (no preview)' },
   { value: 0.5, label: '½' },
   { value: 1 / 3, label: '⅓' },
