@@ -44,3 +44,30 @@ test('previews at the sizer\'s scale with auto (server mode), else at the chosen
   const device = new Transport({ state: state({ client: { ...state().client, previewAuto: true, renderer: 'device' } }), sizer });
   same([device.quickFirst(), device.refineNeeded()], [false, false]);
 });
+
+// A fake api that records each frame's query and signal.
+const recording = () => {
+  const asked = [];
+  return { asked, frame: (id, params, onPreview, signal) => { asked.push({ params, signal }); return Promise.resolve({ blob: {}, version: 1 }); } };
+};
+const activity = { classList: { add: () => {}, remove: () => {} } };
+
+test('a path-traced view at rest: its full frame is one accumulated sample; no ε in what it says', async () => {
+  const api = recording();
+  const path = state({ render: { ...state().render, mode: 'color', integrator: 'path', samples_per_pixel: 64 } });
+  const t = new Transport({ state: path, api, activity });
+  const frame = await t.frame('full');
+  same([api.asked[0].params, frame.meta.samples, frame.meta.minWeight],
+    [{ width: 320, height: 544, format: 'png', samples_per_pixel: 1, accumulate: 1 }, 1, null]);
+  const whitted = new Transport({ state: state({ render: { ...state().render, mode: 'color' } }), api, activity });
+  await whitted.frame('full');
+  same(api.asked[1].params, { width: 320, height: 544, format: 'png' });
+});
+
+test('the service\'s frames can be abandoned (their signal reaches the request); the device\'s cannot', async () => {
+  const api = recording(), ctl = new AbortController();
+  const t = new Transport({ state: state(), api, activity });
+  await t.frame('full', null, ctl.signal);
+  same([api.asked[0].signal === ctl.signal, t.abortable()], [true, true]);
+  same(new Transport({ state: state({ client: { ...state().client, renderer: 'device' } }), api, activity }).abortable(), false);
+});
