@@ -74,6 +74,7 @@ export class Session {
     // refuses to render it (422, e.g. too heavy), the client goes back to the previous session.
     this.pendingScene = null;
     this.replacing = false;
+    this.ready = Promise.resolve();   // GET /api/info taken in (start() says when)
   }
 
   adopt(s) {
@@ -127,7 +128,10 @@ export class Session {
   // in a notice.
   async create(scene, settings = {}) {
     const body = sceneBody(scene), aspect = this.aspect();
-    if (aspect && !this.noAspect) body.aspect = aspect;
+    // A service that lists its demo scenes (GET /api/info's scenes) frames them for an aspect too
+    // (the same contract); one that does not would refuse the field.
+    await this.ready.catch(() => {});
+    if (aspect && !this.noAspect && Array.isArray(this.hook.info?.scenes)) body.aspect = aspect;
     let want = settings;
     for (let fits = 0; ; ) {
       try {
@@ -164,6 +168,7 @@ export class Session {
   // service's declarations, follow as one PATCH. A setting the service refuses there is said (the
   // session keeps its own).
   async start(ready = Promise.resolve()) {
+    this.ready = ready;
     const opened = this.open();
     opened.catch(() => {});   // awaited below, after `ready`
     await ready;

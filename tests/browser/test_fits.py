@@ -22,7 +22,8 @@ CUT_OFF = """(root) => {
       if (!opt) continue;
       ctx.font = `${cs.fontWeight} ${cs.fontSize} ${cs.fontFamily}`;
       // the text's room: the box less its padding and the drop-down arrow (about 1.5 em)
-      const room = el.clientWidth - parseFloat(cs.paddingLeft) - parseFloat(cs.paddingRight) - 1.5 * parseFloat(cs.fontSize);
+      const pad = parseFloat(cs.paddingLeft) + parseFloat(cs.paddingRight);
+      const room = el.clientWidth - pad - 1.5 * parseFloat(cs.fontSize);
       const need = ctx.measureText(opt.textContent).width;
       if (need > room + 0.5) out.push({ what: `select#${el.id}`, text: opt.textContent, need, room });
       continue;
@@ -30,7 +31,8 @@ CUT_OFF = """(root) => {
     const own = [...el.childNodes].some((n) => n.nodeType === 3 && n.textContent.trim());
     if (!own) continue;
     if (el.scrollWidth > el.clientWidth + 0.5 && el.clientWidth > 0) {
-      out.push({ what: el.tagName + (el.id ? '#' + el.id : ''), text: el.textContent.trim(), need: el.scrollWidth, room: el.clientWidth });
+      const what = el.tagName + (el.id ? '#' + el.id : '');
+      out.push({ what, text: el.textContent.trim(), need: el.scrollWidth, room: el.clientWidth });
     }
   }
   return out;

@@ -90,8 +90,8 @@ export class Overlay {
 
   _tickFps() {
     this._set('fps', this._fpsText());
-    const refined = this.refined ? ` · ${this.refined.samples} spp` : '';
-    this._set('summary', `${this._fpsText()} fps · ${fmtMs(this.lastMs)} ms${refined}`);
+    // (the samples of a resting view are the counter's, at the foot of the frame)
+    this._set('summary', `${this._fpsText()} fps · ${fmtMs(this.lastMs)} ms`);
   }
 
   // The times the rows say: the latest first image (a preview: gesture or request → screen), the
