@@ -49,7 +49,7 @@ export const pickerScenes = SCENARIOS.map((x) => ({ ...x, settings: {} }));
 // A scene value as the client keeps it: the thesis scenarios as numbers, the rest as text.
 export const sceneValue = (v) => (/^\d+$/.test(String(v)) ? Number(v) : String(v));
 
-// Take the service's list (info.scenes); a list that is not one, or empty, keeps the one before.
+// Take the service's list (info.scenes); a value that is no list, or an empty one, keeps the list held.
 export function learnScenes(list) {
   if (!Array.isArray(list)) return false;
   const entries = list.filter((x) => x && (typeof x.value === 'string' || typeof x.value === 'number'))
