@@ -41,7 +41,7 @@ export function describeFrame(frame, level, { width, height }, state, serverRend
   const renderedBy = renderer === 'device' ? `device (${frame.rendererInfo})` : `server (${serverRenderer || 'OpenGL'})`;
   // one short line for the overlay (the GL renderer's name without its version): the title has all
   const renderedShort = `${renderer} (${String(renderer === 'device' ? frame.rendererInfo : serverRenderer || 'OpenGL')
-    .replace(/^WebGL2\s*/, '').replace(/\s*\(.*$/, '').slice(0, 24) || 'WebGL2'})`;
+    .replace(/\s*\(.*$/, '').slice(0, 24)})`;
   const n = frame.stats?.n_spheres ?? meta.n;
   const method = frame.method || meta.method;
   const time = frame.stats && Number.isFinite(frame.stats.time) ? frame.stats.time : null;
