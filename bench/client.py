@@ -570,6 +570,7 @@ def main() -> None:
     )
     ap.add_argument("--move-s", type=float, default=4.0, help="the long drag's duration (server timelines)")
     ap.add_argument("--rest-s", type=float, default=90.0, help="how long a view is left at rest (--only rest)")
+    ap.add_argument("--repeats", type=int, default=3, help="drags of each kind (--only abandon)")
     ap.add_argument(
         "--device-query",
         default="scenario=1&n=512&renderer=device",
@@ -597,7 +598,7 @@ def main() -> None:
                     server_timeline(browser, url, query, move_s=0.5)  # warm: the service compiles its variants
                     out["dense"][name] = server_timeline(browser, url, query, move_s=args.move_s)
             if "abandon" in parts:
-                out["abandon"] = abandon_latency(browser, url)
+                out["abandon"] = abandon_latency(browser, url, repeats=args.repeats)
             if "rest" in parts:
                 out["rest"] = {name: rest_convergence(browser, url, q, args.rest_s) for name, q in REST_PAGES.items()}
             if "share" in parts:
