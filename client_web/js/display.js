@@ -56,7 +56,7 @@ export function describeFrame(frame, level, { width, height }, state, serverRend
   };
   const overlay = {
     level, width, height, clientMs, timing: frame.timing, stats: frame.stats,
-    method, n, triangles, shapes: frame.stats?.n_shapes ?? meta.shapes ?? 0, version: frame.version, renderedBy, renderer,
+    method, n, triangles, shapes: frame.stats?.n_shapes ?? meta.shapes ?? (renderer === 'device' ? state.scene.n_shapes : 0) ?? 0, version: frame.version, renderedBy, renderer,
     samples: meta.samples, minWeight: meta.minWeight,
     // a refinement stream's frame: its samples and the time the stream has refined for (its
     // clientMs is the stream's age, not a time to image)

@@ -411,7 +411,8 @@ export class DeviceView {
       camera: job.camera,
       meta: {
         sessionId: this.key ? this.key.split('|')[0] : null, n: this.n, mode: this.mode, method: this.method,
-        samples: t.path ? t.samplesDone : p.samples, minWeight: p.minWeight,
+        // the ray cut-off ε is Whitted's alone: a path's length is its depth
+        samples: t.path ? t.samplesDone : p.samples, minWeight: t.path ? null : p.minWeight,
       },
       timing: {
         build: job.data.build, upload: job.data.upload, network: job.data.fetch,
