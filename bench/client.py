@@ -289,6 +289,112 @@ def server_timeline(browser, url: str, query: str, move_s: float = 4.0, client_d
         ctx.close()
 
 
+# A drag begun while the table's full frame (Whitted, the phone's fit resolution) is in flight
+# (``--only abandon``), and the views at rest refined on the phone viewport (``--only rest``).
+ABANDON_QUERY = "scenario=mesh:table&integrator=whitted"
+REST_PAGES = {
+    "cornell, path": "scenario=mesh:cornell&integrator=path",
+    "table, path": "scenario=mesh:table&integrator=path",
+}
+
+
+def _first_preview_after(page, t: float, timeout_s: float = 120.0) -> float | None:
+    """The page's clock (ms) from `t` to the first preview shown after it (its request made after `t`)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        hit = [e for e in page.evaluate("() => window.__shown") if e[1] == "preview" and e[0] - (e[5] or 0) >= t]
+        if hit:
+            return hit[0][0] - t
+        time.sleep(0.02)
+    return None
+
+
+def _drag_from(page, touch: Touch, x: float, y: float, moves: int = 6) -> float:
+    """A drag of `moves` touch moves 16 ms apart from (x, y); the page's clock at its first move."""
+    touch.send("touchStart", [(x, y)])
+    t = page.evaluate("() => performance.now()")
+    for k in range(1, moves + 1):
+        touch.send("touchMove", [(x + 6 * k, y)])
+        time.sleep(0.016)
+    touch.send("touchEnd", [])
+    return t
+
+
+def abandon_latency(browser, url: str, query: str = ABANDON_QUERY, repeats: int = 3) -> dict:
+    """The first preview of a drag at rest (nothing in flight but the refinement stream) against that
+    of a drag begun while the full frame is in flight (0.5 s after the previous drag's preview: the
+    full frame is asked for 0.2 s after the last gesture and takes seconds here), the page's clock,
+    from the first touch move to the preview on screen."""
+    ctx = browser.new_context(**PORTRAIT)
+    try:
+        ctx.add_init_script(f"({SHOWN_LOG})()")
+        page = ctx.new_page()
+        page.goto(f"{url}/?{query}")
+        wait_full(page, 1)
+        dismiss_hint(page)
+        touch = Touch(ctx.new_cdp_session(page))
+        rest, busy, full_ms = [], [], []
+        for _ in range(repeats):
+            wait_full(page, 1)
+            time.sleep(0.3)
+            t = _drag_from(page, touch, 150, 400)
+            rest.append(_first_preview_after(page, t))
+            time.sleep(0.5)  # the full frame of the moved view is in flight now
+            t = _drag_from(page, touch, 150, 420)
+            busy.append(_first_preview_after(page, t))
+        wait_full(page, 1)
+        shown = page.evaluate("() => window.__shown")
+        full_ms = [e[5] for e in shown if e[1] == "full" and e[2] == "final"]
+        size = next((f"{e[3]}x{e[4]}" for e in shown if e[1] == "full"), None)
+        r, b = _median(rest), _median(busy)
+        return {
+            "rest_first_preview_ms": r,
+            "in_flight_first_preview_ms": b,
+            "ratio": b / r if r and b else None,
+            "rest_all_ms": rest,
+            "in_flight_all_ms": busy,
+            "full_frame_ms_median": _median(full_ms),
+            "full_size": size,
+        }
+    finally:
+        ctx.close()
+
+
+def rest_convergence(browser, url: str, query: str, watch_s: float = 90.0) -> dict:
+    """A page left at rest for `watch_s`: its first image, its first full-size image and the samples
+    the refinement reaches, with the time (from the navigation's start, the page's clock)."""
+    ctx = browser.new_context(**PORTRAIT)
+    try:
+        ctx.add_init_script(f"({SHOWN_LOG})()")
+        page = ctx.new_page()
+        page.goto(f"{url}/?{query}")
+        t0 = time.monotonic()
+        parts: list = []
+        while time.monotonic() - t0 < watch_s:
+            time.sleep(1.0)
+            parts = page.evaluate(
+                "() => (window.pocketray && window.pocketray.refinement ? window.pocketray.refinement.parts : [])"
+            )
+            if parts and parts[-1]["done"]:
+                break
+        shown = page.evaluate("() => window.__shown")
+        samples = page.evaluate("() => window.pocketray.lastFrame && window.pocketray.lastFrame.samples")
+        full = next((e for e in shown if e[1] == "full"), None)
+        return {
+            "first_image_s": shown[0][0] / 1e3 if shown else None,
+            "first_full_s": full[0] / 1e3 if full else None,
+            "full_size": f"{full[3]}x{full[4]}" if full else None,
+            "samples_reached": samples,
+            "reached_at_s": shown[-1][0] / 1e3 if shown else None,
+            "refine_parts": len(parts),
+            "refine_done": bool(parts and parts[-1]["done"]),
+            "reason": parts[-1]["reason"] if parts else None,
+            "watched_s": watch_s,
+        }
+    finally:
+        ctx.close()
+
+
 # The convergence pages: the Cornell box with the path integrator at an eighth of the fit resolution
 # (503 × 1,088 / 8: the client's smallest preview) so that a reference of 1,024 samples takes a minute
 # on a loaded llvmpipe, refined to 256 samples (no time target short of the service's longest stream).
@@ -459,9 +565,12 @@ def main() -> None:
     ap.add_argument(
         "--only",
         default="share,device,server",
-        help="parts: share (chrome share), device (drag), server (timelines), dense (4,096 spheres' previews)",
+        help="parts: share (chrome share), device (drag), server (timelines), dense (4,096 spheres' previews), "
+        "abandon (a drag during a full frame), rest (samples reached at rest)",
     )
     ap.add_argument("--move-s", type=float, default=4.0, help="the long drag's duration (server timelines)")
+    ap.add_argument("--rest-s", type=float, default=90.0, help="how long a view is left at rest (--only rest)")
+    ap.add_argument("--repeats", type=int, default=3, help="drags of each kind (--only abandon)")
     ap.add_argument(
         "--device-query",
         default="scenario=1&n=512&renderer=device",
@@ -488,6 +597,10 @@ def main() -> None:
                 for name, query in DENSE_PAGES.items():
                     server_timeline(browser, url, query, move_s=0.5)  # warm: the service compiles its variants
                     out["dense"][name] = server_timeline(browser, url, query, move_s=args.move_s)
+            if "abandon" in parts:
+                out["abandon"] = abandon_latency(browser, url, repeats=args.repeats)
+            if "rest" in parts:
+                out["rest"] = {name: rest_convergence(browser, url, q, args.rest_s) for name, q in REST_PAGES.items()}
             if "share" in parts:
                 out["chrome_share"] = {
                     "portrait, scenario 1": chrome_share(browser, url, PORTRAIT, f"scenario=1&n=64&{LAYOUT_QUERY}"),

@@ -189,11 +189,11 @@ export class Api {
 
   // The session's frame. With `onPreview`, asked for progressively (docs/API.md, "Progressive
   // frames"): a supersampled frame's pixel-centre image is handed to onPreview(frame) as soon
-  // as it arrives, and the final image is returned.
-  async frame(id, params, onPreview = null) {
+  // as it arrives, and the final image is returned. `signal` abandons it (a gesture came).
+  async frame(id, params, onPreview = null, signal = null) {
     const path = `/api/sessions/${encodeURIComponent(id)}/frame`;
-    if (!onPreview) return readFrame(await this.request('GET', path, { params }));
-    const res = await this.request('GET', path, { params: { ...params, progressive: 1 } });
+    if (!onPreview) return readFrame(await this.request('GET', path, { params, signal }));
+    const res = await this.request('GET', path, { params: { ...params, progressive: 1 }, signal });
     return readParts(res, onPreview);
   }
 

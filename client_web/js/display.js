@@ -39,6 +39,9 @@ export function describeFrame(frame, level, { width, height }, state, serverRend
   const clientMs = now - frame.t0;
   const renderer = frame.renderer || 'server';
   const renderedBy = renderer === 'device' ? `device (${frame.rendererInfo})` : `server (${serverRenderer || 'OpenGL'})`;
+  // one short line for the overlay (the GL renderer's name without its version): the title has all
+  const renderedShort = `${renderer} (${String(renderer === 'device' ? frame.rendererInfo : serverRenderer || 'OpenGL')
+    .replace(/\s*\(.*$/, '').slice(0, 24)})`;
   const n = frame.stats?.n_spheres ?? meta.n;
   const method = frame.method || meta.method;
   const time = frame.stats && Number.isFinite(frame.stats.time) ? frame.stats.time : null;
@@ -53,8 +56,12 @@ export function describeFrame(frame, level, { width, height }, state, serverRend
   };
   const overlay = {
     level, width, height, clientMs, timing: frame.timing, stats: frame.stats,
-    method, n, triangles, version: frame.version, renderedBy, renderer, samples: meta.samples, minWeight: meta.minWeight,
-    time: state.anim.animated ? time : null, playing: state.anim.playing,
+    method, n, triangles, shapes: frame.stats?.n_shapes ?? meta.shapes ?? (renderer === 'device' ? state.scene.n_shapes : 0) ?? 0, version: frame.version, renderedBy, renderer,
+    samples: meta.samples, minWeight: meta.minWeight,
+    // a refinement stream's frame: its samples and the time the stream has refined for (its
+    // clientMs is the stream's age, not a time to image)
+    refine: frame.refine ? { samples: frame.refine.samples, ms: frame.refine.elapsed_ms ?? clientMs } : null,
+    time: state.anim.animated ? time : null, playing: state.anim.playing, renderedShort,
   };
   return {
     lastFrame, overlay,

@@ -1,7 +1,12 @@
 // Latest-wins frame scheduling.
 //
 //  - At most one request in flight per client (gestures, frames, settings and
-//    session changes all go through here, in order).
+//    session changes all go through here, in order), with one exception: a gesture never waits
+//    for a frame. When the transport's frames can be abandoned (transport.abortable(): the
+//    service's, whose latest-wins cancels the frame a gesture supersedes), a gesture that arrives
+//    while a frame is in flight aborts that frame and goes at once, so the first preview of a drag
+//    follows the first touch as quickly as a preview of a resting view does. The abandoned frame's
+//    answer is never shown; the gesture's own full frame follows it at rest.
 //  - Gestures that arrive while one is in flight are merged: pan dx/dy add up,
 //    pinch scales multiply, orbit yaw/pitch add up, a reset discards what came before it. When the
 //    request returns, the merged gesture goes as one (one request per gesture
@@ -25,8 +30,10 @@
 //
 // No DOM and no fetch here: `transport` does the I/O, so this is unit-testable.
 //   transport.gesture(op, level|null) → frame (level given) or anything (null)
-//   transport.frame(level, onPreview) → frame            level: 'preview' | 'full'; a progressive
-//                                       frame hands its first image to onPreview first (optional)
+//   transport.frame(level, onPreview, signal) → frame    level: 'preview' | 'full'; a progressive
+//                                       frame hands its first image to onPreview first (optional);
+//                                       `signal` aborts it (a gesture came)
+//   transport.abortable()             → whether a frame in flight may be abandoned for a gesture (optional)
 //   transport.refineNeeded()          → false when both levels are the same (optional)
 //   transport.refinement()            → whether the view at rest is refined by a stream (optional)
 //   transport.refinementStream(signal, onPart) → the stream's frames to onPart as they come; ends
@@ -99,6 +106,8 @@ export class FrameScheduler {
     this.needQuick = false;     // a quick preview is due before it (a new page or scene)
     this.needAnimation = false; // the next frame of a playing animation is due
     this.inFlight = false;
+    this.flight = null;         // the frame in flight a gesture may abandon: {ctl}
+    this.abandoned = 0;         // frames abandoned for a gesture
     this.refineTimer = null;
     this.lastGestureAt = -Infinity;
     this.seq = 0;               // sequence number of the last request made
@@ -123,7 +132,19 @@ export class FrameScheduler {
     this.lastGestureAt = this.timers.now();
     this._cancelRefine();
     this._stopRefinement();
+    if (this.pending) this._abandonFrame();
     this._pump();
+  }
+
+  // A gesture waits for no frame: the frame in flight (when the transport's frames may be
+  // abandoned) is aborted and its place in flight given to the gesture.
+  _abandonFrame() {
+    const flight = this.flight;
+    if (!flight || !(this.transport.abortable && this.transport.abortable())) return;
+    this.flight = null;
+    this.inFlight = false;
+    this.abandoned++;
+    flight.ctl.abort();
   }
 
   // The image on screen is out of date (settings changed, new session): render a full frame; with
@@ -260,22 +281,30 @@ export class FrameScheduler {
 
   // One frame at `level` (transport.frame), shown if it is still the newest; `timed`: a preview whose
   // time counts (a gesture's or an animation's, not a new scene's first one, which builds and compiles).
+  // Returns false when a gesture abandoned it (the gesture holds the flight then).
   async _frame(level, timed = false) {
     this.inFlight = true;
+    const flight = { ctl: new AbortController() };
+    this.flight = flight;
     const seq = ++this.seq;
     try {
       this.requests++;
       const t0 = this.timers.now();
-      const frame = await this.transport.frame(level, (preview) => this._offerPreview(preview, seq, level));
+      const frame = await this.transport.frame(level, (preview) => !flight.ctl.signal.aborted && this._offerPreview(preview, seq, level), flight.ctl.signal);
+      if (flight.ctl.signal.aborted) return false;
       if (frame) {   // null: cancelled by a gesture (device mode)
         const shown = await this._offer(frame, seq, level);
         if (timed) this._timed(t0, frame, shown);
       }
     } catch (e) {
-      this.onError(e, 'frame');
+      if (!flight.ctl.signal.aborted) this.onError(e, 'frame');
     } finally {
-      this.inFlight = false;
+      if (this.flight === flight) {
+        this.flight = null;
+        this.inFlight = false;
+      }
     }
+    return !flight.ctl.signal.aborted;
   }
 
   async _pump() {
@@ -319,18 +348,18 @@ export class FrameScheduler {
     }
     if (this.needAnimation) {
       this.needAnimation = false;
-      await this._frame('preview', true);
+      if (!(await this._frame('preview', true))) return undefined;   // a gesture took over
       if (!this.pending && !this.needAnimation) this._scheduleRefine();
       return this._pump();
     }
     if (this.needQuick) {
       this.needQuick = false;
-      if (this.needFull) await this._frame('preview');
+      if (this.needFull && !(await this._frame('preview'))) return undefined;
       return this._pump();
     }
     if (this.needFull) {
       this.needFull = false;
-      await this._frame('full');
+      if (!(await this._frame('full'))) return undefined;
       if (!this.pending && !this.needAnimation && !this.needFull && !this.tasks.length) this.needStream = true;
       return this._pump();
     }

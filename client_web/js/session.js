@@ -6,8 +6,15 @@
 
 import { ApiError, loadStoredSession, sameScene, storeSession } from './api.js';
 import {
-  DEFAULT_SCENE, MODEL_SIZE, fitResolution, meshKind, parseResolution, saveClientSettings, settingNames, skyScenario,
+  DEFAULT_SCENE, MODEL_SIZE, fitResolution, meshKind, parseResolution, saveClientSettings, sceneEntry, sceneSettings,
+  settingNames, skyScenario, withRestDenoiser,
 } from './settings.js';
+import { fitRefused } from './ui/messages.js';
+
+// Whether a 422 refuses the body's `aspect` (a service that frames no scene for it, or a value out of its range).
+const refusesAspect = (e) => Array.isArray(e.detail) && e.detail.some((d) => Array.isArray(d.loc) && d.loc.includes('aspect'));
+// How many times in a row a refused frame is retried at the settings its refusal names.
+const FIT_RETRIES = 3;
 
 // The render settings the client keeps of a session's settings (and carries to a new session):
 // those GET /api/info declares so; from a service that declares none, all of them.
@@ -67,6 +74,7 @@ export class Session {
     // refuses to render it (422, e.g. too heavy), the client goes back to the previous session.
     this.pendingScene = null;
     this.replacing = false;
+    this.ready = Promise.resolve();   // GET /api/info taken in (start() says when)
   }
 
   adopt(s) {
@@ -94,12 +102,53 @@ export class Session {
     return parseResolution(c.resolution);
   }
 
-  // Render settings to apply on top of the session's: URL parameters and the resolution.
-  wantedRender(current) {
-    const want = { ...this.url.render };
+  // The width / height of the frame on screen, for the service to frame a demo scene (null when unknown).
+  aspect() {
+    const size = this.wantedSize();
+    const a = size ? size.width / size.height : (this.stage.clientWidth || 0) / (this.stage.clientHeight || 1);
+    return a > 0 && Number.isFinite(a) ? Math.round(a * 1e4) / 1e4 : null;
+  }
+
+  // Render settings to apply on top of the session's: URL parameters and the resolution; a new
+  // session's path integrator with its denoiser on (withRestDenoiser), unless the link chose it.
+  wantedRender(current, created = false) {
+    let want = { ...this.url.render };
     const size = this.wantedSize();
     if (size) Object.assign(want, size);
+    if (created) {
+      const merged = { ...current, ...want }, denoised = withRestDenoiser(merged, this.url.render);
+      if (denoised.denoise !== merged.denoise) want = { ...want, denoise: denoised.denoise };
+    }
     return changed(want, current);
+  }
+
+  // POST /api/sessions of `scene` with `settings` and the frame's aspect (the service frames a demo
+  // scene for it). A service that refuses the aspect is asked again without it (and not sent it
+  // again); settings refused for their cost are asked again at the largest the refusal names, said
+  // in a notice.
+  async create(scene, settings = {}) {
+    const body = sceneBody(scene), aspect = this.aspect();
+    // A service that lists its demo scenes (GET /api/info's scenes) frames them for an aspect too
+    // (the same contract); one that does not would refuse the field.
+    await this.ready.catch(() => {});
+    if (aspect && !this.noAspect && Array.isArray(this.hook.info?.scenes)) body.aspect = aspect;
+    let want = settings;
+    for (let fits = 0; ; ) {
+      try {
+        return await this.api.createSession(body, want);
+      } catch (e) {
+        if (!(e instanceof ApiError && e.status === 422)) throw e;
+        if ('aspect' in body && refusesAspect(e)) {
+          delete body.aspect;
+          this.noAspect = true;
+          continue;
+        }
+        const fit = fits++ < FIT_RETRIES ? fitRefused(e, { ...this.state.render, ...want }) : null;
+        if (!fit) throw e;
+        want = { ...want, ...fit.settings };
+        this.notice(fit.text, 'warn');
+      }
+    }
   }
 
   // Start (or resume) the session, then its first frame; `ready`: the service's declarations of its
@@ -119,12 +168,13 @@ export class Session {
   // service's declarations, follow as one PATCH. A setting the service refuses there is said (the
   // session keeps its own).
   async start(ready = Promise.resolve()) {
+    this.ready = ready;
     const opened = this.open();
     opened.catch(() => {});   // awaited below, after `ready`
     await ready;
     const s = await opened;
     this.adopt(s);
-    const diff = this.wantedRender(this.state.render);
+    const diff = this.wantedRender(this.state.render, this.created);
     if (Object.keys(diff).length) {
       try {
         this.adopt({ ...s, settings: await this.patch(diff) });
@@ -141,6 +191,7 @@ export class Session {
   async open() {
     const { api, url } = this;
     const stored = loadStoredSession();
+    this.created = false;
     let s = null, expired = false;
     if (stored && stored.id) {
       try {
@@ -151,15 +202,16 @@ export class Session {
         expired = true;
       }
     }
+    this.created = !s;
     if (s) return s;
     const scene = { ...DEFAULT_SCENE, ...(stored && stored.scene), ...url.scene };
     try {
-      s = await api.createSession(sceneBody(scene), this.wantedSize() || {});
+      s = await this.create(scene, this.wantedSize() || {});
     } catch (e) {
       if (!(e instanceof ApiError && e.status === 422)) throw e;
       this.refusals.record(e, 'start');  // e.g. a link with a scene the service refuses
       this.notice('Starting the default scene instead.', 'warn');
-      s = await api.createSession(sceneBody(DEFAULT_SCENE), this.wantedSize() || {});
+      s = await this.create(DEFAULT_SCENE, this.wantedSize() || {});
     }
     if (expired) this.notice('Your previous session had expired; a new one was started with the same scene.', 'warn');
     return s;
@@ -186,7 +238,9 @@ export class Session {
     scheduler.dropPending();
     scheduler.enqueue(async () => {
       const prev = state.session;
-      const s = await this.api.createSession(sceneBody(scene), state.render);
+      // The picked scene's recommended settings over the session's (the link's own still win).
+      const settings = sceneSettings(state.render, sceneEntry(state.scene.scenario), sceneEntry(scene.scenario), this.url.render);
+      const s = await this.create(scene, settings);
       this.adopt(s);
       this.pendingScene = { prev, id: s.id };
     }).then(() => scheduler.invalidate(true), () => this.panel.show(state));
@@ -195,6 +249,7 @@ export class Session {
   // A frame of `meta` (transport.js's requestMeta) is on screen at `level`. Only a full frame settles
   // a new scene: its quick preview may pass where the full frame is refused (too heavy).
   shown(meta, level = 'full') {
+    if (level === 'full') this.fits = 0;
     if (this.pendingScene && meta.sessionId === this.pendingScene.id && level === 'full') this.pendingScene = null;
   }
 
@@ -203,6 +258,14 @@ export class Session {
     if (this.state.anim.playing && what !== 'gesture') this.player.set(false);   // a failed frame stops the animation
     if (e instanceof ApiError && e.status === 404 && this.state.sessionId) {  // the session expired
       this.replaceExpired();
+      return;
+    }
+    // A frame refused for its cost: asked again at the largest size or samples the refusal names.
+    const fit = what === 'frame' && (this.fits || 0) < FIT_RETRIES && fitRefused(e, this.state.render);
+    if (fit) {
+      this.fits = (this.fits || 0) + 1;
+      this.notice(fit.text, 'warn');
+      this.applyRender(fit.settings);
       return;
     }
     if (this.pendingScene && e instanceof ApiError && e.status === 422 && what === 'frame') {
@@ -223,7 +286,7 @@ export class Session {
     const { scheduler } = this;
     scheduler.dropPending();
     scheduler.enqueue(async () => {
-      const s = await this.api.createSession(sceneBody(this.state.scene), this.state.render);
+      const s = await this.create(this.state.scene, this.state.render);
       this.adopt(s);
       this.notice('The session had expired; a new one was started with the same scene (the camera is reset).', 'warn');
     }).then(() => scheduler.invalidate(true), () => {}).finally(() => { this.replacing = false; });

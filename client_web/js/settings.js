@@ -19,7 +19,7 @@ export const METHOD_LABELS = Object.freeze({
 });
 export const MODES = Object.freeze(['color', 'depth', 'primid', 'normal', 'recursion', 'heat']);
 export const MODE_LABELS = Object.freeze({
-  color: 'Colour (Whitted)', depth: 'Depth', primid: 'Primitive id', normal: 'Normal',
+  color: 'Colour', depth: 'Depth', primid: 'Primitive id', normal: 'Normal',
   recursion: 'Recursion depth (Fig. 4.2f)', heat: 'Traversal heat (Fig. 4.3)', cones: 'Tile cones (hre only)',
 });
 export const SCENARIOS = Object.freeze([
@@ -27,18 +27,70 @@ export const SCENARIOS = Object.freeze([
   { value: 2, label: '2 — eight corner clusters' },
   { value: 3, label: '3 — half grid, half clusters' },
   // A thesis scenario under the procedural daylight sky (POST /api/sessions {scenario, sky: true}).
-  { value: 'sky:2', label: '2 under the sky — for the path integrator' },
+  { value: 'sky:2', label: '2 under the sky (path)' },
   { value: 'museum', label: 'Museum — animated (Reiter)' },
   // Scenes of triangle meshes (POST /api/sessions {mesh_scene: {kind}}, renderer/scenarios.py).
   { value: 'mesh:teapot', label: 'Teapot — triangles (Newell)' },
   { value: 'mesh:mixed', label: 'Icosphere, torus and spheres' },
-  { value: 'mesh:room', label: 'Mesh room — teapot, icosphere, spheres' },
-  { value: 'mesh:cornell', label: 'Cornell box — for the path integrator' },
+  { value: 'mesh:room', label: 'Mesh room' },
+  { value: 'mesh:cornell', label: 'Cornell box (path)' },
   // Analytic shapes, no triangle (the same recipe: POST /api/sessions {mesh_scene: {kind: 'table'}}).
-  { value: 'mesh:table', label: 'Table and lamp — cylinders, cones, disks, a torus' },
+  { value: 'mesh:table', label: 'Table and lamp (shapes)' },
 ]);
-// A mesh scene's kind ('mesh:teapot' → 'teapot'), or null for the sphere scenes.
-export const meshKind = (scenario) => (/^mesh:(teapot|mixed|room|cornell|table)$/.exec(String(scenario ?? '')) || [])[1] || null;
+// A mesh scene's kind ('mesh:teapot' → 'teapot'), or null for the sphere scenes: any kind the
+// service's registry names (GET /api/info's scenes), not only those of the list above.
+export const meshKind = (scenario) => (/^mesh:([a-z][a-z0-9_]*)$/.exec(String(scenario ?? '')) || [])[1] || null;
+
+// The picker's scenes, in its order: GET /api/info's `scenes` (renderer/scenarios.py's registry:
+// {value, label, settings}, `settings` the scene's recommended render settings) once it answered,
+// SCENARIOS (no recommended settings) from a service that does not list them.
+export const pickerScenes = SCENARIOS.map((x) => ({ ...x, settings: {} }));
+
+// A scene value as the client keeps it: the thesis scenarios as numbers, the rest as text.
+export const sceneValue = (v) => (/^\d+$/.test(String(v)) ? Number(v) : String(v));
+
+// Take the service's list (info.scenes); a value that is no list, or an empty one, keeps the list held.
+export function learnScenes(list) {
+  if (!Array.isArray(list)) return false;
+  const entries = list.filter((x) => x && (typeof x.value === 'string' || typeof x.value === 'number'))
+    .map((x) => ({
+      value: sceneValue(x.value), label: typeof x.label === 'string' && x.label ? x.label : String(x.value),
+      settings: x.settings && typeof x.settings === 'object' ? { ...x.settings } : {},
+    }));
+  if (!entries.length) return false;
+  pickerScenes.splice(0, pickerScenes.length, ...entries);
+  return true;
+}
+
+export const sceneEntry = (value, scenes = pickerScenes) => scenes.find((x) => String(x.value) === String(value)) || null;
+
+// The render settings a session of the scene `to` is made with when the picker changes the scene from
+// `from` (entries of pickerScenes, or null): the session's own, with `to`'s recommended settings over
+// them; what `from` recommended and `to` does not goes back to its declared default (the Cornell box's
+// path integrator does not follow into a thesis scene); the link's own settings (`named`) win over
+// both. With the path integrator at rest the denoiser is on (Intel Open Image Denoise), unless the
+// scene, the link or the session chose another.
+export function sceneSettings(render, from, to, named = {}, specs = renderSettings) {
+  const out = { ...render };
+  const rec = (to && to.settings) || {};
+  for (const k of Object.keys((from && from.settings) || {})) {
+    if (k in rec) continue;
+    const spec = specs.find((x) => x.name === k);
+    if (spec && spec.default !== undefined) out[k] = spec.default;
+  }
+  Object.assign(out, rec, named);
+  return withRestDenoiser(out, { ...rec, ...named }, specs);
+}
+
+// `settings` with the denoiser on for the path integrator, unless `chosen` names `denoise` or the
+// service offers no Open Image Denoise; the denoiser is for the resting image (previews stay fast,
+// they are small).
+export function withRestDenoiser(settings, chosen = {}, specs = renderSettings) {
+  const spec = specs.find((x) => x.name === 'denoise');
+  if (!spec || !Array.isArray(spec.choices) || !spec.choices.includes('oidn') || 'denoise' in chosen) return settings;
+  if (settings.integrator !== 'path' || (settings.denoise !== undefined && settings.denoise !== 'off')) return settings;
+  return { ...settings, denoise: 'oidn' };
+}
 // A sky scenario's number ('sky:2' → 2), or null for every other scene.
 export const skyScenario = (scenario) => Number((/^sky:([123])$/.exec(String(scenario ?? '')) || [])[1]) || null;
 // Model files the settings sheet uploads (POST /api/sessions/{id}/meshes?format=…), by suffix.
@@ -73,7 +125,7 @@ export const SAMPLES = Object.freeze([
   { value: 16, label: '16 — finest' },
 ]);
 export const PREVIEW_SCALES = Object.freeze([
-  { value: 'auto', label: 'Auto (≥ 15 frames/s)' },   // client.previewAuto: preview_size.js
+  { value: 'auto', label: 'Auto (≥ 15 fps)' },   // client.previewAuto: preview_size.js
   { value: 1, label: 'Full (no preview)' },
   { value: 0.5, label: '½' },
   { value: 1 / 3, label: '⅓' },
@@ -186,9 +238,10 @@ export function readUrlParams(search, specs = renderSettings) {
   const int = (k) => (/^[+-]?\d+$/.test(q.get(k)) ? parseInt(q.get(k), 10) : NaN);
   const f = (k) => (q.get(k) !== '' ? Number(q.get(k)) : NaN);
   if (q.has('scenario')) {
-    const v = q.get('scenario'), known = SCENARIOS.find((x) => String(x.value) === v);
+    const v = q.get('scenario'), known = sceneEntry(v);
     if (known) scene.scenario = known.value;
-    else skip('scenario', `one of ${SCENARIOS.map((x) => x.value).join(', ')}`);
+    else if (meshKind(v) && specs === renderSettings && !specs.length) scene.scenario = v;   // the service's list is on its way
+    else skip('scenario', `one of ${pickerScenes.map((x) => x.value).join(', ')}`);
   }
   for (const k of ['n', 'seed']) {
     if (!q.has(k)) continue;

@@ -37,7 +37,9 @@ export function requestMeta(state, level) {
   const r = state.render, fast = level === 'full' ? null : state.profiles && state.profiles.interactive;
   return {
     sessionId: state.sessionId, n: state.scene.n_spheres ?? state.scene.n, mode: r.mode, method: r.method,
-    samples: (fast && fast.samples_per_pixel) ?? r.samples_per_pixel ?? 1, minWeight: (fast && fast.min_weight) ?? r.min_weight,
+    samples: (fast && fast.samples_per_pixel) ?? r.samples_per_pixel ?? 1, integrator: r.integrator ?? 'whitted',
+    // the ray cut-off ε is Whitted's: a path's length is its depth and Russian roulette
+    minWeight: r.integrator === 'path' ? null : (fast && fast.min_weight) ?? r.min_weight,
     scenario: state.scene.scenario, motion: state.scene.motion, triangles: state.scene.n_triangles || 0,
     meshes: state.scene.n_meshes || 0, shapes: state.scene.n_shapes || 0,
   };
@@ -97,7 +99,13 @@ export class Transport {
     return frame;
   }
 
-  async frame(level, onPreview = null) {
+  // Whether a frame in flight may be abandoned for a gesture: the service's may (the gesture's
+  // request supersedes it there, latest wins); the device's tracer cancels its own bands.
+  abortable() {
+    return !this.deviceMode;
+  }
+
+  async frame(level, onPreview = null, signal = null) {
     const { state, api, device } = this;
     if (this.deviceMode) {
       if (state.anim.animated) sceneTime(state.anim, performance.now());   // the device's data is posed at state.anim.time
@@ -109,11 +117,18 @@ export class Transport {
       }
     }
     const meta = requestMeta(state, level);
+    const scale = this.previewScale, params = frameParams(state, level, undefined, scale);
+    // A path-traced view at rest starts from one sample per pixel, kept in the session's
+    // accumulation: the refinement stream goes on from it, so the full-size image comes in the time
+    // of one sample, not of the session's samples_per_pixel.
+    if (level === 'full' && this.accumulates()) {
+      Object.assign(params, { samples_per_pixel: 1, accumulate: 1 });
+      meta.samples = 1;
+    }
     // Full frames come progressively: the pixel centres first, then the supersampled image.
     const t0 = performance.now();
     const preview = onPreview && level === 'full' ? (f) => onPreview({ ...f, t0, meta }) : null;
-    const scale = this.previewScale;
-    return this.timed(() => api.frame(state.sessionId, frameParams(state, level, undefined, scale), preview), meta)
+    return this.timed(() => api.frame(state.sessionId, params, preview, signal), meta)
       .then((frame) => this.scaled(frame, level, scale));
   }
 
@@ -123,6 +138,13 @@ export class Transport {
   refinement() {
     const r = this.state.render;
     return !this.deviceMode && (r.mode ?? 'color') === 'color';
+  }
+
+  // Whether the full frame is the first sample of an accumulation the refinement stream goes on
+  // with: the service's path-traced colour.
+  accumulates() {
+    const r = this.state.render;
+    return this.refinement() && r.integrator === 'path';
   }
 
   // The refinement stream of the view on screen, at the full level: onPart(frame) for each of its

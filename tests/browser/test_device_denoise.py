@@ -4,9 +4,10 @@
   port, run on the very inputs the device read back (its mean radiance and guides).
 - On a noisy 16-sample Cornell box the device's filtered frame is closer to Mitsuba 3's (the
   independent oracle) than its unfiltered one.
-- While the view rests the live client adds one pass per frame to the same sum, up to the
-  session's samples_per_pixel: after k steps its mean is the server's frame of all k passes'
-  samples (PSNR ≥ 40 dB, as tests/browser/test_device_path.py), and a gesture starts a new sum.
+- While the view rests the live client adds one pass per frame to the same sum, past the
+  session's samples_per_pixel up to its refinement target (refine_samples, as the server's
+  stream): after k steps its mean is the server's frame of all k passes' samples (PSNR ≥ 40 dB,
+  as tests/browser/test_device_path.py), and a gesture starts a new sum.
 Nothing here skips; the images are 32 × 32 (SwiftShader is slow).
 """
 
@@ -93,7 +94,9 @@ def test_the_resting_view_accumulates_passes_into_the_servers_frame(gl_browser, 
     try:
         c = Client(server, ctx, ctx.new_page())
         c.open(
-            f"scenario=mesh:cornell&width={SIDE}&height={SIDE}&integrator=path&samples_per_pixel={spp}"
+            # samples_per_pixel is one pass: the resting view goes past it to the refinement target
+            f"scenario=mesh:cornell&width={SIDE}&height={SIDE}&integrator=path"
+            f"&samples_per_pixel={DEVICE_PATH_SAMPLES_PER_PASS}&refine_samples={spp}"
             "&max_recursion_depth=4&preview_scale=1&refine_ms=0&renderer=device&mode=color"
         )
         sid = c.hook("sessionId")
@@ -135,7 +138,7 @@ def test_the_resting_view_shows_each_mean_filtered_with_a_denoiser(gl_browser, s
     try:
         c = Client(server, ctx, ctx.new_page())
         c.open(
-            f"scenario=mesh:cornell&width={side}&height={side}&integrator=path&samples_per_pixel={spp}"
+            f"scenario=mesh:cornell&width={side}&height={side}&integrator=path&samples_per_pixel={spp}&refine_samples={spp}"
             "&max_recursion_depth=4&preview_scale=1&refine_ms=0&renderer=device&mode=color&denoise=atrous"
         )
         c.page.wait_for_function(

@@ -123,7 +123,8 @@ def test_device_mode_in_the_client_path_traces(gl_browser, server):
         c = Client(server, ctx, ctx.new_page())
         c.open(
             "scenario=mesh:cornell&width=48&height=48&integrator=path&samples_per_pixel=16&tone_map=reinhard"
-            "&max_recursion_depth=4&preview_scale=1&refine_ms=0&renderer=device&mode=color"
+            # no denoiser (a new path session's own is on), no refinement past 16 samples: the server's frame
+            "&max_recursion_depth=4&preview_scale=1&refine_ms=0&renderer=device&mode=color&denoise=off&refine_samples=16"
         )
         last = c.hook("lastFrame")
         assert last["renderer"] == "device", last
@@ -140,7 +141,8 @@ def test_device_mode_in_the_client_path_traces(gl_browser, server):
         n1 = c.frame_count  # the same view from the server: the same tone-mapped picture
         c.page.select_option("#f-renderer", "server")
         c.wait_idle(min_frames=n1 + 1)
-        assert c.hook("lastFrame.renderer") == "server"
+        c.wait_rest()  # the server's view at rest: one sample, then refined to the 16 of the link
+        assert c.hook("lastFrame.renderer") == "server" and c.hook("lastFrame.samples") == 16
         shown_server = canvas_rgb(c)
         assert shown_device.shape == shown_server.shape
         assert psnr(shown_device, shown_server) >= 40.0, psnr(shown_device, shown_server)

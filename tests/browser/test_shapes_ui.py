@@ -14,7 +14,7 @@ def test_the_table_of_analytic_shapes_is_in_the_scene_picker(open_client, server
     c.page.click("#settings-toggle")
     assert p.is_visible("#settings")
     options = p.eval_on_selector_all("#f-scenario option", "os => os.map((o) => [o.value, o.textContent])")
-    assert ["mesh:table", "Table and lamp — cylinders, cones, disks, a torus"] in [list(o) for o in options]
+    assert any(v == "mesh:table" and t.startswith("Table and lamp") for v, t in options), options
     n0 = c.frame_count
     pixels = p.evaluate("() => document.querySelector('#view').toDataURL()")
     p.select_option("#f-scenario", "mesh:table")

@@ -22,7 +22,8 @@
 //    passes is the frame's preview;
 //  - accumulation: while the view rests, full path-traced frames are steps of one pass each
 //    (the next sample indices, added to the same sum), each mean shown as it grows, up to the
-//    session's samples_per_pixel; any change of camera, settings, data or size starts a new sum
+//    session's refinement target as the server's stream (the larger of samples_per_pixel and
+//    refine_samples, for at most refine_time_ms); any change of camera, settings, data or size starts a new sum
 //    (the step's signature, _accumulationKey). With a denoiser (denoise not off) the data's
 //    variant writes the guides and every mean shown is filtered by the à-trous filter
 //    (device_gl.js; the one filter a browser runs, whichever denoiser is named);
@@ -325,20 +326,31 @@ export class DeviceView {
       return null;
     }
     const key = this._accumulationKey(p), a = this.accum;
-    if (a && a.key === key && a.trace.samplesDone < p.samples) {
-      const step = Math.min(p.path.perPass, p.samples - a.trace.samplesDone);
+    if (a && a.key === key && a.trace.samplesDone < a.target) {
+      const step = Math.min(p.path.perPass, a.target - a.trace.samplesDone);
       const trace = this.renderer.continueTrace(a.trace, step);
       if (trace) return trace;
     }
-    p.path = { ...p.path, samples: Math.min(p.path.perPass, p.samples) };
-    this.accum = { key, trace: null, target: p.samples, shown: [] };
+    const { target, ms } = this._restTarget(p.samples);
+    p.path = { ...p.path, samples: Math.min(p.path.perPass, target) };
+    this.accum = { key, trace: null, target, shown: [], until: performance.now() + ms };
     return null;
   }
 
-  // Whether the accumulation wants another step (the last one was shown, the target not reached).
+  // How far a resting view accumulates: the server's refinement targets (docs/API.md,
+  // "Refinement"): refine_samples (at least the frame's own samples) within refine_time_ms.
+  _restTarget(samples) {
+    const { render } = this.getState();
+    const target = Math.max(samples, Number(render.refine_samples) || 0);
+    const ms = Number(render.refine_time_ms) > 0 ? Number(render.refine_time_ms) : Infinity;
+    return { target, ms };
+  }
+
+  // Whether the accumulation wants another step (the last one was shown, the target and the time
+  // not reached).
   _accumulating() {
     const a = this.accum;
-    return !!(a && a.trace && !this.job && a.trace.samplesDone < a.target && a.trace.done);
+    return !!(a && a.trace && !this.job && a.trace.samplesDone < a.target && a.trace.done && performance.now() < a.until);
   }
 
   _band(job) {
@@ -399,7 +411,8 @@ export class DeviceView {
       camera: job.camera,
       meta: {
         sessionId: this.key ? this.key.split('|')[0] : null, n: this.n, mode: this.mode, method: this.method,
-        samples: t.path ? t.samplesDone : p.samples, minWeight: p.minWeight,
+        // the ray cut-off ε is Whitted's alone: a path's length is its depth
+        samples: t.path ? t.samplesDone : p.samples, minWeight: t.path ? null : p.minWeight,
       },
       timing: {
         build: job.data.build, upload: job.data.upload, network: job.data.fetch,

@@ -75,3 +75,37 @@ export function explain(e) {
   const msg = typeof d === 'string' ? d : JSON.stringify(d);
   return { field: null, text: e.status === 422 ? `Not accepted: ${inPanelWords(msg)}` : `The service answered ${e.status}: ${inPanelWords(msg)}`, status: e.status };
 }
+
+// A 422 that refuses a frame for its cost — the service's cost cap ("width: at most 512"), or its
+// work cap ("… = 30,660,941,349 exceeds the limit 37879808") — as the largest settings it accepts
+// instead: {settings, text} (the partial to retry with, and the notice saying so), or null when the
+// refusal is of another kind. A smaller frame keeps the aspect of `render` (both sides shrink).
+export function fitRefused(e, render) {
+  if (!e || e.status !== 422 || !Array.isArray(e.detail) || !render) return null;
+  for (const d of e.detail) {
+    const field = fieldOf(d.loc), msg = String(d.msg ?? '');
+    if (!['width', 'height', 'samples_per_pixel'].includes(field)) continue;
+    let ratio = null;
+    const most = new RegExp(`${field}: at most ([\\d,]+)`).exec(msg);
+    const cap = /= ([\d,]+) exceeds the limit ([\d,]+)/.exec(msg);
+    const num = (t) => Number(t.replaceAll(',', ''));
+    if (most && render[field] > 0) ratio = num(most[1]) / render[field];
+    else if (cap) ratio = num(cap[2]) / num(cap[1]);
+    if (!(ratio > 0 && ratio < 1)) continue;
+    if (field === 'samples_per_pixel') {
+      const spp = render.samples_per_pixel || 1;
+      let best = most ? num(most[1]) : Math.floor(spp * ratio);
+      if (render.integrator !== 'path') best = Math.floor(Math.sqrt(best)) ** 2;   // Whitted's √s × √s grid
+      if (best < 1 || best >= spp) continue;
+      return { settings: { samples_per_pixel: best }, text: `Too costly at ${spp} samples per pixel: ${best} instead.` };
+    }
+    const k = most ? ratio : Math.sqrt(ratio);
+    const width = Math.floor(render.width * k), height = Math.floor(render.height * k);
+    if (width < 8 || height < 8) continue;
+    return {
+      settings: { width, height },
+      text: `Too costly at ${render.width} × ${render.height}: ${width} × ${height} instead.`,
+    };
+  }
+  return null;
+}

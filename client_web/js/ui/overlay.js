@@ -90,7 +90,31 @@ export class Overlay {
 
   _tickFps() {
     this._set('fps', this._fpsText());
+    // (the samples of a resting view are the counter's, at the foot of the frame)
     this._set('summary', `${this._fpsText()} fps · ${fmtMs(this.lastMs)} ms`);
+  }
+
+  // The times the rows say: the latest first image (a preview: gesture or request → screen), the
+  // latest full frame (request → screen), and the refinement of the view at rest (its samples and
+  // how long it has refined); a new first image starts the story over.
+  _times(info) {
+    if (info.refine) this.refined = info.refine;
+    else if (info.level === 'full') {
+      this.fullMs = info.clientMs;
+      this.refined = null;
+      this.lastMs = info.clientMs;
+    } else {
+      this.firstMs = info.clientMs;
+      this.fullMs = null;
+      this.refined = null;
+      this.lastMs = info.clientMs;
+    }
+    this._set('time', this.firstMs != null ? `${fmtMs(this.firstMs)} ms` : '–');
+    this._set('full', this.fullMs != null ? `${fmtMs(this.fullMs)} ms` : '–');
+    const r = this.refined;
+    this._set('refined', r ? `${r.samples} spp · ${(r.ms / 1000).toFixed(1)} s` : '–');
+    const row = this.details.querySelector('[data-refined]');
+    if (row) row.hidden = !r;
   }
 
   // info: {level, width, height, clientMs, timing, stats, method, n, version, samples, minWeight,
@@ -101,10 +125,9 @@ export class Overlay {
     const t = info.timing || {};
     const s = info.stats || {};
     const device = info.renderer === 'device';
-    this.lastMs = info.clientMs;
+    this._times(info);
     for (const row of this.details.querySelectorAll('[data-for]')) row.hidden = row.dataset.for !== (device ? 'device' : 'server');
     this._tickFps();
-    this._set('time', `${fmtMs(info.clientMs)} ms`);
     this._set('build', fmtMs(t.update ?? t.build));   // rebuild, refit or selective rebuild: the method's update
     this._set('upload', fmtMs(t.upload));
     this._set('trace', fmtMs(t.trace));
@@ -116,7 +139,8 @@ export class Overlay {
       this._set('encode', fmtMs(t.encode));
       const parts = ['build', 'upload', 'trace', 'encode'].map((k) => t[k]).filter(Number.isFinite);
       this._set('other', t.total != null ? fmtMs(Math.max(0, t.total - parts.reduce((x, y) => x + y, 0))) : '–');
-      const net = info.clientMs != null && t.total != null ? Math.max(0, info.clientMs - t.total) : null;
+      // a refinement frame's clientMs is the stream's age: no network time can be told from it
+      const net = !info.refine && info.clientMs != null && t.total != null ? Math.max(0, info.clientMs - t.total) : null;
       this._set('network', fmtMs(net));
     }
     const netLabel = this.details.querySelector('[data-label="network"]');
@@ -126,16 +150,20 @@ export class Overlay {
     this._set('depth', s.depth_max != null ? String(s.depth_max) : '–');
     this._set('method', info.method || s.method || '–');
     this._set('n', info.n != null ? String(info.n) : '–');
-    const meshRow = this.details.querySelector('[data-meshes]');
-    if (meshRow) meshRow.hidden = !info.triangles;
+    // A scene of triangles or shapes says their counts; its spheres only when it has some.
+    const rows = (sel, show) => { const row = this.details.querySelector(sel); if (row) row.hidden = !show; };
+    rows('[data-spheres]', !!info.n || !(info.triangles || info.shapes));
+    rows('[data-meshes]', !!info.triangles);
+    rows('[data-shapes]', !!info.shapes);
     this._set('triangles', info.triangles ? String(info.triangles) : '–');
+    this._set('shapes', info.shapes ? String(info.shapes) : '–');
     this._set('res', `${info.width}×${info.height} ${info.level === 'full' ? 'full' : 'preview'}`);
     this._set('samples', info.samples != null
       ? `${info.samples} spp${info.minWeight != null ? `, ε ${info.minWeight}` : ''}` : '–');
     this._set('version', info.version != null ? String(info.version) : '–');
     this._set('anim', info.time != null ? `${info.time.toFixed(2)} s${info.playing ? ' ▶' : ''}` : '–');
-    const by = info.renderedBy || '–';   // one line; the whole name is the title
-    this._set('renderer', by);
+    const by = info.renderedBy || '–';   // one short line; the whole name is the title
+    this._set('renderer', info.renderedShort || by);
     if (this.fields.renderer) this.fields.renderer.title = by;
   }
 }

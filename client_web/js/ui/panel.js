@@ -15,7 +15,8 @@
 import { applies, check, modesOf, range, sampleChoices, samplesAllowed } from './limits.js';
 import {
   DEFAULT_MUSEUM_N, DEFAULT_SCENE, FALLBACK_METHODS, FIELD_LABELS, METHOD_LABELS, MODE_LABELS, MODES, MODEL_FORMATS,
-  MUSEUM_KINDS, PREVIEW_SCALES, RESOLUTIONS, SAMPLES, SCENARIOS, UPDATE_SCHEMES, learnSettings, meshKind, skyScenario,
+  MUSEUM_KINDS, PREVIEW_SCALES, RESOLUTIONS, SAMPLES, UPDATE_SCHEMES, learnScenes, learnSettings, meshKind, pickerScenes,
+  sceneValue, withRestDenoiser,
   parseResolution, renderSettings, settingValue,
 } from '../settings.js';
 import { modelFileProblem } from './messages.js';
@@ -50,7 +51,7 @@ export class SettingsPanel {
     this.state = null;
     this.invalid = new Map();      // field → message shown next to it
     this.nByKind = { thesis: null, museum: null };   // each kind of scene keeps its own n
-    fillSelect(this.el('scenario'), SCENARIOS);
+    fillSelect(this.el('scenario'), pickerScenes);
     fillSelect(this.el('motion'), MUSEUM_KINDS);
     fillSelect(this.el('update'), UPDATE_SCHEMES);
     fillSelect(this.el('method'), FALLBACK_METHODS, (m) => METHOD_LABELS[m] || m);
@@ -88,6 +89,8 @@ export class SettingsPanel {
   setInfo(info) {
     this.info = info;
     learnSettings(info.settings);
+    // The picker is the service's list of demo scenes, when it gives one.
+    if (learnScenes(info.scenes)) fillSelect(this.el('scenario'), pickerScenes);
     for (const spec of this._specs()) if (!this.el(spec.name)) this._addField(spec);
     if (Array.isArray(info.methods) && info.methods.length) fillSelect(this.el('method'), info.methods, (m) => METHOD_LABELS[m] || m);
     if (Array.isArray(info.modes) && info.modes.length) fillSelect(this.el('mode'), info.modes, (m) => MODE_LABELS[m] || m);
@@ -115,7 +118,8 @@ export class SettingsPanel {
     wrap.dataset.declared = '';
     const label = document.createElement('label');
     label.htmlFor = id;
-    label.textContent = spec.unit ? `${spec.label} (${spec.unit})` : spec.label;
+    // the unit once: a label may say it already ("Refine to (samples)")
+    label.textContent = spec.unit && !spec.label.includes(`(${spec.unit})`) ? `${spec.label} (${spec.unit})` : spec.label;
     if (spec.doc) label.title = spec.doc;
     let input;
     if (spec.choices || spec.type === 'boolean') {
@@ -211,7 +215,11 @@ export class SettingsPanel {
     const allowed = samplesAllowed(ctx, [...this.el('samples_per_pixel').options].map((o) => Number(o.value)));
     for (const o of this.el('samples_per_pixel').options) o.disabled = !allowed.includes(Number(o.value));
     const modes = modesOf(ctx);
-    for (const o of this.el('mode').options) o.disabled = !!modes && !modes.includes(o.value);
+    for (const o of this.el('mode').options) {
+      o.disabled = !!modes && !modes.includes(o.value);
+      // colour is the integrator's: its name with it (the other modes are the first hit's)
+      if (o.value === 'color') o.textContent = `${MODE_LABELS.color} (${ctx.render.integrator === 'path' ? 'path traced' : 'Whitted'})`;
+    }
   }
 
   // The samples select offers the integrator's counts — Whitted's sub-pixel grids, the path
@@ -239,8 +247,7 @@ export class SettingsPanel {
   // The scene as the form has it now.
   _formScene() {
     const f = this.form.elements;
-    const scenario = isMuseum(f.scenario.value) ? 'museum'
-      : meshKind(f.scenario.value) || skyScenario(f.scenario.value) ? f.scenario.value : parseInt(f.scenario.value, 10);
+    const scenario = sceneValue(f.scenario.value);
     return {
       scenario, n: Number(f.n.value),
       seed: Number(f.seed.value), radius: Number(f.radius.value), motion: f.motion.value,
@@ -330,6 +337,9 @@ export class SettingsPanel {
         }
         const rg = range('max_recursion_depth', this._ctx({ render }));
         if (ctx.render.max_recursion_depth > rg.max) render.max_recursion_depth = Math.max(1, rg.max);
+        // The path integrator's resting image is denoised unless the denoiser was chosen off.
+        const denoised = withRestDenoiser({ ...ctx.render, ...render });
+        if (denoised.denoise !== ctx.render.denoise) render.denoise = denoised.denoise;
       }
       this._layout();
       this.cb.onRender(render);

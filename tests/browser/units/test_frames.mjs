@@ -182,3 +182,72 @@ test('a gesture\'s preview is timed from its request to the screen', async () =>
   await q.release();
   same(q.taken, [[40, 'preview']]);
 });
+
+// ---- a gesture never waits for a frame ----
+// A fake transport whose frames take as long as the test says and honour their abort signal.
+function abandonStory({ abortable }) {
+  const log = [], seen = [], errors = [];
+  let next = null, v = 0;
+  const tr = {
+    abortable: () => abortable,
+    gesture: (op, level) => new Promise((res) => { log.push(['gesture', level]); v++; const ver = v; next = () => res({ version: ver, level }); }),
+    frame: (level, onPreview, signal) => new Promise((res, rej) => {
+      log.push(['frame', level]);
+      const ver = v;
+      if (signal) signal.addEventListener('abort', () => { log.push(['aborted', level]); rej(new DOMException('stopped', 'AbortError')); });
+      next = () => res({ version: ver, level });
+    }),
+  };
+  const s = new f.FrameScheduler({
+    transport: tr, display: (fr, level) => seen.push([fr.version, level]), onError: (e) => errors.push(e.name),
+    refineDelayMs: 200, timers: { set: () => 1, clear: () => {}, now: () => 0 },
+  });
+  return { s, log, seen, errors, release: async () => { next(); await tick(); await tick(); await tick(); } };
+}
+
+test('a gesture during a full frame aborts it and goes at once', async () => {
+  const q = abandonStory({ abortable: true });
+  q.s.invalidate();
+  same(q.log, [['frame', 'full']]);
+  q.s.gesture({ type: 'pan', dx: 4, dy: 0 });
+  same(q.log, [['frame', 'full'], ['aborted', 'full'], ['gesture', 'preview']]);
+  await tick(); await tick();
+  await q.release();
+  same([q.seen, q.errors, q.s.abandoned], [[[1, 'preview']], [], 1]);
+});
+
+test('the abandoned frame\'s answer is never shown, and leaves the gesture in flight', async () => {
+  const q = abandonStory({ abortable: true });
+  let late = null;
+  q.s.transport.frame = (level) => new Promise((res) => { q.log.push(['frame', level]); late = () => res({ version: 0, level }); });
+  q.s.invalidate();
+  q.s.gesture({ type: 'pan', dx: 4, dy: 0 });
+  late(); await tick(); await tick();                  // the abandoned frame answers anyway
+  q.s.gesture({ type: 'pan', dx: 1, dy: 0 });          // merged: the gesture still holds the flight
+  same([q.seen, q.log], [[], [['frame', 'full'], ['gesture', 'preview']]]);
+});
+
+test('a gesture during a quick first preview or an animation frame goes at once too', async () => {
+  for (const start of [(s) => { s.transport.quickFirst = () => true; s.invalidate(true); }, (s) => s.animate()]) {
+    const q = abandonStory({ abortable: true });
+    start(q.s);
+    q.s.gesture({ type: 'pinch', scale: 2 });
+    same(q.log, [['frame', 'preview'], ['aborted', 'preview'], ['gesture', 'preview']]);
+  }
+});
+
+test('where frames cannot be abandoned (device mode) the gesture waits for the frame', async () => {
+  const q = abandonStory({ abortable: false });
+  q.s.invalidate();
+  q.s.gesture({ type: 'pan', dx: 4, dy: 0 });
+  same(q.log, [['frame', 'full']]);
+  await q.release();
+  same(q.log, [['frame', 'full'], ['gesture', 'preview']]);
+});
+
+test('a gesture waits for a gesture or a task (merged), never aborting them', async () => {
+  const q = abandonStory({ abortable: true });
+  q.s.gesture({ type: 'pan', dx: 1, dy: 0 });
+  q.s.gesture({ type: 'pan', dx: 1, dy: 0 });
+  same([q.log, q.s.abandoned], [[['gesture', 'preview']], 0]);
+});

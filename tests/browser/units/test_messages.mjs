@@ -16,3 +16,20 @@ test('loc → field', () => {
   same([msg.fieldOf(['scene', 'n']), msg.fieldOf(['body', 'museum', 'n']), msg.fieldOf(['query', 'samples_per_pixel']), msg.fieldOf(['body'])],
     ['n', 'n', 'samples_per_pixel', null]);
 });
+
+test('a cost refusal → the largest size it accepts, the aspect kept', () => {
+  const e = { status: 422, detail: [{ loc: ['query', 'width'], msg: 'width: the frame would take about 20,000 ms of GL time, over the cap of 10,000 ms; width: at most 500 at these settings' }] };
+  same(msg.fitRefused(e, { width: 1000, height: 2000, samples_per_pixel: 4 }),
+    { settings: { width: 500, height: 1000 }, text: 'Too costly at 1000 × 2000: 500 × 1000 instead.' });
+});
+
+test('a work-cap refusal of samples → the largest count (paths: any; Whitted: a square grid)', () => {
+  const e = { status: 422, detail: [{ loc: ['body', 'samples_per_pixel'], msg: 'samples_per_pixel: width × height × samples_per_pixel × expected segments = 1088 × 1088 × 4096 × 6.32 = 30,660,941,349 exceeds the limit 37879808 (POCKETRAY_MAX_WORK)' }] };
+  same(msg.fitRefused(e, { width: 1088, height: 1088, samples_per_pixel: 4096, integrator: 'path' }).settings, { samples_per_pixel: 5 });
+  same(msg.fitRefused(e, { width: 1088, height: 1088, samples_per_pixel: 4096, integrator: 'whitted' }).settings, { samples_per_pixel: 4 });
+});
+
+test('other refusals are not retried', () => {
+  same([msg.fitRefused({ status: 422, detail: [{ loc: ['body', 'n'], msg: 'n: at most 100' }] }, { width: 8, height: 8 }),
+    msg.fitRefused({ status: 404, detail: 'gone' }, { width: 8 })], [null, null]);
+});

@@ -75,3 +75,39 @@ test('values by their declared type', () => {
 test('labels are the declared ones', () => {
   same([s.FIELD_LABELS.samples_per_pixel, s.FIELD_LABELS.max_recursion_depth], ['Quality (samples per pixel)', 'Recursion depth']);
 });
+
+// ---- the picker: GET /api/info's scenes, their recommended settings, the denoiser at rest ----
+const INFO_SCENES = [
+  { value: '1', label: 'Grid', settings: {} },
+  { value: 'mesh:cornell', label: 'Cornell box', settings: { integrator: 'path', max_recursion_depth: 8 } },
+  { value: 'mesh:gallery', label: 'A scene only the service knows', settings: { integrator: 'path' } },
+];
+
+test('the picker is the service\'s list when it gives one, its own list otherwise', () => {
+  const own = s.pickerScenes.map((x) => x.value);
+  same([s.learnScenes(undefined), s.learnScenes([]), s.pickerScenes.map((x) => x.value)], [false, false, own]);
+  same(s.learnScenes(INFO_SCENES), true);
+  same(s.pickerScenes.map((x) => [x.value, x.label]), [[1, 'Grid'], ['mesh:cornell', 'Cornell box'], ['mesh:gallery', 'A scene only the service knows']]);
+  same([s.readUrlParams('?scenario=mesh:gallery').scene, s.readUrlParams('?scenario=museum').ignored.map((x) => x.name)],
+    [{ scenario: 'mesh:gallery' }, ['scenario']]);
+});
+
+test('a picked scene brings its recommended settings; what the last one recommended goes back to its default', () => {
+  const whitted = { integrator: 'whitted', max_recursion_depth: 3, denoise: 'off', width: 64, height: 64 };
+  const cornell = s.sceneSettings(whitted, s.sceneEntry(1), s.sceneEntry('mesh:cornell'));
+  same(cornell, { integrator: 'path', max_recursion_depth: 8, denoise: 'oidn', width: 64, height: 64 });
+  const back = s.sceneSettings(cornell, s.sceneEntry('mesh:cornell'), s.sceneEntry(1));
+  const dflt = (k) => s.settingSpec(k).default;
+  same([back.integrator, back.max_recursion_depth, back.width], [dflt('integrator'), dflt('max_recursion_depth'), 64]);
+  // the link's own settings win over the scene's
+  same(s.sceneSettings(whitted, null, s.sceneEntry('mesh:cornell'), { max_recursion_depth: 4, denoise: 'off' }),
+    { integrator: 'path', max_recursion_depth: 4, denoise: 'off', width: 64, height: 64 });
+});
+
+test('the path integrator rests denoised unless the denoiser was chosen', () => {
+  same([s.withRestDenoiser({ integrator: 'path', denoise: 'off' }).denoise, s.withRestDenoiser({ integrator: 'path' }).denoise,
+    s.withRestDenoiser({ integrator: 'path', denoise: 'atrous' }).denoise, s.withRestDenoiser({ integrator: 'whitted', denoise: 'off' }).denoise,
+    s.withRestDenoiser({ integrator: 'path', denoise: 'off' }, { denoise: 'off' }).denoise,
+    s.withRestDenoiser({ integrator: 'path', denoise: 'off' }, {}, []).denoise],
+  ['oidn', 'oidn', 'atrous', 'off', 'off', 'off']);
+});

@@ -20,7 +20,7 @@ test('full frames at the session size and full format; previews scaled, with the
 test('previews at the service\'s interactive profile, the depth no deeper than the session\'s', () => {
   const s = state({ profiles: { interactive: { max_recursion_depth: 10, samples_per_pixel: 1, min_weight: 0.1 } } });
   same(frameParams(s, 'preview'), { width: 160, height: 272, format: 'jpeg', quality: 70, max_recursion_depth: 8, samples_per_pixel: 1, min_weight: 0.1 });
-  same(requestMeta(s, 'preview'), { sessionId: 's1', n: 128, mode: 'heat', method: 'bih', samples: 1, minWeight: 0.1, scenario: 2,
+  same(requestMeta(s, 'preview'), { sessionId: 's1', n: 128, mode: 'heat', method: 'bih', samples: 1, integrator: 'whitted', minWeight: 0.1, scenario: 2,
     motion: undefined, triangles: 0, meshes: 0, shapes: 0 });
   same([requestMeta(s, 'full').samples, requestMeta(s, 'full').minWeight], [4, 0.03]);
 });
@@ -43,4 +43,31 @@ test('previews at the sizer\'s scale with auto (server mode), else at the chosen
   same(fixed.previewScale, 0.5);
   const device = new Transport({ state: state({ client: { ...state().client, previewAuto: true, renderer: 'device' } }), sizer });
   same([device.quickFirst(), device.refineNeeded()], [false, false]);
+});
+
+// A fake api that records each frame's query and signal.
+const recording = () => {
+  const asked = [];
+  return { asked, frame: (id, params, onPreview, signal) => { asked.push({ params, signal }); return Promise.resolve({ blob: {}, version: 1 }); } };
+};
+const activity = { classList: { add: () => {}, remove: () => {} } };
+
+test('a path-traced view at rest: its full frame is one accumulated sample; no ε in what it says', async () => {
+  const api = recording();
+  const path = state({ render: { ...state().render, mode: 'color', integrator: 'path', samples_per_pixel: 64 } });
+  const t = new Transport({ state: path, api, activity });
+  const frame = await t.frame('full');
+  same([api.asked[0].params, frame.meta.samples, frame.meta.minWeight],
+    [{ width: 320, height: 544, format: 'png', samples_per_pixel: 1, accumulate: 1 }, 1, null]);
+  const whitted = new Transport({ state: state({ render: { ...state().render, mode: 'color' } }), api, activity });
+  await whitted.frame('full');
+  same(api.asked[1].params, { width: 320, height: 544, format: 'png' });
+});
+
+test('the service\'s frames can be abandoned (their signal reaches the request); the device\'s cannot', async () => {
+  const api = recording(), ctl = new AbortController();
+  const t = new Transport({ state: state(), api, activity });
+  await t.frame('full', null, ctl.signal);
+  same([api.asked[0].signal === ctl.signal, t.abortable()], [true, true]);
+  same(new Transport({ state: state({ client: { ...state().client, renderer: 'device' } }), api, activity }).abortable(), false);
 });
