@@ -29,6 +29,7 @@ from __future__ import annotations
 import hashlib
 import io
 import math
+import re
 import struct
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -74,6 +75,62 @@ def check_texels(rgb: np.ndarray) -> np.ndarray:
     return a
 
 
+# ---- run-length scanlines ---------------------------------------------------------------------
+# A run-length encoded scanline is four channels of W bytes each, as packets: a count byte c, then
+# one byte repeated c − 128 times (c > 128), or c bytes as they are (1 ≤ c ≤ 128). Where a packet
+# begins depends on every packet before it, so the packets are cut apart by one regular expression
+# (the C loop of ``re``: one alternative per count, tried by its first byte), which hands back their
+# count bytes only; NumPy does the rest — where each packet lies, the checks, the bytes out — a few
+# array operations per scanline, not a Python step per packet. The last alternative takes whatever
+# is left when a packet is cut short by the end of the bytes searched, so the packets found always
+# follow one another.
+_PACKET = re.compile(
+    b"(?=(.))(?:\\x00|[\\x81-\\xff].|"
+    + b"|".join(re.escape(bytes([c])) + b".{%d}" % c for c in range(1, 129))
+    + b"|.+)",
+    re.DOTALL,
+)
+
+
+def _rle_scanline(data: bytes, q: int, width: int, y: int, guess: int) -> tuple[np.ndarray, int]:
+    """The positions of the packets of run-length scanline ``y`` whose data begin at ``q``, and the
+    position after it (``guess``: how many bytes it likely spans); SceneError where a packet is
+    empty, passes its channel's end or the file's, or the file ends first, as a packet-by-packet
+    reader says it."""
+    n = len(data)
+    limit = min(n, q + 8 * width)  # each good packet gives ≥ 1 byte for ≤ 2: 4W bytes lie within 8W
+    stop = min(limit, q + max(guess, 64))
+    while True:
+        c = np.frombuffer(b"".join(_PACKET.findall(data, q, stop)), dtype=np.uint8).astype(np.int64)
+        run = c > 128
+        cnt = np.where(run, c - 128, c)
+        length = np.where(run, 2, c + 1)
+        end = q + np.cumsum(length)
+        done = np.cumsum(cnt)
+        full = np.flatnonzero(done >= 4 * width)
+        if full.size or stop >= limit:
+            break
+        stop = limit  # the scanline goes on past the bytes searched: search all it can span
+    before = done - cnt
+    bad = (cnt == 0) | (end > n) | (before // width != (done - 1) // width)
+    last = int(full[0]) if full.size else len(c) - 1
+    if bad[: last + 1].any():
+        raise SceneError("body", f"scanline {y}: a run passes the end of the line")
+    if not full.size:
+        raise SceneError("body", f"the file ends inside scanline {y}")
+    return end[: last + 1] - length[: last + 1], int(end[last])
+
+
+def _rle_bytes(d: np.ndarray, pk: np.ndarray) -> np.ndarray:
+    """The bytes packets at positions ``pk`` (in order) decode to."""
+    c = d[pk].astype(np.int64)
+    lit = c <= 128
+    cnt = np.where(lit, c, c - 128)
+    first = np.cumsum(cnt) - cnt
+    src = np.repeat(pk + 1 - first * lit, cnt) + np.arange(int(cnt.sum())) * np.repeat(lit, cnt)
+    return d[src]
+
+
 # ---- Radiance .hdr ---------------------------------------------------------------------------
 def read_hdr(data: bytes) -> np.ndarray:
     """The texels of a Radiance RGBE file (``#?RADIANCE``, ``FORMAT=32-bit_rle_rgbe``, the standard
@@ -107,36 +164,22 @@ def read_hdr(data: bytes) -> np.ndarray:
     check_size(width, height)  # before anything of that size exists
     pos = nl + 1
     n = len(data)
+    d = np.frombuffer(data, dtype=np.uint8)
     out = np.empty((height, width, 4), dtype=np.uint8)
+    span = width  # bytes of the last run-length scanline
     for y in range(height):
         if 8 <= width < 32768 and data[pos : pos + 2] == b"\x02\x02" and pos + 4 <= n:
             if (data[pos + 2] << 8 | data[pos + 3]) != width:
                 raise SceneError("body", f"scanline {y}: its run-length header says another width")
-            pos += 4
-            for c in range(4):
-                row = bytearray()
-                while len(row) < width:
-                    if pos >= n:
-                        raise SceneError("body", f"the file ends inside scanline {y}")
-                    count = data[pos]
-                    if count > 128:
-                        count -= 128
-                        if len(row) + count > width or pos + 1 >= n:
-                            raise SceneError("body", f"scanline {y}: a run passes the end of the line")
-                        row += data[pos + 1 : pos + 2] * count
-                        pos += 2
-                    else:
-                        if count == 0 or len(row) + count > width or pos + 1 + count > n:
-                            raise SceneError("body", f"scanline {y}: a run passes the end of the line")
-                        row += data[pos + 1 : pos + 1 + count]
-                        pos += 1 + count
-                out[y, :, c] = np.frombuffer(bytes(row), dtype=np.uint8)
+            pk, end = _rle_scanline(data, pos + 4, width, y, 2 * span)
+            span, pos = end - pos, end
+            out[y] = _rle_bytes(d, pk).reshape(4, width).T
         else:
             if data[pos : pos + 3] == b"\x01\x01\x01":
                 raise SceneError("body", "old-style run-length encoding is not read: save the file again")
             if pos + 4 * width > n:
                 raise SceneError("body", f"the file ends inside scanline {y}")
-            out[y] = np.frombuffer(data, dtype=np.uint8, count=4 * width, offset=pos).reshape(width, 4)
+            out[y] = d[pos : pos + 4 * width].reshape(width, 4)
             pos += 4 * width
     e = out[..., 3].astype(np.int32)
     # m · 2^(e − 128 − 8), as Ward's reader; in float32 (2^−136 is a subnormal there, exact), so a
