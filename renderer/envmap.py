@@ -266,6 +266,12 @@ def read_exr(data: bytes) -> np.ndarray:
     head = exr_header(data)
     x0, y0, x1, y1 = head["dataWindow"]
     check_size(x1 - x0 + 1, y1 - y0 + 1)
+    if len(head["channels"]) > limits.MAX_ENV_CHANNELS:
+        raise SceneError(
+            "body",
+            f"the EXR file has {len(head['channels'])} channels; at most {limits.MAX_ENV_CHANNELS} are accepted "
+            "(R, G and B are read): save the image with fewer",
+        )
     for c in "RGB":
         kind = head["channels"].get(c)
         if kind is None:

@@ -126,6 +126,9 @@ MAX_ENV_WIDTH = 4096
 MAX_ENV_HEIGHT = 2048
 MIN_ENV_SIDE = 2  # the bilinear lookup and the sampling patches need two rows and two columns
 MAX_ENV_HEADER_BYTES = 64 << 10  # a .hdr header (text up to the resolution line), an .exr header
+# An .exr file's channels: the library decodes every one (32 MiB each, FLOAT at the largest size),
+# though R, G and B are all that is read.
+MAX_ENV_CHANNELS = 16
 MAX_ENV_SCALE = 1e6  # the image's radiance factor
 MAX_ENV_ROTATION_DEG = 360.0  # about +y, either way
 
