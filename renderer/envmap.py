@@ -372,10 +372,19 @@ class EnvironmentMap:
         b = tx[j0 + 1, i0] * (1 - fx) + tx[j0 + 1, i1] * fx
         return self.scale * (a * (1 - fy) + b * fy)
 
+    @property
+    def held_bytes(self) -> int:
+        """The bytes this image holds once drawn: its texels, the sampling tables (float32 CDFs)
+        and the packed copies of both that its textures are uploaded from
+        (:func:`renderer.gpu_layout.env_textures`, kept as long as the image is)."""
+        texels, patches = self.width * self.height, self.width * (self.height - 1)
+        return 2 * (12 * texels + 4 * (patches + self.height - 1))
+
     # ---- sampling ----
-    @cached_property
+    @property
     def patch_weights(self) -> np.ndarray:
-        """float64 (H − 1, W): each patch's mean corner luminance × its row band's solid angle / 2π."""
+        """float64 (H − 1, W): each patch's mean corner luminance × its row band's solid angle / 2π
+        (made again when asked: the sampling tables are what is kept)."""
         lum = self.texels.astype(np.float64) @ np.asarray(LUMINANCE)
         corners = lum[:-1] + lum[1:]
         mean = 0.25 * (corners + np.roll(corners, -1, axis=1))

@@ -76,7 +76,7 @@ class SessionService:
         self.config = config
         self.store = store
         self.frames = frames
-        self.cache = cache or SceneCache()
+        self.cache = cache or SceneCache(config.scene_cache_bytes)
         self.caps = InputCaps(config)
 
     def default_settings(self) -> dict[str, Any]:
