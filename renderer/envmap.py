@@ -42,6 +42,7 @@ from .errors import SceneError
 
 ENV_FORMATS = ("hdr", "exr")
 LUMINANCE = (0.2126, 0.7152, 0.0722)  # Rec. 709 weights: what the sampling is proportional to
+STORED_TEXEL_BYTES = 12  # float32 R, G, B: a texel as the service holds and stores it
 SKY_REF = "sky"  # the procedural sky's reference (renderer/sky.py): nothing stored, made again
 
 
@@ -132,10 +133,8 @@ def _rle_bytes(d: np.ndarray, pk: np.ndarray) -> np.ndarray:
 
 
 # ---- Radiance .hdr ---------------------------------------------------------------------------
-def read_hdr(data: bytes) -> np.ndarray:
-    """The texels of a Radiance RGBE file (``#?RADIANCE``, ``FORMAT=32-bit_rle_rgbe``, the standard
-    orientation ``-Y H +X W``; flat or run-length encoded scanlines): float32 (H, W, 3), row 0 at
-    the top, divided by the header's EXPOSURE."""
+def _hdr_header(data: bytes) -> tuple[float, int, int, int]:
+    """(EXPOSURE, width, height, where the scanlines begin) of a Radiance file, its size checked."""
     if not (data.startswith(b"#?RADIANCE") or data.startswith(b"#?RGBE")):
         raise SceneError("body", "not a Radiance .hdr file: it must begin with #?RADIANCE")
     end = data.find(b"\n\n", 0, limits.MAX_ENV_HEADER_BYTES)
@@ -162,7 +161,28 @@ def read_hdr(data: bytes) -> np.ndarray:
         raise SceneError("body", "the resolution line must be '-Y <height> +X <width>' (the standard orientation)")
     height, width = int(words[1]), int(words[3])
     check_size(width, height)  # before anything of that size exists
-    pos = nl + 1
+    return exposure, width, height, nl + 1
+
+
+def declared_size(data: bytes, fmt: str) -> tuple[int, int]:
+    """(width, height) an image file declares, read from its header alone (SceneError as the
+    readers: a file whose header is refused, a size past the limits)."""
+    if fmt not in ENV_FORMATS:
+        raise SceneError("format", f"unknown image format {fmt!r}; accepted: {', '.join(ENV_FORMATS)}")
+    if not data:
+        raise SceneError("body", "empty body: send the image file's bytes")
+    if fmt == "hdr":
+        return _hdr_header(data)[1:3]
+    x0, y0, x1, y1 = exr_header(data)["dataWindow"]
+    check_size(x1 - x0 + 1, y1 - y0 + 1)
+    return x1 - x0 + 1, y1 - y0 + 1
+
+
+def read_hdr(data: bytes) -> np.ndarray:
+    """The texels of a Radiance RGBE file (``#?RADIANCE``, ``FORMAT=32-bit_rle_rgbe``, the standard
+    orientation ``-Y H +X W``; flat or run-length encoded scanlines): float32 (H, W, 3), row 0 at
+    the top, divided by the header's EXPOSURE."""
+    exposure, width, height, pos = _hdr_header(data)
     n = len(data)
     d = np.frombuffer(data, dtype=np.uint8)
     out = np.empty((height, width, 4), dtype=np.uint8)

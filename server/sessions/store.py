@@ -662,7 +662,8 @@ class RedisStore:
         if not self.max_bytes:
             return None
         k_bytes, k_sizes, k_deadlines = self._usage_keys
-        due = [x.decode() for x in self.client.zrangebyscore(k_deadlines, "-inf", int(time.time() * 1000))]
+        members = cast(list[bytes], self.client.zrangebyscore(k_deadlines, "-inf", int(time.time() * 1000)))
+        due = [x.decode() for x in members]
         with self.client.pipeline(transaction=False) as p:
             p.get(k_bytes)
             p.hget(k_sizes, session_id)
