@@ -122,6 +122,63 @@ def _rle_scanline(data: bytes, q: int, width: int, y: int, guess: int) -> tuple[
     return end[: last + 1] - length[: last + 1], int(end[last])
 
 
+def _rle_scanlines(data: bytes, pos: int, width: int, rows: int) -> tuple[np.ndarray, int]:
+    """The packet positions of the whole, well-formed run-length scanlines from ``pos`` on (at most
+    ``rows``), found in one pass over the rest of the file, and the position after them. A width that
+    is a multiple of 256 makes each scanline header ``2 2 hi 0`` two packets of the search (a literal
+    of two, an empty one), so the packets found stay those of the scanlines after it. Whatever is not
+    plain (a flat scanline, a malformed packet, the file's end, another width) ends the pass before
+    that scanline, for the scanline-by-scanline reader to read or refuse."""
+    header = bytes([2, 2, width >> 8, width & 255])
+    if width & 255 or data[pos : pos + 4] != header:
+        return np.zeros(0, np.int64), pos
+    n, line = len(data), 4 * width
+    c = np.frombuffer(b"".join(_PACKET.findall(data, pos + 4)), dtype=np.uint8).astype(np.int32)
+    run = c > 128
+    cnt = np.where(run, c - 128, c)
+    length = np.where(run, 2, c + 1)
+    del run, c
+    end = pos + 4 + np.cumsum(length, dtype=np.int64)
+    done = np.cumsum(cnt, dtype=np.int64)
+    firsts, lasts, s = [], [], 0
+    while len(firsts) < rows:
+        base = int(done[s - 1]) if s else 0
+        e = int(np.searchsorted(done, base + line))
+        if e >= len(done) or done[e] != base + line:
+            break
+        firsts.append(s)
+        lasts.append(e)
+        h = int(end[e])
+        if data[h : h + 4] != header or e + 3 >= len(done):
+            break
+        s = e + 3  # past the header's two packets
+    while firsts:  # every packet of these scanlines checked: none empty, past the file or its channel
+        count = np.array(lasts) - np.array(firsts) + 1
+        row_of = np.repeat(np.arange(len(firsts)), count)
+        idx = np.arange(int(count.sum())) + np.repeat(np.array(firsts) - np.cumsum(count) + count, count)
+        after = done[idx] - np.repeat(done[firsts] - cnt[firsts], count)  # bytes of its scanline after it
+        bad = (cnt[idx] == 0) | (end[idx] > n) | ((after - cnt[idx]) // width != (after - 1) // width)
+        if not bad.any():
+            return end[idx] - length[idx], int(end[lasts[-1]])
+        keep = int(row_of[int(np.argmax(bad))])
+        firsts, lasts = firsts[:keep], lasts[:keep]
+    return np.zeros(0, np.int64), pos
+
+
+def _rle_rows(d: np.ndarray, pk: np.ndarray, out: np.ndarray, rows_at_once: int = 64) -> int:
+    """The packets at ``pk`` (whole scanlines, in order) decoded into the first rows of ``out``
+    (H, W, 4), a few rows at a time (the source index of every byte is 8 bytes); how many rows."""
+    line = 4 * out.shape[1]
+    c = d[pk].astype(np.int64)
+    done = np.cumsum(np.where(c > 128, c - 128, c))
+    rows = int(done[-1]) // line if len(done) else 0
+    cuts = np.searchsorted(done, np.arange(0, rows + rows_at_once, rows_at_once).clip(max=rows) * line, "right")
+    for r0, a, b in zip(range(0, rows, rows_at_once), cuts[:-1], cuts[1:], strict=False):
+        got = _rle_bytes(d, pk[a:b])
+        out[r0 : r0 + len(got) // line] = got.reshape(-1, 4, out.shape[1]).transpose(0, 2, 1)
+    return rows
+
+
 def _rle_bytes(d: np.ndarray, pk: np.ndarray) -> np.ndarray:
     """The bytes packets at positions ``pk`` (in order) decode to."""
     c = d[pk].astype(np.int64)
@@ -187,7 +244,11 @@ def read_hdr(data: bytes) -> np.ndarray:
     d = np.frombuffer(data, dtype=np.uint8)
     out = np.empty((height, width, 4), dtype=np.uint8)
     span = width  # bytes of the last run-length scanline
-    for y in range(height):
+    first = 0
+    if 8 <= width < 32768:  # as many scanlines at once as are plain, then one by one
+        pk, pos = _rle_scanlines(data, pos, width, height)
+        first = _rle_rows(d, pk, out)
+    for y in range(first, height):
         if 8 <= width < 32768 and data[pos : pos + 2] == b"\x02\x02" and pos + 4 <= n:
             if (data[pos + 2] << 8 | data[pos + 3]) != width:
                 raise SceneError("body", f"scanline {y}: its run-length header says another width")
