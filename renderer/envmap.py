@@ -140,7 +140,9 @@ def _rle_scanlines(data: bytes, pos: int, width: int, rows: int) -> tuple[np.nda
     del run, c
     end = pos + 4 + np.cumsum(length, dtype=np.int64)
     done = np.cumsum(cnt, dtype=np.int64)
-    firsts, lasts, s = [], [], 0
+    firsts: list[int] = []
+    lasts: list[int] = []
+    s = 0
     while len(firsts) < rows:
         base = int(done[s - 1]) if s else 0
         e = int(np.searchsorted(done, base + line))
