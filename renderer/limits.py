@@ -121,7 +121,7 @@ MAX_PLY_HEADER_BYTES = 64 << 10  # a PLY header (text up to end_header)
 # ---- environment images --------------------------------------------------------------------
 # An equirectangular HDR image (renderer/envmap.py): its declared size is checked against these
 # before a texel is allocated. 4096 × 2048 float RGB is 96 MiB on the GPU (and as much again in
-# the session store, compressed), the most one scene may ask for.
+# the session store, where texels are kept as they are), the most one scene may ask for.
 MAX_ENV_WIDTH = 4096
 MAX_ENV_HEIGHT = 2048
 MIN_ENV_SIDE = 2  # the bilinear lookup and the sampling patches need two rows and two columns
