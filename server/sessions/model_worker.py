@@ -194,7 +194,7 @@ class ModelWorkers:
             held = self._held.get(client, 0)
             if held >= self.per_address:
                 raise busy(
-                    f"model files: this address has {held} file(s) being parsed already, its share of the "
+                    f"uploads: this address has {held} file(s) being parsed already, its share of the "
                     f"{len(self._all)} parsers (POCKETRAY_MODEL_WORKERS_PER_ADDRESS = {self.per_address}); "
                     "retry when they are done",
                     retry_after_s=1,
