@@ -80,17 +80,30 @@ def check_texels(rgb: np.ndarray) -> np.ndarray:
 # A run-length encoded scanline is four channels of W bytes each, as packets: a count byte c, then
 # one byte repeated c − 128 times (c > 128), or c bytes as they are (1 ≤ c ≤ 128). Where a packet
 # begins depends on every packet before it, so the packets are cut apart by one regular expression
-# (the C loop of ``re``: one alternative per count, tried by its first byte), which hands back their
-# count bytes only; NumPy does the rest — where each packet lies, the checks, the bytes out — a few
-# array operations per scanline, not a Python step per packet. The last alternative takes whatever
-# is left when a packet is cut short by the end of the bytes searched, so the packets found always
-# follow one another.
-_PACKET = re.compile(
-    b"(?=(.))(?:\\x00|[\\x81-\\xff].|"
-    + b"|".join(re.escape(bytes([c])) + b".{%d}" % c for c in range(1, 129))
-    + b"|.+)",
+# (the C loop of ``re``: one alternative per count, tried by its first byte): a stretch of two-byte
+# packets (runs, literals of one) is one match, any other packet one; NumPy does the rest — where
+# each packet lies, the checks, the bytes out — a few array operations per scanline, not a Python
+# step per packet. The last alternative takes whatever is left when a packet is cut short by the
+# end of the bytes searched, so the packets found always follow one another.
+_PACKETS = re.compile(
+    b"(?:[\\x01\\x81-\\xff].)+|\\x00|"
+    + b"|".join(re.escape(bytes([c])) + b".{%d}" % c for c in range(2, 129))
+    + b"|.+",
     re.DOTALL,
 )
+
+
+def _packets(data: bytes, d: np.ndarray, start: int, stop: int) -> np.ndarray:
+    """The positions (int64) of the packets that follow one another from ``start``, up to ``stop``."""
+    found = _PACKETS.findall(data, start, stop)
+    size = np.fromiter(map(len, found), dtype=np.int64, count=len(found))
+    del found
+    at = start + np.cumsum(size) - size
+    pairs = d[at] if len(at) else np.zeros(0, np.uint8)
+    pairs = (pairs == 1) | (pairs > 128)  # a stretch of two-byte packets (or one cut short)
+    per = np.where(pairs, (size + 1) // 2, 1)
+    step = np.arange(int(per.sum())) - np.repeat(np.cumsum(per) - per, per)
+    return np.repeat(at, per) + 2 * step * np.repeat(pairs, per)
 
 
 def _rle_scanline(data: bytes, q: int, width: int, y: int, guess: int) -> tuple[np.ndarray, int]:
@@ -101,12 +114,14 @@ def _rle_scanline(data: bytes, q: int, width: int, y: int, guess: int) -> tuple[
     n = len(data)
     limit = min(n, q + 8 * width)  # each good packet gives ≥ 1 byte for ≤ 2: 4W bytes lie within 8W
     stop = min(limit, q + max(guess, 64))
+    d = np.frombuffer(data, dtype=np.uint8)
     while True:
-        c = np.frombuffer(b"".join(_PACKET.findall(data, q, stop)), dtype=np.uint8).astype(np.int64)
+        pk = _packets(data, d, q, stop)
+        c = d[pk].astype(np.int64)
         run = c > 128
         cnt = np.where(run, c - 128, c)
         length = np.where(run, 2, c + 1)
-        end = q + np.cumsum(length)
+        end = pk + length
         done = np.cumsum(cnt)
         full = np.flatnonzero(done >= 4 * width)
         if full.size or stop >= limit:
@@ -119,7 +134,7 @@ def _rle_scanline(data: bytes, q: int, width: int, y: int, guess: int) -> tuple[
         raise SceneError("body", f"scanline {y}: a run passes the end of the line")
     if not full.size:
         raise SceneError("body", f"the file ends inside scanline {y}")
-    return end[: last + 1] - length[: last + 1], int(end[last])
+    return pk[: last + 1], int(end[last])
 
 
 def _rle_scanlines(data: bytes, pos: int, width: int, rows: int) -> tuple[np.ndarray, int]:
@@ -133,12 +148,14 @@ def _rle_scanlines(data: bytes, pos: int, width: int, rows: int) -> tuple[np.nda
     if width & 255 or data[pos : pos + 4] != header:
         return np.zeros(0, np.int64), pos
     n, line = len(data), 4 * width
-    c = np.frombuffer(b"".join(_PACKET.findall(data, pos + 4)), dtype=np.uint8).astype(np.int32)
+    d = np.frombuffer(data, dtype=np.uint8)
+    pk = _packets(data, d, pos + 4, n)
+    c = d[pk].astype(np.int32)
     run = c > 128
     cnt = np.where(run, c - 128, c)
     length = np.where(run, 2, c + 1)
     del run, c
-    end = pos + 4 + np.cumsum(length, dtype=np.int64)
+    end = pk + length
     done = np.cumsum(cnt, dtype=np.int64)
     firsts: list[int] = []
     lasts: list[int] = []
@@ -154,15 +171,26 @@ def _rle_scanlines(data: bytes, pos: int, width: int, rows: int) -> tuple[np.nda
         if data[h : h + 4] != header or e + 3 >= len(done):
             break
         s = e + 3  # past the header's two packets
-    while firsts:  # every packet of these scanlines checked: none empty, past the file or its channel
-        count = np.array(lasts) - np.array(firsts) + 1
-        row_of = np.repeat(np.arange(len(firsts)), count)
-        idx = np.arange(int(count.sum())) + np.repeat(np.array(firsts) - np.cumsum(count) + count, count)
-        after = done[idx] - np.repeat(done[firsts] - cnt[firsts], count)  # bytes of its scanline after it
-        bad = (cnt[idx] == 0) | (end[idx] > n) | ((after - cnt[idx]) // width != (after - 1) // width)
-        if not bad.any():
-            return end[idx] - length[idx], int(end[lasts[-1]])
-        keep = int(row_of[int(np.argmax(bad))])
+    while firsts:  # these scanlines' packets checked: none empty, past the file or over a channel's end
+        lo, hi = firsts[0], lasts[-1] + 1
+        headers = np.array(lasts[:-1], dtype=np.int64)
+        empty = lo + np.flatnonzero(cnt[lo:hi] == 0)  # only the headers' second packets may be
+        wrong = empty[~np.isin(empty, headers + 2)]
+        base = np.array([int(done[f - 1]) if f else 0 for f in firsts], dtype=np.int64)
+        ends = (base[:, None] + width * np.arange(1, 5)).ravel()  # each channel ends at a packet's end
+        at = np.minimum(np.searchsorted(done, ends), len(done) - 1)
+        over = np.flatnonzero(done[at] != ends) // 4
+        bad_rows = [len(firsts)] if int(end[hi - 1]) <= n else [len(firsts) - 1]
+        if wrong.size:
+            bad_rows.append(int(np.searchsorted(np.array(lasts), wrong[0])))
+        if over.size:
+            bad_rows.append(int(over[0]))
+        keep = min(bad_rows)
+        if keep == len(firsts):
+            plain = np.ones(hi - lo, dtype=bool)
+            plain[headers + 1 - lo] = False
+            plain[headers + 2 - lo] = False
+            return pk[lo:hi][plain], int(end[hi - 1])
         firsts, lasts = firsts[:keep], lasts[:keep]
     return np.zeros(0, np.int64), pos
 
@@ -182,13 +210,17 @@ def _rle_rows(d: np.ndarray, pk: np.ndarray, out: np.ndarray, rows_at_once: int 
 
 
 def _rle_bytes(d: np.ndarray, pk: np.ndarray) -> np.ndarray:
-    """The bytes packets at positions ``pk`` (in order) decode to."""
+    """The bytes packets at positions ``pk`` (in order) decode to: each packet's second byte
+    repeated (a run's value), then the literals' bytes put in place."""
     c = d[pk].astype(np.int64)
     lit = c <= 128
     cnt = np.where(lit, c, c - 128)
-    first = np.cumsum(cnt) - cnt
-    src = np.repeat(pk + 1 - first * lit, cnt) + np.arange(int(cnt.sum())) * np.repeat(lit, cnt)
-    return d[src]
+    out = np.repeat(d[pk + 1], cnt)
+    if lit.any():
+        at, n = (np.cumsum(cnt) - cnt)[lit], cnt[lit]
+        step = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
+        out[np.repeat(at, n) + step] = d[np.repeat(pk[lit] + 1, n) + step]
+    return out
 
 
 # ---- Radiance .hdr ---------------------------------------------------------------------------
