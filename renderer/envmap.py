@@ -102,8 +102,11 @@ def _packets(data: bytes, d: np.ndarray, start: int, stop: int) -> np.ndarray:
     pairs = d[at] if len(at) else np.zeros(0, np.uint8)
     pairs = (pairs == 1) | (pairs > 128)  # a stretch of two-byte packets (or one cut short)
     per = np.where(pairs, (size + 1) // 2, 1)
-    step = np.arange(int(per.sum())) - np.repeat(np.cumsum(per) - per, per)
-    return np.repeat(at, per) + 2 * step * np.repeat(pairs, per)
+    first = np.cumsum(per) - per  # each match's first packet
+    step = np.full(int(per.sum()), 2, dtype=np.int64)  # a packet is 2 bytes after the one before it,
+    if len(at):  # unless it begins a match
+        step[first] = np.diff(at, prepend=0) - np.concatenate([[0], 2 * (per[:-1] - 1)])
+    return np.cumsum(step, out=step)
 
 
 def _rle_scanline(data: bytes, q: int, width: int, y: int, guess: int) -> tuple[np.ndarray, int]:
@@ -176,8 +179,8 @@ def _rle_scanlines(data: bytes, pos: int, width: int, rows: int) -> tuple[np.nda
         headers = np.array(lasts[:-1], dtype=np.int64)
         empty = lo + np.flatnonzero(cnt[lo:hi] == 0)  # only the headers' second packets may be
         wrong = empty[~np.isin(empty, headers + 2)]
-        base = np.array([int(done[f - 1]) if f else 0 for f in firsts], dtype=np.int64)
-        ends = (base[:, None] + width * np.arange(1, 5)).ravel()  # each channel ends at a packet's end
+        before = np.array([int(done[f - 1]) if f else 0 for f in firsts], dtype=np.int64)
+        ends = (before[:, None] + width * np.arange(1, 5)).ravel()  # each channel ends at a packet's end
         at = np.minimum(np.searchsorted(done, ends), len(done) - 1)
         over = np.flatnonzero(done[at] != ends) // 4
         bad_rows = [len(firsts)] if int(end[hi - 1]) <= n else [len(firsts) - 1]

@@ -13,8 +13,9 @@ another. The file's declared counts are checked first in the worker
 (:mod:`renderer.model_guard`), so most malformed files are refused in milliseconds.
 
 Environment images (``PUT /api/sessions/{id}/environment``: ``.hdr``, ``.exr``) are read by
-:func:`renderer.envmap.read_image` in the same workers, under the same limits: a run-length
-encoded ``.hdr`` is decoded run by run, so a file of a million one-byte runs is seconds of CPU.
+:func:`renderer.envmap.read_image` in the same workers, under the same limits: even a
+run-length encoded ``.hdr`` of one-byte runs is cut into packets in C and decoded by NumPy, but a
+16 MB file is still a second of CPU, which the per-address share keeps to its own address.
 
 The protocol is a pipe each way: 8-byte length, then a pickle — the job ``(bytes, format,
 max_triangles, max_vertices)`` or ``("image", bytes, format)`` one way, ``("ok", vertices,
