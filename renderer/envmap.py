@@ -29,6 +29,7 @@ from __future__ import annotations
 import hashlib
 import io
 import math
+import re
 import struct
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -41,6 +42,7 @@ from .errors import SceneError
 
 ENV_FORMATS = ("hdr", "exr")
 LUMINANCE = (0.2126, 0.7152, 0.0722)  # Rec. 709 weights: what the sampling is proportional to
+STORED_TEXEL_BYTES = 12  # float32 R, G, B: a texel as the service holds and stores it
 SKY_REF = "sky"  # the procedural sky's reference (renderer/sky.py): nothing stored, made again
 
 
@@ -74,11 +76,159 @@ def check_texels(rgb: np.ndarray) -> np.ndarray:
     return a
 
 
+# ---- run-length scanlines ---------------------------------------------------------------------
+# A run-length encoded scanline is four channels of W bytes each, as packets: a count byte c, then
+# one byte repeated c − 128 times (c > 128), or c bytes as they are (1 ≤ c ≤ 128). Where a packet
+# begins depends on every packet before it, so the packets are cut apart by one regular expression
+# (the C loop of ``re``: one alternative per count, tried by its first byte): a stretch of two-byte
+# packets (runs, literals of one) is one match, any other packet one; NumPy does the rest — where
+# each packet lies, the checks, the bytes out — a few array operations per scanline, not a Python
+# step per packet. The last alternative takes whatever is left when a packet is cut short by the
+# end of the bytes searched, so the packets found always follow one another.
+_PACKETS = re.compile(
+    b"(?:[\\x01\\x81-\\xff].)+|\\x00|"
+    + b"|".join(re.escape(bytes([c])) + b".{%d}" % c for c in range(2, 129))
+    + b"|.+",
+    re.DOTALL,
+)
+
+
+def _packets(data: bytes, d: np.ndarray, start: int, stop: int) -> np.ndarray:
+    """The positions (int64) of the packets that follow one another from ``start``, up to ``stop``."""
+    found = _PACKETS.findall(data, start, stop)
+    size = np.fromiter(map(len, found), dtype=np.int64, count=len(found))
+    del found
+    at = start + np.cumsum(size) - size
+    pairs = d[at] if len(at) else np.zeros(0, np.uint8)
+    pairs = (pairs == 1) | (pairs > 128)  # a stretch of two-byte packets (or one cut short)
+    per = np.where(pairs, (size + 1) // 2, 1)
+    first = np.cumsum(per) - per  # each match's first packet
+    step = np.full(int(per.sum()), 2, dtype=np.int64)  # a packet is 2 bytes after the one before it,
+    if len(at):  # unless it begins a match
+        step[first] = np.diff(at, prepend=0) - np.concatenate([[0], 2 * (per[:-1] - 1)])
+    return np.cumsum(step, out=step)
+
+
+def _rle_scanline(data: bytes, q: int, width: int, y: int, guess: int) -> tuple[np.ndarray, int]:
+    """The positions of the packets of run-length scanline ``y`` whose data begin at ``q``, and the
+    position after it (``guess``: how many bytes it likely spans); SceneError where a packet is
+    empty, passes its channel's end or the file's, or the file ends first, as a packet-by-packet
+    reader says it."""
+    n = len(data)
+    limit = min(n, q + 8 * width)  # each good packet gives ≥ 1 byte for ≤ 2: 4W bytes lie within 8W
+    stop = min(limit, q + max(guess, 64))
+    d = np.frombuffer(data, dtype=np.uint8)
+    while True:
+        pk = _packets(data, d, q, stop)
+        c = d[pk].astype(np.int64)
+        run = c > 128
+        cnt = np.where(run, c - 128, c)
+        length = np.where(run, 2, c + 1)
+        end = pk + length
+        done = np.cumsum(cnt)
+        full = np.flatnonzero(done >= 4 * width)
+        if full.size or stop >= limit:
+            break
+        stop = limit  # the scanline goes on past the bytes searched: search all it can span
+    before = done - cnt
+    bad = (cnt == 0) | (end > n) | (before // width != (done - 1) // width)
+    last = int(full[0]) if full.size else len(c) - 1
+    if bad[: last + 1].any():
+        raise SceneError("body", f"scanline {y}: a run passes the end of the line")
+    if not full.size:
+        raise SceneError("body", f"the file ends inside scanline {y}")
+    return pk[: last + 1], int(end[last])
+
+
+def _rle_scanlines(data: bytes, pos: int, width: int, rows: int) -> tuple[np.ndarray, int]:
+    """The packet positions of the whole, well-formed run-length scanlines from ``pos`` on (at most
+    ``rows``), found in one pass over the rest of the file, and the position after them. A width that
+    is a multiple of 256 makes each scanline header ``2 2 hi 0`` two packets of the search (a literal
+    of two, an empty one), so the packets found stay those of the scanlines after it. Whatever is not
+    plain (a flat scanline, a malformed packet, the file's end, another width) ends the pass before
+    that scanline, for the scanline-by-scanline reader to read or refuse."""
+    header = bytes([2, 2, width >> 8, width & 255])
+    if width & 255 or data[pos : pos + 4] != header:
+        return np.zeros(0, np.int64), pos
+    n, line = len(data), 4 * width
+    d = np.frombuffer(data, dtype=np.uint8)
+    pk = _packets(data, d, pos + 4, n)
+    c = d[pk].astype(np.int32)
+    run = c > 128
+    cnt = np.where(run, c - 128, c)
+    length = np.where(run, 2, c + 1)
+    del run, c
+    end = pk + length
+    done = np.cumsum(cnt, dtype=np.int64)
+    firsts: list[int] = []
+    lasts: list[int] = []
+    s = 0
+    while len(firsts) < rows:
+        base = int(done[s - 1]) if s else 0
+        e = int(np.searchsorted(done, base + line))
+        if e >= len(done) or done[e] != base + line:
+            break
+        firsts.append(s)
+        lasts.append(e)
+        h = int(end[e])
+        if data[h : h + 4] != header or e + 3 >= len(done):
+            break
+        s = e + 3  # past the header's two packets
+    while firsts:  # these scanlines' packets checked: none empty, past the file or over a channel's end
+        lo, hi = firsts[0], lasts[-1] + 1
+        headers = np.array(lasts[:-1], dtype=np.int64)
+        empty = lo + np.flatnonzero(cnt[lo:hi] == 0)  # only the headers' second packets may be
+        wrong = empty[~np.isin(empty, headers + 2)]
+        before = np.array([int(done[f - 1]) if f else 0 for f in firsts], dtype=np.int64)
+        ends = (before[:, None] + width * np.arange(1, 5)).ravel()  # each channel ends at a packet's end
+        at = np.minimum(np.searchsorted(done, ends), len(done) - 1)
+        over = np.flatnonzero(done[at] != ends) // 4
+        bad_rows = [len(firsts)] if int(end[hi - 1]) <= n else [len(firsts) - 1]
+        if wrong.size:
+            bad_rows.append(int(np.searchsorted(np.array(lasts), wrong[0])))
+        if over.size:
+            bad_rows.append(int(over[0]))
+        keep = min(bad_rows)
+        if keep == len(firsts):
+            plain = np.ones(hi - lo, dtype=bool)
+            plain[headers + 1 - lo] = False
+            plain[headers + 2 - lo] = False
+            return pk[lo:hi][plain], int(end[hi - 1])
+        firsts, lasts = firsts[:keep], lasts[:keep]
+    return np.zeros(0, np.int64), pos
+
+
+def _rle_rows(d: np.ndarray, pk: np.ndarray, out: np.ndarray, rows_at_once: int = 64) -> int:
+    """The packets at ``pk`` (whole scanlines, in order) decoded into the first rows of ``out``
+    (H, W, 4), a few rows at a time (the source index of every byte is 8 bytes); how many rows."""
+    line = 4 * out.shape[1]
+    c = d[pk].astype(np.int64)
+    done = np.cumsum(np.where(c > 128, c - 128, c))
+    rows = int(done[-1]) // line if len(done) else 0
+    cuts = np.searchsorted(done, np.arange(0, rows + rows_at_once, rows_at_once).clip(max=rows) * line, "right")
+    for r0, a, b in zip(range(0, rows, rows_at_once), cuts[:-1], cuts[1:], strict=False):
+        got = _rle_bytes(d, pk[a:b])
+        out[r0 : r0 + len(got) // line] = got.reshape(-1, 4, out.shape[1]).transpose(0, 2, 1)
+    return rows
+
+
+def _rle_bytes(d: np.ndarray, pk: np.ndarray) -> np.ndarray:
+    """The bytes packets at positions ``pk`` (in order) decode to: each packet's second byte
+    repeated (a run's value), then the literals' bytes put in place."""
+    c = d[pk].astype(np.int64)
+    lit = c <= 128
+    cnt = np.where(lit, c, c - 128)
+    out = np.repeat(d[pk + 1], cnt)
+    if lit.any():
+        at, n = (np.cumsum(cnt) - cnt)[lit], cnt[lit]
+        step = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
+        out[np.repeat(at, n) + step] = d[np.repeat(pk[lit] + 1, n) + step]
+    return out
+
+
 # ---- Radiance .hdr ---------------------------------------------------------------------------
-def read_hdr(data: bytes) -> np.ndarray:
-    """The texels of a Radiance RGBE file (``#?RADIANCE``, ``FORMAT=32-bit_rle_rgbe``, the standard
-    orientation ``-Y H +X W``; flat or run-length encoded scanlines): float32 (H, W, 3), row 0 at
-    the top, divided by the header's EXPOSURE."""
+def _hdr_header(data: bytes) -> tuple[float, int, int, int]:
+    """(EXPOSURE, width, height, where the scanlines begin) of a Radiance file, its size checked."""
     if not (data.startswith(b"#?RADIANCE") or data.startswith(b"#?RGBE")):
         raise SceneError("body", "not a Radiance .hdr file: it must begin with #?RADIANCE")
     end = data.find(b"\n\n", 0, limits.MAX_ENV_HEADER_BYTES)
@@ -105,38 +255,49 @@ def read_hdr(data: bytes) -> np.ndarray:
         raise SceneError("body", "the resolution line must be '-Y <height> +X <width>' (the standard orientation)")
     height, width = int(words[1]), int(words[3])
     check_size(width, height)  # before anything of that size exists
-    pos = nl + 1
+    return exposure, width, height, nl + 1
+
+
+def declared_size(data: bytes, fmt: str) -> tuple[int, int]:
+    """(width, height) an image file declares, read from its header alone (SceneError as the
+    readers: a file whose header is refused, a size past the limits)."""
+    if fmt not in ENV_FORMATS:
+        raise SceneError("format", f"unknown image format {fmt!r}; accepted: {', '.join(ENV_FORMATS)}")
+    if not data:
+        raise SceneError("body", "empty body: send the image file's bytes")
+    if fmt == "hdr":
+        return _hdr_header(data)[1:3]
+    x0, y0, x1, y1 = exr_header(data)["dataWindow"]
+    check_size(x1 - x0 + 1, y1 - y0 + 1)
+    return x1 - x0 + 1, y1 - y0 + 1
+
+
+def read_hdr(data: bytes) -> np.ndarray:
+    """The texels of a Radiance RGBE file (``#?RADIANCE``, ``FORMAT=32-bit_rle_rgbe``, the standard
+    orientation ``-Y H +X W``; flat or run-length encoded scanlines): float32 (H, W, 3), row 0 at
+    the top, divided by the header's EXPOSURE."""
+    exposure, width, height, pos = _hdr_header(data)
     n = len(data)
+    d = np.frombuffer(data, dtype=np.uint8)
     out = np.empty((height, width, 4), dtype=np.uint8)
-    for y in range(height):
+    span = width  # bytes of the last run-length scanline
+    first = 0
+    if 8 <= width < 32768:  # as many scanlines at once as are plain, then one by one
+        pk, pos = _rle_scanlines(data, pos, width, height)
+        first = _rle_rows(d, pk, out)
+    for y in range(first, height):
         if 8 <= width < 32768 and data[pos : pos + 2] == b"\x02\x02" and pos + 4 <= n:
             if (data[pos + 2] << 8 | data[pos + 3]) != width:
                 raise SceneError("body", f"scanline {y}: its run-length header says another width")
-            pos += 4
-            for c in range(4):
-                row = bytearray()
-                while len(row) < width:
-                    if pos >= n:
-                        raise SceneError("body", f"the file ends inside scanline {y}")
-                    count = data[pos]
-                    if count > 128:
-                        count -= 128
-                        if len(row) + count > width or pos + 1 >= n:
-                            raise SceneError("body", f"scanline {y}: a run passes the end of the line")
-                        row += data[pos + 1 : pos + 2] * count
-                        pos += 2
-                    else:
-                        if count == 0 or len(row) + count > width or pos + 1 + count > n:
-                            raise SceneError("body", f"scanline {y}: a run passes the end of the line")
-                        row += data[pos + 1 : pos + 1 + count]
-                        pos += 1 + count
-                out[y, :, c] = np.frombuffer(bytes(row), dtype=np.uint8)
+            pk, end = _rle_scanline(data, pos + 4, width, y, 2 * span)
+            span, pos = end - pos, end
+            out[y] = _rle_bytes(d, pk).reshape(4, width).T
         else:
             if data[pos : pos + 3] == b"\x01\x01\x01":
                 raise SceneError("body", "old-style run-length encoding is not read: save the file again")
             if pos + 4 * width > n:
                 raise SceneError("body", f"the file ends inside scanline {y}")
-            out[y] = np.frombuffer(data, dtype=np.uint8, count=4 * width, offset=pos).reshape(width, 4)
+            out[y] = d[pos : pos + 4 * width].reshape(width, 4)
             pos += 4 * width
     e = out[..., 3].astype(np.int32)
     # m · 2^(e − 128 − 8), as Ward's reader; in float32 (2^−136 is a subnormal there, exact), so a
@@ -223,6 +384,12 @@ def read_exr(data: bytes) -> np.ndarray:
     head = exr_header(data)
     x0, y0, x1, y1 = head["dataWindow"]
     check_size(x1 - x0 + 1, y1 - y0 + 1)
+    if len(head["channels"]) > limits.MAX_ENV_CHANNELS:
+        raise SceneError(
+            "body",
+            f"the EXR file has {len(head['channels'])} channels; at most {limits.MAX_ENV_CHANNELS} are accepted "
+            "(R, G and B are read): save the image with fewer",
+        )
     for c in "RGB":
         kind = head["channels"].get(c)
         if kind is None:
@@ -323,10 +490,19 @@ class EnvironmentMap:
         b = tx[j0 + 1, i0] * (1 - fx) + tx[j0 + 1, i1] * fx
         return self.scale * (a * (1 - fy) + b * fy)
 
+    @property
+    def held_bytes(self) -> int:
+        """The bytes this image holds once drawn: its texels, the sampling tables (float32 CDFs)
+        and the packed copies of both that its textures are uploaded from
+        (:func:`renderer.gpu_layout.env_textures`, kept as long as the image is)."""
+        texels, patches = self.width * self.height, self.width * (self.height - 1)
+        return 2 * (12 * texels + 4 * (patches + self.height - 1))
+
     # ---- sampling ----
-    @cached_property
+    @property
     def patch_weights(self) -> np.ndarray:
-        """float64 (H − 1, W): each patch's mean corner luminance × its row band's solid angle / 2π."""
+        """float64 (H − 1, W): each patch's mean corner luminance × its row band's solid angle / 2π
+        (made again when asked: the sampling tables are what is kept)."""
         lum = self.texels.astype(np.float64) @ np.asarray(LUMINANCE)
         corners = lum[:-1] + lum[1:]
         mean = 0.25 * (corners + np.roll(corners, -1, axis=1))

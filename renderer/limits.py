@@ -124,11 +124,14 @@ MAX_PLY_HEADER_BYTES = 64 << 10  # a PLY header (text up to end_header)
 # ---- environment images --------------------------------------------------------------------
 # An equirectangular HDR image (renderer/envmap.py): its declared size is checked against these
 # before a texel is allocated. 4096 × 2048 float RGB is 96 MiB on the GPU (and as much again in
-# the session store, compressed), the most one scene may ask for.
+# the session store, where texels are kept as they are), the most one scene may ask for.
 MAX_ENV_WIDTH = 4096
 MAX_ENV_HEIGHT = 2048
 MIN_ENV_SIDE = 2  # the bilinear lookup and the sampling patches need two rows and two columns
 MAX_ENV_HEADER_BYTES = 64 << 10  # a .hdr header (text up to the resolution line), an .exr header
+# An .exr file's channels: the library decodes every one (32 MiB each, FLOAT at the largest size),
+# though R, G and B are all that is read.
+MAX_ENV_CHANNELS = 16
 MAX_ENV_SCALE = 1e6  # the image's radiance factor
 MAX_ENV_ROTATION_DEG = 360.0  # about +y, either way
 

@@ -278,6 +278,22 @@ class ServerConfig(BaseSettings):
         description="address space of one model-file worker, bytes (RLIMIT_AS, the worker's imports included: "
         "~0.4 GiB); a file that needs more is refused with 422",
     )
+    model_workers_per_address: int = Field(
+        1,
+        ge=1,
+        le=64,
+        description="of the POCKETRAY_MODEL_WORKERS, the most one client address holds at once (model files and "
+        "environment images); beyond: 503 with Retry-After at once, so one address's slow files leave the "
+        "other workers to other clients. Behind a proxy every client is the proxy's address: raise it to "
+        "POCKETRAY_MODEL_WORKERS and let the proxy bound each client",
+    )
+    scene_cache_bytes: int = Field(
+        1 << 30,
+        ge=0,
+        description="bytes of the scenes each process keeps decoded between requests (geometry, and environment "
+        "images with their sampling tables and upload copies: ~256 MiB for a 4096 × 2048 image), least "
+        "recently used dropped first; the scene in use stays however large",
+    )
 
     # --- the session store's faults -------------------------------------------------------
     sqlite_on_corrupt: Literal["move_aside", "refuse"] = Field(

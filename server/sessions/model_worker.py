@@ -13,14 +13,19 @@ another. The file's declared counts are checked first in the worker
 (:mod:`renderer.model_guard`), so most malformed files are refused in milliseconds.
 
 Environment images (``PUT /api/sessions/{id}/environment``: ``.hdr``, ``.exr``) are read by
-:func:`renderer.envmap.read_image` in the same workers, under the same limits: a run-length
-encoded ``.hdr`` is decoded run by run, so a file of a million one-byte runs is seconds of CPU.
+:func:`renderer.envmap.read_image` in the same workers, under the same limits: even a
+run-length encoded ``.hdr`` of one-byte runs is cut into packets in C and decoded by NumPy, but a
+16 MB file is still a second of CPU, which the per-address share keeps to its own address.
 
 The protocol is a pipe each way: 8-byte length, then a pickle — the job ``(bytes, format,
 max_triangles, max_vertices)`` or ``("image", bytes, format)`` one way, ``("ok", vertices,
 triangles, normals)``, ``("ok", texels)`` or ``("error", field, message)`` the other
 (pickles only between this module and the processes it started). A worker is ``python -m
 server.sessions.model_worker``: it imports the renderer's core and nothing of the service.
+
+One client address holds at most ``POCKETRAY_MODEL_WORKERS_PER_ADDRESS`` of the workers at once
+(the address is :data:`parse_client`, set by the upload routes); a further file of that address is
+answered 503 at once, so its slowest files cannot keep another client's upload waiting.
 
 Every upload pays the copy of its bytes to the worker and of the arrays back (a few ms per MB;
 docs/API.md, "Hardening", gives the measured overhead).
@@ -40,10 +45,14 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+from contextvars import ContextVar
 from pathlib import Path
 from typing import Any
 
 _HEADER = struct.Struct("<Q")
+# The client address whose file is parsed (server.sessions.ratelimit.client_key), set by the upload
+# routes before they hand the work to a thread (which runs in a copy of their context); None: no share.
+parse_client: ContextVar[str | None] = ContextVar("parse_client", default=None)
 START_TIMEOUT_S = 60.0  # a fresh worker imports numpy and trimesh: seconds on a loaded machine
 
 
@@ -132,8 +141,10 @@ class _Worker:
 class ModelWorkers:
     """``workers`` warm worker processes; :meth:`load` parses a file in one of them."""
 
-    def __init__(self, workers: int, timeout_s: float, memory_bytes: int):
+    def __init__(self, workers: int, timeout_s: float, memory_bytes: int, per_address: int = 0):
         self.timeout_s, self.memory_bytes = timeout_s, memory_bytes
+        self.per_address = per_address  # workers one client address may hold at once (0: no share)
+        self._held: dict[str, int] = {}  # client address → files of it being parsed or waiting
         self._idle: queue.LifoQueue[_Worker] = queue.LifoQueue()
         self._all: set[_Worker] = set()
         self._lock = threading.Lock()
@@ -177,6 +188,28 @@ class ModelWorkers:
     def _run(self, job: tuple, what: str, busy: Callable[..., Exception], field: str = "file") -> tuple:
         """``job`` in an idle worker: its ``("ok", …)`` answer, else SceneError (the worker's own,
         or ``field`` naming the deadline or memory limit ``what`` passed)."""
+        client = parse_client.get()
+        if client is None or not self.per_address:
+            return self._in_worker(job, what, busy, field)
+        with self._lock:
+            held = self._held.get(client, 0)
+            if held >= self.per_address:
+                raise busy(
+                    f"uploads: this address has {held} file(s) being parsed already, its share of the "
+                    f"{len(self._all)} parsers (POCKETRAY_MODEL_WORKERS_PER_ADDRESS = {self.per_address}); "
+                    "retry when they are done",
+                    retry_after_s=1,
+                )
+            self._held[client] = held + 1
+        try:
+            return self._in_worker(job, what, busy, field)
+        finally:
+            with self._lock:
+                left = self._held.pop(client) - 1
+                if left:
+                    self._held[client] = left
+
+    def _in_worker(self, job: tuple, what: str, busy: Callable[..., Exception], field: str) -> tuple:
         from renderer.scene import SceneError
 
         try:
@@ -240,7 +273,7 @@ _pools_lock = threading.Lock()
 def workers_for(config) -> ModelWorkers | None:
     """The process's workers for ``config``'s settings (started at the first call); None when
     ``model_workers`` is 0 (files parsed in the service's own process, without a deadline)."""
-    key = (config.model_workers, config.model_timeout_s, config.model_memory_bytes)
+    key = (config.model_workers, config.model_timeout_s, config.model_memory_bytes, config.model_workers_per_address)
     if not key[0]:
         return None
     with _pools_lock:

@@ -25,6 +25,7 @@ from __future__ import annotations
 import io
 import json
 import threading
+import zipfile
 from collections import OrderedDict
 from collections.abc import Iterator
 from typing import Any
@@ -129,8 +130,8 @@ def scene_source(scene: SessionScene) -> bytes:
     if env is not None:
         small["environment"] = env
     if scene.environment_map is not None and scene.environment_map.ref != SKY_REF:
-        # an uploaded image is stored beside the scene (and counts against the store's quota); the
-        # sky is made again from its name
+        # an uploaded image is stored beside the scene, uncompressed (the quota counts its texels);
+        # the sky is made again from its name
         arrays["env_texels"] = scene.environment_map.texels
     if scene.meshes:
         small["meshes"] = [
@@ -145,9 +146,22 @@ def scene_source(scene: SessionScene) -> bytes:
         arrays["shape_kind"] = scene.shapes.kind
         arrays["shape_params"] = scene.shapes.params
         arrays["shape_materials"] = scene.shapes.material
+    arrays["meta"] = np.frombuffer(json.dumps(small).encode(), dtype=np.uint8)
+    return _ARRAYS + _npz(arrays, stored={"env_texels"})
+
+
+def _npz(arrays: dict[str, np.ndarray], stored: set[str]) -> bytes:
+    """An ``.npz`` of ``arrays`` (``np.load`` reads it): compressed, except the members in
+    ``stored``, kept as they are — an environment image's texels, which hardly compress, which the
+    store's quota counts as the bytes the service holds, and whose compression took seconds."""
     buf = io.BytesIO()
-    np.savez_compressed(buf, meta=np.frombuffer(json.dumps(small).encode(), dtype=np.uint8), **arrays)
-    return _ARRAYS + buf.getvalue()
+    with zipfile.ZipFile(buf, "w") as z:
+        for name, a in arrays.items():
+            member = zipfile.ZipInfo(name + ".npy", date_time=(1980, 1, 1, 0, 0, 0))
+            member.compress_type = zipfile.ZIP_STORED if name in stored else zipfile.ZIP_DEFLATED
+            with z.open(member, "w", force_zip64=True) as f:
+                np.lib.format.write_array(f, np.asanyarray(a), allow_pickle=False)
+    return buf.getvalue()
 
 
 def environment_json(scene: Scene) -> dict[str, Any] | None:
@@ -293,42 +307,64 @@ def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dic
     return info
 
 
-def _weight(scene: SessionScene) -> int:
+# What a scene holds in memory, bytes: a sphere its centre, radius and material and the tree's
+# share; a triangle its mesh's arrays and the flattened corners; an analytic shape its record and
+# box; an environment image everything it holds once drawn (EnvironmentMap.held_bytes).
+SPHERE_BYTES = 36
+TRIANGLE_BYTES = 144
+SHAPE_BYTES = 144
+
+
+def scene_bytes(scene: SessionScene) -> int:
+    """The bytes ``scene`` holds (the :class:`SceneCache`'s weight)."""
     rest = scene.scene if isinstance(scene, AnimatedScene) else scene
-    return rest.n_spheres + 4 * rest.n_triangles + 4 * rest.n_shapes
+    env = rest.environment_map
+    geometry = SPHERE_BYTES * rest.n_spheres + TRIANGLE_BYTES * rest.n_triangles + SHAPE_BYTES * rest.n_shapes
+    return geometry + (env.held_bytes if env is not None and env.ref != SKY_REF else 0)
 
 
 class SceneCache:
-    """Least-recently-used scenes of this process, keyed by (session id, scene revision).
+    """Least-recently-used scenes of this process, keyed by (session id, scene revision); one
+    revision per session (a new one replaces the old, which is freed with everything its image
+    holds once no frame uses it).
 
-    Bounded by the total number of spheres, triangles and shapes held (memory ≈ 36 bytes per
-    sphere, about 150 per triangle: its mesh's arrays and the flattened corners — counted as 4;
-    about 100 per analytic shape: its record — counted as 4 too).
+    Bounded by the bytes the scenes hold (:func:`scene_bytes`: geometry and environment images);
+    the scene used last stays however large it is.
     """
 
-    def __init__(self, max_spheres: int = 8 << 20):
-        self.max_spheres = max_spheres
-        self._items: OrderedDict[tuple[str, str], SessionScene] = OrderedDict()
+    def __init__(self, max_bytes: int = 1 << 30):
+        self.max_bytes = max_bytes
+        self._items: OrderedDict[tuple[str, str], tuple[SessionScene, int]] = OrderedDict()
+        self._bytes = 0
         self._lock = threading.Lock()
+
+    @property
+    def bytes_held(self) -> int:
+        """The bytes of the scenes held now."""
+        return self._bytes
 
     def get(self, key: tuple[str, str]) -> SessionScene | None:
         with self._lock:
-            scene = self._items.get(key)
-            if scene is not None:
-                self._items.move_to_end(key)
-            return scene
+            got = self._items.get(key)
+            if got is None:
+                return None
+            self._items.move_to_end(key)
+            return got[0]
 
     def put(self, key: tuple[str, str], scene: SessionScene) -> None:
+        weight = scene_bytes(scene)
         with self._lock:
-            self._items[key] = scene
-            self._items.move_to_end(key)
-            while len(self._items) > 1 and sum(_weight(s) for s in self._items.values()) > self.max_spheres:
-                self._items.popitem(last=False)
+            for old in [k for k in self._items if k[0] == key[0]]:  # the session's other revisions
+                self._bytes -= self._items.pop(old)[1]
+            self._items[key] = (scene, weight)
+            self._bytes += weight
+            while len(self._items) > 1 and self._bytes > self.max_bytes:
+                self._bytes -= self._items.popitem(last=False)[1][1]
 
     def drop_session(self, session_id: str) -> None:
         with self._lock:
             for key in [k for k in self._items if k[0] == session_id]:
-                del self._items[key]
+                self._bytes -= self._items.pop(key)[1]
 
 
 # ---- uploaded models: where they land -------------------------------------------------------

@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum
-from renderer.envmap import EnvironmentMap, image_ref
+from renderer.envmap import STORED_TEXEL_BYTES, EnvironmentMap, declared_size, image_ref
 from renderer.limits import MAX_TRIANGLES
 from renderer.mesh_io import fit_transform
 from renderer.scenarios import DEFAULT_DEMO, demo_for_recipe, framed, mesh_scene, scenario
@@ -59,7 +59,7 @@ from .scenes import (
     scene_info,
     scene_source,
 )
-from .store import SessionState, SessionStore, StoreUnavailable
+from .store import SessionState, SessionStore, StoreFull, StoreUnavailable
 
 LINEAR_FORMATS = ("npy", "exr")  # radiance as traced: denoised only when a request asks for it
 
@@ -96,7 +96,7 @@ class SessionService:
         self.config = config
         self.store = store
         self.frames = frames
-        self.cache = cache or SceneCache()
+        self.cache = cache or SceneCache(config.scene_cache_bytes)
         self.caps = InputCaps(config)
 
     def default_settings(self) -> dict[str, Any]:
@@ -356,6 +356,12 @@ class SessionService:
         naming ``body`` (the file) or ``query.format``; nothing is written when the file is refused."""
         state = self.get(session_id)
         try:
+            width, height = declared_size(data, fmt)
+            # the store keeps the texels as they are: an image the quota cannot hold is refused now,
+            # by its header, not after it was decoded
+            wanted, room = STORED_TEXEL_BYTES * width * height, self.store.room(session_id)
+            if room is not None and wanted > room:
+                raise StoreFull(self.config.max_store_bytes - room, wanted, self.config.max_store_bytes)
             texels = load_env_image(self.config, data, fmt, busy=Busy)
             env = EnvironmentMap(image_ref(texels), texels, scale, rotation_deg)
         except SceneError as e:

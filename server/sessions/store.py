@@ -124,6 +124,10 @@ class SessionStore(Protocol):
     def delete(self, session_id: str) -> bool:
         """Remove the session; True when it existed."""
 
+    def room(self, session_id: str) -> int | None:
+        """The most bytes ``session_id``'s scene source could have now within the quota (what the
+        others use subtracted, expired sessions' given back); None without a quota."""
+
     def ping(self) -> bool:
         """True when the backend answers."""
 
@@ -437,6 +441,18 @@ class SQLiteStore:
         with self._lock:
             return self._used(self._db)
 
+    def room(self, session_id: str) -> int | None:
+        if not self.max_bytes:
+            return None
+        now = time.time()
+
+        def tx(db: sqlite3.Connection) -> int:
+            self._purge(db, now)
+            row = db.execute("SELECT length(source) FROM scenes WHERE id = ?", (session_id,)).fetchone()
+            return self.max_bytes - self._used(db) + (row[0] if row else 0)
+
+        return self._tx(tx)
+
     def close(self) -> None:
         with self._lock:
             self._db.close()
@@ -643,6 +659,23 @@ class RedisStore:
     def used_bytes(self) -> int:
         """Bytes of the stored scene sources, the quota's count (scenes expired since the last write too)."""
         return int(self.client.get(self._usage_keys[0]) or 0)
+
+    def room(self, session_id: str) -> int | None:
+        if not self.max_bytes:
+            return None
+        k_bytes, k_sizes, k_deadlines = self._usage_keys
+        members = cast(list[bytes], self.client.zrangebyscore(k_deadlines, "-inf", int(time.time() * 1000)))
+        due = [x.decode() for x in members]
+        with self.client.pipeline(transaction=False) as p:
+            p.get(k_bytes)
+            p.hget(k_sizes, session_id)
+            for other in due:  # as the put script does: a scene key that is gone gives its bytes back
+                p.exists(f"{self.prefix}scene:{other}")
+                p.hget(k_sizes, other)
+            got = p.execute()
+        used, own = int(got[0] or 0), int(got[1] or 0)
+        gone = sum(int(size or 0) for alive, size in zip(got[2::2], got[3::2], strict=True) if not alive)
+        return self.max_bytes - used + gone + own
 
     def close(self) -> None:
         self.client.close()

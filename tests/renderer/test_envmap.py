@@ -180,3 +180,22 @@ def test_only_a_scene_with_an_image_carries_its_define():
     assert whitted.reads("environment_map") and not whitted.reads("environment_sampling")
     assert path.reads("environment_map") and path.reads("environment_sampling")
     assert not Variant("bih", "depth", 3, ("ENVIRONMENT_MAP",)).reads("environment_map")
+
+
+def test_an_exr_with_too_many_channels_is_refused_saying_so():
+    rgb = {c: np.zeros((4, 4), np.float16) for c in "RGB"}
+    extra = {f"aov{i}": np.zeros((4, 4), np.float16) for i in range(limits.MAX_ENV_CHANNELS - 2)}
+    import OpenEXR
+
+    def exr(channels: dict) -> bytes:
+        buf = io.BytesIO()
+        OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, channels).write(buf)
+        return buf.getvalue()
+
+    with pytest.raises(SceneError) as e:
+        read_image(exr({**rgb, **extra}), "exr")
+    n = limits.MAX_ENV_CHANNELS + 1
+    assert e.value.field == "body"
+    assert f"has {n} channels; at most {limits.MAX_ENV_CHANNELS} are accepted" in e.value.message
+    extra.pop("aov0")  # at the limit: read
+    assert read_image(exr({**rgb, **extra}), "exr").shape == (4, 4, 3)

@@ -100,3 +100,70 @@ def test_an_image_counts_against_the_store_quota(tmp_path):
         assert c.get(f"/api/sessions/{sid}").json()["version"] == 1 and app.state.store.used_bytes() == used
         r = c.put(f"/api/sessions/{sid}/environment?format=hdr", content=write_hdr(TEXELS))  # small: fits
         assert r.status_code == 200 and app.state.store.used_bytes() > used
+
+
+def quota_app(tmp_path, **settings):
+    from pocketray_server_support import make_config
+
+    from server.app import create_app
+
+    return create_app(make_config(tmp_path, warmup=False, **settings))
+
+
+def test_the_quota_counts_the_texels_the_service_holds(tmp_path):
+    """A flat image compresses to almost nothing, but the service holds 12 bytes a texel of it:
+    what the store's quota counts."""
+    from fastapi.testclient import TestClient
+
+    flat = np.full((128, 256, 3), 0.5, np.float32)
+    app = quota_app(tmp_path)
+    with TestClient(app) as c:
+        sid = new_session(c)
+        used = app.state.store.used_bytes()
+        r = c.put(f"/api/sessions/{sid}/environment?format=hdr", content=write_hdr(flat))
+        assert r.status_code == 200, r.text
+        assert app.state.store.used_bytes() - used >= flat.nbytes
+
+
+def test_an_image_the_quota_cannot_hold_is_refused_by_its_header(tmp_path, monkeypatch):
+    """The size the file declares is checked against the room the quota leaves before the file is
+    read: a 507 without a parse (a file cut short after its header, which the reader would refuse
+    with a 422, is answered so), and nothing is written."""
+    from fastapi.testclient import TestClient
+
+    from server.sessions import service as service_module
+
+    parsed = []
+    monkeypatch.setattr(service_module, "load_env_image", lambda *a, **k: parsed.append(1))
+    app = quota_app(tmp_path, max_store_bytes=1 << 20)  # 1 MiB: 512 × 256 texels are 1.5 MiB
+    with TestClient(app) as c:
+        sid = new_session(c)
+        used = app.state.store.used_bytes()
+        head = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 256 +X 512\n" + bytes([2, 2, 2, 0, 0x81])
+        r = c.put(f"/api/sessions/{sid}/environment?format=hdr", content=head)
+        assert r.status_code == 507, r.text
+        assert "POCKETRAY_MAX_STORE_BYTES" in r.json()["detail"] and r.headers["Retry-After"]
+        assert parsed == [] and app.state.store.used_bytes() == used
+        assert c.get(f"/api/sessions/{sid}").json()["version"] == 1
+
+
+def test_the_upload_parses_as_its_client_address(tmp_path, monkeypatch):
+    """The route hands the client's address to the parse (the workers' per-address share)."""
+    from fastapi.testclient import TestClient
+
+    from server.sessions import service as service_module
+    from server.sessions.model_worker import parse_client
+
+    seen = []
+
+    def load(config, data, fmt, busy):
+        seen.append(parse_client.get())
+        return np.ones((4, 8, 3), np.float32)
+
+    monkeypatch.setattr(service_module, "load_env_image", load)
+    app = quota_app(tmp_path)
+    with TestClient(app) as c:
+        sid = new_session(c)
+        r = c.put(f"/api/sessions/{sid}/environment?format=hdr", content=write_hdr(TEXELS))
+        assert r.status_code == 200, r.text
+    assert seen == ["testclient"]

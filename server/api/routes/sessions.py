@@ -13,7 +13,8 @@ from renderer.mesh_io import MODEL_FORMATS, fit_transform
 from renderer.scene import SceneError
 
 from ...faults import Busy, InputError, Where
-from ...sessions.model_worker import load_model
+from ...sessions.model_worker import load_model, parse_client
+from ...sessions.ratelimit import client_key
 from ...sessions.scenes import scene_json_chunks
 from ...sessions.store import SessionState
 from ..body import JSONBodyRoute
@@ -157,6 +158,7 @@ async def add_mesh(
     session_id: SessionId, request: Request, query: Annotated[MeshUploadQuery, Query()], service: ServiceDep
 ) -> MeshAdded:
     data = await request.body()
+    parse_client.set(client_key(request.client.host if request.client else None))
     added = await run_in_threadpool(service.add_mesh, session_id, data, query)
     state = added.state
     return MeshAdded(
@@ -188,6 +190,7 @@ async def set_environment(
     session_id: SessionId, request: Request, query: Annotated[EnvironmentUploadQuery, Query()], service: ServiceDep
 ) -> EnvironmentOut:
     data = await request.body()
+    parse_client.set(client_key(request.client.host if request.client else None))
     state, env = await run_in_threadpool(
         service.set_environment, session_id, data, query.format, query.scale, query.rotation_deg
     )
@@ -213,6 +216,7 @@ def clear_environment(session_id: SessionId, service: ServiceDep) -> VersionOut:
 )
 async def convert_mesh(request: Request, query: Annotated[MeshUploadQuery, Query()], service: ServiceDep) -> Response:
     data = await request.body()
+    parse_client.set(client_key(request.client.host if request.client else None))
 
     def convert() -> bytes:
         try:

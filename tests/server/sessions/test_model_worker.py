@@ -17,7 +17,7 @@ from renderer.mesh_io import MeshData, export_mesh
 from renderer.meshes import icosphere
 from renderer.scene import SceneError
 from server.config import ServerConfig
-from server.sessions.model_worker import ModelWorkers, load_model, workers_for
+from server.sessions.model_worker import ModelWorkers, ParsersBusy, load_model, workers_for
 
 SMALL = export_mesh(icosphere(1), "obj")
 
@@ -91,11 +91,12 @@ def test_the_service_settings_pick_the_workers(tmp_path):
 
 
 def test_an_environment_image_is_read_in_a_worker_under_its_deadline():
-    """An .hdr of one-byte runs (legal, slow to decode: ~1 s per million runs) past the deadline is
-    refused naming ``body`` and POCKETRAY_MODEL_TIMEOUT_S; a small image is read there as in process."""
+    """An .hdr of one-byte runs (legal, the slowest to decode: ~0.1 s per million runs) past the
+    deadline is refused naming ``body`` and POCKETRAY_MODEL_TIMEOUT_S; a small image is read there as
+    in process."""
     from renderer.envmap import read_image, write_hdr
 
-    w, h = 1024, 512  # 2 million runs
+    w, h = 2048, 1024  # 8 million runs
     runs = (bytes([2, 2, w >> 8, w & 255]) + bytes([1, 77]) * (4 * w)) * h
     slow = b"#?RADIANCE\n\n" + f"-Y {h} +X {w}\n".encode() + runs
     small = write_hdr(np.linspace(0, 3, 4 * 8 * 3).reshape(4, 8, 3))
@@ -109,5 +110,52 @@ def test_an_environment_image_is_read_in_a_worker_under_its_deadline():
             pool.load_image(small, "png")
         assert e.value.field == "format"
         np.testing.assert_array_equal(pool.load_image(small, "hdr"), read_image(small, "hdr"))
+    finally:
+        pool.close()
+
+
+def test_one_address_holds_at_most_its_share_of_the_workers():
+    """With a share of 1 of 2 workers, an address whose slow file is being parsed is answered busy
+    at once for its next one, while another address's file is read by the other worker; the share
+    is given back when the file is done."""
+    import threading
+
+    from renderer.envmap import read_image, write_hdr
+    from server.sessions.model_worker import parse_client
+
+    w, h = 2048, 1024
+    slow = (
+        b"#?RADIANCE\n\n"
+        + f"-Y {h} +X {w}\n".encode()
+        + (bytes([2, 2, w >> 8, w & 255]) + bytes([0x81, 7]) * (4 * w)) * h
+    )
+    small = write_hdr(np.linspace(0, 3, 4 * 8 * 3).reshape(4, 8, 3))
+    pool = ModelWorkers(2, 120.0, 2 << 30, per_address=1)
+
+    def as_client(client, fn):
+        parse_client.set(client)
+        return fn()
+
+    try:
+        pool.load_image(small, "hdr")  # both workers started
+        done = threading.Event()
+        first = threading.Thread(
+            target=lambda: (as_client("10.0.0.1", lambda: pool.load_image(slow, "hdr")), done.set())
+        )
+        first.start()
+        while pool._held.get("10.0.0.1") != 1:
+            assert not done.is_set()
+            time.sleep(0.001)
+        with pytest.raises(ParsersBusy, match="POCKETRAY_MODEL_WORKERS_PER_ADDRESS = 1"):
+            as_client("10.0.0.1", lambda: pool.load_image(small, "hdr"))
+        np.testing.assert_array_equal(
+            as_client("10.0.0.2", lambda: pool.load_image(small, "hdr")), read_image(small, "hdr")
+        )
+        assert not done.is_set()  # the slow file was still being parsed all along
+        first.join()
+        assert pool._held == {}
+        np.testing.assert_array_equal(
+            as_client("10.0.0.1", lambda: pool.load_image(small, "hdr")), read_image(small, "hdr")
+        )
     finally:
         pool.close()

@@ -12,7 +12,16 @@ from renderer.animation import AnimatedScene, Deformable, RigidGroup, museum, po
 from renderer.meshes import teapot
 from renderer.scenarios import mesh_scene
 from renderer.scene import Camera
-from server.sessions.scenes import SceneCache, load_source, scene_info, scene_json_chunks, scene_source
+from server.sessions.scenes import (
+    SHAPE_BYTES,
+    SPHERE_BYTES,
+    SceneCache,
+    load_source,
+    scene_bytes,
+    scene_info,
+    scene_json_chunks,
+    scene_source,
+)
 
 
 def scene_with_meshes():
@@ -50,8 +59,8 @@ def test_the_streamed_json_is_exactly_the_scene_json():
 
 
 def test_the_cache_weighs_triangles():
-    cache = SceneCache(max_spheres=10_000)
-    scene = scene_with_meshes()  # ~1,000 triangles: weighs ~4,000
+    cache = SceneCache(max_bytes=10_000 * SPHERE_BYTES)
+    scene = scene_with_meshes()  # ~1,000 triangles: weighs as ~4,000 spheres
     for i in range(4):
         cache.put((f"s{i}", "r"), scene)
     assert cache.get(("s0", "r")) is None and cache.get(("s3", "r")) is scene
@@ -112,8 +121,82 @@ def test_the_analytic_shapes_are_stored_bit_for_bit_streamed_and_counted():
     with np.load(io.BytesIO(scene_source(plain)[1:])) as z:
         assert not any(f.startswith("shape") for f in z.files)
     assert "n_shapes" not in scene_info(plain)
-    # the cache weighs each shape as 4 (two such scenes do not fit in 4·n + 1)
-    cache = SceneCache(max_spheres=4 * scene.n_shapes + 1)
+    # the cache weighs each shape as 4 spheres (two such scenes do not fit in one's bytes + 1)
+    assert (
+        scene_bytes(scene)
+        == SHAPE_BYTES * scene.n_shapes + SPHERE_BYTES * scene.n_spheres
+        == 4 * (SPHERE_BYTES * scene.n_shapes) + SPHERE_BYTES * scene.n_spheres
+    )
+    cache = SceneCache(max_bytes=scene_bytes(scene) + 1)
     cache.put(("a", "r"), scene)
     cache.put(("b", "r"), scene)
     assert cache.get(("a", "r")) is None and cache.get(("b", "r")) is scene
+
+
+def lit_scene(seed: int, h: int = 64, w: int = 128, flat: bool = False):
+    """A scenario under an uploaded image of ``h × w`` texels (seeded noise, or one value)."""
+    from renderer.envmap import EnvironmentMap, image_ref
+    from renderer.scenarios import scenario
+    from renderer.scene import Scene
+
+    texels = np.random.default_rng(seed).random((h, w, 3)).astype(np.float32)
+    if flat:
+        texels[:] = 0.5
+    base = scenario(1, 8)
+    env = EnvironmentMap(image_ref(texels), texels)
+    return Scene(*(getattr(base, f) for f in ("camera", "lights", "materials", "sphere_centers")),
+                 base.sphere_radii, base.sphere_materials, base.planes, base.meshes, (0.0, 0.0, 0.0), env)  # fmt: skip
+
+
+def test_the_cache_counts_an_image_in_bytes_and_evicts_by_them():
+    """An image weighs its texels, its sampling tables and their packed upload copies (what it
+    holds once drawn); three such scenes in a bound of two and a half: the oldest goes."""
+    from renderer.gpu_layout import env_textures
+
+    a, b, c = (lit_scene(i) for i in range(3))
+    env = a.environment_map
+    env_textures(env)  # drawn: texels, tables and packed copies all made
+    texels, tables = env.texels.nbytes, sum(t.nbytes for t in env.sampling_tables)
+    packed = sum(t.data.nbytes for t in env_textures(env))
+    assert env.held_bytes >= texels + tables + packed - 4 * env.width  # (rows padded: a little less)
+    assert scene_bytes(a) == env.held_bytes + SPHERE_BYTES * a.n_spheres
+    cache = SceneCache(max_bytes=int(2.5 * scene_bytes(a)))
+    for i, scene in enumerate((a, b, c)):
+        cache.put((f"s{i}", "r"), scene)
+    assert cache.get(("s0", "r")) is None and cache.get(("s1", "r")) is b and cache.get(("s2", "r")) is c
+    assert cache.bytes_held == scene_bytes(b) + scene_bytes(c)
+    cache.drop_session("s1")
+    assert cache.bytes_held == scene_bytes(c)
+
+
+def test_a_new_revision_of_a_session_frees_the_old_one():
+    """Re-uploading an image to one session: the cache holds one revision, its bytes do not grow,
+    and the old image (with its packed upload copies) is garbage once nothing else holds it."""
+    import gc
+    import weakref
+
+    from renderer.gpu_layout import env_textures
+
+    cache = SceneCache(max_bytes=1 << 40)
+    first = lit_scene(0)
+    env_textures(first.environment_map)
+    gone = weakref.ref(first.environment_map)
+    cache.put(("s", "rev1"), first)
+    held = cache.bytes_held
+    del first
+    for i in range(1, 5):
+        cache.put(("s", f"rev{i + 1}"), lit_scene(i))
+        assert cache.bytes_held == held
+    gc.collect()
+    assert gone() is None
+    assert cache.get(("s", "rev1")) is None and cache.get(("s", "rev5")) is not None
+
+
+def test_the_image_is_stored_as_its_texels():
+    """The source keeps an uploaded image's texels uncompressed (what the quota counts is what the
+    service holds), the rest compressed; it loads back bit for bit."""
+    scene = lit_scene(0, 256, 512, flat=True)  # compressed, a few kB
+    source = scene_source(scene)
+    texels = scene.environment_map.texels.nbytes
+    assert texels <= len(source) < texels + 4096
+    np.testing.assert_array_equal(load_source(source, scene.camera).environment_map.texels, 0.5)

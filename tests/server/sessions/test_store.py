@@ -471,3 +471,26 @@ def test_a_store_over_its_quota_refuses_new_scenes_with_507_and_existing_session
         assert new_session(c)["id"]
         metrics = c.get("/metrics").text
         assert "pocketray_store_bytes" in metrics
+
+
+@pytest.mark.parametrize("backend", ["sqlite", "redis"])
+def test_room_is_what_a_session_may_grow_to(backend, tmp_path, request):
+    """``room``: the quota less the others' bytes (the session's own counted as free), expired
+    sessions given back first; None without a quota."""
+    if backend == "sqlite":
+        s = SQLiteStore(tmp_path / "s.sqlite3", ttl_s=0.5, max_bytes=1000)
+        unlimited = SQLiteStore(tmp_path / "u.sqlite3", ttl_s=60)
+    else:
+        url = request.getfixturevalue("redis_url")
+        s = RedisStore(url, ttl_s=0.5, prefix="test-room:", max_bytes=1000)
+        unlimited = RedisStore(url, ttl_s=60, prefix="test-room-u:")
+    try:
+        assert unlimited.room("a") is None
+        s.create(state("a"), b"x" * 300)
+        s.create(state("b"), b"x" * 200)
+        assert s.room("a") == 1000 - 200 and s.room("b") == 1000 - 300 and s.room("c") == 500
+        time.sleep(0.7)  # both expired: their bytes are given back
+        assert s.room("c") == 1000
+    finally:
+        s.close()
+        unlimited.close()
