@@ -6,7 +6,7 @@
 
 import { ApiError, loadStoredSession, sameScene, storeSession } from './api.js';
 import {
-  DEFAULT_SCENE, MODEL_SIZE, fitResolution, meshKind, parseResolution, saveClientSettings, sceneEntry, sceneSettings,
+  DEFAULT_SCENE, MODEL_SIZE, defaultScenario, fitResolution, meshKind, parseResolution, saveClientSettings, sceneEntry, sceneSettings,
   settingNames, skyScenario, withRestDenoiser,
 } from './settings.js';
 import { fitRefused } from './ui/messages.js';
@@ -204,14 +204,19 @@ export class Session {
     }
     this.created = !s;
     if (s) return s;
-    const scene = { ...DEFAULT_SCENE, ...(stored && stored.scene), ...url.scene };
+    // The default scene is the service's (GET /api/info's scenes): it is known once `ready` is.
+    const named = (stored && stored.scene) || Object.keys(url.scene).length;
+    if (!named) await this.ready.catch(() => {});
+    const fallback = { ...DEFAULT_SCENE, scenario: defaultScenario() };
+    const scene = { ...fallback, ...(stored && stored.scene), ...url.scene };
     try {
       s = await this.create(scene, this.wantedSize() || {});
     } catch (e) {
       if (!(e instanceof ApiError && e.status === 422)) throw e;
       this.refusals.record(e, 'start');  // e.g. a link with a scene the service refuses
       this.notice('Starting the default scene instead.', 'warn');
-      s = await this.create(DEFAULT_SCENE, this.wantedSize() || {});
+      await this.ready.catch(() => {});
+      s = await this.create({ ...DEFAULT_SCENE, scenario: defaultScenario() }, this.wantedSize() || {});
     }
     if (expired) this.notice('Your previous session had expired; a new one was started with the same scene.', 'warn');
     return s;

@@ -45,6 +45,10 @@ export const meshKind = (scenario) => (/^mesh:([a-z][a-z0-9_]*)$/.exec(String(sc
 // {value, label, settings}, `settings` the scene's recommended render settings) once it answered,
 // SCENARIOS (no recommended settings) from a service that does not list them.
 export const pickerScenes = SCENARIOS.map((x) => ({ ...x, settings: {} }));
+// The scene a new session gets when neither a link nor this browser names one: the registry's
+// `default` entry once the service listed its scenes, else DEFAULT_SCENE's.
+let defaultValue = null;
+export const defaultScenario = () => defaultValue ?? DEFAULT_SCENE.scenario;
 
 // A scene value as the client keeps it: the thesis scenarios as numbers, the rest as text.
 export const sceneValue = (v) => (/^\d+$/.test(String(v)) ? Number(v) : String(v));
@@ -58,6 +62,8 @@ export function learnScenes(list) {
       settings: x.settings && typeof x.settings === 'object' ? { ...x.settings } : {},
     }));
   if (!entries.length) return false;
+  const chosen = list.find((x) => x && x.default === true);
+  defaultValue = chosen ? sceneValue(chosen.value) : null;
   pickerScenes.splice(0, pickerScenes.length, ...entries);
   return true;
 }

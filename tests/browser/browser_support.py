@@ -38,7 +38,10 @@ GL_ARGS = [*CHROMIUM_ARGS, "--use-angle=swiftshader", "--enable-unsafe-swiftshad
 SERVER_START_S = 120.0
 
 # Small, quick renders: full 320×544 png, preview 160×272 jpeg, two recursion levels.
-FAST_QUERY = "scenario=1&n=64&seed=1&radius=1&width=320&height=544&preview_scale=0.5&max_recursion_depth=2"
+# (refine_samples=16: a resting view refines until its samples, so the tests that wait for rest ask few)
+FAST_QUERY = (
+    "scenario=1&n=64&seed=1&radius=1&width=320&height=544&preview_scale=0.5&max_recursion_depth=2&refine_samples=16"
+)
 # Chromium's own log line for a failed load (expected where a test makes requests fail).
 FAILED_LOAD = "Failed to load resource"
 

@@ -6,6 +6,7 @@ import json
 import time
 import urllib.request
 
+import numpy as np
 from browser_support import FAILED_LOAD, http_json
 
 
@@ -172,11 +173,13 @@ def test_a_declared_setting_is_shown_by_the_settings_sheet(open_client):
 def test_reload_resumes_the_session_and_an_expired_one_is_replaced(open_client):
     c = open_client("mobile")
     sid = c.hook("sessionId")
-    http_json("POST", f"{c.server.base}/api/sessions/{sid}/gesture", {"type": "pinch", "scale": 2})
+    before = c.camera()
+    moved = http_json("POST", f"{c.server.base}/api/sessions/{sid}/gesture", {"type": "pinch", "scale": 2})["camera"]
+    assert np.abs(np.subtract(moved["position"], before["position"])).max() > 1.0
     c.page.reload()
     c.wait_idle(min_frames=1)
     assert c.hook("sessionId") == sid  # localStorage kept it
-    assert abs(c.camera()["position"][2] - 50) < 1e-6  # and the scene's camera with it
+    np.testing.assert_allclose(c.camera()["position"], moved["position"], atol=1e-6)  # and the scene's camera
 
     c.page.evaluate("""() => localStorage.setItem('pocketray.session',
         JSON.stringify({id: 'no-such-session', scene: {scenario: 1, n: 64, seed: 1, radius: 1}}))""")

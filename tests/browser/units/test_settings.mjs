@@ -92,6 +92,15 @@ test('the picker is the service\'s list when it gives one, its own list otherwis
     [{ scenario: 'mesh:gallery' }, ['scenario']]);
 });
 
+test('a new session without a named scene gets the service\'s default scene', () => {
+  const held = s.pickerScenes.map((x) => ({ ...x }));
+  same(s.learnScenes(INFO_SCENES), true);
+  same(s.defaultScenario(), s.DEFAULT_SCENE.scenario);   // a list without a default: the client's own
+  same(s.learnScenes([...INFO_SCENES, { value: 'mesh:spheres', label: 'Spheres', settings: {}, default: true }]), true);
+  same(s.defaultScenario(), 'mesh:spheres');
+  same(s.learnScenes(held), true);
+});
+
 test('a picked scene brings its recommended settings; what the last one recommended goes back to its default', () => {
   const whitted = { integrator: 'whitted', max_recursion_depth: 3, denoise: 'off', width: 64, height: 64 };
   const cornell = s.sceneSettings(whitted, s.sceneEntry(1), s.sceneEntry('mesh:cornell'));
