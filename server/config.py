@@ -138,7 +138,7 @@ class ServerConfig(BaseSettings):
         ge=1,
         le=4096,
         description="compiled shader programs kept for reuse (the tracer's variants and the ray engines' "
-        "passes; least recently used out): about 6 MiB resident each on llvmpipe, so this bounds what "
+        "passes; least recently used out): about 3 MiB resident each on llvmpipe, so this bounds what "
         "a client walking through settings can grow the process by; a variant asked again after it "
         "went out is compiled again (0.5-2 s of GL time on llvmpipe)",
     )
