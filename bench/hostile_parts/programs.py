@@ -5,7 +5,10 @@ and deduplicated by ``renderer.features.frame_features``), on one session, one f
 
 Reported: the server's resident memory idle, after the walk and after deleting the session (and its
 peak), the answers by status (429: the session's rate of new variants), ``/api/health`` p50/p99/max
-polled every 20 ms meanwhile. ``--programs-no-rate`` runs the server with
+polled every 20 ms meanwhile — and, as the control that says what the machine's load and the
+frames themselves cost, the same while ``--programs-control`` frames of one variant (compiled
+once) are asked first. The server gets a Mesa shader cache of its own, empty (``MESA_SHADER_CACHE_DIR``):
+a variant no earlier run compiled costs what a new variant costs. ``--programs-no-rate`` runs the server with
 ``POCKETRAY_NEW_VARIANTS_PER_MIN=0`` (every variant compiled: what the program cache bounds and what
 compiling costs the event loop); an older checkout (``--root``) ignores the setting.
 """
@@ -14,6 +17,8 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import os
+import tempfile
 import threading
 import time
 from collections import Counter
@@ -85,15 +90,32 @@ def variants(limit: int) -> list[dict]:
 def part_programs(root: Path, args: argparse.Namespace) -> dict:
     from bench.hostile import Server, health_while, wait_stats
 
-    queries = variants(args.programs_variants)
+    queries = variants(args.programs_variants + 1)  # the first is the control's
     settings = {"new_variants_per_min": "0"} if args.programs_no_rate else {}
-    s = Server(root, **settings)
+    mesa_cache = tempfile.TemporaryDirectory()
+    before = os.environ.get("MESA_SHADER_CACHE_DIR")
+    os.environ["MESA_SHADER_CACHE_DIR"] = mesa_cache.name  # the child's environment is this one's
+    try:
+        s = Server(root, **settings)
+    finally:
+        if before is None:
+            del os.environ["MESA_SHADER_CACHE_DIR"]
+        else:
+            os.environ["MESA_SHADER_CACHE_DIR"] = before
     try:
         with httpx.Client(base_url=s.url, timeout=120) as c:
             r = c.post("/api/sessions", json=SCENE)
             r.raise_for_status()
             sid = r.json()["id"]
             c.get(f"/api/sessions/{sid}/frame", params={"width": SIDE, "height": SIDE}).raise_for_status()
+            control_codes: Counter[int] = Counter()
+
+            def control() -> None:
+                with httpx.Client(base_url=s.url, timeout=600) as cc:
+                    for _ in range(args.programs_control):
+                        control_codes[cc.get(f"/api/sessions/{sid}/frame", params=queries[0]).status_code] += 1
+
+            control_waits = health_while(c, [threading.Thread(target=control)], limit_s=3600)
             time.sleep(1.0)
             idle = s.memory()["VmRSS"]
             codes: Counter[int] = Counter()
@@ -101,7 +123,7 @@ def part_programs(root: Path, args: argparse.Namespace) -> dict:
 
             def walk() -> None:
                 with httpx.Client(base_url=s.url, timeout=600) as cc:
-                    for q in queries:
+                    for q in queries[1:]:
                         codes[cc.get(f"/api/sessions/{sid}/frame", params=q).status_code] += 1
 
             waits = health_while(c, [threading.Thread(target=walk)], limit_s=3600)
@@ -111,7 +133,7 @@ def part_programs(root: Path, args: argparse.Namespace) -> dict:
             time.sleep(2.0)
             deleted = s.memory()["VmRSS"]
         return {
-            "variants": len(queries),
+            "variants": len(queries) - 1,
             "rate_limit": not args.programs_no_rate,
             "codes": dict(sorted(codes.items())),
             "seconds": round(seconds, 1),
@@ -121,14 +143,23 @@ def part_programs(root: Path, args: argparse.Namespace) -> dict:
             "rss_after_delete_mib": round(deleted),
             "rss_growth_mib": round(after["VmRSS"] - idle),
             **wait_stats(waits),
+            "control_frames": dict(sorted(control_codes.items())),
+            **{f"control_{k}": v for k, v in wait_stats(control_waits).items()},
         }
     finally:
         s.close()
+        mesa_cache.cleanup()
 
 
 def add_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument(
         "--programs-variants", type=int, default=500, help="programs: distinct shader variants the client asks for"
+    )
+    ap.add_argument(
+        "--programs-control",
+        type=int,
+        default=100,
+        help="programs: frames of one variant asked first (the control of the health figures)",
     )
     ap.add_argument(
         "--programs-no-rate",
