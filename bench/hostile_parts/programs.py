@@ -107,7 +107,7 @@ def part_programs(root: Path, args: argparse.Namespace) -> dict:
             r = c.post("/api/sessions", json=SCENE)
             r.raise_for_status()
             sid = r.json()["id"]
-            c.get(f"/api/sessions/{sid}/frame", params={"width": SIDE, "height": SIDE}).raise_for_status()
+            c.get(f"/api/sessions/{sid}/frame", params=queries[0]).raise_for_status()  # compiled: the control's
             control_codes: Counter[int] = Counter()
 
             def control() -> None:
