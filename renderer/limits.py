@@ -144,5 +144,9 @@ ASPECT_RANGE = (0.2, 5.0)
 DEFAULT_TEXTURE_WIDTH = 4096  # texture rows; WebGL2 guarantees 2048, most phones have 4096
 MAX_DEVICE_TEXTURE_SIZE = 1 << 16  # the largest MAX_TEXTURE_SIZE a device may report (GPUs: ≤ 32,768)
 STENCIL_BITS = 8  # ray engines: one stencil bit per generation (≥ MAX_RECURSION_DEPTH)
+# Compiled shader programs one renderer keeps (renderer/gl/programs.py), least recently used out:
+# about 3 MiB resident each on llvmpipe, so ~100 MiB at most; a frame needs 1-3 of the tracer's
+# (variant, background, first hits) or up to ~12 of a ray engine's passes.
+MAX_PROGRAMS = 32
 
 assert STENCIL_BITS >= MAX_RECURSION_DEPTH

@@ -36,7 +36,7 @@ from .api import errors
 from .api.routes import api_router, metrics as metrics_route
 from .config import ServerConfig
 from .frames.pipeline import FramePipeline
-from .frames.trace import GLWorker, default_renderer
+from .frames.trace import GLWorker, VariantRate, default_renderer
 from .http import cors_docs, metrics
 from .http.allow import AllowMethods
 from .http.body_limit import BodyLimit
@@ -74,8 +74,9 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
         worker = GLWorker(
             config.queue_size,
             warmup=warmup_render if config.warmup else None,
-            renderer_factory=lambda: default_renderer(config.max_target_bytes),
+            renderer_factory=lambda: default_renderer(config.max_target_bytes, config.max_programs),
             render_timeout_s=config.render_timeout_s,
+            variant_rate=VariantRate(config.new_variants_per_min, config.new_variants_burst),
         )
         worker.start()
         app.state.config = config

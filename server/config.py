@@ -15,7 +15,7 @@ from pydantic import AliasChoices, Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from renderer.cost import request_work
-from renderer.limits import JPEG_QUALITY_RANGE, MAX_SPHERES, MAX_TREE_DEPTH, MAX_TRIANGLES
+from renderer.limits import JPEG_QUALITY_RANGE, MAX_PROGRAMS, MAX_SPHERES, MAX_TREE_DEPTH, MAX_TRIANGLES
 from renderer.profiles import STILL
 
 from . import resources
@@ -133,6 +133,30 @@ class ServerConfig(BaseSettings):
     )
     max_target_bytes: int = Field(
         256 << 20, ge=0, description="render targets kept for reuse on the GPU, bytes (frames in flight hold their own)"
+    )
+    max_programs: int = Field(
+        MAX_PROGRAMS,
+        ge=1,
+        le=4096,
+        description="compiled shader programs kept for reuse (the tracer's variants and the ray engines' "
+        "passes; least recently used out): about 3 MiB resident each on llvmpipe, so this bounds what "
+        "a client walking through settings can grow the process by; a variant asked again after it "
+        "went out is compiled again (0.5-2 s of GL time on llvmpipe)",
+    )
+    new_variants_per_min: float = Field(
+        20.0,
+        ge=0,
+        le=1_000_000,
+        description="new shader variants (programs the GL thread holds none of) one session's frames may "
+        "have compiled per minute, per process (a token bucket refilled at this rate; frames without a "
+        "session share one); beyond: 429 with Retry-After, nothing compiled or traced. 0: no limit",
+    )
+    new_variants_burst: int = Field(
+        40,
+        ge=1,
+        le=1_000_000,
+        description="new shader variants one session may have compiled at once before "
+        "POCKETRAY_NEW_VARIANTS_PER_MIN applies (the token bucket's size)",
     )
     max_body_bytes: int = Field(16 * 1024 * 1024, ge=1024, description="largest request body, bytes (else 413)")
 

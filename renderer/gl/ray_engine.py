@@ -80,6 +80,7 @@ from ..limits import DEFAULT_TEXTURE_WIDTH, STENCIL_BITS
 from ..modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, primid_colors
 from ..result import RenderResult
 from ..scene import Scene, SceneError
+from .programs import ProgramCache
 from .raw_gl import GL_STENCIL_BUFFER_BIT, RawGL
 from .ray_engine_targets import Programs as _Programs, Targets as _Targets
 from .textures import upload_textures
@@ -122,11 +123,17 @@ class RayEnginePasses:
     """The ray engines' GL side of one renderer: its raw GL calls, compiled programs and a
     pool of render targets (a frame in flight holds its own; one free set is kept)."""
 
-    def __init__(self, ctx: moderngl.Context, max_texture_width: int = DEFAULT_TEXTURE_WIDTH):
+    def __init__(
+        self,
+        ctx: moderngl.Context,
+        max_texture_width: int = DEFAULT_TEXTURE_WIDTH,
+        programs: ProgramCache | None = None,
+    ):
+        """``programs``: the cache the passes' programs go in (the renderer's; None: one of their own)."""
         self.ctx = ctx
         self.max_texture_width = max_texture_width
         self.gl = RawGL()
-        self.programs = _Programs(ctx)
+        self.programs = _Programs(ctx, programs)
         self._free: list[_Targets] = []
         self.last_bound: set[str] = set()
 
@@ -424,7 +431,7 @@ class _FrameRun:
         self.primary: dict[str, np.ndarray] = {}
         self.deepest = np.zeros((tg.size[1], tg.size[0]), np.int32) if self.mode == "recursion" else None
         self.cone_image: np.ndarray | None = None
-        self.buffers: list[moderngl.Buffer] = []
+        self.buffers: list[Any] = []  # the GL objects the frame releases (buffers, vertex arrays, targets)
         self.batch: int | None = None  # primitives per draw call (None: all in one)
         self.scene_textures: list[moderngl.Texture] = []
         self.heat: np.ndarray | None = None
@@ -582,10 +589,9 @@ class _FrameRun:
             self.buffers.append(vao)
             mode = moderngl.POINTS
         else:
-            key = ("quad", prog.glo)
-            if key not in self.progs.quad_vaos:
-                self.progs.quad_vaos[key] = self.ctx.vertex_array(prog, [(self.progs.quad, "2f", "a_position")])
-            vao = self.progs.quad_vaos[key]
+            vao, owned = self.progs.quad_vao(prog)
+            if owned:  # its program was evicted meanwhile: the frame releases this one
+                self.buffers.append(vao)
             mode = moderngl.TRIANGLES
         batch = max(1, int(self.batch or n))
         for first in range(0, n, batch):

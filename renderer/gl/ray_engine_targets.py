@@ -7,6 +7,7 @@ import moderngl
 import numpy as np
 
 from ..shader_source import pass_source, vertex_source
+from .programs import CachedProgram, ProgramCache
 from .raw_gl import RawGL
 
 FULLSCREEN = np.array([-1, -1, 1, -1, 1, 1, -1, -1, 1, 1, -1, 1], dtype=np.float32)
@@ -16,29 +17,52 @@ FULLSCREEN = np.array([-1, -1, 1, -1, 1, 1, -1, -1, 1, 1, -1, 1], dtype=np.float
 
 
 class Programs:
-    """Compiled programs of one context, by (vertex, fragment, defines)."""
+    """Compiled programs of one context, by (vertex, fragment, defines), held in ``cache`` (the
+    renderer's: one bound for the tracer's variants and these passes together)."""
 
-    def __init__(self, ctx: moderngl.Context):
+    def __init__(self, ctx: moderngl.Context, cache: ProgramCache | None = None):
         self.ctx = ctx
-        self.progs: dict[tuple, moderngl.Program] = {}
+        self.cache = cache if cache is not None else ProgramCache()
         self.quad = ctx.buffer(FULLSCREEN.tobytes())
-        self.quad_vaos: dict[tuple, moderngl.VertexArray] = {}
         self.used: set[tuple] = set()  # keys of the programs the current frame asked for
 
-    def get(self, vert: str, frag: str, defines: tuple[str, ...]) -> moderngl.Program:
+    @property
+    def progs(self) -> dict[tuple, moderngl.Program]:
+        """The passes' programs held now, by (vertex, fragment, defines)."""
+        held = ((key, self.cache.peek(key)) for key in self.cache.keys())
+        return {
+            key[1:]: entry.program
+            for key, entry in held
+            if entry is not None and isinstance(key, tuple) and key[:1] == ("rayengine",)
+        }
+
+    def _entry(self, vert: str, frag: str, defines: tuple[str, ...]) -> CachedProgram:
         key = (vert, frag, defines)
         self.used.add(key)
-        if key not in self.progs:
+
+        def compile() -> moderngl.Program:
             vs = vertex_source() if vert == "fullscreen.vert" else pass_source(vert, defines)
-            self.progs[key] = self.ctx.program(vertex_shader=vs, fragment_shader=pass_source(frag, defines))
-        return self.progs[key]
+            return self.ctx.program(vertex_shader=vs, fragment_shader=pass_source(frag, defines))
+
+        return self.cache.get(("rayengine", *key), compile)
+
+    def get(self, vert: str, frag: str, defines: tuple[str, ...]) -> moderngl.Program:
+        return self._entry(vert, frag, defines).program
+
+    def _quad_vao(self, prog: moderngl.Program) -> moderngl.VertexArray:
+        return self.ctx.vertex_array(prog, [(self.quad, "2f", "a_position")])
 
     def fullscreen(self, frag: str, defines: tuple[str, ...]) -> tuple[moderngl.Program, moderngl.VertexArray]:
-        key = (frag, defines)
-        prog = self.get("fullscreen.vert", frag, defines)
-        if key not in self.quad_vaos:
-            self.quad_vaos[key] = self.ctx.vertex_array(prog, [(self.quad, "2f", "a_position")])
-        return prog, self.quad_vaos[key]
+        entry = self._entry("fullscreen.vert", frag, defines)
+        return entry.program, entry.vao("quad", self._quad_vao)
+
+    def quad_vao(self, prog: moderngl.Program) -> tuple[moderngl.VertexArray, bool]:
+        """A full-screen quad's vertex array for ``prog`` (a program of :meth:`get`), and whether the
+        caller owns it: True when ``prog`` was evicted meanwhile (the caller releases it)."""
+        entry = self.cache.find(prog)
+        if entry is None:
+            return self._quad_vao(prog), True
+        return entry.vao("quad", self._quad_vao), False
 
 
 # ------------------------------------------------------------------------ targets

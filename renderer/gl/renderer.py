@@ -27,7 +27,7 @@ from ..accel.ray_engine import RayEngine
 from ..animation import AnimatedScene
 from ..features import frame_features
 from ..gpu_layout import Variant
-from ..limits import DEFAULT_TEXTURE_WIDTH, PATH_SAMPLES_PER_PASS
+from ..limits import DEFAULT_TEXTURE_WIDTH, MAX_PROGRAMS, PATH_SAMPLES_PER_PASS
 from ..methods import METHODS, PreparedMethod, check_primitives, resolve_method
 from ..prepare import PreparedFrame, prepare_frame
 from ..result import RenderResult
@@ -37,13 +37,15 @@ from ..shader_source import tracer_bindings, tracer_source, vertex_source
 from ..tree_update import TreeUpdate
 from .context import GLUnavailable, create_context  # noqa: F401 - re-exported
 from .frame import TracerFrame, image_only
+from .programs import ProgramCache
 from .raw_gl import RawGL
 from .ray_engine import RayEngineFrame, RayEnginePasses
 from .targets import TargetPool
 
 
 class GLRenderer:
-    """Renders scenes with the GLSL ES 3.00 tracer. Programs are cached per variant."""
+    """Renders scenes with the GLSL ES 3.00 tracer. Programs are cached per variant, a bounded number
+    (:mod:`renderer.gl.programs`)."""
 
     def __init__(
         self,
@@ -53,12 +55,15 @@ class GLRenderer:
         uniform_blocks: bool = True,
         image_targets: bool = True,
         background: bool = True,
+        max_programs: int = MAX_PROGRAMS,
     ):
         """``uniform_blocks``: read record arrays that fit from uniform blocks (False:
         textures only, the device's layout). ``image_targets``: RGBA8 targets for png/jpeg
         frames at one sample per pixel (False: always the float targets). ``background``:
         primary-ray frames draw the pixels whose rays cannot meet a sphere with the
-        background variant (False: the whole frame with the tracer)."""
+        background variant (False: the whole frame with the tracer). ``max_programs``: compiled
+        programs kept, the tracer's variants and the ray engines' passes together (least recently
+        used out, :mod:`renderer.gl.programs`)."""
         self.ctx = ctx or create_context()
         self.max_texture_width = min(max_texture_width, self.ctx.info["GL_MAX_TEXTURE_SIZE"])
         self.max_blocks = (
@@ -68,8 +73,7 @@ class GLRenderer:
         )
         self.image_targets = image_targets
         self.background = background
-        self._programs: dict[tuple, moderngl.Program] = {}
-        self._vaos: dict[tuple, moderngl.VertexArray] = {}
+        self.programs = ProgramCache(max_programs)
         # Render targets, reused and bounded in bytes (the frames in flight hold their own).
         self.targets = TargetPool(self.ctx, max_target_bytes)
         quad = np.array([-1, -1, 1, -1, 1, 1, -1, -1, 1, 1, -1, 1], dtype=np.float32)
@@ -81,7 +85,7 @@ class GLRenderer:
     def ray_engine(self) -> RayEnginePasses:
         """The passes of the multi-pass methods (made on first use: their programs and targets)."""
         if self._ray_engine is None:
-            self._ray_engine = RayEnginePasses(self.ctx, self.max_texture_width)
+            self._ray_engine = RayEnginePasses(self.ctx, self.max_texture_width, self.programs)
         return self._ray_engine
 
     @property
@@ -111,16 +115,18 @@ class GLRenderer:
         rasterised first hits), and its full-screen vertex array (None for the spheres' quads:
         their instances are the frame's, :mod:`renderer.gl.first_hits`)."""
         key = (method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only), bool(spheres), first_hits)
-        if key not in self._programs:
-            src = tracer_source(
-                method, mode, max_recursion_depth, features, tuple(blocks), bool(image_only), bool(spheres), first_hits
-            )
-            src = self.fragment_text(src, features)
-            prog = self.ctx.program(vertex_shader=vertex_source(first_hits), fragment_shader=src)
-            self._programs[key] = prog
-            if first_hits not in ("spheres", "tiles"):
-                self._vaos[key] = self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
-        return self._programs[key], self._vaos.get(key)
+
+        def compile() -> moderngl.Program:
+            src = self.fragment_text(tracer_source(*key), features)
+            return self.ctx.program(vertex_shader=vertex_source(first_hits), fragment_shader=src)
+
+        entry = self.programs.get(("tracer", *key), compile)
+        if first_hits in ("spheres", "tiles"):
+            return entry.program, None
+        return entry.program, entry.vao("quad", self._quad_vao)
+
+    def _quad_vao(self, prog: moderngl.Program) -> moderngl.VertexArray:
+        return self.ctx.vertex_array(prog, [(self._quad, "2f", "a_position")])
 
     def fragment_text(self, src: str, features: tuple[str, ...]) -> str:
         """A variant's fragment shader as compiled: ``src`` itself (a benchmark's renderer patches

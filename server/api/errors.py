@@ -16,8 +16,8 @@ over the WebSocket as one text message ``{"status", "detail"}`` plus ``"retry_af
   503 + ``Retry-After``: queue full, busy (planning slots, large-body slots), GL
   unavailable, render timed out (Retry-After = the work queued ahead), any failure of the
   session store — never a 500 for load or the store. 429 + ``Retry-After``: a client address
-  over its session creation rate. 507 + ``Retry-After``: the session store's quota
-  (POCKETRAY_MAX_STORE_BYTES) would be passed. 500: a bug (logged).
+  over its session creation rate, a session over its rate of new shader variants. 507 +
+  ``Retry-After``: the session store's quota (POCKETRAY_MAX_STORE_BYTES) would be passed. 500: a bug (logged).
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ from renderer.scene import SceneError
 
 from ..config import ServerConfig
 from ..faults import Busy, NotFound, RenderTimeout, Superseded, Where, input_error
-from ..frames.trace import GLNotReady, QueueFull
+from ..frames.trace import GLNotReady, QueueFull, VariantsLimited
 from ..http import metrics
 from ..sessions.ratelimit import RateLimited
 from ..sessions.store import StoreFull, StoreUnavailable
@@ -211,6 +211,18 @@ def _rate_limited(exc: RateLimited, config: ServerConfig) -> ErrorAnswer:
     )
 
 
+def _variants_limited(exc: VariantsLimited, config: ServerConfig) -> ErrorAnswer:
+    """A frame needing a shader variant the GL thread would compile, over its session's rate."""
+    return ErrorAnswer(
+        429,
+        f"frame: this session has had its {exc.burst} new shader variants compiled at once and may have "
+        f"{exc.per_min:g} a minute (POCKETRAY_NEW_VARIANTS_BURST, POCKETRAY_NEW_VARIANTS_PER_MIN; each new "
+        "combination of method, mode, recursion depth, integrator and scene features is compiled on the "
+        f"GL thread); nothing was traced: retry after {exc.retry_after_s} s, or use settings already rendered",
+        {"Retry-After": str(exc.retry_after_s)},
+    )
+
+
 def _store_full(exc: StoreFull, config: ServerConfig) -> ErrorAnswer:
     """The store's quota would be passed: nothing was written, existing sessions go on."""
     return ErrorAnswer(
@@ -247,6 +259,7 @@ ERROR_TABLE: tuple[ErrorRow, ...] = (
     ErrorRow("gl_unavailable", (GLNotReady,), _gl_unavailable),
     ErrorRow("superseded", (Superseded,), _superseded),
     ErrorRow("rate_limited", (RateLimited,), _rate_limited),
+    ErrorRow("variants_limited", (VariantsLimited,), _variants_limited),
     ErrorRow("store_full", (StoreFull,), _store_full),
     ErrorRow("store_unavailable", (StoreUnavailable, sqlite3.Error, redis.RedisError), _store_unavailable),
     ErrorRow("internal", (Exception,), _internal),

@@ -34,6 +34,7 @@ import time
 from collections import OrderedDict, deque
 from collections.abc import Callable, Hashable
 from concurrent.futures import Future
+from contextlib import AbstractContextManager, nullcontext
 from typing import Any, TypeVar
 
 from ..http import metrics
@@ -42,16 +43,68 @@ log = logging.getLogger("pocketray.gl")
 T = TypeVar("T")
 
 
-def default_renderer(max_target_bytes: int = 256 << 20) -> Any:
+def default_renderer(max_target_bytes: int = 256 << 20, max_programs: int | None = None) -> Any:
     """The service's renderer: GLRenderer on a headless context, keeping at most
-    ``max_target_bytes`` of free render targets for reuse.
+    ``max_target_bytes`` of free render targets and ``max_programs`` compiled shader programs
+    (None: ``renderer.limits.MAX_PROGRAMS``) for reuse.
 
-    Its ``finish()`` releases the GIL (renderer.gl.context), so HTTP handling,
-    /api/health and 503 answers go on while the GL thread waits for a slice.
+    Its ``finish()`` and its draws release the GIL (renderer.gl.context), so HTTP handling,
+    /api/health and 503 answers go on while the GL thread waits for a slice or llvmpipe
+    compiles a new variant.
     """
     from renderer.gl.renderer import GLRenderer
 
-    return GLRenderer(max_target_bytes=max_target_bytes)
+    if max_programs is None:
+        return GLRenderer(max_target_bytes=max_target_bytes)
+    return GLRenderer(max_target_bytes=max_target_bytes, max_programs=max_programs)
+
+
+class VariantsLimited(Exception):
+    """A session asked for a shader variant the renderer holds no program of, with no compile
+    left in its bucket: retry after ``retry_after_s`` seconds (nothing was compiled or traced)."""
+
+    def __init__(self, retry_after_s: int, per_min: float, burst: int):
+        super().__init__(f"new shader variants: retry after {retry_after_s} s")
+        self.retry_after_s, self.per_min, self.burst = retry_after_s, per_min, burst
+
+
+class VariantRate:
+    """New shader variants each session may have compiled: a token bucket per session of at most
+    ``burst`` compiles, refilled at ``per_min`` a minute (0: no limit). A compile takes a token;
+    a variant the renderer holds costs nothing. Frames without a session share one bucket. The
+    buckets are bounded in number: beyond ``max_sessions`` the least recently charged is
+    forgotten (it starts again full, as a new session does)."""
+
+    ANONYMOUS = "(no session)"
+
+    def __init__(
+        self,
+        per_min: float,
+        burst: int,
+        max_sessions: int = 65_536,
+        clock: Callable[[], float] = time.monotonic,
+    ):
+        self.per_min, self.burst, self.max_sessions = float(per_min), int(burst), int(max_sessions)
+        self.clock = clock
+        self._buckets: OrderedDict[Hashable, tuple[float, float]] = OrderedDict()  # key → (tokens, at)
+        self._lock = threading.Lock()
+
+    def charge(self, session: Hashable) -> None:
+        """Take one compile of ``session``'s bucket, or raise :class:`VariantsLimited`."""
+        if self.per_min <= 0:
+            return
+        key = session if isinstance(session, (str, int)) else self.ANONYMOUS
+        rate_s = self.per_min / 60.0
+        with self._lock:
+            now = self.clock()
+            tokens, at = self._buckets.get(key, (float(self.burst), now))
+            tokens = min(float(self.burst), tokens + (now - at) * rate_s)
+            self._buckets[key] = (tokens - 1.0 if tokens >= 1.0 else tokens, now)
+            self._buckets.move_to_end(key)
+            while len(self._buckets) > self.max_sessions:
+                self._buckets.popitem(last=False)
+            if tokens < 1.0:
+                raise VariantsLimited(max(1, math.ceil((1.0 - tokens) / rate_s)), self.per_min, self.burst)
 
 
 class QueueFull(Exception):
@@ -185,7 +238,8 @@ class GLWorker:
 
     ``warmup(renderer)`` runs once after the context exists; ``ready`` is set when it
     succeeded. ``info`` holds the GL renderer and version strings. ``render_timeout_s``
-    is what :attr:`saturated` compares the queued work with.
+    is what :attr:`saturated` compares the queued work with. ``variant_rate``: each new shader
+    program a frame's start compiles is charged to the frame's session (:class:`VariantRate`).
     """
 
     def __init__(
@@ -194,8 +248,10 @@ class GLWorker:
         warmup: Callable[[Any], None] | None = None,
         renderer_factory: Callable[[], Any] | None = None,
         render_timeout_s: float = 120.0,
+        variant_rate: VariantRate | None = None,
     ):
         self.queue_size = queue_size
+        self.variant_rate = variant_rate
         self.render_timeout_s = render_timeout_s
         self._warmup = warmup
         self._factory = renderer_factory
@@ -368,13 +424,22 @@ class GLWorker:
                 raise GLNotReady(self.error or "OpenGL context not created")
             h.started_at = time.perf_counter()
             metrics.render_started()
-            h.frame = h.start(self.renderer)  # uploads: counts as a slice
+            with self._charging(h.session):
+                h.frame = h.start(self.renderer)  # uploads: counts as a slice
         except BaseException as e:
             h._finish(error=e)
             h.ticket._release()
             return
         with self._lock:
             self._frames.setdefault(h.session, deque()).append(h)
+
+    def _charging(self, session: Hashable) -> AbstractContextManager[None]:
+        """While a frame of ``session`` starts: each program it compiles is charged to the session."""
+        programs = getattr(self.renderer, "programs", None)
+        rate = self.variant_rate
+        if rate is None or programs is None:
+            return nullcontext()
+        return programs.charging(lambda: rate.charge(session))
 
     def _slice(self) -> None:
         """One slice of the next session's frame, round-robin; background frames only when no

@@ -39,6 +39,9 @@ TEST_CAPS["max_refine_ms"] = 2000
 # A test module creates sessions from one address faster than a client does: no creation rate here
 # (tests/server/sessions/test_ratelimit.py sets and tests it).
 TEST_CAPS["session_create_per_min"] = 0
+# … and its sessions walk through more shader variants than a client does: no rate of new variants
+# here either (tests/server/test_variant_rate.py sets and tests it).
+TEST_CAPS["new_variants_per_min"] = 0
 
 
 def free_port() -> int:

@@ -36,6 +36,7 @@ from server.api import errors
 from server.api.body import BodyParsers
 from server.app import create_app
 from server.faults import RenderTimeout, Superseded
+from server.frames.trace import VariantsLimited
 from server.sessions.ratelimit import RateLimited
 from server.sessions.store import StoreFull
 
@@ -85,6 +86,7 @@ CASES = {
     "a bug": Case("internal", 500, raises=RuntimeError("a bug")),
     "store over its quota": Case("store_full", 507, raises=StoreFull(1000, 200, 1024)),
     "creation rate": Case("rate_limited", 429, raises=RateLimited(3, 60.0, 60)),
+    "new variants rate": Case("variants_limited", 429, raises=VariantsLimited(2, 30.0, 30)),
     "no such route": Case("http_exception", 404, path="/api/no-such-route"),
     "planning slots taken": Case("busy", 503, gesture=PINCH, busy_planning=True),
     "body parsers busy": Case("busy", 503, busy_bodies=True),
