@@ -82,6 +82,11 @@ FIRST_HITS_AUTO_MAX_SPHERES = 65536
 # times that while they are sorted): past it a frame traces, so no scene of spheres that each cover much
 # of the frame makes the host sort billions of entries.
 MAX_TILE_PAIRS = 1 << 22
+# The cost model counts a mesh scene's ray tree on a coarse grid of its pixels (renderer/prepare.py,
+# sampled_level_rays): this many pixels on the grid's long side, in scenes of at most this many
+# primitives (the reference tracer tests every one; past it, the model's ray tree of the materials alone).
+RAY_TREE_SAMPLE_SIDE = 24
+RAY_TREE_SAMPLE_MAX_PRIMITIVES = 1 << 14
 MAX_PLANES = 8
 MAX_LIGHTS = 8
 MAX_MATERIALS = 256

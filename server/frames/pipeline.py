@@ -382,7 +382,9 @@ class FramePipeline:
                 f"{head}: method {frame.method} tests every sphere on every ray; "
                 f"use method=bih (a hierarchy) or a smaller frame",
             )
-        best = largest_accepted(frame.method, frame.stats, frame.scene, s, limit, multi_pass=frame.multi_pass)
+        best = largest_accepted(
+            frame.method, frame.stats, frame.scene, s, limit, multi_pass=frame.multi_pass, estimator=frame.estimate
+        )
         options = [f"{k} ≤ {v}" for k, v in best.items() if v is not None and v != getattr(s, k)]
         field = next(
             (
