@@ -121,8 +121,10 @@ def prepare_frame(
 
 
 def band_rows(cost: FrameCost, slice_ms: float, width: int, height: int) -> int:
-    """Rows of a band that cost about ``slice_ms`` (at least one, at most the pass)."""
-    per_row = cost.ms_per_pixel * width
+    """Rows of a band that cost about ``slice_ms`` where the scene is (at least one, at most the
+    pass): the frame's cost is spent where the primitives' box covers the image, so a band sized
+    by the whole image's average would cost 1 / coverage times the budget there."""
+    per_row = cost.ms_per_pixel * width / max(limits.MIN_BAND_COVERAGE, min(1.0, cost.coverage))
     if per_row <= 0:
         return height
     return max(1, min(height, int(slice_ms / per_row)))

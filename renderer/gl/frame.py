@@ -47,7 +47,7 @@ import numpy as np
 
 from .. import first_hits, gpu_layout
 from ..gpu_layout import PackedScene, Variant
-from ..limits import PATH_SAMPLES_PER_PASS
+from ..limits import MAX_BAND_GROWTH, PATH_SAMPLES_PER_PASS
 from ..methods import PreparedMethod
 from ..modes import AVERAGED_MODES, PRIMARY_MODES
 from ..result import RenderResult
@@ -227,6 +227,7 @@ class TracerFrame:
         self.guides = self.path and "GUIDES" in variant.features
         self._guide_sums: list[np.ndarray] | None = None
         self.band_rows = band_rows
+        self._first_band = int(band_rows or 1)
         self.slice_ms = slice_ms
         self.prog, self.vao = renderer.program(
             variant.method, variant.mode, variant.depth, variant.features, variant.blocks, variant.image_only
@@ -382,8 +383,10 @@ class TracerFrame:
         if self.slice_ms and self.band_rows is not None and self.first_hits is None:
             # Rows cost alike within a pass; at most doubling keeps one cheap band (sky) from
             # sizing the next, dearer one (the scene) far over the budget.
+            # Nor beyond MAX_BAND_GROWTH × the first band (sized for the scene's rows by the cost
+            # model): doubling band after band of sky would reach the scene with a band of most of it.
             fit = int(self.slice_ms * rows / max(ms, 1e-3))
-            self.band_rows = max(1, min(fit, 2 * rows, h))
+            self.band_rows = max(1, min(fit, 2 * rows, self._first_band * MAX_BAND_GROWTH, h))
         self._row += rows
         if self._row >= h:
             self._finish_pass(p)
