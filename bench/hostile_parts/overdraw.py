@@ -34,6 +34,11 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
     )
     ap.add_argument("--overdraw-side", type=int, default=1024, help="overdraw: the coincident spheres' frame side")
     ap.add_argument("--overdraw-watch-s", type=float, default=15.0, help="overdraw: how long the small frames go on")
+    ap.add_argument(
+        "--overdraw-max-frame-cost",
+        default=None,
+        help="overdraw: POCKETRAY_MAX_FRAME_COST of the servers (a large one admits the frames: slices are tried)",
+    )
 
 
 def coincident_body(n: int) -> bytes:
@@ -43,10 +48,10 @@ def coincident_body(n: int) -> bytes:
     return b'{"scene":{"materials":[{}],"spheres":[' + b",".join([sphere] * n) + b"]}," + settings + b"}"
 
 
-def one_case(root: Path, n: str, how: str, side: int, watch_s: float) -> dict:
+def one_case(root: Path, n: str, how: str, side: int, watch_s: float, cap: str | None = None) -> dict:
     from bench.hostile import Server
 
-    s = Server(root)
+    s = Server(root, **({"max_frame_cost": cap} if cap else {}))
     try:
         with httpx.Client(base_url=s.url, timeout=60) as c:
             small = c.post("/api/sessions", json={"scenario": 1, "n": 64}).json()["id"]
@@ -109,7 +114,9 @@ def part_overdraw(root: Path, args) -> dict:
     results = {}
     for case in args.overdraw_cases.split(","):
         n, _, how = case.strip().partition(":")
-        results[f"{n} {how}"] = one_case(root, n, how or "auto", args.overdraw_side, args.overdraw_watch_s)
+        results[f"{n} {how}"] = one_case(
+            root, n, how or "auto", args.overdraw_side, args.overdraw_watch_s, args.overdraw_max_frame_cost
+        )
     return results
 
 
