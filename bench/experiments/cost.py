@@ -133,14 +133,16 @@ MESH_SIZES = ((320, 544), (640, 1088))
 YARDSTICKS = (("scenario 1, 4,096", 1), ("scenario 3, 4,096", 3))
 
 
-def mesh_frames(renderer, sizes=MESH_SIZES, repeats: int = 1) -> list[dict]:
+def mesh_frames(renderer, sizes=MESH_SIZES, repeats: int = 1, quick: bool = False) -> list[dict]:
     """Per demo mesh (room, mixed), client profile and size, and per yardstick: estimated and
-    measured GL time (upload + trace + read-back; the variant compiled first), in ms."""
-    scenes = [(label, scenario(n, 4096, seed=0), True) for label, n in YARDSTICKS]
-    scenes += [(kind, mesh_scene(kind), False) for kind in ("room", "mixed")]
+    measured GL time (upload + trace + read-back; the variant compiled first), in ms. ``quick``: the
+    room and one yardstick, the interactive profile."""
+    scenes = [(label, scenario(n, 4096, seed=0), True) for label, n in YARDSTICKS[: 1 if quick else None]]
+    scenes += [(kind, mesh_scene(kind), False) for kind in (("room",) if quick else ("room", "mixed"))]
+    profiles = [("interactive", PROFILES["interactive"])] if quick else list(PROFILES.items())
     rows = []
     for _ in range(repeats):
-        for (label, scene, yardstick), (name, prof), (w, h) in itertools.product(scenes, PROFILES.items(), sizes):
+        for (label, scene, yardstick), (name, prof), (w, h) in itertools.product(scenes, profiles, sizes):
             st = RenderSettings(
                 width=w, height=h, format="png", **{k: v for k, v in prof.items() if k != "resolution_scale"}
             )
@@ -247,7 +249,7 @@ def measure(ctx: Context) -> dict:
             }
             for f in frames
         ],
-        "meshes": mesh_frames(ctx.renderer, ((64, 108),) if ctx.quick else MESH_SIZES),
+        "meshes": mesh_frames(ctx.renderer, ((64, 108),) if ctx.quick else MESH_SIZES, quick=ctx.quick),
     }
 
 
