@@ -72,7 +72,15 @@ def one_case(root: Path, n: str, how: str, side: int, watch_s: float, cap: str |
 
         def attack() -> None:
             t0 = time.perf_counter()
-            params = {"width": frame_side, "height": frame_side, "mode": "depth", "first_hits": how, "format": "png"}
+            params = {
+                "width": frame_side,
+                "height": frame_side,
+                "mode": "depth",
+                "first_hits": how,
+                "format": "png",
+                "max_recursion_depth": 1,  # (a depth frame traces one level: past POCKETRAY_MAX_WORK's product)
+                "samples_per_pixel": 1,
+            }
             try:
                 with httpx.Client(base_url=s.url, timeout=3.0) as c:  # the client gives up after 3 s
                     r = c.get(f"/api/sessions/{big_id}/frame", params=params)
