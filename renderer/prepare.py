@@ -9,6 +9,8 @@ a lock here.
 from __future__ import annotations
 
 import threading
+import weakref
+from collections import OrderedDict
 from collections.abc import Hashable
 from dataclasses import dataclass, field
 
@@ -64,8 +66,25 @@ def sampled_level_rays(scene: Scene, settings: RenderSettings) -> tuple[float, .
         return None
     side, w, h = limits.RAY_TREE_SAMPLE_SIDE, settings.width, settings.height
     sw, sh = (side, max(1, round(side * h / w))) if w >= h else (max(1, round(side * w / h)), side)
+    key = (id(scene), scene.camera, sw, sh, settings.max_recursion_depth, settings.min_weight)
+    with _TREE_LOCK:
+        held = _TREES.get(key)
+    if held is not None and held[0]() is scene:
+        return held[1]
     counts = ray_tree_counts(scene, sw, sh, settings.max_recursion_depth, settings.min_weight)
-    return tuple(c / (sw * sh) for c in counts)
+    level_rays = tuple(c / (sw * sh) for c in counts)
+    with _TREE_LOCK:
+        _TREES[key] = (weakref.ref(scene), level_rays)
+        while len(_TREES) > _TREES_KEPT:
+            _TREES.popitem(last=False)
+    return level_rays
+
+
+# The last sampled ray trees (a view's preview, full frame and refinement ask for the same one): by the
+# scene object (held weakly: an id is reused once its scene is gone), its camera and what the count reads.
+_TREES: OrderedDict[tuple, tuple[weakref.ref, tuple[float, ...]]] = OrderedDict()
+_TREES_KEPT = 64
+_TREE_LOCK = threading.Lock()
 
 
 def frame_cost(
