@@ -15,6 +15,8 @@ is no 503 and at most 1 s each, however the big frame was answered.
 from __future__ import annotations
 
 import argparse
+import json
+import sys
 import threading
 import time
 from pathlib import Path
@@ -125,6 +127,7 @@ def part_overdraw(root: Path, args) -> dict:
         results[f"{n} {how}"] = one_case(
             root, n, how or "auto", args.overdraw_side, args.overdraw_watch_s, args.overdraw_max_frame_cost
         )
+        print(json.dumps({f"{n} {how}": results[f"{n} {how}"]}), file=sys.stderr, flush=True)  # a long run's progress
     return results
 
 
