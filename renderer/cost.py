@@ -9,10 +9,11 @@ the next level with probability ``level_decay``; each radiance ray in the colour
 casts one shadow ray per light. Each ray costs what its hierarchy says a ray through the
 scene's box costs — the SAH's two terms, computed by the build (``sah_nodes`` node visits,
 ``sah_tests`` sphere tests: a single leaf of n spheres costs n tests, as brute force) — plus
-one test per plane. A triangle test counts as a sphere test (one leaf test, ``n`` = spheres +
-triangles): kept simple on purpose — Woop et al.'s test fetches three records instead of
-one and does more arithmetic, and the constants were fitted to sphere frames only; how far
-a mesh frame's estimate is off has not been measured yet. The ray engines draw
+one test per plane. A triangle's (or an analytic shape's) test is a leaf test as a sphere's (``n`` =
+spheres + triangles + shapes) and costs ``ns_mesh_test`` more: Woop et al.'s test fetches three
+records instead of one and does more arithmetic. A mesh scene's ray tree is counted on a sample of
+its pixels (``level_rays``, :func:`renderer.prepare.sampled_level_rays`) rather than taken from its
+materials: its few glass or mirror surfaces branch only the rays that meet them. The ray engines draw
 every primitive over every ray of a layer (``ns_raster`` per primitive and pixel).
 
 The constants are nanoseconds of this project's reference machine (2 cores, Mesa
@@ -26,6 +27,7 @@ measured times stay below.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -49,10 +51,11 @@ class CostModel:
     ns_bf_test: float = 10.0  # brute force: per sphere test (every ray tests every sphere)
     ns_pass: float = 50.0  # ray engines: per full-screen pass and pixel
     ns_raster: float = 3.0  # ray engines: per primitive drawn over one ray
+    ns_mesh_test: float = 0.0  # per triangle or analytic-shape test of a ray inside the scene's box
     level_decay: float = 0.7  # share of rays whose path goes on to the next level
     upper: float = 2.5  # measured / estimated that 90 % of the fitted frames stay below
 
-    TERMS = ("frame", "pixel", "node", "test", "leaf_test", "bf_test", "pass", "raster")
+    TERMS = ("frame", "pixel", "node", "test", "leaf_test", "bf_test", "pass", "raster", "mesh_test")
 
     def vector(self) -> np.ndarray:
         return np.array(
@@ -65,6 +68,7 @@ class CostModel:
                 self.ns_bf_test,
                 self.ns_pass,
                 self.ns_raster,
+                self.ns_mesh_test,
             ]
         )
 
@@ -83,6 +87,10 @@ DEFAULT_MODEL = CostModel(
     ns_bf_test=1.91,
     ns_pass=52.6,
     ns_raster=2.45,
+    # Calibrated on the demo meshes (room, mixed) against sphere frames measured beside them
+    # (bench/experiments/cost.py, mesh_frames): a ray through 2,700 triangles of the room costs
+    # 5-9 times one through spheres, where every (small-leaf) sphere test is free in the fit above.
+    ns_mesh_test=25.0,
     level_decay=0.7,
     upper=2.13,
 )
@@ -193,8 +201,15 @@ def request_work(width: int, height: int, max_recursion_depth: int, samples_per_
     return float(width * height * max_recursion_depth * samples_per_pixel)
 
 
-def ray_tree(scene: Scene, settings, decay: float = DEFAULT_MODEL.level_decay) -> tuple[int, float]:
-    """(levels, radiance rays per pixel) of the ray tree the settings trace in this scene."""
+def ray_tree(
+    scene: Scene, settings, decay: float = DEFAULT_MODEL.level_decay, level_rays: tuple[float, ...] | None = None
+) -> tuple[int, float]:
+    """(levels, radiance rays per pixel) of the ray tree the settings trace in this scene. ``level_rays``:
+    the radiance rays per pixel each level traces, counted on a sample of the frame's pixels
+    (:func:`renderer.prepare.sampled_level_rays`): where given, the tree is theirs (its first ``levels``
+    levels) — a scene whose few glass or mirror surfaces cover few pixels branches on those alone —
+    and otherwise every ray is taken to meet the scene's most reflective material and branch where
+    any material both reflects and transmits (``decay`` of them going on each level)."""
     if settings.mode not in RAY_TREE_MODES:
         return 1, 1.0
     features = (scene_features(scene) if settings.specialize else GENERIC).with_integrator(
@@ -203,6 +218,8 @@ def ray_tree(scene: Scene, settings, decay: float = DEFAULT_MODEL.level_decay) -
     levels = features.recursion_depth(settings.max_recursion_depth)
     if features.path:  # each sample one path of path_segments(levels) rays, shadow rays included
         return levels, settings.samples_per_pixel * path_segments(levels)
+    if level_rays is not None:
+        return levels, float(sum(level_rays[:levels]))
     used = (
         set(np.unique(scene.sphere_materials).tolist())
         | {p.material for p in scene.planes}
@@ -264,13 +281,20 @@ def coverage(scene: Scene, width: int, height: int) -> float:
 
 
 def terms(
-    method: str, stats: dict[str, Any], scene: Scene, settings, decay: float, multi_pass: bool = False
+    method: str,
+    stats: dict[str, Any],
+    scene: Scene,
+    settings,
+    decay: float,
+    multi_pass: bool = False,
+    level_rays: tuple[float, ...] | None = None,
 ) -> tuple[np.ndarray, dict[str, Any]]:
-    """The frame's work in the model's units (:attr:`CostModel.TERMS`), and what it is made of."""
+    """The frame's work in the model's units (:attr:`CostModel.TERMS`), and what it is made of
+    (``level_rays``: :func:`ray_tree`'s)."""
     k = settings.supersampling
     averaged = settings.mode in AVERAGED_MODES
     w, h = settings.width, settings.height
-    levels, radiance = ray_tree(scene, settings, decay)
+    levels, radiance = ray_tree(scene, settings, decay, level_rays)
     # A path's shadow rays are among its counted segments (path_segments); Whitted's are one per light.
     path = getattr(settings, "integrator", "whitted") == "path"
     lights = len(scene.lights) if settings.mode == "color" and not path else 0
@@ -314,6 +338,8 @@ def terms(
         t[2] = px * rays_in_box * nodes
         t[3] = px * (rays_in_box * (tests - big) + rays * planes)
         t[4] = px * rays_in_box * big
+        # Woop et al.'s test (three records, more arithmetic) and the shapes' dearer ones: their share of the tests.
+        t[8] = px * rays_in_box * tests * (scene.n_triangles + scene.n_shapes) / max(1, n)
     meta = {"passes": passes, "pixels": w * h, "rays": rays, "nodes": nodes, "tests": tests + planes, "coverage": c}
     return t, meta
 
@@ -325,9 +351,11 @@ def estimate(
     settings,
     model: CostModel = DEFAULT_MODEL,
     multi_pass: bool = False,
+    level_rays: tuple[float, ...] | None = None,
 ) -> FrameCost:
-    """The cost of tracing ``scene`` with ``settings`` by ``method`` whose build reported ``stats``."""
-    t, m = terms(method, stats, scene, settings, model.level_decay, multi_pass)
+    """The cost of tracing ``scene`` with ``settings`` by ``method`` whose build reported ``stats``
+    (``level_rays``: the ray tree's rays per level, where sampled: :func:`ray_tree`)."""
+    t, m = terms(method, stats, scene, settings, model.level_decay, multi_pass, level_rays)
     total = float(t @ model.vector())
     frags = m["passes"] * m["pixels"]
     n = scene.n_spheres + scene.n_triangles + scene.n_shapes
@@ -354,13 +382,19 @@ def largest_accepted(
     limit_ms: float,
     model: CostModel = DEFAULT_MODEL,
     multi_pass: bool = False,
+    estimator: Callable[[Any], FrameCost] | None = None,
 ) -> dict[str, Any]:
     """For each setting that makes a frame cheaper without a new build, the value closest to
     the requested one whose frame fits ``limit_ms``: the largest width, height, samples per
-    pixel and recursion depth (None where even the smallest does not fit)."""
+    pixel and recursion depth (None where even the smallest does not fit). ``estimator``: the
+    cost of the frame with other settings (default: :func:`estimate`, the traversal's;
+    :meth:`renderer.prepare.PreparedFrame.estimate` costs rasterised first hits as the frame does)."""
 
     def fits(**kw) -> bool:
-        return estimate(method, stats, scene, replace(settings, **kw), model, multi_pass).bound_ms <= limit_ms
+        changed = replace(settings, **kw)
+        if estimator is not None:
+            return estimator(changed).bound_ms <= limit_ms
+        return estimate(method, stats, scene, changed, model, multi_pass).bound_ms <= limit_ms
 
     out: dict[str, Any] = {}
     for name in ("width", "height"):

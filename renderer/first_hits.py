@@ -104,6 +104,41 @@ def cheapest(scene: Scene, settings: FrameSettings, method: str, stats: dict[str
     return min(options, key=options.__getitem__)
 
 
+def frame_cost(
+    how: str, scene: Scene, settings: FrameSettings, traced: cost.FrameCost, model: cost.CostModel = cost.DEFAULT_MODEL
+) -> cost.FrameCost:
+    """The cost of a frame whose first hits are rasterised (``how``: ``"raster"`` or ``"tiles"``), in
+    place of ``traced``, its traversal's estimate: what its quads will really shade — every quad's
+    fragments, overlaps counted each time (spheres that all cover the same pixels cost their number
+    of fragments per pixel), or every (tile, sphere) pair of the lists. One pass (the modes of
+    :data:`~renderer.modes.PRIMARY_MODES` trace pixel centres); ``tests_per_ray``: the sphere tests of
+    one pixel, ``ms_per_pixel`` the trace's ms per pixel (what a band of rows costs on average)."""
+    w, h = settings.width, settings.height
+    quads = instances(scene, (w, h), (w, h))
+    planes = bool(scene.planes)
+    if how == "tiles":
+        pairs, tile_pixels = tile_counts(quads, (w, h))
+        trace = cost.tiles_ms(pairs, tile_pixels, w * h, planes)
+        tests = pairs * TILE * TILE / (w * h)  # a tile's every pixel may test its whole list
+    else:
+        fragments = covered_fragments(quads, (w, h))
+        trace = cost.first_hits_ms(fragments, w * h, planes)
+        tests = fragments / (w * h)
+    ms = model.ns_frame / 1e6 + trace
+    return cost.FrameCost(
+        passes=1,
+        pixels=w * h,
+        rays_per_pixel=1.0,
+        nodes_per_ray=0.0,
+        tests_per_ray=tests,
+        coverage=traced.coverage,
+        ms=ms,
+        ms_per_pixel=trace / max(1, w * h),
+        bound_ms=ms * model.upper,
+        degenerate=False,
+    )
+
+
 def image_bounds(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per sphere, the image-plane ranges its primary rays can have: ``u`` (n, 2) and ``v`` (n, 2)
     (the coordinates of :func:`renderer.gpu_layout.camera_uniforms`: u = (2x/W − 1)·half_extent.x),

@@ -85,6 +85,17 @@ FIRST_HITS_AUTO_MAX_SPHERES = 65536
 # times that while they are sorted): past it a frame traces, so no scene of spheres that each cover much
 # of the frame makes the host sort billions of entries.
 MAX_TILE_PAIRS = 1 << 22
+# The cost model counts a mesh scene's ray tree on a coarse grid of its pixels (renderer/prepare.py,
+# sampled_level_rays): this many pixels on the grid's long side, in scenes of at most this many
+# primitives (the reference tracer tests every one; past it, the model's ray tree of the materials alone).
+RAY_TREE_SAMPLE_SIDE = 24
+# Slices (renderer/prepare.py band_rows, renderer/gl/frame.py): a band of rows is sized for the rows
+# through the scene's box — the frame's per-pixel cost over the share of the image the box covers, down
+# to MIN_BAND_COVERAGE — and grows from the measured time of the last at most to MAX_BAND_GROWTH × the
+# first (band after band of cheap sky would otherwise reach the scene with a band of most of it).
+MIN_BAND_COVERAGE = 0.1
+MAX_BAND_GROWTH = 4
+RAY_TREE_SAMPLE_MAX_PRIMITIVES = 1 << 14
 MAX_PLANES = 8
 MAX_LIGHTS = 8
 MAX_MATERIALS = 256

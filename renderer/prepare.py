@@ -9,13 +9,18 @@ a lock here.
 from __future__ import annotations
 
 import threading
+import weakref
+from collections import OrderedDict
 from collections.abc import Hashable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
+from . import first_hits, limits
 from .animation import AnimatedScene, pose
 from .cost import DEFAULT_MODEL, CostModel, FrameCost, estimate
 from .limits import DEFAULT_TEXTURE_WIDTH
 from .methods import METHODS, PreparedMethod, check_primitives, resolve_method
+from .modes import RAY_TREE_MODES
+from .reference import ray_tree_counts
 from .scene import Scene
 from .settings import RenderSettings
 from .tree_update import TreeUpdate
@@ -35,6 +40,72 @@ class PreparedFrame:
     cost: FrameCost
     pose_ms: float | None
     stats: dict
+    model: CostModel = field(default=DEFAULT_MODEL, repr=False)
+    level_rays: tuple[float, ...] | None = None  # the ray tree counted on a sample (sampled_level_rays)
+
+    def estimate(self, settings: RenderSettings) -> FrameCost:
+        """The cost of this frame's scene and build traced with ``settings`` instead (the same
+        method, the same sampled ray tree — exact for any depth up to the frame's: what the 422 of a
+        frame over the cap offers is costed as the frame was)."""
+        return frame_cost(self.method, self.stats, self.scene, settings, self.model, self.multi_pass, self.level_rays)
+
+
+def sampled_level_rays(scene: Scene, settings: RenderSettings) -> tuple[float, ...] | None:
+    """Radiance rays per pixel at each level of the frame's ray tree, counted by the reference tracer
+    on a grid of ``RAY_TREE_SAMPLE_SIDE`` pixels on its long side (the frame's aspect), ``min_weight``'s
+    cut-off applied, up to ``max_recursion_depth`` levels; None where the model's ray tree of the
+    materials stands instead: scenes of spheres and planes alone (the ones its constants were fitted
+    to), scenes of more than ``RAY_TREE_SAMPLE_MAX_PRIMITIVES`` primitives, modes without a ray tree and
+    the path integrator. A mesh scene's few glass or mirror surfaces branch only the rays that meet
+    them (the demo room: 1.5 radiance rays a pixel, where every ray branching would be 34)."""
+    path = settings.integrator == "path" and settings.mode == "color"
+    n = scene.n_spheres + scene.n_triangles + scene.n_shapes
+    if path or settings.mode not in RAY_TREE_MODES or not (scene.n_triangles or scene.n_shapes):
+        return None
+    if n > limits.RAY_TREE_SAMPLE_MAX_PRIMITIVES:
+        return None
+    side, w, h = limits.RAY_TREE_SAMPLE_SIDE, settings.width, settings.height
+    sw, sh = (side, max(1, round(side * h / w))) if w >= h else (max(1, round(side * w / h)), side)
+    key = (id(scene), scene.camera, sw, sh, settings.max_recursion_depth, settings.min_weight)
+    with _TREE_LOCK:
+        held = _TREES.get(key)
+    if held is not None and held[0]() is scene:
+        return held[1]
+    counts = ray_tree_counts(scene, sw, sh, settings.max_recursion_depth, settings.min_weight)
+    level_rays = tuple(c / (sw * sh) for c in counts)
+    with _TREE_LOCK:
+        _TREES[key] = (weakref.ref(scene), level_rays)
+        while len(_TREES) > _TREES_KEPT:
+            _TREES.popitem(last=False)
+    return level_rays
+
+
+# The last sampled ray trees (a view's preview, full frame and refinement ask for the same one): by the
+# scene object (held weakly: an id is reused once its scene is gone), its camera and what the count reads.
+_TREES: OrderedDict[tuple, tuple[weakref.ref, tuple[float, ...]]] = OrderedDict()
+_TREES_KEPT = 64
+_TREE_LOCK = threading.Lock()
+
+
+def frame_cost(
+    method: str,
+    stats: dict,
+    scene: Scene,
+    settings: RenderSettings,
+    model: CostModel,
+    multi_pass: bool,
+    level_rays: tuple[float, ...] | None = None,
+) -> FrameCost:
+    """What the frame will really do, estimated: its traversal (:func:`renderer.cost.estimate`; its
+    ray tree ``level_rays`` where sampled), or, where its first hits are rasterised (``first_hits``:
+    raster, tiles, or auto choosing one of them by these estimates — :func:`renderer.first_hits.chosen`),
+    its quads' overdraw (:func:`renderer.first_hits.frame_cost`)."""
+    traced = estimate(method, stats, scene, settings, model, multi_pass, level_rays)
+    if multi_pass:
+        return traced
+    path = settings.integrator == "path" and settings.mode == "color"  # as the variant decides
+    how = first_hits.chosen(scene, settings, path, method, stats)
+    return first_hits.frame_cost(how, scene, settings, traced, model) if how else traced
 
 
 def prepare_frame(
@@ -61,13 +132,18 @@ def prepare_frame(
     with _BUILD_LOCK:
         prepared = method.prepare(scene, settings.max_prims, settings.max_tree_depth, max_width, update)
     stats = dict(prepared.stats)
-    cost = estimate(name, stats, scene, settings, model, multi)
-    return PreparedFrame(scene, settings, name, multi, None if multi else prepared, cost, pose_ms, stats)
+    level_rays = sampled_level_rays(scene, settings)
+    cost = frame_cost(name, stats, scene, settings, model, multi, level_rays)
+    return PreparedFrame(
+        scene, settings, name, multi, None if multi else prepared, cost, pose_ms, stats, model, level_rays
+    )
 
 
 def band_rows(cost: FrameCost, slice_ms: float, width: int, height: int) -> int:
-    """Rows of a band that cost about ``slice_ms`` (at least one, at most the pass)."""
-    per_row = cost.ms_per_pixel * width
+    """Rows of a band that cost about ``slice_ms`` where the scene is (at least one, at most the
+    pass): the frame's cost is spent where the primitives' box covers the image, so a band sized
+    by the whole image's average would cost 1 / coverage times the budget there."""
+    per_row = cost.ms_per_pixel * width / max(limits.MIN_BAND_COVERAGE, min(1.0, cost.coverage))
     if per_row <= 0:
         return height
     return max(1, min(height, int(slice_ms / per_row)))

@@ -761,6 +761,39 @@ def _trace_pixels(
                 stack.extend(child.split(chunk_rays))
 
 
+def ray_tree_counts(scene: Scene, width: int, height: int, levels: int, min_weight: float) -> list[int]:
+    """Radiance rays per level (primary = level 1) that the Whitted tracer traces for the pixel
+    centres of a ``width`` × ``height`` grid, at most ``levels`` levels: children of the hits whose
+    path weight (the product of kr and kt along the path) is at least ``min_weight``, the shader's
+    ε rule (``shaders/raytrace.frag``). Shadow rays are not counted. The cost model's ray tree of a
+    scene, sampled on a coarse grid (:mod:`renderer.prepare`)."""
+    g = _Geometry.of(scene)
+    pixels = width * height
+    pix = np.arange(pixels, dtype=np.int64)
+    o, d = _pixel_rays(scene.camera, width, height, pix)
+    frame = _Frame.empty(pixels)
+    batch: RayBatch | None = RayBatch(
+        o, d, pix, np.ones((pixels, 3)), 1, np.full(pixels, -1, dtype=np.int64), np.zeros(pixels, dtype=bool)
+    )
+    counts: list[int] = []
+    while batch is not None and len(batch) and batch.level <= levels:
+        counts.append(len(batch))
+        child = _trace_batch(g, batch, frame, levels, shade=False)
+        if child is not None:
+            keep = np.flatnonzero(child.weight[:, 0] >= min_weight)  # kr and kt are grey: one channel
+            child = RayBatch(
+                child.origins[keep],
+                child.dirs[keep],
+                child.pix[keep],
+                child.weight[keep],
+                child.level,
+                child.src[keep],
+                child.far_only[keep],
+            )
+        batch = child
+    return counts
+
+
 # ------------------------------------------------------------------------- modes
 
 

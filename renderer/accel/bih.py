@@ -192,7 +192,10 @@ def build_bih(
 
     def make_leaves(mask: np.ndarray) -> None:
         cnt = op.hi[mask] - op.lo[mask]
-        a = _half_area(op.bmin[mask], op.bmax[mask]) * cnt
+        # A ray tests a leaf's primitives wherever it passes its clip planes: the region they bound
+        # (rmin/rmax), not the box the one-sided retries shrank (primitives at one point shrink that
+        # to nothing, while every ray through the root still tests them all).
+        a = _half_area(op.rmin[mask], op.rmax[mask]) * cnt
         area["leaf_prims"] += float(a.sum())
         area["big_prims"] += float(a[cnt > BIG_LEAF].sum())
         s = op.slot[mask]

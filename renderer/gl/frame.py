@@ -47,7 +47,7 @@ import numpy as np
 
 from .. import first_hits, gpu_layout
 from ..gpu_layout import PackedScene, Variant
-from ..limits import PATH_SAMPLES_PER_PASS
+from ..limits import MAX_BAND_GROWTH, PATH_SAMPLES_PER_PASS
 from ..methods import PreparedMethod
 from ..modes import AVERAGED_MODES, PRIMARY_MODES
 from ..result import RenderResult
@@ -227,6 +227,7 @@ class TracerFrame:
         self.guides = self.path and "GUIDES" in variant.features
         self._guide_sums: list[np.ndarray] | None = None
         self.band_rows = band_rows
+        self._first_band = int(band_rows or 1)
         self.slice_ms = slice_ms
         self.prog, self.vao = renderer.program(
             variant.method, variant.mode, variant.depth, variant.features, variant.blocks, variant.image_only
@@ -271,6 +272,9 @@ class TracerFrame:
         self.slices = 0
         self._pass_index = 0
         self._row = 0
+        # A band of rasterised first hits in progress: its rows and the chunks of quads left to draw.
+        self._raster_rows = 0
+        self._chunks: list[np.ndarray] | None = None
         # image, hit of the centre pass (GL rows); an image-only frame reads no hit
         self._centre: tuple[np.ndarray, np.ndarray | None] | None = None
         self._subs: dict[tuple[int, int], np.ndarray] = {}  # (sx, sy) → that sub-pixel pass's image (GL rows)
@@ -350,7 +354,8 @@ class TracerFrame:
         return w * h * (len(self.passes) - self._pass_index) - w * self._row
 
     def step(self) -> bool:
-        """Trace the next band (one draw + glFinish); True when the frame is complete."""
+        """Trace the next band (one draw + glFinish; of rasterised first hits, the next chunk of a
+        band's quads); True when the frame is complete."""
         if self.done:
             return True
         p = self.passes[self._pass_index]
@@ -359,7 +364,12 @@ class TracerFrame:
         t0 = time.perf_counter()
         assert self.fbo is not None, "the target is held until the last pass"
         if self.first_hits is not None:
-            self._raster_band(p, w, h, rows)
+            rows = self._raster_slice(p, w, h)
+            if not rows:  # more chunks of the band to draw
+                self.ctx.finish()
+                self.timings["trace"] += (time.perf_counter() - t0) * 1e3
+                self.slices += 1
+                return False
         else:
             self.fbo.use()
             for prog, vao, scissor in self._draws(w, h, self._row, rows):
@@ -370,11 +380,13 @@ class TracerFrame:
         ms = (time.perf_counter() - t0) * 1e3
         self.timings["trace"] += ms
         self.slices += 1
-        if self.slice_ms and self.band_rows is not None:
+        if self.slice_ms and self.band_rows is not None and self.first_hits is None:
             # Rows cost alike within a pass; at most doubling keeps one cheap band (sky) from
             # sizing the next, dearer one (the scene) far over the budget.
+            # Nor beyond MAX_BAND_GROWTH × the first band (sized for the scene's rows by the cost
+            # model): doubling band after band of sky would reach the scene with a band of most of it.
             fit = int(self.slice_ms * rows / max(ms, 1e-3))
-            self.band_rows = max(1, min(fit, 2 * rows, h))
+            self.band_rows = max(1, min(fit, 2 * rows, self._first_band * MAX_BAND_GROWTH, h))
         self._row += rows
         if self._row >= h:
             self._finish_pass(p)
@@ -389,17 +401,28 @@ class TracerFrame:
                 self._subs = {}
         return self.done
 
-    def _raster_band(self, p: Pass, w: int, h: int, rows: int) -> None:
-        """One band of a frame with rasterised first hits: the planes' pass, then the spheres' quads."""
+    def _raster_slice(self, p: Pass, w: int, h: int) -> int:
+        """One slice of a frame with rasterised first hits: at a band's start the planes' pass and
+        its first chunk of quads, then its next chunk (:meth:`FirstHitDraws.band_chunks`, each about
+        ``slice_ms`` of estimated work). Returns the band's rows once its last chunk is drawn, else 0."""
         fh = self.first_hits
         assert fh is not None
-        if self._row == 0:
-            sub, cell = p.sub or (0, 0), p.cell or (0.5, 0.5)  # as _bind's pass uniforms
-            grid = (self.width * p.scale, self.height * p.scale)
-            fh.begin_pass(grid, float(p.scale), (sub[0] + cell[0], sub[1] + cell[1]))
+        first = self._chunks is None
+        if first:
+            if self._row == 0:
+                sub, cell = p.sub or (0, 0), p.cell or (0.5, 0.5)  # as _bind's pass uniforms
+                grid = (self.width * p.scale, self.height * p.scale)
+                fh.begin_pass(grid, float(p.scale), (sub[0] + cell[0], sub[1] + cell[1]))
+                # bands sized for the budget, or as asked (a frame traced without one)
+                self._raster_rows = fh.band_rows(self.slice_ms) if self.slice_ms else int(self.band_rows or h)
+            self._raster_rows = min(self._raster_rows, h - self._row)
+            self._chunks = fh.band_chunks(self._row, self._raster_rows, self.slice_ms)
+        assert self._chunks is not None
+        rows = self._raster_rows
+        chunk = self._chunks.pop(0) if self._chunks else None
         fh.depth_on()
         fh.fbo.scissor = (0, self._row, w, rows) if rows < h else None
-        for prog, vao, instances in fh.draws():
+        for prog, vao, instances in fh.draws(chunk, planes=first):
             self._bind(p, prog)
             fh.bind(prog, len(self.textures))
             if instances:
@@ -407,6 +430,10 @@ class TracerFrame:
             else:
                 vao.render(moderngl.TRIANGLES)
         fh.depth_off()
+        if self._chunks:
+            return 0
+        self._chunks = None
+        return rows
 
     def _draws(self, w: int, h: int, y0: int, rows: int) -> list:
         """(program, vertex array, scissor) of the draws of one band of rows: the tracer, or

@@ -418,7 +418,14 @@ class FramePipeline:
                 f"{head}: the spheres crowd every ray even through the hierarchy; lower n "
                 f"(or the radius), the resolution, samples_per_pixel or max_recursion_depth",
             )
-        if c.degenerate:
+        # Primitives that overlap (at one point, or all covering the same pixels) are a leaf of them all
+        # at any depth: no tree setting helps, the frame's size does (below).
+        overlap = frame.stats.get("prims_per_leaf_max", 0) > s.max_prims and frame.stats.get(
+            "depth_max", s.max_tree_depth
+        ) < min(s.max_tree_depth, max(2, n.bit_length()))
+        if c.degenerate and overlap:
+            head += f": its spheres overlap, every ray tests {c.tests_per_ray:,.0f} of them whatever the tree"
+        elif c.degenerate:
             field = "max_prims" if s.max_prims >= max(2, n // 4) else "max_tree_depth"
             return (
                 (field,),
@@ -432,7 +439,9 @@ class FramePipeline:
                 f"{head}: method {frame.method} tests every sphere on every ray; "
                 f"use method=bih (a hierarchy) or a smaller frame",
             )
-        best = largest_accepted(frame.method, frame.stats, frame.scene, s, limit, multi_pass=frame.multi_pass)
+        best = largest_accepted(
+            frame.method, frame.stats, frame.scene, s, limit, multi_pass=frame.multi_pass, estimator=frame.estimate
+        )
         options = [f"{k} ≤ {v}" for k, v in best.items() if v is not None and v != getattr(s, k)]
         field = next(
             (

@@ -24,3 +24,136 @@ def test_prepare_frame_refuses_the_ray_engines_on_a_scene_with_meshes_and_resolv
     frame = prepare_frame(few_spheres, RenderSettings(width=8, height=8, method="auto"))
     assert frame.method == "bih"  # thousands of triangles: past the brute-force crossover
     assert frame.cost.ms > 0 and frame.stats["triangles"] == mixed_trees_scene.n_triangles
+
+
+# ---- frames costed by what they will really do ------------------------------------------------
+def coincident_spheres(n: int):
+    """``n`` spheres at one place, each covering the whole frame of scenario 1's camera (every pixel
+    meets all of them): the overdraw of every rasterised quad, one leaf of n on every ray."""
+    import dataclasses
+
+    from renderer.scenarios import scenario
+
+    base = scenario(1, 1)
+    cam = base.camera
+    dist = float(np.linalg.norm(np.subtract(cam.target, cam.position)))
+    return dataclasses.replace(
+        base,
+        sphere_centers=np.tile(np.asarray(cam.target, dtype=np.float64), (n, 1)),
+        sphere_radii=np.full(n, 0.9 * dist),
+        sphere_materials=np.zeros(n, np.int32),
+        planes=(),
+    )
+
+
+def max_frame_cost() -> float:
+    from server.config import ServerConfig
+
+    return float(ServerConfig.model_fields["max_frame_cost"].default)
+
+
+@pytest.fixture(scope="module", params=[20_000, 100_000])
+def coincident(request):
+    return coincident_spheres(request.param)
+
+
+@pytest.mark.parametrize("how", ["raster", "tiles", "auto", "trace"])
+def test_coincident_spheres_over_the_frame_are_refused_up_front(coincident, how):
+    """Spheres that all cover the same pixels: each pixel tests every one, whether its first hits are
+    rasterised (every quad's fragments), listed per tile or traced (one leaf of all of them on every
+    ray) — estimated over the default cap, so the service refuses the frame before any GL work."""
+    from renderer.prepare import prepare_frame
+
+    st = RenderSettings(width=1024, height=1024, mode="depth", first_hits=how)
+    frame = prepare_frame(coincident, st)
+    assert frame.cost.tests_per_ray >= 0.5 * coincident.n_spheres
+    assert frame.cost.bound_ms > max_frame_cost(), frame.cost
+
+
+def test_a_rasterised_frame_is_costed_by_its_quads_and_auto_by_the_cheapest():
+    """first_hits=raster is costed by its fragments and tiles by their pairs; auto picks the cheaper
+    of those and the traversal, and its estimate is that choice's."""
+    from renderer import first_hits as fh
+    from renderer.prepare import prepare_frame
+
+    scene = coincident_spheres(500)
+    st = RenderSettings(width=256, height=256, mode="depth")
+    costs = {how: prepare_frame(scene, st.with_(first_hits=how)).cost.ms for how in ("raster", "tiles", "trace")}
+    quads = fh.instances(scene, (256, 256), (256, 256))
+    assert fh.covered_fragments(quads, (256, 256)) >= 0.9 * 500 * 256 * 256  # every quad the whole frame
+    assert costs["raster"] > costs["trace"] > 0
+    auto = prepare_frame(scene, st.with_(first_hits="auto")).cost.ms
+    assert auto == min(costs.values())
+
+
+def test_the_tree_counts_the_tests_of_coincident_spheres():
+    """A BIH leaf's tests are counted over the region its clip planes bound: spheres at one point
+    (which shrink the build's box to nothing) are n tests for every ray through the root, as the CPU
+    traversal counts them."""
+    from renderer.accel.bih import build_for_scene
+    from renderer.accel.bih_traverse import traverse
+    from renderer.reference import primary_rays
+
+    scene = coincident_spheres(300)
+    bih = build_for_scene(scene, 8, 64)
+    o, d = primary_rays(scene.camera, 16, 16)
+    counted = np.asarray(traverse(bih, scene.sphere_centers, scene.sphere_radii, o, d).tests).mean()
+    assert counted == pytest.approx(300, rel=0.01)
+    assert 0.5 * counted <= bih.stats.sah_tests <= 2.0 * counted
+
+
+def rays_through_box(scene, width: int, height: int):
+    """The primary rays of a grid that enter the primitives' bounding box (what the tree's
+    statistics are per ray of)."""
+    from renderer.accel.primitives import scene_aabbs
+    from renderer.reference import primary_rays
+
+    lo, hi = scene_aabbs(scene)
+    lo, hi = lo.min(axis=0).astype(np.float64), hi.max(axis=0).astype(np.float64)
+    o, d = primary_rays(scene.camera, width, height)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t0, t1 = (lo - o) / d, (hi - o) / d
+    near = np.nanmax(np.minimum(t0, t1), axis=1)
+    far = np.nanmin(np.maximum(t0, t1), axis=1)
+    inside = far >= np.maximum(near, 0.0)
+    return o[inside], d[inside]
+
+
+@pytest.mark.parametrize("kind", ["room", "mixed"])
+def test_the_model_inputs_of_the_demo_meshes_match_cpu_counts(kind):
+    """The cost model's inputs for the demo mesh scenes against counts on the CPU: the tests and node
+    visits a ray through the box makes (the BIH's statistics against its traversal on the rays of a
+    grid), and the radiance rays a pixel's tree traces (the estimate's ray tree against the reference
+    tracer's on a finer grid than the one sampled) — each within 2×."""
+    from renderer.accel.bih_traverse import traverse
+    from renderer.prepare import prepare_frame
+    from renderer.profiles import STILL
+    from renderer.reference import ray_tree_counts
+    from renderer.scenarios import mesh_scene
+
+    scene = mesh_scene(kind)
+    st = RenderSettings(width=640, height=1088, **{k: v for k, v in STILL.items() if k != "resolution_scale"})
+    frame = prepare_frame(scene, st)
+    tree = frame.prepared.tree
+    o, d = rays_through_box(scene, 48, 82)
+    res = traverse(tree, scene.sphere_centers, scene.sphere_radii, o, d, triangles=scene.triangle_corners)
+    tests, nodes = np.asarray(res.tests).mean(), np.asarray(res.nodes_visited).mean()
+    assert 0.5 * tests <= frame.stats["sah_tests"] <= 2.0 * tests, (frame.stats["sah_tests"], tests)
+    assert 0.5 * nodes <= frame.stats["sah_nodes"] <= 2.0 * nodes, (frame.stats["sah_nodes"], nodes)
+    counted = sum(ray_tree_counts(scene, 64, 109, st.max_recursion_depth, st.min_weight)) / (64 * 109)
+    radiance = frame.cost.rays_per_pixel / (1 + len(scene.lights))
+    assert 0.5 * counted <= radiance <= 2.0 * counted, (radiance, counted)
+
+
+@pytest.mark.parametrize("kind", ["room", "mixed"])
+@pytest.mark.parametrize("profile", ["interactive", "still"])
+def test_the_demo_meshes_are_admitted_at_the_phone_default_size(kind, profile):
+    """The client's full frame (client_web/js/settings.js fitResolution: 640 × 1088 by default) of the
+    demo mesh scenes with either profile, as the client asks for them, is under the default cap."""
+    from renderer.prepare import prepare_frame
+    from renderer.profiles import PROFILES
+    from renderer.scenarios import mesh_scene
+
+    p = {k: v for k, v in PROFILES[profile].items() if k != "resolution_scale"}
+    frame = prepare_frame(mesh_scene(kind), RenderSettings(width=640, height=1088, **p))
+    assert frame.cost.bound_ms <= max_frame_cost(), frame.cost

@@ -343,3 +343,52 @@ def test_a_background_frame_yields_every_slice_to_interactive_ones(worker):
     assert fg.wait(5) == "fg done" and bg.wait(5) == "bg done"
     names = [name for name, _ in log]
     assert names[:6] == ["bg", "fg", "fg", "fg", "fg", "fg"], names[:8]
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("how", ["raster", "tiles"])
+def test_a_cancelled_frame_of_overlapping_quads_stops_within_a_slice(how):
+    """A frame whose rasterised quads all cover the same pixels is drawn in chunks of about
+    POCKETRAY_SLICE_MS, one a slice: cancelled (its client gone) after a few, its GL work stops at
+    the end of the slice that runs — not after the whole band of its quads."""
+    import dataclasses
+
+    import numpy as np
+
+    from renderer import cost
+    from renderer.prepare import prepare_frame
+    from renderer.scenarios import scenario
+
+    base = scenario(1, 1)
+    cam = base.camera
+    dist = float(np.linalg.norm(np.subtract(cam.target, cam.position)))
+    n, side = 2000, 128
+    scene = dataclasses.replace(
+        base,
+        sphere_centers=np.tile(np.asarray(cam.target, dtype=np.float64), (n, 1)),
+        sphere_radii=np.full(n, 0.9 * dist),
+        sphere_materials=np.zeros(n, np.int32),
+        planes=(),
+    )
+    frame = prepare_frame(scene, RenderSettings(width=side, height=side, mode="depth", first_hits=how))
+    ns = cost.RASTER_NS_FRAGMENT if how == "raster" else cost.TILES_NS_PAIR / 256
+    slice_ms = 20 * side * side * ns / 1e6  # twenty quads' fragments: a hundred slices for the frame
+    w = GLWorker(queue_size=2, render_timeout_s=60.0)
+    w.start().result(60)
+    try:
+        assert w.ready.is_set(), w.error
+        with w.admit() as ticket:
+            h = ticket.frame(lambda r: r.start(frame, slice_ms=slice_ms), session="s", cost_ms=frame.cost.ms)
+        deadline = time.monotonic() + 60
+        while w.slices < 3 and not h._done.is_set() and time.monotonic() < deadline:
+            time.sleep(0.001)
+        assert not h._done.is_set(), "the frame ended before it could be cancelled: one draw of all its quads"
+        h.cancel("disconnected")
+        at = w.slices
+        assert h._done.wait(30)
+        assert w.slices - at <= 1  # the slice that was running, and no other
+        with pytest.raises(FrameCancelled):
+            h.result()
+        assert w.slices < 50  # the frame's hundred slices were not all drawn
+    finally:
+        w.close()
