@@ -22,7 +22,7 @@ from __future__ import annotations
 import secrets
 import threading
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum
 from renderer.envmap import EnvironmentMap, image_ref
@@ -59,9 +59,6 @@ from .scenes import (
 )
 from .store import SessionState, SessionStore, StoreUnavailable
 
-if TYPE_CHECKING:
-    from .shared_refine import SharedRefine
-
 LINEAR_FORMATS = ("npy", "exr")  # radiance as traced: denoised only when a request asks for it
 
 
@@ -81,8 +78,10 @@ class SessionService:
         self.frames = frames
         self.cache = cache or SceneCache()
         self.caps = InputCaps(config)
-        # the refinement streams' ranges shared with the other processes (redis backend; server.app sets it)
-        self.shared_refine: SharedRefine | None = None
+        # The refinement streams' ranges shared with the other processes: a
+        # server.sessions.shared_refine.SharedRefine (redis backend; server.app sets it), typed loosely
+        # because that module builds on this one.
+        self.shared_refine: Any = None
 
     def default_settings(self) -> dict[str, Any]:
         return self.config.default_settings()
