@@ -8,13 +8,14 @@ sample indices add up to one frame of them all. The process that runs a session'
 (:mod:`server.sessions.refine`, the *owner*) publishes the samples from what its accumulation holds
 up to one short of the target as :class:`Range` s of POCKETRAY_SHARED_REFINE_RANGE_SAMPLES in one
 Redis list. The owner traces the ranges from the bottom, as its ordinary accumulation frames; a
-:class:`Helper` in every process claims ranges from the top — only while its own GL thread has
+:class:`Helper` in every other process claims ranges from the top — only while its own GL thread has
 nothing admitted, so interactive frames keep priority everywhere, and as background frames, so an
 interactive frame that arrives meanwhile is sliced first — and writes the float32 sum of its range
 back. The owner adds a helper's sum to its accumulation when its count reaches the range's start:
 in the order of the ranges, whoever traced them, so the image is one process's image of the same
-samples up to float32 rounding. The last sample is always the owner's own frame, the stream's final
-image.
+samples up to float32 rounding. While a helper holds the range at its count, the owner traces the
+lowest range nobody claimed yet and keeps its sum for when its count gets there. The last sample
+is always the owner's own frame, the stream's final image.
 
 A claim is a lease of POCKETRAY_SHARED_REFINE_LEASE_S: a range whose helper died (or failed, or
 gave it back) is traced by the owner when its count gets there, so a dead process costs its
@@ -53,15 +54,28 @@ log = logging.getLogger("pocketray.shared_refine")
 
 HELPER_POLL_S = 0.05  # an idle helper asks for a range this often (one Redis round trip)
 OWNER_POLL_S = 0.02  # the owner waits for a range a helper holds in steps of this
+CLAIM_DEPTH = 256  # a helper looks at this many of the newest ranges for one it may claim
 SUM_DTYPE = np.float32  # a range's sum as an accumulation holds it (12 bytes a pixel)
 
-# Claim the newest range (the top of the list: the owner works from the bottom) and lease it.
+# Claim the newest range (the top of the list: the owner works from the bottom) of a stream this
+# process does not own (ARGV[3] …: their jobs; among the CLAIM_DEPTH newest), and lease it.
 _CLAIM = """
-local e = redis.call('RPOP', KEYS[1])
-if not e then return false end
-local t = redis.call('TIME')
-redis.call('ZADD', KEYS[2], tonumber(t[1]) * 1000 + math.floor(tonumber(t[2]) / 1000) + tonumber(ARGV[1]), e)
-return e
+local items = redis.call('LRANGE', KEYS[1], -tonumber(ARGV[2]), -1)
+for i = #items, 1, -1 do
+  local e = items[i]
+  local job = string.match(e, '^(.*)|%d+|%d+$')
+  local own = false
+  for j = 3, #ARGV do
+    if ARGV[j] == job then own = true break end
+  end
+  if not own then
+    redis.call('LREM', KEYS[1], -1, e)
+    local t = redis.call('TIME')
+    redis.call('ZADD', KEYS[2], tonumber(t[1]) * 1000 + math.floor(tonumber(t[2]) / 1000) + tonumber(ARGV[1]), e)
+    return e
+  end
+end
+return false
 """
 # The owner at a range's start: 2 its sum is there; 1 it is the owner's now (unclaimed, or its lease
 # expired or was given back); 0 a helper holds it.
@@ -163,8 +177,10 @@ class Board:
         pipe.execute()
 
     # ---- a helper --------------------------------------------------------------------------------
-    def claim(self) -> Range | None:
-        got = self._claim(keys=[self.queue, self.leases], args=[self.lease_ms])
+    def claim(self, own: frozenset[str] = frozenset()) -> Range | None:
+        """The newest range of a stream not in ``own`` (the streams this process owns: their owner
+        traces the ranges it does not wait for itself), leased; None when there is none."""
+        got = self._claim(keys=[self.queue, self.leases], args=[self.lease_ms, CLAIM_DEPTH, *sorted(own)])
         return None if got is None else Range.parse(got)
 
     def meta(self, job: str) -> dict[str, Any] | None:
@@ -196,6 +212,26 @@ def trace_range(pipeline: FramePipeline, service: SessionService, session_id: st
     return np.ascontiguousarray(result.sample_sum, dtype=SUM_DTYPE).tobytes()
 
 
+class OwnJobs:
+    """The streams this process owns (their ranges are its stream threads' to trace, not its helper's)."""
+
+    def __init__(self) -> None:
+        self._jobs: set[str] = set()
+        self._lock = threading.Lock()
+
+    def add(self, job: str) -> None:
+        with self._lock:
+            self._jobs.add(job)
+
+    def discard(self, job: str) -> None:
+        with self._lock:
+            self._jobs.discard(job)
+
+    def snapshot(self) -> frozenset[str]:
+        with self._lock:
+            return frozenset(self._jobs)
+
+
 class SharedStream:
     """The owner's side of one refinement stream: before each of its frames, :meth:`next_frame`
     adds the ranges helpers finished at its count and says how many samples its own frame may add."""
@@ -210,8 +246,10 @@ class SharedStream:
         goal: int,
         range_samples: int,
         still: Callable[[], bool],
+        own: OwnJobs | None = None,
     ):
         self.board, self.service, self.session_id, self.patch = board, service, session_id, patch
+        self.own = own if own is not None else OwnJobs()
         self.version, self.goal, self.range_samples, self.still = version, goal, range_samples, still
         self.job = f"{session_id}:{version}:{uuid.uuid4().hex[:12]}"
         self.ranges: list[Range] = []  # every range published (to withdraw at the end)
@@ -220,6 +258,7 @@ class SharedStream:
         self.published = False
         self.calls = 0
         self.merged = 0  # ranges added from helpers
+        self.spare: dict[int, bytes] = {}  # sums of later ranges the owner traced while it waited, by start
         self.key: AccumulationKey | None = None
         self.shape: tuple[int, int, int] | None = None
 
@@ -228,7 +267,7 @@ class SharedStream:
         end = self.goal - 1  # the last sample is the owner's: its frame is the stream's final image
         if end - held < self.range_samples:
             return  # less than one range to share
-        request = self.service.frame_request(self.session_id, self.patch)
+        request = self.service.frame_request(self.session_id, {**self.patch, "samples_per_pixel": 1})
         owner, render = request.owner, request.settings.render
         assert owner is not None, "a session's frame"
         posed, _ = FramePipeline.posed(request.scene, render.time)
@@ -237,11 +276,23 @@ class SharedStream:
         self.ranges = [Range(self.job, r.start, r.count) for r in split(held, end, self.range_samples)]
         self.pending = deque(self.ranges)
         meta = {"session": self.session_id, "version": self.version, "patch": self.patch}
+        self.own.add(self.job)
         self.board.publish(self.job, meta, self.ranges)
 
     def next_frame(self, held: int, k: int) -> tuple[int, int] | None:
         """(samples held, samples the owner's next frame adds) after the ranges finished at ``held``
-        are added; None: the stream is to end (cancelled, or the view changed while waiting)."""
+        are added; None: the stream is to end (cancelled, or the view changed while waiting). When
+        Redis fails here the stream goes on alone."""
+        try:
+            return self._next_frame(held, k)
+        except Exception:
+            log.warning("shared refinement: %s goes on alone", self.job, exc_info=True)
+            self.pending.clear()
+            self.mine = None
+            count = self.service.frames.accumulations.count(self.session_id)
+            return count, max(1, min(k, self.goal - count))
+
+    def _next_frame(self, held: int, k: int) -> tuple[int, int] | None:
         # Published after the stream's first frame: that frame comes at once, and its count is of this view
         # (the count before it may be of the view before).
         self.calls += 1
@@ -257,9 +308,13 @@ class SharedStream:
             if r.start != held:  # the accumulation moved under the stream (dropped for its budget)
                 self._stop_sharing()
                 continue
-            state = self.board.take(r)
+            data = self.spare.pop(r.start, None)
+            if data is not None:
+                state = 2
+            else:
+                state = self.board.take(r)
             if state == 2:
-                data = self.board.result(r)
+                data = data if data is not None else self.board.result(r)
                 if data is not None and self._merge(r, data):
                     self.pending.popleft()
                     self.merged += 1
@@ -271,7 +326,19 @@ class SharedStream:
                 continue
             if not self.still():
                 return None
-            time.sleep(OWNER_POLL_S)
+            if not self._trace_spare():
+                time.sleep(OWNER_POLL_S)
+
+    def _trace_spare(self) -> bool:
+        """While a helper holds the range at the count: trace the lowest later range nobody has
+        claimed, here, to add when the count gets there (False: there is none)."""
+        for r in list(self.pending)[1:]:
+            if r.start in self.spare:
+                continue
+            if self.board.take(r) == 1:
+                self.spare[r.start] = trace_range(self.service.frames, self.service, self.session_id, self.patch, r)
+                return True
+        return False
 
     def _merge(self, r: Range, data: bytes) -> bool:
         assert self.key is not None and self.shape is not None, "published"
@@ -291,6 +358,7 @@ class SharedStream:
 
     def close(self) -> None:
         """The stream ended: what it published goes."""
+        self.own.discard(self.job)
         if self.ranges:
             try:
                 self.board.withdraw(self.job, self.ranges)
@@ -302,8 +370,9 @@ class Helper:
     """One process's helper: while its GL thread has nothing admitted, claim a range of any stream,
     trace it, and hand its sum back (a thread, :meth:`start` … :meth:`stop`)."""
 
-    def __init__(self, board: Board, service: SessionService):
+    def __init__(self, board: Board, service: SessionService, own: OwnJobs | None = None):
         self.board, self.service = board, service
+        self.own = own if own is not None else OwnJobs()
         self.worker = service.frames.worker
         self.traced = 0  # ranges handed back by this process
         self._stop = threading.Event()
@@ -332,7 +401,7 @@ class Helper:
 
     def step(self) -> bool:
         """Claim and trace one range; False when none is waiting."""
-        r = self.board.claim()
+        r = self.board.claim(self.own.snapshot())
         if r is None:
             return False
         try:
@@ -374,7 +443,8 @@ class SharedRefine:
         goal: int,
         still: Callable[[], bool],
     ) -> SharedStream:
-        return SharedStream(self.board, service, session_id, patch, version, goal, self.range_samples, still)
+        own = self.helper.own
+        return SharedStream(self.board, service, session_id, patch, version, goal, self.range_samples, still, own)
 
     def close(self) -> None:
         self.helper.stop()

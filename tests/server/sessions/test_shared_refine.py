@@ -193,3 +193,14 @@ def test_one_process_shares_nothing(tmp_path, redis_url):
     off = make_config(tmp_path, state_backend="redis", redis_url=redis_url, shared_refine=False)
     with TestClient(create_app(off)) as c:
         assert c.app.state.service.shared_refine is None
+
+
+@pytest.mark.gl
+def test_one_process_on_redis_traces_its_own_ranges(tmp_path, redis_url):
+    with TestClient(create_app(config(tmp_path, redis_url, f"shared-{uuid.uuid4().hex[:8]}:"))) as c:
+        wait_ready(c.get)
+        sid = cornell(c)
+        counts, merged = refine_to(c, sid, TARGET)
+        assert counts[-1] == TARGET, counts
+        assert c.app.state.service.shared_refine.helper.traced == 0, "a helper leaves its own process's streams"
+        assert_same_samples(merged, one_frame(c, sid, TARGET))
