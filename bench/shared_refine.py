@@ -9,7 +9,8 @@ included); the render processes' CPU seconds over the stream, all of them and th
 CPU time is about what the stream takes where each process has its core to itself, waits aside);
 the merge's cost (a range's sum read from Redis and added, timed here on a sum of the frame's size).
 
-Every stack is started first (all idle but one at a time), then the runs interleave (1, 2, 4, 1,
+Every stack is started first (all idle but one at a time; each process has compiled the stream's
+shader variant: :func:`warm_up`), then the runs interleave (1, 2, 4, 1,
 2, 4 …) so that the machine's other load falls on each alike; ``1 (alone)`` is one process with
 POCKETRAY_SHARED_REFINE false: the service as it refines without the stack. The load average is
 printed beside the table.
@@ -64,10 +65,21 @@ def cpu_s(pids: list[int]) -> list[float]:
     return out
 
 
-def one_run(url: str, client, pids: list[int], width: int, height: int, samples: int) -> dict:
-    """A new Cornell session refined to ``samples`` through the balancer: seconds, the render
-    processes' CPU seconds, Redis bytes."""
-    settings = {
+def warm_up(ports: list[int], settings: dict) -> None:
+    """Every render process compiles the stream's shader variant before anything is timed: a 16 × 16
+    frame of the same settings, asked of each process directly (its first path frame would otherwise
+    compile it inside the measurement, on llvmpipe seconds of CPU)."""
+    for port in ports:
+        with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=600) as c:
+            r = c.post("/api/sessions", json={**CORNELL, "settings": settings})
+            r.raise_for_status()
+            sid = r.json()["id"]
+            c.get(f"/api/sessions/{sid}/frame", params={"width": 16, "height": 16}).raise_for_status()
+            c.delete(f"/api/sessions/{sid}")
+
+
+def stream_settings(width: int, height: int, samples: int) -> dict:
+    return {
         "integrator": "path",
         "width": width,
         "height": height,
@@ -77,6 +89,12 @@ def one_run(url: str, client, pids: list[int], width: int, height: int, samples:
         "refine_samples": samples,
         "refine_time_ms": 600_000,
     }
+
+
+def one_run(url: str, client, pids: list[int], width: int, height: int, samples: int) -> dict:
+    """A new Cornell session refined to ``samples`` through the balancer: seconds, the render
+    processes' CPU seconds, Redis bytes."""
+    settings = stream_settings(width, height, samples)
     with httpx.Client(base_url=url, timeout=900) as c:
         r = c.post("/api/sessions", json={**CORNELL, "settings": settings})
         r.raise_for_status()
@@ -142,6 +160,7 @@ def main() -> None:
             for i, child in enumerate(st.renders):
                 assert child.proc is not None
                 pin(child.proc.pid, cores[i % len(cores)])
+            warm_up([child.port for child in st.renders], stream_settings(args.width, args.height, args.samples))
             stacks[name] = (st, n, redis.Redis.from_url(st.redis_url))
         load0 = os.getloadavg()
         runs: dict[str, list[dict]] = {name: [] for name in stacks}
