@@ -45,6 +45,7 @@ from .http.framing import SingleFraming
 from .http.observability import RequestContext, configure_logging
 from .http.security import SecurityHeaders
 from .sessions.service import SessionService
+from .sessions.shared_refine import start_shared_refine
 from .sessions.store import open_store
 
 GPU_INDEX_ENV = "GLCONTEXT_DEVICE_INDEX"  # glcontext's EGL backend picks its GPU by this index
@@ -84,6 +85,7 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
         app.state.worker = worker
         app.state.frames = FramePipeline(config, worker)
         app.state.service = SessionService(config, store, app.state.frames)
+        app.state.service.shared_refine = shared = start_shared_refine(config, store, app.state.service)
         app.state.drain = drain
         app.state.is_ready = lambda: worker.ready.is_set() and not drain.draining.is_set()
         drain.install()
@@ -92,7 +94,9 @@ def create_app(config: ServerConfig | None = None) -> FastAPI:
         finally:
             drain.begin("lifespan shutdown")
             drain.uninstall()
-            await run_in_threadpool(worker.close)
+            await run_in_threadpool(worker.close)  # (first: a helper's frame in flight ends with it)
+            if shared is not None:
+                await run_in_threadpool(shared.close)
             store.close()
             metrics.process_exit()
 

@@ -131,6 +131,27 @@ class ServerConfig(BaseSettings):
         "are sized from the stream's previous frame so the image updates about this often (docs/API.md, "
         "'Refinement')",
     )
+    shared_refine: bool = Field(
+        True,
+        description="redis backend: the samples of a resting path-traced view's refinement stream are split into "
+        "ranges that every render process with an idle GL thread may claim through Redis, their sums merged by "
+        "the stream's process in the order of the ranges (docs/DEPLOY.md, 'Shared refinement'); false, or the "
+        "sqlite backend: one process refines its sessions alone",
+    )
+    shared_refine_range_samples: int = Field(
+        16,
+        ge=1,
+        le=4096,
+        description="samples per pixel of one range of a shared refinement: each costs one float32 RGB sum of the "
+        "frame through Redis (written once, read once), and a process that dies loses at most one",
+    )
+    shared_refine_lease_s: float = Field(
+        30.0,
+        gt=0,
+        le=600,
+        description="seconds a process may hold a claimed range of a shared refinement before the stream's own "
+        "process takes it back and traces it itself (longer than one range takes)",
+    )
     max_target_bytes: int = Field(
         256 << 20, ge=0, description="render targets kept for reuse on the GPU, bytes (frames in flight hold their own)"
     )

@@ -137,49 +137,69 @@ def refine(
     def left(held: int) -> int:  # increments (samples, or slices) to the target
         return -(-(goal_samples - held) // unit)
 
-    while True:
-        if cancel is not None and cancel.is_set():
-            return
-        try:
-            if service.get(session_id).version != version:
-                return  # a gesture or a settings change: the stream was of the view before it
-        except NotFound:
-            return  # the session was deleted (or expired) meanwhile: its stream ends as for a change
-        k = max(1, min(k, left(held))) if held < goal_samples else 1
-        try:
-            if path:
-                request = service.frame_request(
-                    session_id, {**patch, "samples_per_pixel": k}, cancel=cancel, accumulate=True
-                )
-            else:
-                request = service.frame_request(session_id, patch, cancel=cancel, accumulate=True, slices=k)
-            frame = final(service.frames.run(request))
-        except InputError as e:
-            if k == 1 or not path or isinstance(e, FrameTooLarge):
-                raise
-            k //= 2  # over a cap (work, cost): a smaller slice (the caps see a Whitted frame's grid alone)
-            continue
-        except (Superseded, NotFound):
-            return  # the session's next interactive frame (or the client, or its deletion) stopped it
-        held = int(frame.samples or 0)
-        gl_ms += frame.timings.get("trace", 0.0)
-        kept = service.frames.accumulations.count(session_id) == held
-        noise = service.frames.accumulations.noise(session_id) if kept else None
-        elapsed_ms = (time.perf_counter() - t0) * 1e3
-        if held >= goal_samples:
-            yield step(frame, held, True, "samples")
-            return
-        if not kept:
-            yield step(frame, held, True, "held")
-            return
-        if goal_noise > 0 and noise is not None and noise <= goal_noise:
-            yield step(frame, held, True, "noise")
-            return
-        if goal_ms and elapsed_ms >= goal_ms:
-            yield step(frame, held, True, "time")
-            return
-        if gl_ms >= budget_ms:
-            yield step(frame, held, True, "budget")
-            return
-        yield step(frame, held, False, None)
-        k = next_slice(k, frame.timings.get("trace", 0.0), service.config.refine_slice_ms, left(held))
+    # Every free render process traces ranges of the samples too (redis backend; docs/DEPLOY.md).
+    shared = None
+    if path and service.shared_refine is not None:
+
+        def still() -> bool:
+            try:
+                return not (cancel is not None and cancel.is_set()) and service.get(session_id).version == version
+            except NotFound:
+                return False
+
+        shared = service.shared_refine.stream(service, session_id, patch, version, goal_samples, still)
+    try:
+        while True:
+            if cancel is not None and cancel.is_set():
+                return
+            try:
+                if service.get(session_id).version != version:
+                    return  # a gesture or a settings change: the stream was of the view before it
+            except NotFound:
+                return  # the session was deleted (or expired) meanwhile: its stream ends as for a change
+            k = max(1, min(k, left(held))) if held < goal_samples else 1
+            if shared is not None:  # the ranges other processes traced up to here added; k up to the next
+                got = shared.next_frame(held, k)
+                if got is None:
+                    return
+                held, k = got
+            try:
+                if path:
+                    request = service.frame_request(
+                        session_id, {**patch, "samples_per_pixel": k}, cancel=cancel, accumulate=True
+                    )
+                else:
+                    request = service.frame_request(session_id, patch, cancel=cancel, accumulate=True, slices=k)
+                frame = final(service.frames.run(request))
+            except InputError as e:
+                if k == 1 or not path or isinstance(e, FrameTooLarge):
+                    raise
+                k //= 2  # over a cap (work, cost): a smaller slice (the caps see a Whitted frame's grid alone)
+                continue
+            except (Superseded, NotFound):
+                return  # the session's next interactive frame (or the client, or its deletion) stopped it
+            held = int(frame.samples or 0)
+            gl_ms += frame.timings.get("trace", 0.0)
+            kept = service.frames.accumulations.count(session_id) == held
+            noise = service.frames.accumulations.noise(session_id) if kept else None
+            elapsed_ms = (time.perf_counter() - t0) * 1e3
+            if held >= goal_samples:
+                yield step(frame, held, True, "samples")
+                return
+            if not kept:
+                yield step(frame, held, True, "held")
+                return
+            if goal_noise > 0 and noise is not None and noise <= goal_noise:
+                yield step(frame, held, True, "noise")
+                return
+            if goal_ms and elapsed_ms >= goal_ms:
+                yield step(frame, held, True, "time")
+                return
+            if gl_ms >= budget_ms:
+                yield step(frame, held, True, "budget")
+                return
+            yield step(frame, held, False, None)
+            k = next_slice(k, frame.timings.get("trace", 0.0), service.config.refine_slice_ms, left(held))
+    finally:
+        if shared is not None:
+            shared.close()

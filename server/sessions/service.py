@@ -98,6 +98,10 @@ class SessionService:
         self.frames = frames
         self.cache = cache or SceneCache(config.scene_cache_bytes)
         self.caps = InputCaps(config)
+        # The refinement streams' ranges shared with the other processes: a
+        # server.sessions.shared_refine.SharedRefine (redis backend; server.app sets it), typed loosely
+        # because that module builds on this one.
+        self.shared_refine: Any = None
 
     def default_settings(self) -> dict[str, Any]:
         return self.config.default_settings()
