@@ -45,6 +45,7 @@ NO_GL_UNSET = ("DISPLAY", "WAYLAND_DISPLAY")
 # benchmarks are not followed (by name nearly all of them reach GL, whatever the arguments
 # say); the engine's and the service's doors to GL are named instead.
 _FOLLOWED = Path(__file__).resolve().parent
+_CHECKOUT = _FOLLOWED.parent
 # What starts the service or its CLI as a process: ``python -m server ...``.
 _SERVICE_MODULE = "server"
 
@@ -68,6 +69,15 @@ def _followed(obj: object) -> bool:
     except TypeError:
         return False
     return path is not None and Path(path).resolve().is_relative_to(_FOLLOWED)
+
+
+def _ours(module: types.ModuleType) -> bool:
+    """A module of this checkout (the engine, the service, the tests), not of a library."""
+    path = getattr(module, "__file__", None)
+    if path is None:
+        return False
+    where = Path(path).resolve()
+    return where.is_relative_to(_CHECKOUT) and "site-packages" not in where.parts
 
 
 def _code_objects(code: types.CodeType):
@@ -123,7 +133,7 @@ def _names_a_door(fn: types.FunctionType) -> bool:
                         obj = importlib.import_module(name)
                     except ImportError:
                         obj = None
-            if isinstance(obj, types.ModuleType):
+            if isinstance(obj, types.ModuleType) and _ours(obj):
                 found += [getattr(obj, n) for n in code.co_names if hasattr(obj, n)]
             elif obj is not None:
                 found.append(obj)
