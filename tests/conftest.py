@@ -201,12 +201,33 @@ def pytest_configure(config):
     config.pluginmanager.register(_NoGLForCpuOnlyRuns(), "pocketray-no-gl-for-cpu-only-runs")
 
 
+_session_renderers: list = []  # the session's gl_renderer, once a test has asked for it
+
+
 @pytest.fixture(scope="session")
 def gl_renderer():
     """One GLRenderer for the whole run (the context is owned by the main thread)."""
     from renderer.gl.renderer import GLRenderer, GLUnavailable
 
     try:
-        return GLRenderer()
+        renderer = GLRenderer()
     except GLUnavailable as e:  # a missing GL is a failure, in CI and everywhere else
         pytest.fail(f"OpenGL is required (Mesa EGL/llvmpipe; ./dev installs it): {e}")
+    _session_renderers.append(renderer)
+    return renderer
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _gl_programs_released_at_module_end():
+    """The session renderer's compiled variants are released after each module: llvmpipe's
+    programs take megabytes each, and a worker that runs many GL modules (the stability
+    catalogue alone compiles hundreds) otherwise keeps every variant it ever compiled. A
+    module's tests still share theirs; the next module compiles what it uses."""
+    yield
+    for renderer in _session_renderers:
+        for vao in renderer._vaos.values():
+            vao.release()
+        for program in renderer._programs.values():
+            program.release()
+        renderer._vaos.clear()
+        renderer._programs.clear()

@@ -30,8 +30,6 @@ from renderer.settings import RenderSettings
 from server.app import create_app
 from server.frames.pipeline import frame_nbytes
 
-pytestmark = pytest.mark.gl  # the app's lifespan starts the GL worker
-
 SIDE = 256  # a 256² normal npy frame: ~5 MB estimated, over the 1 MiB budget
 BUDGET = 1 << 20
 FRAME = {"width": SIDE, "height": SIDE, "mode": "normal", "format": "npy"}
