@@ -217,17 +217,30 @@ def gl_renderer():
     return renderer
 
 
+def _release_programs(renderer) -> None:
+    """Release the compiled variants a GLRenderer holds (it compiles again what it is asked for)."""
+    for vao in renderer._vaos.values():
+        vao.release()
+    for program in renderer._programs.values():
+        program.release()
+    renderer._vaos.clear()
+    renderer._programs.clear()
+
+
 @pytest.fixture(scope="module", autouse=True)
 def _gl_programs_released_at_module_end():
     """The session renderer's compiled variants are released after each module: llvmpipe's
-    programs take megabytes each, and a worker that runs many GL modules (the stability
-    catalogue alone compiles hundreds) otherwise keeps every variant it ever compiled. A
-    module's tests still share theirs; the next module compiles what it uses."""
+    programs take ~2 MB each, and a worker that runs many GL modules (the stability catalogue
+    alone compiles hundreds) otherwise keeps every variant it ever compiled. A module's tests
+    still share theirs; the next module compiles what it uses."""
     yield
     for renderer in _session_renderers:
-        for vao in renderer._vaos.values():
-            vao.release()
-        for program in renderer._programs.values():
-            program.release()
-        renderer._vaos.clear()
-        renderer._programs.clear()
+        _release_programs(renderer)
+
+
+@pytest.fixture
+def gl_renderer_released_after(gl_renderer):
+    """The session's GLRenderer, its compiled variants released when the test ends: for a test
+    that compiles a thousand variants to look at them once (3.5 GB resident otherwise)."""
+    yield gl_renderer
+    _release_programs(gl_renderer)
