@@ -13,7 +13,7 @@ remember them:
   its subprocesses (``_no_gl_for_cpu_only_runs``), so a GL test that the rule misses fails in
   every CPU-only run, not only on a machine without GL (``tests/test_gl_marks.py`` runs one).
 - ``browser``: the test drives Chromium (Playwright).
-- ``slow``: long runs (property-based runs with many examples, the experiments' smoke run),
+- ``slow``: long runs (property-based runs with many examples, every experiment's quick run),
   deselected unless the ``-m`` expression names ``slow`` (``-m slow``, ``-m "slow and not gl"``).
   This is done here rather than with ``addopts = -m 'not slow'`` because a second ``-m`` on
   the command line (``-m "not gl"``) replaces the first and would run the slow tests.
