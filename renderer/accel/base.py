@@ -21,7 +21,7 @@ from typing import Any, Protocol
 from .. import gpu_layout
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..modes import SINGLE_PASS_MODES
-from ..scene import Scene, SceneError
+from ..scene import Scene
 from ..tree_update import REBUILD, TreeUpdate
 
 # A ray stops at its nearest hit, so it rarely reaches every leaf the SAH counts, but it tests
@@ -34,12 +34,7 @@ BIG_LEAF = 32
 class PreparedMethod:
     """One request's acceleration data: GPU data, build time (ms), statistics, and the
     built structure itself (``tree``: what the CPU traversals of the tests and the
-    reference walk; None for a method without one).
-
-    For a scene with triangles ``packed`` is :class:`NotOnGPU` for a method whose GPU layout
-    packs spheres only (``Capabilities.meshes_on_gpu`` False; every one-pass method's
-    layout holds triangles, so none today: the refusal stays for a
-    method added without them)."""
+    reference walk; None for a method without one)."""
 
     packed: gpu_layout.PackedScene
     build_ms: float
@@ -54,47 +49,6 @@ NOT_ON_GPU = (
     "this method's GPU layout holds spheres only: its frames of a scene with triangle meshes are "
     f"not traced on the GPU; the methods that trace meshes are {', '.join(MESH_METHODS)}"
 )
-
-
-class NotOnGPU:
-    """Stands where a scene with triangles would have its packed GPU data, for a method that
-    does not trace triangles on the GPU: reading it (the GL frame's upload, device data)
-    raises ``SceneError("meshes", …)``, so no tracer can silently draw the spheres and
-    drop the meshes."""
-
-    def __init__(self, scene: Scene, method: str = ""):
-        who = f"method {method!r}: " if method else ""
-        self.detail = (
-            f"{who}{NOT_ON_GPU}; this scene has {len(scene.meshes)} mesh(es) of {scene.n_triangles:,} triangles"
-        )
-
-    def _refuse(self) -> None:
-        raise SceneError("meshes", self.detail)
-
-    @property
-    def textures(self) -> dict:
-        self._refuse()
-        return {}
-
-    @property
-    def uniforms(self) -> dict:
-        self._refuse()
-        return {}
-
-    @property
-    def nbytes(self) -> int:
-        self._refuse()
-        return 0
-
-
-def gpu_data(
-    scene: Scene, pack: Callable[[], gpu_layout.PackedScene], meshes_on_gpu: bool = False, method: str = ""
-) -> gpu_layout.PackedScene:
-    """``pack()``, or — for a scene with triangles and a method whose layout packs spheres
-    only (``meshes_on_gpu`` False) — :class:`NotOnGPU`."""
-    if scene.n_triangles and not meshes_on_gpu:
-        return NotOnGPU(scene, method)  # type: ignore[return-value]  # stands in for the data: reading it refuses
-    return pack()
 
 
 def mesh_stats(scene: Scene) -> dict[str, int]:
@@ -137,9 +91,8 @@ class Capabilities:
     settings: the render settings its build or passes read (``max_prims``,
     ``max_tree_depth``, ``tile_size``, ``update``…): a client shows only these.
     meshes_on_gpu: its GPU layout and traversal hold triangles (bih, bruteforce, bvh, kdtree,
-    twolevel), so a scene with meshes is traced on the GPU; a one-pass method without it
-    builds over triangles on the CPU but refuses such frames (:class:`NotOnGPU`), and the
-    server refuses them with 422 ``meshes``.
+    twolevel), so a scene with meshes is traced on the GPU; the server refuses a scene with
+    meshes with 422 ``meshes`` for a one-pass method without it.
     max_primitives: the most primitives (spheres + triangles) it traces; more are refused with
     422 ``method`` (brute force: one shader loop over them all, ``limits.MAX_LOOP_PRIMITIVES``).
     """

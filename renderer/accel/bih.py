@@ -64,7 +64,7 @@ from ..limits import MAX_RETRIES, MAX_TREE_DEPTH
 from ..scene import Scene
 from ..tree_update import REBUILD, TreeUpdate
 from . import bih_layout as L
-from .base import BIG_LEAF, Capabilities, PreparedMethod, gpu_data, mesh_stats
+from .base import BIG_LEAF, Capabilities, PreparedMethod, mesh_stats
 from .primitives import scene_aabbs, sphere_aabbs
 from .ranges import positions, segments
 
@@ -521,7 +521,7 @@ class BoundingIntervalHierarchy:
         bih = build_for_scene(scene, max_prims, max_tree_depth)
         build_ms = (time.perf_counter() - t0) * 1e3
         return PreparedMethod(
-            gpu_data(scene, lambda: L.pack_bih(bih, scene, max_width), True),
+            L.pack_bih(bih, scene, max_width),
             build_ms,
             {"method": self.name, **bih.stats.to_json(), **mesh_stats(scene)},
             tree=bih,

@@ -18,7 +18,7 @@ from ..gpu_layout import Binding, wrap_rows
 from ..limits import DEFAULT_TEXTURE_WIDTH, MAX_LOOP_PRIMITIVES
 from ..scene import Scene
 from ..tree_update import REBUILD, TreeUpdate
-from .base import Capabilities, PreparedMethod, gpu_data, mesh_stats
+from .base import Capabilities, PreparedMethod, mesh_stats
 
 SPHERES = Binding("u_bf_spheres", doc="spheres in id order (gpu_layout.sphere_records)", records=True)
 
@@ -55,7 +55,7 @@ class BruteForce:
             )
 
         return PreparedMethod(
-            gpu_data(scene, pack, True),
+            pack(),
             0.0,
             {
                 "method": self.name,

@@ -57,7 +57,7 @@ import numpy as np
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..tree_update import DEFAULT_THRESHOLD, REBUILD, UPDATE_SCHEMES, TreeUpdate
 from . import bvh_layout as L
-from .base import BIG_LEAF, Capabilities, PreparedMethod, gpu_data, mesh_stats
+from .base import BIG_LEAF, Capabilities, PreparedMethod, mesh_stats
 from .primitives import scene_aabbs, sphere_aabbs
 from .ranges import expand
 
@@ -864,7 +864,5 @@ class BVHMethod:
         t0 = time.perf_counter()
         bvh = self.build(scene, max_prims, max_tree_depth, update)
         ms = (time.perf_counter() - t0) * 1e3
-        packed = gpu_data(
-            scene, meshes_on_gpu=True, method=self.name, pack=lambda: L.pack_bvh(bvh, scene, None, max_width)
-        )
+        packed = L.pack_bvh(bvh, scene, None, max_width)
         return PreparedMethod(packed, ms, {"method": self.name, **bvh.stats.to_json(), **mesh_stats(scene)}, tree=bvh)

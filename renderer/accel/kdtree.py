@@ -41,7 +41,7 @@ import numpy as np
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..tree_update import REBUILD, TreeUpdate
 from . import kdtree_layout as L
-from .base import BIG_LEAF, Capabilities, PreparedMethod, gpu_data, mesh_stats
+from .base import BIG_LEAF, Capabilities, PreparedMethod, mesh_stats
 from .primitives import scene_aabbs, sphere_aabbs
 
 C_TRAV = 1.0
@@ -529,7 +529,5 @@ class KdTreeMethod:
         t0 = time.perf_counter()
         kd = build_for_scene(scene, max_tree_depth, self.cost_scale)
         ms = (time.perf_counter() - t0) * 1e3
-        packed = gpu_data(
-            scene, meshes_on_gpu=True, method=self.name, pack=lambda: L.pack_kdtree(kd, scene, None, max_width)
-        )
+        packed = L.pack_kdtree(kd, scene, None, max_width)
         return PreparedMethod(packed, ms, {"method": self.name, **kd.stats.to_json(), **mesh_stats(scene)}, tree=kd)

@@ -10,7 +10,7 @@ from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene
 from ..scene import Scene
 from ..tree_update import REBUILD, UPDATE_SCHEMES, TreeUpdate
 from . import bvh_layout, kdtree_layout
-from .base import Capabilities, PreparedMethod, gpu_data, mesh_stats
+from .base import Capabilities, PreparedMethod, mesh_stats
 from .bvh import BVHMethod
 from .bvh_layout import pack_bvh
 from .kdtree import DEFAULT_COST_SCALE, build_kdtree
@@ -99,12 +99,7 @@ class TwoLevelMethod:
         t1 = time.perf_counter()
         bvh = self._bvh.build_boxes(lo[moving_ids], hi[moving_ids], max_prims, max_tree_depth, update)
         t2 = time.perf_counter()
-        packed = gpu_data(
-            scene,
-            meshes_on_gpu=True,
-            method=self.name,
-            pack=lambda: pack_twolevel(kd, static_ids, bvh, moving_ids, scene, max_width),
-        )
+        packed = pack_twolevel(kd, static_ids, bvh, moving_ids, scene, max_width)
         stats = {
             "method": self.name,
             "static": int(len(static_ids)),

@@ -1,23 +1,21 @@
-"""What routes depend on: the process's session service, frame pipeline and GL worker, the session-id path
-parameter, and the frame parameters of a query.
+"""What routes depend on: the process's session service and frame pipeline, the rate of session
+creations, and the session-id path parameter.
 
-The service, the pipeline and the worker live on ``app.state`` (the lifespan makes them), never in
+The service and the pipeline live on ``app.state`` (the lifespan makes them), never in
 globals, so every app of a test process has its own.
 """
 
 from __future__ import annotations
 
 import threading
-from typing import Annotated, Any
+from typing import Annotated
 
-from fastapi import Depends, Path, Query
+from fastapi import Depends, Path
 from starlette.requests import HTTPConnection
 
 from ..frames.pipeline import FramePipeline
-from ..frames.trace import GLWorker
 from ..sessions.ratelimit import TokenBuckets, client_key
 from ..sessions.service import SessionService
-from .schemas import FrameQuery
 
 
 def get_service(conn: HTTPConnection) -> SessionService:
@@ -28,11 +26,6 @@ def get_service(conn: HTTPConnection) -> SessionService:
 def get_frames(conn: HTTPConnection) -> FramePipeline:
     """The process's frame pipeline (created by the lifespan)."""
     return conn.app.state.frames
-
-
-def get_worker(conn: HTTPConnection) -> GLWorker:
-    """The process's GL thread and its queue (created by the lifespan)."""
-    return conn.app.state.worker
 
 
 _limiter_lock = threading.Lock()
@@ -58,18 +51,9 @@ def session_create_rate(conn: HTTPConnection) -> None:
 ServiceDep = Annotated[SessionService, Depends(get_service)]
 FramesDep = Annotated[FramePipeline, Depends(get_frames)]
 SessionCreateRate = Depends(session_create_rate)
-WorkerDep = Annotated[GLWorker, Depends(get_worker)]
 
 # secrets.token_urlsafe(24) makes 32 characters; 64 leaves room and bounds what is looked up.
 SessionId = Annotated[
     str,
     Path(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_-]+$", description="session token from POST /api/sessions"),
 ]
-
-
-def frame_params(query: Annotated[FrameQuery, Query()]) -> dict[str, Any]:
-    """The render settings a frame's query names; missing ones come from the session's defaults."""
-    return query.given()
-
-
-FrameParams = Annotated[dict[str, Any], Depends(frame_params)]

@@ -1,5 +1,8 @@
 """Smoke test of the experiments: ``python -m bench.experiments --quick`` writes RESULTS.md and its charts.
 
+Marked ``slow`` (``./dev test -m slow``): every experiment takes minutes even so; the default
+run has ``test_experiments_smoke.py``, one experiment through the same plumbing.
+
 The quick mode renders tiny images with few sizes and one run, so its numbers mean
 nothing; what is tested is that every experiment runs and writes its section, tables
 (with the machine, GL renderer and runs under them) and charts, and that ``--replot``
@@ -20,7 +23,9 @@ import pytest
 
 from tests.helpers import ROOT
 
-pytestmark = pytest.mark.gl  # python -m bench.experiments renders in a subprocess: no fixture says so
+# python -m bench.experiments renders in a subprocess (the rule of tests/conftest.py sees no door);
+# minutes on a loaded machine: out of the default run, test_experiments_smoke.py runs one experiment.
+pytestmark = [pytest.mark.gl, pytest.mark.slow]
 
 SECTIONS = {  # experiment name → heading start
     "table_4_2": "## Table 4.2",

@@ -71,9 +71,9 @@ def test_a_tiny_gltf_claiming_30_million_vertices_is_refused_without_allocating_
     data = json.dumps(doc).encode()
     assert len(data) < 300
     before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    t0 = time.perf_counter()
+    t0 = time.process_time()  # CPU seconds: the machine's load does not stretch them
     msg = refused(data, "gltf")
-    assert time.perf_counter() - t0 < 1.0
+    assert time.process_time() - t0 < 1.0
     assert "accessors[0].count = 30,000,000" in msg and f"{limits.MAX_ACCESSOR_COUNT:,}" in msg
     assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 50 * 1024  # KiB: no 360 MB array
     # within the count cap, zeros the file does not hold are bounded too
@@ -105,9 +105,9 @@ def test_a_glb_chain_of_100000_nodes_is_refused_in_well_under_a_second():
     (25,000 nodes 6.4 s, 100,000 80 s before)."""
     n = 100_000
     data = triangle_glb([{"children": [i + 1]} for i in range(n - 1)] + [{"mesh": 0}], [0])
-    t0 = time.perf_counter()
+    t0 = time.process_time()  # CPU seconds: the machine's load does not stretch them
     msg = refused(data, "glb")
-    assert time.perf_counter() - t0 < 1.0  # ~0.1 s here; before: 80 s
+    assert time.process_time() - t0 < 1.0  # ~0.1 s here; trimesh's own walk: 80 s
     assert f"{n:,} nodes; at most {limits.MAX_MODEL_NODES:,}" in msg
     # within the node cap, the depth is bounded
     n = limits.MAX_MODEL_NODE_DEPTH + 1

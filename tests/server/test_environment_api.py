@@ -10,11 +10,8 @@ import json
 import struct
 
 import numpy as np
-import pytest
 
 from renderer.envmap import write_hdr
-
-pytestmark = pytest.mark.gl
 
 TEXELS = np.linspace(0.0, 2.0, 8 * 16 * 3, dtype=np.float32).reshape(8, 16, 3)
 

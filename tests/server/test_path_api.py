@@ -7,9 +7,6 @@ from __future__ import annotations
 import io
 
 import numpy as np
-import pytest
-
-pytestmark = pytest.mark.gl
 
 FURNACE = {
     "camera": {"position": [0, 0, 4], "target": [0, 0, 0], "fov_y": 34},

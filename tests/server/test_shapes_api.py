@@ -25,8 +25,6 @@ from server.api.schemas import SceneModel
 from server.faults import InputError
 from server.sessions.caps import InputCaps
 
-pytestmark = pytest.mark.gl  # the app's lifespan starts the GL worker
-
 W, H = 48, 64
 SCENE = {
     "camera": {"position": [0, 1, 14], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 50},

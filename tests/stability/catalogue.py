@@ -44,8 +44,11 @@ from tests.helpers import ROOT, psnr
 from tests.stability.cases import CASES, DEPTH_REL, PRIMID_AGREEMENT, PSNR_MIN, Case, float32_inputs, same_scene
 
 DOC = ROOT / "docs" / "STABILITY.md"
-BUILD_BOUND_S = 10.0  # the BIH build of any catalogue scene
-RENDER_BOUND_S = 60.0  # one GPU frame: generous, a hang guard, not a timing test
+# Hang guards, not timings: a catalogue build takes milliseconds to a second alone, and an
+# xdist worker on a machine loaded to 8 and more gets a fraction of a core; a build that never
+# ends (listing 3.4 on degenerate input) is caught all the same.
+BUILD_BOUND_S = 120.0  # the build of any catalogue scene
+RENDER_BOUND_S = 300.0  # one GPU frame
 TIE_REL = 1e-5  # ids differ but both depths agree this well: two surfaces at one t
 
 

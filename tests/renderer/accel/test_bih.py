@@ -226,9 +226,9 @@ def test_empty_cuts_over_triangles(max_prims):
 def test_degenerate_terminates(max_prims):
     c = np.full((10_000, 3), 3.25)
     r = np.ones(10_000)
-    t0 = time.perf_counter()
+    t0 = time.process_time()  # CPU seconds: the machine's load does not stretch them
     bih = build_for_spheres(c, r, max_prims=max_prims)
-    assert time.perf_counter() - t0 < 5.0
+    assert time.process_time() - t0 < 5.0
     assert bih.stats.forced_leaves >= 1
     check_invariants(bih, c, r, max_prims, 64)
 

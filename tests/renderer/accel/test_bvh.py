@@ -171,9 +171,9 @@ def test_updater_rebuilds_on_topology_change_and_rejects_unknown_scheme():
 
 def test_bvh_build_is_fast_and_terminates_on_degenerate_input():
     s = scenario(3, 4096)
-    t0 = time.perf_counter()
+    t0 = time.process_time()  # CPU seconds: the machine's load does not stretch them
     b = build_bvh(*sphere_aabbs(s.sphere_centers, s.sphere_radii), 4)
-    assert time.perf_counter() - t0 < 5.0
+    assert time.process_time() - t0 < 5.0
     assert b.stats.depth_max <= 64
     same = np.zeros((3000, 3))
     b = build_bvh(*sphere_aabbs(same, np.ones(3000)), 1)

@@ -7,8 +7,7 @@ Every method's ``prepare`` builds its tree over the scene's spheres then triangl
 renderer.accel.bih_traverse) and must give the ids of brute force on ≥ 99.99 % of the
 rays and of the float64 reference on ≥ 99.9 % of the pixels. For such a scene the GPU data
 of every method holds the triangles (leaf-order slots decoding to the tree's order, the
-triangle records; a method without ``meshes_on_gpu`` would be refused naming the methods
-that trace meshes); a sphere scene packs as before, with no triangle binding.
+triangle records); a sphere scene packs as before, with no triangle binding.
 """
 
 from __future__ import annotations
@@ -16,7 +15,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from renderer.accel.base import NotOnGPU
 from renderer.accel.bih_traverse import brute_force, traverse
 from renderer.accel.cpu_trace import TreePrimitives, trace_tree, traverse_bvh, traverse_kdtree
 from renderer.methods import METHODS
@@ -71,7 +69,6 @@ def test_primary_ids_through_each_tree_match_brute_force_and_the_reference(
     # the statistics count the triangles; the GPU data holds them (the triangle records)
     assert prep.stats["triangles"] == mixed_trees_scene.n_triangles
     assert METHODS[name].capabilities.meshes_on_gpu
-    assert not isinstance(prep.packed, NotOnGPU)
     tex = prep.packed.textures
     tri = tex["u_triangles"].data.reshape(-1, 4)[: 3 * mixed_trees_scene.n_triangles]
     corners = tri[:, :3].copy().view(np.float32).reshape(-1, 3, 3)

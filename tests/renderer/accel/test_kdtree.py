@@ -125,7 +125,7 @@ def test_kdtree_cost_scaling_makes_smaller_trees_and_compaction_shares_lists():
 
 def test_kdtree_terminates_on_degenerate_input():
     same = np.zeros((2000, 3))
-    t0 = time.perf_counter()
+    t0 = time.process_time()  # CPU seconds: the machine's load does not stretch them
     kd = build_kdtree(*sphere_aabbs(same, np.linspace(0.5, 4, 2000)), cost_scale=1.0)
-    assert time.perf_counter() - t0 < 10.0
+    assert time.process_time() - t0 < 10.0
     assert kd.stats.references <= 64 * 2000 + 1024

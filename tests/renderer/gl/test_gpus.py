@@ -3,11 +3,7 @@ process on each) is tested with the command line, in ``tests/server/test_cli.py`
 
 from __future__ import annotations
 
-import pytest
-
 from renderer.gl.gpus import list_gpus
-
-pytestmark = pytest.mark.gl  # needs EGL, which a CPU-only run makes unavailable
 
 
 def test_every_gpu_has_its_index_in_egls_order_and_a_kind():

@@ -99,7 +99,6 @@ def slots_held(c: TestClient) -> int:
     return BodyParsers.of(type("R", (), {"app": c.app})())._in_flight
 
 
-@pytest.mark.gl  # app_with's app: its lifespan starts the GL worker
 def test_trickling_bodies_from_one_address_leave_the_other_slots_to_other_clients(app_with):
     """Four trickling bodies from one address (four slots): it gets two (its share), the other
     two are answered 429 at once, and an honest large body from another address is served."""
@@ -126,7 +125,6 @@ def test_trickling_bodies_from_one_address_leave_the_other_slots_to_other_client
     assert slots_held(c) == 0
 
 
-@pytest.mark.gl  # app_with's app: its lifespan starts the GL worker
 def test_a_body_below_the_minimum_rate_is_answered_408_and_its_slot_freed(app_with):
     c = app_with(queue_size=2, body_slots_per_client=0, body_grace_s=1.0, body_min_rate_bytes_s=64 * 1024)
 
@@ -155,7 +153,6 @@ def test_a_body_below_the_minimum_rate_is_answered_408_and_its_slot_freed(app_wi
     assert run(c, steady).status_code == 201
 
 
-@pytest.mark.gl  # app_with's app: its lifespan starts the GL worker
 def test_the_slots_one_address_holds_are_counted_back_when_its_bodies_end(app_with):
     """The share is of bodies being read: one address sends any number of bodies in turn."""
     c = app_with(queue_size=2, body_slots_per_client=1)

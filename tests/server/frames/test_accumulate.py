@@ -94,7 +94,6 @@ def frame(c: TestClient, sid: str, **params) -> tuple[np.ndarray, int]:
     return np.load(io.BytesIO(r.content)), int(r.headers["x-samples"])
 
 
-@pytest.mark.gl
 def test_k_requests_equal_one_request_of_all_their_samples(app):
     sid = cornell(app)
     for k in (1, 2, 3):
@@ -116,7 +115,6 @@ def test_k_requests_equal_one_request_of_all_their_samples(app):
     assert frame(app, sid)[1] == 96
 
 
-@pytest.mark.gl
 def test_a_change_of_camera_or_settings_starts_over(app):
     sid = cornell(app)
     assert frame(app, sid)[1] == 16 and frame(app, sid)[1] == 32
@@ -131,7 +129,6 @@ def test_a_change_of_camera_or_settings_starts_over(app):
     assert frame(app, sid, max_recursion_depth=3)[1] == 48, "… and drops nothing"
 
 
-@pytest.mark.gl
 def test_the_budget_drops_the_least_recently_used(app):
     frames = app.app.state.frames
     a, b, c = (cornell(app) for _ in range(3))
@@ -148,7 +145,6 @@ def test_the_budget_drops_the_least_recently_used(app):
     assert frames.accumulations.count(a) == 0
 
 
-@pytest.mark.gl
 def test_a_failed_frame_commits_nothing(app):
     sid = cornell(app)
     frame(app, sid)
@@ -165,7 +161,6 @@ def test_a_failed_frame_commits_nothing(app):
     assert frame(app, sid)[1] == 32
 
 
-@pytest.mark.gl
 def test_the_websocket_says_the_samples_it_holds(app):
     sid = cornell(app)
     with app.websocket_connect(f"/api/sessions/{sid}/ws") as ws:
@@ -179,7 +174,6 @@ def test_the_websocket_says_the_samples_it_holds(app):
         assert refused["status"] == 422 and refused["detail"][0]["loc"] == ["body", "accumulate"]
 
 
-@pytest.mark.gl
 def test_whitted_colour_frames_accumulate_jittered_slices(app):
     """A Whitted colour frame with accumulate adds one jittered slice of its grid (s samples); the first
     is the plain frame; another grid starts over; a data mode accumulates nothing."""

@@ -34,8 +34,6 @@ from renderer.settings import RenderSettings
 from server.app import create_app
 from server.frames.pipeline import GUIDE_BYTES_PER_PIXEL, frame_nbytes
 
-pytestmark = pytest.mark.gl  # the app's lifespan starts the GL worker
-
 SIDE = 256  # a 256² normal npy frame: ~7 MB estimated, over half the 8 MiB budget
 BUDGET = 8 << 20
 FRAME = {"width": SIDE, "height": SIDE, "mode": "normal", "format": "npy"}

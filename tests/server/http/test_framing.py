@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import asyncio
 import json
 import socket
 
@@ -11,6 +10,7 @@ import httpx
 import pytest
 
 from server.http.framing import SingleFraming
+from tests.helpers import run_coroutine
 
 SMUGGLED = b"GET /api/smuggled HTTP/1.1\r\nHost: t\r\n\r\n"
 
@@ -29,7 +29,7 @@ def run(scope: dict) -> tuple[list[dict], bool]:
     async def send(message):
         sent.append(message)
 
-    asyncio.run(SingleFraming(app)(scope, receive, send))
+    run_coroutine(SingleFraming(app)(scope, receive, send))
     return sent, bool(called)
 
 

@@ -160,7 +160,6 @@ def test_json_logs_carry_request_and_session_ids_under_a_bare_uvicorn(tmp_path):
         proc.wait(timeout=30)
 
 
-@pytest.mark.gl
 def test_ready_answers_503_from_the_moment_shutdown_begins(tmp_path):
     env = server_env(tmp_path / "s.sqlite3", drain_s=4, log_level="info")
     port = int(env["POCKETRAY_PORT"])

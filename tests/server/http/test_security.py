@@ -4,7 +4,6 @@ others on every answer, the offline docs' own policy. The browser test
 
 from __future__ import annotations
 
-import asyncio
 import base64
 import hashlib
 import re
@@ -12,6 +11,7 @@ import re
 import pytest
 
 from server.http.security import CSP, SecurityHeaders
+from tests.helpers import run_coroutine
 
 
 def directives(policy: str) -> dict[str, list[str]]:
@@ -59,7 +59,7 @@ def test_an_answer_that_sets_a_header_keeps_it():
     async def send(message):
         sent.append(message)
 
-    asyncio.run(SecurityHeaders(app)({"type": "http"}, None, send))
+    run_coroutine(SecurityHeaders(app)({"type": "http"}, None, send))
     headers = sent[0]["headers"]
     assert [v for k, v in headers if k.lower() == b"x-frame-options"] == [b"SAMEORIGIN"]
     assert [k for k, _ in headers].count(CSP.encode()) == 1

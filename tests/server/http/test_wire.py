@@ -336,7 +336,7 @@ def test_a_stalled_body_is_answered_408_and_closed(guarded):
     answer = read_all(sock)
     assert answer.startswith(b"HTTP/1.1 408 "), answer[:200]
     assert b"connection: close" in answer.lower() and b"POCKETRAY_REQUEST_IDLE_TIMEOUT_S" in answer
-    assert time.monotonic() - t0 < 10  # hang guard (the setting is 1 s)
+    assert time.monotonic() - t0 < 30  # hang guard (the setting is 1 s), roomy for a loaded machine
     sock.close()
 
 

@@ -57,7 +57,6 @@ def cornell(c: TestClient) -> str:
     ]
 
 
-@pytest.mark.gl
 def test_a_refine_stream_rises_to_its_target_and_ends_as_one_frame_of_its_samples(app):
     sid = cornell(app)
     target = FIRST_SLICE + 3
@@ -86,7 +85,6 @@ def test_a_refine_stream_rises_to_its_target_and_ends_as_one_frame_of_its_sample
     assert np.abs(image - np.load(io.BytesIO(app.get(f"/api/sessions/{sid}/frame", params=PATH).content))).max() > 1e-2
 
 
-@pytest.mark.gl
 def test_the_next_message_stops_the_stream(app):
     sid = cornell(app)
     with app.websocket_connect(f"/api/sessions/{sid}/ws") as ws:
@@ -113,7 +111,6 @@ def test_the_next_message_stops_the_stream(app):
         assert refused["status"] == 422 and refused["detail"][0]["loc"] == ["body", "target_samples"]
 
 
-@pytest.mark.gl
 def test_a_stream_ends_at_its_time(app):
     sid = cornell(app)
     with app.websocket_connect(f"/api/sessions/{sid}/ws") as ws:
@@ -151,7 +148,6 @@ def stream_to(app, sid: str, samples: int, **params) -> list[tuple[dict, np.ndar
     return [(json.loads(h["X-Refine"]), np.load(io.BytesIO(body))) for h, body in parts(r)]
 
 
-@pytest.mark.gl
 def test_the_noise_estimate_is_the_error_against_a_converged_image(app):
     """The estimate from the held samples and the last frame's (server/frames/accumulate.py) against the
     relative RMS error measured against the same view at 16× the samples (the estimator is under test,
@@ -191,7 +187,6 @@ def parts(r) -> list[tuple[dict[str, str], bytes]]:
     return out
 
 
-@pytest.mark.gl
 def test_the_http_stream_has_the_same_parts(app):
     sid = cornell(app)
     r = app.get(
@@ -208,7 +203,6 @@ def test_the_http_stream_has_the_same_parts(app):
     assert np.load(io.BytesIO(got[-1][1])).shape == (SIDE, SIDE, 3)
 
 
-@pytest.mark.gl
 def test_a_whitted_colour_frame_refines_by_jittered_slices(app):
     """Each frame of a Whitted stream is one jittered slice of the session's 2 × 2 grid: the counts rise
     by 4 to the target, the first image is the plain frame's bit for bit, the later ones differ from it
@@ -236,7 +230,6 @@ def timed_app(tmp_path_factory):
         yield c
 
 
-@pytest.mark.gl
 def test_a_whitted_stream_sizes_its_frames_in_slices(timed_app):
     """A Whitted stream's frames grow by whole slices as a path stream's by samples; its last image is
     the accumulation of as many one-slice frames (up to float rounding)."""
@@ -252,7 +245,6 @@ def test_a_whitted_stream_sizes_its_frames_in_slices(timed_app):
     np.testing.assert_allclose(got[-1][1], np.load(io.BytesIO(r.content)), rtol=1e-5, atol=1e-6)
 
 
-@pytest.mark.gl
 def test_a_deleted_session_ends_its_stream_without_an_error(app):
     """The session deleted between two frames (or expired): the stream ends as for a gesture, so a
     client sees the end of its stream, never a broken connection."""

@@ -200,5 +200,5 @@ def test_a_stalled_redis_is_the_services_json_503_and_no_process_leaves_the_bala
         t_back = time.monotonic()
         r = c.post(f"/api/sessions/{sid}/gesture", json=pan, headers={SESSION_HEADER: sid})
         assert r.status_code == 200, r.text
-        assert time.monotonic() - t_back < 1.0
+        assert time.monotonic() - t_back < 5.0  # the hang was 10 s; a loaded machine takes a few
         assert r.json()["version"] in (2, 3)  # a refused write whose EXEC had reached Redis is applied after it

@@ -8,8 +8,7 @@
   and scenes with motions, frames posed at ``time``; room for brute-force frames of the museum's
   ~600 spheres (the reference there).
 
-Their users say ``pytestmark = pytest.mark.gl``: the apps' lifespan starts the GL worker, and
-tests/conftest.py marks gl only the fixtures it names.
+Their users are marked ``gl`` by tests/conftest.py: each app's lifespan starts the GL worker.
 """
 
 from __future__ import annotations

@@ -13,8 +13,6 @@ from renderer.scenarios import mesh_scene
 from renderer.settings import RenderSettings
 from server.frames.device_data import decode_blob
 
-pytestmark = pytest.mark.gl  # every test here runs an app, whose lifespan starts the GL worker
-
 
 def test_device_data_of_a_scene_with_meshes_holds_the_triangles(api):
     sid = create(api, mesh_scene_json()).json()["id"]

@@ -31,8 +31,6 @@ from pocketray_server_support import (
 
 from renderer.animation import museum, pose
 
-pytestmark = pytest.mark.gl  # every test here runs an app, whose lifespan starts the GL worker
-
 
 def test_gestures_json(client):
     sid = new_session(client)["id"]

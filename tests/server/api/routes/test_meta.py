@@ -7,8 +7,6 @@ import math
 import pytest
 from pocketray_server_support import MAX_TRIANGLES
 
-pytestmark = pytest.mark.gl  # every test here runs an app, whose lifespan starts the GL worker
-
 
 def test_health_ready_info(ready_client):
     c = ready_client

@@ -36,8 +36,6 @@ from renderer.scenarios import scenario
 from renderer.scene import Scene
 from renderer.settings import SETTINGS
 
-pytestmark = pytest.mark.gl  # every test here runs an app, whose lifespan starts the GL worker
-
 SESSION_KEYS = {"id", "version", "settings", "scene_info", "camera"}
 
 
