@@ -116,7 +116,7 @@ class ServerConfig(BaseSettings):
         "round-robin from the sessions' frames (bench/latency.py measures the trade-off)",
     )
     max_refine_ms: int = Field(
-        600_000,
+        1_800_000,
         ge=1,
         le=3_600_000,
         description="GL time one resting view's refinement may take, milliseconds (its frames' trace time: a "

@@ -219,12 +219,7 @@ def gl_renderer():
 
 def _release_programs(renderer) -> None:
     """Release the compiled variants a GLRenderer holds (it compiles again what it is asked for)."""
-    for vao in renderer._vaos.values():
-        vao.release()
-    for program in renderer._programs.values():
-        program.release()
-    renderer._vaos.clear()
-    renderer._programs.clear()
+    renderer.programs.clear()
 
 
 @pytest.fixture(scope="module", autouse=True)
