@@ -90,14 +90,16 @@ def live_radiance(c: Client) -> np.ndarray:
 
 def test_the_resting_view_accumulates_passes_into_the_servers_frame(gl_browser, server):
     spp = 4 * DEVICE_PATH_SAMPLES_PER_PASS  # four rests of one pass each
-    ctx = gl_browser.new_context(**MOBILE)
+    # A square screen: the Cornell box is framed for the screen's aspect (renderer/scenarios.py
+    # fit_camera), so the square frames compared here show it as large as a portrait screen's width does.
+    ctx = gl_browser.new_context(**{**MOBILE, "viewport": {"width": 360, "height": 360}})
     try:
         c = Client(server, ctx, ctx.new_page())
         c.open(
             # samples_per_pixel is one pass: the resting view goes past it to the refinement target
             f"scenario=mesh:cornell&width={SIDE}&height={SIDE}&integrator=path"
             f"&samples_per_pixel={DEVICE_PATH_SAMPLES_PER_PASS}&refine_samples={spp}"
-            "&max_recursion_depth=4&preview_scale=1&refine_ms=0&renderer=device&mode=color"
+            "&max_recursion_depth=4&preview_scale=1&refine_ms=0&renderer=device&mode=color&denoise=off"
         )
         sid = c.hook("sessionId")
         steps = [DEVICE_PATH_SAMPLES_PER_PASS * (i + 1) for i in range(4)]
@@ -108,8 +110,16 @@ def test_the_resting_view_accumulates_passes_into_the_servers_frame(gl_browser, 
         common = dict(format="npy", mode="color", integrator="path", samples_per_pixel=spp, max_recursion_depth=4)
 
         def agrees() -> float:
+            """PSNR of the device's mean against the server's frame, over the pixels where no path
+            took another branch: SwiftShader's and llvmpipe's float32 differ in the last bits, and a
+            path that meets an edge then may bounce elsewhere — at most 2 of the 1,024 pixels (their
+            radiance 0.05 apart or more), every other one the same samples."""
             radiance = server_npy(server, sid, width=SIDE, height=SIDE, **common)
-            return psnr(display_u8(live_radiance(c), "clamp", 0.0), display_u8(radiance, "clamp", 0.0))
+            live = live_radiance(c)
+            diverged = np.abs(live - radiance).max(axis=2) >= 0.05
+            assert diverged.sum() <= 2, int(diverged.sum())
+            keep = ~diverged
+            return psnr(display_u8(live, "clamp", 0.0)[keep], display_u8(radiance, "clamp", 0.0)[keep])
 
         first = agrees()
         assert first >= 40.0, first

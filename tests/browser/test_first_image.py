@@ -55,7 +55,9 @@ def test_link_settings_reach_the_session(open_client, server):
     assert body["mesh_scene"] == {"kind": "cornell"}, body
     patch = json.loads(next(r for r in posts if r.method == "PATCH").post_data)
     want = {"integrator": "path", "tone_map": "aces", "exposure": 0.5, "min_weight": 0.1, "specialize": False}
-    assert {k: patch[k] for k in want} == want, patch
+    # The Cornell box opens path-traced (its recommended settings): the link's integrator needs no PATCH.
+    assert set(want) - set(patch) <= {"integrator"}, patch
+    assert {k: patch[k] for k in want if k in patch} == {k: v for k, v in want.items() if k in patch}, patch
     s = server.session(c.hook("sessionId"))
     assert {k: s["settings"][k] for k in want} == want, s["settings"]
     assert s["scene_info"]["mesh_scene"]["kind"] == "cornell"

@@ -14,8 +14,6 @@ import math
 import numpy as np
 from browser_support import Touch, basis, distance, moved
 
-HOME = {"position": [0.0, 0.0, 100.0], "target": [0.0, 0.0, 0.0]}
-
 
 def world_per_css_px(client, cam) -> float:
     """World units per CSS pixel at the target's distance, for the frame as displayed."""
@@ -90,17 +88,18 @@ def test_two_finger_spread_moves_forward_and_pinch_moves_back(open_client, artif
 
 def test_double_tap_resets_the_camera(open_client):
     c = open_client("mobile")
+    home = c.camera()  # the scene's camera framed for this screen's aspect (renderer/scenarios.py fit_camera)
     touch = Touch(c.page)
     n0 = c.frame_count
     touch.gesture([(150, 300)], [(220, 260)])
     c.wait_idle(min_frames=n0 + 1)
-    assert not np.allclose(c.camera()["position"], HOME["position"])
+    assert not np.allclose(c.camera()["position"], home["position"])
     n1 = c.frame_count
     touch.tap(180, 320)
     touch.tap(182, 321)
     c.wait_idle(min_frames=n1 + 1)
     cam = c.camera()
-    assert np.allclose(cam["position"], HOME["position"]) and np.allclose(cam["target"], HOME["target"])
+    assert np.allclose(cam["position"], home["position"]) and np.allclose(cam["target"], home["target"])
     assert c.errors() == []
 
 
