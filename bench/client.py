@@ -93,6 +93,20 @@ class Server(ServerChild):
         super().__init__(ROOT, {"client_dir": Path(client_dir).resolve()} if client_dir else {}, timeout_s=120)
 
 
+def phone_page(browser, url: str, query: str):
+    """A new phone-sized context (PORTRAIT) and its page opened at ``query``, logging every frame it
+    shows (``window.__shown``); the caller closes the context."""
+    ctx = browser.new_context(**PORTRAIT)
+    try:
+        ctx.add_init_script(f"({SHOWN_LOG})()")
+        page = ctx.new_page()
+        page.goto(f"{url}/?{query}")
+    except BaseException:
+        ctx.close()
+        raise
+    return ctx, page
+
+
 def wait_full(page, min_frames: int, timeout_ms: float = 300_000) -> None:
     page.wait_for_function(
         """n => { const p = window.pocketray; return p && p.idle && p.frameCount >= n && p.lastFrame
@@ -218,11 +232,8 @@ def server_timeline(browser, url: str, query: str, move_s: float = 4.0, client_d
     navigation's start, the page's clock); a 10-step one-finger drag → the first image after the
     last touch and the full frame; then a drag of ``move_s`` seconds (a touch move every 16 ms):
     the previews shown per second while it moves, and their sizes."""
-    ctx = browser.new_context(**PORTRAIT)
+    ctx, page = phone_page(browser, url, query)
     try:
-        ctx.add_init_script(f"({SHOWN_LOG})()")
-        page = ctx.new_page()
-        page.goto(f"{url}/?{query}")
         wait_full(page, 1)
         page.wait_for_function("() => window.pocketray.lastFrame.part !== 'preview'", timeout=300_000)
         load = page.evaluate("() => window.__shown")
@@ -325,11 +336,8 @@ def abandon_latency(browser, url: str, query: str = ABANDON_QUERY, repeats: int 
     of a drag begun while the full frame is in flight (0.5 s after the previous drag's preview: the
     full frame is asked for 0.2 s after the last gesture and takes seconds here), the page's clock,
     from the first touch move to the preview on screen."""
-    ctx = browser.new_context(**PORTRAIT)
+    ctx, page = phone_page(browser, url, query)
     try:
-        ctx.add_init_script(f"({SHOWN_LOG})()")
-        page = ctx.new_page()
-        page.goto(f"{url}/?{query}")
         wait_full(page, 1)
         dismiss_hint(page)
         touch = Touch(ctx.new_cdp_session(page))
@@ -363,11 +371,8 @@ def abandon_latency(browser, url: str, query: str = ABANDON_QUERY, repeats: int 
 def rest_convergence(browser, url: str, query: str, watch_s: float = 90.0) -> dict:
     """A page left at rest for `watch_s`: its first image, its first full-size image and the samples
     the refinement reaches, with the time (from the navigation's start, the page's clock)."""
-    ctx = browser.new_context(**PORTRAIT)
+    ctx, page = phone_page(browser, url, query)
     try:
-        ctx.add_init_script(f"({SHOWN_LOG})()")
-        page = ctx.new_page()
-        page.goto(f"{url}/?{query}")
         t0 = time.monotonic()
         parts: list = []
         while time.monotonic() - t0 < watch_s:
