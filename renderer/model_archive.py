@@ -91,11 +91,9 @@ class SideFiles:
         return data
 
     def size(self, reference: str) -> int | None:
-        """The side file's length in bytes, None when there is none."""
-        try:
-            data = self._lookup(self.resolve(reference))
-        except SceneError:
-            return None
+        """The side file's length in bytes, None when there is none; SceneError when the
+        reference points outside the root."""
+        data = self._lookup(self.resolve(reference))
         return None if data is None else len(data)
 
     def image_names(self) -> list[str]:
@@ -153,10 +151,10 @@ class FolderFiles(SideFiles):
             return None
 
     def size(self, reference: str) -> int | None:
+        path = self._path(self.resolve(reference))
         try:
-            path = self._path(self.resolve(reference))
             return None if path is None else path.stat().st_size
-        except (OSError, SceneError):
+        except OSError:
             return None
 
 
@@ -214,9 +212,8 @@ def _check_entry(info: zipfile.ZipInfo) -> str | None:
             f"the entry {raw!r} inflates to {info.file_size:,} bytes; at most "
             f"{limits.MAX_ARCHIVE_ENTRY_BYTES:,} allowed (MAX_ARCHIVE_ENTRY_BYTES)"
         )
-    if (
-        info.file_size > limits.MAX_ARCHIVE_RATIO_FREE_BYTES
-        and info.file_size > limits.MAX_ARCHIVE_RATIO * max(info.compress_size, 1)
+    if info.file_size > limits.MAX_ARCHIVE_RATIO_FREE_BYTES and info.file_size > limits.MAX_ARCHIVE_RATIO * max(
+        info.compress_size, 1
     ):
         raise _refuse(
             f"the entry {raw!r} inflates {info.compress_size:,} bytes to {info.file_size:,}, more than "
@@ -233,9 +230,7 @@ def open_archive(data: bytes) -> ModelFiles:
     data = bytes(data)
     declared = _declared_entries(data)
     if declared > limits.MAX_ARCHIVE_ENTRIES:
-        raise _refuse(
-            f"{declared:,} entries; at most {limits.MAX_ARCHIVE_ENTRIES:,} allowed (MAX_ARCHIVE_ENTRIES)"
-        )
+        raise _refuse(f"{declared:,} entries; at most {limits.MAX_ARCHIVE_ENTRIES:,} allowed (MAX_ARCHIVE_ENTRIES)")
     try:
         archive = zipfile.ZipFile(BytesIO(data))
     except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, EOFError, struct.error) as e:
@@ -273,16 +268,19 @@ def open_archive(data: bytes) -> ModelFiles:
         except (zipfile.BadZipFile, ValueError, EOFError, OSError, NotImplementedError) as e:
             raise _refuse(f"the entry {info.filename!r} cannot be read ({e})") from None
         if len(content) != info.file_size:
-            raise _refuse(f"the entry {info.filename!r} holds {len(content):,} bytes, not the {info.file_size:,} declared")
+            raise _refuse(
+                f"the entry {info.filename!r} holds {len(content):,} bytes, not the {info.file_size:,} declared"
+            )
         if content.startswith(_NESTED_MAGIC) and not name.lower().endswith(IMAGE_SUFFIXES):
-            raise _refuse(f"the entry {info.filename!r} is an archive inside the archive; put its files in the zip itself")
+            raise _refuse(
+                f"the entry {info.filename!r} is an archive inside the archive; put its files in the zip itself"
+            )
         entries[name] = content
     model = models[0]
     folder = posixpath.dirname(model)
     body = entries.pop(model)
-    return ModelFiles(
-        posixpath.basename(model), MODEL_SUFFIXES[posixpath.splitext(model)[1].lower()], body, ArchiveFiles(entries, folder)
-    )
+    suffix = posixpath.splitext(model)[1].lower()
+    return ModelFiles(posixpath.basename(model), MODEL_SUFFIXES[suffix], body, ArchiveFiles(entries, folder))
 
 
 def folder_files(path: Path, format: str) -> ModelFiles:

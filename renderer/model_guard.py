@@ -175,14 +175,15 @@ def _buffer_sizes(doc: dict, bin_len: int | None, side: SideFiles | None, fmt: s
                 else len(unquote(payload).encode())
             )
             what = "its data URI"
-        else:
-            have = (side.size(uri) if side is not None else None) or 0
-            what = (
-                f"the file {uri!r}"
-                if side is not None
-                else f"the external file {uri!r}, which a model file sent alone cannot read (send the "
-                "model's folder as a zip, format=zip)"
+        elif side is None:
+            raise _refuse(
+                fmt,
+                f"{where} is the file {uri!r} beside the model, which a model file sent alone cannot "
+                "read: send the model's folder as a zip (format=zip)",
             )
+        else:
+            have = side.size(uri) or 0
+            what = f"the file {uri!r}"
         if declared > have:
             raise _refuse(fmt, f"{where} declares {declared:,} bytes, {what} holds {have:,}")
         sizes.append(declared)
@@ -193,8 +194,10 @@ def _gltf_version(doc: dict, fmt: str) -> None:
     """Refuse glTF 1.0 by what it declares, or by its shape: objects of named buffers, not lists."""
     asset = doc.get("asset")
     version = asset.get("version") if isinstance(asset, dict) else None
-    if str(version).strip().startswith("1") or isinstance(doc.get("buffers"), dict) or isinstance(
-        doc.get("meshes"), dict
+    if (
+        str(version).strip().startswith("1")
+        or isinstance(doc.get("buffers"), dict)
+        or isinstance(doc.get("meshes"), dict)
     ):
         raise _refuse(fmt, GLTF1)
 
