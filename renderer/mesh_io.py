@@ -159,7 +159,8 @@ def _parts(loaded) -> list[tuple[np.ndarray, np.ndarray, np.ndarray | None]]:
         if not isinstance(geom, trimesh.Trimesh) or len(geom.faces) == 0:
             continue  # points, paths: nothing to trace
         m = np.asarray(matrix, np.float64)
-        v = np.asarray(geom.vertices, np.float64) @ m[:3, :3].T + m[:3, 3]
+        with np.errstate(invalid="ignore", over="ignore"):  # a non-finite vertex is refused below
+            v = np.asarray(geom.vertices, np.float64) @ m[:3, :3].T + m[:3, 3]
         n = _file_normals(geom)
         f = np.asarray(geom.faces, np.int64)
         if n is not None:
