@@ -30,7 +30,7 @@ from typing import Any, cast
 import numpy as np
 
 from . import limits
-from .model_archive import MODEL_SUFFIXES, ModelFiles, SideFiles, folder_files, open_archive
+from .model_archive import MODEL_SUFFIXES, NO_SIDE_FILES, ModelFiles, SideFiles, folder_files, open_archive
 from .model_guard import check_model
 from .scene import Camera, Light, Material, Mesh, Plane, Scene, SceneError, make_mesh
 
@@ -197,7 +197,7 @@ def load_mesh(
     someone else (``server/sessions/model_worker.py``)."""
     files = source if isinstance(source, ModelFiles) else model_files(source, file_type)
     ft, data = files.format, files.data
-    side = None if isinstance(source, (bytes, bytearray, memoryview)) and file_type != "zip" else files.side
+    side = None if files.side is NO_SIDE_FILES else files.side  # a model file alone: no side file to read
     # the file's own counts and lengths first: the parser would allocate whatever they ask for
     check_model(data, ft, max_triangles=max_triangles, max_vertices=max_vertices, side=side)
     import trimesh
@@ -206,7 +206,7 @@ def load_mesh(
         # materials are not read: textures are images to decode, and the tracer needs none; every
         # other file the parser asks for comes through the resolver (in memory, or the model's folder)
         loaded = trimesh.load(
-            io.BytesIO(data), file_type=ft, resolver=_Resolver(side), process=False, skip_materials=True
+            io.BytesIO(data), file_type=ft, resolver=cast(Any, _Resolver(side)), process=False, skip_materials=True
         )
         parts = _parts(loaded)
     except SceneError:
