@@ -43,7 +43,9 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 IMAGE_MAGIC = (b"\x89PNG\r\n\x1a\n", b"\xff\xd8\xff")
 # Archives and compressed files inside an archive: refused (each would need bounds of its own).
 _NESTED_SUFFIXES = (".zip", ".gz", ".tgz", ".tar", ".bz2", ".xz", ".7z", ".rar", ".zst", ".lzma", ".z")
-_NESTED_MAGIC = (b"PK\x03\x04", b"\x1f\x8b", b"7z\xbc\xaf", b"Rar!", b"BZh", b"\xfd7zXZ", b"(\xb5/\xfd")
+# Their signatures, 3 bytes or more (a buffer of floats starts with two given bytes 1 time in 65,536).
+_NESTED_MAGIC = (b"PK\x03\x04", b"\x1f\x8b\x08", b"7z\xbc\xaf\x27\x1c", b"Rar!\x1a\x07", b"\xfd7zXZ\x00", b"(\xb5/\xfd")
+_BZIP2 = re.compile(rb"BZh[1-9]1AY&SY")
 # What operating systems add to a zip of a folder: skipped, never read.
 _JUNK = re.compile(r"(^|/)(__MACOSX/|\._[^/]*$|\.DS_Store$|Thumbs\.db$|desktop\.ini$)", re.IGNORECASE)
 
@@ -97,9 +99,15 @@ class SideFiles:
         return None if data is None else len(data)
 
     def image_names(self) -> list[str]:
-        """The names of the PNG and JPEG files among the side files (read by :meth:`get` when a
-        material asks for one; not decoded here)."""
+        """The names (relative to the root: :meth:`read` takes them) of the PNG and JPEG files
+        among the side files, for the materials that will read them; not decoded here."""
         return [n for n in self._names() if n.lower().endswith(IMAGE_SUFFIXES)]
+
+    def read(self, name: str) -> bytes | None:
+        """The bytes of the side file ``name`` as :meth:`image_names` gives it (relative to the
+        root, not resolved from the model's folder), None when there is none."""
+        name = posixpath.normpath(name)
+        return None if name == ".." or name.startswith(("../", "/")) else self._lookup(name)
 
 
 @dataclass(frozen=True)
@@ -173,7 +181,9 @@ class ModelFiles:
 
 # ---- the zip ------------------------------------------------------------------------------------
 def _declared_entries(data: bytes) -> int:
-    """The entry count of the end-of-central-directory record (the zip64 one when it defers)."""
+    """The entries the archive holds, as many as it says anywhere: the end-of-central-directory
+    record's count (the zip64 one when it defers) or its central-directory headers, counted by
+    their signature (``zipfile`` reads the directory by its size, whatever the count says)."""
     at = data.rfind(b"PK\x05\x06", max(0, len(data) - 22 - 0xFFFF))
     if at < 0 or at + 22 > len(data):
         raise _refuse("not a zip archive (no end-of-central-directory record)")
@@ -182,7 +192,7 @@ def _declared_entries(data: bytes) -> int:
         where = struct.unpack_from("<Q", data, at - 12)[0]
         if where + 56 <= len(data) and data[where : where + 4] == b"PK\x06\x06":
             entries = struct.unpack_from("<Q", data, where + 32)[0]
-    return int(entries)
+    return max(int(entries), data.count(b"PK\x01\x02", 0, at))
 
 
 def _check_entry(info: zipfile.ZipInfo) -> str | None:
@@ -271,7 +281,7 @@ def open_archive(data: bytes) -> ModelFiles:
             raise _refuse(
                 f"the entry {info.filename!r} holds {len(content):,} bytes, not the {info.file_size:,} declared"
             )
-        if content.startswith(_NESTED_MAGIC) and not name.lower().endswith(IMAGE_SUFFIXES):
+        if content.startswith(_NESTED_MAGIC) or _BZIP2.match(content):
             raise _refuse(
                 f"the entry {info.filename!r} is an archive inside the archive; put its files in the zip itself"
             )

@@ -49,7 +49,7 @@ def check_model(
         _check(data, ft, max_triangles, limits.DECLARED_VERTEX_FACTOR * max_vertices, side)
         if isinstance(side, ArchiveFiles):  # held in memory: every image in the archive
             for name in side.image_names():
-                check_image(side.get(name), repr(name))
+                check_image(side.entries[name], repr(name))
     except SceneError:
         raise
     except (ValueError, TypeError, KeyError, IndexError, AttributeError, struct.error, RecursionError) as e:

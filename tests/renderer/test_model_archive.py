@@ -108,6 +108,7 @@ def test_a_gltf_with_its_bin_and_image_in_a_subfolder_loads_from_the_zip():
     files = model_files(data, "zip")
     assert (files.name, files.format) == ("scene.gltf", "gltf")
     assert files.side.get("textures\\Logo.PNG") == png_header(64, 64)
+    assert files.side.read(m.images[0]) == png_header(64, 64)
 
 
 def test_an_obj_with_its_mtl_and_a_reference_to_a_sibling_folder_inside_the_zip():
@@ -234,6 +235,22 @@ def test_too_many_entries_are_refused_from_the_end_record():
     files["box.obj"] = export_mesh(box(), "obj")
     message = refused(make_zip(files, zipfile.ZIP_STORED))
     assert f"{limits.MAX_ARCHIVE_ENTRIES + 2:,} entries" in message and "MAX_ARCHIVE_ENTRIES" in message
+
+
+def test_an_end_record_that_understates_the_entries_is_not_believed(monkeypatch):
+    """zipfile reads the central directory by its size, making an object per header: a count of 1
+    in the end record must not let 2,000 headers be parsed — refused before zipfile opens it."""
+    files = {f"{i}.txt": b"" for i in range(2000)}
+    files["box.obj"] = export_mesh(box(), "obj")
+    data = bytearray(make_zip(files, zipfile.ZIP_STORED))
+    end = data.rfind(b"PK\x05\x06")
+    struct.pack_into("<HH", data, end + 8, 1, 1)
+
+    def parsed(*args, **kwargs):
+        raise AssertionError("the central directory was parsed")
+
+    monkeypatch.setattr(zipfile, "ZipFile", parsed)
+    assert "2,001 entries" in refused(bytes(data))
 
 
 @pytest.mark.parametrize("inner_name", ["more.zip", "more.bin"])
