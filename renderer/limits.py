@@ -131,6 +131,19 @@ MAX_BUFFERLESS_BYTES = 16 << 20  # glTF: accessors without a bufferView (zeros t
 # STL stores three per triangle, a glTF repeats them per instance).
 DECLARED_VERTEX_FACTOR = 3
 MAX_PLY_HEADER_BYTES = 64 << 10  # a PLY header (text up to end_header)
+# A zipped model folder (renderer/model_archive.py): the central directory's numbers are checked
+# against these before one byte is inflated, and inflating never yields more than an entry
+# declares. Deflate reaches ~1,000:1 on zeros and 3-20:1 on models and images, so a ratio above
+# MAX_ARCHIVE_RATIO in an entry of more than MAX_ARCHIVE_RATIO_FREE_BYTES is a bomb, not a model.
+MAX_ARCHIVE_ENTRIES = 1024  # entries of a zip (directories and macOS's __MACOSX copies included)
+MAX_ARCHIVE_ENTRY_BYTES = 128 << 20  # one entry, inflated (an OBJ of MAX_TRIANGLES is ~100 MiB of text)
+MAX_ARCHIVE_BYTES = 256 << 20  # all the entries read, inflated together
+MAX_ARCHIVE_RATIO = 100  # an entry's inflated bytes per compressed byte
+MAX_ARCHIVE_RATIO_FREE_BYTES = 1 << 20  # entries up to this size may compress better (small text)
+# Images inside a model (a zip's PNG/JPEG files, a GLB's or glTF's embedded ones): their declared
+# size, read from the header, before anything decodes them. 8192² RGBA is 256 MiB decoded.
+MAX_MODEL_IMAGE_SIDE = 8192  # pixels, either side
+MAX_MODEL_IMAGE_PIXELS = 8192 * 8192  # width × height of one image
 
 # ---- environment images --------------------------------------------------------------------
 # An equirectangular HDR image (renderer/envmap.py): its declared size is checked against these

@@ -1,9 +1,11 @@
-"""Triangle meshes from model files — OBJ, PLY, STL, glTF/GLB — through trimesh, and the
-functions a command line calls to make scenes of them.
+"""Triangle meshes from model files — OBJ, PLY, STL, glTF/GLB, and a zip of a model's folder —
+through trimesh, and the functions a command line calls to make scenes of them.
 
-:func:`load_mesh` parses a file (a path, or bytes held in memory: nothing is written, and a
-model given as bytes cannot reference other files — an OBJ's materials, a glTF's external
-buffers) into :class:`MeshData`: float64 vertices, triangles, and the file's vertex normals
+:func:`load_mesh` parses a file (a path, or bytes held in memory: nothing is written) into
+:class:`MeshData`. A model's side files — a glTF's ``.bin`` buffers and images, an OBJ's
+``.mtl`` — come from its folder (a path), from the zip it was sent in (``format="zip"``,
+:mod:`renderer.model_archive`), or not at all (a model file sent alone: a reference to another
+file is refused, naming it). :class:`MeshData` holds float64 vertices, triangles, the file's vertex normals
 when it has them (OBJ ``vn``, PLY ``nx ny nz``, glTF ``NORMAL``). A file of several meshes
 (a glTF scene, an OBJ of several objects) becomes one mesh: each part placed by its node's
 transform. Polygons are split into triangles by trimesh; degenerate triangles are kept (the
@@ -28,11 +30,14 @@ from typing import Any, cast
 import numpy as np
 
 from . import limits
+from .model_archive import MODEL_SUFFIXES, NO_SIDE_FILES, ModelFiles, SideFiles, folder_files, open_archive
 from .model_guard import check_model
 from .scene import Camera, Light, Material, Mesh, Plane, Scene, SceneError, make_mesh
 
 MODEL_FORMATS = ("obj", "ply", "stl", "glb", "gltf")
-_SUFFIX = {".obj": "obj", ".ply": "ply", ".stl": "stl", ".glb": "glb", ".gltf": "gltf"}
+# What a model may be sent as: a model file, or a zip of its folder (one model file with its side files).
+UPLOAD_FORMATS = (*MODEL_FORMATS, "zip")
+_SUFFIX = {**MODEL_SUFFIXES, ".zip": "zip"}
 
 
 @dataclass(frozen=True)
@@ -43,6 +48,8 @@ class MeshData:
     vertices: np.ndarray
     triangles: np.ndarray
     normals: np.ndarray | None = None
+    # the PNG and JPEG files beside the model (in its zip or folder), by name: for its materials
+    images: tuple[str, ...] = ()
 
     @property
     def n_triangles(self) -> int:
@@ -73,17 +80,57 @@ def file_type_of(source: str | Path | bytes, file_type: str | None) -> str:
     """The format to parse: ``file_type`` when given, else the path's suffix."""
     if file_type is not None:
         ft = str(file_type).lower().lstrip(".")
-        if ft not in MODEL_FORMATS:
-            raise SceneError("format", f"unknown model format {file_type!r}; one of {', '.join(MODEL_FORMATS)}")
+        if ft not in UPLOAD_FORMATS:
+            raise SceneError("format", f"unknown model format {file_type!r}; one of {', '.join(UPLOAD_FORMATS)}")
         return ft
     if isinstance(source, (bytes, bytearray, memoryview)):
-        raise SceneError("format", f"required for a model given as bytes: one of {', '.join(MODEL_FORMATS)}")
+        raise SceneError("format", f"required for a model given as bytes: one of {', '.join(UPLOAD_FORMATS)}")
     suffix = Path(source).suffix.lower()
     if suffix not in _SUFFIX:
         raise SceneError(
-            "format", f"cannot tell the format of {Path(source).name!r}; name one of {', '.join(MODEL_FORMATS)}"
+            "format", f"cannot tell the format of {Path(source).name!r}; name one of {', '.join(UPLOAD_FORMATS)}"
         )
     return _SUFFIX[suffix]
+
+
+def model_files(source: str | Path | bytes, file_type: str | None = None) -> ModelFiles:
+    """The model file and its side files: a zip opened (its bounds checked before anything is
+    inflated, :func:`renderer.model_archive.open_archive`), a path with its folder, bytes alone."""
+    ft = file_type_of(source, file_type)
+    if isinstance(source, (bytes, bytearray, memoryview)):
+        return open_archive(bytes(source)) if ft == "zip" else ModelFiles("", ft, bytes(source))
+    if ft == "zip":
+        try:
+            return open_archive(Path(source).read_bytes())
+        except OSError as e:
+            raise SceneError("file", f"cannot read {str(source)!r} ({e.strerror or e})") from None
+    return folder_files(Path(source), ft)
+
+
+class _Resolver:
+    """trimesh's resolver over a model's side files: the only way its parser reaches another file."""
+
+    def __init__(self, side: SideFiles | None):
+        self.side = side
+
+    def get(self, name: str) -> bytes:
+        if self.side is None:
+            raise SceneError("file", f"the model refers to the file {name!r}; send its folder as a zip (format=zip)")
+        return self.side.get(name)
+
+    __getitem__ = get
+
+    def keys(self) -> list[str]:
+        return []
+
+    def __contains__(self, name: str) -> bool:
+        return self.side is not None and self.side.size(name) is not None
+
+    def namespaced(self, namespace: str) -> _Resolver:
+        return self
+
+    def write(self, name: str, data: Any) -> None:
+        raise SceneError("file", "a model is read, never written")
 
 
 def _file_normals(geom) -> np.ndarray | None:
@@ -112,7 +159,8 @@ def _parts(loaded) -> list[tuple[np.ndarray, np.ndarray, np.ndarray | None]]:
         if not isinstance(geom, trimesh.Trimesh) or len(geom.faces) == 0:
             continue  # points, paths: nothing to trace
         m = np.asarray(matrix, np.float64)
-        v = np.asarray(geom.vertices, np.float64) @ m[:3, :3].T + m[:3, 3]
+        with np.errstate(invalid="ignore", over="ignore"):  # a non-finite vertex is refused below
+            v = np.asarray(geom.vertices, np.float64) @ m[:3, :3].T + m[:3, 3]
         n = _file_normals(geom)
         f = np.asarray(geom.faces, np.int64)
         if n is not None:
@@ -132,38 +180,34 @@ def _merge_equal(v: np.ndarray, t: np.ndarray, n: np.ndarray | None):
 
 
 def load_mesh(
-    source: str | Path | bytes,
+    source: str | Path | bytes | ModelFiles,
     file_type: str | None = None,
     *,
     max_triangles: int = limits.MAX_TRIANGLES,
     max_vertices: int = limits.MAX_MESH_VERTICES,
 ) -> MeshData:
-    """Parse a model file (path or bytes; ``file_type`` one of :data:`MODEL_FORMATS`, from the
-    suffix when None) into :class:`MeshData`. SceneError ``format`` for an unknown format,
-    ``file`` for a file that is not a model of that format, holds no triangle, or exceeds
-    ``max_triangles`` / ``max_vertices`` (after merging equal vertices). The file's declared
-    counts, lengths and node tree are checked first (:func:`renderer.model_guard.check_model`),
-    so a parser never allocates what the file only claims; parse in a worker process with a
-    deadline when the file comes from someone else (``server/sessions/model_worker.py``)."""
-    ft = file_type_of(source, file_type)
-    if isinstance(source, (bytes, bytearray, memoryview)):
-        data = bytes(source)
-        obj: Any = io.BytesIO(data)  # in memory, with no resolver: no other file is read
-        base_dir = None
-    else:
-        try:
-            data = Path(source).read_bytes()
-        except OSError as e:
-            raise SceneError("file", f"cannot read {str(source)!r} ({e.strerror or e})") from None
-        obj = str(source)  # trimesh resolves a path's neighbours itself
-        base_dir = Path(source).parent
+    """Parse a model file (path, bytes or :class:`~renderer.model_archive.ModelFiles`;
+    ``file_type`` one of :data:`UPLOAD_FORMATS`, from the suffix when None) into
+    :class:`MeshData`. SceneError ``format`` for an unknown format, ``file`` for a file that is
+    not a model of that format, an archive that breaks a bound, a side file that is missing,
+    a model that holds no triangle, or exceeds ``max_triangles`` / ``max_vertices`` (after
+    merging equal vertices). The file's declared counts, lengths, node tree and images are
+    checked first (:func:`renderer.model_guard.check_model`), so a parser never allocates what
+    the file only claims; parse in a worker process with a deadline when the file comes from
+    someone else (``server/sessions/model_worker.py``)."""
+    files = source if isinstance(source, ModelFiles) else model_files(source, file_type)
+    ft, data = files.format, files.data
+    side = None if files.side is NO_SIDE_FILES else files.side  # a model file alone: no side file to read
     # the file's own counts and lengths first: the parser would allocate whatever they ask for
-    check_model(data, ft, max_triangles=max_triangles, max_vertices=max_vertices, base_dir=base_dir)
+    check_model(data, ft, max_triangles=max_triangles, max_vertices=max_vertices, side=side)
     import trimesh
 
     try:
-        # materials are not read: textures are images to decode, and the tracer needs none
-        loaded = trimesh.load(obj, file_type=ft, resolver=None, process=False, skip_materials=True)
+        # materials are not read: textures are images to decode, and the tracer needs none; every
+        # other file the parser asks for comes through the resolver (in memory, or the model's folder)
+        loaded = trimesh.load(
+            io.BytesIO(data), file_type=ft, resolver=cast(Any, _Resolver(side)), process=False, skip_materials=True
+        )
         parts = _parts(loaded)
     except SceneError:
         raise
@@ -193,7 +237,7 @@ def load_mesh(
         n = None  # a zero normal in the file: fall back to flat shading rather than refuse the model
     if len(v) > max_vertices:
         raise SceneError("file", f"the model has {len(v):,} distinct vertices; at most {max_vertices:,} per mesh")
-    return MeshData(v, t, n)
+    return MeshData(v, t, n, tuple(side.image_names()) if side is not None else ())
 
 
 def export_mesh(mesh: Mesh | MeshData, file_type: str) -> bytes:

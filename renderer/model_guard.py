@@ -18,12 +18,14 @@ import gc
 import json
 import re
 import struct
-from pathlib import Path
 from typing import Any
 from urllib.parse import unquote
 
 from . import limits
+from .model_archive import ArchiveFiles, SideFiles
 from .scene import SceneError
+
+GLTF1 = "glTF 1.0 is not supported; convert to glTF 2.0 (e.g. with the Khronos glTF converters or Blender)"
 
 
 def _refuse(fmt: str, message: str) -> SceneError:
@@ -36,14 +38,18 @@ def check_model(
     *,
     max_triangles: int = limits.MAX_TRIANGLES,
     max_vertices: int = limits.MAX_MESH_VERTICES,
-    base_dir: Path | None = None,
+    side: SideFiles | None = None,
 ) -> None:
     """Refuse (SceneError ``file``) a model file of format ``ft`` whose declared counts exceed
     ``max_triangles`` triangles or ``DECLARED_VERTEX_FACTOR × max_vertices`` vertices, or
-    disagree with the bytes it holds. ``base_dir``: where a glTF's external buffers are (a
-    file given by path); None: a glTF given as bytes has none."""
+    disagree with the bytes it holds, or whose images (beside it or inside it) declare more
+    pixels than ``MAX_MODEL_IMAGE_*``. ``side``: the files beside it (a glTF's external
+    buffers); None: a model given alone has none."""
     try:
-        _check(data, ft, max_triangles, limits.DECLARED_VERTEX_FACTOR * max_vertices, base_dir)
+        _check(data, ft, max_triangles, limits.DECLARED_VERTEX_FACTOR * max_vertices, side)
+        if isinstance(side, ArchiveFiles):  # held in memory: every image in the archive
+            for name in side.image_names():
+                check_image(side.entries[name], repr(name))
     except SceneError:
         raise
     except (ValueError, TypeError, KeyError, IndexError, AttributeError, struct.error, RecursionError) as e:
@@ -51,16 +57,18 @@ def check_model(
         raise _refuse(ft, f"not a readable {ft.upper()} file ({type(e).__name__}: {str(e)[:200]})") from None
 
 
-def _check(data: bytes, ft: str, max_triangles: int, max_declared_vertices: int, base_dir: Path | None) -> None:
+def _check(data: bytes, ft: str, max_triangles: int, max_declared_vertices: int, side: SideFiles | None) -> None:
     if ft == "glb":
-        doc, bin_len = _glb_chunks(data)
+        doc, bin_at, bin_len = _glb_chunks(data)
         _check_gltf(doc, bin_len, None, max_triangles, max_declared_vertices, "glb")
+        _check_gltf_images(doc, data[bin_at : bin_at + (bin_len or 0)], "glb", side)
     elif ft == "gltf":
         try:
             doc = _json(bytes(data))
         except (UnicodeDecodeError, ValueError) as e:
             raise _refuse(ft, f"not a glTF JSON document ({e})") from None
-        _check_gltf(doc, None, base_dir, max_triangles, max_declared_vertices, "gltf")
+        _check_gltf(doc, None, side, max_triangles, max_declared_vertices, "gltf")
+        _check_gltf_images(doc, b"", "gltf", side)
     elif ft == "stl":
         _check_stl(data, max_triangles)
     elif ft == "ply":
@@ -87,11 +95,13 @@ def _json(text: bytes) -> Any:
             gc.enable()
 
 
-def _glb_chunks(data: bytes) -> tuple[Any, int | None]:
-    """The GLB's JSON document and its BIN chunk's length (None without one)."""
+def _glb_chunks(data: bytes) -> tuple[Any, int, int | None]:
+    """The GLB's JSON document, where its BIN chunk's data starts and its length (None without one)."""
     if len(data) < 20 or data[:4] != b"glTF":
         raise _refuse("glb", "no GLB header (the file must start with 'glTF' and hold a JSON chunk)")
     version, length = struct.unpack_from("<II", data, 4)
+    if version == 1:
+        raise _refuse("glb", GLTF1)
     if version != 2:
         raise _refuse("glb", f"version {version}; only glTF 2 is read")
     if length > len(data):
@@ -113,7 +123,7 @@ def _glb_chunks(data: bytes) -> tuple[Any, int | None]:
             if at + 8 + chunk_len > length:
                 raise _refuse("glb", f"its BIN chunk declares {chunk_len:,} bytes, {length - at - 8:,} are there")
             bin_len = chunk_len
-    return doc, bin_len
+    return doc, at + 8, bin_len
 
 
 def _list(doc: dict, key: str, fmt: str) -> list:
@@ -143,7 +153,7 @@ def _count(obj: dict, key: str, where: str, fmt: str, default: int | None = None
     return value
 
 
-def _buffer_sizes(doc: dict, bin_len: int | None, base_dir: Path | None, fmt: str) -> list[int]:
+def _buffer_sizes(doc: dict, bin_len: int | None, side: SideFiles | None, fmt: str) -> list[int]:
     """The bytes really available to each buffer (and that its byteLength fits in them)."""
     sizes = []
     for i, buf in enumerate(_list(doc, "buffers", fmt)):
@@ -165,26 +175,56 @@ def _buffer_sizes(doc: dict, bin_len: int | None, base_dir: Path | None, fmt: st
                 else len(unquote(payload).encode())
             )
             what = "its data URI"
-        else:
-            path = (base_dir / unquote(uri)) if base_dir is not None else None
-            have = path.stat().st_size if path is not None and path.is_file() else 0
-            what = (
-                f"the file {uri!r}"
-                if base_dir is not None
-                else f"the external file {uri!r}, which a model given as bytes cannot read"
+        elif side is None:
+            raise _refuse(
+                fmt,
+                f"{where} is the file {uri!r} beside the model, which a model file sent alone cannot "
+                "read: send the model's folder as a zip (format=zip)",
             )
+        else:
+            have = side.size(uri) or 0
+            what = f"the file {uri!r}"
         if declared > have:
             raise _refuse(fmt, f"{where} declares {declared:,} bytes, {what} holds {have:,}")
         sizes.append(declared)
     return sizes
 
 
+def _gltf_version(doc: dict, fmt: str) -> None:
+    """Refuse glTF 1.0 by what it declares, or by its shape: objects of named buffers, not lists."""
+    asset = doc.get("asset")
+    version = asset.get("version") if isinstance(asset, dict) else None
+    if (
+        str(version).strip().startswith("1")
+        or isinstance(doc.get("buffers"), dict)
+        or isinstance(doc.get("meshes"), dict)
+    ):
+        raise _refuse(fmt, GLTF1)
+
+
+# Extensions that hold a mesh's geometry compressed: trimesh cannot decode them and would read
+# placeholder zeros in their place.
+_COMPRESSED_GEOMETRY = ("KHR_draco_mesh_compression", "EXT_meshopt_compression")
+
+
+def _compressed_geometry(doc: dict, fmt: str) -> None:
+    used = doc.get("extensionsUsed", [])
+    required = doc.get("extensionsRequired", [])
+    for name in _COMPRESSED_GEOMETRY:
+        if (isinstance(used, list) and name in used) or (isinstance(required, list) and name in required):
+            raise _refuse(
+                fmt, f"its geometry is compressed with {name}, which is not read; export the model without it"
+            )
+
+
 def _check_gltf(
-    doc: Any, bin_len: int | None, base_dir: Path | None, max_triangles: int, max_vertices: int, fmt: str
+    doc: Any, bin_len: int | None, side: SideFiles | None, max_triangles: int, max_vertices: int, fmt: str
 ) -> None:
     if not isinstance(doc, dict):
         raise _refuse(fmt, "the JSON document must be an object")
-    buffers = _buffer_sizes(doc, bin_len, base_dir, fmt)
+    _gltf_version(doc, fmt)
+    _compressed_geometry(doc, fmt)
+    buffers = _buffer_sizes(doc, bin_len, side, fmt)
     views = _list(doc, "bufferViews", fmt)
     view_bytes = 0
     for i, view in enumerate(views):
@@ -348,6 +388,76 @@ def _check_totals(fmt: str, tris: int, verts: int, max_triangles: int, max_verti
         )
 
 
+# ---- images inside a model -----------------------------------------------------------------------
+def image_size(data: bytes) -> tuple[int, int] | None:
+    """A PNG's or JPEG's declared (width, height) from its header, None for another format or a
+    header that cannot be read (nothing is decoded)."""
+    if data.startswith(b"\x89PNG\r\n\x1a\n") and len(data) >= 24 and data[12:16] == b"IHDR":
+        w, h = struct.unpack_from(">II", data, 16)
+        return int(w), int(h)
+    if data.startswith(b"\xff\xd8"):
+        at = 2
+        while at + 4 <= len(data):
+            if data[at] != 0xFF:
+                return None
+            marker = data[at + 1]
+            if marker == 0xFF:  # fill byte
+                at += 1
+                continue
+            if marker in (0x01, 0xD8) or 0xD0 <= marker <= 0xD7:
+                at += 2
+                continue
+            length = struct.unpack_from(">H", data, at + 2)[0]
+            if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC) and at + 9 <= len(data):
+                h, w = struct.unpack_from(">HH", data, at + 5)
+                return int(w), int(h)
+            if marker == 0xDA or length < 2:  # the scan starts before any frame header: not a JPEG we read
+                return None
+            at += 2 + length
+    return None
+
+
+def check_image(data: bytes, what: str) -> None:
+    """Refuse an image whose declared size exceeds ``MAX_MODEL_IMAGE_SIDE`` or
+    ``MAX_MODEL_IMAGE_PIXELS`` — before any decoder allocates its pixels."""
+    size = image_size(data)
+    if size is None:
+        return
+    w, h = size
+    if max(w, h) > limits.MAX_MODEL_IMAGE_SIDE or w * h > limits.MAX_MODEL_IMAGE_PIXELS:
+        raise SceneError(
+            "file",
+            f"the image {what} declares {w:,} × {h:,} pixels; at most {limits.MAX_MODEL_IMAGE_SIDE:,} a side "
+            f"and {limits.MAX_MODEL_IMAGE_PIXELS:,} in all (MAX_MODEL_IMAGE_SIDE, MAX_MODEL_IMAGE_PIXELS)",
+        )
+
+
+def _check_gltf_images(doc: dict, binary: bytes, fmt: str, side: SideFiles | None) -> None:
+    """Each of the glTF's images (in a data URI, a bufferView of the GLB's BIN chunk, or a side
+    file) within the image bounds."""
+    views = doc.get("bufferViews", [])
+    for i, image in enumerate(_list(doc, "images", fmt)):
+        if not isinstance(image, dict):
+            raise _refuse(fmt, f"images[{i}] must be an object")
+        uri, view = image.get("uri"), image.get("bufferView")
+        data = b""
+        if isinstance(uri, str) and uri.startswith("data:"):
+            head, _, payload = uri.partition(",")
+            try:  # the header is in the first bytes: a truncated decode of them is enough
+                data = base64.b64decode(payload[: 1 << 16], validate=False) if ";base64" in head else b""
+            except ValueError:
+                data = b""
+        elif isinstance(uri, str) and side is not None and not isinstance(side, ArchiveFiles):
+            data = side.get(uri) if side.size(uri) is not None else b""
+        elif view is not None and binary:
+            v = _index(image, "bufferView", len(views), f"images[{i}]", fmt)
+            assert v is not None
+            if views[v].get("buffer", 0) == 0:
+                start = _count(views[v], "byteOffset", f"bufferViews[{v}]", fmt, 0)
+                data = bytes(binary[start : start + min(views[v]["byteLength"], 1 << 20)])
+        check_image(data, f"images[{i}]")
+
+
 # ---- STL ----------------------------------------------------------------------------------------
 def _check_stl(data: bytes, max_triangles: int) -> None:
     n = len(data)
@@ -423,8 +533,10 @@ def _check_ply(data: bytes, max_triangles: int, max_vertices: int) -> None:
                 elements[-1][2] += _PLY_TYPES[words[1]]
             else:
                 raise _refuse("ply", f"'{raw.strip()}' is not a PLY property")
-        else:
+        elif words[0] in ("element", "property", "format"):
             raise _refuse("ply", f"'{raw.strip()[:60]}' is not a PLY header line")
+        # any other line is a comment without its keyword (Blender 2.4's 'Created by Blender3D …'),
+        # which trimesh's reader skips too
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
         raise _refuse("ply", f"format {fmt!r}; one of ascii, binary_little_endian, binary_big_endian")
     counts = {name: count for name, count, _, _ in elements}

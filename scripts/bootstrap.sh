@@ -4,7 +4,8 @@
 #  - Mesa's EGL + llvmpipe for headless OpenGL (when libEGL is missing)
 #  - Chromium for the browser tests, Node.js for the client's unit tests (node --test);
 #    redis-server and haproxy for the scale-out stack (./dev stack and its test); kubectl
-#    (Debian's kubernetes-client) for `kubectl kustomize`, which renders deploy/k8s in its test
+#    (Debian's kubernetes-client) for `kubectl kustomize`, which renders deploy/k8s in its test;
+#    assimp-testmodels (assimp's model corpus, /usr/share/assimp/models) for the model-file test
 #  - libLLVM 19 for Mitsuba 3's llvm variants (the peers and path experiments; Dr.Jit's
 #    bundled LLVM 15 aborts in the path integrator, "Cannot select fminimum")
 #  - a virtual environment .venv with the exact versions of requirements-test.lock (the
@@ -21,6 +22,7 @@ command -v node >/dev/null || need_apt+=(nodejs)
 command -v redis-server >/dev/null || need_apt+=(redis-server)
 command -v haproxy >/dev/null || [ -x /usr/sbin/haproxy ] || need_apt+=(haproxy)
 command -v kubectl >/dev/null || need_apt+=(kubernetes-client)
+[ -d /usr/share/assimp/models ] || need_apt+=(assimp-testmodels)
 ldconfig -p | grep -q 'libLLVM-19\|libLLVM.so.19' || [ -e /usr/lib/x86_64-linux-gnu/libLLVM-19.so ] || need_apt+=(libllvm19)
 if [ ${#need_apt[@]} -gt 0 ]; then
   SUDO=""; [ "$(id -u)" = 0 ] || SUDO="sudo"

@@ -99,8 +99,9 @@ export function withRestDenoiser(settings, chosen = {}, specs = renderSettings) 
 }
 // A sky scenario's number ('sky:2' → 2), or null for every other scene.
 export const skyScenario = (scenario) => Number((/^sky:([123])$/.exec(String(scenario ?? '')) || [])[1]) || null;
-// Model files the settings sheet uploads (POST /api/sessions/{id}/meshes?format=…), by suffix.
-export const MODEL_FORMATS = Object.freeze(['obj', 'ply', 'stl', 'glb', 'gltf']);
+// Model files the settings sheet uploads (POST /api/sessions/{id}/meshes?format=…), by suffix;
+// zip: a model's folder (the model file with its .bin, .mtl and images).
+export const MODEL_FORMATS = Object.freeze(['obj', 'ply', 'stl', 'glb', 'gltf', 'zip']);
 // An uploaded model is fitted into this many world units, standing on the floor (the endpoint's size).
 export const MODEL_SIZE = 20;
 // Motions of the animated museum (POST /api/sessions {museum: {n, kind}}); GET /api/info lists them too.

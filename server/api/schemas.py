@@ -67,14 +67,14 @@ from renderer.limits import (
     REFINE_NOISE_RANGE,
     REFINE_SAMPLES_RANGE,
 )
-from renderer.mesh_io import MODEL_FORMATS
+from renderer.mesh_io import UPLOAD_FORMATS
 from renderer.scenarios import CUBE_HALF, MAX_MESH_DETAIL, MESH_SCENES
 from renderer.settings import SettingSpec, setting
 
 from ..frames.device_data import DEFAULT_MAX_TEXTURE_SIZE, FEATURE_DEFINES
 
 MuseumKind = Literal[MUSEUM_KINDS]
-ModelFormat = Literal[MODEL_FORMATS]
+ModelFormat = Literal[UPLOAD_FORMATS]
 
 # The API's own bound: a 32-bit placement seed (the renderer takes any non-negative one).
 MAX_SEED = 2**32 - 1
@@ -874,7 +874,10 @@ Gesture = Annotated[PanGesture | PinchGesture | OrbitGesture | ResetGesture, Fie
 class MeshUploadQuery(QueryModel):
     """How an uploaded model file (the request body, bytes) becomes a mesh."""
 
-    format: ModelFormat = Field(description="the file's format: " + ", ".join(MODEL_FORMATS))
+    format: ModelFormat = Field(
+        description="the file's format: " + ", ".join(UPLOAD_FORMATS) + " (zip: a model's folder, one model file "
+        "with its .bin, .mtl and images)"
+    )
     material: MaterialIndex | None = Field(
         None, description="index into the scene's materials (default: a neutral clay of its own, added to them)"
     )

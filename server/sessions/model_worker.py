@@ -1,7 +1,8 @@
 """Model files parsed in worker processes, each with a deadline and resource limits.
 
 An uploaded model file (``POST /api/meshes``, ``POST /api/sessions/{id}/meshes``) is parsed
-by :func:`renderer.mesh_io.load_mesh` in one of ``POCKETRAY_MODEL_WORKERS`` processes kept
+by :func:`renderer.mesh_io.load_mesh` (a zip of a model's folder opened there too, its bounds
+checked before anything is inflated) in one of ``POCKETRAY_MODEL_WORKERS`` processes kept
 warm (started at the first upload; numpy and trimesh imported once), never in the service
 process: a parser that a file sends into a long computation or a large allocation cannot be
 stopped from a thread, but a process can be killed. Each worker runs under
@@ -19,7 +20,7 @@ run-length encoded ``.hdr`` of one-byte runs is cut into packets in C and decode
 
 The protocol is a pipe each way: 8-byte length, then a pickle — the job ``(bytes, format,
 max_triangles, max_vertices)`` or ``("image", bytes, format)`` one way, ``("ok", vertices,
-triangles, normals)``, ``("ok", texels)`` or ``("error", field, message)`` the other
+triangles, normals, image names)``, ``("ok", texels)`` or ``("error", field, message)`` the other
 (pickles only between this module and the processes it started). A worker is ``python -m
 server.sessions.model_worker``: it imports the renderer's core and nothing of the service.
 
@@ -369,7 +370,7 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
                 answer: tuple = ("ok", read_image(data, ft))
             else:
                 m = load_mesh(data, ft, max_triangles=max_triangles, max_vertices=max_vertices)
-                answer = ("ok", m.vertices, m.triangles, m.normals)
+                answer = ("ok", m.vertices, m.triangles, m.normals, m.images)
         except SceneError as e:
             message = e.message
             if "MemoryError" in message:

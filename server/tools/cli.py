@@ -5,7 +5,7 @@
     pocketray serve [--host H] [--port P] [--workers N] [--state-backend sqlite|redis] [--gpu I] …
     pocketray render SCENE.json -o OUT.png|.jpg|.npy|.exr [--width W --height H --method M --mode M
                      --spp S --depth D …]
-    pocketray render MODEL.obj|.ply|.stl|.glb|.gltf -o OUT.png [--size S --smooth|--flat] [the same flags]
+    pocketray render MODEL.obj|.ply|.stl|.glb|.gltf|.zip -o OUT.png [--size S --smooth|--flat] [the same flags]
     pocketray scene --mesh MODEL [--mesh MODEL …] [--size S] [--as-is] [-o scene.json]
     pocketray scenario 1|2|3 --n N [--seed S] [--radius R] [--sky] -o scene.json
     pocketray scenario museum --n N [--kind mixed] [--absent A] [--seed S] -o scene.json
@@ -163,7 +163,8 @@ def _add_render(sub: argparse._SubParsersAction) -> None:
         "render",
         help="render a scene JSON file or a model file to an image or array",
         description="Render SCENE (scene JSON, docs/FORMATS.md; - for stdin) or a model file "
-        "(.obj .ply .stl .glb .gltf: fitted, on the floor, framed by the camera) with "
+        "(.obj .ply .stl .glb .gltf, side files read from its folder, or a .zip of its folder: fitted, on "
+        "the floor, framed by the camera) with "
         "the API's settings. The output's extension picks the format: .png .jpg .npy .exr.",
     )
     p.add_argument("scene", help="scene JSON file (docs/FORMATS.md), - for standard input, or a model file")
@@ -234,9 +235,10 @@ def _add_model_flags(p: argparse.ArgumentParser) -> None:
 
 
 def is_model(path: str) -> bool:
-    from renderer.mesh_io import MODEL_FORMATS
+    """Whether ``path`` names a model file or a zip of a model's folder (by its suffix)."""
+    from renderer.mesh_io import UPLOAD_FORMATS
 
-    return Path(path).suffix.lower().lstrip(".") in MODEL_FORMATS
+    return Path(path).suffix.lower().lstrip(".") in UPLOAD_FORMATS
 
 
 def _size(size: float) -> float:
@@ -498,7 +500,7 @@ def _add_scene(sub: argparse._SubParsersAction) -> None:
         "scene",
         help="write a scene JSON of model files (to edit, and render)",
         description="Write the scene JSON (docs/FORMATS.md) of one or more model files (.obj .ply "
-        ".stl .glb .gltf): each mesh as the file has it with a transform that fits it, "
+        ".stl .glb .gltf .zip): each mesh as the file has it with a transform that fits it, "
         "side by side along x on the floor, the camera and light of render MODEL.",
     )
     p.add_argument("--mesh", action="append", required=True, metavar="MODEL", help="a model file (repeat for more)")

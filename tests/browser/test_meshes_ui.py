@@ -6,11 +6,14 @@ refused next to the picker in the panel's words, and the scene on screen stays."
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from renderer.mesh_io import export_mesh, load_mesh
 from renderer.meshes import icosphere
 from renderer.scenarios import mesh_scene
 
 PICKER = "#f-model"
+CORPUS = Path("/usr/share/assimp/models")  # Debian's assimp-testmodels (scripts/bootstrap.sh)
 API_WORDS = ("POCKETRAY_", "query.", "body:")
 
 
@@ -37,7 +40,8 @@ def test_choosing_a_mesh_scene_shows_its_triangles(open_client, server):
     p = c.page
     first = c.hook("sessionId")
     open_sheet(c)
-    assert p.is_visible(PICKER) and p.get_attribute(PICKER, "accept") == ".obj,.ply,.stl,.glb,.gltf"
+    assert p.is_visible(PICKER) and p.get_attribute(PICKER, "accept").startswith(".obj,.ply,.stl,.glb,.gltf,.zip")
+    assert p.get_attribute(PICKER, "multiple") is not None  # a model file picked with its side files
     assert p.get_attribute(PICKER, "aria-label") and p.text_content("label[for='f-model']").startswith("Add a model")
     labels = p.eval_on_selector_all("#f-scenario option", "os => os.map((o) => o.value)")
     assert {"mesh:teapot", "mesh:mixed", "mesh:room"} <= set(labels)
@@ -103,6 +107,33 @@ def test_an_uploaded_obj_joins_the_scene_and_changes_the_frame(open_client, serv
     assert invalid(p, "model") is None
     # the service framed the camera again to show the model beside the scene
     assert server.session(sid)["camera"] != before["camera"]
+    assert c.hook("errors") == [] and c.errors() == []
+
+
+def test_a_gltf_picked_with_its_bin_and_image_is_sent_as_one_zip(open_client, server):
+    """Several files picked at once: the client zips them (stored), the service opens the zip and
+    finds the .gltf's buffer beside it; a second model among them is refused before sending."""
+    c = open_client("mobile")
+    p = c.page
+    sid = c.hook("sessionId")
+    before = server.session(sid)
+    folder = CORPUS / "glTF2" / "BoxTextured-glTF"
+    picked = [
+        {"name": n, "mimeType": "application/octet-stream", "buffer": (folder / n).read_bytes()}
+        for n in ("BoxTextured.gltf", "BoxTextured0.bin", "CesiumLogoFlat.png")
+    ]
+    open_sheet(c)
+    n0 = c.frame_count
+    p.set_input_files(PICKER, files=picked)
+    p.wait_for_function("v => window.pocketray.lastFrameVersion > v", arg=before["version"])
+    c.wait_idle(min_frames=n0 + 1)
+    after = server.session(sid)
+    assert after["scene_info"]["n_triangles"] == 12 and after["scene_info"]["n_meshes"] == 1
+    assert invalid(p, "model") is None
+    two = [*picked, {"name": "ball.obj", "mimeType": "text/plain", "buffer": export_mesh(icosphere(1), "obj")}]
+    p.set_input_files(PICKER, files=two)
+    p.wait_for_function("() => document.querySelector('#f-model-error')?.textContent.includes('pick one model')")
+    assert server.session(sid)["version"] == after["version"]
     assert c.hook("errors") == [] and c.errors() == []
 
 

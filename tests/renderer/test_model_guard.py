@@ -243,3 +243,31 @@ def test_a_text_model_that_is_not_utf8_loads():
 def test_malformed_gltf_structures_are_refused_as_the_file(doc):
     assert refused(json.dumps(doc).encode(), "gltf").startswith("GLTF: ")
     assert refused(b"[" * 100_000 + b"]" * 100_000, "gltf").startswith("GLTF: ")
+
+
+def test_a_ply_header_line_without_a_keyword_is_read_as_a_comment():
+    """Blender 2.4 wrote 'Created by Blender3D …' without 'comment' before it; trimesh reads such a
+    file, and the check takes the line as the comment it is. A malformed element line still fails."""
+    blender = PLY_HEAD.replace(b"format %s 1.0\n", b"format %s 1.0\nCreated by Blender3D 247 - www.blender.org\n")
+    assert load_mesh(blender % (b"ascii", 1) + b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "ply").n_triangles == 1
+    assert "not a PLY header line" in refused(
+        PLY_HEAD.replace(b"element face %d", b"element face") % (b"ascii",) + b"0 0 0\n1 0 0\n0 1 0\n", "ply"
+    )
+
+
+@pytest.mark.parametrize(
+    "fmt, data",
+    [
+        ("gltf", json.dumps({"asset": {"version": "1.0"}, "buffers": {"b": {"uri": "b.bin"}}}).encode()),
+        ("gltf", json.dumps({"buffers": {"b": {"uri": "b.bin", "byteLength": 4}}, "meshes": {}}).encode()),
+        ("glb", struct.pack("<4sIIII", b"glTF", 1, 20, 0, 0)),
+    ],
+)
+def test_gltf_1_is_refused_saying_so(fmt, data):
+    assert "glTF 1.0 is not supported; convert to glTF 2.0" in refused(data, fmt)
+
+
+def test_draco_compressed_geometry_is_refused_naming_the_extension():
+    doc = gltf_doc([{"componentType": 5126, "count": 3, "type": "VEC3"}])
+    doc["extensionsUsed"] = doc["extensionsRequired"] = ["KHR_draco_mesh_compression"]
+    assert "KHR_draco_mesh_compression, which is not read" in refused(glb(doc), "glb")

@@ -20,6 +20,7 @@ import {
   parseResolution, renderSettings, settingValue,
 } from '../settings.js';
 import { modelFileProblem } from './messages.js';
+import { planUpload, uploadBody } from '../model_upload.js';
 
 const SCENE_KEYS = ['scenario', 'n', 'seed', 'radius', 'motion'];
 const CLIENT_KEYS = ['previewScale', 'previewFormat', 'previewQuality', 'refineDelayMs', 'renderer'];
@@ -370,21 +371,23 @@ export class SettingsPanel {
     }
   }
 
-  // A model file chosen: refused here when its suffix or size cannot be right (the service's
-  // limit, GET /api/info), else handed to the app, which uploads it.
+  // Model files chosen: one model file or zip, or a model file with its side files (zipped here,
+  // model_upload.js); refused here when they make no one model or their suffix or size cannot be
+  // right (the service's limit, GET /api/info), else handed to the app, which uploads them.
   _modelChosen(input) {
-    const file = input.files && input.files[0];
-    if (!file) return;
-    const format = (/\.([^.]+)$/.exec(file.name) || [])[1]?.toLowerCase() || '';
+    const plan = planUpload(input.files, MODEL_FORMATS);
+    if (!plan.main && !plan.problem) return;
     const limit = this.info && this.info.limits && this.info.limits.max_body_bytes;
-    const problem = modelFileProblem(file.name, file.size, format, MODEL_FORMATS, limit);
+    const problem = plan.problem ? `${FIELD_LABELS.model}: ${plan.problem}`
+      : modelFileProblem(plan.main.name, plan.size, plan.format, MODEL_FORMATS, limit);
     if (problem) {
       this.mark('model', problem);
       input.value = '';
       return;
     }
     this.clear('model');
-    Promise.resolve(this.cb.onModel(file, format)).finally(() => { input.value = ''; });   // the same file again: a change
+    Promise.resolve(uploadBody(plan).then((body) => this.cb.onModel(body, plan.format)))
+      .finally(() => { input.value = ''; });   // the same file again: a change
   }
 
   _sceneChanged(name) {

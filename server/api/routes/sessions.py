@@ -9,7 +9,7 @@ from fastapi import APIRouter, Body, Query, Request, Response
 from fastapi.responses import StreamingResponse
 from starlette.concurrency import run_in_threadpool
 
-from renderer.mesh_io import MODEL_FORMATS, fit_transform
+from renderer.mesh_io import UPLOAD_FORMATS, fit_transform
 from renderer.scene import SceneError
 
 from ...faults import Busy, InputError, Where
@@ -139,8 +139,8 @@ _MODEL_BODY = {
     "requestBody": {
         "required": True,
         "description": "the model file's bytes ("
-        + ", ".join(MODEL_FORMATS)
-        + "); at most POCKETRAY_MAX_BODY_BYTES (else 413)",
+        + ", ".join(UPLOAD_FORMATS)
+        + "; zip: the model's folder, its side files beside it); at most POCKETRAY_MAX_BODY_BYTES (else 413)",
         "content": {"application/octet-stream": {"schema": {"type": "string", "format": "binary"}}},
     }
 }
@@ -152,7 +152,7 @@ _MODEL_BODY = {
     response_model=MeshAdded,
     responses=documented(404, 409, 413, 503),
     openapi_extra=_MODEL_BODY,
-    summary="Add a model file (OBJ, PLY, STL, glTF/GLB; the body) to the session's scene as a mesh",
+    summary="Add a model file (OBJ, PLY, STL, glTF/GLB, or a zip of its folder; the body) to the session's scene",
 )
 async def add_mesh(
     session_id: SessionId, request: Request, query: Annotated[MeshUploadQuery, Query()], service: ServiceDep

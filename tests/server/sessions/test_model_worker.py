@@ -168,3 +168,35 @@ def test_one_address_holds_at_most_its_share_of_the_workers():
         )
     finally:
         pool.close()
+
+
+def test_a_zipped_folder_is_opened_in_the_worker_and_its_image_names_come_back(monkeypatch):
+    """format=zip: the archive is opened and checked in the worker (the service's own opener is
+    never called), the model's image names come back with the arrays; a bomb is refused there."""
+    import io
+    import zipfile
+
+    import renderer.mesh_io
+
+    def zipped(files: dict[str, bytes]) -> bytes:
+        out = io.BytesIO()
+        with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
+            for name, data in files.items():
+                z.writestr(name, data)
+        return out.getvalue()
+
+    def not_here(data: bytes):
+        raise AssertionError("the archive was opened in the service's process")
+
+    monkeypatch.setattr(renderer.mesh_io, "open_archive", not_here)
+    with pytest.raises(AssertionError, match="service's process"):  # in this process: the patched opener
+        renderer.mesh_io.load_mesh(zipped({"ball.obj": SMALL}), "zip")
+    pool = ModelWorkers(1, 20.0, 2 << 30)
+    try:
+        png = b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR" + bytes([0, 0, 0, 64] * 2) + bytes(9)
+        m = pool.load(zipped({"ball/ball.obj": SMALL, "ball/skin.png": png}), "zip", 100, 1000)
+        assert m.n_triangles == 80 and m.images == ("ball/skin.png",)
+        with pytest.raises(SceneError, match="MAX_ARCHIVE_RATIO"):
+            pool.load(zipped({"bomb.obj": bytes(4 << 20)}), "zip", 100, 1000)
+    finally:
+        pool.close()

@@ -7,10 +7,12 @@ flags are refused naming them, writing nothing."""
 from __future__ import annotations
 
 import json
+import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+import trimesh
 from pocketray_server_support import pocketray_batch
 
 from renderer.mesh_io import export_mesh, load_mesh, model_scene
@@ -21,7 +23,8 @@ from renderer.scene import Scene
 pytestmark = pytest.mark.gl  # render runs GLRenderer
 
 W, H = 48, 40
-MODELS = ["ball.obj", "box.stl", "ring.ply", "ball.glb"]
+# and a glTF with its buffers beside it (side files read from its folder), the same folder zipped
+MODELS = ["ball.obj", "box.stl", "ring.ply", "ball.glb", "split/model.gltf", "split.zip"]
 # The commands run several to a process (pocketray_batch: server.tools.cli.main as ``python -m server``
 # calls it; tests/server/tools/test_cli.py runs the command as a process of its own).
 COMMON = ("--width", str(W), "--height", str(H), "--spp", "1", "--quiet")
@@ -41,6 +44,14 @@ def models(tmp_path_factory) -> Path:
     (tmp / "box.stl").write_bytes(export_mesh(box((0, 0, 0), (2, 1, 1)), "stl"))
     (tmp / "ring.ply").write_bytes(export_mesh(torus(1.0, 0.35, 16, 8), "ply"))
     (tmp / "ball.glb").write_bytes(export_mesh(icosphere(1), "glb"))
+    m = icosphere(2)
+    files = trimesh.Trimesh(m.vertices, m.triangles, process=False).export(file_type="gltf")
+    assert len(files) > 1  # the model and its .bin side files
+    (tmp / "split").mkdir()
+    with zipfile.ZipFile(tmp / "split.zip", "w", zipfile.ZIP_DEFLATED) as z:
+        for name, data in files.items():
+            (tmp / "split" / name).write_bytes(data)
+            z.writestr(f"split/{name}", data)
     return tmp
 
 
@@ -49,7 +60,8 @@ def renders(models) -> dict[str, object]:
     """Every ``render MODEL`` of the tests below, in one process: the primid frame of each model
     (``p-NAME.npy``), and of the ball at --size 10, its normals --flat and --smooth."""
     commands = {
-        f"p-{name}.npy": ("render", name, "-o", f"p-{name}.npy", "--mode", "primid", *COMMON) for name in MODELS
+        f"p-{name}.npy": ("render", name, "-o", f"p-{name.replace('/', '-')}.npy", "--mode", "primid", *COMMON)
+        for name in MODELS
     }
     commands["small.npy"] = ("render", "ball.obj", "-o", "small.npy", "--size", "10", "--mode", "primid", *COMMON)
     commands["n.npy"] = ("render", "ball.obj", "-o", "n.npy", "--flat", "--mode", "normal", *COMMON)
@@ -61,7 +73,7 @@ def renders(models) -> dict[str, object]:
 def test_render_model_file_agrees_with_the_reference_on_the_fitted_scene(models, renders, name):
     r = renders[f"p-{name}.npy"]
     assert r.returncode == 0 and r.stderr == "", r.stderr
-    got = np.load(models / f"p-{name}.npy")
+    got = np.load(models / f"p-{name.replace('/', '-')}.npy")
     scene = model_scene(models / name)
     want = reference_ids(scene)
     n_tri = load_mesh(models / name).n_triangles

@@ -7,6 +7,7 @@ import base64
 import io
 import json
 import time
+import zipfile
 
 import numpy as np
 import pytest
@@ -413,6 +414,60 @@ def test_bad_uploads_are_refused_and_change_nothing(api):
     assert upload(api, sid, b"\0" * (MAX_BODY + 1), format="stl").status_code == 413
     assert api.get(f"/api/sessions/{sid}").json() == before
     assert upload(api, "nosuchsession", export_mesh(box(), "obj"), format="obj").status_code == 404
+
+
+def zipped(files: dict[str, bytes]) -> bytes:
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
+        for name, data in files.items():
+            z.writestr(name, data)
+    return out.getvalue()
+
+
+def test_a_zipped_model_folder_is_added_and_a_hostile_zip_changes_nothing(api):
+    """format=zip: the model file and its side files in one body, opened in the model worker; each
+    hostile archive a 422 naming its problem, the session as it was."""
+    sid = create(api, mesh_scene_json()).json()["id"]
+    version = api.get(f"/api/sessions/{sid}").json()["version"]
+    obj = b"mtllib ball.mtl\n" + export_mesh(icosphere(2), "obj")
+    r = upload(
+        api, sid, zipped({"ball/ball.obj": obj, "ball/ball.mtl": b"newmtl a\nKd 1 0 0\n"}), format="zip", size=10
+    )
+    assert r.status_code == 201, r.text
+    assert r.json()["version"] == version + 1 and r.json()["scene_info"]["n_triangles"] == 92 + 320
+    before = api.get(f"/api/sessions/{sid}").json()
+    scene_before = api.get(f"/api/sessions/{sid}/scene").json()
+    box_obj = export_mesh(box(), "obj")
+    for body, named in [
+        (zipped({"bomb.obj": b"\0" * (4 << 20)}), "MAX_ARCHIVE_RATIO"),
+        (zipped({"../box.obj": box_obj}), "'../box.obj'"),
+        (zipped({"/box.obj": box_obj}), "absolute name"),
+        (zipped({"box.obj": box_obj, "inner.zip": zipped({"box.obj": box_obj})}), "archive inside the archive"),
+        (
+            zipped({"box.obj": box_obj, "skin.png": b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR" + bytes([0, 1, 0, 0] * 2)}),
+            "MAX_MODEL_IMAGE",
+        ),
+        (b"PK\x05\x06" + b"\0" * 6 + b"\xff\x7f" + b"\0" * 10, "MAX_ARCHIVE_ENTRIES"),
+        (box_obj, "not a zip"),
+    ]:
+        assert_422_msgs(upload(api, sid, body, format="zip"), named)
+    assert api.get(f"/api/sessions/{sid}").json() == before
+    assert api.get(f"/api/sessions/{sid}/scene").json() == scene_before
+
+
+def test_a_gltf_sent_alone_is_told_to_come_as_a_zip(api):
+    gltf = json.dumps(
+        {"asset": {"version": "2.0"}, "buffers": [{"uri": "box.bin", "byteLength": 36}], "meshes": []}
+    ).encode()
+    r = api.post(
+        "/api/meshes", params={"format": "gltf"}, content=gltf, headers={"content-type": "application/octet-stream"}
+    )
+    assert_422_msgs(r, "format=zip")
+    old = json.dumps({"asset": {"version": "1.0"}, "buffers": {"b": {"uri": "b.bin"}}}).encode()
+    r = api.post(
+        "/api/meshes", params={"format": "gltf"}, content=old, headers={"content-type": "application/octet-stream"}
+    )
+    assert_422_msgs(r, "glTF 1.0 is not supported; convert to glTF 2.0")
 
 
 def test_a_model_file_converts_to_mesh_json_that_a_scene_takes(api):
