@@ -15,6 +15,7 @@ from pydantic import AliasChoices, Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from renderer.cost import request_work
+from renderer.integrators import Integrator
 from renderer.limits import JPEG_QUALITY_RANGE, MAX_PROGRAMS, MAX_SPHERES, MAX_TREE_DEPTH, MAX_TRIANGLES
 from renderer.profiles import STILL
 
@@ -442,7 +443,7 @@ class ServerConfig(BaseSettings):
             raise ValueError(f"default_render: {e}") from None
         if not (isinstance(d["quality"], int) and QUALITY_MIN <= d["quality"] <= QUALITY_MAX):
             raise ValueError(f"default_render: quality must be an integer {QUALITY_MIN} … {QUALITY_MAX}")
-        path = d.get("integrator", "whitted") == "path"
+        path = d.get("integrator", Integrator.WHITTED) == Integrator.PATH
         work = request_work(d["width"], d["height"], d["max_recursion_depth"], d["samples_per_pixel"], path)
         if work > self.max_work:
             what = (

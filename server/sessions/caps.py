@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from renderer.cost import path_segments, request_work
+from renderer.integrators import Integrator
 from renderer.scene import SceneError
 from renderer.settings import RenderSettings
 
@@ -43,7 +44,7 @@ class InputCaps:
         ``renderer.cost.request_work``), and the modes the method can draw.
         (The cost of a frame, POCKETRAY_MAX_FRAME_COST, is checked by the pipeline's plan.)"""
         w, h, d, spp = settings.width, settings.height, settings.max_recursion_depth, settings.samples_per_pixel
-        path = settings.integrator == "path"
+        path = settings.integrator == Integrator.PATH
         work = request_work(w, h, d, spp, path)
         if work > self.config.max_work:
             if path:  # the expected segments of its paths (renderer/cost.py, path_segments)

@@ -314,12 +314,13 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
         raise UsageError(f"{getattr(e, 'field', 'settings')}: {getattr(e, 'message', e)}") from None
 
     from renderer.gl import GLRenderer
+    from renderer.integrators import Denoiser
 
     t0 = time.perf_counter()
     renderer = GLRenderer()
     t_ctx = time.perf_counter()
     result = renderer.render(scene, rs.with_(update="rebuild"))
-    if rs.denoise != "off":  # the flag names it: png, jpeg, npy and exr alike
+    if rs.denoise != Denoiser.OFF:  # the flag names it: png, jpeg, npy and exr alike
         from renderer.denoise import denoise_result
 
         result = denoise_result(result, scene, rs.denoise)
