@@ -8,14 +8,12 @@ names (``("width",)``, ``("scene", "spheres")``): the route places it in the bod
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from renderer.cost import path_segments, request_work
 from renderer.integrators import Integrator
 from renderer.scene import SceneError
-from renderer.settings import RenderSettings
+from renderer.settings import RenderSettings, SettingValues
 
 from ..api.schemas import SceneModel
 from ..config import ServerConfig
@@ -30,9 +28,9 @@ class InputCaps:
     def __init__(self, config: ServerConfig):
         self.config = config
 
-    def merge_settings(self, base: dict[str, Any], patch: dict[str, Any]) -> dict[str, Any]:
+    def merge_settings(self, base: SettingValues, patch: SettingValues) -> SettingValues:
         """``base`` updated by ``patch``, validated by RenderSettings (InputError at the setting)."""
-        merged = {**base, **patch}
+        merged: SettingValues = {**base, **patch}
         try:
             render_settings(merged)
         except SceneError as e:

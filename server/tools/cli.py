@@ -46,7 +46,10 @@ import tempfile
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from renderer.settings import SettingValues
 
 EXTENSIONS = {".png": "png", ".jpg": "jpeg", ".jpeg": "jpeg", ".npy": "npy", ".exr": "exr"}
 ENV_PREFIX = "POCKETRAY_"
@@ -306,7 +309,7 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
         except SceneError as e:
             raise UsageError(f"scene.{e.field}: {e.message}") from None
     config = ServerConfig()
-    settings = {**config.default_settings(), **patch}
+    settings: SettingValues = {**config.default_settings(), **patch}
     try:
         rs = render_settings(settings)
         rs.check_method(scene.n_spheres)

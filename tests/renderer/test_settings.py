@@ -242,7 +242,12 @@ def test_the_path_integrator_takes_any_count_and_whitted_a_grid():
     path = RenderSettings(integrator="path", samples_per_pixel=7, max_recursion_depth=12, width=4096, height=4096)
     assert path.supersampling == 1
     assert RenderSettings(integrator="path", mode="heat", max_recursion_depth=12).max_recursion_depth == 12
-    assert [RenderSettings(samples_per_pixel=s, width=64, height=64).supersampling for s in (1, 4, 9, 16)] == [1, 2, 3, 4]
+    assert [RenderSettings(samples_per_pixel=s, width=64, height=64).supersampling for s in (1, 4, 9, 16)] == [
+        1,
+        2,
+        3,
+        4,
+    ]
 
 
 def test_the_two_meanings_of_samples_per_pixel_are_declared_and_described():
