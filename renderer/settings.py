@@ -1,12 +1,15 @@
 """Render settings (the render-settings JSON of ``docs/FORMATS.md``): each declared once, in
-:data:`SETTINGS`, and :class:`RenderSettings`, validated on construction, made from them.
+:data:`SETTINGS`; :class:`RenderSettings`, their typed frozen dataclass, validated on construction.
 
 A setting's :class:`SettingSpec` is all that is said of it anywhere: its name, type, bounds or
-choices, default, unit, which methods and modes read it, the client's label and a one-line doc.
-The API's query, patch and response models (:mod:`server.api.schemas`), the ``pocketray render``
-flags, ``GET /api/info``'s ``settings`` (what the client's settings sheet is built from) and
-:class:`RenderSettings` are all generated from the table; adding a setting is one entry here
-(and the code that reads it).
+choices (per integrator where they differ: :class:`IntegratorValues`), default, unit, which methods
+and modes read it, the client's label and a one-line doc. The API's query, patch and response models
+(:mod:`server.api.schemas`), the ``pocketray render`` flags, ``GET /api/info``'s ``settings`` (what
+the client's settings sheet is built from) and the validation of :class:`RenderSettings` are made
+from the table. :class:`RenderSettings`' fields and :class:`SettingValues`' keys are written out so
+that a type checker sees them, and are held to the table at import (:func:`check_declaration`,
+:func:`check_values_type`): adding a setting is one entry here, its field and key, and the code that
+reads it.
 """
 
 from __future__ import annotations
