@@ -112,7 +112,7 @@ class SettingSpec:
     """One render setting, declared once.
 
     type: ``integer``, ``number``, ``boolean`` or ``string``. bounds: (lo, hi), inclusive, of a
-    number; choices: the values allowed (a string's, or an integer's such as samples_per_pixel).
+    number; choices: the values allowed (a string's, or an integer's).
     doc: the one line every description of it says (API schema, CLI help). label: the client's
     word for it. unit: what its numbers count. capability: read only by the methods whose
     ``Capabilities.settings`` name this (None: by every method). modes: read only in these

@@ -527,6 +527,10 @@ class QueryModel(BaseModel):
 _INT = TypeAdapter(int)
 
 
+# The settings whose values are listed integers (a Literal of them in the models).
+_INTEGER_CHOICES = tuple(s.name for s in declared.SETTINGS if s.type == "integer" and s.choices is not None)
+
+
 class FrameQuery(RenderParams, QueryModel):
     """A frame's render settings in the query; missing ones come from the session's."""
 
@@ -542,13 +546,17 @@ class FrameQuery(RenderParams, QueryModel):
     @classmethod
     def _literal_ints_from_text(cls, data: Any) -> Any:
         """A query's values are text. pydantic reads "4" as an int field's 4 but not as an int
-        Literal's, so samples_per_pixel is read as an integer first (and then checked as the set)."""
-        if isinstance(data, dict) and isinstance(data.get("samples_per_pixel"), str):
-            try:
-                return {**data, "samples_per_pixel": _INT.validate_python(data["samples_per_pixel"])}
-            except ValidationError:
-                pass  # not a number: the Literal's error names the allowed values
-        return data
+        Literal's, so a setting of integer choices is read as an integer first (and then checked as the set)."""
+        if not isinstance(data, dict):
+            return data
+        read = dict(data)
+        for name in _INTEGER_CHOICES:
+            if isinstance(data.get(name), str):
+                try:
+                    read[name] = _INT.validate_python(data[name])
+                except ValidationError:
+                    pass  # not a number: the Literal's error names the allowed values
+        return read
 
 
 class SessionFrameQuery(FrameQuery):
