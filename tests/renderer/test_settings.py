@@ -269,3 +269,32 @@ def test_the_two_meanings_of_samples_per_pixel_are_declared_and_described():
         from dataclasses import replace
 
         replace(spec, bounds=(1, 8))  # Whitted's 16 and path's 4096 outside
+
+
+def test_a_type_checker_sees_the_fields(tmp_path):
+    """mypy refuses a misspelt setting and a field used as the wrong type (the project's settings and cache,
+    .mypy_cache/, which tests/test_tools.py's run keeps warm)."""
+    import subprocess
+    import sys
+
+    from tests.helpers import ROOT
+
+    code = tmp_path / "uses_settings.py"
+    code.write_text(
+        "from renderer.settings import RenderSettings\n"
+        "s = RenderSettings()\n"
+        "a = s.samples_per_pixl\n"
+        "b: str = s.width\n"
+        "c: int = s.samples_per_pixel\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-m", "mypy", "--no-error-summary", str(code)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    errors = [line.split(": error: ", 1)[1] for line in out.stdout.splitlines() if ": error: " in line]
+    assert len(errors) == 2, out.stdout + out.stderr
+    assert '"RenderSettings" has no attribute "samples_per_pixl"' in errors[0]
+    assert 'expression has type "int", variable has type "str"' in errors[1]
