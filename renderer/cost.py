@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from .features import GENERIC, scene_features
+from .integrators import Integrator
 from .modes import AVERAGED_MODES, RAY_TREE_MODES
 from .scene import Scene
 from .shapes import bounds as shape_bounds
@@ -296,7 +297,7 @@ def terms(
     w, h = settings.width, settings.height
     levels, radiance = ray_tree(scene, settings, decay, level_rays)
     # A path's shadow rays are among its counted segments (path_segments); Whitted's are one per light.
-    path = getattr(settings, "integrator", "whitted") == "path"
+    path = getattr(settings, "integrator", Integrator.WHITTED) == Integrator.PATH
     lights = len(scene.lights) if settings.mode == "color" and not path else 0
     rays = radiance * (1 + lights)
     # A triangle test costs as a sphere's; so, unmeasured, does an analytic shape's (a torus's is dearer).
@@ -406,7 +407,7 @@ def largest_accepted(
             else:
                 hi = mid - 1
         out[name] = lo or None
-    if getattr(settings, "integrator", "whitted") == "path":  # any count: bisect it as the sides
+    if getattr(settings, "integrator", Integrator.WHITTED) == Integrator.PATH:  # any count: bisect it as the sides
         lo, hi = 0, settings.samples_per_pixel
         while lo < hi:
             mid = (lo + hi + 1) // 2

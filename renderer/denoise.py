@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from .atrous import atrous
+from .integrators import Denoiser
 from .result import RenderResult
 from .scene import Scene
 
@@ -46,12 +47,13 @@ from .scene import Scene
 #   taps' temporaries, float32), rounded up.
 OIDN_BYTES_PER_PIXEL = 576 + 12
 ATROUS_BYTES_PER_PIXEL = 240
+BYTES_PER_PIXEL: dict[str, int] = {Denoiser.OIDN: OIDN_BYTES_PER_PIXEL, Denoiser.ATROUS: ATROUS_BYTES_PER_PIXEL}
 
 
 def denoise_nbytes(denoiser: str, width: int, height: int) -> int:
     """At most the bytes a ``denoiser`` adds while it denoises a ``width`` × ``height`` frame and
     that its output holds after (``off``: 0)."""
-    per_pixel = {"oidn": OIDN_BYTES_PER_PIXEL, "atrous": ATROUS_BYTES_PER_PIXEL}.get(denoiser, 0)
+    per_pixel = BYTES_PER_PIXEL.get(denoiser, 0)
     return int(width) * int(height) * per_pixel
 
 
@@ -83,10 +85,10 @@ def denoise_result(result: RenderResult, scene: Scene, denoiser: str) -> RenderR
     """``result`` with its radiance denoised by ``denoiser`` (``off``: ``result`` itself); the
     statistics say which and how long it took (``denoise``, ``denoise_ms``). ``scene``: the
     (posed) scene the frame was traced of."""
-    if denoiser == "off" or result.display is None:
+    if denoiser == Denoiser.OFF or result.display is None:
         return result
-    if denoiser not in ("oidn", "atrous"):
-        raise ValueError(f"unknown denoiser {denoiser!r}")  # renderer/settings.py's DENOISERS
+    if denoiser not in (Denoiser.OIDN, Denoiser.ATROUS):
+        raise ValueError(f"unknown denoiser {denoiser!r}")
     t0 = time.perf_counter()
     color = np.ascontiguousarray(result.image, np.float32)
     if result.guides is not None:
@@ -94,7 +96,7 @@ def denoise_result(result: RenderResult, scene: Scene, denoiser: str) -> RenderR
     else:
         albedo = first_hit_albedo(scene, result.primid)
         normal = np.ascontiguousarray(result.normal, np.float32)
-    if denoiser == "atrous":
+    if denoiser == Denoiser.ATROUS:
         image = atrous(color, albedo, normal, result.samples or 1)  # a path frame says its samples
     else:
         image = oidn(color, albedo, normal)

@@ -28,6 +28,7 @@ from typing import Protocol
 import numpy as np
 
 from . import gpu_layout
+from .integrators import Integrator
 from .limits import MAX_LIGHTS, MAX_PLANES
 from .scene import Scene
 
@@ -129,7 +130,7 @@ class SceneFeatures:
     def with_integrator(self, integrator: str, mode: str, guides: bool = False) -> SceneFeatures:
         """The features of a frame of this scene with ``integrator`` in ``mode`` (paths: colour only);
         ``guides``: a path frame writes the denoiser's guides too."""
-        path = integrator == "path" and mode == "color"
+        path = integrator == Integrator.PATH and mode == "color"
         return replace(self, path=path, guides=path and guides)
 
     def generic(self) -> SceneFeatures:
@@ -187,12 +188,17 @@ def scene_features(scene: Scene) -> SceneFeatures:
 
 class FrameSettings(Protocol):
     """What of a frame's settings chooses its variant (:class:`renderer.settings.RenderSettings` has
-    it; named here so that the core's features need not import the settings and the methods)."""
+    it; named here so that the core's features need not import the settings and the methods; read-only,
+    as a frozen dataclass's fields are)."""
 
-    integrator: str
-    mode: str
-    specialize: bool
-    max_recursion_depth: int
+    @property
+    def integrator(self) -> str: ...
+    @property
+    def mode(self) -> str: ...
+    @property
+    def specialize(self) -> bool: ...
+    @property
+    def max_recursion_depth(self) -> int: ...
 
 
 def frame_features(scene: Scene, settings: FrameSettings, guides: bool = False) -> tuple[SceneFeatures, int]:

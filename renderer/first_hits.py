@@ -39,12 +39,17 @@ from .scene import Scene
 
 class FrameSettings(Protocol):
     """What of a frame's settings the choice reads (:class:`renderer.settings.RenderSettings` has it;
-    named here so that the core need not import the settings and the methods)."""
+    named here so that the core need not import the settings and the methods; read-only, as a frozen
+    dataclass's fields are)."""
 
-    first_hits: str
-    mode: str
-    width: int
-    height: int
+    @property
+    def first_hits(self) -> str: ...
+    @property
+    def mode(self) -> str: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
 
 
 # The per-instance record of shaders/first_hits.vert (total: 36 bytes): the quad's corners in

@@ -58,7 +58,7 @@ def sampled_level_rays(scene: Scene, settings: RenderSettings) -> tuple[float, .
     to), scenes of more than ``RAY_TREE_SAMPLE_MAX_PRIMITIVES`` primitives, modes without a ray tree and
     the path integrator. A mesh scene's few glass or mirror surfaces branch only the rays that meet
     them (the demo room: 1.5 radiance rays a pixel, where every ray branching would be 34)."""
-    path = settings.integrator == "path" and settings.mode == "color"
+    path = settings.path_traced
     n = scene.n_spheres + scene.n_triangles + scene.n_shapes
     if path or settings.mode not in RAY_TREE_MODES or not (scene.n_triangles or scene.n_shapes):
         return None
@@ -103,7 +103,7 @@ def frame_cost(
     traced = estimate(method, stats, scene, settings, model, multi_pass, level_rays)
     if multi_pass:
         return traced
-    path = settings.integrator == "path" and settings.mode == "color"  # as the variant decides
+    path = settings.path_traced  # as the variant decides
     how = first_hits.chosen(scene, settings, path, method, stats)
     return first_hits.frame_cost(how, scene, settings, traced, model) if how else traced
 

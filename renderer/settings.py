@@ -1,24 +1,38 @@
 """Render settings (the render-settings JSON of ``docs/FORMATS.md``): each declared once, in
-:data:`SETTINGS`, and :class:`RenderSettings`, validated on construction, made from them.
+:data:`SETTINGS`; :class:`RenderSettings`, their typed frozen dataclass, validated on construction.
 
 A setting's :class:`SettingSpec` is all that is said of it anywhere: its name, type, bounds or
-choices, default, unit, which methods and modes read it, the client's label and a one-line doc.
-The API's query, patch and response models (:mod:`server.api.schemas`), the ``pocketray render``
-flags, ``GET /api/info``'s ``settings`` (what the client's settings sheet is built from) and
-:class:`RenderSettings` are all generated from the table; adding a setting is one entry here
-(and the code that reads it).
+choices (per integrator where they differ: :class:`IntegratorValues`), default, unit, which methods
+and modes read it, the client's label and a one-line doc. The API's query, patch and response models
+(:mod:`server.api.schemas`), the ``pocketray render`` flags, ``GET /api/info``'s ``settings`` (what
+the client's settings sheet is built from) and the validation of :class:`RenderSettings` are made
+from the table. :class:`RenderSettings`' fields and :class:`SettingValues`' keys are written out so
+that a type checker sees them, and are held to the table at import (:func:`check_declaration`,
+:func:`check_values_type`): adding a setting is one entry here, its field and key, and the code that
+reads it.
 """
 
 from __future__ import annotations
 
 import builtins
-import dataclasses
-from collections.abc import Iterable
-from dataclasses import asdict, dataclass, replace
-from typing import TYPE_CHECKING, Any
+import enum
+import math
+import typing
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field, fields, replace
+from typing import Any, TypedDict
 
 from . import limits
-from .limits import MAX_IMAGE_SIDE, MAX_PATH_DEPTH, MAX_PATH_SAMPLES, MAX_TIME, SAMPLES_PER_PIXEL
+from .integrators import Denoiser, Integrator, ToneMap, values
+from .limits import (
+    MAX_IMAGE_SIDE,
+    MAX_PATH_DEPTH,
+    MAX_PATH_SAMPLES,
+    MAX_RECURSION_DEPTH,
+    MAX_TIME,
+    PATH_SAMPLE_CHOICES,
+    SAMPLES_PER_PIXEL,
+)
 from .methods import AUTO_METHOD, METHODS, capabilities, integrator_methods
 from .modes import MODES, PRIMARY_MODES, RAY_TREE_MODES
 from .scene import SceneError
@@ -28,14 +42,10 @@ from .tree_update import DEFAULT_THRESHOLD, UPDATE_SCHEMES
 # measured crossover n, BIH above it).
 METHOD_NAMES = (*METHODS, AUTO_METHOD)
 FORMATS = ("png", "jpeg", "npy", "exr")  # exr: float channels (server/frames/exr.py)
-# How a frame's colour is computed (docs/SHADING.md): the thesis's Whitted ray tree, or unidirectional
-# path tracing of the same scene (one-pass methods only: Capabilities.integrators).
-INTEGRATORS = ("whitted", "path")
-# How the path integrator's radiance becomes a png/jpeg pixel (docs/SHADING.md, "Tone mapping").
-TONE_MAPS = ("clamp", "reinhard", "aces")
-# The path integrator's denoiser (renderer/denoise.py): none, Intel Open Image Denoise, or the
-# edge-avoiding à-trous filter (renderer/atrous.py; the one a browser runs in device mode).
-DENOISERS = ("off", "oidn", "atrous")
+# The JSON values of the settings whose choices are types (renderer/integrators.py).
+INTEGRATORS = values(Integrator)
+TONE_MAPS = values(ToneMap)
+DENOISERS = values(Denoiser)
 
 # How a primary-ray frame finds its first hits (renderer/first_hits.py).
 FIRST_HITS = ("auto", "trace", "raster", "tiles")
@@ -44,12 +54,65 @@ FIRST_HITS = ("auto", "trace", "raster", "tiles")
 TYPES: dict[str, type] = {"integer": int, "number": float, "boolean": bool, "string": str}
 
 
+Number = int | float
+
+
+@dataclass(frozen=True)
+class IntegratorValues:
+    """What one setting accepts, and what its numbers mean, under one integrator (``SettingSpec.by_integrator``).
+
+    meaning: what a value is under it (the API's description, the CLI's help and ``/api/info`` say it).
+    bounds or choices: the values allowed (inside the setting's own bounds, which the API's schema
+    states for every integrator). offered: the values a client lists (default: the choices). hint: how
+    these values read in another integrator's refusal ("any count 1 … 4096"). subpixel_grid: a value
+    ``s`` is a √s × √s grid of sub-pixels, so the frame is traced at √s × its size (which
+    ``limits.MAX_IMAGE_SIDE`` bounds). modes: the modes where these values hold (None: every one); in
+    the others the frame is Whitted's ray tree, and Whitted's values hold.
+    """
+
+    meaning: str
+    bounds: tuple[Number, Number] | None = None
+    choices: tuple[Number, ...] | None = None
+    offered: tuple[Number, ...] | None = None
+    hint: str = ""
+    subpixel_grid: bool = False
+    modes: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if (self.bounds is None) == (self.choices is None):
+            raise ValueError(f"values {self.meaning!r}: bounds or choices, one of them")
+
+    def accepts(self) -> str:
+        """The values, in words: ``one of 1, 4, 9, 16`` or ``1 … 4096``."""
+        if self.choices is not None:
+            return "one of " + ", ".join(map(str, self.choices))
+        assert self.bounds is not None
+        return f"{self.bounds[0]} … {self.bounds[1]}"
+
+    def listed(self) -> tuple[Number, ...] | None:
+        """The values a client lists for it."""
+        return self.offered if self.offered is not None else self.choices
+
+    def metadata(self) -> dict[str, Any]:
+        """What ``GET /api/info`` says of them (a setting's ``integrators``)."""
+        listed = self.listed()
+        return {
+            "meaning": self.meaning,
+            "minimum": self.bounds[0] if self.bounds else None,
+            "maximum": self.bounds[1] if self.bounds else None,
+            "choices": list(self.choices) if self.choices is not None else None,
+            "offered": list(listed) if listed is not None else None,
+            "subpixel_grid": self.subpixel_grid,
+            "modes": list(self.modes) if self.modes is not None else list(MODES),
+        }
+
+
 @dataclass(frozen=True)
 class SettingSpec:
     """One render setting, declared once.
 
     type: ``integer``, ``number``, ``boolean`` or ``string``. bounds: (lo, hi), inclusive, of a
-    number; choices: the values allowed (a string's, or an integer's such as samples_per_pixel).
+    number; choices: the values allowed (a string's, or an integer's).
     doc: the one line every description of it says (API schema, CLI help). label: the client's
     word for it. unit: what its numbers count. capability: read only by the methods whose
     ``Capabilities.settings`` name this (None: by every method). modes: read only in these
@@ -57,7 +120,8 @@ class SettingSpec:
     alone — the JPEG quality of the encoder). stored_since_first: every session ever stored has
     it, so the response model requires it (a setting added later is filled with its default for
     older sessions). sheet: the client's settings sheet offers it. client: the client keeps it
-    with its session's settings and carries it to a new session.
+    with its session's settings and carries it to a new session. by_integrator: what it accepts
+    and means under each integrator, where that differs (its own bounds then span them all).
     """
 
     name: str
@@ -74,6 +138,7 @@ class SettingSpec:
     stored_since_first: bool = False
     sheet: bool = False
     client: bool = False
+    by_integrator: Mapping[Integrator, IntegratorValues] | None = field(default=None, hash=False)
 
     def __post_init__(self) -> None:
         if self.type not in TYPES:
@@ -82,6 +147,32 @@ class SettingSpec:
             raise ValueError(f"setting {self.name}: a string setting names its choices")
         if self.type in ("integer", "number") and self.choices is None and self.bounds is None:
             raise ValueError(f"setting {self.name}: a number has bounds or choices")
+        if self.by_integrator is not None:
+            if Integrator.WHITTED not in self.by_integrator or self.bounds is None:
+                raise ValueError(f"setting {self.name}: values by integrator need Whitted's and bounds spanning all")
+            lo, hi = self.bounds
+            for name, v in self.by_integrator.items():
+                ends = v.choices if v.choices is not None else v.bounds
+                assert ends is not None  # IntegratorValues: bounds or choices
+                if not all(lo <= x <= hi for x in ends):
+                    raise ValueError(f"setting {self.name}: {name}'s values leave its bounds {lo} … {hi}")
+
+    def values_under(self, integrator: str, mode: str) -> IntegratorValues | None:
+        """What it accepts for a frame of ``integrator`` in ``mode`` (None: only its own bounds or choices)."""
+        if self.by_integrator is None:
+            return None
+        v = self.by_integrator.get(Integrator(integrator)) if integrator in INTEGRATORS else None
+        if v is None or (v.modes is not None and mode not in v.modes):
+            return self.by_integrator[Integrator.WHITTED]
+        return v
+
+    def description(self) -> str:
+        """Its doc, and what it means and accepts under each integrator: the API schema's description, the
+        CLI's help and ``/api/info``'s ``doc``."""
+        if self.by_integrator is None:
+            return self.doc
+        each = "; ".join(f"{i}: {v.meaning}, {v.accepts()}" for i, v in self.by_integrator.items())
+        return f"{self.doc}. {each}"
 
     @property
     def python_type(self) -> builtins.type:  # `type` here is the field above
@@ -93,8 +184,23 @@ class SettingSpec:
             return list(METHOD_NAMES)
         return [m for m in METHOD_NAMES if self.capability in capabilities(m, 1 << 30).settings]
 
-    def check(self, v: Any) -> None:
-        """SceneError naming this setting when ``v`` is not one of its values."""
+    def check(self, v: Any, integrator: str = Integrator.WHITTED, mode: str = "color") -> None:
+        """SceneError naming this setting when ``v`` is not one of its values (for a frame of
+        ``integrator`` in ``mode``)."""
+        self._check_own(v)
+        under = self.values_under(integrator, mode)
+        if under is None or self.by_integrator is None:
+            return
+        elsewhere = "; ".join(
+            f"{x.hint} with integrator '{i}'" for i, x in self.by_integrator.items() if x is not under and x.hint
+        )
+        hint = f" ({elsewhere})" if elsewhere else ""
+        if under.choices is not None and v not in under.choices:
+            raise SceneError(self.name, f"must be one of {under.choices}, got {v!r}{hint}")
+        if under.bounds is not None and not under.bounds[0] <= v <= under.bounds[1]:
+            raise SceneError(self.name, f"must be in {under.bounds[0]} … {under.bounds[1]}, got {v}{hint}")
+
+    def _check_own(self, v: Any) -> None:
         name = self.name
         if self.type == "boolean":
             if not isinstance(v, bool):
@@ -130,7 +236,10 @@ class SettingSpec:
             "choices": list(self.choices) if self.choices is not None else None,
             "unit": self.unit,
             "label": self.label,
-            "doc": self.doc,
+            "doc": self.description(),
+            "integrators": (
+                {i.value: v.metadata() for i, v in self.by_integrator.items()} if self.by_integrator else None
+            ),
             "methods": self.methods(),
             "modes": list(self.modes) if self.modes is not None else list(MODES),
             "engine": self.engine,
@@ -138,6 +247,10 @@ class SettingSpec:
             "client": self.client,
         }
 
+
+# The modes whose frames are the path integrator's when it is chosen: the recursion mode draws
+# Whitted's ray tree whatever the integrator, so Whitted's depth holds there.
+_PATH_DEPTH_MODES = tuple(m for m in MODES if m != "recursion")
 
 # Every render setting, in the order of the render-settings JSON (and of the API's models).
 SETTINGS: tuple[SettingSpec, ...] = (
@@ -229,8 +342,7 @@ SETTINGS: tuple[SettingSpec, ...] = (
         "max_recursion_depth",
         "integer",
         5,
-        f"1 = primary rays only; each reflection/refraction +1 (whitted: ≤ {limits.MAX_RECURSION_DEPTH}; "
-        f"path: segments of a path, Mitsuba's max_depth, ≤ {MAX_PATH_DEPTH})",
+        "1 = primary rays only; each reflection/refraction +1",
         "Recursion depth",
         unit="levels",
         bounds=(1, MAX_PATH_DEPTH),
@@ -238,6 +350,15 @@ SETTINGS: tuple[SettingSpec, ...] = (
         stored_since_first=True,
         sheet=True,
         client=True,
+        by_integrator={
+            Integrator.WHITTED: IntegratorValues("levels of the ray tree", bounds=(1, MAX_RECURSION_DEPTH)),
+            Integrator.PATH: IntegratorValues(
+                "segments of a path, Mitsuba's max_depth",
+                bounds=(1, MAX_PATH_DEPTH),
+                hint=f"up to {MAX_PATH_DEPTH}",
+                modes=_PATH_DEPTH_MODES,
+            ),
+        },
     ),
     SettingSpec(
         "format",
@@ -264,13 +385,26 @@ SETTINGS: tuple[SettingSpec, ...] = (
         "samples_per_pixel",
         "integer",
         1,
-        f"whitted: stratified supersampling, {', '.join(map(str, SAMPLES_PER_PIXEL))} (traced at √s× the "
-        f"resolution and box-filtered); path: paths per pixel, 1 … {MAX_PATH_SAMPLES}",
+        "samples of each pixel",
         "Quality (samples per pixel)",
         unit="samples",
         bounds=(1, MAX_PATH_SAMPLES),
         sheet=True,
         client=True,
+        by_integrator={
+            Integrator.WHITTED: IntegratorValues(
+                "a k × k grid of sub-pixels (stratified supersampling: the frame is traced at k × its size, "
+                f"at most {MAX_IMAGE_SIDE} a side, and box-filtered)",
+                choices=SAMPLES_PER_PIXEL,
+                subpixel_grid=True,
+            ),
+            Integrator.PATH: IntegratorValues(
+                "paths per pixel",
+                bounds=(1, MAX_PATH_SAMPLES),
+                offered=PATH_SAMPLE_CHOICES,
+                hint=f"any count 1 … {MAX_PATH_SAMPLES}",
+            ),
+        },
     ),
     SettingSpec(
         "integrator",
@@ -426,65 +560,84 @@ def setting(name: str, specs: Iterable[SettingSpec] | None = None) -> SettingSpe
 
 def _check_order(spec: SettingSpec) -> int:
     """The order settings are checked in (the first bad one is the one named): integers, the
-    integer choices (then the supersampled size), numbers, booleans, strings."""
+    integer choices (then a sub-pixel grid's traced size), numbers, booleans, strings."""
     if spec.type == "integer":
-        return 0 if spec.choices is None and spec.name != "samples_per_pixel" else 1
+        by = spec.by_integrator.values() if spec.by_integrator else ()
+        return 0 if spec.choices is None and not any(v.choices for v in by) else 1
     return {"number": 2, "boolean": 3, "string": 4}[spec.type]
 
 
-class _RenderSettingsBase:
-    """The behaviour of :class:`RenderSettings`; its fields are the engine settings of :data:`SETTINGS`."""
+@dataclass(frozen=True)
+class RenderSettings:
+    """How to render a scene: the engine settings of :data:`SETTINGS` (each one's doc there), each a
+    field here with its type and default (:func:`check_declaration` holds the two to each other).
 
-    _specs: tuple[SettingSpec, ...] = ()
-    _checks: tuple[SettingSpec, ...] = ()  # _specs in the order they are checked
+    Validated on construction (:class:`~renderer.scene.SceneError` names the first bad one), the
+    strings whose choices are types made those types. max_prims / max_tree_depth: BIH build limits
+    (depth counts the root as 1, as Table 4.2). max_recursion_depth: 1 = primary rays only (the thesis's
+    Fig. 4.4), each reflected or transmitted ray is one more level (the path integrator: segments of a
+    path). samples_per_pixel: Whitted's k × k sub-pixel grid (1, 4, 9 or 16) — the frame is traced at k
+    times the resolution and box-filtered; depth, primid and normal come from the sub-pixel nearest the
+    pixel centre, and the traced size must stay within ``limits.MAX_IMAGE_SIDE`` — or the path
+    integrator's paths per pixel. min_weight: a reflected or transmitted ray whose path weight (the
+    product of kr/kt along its path) is below ε is not traced. tile_size: the hierarchical ray engine's
+    tile edge (images it does not divide are padded). specialize: compile the shader with only the
+    features the scene uses and clamp the recursion depth to what its materials can use (exact: the
+    image does not change). time: when an animated scene is posed (a static one ignores it). update:
+    how a method that keeps its tree between frames follows the motion — ``rebuild``, ``refit`` or
+    ``selective`` (rebuild the subtrees whose SAH cost grew by more than ``update_threshold``); see
+    :mod:`renderer.tree_update`. The method must be able to draw the mode.
+    """
 
-    if TYPE_CHECKING:  # the fields are made from SETTINGS at run time
-
-        def __init__(self, **kw: Any) -> None: ...
-
-        def __getattr__(self, name: str) -> Any: ...
+    width: int = 640
+    height: int = 1088
+    method: str = "bih"
+    mode: str = "color"
+    first_hits: str = "auto"
+    max_prims: int = 8
+    max_tree_depth: int = limits.MAX_TREE_DEPTH
+    max_recursion_depth: int = 5
+    format: str = "png"
+    samples_per_pixel: int = 1
+    integrator: Integrator = Integrator.WHITTED
+    tone_map: ToneMap = ToneMap.CLAMP
+    exposure: float = 0.0
+    denoise: Denoiser = Denoiser.OFF
+    min_weight: float = 0.0
+    specialize: bool = True
+    tile_size: int = limits.DEFAULT_TILE_SIZE
+    time: float = 0.0
+    update: str = "rebuild"
+    update_threshold: float = DEFAULT_THRESHOLD
 
     def __post_init__(self) -> None:
-        path = getattr(self, "integrator", "whitted") == "path"
-        for spec in self._checks:
-            spec.check(getattr(self, spec.name))
-            if (
-                spec.name == "max_recursion_depth"
-                and self.max_recursion_depth > limits.MAX_RECURSION_DEPTH
-                and (not path or self.mode == "recursion")
-            ):  # (the recursion mode draws Whitted's tree)
-                raise SceneError(
-                    spec.name,
-                    f"must be in 1 … {limits.MAX_RECURSION_DEPTH}, got "
-                    f"{self.max_recursion_depth} (up to {MAX_PATH_DEPTH} with integrator 'path')",
-                )
-            if spec.name == "samples_per_pixel" and not path and self.samples_per_pixel not in SAMPLES_PER_PIXEL:
-                raise SceneError(
-                    spec.name,
-                    f"must be one of {SAMPLES_PER_PIXEL}, got {self.samples_per_pixel!r} "
-                    f"(any count 1 … {MAX_PATH_SAMPLES} with integrator 'path')",
-                )
-            if spec.name == "samples_per_pixel":
-                k = self.supersampling
+        plan = _validation(type(self))
+        integrator = self.integrator  # a string until checked: another integrator's values name it
+        for spec in plan.checks:
+            v = getattr(self, spec.name)
+            spec.check(v, integrator, self.mode)
+            under = spec.values_under(integrator, self.mode)
+            if under is not None and under.subpixel_grid:
+                k = math.isqrt(v)
                 if max(self.width, self.height) * k > MAX_IMAGE_SIDE:
                     raise SceneError(
-                        "samples_per_pixel",
-                        f"{self.width}×{self.height} at {self.samples_per_pixel} "
-                        f"samples needs {self.width * k}×{self.height * k}, over the "
-                        f"{MAX_IMAGE_SIDE} limit",
+                        spec.name,
+                        f"{self.width}×{self.height} at {v} samples needs {self.width * k}×{self.height * k}, "
+                        f"over the {MAX_IMAGE_SIDE} limit",
                     )
+        for name, choices in plan.enums.items():  # checked above: one of its members
+            object.__setattr__(self, name, choices(getattr(self, name)))
         self.check_method()
 
     def check_method(self, n_spheres: int = 0) -> None:
         """The method can draw the mode (``auto`` resolved for ``n_spheres``): no frame of
         these settings is refused later for a combination known now."""
         able = capabilities(self.method, n_spheres).modes
-        integrator = getattr(self, "integrator", "whitted")
-        if integrator not in capabilities(self.method, n_spheres).integrators:
+        if self.integrator not in capabilities(self.method, n_spheres).integrators:
             raise SceneError(
                 "integrator",
-                f"integrator {integrator!r} is not available with method "
-                f"{self.method!r}; the methods that trace it: {', '.join(integrator_methods(integrator))}",
+                f"integrator '{self.integrator}' is not available with method "
+                f"{self.method!r}; the methods that trace it: {', '.join(integrator_methods(self.integrator))}",
             )
         if self.mode not in able:
             hint = (
@@ -496,21 +649,26 @@ class _RenderSettingsBase:
 
     @property
     def supersampling(self) -> int:
-        """Sub-pixels per side: √samples_per_pixel (the path integrator: 1, its samples are paths)."""
-        if getattr(self, "integrator", "whitted") == "path":
-            return 1
-        return {1: 1, 4: 2, 9: 3, 16: 4}.get(self.samples_per_pixel, 1)
+        """Sub-pixels per side: k of Whitted's k × k grid (the path integrator: 1, its samples are paths)."""
+        under = setting("samples_per_pixel").values_under(self.integrator, self.mode)
+        return math.isqrt(self.samples_per_pixel) if under is not None and under.subpixel_grid else 1
+
+    @property
+    def path_traced(self) -> bool:
+        """Its colour is the path integrator's radiance (the other modes show the first hit or Whitted's tree)."""
+        return self.integrator is Integrator.PATH and self.mode == "color"
 
     def with_(self, **kw: Any) -> RenderSettings:
-        return replace(self, **kw)  # type: ignore[type-var]  # a dataclass, made by build_render_settings
+        return replace(self, **kw)
 
-    def to_json(self) -> dict:
-        return asdict(self)  # type: ignore[call-overload]  # a dataclass, made by build_render_settings
+    def to_json(self) -> dict[str, Any]:
+        """Its fields as JSON values (the types' members as their strings)."""
+        return {f.name: _plain(getattr(self, f.name)) for f in fields(self)}
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
         """Its fields: the engine settings, in their order."""
-        return tuple(s.name for s in cls._specs)
+        return tuple(f.name for f in fields(cls))
 
     @classmethod
     def from_json(cls, d: Any) -> RenderSettings:
@@ -523,40 +681,92 @@ class _RenderSettingsBase:
         return cls(**d)
 
 
-_DOC = """How to render a scene: the engine settings of :data:`SETTINGS` (each one's doc there).
-
-    Validated on construction (:class:`~renderer.scene.SceneError` names the first bad one). max_prims /
-    max_tree_depth: BIH build limits (depth counts the root as 1, as Table 4.2). max_recursion_depth: 1 =
-    primary rays only (the thesis's Fig. 4.4), each reflected or transmitted ray is one more level.
-    samples_per_pixel: 1, 4, 9 or 16 — the frame is traced at √s times the resolution and box-filtered
-    (stratified supersampling); depth, primid and normal come from the sub-pixel nearest the pixel centre,
-    and the traced size must stay within ``limits.MAX_IMAGE_SIDE``. min_weight: a reflected or transmitted
-    ray whose path weight (the product of kr/kt along its path) is below ε is not traced. tile_size: the
-    hierarchical ray engine's tile edge (images it does not divide are padded). specialize: compile the
-    shader with only the features the scene uses and clamp the recursion depth to what its materials can
-    use (exact: the image does not change). time: when an animated scene is posed (a static one ignores
-    it). update: how a method that keeps its tree between frames follows the motion — ``rebuild``,
-    ``refit`` or ``selective`` (rebuild the subtrees whose SAH cost grew by more than
-    ``update_threshold``); see :mod:`renderer.tree_update`. The method must be able to draw the mode.
-    """
+def _plain(v: Any) -> Any:
+    return v.value if isinstance(v, enum.Enum) else v
 
 
-def build_render_settings(specs: Iterable[SettingSpec] | None = None) -> type:
-    """The frozen dataclass of the engine settings of ``specs`` (default: :data:`SETTINGS` as it is now), in
-    their order, with their defaults."""
-    specs = tuple(s for s in (SETTINGS if specs is None else specs) if s.engine)
-    cls = dataclasses.make_dataclass(
-        "RenderSettings",
-        [(s.name, s.python_type, dataclasses.field(default=s.default)) for s in specs],
-        bases=(_RenderSettingsBase,),
-        frozen=True,
-        namespace={"__doc__": _DOC, "_specs": specs, "_checks": tuple(sorted(specs, key=_check_order))},
-    )
-    cls.__module__ = __name__  # pickled by name, as a class written here would be
-    return cls
+@dataclass(frozen=True)
+class _Validation:
+    checks: tuple[SettingSpec, ...]  # the fields' declarations, in the order they are checked
+    enums: dict[str, type[enum.StrEnum]]  # the fields whose type is a StrEnum: made members after the checks
 
 
-if TYPE_CHECKING:
-    RenderSettings = _RenderSettingsBase
-else:
-    RenderSettings = build_render_settings()
+_VALIDATIONS: dict[type[RenderSettings], _Validation] = {}
+
+
+def _validation(cls: type[RenderSettings]) -> _Validation:
+    """How ``cls`` is validated, from the table as it is when its first instance is made."""
+    if cls not in _VALIDATIONS:
+        _VALIDATIONS[cls] = _plan_validation(cls)
+    return _VALIDATIONS[cls]
+
+
+def _plan_validation(cls: type[RenderSettings]) -> _Validation:
+    declared = {s.name: s for s in SETTINGS}
+    own = [declared[f.name] for f in fields(cls)]
+    hints = typing.get_type_hints(cls)
+    enums = {f.name: t for f in fields(cls) if isinstance(t := hints[f.name], type) and issubclass(t, enum.StrEnum)}
+    return _Validation(tuple(sorted(own, key=_check_order)), enums)
+
+
+def check_declaration(cls: type[RenderSettings] = RenderSettings, specs: Iterable[SettingSpec] | None = None) -> None:
+    """TypeError unless ``cls``'s fields are the engine settings of ``specs`` (default: :data:`SETTINGS`), in
+    their order, each of the declared type (a string's StrEnum with the declared choices) and default."""
+    engine = [s for s in (SETTINGS if specs is None else specs) if s.engine]
+    hints = typing.get_type_hints(cls)
+    got, want = [f.name for f in fields(cls)], [s.name for s in engine]
+    if got != want:
+        raise TypeError(f"RenderSettings' fields {got} are not the declared engine settings {want}")
+    for f, spec in zip(fields(cls), engine, strict=True):
+        t = hints[f.name]
+        if not (isinstance(t, type) and issubclass(t, spec.python_type)) or (t is int) != (spec.python_type is int):
+            raise TypeError(f"RenderSettings.{f.name} is {t}, declared {spec.type}")
+        if isinstance(t, type) and issubclass(t, enum.StrEnum) and values(t) != spec.choices:
+            raise TypeError(f"RenderSettings.{f.name}'s members {values(t)} are not the declared {spec.choices}")
+        if f.default != spec.default or type(_plain(f.default)) is not type(spec.default):
+            raise TypeError(f"RenderSettings.{f.name} defaults to {f.default!r}, declared {spec.default!r}")
+
+
+check_declaration()  # at import: the class and the table cannot disagree in a running service
+
+
+class SettingValues(TypedDict, total=False):
+    """Settings by name, as JSON has them: a patch (some of them) or a session's settings (all of them,
+    the service's own included). :func:`check_values_type` holds it to :data:`SETTINGS`."""
+
+    width: int
+    height: int
+    method: str
+    mode: str
+    first_hits: str
+    max_prims: int
+    max_tree_depth: int
+    max_recursion_depth: int
+    format: str
+    quality: int
+    samples_per_pixel: int
+    integrator: str
+    tone_map: str
+    exposure: float
+    denoise: str
+    refine_samples: int
+    refine_time_ms: int
+    refine_noise: float
+    min_weight: float
+    specialize: bool
+    tile_size: int
+    time: float
+    update: str
+    update_threshold: float
+
+
+def check_values_type(specs: Iterable[SettingSpec] | None = None) -> None:
+    """TypeError unless :class:`SettingValues` has a key of the declared type for every setting of ``specs``."""
+    specs = tuple(SETTINGS if specs is None else specs)
+    hints = typing.get_type_hints(SettingValues)
+    want = {s.name: s.python_type for s in specs}
+    if hints != want:
+        raise TypeError(f"SettingValues' keys {hints} are not the declared settings {want}")
+
+
+check_values_type()

@@ -7,13 +7,17 @@ is written as it always was, without this.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
+from .integrators import ToneMap
+
 # operator name → f(x) for x ≥ 0 (radiance × 2^exposure), in [0, 1] after the final clamp.
-OPERATORS = {
-    "clamp": lambda x: x,  # the radiance itself, 1 and above white
-    "reinhard": lambda x: x / (1.0 + x),  # Reinhard et al. 2002, the global operator
-    "aces": lambda x: (x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14),  # Narkowicz 2015's fit
+OPERATORS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    ToneMap.CLAMP: lambda x: x,  # the radiance itself, 1 and above white
+    ToneMap.REINHARD: lambda x: x / (1.0 + x),  # Reinhard et al. 2002, the global operator
+    ToneMap.ACES: lambda x: (x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14),  # Narkowicz 2015's fit
 }
 
 

@@ -9,16 +9,20 @@ one process) on 127.0.0.1:8000.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal, cast
 
 from pydantic import AliasChoices, Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from renderer.cost import request_work
+from renderer.integrators import Integrator
 from renderer.limits import JPEG_QUALITY_RANGE, MAX_PROGRAMS, MAX_SPHERES, MAX_TREE_DEPTH, MAX_TRIANGLES
 from renderer.profiles import STILL
 
 from . import resources
+
+if TYPE_CHECKING:
+    from renderer.settings import SettingValues
 
 FIT_SIDE = 1088  # pixels: the side of the browser client's largest 'fit' frame
 QUALITY_MIN, QUALITY_MAX = JPEG_QUALITY_RANGE
@@ -435,14 +439,14 @@ class ServerConfig(BaseSettings):
         from renderer.scene import SceneError
         from renderer.settings import RenderSettings
 
-        d = self.default_settings()
+        d: dict[str, Any] = dict(self.default_settings())
         try:
             RenderSettings(**{k: v for k, v in d.items() if k in RenderSettings.names()})
         except (SceneError, TypeError) as e:
             raise ValueError(f"default_render: {e}") from None
         if not (isinstance(d["quality"], int) and QUALITY_MIN <= d["quality"] <= QUALITY_MAX):
             raise ValueError(f"default_render: quality must be an integer {QUALITY_MIN} … {QUALITY_MAX}")
-        path = d.get("integrator", "whitted") == "path"
+        path = d.get("integrator", Integrator.WHITTED) == Integrator.PATH
         work = request_work(d["width"], d["height"], d["max_recursion_depth"], d["samples_per_pixel"], path)
         if work > self.max_work:
             what = (
@@ -453,7 +457,7 @@ class ServerConfig(BaseSettings):
             raise ValueError(f"default_render: {what} = {work:.0f} exceeds max_work = {self.max_work}")
         return self
 
-    def default_settings(self) -> dict[str, Any]:
+    def default_settings(self) -> SettingValues:
         """Render defaults of new sessions: RenderSettings' defaults, the 'still' profile the
         speed-against-accuracy experiment recommends (a session's frames are its still frames;
         the client asks for the 'interactive' profile while a finger moves), quality, and
@@ -462,10 +466,11 @@ class ServerConfig(BaseSettings):
 
         still = {k: v for k, v in STILL.items() if k in RenderSettings.names()}
         service_own = {s.name: s.default for s in SETTINGS if not s.engine}  # the encoder's: quality
-        return {
+        out = {
             **RenderSettings().to_json(),
             **still,
             **service_own,
             "quality": self.default_jpeg_quality,
             **self.default_render,
         }
+        return cast("SettingValues", out)  # every declared setting; _check validates them

@@ -33,6 +33,7 @@ SIDE = 16
 def variants(limit: int) -> list[dict]:
     """Up to ``limit`` frame queries of distinct shader variants of SCENE, cheapest first."""
     from renderer.features import frame_features
+    from renderer.integrators import Denoiser
     from renderer.methods import METHODS
     from renderer.scenarios import scenario
     from renderer.settings import SETTINGS, RenderSettings
@@ -49,7 +50,7 @@ def variants(limit: int) -> list[dict]:
         (False, True),  # specialize
         choices["first_hits"],
         choices["denoise"],
-        ("whitted", "path"),
+        choices["integrator"],
         choices["mode"],
         one_pass,
     )
@@ -73,9 +74,9 @@ def variants(limit: int) -> list[dict]:
             continue
         if mode not in METHODS[method].capabilities.modes:
             continue
-        guides = denoise != "off"
+        guides = settings.denoise != Denoiser.OFF
         features, d = frame_features(scene, settings, guides=guides)
-        image = fmt == "png" and not (integrator == "path" and mode == "color")
+        image = fmt == "png" and not settings.path_traced
         primary = first_hits if mode in ("depth", "primid", "normal") else ""
         key = (method, mode, d, features.defines(), image, primary)
         if key in seen:

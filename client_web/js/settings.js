@@ -124,13 +124,6 @@ export const RESOLUTIONS = Object.freeze([
   { value: '1280x720', label: '1280 × 720' },
   { value: 'custom', label: 'Custom…' },
 ]);
-// Samples per pixel (GET /api/info lists the service's); 4 is the 'still' profile's.
-export const SAMPLES = Object.freeze([
-  { value: 1, label: '1 — fastest' },
-  { value: 4, label: '4 — smooth edges (still)' },
-  { value: 9, label: '9' },
-  { value: 16, label: '16 — finest' },
-]);
 export const PREVIEW_SCALES = Object.freeze([
   { value: 'auto', label: 'Auto (≥ 15 fps)' },   // client.previewAuto: preview_size.js
   { value: 1, label: 'Full (no preview)' },

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from .. import gpu_layout
+from ..integrators import Integrator
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..modes import SINGLE_PASS_MODES
 from ..scene import Scene
@@ -108,11 +109,11 @@ class Capabilities:
     max_primitives: int | None = None
 
     @property
-    def integrators(self) -> tuple[str, ...]:
+    def integrators(self) -> tuple[Integrator, ...]:
         """How it can compute a frame's colour: the Whitted ray tree, and the path integrator where
         it reads the ``integrator`` setting (one pass of ``raytrace.frag``: its paths are traced
         in the same loop as the traversal's rays)."""
-        return ("whitted", "path") if "integrator" in self.settings else ("whitted",)
+        return tuple(Integrator) if "integrator" in self.settings else (Integrator.WHITTED,)
 
     @property
     def device(self) -> bool:

@@ -82,9 +82,7 @@ def image_only(settings: RenderSettings) -> bool:
     """Whether a frame needs only its 8-bit image: png or jpeg at one sample per pixel (a
     supersampled frame keeps float sub-pixels, so its box filter is the same)."""
     return (
-        settings.format in ("png", "jpeg")
-        and settings.samples_per_pixel == 1
-        and not (settings.integrator == "path" and settings.mode == "color")
+        settings.format in ("png", "jpeg") and settings.samples_per_pixel == 1 and not settings.path_traced
     )  # radiance, tone-mapped later
 
 

@@ -27,6 +27,7 @@ from ..accel.ray_engine import RayEngine
 from ..animation import AnimatedScene
 from ..features import frame_features
 from ..gpu_layout import Variant
+from ..integrators import Denoiser
 from ..limits import DEFAULT_TEXTURE_WIDTH, MAX_PROGRAMS, PATH_SAMPLES_PER_PASS
 from ..methods import METHODS, PreparedMethod, check_primitives, resolve_method
 from ..prepare import PreparedFrame, prepare_frame
@@ -229,7 +230,7 @@ class GLRenderer:
             prepared = method.prepare(
                 scene, settings.max_prims, settings.max_tree_depth, self.max_texture_width, update
             )
-        features, depth = frame_features(scene, settings, guides=settings.denoise != "off")
+        features, depth = frame_features(scene, settings, guides=settings.denoise != Denoiser.OFF)
         image = self.image_targets and image_only(settings) and accumulated is None  # (a sum needs floats)
         variant = Variant(method_name, settings.mode, depth, features.defines(), image_only=image)
         variant = Variant(

@@ -16,7 +16,7 @@ and ``dx``/``dy`` in pixels.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, get_args
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, cast, get_args
 
 from pydantic import (
     BaseModel,
@@ -69,7 +69,7 @@ from renderer.limits import (
 )
 from renderer.mesh_io import UPLOAD_FORMATS
 from renderer.scenarios import CUBE_HALF, MAX_MESH_DETAIL, MESH_SCENES
-from renderer.settings import SettingSpec, setting
+from renderer.settings import SettingSpec, SettingValues, setting
 
 from ..frames.device_data import DEFAULT_MAX_TEXTURE_SIZE, FEATURE_DEFINES
 
@@ -432,7 +432,7 @@ class SceneModel(Strict):
 def setting_type(spec: SettingSpec) -> Any:
     """The field type of one setting: its bounds or choices, its doc as the description; integers as
     JSON Schema has them (:data:`Integral`)."""
-    described = Field(description=spec.doc)
+    described = Field(description=spec.description())
     if spec.choices is not None:
         values = Literal[spec.choices]  # type: ignore[name-defined]  # a Literal of the declared choices, made at run time
         return Annotated[values, Integral, described] if spec.type == "integer" else Annotated[values, described]
@@ -441,8 +441,8 @@ def setting_type(spec: SettingSpec) -> Any:
     assert spec.bounds is not None, f"setting {spec.name}: a number has bounds"
     lo, hi = spec.bounds
     if spec.type == "integer":
-        return Annotated[int, Field(ge=lo, le=hi, description=spec.doc), Integral]
-    return Annotated[float, Field(ge=lo, le=hi, allow_inf_nan=False, description=spec.doc)]
+        return Annotated[int, Field(ge=lo, le=hi, description=spec.description()), Integral]
+    return Annotated[float, Field(ge=lo, le=hi, allow_inf_nan=False, description=spec.description())]
 
 
 class RenderParamsBase(BaseModel):
@@ -451,9 +451,9 @@ class RenderParamsBase(BaseModel):
     model_config = ConfigDict(allow_inf_nan=False)
     setting_names: ClassVar[tuple[str, ...]] = ()
 
-    def given(self) -> dict[str, Any]:
-        """The settings named, as a patch of a session's settings."""
-        return {k: v for k in self.setting_names if (v := getattr(self, k)) is not None}
+    def given(self) -> SettingValues:
+        """The settings named, as a patch of a session's settings (each checked against its declaration)."""
+        return cast(SettingValues, {k: v for k in self.setting_names if (v := getattr(self, k)) is not None})
 
 
 def build_render_params(specs: Iterable[SettingSpec] | None = None) -> type[RenderParamsBase]:
@@ -527,6 +527,10 @@ class QueryModel(BaseModel):
 _INT = TypeAdapter(int)
 
 
+# The settings whose values are listed integers (a Literal of them in the models).
+_INTEGER_CHOICES = tuple(s.name for s in declared.SETTINGS if s.type == "integer" and s.choices is not None)
+
+
 class FrameQuery(RenderParams, QueryModel):
     """A frame's render settings in the query; missing ones come from the session's."""
 
@@ -542,13 +546,17 @@ class FrameQuery(RenderParams, QueryModel):
     @classmethod
     def _literal_ints_from_text(cls, data: Any) -> Any:
         """A query's values are text. pydantic reads "4" as an int field's 4 but not as an int
-        Literal's, so samples_per_pixel is read as an integer first (and then checked as the set)."""
-        if isinstance(data, dict) and isinstance(data.get("samples_per_pixel"), str):
-            try:
-                return {**data, "samples_per_pixel": _INT.validate_python(data["samples_per_pixel"])}
-            except ValidationError:
-                pass  # not a number: the Literal's error names the allowed values
-        return data
+        Literal's, so a setting of integer choices is read as an integer first (and then checked as the set)."""
+        if not isinstance(data, dict):
+            return data
+        read = dict(data)
+        for name in _INTEGER_CHOICES:
+            if isinstance(data.get(name), str):
+                try:
+                    read[name] = _INT.validate_python(data[name])
+                except ValidationError:
+                    pass  # not a number: the Literal's error names the allowed values
+        return read
 
 
 class SessionFrameQuery(FrameQuery):
@@ -620,8 +628,8 @@ class StatsQuery(QueryModel):
     max_tree_depth: optional(TreeDepth) = None
     time: optional(Time) = None
 
-    def given(self) -> dict[str, Any]:
-        return {k: v for k, v in self.model_dump().items() if v is not None}
+    def given(self) -> SettingValues:
+        return cast(SettingValues, {k: v for k, v in self.model_dump().items() if v is not None})
 
 
 # The render settings a device-data query may name: those that choose the data and the shader
@@ -661,9 +669,9 @@ class DeviceDataQuery(QueryModel):
     )
     float_textures: bool = Field(True, description="the device renders to RGBA32F (WebGL2: EXT_color_buffer_float)")
 
-    def given(self) -> dict[str, Any]:
+    def given(self) -> SettingValues:
         """The render settings named (not the device's own parameters)."""
-        return {k: v for k in DEVICE_SETTINGS if (v := getattr(self, k)) is not None}
+        return cast(SettingValues, {k: v for k in DEVICE_SETTINGS if (v := getattr(self, k)) is not None})
 
 
 # What server.api.routes.device.parse_features reads: names from FEATURE_DEFINES, commas, whitespace.
@@ -974,6 +982,20 @@ class MethodSettingsOut(BaseModel):
     auto: bool = Field(False, description="resolved per scene: brute force below the crossover, else bih")
 
 
+class IntegratorValuesOut(BaseModel):
+    """What a setting accepts, and means, under one integrator (renderer.settings.IntegratorValues)."""
+
+    meaning: str = Field(description="what a value is under this integrator")
+    minimum: int | float | None = Field(None, description="smallest value (when bounded)")
+    maximum: int | float | None = Field(None, description="largest value (when bounded)")
+    choices: list[Any] | None = Field(None, description="the values allowed (when listed)")
+    offered: list[Any] | None = Field(None, description="the values a client lists: the choices, or suggestions")
+    subpixel_grid: bool = Field(
+        False, description="a value s is a √s × √s grid of sub-pixels: the frame is traced at √s × its size"
+    )
+    modes: list[str] = Field(description="the modes where these values hold (in the others: Whitted's)")
+
+
 class SettingInfoOut(BaseModel):
     """One render setting as it is declared (renderer.settings.SETTINGS): what a client builds its settings
     form from."""
@@ -989,6 +1011,9 @@ class SettingInfoOut(BaseModel):
     unit: str = ""
     label: str = Field(description="the client's word for it")
     doc: str = Field(description="one line: what it does")
+    integrators: dict[str, IntegratorValuesOut] | None = Field(
+        None, description="what it accepts and means under each integrator, where that differs (null: the same)"
+    )
     methods: list[str] = Field(description="the methods that read it")
     modes: list[str] = Field(description="the modes that read it")
     engine: bool = Field(True, description="the renderer reads it (false: the service's own, e.g. JPEG quality)")

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from renderer.integrators import Integrator
 from renderer.limits import MAX_ACCUMULATED_SAMPLES
 from renderer.settings import RenderSettings
 
@@ -51,7 +52,7 @@ def accumulation_key(scene_rev: str, camera_json: str, settings: RenderSettings)
     """The key of a frame of ``settings`` through ``camera_json`` of the scene revision ``scene_rev``
     (a Whitted frame's ``samples_per_pixel`` is its sub-pixel grid, whose slices the count numbers:
     part of the key)."""
-    skip = NOT_IMAGE_SETTINGS if settings.integrator == "path" else NOT_IMAGE_SETTINGS - {"samples_per_pixel"}
+    skip = NOT_IMAGE_SETTINGS if settings.integrator == Integrator.PATH else NOT_IMAGE_SETTINGS - {"samples_per_pixel"}
     fields = tuple((k, getattr(settings, k)) for k in sorted(RenderSettings.names()) if k not in skip)
     return AccumulationKey(scene_rev, camera_json, fields)
 

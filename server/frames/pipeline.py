@@ -44,6 +44,7 @@ from renderer.accel.base import NOT_ON_GPU
 from renderer.animation import AnimatedScene, pose
 from renderer.cost import largest_accepted
 from renderer.denoise import denoise_nbytes, denoise_result
+from renderer.integrators import Denoiser
 from renderer.limits import DEFAULT_TEXTURE_WIDTH
 from renderer.methods import METHODS, capabilities, resolve_method
 from renderer.prepare import PreparedFrame, band_rows, batch_size, prepare_frame
@@ -129,7 +130,7 @@ def frame_nbytes(settings: RenderSettings, accumulate: bool = False) -> int:
         (PATH_SUM_BYTES_PER_PIXEL + MEAN_BYTES_PER_PIXEL if path or accumulate else 0)
         + (ACCUMULATION_BYTES_PER_PIXEL if accumulate else 0)
         + (WHITTED_TOTAL_BYTES_PER_PIXEL if accumulate and not path else 0)
-        + (GUIDE_BYTES_PER_PIXEL if path and s.denoise != "off" else 0)
+        + (GUIDE_BYTES_PER_PIXEL if path and s.denoise != Denoiser.OFF else 0)
         + (DISPLAY_BYTES_PER_PIXEL[path] if s.format in ("png", "jpeg") and not only_image else 0)
     )
     return (
@@ -180,7 +181,7 @@ def trim_heap() -> None:
 
 def radiance(settings: RenderSettings) -> bool:
     """Whether the frame's image is the path integrator's float radiance (npy: 12 bytes a pixel)."""
-    return settings.integrator == "path" and settings.mode == "color"
+    return settings.path_traced
 
 
 def accumulates(settings: RenderSettings) -> bool:
@@ -482,7 +483,7 @@ class FramePipeline:
             x
             for x in (
                 "accumulate" if accumulate else "",
-                f"denoise={s.denoise}" if radiance(s) and s.denoise != "off" else "",
+                f"denoise={s.denoise}" if radiance(s) and s.denoise != Denoiser.OFF else "",
             )
             if x
         ]

@@ -8,13 +8,12 @@ names (``("width",)``, ``("scene", "spheres")``): the route places it in the bod
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from renderer.cost import path_segments, request_work
+from renderer.integrators import Integrator
 from renderer.scene import SceneError
-from renderer.settings import RenderSettings
+from renderer.settings import RenderSettings, SettingValues
 
 from ..api.schemas import SceneModel
 from ..config import ServerConfig
@@ -29,9 +28,9 @@ class InputCaps:
     def __init__(self, config: ServerConfig):
         self.config = config
 
-    def merge_settings(self, base: dict[str, Any], patch: dict[str, Any]) -> dict[str, Any]:
+    def merge_settings(self, base: SettingValues, patch: SettingValues) -> SettingValues:
         """``base`` updated by ``patch``, validated by RenderSettings (InputError at the setting)."""
-        merged = {**base, **patch}
+        merged: SettingValues = {**base, **patch}
         try:
             render_settings(merged)
         except SceneError as e:
@@ -43,7 +42,7 @@ class InputCaps:
         ``renderer.cost.request_work``), and the modes the method can draw.
         (The cost of a frame, POCKETRAY_MAX_FRAME_COST, is checked by the pipeline's plan.)"""
         w, h, d, spp = settings.width, settings.height, settings.max_recursion_depth, settings.samples_per_pixel
-        path = settings.integrator == "path"
+        path = settings.integrator == Integrator.PATH
         work = request_work(w, h, d, spp, path)
         if work > self.config.max_work:
             if path:  # the expected segments of its paths (renderer/cost.py, path_segments)

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from renderer.limits import MAX_PATH_SAMPLES
+from renderer.settings import SettingValues
 
 from ..faults import FrameTooLarge, InputError, NotFound, Superseded
 from ..frames.encode import Frame
@@ -93,7 +94,7 @@ def next_slice(samples: int, trace_ms: float, slice_ms: float, left: int) -> int
 def refine(
     service: SessionService,
     session_id: str,
-    patch: dict[str, Any],
+    patch: SettingValues,
     *,
     target_samples: int | None = None,
     target_ms: int | None = None,

@@ -22,7 +22,7 @@ from __future__ import annotations
 import secrets
 import threading
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, cast
 
 from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum
 from renderer.envmap import STORED_TEXEL_BYTES, EnvironmentMap, declared_size, image_ref
@@ -30,6 +30,7 @@ from renderer.limits import MAX_TRIANGLES
 from renderer.mesh_io import fit_transform
 from renderer.scenarios import DEFAULT_DEMO, demo_for_recipe, framed, mesh_scene, scenario
 from renderer.scene import Camera, Scene, SceneError
+from renderer.settings import SettingValues
 
 from ..api.schemas import (
     MeshUploadQuery,
@@ -103,7 +104,7 @@ class SessionService:
         # because that module builds on this one.
         self.shared_refine: Any = None
 
-    def default_settings(self) -> dict[str, Any]:
+    def default_settings(self) -> SettingValues:
         return self.config.default_settings()
 
     # ---- sessions (the Model) -----------------------------------------------------------
@@ -185,7 +186,8 @@ class SessionService:
             body.mesh_scene.kind if body.mesh_scene is not None else None,
         )
         # the demo scene's recommended settings, under the body's own
-        patch = {**(demo.settings if demo else {}), **(body.settings.given() if body.settings else {})}
+        recommended = cast(SettingValues, demo.settings if demo else {})  # names of SETTINGS (test_scenarios)
+        patch: SettingValues = {**recommended, **(body.settings.given() if body.settings else {})}
         settings = self.caps.merge_settings(self.default_settings(), patch)
         rs = render_settings(settings)
         self.caps.check_work(rs, scene.n_spheres)
@@ -446,7 +448,7 @@ class SessionService:
         self,
         old: SessionState,
         gesture: PanGesture | PinchGesture | OrbitGesture | ResetGesture,
-        frame_patch: dict[str, Any] | None = None,
+        frame_patch: SettingValues | None = None,
     ) -> Camera:
         """The camera after ``gesture`` (InputError naming the gesture's field, in the body, when the
         move would leave the coordinate range: the frame a gesture asks for has its settings in the query)."""
@@ -478,7 +480,7 @@ class SessionService:
         return self._update(session_id, lambda old: replace(old, camera=self.moved_camera(old, gesture).to_json()))
 
     # ---- the frames a session asks for (run by the frame pipeline) --------------------------
-    def frame_settings(self, state: SessionState, patch: dict[str, Any]) -> FrameSettings:
+    def frame_settings(self, state: SessionState, patch: SettingValues) -> FrameSettings:
         """The session's settings with the frame query's ``patch``, checked against the caps. The
         linear formats (npy, exr) are denoised only when the query itself names ``denoise``: the
         session's ``denoise`` is for the images it shows."""
@@ -492,7 +494,7 @@ class SessionService:
     def frame_request(
         self,
         session_id: str,
-        patch: dict[str, Any],
+        patch: SettingValues,
         *,
         cancel: threading.Event | None = None,
         progressive: bool = False,
@@ -518,7 +520,7 @@ class SessionService:
         self,
         session_id: str,
         gesture,
-        patch: dict[str, Any],
+        patch: SettingValues,
         *,
         cancel: threading.Event | None = None,
         progressive: bool = False,
@@ -547,7 +549,7 @@ class SessionService:
         return FrameRequest(view, settings, owner(state), progressive=progressive, commit=commit, cancel=cancel)
 
     def stateless_request(
-        self, scene_model: SceneModel, patch: dict[str, Any], *, cancel: threading.Event | None = None
+        self, scene_model: SceneModel, patch: SettingValues, *, cancel: threading.Event | None = None
     ) -> FrameRequest:
         """A frame of a scene sent with the request, no session (its settings are the body's)."""
         scene = self.caps.checked_scene(scene_model, ("scene",))  # its body was bounded by the body parsers
@@ -555,7 +557,7 @@ class SessionService:
         self.caps.check_work(settings.render, scene.n_spheres)
         return FrameRequest(scene, settings, None, cancel=cancel)
 
-    def stats(self, session_id: str, patch: dict[str, Any]) -> dict:
+    def stats(self, session_id: str, patch: SettingValues) -> dict:
         """Statistics of the acceleration structure for the session's current (or given)
         settings: the last build's, or a build made now (without rendering)."""
         state = self.get(session_id)

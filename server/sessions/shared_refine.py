@@ -43,6 +43,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from renderer.settings import SettingValues
+
 from ..config import ServerConfig
 from ..frames.accumulate import AccumulationKey, accumulation_key
 from ..frames.pipeline import FramePipeline
@@ -197,7 +199,9 @@ class Board:
         self.client.zrem(self.leases, r.entry)
 
 
-def trace_range(pipeline: FramePipeline, service: SessionService, session_id: str, patch: dict, r: Range) -> bytes:
+def trace_range(
+    pipeline: FramePipeline, service: SessionService, session_id: str, patch: SettingValues, r: Range
+) -> bytes:
     """The float32 sum (image rows, H × W × 3) of the samples of ``r`` of the session's view, traced
     here as a background frame."""
     request = service.frame_request(session_id, {**patch, "samples_per_pixel": r.count})
@@ -241,7 +245,7 @@ class SharedStream:
         board: Board,
         service: SessionService,
         session_id: str,
-        patch: dict[str, Any],
+        patch: SettingValues,
         version: int,
         goal: int,
         range_samples: int,
@@ -438,7 +442,7 @@ class SharedRefine:
         self,
         service: SessionService,
         session_id: str,
-        patch: dict[str, Any],
+        patch: SettingValues,
         version: int,
         goal: int,
         still: Callable[[], bool],

@@ -51,6 +51,8 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Protocol, cast
 
+from renderer.settings import SettingValues
+
 log = logging.getLogger("pocketray.store")
 
 
@@ -80,7 +82,7 @@ class SessionState:
     version: int
     camera: dict[str, Any]
     home_camera: dict[str, Any]
-    settings: dict[str, Any]
+    settings: SettingValues
     scene_info: dict[str, Any]
     scene_rev: str
     created_at: float = field(default_factory=time.time)

@@ -46,7 +46,10 @@ import tempfile
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from renderer.settings import SettingValues
 
 EXTENSIONS = {".png": "png", ".jpg": "jpeg", ".jpeg": "jpeg", ".npy": "npy", ".exr": "exr"}
 ENV_PREFIX = "POCKETRAY_"
@@ -308,7 +311,7 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
         except SceneError as e:
             raise UsageError(f"scene.{e.field}: {e.message}") from None
     config = ServerConfig()
-    settings = {**config.default_settings(), **patch}
+    settings: SettingValues = {**config.default_settings(), **patch}
     try:
         rs = render_settings(settings)
         rs.check_method(scene.n_spheres)
@@ -316,12 +319,13 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
         raise UsageError(f"{getattr(e, 'field', 'settings')}: {getattr(e, 'message', e)}") from None
 
     from renderer.gl import GLRenderer
+    from renderer.integrators import Denoiser
 
     t0 = time.perf_counter()
     renderer = GLRenderer()
     t_ctx = time.perf_counter()
     result = renderer.render(scene, rs.with_(update="rebuild"))
-    if rs.denoise != "off":  # the flag names it: png, jpeg, npy and exr alike
+    if rs.denoise != Denoiser.OFF:  # the flag names it: png, jpeg, npy and exr alike
         from renderer.denoise import denoise_result
 
         result = denoise_result(result, scene, rs.denoise)

@@ -1,9 +1,9 @@
-"""A render setting is declared once (renderer.settings.SETTINGS): one entry added to the table is
-validated by the API (body and query), kept by sessions, listed by GET /api/info and offered by
-``pocketray render --help`` — with no other file touched.
+"""A render setting is declared once (renderer.settings.SETTINGS, and its typed field of RenderSettings):
+one entry added to the table is validated by the API (body and query), kept by sessions, listed by GET
+/api/info and offered by ``pocketray render --help`` — with no other file touched.
 
-The table is patched in a fresh interpreter before the service is imported, so that everything made
-from it (RenderSettings, the API's models, the routes, the CLI's flags) is made with the new entry;
+The table and the class are patched in a fresh interpreter before the service is imported, so that
+everything made from the table (the API's models, the routes, the CLI's flags) is made with the new entry;
 the client's settings sheet is checked with the same entry in tests/browser/test_ui.py.
 """
 
@@ -42,8 +42,13 @@ SCRIPT = textwrap.dedent("""
 
     spec = declared.SettingSpec(**{**json.loads(sys.argv[1]), "bounds": tuple(json.loads(sys.argv[1])["bounds"]),
                                    "modes": tuple(json.loads(sys.argv[1])["modes"])})
-    declared.SETTINGS = (*declared.SETTINGS, spec)          # the one declaration
-    declared.RenderSettings = declared.build_render_settings()   # rebuilt from the table
+    declared.SETTINGS = (*declared.SETTINGS, spec)          # the declaration
+    import dataclasses                                       # and its field, typed as declared
+    declared.RenderSettings = dataclasses.make_dataclass(
+        "RenderSettings", [(spec.name, float, dataclasses.field(default=spec.default))],
+        bases=(declared.RenderSettings,), frozen=True,
+    )
+    declared.check_declaration(declared.RenderSettings)
     # From here on, everything made from the table is made at import.
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

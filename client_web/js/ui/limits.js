@@ -7,7 +7,7 @@
 //        max_recursion_depth, method, …}, animated, renderer} — the values as they would be
 // with the change applied.
 
-import { FIELD_LABELS } from '../settings.js';
+import { FIELD_LABELS, renderSettings, settingSpec } from '../settings.js';
 
 // Used when the service does not describe its methods (an older service).
 const FALLBACK_METHOD = Object.freeze({
@@ -20,13 +20,9 @@ const FALLBACK_METHODS = Object.freeze({
 const DEFAULT_LIMITS = Object.freeze({ max_image_side: 4096, max_spheres: 1 << 21, max_work: Infinity, max_bruteforce_work: Infinity });
 const MUSEUM_ROOM = 576;            // renderer.animation.MUSEUM_ROOM_SPHERES, when /api/info does not say
 const MUSEUM_N_MAX = (1 << 21) - 1024;  // server.api.schemas.MuseumRecipe.n's bound
-const SUBPIXELS = { 1: 1, 4: 2, 9: 3, 16: 4 };
-const WHITTED_SAMPLES = [1, 4, 9, 16];
 const WHITTED_DEPTH = 8;            // renderer.limits.MAX_RECURSION_DEPTH, when /api/info does not say
-// The path integrator's counts, depth and segments per sample (renderer/cost.py), when /api/info does not say.
-const DEFAULT_PATH = Object.freeze({
-  samples_per_pixel: [1, 4, 16, 64, 256, 1024], max_samples: 4096, max_depth: 16, segments_limit: 6.58, segments_rate: 0.644,
-});
+// The path integrator's segments per sample (renderer/cost.py), when /api/info does not say.
+const DEFAULT_PATH = Object.freeze({ segments_limit: 6.58, segments_rate: 0.644 });
 
 const fmt = (x) => (Number.isFinite(x) ? Math.floor(x).toLocaleString('en') : String(x));
 const label = (name) => FIELD_LABELS[name] || name;
@@ -46,6 +42,23 @@ export function pathInfo(info) {
 
 const isPath = (render) => render.integrator === 'path';
 
+// What setting `name` accepts, and means, for a frame of `render`'s integrator and mode: the service's
+// declaration (GET /api/info's settings[].integrators, renderer/settings.py's IntegratorValues) —
+// Whitted's samples are sub-pixel grids, the path integrator's any count of paths. Null when the
+// service declares none.
+export function integratorValues(name, ctx) {
+  const specs = Array.isArray(ctx.info?.settings) ? ctx.info.settings : renderSettings;
+  const by = settingSpec(name, specs)?.integrators;
+  if (!by) return null;
+  const own = by[ctx.render.integrator ?? 'whitted'];
+  return own && (!own.modes || own.modes.includes(ctx.render.mode ?? 'color')) ? own : by.whitted || null;
+}
+
+// Sub-pixels per side of `spp` samples: k of a k × k grid where the integrator's samples are one, else 1.
+export function subpixels(spp, ctx) {
+  return integratorValues('samples_per_pixel', ctx)?.subpixel_grid ? Math.max(1, Math.round(Math.sqrt(spp))) : 1;
+}
+
 // Segments (rays, shadow rays included) one path sample is expected to trace at max_recursion_depth
 // `depth`: renderer/cost.py's path_segments, with /api/info's numbers.
 export function pathSegments(depth, info) {
@@ -60,17 +73,24 @@ export function requestWork(render, info, { spp = render.samples_per_pixel || 1,
   return isPath(render) ? px * spp * pathSegments(depth, info) : px * depth * spp;
 }
 
-// The sample counts the sheet offers for the integrator at hand.
+// The sample counts the sheet offers for the integrator at hand (as declared; 1 until the service says).
 export function sampleChoices(ctx) {
-  if (isPath(ctx.render)) return pathInfo(ctx.info).samples_per_pixel;
-  const listed = ctx.info && ctx.info.samples_per_pixel;
-  return Array.isArray(listed) && listed.length ? listed : WHITTED_SAMPLES;
+  return integratorValues('samples_per_pixel', ctx)?.offered || [1];
 }
 
 // The deepest max_recursion_depth the integrator allows (before the work cap).
 export function maxDepth(ctx) {
-  return isPath(ctx.render) ? pathInfo(ctx.info).max_depth : (ctx.info && ctx.info.max_recursion_depth) || WHITTED_DEPTH;
+  return integratorValues('max_recursion_depth', ctx)?.maximum ?? ((ctx.info && ctx.info.max_recursion_depth) || WHITTED_DEPTH);
 }
+
+// The most samples per pixel the integrator allows (before the work cap).
+const maxSamples = (ctx) => {
+  const v = integratorValues('samples_per_pixel', ctx);
+  return v ? (v.maximum ?? Math.max(...(v.choices || [1]))) : Infinity;
+};
+
+// The deepest max_recursion_depth of the path integrator (what a Whitted refusal offers instead).
+const pathDepth = (ctx) => integratorValues('max_recursion_depth', { ...ctx, render: { ...ctx.render, integrator: 'path', mode: 'color' } })?.maximum;
 
 // Spheres the scene has (the museum's n counts moving ones, on top of its room).
 export function sceneSpheres(ctx) {
@@ -111,15 +131,15 @@ export function modesOf(ctx) {
 // are paths, not sub-pixels: only the work cap bounds them).
 export function samplesAllowed(ctx, values = sampleChoices(ctx)) {
   const L = limitsOf(ctx.info), r = ctx.render, path = isPath(r);
-  return values.filter((s) => (path ? s <= pathInfo(ctx.info).max_samples
-    : (SUBPIXELS[s] || 1) * Math.max(r.width, r.height) <= L.max_image_side) &&
+  return values.filter((s) => (path ? s <= maxSamples(ctx)
+    : subpixels(s, ctx) * Math.max(r.width, r.height) <= L.max_image_side) &&
     requestWork(r, ctx.info, { spp: s }) <= L.max_work);
 }
 
 // {min, max, why} of a numeric setting, given the others in ctx.
 export function range(name, ctx) {
   const L = limitsOf(ctx.info), r = ctx.render;
-  const spp = r.samples_per_pixel || 1, k = isPath(r) ? 1 : SUBPIXELS[spp] || 1, d = r.max_recursion_depth || 1;
+  const spp = r.samples_per_pixel || 1, k = subpixels(spp, ctx), d = r.max_recursion_depth || 1;
   const bf = methodInfo(ctx.info, r.method).tests_every_sphere;
   const spheres = sceneSpheres(ctx);
   switch (name) {
@@ -158,7 +178,7 @@ export function range(name, ctx) {
       byWork = byWork === top ? Infinity : byWork;
       const byBf = bf ? Math.floor(L.max_bruteforce_work / (r.width * r.height * spheres)) : Infinity;
       const max = Math.min(top, byWork, byBf);
-      const why = max === top ? (isPath(r) ? '' : `with the Whitted tracer (up to ${pathInfo(ctx.info).max_depth} with the path integrator)`)
+      const why = max === top ? (isPath(r) ? '' : `with the Whitted tracer (up to ${pathDepth(ctx)} with the path integrator)`)
         : max === byWork ? `at ${r.width} × ${r.height} and ${spp} samples per pixel`
         : `${r.method} tests every sphere: at ${fmt(spheres)} spheres and ${r.width} × ${r.height}`;
       return { min: 1, max, why };
@@ -192,9 +212,9 @@ export function check(name, value, ctx) {
     const r = ctx.render, x = Number(value);
     if (isPath(r)) {
       // Any count of paths (a link may ask for one the sheet does not list), within the work cap.
-      const P = pathInfo(ctx.info), L = limitsOf(ctx.info);
-      if (Number.isInteger(x) && x >= 1 && x <= P.max_samples && requestWork(r, ctx.info, { spp: x }) <= L.max_work) return null;
-      const most = Math.min(P.max_samples, Math.floor(L.max_work / requestWork(r, ctx.info, { spp: 1 })));
+      const L = limitsOf(ctx.info), top = maxSamples(ctx);
+      if (Number.isInteger(x) && x >= 1 && x <= top && requestWork(r, ctx.info, { spp: x }) <= L.max_work) return null;
+      const most = Math.min(top, Math.floor(L.max_work / requestWork(r, ctx.info, { spp: 1 })));
       return `${label(name)}: a whole number 1 … ${fmt(most)} for a ${r.width} × ${r.height} frame at recursion depth ` +
         `${r.max_recursion_depth} with the path integrator (at most ${fmt(L.max_work)} expected path segments a frame)`;
     }

@@ -12,10 +12,10 @@
 // their names, types and labels come from there; a declared setting the page has no field for gets
 // one, made from its declaration (a number input within its bounds, or a select of its choices).
 
-import { applies, check, modesOf, range, sampleChoices, samplesAllowed } from './limits.js';
+import { applies, check, integratorValues, modesOf, range, sampleChoices, samplesAllowed, subpixels } from './limits.js';
 import {
   DEFAULT_MUSEUM_N, DEFAULT_SCENE, FALLBACK_METHODS, FIELD_LABELS, METHOD_LABELS, MODE_LABELS, MODES, MODEL_FORMATS,
-  MUSEUM_KINDS, PREVIEW_SCALES, RESOLUTIONS, SAMPLES, UPDATE_SCHEMES, learnScenes, learnSettings, meshKind, pickerScenes,
+  MUSEUM_KINDS, PREVIEW_SCALES, RESOLUTIONS, UPDATE_SCHEMES, learnScenes, learnSettings, meshKind, pickerScenes,
   sceneValue, withRestDenoiser,
   parseResolution, renderSettings, settingValue,
 } from '../settings.js';
@@ -59,7 +59,7 @@ export class SettingsPanel {
     fillSelect(this.el('mode'), MODES, (m) => MODE_LABELS[m] || m);
     fillSelect(this.el('resolution'), RESOLUTIONS);
     fillSelect(this.el('previewScale'), PREVIEW_SCALES);
-    fillSelect(this.el('samples_per_pixel'), SAMPLES);
+    this._fillSamples({});
 
     openButton.addEventListener('click', () => this.setOpen(!this.open));
     root.querySelector('[data-close]').addEventListener('click', () => this.setOpen(false));
@@ -95,9 +95,6 @@ export class SettingsPanel {
     for (const spec of this._specs()) if (!this.el(spec.name)) this._addField(spec);
     if (Array.isArray(info.methods) && info.methods.length) fillSelect(this.el('method'), info.methods, (m) => METHOD_LABELS[m] || m);
     if (Array.isArray(info.modes) && info.modes.length) fillSelect(this.el('mode'), info.modes, (m) => MODE_LABELS[m] || m);
-    if (Array.isArray(info.samples_per_pixel) && info.samples_per_pixel.length) {
-      fillSelect(this.el('samples_per_pixel'), info.samples_per_pixel.map((s) => SAMPLES.find((x) => x.value === s) || { value: s, label: String(s) }));
-    }
     if (this.state) this.show(this.state);
   }
 
@@ -223,19 +220,23 @@ export class SettingsPanel {
     }
   }
 
-  // The samples select offers the integrator's counts — Whitted's sub-pixel grids, the path
-  // integrator's paths (GET /api/info's `path`) — and the session's own count of paths when a link
-  // asked for one the list does not have.
+  // The samples select offers the integrator's counts as the service declares them (GET /api/info's
+  // settings: Whitted's sub-pixel grids, the path integrator's paths) — and the session's own count of
+  // paths when a link asked for one the list does not have.
   _fillSamples(render) {
     const select = this.el('samples_per_pixel');
-    const path = render.integrator === 'path';
-    const values = [...sampleChoices({ info: this.info, render })];
+    const ctx = { info: this.info, render };
+    const values = [...sampleChoices(ctx)];
+    const anyCount = !integratorValues('samples_per_pixel', ctx)?.choices;   // bounded, not listed: paths
     const own = Number(render.samples_per_pixel);
-    if (path && Number.isInteger(own) && own > 0 && !values.includes(own)) values.push(own);
+    if (anyCount && Number.isInteger(own) && own > 0 && !values.includes(own)) values.push(own);
     values.sort((a, b) => a - b);
     const have = [...select.options].map((o) => Number(o.value));
     if (have.length === values.length && have.every((v, i) => v === values[i])) return;
-    fillSelect(select, values.map((v) => (!path && SAMPLES.find((x) => x.value === v)) || { value: v, label: String(v) }));
+    fillSelect(select, values.map((v) => {
+      const k = subpixels(v, ctx);
+      return { value: v, label: k > 1 ? `${v} (${k} × ${k} sub-pixels)` : String(v) };
+    }));
   }
 
   // Whether the method and mode at hand read a setting (its declaration names them).

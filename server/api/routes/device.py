@@ -40,6 +40,7 @@ from fastapi.responses import PlainTextResponse
 from renderer import atrous, gpu_layout
 from renderer.accel.base import NOT_ON_GPU, AccelerationMethod
 from renderer.features import frame_features
+from renderer.integrators import Denoiser
 from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
 from renderer.methods import METHODS, resolve_method
 from renderer.modes import SINGLE_PASS_MODES
@@ -177,7 +178,7 @@ def device_data(
     chosen = render_settings(settings)
     # With a denoiser the variant writes the guides too (two more targets); a device filters with
     # à-trous whichever denoiser is named (OIDN does not run in a browser).
-    features, depth = frame_features(scene, chosen, guides=chosen.denoise != "off")
+    features, depth = frame_features(scene, chosen, guides=chosen.denoise != Denoiser.OFF)
     defines = features.defines()
     # u_min_weight (ε) is the device's per frame, as its camera's image-size terms.
     packed = {**prims.uniforms, **prepared.packed.uniforms, **gpu_layout.frame_uniforms(scene, 0.0)}

@@ -23,6 +23,8 @@ from fastapi import APIRouter, Body, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse, StreamingResponse
 
+from renderer.settings import SettingValues
+
 from ...faults import Where
 from ...frames.encode import FRAME_RESPONSE_DOC, Frame, frame_headers
 from ...frames.pipeline import FramePipeline, FrameRequest, final
@@ -129,7 +131,7 @@ def part_bytes(boundary: str, frame: Frame, extra: dict[str, str]) -> bytes:
     return f"--{boundary}\r\n{lines}\r\n".encode() + frame.body + b"\r\n"
 
 
-async def refine_response(request: Request, service: SessionService, session_id: str, patch: dict) -> Response:
+async def refine_response(request: Request, service: SessionService, session_id: str, patch: SettingValues) -> Response:
     """The session's refinement stream as ``multipart/mixed``: one part per frame, ``X-Frame-Part:
     refine`` before the last (``final``), each with ``X-Refine`` (JSON: samples, targets, elapsed ms,
     done, reason). An error before the first part is an ordinary error answer; a client that goes

@@ -10,19 +10,13 @@ from fastapi.responses import JSONResponse
 
 from renderer.animation import MUSEUM_KINDS, MUSEUM_ROOM_SPHERES
 from renderer.cost import PATH_SEGMENTS_LIMIT, PATH_SEGMENTS_RATE
-from renderer.limits import (
-    MAX_IMAGE_SIDE,
-    MAX_PATH_DEPTH,
-    MAX_PATH_SAMPLES,
-    MAX_RECURSION_DEPTH,
-    PATH_SAMPLE_CHOICES,
-    SAMPLES_PER_PIXEL,
-)
+from renderer.integrators import Integrator
+from renderer.limits import MAX_IMAGE_SIDE
 from renderer.methods import AUTO_METHOD, METHODS, resolve_method
 from renderer.modes import HEAT_SCALE, RECURSION_COLOR_NAMES, RECURSION_COLORS
 from renderer.profiles import PROFILES
 from renderer.scenarios import DEMO_SCENES
-from renderer.settings import FORMATS, METHOD_NAMES, MODES, SETTINGS
+from renderer.settings import FORMATS, METHOD_NAMES, MODES, SETTINGS, IntegratorValues, setting
 from renderer.tree_update import UPDATE_SCHEMES
 
 from ...config import ServerConfig
@@ -51,15 +45,25 @@ def method_settings(name: str) -> dict[str, Any]:
     }
 
 
+def _values(name: str, integrator: Integrator) -> IntegratorValues:
+    by = setting(name).by_integrator
+    assert by is not None, f"{name}: declared per integrator"
+    return by[integrator]
+
+
 def info_extras(config: ServerConfig) -> dict[str, Any]:
-    """The parts of GET /api/info a client's settings form needs beyond the lists and limits."""
+    """The parts of GET /api/info a client's settings form needs beyond the lists and limits (the
+    integrators' samples and depths as ``settings`` declares them, under their older names too)."""
+    whitted_spp, path_spp = (_values("samples_per_pixel", i) for i in (Integrator.WHITTED, Integrator.PATH))
+    whitted_depth, path_depth = (_values("max_recursion_depth", i) for i in (Integrator.WHITTED, Integrator.PATH))
+    assert whitted_spp.choices and path_spp.bounds and whitted_depth.bounds and path_depth.bounds
     return {
-        "samples_per_pixel": list(SAMPLES_PER_PIXEL),
-        "max_recursion_depth": MAX_RECURSION_DEPTH,
+        "samples_per_pixel": list(whitted_spp.choices),
+        "max_recursion_depth": whitted_depth.bounds[1],
         "path": {
-            "samples_per_pixel": list(PATH_SAMPLE_CHOICES),
-            "max_samples": MAX_PATH_SAMPLES,
-            "max_depth": MAX_PATH_DEPTH,
+            "samples_per_pixel": list(path_spp.listed() or ()),
+            "max_samples": path_spp.bounds[1],
+            "max_depth": path_depth.bounds[1],
             "segments_limit": PATH_SEGMENTS_LIMIT,
             "segments_rate": PATH_SEGMENTS_RATE,
         },

@@ -107,3 +107,25 @@ test('the path integrator traces no sub-pixels: its width is bounded by the work
   same(lim.range('width', pctx({ height: 16, samples_per_pixel: 16 })).max, 4096);
   same(lim.range('width', pctx({ height: 1088, samples_per_pixel: 16 })).max, Math.floor(37879808 / (1088 * 16 * lim.pathSegments(8, pathInfo))));
 });
+
+// The samples and depths come from the service's declaration (settings[].integrators), not from lists
+// of the client's: a service that declared other values is offered those.
+test('the sheet offers what the service declares for each integrator', () => {
+  const declared = [
+    { name: 'samples_per_pixel', integrators: {
+      whitted: { choices: [1, 9], offered: [1, 9], minimum: null, maximum: null, subpixel_grid: true, modes: null },
+      path: { choices: null, offered: [2, 8], minimum: 1, maximum: 8, subpixel_grid: false, modes: null } } },
+    { name: 'max_recursion_depth', integrators: {
+      whitted: { minimum: 1, maximum: 3, choices: null, offered: null, subpixel_grid: false, modes: null },
+      path: { minimum: 1, maximum: 5, choices: null, offered: null, subpixel_grid: false, modes: ['color'] } } },
+  ];
+  const own = (render) => ({ ...ctx({ width: 100, height: 100, max_recursion_depth: 1, ...render }), info: { ...info, settings: declared } });
+  same([lim.sampleChoices(own()), lim.sampleChoices(own({ integrator: 'path' }))], [[1, 9], [2, 8]]);
+  same([lim.subpixels(9, own()), lim.subpixels(8, own({ integrator: 'path' }))], [3, 1]);
+  same(lim.range('width', own({ samples_per_pixel: 9 })).max, Math.floor(4096 / 3));
+  same([lim.maxDepth(own()), lim.maxDepth(own({ integrator: 'path' })), lim.maxDepth(own({ integrator: 'path', mode: 'recursion' }))],
+    [3, 5, 3]);
+  assert.match(lim.check('samples_per_pixel', 9, own({ integrator: 'path', samples_per_pixel: 9 })), /a whole number 1 … 8 /);
+  // the checkout's own declaration: Whitted's grids and the path integrator's offered counts
+  same([lim.sampleChoices(ctx()), lim.sampleChoices(pctx())], [[1, 4, 9, 16], [1, 4, 16, 64, 256, 1024]]);
+});

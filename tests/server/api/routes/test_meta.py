@@ -100,3 +100,22 @@ def test_info_lists_the_demo_scenes_in_picker_order_with_their_settings(client):
         r = client.post("/api/sessions", json={**s["recipe"], "settings": {"width": 48, "height": 64}, "aspect": 0.5})
         assert r.status_code == 201, (s["value"], r.text)
         assert all(r.json()["settings"][k] == v for k, v in s["settings"].items())
+
+
+def test_info_declares_what_each_integrator_accepts_and_the_older_keys_agree(client):
+    """settings[].integrators (what the client's sheet lists and bounds) says Whitted's sub-pixel grids
+    and the path integrator's counts; the keys a client read before (samples_per_pixel, path) say the same."""
+    info = client.get("/api/info").json()
+    by = {s["name"]: s for s in info["settings"]}
+    spp = by["samples_per_pixel"]["integrators"]
+    assert spp["whitted"]["choices"] == spp["whitted"]["offered"] == info["samples_per_pixel"] == [1, 4, 9, 16]
+    assert spp["whitted"]["subpixel_grid"] and not spp["path"]["subpixel_grid"]
+    assert (spp["path"]["minimum"], spp["path"]["maximum"]) == (1, info["path"]["max_samples"])
+    assert spp["path"]["offered"] == info["path"]["samples_per_pixel"]
+    depth = by["max_recursion_depth"]["integrators"]
+    assert (depth["whitted"]["maximum"], depth["path"]["maximum"]) == (
+        info["max_recursion_depth"],
+        info["path"]["max_depth"],
+    )
+    assert "recursion" not in depth["path"]["modes"] and "color" in depth["path"]["modes"]
+    assert by["width"]["integrators"] is None
