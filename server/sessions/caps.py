@@ -16,8 +16,8 @@ from renderer.cost import path_segments, request_work
 from renderer.scene import SceneError
 from renderer.settings import RenderSettings
 
-from ..api.schemas import SceneModel
 from ..config import ServerConfig
+from ..contract.scene import SceneModel
 from ..faults import InputError, input_error
 from ..frames.pipeline import render_settings
 from .scenes import SessionScene, scene_from_model

@@ -38,7 +38,7 @@ from renderer.scenarios import content_box, object_boxes, scenario
 from renderer.scene import Camera, Material, Mesh, Scene, SceneError, make_mesh
 from renderer.shapes import Shapes
 
-from ..api.schemas import CameraModel, SceneModel
+from ..contract.scene import CameraModel, SceneModel
 
 _RECIPE = b"R"
 _ARRAYS = b"A"

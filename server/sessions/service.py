@@ -31,17 +31,17 @@ from renderer.mesh_io import fit_transform
 from renderer.scenarios import DEFAULT_DEMO, demo_for_recipe, framed, mesh_scene, scenario
 from renderer.scene import Camera, Scene, SceneError
 
-from ..api.schemas import (
+from ..config import ServerConfig
+from ..contract.scene import SceneModel
+from ..contract.sessions import (
     MeshUploadQuery,
     OrbitGesture,
     PanGesture,
     PinchGesture,
     ResetGesture,
-    SceneModel,
     SessionCreate,
-    SettingsPatch,
 )
-from ..config import ServerConfig
+from ..contract.settings import SettingsPatch
 from ..faults import Busy, InputError, NotFound, Superseded, Where, input_error
 from ..frames.pipeline import FrameOwner, FramePipeline, FrameRequest, FrameSettings, render_settings
 from . import controller
