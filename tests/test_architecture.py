@@ -46,13 +46,14 @@ SERVER_PARTS = ("server.sessions", "server.frames", "server.http")
 SERVER_ABOVE_PARTS = ("server.tools", "server.app", "server.api")
 SERVER_CONTRACT = "server.contract"
 # The core modules that may name the methods (the registry, the shader assembly, the
-# settings' method validation, the reference tracer's BIH heat mode, and a frame's
-# preparation — pose, build, cost — through the registry).
+# settings' method validation, the reference tracer's BIH heat mode, a frame's plan — the method
+# resolved and checked — and its preparation — pose, build, cost — through the registry).
 CORE_MAY_IMPORT_ACCEL = {
     "renderer.methods",
     "renderer.shader_source",
     "renderer.settings",
     "renderer.reference",
+    "renderer.plan",
     "renderer.prepare",
 }
 ACCEL_MUST_NOT_IMPORT = ("renderer.methods", "renderer.settings", "renderer.gl")

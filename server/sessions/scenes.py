@@ -287,6 +287,13 @@ def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> It
     yield (tail + "}").encode()
 
 
+def tree_primitives(info: dict[str, Any]) -> int:
+    """:attr:`renderer.scene.Scene.n_tree_primitives` of the scene a session's ``scene_info`` describes
+    (spheres, triangles and analytic shapes at rest; a kind the info leaves out has none): what
+    ``method=auto`` chooses by without loading the scene."""
+    return info.get("n_spheres", 0) + info.get("n_triangles", 0) + info.get("n_shapes", 0)
+
+
 def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dict[str, Any]:
     rest = scene.scene if isinstance(scene, AnimatedScene) else scene
     info: dict[str, Any] = {"n_spheres": rest.n_spheres, "n_planes": len(rest.planes)}

@@ -58,6 +58,7 @@ from .scenes import (
     scenario_source,
     scene_info,
     scene_source,
+    tree_primitives,
 )
 from .store import SessionState, SessionStore, StoreFull, StoreUnavailable
 
@@ -188,7 +189,7 @@ class SessionService:
         patch = {**(demo.settings if demo else {}), **(body.settings.given() if body.settings else {})}
         settings = self.caps.merge_settings(self.default_settings(), patch)
         rs = render_settings(settings)
-        self.caps.check_work(rs, scene.n_spheres)
+        self.caps.check_work(rs, scene.n_tree_primitives)
         # A session no frame could render is refused now (the sphere count named where it was asked for).
         n_field = (
             ("museum", "n")
@@ -429,13 +430,13 @@ class SessionService:
         state = self.get(session_id)
         checked = self.caps.merge_settings(state.settings, given)
         rs = render_settings(checked)
-        self.caps.check_work(rs, state.scene_info.get("n_spheres", 0))
+        self.caps.check_work(rs, tree_primitives(state.scene_info))
         self.frames.plan(self.scene(state), rs)
 
         def mutate(old: SessionState) -> SessionState:
             merged = self.caps.merge_settings(old.settings, given)
             rs = render_settings(merged)
-            self.caps.check_work(rs, old.scene_info.get("n_spheres", 0))
+            self.caps.check_work(rs, tree_primitives(old.scene_info))
             if merged != checked:  # another change came between: check what is stored now
                 self.frames.plan(self.scene(old), rs)
             return replace(old, settings=merged)
@@ -486,7 +487,7 @@ class SessionService:
         if merged.get("format") in LINEAR_FORMATS and "denoise" not in patch:
             merged = {**merged, "denoise": "off"}
         settings = FrameSettings.of(merged)
-        self.caps.check_work(settings.render, state.scene_info.get("n_spheres", 0))
+        self.caps.check_work(settings.render, tree_primitives(state.scene_info))
         return settings
 
     def frame_request(
@@ -552,7 +553,7 @@ class SessionService:
         """A frame of a scene sent with the request, no session (its settings are the body's)."""
         scene = self.caps.checked_scene(scene_model, ("scene",))  # its body was bounded by the body parsers
         settings = FrameSettings.of(self.caps.merge_settings(self.default_settings(), patch))
-        self.caps.check_work(settings.render, scene.n_spheres)
+        self.caps.check_work(settings.render, scene.n_tree_primitives)
         return FrameRequest(scene, settings, None, cancel=cancel)
 
     def stats(self, session_id: str, patch: dict[str, Any]) -> dict:
@@ -560,7 +561,4 @@ class SessionService:
         settings: the last build's, or a build made now (without rendering)."""
         state = self.get(session_id)
         settings = FrameSettings.of(self.caps.merge_settings(state.settings, patch))
-        scene = self.scene(state)
-        info = state.scene_info
-        n = info.get("n_spheres", 0) + info.get("n_triangles", 0) + info.get("n_shapes", 0)  # what a tree would hold
-        return self.frames.stats(FrameRequest(scene, settings, owner(state)), n)
+        return self.frames.stats(FrameRequest(self.scene(state), settings, owner(state)))

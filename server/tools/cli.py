@@ -309,7 +309,7 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
     settings = {**config.default_settings(), **patch}
     try:
         rs = render_settings(settings)
-        rs.check_method(scene.n_spheres)
+        plan_method(rs, scene.n_tree_primitives)  # auto resolved as the frame resolves it
     except (SceneError, TypeError) as e:
         raise UsageError(f"{getattr(e, 'field', 'settings')}: {getattr(e, 'message', e)}") from None
 

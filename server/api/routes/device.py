@@ -31,7 +31,8 @@ answers 503 + ``Retry-After`` here as everywhere.
 from __future__ import annotations
 
 import time
-from typing import Annotated, Any
+from collections.abc import Callable
+from typing import Annotated, Any, TypeVar
 from urllib.parse import urlencode
 
 from fastapi import APIRouter, Query, Response
@@ -39,13 +40,14 @@ from fastapi.responses import PlainTextResponse
 
 from renderer import atrous, gpu_layout
 from renderer.accel.base import NOT_ON_GPU, AccelerationMethod
-from renderer.features import frame_features
 from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
-from renderer.methods import METHODS, resolve_method
+from renderer.methods import METHODS
 from renderer.modes import SINGLE_PASS_MODES
+from renderer.plan import plan_frame, plan_method
+from renderer.scene import SceneError
 from renderer.shader_source import tracer_source, vertex_source
 
-from ...faults import InputError, Where
+from ...faults import InputError, Where, input_error
 from ...frames.device_data import (
     FEATURE_DEFINES,
     FORMAT_VERSION,
@@ -56,11 +58,13 @@ from ...frames.device_data import (
 )
 from ...frames.encode import EXPOSED, stats_header
 from ...frames.pipeline import render_settings
+from ...sessions.scenes import tree_primitives
 from ..deps import FramesDep, ServiceDep, SessionId
 from ..errors import documented, located
 from ..schemas import DeviceDataQuery, ShaderQuery
 
 router = APIRouter(tags=["device"])
+T = TypeVar("T")
 
 _DATA_DOC: dict[str, Any] = {
     "description": "the packed scene and acceleration data (binary; format in server/frames/device_data.py)",
@@ -125,6 +129,15 @@ def shader_url(method: str, mode: str, depth: int, features: tuple[str, ...]) ->
     return "/api/shader?" + urlencode(q)
 
 
+def _planned(plan: Callable[[], T]) -> T:
+    """``plan()``, its refusal (:class:`SceneError`) a 422 at the query's setting."""
+    with located(Where.QUERY):
+        try:
+            return plan()
+        except SceneError as e:
+            raise input_error(e) from None
+
+
 # ---- routes ----------------------------------------------------------------------------------
 @router.get(
     "/sessions/{session_id}/device-data",
@@ -145,10 +158,10 @@ def device_data(
     state = service.get(session_id)
     with located(Where.QUERY):
         settings = service.caps.merge_settings(state.settings, query.given())
+    chosen = render_settings(settings)
     n_triangles = state.scene_info.get("n_triangles", 0)
-    # auto's crossover, as prepare_frame: what a tree would hold
-    n = state.scene_info.get("n_spheres", 0) + n_triangles + state.scene_info.get("n_shapes", 0)
-    method_name = resolve_method(settings["method"], n)
+    at_rest = tree_primitives(state.scene_info)  # auto's choice, as every frame of the session makes it
+    method_name = _planned(lambda: plan_method(chosen, at_rest))
     meth = single_pass_method(method_name, ("query", "method"))
     if n_triangles and not meth.capabilities.meshes_on_gpu:
         # The device runs the server's shader on the server's layout: what the GPU cannot trace
@@ -163,7 +176,12 @@ def device_data(
     with frames.admit():  # a queue slot for back-pressure; the work is NumPy, on this thread
         # An animated scene is posed here; the tree is rebuilt (updates between frames
         # belong to the GL thread's renders, whose tree caches are not shared with this thread).
-        scene, update = frames.posed(service.scene(state), settings.get("time", 0.0))
+        scene, update = frames.posed(service.scene(state), chosen.time)
+        # The variant the server's frame of these settings compiles (renderer.plan): Whitted's tree, or
+        # with integrator 'path' the path integrator (its depth: segments of a path, up to
+        # MAX_PATH_DEPTH); with a denoiser it writes the guides too (two more targets): a device filters
+        # with à-trous whichever denoiser is named (OIDN does not run in a browser).
+        plan = _planned(lambda: plan_frame(scene, chosen, tree_primitives=at_rest))
         t_built0 = time.perf_counter()
         try:
             prepared = meth.prepare(scene, settings["max_prims"], settings["max_tree_depth"], width, update)
@@ -172,13 +190,8 @@ def device_data(
             raise InputError(
                 ("query", "max_texture_size"), f"the scene does not fit this device's textures ({e}); use server mode"
             ) from None
-    # The variant the server's frame of these settings compiles: Whitted's tree, or with
-    # integrator 'path' the path integrator (its depth: segments of a path, up to MAX_PATH_DEPTH).
-    chosen = render_settings(settings)
-    # With a denoiser the variant writes the guides too (two more targets); a device filters with
-    # à-trous whichever denoiser is named (OIDN does not run in a browser).
-    features, depth = frame_features(scene, chosen, guides=chosen.denoise != "off")
-    defines = features.defines()
+    assert plan.features is not None, "a one-pass method's plan has its variant's features"
+    features, depth, defines = plan.features, plan.recursion_depth, plan.defines
     # u_min_weight (ε) is the device's per frame, as its camera's image-size terms.
     packed = {**prims.uniforms, **prepared.packed.uniforms, **gpu_layout.frame_uniforms(scene, 0.0)}
     uniforms = {k: jsonable(v) for k, v in packed.items()}
