@@ -280,6 +280,7 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
     Returns what was done (method, size, format, timings in ms). UsageError on bad input."""
     from pydantic import ValidationError
 
+    from renderer.plan import plan_method
     from renderer.scene import SceneError
 
     from ..api.schemas import FrameQuery, SceneModel
