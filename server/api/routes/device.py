@@ -38,9 +38,8 @@ from urllib.parse import urlencode
 from fastapi import APIRouter, Query, Response
 from fastapi.responses import PlainTextResponse
 
-from renderer import atrous, gpu_layout
+from renderer import gpu_layout
 from renderer.accel.base import NOT_ON_GPU, AccelerationMethod
-from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
 from renderer.methods import METHODS
 from renderer.modes import SINGLE_PASS_MODES
 from renderer.plan import plan_frame, plan_method
@@ -48,14 +47,7 @@ from renderer.scene import SceneError
 from renderer.shader_source import tracer_source, vertex_source
 
 from ...faults import InputError, Where, input_error
-from ...frames.device_data import (
-    FEATURE_DEFINES,
-    FORMAT_VERSION,
-    camera_uniforms,
-    encode_blob,
-    jsonable,
-    jsonable_stats,
-)
+from ...frames.device_data import FEATURE_DEFINES, device_header, device_stats, device_uniforms, encode_blob
 from ...frames.encode import EXPOSED, stats_header
 from ...frames.pipeline import render_settings
 from ...sessions.scenes import tree_primitives
@@ -190,54 +182,22 @@ def device_data(
             raise InputError(
                 ("query", "max_texture_size"), f"the scene does not fit this device's textures ({e}); use server mode"
             ) from None
-    assert plan.features is not None, "a one-pass method's plan has its variant's features"
-    features, depth, defines = plan.features, plan.recursion_depth, plan.defines
-    # u_min_weight (ε) is the device's per frame, as its camera's image-size terms.
-    packed = {**prims.uniforms, **prepared.packed.uniforms, **gpu_layout.frame_uniforms(scene, 0.0)}
-    uniforms = {k: jsonable(v) for k, v in packed.items()}
-    uniforms.update(camera_uniforms(scene.camera))
-    stats = {**prepared.stats, "method": method_name, "recursion_depth": depth, "features_removed": list(defines)}
+    uniforms = device_uniforms(scene, prims, prepared)
+    stats = device_stats(plan, prepared)
     t_packed = time.perf_counter()
-    header = {
-        "format": "pocketray-device-data",
-        "format_version": FORMAT_VERSION,
-        "session": {"id": state.id, "version": state.version, "scene_rev": state.scene_rev},
-        "method": method_name,
-        "settings": {
-            **{
-                k: settings[k]
-                for k in ("mode", "max_prims", "max_tree_depth", "max_recursion_depth", "width", "height")
-            },
-            # sessions stored before animation (or the path integrator) have none of these: defaults
-            **{
-                k: getattr(chosen, k)
-                for k in ("time", "samples_per_pixel", "integrator", "tone_map", "exposure", "denoise")
-            },
-        },
-        "shader": {
-            "method": method_name,
-            "mode": settings["mode"],
-            "max_recursion_depth": depth,
-            "features": list(defines),
-            "url": shader_url(method_name, settings["mode"], depth, defines),
-        },
-        "path": (
-            {
-                "samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS,
-                "guides": features.guides,
-                **({"atrous": atrous.parameters()} if features.guides else {}),
-            }
-            if features.path
-            else None
-        ),
-        "max_texture_size": width,
-        "camera": state.camera,
-        "home_camera": state.home_camera,
-        "uniforms": uniforms,
-        "stats": jsonable_stats(stats),
-        "build_ms": prepared.build_ms,
-        "pack_ms": ((t_packed - t_built0) * 1e3 - prepared.build_ms),
-    }
+    header = device_header(
+        plan,
+        settings,
+        uniforms,
+        stats,
+        session={"id": state.id, "version": state.version, "scene_rev": state.scene_rev},
+        camera=state.camera,
+        home_camera=state.home_camera,
+        max_texture_size=width,
+        shader_url=shader_url(method_name, settings["mode"], plan.recursion_depth, plan.defines),
+        build_ms=prepared.build_ms,
+        pack_ms=(t_packed - t_built0) * 1e3 - prepared.build_ms,
+    )
     blob = encode_blob(header, {**prims.textures, **prepared.packed.textures})
     total = (time.perf_counter() - t0) * 1e3
     timing = f"build;dur={prepared.build_ms:.2f}, pack;dur={header['pack_ms']:.2f}, total;dur={total:.2f}"
