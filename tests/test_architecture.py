@@ -345,8 +345,8 @@ def test_frames_do_not_import_sessions():
 
 def test_server_packages_import_nothing_of_the_server_on_import():
     """A sub-package's ``__init__`` imports none of the service's modules (the routes' package excepted,
-    which assembles the router): importing ``server.api.schemas`` from a session then never runs the
-    routes that import the sessions back."""
+    which assembles the router): importing ``server.contract.scene`` from a session, or
+    ``server.api.schemas`` from a tool, then never runs the routes that import the sessions back."""
     inits = [n for n in modules() if modules()[n].name == "__init__.py" and _in(n, "server")]
     assert "server.sessions" in inits and "server.api" in inits
     g = internal_edges()
