@@ -167,7 +167,8 @@ def _timed(fn, aside: list[float]):
 
 def worker(renderer_kw: dict) -> None:
     from renderer.gl import GLRenderer
-    from renderer.methods import METHODS, resolve_method
+    from renderer.methods import METHODS
+    from renderer.plan import plan_frame
     from renderer.settings import RenderSettings
 
     r = GLRenderer(**renderer_kw)
@@ -179,14 +180,16 @@ def worker(renderer_kw: dict) -> None:
         if key not in cache:
             scene = _scene(job["scene"])
             settings = RenderSettings(**job["settings"])
-            m = METHODS[resolve_method(settings.method, scene.n_spheres)]
+            plan = plan_frame(scene, settings)  # the method the renderer traces with: auto resolved once
+            m = METHODS[plan.method]
             cache[key] = (
                 scene,
                 settings,
+                plan,
                 m.prepare(scene, settings.max_prims, settings.max_tree_depth, r.max_texture_width),
             )
-        scene, settings, prepared = cache[key]
-        f = r.begin(scene, settings, prepared=prepared)
+        scene, settings, plan, prepared = cache[key]
+        f = r.begin(scene, settings, plan=plan, prepared=prepared)
         aside = [0.0]
         f._finish_pass = _timed(f._finish_pass, aside)
         f._compose = _timed(f._compose, aside)

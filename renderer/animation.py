@@ -422,6 +422,12 @@ class AnimatedScene:
         """Spheres at rest (a pose may hide some)."""
         return self.scene.n_spheres
 
+    @property
+    def n_tree_primitives(self) -> int:
+        """Tree primitives at rest (:attr:`Scene.n_tree_primitives`): what ``method=auto`` chooses by for
+        every frame of the animation, whichever spheres a pose hides."""
+        return self.scene.n_tree_primitives
+
     def with_camera(self, camera: Camera) -> AnimatedScene:
         """The same animation seen through ``camera`` (the motions are not validated again)."""
         seen = object.__new__(AnimatedScene)

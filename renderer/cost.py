@@ -301,7 +301,7 @@ def terms(
     lights = len(scene.lights) if settings.mode == "color" and not path else 0
     rays = radiance * (1 + lights)
     # A triangle test costs as a sphere's; so, unmeasured, does an analytic shape's (a torus's is dearer).
-    n, planes = scene.n_spheres + scene.n_triangles + scene.n_shapes, len(scene.planes)
+    n, planes = scene.n_tree_primitives, len(scene.planes)
     nodes, tests, big = traversal_work(method, stats, n)
     c = coverage(scene, w, h)
     # Primary rays enter the box where it covers the image; the others start on surfaces in it.
@@ -359,7 +359,7 @@ def estimate(
     t, m = terms(method, stats, scene, settings, model.level_decay, multi_pass, level_rays)
     total = float(t @ model.vector())
     frags = m["passes"] * m["pixels"]
-    n = scene.n_spheres + scene.n_triangles + scene.n_shapes
+    n = scene.n_tree_primitives
     degenerate = not multi_pass and method != "bruteforce" and n >= 64 and m["tests"] >= 0.5 * n
     return FrameCost(
         m["passes"],

@@ -36,17 +36,18 @@ AUTO_METHOD = "auto"
 AUTO_CROSSOVER_N = 16
 
 
-def resolve_method(name: str, n_spheres: int) -> str:
+def resolve_method(name: str, tree_primitives: int) -> str:
     """The concrete method for a request: ``auto`` → brute force below the crossover, else BIH.
-    ``n_spheres`` counts the primitives a tree would hold: spheres and triangles."""
+    ``tree_primitives`` counts the primitives a tree would hold: spheres, triangles and analytic
+    shapes (:attr:`renderer.scene.Scene.n_tree_primitives`)."""
     if name != AUTO_METHOD:
         return name
-    return BruteForce.name if n_spheres < AUTO_CROSSOVER_N else BoundingIntervalHierarchy.name
+    return BruteForce.name if tree_primitives < AUTO_CROSSOVER_N else BoundingIntervalHierarchy.name
 
 
-def capabilities(name: str, n_spheres: int = 0) -> Capabilities:
-    """What the method a request names (``auto`` resolved for ``n_spheres``) can do."""
-    return METHODS[resolve_method(name, n_spheres)].capabilities
+def capabilities(name: str, tree_primitives: int = 0) -> Capabilities:
+    """What the method a request names (``auto`` resolved for ``tree_primitives``) can do."""
+    return METHODS[resolve_method(name, tree_primitives)].capabilities
 
 
 def integrator_methods(integrator: str) -> list[str]:
@@ -77,7 +78,7 @@ def check_primitives(name: str, scene) -> None:
             f"{len(scene.meshes)} mesh(es) of {scene.n_triangles:,} triangles: use one of "
             f"{', '.join(able)}",
         )
-    n = scene.n_spheres + scene.n_triangles + scene.n_shapes
+    n = scene.n_tree_primitives
     if caps.max_primitives is not None and n > caps.max_primitives:
         raise SceneError(
             "method",

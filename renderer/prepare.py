@@ -1,4 +1,4 @@
-"""Everything a frame needs before the GPU: pose, build, cost — GL-free.
+"""Everything a frame needs before the GPU: pose, plan (:mod:`renderer.plan`), build, cost — GL-free.
 
 The service does this on the request's own thread, so the GL thread only traces, and so
 a frame's cost is known before it is admitted (:mod:`renderer.cost`). A method that keeps
@@ -18,8 +18,9 @@ from . import first_hits, limits
 from .animation import AnimatedScene, pose
 from .cost import DEFAULT_MODEL, CostModel, FrameCost, estimate
 from .limits import DEFAULT_TEXTURE_WIDTH
-from .methods import METHODS, PreparedMethod, check_primitives, resolve_method
+from .methods import METHODS, PreparedMethod
 from .modes import RAY_TREE_MODES
+from .plan import FramePlan, plan_frame
 from .reference import ray_tree_counts
 from .scene import Scene
 from .settings import RenderSettings
@@ -30,18 +31,32 @@ _BUILD_LOCK = threading.Lock()
 
 @dataclass
 class PreparedFrame:
-    """A posed scene, its method's data (None for the multi-pass methods) and its cost."""
+    """A frame's plan (its posed scene, settings, method and variant: :class:`renderer.plan.FramePlan`),
+    its method's data (None for the multi-pass methods) and its cost."""
 
-    scene: Scene
-    settings: RenderSettings
-    method: str
-    multi_pass: bool
+    plan: FramePlan
     prepared: PreparedMethod | None
     cost: FrameCost
     pose_ms: float | None
     stats: dict
     model: CostModel = field(default=DEFAULT_MODEL, repr=False)
     level_rays: tuple[float, ...] | None = None  # the ray tree counted on a sample (sampled_level_rays)
+
+    @property
+    def scene(self) -> Scene:
+        return self.plan.scene
+
+    @property
+    def settings(self) -> RenderSettings:
+        return self.plan.settings
+
+    @property
+    def method(self) -> str:
+        return self.plan.method
+
+    @property
+    def multi_pass(self) -> bool:
+        return self.plan.multi_pass
 
     def estimate(self, settings: RenderSettings) -> FrameCost:
         """The cost of this frame's scene and build traced with ``settings`` instead (the same
@@ -59,7 +74,7 @@ def sampled_level_rays(scene: Scene, settings: RenderSettings) -> tuple[float, .
     the path integrator. A mesh scene's few glass or mirror surfaces branch only the rays that meet
     them (the demo room: 1.5 radiance rays a pixel, where every ray branching would be 34)."""
     path = settings.path_traced
-    n = scene.n_spheres + scene.n_triangles + scene.n_shapes
+    n = scene.n_tree_primitives
     if path or settings.mode not in RAY_TREE_MODES or not (scene.n_triangles or scene.n_shapes):
         return None
     if n > limits.RAY_TREE_SAMPLE_MAX_PRIMITIVES:
@@ -119,24 +134,19 @@ def prepare_frame(
     """Pose ``scene`` at ``settings.time``, build (or update, per ``settings.update`` and the
     animation ``key``) the method's structure and estimate the frame's cost."""
     moving, pose_ms = None, None
+    at_rest = scene.n_tree_primitives  # auto's choice, the same for every pose
     if isinstance(scene, AnimatedScene):
         posed = pose(scene, settings.time)
         scene, moving, pose_ms = posed.scene, posed.moving, posed.pose_ms
-    n_tree = scene.n_spheres + scene.n_triangles + scene.n_shapes  # what a tree would hold (auto's crossover)
-    name = resolve_method(settings.method, n_tree)
-    method = METHODS[name]
-    settings.check_method(n_tree)
-    check_primitives(name, scene)
+    plan = plan_frame(scene, settings, tree_primitives=at_rest)
     update = TreeUpdate(settings.update, settings.update_threshold, key, moving)
-    multi = method.capabilities.multi_pass
+    multi = plan.multi_pass
     with _BUILD_LOCK:
-        prepared = method.prepare(scene, settings.max_prims, settings.max_tree_depth, max_width, update)
+        prepared = METHODS[plan.method].prepare(scene, settings.max_prims, settings.max_tree_depth, max_width, update)
     stats = dict(prepared.stats)
     level_rays = sampled_level_rays(scene, settings)
-    cost = frame_cost(name, stats, scene, settings, model, multi, level_rays)
-    return PreparedFrame(
-        scene, settings, name, multi, None if multi else prepared, cost, pose_ms, stats, model, level_rays
-    )
+    cost = frame_cost(plan.method, stats, scene, settings, model, multi, level_rays)
+    return PreparedFrame(plan, None if multi else prepared, cost, pose_ms, stats, model, level_rays)
 
 
 def band_rows(cost: FrameCost, slice_ms: float, width: int, height: int) -> int:

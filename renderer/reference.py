@@ -812,7 +812,7 @@ def heat_counts(
         return (
             np.zeros(n_rays, np.int64),
             np.zeros(n_rays, np.int64),
-            np.full(n_rays, scene.n_spheres + scene.n_triangles + scene.n_shapes, dtype=np.int64),
+            np.full(n_rays, scene.n_tree_primitives, dtype=np.int64),
         )
     bih = build_for_scene(scene, settings.max_prims, settings.max_tree_depth)
     nodes, gaps, tests = [], [], []

@@ -635,6 +635,12 @@ class Scene:
         return len(self.shapes)
 
     @property
+    def n_tree_primitives(self) -> int:
+        """Spheres + triangles + analytic shapes: what an acceleration tree holds (planes are traced
+        beside it), and what ``method=auto`` chooses by (:func:`renderer.plan.plan_method`)."""
+        return self.n_spheres + self.n_triangles + self.n_shapes
+
+    @property
     def n_primitives(self) -> int:
         """Spheres + planes + triangles + analytic shapes: one past the largest primitive id."""
         return self.n_spheres + len(self.planes) + self.n_triangles + self.n_shapes

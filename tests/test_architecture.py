@@ -1,4 +1,4 @@
-"""The import rules of the layers (issue #14), read from the source with ``ast``.
+"""The import rules of the layers, read from the source with ``ast``.
 
 - no import cycle among the modules of ``renderer/`` and ``server/``;
 - only ``renderer/gl/`` and the server's GL worker import ``moderngl`` / ``glcontext``;
@@ -39,20 +39,21 @@ GL_LIBRARIES = ("moderngl", "glcontext")
 # thread that owns the context, server/frames/trace.py).
 GL_ALLOWED = ("renderer.gl", "renderer.gl.*", "server.frames.trace")
 # The service's parts, top down: the commands (server.tools), the application (server.app), the API
-# (routes, deps, errors, bodies), and below it the parts the API calls: sessions (the Model), frames
-# (the View) and the HTTP guards. Those never reach up; the API's schemas are the contract every part
-# may read.
+# (routes, deps, errors, bodies, its own schemas), and below it the parts the API calls: sessions (the
+# Model), frames (the View) and the HTTP guards. Those never reach up. Below them all lies the contract
+# (server.contract: the models both the API and the sessions read), which reaches none of them.
 SERVER_PARTS = ("server.sessions", "server.frames", "server.http")
 SERVER_ABOVE_PARTS = ("server.tools", "server.app", "server.api")
-SERVER_CONTRACT = "server.api.schemas"
+SERVER_CONTRACT = "server.contract"
 # The core modules that may name the methods (the registry, the shader assembly, the
-# settings' method validation, the reference tracer's BIH heat mode, and a frame's
-# preparation — pose, build, cost — through the registry).
+# settings' method validation, the reference tracer's BIH heat mode, a frame's plan — the method
+# resolved and checked — and its preparation — pose, build, cost — through the registry).
 CORE_MAY_IMPORT_ACCEL = {
     "renderer.methods",
     "renderer.shader_source",
     "renderer.settings",
     "renderer.reference",
+    "renderer.plan",
     "renderer.prepare",
 }
 ACCEL_MUST_NOT_IMPORT = ("renderer.methods", "renderer.settings", "renderer.gl")
@@ -282,10 +283,56 @@ def test_server_parts_do_not_reach_up_to_the_api():
     assert "server.sessions.service" in parts and "server.frames.trace" in parts and "server.http.wire" in parts
 
     def above(m: str) -> bool:
-        return m != "server.api" and m != SERVER_CONTRACT and any(_in(m, up) for up in SERVER_ABOVE_PARTS)
+        return m != "server.api" and any(_in(m, up) for up in SERVER_ABOVE_PARTS)
 
     chains = _offending_chains(parts, above)
     assert not chains, "a part of the service imports the API, the app or the commands:\n" + "\n".join(chains)
+
+
+def test_sessions_do_not_import_the_api():
+    """The sessions read the models they share with the API from the contract, never from the API's
+    schemas (whose package also holds the routes that call the sessions)."""
+    sessions = [n for n in modules() if _in(n, "server.sessions")]
+    assert "server.sessions.service" in sessions and "server.sessions.scenes" in sessions
+    chains = _offending_chains(sessions, lambda m: _in(m, "server.api"))
+    assert not chains, "server.sessions imports server.api:\n" + "\n".join(chains)
+
+
+def test_the_contract_imports_no_part_of_the_service():
+    """The contract lies below every part of the service: it reads the engine's declarations only."""
+    contract = [n for n in modules() if _in(n, SERVER_CONTRACT)]
+    assert "server.contract.scene" in contract and "server.contract.settings" in contract
+    chains = _offending_chains(contract, lambda m: _in(m, "server") and not _in(m, SERVER_CONTRACT))
+    assert not chains, "the contract imports the service:\n" + "\n".join(chains)
+
+
+def server_part(name: str) -> str:
+    """The part of the service a module belongs to: its sub-package (``server.frames``), or itself for
+    a module at the package's top (``server.config``)."""
+    parts = name.split(".")
+    return (
+        ".".join(parts[:2]) if len(parts) > 2 or name in modules() and modules()[name].name == "__init__.py" else name
+    )
+
+
+def part_edges() -> dict[str, set[str]]:
+    """The service's parts → the parts they import (themselves excluded)."""
+    out: dict[str, set[str]] = {}
+    for name, deps in internal_edges().items():
+        if not _in(name, "server"):
+            continue
+        here = server_part(name)
+        out.setdefault(here, set()).update(server_part(d) for d in deps if _in(d, "server") and server_part(d) != here)
+    return out
+
+
+def test_server_parts_have_no_import_cycle():
+    """No two parts of the service import each other, directly or around a loop (``http`` and
+    ``frames``, say): each part can be read, tested and replaced from what lies below it."""
+    g = part_edges()
+    assert "server.frames" in g["server.sessions"], "the part graph must see sessions → frames"
+    cycle = find_cycle(g)
+    assert cycle is None, "import cycle between the service's parts: " + " → ".join(cycle)
 
 
 def test_frames_do_not_import_sessions():
@@ -298,8 +345,8 @@ def test_frames_do_not_import_sessions():
 
 def test_server_packages_import_nothing_of_the_server_on_import():
     """A sub-package's ``__init__`` imports none of the service's modules (the routes' package excepted,
-    which assembles the router): importing ``server.api.schemas`` from a session then never runs the
-    routes that import the sessions back."""
+    which assembles the router): importing ``server.contract.scene`` from a session, or
+    ``server.api.schemas`` from a tool, then never runs the routes that import the sessions back."""
     inits = [n for n in modules() if modules()[n].name == "__init__.py" and _in(n, "server")]
     assert "server.sessions" in inits and "server.api" in inits
     g = internal_edges()

@@ -59,7 +59,7 @@ class BruteForce:
             0.0,
             {
                 "method": self.name,
-                "primitives": scene.n_spheres + scene.n_triangles + scene.n_shapes,
+                "primitives": scene.n_tree_primitives,
                 **mesh_stats(scene),
             },
         )

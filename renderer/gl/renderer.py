@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Hashable
+from dataclasses import replace
 from typing import cast
 
 import moderngl
@@ -25,14 +26,13 @@ import numpy as np
 from .. import gpu_layout
 from ..accel.ray_engine import RayEngine
 from ..animation import AnimatedScene
-from ..features import frame_features
 from ..gpu_layout import Variant
-from ..integrators import Denoiser
 from ..limits import DEFAULT_TEXTURE_WIDTH, MAX_PROGRAMS, PATH_SAMPLES_PER_PASS
-from ..methods import METHODS, PreparedMethod, check_primitives, resolve_method
+from ..methods import METHODS, PreparedMethod
+from ..plan import FramePlan, plan_frame
 from ..prepare import PreparedFrame, prepare_frame
 from ..result import RenderResult
-from ..scene import Scene, SceneError
+from ..scene import Scene
 from ..settings import RenderSettings
 from ..shader_source import tracer_bindings, tracer_source, vertex_source
 from ..tree_update import TreeUpdate
@@ -189,6 +189,7 @@ class GLRenderer:
             inner = self.begin(
                 frame.scene,
                 frame.settings,
+                plan=frame.plan,
                 prepared=frame.prepared,
                 band_rows=band_rows,
                 slice_ms=slice_ms,
@@ -203,6 +204,7 @@ class GLRenderer:
         settings: RenderSettings,
         *,
         update: TreeUpdate = TreeUpdate(),
+        plan: FramePlan | None = None,
         prepared: PreparedMethod | None = None,
         band_rows: int | None = None,
         one_shot: bool = False,
@@ -215,33 +217,27 @@ class GLRenderer:
         traced slice by slice (:class:`~renderer.gl.frame.TracerFrame`); ``band_rows``
         sizes its slices, ``samples_per_pass`` the path integrator's passes, ``accumulated`` the
         samples an accumulation frame goes on from (their float32 sum, image rows, or None, and count;
-        a Whitted colour frame's: ``slices`` jittered slices of its grid). Builds the
-        method's structure first unless ``prepared`` is given."""
+        a Whitted colour frame's: ``slices`` jittered slices of its grid). Plans the frame
+        (:func:`renderer.plan.plan_frame`) unless ``plan`` is given, and builds the method's structure
+        first unless ``prepared`` is."""
         t_start = time.perf_counter()
-        # auto's crossover counts what a tree would hold, spheres and triangles (as prepare_frame)
-        method_name = resolve_method(settings.method, scene.n_spheres + scene.n_triangles + scene.n_shapes)
-        method = METHODS[method_name]
-        if method.capabilities.multi_pass:
-            raise ValueError(f"method {method_name!r} draws its frames in passes of its own: use render()")
-        if settings.mode not in method.capabilities.modes:
-            raise SceneError("mode", f"mode {settings.mode!r} is not available with method {method_name!r}")
-        check_primitives(method_name, scene)  # e.g. brute force past the shader's loop limit
+        if plan is None:
+            plan = plan_frame(scene, settings)
+        if plan.multi_pass or plan.features is None:
+            raise ValueError(f"method {plan.method!r} draws its frames in passes of its own: use render()")
         if prepared is None:
-            prepared = method.prepare(
+            prepared = METHODS[plan.method].prepare(
                 scene, settings.max_prims, settings.max_tree_depth, self.max_texture_width, update
             )
-        features, depth = frame_features(scene, settings, guides=settings.denoise != Denoiser.OFF)
         image = self.image_targets and image_only(settings) and accumulated is None  # (a sum needs floats)
-        variant = Variant(method_name, settings.mode, depth, features.defines(), image_only=image)
-        variant = Variant(
-            method_name, settings.mode, depth, features.defines(), self.blocks_for(variant, prepared), image
-        )
+        variant = plan.variant(image_only=image)
+        variant = replace(variant, blocks=self.blocks_for(variant, prepared))  # the host's choice of blocks
         stats = {
             **prepared.stats,
-            "method": method_name,
-            "recursion_depth": depth,
-            "features_removed": features.removed(),
-            "shader_features": list(features.defines()),
+            "method": plan.method,
+            "recursion_depth": plan.recursion_depth,
+            "features_removed": plan.features.removed(),
+            "shader_features": list(plan.defines),
             "blocks": list(variant.blocks),
             "target": "rgba8" if image else "float",
             "n_spheres": scene.n_spheres,

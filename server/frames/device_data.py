@@ -43,7 +43,7 @@ fixed-length arrays as lists, plus the camera terms that do not depend on the im
 them as ``gpu_layout.camera_uniforms`` computes them).
 
 The shader variant is the one the server's frame of the same settings compiles
-(:func:`renderer.features.frame_features`): with ``integrator`` ``path`` in colour mode it
+(:func:`renderer.plan.plan_frame`, read by :func:`device_header`): with ``integrator`` ``path`` in colour mode it
 carries ``PATH`` and its ``max_recursion_depth`` is a path's segments (up to
 ``MAX_PATH_DEPTH``). Such a variant's ``o_image.rgb`` is the *sum* of the radiance of the
 ``u_sample_count`` samples from ``u_sample_start`` on (``gpu_layout.path_uniforms``, set per
@@ -65,14 +65,17 @@ from __future__ import annotations
 
 import json
 import struct
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-from renderer import gpu_layout
+from renderer import atrous, gpu_layout
 from renderer.features import FEATURE_DEFINES  # noqa: F401 - re-exported: the shader variant's feature defines, in order
-from renderer.limits import DEFAULT_TEXTURE_WIDTH
-from renderer.scene import Camera
+from renderer.limits import DEFAULT_TEXTURE_WIDTH, DEVICE_PATH_SAMPLES_PER_PASS
+from renderer.methods import PreparedMethod
+from renderer.plan import FramePlan
+from renderer.scene import Camera, Scene
 
 MAGIC = b"PRDD"
 FORMAT_VERSION = 1
@@ -100,6 +103,87 @@ def camera_uniforms(camera: Camera) -> dict[str, Any]:
         k: jsonable(v)
         for k, v in gpu_layout.camera_uniforms(camera, 1, 1).items()
         if k not in ("u_half_extent", "u_resolution")
+    }
+
+
+def device_uniforms(scene: Scene, prims: gpu_layout.PackedScene, prepared: PreparedMethod) -> dict[str, Any]:
+    """The header's ``uniforms``: the primitives', the method's and the frame's (ε 0: the device sets its
+    frame's, as the camera's image-size terms), then the camera's, as JSON."""
+    packed = {**prims.uniforms, **prepared.packed.uniforms, **gpu_layout.frame_uniforms(scene, 0.0)}
+    uniforms = {k: jsonable(v) for k, v in packed.items()}
+    uniforms.update(camera_uniforms(scene.camera))
+    return uniforms
+
+
+def device_stats(plan: FramePlan, prepared: PreparedMethod) -> dict[str, Any]:
+    """The build's statistics with the plan's method, recursion depth and variant's defines."""
+    return {
+        **prepared.stats,
+        "method": plan.method,
+        "recursion_depth": plan.recursion_depth,
+        "features_removed": list(plan.defines),
+    }
+
+
+def device_header(
+    plan: FramePlan,
+    settings: Mapping[str, Any],
+    uniforms: dict[str, Any],
+    stats: dict[str, Any],
+    *,
+    session: dict[str, Any],
+    camera: dict[str, Any],
+    home_camera: dict[str, Any],
+    max_texture_size: int,
+    shader_url: str,
+    build_ms: float,
+    pack_ms: float,
+) -> dict[str, Any]:
+    """The JSON header (the module's format) of a one-pass frame's ``plan``: ``settings`` the session's
+    merged with the query's, ``session`` its id, version and scene revision, ``camera`` and
+    ``home_camera`` its camera JSON, ``shader_url`` where the variant's text is served; ms timings."""
+    features = plan.features
+    assert features is not None, "a one-pass method's plan has its variant's features"
+    chosen = plan.settings
+    return {
+        "format": "pocketray-device-data",
+        "format_version": FORMAT_VERSION,
+        "session": session,
+        "method": plan.method,
+        "settings": {
+            **{
+                k: settings[k]
+                for k in ("mode", "max_prims", "max_tree_depth", "max_recursion_depth", "width", "height")
+            },
+            # sessions stored before animation (or the path integrator) have none of these: defaults
+            **{
+                k: getattr(chosen, k)
+                for k in ("time", "samples_per_pixel", "integrator", "tone_map", "exposure", "denoise")
+            },
+        },
+        "shader": {
+            "method": plan.method,
+            "mode": settings["mode"],
+            "max_recursion_depth": plan.recursion_depth,
+            "features": list(plan.defines),
+            "url": shader_url,
+        },
+        "path": (
+            {
+                "samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS,
+                "guides": features.guides,
+                **({"atrous": atrous.parameters()} if features.guides else {}),
+            }
+            if features.path
+            else None
+        ),
+        "max_texture_size": max_texture_size,
+        "camera": camera,
+        "home_camera": home_camera,
+        "uniforms": uniforms,
+        "stats": jsonable_stats(stats),
+        "build_ms": build_ms,
+        "pack_ms": pack_ms,
     }
 
 

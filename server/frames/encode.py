@@ -32,10 +32,10 @@ from PIL import Image
 
 from renderer.result import RenderResult
 
+from ..contract.headers import EXPOSED, TIMING_NAMES
 from .exr import MEDIA_TYPE as EXR_MEDIA_TYPE, encode_exr
 
 MEDIA_TYPES = {"png": "image/png", "jpeg": "image/jpeg", "npy": "application/octet-stream", "exr": EXR_MEDIA_TYPE}
-TIMING_NAMES = ("queue", "pose", "update", "build", "upload", "trace", "read", "encode", "total")
 STATS_HEADER_KEYS = (
     "method",
     "time",
@@ -48,16 +48,6 @@ STATS_HEADER_KEYS = (
     "optimized_nodes",
     "forced_leaves",
     "build_ms",
-)
-EXPOSED = (
-    "Server-Timing",
-    "X-Session-Version",
-    "X-Method",
-    "X-Stats",
-    "X-Frame-Part",
-    "X-Samples",
-    "X-Refine",
-    "Retry-After",
 )
 
 

@@ -46,7 +46,8 @@ from renderer.cost import largest_accepted
 from renderer.denoise import denoise_nbytes, denoise_result
 from renderer.integrators import Denoiser
 from renderer.limits import DEFAULT_TEXTURE_WIDTH
-from renderer.methods import METHODS, capabilities, resolve_method
+from renderer.methods import METHODS, capabilities
+from renderer.plan import plan_method
 from renderer.prepare import PreparedFrame, band_rows, batch_size, prepare_frame
 from renderer.result import traced_nbytes
 from renderer.scene import Scene, SceneError
@@ -668,13 +669,16 @@ class FramePipeline:
             while len(self._stats) > 256:
                 self._stats.popitem(last=False)
 
-    def stats(self, request: FrameRequest, n_primitives: int) -> dict:
+    def stats(self, request: FrameRequest) -> dict:
         """Statistics of the acceleration structure for the request's settings: the last build's
-        of its session, or a build made now (without rendering). ``n_primitives``: the session's
-        spheres, triangles and analytic shapes as stored (``auto`` resolves on them, as prepare_frame does)."""
+        of its session, or a build made now (without rendering), by the method its frames use
+        (``auto`` resolved as they resolve it, :func:`renderer.plan.plan_method`)."""
         assert request.owner is not None, "statistics are a session's"
         scene, s, owner = request.scene, request.settings.render, request.owner
-        method_name = resolve_method(s.method, n_primitives)  # auto as prepare_frame does
+        try:
+            method_name = plan_method(s, scene.n_tree_primitives)
+        except SceneError as e:
+            raise input_error(e) from None
         key = StatsKey(
             owner.id, owner.scene_rev, method_name, s.max_prims, s.max_tree_depth, self._pose_time(scene, s.time)
         )

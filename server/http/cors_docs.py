@@ -24,7 +24,7 @@ from fastapi.routing import APIRoute
 from starlette.middleware.cors import CORSMiddleware
 from starlette.staticfiles import StaticFiles
 
-from ..frames.encode import EXPOSED
+from ..contract.headers import EXPOSED
 from .observability import REQUEST_ID_HEADER, SESSION_HEADER
 from .security import CSP, docs_policy
 

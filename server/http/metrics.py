@@ -60,7 +60,7 @@ from prometheus_client.core import GaugeMetricFamily
 from renderer.modes import MODES
 from renderer.settings import METHOD_NAMES
 
-from ..frames.encode import TIMING_NAMES
+from ..contract.headers import TIMING_NAMES
 
 disable_created_metrics()  # no *_created series: they double the exposition and nobody graphs them
 

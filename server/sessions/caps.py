@@ -12,11 +12,12 @@ import numpy as np
 
 from renderer.cost import path_segments, request_work
 from renderer.integrators import Integrator
+from renderer.plan import plan_method
 from renderer.scene import SceneError
 from renderer.settings import RenderSettings, SettingValues
 
-from ..api.schemas import SceneModel
 from ..config import ServerConfig
+from ..contract.scene import SceneModel
 from ..faults import InputError, input_error
 from ..frames.pipeline import render_settings
 from .scenes import SessionScene, scene_from_model
@@ -37,10 +38,12 @@ class InputCaps:
             raise input_error(e) from None
         return merged
 
-    def check_work(self, settings: RenderSettings, n_spheres: int) -> None:
+    def check_work(self, settings: RenderSettings, tree_primitives: int) -> str:
         """The caps that need no build: POCKETRAY_MAX_WORK (a path frame's expected segments,
-        ``renderer.cost.request_work``), and the modes the method can draw.
-        (The cost of a frame, POCKETRAY_MAX_FRAME_COST, is checked by the pipeline's plan.)"""
+        ``renderer.cost.request_work``), and the modes the method can draw; the method the frames of
+        ``settings`` use over a scene of ``tree_primitives`` (``auto`` resolved as every frame resolves
+        it, :func:`renderer.plan.plan_method`). (The cost of a frame, POCKETRAY_MAX_FRAME_COST, is
+        checked by the pipeline's plan.)"""
         w, h, d, spp = settings.width, settings.height, settings.max_recursion_depth, settings.samples_per_pixel
         path = settings.integrator == Integrator.PATH
         work = request_work(w, h, d, spp, path)
@@ -59,7 +62,7 @@ class InputCaps:
                 f"height, max_recursion_depth or samples_per_pixel",
             )
         try:
-            settings.check_method(n_spheres)  # the modes the method can draw
+            return plan_method(settings, tree_primitives)  # the modes the method can draw
         except SceneError as e:
             raise input_error(e) from None
 

@@ -38,7 +38,7 @@ from renderer.scenarios import content_box, object_boxes, scenario
 from renderer.scene import Camera, Material, Mesh, Scene, SceneError, make_mesh
 from renderer.shapes import Shapes
 
-from ..api.schemas import CameraModel, SceneModel
+from ..contract.scene import CameraModel, SceneModel
 
 _RECIPE = b"R"
 _ARRAYS = b"A"
@@ -285,6 +285,13 @@ def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> It
     if env is not None:
         yield (',"environment":' + dumps(env)).encode()
     yield (tail + "}").encode()
+
+
+def tree_primitives(info: dict[str, Any]) -> int:
+    """:attr:`renderer.scene.Scene.n_tree_primitives` of the scene a session's ``scene_info`` describes
+    (spheres, triangles and analytic shapes at rest; a kind the info leaves out has none): what
+    ``method=auto`` chooses by without loading the scene."""
+    return info.get("n_spheres", 0) + info.get("n_triangles", 0) + info.get("n_shapes", 0)
 
 
 def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dict[str, Any]:

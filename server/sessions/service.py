@@ -32,17 +32,17 @@ from renderer.scenarios import DEFAULT_DEMO, demo_for_recipe, framed, mesh_scene
 from renderer.scene import Camera, Scene, SceneError
 from renderer.settings import SettingValues
 
-from ..api.schemas import (
+from ..config import ServerConfig
+from ..contract.scene import SceneModel
+from ..contract.sessions import (
     MeshUploadQuery,
     OrbitGesture,
     PanGesture,
     PinchGesture,
     ResetGesture,
-    SceneModel,
     SessionCreate,
-    SettingsPatch,
 )
-from ..config import ServerConfig
+from ..contract.settings import SettingsPatch
 from ..faults import Busy, InputError, NotFound, Superseded, Where, input_error
 from ..frames.pipeline import FrameOwner, FramePipeline, FrameRequest, FrameSettings, render_settings
 from . import controller
@@ -59,6 +59,7 @@ from .scenes import (
     scenario_source,
     scene_info,
     scene_source,
+    tree_primitives,
 )
 from .store import SessionState, SessionStore, StoreFull, StoreUnavailable
 
@@ -190,7 +191,7 @@ class SessionService:
         patch: SettingValues = {**recommended, **(body.settings.given() if body.settings else {})}
         settings = self.caps.merge_settings(self.default_settings(), patch)
         rs = render_settings(settings)
-        self.caps.check_work(rs, scene.n_spheres)
+        self.caps.check_work(rs, scene.n_tree_primitives)
         # A session no frame could render is refused now (the sphere count named where it was asked for).
         n_field = (
             ("museum", "n")
@@ -431,13 +432,13 @@ class SessionService:
         state = self.get(session_id)
         checked = self.caps.merge_settings(state.settings, given)
         rs = render_settings(checked)
-        self.caps.check_work(rs, state.scene_info.get("n_spheres", 0))
+        self.caps.check_work(rs, tree_primitives(state.scene_info))
         self.frames.plan(self.scene(state), rs)
 
         def mutate(old: SessionState) -> SessionState:
             merged = self.caps.merge_settings(old.settings, given)
             rs = render_settings(merged)
-            self.caps.check_work(rs, old.scene_info.get("n_spheres", 0))
+            self.caps.check_work(rs, tree_primitives(old.scene_info))
             if merged != checked:  # another change came between: check what is stored now
                 self.frames.plan(self.scene(old), rs)
             return replace(old, settings=merged)
@@ -488,7 +489,7 @@ class SessionService:
         if merged.get("format") in LINEAR_FORMATS and "denoise" not in patch:
             merged = {**merged, "denoise": "off"}
         settings = FrameSettings.of(merged)
-        self.caps.check_work(settings.render, state.scene_info.get("n_spheres", 0))
+        self.caps.check_work(settings.render, tree_primitives(state.scene_info))
         return settings
 
     def frame_request(
@@ -554,7 +555,7 @@ class SessionService:
         """A frame of a scene sent with the request, no session (its settings are the body's)."""
         scene = self.caps.checked_scene(scene_model, ("scene",))  # its body was bounded by the body parsers
         settings = FrameSettings.of(self.caps.merge_settings(self.default_settings(), patch))
-        self.caps.check_work(settings.render, scene.n_spheres)
+        self.caps.check_work(settings.render, scene.n_tree_primitives)
         return FrameRequest(scene, settings, None, cancel=cancel)
 
     def stats(self, session_id: str, patch: SettingValues) -> dict:
@@ -562,7 +563,4 @@ class SessionService:
         settings: the last build's, or a build made now (without rendering)."""
         state = self.get(session_id)
         settings = FrameSettings.of(self.caps.merge_settings(state.settings, patch))
-        scene = self.scene(state)
-        info = state.scene_info
-        n = info.get("n_spheres", 0) + info.get("n_triangles", 0) + info.get("n_shapes", 0)  # what a tree would hold
-        return self.frames.stats(FrameRequest(scene, settings, owner(state)), n)
+        return self.frames.stats(FrameRequest(self.scene(state), settings, owner(state)))

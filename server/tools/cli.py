@@ -285,6 +285,7 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
     Returns what was done (method, size, format, timings in ms). UsageError on bad input."""
     from pydantic import ValidationError
 
+    from renderer.plan import plan_method
     from renderer.scene import SceneError
 
     from ..api.schemas import FrameQuery, SceneModel
@@ -314,7 +315,7 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
     settings: SettingValues = {**config.default_settings(), **patch}
     try:
         rs = render_settings(settings)
-        rs.check_method(scene.n_spheres)
+        plan_method(rs, scene.n_tree_primitives)  # auto resolved as the frame resolves it
     except (SceneError, TypeError) as e:
         raise UsageError(f"{getattr(e, 'field', 'settings')}: {getattr(e, 'message', e)}") from None
 

@@ -103,7 +103,7 @@ def refused_only_across_fields(ctx, response, case) -> None:
         and sent_as == "application/json"
         and schema_allows(body_schema, case.body)
     )
-    # "too_many_errors" counts the entries past the first 20 (server/api/schemas.py); the listed ones are judged.
+    # "too_many_errors" counts the entries past the first 20 (server/contract/fields.py); the listed ones are judged.
     mismatches = [
         d
         for d in response.json()["detail"]

@@ -31,37 +31,32 @@ answers 503 + ``Retry-After`` here as everywhere.
 from __future__ import annotations
 
 import time
-from typing import Annotated, Any
+from collections.abc import Callable
+from typing import Annotated, Any, TypeVar
 from urllib.parse import urlencode
 
 from fastapi import APIRouter, Query, Response
 from fastapi.responses import PlainTextResponse
 
-from renderer import atrous, gpu_layout
+from renderer import gpu_layout
 from renderer.accel.base import NOT_ON_GPU, AccelerationMethod
-from renderer.features import frame_features
-from renderer.integrators import Denoiser
-from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
-from renderer.methods import METHODS, resolve_method
+from renderer.methods import METHODS
 from renderer.modes import SINGLE_PASS_MODES
+from renderer.plan import plan_frame, plan_method
+from renderer.scene import SceneError
 from renderer.shader_source import tracer_source, vertex_source
 
-from ...faults import InputError, Where
-from ...frames.device_data import (
-    FEATURE_DEFINES,
-    FORMAT_VERSION,
-    camera_uniforms,
-    encode_blob,
-    jsonable,
-    jsonable_stats,
-)
+from ...faults import InputError, Where, input_error
+from ...frames.device_data import FEATURE_DEFINES, device_header, device_stats, device_uniforms, encode_blob
 from ...frames.encode import EXPOSED, stats_header
 from ...frames.pipeline import render_settings
+from ...sessions.scenes import tree_primitives
 from ..deps import FramesDep, ServiceDep, SessionId
 from ..errors import documented, located
 from ..schemas import DeviceDataQuery, ShaderQuery
 
 router = APIRouter(tags=["device"])
+T = TypeVar("T")
 
 _DATA_DOC: dict[str, Any] = {
     "description": "the packed scene and acceleration data (binary; format in server/frames/device_data.py)",
@@ -126,6 +121,15 @@ def shader_url(method: str, mode: str, depth: int, features: tuple[str, ...]) ->
     return "/api/shader?" + urlencode(q)
 
 
+def _planned(plan: Callable[[], T]) -> T:
+    """``plan()``, its refusal (:class:`SceneError`) a 422 at the query's setting."""
+    with located(Where.QUERY):
+        try:
+            return plan()
+        except SceneError as e:
+            raise input_error(e) from None
+
+
 # ---- routes ----------------------------------------------------------------------------------
 @router.get(
     "/sessions/{session_id}/device-data",
@@ -146,10 +150,10 @@ def device_data(
     state = service.get(session_id)
     with located(Where.QUERY):
         settings = service.caps.merge_settings(state.settings, query.given())
+    chosen = render_settings(settings)
     n_triangles = state.scene_info.get("n_triangles", 0)
-    # auto's crossover, as prepare_frame: what a tree would hold
-    n = state.scene_info.get("n_spheres", 0) + n_triangles + state.scene_info.get("n_shapes", 0)
-    method_name = resolve_method(settings["method"], n)
+    at_rest = tree_primitives(state.scene_info)  # auto's choice, as every frame of the session makes it
+    method_name = _planned(lambda: plan_method(chosen, at_rest))
     meth = single_pass_method(method_name, ("query", "method"))
     if n_triangles and not meth.capabilities.meshes_on_gpu:
         # The device runs the server's shader on the server's layout: what the GPU cannot trace
@@ -164,7 +168,12 @@ def device_data(
     with frames.admit():  # a queue slot for back-pressure; the work is NumPy, on this thread
         # An animated scene is posed here; the tree is rebuilt (updates between frames
         # belong to the GL thread's renders, whose tree caches are not shared with this thread).
-        scene, update = frames.posed(service.scene(state), settings.get("time", 0.0))
+        scene, update = frames.posed(service.scene(state), chosen.time)
+        # The variant the server's frame of these settings compiles (renderer.plan): Whitted's tree, or
+        # with integrator 'path' the path integrator (its depth: segments of a path, up to
+        # MAX_PATH_DEPTH); with a denoiser it writes the guides too (two more targets): a device filters
+        # with à-trous whichever denoiser is named (OIDN does not run in a browser).
+        plan = _planned(lambda: plan_frame(scene, chosen, tree_primitives=at_rest))
         t_built0 = time.perf_counter()
         try:
             prepared = meth.prepare(scene, settings["max_prims"], settings["max_tree_depth"], width, update)
@@ -173,59 +182,22 @@ def device_data(
             raise InputError(
                 ("query", "max_texture_size"), f"the scene does not fit this device's textures ({e}); use server mode"
             ) from None
-    # The variant the server's frame of these settings compiles: Whitted's tree, or with
-    # integrator 'path' the path integrator (its depth: segments of a path, up to MAX_PATH_DEPTH).
-    chosen = render_settings(settings)
-    # With a denoiser the variant writes the guides too (two more targets); a device filters with
-    # à-trous whichever denoiser is named (OIDN does not run in a browser).
-    features, depth = frame_features(scene, chosen, guides=chosen.denoise != Denoiser.OFF)
-    defines = features.defines()
-    # u_min_weight (ε) is the device's per frame, as its camera's image-size terms.
-    packed = {**prims.uniforms, **prepared.packed.uniforms, **gpu_layout.frame_uniforms(scene, 0.0)}
-    uniforms = {k: jsonable(v) for k, v in packed.items()}
-    uniforms.update(camera_uniforms(scene.camera))
-    stats = {**prepared.stats, "method": method_name, "recursion_depth": depth, "features_removed": list(defines)}
+    uniforms = device_uniforms(scene, prims, prepared)
+    stats = device_stats(plan, prepared)
     t_packed = time.perf_counter()
-    header = {
-        "format": "pocketray-device-data",
-        "format_version": FORMAT_VERSION,
-        "session": {"id": state.id, "version": state.version, "scene_rev": state.scene_rev},
-        "method": method_name,
-        "settings": {
-            **{
-                k: settings[k]
-                for k in ("mode", "max_prims", "max_tree_depth", "max_recursion_depth", "width", "height")
-            },
-            # sessions stored before animation (or the path integrator) have none of these: defaults
-            **{
-                k: getattr(chosen, k)
-                for k in ("time", "samples_per_pixel", "integrator", "tone_map", "exposure", "denoise")
-            },
-        },
-        "shader": {
-            "method": method_name,
-            "mode": settings["mode"],
-            "max_recursion_depth": depth,
-            "features": list(defines),
-            "url": shader_url(method_name, settings["mode"], depth, defines),
-        },
-        "path": (
-            {
-                "samples_per_pass": DEVICE_PATH_SAMPLES_PER_PASS,
-                "guides": features.guides,
-                **({"atrous": atrous.parameters()} if features.guides else {}),
-            }
-            if features.path
-            else None
-        ),
-        "max_texture_size": width,
-        "camera": state.camera,
-        "home_camera": state.home_camera,
-        "uniforms": uniforms,
-        "stats": jsonable_stats(stats),
-        "build_ms": prepared.build_ms,
-        "pack_ms": ((t_packed - t_built0) * 1e3 - prepared.build_ms),
-    }
+    header = device_header(
+        plan,
+        settings,
+        uniforms,
+        stats,
+        session={"id": state.id, "version": state.version, "scene_rev": state.scene_rev},
+        camera=state.camera,
+        home_camera=state.home_camera,
+        max_texture_size=width,
+        shader_url=shader_url(method_name, settings["mode"], plan.recursion_depth, plan.defines),
+        build_ms=prepared.build_ms,
+        pack_ms=(t_packed - t_built0) * 1e3 - prepared.build_ms,
+    )
     blob = encode_blob(header, {**prims.textures, **prepared.packed.textures})
     total = (time.perf_counter() - t0) * 1e3
     timing = f"build;dur={prepared.build_ms:.2f}, pack;dur={header['pack_ms']:.2f}, total;dur={total:.2f}"

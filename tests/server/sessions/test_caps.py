@@ -47,3 +47,20 @@ def test_whitted_frames_keep_the_levels_count(caps):
     with pytest.raises(InputError) as e:
         caps.check_work(RenderSettings(width=1088, height=1088, max_recursion_depth=8, samples_per_pixel=9), 1)
     assert e.value.loc == ("width",)
+
+
+def test_the_caps_resolve_auto_on_the_tree_primitives_of_the_stored_scene(caps):
+    """The method the caps check is the one the frames use: ``auto`` over the spheres, triangles and
+    shapes a session's scene_info counts (a scene of meshes alone has no sphere, and hundreds of tree
+    primitives)."""
+    from renderer.methods import AUTO_CROSSOVER_N
+    from renderer.scenarios import mesh_scene
+    from server.sessions.scenes import scene_info, tree_primitives
+
+    auto = RenderSettings(width=8, height=8, method="auto")
+    teapot, table = scene_info(mesh_scene("teapot", 0)), scene_info(mesh_scene("table", 0))
+    assert teapot["n_spheres"] == 0 and tree_primitives(teapot) == teapot["n_triangles"] >= AUTO_CROSSOVER_N
+    assert caps.check_work(auto, tree_primitives(teapot)) == "bih"
+    assert tree_primitives(table) == table["n_shapes"] < AUTO_CROSSOVER_N
+    assert caps.check_work(auto, tree_primitives(table)) == "bruteforce"
+    assert caps.check_work(auto.with_(method="bvh"), 1) == "bvh"
