@@ -159,9 +159,26 @@ bool slab_interval(vec3 o, vec3 d, vec3 bmin, vec3 bmax, out float t0, out float
     return true;
 }
 
-//@TRIANGLES functions
-//@SHAPES library
-//@SHAPES functions
+// A hit's surface: where, its outward normal, its material (and, with triangles, the geometric
+// normal: the side the ray sees, whether it enters; = n but on triangles).
+struct Surface {
+    vec3 p;
+    vec3 n;   // outward unit normal
+    int mat;
+#if FEATURE_TRIANGLES
+    vec3 ng;
+#endif
+};
+
+// The primitive kinds beyond spheres and planes, each one whole chunk compiled where its
+// FEATURE_* is 1, then the leaf interface every traversal calls (shaders/leaf.glsl).
+//@INCLUDE triangles.glsl
+#if FEATURE_SHAPES
+//@INCLUDE shapes.glsl
+#endif
+//@INCLUDE shapes_tracer.glsl
+//@INCLUDE leaf.glsl
+
 #ifndef BACKGROUND
 //@METHOD@
 #else
@@ -196,7 +213,9 @@ void intersect_spheres(Query q, inout Hit h) {}
 
 Hit intersect_scene(Query q) {
     Hit h = Hit(q.t_max, NO_PRIM, vec4(0.0), 0u);
-//@TRIANGLES shear
+#if FEATURE_TRIANGLES
+    g_shear = shear_of(q.d);   // once per ray, for every triangle it meets
+#endif
     // llvmpipe pays for a loop's machinery even when it runs once: a variant that knows it
     // has one plane (every thesis scenario) tests it in straight code, 30 % of a 640 × 1088
     // depth frame of the plane alone. (With no plane the loop stays: without it, Mesa 22.3's
@@ -296,20 +315,16 @@ struct Task {
     int far_id;
 };
 
-struct Surface {
-    vec3 p;
-    vec3 n;   // outward unit normal
-    int mat;
-//@TRIANGLES surface_field
-};
-//@TRIANGLES surface_function
-//@SHAPES surface_function
 
 Surface surface_at(vec3 o, vec3 d, Hit h) {
     Surface s;
     s.p = o + h.t * d;
-//@SHAPES surface_at
-//@TRIANGLES surface_at
+#if FEATURE_SHAPES
+    if (h.id >= u_shape_base) { shape_surface(h, s); return s; }
+#endif
+#if FEATURE_TRIANGLES
+    if (h.id >= u_tri_base) { triangle_surface(d, h, s); return s; }
+#endif
     if (h.id < u_num_spheres) {
         // From the centre's offset (o − c) + t·d, not from p − c: far from the origin
         // p is rounded to float32's spacing there (0.0625 at 1e6), which can exceed
@@ -327,19 +342,30 @@ Surface surface_at(vec3 o, vec3 d, Hit h) {
         s.mat = u_plane_mat[i];
 #endif
     }
-//@TRIANGLES surface_ng
+#if FEATURE_TRIANGLES
+    s.ng = s.n;   // spheres and planes: one normal
+#endif
     return s;
 }
 
-//@LIGHTING functions
+// Emission, the environment and the path integrator (shaders/lighting.glsl).
+#if FEATURE_LIGHTING
+//@INCLUDE lighting.glsl
+#endif
 void main() {
     LAYOUT_INIT();
     method_init();
 #if defined(READS_MATERIALS) && defined(MATERIAL_TEXTURE)
     g_mat_shift = row_shift(textureSize(u_materials, 0));
 #endif
-//@LIGHTING init
-//@LIGHTING main_begin
+#if FEATURE_LIGHTING
+    EMISSION_INIT();
+    ENV_MAP_INIT();
+    ENV_CDF_INIT();
+#endif
+#ifdef PATH
+    path_main();
+#else
     // The point of the frame's sample grid (u_resolution) this fragment traces: a pass
     // traces one sub-pixel of every pixel (renderer/gpu_layout.py, PASS_BINDINGS); the
     // pixel-centre pass has scale 1 and offset 0.5, so px is gl_FragCoord.x itself. Every
@@ -410,7 +436,14 @@ void main() {
             live = true;
         } else {
             live = hq.id != NO_PRIM;
-//@LIGHTING whitted_miss
+#if FEATURE_LIGHTING
+#ifdef READS_ENVIRONMENT
+            if (!live) color += k.weight * u_environment;   // what a ray that meets nothing sees
+#endif
+#ifdef READS_ENVIRONMENT_MAP
+            if (!live) color += k.weight * ENV_RADIANCE_AT(k.d);   // … or the image, along the ray
+#endif
+#endif
             if (live) {
                 h = hq;
                 s = surface_at(k.o, k.d, h);
@@ -420,11 +453,15 @@ void main() {
                 m = material_at(s.mat);
 #endif
                 nf = dot(k.d, s.n) < 0.0 ? s.n : -s.n;
-//@TRIANGLES facing
+#if FEATURE_TRIANGLES
+                nf = dot(k.d, s.ng) < 0.0 ? s.n : -s.n;   // the side by the geometric normal
+#endif
 #ifdef MODE_COLOR
                 color += k.weight * m.ambient * m.color;   // Phong's ambient term
 #endif
-//@LIGHTING whitted_emission
+#if FEATURE_LIGHTING && defined(READS_EMISSION)
+                if (dot(nf, s.n) > 0.0) color += k.weight * emission_at(s.mat);   // the side its normal faces
+#endif
                 light = 0;
             }
         }
@@ -471,7 +508,9 @@ void main() {
 #ifndef NO_TRANSMISSION
             if (m.transmissive > 0.0 && k.weight * m.transmissive >= u_min_weight) {
                 bool entering = dot(k.d, n) < 0.0;
-//@TRIANGLES entering
+#if FEATURE_TRIANGLES
+                entering = dot(k.d, s.ng) < 0.0;   // enters by the geometric normal, bends about n
+#endif
                 float eta = entering ? 1.0 / m.ior : m.ior;
                 vec3 nn = entering ? n : -n;
                 float cos_i = -dot(k.d, nn);
@@ -521,5 +560,5 @@ void main() {
     o_image = vec4(image, float(primary_id));
     o_hit = vec4(primary_n, primary_t);
 #endif
-//@LIGHTING main_end
+#endif
 }
