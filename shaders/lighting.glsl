@@ -2,7 +2,7 @@
 // raytrace.frag includes and compiles where FEATURE_LIGHTING is 1 (a variant that carries
 // EMISSION, ENVIRONMENT or PATH: renderer/shader_source.py); raytrace.frag's main calls
 // path_main where PATH is defined, and its Whitted loop adds emission and the environment. The
-// "//@TRIANGLES" and "//@SHAPES" lines inside path_main are the last marks (a legacy the
+// TRIANGLES and SHAPES mark lines inside path_main are the last marks (a legacy the
 // assembler fills from shaders/path_legacy.glsl).
 
 #ifdef READS_EMISSION
