@@ -89,12 +89,14 @@ def tracer_header(variant: Variant) -> str:
         for prefix, name in (("PLANES_", "N_PLANES"), ("LIGHTS_", "N_LIGHTS")):
             if f.startswith(prefix):
                 defines.append(f"{name} {int(f[len(prefix) :])}")
-    if variant.image_only:
-        defines.append("IMAGE_ONLY")
-    if not variant.spheres:
-        defines.append("BACKGROUND")
-    if variant.first_hits:
-        defines += ["FIRST_HITS", f"FIRST_HITS_{variant.first_hits.upper()}"]
+    # The host's choices, 0 or 1 in every variant (raytrace.frag tests them with #if).
+    defines += [
+        f"IMAGE_ONLY {int(variant.image_only)}",
+        f"BACKGROUND {int(not variant.spheres)}",
+        f"FIRST_HITS {int(bool(variant.first_hits))}",
+        f"FIRST_HITS_SPHERES {int(variant.first_hits == 'spheres')}",
+        f"FIRST_HITS_TILES {int(variant.first_hits == 'tiles')}",
+    ]
     if variant.first_hits == "tiles":  # the tile lists' layout (renderer/first_hits.py)
         defines.append(f"TILE_ENTRY_TEXELS {first_hits.ENTRY_TEXELS}")
     kinds = ""  # the constants of the kinds and the integrator the variant carries

@@ -1,14 +1,16 @@
 #version 300 es
 // pocketray's Whitted ray tracer (thesis listing 3.1) with BIH traversal
-// (listing 3.5, corrected as docs/THESIS.md describes) or another method: the
-// host splices the method's traversal (shaders/method_<name>.glsl) in at the
-// METHOD mark; it defines method_init() (called once per fragment) and
-// intersect_spheres(). The conventions (rays, self-intersection, shading,
-// modes) are those of docs/SHADING.md. The host inserts at the HEADER mark the
-// layout constants, the variant's METHOD_* / MODE_* / READS_* defines and the
-// declarations of every texture, uniform and record array the variant reads,
-// generated from renderer/gpu_layout.py and the method's layout module, so each
-// name is written once. Valid GLSL ES 3.00, for WebGL2 too.
+// (listing 3.5, corrected as docs/THESIS.md describes) or another method. The conventions
+// (rays, self-intersection, shading, modes) are those of docs/SHADING.md. Valid GLSL ES 3.00,
+// for WebGL2 too. Every variant is this file with the same whole chunks in the same order
+// (renderer/shader_source.py): the host writes the header at the HEADER mark (the layout
+// constants, the variant's METHOD_* / MODE_* / READS_* defines, FEATURE_TRIANGLES,
+// FEATURE_SHAPES, FEATURE_LIGHTING and its host choices always defined 0 or 1, and the
+// declarations of every texture, uniform and record array the variant reads, generated from
+// renderer/gpu_layout.py and the method's layout module, so each name is written once), the
+// method's traversal at the METHOD mark (shaders/method_<name>.glsl: method_init(), called
+// once per fragment, and intersect_spheres(), testing primitives through shaders/leaf.glsl),
+// and includes the other chunks whole at their INCLUDE lines; #if switches them.
 //
 // Shaped for how llvmpipe runs it: a fragment shader is run for 8 pixels
 // at once, and a branch no lane takes, or a loop that runs zero times, costs as much
@@ -22,21 +24,21 @@ precision highp usampler2D;
 
 //@HEADER@
 
-#ifdef FIRST_HITS_SPHERES
+#if FIRST_HITS_SPHERES
 // First hits by rasterisation (renderer/first_hits.py): this fragment lies in one sphere's screen
 // rectangle, drawn as an instance of shaders/first_hits.vert; it tests that sphere alone and the
 // depth test (≤, instances in descending id order) keeps the nearest, lower id on a tie.
 flat in vec4 v_sphere;
 flat in uint v_key;
 #endif
-#ifdef FIRST_HITS_TILES
+#if FIRST_HITS_TILES
 // … or in one tile (shaders/first_hit_tiles.vert): its list of spheres, nearest-possible first
 // (TILE_ENTRY_TEXELS texels each: centre and radius; key and the near bound, as float bits).
 flat in uvec2 v_list;   // first entry, count
 uniform highp usampler2D u_tile_entries;
 #endif
 
-#ifdef IMAGE_ONLY
+#if IMAGE_ONLY
 layout(location = 0) out vec4 o_image;  // rgb = mode image rounded to 8 bits (an RGBA8 target)
 #else
 layout(location = 0) out vec4 o_image;  // rgb = mode image, a = primary id (−1 miss)
@@ -51,7 +53,7 @@ const int NO_PRIM = -1;
 // half of a brute-force frame. The shifts are read once per fragment (LAYOUT_INIT).
 int g_mat_shift;
 
-#ifdef FIRST_HITS
+#if FIRST_HITS
 //@INCLUDE depth_order.glsl
 #endif
 
@@ -71,7 +73,7 @@ struct Sphere {
     uint key;
 };
 
-#if defined(EQUAL_RADII) && !defined(BACKGROUND)
+#if defined(EQUAL_RADII) && !BACKGROUND
 Sphere sphere_of(uvec4 w) { return Sphere(vec4(uintBitsToFloat(w.xyz), u_sphere_radius), w.w); }
 #define SPHERE_AT(ARRAY, p) sphere_of(ARRAY(p))
 #else
@@ -179,7 +181,7 @@ struct Surface {
 //@INCLUDE shapes_tracer.glsl
 //@INCLUDE leaf.glsl
 
-#ifndef BACKGROUND
+#if !BACKGROUND
 //@METHOD@
 #else
 // The background variant (host's choice): drawn only where no primary ray can meet a
@@ -384,11 +386,11 @@ void main() {
     vec3 primary_n = vec3(0.0);
 
 #ifdef PRIMARY_ONLY
-#ifdef FIRST_HITS_SPHERES
+#if FIRST_HITS_SPHERES
     // The primary ray's test of intersect_scene (test_sphere, no ray to skip), for one sphere.
     Hit h0 = Hit(intersect_sphere(u_cam_pos, dir, v_sphere, false), SPHERE_ID(v_key), v_sphere, v_key);
     if (h0.t >= BIG) discard;
-#elif defined(FIRST_HITS_TILES)
+#elif FIRST_HITS_TILES
     // The tile's spheres in order of their near bounds: once the next one's bound lies beyond the
     // best hit, neither it nor any after it can be nearer (a bound equal to it may still tie).
     Hit h0 = Hit(BIG, NO_PRIM, vec4(0.0), 0u);
@@ -409,7 +411,7 @@ void main() {
         Surface s0 = surface_at(u_cam_pos, dir, h0);
         primary_t = h0.t; primary_id = h0.id; primary_n = s0.n; deepest = 1;
     }
-#ifdef FIRST_HITS
+#if FIRST_HITS
     // t's order as depth (shaders/depth_order.glsl): exact, so ≤ keeps what closer() keeps.
     gl_FragDepth = h0.id == NO_PRIM ? 1.0 : depth_of(h0.t);
 #endif
@@ -552,7 +554,7 @@ void main() {
 #elif defined(MODE_HEAT)
     image = min(vec3(0.05 * float(g_counters.z), 0.2 * float(g_counters.y), 0.2 * float(g_counters.x)), vec3(1.0));
 #endif
-#ifdef IMAGE_ONLY
+#if IMAGE_ONLY
     // The bytes of RenderResult.image_u8, floor(255·clamp(c, 0, 1) + 0.5), made here: the
     // RGBA8 target stores k / 255 as k exactly (its own conversion rounds differently).
     o_image = vec4(floor(255.0 * clamp(image, 0.0, 1.0) + 0.5) / 255.0, 1.0);
