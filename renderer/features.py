@@ -16,7 +16,8 @@ carried by every variant, the generic one too, because the packers follow them:
 (more materials than the uniform array holds). Two more only scenes with meshes carry:
 ``TRIANGLES`` (the triangle records, Woop et al.'s test and the triangles' shading compiled
 in) and ``SMOOTH_TRIANGLES`` (some mesh has vertex normals: they are read when a hit is
-shaded). A sphere-only scene carries neither, so its shader text is the one before meshes.
+shaded). A sphere-only scene carries neither, so its variants compile no triangle code
+(``FEATURE_TRIANGLES`` 0: renderer/shader_source.py).
 Likewise ``SHAPES``: the scene has analytic shapes (their records, tests and shading).
 """
 
@@ -38,7 +39,7 @@ PLANE_COUNTS = tuple(f"PLANES_{k}" for k in range(MAX_PLANES + 1))
 LIGHT_COUNTS = tuple(f"LIGHTS_{k}" for k in range(1, MAX_LIGHTS + 1))  # no lights: NO_LIGHTS
 DATA_FORMATS = ("EQUAL_RADII", "MATERIAL_TEXTURE", "TRIANGLES", "SMOOTH_TRIANGLES", "SHAPES")
 # What the light of a frame needs beyond the thesis's, never specialised away either (a scene without
-# them carries none, so its variants' text is the one before them): some used material emits
+# them carries none, so its variants compile none of it, FEATURE_LIGHTING 0): some used material emits
 # (EMISSION), the environment is not black (ENVIRONMENT), the frame traces paths (PATH: the
 # ``integrator`` setting, in colour frames), the environment is an image (ENVIRONMENT_MAP), and a
 # path frame writes the denoiser's guides (GUIDES: ``denoise`` on; renderer/denoise.py).

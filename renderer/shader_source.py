@@ -1,17 +1,24 @@
 """Shader text, and only text: the one assembler for the tracer and every ray-engine pass.
 
-The tracer of a variant is ``raytrace.frag`` with the layout header and the variant's
-defines after ``#version`` (at ``//@HEADER@``) and the method's traversal
-(``shaders/<capabilities.shader>``) spliced in at ``//@METHOD@`` and the recursion mode's
-colours (:data:`renderer.modes.RECURSION_COLORS`) at ``//@RECURSION_COLORS@``; in a variant that traces
-triangles (the ``TRIANGLES`` data format) the ``//@TRIANGLES <name>`` marks of both get the
-sections of ``shaders/triangles.glsl``, in every other variant they are removed, so a
-sphere-only variant's text is exactly the one before meshes; likewise the ``//@SHAPES <name>``
-marks get ``shaders/shapes_tracer.glsl``'s sections (and ``shaders/shapes.glsl``) in a
-variant that traces analytic shapes (the ``SHAPES`` data format) only. A ray-engine pass is
-``#version``, the same header, the pass's defines, ``rayengine_common.glsl`` and the
-pass's own file. The same text serves moderngl and the browser (WebGL2, ``GET
-/api/shader``); nothing here touches OpenGL.
+The tracer of a variant is ``raytrace.frag`` made of whole chunks, every variant the same list
+in the same order, only three pieces chosen per variant:
+
+- at ``//@HEADER@``, the header (:func:`tracer_header`): layout constants, the variant's
+  defines and its bindings' declarations, generated from :mod:`renderer.gpu_layout` and the
+  method's layout module. It always defines ``FEATURE_TRIANGLES``, ``FEATURE_SHAPES`` and
+  ``FEATURE_LIGHTING`` to 0 or 1 (:func:`feature_flags`), and the chunks test them with ``#if``;
+- at ``//@METHOD@``, the method's traversal (``shaders/<capabilities.shader>``), which tests
+  primitives through the leaf interface of ``shaders/leaf.glsl``;
+- at ``//@RECURSION_COLORS@``, the recursion mode's colours (:func:`recursion_color_function`).
+
+``//@INCLUDE <file>`` lines include a file whole, in every variant (``triangles.glsl``,
+``shapes.glsl``, ``shapes_tracer.glsl``, ``leaf.glsl``, ``lighting.glsl``; a method built from
+other methods' files). The one exception is a legacy: the ``//@TRIANGLES <name>`` and
+``//@SHAPES <name>`` lines inside ``lighting.glsl``'s ``path_main`` get their statements from
+``shaders/path_legacy.glsl`` where the kind is traced, and are removed elsewhere
+(:func:`with_legacy_path_marks`). A ray-engine pass is ``#version``, the same layout constants,
+the pass's defines, ``rayengine_common.glsl`` and the pass's own file. The same text serves
+moderngl and the browser (WebGL2, ``GET /api/shader``); nothing here touches OpenGL.
 """
 
 from __future__ import annotations
@@ -29,24 +36,14 @@ SHADER_DIR = shader_dir()  # the package's shaders/ (installed) or the checkout'
 HEADER_MARK = "//@HEADER@"
 METHOD_MARK = "//@METHOD@"
 RECURSION_MARK = "//@RECURSION_COLORS@\n"  # the whole line becomes recursion_color_function()
-INCLUDE_MARK = "//@INCLUDE "  # a line "//@INCLUDE method_bvh.glsl" in a method file inlines that file
-# A line "//@TRIANGLES <name>" in the tracer or a traversal: section <name> of TRIANGLES_FILE in a
-# variant that traces triangles, nothing at all in any other (with_triangles).
-TRIANGLES_MARK = "//@TRIANGLES "
-TRIANGLES_FILE = "triangles.glsl"
+INCLUDE_MARK = "//@INCLUDE "  # a line "//@INCLUDE triangles.glsl" includes that file whole
+MAX_INCLUDE_DEPTH = 4  # raytrace.frag → method_twolevel.glsl → method_bvh.glsl: a cycle is an error
+# The legacy marks inside lighting.glsl's path_main: "//@TRIANGLES <name>" gets section
+# "triangles.<name>" of LEGACY_FILE where FEATURE_TRIANGLES is 1, "//@SHAPES <name>" section
+# "shapes.<name>" where FEATURE_SHAPES is 1; each is removed, line and all, elsewhere.
+LEGACY_MARKS = {"//@TRIANGLES ": "triangles", "//@SHAPES ": "shapes"}
+LEGACY_FILE = "path_legacy.glsl"
 SECTION_MARK = "//@SECTION "
-# Likewise "//@SHAPES <name>": section <name> of SHAPES_FILE (section "library": shaders/shapes.glsl, the
-# intersection tests) in a variant that traces analytic shapes (the SHAPES data format), nothing in any
-# other (with_shapes). A tree method's sections that open its traversal to trees without spheres
-# (TREE_SECTIONS of TRIANGLES_FILE) serve a variant with shapes but no triangles too.
-SHAPES_MARK = "//@SHAPES "
-SHAPES_FILE = "shapes_tracer.glsl"
-SHAPES_LIBRARY = "shapes.glsl"
-TREE_SECTIONS = frozenset({"bih_box", "if0", "end_if0"})
-# Likewise "//@LIGHTING <name>": section <name> of LIGHTING_FILE in a variant that carries one of
-# renderer.features.LIGHTING (emission, an environment, the path integrator), nothing in any other.
-LIGHTING_MARK = "//@LIGHTING "
-LIGHTING_FILE = "lighting.glsl"
 
 
 @cache
@@ -92,28 +89,32 @@ def tracer_header(variant: Variant) -> str:
         for prefix, name in (("PLANES_", "N_PLANES"), ("LIGHTS_", "N_LIGHTS")):
             if f.startswith(prefix):
                 defines.append(f"{name} {int(f[len(prefix) :])}")
-    if variant.image_only:
-        defines.append("IMAGE_ONLY")
-    if not variant.spheres:
-        defines.append("BACKGROUND")
-    if variant.first_hits:
-        defines += ["FIRST_HITS", f"FIRST_HITS_{variant.first_hits.upper()}"]
+    # The host's choices, 0 or 1 in every variant (raytrace.frag tests them with #if).
+    defines += [
+        f"IMAGE_ONLY {int(variant.image_only)}",
+        f"BACKGROUND {int(not variant.spheres)}",
+        f"FIRST_HITS {int(bool(variant.first_hits))}",
+        f"FIRST_HITS_SPHERES {int(variant.first_hits == 'spheres')}",
+        f"FIRST_HITS_TILES {int(variant.first_hits == 'tiles')}",
+    ]
     if variant.first_hits == "tiles":  # the tile lists' layout (renderer/first_hits.py)
         defines.append(f"TILE_ENTRY_TEXELS {first_hits.ENTRY_TEXELS}")
-    triangles = ""
-    if "TRIANGLES" in variant.features:  # (only there: a sphere variant's text stays as it was)
-        triangles = gpu_layout.triangle_constants() + "".join(
+    kinds = ""  # the constants of the kinds and the integrator the variant carries
+    if "TRIANGLES" in variant.features:
+        kinds = gpu_layout.triangle_constants() + "".join(
             f"#define READS_{g.upper()}\n" for g in gpu_layout.SILENT_GROUPS if variant.reads(g)
         )
     if "SHAPES" in variant.features:
-        triangles += gpu_layout.shape_constants()
+        kinds += gpu_layout.shape_constants()
     if variant.path:
-        triangles += gpu_layout.path_constants()
+        kinds += gpu_layout.path_constants()
+    flags = "".join(f"#define {name} {int(on)}\n" for name, on in feature_flags(variant).items())
     return (
         gpu_layout.glsl_header()
         + gpu_layout.tracer_constants()
-        + triangles
+        + kinds
         + METHODS[variant.method].glsl_defines()
+        + flags
         + "".join(f"#define {d}\n" for d in defines)
         + gpu_layout.declarations(tracer_bindings(variant), tuple(variant.blocks))
     )
@@ -139,20 +140,28 @@ def tracer_source(
 
 
 def variant_source(variant: Variant) -> str:
-    """The fragment shader of ``variant``."""
-    method_src = _with_includes(read(method_shader(variant.method)))
+    """The fragment shader of ``variant``: ``raytrace.frag`` with its includes, the header, the
+    method's traversal and the recursion colours; then the legacy marks of ``path_main``."""
     text = (
-        _with_includes(read("raytrace.frag"))
+        with_includes(read("raytrace.frag"))
         .replace(HEADER_MARK, tracer_header(variant))
-        .replace(METHOD_MARK, method_src)
+        .replace(METHOD_MARK, with_includes(read(method_shader(variant.method))))
         .replace(RECURSION_MARK, recursion_color_function())
     )
-    text = with_sections(text, LIGHTING_MARK, LIGHTING_FILE, any(f in LIGHTING for f in variant.features))
-    shapes = traces_shapes(variant)
-    text = with_shapes(text, shapes)
-    if shapes and not traces_triangles(variant):  # a tree of spheres and shapes: may have no sphere
-        return with_sections(text, TRIANGLES_MARK, TRIANGLES_FILE, True, only=TREE_SECTIONS)
-    return with_triangles(text, traces_triangles(variant))
+    return with_legacy_path_marks(text, feature_flags(variant))
+
+
+def feature_flags(variant: Variant) -> dict[str, bool]:
+    """The header's ``FEATURE_*`` flags, each defined to 0 or 1 in every variant:
+    ``FEATURE_TRIANGLES`` and ``FEATURE_SHAPES``, the variant traces that kind (its data format,
+    and not the background variant, which has no traversal and so meets no primitive);
+    ``FEATURE_LIGHTING``, it carries one of :data:`renderer.features.LIGHTING` (emission, an
+    environment, the path integrator)."""
+    return {
+        "FEATURE_TRIANGLES": "TRIANGLES" in variant.features and variant.spheres,
+        "FEATURE_SHAPES": "SHAPES" in variant.features and variant.spheres,
+        "FEATURE_LIGHTING": any(f in LIGHTING for f in variant.features),
+    }
 
 
 def _glsl_float(x: float) -> str:
@@ -175,18 +184,6 @@ def recursion_color_function() -> str:
     return "vec3 recursion_color(int level) {\n" + "".join(lines) + f"    return {other};\n}}\n"
 
 
-def traces_triangles(variant: Variant) -> bool:
-    """Whether the variant traces triangles: the TRIANGLES data format, and not the
-    background variant (which has no traversal and so meets no triangle)."""
-    return "TRIANGLES" in variant.features and variant.spheres
-
-
-@cache
-def triangle_sections() -> dict[str, str]:
-    """``shaders/triangles.glsl`` cut at its ``//@SECTION <name>`` lines: name → text."""
-    return sections_of(TRIANGLES_FILE)
-
-
 @cache
 def sections_of(name: str) -> dict[str, str]:
     """``shaders/<name>`` cut at its ``//@SECTION <name>`` lines: name → text."""
@@ -200,65 +197,37 @@ def sections_of(name: str) -> dict[str, str]:
     return {name: "".join(lines).rstrip("\n") + "\n" for name, lines in sections.items()}
 
 
-def with_triangles(text: str, triangles: bool) -> str:
-    """The ``//@TRIANGLES <name>`` marks of ``text`` replaced by their sections of
-    ``shaders/triangles.glsl`` (``triangles``), or removed, line and all: a variant without
-    triangles is then byte for byte the text it was before meshes (tests/golden), so
-    sphere-only frames compile to the same program and render the same pixels. A mark
-    without a section is an error (KeyError)."""
-    return with_sections(text, TRIANGLES_MARK, TRIANGLES_FILE, triangles)
-
-
-def traces_shapes(variant: Variant) -> bool:
-    """Whether the variant traces analytic shapes: the SHAPES data format, not the background variant."""
-    return "SHAPES" in variant.features and variant.spheres
-
-
-@cache
-def shape_sections() -> dict[str, str]:
-    """``shaders/shapes_tracer.glsl``'s sections, and ``library``: ``shaders/shapes.glsl`` whole."""
-    return {**sections_of(SHAPES_FILE), "library": read(SHAPES_LIBRARY).rstrip("\n") + "\n"}
-
-
-def with_shapes(text: str, shapes: bool) -> str:
-    """The ``//@SHAPES <name>`` marks of ``text`` replaced by their sections (``shapes``), or
-    removed, line and all: a variant without shapes is byte for byte the text it was before."""
-    return with_sections(text, SHAPES_MARK, SHAPES_FILE, shapes, sections=shape_sections())
-
-
-def with_sections(
-    text: str,
-    mark: str,
-    name: str,
-    on: bool,
-    only: frozenset[str] | None = None,
-    sections: dict[str, str] | None = None,
-) -> str:
-    """The ``<mark><section>`` lines of ``text`` replaced by those sections of ``shaders/<name>``
-    (``on``; ``only``: just the sections named there, the other marks removed), or removed,
-    line and all. ``sections``: the sections to use instead of the file's."""
-    if mark not in text:
+def with_legacy_path_marks(text: str, flags: dict[str, bool]) -> str:
+    """LEGACY (path_main's marks only): each ``//@TRIANGLES <name>`` / ``//@SHAPES <name>`` line
+    replaced by section ``triangles.<name>`` / ``shapes.<name>`` of ``shaders/path_legacy.glsl``
+    where ``FEATURE_TRIANGLES`` / ``FEATURE_SHAPES`` is on, removed, line and all, elsewhere. A
+    mark without a section is an error (KeyError)."""
+    if not any(mark in text for mark in LEGACY_MARKS):
         return text
-    if sections is None:
-        sections = sections_of(name) if on else {}
+    sections = sections_of(LEGACY_FILE)
     out = []
     for line in text.splitlines(keepends=True):
-        if line.startswith(mark):
-            section = line[len(mark) :].strip()
-            if on and (only is None or section in only):
-                out.append(sections[section])
-        else:
+        mark = next((m for m in LEGACY_MARKS if line.startswith(m)), None)
+        if mark is None:
             out.append(line)
+            continue
+        kind = LEGACY_MARKS[mark]
+        if flags[f"FEATURE_{kind.upper()}"]:
+            out.append(sections[f"{kind}.{line[len(mark) :].strip()}"])
     return "".join(out)
 
 
-def _with_includes(text: str) -> str:
-    """Inline ``//@INCLUDE file`` lines (one level: a method built from other methods)."""
+def with_includes(text: str, depth: int = 0) -> str:
+    """``//@INCLUDE file`` lines replaced by the files, whole (their own includes too)."""
+    if INCLUDE_MARK not in text:
+        return text
+    if depth >= MAX_INCLUDE_DEPTH:
+        raise ValueError(f"//@INCLUDE nested deeper than {MAX_INCLUDE_DEPTH}: a cycle?")
     lines = []
     for line in text.splitlines(keepends=True):
         if line.startswith(INCLUDE_MARK):
             name = line[len(INCLUDE_MARK) :].strip()
-            lines.append(f"// ---- {name} ----\n" + read(name) + "\n")
+            lines.append(f"// ---- {name} ----\n" + with_includes(read(name), depth + 1) + "\n")
         else:
             lines.append(line)
     return "".join(lines)
@@ -280,6 +249,6 @@ def pass_source(name: str, defines: tuple[str, ...] = ()) -> str:
         + gpu_layout.glsl_header()
         + "".join(f"#define {d}\n" for d in defines)
         + gpu_layout.declarations(gpu_layout.RAY_ENGINE_BINDINGS)
-        + _with_includes(read("rayengine_common.glsl"))
+        + with_includes(read("rayengine_common.glsl"))
         + read(name)
     )

@@ -1,10 +1,10 @@
-// Sections of raytrace.frag for the light beyond the thesis's (docs/SHADING.md): emitting
-// materials, the environment and the path integrator. renderer/shader_source.py puts each at
-// its "//@LIGHTING <name>" mark in a variant that carries EMISSION, ENVIRONMENT or PATH, and
-// removes the marks from every other variant, whose text is then the one before them.
-// A section runs from its "//@SECTION <name>" line to the next one.
+// Emission, the environment and the path integrator (docs/SHADING.md): one whole chunk that
+// raytrace.frag includes and compiles where FEATURE_LIGHTING is 1 (a variant that carries
+// EMISSION, ENVIRONMENT or PATH: renderer/shader_source.py); raytrace.frag's main calls
+// path_main where PATH is defined, and its Whitted loop adds emission and the environment. The
+// TRIANGLES and SHAPES mark lines inside path_main are the last marks (a legacy the
+// assembler fills from shaders/path_legacy.glsl).
 
-//@SECTION functions
 #ifdef READS_EMISSION
 int g_emission_shift;
 // The radiance material m emits on the side its surface's normal faces.
@@ -674,29 +674,3 @@ void path_main() {
 #endif
 }
 #endif
-
-//@SECTION main_begin
-#ifdef PATH
-    path_main();
-#else
-
-//@SECTION main_end
-#endif
-
-//@SECTION whitted_emission
-#ifdef READS_EMISSION
-                if (dot(nf, s.n) > 0.0) color += k.weight * emission_at(s.mat);   // the side its normal faces
-#endif
-
-//@SECTION whitted_miss
-#ifdef READS_ENVIRONMENT
-            if (!live) color += k.weight * u_environment;   // what a ray that meets nothing sees
-#endif
-#ifdef READS_ENVIRONMENT_MAP
-            if (!live) color += k.weight * ENV_RADIANCE_AT(k.d);   // … or the image, along the ray
-#endif
-
-//@SECTION init
-    EMISSION_INIT();
-    ENV_MAP_INIT();
-    ENV_CDF_INIT();

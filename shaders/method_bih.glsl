@@ -16,9 +16,12 @@ void method_init() {}
 // sphere records up to the one flagged last, pop.
 void intersect_spheres(Query q, inout Hit h) {
     float t0, t1;
-//@TRIANGLES bih_box
+#if TREE_MAY_LACK_SPHERES
+    // The tree holds other primitives too (at least one of them): u_num_spheres may be 0.
+    if (!slab_interval(q.o, q.d, u_box_min, u_box_max, t0, t1) || !(t0 <= t1)) return;
+#else
     if (u_num_spheres == 0 || !slab_interval(q.o, q.d, u_box_min, u_box_max, t0, t1) || !(t0 <= t1)) return;
-//@TRIANGLES end_if0
+#endif
     if (t0 > h.t) return;     // the whole box lies beyond the best hit (a plane's)
     uint st_ref[BIH_STACK_SIZE];
     float st_a[BIH_STACK_SIZE];
@@ -77,9 +80,7 @@ void intersect_spheres(Query q, inout Hit h) {
             int p = int(ref & BIH_REF_INDEX);
             while (true) {
                 Sphere s = SPHERE_AT(u_bih_spheres_at, p);
-//@SHAPES leaf_slot
-//@TRIANGLES leaf_slot
-                test_sphere(q, s, h);
+                leaf_hit(q, s, h);   // shaders/leaf.glsl: a sphere, or a slot of another kind
                 if (q.any_hit && h.t < q.t_max) return;
                 if (SPHERE_IS_LAST(s.key)) break;
                 p++;

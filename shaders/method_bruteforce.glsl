@@ -9,6 +9,11 @@ void intersect_spheres(Query q, inout Hit h) {
         test_sphere(q, SPHERE_AT(u_bf_spheres_at, i), h);
         if (q.any_hit && h.id != NO_PRIM) return;
     }
-//@TRIANGLES bruteforce_loop
-//@SHAPES bruteforce_loop
+#if FEATURE_TRIANGLES
+    intersect_triangle_range(q, 0, u_num_triangles, h);   // then every triangle, in id order
+    if (q.any_hit && h.id != NO_PRIM) return;
+#endif
+#if FEATURE_SHAPES
+    intersect_shape_range(q, 0, u_num_shapes, h);         // then every analytic shape, in id order
+#endif
 }

@@ -75,9 +75,7 @@ void bvh_intersect(Query q, inout Hit h) {
             int p = int(ref & BVH_REF_INDEX);
             while (true) {
                 Sphere s = SPHERE_AT(u_bvh_spheres_at, p);
-//@SHAPES leaf_slot
-//@TRIANGLES leaf_slot
-                test_sphere(q, s, h);
+                leaf_hit(q, s, h);   // shaders/leaf.glsl: a sphere, or a slot of another kind
                 if (q.any_hit && h.t < q.t_max) return;
                 if (SPHERE_IS_LAST(s.key)) break;
                 p++;
@@ -97,9 +95,9 @@ void bvh_intersect(Query q, inout Hit h) {
 void method_init() { bvh_init(); }
 
 void intersect_spheres(Query q, inout Hit h) {
-//@TRIANGLES if0
+#if !TREE_MAY_LACK_SPHERES
     if (u_num_spheres == 0) return;
-//@TRIANGLES end_if0
+#endif
     bvh_intersect(q, h);
 }
 #endif

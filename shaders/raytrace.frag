@@ -1,14 +1,16 @@
 #version 300 es
 // pocketray's Whitted ray tracer (thesis listing 3.1) with BIH traversal
-// (listing 3.5, corrected as docs/THESIS.md describes) or another method: the
-// host splices the method's traversal (shaders/method_<name>.glsl) in at the
-// METHOD mark; it defines method_init() (called once per fragment) and
-// intersect_spheres(). The conventions (rays, self-intersection, shading,
-// modes) are those of docs/SHADING.md. The host inserts at the HEADER mark the
-// layout constants, the variant's METHOD_* / MODE_* / READS_* defines and the
-// declarations of every texture, uniform and record array the variant reads,
-// generated from renderer/gpu_layout.py and the method's layout module, so each
-// name is written once. Valid GLSL ES 3.00, for WebGL2 too.
+// (listing 3.5, corrected as docs/THESIS.md describes) or another method. The conventions
+// (rays, self-intersection, shading, modes) are those of docs/SHADING.md. Valid GLSL ES 3.00,
+// for WebGL2 too. Every variant is this file with the same whole chunks in the same order
+// (renderer/shader_source.py): the host writes the header at the HEADER mark (the layout
+// constants, the variant's METHOD_* / MODE_* / READS_* defines, FEATURE_TRIANGLES,
+// FEATURE_SHAPES, FEATURE_LIGHTING and its host choices always defined 0 or 1, and the
+// declarations of every texture, uniform and record array the variant reads, generated from
+// renderer/gpu_layout.py and the method's layout module, so each name is written once), the
+// method's traversal at the METHOD mark (shaders/method_<name>.glsl: method_init(), called
+// once per fragment, and intersect_spheres(), testing primitives through shaders/leaf.glsl),
+// and includes the other chunks whole at their INCLUDE lines; #if switches them.
 //
 // Shaped for how llvmpipe runs it: a fragment shader is run for 8 pixels
 // at once, and a branch no lane takes, or a loop that runs zero times, costs as much
@@ -22,21 +24,21 @@ precision highp usampler2D;
 
 //@HEADER@
 
-#ifdef FIRST_HITS_SPHERES
+#if FIRST_HITS_SPHERES
 // First hits by rasterisation (renderer/first_hits.py): this fragment lies in one sphere's screen
 // rectangle, drawn as an instance of shaders/first_hits.vert; it tests that sphere alone and the
 // depth test (≤, instances in descending id order) keeps the nearest, lower id on a tie.
 flat in vec4 v_sphere;
 flat in uint v_key;
 #endif
-#ifdef FIRST_HITS_TILES
+#if FIRST_HITS_TILES
 // … or in one tile (shaders/first_hit_tiles.vert): its list of spheres, nearest-possible first
 // (TILE_ENTRY_TEXELS texels each: centre and radius; key and the near bound, as float bits).
 flat in uvec2 v_list;   // first entry, count
 uniform highp usampler2D u_tile_entries;
 #endif
 
-#ifdef IMAGE_ONLY
+#if IMAGE_ONLY
 layout(location = 0) out vec4 o_image;  // rgb = mode image rounded to 8 bits (an RGBA8 target)
 #else
 layout(location = 0) out vec4 o_image;  // rgb = mode image, a = primary id (−1 miss)
@@ -51,7 +53,7 @@ const int NO_PRIM = -1;
 // half of a brute-force frame. The shifts are read once per fragment (LAYOUT_INIT).
 int g_mat_shift;
 
-#ifdef FIRST_HITS
+#if FIRST_HITS
 //@INCLUDE depth_order.glsl
 #endif
 
@@ -71,7 +73,7 @@ struct Sphere {
     uint key;
 };
 
-#if defined(EQUAL_RADII) && !defined(BACKGROUND)
+#if defined(EQUAL_RADII) && !BACKGROUND
 Sphere sphere_of(uvec4 w) { return Sphere(vec4(uintBitsToFloat(w.xyz), u_sphere_radius), w.w); }
 #define SPHERE_AT(ARRAY, p) sphere_of(ARRAY(p))
 #else
@@ -159,10 +161,27 @@ bool slab_interval(vec3 o, vec3 d, vec3 bmin, vec3 bmax, out float t0, out float
     return true;
 }
 
-//@TRIANGLES functions
-//@SHAPES library
-//@SHAPES functions
-#ifndef BACKGROUND
+// A hit's surface: where, its outward normal, its material (and, with triangles, the geometric
+// normal: the side the ray sees, whether it enters; = n but on triangles).
+struct Surface {
+    vec3 p;
+    vec3 n;   // outward unit normal
+    int mat;
+#if FEATURE_TRIANGLES
+    vec3 ng;
+#endif
+};
+
+// The primitive kinds beyond spheres and planes, each one whole chunk compiled where its
+// FEATURE_* is 1, then the leaf interface every traversal calls (shaders/leaf.glsl).
+//@INCLUDE triangles.glsl
+#if FEATURE_SHAPES
+//@INCLUDE shapes.glsl
+#endif
+//@INCLUDE shapes_tracer.glsl
+//@INCLUDE leaf.glsl
+
+#if !BACKGROUND
 //@METHOD@
 #else
 // The background variant (host's choice): drawn only where no primary ray can meet a
@@ -196,7 +215,9 @@ void intersect_spheres(Query q, inout Hit h) {}
 
 Hit intersect_scene(Query q) {
     Hit h = Hit(q.t_max, NO_PRIM, vec4(0.0), 0u);
-//@TRIANGLES shear
+#if FEATURE_TRIANGLES
+    g_shear = shear_of(q.d);   // once per ray, for every triangle it meets
+#endif
     // llvmpipe pays for a loop's machinery even when it runs once: a variant that knows it
     // has one plane (every thesis scenario) tests it in straight code, 30 % of a 640 × 1088
     // depth frame of the plane alone. (With no plane the loop stays: without it, Mesa 22.3's
@@ -296,20 +317,16 @@ struct Task {
     int far_id;
 };
 
-struct Surface {
-    vec3 p;
-    vec3 n;   // outward unit normal
-    int mat;
-//@TRIANGLES surface_field
-};
-//@TRIANGLES surface_function
-//@SHAPES surface_function
 
 Surface surface_at(vec3 o, vec3 d, Hit h) {
     Surface s;
     s.p = o + h.t * d;
-//@SHAPES surface_at
-//@TRIANGLES surface_at
+#if FEATURE_SHAPES
+    if (h.id >= u_shape_base) { shape_surface(h, s); return s; }
+#endif
+#if FEATURE_TRIANGLES
+    if (h.id >= u_tri_base) { triangle_surface(d, h, s); return s; }
+#endif
     if (h.id < u_num_spheres) {
         // From the centre's offset (o − c) + t·d, not from p − c: far from the origin
         // p is rounded to float32's spacing there (0.0625 at 1e6), which can exceed
@@ -327,19 +344,30 @@ Surface surface_at(vec3 o, vec3 d, Hit h) {
         s.mat = u_plane_mat[i];
 #endif
     }
-//@TRIANGLES surface_ng
+#if FEATURE_TRIANGLES
+    s.ng = s.n;   // spheres and planes: one normal
+#endif
     return s;
 }
 
-//@LIGHTING functions
+// Emission, the environment and the path integrator (shaders/lighting.glsl).
+#if FEATURE_LIGHTING
+//@INCLUDE lighting.glsl
+#endif
 void main() {
     LAYOUT_INIT();
     method_init();
 #if defined(READS_MATERIALS) && defined(MATERIAL_TEXTURE)
     g_mat_shift = row_shift(textureSize(u_materials, 0));
 #endif
-//@LIGHTING init
-//@LIGHTING main_begin
+#if FEATURE_LIGHTING
+    EMISSION_INIT();
+    ENV_MAP_INIT();
+    ENV_CDF_INIT();
+#endif
+#ifdef PATH
+    path_main();
+#else
     // The point of the frame's sample grid (u_resolution) this fragment traces: a pass
     // traces one sub-pixel of every pixel (renderer/gpu_layout.py, PASS_BINDINGS); the
     // pixel-centre pass has scale 1 and offset 0.5, so px is gl_FragCoord.x itself. Every
@@ -358,11 +386,11 @@ void main() {
     vec3 primary_n = vec3(0.0);
 
 #ifdef PRIMARY_ONLY
-#ifdef FIRST_HITS_SPHERES
+#if FIRST_HITS_SPHERES
     // The primary ray's test of intersect_scene (test_sphere, no ray to skip), for one sphere.
     Hit h0 = Hit(intersect_sphere(u_cam_pos, dir, v_sphere, false), SPHERE_ID(v_key), v_sphere, v_key);
     if (h0.t >= BIG) discard;
-#elif defined(FIRST_HITS_TILES)
+#elif FIRST_HITS_TILES
     // The tile's spheres in order of their near bounds: once the next one's bound lies beyond the
     // best hit, neither it nor any after it can be nearer (a bound equal to it may still tie).
     Hit h0 = Hit(BIG, NO_PRIM, vec4(0.0), 0u);
@@ -383,7 +411,7 @@ void main() {
         Surface s0 = surface_at(u_cam_pos, dir, h0);
         primary_t = h0.t; primary_id = h0.id; primary_n = s0.n; deepest = 1;
     }
-#ifdef FIRST_HITS
+#if FIRST_HITS
     // t's order as depth (shaders/depth_order.glsl): exact, so ≤ keeps what closer() keeps.
     gl_FragDepth = h0.id == NO_PRIM ? 1.0 : depth_of(h0.t);
 #endif
@@ -410,7 +438,14 @@ void main() {
             live = true;
         } else {
             live = hq.id != NO_PRIM;
-//@LIGHTING whitted_miss
+#if FEATURE_LIGHTING
+#ifdef READS_ENVIRONMENT
+            if (!live) color += k.weight * u_environment;   // what a ray that meets nothing sees
+#endif
+#ifdef READS_ENVIRONMENT_MAP
+            if (!live) color += k.weight * ENV_RADIANCE_AT(k.d);   // … or the image, along the ray
+#endif
+#endif
             if (live) {
                 h = hq;
                 s = surface_at(k.o, k.d, h);
@@ -420,11 +455,15 @@ void main() {
                 m = material_at(s.mat);
 #endif
                 nf = dot(k.d, s.n) < 0.0 ? s.n : -s.n;
-//@TRIANGLES facing
+#if FEATURE_TRIANGLES
+                nf = dot(k.d, s.ng) < 0.0 ? s.n : -s.n;   // the side by the geometric normal
+#endif
 #ifdef MODE_COLOR
                 color += k.weight * m.ambient * m.color;   // Phong's ambient term
 #endif
-//@LIGHTING whitted_emission
+#if FEATURE_LIGHTING && defined(READS_EMISSION)
+                if (dot(nf, s.n) > 0.0) color += k.weight * emission_at(s.mat);   // the side its normal faces
+#endif
                 light = 0;
             }
         }
@@ -471,7 +510,9 @@ void main() {
 #ifndef NO_TRANSMISSION
             if (m.transmissive > 0.0 && k.weight * m.transmissive >= u_min_weight) {
                 bool entering = dot(k.d, n) < 0.0;
-//@TRIANGLES entering
+#if FEATURE_TRIANGLES
+                entering = dot(k.d, s.ng) < 0.0;   // enters by the geometric normal, bends about n
+#endif
                 float eta = entering ? 1.0 / m.ior : m.ior;
                 vec3 nn = entering ? n : -n;
                 float cos_i = -dot(k.d, nn);
@@ -513,7 +554,7 @@ void main() {
 #elif defined(MODE_HEAT)
     image = min(vec3(0.05 * float(g_counters.z), 0.2 * float(g_counters.y), 0.2 * float(g_counters.x)), vec3(1.0));
 #endif
-#ifdef IMAGE_ONLY
+#if IMAGE_ONLY
     // The bytes of RenderResult.image_u8, floor(255·clamp(c, 0, 1) + 0.5), made here: the
     // RGBA8 target stores k / 255 as k exactly (its own conversion rounds differently).
     o_image = vec4(floor(255.0 * clamp(image, 0.0, 1.0) + 0.5) / 255.0, 1.0);
@@ -521,5 +562,5 @@ void main() {
     o_image = vec4(image, float(primary_id));
     o_hit = vec4(primary_n, primary_t);
 #endif
-//@LIGHTING main_end
+#endif
 }

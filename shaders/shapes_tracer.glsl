@@ -1,12 +1,10 @@
-// Analytic shapes in the tracer: the sections the assembler (renderer/shader_source.py) puts
-// at the "//@SHAPES <name>" marks of raytrace.frag, lighting.glsl and the methods'
-// traversals — in variants with the SHAPES data format that trace (not the background
-// variant) only; every other variant has the marks removed, line and all, so its text is
-// byte for byte the one before shapes (tests/golden's record). Section "library" is
-// shaders/shapes.glsl itself (the intersection tests, standalone there). A section runs
-// from its "//@SECTION <name>" line to the next one.
-
-//@SECTION functions
+// Analytic shapes in the tracer: the leaf test (the rays leaving a shape included) and a shape's
+// surface, on top of shapes.glsl's intersection tests. One whole chunk, included by
+// raytrace.frag (after shapes.glsl) into every variant and compiled where FEATURE_SHAPES is 1
+// (the SHAPES data format, in a variant that traces: renderer/shader_source.py); a tree's leaf
+// reaches test_shape through leaf_hit (shaders/leaf.glsl), brute force through
+// intersect_shape_range.
+#if FEATURE_SHAPES
 // Record i of shape k (renderer/gpu_layout.py, shape_records): (origin, r0), (axis, r1),
 // (height, caps, kind, material bits).
 #define SHAPE_RECORD(k, i) u_shapes_at(SHAPE_TEXELS * (k) + (i))
@@ -183,43 +181,22 @@ void test_shape(Query q, int k, inout Hit h) {
     if (closer(t, id, h.t, h.id)) { h.t = t; h.id = id; h.sphere = vec4(n, 0.0); h.key = uint(k); }
 }
 
-//@SECTION surface_function
+// Shapes first … first + count − 1 in id order; a shadow ray (any_hit) stops at its first hit.
+void intersect_shape_range(Query q, int first, int count, inout Hit h) {
+    for (int k = first; k < first + count; k++) {
+        test_shape(q, k, h);
+        if (q.any_hit && h.id != NO_PRIM) return;
+    }
+}
+
 // A shape's surface: the normal its test found (one normal: the geometric one too).
 void shape_surface(Hit h, inout Surface s) {
     s.n = h.sphere.xyz;
-#ifdef TRIANGLES
+#if FEATURE_TRIANGLES
     s.ng = s.n;
 #endif
 #ifdef READS_MATERIALS
     s.mat = int(SHAPE_RECORD(int(h.key), 2).w & SHAPE_MAT_MASK);
 #endif
 }
-
-//@SECTION surface_at
-    if (h.id >= u_shape_base) { shape_surface(h, s); return s; }
-
-//@SECTION path_emit_mis
-                // An emitting shape's surface that next-event estimation samples (all are, when any is):
-                // its pdf in solid angle is the triangles' form over the shapes' total area.
-                if (h.id >= u_shape_base) {
-                    w = 1.0;
-#ifndef NO_SHAPE_LIGHTS
-                    if (prev_pdf > 0.0 && u_num_emit_patches > 0) {
-                        float p_l = h.t * h.t / (u_emit_patch_area * max(-dot(d, ng), 1e-12));
-                        w = prev_pdf * prev_pdf / (prev_pdf * prev_pdf + p_l * p_l);
-                    }
 #endif
-                }
-
-//@SECTION leaf_slot
-                // A shape's slot (renderer/gpu_layout.py, leaf_records): its index; its
-                // record is in u_shapes.
-                if ((s.key & SHAPE_SLOT) != 0u) test_shape(q, int(s.key & SHAPE_INDEX_MASK), h);
-                else
-
-//@SECTION bruteforce_loop
-    // Then every analytic shape, in id order (u_shapes, renderer/gpu_layout.py).
-    for (int k = 0; k < u_num_shapes; k++) {
-        test_shape(q, k, h);
-        if (q.any_hit && h.id != NO_PRIM) return;
-    }

@@ -1,11 +1,9 @@
-// Triangles: the sections the assembler (renderer/shader_source.py) puts at the
-// "//@TRIANGLES <name>" marks of raytrace.frag and the methods' traversals — in variants
-// with the TRIANGLES data format that trace (not the background variant) only. Every other
-// variant has the marks removed, line and all, so its text is byte for byte the one before
-// meshes (tests/golden's record): sphere-only frames compile to the same program.
-// A section runs from its "//@SECTION <name>" line to the next one.
-
-//@SECTION functions
+// Triangles in the tracer: the ray/triangle test and a triangle's surface. One whole chunk,
+// included by raytrace.frag into every variant and compiled where FEATURE_TRIANGLES is 1 (the
+// TRIANGLES data format, in a variant that traces: renderer/shader_source.py); a tree's leaf
+// reaches test_triangle through leaf_hit (shaders/leaf.glsl), brute force through
+// intersect_triangle_range.
+#if FEATURE_TRIANGLES
 // Woop, Benthin & Wald, "Watertight Ray/Triangle Intersection" (JCGT 2013), in float32
 // (docs/SHADING.md, "Triangles"). The ray's shear is computed once per ray
 // (intersect_scene), not per triangle: kz = the axis of the largest |d| (the first on
@@ -83,13 +81,14 @@ void test_triangle(Query q, int j, inout Hit h) {
     if (closer(t, id, h.t, h.id)) { h.t = t; h.id = id; h.sphere = vec4(U, V, W, det); h.key = uint(j); }
 }
 
-//@SECTION shear
-    g_shear = shear_of(q.d);   // once per ray, for every triangle it meets
+// Triangles first … first + count − 1 in id order; a shadow ray (any_hit) stops at its first hit.
+void intersect_triangle_range(Query q, int first, int count, inout Hit h) {
+    for (int j = first; j < first + count; j++) {
+        test_triangle(q, j, h);
+        if (q.any_hit && h.id != NO_PRIM) return;
+    }
+}
 
-//@SECTION surface_field
-    vec3 ng;  // the geometric normal: the side the ray sees, whether it enters (= n but on triangles)
-
-//@SECTION surface_function
 // A triangle's surface (docs/SHADING.md, "Triangles"): the geometric normal of its winding
 // (outward on a closed mesh), the shading normal the normalised barycentric blend of its
 // unit vertex normals for a smooth mesh (the weights the hit's test found, in h.sphere),
@@ -117,51 +116,4 @@ void triangle_surface(vec3 d, Hit h, inout Surface s) {
     s.mat = int(r0.w & SPHERE_MAT_MASK);   // (bits 7..0; bit 31 is TRI_DEGENERATE)
 #endif
 }
-
-//@SECTION surface_at
-    if (h.id >= u_tri_base) { triangle_surface(d, h, s); return s; }
-
-//@SECTION surface_ng
-    s.ng = s.n;   // spheres and planes: one normal
-
-//@SECTION facing
-                nf = dot(k.d, s.ng) < 0.0 ? s.n : -s.n;   // the side by the geometric normal
-
-//@SECTION entering
-                entering = dot(k.d, s.ng) < 0.0;   // enters by the geometric normal, bends about n
-
-//@SECTION path_ng
-            ng = s.ng;   // emission and the side a path meets: by the geometric normal
-
-//@SECTION path_emit_mis
-                // An emitting triangle that next-event estimation samples (all are, when any is).
-                if (prev_pdf > 0.0 && h.id >= u_tri_base && u_num_emit_tris > 0) {
-                    float cos_light = -dot(d, ng);
-                    float p_l = h.t * h.t / (u_emit_tri_area * max(cos_light, 1e-12));
-                    w = prev_pdf * prev_pdf / (prev_pdf * prev_pdf + p_l * p_l);
-                }
-
-//@SECTION bih_box
-    // The tree holds spheres and triangles (at least one triangle): u_num_spheres may be 0.
-    if (!slab_interval(q.o, q.d, u_box_min, u_box_max, t0, t1) || !(t0 <= t1)) return;
-#if 0
-
-//@SECTION if0
-    // (with triangles there is at least one tree primitive, and u_num_spheres may be 0)
-#if 0
-
-//@SECTION end_if0
 #endif
-
-//@SECTION leaf_slot
-                // A triangle's slot (renderer/gpu_layout.py, leaf_records): its index; its
-                // corners are in u_triangles.
-                if ((s.key & TRI_SLOT) != 0u) test_triangle(q, int(s.key & TRI_INDEX_MASK), h);
-                else
-
-//@SECTION bruteforce_loop
-    // Then every triangle, in id order (u_triangles, renderer/gpu_layout.py).
-    for (int j = 0; j < u_num_triangles; j++) {
-        test_triangle(q, j, h);
-        if (q.any_hit && h.id != NO_PRIM) return;
-    }

@@ -33,7 +33,7 @@ open node and does what one pass of listing 3.4's body does for it:
 Why the cuts: a BIH node bounds its children on one axis only, and the thesis's optimized
 node (step 3) shrinks the box the *build* splits, not what the traversal sees. For spheres
 spread through a volume that costs little (and the trees of sphere scenes stay the thesis's,
-bit for bit, as Table 4.2 and the golden record check). A tessellated surface is another
+bit for bit, as Table 4.2 and the frame catalogue of tests/golden check). A tessellated surface is another
 matter. On the experiments' teapot (``bench/experiments/meshes.py``, 102,720 triangles)
 the thesis's build left the median leaf a region 8.9× its triangles' extent in y (a tenth
 of the leaves over 179×) and 21× their surface area, so a ray passing near the surface

@@ -1,5 +1,5 @@
-"""The tracer's variants with analytic shapes (shaders/shapes_tracer.glsl spliced with
-shaders/shapes.glsl, renderer/shader_source.py) compile and link as GLSL ES 3.00 in WebGL2
+"""The tracer's variants with analytic shapes (shaders/shapes.glsl and shaders/shapes_tracer.glsl,
+chunks compiled where FEATURE_SHAPES is 1, renderer/shader_source.py) compile and link as GLSL ES 3.00 in WebGL2
 (headless Chromium, ANGLE on SwiftShader): the text a device would get from GET /api/shader.
 (Device frames of such scenes wait for the service to accept the shapes' JSON keys.)"""
 

@@ -10,7 +10,7 @@
   tan(fov/2)·(W/H, 1).
 
 The shader reads these layouts through the same module, so a test here that had to change
-would also change ``tests/golden/record.json``.
+would also change the frames of ``tests/golden/frames.npz``.
 """
 
 from __future__ import annotations

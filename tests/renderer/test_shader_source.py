@@ -1,7 +1,8 @@
 """Shader assembly (renderer.shader_source): layout constants come from the Python layout
-modules through the host header (one definition each), and the two-level shader inlines
-the BVH and kd-tree traversals once each. That the assembled texts do not change by
-accident is ``tests/golden/``'s job."""
+modules through the host header (one definition each), every chunk is whole syntax and is
+switched by the header's FEATURE_* flags, and the two-level shader inlines the BVH and kd-tree
+traversals once each. That the frames do not change by accident is ``tests/golden/``'s job
+(the frame catalogue, and every variant compiled)."""
 
 from __future__ import annotations
 
@@ -27,32 +28,85 @@ def test_shader_gets_layout_constants_from_python(name, module):
 
 def test_twolevel_shader_inlines_both_traversals():
     src = shader_source("twolevel", "color", 1)
-    for name in ("method_bvh.glsl", "method_kdtree.glsl"):
-        body = (ROOT / "shaders" / name).read_text()
-        # (as a sphere variant has it: the //@TRIANGLES and //@SHAPES marks removed, renderer.shader_source)
-        from renderer.shader_source import with_shapes, with_triangles
-
-        assert src.count(with_shapes(with_triangles(body, False), False)) == 1
-    assert "//@INCLUDE" not in src and "//@TRIANGLES" not in src and "//@SHAPES" not in src
+    assert src.count("void bvh_intersect(") == 1 and src.count("void kd_intersect(") == 1
+    assert src.count("// ---- method_bvh.glsl ----") == 1 and src.count("// ---- method_kdtree.glsl ----") == 1
+    assert "//@" not in src
 
 
-def test_triangle_marks_are_filled_only_for_variants_that_trace_triangles():
-    """A sphere variant's text has no trace of the triangles (its marks are removed, line and
-    all: tests/golden holds its hash); a TRIANGLES variant gets every mark's section, and
-    the background variant of a mesh scene none (it has no traversal)."""
-    from renderer.shader_source import TRIANGLES_MARK, read, triangle_sections, with_triangles
+SHADERS = ROOT / "shaders"
+# What may stand at a "//@" line: the three per-variant pieces, whole-file includes, and the
+# legacy marks inside lighting.glsl's path_main (their statements: path_legacy.glsl's sections).
+ALLOWED_MARKS = re.compile(r"//@(HEADER@|METHOD@|RECURSION_COLORS@|INCLUDE [\w.]+)$")
+LEGACY_MARKS = re.compile(r"//@(TRIANGLES|SHAPES) \w+$")
 
-    sections = triangle_sections()
-    for name in ("raytrace.frag", "method_bih.glsl", "method_bruteforce.glsl", "method_bvh.glsl", "method_kdtree.glsl"):
-        marks = [
-            line[len(TRIANGLES_MARK) :].strip() for line in read(name).splitlines() if line.startswith(TRIANGLES_MARK)
-        ]
-        assert marks and set(marks) <= set(sections), (name, marks)
-        assert TRIANGLES_MARK not in with_triangles(read(name), False)
-    for method in ("bih", "bruteforce", "bvh", "kdtree", "twolevel"):
-        plain = shader_source(method, "color", 3, ("EQUAL_RADII",))
-        assert "test_triangle" not in plain and "TRI_SLOT" not in plain and TRIANGLES_MARK not in plain
-        tri = shader_source(method, "color", 3, ("EQUAL_RADII", "TRIANGLES", "SMOOTH_TRIANGLES"))
-        assert "void test_triangle(" in tri and "g_shear = shear_of(q.d);" in tri and TRIANGLES_MARK not in tri
-        bg = shader_source(method, "color", 3, ("EQUAL_RADII", "TRIANGLES"), spheres=False)
-        assert "test_triangle" not in bg
+
+def _balanced(text: str) -> bool:
+    """Whether the text's preprocessor conditionals and its braces and parentheses close inside it."""
+    depth = 0
+    for line in text.splitlines():
+        word = line.strip().split(" ", 1)[0]
+        if word in ("#if", "#ifdef", "#ifndef"):
+            depth += 1
+        elif word == "#endif":
+            depth -= 1
+        if depth < 0:
+            return False
+    code = re.sub(r"//[^\n]*", "", text)
+    return depth == 0 and code.count("{") == code.count("}") and code.count("(") == code.count(")")
+
+
+@pytest.mark.parametrize("path", sorted(SHADERS.glob("*.glsl")) + sorted(SHADERS.glob("*.frag")), ids=lambda p: p.name)
+def test_every_chunk_is_whole_syntax(path):
+    """Every shader file is whole: its conditionals and brackets close inside it, and it holds no
+    mark but the allowed ones (the legacy marks in lighting.glsl only). The legacy sections of
+    path_legacy.glsl are whole statements each."""
+    from renderer.shader_source import sections_of
+
+    text = path.read_text()
+    assert _balanced(text), path.name
+    for line in text.splitlines():
+        if line.startswith("//@") and not line.startswith("//@SECTION "):
+            legacy = path.name == "lighting.glsl" and LEGACY_MARKS.match(line)
+            assert ALLOWED_MARKS.match(line) or legacy, (path.name, line)
+    if path.name == "path_legacy.glsl":
+        assert all(_balanced(s) for s in sections_of(path.name).values())
+    else:
+        assert "//@SECTION " not in text, path.name
+
+
+def _flags(src: str) -> dict[str, int]:
+    found = re.findall(r"^#define (FEATURE_\w+) (\d)$", src, re.M)
+    assert len(found) == len(dict(found)), "each flag defined once"
+    return {k: int(v) for k, v in found}
+
+
+@pytest.mark.parametrize("method", ["bih", "bruteforce", "bvh", "kdtree", "twolevel"])
+def test_feature_flags_are_always_defined_zero_or_one(method):
+    """The header defines FEATURE_TRIANGLES, FEATURE_SHAPES and FEATURE_LIGHTING in every variant,
+    1 where the variant traces the kind (its data format, and not the background variant) or
+    carries light beyond the thesis's; the traversal tests primitives through leaf_hit or the
+    kinds' ranges alone, and no mark is left in the text."""
+    plain = shader_source(method, "color", 3, ("EQUAL_RADII",))
+    assert _flags(plain) == {"FEATURE_TRIANGLES": 0, "FEATURE_SHAPES": 0, "FEATURE_LIGHTING": 0}
+    both = shader_source(method, "color", 3, ("TRIANGLES", "SMOOTH_TRIANGLES", "SHAPES", "EMISSION"))
+    assert _flags(both) == {"FEATURE_TRIANGLES": 1, "FEATURE_SHAPES": 1, "FEATURE_LIGHTING": 1}
+    bg = shader_source(method, "color", 3, ("TRIANGLES", "SHAPES"), spheres=False)
+    assert _flags(bg) == {"FEATURE_TRIANGLES": 0, "FEATURE_SHAPES": 0, "FEATURE_LIGHTING": 0}
+    for src in (plain, both, bg):
+        assert "//@" not in src
+    if method == "bruteforce":
+        assert "intersect_triangle_range(q, 0, u_num_triangles, h);" in both
+    else:
+        assert "leaf_hit(q, s, h);" in both and "test_sphere(q, s, h);" not in both.split("void leaf_hit(")[0]
+
+
+def test_the_legacy_path_marks_get_their_statements_where_the_kind_is_traced():
+    """path_main's marks: the triangles' geometric normal and the emitters' MIS weights where the
+    variant traces triangles / shapes, nothing elsewhere."""
+    tri = shader_source("bvh", "color", 4, ("TRIANGLES", "EMISSION", "PATH"))
+    shapes = shader_source("bvh", "color", 4, ("SHAPES", "EMISSION", "PATH"))
+    plain = shader_source("bvh", "color", 4, ("EMISSION", "PATH"))
+    tri_mis, shape_mis = "u_emit_tri_area * max(cos_light", "u_emit_patch_area * max(-dot(d, ng)"
+    assert "ng = s.ng;" in tri and tri_mis in tri and shape_mis not in tri
+    assert "ng = s.ng;" not in shapes and shape_mis in shapes and tri_mis not in shapes
+    assert "ng = s.ng;" not in plain and tri_mis not in plain and shape_mis not in plain
