@@ -100,6 +100,8 @@ def tracer_header(variant: Variant) -> str:
         defines += ["FIRST_HITS", f"FIRST_HITS_{variant.first_hits.upper()}"]
     if variant.first_hits == "tiles":  # the tile lists' layout (renderer/first_hits.py)
         defines.append(f"TILE_ENTRY_TEXELS {first_hits.ENTRY_TEXELS}")
+    # Features as 0/1, defined in every variant, for code inside a function that reads #if FEATURE_X.
+    defines += [f"FEATURE_TRIANGLES {int(traces_triangles(variant))}", f"FEATURE_SHAPES {int(traces_shapes(variant))}"]
     triangles = ""
     if "TRIANGLES" in variant.features:  # (only there: a sphere variant's text stays as it was)
         triangles = gpu_layout.triangle_constants() + "".join(

@@ -198,19 +198,6 @@ void shape_surface(Hit h, inout Surface s) {
 //@SECTION surface_at
     if (h.id >= u_shape_base) { shape_surface(h, s); return s; }
 
-//@SECTION path_emit_mis
-                // An emitting shape's surface that next-event estimation samples (all are, when any is):
-                // its pdf in solid angle is the triangles' form over the shapes' total area.
-                if (h.id >= u_shape_base) {
-                    w = 1.0;
-#ifndef NO_SHAPE_LIGHTS
-                    if (prev_pdf > 0.0 && u_num_emit_patches > 0) {
-                        float p_l = h.t * h.t / (u_emit_patch_area * max(-dot(d, ng), 1e-12));
-                        w = prev_pdf * prev_pdf / (prev_pdf * prev_pdf + p_l * p_l);
-                    }
-#endif
-                }
-
 //@SECTION leaf_slot
                 // A shape's slot (renderer/gpu_layout.py, leaf_records): its index; its
                 // record is in u_shapes.

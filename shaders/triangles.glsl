@@ -130,17 +130,6 @@ void triangle_surface(vec3 d, Hit h, inout Surface s) {
 //@SECTION entering
                 entering = dot(k.d, s.ng) < 0.0;   // enters by the geometric normal, bends about n
 
-//@SECTION path_ng
-            ng = s.ng;   // emission and the side a path meets: by the geometric normal
-
-//@SECTION path_emit_mis
-                // An emitting triangle that next-event estimation samples (all are, when any is).
-                if (prev_pdf > 0.0 && h.id >= u_tri_base && u_num_emit_tris > 0) {
-                    float cos_light = -dot(d, ng);
-                    float p_l = h.t * h.t / (u_emit_tri_area * max(cos_light, 1e-12));
-                    w = prev_pdf * prev_pdf / (prev_pdf * prev_pdf + p_l * p_l);
-                }
-
 //@SECTION bih_box
     // The tree holds spheres and triangles (at least one triangle): u_num_spheres may be 0.
     if (!slab_interval(q.o, q.d, u_box_min, u_box_max, t0, t1) || !(t0 <= t1)) return;
