@@ -171,7 +171,7 @@ class Material:
         (0.0, 0.0, 0.0),
         lo=0.0,
         hi=limits.MAX_EMISSION,
-        unit="W sr⁻¹ m⁻² (linear RGB)",
+        unit="W sr⁻¹ m⁻², linear RGB",
         doc="radiance emitted on the side the normal faces (an area light)",
         record=False,
         omit_default=True,

@@ -56,3 +56,37 @@ def test_triangle_marks_are_filled_only_for_variants_that_trace_triangles():
         assert "void test_triangle(" in tri and "g_shear = shear_of(q.d);" in tri and TRIANGLES_MARK not in tri
         bg = shader_source(method, "color", 3, ("EQUAL_RADII", "TRIANGLES"), spheres=False)
         assert "test_triangle" not in bg
+
+
+def test_every_variant_defines_the_traced_primitive_kinds_as_0_or_1():
+    """FEATURE_TRIANGLES and FEATURE_SHAPES are defined in every variant, 1 where it traces that kind
+    (the background variant traces none), so code inside a function can test them with #if."""
+    cases = [
+        ((), True, 0, 0),
+        (("TRIANGLES",), True, 1, 0),
+        (("SHAPES",), True, 0, 1),
+        (("TRIANGLES", "SHAPES"), True, 1, 1),
+        (("TRIANGLES", "SHAPES"), False, 0, 0),
+    ]
+    for features, spheres, tri, shapes in cases:
+        for extra in ((), ("PATH",)):
+            src = shader_source("bvh", "color", 3, ("EQUAL_RADII", *extra, *features), spheres=spheres)
+            defines = re.findall(r"^#define (FEATURE_\w+) (\d)$", src, flags=re.M)
+            assert defines == [("FEATURE_TRIANGLES", str(tri)), ("FEATURE_SHAPES", str(shapes))], (features, extra)
+
+
+def test_the_path_integrator_reads_the_material_through_the_bsdf_chunk():
+    """The path loop holds no mark and no material texel: the surface record reads the material through
+    its generated accessors, the loop calls bsdf_sample and next-event estimation calls bsdf_eval."""
+    from renderer.shader_source import read
+
+    lighting = read("lighting.glsl")
+    path = lighting[lighting.index("#ifdef PATH") : lighting.index("//@SECTION main_begin")]
+    assert "//@" not in path, "the path integrator's primitive-kind parts are #if FEATURE_* blocks"
+    assert "u_materials" not in path and "u_material_vecs" not in path and "MATERIAL_TEXELS" not in path
+    src = shader_source("bvh", "color", 3, ("EQUAL_RADII", "PATH", "TRIANGLES", "SHAPES"))
+    for call in ("surface_record(", "bsdf_sample(", "bsdf_eval(", "sample_light(", "material_roughness(mat)"):
+        assert call in src, call
+    main = src[src.index("void path_main()") :]
+    main = main[: main.index("\n}\n")]
+    assert main.count("\n") <= 130, "path_main is the loop; the BSDF and the light sampling live apart"
