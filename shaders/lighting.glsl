@@ -181,15 +181,16 @@ vec3 patch_point(int k, float u1, float u2, out vec3 n) {
 }
 #endif
 
-// The ray of sample i through this pixel, from the camera: a point of the pixel's box jittered by
-// the sample's place in the lattice (and the random numbers of the sample started).
-void camera_ray(uint i, out vec3 o, out vec3 d) {
+// The ray of sample i through the pixel at window position frag (gl_FragCoord.xy), from the camera:
+// a point of the pixel's box jittered by the sample's place in the lattice (and the random numbers
+// of the sample started).
+void camera_ray(uint i, vec2 frag, out vec3 o, out vec3 d) {
     g_sample_seed = hash_u(i ^ 0x27d4eb2fu);
     g_dim = 0u;
     vec2 j = pixel_jitter(i);
     // The pixel's box: its lower-left corner (in rows from the top) plus the jitter.
-    float px = floor(gl_FragCoord.x) + j.x;
-    float row = u_resolution.y - (floor(gl_FragCoord.y) + j.y);
+    float px = floor(frag.x) + j.x;
+    float row = u_resolution.y - (floor(frag.y) + j.y);
     float u = (2.0 * px / u_resolution.x - 1.0) * u_half_extent.x;
     float v = (1.0 - 2.0 * row / u_resolution.y) * u_half_extent.y;
     o = u_cam_pos;
@@ -437,7 +438,7 @@ void path_main() {
     float prev_pdf = 0.0;
     while (true) {
         if (start) {
-            camera_ray(uint(u_sample_start + done), o, d);
+            camera_ray(uint(u_sample_start + done), gl_FragCoord.xy, o, d);
             L = vec3(0.0); beta = vec3(1.0); segments = 1; prev_pdf = 0.0;
             q = Query(o, d, NO_PRIM, NO_PRIM, BIG, false);
             start = false;
