@@ -63,7 +63,7 @@ MITSUBA = "Mitsuba 3 llvm"
 
 # The profile's changes to path_main (shaders/lighting.glsl): (anchor, replacement), each anchor
 # found exactly once; "coherent" is made by :func:`patched` itself.
-_TRACE = "        Hit hq = intersect_scene(q);\n"
+_TRACE = "        Hit h = intersect_scene(q);\n"
 PATCHES: dict[str, tuple[tuple[str, str], ...]] = {
     "coherent": (),
     "trace2": (
@@ -72,8 +72,8 @@ PATCHES: dict[str, tuple[tuple[str, str], ...]] = {
             # The second query differs by a shift the compiler cannot prove zero (done < 2^20), so
             # both traversals run; their hits agree, so the image is the first's.
             _TRACE + "        Query q2 = q; q2.skip = q.skip | (done >> 20);\n"
-            "        Hit hq2 = intersect_scene(q2);\n"
-            "        if (hq2.id != hq.id) hq.t = -1.0;\n" + _QUERY[len(_TRACE) :],
+            "        Hit h2 = intersect_scene(q2);\n"
+            "        if (h2.id != h.id) h.t = -1.0;\n" + _QUERY[len(_TRACE) :],
         ),
     ),
     "rnd2": (

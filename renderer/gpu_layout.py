@@ -97,9 +97,12 @@ texture         format    element     contents
 ==============  ========  ==========  ==========================================
 u_spheres       RGBA32F   sphere id   centre x, y, z, radius (the ray engines)
 u_sphere_mat    R32UI     sphere id   material index (the ray engines)
-u_materials     RGBA32F   3 per mat.  (r, g, b, ambient), (diffuse, specular,
-                                      shininess, reflective), (transmissive,
-                                      ior, 0, 0); the tracer reads the same
+u_materials     RGBA32F   MATERIAL_   the material's record, laid out from its
+                          TEXELS per  declaration (renderer.materials:
+                          material    record_layout; today (r, g, b, ambient),
+                                      (diffuse, specular, shininess,
+                                      reflective), (transmissive, ior,
+                                      roughness, 0)); the tracer reads the same
                                       texels from the uniform array
                                       u_material_vecs when the scene has at most
                                       MAX_UNIFORM_MATERIALS materials
@@ -132,11 +135,12 @@ from .limits import (
     MAX_SPHERES,
     MAX_TRIANGLES,
 )
+from .materials import glsl_accessors, pack_records, record_texels
 from .modes import RAY_TREE_MODES
-from .scene import Camera, Scene
+from .scene import Camera, Material, Scene
 from .shapes import CONE as SHAPE_CONE, CYLINDER as SHAPE_CYLINDER, DISK as SHAPE_DISK, bounds as shape_bounds
 
-MATERIAL_TEXELS = 3
+MATERIAL_TEXELS = record_texels(Material)  # the material record's texels, from its declaration
 # The tracer reads materials from a uniform array when the scene has at most this many
 # (WebGL2 guarantees 224 fragment uniform vectors; these take 48), else from u_materials.
 MAX_UNIFORM_MATERIALS = 16
@@ -842,11 +846,7 @@ def pack_primitives(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> Pac
     """Spheres, materials, planes and lights (what every method reads): the materials as a
     texture and as the uniform array, the common radius of EQUAL_RADII records."""
     spheres = np.concatenate([scene.sphere_centers, scene.sphere_radii[:, None]], axis=1).astype(np.float32)
-    mats = np.zeros((len(scene.materials) * MATERIAL_TEXELS, 4), dtype=np.float32)
-    for i, m in enumerate(scene.materials):
-        mats[3 * i] = (*m.color, m.ambient)
-        mats[3 * i + 1] = (m.diffuse, m.specular, m.shininess, m.reflective)
-        mats[3 * i + 2] = (m.transmissive, m.ior, m.roughness, 0.0)  # (the Whitted shader reads x, y)
+    mats = pack_records(scene.materials, Material)
     textures = {
         SPHERES.name: wrap_rows(spheres, max_width),
         SPHERE_MAT.name: wrap_rows(scene.sphere_materials.astype(np.uint32), max_width),
@@ -1200,9 +1200,11 @@ def subpixel_cell(slice_index: int) -> tuple[float, float]:
 
 
 def glsl_header() -> str:
-    """The scene's layout constants (the tracer's and the ray engines' headers, after ``#version``)."""
+    """The scene's layout constants (the tracer's and the ray engines' headers, after ``#version``), and
+    the material record's accessors (``material_color(m)``…, renderer.materials.glsl_accessors)."""
     return (
         f"#define MAX_PLANES {MAX_PLANES}\n#define MAX_LIGHTS {MAX_LIGHTS}\n#define MATERIAL_TEXELS {MATERIAL_TEXELS}\n"
+        + glsl_accessors(Material)
     )
 
 

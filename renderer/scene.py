@@ -33,6 +33,7 @@ from .errors import SceneError  # re-exported: where the scene's callers import 
 
 # Largest coordinate magnitude accepted (float32 resolves a unit sphere up to it; limits.py).
 from .limits import MAX_COORDINATE  # re-exported
+from .materials import material_params, param
 from .shapes import KINDS as SHAPE_KINDS, Shapes
 
 if TYPE_CHECKING:
@@ -149,82 +150,72 @@ class Light:
 
 @dataclass(frozen=True)
 class Material:
-    """Whitted/Phong material (Table 4.1). Coefficients are plain weights.
+    """Whitted/Phong material (thesis Table 4.1).
 
-    ``reflective`` (kr) and ``transmissive`` (kt) weight the secondary rays;
-    ``ior`` is the refraction index of the inside relative to the outside.
-    ``emission``: linear RGB radiance the surface emits on the side its normal faces (seen
-    directly by both integrators; an area light of the path integrator). ``roughness``: GGX
-    α of the path integrator's reflective and transmissive lobes (0: a mirror, smooth glass;
-    above: a rough conductor, a rough dielectric). Both are absent from the
-    JSON when 0, so a scene without them reads and writes as it always did.
+    The Phong kind of material (:mod:`renderer.materials`): each field below is declared once
+    with its default, range, unit and doc, and the validation here, the JSON, the API's model
+    and the GPU record (``shaders/bsdf_phong.glsl`` reads it as ``material_<name>(m)``) are made
+    from those declarations.
     """
 
-    color: Vec3 = (0.9, 0.3, 0.3)
-    ambient: float = 0.3
-    diffuse: float = 0.3
-    specular: float = 0.1
-    shininess: float = 40.0
-    reflective: float = 0.3
-    transmissive: float = 0.0
-    ior: float = 1.0
-    emission: Vec3 = (0.0, 0.0, 0.0)
-    roughness: float = 0.0
+    color: Vec3 = param((0.9, 0.3, 0.3), lo=0.0, hi=1.0, doc="RGB, each 0 … 1")
+    ambient: float = param(0.3, lo=0.0, hi=1.0, doc="Phong's ambient weight (Whitted)")
+    diffuse: float = param(0.3, lo=0.0, hi=1.0, doc="diffuse weight: Phong's kd, the path integrator's Lambert lobe")
+    specular: float = param(0.1, lo=0.0, hi=1.0, doc="Phong's specular weight ks (Whitted)")
+    shininess: float = param(40.0, lo=0.0, hi=limits.MAX_SHININESS, doc="Phong exponent")
+    reflective: float = param(0.3, lo=0.0, hi=1.0, doc="weight kr of the reflected ray (a mirror; rough: GGX)")
+    transmissive: float = param(0.0, lo=0.0, hi=1.0, doc="weight kt of the refracted ray (glass; rough: GGX)")
+    ior: float = param(1.0, lo=0.0, hi=limits.MAX_IOR, lo_open=True, doc="refraction index inside / outside")
+    # Emission lives in its own texture (u_emission), packed only for scenes that emit.
+    emission: Vec3 = param(
+        (0.0, 0.0, 0.0),
+        lo=0.0,
+        hi=limits.MAX_EMISSION,
+        unit="W sr⁻¹ m⁻², linear RGB",
+        doc="radiance emitted on the side the normal faces (an area light)",
+        record=False,
+        omit_default=True,
+    )
+    roughness: float = param(
+        0.0,
+        lo=0.0,
+        hi=1.0,
+        doc="GGX α of the path integrator's reflective and transmissive lobes (0: a mirror, smooth glass)",
+        omit_default=True,
+    )
 
     def __post_init__(self) -> None:
-        col = finite_vec3(self.color, "color")
-        em = finite_vec3(self.emission, "emission")
-        for i, c in enumerate(em):
-            finite_number(c, f"emission[{i}]", lo=0.0, hi=limits.MAX_EMISSION)
-        object.__setattr__(self, "emission", em)
-        object.__setattr__(self, "roughness", finite_number(self.roughness, "roughness", lo=0.0, hi=1.0))
-        for i, c in enumerate(col):
-            finite_number(c, f"color[{i}]", lo=0.0, hi=1.0)
-        object.__setattr__(self, "color", col)
-        for name in ("ambient", "diffuse", "specular", "reflective", "transmissive"):
-            object.__setattr__(self, name, finite_number(getattr(self, name), name, lo=0.0, hi=1.0))
-        object.__setattr__(
-            self, "shininess", finite_number(self.shininess, "shininess", lo=0.0, hi=limits.MAX_SHININESS)
-        )
-        object.__setattr__(self, "ior", finite_number(self.ior, "ior", lo=0.0, hi=limits.MAX_IOR, lo_open=True))
+        for name, p in material_params(type(self)).items():
+            value = getattr(self, name)
+            if p.size == 1:
+                object.__setattr__(self, name, finite_number(value, name, lo=p.lo, hi=p.hi, lo_open=p.lo_open))
+                continue
+            if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != p.size:
+                raise SceneError(name, f"expected a list of {p.size} numbers")
+            checked = tuple(
+                finite_number(v, f"{name}[{i}]", lo=p.lo, hi=p.hi, lo_open=p.lo_open) for i, v in enumerate(value)
+            )
+            object.__setattr__(self, name, checked)
 
     @property
     def emits(self) -> bool:
         return any(c > 0.0 for c in self.emission)
 
     def to_json(self) -> dict:
-        out = {
-            "color": list(self.color),
-            "ambient": self.ambient,
-            "diffuse": self.diffuse,
-            "specular": self.specular,
-            "shininess": self.shininess,
-            "reflective": self.reflective,
-            "transmissive": self.transmissive,
-            "ior": self.ior,
-        }
-        if self.emits:
-            out["emission"] = list(self.emission)
-        if self.roughness:
-            out["roughness"] = self.roughness
+        """The material's JSON: every parameter, less those declared ``omit_default`` that hold their default."""
+        out: dict[str, Any] = {}
+        for name, p in material_params(type(self)).items():
+            value = getattr(self, name)
+            if p.omit_default and value == p.default:
+                continue
+            out[name] = list(value) if isinstance(value, tuple) else value
         return out
 
-    @staticmethod
-    def from_json(d: Any, where: str) -> Material:
-        keys = (
-            "color",
-            "ambient",
-            "diffuse",
-            "specular",
-            "shininess",
-            "reflective",
-            "transmissive",
-            "ior",
-            "emission",
-            "roughness",
-        )
+    @classmethod
+    def from_json(cls, d: Any, where: str) -> Material:
+        keys = tuple(material_params(cls))
         d = _object(d, where, set(keys))
-        return _construct(Material, {k: d[k] for k in keys if k in d}, where)
+        return _construct(cls, {k: d[k] for k in keys if k in d}, where)
 
 
 @dataclass(frozen=True)

@@ -13,10 +13,8 @@ in the same order, only three pieces chosen per variant:
 
 ``//@INCLUDE <file>`` lines include a file whole, in every variant (``triangles.glsl``,
 ``shapes.glsl``, ``shapes_tracer.glsl``, ``leaf.glsl``, ``lighting.glsl``; a method built from
-other methods' files). The one exception is a legacy: the ``//@TRIANGLES <name>`` and
-``//@SHAPES <name>`` lines inside ``lighting.glsl``'s ``path_main`` get their statements from
-``shaders/path_legacy.glsl`` where the kind is traced, and are removed elsewhere
-(:func:`with_legacy_path_marks`). A ray-engine pass is ``#version``, the same layout constants,
+other methods' files); ``bsdf_phong.glsl`` and ``lighting.glsl`` in the variants that carry light
+beyond the thesis's (``FEATURE_LIGHTING``). A ray-engine pass is ``#version``, the same layout constants,
 the pass's defines, ``rayengine_common.glsl`` and the pass's own file. The same text serves
 moderngl and the browser (WebGL2, ``GET /api/shader``); nothing here touches OpenGL.
 """
@@ -38,12 +36,6 @@ METHOD_MARK = "//@METHOD@"
 RECURSION_MARK = "//@RECURSION_COLORS@\n"  # the whole line becomes recursion_color_function()
 INCLUDE_MARK = "//@INCLUDE "  # a line "//@INCLUDE triangles.glsl" includes that file whole
 MAX_INCLUDE_DEPTH = 4  # raytrace.frag → method_twolevel.glsl → method_bvh.glsl: a cycle is an error
-# The legacy marks inside lighting.glsl's path_main: "//@TRIANGLES <name>" gets section
-# "triangles.<name>" of LEGACY_FILE where FEATURE_TRIANGLES is 1, "//@SHAPES <name>" section
-# "shapes.<name>" where FEATURE_SHAPES is 1; each is removed, line and all, elsewhere.
-LEGACY_MARKS = {"//@TRIANGLES ": "triangles", "//@SHAPES ": "shapes"}
-LEGACY_FILE = "path_legacy.glsl"
-SECTION_MARK = "//@SECTION "
 
 
 @cache
@@ -141,14 +133,13 @@ def tracer_source(
 
 def variant_source(variant: Variant) -> str:
     """The fragment shader of ``variant``: ``raytrace.frag`` with its includes, the header, the
-    method's traversal and the recursion colours; then the legacy marks of ``path_main``."""
-    text = (
+    method's traversal and the recursion colours."""
+    return (
         with_includes(read("raytrace.frag"))
         .replace(HEADER_MARK, tracer_header(variant))
         .replace(METHOD_MARK, with_includes(read(method_shader(variant.method))))
         .replace(RECURSION_MARK, recursion_color_function())
     )
-    return with_legacy_path_marks(text, feature_flags(variant))
 
 
 def feature_flags(variant: Variant) -> dict[str, bool]:
@@ -182,39 +173,6 @@ def recursion_color_function() -> str:
     lines = [f"    if (level == {level}) return {vec3(c)};\n" for level, c in enumerate(RECURSION_COLORS) if level]
     other = f"vec3({_glsl_float(miss[0])})" if miss[0] == miss[1] == miss[2] else vec3(miss)
     return "vec3 recursion_color(int level) {\n" + "".join(lines) + f"    return {other};\n}}\n"
-
-
-@cache
-def sections_of(name: str) -> dict[str, str]:
-    """``shaders/<name>`` cut at its ``//@SECTION <name>`` lines: name → text."""
-    sections: dict[str, list[str]] = {}
-    current: list[str] | None = None
-    for line in read(name).splitlines(keepends=True):
-        if line.startswith(SECTION_MARK):
-            current = sections.setdefault(line[len(SECTION_MARK) :].strip(), [])
-        elif current is not None:
-            current.append(line)
-    return {name: "".join(lines).rstrip("\n") + "\n" for name, lines in sections.items()}
-
-
-def with_legacy_path_marks(text: str, flags: dict[str, bool]) -> str:
-    """LEGACY (path_main's marks only): each ``//@TRIANGLES <name>`` / ``//@SHAPES <name>`` line
-    replaced by section ``triangles.<name>`` / ``shapes.<name>`` of ``shaders/path_legacy.glsl``
-    where ``FEATURE_TRIANGLES`` / ``FEATURE_SHAPES`` is on, removed, line and all, elsewhere. A
-    mark without a section is an error (KeyError)."""
-    if not any(mark in text for mark in LEGACY_MARKS):
-        return text
-    sections = sections_of(LEGACY_FILE)
-    out = []
-    for line in text.splitlines(keepends=True):
-        mark = next((m for m in LEGACY_MARKS if line.startswith(m)), None)
-        if mark is None:
-            out.append(line)
-            continue
-        kind = LEGACY_MARKS[mark]
-        if flags[f"FEATURE_{kind.upper()}"]:
-            out.append(sections[f"{kind}.{line[len(mark) :].strip()}"])
-    return "".join(out)
 
 
 def with_includes(text: str, depth: int = 0) -> str:

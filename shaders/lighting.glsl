@@ -103,13 +103,11 @@ vec3 env_sample(float u1, float u2, out float pdf) {
 
 #ifdef PATH
 // ---- the path integrator (docs/SHADING.md, "Path integrator") ----------------------------
-const float PI = 3.14159265358979;
+// The material's BSDF is shaders/bsdf_phong.glsl (the surface record, bsdf_eval, bsdf_sample,
+// bsdf_pdf); here: the camera's rays, next-event estimation (sample_light) and the path's loop.
 // What the scene lacks is not compiled in (renderer/features.py, PATH_REMOVALS): every lane runs
 // all of the loop's code, used or not. The host names a removal only where it says something; the
-// rest follow here: no rough lobe where nothing reflects or transmits, no light kind where nothing emits.
-#if defined(NO_REFLECTION) && defined(NO_TRANSMISSION) && !defined(NO_ROUGHNESS)
-#define NO_ROUGHNESS
-#endif
+// rest follow here: no light kind where nothing emits.
 #ifndef READS_EMISSION
 #define NO_SPHERE_LIGHTS
 #define NO_TRIANGLE_LIGHTS
@@ -117,12 +115,11 @@ const float PI = 3.14159265358979;
 #endif
 #ifdef GUIDES
 // The denoiser's guides (renderer/denoise.py), sums over the pass's samples: the first hit's albedo
-// as its lobes reflect (w_d · colour + w_r + w_t; a miss: the environment clamped to [0, 1]) and
-// its outward normal (a miss: 0).
+// as its lobes reflect (bsdf_albedo; a miss: the environment clamped to [0, 1]) and its outward
+// normal (a miss: 0).
 layout(location = 2) out vec4 o_albedo;
 layout(location = 3) out vec4 o_normal;
 #endif
-
 // Random numbers: a function of (pixel, sample index, dimension) alone, so sample i of a pixel
 // is the same path in whichever pass traces it. The pixel's position in it: the R2 rank-1
 // lattice (Roberts) in the sample index, Cranley–Patterson-rotated per pixel; every other
@@ -146,35 +143,6 @@ vec2 pixel_jitter(uint i) {
     uvec2 a = uvec2(3242174889u, 2447445414u) * i;
     vec2 shift = vec2(unit_float(hash_u(g_pixel_seed ^ 0xa511e9b3u)), unit_float(hash_u(g_pixel_seed ^ 0x63d83595u)));
     return fract(vec2(a >> 8u) * (1.0 / 16777216.0) + shift);
-}
-
-// The GGX α of material m's reflective and transmissive lobes (the third texel's z; Whitted's Material
-// has no use for it). 0 where no material is rough: the GGX code then folds away.
-float roughness_at(int m) {
-#if defined(NO_ROUGHNESS)
-    return 0.0;
-#elif defined(MATERIAL_TEXTURE)
-    return texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 2, g_mat_shift), 0).z;
-#else
-    return u_material_vecs[m * MATERIAL_TEXELS + 2].z;
-#endif
-}
-
-// An orthonormal basis around unit n (Duff et al. 2017).
-void basis(vec3 n, out vec3 t, out vec3 b) {
-    float sgn = n.z >= 0.0 ? 1.0 : -1.0;
-    float a = -1.0 / (sgn + n.z);
-    float c = n.x * n.y * a;
-    t = vec3(1.0 + sgn * n.x * n.x * a, sgn * c, -sgn * n.x);
-    b = vec3(c, sgn + n.y * n.y * a, -n.y);
-}
-
-vec3 cosine_direction(vec3 n, float u1, float u2) {
-    float r = sqrt(u1);
-    float phi = 2.0 * PI * u2;
-    vec3 t, b;
-    basis(n, t, b);
-    return normalize(r * cos(phi) * t + r * sin(phi) * b + sqrt(max(0.0, 1.0 - u1)) * n);
 }
 
 #ifndef NO_SHAPE_LIGHTS
@@ -213,282 +181,111 @@ vec3 patch_point(int k, float u1, float u2, out vec3 n) {
 }
 #endif
 
-// Smith's masking of GGX (α) for a direction at cos θ = c to the normal.
-float smith_g1(float c, float alpha) {
-    float c2 = c * c;
-    float tan2 = max(0.0, 1.0 - c2) / max(c2, 1e-12);
-    return 2.0 / (1.0 + sqrt(1.0 + alpha * alpha * tan2));
+// The ray of sample i through the pixel at window position frag (gl_FragCoord.xy), from the camera:
+// a point of the pixel's box jittered by the sample's place in the lattice (and the random numbers
+// of the sample started).
+void camera_ray(uint i, vec2 frag, out vec3 o, out vec3 d) {
+    g_sample_seed = hash_u(i ^ 0x27d4eb2fu);
+    g_dim = 0u;
+    vec2 j = pixel_jitter(i);
+    // The pixel's box: its lower-left corner (in rows from the top) plus the jitter.
+    float px = floor(frag.x) + j.x;
+    float row = u_resolution.y - (floor(frag.y) + j.y);
+    float u = (2.0 * px / u_resolution.x - 1.0) * u_half_extent.x;
+    float v = (1.0 - 2.0 * row / u_resolution.y) * u_half_extent.y;
+    o = u_cam_pos;
+    d = normalize(u_cam_forward + u * u_cam_right + v * u_cam_up);
 }
 
-// A GGX (α) microfacet normal drawn from the normals visible from wo about n (Heitz 2018,
-// "Sampling the GGX Distribution of Visible Normals"): density D_wo(m) = G1(wo) max(0, wo·m) D(m) / (n·wo).
-// Against the full distribution D(m) cos θm, the weights of the lobes that use it are bounded
-// (G1 of the new direction) instead of growing as (wo·m) / (n·m) for the rare m far from n.
-vec3 ggx_visible_normal(vec3 n, vec3 wo, float a, float u1, float u2) {
-    vec3 t, b;
-    basis(n, t, b);
-    vec3 vh = normalize(vec3(a * dot(wo, t), a * dot(wo, b), dot(n, wo)));   // wo, stretched to α = 1
-    float len2 = vh.x * vh.x + vh.y * vh.y;
-    vec3 t1 = len2 > 0.0 ? vec3(-vh.y, vh.x, 0.0) * inversesqrt(len2) : vec3(1.0, 0.0, 0.0);
-    vec3 t2 = cross(vh, t1);
-    float r = sqrt(u1), phi = 2.0 * PI * u2;
-    float p1 = r * cos(phi), p2 = r * sin(phi);
-    float sv = 0.5 * (1.0 + vh.z);
-    p2 = (1.0 - sv) * sqrt(max(0.0, 1.0 - p1 * p1)) + sv * p2;
-    vec3 nh = p1 * t1 + p2 * t2 + sqrt(max(0.0, 1.0 - p1 * p1 - p2 * p2)) * vh;
-    vec3 ml = normalize(vec3(a * nh.x, a * nh.y, max(nh.z, 0.0)));
-    return ml.x * t + ml.y * b + ml.z * n;
+// The shadow ray from r's point along unit l, meeting blockers nearer than t_max.
+Query shadow_query(SurfaceRecord r, vec3 l, float t_max) {
+    int skip, far_id;
+    exclusion(r.prim, r.n, l, skip, far_id);
+    return Query(r.p, l, skip, far_id, t_max, true);
 }
 
-// The GGX lobe (α, F = 1, separable Smith masking) for wo → wi about n: (f, pdf per steradian of its
-// sampling, D_wo(m) / (4 o·m) = G1(wo) D(m) / (4 n·o), the visible normals); (0, 0) below either horizon.
-vec2 ggx_eval(vec3 n, vec3 wo, vec3 wi, float alpha) {
-    float n_o = dot(n, wo), n_i = dot(n, wi);
-    if (n_o <= 0.0 || n_i <= 0.0) return vec2(0.0);
-    vec3 mh = normalize(wo + wi);
-    float n_m = dot(n, mh), o_m = dot(wo, mh);
-    if (n_m <= 0.0 || o_m <= 0.0) return vec2(0.0);
-    float a2 = alpha * alpha;
-    float k = n_m * n_m * (a2 - 1.0) + 1.0;
-    float dm = a2 / (PI * k * k);
-    float f = dm * smith_g1(n_o, alpha) * smith_g1(n_i, alpha) / (4.0 * n_o * n_i);
-    return vec2(f, dm * smith_g1(n_o, alpha) / (4.0 * n_o));
-}
-// The lobes next-event estimation lights, the diffuse and the GGX one together, for wo → wi about nf:
-// (f, the pdf with which BSDF sampling chooses wi — each lobe with its weight's probability). The
-// smooth mirror and glass are deltas: no light sample can meet them.
-vec4 lobes_eval(vec3 nf, vec3 wo, vec3 wi, float w_d, vec3 albedo, float w_r, float alpha) {
-    vec3 f = (w_d / PI) * albedo;
-    float pdf = w_d * max(dot(nf, wi), 0.0) / PI;
-    if (w_r > 0.0 && alpha > 0.0) {
-        vec2 g = ggx_eval(nf, wo, wi, alpha);
-        f += vec3(w_r * g.x);
-        pdf += w_r * g.y;
-    }
-    return vec4(f, pdf);
+// The power heuristic's weight of light sampling for a light sample of density p_l (solid angle)
+// whose direction the BSDF would choose with density p_bsdf.
+float light_weight(float p_l, float p_bsdf) {
+    return p_l * p_l / (p_l * p_l + p_bsdf * p_bsdf);
 }
 
-// Fresnel reflectance of a smooth dielectric: cos_i > 0 the incident cosine, eta = n_i / n_t.
-float fresnel_dielectric(float cos_i, float eta) {
-    float sin2_t = eta * eta * max(0.0, 1.0 - cos_i * cos_i);
-    if (sin2_t >= 1.0) return 1.0;   // total internal reflection
-    float cos_t = sqrt(1.0 - sin2_t);
-    float rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    float rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    return 0.5 * (rs * rs + rp * rp);
-}
+// Next-event estimation's light kinds, in the order a vertex samples them; the point lights and the
+// emitting spheres one light after another (nee_index), the others one sample each.
+const int NEE_POINT = 0;
+const int NEE_SPHERES = 1;
+const int NEE_TRIANGLES = 2;
+const int NEE_SHAPES = 3;
+const int NEE_ENVIRONMENT = 4;
+const int NEE_DONE = 5;
 
-// A sample's radiance as it reaches the pixel: NaN, infinity or a negative value (a float
-// accident, never light) counts as 0, so no such value reaches an image.
-vec3 valid_radiance(vec3 c) {
-    return all(lessThan(abs(c), vec3(BIG))) ? max(c, vec3(0.0)) : vec3(0.0);
-}
-
-void path_main() {
-    g_pixel_seed = hash_u(uint(gl_FragCoord.x) ^ hash_u(uint(gl_FragCoord.y) + 0x632be5abu));
-    vec3 sum = vec3(0.0);
-    float primary_t = -1.0;
-    int primary_id = NO_PRIM;
-    vec3 primary_n = vec3(0.0);
-#ifdef GUIDES
-    vec3 albedo_sum = vec3(0.0), normal_sum = vec3(0.0);
-#endif
-
-    int done = 0;            // samples of this pass finished
-    bool start = true;       // the next iteration begins sample u_sample_start + done
-    vec3 L = vec3(0.0);      // the sample's radiance so far
-    vec3 beta = vec3(1.0);   // its path throughput
-    int segments = 0;        // segments of the path traced so far (the camera's is 1)
-    int light = 0;           // the next point light to try at the current vertex
-    vec3 o = vec3(0.0), d = vec3(0.0);
-    int skip = NO_PRIM, far_id = NO_PRIM;
-    Query q;
-    Hit h;
-    Surface s;
-    Material m;
-    vec3 nf = vec3(0.0);
-    float w_diffuse = 0.0, w_reflect = 0.0, w_transmit = 0.0;   // the vertex's lobe weights, summing ≤ 1
-    vec3 contrib = vec3(0.0);
-    bool vertex = false;     // the path stands on a surface and may go on from it
-    bool front = false;      // … on the side its normal faces
-    float roughness = 0.0;
-    int emitter = 0;             // the next emitting sphere to sample at the current vertex
-    int shadow_kind = 0;         // the shadow ray in flight: 0 a point light's, 1 a sphere's, 2 a triangle's
-    bool tri_done = false;       // the vertex's emitting-triangle sample is taken
-    bool patch_done = false;     // … and its emitting-shape sample (shadow kind 4)
-#ifdef READS_ENVIRONMENT_SAMPLING
-    bool env_done = false;       // … and its environment-image sample (shadow kind 3)
-#endif
-    vec3 prev_p = vec3(0.0);     // the vertex the current segment left, and the pdf (solid angle) with
-    float prev_pdf = 0.0;        // which its diffuse and GGX lobes together chose it (0: a smooth lobe, the camera)
-    bool lit = false;            // the vertex has a lobe that next-event estimation lights (diffuse, GGX)
-    while (true) {
-        if (start) {
-            uint i = uint(u_sample_start + done);
-            g_sample_seed = hash_u(i ^ 0x27d4eb2fu);
-            g_dim = 0u;
-            vec2 j = pixel_jitter(i);
-            // The pixel's box: its lower-left corner (in rows from the top) plus the jitter.
-            float px = floor(gl_FragCoord.x) + j.x;
-            float row = u_resolution.y - (floor(gl_FragCoord.y) + j.y);
-            float u = (2.0 * px / u_resolution.x - 1.0) * u_half_extent.x;
-            float v = (1.0 - 2.0 * row / u_resolution.y) * u_half_extent.y;
-            o = u_cam_pos;
-            d = normalize(u_cam_forward + u * u_cam_right + v * u_cam_up);
-            skip = NO_PRIM; far_id = NO_PRIM;
-            L = vec3(0.0); beta = vec3(1.0); segments = 1; prev_pdf = 0.0;
-            q = Query(o, d, skip, far_id, BIG, false);
-            start = false;
-        }
-        Hit hq = intersect_scene(q);
-        if (q.any_hit) {
-            if (hq.id == NO_PRIM) L += contrib;   // the light is visible
-            if (shadow_kind == 0) light++;
-            else if (shadow_kind == 1) emitter++;
-            else tri_done = true;
-        } else if (hq.id == NO_PRIM) {
-#ifdef READS_ENVIRONMENT_SAMPLING
-            // The image is sampled by next-event estimation too: the power heuristic's weight of
-            // BSDF sampling where the diffuse or the GGX lobe chose the direction.
-            float w_env = 1.0;
-            if (prev_pdf > 0.0) {
-                float p_l = env_pdf(d);
-                w_env = prev_pdf * prev_pdf / (prev_pdf * prev_pdf + p_l * p_l);
-            }
-            L += w_env * beta * ENV_RADIANCE_AT(d);
-#else
-            L += beta * ENV_RADIANCE_AT(d);
-#endif
-#ifdef GUIDES
-            if (segments == 1) albedo_sum += clamp(ENV_RADIANCE_AT(d), 0.0, 1.0);
-#endif
-            vertex = false;
-        } else {
-            h = hq;
-            s = surface_at(o, d, h);
-            vec3 ng = s.n;
-//@TRIANGLES path_ng
-            if (segments == 1 && done == 0) {   // the pass's first sample gives primid, normal, depth
-                primary_t = h.t; primary_id = h.id; primary_n = s.n;
-            }
-            m = material_at(s.mat);
-            roughness = roughness_at(s.mat);
-            front = dot(d, ng) < 0.0;
-            nf = front ? s.n : -s.n;
-            if (front) {
-                // An emitting sphere that next-event estimation samples too: the power heuristic's weight
-                // of BSDF sampling (its diffuse and GGX lobes' pdf against the sphere's cone); every other
-                // emitter (planes, triangles, spheres past the sampled ones) is met by BSDF sampling alone.
-                float w = 1.0;
-#ifndef NO_SPHERE_LIGHTS
-                if (prev_pdf > 0.0 && h.id < u_num_spheres && h.id <= u_emitter_last) {
-                    vec3 to_c = h.sphere.xyz - prev_p;
-                    float sin2 = h.sphere.w * h.sphere.w / dot(to_c, to_c);
-                    if (sin2 < 1.0) {
-                        float p_l = 1.0 / (2.0 * PI * (sin2 / (1.0 + sqrt(1.0 - sin2))));
-                        w = prev_pdf * prev_pdf / (prev_pdf * prev_pdf + p_l * p_l);
-                    }
-                }
-#endif
-//@TRIANGLES path_emit_mis
-//@SHAPES path_emit_mis
-                L += w * beta * emission_at(s.mat);
-            }
-            // Lobe weights: diffuse, reflective, transmissive; scaled to sum 1 where they exceed it.
-            w_diffuse = m.diffuse; w_reflect = 0.0; w_transmit = 0.0;
-#ifndef NO_REFLECTION
-            w_reflect = m.reflective;
-#endif
-#ifndef NO_TRANSMISSION
-            w_transmit = m.transmissive;
-#endif
-            float total = w_diffuse + w_reflect + w_transmit;
-            if (total > 1.0) { w_diffuse /= total; w_reflect /= total; w_transmit /= total; }
-#ifdef GUIDES
-            if (segments == 1) {
-                albedo_sum += w_diffuse * m.color + vec3(w_reflect + w_transmit);
-                normal_sum += s.n;
-            }
-#endif
-            light = 0;
-            emitter = 0;
-            tri_done = false;
-            patch_done = false;
-#ifdef READS_ENVIRONMENT_SAMPLING
-            env_done = false;
-#endif
-            vertex = segments < MAX_RECURSION_DEPTH;   // a next segment (shadow or bounce) fits
-            lit = w_diffuse > 0.0 || (w_reflect > 0.0 && roughness > 0.0);
-        }
+// The vertex's next light sample (pbrt's SampleLd, one shadow ray at a time, as the loop traces
+// every ray at its one intersect_scene): from light kind `kind`, light `index` on, the first that
+// lights r's non-specular lobes; true with its shadow ray q and contrib, the radiance it adds
+// (times beta) if nothing blocks it; false when every light is done. Each sampled light is weighted
+// by the power heuristic against BSDF sampling (the point lights, deltas, are not). After a shadow
+// ray of the point lights or the spheres the caller moves index on; the other kinds move `kind`
+// on here.
+bool sample_light(SurfaceRecord r, vec3 beta, inout int kind, inout int index, inout Query q, inout vec3 contrib) {
+    float pdf;
+    if (kind == NEE_POINT) {
 #ifdef SHADOW_RAYS
-        // Next-event estimation: the next point light, lighting the diffuse and GGX lobes (a delta light: no MIS).
-        if (vertex && lit) {
-            bool shadow = false;
-            for (; light < LIGHT_LOOP; light++) {
-                if (LIGHTS_END(light)) break;
-                vec3 to_light = u_light_pos[light] - s.p;
-                float dist2 = dot(to_light, to_light);
-                float dist = sqrt(dist2);
-                vec3 l = to_light / dist;
-                float cos_l = dot(nf, l);
-                if (cos_l > 0.0 && dist > 0.0) {
-                    // f = w_d · color / π, intensity I = color_light · u_light_scale, E = I cos / r².
-                    vec3 f = lobes_eval(nf, -d, l, w_diffuse, m.color, w_reflect, roughness).rgb;
-                    contrib = beta * f * u_light_color[light] * (u_light_scale * cos_l / dist2);
-                    int sk, fa;
-                    exclusion(h.id, s.n, l, sk, fa);
-                    q = Query(s.p, l, sk, fa, dist, true);
-                    shadow = true;
-                    break;
-                }
+        for (; index < LIGHT_LOOP; index++) {
+            if (LIGHTS_END(index)) break;
+            vec3 to_light = u_light_pos[index] - r.p;
+            float dist2 = dot(to_light, to_light);
+            float dist = sqrt(dist2);
+            vec3 l = to_light / dist;
+            float cos_l = dot(r.nf, l);
+            if (cos_l > 0.0 && dist > 0.0) {
+                // Intensity I = color_light · u_light_scale, E = I cos / r².
+                vec3 f = bsdf_eval(r, l, pdf);
+                contrib = beta * f * u_light_color[index] * (u_light_scale * cos_l / dist2);
+                q = shadow_query(r, l, dist);
+                return true;
             }
-            shadow_kind = 0;
-            if (shadow) continue;
         }
 #endif
+        kind = NEE_SPHERES;
+        index = 0;
+    }
+    if (kind == NEE_SPHERES) {
 #ifndef NO_SPHERE_LIGHTS
-        // Next-event estimation to the emitting spheres: a direction in the cone the sphere fills
-        // (uniform in solid angle), weighted by the power heuristic against BSDF sampling.
-        if (vertex && lit) {
-            bool shadow = false;
-            for (; emitter < MAX_SAMPLED_SPHERES; emitter++) {
-                if (emitter >= u_num_emitters) break;
-                vec4 e = u_emitter_sphere[emitter];
-                vec3 to_c = e.xyz - s.p;
-                float dist2 = dot(to_c, to_c);
-                float sin2 = e.w * e.w / dist2;
-                float u1 = rnd(), u2 = rnd();
-                if (!(sin2 < 1.0)) continue;   // the vertex is inside (or on) it: not sampled
-                float cone = sin2 / (1.0 + sqrt(1.0 - sin2));   // 1 − cos θmax, without cancellation
-                float cos_t = 1.0 - u1 * cone;
-                float sin_t = sqrt(max(0.0, 1.0 - cos_t * cos_t));
-                float phi = 2.0 * PI * u2;
-                vec3 t, b;
-                basis(to_c * inversesqrt(dist2), t, b);
-                vec3 l = normalize(sin_t * cos(phi) * t + sin_t * sin(phi) * b + cos_t * to_c * inversesqrt(dist2));
-                float cos_l = dot(nf, l);
-                float te = intersect_sphere(s.p, l, e, false);
-                if (cos_l <= 0.0 || te >= BIG) continue;
-                float p_l = 1.0 / (2.0 * PI * cone);
-                vec4 fl = lobes_eval(nf, -d, l, w_diffuse, m.color, w_reflect, roughness);
-                float w = p_l * p_l / (p_l * p_l + fl.w * fl.w);
-                contrib = beta * fl.rgb * u_emitter_radiance[emitter] * (cos_l * w / p_l);
-                int sk, fa;
-                exclusion(h.id, s.n, l, sk, fa);
-                q = Query(s.p, l, sk, fa, te * (1.0 - 1e-4), true);   // blockers before the sphere
-                shadow = true;
-                break;
-            }
-            shadow_kind = 1;
-            if (shadow) continue;
+        // A direction in the cone the sphere fills (uniform in solid angle).
+        for (; index < MAX_SAMPLED_SPHERES; index++) {
+            if (index >= u_num_emitters) break;
+            vec4 e = u_emitter_sphere[index];
+            vec3 to_c = e.xyz - r.p;
+            float dist2 = dot(to_c, to_c);
+            float sin2 = e.w * e.w / dist2;
+            float u1 = rnd(), u2 = rnd();
+            if (!(sin2 < 1.0)) continue;   // the vertex is inside (or on) it: not sampled
+            float cone = sin2 / (1.0 + sqrt(1.0 - sin2));   // 1 − cos θmax, without cancellation
+            float cos_t = 1.0 - u1 * cone;
+            float sin_t = sqrt(max(0.0, 1.0 - cos_t * cos_t));
+            float phi = 2.0 * PI * u2;
+            vec3 t, b;
+            basis(to_c * inversesqrt(dist2), t, b);
+            vec3 l = normalize(sin_t * cos(phi) * t + sin_t * sin(phi) * b + cos_t * to_c * inversesqrt(dist2));
+            float cos_l = dot(r.nf, l);
+            float te = intersect_sphere(r.p, l, e, false);
+            if (cos_l <= 0.0 || te >= BIG) continue;
+            float p_l = 1.0 / (2.0 * PI * cone);
+            vec3 f = bsdf_eval(r, l, pdf);
+            contrib = beta * f * u_emitter_radiance[index] * (cos_l * light_weight(p_l, pdf) / p_l);
+            q = shadow_query(r, l, te * (1.0 - 1e-4));   // blockers before the sphere
+            return true;
         }
 #endif
-        // … and to the emitting triangles: one, picked with probability ∝ its area, a point uniform on it
-        // (pdf in solid angle dist² / (A cos θ_light), A their total area), the power heuristic again.
+        kind = NEE_TRIANGLES;
+    }
+    if (kind == NEE_TRIANGLES) {
+        kind = NEE_SHAPES;
 #ifndef NO_TRIANGLE_LIGHTS
-        if (vertex && lit && !tri_done && u_num_emit_tris > 0) {
+        // One emitting triangle, picked with probability ∝ its area, a point uniform on it (pdf in
+        // solid angle dist² / (A cos θ_light), A their total area).
+        if (u_num_emit_tris > 0) {
             float pick = rnd(), b1 = rnd(), b2 = rnd();
-            tri_done = true;
             int k = 0;
             for (int i = 0; i < MAX_SAMPLED_TRIANGLES; i++) {
                 if (i >= u_num_emit_tris || pick < u_emit_tri_cdf[i]) break;
@@ -498,32 +295,30 @@ void path_main() {
             float su = sqrt(b1);
             vec3 e1 = u_emit_tri_e1[k], e2 = u_emit_tri_e2[k];
             vec3 x = u_emit_tri_v0[k] + su * (1.0 - b2) * e1 + su * b2 * e2;   // uniform in the triangle
-            vec3 to_x = x - s.p;
+            vec3 to_x = x - r.p;
             float dist2 = dot(to_x, to_x);
             float dist = sqrt(dist2);
             vec3 l = to_x / dist;
             vec3 ng_l = normalize(cross(e1, e2));
             float cos_light = -dot(l, ng_l);             // > 0: the side its winding faces, which emits
-            float cos_l = dot(nf, l);
+            float cos_l = dot(r.nf, l);
             if (dist > 0.0 && cos_light > 0.0 && cos_l > 0.0) {
                 float p_l = dist2 / (u_emit_tri_area * cos_light);
-                vec4 fl = lobes_eval(nf, -d, l, w_diffuse, m.color, w_reflect, roughness);
-                float w = p_l * p_l / (p_l * p_l + fl.w * fl.w);
-                contrib = beta * fl.rgb * u_emit_tri_radiance[k] * (cos_l * w / p_l);
-                int sk, fa;
-                exclusion(h.id, s.n, l, sk, fa);
-                q = Query(s.p, l, sk, fa, dist * (1.0 - 1e-4), true);
-                shadow_kind = 2;
-                continue;
+                vec3 f = bsdf_eval(r, l, pdf);
+                contrib = beta * f * u_emit_tri_radiance[k] * (cos_l * light_weight(p_l, pdf) / p_l);
+                q = shadow_query(r, l, dist * (1.0 - 1e-4));
+                return true;
             }
         }
 #endif
+    }
+    if (kind == NEE_SHAPES) {
+        kind = NEE_ENVIRONMENT;
 #ifndef NO_SHAPE_LIGHTS
-        // … and to the emitting analytic shapes: one of their surfaces (a side, a cap, a disk, a torus),
-        // picked with probability ∝ its area, a point uniform on it: the same pdf as the triangles'.
-        if (vertex && lit && !patch_done && u_num_emit_patches > 0) {
+        // One surface of the emitting analytic shapes (a side, a cap, a disk, a torus), picked with
+        // probability ∝ its area, a point uniform on it: the same pdf as the triangles'.
+        if (u_num_emit_patches > 0) {
             float pick = rnd(), u1 = rnd(), u2 = rnd();
-            patch_done = true;
             int k = 0;
             for (int i = 0; i < MAX_SAMPLED_SHAPE_PATCHES; i++) {
                 if (i >= u_num_emit_patches || pick < u_emit_patch_cdf[i]) break;
@@ -531,130 +326,172 @@ void path_main() {
             }
             k = min(k, u_num_emit_patches - 1);
             vec3 ng_l;
-            vec3 to_x = patch_point(k, u1, u2, ng_l) - s.p;
+            vec3 to_x = patch_point(k, u1, u2, ng_l) - r.p;
             float dist2 = dot(to_x, to_x);
             float dist = sqrt(dist2);
             vec3 l = to_x / dist;
             float cos_light = -dot(l, ng_l);             // > 0: the side its normal faces, which emits
-            float cos_l = dot(nf, l);
+            float cos_l = dot(r.nf, l);
             if (dist > 0.0 && cos_light > 0.0 && cos_l > 0.0) {
                 float p_l = dist2 / (u_emit_patch_area * cos_light);
-                vec4 fl = lobes_eval(nf, -d, l, w_diffuse, m.color, w_reflect, roughness);
-                float w = p_l * p_l / (p_l * p_l + fl.w * fl.w);
-                contrib = beta * fl.rgb * u_emit_patch_radiance[k] * (cos_l * w / p_l);
-                int sk, fa;
-                exclusion(h.id, s.n, l, sk, fa);
-                q = Query(s.p, l, sk, fa, dist * (1.0 - 1e-4), true);
-                shadow_kind = 4;
-                continue;
+                vec3 f = bsdf_eval(r, l, pdf);
+                contrib = beta * f * u_emit_patch_radiance[k] * (cos_l * light_weight(p_l, pdf) / p_l);
+                q = shadow_query(r, l, dist * (1.0 - 1e-4));
+                return true;
             }
         }
 #endif
+    }
+    if (kind == NEE_ENVIRONMENT) {
+        kind = NEE_DONE;
 #ifdef READS_ENVIRONMENT_SAMPLING
-        // … and to the environment image: one direction from its importance sampling, lighting the
-        // diffuse and the GGX lobe, the power heuristic against their sampling together (a bright
-        // sun seen in a rough metal is found this way), a shadow ray to infinity.
-        if (vertex && lit && !env_done) {
-            env_done = true;
-            float u1 = rnd(), u2 = rnd();
-            float p_l;
-            vec3 l = env_sample(u1, u2, p_l);
-            float cos_l = dot(nf, l);
-            if (p_l > 0.0 && cos_l > 0.0) {
-                vec4 fl = lobes_eval(nf, -d, l, w_diffuse, m.color, w_reflect, roughness);
-                float w = p_l * p_l / (p_l * p_l + fl.w * fl.w);
-                contrib = beta * fl.rgb * ENV_RADIANCE_AT(l) * (cos_l * w / p_l);
-                int sk, fa;
-                exclusion(h.id, s.n, l, sk, fa);
-                q = Query(s.p, l, sk, fa, BIG, true);
-                shadow_kind = 3;
-                continue;
-            }
+        // One direction from the image's importance sampling (a bright sun seen in a rough metal is
+        // found this way), a shadow ray to infinity.
+        float u1 = rnd(), u2 = rnd();
+        float p_l;
+        vec3 l = env_sample(u1, u2, p_l);
+        float cos_l = dot(r.nf, l);
+        if (p_l > 0.0 && cos_l > 0.0) {
+            vec3 f = bsdf_eval(r, l, pdf);
+            contrib = beta * f * ENV_RADIANCE_AT(l) * (cos_l * light_weight(p_l, pdf) / p_l);
+            q = shadow_query(r, l, BIG);
+            return true;
         }
 #endif
-        if (vertex) {
-            // BSDF sampling: one lobe, chosen with its weight's probability (none: absorbed).
-            float pick = rnd();
-            float u1 = rnd(), u2 = rnd();
-            vec3 nd = vec3(0.0);
-            bool go = true;
-            prev_pdf = 0.0;
-            prev_p = s.p;
-            if (pick < w_diffuse) {
-                nd = cosine_direction(nf, u1, u2);
-                beta *= m.color;
-            } else if (pick < w_diffuse + w_reflect) {
-                if (roughness > 0.0) {
-                    // GGX (α = roughness), F = 1: a microfacet normal from the normals visible from wo
-                    // (Heitz 2018), reflection about it; D and G1(wo) cancel against the density, so the
-                    // weight is G1 of the new direction, never above 1 (Mitsuba's roughconductor with
-                    // sample_visible).
-                    float a = roughness;
-                    vec3 wo = -d;
-                    vec3 mh = ggx_visible_normal(nf, wo, a, u1, u2);
-                    float o_m = dot(wo, mh);
-                    nd = 2.0 * o_m * mh - wo;
-                    float n_o = dot(nf, wo), n_i = dot(nf, nd);
-                    if (o_m <= 0.0 || n_i <= 0.0 || n_o <= 0.0) go = false;
-                    else beta *= smith_g1(n_i, a);
-                } else {
-                    nd = d - 2.0 * dot(d, s.n) * s.n;
-                }
-            } else if (pick < w_diffuse + w_reflect + w_transmit) {
-                bool entering = front;
-                float eta = entering ? 1.0 / m.ior : m.ior;
-                vec3 nn = entering ? s.n : -s.n;
-                if (roughness > 0.0) {
-                    // A rough dielectric (Walter et al. 2007), GGX of α = roughness as the reflective lobe's: a
-                    // microfacet normal m from the normals visible from wo (Heitz 2018), reflection about it
-                    // with the Fresnel probability F(wo·m), else refraction through it. F and 1 − F cancel
-                    // against their probabilities, D and G1(wo) against the density: the weight is G1 of the
-                    // new direction nd, never above 1 (Mitsuba's roughdielectric with sample_visible). A
-                    // direction on the wrong side of the surface for its kind (reflected below it, refracted
-                    // above it) is masked: the path ends there.
-                    float a = roughness;
-                    vec3 wo = -d;
-                    float n_o = dot(nn, wo);
-                    vec3 mh = ggx_visible_normal(nn, wo, a, u1, u2);
-                    float o_m = dot(wo, mh);
-                    float u3 = rnd();
-                    if (o_m <= 0.0 || n_o <= 0.0) {
-                        go = false;
-                    } else {
-                        float k = 1.0 - eta * eta * (1.0 - o_m * o_m);
-                        bool reflect_m = k <= 0.0 || u3 < fresnel_dielectric(o_m, eta);
-                        nd = reflect_m ? 2.0 * o_m * mh - wo : normalize(eta * d + (eta * o_m - sqrt(max(k, 0.0))) * mh);
-                        float n_i = dot(nn, nd);
-                        if (reflect_m ? n_i <= 0.0 : n_i >= 0.0) go = false;
-                        else beta *= smith_g1(abs(n_i), a);
-                    }
-                } else {
-                    // A smooth dielectric: reflect with Fresnel's probability, else refract.
-                    float cos_i = -dot(d, nn);
-                    float f = fresnel_dielectric(abs(cos_i), eta);
-                    if (u1 < f) {
-                        nd = d - 2.0 * dot(d, nn) * nn;
-                    } else {
-                        float k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
-                        nd = normalize(eta * d + (eta * cos_i - sqrt(max(k, 0.0))) * nn);
-                    }
-                }
-            } else {
-                go = false;
+    }
+    return false;
+}
+
+// The power heuristic's weight of BSDF sampling for the emission of hit h (geometric normal ng), met
+// along d from prev_p, where the BSDF chose d with density prev_pdf (0: a lobe next-event estimation
+// does not light, or the camera: weight 1). Emitters that next-event estimation samples get the
+// weight against their light pdf; every other (planes, spheres past the sampled ones) is met by BSDF
+// sampling alone.
+float emission_weight(Hit h, vec3 ng, vec3 d, vec3 prev_p, float prev_pdf) {
+    float w = 1.0;
+#ifndef NO_SPHERE_LIGHTS
+    if (prev_pdf > 0.0 && h.id < u_num_spheres && h.id <= u_emitter_last) {
+        vec3 to_c = h.sphere.xyz - prev_p;
+        float sin2 = h.sphere.w * h.sphere.w / dot(to_c, to_c);
+        if (sin2 < 1.0) w = light_weight(prev_pdf, 1.0 / (2.0 * PI * (sin2 / (1.0 + sqrt(1.0 - sin2)))));
+    }
+#endif
+#if FEATURE_TRIANGLES
+    // An emitting triangle (all are sampled, when any is).
+    if (prev_pdf > 0.0 && h.id >= u_tri_base && u_num_emit_tris > 0) {
+        float cos_light = -dot(d, ng);
+        w = light_weight(prev_pdf, h.t * h.t / (u_emit_tri_area * max(cos_light, 1e-12)));
+    }
+#endif
+#if FEATURE_SHAPES
+    // An emitting shape's surface (all are sampled, when any is): the triangles' pdf over the shapes' area.
+    if (h.id >= u_shape_base) {
+        w = 1.0;
+#ifndef NO_SHAPE_LIGHTS
+        if (prev_pdf > 0.0 && u_num_emit_patches > 0)
+            w = light_weight(prev_pdf, h.t * h.t / (u_emit_patch_area * max(-dot(d, ng), 1e-12)));
+#endif
+    }
+#endif
+    return w;
+}
+
+// … and for the environment image met along d (1 where it is not sampled).
+float environment_weight(vec3 d, float prev_pdf) {
+#ifdef READS_ENVIRONMENT_SAMPLING
+    if (prev_pdf > 0.0) return light_weight(prev_pdf, env_pdf(d));
+#endif
+    return 1.0;
+}
+
+// A sample's radiance as it reaches the pixel: NaN, infinity or a negative value (a float
+// accident, never light) counts as 0, so no such value reaches an image.
+vec3 valid_radiance(vec3 c) {
+    return all(lessThan(abs(c), vec3(BIG))) ? max(c, vec3(0.0)) : vec3(0.0);
+}
+
+// The path integrator: u_sample_count samples of this pixel, each a path from the camera; at every
+// vertex its emission (MIS-weighted), next-event estimation (sample_light, one shadow ray per
+// iteration), then a direction from the BSDF and Russian roulette. One intersect_scene serves every
+// ray (camera, bounce, shadow), so the loop is a small state machine.
+void path_main() {
+    g_pixel_seed = hash_u(uint(gl_FragCoord.x) ^ hash_u(uint(gl_FragCoord.y) + 0x632be5abu));
+    vec3 sum = vec3(0.0);
+    float primary_t = -1.0;
+    int primary_id = NO_PRIM;
+    vec3 primary_n = vec3(0.0);
+#ifdef GUIDES
+    vec3 albedo_sum = vec3(0.0), normal_sum = vec3(0.0);
+#endif
+    int done = 0;            // samples of this pass finished
+    bool start = true;       // the next iteration begins sample u_sample_start + done
+    vec3 L = vec3(0.0);      // the sample's radiance so far
+    vec3 beta = vec3(1.0);   // its path throughput
+    int segments = 0;        // segments of the path traced so far (the camera's is 1)
+    vec3 o = vec3(0.0), d = vec3(0.0);
+    Query q;
+    SurfaceRecord r;         // the current vertex
+    bool vertex = false;     // the path stands on r and may go on from it
+    int nee_kind = NEE_DONE, nee_index = 0;   // the vertex's next light sample (sample_light)
+    vec3 contrib = vec3(0.0);                 // … and what its shadow ray in flight adds if unblocked
+    vec3 prev_p = vec3(0.0);  // the vertex the current segment left, and bsdf_sample's pdf there
+    float prev_pdf = 0.0;
+    while (true) {
+        if (start) {
+            camera_ray(uint(u_sample_start + done), gl_FragCoord.xy, o, d);
+            L = vec3(0.0); beta = vec3(1.0); segments = 1; prev_pdf = 0.0;
+            q = Query(o, d, NO_PRIM, NO_PRIM, BIG, false);
+            start = false;
+        }
+        Hit h = intersect_scene(q);
+        if (q.any_hit) {
+            if (h.id == NO_PRIM) L += contrib;   // the light is visible
+            if (nee_kind <= NEE_SPHERES) nee_index++;
+        } else if (h.id == NO_PRIM) {
+            L += environment_weight(d, prev_pdf) * beta * ENV_RADIANCE_AT(d);
+#ifdef GUIDES
+            if (segments == 1) albedo_sum += clamp(ENV_RADIANCE_AT(d), 0.0, 1.0);
+#endif
+            vertex = false;
+        } else {
+            Surface s = surface_at(o, d, h);
+            vec3 ng = s.n;
+#if FEATURE_TRIANGLES
+            ng = s.ng;   // emission and the side a path meets: by the geometric normal
+#endif
+            if (segments == 1 && done == 0) {   // the pass's first sample gives primid, normal, depth
+                primary_t = h.t; primary_id = h.id; primary_n = s.n;
             }
-            if (go && (pick < w_diffuse || (pick < w_diffuse + w_reflect && roughness > 0.0)))
-                prev_pdf = lobes_eval(nf, -d, nd, w_diffuse, m.color, w_reflect, roughness).w;
+            r = surface_record(s.p, s.n, ng, -d, h.id, s.mat);
+            if (r.front) L += emission_weight(h, ng, d, prev_p, prev_pdf) * beta * emission_at(s.mat);
+#ifdef GUIDES
+            if (segments == 1) { albedo_sum += bsdf_albedo(r); normal_sum += s.n; }
+#endif
+            vertex = segments < MAX_RECURSION_DEPTH;   // a next segment (shadow or bounce) fits
+            nee_kind = bsdf_is_non_specular(r) ? NEE_POINT : NEE_DONE;
+            nee_index = 0;
+        }
+        if (vertex && nee_kind != NEE_DONE && sample_light(r, beta, nee_kind, nee_index, q, contrib)) continue;
+        if (vertex) {
+            vertex = false;
+            float uc = rnd();
+            float u1 = rnd(), u2 = rnd();
+            BsdfSample bs = bsdf_sample(r, uc, vec2(u1, u2));
+            prev_p = r.p;
+            prev_pdf = bs.pdf;
+            bool go = bs.valid;
+            if (go) beta *= bs.weight;
             // Russian roulette from the fourth segment on: survive with p, weight 1/p (unbiased).
             if (go && segments >= 3) {
                 float p = min(max(beta.r, max(beta.g, beta.b)), 0.95);
                 if (rnd() >= p) go = false;
                 else beta /= p;
             }
-            vertex = false;
             if (go) {
-                exclusion(h.id, s.n, nd, skip, far_id);
-                o = s.p;
-                d = nd;
+                int skip, far_id;
+                exclusion(r.prim, r.n, bs.wi, skip, far_id);
+                o = r.p;
+                d = bs.wi;
                 segments++;
                 q = Query(o, d, skip, far_id, BIG, false);
                 continue;

@@ -41,12 +41,12 @@ struct Material {
     float ambient, diffuse, specular, shininess, reflective, transmissive, ior;
 };
 
+// Texel k of material m's record, read by the header's accessors material_<name>(m) (renderer/materials).
+#define MATERIAL_TEXEL(m, k) texelFetch(u_materials, texel((m) * MATERIAL_TEXELS + (k), shift), 0)
 Material fetch_material(int m) {
     int shift = row_shift(textureSize(u_materials, 0));
-    vec4 a = texelFetch(u_materials, texel(m * MATERIAL_TEXELS, shift), 0);
-    vec4 b = texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 1, shift), 0);
-    vec4 c = texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 2, shift), 0);
-    return Material(a.rgb, a.a, b.x, b.y, b.z, b.w, c.x, c.y);
+    return Material(material_color(m), material_ambient(m), material_diffuse(m), material_specular(m),
+                    material_shininess(m), material_reflective(m), material_transmissive(m), material_ior(m));
 }
 
 int material_of(int id) {

@@ -255,17 +255,16 @@ struct Material {
 };
 
 #ifdef READS_MATERIALS
-Material material_at(int m) {
+// Texel k of material m's record, read by the accessors material_<name>(m) of the header
+// (renderer/materials: the record is laid out from the material's declaration).
 #ifdef MATERIAL_TEXTURE
-    vec4 a = texelFetch(u_materials, texel(m * MATERIAL_TEXELS, g_mat_shift), 0);
-    vec4 b = texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 1, g_mat_shift), 0);
-    vec4 c = texelFetch(u_materials, texel(m * MATERIAL_TEXELS + 2, g_mat_shift), 0);
+#define MATERIAL_TEXEL(m, k) texelFetch(u_materials, texel((m) * MATERIAL_TEXELS + (k), g_mat_shift), 0)
 #else
-    vec4 a = u_material_vecs[m * MATERIAL_TEXELS];
-    vec4 b = u_material_vecs[m * MATERIAL_TEXELS + 1];
-    vec4 c = u_material_vecs[m * MATERIAL_TEXELS + 2];
+#define MATERIAL_TEXEL(m, k) u_material_vecs[(m) * MATERIAL_TEXELS + (k)]
 #endif
-    return Material(a.rgb, a.a, b.x, b.y, b.z, b.w, c.x, c.y);
+Material material_at(int m) {
+    return Material(material_color(m), material_ambient(m), material_diffuse(m), material_specular(m),
+                    material_shininess(m), material_reflective(m), material_transmissive(m), material_ior(m));
 }
 #endif
 
@@ -350,8 +349,10 @@ Surface surface_at(vec3 o, vec3 d, Hit h) {
     return s;
 }
 
-// Emission, the environment and the path integrator (shaders/lighting.glsl).
+// Emission, the environment and the path integrator (shaders/lighting.glsl) with the material's
+// BSDF it calls (shaders/bsdf_phong.glsl).
 #if FEATURE_LIGHTING
+//@INCLUDE bsdf_phong.glsl
 //@INCLUDE lighting.glsl
 #endif
 void main() {

@@ -87,9 +87,7 @@ SCENE_WORDS = {
 
 # The counting variant's three changes to path_main (shaders/lighting.glsl): each anchor must be
 # found once, so a change of the shader that moves them fails here instead of counting wrong.
-_QUERY = (
-    "        Hit hq = intersect_scene(q);\n        if (q.any_hit) {\n            if (hq.id == NO_PRIM) L += contrib;"
-)
+_QUERY = "        Hit h = intersect_scene(q);\n        if (q.any_hit) {\n            if (h.id == NO_PRIM) L += contrib;"
 _COUNT_PATCHES = (
     ("    vec3 sum = vec3(0.0);\n", "    vec3 sum = vec3(0.0);\n    float n_rays = 0.0, n_segments = 0.0;\n"),
     (_QUERY, "        n_rays += 1.0;\n        if (!q.any_hit) n_segments += 1.0;\n" + _QUERY),

@@ -7,11 +7,12 @@ world units; ``fov_y`` in degrees."""
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from pydantic import (
     Field,
     ValidationError,
+    create_model,
     field_validator,
     model_validator,
 )
@@ -24,7 +25,6 @@ from renderer.limits import (
     MAX_EMISSION,
     MAX_ENV_ROTATION_DEG,
     MAX_ENV_SCALE,
-    MAX_IOR,
     MAX_LIFETIME,
     MAX_LIGHT_INTENSITY,
     MAX_LIGHTS,
@@ -35,12 +35,13 @@ from renderer.limits import (
     MAX_PERIOD,
     MAX_PLANES,
     MAX_SHAPES,
-    MAX_SHININESS,
     MAX_SPEED,
     MAX_SPHERES,
     MAX_TRIANGLES,
     MAX_WAVELENGTH,
 )
+from renderer.materials import material_params
+from renderer.scene import Material
 
 from .fields import MAX_JSON_MOTION_SEED, MAX_LISTED_ERRORS, SPHERE_CHUNK, Integral, Strict
 
@@ -77,24 +78,28 @@ class LightModel(Strict):
     color: Intensity = Field(default_factory=lambda: [1.0, 1.0, 1.0])
 
 
-class MaterialModel(Strict):
-    """Whitted/Phong material (thesis Table 4.1)."""
+def material_model(kind: type = Material) -> type[Strict]:
+    """The API's model of material kind ``kind``, made from its declaration (renderer/materials): each
+    parameter's name, default, range and doc; an RGB triple a list of three numbers bounded alike."""
+    fields: dict[str, Any] = {}
+    for name, p in material_params(kind).items():
+        bound = {"gt" if p.lo_open else "ge": p.lo, "le": p.hi}
+        unit = f"; in {p.unit}" if p.unit else ""
+        if isinstance(p.default, tuple):
+            item = Annotated[float, Field(**bound)]
+            vector = Annotated[list[item], Field(min_length=p.size, max_length=p.size)]
+            default = Field(default_factory=lambda d=p.default: list(d), description=p.doc + unit)
+            fields[name] = (vector, default)
+        else:
+            fields[name] = (float, Field(p.default, description=p.doc + unit, **bound))  # type: ignore[call-overload]
+    doc = (kind.__doc__ or "").strip().split("\n")[0]
+    return create_model(f"{kind.__name__}Model", __base__=Strict, __module__=__name__, __doc__=doc, **fields)
 
-    color: Rgb = Field(default_factory=lambda: [0.9, 0.3, 0.3])
-    ambient: Unit = 0.3
-    diffuse: Unit = 0.3
-    specular: Unit = 0.1
-    shininess: float = Field(40.0, ge=0.0, le=MAX_SHININESS, description="Phong exponent")
-    reflective: Unit = 0.3
-    transmissive: Unit = 0.0
-    ior: float = Field(1.0, gt=0.0, le=MAX_IOR, description="refraction index inside / outside")
-    emission: Radiance = Field(
-        default_factory=lambda: [0.0, 0.0, 0.0],
-        description="radiance emitted on the side the normal faces (an area light)",
-    )
-    roughness: Unit = Field(
-        0.0, description="GGX α of the path integrator's reflective and transmissive lobes (0: a mirror, smooth glass)"
-    )
+
+if TYPE_CHECKING:
+    MaterialModel = Strict
+else:
+    MaterialModel = material_model()
 
 
 class EnvironmentModel(Strict):

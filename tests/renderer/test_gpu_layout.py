@@ -252,6 +252,16 @@ def test_glsl_header_states_the_tracers_constants():
         f"#define MAX_PLANES {MAX_PLANES}",
         f"#define MAX_LIGHTS {MAX_LIGHTS}",
         f"#define MATERIAL_TEXELS {MATERIAL_TEXELS}",
+        # the material record's accessors, one per parameter the GPU reads (renderer/materials)
+        "#define material_color(m) (MATERIAL_TEXEL(m, 0).xyz)",
+        "#define material_ambient(m) (MATERIAL_TEXEL(m, 0).w)",
+        "#define material_diffuse(m) (MATERIAL_TEXEL(m, 1).x)",
+        "#define material_specular(m) (MATERIAL_TEXEL(m, 1).y)",
+        "#define material_shininess(m) (MATERIAL_TEXEL(m, 1).z)",
+        "#define material_reflective(m) (MATERIAL_TEXEL(m, 1).w)",
+        "#define material_transmissive(m) (MATERIAL_TEXEL(m, 2).x)",
+        "#define material_ior(m) (MATERIAL_TEXEL(m, 2).y)",
+        "#define material_roughness(m) (MATERIAL_TEXEL(m, 2).z)",
     ]
     # Each traversal stack is one entry per tree level, stated by its method's layout.
     from renderer.accel import bih_layout, bvh_layout, kdtree_layout

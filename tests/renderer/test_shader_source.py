@@ -34,10 +34,8 @@ def test_twolevel_shader_inlines_both_traversals():
 
 
 SHADERS = ROOT / "shaders"
-# What may stand at a "//@" line: the three per-variant pieces, whole-file includes, and the
-# legacy marks inside lighting.glsl's path_main (their statements: path_legacy.glsl's sections).
+# What may stand at a "//@" line: the three per-variant pieces and whole-file includes.
 ALLOWED_MARKS = re.compile(r"//@(HEADER@|METHOD@|RECURSION_COLORS@|INCLUDE [\w.]+)$")
-LEGACY_MARKS = re.compile(r"//@(TRIANGLES|SHAPES) \w+$")
 
 
 def _balanced(text: str) -> bool:
@@ -58,20 +56,12 @@ def _balanced(text: str) -> bool:
 @pytest.mark.parametrize("path", sorted(SHADERS.glob("*.glsl")) + sorted(SHADERS.glob("*.frag")), ids=lambda p: p.name)
 def test_every_chunk_is_whole_syntax(path):
     """Every shader file is whole: its conditionals and brackets close inside it, and it holds no
-    mark but the allowed ones (the legacy marks in lighting.glsl only). The legacy sections of
-    path_legacy.glsl are whole statements each."""
-    from renderer.shader_source import sections_of
-
+    mark but the allowed ones (no sections, no per-kind marks)."""
     text = path.read_text()
     assert _balanced(text), path.name
     for line in text.splitlines():
-        if line.startswith("//@") and not line.startswith("//@SECTION "):
-            legacy = path.name == "lighting.glsl" and LEGACY_MARKS.match(line)
-            assert ALLOWED_MARKS.match(line) or legacy, (path.name, line)
-    if path.name == "path_legacy.glsl":
-        assert all(_balanced(s) for s in sections_of(path.name).values())
-    else:
-        assert "//@SECTION " not in text, path.name
+        if line.startswith("//@"):
+            assert ALLOWED_MARKS.match(line), (path.name, line)
 
 
 def _flags(src: str) -> dict[str, int]:
@@ -100,13 +90,18 @@ def test_feature_flags_are_always_defined_zero_or_one(method):
         assert "leaf_hit(q, s, h);" in both and "test_sphere(q, s, h);" not in both.split("void leaf_hit(")[0]
 
 
-def test_the_legacy_path_marks_get_their_statements_where_the_kind_is_traced():
-    """path_main's marks: the triangles' geometric normal and the emitters' MIS weights where the
-    variant traces triangles / shapes, nothing elsewhere."""
-    tri = shader_source("bvh", "color", 4, ("TRIANGLES", "EMISSION", "PATH"))
-    shapes = shader_source("bvh", "color", 4, ("SHAPES", "EMISSION", "PATH"))
-    plain = shader_source("bvh", "color", 4, ("EMISSION", "PATH"))
-    tri_mis, shape_mis = "u_emit_tri_area * max(cos_light", "u_emit_patch_area * max(-dot(d, ng)"
-    assert "ng = s.ng;" in tri and tri_mis in tri and shape_mis not in tri
-    assert "ng = s.ng;" not in shapes and shape_mis in shapes and tri_mis not in shapes
-    assert "ng = s.ng;" not in plain and tri_mis not in plain and shape_mis not in plain
+def test_the_path_integrator_reads_the_material_through_the_bsdf_chunk():
+    """The path loop holds no mark and no material texel: the surface record reads the material through
+    its generated accessors, the loop calls bsdf_sample and next-event estimation calls bsdf_eval."""
+    from renderer.shader_source import read
+
+    lighting = read("lighting.glsl")
+    path = lighting[lighting.index("#ifdef PATH") :]
+    assert "//@" not in path, "the path integrator's primitive-kind parts are #if FEATURE_* blocks"
+    assert "u_materials" not in path and "u_material_vecs" not in path and "MATERIAL_TEXELS" not in path
+    src = shader_source("bvh", "color", 3, ("EQUAL_RADII", "PATH", "TRIANGLES", "SHAPES"))
+    for call in ("surface_record(", "bsdf_sample(", "bsdf_eval(", "sample_light(", "material_roughness(mat)"):
+        assert call in src, call
+    main = src[src.index("void path_main()") :]
+    main = main[: main.index("\n}\n")]
+    assert main.count("\n") <= 130, "path_main is the loop; the BSDF and the light sampling live apart"
