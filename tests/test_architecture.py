@@ -1,4 +1,4 @@
-"""The import rules of the layers (issue #14), read from the source with ``ast``.
+"""The import rules of the layers, read from the source with ``ast``.
 
 - no import cycle among the modules of ``renderer/`` and ``server/``;
 - only ``renderer/gl/`` and the server's GL worker import ``moderngl`` / ``glcontext``;

@@ -1,7 +1,7 @@
 """The record of what users get: every shader text and the device data of scenarios 1–3.
 
-(Rewritten for issue 18, which changed the shaders and the packing on purpose: the images
-stayed bit for bit the same, which ``tests/renderer/gl/test_base_images.py`` proves.)
+(That the images of these texts are bit for bit the unshaped tracer's is
+``tests/renderer/gl/test_base_images.py``'s proof.)
 
 Architecture changes must not change what is compiled or sent to a device. This module
 computes, for every single-pass method × mode × recursion depth × feature set, the
@@ -32,7 +32,7 @@ RECORD = Path(__file__).with_name("record.json")
 # Every method with a one-pass traversal: a new method adds its variants to the record.
 SINGLE_PASS = tuple(name for name, m in METHODS.items() if m.capabilities.shader)
 FEATURES = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS")
-# Issue 18's defines (data formats, compiled-in counts, no task stack) with some removals,
+# The tracer's defines (data formats, compiled-in counts, no task stack) with some removals,
 # and the host's choices (every record array in a uniform block; the RGBA8 image).
 SHAPES = (
     ("EQUAL_RADII",),

@@ -1,6 +1,6 @@
 """What users get does not change by accident: shader texts and device data match the record.
 
-The record (``record.json``) was made before the engine's files moved (issue 14) and is
+The record (``record.json``) is
 rewritten only by a change that alters shaders or packing on purpose, in the same commit
 (``python -m tests.golden.record --write``), whose message says why.
 """

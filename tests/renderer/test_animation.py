@@ -1,4 +1,4 @@
-"""Animated scenes (issue #9, renderer.animation): motion models and validation.
+"""Animated scenes (renderer.animation): motion models and validation.
 
 - bad input names its field (bad motions, overlapping ranges, negative time) and nothing
   is applied (the animation settings' own checks are in ``test_settings.py``);

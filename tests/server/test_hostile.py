@@ -1,4 +1,4 @@
-"""Issue #17: the service attacked — what the black-box attack found across several parts at once.
+"""The service attacked — what the black-box attack found across several parts at once.
 
 The render-target pool is the renderer's (renderer/gl/targets.py), bounded by the service's
 POCKETRAY_MAX_TARGET_BYTES on its GL thread. The other defects of that attack are reproduced in

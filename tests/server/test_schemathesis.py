@@ -6,7 +6,7 @@ and content type, and a body and headers that match the schema. Path
 ``session_id`` values are replaced by a live session most of the time, so the
 session operations are exercised past their 404.
 
-And the schema must say exactly what is accepted (issue #17; ``--checks all`` of the
+And the schema must say exactly what is accepted (``--checks all`` of the
 CLI, less what does not apply — no authentication, no resources to link):
 
 - a request the schema refuses is refused (``negative_data_rejection``; a 413 for a

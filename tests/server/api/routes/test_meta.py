@@ -17,7 +17,7 @@ def test_health_ready_info(ready_client):
     assert body["ready"] is True and body["gl_renderer"] and body["gl_version"]
     info = c.get("/api/info").json()
     assert "bih" in info["methods"] and info["limits"]["max_work"] == 96 * 128 * 2
-    # What the client's form needs to show only the settings that apply (issue #19).
+    # What the client's form needs to show only the settings that apply.
     ms = info["method_settings"]
     assert set(ms) == set(info["methods"])
     # (integrator: the one-pass methods trace paths too; the ray engines do not)
