@@ -16,7 +16,7 @@ carried by every variant, the generic one too, because the packers follow them:
 (more materials than the uniform array holds). Two more only scenes with meshes carry:
 ``TRIANGLES`` (the triangle records, Woop et al.'s test and the triangles' shading compiled
 in) and ``SMOOTH_TRIANGLES`` (some mesh has vertex normals: they are read when a hit is
-shaded). A sphere-only scene carries neither, so its shader text is the one before meshes.
+shaded). A sphere-only scene carries neither, so its shader text holds no triangle code.
 Likewise ``SHAPES``: the scene has analytic shapes (their records, tests and shading).
 """
 

@@ -53,7 +53,7 @@ NOT_ON_GPU = (
 
 def mesh_stats(scene: Scene) -> dict[str, int]:
     """What a build's statistics add for a scene with meshes (nothing for spheres only, whose
-    statistics stay as they were): tree primitives are spheres, triangles, then analytic shapes."""
+    statistics are the sphere build's alone): tree primitives are spheres, triangles, then analytic shapes."""
     if not scene.n_triangles and not scene.n_shapes:
         return {}
     out = {"spheres": scene.n_spheres, "triangles": scene.n_triangles}

@@ -112,10 +112,6 @@ class Server:
                 self.proc.wait(timeout=5)
         self.proc = None
 
-    def restart(self) -> None:
-        self.stop()
-        self.start()
-
     def log_tail(self, n: int = 4000) -> str:
         try:
             return self.log_path.read_text(errors="replace")[-n:]

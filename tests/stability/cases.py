@@ -1294,7 +1294,7 @@ _add(
         methods=MESH_METHODS,
     ),
     # Brute force is left out: past limits.MAX_LOOP_PRIMITIVES (65,533, llvmpipe's loop limiter) it
-    # refuses the scene (tests/renderer/test_methods.py), where it used to drop the last triangles.
+    # refuses the scene (tests/renderer/test_methods.py) rather than drop the last triangles.
     Case(
         "mesh_huge_81920",
         "81,920 triangles at 25 × 41 (80 per pixel): deep trees, many triangles per "
