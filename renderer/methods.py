@@ -55,6 +55,23 @@ def integrator_methods(integrator: str) -> list[str]:
     return names + [AUTO_METHOD] if integrator in capabilities(AUTO_METHOD).integrators else names
 
 
+def mesh_methods() -> list[str]:
+    """The method names whose GPU layouts hold triangles (``Capabilities.meshes_on_gpu``), ``auto``
+    among them when every method it resolves to does."""
+    names = [n for n, m in METHODS.items() if m.capabilities.meshes_on_gpu]
+    picks = {resolve_method(AUTO_METHOD, n) for n in (0, AUTO_CROSSOVER_N)}
+    return names + [AUTO_METHOD] if all(METHODS[p].capabilities.meshes_on_gpu for p in picks) else names
+
+
+def not_on_gpu() -> str:
+    """Why a method whose layout holds no triangles traces no frame of a scene with meshes, and
+    which methods do (:func:`mesh_methods`)."""
+    return (
+        "this method's GPU layout holds spheres only: its frames of a scene with triangle meshes are "
+        f"not traced on the GPU; the methods that trace meshes are {', '.join(mesh_methods())}"
+    )
+
+
 def check_primitives(name: str, scene) -> None:
     """Refuse (SceneError ``method``) a scene with a kind of primitive the method does not
     trace (``Capabilities.primitives``): the ray engines draw spheres and planes only, so a

@@ -42,15 +42,6 @@ class PreparedMethod:
     tree: Any = None
 
 
-# The one-pass methods whose GPU layouts hold triangles (Capabilities.meshes_on_gpu), named in
-# the refusal of any other; auto resolves to one of them.
-MESH_METHODS = ("bih", "bruteforce", "bvh", "kdtree", "twolevel", "auto")
-NOT_ON_GPU = (
-    "this method's GPU layout holds spheres only: its frames of a scene with triangle meshes are "
-    f"not traced on the GPU; the methods that trace meshes are {', '.join(MESH_METHODS)}"
-)
-
-
 def mesh_stats(scene: Scene) -> dict[str, int]:
     """What a build's statistics add for a scene with meshes (nothing for spheres only, whose
     statistics are the sphere build's alone): tree primitives are spheres, triangles, then analytic shapes."""

@@ -38,10 +38,10 @@ from fastapi import APIRouter, Query, Response
 from fastapi.responses import PlainTextResponse
 
 from renderer import atrous, gpu_layout
-from renderer.accel.base import NOT_ON_GPU, AccelerationMethod
+from renderer.accel.base import AccelerationMethod
 from renderer.features import frame_features
 from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
-from renderer.methods import METHODS, resolve_method
+from renderer.methods import METHODS, not_on_gpu, resolve_method
 from renderer.modes import SINGLE_PASS_MODES
 from renderer.shader_source import tracer_source, vertex_source
 
@@ -155,7 +155,7 @@ def device_data(
         # with this method (Capabilities.meshes_on_gpu), a device cannot either.
         raise InputError(
             ("query", "meshes"),
-            f"method {method_name!r}: {NOT_ON_GPU}: a device cannot trace this "
+            f"method {method_name!r}: {not_on_gpu()}: a device cannot trace this "
             f"scene's {n_triangles:,} triangles with it",
         )
     check_single_pass_mode(settings["mode"])

@@ -281,7 +281,7 @@ def test_a_method_without_meshes_on_gpu_is_refused_with_422_meshes(api, monkeypa
     sid = create(api, mesh_scene_json(), method="bvh").json()["id"]
     r = api.get(f"/api/sessions/{sid}/frame")
     assert_422_msgs(r, "meshes")
-    assert "'bvh'" in r.text and "bih, bruteforce" in r.text
+    assert "'bvh'" in r.text and "trace meshes are bih, bruteforce, kdtree, twolevel, auto" in r.text
     assert_422_msgs(api.get(f"/api/sessions/{sid}/device-data"), "meshes")
     assert_422_msgs(
         api.post("/api/render", json={"scene": mesh_scene_json(), "settings": {**SMALL, "method": "bvh"}}), "meshes"
