@@ -31,6 +31,7 @@ METHODS: dict[str, AccelerationMethod] = {
 }
 
 AUTO_METHOD = "auto"
+AUTO_LABEL = "Auto (brute force below the crossover, else BIH)"
 # Below this many spheres brute force traces a frame faster than the BIH
 # (bench/experiments: crossover per scenario; the smallest is taken).
 AUTO_CROSSOVER_N = 16

@@ -116,6 +116,7 @@ class AccelerationMethod(Protocol):
     constants its traversal reads (declared into the shader header from here), and ``prepare``."""
 
     name: str
+    label: str  # the client's word for it (GET /api/info's method_settings)
     capabilities: Capabilities
 
     # Read-only members (a method's class attribute, of a more precise type, satisfies them).

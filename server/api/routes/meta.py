@@ -18,7 +18,7 @@ from renderer.limits import (
     PATH_SAMPLE_CHOICES,
     SAMPLES_PER_PIXEL,
 )
-from renderer.methods import AUTO_METHOD, METHODS, resolve_method
+from renderer.methods import AUTO_LABEL, AUTO_METHOD, METHODS, resolve_method
 from renderer.modes import HEAT_SCALE, RECURSION_COLOR_NAMES, RECURSION_COLORS
 from renderer.profiles import PROFILES
 from renderer.scenarios import DEMO_SCENES
@@ -34,12 +34,13 @@ router = APIRouter()
 
 
 def method_settings(name: str) -> dict[str, Any]:
-    """What a client needs to show only the settings that apply to method ``name``: the
+    """What a client needs to show only the settings that apply to method ``name``: its label, the
     settings its build or passes read, its modes, its update schemes, whether a browser can
     trace it and whether it traces meshes on the GPU (``auto`` answers for the BIH it picks
     above the crossover)."""
     caps = METHODS[resolve_method(name, 1 << 30)].capabilities
     return {
+        "label": AUTO_LABEL if name == AUTO_METHOD else METHODS[name].label,
         "settings": list(caps.settings),
         "modes": list(caps.modes),
         "update_schemes": list(caps.update_schemes),

@@ -43,6 +43,15 @@ def test_info_gives_the_legend_the_colors_of_the_modes(client):
     assert info["heat_scale"] == HEAT_SCALE
 
 
+def test_info_labels_each_method_as_it_is_declared(client):
+    """The client's method picker shows these labels: each is the method's own (and auto's)."""
+    from renderer.methods import AUTO_LABEL, AUTO_METHOD, METHODS
+
+    labels = {n: x["label"] for n, x in client.get("/api/info").json()["method_settings"].items()}
+    assert labels == {**{n: m.label for n, m in METHODS.items()}, AUTO_METHOD: AUTO_LABEL}
+    assert labels["bih"] == "BIH (thesis)" and len(set(labels.values())) == len(labels)
+
+
 def test_info_hands_out_the_measured_profiles(client):
     from renderer.profiles import INTERACTIVE, STILL
     from renderer.settings import RenderSettings
