@@ -20,6 +20,7 @@ CLI, less what does not apply — no authentication, no resources to link):
 
 from __future__ import annotations
 
+import functools
 import json
 import signal
 import tempfile
@@ -65,7 +66,7 @@ def schema_allows(schema: dict, value: Any) -> bool:
             return False
     key = json.dumps(schema, sort_keys=True)
     if key not in _VALIDATORS:
-        _VALIDATORS[key] = jsonschema_rs.validator_for({**schema, "components": SPEC["components"]})
+        _VALIDATORS[key] = jsonschema_rs.validator_for({**schema, "components": spec()["components"]})
     return _VALIDATORS[key].is_valid(value)
 
 
@@ -150,18 +151,35 @@ def live_session(api_server) -> dict:
         return {"id": new_session(c)["id"], "url": api_server.url}
 
 
-# The schema is the app's own /openapi.json, loaded at collection (the same document the
-# process serves: test_served_schema_is_the_tested_one checks that); requests go to the process.
-SPEC = create_app(make_config(Path(tempfile.gettempdir()))).openapi()
-schema = schemathesis.openapi.from_dict(SPEC, config=CONFIG)
+@functools.cache
+def spec() -> dict:
+    """The app's own /openapi.json: the same document the process serves
+    (test_served_schema_is_the_tested_one checks that); requests go to the process."""
+    return create_app(make_config(Path(tempfile.gettempdir()))).openapi()
+
+
+@pytest.fixture(scope="module")
+def api_schema(live_session):
+    """Loaded when the test runs, not at collection: every xdist worker collects this module, one
+    runs it (the schema's operations are the test's subtests, one per operation)."""
+    return schemathesis.openapi.from_dict(spec(), config=CONFIG)
+
+
+schema = schemathesis.pytest.from_fixture("api_schema")
 
 
 def test_served_schema_is_the_tested_one(api_server):
-    assert httpx.get(api_server.url + "/openapi.json").json() == SPEC
+    assert httpx.get(api_server.url + "/openapi.json").json() == spec()
 
 
-@schema.parametrize()
+def test_every_operation_of_the_schema_is_tested(api_schema):
+    operations = [r.ok() for r in api_schema.get_all_operations()]
+    paths = set(spec()["paths"])
+    assert {o.path for o in operations} == paths and len(operations) >= 20
+
+
 @settings(max_examples=25, deadline=None, suppress_health_check=list(HealthCheck))
+@schema.parametrize()
 def test_api_conforms_to_its_schema(case, live_session):
     params = case.path_parameters or {}
     # A session id made invalid on purpose (a negative path) stays as generated: replaced by the live
