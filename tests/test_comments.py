@@ -40,10 +40,11 @@ ROLE = re.compile(r":(?:mod|func|class|meth|data|attr|exc):`~?((?:renderer|serve
 # number after # closed by a parenthesis.
 ISSUE = re.compile(r"\bissues? +#?\d+|\(#\d+\)|#\d+\)", re.I)
 # Beyond the production code, every other text of the repository that people read: the tests,
-# the documentation, the benchmarks, the scripts and the project's files. The result files that
-# scripts write (docs/RESULTS.md, docs/STABILITY.md) say what their writers make them say, and
-# record.json is data.
+# the documentation, the scripts and the project's files, and the benchmarks' comments and
+# docstrings. The result files that scripts write (docs/RESULTS.md, docs/STABILITY.md) and the
+# benchmarks' strings that go into them say what docs/RESULTS.md says; record.json is data.
 OTHER_TEXT = ("tests", "docs", "bench", "scripts", "deploy", "README.md", "pyproject.toml", "Dockerfile", "dev")
+RESULT_WRITERS = ("bench",)
 GENERATED = ("docs/RESULTS.md", "docs/STABILITY.md", "tests/golden/record.json")
 
 
@@ -199,13 +200,16 @@ def test_no_issue_numbers(folder):
     assert not found, "issue numbers in production code:\n" + "\n".join(found)
 
 
-def issue_numbers(files: list[str]) -> list[str]:
-    return [
-        f"{f}:{i}: {line.strip()}"
-        for f in files
-        for i, line in enumerate((ROOT / f).read_text(errors="replace").splitlines(), 1)
-        if ISSUE.search(line)
-    ]
+def issue_numbers(files: list[str], comments_only: bool = False) -> list[str]:
+    """``file:line: text`` of every line (of every comment and docstring) citing an issue."""
+    found = []
+    for f in files:
+        if comments_only and f.endswith(".py"):
+            texts = [(i, line) for start, text in comments(f) for i, line in enumerate(text.splitlines(), start)]
+        else:
+            texts = list(enumerate((ROOT / f).read_text(errors="replace").splitlines(), 1))
+        found += [f"{f}:{i}: {line.strip()}" for i, line in texts if ISSUE.search(line)]
+    return found
 
 
 @pytest.mark.parametrize("where", OTHER_TEXT)
@@ -214,7 +218,7 @@ def test_no_issue_numbers_in_tests_docs_or_benchmarks(where):
     it proves, not which issue asked for it."""
     files = [f for f in tracked(where) if f not in GENERATED and not f.endswith((".png", ".json", ".npy", ".npz"))]
     assert files
-    found = issue_numbers(files)
+    found = issue_numbers(files, comments_only=where in RESULT_WRITERS)
     assert not found, "issue numbers outside the production code:\n" + "\n".join(found)
 
 

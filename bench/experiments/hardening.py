@@ -21,7 +21,7 @@ from .context import Context, RunInfo
 from .markdown import md_table
 
 NAME = "hardening"
-TITLE = "Hardening — the attack, before and after, and a soak"
+TITLE = "Hardening — the attack of issue #17, before and after, and a soak"
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -24,7 +24,7 @@ from .context import Context, RunInfo
 from .markdown import md_table
 
 NAME = "shader"
-TITLE = "The tracer shaped for llvmpipe — CPU time against the shader before it"
+TITLE = "The tracer shaped for llvmpipe (issue 18) — CPU time against the shader before it"
 
 SIDES = ["base", "new", "new/tex"]
 TARGETS = {"colour_d3": 0.55, "primary": 0.80}  # at most these ratios against the base
@@ -59,7 +59,7 @@ def report(saved: dict, run: RunInfo, charts: dict[str, str]) -> str:
         "",
         "CPU time of one frame's trace (`time.process_time` around the draws and `glFinish`: llvmpipe's "
         "threads included; read-back apart, last columns) for three sides traced in turn — **base**: "
-        f"renderer, shaders and layouts of `{data['base']}`, the unshaped tracer; **new**: this "
+        f"renderer, shaders and layouts of `{data['base']}`, the commit before issue 18; **new**: this "
         "checkout as the service runs it (record arrays in uniform blocks where they fit 64 KiB, one RGBA8 "
         "target for jpeg frames at 1 sample per pixel); **new/tex**: this checkout with textures only "
         "(the device's layout, and the server's above 64 KiB). Every image is bit for bit the base's "
@@ -80,7 +80,7 @@ def report(saved: dict, run: RunInfo, charts: dict[str, str]) -> str:
                 f"- {what}: **{r:.2f}×** the base (target ≤ {limit:.2f}×: {'met' if r <= limit else 'NOT met'})"
             )
     if verdicts:
-        lines += ["Targets (same run):", "", *verdicts, ""]
+        lines += ["Targets of issue 18 (same run):", "", *verdicts, ""]
     if "floor_primid" in med:
         f = med["floor_primid"]
         lines += [
