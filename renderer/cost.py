@@ -170,13 +170,13 @@ def structures(stats: dict[str, Any]) -> list[dict[str, Any]]:
     return [v for v in stats.values() if isinstance(v, dict) and "sah_tests" in v]
 
 
-def traversal_work(method: str, stats: dict[str, Any], n_spheres: int) -> tuple[float, float, float]:
-    """(node visits, sphere tests, of those in big leaves) a ray through the scene's box can
+def traversal_work(method: str, stats: dict[str, Any], n_primitives: int) -> tuple[float, float, float]:
+    """(node visits, primitive tests, of those in big leaves) a ray through the scene's box can
     expect from the structure a build reported (the SAH's terms; a method without a
     structure tests all)."""
     parts = structures(stats)
     if not parts:
-        return 0.0, float(n_spheres), float(n_spheres)
+        return 0.0, float(n_primitives), float(n_primitives)
     nodes, tests, big_tests = (
         sum(float(p.get(k, 0.0)) for p in parts) for k in ("sah_nodes", "sah_tests", "sah_big_tests")
     )

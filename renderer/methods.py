@@ -37,17 +37,17 @@ AUTO_LABEL = "Auto (brute force below the crossover, else BIH)"
 AUTO_CROSSOVER_N = 16
 
 
-def resolve_method(name: str, n_spheres: int) -> str:
+def resolve_method(name: str, n_primitives: int) -> str:
     """The concrete method for a request: ``auto`` → brute force below the crossover, else BIH.
-    ``n_spheres`` counts the primitives a tree would hold: spheres and triangles."""
+    ``n_primitives`` counts the primitives a tree would hold: spheres, triangles and shapes."""
     if name != AUTO_METHOD:
         return name
-    return BruteForce.name if n_spheres < AUTO_CROSSOVER_N else BoundingIntervalHierarchy.name
+    return BruteForce.name if n_primitives < AUTO_CROSSOVER_N else BoundingIntervalHierarchy.name
 
 
-def capabilities(name: str, n_spheres: int = 0) -> Capabilities:
-    """What the method a request names (``auto`` resolved for ``n_spheres``) can do."""
-    return METHODS[resolve_method(name, n_spheres)].capabilities
+def capabilities(name: str, n_primitives: int = 0) -> Capabilities:
+    """What the method a request names (``auto`` resolved for ``n_primitives``) can do."""
+    return METHODS[resolve_method(name, n_primitives)].capabilities
 
 
 def integrator_methods(integrator: str) -> list[str]:
