@@ -1,4 +1,4 @@
-"""Device against server frames/s (issue #10): the same tracer in the browser's WebGL2 and on the server.
+"""Device against server frames/s: the same tracer in the browser's WebGL2 and on the server.
 
 Scenario 3 (seeded), n = 64, 256, 1,024, 4,096 (radius 1), BIH (max_prims 8), colour,
 max_recursion_depth 3 (as ``bench/latency.py``), at 320 × 544 and 640 × 1,088, in headless

@@ -1,4 +1,4 @@
-"""Engine benchmark (issue 2, item 9): BIH build time and trace time, BIH vs brute force.
+"""Engine benchmark: BIH build time and trace time, BIH vs brute force.
 
     ./dev bench engine            # full tables (minutes)
     ./dev bench engine --quick    # small n, fewer runs

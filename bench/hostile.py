@@ -1,4 +1,4 @@
-"""The figures of issue #17 (hardening), measured against a real ``python -m server`` on loopback.
+"""The hardening figures, measured against a real ``python -m server`` on loopback.
 
 Each part starts its own server (defaults but a temporary SQLite file; ``--root`` picks the
 checkout it runs, so the same script measures an older commit for the "before" column) and
@@ -459,7 +459,7 @@ def part_flood(root: Path, args) -> dict:
 # ---- end of metrics labels and session quotas --------------------------------------------------------------
 
 
-# ---- WebSockets and slow readers (issue #24: ws_keepalive, ws_slots, ws_flood, unread) -------------------
+# ---- WebSockets and slow readers (ws_keepalive, ws_slots, ws_flood, unread) -------------------
 def _session(url: str, **settings) -> str:
     body = {
         "scenario": 3,
@@ -727,7 +727,7 @@ def part_unread(root: Path, args) -> dict:
 # ---- end of WebSockets and slow readers ---------------------------------------------------------------------
 
 
-# ---- memory of frames in flight, and trickling large bodies (issue 24, items 8 and 9) ------------------
+# ---- memory of frames in flight, and trickling large bodies ------------------
 def part_frames(root: Path, args) -> dict:
     """``--frames`` concurrent ``--frame-side``² normal npy frames (depth 1, 1 sample, 64 spheres), one
     session each: the server's peak resident memory above idle. A 503 is retried after its
@@ -878,7 +878,7 @@ def part_trickle(root: Path, args) -> dict:
 # ---- end of: memory of frames in flight, and trickling large bodies -------------------------------------
 
 
-# ---- model files (issue 24: hostile glTF/GLB bodies; renderer/model_guard.py, server/sessions/model_worker.py) -------
+# ---- model files (hostile glTF/GLB bodies; renderer/model_guard.py, server/sessions/model_worker.py) -------
 def accessor_gltf(count: int) -> bytes:
     """~250 bytes: one accessor of ``count`` VEC3 without a bufferView (zeros the file does not hold)."""
     return json.dumps(

@@ -84,7 +84,7 @@ class Server(ServerChild):
 
     ``base``: a commit whose ``renderer/`` and ``shaders/`` (extracted from git into a
     temporary directory) the server renders with, this checkout's ``server/`` otherwise
-    (the shader and layouts before issue 18 beside today's service); ``settings``: more
+    (the base commit's unshaped shader and layouts beside today's service); ``settings``: more
     ``POCKETRAY_*`` settings of the child (``slice_ms=…``)."""
 
     def __init__(self, queue_size: int, base: str | None = None, **settings: object):
@@ -289,8 +289,8 @@ def main() -> None:
         "--base",
         default=None,
         metavar="COMMIT",
-        help="also start a server rendering with COMMIT's renderer and shaders (e.g. cda5fce, before "
-        "issue 18) and compare one client at 320×544, interactive, gestures alternating",
+        help="also start a server rendering with COMMIT's renderer and shaders (e.g. cda5fce, the "
+        "unshaped tracer) and compare one client at 320×544, interactive, gestures alternating",
     )
     args = ap.parse_args()
     profiles = [p for p in args.profiles.split(",") if p]

@@ -1,4 +1,4 @@
-"""The slice scheduler through the service (issue 16): fairness, progressive frames, slice size.
+"""The slice scheduler through the service: fairness, progressive frames, slice size.
 
 (a) **Fairness** — one session renders a long frame (a BIH of one leaf over many spheres,
     ~30 s); meanwhile another session asks for 32 × 32 frames one after another. Their
@@ -17,7 +17,7 @@ Usage::
     .venv/bin/python -m bench.scheduling              # all three, servers started here
     .venv/bin/python -m bench.scheduling --only fairness,progressive --runs 5
 
-Targets (issue 16): (a) ≤ 0.5 s for the small frame beside a 30 s one; (b) first image
+Targets: (a) ≤ 0.5 s for the small frame beside a 30 s one; (b) first image
 ≤ 0.25 × the final image's time and ≤ 0.5 s after load or after the finger lifts.
 """
 

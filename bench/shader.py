@@ -1,10 +1,10 @@
-"""The tracer's cost per variant against the shader before issue 18, in one run.
+"""The tracer's cost per variant against the base commit's unshaped shader, in one run.
 
 Every configuration (method × mode × scene × size) is traced by two or more *sides*, each
 a worker process with its own GL context:
 
-- ``base``: the renderer, shaders and layouts of ``--base`` (default: the commit before
-  issue 18), extracted from git into a temporary directory;
+- ``base``: the renderer, shaders and layouts of ``--base`` (default: :data:`BASE_COMMIT`,
+  the unshaped tracer), extracted from git into a temporary directory;
 - ``new``: this checkout as the service runs it (uniform blocks where the data fit);
 - ``new/tex``: this checkout with textures only (the device's layout, and the server's
   above the uniform-block size);
@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-BASE_COMMIT = "cda5fce"  # the last commit before issue 18
+BASE_COMMIT = "cda5fce"  # the tracer before it was shaped for llvmpipe
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""Soak (issue #17): honest clients and a hostile one against one ``python -m server`` for a while.
+"""Soak: honest clients and a hostile one against one ``python -m server`` for a while.
 
 For ``--seconds`` (bounded loops, loopback only):
 

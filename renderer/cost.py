@@ -162,13 +162,22 @@ class FrameCost:
         return {k: (round(v, 4) if isinstance(v, float) else v) for k, v in self.__dict__.items()}
 
 
-def traversal_work(method: str, stats: dict[str, Any], n_spheres: int) -> tuple[float, float, float]:
-    """(node visits, sphere tests, of those in big leaves) a ray through the scene's box can
+def structures(stats: dict[str, Any]) -> list[dict[str, Any]]:
+    """The hierarchies a build reported the SAH's terms of (``sah_tests`` …): the tree itself, or
+    each level of a two-level method (its statistics hold one entry per level); none for a
+    method without a structure (brute force, the ray engines), whose rays test every primitive."""
+    if "sah_tests" in stats:
+        return [stats]
+    return [v for v in stats.values() if isinstance(v, dict) and "sah_tests" in v]
+
+
+def traversal_work(method: str, stats: dict[str, Any], n_primitives: int) -> tuple[float, float, float]:
+    """(node visits, primitive tests, of those in big leaves) a ray through the scene's box can
     expect from the structure a build reported (the SAH's terms; a method without a
     structure tests all)."""
-    if method in ("bruteforce", "rayengine", "hre") or not stats:
-        return 0.0, float(n_spheres), float(n_spheres)
-    parts = [stats.get("kd") or {}, stats.get("bvh") or {}] if method == "twolevel" else [stats]
+    parts = structures(stats)
+    if not parts:
+        return 0.0, float(n_primitives), float(n_primitives)
     nodes, tests, big_tests = (
         sum(float(p.get(k, 0.0)) for p in parts) for k in ("sah_nodes", "sah_tests", "sah_big_tests")
     )
@@ -332,7 +341,7 @@ def terms(
     passes = 1 + (k * k if averaged and k > 1 else 0)
     px = passes * w * h
     t[1] = px * rays
-    if method == "bruteforce":
+    if not structures(stats):  # every ray tests every primitive
         t[5] = px * rays * n
         t[3] = px * rays * planes
     else:
@@ -360,7 +369,7 @@ def estimate(
     total = float(t @ model.vector())
     frags = m["passes"] * m["pixels"]
     n = scene.n_tree_primitives
-    degenerate = not multi_pass and method != "bruteforce" and n >= 64 and m["tests"] >= 0.5 * n
+    degenerate = not multi_pass and bool(structures(stats)) and n >= 64 and m["tests"] >= 0.5 * n
     return FrameCost(
         m["passes"],
         m["pixels"],

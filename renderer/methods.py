@@ -31,6 +31,7 @@ METHODS: dict[str, AccelerationMethod] = {
 }
 
 AUTO_METHOD = "auto"
+AUTO_LABEL = "Auto (brute force below the crossover, else BIH)"
 # Below this many spheres brute force traces a frame faster than the BIH
 # (bench/experiments: crossover per scenario; the smallest is taken).
 AUTO_CROSSOVER_N = 16
@@ -54,6 +55,23 @@ def integrator_methods(integrator: str) -> list[str]:
     """The method names (``auto`` included) that can trace frames with ``integrator``."""
     names = [n for n, m in METHODS.items() if integrator in m.capabilities.integrators]
     return names + [AUTO_METHOD] if integrator in capabilities(AUTO_METHOD).integrators else names
+
+
+def mesh_methods() -> list[str]:
+    """The method names whose GPU layouts hold triangles (``Capabilities.meshes_on_gpu``), ``auto``
+    among them when every method it resolves to does."""
+    names = [n for n, m in METHODS.items() if m.capabilities.meshes_on_gpu]
+    picks = {resolve_method(AUTO_METHOD, n) for n in (0, AUTO_CROSSOVER_N)}
+    return names + [AUTO_METHOD] if all(METHODS[p].capabilities.meshes_on_gpu for p in picks) else names
+
+
+def not_on_gpu() -> str:
+    """Why a method whose layout holds no triangles traces no frame of a scene with meshes, and
+    which methods do (:func:`mesh_methods`)."""
+    return (
+        "this method's GPU layout holds spheres only: its frames of a scene with triangle meshes are "
+        f"not traced on the GPU; the methods that trace meshes are {', '.join(mesh_methods())}"
+    )
 
 
 def check_primitives(name: str, scene) -> None:

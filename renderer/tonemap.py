@@ -2,7 +2,7 @@
 "Tone mapping"): scale by 2^exposure, apply the named operator, encode sRGB.
 
 The Whitted integrator's image is display values already (the thesis's Phong sums, clamped): it
-is written as it always was, without this.
+is written as it is, without this.
 """
 
 from __future__ import annotations

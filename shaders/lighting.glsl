@@ -1,9 +1,9 @@
 // Emission, the environment and the path integrator (docs/SHADING.md): one whole chunk that
 // raytrace.frag includes and compiles where FEATURE_LIGHTING is 1 (a variant that carries
 // EMISSION, ENVIRONMENT or PATH: renderer/shader_source.py); raytrace.frag's main calls
-// path_main where PATH is defined, and its Whitted loop adds emission and the environment. The
-// TRIANGLES and SHAPES mark lines inside path_main are the last marks (a legacy the
-// assembler fills from shaders/path_legacy.glsl).
+// path_main where PATH is defined, and its Whitted loop adds emission and the environment.
+// path_main's parts for triangles and shapes are #if FEATURE_TRIANGLES / FEATURE_SHAPES blocks;
+// the material it shades with is behind the BSDF of shaders/bsdf_phong.glsl.
 
 #ifdef READS_EMISSION
 int g_emission_shift;

@@ -31,10 +31,6 @@ from pathlib import Path
 
 import pytest
 
-# schemathesis.parametrize() (tests/server/test_schemathesis.py) needs its plugin; pyproject.toml's
-# addopts turn off the entry point it is otherwise loaded by (see there).
-pytest_plugins = ("schemathesis.pytest.plugin",)
-
 BROWSER_FIXTURES = frozenset({"browser", "open_client"})
 # What makes libglvnd's EGL find no driver, and the GLX fallback find no display.
 NO_GL_ENV = {"__EGL_VENDOR_LIBRARY_FILENAMES": "/nonexistent"}

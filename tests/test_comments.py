@@ -36,8 +36,16 @@ PATH = re.compile(rf"(?<![\w./<>*-])((?:{TOPS})/[\w*<>.{{}},/-]*[\w*>/])")
 BARE = re.compile(r"(?<![\w./<>*-])([\w*<>-]+\.(?:py|js|glsl|frag|vert))\b")
 # A Python name in a Sphinx role or a plain dotted reference (``renderer.accel.bih``).
 ROLE = re.compile(r":(?:mod|func|class|meth|data|attr|exc):`~?((?:renderer|server)(?:\.\w+)+)`")
-# The tracker's numbers: "issue 18", "issue #17", "issues #10, #19", "(#17)".
+# The tracker's numbers: the word issue or issues before a number (with or without #), or a
+# number after # closed by a parenthesis.
 ISSUE = re.compile(r"\bissues? +#?\d+|\(#\d+\)|#\d+\)", re.I)
+# Beyond the production code, every other text of the repository that people read: the tests,
+# the documentation, the scripts and the project's files, and the benchmarks' comments and
+# docstrings. The result files that scripts write (docs/RESULTS.md, docs/STABILITY.md) and the
+# benchmarks' strings that go into them say what docs/RESULTS.md says; record.json is data.
+OTHER_TEXT = ("tests", "docs", "bench", "scripts", "deploy", "README.md", "pyproject.toml", "Dockerfile", "dev")
+RESULT_WRITERS = ("bench",)
+GENERATED = ("docs/RESULTS.md", "docs/STABILITY.md", "tests/golden/record.json")
 
 
 def comments(path: str) -> Iterator[tuple[int, str]]:
@@ -190,3 +198,32 @@ def test_no_issue_numbers(folder):
         if ISSUE.search(line)
     ]
     assert not found, "issue numbers in production code:\n" + "\n".join(found)
+
+
+def issue_numbers(files: list[str], comments_only: bool = False) -> list[str]:
+    """``file:line: text`` of every line (of every comment and docstring) citing an issue."""
+    found = []
+    for f in files:
+        if comments_only and f.endswith(".py"):
+            texts = [(i, line) for start, text in comments(f) for i, line in enumerate(text.splitlines(), start)]
+        else:
+            texts = list(enumerate((ROOT / f).read_text(errors="replace").splitlines(), 1))
+        found += [f"{f}:{i}: {line.strip()}" for i, line in texts if ISSUE.search(line)]
+    return found
+
+
+@pytest.mark.parametrize("where", OTHER_TEXT)
+def test_no_issue_numbers_in_tests_docs_or_benchmarks(where):
+    """Tests, docs and benchmarks describe what is, as the code does: a test's docstring says what
+    it proves, not which issue asked for it."""
+    files = [f for f in tracked(where) if f not in GENERATED and not f.endswith((".png", ".json", ".npy", ".npz"))]
+    assert files
+    found = issue_numbers(files, comments_only=where in RESULT_WRITERS)
+    assert not found, "issue numbers outside the production code:\n" + "\n".join(found)
+
+
+def test_the_issue_pattern_catches_the_ways_an_issue_is_cited():
+    n = 17  # a number of the tracker's, apart, so that this file cites none
+    cited = [f"(issue #{n})", f"issue {n}'s defines", f"Issues #{n}, #{n + 1}", f"see (#{n})", f"#{n})"]
+    clean = ["no issues found", "issue a request", "item 9", "#define NO_LIGHTS 1", "colour #ff0000"]
+    assert all(ISSUE.search(t) for t in cited) and not any(ISSUE.search(t) for t in clean)

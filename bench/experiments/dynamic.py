@@ -1,4 +1,4 @@
-"""Dynamic scenes (issue #9): Reiter's Figures 5.11, 5.4 and 5.6 for spheres.
+"""Dynamic scenes: Reiter's Figures 5.11, 5.4 and 5.6 for spheres.
 
 1. **Updating schemes (Fig. 5.11).** A BART-Museum-like animation (``renderer.animation.museum``:
    n moving spheres in a static room of 576 spheres and the floor) is played for ``FRAMES``

@@ -1,4 +1,4 @@
-"""Hardening (issue #17): the attack's figures before and after, and a soak.
+"""Hardening: the attack's figures before and after, and a soak.
 
 Measured against real ``python -m server`` processes on loopback by ``bench/hostile.py`` (the
 defects' figures, the memory of the largest requests, ``/api/health`` while six maximum bodies

@@ -46,10 +46,3 @@ def upscale(img: np.ndarray, width: int, height: int) -> np.ndarray:
         for c in range(img.shape[2])
     ]
     return np.stack(chans, axis=2)
-
-
-def box_down(img: np.ndarray, k: int) -> np.ndarray:
-    """Mean over k×k blocks (the box filter of supersampling); input clamped to [0, 1] first."""
-    h, w = img.shape[0] // k, img.shape[1] // k
-    a = np.clip(img.astype(np.float64), 0.0, 1.0)[: h * k, : w * k]
-    return a.reshape(h, k, w, k, -1).mean(axis=(1, 3))

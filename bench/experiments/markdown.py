@@ -23,10 +23,6 @@ def md_table(headers: Sequence[str], rows: Iterable[Sequence[Any]], align: str |
     return "\n".join(lines)
 
 
-def fmt_n(n: int) -> str:
-    return f"{n:,}"
-
-
 def fmt_db(x: float) -> str:
     return "∞" if math.isinf(x) else f"{x:.2f}"
 

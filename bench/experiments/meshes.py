@@ -1,4 +1,4 @@
-"""Triangle meshes (issue 20): tree builds over a million triangles, and primary rays on a
+"""Triangle meshes: tree builds over a million triangles, and primary rays on a
 ~100,000-triangle teapot through our GPU path, Embree (embreex) and Mitsuba 3.
 
 (a) Build: the scene is a grid of level-5 icospheres (20,480 triangles each; 49 of them:

@@ -36,7 +36,3 @@ def diffuse_only(scene: Scene) -> Scene:
     """The same scene with nothing reflecting or transmitting (kr = kt = 0)."""
     mats = tuple(dataclasses.replace(m, reflective=0.0, transmissive=0.0) for m in scene.materials)
     return dataclasses.replace(scene, materials=mats)
-
-
-def scenario_label(number: int) -> str:
-    return f"scenario {number}"

@@ -1,4 +1,4 @@
-"""The slice scheduler through the service (issue 16): fairness, progressive frames, slice size.
+"""The slice scheduler through the service: fairness, progressive frames, slice size.
 
 Runs ``bench/scheduling.py``'s three measurements against render-service processes it
 starts (loopback). Quick mode: the progressive timeline only, at a small size.

@@ -1,7 +1,7 @@
-"""The tracer shaped for llvmpipe (issue 18), against the shader before it, in one run.
+"""The tracer shaped for llvmpipe, against the shader before it, in one run.
 
 ``bench/shader.py`` traces every configuration with three sides, each a worker process:
-the renderer, shaders and layouts of the commit before issue 18 (extracted from git),
+the renderer, shaders and layouts of the unshaped base commit (extracted from git),
 this checkout as the service runs it (record arrays in uniform blocks where they fit, an
 RGBA8 target for jpeg frames at one sample per pixel), and this checkout with textures
 only (the device's layout). Process CPU time of the frame's draws (``glFinish``
@@ -27,7 +27,7 @@ NAME = "shader"
 TITLE = "The tracer shaped for llvmpipe (issue 18) — CPU time against the shader before it"
 
 SIDES = ["base", "new", "new/tex"]
-TARGETS = {"colour_d3": 0.55, "primary": 0.80}  # issue 18: at most these ratios against the base
+TARGETS = {"colour_d3": 0.55, "primary": 0.80}  # at most these ratios against the base
 
 
 def measure(ctx: Context) -> dict:

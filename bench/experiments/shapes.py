@@ -347,10 +347,6 @@ def _ms(row: dict, stage: str) -> float:
     return Stat.from_json(row["timings"][stage]).median if stage in row["timings"] else math.nan
 
 
-def _kib(n: int) -> str:
-    return f"{n / 1024:,.1f}"
-
-
 def group_table(name: str, group: dict, methods) -> str:
     rows = []
     for m in methods:

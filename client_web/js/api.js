@@ -8,6 +8,8 @@
 //    {state: 'online'} once a request gets through again.
 //  - final (4xx, other 5xx): an ApiError with the status and the server's detail.
 
+import { meshKind } from './settings.js';
+
 export class ApiError extends Error {
   constructor(status, detail, path) {
     super(`${status} ${typeof detail === 'string' ? detail : JSON.stringify(detail)}`);
@@ -340,8 +342,8 @@ export function storeSession(session, storage = window.localStorage) {
 // Same scene? (the scene parameters that were asked for, against the session's scene_info)
 export function sameScene(wanted, info) {
   if (!info) return false;
-  const mesh = /^mesh:(\w+)$/.exec(String(wanted.scenario ?? ''));
-  if (mesh || info.mesh_scene) return !!mesh && !!info.mesh_scene && info.mesh_scene.kind === mesh[1];
+  const kind = meshKind(wanted.scenario);
+  if (kind || info.mesh_scene) return !!kind && !!info.mesh_scene && info.mesh_scene.kind === kind;
   if (wanted.scenario === 'museum' || info.museum) {
     const m = info.museum;
     return !!m && wanted.scenario === 'museum' && (wanted.n === undefined || Number(wanted.n) === m.n) &&

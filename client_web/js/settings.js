@@ -12,11 +12,8 @@
 
 // Used when the server does not offer its list (GET /api/info: methods).
 export const FALLBACK_METHODS = Object.freeze(['bih', 'bruteforce']);
-export const METHOD_LABELS = Object.freeze({
-  bih: 'BIH (thesis)', bruteforce: 'Brute force', auto: 'Auto (brute force below the crossover, else BIH)',
-  rayengine: 'Ray engine (Carr)', hre: 'Hierarchical ray engine (Szécsi)', bvh: 'BVH (binned SAH)',
-  kdtree: 'kd-tree (SAH)', twolevel: 'Two levels (kd-tree + BVH)',
-});
+// A method's label: its declaration's (GET /api/info's method_settings), its name before the service answered.
+export const methodLabel = (info, name) => (info && info.method_settings && info.method_settings[name] && info.method_settings[name].label) || name;
 export const MODES = Object.freeze(['color', 'depth', 'primid', 'normal', 'recursion', 'heat']);
 export const MODE_LABELS = Object.freeze({
   color: 'Colour', depth: 'Depth', primid: 'Primitive id', normal: 'Normal',

@@ -43,18 +43,9 @@ class PreparedMethod:
     tree: Any = None
 
 
-# The one-pass methods whose GPU layouts hold triangles (Capabilities.meshes_on_gpu), named in
-# the refusal of any other; auto resolves to one of them.
-MESH_METHODS = ("bih", "bruteforce", "bvh", "kdtree", "twolevel", "auto")
-NOT_ON_GPU = (
-    "this method's GPU layout holds spheres only: its frames of a scene with triangle meshes are "
-    f"not traced on the GPU; the methods that trace meshes are {', '.join(MESH_METHODS)}"
-)
-
-
 def mesh_stats(scene: Scene) -> dict[str, int]:
     """What a build's statistics add for a scene with meshes (nothing for spheres only, whose
-    statistics stay as they were): tree primitives are spheres, triangles, then analytic shapes."""
+    statistics are the sphere build's alone): tree primitives are spheres, triangles, then analytic shapes."""
     if not scene.n_triangles and not scene.n_shapes:
         return {}
     out = {"spheres": scene.n_spheres, "triangles": scene.n_triangles}
@@ -126,6 +117,7 @@ class AccelerationMethod(Protocol):
     constants its traversal reads (declared into the shader header from here), and ``prepare``."""
 
     name: str
+    label: str  # the client's word for it (GET /api/info's method_settings)
     capabilities: Capabilities
 
     # Read-only members (a method's class attribute, of a more precise type, satisfies them).

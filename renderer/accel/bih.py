@@ -503,6 +503,7 @@ class BoundingIntervalHierarchy:
     by ``shaders/method_bih.glsl``."""
 
     name = "bih"
+    label = "BIH (thesis)"
     capabilities = Capabilities(
         shader="method_bih.glsl", settings=("max_prims", "max_tree_depth", "integrator"), meshes_on_gpu=True
     )

@@ -25,6 +25,7 @@ SPHERES = Binding("u_bf_spheres", doc="spheres in id order (gpu_layout.sphere_re
 
 class BruteForce:
     name = "bruteforce"
+    label = "Brute force"
     capabilities = Capabilities(
         shader="method_bruteforce.glsl",
         tests_every_sphere=True,

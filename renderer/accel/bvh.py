@@ -818,6 +818,7 @@ class BVHMethod:
     """
 
     name = "bvh"
+    label = "BVH (binned SAH)"
     capabilities = Capabilities(
         shader="method_bvh.glsl",
         update_schemes=UPDATE_SCHEMES,

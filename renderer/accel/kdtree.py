@@ -509,6 +509,7 @@ class KdTreeMethod:
     traced by ``shaders/method_kdtree.glsl``. ``max_prims`` is not used: the SAH decides."""
 
     name = "kdtree"
+    label = "kd-tree (SAH)"
     # (no max_prims: the SAH decides leaves)
     capabilities = Capabilities(
         shader="method_kdtree.glsl", settings=("max_tree_depth", "integrator"), meshes_on_gpu=True

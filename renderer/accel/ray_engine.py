@@ -24,6 +24,7 @@ class RayEngine(NoLayout):
     """Carr et al.'s ray engine: every primitive drawn over every ray."""
 
     name = "rayengine"
+    label = "Ray engine (Carr)"
     hierarchical = False
     # Its passes draw sphere and plane impostors only; triangles would need passes of their own.
     capabilities = Capabilities(
@@ -54,6 +55,7 @@ class HierarchicalRayEngine(RayEngine):
     Its ``cones`` mode shows the cones."""
 
     name = "hre"
+    label = "Hierarchical ray engine (Szécsi)"
     hierarchical = True
     capabilities = Capabilities(
         multi_pass=True, modes=MODES, tests_every_sphere=True, settings=("tile_size",), primitives=SPHERES_AND_PLANES

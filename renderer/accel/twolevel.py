@@ -36,6 +36,7 @@ class TwoLevelMethod:
     """
 
     name = "twolevel"
+    label = "Two levels (kd-tree + BVH)"
     capabilities = Capabilities(
         shader="method_twolevel.glsl",
         update_schemes=UPDATE_SCHEMES,

@@ -62,7 +62,7 @@ class ReleasingDraw:
         return None not in (self.use_program, self.bind_vertex_array, self.draw)
 
     def install(self, vao: moderngl.VertexArray) -> moderngl.VertexArray:
-        """``vao`` whose ``render`` draws through ctypes (as it was where it has an index buffer)."""
+        """``vao`` whose ``render`` draws through ctypes (moderngl's own where it has an index buffer)."""
         if not self.available or vao.index_buffer is not None:
             return vao
         use, bind, draw = self.use_program, self.bind_vertex_array, self.draw

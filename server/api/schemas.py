@@ -377,6 +377,7 @@ class PathInfoOut(BaseModel):
 class MethodSettingsOut(BaseModel):
     """Which settings a method reads, so that a client shows only those (server.api.routes.meta.method_settings)."""
 
+    label: str = Field("", description="the client's word for it (the method's declaration)")
     settings: list[str] = Field(
         description="settings its build or passes read: max_prims, max_tree_depth, tile_size, update"
     )

@@ -40,13 +40,12 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
-from renderer.accel.base import NOT_ON_GPU
 from renderer.animation import AnimatedScene, pose
 from renderer.cost import largest_accepted
 from renderer.denoise import denoise_nbytes, denoise_result
 from renderer.integrators import Denoiser
 from renderer.limits import DEFAULT_TEXTURE_WIDTH
-from renderer.methods import METHODS, capabilities
+from renderer.methods import METHODS, capabilities, not_on_gpu
 from renderer.plan import plan_method
 from renderer.prepare import PreparedFrame, band_rows, batch_size, prepare_frame
 from renderer.result import traced_nbytes
@@ -399,7 +398,7 @@ class FramePipeline:
         if frame.scene.n_triangles and not frame.multi_pass and not METHODS[frame.method].capabilities.meshes_on_gpu:
             raise InputError(
                 ("meshes",),
-                f"method {frame.method!r}: {NOT_ON_GPU}; this scene has "
+                f"method {frame.method!r}: {not_on_gpu()}; this scene has "
                 f"{len(frame.scene.meshes)} mesh(es) of "
                 f"{frame.scene.n_triangles:,} triangles — its scene, statistics and "
                 f"meshes are served, its frames with those methods",

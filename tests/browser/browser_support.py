@@ -112,10 +112,6 @@ class Server:
                 self.proc.wait(timeout=5)
         self.proc = None
 
-    def restart(self) -> None:
-        self.stop()
-        self.start()
-
     def log_tail(self, n: int = 4000) -> str:
         try:
             return self.log_path.read_text(errors="replace")[-n:]
@@ -128,7 +124,7 @@ class Server:
 
 MOBILE = dict(viewport={"width": 360, "height": 640}, device_scale_factor=1, is_mobile=True, has_touch=True)
 DESKTOP = dict(viewport={"width": 960, "height": 640}, device_scale_factor=1)
-# The layouts of issue #19: a phone upright and on its side (390 × 844 CSS px at 3 device pixels
+# The phone layouts: a phone upright and on its side (390 × 844 CSS px at 3 device pixels
 # per CSS pixel), and a desktop window.
 PORTRAIT = dict(viewport={"width": 390, "height": 844}, device_scale_factor=3, is_mobile=True, has_touch=True)
 LANDSCAPE = dict(viewport={"width": 844, "height": 390}, device_scale_factor=3, is_mobile=True, has_touch=True)

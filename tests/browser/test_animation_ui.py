@@ -1,4 +1,4 @@
-"""Playing an animated scene in the client (issue #9): the museum from a link, play/pause,
+"""Playing an animated scene in the client: the museum from a link, play/pause,
 frames posed at advancing times, the update scheme from the settings panel, and the
 service's update time in the overlay."""
 

@@ -1,10 +1,10 @@
-"""Device mode (issue #10): the server's tracer run by the browser in WebGL2.
+"""Device mode: the server's tracer run by the browser in WebGL2.
 
 One shader, one tree layout, two GL implementations (the server's Mesa llvmpipe
 through moderngl, Chromium's ANGLE on SwiftShader here), checked against each other:
 primary ids equal on ≥ 99.9 % of pixels and colour PSNR ≥ 35 dB at recursion depth 5,
 for the three scenarios at n = 64 and 1,024, BIH and brute force, and a scene with triangle
-meshes (issue #20: every one-pass method traces them on the device too); the shader compiles
+meshes (every one-pass method traces them on the device too); the shader compiles
 with an empty info log; the client falls back to server mode, visibly, without WebGL2;
 the overlay says which side rendered; gestures in device mode reach the server's Model.
 
@@ -385,7 +385,7 @@ def test_device_mode_keeps_up_with_the_fingers(gl_browser, server):
 # loop is the same text on the server, checked against the reference in tests/renderer/gl/test_renderer.py.
 @pytest.mark.parametrize("method", ["bih", "bvh", "kdtree", "twolevel"])
 def test_device_traces_a_scene_with_meshes(device_page, server, method):
-    """Issue #20: spheres of three radii, a plane, a smooth teapot, a glass icosphere, a mirror
+    """Spheres of three radii, a plane, a smooth teapot, a glass icosphere, a mirror
     box, a torus (tests/renderer/gl/test_renderer.py) — the triangle records and the
     TRIANGLES variant, on ANGLE — give the server's picture."""
     from tests.renderer.gl.test_renderer import mixed_scene

@@ -1,4 +1,4 @@
-"""The phone layout of issue #19: no control can zoom the page, the controls cover little of
+"""The phone layout: no control can zoom the page, the controls cover little of
 the screen and never each other, the sheet leaves half the frame, every button says what
 it does, the gestures are hinted once, false-colour modes have a key, settings that do not
 apply are hidden. Screenshots of each layout go to test-artifacts/.
@@ -114,7 +114,7 @@ def test_each_layout_keeps_the_chrome_small_and_apart(open_client, artifacts):
             assert p.is_visible("#play-button")
         p.screenshot(path=str(artifacts / f"layout-{name}.png"))
         shares[name] = p.evaluate(CHROME_SHARE)
-        assert shares[name] < 0.08, (name, shares[name])  # before issue #19: 20 % upright, 30 % on its side
+        assert shares[name] < 0.08, (name, shares[name])
         toolbar = box(p, "#toolbar")
         assert not overlaps(box(p, "#overlay"), toolbar), name
         p.click("#overlay-summary")  # the details never reach the toolbar either

@@ -1,4 +1,4 @@
-"""Meshes in the client (issue #20): the settings sheet's mesh scenes (POST /api/sessions
+"""Meshes in the client: the settings sheet's mesh scenes (POST /api/sessions
 {mesh_scene}) and its model file picker (POST /api/sessions/{id}/meshes, the file's bytes as
 the body). A mesh scene's frame says its triangles (overlay, canvas label); an uploaded OBJ
 changes the frame and the session's scene_info; a corrupt, misnamed or too big file is

@@ -1,4 +1,4 @@
-"""Orbit (issue #19) in a real Chromium: a two-finger twist, a one-finger drag in orbit mode,
+"""Orbit in a real Chromium: a two-finger twist, a one-finger drag in orbit mode,
 the desktop's right-drag, shift-drag and shift + arrows all turn the session's camera about
 its target (the service's Controller does it: the camera read back from the API)."""
 

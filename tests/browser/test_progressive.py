@@ -1,4 +1,4 @@
-"""Progressive frames in the client (issue 16, item 4): a supersampled full frame shows its
+"""Progressive frames in the client: a supersampled full frame shows its
 pixel-centre image first and then the refined one — from the server's multipart answer, and
 in device mode from the device's own pixel-centre phase."""
 

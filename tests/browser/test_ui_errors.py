@@ -1,4 +1,4 @@
-"""Errors where the eye is (issue #19): notices above the open sheet, the form's limits from
+"""Errors where the eye is: notices above the open sheet, the form's limits from
 /api/info (the resolution allowed at the current samples per pixel), refusals next to their
 field in the panel's words, invalid values put back when the sheet closes, and a scene too
 heavy to render explained by the service instead of retried without end."""

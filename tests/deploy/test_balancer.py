@@ -110,7 +110,7 @@ def assert_balancer_json(r: httpx.Response, status: int, retry: bool = True) -> 
 
 
 def test_the_balancers_own_errors_are_json_with_retry_after(balancer):
-    """Was: HAProxy's HTML pages ("<html><body><h1>503 Service Unavailable</h1>…"), no Retry-After."""
+    """Rules out: HAProxy's HTML pages ("<html><body><h1>503 Service Unavailable</h1>…"), no Retry-After."""
     b = balancer([None, None])  # no render process at all
     r = httpx.get(b.url + "/api/info", timeout=10)
     assert "no render process" in assert_balancer_json(r, 503)
@@ -125,7 +125,7 @@ def _hold(port: int, source: str) -> tuple[socket.socket, bytes]:
 
 
 def test_each_client_address_is_capped_at_the_balancer_with_a_429(balancer):
-    """Was: no cap at the balancer, and the render processes' own cap counted every client as the
+    """Rules out: no cap at the balancer, and the render processes' own cap counted every client as the
     balancer's one address (80 clients: 429s, both processes ejected)."""
     b = balancer(["ok"], client_cap=2)
     held = [_hold(b.port, "127.0.0.1") for _ in range(2)]
@@ -142,7 +142,7 @@ def test_each_client_address_is_capped_at_the_balancer_with_a_429(balancer):
 
 
 def test_the_render_processes_learn_each_clients_address(balancer):
-    """Was: no X-Forwarded-For, so the limits a render process keeps per client address (sessions
+    """Rules out: no X-Forwarded-For, so the limits a render process keeps per client address (sessions
     created, large-body slots) counted every client of the stack as the balancer's one address."""
     b = balancer(["ok"])
     for source in ("127.0.0.3", "127.0.0.4"):
@@ -174,7 +174,7 @@ def test_a_dropped_get_is_resent_and_a_dropped_gesture_is_not(balancer):
 
 
 def test_a_killed_process_is_out_of_rotation_at_once(balancer):
-    """Was: in rotation until two health checks failed (≈ 1–2 s): 648 requests answered 503 meanwhile."""
+    """Rules out: in rotation until two health checks failed (≈ 1–2 s): 648 requests answered 503 meanwhile."""
     b = balancer(["ok", "ok"])
     b.procs[0].send_signal(signal.SIGKILL)
     b.procs[0].wait()

@@ -1,4 +1,4 @@
-"""Animated scenes (issue #9, renderer.animation): motion models and validation.
+"""Animated scenes (renderer.animation): motion models and validation.
 
 - bad input names its field (bad motions, overlapping ranges, negative time) and nothing
   is applied (the animation settings' own checks are in ``test_settings.py``);
@@ -224,7 +224,7 @@ def test_mesh_motions_round_trip_as_json_without_first_and_count():
     np.testing.assert_array_equal(pose(again, 2.0).scene.triangle_corners, pose(anim, 2.0).scene.triangle_corners)
     assert again.moving_meshes.tolist() == [False, True, False]
     assert motion_to_json(again.motions[0]) == out["motions"][0]
-    # a plain sphere motion's JSON is as it was
+    # a plain sphere motion's JSON names no mesh
     assert set(motion_to_json(Incoherent(0, 1))) == {
         "kind",
         "first",

@@ -79,3 +79,21 @@ def test_a_path_sample_traces_the_fitted_segments_saturating_with_depth(frame):
     )
     assert request_work(64, 64, 8, 32, path=True) == pytest.approx(64 * 64 * 32 * path_segments(8))
     assert request_work(64, 64, 8, 4, path=False) == 64 * 64 * 8 * 4
+
+
+def test_the_cost_follows_what_the_build_reported_not_the_methods_name():
+    """A structure's SAH terms (a two-level method's per level) or none (every ray tests every
+    primitive): a method added to the registry is costed by what its build reports."""
+    from renderer.cost import structures
+
+    scene = scenario(3, 256, seed=1)
+    stats = {name: METHODS[name].prepare(scene, 4, 64).stats for name in ("bih", "bruteforce", "twolevel")}
+    assert structures(stats["bih"]) == [stats["bih"]] and structures(stats["bruteforce"]) == []
+    assert structures(stats["twolevel"]) == [stats["twolevel"]["kd"], stats["twolevel"]["bvh"]]
+    settings = RenderSettings(width=32, height=32)
+    for name, st in stats.items():
+        costs = {
+            estimate(other, st, scene, settings).to_json()["ms"] for other in ("bih", "bruteforce", "twolevel", "new")
+        }
+        assert len(costs) == 1, (name, costs)
+    assert estimate("bih", stats["bih"], scene, settings).ms < estimate("bih", stats["bruteforce"], scene, settings).ms

@@ -21,7 +21,7 @@ def test_scene_features_follow_used_materials():
 
 
 def test_counts_data_formats_and_the_task_stack():
-    """Issue 18's defines: compiled-in counts, NO_SPLIT where reflection and transmission
+    """The defines: compiled-in counts, NO_SPLIT where reflection and transmission
     never meet in one used material, the data formats in every variant (the generic one
     too), all in FEATURE_DEFINES order; the stats' removals are the NO_* ones."""
     from renderer.features import FEATURE_DEFINES, GENERIC

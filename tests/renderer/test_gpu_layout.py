@@ -271,7 +271,7 @@ def test_glsl_header_states_the_tracers_constants():
     assert f"#define KD_STACK_SIZE {MAX_TREE_DEPTH}" in kdtree_layout.glsl_defines().splitlines()
 
 
-# ---------------------------------------------------------- issue 18: records, blocks, variants
+# ---------------------------------------------------------- records, blocks, variants
 
 
 def test_sphere_records_are_centres_and_keys_in_the_given_order():

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from renderer.methods import AUTO_CROSSOVER_N, METHODS, resolve_method
+from renderer.methods import AUTO_CROSSOVER_N, AUTO_METHOD, METHODS, mesh_methods, not_on_gpu, resolve_method
 from renderer.scenarios import scenario
 from renderer.settings import RenderSettings
 
@@ -43,3 +43,16 @@ def test_bruteforce_refuses_more_primitives_than_one_shader_loop_runs():
         check_primitives("bruteforce", scenario(1, MAX_LOOP_PRIMITIVES + 1))
     assert e.value.field == "method" and "65,533" in str(e.value)
     check_primitives("bih", scenario(1, MAX_LOOP_PRIMITIVES + 1))  # a hierarchy has no such loop
+
+
+def test_the_methods_that_trace_meshes_are_read_from_their_capabilities(monkeypatch):
+    """The list a refusal names is the registry's: every method whose layout holds triangles, and
+    auto while every method it picks does; a method without them drops out of it."""
+    import dataclasses
+
+    traced = [n for n, m in METHODS.items() if m.capabilities.meshes_on_gpu]
+    assert mesh_methods() == [*traced, AUTO_METHOD] and "rayengine" not in traced and "bih" in traced
+    assert not_on_gpu().endswith(", ".join(mesh_methods()))
+    bf = METHODS["bruteforce"]
+    monkeypatch.setattr(bf, "capabilities", dataclasses.replace(bf.capabilities, meshes_on_gpu=False))
+    assert "bruteforce" not in mesh_methods() and AUTO_METHOD not in mesh_methods()  # auto picks it below the crossover

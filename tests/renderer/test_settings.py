@@ -33,7 +33,7 @@ def test_settings_validation_and_json():
     assert e.value.field == "widht"
 
 
-# animation (issue #9)
+# animation
 
 
 @pytest.mark.parametrize(
@@ -52,7 +52,7 @@ def test_bad_settings_name_the_field(kw, field):
     assert e.value.field == field
 
 
-# knobs (issue 5)
+# knobs
 
 
 @pytest.mark.parametrize(
@@ -72,7 +72,7 @@ def test_knob_validation(kw, field):
     assert e.value.field == field
 
 
-# hierarchical ray engine (issue #8)
+# hierarchical ray engine
 
 
 @pytest.mark.parametrize("bad", [0, 1, -3, 65, 2.5, True, "16"])

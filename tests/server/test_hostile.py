@@ -1,4 +1,4 @@
-"""Issue #17: the service attacked — what the black-box attack found across several parts at once.
+"""The service attacked — what the black-box attack found across several parts at once.
 
 The render-target pool is the renderer's (renderer/gl/targets.py), bounded by the service's
 POCKETRAY_MAX_TARGET_BYTES on its GL thread. The other defects of that attack are reproduced in
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 
 def test_the_render_target_pool_is_bounded_in_bytes_not_entries(ready_client):
-    """Was: up to 9 sizes with two RGBA32F targets each (frames at 11 sizes near 4096² left 5.3 GB).
+    """Rules out: up to 9 sizes with two RGBA32F targets each (frames at 11 sizes near 4096² left 5.3 GB).
     The 11-size sequence at small sizes on the GL thread: free targets never exceed the bound, busy
     ones are never taken away, and the service's pool has POCKETRAY_MAX_TARGET_BYTES as its bound."""
     from renderer.gl.targets import TargetPool

@@ -85,7 +85,7 @@ def test_the_path_settings_contract_through_the_api(ready_client):
 
 
 def test_denoise_applies_to_the_images_and_to_npy_only_when_asked(ready_client):
-    """``denoise=off`` is the frame as it always was (byte for byte); ``oidn`` changes png and, when
+    """``denoise=off`` is the frame as traced (byte for byte); ``oidn`` changes png and, when
     the query names it, npy; a session's own ``denoise`` leaves its npy and exr radiance as traced."""
     c = ready_client
     settings = {"integrator": "path", "width": 16, "height": 12, "samples_per_pixel": 8, "max_recursion_depth": 4}

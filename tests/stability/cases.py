@@ -12,7 +12,7 @@ axis-aligned camera those primary rays have direction components that are
 exactly ±0 — rays parallel to split planes, where ``(clip − o) / d`` would be
 ±inf or NaN.
 
-Thresholds are the issue's (primid agreement ≥ 99.9 %, depth 1e-4 relative where
+Thresholds (primid agreement ≥ 99.9 %, depth 1e-4 relative where
 the ids agree, colour PSNR ≥ 35 dB). They apply twice: against the reference of the
 scene as given (float64) and against the reference of the scene *as float32 stores
 it* (:func:`float32_inputs`), which separates input quantization from the tracer's
@@ -1294,7 +1294,7 @@ _add(
         methods=MESH_METHODS,
     ),
     # Brute force is left out: past limits.MAX_LOOP_PRIMITIVES (65,533, llvmpipe's loop limiter) it
-    # refuses the scene (tests/renderer/test_methods.py), where it used to drop the last triangles.
+    # refuses the scene (tests/renderer/test_methods.py) rather than drop the last triangles.
     Case(
         "mesh_huge_81920",
         "81,920 triangles at 25 × 41 (80 per pixel): deep trees, many triangles per "

@@ -14,8 +14,8 @@
 
 import { applies, check, integratorValues, modesOf, range, sampleChoices, samplesAllowed, subpixels } from './limits.js';
 import {
-  DEFAULT_MUSEUM_N, DEFAULT_SCENE, FALLBACK_METHODS, FIELD_LABELS, METHOD_LABELS, MODE_LABELS, MODES, MODEL_FORMATS,
-  MUSEUM_KINDS, PREVIEW_SCALES, RESOLUTIONS, UPDATE_SCHEMES, learnScenes, learnSettings, meshKind, pickerScenes,
+  DEFAULT_MUSEUM_N, DEFAULT_SCENE, FALLBACK_METHODS, FIELD_LABELS, MODE_LABELS, MODES, MODEL_FORMATS,
+  MUSEUM_KINDS, PREVIEW_SCALES, RESOLUTIONS, UPDATE_SCHEMES, learnScenes, learnSettings, meshKind, methodLabel, pickerScenes,
   sceneValue, withRestDenoiser,
   parseResolution, renderSettings, settingValue,
 } from '../settings.js';
@@ -55,7 +55,7 @@ export class SettingsPanel {
     fillSelect(this.el('scenario'), pickerScenes);
     fillSelect(this.el('motion'), MUSEUM_KINDS);
     fillSelect(this.el('update'), UPDATE_SCHEMES);
-    fillSelect(this.el('method'), FALLBACK_METHODS, (m) => METHOD_LABELS[m] || m);
+    fillSelect(this.el('method'), FALLBACK_METHODS, (m) => methodLabel(null, m));
     fillSelect(this.el('mode'), MODES, (m) => MODE_LABELS[m] || m);
     fillSelect(this.el('resolution'), RESOLUTIONS);
     fillSelect(this.el('previewScale'), PREVIEW_SCALES);
@@ -93,7 +93,7 @@ export class SettingsPanel {
     // The picker is the service's list of demo scenes, when it gives one.
     if (learnScenes(info.scenes)) fillSelect(this.el('scenario'), pickerScenes);
     for (const spec of this._specs()) if (!this.el(spec.name)) this._addField(spec);
-    if (Array.isArray(info.methods) && info.methods.length) fillSelect(this.el('method'), info.methods, (m) => METHOD_LABELS[m] || m);
+    if (Array.isArray(info.methods) && info.methods.length) fillSelect(this.el('method'), info.methods, (m) => methodLabel(info, m));
     if (Array.isArray(info.modes) && info.modes.length) fillSelect(this.el('mode'), info.modes, (m) => MODE_LABELS[m] || m);
     if (this.state) this.show(this.state);
   }

@@ -39,8 +39,8 @@ from fastapi import APIRouter, Query, Response
 from fastapi.responses import PlainTextResponse
 
 from renderer import gpu_layout
-from renderer.accel.base import NOT_ON_GPU, AccelerationMethod
-from renderer.methods import METHODS
+from renderer.accel.base import AccelerationMethod
+from renderer.methods import METHODS, not_on_gpu
 from renderer.modes import SINGLE_PASS_MODES
 from renderer.plan import plan_frame, plan_method
 from renderer.scene import SceneError
@@ -160,7 +160,7 @@ def device_data(
         # with this method (Capabilities.meshes_on_gpu), a device cannot either.
         raise InputError(
             ("query", "meshes"),
-            f"method {method_name!r}: {NOT_ON_GPU}: a device cannot trace this "
+            f"method {method_name!r}: {not_on_gpu()}: a device cannot trace this "
             f"scene's {n_triangles:,} triangles with it",
         )
     check_single_pass_mode(settings["mode"])

@@ -11,8 +11,10 @@ from fastapi.responses import JSONResponse
 from renderer.animation import MUSEUM_KINDS, MUSEUM_ROOM_SPHERES
 from renderer.cost import PATH_SEGMENTS_LIMIT, PATH_SEGMENTS_RATE
 from renderer.integrators import Integrator
-from renderer.limits import MAX_IMAGE_SIDE
-from renderer.methods import AUTO_METHOD, METHODS, resolve_method
+from renderer.limits import (
+    MAX_IMAGE_SIDE,
+)
+from renderer.methods import AUTO_LABEL, AUTO_METHOD, METHODS, resolve_method
 from renderer.modes import HEAT_SCALE, RECURSION_COLOR_NAMES, RECURSION_COLORS
 from renderer.profiles import PROFILES
 from renderer.scenarios import DEMO_SCENES
@@ -28,12 +30,13 @@ router = APIRouter()
 
 
 def method_settings(name: str) -> dict[str, Any]:
-    """What a client needs to show only the settings that apply to method ``name``: the
+    """What a client needs to show only the settings that apply to method ``name``: its label, the
     settings its build or passes read, its modes, its update schemes, whether a browser can
     trace it and whether it traces meshes on the GPU (``auto`` answers for the BIH it picks
     above the crossover)."""
     caps = METHODS[resolve_method(name, 1 << 30)].capabilities
     return {
+        "label": AUTO_LABEL if name == AUTO_METHOD else METHODS[name].label,
         "settings": list(caps.settings),
         "modes": list(caps.modes),
         "update_schemes": list(caps.update_schemes),

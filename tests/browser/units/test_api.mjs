@@ -28,6 +28,12 @@ test('same museum', () => {
     !a.sameScene({ scenario: 1, n: 256 }, museumInfo) && !a.sameScene({ scenario: 'museum', n: 256 }, { scenario: 1, n: 256 }));
 });
 
+test('same mesh scene', () => {
+  const teapot = { n_spheres: 2, mesh_scene: { kind: 'teapot' }, n_triangles: 6320 };
+  assert.ok(a.sameScene({ scenario: 'mesh:teapot' }, teapot) && !a.sameScene({ scenario: 'mesh:room' }, teapot) &&
+    !a.sameScene({ scenario: 1, n: 2 }, teapot) && !a.sameScene({ scenario: 'mesh:teapot' }, { scenario: 1, n: 2 }));
+});
+
 // A fetch that fails twice, then answers 503 with Retry-After 0, then 200.
 test('retries until it gets through', async () => {
   const answers = ['fail', 'fail', 503, 200]; const statuses = [];

@@ -5,6 +5,12 @@ import { test } from 'node:test';
 import * as s from '../../../client_web/js/settings.js';
 import { assert, same } from './same.mjs';
 
+test("a method's label is the service's, its name before the service answered", () => {
+  const info = { method_settings: { bih: { label: 'BIH (thesis)' }, bvh: {} } };
+  same([s.methodLabel(info, 'bih'), s.methodLabel(info, 'bvh'), s.methodLabel(info, 'kdtree'), s.methodLabel(null, 'bih')],
+    ['BIH (thesis)', 'bvh', 'kdtree', 'bih']);
+});
+
 test('preview size', () => same(s.previewSize(320, 544, 0.5), { width: 160, height: 272 }));
 
 test('fit keeps the screen aspect, long side capped', () => {

@@ -1,4 +1,4 @@
-"""Method ``bvh`` (issue #9, renderer.accel.bvh): tree invariants after builds and updates.
+"""Method ``bvh`` (renderer.accel.bvh): tree invariants after builds and updates.
 
 Property tests (hypothesis) over random and degenerate scenes: every BVH node box holds
 its children and its primitives, each primitive is in exactly one leaf, depth within the
@@ -67,7 +67,7 @@ def check_bvh(b, lo: np.ndarray, hi: np.ndarray, max_tree_depth: int) -> None:
     assert (lo[p] >= b.bmin[slot_leaf]).all() and (hi[p] <= b.bmax[slot_leaf]).all(), "leaf box holds its spheres"
     assert (b.near_mask[leaves] == 0).all()
     np.testing.assert_array_equal(b.near_mask, near_masks(b.bmin, b.bmax, b.left))
-    # the GPU records (issue 18): an inner node's record holds both children's boxes and refs
+    # the GPU records: an inner node's record holds both children's boxes and refs
     records, root = bvh_layout.gpu_records(b)
     inner = np.flatnonzero(b.left >= 0)
     rec_of = {int(k): i for i, k in enumerate(inner)}

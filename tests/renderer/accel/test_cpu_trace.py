@@ -1,6 +1,6 @@
 """The CPU traversals of the trees over spheres and triangles together (renderer.accel.cpu_trace).
 
-The hierarchies over spheres and triangles together, on the CPU (issue #20).
+The hierarchies over spheres and triangles together, on the CPU.
 
 Every method's ``prepare`` builds its tree over the scene's spheres then triangles
 (renderer.accel.primitives); the trees are traversed on the CPU (renderer.accel.cpu_trace,

@@ -1,4 +1,4 @@
-"""Method ``kdtree`` (issue #9, renderer.accel.kdtree): tree invariants, cost scaling, compaction.
+"""Method ``kdtree`` (renderer.accel.kdtree): tree invariants, cost scaling, compaction.
 
 Property tests (hypothesis) over random and degenerate scenes: every primitive that
 straddles a plane is in both children, every primitive whose box meets a leaf's voxel is
@@ -74,7 +74,7 @@ def check_kdtree(kd, lo: np.ndarray, hi: np.ndarray, max_tree_depth: int) -> Non
             a, p = kd.axis[i], kd.split[i]
             straddle = {j for j in sets[i] if lo[j, a] < p < hi[j, a]}
             assert straddle <= sets[kd.left[i]] and straddle <= sets[kd.left[i] + 1]
-    # the GPU records (issue 18): each leaf a run of its own primitives, empty ones flagged
+    # the GPU records: each leaf a run of its own primitives, empty ones flagged
     prims, first, last = kdtree_layout.leaf_runs(kd)
     records, root = kdtree_layout.gpu_records(kd, first)
     rec_of = {int(k): i for i, k in enumerate(inner)}

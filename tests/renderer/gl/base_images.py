@@ -1,14 +1,14 @@
-"""The images of the tracer as it was before issue 18, as hashes: the record the new one must equal.
+"""The images of the base commit's tracer, as hashes: the record this checkout's must equal.
 
-Issue 18 reshaped the traversals, the GPU layouts and the shading loop for speed, with
-every image bit for bit what it was. This module defines the frames that prove it — every
+The traversals, the GPU layouts and the shading loop are shaped for llvmpipe's speed, with
+every image bit for bit the base commit's. This module defines the frames that prove it — every
 one-pass method × mode × scene (scenarios 1–3 at n = 64, 1,024 and 4,096, equal and
 unequal radii, a material that both reflects and transmits with several lights and
 planes, no lights, more materials than fit in uniforms, no spheres, planes only, an
 animated museum) at 1 and 4 samples per pixel, plus every case of the stability catalogue
 in colour — and hashes their arrays (float image, uint8 image, depth, primid, normal).
 
-``--write`` renders them with the shader *before issue 18*: it extracts ``renderer/`` and
+``--write`` renders them with the base commit's shader: it extracts ``renderer/`` and
 ``shaders/`` of :data:`BASE_COMMIT` from git into a temporary directory and runs this
 module there in a subprocess (``--emit``), so the record cannot come from the code it
 checks. ``tests/renderer/gl/test_base_images.py`` renders the same frames now and
@@ -31,7 +31,7 @@ import numpy as np
 
 RECORD = Path(__file__).with_name("base_images.json")
 ROOT = Path(__file__).resolve().parents[3]
-# The last commit before issue 18 (the shader, layouts and packers the record comes from).
+# The base commit: the unshaped tracer (the shader, layouts and packers the record comes from).
 BASE_COMMIT = "cda5fce"
 
 W, H = 49, 81  # odd: the centre row and column have direction components ±0

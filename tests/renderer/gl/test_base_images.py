@@ -1,7 +1,7 @@
-"""Issue 18's exactness: every frame is bit for bit what the shader before issue 18 rendered.
+"""Exactness of the shaped tracer: every frame is bit for bit what the base commit's shader renders.
 
 The record ``base_images.json`` was generated from the shader, layouts and packers
-*before issue 18* (commit ``base_images.BASE_COMMIT``, extracted from git and run in a
+of the base commit (``base_images.BASE_COMMIT``, extracted from git and run in a
 subprocess by ``python -m tests.renderer.gl.base_images --write``), never from the code
 under test. Its frames (``base_images.cases``): every one-pass method × every mode × scenes
 with equal and unequal radii, a material that reflects and transmits, several lights and
@@ -33,9 +33,9 @@ from renderer.settings import RenderSettings
 from tests.renderer.gl import base_images as B
 
 RECORD = json.loads(B.RECORD.read_text())["frames"]
-# Heat counts traversal steps, so it follows the tree, not only the shader: issue 20 changed
-# the BVH's build (binning on one axis, no sorts), which the two-level method uses too, so
-# their heat frames are no longer the base commit's (every other array of theirs still is;
+# Heat counts traversal steps, so it follows the tree, not only the shader: the BVH's build
+# bins on one axis without sorts, unlike the base commit's, and the two-level method uses it too, so
+# their heat frames differ from the base commit's (every other array of theirs still is;
 # the png test still checks their heat bytes against the float frame's).
 TREE_CHANGED = ("bvh", "twolevel")
 
@@ -97,7 +97,7 @@ def _mismatches(
 @pytest.mark.parametrize("group", sorted(GROUPS))
 def test_frames_equal_the_base_shaders(gl_renderer, group):
     bad = _mismatches(gl_renderer, group)
-    assert not bad, f"{len(bad)} of {len(GROUPS[group])} frames differ from the shader before issue 18: {bad[:6]}"
+    assert not bad, f"{len(bad)} of {len(GROUPS[group])} frames differ from the base commit's shader: {bad[:6]}"
 
 
 @pytest.mark.parametrize("group", sorted(g for g in GROUPS if g != "catalogue"))

@@ -1,4 +1,4 @@
-"""Knobs that trade speed for accuracy or specialise the shader (issue 5).
+"""Knobs that trade speed for accuracy or specialise the shader.
 
 Specialisation must be exact (primid identical, colour PSNR ≥ 50 dB against
 the generic variant); supersampling must equal the reference traced at the
@@ -103,7 +103,7 @@ def test_weight_cutoff(gl_renderer):
 
 
 def test_png_frames_at_one_sample_read_one_rgba8_target(gl_renderer):
-    """Issue 18: a png or jpeg frame at 1 sample per pixel renders into one RGBA8 target, the
+    """A png or jpeg frame at 1 sample per pixel renders into one RGBA8 target, the
     shader rounding as image_u8 does: the same bytes as the float frame's image_u8. Its float
     arrays are traced again only when read (the service never reads them); a supersampled
     frame keeps its float sub-pixels."""

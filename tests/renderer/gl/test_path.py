@@ -212,7 +212,7 @@ def test_refusals():
     RenderSettings(method="auto", integrator="path", samples_per_pixel=4096, max_recursion_depth=16)
     for kw in ({"samples_per_pixel": 5}, {"max_recursion_depth": 9}):
         with pytest.raises(SceneError) as e:
-            RenderSettings(**kw)  # Whitted's bounds are as they were
+            RenderSettings(**kw)  # Whitted's own bounds
         assert e.value.field == next(iter(kw))
     for kw in ({"samples_per_pixel": 4097}, {"max_recursion_depth": 17}):
         with pytest.raises(SceneError):

@@ -1,4 +1,4 @@
-"""The ray engine and the hierarchical ray engine (issue #8).
+"""The ray engine and the hierarchical ray engine.
 
 - exactness: primid equal to the brute-force fragment tracer on ≥ 99.99 % of pixels and
   colour PSNR ≥ 50 dB, for the three scenarios at n = 64 and 1,024, recursion depth 1

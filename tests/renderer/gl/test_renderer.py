@@ -1,19 +1,19 @@
 """The GLSL tracer (renderer.gl.renderer) against the float64 reference and brute force.
 
-- methods ``bih`` and ``bruteforce`` against the independent float64 reference (issue 2,
-  item 8), every mode, the heat counters, the arrays' dtypes;
-- methods ``bvh`` and ``kdtree`` (issue #9) against brute force (primid ≥ 99.99 %) and the
+- methods ``bih`` and ``bruteforce`` against the independent float64 reference, every
+  mode, the heat counters, the arrays' dtypes;
+- methods ``bvh`` and ``kdtree`` against brute force (primid ≥ 99.99 %) and the
   float64 reference (primid ≥ 99.9 %, colour PSNR ≥ 40 dB), scenarios 1–3, n = 64 and
   1024, recursion depth 1 and 5, 96 × 160; a BVH refitted after an incoherent motion
   (every sphere teleported) renders the same ids as brute force: slow perhaps, never wrong;
-- animated scenes (issue #9): every frame of a test animation of each kind, traced by
+- animated scenes: every frame of a test animation of each kind, traced by
   ``bvh`` with refit and with selective rebuild and by ``twolevel``, gives the
   brute-force ids on ≥ 99.99 % of pixels.
 
 Images against the reference are 160 × 272 (a quarter of the thesis's 640 × 1088 in each
 side) so the float64 reference stays fast; the shader has no resolution-dependent code path.
 
-Triangle meshes on the GPU (issue #20, part 2): every one-pass method (bih, bruteforce,
+Triangle meshes on the GPU: every one-pass method (bih, bruteforce,
 bvh, kdtree, twolevel) against the float64 reference and the CPU brute force,
 watertightness of the float32 test, every mode.
 
@@ -644,7 +644,7 @@ def check_variant(gl_renderer, variant: Variant) -> None:
             assert type(prog[b.name]).__name__ == kind, (variant, b.name, type(prog[b.name]))
 
 
-# The triangles' data formats (issue #20), for the methods that trace meshes on the GPU.
+# The triangles' data formats, for the methods that trace meshes on the GPU.
 TRIANGLE_SHAPES = [
     ("TRIANGLES",),
     ("EQUAL_RADII", "TRIANGLES", "SMOOTH_TRIANGLES"),

@@ -1,6 +1,6 @@
 """The large-body slots against trickling clients (docs/API.md, "Hardening").
 
-Was: eight connections trickling one byte every 4 s into 1 MB JSON bodies held all eight
+Rules out: eight connections trickling one byte every 4 s into 1 MB JSON bodies held all eight
 large-body slots — each byte restarted the idle timer, and nothing bounded a body's total
 time — so every honest JSON body over 64 KiB got 503 for as long as they trickled.
 
@@ -130,7 +130,7 @@ def test_a_body_below_the_minimum_rate_is_answered_408_and_its_slot_freed(app_wi
 
     async def scenario(app):
         t0 = time.monotonic()
-        # Was: no answer while the bytes kept coming (each within the idle timeout); bounded here by 20 s.
+        # Rules out: no answer while the bytes kept coming (each within the idle timeout); bounded here by 20 s.
         r = await asyncio.wait_for(post(app, ATTACKER, trickle(0.2, 20), DECLARED), 25)
         return r, time.monotonic() - t0
 
@@ -285,7 +285,7 @@ def test_numbers_in_a_query_are_still_read_from_text(ready_client):
     ],
 )
 def test_bodies_that_are_not_strict_json_are_a_clear_422(client, content, kind, words):
-    """Was: UTF-16 and duplicate keys taken silently, 1,000 levels "not valid UTF-8 JSON"."""
+    """Rules out: UTF-16 and duplicate keys taken silently, 1,000 levels "not valid UTF-8 JSON"."""
     sid = new_session(client)["id"]
     before = state_of(client, sid)
     r = client.post(f"/api/sessions/{sid}/gesture", **raw_json(content))
@@ -339,8 +339,9 @@ def test_large_bodies_are_parsed_on_the_pool_and_small_ones_inline(client, monke
 
 
 def test_health_answers_while_six_large_bodies_are_parsed(spawn_server):
-    """Was: one 16 MB scene stalled /api/health 2.4 s, six 15 s. A hang guard only (2 s for six 4 MB
-    bodies); bench/hostile.py measures the latency with six maximum bodies."""
+    """Rules out: /api/health stalled while bodies are parsed (2.4 s behind one 16 MB scene, 15 s
+    behind six). A hang guard only (2 s for six 4 MB bodies); bench/hostile.py measures the latency
+    with six maximum bodies."""
     s = spawn_server(
         max_body_bytes=16 << 20, max_spheres=1000, queue_size=8, body_slots_per_client=0
     )  # all six come from this one address

@@ -225,7 +225,7 @@ def big_bodies(tmp_path_factory):
 
 
 def test_a_body_of_150000_bad_spheres_gets_a_short_422(big_bodies):
-    """Was: a 72 MB 422 listing 450,000 errors (+840 MB resident)."""
+    """Rules out: a 72 MB 422 listing 450,000 errors (+840 MB resident)."""
     from server.api.schemas import MAX_LISTED_ERRORS
 
     bad = '{"center": [0, 0], "radius": -1, "material": -1}'  # three errors each

@@ -25,7 +25,7 @@ def strided_result(side: int) -> RenderResult:
 
 
 def test_npy_encoding_copies_the_array_once():
-    """Was: a contiguous copy of the array, then np.save's copy of it, then the buffer: the
+    """Rules out: a contiguous copy of the array, then np.save's copy of it, then the buffer: the
     encoder's peak was 2-3 times the body; now the body and a 1 MiB chunk."""
     result = strided_result(1024)
     tracemalloc.start()

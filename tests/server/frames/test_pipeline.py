@@ -1,10 +1,10 @@
 """The frame pipeline (server/frames/pipeline.py): the memory of frames in flight (docs/API.md,
 "Memory budget").
 
-Was: eight concurrent 4096 × 4096 ``normal`` ``npy`` frames peaked at 5.49 GB resident, for a
+Rules out: eight concurrent 4096 × 4096 ``normal`` ``npy`` frames peaked at 5.49 GB resident, for a
 budget of 3 GiB: every admitted frame held its render target at once (two RGBA32F attachments,
 host memory on llvmpipe), then its read-back, its result's arrays and three copies of the npy
-array. Frames now reserve their estimated bytes in POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT, a
+array. Frames reserve their estimated bytes in POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT, a
 frame lets go of its target and read-back as soon as it can, and the npy body is the one copy
 of the array. A frame whose estimate alone is over POCKETRAY_MAX_FRAME_BYTES is refused up front
 (was: admitted when no other frame held bytes, so that it held more than the whole budget and

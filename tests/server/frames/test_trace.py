@@ -1,4 +1,4 @@
-"""The GL thread as a scheduler of slices (issue 16): fair between sessions, cancellable,
+"""The GL thread as a scheduler of slices: fair between sessions, cancellable,
 truthful about the work queued ahead. Fake frames (no GL) make the order of slices exact."""
 
 from __future__ import annotations

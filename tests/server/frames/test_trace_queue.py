@@ -103,7 +103,7 @@ def test_service_answers_while_the_gl_thread_traces(ready_client):
     worker = c.app.state.worker
     # One draw and one glFinish of ~2 s on llvmpipe (bigger than the test caps allow through the API):
     # long against the scheduling hiccups of a loaded machine (a health call once took 0.21 s during a
-    # 0.44 s trace, issue #17), so that they stay a small part of it.
+    # 0.44 s trace), so that they stay a small part of it.
     scene, settings = scenario(3, 4096), RenderSettings(width=640, height=1088, max_recursion_depth=3)
     with worker.admit() as t:
         job = t.submit(lambda r: r.render(scene, settings))

@@ -17,7 +17,7 @@ import pytest
     ],
 )
 def test_options_answers_the_paths_methods(client, path, allow):
-    """Was: 405 with Allow: GET, HEAD (the static files' answer) on every API path."""
+    """Rules out: 405 with Allow: GET, HEAD (the static files' answer) on every API path."""
     r = client.options(path)
     assert r.status_code == 204 and r.headers["allow"] == allow and not r.content
     verbs = [m for m in ("GET", "POST", "PUT", "PATCH", "DELETE") if m not in allow]

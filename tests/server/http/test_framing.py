@@ -60,7 +60,7 @@ def test_a_websocket_upgrade_framed_twice_is_refused():
 
 
 def test_the_bytes_after_the_chunks_are_not_answered_as_a_request(spawn_server):
-    """Was: the POST was read by its (empty) chunked body, answered, and the connection kept open; the
+    """Rules out: the POST was read by its (empty) chunked body, answered, and the connection kept open; the
     GET that a Content-Length-framing proxy took for its body was answered too (404)."""
     server = spawn_server()
     body = b"0\r\n\r\n" + SMUGGLED

@@ -82,7 +82,7 @@ def health_until(server, status: int, within_s: float) -> int:
 
 # ---- 1. timers through the upgrade ------------------------------------------------------------------------
 def test_a_websocket_that_keeps_talking_outlives_the_request_timers(server, sid):
-    """Was: cut after the request idle time (here 1 s; 5.1 s by default) with close 1002, the
+    """Rules out: cut after the request idle time (here 1 s; 5.1 s by default) with close 1002, the
     upgrade request's 408 written into the WebSocket stream."""
     answers = 0
     with ws_connect(ws_url(server, sid), open_timeout=10) as ws:
@@ -113,7 +113,7 @@ def test_an_idle_websocket_is_closed_with_1001(server, sid):
 
 # ---- 2. connection slots through the upgrade ---------------------------------------------------------------
 def test_websockets_hold_their_connection_slot_while_open_and_give_it_back(server, sid):
-    """Was: the slot was given back by the h11 protocol's connection_lost, which never runs after
+    """Rules out: the slot was given back by the h11 protocol's connection_lost, which never runs after
     the upgrade: after 6 WebSockets (31 by default) every request of the address got 429."""
     for _ in range(10):  # more than the cap (6), one after the other
         with ws_connect(ws_url(server, sid), open_timeout=10) as ws:
@@ -195,7 +195,7 @@ def read_frames(sock: socket.socket, within_s: float) -> tuple[int, int | None]:
 
 
 def test_a_flood_of_invalid_messages_is_cut_after_the_burst(server, sid):
-    """Was: 20,000 tiny invalid messages in 0.1 s were each parsed and answered with a 422 while
+    """Rules out: 20,000 tiny invalid messages in 0.1 s were each parsed and answered with a 422 while
     /api/health waited 2.4 s (9.1 s for 60,000)."""
     waits: list[float] = []
     stop = threading.Event()
@@ -228,7 +228,7 @@ def test_a_flood_of_invalid_messages_is_cut_after_the_burst(server, sid):
 
 # ---- 4. answers the client does not take ------------------------------------------------------------------
 def test_an_answer_not_taken_is_abandoned_and_its_bytes_freed(server, sid):
-    """Was: a client that never read its frame held its bytes (a 4096² normal npy frame: ~360 MB)
+    """Rules out: a client that never read its frame held its bytes (a 4096² normal npy frame: ~360 MB)
     for as long as it stayed connected; ten such connections +5.97 GB."""
     sock = socket.socket()
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # before connect: no autotuning
@@ -326,7 +326,7 @@ def read_all(sock: socket.socket) -> bytes:
 
 
 def test_a_stalled_body_is_answered_408_and_closed(guarded):
-    """Was: headers with Content-Length: 100000 and a few bytes held the connection forever."""
+    """Rules out: headers with Content-Length: 100000 and a few bytes held the connection forever."""
     sock = connect(guarded)
     sock.sendall(
         b"PUT /api/sessions/x/scene HTTP/1.1\r\nHost: t\r\ncontent-type: application/json\r\n"
@@ -385,7 +385,7 @@ def test_slow_but_steady_requests_and_kept_alive_connections_are_not_cut(guarded
 
 
 def test_connections_per_client_address_are_bounded(guarded):
-    """Was: 1,100 stalled connections exhausted the descriptors and locked every client out."""
+    """Rules out: 1,100 stalled connections exhausted the descriptors and locked every client out."""
     held = [connect(guarded) for _ in range(6)]
     extra = connect(guarded)
     answer = read_all(extra)

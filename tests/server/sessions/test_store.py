@@ -176,7 +176,7 @@ def assert_store_503(r) -> None:
 
 
 def test_a_store_file_overwritten_with_junk_is_503_and_not_ready(own_store):
-    """Was: 500 "DatabaseError", dropped connections, and /api/ready 200."""
+    """Rules out: 500 "DatabaseError", dropped connections, and /api/ready 200."""
     c, path = own_store
     assert wait_ready_status(c, 200)["status"] == 200
     sid = new_session(c)["id"]
@@ -190,7 +190,7 @@ def test_a_store_file_overwritten_with_junk_is_503_and_not_ready(own_store):
 
 
 def test_a_deleted_store_file_refuses_writes_instead_of_losing_them(own_store):
-    """Was: writes acknowledged after the file was deleted, gone at the restart."""
+    """Rules out: writes acknowledged after the file was deleted, gone at the restart."""
     c, path = own_store
     sid = new_session(c)["id"]
     for suffix in ("", "-wal", "-shm"):
@@ -204,7 +204,8 @@ def test_a_deleted_store_file_refuses_writes_instead_of_losing_them(own_store):
 
 
 def test_a_corrupt_store_file_at_start_up_is_moved_aside_or_refused(tmp_path):
-    """Was: the process exited (a traceback). Now a setting says which; neither loses the file."""
+    """Rules out: the process exiting with a traceback. A setting says which of the two happens;
+    neither loses the file."""
     path = tmp_path / "sessions.sqlite3"
     path.write_bytes(b"this is not a database, it is junk" * 100)
     with pytest.raises(StoreStartupError) as e:
@@ -260,7 +261,7 @@ def test_store_failures_of_every_kind_are_503_never_500(own_store, monkeypatch):
 
 
 def test_redis_change_retries_are_capped_and_end_in_503(redis_url):
-    """Was: a WATCH conflict retried forever."""
+    """Rules out: a WATCH conflict retried forever."""
     import redis
 
     store = RedisStore(redis_url, ttl_s=60, prefix=f"capped-{time.monotonic_ns()}:", max_retries=2)
@@ -285,7 +286,7 @@ def test_redis_change_retries_are_capped_and_end_in_503(redis_url):
 
 
 def test_a_redis_read_refreshes_the_ttl_in_one_command(redis_url):
-    """Was: a MULTI/EXEC transaction (two PEXPIREs) per read past the touch interval."""
+    """Rules out: a MULTI/EXEC transaction (two PEXPIREs) per read past the touch interval."""
     import redis
 
     store = RedisStore(redis_url, ttl_s=3600, prefix=f"getex-{time.monotonic_ns()}:", touch_interval_s=60)

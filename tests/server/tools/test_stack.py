@@ -150,7 +150,7 @@ def test_a_stopping_process_drains_its_readiness_fails_at_once_and_the_balancer_
 
 
 def test_the_render_processes_run_without_the_per_client_cap_which_the_balancer_keeps(stack):
-    """Was: each render process capped "client" 127.0.0.1 — the balancer, i.e. every client at once — at
+    """Rules out: each render process capped "client" 127.0.0.1 — the balancer, i.e. every client at once — at
     32 connections: 80 clients through the balancer made both answer 429 and HAProxy eject them."""
     port = stack.renders[0].port
     conns = [socket.create_connection(("127.0.0.1", port), timeout=10) for _ in range(48)]  # > 32, one address
@@ -173,7 +173,7 @@ def stack_short_redis_timeout(tmp_path):
 
 
 def test_a_stalled_redis_is_the_services_json_503_and_no_process_leaves_the_balancer(stack_short_redis_timeout):
-    """Was: /api/ready probed Redis, so a stalled Redis failed every process's health check at once, HAProxy
+    """Rules out: /api/ready probed Redis, so a stalled Redis failed every process's health check at once, HAProxy
     ejected them all and answered its own HTML 503 without Retry-After; a request hung for 10 s."""
     stack = stack_short_redis_timeout
     with httpx.Client(base_url=stack.url, timeout=5) as c:

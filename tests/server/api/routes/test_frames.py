@@ -207,7 +207,7 @@ def distance(camera: dict) -> float:
 
 @pytest.mark.parametrize("method", CONE_METHODS)
 def test_a_refused_gesture_frame_moves_no_camera(client, method):
-    """Was: 422 "mode 'cones' is not available with method 'bih'" after the pan was committed."""
+    """Rules out: 422 "mode 'cones' is not available with method 'bih'" after the pan was committed."""
     sid = new_session(client)["id"]
     before = state_of(client, sid)
     r = client.post(
@@ -221,7 +221,7 @@ def test_a_refused_gesture_frame_moves_no_camera(client, method):
 
 
 def test_a_timed_out_gesture_frame_retried_as_told_moves_the_camera_once(ready_client, monkeypatch):
-    """Was: the 503 came after the gesture was committed, so the retry applied it twice."""
+    """Rules out: the 503 came after the gesture was committed, so the retry applied it twice."""
     c = ready_client
     service = c.app.state.service
     sid = new_session(c)["id"]
@@ -281,7 +281,7 @@ def test_a_method_without_meshes_on_gpu_is_refused_with_422_meshes(api, monkeypa
     sid = create(api, mesh_scene_json(), method="bvh").json()["id"]
     r = api.get(f"/api/sessions/{sid}/frame")
     assert_422_msgs(r, "meshes")
-    assert "'bvh'" in r.text and "bih, bruteforce" in r.text
+    assert "'bvh'" in r.text and "trace meshes are bih, bruteforce, kdtree, twolevel, auto" in r.text
     assert_422_msgs(api.get(f"/api/sessions/{sid}/device-data"), "meshes")
     assert_422_msgs(
         api.post("/api/render", json={"scene": mesh_scene_json(), "settings": {**SMALL, "method": "bvh"}}), "meshes"

@@ -17,7 +17,7 @@ def test_health_ready_info(ready_client):
     assert body["ready"] is True and body["gl_renderer"] and body["gl_version"]
     info = c.get("/api/info").json()
     assert "bih" in info["methods"] and info["limits"]["max_work"] == 96 * 128 * 2
-    # What the client's form needs to show only the settings that apply (issue #19).
+    # What the client's form needs to show only the settings that apply.
     ms = info["method_settings"]
     assert set(ms) == set(info["methods"])
     # (integrator: the one-pass methods trace paths too; the ray engines do not)
@@ -41,6 +41,15 @@ def test_info_gives_the_legend_the_colors_of_the_modes(client):
     assert [c["name"] for c in info["recursion_colors"]] == list(RECURSION_COLOR_NAMES)
     assert info["recursion_colors"][0] == {"rgb": [0.0, 0.0, 0.0], "name": "black"}  # level 0: a miss
     assert info["heat_scale"] == HEAT_SCALE
+
+
+def test_info_labels_each_method_as_it_is_declared(client):
+    """The client's method picker shows these labels: each is the method's own (and auto's)."""
+    from renderer.methods import AUTO_LABEL, AUTO_METHOD, METHODS
+
+    labels = {n: x["label"] for n, x in client.get("/api/info").json()["method_settings"].items()}
+    assert labels == {**{n: m.label for n, m in METHODS.items()}, AUTO_METHOD: AUTO_LABEL}
+    assert labels["bih"] == "BIH (thesis)" and len(set(labels.values())) == len(labels)
 
 
 def test_info_hands_out_the_measured_profiles(client):

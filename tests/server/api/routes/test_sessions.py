@@ -287,7 +287,7 @@ def test_session_change_rejected_changes_nothing(client, sid, method, path, kw, 
 
 
 def test_patch_and_create_refuse_a_mode_the_method_cannot_draw(client):
-    """Was: accepted, and every later frame of the session failed."""
+    """Rules out: accepted, and every later frame of the session failed."""
     sid = new_session(client)["id"]
     before = state_of(client, sid)
     assert_422_listing(client.patch(f"/api/sessions/{sid}/settings", json={"mode": "cones"}), "mode")
