@@ -25,7 +25,7 @@ def flat_guides() -> tuple[np.ndarray, np.ndarray]:
 def test_a_flat_image_stays_flat():
     albedo, normal = flat_guides()
     image = np.full((H, W, 3), 2.5, np.float32)
-    out = atrous(image, albedo, normal, 16)
+    out = atrous(image, albedo, normal)
     assert out.dtype == np.float32 and out.shape == image.shape
     np.testing.assert_allclose(out, image, rtol=1e-6)
 
@@ -34,7 +34,7 @@ def test_noise_is_smoothed_where_the_guides_agree():
     albedo, normal = flat_guides()
     rng = np.random.default_rng(1)
     image = (0.5 + 0.05 * rng.standard_normal((H, W, 3))).astype(np.float32)
-    out = atrous(image, albedo, normal, 16)
+    out = atrous(image, albedo, normal)
     assert out.std() < 0.3 * image.std(), (out.std(), image.std())
     assert abs(float(out.mean()) - float(image.mean())) < 0.01
 
@@ -45,8 +45,8 @@ def test_an_edge_of_the_normal_guide_stays_sharp():
     image[:, W // 2 :] = 0.6
     turned = normal.copy()
     turned[:, W // 2 :] = (1.0, 0.0, 0.0)  # another face of the scene
-    kept = atrous(image, albedo, turned, 16)
-    blurred = atrous(image, albedo, normal, 16)  # the same step with nothing telling the faces apart
+    kept = atrous(image, albedo, turned)
+    blurred = atrous(image, albedo, normal)  # the same step with nothing telling the faces apart
     step = slice(W // 2 - 1, W // 2 + 1)
     assert np.abs(kept[:, step] - image[:, step]).max() < 1e-3
     assert np.abs(blurred[:, step] - image[:, step]).max() > 0.02
@@ -67,5 +67,5 @@ def test_the_servers_atrous_frame_is_the_filter_of_its_mean_and_guides(gl_render
     assert traced.guides is not None, "denoise=atrous traces the guides' variant"
     out = denoise_result(traced, scene, "atrous")
     assert out.stats["denoise"] == "atrous" and out.samples == traced.samples
-    np.testing.assert_array_equal(out.image, np.maximum(atrous(traced.image, *traced.guides, traced.samples), 0.0))
+    np.testing.assert_array_equal(out.image, np.maximum(atrous(traced.image, *traced.guides), 0.0))
     assert not np.array_equal(out.image, traced.image)
