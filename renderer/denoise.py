@@ -95,7 +95,7 @@ def denoise_result(result: RenderResult, scene: Scene, denoiser: str) -> RenderR
         albedo = first_hit_albedo(scene, result.primid)
         normal = np.ascontiguousarray(result.normal, np.float32)
     if denoiser == "atrous":
-        image = atrous(color, albedo, normal)
+        image = atrous(color, albedo, normal, result.samples or 1)  # a path frame says its samples
     else:
         image = oidn(color, albedo, normal)
     np.maximum(image, 0.0, out=image)  # (its own array: no copy of the frame's size)

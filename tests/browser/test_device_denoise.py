@@ -53,7 +53,7 @@ def filtered(device_page, server) -> dict:
 
 
 def test_the_glsl_filter_is_the_numpy_port(filtered):
-    mine = atrous(filtered["radiance"], filtered["albedo"], filtered["normal"])
+    mine = atrous(filtered["radiance"], filtered["albedo"], filtered["normal"], 16)
     got = filtered["denoised"]
     # float32 on both sides, exp() and the sums' order differ: relative 1e-4 of the image's scale.
     scale = float(np.abs(mine).max())
@@ -161,7 +161,7 @@ def test_the_resting_view_shows_each_mean_filtered_with_a_denoiser(gl_browser, s
             k: np.frombuffer(base64.b64decode(rb[k]), np.float32).reshape(side, side, 3)
             for k in ("radiance", "albedo", "normal", "denoised")
         }
-        mine = atrous(arrays["radiance"], arrays["albedo"], arrays["normal"])
+        mine = atrous(arrays["radiance"], arrays["albedo"], arrays["normal"], spp)
         assert np.abs(arrays["denoised"] - mine).max() <= 1e-4 * float(np.abs(mine).max())
         shown = np.frombuffer(base64.b64decode(rb["color"]), np.uint8).reshape(side, side, 3)
         diff = np.abs(shown.astype(int) - display_u8(arrays["denoised"], "clamp", 0.0).astype(int))

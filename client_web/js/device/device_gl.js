@@ -132,14 +132,15 @@ void main() {
   }
 }`;
 
-// renderer/atrous.py's filter: ATROUS_PRE_FS demodulates the resolved mean by the albedo guide
-// (at least u_albedo_floor), measures each pixel's compressed luminance's mean and variance over
-// the alike pixels of its 5 × 5 neighbourhood (about its own value; weight exp(−|Δn|²/σ_n² − |Δa|²/σ_a²)) and scales a
-// firefly down to μ + k·√v; → (lighting, variance). ATROUS_FS is one pass (step u_step): the 5 × 5
-// B3-spline kernel with holes, each tap weighted by exp(−|Δn|²/σ_n² − |Δa|²/σ_a² − |l_p−l_q| / (σ_l·√v_p)),
-// taps outside the image left out, Σ w·d / Σ w and the variance Σ w²·v / (Σ w)²; the last pass
-// multiplies the albedo back. The σ's (1/σ² and 1/σ_l here), the kernel and the floors come from
-// the data's header (path.atrous): declared once.
+// renderer/atrous.py's filter. ATROUS_PRE_FS demodulates the resolved mean by the albedo guide (at
+// least u_albedo_floor) and measures each pixel's compressed luminance over the alike pixels around
+// it (weight exp(−|Δn|²/σ_n² − |Δa|²/σ_a²), itself left out, about its own value): the variance, the
+// least of the four 3 × 3 quadrants meeting at it, and a firefly scaled down to μ + k·√v of the whole
+// 5 × 5: → (lighting, variance). ATROUS_FS is one pass (step u_step): the 5 × 5 B3-spline kernel with
+// holes, each tap weighted by exp(−|Δn|²/σ_n² − |Δa|²/σ_a² − |l_p−l_q| / (σ_l·√v_p)) (σ_l narrowed
+// past noise_samples samples), taps outside the image left out, Σ w·d / Σ w and the variance
+// Σ w²·v / (Σ w)²; the last pass multiplies the albedo back. The σ's (1/σ² and 1/σ_l here), the
+// kernel and the floors come from the data's header (path.atrous): declared once.
 const ATROUS_COMMON = `#version 300 es
 precision highp float;
 precision highp int;
@@ -167,28 +168,37 @@ vec3 demodulated(sampler2D color, ivec2 q) {
 const ATROUS_PRE_FS = `${ATROUS_COMMON}
 uniform highp sampler2D u_color;
 uniform float u_firefly_sigmas;
+float moments_variance(vec3 m) {
+  if (m.x <= 0.0) return 0.0;
+  float n = max(m.x, 1e-30), mean = m.y / n;
+  return max(m.z / n - mean * mean, 0.0);
+}
 void main() {
   ivec2 p = ivec2(gl_FragCoord.xy);
   ivec2 size = textureSize(u_color, 0);
   vec3 d = demodulated(u_color, p);
   float lp = compressed_luminance(d);
-  float s0 = 0.0, s1 = 0.0, s2 = 0.0;
+  vec3 quadrant[4];  // (Σw, Σw·l, Σw·l²) of the 3 × 3 quadrants meeting at p (bit 1: dx ≥ 0, bit 2: dy ≥ 0)
+  for (int k = 0; k < 4; k++) quadrant[k] = vec3(0.0);
+  vec3 every = vec3(0.0);
   for (int dy = -2; dy <= 2; dy++) {
     for (int dx = -2; dx <= 2; dx++) {
       ivec2 q = p + ivec2(dx, dy);
-      if (q.x < 0 || q.y < 0 || q.x >= size.x || q.y >= size.y) continue;
+      if ((dx == 0 && dy == 0) || q.x < 0 || q.y < 0 || q.x >= size.x || q.y >= size.y) continue;
       float w = exp(-guide_distance(p, q));
       float l = compressed_luminance(demodulated(u_color, q)) - lp;
-      s0 += w;
-      s1 += w * l;
-      s2 += w * l * l;
+      vec3 term = vec3(w, w * l, w * l * l);
+      for (int k = 0; k < 4; k++) {
+        if (dy * ((k & 2) != 0 ? 1 : -1) >= 0 && dx * ((k & 1) != 0 ? 1 : -1) >= 0) quadrant[k] += term;
+      }
+      every += term;
     }
   }
-  float offset = s1 / s0;
-  float variance = max(s2 / s0 - offset * offset, 0.0);
-  float top = min(lp + offset + u_firefly_sigmas * sqrt(variance), 0.999);
-  float l = lp;
-  if (l > top) d *= (top / (1.0 - top)) / max(l / (1.0 - l), 1e-30);
+  float variance = moments_variance(quadrant[0]);
+  for (int k = 1; k < 4; k++) variance = min(variance, moments_variance(quadrant[k]));
+  float offset = every.x > 0.0 ? every.y / max(every.x, 1e-30) : 0.0;
+  float top = min(lp + offset + u_firefly_sigmas * sqrt(moments_variance(every)), 0.999);
+  if (lp > top) d *= (top / (1.0 - top)) / max(lp / (1.0 - lp), 1e-30);
   o_color = vec4(d, variance);
 }`;
 const ATROUS_FS = `${ATROUS_COMMON}
@@ -597,7 +607,9 @@ export class DeviceRenderer {
     const prog = this.program(QUAD_VS, ATROUS_FS);
     common(prog);
     gl.uniform1fv(prog.uniforms.get('u_kernel').loc, new Float32Array(f.kernel));
-    gl.uniform1f(prog.uniforms.get('u_inv_luminance').loc, 1 / f.sigma_luminance);
+    // renderer/atrous.py's luminance_sigma: σ_l·√(noise_samples / samples) past noise_samples.
+    const sigma = f.sigma_luminance * Math.min(1, Math.sqrt(f.noise_samples / Math.max(1, trace.samplesDone)));
+    gl.uniform1f(prog.uniforms.get('u_inv_luminance').loc, 1 / sigma);
     gl.uniform1f(prog.uniforms.get('u_sqrt_variance_floor').loc, Math.sqrt(f.variance_floor));
     for (let i = 0; i < f.iterations; i++) {
       dst = this._targets(w, h, `atrous${(i + 1) % 2}`, 1);
