@@ -115,9 +115,8 @@ def numpy_table(reference_spp: int) -> None:
             cells = [f"{psnr(x, reference):.2f} / {ssim(x, reference):.3f}" for x in images]
             print(f"| {spp} | " + " | ".join(cells) + " |", flush=True)
         moved = [psnr(f(reference, albedo, normal, reference_spp), reference) for f in (before, atrous)]
-        print(
-            f"\nthe {reference_spp:,}-sample mean filtered, against itself: {BEFORE} {moved[0]:.1f} dB, now {moved[1]:.1f} dB"
-        )
+        said = f"{BEFORE} {moved[0]:.1f} dB, now {moved[1]:.1f} dB"
+        print(f"\nthe {reference_spp:,}-sample mean filtered, against itself: {said}")
     print(f"\nload average {load0:.1f} → {os.getloadavg()[0]:.1f} (2 cores shared)")
 
 
