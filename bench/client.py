@@ -400,15 +400,20 @@ def rest_convergence(browser, url: str, query: str, watch_s: float = 90.0) -> di
         ctx.close()
 
 
-def picker_scenes(browser, url: str, timeout_ms: float = 600_000) -> list[dict]:
-    """Every scene of the picker (renderer/scenarios.py's DEMO_SCENES) opened by its link on the phone
-    viewport with nothing else asked: the integrator the session opened with, the size of its first full
-    frame, the page's notices and errors, and the time from the navigation to that frame."""
+def picker_scenes(
+    browser, url: str, timeout_ms: float = 600_000, only: tuple[str, ...] = (), extra: str = ""
+) -> list[dict]:
+    """Every scene of the picker (renderer/scenarios.py's DEMO_SCENES; ``only``: these values) opened by
+    its link on the phone viewport with nothing else asked (``extra``: more of the query): the integrator
+    the session opened with, the size of its first full frame, the page's notices and errors, and the
+    time from the navigation to that frame."""
     from renderer.scenarios import DEMO_SCENES
 
     rows = []
     for d in DEMO_SCENES:
-        ctx, page = phone_page(browser, url, f"scenario={urllib.parse.quote(str(d.value))}")
+        if only and str(d.value) not in only:
+            continue
+        ctx, page = phone_page(browser, url, f"scenario={urllib.parse.quote(str(d.value))}{extra}")
         try:
             row: dict = {"scene": str(d.value), "intended": d.settings.get("integrator", "whitted")}
             try:
