@@ -19,6 +19,7 @@ Quick mode: scenario 1 opened at 96 × 160 only.
 
 from __future__ import annotations
 
+import json
 import os
 from typing import Any
 
@@ -67,6 +68,15 @@ def _s(x: Any, digits: int = 1) -> str:
     return "—" if x is None else f"{x:,.{digits}f}"
 
 
+def _notice(raw: str) -> str:
+    """A notice the page logged ({"text", "kind"} as JSON, or its text) as "kind: text"."""
+    try:
+        n = json.loads(raw)
+    except ValueError:
+        return raw
+    return f"{n.get('kind', 'info')}: {n.get('text', '')}" if isinstance(n, dict) else raw
+
+
 def _load(la: Any) -> str:
     return "—" if not la else " / ".join(f"{x:.1f}" for x in la)
 
@@ -96,8 +106,8 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
             "**At rest, the phone's fit resolution, default settings** (`rest_convergence`: path, OIDN, "
             "`refine_samples` 256, `refine_time_ms` 0 — the stream stops at its samples or the next change, "
             "within the service's `POCKETRAY_MAX_REFINE_MS` of GL time). *256 at*: the time the samples "
-            "reached so far extrapolate to at their mean rate (the rate of the later samples, at the same "
-            "size, is the same: each refinement part adds samples of the same cost).\n\n"
+            "reached so far extrapolate to at their mean rate, if the later samples cost what these did "
+            "at the same load (the first image and the first full frame included: a little early).\n\n"
             + md_table(
                 ["page", "size", "first image s", "first full s", "samples reached", "done", "256 at", "load 1/5/15"],
                 rows,
@@ -168,7 +178,7 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     if picker:
         rows = []
         for r in picker:
-            notices = "; ".join(n for n in r.get("notices") or [])
+            notices = "; ".join(_notice(n) for n in r.get("notices") or [])
             rows.append(
                 [
                     f"`{r['scene']}`",
