@@ -54,6 +54,7 @@ ATROUS_SIGMA_NORMAL = 0.2  # the normal guide's difference (unit normals: 0 … 
 ATROUS_SIGMA_ALBEDO = 0.2  # the albedo guide's difference
 ATROUS_SIGMA_LUMINANCE = 8.0  # the compressed luminance's difference, in standard deviations of its noise …
 ATROUS_NOISE_SAMPLES = 8  # … up to this many samples (× √(this / samples) for more)
+ATROUS_QUADRANT_WEIGHT = 2.5  # a quadrant counts when its 8 pixels weigh more than two alike ones
 ATROUS_FIREFLY_SIGMAS = 3.0  # a pixel's luminance at most this many standard deviations over its neighbours'
 ATROUS_ALBEDO_FLOOR = 0.02  # demodulation divides by the albedo, at least this (a black surface, a miss)
 ATROUS_VARIANCE_FLOOR = 1e-8  # √ of it added to σ_l·√v: a noiseless flat region divides by no zero
@@ -137,10 +138,15 @@ def _moments(d: np.ndarray, guides: np.ndarray) -> tuple[np.ndarray, np.ndarray]
                         total[ys, xs] += term
             for total, term in zip(every, terms, strict=True):
                 total[ys, xs] += term
+    # A quadrant of fewer alike pixels than ATROUS_QUADRANT_WEIGHT (cut by the image's border, or
+    # across a guide's edge) is no candidate: two pixels' variance is often near 0 by chance, and the
+    # least of the four would then stop all smoothing; with no candidate, the whole neighbourhood's.
     variance = np.full((h, w), np.inf, np.float32)
+    floor = np.float32(ATROUS_QUADRANT_WEIGHT)
     for s0, s1, s2 in quadrants:
-        variance = np.minimum(variance, _variance(s0, s1, s2))
+        variance = np.minimum(variance, np.where(s0 >= floor, _variance(s0, s1, s2), np.float32(np.inf)))
     s0, s1, s2 = every
+    variance = np.where(np.isinf(variance), _variance(s0, s1, s2), variance).astype(np.float32)
     offset = np.where(s0 > 0, s1 / np.maximum(s0, np.float32(1e-30)), np.float32(0.0))
     spread = np.float32(ATROUS_FIREFLY_SIGMAS) * np.sqrt(_variance(s0, s1, s2))
     top = np.minimum(lum + offset + spread, np.float32(0.999))
@@ -170,6 +176,7 @@ def parameters() -> dict[str, object]:
         "sigma_luminance": ATROUS_SIGMA_LUMINANCE,
         "noise_samples": ATROUS_NOISE_SAMPLES,
         "firefly_sigmas": ATROUS_FIREFLY_SIGMAS,
+        "quadrant_weight": ATROUS_QUADRANT_WEIGHT,
         "albedo_floor": ATROUS_ALBEDO_FLOOR,
         "variance_floor": ATROUS_VARIANCE_FLOOR,
         "luminance": list(LUMINANCE),

@@ -112,3 +112,13 @@ def test_a_converged_image_is_left_alone():
     image = np.repeat((0.2 + 0.6 * xx / W + 0.3 * (yy > H // 2))[..., None], 3, axis=2).astype(np.float32)
     out = atrous(image, albedo, normal, 1024)
     assert np.abs(out - image).max() < 0.02 * float(image.max()), float(np.abs(out - image).max())
+
+
+def test_the_corners_are_smoothed_as_the_rest():
+    """A corner pixel's quadrant toward the outside holds no pixel: it measures no noise (0)."""
+    albedo, normal = flat_guides()
+    rng = np.random.default_rng(5)
+    image = (0.5 + 0.05 * rng.standard_normal((H, W, 3))).astype(np.float32)
+    out = atrous(image, albedo, normal, 16)
+    corners = out[[0, 0, -1, -1], [0, -1, 0, -1]]
+    assert np.abs(corners - 0.5).max() < 0.3 * np.abs(image - 0.5).max(), corners

@@ -168,6 +168,7 @@ vec3 demodulated(sampler2D color, ivec2 q) {
 const ATROUS_PRE_FS = `${ATROUS_COMMON}
 uniform highp sampler2D u_color;
 uniform float u_firefly_sigmas;
+uniform float u_quadrant_weight;
 float moments_variance(vec3 m) {
   if (m.x <= 0.0) return 0.0;
   float n = max(m.x, 1e-30), mean = m.y / n;
@@ -194,8 +195,16 @@ void main() {
       every += term;
     }
   }
-  float variance = moments_variance(quadrant[0]);
-  for (int k = 1; k < 4; k++) variance = min(variance, moments_variance(quadrant[k]));
+  // (a quadrant weighing less than u_quadrant_weight — cut by the border or a guide's edge — is no
+  // candidate; with none, the whole neighbourhood's)
+  float variance = -1.0;
+  for (int k = 0; k < 4; k++) {
+    if (quadrant[k].x >= u_quadrant_weight) {
+      float v = moments_variance(quadrant[k]);
+      variance = variance < 0.0 ? v : min(variance, v);
+    }
+  }
+  if (variance < 0.0) variance = moments_variance(every);
   float offset = every.x > 0.0 ? every.y / max(every.x, 1e-30) : 0.0;
   float top = min(lp + offset + u_firefly_sigmas * sqrt(moments_variance(every)), 0.999);
   if (lp > top) d *= (top / (1.0 - top)) / max(lp / (1.0 - lp), 1e-30);
@@ -597,6 +606,7 @@ export class DeviceRenderer {
     const pre = this.program(QUAD_VS, ATROUS_PRE_FS);
     common(pre);
     gl.uniform1f(pre.uniforms.get('u_firefly_sigmas').loc, f.firefly_sigmas);
+    gl.uniform1f(pre.uniforms.get('u_quadrant_weight').loc, f.quadrant_weight);
     let dst = this._targets(w, h, 'atrous0', 1);
     gl.bindFramebuffer(gl.FRAMEBUFFER, dst.fbo);
     let units = [['u_color', resolved.tex[0]], ...guides];
