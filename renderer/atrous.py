@@ -15,8 +15,8 @@ frames too. Both work in float32.
 2. **Variance and fireflies** (one pass). Each pixel's luminance l, compressed as y/(1+y) so
    that one width means the same at any exposure, is compared with the pixels around it that its
    guides call alike (weight exp(−|g_p−g_q|²), the pixel itself left out). Its variance v is the
-   least of the four 3 × 3 quadrants of its 5 × 5 neighbourhood that meet at the pixel and hold
-   more than two alike pixels: one of them lies on the pixel's side of an edge or a pattern that
+   least of the four 3 × 3 quadrants of its 5 × 5 neighbourhood that meet at the pixel (and that
+   the image's border leaves more than two pixels): one of them lies on the pixel's side of an edge or a pattern that
    the guides do not show (a mirror's reflection, a shadow), so v measures the noise, not the
    detail. A pixel brighter than the
    neighbourhood's μ + ``ATROUS_FIREFLY_SIGMAS``·√v is scaled down to it (a path that found a
@@ -55,7 +55,7 @@ ATROUS_SIGMA_NORMAL = 0.2  # the normal guide's difference (unit normals: 0 … 
 ATROUS_SIGMA_ALBEDO = 0.2  # the albedo guide's difference
 ATROUS_SIGMA_LUMINANCE = 8.0  # the compressed luminance's difference, in standard deviations of its noise …
 ATROUS_NOISE_SAMPLES = 8  # … up to this many samples (× √(this / samples) for more)
-ATROUS_QUADRANT_WEIGHT = 2.5  # a quadrant counts when its 8 pixels weigh more than two alike ones
+ATROUS_QUADRANT_PIXELS = 3  # a quadrant of the noise estimate counts with this many pixels in the image
 ATROUS_FIREFLY_SIGMAS = 3.0  # a pixel's luminance at most this many standard deviations over its neighbours'
 ATROUS_ALBEDO_FLOOR = 0.02  # demodulation divides by the albedo, at least this (a black surface, a miss)
 ATROUS_VARIANCE_FLOOR = 1e-8  # √ of it added to σ_l·√v: a noiseless flat region divides by no zero
@@ -121,7 +121,8 @@ def _moments(d: np.ndarray, guides: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     h, w = d.shape[:2]
     lum = _compressed_luminance(d)
     zero = np.zeros((h, w), np.float32)
-    quadrants = [[zero.copy(), zero.copy(), zero.copy()] for _ in range(4)]
+    # per quadrant Σw, Σw·l, Σw·l² and its pixels inside the image
+    quadrants = [[zero.copy(), zero.copy(), zero.copy(), zero.copy()] for _ in range(4)]
     every = [zero.copy(), zero.copy(), zero.copy()]
     for dy in range(-2, 3):
         for dx in range(-2, 3):
@@ -135,17 +136,18 @@ def _moments(d: np.ndarray, guides: np.ndarray) -> tuple[np.ndarray, np.ndarray]
             terms = (wt, wt * lq, wt * lq * lq)
             for k, sums in enumerate(quadrants):
                 if dy * (1 if k & 2 else -1) >= 0 and dx * (1 if k & 1 else -1) >= 0:
-                    for total, term in zip(sums, terms, strict=True):
+                    for total, term in zip(sums, terms, strict=False):
                         total[ys, xs] += term
+                    sums[3][ys, xs] += np.float32(1.0)
             for total, term in zip(every, terms, strict=True):
                 total[ys, xs] += term
-    # A quadrant of fewer alike pixels than ATROUS_QUADRANT_WEIGHT (cut by the image's border, or
-    # across a guide's edge) is no candidate: two pixels' variance is often near 0 by chance, and the
-    # least of the four would then stop all smoothing; with no candidate, the whole neighbourhood's.
+    # A quadrant that the image's border cuts to fewer than ATROUS_QUADRANT_PIXELS pixels is no
+    # candidate: two pixels' variance is often near 0 by chance, and the least of the four would
+    # then stop all smoothing along the border; with no candidate, the whole neighbourhood's.
     variance = np.full((h, w), np.inf, np.float32)
-    floor = np.float32(ATROUS_QUADRANT_WEIGHT)
-    for s0, s1, s2 in quadrants:
-        variance = np.minimum(variance, np.where(s0 >= floor, _variance(s0, s1, s2), np.float32(np.inf)))
+    for s0, s1, s2, inside in quadrants:
+        fits = inside >= np.float32(ATROUS_QUADRANT_PIXELS)
+        variance = np.minimum(variance, np.where(fits, _variance(s0, s1, s2), np.float32(np.inf)))
     s0, s1, s2 = every
     variance = np.where(np.isinf(variance), _variance(s0, s1, s2), variance).astype(np.float32)
     offset = np.where(s0 > 0, s1 / np.maximum(s0, np.float32(1e-30)), np.float32(0.0))
@@ -177,7 +179,7 @@ def parameters() -> dict[str, object]:
         "sigma_luminance": ATROUS_SIGMA_LUMINANCE,
         "noise_samples": ATROUS_NOISE_SAMPLES,
         "firefly_sigmas": ATROUS_FIREFLY_SIGMAS,
-        "quadrant_weight": ATROUS_QUADRANT_WEIGHT,
+        "quadrant_pixels": ATROUS_QUADRANT_PIXELS,
         "albedo_floor": ATROUS_ALBEDO_FLOOR,
         "variance_floor": ATROUS_VARIANCE_FLOOR,
         "luminance": list(LUMINANCE),

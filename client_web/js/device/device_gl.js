@@ -168,7 +168,7 @@ vec3 demodulated(sampler2D color, ivec2 q) {
 const ATROUS_PRE_FS = `${ATROUS_COMMON}
 uniform highp sampler2D u_color;
 uniform float u_firefly_sigmas;
-uniform float u_quadrant_weight;
+uniform float u_quadrant_pixels;
 float moments_variance(vec3 m) {
   if (m.x <= 0.0) return 0.0;
   float n = max(m.x, 1e-30), mean = m.y / n;
@@ -179,8 +179,11 @@ void main() {
   ivec2 size = textureSize(u_color, 0);
   vec3 d = demodulated(u_color, p);
   float lp = compressed_luminance(d);
-  vec3 quadrant[4];  // (Σw, Σw·l, Σw·l²) of the 3 × 3 quadrants meeting at p (bit 1: dx ≥ 0, bit 2: dy ≥ 0)
-  for (int k = 0; k < 4; k++) quadrant[k] = vec3(0.0);
+  // (Σw, Σw·l, Σw·l²) of the 3 × 3 quadrants meeting at p (bit 1: dx ≥ 0, bit 2: dy ≥ 0), and their
+  // pixels inside the image
+  vec3 quadrant[4];
+  float inside[4];
+  for (int k = 0; k < 4; k++) { quadrant[k] = vec3(0.0); inside[k] = 0.0; }
   vec3 every = vec3(0.0);
   for (int dy = -2; dy <= 2; dy++) {
     for (int dx = -2; dx <= 2; dx++) {
@@ -190,16 +193,19 @@ void main() {
       float l = compressed_luminance(demodulated(u_color, q)) - lp;
       vec3 term = vec3(w, w * l, w * l * l);
       for (int k = 0; k < 4; k++) {
-        if (dy * ((k & 2) != 0 ? 1 : -1) >= 0 && dx * ((k & 1) != 0 ? 1 : -1) >= 0) quadrant[k] += term;
+        if (dy * ((k & 2) != 0 ? 1 : -1) >= 0 && dx * ((k & 1) != 0 ? 1 : -1) >= 0) {
+          quadrant[k] += term;
+          inside[k] += 1.0;
+        }
       }
       every += term;
     }
   }
-  // (a quadrant weighing less than u_quadrant_weight — cut by the border or a guide's edge — is no
-  // candidate; with none, the whole neighbourhood's)
+  // (a quadrant the border cuts to fewer than u_quadrant_pixels pixels is no candidate; with none,
+  // the whole neighbourhood's)
   float variance = -1.0;
   for (int k = 0; k < 4; k++) {
-    if (quadrant[k].x >= u_quadrant_weight) {
+    if (inside[k] >= u_quadrant_pixels) {
       float v = moments_variance(quadrant[k]);
       variance = variance < 0.0 ? v : min(variance, v);
     }
@@ -606,7 +612,7 @@ export class DeviceRenderer {
     const pre = this.program(QUAD_VS, ATROUS_PRE_FS);
     common(pre);
     gl.uniform1f(pre.uniforms.get('u_firefly_sigmas').loc, f.firefly_sigmas);
-    gl.uniform1f(pre.uniforms.get('u_quadrant_weight').loc, f.quadrant_weight);
+    gl.uniform1f(pre.uniforms.get('u_quadrant_pixels').loc, f.quadrant_pixels);
     let dst = this._targets(w, h, 'atrous0', 1);
     gl.bindFramebuffer(gl.FRAMEBUFFER, dst.fbo);
     let units = [['u_color', resolved.tex[0]], ...guides];
