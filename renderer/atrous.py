@@ -35,7 +35,7 @@ frames too. Both work in float32.
    counts some of its detail (a gradient) as noise: past ``ATROUS_NOISE_SAMPLES`` samples the
    noise of the mean goes on shrinking as 1/√s while the detail stays, so σ_l shrinks as
    √(ATROUS_NOISE_SAMPLES / s) and a converging image is left more and more alone (the Cornell
-   box's and the table's 1,024-sample means, filtered, stay 50.5 and 46.2 dB from themselves;
+   box's and the table's 1,024-sample means, filtered, stay 52.2 and 47.2 dB from themselves;
    with the one width per sample count, 42.8 and 43.7). Taps outside the image do not count; the
    output is Σ w·d_q / Σ w, so a flat region keeps its radiance exactly.
 """
