@@ -400,6 +400,42 @@ def rest_convergence(browser, url: str, query: str, watch_s: float = 90.0) -> di
         ctx.close()
 
 
+def picker_scenes(
+    browser, url: str, timeout_ms: float = 600_000, only: tuple[str, ...] = (), extra: str = ""
+) -> list[dict]:
+    """Every scene of the picker (renderer/scenarios.py's DEMO_SCENES; ``only``: these values) opened by
+    its link on the phone viewport with nothing else asked (``extra``: more of the query): the integrator
+    the session opened with, the size of its first full frame, the page's notices and errors, and the
+    time from the navigation to that frame."""
+    from renderer.scenarios import DEMO_SCENES
+
+    rows = []
+    for d in DEMO_SCENES:
+        if only and str(d.value) not in only:
+            continue
+        ctx, page = phone_page(browser, url, f"scenario={urllib.parse.quote(str(d.value))}{extra}")
+        try:
+            row: dict = {"scene": str(d.value), "intended": d.settings.get("integrator", "whitted")}
+            try:
+                wait_full(page, 1, timeout_ms)
+                row["opened"] = True
+            except Exception as e:  # a scene that never shows a full frame is the finding itself
+                row["opened"], row["error"] = False, type(e).__name__
+            got = page.evaluate(
+                """() => { const p = window.pocketray; const f = p && p.lastFrame;
+                  return { integrator: p && p.state.render ? p.state.render.integrator : null,
+                           denoise: p && p.state.render ? p.state.render.denoise : null,
+                           size: f ? `${f.width}x${f.height}` : null, level: f ? f.level : null,
+                           t_ms: (window.__shown.find(e => e[1] === 'full') || [null])[0],
+                           notices: (p ? p.notices : []).map(n => typeof n === 'string' ? n : JSON.stringify(n)),
+                           errors: p ? p.errors.map(String) : [] }; }"""
+            )
+            rows.append({**row, **got})
+        finally:
+            ctx.close()
+    return rows
+
+
 # The convergence pages: the Cornell box with the path integrator at an eighth of the fit resolution
 # (503 × 1,088 / 8: the client's smallest preview) so that a reference of 1,024 samples takes a minute
 # on a loaded llvmpipe, refined to 256 samples (no time target short of the service's longest stream).
@@ -408,6 +444,13 @@ CONVERGE_PAGES = {
     "path": f"scenario=mesh:cornell&integrator=path&{CONVERGE_SIZE}&refine_samples=256&refine_time_ms=60000",
     "path, oidn": f"scenario=mesh:cornell&integrator=path&{CONVERGE_SIZE}&refine_samples=256&refine_time_ms=60000"
     "&denoise=oidn",
+}
+# The phone's default settings (the scenes' recommended ones: path, OIDN, refined to 256 samples, no
+# time target of the page's own) at an eighth of the fit resolution: a 1,024-sample reference of each
+# takes minutes on a loaded llvmpipe where the fit resolution's would take hours.
+CONVERGE_DEFAULT_PAGES = {
+    "cornell, defaults": f"scenario=mesh:cornell&{CONVERGE_SIZE}",
+    "table, defaults": f"scenario=mesh:table&{CONVERGE_SIZE}",
 }
 # Every frame shown: its time, level, part, size, samples, the refinement parts so far, and the canvas's
 # pixels (RGBA, kept in the page until read) — the canvas shows the service's tone-mapped image as is.
@@ -487,7 +530,8 @@ def warm(browser, url: str, query: str) -> None:
     ctx = browser.new_context(**PORTRAIT)
     try:
         page = ctx.new_page()
-        page.goto(f"{url}/?{query.replace('refine_samples=256', 'refine_samples=8')}")
+        few = query.replace("refine_samples=256", "refine_samples=8")
+        page.goto(f"{url}/?{few if 'refine_samples=' in few else few + '&refine_samples=8'}")
         wait_full(page, 1)
         wait_refined(page, 1)
     finally:
@@ -571,7 +615,8 @@ def main() -> None:
         "--only",
         default="share,device,server",
         help="parts: share (chrome share), device (drag), server (timelines), dense (4,096 spheres' previews), "
-        "abandon (a drag during a full frame), rest (samples reached at rest)",
+        "abandon (a drag during a full frame), rest (samples reached at rest), picker (every demo scene opened), "
+        "converge (time to 30 dB at an eighth of the fit resolution, default settings)",
     )
     ap.add_argument("--move-s", type=float, default=4.0, help="the long drag's duration (server timelines)")
     ap.add_argument("--rest-s", type=float, default=90.0, help="how long a view is left at rest (--only rest)")
@@ -604,8 +649,23 @@ def main() -> None:
                     out["dense"][name] = server_timeline(browser, url, query, move_s=args.move_s)
             if "abandon" in parts:
                 out["abandon"] = abandon_latency(browser, url, repeats=args.repeats)
+                out["abandon"]["load_average"] = os.getloadavg()
             if "rest" in parts:
-                out["rest"] = {name: rest_convergence(browser, url, q, args.rest_s) for name, q in REST_PAGES.items()}
+                out["rest"] = {}
+                for name, q in REST_PAGES.items():
+                    out["rest"][name] = rest_convergence(browser, url, q, args.rest_s)
+                    out["rest"][name]["load_average"] = os.getloadavg()
+                    print(json.dumps({name: out["rest"][name]}), flush=True)
+            if "picker" in parts:
+                out["picker"] = picker_scenes(browser, url)
+                out["picker_load_average"] = os.getloadavg()
+            if "converge" in parts:
+                out["converge"] = {}
+                refs: dict = {}
+                for name, query in CONVERGE_DEFAULT_PAGES.items():
+                    warm(browser, url, query)
+                    out["converge"][name] = convergence_timeline(browser, url, query, refs=refs)
+                    out["converge"][name]["load_average"] = os.getloadavg()
             if "share" in parts:
                 out["chrome_share"] = {
                     "portrait, scenario 1": chrome_share(browser, url, PORTRAIT, f"scenario=1&n=64&{LAYOUT_QUERY}"),

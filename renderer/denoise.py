@@ -43,7 +43,7 @@ from .scene import Scene
 # - OIDN 2.5.1 (pyoidn, CPU device, quality high, hdr, albedo and normal): 588.0 B/px at 256², 512²,
 #   1024² and 2048² alike — its scratch, 576, and the output image, 12
 #   (``python -m bench.hostile admission_oidn_bytes``);
-# - à-trous (renderer/atrous.py): 216 B/px at 1024², 233 at 512² (its features, sums, weights and
+# - à-trous (renderer/atrous.py): 233 B/px at 1024², 235 at 512² (its guides, sums, weights and
 #   taps' temporaries, float32), rounded up.
 OIDN_BYTES_PER_PIXEL = 576 + 12
 ATROUS_BYTES_PER_PIXEL = 240

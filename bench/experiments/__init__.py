@@ -44,4 +44,5 @@ EXPERIMENTS = (
     "denoise",
     "client",
     "refine",
+    "phone",
 )

@@ -132,46 +132,123 @@ void main() {
   }
 }`;
 
-// renderer/atrous.py's filter, one pass (step u_step): the 5 × 5 B3-spline kernel with holes, each
-// tap weighted by exp(−|c_p−c_q|²/σ_c² − |n_p−n_q|²/σ_n² − |a_p−a_q|²/σ_a²) (c: the colour as
-// c/(1+c); n, a: the normal and albedo guides), taps outside the image left out, Σ w·c / Σ w.
-// The σ's (1/σ² here) and the kernel come from the data's header (path.atrous): declared once.
-const ATROUS_FS = `#version 300 es
+// renderer/atrous.py's filter. ATROUS_PRE_FS demodulates the resolved mean by the albedo guide (at
+// least u_albedo_floor) and measures each pixel's compressed luminance over the alike pixels around
+// it (weight exp(−|Δn|²/σ_n² − |Δa|²/σ_a²), itself left out, about its own value): the variance, the
+// least of the four 3 × 3 quadrants meeting at it, and a firefly scaled down to μ + k·√v of the whole
+// 5 × 5: → (lighting, variance). ATROUS_FS is one pass (step u_step): the 5 × 5 B3-spline kernel with
+// holes, each tap weighted by exp(−|Δn|²/σ_n² − |Δa|²/σ_a² − |l_p−l_q| / (σ_l·√v_p)) (σ_l narrowed
+// past noise_samples samples), taps outside the image left out, Σ w·d / Σ w and the variance
+// Σ w²·v / (Σ w)²; the last pass multiplies the albedo back. The σ's (1/σ² and 1/σ_l here), the
+// kernel and the floors come from the data's header (path.atrous): declared once.
+const ATROUS_COMMON = `#version 300 es
 precision highp float;
 precision highp int;
 precision highp sampler2D;
-uniform highp sampler2D u_color;
 uniform highp sampler2D u_albedo;
 uniform highp sampler2D u_normal;
-uniform int u_step;
-uniform float u_inv_color;
 uniform float u_inv_normal;
 uniform float u_inv_albedo;
-uniform float u_kernel[5];
+uniform float u_albedo_floor;
+uniform vec3 u_luminance;
 layout(location = 0) out vec4 o_color;
+float compressed_luminance(vec3 d) {
+  float y = dot(max(d, vec3(0.0)), u_luminance);
+  return y / (1.0 + y);
+}
+float guide_distance(ivec2 p, ivec2 q) {
+  vec3 dn = texelFetch(u_normal, q, 0).rgb - texelFetch(u_normal, p, 0).rgb;
+  vec3 da = texelFetch(u_albedo, q, 0).rgb - texelFetch(u_albedo, p, 0).rgb;
+  return dot(dn, dn) * u_inv_normal + dot(da, da) * u_inv_albedo;
+}
+vec3 demodulated(sampler2D color, ivec2 q) {
+  return texelFetch(color, q, 0).rgb / max(texelFetch(u_albedo, q, 0).rgb, vec3(u_albedo_floor));
+}
+`;
+const ATROUS_PRE_FS = `${ATROUS_COMMON}
+uniform highp sampler2D u_color;
+uniform float u_firefly_sigmas;
+uniform float u_quadrant_pixels;
+float moments_variance(vec3 m) {
+  if (m.x <= 0.0) return 0.0;
+  float n = max(m.x, 1e-30), mean = m.y / n;
+  return max(m.z / n - mean * mean, 0.0);
+}
 void main() {
   ivec2 p = ivec2(gl_FragCoord.xy);
   ivec2 size = textureSize(u_color, 0);
-  vec4 cp4 = texelFetch(u_color, p, 0);
-  vec3 cp = cp4.rgb, ccp = cp / (1.0 + max(cp, vec3(0.0)));
-  vec3 np = texelFetch(u_normal, p, 0).rgb, ap = texelFetch(u_albedo, p, 0).rgb;
+  vec3 d = demodulated(u_color, p);
+  float lp = compressed_luminance(d);
+  // (Σw, Σw·l, Σw·l²) of the 3 × 3 quadrants meeting at p (bit 1: dx ≥ 0, bit 2: dy ≥ 0), and their
+  // pixels inside the image
+  vec3 quadrant[4];
+  float inside[4];
+  for (int k = 0; k < 4; k++) { quadrant[k] = vec3(0.0); inside[k] = 0.0; }
+  vec3 every = vec3(0.0);
+  for (int dy = -2; dy <= 2; dy++) {
+    for (int dx = -2; dx <= 2; dx++) {
+      ivec2 q = p + ivec2(dx, dy);
+      if ((dx == 0 && dy == 0) || q.x < 0 || q.y < 0 || q.x >= size.x || q.y >= size.y) continue;
+      float w = exp(-guide_distance(p, q));
+      float l = compressed_luminance(demodulated(u_color, q)) - lp;
+      vec3 term = vec3(w, w * l, w * l * l);
+      for (int k = 0; k < 4; k++) {
+        if (dy * ((k & 2) != 0 ? 1 : -1) >= 0 && dx * ((k & 1) != 0 ? 1 : -1) >= 0) {
+          quadrant[k] += term;
+          inside[k] += 1.0;
+        }
+      }
+      every += term;
+    }
+  }
+  // (a quadrant the border cuts to fewer than u_quadrant_pixels pixels is no candidate; with none,
+  // the whole neighbourhood's)
+  float variance = -1.0;
+  for (int k = 0; k < 4; k++) {
+    if (inside[k] >= u_quadrant_pixels) {
+      float v = moments_variance(quadrant[k]);
+      variance = variance < 0.0 ? v : min(variance, v);
+    }
+  }
+  if (variance < 0.0) variance = moments_variance(every);
+  float offset = every.x > 0.0 ? every.y / max(every.x, 1e-30) : 0.0;
+  float top = min(lp + offset + u_firefly_sigmas * sqrt(moments_variance(every)), 0.999);
+  if (lp > top) d *= (top / (1.0 - top)) / max(lp / (1.0 - lp), 1e-30);
+  o_color = vec4(d, variance);
+}`;
+const ATROUS_FS = `${ATROUS_COMMON}
+uniform highp sampler2D u_lighting;
+uniform int u_step;
+uniform int u_last;
+uniform float u_inv_luminance;
+uniform float u_sqrt_variance_floor;
+uniform float u_kernel[5];
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  ivec2 size = textureSize(u_lighting, 0);
+  vec4 dp = texelFetch(u_lighting, p, 0);
+  float lp = compressed_luminance(dp.rgb);
+  float scale = u_inv_luminance / (sqrt(dp.a) + u_sqrt_variance_floor);
   vec3 total = vec3(0.0);
-  float weights = 0.0;
+  float weights = 0.0, variance = 0.0;
   for (int j = 0; j < 5; j++) {
     for (int i = 0; i < 5; i++) {
       ivec2 q = p + ivec2(i - 2, j - 2) * u_step;
       if (q.x < 0 || q.y < 0 || q.x >= size.x || q.y >= size.y) continue;
-      vec3 cq = texelFetch(u_color, q, 0).rgb;
-      vec3 dc = cq / (1.0 + max(cq, vec3(0.0))) - ccp;
-      vec3 dn = texelFetch(u_normal, q, 0).rgb - np;
-      vec3 da = texelFetch(u_albedo, q, 0).rgb - ap;
-      float e = dot(dc, dc) * u_inv_color + dot(dn, dn) * u_inv_normal + dot(da, da) * u_inv_albedo;
+      vec4 dq = texelFetch(u_lighting, q, 0);
+      float e = guide_distance(p, q) + abs(compressed_luminance(dq.rgb) - lp) * scale;
       float w = u_kernel[j] * u_kernel[i] * exp(-e);
-      total += w * cq;
+      total += w * dq.rgb;
       weights += w;
+      variance += w * w * dq.a;
     }
   }
-  o_color = vec4(total / weights, cp4.a);
+  vec3 d = total / weights;
+  if (u_last == 1) {
+    o_color = vec4(d * max(texelFetch(u_albedo, p, 0).rgb, vec3(u_albedo_floor)), 1.0);
+  } else {
+    o_color = vec4(d, variance / (weights * weights));
+  }
 }`;
 
 // renderer/tonemap.py's operators by name → u_tone_map (the display's branch).
@@ -514,30 +591,49 @@ export class DeviceRenderer {
     return performance.now() - t0;
   }
 
-  // The à-trous filter's passes on the resolved mean, guided by the resolved albedo and normal
-  // (ping-pong 'atrous0'/'atrous1'). → the filtered texture, or null (no guides or no filter).
+  // The à-trous filter on the resolved mean, guided by the resolved albedo and normal: its first
+  // pass (demodulation, variance, fireflies) then its wavelet passes (ping-pong 'atrous0'/'atrous1').
+  // → the filtered texture, or null (no guides or no filter).
   _filter(trace) {
     const f = trace.display.atrous;
     if (!trace.path || trace.n !== 4 || !f) return null;
     const gl = this.gl, { width: w, height: h } = trace;
     const resolved = this._targets(w, h, 'resolve', 4);
-    const prog = this.program(QUAD_VS, ATROUS_FS);
+    const guides = [['u_albedo', resolved.tex[2]], ['u_normal', resolved.tex[3]]];
+    const common = (prog) => {
+      gl.useProgram(prog.program);
+      gl.uniform1f(prog.uniforms.get('u_inv_normal').loc, 1 / (f.sigma_normal * f.sigma_normal));
+      gl.uniform1f(prog.uniforms.get('u_inv_albedo').loc, 1 / (f.sigma_albedo * f.sigma_albedo));
+      gl.uniform1f(prog.uniforms.get('u_albedo_floor').loc, f.albedo_floor);
+      gl.uniform3fv(prog.uniforms.get('u_luminance').loc, new Float32Array(f.luminance));
+    };
     gl.bindVertexArray(this.vao);
-    gl.useProgram(prog.program);
     gl.viewport(0, 0, w, h);
-    gl.uniform1f(prog.uniforms.get('u_inv_normal').loc, 1 / (f.sigma_normal * f.sigma_normal));
-    gl.uniform1f(prog.uniforms.get('u_inv_albedo').loc, 1 / (f.sigma_albedo * f.sigma_albedo));
+    const pre = this.program(QUAD_VS, ATROUS_PRE_FS);
+    common(pre);
+    gl.uniform1f(pre.uniforms.get('u_firefly_sigmas').loc, f.firefly_sigmas);
+    gl.uniform1f(pre.uniforms.get('u_quadrant_pixels').loc, f.quadrant_pixels);
+    let dst = this._targets(w, h, 'atrous0', 1);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, dst.fbo);
+    let units = [['u_color', resolved.tex[0]], ...guides];
+    this._bindUnits(pre, units);
+    gl.drawArrays(gl.TRIANGLES, 0, 6);
+    this._unbindUnits(units.length);
+    let src = dst.tex[0];
+    const prog = this.program(QUAD_VS, ATROUS_FS);
+    common(prog);
     gl.uniform1fv(prog.uniforms.get('u_kernel').loc, new Float32Array(f.kernel));
-    let src = resolved.tex[0];
+    // renderer/atrous.py's luminance_sigma: σ_l·√(noise_samples / samples) past noise_samples.
+    const sigma = f.sigma_luminance * Math.min(1, Math.sqrt(f.noise_samples / Math.max(1, trace.samplesDone)));
+    gl.uniform1f(prog.uniforms.get('u_inv_luminance').loc, 1 / sigma);
+    gl.uniform1f(prog.uniforms.get('u_sqrt_variance_floor').loc, Math.sqrt(f.variance_floor));
     for (let i = 0; i < f.iterations; i++) {
-      const dst = this._targets(w, h, `atrous${i % 2}`, 1);
+      dst = this._targets(w, h, `atrous${(i + 1) % 2}`, 1);
       gl.bindFramebuffer(gl.FRAMEBUFFER, dst.fbo);
-      const units = [['u_color', src], ['u_albedo', resolved.tex[2]], ['u_normal', resolved.tex[3]]];
+      units = [['u_lighting', src], ...guides];
       this._bindUnits(prog, units);
-      // renderer/atrous.py's color_sigma: σ_c·√(sigma_samples / samples), halved each pass.
-      const sigma = f.sigma_color * Math.sqrt(f.sigma_samples / Math.max(1, trace.samplesDone)) * Math.pow(0.5, i);
       gl.uniform1i(prog.uniforms.get('u_step').loc, 1 << i);
-      gl.uniform1f(prog.uniforms.get('u_inv_color').loc, 1 / (sigma * sigma));
+      gl.uniform1i(prog.uniforms.get('u_last').loc, i === f.iterations - 1 ? 1 : 0);
       gl.drawArrays(gl.TRIANGLES, 0, 6);
       this._unbindUnits(units.length);
       src = dst.tex[0];

@@ -99,7 +99,9 @@ export function fitRefused(e, render) {
       if (best < 1 || best >= spp) continue;
       return { settings: { samples_per_pixel: best }, text: `Too costly at ${spp} samples per pixel: ${best} instead.` };
     }
-    const k = most ? ratio : Math.sqrt(ratio);
+    // The service's "width: at most N" holds the height as it is (and "height" the width): the frame
+    // may keep that many pixels, so with the aspect kept each side shrinks by the ratio's root.
+    const k = Math.sqrt(ratio);
     const width = Math.floor(render.width * k), height = Math.floor(render.height * k);
     if (width < 8 || height < 8) continue;
     return {

@@ -18,9 +18,10 @@ test('loc → field', () => {
 });
 
 test('a cost refusal → the largest size it accepts, the aspect kept', () => {
+  // "width: at most 500" at a height of 2000: 500 × 2000 pixels fit, so 707 × 1414 with the aspect kept
   const e = { status: 422, detail: [{ loc: ['query', 'width'], msg: 'width: the frame would take about 20,000 ms of GL time, over the cap of 10,000 ms; width: at most 500 at these settings' }] };
   same(msg.fitRefused(e, { width: 1000, height: 2000, samples_per_pixel: 4 }),
-    { settings: { width: 500, height: 1000 }, text: 'Too costly at 1000 × 2000: 500 × 1000 instead.' });
+    { settings: { width: 707, height: 1414 }, text: 'Too costly at 1000 × 2000: 707 × 1414 instead.' });
 });
 
 test('a work-cap refusal of samples → the largest count (paths: any; Whitted: a square grid)', () => {
