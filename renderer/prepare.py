@@ -69,13 +69,14 @@ def sampled_level_rays(scene: Scene, settings: RenderSettings) -> tuple[float, .
     """Radiance rays per pixel at each level of the frame's ray tree, counted by the reference tracer
     on a grid of ``RAY_TREE_SAMPLE_SIDE`` pixels on its long side (the frame's aspect), ``min_weight``'s
     cut-off applied, up to ``max_recursion_depth`` levels; None where the model's ray tree of the
-    materials stands instead: scenes of spheres and planes alone (the ones its constants were fitted
-    to), scenes of more than ``RAY_TREE_SAMPLE_MAX_PRIMITIVES`` primitives, modes without a ray tree and
-    the path integrator. A mesh scene's few glass or mirror surfaces branch only the rays that meet
-    them (the demo room: 1.5 radiance rays a pixel, where every ray branching would be 34)."""
+    materials stands instead: scenes of more than ``RAY_TREE_SAMPLE_MAX_PRIMITIVES`` primitives, modes
+    without a ray tree and the path integrator. A scene's few glass or mirror surfaces branch only the
+    rays that meet them (the demo room: 1.5 radiance rays a pixel, where every ray branching would be
+    34; the default scene's spheres framed for a phone: 4.8, where the materials' tree says 21.9 and
+    the estimate was 3.9 × the measured GL time, 0.8 × with the sampled tree)."""
     path = settings.path_traced
     n = scene.n_tree_primitives
-    if path or settings.mode not in RAY_TREE_MODES or not (scene.n_triangles or scene.n_shapes):
+    if path or settings.mode not in RAY_TREE_MODES:
         return None
     if n > limits.RAY_TREE_SAMPLE_MAX_PRIMITIVES:
         return None
