@@ -185,10 +185,10 @@ class RecordLayout:
         """The record's table for docs/FORMATS.md: each texel's words, in order, with the unused
         ones as 0."""
         lines = [
-            f"**`{self.binding.name}`** — {self.doc} ({self.texels} texel{'s' if self.texels > 1 else ''}, "
-            f"{self.bytes} bytes per record; GLSL `{self.name}_<field>(i)`)",
+            f"**`{self.binding.name}`**: {self.doc}; {self.texels} texel{'s' if self.texels > 1 else ''}, "
+            f"{self.bytes} bytes per record, read in GLSL as `{self.name}_<field>(i)`",
             "",
-            "| texel | component | bits | field | type | meaning |",
+            "| texel | component | bits | field | GLSL type | meaning |",
             "|---|---|---|---|---|---|",
         ]
         by_word: dict[tuple[int, int], list[Field]] = {}
@@ -198,13 +198,11 @@ class RecordLayout:
         for t in range(self.texels):
             for c in range(4):
                 for f in sorted(by_word.get((t, c), []), key=lambda g: -g.bits[0]):
-                    bits = "" if f.width == WORD_BITS else f"{f.bits[0]}..{f.bits[1]}"
-                    lines.append(
-                        f"| {t} | {f.components} | {bits} | `{f.name}` | {f.glsl_type}"
-                        f"{' (float32 bits)' if f.kind == 'float' else ''} | {f.doc} |"
-                    )
+                    bits = "all" if f.width == WORD_BITS else f"{f.bits[0]}..{f.bits[1]}"
+                    kind = f"{f.glsl_type} (float32 bits)" if f.kind == "float" else f.glsl_type
+                    lines.append(f"| {t} | {f.components} | {bits} | `{f.name}` | {kind} | {f.doc} |")
                 if (t, c) not in covered:
-                    lines.append(f"| {t} | {COMPONENTS[c]} | | | | 0 |")
+                    lines.append(f"| {t} | {COMPONENTS[c]} | all | | | unused, 0 |")
         if self.notes:
             lines.append("")
             lines += [f"- {n}" for n in self.notes]

@@ -99,7 +99,7 @@ NODE = RecordLayout(
         Field("clip_right", 0, "z", "float", "the right children's smallest coordinate on the axis"),
         Field("right", 0, "w", "uint", "the right child's ref"),
     ),
-    doc="a BIH's inner node: its axis, both clip planes and both children's refs (renderer/accel/bih_layout.py)",
+    doc="a BIH's inner node: its axis, both clip planes and both children's refs (`renderer/accel/bih_layout.py`)",
     notes=(
         "a ref with bit 29 (`REF_LEAF`) set: a leaf, bits 28..0 its first record in `u_bih_spheres`; "
         "clear: an inner node, bits 28..0 its record; a cut's empty child has its sibling's ref",

@@ -83,7 +83,7 @@ NODE = RecordLayout(
         ),
         Field("right_max", 3, "xyz", "float", "the right child's box maximum"),
     ),
-    doc="a BVH's inner node: both children's boxes and refs (renderer/accel/bvh_layout.py)",
+    doc="a BVH's inner node: both children's boxes and refs (`renderer/accel/bvh_layout.py`)",
     notes=(
         "a ref with bit 31 (`REF_LEAF`) set: a leaf, bits 30..0 its first record in `u_bvh_spheres`; "
         "clear: an inner node, bits 30..0 its record",

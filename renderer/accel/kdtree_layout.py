@@ -70,7 +70,7 @@ NODE = RecordLayout(
         Field("split", 0, "y", "float", "the split plane's position on the axis"),
         Field("right", 0, "z", "uint", "the right child's ref (above the plane)"),
     ),
-    doc="a kd-tree's inner node: its plane and both children's refs (renderer/accel/kdtree_layout.py)",
+    doc="a kd-tree's inner node: its plane and both children's refs (`renderer/accel/kdtree_layout.py`)",
     notes=(
         "a ref with bit 29 (`REF_LEAF`) set: a leaf — bit 28 (`REF_EMPTY`) set: it has no primitives, "
         "else bits 27..0 its first record in `u_kd_spheres`; bit 29 clear: an inner node, bits 27..0 its record",
