@@ -9,7 +9,7 @@ come:
 - :meth:`RecordLayout.pack`: the columns of ``n`` records (one array per field) → uint32
   ``(n · texels, 4)``, float32 fields as their bits, a value too wide for its bits refused;
 - :meth:`RecordLayout.unpack`: the inverse, for the CPU mirrors of a traversal and the tests;
-- :meth:`RecordLayout.glsl`: one accessor macro per field, ``<record>_<field>(i)`` for record
+- :meth:`RecordLayout.glsl_accessors`: one accessor macro per field, ``<record>_<field>(i)`` for record
   ``i`` (``bvh_node_left_min(i)``), over the binding's ``NAME_at(i)`` whatever its storage
   (texture or uniform block). Macros, not functions: the method's header precedes the
   shader's default precision statements, and a macro expands to the very expression a
@@ -176,7 +176,7 @@ class RecordLayout:
             word = f"({word} & {(1 << f.width) - 1}u)"
         return word
 
-    def glsl(self) -> str:
+    def glsl_accessors(self) -> str:
         """One ``#define <name>_<field>(i)`` per field: the field of record ``i``."""
         return "".join(f"#define {self.name}_{f.name}(i) {self.accessor(f)}\n" for f in self.fields)
 

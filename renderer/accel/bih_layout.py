@@ -188,7 +188,7 @@ def glsl_defines() -> str:
         f"#define BIH_REF_LEAF {REF_LEAF}u\n"
         f"#define BIH_REF_INDEX {REF_INDEX}u\n"
         f"#define BIH_REF_NONE {REF_NONE}u\n"
-    ) + NODE.glsl()
+    ) + NODE.glsl_accessors()
 
 
 def pack_bih(bih, scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:

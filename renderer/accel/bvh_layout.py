@@ -147,7 +147,7 @@ def glsl_defines() -> str:
         f"#define BVH_STACK_SIZE {STACK_SIZE}\n"
         f"#define BVH_T_SLACK {T_SLACK!r}\n"
         f"#define BVH_DIR_EPS {DIR_EPS!r}\n"
-    ) + NODE.glsl()
+    ) + NODE.glsl_accessors()
 
 
 def pack_bvh(bvh, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:

@@ -129,7 +129,7 @@ def glsl_defines() -> str:
         f"#define KD_REF_NONE {REF_NONE}u\n"
         f"#define KD_STACK_SIZE {STACK_SIZE}\n"
         f"#define KD_T_SLACK {T_SLACK!r}\n"
-    ) + NODE.glsl()
+    ) + NODE.glsl_accessors()
 
 
 def pack_kdtree(kd, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:

@@ -84,7 +84,7 @@ def test_a_declaration_that_cannot_be_packed_is_refused(fields, message):
 
 def test_the_glsl_accessors_read_each_field_of_record_i():
     # The expected text is written by hand from the declaration above.
-    assert two_texel_record().glsl().splitlines() == [
+    assert two_texel_record().glsl_accessors().splitlines() == [
         "#define thing_lo(i) uintBitsToFloat(u_things_at(2 * (i)).xyz)",
         "#define thing_kind(i) (u_things_at(2 * (i)).w >> 28u)",
         "#define thing_index(i) (u_things_at(2 * (i)).w & 268435455u)",

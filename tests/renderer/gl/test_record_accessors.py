@@ -22,7 +22,7 @@ def fragment(record: RecordLayout, field: str) -> str:
     pad = {1: "uvec4({v}, 0u, 0u, 0u)", 2: "uvec4({v}, 0u, 0u)", 3: "uvec4({v}, 0u)", 4: "{v}"}[len(f.components)]
     return (
         "#version 300 es\n"
-        + record.glsl()
+        + record.glsl_accessors()
         + f"#define {record.binding.name}_at(i) texelFetch(u_rec, ivec2((i), 0), 0)\n"
         + "precision highp float;\nprecision highp int;\nprecision highp usampler2D;\n"
         + "uniform usampler2D u_rec;\nout uvec4 o_value;\n"
