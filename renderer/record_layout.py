@@ -30,6 +30,7 @@ from .gpu_layout import Binding
 COMPONENTS = "xyzw"
 KINDS = ("float", "uint")
 WORD_BITS = 32
+TEXEL_BYTES = 16  # one uvec4
 
 
 @dataclass(frozen=True)
@@ -105,7 +106,7 @@ class RecordLayout:
     @property
     def bytes(self) -> int:
         """Bytes per record."""
-        return 16 * self.texels
+        return TEXEL_BYTES * self.texels
 
     def field(self, name: str) -> Field:
         for f in self.fields:
