@@ -324,7 +324,7 @@ vec2 torus_pieces(TorusRay tr, float lo, float hi) {
 }
 
 // The outward unit normal at s: from the core circle's nearest point to the ray's point
-// (the axis where that point is on it).
+// (the axis for a point on the core circle itself).
 vec3 torus_normal(TorusRay tr, float s, vec3 axis) {
     vec3 q = tr.qs + s * tr.dq;
     float z = tr.zs + s * tr.dz;
