@@ -1,8 +1,9 @@
 // Method "bih": the thesis's Bounding Interval Hierarchy (listing 3.5).
 // Spliced into raytrace.frag at its METHOD mark; defines intersect_spheres().
-// Layout and bindings (u_bih_nodes: inner records, u_bih_spheres: sphere records in leaf
-// order, u_bih_root, u_box_min/max): renderer/accel/bih_layout.py (BIH_* constants and
-// the declarations in the header).
+// Layout and bindings (u_bih_nodes: inner records, read through the accessors
+// bih_node_<field>(i); u_bih_spheres: sphere records in leaf order, u_bih_root,
+// u_box_min/max): renderer/accel/bih_layout.py (BIH_* constants, the accessors and the
+// declarations in the header).
 
 void method_init() {}
 
@@ -33,12 +34,12 @@ void intersect_spheres(Query q, inout Hit h) {
     while (true) {
         while ((ref & BIH_REF_LEAF) == 0u) {
             COUNT(x);
-            uvec4 w = u_bih_nodes_at(int(ref));
-            int axis = int(w.x >> BIH_AXIS_SHIFT);
-            uint left = w.x & BIH_REF_MASK;
-            uint right = w.w;
-            float clip_l = uintBitsToFloat(w.y);
-            float clip_r = uintBitsToFloat(w.z);
+            int i = int(ref);
+            int axis = int(bih_node_axis(i));
+            uint left = bih_node_left(i);
+            uint right = bih_node_right(i);
+            float clip_l = bih_node_clip_left(i);
+            float clip_r = bih_node_clip_right(i);
             float o = q.o[axis];
             float dd = q.d[axis];
             uint near_ref, far_ref;

@@ -1,9 +1,10 @@
 // Method "bvh": binned-SAH bounding volume hierarchy with Reiter's ordered
 // traversal (near mask per direction octant, listing 4.13), stack-based.
 // Spliced into raytrace.frag at its METHOD mark; defines intersect_spheres().
-// Layout: renderer/accel/bvh_layout.py (an inner record of 4 uvec4 holds both children's
-// boxes and refs; leaves are runs of sphere records). Its constants (BVH_*) and bindings
-// (u_bvh_nodes, u_bvh_spheres, u_bvh_root, u_bvh_root_min/max) come via the host header.
+// Layout: renderer/accel/bvh_layout.py (an inner record holds both children's boxes and
+// refs, read through its accessors bvh_node_<field>(i); leaves are runs of sphere records).
+// Its constants (BVH_*), accessors and bindings (u_bvh_nodes, u_bvh_spheres, u_bvh_root,
+// u_bvh_root_min/max) come via the host header.
 
 void bvh_init() {}
 
@@ -46,16 +47,14 @@ void bvh_intersect(Query q, inout Hit h) {
     while (true) {
         while ((ref & BVH_REF_LEAF) == 0u) {
             COUNT(x);
-            int i = 4 * int(ref);
-            uvec4 a0 = u_bvh_nodes_at(i);
-            uvec4 a1 = u_bvh_nodes_at(i + 1);
-            uvec4 b0 = u_bvh_nodes_at(i + 2);
-            uvec4 b1 = u_bvh_nodes_at(i + 3);
-            float t_l = bvh_box(uintBitsToFloat(a0.xyz), uintBitsToFloat(a1.xyz), q.o, inv, h.t);
-            float t_r = bvh_box(uintBitsToFloat(b0.xyz), uintBitsToFloat(b1.xyz), q.o, inv, h.t);
-            bool right_first = ((b0.w >> octant) & 1u) == 1u;
-            uint near_ref = right_first ? a1.w : a0.w;
-            uint far_ref = right_first ? a0.w : a1.w;
+            int i = int(ref);
+            float t_l = bvh_box(bvh_node_left_min(i), bvh_node_left_max(i), q.o, inv, h.t);
+            float t_r = bvh_box(bvh_node_right_min(i), bvh_node_right_max(i), q.o, inv, h.t);
+            bool right_first = ((bvh_node_near_mask(i) >> octant) & 1u) == 1u;
+            uint left = bvh_node_left_ref(i);
+            uint right = bvh_node_right_ref(i);
+            uint near_ref = right_first ? right : left;
+            uint far_ref = right_first ? left : right;
             float t_near = right_first ? t_r : t_l;
             float t_far = right_first ? t_l : t_r;
             if (t_near < BIG) {

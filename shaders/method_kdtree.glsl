@@ -1,9 +1,9 @@
 // Method "kdtree": SAH kd-tree (Reiter §4.3), front-to-back stack traversal
 // with early exit. Spliced into raytrace.frag at its METHOD mark; defines
 // intersect_spheres(). Layout: renderer/accel/kdtree_layout.py (one uvec4 per inner
-// node with both children's refs; each leaf a run of sphere records). Its constants
-// (KD_*) and bindings (u_kd_nodes, u_kd_spheres, u_kd_root, u_kd_box_min/max) come via
-// the host header.
+// node with both children's refs, read through its accessors kd_node_<field>(i); each leaf
+// a run of sphere records). Its constants (KD_*), accessors and bindings (u_kd_nodes,
+// u_kd_spheres, u_kd_root, u_kd_box_min/max) come via the host header.
 
 void kd_init() {}
 
@@ -35,11 +35,11 @@ void kd_intersect(Query q, inout Hit h) {
     while (true) {
         while ((ref & KD_REF_LEAF) == 0u) {
             COUNT(x);
-            uvec4 w = u_kd_nodes_at(int(ref));
-            int axis = int(w.x >> KD_AXIS_SHIFT);
-            uint left = w.x & KD_REF_MASK;
-            uint right = w.z;
-            float split = uintBitsToFloat(w.y);
+            int i = int(ref);
+            int axis = int(kd_node_axis(i));
+            uint left = kd_node_left(i);
+            uint right = kd_node_right(i);
+            float split = kd_node_split(i);
             float o = q.o[axis];
             float dd = q.d[axis];
             if (dd == 0.0) {

@@ -258,9 +258,13 @@ float torus_root(TorusRay tr, float lo, float hi, float elo, float sg, float m, 
     return x;
 }
 
-// The bounding sphere (radius R + r, padded) as intersect_sphere in raytrace.frag forms it,
-// cut to (0, t_max) and to the slab |z| <= r (padded); the ray shifted to f. False: no hit.
-bool torus_setup(vec3 o, vec3 d, vec4 v0, vec4 v1, float t_max, out TorusRay tr, out float tf, out vec2 srange) {
+// The ray set up against a torus (v0, v1: its records' first two texels), once for every test:
+// the bounding sphere (radius R + r, padded) as intersect_sphere in raytrace.frag forms it, cut
+// to the slab |z| <= r (padded), and the ray shifted to f (tr, t = tf + s). srange: the chord's
+// range of s, cut to t in (0, t_max) — or, with `whole`, all of it, t <= 0 included (a ray
+// leaving the torus needs every root to tell its own). False: no hit.
+bool torus_setup(vec3 o, vec3 d, vec4 v0, vec4 v1, bool whole, float t_max, out TorusRay tr, out float tf,
+                 out vec2 srange) {
     vec3 a = v1.xyz;
     float R = v0.w;
     float r = v1.w;
@@ -281,8 +285,8 @@ bool torus_setup(vec3 o, vec3 d, vec4 v0, vec4 v1, float t_max, out TorusRay tr,
     float zs = dot(f, a);
     float dz = dot(d, a);
     tr = TorusRay(f - zs * a, d - dz * a, zs, dz, R, r);
-    float lo = max(-h, -tf);
-    float hi = min(h, t_max - tf);
+    float lo = whole ? -h : max(-h, -tf);
+    float hi = whole ? h : min(h, t_max - tf);
     if (dz != 0.0) {
         float s1 = (-zb - zs) / dz;
         float s2 = (zb - zs) / dz;
@@ -295,19 +299,10 @@ bool torus_setup(vec3 o, vec3 d, vec4 v0, vec4 v1, float t_max, out TorusRay tr,
     return lo < hi;
 }
 
-// Method B (kept): D is convex where rho³ >= R·L², L = |q × dq| (constant along the ray), and
-// concave on the one interval around the ray's closest approach to the axis where rho is
-// smaller; so the range has at most three pieces of known curvature, each at most two
-// monotone halves about its extremum, each at most one root. Every sign change of E is found,
-// grazing pairs included, with E evaluated without cancellation.
-float intersect_torus_bracket(vec3 o, vec3 d, vec4 v0, vec4 v1, vec4 v2, float t_max, out vec3 n) {
-    n = vec3(0.0);
-    TorusRay tr;
-    float tf;
-    vec2 sr;
-    if (!torus_setup(o, d, v0, v1, t_max, tr, tf, sr)) return BIG;
-    float lo = sr.x;
-    float hi = sr.y;
+// Method B's pieces of [lo, hi]: D is convex where rho³ >= R·L², L = |q × dq| (constant along
+// the ray), and concave on the one interval (b1, b2) around the ray's closest approach to the
+// axis where rho is smaller (b1 = b2 = hi: no such interval).
+vec2 torus_pieces(TorusRay tr, float lo, float hi) {
     float k = dot(tr.dq, tr.dq);
     float b1 = hi;
     float b2 = hi;
@@ -325,6 +320,34 @@ float intersect_torus_bracket(vec3 o, vec3 d, vec4 v0, vec4 v1, vec4 v2, float t
             b2 = clamp(sm + sc, lo, hi);
         }
     }
+    return vec2(b1, b2);
+}
+
+// The outward unit normal at s: from the core circle's nearest point to the ray's point
+// (the axis for a point on the core circle itself).
+vec3 torus_normal(TorusRay tr, float s, vec3 axis) {
+    vec3 q = tr.qs + s * tr.dq;
+    float z = tr.zs + s * tr.dz;
+    float rho = sqrt(dot(q, q));
+    vec3 g = (rho > 0.0 ? (rho - tr.R) / rho : 0.0) * q + z * axis;
+    float gl = sqrt(dot(g, g));
+    return gl > 0.0 ? g / gl : axis;
+}
+
+// Method B (kept): the range has at most three pieces of known curvature (torus_pieces),
+// each at most two monotone halves about its extremum, each at most one root. Every sign
+// change of E is found, grazing pairs included, with E evaluated without cancellation.
+float intersect_torus_bracket(vec3 o, vec3 d, vec4 v0, vec4 v1, vec4 v2, float t_max, out vec3 n) {
+    n = vec3(0.0);
+    TorusRay tr;
+    float tf;
+    vec2 sr;
+    if (!torus_setup(o, d, v0, v1, false, t_max, tr, tf, sr)) return BIG;
+    float lo = sr.x;
+    float hi = sr.y;
+    vec2 bc = torus_pieces(tr, lo, hi);
+    float b1 = bc.x;
+    float b2 = bc.y;
     float s_hit = BIG;
     float a_ = lo;
     for (int p = 0; p < 3; p++) {
@@ -349,13 +372,7 @@ float intersect_torus_bracket(vec3 o, vec3 d, vec4 v0, vec4 v1, vec4 v2, float t
     if (s_hit >= BIG) return BIG;
     float t = tf + s_hit;
     if (!(t > 0.0 && t < t_max)) return BIG;
-    vec3 q = tr.qs + s_hit * tr.dq;
-    float z = tr.zs + s_hit * tr.dz;
-    float rho = sqrt(dot(q, q));
-    // The normal points from the core circle's nearest point to the hit.
-    vec3 g = (rho > 0.0 ? (rho - tr.R) / rho : 0.0) * q + z * v1.xyz;
-    float gl = sqrt(dot(g, g));
-    n = gl > 0.0 ? g / gl : v1.xyz;
+    n = torus_normal(tr, s_hit, v1.xyz);
     return t;
 }
 
@@ -404,7 +421,7 @@ float intersect_torus_closed(vec3 o, vec3 d, vec4 v0, vec4 v1, vec4 v2, float t_
     TorusRay tr;
     float tf;
     vec2 sr;
-    if (!torus_setup(o, d, v0, v1, t_max, tr, tf, sr)) return BIG;
+    if (!torus_setup(o, d, v0, v1, false, t_max, tr, tf, sr)) return BIG;
     float R = tr.R;
     float r = tr.r;
     float k = dot(tr.dq, tr.dq);
@@ -446,12 +463,7 @@ float intersect_torus_closed(vec3 o, vec3 d, vec4 v0, vec4 v1, vec4 v2, float t_
     }
     float t = tf + best;
     if (!(t > 0.0 && t < t_max)) return BIG;
-    vec3 qh = tr.qs + best * tr.dq;
-    float z = tr.zs + best * tr.dz;
-    float rho = sqrt(dot(qh, qh));
-    vec3 g = (rho > 0.0 ? (rho - R) / rho : 0.0) * qh + z * v1.xyz;
-    float gl = sqrt(dot(g, g));
-    n = gl > 0.0 ? g / gl : v1.xyz;
+    n = torus_normal(tr, best, v1.xyz);
     return t;
 }
 

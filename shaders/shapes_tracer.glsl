@@ -77,50 +77,15 @@ float frustum_leaving(vec3 o, vec3 d, vec4 v0, vec4 v1, vec4 v2, float t_max, ou
 // intersect_torus_bracket finds the first: at most one per monotone half of each piece.
 float torus_leaving(vec3 o, vec3 d, vec4 v0, vec4 v1, float t_max, out vec3 n) {
     n = vec3(0.0);
-    // torus_setup's ray and bounds, but the whole chord of the padded bounding sphere and
-    // slab, not cut at t = 0.
-    vec3 a = v1.xyz;
-    float R = v0.w;
-    float r = v1.w;
-    vec3 p0 = o - v0.xyz;
-    float b = dot(p0, d);
-    vec3 f = p0 - b * d;
-    float rb = (R + r) * 1.0001;
-    float zb = r + 1e-4 * (R + r);
-    float h2 = rb * rb - dot(f, f);
-    if (h2 < 0.0) return BIG;
-    float tf = -b;
-    float zs = dot(f, a);
-    float dz = dot(d, a);
-    TorusRay tr = TorusRay(f - zs * a, d - dz * a, zs, dz, R, r);
-    float hi = sqrt(h2);
-    float lo = -hi;
-    if (dz != 0.0) {
-        float s1 = (-zb - zs) / dz;
-        float s2 = (zb - zs) / dz;
-        lo = max(lo, min(s1, s2));
-        hi = min(hi, max(s1, s2));
-    } else if (abs(zs) > zb) {
-        return BIG;
-    }
-    if (!(lo < hi)) return BIG;
-    float k = dot(tr.dq, tr.dq);
-    float b1 = hi;
-    float b2 = hi;
-    if (k > 1e-12) {
-        vec3 c = cross(tr.qs, tr.dq);
-        float L2 = dot(c, c);
-        float sm = -dot(tr.qs, tr.dq) / k;
-        float rm2 = L2 / k;
-        float x = tr.R * L2;
-        float rc = x > 0.0 ? exp2(log2(x) / 3.0) : 0.0;
-        float sc2 = (rc * rc - rm2) / k;
-        if (sc2 >= 0.0) {
-            float sc = sqrt(sc2);
-            b1 = clamp(sm - sc, lo, hi);
-            b2 = clamp(sm + sc, lo, hi);
-        }
-    }
+    TorusRay tr;
+    float tf;
+    vec2 sr;
+    if (!torus_setup(o, d, v0, v1, true, t_max, tr, tf, sr)) return BIG;
+    float lo = sr.x;
+    float hi = sr.y;
+    vec2 bc = torus_pieces(tr, lo, hi);
+    float b1 = bc.x;
+    float b2 = bc.y;
     // The roots come in increasing s; the one of least |t| is the ray's origin.
     float rs[6];
     int nr = 0;
@@ -149,12 +114,7 @@ float torus_leaving(vec3 o, vec3 d, vec4 v0, vec4 v1, float t_max, out vec3 n) {
         if (i != own && t > 0.0 && t < t_max) { s_hit = rs[i]; break; }
     }
     if (s_hit >= BIG) return BIG;
-    vec3 q = tr.qs + s_hit * tr.dq;
-    float z = tr.zs + s_hit * tr.dz;
-    float rho = sqrt(dot(q, q));
-    vec3 g = (rho > 0.0 ? (rho - tr.R) / rho : 0.0) * q + z * v1.xyz;
-    float gl = sqrt(dot(g, g));
-    n = gl > 0.0 ? g / gl : v1.xyz;
+    n = torus_normal(tr, s_hit, v1.xyz);
     return tf + s_hit;
 }
 

@@ -33,17 +33,14 @@ a tree primitive that is a triangle has a *slot* of the same size there instead
 index; the corners in ``u_triangles``), so positions, refs and the ``last`` flags are the
 same as for spheres. Inner nodes keep the build's order, renumbered without the leaves.
 
-**GPU** (``u_bih_nodes``, a record array: RGBA32UI texture or uniform block): one inner
-node per ``uvec4``::
-
-    x   bits 31..30 split axis (0, 1, 2); bits 29..0 the left child's ref
-    y   float32 bits of clip_left
-    z   float32 bits of clip_right
-    w   the right child's ref
-                                                                   total: 16 bytes
-    ref bit 29 (REF_LEAF) set:   a leaf; bits 28..0 its first sphere record
-        bit 29 clear:            an inner node; bits 28..0 its record
-    a cut's empty child:         the ref of its sibling (the primitives' child)
+**GPU** (``u_bih_nodes``, a record array: RGBA32UI texture or uniform block): inner node
+``i`` is record ``i`` of :data:`NODE`, one texel: the split axis, both clip planes, both
+children's refs; that declaration makes the packer (:func:`gpu_records`), the shader's
+accessors (``bih_node_clip_left(i)`` …, in the header), the CPU mirror's decoding
+(:mod:`renderer.accel.bih_traverse`) and the table in docs/FORMATS.md ("GPU records"). A ref
+with bit 29 (``REF_LEAF``) set is a leaf, bits 28..0 its first sphere record; clear, an inner
+node, bits 28..0 its record. A cut's empty child has the ref of its sibling (the primitives'
+child).
 
 No ray takes a cut's empty side: with a direction of length ≤ 1 and the scene inside
 ``±MAX_COORDINATE``, ``(±EMPTY_CLIP − o) / d`` puts that child's interval beyond ``BIG`` (the
@@ -66,8 +63,10 @@ from __future__ import annotations
 import numpy as np
 
 from .. import gpu_layout
-from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
+from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene
 from ..limits import MAX_TREE_DEPTH
+from ..record_layout import Field, RecordLayout
+from .tree_pack import pack_tree
 
 AXIS_SHIFT = 30
 LEAF_TAG = 3 << AXIS_SHIFT  # both high bits set
@@ -84,12 +83,30 @@ STACK_SIZE = MAX_TREE_DEPTH
 REF_LEAF = 1 << 29
 REF_INDEX = REF_LEAF - 1
 REF_NONE = 0xFFFFFFFF  # "no node" in the shader's loops (has REF_LEAF set)
-RECORD_BYTES = 16
 # A cut's empty side (renderer.accel.bih, step 0): its clip plane at ±EMPTY_CLIP (the module's
 # docstring: no ray takes it), and its ref in the GPU record is its sibling's.
 EMPTY_CLIP = float(np.finfo(np.float32).max)
 
 NODES = Binding("u_bih_nodes", doc="BIH inner nodes (bih_layout)", records=True)
+NODE = RecordLayout(
+    "bih_node",
+    NODES,
+    texels=1,
+    fields=(
+        Field("axis", 0, "x", "uint", "the split axis (0, 1, 2)", bits=(31, AXIS_SHIFT)),
+        Field("left", 0, "x", "uint", "the left child's ref", bits=(AXIS_SHIFT - 1, 0)),
+        Field("clip_left", 0, "y", "float", "the left children's largest coordinate on the axis"),
+        Field("clip_right", 0, "z", "float", "the right children's smallest coordinate on the axis"),
+        Field("right", 0, "w", "uint", "the right child's ref"),
+    ),
+    doc="a BIH's inner node: its axis, both clip planes and both children's refs (`renderer/accel/bih_layout.py`)",
+    notes=(
+        "a ref with bit 29 (`REF_LEAF`) set: a leaf, bits 28..0 its first record in `u_bih_spheres`; "
+        "clear: an inner node, bits 28..0 its record; a cut's empty child has its sibling's ref",
+        "the root's ref and the global box are the uniforms `u_bih_root`, `u_box_min`, `u_box_max`",
+    ),
+)
+RECORD_BYTES = NODE.bytes
 SPHERES = Binding("u_bih_spheres", doc="spheres in leaf order (gpu_layout.sphere_records)", records=True)
 ROOT = Binding("u_bih_root", "highp uint", "the root's ref")
 BOX_MIN = Binding("u_box_min", "highp vec3", "BIH global AABB")
@@ -149,12 +166,11 @@ def gpu_records(bih) -> tuple[np.ndarray, int]:
         el, er = empty[left], empty[left + 1]
         ref[left[el]] = ref[left[el] + 1]
         ref[left[er] + 1] = ref[left[er]]
-    out = np.empty((len(inner), 4), dtype=np.uint32)
-    out[:, 0] = (axis_of(w0[inner]).astype(np.uint32) << np.uint32(AXIS_SHIFT)) | ref[left]
-    out[:, 1] = nodes[inner, 1]
-    out[:, 2] = nodes[inner, 2]
-    out[:, 3] = ref[left + 1]
-    return out, int(ref[0])
+    cl, cr = clips(nodes[inner])
+    records = NODE.pack(
+        len(inner), axis=axis_of(w0[inner]), left=ref[left], clip_left=cl, clip_right=cr, right=ref[left + 1]
+    )
+    return records, int(ref[0])
 
 
 def leaf_order(bih) -> tuple[np.ndarray, np.ndarray]:
@@ -169,12 +185,10 @@ def glsl_defines() -> str:
     """The layout as GLSL ES 3.00 ``#define`` lines (shared with the shader)."""
     return (
         f"#define BIH_STACK_SIZE {STACK_SIZE}\n"
-        f"#define BIH_AXIS_SHIFT {AXIS_SHIFT}u\n"
         f"#define BIH_REF_LEAF {REF_LEAF}u\n"
         f"#define BIH_REF_INDEX {REF_INDEX}u\n"
-        f"#define BIH_REF_MASK {CHILD_MASK}u\n"
         f"#define BIH_REF_NONE {REF_NONE}u\n"
-    )
+    ) + NODE.glsl_accessors()
 
 
 def pack_bih(bih, scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
@@ -184,17 +198,5 @@ def pack_bih(bih, scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
     root's ref and the global AABB, and the triangles' records when there are any."""
     records, root = gpu_records(bih)
     order, last = leaf_order(bih)
-    packed = PackedScene(
-        textures={
-            NODES.name: wrap_rows(records, max_width),
-            SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, order, last), max_width),
-        },
-        uniforms=dict(
-            zip((ROOT.name, BOX_MIN.name, BOX_MAX.name), (root, *gpu_layout.box_uniform(*bih.global_aabb)), strict=True)
-        ),
-    )
-    return gpu_layout.merged(
-        packed,
-        gpu_layout.pack_triangles(scene, max_width, count=False),
-        gpu_layout.pack_shapes(scene, max_width, count=False),
-    )
+    uniforms = dict(zip((ROOT, BOX_MIN, BOX_MAX), (root, *gpu_layout.box_uniform(*bih.global_aabb)), strict=True))
+    return pack_tree(scene, (NODES, records), (SPHERES, order, last), uniforms, None, max_width)

@@ -332,12 +332,12 @@ def traverse(
     order, last = L.leaf_order(bih)
     ends = np.flatnonzero(last)
     run_end = ends[np.searchsorted(ends, np.arange(n))]
-    axis_of = (records[:, 0] >> np.uint32(L.AXIS_SHIFT)).astype(np.int64)
-    left_of = (records[:, 0] & np.uint32(L.CHILD_MASK)).astype(np.int64)
-    right_of = records[:, 3].astype(np.int64)
-    f = records[:, 1:3].copy().view(np.float32)
-    clip_l = f[:, 0].astype(np.float64)
-    clip_r = f[:, 1].astype(np.float64)
+    fields = L.NODE.unpack(records)
+    axis_of = fields["axis"].astype(np.int64)
+    left_of = fields["left"].astype(np.int64)
+    right_of = fields["right"].astype(np.int64)
+    clip_l = fields["clip_left"].astype(np.float64)
+    clip_r = fields["clip_right"].astype(np.float64)
     cx, cy, cz = c[:, 0], c[:, 1], c[:, 2]
     tv = [[tri[:, k, a] for a in range(3)] for k in range(3)]
 

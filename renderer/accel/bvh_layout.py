@@ -16,16 +16,12 @@ With triangles a tree primitive that is a triangle has a slot of a sphere record
 there instead (:func:`renderer.gpu_layout.leaf_records`, its corners in ``u_triangles``), so
 positions, refs and the ``last`` flags are as for spheres.
 
-**GPU** (``u_bvh_nodes``, a record array: RGBA32UI texture or uniform block), inner node
-``i`` at records ``4i … 4i + 3``::
-
-    4i      x, y, z  left child's box minimum    w  the left child's ref
-    4i + 1  x, y, z  left child's box maximum    w  the right child's ref
-    4i + 2  x, y, z  right child's box minimum   w  the near mask (bits 7..0)
-    4i + 3  x, y, z  right child's box maximum   w  0
-                                                                   total: 64 bytes
-    ref bit 31 (REF_LEAF) set: a leaf; bits 30..0 its first sphere record
-        bit 31 clear:          an inner node; bits 30..0 its record
+**GPU** (``u_bvh_nodes``, a record array: RGBA32UI texture or uniform block): inner node
+``i`` is record ``i`` of :data:`NODE`, 4 texels holding both children's boxes and refs and the
+near mask; that declaration makes the packer (:func:`gpu_records`), the shader's accessors
+(``bvh_node_left_min(i)`` …, in the header) and the table in docs/FORMATS.md ("GPU records").
+A ref with bit 31 (``REF_LEAF``) set is a leaf, bits 30..0 its first sphere record; clear, an
+inner node, bits 30..0 its record.
 
 The root's box and ref are uniforms (``u_bvh_root_min/max``, ``u_bvh_root``). Boxes are
 float32 and hold every primitive of the subtree (sphere boxes are rounded outwards, see
@@ -44,10 +40,11 @@ from __future__ import annotations
 import numpy as np
 
 from .. import gpu_layout
-from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
+from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene
 from ..limits import MAX_TREE_DEPTH
+from ..record_layout import Field, RecordLayout
+from .tree_pack import pack_tree
 
-NEAR_MASK_BITS = 0xFF
 NODE_BYTES = 32
 # One stack entry per tree level.
 STACK_SIZE = MAX_TREE_DEPTH
@@ -64,10 +61,37 @@ DIR_EPS = 1e-30
 REF_LEAF = 1 << 31
 REF_INDEX = REF_LEAF - 1
 REF_NONE = 0xFFFFFFFF
-RECORDS_PER_NODE = 4
-RECORD_BYTES = 64
 
 NODES = Binding("u_bvh_nodes", doc="4 records per inner node (bvh_layout)", records=True)
+NODE = RecordLayout(
+    "bvh_node",
+    NODES,
+    texels=4,
+    fields=(
+        Field("left_min", 0, "xyz", "float", "the left child's box minimum"),
+        Field("left_ref", 0, "w", "uint", "the left child's ref"),
+        Field("left_max", 1, "xyz", "float", "the left child's box maximum"),
+        Field("right_ref", 1, "w", "uint", "the right child's ref"),
+        Field("right_min", 2, "xyz", "float", "the right child's box minimum"),
+        Field(
+            "near_mask",
+            2,
+            "w",
+            "uint",
+            "bit s: visit the right child first for a ray of direction octant s (bit a of s: d[a] < 0)",
+            bits=(7, 0),
+        ),
+        Field("right_max", 3, "xyz", "float", "the right child's box maximum"),
+    ),
+    doc="a BVH's inner node: both children's boxes and refs (`renderer/accel/bvh_layout.py`)",
+    notes=(
+        "a ref with bit 31 (`REF_LEAF`) set: a leaf, bits 30..0 its first record in `u_bvh_spheres`; "
+        "clear: an inner node, bits 30..0 its record",
+        "the root's ref and box are the uniforms `u_bvh_root`, `u_bvh_root_min`, `u_bvh_root_max`",
+    ),
+)
+RECORDS_PER_NODE = NODE.texels
+RECORD_BYTES = NODE.bytes
 SPHERES = Binding("u_bvh_spheres", doc="spheres in leaf order (gpu_layout.sphere_records)", records=True)
 ROOT = Binding("u_bvh_root", "highp uint", "the root's ref")
 ROOT_MIN = Binding("u_bvh_root_min", "highp vec3", "the root's box")
@@ -94,13 +118,17 @@ def gpu_records(bvh) -> tuple[np.ndarray, int]:
     ref = np.where(leaf, REF_LEAF | bvh.first, index).astype(np.uint32)
     lc = bvh.left[inner]
     rc = lc + 1
-    out = np.zeros((len(inner), 4, 4), dtype=np.uint32)
-    f = lambda a: np.ascontiguousarray(a, dtype=np.float32).view(np.uint32)
-    out[:, 0, :3], out[:, 0, 3] = f(bvh.bmin[lc]), ref[lc]
-    out[:, 1, :3], out[:, 1, 3] = f(bvh.bmax[lc]), ref[rc]
-    out[:, 2, :3], out[:, 2, 3] = f(bvh.bmin[rc]), bvh.near_mask[inner].astype(np.uint32) & np.uint32(NEAR_MASK_BITS)
-    out[:, 3, :3] = f(bvh.bmax[rc])
-    return out.reshape(-1, 4), int(ref[0])
+    records = NODE.pack(
+        len(inner),
+        left_min=bvh.bmin[lc],
+        left_ref=ref[lc],
+        left_max=bvh.bmax[lc],
+        right_ref=ref[rc],
+        right_min=bvh.bmin[rc],
+        near_mask=bvh.near_mask[inner],
+        right_max=bvh.bmax[rc],
+    )
+    return records, int(ref[0])
 
 
 def leaf_order(bvh) -> tuple[np.ndarray, np.ndarray]:
@@ -119,7 +147,7 @@ def glsl_defines() -> str:
         f"#define BVH_STACK_SIZE {STACK_SIZE}\n"
         f"#define BVH_T_SLACK {T_SLACK!r}\n"
         f"#define BVH_DIR_EPS {DIR_EPS!r}\n"
-    )
+    ) + NODE.glsl_accessors()
 
 
 def pack_bvh(bvh, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
@@ -130,23 +158,7 @@ def pack_bvh(bvh, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT
     triangles' records come along."""
     records, root = gpu_records(bvh)
     order, last = leaf_order(bvh)
-    if ids is not None:
-        order = np.asarray(ids, dtype=np.int64)[order]
-    packed = PackedScene(
-        textures={
-            NODES.name: wrap_rows(records, max_width),
-            SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, order, last), max_width),
-        },
-        uniforms=dict(
-            zip(
-                (ROOT.name, ROOT_MIN.name, ROOT_MAX.name),
-                (root, *gpu_layout.box_uniform(bvh.bmin[0], bvh.bmax[0])),
-                strict=True,
-            )
-        ),
+    uniforms = dict(
+        zip((ROOT, ROOT_MIN, ROOT_MAX), (root, *gpu_layout.box_uniform(bvh.bmin[0], bvh.bmax[0])), strict=True)
     )
-    return gpu_layout.merged(
-        packed,
-        gpu_layout.pack_triangles(scene, max_width, count=False),
-        gpu_layout.pack_shapes(scene, max_width, count=False),
-    )
+    return pack_tree(scene, (NODES, records), (SPHERES, order, last), uniforms, ids, max_width)

@@ -20,17 +20,12 @@ With triangles a tree primitive that is a triangle has a slot of a sphere record
 there instead (:func:`renderer.gpu_layout.leaf_records`, its corners in ``u_triangles``), so
 positions, refs and the ``last`` flags are as for spheres.
 
-**GPU** (``u_kd_nodes``, a record array: RGBA32UI texture or uniform block), one inner
-node per ``uvec4``::
-
-    x   bits 31..30 split axis (0, 1, 2); bits 29..0 the left child's ref
-    y   float32 bits of the split plane's position
-    z   the right child's ref
-    w   0
-                                                                   total: 16 bytes
-    ref bit 29 (REF_LEAF) set: a leaf; bit 28 (REF_EMPTY) set: it has no primitives,
-                               else bits 27..0 its first sphere record
-        bit 29 clear:          an inner node; bits 27..0 its record
+**GPU** (``u_kd_nodes``, a record array: RGBA32UI texture or uniform block): inner node
+``i`` is record ``i`` of :data:`NODE`, one texel: the split axis and plane, both children's
+refs; that declaration makes the packer (:func:`gpu_records`), the shader's accessors
+(``kd_node_axis(i)`` …, in the header) and the table in docs/FORMATS.md ("GPU records"). A ref
+with bit 29 (``REF_LEAF``) set is a leaf: bit 28 (``REF_EMPTY``) set, it has no primitives, else
+bits 27..0 its first sphere record; bit 29 clear, an inner node, bits 27..0 its record.
 
 ``u_kd_root`` is the root's ref, ``u_kd_box_min/max`` the root's voxel.
 
@@ -44,8 +39,10 @@ from __future__ import annotations
 import numpy as np
 
 from .. import gpu_layout
-from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
+from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene
 from ..limits import MAX_TREE_DEPTH
+from ..record_layout import Field, RecordLayout
+from .tree_pack import pack_tree
 
 AXIS_SHIFT = 30
 LOW_MASK = (1 << AXIS_SHIFT) - 1
@@ -61,9 +58,26 @@ REF_LEAF = 1 << 29
 REF_EMPTY = 1 << 28
 REF_INDEX = REF_EMPTY - 1
 REF_NONE = 0xFFFFFFFF
-RECORD_BYTES = 16
 
 NODES = Binding("u_kd_nodes", doc="kd-tree inner nodes (kdtree_layout)", records=True)
+NODE = RecordLayout(
+    "kd_node",
+    NODES,
+    texels=1,
+    fields=(
+        Field("axis", 0, "x", "uint", "the split axis (0, 1, 2)", bits=(31, AXIS_SHIFT)),
+        Field("left", 0, "x", "uint", "the left child's ref (below the plane)", bits=(AXIS_SHIFT - 1, 0)),
+        Field("split", 0, "y", "float", "the split plane's position on the axis"),
+        Field("right", 0, "z", "uint", "the right child's ref (above the plane)"),
+    ),
+    doc="a kd-tree's inner node: its plane and both children's refs (`renderer/accel/kdtree_layout.py`)",
+    notes=(
+        "a ref with bit 29 (`REF_LEAF`) set: a leaf — bit 28 (`REF_EMPTY`) set: it has no primitives, "
+        "else bits 27..0 its first record in `u_kd_spheres`; bit 29 clear: an inner node, bits 27..0 its record",
+        "the root's ref and voxel are the uniforms `u_kd_root`, `u_kd_box_min`, `u_kd_box_max`",
+    ),
+)
+RECORD_BYTES = NODE.bytes
 SPHERES = Binding("u_kd_spheres", doc="each leaf's spheres (gpu_layout.sphere_records)", records=True)
 ROOT = Binding("u_kd_root", "highp uint", "the root's ref")
 BOX_MIN = Binding("u_kd_box_min", "highp vec3", "the root's voxel")
@@ -102,25 +116,20 @@ def gpu_records(kd, first: np.ndarray) -> tuple[np.ndarray, int]:
     index[inner] = np.arange(len(inner))
     ref = np.where(leaf, np.where(kd.count > 0, REF_LEAF | first, REF_LEAF | REF_EMPTY), index).astype(np.uint32)
     lc = kd.left[inner]
-    out = np.zeros((len(inner), 4), dtype=np.uint32)
-    out[:, 0] = (kd.axis[inner].astype(np.uint32) << np.uint32(AXIS_SHIFT)) | ref[lc]
-    out[:, 1] = np.ascontiguousarray(kd.split[inner], dtype=np.float32).view(np.uint32)
-    out[:, 2] = ref[lc + 1]
-    return out, int(ref[0])
+    records = NODE.pack(len(inner), axis=kd.axis[inner], left=ref[lc], split=kd.split[inner], right=ref[lc + 1])
+    return records, int(ref[0])
 
 
 def glsl_defines() -> str:
     """The layout as GLSL ES 3.00 ``#define`` lines (shared with the shader)."""
     return (
-        f"#define KD_AXIS_SHIFT {AXIS_SHIFT}u\n"
-        f"#define KD_REF_MASK {LOW_MASK}u\n"
         f"#define KD_REF_LEAF {REF_LEAF}u\n"
         f"#define KD_REF_EMPTY {REF_EMPTY}u\n"
         f"#define KD_REF_INDEX {REF_INDEX}u\n"
         f"#define KD_REF_NONE {REF_NONE}u\n"
         f"#define KD_STACK_SIZE {STACK_SIZE}\n"
         f"#define KD_T_SLACK {T_SLACK!r}\n"
-    )
+    ) + NODE.glsl_accessors()
 
 
 def pack_kdtree(kd, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
@@ -131,19 +140,5 @@ def pack_kdtree(kd, scene, ids: np.ndarray | None = None, max_width: int = DEFAU
     triangles' records come along."""
     prims, first, last = leaf_runs(kd)
     records, root = gpu_records(kd, first)
-    if ids is not None:
-        prims = np.asarray(ids, dtype=np.int64)[prims]
-    packed = PackedScene(
-        textures={
-            NODES.name: wrap_rows(records, max_width),
-            SPHERES.name: wrap_rows(gpu_layout.leaf_records(scene, prims, last), max_width),
-        },
-        uniforms=dict(
-            zip((ROOT.name, BOX_MIN.name, BOX_MAX.name), (root, *gpu_layout.box_uniform(*kd.global_box)), strict=True)
-        ),
-    )
-    return gpu_layout.merged(
-        packed,
-        gpu_layout.pack_triangles(scene, max_width, count=False),
-        gpu_layout.pack_shapes(scene, max_width, count=False),
-    )
+    uniforms = dict(zip((ROOT, BOX_MIN, BOX_MAX), (root, *gpu_layout.box_uniform(*kd.global_box)), strict=True))
+    return pack_tree(scene, (NODES, records), (SPHERES, prims, last), uniforms, ids, max_width)

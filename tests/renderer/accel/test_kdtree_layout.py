@@ -40,4 +40,4 @@ def test_the_refs_leave_room_for_the_axis_and_the_glsl_defines_are_the_layouts_c
     assert L.REF_LEAF | L.REF_EMPTY | L.REF_INDEX <= L.LOW_MASK  # a ref fits below the axis bits
     assert L.REF_LEAF & L.REF_EMPTY == 0 and L.REF_INDEX == L.REF_EMPTY - 1
     lines = set(L.glsl_defines().splitlines())
-    assert f"#define KD_AXIS_SHIFT {L.AXIS_SHIFT}u" in lines and f"#define KD_REF_MASK {L.LOW_MASK}u" in lines
+    assert f"#define KD_REF_LEAF {L.REF_LEAF}u" in lines and f"#define KD_REF_EMPTY {L.REF_EMPTY}u" in lines
