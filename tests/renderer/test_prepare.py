@@ -163,8 +163,8 @@ def test_the_demo_meshes_are_admitted_at_the_phone_default_size(kind, profile):
 def test_a_demo_scenes_sampled_ray_tree_counts_the_rays_a_dense_count_finds(kind):
     """The cost's ray tree of a demo scene framed for a phone (503 × 1088, Whitted) comes from the
     reference tracer's count on a coarse grid, spheres-only scenes included: within 2× of the rays a
-    grid 16 times as dense counts (the materials' tree, every ray branching, said 21.9 rays a pixel
-    for the spheres where the dense count finds about 5, and refused the default scene on a phone)."""
+    grid 16 times as dense counts (the materials' tree, every ray branching, says 21.9 rays a pixel
+    for the spheres where the dense count finds about 5: enough to refuse the default scene on a phone)."""
     from renderer.prepare import sampled_level_rays
     from renderer.reference import ray_tree_counts
     from renderer.scenarios import framed, mesh_scene
