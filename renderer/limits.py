@@ -145,6 +145,14 @@ MAX_ARCHIVE_RATIO_FREE_BYTES = 1 << 20  # entries up to this size may compress b
 MAX_MODEL_IMAGE_SIDE = 8192  # pixels, either side
 MAX_MODEL_IMAGE_PIXELS = 8192 * 8192  # width × height of one image
 
+# ---- textures -------------------------------------------------------------------------------
+# A scene's textures (renderer/materials/texture.py): each is kept at its size with its mip levels
+# (4/3 of its texels), RGBA8. 8 × 2048² × 4 B × 4/3 ≈ 171 MiB is the most one scene holds.
+MAX_TEXTURES = 64  # per scene
+MAX_TEXTURE_SIDE = 4096  # pixels, either side: WebGL2 guarantees 2048 and most phones 4096
+MAX_TEXTURE_TEXELS = 8 * 2048 * 2048  # all of a scene's textures together, level 0
+MAX_TEXTURE_NAME = 256  # characters
+
 # ---- environment images --------------------------------------------------------------------
 # An equirectangular HDR image (renderer/envmap.py): its declared size is checked against these
 # before a texel is allocated. 4096 × 2048 float RGB is 96 MiB on the GPU (and as much again in

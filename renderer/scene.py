@@ -29,38 +29,19 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import limits
-from .errors import SceneError  # re-exported: where the scene's callers import it
+from .errors import SceneError, construct, finite_number, json_object  # SceneError, finite_number: re-exported
 
 # Largest coordinate magnitude accepted (float32 resolves a unit sphere up to it; limits.py).
 from .limits import MAX_COORDINATE  # re-exported
-from .materials import material_params, param
+from .materials.kinds import AnyMaterial, material_from_json
+from .materials.phong import Material as Material  # re-exported: where the scene's callers import it
+from .materials.texture import Texture
 from .shapes import KINDS as SHAPE_KINDS, Shapes
 
 if TYPE_CHECKING:
     from .envmap import EnvironmentMap
 
 Vec3 = tuple[float, float, float]
-
-
-def finite_number(
-    value: Any,
-    where: str,
-    *,
-    lo: float | None = None,
-    hi: float | None = None,
-    lo_open: bool = False,
-    hi_open: bool = False,
-) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise SceneError(where, f"expected a number, got {type(value).__name__}")
-    x = float(value)
-    if not math.isfinite(x):
-        raise SceneError(where, f"must be a finite number, got {x}")
-    if lo is not None and (x < lo or (lo_open and x == lo)):
-        raise SceneError(where, f"must be {'>' if lo_open else '>='} {lo}, got {x}")
-    if hi is not None and (x > hi or (hi_open and x == hi)):
-        raise SceneError(where, f"must be {'<' if hi_open else '<='} {hi}, got {x}")
-    return x
 
 
 def finite_vec3(value: Any, where: str, *, bound: float = MAX_COORDINATE) -> Vec3:
@@ -120,9 +101,9 @@ class Camera:
 
     @staticmethod
     def from_json(d: Any, where: str = "camera") -> Camera:
-        d = _object(d, where, {"position", "target", "up", "fov_y"})
+        d = json_object(d, where, {"position", "target", "up", "fov_y"})
         kw = {k: d[k] for k in ("position", "target", "up", "fov_y") if k in d}
-        return _construct(Camera, kw, where)
+        return construct(Camera, kw, where)
 
 
 @dataclass(frozen=True)
@@ -144,78 +125,8 @@ class Light:
 
     @staticmethod
     def from_json(d: Any, where: str) -> Light:
-        d = _object(d, where, {"position", "color"})
-        return _construct(Light, {k: d[k] for k in ("position", "color") if k in d}, where)
-
-
-@dataclass(frozen=True)
-class Material:
-    """Whitted/Phong material (thesis Table 4.1).
-
-    The Phong kind of material (:mod:`renderer.materials`): each field below is declared once
-    with its default, range, unit and doc, and the validation here, the JSON, the API's model
-    and the GPU record (``shaders/bsdf_phong.glsl`` reads it as ``material_<name>(m)``) are made
-    from those declarations.
-    """
-
-    color: Vec3 = param((0.9, 0.3, 0.3), lo=0.0, hi=1.0, doc="RGB, each 0 … 1")
-    ambient: float = param(0.3, lo=0.0, hi=1.0, doc="Phong's ambient weight (Whitted)")
-    diffuse: float = param(0.3, lo=0.0, hi=1.0, doc="diffuse weight: Phong's kd, the path integrator's Lambert lobe")
-    specular: float = param(0.1, lo=0.0, hi=1.0, doc="Phong's specular weight ks (Whitted)")
-    shininess: float = param(40.0, lo=0.0, hi=limits.MAX_SHININESS, doc="Phong exponent")
-    reflective: float = param(0.3, lo=0.0, hi=1.0, doc="weight kr of the reflected ray (a mirror; rough: GGX)")
-    transmissive: float = param(0.0, lo=0.0, hi=1.0, doc="weight kt of the refracted ray (glass; rough: GGX)")
-    ior: float = param(1.0, lo=0.0, hi=limits.MAX_IOR, lo_open=True, doc="refraction index inside / outside")
-    # Emission lives in its own texture (u_emission), packed only for scenes that emit.
-    emission: Vec3 = param(
-        (0.0, 0.0, 0.0),
-        lo=0.0,
-        hi=limits.MAX_EMISSION,
-        unit="W sr⁻¹ m⁻², linear RGB",
-        doc="radiance emitted on the side the normal faces (an area light)",
-        record=False,
-        omit_default=True,
-    )
-    roughness: float = param(
-        0.0,
-        lo=0.0,
-        hi=1.0,
-        doc="GGX α of the path integrator's reflective and transmissive lobes (0: a mirror, smooth glass)",
-        omit_default=True,
-    )
-
-    def __post_init__(self) -> None:
-        for name, p in material_params(type(self)).items():
-            value = getattr(self, name)
-            if p.size == 1:
-                object.__setattr__(self, name, finite_number(value, name, lo=p.lo, hi=p.hi, lo_open=p.lo_open))
-                continue
-            if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != p.size:
-                raise SceneError(name, f"expected a list of {p.size} numbers")
-            checked = tuple(
-                finite_number(v, f"{name}[{i}]", lo=p.lo, hi=p.hi, lo_open=p.lo_open) for i, v in enumerate(value)
-            )
-            object.__setattr__(self, name, checked)
-
-    @property
-    def emits(self) -> bool:
-        return any(c > 0.0 for c in self.emission)
-
-    def to_json(self) -> dict:
-        """The material's JSON: every parameter, less those declared ``omit_default`` that hold their default."""
-        out: dict[str, Any] = {}
-        for name, p in material_params(type(self)).items():
-            value = getattr(self, name)
-            if p.omit_default and value == p.default:
-                continue
-            out[name] = list(value) if isinstance(value, tuple) else value
-        return out
-
-    @classmethod
-    def from_json(cls, d: Any, where: str) -> Material:
-        keys = tuple(material_params(cls))
-        d = _object(d, where, set(keys))
-        return _construct(cls, {k: d[k] for k in keys if k in d}, where)
+        d = json_object(d, where, {"position", "color"})
+        return construct(Light, {k: d[k] for k in ("position", "color") if k in d}, where)
 
 
 @dataclass(frozen=True)
@@ -230,24 +141,6 @@ class Plane:
 
     def to_json(self) -> dict:
         return {"point": list(self.point), "normal": list(self.normal), "material": self.material}
-
-
-def _object(d: Any, where: str, allowed: set[str]) -> dict:
-    if not isinstance(d, dict):
-        raise SceneError(where, "expected an object")
-    unknown = set(d) - allowed
-    if unknown:
-        raise SceneError(f"{where}.{sorted(unknown)[0]}", f"unknown field (allowed: {', '.join(sorted(allowed))})")
-    return d
-
-
-def _construct(cls, kw: dict, where: str):
-    try:
-        return cls(**kw)
-    except SceneError as e:
-        # Prefix the nested path so the message names the full JSON field.
-        inner = e.field if e.field.startswith(where) else f"{where}.{e.field}"
-        raise SceneError(inner, e.message) from None
 
 
 def _material_index(v: Any, where: str, count: int) -> int:
@@ -315,6 +208,32 @@ def _bad_rows(mask: np.ndarray) -> int:
     return int(np.argmax(mask))
 
 
+# A mesh's optional vertex attributes: name, numbers per vertex, bounds of each number.
+VERTEX_ATTRIBUTES = (
+    ("uvs", 2, -MAX_COORDINATE, MAX_COORDINATE),
+    ("uvs1", 2, -MAX_COORDINATE, MAX_COORDINATE),
+    ("colors", 4, 0.0, 1.0),
+    ("tangents", 4, -MAX_COORDINATE, MAX_COORDINATE),
+)
+
+
+def vertex_attribute(value: Any, where: str, n_vertices: int, width: int, lo: float, hi: float) -> np.ndarray:
+    """float64 (n_vertices, width), read-only: a vertex attribute checked for its shape, finite
+    numbers and bounds (SceneError names the first bad row)."""
+    try:
+        a = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SceneError(where, f"expected a list of {n_vertices} rows of {width} numbers") from None
+    if a.shape != (n_vertices, width):
+        raise SceneError(where, f"{width} numbers per vertex: expected ({n_vertices}, {width}), got {a.shape}")
+    bad: np.ndarray = ~np.isfinite(a).all(axis=1) | (a < lo).any(axis=1) | (a > hi).any(axis=1)
+    if bad.any():
+        i = _bad_rows(bad)
+        raise SceneError(f"{where}[{i}]", f"must be finite numbers within {lo:g} … {hi:g}, got {a[i].tolist()}")
+    a.setflags(write=False)
+    return a
+
+
 @dataclass(frozen=True, eq=False)
 class Mesh:
     """A triangle mesh in world space. Validated on construction; arrays are made read-only.
@@ -325,7 +244,12 @@ class Mesh:
     closed mesh wound that way (OBJ, STL, glTF convention). ``material`` indexes the scene's
     materials. ``normals`` float64 (V, 3) or None: per-vertex shading normals (smooth
     shading, interpolated barycentrically); non-zero, normalised when shading. None: flat
-    shading by the geometric normal.
+    shading by the geometric normal. Vertex attributes for materials, each optional:
+    ``uvs`` / ``uvs1`` float64 (V, 2), texture coordinate sets 0 and 1 (glTF's TEXCOORD_0/1: U
+    right, V down the image); ``colors`` float64 (V, 4), linear RGBA in [0, 1] multiplying the
+    base colour (glTF's COLOR_0, PLY's and OBJ's vertex colours); ``tangents`` float64 (V, 4),
+    xyz the direction of +U, w = ±1 the handedness of the bitangent ``w · (n × t)`` (glTF's
+    TANGENT; generated for normal maps where absent).
 
     A triangle of exactly zero area (float64 cross product of its edges = 0, e.g. a repeated
     index) is kept, so that ids do not move, and is never hit; :attr:`n_degenerate` counts
@@ -336,6 +260,10 @@ class Mesh:
     triangles: np.ndarray
     material: int = 0
     normals: np.ndarray | None = None
+    uvs: np.ndarray | None = None
+    uvs1: np.ndarray | None = None
+    colors: np.ndarray | None = None
+    tangents: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         v = rows3(self.vertices, "vertices")
@@ -382,6 +310,18 @@ class Mesh:
         object.__setattr__(self, "triangles", t)
         object.__setattr__(self, "normals", n)
         object.__setattr__(self, "material", int(self.material))
+        for name, width, lo, hi in VERTEX_ATTRIBUTES:
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, vertex_attribute(value, name, len(v), width, lo, hi))
+        if self.tangents is not None and not np.isin(self.tangents[:, 3], (-1.0, 1.0)).all():
+            i = _bad_rows(~np.isin(self.tangents[:, 3], (-1.0, 1.0)))
+            raise SceneError(f"tangents[{i}][3]", f"the handedness w must be 1 or -1, got {self.tangents[i, 3]}")
+
+    @property
+    def attributes(self) -> dict[str, np.ndarray]:
+        """The vertex attributes it has, by name (``uvs``, ``uvs1``, ``colors``, ``tangents``)."""
+        return {name: getattr(self, name) for name, *_ in VERTEX_ATTRIBUTES if getattr(self, name) is not None}
 
     @property
     def n_triangles(self) -> int:
@@ -408,19 +348,24 @@ class Mesh:
         return int(self.degenerate.sum())
 
     def with_vertices(self, vertices: np.ndarray, normals: np.ndarray | None = None) -> Mesh:
-        """The same triangles and material on moved vertices (an animation's pose)."""
-        return Mesh(vertices, self.triangles, self.material, normals)
+        """The same triangles, material and attributes on moved vertices (an animation's pose)."""
+        return Mesh(vertices, self.triangles, self.material, normals, **self.attributes)
 
     def to_json(self) -> dict:
         """World-space JSON (the transform it was made with is already applied)."""
         d = {"vertices": self.vertices.tolist(), "triangles": self.triangles.tolist(), "material": self.material}
         if self.normals is not None:
             d["normals"] = self.normals.tolist()
+        d.update({name: a.tolist() for name, a in self.attributes.items()})
         return d
 
     @staticmethod
     def from_json(d: Any, where: str) -> Mesh:
-        d = _object(d, where, {"vertices", "triangles", "material", "normals", "transform"})
+        d = json_object(
+            d,
+            where,
+            {"vertices", "triangles", "material", "normals", "transform", *(a for a, *_ in VERTEX_ATTRIBUTES)},
+        )
         for k in ("vertices", "triangles"):
             if k not in d:
                 raise SceneError(f"{where}.{k}", "field required")
@@ -432,7 +377,14 @@ class Mesh:
         ):
             raise SceneError(f"{where}.material", "expected an integer material index")
         try:
-            return make_mesh(d["vertices"], d["triangles"], int(m), d.get("normals"), d.get("transform"))
+            return make_mesh(
+                d["vertices"],
+                d["triangles"],
+                int(m),
+                d.get("normals"),
+                d.get("transform"),
+                **{a: d[a] for a, *_ in VERTEX_ATTRIBUTES if a in d},
+            )
         except SceneError as e:
             raise SceneError(f"{where}.{e.field}", e.message) from None
 
@@ -455,14 +407,23 @@ def affine_transform(value: Any, where: str = "transform") -> np.ndarray:
     return out
 
 
-def make_mesh(vertices: Any, triangles: Any, material: int = 0, normals: Any = None, transform: Any = None) -> Mesh:
+def make_mesh(
+    vertices: Any,
+    triangles: Any,
+    material: int = 0,
+    normals: Any = None,
+    transform: Any = None,
+    **attributes: Any,
+) -> Mesh:
     """A :class:`Mesh` from JSON-like lists or arrays, ``transform`` (4 × 4 row-major affine)
     applied: ``v' = A v + b``, normals by the inverse transpose of ``A``, and — when ``A``
     mirrors (det < 0) — every triangle's winding reversed, so that a closed mesh stays
     wound outwards. Bounds (±MAX_COORDINATE) hold for the transformed vertices. SceneError
-    fields are relative to the mesh (``vertices[3]``, ``transform[0][2]``)."""
+    fields are relative to the mesh (``vertices[3]``, ``transform[0][2]``). ``attributes``: the
+    vertex attributes of :class:`Mesh` by name; tangents turn with ``A`` (their handedness flips
+    where ``A`` mirrors)."""
     if transform is None:
-        return Mesh(vertices, triangles, material, normals)
+        return Mesh(vertices, triangles, material, normals, **attributes)
     m = affine_transform(transform)
     v = rows3(vertices, "vertices")
     bad = ~np.isfinite(v).all(axis=1)
@@ -478,10 +439,16 @@ def make_mesh(vertices: Any, triangles: Any, material: int = 0, normals: Any = N
         with np.errstate(over="ignore", invalid="ignore"):
             n = n @ np.linalg.inv(a)  # (A⁻ᵀ n)ᵀ = nᵀ A⁻¹
     t = triangles
-    if np.linalg.det(a) < 0:
+    mirrors = np.linalg.det(a) < 0
+    if mirrors:
         t = rows3(triangles, "triangles", "vertex indices")[:, [0, 2, 1]]
+    if attributes.get("tangents") is not None:
+        tan = vertex_attribute(attributes["tangents"], "tangents", len(v), 4, -MAX_COORDINATE, MAX_COORDINATE)
+        with np.errstate(over="ignore", invalid="ignore"):
+            turned = np.concatenate([tan[:, :3] @ a.T, tan[:, 3:] * (-1.0 if mirrors else 1.0)], axis=1)
+        attributes = {**attributes, "tangents": turned}
     try:
-        return Mesh(moved, t, material, n)
+        return Mesh(moved, t, material, n, **attributes)
     except SceneError as e:
         if e.field.startswith("vertices["):
             raise SceneError(e.field, f"{e.message} after the transform") from None
@@ -504,7 +471,7 @@ class Scene:
 
     camera: Camera
     lights: tuple[Light, ...]
-    materials: tuple[Material, ...]
+    materials: tuple[AnyMaterial, ...]
     sphere_centers: np.ndarray
     sphere_radii: np.ndarray
     sphere_materials: np.ndarray
@@ -513,6 +480,7 @@ class Scene:
     environment: Vec3 = (0.0, 0.0, 0.0)  # the radiance a ray that meets nothing sees (black: none)
     environment_map: EnvironmentMap | None = None  # … or an image (renderer/envmap.py; the colour black)
     shapes: Shapes = field(default_factory=Shapes.empty)  # cylinders, cones, disks, tori (renderer/shapes.py)
+    textures: tuple[Texture, ...] = ()  # the images materials read (renderer/materials/texture.py)
 
     # Upper bounds that keep one scene from exhausting the service.
     MAX_SPHERES = limits.MAX_SPHERES
@@ -530,6 +498,7 @@ class Scene:
             ("planes", self.planes, self.MAX_PLANES),
             ("materials", self.materials, self.MAX_MATERIALS),
             ("meshes", self.meshes, self.MAX_MESHES),
+            ("textures", self.textures, limits.MAX_TEXTURES),
         ):
             if len(items) > cap:
                 raise SceneError(name, f"at most {cap} allowed, got {len(items)}")
@@ -606,6 +575,29 @@ class Scene:
                 )
             if any(env):
                 raise SceneError("environment", "a color or an image, not both")
+        self._check_textures()
+
+    def _check_textures(self) -> None:
+        """Textures are Texture objects within MAX_TEXTURE_TEXELS together, and every texture a
+        material names exists."""
+        object.__setattr__(self, "textures", tuple(self.textures))
+        for i, t in enumerate(self.textures):
+            if not isinstance(t, Texture):
+                raise SceneError(f"textures[{i}]", f"expected a Texture, got {type(t).__name__}")
+        texels = sum(t.width * t.height for t in self.textures)
+        if texels > limits.MAX_TEXTURE_TEXELS:
+            raise SceneError(
+                "textures",
+                f"{texels:,} texels in all; at most {limits.MAX_TEXTURE_TEXELS:,} per scene (MAX_TEXTURE_TEXELS)",
+            )
+        for i, m in enumerate(self.materials):
+            for slot in getattr(m, "texture_slots", lambda: ())():
+                index = getattr(m, f"{slot}_texture")
+                if index >= len(self.textures):
+                    raise SceneError(
+                        f"materials[{i}].{slot}_texture",
+                        f"texture index {index} out of range (scene has {len(self.textures)} textures)",
+                    )
 
     @property
     def n_spheres(self) -> int:
@@ -715,6 +707,7 @@ class Scene:
             self.environment,
             self.environment_map,
             self.shapes if shapes is None else shapes,
+            self.textures,
         )
 
     def with_camera(self, camera: Camera) -> Scene:
@@ -748,23 +741,31 @@ class Scene:
             out["environment"] = {"color": list(self.environment)}
         if self.environment_map is not None:
             out["environment"] = self.environment_map.to_json()
+        if self.textures:
+            out["textures"] = [t.to_json() for t in self.textures]
         return out
 
     @staticmethod
     def from_json(d: Any, images: Mapping[str, np.ndarray] | None = None) -> Scene:
         """The scene of scene JSON; ``images``: the texels of the environment images a reference
         may name (an uploaded image's, beside the scene in the session store)."""
-        d = _object(
-            d, "scene", {"camera", "lights", "materials", "spheres", "planes", "meshes", "environment", *SHAPE_KINDS}
+        d = json_object(
+            d,
+            "scene",
+            {"camera", "lights", "materials", "spheres", "planes", "meshes", "environment", "textures", *SHAPE_KINDS},
         )
-        env = _object(d.get("environment", {}), "environment", {"color", "image", "scale", "rotation_deg"})
+        env = json_object(d.get("environment", {}), "environment", {"color", "image", "scale", "rotation_deg"})
         environment = finite_vec3(env.get("color", [0.0, 0.0, 0.0]), "environment.color")
         environment_map = environment_map_from_json(env, images)
         camera = Camera.from_json(d.get("camera", {}), "camera")
         lights = [Light.from_json(x, f"lights[{i}]") for i, x in enumerate(_list(d.get("lights", []), "lights"))]
         materials = [
-            Material.from_json(x, f"materials[{i}]") for i, x in enumerate(_list(d.get("materials", []), "materials"))
+            material_from_json(x, f"materials[{i}]") for i, x in enumerate(_list(d.get("materials", []), "materials"))
         ]
+        raw_textures = _list(d.get("textures", []), "textures")
+        if len(raw_textures) > limits.MAX_TEXTURES:
+            raise SceneError("textures", f"at most {limits.MAX_TEXTURES} textures allowed, got {len(raw_textures)}")
+        textures = tuple(Texture.from_json(x, f"textures[{i}]") for i, x in enumerate(raw_textures))
         spheres = _list(d.get("spheres", []), "spheres")
         if len(spheres) > Scene.MAX_SPHERES:
             raise SceneError("spheres", f"at most {Scene.MAX_SPHERES} spheres allowed, got {len(spheres)}")
@@ -772,7 +773,7 @@ class Scene:
         radii = np.empty(len(spheres))
         mats = np.empty(len(spheres), dtype=np.int32)
         for i, s in enumerate(spheres):
-            s = _object(s, f"spheres[{i}]", {"center", "radius", "material"})
+            s = json_object(s, f"spheres[{i}]", {"center", "radius", "material"})
             for k in ("center", "radius"):
                 if k not in s:
                     raise SceneError(f"spheres[{i}].{k}", "field required")
@@ -781,10 +782,10 @@ class Scene:
             mats[i] = _material_index(s.get("material", 0), f"spheres[{i}].material", max(len(materials), 1))
         planes = []
         for i, p in enumerate(_list(d.get("planes", []), "planes")):
-            p = _object(p, f"planes[{i}]", {"point", "normal", "material"})
+            p = json_object(p, f"planes[{i}]", {"point", "normal", "material"})
             mi = _material_index(p.get("material", 0), f"planes[{i}].material", max(len(materials), 1))
             kw = {k: p[k] for k in ("point", "normal") if k in p}
-            planes.append(_construct(Plane, {**kw, "material": mi}, f"planes[{i}]"))
+            planes.append(construct(Plane, {**kw, "material": mi}, f"planes[{i}]"))
         raw = _list(d.get("meshes", []), "meshes")
         if len(raw) > Scene.MAX_MESHES:
             raise SceneError("meshes", f"at most {Scene.MAX_MESHES} meshes allowed, got {len(raw)}")
@@ -806,6 +807,7 @@ class Scene:
             environment,
             environment_map,
             shapes,
+            textures,
         )
 
 

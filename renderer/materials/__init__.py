@@ -1,11 +1,14 @@
 """The material boundary: a material kind declares its parameters once, and everything else is made
 from that declaration.
 
-A kind is a frozen dataclass (the Phong kind: :class:`renderer.scene.Material`) whose fields are
-made by :func:`param`: a default, a range, a unit and a doc each. From those fields come
+A kind is a frozen dataclass deriving :class:`MaterialKind` (the thesis's Phong kind:
+:class:`renderer.materials.phong.Material`; glTF's metallic-roughness:
+:class:`renderer.materials.pbr.PbrMaterial`), whose fields are made by :func:`param`: a default, a
+range (or a set of choices), a unit and a doc each. From those fields come
 
-- the kind's validation, JSON reading and writing (``Material.__post_init__``, ``to_json``,
-  ``from_json`` loop over :func:`material_params`);
+- the kind's validation, JSON reading and writing (:class:`MaterialKind`'s ``__post_init__``,
+  ``to_json``, ``from_json`` loop over :func:`material_params`; the JSON names a kind other than
+  Phong by ``"kind"``);
 - the API's model of it (``server/api/schemas.py``'s ``MaterialModel``: names, ranges, defaults and
   descriptions of the OpenAPI schema);
 - its GPU record: :func:`record_layout` places the fields that go to the GPU in RGBA32F texels
@@ -23,9 +26,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
+
+from ..errors import SceneError, construct, finite_number, json_object
 
 PARAM_KEY = "material_param"  # where a dataclass field's metadata holds its MaterialParam
 TEXEL_FLOATS = 4  # an RGBA32F texel, or one vec4 of the uniform array
@@ -40,7 +45,9 @@ class MaterialParam:
     its range (``lo_open``: ``lo`` itself refused); ``unit``: what it measures in (empty: a plain
     weight); ``doc``: what it does, as the API describes it; ``record``: whether it goes to the GPU
     material record (False: packed elsewhere, e.g. emission, which only emitting scenes carry);
-    ``omit_default``: the JSON leaves it out while it equals its default."""
+    ``omit_default``: the JSON leaves it out while it equals its default; ``integer``: only whole
+    numbers (a texture index); ``choices``: the JSON values it takes (strings, booleans), its
+    record holding the chosen one's position (``lo``/``hi`` then bound that position)."""
 
     default: float | tuple[float, ...]
     lo: float
@@ -50,6 +57,8 @@ class MaterialParam:
     lo_open: bool = False
     record: bool = True
     omit_default: bool = False
+    integer: bool = False
+    choices: tuple[Any, ...] = ()
 
     @property
     def size(self) -> int:
@@ -67,11 +76,21 @@ def param(
     lo_open: bool = False,
     record: bool = True,
     omit_default: bool = False,
+    integer: bool = False,
 ) -> Any:
     """A material kind's dataclass field declared with its range, unit and doc (see MaterialParam)."""
-    spec = MaterialParam(default, lo, hi, doc, unit, lo_open, record, omit_default)
+    spec = MaterialParam(default, lo, hi, doc, unit, lo_open, record, omit_default, integer)
     if not 1 <= spec.size <= TEXEL_FLOATS:
         raise ValueError(f"a material parameter has 1 to {TEXEL_FLOATS} numbers, got {spec.size}")
+    return field(default=default, metadata={PARAM_KEY: spec})
+
+
+def choice(default: Any, choices: tuple[Any, ...], *, doc: str, omit_default: bool = False) -> Any:
+    """A material kind's dataclass field that takes one of ``choices`` (JSON strings or booleans);
+    its GPU record holds the chosen one's position in ``choices``."""
+    if default not in choices:
+        raise ValueError(f"default {default!r} is not one of {choices!r}")
+    spec = MaterialParam(0.0, 0.0, len(choices) - 1, doc, omit_default=omit_default, integer=True, choices=choices)
     return field(default=default, metadata={PARAM_KEY: spec})
 
 
@@ -115,13 +134,20 @@ def record_texels(kind: type) -> int:
     return max((s.texel for s in record_layout(kind).values()), default=0) + 1
 
 
+def record_value(material: Any, name: str) -> float | tuple[float, ...]:
+    """Parameter ``name`` of ``material`` as its record holds it: a choice's position, else the value."""
+    value = getattr(material, name)
+    choices = material_params(type(material))[name].choices
+    return float(choices.index(value)) if choices else value
+
+
 def pack_records(materials: Sequence[Any], kind: type) -> np.ndarray:
     """float32 (len(materials) × record_texels(kind), 4): the materials' records, one after another
     (unused components 0)."""
     texels = record_texels(kind)
     out = np.zeros((len(materials), texels, TEXEL_FLOATS), dtype=np.float32)
     for name, slot in record_layout(kind).items():
-        values = np.array([getattr(m, name) for m in materials], dtype=np.float32).reshape(len(materials), -1)
+        values = np.array([record_value(m, name) for m in materials], dtype=np.float32).reshape(len(materials), -1)
         out[:, slot.texel, slot.offset : slot.offset + slot.size] = values
     return out.reshape(-1, TEXEL_FLOATS)
 
@@ -134,3 +160,50 @@ def glsl_accessors(kind: type) -> str:
         f"#define material_{name}(m) (MATERIAL_TEXEL(m, {slot.texel}).{slot.swizzle})\n"
         for name, slot in record_layout(kind).items()
     )
+
+
+class MaterialKind:
+    """What every material kind shares: its fields checked against their declarations on
+    construction, and its JSON. A kind is a frozen dataclass deriving this class, with ``KIND``
+    its JSON name."""
+
+    KIND: ClassVar[str]
+
+    def __post_init__(self) -> None:
+        for name, p in material_params(type(self)).items():
+            object.__setattr__(self, name, _checked(getattr(self, name), name, p))
+
+    def to_json(self) -> dict:
+        """The material's JSON: every parameter, less those declared ``omit_default`` that hold
+        their default; ``"kind"`` for every kind but the Phong one."""
+        out: dict[str, Any] = {} if self.KIND == "phong" else {"kind": self.KIND}
+        for name, p in material_params(type(self)).items():
+            value = getattr(self, name)
+            if p.omit_default and value == (p.choices[0] if p.choices else p.default):
+                continue
+            out[name] = list(value) if isinstance(value, tuple) else value
+        return out
+
+    @classmethod
+    def from_json(cls, d: Any, where: str) -> Any:
+        keys = tuple(material_params(cls))
+        d = json_object(d, where, {"kind", *keys})
+        return construct(cls, {k: d[k] for k in keys if k in d}, where)
+
+
+def _checked(value: Any, name: str, p: MaterialParam) -> Any:
+    if p.choices:
+        if isinstance(value, np.generic):
+            value = value.item()
+        for c in p.choices:
+            if value == c and type(value) is type(c):
+                return c
+        raise SceneError(name, f"expected one of {', '.join(repr(c) for c in p.choices)}, got {value!r}")
+    if p.size == 1:
+        x = finite_number(value, name, lo=p.lo, hi=p.hi, lo_open=p.lo_open)
+        if p.integer and not x.is_integer():
+            raise SceneError(name, f"expected a whole number, got {x}")
+        return int(x) if p.integer else x
+    if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != p.size:
+        raise SceneError(name, f"expected a list of {p.size} numbers")
+    return tuple(finite_number(v, f"{name}[{i}]", lo=p.lo, hi=p.hi, lo_open=p.lo_open) for i, v in enumerate(value))
