@@ -100,7 +100,6 @@ def _moved_textures(material: AnyMaterial, base: int) -> AnyMaterial:
         return material
     import dataclasses
 
-    moved = {
-        f"{s}_texture": getattr(material, f"{s}_texture") + base for s in slots if getattr(material, f"{s}_texture") >= 0
-    }
+    names = [f"{s}_texture" for s in slots]
+    moved = {n: getattr(material, n) + base for n in names if getattr(material, n) >= 0}
     return dataclasses.replace(material, **moved)
