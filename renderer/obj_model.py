@@ -194,12 +194,25 @@ def _bad_number(rows: list[bytes], numbers: list[int], key: str, allowed: Sequen
     return _refuse(f"the '{key}' lines could not be read")
 
 
+def _tokens(joined: bytes, n_rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """Of rows joined by newlines: the words in each row, and where each word starts (words:
+    runs of bytes other than ASCII whitespace, as ``bytes.split`` cuts them), counted on arrays."""
+    a = np.frombuffer(joined, np.uint8)
+    ws = (a == 32) | ((a >= 9) & (a <= 13))
+    begins = ~ws
+    begins[1:] &= ws[:-1]
+    starts = np.flatnonzero(begins)
+    row = np.searchsorted(np.flatnonzero(a == 10), starts)
+    return np.bincount(row, minlength=n_rows).astype(np.int64), starts
+
+
 def _rows(
     rows: list[bytes], numbers: list[int], key: str, allowed: Sequence[int], what: str
 ) -> tuple[np.ndarray, np.ndarray]:
     """float64 numbers of ``key`` lines, flat, and each row's count (each in ``allowed``)."""
-    counts = np.fromiter(map(len, map(bytes.split, rows)), np.int64, len(rows))
-    values = _floats(b"\n".join(rows), int(counts.sum()))
+    joined = b"\n".join(rows)
+    counts, _ = _tokens(joined, len(rows))
+    values = _floats(joined, int(counts.sum()))
     if values is None or not np.isin(counts, allowed).all():
         raise _bad_number(rows, numbers, key, allowed, what)
     return values, counts
@@ -216,11 +229,11 @@ def _columns(values: np.ndarray, counts: np.ndarray, first: int, width: int) -> 
 
 
 # ---- faces --------------------------------------------------------------------------------------
-_FORMS = {  # corner form → (regex of one corner, fields, separator replaced by a space)
-    "v": (rb"-?\d+", 1, None),
-    "v/vt": (rb"-?\d+/-?\d+", 2, b"/"),
-    "v//vn": (rb"-?\d+//-?\d+", 2, b"//"),
-    "v/vt/vn": (rb"-?\d+/-?\d+/-?\d+", 3, b"/"),
+_FORMS = {  # corner form → (its slashes, fields, separator replaced by a space)
+    "v": (0, 1, None),
+    "v/vt": (1, 2, b"/"),
+    "v//vn": (2, 2, b"//"),
+    "v/vt/vn": (2, 3, b"/"),
 }
 
 
@@ -230,22 +243,28 @@ def _corner_form(token: bytes) -> str:
     return ("v", "v/vt", "v/vt/vn", "?")[min(token.count(b"/"), 3)]
 
 
-def _corners(rows: list[bytes], numbers: list[int], sizes: np.ndarray) -> np.ndarray:
-    """int64 (corners, 3): each corner's v, vt and vn reference as written (0: absent). The whole
-    face text is read at once when every corner has one form; otherwise, corner by corner."""
+def _corners(rows: list[bytes], numbers: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Each face's corner count, and int64 (corners, 3): each corner's v, vt and vn reference as
+    written (0: absent). The whole face text is read at once when every corner has the first
+    one's form (each corner's slashes counted on arrays); otherwise, corner by corner."""
+    joined = b"\n".join(rows)
+    sizes, starts = _tokens(joined, len(rows))
     total = int(sizes.sum())
-    joined = b" ".join(rows)
-    first = rows[0].split()[0] if total else b""
+    first = rows[int(np.argmax(sizes > 0))].split()[0] if total else b""
     form = _corner_form(first)
     if form in _FORMS:
-        pattern, width, sep = _FORMS[form]
-        if re.fullmatch(rb"\s*(?:" + pattern + rb"\s+)*(?:" + pattern + rb")?\s*", joined):
+        n_slashes, width, sep = _FORMS[form]
+        a = np.frombuffer(joined, np.uint8)
+        slashes = np.bincount(np.searchsorted(starts, np.flatnonzero(a == 47), "right") - 1, minlength=total)
+        doubles = joined.count(b"//")
+        uniform = (slashes == n_slashes).all() and doubles == (total if form == "v//vn" else 0)
+        if uniform:
             ints = _ints(joined if sep is None else joined.replace(sep, b" "), total * width)
             if ints is not None:
                 out = np.zeros((total, 3), np.int64)
                 cols = {"v": (0,), "v/vt": (0, 1), "v//vn": (0, 2), "v/vt/vn": (0, 1, 2)}[form]
                 out[:, cols] = ints.reshape(total, width)
-                return out
+                return sizes, out
     out = np.zeros((total, 3), np.int64)
     k = 0
     for row, no in zip(rows, numbers, strict=True):
@@ -265,7 +284,7 @@ def _corners(rows: list[bytes], numbers: list[int], sizes: np.ndarray) -> np.nda
                             f"line {no}: face 'f {_name(row)[:60]}': {_name(f)[:20]!r} is not a whole number (an index)"
                         ) from None
             k += 1
-    return out
+    return sizes, out
 
 
 def _resolve(
@@ -383,14 +402,13 @@ def load_obj_model(files: ModelFiles, *, max_triangles: int, max_vertices: int) 
         normals = values.reshape(-1, 3)
 
     # faces: corners, their references resolved, fanned into triangles
-    sizes = np.fromiter(map(len, map(bytes.split, obj.f)), np.int64, len(obj.f))
+    sizes, refs = _corners(obj.f, obj.f_no)
     if (sizes < 3).any():
         i = int(np.flatnonzero(sizes < 3)[0])
         raise _refuse(f"line {obj.f_no[i]}: face 'f {_name(obj.f[i])[:60]}': a face needs 3 corners or more")
     n_tri = int((sizes - 2).sum())
     if n_tri > max_triangles:
         raise SceneError("file", f"the model has {n_tri:,} triangles; at most {max_triangles:,} allowed")
-    refs = _corners(obj.f, obj.f_no, sizes)
     face_of = np.repeat(np.arange(len(sizes)), sizes)
     f_no = np.asarray(obj.f_no)
     refs_v = _resolve(refs[:, 0], np.searchsorted(obj.v_no, f_no)[face_of], len(obj.v), "v", obj.f, face_of, obj.f_no)
@@ -428,12 +446,12 @@ def load_obj_model(files: ModelFiles, *, max_triangles: int, max_vertices: int) 
     face_material = np.array([-1] + [index_of.get(n, -1) for n in names], np.int64)[use_at + 1]
     tri_material = face_material[tri_face]
 
+    spans = (len(obj.v), len(obj.vt) + 1, len(obj.vn) + 1)
     parts: list[ModelPart] = []
     for m in dict.fromkeys(tri_material.tolist()):  # in the order of first use
         tris = triangles[tri_material == m]
         corners = tris.ravel()
-        keys = np.column_stack([refs_v[corners], refs_vt[corners], refs_vn[corners]])
-        unique, inverse = np.unique(keys, axis=0, return_inverse=True)
+        unique, inverse = _distinct_corners(refs_v[corners], refs_vt[corners], refs_vn[corners], spans)
         if len(unique) > max_vertices:
             raise SceneError(
                 "file", f"the model has {len(unique):,} distinct vertices in a part; at most {max_vertices:,} per mesh"
@@ -451,6 +469,22 @@ def load_obj_model(files: ModelFiles, *, max_triangles: int, max_vertices: int) 
         )
     images = tuple(side.image_names()) if side is not None else ()
     return Model(tuple(parts), tuple(materials), bank.textures(), images, tuple(dict.fromkeys(notices)))
+
+
+def _distinct_corners(
+    v: np.ndarray, vt: np.ndarray, vn: np.ndarray, spans: tuple[int, int, int]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct (v, vt, vn) triples (−1: absent) of corners, (N, 3), and each corner's one.
+    The triple as one int64 (v · Nt + vt + 1) · Nn + vn + 1 where that fits: a sort of integers,
+    not of rows."""
+    nv, nt, nn = spans
+    if nv * nt * nn < 1 << 62:
+        key = (v * nt + (vt + 1)) * nn + (vn + 1)
+        keys, inverse = np.unique(key, return_inverse=True)
+        unique = np.column_stack([keys // (nt * nn), (keys // nn) % nt - 1, keys % nn - 1])
+        return unique, inverse.reshape(-1)
+    unique, inverse = np.unique(np.column_stack([v, vt, vn]), axis=0, return_inverse=True)
+    return unique, inverse.reshape(-1)
 
 
 def _part_normals(
