@@ -368,7 +368,8 @@ def load_obj_model(files: ModelFiles, *, max_triangles: int, max_vertices: int) 
     more pixels than ``MAX_MODEL_IMAGE_*``, more materials or textures than a scene holds."""
     side = None if files.side is NO_SIDE_FILES else files.side
     data = _text(bytes(files.data))
-    check_model(data, "obj", max_triangles=max_triangles, max_vertices=max_vertices, side=side)
+    joined = re.sub(rb"\\[ \t]*\r?\n", b" ", data) if b"\\" in data else data  # continued lines, for the guard
+    check_model(joined, "obj", max_triangles=max_triangles, max_vertices=max_vertices, side=side)
     obj = _scan(data)
     if not obj.f:
         raise SceneError("file", "the OBJ file holds no triangle mesh (no faces)")
@@ -516,9 +517,14 @@ class _Definition:
     name: str
     file: str
     statements: dict[str, tuple[int, str]]
+    spelled: dict[str, str]  # each keyword as the file writes it
 
     def where(self, key: str) -> str:
         return f"MTL {self.file!r} line {self.statements[key][0]}"
+
+    def line(self, key: str) -> str:
+        """The statement as written (shortened), for messages."""
+        return f"'{self.spelled[key]} {self.statements[key][1][:40]}'"
 
 
 @dataclass
@@ -579,6 +585,7 @@ class _Library:
             return None
         file, begin, end = self.ranges[key]
         statements: dict[str, tuple[int, str]] = {}
+        spelled: dict[str, str] = {}
         for i in range(begin, end):
             line = self.lines[file][i]
             at = line.find(b"#")
@@ -586,8 +593,10 @@ class _Library:
                 line = line[:at]
             words = line.split(None, 1)
             if words:
-                statements[_name(words[0]).lower()] = (i + 1, _name(words[1]) if len(words) > 1 else "")
-        return _Definition(key, posixpath.basename(file), statements)
+                keyword = _name(words[0])
+                statements[keyword.lower()] = (i + 1, _name(words[1]) if len(words) > 1 else "")
+                spelled[keyword.lower()] = keyword
+        return _Definition(key, posixpath.basename(file), statements, spelled)
 
 
 def _library_names(rest: bytes, side: SideFiles | None) -> list[str]:
@@ -624,9 +633,7 @@ def _numbers(d: _Definition, key: str, sizes: Sequence[int]) -> list[float] | No
     except ValueError:
         out = []
     if len(out) not in sizes or not all(np.isfinite(out)):
-        raise _refuse(
-            f"{d.where(key)}: '{key} {d.statements[key][1][:40]}': {' or '.join(map(str, sizes))} numbers expected"
-        )
+        raise _refuse(f"{d.where(key)}: {d.line(key)}: {' or '.join(map(str, sizes))} numbers expected")
     return out
 
 
@@ -689,7 +696,7 @@ def _map(d: _Definition, *keys: str) -> _Map | None:
             i += 1
         opts[name] = args
     if i >= len(tokens):
-        raise _refuse(f"{d.where(key)}: '{key} {text[:60]}' names no file")
+        raise _refuse(f"{d.where(key)}: {d.line(key)} names no file")
     file = text[tokens[i][1] :].strip()
 
     def nums(name: str, default: tuple[float, float]) -> tuple[float, float]:
