@@ -432,6 +432,9 @@ def load_obj_model(files: ModelFiles, *, max_triangles: int, max_vertices: int) 
     notices: list[str] = []
     library = _Library.read(obj.mtllib, side, notices)
     bank = _TextureBank(side, notices)
+    defined = sum(library.key(name) is not None for name in used)
+    if defined > limits.MAX_MATERIALS:
+        raise _refuse(f"it uses {defined:,} materials; at most {limits.MAX_MATERIALS} (MAX_MATERIALS)")
     materials: list[PbrMaterial] = []
     index_of: dict[str, int] = {}
     for name in used:
@@ -440,8 +443,6 @@ def load_obj_model(files: ModelFiles, *, max_triangles: int, max_vertices: int) 
             if obj.mtllib and library.files:
                 notices.append(f"the material {name!r} (usemtl) is not in the material library: the scene's material")
             continue
-        if len(materials) >= limits.MAX_MATERIALS:
-            raise _refuse(f"it uses more than {limits.MAX_MATERIALS} materials (MAX_MATERIALS)")
         index_of[name] = len(materials)
         materials.append(_material(definition, bank))
     face_material = np.array([-1] + [index_of.get(n, -1) for n in names], np.int64)[use_at + 1]
@@ -469,7 +470,11 @@ def load_obj_model(files: ModelFiles, *, max_triangles: int, max_vertices: int) 
             )
         )
     images = tuple(side.image_names()) if side is not None else ()
-    return Model(tuple(parts), tuple(materials), bank.textures(), images, tuple(dict.fromkeys(notices)))
+    said = list(dict.fromkeys(notices))
+    if len(said) > limits.MAX_MODEL_NOTICES:
+        more = len(said) - limits.MAX_MODEL_NOTICES + 1
+        said = [*said[: limits.MAX_MODEL_NOTICES - 1], f"… and {more:,} more like these"]
+    return Model(tuple(parts), tuple(materials), bank.textures(), images, tuple(said))
 
 
 def _distinct_corners(
@@ -535,6 +540,7 @@ class _Library:
     files: list[str] = field(default_factory=list)
     lines: dict[str, list[bytes]] = field(default_factory=dict)
     ranges: dict[str, tuple[str, int, int]] = field(default_factory=dict)
+    _folded: dict[str, str] | None = None  # lowercased name → the first name defined so
 
     @classmethod
     def read(cls, mtllib: list[tuple[int, bytes]], side: SideFiles | None, notices: list[str]) -> _Library:
@@ -579,8 +585,18 @@ class _Library:
         if current is not None and current not in self.ranges:
             self.ranges[current] = (file, begin, len(lines))
 
+    def key(self, name: str) -> str | None:
+        """The defined name ``usemtl name`` means: the same, else the same but for case."""
+        if name in self.ranges:
+            return name
+        if self._folded is None:
+            self._folded = {}
+            for n in self.ranges:
+                self._folded.setdefault(n.lower(), n)
+        return self._folded.get(name.lower())
+
     def find(self, name: str) -> _Definition | None:
-        key = name if name in self.ranges else next((n for n in self.ranges if n.lower() == name.lower()), None)
+        key = self.key(name)
         if key is None:
             return None
         file, begin, end = self.ranges[key]

@@ -420,3 +420,49 @@ def test_the_corpus_vertex_colours():
 
 def test_the_utf16_file_of_the_corpus_reads():
     assert corpus("box_UTF16BE.obj").n_triangles == 12
+
+
+# ---- hostile material libraries (bench/hostile_parts/obj_mtl.py sends them to a server) ---------
+def test_a_library_or_texture_outside_the_folder_is_refused_and_nothing_outside_is_read():
+    for obj, mtl in (
+        ("mtllib ../../../etc/passwd\nusemtl a\n", None),
+        ("mtllib m.mtl\nusemtl a\n", "newmtl a\nmap_Kd ..\\..\\..\\etc\\passwd\n"),
+        ("mtllib m.mtl\nusemtl a\n", "newmtl a\nbump -bm 1 ../secret.png\n"),
+    ):
+        side = {"m.mtl": mtl.encode()} if mtl else {}
+        with pytest.raises(SceneError) as e:
+            load(obj + SQUARE + "f 1 2 3\n", side)
+        assert e.value.field == "file" and "outside the model's folder" in e.value.message
+
+
+def test_a_library_of_100000_materials_parses_only_those_used_and_too_many_used_is_refused():
+    names = [f"m{i}" for i in range(100_000)]
+    mtl = "".join(f"newmtl {n}\nKd 0.5 0.5 0.5\n" for n in names).encode()
+    one = load("mtllib big.mtl\nusemtl m99999\n" + SQUARE + "f 1 2 3\n", {"big.mtl": mtl})
+    assert len(one.materials) == 1 and one.materials[0].base_color == pytest.approx((srgb(0.5),) * 3)
+    uses = "".join(f"usemtl {n}\nf 1 2 3\n" for n in names[: limits.MAX_MATERIALS + 1])
+    with pytest.raises(SceneError, match="MAX_MATERIALS"):
+        load("mtllib big.mtl\n" + SQUARE + uses, {"big.mtl": mtl})
+
+
+def test_libraries_past_max_mtl_bytes_are_refused():
+    half = b"#" * (limits.MAX_MTL_BYTES // 2 + 1) + b"\nnewmtl a\n"
+    with pytest.raises(SceneError, match="MAX_MTL_BYTES"):
+        load("mtllib a.mtl b.mtl\nusemtl a\n" + SQUARE + "f 1 2 3\n", {"a.mtl": half, "b.mtl": half})
+
+
+def test_more_textures_than_a_scene_holds_are_refused():
+    n = limits.MAX_TEXTURES + 1
+    mtl = "".join(f"newmtl m{i}\nmap_Kd t{i}.png\n" for i in range(n)).encode()
+    side = {"m.mtl": mtl, **{f"t{i}.png": png(np.full((1, 1, 3), i, np.uint8)) for i in range(n)}}
+    uses = "".join(f"usemtl m{i}\nf 1 2 3\n" for i in range(n))
+    with pytest.raises(SceneError, match="MAX_TEXTURES"):
+        load("mtllib m.mtl\n" + SQUARE + uses, side)
+
+
+def test_50000_usemtl_names_no_library_defines_cost_one_lookup_each_and_a_bounded_list_of_notices():
+    mtl = "".join(f"newmtl M{i}\n" for i in range(20_000)).encode()
+    uses = "".join(f"usemtl x{i}\nf 1 2 3\n" for i in range(50_000))
+    m = load("mtllib m.mtl\n" + SQUARE + uses, {"m.mtl": mtl})
+    assert [p.material for p in m.parts] == [-1]
+    assert len(m.notices) == limits.MAX_MODEL_NOTICES and m.notices[-1] == "… and 49,985 more like these"
