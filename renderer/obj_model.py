@@ -13,9 +13,12 @@ in the order of first use; faces before any ``usemtl``, or naming a material no 
 defines, take the scene's material (−1). ``o`` and ``g`` do not split the model; ``s``, ``l``,
 ``p`` and free-form geometry are not read. A line ending in ``\\`` continues on the next.
 
-Before anything is parsed, the file's counts are checked (:func:`renderer.model_guard.check_model`);
-after, the triangles (``max_triangles``, all parts) and each part's vertices (``max_vertices``).
-A malformed line is refused with ``SceneError("file", "OBJ: line N: …")`` naming what is wrong.
+An OBJ declares nothing it does not hold, so this reader needs no check before it reads (the
+dispatcher, :func:`renderer.mesh_io.load_model`, runs :func:`renderer.model_guard.check_model`
+first all the same): what it allocates follows the text. It bounds the ``v`` lines
+(``DECLARED_VERTEX_FACTOR × max_vertices``), the triangles (``max_triangles``, all parts, before
+any is made) and each part's vertices (``max_vertices``), and refuses a malformed line with
+``SceneError("file", "OBJ: line N: …")`` naming what is wrong.
 
 **Materials** (``mtllib``: several files on one line, names with spaces; all together at most
 ``MAX_MTL_BYTES``) become :class:`~renderer.materials.pbr.PbrMaterial` s; only the materials the
@@ -79,7 +82,7 @@ from .materials.pbr import PbrMaterial
 from .materials.texture import Texture
 from .model import Model, ModelPart
 from .model_archive import IMAGE_MAGIC, NO_SIDE_FILES, ModelFiles, SideFiles
-from .model_guard import check_image, check_model
+from .model_guard import check_image
 from .ply_model import srgb_to_linear
 from .scene import SceneError
 
@@ -367,12 +370,14 @@ def load_obj_model(files: ModelFiles, *, max_triangles: int, max_vertices: int) 
     line (naming its number), a side file outside the model's folder, an image that declares
     more pixels than ``MAX_MODEL_IMAGE_*``, more materials or textures than a scene holds."""
     side = None if files.side is NO_SIDE_FILES else files.side
-    data = _text(bytes(files.data))
-    joined = re.sub(rb"\\[ \t]*\r?\n", b" ", data) if b"\\" in data else data  # continued lines, for the guard
-    check_model(joined, "obj", max_triangles=max_triangles, max_vertices=max_vertices, side=side)
-    obj = _scan(data)
+    obj = _scan(_text(bytes(files.data)))
     if not obj.f:
         raise SceneError("file", "the OBJ file holds no triangle mesh (no faces)")
+    if len(obj.v) > limits.DECLARED_VERTEX_FACTOR * max_vertices:
+        raise _refuse(
+            f"the file has {len(obj.v):,} vertices; at most {limits.DECLARED_VERTEX_FACTOR * max_vertices:,} "
+            f"({limits.DECLARED_VERTEX_FACTOR} per vertex of a mesh)"
+        )
 
     values, counts = _rows(obj.v, obj.v_no, "v", (3, 4, 6), "a vertex is x y z, x y z w or x y z r g b")
     positions = _columns(values, counts, 0, 3)

@@ -148,6 +148,8 @@ def test_the_bounds_are_the_services():
         load(text, max_triangles=1)
     with pytest.raises(SceneError, match="at most 3"):
         load(text, max_vertices=3)  # 4 distinct vertices in the part
+    with pytest.raises(SceneError, match="has 4 vertices; at most 3"):
+        load(text, max_vertices=1)  # the v lines, before any face is read
     with pytest.raises(SceneError, match="holds no triangle"):
         load("v 0 0 0\nl 1 1\n")
 
