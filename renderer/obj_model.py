@@ -4,17 +4,17 @@
 common vertex-colour extension), ``vt u [v [w]]``, ``vn x y z``, and faces ``f`` whose corners
 are ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``, counted from 1 or, negative, back from the last
 element defined before the face. A polygon is fanned from its first corner (a concave one is
-split wrongly, as trimesh and three.js split it). A vertex of the model is a distinct
+split wrongly, as trimesh and three (threejs.org) split it). A vertex of the model is a distinct
 (v, vt, vn) triple: corners that share all three share the vertex. ``vt``'s V is flipped to the
-scene's convention (glTF's: V = 0 at the image's top; OBJ's v = 0 is its bottom). Vertex colours
-are taken as sRGB-encoded (as the tools that write them display them; three.js's OBJLoader reads
-them so) and decoded to linear RGBA. ``usemtl`` groups the faces: one part per material used,
-in the order of first use; faces before any ``usemtl``, or naming a material no library
-defines, take the scene's material (−1). ``o`` and ``g`` do not split the model; ``s``, ``l``,
-``p`` and free-form geometry are not read. A line ending in ``\\`` continues on the next.
+scene's convention (glTF's: V = 0 at the image's top; OBJ's v = 0 is its bottom). Vertex
+colours are taken as sRGB-encoded (as the tools that write them display them; the OBJLoader of
+three, threejs.org, reads them so) and decoded to linear RGBA. ``usemtl`` groups the faces: one
+part per material used, in the order of first use; faces before any ``usemtl``, or naming a
+material no library defines, take the scene's material (−1). ``o`` and ``g`` do not split the
+model; ``s``, ``l``, ``p`` and free-form geometry are not read. A line ending in ``\\`` continues on the next.
 
 An OBJ declares nothing it does not hold, so this reader needs no check before it reads (the
-dispatcher, :func:`renderer.mesh_io.load_model`, runs :func:`renderer.model_guard.check_model`
+dispatcher, ``load_model`` of renderer/mesh_io.py, runs :func:`renderer.model_guard.check_model`
 first all the same): what it allocates follows the text. It bounds the ``v`` lines
 (``DECLARED_VERTEX_FACTOR × max_vertices``), the triangles (``max_triangles``, all parts, before
 any is made) and each part's vertices (``max_vertices``), and refuses a malformed line with
@@ -25,8 +25,9 @@ any is made) and each part's vertices (``max_vertices``), and refuses a malforme
 faces use are read. The mapping (docs/FORMATS.md has it as a table):
 
 - ``Kd`` → base colour, ``map_Kd`` → base colour texture (sRGB; Kd multiplies it, as the MTL
-  specification and three.js do). Colours are sRGB-encoded (three.js reads them so), decoded to
-  linear; a channel above 1 is linear already. No ``Kd``: 0.8 grey, or 1 under a ``map_Kd``.
+  specification and three's loader do). Colours are sRGB-encoded (three's loader reads them
+  so), decoded to linear; a channel above 1 is linear already. No ``Kd``: 0.8 grey, or 1 under
+  a ``map_Kd``.
 - ``Ns`` → roughness: a Phong (Blinn–Phong) exponent n has the Beckmann width
   α = √(2 / (n + 2)) (Walter et al. 2007), GGX's α at small widths; the material's roughness is
   perceptual (α = roughness²), so roughness = (2 / (Ns + 2))^¼: Ns 0 → 1, 10 → 0.64, 100 → 0.38,

@@ -9,8 +9,8 @@ trimesh keeps apart or drops:
 - ``red green blue`` (and ``alpha``), or ``diffuse_red diffuse_green diffuse_blue``, of any
   integer type (divided by the type's largest value: 255 for ``uchar``) or float (clamped to
   [0, 1]) → ``colors``. They are taken as sRGB-encoded, as the tools that paint them show them
-  (MeshLab, Blender's vertex paint; three.js's PLYLoader reads them so), and decoded to the linear
-  RGBA that :class:`~renderer.scene.Mesh` keeps; alpha stays as it is.
+  (MeshLab, Blender's vertex paint; the PLYLoader of three, threejs.org, reads them so), and
+  decoded to the linear RGBA that :class:`~renderer.scene.Mesh` keeps; alpha stays as it is.
 - ``s t``, ``u v`` or ``texture_u texture_v`` → ``uvs``, V flipped (PLY's ``t``, like OBJ's, is 0
   at the image's bottom; the scene's V is glTF's, 0 at the top).
 
