@@ -11,7 +11,8 @@ colours are taken as sRGB-encoded (as the tools that write them display them; th
 three, threejs.org, reads them so) and decoded to linear RGBA. ``usemtl`` groups the faces: one
 part per material used, in the order of first use; faces before any ``usemtl``, or naming a
 material no library defines, take the scene's material (−1). ``o`` and ``g`` do not split the
-model; ``s``, ``l``, ``p`` and free-form geometry are not read. A line ending in ``\\`` continues on the next.
+model; ``s``, ``l``, ``p`` and free-form geometry are not read. A line ending in ``\\``
+continues on the next.
 
 An OBJ declares nothing it does not hold, so this reader needs no check before it reads (the
 dispatcher, ``load_model`` of renderer/mesh_io.py, runs :func:`renderer.model_guard.check_model`
@@ -455,8 +456,11 @@ def load_obj_model(files: ModelFiles, *, max_triangles: int, max_vertices: int) 
     tri_material = face_material[tri_face]
 
     spans = (len(obj.v), len(obj.vt) + 1, len(obj.vn) + 1)
+    order = list(dict.fromkeys(tri_material.tolist()))  # in the order of first use
+    if len(order) > limits.MAX_MESHES:
+        raise _refuse(f"its faces make {len(order)} parts (one per material); at most {limits.MAX_MESHES} (MAX_MESHES)")
     parts: list[ModelPart] = []
-    for m in dict.fromkeys(tri_material.tolist()):  # in the order of first use
+    for m in order:
         tris = triangles[tri_material == m]
         corners = tris.ravel()
         unique, inverse = _distinct_corners(refs_v[corners], refs_vt[corners], refs_vn[corners], spans)

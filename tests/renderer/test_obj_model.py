@@ -468,3 +468,12 @@ def test_50000_usemtl_names_no_library_defines_cost_one_lookup_each_and_a_bounde
     m = load("mtllib m.mtl\n" + SQUARE + uses, {"m.mtl": mtl})
     assert [p.material for p in m.parts] == [-1]
     assert len(m.notices) == limits.MAX_MODEL_NOTICES and m.notices[-1] == "… and 49,985 more like these"
+
+
+def test_more_parts_than_a_scene_holds_meshes_are_refused():
+    n = limits.MAX_MATERIALS  # each its own part, and the faces before any usemtl one more
+    mtl = "".join(f"newmtl m{i}\n" for i in range(n)).encode()
+    uses = "".join(f"usemtl m{i}\nf 1 2 3\n" for i in range(n))
+    assert len(load("mtllib m.mtl\n" + SQUARE + uses, {"m.mtl": mtl}).parts) == n
+    with pytest.raises(SceneError, match="MAX_MESHES"):
+        load("mtllib m.mtl\n" + SQUARE + "f 1 2 3\n" + uses, {"m.mtl": mtl})
