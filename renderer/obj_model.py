@@ -835,8 +835,8 @@ def _material(d: _Definition, bank: _TextureBank) -> PbrMaterial:
 
 # ---- textures -----------------------------------------------------------------------------------
 def _luminance(pixels: np.ndarray) -> np.ndarray:
-    """float64 (H, W) in [0, 1]: the encoded values' luminance (Rec. 709 weights)."""
-    return (pixels[..., :3].astype(np.float64) @ _LUMA) / 255.0
+    """float32 (H, W) in [0, 1]: the encoded values' luminance (Rec. 709 weights)."""
+    return (pixels[..., :3].astype(np.float32) @ _LUMA.astype(np.float32)) / np.float32(255.0)
 
 
 def _matte(pixels: np.ndarray) -> np.ndarray:
@@ -858,22 +858,32 @@ def _resized(pixels: np.ndarray, width: int, height: int) -> np.ndarray:
 def height_to_normal(height: np.ndarray, bm: float, clamp: bool = False) -> np.ndarray:
     """uint8 (H, W, 4): the tangent-space normal map (glTF's: +X right, +Y up the image) of a
     height map ``height`` (H, W) in [0, 1], its white ``bm`` × :data:`BUMP_DEPTH` of the
-    texture's side above its black; central differences, wrapping unless ``clamp``."""
-    h = np.asarray(height, np.float64)
+    texture's side above its black; central differences, wrapping unless ``clamp``. In float32
+    and a row band at a time: a 4,096² map costs ~100 MB beside its texels, not gigabytes."""
+    h = np.asarray(height, np.float32)
     rows, cols = h.shape
-    if clamp:
-        dcol = np.gradient(h, axis=1) if cols > 1 else np.zeros_like(h)
-        drow = np.gradient(h, axis=0) if rows > 1 else np.zeros_like(h)
-    else:
-        dcol = (np.roll(h, -1, axis=1) - np.roll(h, 1, axis=1)) / 2.0
-        drow = (np.roll(h, -1, axis=0) - np.roll(h, 1, axis=0)) / 2.0
     depth = bm * BUMP_DEPTH
-    # heights in units of the texture's side: slope = depth · Δh per texel · texels per side
-    n = np.stack([-depth * cols * dcol, depth * rows * drow, np.ones_like(h)], axis=-1)
-    n /= np.linalg.norm(n, axis=-1, keepdims=True)
     out = np.empty((rows, cols, 4), np.uint8)
-    out[..., :3] = np.rint((n * 0.5 + 0.5) * 255.0)
     out[..., 3] = 255
+    band = 256
+    for r0 in range(0, rows, band):
+        r1 = min(rows, r0 + band)
+        if clamp:
+            dcol = np.gradient(h[r0:r1], axis=1) if cols > 1 else np.zeros((r1 - r0, cols), np.float32)
+            up = np.minimum(np.arange(r0 + 1, r1 + 1), rows - 1)
+            down = np.maximum(np.arange(r0 - 1, r1 - 1), 0)
+            span = np.maximum(up - down, 1).astype(np.float32)[:, None]  # one-sided at the edges
+            drow = (h[up] - h[down]) / span
+        else:
+            rows_here = h[r0:r1]
+            dcol = (np.roll(rows_here, -1, axis=1) - np.roll(rows_here, 1, axis=1)) / 2.0
+            drow = (h[np.arange(r0 + 1, r1 + 1) % rows] - h[np.arange(r0 - 1, r1 - 1) % rows]) / 2.0
+        # heights in units of the texture's side: slope = depth · Δh per texel · texels per side
+        nx = (-depth * cols) * dcol
+        ny = (depth * rows) * drow
+        inv = 1.0 / np.sqrt(nx * nx + ny * ny + 1.0)
+        for k, c in enumerate((nx * inv, ny * inv, inv)):
+            out[r0:r1, :, k] = np.rint((c * 0.5 + 0.5) * 255.0)
     return out
 
 

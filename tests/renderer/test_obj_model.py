@@ -477,3 +477,9 @@ def test_more_parts_than_a_scene_holds_meshes_are_refused():
     assert len(load("mtllib m.mtl\n" + SQUARE + uses, {"m.mtl": mtl}).parts) == n
     with pytest.raises(SceneError, match="MAX_MESHES"):
         load("mtllib m.mtl\n" + SQUARE + "f 1 2 3\n" + uses, {"m.mtl": mtl})
+
+
+def test_vertex_colours_written_as_bytes_are_scaled():
+    m = load("v 0 0 0 255 128 0\nv 1 0 0 0 0 255\nv 0 1 0 0 0 0\nf 1 2 3\n")
+    colors = m.parts[0].attributes["colors"]
+    np.testing.assert_allclose(colors[(m.parts[0].vertices == 0).all(axis=1)][0], [1.0, srgb(128 / 255), 0.0, 1.0])
