@@ -138,10 +138,10 @@ def _name(raw: bytes) -> str:
 
 
 def _lines(data: bytes) -> tuple[list[bytes], list[int] | None]:
-    """The file's lines, comments cut, and their numbers when a continuation (a line ending in
-    a backslash) joined some (None: line i is number i + 1)."""
+    """The file's lines (LF, CR LF or CR), and their numbers when a continuation (a line ending
+    in a backslash) joined some (None: line i is number i + 1)."""
     lines = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n").split(b"\n")
-    if b"\\\n" not in data and b"\\\r" not in data:
+    if not re.search(rb"\\[ \t]*[\r\n]", data):
         return lines, None
     out: list[bytes] = []
     numbers: list[int] = []
@@ -439,19 +439,23 @@ def load_obj_model(files: ModelFiles, *, max_triangles: int, max_vertices: int) 
     notices: list[str] = []
     library = _Library.read(obj.mtllib, side, notices)
     bank = _TextureBank(side, notices)
-    defined = sum(library.key(name) is not None for name in used)
+    keys = {name: library.key(name) for name in used}  # usemtl's name → the definition's ("Oak" for "oak")
+    defined = len({k for k in keys.values() if k is not None})
     if defined > limits.MAX_MATERIALS:
         raise _refuse(f"it uses {defined:,} materials; at most {limits.MAX_MATERIALS} (MAX_MATERIALS)")
     materials: list[PbrMaterial] = []
-    index_of: dict[str, int] = {}
-    for name in used:
-        definition = library.find(name)
-        if definition is None:
+    index_of_key: dict[str, int] = {}
+    for name, key in keys.items():
+        if key is None:
             if obj.mtllib and library.files:
                 notices.append(f"the material {name!r} (usemtl) is not in the material library: the scene's material")
             continue
-        index_of[name] = len(materials)
-        materials.append(_material(definition, bank))
+        if key not in index_of_key:
+            definition = library.find(key)
+            assert definition is not None
+            index_of_key[key] = len(materials)
+            materials.append(_material(definition, bank))
+    index_of = {name: index_of_key[key] for name, key in keys.items() if key is not None}
     face_material = np.array([-1] + [index_of.get(n, -1) for n in names], np.int64)[use_at + 1]
     tri_material = face_material[tri_face]
 

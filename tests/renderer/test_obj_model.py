@@ -483,3 +483,9 @@ def test_vertex_colours_written_as_bytes_are_scaled():
     m = load("v 0 0 0 255 128 0\nv 1 0 0 0 0 255\nv 0 1 0 0 0 0\nf 1 2 3\n")
     colors = m.parts[0].attributes["colors"]
     np.testing.assert_allclose(colors[(m.parts[0].vertices == 0).all(axis=1)][0], [1.0, srgb(128 / 255), 0.0, 1.0])
+
+
+def test_usemtl_names_differing_in_case_from_the_definition_share_its_material():
+    obj = "mtllib m.mtl\n" + SQUARE + "usemtl oak\nf 1 2 3\nusemtl OAK\nf 1 3 4\n"
+    m = load(obj, {"m.mtl": b"newmtl Oak\nKd 0.5 0.25 0\n"})
+    assert len(m.materials) == 1 and [p.material for p in m.parts] == [0] and m.parts[0].n_triangles == 2
