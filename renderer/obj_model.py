@@ -658,6 +658,8 @@ def _numbers(d: _Definition, key: str, sizes: Sequence[int]) -> list[float] | No
     words = d.statements[key][1].split()
     if words and words[0].lower() in ("spectral", "xyz"):
         return None  # a spectral curve or CIE XYZ colour: not read (docs/FORMATS.md)
+    if words and words[0].lower() == "-halo":
+        words = words[1:]  # d's halo (dissolve by the view's angle): read as the plain d
     try:
         out = [float(w) for w in words]
     except ValueError:

@@ -193,6 +193,7 @@ def test_one_part_per_material_used_in_the_order_of_first_use():
     [
         ("d 0.5", {"alpha": 0.5, "alpha_mode": "blend"}),
         ("Tr 0.25", {"alpha": 0.75, "alpha_mode": "blend"}),
+        ("d -halo 0.4", {"alpha": 0.4, "alpha_mode": "blend"}),
         ("Tr 1", {"alpha": 1.0, "alpha_mode": "opaque"}),  # a lone Tr 1: the inverted d, opaque
         ("d 1\nTr 0.5", {"alpha": 1.0, "alpha_mode": "opaque"}),  # d wins
         ("illum 7\nd 0.2", {"alpha": 1.0, "transmission": 0.8, "alpha_mode": "opaque"}),
