@@ -53,9 +53,9 @@ class ModelPart:
 @dataclass(frozen=True)
 class Model:
     """A parsed model file: ``parts``, the ``materials`` they name and the ``textures`` those read
-    (indices into ``textures``), ``images`` the names of the PNG and JPEG files beside it;
-    ``notices`` what the reader went on without, for the user to read (a texture or material
-    library not beside the model, an image it cannot decode: the model is read without it)."""
+    (indices into ``textures``), ``images`` the names of the PNG and JPEG files beside it,
+    ``notices`` what of the file was not read (a sentence each: skipped points and lines, a
+    reduced image)."""
 
     parts: tuple[ModelPart, ...]
     materials: tuple[AnyMaterial, ...] = ()
