@@ -60,7 +60,8 @@ faces use are read. The mapping (docs/FORMATS.md has it as a table):
   (clearcoat, sheen: the material has none), ``aniso``/``anisor``, spectral and CIE XYZ colours.
 
 **Textures** are PNG or JPEG side files (the name as exporters write it: ``textures\\wood.png``,
-spaces, another case, an absolute path of the author's machine by its file name), their declared
+spaces, another case, an absolute path of the author's machine by its file name; beside their
+library first when it lies in another folder, then beside the model), their declared
 size checked before decoding (:func:`renderer.model_guard.check_image`), scaled down to
 ``MAX_TEXTURE_SIDE`` when larger. A reference outside the model's folder is refused (422). A
 texture that is missing or cannot be decoded, an MTL file not beside the model, a ``usemtl``
@@ -537,6 +538,7 @@ class _Definition:
     file: str
     statements: dict[str, tuple[int, str]]
     spelled: dict[str, str]  # each keyword as the file writes it
+    folder: str = ""  # the library's folder from the model's ("" the same): its maps are looked up there first
 
     def where(self, key: str) -> str:
         return f"MTL {self.file!r} line {self.statements[key][0]}"
@@ -554,6 +556,7 @@ class _Library:
     files: list[str] = field(default_factory=list)
     lines: dict[str, list[bytes]] = field(default_factory=dict)
     ranges: dict[str, tuple[str, int, int]] = field(default_factory=dict)
+    folders: dict[str, str] = field(default_factory=dict)
     _folded: dict[str, str] | None = None  # lowercased name → the first name defined so
 
     @classmethod
@@ -581,6 +584,8 @@ class _Library:
                         f"its material libraries hold more than {limits.MAX_MTL_BYTES:,} bytes together (MAX_MTL_BYTES)"
                     )
                 lib.files.append(name)
+                folder = posixpath.relpath(posixpath.dirname(name) or ".", side.base or ".")
+                lib.folders[name] = "" if folder == "." else folder
                 lines = _text(side.get(ref)).replace(b"\r\n", b"\n").replace(b"\r", b"\n").split(b"\n")
                 lib.lines[name] = lines
                 lib._index(name, lines)
@@ -626,7 +631,7 @@ class _Library:
                 keyword = _name(words[0])
                 statements[keyword.lower()] = (i + 1, _name(words[1]) if len(words) > 1 else "")
                 spelled[keyword.lower()] = keyword
-        return _Definition(key, posixpath.basename(file), statements, spelled)
+        return _Definition(key, posixpath.basename(file), statements, spelled, self.folders.get(file, ""))
 
 
 def _library_names(rest: bytes, side: SideFiles | None) -> list[str]:
@@ -697,6 +702,7 @@ class _Map:
     offset: tuple[float, float] = (0.0, 0.0)
     clamp: bool = False
     bm: float = 1.0
+    folder: str = ""  # its library's folder, from the model's
 
     def uv_transform(self) -> tuple[tuple[float, float, float, float], tuple[float, float]]:
         """``-s`` and ``-o`` in the scene's V-down UVs: OBJ samples (u·su + ou, v·sv + ov) with
@@ -750,7 +756,7 @@ def _map(d: _Definition, *keys: str) -> _Map | None:
         if not np.isfinite(bm):
             raise _refuse(f"{d.where(key)}: -bm takes a finite number")
     clamp = [w.lower() for w in opts.get("-clamp", [])] == ["on"]
-    return _Map(file, nums("-s", (1.0, 1.0)), nums("-o", (0.0, 0.0)), clamp, bm)
+    return _Map(file, nums("-s", (1.0, 1.0)), nums("-o", (0.0, 0.0)), clamp, bm, d.folder)
 
 
 def _material(d: _Definition, bank: _TextureBank) -> PbrMaterial:
@@ -918,9 +924,16 @@ class _TextureBank:
                 "for its textures"
             )
             return None
-        name = self.side.resolve(m.file)  # outside the model's folder: refused
+        ref = m.file
+        if m.folder:  # relative to its library's folder first, as three's and Blender's loaders read it
+            beside = posixpath.join(m.folder, m.file.replace("\\", "/"))
+            try:
+                ref = beside if self.side.size(beside) is not None else ref
+            except SceneError:
+                pass
+        name = self.side.resolve(ref)  # outside the model's folder: refused
         if name not in self._images:
-            self._images[name] = self._decode(name, m.file, what, statement)
+            self._images[name] = self._decode(name, ref, what, statement)
         pixels = self._images[name]
         return None if pixels is None else (name, pixels)
 

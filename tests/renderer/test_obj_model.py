@@ -490,3 +490,13 @@ def test_usemtl_names_differing_in_case_from_the_definition_share_its_material()
     obj = "mtllib m.mtl\n" + SQUARE + "usemtl oak\nf 1 2 3\nusemtl OAK\nf 1 3 4\n"
     m = load(obj, {"m.mtl": b"newmtl Oak\nKd 0.5 0.25 0\n"})
     assert len(m.materials) == 1 and [p.material for p in m.parts] == [0] and m.parts[0].n_triangles == 2
+
+
+def test_a_library_in_a_subfolder_finds_its_maps_beside_it_first():
+    obj = "mtllib materials/m.mtl\nusemtl a\n" + SQUARE + "f 1/1 2/2 3/3\n"
+    here, there = png(np.zeros((2, 2, 3), np.uint8)), png(np.full((3, 3, 3), 255, np.uint8))
+    side = {"materials/m.mtl": b"newmtl a\nmap_Kd wood.png\nmap_Ke ..\\glow.png\n", "wood.png": here}
+    m = load(obj, {**side, "materials/wood.png": there, "glow.png": here})
+    # wood.png beside the library wins over the one beside the model; ..\glow.png is the model's
+    assert sorted((t.width, t.name) for t in m.textures) == [(2, "glow.png"), (3, "wood.png")]
+    assert load(obj, {**side, "glow.png": here}).textures[0].width == 2  # else the model's folder
