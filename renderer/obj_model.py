@@ -713,29 +713,40 @@ class _Map:
 
 
 def _map(d: _Definition, *keys: str) -> _Map | None:
-    """The first of ``keys`` the material has, parsed: options, then the file name (which may
-    hold spaces)."""
+    """The first of ``keys`` the material has, parsed: the options (before the file name, as
+    the specification has them, or after it, as some exporters write them) and the file name
+    (which may hold spaces)."""
     key = next((k for k in keys if k in d.statements), None)
     if key is None:
         return None
     text = d.statements[key][1]
-    tokens = [(m.group(), m.start()) for m in re.finditer(r"\S+", text)]
+    tokens = [(m.group(), m.start(), m.end()) for m in re.finditer(r"\S+", text)]
+    number = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
     opts: dict[str, list[str]] = {}
+    file = ""
     i = 0
-    while i < len(tokens) and tokens[i][0].startswith("-") and tokens[i][0].lower() in _OPTION_ARGS:
-        name = tokens[i][0].lower()
-        args: list[str] = []
-        i += 1
-        while i < len(tokens) and len(args) < _OPTION_ARGS[name]:
-            word = tokens[i][0]
-            if name in ("-s", "-o", "-t") and args and not re.fullmatch(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?", word):
-                break
-            args.append(word)
+    while i < len(tokens):
+        word = tokens[i][0]
+        if word.lower() in _OPTION_ARGS:
+            name = word.lower()
+            args: list[str] = []
             i += 1
-        opts[name] = args
-    if i >= len(tokens):
+            while i < len(tokens) and len(args) < _OPTION_ARGS[name]:
+                if name in ("-s", "-o", "-t") and args and not number.fullmatch(tokens[i][0]):
+                    break
+                args.append(tokens[i][0])
+                i += 1
+            opts[name] = args
+        elif not file:  # the name: every word up to the next option
+            j = i
+            while j < len(tokens) and tokens[j][0].lower() not in _OPTION_ARGS:
+                j += 1
+            file = text[tokens[i][1] : tokens[j - 1][2]]
+            i = j
+        else:
+            i += 1
+    if not file:
         raise _refuse(f"{d.where(key)}: {d.line(key)} names no file")
-    file = text[tokens[i][1] :].strip()
 
     def nums(name: str, default: tuple[float, float]) -> tuple[float, float]:
         try:

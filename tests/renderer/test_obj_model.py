@@ -273,6 +273,13 @@ def test_a_windows_path_with_spaces_in_another_case_finds_its_texture():
     assert m.notices == ()
 
 
+def test_options_after_the_file_name_are_read_too():
+    m = textured("newmtl a\nmap_Kd my wood.png -s 2 2 -clamp on\n", {"my wood.png": png(checker(2, 2))})
+    (material,) = m.materials
+    assert material.base_color_texture == 0 and material.base_color_uv_matrix == (2.0, 0.0, 0.0, 2.0)
+    assert m.textures[0].wrap_s == "clamp" and m.notices == ()
+
+
 def test_a_missing_texture_leaves_the_material_without_it_and_a_notice():
     m = textured("newmtl a\nKd 0.5 0.5 0.5\nmap_Kd wood.png\nmap_Ke glow.jpg\n", {})
     (material,) = m.materials
