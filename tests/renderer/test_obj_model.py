@@ -507,3 +507,24 @@ def test_a_library_in_a_subfolder_finds_its_maps_beside_it_first():
     # wood.png beside the library wins over the one beside the model; ..\glow.png is the model's
     assert sorted((t.width, t.name) for t in m.textures) == [(2, "glow.png"), (3, "wood.png")]
     assert load(obj, {**side, "glow.png": here}).textures[0].width == 2  # else the model's folder
+
+
+def test_the_spider_makes_a_valid_scene_that_round_trips_through_json():
+    from renderer.mesh_io import FLOOR, MODEL
+    from renderer.scene import Camera, Light, Scene
+
+    m = corpus("spider.obj")
+    meshes, materials = m.placed(default_material=1, material_base=2, texture_base=0)
+    scene = Scene(
+        Camera((0.0, 0.0, 100.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0),
+        (Light((20.0, 40.0, 30.0), (1.0, 1.0, 1.0)),),
+        (FLOOR, MODEL, *materials),
+        np.zeros((0, 3)),
+        np.zeros(0),
+        np.zeros(0, np.int32),
+        meshes=tuple(meshes),
+        textures=m.textures,
+    )
+    again = Scene.from_json(scene.to_json())
+    assert len(again.textures) == 4 and [t.name for t in again.textures] == [t.name for t in m.textures]
+    assert again.materials[2] == scene.materials[2] and again.meshes[0].uvs is not None
