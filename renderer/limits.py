@@ -136,6 +136,10 @@ MAX_BUFFERLESS_BYTES = 16 << 20  # glTF: accessors without a bufferView (zeros t
 # STL stores three per triangle, a glTF repeats them per instance).
 DECLARED_VERTEX_FACTOR = 3
 MAX_PLY_HEADER_BYTES = 64 << 10  # a PLY header (text up to end_header)
+# An OBJ's material libraries, all its .mtl files together (renderer/obj_model.py): a library of
+# hundreds of materials is tens of KiB; each line is read in Python, ~1 s per 16 MiB here.
+MAX_MTL_BYTES = 16 << 20
+MAX_MODEL_NOTICES = 16  # lines saying what a model was read without (the rest counted in the last)
 # A zipped model folder (renderer/model_archive.py): the central directory's numbers are checked
 # against these before one byte is inflated, and inflating never yields more than an entry
 # declares. Deflate reaches ~1,000:1 on zeros and 3-20:1 on models and images, so a ratio above
