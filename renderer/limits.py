@@ -180,6 +180,7 @@ ASPECT_RANGE = (0.2, 5.0)
 # ---- GPU data ------------------------------------------------------------------------------
 DEFAULT_TEXTURE_WIDTH = 4096  # texture rows; WebGL2 guarantees 2048, most phones have 4096
 MAX_DEVICE_TEXTURE_SIZE = 1 << 16  # the largest MAX_TEXTURE_SIZE a device may report (GPUs: ≤ 32,768)
+MAX_DEVICE_ARRAY_LAYERS = 1 << 16  # the largest MAX_ARRAY_TEXTURE_LAYERS a device may report (GPUs: ≤ 8,192)
 STENCIL_BITS = 8  # ray engines: one stencil bit per generation (≥ MAX_RECURSION_DEPTH)
 # Compiled shader programs one renderer keeps (renderer/gl/programs.py), least recently used out:
 # about 3 MiB resident each on llvmpipe, so ~100 MiB at most; a frame needs 1-3 of the tracer's
