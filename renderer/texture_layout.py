@@ -337,36 +337,95 @@ class TextureArray:
         return self.array.nbytes
 
 
+def planned_sizes(
+    sizes: list[tuple[int, int]],
+    max_size: int = limits.MAX_TEXTURE_SIDE,
+    max_texels: int = limits.MAX_TEXTURE_ARRAY_TEXELS,
+) -> tuple[list[int], list[str]]:
+    """How many times each texture of ``sizes`` (width, height) is halved (⌈/ 2⌉ a side) to go into the
+    array, and why (empty: kept): until a side fits ``max_size`` (a device's MAX_TEXTURE_SIZE), then the
+    largest until the layers' texels (each layer the largest width × the largest height, rounded up to
+    powers of two) fit ``max_texels``."""
+    cur = list(sizes)
+    halvings = [0] * len(cur)
+    why = [""] * len(cur)
+
+    def halve(i: int) -> None:
+        w, h = cur[i]
+        cur[i] = (-(-w // 2), -(-h // 2))
+        halvings[i] += 1
+
+    for i in range(len(cur)):
+        while max(cur[i]) > max_size:
+            halve(i)
+            why[i] = f"the device's largest texture side, {max_size}"
+    while cur and len(cur) * _pow2(max(w for w, _ in cur)) * _pow2(max(h for _, h in cur)) > max_texels:
+        big = max(w * h for w, h in cur)
+        if big <= 1:
+            break
+        for i, (w, h) in enumerate(cur):
+            if w * h == big:
+                halve(i)
+                why[i] = why[i] or f"the texture array's {max_texels:,} texels (MAX_TEXTURE_ARRAY_TEXELS)"
+    return halvings, why
+
+
 def fit_textures(
     textures: tuple[Texture, ...] | list[Texture],
     max_size: int = limits.MAX_TEXTURE_SIDE,
     max_texels: int = limits.MAX_TEXTURE_ARRAY_TEXELS,
 ) -> tuple[list[Texture], list[str]]:
-    """The textures as the array can hold them: each halved until a side fits ``max_size`` (a
-    device's MAX_TEXTURE_SIZE), then the largest halved until the layers' texels (each layer the
-    largest width × the largest height, rounded up to powers of two) fit ``max_texels``; with a
-    notice per texture resized."""
-    out = list(textures)
-    why: dict[int, str] = {}
-    for i, t in enumerate(out):
-        while max(t.width, t.height) > max_size:
+    """The textures as the array can hold them (:func:`planned_sizes`), with a notice per texture resized."""
+    halvings, why = planned_sizes([(t.width, t.height) for t in textures], max_size, max_texels)
+    out = []
+    for t, k in zip(textures, halvings, strict=True):
+        for _ in range(k):
             t = shrink(t)
-            why[i] = f"the device's largest texture side, {max_size}"
-        out[i] = t
-    while out and len(out) * _pow2(max(t.width for t in out)) * _pow2(max(t.height for t in out)) > max_texels:
-        big = max(t.width * t.height for t in out)
-        if big <= 1:
-            break
-        for i, t in enumerate(out):
-            if t.width * t.height == big:
-                out[i] = shrink(t)
-                why.setdefault(i, f"the texture array's {max_texels:,} texels (MAX_TEXTURE_ARRAY_TEXELS)")
+        out.append(t)
     notices = [
         f"textures[{i}] ({textures[i].name or 'unnamed'}) {textures[i].width} × {textures[i].height} "
         f"resized to {out[i].width} × {out[i].height} for {why[i]}"
-        for i in sorted(why)
+        for i in range(len(out))
+        if halvings[i]
     ]
     return out, notices
+
+
+def array_bytes(
+    textures: tuple[Texture, ...] | list[Texture],
+    max_size: int = limits.MAX_TEXTURE_SIDE,
+    max_texels: int = limits.MAX_TEXTURE_ARRAY_TEXELS,
+) -> int:
+    """GPU bytes of the array :func:`pack_texture_array` makes of ``textures`` (every mip level,
+    padding included), from their sizes alone."""
+    if not textures:
+        return 0
+    sizes = [(t.width, t.height) for t in textures]
+    halvings, _ = planned_sizes(sizes, max_size, max_texels)
+    fitted = [(-(-w // (1 << k)), -(-h // (1 << k))) for (w, h), k in zip(sizes, halvings, strict=True)]
+    return texture_array_bytes(_pow2(max(w for w, _ in fitted)), _pow2(max(h for _, h in fitted)), len(fitted))
+
+
+def texture_bytes(texture: Texture) -> int:
+    """Bytes of ``texture`` at its own size with its mip levels (RGBA8)."""
+    w, h = texture.width, texture.height
+    total = 0
+    for _ in range(levels_of(w, h)):
+        total += 4 * w * h
+        w, h = -(-w // 2), -(-h // 2)
+    return total
+
+
+def attribute_bytes(scene: Scene) -> int:
+    """GPU bytes of the triangles' attribute records ``scene`` packs (:func:`pack_surface_data`)."""
+    per = 0
+    if uses_textures(scene):
+        per += TRI_UV_RECORD.bytes
+    if uses_vertex_colors(scene):
+        per += 3 * 16
+    if uses_tangents(scene):
+        per += 3 * 16
+    return per * scene.n_triangles
 
 
 def pack_texture_array(

@@ -286,12 +286,18 @@ class TracerFrame:
     def _upload(self) -> None:
         """Upload exactly what the variant declares (see :func:`check_bindings`) and take a target."""
         t0 = time.perf_counter()
+        surface = texture_layout.pack_surface_data(self.scene, self.renderer.max_texture_width)
         parts = [
             gpu_layout.pack_primitives(self.scene, self.renderer.max_texture_width),
             self.prepared.packed,
             PackedScene({}, gpu_layout.frame_uniforms(self.scene, self.settings.min_weight)),
-            texture_layout.pack_surface_data(self.scene, self.renderer.max_texture_width).packed,
+            surface.packed,
         ]
+        if surface.nbytes:  # a textured scene's GPU bytes in the frame's statistics
+            self.stats["texture_bytes"] = surface.nbytes.get(gpu_layout.TEXTURES.name, 0)
+            self.stats["attribute_bytes"] = sum(v for k, v in surface.nbytes.items() if k != gpu_layout.TEXTURES.name)
+            if surface.array is not None and surface.array.notices:
+                self.stats["texture_notices"] = list(surface.array.notices)
         tex, self.uniforms = check_bindings(self.variant, parts)
         blocks = {n: t for n, t in tex.items() if n in self.variant.blocks}
         self.units = upload_textures(
