@@ -543,3 +543,8 @@ def level_for(cone_width: float, lod_term: float, width: int, height: int) -> fl
     if cone_width <= 0.0:
         return 0.0
     return math.log2(cone_width) + lod_term + 0.5 * math.log2(width * height)
+
+
+def formats_markdown() -> str:
+    """The block of docs/FORMATS.md between ``<!-- texture-records`` and ``<!-- /texture-records -->``."""
+    return "\n".join(r.markdown() for r in (TEXTURE_RECORD, TRI_UV_RECORD)).strip()

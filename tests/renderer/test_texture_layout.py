@@ -147,3 +147,12 @@ def test_the_reference_lookup_wraps_each_mode_and_decodes_srgb_before_it_mixes()
     srgb = Texture(px, filter="linear", srgb=True)
     mid = reference.texture_sample(levels, srgb, np.array([[0.25, 0.5]]))[0, 0]  # halfway between texels 0 and 1
     assert mid == pytest.approx(0.5 * tl.srgb_to_linear(85 / 255))
+
+
+def test_formats_md_holds_the_texture_records_tables():
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "FORMATS.md").read_text()
+    start = text.index("<!-- texture-records")
+    block = text[text.index("\n", start) + 1 : text.index("<!-- /texture-records -->")].strip()
+    assert block == tl.formats_markdown(), "docs/FORMATS.md's texture records differ; paste:\n" + tl.formats_markdown()
