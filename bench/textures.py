@@ -28,7 +28,9 @@ MiB = 1 << 20
 CONFIGS = {
     "1 × 1024² (sRGB)": [(1024, 1024)],
     "4 × 1024²": [(1024, 1024)] * 4,
-    "2048² + 3 × 256² (padding)": [(2048, 2048)] + [(256, 256)] * 3,
+    "2048² + 3 × 256²": [(2048, 2048)] + [(256, 256)] * 3,
+    "1024² + 6 × 256²": [(1024, 1024)] * 1 + [(256, 256)] * 6,
+    "2048 × 1024 (2:1)": [(2048, 1024)],
     "1 × 4096²": [(4096, 4096)],
     "8 × 2048² (MAX_TEXTURE_TEXELS)": [(2048, 2048)] * 8,
     "1000 × 600 (NPOT)": [(1000, 600)],
@@ -36,7 +38,8 @@ CONFIGS = {
 
 
 def bytes_table(phone_side: int = 2048) -> None:
-    print(f"| textures | own size with mips, MiB | server array, MiB | phone array (MAX_TEXTURE_SIZE {phone_side}), MiB |")
+    phone = f"phone array (MAX_TEXTURE_SIZE {phone_side}), MiB"
+    print(f"| textures | own size with mips, MiB | server array, MiB | {phone} |")
     print("|---|---|---|---|")
     for name, sizes in CONFIGS.items():
         ts = [SimpleNamespace(width=w, height=h) for w, h in sizes]
@@ -111,7 +114,7 @@ def device_vs_server(scene: Scene) -> None:
         out[:count] = cols
         return base64.b64encode(out.tobytes()).decode()
 
-    b64 = lambda a: base64.b64encode(np.ascontiguousarray(a).tobytes()).decode()  # noqa: E731
+    b64 = lambda a: base64.b64encode(np.ascontiguousarray(a).tobytes()).decode()
     packed = {
         gpu_layout.TRIANGLES.name: gpu_layout.wrap_rows(gpu_layout.triangle_records(scene)),
         **texture_layout.pack_surface_data(scene).packed.textures,
@@ -122,7 +125,8 @@ def device_vs_server(scene: Scene) -> None:
             levels = [{"width": lv.shape[2], "height": lv.shape[1], "data": b64(lv)} for lv in tx.levels]
             textures.append({"name": name, "layers": tx.layers, "levels": levels})
         else:
-            textures.append({"name": name, "width": tx.size[0], "height": tx.size[1], "dtype": "u4", "data": b64(tx.data)})
+            w, h = tx.size
+            textures.append({"name": name, "width": w, "height": h, "dtype": "u4", "data": b64(tx.data)})
     textures += [
         {"name": "u_probe_point", "width": width, "height": height, "dtype": "f4",
          "data": grid(np.concatenate([p, prim[:, None]], axis=1))},
@@ -134,7 +138,8 @@ def device_vs_server(scene: Scene) -> None:
     uniforms = {"u_tri_base": scene.triangle_id_base, "u_probe_mats": mats.ravel().tolist()}
     with sync_playwright() as pw:
         b = pw.chromium.launch(executable_path=CHROMIUM, args=GL_ARGS, headless=True)
-        res = b.new_page().evaluate(PROBE, [VERTEX, fragment_source(False, False), textures, uniforms, width, height, 5])
+        args = [VERTEX, fragment_source(False, False), textures, uniforms, width, height, 5]
+        res = b.new_page().evaluate(PROBE, args)
         b.close()
     device = np.asarray(res["outputs"][0], dtype=np.float64).reshape(-1, 4)[:count, :3]
     mse = float(np.mean((device - server) ** 2))

@@ -517,7 +517,7 @@ TREE_SHAPE_BINDINGS = (SHAPES, SHAPE_BASE)  # (a tree's leaves say where its sha
 TEXTURES = Binding(
     "u_textures",
     "highp sampler2DArray",
-    "RGBA8: layer k holds texture k (and its mip levels) at its top-left corner",
+    "RGBA8 with mip levels: an atlas of square slots, texture k where its record says",
     group="materials",
     needs="TEXTURES",
     traversal=True,

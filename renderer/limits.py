@@ -152,9 +152,9 @@ MAX_TEXTURES = 64  # per scene
 MAX_TEXTURE_SIDE = 4096  # pixels, either side: WebGL2 guarantees 2048 and most phones 4096
 MAX_TEXTURE_TEXELS = 8 * 2048 * 2048  # all of a scene's textures together, level 0
 MAX_TEXTURE_NAME = 256  # characters
-# On the GPU the textures are the layers of one array (renderer/texture_layout.py), each layer the
-# largest texture's size rounded up to powers of two, a smaller texture at its top-left corner. The
-# array's level-0 texels, padding included, stay within this: beyond it the largest textures are
+# On the GPU the textures lie in one array (renderer/texture_layout.py), each in a square slot of its
+# longer side rounded up to a power of two, the layers the largest slot's size. The array's level-0
+# texels, the slots' unused ones included, stay within this: beyond it the largest textures are
 # halved (a notice says which), 64 Mi texels × 4 B × 4/3 ≈ 341 MiB at the most.
 MAX_TEXTURE_ARRAY_TEXELS = 16 * 2048 * 2048
 

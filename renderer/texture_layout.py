@@ -4,13 +4,14 @@ A scene whose used PBR materials read textures or vertex attributes carries up t
 formats (:mod:`renderer.features`), each packed only where it is used, so every other scene packs
 and compiles exactly what it did before them:
 
-- ``TEXTURES``: the scene's textures as the layers of one ``sampler2DArray`` (``u_textures``):
-  every layer is the largest texture's size rounded up to powers of two, and texture ``k`` lies at
-  the top-left corner of layer ``k``, its mip level ``l`` at the top-left corner of the array's
-  level ``l`` (a smaller texture leaves the rest of its layer as padding). The texels are the
-  file's RGBA8 bytes; an sRGB texture's mip levels are averaged in linear light and encoded again,
-  and the shader decodes every texel it fetches *before* it filters (:func:`mip_chain`). Wrap and
-  filter are the shader's, from the texture's record (``u_texture_info``, :data:`TEXTURE_RECORD`):
+- ``TEXTURES``: the scene's textures in one ``sampler2DArray`` (``u_textures``), an atlas of square
+  slots (:func:`layout_of`: a texture's longer side rounded up to a power of two; the layers the
+  largest slot's size; the slots, largest first, in Morton order over the layers), texture ``k``'s
+  mip level ``l`` at ``(x0 >> l, y0 >> l)`` of the array's level ``l``, never over another's. The
+  texels are the file's RGBA8 bytes; an sRGB texture's mip levels are averaged in linear light and
+  encoded again, and the shader decodes every texel it fetches *before* it filters
+  (:func:`mip_chain`). Wrap and filter are the shader's, from the texture's record
+  (``u_texture_info``, :data:`TEXTURE_RECORD`):
   four ``texelFetch`` es per level, wrapped in texel space, mixed bilinearly; two levels mixed by
   the fraction of the ray cone's level (``shaders/textures.glsl``). Beside them, per triangle,
   ``u_tri_uvs`` (:data:`TRI_UV_RECORD`): each corner's UV sets 0 and 1 and the triangle's level
@@ -61,15 +62,18 @@ TEXTURE_RECORD = RecordLayout(
     TEXTURE_INFO,
     1,
     (
-        Field("width", 0, "x", "uint", "level 0's width in texels"),
-        Field("height", 0, "y", "uint", "level 0's height in texels"),
-        Field("levels", 0, "z", "uint", "its mip levels: level l is ⌈width / 2^l⌉ × ⌈height / 2^l⌉"),
+        Field("width", 0, "x", "uint", "level 0's width in texels", bits=(15, 0)),
+        Field("height", 0, "x", "uint", "level 0's height in texels", bits=(31, 16)),
+        Field("x0", 0, "y", "uint", "its level 0's left column in its layer (level l: x0 >> l)", bits=(15, 0)),
+        Field("y0", 0, "y", "uint", "its level 0's top row in its layer (level l: y0 >> l)", bits=(31, 16)),
+        Field("levels", 0, "z", "uint", "its mip levels: level l is ⌈width / 2^l⌉ × ⌈height / 2^l⌉", bits=(7, 0)),
+        Field("layer", 0, "z", "uint", "the layer of u_textures it is in", bits=(23, 8)),
         Field("wrap_s", 0, "w", "uint", "U outside [0, 1]: 0 repeat, 1 clamp, 2 mirror", bits=(1, 0)),
         Field("wrap_t", 0, "w", "uint", "V outside [0, 1], as wrap_s", bits=(3, 2)),
         Field("nearest", 0, "w", "uint", "1: the nearest texel of a level, 0: bilinear", bits=(4, 4)),
         Field("srgb", 0, "w", "uint", "1: RGB is sRGB-encoded, decoded per texel before filtering", bits=(5, 5)),
     ),
-    "a scene texture, the layer of u_textures of its index",
+    "a scene texture (its index), where it lies in u_textures and how it is sampled",
 )
 TRI_UV_TEXELS = 4
 TRI_UV_RECORD = RecordLayout(
@@ -337,6 +341,42 @@ class TextureArray:
         return self.array.nbytes
 
 
+def slot_side(width: int, height: int) -> int:
+    """The square a texture takes in its layer: its longer side rounded up to a power of two."""
+    return _pow2(max(width, height))
+
+
+def layout_of(sizes: list[tuple[int, int]]) -> tuple[int, list[tuple[int, int, int]]]:
+    """The layers' side S (the largest slot) and each texture's (layer, x0, y0): the slots, largest
+    first (then by index), laid one after another in Morton order over the layers, so that a slot
+    of side s lies at multiples of s, its level l at (x0 >> l, y0 >> l) inside the array's level l,
+    never over another's (a texture has no level past its slot's 1 × 1)."""
+    if not sizes:
+        return 1, []
+    slots = [slot_side(w, h) for w, h in sizes]
+    side = max(slots)
+    order = sorted(range(len(sizes)), key=lambda i: (-slots[i], i))
+    places: list[tuple[int, int, int]] = [(0, 0, 0)] * len(sizes)
+    cursor = 0  # texels of the layers taken so far; a multiple of every later slot's area
+    for i in order:
+        s2 = slots[i] * slots[i]
+        layer, within = divmod(cursor, side * side)
+        m = within // s2
+        x = y = 0
+        for bit in range(16):  # Morton decode: even bits to x, odd to y
+            x |= ((m >> (2 * bit)) & 1) << bit
+            y |= ((m >> (2 * bit + 1)) & 1) << bit
+        places[i] = (layer, x * slots[i], y * slots[i])
+        cursor += s2
+    return side, places
+
+
+def array_layers(sizes: list[tuple[int, int]]) -> tuple[int, int]:
+    """(side, layers) of the array of ``sizes``."""
+    side, places = layout_of(sizes)
+    return side, (max(p[0] for p in places) + 1 if places else 1)
+
+
 def planned_sizes(
     sizes: list[tuple[int, int]],
     max_size: int = limits.MAX_TEXTURE_SIDE,
@@ -344,8 +384,7 @@ def planned_sizes(
 ) -> tuple[list[int], list[str]]:
     """How many times each texture of ``sizes`` (width, height) is halved (⌈/ 2⌉ a side) to go into the
     array, and why (empty: kept): until a side fits ``max_size`` (a device's MAX_TEXTURE_SIZE), then the
-    largest until the layers' texels (each layer the largest width × the largest height, rounded up to
-    powers of two) fit ``max_texels``."""
+    largest until the layers' texels (:func:`layout_of`) fit ``max_texels``."""
     cur = list(sizes)
     halvings = [0] * len(cur)
     why = [""] * len(cur)
@@ -359,7 +398,12 @@ def planned_sizes(
         while max(cur[i]) > max_size:
             halve(i)
             why[i] = f"the device's largest texture side, {max_size}"
-    while cur and len(cur) * _pow2(max(w for w, _ in cur)) * _pow2(max(h for _, h in cur)) > max_texels:
+
+    def texels() -> int:
+        side, layers = array_layers(cur)
+        return layers * side * side
+
+    while cur and texels() > max_texels:
         big = max(w * h for w, h in cur)
         if big <= 1:
             break
@@ -397,13 +441,14 @@ def array_bytes(
     max_texels: int = limits.MAX_TEXTURE_ARRAY_TEXELS,
 ) -> int:
     """GPU bytes of the array :func:`pack_texture_array` makes of ``textures`` (every mip level,
-    padding included), from their sizes alone."""
+    the slots' unused texels included), from their sizes alone."""
     if not textures:
         return 0
     sizes = [(t.width, t.height) for t in textures]
     halvings, _ = planned_sizes(sizes, max_size, max_texels)
     fitted = [(-(-w // (1 << k)), -(-h // (1 << k))) for (w, h), k in zip(sizes, halvings, strict=True)]
-    return texture_array_bytes(_pow2(max(w for w, _ in fitted)), _pow2(max(h for _, h in fitted)), len(fitted))
+    side, layers = array_layers(fitted)
+    return texture_array_bytes(side, side, layers)
 
 
 def texture_bytes(texture: Texture) -> int:
@@ -443,19 +488,25 @@ def pack_texture_array(
     if not fitted:
         empty = np.zeros((1, 1, 1, 4), np.uint8)
         return TextureArray(PackedTextureArray(empty, "u1", [empty]), np.zeros((0, 4), np.uint32), [])
-    width = _pow2(max(t.width for t in fitted))
-    height = _pow2(max(t.height for t in fitted))
-    n_levels = levels_of(width, height)
-    levels = [np.zeros((len(fitted), max(1, height >> lv), max(1, width >> lv), 4), np.uint8) for lv in range(n_levels)]
-    for k, t in enumerate(fitted):
+    side, places = layout_of([(t.width, t.height) for t in fitted])
+    layers = max(p[0] for p in places) + 1
+    if layers > max_layers:
+        raise ValueError(f"{layers} texture layers exceed the device's {max_layers}")
+    n_levels = levels_of(side, side)
+    levels = [np.zeros((layers, max(1, side >> lv), max(1, side >> lv), 4), np.uint8) for lv in range(n_levels)]
+    for t, (layer, x0, y0) in zip(fitted, places, strict=True):
         for lv, img in enumerate(mip_chain(t.pixels, t.srgb)):
-            levels[lv][k, : img.shape[0], : img.shape[1]] = img
+            x, y = x0 >> lv, y0 >> lv
+            levels[lv][layer, y : y + img.shape[0], x : x + img.shape[1]] = img
     n = len(fitted)
     records = TEXTURE_RECORD.pack(
         n,
         width=np.array([t.width for t in fitted]),
         height=np.array([t.height for t in fitted]),
+        x0=np.array([p[1] for p in places]),
+        y0=np.array([p[2] for p in places]),
         levels=np.array([levels_of(t.width, t.height) for t in fitted]),
+        layer=np.array([p[0] for p in places]),
         wrap_s=np.array([WRAP_CODES[t.wrap_s] for t in fitted]),
         wrap_t=np.array([WRAP_CODES[t.wrap_t] for t in fitted]),
         nearest=np.array([int(t.filter == "nearest") for t in fitted]),

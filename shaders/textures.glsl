@@ -1,7 +1,7 @@
 // Texture lookups (docs/SHADING.md, "Textures"): one whole chunk, compiled where FEATURE_TEXTURES is
-// 1 (renderer/texture_layout.py packs what it reads). Texture k is layer k of u_textures, its level
-// l at the top-left corner of the array's level l, ⌈width / 2^l⌉ × ⌈height / 2^l⌉ texels; its record
-// texture_<field>(k) says its size, levels and sampler. Every fetch is a texelFetch: the wrap mode
+// 1 (renderer/texture_layout.py packs what it reads). Texture k lies in layer texture_layer(k) of
+// u_textures, its level l at (x0 >> l, y0 >> l) of the array's level l, ⌈width / 2^l⌉ ×
+// ⌈height / 2^l⌉ texels; its record texture_<field>(k) says where, its size, levels and sampler. Every fetch is a texelFetch: the wrap mode
 // applies to the integer texel index (what GL's wrap does to a filter's taps), an sRGB texel is
 // decoded to linear before it is mixed, bilinear within a level (four texels) or the nearest one,
 // and two levels mixed by the level's fraction. The hardware's filter could do neither per layer:
@@ -24,8 +24,9 @@ int wrap_index(int i, int n, uint mode) {
     return i - n * int(floor(float(i) / float(n)));
 }
 
-vec4 texel_at(int k, int x, int y, int level, bool srgb) {
-    vec4 c = texelFetch(u_textures, ivec3(x, y, k), level);
+// Texel (x, y) of a level whose corner in the array is at.xy, in layer at.z.
+vec4 texel_at(ivec3 at, int x, int y, int level, bool srgb) {
+    vec4 c = texelFetch(u_textures, ivec3(at.x + x, at.y + y, at.z), level);
     if (srgb) c.rgb = srgb_decode(c.rgb);
     return c;
 }
@@ -35,10 +36,11 @@ vec4 texture_level(int k, vec2 uv, int level, uint word) {
     ivec2 size = ivec2((ivec2(int(texture_width(k)), int(texture_height(k))) + (1 << level) - 1) >> level);
     uint ws = word & 3u, wt = (word >> 2) & 3u;
     bool srgb = ((word >> 5) & 1u) != 0u;
+    ivec3 at = ivec3(int(texture_x0(k)) >> level, int(texture_y0(k)) >> level, int(texture_layer(k)));
     vec2 s = uv * vec2(size);
     if (((word >> 4) & 1u) != 0u) {
         ivec2 i = ivec2(floor(s));
-        return texel_at(k, wrap_index(i.x, size.x, ws), wrap_index(i.y, size.y, wt), level, srgb);
+        return texel_at(at, wrap_index(i.x, size.x, ws), wrap_index(i.y, size.y, wt), level, srgb);
     }
     s -= 0.5;
     vec2 f0 = floor(s);
@@ -46,8 +48,8 @@ vec4 texture_level(int k, vec2 uv, int level, uint word) {
     ivec2 i0 = ivec2(f0);
     int x0 = wrap_index(i0.x, size.x, ws), x1 = wrap_index(i0.x + 1, size.x, ws);
     int y0 = wrap_index(i0.y, size.y, wt), y1 = wrap_index(i0.y + 1, size.y, wt);
-    vec4 a = mix(texel_at(k, x0, y0, level, srgb), texel_at(k, x1, y0, level, srgb), f.x);
-    vec4 b = mix(texel_at(k, x0, y1, level, srgb), texel_at(k, x1, y1, level, srgb), f.x);
+    vec4 a = mix(texel_at(at, x0, y0, level, srgb), texel_at(at, x1, y0, level, srgb), f.x);
+    vec4 b = mix(texel_at(at, x0, y1, level, srgb), texel_at(at, x1, y1, level, srgb), f.x);
     return mix(a, b, f.y);
 }
 

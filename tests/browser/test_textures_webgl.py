@@ -218,8 +218,8 @@ def test_the_client_uploads_every_layer_and_level_resized_to_the_devices_size(de
         "textures[0] (big.png) 40 × 24 resized to 10 × 6 for the device's largest texture side, 16"
     ]
     array = surface.packed.textures["u_textures"]
-    assert isinstance(array, gpu_layout.PackedTextureArray) and array.size == (16, 8)
-    assert info["texture_bytes"] == texture_layout.texture_array_bytes(16, 8, 2) == array.nbytes
+    assert isinstance(array, gpu_layout.PackedTextureArray) and array.size == (16, 16) and array.layers == 2
+    assert info["texture_bytes"] == texture_layout.texture_array_bytes(16, 16, 2) == array.nbytes
     blob = encode_blob({"uniforms": {}}, surface.packed.textures)
     res = device_page.page.evaluate(READ_BACK, [base64.b64encode(blob).decode("ascii")])
     assert res["error_code"] == 0 and res["target_is_array"]

@@ -45,26 +45,50 @@ def test_levels_halve_rounding_up_to_one_texel(w, h, levels):
         assert b.shape[:2] == (-(-a.shape[0] // 2), -(-a.shape[1] // 2))
 
 
-def test_the_array_puts_texture_k_at_the_corner_of_layer_k_with_its_record():
+def test_the_array_packs_square_slots_in_morton_order_with_their_records():
+    """Slots (the longer side rounded up to a power of two) largest first: a 7 × 5 texture takes an 8²
+    slot, 2 × 16 a 16² one, 3 × 3 a 4² one; the layers are 16² (the largest slot): the 16² fills
+    layer 0, the 8² and the 4² share layer 1 at (0, 0) and (8, 0); each level l at (x0 >> l, y0 >> l)."""
     t0 = Texture(_rgba(5, 7, 10), srgb=True, wrap_s="mirror", wrap_t="clamp", filter="nearest")
     t1 = Texture(_rgba(16, 2, 20))
-    packed = tl.pack_texture_array([t0, t1])
+    t2 = Texture(_rgba(3, 3, 30))
+    packed = tl.pack_texture_array([t0, t1, t2])
     arr = packed.array
-    assert arr.size == (8, 16) and arr.layers == 2 and len(arr.levels) == 5
-    assert (arr.levels[0][0, :5, :7] == 10).all() and (arr.levels[0][0, 5:] == 0).all()
-    assert (arr.levels[1][0, :3, :4] == 10).all()  # ⌈5/2⌉ × ⌈7/2⌉
-    assert (arr.levels[0][1, :16, :2] == 20).all()
+    assert arr.size == (16, 16) and arr.layers == 2 and len(arr.levels) == 5
+    assert (arr.levels[0][0, :16, :2] == 20).all() and (arr.levels[0][0, :, 2:] == 0).all()
+    assert (arr.levels[0][1, :5, :7] == 10).all() and (arr.levels[0][1, :3, 8:11] == 30).all()
+    assert (arr.levels[1][1, :3, :4] == 10).all() and (arr.levels[1][1, :2, 4:6] == 30).all()  # ⌈/2⌉, at x0 >> 1
+    assert (arr.levels[3][1, 0, 0] == 10).all() and (arr.levels[2][1, 0, 2] == 30).all()
     rec = tl.TEXTURE_RECORD.unpack(packed.records)
-    assert rec["width"].tolist() == [7, 2] and rec["height"].tolist() == [5, 16] and rec["levels"].tolist() == [4, 5]
-    assert rec["wrap_s"].tolist() == [2, 0] and rec["wrap_t"].tolist() == [1, 0]
-    assert rec["nearest"].tolist() == [1, 0] and rec["srgb"].tolist() == [1, 0]
-    assert packed.nbytes == tl.texture_array_bytes(8, 16, 2) == sum(level.nbytes for level in arr.levels)
+    assert rec["width"].tolist() == [7, 2, 3] and rec["height"].tolist() == [5, 16, 3]
+    assert rec["layer"].tolist() == [1, 0, 1] and rec["x0"].tolist() == [0, 0, 8] and rec["y0"].tolist() == [0, 0, 0]
+    assert rec["levels"].tolist() == [4, 5, 3]
+    assert rec["wrap_s"].tolist() == [2, 0, 0] and rec["wrap_t"].tolist() == [1, 0, 0]
+    assert rec["nearest"].tolist() == [1, 0, 0] and rec["srgb"].tolist() == [1, 0, 0]
+    assert packed.nbytes == tl.texture_array_bytes(16, 16, 2) == sum(level.nbytes for level in arr.levels)
+    assert tl.array_bytes([t0, t1, t2]) == packed.nbytes
+
+
+def test_morton_slots_never_overlap_at_any_level():
+    rng = np.random.default_rng(7)
+    sizes = [(int(w), int(h)) for w, h in rng.integers(1, 300, (40, 2))]
+    side, places = tl.layout_of(sizes)
+    for lv in range(tl.levels_of(side, side)):
+        taken: dict[tuple[int, int, int], int] = {}
+        for i, ((w, h), (layer, x0, y0)) in enumerate(zip(sizes, places, strict=True)):
+            if lv >= tl.levels_of(w, h):
+                continue
+            lw, lh = -(-w // (1 << lv)), -(-h // (1 << lv))
+            assert (x0 >> lv) + lw <= max(1, side >> lv) and (y0 >> lv) + lh <= max(1, side >> lv)
+            for x in range((x0 >> lv), (x0 >> lv) + lw):
+                for y in range((y0 >> lv), (y0 >> lv) + lh):
+                    assert taken.setdefault((layer, x, y), i) == i, (lv, i, taken[(layer, x, y)])
 
 
 def test_a_texture_beyond_the_devices_size_is_halved_with_a_notice_never_refused():
     big = Texture(_rgba(64, 48), name="wall.png")
     packed = tl.pack_texture_array([big, Texture(_rgba(4, 4))], max_size=16)
-    assert packed.array.size == (16, 16)
+    assert packed.array.size == (16, 16) and packed.array.layers == 2
     assert tl.TEXTURE_RECORD.unpack(packed.records)["width"].tolist() == [12, 4]
     assert packed.notices == [
         "textures[0] (wall.png) 48 × 64 resized to 12 × 16 for the device's largest texture side, 16"
@@ -74,9 +98,8 @@ def test_a_texture_beyond_the_devices_size_is_halved_with_a_notice_never_refused
 def test_the_array_stays_within_its_texel_bound_by_halving_the_largest():
     big, small = Texture(_rgba(64, 64)), Texture(_rgba(8, 8))
     packed = tl.pack_texture_array([big, small, small, small], max_texels=4 * 32 * 32)
-    assert (
-        packed.array.size == (32, 32) and len(packed.notices) == 1 and "MAX_TEXTURE_ARRAY_TEXELS" in packed.notices[0]
-    )
+    assert packed.array.size == (32, 32) and packed.array.layers == 2  # the 64² halved; the 8²s in layer 1
+    assert len(packed.notices) == 1 and "MAX_TEXTURE_ARRAY_TEXELS" in packed.notices[0]
 
 
 def test_generated_tangents_follow_u_with_the_handedness_of_the_uv_winding():

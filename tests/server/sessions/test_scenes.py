@@ -240,5 +240,5 @@ def test_textures_and_vertex_attributes_are_stored_as_they_are_and_reported():
             np.testing.assert_array_equal(m1.attributes[name], values)
     info = scene_info(scene)
     assert info["n_textures"] == 2
-    assert info["texture_bytes"] == texture_layout.texture_array_bytes(32, 64, 2) == texture_layout.array_bytes(tex)
+    assert info["texture_bytes"] == texture_layout.texture_array_bytes(64, 64, 2) == texture_layout.array_bytes(tex)
     assert info["attribute_bytes"] == (64 + 48 + 48) * 4  # UVs, colours (a), tangents (c) for all 4 triangles
