@@ -239,3 +239,127 @@ def test_textured_variants_compile_with_the_ray_cones_in_their_loops(gl_renderer
     text = variant_source(variant)
     assert "g_cone_width = cone_footprint(" in text
     gl_renderer.ctx.program(vertex_shader=vertex_source(), fragment_shader=text).release()
+
+
+# ---- the ray cones in the integrators' loops ----------------------------------------------------
+# A room of quads seen from inside: a mirror floor (Phong, reflective 1), diffuse walls. The tracer's
+# variants compile the cone code where the scene carries TEXTURES (its PBR materials read textures);
+# here the room's Phong materials read none, so the test makes the scene carry it
+# (texture_layout.uses_textures) and reads the loops' cone through the colour: the line that adds a
+# hit's colour is replaced, in the compiled text alone (GLRenderer.fragment_text), by one that writes
+# the cone at the hit of the ray level (Whitted) or path segment asked for.
+WHITTED_AMBIENT = "color += k.weight * m.ambient * m.color;   // Phong's ambient term"
+PATH_EMISSION = "if (r.front) L += emission_weight(h, ng, d, prev_p, prev_pdf) * beta * emission_at(s.mat);"
+
+
+def _room() -> Scene:
+    mirror = Material(color=(1, 1, 1), ambient=0.0, diffuse=0.0, specular=0.0, reflective=1.0)
+    wall = Material(color=(0.5, 0.5, 0.5), ambient=0.0, diffuse=1.0, specular=0.0, reflective=0.0)
+    s = 4.0
+
+    def quad(a, b, c, d, mat):  # corners counter-clockwise seen from inside
+        return make_mesh([a, b, c, d], [[0, 1, 2], [0, 2, 3]], material=mat)
+
+    meshes = [
+        quad([-s, 0, -s], [-s, 0, s], [s, 0, s], [s, 0, -s], 0),  # floor, normal +y
+        quad([-s, 0, -s], [s, 0, -s], [s, 2 * s, -s], [-s, 2 * s, -s], 1),  # back wall, +z
+        quad([-s, 2 * s, -s], [s, 2 * s, -s], [s, 2 * s, s], [-s, 2 * s, s], 1),  # ceiling, −y
+        quad([-s, 0, s], [-s, 2 * s, s], [s, 2 * s, s], [s, 0, s], 1),  # front wall, −z
+        quad([-s, 0, -s], [-s, 2 * s, -s], [-s, 2 * s, s], [-s, 0, s], 1),  # left wall, +x
+        quad([s, 0, -s], [s, 0, s], [s, 2 * s, s], [s, 2 * s, -s], 1),  # right wall, −x
+    ]
+    cam = Camera((0.0, 3.0, 3.0), (0.0, 0.5, -2.0), (0.0, 1.0, 0.0), 60.0)
+    return _scene(meshes, [mirror, wall], [], cam)
+
+
+class _ConeRenderer:
+    """A GLRenderer on the session's context whose fragment text is patched, ``old`` → ``new`` (a
+    renderer of its own: its compiled programs are cached by the unpatched text)."""
+
+    def __init__(self, gl_renderer, old: str, new: str):
+        from renderer.gl import GLRenderer
+
+        self.r, self.old, self.new = GLRenderer(gl_renderer.ctx), old, new
+
+    def render(self, scene, settings):
+        from unittest import mock
+
+        def patched(src, features):
+            assert self.old in src
+            return src.replace(self.old, self.new)
+
+        with mock.patch.object(self.r, "fragment_text", patched):
+            return self.r.render(scene, settings)
+
+
+def _mirror_paths(scene: Scene, w: int, h: int):
+    """float64: per pixel (centre) the distance from the camera to the second hit via the mirror floor,
+    and whether the first hit is the floor and the second a wall."""
+    geometry = dataclasses.replace(scene, materials=(Material(), Material()))
+    o, d = reference.primary_rays(scene.camera, w, h)
+    t1, id1 = reference.trace_rays(geometry, o, d)
+    p = o + t1[:, None] * d
+    floor = (id1 >= 0) & (id1 - scene.triangle_id_base < 2)
+    r = d * np.array([1.0, -1.0, 1.0])  # reflected off y = 0
+    t2, id2 = reference.trace_rays(geometry, p, r, src=id1)
+    return t1 + t2, floor & (id2 >= 0), t1, d
+
+
+@pytest.fixture
+def textured_variants(monkeypatch):
+    monkeypatch.setattr(texture_layout, "uses_textures", lambda scene: True)
+
+
+def test_whitted_cones_grow_with_the_distance_travelled_and_keep_the_spread_at_a_mirror(gl_renderer, textured_variants):
+    """Level 1: the footprint is γ·t / |cos| with γ the pixel's angle; level 2 (after the mirror):
+    γ·(t1 + t2) / |cos2| — the spread kept, the width grown along both segments."""
+    from renderer.settings import RenderSettings
+
+    scene = _room()
+    w = h = 24
+    out = {}
+    for level in (1, 2):
+        new = f"if (k.level == {level}) color = vec3(g_cone_width, k_dist + h.t, abs(dot(k.d, s.ng)));"
+        settings = RenderSettings(
+            width=w, height=h, format="npy", method="bvh", max_recursion_depth=2, specialize=False
+        )
+        res = _ConeRenderer(gl_renderer, WHITTED_AMBIENT, new).render(scene, settings)
+        assert "TEXTURES" in res.stats["shader_features"]
+        out[level] = res.image.reshape(-1, 3).astype(np.float64)
+    gamma = math.atan(2.0 * math.tan(math.radians(60.0) / 2.0) / h)
+    dist, mirrored, t1, d = _mirror_paths(scene, w, h)
+    np.testing.assert_allclose(out[1][:, 1], t1, rtol=1e-4)
+    np.testing.assert_allclose(out[1][:, 0], gamma * out[1][:, 1] / out[1][:, 2], rtol=1e-4)
+    assert mirrored.sum() > 100
+    m = out[2][mirrored]
+    np.testing.assert_allclose(m[:, 1], dist[mirrored], rtol=1e-4)
+    np.testing.assert_allclose(m[:, 0], gamma * m[:, 1] / m[:, 2], rtol=1e-4)
+
+
+def test_path_cones_keep_the_spread_at_a_mirror_and_widen_it_after_a_diffuse_bounce(gl_renderer, textured_variants):
+    """Segment 2 after the mirror: the spread is still the pixel's, the width γ × the path's length so far
+    (pixel-jittered rays: near the centre's); segment 3, after a diffuse wall, has the wide
+    spread (1 radian); the footprint is width / |cos| at each."""
+    from renderer.settings import RenderSettings
+
+    scene = _room()
+    w = h = 24
+    out = {}
+    for seg in (2, 3):
+        new = f"if (segments == {seg}) L = vec3(cone_w, cone_spread, g_cone_width * abs(dot(d, s.ng)));"
+        settings = RenderSettings(
+            width=w, height=h, format="npy", method="bvh", integrator="path", samples_per_pixel=1,
+            max_recursion_depth=4, specialize=False,
+        )  # fmt: skip
+        res = _ConeRenderer(gl_renderer, PATH_EMISSION, new).render(scene, settings)
+        out[seg] = res.image.reshape(-1, 3).astype(np.float64)
+    gamma = math.atan(2.0 * math.tan(math.radians(60.0) / 2.0) / h)
+    dist, mirrored, _, _ = _mirror_paths(scene, w, h)
+    m = out[2][mirrored]
+    np.testing.assert_allclose(m[:, 1], gamma, rtol=1e-4)  # (float32 atan)
+    rel = np.abs(m[:, 0] / gamma - dist[mirrored]) / dist[mirrored]  # (a jittered ray: not the centre's path)
+    assert np.median(rel) < 0.01 and rel.max() < 0.08
+    np.testing.assert_allclose(m[:, 2], m[:, 0], rtol=1e-4)
+    third = out[3][mirrored & (out[3][:, 1] > 0)]
+    assert len(third) > 50
+    np.testing.assert_allclose(third[:, 1], 1.0, rtol=1e-6)
