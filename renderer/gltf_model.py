@@ -27,7 +27,7 @@ import io
 import json
 import math
 import struct
-from typing import Any
+from typing import Any, cast
 from urllib.parse import unquote
 
 import numpy as np
@@ -51,8 +51,8 @@ READ_EXTENSIONS = (
     "KHR_materials_volume",
     "KHR_mesh_quantization",
 )
-_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
-_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+_DTYPES: dict[Any, Any] = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
+_WIDTH: dict[Any, int] = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
 _WRAPS = {10497: "repeat", 33071: "clamp", 33648: "mirror"}
 _NEAREST = (9728, 9984, 9986)  # NEAREST, NEAREST_MIPMAP_NEAREST, NEAREST_MIPMAP_LINEAR: nearest within a level
 _MODES = {0: "points", 1: "lines", 2: "line loops", 3: "line strips"}
@@ -435,7 +435,7 @@ class _Reader:
             distance = volume.get("attenuationDistance")
             # absent or beyond the scene's coordinates: glTF's infinity, no attenuation (0 here)
             ok = isinstance(distance, (int, float)) and 0 < distance <= limits.MAX_COORDINATE
-            kw["attenuation_distance"] = float(distance) if ok else 0.0
+            kw["attenuation_distance"] = float(cast(float, distance)) if ok else 0.0
         kw = {k: self._clamped(k, v, where) for k, v in kw.items()}
         normal = m.get("normalTexture")
         occlusion = m.get("occlusionTexture")
