@@ -27,15 +27,16 @@ import json
 import threading
 import zipfile
 from collections import OrderedDict
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import numpy as np
 
 from renderer.animation import AnimatedScene, motion_from_json, motion_to_json, museum
 from renderer.envmap import SKY_REF
+from renderer.materials.texture import Texture
 from renderer.scenarios import content_box, object_boxes, scenario
-from renderer.scene import Camera, Material, Mesh, Scene, SceneError, make_mesh
+from renderer.scene import VERTEX_ATTRIBUTES, Camera, Material, Mesh, Scene, SceneError, make_mesh
 from renderer.shapes import Shapes
 
 from ..contract.scene import CameraModel, SceneModel
@@ -136,18 +137,32 @@ def scene_source(scene: SessionScene) -> bytes:
     if scene.meshes:
         small["meshes"] = [
             {"material": m.material, "vertices": len(m.vertices), "triangles": m.n_triangles, "smooth": m.smooth}
+            | ({"attributes": sorted(m.attributes)} if m.attributes else {})
             for m in scene.meshes
         ]
         arrays["mesh_vertices"] = np.concatenate([m.vertices for m in scene.meshes])
         arrays["mesh_triangles"] = np.concatenate([m.triangles for m in scene.meshes])
         smooth = [m.normals for m in scene.meshes if m.normals is not None]  # the smooth ones
         arrays["mesh_normals"] = np.concatenate(smooth) if smooth else np.zeros((0, 3))
+        for name, *_ in VERTEX_ATTRIBUTES:  # each only when a mesh has it
+            rows = [m.attributes[name] for m in scene.meshes if name in m.attributes]
+            if rows:
+                arrays[f"mesh_{name}"] = np.concatenate(rows)
+    if scene.textures:
+        # texels as they are (RGBA8), uncompressed like an environment image's: the quota counts
+        # the bytes the service holds, and a texture's compression would take seconds
+        small["textures"] = [
+            {"width": t.width, "height": t.height, "srgb": t.srgb, "wrap_s": t.wrap_s, "wrap_t": t.wrap_t}
+            | {"filter": t.filter, "name": t.name}
+            for t in scene.textures
+        ]
+        arrays["texture_texels"] = np.concatenate([t.pixels.reshape(-1) for t in scene.textures])
     if scene.n_shapes:  # (absent for a scene without: a source stored before shapes reads the same)
         arrays["shape_kind"] = scene.shapes.kind
         arrays["shape_params"] = scene.shapes.params
         arrays["shape_materials"] = scene.shapes.material
     arrays["meta"] = np.frombuffer(json.dumps(small).encode(), dtype=np.uint8)
-    return _ARRAYS + _npz(arrays, stored={"env_texels"})
+    return _ARRAYS + _npz(arrays, stored={"env_texels", "texture_texels"})
 
 
 def _npz(arrays: dict[str, np.ndarray], stored: set[str]) -> bytes:
@@ -174,14 +189,42 @@ def environment_json(scene: Scene) -> dict[str, Any] | None:
 def _stored_meshes(cut: list[dict], z) -> tuple[Mesh, ...]:
     """The meshes of a stored source: ``cut`` says how many rows of each array are whose."""
     out, v0, t0, n0 = [], 0, 0, 0
+    at = {name: 0 for name, *_ in VERTEX_ATTRIBUTES}
+    held = {name: z[f"mesh_{name}"] for name in at if f"mesh_{name}" in z.files}
     for m in cut:
         nv, nt = m["vertices"], m["triangles"]
         normals = None
         if m["smooth"]:
             normals = z["mesh_normals"][n0 : n0 + nv]
             n0 += nv
-        out.append(Mesh(z["mesh_vertices"][v0 : v0 + nv], z["mesh_triangles"][t0 : t0 + nt], m["material"], normals))
+        attributes = {}
+        for name in m.get("attributes", ()):
+            attributes[name] = held[name][at[name] : at[name] + nv]
+            at[name] += nv
+        out.append(
+            Mesh(
+                z["mesh_vertices"][v0 : v0 + nv],
+                z["mesh_triangles"][t0 : t0 + nt],
+                m["material"],
+                normals,
+                **attributes,
+            )
+        )
         v0, t0 = v0 + nv, t0 + nt
+    return tuple(out)
+
+
+def _stored_textures(cut: list[dict], z) -> tuple[Texture, ...]:
+    """The textures of a stored source: ``cut`` says each one's size and sampler."""
+    if not cut:
+        return ()
+    out, at = [], 0
+    texels = z["texture_texels"]
+    for t in cut:
+        n = t["width"] * t["height"] * 4
+        pixels = texels[at : at + n].reshape(t["height"], t["width"], 4)
+        out.append(Texture(pixels, t["srgb"], t["wrap_s"], t["wrap_t"], t["filter"], t["name"]))
+        at += n
     return tuple(out)
 
 
@@ -198,9 +241,10 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
             small = json.loads(z["meta"].tobytes())
             motions = small.pop("motions", [])
             meshes = _stored_meshes(small.pop("meshes", []), z)
+            textures = _stored_textures(small.pop("textures", []), z)
             env = small.get("environment", {})
             images = {env["image"]: z["env_texels"]} if "env_texels" in z.files and "image" in env else None
-            base = Scene.from_json({**small, "camera": camera.to_json()}, images)
+            base = Scene.from_json({**small, "camera": camera.to_json()}, images, textures)
             shapes = (
                 Shapes(z["shape_kind"], z["shape_params"], z["shape_materials"])
                 if "shape_kind" in z.files
@@ -218,6 +262,7 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
                 base.environment,
                 base.environment_map,
                 shapes,
+                base.textures,
             )
             return with_motions(scene, motions)
     raise ValueError("unknown scene source")
@@ -277,7 +322,15 @@ def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> It
             if m.normals is not None:
                 yield b',"normals":'
                 yield from (x.encode() for x in _rows_json(m.normals, rows))
+            for name, values in m.attributes.items():
+                yield f',"{name}":'.encode()
+                yield from (x.encode() for x in _rows_json(values, rows))
             yield b"}"
+        yield b"]"
+    if scene.textures:  # each a PNG in base64, as Scene.to_json
+        yield b',"textures":['
+        for i, t in enumerate(scene.textures):
+            yield (("," if i else "") + dumps(t.to_json())).encode()
         yield b"]"
     for key, records in scene.shapes.to_json().items():  # each kind only when it has shapes, as Scene.to_json
         yield (f',"{key}":' + dumps(records)).encode()
@@ -294,13 +347,25 @@ def tree_primitives(info: dict[str, Any]) -> int:
     return info.get("n_spheres", 0) + info.get("n_triangles", 0) + info.get("n_shapes", 0)
 
 
+def texture_bytes(textures: Sequence[Texture]) -> int:
+    """The bytes ``textures`` take where the service holds them: the session store keeps their
+    texels (RGBA8, level 0) as they are. The one count of a scene's or a model's texture bytes,
+    for ``scene_info`` and the budgets that bound them."""
+    return sum(t.nbytes for t in textures)
+
+
 def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dict[str, Any]:
     rest = scene.scene if isinstance(scene, AnimatedScene) else scene
     info: dict[str, Any] = {"n_spheres": rest.n_spheres, "n_planes": len(rest.planes)}
     if rest.meshes:  # (absent for a sphere scene: the stored state stays as it was)
         info.update(
-            n_meshes=len(rest.meshes), n_triangles=rest.n_triangles, n_degenerate_triangles=rest.n_degenerate_triangles
+            n_meshes=len(rest.meshes),
+            n_triangles=rest.n_triangles,
+            n_unique_triangles=rest.n_triangles,  # (the service counts a model's instanced meshes once)
+            n_degenerate_triangles=rest.n_degenerate_triangles,
         )
+    if rest.textures:  # (absent without, as the meshes')
+        info.update(n_textures=len(rest.textures), texture_bytes=texture_bytes(rest.textures))
     if rest.n_shapes:  # (absent without: as the meshes')
         info["n_shapes"] = rest.n_shapes
     if isinstance(scene, AnimatedScene):
@@ -470,11 +535,12 @@ def free_floor_spot(scene: Scene, extent: np.ndarray) -> tuple[np.ndarray, float
     return None
 
 
-def placed_mesh(scene: Scene, mesh: Mesh) -> tuple[Mesh, np.ndarray]:
-    """``mesh`` moved (and, where walls leave no room, shrunk) onto free floor beside ``scene``'s
-    objects (:func:`free_floor_spot`); else to the right of everything, on the floor. Returns the
-    mesh and its box's bottom centre."""
-    lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+def placed_meshes(scene: Scene, meshes: Sequence[Mesh]) -> tuple[list[Mesh], np.ndarray]:
+    """``meshes`` (a model's parts) moved together (and, where walls leave no room, shrunk) onto
+    free floor beside ``scene``'s objects (:func:`free_floor_spot`); else to the right of
+    everything, on the floor. Returns the meshes and their box's bottom centre."""
+    lo = np.min([m.vertices.min(axis=0) for m in meshes], axis=0)
+    hi = np.max([m.vertices.max(axis=0) for m in meshes], axis=0)
     bottom = np.array([(lo[0] + hi[0]) / 2.0, lo[1], (lo[2] + hi[2]) / 2.0])
     found = free_floor_spot(scene, hi - lo)
     if found is None:
@@ -482,5 +548,8 @@ def placed_mesh(scene: Scene, mesh: Mesh) -> tuple[Mesh, np.ndarray]:
         spot, scale = np.array([box.hi[0] + (hi[0] - lo[0]) / 2.0 + 1.0, box.lo[1], bottom[2]]), 1.0
     else:
         spot, scale = found
-    vertices = (mesh.vertices - bottom) * scale + spot
-    return Mesh(vertices, mesh.triangles, mesh.material, mesh.normals), spot
+    # a uniform scale and a shift: normals and tangents keep their directions
+    moved = [
+        Mesh((m.vertices - bottom) * scale + spot, m.triangles, m.material, m.normals, **m.attributes) for m in meshes
+    ]
+    return moved, spot
