@@ -99,10 +99,9 @@ class _Reader:
         self._geometry: dict[tuple[int, int], tuple | None] = {}
         self._textures: dict[tuple, int] = {}
         self._materials: dict[int, int] = {}
-        self.textures: list[Texture] = []
+        self._pending: list[tuple[int, bool, str, str, str]] = []  # (image, sRGB, wraps, filter) per texture
         self.materials: list[PbrMaterial] = []
         self.notices: list[str] = []
-        self._texels = 0
 
     # ---- the document -------------------------------------------------------------------------
     def _glb(self, data: bytes) -> Any:
@@ -534,18 +533,52 @@ class _Reader:
         key = (source, wrap_s, wrap_t, nearest, srgb)
         if key in self._textures:
             return self._textures[key]
-        if len(self.textures) >= limits.MAX_TEXTURES:
+        if len(self._pending) >= limits.MAX_TEXTURES:
             raise _refuse(
                 self.fmt, f"its materials read more than {limits.MAX_TEXTURES} textures (MAX_TEXTURES per scene)"
             )
-        pixels, name = self._image(source)
-        self.textures.append(Texture(pixels, srgb, wrap_s, wrap_t, "nearest" if nearest else "linear", name))
-        self._textures[key] = len(self.textures) - 1
+        self._pending.append((source, srgb, wrap_s, wrap_t, "nearest" if nearest else "linear"))
+        self._textures[key] = len(self._pending) - 1
         return self._textures[key]
 
-    def _image(self, i: int) -> tuple[np.ndarray, str]:
-        """uint8 (H, W, 4) of images[i] and its name; its declared size checked before decoding,
-        reduced to MAX_TEXTURE_SIDE when larger (a notice says so)."""
+    def _decoded_textures(self) -> list[Texture]:
+        """The textures the materials read, decoded once every image's declared size is checked
+        and their texels together are within MAX_TEXTURE_TEXELS: nothing is decoded for a model
+        whose images could not all be kept."""
+        sources = {}
+        declared = 0
+        for source, *_ in self._pending:
+            if source not in sources:
+                sources[source] = self._image_bytes(source)
+            data, where, name = sources[source]
+            size = image_size(data)
+            if size is not None:
+                f = math.ceil(max(size) / limits.MAX_TEXTURE_SIDE)
+                declared += math.ceil(size[0] / f) * math.ceil(size[1] / f)
+        if declared > limits.MAX_TEXTURE_TEXELS:
+            raise _refuse(
+                self.fmt,
+                f"its textures declare {declared:,} texels; at most {limits.MAX_TEXTURE_TEXELS:,} "
+                "(MAX_TEXTURE_TEXELS, a scene's textures together)",
+            )
+        pixels: dict[int, np.ndarray] = {}
+        out, texels = [], 0
+        for source, srgb, wrap_s, wrap_t, filter in self._pending:
+            data, where, name = sources[source]
+            if source not in pixels:
+                pixels[source] = self._decode(data, where, name)
+            texels += pixels[source].shape[0] * pixels[source].shape[1]
+            if texels > limits.MAX_TEXTURE_TEXELS:  # (an image whose header did not say its size)
+                raise _refuse(
+                    self.fmt,
+                    f"its textures hold more than {limits.MAX_TEXTURE_TEXELS:,} texels with {where} "
+                    "(MAX_TEXTURE_TEXELS, a scene's textures together)",
+                )
+            out.append(Texture(pixels[source], srgb, wrap_s, wrap_t, filter, name))
+        return out
+
+    def _image_bytes(self, i: int) -> tuple[bytes, str, str]:
+        """The bytes of images[i], where it is and its name; its declared size checked."""
         image = self._item("images", i, "a texture's source")
         where = f"images[{i}]"
         uri = image.get("uri")
@@ -560,21 +593,7 @@ class _Reader:
             raise _refuse(self.fmt, f"{where} has neither a uri nor a bufferView")
         name = name[: limits.MAX_TEXTURE_NAME]
         check_image(data, f"{where} ({name!r})" if name != where else where)
-        size = image_size(data)
-        if size is not None:
-            self._budget(min(size[0], limits.MAX_TEXTURE_SIDE) * min(size[1], limits.MAX_TEXTURE_SIDE), where)
-        pixels = self._decode(data, where, name)
-        self._texels += pixels.shape[0] * pixels.shape[1]
-        self._budget(0, where)
-        return pixels, name
-
-    def _budget(self, more: int, where: str) -> None:
-        if self._texels + more > limits.MAX_TEXTURE_TEXELS:
-            raise _refuse(
-                self.fmt,
-                f"its textures hold more than {limits.MAX_TEXTURE_TEXELS:,} texels with {where} "
-                "(MAX_TEXTURE_TEXELS, a scene's textures together)",
-            )
+        return data, where, name
 
     def _decode(self, data: bytes, where: str, name: str) -> np.ndarray:
         from PIL import Image, UnidentifiedImageError
@@ -592,17 +611,20 @@ class _Reader:
                         f"{limits.MAX_MODEL_IMAGE_SIDE:,} a side (MAX_MODEL_IMAGE_SIDE)",
                     )
                 factor = math.ceil(max(w, h) / limits.MAX_TEXTURE_SIDE)
-                if factor > 1 and im.format == "JPEG":
+                if factor > 1 and im.format == "JPEG":  # decoded at a fraction of its size directly
                     im.draft("RGB", (math.ceil(w / factor), math.ceil(h / factor)))
-                rgba = im.convert("RGBA")
+                # reduced before it is converted: a large image is held decoded once, at its size
+                rgba = im if im.mode in ("RGBA", "RGB", "L", "LA") else im.convert("RGBA")
                 if max(rgba.size) > limits.MAX_TEXTURE_SIDE:
                     rgba = rgba.reduce(math.ceil(max(rgba.size) / limits.MAX_TEXTURE_SIDE))
+                if rgba.mode != "RGBA":
+                    rgba = rgba.convert("RGBA")
                 if factor > 1:
                     self.notices.append(
                         f"{where} ({name!r}) is {w:,} × {h:,}: reduced to {rgba.size[0]:,} × {rgba.size[1]:,} "
                         f"(MAX_TEXTURE_SIDE {limits.MAX_TEXTURE_SIDE:,})"
                     )
-                return np.asarray(rgba, dtype=np.uint8).copy()
+                return np.asarray(rgba, dtype=np.uint8)
         except (UnidentifiedImageError, OSError, SyntaxError, ValueError, Image.DecompressionBombError) as e:
             if isinstance(e, SceneError):
                 raise
@@ -642,7 +664,8 @@ class _Reader:
         if not parts:
             raise _refuse(self.fmt, "the file holds no triangle mesh" + _why(self.notices))
         names = tuple(self.side.image_names()) if self.side is not None else ()
-        return Model(tuple(parts), tuple(self.materials), tuple(self.textures), names, tuple(self.notices))
+        textures = self._decoded_textures()
+        return Model(tuple(parts), tuple(self.materials), tuple(textures), names, tuple(self.notices))
 
 
 def _why(notices: list[str]) -> str:

@@ -291,13 +291,20 @@ def test_an_image_declaring_too_many_pixels_is_refused_before_decoding():
 
 
 def test_textures_beyond_the_scenes_texel_budget_are_refused_before_decoding(monkeypatch):
+    """Two 2 × 1 images (4 texels) against a budget of 3: refused by their headers, none decoded."""
+    from renderer import gltf_model
+
+    def no_decoding(*args):
+        raise AssertionError("an image was decoded")
+
     monkeypatch.setattr(limits, "MAX_TEXTURE_TEXELS", 3)
+    monkeypatch.setattr(gltf_model._Reader, "_decode", no_decoding)
     g = Gltf()
     textured(g, {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}, "emissiveTexture": {"index": 0}})
     g.doc["images"].append({"uri": data_uri(png(RED_GREEN))})
     g.doc["textures"].append({"source": 1})
     g.doc["materials"][0]["emissiveTexture"] = {"index": 1}
-    with pytest.raises(SceneError, match="MAX_TEXTURE_TEXELS"):
+    with pytest.raises(SceneError, match="its textures declare 4 texels; at most 3 .MAX_TEXTURE_TEXELS"):
         glb_model(g)
 
 
