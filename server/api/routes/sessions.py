@@ -150,7 +150,7 @@ _MODEL_BODY = {
     "/sessions/{session_id}/meshes",
     status_code=201,
     response_model=MeshAdded,
-    responses=documented(404, 409, 413, 503),
+    responses=documented(404, 409, 413, 503, 507),
     openapi_extra=_MODEL_BODY,
     summary="Add a model file (OBJ, PLY, STL, glTF/GLB, or a zip of its folder; the body) to the session's scene",
 )
