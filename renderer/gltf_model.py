@@ -392,6 +392,9 @@ class _Reader:
             raise _refuse(self.fmt, f"{where}: matrix (16 numbers) or translation/rotation/scale (3, 4, 3)") from None
         if not np.isfinite(out).all():
             raise _refuse(self.fmt, f"{where}: its transform holds numbers that are not finite")
+        if not np.allclose(out[3], (0.0, 0.0, 0.0, 1.0)):
+            raise _refuse(self.fmt, f"{where}.matrix is not affine (its last row must be 0, 0, 0, 1)")
+        out[3] = (0.0, 0.0, 0.0, 1.0)  # exporters' float noise: the map is affine
         return out
 
     # ---- materials and textures ----------------------------------------------------------------
