@@ -474,6 +474,38 @@ def zipped(files: dict[str, bytes]) -> bytes:
     return out.getvalue()
 
 
+def test_a_zipped_gltf_folder_arrives_with_its_image_and_a_missing_one_is_named(api):
+    from tests.renderer.gltf_files import Gltf, png, triangle
+
+    g = Gltf()
+    uv = g.accessor([[0, 0], [1, 0], [0, 1]])
+    g.add("images", {"uri": "maps/skin.png"})
+    g.add("textures", {"source": 0})
+    g.add(
+        "nodes",
+        {
+            "mesh": g.mesh(
+                triangle(g, TEXCOORD_0=uv)
+                | {"material": g.add("materials", {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}})}
+            )
+        },
+    )
+    g.scene(0)
+    folder = {"box/box.gltf": g.gltf("box.bin"), "box/box.bin": bytes(g.binary)}
+    sid = create(api, mesh_scene_json()).json()["id"]
+    before = api.get(f"/api/sessions/{sid}").json()
+    missing = upload(api, sid, zipped(folder), format="zip")
+    assert_422_msgs(missing, "body")
+    assert "'maps/skin.png', which is not beside the model" in missing.text
+    assert api.get(f"/api/sessions/{sid}").json() == before
+    image = png(np.full((3, 3, 4), 90, np.uint8))
+    r = upload(api, sid, zipped({**folder, "box/maps/skin.png": image}), format="zip")
+    assert r.status_code == 201, r.text
+    assert r.json()["scene_info"]["texture_bytes"] == 3 * 3 * 4
+    (texture,) = api.get(f"/api/sessions/{sid}/scene").json()["textures"]
+    assert texture["name"] == "maps/skin.png"
+
+
 def test_a_zipped_model_folder_is_added_and_a_hostile_zip_changes_nothing(api):
     """format=zip: the model file and its side files in one body, opened in the model worker; each
     hostile archive a 422 naming its problem, the session as it was."""
