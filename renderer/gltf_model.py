@@ -654,6 +654,12 @@ class _Reader:
                     singular += 1  # a node scaled to nothing (hidden): no triangle of it can be seen
                     continue
                 v, tri, normals, arrays, material = got
+                if len(parts) >= limits.MAX_MODEL_PARTS:
+                    raise _refuse(
+                        self.fmt,
+                        f"more than {limits.MAX_MODEL_PARTS:,} parts (primitives × the nodes that place them; "
+                        "MAX_MODEL_PARTS): join the primitives of one material",
+                    )
                 total += len(tri)
                 if total > self.max_triangles:
                     raise _refuse(

@@ -328,3 +328,14 @@ def test_the_reader_takes_model_files_as_the_archive_gives_them():
     one_node(g, triangle(g))
     model = load_gltf_model(ModelFiles("m.gltf", "gltf", g.gltf()), **BIG)
     assert model.n_triangles == 1 and model.parts[0].transform is None
+
+
+def test_more_parts_than_the_bound_are_refused(monkeypatch):
+    monkeypatch.setattr(limits, "MAX_MODEL_PARTS", 3)
+    g = Gltf()
+    mesh = g.mesh(triangle(g), triangle(g))
+    g.add("nodes", {"mesh": mesh})
+    g.add("nodes", {"mesh": mesh, "translation": [2, 0, 0]})
+    g.scene(0, 1)
+    with pytest.raises(SceneError, match="more than 3 parts .primitives × the nodes that place them"):
+        glb_model(g)
