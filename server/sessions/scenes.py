@@ -380,8 +380,9 @@ def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dic
 
 
 # What a scene holds in memory, bytes: a sphere its centre, radius and material and the tree's
-# share; a triangle its mesh's arrays and the flattened corners; an analytic shape its record and
-# box; an environment image everything it holds once drawn (EnvironmentMap.held_bytes).
+# share; a triangle its mesh's arrays and the flattened corners (and its vertex attributes as they
+# are); an analytic shape its record and box; a texture its texels; an environment image everything
+# it holds once drawn (EnvironmentMap.held_bytes).
 SPHERE_BYTES = 36
 TRIANGLE_BYTES = 144
 SHAPE_BYTES = 144
@@ -392,7 +393,9 @@ def scene_bytes(scene: SessionScene) -> int:
     rest = scene.scene if isinstance(scene, AnimatedScene) else scene
     env = rest.environment_map
     geometry = SPHERE_BYTES * rest.n_spheres + TRIANGLE_BYTES * rest.n_triangles + SHAPE_BYTES * rest.n_shapes
-    return geometry + (env.held_bytes if env is not None and env.ref != SKY_REF else 0)
+    attributes = sum(a.nbytes for m in rest.meshes for a in m.attributes.values())
+    images = texture_bytes(rest.textures) + (env.held_bytes if env is not None and env.ref != SKY_REF else 0)
+    return geometry + attributes + images
 
 
 class SceneCache:

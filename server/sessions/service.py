@@ -326,9 +326,8 @@ class SessionService:
                 materials=(),
                 textures=(),
             )
-        if material is None and any(
-            p.material < 0 for p in parsed.parts
-        ):  # the clay, added once: later models share it
+        # the parts without a material of their own take the clay, added once: later models share it
+        if material is None and any(p.material < 0 for p in parsed.parts):
             if CLAY not in materials:
                 if len(materials) >= Scene.MAX_MATERIALS:
                     raise InputError(

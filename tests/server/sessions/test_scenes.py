@@ -15,6 +15,7 @@ from renderer.scene import Camera, Mesh
 from server.sessions.scenes import (
     SHAPE_BYTES,
     SPHERE_BYTES,
+    TRIANGLE_BYTES,
     SceneCache,
     load_source,
     scene_bytes,
@@ -237,5 +238,7 @@ def test_the_source_keeps_a_models_vertex_attributes_materials_and_textures():
     assert all(m.uvs is None for m in back.meshes[:-1])
     info = scene_info(back)
     assert info["n_textures"] == 1 and info["texture_bytes"] == 3 * 5 * 4
+    # the cache weighs the texels and the attributes: 60 bytes, and 3 × (2 + 4) float64
+    assert scene_bytes(back) - scene_bytes(base) == 60 + 3 * 6 * 8 + TRIANGLE_BYTES
     chunks = json.loads(b"".join(scene_json_chunks(back)))
     assert chunks == json.loads(json.dumps(back.to_json()))  # the streamed JSON is the scene's own
