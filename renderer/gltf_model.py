@@ -674,7 +674,11 @@ class _Reader:
             raise _refuse(self.fmt, "the file holds no triangle mesh" + _why(self.notices))
         names = tuple(self.side.image_names()) if self.side is not None else ()
         textures = self._decoded_textures()
-        return Model(tuple(parts), tuple(self.materials), tuple(textures), names, tuple(self.notices))
+        said = list(dict.fromkeys(self.notices))
+        if len(said) > limits.MAX_MODEL_NOTICES:
+            more = len(said) - limits.MAX_MODEL_NOTICES + 1
+            said = [*said[: limits.MAX_MODEL_NOTICES - 1], f"… and {more:,} more like these"]
+        return Model(tuple(parts), tuple(self.materials), tuple(textures), names, tuple(said))
 
 
 def _why(notices: list[str]) -> str:

@@ -89,6 +89,11 @@ MAX_TILE_PAIRS = 1 << 22
 # sampled_level_rays): this many pixels on the grid's long side, in scenes of at most this many
 # primitives (the reference tracer tests every one; past it, the model's ray tree of the materials alone).
 RAY_TREE_SAMPLE_SIDE = 24
+# A drag moves the camera a little each frame: the ray tree counted for a view of the same scene within
+# this angle of the new one (its forward direction, degrees) and this share of its distance to the
+# target (its position) stands for the new view's, so a preview does not count again (6-57 ms each).
+RAY_TREE_REUSE_DEG = 5.0
+RAY_TREE_REUSE_MOVE = 0.05
 # Slices (renderer/prepare.py band_rows, renderer/gl/frame.py): a band of rows is sized for the rows
 # through the scene's box — the frame's per-pixel cost over the share of the image the box covers, down
 # to MIN_BAND_COVERAGE — and grows from the measured time of the last at most to MAX_BAND_GROWTH × the
@@ -134,6 +139,10 @@ MAX_BUFFERLESS_BYTES = 16 << 20  # glTF: accessors without a bufferView (zeros t
 # STL stores three per triangle, a glTF repeats them per instance).
 DECLARED_VERTEX_FACTOR = 3
 MAX_PLY_HEADER_BYTES = 64 << 10  # a PLY header (text up to end_header)
+# An OBJ's material libraries, all its .mtl files together (renderer/obj_model.py): a library of
+# hundreds of materials is tens of KiB; each line is read in Python, ~1 s per 16 MiB here.
+MAX_MTL_BYTES = 16 << 20
+MAX_MODEL_NOTICES = 16  # lines saying what a model was read without (the rest counted in the last)
 # A zipped model folder (renderer/model_archive.py): the central directory's numbers are checked
 # against these before one byte is inflated, and inflating never yields more than an entry
 # declares. Deflate reaches ~1,000:1 on zeros and 3-20:1 on models and images, so a ratio above

@@ -5,16 +5,15 @@ functions a command line calls to make scenes of them.
 :class:`~renderer.model.Model` — its parts, materials and textures — after the file's declared
 numbers are checked (:mod:`renderer.model_guard`), then dispatches by format (:data:`READERS`):
 glTF and GLB to :mod:`renderer.gltf_model` (materials, textures, node instances), OBJ to
-``renderer.obj_model`` (its MTL), every other format through trimesh as one part of the scene's
-material. A model's side files — a glTF's ``.bin`` buffers and images, an OBJ's ``.mtl`` — come
-from its folder (a path), from the zip it was sent in (``format="zip"``,
-:mod:`renderer.model_archive`), or not at all (a model file sent alone: a reference to another
-file is refused, naming it). On the trimesh path a file of several meshes becomes one part, each
-placed by its node's transform; polygons are split into triangles by trimesh; degenerate
-triangles are kept (the scene counts them); vertices of exactly equal position (and normal) are
-merged (:func:`renderer.meshes.weld`-like, but keeping every triangle): STL stores each
-triangle's corners apart, and only shared vertices make a mesh watertight for the tracer — exact
-equality keeps every coordinate as the file has it.
+:mod:`renderer.obj_model` (its MTL), PLY to :mod:`renderer.ply_model` (vertex colours and UVs),
+STL through trimesh as one part of the scene's material. A model's side files — a glTF's
+``.bin`` buffers and images, an OBJ's ``.mtl`` — come from its folder (a path), from the zip it
+was sent in (``format="zip"``, :mod:`renderer.model_archive`), or not at all (a model file sent
+alone: a reference to another file is refused, naming it). On the trimesh path polygons are split
+into triangles by trimesh; degenerate triangles are kept (the scene counts them); vertices of
+exactly equal position (and normal) are merged (:func:`renderer.meshes.weld`-like, but keeping
+every triangle): STL stores each triangle's corners apart, and only shared vertices make a mesh
+watertight for the tracer — exact equality keeps every coordinate as the file has it.
 
 :func:`load_mesh` is the geometry alone (:class:`MeshData`: every part placed and joined), for
 exporting and for the answer of ``POST /api/meshes`` (one mesh JSON).
@@ -246,6 +245,7 @@ READERS = {
     "gltf": ("renderer.gltf_model", "load_gltf_model"),
     "glb": ("renderer.gltf_model", "load_gltf_model"),
     "obj": ("renderer.obj_model", "load_obj_model"),
+    "ply": ("renderer.ply_model", "load_ply_model"),
 }
 
 
@@ -259,14 +259,15 @@ def load_model(
     """Parse a model file (path, bytes or :class:`~renderer.model_archive.ModelFiles`;
     ``file_type`` one of :data:`UPLOAD_FORMATS`, from the suffix when None) into a
     :class:`~renderer.model.Model`: glTF and GLB with their materials and textures
-    (:mod:`renderer.gltf_model`), OBJ with its MTL (``renderer.obj_model``), every other format
-    one part of the scene's material. SceneError ``format`` for an unknown format, ``file`` for a
-    file that is not a model of that format, an archive that breaks a bound, a side file that is
-    missing, a model that holds no triangle, or exceeds ``max_triangles`` (all parts, each
-    instance counted) / ``max_vertices`` (one part). The file's declared counts, lengths, node
-    tree and images are checked first (:func:`renderer.model_guard.check_model`), so a parser
-    never allocates what the file only claims; parse in a worker process with a deadline when
-    the file comes from someone else (``server/sessions/model_worker.py``)."""
+    (:mod:`renderer.gltf_model`), OBJ with its MTL (:mod:`renderer.obj_model`), PLY with its
+    vertex colours (:mod:`renderer.ply_model`), STL one part of the scene's material. SceneError
+    ``format`` for an unknown format, ``file`` for a file that is not a model of that format, an
+    archive that breaks a bound, a side file that is missing, a model that holds no triangle, or
+    exceeds ``max_triangles`` (all parts, each instance counted) / ``max_vertices`` (one part).
+    The file's declared counts, lengths, node tree and images are checked first
+    (:func:`renderer.model_guard.check_model`), so a parser never allocates what the file only
+    claims; parse in a worker process with a deadline when the file comes from someone else
+    (``server/sessions/model_worker.py``)."""
     files = source if isinstance(source, ModelFiles) else model_files(source, file_type)
     side = None if files.side is NO_SIDE_FILES else files.side  # a model file alone: no side file to read
     # the file's own counts and lengths first: the parser would allocate whatever they ask for

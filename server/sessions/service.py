@@ -67,7 +67,6 @@ from .scenes import (
 from .store import SessionState, SessionStore, StoreFull, StoreUnavailable
 
 LINEAR_FORMATS = ("npy", "exr")  # radiance as traced: denoised only when a request asks for it
-MAX_NOTICES = 4  # sentences of what a model file had that was not read, in an upload's answer
 
 
 @dataclass(frozen=True)
@@ -379,9 +378,7 @@ class SessionService:
             said.append(
                 f"{len(meshes)} mesh(es), {len(own)} material(s) and {len(parsed.textures)} texture(s) of the file"
             )
-        said.extend(parsed.notices[:MAX_NOTICES])
-        if len(parsed.notices) > MAX_NOTICES:
-            said.append(f"and {len(parsed.notices) - MAX_NOTICES} more")
+        said.extend(parsed.notices)  # (each reader keeps them within MAX_MODEL_NOTICES)
         return MeshPlaced(
             new,
             index,
