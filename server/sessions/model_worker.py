@@ -239,7 +239,10 @@ class ModelWorkers:
                 f"parsing {what} took longer than {self.timeout_s:g} s (POCKETRAY_MODEL_TIMEOUT_S): refused",
             ) from None
         except EOFError:
-            code = w.proc.poll()
+            try:  # its pipe closes a moment before it has exited: its status says why
+                code = w.proc.wait(timeout=1.0)
+            except subprocess.TimeoutExpired:
+                code = None
             why = (
                 f"more than {self.timeout_s:g} s of CPU (POCKETRAY_MODEL_TIMEOUT_S)"
                 if code == -signal.SIGXCPU
@@ -357,7 +360,19 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
         head = src.read(_HEADER.size)
         if len(head) < _HEADER.size:
             return  # the service closed the pipe: it is gone or closing
-        job = pickle.loads(src.read(_HEADER.unpack(head)[0]))
+        try:
+            job = pickle.loads(src.read(_HEADER.unpack(head)[0]))
+        except MemoryError:  # the file's own bytes do not fit: said as the parse's would be
+            _answer(
+                out,
+                (
+                    "error",
+                    "file",
+                    f"the file needs more than the parser's {memory_bytes >> 20} MiB of memory "
+                    "(POCKETRAY_MODEL_MEMORY_BYTES)",
+                ),
+            )
+            continue
         image = job[0] == "image"
         if image:
             _, data, ft = job
@@ -391,16 +406,33 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
                 "(POCKETRAY_MODEL_MEMORY_BYTES)",
             )
         del data, m
-        payload = pickle.dumps(answer, protocol=pickle.HIGHEST_PROTOCOL)
-        del answer
-        out.write(_HEADER.pack(len(payload)))
-        out.write(payload)
-        out.flush()
-        del payload
+        try:
+            _answer(out, answer)
+        except MemoryError:  # a model's arrays and textures fit, their pickle does not
+            del answer
+            _answer(
+                out,
+                (
+                    "error",
+                    "body" if image else "file",
+                    f"{what} needs more than the parser's {memory_bytes >> 20} MiB of memory "
+                    "(POCKETRAY_MODEL_MEMORY_BYTES)",
+                ),
+            )
+        else:
+            del answer
         if large:  # give a large file's arrays back to the system (~0.1 s: not for small ones)
             gc.collect()
             if trim is not None:
                 trim(0)
+
+
+def _answer(out, answer: tuple) -> None:
+    """One answer down the pipe: its length, then its pickle."""
+    payload = pickle.dumps(answer, protocol=pickle.HIGHEST_PROTOCOL)
+    out.write(_HEADER.pack(len(payload)))
+    out.write(payload)
+    out.flush()
 
 
 if __name__ == "__main__":

@@ -148,7 +148,7 @@ def test_caps_on_triangles_and_vertices():
     data = export_mesh(icosphere(2), "ply")
     with pytest.raises(SceneError, match="at most 100 allowed"):
         load_mesh(data, "ply", max_triangles=100)
-    with pytest.raises(SceneError, match="distinct vertices"):
+    with pytest.raises(SceneError, match="vertices; at most 100 per mesh"):
         load_mesh(data, "ply", max_vertices=100)
 
 
