@@ -1,6 +1,7 @@
 """Model files from assimp's corpus parsed and uploaded: the parse's CPU time in this process (best
 of ``--repeat``) and an upload's wall time through a server child of ``--root``
-(``POST /api/sessions/{id}/meshes``, the median after one warm-up), with what the session holds
+(``POST /api/sessions/{id}/meshes``: a GLB alone, a .gltf as a zip of its folder; the median
+after one warm-up), with what the session holds
 after it (meshes, triangles as traced and distinct, texture bytes).
 
     .venv/bin/python -m bench.model_upload                     # this checkout
@@ -13,11 +14,13 @@ Prints one JSON object per file. Timings on a shared machine: give its load with
 from __future__ import annotations
 
 import argparse
+import io
 import json
 import statistics
 import subprocess
 import sys
 import time
+import zipfile
 from pathlib import Path
 
 import httpx
@@ -57,6 +60,18 @@ def parse_ms(root: Path, path: Path, repeat: int) -> float:
     return json.loads(out.stdout)
 
 
+def _body(path: Path) -> tuple[str, bytes]:
+    """What a user sends: a GLB alone, a .gltf as a zip of its folder (its .bin and images)."""
+    if path.suffix != ".gltf":
+        return path.suffix.lstrip("."), path.read_bytes()
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
+        for f in path.parent.iterdir():
+            if f.is_file() and (f == path or f.suffix.lower() in (".bin", ".png", ".jpg", ".jpeg")):
+                z.write(f, f.name)
+    return "zip", out.getvalue()
+
+
 def upload(root: Path, files: list[Path], uploads: int) -> dict[str, dict]:
     from bench.hostile import Server
 
@@ -69,12 +84,9 @@ def upload(root: Path, files: list[Path], uploads: int) -> dict[str, dict]:
                 for _ in range(uploads + 1):
                     sid = c.post("/api/sessions", json={"mesh_scene": {"kind": "spheres"}}).json()["id"]
                     t0 = time.perf_counter()
-                    fmt = path.suffix.lstrip(".")
+                    fmt, body = _body(path)
                     r = c.post(
-                        f"/api/sessions/{sid}/meshes",
-                        params={"format": fmt, "size": 20},
-                        content=path.read_bytes(),
-                        headers=OCTETS,
+                        f"/api/sessions/{sid}/meshes", params={"format": fmt, "size": 20}, content=body, headers=OCTETS
                     )
                     times.append((time.perf_counter() - t0) * 1e3)
                 assert r is not None and r.status_code == 201, r.text if r is not None else ""
@@ -100,7 +112,11 @@ def main(argv: list[str] | None = None) -> None:
     files = [CORPUS / f for f in FILES]
     uploaded = upload(args.root, files, args.uploads)
     for path in files:
-        print(json.dumps({"file": path.name, "parse_cpu_ms": parse_ms(args.root, path, args.repeat), **uploaded[path.name]}))
+        print(
+            json.dumps(
+                {"file": path.name, "parse_cpu_ms": parse_ms(args.root, path, args.repeat), **uploaded[path.name]}
+            )
+        )
 
 
 if __name__ == "__main__":
