@@ -164,6 +164,11 @@ MAX_TEXTURES = 64  # per scene
 MAX_TEXTURE_SIDE = 4096  # pixels, either side: WebGL2 guarantees 2048 and most phones 4096
 MAX_TEXTURE_TEXELS = 8 * 2048 * 2048  # all of a scene's textures together, level 0
 MAX_TEXTURE_NAME = 256  # characters
+# On the GPU the textures lie in one array (renderer/texture_layout.py), each in a square slot of its
+# longer side rounded up to a power of two, the layers the largest slot's size. The array's level-0
+# texels, the slots' unused ones included, stay within this: beyond it the largest textures are
+# halved (a notice says which), 64 Mi texels × 4 B × 4/3 ≈ 341 MiB at the most.
+MAX_TEXTURE_ARRAY_TEXELS = 16 * 2048 * 2048
 
 # ---- environment images --------------------------------------------------------------------
 # An equirectangular HDR image (renderer/envmap.py): its declared size is checked against these
@@ -187,6 +192,7 @@ ASPECT_RANGE = (0.2, 5.0)
 # ---- GPU data ------------------------------------------------------------------------------
 DEFAULT_TEXTURE_WIDTH = 4096  # texture rows; WebGL2 guarantees 2048, most phones have 4096
 MAX_DEVICE_TEXTURE_SIZE = 1 << 16  # the largest MAX_TEXTURE_SIZE a device may report (GPUs: ≤ 32,768)
+MAX_DEVICE_ARRAY_LAYERS = 1 << 16  # the largest MAX_ARRAY_TEXTURE_LAYERS a device may report (GPUs: ≤ 8,192)
 STENCIL_BITS = 8  # ray engines: one stencil bit per generation (≥ MAX_RECURSION_DEPTH)
 # Compiled shader programs one renderer keeps (renderer/gl/programs.py), least recently used out:
 # about 3 MiB resident each on llvmpipe, so ~100 MiB at most; a frame needs 1-3 of the tracer's

@@ -746,12 +746,9 @@ class Scene:
         return out
 
     @staticmethod
-    def from_json(
-        d: Any, images: Mapping[str, np.ndarray] | None = None, textures: Sequence[Texture] | None = None
-    ) -> Scene:
+    def from_json(d: Any, images: Mapping[str, np.ndarray] | None = None) -> Scene:
         """The scene of scene JSON; ``images``: the texels of the environment images a reference
-        may name (an uploaded image's, beside the scene in the session store); ``textures``: the
-        scene's textures held beside the JSON (the session store's), in place of its ``textures``."""
+        may name (an uploaded image's, beside the scene in the session store)."""
         d = json_object(
             d,
             "scene",
@@ -765,11 +762,10 @@ class Scene:
         materials = [
             material_from_json(x, f"materials[{i}]") for i, x in enumerate(_list(d.get("materials", []), "materials"))
         ]
-        if textures is None:
-            raw_textures = _list(d.get("textures", []), "textures")
-            if len(raw_textures) > limits.MAX_TEXTURES:
-                raise SceneError("textures", f"at most {limits.MAX_TEXTURES} textures allowed, got {len(raw_textures)}")
-            textures = tuple(Texture.from_json(x, f"textures[{i}]") for i, x in enumerate(raw_textures))
+        raw_textures = _list(d.get("textures", []), "textures")
+        if len(raw_textures) > limits.MAX_TEXTURES:
+            raise SceneError("textures", f"at most {limits.MAX_TEXTURES} textures allowed, got {len(raw_textures)}")
+        textures = tuple(Texture.from_json(x, f"textures[{i}]") for i, x in enumerate(raw_textures))
         spheres = _list(d.get("spheres", []), "spheres")
         if len(spheres) > Scene.MAX_SPHERES:
             raise SceneError("spheres", f"at most {Scene.MAX_SPHERES} spheres allowed, got {len(spheres)}")
@@ -811,7 +807,7 @@ class Scene:
             environment,
             environment_map,
             shapes,
-            tuple(textures),
+            textures,
         )
 
 

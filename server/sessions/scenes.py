@@ -32,8 +32,10 @@ from typing import Any
 
 import numpy as np
 
+from renderer import texture_layout
 from renderer.animation import AnimatedScene, motion_from_json, motion_to_json, museum
 from renderer.envmap import SKY_REF
+from renderer.materials.kinds import material_from_json
 from renderer.materials.texture import Texture
 from renderer.scenarios import content_box, object_boxes, scenario
 from renderer.scene import VERTEX_ATTRIBUTES, Camera, Material, Mesh, Scene, SceneError, make_mesh
@@ -140,29 +142,25 @@ def scene_source(scene: SessionScene) -> bytes:
             | ({"attributes": sorted(m.attributes)} if m.attributes else {})
             for m in scene.meshes
         ]
+        for name, *_ in VERTEX_ATTRIBUTES:  # (absent without: a source stored before them reads the same)
+            rows = [getattr(m, name) for m in scene.meshes if getattr(m, name) is not None]
+            if rows:
+                arrays[f"mesh_{name}"] = np.concatenate(rows)
         arrays["mesh_vertices"] = np.concatenate([m.vertices for m in scene.meshes])
         arrays["mesh_triangles"] = np.concatenate([m.triangles for m in scene.meshes])
         smooth = [m.normals for m in scene.meshes if m.normals is not None]  # the smooth ones
         arrays["mesh_normals"] = np.concatenate(smooth) if smooth else np.zeros((0, 3))
-        for name, *_ in VERTEX_ATTRIBUTES:  # each only when a mesh has it
-            rows = [m.attributes[name] for m in scene.meshes if name in m.attributes]
-            if rows:
-                arrays[f"mesh_{name}"] = np.concatenate(rows)
     if scene.textures:
-        # texels as they are (RGBA8), uncompressed like an environment image's: the quota counts
-        # the bytes the service holds, and a texture's compression would take seconds
-        small["textures"] = [
-            {"width": t.width, "height": t.height, "srgb": t.srgb, "wrap_s": t.wrap_s, "wrap_t": t.wrap_t}
-            | {"filter": t.filter, "name": t.name}
-            for t in scene.textures
-        ]
-        arrays["texture_texels"] = np.concatenate([t.pixels.reshape(-1) for t in scene.textures])
+        # kept as decoded, uncompressed (the quota counts their texels, as an environment image's)
+        small["textures"] = [{k: v for k, v in t.to_json().items() if k != "png"} for t in scene.textures]
+        for i, t in enumerate(scene.textures):
+            arrays[f"texture_{i}"] = t.pixels
     if scene.n_shapes:  # (absent for a scene without: a source stored before shapes reads the same)
         arrays["shape_kind"] = scene.shapes.kind
         arrays["shape_params"] = scene.shapes.params
         arrays["shape_materials"] = scene.shapes.material
     arrays["meta"] = np.frombuffer(json.dumps(small).encode(), dtype=np.uint8)
-    return _ARRAYS + _npz(arrays, stored={"env_texels", "texture_texels"})
+    return _ARRAYS + _npz(arrays, stored={"env_texels", *(f"texture_{i}" for i in range(len(scene.textures)))})
 
 
 def _npz(arrays: dict[str, np.ndarray], stored: set[str]) -> bytes:
@@ -189,8 +187,7 @@ def environment_json(scene: Scene) -> dict[str, Any] | None:
 def _stored_meshes(cut: list[dict], z) -> tuple[Mesh, ...]:
     """The meshes of a stored source: ``cut`` says how many rows of each array are whose."""
     out, v0, t0, n0 = [], 0, 0, 0
-    at = {name: 0 for name, *_ in VERTEX_ATTRIBUTES}
-    held = {name: z[f"mesh_{name}"] for name in at if f"mesh_{name}" in z.files}
+    a0 = dict.fromkeys((name for name, *_ in VERTEX_ATTRIBUTES), 0)
     for m in cut:
         nv, nt = m["vertices"], m["triangles"]
         normals = None
@@ -199,32 +196,11 @@ def _stored_meshes(cut: list[dict], z) -> tuple[Mesh, ...]:
             n0 += nv
         attributes = {}
         for name in m.get("attributes", ()):
-            attributes[name] = held[name][at[name] : at[name] + nv]
-            at[name] += nv
-        out.append(
-            Mesh(
-                z["mesh_vertices"][v0 : v0 + nv],
-                z["mesh_triangles"][t0 : t0 + nt],
-                m["material"],
-                normals,
-                **attributes,
-            )
-        )
+            attributes[name] = z[f"mesh_{name}"][a0[name] : a0[name] + nv]
+            a0[name] += nv
+        vertices, triangles = z["mesh_vertices"][v0 : v0 + nv], z["mesh_triangles"][t0 : t0 + nt]
+        out.append(Mesh(vertices, triangles, m["material"], normals, **attributes))
         v0, t0 = v0 + nv, t0 + nt
-    return tuple(out)
-
-
-def _stored_textures(cut: list[dict], z) -> tuple[Texture, ...]:
-    """The textures of a stored source: ``cut`` says each one's size and sampler."""
-    if not cut:
-        return ()
-    out, at = [], 0
-    texels = z["texture_texels"]
-    for t in cut:
-        n = t["width"] * t["height"] * 4
-        pixels = texels[at : at + n].reshape(t["height"], t["width"], 4)
-        out.append(Texture(pixels, t["srgb"], t["wrap_s"], t["wrap_t"], t["filter"], t["name"]))
-        at += n
     return tuple(out)
 
 
@@ -241,10 +217,14 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
             small = json.loads(z["meta"].tobytes())
             motions = small.pop("motions", [])
             meshes = _stored_meshes(small.pop("meshes", []), z)
-            textures = _stored_textures(small.pop("textures", []), z)
             env = small.get("environment", {})
             images = {env["image"]: z["env_texels"]} if "env_texels" in z.files and "image" in env else None
-            base = Scene.from_json({**small, "camera": camera.to_json()}, images, textures)
+            samplers = small.pop("textures", [])
+            textures = tuple(Texture(z[f"texture_{i}"], **s) for i, s in enumerate(samplers))
+            # (the materials read apart: their texture indices are checked against the textures below)
+            stand_ins: list[dict[str, Any]] = [{}] * len(small["materials"])
+            base = Scene.from_json({**small, "materials": stand_ins, "camera": camera.to_json()}, images)
+            materials = tuple(material_from_json(m, f"materials[{i}]") for i, m in enumerate(small["materials"]))
             shapes = (
                 Shapes(z["shape_kind"], z["shape_params"], z["shape_materials"])
                 if "shape_kind" in z.files
@@ -253,7 +233,7 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
             scene = Scene(
                 camera,
                 base.lights,
-                base.materials,
+                materials,
                 z["centers"],
                 z["radii"],
                 z["materials"],
@@ -262,7 +242,7 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
                 base.environment,
                 base.environment_map,
                 shapes,
-                base.textures,
+                textures,
             )
             return with_motions(scene, motions)
     raise ValueError("unknown scene source")
@@ -347,13 +327,6 @@ def tree_primitives(info: dict[str, Any]) -> int:
     return info.get("n_spheres", 0) + info.get("n_triangles", 0) + info.get("n_shapes", 0)
 
 
-def texture_bytes(textures: Sequence[Texture]) -> int:
-    """The bytes ``textures`` take where the service holds them: the session store keeps their
-    texels (RGBA8, level 0) as they are. The one count of a scene's or a model's texture bytes,
-    for ``scene_info`` and the budgets that bound them."""
-    return sum(t.nbytes for t in textures)
-
-
 def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dict[str, Any]:
     rest = scene.scene if isinstance(scene, AnimatedScene) else scene
     info: dict[str, Any] = {"n_spheres": rest.n_spheres, "n_planes": len(rest.planes)}
@@ -364,10 +337,14 @@ def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dic
             n_unique_triangles=rest.n_triangles,  # (the service counts a model's instanced meshes once)
             n_degenerate_triangles=rest.n_degenerate_triangles,
         )
-    if rest.textures:  # (absent without, as the meshes')
-        info.update(n_textures=len(rest.textures), texture_bytes=texture_bytes(rest.textures))
     if rest.n_shapes:  # (absent without: as the meshes')
         info["n_shapes"] = rest.n_shapes
+    if rest.textures:  # the GPU bytes of its textures (every mip level, the array's padding) and attributes
+        info.update(
+            n_textures=len(rest.textures),
+            texture_bytes=texture_layout.array_bytes(rest.textures),
+            attribute_bytes=texture_layout.attribute_bytes(rest),
+        )
     if isinstance(scene, AnimatedScene):
         info.update(animated=True, n_moving=int(scene.moving.sum()))
         if rest.meshes:
@@ -394,8 +371,8 @@ def scene_bytes(scene: SessionScene) -> int:
     env = rest.environment_map
     geometry = SPHERE_BYTES * rest.n_spheres + TRIANGLE_BYTES * rest.n_triangles + SHAPE_BYTES * rest.n_shapes
     attributes = sum(a.nbytes for m in rest.meshes for a in m.attributes.values())
-    images = texture_bytes(rest.textures) + (env.held_bytes if env is not None and env.ref != SKY_REF else 0)
-    return geometry + attributes + images
+    texels = sum(t.nbytes for t in rest.textures)
+    return geometry + attributes + texels + (env.held_bytes if env is not None and env.ref != SKY_REF else 0)
 
 
 class SceneCache:

