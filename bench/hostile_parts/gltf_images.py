@@ -7,7 +7,8 @@
   declared sizes, refused before it is decoded).
 
 For each: the answer's status, its time, the first words of its message, the session's texture bytes
-after it, the server's resident memory and the peak of its model workers. An honest textured GLB
+after it (scene_info's: the GPU texture array's, every mip level), the server's resident memory and
+the peak of its model workers. An honest textured GLB
 (256 × 256) is sent first, twice (the first answer starts the workers). Run against another checkout
 with ``--root`` (the base commit: "before", where a model's images are not decoded at all).
 """
