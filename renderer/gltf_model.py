@@ -528,6 +528,10 @@ class _Reader:
                 f"textures[{index}] has no PNG or JPEG source (only an extension's image, not read): texture dropped"
             )
             return -1
+        absent = self._absent_image(source)
+        if absent:
+            self.notices.append(f"images[{source}] is the file {absent!r}, {self._not_there()}: texture dropped")
+            return -1
         sampler = self._item("samplers", tex["sampler"], f"textures[{index}].sampler") if "sampler" in tex else {}
         wrap_s = _WRAPS.get(sampler.get("wrapS", 10497), "repeat")
         wrap_t = _WRAPS.get(sampler.get("wrapT", 10497), "repeat")
@@ -543,6 +547,19 @@ class _Reader:
         self._pending.append((source, srgb, wrap_s, wrap_t, "nearest" if nearest else "linear"))
         self._textures[key] = len(self._pending) - 1
         return self._textures[key]
+
+    def _absent_image(self, source: Any) -> str | None:
+        """The file name images[source] gives when that file is not beside the model (a model loads
+        without a texture it lacks, as an OBJ's, and says so: its shape is still what was asked for)."""
+        uri = self._item("images", source, "a texture's source").get("uri")
+        if not isinstance(uri, str) or uri.startswith("data:"):
+            return None
+        return uri if self.side is None or self.side.size(uri) is None else None
+
+    def _not_there(self) -> str:
+        if self.side is None:
+            return "beside the model, which a model file sent alone cannot read (send its folder as a zip: format=zip)"
+        return "which is not beside the model"
 
     def _decoded_textures(self) -> list[Texture]:
         """The textures the materials read, decoded once every image's declared size is checked

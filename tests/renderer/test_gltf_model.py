@@ -236,14 +236,16 @@ def test_a_primitive_without_material_gets_the_gltf_default():
     assert model.materials == (PbrMaterial(),) and model.parts[0].material == 0
 
 
-def test_a_missing_side_image_is_refused_naming_it(tmp_path):
+def test_a_missing_side_image_is_dropped_and_named(tmp_path):
+    """As an OBJ's: the model loads without the texture it lacks, and the notice names the file."""
     g = Gltf()
     textured(g, {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}, image={"uri": "skin.png"})
     (tmp_path / "model.gltf").write_bytes(g.gltf())
-    with pytest.raises(SceneError, match="'skin.png', which is not beside the model"):
-        load_model(tmp_path / "model.gltf")
-    with pytest.raises(SceneError, match="'skin.png' beside the model, which a model file sent alone"):
-        load_model(g.gltf(), "gltf")
+    lacking = load_model(tmp_path / "model.gltf")
+    assert lacking.textures == () and lacking.materials[0].base_color_texture == -1
+    assert "'skin.png', which is not beside the model: texture dropped" in lacking.notices[0]
+    alone = load_model(g.gltf(), "gltf")
+    assert alone.textures == () and "format=zip" in alone.notices[0]
     (tmp_path / "skin.png").write_bytes(png(RED_GREEN))
     (t,) = load_model(tmp_path / "model.gltf").textures
     assert t.name == "skin.png"
