@@ -98,6 +98,8 @@ def tracer_header(variant: Variant) -> str:
         )
     if "SHAPES" in variant.features:
         kinds += gpu_layout.shape_constants()
+    if "PBR" in variant.features:
+        kinds += gpu_layout.pbr_constants()
     if variant.path:
         kinds += gpu_layout.path_constants()
     flags = "".join(f"#define {name} {int(on)}\n" for name, on in feature_flags(variant).items())
@@ -147,11 +149,13 @@ def feature_flags(variant: Variant) -> dict[str, bool]:
     ``FEATURE_TRIANGLES`` and ``FEATURE_SHAPES``, the variant traces that kind (its data format,
     and not the background variant, which has no traversal and so meets no primitive);
     ``FEATURE_LIGHTING``, it carries one of :data:`renderer.features.LIGHTING` (emission, an
-    environment, the path integrator)."""
+    environment, the path integrator); ``FEATURE_PBR``, the scene has a glTF metallic-roughness
+    material (the PBR data format: kinds in the material records, ``shaders/bsdf_pbr.glsl``)."""
     return {
         "FEATURE_TRIANGLES": "TRIANGLES" in variant.features and variant.spheres,
         "FEATURE_SHAPES": "SHAPES" in variant.features and variant.spheres,
         "FEATURE_LIGHTING": any(f in LIGHTING for f in variant.features),
+        "FEATURE_PBR": "PBR" in variant.features,
     }
 
 

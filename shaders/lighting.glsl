@@ -197,11 +197,18 @@ void camera_ray(uint i, vec2 frag, out vec3 o, out vec3 d) {
     d = normalize(u_cam_forward + u * u_cam_right + v * u_cam_up);
 }
 
-// The shadow ray from r's point along unit l, meeting blockers nearer than t_max.
+// The shadow ray from r's point along unit l, meeting blockers nearer than t_max. With PBR materials
+// it finds the nearest blocker (not any): one that lets light through (alpha, a culled back face:
+// pbr_passes) sends the shadow ray on from it, and a blocker behind it must not be skipped.
+#if FEATURE_PBR
+#define SHADOW_ANY_HIT false
+#else
+#define SHADOW_ANY_HIT true
+#endif
 Query shadow_query(SurfaceRecord r, vec3 l, float t_max) {
     int skip, far_id;
     exclusion(r.prim, r.n, l, skip, far_id);
-    return Query(r.p, l, skip, far_id, t_max, true);
+    return Query(r.p, l, skip, far_id, t_max, SHADOW_ANY_HIT);
 }
 
 // The power heuristic's weight of light sampling for a light sample of density p_l (solid angle)
@@ -436,6 +443,12 @@ void path_main() {
     vec3 contrib = vec3(0.0);                 // … and what its shadow ray in flight adds if unblocked
     vec3 prev_p = vec3(0.0);  // the vertex the current segment left, and bsdf_sample's pdf there
     float prev_pdf = 0.0;
+#if FEATURE_PBR
+    bool shadow = false;      // the ray in flight is a shadow ray (SHADOW_ANY_HIT is false)
+#define IS_SHADOW shadow
+#else
+#define IS_SHADOW q.any_hit
+#endif
     while (true) {
         if (start) {
             camera_ray(uint(u_sample_start + done), gl_FragCoord.xy, o, d);
@@ -444,9 +457,29 @@ void path_main() {
             start = false;
         }
         Hit h = intersect_scene(q);
-        if (q.any_hit) {
+#if FEATURE_PBR
+        if (shadow && h.id != NO_PRIM) {
+            // A blocker that lets light through: the shadow ray goes on from it (the blend's coin tossed
+            // per blocker, as a path would meet it).
+            Surface sb = surface_at(q.o, q.d, h);
+            vec3 ngb = sb.n;
+#if FEATURE_TRIANGLES
+            ngb = sb.ng;
+#endif
+            if (pbr_passes(sb.mat, h.id, sb.p, sb.n, dot(q.d, ngb) < 0.0, rnd())) {
+                int skip, far_id;
+                exclusion(h.id, sb.n, q.d, skip, far_id);
+                q = Query(sb.p, q.d, skip, far_id, q.t_max - h.t, false);
+                continue;
+            }
+        }
+#endif
+        if (IS_SHADOW) {
             if (h.id == NO_PRIM) L += contrib;   // the light is visible
             if (nee_kind <= NEE_SPHERES) nee_index++;
+#if FEATURE_PBR
+            shadow = false;
+#endif
         } else if (h.id == NO_PRIM) {
             L += environment_weight(d, prev_pdf) * beta * ENV_RADIANCE_AT(d);
 #ifdef GUIDES
@@ -459,10 +492,23 @@ void path_main() {
 #if FEATURE_TRIANGLES
             ng = s.ng;   // emission and the side a path meets: by the geometric normal
 #endif
+            r = surface_record(s.p, s.n, ng, -d, h.id, s.mat);
+#if FEATURE_PBR
+            // A surface the path passes (alpha: mask below the cutoff, blend with probability 1 − alpha;
+            // a culled back face) leaves it unchanged: no vertex, no segment counted. A back face of a
+            // material with a volume ends a segment inside it: Beer–Lambert over its length.
+            if (pbr_passes(s.mat, h.id, s.p, s.n, r.front, rnd())) {
+                int skip, far_id;
+                exclusion(h.id, s.n, d, skip, far_id);
+                o = s.p;
+                q = Query(o, d, skip, far_id, BIG, false);
+                continue;
+            }
+            if (!r.front && r.kind == KIND_PBR) beta *= pbr_attenuation(s.mat, h.t);
+#endif
             if (segments == 1 && done == 0) {   // the pass's first sample gives primid, normal, depth
                 primary_t = h.t; primary_id = h.id; primary_n = s.n;
             }
-            r = surface_record(s.p, s.n, ng, -d, h.id, s.mat);
             if (r.front) L += emission_weight(h, ng, d, prev_p, prev_pdf) * beta * emission_at(s.mat);
 #ifdef GUIDES
             if (segments == 1) { albedo_sum += bsdf_albedo(r); normal_sum += s.n; }
@@ -471,7 +517,12 @@ void path_main() {
             nee_kind = bsdf_is_non_specular(r) ? NEE_POINT : NEE_DONE;
             nee_index = 0;
         }
-        if (vertex && nee_kind != NEE_DONE && sample_light(r, beta, nee_kind, nee_index, q, contrib)) continue;
+        if (vertex && nee_kind != NEE_DONE && sample_light(r, beta, nee_kind, nee_index, q, contrib)) {
+#if FEATURE_PBR
+            shadow = true;
+#endif
+            continue;
+        }
         if (vertex) {
             vertex = false;
             float uc = rnd();
