@@ -703,7 +703,8 @@ def local_color(
             local[idx[j]] += lc[None, :] * (np.pi * ci[j])[:, None] * f
     if len(g.pbr) and g.pbr[mat].any():  # Whitted's ambient term of a PBR material
         j = np.flatnonzero(g.pbr[mat])
-        local[j] += WHITTED_AMBIENT * g.base[mat[j]]
+        opaque = 1.0 - (1.0 - g.metallic[mat[j]]) * g.transmission[mat[j]]  # not for the share that refracts
+        local[j] += (WHITTED_AMBIENT * opaque)[:, None] * g.base[mat[j]]
     return local
 
 

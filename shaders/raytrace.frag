@@ -543,7 +543,10 @@ void main() {
 #endif
 #ifdef MODE_COLOR
 #if PBR_SHADING
-                if (pbr_hit) color += k.weight * (PBR_AMBIENT * pin.occlusion) * pin.base_color; else
+                if (pbr_hit) {   // not for the share that refracts
+                    float opaque = 1.0 - (1.0 - pin.metallic) * pin.transmission;
+                    color += k.weight * (PBR_AMBIENT * pin.occlusion * opaque) * pin.base_color;
+                } else
 #endif
                 color += k.weight * m.ambient * m.color;   // Phong's ambient term
 #endif
