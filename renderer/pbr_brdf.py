@@ -7,6 +7,8 @@ Vectors are (..., 3) arrays, unit; ``n`` the shading normal on the side of ``wo`
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 MIN_ALPHA = 1.0e-3  # GGX α of roughness 0 (shaders/bsdf_pbr.glsl's PBR_MIN_ALPHA)
@@ -120,3 +122,20 @@ def directional_albedo(
     with np.errstate(invalid="ignore", divide="ignore"):
         w = np.where((cos_i > 0.0)[:, None] & (pdf > 0.0)[:, None], f * cos_i[:, None] / pdf[:, None], 0.0)
     return w.mean(axis=0)
+
+
+@functools.cache
+def albedo_table(metallic: float, roughness: float, points: int = 25, samples: int = 1 << 17) -> tuple:
+    """(cos θo grid from 0.02 to 1, the white material's directional albedo there): the curve a white
+    furnace's sphere shows, pixel by pixel."""
+    mu = np.linspace(0.02, 1.0, points)
+    albedo = np.array([directional_albedo((1.0, 1.0, 1.0), metallic, roughness, c, samples=samples)[0] for c in mu])
+    return mu, albedo
+
+
+def furnace_radiance(cos_o: np.ndarray, metallic: float, roughness: float) -> np.ndarray:
+    """The radiance a convex white sphere of this material shows under a uniform environment of
+    radiance 1 at views of cos θo = ``cos_o``: its directional albedo there (no light bounces back
+    onto a convex body), interpolated in :func:`albedo_table`."""
+    mu, albedo = albedo_table(metallic, roughness)
+    return np.interp(np.clip(cos_o, 0.0, 1.0), mu, albedo)

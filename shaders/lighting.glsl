@@ -417,6 +417,33 @@ vec3 valid_radiance(vec3 c) {
     return all(lessThan(abs(c), vec3(BIG))) ? max(c, vec3(0.0)) : vec3(0.0);
 }
 
+#if FEATURE_PBR
+// Whether shadow ray q's blocker h lets light through (alpha, a culled back face: pbr_passes; the
+// blend's coin tossed per blocker, as a path would meet it): then q becomes the ray going on from it.
+bool shadow_passes(inout Query q, Hit h) {
+    Surface s = surface_at(q.o, q.d, h);
+    vec3 ng = s.n;
+#if FEATURE_TRIANGLES
+    ng = s.ng;
+#endif
+    if (!pbr_passes(s.mat, h.id, s.p, s.n, dot(q.d, ng) < 0.0, rnd())) return false;
+    int skip, far_id;
+    exclusion(h.id, s.n, q.d, skip, far_id);
+    q = Query(s.p, q.d, skip, far_id, q.t_max - h.t, false);
+    return true;
+}
+
+// Whether the path's ray q passes surface s of its hit h (record r): alpha mask below the cutoff,
+// blend with probability 1 − alpha, a culled back face; then q becomes the ray going on unchanged.
+bool path_passes(inout Query q, Hit h, Surface s, SurfaceRecord r) {
+    if (!pbr_passes(s.mat, h.id, s.p, s.n, r.front, rnd())) return false;
+    int skip, far_id;
+    exclusion(h.id, s.n, q.d, skip, far_id);
+    q = Query(s.p, q.d, skip, far_id, BIG, false);
+    return true;
+}
+#endif
+
 // The path integrator: u_sample_count samples of this pixel, each a path from the camera; at every
 // vertex its emission (MIS-weighted), next-event estimation (sample_light, one shadow ray per
 // iteration), then a direction from the BSDF and Russian roulette. One intersect_scene serves every
@@ -446,8 +473,10 @@ void path_main() {
 #if FEATURE_PBR
     bool shadow = false;      // the ray in flight is a shadow ray (SHADOW_ANY_HIT is false)
 #define IS_SHADOW shadow
+#define SHADOW_STARTS shadow = true
 #else
 #define IS_SHADOW q.any_hit
+#define SHADOW_STARTS
 #endif
     while (true) {
         if (start) {
@@ -458,21 +487,7 @@ void path_main() {
         }
         Hit h = intersect_scene(q);
 #if FEATURE_PBR
-        if (shadow && h.id != NO_PRIM) {
-            // A blocker that lets light through: the shadow ray goes on from it (the blend's coin tossed
-            // per blocker, as a path would meet it).
-            Surface sb = surface_at(q.o, q.d, h);
-            vec3 ngb = sb.n;
-#if FEATURE_TRIANGLES
-            ngb = sb.ng;
-#endif
-            if (pbr_passes(sb.mat, h.id, sb.p, sb.n, dot(q.d, ngb) < 0.0, rnd())) {
-                int skip, far_id;
-                exclusion(h.id, sb.n, q.d, skip, far_id);
-                q = Query(sb.p, q.d, skip, far_id, q.t_max - h.t, false);
-                continue;
-            }
-        }
+        if (shadow && h.id != NO_PRIM && shadow_passes(q, h)) continue;
 #endif
         if (IS_SHADOW) {
             if (h.id == NO_PRIM) L += contrib;   // the light is visible
@@ -494,17 +509,8 @@ void path_main() {
 #endif
             r = surface_record(s.p, s.n, ng, -d, h.id, s.mat);
 #if FEATURE_PBR
-            // A surface the path passes (alpha: mask below the cutoff, blend with probability 1 − alpha;
-            // a culled back face) leaves it unchanged: no vertex, no segment counted. A back face of a
-            // material with a volume ends a segment inside it: Beer–Lambert over its length.
-            if (pbr_passes(s.mat, h.id, s.p, s.n, r.front, rnd())) {
-                int skip, far_id;
-                exclusion(h.id, s.n, d, skip, far_id);
-                o = s.p;
-                q = Query(o, d, skip, far_id, BIG, false);
-                continue;
-            }
-            if (!r.front && r.kind == KIND_PBR) beta *= pbr_attenuation(s.mat, h.t);
+            if (path_passes(q, h, s, r)) { o = q.o; continue; }   // no vertex, no segment counted
+            if (!r.front && r.kind == KIND_PBR) beta *= pbr_attenuation(s.mat, h.t);   // Beer–Lambert
 #endif
             if (segments == 1 && done == 0) {   // the pass's first sample gives primid, normal, depth
                 primary_t = h.t; primary_id = h.id; primary_n = s.n;
@@ -518,9 +524,7 @@ void path_main() {
             nee_index = 0;
         }
         if (vertex && nee_kind != NEE_DONE && sample_light(r, beta, nee_kind, nee_index, q, contrib)) {
-#if FEATURE_PBR
-            shadow = true;
-#endif
+            SHADOW_STARTS;
             continue;
         }
         if (vertex) {

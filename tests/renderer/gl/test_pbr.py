@@ -7,7 +7,6 @@ Lambert)."""
 
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
@@ -16,6 +15,7 @@ from scipy.ndimage import binary_erosion
 
 from renderer import mitsuba_scene, pbr_brdf
 from renderer.methods import METHODS
+from renderer.path_scenes import PBR_MATERIALS, pbr_scene
 from renderer.reference import render_reference
 from renderer.scene import Scene
 from renderer.settings import RenderSettings
@@ -47,15 +47,6 @@ def furnace(material: dict, environment=(1.0, 1.0, 1.0)) -> Scene:
     )
 
 
-@functools.cache
-def albedo_table(metallic: float, roughness: float) -> tuple[np.ndarray, np.ndarray]:
-    """(cos θo grid, the white material's directional albedo there) from NumPy's Monte Carlo."""
-    mu = np.linspace(0.02, 1.0, 25)
-    return mu, np.array(
-        [pbr_brdf.directional_albedo((1, 1, 1), metallic, roughness, c, samples=1 << 17)[0] for c in mu]
-    )
-
-
 def expected_image(result, metallic: float, roughness: float) -> np.ndarray:
     """The furnace's radiance per pixel: a convex sphere under radiance 1 reflects its directional
     albedo at each pixel's view (no second bounce meets the sphere)."""
@@ -66,9 +57,7 @@ def expected_image(result, metallic: float, roughness: float) -> np.ndarray:
     v = (1 - 2 * (ys + 0.5) / h) * t
     d = np.stack([u, v, -np.ones_like(u)], axis=-1)
     d /= np.linalg.norm(d, axis=-1, keepdims=True)
-    cos_o = np.clip(-np.sum(d * result.normal, axis=-1), 0.0, 1.0)
-    mu, table = albedo_table(metallic, roughness)
-    return np.interp(cos_o, mu, table)
+    return pbr_brdf.furnace_radiance(-np.sum(d * result.normal, axis=-1), metallic, roughness)
 
 
 def test_white_furnace_matches_the_brdf_integrated_in_numpy(gl_renderer):
@@ -247,46 +236,18 @@ def test_volume_attenuation_follows_beer_lambert(gl_renderer):
 
 # ---- Mitsuba 3 as the oracle where the models coincide (tests/renderer/gl/test_mitsuba.py's budgets)
 
-MITSUBA = {
-    "rough_conductor": pbr(base_color=[1, 1, 1], metallic=1.0, roughness=0.5),
-    "rough_dielectric": pbr(base_color=[1, 1, 1], metallic=0.0, roughness=0.4, transmission=1.0, ior=1.5),
-    "diffuse": pbr(base_color=[0.6, 0.5, 0.3], metallic=0.0, roughness=1.0, ior=1.0),
-}
-
-
-def mitsuba_case(material: dict) -> Scene:
-    """The path scenes' set (renderer/path_scenes.py): a grey floor, an emitting sphere, the sphere
-    of ``material``, a dim environment."""
-    return Scene.from_json(
-        {
-            "camera": {"position": [0, 3, 8], "target": [0, 0.5, 0], "fov_y": 40},
-            "lights": [],
-            "materials": [
-                {"color": [0.7, 0.7, 0.7], "diffuse": 1.0, "reflective": 0, "ambient": 0},
-                {"color": [0, 0, 0], "diffuse": 0, "reflective": 0, "emission": [8, 7, 6]},
-                material,
-            ],
-            "planes": [{"point": [0, 0, 0], "normal": [0, 1, 0], "material": 0}],
-            "spheres": [
-                {"center": [0, 2.5, -1], "radius": 0.5, "material": 1},
-                {"center": [0, 0.8, 0.5], "radius": 0.8, "material": 2},
-            ],
-            "environment": {"color": [0.2, 0.25, 0.3]},
-        }
-    )
-
 
 def clipped_psnr(a: np.ndarray, b: np.ndarray) -> float:
     mse = float(np.mean((np.clip(a, 0, 1).astype(np.float64) - np.clip(b, 0, 1)) ** 2))
     return math.inf if mse == 0 else -10.0 * math.log10(mse)
 
 
-@pytest.mark.parametrize("name", list(MITSUBA))
+@pytest.mark.parametrize("name", list(PBR_MATERIALS))
 def test_agrees_with_mitsuba_where_the_models_coincide(gl_renderer, name):
     """32 × 32, depth 8, ours at 1,024 samples against Mitsuba's at 4,096 (test_mitsuba.py's budget):
     ≥ 38 dB and the means within 1 %. (The rough conductor: Mitsuba's Smith masking is the separable
     form, ours the specification's height-correlated one, a little brighter at grazing angles.)"""
-    scene = mitsuba_case(MITSUBA[name])
+    scene = pbr_scene(name)
     reference = mitsuba_scene.render(scene, 32, 32, 4096, 8)
     ours = gl_renderer.render(scene, path(width=32, height=32, spp=1024, depth=8)).image
     p = clipped_psnr(ours, reference)
@@ -295,6 +256,8 @@ def test_agrees_with_mitsuba_where_the_models_coincide(gl_renderer, name):
 
 
 def test_mitsuba_export_refuses_what_it_has_no_model_for():
-    scene = mitsuba_case(pbr(base_color=[1, 1, 1], metallic=0.5, roughness=0.5))
+    doc = pbr_scene("pbr_diffuse").to_json()
+    doc["materials"][2] = pbr(metallic=0.5, roughness=0.5)
+    scene = Scene.from_json(doc)
     with pytest.raises(mitsuba_scene.NoMitsubaMaterial, match="metallic 0.5"):
         mitsuba_scene.scene_dict(scene, 8, 8, 1, 4)
