@@ -74,8 +74,8 @@ def _flags(src: str) -> dict[str, int]:
 def test_feature_flags_are_always_defined_zero_or_one(method):
     """The header defines FEATURE_TRIANGLES, FEATURE_SHAPES, FEATURE_LIGHTING and FEATURE_PBR in every
     variant, 1 where the variant traces the kind (its data format, and not the background variant),
-    carries light beyond the thesis's or has PBR material records; the traversal tests primitives through leaf_hit or the
-    kinds' ranges alone, and no mark is left in the text."""
+    carries light beyond the thesis's or has PBR material records; the traversal tests primitives
+    through leaf_hit or the kinds' ranges alone, and no mark is left in the text."""
     plain = shader_source(method, "color", 3, ("EQUAL_RADII",))
     assert _flags(plain) == {"FEATURE_TRIANGLES": 0, "FEATURE_SHAPES": 0, "FEATURE_LIGHTING": 0, "FEATURE_PBR": 0}
     both = shader_source(method, "color", 3, ("TRIANGLES", "SMOOTH_TRIANGLES", "SHAPES", "EMISSION"))
