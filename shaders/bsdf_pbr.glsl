@@ -93,6 +93,6 @@ bool pbr_passes(int mat, int prim, vec3 p, vec3 n, bool front, float u) {
     if (!front && pbr_double_sided(mat) < 0.5 && pbr_transmission(mat) <= 0.0) return true;
     int mode = int(pbr_alpha_mode(mat) + 0.5);
     if (mode == 0) return false;
-    float a = pbr_inputs(mat, prim, p, n, 0.0).alpha;
+    float a = pbr_inputs(mat, prim, p, n, g_cone_width).alpha;
     return mode == 1 ? a < pbr_alpha_cutoff(mat) : a <= u;
 }

@@ -11,7 +11,7 @@
 // r's PBR part from material mat: the inputs at the hit (pbr_inputs: factors, textures, the normal
 // map), and the lobe probabilities in w_diffuse, w_reflect, w_transmit (summing 1; all 0: black).
 void pbr_surface(inout SurfaceRecord r, int mat) {
-    PbrInputs s = pbr_inputs(mat, r.prim, r.p, r.n, 0.0);
+    PbrInputs s = pbr_inputs(mat, r.prim, r.p, r.n, g_cone_width);
     r.kind = KIND_PBR;
     r.n = s.n;
     r.nf = r.front ? s.n : -s.n;
