@@ -15,7 +15,7 @@ from scipy.ndimage import binary_erosion
 
 from renderer import mitsuba_scene, pbr_brdf
 from renderer.methods import METHODS
-from renderer.path_scenes import PBR_MATERIALS, pbr_scene
+from renderer.path_scenes import PBR_MATERIALS, path_scene, pbr_scene
 from renderer.reference import render_reference
 from renderer.scene import Scene
 from renderer.settings import RenderSettings
@@ -261,3 +261,20 @@ def test_mitsuba_export_refuses_what_it_has_no_model_for():
     scene = Scene.from_json(doc)
     with pytest.raises(mitsuba_scene.NoMitsubaMaterial, match="metallic 0.5"):
         mitsuba_scene.scene_dict(scene, 8, 8, 1, 4)
+
+
+def test_a_pbr_emitter_lights_a_pbr_lambert_floor_as_the_phong_ones_do(gl_renderer):
+    """The path scenes' area light (renderer/path_scenes.py) with its materials as PBR ones — the lamp
+    emissive × strength = the Phong emission, the grey floor and sphere ior-1 dielectrics (F0 = 0:
+    Lambert) — renders the Phong scene's image: the emitter is seen and sampled by next-event
+    estimation alike (means within 1 %, 35 dB at 256 samples)."""
+    phong = path_scene("area_light")
+    doc = phong.to_json()
+    doc["materials"] = [
+        pbr(base_color=[0.7, 0.7, 0.7], metallic=0.0, roughness=1.0, ior=1.0),
+        pbr(base_color=[0, 0, 0], metallic=0.0, ior=1.0, emissive=[1.0, 0.875, 0.75], emissive_strength=8.0),
+    ]
+    s = path(width=32, height=32, spp=256, depth=8)
+    a, b = gl_renderer.render(phong, s).image, gl_renderer.render(Scene.from_json(doc), s).image
+    np.testing.assert_allclose(b.mean(), a.mean(), rtol=0.01)
+    assert clipped_psnr(a, b) >= 35.0
