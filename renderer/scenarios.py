@@ -115,6 +115,7 @@ def with_sky(scene: Scene) -> Scene:
         (0.0, 0.0, 0.0),
         EnvironmentMap(SKY_REF, sky_texels()),
         scene.shapes,
+        scene.textures,
     )
 
 
