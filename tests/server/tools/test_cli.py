@@ -24,7 +24,7 @@ from pocketray_server_support import ROOT, free_port, pocketray, pocketray_batch
 from server.frames.exr import decode_exr
 from server.tools import cli
 
-pytestmark = pytest.mark.gl  # render runs GLRenderer, serve a GL worker
+pytestmark = [pytest.mark.gl, pytest.mark.long]  # render runs GLRenderer, serve a GL worker
 
 # Commands whose subject is what they write or refuse run several to a process (pocketray_batch:
 # server.tools.cli.main as ``python -m server`` calls it, the start-up paid once); ``pocketray`` itself as
