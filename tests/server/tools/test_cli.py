@@ -297,7 +297,9 @@ def test_serve_prints_the_address_before_its_json_logs(tmp_path):
         assert proc.stderr is not None
         first = proc.stderr.readline().strip()
     finally:
-        proc.send_signal(signal.SIGINT)
+        # SIGTERM, not SIGINT: a shell starts a background job with SIGINT ignored, and a child keeps
+        # that until uvicorn installs its handlers, so a Ctrl-C sent during start-up would go unseen.
+        proc.send_signal(signal.SIGTERM)
         try:
             proc.wait(timeout=60)
         except subprocess.TimeoutExpired:
