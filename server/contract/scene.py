@@ -101,7 +101,8 @@ def material_model(kind: type = Material) -> type[Strict]:
         if p.choices:
             fields[name] = (Literal[p.choices], Field(defaults[name], description=p.doc))
         elif p.integer:
-            fields[name] = (int, Field(int(defaults[name]), description=p.doc + unit, **bound))  # type: ignore[call-overload]
+            whole = Annotated[int, Field(**bound), Integral]  # 1.0 is an integer to JSON Schema, as here
+            fields[name] = (whole, Field(int(defaults[name]), description=p.doc + unit))
         elif isinstance(p.default, tuple):
             item = Annotated[float, Field(**bound)]
             vector = Annotated[list[item], Field(min_length=p.size, max_length=p.size)]

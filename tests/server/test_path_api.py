@@ -74,9 +74,9 @@ def test_the_path_settings_contract_through_the_api(ready_client):
     r = post({"samples_per_pixel": 4096, "max_recursion_depth": 16})  # 8 × 8 × 16 × 4096 > the test cap
     assert r.status_code == 422 and "POCKETRAY_MAX_WORK" in r.json()["detail"][0]["msg"], r.text
     for material, loc in (
-        ({"roughness": 1.5}, ["materials", 0, "roughness"]),
-        ({"roughness": -0.1}, ["materials", 0, "roughness"]),
-        ({"emission": [1, -1, 0]}, ["materials", 0, "emission", 1]),
+        ({"roughness": 1.5}, ["materials", 0, "phong", "roughness"]),  # named within its kind's model
+        ({"roughness": -0.1}, ["materials", 0, "phong", "roughness"]),
+        ({"emission": [1, -1, 0]}, ["materials", 0, "phong", "emission", 1]),
     ):
         r = post(material=material)
         assert r.status_code == 422 and r.json()["detail"][0]["loc"][-len(loc) :] == loc, (material, r.text)
