@@ -89,6 +89,11 @@ MAX_TILE_PAIRS = 1 << 22
 # sampled_level_rays): this many pixels on the grid's long side, in scenes of at most this many
 # primitives (the reference tracer tests every one; past it, the model's ray tree of the materials alone).
 RAY_TREE_SAMPLE_SIDE = 24
+# A drag moves the camera a little each frame: the ray tree counted for a view of the same scene within
+# this angle of the new one (its forward direction, degrees) and this share of its distance to the
+# target (its position) stands for the new view's, so a preview does not count again (6-57 ms each).
+RAY_TREE_REUSE_DEG = 5.0
+RAY_TREE_REUSE_MOVE = 0.05
 # Slices (renderer/prepare.py band_rows, renderer/gl/frame.py): a band of rows is sized for the rows
 # through the scene's box — the frame's per-pixel cost over the share of the image the box covers, down
 # to MIN_BAND_COVERAGE — and grows from the measured time of the last at most to MAX_BAND_GROWTH × the

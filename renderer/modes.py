@@ -14,6 +14,16 @@ from __future__ import annotations
 import numpy as np
 
 MODES = ("color", "depth", "primid", "normal", "recursion", "heat", "cones")
+# What the client's mode menu calls each (GET /api/info's mode_labels).
+MODE_LABELS = {
+    "color": "Colour",
+    "depth": "Depth",
+    "primid": "Primitive id",
+    "normal": "Normal",
+    "recursion": "Recursion depth (Fig. 4.2f)",
+    "heat": "Traversal heat (Fig. 4.3)",
+    "cones": "Tile cones (hre only)",
+}
 # Modes raytrace.frag implements ("cones" belongs to the hierarchical ray engine).
 SINGLE_PASS_MODES = ("color", "depth", "primid", "normal", "recursion", "heat")
 # Modes that trace the whole ray tree (the others trace the primary ray only).

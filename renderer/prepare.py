@@ -8,11 +8,14 @@ a lock here.
 
 from __future__ import annotations
 
+import math
 import threading
 import weakref
 from collections import OrderedDict
 from collections.abc import Hashable
 from dataclasses import dataclass, field
+
+import numpy as np
 
 from . import first_hits, limits
 from .animation import AnimatedScene, pose
@@ -22,7 +25,7 @@ from .methods import METHODS, PreparedMethod
 from .modes import RAY_TREE_MODES
 from .plan import FramePlan, plan_frame
 from .reference import ray_tree_counts
-from .scene import Scene
+from .scene import Camera, Scene
 from .settings import RenderSettings
 from .tree_update import TreeUpdate
 
@@ -82,23 +85,48 @@ def sampled_level_rays(scene: Scene, settings: RenderSettings) -> tuple[float, .
         return None
     side, w, h = limits.RAY_TREE_SAMPLE_SIDE, settings.width, settings.height
     sw, sh = (side, max(1, round(side * h / w))) if w >= h else (max(1, round(side * w / h)), side)
-    key = (id(scene), scene.camera, sw, sh, settings.max_recursion_depth, settings.min_weight)
+    # a view of this scene's geometry (shared by every camera's copy: Scene.with_camera) and of what the
+    # count reads; the counts kept for it are reused for a camera near enough (RAY_TREE_REUSE_*)
+    key = (
+        id(scene.sphere_centers),
+        id(scene.meshes),
+        id(scene.shapes),
+        sw,
+        sh,
+        settings.max_recursion_depth,
+        settings.min_weight,
+    )
     with _TREE_LOCK:
         held = _TREES.get(key)
-    if held is not None and held[0]() is scene:
-        return held[1]
+    if held is not None and held[0]() is scene.sphere_centers and near_view(held[1], scene.camera):
+        return held[2]
     counts = ray_tree_counts(scene, sw, sh, settings.max_recursion_depth, settings.min_weight)
     level_rays = tuple(c / (sw * sh) for c in counts)
     with _TREE_LOCK:
-        _TREES[key] = (weakref.ref(scene), level_rays)
+        _TREES[key] = (weakref.ref(scene.sphere_centers), scene.camera, level_rays)
+        _TREES.move_to_end(key)
         while len(_TREES) > _TREES_KEPT:
             _TREES.popitem(last=False)
     return level_rays
 
 
-# The last sampled ray trees (a view's preview, full frame and refinement ask for the same one): by the
-# scene object (held weakly: an id is reused once its scene is gone), its camera and what the count reads.
-_TREES: OrderedDict[tuple, tuple[weakref.ref, tuple[float, ...]]] = OrderedDict()
+def near_view(counted: Camera, camera: Camera) -> bool:
+    """Whether ``camera`` sees nearly what ``counted`` saw: the same field of view, its forward
+    direction within RAY_TREE_REUSE_DEG and its position within RAY_TREE_REUSE_MOVE of the distance
+    to its target."""
+    if counted.fov_y != camera.fov_y:
+        return False
+    a, b = np.subtract(counted.target, counted.position), np.subtract(camera.target, camera.position)
+    la, lb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+    cos = float(np.dot(a, b)) / (la * lb)
+    moved = float(np.linalg.norm(np.subtract(counted.position, camera.position)))
+    return cos >= math.cos(math.radians(limits.RAY_TREE_REUSE_DEG)) and moved <= limits.RAY_TREE_REUSE_MOVE * lb
+
+
+# The last sampled ray trees (a view's preview, full frame and refinement ask for the same one, a drag's
+# frames for nearly the same): by the scene's geometry (its sphere array held weakly: an id is reused
+# once its array is gone) and what the count reads, with the camera they were counted for.
+_TREES: OrderedDict[tuple, tuple[weakref.ref, Camera, tuple[float, ...]]] = OrderedDict()
 _TREES_KEPT = 64
 _TREE_LOCK = threading.Lock()
 

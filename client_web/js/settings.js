@@ -14,11 +14,10 @@
 export const FALLBACK_METHODS = Object.freeze(['bih', 'bruteforce']);
 // A method's label: its declaration's (GET /api/info's method_settings), its name before the service answered.
 export const methodLabel = (info, name) => (info && info.method_settings && info.method_settings[name] && info.method_settings[name].label) || name;
-export const MODES = Object.freeze(['color', 'depth', 'primid', 'normal', 'recursion', 'heat']);
-export const MODE_LABELS = Object.freeze({
-  color: 'Colour', depth: 'Depth', primid: 'Primitive id', normal: 'Normal',
-  recursion: 'Recursion depth (Fig. 4.2f)', heat: 'Traversal heat (Fig. 4.3)', cones: 'Tile cones (hre only)',
-});
+// The modes offered before the service answered (GET /api/info: modes, mode_labels).
+export const FALLBACK_MODES = Object.freeze(['color']);
+// A mode's label: the service's (renderer/modes.py MODE_LABELS), its name before the service answered.
+export const modeLabel = (info, mode) => (info && info.mode_labels && info.mode_labels[mode]) || mode;
 export const SCENARIOS = Object.freeze([
   { value: 1, label: '1 — grid' },
   { value: 2, label: '2 — eight corner clusters' },

@@ -459,6 +459,11 @@ class InfoOut(BaseModel):
     methods: list[str]
     modes: list[str]
     formats: list[str]
+    mode_labels: dict[str, str] = Field(default_factory=dict, description="what the client calls each mode")
+    averaged_modes: list[str] = Field(
+        default_factory=list,
+        description="modes whose image is the mean of √s × √s sub-pixels (the others trace each pixel's centre)",
+    )
     limits: LimitsOut
     state_backend: str
     update_schemes: list[str] = Field(default_factory=list, description="values of the setting 'update'")

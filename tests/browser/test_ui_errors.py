@@ -42,6 +42,12 @@ def test_a_notice_is_drawn_above_the_open_sheet(open_client):
     z = p.evaluate("""() => [getComputedStyle(document.querySelector('#messages')).zIndex,
                              getComputedStyle(document.querySelector('#settings')).zIndex].map(Number)""")
     assert z[0] > z[1], z
+    p.select_option("#f-renderer", "server")
+    p.select_option("#f-renderer", "device")  # the same refusal again: the line stays, no second copy
+    texts = p.eval_on_selector_all("#notice > p", "ps => ps.map((x) => x.textContent)")
+    assert len(texts) == len(set(texts)), texts
+    # the gesture hint, not yet dismissed, is not drawn over the open sheet
+    assert p.evaluate("() => !document.querySelector('#hint').hidden") and not p.is_visible("#hint")
     assert c.errors() == []
 
 

@@ -176,3 +176,30 @@ def test_a_demo_scenes_sampled_ray_tree_counts_the_rays_a_dense_count_finds(kind
     sw, sh = 44, 96
     dense = sum(ray_tree_counts(scene, sw, sh, settings.max_recursion_depth, settings.min_weight)) / (sw * sh)
     assert 0.5 <= sum(coarse) / dense <= 2.0, (coarse, dense)
+
+
+def test_a_drags_next_view_reuses_the_ray_tree_counted_for_a_near_one(monkeypatch):
+    """A drag's frames see the scene from nearly the same place: the count of the last view stands in
+    within RAY_TREE_REUSE_DEG and RAY_TREE_REUSE_MOVE, and a view beyond them is counted afresh."""
+    from renderer import prepare
+    from renderer.scenarios import mesh_scene
+    from renderer.scene import Camera
+
+    calls = []
+    counts = prepare.ray_tree_counts
+    monkeypatch.setattr(prepare, "ray_tree_counts", lambda *a: calls.append(1) or counts(*a))
+    scene = mesh_scene("room")
+    cam = scene.camera
+    settings = RenderSettings(width=64, height=48)
+
+    def turned(deg: float) -> Camera:
+        c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+        d = np.subtract(cam.target, cam.position)
+        target = cam.position + np.array([c * d[0] + s * d[2], d[1], -s * d[0] + c * d[2]])
+        return Camera(cam.position, tuple(target), cam.up, cam.fov_y)
+
+    first = prepare.sampled_level_rays(scene.with_camera(turned(0.0)), settings)
+    again = prepare.sampled_level_rays(scene.with_camera(turned(2.0)), settings)
+    assert len(calls) == 1 and again == first
+    prepare.sampled_level_rays(scene.with_camera(turned(30.0)), settings)
+    assert len(calls) == 2

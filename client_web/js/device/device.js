@@ -41,7 +41,6 @@ import { previewSize } from '../settings.js';
 export { applyGesture, cameraBasis, orbitCamera, panCamera, pinchCamera, targetDistance } from './camera.js';
 export { DeviceRenderer, DeviceUnavailable } from './device_gl.js';
 
-const SUBPIXELS = Object.freeze({ 1: 1, 4: 2, 9: 3, 16: 4 });   // samples per pixel → sub-pixels per side
 
 // ---- the blob ------------------------------------------------------------------------------
 const MAGIC = 'PRDD';
@@ -84,7 +83,7 @@ export function cameraUniforms(camera, width, height) {
 // Sub-pixels per side for `samples` per pixel, fewer when the traced frame would not fit
 // the device's textures (the server refuses beyond its own limit instead).
 export function subpixels(samples, width, height, maxTextureSize = Infinity) {
-  let k = SUBPIXELS[samples] || 1;
+  let k = Math.max(1, Math.round(Math.sqrt(samples)));   // the k × k grid of samples_per_pixel = k²
   while (k > 1 && k * Math.max(width, height) > maxTextureSize) k--;
   return k;
 }

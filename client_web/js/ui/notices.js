@@ -8,14 +8,19 @@ export class Notices {
     this.onNotice = onNotice;
   }
 
-  // kind: 'info' | 'warn' | 'error'
+  // kind: 'info' | 'warn' | 'error'. A line already shown with the same words stays, for `ms` more,
+  // instead of a second copy (a refusal retried, a setting chosen twice).
   show(text, kind = 'info', ms = 6000) {
     this.onNotice({ text, kind });
-    const p = document.createElement('p');
-    p.textContent = text;
-    p.className = kind;
-    this.list.append(p);
-    setTimeout(() => p.remove(), ms);
+    let p = [...this.list.children].find((x) => x.textContent === text && x.className === kind);
+    if (!p) {
+      p = document.createElement('p');
+      p.textContent = text;
+      p.className = kind;
+      this.list.append(p);
+    }
+    clearTimeout(p.removal);
+    p.removal = setTimeout(() => p.remove(), ms);
     return p;
   }
 }

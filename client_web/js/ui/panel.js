@@ -14,8 +14,8 @@
 
 import { applies, check, integratorValues, modesOf, range, sampleChoices, samplesAllowed, subpixels } from './limits.js';
 import {
-  DEFAULT_MUSEUM_N, DEFAULT_SCENE, FALLBACK_METHODS, FIELD_LABELS, MODE_LABELS, MODES, MODEL_FORMATS,
-  MUSEUM_KINDS, PREVIEW_SCALES, RESOLUTIONS, UPDATE_SCHEMES, learnScenes, learnSettings, meshKind, methodLabel, pickerScenes,
+  DEFAULT_MUSEUM_N, DEFAULT_SCENE, FALLBACK_METHODS, FIELD_LABELS, FALLBACK_MODES, MODEL_FORMATS,
+  MUSEUM_KINDS, PREVIEW_SCALES, RESOLUTIONS, UPDATE_SCHEMES, learnScenes, learnSettings, meshKind, methodLabel, modeLabel, pickerScenes,
   sceneValue, withRestDenoiser,
   parseResolution, renderSettings, settingValue,
 } from '../settings.js';
@@ -56,7 +56,7 @@ export class SettingsPanel {
     fillSelect(this.el('motion'), MUSEUM_KINDS);
     fillSelect(this.el('update'), UPDATE_SCHEMES);
     fillSelect(this.el('method'), FALLBACK_METHODS, (m) => methodLabel(null, m));
-    fillSelect(this.el('mode'), MODES, (m) => MODE_LABELS[m] || m);
+    fillSelect(this.el('mode'), FALLBACK_MODES, (m) => modeLabel(null, m));
     fillSelect(this.el('resolution'), RESOLUTIONS);
     fillSelect(this.el('previewScale'), PREVIEW_SCALES);
     this._fillSamples({});
@@ -94,7 +94,7 @@ export class SettingsPanel {
     if (learnScenes(info.scenes)) fillSelect(this.el('scenario'), pickerScenes);
     for (const spec of this._specs()) if (!this.el(spec.name)) this._addField(spec);
     if (Array.isArray(info.methods) && info.methods.length) fillSelect(this.el('method'), info.methods, (m) => methodLabel(info, m));
-    if (Array.isArray(info.modes) && info.modes.length) fillSelect(this.el('mode'), info.modes, (m) => MODE_LABELS[m] || m);
+    if (Array.isArray(info.modes) && info.modes.length) fillSelect(this.el('mode'), info.modes, (m) => modeLabel(info, m));
     if (this.state) this.show(this.state);
   }
 
@@ -216,7 +216,7 @@ export class SettingsPanel {
     for (const o of this.el('mode').options) {
       o.disabled = !!modes && !modes.includes(o.value);
       // colour is the integrator's: its name with it (the other modes are the first hit's)
-      if (o.value === 'color') o.textContent = `${MODE_LABELS.color} (${ctx.render.integrator === 'path' ? 'path traced' : 'Whitted'})`;
+      if (o.value === 'color') o.textContent = `${modeLabel(ctx.info, 'color')} (${ctx.render.integrator === 'path' ? 'path traced' : 'Whitted'})`;
     }
   }
 

@@ -15,7 +15,7 @@ from renderer.limits import (
     MAX_IMAGE_SIDE,
 )
 from renderer.methods import AUTO_LABEL, AUTO_METHOD, METHODS, resolve_method
-from renderer.modes import HEAT_SCALE, RECURSION_COLOR_NAMES, RECURSION_COLORS
+from renderer.modes import AVERAGED_MODES, HEAT_SCALE, MODE_LABELS, RECURSION_COLOR_NAMES, RECURSION_COLORS
 from renderer.profiles import PROFILES
 from renderer.scenarios import DEMO_SCENES
 from renderer.settings import FORMATS, METHOD_NAMES, MODES, SETTINGS, IntegratorValues, setting
@@ -149,6 +149,8 @@ def info(service: ServiceDep) -> InfoOut:
     return InfoOut(
         methods=list(METHOD_NAMES),
         modes=list(MODES),
+        mode_labels=MODE_LABELS,
+        averaged_modes=list(AVERAGED_MODES),
         formats=list(FORMATS),
         state_backend=c.state_backend,
         profiles=PROFILES,

@@ -11,6 +11,11 @@ test("a method's label is the service's, its name before the service answered", 
     ['BIH (thesis)', 'bvh', 'kdtree', 'bih']);
 });
 
+test("a mode's label is the service's, its name before the service answered", () => {
+  const info = { mode_labels: { color: 'Colour', heat: 'Traversal heat' } };
+  same([s.modeLabel(info, 'heat'), s.modeLabel(info, 'depth'), s.modeLabel(null, 'color')], ['Traversal heat', 'depth', 'color']);
+});
+
 test('preview size', () => same(s.previewSize(320, 544, 0.5), { width: 160, height: 272 }));
 
 test('fit keeps the screen aspect, long side capped', () => {

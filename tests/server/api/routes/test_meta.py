@@ -52,6 +52,16 @@ def test_info_labels_each_method_as_it_is_declared(client):
     assert labels["bih"] == "BIH (thesis)" and len(set(labels.values())) == len(labels)
 
 
+def test_info_labels_every_mode_and_names_the_averaged_ones(client):
+    """The client's mode menu and device mode read these: every mode labelled, none twice."""
+    from renderer.modes import AVERAGED_MODES, MODES
+
+    info = client.get("/api/info").json()
+    assert set(info["mode_labels"]) == set(MODES) == set(info["modes"])
+    assert len(set(info["mode_labels"].values())) == len(MODES)
+    assert info["averaged_modes"] == list(AVERAGED_MODES)
+
+
 def test_info_hands_out_the_measured_profiles(client):
     from renderer.profiles import INTERACTIVE, STILL
     from renderer.settings import RenderSettings
