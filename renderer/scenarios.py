@@ -478,7 +478,7 @@ def _table(light: Light, floor: Plane) -> Scene:
 
 # ---- materials and textures the project makes itself -------------------------------------
 MATERIALS_TEXTURE_SIZE = 256  # pixels a side of each of the scene's textures
-BOARD = ((-16.0, 16.0), (-12.0, 12.0))  # the checkerboard's x and z extents on the floor
+BOARD = ((-10.0, 10.0), (-14.0, 14.0))  # the checkerboard's x and z extents on the floor: deep, for a phone upright
 BOARD_SQUARE = 2.0  # world units a side of one of its squares
 
 
@@ -499,7 +499,7 @@ def materials_scene_parts(detail: int = 2, smooth: bool = True) -> tuple[Scene, 
     (x0, x1), (z0, z1) = BOARD
     repeat = 8 * BOARD_SQUARE  # world units of one repeat of the checker image (8 squares)
     board_uv = ((x1 - x0) / repeat, 0.0, 0.0, (z1 - z0) / repeat)
-    tiles_uv = (2.0, 0.0, 0.0, 1.0)  # 8 × 4 tiles on the wall's 26 × 13 face: square tiles
+    tiles_uv = (2.0, 0.0, 0.0, 1.5)  # 8 × 6 tiles of 2.5 on the wall's 20 × 15 face
     materials = (
         PbrMaterial(base_color=(0.5, 0.5, 0.52), metallic=0.0, roughness=0.9),  # 0 the floor beyond the board
         PbrMaterial(metallic=0.0, roughness=0.4, base_color_texture=0, base_color_uv_matrix=board_uv),  # 1 board
@@ -528,14 +528,14 @@ def materials_scene_parts(detail: int = 2, smooth: bool = True) -> tuple[Scene, 
         tangents=[[1.0, 0.0, 0.0, 1.0]] * 4,
     )
     floor_y = -CUBE_HALF
-    tiles = M.box((-13.0, floor_y, -11.0), (13.0, floor_y + 13.0, -10.0), material=4, uvs=True)
-    plank = M.box((-13.0, floor_y, -4.0), (-3.0, floor_y + 2.5, 1.0), material=2, uvs=True)
+    tiles = M.box((-10.0, floor_y, -15.0), (10.0, floor_y + 15.0, -14.0), material=4, uvs=True)
+    plank = M.box((-9.0, floor_y, -10.0), (1.0, floor_y + 2.5, -5.0), material=2, uvs=True)
     sub = min(int(detail) + 1, M.MAX_SUBDIVISIONS)
-    metal = M.icosphere(sub, radius=4.5, center=(6.0, floor_y + 4.5, -3.0), material=3, smooth=smooth, uvs=True)
-    glass = M.icosphere(sub, radius=3.5, center=(1.0, floor_y + 3.5, 6.0), material=5, smooth=smooth)
+    metal = M.icosphere(sub, radius=4.0, center=(5.0, floor_y + 4.0, -4.0), material=3, smooth=smooth, uvs=True)
+    glass = M.icosphere(sub, radius=3.5, center=(-2.0, floor_y + 3.5, 5.0), material=5, smooth=smooth)
     sun = tuple(float(c) for c in SUN_DIRECTION * 80.0)
     scene = Scene(
-        Camera((0.0, 10.0, 42.0), (0.0, -14.0, 0.0), (0.0, 1.0, 0.0), 45.0),
+        Camera((0.0, 22.0, 36.0), (0.0, -14.0, 0.0), (0.0, 1.0, 0.0), 45.0),
         (Light(position=(sun[0], sun[1], sun[2]), color=(1.0, 1.0, 1.0)),),
         materials,
         np.zeros((0, 3)),
@@ -549,11 +549,12 @@ def materials_scene_parts(detail: int = 2, smooth: bool = True) -> tuple[Scene, 
 
 
 def _materials(detail: int, smooth: bool) -> Scene:
-    """``mesh_scene("materials")``: a 32 × 24 checkerboard (squares of :data:`BOARD_SQUARE`) on a
-    grey floor; at its back a wall of glazed tiles (26 × 13, a normal map of bevelled tiles); a
-    wooden plank on the left (its grain along x, its roughness from the wood's rings), a brushed
-    aluminium ball (r 4.5) on the right whose streaks run around it like a lathe's, and a ball of
-    green-tinted glass (r 3.5) in front. Every material is glTF's metallic-roughness kind; every
+    """``mesh_scene("materials")``: a 20 × 28 checkerboard (squares of :data:`BOARD_SQUARE`) on a
+    grey floor, deeper than wide so that a phone held upright shows it large; at its back a wall of
+    glazed tiles (20 × 15, a normal map of bevelled tiles); before it a wooden plank on the left
+    (its grain along x, its roughness from the wood's rings) and a brushed aluminium ball (r 4) on
+    the right whose streaks run around it like a lathe's; a ball of green-tinted glass (r 3.5) in
+    front. Every material is glTF's metallic-roughness kind; every
     texture is :data:`MATERIALS_TEXTURE_SIZE` pixels a side. The balls are icospheres of
     ``detail + 1`` subdivisions."""
     return materials_scene_parts(detail, smooth)[0]
