@@ -28,16 +28,26 @@ from typing import Protocol
 
 import numpy as np
 
-from . import gpu_layout
+from . import gpu_layout, texture_layout
 from .integrators import Integrator
 from .limits import MAX_LIGHTS, MAX_PLANES
 from .scene import Scene
 
 # What a specialised variant removes (the stats' ``features_removed``), then the counts.
 REMOVALS = ("NO_REFLECTION", "NO_TRANSMISSION", "NO_LIGHTS", "NO_SPLIT")
+# What a PBR material reads beside its record, only where a used one does (renderer/texture_layout.py):
+# textures (and the triangles' UVs), vertex colours, tangents for a normal map.
+SURFACE_FORMATS = ("TEXTURES", "VERTEX_COLORS", "TANGENTS")
 PLANE_COUNTS = tuple(f"PLANES_{k}" for k in range(MAX_PLANES + 1))
 LIGHT_COUNTS = tuple(f"LIGHTS_{k}" for k in range(1, MAX_LIGHTS + 1))  # no lights: NO_LIGHTS
-DATA_FORMATS = ("EQUAL_RADII", "MATERIAL_TEXTURE", "TRIANGLES", "SMOOTH_TRIANGLES", "SHAPES")
+DATA_FORMATS = (
+    "EQUAL_RADII",
+    "MATERIAL_TEXTURE",
+    "TRIANGLES",
+    "SMOOTH_TRIANGLES",
+    "SHAPES",
+    *SURFACE_FORMATS,
+)
 # What the light of a frame needs beyond the thesis's, never specialised away either (a scene without
 # them carries none, so its variants compile none of it, FEATURE_LIGHTING 0): some used material emits
 # (EMISSION), the environment is not black (ENVIRONMENT), the frame traces paths (PATH: the
@@ -69,6 +79,9 @@ class SceneFeatures:
     triangles: bool = False
     smooth_triangles: bool = False
     shapes: bool = False
+    textures: bool = False
+    vertex_colors: bool = False
+    tangents: bool = False
     emission: bool = False
     environment: bool = False
     path: bool = False
@@ -105,6 +118,9 @@ class SceneFeatures:
             on.add("SMOOTH_TRIANGLES")
         if self.shapes:
             on.add("SHAPES")
+        for name in SURFACE_FORMATS:
+            if getattr(self, name.lower()):
+                on.add(name)
         for name in LIGHTING:
             if getattr(self, name.lower()):
                 on.add(name)
@@ -143,6 +159,9 @@ class SceneFeatures:
             triangles=self.triangles,
             smooth_triangles=self.smooth_triangles,
             shapes=self.shapes,
+            textures=self.textures,
+            vertex_colors=self.vertex_colors,
+            tangents=self.tangents,
             emission=self.emission,
             environment=self.environment,
             path=self.path,
@@ -177,6 +196,9 @@ def scene_features(scene: Scene) -> SceneFeatures:
         triangles=gpu_layout.has_triangles(scene),
         smooth_triangles=gpu_layout.smooth_triangles(scene),
         shapes=gpu_layout.has_shapes(scene),
+        textures=texture_layout.uses_textures(scene),
+        vertex_colors=texture_layout.uses_vertex_colors(scene),
+        tangents=texture_layout.uses_tangents(scene),
         emission=any(m.emits for m in mats),
         environment=any(scene.environment),
         environment_map=scene.environment_map is not None,

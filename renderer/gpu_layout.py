@@ -509,6 +509,52 @@ SHAPE_BASE = Binding(
 NUM_SHAPES = Binding("u_num_shapes", "highp int", needs="SHAPES", traversal=True)
 SHAPE_BINDINGS = (SHAPES, SHAPE_BASE, NUM_SHAPES)
 TREE_SHAPE_BINDINGS = (SHAPES, SHAPE_BASE)  # (a tree's leaves say where its shapes are)
+# What a material reads beside its record (only with the TEXTURES, VERTEX_COLORS and TANGENTS data
+# formats; renderer/texture_layout.py packs them, shaders/pbr_inputs.glsl reads them): the scene's
+# textures as the layers of one array with their mip levels, a record per texture, and per triangle
+# the corners' UV sets (with the ray cones' level terms), colours and tangents. Only a hit on a
+# triangle reads them, so the background variant declares none.
+TEXTURES = Binding(
+    "u_textures",
+    "highp sampler2DArray",
+    "RGBA8 with mip levels: an atlas of square slots, texture k where its record says",
+    group="materials",
+    needs="TEXTURES",
+    traversal=True,
+)
+TEXTURE_INFO = Binding(
+    "u_texture_info",
+    doc="one record per texture: size, mip levels, sampler",
+    records=True,
+    group="materials",
+    needs="TEXTURES",
+    traversal=True,
+)
+TRI_UVS = Binding(
+    "u_tri_uvs",
+    doc="TRI_UV_TEXELS records per triangle: UV sets 0 and 1 of each corner, the level terms",
+    records=True,
+    group="materials",
+    needs="TEXTURES",
+    traversal=True,
+)
+TRI_COLORS = Binding(
+    "u_tri_colors",
+    doc="TRIANGLE_TEXELS records per triangle: linear RGBA of each corner",
+    records=True,
+    group="materials",
+    needs="VERTEX_COLORS",
+    traversal=True,
+)
+TRI_TANGENTS = Binding(
+    "u_tri_tangents",
+    doc="TRIANGLE_TEXELS records per triangle: tangent xyz and handedness w of each corner",
+    records=True,
+    group="materials",
+    needs="TANGENTS",
+    traversal=True,
+)
+SURFACE_BINDINGS = (TEXTURES, TEXTURE_INFO, TRI_UVS, TRI_COLORS, TRI_TANGENTS)
 # Everything pack_primitives packs (the tracer's and the ray engines' scene data).
 SCENE_BINDINGS = (
     SPHERES,
@@ -557,6 +603,7 @@ TRACER_BINDINGS = (
     LIGHT_SCALE,
     *EMITTER_BINDINGS,
     *PATH_BINDINGS,
+    *SURFACE_BINDINGS,
 )
 # The ray engines draw planes as instances after the spheres (the instance count carries the
 # number of primitives), so they never read u_num_planes; their depth image is made on the CPU.
@@ -609,6 +656,31 @@ class PackedTexture:
     @property
     def components(self) -> int:
         return int(self.data.shape[2])
+
+
+@dataclass
+class PackedTextureArray(PackedTexture):
+    """Layers of RGBA8 texels with mip levels (a ``sampler2DArray``, renderer/texture_layout.py):
+    ``levels[l]`` uint8 (layers, height_l, width_l, 4); ``data`` is level 0."""
+
+    levels: list[np.ndarray] = field(default_factory=list)
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return int(self.data.shape[2]), int(self.data.shape[1])
+
+    @property
+    def layers(self) -> int:
+        return int(self.data.shape[0])
+
+    @property
+    def components(self) -> int:
+        return 4
+
+    @property
+    def nbytes(self) -> int:
+        """GPU bytes, every level."""
+        return int(sum(level.nbytes for level in self.levels))
 
 
 def wrap_rows(elements: np.ndarray, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedTexture:

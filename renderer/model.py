@@ -53,12 +53,15 @@ class ModelPart:
 @dataclass(frozen=True)
 class Model:
     """A parsed model file: ``parts``, the ``materials`` they name and the ``textures`` those read
-    (indices into ``textures``), ``images`` the names of the PNG and JPEG files beside it."""
+    (indices into ``textures``), ``images`` the names of the PNG and JPEG files beside it,
+    ``notices`` what of the file was not read (a sentence each: skipped points and lines, a
+    reduced image)."""
 
     parts: tuple[ModelPart, ...]
     materials: tuple[AnyMaterial, ...] = ()
     textures: tuple[Texture, ...] = ()
     images: tuple[str, ...] = ()
+    notices: tuple[str, ...] = ()
 
     @property
     def n_triangles(self) -> int:

@@ -592,14 +592,14 @@ def _check_obj(data: bytes, max_triangles: int, max_vertices: int) -> None:
     try:
         refs = words[words != b"|"].astype(np.int64)
     except ValueError:
-        for _, text in faces:
+        for at, text in faces:
             for ref in text.split():
                 try:
                     int(ref.split(b"/", 1)[0])
                 except ValueError:
                     raise _refuse(
                         "obj",
-                        f"face 'f {text.strip().decode(errors='replace')[:60]}': "
+                        f"line {_line_of(data, at)}: face 'f {text.strip().decode(errors='replace')[:60]}': "
                         f"{ref.decode(errors='replace')[:20]!r} is not a whole number "
                         "(a vertex reference)",
                     ) from None
@@ -617,4 +617,10 @@ def _check_obj(data: bytes, max_triangles: int, max_vertices: int) -> None:
             if k > 0
             else f"vertex {k} counts back past the {int(before[j]):,} vertices defined before it"
         )
-        raise _refuse("obj", f"face 'f {line}': {why}")
+        raise _refuse("obj", f"line {_line_of(data, faces[face_of[j]][0])}: face 'f {line}': {why}")
+
+
+def _line_of(data: bytes, at: int) -> int:
+    """The number of the line holding byte ``at`` (from 1; a lone CR ends a line too)."""
+    head = data[:at]
+    return head.count(b"\n") + head.count(b"\r") - head.count(b"\r\n") + 1

@@ -910,3 +910,94 @@ def render_reference(
         timings={"trace": trace_ms},
         stats=None,
     )
+
+
+# ------------------------------------------------------------------------ textures
+# The float64 twins of shaders/textures.glsl and shaders/pbr_inputs.glsl's texture coordinates (the
+# tests compare the GPU's with these): a hit's barycentrics and UVs, and a texture's value at a UV
+# and mip level with its wrap modes and filter. The mip levels are data (renderer/texture_layout.py's
+# mip_chain), not GLSL.
+
+
+def triangle_barycentrics(scene: Scene, tri: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """float64 (N, 3): the barycentric weights of points ``p`` (N, 3) on triangles ``tri`` (scene
+    order), from their float64 corners: weight k of corner k, p's projection on the plane."""
+    c = np.asarray(scene.triangle_corners, dtype=np.float64)[np.asarray(tri, dtype=np.int64)]
+    a, e1, e2 = c[:, 0], c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
+    g = np.cross(e1, e2)
+    gg = _dot(g, g)
+    w = np.asarray(p, dtype=np.float64) - a
+    b1 = _dot(np.cross(w, e2), g) / gg
+    b2 = _dot(np.cross(e1, w), g) / gg
+    return np.stack([1.0 - b1 - b2, b1, b2], axis=1)
+
+
+def hit_texcoords(scene: Scene, tri: np.ndarray, bary: np.ndarray, uv_set: int = 0) -> np.ndarray:
+    """float64 (N, 2): UV set ``uv_set`` (0 or 1) at barycentrics ``bary`` of triangles ``tri``
+    (0 where the mesh has none)."""
+    name = "uvs1" if uv_set else "uvs"
+    tri = np.asarray(tri, dtype=np.int64)
+    out = np.zeros((len(tri), 2))
+    mesh_of = np.asarray(scene.triangle_mesh)[tri]
+    for k, m in enumerate(scene.meshes):
+        sel = np.flatnonzero(mesh_of == k)
+        uv = getattr(m, name)
+        if uv is None or not len(sel):
+            continue
+        local = tri[sel] - scene.mesh_triangle_range(k).start
+        corners = np.asarray(uv, dtype=np.float64)[np.asarray(m.triangles, dtype=np.int64)[local]]  # (n, 3, 2)
+        out[sel] = np.einsum("nk,nkc->nc", np.asarray(bary, dtype=np.float64)[sel], corners)
+    return out
+
+
+def _wrap(i: np.ndarray, n: int, mode: str) -> np.ndarray:
+    if mode == "clamp":
+        return np.clip(i, 0, n - 1)
+    if mode == "mirror":
+        m = np.mod(i, 2 * n)
+        return np.where(m < n, m, 2 * n - 1 - m)
+    return np.mod(i, n)
+
+
+def texture_sample(levels: list[np.ndarray], texture, uv: np.ndarray, level: np.ndarray | float = 0.0) -> np.ndarray:
+    """float64 (N, 4) linear RGBA of ``texture`` (its ``wrap_s``, ``wrap_t``, ``filter``, ``srgb``)
+    whose mip levels are ``levels`` (uint8 (h_l, w_l, 4) each) at ``uv`` (N, 2) and mip ``level``
+    (clamped to the levels; a fraction mixes the two around it): each texel decoded to linear
+    before it is mixed, bilinear about texel centres or the nearest texel, wrapped per texel."""
+    from .texture_layout import srgb_to_linear
+
+    uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+    lv = np.clip(np.broadcast_to(np.asarray(level, dtype=np.float64), (len(uv),)), 0.0, len(levels) - 1)
+    l0 = np.floor(lv).astype(np.int64)
+    frac = lv - l0
+
+    def at_level(k: int, rows: np.ndarray) -> np.ndarray:
+        img = np.asarray(levels[k], dtype=np.float64) / 255.0
+        if texture.srgb:
+            img = img.copy()
+            img[..., :3] = srgb_to_linear(img[..., :3])
+        h, w = img.shape[:2]
+        s = uv[rows, 0] * w
+        t = uv[rows, 1] * h
+        if texture.filter == "nearest":
+            x = _wrap(np.floor(s).astype(np.int64), w, texture.wrap_s)
+            y = _wrap(np.floor(t).astype(np.int64), h, texture.wrap_t)
+            return img[y, x]
+        s, t = s - 0.5, t - 0.5
+        x0, y0 = np.floor(s).astype(np.int64), np.floor(t).astype(np.int64)
+        fx, fy = (s - x0)[:, None], (t - y0)[:, None]
+        xa, xb = _wrap(x0, w, texture.wrap_s), _wrap(x0 + 1, w, texture.wrap_s)
+        ya, yb = _wrap(y0, h, texture.wrap_t), _wrap(y0 + 1, h, texture.wrap_t)
+        top = img[ya, xa] * (1 - fx) + img[ya, xb] * fx
+        bottom = img[yb, xa] * (1 - fx) + img[yb, xb] * fx
+        return top * (1 - fy) + bottom * fy
+
+    out = np.zeros((len(uv), 4))
+    for k in np.unique(l0):
+        rows = np.flatnonzero(l0 == k)
+        c = at_level(int(k), rows)
+        f = frac[rows][:, None]
+        if k + 1 < len(levels) and (f > 0).any():
+            c = c * (1 - f) + at_level(int(k) + 1, rows) * f
+        out[rows] = c
+    return out

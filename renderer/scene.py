@@ -226,7 +226,7 @@ def vertex_attribute(value: Any, where: str, n_vertices: int, width: int, lo: fl
         raise SceneError(where, f"expected a list of {n_vertices} rows of {width} numbers") from None
     if a.shape != (n_vertices, width):
         raise SceneError(where, f"{width} numbers per vertex: expected ({n_vertices}, {width}), got {a.shape}")
-    bad: np.ndarray = ~np.isfinite(a).all(axis=1) | (a < lo).any(axis=1) | (a > hi).any(axis=1)
+    bad = np.asarray(~np.isfinite(a).all(axis=1) | (a < lo).any(axis=1) | (a > hi).any(axis=1))
     if bad.any():
         i = _bad_rows(bad)
         raise SceneError(f"{where}[{i}]", f"must be finite numbers within {lo:g} … {hi:g}, got {a[i].tolist()}")

@@ -23,8 +23,8 @@ from __future__ import annotations
 
 from functools import cache
 
-from . import first_hits, gpu_layout
-from .features import LIGHTING
+from . import first_hits, gpu_layout, texture_layout
+from .features import LIGHTING, SURFACE_FORMATS
 from .gpu_layout import Binding, Variant
 from .methods import METHODS
 from .modes import RECURSION_COLORS
@@ -98,6 +98,8 @@ def tracer_header(variant: Variant) -> str:
         )
     if "SHAPES" in variant.features:
         kinds += gpu_layout.shape_constants()
+    if "TEXTURES" in variant.features and "TRIANGLES" in variant.features:
+        kinds += texture_layout.texture_glsl_constants()
     if variant.path:
         kinds += gpu_layout.path_constants()
     flags = "".join(f"#define {name} {int(on)}\n" for name, on in feature_flags(variant).items())
@@ -147,11 +149,15 @@ def feature_flags(variant: Variant) -> dict[str, bool]:
     ``FEATURE_TRIANGLES`` and ``FEATURE_SHAPES``, the variant traces that kind (its data format,
     and not the background variant, which has no traversal and so meets no primitive);
     ``FEATURE_LIGHTING``, it carries one of :data:`renderer.features.LIGHTING` (emission, an
-    environment, the path integrator)."""
+    environment, the path integrator); ``FEATURE_TEXTURES``, ``FEATURE_VERTEX_COLORS`` and
+    ``FEATURE_TANGENTS``, it traces triangles whose PBR materials read textures (and UVs), vertex colours
+    or tangents (renderer/texture_layout.py: only a triangle has them)."""
+    traces_triangles = "TRIANGLES" in variant.features and variant.spheres
     return {
         "FEATURE_TRIANGLES": "TRIANGLES" in variant.features and variant.spheres,
         "FEATURE_SHAPES": "SHAPES" in variant.features and variant.spheres,
         "FEATURE_LIGHTING": any(f in LIGHTING for f in variant.features),
+        **{f"FEATURE_{f}": f in variant.features and traces_triangles for f in SURFACE_FORMATS},
     }
 
 

@@ -390,6 +390,14 @@ class ServerConfig(BaseSettings):
         "frees as sessions are deleted or expire). 0: no quota",
     )
 
+    max_session_texture_bytes: int = Field(
+        256 << 20,
+        ge=0,
+        description="a session's textures: bytes of their RGBA8 texels with every mip level (each at its own "
+        "size; the store keeps their texels, which the store's quota counts too); a scene or a model that "
+        "would pass it: 422 naming this setting, nothing stored. 0: no budget",
+    )
+
     # --- gestures ---------------------------------------------------------------
     min_target_distance: float = Field(
         1e-3, gt=0, description="pinch never brings the camera closer to its target, world units"

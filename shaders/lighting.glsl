@@ -436,10 +436,16 @@ void path_main() {
     vec3 contrib = vec3(0.0);                 // … and what its shadow ray in flight adds if unblocked
     vec3 prev_p = vec3(0.0);  // the vertex the current segment left, and bsdf_sample's pdf there
     float prev_pdf = 0.0;
+#if FEATURE_TEXTURES
+    float cone_w = 0.0, cone_spread = 0.0;   // the ray cone at the segment's origin (shaders/ray_cones.glsl)
+#endif
     while (true) {
         if (start) {
             camera_ray(uint(u_sample_start + done), gl_FragCoord.xy, o, d);
             L = vec3(0.0); beta = vec3(1.0); segments = 1; prev_pdf = 0.0;
+#if FEATURE_TEXTURES
+            cone_w = 0.0; cone_spread = cone_pixel_spread(1.0);
+#endif
             q = Query(o, d, NO_PRIM, NO_PRIM, BIG, false);
             start = false;
         }
@@ -455,6 +461,10 @@ void path_main() {
             vertex = false;
         } else {
             Surface s = surface_at(o, d, h);
+#if FEATURE_TEXTURES
+            cone_w += cone_spread * h.t;
+            g_cone_width = cone_footprint(cone_w, d, s.ng);   // pbr_inputs' cone_width
+#endif
             vec3 ng = s.n;
 #if FEATURE_TRIANGLES
             ng = s.ng;   // emission and the side a path meets: by the geometric normal
@@ -481,6 +491,9 @@ void path_main() {
             prev_pdf = bs.pdf;
             bool go = bs.valid;
             if (go) beta *= bs.weight;
+#if FEATURE_TEXTURES
+            cone_spread = cone_after_bounce(cone_spread, bs.pdf, (bs.lobe & LOBE_SPECULAR) != 0);
+#endif
             // Russian roulette from the fourth segment on: survive with p, weight 1/p (unbiased).
             if (go && segments >= 3) {
                 float p = min(max(beta.r, max(beta.g, beta.b)), 0.95);

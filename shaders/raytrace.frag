@@ -180,6 +180,7 @@ struct Surface {
 #endif
 //@INCLUDE shapes_tracer.glsl
 //@INCLUDE leaf.glsl
+//@INCLUDE ray_cones.glsl
 
 #if !BACKGROUND
 //@METHOD@
@@ -430,6 +431,14 @@ void main() {
     Material m;
     vec3 nf;
     vec3 contrib = vec3(0.0);
+#if FEATURE_TEXTURES
+    // Ray cones: the distance the ray tree travelled to k's origin (and to a spawned ray's, t_dist); as
+    // mirrors and refractions keep the pixel's spread, the cone's width at a hit is spread × distance.
+    float cone_spread = cone_pixel_spread(u_pass_scale), k_dist = 0.0, t_dist = 0.0;
+#ifdef TASK_STACK
+    float task_dist[MAX_TASKS];
+#endif
+#endif
     while (true) {
         Hit hq = intersect_scene(q);
         bool live;   // the current radiance ray hit something: its lights and children are next
@@ -450,6 +459,9 @@ void main() {
             if (live) {
                 h = hq;
                 s = surface_at(k.o, k.d, h);
+#if FEATURE_TEXTURES
+                g_cone_width = cone_footprint(cone_spread * (k_dist + h.t), k.d, s.ng);   // pbr_inputs' cone_width
+#endif
                 if (k.level == 1) { primary_t = h.t; primary_id = h.id; primary_n = s.n; }
                 deepest = max(deepest, k.level);
 #ifdef READS_MATERIALS
@@ -499,6 +511,9 @@ void main() {
 #if MAX_RECURSION_DEPTH > 1
         if (live && k.level < MAX_RECURSION_DEPTH) {
             vec3 n = s.n;
+#if FEATURE_TEXTURES
+            t_dist = k_dist + h.t;   // both spawned rays start at the hit
+#endif
 #ifndef NO_REFLECTION
             if (m.reflective > 0.0 && k.weight * m.reflective >= u_min_weight) {
                 vec3 r = k.d - 2.0 * dot(k.d, n) * n;
@@ -523,6 +538,9 @@ void main() {
                 int skip, far_id;
                 exclusion(h.id, n, t_dir, skip, far_id);
 #ifdef TASK_STACK
+#if FEATURE_TEXTURES
+                if (next) task_dist[n_tasks] = t_dist;
+#endif
                 if (next) { tasks[n_tasks] = t; n_tasks++; }   // the reflected ray waits
 #endif
                 t = Task(s.p, t_dir, k.weight * m.transmissive, k.level + 1, skip, far_id);
@@ -532,10 +550,16 @@ void main() {
         }
 #endif
 #ifdef TASK_STACK
+#if FEATURE_TEXTURES
+        if (!next && n_tasks > 0) t_dist = task_dist[n_tasks - 1];
+#endif
         if (!next && n_tasks > 0) { n_tasks--; t = tasks[n_tasks]; next = true; }
 #endif
         if (!next) break;
         k = t;
+#if FEATURE_TEXTURES
+        k_dist = t_dist;
+#endif
         q = Query(k.o, k.d, k.skip, k.far_id, BIG, false);
     }
 #endif

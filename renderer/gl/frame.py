@@ -45,7 +45,7 @@ from typing import TYPE_CHECKING, Any, cast
 import moderngl
 import numpy as np
 
-from .. import first_hits, gpu_layout
+from .. import first_hits, gpu_layout, texture_layout
 from ..gpu_layout import PackedScene, Variant
 from ..limits import MAX_BAND_GROWTH, PATH_SAMPLES_PER_PASS
 from ..methods import PreparedMethod
@@ -248,7 +248,7 @@ class TracerFrame:
                     variant.method, variant.mode, variant.depth, variant.features, (), variant.image_only, False
                 )
                 stats["background_pixels"] = sum(w * h for _, _, w, h, tracer in self.regions if not tracer)
-        self.textures: list[moderngl.Texture] = []
+        self.textures: list[moderngl.Texture | moderngl.TextureArray] = []
         self.buffers: list[moderngl.Buffer] = []
         self.fbo: moderngl.Framebuffer | None = None
         # Rasterised first hits (renderer/first_hits.py) instead of the traversal, when chosen.
@@ -286,11 +286,18 @@ class TracerFrame:
     def _upload(self) -> None:
         """Upload exactly what the variant declares (see :func:`check_bindings`) and take a target."""
         t0 = time.perf_counter()
+        surface = texture_layout.pack_surface_data(self.scene, self.renderer.max_texture_width)
         parts = [
             gpu_layout.pack_primitives(self.scene, self.renderer.max_texture_width),
             self.prepared.packed,
             PackedScene({}, gpu_layout.frame_uniforms(self.scene, self.settings.min_weight)),
+            surface.packed,
         ]
+        if surface.nbytes:  # a textured scene's GPU bytes in the frame's statistics
+            self.stats["texture_bytes"] = surface.nbytes.get(gpu_layout.TEXTURES.name, 0)
+            self.stats["attribute_bytes"] = sum(v for k, v in surface.nbytes.items() if k != gpu_layout.TEXTURES.name)
+            if surface.array is not None and surface.array.notices:
+                self.stats["texture_notices"] = list(surface.array.notices)
         tex, self.uniforms = check_bindings(self.variant, parts)
         blocks = {n: t for n, t in tex.items() if n in self.variant.blocks}
         self.units = upload_textures(

@@ -34,6 +34,7 @@ from pydantic import (
 
 from renderer import settings as declared
 from renderer.limits import (
+    MAX_DEVICE_ARRAY_LAYERS,
     MAX_DEVICE_TEXTURE_SIZE,
     MAX_ENV_ROTATION_DEG,
     MAX_ENV_SCALE,
@@ -43,6 +44,7 @@ from renderer.limits import (
     REFINE_SAMPLES_RANGE,
 )
 from renderer.settings import SettingValues, setting
+from renderer.texture_layout import WEBGL2_MAX_ARRAY_LAYERS
 
 from ..contract.fields import MAX_LISTED_ERRORS, QueryModel, Strict, optional  # noqa: F401 - re-exported
 from ..contract.scene import (  # noqa: F401 - re-exported: the scene JSON's models
@@ -232,6 +234,12 @@ class DeviceDataQuery(QueryModel):
         DEFAULT_MAX_TEXTURE_SIZE, ge=1, le=MAX_DEVICE_TEXTURE_SIZE, description="the device's MAX_TEXTURE_SIZE"
     )
     float_textures: bool = Field(True, description="the device renders to RGBA32F (WebGL2: EXT_color_buffer_float)")
+    max_array_texture_layers: int = Field(
+        WEBGL2_MAX_ARRAY_LAYERS,
+        ge=1,
+        le=MAX_DEVICE_ARRAY_LAYERS,
+        description="the device's MAX_ARRAY_TEXTURE_LAYERS (WebGL2 guarantees 256; a scene's textures are its layers)",
+    )
 
     def given(self) -> SettingValues:
         """The render settings named (not the device's own parameters)."""

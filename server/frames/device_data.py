@@ -32,7 +32,10 @@ The JSON header::
                   "u_cam_pos": [...], "u_cam_right": [...], "u_cam_up": [...], "u_cam_forward": [...],
                   "u_target_distance": 100.0, "u_min_weight": 0.0, "u_box_min": [...], …},
      "textures": [{"name": "u_spheres", "width", "height", "components": 4, "dtype": "f4",
-                   "internal_format": "RGBA32F", "offset", "nbytes"}, …],
+                   "internal_format": "RGBA32F", "offset", "nbytes"}, …],   # a texture array (u_textures,
+                                            # "dtype": "u1", "RGBA8") adds "layers" and "levels" (encode_blob)
+     "surface": {"texture_bytes", "attribute_bytes", "notices": [...]},  # a textured scene's GPU bytes on
+                                            # the device (every mip level) and what was resized for it
      "stats": {...}, "build_ms": 1.2, "pack_ms": 0.3, "nbytes": …}
 
 ``uniforms`` are every uniform of :func:`gpu_layout.pack_primitives`, of the
@@ -70,7 +73,7 @@ from typing import Any
 
 import numpy as np
 
-from renderer import atrous, gpu_layout
+from renderer import atrous, gpu_layout, texture_layout
 from renderer.features import FEATURE_DEFINES  # noqa: F401 - re-exported: the shader variant's feature defines, in order
 from renderer.limits import DEFAULT_TEXTURE_WIDTH, DEVICE_PATH_SAMPLES_PER_PASS
 from renderer.methods import PreparedMethod
@@ -187,6 +190,16 @@ def device_header(
     }
 
 
+def surface_info(surface: texture_layout.SurfaceData) -> dict[str, Any]:
+    """The header's ``surface``: the GPU bytes of the textures (every mip level) and of the triangles'
+    attribute records this device uploads, and what was resized for its limits."""
+    return {
+        "texture_bytes": int(surface.nbytes.get(gpu_layout.TEXTURES.name, 0)),
+        "attribute_bytes": int(sum(v for k, v in surface.nbytes.items() if k != gpu_layout.TEXTURES.name)),
+        "notices": list(surface.array.notices) if surface.array is not None else [],
+    }
+
+
 def jsonable(v: Any) -> Any:
     """``v`` with NumPy scalars and arrays (also inside lists) as plain JSON numbers and lists."""
     if isinstance(v, (list, tuple)):
@@ -206,12 +219,38 @@ def jsonable_stats(stats: dict[str, Any]) -> dict[str, Any]:
 
 
 def encode_blob(header: dict[str, Any], textures: dict[str, gpu_layout.PackedTexture]) -> bytes:
-    """Magic, version, header length, JSON header (with the textures' offsets), aligned texture bytes."""
+    """Magic, version, header length, JSON header (with the textures' offsets), aligned texture bytes.
+    A texture array (:class:`renderer.gpu_layout.PackedTextureArray`, RGBA8 with mip levels) is one
+    entry with ``layers`` and ``levels``: each level's ``width``, ``height``, ``offset`` and ``nbytes``
+    (``layers × height × width × 4`` bytes, layer 0 first, row 0 first); its ``offset`` and ``nbytes``
+    are level 0's and the levels' total."""
     entries: list[dict[str, Any]] = []
-    chunks: list[bytes] = []
+    chunks: list[list[bytes]] = []
     for name, tex in textures.items():
-        data = np.ascontiguousarray(tex.data, dtype="<f4" if tex.dtype == "f4" else "<u4")
         w, h = tex.size
+        if isinstance(tex, gpu_layout.PackedTextureArray):
+            parts = [np.ascontiguousarray(level, dtype=np.uint8).tobytes() for level in tex.levels]
+            levels = [
+                {"width": int(level.shape[2]), "height": int(level.shape[1]), "offset": 0, "nbytes": len(b)}
+                for level, b in zip(tex.levels, parts, strict=True)
+            ]
+            entries.append(
+                {
+                    "name": name,
+                    "width": w,
+                    "height": h,
+                    "layers": tex.layers,
+                    "components": 4,
+                    "dtype": "u1",
+                    "internal_format": "RGBA8",
+                    "levels": levels,
+                    "offset": 0,
+                    "nbytes": sum(len(b) for b in parts),
+                }
+            )
+            chunks.append(parts)
+            continue
+        data = np.ascontiguousarray(tex.data, dtype="<f4" if tex.dtype == "f4" else "<u4")
         entries.append(
             {
                 "name": name,
@@ -224,37 +263,50 @@ def encode_blob(header: dict[str, Any], textures: dict[str, gpu_layout.PackedTex
                 "nbytes": int(data.nbytes),
             }
         )
-        chunks.append(data.tobytes())
+        chunks.append([data.tobytes()])
     # The offsets depend on the header's length, which depends on the offsets' digits: iterate.
     head = b""
     for _ in range(4):
         start = _align(HEADER_START + len(head))
         pos = start
-        for e, c in zip(entries, chunks, strict=True):
-            e["offset"] = pos
-            pos = _align(pos + len(c))
+        for e, parts in zip(entries, chunks, strict=True):
+            places = e.get("levels") or [e]
+            for place, c in zip(places, parts, strict=True):
+                place["offset"] = pos
+                pos = _align(pos + len(c))
+            e["offset"] = places[0]["offset"]
         new = json.dumps({**header, "textures": entries, "nbytes": pos}, separators=(",", ":")).encode()
         if new == head:
             break
         head = new
     out = bytearray(MAGIC + struct.pack("<II", FORMAT_VERSION, len(head)) + head)
-    for e, c in zip(entries, chunks, strict=True):
-        out.extend(b"\0" * (e["offset"] - len(out)))
-        out.extend(c)
+    for e, parts in zip(entries, chunks, strict=True):
+        for place, c in zip(e.get("levels") or [e], parts, strict=True):
+            out.extend(b"\0" * (place["offset"] - len(out)))
+            out.extend(c)
     out.extend(b"\0" * (_align(len(out)) - len(out)))
     return bytes(out)
 
 
-def decode_blob(blob: bytes) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """The header and the textures as (height, width, components) arrays (for tests and tools)."""
+def decode_blob(blob: bytes) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The header and the textures as (height, width, components) arrays (for tests and tools); a
+    texture array as the list of its levels, uint8 (layers, height, width, 4) each."""
     if blob[:4] != MAGIC:
         raise ValueError("not pocketray device data")
     version, n = struct.unpack_from("<II", blob, 4)
     if version != FORMAT_VERSION:
         raise ValueError(f"device-data format {version}, expected {FORMAT_VERSION}")
     header = json.loads(blob[HEADER_START : HEADER_START + n])
-    arrays = {}
+    arrays: dict[str, Any] = {}
     for t in header["textures"]:
+        if "levels" in t:
+            arrays[t["name"]] = [
+                np.frombuffer(blob, dtype=np.uint8, count=lv["nbytes"], offset=lv["offset"]).reshape(
+                    t["layers"], lv["height"], lv["width"], 4
+                )
+                for lv in t["levels"]
+            ]
+            continue
         a = np.frombuffer(
             blob,
             dtype="<f4" if t["dtype"] == "f4" else "<u4",

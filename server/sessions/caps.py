@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from renderer import texture_layout
+from renderer.animation import AnimatedScene
 from renderer.cost import path_segments, request_work
 from renderer.integrators import Integrator
 from renderer.plan import plan_method
@@ -76,6 +78,18 @@ class InputCaps:
         if n > self.config.max_triangles:
             raise InputError(
                 loc, f"at most {self.config.max_triangles} triangles per scene (POCKETRAY_MAX_TRIANGLES), got {n}"
+            )
+
+    def check_textures(self, scene: SessionScene, loc: tuple[str | int, ...]) -> None:
+        """POCKETRAY_MAX_SESSION_TEXTURE_BYTES: the scene's textures with their mip levels."""
+        rest = scene.scene if isinstance(scene, AnimatedScene) else scene
+        budget = self.config.max_session_texture_bytes
+        total = sum(texture_layout.texture_bytes(t) for t in rest.textures)
+        if budget and total > budget:
+            raise InputError(
+                loc,
+                f"the scene's {len(rest.textures)} textures take {total:,} bytes with their mip levels; a session "
+                f"holds at most {budget:,} (POCKETRAY_MAX_SESSION_TEXTURE_BYTES): use fewer or smaller textures",
             )
 
     def checked_scene(

@@ -32,10 +32,13 @@ from typing import Any
 
 import numpy as np
 
+from renderer import texture_layout
 from renderer.animation import AnimatedScene, motion_from_json, motion_to_json, museum
 from renderer.envmap import SKY_REF
+from renderer.materials.kinds import material_from_json
+from renderer.materials.texture import Texture
 from renderer.scenarios import content_box, object_boxes, scenario
-from renderer.scene import Camera, Material, Mesh, Scene, SceneError, make_mesh
+from renderer.scene import VERTEX_ATTRIBUTES, Camera, Material, Mesh, Scene, SceneError, make_mesh
 from renderer.shapes import Shapes
 
 from ..contract.scene import CameraModel, SceneModel
@@ -136,18 +139,28 @@ def scene_source(scene: SessionScene) -> bytes:
     if scene.meshes:
         small["meshes"] = [
             {"material": m.material, "vertices": len(m.vertices), "triangles": m.n_triangles, "smooth": m.smooth}
+            | ({"attributes": sorted(m.attributes)} if m.attributes else {})
             for m in scene.meshes
         ]
+        for name, *_ in VERTEX_ATTRIBUTES:  # (absent without: a source stored before them reads the same)
+            rows = [getattr(m, name) for m in scene.meshes if getattr(m, name) is not None]
+            if rows:
+                arrays[f"mesh_{name}"] = np.concatenate(rows)
         arrays["mesh_vertices"] = np.concatenate([m.vertices for m in scene.meshes])
         arrays["mesh_triangles"] = np.concatenate([m.triangles for m in scene.meshes])
         smooth = [m.normals for m in scene.meshes if m.normals is not None]  # the smooth ones
         arrays["mesh_normals"] = np.concatenate(smooth) if smooth else np.zeros((0, 3))
+    if scene.textures:
+        # kept as decoded, uncompressed (the quota counts their texels, as an environment image's)
+        small["textures"] = [{k: v for k, v in t.to_json().items() if k != "png"} for t in scene.textures]
+        for i, t in enumerate(scene.textures):
+            arrays[f"texture_{i}"] = t.pixels
     if scene.n_shapes:  # (absent for a scene without: a source stored before shapes reads the same)
         arrays["shape_kind"] = scene.shapes.kind
         arrays["shape_params"] = scene.shapes.params
         arrays["shape_materials"] = scene.shapes.material
     arrays["meta"] = np.frombuffer(json.dumps(small).encode(), dtype=np.uint8)
-    return _ARRAYS + _npz(arrays, stored={"env_texels"})
+    return _ARRAYS + _npz(arrays, stored={"env_texels", *(f"texture_{i}" for i in range(len(scene.textures)))})
 
 
 def _npz(arrays: dict[str, np.ndarray], stored: set[str]) -> bytes:
@@ -174,13 +187,19 @@ def environment_json(scene: Scene) -> dict[str, Any] | None:
 def _stored_meshes(cut: list[dict], z) -> tuple[Mesh, ...]:
     """The meshes of a stored source: ``cut`` says how many rows of each array are whose."""
     out, v0, t0, n0 = [], 0, 0, 0
+    a0 = dict.fromkeys((name for name, *_ in VERTEX_ATTRIBUTES), 0)
     for m in cut:
         nv, nt = m["vertices"], m["triangles"]
         normals = None
         if m["smooth"]:
             normals = z["mesh_normals"][n0 : n0 + nv]
             n0 += nv
-        out.append(Mesh(z["mesh_vertices"][v0 : v0 + nv], z["mesh_triangles"][t0 : t0 + nt], m["material"], normals))
+        attributes = {}
+        for name in m.get("attributes", ()):
+            attributes[name] = z[f"mesh_{name}"][a0[name] : a0[name] + nv]
+            a0[name] += nv
+        vertices, triangles = z["mesh_vertices"][v0 : v0 + nv], z["mesh_triangles"][t0 : t0 + nt]
+        out.append(Mesh(vertices, triangles, m["material"], normals, **attributes))
         v0, t0 = v0 + nv, t0 + nt
     return tuple(out)
 
@@ -200,7 +219,12 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
             meshes = _stored_meshes(small.pop("meshes", []), z)
             env = small.get("environment", {})
             images = {env["image"]: z["env_texels"]} if "env_texels" in z.files and "image" in env else None
-            base = Scene.from_json({**small, "camera": camera.to_json()}, images)
+            samplers = small.pop("textures", [])
+            textures = tuple(Texture(z[f"texture_{i}"], **s) for i, s in enumerate(samplers))
+            # (the materials read apart: their texture indices are checked against the textures below)
+            stand_ins: list[dict[str, Any]] = [{}] * len(small["materials"])
+            base = Scene.from_json({**small, "materials": stand_ins, "camera": camera.to_json()}, images)
+            materials = tuple(material_from_json(m, f"materials[{i}]") for i, m in enumerate(small["materials"]))
             shapes = (
                 Shapes(z["shape_kind"], z["shape_params"], z["shape_materials"])
                 if "shape_kind" in z.files
@@ -209,7 +233,7 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
             scene = Scene(
                 camera,
                 base.lights,
-                base.materials,
+                materials,
                 z["centers"],
                 z["radii"],
                 z["materials"],
@@ -218,6 +242,7 @@ def load_source(source: bytes, camera: Camera) -> SessionScene:
                 base.environment,
                 base.environment_map,
                 shapes,
+                textures,
             )
             return with_motions(scene, motions)
     raise ValueError("unknown scene source")
@@ -303,6 +328,12 @@ def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dic
         )
     if rest.n_shapes:  # (absent without: as the meshes')
         info["n_shapes"] = rest.n_shapes
+    if rest.textures:  # the GPU bytes of its textures (every mip level, the array's padding) and attributes
+        info.update(
+            n_textures=len(rest.textures),
+            texture_bytes=texture_layout.array_bytes(rest.textures),
+            attribute_bytes=texture_layout.attribute_bytes(rest),
+        )
     if isinstance(scene, AnimatedScene):
         info.update(animated=True, n_moving=int(scene.moving.sum()))
         if rest.meshes:

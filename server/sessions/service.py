@@ -178,6 +178,7 @@ class SessionService:
             source = scenario_source(recipe["scenario"], recipe["n"], recipe["seed"], recipe["radius"], bool(body.sky))
         else:
             scene = self.caps.checked_scene(body.scene, ("scene",))
+            self.caps.check_textures(scene, ("scene", "textures"))
             recipe = None
             source = scene_source(scene)
         demo = demo_for_recipe(
@@ -260,6 +261,7 @@ class SessionService:
         held = (old.scene if isinstance(old, AnimatedScene) else old).environment_map
         images = {held.ref: held.texels} if held is not None else None
         scene = self.caps.checked_scene(model, (), images)
+        self.caps.check_textures(scene, ("textures",))
         source = scene_source(scene)
         rev = secrets.token_hex(8)
         camera = scene.camera.to_json()
@@ -405,6 +407,7 @@ class SessionService:
         """``scene`` (made from ``state``'s scene and something ``read`` meanwhile: a model file, an
         image) as the session's scene, recipe-less, unless its scene changed since ``state``
         (Superseded: nothing is written); ``camera``: the session's camera with it."""
+        self.caps.check_textures(scene, ("file",))
         source = scene_source(scene)
         rev = secrets.token_hex(8)
 

@@ -76,12 +76,22 @@ def test_feature_flags_are_always_defined_zero_or_one(method):
     1 where the variant traces the kind (its data format, and not the background variant) or
     carries light beyond the thesis's; the traversal tests primitives through leaf_hit or the
     kinds' ranges alone, and no mark is left in the text."""
+    surface_off = {"FEATURE_TEXTURES": 0, "FEATURE_VERTEX_COLORS": 0, "FEATURE_TANGENTS": 0}
     plain = shader_source(method, "color", 3, ("EQUAL_RADII",))
-    assert _flags(plain) == {"FEATURE_TRIANGLES": 0, "FEATURE_SHAPES": 0, "FEATURE_LIGHTING": 0}
+    assert _flags(plain) == {"FEATURE_TRIANGLES": 0, "FEATURE_SHAPES": 0, "FEATURE_LIGHTING": 0, **surface_off}
     both = shader_source(method, "color", 3, ("TRIANGLES", "SMOOTH_TRIANGLES", "SHAPES", "EMISSION"))
-    assert _flags(both) == {"FEATURE_TRIANGLES": 1, "FEATURE_SHAPES": 1, "FEATURE_LIGHTING": 1}
+    assert _flags(both) == {"FEATURE_TRIANGLES": 1, "FEATURE_SHAPES": 1, "FEATURE_LIGHTING": 1, **surface_off}
     bg = shader_source(method, "color", 3, ("TRIANGLES", "SHAPES"), spheres=False)
-    assert _flags(bg) == {"FEATURE_TRIANGLES": 0, "FEATURE_SHAPES": 0, "FEATURE_LIGHTING": 0}
+    assert _flags(bg) == {"FEATURE_TRIANGLES": 0, "FEATURE_SHAPES": 0, "FEATURE_LIGHTING": 0, **surface_off}
+    textured = ("TRIANGLES", "TEXTURES", "VERTEX_COLORS", "TANGENTS")
+    surface_on = {"FEATURE_TEXTURES": 1, "FEATURE_VERTEX_COLORS": 1, "FEATURE_TANGENTS": 1}
+    assert _flags(shader_source(method, "color", 3, textured)) == {
+        "FEATURE_TRIANGLES": 1,
+        "FEATURE_SHAPES": 0,
+        "FEATURE_LIGHTING": 0,
+        **surface_on,
+    }
+    assert _flags(shader_source(method, "color", 3, textured, spheres=False))["FEATURE_TEXTURES"] == 0
     for src in (plain, both, bg):
         assert "//@" not in src
     if method == "bruteforce":

@@ -45,7 +45,9 @@ export { DeviceRenderer, DeviceUnavailable } from './device_gl.js';
 // ---- the blob ------------------------------------------------------------------------------
 const MAGIC = 'PRDD';
 
-// → {header, textures: [{name, width, height, components, dtype, internal_format, data}]}
+// → {header, textures: [{name, width, height, components, dtype, internal_format, data}]}; a texture
+// array (dtype 'u1', RGBA8: the scene's textures) has `layers` and `levels` [{width, height, data}], its
+// mip levels (server/frames/device_data.py's encode_blob).
 export function parseDeviceData(buffer) {
   const bytes = new Uint8Array(buffer);
   const magic = String.fromCharCode(...bytes.subarray(0, 4));
@@ -56,6 +58,10 @@ export function parseDeviceData(buffer) {
   const n = view.getUint32(8, true);
   const header = JSON.parse(new TextDecoder().decode(bytes.subarray(12, 12 + n)));
   const textures = header.textures.map((t) => {
+    if (t.levels) {
+      const levels = t.levels.map((l) => ({ ...l, data: new Uint8Array(buffer, l.offset, l.nbytes) }));
+      return { ...t, levels };
+    }
     const count = t.width * t.height * t.components;
     const Ctor = t.dtype === 'f4' ? Float32Array : Uint32Array;
     return { ...t, data: new Ctor(buffer, t.offset, count) };
@@ -183,6 +189,7 @@ export class DeviceView {
       const t0 = performance.now();
       const q = {
         max_texture_size: params.max_texture_size ?? this.renderer.maxTextureSize,
+        max_array_texture_layers: this.renderer.maxArrayTextureLayers,
         float_textures: this.renderer.colorBufferFloat ? 'true' : 'false',
       };
       // (samples_per_pixel, tone_map, exposure: the header's display settings; the live view

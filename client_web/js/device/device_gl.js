@@ -304,6 +304,7 @@ export class DeviceRenderer {
     const dbg = gl.getExtension('WEBGL_debug_renderer_info');
     this.rendererName = String(gl.getParameter(dbg ? dbg.UNMASKED_RENDERER_WEBGL : gl.RENDERER));
     this.maxTextureSize = gl.getParameter(gl.MAX_TEXTURE_SIZE);
+    this.maxArrayTextureLayers = gl.getParameter(gl.MAX_ARRAY_TEXTURE_LAYERS);
     this.lost = false;
     this.canvas.addEventListener('webglcontextlost', (e) => { e.preventDefault(); this.lost = true; });
     this.programs = new Map();     // sources → {program, uniforms, logs}
@@ -372,12 +373,24 @@ export class DeviceRenderer {
     this.textures = [];
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
     for (const t of parsed.textures) {
+      if (t.levels) {   // the scene's textures: RGBA8 layers with their mip levels, read by texelFetch
+        const tex = gl.createTexture();
+        gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex);
+        gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, t.levels.length > 1 ? gl.NEAREST_MIPMAP_NEAREST : gl.NEAREST);
+        gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+        gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAX_LEVEL, t.levels.length - 1);
+        t.levels.forEach((l, i) => gl.texImage3D(
+          gl.TEXTURE_2D_ARRAY, i, gl.RGBA8, l.width, l.height, t.layers, 0, gl.RGBA, gl.UNSIGNED_BYTE, l.data));
+        gl.bindTexture(gl.TEXTURE_2D_ARRAY, null);
+        this.textures.push({ name: t.name, tex, target: gl.TEXTURE_2D_ARRAY });
+        continue;
+      }
       const fmt = textureFormat(gl, t.dtype, t.components);
       const tex = gl.createTexture();
       gl.bindTexture(gl.TEXTURE_2D, tex);
       nearest(gl);
       gl.texImage2D(gl.TEXTURE_2D, 0, fmt.internal, t.width, t.height, 0, fmt.format, fmt.type, t.data);
-      this.textures.push({ name: t.name, tex });
+      this.textures.push({ name: t.name, tex, target: gl.TEXTURE_2D });
     }
     gl.bindTexture(gl.TEXTURE_2D, null);
     this.header = parsed.header;
@@ -531,7 +544,7 @@ export class DeviceRenderer {
       const u = prog.uniforms.get(t.name);
       if (!u) continue;
       gl.activeTexture(gl.TEXTURE0 + unit);
-      gl.bindTexture(gl.TEXTURE_2D, t.tex);
+      gl.bindTexture(t.target, t.tex);
       gl.uniform1i(u.loc, unit++);
       bound.add(t.name);
     }

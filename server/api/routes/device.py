@@ -38,7 +38,7 @@ from urllib.parse import urlencode
 from fastapi import APIRouter, Query, Response
 from fastapi.responses import PlainTextResponse
 
-from renderer import gpu_layout
+from renderer import gpu_layout, texture_layout
 from renderer.accel.base import AccelerationMethod
 from renderer.methods import METHODS, not_on_gpu
 from renderer.modes import SINGLE_PASS_MODES
@@ -47,7 +47,14 @@ from renderer.scene import SceneError
 from renderer.shader_source import tracer_source, vertex_source
 
 from ...faults import InputError, Where, input_error
-from ...frames.device_data import FEATURE_DEFINES, device_header, device_stats, device_uniforms, encode_blob
+from ...frames.device_data import (
+    FEATURE_DEFINES,
+    device_header,
+    device_stats,
+    device_uniforms,
+    encode_blob,
+    surface_info,
+)
 from ...frames.encode import EXPOSED, stats_header
 from ...frames.pipeline import render_settings
 from ...sessions.scenes import tree_primitives
@@ -178,6 +185,8 @@ def device_data(
         try:
             prepared = meth.prepare(scene, settings["max_prims"], settings["max_tree_depth"], width, update)
             prims = gpu_layout.pack_primitives(scene, width)
+            # Textures larger than the device's side are halved (a notice in the header), never refused.
+            surface = texture_layout.pack_surface_data(scene, width, query.max_array_texture_layers)
         except ValueError as e:
             raise InputError(
                 ("query", "max_texture_size"), f"the scene does not fit this device's textures ({e}); use server mode"
@@ -198,7 +207,8 @@ def device_data(
         build_ms=prepared.build_ms,
         pack_ms=(t_packed - t_built0) * 1e3 - prepared.build_ms,
     )
-    blob = encode_blob(header, {**prims.textures, **prepared.packed.textures})
+    header["surface"] = surface_info(surface)
+    blob = encode_blob(header, {**prims.textures, **prepared.packed.textures, **surface.packed.textures})
     total = (time.perf_counter() - t0) * 1e3
     timing = f"build;dur={prepared.build_ms:.2f}, pack;dur={header['pack_ms']:.2f}, total;dur={total:.2f}"
     return Response(

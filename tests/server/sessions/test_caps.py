@@ -64,3 +64,36 @@ def test_the_caps_resolve_auto_on_the_tree_primitives_of_the_stored_scene(caps):
     assert tree_primitives(table) == table["n_shapes"] < AUTO_CROSSOVER_N
     assert caps.check_work(auto, tree_primitives(table)) == "bruteforce"
     assert caps.check_work(auto.with_(method="bvh"), 1) == "bvh"
+
+
+def _textured(sides: list[int]):
+    import numpy as np
+
+    from renderer.materials.pbr import PbrMaterial
+    from renderer.materials.texture import Texture
+    from renderer.scene import Camera, Scene, make_mesh
+
+    quad = make_mesh([[0, 0, 0], [1, 0, 0], [0, 0, 1]], [[0, 2, 1]], uvs=[[0, 0], [1, 0], [0, 1]])
+    return Scene(
+        Camera((0.0, 2.0, 0.01), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 60.0),
+        (),
+        (PbrMaterial(base_color_texture=0),),
+        np.zeros((0, 3)),
+        np.zeros(0),
+        np.zeros(0, np.int32),
+        meshes=(quad,),
+        textures=tuple(Texture(np.zeros((s, s, 4), np.uint8)) for s in sides),
+    )
+
+
+def test_a_scene_over_the_session_texture_budget_is_refused_naming_it(tmp_path):
+    """4 × 4 RGBA8 with its levels is 4 · (16 + 4 + 1) = 84 bytes: two fit a budget of 168, three do not."""
+    caps = InputCaps(ServerConfig(sqlite_path=tmp_path / "s.db", max_session_texture_bytes=168))
+    caps.check_textures(_textured([4, 4]), ("scene", "textures"))
+    with pytest.raises(InputError) as e:
+        caps.check_textures(_textured([4, 4, 4]), ("scene", "textures"))
+    assert e.value.loc == ("scene", "textures")
+    assert "252 bytes" in e.value.message and "POCKETRAY_MAX_SESSION_TEXTURE_BYTES" in e.value.message
+    InputCaps(ServerConfig(sqlite_path=tmp_path / "t.db", max_session_texture_bytes=0)).check_textures(
+        _textured([64] * 8), ("textures",)
+    )  # 0: no budget

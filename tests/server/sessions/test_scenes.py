@@ -200,3 +200,45 @@ def test_the_image_is_stored_as_its_texels():
     texels = scene.environment_map.texels.nbytes
     assert texels <= len(source) < texels + 4096
     np.testing.assert_array_equal(load_source(source, scene.camera).environment_map.texels, 0.5)
+
+
+def test_textures_and_vertex_attributes_are_stored_as_they_are_and_reported():
+    """A textured scene's source keeps every texture's texels (uncompressed: the store's quota counts
+    them) and sampler, and each mesh's UVs, colours and tangents, bit for bit; its info reports the
+    GPU bytes of the texture array with its mip levels and of the attribute records."""
+    from renderer import texture_layout
+    from renderer.materials.pbr import PbrMaterial
+    from renderer.materials.texture import Texture
+    from renderer.scene import Scene, make_mesh
+
+    rng = np.random.default_rng(0)
+    tex = (
+        Texture(rng.integers(0, 256, (64, 32, 4), dtype=np.uint8), srgb=True, wrap_s="mirror", name="a.png"),
+        Texture(rng.integers(0, 256, (5, 7, 4), dtype=np.uint8), filter="nearest"),
+    )
+    v = [[0, 0, 0], [1, 0, 0], [0, 0, 1], [1, 0, 1]]
+    uv = rng.random((4, 2))
+    a = make_mesh(v, [[0, 2, 1], [1, 2, 3]], uvs=uv, uvs1=uv[::-1], colors=rng.random((4, 4)), material=1)
+    b = make_mesh(v, [[0, 2, 1]])
+    c = make_mesh(v, [[0, 2, 1]], uvs=uv, tangents=[[1, 0, 0, -1]] * 4, material=1)
+    cam = Camera((0.0, 3.0, 0.5), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 60.0)
+    mats = (PbrMaterial(), PbrMaterial(base_color_texture=0, normal_texture=1))
+    scene = Scene(
+        cam, (), mats, np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int32), meshes=(a, b, c), textures=tex
+    )  # fmt: skip
+    source = scene_source(scene)
+    assert len(source) > sum(t.nbytes for t in tex)  # the texels themselves, not a compressed image
+    back = load_source(source, cam)
+    assert len(back.textures) == 2
+    for t0, t1 in zip(tex, back.textures, strict=True):
+        sampler = ("srgb", "wrap_s", "wrap_t", "filter", "name")
+        assert [getattr(t1, k) for k in sampler] == [getattr(t0, k) for k in sampler]
+        np.testing.assert_array_equal(t1.pixels, t0.pixels)
+    for m0, m1 in zip(scene.meshes, back.meshes, strict=True):
+        assert set(m1.attributes) == set(m0.attributes)
+        for name, values in m0.attributes.items():
+            np.testing.assert_array_equal(m1.attributes[name], values)
+    info = scene_info(scene)
+    assert info["n_textures"] == 2
+    assert info["texture_bytes"] == texture_layout.texture_array_bytes(64, 64, 2) == texture_layout.array_bytes(tex)
+    assert info["attribute_bytes"] == (64 + 48 + 48) * 4  # UVs, colours (a), tangents (c) for all 4 triangles

@@ -99,3 +99,17 @@ def test_the_ray_engines_refuse_path_on_the_device_and_the_server(api, method):
     assert r.status_code == 422, r.text
     r = api.patch(f"/api/sessions/{sid}/settings", json={"integrator": "path", "method": method})
     assert r.status_code == 422 and "integrator" in r.text, r.text
+
+
+def test_device_data_takes_the_devices_layer_limit_and_reports_its_surface_bytes(api):
+    """max_array_texture_layers (the device's MAX_ARRAY_TEXTURE_LAYERS) is a bounded query field; the
+    header's surface says what a scene's textures and attribute records take on the device (nothing
+    here: no texture, no texture array in the blob)."""
+    sid = create(api, mesh_scene_json()).json()["id"]
+    bad = api.get(f"/api/sessions/{sid}/device-data", params={"max_array_texture_layers": 0})
+    assert bad.status_code == 422 and "max_array_texture_layers" in bad.text
+    r = api.get(f"/api/sessions/{sid}/device-data", params={"max_array_texture_layers": 2048})
+    assert r.status_code == 200, r.text
+    header, textures = decode_blob(r.content)
+    assert header["surface"] == {"texture_bytes": 0, "attribute_bytes": 0, "notices": []}
+    assert "u_textures" not in textures and "TEXTURES" not in header["shader"]["features"]
