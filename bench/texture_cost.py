@@ -1,9 +1,9 @@
 """What textures cost: a textured scene against the same scene untextured, and their memory.
 
-    python -m bench.textures                  # both scenes, 5 interleaved runs each (≈ 1 min at load 6)
-    python -m bench.textures --runs 9 --spp 16
-    python -m bench.textures --quick          # tiny frames, 1 run (smoke)
-    python -m bench.textures --memory-only
+    python -m bench.texture_cost                  # both scenes, 5 interleaved runs each (≈ 1 min at load 6)
+    python -m bench.texture_cost --runs 9 --spp 16
+    python -m bench.texture_cost --quick          # tiny frames, 1 run (smoke)
+    python -m bench.texture_cost --memory-only
 
 **Time.** Each scene is traced twice: as it is (*textured*) and *untextured* (:func:`untextured`:
 the same meshes with their UVs and tangents, the same materials of the same kind, each texture
