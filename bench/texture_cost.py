@@ -19,16 +19,17 @@ read-back) and of the whole frame's process CPU time (llvmpipe's threads include
 with the machine's other work as the wall clock does). Ratio = textured / untextured, from the
 same run. The acceleration structure is the same for both (the same triangles).
 
-Scenes: the ``materials`` demo scene (``mesh_scene("materials")``, framed for a 390 × 844 phone)
-and, where the model reader brings its textures, the corpus's ``BoxTextured.glb`` (assimp's test
-models, Debian's ``assimp-testmodels``) as ``pocketray render`` stages a model.
+Scenes, each framed for a 390 × 844 phone: the ``materials`` demo scene (``mesh_scene("materials")``)
+and, where the model reader brings their textures, the corpus's ``BoxTextured.glb`` and
+``spider.obj`` (assimp's test models, Debian's ``assimp-testmodels``) as ``pocketray render``
+stages a model (``renderer.mesh_io.model_scene``).
 
 **Memory** of each scene's textures, RGBA8: per texture its level 0 and its full mip chain
-(⌈w / 2^l⌉ × ⌈h / 2^l⌉ texels at level l), then what the GPU holds — one 2D array texture whose
-layers are the largest texture's size rounded up to powers of two, with its mip levels
-(``renderer.texture_layout.pack_texture_array``) — on the server and for the phone (device mode
-uploads the same array, packed for the device's ``MAX_TEXTURE_SIZE``: WebGL2's guaranteed 2,048
-here, the phone's worst case).
+(⌈w / 2^l⌉ × ⌈h / 2^l⌉ texels at level l), then what the GPU holds — one 2D array texture of
+square slots with its mip levels (``renderer.texture_layout``: ``array_bytes``) — on the server and
+for the phone (device mode uploads the same array, packed for the device's ``MAX_TEXTURE_SIZE``:
+WebGL2's guaranteed 2,048 here, the phone's worst case), and the triangles' attribute records the
+textures bring (UVs and their level terms, tangents: ``attribute_bytes``).
 """
 
 from __future__ import annotations
@@ -48,7 +49,8 @@ from renderer.materials.pbr import SLOTS, PbrMaterial
 from renderer.procedural_textures import mean_factor
 from renderer.scene import Scene
 
-CORPUS_MODEL = Path("/usr/share/assimp/models/glTF2/BoxTextured-glTF-Binary/BoxTextured.glb")
+CORPUS = Path("/usr/share/assimp/models")
+CORPUS_MODELS = ("glTF2/BoxTextured-glTF-Binary/BoxTextured.glb", "OBJ/spider.obj")
 PHONE_ASPECT = 390 / 844
 PRIMARY_SIZE = (195, 422)  # half the phone's 390 × 844: Whitted's primary rays
 PATH_SIZE = (130, 282)  # a third of it: the path integrator's samples
@@ -89,15 +91,15 @@ def untextured(scene: Scene) -> Scene:
 
 def scenes(aspect: float) -> dict[str, Scene]:
     """The scenes measured (the module docstring), each framed for ``aspect``."""
+    from renderer.mesh_io import model_scene
     from renderer.scenarios import framed, mesh_scene
 
     out = {"materials": framed(mesh_scene("materials"), aspect)}
-    if CORPUS_MODEL.exists():
-        from renderer.mesh_io import model_scene
-
-        model = model_scene(CORPUS_MODEL)
-        if model.textures:  # a reader that drops the textures leaves nothing to compare
-            out["BoxTextured.glb"] = framed(model, aspect)
+    for name in CORPUS_MODELS:
+        path = CORPUS / name
+        model = model_scene(path) if path.exists() else None
+        if model is not None and model.textures:  # a reader that drops the textures leaves nothing to compare
+            out[path.name] = framed(model, aspect)
     return out
 
 
@@ -139,39 +141,29 @@ def _mib(b: int) -> str:
     return f"{b / 2**20:.2f} MiB" if b >= 2**20 else f"{b / 2**10:.1f} KiB"
 
 
-def chain_bytes(width: int, height: int) -> int:
-    """Bytes of an RGBA8 image's full mip chain (down to 1 × 1)."""
-    total, w, h = 0, width, height
-    while True:
-        total += w * h * 4
-        if w == 1 and h == 1:
-            return total
-        w, h = max(1, (w + 1) // 2), max(1, (h + 1) // 2)
-
-
 def memory(scene: Scene) -> dict[str, Any]:
-    """Per texture: name, size, sRGB, level 0 and mip-chain bytes; and the GPU array's bytes on the
-    server and for a WebGL2 phone (its level 0, and with its mip levels)."""
+    """Per texture: name, size, sRGB, level 0 and mip-chain bytes; the GPU array's bytes on the
+    server and for a WebGL2 phone (level 0, and with its mip levels: what device mode uploads too);
+    and the triangles' attribute records (UVs, tangents) that come with textures."""
     from renderer import limits
-    from renderer.texture_layout import pack_texture_array
+    from renderer.texture_layout import array_bytes, array_layers, attribute_bytes, fit_textures, texture_bytes
 
     rows = [
-        {"name": t.name, "size": [t.width, t.height], "srgb": t.srgb, "level0": t.nbytes}
-        | {"mips": chain_bytes(t.width, t.height)}
+        {"name": t.name, "size": [t.width, t.height], "srgb": t.srgb, "level0": t.nbytes, "mips": texture_bytes(t)}
         for t in scene.textures
     ]
     gpu = {}
     for where, side in (("server", limits.MAX_TEXTURE_SIDE), ("phone", WEBGL2_MAX_TEXTURE_SIZE)):
-        packed = pack_texture_array(scene.textures, max_size=side)
-        levels = packed.array.levels
+        fitted, notices = fit_textures(scene.textures, max_size=side)
+        layer, layers = array_layers([(t.width, t.height) for t in fitted])
         gpu[where] = {
-            "layer": list(levels[0].shape[1:3][::-1]),
-            "layers": int(levels[0].shape[0]),
-            "level0": int(levels[0].nbytes),
-            "mips": int(sum(lv.nbytes for lv in levels)),
-            "notices": list(packed.notices),
+            "layer": [layer, layer],
+            "layers": layers,
+            "level0": layer * layer * layers * 4,
+            "mips": array_bytes(scene.textures, max_size=side),
+            "notices": notices,
         }
-    return {"textures": rows, "gpu": gpu}
+    return {"textures": rows, "gpu": gpu, "attributes": attribute_bytes(scene)}
 
 
 def time_table(name: str, d: dict, sizes: dict[str, str]) -> str:
@@ -206,6 +198,7 @@ def memory_table(name: str, m: dict) -> str:
         rows.append(
             f"| GPU array, {where} | {g['layers']} × {w} × {h} | | {_mib(g['level0'])} | {_mib(g['mips'])}{note} |"
         )
+    rows.append(f"| triangles' UV and tangent records (both) | | | {_mib(m['attributes'])} | |")
     return "\n".join(rows)
 
 
