@@ -501,7 +501,9 @@ def materials_scene_parts(detail: int = 2, smooth: bool = True) -> tuple[Scene, 
     board_uv = ((x1 - x0) / repeat, 0.0, 0.0, (z1 - z0) / repeat)
     tiles_uv = (2.0, 0.0, 0.0, 1.5)  # 8 × 6 tiles of 2.5 on the wall's 20 × 15 face
     materials = (
-        PbrMaterial(base_color=(0.5, 0.5, 0.52), metallic=0.0, roughness=0.9),  # 0 the floor beyond the board
+        PbrMaterial(
+            base_color=(0.2, 0.19, 0.18), metallic=0.0, roughness=0.9
+        ),  # 0 the floor: dark, the board stands out
         PbrMaterial(metallic=0.0, roughness=0.4, base_color_texture=0, base_color_uv_matrix=board_uv),  # 1 board
         PbrMaterial(
             metallic=1.0, roughness=1.0, base_color_texture=1, metallic_roughness_texture=2
@@ -536,7 +538,9 @@ def materials_scene_parts(detail: int = 2, smooth: bool = True) -> tuple[Scene, 
     sun = tuple(float(c) for c in SUN_DIRECTION * 80.0)
     scene = Scene(
         Camera((0.0, 22.0, 36.0), (0.0, -14.0, 0.0), (0.0, 1.0, 0.0), 45.0),
-        (Light(position=(sun[0], sun[1], sun[2]), color=(1.0, 1.0, 1.0)),),
+        (
+            Light(position=(sun[0], sun[1], sun[2]), color=(0.7, 0.7, 0.7)),
+        ),  # Whitted's sun; the path's sun is in the sky too
         materials,
         np.zeros((0, 3)),
         np.zeros(0),
@@ -782,7 +786,8 @@ DEMO_SCENES: tuple[DemoScene, ...] = (
         "mesh:materials",
         "Materials — checker, wood, brushed metal, tiles, tinted glass; path traced",
         {"mesh_scene": {"kind": "materials"}},
-        PATH_DENOISED,
+        # the sky's sun and the point light together: a stop down, and ACES keeps the white tiles' glaze
+        {**PATH_DENOISED, "tone_map": "aces", "exposure": -1.0},
     ),
 )
 DEFAULT_DEMO = next(d for d in DEMO_SCENES if d.default)
