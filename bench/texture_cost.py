@@ -1,6 +1,6 @@
 """What textures cost: a textured scene against the same scene untextured, and their memory.
 
-    python -m bench.texture_cost                  # both scenes, 5 interleaved runs each (≈ 1 min at load 6)
+    python -m bench.texture_cost                  # every scene, 7 interleaved runs each (≈ 1.5 min at load 6)
     python -m bench.texture_cost --runs 9 --spp 16
     python -m bench.texture_cost --quick          # tiny frames, 1 run (smoke)
     python -m bench.texture_cost --memory-only
@@ -52,10 +52,10 @@ from renderer.scene import Scene
 CORPUS = Path("/usr/share/assimp/models")
 CORPUS_MODELS = ("glTF2/BoxTextured-glTF-Binary/BoxTextured.glb", "OBJ/spider.obj")
 PHONE_ASPECT = 390 / 844
-PRIMARY_SIZE = (195, 422)  # half the phone's 390 × 844: Whitted's primary rays
-PATH_SIZE = (130, 282)  # a third of it: the path integrator's samples
+PRIMARY_SIZE = (390, 844)  # the phone's screen: Whitted's primary rays
+PATH_SIZE = (195, 422)  # half of it: the path integrator's samples
 QUICK_SIZE = (39, 84)
-SPP, DEPTH, RUNS = 8, 4, 5
+SPP, DEPTH, RUNS = 8, 4, 7
 WEBGL2_MAX_TEXTURE_SIZE = 2048  # what WebGL2 guarantees; phones report 4,096 or more
 
 
