@@ -17,7 +17,9 @@ mip chain); each figure is the minimum over ``--runs`` frames, of the frame's ``
 (``GLRenderer``'s timing: the passes and ``glFinish``, without the tree's build, the upload and the
 read-back) and of the whole frame's process CPU time (llvmpipe's threads included: it does not grow
 with the machine's other work as the wall clock does). Ratio = textured / untextured, from the
-same run. The acceleration structure is the same for both (the same triangles).
+same run. The acceleration structure is the same for both (the same triangles). ``--slots`` adds
+the materials scene with its base colour textures only, then with its metallic-roughness ones too
+(the rest of its textures averaged): what each slot's lookups add.
 
 Scenes, each framed for a 390 × 844 phone: the ``materials`` demo scene (``mesh_scene("materials")``)
 and, where the model reader brings their textures, the corpus's ``BoxTextured.glb`` and
@@ -56,17 +58,26 @@ PRIMARY_SIZE = (390, 844)  # the phone's screen: Whitted's primary rays
 PATH_SIZE = (195, 422)  # half of it: the path integrator's samples
 QUICK_SIZE = (39, 84)
 SPP, DEPTH, RUNS = 8, 4, 7
+SLOT_PARTS = ("texture", "texcoord", "uv_matrix", "uv_offset")
+# --slots: the textured scene built up a slot at a time, each version keeping the slots named
+BREAKDOWN = {
+    "base colour": ("base_color",),
+    "+ metallic-roughness": ("base_color", "metallic_roughness"),
+}
 WEBGL2_MAX_TEXTURE_SIZE = 2048  # what WebGL2 guarantees; phones report 4,096 or more
 
 
-def untextured(scene: Scene) -> Scene:
+def untextured(scene: Scene, keep: tuple[str, ...] = ()) -> Scene:
     """``scene`` with every texture replaced by its average in the factor it multiplies (the
-    module docstring): the same meshes (UVs, tangents and all) and material kinds, no textures."""
+    module docstring): the same meshes (UVs, tangents and all) and material kinds, no textures.
+    ``keep``: texture slots (:data:`renderer.materials.pbr.SLOTS`) left as they are — then the
+    scene keeps its textures."""
     texels = scene.textures
 
     def flat(m: Any) -> Any:
         if not isinstance(m, PbrMaterial) or not m.textures():
             return m
+        kept = {f"{slot}_{part}": getattr(m, f"{slot}_{part}") for slot in keep for part in SLOT_PARTS}
         kw: dict[str, Any] = {}
         if m.base_color_texture >= 0:
             mean = mean_factor(texels[m.base_color_texture])
@@ -81,12 +92,17 @@ def untextured(scene: Scene) -> Scene:
         if m.transmission_texture >= 0:
             kw["transmission"] = float(m.transmission * mean_factor(texels[m.transmission_texture])[0])
         for slot in SLOTS:  # every slot back to its default: no texture, set 0, no transform
-            for part in ("texture", "texcoord", "uv_matrix", "uv_offset"):
+            for part in SLOT_PARTS:
                 name = f"{slot}_{part}"
                 kw[name] = PbrMaterial.__dataclass_fields__[name].default
+        if kept:  # a kept slot keeps its texture and its factor
+            factors = {"base_color": ("base_color", "alpha"), "metallic_roughness": ("roughness", "metallic")}
+            kw = {k: v for k, v in kw.items() if not any(k in factors.get(slot, ()) for slot in keep)}
+            kw |= kept
         return dataclasses.replace(m, **kw)
 
-    return dataclasses.replace(scene, materials=tuple(flat(m) for m in scene.materials), textures=())
+    textures = scene.textures if keep else ()
+    return dataclasses.replace(scene, materials=tuple(flat(m) for m in scene.materials), textures=textures)
 
 
 def scenes(aspect: float) -> dict[str, Scene]:
@@ -107,12 +123,17 @@ def _load() -> float:
     return round(os.getloadavg()[0], 2)
 
 
-def timing(scene: Scene, frames: dict[str, Any], runs: int, log) -> dict[str, dict[str, dict[str, list[float]]]]:
-    """{frame: {version: {"trace": [ms …], "cpu": [s …], "mean": [radiance]}}}, interleaved."""
+def timing(
+    scene: Scene, frames: dict[str, Any], runs: int, log, slots: bool = False
+) -> dict[str, dict[str, dict[str, list[float]]]]:
+    """{frame: {version: {"trace": [ms …], "cpu": [s …], "mean": [radiance]}}}, interleaved;
+    ``slots``: the :data:`BREAKDOWN` versions too."""
     from renderer.gl.renderer import GLRenderer
 
     r = GLRenderer()
     versions = {"textured": scene, "untextured": untextured(scene)}
+    if slots:
+        versions |= {name: untextured(scene, keep) for name, keep in BREAKDOWN.items()}
     out: dict[str, dict[str, dict[str, list[float]]]] = {}
     for fname, settings in frames.items():
         rec: dict[str, dict[str, list[float]]] = {v: {"trace": [], "cpu": [], "mean": []} for v in versions}
@@ -179,6 +200,11 @@ def time_table(name: str, d: dict, sizes: dict[str, str]) -> str:
             f"| | {fname} ({sizes[fname]}) | {tu:.1f} | {tt:.1f} | **{tt / tu:.2f}×** | {cu:.2f} | {ct:.2f} "
             f"| {ct / cu:.2f}× |"
         )
+        for part in BREAKDOWN:
+            if part in rec:
+                p = rec[part]
+                tp, cp = min(p["trace"]), min(p["cpu"])
+                rows.append(f"| | … {part} only | | {tp:.1f} | {tp / tu:.2f}× | | {cp:.2f} | {cp / cu:.2f}× |")
     return "\n".join(rows)
 
 
@@ -211,6 +237,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--depth", type=int, default=DEPTH, help="the path frame's depth")
     ap.add_argument("--quick", action="store_true", help=f"{QUICK_SIZE[0]} × {QUICK_SIZE[1]}, 1 run (smoke)")
     ap.add_argument("--memory-only", action="store_true")
+    ap.add_argument("--slots", action="store_true", help="the materials scene built up a texture slot at a time")
     ap.add_argument("--json", type=Path, help="write the raw measurements here")
     ap.add_argument("-v", "--verbose", action="store_true", help="each frame's time on stderr")
     a = ap.parse_args(argv)
@@ -239,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
         if a.memory_only:
             continue
         load0 = _load()
-        d = timing(scene, frames, runs, log)
+        d = timing(scene, frames, runs, log, slots=a.slots and name == "materials")
         out.setdefault("time", {})[name] = d
         print(
             f"\n## Textured vs untextured: {name} (min of {runs} interleaved; load {load0} → {_load()})\n\n"
