@@ -145,7 +145,7 @@ def wood(size: int = 256, rings: float = 26.0, seed: int = 1) -> tuple[Texture, 
 def brushed_metal(size: int = 256, roughness: float = 0.3, spread: float = 0.2, seed: int = 2) -> Texture:
     """Brushed metal's metallic-roughness texture: metallic 1 (blue) and a roughness (green) of
     streaks along U — noise that changes a hundred times faster down the image than across it,
-    as a brush or a lathe leaves fine grooves along its stroke — about ``roughness`` ± ``spread``
+    as a brush or a lathe leaves fine grooves along its stroke, over a dozen broader bands — about ``roughness`` ± ``spread``
     / 2 with a few grooves up to ``spread`` / 2 rougher still, within [0, 1]. Tileable: the
     streaks run on across the wrap."""
     size = _size(size)
@@ -153,7 +153,9 @@ def brushed_metal(size: int = 256, roughness: float = 0.3, spread: float = 0.2, 
         raise SceneError("roughness", f"roughness and spread must be in 0 … 1, got {roughness}, {spread}")
     rng = np.random.default_rng(seed)
     down = min(size, 256)
-    streaks = 0.6 * tileable_noise(size, (2, down), rng) + 0.4 * tileable_noise(size, (4, down // 2), rng)
+    fine = 0.6 * tileable_noise(size, (2, down), rng) + 0.4 * tileable_noise(size, (4, down // 2), rng)
+    bands = tileable_noise(size, (1, 12), rng)  # broad bands of polish: what a phone's few pixels still show
+    streaks = 0.5 * fine + 0.5 * bands
     scratches = (tileable_noise(size, (8, down), rng) > 0.9) * 0.5  # a few deeper grooves
     g = np.clip(roughness + spread * (streaks - 0.5) + spread * scratches, 0.0, 1.0)
     mr = np.stack([np.zeros_like(g), g, np.ones_like(g)], axis=-1)

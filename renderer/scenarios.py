@@ -492,7 +492,7 @@ def materials_scene_parts(detail: int = 2, smooth: bool = True) -> tuple[Scene, 
     size = MATERIALS_TEXTURE_SIZE
     checker = T.checker(size, squares=8)
     wood, wood_mr = T.wood(size)
-    brushed = T.brushed_metal(size, roughness=0.3, spread=0.25)
+    brushed = T.brushed_metal(size, roughness=0.3, spread=0.4)
     glaze, tile_normals = T.tiles(size, count=4)
     textures = (checker, wood, wood_mr, brushed, glaze, tile_normals)
 
