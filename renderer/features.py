@@ -64,6 +64,9 @@ PATH_REMOVALS = ("NO_ROUGHNESS", "NO_SPHERE_LIGHTS", "NO_TRIANGLE_LIGHTS", "NO_S
 # The defines a variant may carry, in the order they are emitted (the server's shader query
 # accepts these, in this order).
 FEATURE_DEFINES = (*REMOVALS, *PLANE_COUNTS, *LIGHT_COUNTS, *DATA_FORMATS, *LIGHTING, *PATH_REMOVALS)
+# Those that are switches: the tracer's header defines each to 1 where the variant carries it, else
+# 0 (renderer/shader_source.py); the counts become the numbers N_PLANES and N_LIGHTS.
+SWITCHES = (*REMOVALS, *DATA_FORMATS, *LIGHTING, *PATH_REMOVALS)
 
 
 @dataclass(frozen=True)

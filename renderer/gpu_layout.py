@@ -215,7 +215,7 @@ class Binding:
         )
 
 
-# Groups of bindings a variant may not read; each has a READS_<GROUP> define in the shader.
+# Groups of bindings a variant may not read; each has a READS_<GROUP> switch (0 or 1) in the shader.
 GROUPS = (
     "materials",
     "lights",
@@ -226,10 +226,8 @@ GROUPS = (
     "path",
     "environment_map",
     "environment_sampling",
+    "shading_normals",
 )
-# Groups whose READS_<GROUP> define only variants with triangles get (renderer/shader_source.py),
-# so no sphere variant's text changes for them: the smooth triangles' vertex normals.
-SILENT_GROUPS = ("shading_normals",)
 
 
 @dataclass(frozen=True)
@@ -317,10 +315,6 @@ class Variant:
             and (b.needs is None or carries(b.needs))
             and (b.unless is None or not carries(b.unless))
         )
-
-    def defines(self) -> list[str]:
-        """``READS_<GROUP>`` for each group read: the shader guards its uses with them."""
-        return [f"READS_{g.upper()}" for g in GROUPS if self.reads(g)]
 
 
 SPHERES = Binding("u_spheres", "highp sampler2D", "(centre.xyz, radius) per sphere id", tracer=False)
@@ -629,15 +623,15 @@ RAY_ENGINE_BINDINGS = (
 
 def declarations(bindings: tuple[Binding, ...] | list[Binding], blocks: tuple[str, ...] = ()) -> str:
     """GLSL declarations of ``bindings``, one per line; record arrays named in ``blocks`` as
-    uniform blocks. A ``LAYOUT_INIT()`` macro follows when a record array is a texture (it
-    sets the row shifts; the tracer calls it first)."""
+    uniform blocks. A ``LAYOUT_INIT()`` macro follows, always (the tracer calls it first): it
+    sets the row shifts of the record arrays that are textures, if any."""
     text = "".join(b.declaration(b.name in blocks) + "\n" for b in bindings)
     shifts = [b.name for b in bindings if b.records and b.name not in blocks]
     if shifts:
         text += (
             "#define LAYOUT_INIT() " + " ".join(f"{n}_shift = row_shift(textureSize({n}, 0));" for n in shifts) + "\n"
         )
-    elif any(b.records for b in bindings):
+    else:
         text += "#define LAYOUT_INIT()\n"
     return text
 

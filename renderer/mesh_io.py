@@ -1,21 +1,26 @@
-"""Triangle meshes from model files — OBJ, PLY, STL, glTF/GLB, and a zip of a model's folder —
-through trimesh, and the functions a command line calls to make scenes of them.
+"""Models from model files — OBJ, PLY, STL, glTF/GLB, and a zip of a model's folder — and the
+functions a command line calls to make scenes of them.
 
-:func:`load_mesh` parses a file (a path, or bytes held in memory: nothing is written) into
-:class:`MeshData`. A model's side files — a glTF's ``.bin`` buffers and images, an OBJ's
-``.mtl`` — come from its folder (a path), from the zip it was sent in (``format="zip"``,
-:mod:`renderer.model_archive`), or not at all (a model file sent alone: a reference to another
-file is refused, naming it). :class:`MeshData` holds float64 vertices, triangles, the file's vertex normals
-when it has them (OBJ ``vn``, PLY ``nx ny nz``, glTF ``NORMAL``). A file of several meshes
-(a glTF scene, an OBJ of several objects) becomes one mesh: each part placed by its node's
-transform. Polygons are split into triangles by trimesh; degenerate triangles are kept (the
-scene counts them). Vertices of exactly equal position (and normal) are merged
-(:func:`renderer.meshes.weld`-like, but keeping every triangle): STL stores each
-triangle's corners apart, and only shared vertices make a mesh watertight for the tracer —
-exact equality keeps every coordinate as the file has it.
+:func:`load_model` parses a file (a path, or bytes held in memory: nothing is written) into a
+:class:`~renderer.model.Model` — its parts, materials and textures — after the file's declared
+numbers are checked (:mod:`renderer.model_guard`), then dispatches by format (:data:`READERS`):
+glTF and GLB to :mod:`renderer.gltf_model` (materials, textures, node instances), OBJ to
+:mod:`renderer.obj_model` (its MTL), PLY to :mod:`renderer.ply_model` (vertex colours and UVs),
+STL through trimesh as one part of the scene's material. A model's side files — a glTF's
+``.bin`` buffers and images, an OBJ's ``.mtl`` — come from its folder (a path), from the zip it
+was sent in (``format="zip"``, :mod:`renderer.model_archive`), or not at all (a model file sent
+alone: a reference to another file is refused, naming it). On the trimesh path polygons are split
+into triangles by trimesh; degenerate triangles are kept (the scene counts them); vertices of
+exactly equal position (and normal) are merged (:func:`renderer.meshes.weld`-like, but keeping
+every triangle): STL stores each triangle's corners apart, and only shared vertices make a mesh
+watertight for the tracer — exact equality keeps every coordinate as the file has it.
+
+:func:`load_mesh` is the geometry alone (:class:`MeshData`: every part placed and joined), for
+exporting and for the answer of ``POST /api/meshes`` (one mesh JSON).
 
 The ``pocketray`` command line (``server/tools/cli.py``) calls :func:`model_scene` for ``render
-model.glb`` and :func:`models_scene_json` for ``scene --mesh model.obj -o scene.json``.
+model.glb`` and :func:`models_scene_json` for ``scene --mesh model.obj -o scene.json``: both keep
+the models' materials and textures.
 """
 
 from __future__ import annotations
@@ -30,6 +35,9 @@ from typing import Any, cast
 import numpy as np
 
 from . import limits
+from .materials.kinds import AnyMaterial
+from .materials.texture import Texture
+from .model import Model, ModelPart
 from .model_archive import MODEL_SUFFIXES, NO_SIDE_FILES, ModelFiles, SideFiles, folder_files, open_archive
 from .model_guard import check_model
 from .scene import Camera, Light, Material, Mesh, Plane, Scene, SceneError, make_mesh
@@ -179,32 +187,15 @@ def _merge_equal(v: np.ndarray, t: np.ndarray, n: np.ndarray | None):
     return v[first], t, (None if n is None else n[first])
 
 
-def load_mesh(
-    source: str | Path | bytes | ModelFiles,
-    file_type: str | None = None,
-    *,
-    max_triangles: int = limits.MAX_TRIANGLES,
-    max_vertices: int = limits.MAX_MESH_VERTICES,
-) -> MeshData:
-    """Parse a model file (path, bytes or :class:`~renderer.model_archive.ModelFiles`;
-    ``file_type`` one of :data:`UPLOAD_FORMATS`, from the suffix when None) into
-    :class:`MeshData`. SceneError ``format`` for an unknown format, ``file`` for a file that is
-    not a model of that format, an archive that breaks a bound, a side file that is missing,
-    a model that holds no triangle, or exceeds ``max_triangles`` / ``max_vertices`` (after
-    merging equal vertices). The file's declared counts, lengths, node tree and images are
-    checked first (:func:`renderer.model_guard.check_model`), so a parser never allocates what
-    the file only claims; parse in a worker process with a deadline when the file comes from
-    someone else (``server/sessions/model_worker.py``)."""
-    files = source if isinstance(source, ModelFiles) else model_files(source, file_type)
+def _trimesh_part(files: ModelFiles, side: SideFiles | None, max_triangles: int, max_vertices: int) -> ModelPart:
+    """Every triangle mesh of the file through trimesh, merged into one part of the scene's
+    material (−1): the formats whose materials are not read here."""
     ft, data = files.format, files.data
-    side = None if files.side is NO_SIDE_FILES else files.side  # a model file alone: no side file to read
-    # the file's own counts and lengths first: the parser would allocate whatever they ask for
-    check_model(data, ft, max_triangles=max_triangles, max_vertices=max_vertices, side=side)
     import trimesh
 
     try:
-        # materials are not read: textures are images to decode, and the tracer needs none; every
-        # other file the parser asks for comes through the resolver (in memory, or the model's folder)
+        # materials are not read on this path; every other file the parser asks for comes through
+        # the resolver (in memory, or the model's folder)
         loaded = trimesh.load(
             io.BytesIO(data), file_type=ft, resolver=cast(Any, _Resolver(side)), process=False, skip_materials=True
         )
@@ -218,11 +209,20 @@ def load_mesh(
     total = sum(len(f) for _, f, _ in parts)
     if total > max_triangles:
         raise SceneError("file", f"the model has {total:,} triangles; at most {max_triangles:,} allowed")
+    v, t, n = _joined(parts)
+    if len(v) > max_vertices:
+        raise SceneError("file", f"the model has {len(v):,} distinct vertices; at most {max_vertices:,} per mesh")
+    return ModelPart(v, t, n)
+
+
+def _joined(parts: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray | None]]):
+    """(vertices, triangles, normals) of ``parts`` as one mesh, equal vertices merged; normals
+    only when every part has them."""
     with_normals = all(n is not None for _, _, n in parts)
     vs, ts, ns, base = [], [], [], 0
     for v, f, n in parts:
         vs.append(v)
-        ts.append(f + base)
+        ts.append(np.asarray(f, np.int64) + base)
         ns.append(n)
         base += len(v)
     v = np.concatenate(vs)
@@ -235,9 +235,95 @@ def load_mesh(
     v, t, n = _merge_equal(v, t, n)
     if n is not None and not (np.abs(n).sum(axis=1) > 0).all():
         n = None  # a zero normal in the file: fall back to flat shading rather than refuse the model
-    if len(v) > max_vertices:
-        raise SceneError("file", f"the model has {len(v):,} distinct vertices; at most {max_vertices:,} per mesh")
-    return MeshData(v, t, n, tuple(side.image_names()) if side is not None else ())
+    return v, t, n
+
+
+# The readers of the formats whose materials are read: module and function, imported when a file
+# of the format comes (each takes the ModelFiles, checked, and the bounds). Every other format is
+# one part of the scene's material through trimesh.
+READERS = {
+    "gltf": ("renderer.gltf_model", "load_gltf_model"),
+    "glb": ("renderer.gltf_model", "load_gltf_model"),
+    "obj": ("renderer.obj_model", "load_obj_model"),
+    "ply": ("renderer.ply_model", "load_ply_model"),
+}
+
+
+def load_model(
+    source: str | Path | bytes | ModelFiles,
+    file_type: str | None = None,
+    *,
+    max_triangles: int = limits.MAX_TRIANGLES,
+    max_vertices: int = limits.MAX_MESH_VERTICES,
+) -> Model:
+    """Parse a model file (path, bytes or :class:`~renderer.model_archive.ModelFiles`;
+    ``file_type`` one of :data:`UPLOAD_FORMATS`, from the suffix when None) into a
+    :class:`~renderer.model.Model`: glTF and GLB with their materials and textures
+    (:mod:`renderer.gltf_model`), OBJ with its MTL (:mod:`renderer.obj_model`), PLY with its
+    vertex colours (:mod:`renderer.ply_model`), STL one part of the scene's material. SceneError
+    ``format`` for an unknown format, ``file`` for a file that is not a model of that format, an
+    archive that breaks a bound, a side file that is missing, a model that holds no triangle, or
+    exceeds ``max_triangles`` (all parts, each instance counted) / ``max_vertices`` (one part).
+    The file's declared counts, lengths, node tree and images are checked first
+    (:func:`renderer.model_guard.check_model`), so a parser never allocates what the file only
+    claims; parse in a worker process with a deadline when the file comes from someone else
+    (``server/sessions/model_worker.py``)."""
+    files = source if isinstance(source, ModelFiles) else model_files(source, file_type)
+    side = None if files.side is NO_SIDE_FILES else files.side  # a model file alone: no side file to read
+    # the file's own counts and lengths first: the parser would allocate whatever they ask for
+    check_model(files.data, files.format, max_triangles=max_triangles, max_vertices=max_vertices, side=side)
+    reader = _reader(files.format)
+    if reader is not None:
+        model: Model = reader(files, max_triangles=max_triangles, max_vertices=max_vertices)
+        return model
+    part = _trimesh_part(files, side, max_triangles, max_vertices)
+    return Model((part,), images=tuple(side.image_names()) if side is not None else ())
+
+
+def _reader(fmt: str) -> Any:
+    """The reader of :data:`READERS` for ``fmt``, None for the trimesh path (a reader whose module
+    is not installed falls back to it)."""
+    import importlib
+
+    if fmt not in READERS:
+        return None
+    module, name = READERS[fmt]
+    try:
+        return getattr(importlib.import_module(module), name)
+    except ModuleNotFoundError as e:
+        if e.name != module:
+            raise
+        return None
+
+
+def load_mesh(
+    source: str | Path | bytes | ModelFiles,
+    file_type: str | None = None,
+    *,
+    max_triangles: int = limits.MAX_TRIANGLES,
+    max_vertices: int = limits.MAX_MESH_VERTICES,
+) -> MeshData:
+    """The geometry alone of :func:`load_model`'s model: every part placed by its transform and
+    joined into one mesh, equal vertices merged (what exporting a model and the checks of the
+    parsers' bounds need; the service and the command line take the whole model)."""
+    return model_geometry(load_model(source, file_type, max_triangles=max_triangles, max_vertices=max_vertices))
+
+
+def model_geometry(model: Model) -> MeshData:
+    """:class:`MeshData` of ``model``: its parts in the model's coordinates, joined."""
+    parts = []
+    for p in model.parts:
+        v, t, n = p.vertices, np.asarray(p.triangles, np.int64), p.normals
+        if p.transform is not None:
+            a = p.transform[:3, :3]
+            with np.errstate(over="ignore", invalid="ignore"):  # a non-finite vertex is refused by _joined
+                v = p.placed_vertices()
+                n = None if n is None else n @ np.linalg.inv(a)
+            if np.linalg.det(a) < 0:
+                t = t[:, [0, 2, 1]]
+        parts.append((v, t, n))
+    v, t, n = _joined(parts)
+    return MeshData(v, t, n, model.images)
 
 
 def export_mesh(mesh: Mesh | MeshData, file_type: str) -> bytes:
@@ -259,7 +345,7 @@ def export_mesh(mesh: Mesh | MeshData, file_type: str) -> bytes:
     return data.encode() if isinstance(data, str) else bytes(data)
 
 
-def fit_transform(data: MeshData, size: float = 30.0, floor: float | None = -20.0) -> list[list[float]]:
+def fit_transform(data: Model | MeshData, size: float = 30.0, floor: float | None = -20.0) -> list[list[float]]:
     """The 4 × 4 transform (row-major) that scales a model uniformly so that its longest side
     is ``size`` world units, centres it on the y axis and sets it on ``floor`` (its lowest
     point at y = floor; None: centred on the origin)."""
@@ -305,23 +391,31 @@ def model_scene(
 ) -> Scene:
     """A scene of one model: fitted (:func:`fit_transform`) into the thesis's cube, standing
     on its floor plane (y = −20), the thesis's camera and light — what ``pocketray render
-    model.glb`` renders."""
-    data = load_mesh(source, file_type)
-    mesh = data.to_mesh(1, fit_transform(data, size), smooth)
-    return _stage((mesh,), material)
+    model.glb`` renders. The model's own materials and textures come with it; a part without
+    one takes ``material``."""
+    model = load_model(source, file_type)
+    meshes, materials = model.placed(1, 2, 0, fit_transform(model, size), smooth, max_meshes=Scene.MAX_MESHES)
+    return _stage(tuple(meshes), material, tuple(materials), model.textures)
 
 
-def _stage(meshes: tuple[Mesh, ...], material: Material = MODEL) -> Scene:
-    """The thesis's camera, light and floor around ``meshes`` (material 1; the floor is 0)."""
+def _stage(
+    meshes: tuple[Mesh, ...],
+    material: Material = MODEL,
+    more: tuple[AnyMaterial, ...] = (),
+    textures: tuple[Texture, ...] = (),
+) -> Scene:
+    """The thesis's camera, light and floor around ``meshes`` (the floor is material 0, ``material``
+    1, the models' own ``more`` from 2 on, reading ``textures``)."""
     return Scene(
         Camera((0.0, 0.0, 100.0), (0.0, -5.0, 0.0), (0.0, 1.0, 0.0), 40.0),
         (Light((20.0, 40.0, 30.0), (1.0, 1.0, 1.0)),),
-        (FLOOR, material),
+        (FLOOR, material, *more),
         np.zeros((0, 3)),
         np.zeros(0),
         np.zeros(0, np.int32),
         (Plane((0.0, -20.0, 0.0), (0.0, 1.0, 0.0), 0),),
         meshes,
+        textures=textures,
     )
 
 
@@ -329,26 +423,36 @@ def models_scene_json(
     sources: Sequence[str | Path], *, size: float = 30.0, smooth: bool | None = None, as_is: bool = False
 ) -> dict:
     """The scene JSON (docs/FORMATS.md) of the model files ``sources``, in :func:`model_scene`'s
-    stage: each mesh's vertices as the file has them and a ``transform`` that fits it —
-    ``k`` models side by side along x, each scaled to ``size / k`` (so the row is at most
-    ``size`` wide and the camera sees it), standing on the floor. ``as_is``: no transform
-    (the file's coordinates are world units). Validated as the scene's meshes are."""
+    stage: each part's vertices in its model's coordinates and a ``transform`` that fits the
+    model — ``k`` models side by side along x, each scaled to ``size / k`` (so the row is at most
+    ``size`` wide and the camera sees it), standing on the floor — with the models' materials and
+    textures. ``as_is``: no transform (the file's coordinates are world units). Validated as the
+    scene's meshes are."""
     if not sources:
         raise SceneError("mesh", "give at least one model file")
     k = len(sources)
-    meshes, docs = [], []
+    meshes: list[Mesh] = []
+    docs: list[dict] = []
+    more: list[AnyMaterial] = []
+    textures: list[Texture] = []
     for i, src in enumerate(sources):
-        data = load_mesh(src)
-        flat = data.to_mesh(1, None, smooth)  # the file's coordinates, validated
-        doc = flat.to_json()
+        model = load_model(src)
         transform = None
         if not as_is:
-            transform = fit_transform(data, size / k)
+            transform = fit_transform(model, size / k)
             transform[0][3] += -size / 2.0 + (i + 0.5) * size / k
-            doc["transform"] = transform
-        meshes.append(data.to_mesh(1, transform, smooth))  # checks the placed mesh too
-        docs.append(doc)
-    out = _stage(tuple(meshes)).to_json()
+        base = 2 + len(more)
+        flat, _ = model.placed(1, base, len(textures), None, smooth, max_meshes=Scene.MAX_MESHES)
+        placed, materials = model.placed(1, base, len(textures), transform, smooth, max_meshes=Scene.MAX_MESHES)
+        for mesh in flat:  # the model's coordinates, validated
+            doc = mesh.to_json()
+            if transform is not None:
+                doc["transform"] = transform
+            docs.append(doc)
+        meshes.extend(placed)  # checks the placed meshes too
+        more.extend(materials)
+        textures.extend(model.textures)
+    out = _stage(tuple(meshes), MODEL, tuple(more), tuple(textures)).to_json()
     out["meshes"] = docs
     return out
 
@@ -361,8 +465,8 @@ def mesh_json(
     transform: Any = None,
     smooth: bool | None = None,
 ) -> dict:
-    """The mesh JSON (docs/FORMATS.md) of a model file — what ``pocketray scene --mesh
-    model.obj`` puts in a scene."""
+    """The mesh JSON (docs/FORMATS.md) of a model file's geometry, its parts joined (its materials
+    are not kept: a mesh names one scene material)."""
     return load_mesh(source, file_type).to_json(material, transform, smooth)
 
 

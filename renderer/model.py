@@ -21,16 +21,25 @@ from .scene import Mesh, make_mesh
 
 @dataclass(frozen=True)
 class ModelPart:
-    """One mesh of a model in the file's coordinates: ``vertices`` float64 (V, 3), ``triangles``
-    int (T, 3), ``normals`` float64 (V, 3) or None, ``attributes`` the :class:`~renderer.scene.Mesh`
-    vertex attributes it has (``uvs``, ``uvs1``, ``colors``, ``tangents``), ``material`` an index
-    into its model's ``materials`` (−1: the material the scene gives the model)."""
+    """One mesh of a model: ``vertices`` float64 (V, 3), ``triangles`` int (T, 3), ``normals``
+    float64 (V, 3) or None, ``attributes`` the :class:`~renderer.scene.Mesh` vertex attributes it
+    has (``uvs``, ``uvs1``, ``colors``, ``tangents``), ``material`` an index into its model's
+    ``materials`` (−1: the material the scene gives the model).
+
+    ``transform``: the 4 × 4 row-major affine map from these arrays to the model's coordinates (a
+    glTF node's world transform), None for the identity. ``mesh``: the file's mesh it comes from
+    (a glTF mesh index; −1: the file has none), ``node``: the node that places it (−1: none). A
+    mesh that several nodes use is read once: its parts share their arrays and differ in
+    ``node`` and ``transform`` (what a two-level hierarchy instances)."""
 
     vertices: np.ndarray
     triangles: np.ndarray
     normals: np.ndarray | None = None
     attributes: dict[str, np.ndarray] = field(default_factory=dict)
     material: int = -1
+    mesh: int = -1
+    node: int = -1
+    transform: np.ndarray | None = None
 
     @property
     def n_triangles(self) -> int:
@@ -47,7 +56,15 @@ class ModelPart:
             from .meshes import vertex_normals
 
             normals = vertex_normals(self.vertices, self.triangles)
+        if self.transform is not None:
+            transform = self.transform if transform is None else np.asarray(transform, np.float64) @ self.transform
         return make_mesh(self.vertices, self.triangles, material, normals, transform, **self.attributes)
+
+    def placed_vertices(self) -> np.ndarray:
+        """float64 (V, 3): its vertices in the model's coordinates (``transform`` applied)."""
+        if self.transform is None:
+            return self.vertices
+        return self.vertices @ self.transform[:3, :3].T + self.transform[:3, 3]
 
 
 @dataclass(frozen=True)
@@ -65,7 +82,13 @@ class Model:
 
     @property
     def n_triangles(self) -> int:
+        """Triangles of every part: a mesh on k nodes counts k times (the instanced triangles)."""
         return sum(p.n_triangles for p in self.parts)
+
+    @property
+    def n_unique_triangles(self) -> int:
+        """Triangles of the distinct geometry: a mesh on k nodes counts once."""
+        return sum({id(p.triangles): p.n_triangles for p in self.parts}.values())
 
     @property
     def texture_bytes(self) -> int:
@@ -73,8 +96,11 @@ class Model:
         return sum(t.nbytes for t in self.textures)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        lo = np.min([p.vertices.min(axis=0) for p in self.parts], axis=0)
-        hi = np.max([p.vertices.max(axis=0) for p in self.parts], axis=0)
+        """The box of its parts in the model's coordinates (each part's transform applied)."""
+        placed = [p.placed_vertices() for p in self.parts]
+        with np.errstate(over="ignore", invalid="ignore"):  # a non-finite bound is refused by the caller
+            lo = np.min([v.min(axis=0) for v in placed], axis=0)
+            hi = np.max([v.max(axis=0) for v in placed], axis=0)
         return lo, hi
 
     def placed(
@@ -84,17 +110,46 @@ class Model:
         texture_base: int,
         transform: Any = None,
         smooth: bool | None = None,
+        max_meshes: int | None = None,
     ) -> tuple[list[Mesh], list[AnyMaterial]]:
         """Its meshes and materials for a scene whose materials (textures) this model's follow from
         ``material_base`` (``texture_base``) on: a part naming no material takes scene material
         ``default_material``; each material's texture indices are moved by ``texture_base``. The
-        scene appends the textures themselves (``self.textures``) at ``texture_base``."""
+        scene appends the textures themselves (``self.textures``) at ``texture_base``.
+        ``max_meshes``: when it has more parts, the parts of one material (and the same vertex
+        attributes) become one mesh each — what a scene of few meshes can hold."""
         materials = [_moved_textures(m, texture_base) for m in self.materials]
         meshes = [
             p.to_mesh(default_material if p.material < 0 else material_base + p.material, transform, smooth)
             for p in self.parts
         ]
+        if max_meshes is not None and len(meshes) > max_meshes:
+            meshes = merged_meshes(meshes)
         return meshes, materials
+
+
+def merged_meshes(meshes: Sequence[Mesh]) -> list[Mesh]:
+    """``meshes`` of one material, shading (normals or not) and vertex attributes joined into one
+    mesh each, in the order of their first one (the world-space geometry is unchanged)."""
+    groups: dict[tuple, list[Mesh]] = {}
+    for m in meshes:
+        groups.setdefault((m.material, m.normals is not None, tuple(sorted(m.attributes))), []).append(m)
+    out = []
+    for (material, smooth, names), group in groups.items():
+        if len(group) == 1:
+            out.append(group[0])
+            continue
+        starts = np.cumsum([0] + [len(m.vertices) for m in group[:-1]])
+        out.append(
+            Mesh(
+                np.concatenate([m.vertices for m in group]),
+                np.concatenate([m.triangles + s for m, s in zip(group, starts, strict=True)]),
+                material,
+                np.concatenate([m.normals for m in group if m.normals is not None]) if smooth else None,
+                **{n: np.concatenate([getattr(m, n) for m in group]) for n in names},
+            )
+        )
+    return out
 
 
 def _moved_textures(material: AnyMaterial, base: int) -> AnyMaterial:

@@ -5,8 +5,10 @@ in the same order, only three pieces chosen per variant:
 
 - at ``//@HEADER@``, the header (:func:`tracer_header`): layout constants, the variant's
   defines and its bindings' declarations, generated from :mod:`renderer.gpu_layout` and the
-  method's layout module. It always defines ``FEATURE_TRIANGLES``, ``FEATURE_SHAPES`` and
-  ``FEATURE_LIGHTING`` to 0 or 1 (:func:`feature_flags`), and the chunks test them with ``#if``;
+  method's layout module. Every switch is defined in every variant, to 0 or 1
+  (:func:`tracer_flags`: method, mode, features, the groups read, ``FEATURE_TRIANGLES`` …),
+  and the chunks test it with ``#if NAME``, never ``#ifdef`` (the ray-engine passes' switches
+  likewise, :func:`pass_defines`); a number stays a number (``N_LIGHTS``);
 - at ``//@METHOD@``, the method's traversal (``shaders/<capabilities.shader>``), which tests
   primitives through the leaf interface of ``shaders/leaf.glsl``;
 - at ``//@RECURSION_COLORS@``, the recursion mode's colours (:func:`recursion_color_function`).
@@ -24,10 +26,10 @@ from __future__ import annotations
 from functools import cache
 
 from . import first_hits, gpu_layout, texture_layout
-from .features import LIGHTING, SURFACE_FORMATS
+from .features import LIGHTING, SURFACE_FORMATS, SWITCHES
 from .gpu_layout import Binding, Variant
 from .methods import METHODS
-from .modes import RECURSION_COLORS
+from .modes import MODES, RECURSION_COLORS
 from .resources import shader_dir
 
 SHADER_DIR = shader_dir()  # the package's shaders/ (installed) or the checkout's top-level shaders/
@@ -36,6 +38,22 @@ METHOD_MARK = "//@METHOD@"
 RECURSION_MARK = "//@RECURSION_COLORS@\n"  # the whole line becomes recursion_color_function()
 INCLUDE_MARK = "//@INCLUDE "  # a line "//@INCLUDE triangles.glsl" includes that file whole
 MAX_INCLUDE_DEPTH = 4  # raytrace.frag → method_twolevel.glsl → method_bvh.glsl: a cycle is an error
+COUNT_PREFIXES = ("PLANES_", "LIGHTS_")  # the count features (renderer.features), compiled in as values
+RUN_TIME_COUNT = -1  # N_PLANES / N_LIGHTS of a variant that reads the count from a uniform
+# The ray-engine passes' switches (renderer/gl/ray_engine.py), each defined 0 or 1 in every pass:
+# which full-screen pass (PASS_*), the cone pass of shadow rays (SHADOW), the primitive pass's
+# culling (HRE), its shadow rays (ANY_HIT), heat mode's count (COUNT), the tests' cull matrix.
+PASS_SWITCHES = (
+    "PASS_PRIMARY",
+    "PASS_MASK",
+    "PASS_SURFACE",
+    "PASS_SHADE",
+    "SHADOW",
+    "HRE",
+    "ANY_HIT",
+    "COUNT",
+    "CULL_MATRIX",
+)
 
 
 @cache
@@ -65,51 +83,69 @@ def known_bindings() -> frozenset[str]:
     return frozenset(b.name for b in (*gpu_layout.TRACER_BINDINGS, *(b for m in METHODS.values() for b in m.bindings)))
 
 
+def tracer_flags(variant: Variant) -> dict[str, int]:
+    """Every switch of the tracer's text, each defined in every variant, 0 or 1 (the chunks test
+    them with ``#if NAME``, never ``#ifdef``: an ``#if`` on a name the host forgot reads 0 in
+    GLSL, so a missing switch would silently select the wrong code): ``METHOD_<name>`` for every
+    method and ``MODE_<name>`` for every mode, the one the variant traces 1; each of
+    :data:`renderer.features.SWITCHES` (removals, data formats, light), 1 where the variant carries
+    it; ``READS_<GROUP>`` for each binding group (:meth:`Variant.reads`); the ``FEATURE_*`` flags
+    (:func:`feature_flags`) and the host's choices (one RGBA8 image, the background variant,
+    rasterised first hits)."""
+    unknown = [f for f in variant.features if f not in SWITCHES and not f.startswith(COUNT_PREFIXES)]
+    if unknown:
+        raise ValueError(f"unknown feature defines {unknown}; one of renderer.features.FEATURE_DEFINES")
+    flags = {f"METHOD_{m.upper()}": int(m == variant.method) for m in METHODS}
+    flags |= {f"MODE_{m.upper()}": int(m == variant.mode) for m in MODES}
+    flags |= {name: int(name in variant.features) for name in SWITCHES}
+    flags |= {f"READS_{g.upper()}": int(variant.reads(g)) for g in gpu_layout.GROUPS}
+    flags |= {name: int(on) for name, on in feature_flags(variant).items()}
+    flags |= {
+        "IMAGE_ONLY": int(variant.image_only),
+        "BACKGROUND": int(not variant.spheres),
+        "FIRST_HITS": int(bool(variant.first_hits)),
+        "FIRST_HITS_SPHERES": int(variant.first_hits == "spheres"),
+        "FIRST_HITS_TILES": int(variant.first_hits == "tiles"),
+    }
+    return flags
+
+
+def tracer_values(variant: Variant) -> dict[str, int]:
+    """The tracer's compiled-in numbers: ``MAX_RECURSION_DEPTH``, and ``N_PLANES`` / ``N_LIGHTS``,
+    the counts of a specialised variant (``PLANES_k`` / ``LIGHTS_k``) or ``-1`` where the generic
+    loop reads them from uniforms; the tile lists' layout where first hits come in tiles."""
+    values = {"MAX_RECURSION_DEPTH": int(variant.depth), "N_PLANES": RUN_TIME_COUNT, "N_LIGHTS": RUN_TIME_COUNT}
+    for f in variant.features:
+        for prefix, name in (("PLANES_", "N_PLANES"), ("LIGHTS_", "N_LIGHTS")):
+            if f.startswith(prefix):
+                values[name] = int(f[len(prefix) :])
+    if variant.first_hits == "tiles":  # the tile lists' layout (renderer/first_hits.py)
+        values["TILE_ENTRY_TEXELS"] = first_hits.ENTRY_TEXELS
+    return values
+
+
 def tracer_header(variant: Variant) -> str:
-    """Layout constants, the variant's defines and its bindings' declarations."""
+    """Layout constants, the variant's switches (:func:`tracer_flags`) and numbers
+    (:func:`tracer_values`), and its bindings' declarations."""
     unknown = set(variant.blocks) - {b.name for b in tracer_bindings(variant) if b.records}
     if unknown:
         raise ValueError(f"blocks {sorted(unknown)} are not record arrays the {variant.method} variant reads")
-    defines = [
-        f"METHOD_{variant.method.upper()}",
-        f"MODE_{variant.mode.upper()}",
-        f"MAX_RECURSION_DEPTH {int(variant.depth)}",
-        *variant.features,
-        *variant.defines(),
-    ]
-    for f in variant.features:  # compiled-in counts (renderer.features): PLANES_k → N_PLANES k
-        for prefix, name in (("PLANES_", "N_PLANES"), ("LIGHTS_", "N_LIGHTS")):
-            if f.startswith(prefix):
-                defines.append(f"{name} {int(f[len(prefix) :])}")
-    # The host's choices, 0 or 1 in every variant (raytrace.frag tests them with #if).
-    defines += [
-        f"IMAGE_ONLY {int(variant.image_only)}",
-        f"BACKGROUND {int(not variant.spheres)}",
-        f"FIRST_HITS {int(bool(variant.first_hits))}",
-        f"FIRST_HITS_SPHERES {int(variant.first_hits == 'spheres')}",
-        f"FIRST_HITS_TILES {int(variant.first_hits == 'tiles')}",
-    ]
-    if variant.first_hits == "tiles":  # the tile lists' layout (renderer/first_hits.py)
-        defines.append(f"TILE_ENTRY_TEXELS {first_hits.ENTRY_TEXELS}")
     kinds = ""  # the constants of the kinds and the integrator the variant carries
     if "TRIANGLES" in variant.features:
-        kinds = gpu_layout.triangle_constants() + "".join(
-            f"#define READS_{g.upper()}\n" for g in gpu_layout.SILENT_GROUPS if variant.reads(g)
-        )
+        kinds = gpu_layout.triangle_constants()
     if "SHAPES" in variant.features:
         kinds += gpu_layout.shape_constants()
     if "TEXTURES" in variant.features and "TRIANGLES" in variant.features:
         kinds += texture_layout.texture_glsl_constants()
     if variant.path:
         kinds += gpu_layout.path_constants()
-    flags = "".join(f"#define {name} {int(on)}\n" for name, on in feature_flags(variant).items())
+    defines = {**tracer_flags(variant), **tracer_values(variant)}
     return (
         gpu_layout.glsl_header()
         + gpu_layout.tracer_constants()
         + kinds
         + METHODS[variant.method].glsl_defines()
-        + flags
-        + "".join(f"#define {d}\n" for d in defines)
+        + "".join(f"#define {name} {value}\n" for name, value in defines.items())
         + gpu_layout.declarations(tracer_bindings(variant), tuple(variant.blocks))
     )
 
@@ -204,14 +240,25 @@ def vertex_source(first_hits: str = "") -> str:
     return read({"spheres": "first_hits.vert", "tiles": "first_hit_tiles.vert"}.get(first_hits, "fullscreen.vert"))
 
 
+def pass_defines(defines: tuple[str, ...] = ()) -> str:
+    """The ``#define`` lines of a ray-engine pass: each of :data:`PASS_SWITCHES` 1 if named in
+    ``defines``, else 0; a define with a value (``"TILE 8"``) as it is."""
+    values = [d for d in defines if " " in d]
+    unknown = [d for d in defines if " " not in d and d not in PASS_SWITCHES]
+    if unknown:
+        raise ValueError(f"unknown ray-engine pass switches {unknown}; one of {', '.join(PASS_SWITCHES)}")
+    switches = [f"{name} {int(name in defines)}" for name in PASS_SWITCHES]
+    return "".join(f"#define {d}\n" for d in (*switches, *values))
+
+
 def pass_source(name: str, defines: tuple[str, ...] = ()) -> str:
-    """A ray-engine shader: ``#version``, the layout constants, the defines, the scene's
-    declarations, the common part, then ``name``. (The passes' own ray textures and
+    """A ray-engine shader: ``#version``, the layout constants, the defines (:func:`pass_defines`),
+    the scene's declarations, the common part, then ``name``. (The passes' own ray textures and
     uniforms are declared in their files and bound by :mod:`renderer.gl.ray_engine`.)"""
     return (
         "#version 300 es\n"
         + gpu_layout.glsl_header()
-        + "".join(f"#define {d}\n" for d in defines)
+        + pass_defines(defines)
         + gpu_layout.declarations(gpu_layout.RAY_ENGINE_BINDINGS)
         + with_includes(read("rayengine_common.glsl"))
         + read(name)

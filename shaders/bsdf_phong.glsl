@@ -5,12 +5,13 @@
 // where they exceed it). The integrator sees it through the surface record and three functions,
 // as pbrt's BxDF: bsdf_eval (f and its pdf), bsdf_sample (a direction, its weight f·cos/pdf, its
 // pdf and lobe) and bsdf_pdf. A material kind is one such file (renderer/materials).
-#ifdef PATH
+#if PATH
 const float PI = 3.14159265358979;
 // What the scene lacks is not compiled in (renderer/features.py, PATH_REMOVALS): no rough lobe where
 // nothing reflects or transmits.
-#if defined(NO_REFLECTION) && defined(NO_TRANSMISSION) && !defined(NO_ROUGHNESS)
-#define NO_ROUGHNESS
+#if NO_REFLECTION && NO_TRANSMISSION && !NO_ROUGHNESS
+#undef NO_ROUGHNESS
+#define NO_ROUGHNESS 1
 #endif
 
 // The kind of lobe a sampled direction came from (pbrt's BxDFFlags, the part the integrator uses).
@@ -45,15 +46,15 @@ SurfaceRecord surface_record(vec3 p, vec3 n, vec3 ng, vec3 wo, int prim, int mat
     r.w_diffuse = material_diffuse(mat);
     r.w_reflect = 0.0;
     r.w_transmit = 0.0;
-#ifndef NO_REFLECTION
+#if !NO_REFLECTION
     r.w_reflect = material_reflective(mat);
 #endif
-#ifndef NO_TRANSMISSION
+#if !NO_TRANSMISSION
     r.w_transmit = material_transmissive(mat);
 #endif
     float total = r.w_diffuse + r.w_reflect + r.w_transmit;
     if (total > 1.0) { r.w_diffuse /= total; r.w_reflect /= total; r.w_transmit /= total; }
-#ifdef NO_ROUGHNESS
+#if NO_ROUGHNESS
     r.alpha = 0.0;   // the GGX code then folds away
 #else
     r.alpha = material_roughness(mat);

@@ -5,7 +5,7 @@
 // path_main's parts for triangles and shapes are #if FEATURE_TRIANGLES / FEATURE_SHAPES blocks;
 // the material it shades with is behind the BSDF of shaders/bsdf_phong.glsl.
 
-#ifdef READS_EMISSION
+#if READS_EMISSION
 int g_emission_shift;
 // The radiance material m emits on the side its surface's normal faces.
 vec3 emission_at(int m) { return texelFetch(u_emission, texel(m, g_emission_shift), 0).rgb; }
@@ -14,12 +14,12 @@ vec3 emission_at(int m) { return texelFetch(u_emission, texel(m, g_emission_shif
 vec3 emission_at(int m) { return vec3(0.0); }
 #define EMISSION_INIT()
 #endif
-#ifdef READS_ENVIRONMENT
+#if READS_ENVIRONMENT
 #define ENV_RADIANCE u_environment
 #else
 #define ENV_RADIANCE vec3(0.0)
 #endif
-#ifdef READS_ENVIRONMENT_MAP
+#if READS_ENVIRONMENT_MAP
 // An equirectangular environment image (docs/FORMATS.md, "Environment"; renderer/envmap.py, whose
 // NumPy twin of each function the tests compare with): u = atan2(x, −z)/2π + rotation, v = acos(y)/π;
 // bilinear between texels as Mitsuba's envmap (column i at u = (i + ½)/W, row j at v = j/(H − 1)).
@@ -50,7 +50,7 @@ vec3 env_lookup(vec2 uv) {
 #define ENV_RADIANCE_AT(d) ENV_RADIANCE
 #define ENV_MAP_INIT()
 #endif
-#ifdef READS_ENVIRONMENT_SAMPLING
+#if READS_ENVIRONMENT_SAMPLING
 // Importance sampling of the image (renderer/envmap.py): a patch row from the marginal CDF, a patch
 // from the row's conditional one (binary searches), then a point uniform in the patch's (u, v).
 int g_env_cdf_shift;
@@ -101,19 +101,22 @@ vec3 env_sample(float u1, float u2, out float pdf) {
 #define ENV_CDF_INIT()
 #endif
 
-#ifdef PATH
+#if PATH
 // ---- the path integrator (docs/SHADING.md, "Path integrator") ----------------------------
 // The material's BSDF is shaders/bsdf_phong.glsl (the surface record, bsdf_eval, bsdf_sample,
 // bsdf_pdf); here: the camera's rays, next-event estimation (sample_light) and the path's loop.
 // What the scene lacks is not compiled in (renderer/features.py, PATH_REMOVALS): every lane runs
 // all of the loop's code, used or not. The host names a removal only where it says something; the
 // rest follow here: no light kind where nothing emits.
-#ifndef READS_EMISSION
-#define NO_SPHERE_LIGHTS
-#define NO_TRIANGLE_LIGHTS
-#define NO_SHAPE_LIGHTS
+#if !READS_EMISSION
+#undef NO_SPHERE_LIGHTS
+#undef NO_TRIANGLE_LIGHTS
+#undef NO_SHAPE_LIGHTS
+#define NO_SPHERE_LIGHTS 1
+#define NO_TRIANGLE_LIGHTS 1
+#define NO_SHAPE_LIGHTS 1
 #endif
-#ifdef GUIDES
+#if GUIDES
 // The denoiser's guides (renderer/denoise.py), sums over the pass's samples: the first hit's albedo
 // as its lobes reflect (bsdf_albedo; a miss: the environment clamped to [0, 1]) and its outward
 // normal (a miss: 0).
@@ -145,7 +148,7 @@ vec2 pixel_jitter(uint i) {
     return fract(vec2(a >> 8u) * (1.0 / 16777216.0) + shift);
 }
 
-#ifndef NO_SHAPE_LIGHTS
+#if !NO_SHAPE_LIGHTS
 // A point uniform in area on emitting surface k (u_emit_patch_*, renderer/gpu_layout.py
 // shape_patches) and its outward normal n.
 vec3 patch_point(int k, float u1, float u2, out vec3 n) {
@@ -229,7 +232,7 @@ const int NEE_DONE = 5;
 bool sample_light(SurfaceRecord r, vec3 beta, inout int kind, inout int index, inout Query q, inout vec3 contrib) {
     float pdf;
     if (kind == NEE_POINT) {
-#ifdef SHADOW_RAYS
+#if SHADOW_RAYS
         for (; index < LIGHT_LOOP; index++) {
             if (LIGHTS_END(index)) break;
             vec3 to_light = u_light_pos[index] - r.p;
@@ -250,7 +253,7 @@ bool sample_light(SurfaceRecord r, vec3 beta, inout int kind, inout int index, i
         index = 0;
     }
     if (kind == NEE_SPHERES) {
-#ifndef NO_SPHERE_LIGHTS
+#if !NO_SPHERE_LIGHTS
         // A direction in the cone the sphere fills (uniform in solid angle).
         for (; index < MAX_SAMPLED_SPHERES; index++) {
             if (index >= u_num_emitters) break;
@@ -281,7 +284,7 @@ bool sample_light(SurfaceRecord r, vec3 beta, inout int kind, inout int index, i
     }
     if (kind == NEE_TRIANGLES) {
         kind = NEE_SHAPES;
-#ifndef NO_TRIANGLE_LIGHTS
+#if !NO_TRIANGLE_LIGHTS
         // One emitting triangle, picked with probability ∝ its area, a point uniform on it (pdf in
         // solid angle dist² / (A cos θ_light), A their total area).
         if (u_num_emit_tris > 0) {
@@ -314,7 +317,7 @@ bool sample_light(SurfaceRecord r, vec3 beta, inout int kind, inout int index, i
     }
     if (kind == NEE_SHAPES) {
         kind = NEE_ENVIRONMENT;
-#ifndef NO_SHAPE_LIGHTS
+#if !NO_SHAPE_LIGHTS
         // One surface of the emitting analytic shapes (a side, a cap, a disk, a torus), picked with
         // probability ∝ its area, a point uniform on it: the same pdf as the triangles'.
         if (u_num_emit_patches > 0) {
@@ -344,7 +347,7 @@ bool sample_light(SurfaceRecord r, vec3 beta, inout int kind, inout int index, i
     }
     if (kind == NEE_ENVIRONMENT) {
         kind = NEE_DONE;
-#ifdef READS_ENVIRONMENT_SAMPLING
+#if READS_ENVIRONMENT_SAMPLING
         // One direction from the image's importance sampling (a bright sun seen in a rough metal is
         // found this way), a shadow ray to infinity.
         float u1 = rnd(), u2 = rnd();
@@ -369,7 +372,7 @@ bool sample_light(SurfaceRecord r, vec3 beta, inout int kind, inout int index, i
 // sampling alone.
 float emission_weight(Hit h, vec3 ng, vec3 d, vec3 prev_p, float prev_pdf) {
     float w = 1.0;
-#ifndef NO_SPHERE_LIGHTS
+#if !NO_SPHERE_LIGHTS
     if (prev_pdf > 0.0 && h.id < u_num_spheres && h.id <= u_emitter_last) {
         vec3 to_c = h.sphere.xyz - prev_p;
         float sin2 = h.sphere.w * h.sphere.w / dot(to_c, to_c);
@@ -387,7 +390,7 @@ float emission_weight(Hit h, vec3 ng, vec3 d, vec3 prev_p, float prev_pdf) {
     // An emitting shape's surface (all are sampled, when any is): the triangles' pdf over the shapes' area.
     if (h.id >= u_shape_base) {
         w = 1.0;
-#ifndef NO_SHAPE_LIGHTS
+#if !NO_SHAPE_LIGHTS
         if (prev_pdf > 0.0 && u_num_emit_patches > 0)
             w = light_weight(prev_pdf, h.t * h.t / (u_emit_patch_area * max(-dot(d, ng), 1e-12)));
 #endif
@@ -398,7 +401,7 @@ float emission_weight(Hit h, vec3 ng, vec3 d, vec3 prev_p, float prev_pdf) {
 
 // … and for the environment image met along d (1 where it is not sampled).
 float environment_weight(vec3 d, float prev_pdf) {
-#ifdef READS_ENVIRONMENT_SAMPLING
+#if READS_ENVIRONMENT_SAMPLING
     if (prev_pdf > 0.0) return light_weight(prev_pdf, env_pdf(d));
 #endif
     return 1.0;
@@ -420,7 +423,7 @@ void path_main() {
     float primary_t = -1.0;
     int primary_id = NO_PRIM;
     vec3 primary_n = vec3(0.0);
-#ifdef GUIDES
+#if GUIDES
     vec3 albedo_sum = vec3(0.0), normal_sum = vec3(0.0);
 #endif
     int done = 0;            // samples of this pass finished
@@ -455,7 +458,7 @@ void path_main() {
             if (nee_kind <= NEE_SPHERES) nee_index++;
         } else if (h.id == NO_PRIM) {
             L += environment_weight(d, prev_pdf) * beta * ENV_RADIANCE_AT(d);
-#ifdef GUIDES
+#if GUIDES
             if (segments == 1) albedo_sum += clamp(ENV_RADIANCE_AT(d), 0.0, 1.0);
 #endif
             vertex = false;
@@ -474,7 +477,7 @@ void path_main() {
             }
             r = surface_record(s.p, s.n, ng, -d, h.id, s.mat);
             if (r.front) L += emission_weight(h, ng, d, prev_p, prev_pdf) * beta * emission_at(s.mat);
-#ifdef GUIDES
+#if GUIDES
             if (segments == 1) { albedo_sum += bsdf_albedo(r); normal_sum += s.n; }
 #endif
             vertex = segments < MAX_RECURSION_DEPTH;   // a next segment (shadow or bounce) fits
@@ -518,7 +521,7 @@ void path_main() {
     }
     o_image = vec4(sum, float(primary_id));
     o_hit = vec4(primary_n, primary_t);
-#ifdef GUIDES
+#if GUIDES
     o_albedo = vec4(albedo_sum, 0.0);
     o_normal = vec4(normal_sum, 0.0);
 #endif

@@ -90,7 +90,8 @@ void bvh_intersect(Query q, inout Hit h) {
     }
 }
 
-#ifndef BVH_NO_METHOD_INIT
+// The method's entry points, where the BVH is the variant's method (twolevel has its own).
+#if METHOD_BVH
 void method_init() { bvh_init(); }
 
 void intersect_spheres(Query q, inout Hit h) {

@@ -91,7 +91,8 @@ void kd_intersect(Query q, inout Hit h) {
     }
 }
 
-#ifndef KD_NO_METHOD_INIT
+// The method's entry points, where the kd-tree is the variant's method (twolevel has its own).
+#if METHOD_KDTREE
 void method_init() { kd_init(); }
 
 void intersect_spheres(Query q, inout Hit h) {

@@ -3,9 +3,6 @@
 // methods' own files, inlined by the host (renderer/shader_source.py, INCLUDE lines).
 // Bindings (both trees', u_bvh_count, u_kd_count): renderer/accel/twolevel.py.
 
-#define BVH_NO_METHOD_INIT
-#define KD_NO_METHOD_INIT
-
 //@INCLUDE method_bvh.glsl
 //@INCLUDE method_kdtree.glsl
 

@@ -31,7 +31,7 @@ const float SIN_MIN = 1.0e-3;              // a cone must open this much before 
 const float ANGLE_MARGIN = 1.0e-5;
 
 bool live_ray(ivec2 px, out vec3 p, out vec3 r) {
-#ifdef SHADOW
+#if SHADOW
     float dist;
     int skip, far_id;
     return shadow_ray_at(u_surf0, u_surf1, px, u_light, p, r, dist, skip, far_id);

@@ -20,16 +20,16 @@ uniform int u_level;                   // generation of these rays (primary = 1)
 uniform int u_max_level;               // recursion depth traced
 uniform int u_shade;                   // 1: colour (lights); 0: only the next rays
 
-#if defined(PASS_SURFACE)
+#if PASS_SURFACE
 layout(location = 0) out vec4 o_surf0;
 layout(location = 1) out vec4 o_surf1;
-#elif defined(PASS_SHADE)
+#elif PASS_SHADE
 layout(location = 0) out vec4 o_color;
 layout(location = 1) out vec4 o_refl_o;
 layout(location = 2) out vec4 o_refl_d;
 layout(location = 3) out vec4 o_trans_o;
 layout(location = 4) out vec4 o_trans_d;
-#elif defined(PASS_PRIMARY)
+#elif PASS_PRIMARY
 layout(location = 0) out vec4 o_ray_o;
 layout(location = 1) out vec4 o_ray_d;
 #else
@@ -63,7 +63,7 @@ bool blocked(ivec2 px, int light) {
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
-#if defined(PASS_PRIMARY)
+#if PASS_PRIMARY
     // raytrace.frag's camera ray; gl_FragCoord.y grows upwards, image row 0 is the top row
     float fx = gl_FragCoord.x;
     float row = u_resolution.y - gl_FragCoord.y;
@@ -73,7 +73,7 @@ void main() {
     bool inside = gl_FragCoord.x < u_resolution.x && gl_FragCoord.y < u_resolution.y;
     o_ray_o = vec4(u_cam_pos, -1.0);
     o_ray_d = vec4(dir, inside ? 1.0 : 0.0);
-#elif defined(PASS_MASK)
+#elif PASS_MASK
     if (texelFetch(u_ray_d, px, 0).w <= 0.0) discard;
     o_out = vec4(0.0);
 #else
@@ -85,7 +85,7 @@ void main() {
     vec4 ro = texelFetch(u_ray_o, px, 0);
     vec3 o = ro.xyz, d = rd.xyz;
     float weight = rd.w;
-#if defined(PASS_SURFACE)
+#if PASS_SURFACE
     vec3 p = o + h.x * d;
     vec3 n;
     if (id < u_num_spheres) {

@@ -14,12 +14,12 @@ out vec4 o_out;
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
-#if defined(CULL_MATRIX)
+#if CULL_MATRIX
     o_out = vec4(1.0);
-#elif defined(COUNT)
+#elif COUNT
     if (texelFetch(u_ray_d, px, 0).w <= 0.0) discard;
     o_out = vec4(v_id < u_num_spheres ? 1.0 : 0.0);
-#elif defined(ANY_HIT)
+#elif ANY_HIT
     vec3 o, l;
     float dist;
     int skip, far_id;

@@ -11,7 +11,7 @@
 flat out int v_id;
 uniform int u_instance_base;    // id of instance 0: a pass may draw its primitives in batches, in id order
 
-#if defined(HRE) || defined(CULL_MATRIX)
+#if HRE || CULL_MATRIX
 in vec2 a_tile;     // tile's lower-left texel
 in vec4 a_cone0;    // apex.xyz, half-angle (< 0: draw always)
 in vec4 a_cone1;    // axis.xyz, slack
@@ -30,11 +30,11 @@ in vec2 a_position;
 void main() {
     int id = u_instance_base + gl_InstanceID;
     v_id = id;
-#if defined(CULL_MATRIX)
+#if CULL_MATRIX
     vec2 c = (vec2(float(id), float(gl_VertexID)) + 0.5) / u_matrix_size * 2.0 - 1.0;
     gl_Position = drawn(id) ? vec4(c, 0.0, 1.0) : vec4(2.0, 2.0, 2.0, 1.0);
     gl_PointSize = 1.0;
-#elif defined(HRE)
+#elif HRE
     vec2 c = (a_tile + 0.5 * u_tile_size) / u_target * 2.0 - 1.0;
     // culled: an outlying position, discarded by clipping (§3)
     gl_Position = drawn(id) ? vec4(c, 0.0, 1.0) : vec4(2.0, 2.0, 2.0, 1.0);

@@ -61,10 +61,6 @@ int row_shift(ivec2 size) { return int(log2(float(size.x)) + 0.5); }  // exact: 
 
 ivec2 texel(int i, int shift) { return ivec2(i & ((1 << shift) - 1), i >> shift); }
 
-#ifndef LAYOUT_INIT
-#define LAYOUT_INIT()
-#endif
-
 // A sphere record (gpu_layout.sphere_records): centre and radius, and the key
 // (id | material << SPHERE_MAT_SHIFT | SPHERE_LAST on the last record of a leaf).
 // SPHERE_AT(ARRAY, p) reads record p of a record array (its NAME_at accessor).
@@ -73,7 +69,7 @@ struct Sphere {
     uint key;
 };
 
-#if defined(EQUAL_RADII) && !BACKGROUND
+#if EQUAL_RADII && !BACKGROUND
 Sphere sphere_of(uvec4 w) { return Sphere(vec4(uintBitsToFloat(w.xyz), u_sphere_radius), w.w); }
 #define SPHERE_AT(ARRAY, p) sphere_of(ARRAY(p))
 #else
@@ -126,7 +122,7 @@ struct Hit {
 
 // Counters for the heat mode (Fig. 4.3): nodes visited, gaps, sphere tests.
 // Compiled in only for that mode.
-#ifdef MODE_HEAT
+#if MODE_HEAT
 ivec3 g_counters = ivec3(0);
 #define COUNT(c) g_counters.c += 1
 #else
@@ -192,21 +188,20 @@ void intersect_spheres(Query q, inout Hit h) {}
 #endif
 
 // Planes and lights: a specialised variant knows their counts (N_PLANES, N_LIGHTS from
-// PLANES_k / LIGHTS_k), so their loops have a known length; the generic one reads them.
-#ifdef N_PLANES
+// PLANES_k / LIGHTS_k), so their loops have a known length; the generic one (-1) reads them.
+#if N_PLANES >= 0
 #define PLANE_LOOP N_PLANES
 #define PLANES_END(i) false
-#if N_PLANES == 1
-#define PLANE_INDEX(i) 0
-#endif
 #else
 #define PLANE_LOOP MAX_PLANES
 #define PLANES_END(i) ((i) >= u_num_planes)
 #endif
-#ifndef PLANE_INDEX
+#if N_PLANES == 1
+#define PLANE_INDEX(i) 0
+#else
 #define PLANE_INDEX(i) (i)
 #endif
-#ifdef N_LIGHTS
+#if N_LIGHTS >= 0
 #define LIGHT_LOOP N_LIGHTS
 #define LIGHTS_END(i) false
 #else
@@ -255,10 +250,10 @@ struct Material {
     float ambient, diffuse, specular, shininess, reflective, transmissive, ior;
 };
 
-#ifdef READS_MATERIALS
+#if READS_MATERIALS
 // Texel k of material m's record, read by the accessors material_<name>(m) of the header
 // (renderer/materials: the record is laid out from the material's declaration).
-#ifdef MATERIAL_TEXTURE
+#if MATERIAL_TEXTURE
 #define MATERIAL_TEXEL(m, k) texelFetch(u_materials, texel((m) * MATERIAL_TEXELS + (k), g_mat_shift), 0)
 #else
 #define MATERIAL_TEXEL(m, k) u_material_vecs[(m) * MATERIAL_TEXELS + (k)]
@@ -284,10 +279,12 @@ void exclusion(int id, vec3 n, vec3 d, out int skip, out int far_id) {
 // that is only masked off, so what a frame cannot use is not compiled in):
 // MAX_RECURSION_DEPTH (1 … 8) bounds the ray tree; modes other than colour
 // and recursion trace the primary ray only.
-#if !defined(MODE_COLOR) && !defined(MODE_RECURSION)
+#if !MODE_COLOR && !MODE_RECURSION
 #undef MAX_RECURSION_DEPTH
 #define MAX_RECURSION_DEPTH 1
-#define PRIMARY_ONLY
+#define PRIMARY_ONLY 1
+#else
+#define PRIMARY_ONLY 0
 #endif
 // The ray tree is evaluated depth-first (GLSL has no recursion). A hit spawns at most one
 // reflected and one transmitted ray; the transmitted one is traced next and the
@@ -300,12 +297,16 @@ void exclusion(int id, vec3 n, vec3 d, out int skip, out int far_id) {
 // every call site inlines another copy of the traversal), then shades its hit and
 // picks the next ray — the next light's shadow ray, else a spawned ray, else a
 // waiting one.
-#if MAX_RECURSION_DEPTH > 1 && !defined(NO_REFLECTION) && !defined(NO_TRANSMISSION) && !defined(NO_SPLIT)
-#define TASK_STACK
+#if MAX_RECURSION_DEPTH > 1 && !NO_REFLECTION && !NO_TRANSMISSION && !NO_SPLIT
+#define TASK_STACK 1
 #define MAX_TASKS MAX_RECURSION_DEPTH
+#else
+#define TASK_STACK 0
 #endif
-#if defined(MODE_COLOR) && defined(READS_LIGHTS)
-#define SHADOW_RAYS
+#if MODE_COLOR && READS_LIGHTS
+#define SHADOW_RAYS 1
+#else
+#define SHADOW_RAYS 0
 #endif
 
 struct Task {
@@ -334,13 +335,13 @@ Surface surface_at(vec3 o, vec3 d, Hit h) {
         vec3 rel = (o - h.sphere.xyz) + h.t * d;
         float len = length(rel);
         s.n = len > 0.0 ? rel / len : -d;   // len = 0 only where float32 cannot resolve the sphere
-#ifdef READS_MATERIALS
+#if READS_MATERIALS
         s.mat = int((h.key >> SPHERE_MAT_SHIFT) & SPHERE_MAT_MASK);
 #endif
     } else {
         int i = PLANE_INDEX(h.id - u_num_spheres);
         s.n = normalize(u_plane_normal[i]);
-#ifdef READS_MATERIALS
+#if READS_MATERIALS
         s.mat = u_plane_mat[i];
 #endif
     }
@@ -359,7 +360,7 @@ Surface surface_at(vec3 o, vec3 d, Hit h) {
 void main() {
     LAYOUT_INIT();
     method_init();
-#if defined(READS_MATERIALS) && defined(MATERIAL_TEXTURE)
+#if READS_MATERIALS && MATERIAL_TEXTURE
     g_mat_shift = row_shift(textureSize(u_materials, 0));
 #endif
 #if FEATURE_LIGHTING
@@ -367,7 +368,7 @@ void main() {
     ENV_MAP_INIT();
     ENV_CDF_INIT();
 #endif
-#ifdef PATH
+#if PATH
     path_main();
 #else
     // The point of the frame's sample grid (u_resolution) this fragment traces: a pass
@@ -387,7 +388,7 @@ void main() {
     int primary_id = NO_PRIM;
     vec3 primary_n = vec3(0.0);
 
-#ifdef PRIMARY_ONLY
+#if PRIMARY_ONLY
 #if FIRST_HITS_SPHERES
     // The primary ray's test of intersect_scene (test_sphere, no ray to skip), for one sphere.
     Hit h0 = Hit(intersect_sphere(u_cam_pos, dir, v_sphere, false), SPHERE_ID(v_key), v_sphere, v_key);
@@ -418,7 +419,7 @@ void main() {
     gl_FragDepth = h0.id == NO_PRIM ? 1.0 : depth_of(h0.t);
 #endif
 #else
-#ifdef TASK_STACK
+#if TASK_STACK
     Task tasks[MAX_TASKS];
     int n_tasks = 0;
 #endif
@@ -435,7 +436,7 @@ void main() {
     // Ray cones: the distance the ray tree travelled to k's origin (and to a spawned ray's, t_dist); as
     // mirrors and refractions keep the pixel's spread, the cone's width at a hit is spread × distance.
     float cone_spread = cone_pixel_spread(u_pass_scale), k_dist = 0.0, t_dist = 0.0;
-#ifdef TASK_STACK
+#if TASK_STACK
     float task_dist[MAX_TASKS];
 #endif
 #endif
@@ -449,10 +450,10 @@ void main() {
         } else {
             live = hq.id != NO_PRIM;
 #if FEATURE_LIGHTING
-#ifdef READS_ENVIRONMENT
+#if READS_ENVIRONMENT
             if (!live) color += k.weight * u_environment;   // what a ray that meets nothing sees
 #endif
-#ifdef READS_ENVIRONMENT_MAP
+#if READS_ENVIRONMENT_MAP
             if (!live) color += k.weight * ENV_RADIANCE_AT(k.d);   // … or the image, along the ray
 #endif
 #endif
@@ -464,23 +465,23 @@ void main() {
 #endif
                 if (k.level == 1) { primary_t = h.t; primary_id = h.id; primary_n = s.n; }
                 deepest = max(deepest, k.level);
-#ifdef READS_MATERIALS
+#if READS_MATERIALS
                 m = material_at(s.mat);
 #endif
                 nf = dot(k.d, s.n) < 0.0 ? s.n : -s.n;
 #if FEATURE_TRIANGLES
                 nf = dot(k.d, s.ng) < 0.0 ? s.n : -s.n;   // the side by the geometric normal
 #endif
-#ifdef MODE_COLOR
+#if MODE_COLOR
                 color += k.weight * m.ambient * m.color;   // Phong's ambient term
 #endif
-#if FEATURE_LIGHTING && defined(READS_EMISSION)
+#if FEATURE_LIGHTING && READS_EMISSION
                 if (dot(nf, s.n) > 0.0) color += k.weight * emission_at(s.mat);   // the side its normal faces
 #endif
                 light = 0;
             }
         }
-#ifdef SHADOW_RAYS
+#if SHADOW_RAYS
         // The next light that faces the surface: its shadow ray.
         if (live) {
             bool shadow = false;
@@ -514,7 +515,7 @@ void main() {
 #if FEATURE_TEXTURES
             t_dist = k_dist + h.t;   // both spawned rays start at the hit
 #endif
-#ifndef NO_REFLECTION
+#if !NO_REFLECTION
             if (m.reflective > 0.0 && k.weight * m.reflective >= u_min_weight) {
                 vec3 r = k.d - 2.0 * dot(k.d, n) * n;
                 int skip, far_id;
@@ -523,7 +524,7 @@ void main() {
                 next = true;
             }
 #endif
-#ifndef NO_TRANSMISSION
+#if !NO_TRANSMISSION
             if (m.transmissive > 0.0 && k.weight * m.transmissive >= u_min_weight) {
                 bool entering = dot(k.d, n) < 0.0;
 #if FEATURE_TRIANGLES
@@ -537,7 +538,7 @@ void main() {
                                       : normalize(eta * k.d + (eta * cos_i - sqrt(kk)) * nn);
                 int skip, far_id;
                 exclusion(h.id, n, t_dir, skip, far_id);
-#ifdef TASK_STACK
+#if TASK_STACK
 #if FEATURE_TEXTURES
                 if (next) task_dist[n_tasks] = t_dist;
 #endif
@@ -549,7 +550,7 @@ void main() {
 #endif
         }
 #endif
-#ifdef TASK_STACK
+#if TASK_STACK
 #if FEATURE_TEXTURES
         if (!next && n_tasks > 0) t_dist = task_dist[n_tasks - 1];
 #endif
@@ -565,18 +566,18 @@ void main() {
 #endif
 
     vec3 image;
-#if defined(MODE_COLOR)
+#if MODE_COLOR
     image = color;
-#elif defined(MODE_RECURSION)
+#elif MODE_RECURSION
     image = recursion_color(deepest);
-#elif defined(MODE_DEPTH)
+#elif MODE_DEPTH
     image = primary_id == NO_PRIM ? vec3(0.0) : vec3(u_target_distance / (u_target_distance + primary_t));
-#elif defined(MODE_PRIMID)
+#elif MODE_PRIMID
     image = primary_id == NO_PRIM ? vec3(0.0)
           : fract(float(primary_id) * vec3(0.6180340, 0.7548777, 0.5698403)) * 0.8 + 0.2;
-#elif defined(MODE_NORMAL)
+#elif MODE_NORMAL
     image = primary_id == NO_PRIM ? vec3(0.0) : 0.5 * (primary_n + 1.0);
-#elif defined(MODE_HEAT)
+#elif MODE_HEAT
     image = min(vec3(0.05 * float(g_counters.z), 0.2 * float(g_counters.y), 0.2 * float(g_counters.x)), vec3(1.0));
 #endif
 #if IMAGE_ONLY

@@ -155,7 +155,7 @@ void shape_surface(Hit h, inout Surface s) {
 #if FEATURE_TRIANGLES
     s.ng = s.n;
 #endif
-#ifdef READS_MATERIALS
+#if READS_MATERIALS
     s.mat = int(SHAPE_RECORD(int(h.key), 2).w & SHAPE_MAT_MASK);
 #endif
 }

@@ -101,7 +101,7 @@ void triangle_surface(vec3 d, Hit h, inout Surface s) {
     float len = length(g);
     s.ng = len > 0.0 ? g / len : -d;   // 0 only where float32 cannot resolve the triangle
     s.n = s.ng;
-#if defined(SMOOTH_TRIANGLES) && defined(READS_SHADING_NORMALS)
+#if SMOOTH_TRIANGLES && READS_SHADING_NORMALS
     uvec4 n0 = u_tri_normals_at(TRIANGLE_TEXELS * j);
     if (n0.w != 0u) {
         float inv = 1.0 / h.sphere.w;
@@ -112,7 +112,7 @@ void triangle_surface(vec3 d, Hit h, inout Surface s) {
         if (bl > 0.0) s.n = blend / bl;
     }
 #endif
-#ifdef READS_MATERIALS
+#if READS_MATERIALS
     s.mat = int(r0.w & SPHERE_MAT_MASK);   // (bits 7..0; bit 31 is TRI_DEGENERATE)
 #endif
 }

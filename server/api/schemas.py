@@ -282,7 +282,15 @@ class SceneInfo(BaseModel):
         None, description="the mesh scene recipe it was made from (until a model is added or the scene replaced)"
     )
     n_meshes: int = 0
-    n_triangles: int = Field(0, description="triangles of all meshes (ids after the planes)")
+    n_triangles: int = Field(
+        0, description="triangles of all meshes (ids after the planes): a model's mesh on k nodes counts k times"
+    )
+    n_unique_triangles: int = Field(
+        0, description="triangles of all meshes, a model's mesh used by several nodes counted once (parsed once)"
+    )
+    n_textures: int = Field(0, description="textures the scene's materials read")
+    texture_bytes: int = Field(0, description="GPU bytes of the scene's texture array, every mip level")
+    attribute_bytes: int = Field(0, description="GPU bytes of the meshes' vertex attribute records")
     n_degenerate_triangles: int = Field(0, description="zero-area triangles: kept, never hit")
     n_moving_meshes: int = Field(0, description="meshes some motion moves")
     n_shapes: int = Field(0, description="analytic shapes: cylinders, cones, disks, tori (ids after the triangles)")
@@ -335,7 +343,11 @@ class MeshAdded(BaseModel):
         None, description="where the model's box's bottom centre went (world units): free floor beside the scene"
     )
     camera: CameraModel | None = Field(None, description="the session's camera, framed to show the model and the scene")
-    notice: str | None = Field(None, description="a sentence for the user: where the model went")
+    notice: str | None = Field(
+        None, description="a sentence for the user: where the model went, and what of the file was not read"
+    )
+    n_meshes: int = Field(1, description="the meshes the model became (one per glTF primitive per node)")
+    n_textures: int = Field(0, description="the textures it brought")
 
 
 class RenderRequest(Strict):

@@ -1,7 +1,8 @@
 """Model files parsed in worker processes, each with a deadline and resource limits.
 
 An uploaded model file (``POST /api/meshes``, ``POST /api/sessions/{id}/meshes``) is parsed
-by :func:`renderer.mesh_io.load_mesh` (a zip of a model's folder opened there too, its bounds
+by :func:`renderer.mesh_io.load_model` into a :class:`renderer.model.Model` — parts, materials and
+decoded textures — (a zip of a model's folder opened there too, its bounds
 checked before anything is inflated) in one of ``POCKETRAY_MODEL_WORKERS`` processes kept
 warm (started at the first upload; numpy and trimesh imported once), never in the service
 process: a parser that a file sends into a long computation or a large allocation cannot be
@@ -19,9 +20,10 @@ run-length encoded ``.hdr`` of one-byte runs is cut into packets in C and decode
 16 MB file is still a second of CPU, which the per-address share keeps to its own address.
 
 The protocol is a pipe each way: 8-byte length, then a pickle — the job ``(bytes, format,
-max_triangles, max_vertices)`` or ``("image", bytes, format)`` one way, ``("ok", vertices,
-triangles, normals, image names)``, ``("ok", texels)`` or ``("error", field, message)`` the other
-(pickles only between this module and the processes it started). A worker is ``python -m
+max_triangles, max_vertices)`` or ``("image", bytes, format)`` one way, ``("ok", model)``,
+``("ok", texels)`` or ``("error", field, message)`` the other (pickles only between this module
+and the processes it started; the parts of one mesh on several nodes share their arrays, and the
+pickle carries them once). A worker is ``python -m
 server.sessions.model_worker``: it imports the renderer's core and nothing of the service.
 
 One client address holds at most ``POCKETRAY_MODEL_WORKERS_PER_ADDRESS`` of the workers at once
@@ -167,14 +169,14 @@ class ModelWorkers:
         max_vertices: int,
         busy: Callable[..., Exception] = ParsersBusy,
     ):
-        """:class:`renderer.mesh_io.MeshData` of the file, or SceneError (``format`` or
-        ``file``: what is wrong, a limit it exceeds, or the deadline it missed); ``busy`` (503)
-        when every worker stays busy for ``timeout_s``."""
-        from renderer.mesh_io import MeshData, file_type_of
+        """The :class:`renderer.model.Model` of the file, or SceneError (``format`` or ``file``:
+        what is wrong, a limit it exceeds, or the deadline it missed); ``busy`` (503) when every
+        worker stays busy for ``timeout_s``."""
+        from renderer.mesh_io import file_type_of
 
         ft = file_type_of(data, fmt)
         answer = self._run((bytes(data), ft, max_triangles, max_vertices), f"the {ft.upper()} model", busy)
-        return MeshData(*answer[1:])
+        return answer[1]
 
     def load_image(self, data: bytes, fmt: str, busy: Callable[..., Exception] = ParsersBusy):
         """:func:`renderer.envmap.read_image` of the file in a worker: texels, or SceneError as
@@ -237,7 +239,10 @@ class ModelWorkers:
                 f"parsing {what} took longer than {self.timeout_s:g} s (POCKETRAY_MODEL_TIMEOUT_S): refused",
             ) from None
         except EOFError:
-            code = w.proc.poll()
+            try:  # its pipe closes a moment before it has exited: its status says why
+                code = w.proc.wait(timeout=1.0)
+            except subprocess.TimeoutExpired:
+                code = None
             why = (
                 f"more than {self.timeout_s:g} s of CPU (POCKETRAY_MODEL_TIMEOUT_S)"
                 if code == -signal.SIGXCPU
@@ -293,15 +298,15 @@ def load_model(
     max_vertices: int | None = None,
     busy: Callable[..., Exception] = ParsersBusy,
 ):
-    """:func:`renderer.mesh_io.load_mesh` of an uploaded file, in a worker process (above);
-    ``busy(message, retry_after_s=)`` is raised when no worker is free."""
+    """:func:`renderer.mesh_io.load_model` of an uploaded file (a :class:`renderer.model.Model`), in
+    a worker process (above); ``busy(message, retry_after_s=)`` is raised when no worker is free."""
     from renderer.limits import MAX_MESH_VERTICES
-    from renderer.mesh_io import load_mesh
+    from renderer.mesh_io import load_model as parse
 
     max_vertices = MAX_MESH_VERTICES if max_vertices is None else max_vertices
     pool = workers_for(config)
     if pool is None:
-        return load_mesh(data, fmt, max_triangles=max_triangles, max_vertices=max_vertices)
+        return parse(data, fmt, max_triangles=max_triangles, max_vertices=max_vertices)
     return pool.load(data, fmt, max_triangles, max_vertices, busy)
 
 
@@ -335,10 +340,12 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
     resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
     import gc
 
-    import trimesh  # noqa: F401 - imported once, before the first file
+    import PIL.Image  # noqa: F401 - imported once, before the first file
+    import trimesh  # noqa: F401
 
+    import renderer.gltf_model  # noqa: F401
     from renderer.envmap import read_image
-    from renderer.mesh_io import load_mesh
+    from renderer.mesh_io import load_model as parse
     from renderer.scene import SceneError
 
     try:
@@ -353,7 +360,19 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
         head = src.read(_HEADER.size)
         if len(head) < _HEADER.size:
             return  # the service closed the pipe: it is gone or closing
-        job = pickle.loads(src.read(_HEADER.unpack(head)[0]))
+        try:
+            job = pickle.loads(src.read(_HEADER.unpack(head)[0]))
+        except MemoryError:  # the file's own bytes do not fit: said as the parse's would be
+            _answer(
+                out,
+                (
+                    "error",
+                    "file",
+                    f"the file needs more than the parser's {memory_bytes >> 20} MiB of memory "
+                    "(POCKETRAY_MODEL_MEMORY_BYTES)",
+                ),
+            )
+            continue
         image = job[0] == "image"
         if image:
             _, data, ft = job
@@ -369,8 +388,8 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
             if image:
                 answer: tuple = ("ok", read_image(data, ft))
             else:
-                m = load_mesh(data, ft, max_triangles=max_triangles, max_vertices=max_vertices)
-                answer = ("ok", m.vertices, m.triangles, m.normals, m.images)
+                m = parse(data, ft, max_triangles=max_triangles, max_vertices=max_vertices)
+                answer = ("ok", m)
         except SceneError as e:
             message = e.message
             if "MemoryError" in message:
@@ -387,16 +406,33 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
                 "(POCKETRAY_MODEL_MEMORY_BYTES)",
             )
         del data, m
-        payload = pickle.dumps(answer, protocol=pickle.HIGHEST_PROTOCOL)
-        del answer
-        out.write(_HEADER.pack(len(payload)))
-        out.write(payload)
-        out.flush()
-        del payload
+        try:
+            _answer(out, answer)
+        except MemoryError:  # a model's arrays and textures fit, their pickle does not
+            del answer
+            _answer(
+                out,
+                (
+                    "error",
+                    "body" if image else "file",
+                    f"{what} needs more than the parser's {memory_bytes >> 20} MiB of memory "
+                    "(POCKETRAY_MODEL_MEMORY_BYTES)",
+                ),
+            )
+        else:
+            del answer
         if large:  # give a large file's arrays back to the system (~0.1 s: not for small ones)
             gc.collect()
             if trim is not None:
                 trim(0)
+
+
+def _answer(out, answer: tuple) -> None:
+    """One answer down the pipe: its length, then its pickle."""
+    payload = pickle.dumps(answer, protocol=pickle.HIGHEST_PROTOCOL)
+    out.write(_HEADER.pack(len(payload)))
+    out.write(payload)
+    out.flush()
 
 
 if __name__ == "__main__":

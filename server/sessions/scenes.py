@@ -27,7 +27,7 @@ import json
 import threading
 import zipfile
 from collections import OrderedDict
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -302,7 +302,15 @@ def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> It
             if m.normals is not None:
                 yield b',"normals":'
                 yield from (x.encode() for x in _rows_json(m.normals, rows))
+            for name, values in m.attributes.items():
+                yield f',"{name}":'.encode()
+                yield from (x.encode() for x in _rows_json(values, rows))
             yield b"}"
+        yield b"]"
+    if scene.textures:  # each a PNG in base64, as Scene.to_json
+        yield b',"textures":['
+        for i, t in enumerate(scene.textures):
+            yield (("," if i else "") + dumps(t.to_json())).encode()
         yield b"]"
     for key, records in scene.shapes.to_json().items():  # each kind only when it has shapes, as Scene.to_json
         yield (f',"{key}":' + dumps(records)).encode()
@@ -324,7 +332,10 @@ def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dic
     info: dict[str, Any] = {"n_spheres": rest.n_spheres, "n_planes": len(rest.planes)}
     if rest.meshes:  # (absent for a sphere scene: the stored state stays as it was)
         info.update(
-            n_meshes=len(rest.meshes), n_triangles=rest.n_triangles, n_degenerate_triangles=rest.n_degenerate_triangles
+            n_meshes=len(rest.meshes),
+            n_triangles=rest.n_triangles,
+            n_unique_triangles=rest.n_triangles,  # (the service counts a model's instanced meshes once)
+            n_degenerate_triangles=rest.n_degenerate_triangles,
         )
     if rest.n_shapes:  # (absent without: as the meshes')
         info["n_shapes"] = rest.n_shapes
@@ -346,8 +357,9 @@ def scene_info(scene: SessionScene, recipe: dict[str, Any] | None = None) -> dic
 
 
 # What a scene holds in memory, bytes: a sphere its centre, radius and material and the tree's
-# share; a triangle its mesh's arrays and the flattened corners; an analytic shape its record and
-# box; an environment image everything it holds once drawn (EnvironmentMap.held_bytes).
+# share; a triangle its mesh's arrays and the flattened corners (and its vertex attributes as they
+# are); an analytic shape its record and box; a texture its texels; an environment image everything
+# it holds once drawn (EnvironmentMap.held_bytes).
 SPHERE_BYTES = 36
 TRIANGLE_BYTES = 144
 SHAPE_BYTES = 144
@@ -358,7 +370,9 @@ def scene_bytes(scene: SessionScene) -> int:
     rest = scene.scene if isinstance(scene, AnimatedScene) else scene
     env = rest.environment_map
     geometry = SPHERE_BYTES * rest.n_spheres + TRIANGLE_BYTES * rest.n_triangles + SHAPE_BYTES * rest.n_shapes
-    return geometry + (env.held_bytes if env is not None and env.ref != SKY_REF else 0)
+    attributes = sum(a.nbytes for m in rest.meshes for a in m.attributes.values())
+    texels = sum(t.nbytes for t in rest.textures)
+    return geometry + attributes + texels + (env.held_bytes if env is not None and env.ref != SKY_REF else 0)
 
 
 class SceneCache:
@@ -501,11 +515,12 @@ def free_floor_spot(scene: Scene, extent: np.ndarray) -> tuple[np.ndarray, float
     return None
 
 
-def placed_mesh(scene: Scene, mesh: Mesh) -> tuple[Mesh, np.ndarray]:
-    """``mesh`` moved (and, where walls leave no room, shrunk) onto free floor beside ``scene``'s
-    objects (:func:`free_floor_spot`); else to the right of everything, on the floor. Returns the
-    mesh and its box's bottom centre."""
-    lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+def placed_meshes(scene: Scene, meshes: Sequence[Mesh]) -> tuple[list[Mesh], np.ndarray]:
+    """``meshes`` (a model's parts) moved together (and, where walls leave no room, shrunk) onto
+    free floor beside ``scene``'s objects (:func:`free_floor_spot`); else to the right of
+    everything, on the floor. Returns the meshes and their box's bottom centre."""
+    lo = np.min([m.vertices.min(axis=0) for m in meshes], axis=0)
+    hi = np.max([m.vertices.max(axis=0) for m in meshes], axis=0)
     bottom = np.array([(lo[0] + hi[0]) / 2.0, lo[1], (lo[2] + hi[2]) / 2.0])
     found = free_floor_spot(scene, hi - lo)
     if found is None:
@@ -513,5 +528,8 @@ def placed_mesh(scene: Scene, mesh: Mesh) -> tuple[Mesh, np.ndarray]:
         spot, scale = np.array([box.hi[0] + (hi[0] - lo[0]) / 2.0 + 1.0, box.lo[1], bottom[2]]), 1.0
     else:
         spot, scale = found
-    vertices = (mesh.vertices - bottom) * scale + spot
-    return Mesh(vertices, mesh.triangles, mesh.material, mesh.normals), spot
+    # a uniform scale and a shift: normals and tangents keep their directions
+    moved = [
+        Mesh((m.vertices - bottom) * scale + spot, m.triangles, m.material, m.normals, **m.attributes) for m in meshes
+    ]
+    return moved, spot

@@ -19,6 +19,7 @@ changed meanwhile: a refused, failed, timed-out or cancelled frame leaves the se
 
 from __future__ import annotations
 
+import dataclasses
 import secrets
 import threading
 from dataclasses import dataclass, replace
@@ -26,8 +27,9 @@ from typing import Any, cast
 
 from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum
 from renderer.envmap import STORED_TEXEL_BYTES, EnvironmentMap, declared_size, image_ref
-from renderer.limits import MAX_TRIANGLES
+from renderer.limits import MAX_TEXTURE_TEXELS, MAX_TEXTURES, MAX_TRIANGLES
 from renderer.mesh_io import fit_transform
+from renderer.model import Model
 from renderer.scenarios import DEFAULT_DEMO, demo_for_recipe, framed, mesh_scene, scenario
 from renderer.scene import Camera, Scene, SceneError
 from renderer.settings import SettingValues
@@ -55,7 +57,7 @@ from .scenes import (
     camera_from_model,
     load_source,
     museum_source,
-    placed_mesh,
+    placed_meshes,
     scenario_source,
     scene_info,
     scene_source,
@@ -68,14 +70,17 @@ LINEAR_FORMATS = ("npy", "exr")  # radiance as traced: denoised only when a requ
 
 @dataclass(frozen=True)
 class MeshPlaced:
-    """A model added to a session: the new state, the mesh's index and first primitive id, where
-    its box's bottom centre went (world units) and the sentence that says so."""
+    """A model added to a session: the new state, its first mesh's index and first primitive id,
+    where its box's bottom centre went (world units), the sentence that says so (and what of the
+    file was not read), the meshes it became and the textures it brought."""
 
     state: SessionState
     index: int
     first_id: int
     placed: tuple[float, float, float]
     notice: str
+    n_meshes: int = 1
+    n_textures: int = 0
 
 
 def _framed(scene: SessionScene, aspect: float, camera: Camera | None = None) -> SessionScene:
@@ -307,14 +312,22 @@ class SessionService:
                     else ""
                 ),
             ) from None
-        materials = rest.materials
+        materials, textures = rest.materials, rest.textures
         if query.material is not None and query.material >= len(materials):
             raise InputError(
                 (Where.QUERY, "material"),
                 f"material index {query.material} out of range (the scene has {len(materials)} materials)",
             )
         material = query.material
-        if material is None:  # the clay, added once: later models share it
+        if material is not None:  # the material named takes every part: the model's own are not added
+            parsed = dataclasses.replace(
+                parsed,
+                parts=tuple(dataclasses.replace(p, material=-1) for p in parsed.parts),
+                materials=(),
+                textures=(),
+            )
+        # the parts without a material of their own take the clay, added once: later models share it
+        if material is None and any(p.material < 0 for p in parsed.parts):
             if CLAY not in materials:
                 if len(materials) >= Scene.MAX_MATERIALS:
                     raise InputError(
@@ -324,38 +337,85 @@ class SessionService:
                     )
                 materials = (*materials, CLAY)
             material = materials.index(CLAY)
+        self._check_model_room(session_id, parsed, materials, textures)
         try:
-            mesh = parsed.to_mesh(material, fit_transform(parsed, query.size) if query.size else None, query.smooth)
-            mesh, spot = placed_mesh(rest, mesh)
+            fit = fit_transform(parsed, query.size) if query.size else None
+            meshes, own = parsed.placed(
+                -1 if material is None else material,
+                len(materials),
+                len(textures),
+                fit,
+                query.smooth,
+                max_meshes=max(1, Scene.MAX_MESHES - len(rest.meshes)),
+            )
+            meshes, spot = placed_meshes(rest, meshes)
             grown = Scene(
                 rest.camera,
                 rest.lights,
-                materials,
+                (*materials, *own),
                 rest.sphere_centers,
                 rest.sphere_radii,
                 rest.sphere_materials,
                 rest.planes,
-                (*rest.meshes, mesh),
+                (*rest.meshes, *meshes),
                 rest.environment,
                 rest.environment_map,
                 rest.shapes,
+                (*textures, *parsed.textures),
             )
             aspect = state.aspect or state.settings["width"] / state.settings["height"]
             grown = framed(grown, aspect)
             scene: SessionScene = AnimatedScene(grown, old.motions) if isinstance(old, AnimatedScene) else grown
         except SceneError as e:
             raise InputError((Where.BODY,), f"the model does not fit the scene: {e.field}: {e.message}") from None
-        # no recipe any more: a scenario with a model in it is a scene of its own
-        new = self._replace_scene(state, scene, "the model", camera=grown.camera.to_json())
-        index = len(grown.meshes) - 1
+        unique = state.scene_info.get("n_unique_triangles", rest.n_triangles) + parsed.n_unique_triangles
+        # no recipe any more: a scenario with a model in it is a scene of its own; the model's meshes,
+        # materials and textures are written with it in one change, or not at all
+        new = self._replace_scene(state, scene, "the model", camera=grown.camera.to_json(), unique_triangles=unique)
+        index = len(rest.meshes)
         x, y, z = (round(float(v), 1) for v in spot)
+        said = [f"placed at x {x:g}, z {z:g} beside the scene, standing on y {y:g}; the camera shows it"]
+        if len(meshes) > 1 or own or parsed.textures:
+            said.append(
+                f"{len(meshes)} mesh(es), {len(own)} material(s) and {len(parsed.textures)} texture(s) of the file"
+            )
+        said.extend(parsed.notices)  # (each reader keeps them within MAX_MODEL_NOTICES)
         return MeshPlaced(
             new,
             index,
             grown.triangle_id_base + grown.mesh_triangle_range(index).start,
             (x, y, z),
-            f"placed at x {x:g}, z {z:g} beside the scene, standing on y {y:g}; the camera shows it",
+            "; ".join(said),
+            len(meshes),
+            len(parsed.textures),
         )
+
+    def _check_model_room(self, session_id: str, model: Model, materials: tuple, textures: tuple) -> None:
+        """422 (body) when the model's materials or textures do not fit the scene's bounds beside
+        the scene's own; 507 (StoreFull) when its textures do not fit the store's quota."""
+        if len(materials) + len(model.materials) > Scene.MAX_MATERIALS:
+            raise InputError(
+                (Where.BODY,),
+                f"the model has {len(model.materials)} materials and the scene {len(materials)}; at most "
+                f"{Scene.MAX_MATERIALS} together (MAX_MATERIALS)",
+            )
+        if len(textures) + len(model.textures) > MAX_TEXTURES:
+            raise InputError(
+                (Where.BODY,),
+                f"the model has {len(model.textures)} textures and the scene {len(textures)}; at most "
+                f"{MAX_TEXTURES} together (MAX_TEXTURES)",
+            )
+        texels = sum(t.width * t.height for t in (*textures, *model.textures))
+        if texels > MAX_TEXTURE_TEXELS:
+            raise InputError(
+                (Where.BODY,),
+                f"the model's textures and the scene's hold {texels:,} texels; at most {MAX_TEXTURE_TEXELS:,} "
+                "together (MAX_TEXTURE_TEXELS)",
+            )
+        # the store keeps the texels as they are: refused now, before the scene is written
+        wanted, room = model.texture_bytes, self.store.room(session_id)
+        if room is not None and wanted > room:
+            raise StoreFull(self.config.max_store_bytes - room, wanted, self.config.max_store_bytes)
 
     def set_environment(
         self, session_id: str, data: bytes, fmt: str, scale: float, rotation_deg: float
@@ -396,17 +456,25 @@ class SessionService:
             (0.0, 0.0, 0.0),
             env,
             rest.shapes,
+            rest.textures,
         )
         scene: SessionScene = AnimatedScene(lit, old.motions) if isinstance(old, AnimatedScene) else lit
         # no recipe any more: a scenario under another environment is a scene of its own
         return self._replace_scene(state, scene, "the image")
 
     def _replace_scene(
-        self, state: SessionState, scene: SessionScene, read: str, camera: dict[str, Any] | None = None
+        self,
+        state: SessionState,
+        scene: SessionScene,
+        read: str,
+        camera: dict[str, Any] | None = None,
+        unique_triangles: int | None = None,
     ) -> SessionState:
         """``scene`` (made from ``state``'s scene and something ``read`` meanwhile: a model file, an
         image) as the session's scene, recipe-less, unless its scene changed since ``state``
-        (Superseded: nothing is written); ``camera``: the session's camera with it."""
+        (Superseded: nothing is written); ``camera``: the session's camera with it;
+        ``unique_triangles``: its triangles with each instanced mesh counted once (None: as
+        ``state``'s scene had them: its meshes are the same)."""
         self.caps.check_textures(scene, ("file",))
         source = scene_source(scene)
         rev = secrets.token_hex(8)
@@ -414,7 +482,11 @@ class SessionService:
         def mutate(current: SessionState) -> SessionState:
             if current.scene_rev != state.scene_rev:
                 raise Superseded(f"session: its scene changed while {read} was read; send it again")
-            moved = replace(current, scene_rev=rev, scene_info=scene_info(scene, None))
+            info = scene_info(scene, None)
+            if "n_unique_triangles" in info:
+                kept = current.scene_info.get("n_unique_triangles", info["n_unique_triangles"])
+                info["n_unique_triangles"] = kept if unique_triangles is None else unique_triangles
+            moved = replace(current, scene_rev=rev, scene_info=info)
             return moved if camera is None else replace(moved, camera=camera)
 
         new = self._update(state.id, mutate, source)

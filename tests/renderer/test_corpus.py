@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from renderer.mesh_io import load_mesh
+from renderer.materials.pbr import PbrMaterial
+from renderer.mesh_io import load_mesh, load_model
 from renderer.model_guard import GLTF1
 from renderer.scene import SceneError
 from server.config import ServerConfig
@@ -67,3 +68,45 @@ def test_gltf_1_and_blenders_ply_are_answered_as_such():
     assert load_mesh(CORPUS / "PLY" / "Wuson.ply").n_triangles > 0
     kind, out, _ = answer("glTF2/draco/2CylinderEngine.gltf")
     assert kind == "refused" and "KHR_draco_mesh_compression" in out.message
+
+
+def model(rel: str):
+    return load_model(CORPUS / rel)
+
+
+@pytest.mark.parametrize("variant", ["glTF", "glTF-Binary", "glTF-Embedded"])
+def test_the_textured_box_arrives_with_its_texture(variant):
+    """BoxTextured in its three forms: one PbrMaterial whose base colour is the 211 × 211 Cesium
+    logo (sRGB, as the image beside it holds it), a dielectric (metallicFactor 0)."""
+    from PIL import Image
+
+    name = "BoxTextured.glb" if variant == "glTF-Binary" else "BoxTextured.gltf"
+    m = model(f"glTF2/BoxTextured-{variant}/{name}")
+    (material,) = m.materials
+    (texture,) = m.textures
+    assert isinstance(material, PbrMaterial) and material.metallic == 0.0
+    assert material.base_color_texture == 0 and texture.srgb
+    logo = np.asarray(Image.open(CORPUS / "glTF2/BoxTextured-glTF/CesiumLogoFlat.png").convert("RGBA"))
+    np.testing.assert_array_equal(texture.pixels, logo)
+    assert all("uvs" in p.attributes for p in m.parts)
+
+
+def test_texture_transforms_and_a_second_uv_set_are_read():
+    m = model("glTF2/textureTransform/TextureTransformTest.gltf")
+    offsets = {mat.base_color_uv_offset for mat in m.materials}
+    assert (0.5, 0.0) in offsets and (0.0, 0.5) in offsets and (0.5, 0.5) in offsets
+    assert any(mat.base_color_uv_matrix != (1.0, 0.0, 0.0, 1.0) for mat in m.materials)  # rotation, scale
+    box = model("glTF2/BoxTexcoords-glTF/boxTexcoords.gltf")
+    (mat,) = box.materials
+    assert (mat.base_color_texcoord, mat.metallic_roughness_texcoord) == (0, 1)
+    assert [t.srgb for t in box.textures] == [True, False]  # one image, read as colour and as data
+    assert {"uvs", "uvs1"} <= set(box.parts[0].attributes)
+
+
+def test_a_multi_material_file_keeps_its_parts_apart():
+    """2CylinderEngine: 34 materials, a mesh per part, meshes instanced by several nodes."""
+    m = model("glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb")
+    assert len(m.parts) > 50 and len({p.material for p in m.parts}) > 10
+    assert m.n_unique_triangles < m.n_triangles  # instanced meshes are read once
+    assert len({id(p.vertices) for p in m.parts}) < len(m.parts)
+    assert load_mesh(CORPUS / "glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb").n_triangles == m.n_triangles

@@ -4,10 +4,12 @@ model, in memory and from a path; bad files are refused naming the field."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from renderer.materials.pbr import PbrMaterial
 from renderer.mesh_io import (
     MODEL_FORMATS,
     export_mesh,
@@ -15,6 +17,7 @@ from renderer.mesh_io import (
     load_mesh,
     mesh_json,
     model_scene,
+    models_scene_json,
     write_scene_json,
 )
 from renderer.meshes import box, edge_report, icosphere, signed_volume, torus
@@ -145,7 +148,7 @@ def test_caps_on_triangles_and_vertices():
     data = export_mesh(icosphere(2), "ply")
     with pytest.raises(SceneError, match="at most 100 allowed"):
         load_mesh(data, "ply", max_triangles=100)
-    with pytest.raises(SceneError, match="distinct vertices"):
+    with pytest.raises(SceneError, match="vertices; at most 100 per mesh"):
         load_mesh(data, "ply", max_vertices=100)
 
 
@@ -166,3 +169,34 @@ def test_the_command_line_functions_make_a_scene_of_a_model(tmp_path):
     t = fit_transform(load_mesh(path), size=2.0, floor=None)
     assert t[3] == [0.0, 0.0, 0.0, 1.0]
     assert MODEL_FORMATS == ("obj", "ply", "stl", "glb", "gltf")
+
+
+def textured_gltf_folder(folder: Path) -> Path:
+    """A .gltf with its .bin and a PNG beside it: one triangle whose material reads the image."""
+    from tests.renderer.gltf_files import Gltf, png, triangle
+
+    g = Gltf()
+    uv = g.accessor([[0, 0], [1, 0], [0, 1]])
+    g.add("images", {"uri": "skin.png"})
+    g.add("textures", {"source": 0})
+    material = g.add("materials", {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0}})
+    g.add("nodes", {"mesh": g.mesh(triangle(g, TEXCOORD_0=uv) | {"material": material})})
+    g.scene(0)
+    folder.mkdir()
+    (folder / "model.bin").write_bytes(bytes(g.binary))
+    (folder / "skin.png").write_bytes(png(np.full((4, 2, 4), 200, np.uint8)))
+    (folder / "model.gltf").write_bytes(g.gltf("model.bin"))
+    return folder / "model.gltf"
+
+
+def test_the_command_lines_scenes_keep_a_models_materials_and_textures(tmp_path):
+    """render MODEL's scene and scene --mesh's JSON: the model's PbrMaterial after the floor's and
+    the model's own, its texture, its UVs; a second model's indices follow the first's."""
+    path = textured_gltf_folder(tmp_path / "a")
+    scene = model_scene(path)
+    assert scene.materials[2] == PbrMaterial(metallic=0.0, base_color_texture=0)
+    assert len(scene.textures) == 1 and scene.meshes[0].material == 2 and scene.meshes[0].uvs is not None
+    doc = models_scene_json([path, path])
+    back = Scene.from_json(doc)
+    assert [m.material for m in back.meshes] == [2, 3] and len(back.textures) == 2
+    assert back.materials[3].base_color_texture == 1

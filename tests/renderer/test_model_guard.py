@@ -202,7 +202,7 @@ def test_an_obj_face_with_index_0_or_out_of_range_is_refused(face, why):
 
 
 def test_obj_negative_indices_count_from_the_vertices_before_the_face():
-    obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 0 0 1\nf -4 -3 -1\nf 1/1/1 2//2 4\n"
+    obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 0 0 1\nf -4 -3 -1\nvt 0 0\nvn 0 0 1\nf 1/1/1 2//1 4\n"
     assert load_mesh(obj, "obj").n_triangles == 3
     assert "counts back past the 3" in refused(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -4\nv 0 0 1\n", "obj")
     assert "4 triangles; at most 3" in refused(

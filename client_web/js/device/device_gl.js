@@ -45,9 +45,10 @@ const QUAD_VS = `#version 300 es
 in vec2 a_position;
 void main() { gl_Position = vec4(a_position, 0.0, 1.0); }`;
 
-// A fragment shader's text with `#define GUIDES` after its version line (the guides' variant).
-function withGuides(src) {
-  return src.replace('#version 300 es\n', '#version 300 es\n#define GUIDES\n');
+// A fragment shader's text with its switch GUIDES after the version line: 1 in the guides' variant,
+// else 0 (the shader tests it with #if, as the server's shaders test their switches: always defined).
+function withGuides(src, on) {
+  return src.replace('#version 300 es\n', `#version 300 es\n#define GUIDES ${on ? 1 : 0}\n`);
 }
 
 // Up to 4 × 4 sub-pixels (16 samples per pixel, the server's largest). GUIDES (paths only): the
@@ -64,7 +65,7 @@ uniform int u_k;
 uniform float u_scale;               // 1 / (k·k); the path integrator's: 1 / samples traced
 layout(location = 0) out vec4 o_image;
 layout(location = 1) out vec4 o_hit;
-#ifdef GUIDES
+#if GUIDES
 uniform highp sampler2D u_trace2;
 uniform highp sampler2D u_trace3;
 layout(location = 2) out vec4 o_albedo;
@@ -83,7 +84,7 @@ void main() {
   ivec2 c = ivec2(gl_FragCoord.xy);
   o_image = vec4(sum * u_scale, texelFetch(u_centre0, c, 0).a);
   o_hit = texelFetch(u_centre1, c, 0);
-#ifdef GUIDES
+#if GUIDES
   o_albedo = vec4(texelFetch(u_trace2, c, 0).rgb * u_scale, 0.0);
   o_normal = vec4(texelFetch(u_trace3, c, 0).rgb * u_scale, 0.0);
 #endif
@@ -103,7 +104,7 @@ uniform highp sampler2D u_sum1;
 uniform int u_first;
 layout(location = 0) out vec4 o_image;
 layout(location = 1) out vec4 o_hit;
-#ifdef GUIDES
+#if GUIDES
 uniform highp sampler2D u_pass2;
 uniform highp sampler2D u_pass3;
 uniform highp sampler2D u_sum2;
@@ -114,7 +115,7 @@ layout(location = 3) out vec4 o_normal;
 void main() {
   ivec2 c = ivec2(gl_FragCoord.xy);
   vec4 p = texelFetch(u_pass0, c, 0);
-#ifdef GUIDES
+#if GUIDES
   o_albedo = texelFetch(u_pass2, c, 0);
   o_normal = texelFetch(u_pass3, c, 0);
   if (u_first == 0) {
@@ -321,9 +322,9 @@ export class DeviceRenderer {
     gl.enableVertexAttribArray(0);
     gl.vertexAttribPointer(0, 2, gl.FLOAT, false, 0, 0);
     gl.bindVertexArray(null);
-    this.resolveProgram = this.program(QUAD_VS, RESOLVE_FS);
+    this.resolveProgram = this.program(QUAD_VS, withGuides(RESOLVE_FS, false));
     this.displayProgram = this.program(QUAD_VS, DISPLAY_FS);
-    this.accumulateProgram = this.program(QUAD_VS, ACCUMULATE_FS);
+    this.accumulateProgram = this.program(QUAD_VS, withGuides(ACCUMULATE_FS, false));
     this.sumOwner = null;          // the path-traced trace whose sum the 'sum0'/'sum1' targets hold
   }
 
@@ -499,7 +500,7 @@ export class DeviceRenderer {
     gl.bindVertexArray(this.vao);
     gl.bindFramebuffer(gl.FRAMEBUFFER, dst.fbo);
     gl.viewport(0, 0, trace.width, trace.height);
-    const a = n === 4 ? this.program(QUAD_VS, withGuides(ACCUMULATE_FS)) : this.accumulateProgram;
+    const a = n === 4 ? this.program(QUAD_VS, withGuides(ACCUMULATE_FS, true)) : this.accumulateProgram;
     gl.useProgram(a.program);
     const units = [...pass.tex.map((t, i) => [`u_pass${i}`, t]), ...src.tex.map((t, i) => [`u_sum${i}`, t])];
     this._bindUnits(a, units);
@@ -673,7 +674,7 @@ export class DeviceRenderer {
     gl.bindVertexArray(this.vao);
     gl.bindFramebuffer(gl.FRAMEBUFFER, dst.fbo);
     gl.viewport(0, 0, trace.width, trace.height);
-    const r = trace.n === 4 ? this.program(QUAD_VS, withGuides(RESOLVE_FS)) : this.resolveProgram;
+    const r = trace.n === 4 ? this.program(QUAD_VS, withGuides(RESOLVE_FS, true)) : this.resolveProgram;
     gl.useProgram(r.program);
     // (u_trace1 is not read: the normal and t come from the pixel centres.)
     const units = [...src.tex.map((t, i) => [`u_trace${i}`, t]), ['u_centre0', centre.tex[0]], ['u_centre1', centre.tex[1]]];

@@ -9,7 +9,7 @@ from fastapi import APIRouter, Body, Query, Request, Response
 from fastapi.responses import StreamingResponse
 from starlette.concurrency import run_in_threadpool
 
-from renderer.mesh_io import UPLOAD_FORMATS, fit_transform
+from renderer.mesh_io import UPLOAD_FORMATS, fit_transform, model_geometry
 from renderer.scene import SceneError
 
 from ...faults import Busy, InputError, Where
@@ -150,7 +150,7 @@ _MODEL_BODY = {
     "/sessions/{session_id}/meshes",
     status_code=201,
     response_model=MeshAdded,
-    responses=documented(404, 409, 413, 503),
+    responses=documented(404, 409, 413, 503, 507),
     openapi_extra=_MODEL_BODY,
     summary="Add a model file (OBJ, PLY, STL, glTF/GLB, or a zip of its folder; the body) to the session's scene",
 )
@@ -169,6 +169,8 @@ async def add_mesh(
         placed=added.placed,
         camera=CameraModel(**state.camera),
         notice=added.notice,
+        n_meshes=added.n_meshes,
+        n_textures=added.n_textures,
     )
 
 
@@ -223,7 +225,8 @@ async def convert_mesh(request: Request, query: Annotated[MeshUploadQuery, Query
             parsed = load_model(
                 service.config, data, query.format, max_triangles=service.config.max_triangles, busy=Busy
             )
-            mesh = parsed.to_json(
+            # one mesh JSON: the model's parts joined (a mesh names one scene material)
+            mesh = model_geometry(parsed).to_json(
                 query.material or 0, fit_transform(parsed, query.size) if query.size else None, query.smooth
             )
         except SceneError as e:

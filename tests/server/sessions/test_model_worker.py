@@ -26,7 +26,7 @@ SMALL = export_mesh(icosphere(1), "obj")
 @pytest.fixture(scope="module")
 def large() -> bytes:
     """400,000 random triangles over 200,000 vertices as binary PLY (7.2 MB): ~0.3 s to parse,
-    over 100 MiB of the worker's memory."""
+    ~44 MiB of the worker's address space beyond its imports."""
     rng = np.random.default_rng(1)
     return export_mesh(MeshData(rng.random((200_000, 3)), rng.integers(0, 200_000, (400_000, 3))), "ply")
 
@@ -75,7 +75,7 @@ def test_a_file_that_needs_more_than_the_memory_limit_is_refused_inside_its_work
         assert probe.load(large, "ply", 1 << 20, 1 << 20).n_triangles == 400_000
     finally:
         probe.close()
-    pool = ModelWorkers(1, 30, base + (48 << 20))
+    pool = ModelWorkers(1, 30, base + (16 << 20))
     try:
         assert pool.load(SMALL, "obj", 1 << 20, 1 << 20).n_triangles == 80
         hwm = vm_kib("self", "VmHWM")
@@ -200,3 +200,31 @@ def test_a_zipped_folder_is_opened_in_the_worker_and_its_image_names_come_back(m
             pool.load(zipped({"bomb.obj": bytes(4 << 20)}), "zip", 100, 1000)
     finally:
         pool.close()
+
+
+def test_a_textured_model_comes_back_from_the_worker_whole():
+    """The worker answers the Model: its decoded texture, its PbrMaterial, and the parts of one
+    mesh on two nodes still sharing their arrays (the pickle carries them once)."""
+    from renderer.materials.pbr import PbrMaterial
+    from tests.renderer.gltf_files import Gltf, png, triangle
+
+    pixels = np.arange(2 * 3 * 4, dtype=np.uint8).reshape(2, 3, 4)
+    g = Gltf()
+    uv = g.accessor([[0, 0], [1, 0], [0, 1]])
+    g.add("images", {"bufferView": g.view(png(pixels)), "mimeType": "image/png"})
+    g.add("textures", {"source": 0})
+    material = g.add("materials", {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}})
+    mesh = g.mesh(triangle(g, TEXCOORD_0=uv) | {"material": material})
+    g.add("nodes", {"mesh": mesh})
+    g.add("nodes", {"mesh": mesh, "translation": [3, 0, 0]})
+    g.scene(0, 1)
+    pool = ModelWorkers(1, 60.0, 2 << 30)
+    try:
+        model = pool.load(g.glb(), "glb", 1 << 20, 1 << 20)
+    finally:
+        pool.close()
+    (texture,) = model.textures
+    np.testing.assert_array_equal(texture.pixels, pixels)
+    assert model.materials == (PbrMaterial(base_color_texture=0),)
+    a, b = model.parts
+    assert a.vertices is b.vertices and model.n_unique_triangles == 1 and b.transform[0, 3] == 3

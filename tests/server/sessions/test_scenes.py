@@ -11,10 +11,11 @@ import numpy as np
 from renderer.animation import AnimatedScene, Deformable, RigidGroup, museum, pose
 from renderer.meshes import teapot
 from renderer.scenarios import mesh_scene
-from renderer.scene import Camera
+from renderer.scene import Camera, Mesh
 from server.sessions.scenes import (
     SHAPE_BYTES,
     SPHERE_BYTES,
+    TRIANGLE_BYTES,
     SceneCache,
     load_source,
     scene_bytes,
@@ -242,3 +243,43 @@ def test_textures_and_vertex_attributes_are_stored_as_they_are_and_reported():
     assert info["n_textures"] == 2
     assert info["texture_bytes"] == texture_layout.texture_array_bytes(64, 64, 2) == texture_layout.array_bytes(tex)
     assert info["attribute_bytes"] == (64 + 48 + 48) * 4  # UVs, colours (a), tangents (c) for all 4 triangles
+
+
+def test_a_models_materials_textures_and_attributes_come_back_streamed_and_weighed():
+    """A textured model's meshes (UVs, colours), its PbrMaterial and its texture come back from
+    the stored source as they went in; the streamed scene JSON is the scene's own, and the cache
+    weighs the texels and the attributes."""
+    from renderer.materials.pbr import PbrMaterial
+    from renderer.materials.texture import Texture
+    from renderer.scene import Scene
+
+    base = mesh_scene("teapot", 0)
+    pixels = np.arange(3 * 5 * 4, dtype=np.uint8).reshape(3, 5, 4)
+    texture = Texture(pixels, srgb=True, wrap_s="clamp", filter="nearest", name="skin.png")
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    uvs = np.array([[0, 0], [1, 0], [0, 1]], float)
+    colors = np.array([[1, 0, 0, 1], [0, 1, 0, 0.5], [0, 0, 1, 1]], float)
+    pbr = PbrMaterial(metallic=0.0, base_color_texture=0)
+    textured = Scene(
+        base.camera,
+        base.lights,
+        (*base.materials, pbr),
+        base.sphere_centers,
+        base.sphere_radii,
+        base.sphere_materials,
+        base.planes,
+        (*base.meshes, Mesh(v, [[0, 1, 2]], len(base.materials), None, uvs=uvs, colors=colors)),
+        textures=(texture,),
+    )
+    back = load_source(scene_source(textured), textured.camera)
+    assert back.materials[-1] == pbr
+    (t,) = back.textures
+    np.testing.assert_array_equal(t.pixels, pixels)
+    assert (t.srgb, t.wrap_s, t.wrap_t, t.filter, t.name) == (True, "clamp", "repeat", "nearest", "skin.png")
+    np.testing.assert_array_equal(back.meshes[-1].uvs, uvs)
+    np.testing.assert_array_equal(back.meshes[-1].colors, colors)
+    assert all(m.uvs is None for m in back.meshes[:-1])
+    # the cache weighs the texels and the attributes: 60 bytes, and 3 × (2 + 4) float64
+    assert scene_bytes(back) - scene_bytes(base) == 60 + 3 * 6 * 8 + TRIANGLE_BYTES
+    chunks = json.loads(b"".join(scene_json_chunks(back)))
+    assert chunks == json.loads(json.dumps(back.to_json()))  # the streamed JSON is the scene's own

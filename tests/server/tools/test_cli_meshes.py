@@ -15,7 +15,7 @@ import pytest
 import trimesh
 from pocketray_server_support import pocketray_batch
 
-from renderer.mesh_io import export_mesh, load_mesh, model_scene
+from renderer.mesh_io import export_mesh, load_mesh, load_model, model_scene
 from renderer.meshes import box, icosphere, torus
 from renderer.reference import primary_rays, trace_rays
 from renderer.scene import Scene
@@ -145,7 +145,7 @@ def test_scene_of_meshes_validates_renders_and_places_each_model(models, client)
     counts = [load_mesh(models / n).n_triangles for n in ("ball.obj", "box.stl", "ring.ply")]
     assert [len(m["triangles"]) for m in doc["meshes"]] == counts
     # The file's own coordinates, with a transform (editable); the service takes the scene as it is.
-    assert np.allclose(doc["meshes"][0]["vertices"], load_mesh(models / "ball.obj").vertices)
+    assert np.allclose(doc["meshes"][0]["vertices"], load_model(models / "ball.obj").parts[0].vertices)
     sid = client.post("/api/sessions", json={"scene": doc, "settings": {"width": W, "height": H}})
     assert sid.status_code == 201, sid.text
     info = sid.json()["scene_info"]

@@ -65,7 +65,7 @@ def test_device_data_for_path_carries_the_servers_variant_and_light(api):
     u = header["uniforms"]
     assert u["u_num_emit_tris"] == 2 and u["u_emit_tri_area"] > 0 and u["u_light_scale"] > 0
     src = api.get(header["shader"]["url"])
-    assert src.status_code == 200 and "u_sample_start" in src.text and "#define PATH" in src.text
+    assert src.status_code == 200 and "u_sample_start" in src.text and "#define PATH 1\n" in src.text
 
 
 @pytest.mark.parametrize("denoise", ["atrous", "oidn"])
@@ -80,7 +80,7 @@ def test_device_data_with_a_denoiser_writes_the_guides(api, denoise):
     assert header["path"]["guides"] is True and header["settings"]["denoise"] == denoise
     assert header["path"]["atrous"] == atrous.parameters()  # the filter's parameters, declared once
     src = api.get(header["shader"]["url"])
-    assert src.status_code == 200 and "#define GUIDES" in src.text
+    assert src.status_code == 200 and "#define GUIDES 1\n" in src.text
     bad = api.get(f"/api/sessions/{sid}/device-data", params={**q, "denoise": "median"})
     assert bad.status_code == 422 and "denoise" in bad.text
 

@@ -31,11 +31,14 @@ from pocketray_server_support import (
     state_of,
 )
 
+from renderer import texture_layout
+from renderer.materials.texture import Texture, decode_image
 from renderer.mesh_io import export_mesh
 from renderer.meshes import box, icosphere
 from renderer.scenarios import scenario
 from renderer.scene import Scene
 from renderer.settings import SETTINGS
+from tests.renderer.gltf_files import Gltf, png, triangle
 
 SESSION_KEYS = {"id", "version", "settings", "scene_info", "camera"}
 
@@ -65,6 +68,10 @@ def test_create_from_scenario_and_read(client):
         "mesh_scene": None,
         "n_meshes": 0,
         "n_triangles": 0,
+        "n_unique_triangles": 0,
+        "n_textures": 0,
+        "texture_bytes": 0,
+        "attribute_bytes": 0,
         "n_degenerate_triangles": 0,
         "n_moving_meshes": 0,
         "n_shapes": 0,
@@ -416,12 +423,91 @@ def test_bad_uploads_are_refused_and_change_nothing(api):
     assert upload(api, "nosuchsession", export_mesh(box(), "obj"), format="obj").status_code == 404
 
 
+def textured_glb(image: bytes) -> bytes:
+    """One triangle mesh on two nodes, its material's base colour the PNG ``image`` (in the GLB)."""
+    g = Gltf()
+    uv = g.accessor([[0, 0], [1, 0], [0, 1]])
+    g.add("images", {"bufferView": g.view(image), "mimeType": "image/png"})
+    g.add("textures", {"source": 0})
+    material = g.add("materials", {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0}})
+    mesh = g.mesh(triangle(g, TEXCOORD_0=uv) | {"material": material})
+    g.add("nodes", {"mesh": mesh, "translation": [0, 0, 0]})
+    g.add("nodes", {"mesh": mesh, "translation": [2, 0, 0]})
+    g.scene(0, 1)
+    return g.glb()
+
+
+def test_a_textured_glb_arrives_with_its_material_and_texture_or_not_at_all(api):
+    sid = create(api, mesh_scene_json()).json()["id"]
+    before = api.get(f"/api/sessions/{sid}").json()
+    pixels = np.array([[[255, 0, 0, 255], [0, 0, 255, 255]]], np.uint8)
+    # refused, each naming its problem, and nothing stored: a broken image, an extension not read
+    bad = upload(api, sid, textured_glb(b"\x89PNG\r\n\x1a\n broken"), format="glb")
+    assert_422_msgs(bad, "body")
+    assert "images[0]" in bad.text
+    g = Gltf()
+    g.add("nodes", {"mesh": g.mesh(triangle(g))})
+    g.scene(0)
+    g.doc["extensionsRequired"] = ["KHR_materials_clearcoat"]
+    assert "KHR_materials_clearcoat" in upload(api, sid, g.glb(), format="glb").text
+    assert api.get(f"/api/sessions/{sid}").json() == before
+
+    r = upload(api, sid, textured_glb(png(pixels)), format="glb", size=10)
+    assert r.status_code == 201, r.text
+    out = r.json()
+    info = out["scene_info"]
+    assert out["n_meshes"] == 2 and out["n_textures"] == 1 and out["mesh"] == 2
+    assert info["n_triangles"] == 92 + 2 and info["n_unique_triangles"] == 92 + 1  # one mesh, two nodes
+    assert info["n_textures"] == 1 and info["texture_bytes"] == texture_layout.array_bytes(
+        (Texture(np.zeros((1, 2, 4), np.uint8)),)
+    )
+    scene = api.get(f"/api/sessions/{sid}/scene").json()
+    material = scene["materials"][-1]
+    assert material["kind"] == "pbr" and material["base_color_texture"] == 0 and material["metallic"] == 0
+    assert all(m["material"] == len(scene["materials"]) - 1 and "uvs" in m for m in scene["meshes"][2:])
+    (texture,) = scene["textures"]
+    assert texture["srgb"] is True
+    np.testing.assert_array_equal(decode_image(texture["png"], "png"), pixels)
+
+
 def zipped(files: dict[str, bytes]) -> bytes:
     out = io.BytesIO()
     with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
         for name, data in files.items():
             z.writestr(name, data)
     return out.getvalue()
+
+
+def test_a_zipped_gltf_folder_arrives_with_its_image_and_without_a_missing_one_said(api):
+    from tests.renderer.gltf_files import Gltf, png, triangle
+
+    g = Gltf()
+    uv = g.accessor([[0, 0], [1, 0], [0, 1]])
+    g.add("images", {"uri": "maps/skin.png"})
+    g.add("textures", {"source": 0})
+    g.add(
+        "nodes",
+        {
+            "mesh": g.mesh(
+                triangle(g, TEXCOORD_0=uv)
+                | {"material": g.add("materials", {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}})}
+            )
+        },
+    )
+    g.scene(0)
+    folder = {"box/box.gltf": g.gltf("box.bin"), "box/box.bin": bytes(g.binary)}
+    sid = create(api, mesh_scene_json()).json()["id"]
+    missing = upload(api, sid, zipped(folder), format="zip")  # the model without its texture, said
+    assert missing.status_code == 201, missing.text
+    assert missing.json()["scene_info"]["n_textures"] == 0
+    assert "'maps/skin.png', which is not beside the model" in missing.json()["notice"]
+    sid = create(api, mesh_scene_json()).json()["id"]
+    image = png(np.full((3, 3, 4), 90, np.uint8))
+    r = upload(api, sid, zipped({**folder, "box/maps/skin.png": image}), format="zip")
+    assert r.status_code == 201, r.text
+    assert r.json()["scene_info"]["n_textures"] == 1
+    (texture,) = api.get(f"/api/sessions/{sid}/scene").json()["textures"]
+    assert texture["name"] == "maps/skin.png"
 
 
 def test_a_zipped_model_folder_is_added_and_a_hostile_zip_changes_nothing(api):
