@@ -145,9 +145,9 @@ def wood(size: int = 256, rings: float = 26.0, seed: int = 1) -> tuple[Texture, 
 def brushed_metal(size: int = 256, roughness: float = 0.3, spread: float = 0.2, seed: int = 2) -> Texture:
     """Brushed metal's metallic-roughness texture: metallic 1 (blue) and a roughness (green) of
     streaks along U — noise that changes a hundred times faster down the image than across it,
-    as a brush or a lathe leaves fine grooves along its stroke, over a dozen broader bands — about ``roughness`` ± ``spread``
-    / 2 with a few grooves up to ``spread`` / 2 rougher still, within [0, 1]. Tileable: the
-    streaks run on across the wrap."""
+    as a brush or a lathe leaves fine grooves along its stroke, over a dozen broader bands —
+    about ``roughness`` ± ``spread`` / 2 with a few grooves up to ``spread`` / 2 rougher still,
+    within [0, 1]. Tileable: the streaks run on across the wrap."""
     size = _size(size)
     if not (0.0 <= roughness <= 1.0 and 0.0 <= spread <= 1.0):
         raise SceneError("roughness", f"roughness and spread must be in 0 … 1, got {roughness}, {spread}")
