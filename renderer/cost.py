@@ -35,6 +35,8 @@ import numpy as np
 
 from .features import GENERIC, scene_features
 from .integrators import Integrator
+from .materials.kinds import AnyMaterial
+from .materials.phong import Material
 from .modes import AVERAGED_MODES, RAY_TREE_MODES
 from .scene import Scene
 from .shapes import bounds as shape_bounds
@@ -236,12 +238,12 @@ def ray_tree(
         | {m.material for m in scene.meshes}
     )
     mats = [scene.materials[i] for i in used] or list(scene.materials)
-    k_max = max((max(m.reflective, m.transmissive) for m in mats), default=0.0)
+    k_max = max((_max_weight(m) for m in mats), default=0.0)
     if settings.min_weight > 0 and 0 < k_max < 1:  # ε stops a path once its weight k_max^(L−1) < ε
         levels = min(levels, 1 + int(math.floor(math.log(settings.min_weight) / math.log(k_max) + 1e-9)))
     if k_max == 0:
         levels = 1
-    branching = 2.0 if any(m.reflective > 0 and m.transmissive > 0 for m in mats) else 1.0
+    branching = 2.0 if any(m.reflects and m.transmits for m in mats) else 1.0
     g = branching * decay
     return levels, sum(g**level for level in range(levels))
 
@@ -255,7 +257,16 @@ def _branching(scene: Scene) -> int:
         | {m.material for m in scene.meshes}
     )
     mats = [scene.materials[i] for i in used]
-    return 2 if any(m.reflective > 0 for m in mats) and any(m.transmissive > 0 for m in mats) else 1
+    return 2 if any(m.reflects for m in mats) and any(m.transmits for m in mats) else 1
+
+
+def _max_weight(m: AnyMaterial) -> float:
+    """The largest weight of a ray a hit on ``m`` spawns (Whitted): kr or kt; a PBR material's
+    reflected ray is weighted at most (1 − roughness)² (Fresnel ≤ 1), its refracted one by its
+    transmissive share."""
+    if isinstance(m, Material):
+        return max(m.reflective, m.transmissive)
+    return max((1.0 - m.roughness) ** 2 if m.reflects else 0.0, m.transmission * (1.0 - m.metallic))
 
 
 def coverage(scene: Scene, width: int, height: int) -> float:

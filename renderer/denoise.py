@@ -35,6 +35,7 @@ import numpy as np
 
 from .atrous import atrous
 from .integrators import Denoiser
+from .materials.pbr import PbrMaterial
 from .result import RenderResult
 from .scene import Scene
 
@@ -61,6 +62,9 @@ def material_albedos(scene: Scene) -> np.ndarray:
     """float32 (M, 3): each material's albedo as the path integrator's lobes see it."""
     out = np.zeros((len(scene.materials), 3), np.float32)
     for i, m in enumerate(scene.materials):
+        if isinstance(m, PbrMaterial):  # the guide of the glTF material: its base colour
+            out[i] = m.base_color
+            continue
         w = np.array([m.diffuse, m.reflective, m.transmissive], np.float64)
         w /= max(1.0, float(w.sum()))  # the shader's weights: scaled to sum 1 where they exceed it
         out[i] = w[0] * np.asarray(m.color) + w[1] + w[2]

@@ -18,7 +18,11 @@ carried by every variant, the generic one too, because the packers follow them:
 in) and ``SMOOTH_TRIANGLES`` (some mesh has vertex normals: they are read when a hit is
 shaded). A sphere-only scene carries neither, so its variants compile no triangle code
 (``FEATURE_TRIANGLES`` 0: renderer/shader_source.py).
-Likewise ``SHAPES``: the scene has analytic shapes (their records, tests and shading).
+Likewise ``SHAPES``: the scene has analytic shapes (their records, tests and shading), and ``PBR``:
+a material of the scene is glTF's metallic-roughness kind (every material record then holds its kind,
+and ``shaders/bsdf_pbr.glsl`` is compiled in, ``FEATURE_PBR`` 1); a scene of Phong materials alone
+compiles as before. A PBR material reflects (Whitted's reflected ray) unless its roughness is 1, and
+transmits where ``transmission`` > 0 and it is not wholly metal.
 """
 
 from __future__ import annotations
@@ -46,6 +50,7 @@ DATA_FORMATS = (
     "TRIANGLES",
     "SMOOTH_TRIANGLES",
     "SHAPES",
+    "PBR",
     *SURFACE_FORMATS,
 )
 # What the light of a frame needs beyond the thesis's, never specialised away either (a scene without
@@ -82,6 +87,7 @@ class SceneFeatures:
     triangles: bool = False
     smooth_triangles: bool = False
     shapes: bool = False
+    pbr: bool = False  # a material of the glTF metallic-roughness kind (kinds in the records)
     textures: bool = False
     vertex_colors: bool = False
     tangents: bool = False
@@ -121,6 +127,8 @@ class SceneFeatures:
             on.add("SMOOTH_TRIANGLES")
         if self.shapes:
             on.add("SHAPES")
+        if self.pbr:
+            on.add("PBR")
         for name in SURFACE_FORMATS:
             if getattr(self, name.lower()):
                 on.add(name)
@@ -162,6 +170,7 @@ class SceneFeatures:
             triangles=self.triangles,
             smooth_triangles=self.smooth_triangles,
             shapes=self.shapes,
+            pbr=self.pbr,
             textures=self.textures,
             vertex_colors=self.vertex_colors,
             tangents=self.tangents,
@@ -188,10 +197,10 @@ def scene_features(scene: Scene) -> SceneFeatures:
     mats = [scene.materials[i] for i in used]
     spheres = set(np.unique(scene.sphere_materials).tolist())
     return SceneFeatures(
-        reflection=any(m.reflective > 0 for m in mats),
-        transmission=any(m.transmissive > 0 for m in mats),
+        reflection=any(m.reflects for m in mats),
+        transmission=any(m.transmits for m in mats),
         lights=len(scene.lights) > 0,
-        split=any(m.reflective > 0 and m.transmissive > 0 for m in mats),
+        split=any(m.reflects and m.transmits for m in mats),
         n_planes=len(scene.planes),
         n_lights=len(scene.lights),
         equal_radii=gpu_layout.equal_radii(scene),
@@ -199,13 +208,14 @@ def scene_features(scene: Scene) -> SceneFeatures:
         triangles=gpu_layout.has_triangles(scene),
         smooth_triangles=gpu_layout.smooth_triangles(scene),
         shapes=gpu_layout.has_shapes(scene),
+        pbr=gpu_layout.has_pbr(scene),
         textures=texture_layout.uses_textures(scene),
         vertex_colors=texture_layout.uses_vertex_colors(scene),
         tangents=texture_layout.uses_tangents(scene),
         emission=any(m.emits for m in mats),
         environment=any(scene.environment),
         environment_map=scene.environment_map is not None,
-        roughness=any(m.roughness > 0 for m in mats),
+        roughness=any(m.rough for m in mats),
         emitting_spheres=any(scene.materials[i].emits for i in spheres),
         emitting_triangles=any(scene.materials[m.material].emits for m in scene.meshes),
         emitting_shapes=any(scene.materials[int(m)].emits for m in np.unique(scene.shapes.material)),

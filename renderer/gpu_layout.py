@@ -136,11 +136,17 @@ from .limits import (
     MAX_TRIANGLES,
 )
 from .materials import glsl_accessors, pack_records, record_texels
+from .materials.kinds import KINDS
+from .materials.pbr import WHITTED_AMBIENT, PbrMaterial
 from .modes import RAY_TREE_MODES
 from .scene import Camera, Material, Scene
 from .shapes import CONE as SHAPE_CONE, CYLINDER as SHAPE_CYLINDER, DISK as SHAPE_DISK, bounds as shape_bounds
 
 MATERIAL_TEXELS = record_texels(Material)  # the material record's texels, from its declaration
+# A scene with a kind beside the Phong one (the PBR data format) gives every material the same
+# stride: texel 0 its kind's id (KIND_IDS), then its kind's record, as long as the largest kind's.
+KIND_IDS = {name: i for i, name in enumerate(KINDS)}
+MATERIAL_STRIDE = 1 + max(record_texels(k) for k in KINDS.values())
 # The tracer reads materials from a uniform array when the scene has at most this many
 # (WebGL2 guarantees 224 fragment uniform vectors; these take 48), else from u_materials.
 MAX_UNIFORM_MATERIALS = 16
@@ -305,8 +311,11 @@ class Variant:
     def reads_binding(self, b: Binding) -> bool:
         """Whether the variant's shader declares and reads ``b``."""
 
+        # The PBR data format keeps its records in u_materials (too large for the uniform array).
+        features = (*self.features, "MATERIAL_TEXTURE") if "PBR" in self.features else self.features
+
         def carries(define: str) -> bool:
-            return any(f == define or (define.endswith("_") and f.startswith(define)) for f in self.features)
+            return any(f == define or (define.endswith("_") and f.startswith(define)) for f in features)
 
         return (
             b.tracer
@@ -718,9 +727,30 @@ def equal_radii(scene: Scene) -> bool:
     return bool(len(r) == 0 or (r == r[0]).all())
 
 
+def has_pbr(scene: Scene) -> bool:
+    """Whether a material of the scene is of the PBR kind: the PBR data format (every material's
+    record then holds its kind, :data:`MATERIAL_STRIDE` texels each, in the u_materials texture)."""
+    return any(isinstance(m, PbrMaterial) for m in scene.materials)
+
+
 def material_texture(scene: Scene) -> bool:
-    """Whether the scene has more materials than the tracer's uniform array holds."""
-    return len(scene.materials) > MAX_UNIFORM_MATERIALS
+    """Whether the tracer reads the materials from u_materials: the scene has more than its uniform
+    array holds, or PBR records (too large for the uniform array: WebGL2's 224 vectors)."""
+    return len(scene.materials) > MAX_UNIFORM_MATERIALS or has_pbr(scene)
+
+
+def pack_materials(materials) -> np.ndarray:
+    """float32 (texels, 4): the material records. Phong materials alone: Phong records of
+    MATERIAL_TEXELS texels; with a PBR one: MATERIAL_STRIDE texels each, the kind's id in texel 0's
+    x and its kind's record after it (docs/FORMATS.md, "GPU records")."""
+    if not any(isinstance(m, PbrMaterial) for m in materials):
+        return pack_records(materials, Material)
+    out = np.zeros((len(materials), MATERIAL_STRIDE, 4), dtype=np.float32)
+    for i, m in enumerate(materials):
+        rec = pack_records([m], type(m))
+        out[i, 0, 0] = KIND_IDS[m.KIND]
+        out[i, 1 : 1 + len(rec)] = rec
+    return out.reshape(-1, 4)
 
 
 def sphere_keys(scene: Scene, ids: np.ndarray | None = None) -> np.ndarray:
@@ -912,7 +942,7 @@ def pack_primitives(scene: Scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> Pac
     """Spheres, materials, planes and lights (what every method reads): the materials as a
     texture and as the uniform array, the common radius of EQUAL_RADII records."""
     spheres = np.concatenate([scene.sphere_centers, scene.sphere_radii[:, None]], axis=1).astype(np.float32)
-    mats = pack_records(scene.materials, Material)
+    mats = pack_materials(scene.materials)
     textures = {
         SPHERES.name: wrap_rows(spheres, max_width),
         SPHERE_MAT.name: wrap_rows(scene.sphere_materials.astype(np.uint32), max_width),
@@ -1284,6 +1314,16 @@ def tracer_constants() -> str:
         f"#define SPHERE_MAT_SHIFT {SPHERE_MAT_SHIFT}u\n"
         f"#define SPHERE_MAT_MASK {SPHERE_MAT_MASK}u\n"
         f"#define SPHERE_LAST {SPHERE_LAST}u\n"
+    )
+
+
+def pbr_constants() -> str:
+    """The PBR data format's constants and the PBR record's accessors ``pbr_<name>(m)``: emitted only
+    into variants of scenes with a PBR material (no other variant's text changes)."""
+    return (
+        f"#define MATERIAL_STRIDE {MATERIAL_STRIDE}\n#define PBR_AMBIENT {WHITTED_AMBIENT!r}\n"
+        + "".join(f"#define KIND_{name.upper()} {i}\n" for name, i in KIND_IDS.items())
+        + glsl_accessors(PbrMaterial, "pbr")
     )
 
 

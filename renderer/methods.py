@@ -96,6 +96,13 @@ def check_primitives(name: str, scene) -> None:
             f"{len(scene.meshes)} mesh(es) of {scene.n_triangles:,} triangles: use one of "
             f"{', '.join(able)}",
         )
+    if caps.shader is None and any(m.KIND != "phong" for m in scene.materials):
+        able = [m for m, x in METHODS.items() if x.capabilities.shader]
+        raise SceneError(
+            "method",
+            f"method {name!r} shades Phong materials only (its passes read the Phong record); this scene "
+            f"has glTF metallic-roughness (pbr) materials: use one of {', '.join(able)}",
+        )
     n = scene.n_tree_primitives
     if caps.max_primitives is not None and n > caps.max_primitives:
         raise SceneError(

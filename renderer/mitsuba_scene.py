@@ -10,6 +10,12 @@ What is translated, term by term, so both renderers estimate the same integral:
   (albedo ``color``), a two-sided ``conductor`` of reflectance 1 (``roughconductor`` GGX,
   ``alpha = roughness``, when rough), a ``dielectric`` of ``int_ior = ior`` (``roughdielectric`` GGX,
   ``alpha = roughness``, when rough), and black; both rough lobes sample the visible normals as ours;
+- a glTF metallic-roughness (``pbr``) material where Mitsuba has the same model
+  (:func:`_pbr_bsdf`): wholly metallic as a ``roughconductor`` (GGX, α = roughness², reflectance
+  ``base_color`` — Mitsuba's F is that constant, ours Schlick's from it: equal for a white metal; and
+  Mitsuba's Smith masking is the separable form, ours the height-correlated one), an ior-1 dielectric
+  (F0 = 0, nothing reflects) as a ``diffuse`` of ``base_color``, transmission 1 as a
+  ``roughdielectric`` (transmittance ``base_color``); any other is refused (:class:`NoMitsubaMaterial`);
 - ``emission`` as an ``area`` emitter (the side the normal faces, as ours), the environment as a
   ``constant`` emitter (an image as an ``envmap``), a point light of ``color`` C as a ``point`` of intensity π·D²·C;
 - spheres, meshes (their world-space triangles) and planes (a square 10⁴ × the scene's size);
@@ -29,6 +35,8 @@ from typing import Any
 import numpy as np
 
 from .gpu_layout import light_scale
+from .materials.pbr import PbrMaterial
+from .pbr_brdf import alpha_of
 from .scene import Material, Scene, SceneError
 from .shapes import CONE, CYLINDER, DISK, TORUS
 
@@ -89,6 +97,45 @@ class NoMitsubaShape(SceneError):
     """A shape of our scene that Mitsuba 3 has no form for (``field`` names it)."""
 
 
+class NoMitsubaMaterial(SceneError):
+    """A material of our scene that no Mitsuba 3 BSDF matches (``field`` names it)."""
+
+
+def _pbr_bsdf(m: PbrMaterial, where: str) -> dict:
+    """A glTF metallic-roughness material as the Mitsuba BSDF of the same model (module docstring)."""
+    alpha = float(alpha_of(m.roughness))
+    sided = (lambda b: {"type": "twosided", "bsdf": b}) if m.double_sided else (lambda b: b)
+    if m.metallic == 1.0:
+        return sided(
+            {
+                "type": "roughconductor",
+                "material": "none",
+                "distribution": "ggx",
+                "alpha": alpha,
+                "specular_reflectance": _rgb(m.base_color),
+                "sample_visible": True,
+            }
+        )
+    if m.metallic == 0.0 and m.transmission == 1.0:
+        return {
+            "type": "roughdielectric",
+            "distribution": "ggx",
+            "alpha": alpha,
+            "int_ior": float(m.ior),
+            "ext_ior": 1.0,
+            "specular_transmittance": _rgb(m.base_color),
+            "sample_visible": True,
+        }
+    if m.metallic == 0.0 and m.transmission == 0.0 and m.ior == 1.0:
+        return sided({"type": "diffuse", "reflectance": _rgb(m.base_color)})
+    raise NoMitsubaMaterial(
+        where,
+        "Mitsuba 3 has the glTF material's model only where it is wholly metallic, wholly transmissive "
+        f"or a dielectric of ior 1 (diffuse); this one has metallic {m.metallic}, transmission "
+        f"{m.transmission}, ior {m.ior}",
+    )
+
+
 def _placed(mi: Any, point: Any, n: np.ndarray, scale: float) -> Any:
     """translate(point) · rotation of +z onto the unit vector n · scale: Mitsuba's disk and
     rectangle face +z."""
@@ -131,7 +178,8 @@ def _shapes(mi: Any, scene: Scene) -> dict:
 
 def _shape_extras(scene: Scene, mat: int) -> dict:
     m = scene.materials[mat]
-    out: dict[str, Any] = {"bsdf": _bsdf(m)}
+    bsdf = _pbr_bsdf(m, f"materials[{mat}]") if isinstance(m, PbrMaterial) else _bsdf(m)
+    out: dict[str, Any] = {"bsdf": bsdf}
     if m.emits:
         out["emitter"] = {"type": "area", "radiance": _rgb(m.emission)}
     return out

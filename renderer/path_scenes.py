@@ -84,3 +84,32 @@ def path_scene(name: str) -> Scene:
     if name == "cornell":
         return mesh_scene("cornell", 0, smooth=False)
     return Scene.from_json(SCENES[name])
+
+
+# The glTF metallic-roughness materials where Mitsuba 3 has the same model (renderer/mitsuba_scene.py):
+# a white rough conductor, a rough dielectric of transmission 1, an ior-1 dielectric (F0 = 0: Lambert).
+PBR_MATERIALS: dict[str, dict[str, Any]] = {
+    "pbr_rough_conductor": {"kind": "pbr", "base_color": [1, 1, 1], "metallic": 1.0, "roughness": 0.5},
+    "pbr_rough_dielectric": {
+        "kind": "pbr",
+        "base_color": [1, 1, 1],
+        "metallic": 0.0,
+        "roughness": 0.4,
+        "transmission": 1.0,
+        "ior": 1.5,
+    },
+    "pbr_diffuse": {"kind": "pbr", "base_color": [0.6, 0.5, 0.3], "metallic": 0.0, "roughness": 1.0, "ior": 1.0},
+}
+
+
+def pbr_scene(name: str) -> Scene:
+    """The grey floor, the lamp and a sphere of PBR material ``name`` (:data:`PBR_MATERIALS`) under a
+    dim environment: the set of :data:`SCENES`, for the comparison of the PBR kind with Mitsuba."""
+    return Scene.from_json(
+        {
+            **BASE,
+            "materials": MATS + [PBR_MATERIALS[name]],
+            "spheres": [LAMP, {"center": [0, 0.8, 0.5], "radius": 0.8, "material": 2}],
+            "environment": {"color": [0.2, 0.25, 0.3]},
+        }
+    )

@@ -34,12 +34,17 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from fractions import Fraction
+from typing import Any
 
 import numpy as np
 
+from . import pbr_brdf
 from .accel.bih import build_for_scene
 from .accel.bih_traverse import traverse
 from .envmap import EnvironmentMap
+from .materials.kinds import AnyMaterial
+from .materials.pbr import ALPHA_MODES, WHITTED_AMBIENT, PbrMaterial
+from .materials.phong import Material
 from .modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, heat_image, primid_colors
 from .result import RenderResult
 from .scene import Camera, Scene
@@ -49,6 +54,9 @@ from .shapes import Shapes, intersect as shape_intersect, normals as shape_norma
 _EPS = float(np.finfo(np.float64).eps)
 # Rays intersected together (one reduction); bounds the candidate lists.
 _RAY_TILE = 1024
+# Surfaces one ray may pass (alpha, culled back faces) before its hit is taken as it stands: the
+# GPU's loop has no such bound, but a scene needing more than this is no test scene.
+MAX_PASSES = 64
 # Ray × sphere pairs per cull tile: ~6 float64 temporaries of this size (≈ 2 MiB each).
 _PAIR_BUDGET = 1 << 18
 
@@ -211,6 +219,19 @@ class _Geometry:
     environment_map: EnvironmentMap | None = None  # … or this image (its float64 bilinear lookup)
     shapes: Shapes = field(default_factory=Shapes.empty)  # analytic shapes, ids shape_base …
     shape_base: int = 0  # id of shape 0 (spheres + planes + triangles)
+    # The glTF metallic-roughness materials (pbr True; their Phong entries above are 0 but ior):
+    # factors only (textures are not read here).
+    pbr: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    base: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    metallic: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    roughness: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    transmission: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    alpha: np.ndarray = field(default_factory=lambda: np.ones(0))
+    alpha_mode: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # 0 opaque, 1 mask, 2 blend
+    alpha_cutoff: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    double_sided: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    att_color: np.ndarray = field(default_factory=lambda: np.ones((0, 3)))
+    att_distance: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @staticmethod
     def of(scene: Scene) -> _Geometry:
@@ -236,13 +257,13 @@ class _Geometry:
                     np.asarray(scene.shapes.material, dtype=np.int64),
                 ]
             ),
-            color=np.array([m.color for m in mats], dtype=np.float64).reshape(-1, 3),
-            ka=np.array([m.ambient for m in mats]),
-            kd=np.array([m.diffuse for m in mats]),
-            ks=np.array([m.specular for m in mats]),
-            shininess=np.array([m.shininess for m in mats]),
-            kr=np.array([m.reflective for m in mats]),
-            kt=np.array([m.transmissive for m in mats]),
+            color=np.array([_phong(m, "color", (0.0, 0.0, 0.0)) for m in mats], dtype=np.float64).reshape(-1, 3),
+            ka=np.array([_phong(m, "ambient", 0.0) for m in mats]),
+            kd=np.array([_phong(m, "diffuse", 0.0) for m in mats]),
+            ks=np.array([_phong(m, "specular", 0.0) for m in mats]),
+            shininess=np.array([_phong(m, "shininess", 1.0) for m in mats]),
+            kr=np.array([_phong(m, "reflective", 0.0) for m in mats]),
+            kt=np.array([_phong(m, "transmissive", 0.0) for m in mats]),
             ior=np.array([m.ior for m in mats]),
             light_pos=np.array([light.position for light in scene.lights], dtype=np.float64).reshape(-1, 3),
             light_col=np.array([light.color for light in scene.lights], dtype=np.float64).reshape(-1, 3),
@@ -252,7 +273,44 @@ class _Geometry:
             environment_map=scene.environment_map,
             shapes=scene.shapes,
             shape_base=scene.shape_id_base,
+            pbr=np.array([isinstance(m, PbrMaterial) for m in mats], dtype=bool),
+            base=np.array([_pbr(m, "base_color", (0.0, 0.0, 0.0)) for m in mats], dtype=np.float64).reshape(-1, 3),
+            metallic=np.array([_pbr(m, "metallic", 0.0) for m in mats], dtype=np.float64),
+            roughness=np.array([_pbr(m, "roughness", 1.0) for m in mats], dtype=np.float64),
+            transmission=np.array([_pbr(m, "transmission", 0.0) for m in mats], dtype=np.float64),
+            alpha=np.array([_pbr(m, "alpha", 1.0) for m in mats], dtype=np.float64),
+            alpha_mode=np.array([ALPHA_MODES.index(_pbr(m, "alpha_mode", "opaque")) for m in mats], dtype=np.int64),
+            alpha_cutoff=np.array([_pbr(m, "alpha_cutoff", 0.5) for m in mats], dtype=np.float64),
+            double_sided=np.array([_pbr(m, "double_sided", True) for m in mats], dtype=bool),
+            att_color=np.array([_pbr(m, "attenuation_color", (1.0, 1.0, 1.0)) for m in mats]).reshape(-1, 3),
+            att_distance=np.array([_pbr(m, "attenuation_distance", 0.0) for m in mats], dtype=np.float64),
         )
+
+    def passes(self, prim: np.ndarray, front: np.ndarray) -> np.ndarray:
+        """Whether rays that meet primitives ``prim`` (on the side their geometric normal faces where
+        ``front``) go on through them unchanged: Whitted's PBR rule (shaders/bsdf_pbr.glsl's
+        pbr_passes with u = ½): a single-sided back face that does not transmit, alpha below the mask's
+        cutoff, a blend's coverage ≤ ½."""
+        mat = self.prim_material[prim]
+        if not len(self.pbr) or not self.pbr.any():
+            return np.zeros(len(prim), bool)
+        pbr = self.pbr[mat]
+        culled = ~front & ~self.double_sided[mat] & (self.transmission[mat] <= 0.0)
+        mode, a = self.alpha_mode[mat], self.alpha[mat]
+        cut = ((mode == 1) & (a < self.alpha_cutoff[mat])) | ((mode == 2) & (a <= 0.5))
+        return pbr & (culled | cut)
+
+    def attenuation(self, prim: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """(k, 3) KHR_materials_volume's Beer–Lambert share after a distance t inside the materials of
+        ``prim`` (1 where they have none)."""
+        mat = self.prim_material[prim]
+        dist = self.att_distance[mat] if len(self.att_distance) else np.zeros(len(prim))
+        out = np.ones((len(prim), 3))
+        has = dist > 0.0
+        if has.any():
+            c = np.maximum(self.att_color[mat[has]], 1e-30)
+            out[has] = np.exp(np.log(c) * (t[has] / dist[has])[:, None])
+        return out
 
     def normals(
         self, prim: np.ndarray, p: np.ndarray, o: np.ndarray | None = None, d: np.ndarray | None = None
@@ -291,6 +349,16 @@ class _Geometry:
                 ok = length > 0
                 shade[rows[ok]] = blend[ok] / length[ok][:, None]
         return geo, shade
+
+
+def _phong(m: AnyMaterial, name: str, default: Any) -> Any:
+    """Phong parameter ``name`` of ``m``; ``default`` for another kind (which the Phong terms skip)."""
+    return getattr(m, name) if isinstance(m, Material) else default
+
+
+def _pbr(m: AnyMaterial, name: str, default: Any) -> Any:
+    """PBR parameter ``name`` of ``m``; ``default`` for a Phong material."""
+    return getattr(m, name) if isinstance(m, PbrMaterial) else default
 
 
 # ------------------------------------------------------------------- intersection
@@ -619,6 +687,24 @@ def local_color(
         x = -_dot(r, d[idx])
         spec = np.where(x > 0.0, np.power(np.where(x > 0.0, x, 1.0), g.shininess[m]), 0.0)
         local[idx] += lc[None, :] * (g.kd[m][:, None] * ci[:, None] * c[idx] + (g.ks[m] * spec)[:, None])
+        if len(g.pbr) and g.pbr[m].any():  # the glTF BRDF · cos under irradiance π · the light's colour
+            j = np.flatnonzero(g.pbr[m])
+            mj = m[j]
+            f = pbr_brdf.brdf(
+                g.base[mj],
+                g.metallic[mj],
+                pbr_brdf.alpha_of(g.roughness[mj]),
+                pbr_brdf.f0_of(g.ior[mj]),
+                g.transmission[mj],
+                fi[j],
+                -d[idx][j],
+                li[j],
+            )
+            local[idx[j]] += lc[None, :] * (np.pi * ci[j])[:, None] * f
+    if len(g.pbr) and g.pbr[mat].any():  # Whitted's ambient term of a PBR material
+        j = np.flatnonzero(g.pbr[mat])
+        opaque = 1.0 - (1.0 - g.metallic[mat[j]]) * g.transmission[mat[j]]  # not for the share that refracts
+        local[j] += (WHITTED_AMBIENT * opaque)[:, None] * g.base[mat[j]]
     return local
 
 
@@ -690,24 +776,75 @@ def _secondary_rays(
     Directions bend about the shading normal ``normal``; whether a transmitted ray enters
     or leaves is decided by the geometric normal ``geo`` (the same for spheres and planes)."""
     mat = g.prim_material[prim]
-    kr, kt = g.kr[mat], g.kt[mat]
     d, w = batch.dirs[hit], batch.weight[hit]
-    r_sel = np.nonzero(kr > 0.0)[0]
-    t_sel = np.nonzero(kt > 0.0)[0]
+    kr, kt = _ray_weights(g, mat, d, normal, geo)
+    r_sel = np.nonzero(kr.max(axis=1) > 0.0)[0]
+    t_sel = np.nonzero(kt.max(axis=1) > 0.0)[0]
     if len(r_sel) + len(t_sel) == 0:
         return None
     t_dirs, _ = transmitted_directions(d[t_sel], normal[t_sel], g.ior[mat[t_sel]], _dot(d[t_sel], geo[t_sel]) < 0.0)
     sel = np.concatenate([r_sel, t_sel])
     dirs = np.concatenate([reflect(d[r_sel], normal[r_sel]), t_dirs])
-    weight = w[sel] * np.concatenate([kr[r_sel], kt[t_sel]])[:, None]
+    weight = w[sel] * np.concatenate([kr[r_sel], kt[t_sel]])
     src = prim[sel]
     far_only = (src < g.n) & (_dot(dirs, geo[sel]) < 0.0)
     return RayBatch(p[sel], dirs, batch.pix[hit][sel], weight, batch.level + 1, src, far_only)
 
 
+def _ray_weights(
+    g: _Geometry, mat: np.ndarray, d: np.ndarray, normal: np.ndarray, geo: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(k, 3) each: the weights of the reflected and the transmitted ray of hits on materials ``mat``
+    met along ``d``: kr and kt of a Phong material; Whitted's PBR rule for a PBR one (docs/SHADING.md,
+    "PBR"): the specular Fresnel at the view × (1 − roughness)², and (1 − metallic) · transmission ·
+    (1 − the dielectric's Fresnel) · base colour."""
+    kr = np.repeat(g.kr[mat][:, None], 3, axis=1)
+    kt = np.repeat(g.kt[mat][:, None], 3, axis=1)
+    if len(g.pbr) and g.pbr[mat].any():
+        j = np.flatnonzero(g.pbr[mat])
+        mj = mat[j]
+        nf = np.where((_dot(d[j], geo[j]) < 0.0)[:, None], normal[j], -normal[j])
+        c = np.maximum(-_dot(d[j], nf), 0.0)
+        f0 = pbr_brdf.f0_of(g.ior[mj])
+        smooth = np.square(1.0 - g.roughness[mj])
+        kr[j] = pbr_brdf.fresnel(g.base[mj], g.metallic[mj], f0, c) * smooth[:, None]
+        share = (1.0 - g.metallic[mj]) * g.transmission[mj] * (1.0 - pbr_brdf.dielectric_fresnel(f0, c))
+        kt[j] = share[:, None] * g.base[mj]
+    return kr, kt
+
+
+def _nearest_unpassed(
+    g: _Geometry, o: np.ndarray, d: np.ndarray, src: np.ndarray, far_only: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Nearest hits that a ray does not pass (:meth:`_Geometry.passes`): (t from the ray's origin
+    summed over what it passed, prim, the origin and source of the last leg)."""
+    t, prim = nearest_hit(g, o, d, src, far_only)
+    if not len(g.pbr) or not g.pbr.any():
+        return t, prim, o, src
+    total = np.where(prim >= 0, t, np.inf)
+    o, src = o.copy(), src.copy()
+    passed = np.zeros(len(t))
+    for _ in range(MAX_PASSES):
+        hit = np.flatnonzero(prim >= 0)
+        if not len(hit):
+            break
+        p = o[hit] + t[hit, None] * d[hit]
+        geo, _ = g.normals(prim[hit], p, o[hit], d[hit])
+        go = g.passes(prim[hit], _dot(d[hit], geo) < 0.0)
+        if not go.any():
+            break
+        k = hit[go]
+        passed[k] += t[k]
+        o[k], src[k] = p[go], prim[k]
+        far = (prim[k] < g.n) & (_dot(d[k], geo[go]) < 0.0)
+        t[k], prim[k] = nearest_hit(g, o[k], d[k], src[k], far)
+    total = np.where(prim >= 0, passed + t, np.inf)
+    return total, prim, o, src
+
+
 def _trace_batch(g: _Geometry, batch: RayBatch, frame: _Frame, max_level: int, shade: bool) -> RayBatch | None:
     """Trace one generation: record primary data, add weighted local colour, return children."""
-    t, prim = nearest_hit(g, batch.origins, batch.dirs, batch.src, batch.far_only)
+    t, prim, o_last, _ = _nearest_unpassed(g, batch.origins, batch.dirs, batch.src, batch.far_only)
     hit = np.nonzero(prim >= 0)[0]
     if shade and g.environment.any():  # a ray that meets nothing sees the environment
         miss = np.nonzero(prim < 0)[0]
@@ -721,6 +858,14 @@ def _trace_batch(g: _Geometry, batch: RayBatch, frame: _Frame, max_level: int, s
     prim_h, pix_h = prim[hit], batch.pix[hit]
     p = batch.origins[hit] + t[hit, None] * batch.dirs[hit]
     geo, normal = g.normals(prim_h, p, batch.origins[hit], batch.dirs[hit])
+    if len(g.pbr) and g.pbr.any():  # a back face met from inside a volume: Beer–Lambert over the leg
+        back = _dot(batch.dirs[hit], geo) >= 0.0
+        if back.any():
+            leg = np.linalg.norm(p - o_last[hit], axis=1)
+            batch.weight = batch.weight.copy()
+            batch.weight[hit] = np.where(
+                back[:, None], batch.weight[hit] * g.attenuation(prim_h, leg), batch.weight[hit]
+            )
     frame.deepest[pix_h] = np.maximum(frame.deepest[pix_h], batch.level)
     if batch.level == 1:  # primary rays: one per pixel
         frame.depth[pix_h] = t[hit]
@@ -780,7 +925,7 @@ def ray_tree_counts(scene: Scene, width: int, height: int, levels: int, min_weig
         counts.append(len(batch))
         child = _trace_batch(g, batch, frame, levels, shade=False)
         if child is not None:
-            keep = np.flatnonzero(child.weight[:, 0] >= min_weight)  # kr and kt are grey: one channel
+            keep = np.flatnonzero(child.weight.max(axis=1) >= min_weight)  # the shader's WEIGHT_MAX
             child = RayBatch(
                 child.origins[keep],
                 child.dirs[keep],

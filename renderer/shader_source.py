@@ -135,6 +135,8 @@ def tracer_header(variant: Variant) -> str:
         kinds = gpu_layout.triangle_constants()
     if "SHAPES" in variant.features:
         kinds += gpu_layout.shape_constants()
+    if "PBR" in variant.features:
+        kinds += gpu_layout.pbr_constants()
     if "TEXTURES" in variant.features and "TRIANGLES" in variant.features:
         kinds += texture_layout.texture_glsl_constants()
     if variant.path:
@@ -185,7 +187,9 @@ def feature_flags(variant: Variant) -> dict[str, bool]:
     ``FEATURE_TRIANGLES`` and ``FEATURE_SHAPES``, the variant traces that kind (its data format,
     and not the background variant, which has no traversal and so meets no primitive);
     ``FEATURE_LIGHTING``, it carries one of :data:`renderer.features.LIGHTING` (emission, an
-    environment, the path integrator); ``FEATURE_TEXTURES``, ``FEATURE_VERTEX_COLORS`` and
+    environment, the path integrator); ``FEATURE_PBR``, the scene has a glTF metallic-roughness
+    material (the PBR data format: kinds in the material records, ``shaders/bsdf_pbr.glsl``);
+    ``FEATURE_TEXTURES``, ``FEATURE_VERTEX_COLORS`` and
     ``FEATURE_TANGENTS``, it traces triangles whose PBR materials read textures (and UVs), vertex colours
     or tangents (renderer/texture_layout.py: only a triangle has them)."""
     traces_triangles = "TRIANGLES" in variant.features and variant.spheres
@@ -193,6 +197,7 @@ def feature_flags(variant: Variant) -> dict[str, bool]:
         "FEATURE_TRIANGLES": "TRIANGLES" in variant.features and variant.spheres,
         "FEATURE_SHAPES": "SHAPES" in variant.features and variant.spheres,
         "FEATURE_LIGHTING": any(f in LIGHTING for f in variant.features),
+        "FEATURE_PBR": "PBR" in variant.features,
         **{f"FEATURE_{f}": f in variant.features and traces_triangles for f in SURFACE_FORMATS},
     }
 

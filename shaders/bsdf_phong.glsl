@@ -32,47 +32,11 @@ struct SurfaceRecord {
     float w_diffuse, w_reflect, w_transmit;   // lobe weights, summing ≤ 1
     float alpha;     // GGX α of the reflective and transmissive lobes (0: smooth)
     float ior;       // inside / outside
+#if FEATURE_PBR
+    int kind;        // the material's kind (KIND_PHONG, KIND_PBR)
+    float metallic, transmission, f0;   // the PBR kind's (w_*: its lobes' probabilities)
+#endif
 };
-
-SurfaceRecord surface_record(vec3 p, vec3 n, vec3 ng, vec3 wo, int prim, int mat) {
-    SurfaceRecord r;
-    r.p = p;
-    r.n = n;
-    r.wo = wo;
-    r.front = dot(wo, ng) > 0.0;
-    r.nf = r.front ? n : -n;
-    r.prim = prim;
-    r.color = material_color(mat);
-    r.w_diffuse = material_diffuse(mat);
-    r.w_reflect = 0.0;
-    r.w_transmit = 0.0;
-#if !NO_REFLECTION
-    r.w_reflect = material_reflective(mat);
-#endif
-#if !NO_TRANSMISSION
-    r.w_transmit = material_transmissive(mat);
-#endif
-    float total = r.w_diffuse + r.w_reflect + r.w_transmit;
-    if (total > 1.0) { r.w_diffuse /= total; r.w_reflect /= total; r.w_transmit /= total; }
-#if NO_ROUGHNESS
-    r.alpha = 0.0;   // the GGX code then folds away
-#else
-    r.alpha = material_roughness(mat);
-#endif
-    r.ior = material_ior(mat);
-    return r;
-}
-
-// Whether the BSDF has lobes that next-event estimation lights (diffuse, GGX reflection): the smooth
-// mirror and glass are deltas no light sample can meet, and rough transmission is left to BSDF sampling.
-bool bsdf_is_non_specular(SurfaceRecord r) {
-    return r.w_diffuse > 0.0 || (r.w_reflect > 0.0 && r.alpha > 0.0);
-}
-
-// The surface's albedo as its lobes reflect (the denoiser's guide): w_d · colour + w_r + w_t.
-vec3 bsdf_albedo(SurfaceRecord r) {
-    return r.w_diffuse * r.color + vec3(r.w_reflect + r.w_transmit);
-}
 
 // An orthonormal basis around unit n (Duff et al. 2017).
 void basis(vec3 n, out vec3 t, out vec3 b) {
@@ -143,10 +107,84 @@ float fresnel_dielectric(float cos_i, float eta) {
     return 0.5 * (rs * rs + rp * rp);
 }
 
+// A direction bsdf_sample chose: weight = f · cos / (the density it was drawn with), pdf =
+// bsdf_pdf(wi) where a lobe next-event estimation lights chose it (the power heuristic's BSDF side)
+// and 0 where a delta or rough transmission did (the emission it meets then counts whole); lobe: the
+// LOBE_* flags; valid false: absorbed, or masked (below the horizon its lobe allows).
+struct BsdfSample {
+    vec3 wi;
+    vec3 weight;
+    float pdf;
+    int lobe;
+    bool valid;
+};
+
+// The other kinds' BSDFs, which share the record, the helpers above and the sample's struct; the
+// functions below dispatch to them by the record's kind.
+#if FEATURE_PBR
+//@INCLUDE bsdf_pbr_path.glsl
+#endif
+
+SurfaceRecord surface_record(vec3 p, vec3 n, vec3 ng, vec3 wo, int prim, int mat) {
+    SurfaceRecord r;
+    r.p = p;
+    r.n = n;
+    r.wo = wo;
+    r.front = dot(wo, ng) > 0.0;
+    r.nf = r.front ? n : -n;
+    r.prim = prim;
+#if FEATURE_PBR
+    if (MATERIAL_KIND(mat) == KIND_PBR) {
+        pbr_surface(r, mat);
+        return r;
+    }
+    r.kind = KIND_PHONG;
+#endif
+    r.color = material_color(mat);
+    r.w_diffuse = material_diffuse(mat);
+    r.w_reflect = 0.0;
+    r.w_transmit = 0.0;
+#if !NO_REFLECTION
+    r.w_reflect = material_reflective(mat);
+#endif
+#if !NO_TRANSMISSION
+    r.w_transmit = material_transmissive(mat);
+#endif
+    float total = r.w_diffuse + r.w_reflect + r.w_transmit;
+    if (total > 1.0) { r.w_diffuse /= total; r.w_reflect /= total; r.w_transmit /= total; }
+#if NO_ROUGHNESS
+    r.alpha = 0.0;   // the GGX code then folds away
+#else
+    r.alpha = material_roughness(mat);
+#endif
+    r.ior = material_ior(mat);
+    return r;
+}
+
+// Whether the BSDF has lobes that next-event estimation lights (diffuse, GGX reflection): the smooth
+// mirror and glass are deltas no light sample can meet, and rough transmission is left to BSDF sampling.
+bool bsdf_is_non_specular(SurfaceRecord r) {
+#if FEATURE_PBR
+    if (r.kind == KIND_PBR) return r.w_diffuse + r.w_reflect > 0.0;
+#endif
+    return r.w_diffuse > 0.0 || (r.w_reflect > 0.0 && r.alpha > 0.0);
+}
+
+// The surface's albedo as its lobes reflect (the denoiser's guide): w_d · colour + w_r + w_t.
+vec3 bsdf_albedo(SurfaceRecord r) {
+#if FEATURE_PBR
+    if (r.kind == KIND_PBR) return r.color;   // the PBR kind's guide: its base colour
+#endif
+    return r.w_diffuse * r.color + vec3(r.w_reflect + r.w_transmit);
+}
+
 // f(wo → wi) of the lobes next-event estimation lights (the diffuse and the GGX one; no cosine),
 // and in pdf the density with which bsdf_sample chooses wi among them (each lobe with its weight's
 // probability). The deltas and rough transmission contribute nothing here.
 vec3 bsdf_eval(SurfaceRecord r, vec3 wi, out float pdf) {
+#if FEATURE_PBR
+    if (r.kind == KIND_PBR) return pbr_bsdf_eval(r, wi, pdf);
+#endif
     vec3 f = (r.w_diffuse / PI) * r.color;
     pdf = r.w_diffuse * max(dot(r.nf, wi), 0.0) / PI;
     if (r.w_reflect > 0.0 && r.alpha > 0.0) {
@@ -163,20 +201,11 @@ float bsdf_pdf(SurfaceRecord r, vec3 wi) {
     return pdf;
 }
 
-// A direction bsdf_sample chose: weight = f · cos / (the density it was drawn with), pdf =
-// bsdf_pdf(wi) where a lobe next-event estimation lights chose it (the power heuristic's BSDF side)
-// and 0 where a delta or rough transmission did (the emission it meets then counts whole); lobe: the
-// LOBE_* flags; valid false: absorbed, or masked (below the horizon its lobe allows).
-struct BsdfSample {
-    vec3 wi;
-    vec3 weight;
-    float pdf;
-    int lobe;
-    bool valid;
-};
-
 // One lobe chosen by uc with its weight's probability (none: absorbed), a direction from it by u.
 BsdfSample bsdf_sample(SurfaceRecord r, float uc, vec2 u) {
+#if FEATURE_PBR
+    if (r.kind == KIND_PBR) return pbr_bsdf_sample(r, uc, u);
+#endif
     BsdfSample bs = BsdfSample(vec3(0.0), vec3(1.0), 0.0, 0, true);
     vec3 d = -r.wo;
     if (uc < r.w_diffuse) {

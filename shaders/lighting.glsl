@@ -200,11 +200,18 @@ void camera_ray(uint i, vec2 frag, out vec3 o, out vec3 d) {
     d = normalize(u_cam_forward + u * u_cam_right + v * u_cam_up);
 }
 
-// The shadow ray from r's point along unit l, meeting blockers nearer than t_max.
+// The shadow ray from r's point along unit l, meeting blockers nearer than t_max. With PBR materials
+// it finds the nearest blocker (not any): one that lets light through (alpha, a culled back face:
+// pbr_passes) sends the shadow ray on from it, and a blocker behind it must not be skipped.
+#if FEATURE_PBR
+#define SHADOW_ANY_HIT false
+#else
+#define SHADOW_ANY_HIT true
+#endif
 Query shadow_query(SurfaceRecord r, vec3 l, float t_max) {
     int skip, far_id;
     exclusion(r.prim, r.n, l, skip, far_id);
-    return Query(r.p, l, skip, far_id, t_max, true);
+    return Query(r.p, l, skip, far_id, t_max, SHADOW_ANY_HIT);
 }
 
 // The power heuristic's weight of light sampling for a light sample of density p_l (solid angle)
@@ -413,6 +420,33 @@ vec3 valid_radiance(vec3 c) {
     return all(lessThan(abs(c), vec3(BIG))) ? max(c, vec3(0.0)) : vec3(0.0);
 }
 
+#if FEATURE_PBR
+// Whether shadow ray q's blocker h lets light through (alpha, a culled back face: pbr_passes; the
+// blend's coin tossed per blocker, as a path would meet it): then q becomes the ray going on from it.
+bool shadow_passes(inout Query q, Hit h) {
+    Surface s = surface_at(q.o, q.d, h);
+    vec3 ng = s.n;
+#if FEATURE_TRIANGLES
+    ng = s.ng;
+#endif
+    if (!pbr_passes(s.mat, h.id, s.p, s.n, dot(q.d, ng) < 0.0, rnd())) return false;
+    int skip, far_id;
+    exclusion(h.id, s.n, q.d, skip, far_id);
+    q = Query(s.p, q.d, skip, far_id, q.t_max - h.t, false);
+    return true;
+}
+
+// Whether the path's ray q passes surface s of its hit h (record r): alpha mask below the cutoff,
+// blend with probability 1 − alpha, a culled back face; then q becomes the ray going on unchanged.
+bool path_passes(inout Query q, Hit h, Surface s, SurfaceRecord r) {
+    if (!pbr_passes(s.mat, h.id, s.p, s.n, r.front, rnd())) return false;
+    int skip, far_id;
+    exclusion(h.id, s.n, q.d, skip, far_id);
+    q = Query(s.p, q.d, skip, far_id, BIG, false);
+    return true;
+}
+#endif
+
 // The path integrator: u_sample_count samples of this pixel, each a path from the camera; at every
 // vertex its emission (MIS-weighted), next-event estimation (sample_light, one shadow ray per
 // iteration), then a direction from the BSDF and Russian roulette. One intersect_scene serves every
@@ -439,6 +473,14 @@ void path_main() {
     vec3 contrib = vec3(0.0);                 // … and what its shadow ray in flight adds if unblocked
     vec3 prev_p = vec3(0.0);  // the vertex the current segment left, and bsdf_sample's pdf there
     float prev_pdf = 0.0;
+#if FEATURE_PBR
+    bool shadow = false;      // the ray in flight is a shadow ray (SHADOW_ANY_HIT is false)
+#define IS_SHADOW shadow
+#define SHADOW_STARTS shadow = true
+#else
+#define IS_SHADOW q.any_hit
+#define SHADOW_STARTS
+#endif
 #if FEATURE_TEXTURES
     float cone_w = 0.0, cone_spread = 0.0;   // the ray cone at the segment's origin (shaders/ray_cones.glsl)
 #endif
@@ -453,9 +495,15 @@ void path_main() {
             start = false;
         }
         Hit h = intersect_scene(q);
-        if (q.any_hit) {
+#if FEATURE_PBR
+        if (shadow && h.id != NO_PRIM && shadow_passes(q, h)) continue;
+#endif
+        if (IS_SHADOW) {
             if (h.id == NO_PRIM) L += contrib;   // the light is visible
             if (nee_kind <= NEE_SPHERES) nee_index++;
+#if FEATURE_PBR
+            shadow = false;
+#endif
         } else if (h.id == NO_PRIM) {
             L += environment_weight(d, prev_pdf) * beta * ENV_RADIANCE_AT(d);
 #if GUIDES
@@ -472,10 +520,14 @@ void path_main() {
 #if FEATURE_TRIANGLES
             ng = s.ng;   // emission and the side a path meets: by the geometric normal
 #endif
+            r = surface_record(s.p, s.n, ng, -d, h.id, s.mat);
+#if FEATURE_PBR
+            if (path_passes(q, h, s, r)) { o = q.o; continue; }   // no vertex, no segment counted
+            if (!r.front && r.kind == KIND_PBR) beta *= pbr_attenuation(s.mat, h.t);   // Beer–Lambert
+#endif
             if (segments == 1 && done == 0) {   // the pass's first sample gives primid, normal, depth
                 primary_t = h.t; primary_id = h.id; primary_n = s.n;
             }
-            r = surface_record(s.p, s.n, ng, -d, h.id, s.mat);
             if (r.front) L += emission_weight(h, ng, d, prev_p, prev_pdf) * beta * emission_at(s.mat);
 #if GUIDES
             if (segments == 1) { albedo_sum += bsdf_albedo(r); normal_sum += s.n; }
@@ -484,7 +536,10 @@ void path_main() {
             nee_kind = bsdf_is_non_specular(r) ? NEE_POINT : NEE_DONE;
             nee_index = 0;
         }
-        if (vertex && nee_kind != NEE_DONE && sample_light(r, beta, nee_kind, nee_index, q, contrib)) continue;
+        if (vertex && nee_kind != NEE_DONE && sample_light(r, beta, nee_kind, nee_index, q, contrib)) {
+            SHADOW_STARTS;
+            continue;
+        }
         if (vertex) {
             vertex = false;
             float uc = rnd();

@@ -245,6 +245,13 @@ Hit intersect_scene(Query q) {
     return h;
 }
 
+// PBR_SHADING: a variant that shades (reads the materials) in a scene with PBR materials.
+#if FEATURE_PBR && READS_MATERIALS
+#define PBR_SHADING 1
+#else
+#define PBR_SHADING 0
+#endif
+
 struct Material {
     vec3 color;
     float ambient, diffuse, specular, shininess, reflective, transmissive, ior;
@@ -252,8 +259,13 @@ struct Material {
 
 #if READS_MATERIALS
 // Texel k of material m's record, read by the accessors material_<name>(m) of the header
-// (renderer/materials: the record is laid out from the material's declaration).
-#if MATERIAL_TEXTURE
+// (renderer/materials: the record is laid out from the material's declaration). With several kinds
+// (FEATURE_PBR) every record is MATERIAL_STRIDE texels, its kind's id first (MATERIAL_KIND), then
+// the kind's record (the Phong kind's accessors material_<name>, the PBR kind's pbr_<name>).
+#if FEATURE_PBR
+#define MATERIAL_TEXEL(m, k) texelFetch(u_materials, texel((m) * MATERIAL_STRIDE + 1 + (k), g_mat_shift), 0)
+#define MATERIAL_KIND(m) int(texelFetch(u_materials, texel((m) * MATERIAL_STRIDE, g_mat_shift), 0).x + 0.5)
+#elif MATERIAL_TEXTURE
 #define MATERIAL_TEXEL(m, k) texelFetch(u_materials, texel((m) * MATERIAL_TEXELS + (k), g_mat_shift), 0)
 #else
 #define MATERIAL_TEXEL(m, k) u_material_vecs[(m) * MATERIAL_TEXELS + (k)]
@@ -309,10 +321,19 @@ void exclusion(int id, vec3 n, vec3 d, out int skip, out int far_id) {
 #define SHADOW_RAYS 0
 #endif
 
+// A ray's weight in the tree: a number (Phong: products of kr, kt), or a colour where PBR materials
+// weigh rays by their Fresnel and base colour. WEIGHT_MAX: its largest component (the ε cut-off).
+#if PBR_SHADING
+#define Weight vec3
+#define WEIGHT_MAX(w) max((w).r, max((w).g, (w).b))
+#else
+#define Weight float
+#define WEIGHT_MAX(w) (w)
+#endif
 struct Task {
     vec3 o;
     vec3 d;
-    float weight;
+    Weight weight;
     int level;
     int skip;
     int far_id;
@@ -351,6 +372,13 @@ Surface surface_at(vec3 o, vec3 d, Hit h) {
     return s;
 }
 
+// The glTF metallic-roughness kind (FEATURE_PBR): its inputs at a hit and its BRDF, for Whitted's
+// shading below and the path integrator's BSDF (shaders/bsdf_pbr_path.glsl).
+#if PBR_SHADING
+//@INCLUDE pbr_inputs.glsl
+//@INCLUDE bsdf_pbr.glsl
+#endif
+
 // Emission, the environment and the path integrator (shaders/lighting.glsl) with the material's
 // BSDF it calls (shaders/bsdf_phong.glsl).
 #if FEATURE_LIGHTING
@@ -360,7 +388,7 @@ Surface surface_at(vec3 o, vec3 d, Hit h) {
 void main() {
     LAYOUT_INIT();
     method_init();
-#if READS_MATERIALS && MATERIAL_TEXTURE
+#if READS_MATERIALS && (MATERIAL_TEXTURE || FEATURE_PBR)
     g_mat_shift = row_shift(textureSize(u_materials, 0));
 #endif
 #if FEATURE_LIGHTING
@@ -423,7 +451,7 @@ void main() {
     Task tasks[MAX_TASKS];
     int n_tasks = 0;
 #endif
-    Task k = Task(u_cam_pos, dir, 1.0, 1, NO_PRIM, NO_PRIM);   // the radiance ray being shaded
+    Task k = Task(u_cam_pos, dir, Weight(1.0), 1, NO_PRIM, NO_PRIM);   // the radiance ray being shaded
     Query q = Query(k.o, k.d, k.skip, k.far_id, BIG, false);   // the ray this iteration traces
     // Shading state of the current hit (light: the next light to try).
     int light = 0;
@@ -432,6 +460,19 @@ void main() {
     Material m;
     vec3 nf;
     vec3 contrib = vec3(0.0);
+#if PBR_SHADING
+    // The current hit's PBR inputs (pbr_hit: its material is of that kind), the weights of the rays it
+    // spawns (w_r, w_t: kr and kt of a Phong hit), and how far the ray went through surfaces it passed.
+    bool pbr_hit = false;
+    PbrInputs pin;
+    Weight w_r = Weight(0.0), w_t = Weight(0.0);
+    float passed = 0.0;
+#define KR w_r
+#define KT w_t
+#else
+#define KR m.reflective
+#define KT m.transmissive
+#endif
 #if FEATURE_TEXTURES
     // Ray cones: the distance the ray tree travelled to k's origin (and to a spawned ray's, t_dist); as
     // mirrors and refractions keep the pixel's spread, the cone's width at a hit is spread × distance.
@@ -463,7 +504,36 @@ void main() {
 #if FEATURE_TEXTURES
                 g_cone_width = cone_footprint(cone_spread * (k_dist + h.t), k.d, s.ng);   // pbr_inputs' cone_width
 #endif
+#if PBR_SHADING
+                // Whitted's PBR rule (docs/SHADING.md, "PBR"): a surface the ray passes (culled back
+                // face, alpha below the cutoff; blend: coverage ≤ ½) lets it go on unchanged; a back
+                // face met from inside attenuates it (KHR_materials_volume) before it is shaded.
+                vec3 ng_k = s.n;
+#if FEATURE_TRIANGLES
+                ng_k = s.ng;
+#endif
+                bool front_k = dot(k.d, ng_k) < 0.0;
+                if (pbr_passes(s.mat, h.id, s.p, s.n, front_k, 0.5)) {
+                    int skip, far_id;
+                    exclusion(h.id, s.n, k.d, skip, far_id);
+                    passed += h.t;
+#if FEATURE_TEXTURES
+                    k_dist += h.t;   // the cone goes on from the passed surface
+#endif
+                    k.o = s.p; k.skip = skip; k.far_id = far_id;
+                    q = Query(k.o, k.d, k.skip, k.far_id, BIG, false);
+                    continue;
+                }
+                pbr_hit = MATERIAL_KIND(s.mat) == KIND_PBR;
+                if (pbr_hit) {
+                    pin = pbr_inputs(s.mat, h.id, s.p, s.n, g_cone_width);
+                    if (!front_k) k.weight *= pbr_attenuation(s.mat, h.t);
+                }
+#endif
                 if (k.level == 1) { primary_t = h.t; primary_id = h.id; primary_n = s.n; }
+#if PBR_SHADING
+                if (k.level == 1) primary_t += passed;
+#endif
                 deepest = max(deepest, k.level);
 #if READS_MATERIALS
                 m = material_at(s.mat);
@@ -472,7 +542,28 @@ void main() {
 #if FEATURE_TRIANGLES
                 nf = dot(k.d, s.ng) < 0.0 ? s.n : -s.n;   // the side by the geometric normal
 #endif
+#if PBR_SHADING
+                if (pbr_hit) {
+                    nf = dot(nf, s.n) > 0.0 ? pin.n : -pin.n;   // the normal map's, on the same side
+                    float c = max(dot(nf, -k.d), 0.0);
+                    vec3 fr = pbr_fresnel(pin.base_color, pin.metallic, pbr_f0_of(pbr_ior(s.mat)), c);
+                    float smooth_share = (1.0 - pin.roughness) * (1.0 - pin.roughness);
+                    w_r = fr * smooth_share;
+                    w_t = (1.0 - pin.metallic) * pin.transmission * (1.0 - pbr_dielectric_fresnel(pbr_f0_of(pbr_ior(s.mat)), c))
+                        * pin.base_color;
+                    m.ior = pbr_ior(s.mat);
+                } else {
+                    w_r = Weight(m.reflective);
+                    w_t = Weight(m.transmissive);
+                }
+#endif
 #if MODE_COLOR
+#if PBR_SHADING
+                if (pbr_hit) {   // not for the share that refracts
+                    float opaque = 1.0 - (1.0 - pin.metallic) * pin.transmission;
+                    color += k.weight * (PBR_AMBIENT * pin.occlusion * opaque) * pin.base_color;
+                } else
+#endif
                 color += k.weight * m.ambient * m.color;   // Phong's ambient term
 #endif
 #if FEATURE_LIGHTING && READS_EMISSION
@@ -492,10 +583,22 @@ void main() {
                 vec3 l = to_light / dist;
                 float cos_l = dot(nf, l);
                 if (cos_l > 0.0) {
+#if PBR_SHADING
+                    // The glTF BRDF · cos under irradiance π · the light's colour (a white Lambert
+                    // surface facing it shows the colour, as Phong's kd = 1 does).
+                    if (pbr_hit) {
+                        contrib = k.weight * u_light_color[light] * (PBR_PI * cos_l)
+                                * pbr_brdf(pin.base_color, pin.metallic, pbr_alpha_of(pin.roughness),
+                                           pbr_f0_of(pbr_ior(s.mat)), pin.transmission, 1.0, nf, -k.d, l);
+                    } else {
+#endif
                     vec3 r = 2.0 * cos_l * nf - l;
                     float x = dot(r, -k.d);
                     float spec = x > 0.0 ? pow(x, m.shininess) : 0.0;
                     contrib = k.weight * u_light_color[light] * (m.diffuse * cos_l * m.color + m.specular * spec);
+#if PBR_SHADING
+                    }
+#endif
                     int skip, far_id;
                     exclusion(h.id, s.n, l, skip, far_id);
                     q = Query(s.p, l, skip, far_id, dist, true);
@@ -516,16 +619,16 @@ void main() {
             t_dist = k_dist + h.t;   // both spawned rays start at the hit
 #endif
 #if !NO_REFLECTION
-            if (m.reflective > 0.0 && k.weight * m.reflective >= u_min_weight) {
+            if (WEIGHT_MAX(KR) > 0.0 && WEIGHT_MAX(k.weight * KR) >= u_min_weight) {
                 vec3 r = k.d - 2.0 * dot(k.d, n) * n;
                 int skip, far_id;
                 exclusion(h.id, n, r, skip, far_id);
-                t = Task(s.p, r, k.weight * m.reflective, k.level + 1, skip, far_id);
+                t = Task(s.p, r, k.weight * KR, k.level + 1, skip, far_id);
                 next = true;
             }
 #endif
 #if !NO_TRANSMISSION
-            if (m.transmissive > 0.0 && k.weight * m.transmissive >= u_min_weight) {
+            if (WEIGHT_MAX(KT) > 0.0 && WEIGHT_MAX(k.weight * KT) >= u_min_weight) {
                 bool entering = dot(k.d, n) < 0.0;
 #if FEATURE_TRIANGLES
                 entering = dot(k.d, s.ng) < 0.0;   // enters by the geometric normal, bends about n
@@ -544,7 +647,7 @@ void main() {
 #endif
                 if (next) { tasks[n_tasks] = t; n_tasks++; }   // the reflected ray waits
 #endif
-                t = Task(s.p, t_dir, k.weight * m.transmissive, k.level + 1, skip, far_id);
+                t = Task(s.p, t_dir, k.weight * KT, k.level + 1, skip, far_id);
                 next = true;
             }
 #endif
@@ -558,6 +661,9 @@ void main() {
 #endif
         if (!next) break;
         k = t;
+#if PBR_SHADING
+        passed = 0.0;
+#endif
 #if FEATURE_TEXTURES
         k_dist = t_dist;
 #endif

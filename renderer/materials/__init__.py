@@ -152,12 +152,13 @@ def pack_records(materials: Sequence[Any], kind: type) -> np.ndarray:
     return out.reshape(-1, TEXEL_FLOATS)
 
 
-def glsl_accessors(kind: type) -> str:
-    """GLSL macros ``material_<name>(m)``: parameter <name> of material ``m``, read from its record
+def glsl_accessors(kind: type, prefix: str = "material") -> str:
+    """GLSL macros ``<prefix>_<name>(m)``: parameter <name> of material ``m``, read from its record
     through ``MATERIAL_TEXEL(m, k)`` (texel k of material m; the shader that uses them defines it
-    for where it keeps the records: a texture or the uniform array)."""
+    for where it keeps the records: a texture or the uniform array). The Phong kind's prefix is
+    ``material``, the PBR kind's ``pbr``."""
     return "".join(
-        f"#define material_{name}(m) (MATERIAL_TEXEL(m, {slot.texel}).{slot.swizzle})\n"
+        f"#define {prefix}_{name}(m) (MATERIAL_TEXEL(m, {slot.texel}).{slot.swizzle})\n"
         for name, slot in record_layout(kind).items()
     )
 

@@ -27,6 +27,9 @@ Vec4 = tuple[float, float, float, float]
 # more than float32 UVs can address.
 UV_BOUND = 1e4
 ALPHA_MODES = ("opaque", "mask", "blend")
+# Whitted's ambient term of a PBR material: this × occlusion × base colour (the Phong kind's default
+# ambient weight, so that both kinds light a scene alike; docs/SHADING.md, "PBR").
+WHITTED_AMBIENT = 0.3
 SLOTS = ("base_color", "metallic_roughness", "normal", "emissive", "occlusion", "transmission")
 
 
@@ -148,6 +151,21 @@ class PbrMaterial(MaterialKind):
         """The radiance a surface of this material emits where its emissive texture is white."""
         r, g, b = (c * self.emissive_strength for c in self.emissive)
         return (r, g, b)
+
+    @property
+    def reflects(self) -> bool:
+        """Whether Whitted's rule traces a reflected ray: its weight, the specular Fresnel times
+        (1 − roughness)², is 0 only for roughness 1 (docs/SHADING.md, "PBR")."""
+        return self.roughness < 1.0
+
+    @property
+    def transmits(self) -> bool:
+        """Whether some light refracts through it: the dielectric's transmissive share."""
+        return self.transmission > 0.0 and self.metallic < 1.0
+
+    @property
+    def rough(self) -> bool:
+        return self.roughness > 0.0
 
     @staticmethod
     def texture_slots() -> tuple[str, ...]:

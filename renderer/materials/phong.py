@@ -54,3 +54,18 @@ class Material(MaterialKind):
     @property
     def emits(self) -> bool:
         return any(c > 0.0 for c in self.emission)
+
+    @property
+    def reflects(self) -> bool:
+        """Whether a hit spawns a reflected ray (Whitted) or has a reflective lobe (paths)."""
+        return self.reflective > 0.0
+
+    @property
+    def transmits(self) -> bool:
+        """Whether a hit spawns a transmitted ray (Whitted) or has a transmissive lobe (paths)."""
+        return self.transmissive > 0.0
+
+    @property
+    def rough(self) -> bool:
+        """Whether its reflective and transmissive lobes are GGX rather than deltas (paths)."""
+        return self.roughness > 0.0

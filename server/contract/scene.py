@@ -7,10 +7,13 @@ world units; ``fov_y`` in degrees."""
 
 from __future__ import annotations
 
+from dataclasses import fields as dataclass_fields
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from pydantic import (
+    Discriminator,
     Field,
+    Tag,
     ValidationError,
     create_model,
     field_validator,
@@ -41,6 +44,7 @@ from renderer.limits import (
     MAX_WAVELENGTH,
 )
 from renderer.materials import material_params
+from renderer.materials.pbr import PbrMaterial
 from renderer.scene import Material
 
 from .fields import MAX_JSON_MOTION_SEED, MAX_LISTED_ERRORS, SPHERE_CHUNK, Integral, Strict
@@ -80,12 +84,22 @@ class LightModel(Strict):
 
 def material_model(kind: type = Material) -> type[Strict]:
     """The API's model of material kind ``kind``, made from its declaration (renderer/materials): each
-    parameter's name, default, range and doc; an RGB triple a list of three numbers bounded alike."""
+    parameter's name, default, range and doc; an RGB triple a list of three numbers bounded alike; a
+    whole number (a texture index) an integer; a choice one of its values. A kind other than the Phong
+    one has a required ``kind`` naming it (the Phong kind's JSON has none)."""
     fields: dict[str, Any] = {}
+    tag = getattr(kind, "KIND", "phong")
+    if tag != "phong":
+        fields["kind"] = (Literal[tag], Field(description=f"the material kind: {tag!r}"))
+    defaults: dict[str, Any] = {f.name: f.default for f in dataclass_fields(kind)}
     for name, p in material_params(kind).items():
         bound = {"gt" if p.lo_open else "ge": p.lo, "le": p.hi}
         unit = f"; in {p.unit}" if p.unit else ""
-        if isinstance(p.default, tuple):
+        if p.choices:
+            fields[name] = (Literal[p.choices], Field(defaults[name], description=p.doc))
+        elif p.integer:
+            fields[name] = (int, Field(int(defaults[name]), description=p.doc + unit, **bound))  # type: ignore[call-overload]
+        elif isinstance(p.default, tuple):
             item = Annotated[float, Field(**bound)]
             vector = Annotated[list[item], Field(min_length=p.size, max_length=p.size)]
             default = Field(default_factory=lambda d=p.default: list(d), description=p.doc + unit)
@@ -96,10 +110,29 @@ def material_model(kind: type = Material) -> type[Strict]:
     return create_model(f"{kind.__name__}Model", __base__=Strict, __module__=__name__, __doc__=doc, **fields)
 
 
+def _material_kind(value: Any) -> str | None:
+    """The tag of a material's JSON (or model): its ``"kind"``, the Phong kind's where it has none."""
+    kind = value.get("kind", "phong") if isinstance(value, dict) else getattr(value, "kind", "phong")
+    return kind if isinstance(kind, str) else None
+
+
 if TYPE_CHECKING:
     MaterialModel = Strict
+    PbrMaterialModel = Strict
+    AnyMaterialModel = Strict
 else:
     MaterialModel = material_model()
+    PbrMaterialModel = material_model(PbrMaterial)
+    # The scene's materials: a union of the kinds told apart by "kind" (absent: the Phong kind), so a
+    # refused field is named within its own kind's model (materials.0.pbr.metallic).
+    AnyMaterialModel = Annotated[
+        Annotated[MaterialModel, Tag("phong")] | Annotated[PbrMaterialModel, Tag("pbr")],
+        Discriminator(
+            _material_kind,
+            custom_error_type="material_kind",
+            custom_error_message="'kind' must be 'phong' (or absent) or 'pbr'",
+        ),
+    ]
 
 
 class EnvironmentModel(Strict):
@@ -294,7 +327,7 @@ class SceneModel(Strict):
 
     camera: CameraModel = Field(default_factory=CameraModel)
     lights: list[LightModel] = Field(default_factory=list, max_length=MAX_LIGHTS)
-    materials: list[MaterialModel] = Field(min_length=1, max_length=MAX_MATERIALS)
+    materials: list[AnyMaterialModel] = Field(min_length=1, max_length=MAX_MATERIALS)
     spheres: list[SphereModel] = Field(default_factory=list, max_length=MAX_SPHERES)
     planes: list[PlaneModel] = Field(default_factory=list, max_length=MAX_PLANES)
     meshes: list[MeshModel] = Field(

@@ -72,19 +72,19 @@ def _flags(src: str) -> dict[str, int]:
 
 @pytest.mark.parametrize("method", ["bih", "bruteforce", "bvh", "kdtree", "twolevel"])
 def test_feature_flags_are_always_defined_zero_or_one(method):
-    """The header defines FEATURE_TRIANGLES, FEATURE_SHAPES and FEATURE_LIGHTING in every variant,
-    1 where the variant traces the kind (its data format, and not the background variant) or
-    carries light beyond the thesis's; the traversal tests primitives through leaf_hit or the
-    kinds' ranges alone, and no mark is left in the text."""
-    surface_off = {"FEATURE_TEXTURES": 0, "FEATURE_VERTEX_COLORS": 0, "FEATURE_TANGENTS": 0}
+    """The header defines FEATURE_TRIANGLES, FEATURE_SHAPES, FEATURE_LIGHTING, FEATURE_PBR and the
+    surface formats' flags in every variant, 1 where the variant traces the kind (its data format, and
+    not the background variant), carries light beyond the thesis's or has PBR material records; the
+    traversal tests primitives through leaf_hit or the kinds' ranges alone, and no mark is left in the text."""
+    surface_off = {"FEATURE_TEXTURES": 0, "FEATURE_VERTEX_COLORS": 0, "FEATURE_TANGENTS": 0, "FEATURE_PBR": 0}
     plain = shader_source(method, "color", 3, ("EQUAL_RADII",))
     assert _flags(plain) == {"FEATURE_TRIANGLES": 0, "FEATURE_SHAPES": 0, "FEATURE_LIGHTING": 0, **surface_off}
     both = shader_source(method, "color", 3, ("TRIANGLES", "SMOOTH_TRIANGLES", "SHAPES", "EMISSION"))
     assert _flags(both) == {"FEATURE_TRIANGLES": 1, "FEATURE_SHAPES": 1, "FEATURE_LIGHTING": 1, **surface_off}
     bg = shader_source(method, "color", 3, ("TRIANGLES", "SHAPES"), spheres=False)
     assert _flags(bg) == {"FEATURE_TRIANGLES": 0, "FEATURE_SHAPES": 0, "FEATURE_LIGHTING": 0, **surface_off}
-    textured = ("TRIANGLES", "TEXTURES", "VERTEX_COLORS", "TANGENTS")
-    surface_on = {"FEATURE_TEXTURES": 1, "FEATURE_VERTEX_COLORS": 1, "FEATURE_TANGENTS": 1}
+    textured = ("TRIANGLES", "PBR", "TEXTURES", "VERTEX_COLORS", "TANGENTS")
+    surface_on = {"FEATURE_TEXTURES": 1, "FEATURE_VERTEX_COLORS": 1, "FEATURE_TANGENTS": 1, "FEATURE_PBR": 1}
     assert _flags(shader_source(method, "color", 3, textured)) == {
         "FEATURE_TRIANGLES": 1,
         "FEATURE_SHAPES": 0,
@@ -92,6 +92,8 @@ def test_feature_flags_are_always_defined_zero_or_one(method):
         **surface_on,
     }
     assert _flags(shader_source(method, "color", 3, textured, spheres=False))["FEATURE_TEXTURES"] == 0
+    pbr = shader_source(method, "color", 3, ("PBR", "MATERIAL_TEXTURE"), spheres=False)
+    assert _flags(pbr)["FEATURE_PBR"] == 1 and "#define pbr_metallic(m)" in pbr
     for src in (plain, both, bg):
         assert "//@" not in src
     if method == "bruteforce":
