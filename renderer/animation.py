@@ -524,6 +524,7 @@ def pose(anim: AnimatedScene, t: float) -> PosedFrame:
         base.environment,
         base.environment_map,
         base.shapes.with_placement(origins, axes) if anim.moving_shapes.any() else base.shapes,
+        base.textures,
     )
     tri_moving = (
         np.repeat(anim.moving_meshes, [mesh.n_triangles for mesh in base.meshes]) if base.meshes else np.zeros(0, bool)

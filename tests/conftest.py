@@ -13,6 +13,8 @@ remember them:
   its subprocesses (``_no_gl_for_cpu_only_runs``), so a GL test that the rule misses fails in
   every CPU-only run, not only on a machine without GL (``tests/test_gl_marks.py`` runs one).
 - ``browser``: the test drives Chromium (Playwright).
+- ``long``: a file with tens of seconds of work says so (``pytestmark``); such files are put
+  first, so that ``./dev test``'s workers take them first.
 - ``slow``: long runs (property-based runs with many examples, every experiment's quick run),
   deselected unless the ``-m`` expression names ``slow`` (``-m slow``, ``-m "slow and not gl"``).
   This is done here rather than with ``addopts = -m 'not slow'`` because a second ``-m`` on
@@ -164,6 +166,12 @@ def pytest_collection_modifyitems(config, items):
         if slow:
             config.hook.pytest_deselected(items=slow)
             items[:] = [item for item in items if not item.get_closest_marker("slow")]
+    # Files marked long first, each file's tests in their order: xdist (``--dist loadfile
+    # --no-loadscope-reorder``, as ./dev test runs it) hands files out in this order, so the
+    # longest are begun early and the last file left to a worker is a short one.
+    long_files = {item.path for item in items if item.get_closest_marker("long")}
+    if long_files:
+        items.sort(key=lambda item: item.path not in long_files)  # stable: the rest keep their order
 
 
 class _NoGLForCpuOnlyRuns:

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import asyncio
 import math
-from collections.abc import Coroutine
+import time
+from collections.abc import Callable, Coroutine
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -31,3 +32,21 @@ def run_coroutine(coro: Coroutine[Any, Any, Any]) -> Any:
     them, where ``asyncio.run`` refuses to start."""
     with ThreadPoolExecutor(1) as pool:
         return pool.submit(asyncio.run, coro).result()
+
+
+def load_scaled(quiet_s: float, reference_s: float, factor: float) -> float:
+    """A wall-clock bound of a pass/fail test that a loaded machine does not break: ``quiet_s``,
+    the bound on a quiet machine, or ``factor`` times ``reference_s`` — a comparable, short piece of
+    the same work timed in the test itself just before, on the machine as loaded as it is then —
+    when that is longer. The defect a bound catches must take more than ``factor`` such pieces."""
+    return max(quiet_s, factor * reference_s)
+
+
+def median_s(call: Callable[[], object], n: int = 5) -> float:
+    """The median wall-clock seconds of ``n`` calls of ``call``."""
+    times = []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        call()
+        times.append(time.perf_counter() - t0)
+    return sorted(times)[n // 2]

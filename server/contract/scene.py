@@ -8,7 +8,7 @@ world units; ``fov_y`` in degrees."""
 from __future__ import annotations
 
 from dataclasses import fields as dataclass_fields
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal, get_args
 
 from pydantic import (
     Discriminator,
@@ -40,11 +40,14 @@ from renderer.limits import (
     MAX_SHAPES,
     MAX_SPEED,
     MAX_SPHERES,
+    MAX_TEXTURE_NAME,
+    MAX_TEXTURES,
     MAX_TRIANGLES,
     MAX_WAVELENGTH,
 )
 from renderer.materials import material_params
 from renderer.materials.pbr import PbrMaterial
+from renderer.materials.texture import FILTERS, WRAPS
 from renderer.scene import Material
 
 from .fields import MAX_JSON_MOTION_SEED, MAX_LISTED_ERRORS, SPHERE_CHUNK, Integral, Strict
@@ -171,6 +174,11 @@ Triangle = Annotated[
     list[VertexIndex], Field(min_length=3, max_length=3, description="[i, j, k], counter-clockwise seen from outside")
 ]
 Row4 = Annotated[list[float], Field(min_length=4, max_length=4)]
+Row2 = Annotated[list[Coordinate], Field(min_length=2, max_length=2)]
+Rgba = Annotated[list[Unit], Field(min_length=4, max_length=4, description="linear RGBA, each 0 … 1")]
+Tangent = Annotated[
+    list[Coordinate], Field(min_length=4, max_length=4, description="[x, y, z, w]: +U's direction, w = ±1 handedness")
+]
 
 
 class MeshModel(Strict):
@@ -187,6 +195,36 @@ class MeshModel(Strict):
     transform: Annotated[list[Row4], Field(min_length=4, max_length=4)] | None = Field(
         None, description="4 × 4 row-major affine (last row [0, 0, 0, 1]) applied to the vertices on input"
     )
+    uvs: list[Row2] | None = Field(
+        None, max_length=MAX_MESH_VERTICES, description="texture coordinates, set 0, per vertex (U right, V down)"
+    )
+    uvs1: list[Row2] | None = Field(
+        None, max_length=MAX_MESH_VERTICES, description="texture coordinates, set 1, per vertex"
+    )
+    colors: list[Rgba] | None = Field(
+        None, max_length=MAX_MESH_VERTICES, description="per-vertex colours multiplying a PBR base colour"
+    )
+    tangents: list[Tangent] | None = Field(
+        None, max_length=MAX_MESH_VERTICES, description="per-vertex tangents for normal maps (generated where absent)"
+    )
+
+
+Wrap = Literal["repeat", "clamp", "mirror"]
+Filter = Literal["linear", "nearest"]
+# (spelled out for the type checker; the texture's own declaration is the one that counts)
+assert get_args(Wrap) == WRAPS and get_args(Filter) == FILTERS
+
+
+class TextureModel(Strict):
+    """An image a PBR material reads (docs/FORMATS.md, "Textures"): a PNG or JPEG in base64, at most
+    MAX_TEXTURE_SIDE a side (checked from its header before it is decoded)."""
+
+    png: str = Field(description="the image, a PNG or JPEG file in base64")
+    srgb: bool = Field(False, description="colour channels sRGB-encoded (base colour, emissive); else linear data")
+    wrap_s: Wrap = Field("repeat", description="how U outside [0, 1] repeats")
+    wrap_t: Wrap = Field("repeat", description="how V outside [0, 1] repeats")
+    filter: Filter = Field("linear", description="within a mip level; between levels always linear")
+    name: str = Field("", max_length=MAX_TEXTURE_NAME, description="the image's file name")
 
 
 # ---- analytic shapes (renderer.shapes; docs/FORMATS.md, "Analytic shapes") --------------------
@@ -341,6 +379,9 @@ class SceneModel(Strict):
     tori: list[TorusModel] = Field(default_factory=list, max_length=MAX_SHAPES, description=SHAPES_DOC)
     motions: list[Motion] = Field(default_factory=list, max_length=MAX_MOTIONS)
     environment: EnvironmentModel = Field(default_factory=EnvironmentModel)
+    textures: list[TextureModel] = Field(
+        default_factory=list, max_length=MAX_TEXTURES, description="the images PBR materials read, by index"
+    )
 
     @field_validator("spheres", mode="wrap")
     @classmethod

@@ -66,7 +66,8 @@ def scene_from_model(
         meshes = []
         for i, m in enumerate(model.meshes):
             try:
-                meshes.append(make_mesh(m.vertices, m.triangles, m.material, m.normals, m.transform))
+                attributes = {a: getattr(m, a) for a, *_ in VERTEX_ATTRIBUTES if getattr(m, a) is not None}
+                meshes.append(make_mesh(m.vertices, m.triangles, m.material, m.normals, m.transform, **attributes))
             except SceneError as e:
                 raise SceneError(f"meshes[{i}].{e.field}", e.message) from None
         scene = Scene(
@@ -81,6 +82,7 @@ def scene_from_model(
             base.environment,
             base.environment_map,
             base.shapes,
+            base.textures,
         )
         return with_motions(scene, [m.model_dump(exclude_none=True) for m in model.motions])
     except SceneError as e:

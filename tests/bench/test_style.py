@@ -14,6 +14,8 @@ from bench.experiments.style import METHOD_STYLE, legend_outside, method_of, plt
 from renderer.methods import METHODS
 from tests.helpers import ROOT
 
+pytestmark = pytest.mark.long  # every chart of docs/figures/ redrawn, ray_engines' by rendering
+
 
 def test_labels_name_their_method_and_get_its_color_and_marker():
     cases = {

@@ -24,6 +24,8 @@ import numpy as np
 import pytest
 from browser_support import FAILED_LOAD, MOBILE, Client, Touch, canvas_rgb, http_json
 
+pytestmark = pytest.mark.long  # a browser tracing on the device
+
 W, H = 64, 108
 DEPTH = 5
 SMALL = "scenario=1&n=64&seed=1&radius=1&width=96&height=160&max_recursion_depth=2&preview_scale=1&refine_ms=0"

@@ -26,6 +26,8 @@ from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
 from renderer.tonemap import display_u8
 from tests.helpers import psnr
 
+pytestmark = pytest.mark.long  # a browser tracing paths on the device
+
 W = 64
 SPP = 64
 DEPTH = 6

@@ -245,3 +245,26 @@ def test_a_scene_without_meshes_refuses_a_mesh_motion():
         AnimatedScene(scenario(1, 8), (RigidGroup(0, 0, mesh=0),))
     assert e.value.field == "motions[0].mesh"
     assert icosphere(0).n_triangles == 20
+
+
+def test_a_posed_scene_and_a_scene_under_the_sky_keep_their_textures_and_vertex_attributes():
+    """A textured PBR mesh that moves, or a textured scene put under the sky, still reads its texture
+    (a scene without its textures is refused: the material names a texture it no longer has)."""
+    import dataclasses
+
+    from renderer.materials.pbr import PbrMaterial
+    from renderer.materials.texture import Texture
+    from renderer.scenarios import with_sky
+
+    s = two_mesh_scene()
+    uvs = np.zeros((len(s.meshes[1].vertices), 2))
+    moving = dataclasses.replace(s.meshes[1], material=len(s.materials), uvs=uvs)
+    s = dataclasses.replace(
+        s,
+        materials=(*s.materials, PbrMaterial(base_color_texture=0)),
+        meshes=(s.meshes[0], moving, *s.meshes[2:]),
+        textures=(Texture(np.full((2, 2, 4), 200, np.uint8)),),
+    )
+    posed = pose(AnimatedScene(s, (RigidGroup(0, 0, mesh=1, angular_velocity=0.25),)), 1.0).scene
+    assert posed.textures == s.textures and posed.meshes[1].uvs is not None
+    assert with_sky(s).textures == s.textures

@@ -72,3 +72,68 @@ def test_openapi_shows_both_kinds(client):
     pbr = schemas["PbrMaterialModel"]["properties"]
     assert pbr["kind"]["const"] == "pbr" and pbr["metallic"]["maximum"] == 1.0
     assert pbr["alpha_mode"]["enum"] == ["opaque", "mask", "blend"]
+
+
+def _textured_scene() -> dict:
+    """A quad with UVs, vertex colours and a 4 × 4 checker texture on a PBR material."""
+    import base64
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    checker = np.zeros((4, 4, 4), np.uint8)
+    checker[..., 3] = 255
+    checker[::2, ::2, :3] = checker[1::2, 1::2, :3] = 230
+    buf = io.BytesIO()
+    Image.fromarray(checker, "RGBA").save(buf, format="PNG")
+    scene = copy.deepcopy(SCENE)
+    scene["materials"].append({"kind": "pbr", "metallic": 0.0, "roughness": 0.8, "base_color_texture": 0})
+    scene["textures"] = [{"png": base64.b64encode(buf.getvalue()).decode(), "srgb": True, "filter": "nearest"}]
+    scene["meshes"] = [
+        {
+            "vertices": [[-2, -1, -1], [2, -1, -1], [2, 1, -1], [-2, 1, -1]],
+            "triangles": [[0, 1, 2], [0, 2, 3]],
+            "material": 2,
+            "uvs": [[0, 1], [2, 1], [2, 0], [0, 0]],
+            "colors": [[1, 1, 1, 1], [1, 0.5, 0.5, 1], [1, 1, 1, 1], [0.5, 0.5, 1, 1]],
+        }
+    ]
+    return scene
+
+
+def test_a_textured_scene_is_taken_streamed_back_and_put_again(client):
+    """Textures and vertex attributes travel through the API's scene contract both ways: what GET
+    gives, PUT takes (an uploaded textured model's scene round-trips)."""
+    r = post(client, _textured_scene())
+    assert r.status_code == 201, r.text
+    sid = r.json()["id"]
+    got = client.get(f"/api/sessions/{sid}/scene").json()
+    assert (
+        len(got["textures"]) == 1 and got["textures"][0]["srgb"] is True and got["textures"][0]["filter"] == "nearest"
+    )
+    assert got["meshes"][0]["uvs"][1] == [2, 1] and got["meshes"][0]["colors"][1] == [1, 0.5, 0.5, 1]
+    assert client.put(f"/api/sessions/{sid}/scene", json=got).status_code == 200
+    frame = client.get(f"/api/sessions/{sid}/frame", params={"format": "png"})
+    assert frame.status_code == 200, frame.text
+
+
+@pytest.mark.parametrize(
+    "change,field",
+    [
+        (lambda s: s["textures"][0].update(png="not base64!"), "png"),
+        (lambda s: s["textures"][0].update(wrap_s="tile"), "wrap_s"),
+        (lambda s: s["meshes"][0].update(uvs=[[0, 0]]), "uvs"),
+        (lambda s: s["meshes"][0]["colors"][0].__setitem__(0, 2.0), "colors"),
+        (lambda s: s["materials"][2].update(base_color_texture=3), "base_color_texture"),
+    ],
+)
+def test_a_bad_texture_or_vertex_attribute_is_refused_naming_it_and_commits_nothing(client, change, field):
+    sid = post(client, SCENE).json()["id"]
+    before = client.get(f"/api/sessions/{sid}/scene").json()
+    bad = _textured_scene()
+    change(bad)
+    r = client.put(f"/api/sessions/{sid}/scene", json=bad)
+    assert r.status_code == 422, r.text
+    assert field in r.text
+    assert client.get(f"/api/sessions/{sid}/scene").json() == before

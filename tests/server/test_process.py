@@ -9,7 +9,10 @@ from concurrent.futures import ThreadPoolExecutor
 
 import httpx
 import numpy as np
+import pytest
 from pocketray_server_support import SMALL, new_session
+
+pytestmark = pytest.mark.long  # server processes, Redis, crashes and restarts
 
 
 def test_sessions_survive_a_crash_and_a_restart(spawn_server):

@@ -31,25 +31,11 @@ from typing import Any
 import httpx
 import jsonschema_rs
 import pytest
-import schemathesis
-from hypothesis import HealthCheck, settings
 from pocketray_server_support import ServerProcess, make_config, new_session, server_env
-from schemathesis.checks import not_a_server_error
-from schemathesis.config import SchemathesisConfig
-from schemathesis.core.parameters import ParameterLocation
-from schemathesis.generation import GenerationMode
-from schemathesis.specs.openapi.checks import (
-    allow_header_conformance,
-    content_type_conformance,
-    missing_required_header,
-    negative_data_rejection,
-    response_headers_conformance,
-    response_schema_conformance,
-    status_code_conformance,
-    unsupported_method,
-)
 
 from server.app import create_app
+
+pytestmark = pytest.mark.long  # thousands of generated requests to a server process
 
 REFUSALS = ["400", "404", "405", "409", "413", "415", "422", "429", "503"]
 
@@ -118,19 +104,35 @@ def refused_only_across_fields(ctx, response, case) -> None:
     return None
 
 
-CHECKS = [
-    not_a_server_error,
-    status_code_conformance,
-    content_type_conformance,
-    response_schema_conformance,
-    response_headers_conformance,
-    negative_data_rejection,
-    unsupported_method,
-    allow_header_conformance,
-    missing_required_header,
-    refused_only_across_fields,
-]
-CONFIG = SchemathesisConfig.from_dict({"checks": {"negative_data_rejection": {"expected-statuses": REFUSALS}}})
+# schemathesis (~110 modules) is imported where it is used: every xdist worker collects this module
+# and only one runs it.
+@functools.cache
+def checks() -> list:
+    """The checks of ``--checks all`` that apply, and this module's own."""
+    from schemathesis.checks import not_a_server_error
+    from schemathesis.specs.openapi.checks import (
+        allow_header_conformance,
+        content_type_conformance,
+        missing_required_header,
+        negative_data_rejection,
+        response_headers_conformance,
+        response_schema_conformance,
+        status_code_conformance,
+        unsupported_method,
+    )
+
+    return [
+        not_a_server_error,
+        status_code_conformance,
+        content_type_conformance,
+        response_schema_conformance,
+        response_headers_conformance,
+        negative_data_rejection,
+        unsupported_method,
+        allow_header_conformance,
+        missing_required_header,
+        refused_only_across_fields,
+    ]
 
 
 @pytest.fixture(scope="module")
@@ -162,7 +164,11 @@ def spec() -> dict:
 def api_schema(live_session):
     """Loaded when the test runs, not at collection: every xdist worker collects this module, one
     runs it (the schema's operations are the test's subtests, one per operation)."""
-    return schemathesis.openapi.from_dict(spec(), config=CONFIG)
+    import schemathesis
+    from schemathesis.config import SchemathesisConfig
+
+    config = SchemathesisConfig.from_dict({"checks": {"negative_data_rejection": {"expected-statuses": REFUSALS}}})
+    return schemathesis.openapi.from_dict(spec(), config=config)
 
 
 def test_served_schema_is_the_tested_one(api_server):
@@ -178,6 +184,7 @@ def test_every_operation_of_the_schema_is_tested(api_schema):
 def test_api_conforms_to_its_schema(api_schema, live_session, subtests):
     """Every operation, each a subtest: the tests schemathesis.parametrize() would make, made when
     this runs (schemathesis.pytest.lazy's, whose own wrapper does not run under this pytest)."""
+    from hypothesis import HealthCheck, settings
     from schemathesis.checks import load_all_checks
     from schemathesis.pytest.lazy import get_all_tests
 
@@ -194,6 +201,9 @@ def test_api_conforms_to_its_schema(api_schema, live_session, subtests):
 
 
 def check_case(case, live_session) -> None:
+    from schemathesis.core.parameters import ParameterLocation
+    from schemathesis.generation import GenerationMode
+
     params = case.path_parameters or {}
     # A session id made invalid on purpose (a negative path) stays as generated: replaced by the live
     # one, the request would be valid while schemathesis still expects it refused.
@@ -208,4 +218,4 @@ def check_case(case, live_session) -> None:
                 params["session_id"] = new_session(c)["id"]
         else:
             params["session_id"] = live_session["id"]
-    case.call_and_validate(base_url=live_session["url"], checks=CHECKS)
+    case.call_and_validate(base_url=live_session["url"], checks=checks())

@@ -12,6 +12,8 @@ import pytest
 from tests.stability.cases import CASES, Case
 from tests.stability.catalogue import evaluate, methods_of
 
+pytestmark = pytest.mark.long  # hundreds of cases, each method
+
 
 def _params():
     for c in CASES:

@@ -32,6 +32,8 @@ from renderer.scene import Scene
 from renderer.settings import RenderSettings
 from tests.renderer.gl import base_images as B
 
+pytestmark = pytest.mark.long  # about a thousand frames
+
 RECORD = json.loads(B.RECORD.read_text())["frames"]
 # Heat counts traversal steps, so it follows the tree, not only the shader: the BVH's build
 # bins on one axis without sorts, unlike the base commit's, and the two-level method uses it too, so

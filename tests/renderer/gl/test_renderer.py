@@ -71,6 +71,8 @@ from renderer.shader_source import known_bindings, tracer_bindings
 from tests.helpers import psnr
 from tests.renderer.gl.support import active
 
+pytestmark = pytest.mark.long  # a hundred GL tests
+
 W, H = 160, 272
 CASES = [(sc, n) for sc in (1, 2, 3) for n in (64, 1024)]
 

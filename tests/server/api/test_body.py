@@ -31,6 +31,7 @@ from pocketray_server_support import SMALL, assert_422_listing, make_config, new
 
 from server.api.body import INLINE_BODY_BYTES, BodyParsers
 from server.app import create_app
+from tests.helpers import load_scaled, median_s
 
 ATTACKER, HONEST = ("10.0.0.66", 40000), ("10.0.0.7", 40001)
 DECLARED = 100_000  # over INLINE_BODY_BYTES: each such body takes a slot
@@ -340,8 +341,8 @@ def test_large_bodies_are_parsed_on_the_pool_and_small_ones_inline(client, monke
 
 def test_health_answers_while_six_large_bodies_are_parsed(spawn_server):
     """Rules out: /api/health stalled while bodies are parsed (2.4 s behind one 16 MB scene, 15 s
-    behind six). A hang guard only (2 s for six 4 MB bodies); bench/hostile.py measures the latency
-    with six maximum bodies."""
+    behind six). A hang guard only (2 s for six 4 MB bodies on a quiet machine, 20 health answers'
+    time as the machine is loaded then); bench/hostile.py measures the latency with six maximum bodies."""
     s = spawn_server(
         max_body_bytes=16 << 20, max_spheres=1000, queue_size=8, body_slots_per_client=0
     )  # all six come from this one address
@@ -362,6 +363,7 @@ def test_health_answers_while_six_large_bodies_are_parsed(spawn_server):
     senders = [threading.Thread(target=put) for _ in range(6)]
     waits = []
     with httpx.Client(base_url=s.url, timeout=30) as c:
+        health_s = median_s(lambda: c.get("/api/health"))
         for t in senders:
             t.start()
         while any(t.is_alive() for t in senders):
@@ -372,4 +374,4 @@ def test_health_answers_while_six_large_bodies_are_parsed(spawn_server):
     for t in senders:
         t.join()
     assert answers == [422] * 6  # parsed and validated; then over max_spheres (1,000)
-    assert len(waits) >= 3 and max(waits) < 2.0, waits
+    assert len(waits) >= 3 and max(waits) < load_scaled(2.0, health_s, 20), (health_s, waits)

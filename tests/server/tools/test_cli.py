@@ -24,7 +24,7 @@ from pocketray_server_support import ROOT, free_port, pocketray, pocketray_batch
 from server.frames.exr import decode_exr
 from server.tools import cli
 
-pytestmark = pytest.mark.gl  # render runs GLRenderer, serve a GL worker
+pytestmark = [pytest.mark.gl, pytest.mark.long]  # render runs GLRenderer, serve a GL worker
 
 # Commands whose subject is what they write or refuse run several to a process (pocketray_batch:
 # server.tools.cli.main as ``python -m server`` calls it, the start-up paid once); ``pocketray`` itself as
@@ -297,7 +297,9 @@ def test_serve_prints_the_address_before_its_json_logs(tmp_path):
         assert proc.stderr is not None
         first = proc.stderr.readline().strip()
     finally:
-        proc.send_signal(signal.SIGINT)
+        # SIGTERM, not SIGINT: a shell starts a background job with SIGINT ignored, and a child keeps
+        # that until uvicorn installs its handlers, so a Ctrl-C sent during start-up would go unseen.
+        proc.send_signal(signal.SIGTERM)
         try:
             proc.wait(timeout=60)
         except subprocess.TimeoutExpired:

@@ -19,6 +19,7 @@ import pytest
 from pocketray_server_support import SMALL, TEST_CAPS
 
 from server.tools.stack import SERVED_BY_HEADER, SESSION_HEADER, Stack
+from tests.helpers import load_scaled, median_s
 
 pytestmark = pytest.mark.gl  # the render processes make GL contexts
 
@@ -179,6 +180,7 @@ def test_a_stalled_redis_is_the_services_json_503_and_no_process_leaves_the_bala
     with httpx.Client(base_url=stack.url, timeout=5) as c:
         sid = c.post("/api/sessions", json={"scenario": 1, "n": 27, "settings": dict(SMALL)}).json()["id"]
         pan = {"type": "pan", "dx": 1, "dy": 0}
+        read_s = median_s(lambda: c.get(f"/api/sessions/{sid}", headers={SESSION_HEADER: sid}), 3)  # through Redis
         stack.redis.proc.send_signal(signal.SIGSTOP)  # Redis stalls: connections open, nothing answered
         try:
             t0 = time.monotonic()
@@ -200,5 +202,6 @@ def test_a_stalled_redis_is_the_services_json_503_and_no_process_leaves_the_bala
         t_back = time.monotonic()
         r = c.post(f"/api/sessions/{sid}/gesture", json=pan, headers={SESSION_HEADER: sid})
         assert r.status_code == 200, r.text
-        assert time.monotonic() - t_back < 5.0  # the hang was 10 s; a loaded machine takes a few
+        # The defect hangs 10 s: the bound is 5 s, or 10 reads of the session as loaded then.
+        assert time.monotonic() - t_back < load_scaled(5.0, read_s, 10), read_s
         assert r.json()["version"] in (2, 3)  # a refused write whose EXEC had reached Redis is applied after it

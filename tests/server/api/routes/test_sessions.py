@@ -38,6 +38,7 @@ from renderer.meshes import box, icosphere
 from renderer.scenarios import scenario
 from renderer.scene import Scene
 from renderer.settings import SETTINGS
+from tests.helpers import load_scaled, median_s
 from tests.renderer.gltf_files import Gltf, png, triangle
 
 SESSION_KEYS = {"id", "version", "settings", "scene_info", "camera"}
@@ -635,10 +636,13 @@ def test_hostile_model_files_get_a_quick_422_naming_the_problem(api):
     charset-normalizer was not installed), a PLY short of its declared faces and an OBJ face
     of index 0 (both accepted before): each refused with 422 saying what is wrong."""
     octets = {"content-type": "application/octet-stream"}
-    assert (
-        api.post("/api/meshes", params={"format": "obj"}, content=export_mesh(box(), "obj"), headers=octets).status_code
-        == 200
-    )  # the parser processes have started
+
+    def small() -> None:
+        r = api.post("/api/meshes", params={"format": "obj"}, content=export_mesh(box(), "obj"), headers=octets)
+        assert r.status_code == 200
+
+    small()  # the parser processes have started
+    small_s = median_s(small, 3)  # a small file's parse, as loaded as the machine is now
     claim = json.dumps(
         {
             "asset": {"version": "2.0"},
@@ -658,7 +662,7 @@ def test_hostile_model_files_get_a_quick_422_naming_the_problem(api):
     ):
         t0 = time.perf_counter()
         r = send()
-        assert time.perf_counter() - t0 < 3.0
+        assert time.perf_counter() - t0 < load_scaled(3.0, small_s, 30), small_s
         assert_422_msgs(r, "body")
         assert "accessors[0].count = 30,000,000; at most 3,145,728 allowed" in r.text
     assert vm_hwm_kib() - hwm < 100 * 1024  # KiB: no array of 30 M vertices here
