@@ -207,9 +207,43 @@ def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
 
 
 def _finish(
-    vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray | None, material: int, transform: Any
+    vertices: np.ndarray,
+    triangles: np.ndarray,
+    normals: np.ndarray | None,
+    material: int,
+    transform: Any,
+    **attributes: np.ndarray,
 ) -> Mesh:
-    return make_mesh(vertices, triangles, material, normals, transform)
+    return make_mesh(vertices, triangles, material, normals, transform, **attributes)
+
+
+def _tangents(normals: np.ndarray, along_u: np.ndarray, along_v: np.ndarray) -> np.ndarray:
+    """float64 (V, 4): glTF tangents of a parameterised surface: xyz the unit direction of +U
+    (``along_u``, ∂P/∂u, made orthogonal to the normal), w = ±1 so that the bitangent
+    ``w · (n × t)`` points up the image — towards −V, ``along_v`` being ∂P/∂v."""
+    n = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    t = along_u - np.einsum("ij,ij->i", along_u, n)[:, None] * n
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    w = np.where(np.einsum("ij,ij->i", np.cross(n, t), -along_v) >= 0.0, 1.0, -1.0)
+    return np.concatenate([t, w[:, None]], axis=1)
+
+
+def _seamed(triangles: np.ndarray, u: np.ndarray, poles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A wrapped U coordinate made continuous over every triangle: a triangle spanning more than
+    half the range (it crosses the seam) has its corners below ½ moved up by 1, and a corner on a
+    pole (where U is undefined) takes the mean U of the triangle's other two. Returns (``source``:
+    the original vertex of each new one, its U, the triangles on the new vertices). Positions are
+    copied, never recomputed: the seam's two copies of a vertex are equal bit for bit, so the mesh
+    stays watertight for the tracers (the module docstring)."""
+    tu = u[triangles]
+    crosses = tu.max(axis=1) - tu.min(axis=1) > 0.5
+    tu = np.where(crosses[:, None] & (tu < 0.5), tu + 1.0, tu)
+    on_pole = poles[triangles]
+    others = (tu.sum(axis=1, keepdims=True) - tu) / 2.0
+    tu = np.where(on_pole, others, tu)
+    keys = np.stack([triangles.reshape(-1).astype(np.float64), tu.reshape(-1)], axis=1)
+    uniq, inverse = np.unique(keys, axis=0, return_inverse=True)
+    return uniq[:, 0].astype(np.int64), uniq[:, 1], inverse.reshape(-1, 3)
 
 
 def _count(value: Any, name: str, lo: int, hi: int) -> int:
@@ -237,10 +271,17 @@ def icosphere(
     material: int = 0,
     smooth: bool = True,
     transform: Any = None,
+    uvs: bool = False,
 ) -> Mesh:
     """A sphere of ``radius`` (world units) about ``center``: an icosahedron whose triangles
     are split in four ``subdivisions`` times (20 · 4^s triangles), vertices on the sphere.
-    Smooth normals are the exact radial directions."""
+    Smooth normals are the exact radial directions.
+
+    ``uvs``: with the spherical (equirectangular) texture coordinates and their tangents —
+    U = ½ + atan2(x, z) / 2π, the longitude, increasing eastwards (to the right seen from +z),
+    V = acos(y) / π from the north pole (the image's top) down; the vertices on the seam behind
+    (−z) and on the poles are doubled where their triangles need another U (:func:`_seamed`),
+    so the mesh is closed by position but not by index."""
     s = _count(subdivisions, "subdivisions", 0, MAX_SUBDIVISIONS)
     radius = _positive(radius, "radius")
     g = (1.0 + math.sqrt(5.0)) / 2.0
@@ -300,7 +341,25 @@ def icosphere(
     unit = np.array(verts)
     t = orient_outward(unit, np.array(tris))
     pos = unit * radius + np.asarray(center, dtype=np.float64)
-    return _finish(pos, t, unit if smooth else None, material, transform)
+    if not uvs:
+        return _finish(pos, t, unit if smooth else None, material, transform)
+    longitude = 0.5 + np.arctan2(unit[:, 0], unit[:, 2]) / (2.0 * math.pi)
+    poles = (unit[:, 0] == 0.0) & (unit[:, 2] == 0.0)
+    source, u, t = _seamed(t, longitude, poles)
+    unit, pos = unit[source], pos[source]
+    v = np.arccos(np.clip(unit[:, 1], -1.0, 1.0)) / math.pi
+    phi = (u - 0.5) * 2.0 * math.pi
+    along_u = np.stack([np.cos(phi), np.zeros_like(phi), -np.sin(phi)], axis=1)
+    along_v = np.cross(along_u, unit)  # southwards: ∂P/∂v points down the meridian
+    return _finish(
+        pos,
+        t,
+        unit if smooth else None,
+        material,
+        transform,
+        uvs=np.stack([u, v], axis=1),
+        tangents=_tangents(unit, along_u, along_v),
+    )
 
 
 def torus(
@@ -313,9 +372,16 @@ def torus(
     material: int = 0,
     smooth: bool = True,
     transform: Any = None,
+    uvs: bool = False,
 ) -> Mesh:
     """A torus about the y axis through ``center``: a tube of radius ``minor`` around a circle
-    of radius ``major`` in the xz-plane, ``segments × tube_segments`` quads."""
+    of radius ``major`` in the xz-plane, ``segments × tube_segments`` quads.
+
+    ``uvs``: with the torus's own texture coordinates and their tangents — U = the angle around
+    the y axis / 2π (from +x towards +z), V = the angle around the tube / 2π (from the outer
+    equator upwards) — on a grid of ``(segments + 1) × (tube_segments + 1)`` vertices whose
+    last row and column copy the first's positions bit for bit (closed by position, not by
+    index)."""
     from .scene import SceneError
 
     major, minor = _positive(major, "major"), _positive(minor, "minor")
@@ -336,14 +402,49 @@ def torus(
     d = i * nv + (j + 1) % nv
     t = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
     t = orient_outward(pos, t)
-    return _finish(pos + np.asarray(center, dtype=np.float64), t, nrm if smooth else None, material, transform)
+    if not uvs:
+        return _finish(pos + np.asarray(center, dtype=np.float64), t, nrm if smooth else None, material, transform)
+    gi, gj = np.meshgrid(np.arange(nu + 1), np.arange(nv + 1), indexing="ij")
+    source = ((gi % nu) * nv + gj % nv).reshape(-1)
+    g00 = gi[:-1, :-1] * (nv + 1) + gj[:-1, :-1]
+    g10, g11, g01 = g00 + (nv + 1), g00 + (nv + 2), g00 + 1
+    seamed = np.concatenate(
+        [np.stack([g00, g10, g11], -1).reshape(-1, 3), np.stack([g00, g11, g01], -1).reshape(-1, 3)]
+    )
+    p, n_src = pos[source], nrm[source]
+    c = p[seamed]
+    if np.einsum("ij,ij->", np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]), n_src[seamed[:, 0]]) < 0.0:
+        seamed = seamed[:, [0, 2, 1]]  # wound as orient_outward winds the closed one: outwards
+    uu_s, ww_s = uu.reshape(-1)[source], ww.reshape(-1)[source]
+    along_u = np.stack([-np.sin(uu_s), np.zeros_like(uu_s), np.cos(uu_s)], axis=1)
+    along_v = np.stack([-np.sin(ww_s) * np.cos(uu_s), np.cos(ww_s), -np.sin(ww_s) * np.sin(uu_s)], axis=1)
+    return _finish(
+        p + np.asarray(center, dtype=np.float64),
+        seamed,
+        n_src if smooth else None,
+        material,
+        transform,
+        uvs=np.stack([gi.reshape(-1) / nu, gj.reshape(-1) / nv], axis=1),
+        tangents=_tangents(n_src, along_u, along_v),
+    )
 
 
 def box(
-    lo=(-1.0, -1.0, -1.0), hi=(1.0, 1.0, 1.0), *, inward: bool = False, material: int = 0, transform: Any = None
+    lo=(-1.0, -1.0, -1.0),
+    hi=(1.0, 1.0, 1.0),
+    *,
+    inward: bool = False,
+    material: int = 0,
+    transform: Any = None,
+    uvs: bool = False,
 ) -> Mesh:
     """An axis-aligned box ``[lo, hi]`` of 12 triangles, flat shaded, wound outwards —
-    or inwards (``inward``: the walls of a room, seen from inside)."""
+    or inwards (``inward``: the walls of a room, seen from inside).
+
+    ``uvs``: each face its own four vertices with texture coordinates and tangents, the whole
+    image on every face, seen from the side the face faces: U to the right, the image's top
+    towards +y on the sides, towards −z on the top face and +z on the bottom one (a box seen
+    from the front and above reads its top the right way up)."""
     from .scene import SceneError
 
     lo_a, hi_a = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
@@ -362,7 +463,28 @@ def box(
     t = orient_outward(corners, t)
     if inward:
         t = t[:, [0, 2, 1]]
-    return _finish(corners, t, None, material, transform)
+    if not uvs:
+        return _finish(corners, t, None, material, transform)
+    # quad q's triangles are rows 2q and 2q + 1; their corners become vertices 4q … 4q + 3
+    order = np.array([corner for quad in quads for corner in quad])
+    slot = {(q, int(c)): 4 * q + k for q, quad in enumerate(quads) for k, c in enumerate(quad)}
+    faces = np.array([[slot[(k // 2, int(c))] for c in tri] for k, tri in enumerate(t)])
+    pos = corners[order]
+    c = pos[faces[0::2]]
+    facing = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+    facing /= np.linalg.norm(facing, axis=1, keepdims=True)
+    ups = np.where(
+        np.abs(facing[:, 1:2]) > 0.5, np.array([0.0, 0.0, -1.0]) * np.sign(facing[:, 1:2]), np.array([0.0, 1.0, 0.0])
+    )
+    rights = np.cross(ups, facing)
+    n, up, right = (np.repeat(a, 4, axis=0) for a in (facing, ups, rights))
+    along = np.einsum("ij,ij->i", pos, right), np.einsum("ij,ij->i", pos, up)
+    span = [(a.reshape(6, 4).min(axis=1).repeat(4), a.reshape(6, 4).max(axis=1).repeat(4)) for a in along]
+    u = (along[0] - span[0][0]) / (span[0][1] - span[0][0])
+    v = (span[1][1] - along[1]) / (span[1][1] - span[1][0])
+    return _finish(
+        pos, faces, None, material, transform, uvs=np.stack([u, v], axis=1), tangents=_tangents(n, right, -up)
+    )
 
 
 # ------------------------------------------------------------------------------ teapot

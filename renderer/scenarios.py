@@ -156,7 +156,7 @@ def scenario(number: int, n: int, seed: int = 0, radius: float = 1.0, sky: bool 
 
 
 # ---- scenes with triangle meshes -------------------------------------------------------
-MESH_SCENES = ("spheres", "teapot", "mixed", "room", "cornell", "table")
+MESH_SCENES = ("spheres", "teapot", "mixed", "room", "cornell", "table", "materials")
 MAX_MESH_DETAIL = 5
 
 PORCELAIN = Material(
@@ -213,7 +213,11 @@ def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True, sky: 
       with an emitting disk inside facing down (as wide as the shade allows: the path
       integrator meets an emitting shape by BSDF sampling alone, and a wider one is met more
       often). Lit by a point light, and with ``integrator=path`` by that disk too (the lamp's
-      pool of light on the table).
+      pool of light on the table);
+    - ``materials``: glTF metallic-roughness materials on textures the project draws itself
+      (:mod:`renderer.procedural_textures`, :func:`_materials`): a checkerboard floor, a wooden
+      plank, a brushed metal ball, a wall of bevelled tiles (a normal map) and a ball of tinted
+      glass, under the procedural sky and a point light where its sun is.
 
     ``detail`` (0 … MAX_MESH_DETAIL) sets the tessellation: teapot ``2 + 2·detail``
     segments per patch, icosphere subdivisions ``detail``, torus ``12 (detail + 1)``
@@ -278,6 +282,8 @@ def mesh_scene(kind: str = "teapot", detail: int = 2, smooth: bool = True, sky: 
         return _cornell(M, seg, smooth, placed)
     if kind == "table":
         return _table(light, floor)
+    if kind == "materials":
+        return _materials(int(detail), smooth)
     room = M.box((-CUBE_HALF,) * 3, (CUBE_HALF,) * 3, inward=True, material=0)
     # The furniture stands together at the back, seen from high by the front wall: a portrait
     # screen shows all of it from inside the room (framing never puts the camera through a wall).
@@ -468,6 +474,94 @@ def _table(light: Light, floor: Plane) -> Scene:
         None,
         shapes,
     )
+
+
+# ---- materials and textures the project makes itself -------------------------------------
+MATERIALS_TEXTURE_SIZE = 256  # pixels a side of each of the scene's textures
+BOARD = ((-10.0, 10.0), (-14.0, 14.0))  # the checkerboard's x and z extents on the floor: deep, for a phone upright
+BOARD_SQUARE = 2.0  # world units a side of one of its squares
+
+
+def materials_scene_parts(detail: int = 2, smooth: bool = True) -> tuple[Scene, dict[str, int]]:
+    """``mesh_scene("materials")`` (see there; :func:`_materials`) and which mesh is which
+    object (``board``, ``tiles``, ``plank``, ``metal``, ``glass``: indices into its meshes)."""
+    from . import meshes as M, procedural_textures as T
+    from .materials.pbr import PbrMaterial
+    from .sky import SUN_DIRECTION
+
+    size = MATERIALS_TEXTURE_SIZE
+    checker = T.checker(size, squares=8)
+    wood, wood_mr = T.wood(size)
+    brushed = T.brushed_metal(size, roughness=0.3, spread=0.4)
+    glaze, tile_normals = T.tiles(size, count=4)
+    textures = (checker, wood, wood_mr, brushed, glaze, tile_normals)
+
+    (x0, x1), (z0, z1) = BOARD
+    repeat = 8 * BOARD_SQUARE  # world units of one repeat of the checker image (8 squares)
+    board_uv = ((x1 - x0) / repeat, 0.0, 0.0, (z1 - z0) / repeat)
+    tiles_uv = (2.0, 0.0, 0.0, 1.5)  # 8 × 6 tiles of 2.5 on the wall's 20 × 15 face
+    materials = (
+        PbrMaterial(
+            base_color=(0.2, 0.19, 0.18), metallic=0.0, roughness=0.9
+        ),  # 0 the floor: dark, the board stands out
+        PbrMaterial(metallic=0.0, roughness=0.4, base_color_texture=0, base_color_uv_matrix=board_uv),  # 1 board
+        PbrMaterial(
+            metallic=1.0, roughness=1.0, base_color_texture=1, metallic_roughness_texture=2
+        ),  # 2 the plank: colour and roughness from the wood, metallic 0 from its blue
+        PbrMaterial(
+            base_color=(0.91, 0.92, 0.92), metallic=1.0, roughness=1.0, metallic_roughness_texture=3
+        ),  # 3 brushed aluminium: the roughness from its streaks
+        PbrMaterial(
+            metallic=0.0,
+            roughness=0.25,
+            base_color_texture=4,
+            base_color_uv_matrix=tiles_uv,
+            normal_texture=5,
+            normal_uv_matrix=tiles_uv,
+        ),  # 4 glazed tiles
+        T.tinted_glass((0.3, 0.75, 0.5), distance=4.0),  # 5
+    )
+    y = -CUBE_HALF + 0.02  # the board lies just above the floor plane
+    board = make_mesh(
+        [[x0, y, z0], [x1, y, z0], [x1, y, z1], [x0, y, z1]],
+        [[0, 3, 2], [0, 2, 1]],  # wound to face up
+        1,
+        uvs=[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],  # the image's top at the far side
+        tangents=[[1.0, 0.0, 0.0, 1.0]] * 4,
+    )
+    floor_y = -CUBE_HALF
+    tiles = M.box((-10.0, floor_y, -15.0), (10.0, floor_y + 15.0, -14.0), material=4, uvs=True)
+    plank = M.box((-9.0, floor_y, -10.0), (1.0, floor_y + 2.5, -5.0), material=2, uvs=True)
+    sub = min(int(detail) + 1, M.MAX_SUBDIVISIONS)
+    metal = M.icosphere(sub, radius=4.0, center=(5.0, floor_y + 4.0, -4.0), material=3, smooth=smooth, uvs=True)
+    glass = M.icosphere(sub, radius=3.5, center=(-2.0, floor_y + 3.5, 5.0), material=5, smooth=smooth)
+    sun = tuple(float(c) for c in SUN_DIRECTION * 80.0)
+    scene = Scene(
+        Camera((0.0, 22.0, 36.0), (0.0, -14.0, 0.0), (0.0, 1.0, 0.0), 45.0),
+        (
+            Light(position=(sun[0], sun[1], sun[2]), color=(0.7, 0.7, 0.7)),
+        ),  # Whitted's sun; the path's sun is in the sky too
+        materials,
+        np.zeros((0, 3)),
+        np.zeros(0),
+        np.zeros(0, np.int32),
+        (Plane((0.0, floor_y, 0.0), (0.0, 1.0, 0.0), 0),),
+        (board, tiles, plank, metal, glass),
+        textures=textures,
+    )
+    return with_sky(scene), {"board": 0, "tiles": 1, "plank": 2, "metal": 3, "glass": 4}
+
+
+def _materials(detail: int, smooth: bool) -> Scene:
+    """``mesh_scene("materials")``: a 20 × 28 checkerboard (squares of :data:`BOARD_SQUARE`) on a
+    grey floor, deeper than wide so that a phone held upright shows it large; at its back a wall of
+    glazed tiles (20 × 15, a normal map of bevelled tiles); before it a wooden plank on the left
+    (its grain along x, its roughness from the wood's rings) and a brushed aluminium ball (r 4) on
+    the right whose streaks run around it like a lathe's; a ball of green-tinted glass (r 3.5) in
+    front. Every material is glTF's metallic-roughness kind; every
+    texture is :data:`MATERIALS_TEXTURE_SIZE` pixels a side. The balls are icospheres of
+    ``detail + 1`` subdivisions."""
+    return materials_scene_parts(detail, smooth)[0]
 
 
 # ---- the default scene: the thesis's grid in colour, under the sky ---------------------
@@ -687,6 +781,13 @@ DEMO_SCENES: tuple[DemoScene, ...] = (
         "Table and lamp — cylinders, cones, disks, a torus; path traced",
         {"mesh_scene": {"kind": "table"}},
         PATH_DENOISED,
+    ),
+    DemoScene(
+        "mesh:materials",
+        "Materials — checker, wood, brushed metal, tiles, tinted glass; path traced",
+        {"mesh_scene": {"kind": "materials"}},
+        # the sky's sun and the point light together: a stop down, and ACES keeps the white tiles' glaze
+        {**PATH_DENOISED, "tone_map": "aces", "exposure": -1.0},
     ),
 )
 DEFAULT_DEMO = next(d for d in DEMO_SCENES if d.default)

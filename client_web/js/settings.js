@@ -32,6 +32,8 @@ export const SCENARIOS = Object.freeze([
   { value: 'mesh:cornell', label: 'Cornell box (path)' },
   // Analytic shapes, no triangle (the same recipe: POST /api/sessions {mesh_scene: {kind: 'table'}}).
   { value: 'mesh:table', label: 'Table and lamp (shapes)' },
+  // glTF materials on the project's own textures (POST /api/sessions {mesh_scene: {kind: 'materials'}}).
+  { value: 'mesh:materials', label: 'Materials (path)' },
 ]);
 // A mesh scene's kind ('mesh:teapot' → 'teapot'), or null for the sphere scenes: any kind the
 // service's registry names (GET /api/info's scenes), not only those of the list above.

@@ -41,7 +41,9 @@ class MeshSceneRecipe(Strict):
     inside with a teapot, an icosphere and four spheres), ``cornell`` (a Cornell box lit by an
     emitting ceiling panel, with a mirror and a glass sphere and a teapot: for ``integrator=path``),
     ``table`` (analytic shapes only: a table with a torus, a can, a glass lens and a lamp whose
-    shade holds an emitting disk; Whitted or ``integrator=path``)."""
+    shade holds an emitting disk; Whitted or ``integrator=path``), ``materials`` (glTF
+    metallic-roughness materials on the project's own textures: a checkerboard, a wooden plank,
+    a brushed metal ball, a wall of normal-mapped tiles, a tinted glass ball, under the sky)."""
 
     kind: Literal[MESH_SCENES] = Field("teapot", description=", ".join(MESH_SCENES))
     detail: Annotated[int, Integral] = Field(

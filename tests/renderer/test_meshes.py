@@ -111,3 +111,58 @@ def test_bad_parameters_name_the_field():
         with pytest.raises(SceneError) as e:
             call()
         assert e.value.field == field
+
+
+# ---- texture coordinates and tangents --------------------------------------------------------
+UV_MESHES = {
+    "icosphere": lambda uvs: icosphere(3, radius=2.0, center=(1.0, 0.0, -1.0), uvs=uvs),
+    "torus": lambda uvs: torus(3.0, 1.0, 24, 12, uvs=uvs),
+    "box": lambda uvs: box((-1, -2, -3), (1, 2, 3), uvs=uvs),
+    "room": lambda uvs: box((-1, -2, -3), (1, 2, 3), inward=True, uvs=uvs),
+}
+
+
+def _uv_derivatives(m) -> tuple[np.ndarray, np.ndarray]:
+    """∂P/∂u and ∂P/∂v of each triangle, solved from its corners and UVs (written here)."""
+    c, uv = m.corners, m.uvs[m.triangles]
+    e1, e2, d1, d2 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0], uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+    det = (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])[:, None]
+    assert np.all(np.abs(det) > 1e-9), "a triangle with no UV area"
+    return (e1 * d2[:, 1:] - e2 * d1[:, 1:]) / det, (e2 * d1[:, :1] - e1 * d2[:, :1]) / det
+
+
+@pytest.mark.parametrize("kind", list(UV_MESHES))
+def test_uvs_run_with_the_surface_and_keep_it_closed_by_position(kind):
+    plain, m = UV_MESHES[kind](False), UV_MESHES[kind](True)
+    assert plain.uvs is None and plain.tangents is None
+    assert m.uvs is not None and m.tangents is not None
+    # the same surface: same triangle count and volume; closed once equal positions are merged
+    assert m.n_triangles == plain.n_triangles and m.n_degenerate == 0
+    assert signed_volume(m.vertices, m.triangles) == pytest.approx(signed_volume(plain.vertices, plain.triangles))
+    assert edge_report(weld(m.vertices, m.triangles)[1]).closed == edge_report(plain.triangles).closed
+    uv = m.uvs[m.triangles]
+    assert m.uvs.min() >= 0.0 and m.uvs.max() <= 1.5
+    assert (uv.max(axis=1) - uv.min(axis=1)).max() <= 1.0  # no triangle spans the seam backwards
+    # tangents: unit, along +U, the bitangent w·(n × t) up the image (towards −V)
+    t, w = m.tangents[:, :3], m.tangents[:, 3]
+    np.testing.assert_allclose(np.linalg.norm(t, axis=1), 1.0, atol=1e-12)
+    du, dv = _uv_derivatives(m)
+    c = m.corners
+    n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+    tt, ww = t[m.triangles[:, 0]], w[m.triangles[:, 0]]
+    assert np.all(np.einsum("ij,ij->i", tt, du) > 0)
+    assert np.all(np.einsum("ij,ij->i", np.cross(n, tt) * ww[:, None], -dv) > 0)
+
+
+def test_the_sphere_is_mapped_by_longitude_and_latitude_and_the_box_face_by_face():
+    m = icosphere(2, radius=1.0, uvs=True)
+    front = int(np.argmax(m.vertices[:, 2]))  # (0, 0, 1): longitude 0 is the image's middle
+    north = int(np.argmax(m.vertices[:, 1]))
+    assert m.uvs[front].tolist() == pytest.approx([0.5, 0.5]) and m.uvs[north][1] == pytest.approx(0.0)
+    b = box((0, 0, 0), (2, 1, 3), uvs=True)
+    # the top face's triangles: every corner at y = 1; their vertices are that face's four
+    top = np.unique(b.triangles[np.all(b.vertices[b.triangles][:, :, 1] == 1.0, axis=1)])
+    assert len(top) == 4
+    # on the top face U runs with +x and the image's top is the far side (−z)
+    uv = {tuple(b.vertices[i][[0, 2]].tolist()): b.uvs[i].tolist() for i in top}
+    assert uv == {(0.0, 0.0): [0.0, 0.0], (2.0, 0.0): [1.0, 0.0], (0.0, 3.0): [0.0, 1.0], (2.0, 3.0): [1.0, 1.0]}

@@ -149,6 +149,7 @@ def test_the_registry_recommends_the_path_integrator_where_a_scene_is_made_for_i
         assert set(d.settings) <= names, d.value
         RenderSettings(**d.settings)  # valid as they stand
     by = {d.value: d for d in DEMO_SCENES}
+    assert by["mesh:materials"].settings.items() >= {"integrator": "path", "denoise": "oidn"}.items()
     for value in ("mesh:cornell", "mesh:table", "sky:2"):
         assert by[value].settings == {"integrator": "path", "denoise": "oidn"}, value
         assert "path" in by[value].label
@@ -168,3 +169,62 @@ def test_the_readme_lists_the_demo_scenes_of_the_registry():
     start = text.index("<!-- demo-scenes")
     block = text[text.index("\n", start) + 1 : text.index("<!-- /demo-scenes -->")].strip()
     assert block == demo_scenes_markdown(), "README's demo scenes differ; paste:\n" + demo_scenes_markdown()
+
+
+def test_the_materials_scene_puts_each_texture_on_an_object_with_uvs():
+    import json
+
+    from renderer.materials.pbr import PbrMaterial
+    from renderer.scenarios import materials_scene_parts, mesh_scene
+    from renderer.scene import Scene
+
+    scene, parts = materials_scene_parts()
+    assert all(isinstance(m, PbrMaterial) for m in scene.materials)
+    assert scene.environment_map is not None and len(scene.lights) == 1  # the sky, and a sun for Whitted
+    assert len(scene.textures) == 6 and all(256 <= t.width == t.height <= 512 for t in scene.textures)
+    read = set()
+    for name, k in parts.items():
+        mesh = scene.meshes[k]
+        material = scene.materials[mesh.material]
+        assert isinstance(material, PbrMaterial)
+        read |= set(material.textures())
+        if material.textures():
+            assert mesh.uvs is not None, name
+        if material.normal_texture >= 0:
+            assert mesh.tangents is not None, name
+    assert read == set(range(len(scene.textures)))  # every texture is on something
+    glass = scene.materials[scene.meshes[parts["glass"]].material]
+    metal = scene.materials[scene.meshes[parts["metal"]].material]
+    assert isinstance(glass, PbrMaterial) and glass.transmission == 1.0 and glass.attenuation_distance > 0
+    assert isinstance(metal, PbrMaterial) and metal.metallic == 1.0 and metal.metallic_roughness_texture >= 0
+    srgb = {
+        scene.textures[i].srgb
+        for m in scene.materials
+        if isinstance(m, PbrMaterial)
+        for i in [m.base_color_texture]
+        if i >= 0
+    }
+    assert srgb == {True}
+    again = Scene.from_json(json.loads(json.dumps(mesh_scene("materials").to_json())))
+    assert [t.pixels.tobytes() for t in again.textures] == [t.pixels.tobytes() for t in scene.textures]
+
+
+def test_a_scene_under_the_sky_keeps_its_textures():
+    import numpy as np
+
+    from renderer.materials.texture import Texture
+    from renderer.scenarios import mesh_scene, with_sky
+
+    base = mesh_scene("teapot")
+    textured = Scene(
+        base.camera,
+        base.lights,
+        base.materials,
+        base.sphere_centers,
+        base.sphere_radii,
+        base.sphere_materials,
+        base.planes,
+        base.meshes,
+        textures=(Texture(np.zeros((2, 2, 4), np.uint8)),),
+    )
+    assert len(with_sky(textured).textures) == 1
