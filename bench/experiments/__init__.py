@@ -45,4 +45,5 @@ EXPERIMENTS = (
     "client",
     "refine",
     "phone",
+    "materials",
 )
