@@ -403,11 +403,11 @@ def rest_convergence(browser, url: str, query: str, watch_s: float = 90.0) -> di
 def picker_scenes(
     browser, url: str, timeout_ms: float = 600_000, only: tuple[str, ...] = (), extra: str = ""
 ) -> list[dict]:
-    """Every scene of the picker (renderer/scenarios.py's DEMO_SCENES; ``only``: these values) opened by
+    """Every scene of the picker (renderer/scenes/scenarios.py's DEMO_SCENES; ``only``: these values) opened by
     its link on the phone viewport with nothing else asked (``extra``: more of the query): the integrator
     the session opened with, the size of its first full frame, the page's notices and errors, and the
     time from the navigation to that frame."""
-    from renderer.scenarios import DEMO_SCENES
+    from renderer.scenes.scenarios import DEMO_SCENES
 
     rows = []
     for d in DEMO_SCENES:

@@ -1,4 +1,4 @@
-"""Time to 30 dB with and without the denoiser (renderer/denoise.py): the Cornell box at a
+"""Time to 30 dB with and without the denoiser (renderer/image/denoise.py): the Cornell box at a
 phone-ish size, its samples accumulated frame after frame as the service's ``accumulate=1`` does,
 each mean compared with a converged image — noisy, denoised by OIDN with the albedo and normal
 guides (``denoise=oidn``), and denoised by OIDN from the colour alone (what the guides add).
@@ -25,9 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from renderer.denoise import denoise_result
-from renderer.scenarios import mesh_scene
-from renderer.settings import RenderSettings
+from renderer.config.settings import RenderSettings
+from renderer.image.denoise import denoise_result
+from renderer.scenes.scenarios import mesh_scene
 
 TARGET_DB = 30.0
 REFERENCE_FIRST = 1 << 20  # the reference's first sample index: none of the curves' samples

@@ -6,7 +6,7 @@ Chromium (Debian's, ``/usr/bin/chromium``; WebGL2 on ANGLE/SwiftShader without a
 
 - **device**: the client's device renderer (``window.pocketray.device.bench``) loads the
   session's data once (GET device-data: the BIH built on the server, packed by
-  renderer.gpu_layout; the shader from GET /api/shader) and renders the session's camera
+  renderer.gpu.gpu_layout; the shader from GET /api/shader) and renders the session's camera
   repeatedly; one frame = the trace (waited for with a one-pixel read-back) + the display
   pass. A camera move needs nothing else: the tree is fetched again only when the scene or
   its settings change.
@@ -250,7 +250,7 @@ def document(table: str, renderer: str, gl_renderer: str | None, load0: float, l
 max_recursion_depth {DEPTH}, the session's home camera; headless Chromium (`/usr/bin/chromium`,
 flags `{" ".join(GL_ARGS)}`). **Device**: the client's WebGL2 renderer, `{renderer}`; one
 frame = trace (waited for with a one-pixel `readPixels`) + display pass; the data (tree built on
-the server, packed by `renderer.gpu_layout`) and the shader are loaded once — "load" is that one-off
+the server, packed by `renderer.gpu.gpu_layout`) and the shader are loaded once — "load" is that one-off
 cost, paid again only when the scene or its settings change, never for a camera move. **Server**:
 the same page fetching `GET …/frame` as JPEG q85 and decoding it, back to back; the server
 (`{gl_renderer}`) rebuilds the BIH for every frame. frames/s = 1000 / p50 frame ms; the number of

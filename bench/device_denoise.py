@@ -36,8 +36,8 @@ import numpy as np
 
 from bench.device import device_page
 from bench.latency import Server
-from renderer import mitsuba_scene
-from renderer.scenarios import mesh_scene
+from renderer.oracle import mitsuba_scene
+from renderer.scenes.scenarios import mesh_scene
 
 TARGET_DB = 30.0
 DEPTH = 8
@@ -55,7 +55,7 @@ NUMPY_SCENES = ("cornell", "table")
 
 
 def old_atrous():
-    """``BEFORE``'s renderer/atrous.py's ``atrous`` (colour, albedo, normal, samples), out of git."""
+    """``BEFORE``'s renderer/image/atrous.py's ``atrous`` (colour, albedo, normal, samples), out of git."""
     import subprocess
     import types
     from pathlib import Path
@@ -73,12 +73,12 @@ def numpy_table(reference_spp: int) -> None:
     """The filters on the service's own frames (``--numpy``, the module's docstring)."""
     from skimage.metrics import structural_similarity
 
-    from renderer.atrous import atrous
-    from renderer.denoise import oidn
+    from renderer.config.settings import RenderSettings
     from renderer.gl.renderer import GLRenderer
-    from renderer.scenarios import framed
-    from renderer.settings import RenderSettings
-    from renderer.tonemap import display_u8
+    from renderer.image.atrous import atrous
+    from renderer.image.denoise import oidn
+    from renderer.image.tonemap import display_u8
+    from renderer.scenes.scenarios import framed
 
     def ssim(a: np.ndarray, b: np.ndarray) -> float:
         u8 = [display_u8(x, "clamp", 0.0) for x in (a, b)]

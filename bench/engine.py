@@ -21,9 +21,9 @@ import statistics
 import time
 
 from renderer.accel.bih import build_for_spheres
+from renderer.config.settings import RenderSettings
 from renderer.gl.renderer import GLRenderer
-from renderer.scenarios import scenario
-from renderer.settings import RenderSettings
+from renderer.scenes.scenarios import scenario
 
 
 def machine() -> str:

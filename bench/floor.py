@@ -73,7 +73,7 @@ def _scene(name: str):
 
     import numpy as np
 
-    from renderer.scenarios import scenario
+    from renderer.scenes.scenarios import scenario
 
     s1 = scenario(1, 16)
     empty = dataclasses.replace(
@@ -93,9 +93,9 @@ def worker(width: int, height: int, runs: int) -> dict:
 
     from PIL import Image
 
+    from renderer.config.settings import RenderSettings
     from renderer.gl import frame as gl_frame
     from renderer.gl.renderer import GLRenderer
-    from renderer.settings import RenderSettings
     from server.frames.encode import encode
 
     compose_ms: list[float] = []

@@ -878,7 +878,7 @@ def part_trickle(root: Path, args) -> dict:
 # ---- end of: memory of frames in flight, and trickling large bodies -------------------------------------
 
 
-# ---- model files (hostile glTF/GLB bodies; renderer/model_guard.py, server/sessions/model_worker.py) -------
+# ---- model files (hostile glTF/GLB bodies; renderer/io/model_guard.py, server/sessions/model_worker.py) -------
 def accessor_gltf(count: int) -> bytes:
     """~250 bytes: one accessor of ``count`` VEC3 without a bufferView (zeros the file does not hold)."""
     return json.dumps(
@@ -1029,8 +1029,8 @@ def part_model_chain(root: Path, args) -> dict:
 def part_model_overhead(root: Path, args) -> dict:
     """What a valid upload costs: POST /api/meshes of a small OBJ (80 triangles) and of a
     327,680-triangle PLY (8 MB), median of --model-repeats (one at a time, 0.2 s apart)."""
-    from renderer.mesh_io import export_mesh
-    from renderer.meshes import icosphere
+    from renderer.geometry.meshes import icosphere
+    from renderer.io.mesh_io import export_mesh
 
     out = {}
     s = Server(root, max_body_bytes=str(32 * MIB))

@@ -3,7 +3,7 @@
 For scenario 3 with 4,096 spheres (radius 1), JPEG frames at 640 × 1088 and
 320 × 544, with 1 and 4 concurrent clients (each its own session), every client
 sends pan gestures with ``?frame=1`` (one round trip: the answer is the new
-frame) back to back, with the settings of a render profile (``renderer.profiles``,
+frame) back to back, with the settings of a render profile (``renderer.frame.profiles``,
 the recursion depth capped at ``--depth`` as the client caps it at the session's):
 
 - ``interactive`` — what the client asks for while a finger moves: 1 sample per
@@ -46,7 +46,7 @@ from pathlib import Path
 import httpx
 
 from bench.child import ServerChild
-from renderer.profiles import PROFILES
+from renderer.frame.profiles import PROFILES
 
 ROOT = Path(__file__).resolve().parent.parent
 

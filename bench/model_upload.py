@@ -39,7 +39,7 @@ OCTETS = {"content-type": "application/octet-stream"}
 # load_mesh where there is none)
 _PARSE = """
 import json, sys, time
-import renderer.mesh_io as m
+import renderer.io.mesh_io as m
 load = getattr(m, "load_model", None) or m.load_mesh
 path, repeat = sys.argv[1], int(sys.argv[2])
 load(path)

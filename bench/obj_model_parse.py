@@ -1,4 +1,4 @@
-"""What reading an OBJ with its materials costs: renderer.obj_model's reader against trimesh's OBJ
+"""What reading an OBJ with its materials costs: renderer.io.obj_model's reader against trimesh's OBJ
 loader (materials skipped, as the service used it), each in a fresh process (its CPU seconds, the
 median of ``--repeats``, and its peak resident memory), on
 
@@ -30,8 +30,8 @@ path, reader = Path(sys.argv[1]), sys.argv[2]
 t0 = time.process_time()
 if reader == "obj_model":
     from renderer import limits
-    from renderer.mesh_io import model_files
-    from renderer.obj_model import load_obj_model
+    from renderer.io.mesh_io import model_files
+    from renderer.io.obj_model import load_obj_model
     m = load_obj_model(model_files(path), max_triangles=limits.MAX_TRIANGLES, max_vertices=limits.MAX_MESH_VERTICES)
     out = {"triangles": m.n_triangles, "parts": len(m.parts), "textures": len(m.textures)}
 else:

@@ -4,9 +4,9 @@
     python -m bench.path_speed --runs 5 --methods bih --no-profile
     python -m bench.path_speed --quick             # 40 × 68, 1 run (smoke)
 
-**Speed.** ``path_scene("cornell")`` (``renderer/path_scenes.py``) traced by ours — every one-pass
+**Speed.** ``path_scene("cornell")`` (``renderer/oracle/path_scenes.py``) traced by ours — every one-pass
 method that traces ``integrator=path`` (brute force only when asked) — and by Mitsuba 3's ``path``
-integrator (``llvm_ad_rgb``, the scene converted by ``renderer/mitsuba_scene.py``), at equal size,
+integrator (``llvm_ad_rgb``, the scene converted by ``renderer/oracle/mitsuba_scene.py``), at equal size,
 samples per pixel and depth (our ``max_recursion_depth`` = Mitsuba's ``max_depth``; Mitsuba's
 Russian roulette from our segment, ``rr_depth`` 3), as ``bench/experiments/path.py`` runs them.
 Repetitions are interleaved (ours per method, Mitsuba, ours …) so a change of the machine's load
@@ -49,9 +49,9 @@ from typing import Any
 import numpy as np
 
 from bench.experiments.path import _QUERY, MITSUBA_VARIANT, RR_DEPTH, counting_source, ours_settings, path_methods
-from renderer import mitsuba_scene
 from renderer.gl.renderer import GLRenderer
-from renderer.path_scenes import path_scene
+from renderer.oracle import mitsuba_scene
+from renderer.oracle.path_scenes import path_scene
 
 SCENE = "cornell"
 SIZE = (320, 544)

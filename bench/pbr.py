@@ -7,9 +7,9 @@ and the time of a PBR frame against a Phong frame of the same scene.
 **Furnace.** A white unit sphere of each metallic × roughness under a uniform environment of
 radiance 1, traced by the path integrator (32 × 32, 256 samples, bih): its mean radiance over the
 sphere (2 pixels in from its silhouette), and the same mean of the BRDF's directional albedo at each
-pixel's view, integrated in NumPy (``renderer/pbr_brdf.py``): what the single-scattering GGX keeps.
+pixel's view, integrated in NumPy (``renderer/materials/pbr_brdf.py``): what the single-scattering GGX keeps.
 
-**Mitsuba.** ``renderer/path_scenes.py``'s PBR scenes (a white rough conductor, a rough dielectric of
+**Mitsuba.** ``renderer/oracle/path_scenes.py``'s PBR scenes (a white rough conductor, a rough dielectric of
 transmission 1, an ior-1 dielectric), 32 × 32, depth 8: ours at 1,024 samples against Mitsuba 3's at
 4,096 (``tests/renderer/gl/test_mitsuba.py``'s budget): PSNR of linear radiance clipped to [0, 1] and
 the relative difference of the image means.
@@ -33,12 +33,13 @@ import time
 import numpy as np
 from scipy.ndimage import binary_erosion
 
-from renderer import mitsuba_scene, pbr_brdf
+from renderer.config.settings import RenderSettings
+from renderer.geometry.scene import Scene
 from renderer.gl.renderer import GLRenderer
-from renderer.path_scenes import PBR_MATERIALS, pbr_scene
-from renderer.scenarios import mesh_scene
-from renderer.scene import Scene
-from renderer.settings import RenderSettings
+from renderer.materials import pbr_brdf
+from renderer.oracle import mitsuba_scene
+from renderer.oracle.path_scenes import PBR_MATERIALS, pbr_scene
+from renderer.scenes.scenarios import mesh_scene
 
 METALLIC = (0.0, 0.5, 1.0)
 ROUGHNESS = (0.0, 0.25, 0.5, 0.75, 1.0)

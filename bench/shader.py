@@ -146,7 +146,7 @@ SIDES = {"base": {}, "new": {}, "new/tex": {"uniform_blocks": False}, "new/nobg"
 
 # ---- the worker (runs in its own process, the side's code first on PYTHONPATH) ---------------
 def _scene(spec: dict):
-    from renderer.scenarios import scenario
+    from renderer.scenes.scenarios import scenario
 
     if spec["kind"] == "scenario":
         return scenario(spec["number"], spec["n"], seed=spec.get("seed", 0), radius=spec.get("radius", 1.0))
@@ -166,10 +166,10 @@ def _timed(fn, aside: list[float]):
 
 
 def worker(renderer_kw: dict) -> None:
+    from renderer.config.methods import METHODS
+    from renderer.config.settings import RenderSettings
+    from renderer.frame.plan import plan_frame
     from renderer.gl import GLRenderer
-    from renderer.methods import METHODS
-    from renderer.plan import plan_frame
-    from renderer.settings import RenderSettings
 
     r = GLRenderer(**renderer_kw)
     cache: dict = {}

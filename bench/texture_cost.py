@@ -24,11 +24,11 @@ the materials scene with its base colour textures only, then with its metallic-r
 Scenes, each framed for a 390 × 844 phone: the ``materials`` demo scene (``mesh_scene("materials")``)
 and, where the model reader brings their textures, the corpus's ``BoxTextured.glb`` and
 ``spider.obj`` (assimp's test models, Debian's ``assimp-testmodels``) as ``pocketray render``
-stages a model (``renderer.mesh_io.model_scene``).
+stages a model (``renderer.io.mesh_io.model_scene``).
 
 **Memory** of each scene's textures, RGBA8: per texture its level 0 and its full mip chain
 (⌈w / 2^l⌉ × ⌈h / 2^l⌉ texels at level l), then what the GPU holds — one 2D array texture of
-square slots with its mip levels (``renderer.texture_layout``: ``array_bytes``) — on the server and
+square slots with its mip levels (``renderer.gpu.texture_layout``: ``array_bytes``) — on the server and
 for the phone (device mode uploads the same array, packed for the device's ``MAX_TEXTURE_SIZE``:
 WebGL2's guaranteed 2,048 here, the phone's worst case), and the triangles' attribute records the
 textures bring (UVs and their level terms, tangents: ``attribute_bytes``).
@@ -47,9 +47,9 @@ from typing import Any
 
 import numpy as np
 
+from renderer.geometry.scene import Scene
 from renderer.materials.pbr import SLOTS, PbrMaterial
-from renderer.procedural_textures import mean_factor
-from renderer.scene import Scene
+from renderer.materials.procedural_textures import mean_factor
 
 CORPUS = Path("/usr/share/assimp/models")
 CORPUS_MODELS = ("glTF2/BoxTextured-glTF-Binary/BoxTextured.glb", "OBJ/spider.obj")
@@ -107,8 +107,8 @@ def untextured(scene: Scene, keep: tuple[str, ...] = ()) -> Scene:
 
 def scenes(aspect: float) -> dict[str, Scene]:
     """The scenes measured (the module docstring), each framed for ``aspect``."""
-    from renderer.mesh_io import model_scene
-    from renderer.scenarios import framed, mesh_scene
+    from renderer.io.mesh_io import model_scene
+    from renderer.scenes.scenarios import framed, mesh_scene
 
     out = {"materials": framed(mesh_scene("materials"), aspect)}
     for name in CORPUS_MODELS:
@@ -167,7 +167,7 @@ def memory(scene: Scene) -> dict[str, Any]:
     server and for a WebGL2 phone (level 0, and with its mip levels: what device mode uploads too);
     and the triangles' attribute records (UVs, tangents) that come with textures."""
     from renderer import limits
-    from renderer.texture_layout import array_bytes, array_layers, attribute_bytes, fit_textures, texture_bytes
+    from renderer.gpu.texture_layout import array_bytes, array_layers, attribute_bytes, fit_textures, texture_bytes
 
     rows = [
         {"name": t.name, "size": [t.width, t.height], "srgb": t.srgb, "level0": t.nbytes, "mips": texture_bytes(t)}
@@ -229,7 +229,7 @@ def memory_table(name: str, m: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from renderer.settings import RenderSettings
+    from renderer.config.settings import RenderSettings
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=RUNS)

@@ -20,9 +20,10 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from renderer import gpu_layout, reference, texture_layout
+from renderer.geometry.scene import Camera, Material, Scene, make_mesh
+from renderer.gpu import gpu_layout, texture_layout
 from renderer.materials.pbr import PbrMaterial
-from renderer.scene import Camera, Material, Scene, make_mesh
+from renderer.oracle import reference
 
 MiB = 1 << 20
 CONFIGS = {

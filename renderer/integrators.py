@@ -21,7 +21,7 @@ class Integrator(StrEnum):
 
 class ToneMap(StrEnum):
     """How the path integrator's radiance becomes a png/jpeg pixel (docs/SHADING.md, "Tone mapping";
-    :data:`renderer.tonemap.OPERATORS`)."""
+    :data:`renderer.image.tonemap.OPERATORS`)."""
 
     CLAMP = "clamp"
     REINHARD = "reinhard"
@@ -29,8 +29,8 @@ class ToneMap(StrEnum):
 
 
 class Denoiser(StrEnum):
-    """The path integrator's denoiser (:mod:`renderer.denoise`): none, Intel Open Image Denoise, or the
-    edge-avoiding à-trous filter (:mod:`renderer.atrous`; the one a browser runs in device mode)."""
+    """The path integrator's denoiser (:mod:`renderer.image.denoise`): none, Intel Open Image Denoise, or the
+    edge-avoiding à-trous filter (:mod:`renderer.image.atrous`; the one a browser runs in device mode)."""
 
     OFF = "off"
     OIDN = "oidn"

@@ -85,7 +85,7 @@ FIRST_HITS_AUTO_MAX_SPHERES = 65536
 # times that while they are sorted): past it a frame traces, so no scene of spheres that each cover much
 # of the frame makes the host sort billions of entries.
 MAX_TILE_PAIRS = 1 << 22
-# The cost model counts a mesh scene's ray tree on a coarse grid of its pixels (renderer/prepare.py,
+# The cost model counts a mesh scene's ray tree on a coarse grid of its pixels (renderer/frame/prepare.py,
 # sampled_level_rays): this many pixels on the grid's long side, in scenes of at most this many
 # primitives (the reference tracer tests every one; past it, the model's ray tree of the materials alone).
 RAY_TREE_SAMPLE_SIDE = 24
@@ -94,7 +94,7 @@ RAY_TREE_SAMPLE_SIDE = 24
 # target (its position) stands for the new view's, so a preview does not count again (6-57 ms each).
 RAY_TREE_REUSE_DEG = 5.0
 RAY_TREE_REUSE_MOVE = 0.05
-# Slices (renderer/prepare.py band_rows, renderer/gl/frame.py): a band of rows is sized for the rows
+# Slices (renderer/frame/prepare.py band_rows, renderer/gl/frame.py): a band of rows is sized for the rows
 # through the scene's box — the frame's per-pixel cost over the share of the image the box covers, down
 # to MIN_BAND_COVERAGE — and grows from the measured time of the last at most to MAX_BAND_GROWTH × the
 # first (band after band of cheap sky would otherwise reach the scene with a band of most of it).
@@ -123,7 +123,7 @@ MAX_MESHES = 256  # per scene
 MAX_SHAPES = 1 << 16  # per scene
 
 # ---- model files ---------------------------------------------------------------------------
-# renderer/model_guard.py checks a model file's own numbers (counts, lengths, the node tree)
+# renderer/io/model_guard.py checks a model file's own numbers (counts, lengths, the node tree)
 # against these before a parser allocates what they ask for: a 250-byte glTF may claim 30
 # million vertices, a 2 MB GLB a chain of 100,000 nodes (the parser's cost grows with the
 # square of the depth). Each bound is far above what a model of MAX_TRIANGLES needs.
@@ -139,11 +139,11 @@ MAX_BUFFERLESS_BYTES = 16 << 20  # glTF: accessors without a bufferView (zeros t
 # STL stores three per triangle, a glTF repeats them per instance).
 DECLARED_VERTEX_FACTOR = 3
 MAX_PLY_HEADER_BYTES = 64 << 10  # a PLY header (text up to end_header)
-# An OBJ's material libraries, all its .mtl files together (renderer/obj_model.py): a library of
+# An OBJ's material libraries, all its .mtl files together (renderer/io/obj_model.py): a library of
 # hundreds of materials is tens of KiB; each line is read in Python, ~1 s per 16 MiB here.
 MAX_MTL_BYTES = 16 << 20
 MAX_MODEL_NOTICES = 16  # lines saying what a model was read without (the rest counted in the last)
-# A zipped model folder (renderer/model_archive.py): the central directory's numbers are checked
+# A zipped model folder (renderer/io/model_archive.py): the central directory's numbers are checked
 # against these before one byte is inflated, and inflating never yields more than an entry
 # declares. Deflate reaches ~1,000:1 on zeros and 3-20:1 on models and images, so a ratio above
 # MAX_ARCHIVE_RATIO in an entry of more than MAX_ARCHIVE_RATIO_FREE_BYTES is a bomb, not a model.
@@ -164,14 +164,14 @@ MAX_TEXTURES = 64  # per scene
 MAX_TEXTURE_SIDE = 4096  # pixels, either side: WebGL2 guarantees 2048 and most phones 4096
 MAX_TEXTURE_TEXELS = 8 * 2048 * 2048  # all of a scene's textures together, level 0
 MAX_TEXTURE_NAME = 256  # characters
-# On the GPU the textures lie in one array (renderer/texture_layout.py), each in a square slot of its
+# On the GPU the textures lie in one array (renderer/gpu/texture_layout.py), each in a square slot of its
 # longer side rounded up to a power of two, the layers the largest slot's size. The array's level-0
 # texels, the slots' unused ones included, stay within this: beyond it the largest textures are
 # halved (a notice says which), 64 Mi texels × 4 B × 4/3 ≈ 341 MiB at the most.
 MAX_TEXTURE_ARRAY_TEXELS = 16 * 2048 * 2048
 
 # ---- environment images --------------------------------------------------------------------
-# An equirectangular HDR image (renderer/envmap.py): its declared size is checked against these
+# An equirectangular HDR image (renderer/materials/envmap.py): its declared size is checked against these
 # before a texel is allocated. 4096 × 2048 float RGB is 96 MiB on the GPU (and as much again in
 # the session store, where texels are kept as they are), the most one scene may ask for.
 MAX_ENV_WIDTH = 4096
@@ -185,7 +185,7 @@ MAX_ENV_SCALE = 1e6  # the image's radiance factor
 MAX_ENV_ROTATION_DEG = 360.0  # about +y, either way
 
 # ---- framing -------------------------------------------------------------------------------
-# A screen's aspect (width / height) a demo scene's camera is framed for (renderer/scenarios.py):
+# A screen's aspect (width / height) a demo scene's camera is framed for (renderer/scenes/scenarios.py):
 # from a tall phone held upright (0.2) to a wide desktop window (5).
 ASPECT_RANGE = (0.2, 5.0)
 

@@ -1,9 +1,9 @@
 """What each render mode shows, and the colours it uses (``docs/SHADING.md``).
 
 The GPU tracer (``shaders/raytrace.frag``), the ray engines' read-back
-(:mod:`renderer.gl.ray_engine`), the float64 reference (:mod:`renderer.reference`) and
+(:mod:`renderer.gl.ray_engine`), the float64 reference (:mod:`renderer.oracle.reference`) and
 the browser client's legend all colour with these. The recursion colours are written
-here only: the shader assembler (:func:`renderer.shader_source.recursion_color_function`)
+here only: the shader assembler (:func:`renderer.frame.shader_source.recursion_color_function`)
 emits them into the tracer, and ``GET /api/info`` hands them to the legend;
 ``tests/renderer/test_modes.py`` checks that the shader's primid and heat literals are the
 same numbers as here.

@@ -1,7 +1,7 @@
 """``docs/figures/readme_cornell_path_mitsuba.png``: the Cornell-box demo scene (``mesh_scene("cornell")``,
 flat-shaded so both renderers see the same triangles) by our path integrator (left) and by
 Mitsuba 3's ``path`` integrator (right, ``scalar_rgb``, the scene made by
-``renderer/mitsuba_scene.py``), 192², 1,024 samples, depth 8, both tone-mapped with ACES; prints
+``renderer/oracle/mitsuba_scene.py``), 192², 1,024 samples, depth 8, both tone-mapped with ACES; prints
 the times, the PSNR of the radiance clipped to [0, 1] and the image means.
 
 Run: ``.venv/bin/python scripts/cornell_figure.py`` (about six minutes here).
@@ -16,11 +16,11 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from renderer import mitsuba_scene
+from renderer.config.settings import RenderSettings
 from renderer.gl.renderer import GLRenderer
-from renderer.scenarios import mesh_scene
-from renderer.settings import RenderSettings
-from renderer.tonemap import display_u8
+from renderer.image.tonemap import display_u8
+from renderer.oracle import mitsuba_scene
+from renderer.scenes.scenarios import mesh_scene
 
 OUT = Path(__file__).resolve().parent.parent / "docs" / "figures" / "readme_cornell_path_mitsuba.png"
 SIDE, SPP, DEPTH = 192, 1024, 8

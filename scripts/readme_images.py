@@ -29,7 +29,7 @@ GALLERY_SIZE = (240, 408)  # width, height of one tile (the phone's 640 × 1088 
 
 
 def scene():
-    from renderer.scenarios import scenario
+    from renderer.scenes.scenarios import scenario
 
     return scenario(SCENE["number"], SCENE["n"], SCENE["seed"])
 
@@ -37,8 +37,8 @@ def scene():
 def frame(renderer) -> Path:
     from PIL import Image
 
-    from renderer.profiles import STILL
-    from renderer.settings import RenderSettings
+    from renderer.config.settings import RenderSettings
+    from renderer.frame.profiles import STILL
 
     still = {k: v for k, v in STILL.items() if k in RenderSettings.__dataclass_fields__}
     res = renderer.render(scene(), RenderSettings(method="bih", width=640, height=1088, **still))
@@ -50,7 +50,7 @@ def frame(renderer) -> Path:
 def modes(renderer) -> Path:
     from PIL import Image, ImageDraw
 
-    from renderer.settings import RenderSettings
+    from renderer.config.settings import RenderSettings
 
     w, h = GALLERY_SIZE
     tiles = []

@@ -29,8 +29,8 @@ from fastapi import FastAPI
 from fastapi.concurrency import run_in_threadpool
 from fastapi.staticfiles import StaticFiles
 
-from renderer.scenarios import scenario
-from renderer.settings import RenderSettings
+from renderer.config.settings import RenderSettings
+from renderer.scenes.scenarios import scenario
 
 from .api import errors
 from .api.routes import api_router, metrics as metrics_route

@@ -14,15 +14,15 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal, cast
 from pydantic import AliasChoices, Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
-from renderer.cost import request_work
+from renderer.frame.cost import request_work
+from renderer.frame.profiles import STILL
 from renderer.integrators import Integrator
 from renderer.limits import JPEG_QUALITY_RANGE, MAX_PROGRAMS, MAX_SPHERES, MAX_TREE_DEPTH, MAX_TRIANGLES
-from renderer.profiles import STILL
 
 from . import resources
 
 if TYPE_CHECKING:
-    from renderer.settings import SettingValues
+    from renderer.config.settings import SettingValues
 
 FIT_SIDE = 1088  # pixels: the side of the browser client's largest 'fit' frame
 QUALITY_MIN, QUALITY_MAX = JPEG_QUALITY_RANGE
@@ -92,7 +92,7 @@ class ServerConfig(BaseSettings):
         ge=1,
         description="cap on width × height × max_recursion_depth × samples_per_pixel of one "
         "render; for integrator 'path', on width × height × samples_per_pixel × the expected segments of "
-        "a path at its depth (renderer/cost.py, path_segments) "
+        "a path at its depth (renderer/frame/cost.py, path_segments) "
         f"(default: the 'still' profile — depth {STILL['max_recursion_depth']}, "
         f"{STILL['samples_per_pixel']} spp — on a {FIT_SIDE} × {FIT_SIDE} frame, the "
         "client's largest 'fit' size)",
@@ -109,7 +109,7 @@ class ServerConfig(BaseSettings):
         10_000.0,
         gt=0,
         description="cap on the estimated GL time of one frame, milliseconds of the reference machine "
-        "(renderer/cost.py; docs/API.md, 'Cost of a frame'): a frame estimated above it is refused "
+        "(renderer/frame/cost.py; docs/API.md, 'Cost of a frame'): a frame estimated above it is refused "
         "with 422 naming the setting to change and its largest accepted value",
     )
     slice_ms: float = Field(
@@ -406,9 +406,9 @@ class ServerConfig(BaseSettings):
     default_render: dict[str, Any] = Field(
         default_factory=dict,
         description="JSON object overriding the render defaults of new sessions and of POST /api/render "
-        "(renderer.settings.RenderSettings: width 640, height 1088, method bih, mode color, "
+        "(renderer.config.settings.RenderSettings: width 640, height 1088, method bih, mode color, "
         f"max_prims 8, max_tree_depth {MAX_TREE_DEPTH}, format png; then the measured 'still' profile "
-        f"of renderer.profiles: max_recursion_depth {STILL['max_recursion_depth']}, samples_per_pixel "
+        f"of renderer.frame.profiles: max_recursion_depth {STILL['max_recursion_depth']}, samples_per_pixel "
         f"{STILL['samples_per_pixel']}, min_weight {STILL['min_weight']}; quality)",
     )
 
@@ -444,8 +444,8 @@ class ServerConfig(BaseSettings):
     def _check(self) -> ServerConfig:
         if self.state_backend == "redis" and not self.redis_url:
             raise ValueError("redis_url: required when state_backend is redis")
-        from renderer.scene import SceneError
-        from renderer.settings import RenderSettings
+        from renderer.config.settings import RenderSettings
+        from renderer.geometry.scene import SceneError
 
         d: dict[str, Any] = dict(self.default_settings())
         try:
@@ -470,7 +470,7 @@ class ServerConfig(BaseSettings):
         speed-against-accuracy experiment recommends (a session's frames are its still frames;
         the client asks for the 'interactive' profile while a finger moves), quality, and
         ``default_render`` last."""
-        from renderer.settings import SETTINGS, RenderSettings
+        from renderer.config.settings import SETTINGS, RenderSettings
 
         still = {k: v for k, v in STILL.items() if k in RenderSettings.names()}
         service_own = {s.name: s.default for s in SETTINGS if not s.engine}  # the encoder's: quality

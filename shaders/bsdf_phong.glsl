@@ -7,7 +7,7 @@
 // pdf and lobe) and bsdf_pdf. A material kind is one such file (renderer/materials).
 #if PATH
 const float PI = 3.14159265358979;
-// What the scene lacks is not compiled in (renderer/features.py, PATH_REMOVALS): no rough lobe where
+// What the scene lacks is not compiled in (renderer/frame/features.py, PATH_REMOVALS): no rough lobe where
 // nothing reflects or transmits.
 #if NO_REFLECTION && NO_TRANSMISSION && !NO_ROUGHNESS
 #undef NO_ROUGHNESS

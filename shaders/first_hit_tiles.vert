@@ -1,5 +1,5 @@
 #version 300 es
-// First hits by rasterisation, per tile (renderer/first_hits.py, tile_lists): one instance per
+// First hits by rasterisation, per tile (renderer/frame/first_hits.py, tile_lists): one instance per
 // tile some sphere's rectangle meets; the tracer's fragment shader (FIRST_HITS_TILES) tests the
 // tile's list.
 in vec2 a_corner;   // (0, 0) … (1, 1): the quad's corner

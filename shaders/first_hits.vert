@@ -1,5 +1,5 @@
 #version 300 es
-// First hits by rasterisation (renderer/first_hits.py): one instance per sphere, a quad over
+// First hits by rasterisation (renderer/frame/first_hits.py): one instance per sphere, a quad over
 // the window rectangle its primary rays can meet (computed on the host, in float64, widened by
 // a fragment); the tracer's fragment shader (FIRST_HITS_SPHERES) tests that sphere alone.
 in vec2 a_corner;   // (0, 0) … (1, 1): the quad's corner

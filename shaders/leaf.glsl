@@ -3,7 +3,7 @@
 //
 // - A tree (bih, bvh, kdtree, twolevel) keeps its leaves as runs of sphere records
 //   (SPHERE_AT); a record whose key carries TRI_SLOT or SHAPE_SLOT names a triangle or an
-//   analytic shape instead (renderer/gpu_layout.py, leaf_records). Every tree tests each record
+//   analytic shape instead (renderer/gpu/gpu_layout.py, leaf_records). Every tree tests each record
 //   of a leaf with leaf_hit(q, record, h), whatever the kinds the variant traces.
 // - An id-order method (bruteforce) tests its spheres with test_sphere, then
 //   intersect_triangle_range (shaders/triangles.glsl) and intersect_shape_range

@@ -1,6 +1,6 @@
 // Emission, the environment and the path integrator (docs/SHADING.md): one whole chunk that
 // raytrace.frag includes and compiles where FEATURE_LIGHTING is 1 (a variant that carries
-// EMISSION, ENVIRONMENT or PATH: renderer/shader_source.py); raytrace.frag's main calls
+// EMISSION, ENVIRONMENT or PATH: renderer/frame/shader_source.py); raytrace.frag's main calls
 // path_main where PATH is defined, and its Whitted loop adds emission and the environment.
 // path_main's parts for triangles and shapes are #if FEATURE_TRIANGLES / FEATURE_SHAPES blocks;
 // the material it shades with is behind the BSDF of shaders/bsdf_phong.glsl.
@@ -20,7 +20,7 @@ vec3 emission_at(int m) { return vec3(0.0); }
 #define ENV_RADIANCE vec3(0.0)
 #endif
 #if READS_ENVIRONMENT_MAP
-// An equirectangular environment image (docs/FORMATS.md, "Environment"; renderer/envmap.py, whose
+// An equirectangular environment image (docs/FORMATS.md, "Environment"; renderer/materials/envmap.py, whose
 // NumPy twin of each function the tests compare with): u = atan2(x, −z)/2π + rotation, v = acos(y)/π;
 // bilinear between texels as Mitsuba's envmap (column i at u = (i + ½)/W, row j at v = j/(H − 1)).
 const float ENV_PI = 3.14159265358979;
@@ -51,7 +51,7 @@ vec3 env_lookup(vec2 uv) {
 #define ENV_MAP_INIT()
 #endif
 #if READS_ENVIRONMENT_SAMPLING
-// Importance sampling of the image (renderer/envmap.py): a patch row from the marginal CDF, a patch
+// Importance sampling of the image (renderer/materials/envmap.py): a patch row from the marginal CDF, a patch
 // from the row's conditional one (binary searches), then a point uniform in the patch's (u, v).
 int g_env_cdf_shift;
 float env_cdf(int k) { return texelFetch(u_env_cdf, texel(k, g_env_cdf_shift), 0).r; }
@@ -105,7 +105,7 @@ vec3 env_sample(float u1, float u2, out float pdf) {
 // ---- the path integrator (docs/SHADING.md, "Path integrator") ----------------------------
 // The material's BSDF is shaders/bsdf_phong.glsl (the surface record, bsdf_eval, bsdf_sample,
 // bsdf_pdf); here: the camera's rays, next-event estimation (sample_light) and the path's loop.
-// What the scene lacks is not compiled in (renderer/features.py, PATH_REMOVALS): every lane runs
+// What the scene lacks is not compiled in (renderer/frame/features.py, PATH_REMOVALS): every lane runs
 // all of the loop's code, used or not. The host names a removal only where it says something; the
 // rest follow here: no light kind where nothing emits.
 #if !READS_EMISSION
@@ -117,7 +117,7 @@ vec3 env_sample(float u1, float u2, out float pdf) {
 #define NO_SHAPE_LIGHTS 1
 #endif
 #if GUIDES
-// The denoiser's guides (renderer/denoise.py), sums over the pass's samples: the first hit's albedo
+// The denoiser's guides (renderer/image/denoise.py), sums over the pass's samples: the first hit's albedo
 // as its lobes reflect (bsdf_albedo; a miss: the environment clamped to [0, 1]) and its outward
 // normal (a miss: 0).
 layout(location = 2) out vec4 o_albedo;
@@ -149,7 +149,7 @@ vec2 pixel_jitter(uint i) {
 }
 
 #if !NO_SHAPE_LIGHTS
-// A point uniform in area on emitting surface k (u_emit_patch_*, renderer/gpu_layout.py
+// A point uniform in area on emitting surface k (u_emit_patch_*, renderer/gpu/gpu_layout.py
 // shape_patches) and its outward normal n.
 vec3 patch_point(int k, float u1, float u2, out vec3 n) {
     vec4 a = u_emit_patch_a[k], b = u_emit_patch_b[k], c = u_emit_patch_c[k];

@@ -1,6 +1,6 @@
 // Method "twolevel" (Reiter §3.2.2): static spheres in a kd-tree, moving ones in a BVH;
 // every ray traverses both and keeps the nearer hit. The two traversals are the
-// methods' own files, inlined by the host (renderer/shader_source.py, INCLUDE lines).
+// methods' own files, inlined by the host (renderer/frame/shader_source.py, INCLUDE lines).
 // Bindings (both trees', u_bvh_count, u_kd_count): renderer/accel/twolevel.py.
 
 //@INCLUDE method_bvh.glsl

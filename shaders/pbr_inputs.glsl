@@ -10,7 +10,7 @@
 // which the integrators keep), which picks the mip level.
 //
 // Textures, vertex colours and tangents exist on triangles only (FEATURE_TEXTURES,
-// FEATURE_VERTEX_COLORS, FEATURE_TANGENTS: renderer/texture_layout.py); elsewhere the factors stand.
+// FEATURE_VERTEX_COLORS, FEATURE_TANGENTS: renderer/gpu/texture_layout.py); elsewhere the factors stand.
 //@INCLUDE textures.glsl
 struct PbrInputs {
     vec3 base_color;    // linear RGB

@@ -1,7 +1,7 @@
 // Shared part of the ray-engine shaders (methods "rayengine" and "hre",
-// renderer/gl/ray_engine.py). The host (renderer/shader_source.py) puts
+// renderer/gl/ray_engine.py). The host (renderer/frame/shader_source.py) puts
 // "#version 300 es", the layout header with the declarations of the scene's
-// textures and uniforms (renderer/gpu_layout.py) and the pass's defines before
+// textures and uniforms (renderer/gpu/gpu_layout.py) and the pass's defines before
 // this file, and the pass's own shader after it.
 //
 // The scene is read exactly as shaders/raytrace.frag reads it (same textures

@@ -15,7 +15,7 @@ uniform highp sampler2D u_blocked0;    // lights 0–3 (channel = light % 4): 1 
 uniform highp sampler2D u_blocked1;    // lights 4–7
 
 // The camera (u_cam_*, u_half_extent, u_resolution = the image's W × H; the target
-// may be padded) and u_min_weight are declared in the header (renderer/gpu_layout.py).
+// may be padded) and u_min_weight are declared in the header (renderer/gpu/gpu_layout.py).
 uniform int u_level;                   // generation of these rays (primary = 1)
 uniform int u_max_level;               // recursion depth traced
 uniform int u_shade;                   // 1: colour (lights); 0: only the next rays

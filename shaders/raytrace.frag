@@ -3,11 +3,11 @@
 // (listing 3.5, corrected as docs/THESIS.md describes) or another method. The conventions
 // (rays, self-intersection, shading, modes) are those of docs/SHADING.md. Valid GLSL ES 3.00,
 // for WebGL2 too. Every variant is this file with the same whole chunks in the same order
-// (renderer/shader_source.py): the host writes the header at the HEADER mark (the layout
+// (renderer/frame/shader_source.py): the host writes the header at the HEADER mark (the layout
 // constants, the variant's METHOD_* / MODE_* / READS_* defines, FEATURE_TRIANGLES,
 // FEATURE_SHAPES, FEATURE_LIGHTING and its host choices always defined 0 or 1, and the
 // declarations of every texture, uniform and record array the variant reads, generated from
-// renderer/gpu_layout.py and the method's layout module, so each name is written once), the
+// renderer/gpu/gpu_layout.py and the method's layout module, so each name is written once), the
 // method's traversal at the METHOD mark (shaders/method_<name>.glsl: method_init(), called
 // once per fragment, and intersect_spheres(), testing primitives through shaders/leaf.glsl),
 // and includes the other chunks whole at their INCLUDE lines; #if switches them.
@@ -25,7 +25,7 @@ precision highp usampler2D;
 //@HEADER@
 
 #if FIRST_HITS_SPHERES
-// First hits by rasterisation (renderer/first_hits.py): this fragment lies in one sphere's screen
+// First hits by rasterisation (renderer/frame/first_hits.py): this fragment lies in one sphere's screen
 // rectangle, drawn as an instance of shaders/first_hits.vert; it tests that sphere alone and the
 // depth test (≤, instances in descending id order) keeps the nearest, lower id on a tie.
 flat in vec4 v_sphere;
@@ -182,7 +182,7 @@ struct Surface {
 //@METHOD@
 #else
 // The background variant (host's choice): drawn only where no primary ray can meet a
-// sphere (renderer/gpu_layout.py, primary_rect), so it has no traversal.
+// sphere (renderer/gpu/gpu_layout.py, primary_rect), so it has no traversal.
 void method_init() {}
 void intersect_spheres(Query q, inout Hit h) {}
 #endif
@@ -400,7 +400,7 @@ void main() {
     path_main();
 #else
     // The point of the frame's sample grid (u_resolution) this fragment traces: a pass
-    // traces one sub-pixel of every pixel (renderer/gpu_layout.py, PASS_BINDINGS); the
+    // traces one sub-pixel of every pixel (renderer/gpu/gpu_layout.py, PASS_BINDINGS); the
     // pixel-centre pass has scale 1 and offset 0.5, so px is gl_FragCoord.x itself. Every
     // term is a small integer or half: exact, so a pass equals one draw of the whole grid.
     // gl_FragCoord.y grows upwards; image row 0 is the top row.

@@ -1,16 +1,16 @@
 // Analytic shapes in the tracer: the leaf test (the rays leaving a shape included) and a shape's
 // surface, on top of shapes.glsl's intersection tests. One whole chunk, included by
 // raytrace.frag (after shapes.glsl) into every variant and compiled where FEATURE_SHAPES is 1
-// (the SHAPES data format, in a variant that traces: renderer/shader_source.py); a tree's leaf
+// (the SHAPES data format, in a variant that traces: renderer/frame/shader_source.py); a tree's leaf
 // reaches test_shape through leaf_hit (shaders/leaf.glsl), brute force through
 // intersect_shape_range.
 #if FEATURE_SHAPES
-// Record i of shape k (renderer/gpu_layout.py, shape_records): (origin, r0), (axis, r1),
+// Record i of shape k (renderer/gpu/gpu_layout.py, shape_records): (origin, r0), (axis, r1),
 // (height, caps, kind, material bits).
 #define SHAPE_RECORD(k, i) u_shapes_at(SHAPE_TEXELS * (k) + (i))
 
 // The ray leaving a shape ignores that shape's root nearest 0 — the one at its own origin,
-// which float32 puts a little before or after 0 — and no other (renderer/shapes.py, the
+// which float32 puts a little before or after 0 — and no other (renderer/geometry/shapes.py, the
 // reference's rule; docs/SHADING.md, "Secondary rays"): a ray inside a cylinder meets its
 // far wall, a ray leaving a torus may meet it again. So the tests below find every root
 // of the shape, signed, drop the one of least |t| and keep the nearest in (0, t_max).

@@ -1,12 +1,12 @@
 // Texture lookups (docs/SHADING.md, "Textures"): one whole chunk, compiled where FEATURE_TEXTURES is
-// 1 (renderer/texture_layout.py packs what it reads). Texture k lies in layer texture_layer(k) of
+// 1 (renderer/gpu/texture_layout.py packs what it reads). Texture k lies in layer texture_layer(k) of
 // u_textures, its level l at (x0 >> l, y0 >> l) of the array's level l, ⌈width / 2^l⌉ ×
 // ⌈height / 2^l⌉ texels; its record texture_<field>(k) says where, its size, levels and sampler. Every fetch is a texelFetch: the wrap mode
 // applies to the integer texel index (what GL's wrap does to a filter's taps), an sRGB texel is
 // decoded to linear before it is mixed, bilinear within a level (four texels) or the nearest one,
 // and two levels mixed by the level's fraction. The hardware's filter could do neither per layer:
 // a layer's wrap, and decoding mixed sRGB and linear layers of one array.
-// renderer/reference.py's texture_sample is the float64 twin the tests compare with.
+// renderer/oracle/reference.py's texture_sample is the float64 twin the tests compare with.
 #if FEATURE_TEXTURES
 vec3 srgb_decode(vec3 c) {
     return mix(c * (1.0 / 12.92), pow((c + 0.055) * (1.0 / 1.055), vec3(2.4)), step(vec3(0.04045), c));

@@ -1,6 +1,6 @@
 // Triangles in the tracer: the ray/triangle test and a triangle's surface. One whole chunk,
 // included by raytrace.frag into every variant and compiled where FEATURE_TRIANGLES is 1 (the
-// TRIANGLES data format, in a variant that traces: renderer/shader_source.py); a tree's leaf
+// TRIANGLES data format, in a variant that traces: renderer/frame/shader_source.py); a tree's leaf
 // reaches test_triangle through leaf_hit (shaders/leaf.glsl), brute force through
 // intersect_triangle_range.
 #if FEATURE_TRIANGLES
@@ -42,7 +42,7 @@ float edge_fn(vec2 p, vec2 q) {
     return swap ? -e : e;
 }
 
-// Record k of triangle j (renderer/gpu_layout.py, triangle_records): corner k in xyz, the
+// Record k of triangle j (renderer/gpu/gpu_layout.py, triangle_records): corner k in xyz, the
 // material and the TRI_DEGENERATE flag in w of corner 0.
 #define TRI_RECORD(j, k) u_triangles_at(TRIANGLE_TEXELS * (j) + (k))
 

@@ -5,8 +5,8 @@
 - with ``moderngl`` and ``glcontext`` made unimportable, every ``renderer`` module
   outside ``renderer/gl/`` still imports (run in a fresh interpreter);
 - the core does not import ``renderer.accel``, and ``renderer.accel`` never imports
-  ``renderer.methods``, ``renderer.settings`` or ``renderer.gl`` — directly or through
-  another module (a core module that imported ``renderer.settings`` would depend on every
+  ``renderer.config.methods``, ``renderer.config.settings`` or ``renderer.gl`` — directly or through
+  another module (a core module that imported ``renderer.config.settings`` would depend on every
   method through the registry), the chain is printed.
 
 Every import counts, wherever it is written: at module level, inside a function (a lazy
@@ -49,14 +49,18 @@ SERVER_CONTRACT = "server.contract"
 # settings' method validation, the reference tracer's BIH heat mode, a frame's plan — the method
 # resolved and checked — and its preparation — pose, build, cost — through the registry).
 CORE_MAY_IMPORT_ACCEL = {
-    "renderer.methods",
-    "renderer.shader_source",
-    "renderer.settings",
-    "renderer.reference",
-    "renderer.plan",
-    "renderer.prepare",
+    "renderer.config.methods",
+    "renderer.frame.shader_source",
+    "renderer.config.settings",
+    "renderer.oracle.reference",
+    "renderer.frame.plan",
+    "renderer.frame.prepare",
 }
-ACCEL_MUST_NOT_IMPORT = ("renderer.methods", "renderer.settings", "renderer.gl")
+ACCEL_MUST_NOT_IMPORT = ("renderer.config.methods", "renderer.config.settings", "renderer.gl")
+# renderer/ in folders by role (README, "What is where"): the core's folders, below accel/ and gl/,
+# and the few modules at its top that every folder shares (leaves: they import nothing of renderer).
+CORE_FOLDERS = ("geometry", "materials", "scenes", "io", "gpu", "image", "config", "frame", "oracle")
+CORE_TOP = ("limits", "errors", "resources", "modes", "integrators")
 
 
 @dataclass(frozen=True)
@@ -184,7 +188,7 @@ def test_the_graph_sees_relative_lazy_and_type_checking_imports():
     g = internal_edges()
     assert "renderer.gl.context" in g["renderer.gl"], "from .context import … in renderer/gl/__init__.py"
     assert "renderer.accel.bvh_layout" in g["renderer.accel.bvh"], "from . import bvh_layout"
-    assert "renderer.gpu_layout" in g["renderer.accel.base"], "from .. import gpu_layout"
+    assert "renderer.gpu.gpu_layout" in g["renderer.accel.base"], "from .. import gpu_layout"
     assert "renderer.gl.renderer" in g["server.frames.trace"], "the GL worker's import inside a function"
     gl_engine = {imp.target for imp in imports_of("renderer.gl.ray_engine")}
     assert "moderngl" in gl_engine
@@ -266,7 +270,7 @@ def test_core_does_not_import_accel():
         and not _in(n, "renderer.gl")
         and n not in CORE_MAY_IMPORT_ACCEL
     ]
-    assert "renderer.scene" in core and "renderer.gpu_layout" in core
+    assert "renderer.geometry.scene" in core and "renderer.gpu.gpu_layout" in core
     chains = _offending_chains(core, lambda m: _in(m, "renderer.accel"))
     assert not chains, "the core imports renderer.accel:\n" + "\n".join(chains)
 
@@ -390,7 +394,7 @@ BLOCK_GL = textwrap.dedent("""
 
 def test_gl_free_modules_import_without_moderngl():
     gl_free = sorted(n for n in modules() if _in(n, "renderer") and not _in(n, "renderer.gl"))
-    assert "renderer.accel.bih" in gl_free and "renderer.reference" in gl_free
+    assert "renderer.accel.bih" in gl_free and "renderer.oracle.reference" in gl_free
     proc = subprocess.run(
         [sys.executable, "-c", BLOCK_GL, str(ROOT), json.dumps(gl_free)],
         cwd=ROOT,
@@ -417,3 +421,52 @@ def test_test_modules_outside_packages_have_unique_names():
             continue
         seen.setdefault(path.name, []).append(str(path.relative_to(tests)))
     assert {name: where for name, where in seen.items() if len(where) > 1} == {}
+
+
+def test_every_renderer_module_lies_in_a_known_folder():
+    """Each module of renderer/ is in a folder of the core (CORE_FOLDERS), in accel/ or gl/, or one of
+    the shared modules at the top (CORE_TOP), which import nothing of renderer: a new module goes into
+    the folder of its role, and a new folder into the table."""
+    stray, top_imports = [], []
+    for name in modules():
+        parts = name.split(".")
+        if parts[0] != "renderer" or len(parts) == 1:
+            continue
+        if len(parts) == 2 and modules()[name].name != "__init__.py":
+            if parts[1] not in CORE_TOP:
+                stray.append(name)
+            top_imports += [_where(name, i) for i in imports_of(name) if _in(i.target, "renderer")]
+        elif parts[1] not in (*CORE_FOLDERS, "accel", "gl"):
+            stray.append(name)
+    assert "renderer.limits" in modules() and any(n.startswith("renderer.geometry.") for n in modules())
+    assert not stray, "renderer modules outside the folders of the table: " + ", ".join(stray)
+    assert not top_imports, "a shared module at the top imports renderer:\n" + "\n".join(top_imports)
+
+
+def _core_folder(name: str) -> str | None:
+    """The folder of renderer/ a module lies in (a package's __init__ is its own folder), or None."""
+    parts = name.split(".")
+    if parts[0] != "renderer" or len(parts) < 2:
+        return None
+    if len(parts) == 2 and modules()[name].name != "__init__.py":
+        return None  # the shared modules at the top
+    return parts[1]
+
+
+def test_the_folders_of_renderer_have_no_import_cycle():
+    """The folders import each other one way (geometry below gpu below frame, config below frame and
+    the oracles, accel below config, gl on top): each can be read and tested from what lies below it."""
+    g: dict[str, set[str]] = {}
+    for name, deps in internal_edges().items():
+        here = _core_folder(name)
+        if here is None:
+            continue
+        g.setdefault(here, set())
+        for d in deps:
+            there = _core_folder(d)
+            if there is not None and there != here:
+                g[here].add(there)
+                g.setdefault(there, set())
+    assert "geometry" in g["gpu"], "the folder graph must see gpu → geometry"
+    cycle = find_cycle(g)
+    assert cycle is None, "import cycle between the folders of renderer/: " + " → ".join(cycle)

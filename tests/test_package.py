@@ -125,7 +125,7 @@ def test_installed_pocketray_renders_from_the_command_line_outside_the_source_tr
         [
             str(venv / "bin" / "python"),
             "-c",
-            "import renderer.shader_source as s, server.tools.cli, server.resources as r; "
+            "import renderer.frame.shader_source as s, server.tools.cli, server.resources as r; "
             "print(s.__file__); print(s.SHADER_DIR); print(r.client_dir()); print(server.tools.cli.__file__)",
         ],
         cwd=tmp_path,

@@ -17,8 +17,8 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
-from renderer.scene import Scene
-from renderer.settings import RenderSettings
+from renderer.config.settings import RenderSettings
+from renderer.geometry.scene import Scene
 
 from .machine import machine_info
 from .timing import RenderTiming, Stat, measure

@@ -1,4 +1,4 @@
-"""The cost model of a frame (renderer/cost.py) against measured traces on this machine.
+"""The cost model of a frame (renderer/frame/cost.py) against measured traces on this machine.
 
 Frames of every method over scenarios 1–3 and several sphere counts, modes, depths,
 samples and sizes — degenerate trees (one leaf of n spheres) included — are traced once
@@ -7,7 +7,7 @@ the model's terms: passes × pixels × rays, × node visits, × sphere tests, an
 engines' primitives × pixels × rays. The constants are fitted by non-negative least
 squares on the relative error (every frame weighs the same whatever its size), with the
 level decay picked from a grid; the table shows estimate against measured, and the fitted
-constants are the ones to put in ``renderer/cost.py``'s ``DEFAULT_MODEL``.
+constants are the ones to put in ``renderer/frame/cost.py``'s ``DEFAULT_MODEL``.
 """
 
 from __future__ import annotations
@@ -17,12 +17,12 @@ import math
 
 import numpy as np
 
-from renderer.cost import CostModel, terms
-from renderer.methods import METHODS
-from renderer.prepare import prepare_frame, sampled_level_rays
-from renderer.profiles import PROFILES
-from renderer.scenarios import mesh_scene, scenario
-from renderer.settings import RenderSettings
+from renderer.config.methods import METHODS
+from renderer.config.settings import RenderSettings
+from renderer.frame.cost import CostModel, terms
+from renderer.frame.prepare import prepare_frame, sampled_level_rays
+from renderer.frame.profiles import PROFILES
+from renderer.scenes.scenarios import mesh_scene, scenario
 
 from .context import Context, RunInfo
 from .markdown import md_table
@@ -281,7 +281,7 @@ the sphere yardsticks ran beside them (a shared machine slows every frame alike)
 {len(frames)} frames (every method; scenarios 1–3; primary rays, colour at depth 3, and the still
 profile — depth 8, ε 0.03, 4 samples; degenerate BIHs of one leaf; dense scenes of 2^18 and 2^21
 spheres through the BIH). Fitted constants, ns per
-unit of each term of `renderer/cost.py` (`DEFAULT_MODEL`): {consts}; level decay
+unit of each term of `renderer/frame/cost.py` (`DEFAULT_MODEL`): {consts}; level decay
 {model.level_decay:.1f}; the constants are scaled so that the median frame is estimated right.
 Median |log(estimate / measured)| = {err:.2f}; {within2:.0%} of the frames are estimated within
 a factor of 2; 90 % are measured below {model.upper:.2f} × their estimate, the factor

@@ -4,7 +4,7 @@ Whole frames (build + upload + trace + read back) at 640 × 1088 with the BIH at
 default ``MAX_PRIMS`` against brute force, at recursion depth 1 (the thesis's Fig. 4.4
 setting) and 5 (the service's default). The crossover is where the BIH's frame time drops
 below brute force's for good, interpolated in log n between the two measured sizes around
-it. The value for ``renderer.methods.AUTO_CROSSOVER_N`` is the threshold ``c`` ("brute
+it. The value for ``renderer.config.methods.AUTO_CROSSOVER_N`` is the threshold ``c`` ("brute
 force when n < c") that loses least over every measured case.
 """
 
@@ -13,8 +13,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from renderer import methods as _methods
-from renderer.scenarios import scenario
+from renderer.config import methods as _methods
+from renderer.scenes.scenarios import scenario
 
 from .context import Context, RunInfo
 from .markdown import md_table
@@ -117,7 +117,10 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     c, regret = best_threshold(ns, cases)
     # The value in the code when the data was measured (older data: the value in the code now).
     current = data.get("auto_crossover_n_in_code", getattr(_methods, "AUTO_CROSSOVER_N", None))
-    run.note(f"crossover: AUTO_CROSSOVER_N = {c}  # renderer/methods.py: brute force when n < {c} (current: {current})")
+    run.note(
+        f"crossover: AUTO_CROSSOVER_N = {c}  # renderer/config/methods.py: brute force when n < {c} "
+        f"(current: {current})"
+    )
     img = "\n".join(image_line(k, v) for k, v in charts.items())
     path = f"figures/{NAME}.json"
 

@@ -1,6 +1,6 @@
 """Dynamic scenes: Reiter's Figures 5.11, 5.4 and 5.6 for spheres.
 
-1. **Updating schemes (Fig. 5.11).** A BART-Museum-like animation (``renderer.animation.museum``:
+1. **Updating schemes (Fig. 5.11).** A BART-Museum-like animation (``renderer.scenes.animation.museum``:
    n moving spheres in a static room of 576 spheres and the floor) is played for ``FRAMES``
    frames at 25 frames/s, for each kind of motion, with the thesis's BIH rebuilt every frame
    and a BVH rebuilt, refitted or selectively rebuilt (+30 %). The BVH/BIH update runs on every
@@ -28,11 +28,11 @@ import numpy as np
 
 from renderer.accel.bih import sphere_aabbs
 from renderer.accel.kdtree import build_kdtree
-from renderer.animation import AnimatedScene, museum, pose
-from renderer.methods import METHODS
-from renderer.scenarios import scenario
-from renderer.settings import RenderSettings
-from renderer.tree_update import TreeUpdate
+from renderer.config.methods import METHODS
+from renderer.config.settings import RenderSettings
+from renderer.scenes.animation import AnimatedScene, museum, pose
+from renderer.scenes.scenarios import scenario
+from renderer.scenes.tree_update import TreeUpdate
 
 from .context import Context, RunInfo
 from .markdown import md_table

@@ -12,7 +12,7 @@ import math
 import statistics
 from pathlib import Path
 
-from renderer.scenarios import scenario
+from renderer.scenes.scenarios import scenario
 
 from .context import Context, RunInfo
 from .markdown import md_table
@@ -233,7 +233,7 @@ def report(saved: dict, run: RunInfo, charts: dict[str, str]) -> str:
     return f"""## {TITLE}
 
 Frames per second at {w} × {h}, primary rays only (`max_recursion_depth` 1), spheres of radius 1,
-every method in `renderer.methods.METHODS` (the BIH with `MAX_PRIMS` 1, 2, 4, 8, 16). A frame is
+every method in `renderer.config.methods.METHODS` (the BIH with `MAX_PRIMS` 1, 2, 4, 8, 16). A frame is
 what the thesis's render loop does: rebuild the BIH, upload, draw; we also read the image back.
 
 {img}

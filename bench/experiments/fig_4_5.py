@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from renderer.accel.bih import build_for_spheres
-from renderer.scenarios import scenario
+from renderer.scenes.scenarios import scenario
 
 from .context import Context, RunInfo
 from .markdown import md_table

@@ -3,13 +3,13 @@
 Primary-ray frames (mode ``depth``, BIH, 640 × 1088) of the thesis's scenarios at n = 64 …
 65,536, with and without the plane, traced three ways (the ``first_hits`` setting, the same ids
 and distances bit for bit): ``trace`` (the method's traversal), ``raster`` (each sphere's
-rectangle drawn, renderer/first_hits.py) and ``tiles`` (each 16 × 16 tile's list, nearest
+rectangle drawn, renderer/frame/first_hits.py) and ``tiles`` (each 16 × 16 tile's list, nearest
 first). Each repetition renders the three in turn (interleaved: the machine is shared); the
 trace stage (draws + glFinish, with the host's quads or lists made for the frame) per frame.
 Beside them: the quads' fragments, the tiles' (sphere, tile) pairs and pixels, and the cost
-model's estimates (renderer/cost.py) — the choice of ``first_hits=auto`` against the fastest
+model's estimates (renderer/frame/cost.py) — the choice of ``first_hits=auto`` against the fastest
 measured. The cost model's constants for the two rasterised ways are fitted here (least squares
-of the trace stage on those counts) and copied into renderer/cost.py.
+of the trace stage on those counts) and copied into renderer/frame/cost.py.
 """
 
 from __future__ import annotations
@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from renderer import cost, first_hits as fh
-from renderer.methods import METHODS
-from renderer.scenarios import scenario
+from renderer.config.methods import METHODS
+from renderer.frame import cost, first_hits as fh
+from renderer.scenes.scenarios import scenario
 
 from .context import Context, RunInfo
 from .markdown import md_table
@@ -200,7 +200,7 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
             f"a quad per sphere {fr['ms']:.2f} ms + {fr['ns_fragment']:.1f} ns per fragment + "
             f"{fr['ns_plane_pixel']:.1f} ns per pixel with planes; a list per tile {ft['ms']:.2f} ms + "
             f"{ft['ns_pair']:.1f} ns per (tile, sphere) pair + {ft['ns_tile_pixel']:.1f} ns per tile pixel + "
-            f"{ft['ns_plane_pixel']:.1f} ns per pixel with planes (renderer/cost.py holds these numbers)."
+            f"{ft['ns_plane_pixel']:.1f} ns per pixel with planes (renderer/frame/cost.py holds these numbers)."
         )
     chart = "".join(image_line(name, alt) + "\n\n" for name, alt in charts.items())
     return f"""## {TITLE}

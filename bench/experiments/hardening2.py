@@ -247,7 +247,7 @@ settings that bound each attack).
 
 Finding 6 (a binary STL whose count disagrees with its length answered with a missing module's name;
 a PLY short of its declared faces and an OBJ face of index 0 accepted) is about correctness, not load:
-`tests/renderer/test_model_guard.py` holds those files. The frames of row 8 all come from one address:
+`tests/renderer/io/test_model_guard.py` holds those files. The frames of row 8 all come from one address:
 once one 192 MiB answer waits for its client, that address's next requests get 429
 (`POCKETRAY_MAX_UNSENT_BYTES_PER_CLIENT`); from several addresses they queue in the frame byte budget
 (503 + Retry-After, as the 9 refused of row 7). {commits}

@@ -4,7 +4,7 @@ textured scene beside the same scene untextured, and their memory on the server 
 
 - **furnace**: ``bench/pbr.py``'s white furnace (a white PBR sphere in a uniform environment of
   radiance 1, path integrator) over metallic × roughness, against the BRDF integrated in NumPy
-  (``renderer/pbr_brdf.py``);
+  (``renderer/materials/pbr_brdf.py``);
 - **mitsuba**: the PBR scenes whose model Mitsuba 3 has as well (a white rough conductor, a rough
   dielectric, an ior-1 dielectric as Lambert), PSNR of ours against Mitsuba's at 4 × our samples;
 - **pbr_time**: the demo room with its Phong materials and with PBR ones of like look (``as_pbr``);
@@ -30,8 +30,8 @@ TITLE = "Materials and textures — the glTF BSDF against its integral and Mitsu
 
 
 def measure(ctx: Context) -> dict:
+    from renderer.config.settings import RenderSettings
     from renderer.integrators import Integrator
-    from renderer.settings import RenderSettings
 
     r = ctx.renderer
     out: dict[str, Any] = {}
@@ -106,7 +106,7 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
 
 A white sphere of each metallic × roughness in a uniform environment of radiance 1, path integrator,
 {f["size"]}² at {f["spp"]} samples, the mean over the sphere's inside pixels; beside it the same
-BRDF integrated in float64 NumPy (`renderer/pbr_brdf.py`). No row exceeds 1 beyond noise (largest
+BRDF integrated in float64 NumPy (`renderer/materials/pbr_brdf.py`). No row exceeds 1 beyond noise (largest
 {worst:.4f}): the BSDF creates no energy; what it loses at high roughness is the single-scattering
 GGX lobe's missing multiple scattering (docs/SHADING.md, "PBR"). Load average at the end:
 {_load(f.get("load_average"))}.

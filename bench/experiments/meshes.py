@@ -39,12 +39,12 @@ import numpy as np
 
 from renderer.accel.bih import build_for_scene as bih_build
 from renderer.accel.bih_traverse import brute_force, traverse
+from renderer.config.methods import METHODS
+from renderer.geometry.meshes import icosphere, teapot
+from renderer.geometry.scene import Camera, Light, Mesh, Scene
 from renderer.limits import MAX_LOOP_PRIMITIVES
-from renderer.meshes import icosphere, teapot
-from renderer.methods import METHODS
-from renderer.reference import primary_rays
-from renderer.scenarios import RED
-from renderer.scene import Camera, Light, Mesh, Scene
+from renderer.oracle.reference import primary_rays
+from renderer.scenes.scenarios import RED
 
 from .context import Context, RunInfo
 from .markdown import md_table

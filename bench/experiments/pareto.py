@@ -29,9 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from renderer import reference as _reference_module
-from renderer.reference import render_reference
-from renderer.scenarios import scenario
+from renderer.oracle import reference as _reference_module
+from renderer.oracle.reference import render_reference
+from renderer.scenes.scenarios import scenario
 
 from .cache import cached_array
 from .context import Context, RunInfo
@@ -262,7 +262,7 @@ def measure_path(ctx: Context) -> dict:
     import os
     import time
 
-    from renderer.path_scenes import path_scene
+    from renderer.oracle.path_scenes import path_scene
 
     from . import path
 

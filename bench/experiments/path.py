@@ -1,7 +1,7 @@
 """The path integrator beside Mitsuba 3's (``llvm_ad_rgb``): error against time, rays per second.
 
 Scenes: the Cornell box (``mesh_scene("cornell")``, flat) and two of the scenes the path
-integrator is checked on against Mitsuba (``renderer/path_scenes.py``: a glass sphere's caustic,
+integrator is checked on against Mitsuba (``renderer/oracle/path_scenes.py``: a glass sphere's caustic,
 a rough conductor). Per scene:
 
 - reference: Mitsuba 3 ``llvm_ad_rgb`` at ``REF_SPP`` samples (passes of ``REF_CHUNK`` samples,
@@ -35,9 +35,9 @@ from typing import Any
 
 import numpy as np
 
-from renderer import mitsuba_scene, path_scenes
-from renderer.path_scenes import path_scene
-from renderer.settings import RenderSettings
+from renderer.config.settings import RenderSettings
+from renderer.oracle import mitsuba_scene, path_scenes
+from renderer.oracle.path_scenes import path_scene
 
 from .cache import cached_array
 from .context import Context, RunInfo
@@ -142,7 +142,7 @@ def ours_settings(method: str, w: int, h: int, spp: int, depth: int) -> RenderSe
 
 def path_methods() -> list[str]:
     """The one-pass methods that trace the path integrator (not ``auto``: it is one of them)."""
-    from renderer.methods import integrator_methods
+    from renderer.config.methods import integrator_methods
 
     return [m for m in integrator_methods("path") if m != "auto"]
 
@@ -496,7 +496,7 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
 
 Our path integrator (`integrator=path`, every one-pass method) and Mitsuba 3's `path` integrator
 (`{MITSUBA_VARIANT}`, {vers}; libLLVM `{data["libllvm"]}`) on the same scenes, made from our scene JSON
-by `renderer/mitsuba_scene.py`: {scenes_txt} (`renderer/path_scenes.py`; sizes in the table — the
+by `renderer/oracle/mitsuba_scene.py`: {scenes_txt} (`renderer/oracle/path_scenes.py`; sizes in the table — the
 Cornell box's closed room costs 10–15× per pixel, so it has a quarter of the pixels).
 Equal depth: our `max_recursion_depth` {depth} = Mitsuba's `max_depth` {depth} (both count the
 camera's segment and a shadow ray as a path's last segment, docs/SHADING.md, "Path length"), and
@@ -544,7 +544,7 @@ Raw data: [`{path}`]({path}).
 
 def depth_fit(data: dict) -> tuple[str, float, float]:
     """The scene whose paths trace the most rays at the deepest counted depth, and its fit (R∞, r):
-    the cost model's expected segments of a path sample (``renderer/cost.py``)."""
+    the cost model's expected segments of a path sample (``renderer/frame/cost.py``)."""
     depths = data["count_depths"]
     worst = max(data["scenes"], key=lambda n: data["scenes"][n]["rays_by_depth"][-1])
     limit, rate = fit_rays(depths, data["scenes"][worst]["rays_by_depth"])
@@ -562,7 +562,9 @@ def depth_fit_md(data: dict, run: RunInfo) -> str:
         err = max(abs(rays_model(d, limit, rate) / m - 1.0) for d, m in zip(depths, sc["rays_by_depth"], strict=True))
         rows.append([name, *(f"{x:.2f}" for x in sc["rays_by_depth"]), f"{limit:.2f}", f"{rate:.3f}", f"{err:.1%}"])
     worst, limit, rate = depth_fit(data)
-    run.note(f"path: PATH_SEGMENTS_LIMIT = {limit:.2f}, PATH_SEGMENTS_RATE = {rate:.3f} (renderer/cost.py; {worst})")
+    run.note(
+        f"path: PATH_SEGMENTS_LIMIT = {limit:.2f}, PATH_SEGMENTS_RATE = {rate:.3f} (renderer/frame/cost.py; {worst})"
+    )
     table = md_table(
         ["scene", *(f"D = {d}" for d in depths), "R∞", "r", "max error of the fit"], rows, "l" + "r" * (len(depths) + 3)
     )
@@ -571,7 +573,7 @@ def depth_fit_md(data: dict, run: RunInfo) -> str:
 `bih` at each max_recursion_depth D, and the least-squares fit R(D) = R∞ − (R∞ − 1) · r^(D − 1)
 (one ray at D = 1; each further segment adds a share r of what is left). The open scenes end
 most paths on their second segment (a bounce off the floor leaves the scene); the closed Cornell
-box, walls of albedo ≈ 0.7, keeps them until Russian roulette ends them. `renderer/cost.py` takes
+box, walls of albedo ≈ 0.7, keeps them until Russian roulette ends them. `renderer/frame/cost.py` takes
 the fit of the scene with the most rays ({worst}: R∞ = {limit:.2f}, r = {rate:.3f}) as the expected
 segments of a sample, for the frame's cost and for the `POCKETRAY_MAX_WORK` check of path frames
 (spp × segments × pixels): it overestimates the open scenes about twice.

@@ -38,11 +38,11 @@ from typing import Any
 
 import numpy as np
 
-from renderer import meshes
 from renderer.accel.bih import build_for_spheres
 from renderer.accel.bih_traverse import traverse
-from renderer.reference import primary_rays, render_reference
-from renderer.scenarios import scenario
+from renderer.geometry import meshes
+from renderer.oracle.reference import primary_rays, render_reference
+from renderer.scenes.scenarios import scenario
 
 from .context import Context, RunInfo
 from .markdown import md_table

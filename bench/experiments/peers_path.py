@@ -6,7 +6,7 @@ depth :data:`DEPTH`, through:
 - ours: :data:`OURS` (label, method, settings beyond ``path.ours_settings``), ``integrator=path``;
   time = the frame's wall clock (``GLRenderer.render``: build, upload, trace, read-back);
 - Mitsuba 3 ``llvm_ad_rgb``, its ``path`` integrator, the scene converted by
-  ``renderer/mitsuba_scene.py`` and loaded once, ``max_depth`` = our depth and its Russian roulette
+  ``renderer/oracle/mitsuba_scene.py`` and loaded once, ``max_depth`` = our depth and its Russian roulette
   started where ours starts (``rr_depth``, ``path.RR_DEPTH``); time = ``mi.render`` and its read-back.
 
 The scene, the Mitsuba conversion and the settings are ``path.py``'s (its helpers, not copies).
@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from renderer.path_scenes import path_scene
+from renderer.oracle.path_scenes import path_scene
 
 from .. import path_speed
 from . import path
@@ -162,10 +162,10 @@ def report(data: dict, run: RunInfo, charts: dict[str, str]) -> str:
     raw = f"figures/{NAME}.json"
     return f"""## {TITLE}
 
-Full paths on one scene: the flat Cornell box (`path_scene("{data["scene"]}")`, `renderer/path_scenes.py`)
+Full paths on one scene: the flat Cornell box (`path_scene("{data["scene"]}")`, `renderer/oracle/path_scenes.py`)
 at {w} × {h}, {spp} samples per pixel, depth {depth}, through our path integrator (`integrator=path`;
 {", ".join(f"`{m}`" for _, m, _ in data["ours"])}) and Mitsuba 3's `path` integrator (`{path.MITSUBA_VARIANT}`,
-{vers}; libLLVM `{data["libllvm"]}`), the scene converted by `renderer/mitsuba_scene.py` and loaded once
+{vers}; libLLVM `{data["libllvm"]}`), the scene converted by `renderer/oracle/mitsuba_scene.py` and loaded once
 ({data["mitsuba_load_ms"]:,.0f} ms, not counted). Equal scene, sample count and depth: our
 `max_recursion_depth` {depth} = Mitsuba's `max_depth` {depth} (docs/SHADING.md, "Path length"), and Mitsuba's
 Russian roulette from the segment where ours starts it (`rr_depth` {data["rr_depth"]}) — the settings and

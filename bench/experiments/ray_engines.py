@@ -28,10 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
+from renderer.config.settings import RenderSettings
+from renderer.geometry.scene import Camera, Light, Scene
 from renderer.limits import DEFAULT_TILE_SIZE
-from renderer.scenarios import TRANSPARENT
-from renderer.scene import Camera, Light, Scene
-from renderer.settings import RenderSettings
+from renderer.scenes.scenarios import TRANSPARENT
 
 from .context import Context, RunInfo
 from .machine import ROOT

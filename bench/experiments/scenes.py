@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import dataclasses
 
-from renderer.methods import METHODS
-from renderer.scene import Scene
-from renderer.settings import RenderSettings
+from renderer.config.methods import METHODS
+from renderer.config.settings import RenderSettings
+from renderer.geometry.scene import Scene
 
 SETTING_FIELDS = frozenset(f.name for f in dataclasses.fields(RenderSettings))
 
@@ -17,10 +17,10 @@ def has_setting(name: str) -> bool:
 
 
 def method_names(dispatchers: bool = False) -> list[str]:
-    """Every acceleration method of ``renderer.methods.METHODS``, in registry order (new ones
+    """Every acceleration method of ``renderer.config.methods.METHODS``, in registry order (new ones
     join by themselves). ``dispatchers``: also the names that only pick one of them per scene
     (``auto``), i.e. every ``method`` RenderSettings accepts."""
-    from renderer.settings import METHOD_NAMES
+    from renderer.config.settings import METHOD_NAMES
 
     names = list(METHODS)
     if dispatchers:

@@ -136,10 +136,10 @@ def measure_next(ctx: Context) -> dict:
     """Counts of the CPU mirror, the measured floor and per-test cost, and an estimate."""
     from renderer.accel.bih import build_for_spheres
     from renderer.accel.bih_traverse import traverse
-    from renderer.methods import METHODS
-    from renderer.reference import primary_rays
-    from renderer.scenarios import scenario
-    from renderer.settings import RenderSettings
+    from renderer.config.methods import METHODS
+    from renderer.config.settings import RenderSettings
+    from renderer.oracle.reference import primary_rays
+    from renderer.scenes.scenarios import scenario
 
     w, h = (64, 108) if ctx.quick else (640, 1088)
     n = 256 if ctx.quick else 4096

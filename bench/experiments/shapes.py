@@ -16,7 +16,7 @@ primary hit's id and depth), at recursion 1, one sample per pixel. Measured per 
   its ``trace`` stage (draw and finish); frame ms: the whole frame (build, upload, trace,
   read). Repetitions are interleaved: every configuration once per round, after one untimed
   round (shader compiles), so the machine's load falls on all rows alike;
-- error against the exact surface: the float64 reference (``renderer/reference.py``
+- error against the exact surface: the float64 reference (``renderer/oracle/reference.py``
   ``render_reference``) of the ANALYTIC scene, one ray per pixel centre. Silhouette pixels:
   those whose hit/miss differs from it; normal error: the angle between the normals over the
   pixels both hit (mean and max, degrees). The analytic row's error is float32 (GPU) against
@@ -31,11 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
-from renderer.methods import METHODS
-from renderer.reference import render_reference
-from renderer.scenarios import RED
-from renderer.scene import Camera, Light, Mesh, Scene
-from renderer.shapes import CONE, CYLINDER, DISK, TORUS, Shapes, bounds
+from renderer.config.methods import METHODS
+from renderer.geometry.scene import Camera, Light, Mesh, Scene
+from renderer.geometry.shapes import CONE, CYLINDER, DISK, TORUS, Shapes, bounds
+from renderer.oracle.reference import render_reference
+from renderer.scenes.scenarios import RED
 
 from .context import Context, RunInfo
 from .markdown import md_table
@@ -168,7 +168,7 @@ def _oriented(v: np.ndarray, t: np.ndarray, n: np.ndarray) -> np.ndarray:
 
 
 # One object per kind: (shape kind, origin, axis, r0, r1, height, caps). Local frames as
-# renderer/shapes.py's records: a cylinder or cone rises from its base along the axis.
+# renderer/geometry/shapes.py's records: a cylinder or cone rises from its base along the axis.
 OBJECTS = {
     "torus": (TORUS, (0.0, 0.0, 0.0), (0.3, 0.65, 0.7), 1.0, 0.35, 0.0, 0.0),
     "cylinder": (CYLINDER, (0.0, -1.0, 0.0), (0.3, 1.0, 0.35), 0.6, 0.6, 2.0, 1.0),
@@ -520,7 +520,7 @@ and normal), recursion 1, one ray per pixel centre (`bench/experiments/shapes.py
   build's own node layout (`stats["bytes"]`);
 - **time**: build ms = the frame's `build` stage (tree and record packing), trace ms = its `trace`
   stage (draw and finish), frame ms = the whole `render` call; every configuration once per round;
-- **error** against the float64 reference of the ANALYTIC scene (`renderer/reference.py`,
+- **error** against the float64 reference of the ANALYTIC scene (`renderer/oracle/reference.py`,
   `render_reference`): silhouette px = pixels whose hit/miss differs (missing: the reference hits, the
   row does not; extra: the reverse), normal ° = the angle between the normals over the pixels both
   hit. The analytic rows' error is their float32 against float64.

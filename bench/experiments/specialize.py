@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderer.scenarios import scenario
+from renderer.scenes.scenarios import scenario
 
 from .context import Context, RunInfo
 from .images import psnr

@@ -26,7 +26,7 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
-# Methods of renderer.methods and the peers of the peers experiment: colour, marker.
+# Methods of renderer.config.methods and the peers of the peers experiment: colour, marker.
 METHOD_STYLE: dict[str, tuple[str, str]] = {
     "bih": ("#1f77b4", "o"),  # blue: the thesis's method
     "bruteforce": ("#000000", "s"),  # black: the baseline

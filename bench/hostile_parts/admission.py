@@ -11,7 +11,7 @@ of ``--root`` with its defaults:
   their Retry-After): the server's peak resident memory above the idle process against the 3 GiB
   budget, and what it still holds ``--rss-settle-s`` after the last answer.
 - ``admission_oidn_bytes``: the bytes a pixel OIDN adds over one denoise (VmHWM's rise, one process
-  per side of ``--oidn-sides``), the measurement behind ``renderer.denoise.OIDN_BYTES_PER_PIXEL``.
+  per side of ``--oidn-sides``), the measurement behind ``renderer.image.denoise.OIDN_BYTES_PER_PIXEL``.
 
 The largest side is computed from this checkout's estimate (``server.frames.pipeline.frame_nbytes``)
 and the default settings, so that the same workload runs against an older ``--root`` too (which
@@ -48,7 +48,7 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
 def largest_side(denoise: str = "off", accumulate: bool = True) -> int:
     """The largest square path jpeg frame (depth 1, 1 sample) whose estimate fits one frame's bytes
     at the default settings of this checkout."""
-    from renderer.settings import RenderSettings
+    from renderer.config.settings import RenderSettings
     from server.config import ServerConfig
     from server.frames.pipeline import frame_nbytes
 

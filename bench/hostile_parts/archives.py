@@ -65,8 +65,8 @@ def hide_size(data: bytes, size: int = 100) -> bytes:
 
 
 def honest_folder() -> bytes:
-    from renderer.mesh_io import export_mesh
-    from renderer.meshes import icosphere
+    from renderer.geometry.meshes import icosphere
+    from renderer.io.mesh_io import export_mesh
 
     obj = b"mtllib ball.mtl\nusemtl clay\n" + export_mesh(icosphere(2), "obj")
     png = b"\x89PNG\r\n\x1a\n" + struct.pack(">I4sII", 13, b"IHDR", 64, 64) + bytes(9)

@@ -62,7 +62,7 @@ def one_byte_runs(size: int = 16_000_000, width: int = 4096, height: int = 2048)
 
 def honest_hdr() -> bytes:
     """A flat 64 × 128 ``.hdr``: 32 kB."""
-    from renderer.envmap import write_hdr
+    from renderer.materials.envmap import write_hdr
 
     return write_hdr(np.linspace(0.0, 2.0, 64 * 128 * 3).reshape(64, 128, 3))
 

@@ -4,7 +4,7 @@ defines, or names an image bomb or more textures than a scene holds.
 
 ``obj_mtl`` sends each as ``POST /api/meshes?format=zip`` to a real server of ``--root`` (the
 reader the server's dispatcher picks answers) and hands it to that checkout's OBJ reader itself
-(``renderer.obj_model.load_obj_model``, in a child process with ``--root`` as its working
+(``renderer.io.obj_model.load_obj_model``, in a child process with ``--root`` as its working
 directory: the reader's own answer, its CPU seconds and peak memory, whatever the upload route
 does with OBJ). The base commit has no such reader ("before": the server ignores the ``.mtl``).
 
@@ -44,12 +44,12 @@ TRIANGLE = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
 _READER = r"""
 import json, resource, sys, time, zipfile, io
 try:
-    from renderer.obj_model import load_obj_model
+    from renderer.io.obj_model import load_obj_model
 except ImportError:
     print(json.dumps({"reader": "none in this checkout"})); raise SystemExit
 from renderer import limits
-from renderer.model_archive import open_archive
-from renderer.scene import SceneError
+from renderer.io.model_archive import open_archive
+from renderer.geometry.scene import SceneError
 data = sys.stdin.buffer.read()
 t0 = time.process_time()
 try:

@@ -1,7 +1,7 @@
 """Shader variants: one client walks through ``--programs-variants`` (≥ 500) distinct legal 16 × 16
 frames, each a variant the server has not compiled (method × mode × recursion depth × integrator ×
-specialize × format × first hits × denoise guides, enumerated from ``renderer.settings.SETTINGS``
-and deduplicated by ``renderer.features.frame_features``), on one session, one frame at a time.
+specialize × format × first hits × denoise guides, enumerated from ``renderer.config.settings.SETTINGS``
+and deduplicated by ``renderer.frame.features.frame_features``), on one session, one frame at a time.
 
 Reported: the server's resident memory idle, after the walk and after deleting the session (and its
 peak), the answers by status (429: the session's rate of new variants), ``/api/health`` p50/p99/max
@@ -32,11 +32,11 @@ SIDE = 16
 
 def variants(limit: int) -> list[dict]:
     """Up to ``limit`` frame queries of distinct shader variants of SCENE, cheapest first."""
-    from renderer.features import frame_features
+    from renderer.config.methods import METHODS
+    from renderer.config.settings import SETTINGS, RenderSettings
+    from renderer.frame.features import frame_features
     from renderer.integrators import Denoiser
-    from renderer.methods import METHODS
-    from renderer.scenarios import scenario
-    from renderer.settings import SETTINGS, RenderSettings
+    from renderer.scenes.scenarios import scenario
 
     choices = {s.name: s.choices for s in SETTINGS if s.choices}
     one_pass = [m for m in choices["method"] if m != "auto" and not METHODS[m].capabilities.multi_pass]

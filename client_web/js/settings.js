@@ -3,7 +3,7 @@
 // form's limits are limits.js.
 //
 // The render settings themselves are the service's: GET /api/info's `settings` declares each
-// one (renderer/settings.py: type, bounds or choices, default, label, whether the sheet offers
+// one (renderer/config/settings.py: type, bounds or choices, default, label, whether the sheet offers
 // it and whether the client carries it to a new session); the client names none of them here.
 //
 // Scene parameters (scenario, n, seed, radius) are fixed when a session is made,
@@ -25,7 +25,7 @@ export const SCENARIOS = Object.freeze([
   // A thesis scenario under the procedural daylight sky (POST /api/sessions {scenario, sky: true}).
   { value: 'sky:2', label: '2 under the sky (path)' },
   { value: 'museum', label: 'Museum — animated (Reiter)' },
-  // Scenes of triangle meshes (POST /api/sessions {mesh_scene: {kind}}, renderer/scenarios.py).
+  // Scenes of triangle meshes (POST /api/sessions {mesh_scene: {kind}}, renderer/scenes/scenarios.py).
   { value: 'mesh:teapot', label: 'Teapot — triangles (Newell)' },
   { value: 'mesh:mixed', label: 'Icosphere, torus and spheres' },
   { value: 'mesh:room', label: 'Mesh room' },
@@ -39,7 +39,7 @@ export const SCENARIOS = Object.freeze([
 // service's registry names (GET /api/info's scenes), not only those of the list above.
 export const meshKind = (scenario) => (/^mesh:([a-z][a-z0-9_]*)$/.exec(String(scenario ?? '')) || [])[1] || null;
 
-// The picker's scenes, in its order: GET /api/info's `scenes` (renderer/scenarios.py's registry:
+// The picker's scenes, in its order: GET /api/info's `scenes` (renderer/scenes/scenarios.py's registry:
 // {value, label, settings}, `settings` the scene's recommended render settings) once it answered,
 // SCENARIOS (no recommended settings) from a service that does not list them.
 export const pickerScenes = SCENARIOS.map((x) => ({ ...x, settings: {} }));

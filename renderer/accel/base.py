@@ -4,7 +4,7 @@ A method turns a posed scene into what the GPU tracer needs for it — its textu
 uniforms, packed with the layout beside its build (``accel/<method>_layout.py``), and
 statistics — in ``prepare``, which runs for every frame: the thesis rebuilds its BIH
 per request, and so do we, except where a frame of an animation asks a method that keeps
-its tree to update it (:mod:`renderer.tree_update`).
+its tree to update it (:mod:`renderer.scenes.tree_update`).
 
 Nothing here imports OpenGL: a single-pass method's traversal is GLSL
 (``shaders/<capabilities.shader>``, spliced into ``raytrace.frag``); a multi-pass
@@ -18,16 +18,16 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from .. import gpu_layout
+from ..geometry.scene import Scene
+from ..gpu import gpu_layout
 from ..integrators import Integrator
 from ..limits import DEFAULT_TEXTURE_WIDTH
 from ..modes import SINGLE_PASS_MODES
-from ..scene import Scene
-from ..tree_update import REBUILD, TreeUpdate
+from ..scenes.tree_update import REBUILD, TreeUpdate
 
 # A ray stops at its nearest hit, so it rarely reaches every leaf the SAH counts, but it tests
 # every primitive of a leaf it enters: the builds report the SAH's tests in leaves this big
-# apart (``sah_big_tests``), which the cost model (renderer/cost.py) counts in full.
+# apart (``sah_big_tests``), which the cost model (renderer/frame/cost.py) counts in full.
 BIG_LEAF = 32
 
 
@@ -79,7 +79,7 @@ class Capabilities:
     primitives: the kinds of primitive it traces; a scene with another kind is refused with
     422 before anything is built (the ray engines draw spheres and planes only).
     update_schemes: how it can follow an animation from its previous frame
-    (:data:`renderer.tree_update.UPDATE_SCHEMES`); ``("rebuild",)`` = always rebuilds.
+    (:data:`renderer.scenes.tree_update.UPDATE_SCHEMES`); ``("rebuild",)`` = always rebuilds.
     settings: the render settings its build or passes read (``max_prims``,
     ``max_tree_depth``, ``tile_size``, ``update``…): a client shows only these.
     meshes_on_gpu: its GPU layout and traversal hold triangles (bih, bruteforce, bvh, kdtree,

@@ -60,9 +60,9 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 
 from .. import limits
+from ..geometry.scene import Scene
 from ..limits import MAX_RETRIES, MAX_TREE_DEPTH
-from ..scene import Scene
-from ..tree_update import REBUILD, TreeUpdate
+from ..scenes.tree_update import REBUILD, TreeUpdate
 from . import bih_layout as L
 from .base import BIG_LEAF, Capabilities, PreparedMethod, mesh_stats
 from .primitives import scene_aabbs, sphere_aabbs
@@ -185,7 +185,7 @@ def build_bih(
     optimized = one_sided = forced = rounds = cuts = 0
     leaf_slots: list[np.ndarray] = []
 
-    # Surface areas for the cost model (renderer/cost.py): Σ over inner nodes of their box's
+    # Surface areas for the cost model (renderer/frame/cost.py): Σ over inner nodes of their box's
     # area, Σ over leaves of area × primitives; relative to the root's, the expected node
     # visits and primitive tests of a ray through the root box (the SAH's terms).
     area = {"inner": 0.0, "leaf_prims": 0.0, "big_prims": 0.0}

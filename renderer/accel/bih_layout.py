@@ -25,11 +25,11 @@ largest float32: ``clip_right = +EMPTY_CLIP`` behind an empty right child, ``cli
 
 **Conversion** (:func:`gpu_records`, per frame after the build): the GPU gets no record for
 a leaf — its parent says where the leaf's spheres are — and the spheres themselves in leaf
-order (the sorted index array's order), as :func:`renderer.gpu_layout.sphere_records`, so a
+order (the sorted index array's order), as :func:`renderer.gpu.gpu_layout.sphere_records`, so a
 leaf is a run of sphere records ended by the one flagged ``SPHERE_LAST`` and needs no index
 array. A cut's empty child has no records: its ref is its sibling's (below). With triangles
 a tree primitive that is a triangle has a *slot* of the same size there instead
-(:func:`renderer.gpu_layout.leaf_records`: its key flagged ``TRI_SLOT`` with the triangle's
+(:func:`renderer.gpu.gpu_layout.leaf_records`: its key flagged ``TRI_SLOT`` with the triangle's
 index; the corners in ``u_triangles``), so positions, refs and the ``last`` flags are the
 same as for spheres. Inner nodes keep the build's order, renumbered without the leaves.
 
@@ -62,10 +62,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import gpu_layout
-from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene
+from ..gpu import gpu_layout
+from ..gpu.gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene
+from ..gpu.record_layout import Field, RecordLayout
 from ..limits import MAX_TREE_DEPTH
-from ..record_layout import Field, RecordLayout
 from .tree_pack import pack_tree
 
 AXIS_SHIFT = 30
@@ -194,7 +194,7 @@ def glsl_defines() -> str:
 def pack_bih(bih, scene, max_width: int = DEFAULT_TEXTURE_WIDTH) -> PackedScene:
     """The BIH of ``scene``'s spheres and triangles for the GPU: inner records, the leaf-order
     records (a sphere's record or a triangle's slot per tree primitive,
-    :func:`renderer.gpu_layout.leaf_records`: for spheres only, the sphere records), the
+    :func:`renderer.gpu.gpu_layout.leaf_records`: for spheres only, the sphere records), the
     root's ref and the global AABB, and the triangles' records when there are any."""
     records, root = gpu_records(bih)
     order, last = leaf_order(bih)

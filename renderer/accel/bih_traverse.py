@@ -57,7 +57,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from ..shapes import Shapes, pair_t
+from ..geometry.shapes import Shapes, pair_t
 from . import bih_layout as L
 from .bih import BIH
 

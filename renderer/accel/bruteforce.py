@@ -2,22 +2,22 @@
 triangle and every analytic shape.
 
 No structure: ``shaders/method_bruteforce.glsl`` loops over the sphere records in id
-order (``u_bf_spheres``, :func:`renderer.gpu_layout.sphere_records`: 16 bytes a sphere
+order (``u_bf_spheres``, :func:`renderer.gpu.gpu_layout.sphere_records`: 16 bytes a sphere
 when the radii are equal, else 32), a record array the host may put in a uniform block,
 then — in a variant with the TRIANGLES data format — over the triangle records in id order
-(``u_triangles``, :func:`renderer.gpu_layout.triangle_records`), and with SHAPES over the
-analytic shapes' (``u_shapes``, :func:`renderer.gpu_layout.shape_records`).
+(``u_triangles``, :func:`renderer.gpu.gpu_layout.triangle_records`), and with SHAPES over the
+analytic shapes' (``u_shapes``, :func:`renderer.gpu.gpu_layout.shape_records`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .. import gpu_layout
-from ..gpu_layout import Binding, wrap_rows
+from ..geometry.scene import Scene
+from ..gpu import gpu_layout
+from ..gpu.gpu_layout import Binding, wrap_rows
 from ..limits import DEFAULT_TEXTURE_WIDTH, MAX_LOOP_PRIMITIVES
-from ..scene import Scene
-from ..tree_update import REBUILD, TreeUpdate
+from ..scenes.tree_update import REBUILD, TreeUpdate
 from .base import Capabilities, PreparedMethod, mesh_stats
 
 SPHERES = Binding("u_bf_spheres", doc="spheres in id order (gpu_layout.sphere_records)", records=True)

@@ -55,7 +55,7 @@ from dataclasses import asdict, dataclass, field, fields
 import numpy as np
 
 from ..limits import DEFAULT_TEXTURE_WIDTH
-from ..tree_update import DEFAULT_THRESHOLD, REBUILD, UPDATE_SCHEMES, TreeUpdate
+from ..scenes.tree_update import DEFAULT_THRESHOLD, REBUILD, UPDATE_SCHEMES, TreeUpdate
 from . import bvh_layout as L
 from .base import BIG_LEAF, Capabilities, PreparedMethod, mesh_stats
 from .primitives import scene_aabbs, sphere_aabbs
@@ -488,7 +488,7 @@ def sah_cost(bvh: BVH) -> float:
 
 
 def expected_work(bvh: BVH) -> dict[str, float]:
-    """The SAH's two terms apart (renderer/cost.py): node visits and primitive tests a ray
+    """The SAH's two terms apart (renderer/frame/cost.py): node visits and primitive tests a ray
     through the root box can expect."""
     n = bvh.n_primitives
     if n == 0:
@@ -811,7 +811,7 @@ class BVHMethod:
     """Method ``bvh``: the BVH of this module, traced by ``shaders/method_bvh.glsl``.
 
     ``prepare`` rebuilds per request by default, like the thesis's BIH. With the
-    :class:`~renderer.tree_update.TreeUpdate` scheme ``refit`` or ``selective`` the BVH
+    :class:`~renderer.scenes.tree_update.TreeUpdate` scheme ``refit`` or ``selective`` the BVH
     of the previous frame with the same ``key`` (an animation or session; one shared
     slot when None) is updated instead, as long as the sphere count and build limits
     are unchanged. The last ``CACHE_SLOTS`` keys are kept.

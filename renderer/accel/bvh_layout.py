@@ -10,10 +10,10 @@ octant ``s``, octant bit ``a`` set when ``d[a] < 0``; 0 = left, 1 = right). Its 
 **Conversion** (:func:`gpu_records`): an inner node's record holds both children's boxes,
 which is what the traversal tests there; a leaf has no record (its parent's ref says
 where its spheres are), and the spheres are sphere records in leaf order
-(:func:`renderer.gpu_layout.sphere_records`, the last of each leaf flagged), so no index
+(:func:`renderer.gpu.gpu_layout.sphere_records`, the last of each leaf flagged), so no index
 array is read. Inner records keep the build's order, renumbered without the leaves.
 With triangles a tree primitive that is a triangle has a slot of a sphere record's size
-there instead (:func:`renderer.gpu_layout.leaf_records`, its corners in ``u_triangles``), so
+there instead (:func:`renderer.gpu.gpu_layout.leaf_records`, its corners in ``u_triangles``), so
 positions, refs and the ``last`` flags are as for spheres.
 
 **GPU** (``u_bvh_nodes``, a record array: RGBA32UI texture or uniform block): inner node
@@ -39,10 +39,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import gpu_layout
-from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene
+from ..gpu import gpu_layout
+from ..gpu.gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene
+from ..gpu.record_layout import Field, RecordLayout
 from ..limits import MAX_TREE_DEPTH
-from ..record_layout import Field, RecordLayout
 from .tree_pack import pack_tree
 
 NODE_BYTES = 32
@@ -154,7 +154,7 @@ def pack_bvh(bvh, scene, ids: np.ndarray | None = None, max_width: int = DEFAULT
     """The BVH for the GPU: inner records, the sphere records in leaf order, the root's ref
     and box. ``ids``: the scene id of each primitive the BVH was built over (None: the
     primitives are the scene's tree primitives: spheres, then triangles). With triangles the
-    leaf-order records hold triangle slots (:func:`renderer.gpu_layout.leaf_records`) and the
+    leaf-order records hold triangle slots (:func:`renderer.gpu.gpu_layout.leaf_records`) and the
     triangles' records come along."""
     records, root = gpu_records(bvh)
     order, last = leaf_order(bvh)

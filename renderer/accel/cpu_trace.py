@@ -6,7 +6,7 @@ module is their float64 counterpart on the CPU, vectorised over rays in lockstep
 node), so that the trees built over spheres, triangles *and analytic shapes* can be checked
 against brute force. Primitive tests are those of ``bih_traverse``
 (:func:`~renderer.accel.bih_traverse.sphere_t`, :func:`~renderer.accel.bih_traverse.triangle_t`)
-and :func:`renderer.shapes.pair_t`, nearest ``t > 0``, exactly equal ``t`` to the lower id.
+and :func:`renderer.geometry.shapes.pair_t`, nearest ``t > 0``, exactly equal ``t`` to the lower id.
 
 - BVH: a stack of nodes; a node is entered when the ray's slab interval through its box
   meets ``[0, best t]`` (closed: a hit exactly at the best t may still be a lower id).
@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..shapes import Shapes, pair_t
+from ..geometry.shapes import Shapes, pair_t
 from .bih import BIH
 from .bih_traverse import _corners, sphere_t, traverse, triangle_t
 from .bvh import BVH

@@ -39,7 +39,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..limits import DEFAULT_TEXTURE_WIDTH
-from ..tree_update import REBUILD, TreeUpdate
+from ..scenes.tree_update import REBUILD, TreeUpdate
 from . import kdtree_layout as L
 from .base import BIG_LEAF, Capabilities, PreparedMethod, mesh_stats
 from .primitives import scene_aabbs, sphere_aabbs
@@ -451,7 +451,7 @@ def build_kdtree(
         if n and area[0] > 0
         else float(C_ISECT * n)
     )
-    # The SAH's terms apart, for the cost model (renderer/cost.py).
+    # The SAH's terms apart, for the cost model (renderer/frame/cost.py).
     sah_nodes = float(area[~leaf].sum() / area[0]) if n and area[0] > 0 else 0.0
     sah_tests = float((area[leaf] * count[leaf]).sum() / area[0]) if n and area[0] > 0 else float(n)
     big = leaf & (count > BIG_LEAF)

@@ -12,12 +12,12 @@ everything above; a primitive whose box straddles the plane is in both.
 
 **Conversion** (:func:`gpu_records`): a leaf has no record, its parent's ref says where its
 spheres are, and every leaf's spheres are a run of sphere records
-(:func:`renderer.gpu_layout.sphere_records`, the last flagged) in leaf order — a straddler
+(:func:`renderer.gpu.gpu_layout.sphere_records`, the last flagged) in leaf order — a straddler
 has a record in every leaf it is in, so no index array is read (the runs hold the
 references, ``stats.references``, not the compacted index array). An empty leaf has no
 records: its ref says so. Inner records keep the build's order, renumbered without leaves.
 With triangles a tree primitive that is a triangle has a slot of a sphere record's size
-there instead (:func:`renderer.gpu_layout.leaf_records`, its corners in ``u_triangles``), so
+there instead (:func:`renderer.gpu.gpu_layout.leaf_records`, its corners in ``u_triangles``), so
 positions, refs and the ``last`` flags are as for spheres.
 
 **GPU** (``u_kd_nodes``, a record array: RGBA32UI texture or uniform block): inner node
@@ -38,10 +38,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import gpu_layout
-from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene
+from ..gpu import gpu_layout
+from ..gpu.gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene
+from ..gpu.record_layout import Field, RecordLayout
 from ..limits import MAX_TREE_DEPTH
-from ..record_layout import Field, RecordLayout
 from .tree_pack import pack_tree
 
 AXIS_SHIFT = 30
@@ -136,7 +136,7 @@ def pack_kdtree(kd, scene, ids: np.ndarray | None = None, max_width: int = DEFAU
     """The kd-tree for the GPU: inner records, every leaf's sphere records, the root's ref
     and voxel. ``ids``: the scene id of each primitive the tree was built over (None: the
     primitives are the scene's tree primitives: spheres, then triangles). With triangles the
-    leaf records hold triangle slots (:func:`renderer.gpu_layout.leaf_records`) and the
+    leaf records hold triangle slots (:func:`renderer.gpu.gpu_layout.leaf_records`) and the
     triangles' records come along."""
     prims, first, last = leaf_runs(kd)
     records, root = gpu_records(kd, first)

@@ -3,7 +3,7 @@ docs/FORMATS.md's "GPU records" tables are made here."""
 
 from __future__ import annotations
 
-from ..record_layout import RecordLayout
+from ..gpu.record_layout import RecordLayout
 from . import bih_layout, bvh_layout, kdtree_layout
 
 NODE_RECORDS: tuple[RecordLayout, ...] = (bih_layout.NODE, bvh_layout.NODE, kdtree_layout.NODE)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..shapes import bounds as shape_bounds
+from ..geometry.shapes import bounds as shape_bounds
 
 
 def sphere_aabbs(centers: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -49,7 +49,7 @@ def triangle_aabbs(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def shape_aabbs(shapes) -> tuple[np.ndarray, np.ndarray]:
-    """float32 AABBs of analytic shapes (renderer/shapes.py ``bounds``), widened so that they hold
+    """float32 AABBs of analytic shapes (renderer/geometry/shapes.py ``bounds``), widened so that they hold
     each shape in both precisions and every root the float32 tests find.
 
     The GPU sees the record rounded to float32 (origin, unit axis, radii: a relative 6e-8

@@ -10,11 +10,11 @@ construction they use has a float64 mirror in :mod:`renderer.accel.hre_cones`.
 
 from __future__ import annotations
 
-from .. import gpu_layout
+from ..geometry.scene import Scene
+from ..gpu import gpu_layout
 from ..limits import DEFAULT_TEXTURE_WIDTH, STENCIL_BITS
 from ..modes import MODES, SINGLE_PASS_MODES
-from ..scene import Scene
-from ..tree_update import REBUILD, TreeUpdate
+from ..scenes.tree_update import REBUILD, TreeUpdate
 from .base import Capabilities, NoLayout, PreparedMethod
 
 SPHERES_AND_PLANES = ("spheres", "planes")

@@ -1,9 +1,9 @@
 """The one packer of the hierarchies (BIH, BVH, kd-tree; the two-level method packs one of each).
 
 Every tree hands the GPU the same four things: its inner records (packed by its
-:class:`renderer.record_layout.RecordLayout` in ``<method>_layout.py``), the leaf-order
+:class:`renderer.gpu.record_layout.RecordLayout` in ``<method>_layout.py``), the leaf-order
 records — a sphere record or a triangle's or shape's slot per tree primitive, each leaf a run
-ended by the one flagged last (:func:`renderer.gpu_layout.leaf_records`) — the root's ref and
+ended by the one flagged last (:func:`renderer.gpu.gpu_layout.leaf_records`) — the root's ref and
 box as uniforms, and the scene's triangle and shape records its leaves point into.
 """
 
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import gpu_layout
-from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
+from ..gpu import gpu_layout
+from ..gpu.gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene, wrap_rows
 
 
 def pack_tree(

@@ -6,9 +6,9 @@ import time
 
 import numpy as np
 
-from ..gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene
-from ..scene import Scene
-from ..tree_update import REBUILD, UPDATE_SCHEMES, TreeUpdate
+from ..geometry.scene import Scene
+from ..gpu.gpu_layout import DEFAULT_TEXTURE_WIDTH, Binding, PackedScene
+from ..scenes.tree_update import REBUILD, UPDATE_SCHEMES, TreeUpdate
 from . import bvh_layout, kdtree_layout
 from .base import Capabilities, PreparedMethod, mesh_stats
 from .bvh import BVHMethod
@@ -28,7 +28,7 @@ class TwoLevelMethod:
     (``shaders/method_twolevel.glsl``: kd-tree first, its hit then bounds the BVH).
 
     ``update.moving`` is a bool mask over the scene's tree primitives — spheres, then
-    triangles (from :func:`renderer.animation.pose`; for a scene without triangles, one
+    triangles (from :func:`renderer.scenes.animation.pose`; for a scene without triangles, one
     per sphere); without it everything counts as static (a plain scene has no motion).
     Tree primitive ids are those of :mod:`renderer.accel.primitives`; ``tree`` of the
     prepared method is ``(kd, static_ids, bvh, moving_ids)``, each structure built over its

@@ -1,4 +1,4 @@
-"""The draws of a frame whose first hits are rasterised (:mod:`renderer.first_hits`).
+"""The draws of a frame whose first hits are rasterised (:mod:`renderer.frame.first_hits`).
 
 Per pass: the target's colours are cleared to a miss and its depth to 1.0; per band (a
 scissor rectangle), the planes' pass — the background variant writing depth — where the
@@ -19,9 +19,10 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from .. import cost, first_hits as fh, gpu_layout
-from ..gpu_layout import Variant
-from ..scene import Scene
+from ..frame import cost, first_hits as fh
+from ..geometry.scene import Scene
+from ..gpu import gpu_layout
+from ..gpu.gpu_layout import Variant
 from .raw_gl import RawGL
 
 CORNERS = np.array([0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1], dtype=np.float32)  # two triangles of the unit square
@@ -85,7 +86,7 @@ class FirstHitDraws:
 
     def ns_per_unit(self) -> float:
         """Estimated ns of one unit of :meth:`band_work`: a quad's fragment, or a tile's list entry
-        tested at one pixel (renderer/cost.py's fitted constants)."""
+        tested at one pixel (renderer/frame/cost.py's fitted constants)."""
         if self.how == "tiles":
             return cost.TILES_NS_PAIR / (fh.TILE * fh.TILE)
         return cost.RASTER_NS_FRAGMENT

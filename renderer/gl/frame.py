@@ -20,7 +20,7 @@ Passes (docs/FORMATS.md, "Camera and pixels"):
 Uniforms, texture units and uniform-block bindings are program state, and frames of the
 same variant share a program, so every slice binds its own frame's before drawing.
 
-A frame is split by :func:`renderer.gpu_layout.frame_regions`: inside the rectangle the
+A frame is split by :func:`renderer.gpu.gpu_layout.frame_regions`: inside the rectangle the
 spheres' box projects to, the tracer; outside it, where no primary ray can meet a sphere
 — and, in colour and recursion frames, whose hits spawn rays, where it meets no plane
 either — the *background* variant, the same shader without the traversal (llvmpipe runs
@@ -45,19 +45,20 @@ from typing import TYPE_CHECKING, Any, cast
 import moderngl
 import numpy as np
 
-from .. import first_hits, gpu_layout, texture_layout
-from ..gpu_layout import PackedScene, Variant
+from ..config.methods import PreparedMethod
+from ..frame import first_hits
+from ..frame.shader_source import known_bindings, tracer_bindings
+from ..geometry.scene import Scene
+from ..gpu import gpu_layout, texture_layout
+from ..gpu.gpu_layout import PackedScene, Variant
+from ..image.result import RenderResult
 from ..limits import MAX_BAND_GROWTH, PATH_SAMPLES_PER_PASS
-from ..methods import PreparedMethod
 from ..modes import AVERAGED_MODES, PRIMARY_MODES
-from ..result import RenderResult
-from ..scene import Scene
-from ..shader_source import known_bindings, tracer_bindings
 from .first_hits import FirstHitDraws
 from .textures import upload_blocks, upload_textures
 
 if TYPE_CHECKING:
-    from ..settings import RenderSettings
+    from ..config.settings import RenderSettings
 
 
 @dataclass(frozen=True)
@@ -139,7 +140,7 @@ def plan_path_passes(samples: int, per_pass: int, first: int = 0) -> list[Pass]:
 def plan_whitted_slices(k: int, first: int, count: int) -> list[Pass]:
     """A Whitted accumulation's passes after the pixel centres: slices ``first`` … ``first + count − 1``,
     each the k × k sub-pixel grid with every sub-pixel's ray at the slice's point of the R2 sequence
-    inside it (:func:`renderer.gpu_layout.subpixel_cell`: the same for every pixel and sub-pixel).
+    inside it (:func:`renderer.gpu.gpu_layout.subpixel_cell`: the same for every pixel and sub-pixel).
     Slice 0 is the cell centres — the passes of today's frame (at k = 1 the centre pass itself, so
     none here) — and every slice adds k² samples per pixel."""
     out: list[Pass] = []
@@ -251,7 +252,7 @@ class TracerFrame:
         self.textures: list[moderngl.Texture | moderngl.TextureArray] = []
         self.buffers: list[moderngl.Buffer] = []
         self.fbo: moderngl.Framebuffer | None = None
-        # Rasterised first hits (renderer/first_hits.py) instead of the traversal, when chosen.
+        # Rasterised first hits (renderer/frame/first_hits.py) instead of the traversal, when chosen.
         self.raster = (
             "" if self.one_shot else first_hits.chosen(scene, settings, variant.path, variant.method, prepared.stats)
         )
@@ -690,7 +691,8 @@ def check_bindings(variant: Variant, parts: list[PackedScene]) -> tuple[dict, di
         for name in (*part.textures, *part.uniforms):
             if name not in known:
                 raise KeyError(
-                    f"{name!r} is packed but no layout declares it (renderer/gpu_layout.py, renderer/accel/*_layout.py)"
+                    f"{name!r} is packed but no layout declares it "
+                    "(renderer/gpu/gpu_layout.py, renderer/accel/*_layout.py)"
                 )
         tex.update((n, t) for n, t in part.textures.items() if n in declared)
         uni.update((n, v) for n, v in part.uniforms.items() if n in declared)

@@ -72,21 +72,21 @@ from typing import TYPE_CHECKING, Any, cast
 import moderngl
 import numpy as np
 
-from .. import gpu_layout
 from ..accel import hre_cones
 from ..accel.ray_engine import RayEngine
-from ..features import GENERIC, scene_features
+from ..frame.features import GENERIC, scene_features
+from ..geometry.scene import Scene, SceneError
+from ..gpu import gpu_layout
+from ..image.result import RenderResult
 from ..limits import DEFAULT_TEXTURE_WIDTH, STENCIL_BITS
 from ..modes import AVERAGED_MODES, RECURSION_COLORS, depth_grey, primid_colors
-from ..result import RenderResult
-from ..scene import Scene, SceneError
 from .programs import ProgramCache
 from .raw_gl import GL_STENCIL_BUFFER_BIT, RawGL
 from .ray_engine_targets import Programs as _Programs, Targets as _Targets
 from .textures import upload_textures
 
 if TYPE_CHECKING:
-    from ..settings import RenderSettings
+    from ..config.settings import RenderSettings
 
 COUNT_LIMIT = 1 << 20  # (tile, sphere) pairs per pass up to which hre's stats mirror its culling
 

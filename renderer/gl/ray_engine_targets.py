@@ -6,7 +6,7 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from ..shader_source import pass_source, vertex_source
+from ..frame.shader_source import pass_source, vertex_source
 from .programs import CachedProgram, ProgramCache
 from .raw_gl import RawGL
 

@@ -23,19 +23,19 @@ from typing import cast
 import moderngl
 import numpy as np
 
-from .. import gpu_layout
 from ..accel.ray_engine import RayEngine
-from ..animation import AnimatedScene
-from ..gpu_layout import Variant
+from ..config.methods import METHODS, PreparedMethod
+from ..config.settings import RenderSettings
+from ..frame.plan import FramePlan, plan_frame
+from ..frame.prepare import PreparedFrame, prepare_frame
+from ..frame.shader_source import tracer_bindings, tracer_source, vertex_source
+from ..geometry.scene import Scene
+from ..gpu import gpu_layout
+from ..gpu.gpu_layout import Variant
+from ..image.result import RenderResult
 from ..limits import DEFAULT_TEXTURE_WIDTH, MAX_PROGRAMS, PATH_SAMPLES_PER_PASS
-from ..methods import METHODS, PreparedMethod
-from ..plan import FramePlan, plan_frame
-from ..prepare import PreparedFrame, prepare_frame
-from ..result import RenderResult
-from ..scene import Scene
-from ..settings import RenderSettings
-from ..shader_source import tracer_bindings, tracer_source, vertex_source
-from ..tree_update import TreeUpdate
+from ..scenes.animation import AnimatedScene
+from ..scenes.tree_update import TreeUpdate
 from .context import GLUnavailable, create_context  # noqa: F401 - re-exported
 from .frame import TracerFrame, image_only
 from .programs import ProgramCache
@@ -173,7 +173,7 @@ class GLRenderer:
         accumulated: tuple[np.ndarray | None, int] | None = None,
         slices: int = 1,
     ) -> StartedFrame:
-        """A prepared frame (:func:`renderer.prepare.prepare_frame`) uploaded and ready to be
+        """A prepared frame (:func:`renderer.frame.prepare.prepare_frame`) uploaded and ready to be
         traced slice by slice: bands of ``band_rows`` rows (the tracer) or batches of
         ``batch`` primitives (the ray engines). ``accumulated``: of an accumulation frame, the samples
         held so far (their float32 sum, image rows — None when none yet — and count): the frame goes
@@ -218,7 +218,7 @@ class GLRenderer:
         sizes its slices, ``samples_per_pass`` the path integrator's passes, ``accumulated`` the
         samples an accumulation frame goes on from (their float32 sum, image rows, or None, and count;
         a Whitted colour frame's: ``slices`` jittered slices of its grid). Plans the frame
-        (:func:`renderer.plan.plan_frame`) unless ``plan`` is given, and builds the method's structure
+        (:func:`renderer.frame.plan.plan_frame`) unless ``plan`` is given, and builds the method's structure
         first unless ``prepared`` is."""
         t_start = time.perf_counter()
         if plan is None:

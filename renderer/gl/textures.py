@@ -1,4 +1,4 @@
-"""Packed textures (:mod:`renderer.gpu_layout`) onto the GPU."""
+"""Packed textures (:mod:`renderer.gpu.gpu_layout`) onto the GPU."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from functools import cache
 import moderngl
 import numpy as np
 
-from .. import gpu_layout
+from ..gpu import gpu_layout
 
 GL_TEXTURE_2D_ARRAY = 0x8C1A
 GL_RGBA = 0x1908
@@ -32,7 +32,7 @@ def _tex_sub_image_3d():
 
 def upload_texture_array(ctx: moderngl.Context, tex: gpu_layout.PackedTextureArray, unit: int) -> moderngl.TextureArray:
     """An RGBA8 ``sampler2DArray`` with the packed mip levels (made on the CPU from linear values,
-    renderer/texture_layout.py; GL's own mipmaps would average sRGB bytes), bound to ``unit``.
+    renderer/gpu/texture_layout.py; GL's own mipmaps would average sRGB bytes), bound to ``unit``.
     NEAREST_MIPMAP_NEAREST: every level is complete and the shader reads them with texelFetch."""
     w, h = tex.size
     arr = ctx.texture_array((w, h, tex.layers), 4, np.ascontiguousarray(tex.levels[0]).tobytes(), dtype="f1")

@@ -38,7 +38,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.requests import Request
 from starlette.responses import Response
 
-from renderer.scene import SceneError
+from renderer.geometry.scene import SceneError
 
 from ..config import ServerConfig
 from ..faults import Busy, NotFound, RenderTimeout, Superseded, Where, input_error

@@ -32,7 +32,9 @@ from pydantic import (
     model_validator,
 )
 
-from renderer import settings as declared
+from renderer.config import settings as declared
+from renderer.config.settings import SettingValues, setting
+from renderer.gpu.texture_layout import WEBGL2_MAX_ARRAY_LAYERS
 from renderer.limits import (
     MAX_DEVICE_ARRAY_LAYERS,
     MAX_DEVICE_TEXTURE_SIZE,
@@ -43,8 +45,6 @@ from renderer.limits import (
     REFINE_NOISE_RANGE,
     REFINE_SAMPLES_RANGE,
 )
-from renderer.settings import SettingValues, setting
-from renderer.texture_layout import WEBGL2_MAX_ARRAY_LAYERS
 
 from ..contract.fields import MAX_LISTED_ERRORS, QueryModel, Strict, optional  # noqa: F401 - re-exported
 from ..contract.scene import (  # noqa: F401 - re-exported: the scene JSON's models
@@ -385,7 +385,7 @@ class LimitsOut(BaseModel):
 
 class PathInfoOut(BaseModel):
     """What a client needs to offer the path integrator's settings and count a path frame's work as the
-    service does (renderer/cost.py, ``request_work``)."""
+    service does (renderer/frame/cost.py, ``request_work``)."""
 
     samples_per_pixel: list[int] = Field(description="the sample counts a settings sheet offers (any 1 … max_samples)")
     max_samples: int = Field(description="most samples per pixel of one frame")
@@ -419,7 +419,7 @@ class MethodSettingsOut(BaseModel):
 
 
 class IntegratorValuesOut(BaseModel):
-    """What a setting accepts, and means, under one integrator (renderer.settings.IntegratorValues)."""
+    """What a setting accepts, and means, under one integrator (renderer.config.settings.IntegratorValues)."""
 
     meaning: str = Field(description="what a value is under this integrator")
     minimum: int | float | None = Field(None, description="smallest value (when bounded)")
@@ -433,7 +433,7 @@ class IntegratorValuesOut(BaseModel):
 
 
 class SettingInfoOut(BaseModel):
-    """One render setting as it is declared (renderer.settings.SETTINGS): what a client builds its settings
+    """One render setting as it is declared (renderer.config.settings.SETTINGS): what a client builds its settings
     form from."""
 
     name: str
@@ -517,7 +517,7 @@ class InfoOut(BaseModel):
         "choices, default, unit, label, doc, who reads it",
     )
     scenes: list[DemoSceneOut] = Field(
-        default_factory=list, description="the demo scenes, in picker order (renderer/scenarios.py DEMO_SCENES)"
+        default_factory=list, description="the demo scenes, in picker order (renderer/scenes/scenarios.py DEMO_SCENES)"
     )
     recursion_colors: list[ModeColorOut] = Field(
         default_factory=list,

@@ -15,11 +15,11 @@ from pydantic import (
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticKnownError
 
-from renderer.animation import MUSEUM_KINDS
+from renderer.io.mesh_io import UPLOAD_FORMATS
 from renderer.limits import (
     MAX_MOTION_SEED,
 )
-from renderer.mesh_io import UPLOAD_FORMATS
+from renderer.scenes.animation import MUSEUM_KINDS
 
 MuseumKind = Literal[MUSEUM_KINDS]
 ModelFormat = Literal[UPLOAD_FORMATS]

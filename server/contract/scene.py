@@ -2,7 +2,7 @@
 meshes, analytic shapes, motions and the environment (:class:`SceneModel`).
 
 Field constraints are what one field can say on its own; what needs several fields is the renderer's
-validation (:mod:`renderer.scene`), answered with the same 422 shape. Units: coordinates and radii in
+validation (:mod:`renderer.geometry.scene`), answered with the same 422 shape. Units: coordinates and radii in
 world units; ``fov_y`` in degrees."""
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from pydantic import (
 )
 from pydantic_core import InitErrorDetails, PydanticCustomError, PydanticKnownError
 
+from renderer.geometry.scene import Material
 from renderer.limits import (
     MAX_ABSENT,
     MAX_ANGULAR_VELOCITY,
@@ -48,7 +49,6 @@ from renderer.limits import (
 from renderer.materials import material_params
 from renderer.materials.pbr import PbrMaterial
 from renderer.materials.texture import FILTERS, WRAPS
-from renderer.scene import Material
 
 from .fields import MAX_JSON_MOTION_SEED, MAX_LISTED_ERRORS, SPHERE_CHUNK, Integral, Strict
 
@@ -228,7 +228,7 @@ class TextureModel(Strict):
     name: str = Field("", max_length=MAX_TEXTURE_NAME, description="the image's file name")
 
 
-# ---- analytic shapes (renderer.shapes; docs/FORMATS.md, "Analytic shapes") --------------------
+# ---- analytic shapes (renderer.geometry.shapes; docs/FORMATS.md, "Analytic shapes") --------------------
 # What needs two fields (inner_radius < radius, minor_radius < major_radius, a cone with one radius
 # > 0) and a non-zero axis are the renderer's checks, answered with the same 422 shape.
 Axis = Annotated[list[Coordinate], Field(min_length=3, max_length=3, description="non-zero; normalised on input")]
@@ -288,7 +288,7 @@ class TorusModel(Strict):
 SHAPES_DOC = f"at most {MAX_SHAPES} analytic shapes in all (cylinders, cones, disks, tori together)"
 
 
-# ---- motion (renderer.animation) --------------------------------------------------
+# ---- motion (renderer.scenes.animation) --------------------------------------------------
 SphereIndex = Annotated[int, Field(ge=0, lt=MAX_SPHERES, description="id of the first sphere moved"), Integral]
 SphereCount = Annotated[int, Field(ge=0, le=MAX_SPHERES, description="number of spheres moved"), Integral]
 MeshIndex = Annotated[

@@ -9,14 +9,14 @@ from pydantic import (
     Field,
 )
 
+from renderer.io.mesh_io import UPLOAD_FORMATS
 from renderer.limits import (
     ASPECT_RANGE,
     MAX_ABSENT,
     MAX_MUSEUM_MOVING,
     MAX_SPHERES,
 )
-from renderer.mesh_io import UPLOAD_FORMATS
-from renderer.scenarios import CUBE_HALF, MAX_MESH_DETAIL, MESH_SCENES
+from renderer.scenes.scenarios import CUBE_HALF, MAX_MESH_DETAIL, MESH_SCENES
 
 from .fields import MAX_SEED, Integral, ModelFormat, MuseumKind, QueryModel, Strict
 from .scene import MaterialIndex, SceneModel
@@ -25,7 +25,7 @@ from .settings import SettingsPatch
 
 # ---- sessions -------------------------------------------------------------------
 class MuseumRecipe(Strict):
-    """Reiter's BART-Museum analogue (renderer.animation.museum): ``n`` moving spheres in a
+    """Reiter's BART-Museum analogue (renderer.scenes.animation.museum): ``n`` moving spheres in a
     static room of 576 spheres and the floor."""
 
     n: Annotated[int, Integral] = Field(ge=0, le=MAX_MUSEUM_MOVING, description="moving spheres")
@@ -35,7 +35,7 @@ class MuseumRecipe(Strict):
 
 
 class MeshSceneRecipe(Strict):
-    """A demo scene (renderer.scenarios.mesh_scene): ``spheres`` (scenario 1's 512 spheres in
+    """A demo scene (renderer.scenes.scenarios.mesh_scene): ``spheres`` (scenario 1's 512 spheres in
     colour under the sky: the default scene), ``teapot`` (the closed Utah teapot on the
     floor), ``mixed`` (27 spheres, a glass icosphere and a torus), ``room`` (a box room seen from
     inside with a teapot, an icosphere and four spheres), ``cornell`` (a Cornell box lit by an

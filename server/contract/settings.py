@@ -1,5 +1,5 @@
 """The render settings as request and answer models, made from their declarations
-(:data:`renderer.settings.SETTINGS`): the patch a body or a query names (:class:`RenderParams`,
+(:data:`renderer.config.settings.SETTINGS`): the patch a body or a query names (:class:`RenderParams`,
 :class:`SettingsPatch`) and a session's whole settings (:class:`FullSettings`)."""
 
 from __future__ import annotations
@@ -14,14 +14,14 @@ from pydantic import (
     create_model,
 )
 
-from renderer import settings as declared
-from renderer.settings import SettingSpec, SettingValues
+from renderer.config import settings as declared
+from renderer.config.settings import SettingSpec, SettingValues
 
 from .fields import Integral, optional
 
 
 # ---- render settings ----------------------------------------------------------
-# Every model of the render settings is made from their declarations (renderer.settings.SETTINGS):
+# Every model of the render settings is made from their declarations (renderer.config.settings.SETTINGS):
 # a setting's type, bounds or choices, default and description are said there once.
 def setting_type(spec: SettingSpec) -> Any:
     """The field type of one setting: its bounds or choices, its doc as the description; integers as
@@ -51,7 +51,7 @@ class RenderParamsBase(BaseModel):
 
 
 def build_render_params(specs: Iterable[SettingSpec] | None = None) -> type[RenderParamsBase]:
-    """Every setting of ``specs`` (default: renderer.settings.SETTINGS as it is now), optional: what a request
+    """Every setting of ``specs`` (default: renderer.config.settings.SETTINGS as it is now), optional: what a request
     names (body or query)."""
     specs = tuple(declared.SETTINGS if specs is None else specs)
     model = create_model(
@@ -69,7 +69,7 @@ def build_render_params(specs: Iterable[SettingSpec] | None = None) -> type[Rend
 
 
 def build_full_settings(specs: Iterable[SettingSpec] | None = None) -> type[BaseModel]:
-    """Every setting of ``specs`` (default: renderer.settings.SETTINGS as it is now) as a session has it; those
+    """Every setting of ``specs`` (default: renderer.config.settings.SETTINGS as it is now) as a session has it; those
     added after the first sessions were stored take their default when a stored session lacks them."""
     specs = tuple(declared.SETTINGS if specs is None else specs)
     return create_model(

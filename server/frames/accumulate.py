@@ -28,9 +28,9 @@ from typing import Any
 
 import numpy as np
 
+from renderer.config.settings import RenderSettings
 from renderer.integrators import Integrator
 from renderer.limits import MAX_ACCUMULATED_SAMPLES
-from renderer.settings import RenderSettings
 
 from ..http import metrics
 

@@ -2,7 +2,7 @@
 
 ``GET /api/sessions/{id}/device-data`` (:mod:`server.api.routes.device`) answers one blob
 of this format: the session's scene and the chosen method's acceleration data, packed by
-:mod:`renderer.gpu_layout` — the one layout the moderngl renderer uploads too — wrapped
+:mod:`renderer.gpu.gpu_layout` — the one layout the moderngl renderer uploads too — wrapped
 to the device's ``max_texture_size`` (a power of two; many phones: 4,096).
 
 Binary format (all integers little-endian)::
@@ -25,7 +25,7 @@ The JSON header::
      "shader": {"method", "mode", "max_recursion_depth", "features": ["NO_TRANSMISSION", …], "url"},
      "path": {"samples_per_pass": 4, "guides": false} | null,  # the path integrator's variant (features
                                             # has PATH), else null; guides: it writes them (GUIDES),
-                                            # then also "atrous": renderer/atrous.py's parameters()
+                                            # then also "atrous": renderer/image/atrous.py's parameters()
      "max_texture_size": 4096,              # the power of two the textures were wrapped to
      "camera": {...}, "home_camera": {...}, # camera JSON of docs/FORMATS.md (current, and the reset one)
      "uniforms": {"u_num_spheres": 64, "u_plane_point": [[0, -20, 0], …], …,
@@ -46,17 +46,17 @@ fixed-length arrays as lists, plus the camera terms that do not depend on the im
 them as ``gpu_layout.camera_uniforms`` computes them).
 
 The shader variant is the one the server's frame of the same settings compiles
-(:func:`renderer.plan.plan_frame`, read by :func:`device_header`): with ``integrator`` ``path`` in colour mode it
+(:func:`renderer.frame.plan.plan_frame`, read by :func:`device_header`): with ``integrator`` ``path`` in colour mode it
 carries ``PATH`` and its ``max_recursion_depth`` is a path's segments (up to
 ``MAX_PATH_DEPTH``). Such a variant's ``o_image.rgb`` is the *sum* of the radiance of the
 ``u_sample_count`` samples from ``u_sample_start`` on (``gpu_layout.path_uniforms``, set per
 draw): the device draws passes of at most ``path.samples_per_pass`` samples
 (``limits.DEVICE_PATH_SAMPLES_PER_PASS``), adds them up, divides by ``samples_per_pixel`` and
-shows the mean as ``renderer/tonemap.py`` does with the header's ``tone_map`` and
+shows the mean as ``renderer/image/tonemap.py`` does with the header's ``tone_map`` and
 ``exposure``. With ``denoise`` on (any denoiser) the variant also carries ``GUIDES``: it writes
 the sums of the first hit's albedo and normal at locations 2 and 3 (two more RGBA32F targets),
 which the device adds up as the radiance and hands, as means, to its à-trous filter
-(``renderer/atrous.py``'s GLSL copy) before tone mapping. The ``settings`` a session stored
+(``renderer/image/atrous.py``'s GLSL copy) before tone mapping. The ``settings`` a session stored
 before a setting existed read as its default.
 Fields were only added to the header since format version 1 (a reader ignores those it does
 not know), so the version stays 1. Each texture is ``height × width × components`` elements of ``dtype``
@@ -73,12 +73,13 @@ from typing import Any
 
 import numpy as np
 
-from renderer import atrous, gpu_layout, texture_layout
-from renderer.features import FEATURE_DEFINES  # noqa: F401 - re-exported: the shader variant's feature defines, in order
+from renderer.config.methods import PreparedMethod
+from renderer.frame.features import FEATURE_DEFINES  # noqa: F401 - re-exported: the shader variant's feature defines, in order
+from renderer.frame.plan import FramePlan
+from renderer.geometry.scene import Camera, Scene
+from renderer.gpu import gpu_layout, texture_layout
+from renderer.image import atrous
 from renderer.limits import DEFAULT_TEXTURE_WIDTH, DEVICE_PATH_SAMPLES_PER_PASS
-from renderer.methods import PreparedMethod
-from renderer.plan import FramePlan
-from renderer.scene import Camera, Scene
 
 MAGIC = b"PRDD"
 FORMAT_VERSION = 1
@@ -100,7 +101,7 @@ INTERNAL_FORMATS = {
 
 
 def camera_uniforms(camera: Camera) -> dict[str, Any]:
-    """The camera terms of :func:`renderer.gpu_layout.camera_uniforms` that do not depend on
+    """The camera terms of :func:`renderer.gpu.gpu_layout.camera_uniforms` that do not depend on
     the image size (the device sets ``u_half_extent`` and ``u_resolution`` per frame)."""
     return {
         k: jsonable(v)
@@ -220,7 +221,7 @@ def jsonable_stats(stats: dict[str, Any]) -> dict[str, Any]:
 
 def encode_blob(header: dict[str, Any], textures: dict[str, gpu_layout.PackedTexture]) -> bytes:
     """Magic, version, header length, JSON header (with the textures' offsets), aligned texture bytes.
-    A texture array (:class:`renderer.gpu_layout.PackedTextureArray`, RGBA8 with mip levels) is one
+    A texture array (:class:`renderer.gpu.gpu_layout.PackedTextureArray`, RGBA8 with mip levels) is one
     entry with ``layers`` and ``levels``: each level's ``width``, ``height``, ``offset`` and ``nbytes``
     (``layers × height × width × 4`` bytes, layer 0 first, row 0 first); its ``offset`` and ``nbytes``
     are level 0's and the levels' total."""

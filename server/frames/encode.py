@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
-from renderer.result import RenderResult
+from renderer.image.result import RenderResult
 
 from ..contract.headers import EXPOSED, TIMING_NAMES
 from .exr import MEDIA_TYPE as EXR_MEDIA_TYPE, encode_exr

@@ -20,7 +20,7 @@ import io
 
 import numpy as np
 
-from renderer.result import RenderResult
+from renderer.image.result import RenderResult
 
 MEDIA_TYPE = "image/x-exr"
 

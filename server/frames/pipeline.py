@@ -7,7 +7,7 @@ a WebSocket frame and a stateless render are all one request to it (the session'
 :class:`server.sessions.service.SessionService`, makes the requests).
 
 A frame is planned on the request's thread — the scene posed, the method's structure built, the
-frame's cost estimated (:mod:`renderer.prepare`, :mod:`renderer.cost`); over
+frame's cost estimated (:mod:`renderer.frame.prepare`, :mod:`renderer.frame.cost`); over
 ``POCKETRAY_MAX_FRAME_COST`` it is a 422 — then, its estimated bytes reserved in
 ``POCKETRAY_MAX_FRAME_BYTES_IN_FLIGHT`` (:class:`FrameBytes`) until it is encoded, admitted to the
 GL worker's bounded queue (503 when full) and traced there in slices. A newer frame of a session
@@ -40,18 +40,18 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
-from renderer.animation import AnimatedScene, pose
-from renderer.cost import largest_accepted
-from renderer.denoise import denoise_nbytes, denoise_result
+from renderer.config.methods import METHODS, capabilities, not_on_gpu
+from renderer.config.settings import RenderSettings
+from renderer.frame.cost import largest_accepted
+from renderer.frame.plan import plan_method
+from renderer.frame.prepare import PreparedFrame, band_rows, batch_size, prepare_frame
+from renderer.geometry.scene import Scene, SceneError
+from renderer.image.denoise import denoise_nbytes, denoise_result
+from renderer.image.result import traced_nbytes
 from renderer.integrators import Denoiser
 from renderer.limits import DEFAULT_TEXTURE_WIDTH
-from renderer.methods import METHODS, capabilities, not_on_gpu
-from renderer.plan import plan_method
-from renderer.prepare import PreparedFrame, band_rows, batch_size, prepare_frame
-from renderer.result import traced_nbytes
-from renderer.scene import Scene, SceneError
-from renderer.settings import RenderSettings
-from renderer.tree_update import TreeUpdate
+from renderer.scenes.animation import AnimatedScene, pose
+from renderer.scenes.tree_update import TreeUpdate
 
 from ..config import ServerConfig
 from ..faults import Busy, FrameTooLarge, InputError, RenderTimeout, Superseded, input_error
@@ -116,9 +116,9 @@ class FrameBytes:
 
 def frame_nbytes(settings: RenderSettings, accumulate: bool = False) -> int:
     """What one frame of these settings holds at most, from its render target to its encoded body:
-    the target, its read-back and the result's arrays (:func:`renderer.result.traced_nbytes`), a
+    the target, its read-back and the result's arrays (:func:`renderer.image.result.traced_nbytes`), a
     path (or accumulation) frame's float64 sum and the float64 quotient its mean is cut from, the
-    denoiser's guides and the denoiser itself (:func:`renderer.denoise.denoise_nbytes`), the tone
+    denoiser's guides and the denoiser itself (:func:`renderer.image.denoise.denoise_nbytes`), the tone
     mapping of radiance or the 8-bit copy of a float image, and the encoding (``accumulate``: and
     the new float32 sum it hands to its session's accumulation, with a Whitted accumulation's
     float64 total). The samples an accumulation holds already are counted in
@@ -147,12 +147,12 @@ PATH_SUM_BYTES_PER_PIXEL = (
 MEAN_BYTES_PER_PIXEL = 3 * 8  # … the sum divided by the count, float64, before the mean's float32 cast
 ACCUMULATION_BYTES_PER_PIXEL = 3 * 4  # an accumulation's float32 sum (server/frames/accumulate.py)
 WHITTED_TOTAL_BYTES_PER_PIXEL = 3 * 8  # a Whitted accumulation's held sum plus its own, float64
-# The denoiser's guides (renderer/denoise.py): two more RGBA32F attachments, their read-backs, their
-# float64 sums and the float32 means (the denoiser's own working memory: renderer.denoise.denoise_nbytes).
+# The denoiser's guides (renderer/image/denoise.py): two more RGBA32F attachments, their read-backs, their
+# float64 sums and the float32 means (the denoiser's own working memory: renderer.image.denoise.denoise_nbytes).
 GUIDE_BYTES_PER_PIXEL = 2 * 16 + 2 * 16 + 2 * 24 + 2 * 12
 # png/jpeg of a float image: the uint8 copy made of it (result.image_u8) — of a float frame, its
 # clipped float32 copy and the bytes (12 + 3); of radiance, the tone mapping's float64 temporaries
-# (renderer/tonemap.py: display_u8), measured 144.3–144.7 B/px of VmHWM at 1024² and 512².
+# (renderer/image/tonemap.py: display_u8), measured 144.3–144.7 B/px of VmHWM at 1024² and 512².
 DISPLAY_BYTES_PER_PIXEL = {False: 12 + 3, True: 145}
 
 
@@ -671,7 +671,7 @@ class FramePipeline:
     def stats(self, request: FrameRequest) -> dict:
         """Statistics of the acceleration structure for the request's settings: the last build's
         of its session, or a build made now (without rendering), by the method its frames use
-        (``auto`` resolved as they resolve it, :func:`renderer.plan.plan_method`)."""
+        (``auto`` resolved as they resolve it, :func:`renderer.frame.plan.plan_method`)."""
         assert request.owner is not None, "statistics are a session's"
         scene, s, owner = request.scene, request.settings.render, request.owner
         try:

@@ -57,8 +57,8 @@ from prometheus_client import (
 )
 from prometheus_client.core import GaugeMetricFamily
 
+from renderer.config.settings import METHOD_NAMES
 from renderer.modes import MODES
-from renderer.settings import METHOD_NAMES
 
 from ..contract.headers import TIMING_NAMES
 

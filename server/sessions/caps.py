@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderer import texture_layout
-from renderer.animation import AnimatedScene
-from renderer.cost import path_segments, request_work
+from renderer.config.settings import RenderSettings, SettingValues
+from renderer.frame.cost import path_segments, request_work
+from renderer.frame.plan import plan_method
+from renderer.geometry.scene import SceneError
+from renderer.gpu import texture_layout
 from renderer.integrators import Integrator
-from renderer.plan import plan_method
-from renderer.scene import SceneError
-from renderer.settings import RenderSettings, SettingValues
+from renderer.scenes.animation import AnimatedScene
 
 from ..config import ServerConfig
 from ..contract.scene import SceneModel
@@ -42,15 +42,15 @@ class InputCaps:
 
     def check_work(self, settings: RenderSettings, tree_primitives: int) -> str:
         """The caps that need no build: POCKETRAY_MAX_WORK (a path frame's expected segments,
-        ``renderer.cost.request_work``), and the modes the method can draw; the method the frames of
+        ``renderer.frame.cost.request_work``), and the modes the method can draw; the method the frames of
         ``settings`` use over a scene of ``tree_primitives`` (``auto`` resolved as every frame resolves
-        it, :func:`renderer.plan.plan_method`). (The cost of a frame, POCKETRAY_MAX_FRAME_COST, is
+        it, :func:`renderer.frame.plan.plan_method`). (The cost of a frame, POCKETRAY_MAX_FRAME_COST, is
         checked by the pipeline's plan.)"""
         w, h, d, spp = settings.width, settings.height, settings.max_recursion_depth, settings.samples_per_pixel
         path = settings.integrator == Integrator.PATH
         work = request_work(w, h, d, spp, path)
         if work > self.config.max_work:
-            if path:  # the expected segments of its paths (renderer/cost.py, path_segments)
+            if path:  # the expected segments of its paths (renderer/frame/cost.py, path_segments)
                 raise InputError(
                     ("samples_per_pixel",),
                     f"width × height × samples_per_pixel × expected segments of a path at max_recursion_depth "

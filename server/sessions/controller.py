@@ -17,7 +17,7 @@
   the view never flips over the pole.
 - reset: the home camera (the one the scene came with).
 
-Everything in float64; the result is a validated :class:`renderer.scene.Camera`,
+Everything in float64; the result is a validated :class:`renderer.geometry.scene.Camera`,
 so a gesture that would leave the coordinate range raises ``SceneError``.
 """
 
@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from renderer.scene import Camera
+from renderer.geometry.scene import Camera
 
 
 def world_per_pixel(camera: Camera, viewport_height: float) -> float:

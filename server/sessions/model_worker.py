@@ -1,7 +1,7 @@
 """Model files parsed in worker processes, each with a deadline and resource limits.
 
 An uploaded model file (``POST /api/meshes``, ``POST /api/sessions/{id}/meshes``) is parsed
-by :func:`renderer.mesh_io.load_model` into a :class:`renderer.model.Model` — parts, materials and
+by :func:`renderer.io.mesh_io.load_model` into a :class:`renderer.io.model.Model` — parts, materials and
 decoded textures — (a zip of a model's folder opened there too, its bounds
 checked before anything is inflated) in one of ``POCKETRAY_MODEL_WORKERS`` processes kept
 warm (started at the first upload; numpy and trimesh imported once), never in the service
@@ -12,10 +12,10 @@ the file is refused, the service's memory does not move) and a CPU limit of
 ``POCKETRAY_MODEL_TIMEOUT_S`` per file (``RLIMIT_CPU``, raised before each file); the service
 waits at most ``POCKETRAY_MODEL_TIMEOUT_S`` for the answer, then kills the worker and starts
 another. The file's declared counts are checked first in the worker
-(:mod:`renderer.model_guard`), so most malformed files are refused in milliseconds.
+(:mod:`renderer.io.model_guard`), so most malformed files are refused in milliseconds.
 
 Environment images (``PUT /api/sessions/{id}/environment``: ``.hdr``, ``.exr``) are read by
-:func:`renderer.envmap.read_image` in the same workers, under the same limits: even a
+:func:`renderer.materials.envmap.read_image` in the same workers, under the same limits: even a
 run-length encoded ``.hdr`` of one-byte runs is cut into packets in C and decoded by NumPy, but a
 16 MB file is still a second of CPU, which the per-address share keeps to its own address.
 
@@ -169,20 +169,20 @@ class ModelWorkers:
         max_vertices: int,
         busy: Callable[..., Exception] = ParsersBusy,
     ):
-        """The :class:`renderer.model.Model` of the file, or SceneError (``format`` or ``file``:
+        """The :class:`renderer.io.model.Model` of the file, or SceneError (``format`` or ``file``:
         what is wrong, a limit it exceeds, or the deadline it missed); ``busy`` (503) when every
         worker stays busy for ``timeout_s``."""
-        from renderer.mesh_io import file_type_of
+        from renderer.io.mesh_io import file_type_of
 
         ft = file_type_of(data, fmt)
         answer = self._run((bytes(data), ft, max_triangles, max_vertices), f"the {ft.upper()} model", busy)
         return answer[1]
 
     def load_image(self, data: bytes, fmt: str, busy: Callable[..., Exception] = ParsersBusy):
-        """:func:`renderer.envmap.read_image` of the file in a worker: texels, or SceneError as
+        """:func:`renderer.materials.envmap.read_image` of the file in a worker: texels, or SceneError as
         :meth:`load` (``body``, ``format``; the deadline, the memory limit)."""
-        from renderer.envmap import ENV_FORMATS
-        from renderer.scene import SceneError
+        from renderer.geometry.scene import SceneError
+        from renderer.materials.envmap import ENV_FORMATS
 
         if fmt not in ENV_FORMATS:  # (refused here: no worker needed)
             raise SceneError("format", f"unknown image format {fmt!r}; accepted: {', '.join(ENV_FORMATS)}")
@@ -213,7 +213,7 @@ class ModelWorkers:
                     self._held[client] = left
 
     def _in_worker(self, job: tuple, what: str, busy: Callable[..., Exception], field: str) -> tuple:
-        from renderer.scene import SceneError
+        from renderer.geometry.scene import SceneError
 
         try:
             w = self._idle.get(timeout=self.timeout_s)
@@ -298,10 +298,10 @@ def load_model(
     max_vertices: int | None = None,
     busy: Callable[..., Exception] = ParsersBusy,
 ):
-    """:func:`renderer.mesh_io.load_model` of an uploaded file (a :class:`renderer.model.Model`), in
+    """:func:`renderer.io.mesh_io.load_model` of an uploaded file (a :class:`renderer.io.model.Model`), in
     a worker process (above); ``busy(message, retry_after_s=)`` is raised when no worker is free."""
+    from renderer.io.mesh_io import load_model as parse
     from renderer.limits import MAX_MESH_VERTICES
-    from renderer.mesh_io import load_model as parse
 
     max_vertices = MAX_MESH_VERTICES if max_vertices is None else max_vertices
     pool = workers_for(config)
@@ -311,9 +311,9 @@ def load_model(
 
 
 def load_env_image(config, data: bytes, fmt: str, *, busy: Callable[..., Exception] = ParsersBusy):
-    """:func:`renderer.envmap.read_image` of an uploaded environment image, in a worker process as
+    """:func:`renderer.materials.envmap.read_image` of an uploaded environment image, in a worker process as
     model files are (in this process when ``model_workers`` is 0)."""
-    from renderer.envmap import read_image
+    from renderer.materials.envmap import read_image
 
     pool = workers_for(config)
     if pool is None:
@@ -343,10 +343,10 @@ def _serve(memory_bytes: int, cpu_s: float) -> None:
     import PIL.Image  # noqa: F401 - imported once, before the first file
     import trimesh  # noqa: F401
 
-    import renderer.gltf_model  # noqa: F401
-    from renderer.envmap import read_image
-    from renderer.mesh_io import load_model as parse
-    from renderer.scene import SceneError
+    import renderer.io.gltf_model  # noqa: F401
+    from renderer.geometry.scene import SceneError
+    from renderer.io.mesh_io import load_model as parse
+    from renderer.materials.envmap import read_image
 
     try:
         import ctypes

@@ -34,8 +34,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
+from renderer.config.settings import SettingValues
 from renderer.limits import MAX_PATH_SAMPLES
-from renderer.settings import SettingValues
 
 from ..faults import FrameTooLarge, InputError, NotFound, Superseded
 from ..frames.encode import Frame

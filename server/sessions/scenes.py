@@ -3,15 +3,15 @@
 A session's scene is stored as a *source*, not re-serialised for every change:
 
 - a thesis scenario is its recipe ``{"scenario", "n", "seed", "radius"}`` (a few
-  bytes; ``renderer.scenarios.scenario`` is deterministic), and an animated Museum
+  bytes; ``renderer.scenes.scenarios.scenario`` is deterministic), and an animated Museum
   its recipe ``{"museum": {"n", "kind", "seed", "absent"}}``;
 - an uploaded scene is its small parts (and motions) as JSON plus the sphere arrays,
   the meshes' arrays (world-space vertices, triangles, normals, each mesh's rows
   concatenated; the JSON says how many rows are whose) and the analytic shapes' records
-  (kind, 12 numbers, material: :class:`renderer.shapes.Shapes` as it holds them), in one
+  (kind, 12 numbers, material: :class:`renderer.geometry.shapes.Shapes` as it holds them), in one
   compressed ``.npz``.
 
-An animated scene (one with motions) is an :class:`~renderer.animation.AnimatedScene`;
+An animated scene (one with motions) is an :class:`~renderer.scenes.animation.AnimatedScene`;
 ``SessionScene`` is either kind. The renderer poses it at the frame's ``time``.
 
 The camera is not part of the source (it lives in the session state), so a
@@ -32,14 +32,14 @@ from typing import Any
 
 import numpy as np
 
-from renderer import texture_layout
-from renderer.animation import AnimatedScene, motion_from_json, motion_to_json, museum
-from renderer.envmap import SKY_REF
+from renderer.geometry.scene import VERTEX_ATTRIBUTES, Camera, Material, Mesh, Scene, SceneError, make_mesh
+from renderer.geometry.shapes import Shapes
+from renderer.gpu import texture_layout
+from renderer.materials.envmap import SKY_REF
 from renderer.materials.kinds import material_from_json
 from renderer.materials.texture import Texture
-from renderer.scenarios import content_box, object_boxes, scenario
-from renderer.scene import VERTEX_ATTRIBUTES, Camera, Material, Mesh, Scene, SceneError, make_mesh
-from renderer.shapes import Shapes
+from renderer.scenes.animation import AnimatedScene, motion_from_json, motion_to_json, museum
+from renderer.scenes.scenarios import content_box, object_boxes, scenario
 
 from ..contract.scene import CameraModel, SceneModel
 
@@ -323,7 +323,7 @@ def scene_json_chunks(scene: SessionScene, spheres_per_chunk: int = 20000) -> It
 
 
 def tree_primitives(info: dict[str, Any]) -> int:
-    """:attr:`renderer.scene.Scene.n_tree_primitives` of the scene a session's ``scene_info`` describes
+    """:attr:`renderer.geometry.scene.Scene.n_tree_primitives` of the scene a session's ``scene_info`` describes
     (spheres, triangles and analytic shapes at rest; a kind the info leaves out has none): what
     ``method=auto`` chooses by without loading the scene."""
     return info.get("n_spheres", 0) + info.get("n_triangles", 0) + info.get("n_shapes", 0)

@@ -25,14 +25,14 @@ import threading
 from dataclasses import dataclass, replace
 from typing import Any, cast
 
-from renderer.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum
-from renderer.envmap import STORED_TEXEL_BYTES, EnvironmentMap, declared_size, image_ref
+from renderer.config.settings import SettingValues
+from renderer.geometry.scene import Camera, Scene, SceneError
+from renderer.io.mesh_io import fit_transform
+from renderer.io.model import Model
 from renderer.limits import MAX_TEXTURE_TEXELS, MAX_TEXTURES, MAX_TRIANGLES
-from renderer.mesh_io import fit_transform
-from renderer.model import Model
-from renderer.scenarios import DEFAULT_DEMO, demo_for_recipe, framed, mesh_scene, scenario
-from renderer.scene import Camera, Scene, SceneError
-from renderer.settings import SettingValues
+from renderer.materials.envmap import STORED_TEXEL_BYTES, EnvironmentMap, declared_size, image_ref
+from renderer.scenes.animation import MUSEUM_ROOM_SPHERES, AnimatedScene, museum
+from renderer.scenes.scenarios import DEFAULT_DEMO, demo_for_recipe, framed, mesh_scene, scenario
 
 from ..config import ServerConfig
 from ..contract.scene import SceneModel

@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from renderer.settings import SettingValues
+from renderer.config.settings import SettingValues
 
 from ..config import ServerConfig
 from ..frames.accumulate import AccumulationKey, accumulation_key

@@ -51,7 +51,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Protocol, cast
 
-from renderer.settings import SettingValues
+from renderer.config.settings import SettingValues
 
 log = logging.getLogger("pocketray.store")
 

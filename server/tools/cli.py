@@ -26,8 +26,8 @@ validated by the same models and by ``RenderSettings``, with ``--spp`` for
 docs/FORMATS.md (:class:`server.api.schemas.SceneModel`). The output format follows the file's
 extension. Errors are the API's 422 messages (``width: …``), exit status 2.
 
-``render`` also takes a model file (any format :mod:`renderer.mesh_io` loads, told by its
-suffix): :func:`renderer.mesh_io.model_scene` makes its scene — the model scaled so that its
+``render`` also takes a model file (any format :mod:`renderer.io.mesh_io` loads, told by its
+suffix): :func:`renderer.io.mesh_io.model_scene` makes its scene — the model scaled so that its
 longest side is ``--size`` (default 30) world units, centred on the y axis and standing on the
 floor plane y = −20, seen by a camera that frames that box, under one light — the scene a
 model uploaded with ``POST /api/sessions/{id}/meshes?size=…`` stands in. ``scene --mesh``
@@ -49,7 +49,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from renderer.settings import SettingValues
+    from renderer.config.settings import SettingValues
 
 EXTENSIONS = {".png": "png", ".jpg": "jpeg", ".jpeg": "jpeg", ".npy": "npy", ".exr": "exr"}
 ENV_PREFIX = "POCKETRAY_"
@@ -190,8 +190,8 @@ def _add_render(sub: argparse._SubParsersAction) -> None:
 def _render_notes() -> dict[str, str]:
     """What a render flag's help adds to the API's description: the command's defaults and the
     limit they meet."""
+    from renderer.frame.profiles import STILL
     from renderer.limits import MAX_IMAGE_SIDE, SAMPLES_PER_PIXEL
-    from renderer.profiles import STILL
 
     from ..config import ServerConfig
 
@@ -239,13 +239,13 @@ def _add_model_flags(p: argparse.ArgumentParser) -> None:
 
 def is_model(path: str) -> bool:
     """Whether ``path`` names a model file or a zip of a model's folder (by its suffix)."""
-    from renderer.mesh_io import UPLOAD_FORMATS
+    from renderer.io.mesh_io import UPLOAD_FORMATS
 
     return Path(path).suffix.lower().lstrip(".") in UPLOAD_FORMATS
 
 
 def _size(size: float) -> float:
-    from renderer.scenarios import CUBE_HALF
+    from renderer.scenes.scenarios import CUBE_HALF
 
     if not (0.0 < size <= 2 * CUBE_HALF):  # what the upload's size takes (MeshUploadQuery)
         raise UsageError(f"size: greater than 0 and at most {2 * CUBE_HALF:g}")
@@ -253,10 +253,10 @@ def _size(size: float) -> float:
 
 
 def model_file_scene(path: str, size: float = 30.0, smooth: bool | None = None) -> Any:
-    """The scene ``render MODEL`` renders (:func:`renderer.mesh_io.model_scene`). UsageError
+    """The scene ``render MODEL`` renders (:func:`renderer.io.mesh_io.model_scene`). UsageError
     naming ``model`` for a file that cannot be read or is not a model."""
-    from renderer.mesh_io import model_scene
-    from renderer.scene import SceneError
+    from renderer.geometry.scene import SceneError
+    from renderer.io.mesh_io import model_scene
 
     if not Path(path).is_file():
         raise UsageError(f"model: cannot read {path}: no such file")
@@ -285,8 +285,8 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
     Returns what was done (method, size, format, timings in ms). UsageError on bad input."""
     from pydantic import ValidationError
 
-    from renderer.plan import plan_method
-    from renderer.scene import SceneError
+    from renderer.frame.plan import plan_method
+    from renderer.geometry.scene import SceneError
 
     from ..api.schemas import FrameQuery, SceneModel
     from ..config import ServerConfig
@@ -327,7 +327,7 @@ def render_file(scene_text: str | None, output: Path, flags: dict[str, str], sce
     t_ctx = time.perf_counter()
     result = renderer.render(scene, rs.with_(update="rebuild"))
     if rs.denoise != Denoiser.OFF:  # the flag names it: png, jpeg, npy and exr alike
-        from renderer.denoise import denoise_result
+        from renderer.image.denoise import denoise_result
 
         result = denoise_result(result, scene, rs.denoise)
     body, encode_ms = encode(
@@ -378,9 +378,9 @@ def _read(path: str) -> str:
 # ---- scenario -----------------------------------------------------------------------------------
 def scenario_names() -> dict[str, list[Any]]:
     """The ``scenario`` command's choices, made from the demo scenes' registry
-    (:data:`renderer.scenarios.DEMO_SCENES`): each name and the entries it writes (``2`` is
+    (:data:`renderer.scenes.scenarios.DEMO_SCENES`): each name and the entries it writes (``2`` is
     scenario 2 and, with ``--sky``, ``sky:2``)."""
-    from renderer.scenarios import DEMO_SCENES
+    from renderer.scenes.scenarios import DEMO_SCENES
 
     names: dict[str, list[Any]] = {}
     for d in DEMO_SCENES:
@@ -406,7 +406,7 @@ def _scenario_epilog() -> str:
 
 
 def _add_scenario(sub: argparse._SubParsersAction) -> None:
-    from renderer.animation import MUSEUM_KINDS
+    from renderer.scenes.animation import MUSEUM_KINDS
 
     names = list(scenario_names())
     p = sub.add_parser(
@@ -450,10 +450,10 @@ def scenario_scene(
     sky: bool = False,
 ) -> Any:
     """The scene (or animated scene) the ``scenario`` command writes; validated as the API does."""
-    from renderer.animation import MUSEUM_ROOM_SPHERES, museum
+    from renderer.geometry.scene import SceneError
     from renderer.limits import MAX_SPHERES
-    from renderer.scenarios import MESH_SCENES, mesh_scene, scenario
-    from renderer.scene import SceneError
+    from renderer.scenes.animation import MUSEUM_ROOM_SPHERES, museum
+    from renderer.scenes.scenarios import MESH_SCENES, mesh_scene, scenario
 
     if which in MESH_SCENES:
         return mesh_scene(which, sky=sky)
@@ -477,7 +477,7 @@ def write_scenario(args: argparse.Namespace) -> int:
     scene = scenario_scene(args.which, args.n, args.seed, args.radius, args.kind, args.absent, args.sky)
     if args.aspect is not None:
         from renderer.limits import ASPECT_RANGE
-        from renderer.scenarios import framed
+        from renderer.scenes.scenarios import framed
 
         lo, hi = ASPECT_RANGE
         if not lo <= args.aspect <= hi:
@@ -518,8 +518,8 @@ def models_scene(paths: list[str], size: float = 30.0, smooth: bool | None = Non
     """The scene JSON ``scene --mesh`` writes, validated as the API validates a scene."""
     from pydantic import ValidationError
 
-    from renderer.mesh_io import models_scene_json
-    from renderer.scene import SceneError
+    from renderer.geometry.scene import SceneError
+    from renderer.io.mesh_io import models_scene_json
 
     from ..api.schemas import SceneModel
     from ..sessions.scenes import scene_from_model

@@ -1,6 +1,6 @@
 """The shapes experiment's tessellations: vertices on the exact surface of the analytic shape they
 stand for, every triangle wound outwards, corner normals the exact ones. The oracle is
-renderer/shapes.py (the analytic record, its float64 ``normals``), not the tessellation code."""
+renderer/geometry/shapes.py (the analytic record, its float64 ``normals``), not the tessellation code."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from bench.experiments.shapes import OBJECTS, shape_row, tessellate
-from renderer.shapes import CONE, CYLINDER, DISK, TORUS, Shapes, normals
+from renderer.geometry.shapes import CONE, CYLINDER, DISK, TORUS, Shapes, normals
 
 LEVEL = 12
 

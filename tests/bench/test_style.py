@@ -11,7 +11,7 @@ import pytest
 
 from bench.experiments import EXPERIMENTS
 from bench.experiments.style import METHOD_STYLE, legend_outside, method_of, plt, series
-from renderer.methods import METHODS
+from renderer.config.methods import METHODS
 from tests.helpers import ROOT
 
 pytestmark = pytest.mark.long  # every chart of docs/figures/ redrawn, ray_engines' by rendering

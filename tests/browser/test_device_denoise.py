@@ -1,6 +1,6 @@
 """Device mode accumulates and denoises as the server does.
 
-- The à-trous filter's GLSL (client_web/js/device/device_gl.js) is renderer/atrous.py's NumPy
+- The à-trous filter's GLSL (client_web/js/device/device_gl.js) is renderer/image/atrous.py's NumPy
   port, run on the very inputs the device read back (its mean radiance and guides).
 - On a noisy 16-sample Cornell box the device's filtered frame is closer to Mitsuba 3's (the
   independent oracle) than its unfiltered one.
@@ -22,11 +22,11 @@ import numpy as np
 import pytest
 from browser_support import MOBILE, Client, Touch, http_json
 
-from renderer import mitsuba_scene
-from renderer.atrous import atrous
+from renderer.image.atrous import atrous
+from renderer.image.tonemap import display_u8
 from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
-from renderer.scenarios import mesh_scene
-from renderer.tonemap import display_u8
+from renderer.oracle import mitsuba_scene
+from renderer.scenes.scenarios import mesh_scene
 from tests.helpers import psnr
 
 SIDE = 32
@@ -90,7 +90,7 @@ def live_radiance(c: Client) -> np.ndarray:
 
 def test_the_resting_view_accumulates_passes_into_the_servers_frame(gl_browser, server):
     spp = 4 * DEVICE_PATH_SAMPLES_PER_PASS  # four rests of one pass each
-    # A square screen: the Cornell box is framed for the screen's aspect (renderer/scenarios.py
+    # A square screen: the Cornell box is framed for the screen's aspect (renderer/scenes/scenarios.py
     # fit_camera), so the square frames compared here show it as large as a portrait screen's width does.
     ctx = gl_browser.new_context(**{**MOBILE, "viewport": {"width": 360, "height": 360}})
     try:

@@ -142,7 +142,7 @@ def test_one_layout_small_textures_and_the_javascript_camera(device_page, server
 
 def test_controller_port_matches_the_server(device_page):
     """device.js's pan / pinch are server/sessions/controller.py's (the local camera moves as the Model's)."""
-    from renderer.scene import Camera
+    from renderer.geometry.scene import Camera
     from server.sessions import controller
 
     cam = {"position": [3.0, -2.0, 80.0], "target": [1.0, 0.5, -4.0], "up": [0.1, 1.0, 0.0], "fov_y": 50.0}
@@ -247,10 +247,10 @@ def test_without_webgl2_the_client_falls_back_to_the_server(open_client):
 def test_device_data_is_the_gpu_layout_and_refuses_what_a_device_cannot_run(server, sessions):
     """The blob holds gpu_layout's arrays bit for bit; multi-pass methods, tiny textures and
     devices without float targets get a 422 that says why; the shader is the server's text."""
-    from renderer import gpu_layout
-    from renderer.methods import METHODS
-    from renderer.scenarios import scenario
-    from renderer.shader_source import tracer_source as shader_source
+    from renderer.config.methods import METHODS
+    from renderer.frame.shader_source import tracer_source as shader_source
+    from renderer.gpu import gpu_layout
+    from renderer.scenes.scenarios import scenario
     from server.frames.device_data import decode_blob
 
     sid = sessions(2, 64)
@@ -292,7 +292,7 @@ def test_device_data_is_the_gpu_layout_and_refuses_what_a_device_cannot_run(serv
 
 def test_orbit_port_matches_the_server(device_page):
     """device.js's orbit is server/sessions/controller.py's, pole clamping included."""
-    from renderer.scene import Camera
+    from renderer.geometry.scene import Camera
     from server.sessions import controller
 
     cams = [
@@ -315,10 +315,10 @@ def test_orbit_port_matches_the_server(device_page):
 
 @pytest.mark.parametrize("scenario,n", [(1, 64), (3, 1024)])
 def test_device_frames_agree_with_the_server_at_the_still_profile(device_page, server, sessions, scenario, n):
-    """The still profile (renderer/profiles.py: depth 8, 4 samples per pixel, ε 0.03) on both sides:
+    """The still profile (renderer/frame/profiles.py: depth 8, 4 samples per pixel, ε 0.03) on both sides:
     the device traces 2 × 2 sub-pixels in bands, box-filters them and takes ids from the centre one,
     as the server does."""
-    from renderer.profiles import STILL
+    from renderer.frame.profiles import STILL
 
     sid = sessions(scenario, n)
     still = {k: STILL[k] for k in ("max_recursion_depth", "samples_per_pixel", "min_weight")}
@@ -417,10 +417,10 @@ def test_device_traces_a_scene_with_meshes(device_page, server, method):
 
 @pytest.mark.parametrize("method", ["bih", "bvh"])
 def test_device_traces_analytic_shapes(device_page, server, method):
-    """The demo table (cylinders, cones, disks, a torus, a glass lens, renderer/scenarios.py): the
+    """The demo table (cylinders, cones, disks, a torus, a glass lens, renderer/scenes/scenarios.py): the
     shape records and the SHAPES variant (shaders/shapes_tracer.glsl) on ANGLE give the server's
     picture."""
-    from renderer.scenarios import mesh_scene
+    from renderer.scenes.scenarios import mesh_scene
 
     scene = mesh_scene("table")
     # (Whitted: the demo recommends the path integrator, whose frames these are not)

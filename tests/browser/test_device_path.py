@@ -8,7 +8,7 @@ i alone), so the frames differ only by the two GL implementations' float arithme
 llvmpipe; Chromium's ANGLE on SwiftShader here): the device's frame is the server's at the same
 sample count, PSNR ≥ 40 dB, for the Cornell box with bih and bvh (and the other one-pass tree
 methods). The display's tone map (GLSL, client_web/js/device/device_gl.js) is checked against
-renderer/tonemap.py on the device's own radiance. Nothing here skips.
+renderer/image/tonemap.py on the device's own radiance. Nothing here skips.
 """
 
 from __future__ import annotations
@@ -22,8 +22,8 @@ import pytest
 from browser_support import MOBILE, Client, canvas_rgb, http_json
 from PIL import Image
 
+from renderer.image.tonemap import display_u8
 from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
-from renderer.tonemap import display_u8
 from tests.helpers import psnr
 
 pytestmark = pytest.mark.long  # a browser tracing paths on the device
@@ -95,7 +95,7 @@ def test_device_path_frame_equals_the_servers(device_page, server, method):
     shown = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
     print(f"{method}: tone-mapped canvas against the server's png: {psnr(dev['color'], shown):.2f} dB")
     assert psnr(dev["color"], shown) >= 40.0, psnr(dev["color"], shown)
-    # The canvas is renderer/tonemap.py's display of the device's own radiance (GLSL float32 vs
+    # The canvas is renderer/image/tonemap.py's display of the device's own radiance (GLSL float32 vs
     # NumPy float64: a byte apart at most, at a rounding boundary).
     mine = display_u8(dev["radiance"], TONE["tone_map"], TONE["exposure"])
     diff = np.abs(dev["color"].astype(int) - mine.astype(int))

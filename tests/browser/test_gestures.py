@@ -88,7 +88,7 @@ def test_two_finger_spread_moves_forward_and_pinch_moves_back(open_client, artif
 
 def test_double_tap_resets_the_camera(open_client):
     c = open_client("mobile")
-    home = c.camera()  # the scene's camera framed for this screen's aspect (renderer/scenarios.py fit_camera)
+    home = c.camera()  # the scene's camera framed for this screen's aspect (renderer/scenes/scenarios.py fit_camera)
     touch = Touch(c.page)
     n0 = c.frame_count
     touch.gesture([(150, 300)], [(220, 260)])

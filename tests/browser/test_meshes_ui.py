@@ -8,9 +8,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from renderer.mesh_io import export_mesh, load_mesh
-from renderer.meshes import icosphere
-from renderer.scenarios import mesh_scene
+from renderer.geometry.meshes import icosphere
+from renderer.io.mesh_io import export_mesh, load_mesh
+from renderer.scenes.scenarios import mesh_scene
 
 PICKER = "#f-model"
 CORPUS = Path("/usr/share/assimp/models")  # Debian's assimp-testmodels (scripts/bootstrap.sh)

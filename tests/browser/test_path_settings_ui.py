@@ -1,5 +1,5 @@
 """The settings sheet with the path integrator: the samples select offers counts of paths (those the
-service's work cap admits at the frame's size, counted as renderer/cost.py counts them), the depth goes
+service's work cap admits at the frame's size, counted as renderer/frame/cost.py counts them), the depth goes
 to 16, a count picked reaches the session, and going back to Whitted carries its own values."""
 
 from __future__ import annotations

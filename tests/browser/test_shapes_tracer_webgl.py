@@ -1,5 +1,5 @@
 """The tracer's variants with analytic shapes (shaders/shapes.glsl and shaders/shapes_tracer.glsl,
-chunks compiled where FEATURE_SHAPES is 1, renderer/shader_source.py) compile and link as GLSL ES 3.00 in WebGL2
+chunks compiled where FEATURE_SHAPES is 1, renderer/frame/shader_source.py) compile and link as GLSL ES 3.00 in WebGL2
 (headless Chromium, ANGLE on SwiftShader): the text a device would get from GET /api/shader.
 (Device frames of such scenes wait for the service to accept the shapes' JSON keys.)"""
 
@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import pytest
 
-from renderer.gpu_layout import Variant
-from renderer.shader_source import variant_source, vertex_source
+from renderer.frame.shader_source import variant_source, vertex_source
+from renderer.gpu.gpu_layout import Variant
 
 COMPILE = """([vs, fs]) => {
   const gl = document.createElement('canvas').getContext('webgl2');

@@ -4,7 +4,7 @@ screen, and the canvas's label counts its shapes (no triangle)."""
 
 from __future__ import annotations
 
-from renderer.scenarios import mesh_scene
+from renderer.scenes.scenarios import mesh_scene
 
 
 def test_the_table_of_analytic_shapes_is_in_the_scene_picker(open_client, server):

@@ -13,10 +13,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from renderer import gpu_layout, reference, texture_layout
+from renderer.geometry.scene import Camera, Material, Scene, make_mesh
+from renderer.gpu import gpu_layout, texture_layout
 from renderer.materials.pbr import PbrMaterial
 from renderer.materials.texture import Texture
-from renderer.scene import Camera, Material, Scene, make_mesh
+from renderer.oracle import reference
 from server.frames.device_data import encode_blob, surface_info
 from tests.renderer.gl.texture_probe import PBR_TEXELS, VERTEX, fragment_source
 

@@ -105,7 +105,7 @@ def test_a_declared_setting_is_shown_by_the_settings_sheet(open_client):
     way here; tests/server/test_setting_declaration.py adds one to the table itself and sees the API take it)
     gets a labelled field within its bounds and with its default, shown for the modes that read it; a value
     outside its bounds is refused by the sheet, and another is PATCHed as that setting."""
-    from renderer.settings import SettingSpec
+    from renderer.config.settings import SettingSpec
 
     extra = SettingSpec(
         "gain",

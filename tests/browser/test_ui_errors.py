@@ -143,7 +143,7 @@ def test_a_refusal_by_the_service_is_shown_at_its_field_in_the_panels_words(open
 
 def test_a_scene_too_heavy_to_render_gets_the_services_explanation(open_client, server):
     """n = 2,097,152 at 16 samples per pixel: the service refuses the new session with its 422 — the frame's estimated
-    cost is over POCKETRAY_MAX_FRAME_COST, its spheres crowding every ray (renderer/cost.py).
+    cost is over POCKETRAY_MAX_FRAME_COST, its spheres crowding every ray (renderer/frame/cost.py).
     The client asks once, says why next to n, and keeps the scene on screen — and its
     session — with the overlay describing it."""
     c = open_client("wide")

@@ -51,7 +51,7 @@ AT_LEAST = 84
 @cache
 def declared_settings() -> Path:
     """The render settings' declarations as GET /api/info gives them (units/declared.mjs reads them), in a file."""
-    from renderer.settings import SETTINGS
+    from renderer.config.settings import SETTINGS
 
     path = Path(tempfile.mkdtemp(prefix="pocketray-units-")) / "settings.json"
     path.write_text(json.dumps([s.metadata() for s in SETTINGS]))

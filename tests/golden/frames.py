@@ -40,7 +40,7 @@ def scenes() -> dict[str, Any]:
     """The catalogue's scenes, framed for W × H: spheres with planes, spheres under the sky (an
     environment map), triangles with spheres, analytic shapes with a light, and the Cornell box
     (emitting triangles)."""
-    from renderer.scenarios import framed, mesh_scene, scenario
+    from renderer.scenes.scenarios import framed, mesh_scene, scenario
 
     aspect = W / H
     return {
@@ -74,8 +74,8 @@ def render_all(scene: str) -> dict[str, np.ndarray]:
     """The cases of ``scene`` rendered by the engine importable here: arrays named ``<key>/<array>``.
     (Each method's compiled variants are released after its frames: llvmpipe keeps megabytes per
     program.)"""
+    from renderer.config.settings import RenderSettings
     from renderer.gl import GLRenderer
-    from renderer.settings import RenderSettings
 
     sc = scenes()
     r = GLRenderer()

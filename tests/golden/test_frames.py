@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from renderer.settings import RenderSettings
+from renderer.config.settings import RenderSettings
 from tests.golden import frames as F
 
 EXPECTED = np.load(F.FRAMES)

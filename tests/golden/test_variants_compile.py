@@ -3,8 +3,8 @@
 The variants come from the registries: every one-pass method (``METHODS``), every single-pass
 mode (``SINGLE_PASS_MODES``), every integrator (the ``integrator`` setting's choices; paths in
 colour only), the primitive kinds beyond spheres (``TRIANGLES``, ``SHAPES``, both), the light
-beyond the thesis's (``renderer.features.LIGHTING``), each define of
-``renderer.features.FEATURE_DEFINES`` on its own, the recursion depths that change the text
+beyond the thesis's (``renderer.frame.features.LIGHTING``), each define of
+``renderer.frame.features.FEATURE_DEFINES`` on its own, the recursion depths that change the text
 (1: primary rays only, 2: the least that spawns, the limits) and the host's choices (uniform
 blocks, the RGBA8 image, the background variant, rasterised first hits). The full product is
 far too large to compile; this covers every value of every axis, the kinds with every method,
@@ -16,12 +16,13 @@ from __future__ import annotations
 import hashlib
 import itertools
 
-from renderer import features as F, limits
-from renderer.gpu_layout import Variant
-from renderer.methods import METHODS
+from renderer import limits
+from renderer.config.methods import METHODS
+from renderer.config.settings import SETTINGS
+from renderer.frame import features as F
+from renderer.frame.shader_source import variant_source, vertex_source
+from renderer.gpu.gpu_layout import Variant
 from renderer.modes import SINGLE_PASS_MODES
-from renderer.settings import SETTINGS
-from renderer.shader_source import variant_source, vertex_source
 
 ONE_PASS = tuple(name for name, m in METHODS.items() if m.capabilities.shader)
 INTEGRATORS = next(s.choices for s in SETTINGS if s.name == "integrator")
@@ -31,7 +32,7 @@ PATH_LIGHT = ("EMISSION", "ENVIRONMENT_MAP", "PATH", "GUIDES")
 
 
 def _ordered(defines) -> tuple[str, ...]:
-    """Defines in FEATURE_DEFINES order (as renderer.features emits them)."""
+    """Defines in FEATURE_DEFINES order (as renderer.frame.features emits them)."""
     return tuple(d for d in F.FEATURE_DEFINES if d in set(defines))
 
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from renderer.meshes import icosphere, teapot, torus
-from renderer.scenarios import mesh_scene
-from renderer.scene import Camera
+from renderer.geometry.meshes import icosphere, teapot, torus
+from renderer.geometry.scene import Camera
+from renderer.scenes.scenarios import mesh_scene
 
 
 @pytest.fixture(scope="session")
@@ -66,6 +66,6 @@ EVERY_SHAPE = {
 def every_shape_scene():
     """A glass torus, a capped and an open (mirror) cylinder, a glass frustum, a disk and an
     annulus, two spheres and a plane: every kind of analytic shape, and rays that leave them."""
-    from renderer.scene import Scene
+    from renderer.geometry.scene import Scene
 
     return Scene.from_json(EVERY_SHAPE)

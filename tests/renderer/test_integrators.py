@@ -15,15 +15,15 @@ def test_members_are_their_json_strings():
 
 
 def test_the_settings_offer_exactly_the_members():
-    from renderer.settings import setting
+    from renderer.config.settings import setting
 
     for name, choices in (("integrator", Integrator), ("tone_map", ToneMap), ("denoise", Denoiser)):
         assert setting(name).choices == values(choices), name
 
 
 def test_every_tone_map_has_its_operator_and_every_denoiser_its_bytes():
-    from renderer.denoise import BYTES_PER_PIXEL, denoise_nbytes
-    from renderer.tonemap import OPERATORS
+    from renderer.image.denoise import BYTES_PER_PIXEL, denoise_nbytes
+    from renderer.image.tonemap import OPERATORS
 
     assert set(OPERATORS) == set(ToneMap)
     assert set(BYTES_PER_PIXEL) == set(Denoiser) - {Denoiser.OFF}
@@ -31,7 +31,7 @@ def test_every_tone_map_has_its_operator_and_every_denoiser_its_bytes():
 
 
 def test_a_method_says_its_integrators_as_members():
-    from renderer.methods import METHODS, integrator_methods
+    from renderer.config.methods import METHODS, integrator_methods
 
     assert METHODS["bih"].capabilities.integrators == (Integrator.WHITTED, Integrator.PATH)
     assert METHODS["hre"].capabilities.integrators == (Integrator.WHITTED,)

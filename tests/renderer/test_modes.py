@@ -11,7 +11,7 @@ import re
 import numpy as np
 import pytest
 
-from renderer import shader_source
+from renderer.frame import shader_source
 from renderer.limits import MAX_RECURSION_DEPTH
 from renderer.modes import (
     HEAT_SCALE,

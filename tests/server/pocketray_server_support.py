@@ -17,8 +17,8 @@ import httpx
 import numpy as np
 import pytest
 
-from renderer.meshes import box, icosphere
-from renderer.scenarios import scenario
+from renderer.geometry.meshes import box, icosphere
+from renderer.scenes.scenarios import scenario
 from server.config import ServerConfig
 
 ROOT = Path(__file__).resolve().parents[2]

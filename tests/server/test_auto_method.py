@@ -1,4 +1,4 @@
-"""``method=auto`` is resolved in one place (renderer.plan) on one count, the tree's primitives: a scene
+"""``method=auto`` is resolved in one place (renderer.frame.plan) on one count, the tree's primitives: a scene
 of meshes alone — no sphere, hundreds of triangles — gets the same method from the input caps, its
 frames, its device data and its build statistics."""
 
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pocketray_server_support import SMALL
 
-from renderer.methods import AUTO_CROSSOVER_N
+from renderer.config.methods import AUTO_CROSSOVER_N
 from server.frames.device_data import decode_blob
 from server.frames.pipeline import render_settings
 from server.sessions.scenes import tree_primitives

@@ -6,7 +6,7 @@ from __future__ import annotations
 def test_new_sessions_default_to_the_still_profile(tmp_path):
     """Without default_render, a session's settings are RenderSettings' plus the measured 'still'
     profile, and the default work cap admits it at the client's largest 'fit' frame."""
-    from renderer.profiles import STILL
+    from renderer.frame.profiles import STILL
     from server.config import ServerConfig
 
     config = ServerConfig(sqlite_path=tmp_path / "s.db")

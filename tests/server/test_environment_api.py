@@ -11,7 +11,7 @@ import struct
 
 import numpy as np
 
-from renderer.envmap import write_hdr
+from renderer.materials.envmap import write_hdr
 
 TEXELS = np.linspace(0.0, 2.0, 8 * 16 * 3, dtype=np.float32).reshape(8, 16, 3)
 

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 import pytest
 from pydantic import ValidationError
 
+from renderer.geometry.scene import Material
 from renderer.limits import MAX_EMISSION, MAX_IOR, MAX_SHININESS
 from renderer.materials import param
-from renderer.scene import Material
 from server.contract.scene import MaterialModel, material_model
 
 

@@ -1,4 +1,4 @@
-"""A render setting is declared once (renderer.settings.SETTINGS, and its typed field of RenderSettings):
+"""A render setting is declared once (renderer.config.settings.SETTINGS, and its typed field of RenderSettings):
 one entry added to the table is validated by the API (body and query), kept by sessions, listed by GET
 /api/info and offered by ``pocketray render --help`` — with no other file touched.
 
@@ -17,7 +17,7 @@ import textwrap
 
 from pocketray_server_support import ROOT
 
-from renderer.settings import SETTINGS, SettingSpec
+from renderer.config.settings import SETTINGS, SettingSpec
 
 # The setting the test declares: a number with bounds, read in one mode, offered by the sheet.
 EXTRA = dict(
@@ -38,7 +38,7 @@ SCRIPT = textwrap.dedent("""
     from pathlib import Path
 
     sys.path[:0] = ["tests/server"]
-    import renderer.settings as declared
+    import renderer.config.settings as declared
 
     spec = declared.SettingSpec(**{**json.loads(sys.argv[1]), "bounds": tuple(json.loads(sys.argv[1])["bounds"]),
                                    "modes": tuple(json.loads(sys.argv[1])["modes"])})
@@ -157,7 +157,7 @@ def test_a_setting_added_to_the_declaration_reaches_the_api_info_and_cli(tmp_pat
 
 def test_the_declaration_agrees_with_the_service_defaults():
     """The service's own setting (quality) has the table's default as its configured default."""
-    from renderer.settings import setting
+    from renderer.config.settings import setting
     from server.config import ServerConfig
 
     assert ServerConfig().default_jpeg_quality == setting("quality").default

@@ -1,6 +1,6 @@
 """Analytic shapes through the service: a scene of every kind (cylinders, cones, disks, tori) is
 accepted, stored, streamed back and rendered — its primitive ids where the float64 reference tracer
-(renderer/reference.py) puts them —; bad shapes are 422 naming the field and the accepted range, and
+(renderer/oracle/reference.py) puts them —; bad shapes are 422 naming the field and the accepted range, and
 commit nothing; the ray engines refuse a scene with shapes naming the method; the demo scene
 ``table`` (analytic shapes only) is a recipe that renders in both integrators."""
 
@@ -15,12 +15,12 @@ import pytest
 from pocketray_server_support import MAX_BODY, SMALL, assert_422, make_config, snapshot
 from scipy.ndimage import binary_erosion
 
+from renderer.config.settings import RenderSettings
+from renderer.geometry.scene import Scene
+from renderer.geometry.shapes import KINDS
 from renderer.limits import MAX_SHAPES
-from renderer.reference import render_reference
-from renderer.scenarios import mesh_scene
-from renderer.scene import Scene
-from renderer.settings import RenderSettings
-from renderer.shapes import KINDS
+from renderer.oracle.reference import render_reference
+from renderer.scenes.scenarios import mesh_scene
 from server.api.schemas import SceneModel
 from server.faults import InputError
 from server.sessions.caps import InputCaps

@@ -1,8 +1,8 @@
 """The stability catalogue: adversarial scenes and cameras, defined in one place.
 
-Each :class:`Case` builds a :class:`~renderer.scene.Scene` and says what it
+Each :class:`Case` builds a :class:`~renderer.geometry.scene.Scene` and says what it
 attacks. ``test_catalogue.py`` runs every case through the GPU tracer with every
-method of ``renderer.methods.METHODS`` and through the float64 reference, and
+method of ``renderer.config.methods.METHODS`` and through the float64 reference, and
 ``docs/STABILITY.md`` is written from the results.
 
 Images are small (49 × 81 by default) so the whole catalogue runs in well under
@@ -33,9 +33,9 @@ import numpy as np
 
 from renderer.accel import bih_layout as L
 from renderer.accel.bih import build_for_spheres
-from renderer.scenarios import RED, TRANSPARENT, scenario
-from renderer.scene import Camera, Light, Material, Mesh, Plane, Scene
-from renderer.shapes import Shapes
+from renderer.geometry.scene import Camera, Light, Material, Mesh, Plane, Scene
+from renderer.geometry.shapes import Shapes
+from renderer.scenes.scenarios import RED, TRANSPARENT, scenario
 
 PRIMID_AGREEMENT = 0.999
 DEPTH_REL = 1e-4
@@ -264,7 +264,7 @@ AXIS_CAMERAS = {
 
 def zero_components(scene: Scene, width: int = W, height: int = H) -> str:
     """How many of the reference's primary rays have direction components exactly +0 / −0."""
-    from renderer.reference import primary_rays
+    from renderer.oracle.reference import primary_rays
 
     _, d = primary_rays(scene.camera, width, height)
     parts = []
@@ -432,8 +432,8 @@ def no_direct_light(scene, ref, gpu, method) -> list[str]:
     """With the light outside the closed room no point inside may be lit: the GPU frame
     must equal the reference of the same room with no light at all (ambient and its
     reflections only), and nowhere be brighter than the reference."""
-    from renderer.reference import render_reference
-    from renderer.settings import RenderSettings
+    from renderer.config.settings import RenderSettings
+    from renderer.oracle.reference import render_reference
 
     h, w = gpu.primid.shape
     dark = render_reference(
@@ -517,7 +517,7 @@ def _fov(fov: float) -> Scene:
 def float32_centre_ray(scene: Scene) -> str:
     """Which spheres the centre pixel's ray hits when its float64 direction is moved by up
     to ±3 float32 ulps per component (the GPU computes it in float32)."""
-    from renderer.reference import trace_rays
+    from renderer.oracle.reference import trace_rays
 
     _, _, fwd = scene.camera.basis()
     base = fwd.astype(np.float32)
@@ -989,7 +989,7 @@ _add(
 
 
 def _mesh_methods() -> tuple[str, ...]:
-    from renderer.methods import METHODS
+    from renderer.config.methods import METHODS
 
     return tuple(m for m, x in METHODS.items() if "triangles" in x.capabilities.primitives)
 
@@ -1089,7 +1089,7 @@ def mesh_box_seams() -> Scene:
     x = ±30 (shared with the side faces, seen edge-on), the pixels (7, 7) … exactly on its
     corners (three faces' shared vertex), and the diagonal pixels (u = v) exactly on the
     front face's diagonal, the edge its two triangles share."""
-    from renderer.meshes import box
+    from renderer.geometry.meshes import box
 
     cam = Camera((0.0, 0.0, 55.0), (0.0, 0.0, -30.0), (0.0, 1.0, 0.0), 90.0)
     return _mesh_scene(
@@ -1102,7 +1102,7 @@ def mesh_box_seams() -> Scene:
 def mesh_box_corner() -> Scene:
     """The box [−10, 10]³ seen along its diagonal: the centre ray goes exactly through the
     corner (10, 10, 10) shared by three faces (and their diagonals: up to six triangles)."""
-    from renderer.meshes import box
+    from renderer.geometry.meshes import box
 
     cam = Camera((50.0, 50.0, 50.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0)
     return _mesh_scene(cam, box((-10.0, -10.0, -10.0), (10.0, 10.0, 10.0), material=0))
@@ -1113,7 +1113,7 @@ def mesh_icosphere_edges() -> Scene:
     vertices (0, ±1, g) and their edge's midpoints all lie in the plane x = 0, so the centre
     column's rays (d.x = +0/−0, o.x = 0) run exactly along a chain of shared edges, and the
     centre ray through the shared vertex (0, 0, 10) (six triangles)."""
-    from renderer.meshes import icosphere
+    from renderer.geometry.meshes import icosphere
 
     cam = Camera((0.0, 0.0, 60.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0)
     return _mesh_scene(cam, icosphere(3, radius=10.0, material=2, smooth=False))
@@ -1136,7 +1136,7 @@ def mesh_grazing() -> Scene:
     in that plane: the centre row's rays lie in the triangles' plane (det = 0: never a hit,
     they must reach the icosphere behind), the rows below meet the grid at grazing angles
     down to 1/40 of a pixel's angle from the plane, across its shared edges."""
-    from renderer.meshes import icosphere
+    from renderer.geometry.meshes import icosphere
 
     v, t = _grid(16, 80.0)
     cam = Camera((0.0, 0.0, 100.0), (0.0, 0.0, -100.0), (0.0, 1.0, 0.0), 30.0)
@@ -1181,7 +1181,7 @@ def mesh_needles() -> Scene:
 def mesh_huge(subdivisions: int = 5, k: int = 4) -> Scene:
     """``k`` icospheres of ``subdivisions`` levels (4 × 20,480 = 81,920 triangles), packed
     in view and overlapping: far more triangles than pixels."""
-    from renderer.meshes import icosphere
+    from renderer.geometry.meshes import icosphere
 
     rng = np.random.default_rng(11)
     c = rng.uniform([-14, -10, -6], [14, 10, 6], (k, 3))
@@ -1194,7 +1194,7 @@ def mesh_huge(subdivisions: int = 5, k: int = 4) -> Scene:
 def mesh_offset_1e4() -> Scene:
     """An icosphere (radius 1, 2 subdivisions) and a box 1e4 units from the origin along every
     axis, the camera 6 units from them: float32 spacing there is 1e-3 (0.1 % of the radius)."""
-    from renderer.meshes import box, icosphere
+    from renderer.geometry.meshes import box, icosphere
 
     o = np.array([1e4, 1e4, 1e4])
     cam = Camera(tuple(o + (0.5, 0.8, 6.0)), tuple(o), (0.0, 1.0, 0.0), 40.0)
@@ -1294,7 +1294,7 @@ _add(
         methods=MESH_METHODS,
     ),
     # Brute force is left out: past limits.MAX_LOOP_PRIMITIVES (65,533, llvmpipe's loop limiter) it
-    # refuses the scene (tests/renderer/test_methods.py) rather than drop the last triangles.
+    # refuses the scene (tests/renderer/config/test_methods.py) rather than drop the last triangles.
     Case(
         "mesh_huge_81920",
         "81,920 triangles at 25 × 41 (80 per pixel): deep trees, many triangles per "
@@ -1329,7 +1329,7 @@ _add(
 
 
 def _shape_methods() -> tuple[str, ...]:
-    from renderer.methods import METHODS
+    from renderer.config.methods import METHODS
 
     return tuple(m for m, x in METHODS.items() if "shapes" in x.capabilities.primitives)
 

@@ -1,5 +1,5 @@
 """The stability catalogue: every case of ``cases.py`` × every method of
-``renderer.methods.METHODS``, through the GPU tracer and the float64 reference.
+``renderer.config.methods.METHODS``, through the GPU tracer and the float64 reference.
 
 :func:`evaluate` runs one (case, method) and returns its row of the report and its
 failures; ``test_catalogue.py`` asserts there are none, and ``write.py`` (``./dev
@@ -37,9 +37,9 @@ import time
 
 import numpy as np
 
-from renderer.methods import METHODS
-from renderer.reference import render_reference
-from renderer.settings import RenderSettings
+from renderer.config.methods import METHODS
+from renderer.config.settings import RenderSettings
+from renderer.oracle.reference import render_reference
 from tests.helpers import ROOT, psnr
 from tests.stability.cases import CASES, DEPTH_REL, PRIMID_AGREEMENT, PSNR_MIN, Case, float32_inputs, same_scene
 
@@ -207,7 +207,7 @@ def render_doc(rows: dict, gl_info: dict) -> str:
         "Written by `./dev stability` (`tests/stability/write.py`, which runs the whole",
         "catalogue of `tests/stability/test_catalogue.py`); do not edit by hand.",
         "Every case of `tests/stability/cases.py` is rendered by the GLSL tracer with every",
-        "method of `renderer.methods.METHODS` and by the float64 reference (`renderer/reference.py`).",
+        "method of `renderer.config.methods.METHODS` and by the float64 reference (`renderer/oracle/reference.py`).",
         "",
         "Each cell: ✓/✗ (all checks of the case passed), primid agreement with the reference,",
         "largest relative depth error where the ids agree, colour PSNR (uint8), and — when",
@@ -376,7 +376,7 @@ def evaluate(gl_renderer, case: Case, method: str) -> tuple[dict, list[str]]:
         if method not in dict(case.known_failures):  # a known failure is no yardstick for the others
             seen[method] = (gpu.primid, gpu.depth)
 
-        # Rasterised first hits (renderer/first_hits.py; the method does not matter to them) against
+        # Rasterised first hits (renderer/frame/first_hits.py; the method does not matter to them) against
         # this traversal's primary rays: the same ray and sphere test, so the same ids and t bitwise.
         if method == "bih" and scene.n_triangles == 0 and scene.n_shapes == 0 and scene.n_spheres:
             for how in ("raster", "tiles"):

@@ -4,7 +4,7 @@
 // (tests/browser/test_device_mode.py compares them).
 
 export const MIN_TARGET_DISTANCE = 1e-3;   // POCKETRAY_MIN_TARGET_DISTANCE's default
-export const MAX_COORDINATE = 1e7;         // renderer.scene.MAX_COORDINATE
+export const MAX_COORDINATE = 1e7;         // renderer.geometry.scene.MAX_COORDINATE
 export const MIN_POLAR_DEG = 1.0;          // controller.MIN_POLAR_DEG
 
 const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];

@@ -1,7 +1,7 @@
 // Device mode: the server's tracer, run by this browser in WebGL2.
 //
 // One shader, one tree layout: the fragment shader is the text the server compiles
-// (GET /api/shader), the textures and uniforms are what renderer.gpu_layout packs for
+// (GET /api/shader), the textures and uniforms are what renderer.gpu.gpu_layout packs for
 // moderngl, delivered as one binary blob (GET /api/sessions/{id}/device-data, format in
 // server/frames/device_data.py). The tree is still built by the server, per data request.
 //
@@ -69,7 +69,7 @@ export function parseDeviceData(buffer) {
   return { header, textures };
 }
 
-// renderer/gpu_layout.py's camera_uniforms and pass_uniforms, in float64 until the upload. width
+// renderer/gpu/gpu_layout.py's camera_uniforms and pass_uniforms, in float64 until the upload. width
 // and height are the traced size: the sub-pixels' grid when supersampling, traced in one pass
 // (scale 1, offset 0.5: every fragment one grid point, as the server's one-shot draw).
 // renderer/modes.py's AVERAGED_MODES: the images that are the mean of their sub-pixels.

@@ -19,10 +19,10 @@
 // which phones often lack), which keeps the first pass's id, normal and t. The resolve divides
 // the sum by the samples traced (the mean, as renderer/gl/frame.py's float64 sum / count), and
 // the display scales it by 2^exposure, tone-maps and sRGB-encodes it exactly as
-// renderer/tonemap.py's display_u8 does (DISPLAY_FS: the tone map's one GLSL copy).
+// renderer/image/tonemap.py's display_u8 does (DISPLAY_FS: the tone map's one GLSL copy).
 // A variant with GUIDES (a denoiser named) also writes the sums of the first hit's albedo and
 // normal (locations 2 and 3): the trace, sum and resolve targets then have four attachments, and
-// before the display the edge-avoiding à-trous filter (ATROUS_FS, renderer/atrous.py's GLSL copy,
+// before the display the edge-avoiding à-trous filter (ATROUS_FS, renderer/image/atrous.py's GLSL copy,
 // its parameters from the data's header) runs its passes on the mean, guided by their means.
 // continueTrace adds passes to a path-traced frame already shown (the sum kept: the device's
 // accumulation while the view rests).
@@ -133,7 +133,7 @@ void main() {
   }
 }`;
 
-// renderer/atrous.py's filter. ATROUS_PRE_FS demodulates the resolved mean by the albedo guide (at
+// renderer/image/atrous.py's filter. ATROUS_PRE_FS demodulates the resolved mean by the albedo guide (at
 // least u_albedo_floor) and measures each pixel's compressed luminance over the alike pixels around
 // it (weight exp(−|Δn|²/σ_n² − |Δa|²/σ_a²), itself left out, about its own value): the variance, the
 // least of the four 3 × 3 quadrants meeting at it, and a firefly scaled down to μ + k·√v of the whole
@@ -252,11 +252,11 @@ void main() {
   }
 }`;
 
-// renderer/tonemap.py's operators by name → u_tone_map (the display's branch).
+// renderer/image/tonemap.py's operators by name → u_tone_map (the display's branch).
 export const TONE_MAPS = Object.freeze({ clamp: 0, reinhard: 1, aces: 2 });
 
 // Whitted's image is display values already: clamped. The path integrator's mean radiance is
-// renderer/tonemap.py's display_u8: max(L, 0) · 2^exposure, the operator, clamp to [0, 1], the
+// renderer/image/tonemap.py's display_u8: max(L, 0) · 2^exposure, the operator, clamp to [0, 1], the
 // sRGB transfer function, then floor(255·c + 0.5) / 255 (the canvas stores k / 255 as k exactly).
 const DISPLAY_FS = `#version 300 es
 precision highp float;
@@ -637,7 +637,7 @@ export class DeviceRenderer {
     const prog = this.program(QUAD_VS, ATROUS_FS);
     common(prog);
     gl.uniform1fv(prog.uniforms.get('u_kernel').loc, new Float32Array(f.kernel));
-    // renderer/atrous.py's luminance_sigma: σ_l·√(noise_samples / samples) past noise_samples.
+    // renderer/image/atrous.py's luminance_sigma: σ_l·√(noise_samples / samples) past noise_samples.
     const sigma = f.sigma_luminance * Math.min(1, Math.sqrt(f.noise_samples / Math.max(1, trace.samplesDone)));
     gl.uniform1f(prog.uniforms.get('u_inv_luminance').loc, 1 / sigma);
     gl.uniform1f(prog.uniforms.get('u_sqrt_variance_floor').loc, Math.sqrt(f.variance_floor));

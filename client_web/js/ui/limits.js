@@ -18,10 +18,10 @@ const FALLBACK_METHODS = Object.freeze({
   bruteforce: { ...FALLBACK_METHOD, settings: [], tests_every_sphere: true },
 });
 const DEFAULT_LIMITS = Object.freeze({ max_image_side: 4096, max_spheres: 1 << 21, max_work: Infinity, max_bruteforce_work: Infinity });
-const MUSEUM_ROOM = 576;            // renderer.animation.MUSEUM_ROOM_SPHERES, when /api/info does not say
+const MUSEUM_ROOM = 576;            // renderer.scenes.animation.MUSEUM_ROOM_SPHERES, when /api/info does not say
 const MUSEUM_N_MAX = (1 << 21) - 1024;  // server.api.schemas.MuseumRecipe.n's bound
 const WHITTED_DEPTH = 8;            // renderer.limits.MAX_RECURSION_DEPTH, when /api/info does not say
-// The path integrator's segments per sample (renderer/cost.py), when /api/info does not say.
+// The path integrator's segments per sample (renderer/frame/cost.py), when /api/info does not say.
 const DEFAULT_PATH = Object.freeze({ segments_limit: 6.58, segments_rate: 0.644 });
 
 const fmt = (x) => (Number.isFinite(x) ? Math.floor(x).toLocaleString('en') : String(x));
@@ -43,7 +43,7 @@ export function pathInfo(info) {
 const isPath = (render) => render.integrator === 'path';
 
 // What setting `name` accepts, and means, for a frame of `render`'s integrator and mode: the service's
-// declaration (GET /api/info's settings[].integrators, renderer/settings.py's IntegratorValues) —
+// declaration (GET /api/info's settings[].integrators, renderer/config/settings.py's IntegratorValues) —
 // Whitted's samples are sub-pixel grids, the path integrator's any count of paths. Null when the
 // service declares none.
 export function integratorValues(name, ctx) {
@@ -60,13 +60,13 @@ export function subpixels(spp, ctx) {
 }
 
 // Segments (rays, shadow rays included) one path sample is expected to trace at max_recursion_depth
-// `depth`: renderer/cost.py's path_segments, with /api/info's numbers.
+// `depth`: renderer/frame/cost.py's path_segments, with /api/info's numbers.
 export function pathSegments(depth, info) {
   const p = pathInfo(info), d = Math.max(1, Math.floor(depth));
   return Math.min(2 * d - 1, p.segments_limit - (p.segments_limit - 1) * p.segments_rate ** (d - 1));
 }
 
-// What the service's max_work caps (renderer/cost.py's request_work): Whitted's width × height × depth ×
+// What the service's max_work caps (renderer/frame/cost.py's request_work): Whitted's width × height × depth ×
 // samples (a ray tree's levels); a path frame's expected segments, width × height × samples × segments(depth).
 export function requestWork(render, info, { spp = render.samples_per_pixel || 1, depth = render.max_recursion_depth || 1 } = {}) {
   const px = render.width * render.height;

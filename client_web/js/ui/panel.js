@@ -8,7 +8,7 @@
 // whenever they change, setInfo(info) once GET /api/info answered, and refused(explained)
 // with a 422 in the panel's words (messages.js).
 //
-// The render settings it shows are those GET /api/info declares for the sheet (renderer/settings.py):
+// The render settings it shows are those GET /api/info declares for the sheet (renderer/config/settings.py):
 // their names, types and labels come from there; a declared setting the page has no field for gets
 // one, made from its declaration (a number input within its bounds, or a select of its choices).
 

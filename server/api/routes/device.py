@@ -18,7 +18,7 @@ Two routes; the browser client's ``client_web/js/device/device.js`` uses both.
 
 ``GET /api/shader``
     The fragment shader of one variant exactly as the server compiles it
-    (:func:`renderer.shader_source.tracer_source`: ``raytrace.frag`` + the layout
+    (:func:`renderer.frame.shader_source.tracer_source`: ``raytrace.frag`` + the layout
     header + the variant's defines + ``method_<name>.glsl``), or with
     ``stage=vertex`` the vertex shader; ``text/plain``. The device-data header names
     the variant (its ``shader`` entry, with a ready ``url``).
@@ -38,13 +38,13 @@ from urllib.parse import urlencode
 from fastapi import APIRouter, Query, Response
 from fastapi.responses import PlainTextResponse
 
-from renderer import gpu_layout, texture_layout
 from renderer.accel.base import AccelerationMethod
-from renderer.methods import METHODS, not_on_gpu
+from renderer.config.methods import METHODS, not_on_gpu
+from renderer.frame.plan import plan_frame, plan_method
+from renderer.frame.shader_source import tracer_source, vertex_source
+from renderer.geometry.scene import SceneError
+from renderer.gpu import gpu_layout, texture_layout
 from renderer.modes import SINGLE_PASS_MODES
-from renderer.plan import plan_frame, plan_method
-from renderer.scene import SceneError
-from renderer.shader_source import tracer_source, vertex_source
 
 from ...faults import InputError, Where, input_error
 from ...frames.device_data import (
@@ -112,7 +112,7 @@ def check_single_pass_mode(mode: str) -> None:
 
 
 def parse_features(features: str | None) -> tuple[str, ...]:
-    """``"NO_LIGHTS,NO_REFLECTION"`` → the defines in renderer.features' order (422 for others)."""
+    """``"NO_LIGHTS,NO_REFLECTION"`` → the defines in renderer.frame.features' order (422 for others)."""
     given = [f.strip() for f in (features or "").split(",") if f.strip()]
     for f in given:
         if f not in FEATURE_DEFINES:
@@ -176,7 +176,7 @@ def device_data(
         # An animated scene is posed here; the tree is rebuilt (updates between frames
         # belong to the GL thread's renders, whose tree caches are not shared with this thread).
         scene, update = frames.posed(service.scene(state), chosen.time)
-        # The variant the server's frame of these settings compiles (renderer.plan): Whitted's tree, or
+        # The variant the server's frame of these settings compiles (renderer.frame.plan): Whitted's tree, or
         # with integrator 'path' the path integrator (its depth: segments of a path, up to
         # MAX_PATH_DEPTH); with a denoiser it writes the guides too (two more targets): a device filters
         # with à-trous whichever denoiser is named (OIDN does not run in a browser).

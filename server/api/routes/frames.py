@@ -23,7 +23,7 @@ from fastapi import APIRouter, Body, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse, StreamingResponse
 
-from renderer.settings import SettingValues
+from renderer.config.settings import SettingValues
 
 from ...faults import Where
 from ...frames.encode import FRAME_RESPONSE_DOC, Frame, frame_headers

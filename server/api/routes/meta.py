@@ -8,18 +8,18 @@ import anyio
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 
-from renderer.animation import MUSEUM_KINDS, MUSEUM_ROOM_SPHERES
-from renderer.cost import PATH_SEGMENTS_LIMIT, PATH_SEGMENTS_RATE
+from renderer.config.methods import AUTO_LABEL, AUTO_METHOD, METHODS, resolve_method
+from renderer.config.settings import FORMATS, METHOD_NAMES, MODES, SETTINGS, IntegratorValues, setting
+from renderer.frame.cost import PATH_SEGMENTS_LIMIT, PATH_SEGMENTS_RATE
+from renderer.frame.profiles import PROFILES
 from renderer.integrators import Integrator
 from renderer.limits import (
     MAX_IMAGE_SIDE,
 )
-from renderer.methods import AUTO_LABEL, AUTO_METHOD, METHODS, resolve_method
 from renderer.modes import AVERAGED_MODES, HEAT_SCALE, MODE_LABELS, RECURSION_COLOR_NAMES, RECURSION_COLORS
-from renderer.profiles import PROFILES
-from renderer.scenarios import DEMO_SCENES
-from renderer.settings import FORMATS, METHOD_NAMES, MODES, SETTINGS, IntegratorValues, setting
-from renderer.tree_update import UPDATE_SCHEMES
+from renderer.scenes.animation import MUSEUM_KINDS, MUSEUM_ROOM_SPHERES
+from renderer.scenes.scenarios import DEMO_SCENES
+from renderer.scenes.tree_update import UPDATE_SCHEMES
 
 from ...config import ServerConfig
 from ...http import metrics

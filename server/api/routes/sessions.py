@@ -9,8 +9,8 @@ from fastapi import APIRouter, Body, Query, Request, Response
 from fastapi.responses import StreamingResponse
 from starlette.concurrency import run_in_threadpool
 
-from renderer.mesh_io import UPLOAD_FORMATS, fit_transform, model_geometry
-from renderer.scene import SceneError
+from renderer.geometry.scene import SceneError
+from renderer.io.mesh_io import UPLOAD_FORMATS, fit_transform, model_geometry
 
 from ...faults import Busy, InputError, Where
 from ...sessions.model_worker import load_model, parse_client

@@ -1,4 +1,4 @@
-// The render settings the service declares (GET /api/info's `settings`, from renderer/settings.py),
+// The render settings the service declares (GET /api/info's `settings`, from renderer/config/settings.py),
 // taken by settings.js as the page takes them once /api/info has answered. test_units.py writes them
 // to the file POCKETRAY_SETTINGS_JSON names; run by hand, they are asked of the checkout's Python.
 
@@ -9,7 +9,7 @@ import { learnSettings } from '../../../client_web/js/settings.js';
 function declared() {
   const file = process.env.POCKETRAY_SETTINGS_JSON;
   if (file) return JSON.parse(readFileSync(file, 'utf8'));
-  const code = 'import json; from renderer.settings import SETTINGS; print(json.dumps([s.metadata() for s in SETTINGS]))';
+  const code = 'import json; from renderer.config.settings import SETTINGS; print(json.dumps([s.metadata() for s in SETTINGS]))';
   return JSON.parse(execFileSync('.venv/bin/python', ['-c', code], { encoding: 'utf8' }));
 }
 

@@ -69,12 +69,12 @@ test('valid values pass', () => {
 });
 
 // The path integrator: its sample counts are paths, its depth goes to 16, and a frame's work is
-// counted as the service counts it (renderer/cost.py's path_segments / request_work, from /api/info).
+// counted as the service counts it (renderer/frame/cost.py's path_segments / request_work, from /api/info).
 const pathInfo = { ...info, max_recursion_depth: 8,
   path: { samples_per_pixel: [1, 4, 16, 64, 256, 1024], max_samples: 4096, max_depth: 16, segments_limit: 6.58, segments_rate: 0.644 } };
 const pctx = (render = {}) => ({ ...ctx({ integrator: 'path', width: 126, height: 272, samples_per_pixel: 64, ...render }), info: pathInfo });
 
-test("a path sample's segments are the service's (renderer/cost.py's path_segments at depths 1, 2, 4, 8, 16)", () => {
+test("a path sample's segments are the service's (renderer/frame/cost.py's path_segments at depths 1, 2, 4, 8, 16)", () => {
   const want = [1.0, 2.98648, 5.0896378892800005, 6.3236488497546715, 6.572415582889342];
   [1, 2, 4, 8, 16].forEach((d, i) => assert.ok(Math.abs(lim.pathSegments(d, pathInfo) - want[i]) < 1e-12, `${d}`));
 });

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from renderer.methods import METHODS
-from renderer.scenarios import scenario
+from renderer.config.methods import METHODS
+from renderer.scenes.scenarios import scenario
 
 TREE_METHODS = ("bih", "bvh", "kdtree", "twolevel", "bruteforce")
 

@@ -24,9 +24,9 @@ from hypothesis import given, settings, strategies as st
 from renderer.accel import bih_layout as L
 from renderer.accel.bih import EMPTY_CUT_AREA, build_bih, build_for_scene, build_for_spheres, sphere_aabbs
 from renderer.accel.bih_traverse import brute_force, traverse
-from renderer.meshes import icosphere, teapot
-from renderer.reference import primary_rays
-from renderer.scenarios import scenario
+from renderer.geometry.meshes import icosphere, teapot
+from renderer.oracle.reference import primary_rays
+from renderer.scenes.scenarios import scenario
 from tests.helpers import HYP
 from tests.renderer.accel.support import decode, scenes
 
@@ -208,7 +208,7 @@ def test_empty_cuts_over_triangles(max_prims):
         assert gain.max() <= EMPTY_CUT_AREA * half_area, f"leaf {k}: a cut of {gain.max() / half_area:.2f} left"
 
     # primary rays at a teapot-like view: exact, and far fewer tests than without cuts
-    from renderer.scene import Camera
+    from renderer.geometry.scene import Camera
 
     cam = Camera((2.0, 4.0, 9.0), (1.5, 0.8, 0.0), (0.0, 1.0, 0.0), 40.0)
     o, d = primary_rays(cam, 48, 40)

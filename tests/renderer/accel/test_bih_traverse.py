@@ -22,9 +22,9 @@ from hypothesis import given, settings, strategies as st
 from renderer.accel.bih import build_bih, build_for_spheres, sphere_aabbs
 from renderer.accel.bih_traverse import brute_force, traverse
 from renderer.accel.primitives import tree_to_scene_ids
-from renderer.methods import METHODS
-from renderer.reference import trace_rays
-from renderer.scenarios import scenario
+from renderer.config.methods import METHODS
+from renderer.oracle.reference import trace_rays
+from renderer.scenes.scenarios import scenario
 from tests.helpers import HYP
 from tests.renderer.accel.support import decode, scenes
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderer import gpu_layout
 from renderer.accel.bruteforce import SPHERES, BruteForce
-from renderer.scenarios import mesh_scene, scenario
+from renderer.gpu import gpu_layout
+from renderer.scenes.scenarios import mesh_scene, scenario
 
 
 def test_prepare_packs_the_sphere_records_in_id_order_and_builds_nothing():

@@ -18,7 +18,7 @@ from hypothesis import given, settings, strategies as st
 from renderer.accel import bvh_layout
 from renderer.accel.bih import sphere_aabbs
 from renderer.accel.bvh import BVHUpdater, build_bvh, near_masks, refit, selective_rebuild, split_costs
-from renderer.scenarios import scenario
+from renderer.scenes.scenarios import scenario
 from tests.helpers import HYP
 from tests.renderer.accel.support import sphere_sets
 

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderer import gpu_layout
 from renderer.accel import bvh_layout as L
 from renderer.accel.bih import sphere_aabbs
 from renderer.accel.bvh import build_bvh
-from renderer.scenarios import scenario
+from renderer.gpu import gpu_layout
+from renderer.scenes.scenarios import scenario
 
 
 def elements(tex: gpu_layout.PackedTexture, count: int) -> np.ndarray:

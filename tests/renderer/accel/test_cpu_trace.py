@@ -17,12 +17,12 @@ import pytest
 
 from renderer.accel.bih_traverse import brute_force, traverse
 from renderer.accel.cpu_trace import TreePrimitives, trace_tree, traverse_bvh, traverse_kdtree
-from renderer.methods import METHODS
-from renderer.reference import primary_rays, render_reference
-from renderer.scenarios import scenario
-from renderer.scene import Mesh
-from renderer.settings import RenderSettings
-from renderer.tree_update import TreeUpdate
+from renderer.config.methods import METHODS
+from renderer.config.settings import RenderSettings
+from renderer.geometry.scene import Mesh
+from renderer.oracle.reference import primary_rays, render_reference
+from renderer.scenes.scenarios import scenario
+from renderer.scenes.tree_update import TreeUpdate
 
 TREE_METHODS = ("bih", "bvh", "kdtree", "twolevel", "bruteforce")
 W, H = 100, 100  # 10,000 primary rays: 99.99 % allows one ray
@@ -75,8 +75,8 @@ def test_primary_ids_through_each_tree_match_brute_force_and_the_reference(
     np.testing.assert_array_equal(corners, mixed_trees_scene.triangle_corners.astype(np.float32))
     assert prep.packed.uniforms["u_tri_base"] == mixed_trees_scene.triangle_id_base
     if name == "bih":  # the leaf-order records decode to the tree's own order
-        from renderer import gpu_layout
         from renderer.accel import bih_layout
+        from renderer.gpu import gpu_layout
 
         order, last = bih_layout.leaf_order(prep.tree)
         per = 1 if gpu_layout.equal_radii(mixed_trees_scene) else 2
@@ -154,8 +154,8 @@ def test_trees_over_analytic_shapes_trace_as_the_reference(name, every_shape_sce
     )
     np.testing.assert_array_equal(rec[:, 2, 3], scene.shapes.material)
     if name == "bih":
-        from renderer import gpu_layout
         from renderer.accel import bih_layout
+        from renderer.gpu import gpu_layout
 
         order, _ = bih_layout.leaf_order(prep.tree)
         key = prep.packed.textures["u_bih_spheres"].data.reshape(-1, 4)[: len(order) * 2][1::2, 0]  # radii differ
@@ -169,7 +169,7 @@ def test_trees_over_analytic_shapes_trace_as_the_reference(name, every_shape_sce
 def test_rays_leaving_a_shape_on_the_cpu_drop_only_its_root_at_the_origin(every_shape_scene):
     """From points on the torus and the open cylinder, inwards and outwards: brute force with
     ``ignore`` = the shape left finds what the reference's nearest_hit finds."""
-    from renderer.reference import trace_rays
+    from renderer.oracle.reference import trace_rays
 
     scene = every_shape_scene
     o, d = primary_rays(scene.camera, 48, 36)

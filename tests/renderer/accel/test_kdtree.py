@@ -16,7 +16,7 @@ from hypothesis import given, settings, strategies as st
 from renderer.accel import kdtree_layout
 from renderer.accel.bih import sphere_aabbs
 from renderer.accel.kdtree import build_kdtree
-from renderer.scenarios import scenario
+from renderer.scenes.scenarios import scenario
 from tests.helpers import HYP
 from tests.renderer.accel.support import sphere_sets
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from renderer import gpu_layout
 from renderer.accel.node_records import NODE_RECORDS, formats_markdown
-from renderer.methods import METHODS
+from renderer.config.methods import METHODS
+from renderer.gpu import gpu_layout
 
 
 def test_formats_md_holds_the_tables_made_from_the_declarations():

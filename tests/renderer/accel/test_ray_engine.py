@@ -8,7 +8,7 @@ import pytest
 
 from renderer.accel.ray_engine import SPHERES_AND_PLANES, HierarchicalRayEngine, RayEngine
 from renderer.limits import STENCIL_BITS
-from renderer.scenarios import scenario
+from renderer.scenes.scenarios import scenario
 
 
 @pytest.mark.parametrize("method", [RayEngine(), HierarchicalRayEngine()])

@@ -9,21 +9,21 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from renderer import gpu_layout
 from renderer.accel.cpu_trace import trace_tree
 from renderer.accel.twolevel import TwoLevelMethod
-from renderer.animation import (
+from renderer.config.methods import METHODS
+from renderer.config.settings import RenderSettings
+from renderer.geometry.scene import Scene
+from renderer.gpu import gpu_layout
+from renderer.oracle.reference import primary_rays
+from renderer.scenes.animation import (
     AnimatedScene,
     RigidGroup,
     museum,
     pose,
 )
-from renderer.methods import METHODS
-from renderer.reference import primary_rays
-from renderer.scene import Scene
-from renderer.settings import RenderSettings
-from renderer.tree_update import TreeUpdate
-from tests.renderer.test_animation import two_mesh_scene
+from renderer.scenes.tree_update import TreeUpdate
+from tests.renderer.scenes.test_animation import two_mesh_scene
 
 
 @pytest.mark.parametrize("kind", ["rigid", "deformable", "incoherent"])
@@ -92,7 +92,7 @@ def test_a_mask_of_the_wrong_length_is_refused_by_twolevel(mixed_trees_scene):
 
 
 def test_twolevel_puts_a_moving_mesh_in_its_bvh_and_follows_it_between_frames():
-    from renderer.prepare import prepare_frame
+    from renderer.frame.prepare import prepare_frame
 
     s = two_mesh_scene()
     anim = AnimatedScene(s, (RigidGroup(0, 0, mesh=2, angular_velocity=0.5),))

@@ -42,9 +42,9 @@ PRIMARY = ("depth", "primid", "normal")
 
 # ---- scenes --------------------------------------------------------------------------------
 def _scenes() -> dict:
-    from renderer.animation import museum
-    from renderer.scenarios import RED, TRANSPARENT, scenario
-    from renderer.scene import Light, Material, Plane, Scene
+    from renderer.geometry.scene import Light, Material, Plane, Scene
+    from renderer.scenes.animation import museum
+    from renderer.scenes.scenarios import RED, TRANSPARENT, scenario
 
     def replace(scene, **kw):
         d = dict(
@@ -222,8 +222,8 @@ def hashes(result, arrays: bool = True) -> dict[str, str]:
 
 def emit() -> dict[str, dict[str, str]]:
     """Render every case with the renderer on sys.path (the base commit's, under --write)."""
+    from renderer.config.settings import RenderSettings
     from renderer.gl import GLRenderer
-    from renderer.settings import RenderSettings
 
     r = GLRenderer()
     return {key: hashes(r.render(scene, RenderSettings(**kw))) for key, scene, kw in cases()}

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from renderer.settings import RenderSettings
+from renderer.config.settings import RenderSettings
 
 
 def active(prog) -> set[str]:

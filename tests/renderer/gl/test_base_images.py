@@ -27,9 +27,9 @@ from collections import defaultdict
 
 import pytest
 
-from renderer.prepare import prepare_frame
-from renderer.scene import Scene
-from renderer.settings import RenderSettings
+from renderer.config.settings import RenderSettings
+from renderer.frame.prepare import prepare_frame
+from renderer.geometry.scene import Scene
 from tests.renderer.gl import base_images as B
 
 pytestmark = pytest.mark.long  # about a thousand frames

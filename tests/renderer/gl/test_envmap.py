@@ -1,4 +1,4 @@
-"""Environment images on the GPU (renderer/envmap.py, shaders/lighting.glsl): white furnaces, the
+"""Environment images on the GPU (renderer/materials/envmap.py, shaders/lighting.glsl): white furnaces, the
 image's importance sampling against BSDF sampling alone, Whitted's misses, and Mitsuba 3's
 ``envmap`` on a sky with a bright sun (a diffuse and a rough-conductor sphere)."""
 
@@ -9,10 +9,11 @@ import math
 import numpy as np
 from scipy.ndimage import binary_dilation, binary_erosion
 
-from renderer import gpu_layout, mitsuba_scene
-from renderer.envmap import EnvironmentMap
-from renderer.scene import Scene
-from renderer.settings import RenderSettings
+from renderer.config.settings import RenderSettings
+from renderer.geometry.scene import Scene
+from renderer.gpu import gpu_layout
+from renderer.materials.envmap import EnvironmentMap
+from renderer.oracle import mitsuba_scene
 from tests.renderer.gl.support import path
 
 DIFFUSE = {"color": [0.5, 0.6, 0.7], "diffuse": 1.0, "reflective": 0.0, "ambient": 0.0}
@@ -81,7 +82,7 @@ def test_sampling_the_image_changes_the_noise_not_the_mean(gl_renderer, monkeypa
 
 
 def test_whitted_sees_the_image_on_misses(gl_renderer):
-    """Whitted's missed rays read the same bilinear lookup as the NumPy twin (renderer/envmap.py)."""
+    """Whitted's missed rays read the same bilinear lookup as the NumPy twin (renderer/materials/envmap.py)."""
     tex = (np.random.default_rng(3).random((16, 32, 3)) * 3).astype(np.float32)
     scene = Scene.from_json(
         {
@@ -141,9 +142,9 @@ def test_agrees_with_mitsuba_under_a_sky(gl_renderer):
 
 def test_whitted_under_the_sky_matches_the_reference(gl_renderer):
     """Scenario 1 under the sky (reflective spheres see it in their reflections, misses directly):
-    the tracer's image is the float64 reference tracer's (renderer/reference.py) within 1e-3."""
-    from renderer.reference import render_reference
-    from renderer.scenarios import scenario
+    the tracer's image is the float64 reference tracer's (renderer/oracle/reference.py) within 1e-3."""
+    from renderer.oracle.reference import render_reference
+    from renderer.scenes.scenarios import scenario
 
     scene = scenario(1, 27, radius=4.0, sky=True)
     s = RenderSettings(width=48, height=32, format="npy", samples_per_pixel=1, max_recursion_depth=4)

@@ -1,4 +1,4 @@
-"""Rasterised first hits (renderer/first_hits.py), a quad per sphere (``raster``) or per tile and
+"""Rasterised first hits (renderer/frame/first_hits.py), a quad per sphere (``raster``) or per tile and
 its list (``tiles``): the same ids, distances and images as the traversal, bit for bit, and the
 float64 reference's ids — including where a quad's bound is hardest (a sphere around or beside the
 camera, behind it, far away, tiny, coincident spheres, a plane cutting spheres)."""
@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from renderer import limits
-from renderer.prepare import prepare_frame
-from renderer.reference import render_reference
-from renderer.scenarios import scenario
-from renderer.scene import Camera, Material, Plane, Scene
-from renderer.settings import RenderSettings
+from renderer.config.settings import RenderSettings
+from renderer.frame.prepare import prepare_frame
+from renderer.geometry.scene import Camera, Material, Plane, Scene
+from renderer.oracle.reference import render_reference
+from renderer.scenes.scenarios import scenario
 
 MAT = (Material(color=(1.0, 0.5, 0.2)), Material(color=(0.2, 0.5, 1.0)))
 
@@ -170,7 +170,7 @@ def test_overlapping_quads_are_drawn_in_chunks_one_a_slice(gl_renderer, how):
     """With a slice budget, a band's quads are drawn in chunks of about the budget, one a slice — the
     spheres that all cover the frame make many slices, not one draw of all of them — and the chunks
     add up to the traversal's pixels bit for bit (the coincident spheres' ties to the lower id)."""
-    from renderer import cost
+    from renderer.frame import cost
 
     n, w, h = 64, 64, 48
     scene = covering_spheres(n)

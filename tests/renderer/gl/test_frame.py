@@ -4,7 +4,7 @@ Specialisation must be exact (primid identical, colour PSNR ≥ 50 dB against
 the generic variant); supersampling must equal the reference traced at the
 higher resolution and box-filtered; the weight cut-off at ε = 0 changes nothing.
 What the knobs' CPU halves decide is tested beside them: the scene features in
-``tests/renderer/test_features.py``, ``auto`` in ``test_methods.py``, validation in
+``tests/renderer/frame/test_features.py``, ``auto`` in ``test_methods.py``, validation in
 ``test_settings.py``.
 """
 
@@ -13,10 +13,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from renderer.reference import render_reference
-from renderer.scenarios import scenario
-from renderer.scene import Material, Scene
-from renderer.settings import RenderSettings
+from renderer.config.settings import RenderSettings
+from renderer.geometry.scene import Material, Scene
+from renderer.oracle.reference import render_reference
+from renderer.scenes.scenarios import scenario
 from tests.helpers import psnr
 
 W, H = 96, 160
@@ -143,7 +143,7 @@ def test_frames_draw_the_background_variant_where_rays_meet_no_sphere(gl_rendere
     for res in (culled, banded, fed):
         for field in ("image", "depth", "primid", "normal"):
             np.testing.assert_array_equal(getattr(res, field), getattr(want, field), err_msg=field)
-    from renderer.scene import Camera
+    from renderer.geometry.scene import Camera
 
     inside = scene.with_camera(Camera(position=(0.0, 0.0, 0.0), target=(0.0, 0.0, -1.0)))
     assert "background_pixels" not in gl_renderer.render(inside, s).stats

@@ -1,4 +1,4 @@
-"""The materials demo scene (renderer.scenarios, ``mesh_scene("materials")``) traced on the GPU: its
+"""The materials demo scene (renderer.scenes.scenarios, ``mesh_scene("materials")``) traced on the GPU: its
 textures reach the image — the checkerboard is two colours where the same board with its texture's
 average is one, and the tiled wall's normal map shades its bevels."""
 
@@ -8,10 +8,10 @@ import dataclasses
 
 import numpy as np
 
+from renderer.config.settings import RenderSettings
 from renderer.gl.renderer import GLRenderer
 from renderer.materials.pbr import PbrMaterial
-from renderer.scenarios import framed, materials_scene_parts
-from renderer.settings import RenderSettings
+from renderer.scenes.scenarios import framed, materials_scene_parts
 
 W, H = 96, 192
 

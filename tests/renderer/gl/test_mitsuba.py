@@ -1,6 +1,6 @@
 """The path integrator against an independent renderer: Mitsuba 3's ``path`` integrator
-(``scalar_rgb``) on the same scenes (``renderer/path_scenes.py``), made from our scene JSON by
-``renderer/mitsuba_scene.py``.
+(``scalar_rgb``) on the same scenes (``renderer/oracle/path_scenes.py``), made from our scene JSON by
+``renderer/oracle/mitsuba_scene.py``.
 
 Per scene, 32 × 32 pixels, max_depth 8: ours at 1,024 samples against Mitsuba's at 4,096.
 
@@ -27,10 +27,10 @@ import math
 import numpy as np
 import pytest
 
-from renderer import mitsuba_scene
-from renderer.path_scenes import NAMES, path_scene
-from renderer.scene import Scene
-from renderer.settings import RenderSettings
+from renderer.config.settings import RenderSettings
+from renderer.geometry.scene import Scene
+from renderer.oracle import mitsuba_scene
+from renderer.oracle.path_scenes import NAMES, path_scene
 
 W = H = 32
 DEPTH = 8
@@ -81,7 +81,7 @@ def test_rough_glass_loses_what_mitsuba_loses(gl_renderer, alpha, ior):
     of incidence (centre to silhouette) within 2 %. Measured at 1,024 samples: 0.7695 against 0.7697
     (α 0.3), 0.3269 against 0.3270 (α 1), 0.7411 against 0.7417 (α 1, ior 1.01, where the grazing
     rings are the test: Mitsuba's full-distribution sampling is 1.9 % dark there,
-    renderer/mitsuba_scene.py)."""
+    renderer/oracle/mitsuba_scene.py)."""
     scene = Scene.from_json(
         {
             "camera": {"position": [0, 0, 4], "target": [0, 0, 0], "fov_y": 34},

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from scipy.ndimage import binary_dilation, binary_erosion
 
-from renderer.methods import METHODS
-from renderer.reference import render_reference
-from renderer.scene import Scene, SceneError
-from renderer.settings import RenderSettings
-from renderer.tonemap import display_u8
+from renderer.config.methods import METHODS
+from renderer.config.settings import RenderSettings
+from renderer.geometry.scene import Scene, SceneError
+from renderer.image.tonemap import display_u8
+from renderer.oracle.reference import render_reference
 from tests.renderer.gl.support import path
 from tests.stability.cases import CASES
 
@@ -232,7 +232,7 @@ def test_refusals():
 def test_sampling_emitting_spheres_changes_the_noise_not_the_mean(gl_renderer, monkeypatch):
     """Next-event estimation to an emitting sphere, weighted by MIS against BSDF sampling, has the
     mean of BSDF sampling alone (which the frame falls back to with no sphere sampled), and less noise."""
-    from renderer import gpu_layout
+    from renderer.gpu import gpu_layout
 
     scene = Scene.from_json(
         {
@@ -267,7 +267,7 @@ def test_sampling_emitting_spheres_changes_the_noise_not_the_mean(gl_renderer, m
 def test_the_cornell_box(gl_renderer):
     """The demo scene: lit by its ceiling panel alone, both integrators draw it, the path
     integrator's frame is finite and brighter where the panel shines (floor) than at the back's top."""
-    from renderer.scenarios import mesh_scene
+    from renderer.scenes.scenarios import mesh_scene
 
     scene = mesh_scene("cornell", 0)
     assert scene.lights == () and any(m.emits for m in scene.materials)
@@ -298,8 +298,8 @@ def test_sampling_emitting_triangles_changes_the_noise_not_the_mean(gl_renderer,
     """Next-event estimation to emitting triangles (the Cornell box's ceiling quad), MIS-weighted
     against BSDF sampling: the mean of BSDF sampling alone (against Mitsuba: 39 dB where BSDF sampling
     alone reaches 30 at 1,024 samples)."""
-    from renderer import gpu_layout
-    from renderer.scenarios import mesh_scene
+    from renderer.gpu import gpu_layout
+    from renderer.scenes.scenarios import mesh_scene
 
     scene = mesh_scene("cornell", 0, smooth=False)
     s = path(width=24, height=24, spp=512, depth=6)
@@ -328,7 +328,7 @@ def test_sampling_emitting_shapes_changes_the_noise_not_the_mean(gl_renderer, mo
     """Next-event estimation to an emitting analytic shape (a point uniform on its side, caps, disk or
     torus), MIS-weighted against BSDF sampling: the floor's mean as BSDF sampling alone finds it, with
     less noise (the pixels' spread about a 4,096-sample image of BSDF sampling alone)."""
-    from renderer import gpu_layout
+    from renderer.gpu import gpu_layout
 
     scene = Scene.from_json(
         {
@@ -447,7 +447,7 @@ def test_a_diffuse_plane_under_an_emitting_plane_has_the_closed_form(gl_renderer
 def test_frames_that_go_on_from_held_samples_equal_one_frame(gl_renderer):
     """An accumulation: frames of 16, 16 and 8 samples, each going on from the sum and count the
     last one left, give the image of one 40-sample frame (up to float rounding) and say so."""
-    from renderer.scenarios import mesh_scene
+    from renderer.scenes.scenarios import mesh_scene
 
     scene = mesh_scene("cornell", 0)
     held = (None, 0)  # an accumulation that holds nothing yet

@@ -1,4 +1,4 @@
-"""The path integrator's variant holds only what the scene needs (renderer/features.py,
+"""The path integrator's variant holds only what the scene needs (renderer/frame/features.py,
 PATH_REMOVALS): the GGX lobes where nothing is rough, next-event estimation of emitting spheres or
 triangles or analytic shapes where none emits. Each removal is exact: the specialised variant renders the generic
 one's image (the same samples, the same paths)."""
@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from renderer.features import PATH_REMOVALS, frame_features
-from renderer.path_scenes import path_scene
+from renderer.frame.features import PATH_REMOVALS, frame_features
+from renderer.oracle.path_scenes import path_scene
 from tests.renderer.gl.support import path
 
 # scene → the path removals its variant carries

@@ -1,6 +1,6 @@
 """The glTF metallic-roughness material (renderer/materials/pbr.py; docs/SHADING.md, "PBR") rendered:
 the white furnace over metallic × roughness against the same BRDF integrated in NumPy
-(renderer/pbr_brdf.py), Whitted's PBR rule against the float64 reference tracer for every one-pass
+(renderer/materials/pbr_brdf.py), Whitted's PBR rule against the float64 reference tracer for every one-pass
 method, alpha mask and blend, double-sidedness, volume attenuation, and Mitsuba 3 where its models
 are ours (a white rough conductor, a rough dielectric of transmission 1, an ior-1 dielectric as
 Lambert)."""
@@ -13,12 +13,13 @@ import numpy as np
 import pytest
 from scipy.ndimage import binary_erosion
 
-from renderer import mitsuba_scene, pbr_brdf
-from renderer.methods import METHODS
-from renderer.path_scenes import PBR_MATERIALS, path_scene, pbr_scene
-from renderer.reference import render_reference
-from renderer.scene import Scene
-from renderer.settings import RenderSettings
+from renderer.config.methods import METHODS
+from renderer.config.settings import RenderSettings
+from renderer.geometry.scene import Scene
+from renderer.materials import pbr_brdf
+from renderer.oracle import mitsuba_scene
+from renderer.oracle.path_scenes import PBR_MATERIALS, path_scene, pbr_scene
+from renderer.oracle.reference import render_reference
 from tests.helpers import psnr
 from tests.renderer.gl.support import path
 
@@ -264,7 +265,7 @@ def test_mitsuba_export_refuses_what_it_has_no_model_for():
 
 
 def test_a_pbr_emitter_lights_a_pbr_lambert_floor_as_the_phong_ones_do(gl_renderer):
-    """The path scenes' area light (renderer/path_scenes.py) with its materials as PBR ones — the lamp
+    """The path scenes' area light (renderer/oracle/path_scenes.py) with its materials as PBR ones — the lamp
     emissive × strength = the Phong emission, the grey floor and sphere ior-1 dielectrics (F0 = 0:
     Lambert) — renders the Phong scene's image: the emitter is seen and sampled by next-event
     estimation alike (means within 1 %, 35 dB at 256 samples)."""

@@ -11,12 +11,13 @@ import itertools
 
 import pytest
 
-from renderer import features as F, limits
-from renderer.gpu_layout import Variant
-from renderer.methods import METHODS
+from renderer import limits
+from renderer.config.methods import METHODS
+from renderer.config.settings import SETTINGS
+from renderer.frame import features as F
+from renderer.frame.shader_source import variant_source, vertex_source
+from renderer.gpu.gpu_layout import Variant
 from renderer.modes import SINGLE_PASS_MODES
-from renderer.settings import SETTINGS
-from renderer.shader_source import variant_source, vertex_source
 
 pytestmark = pytest.mark.gl
 

@@ -12,12 +12,12 @@ import uuid
 import numpy as np
 import pytest
 
+from renderer.config.settings import RenderSettings
+from renderer.frame.shader_source import vertex_source
 from renderer.gl.programs import ProgramCache
 from renderer.gl.renderer import GLRenderer
 from renderer.limits import MAX_PROGRAMS
-from renderer.scenarios import scenario
-from renderer.settings import RenderSettings
-from renderer.shader_source import vertex_source
+from renderer.scenes.scenarios import scenario
 
 
 class _GLObject:

@@ -18,16 +18,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from renderer import gpu_layout
 from renderer.accel import hre_cones
 from renderer.accel.ray_engine import HierarchicalRayEngine, RayEngine
+from renderer.config.methods import METHODS
+from renderer.config.settings import RenderSettings
+from renderer.frame.shader_source import known_bindings
+from renderer.geometry.scene import SceneError
 from renderer.gl.ray_engine import FrameLog
-from renderer.methods import METHODS
-from renderer.reference import render_reference
-from renderer.scenarios import scenario
-from renderer.scene import SceneError
-from renderer.settings import RenderSettings
-from renderer.shader_source import known_bindings
+from renderer.gpu import gpu_layout
+from renderer.oracle.reference import render_reference
+from renderer.scenes.scenarios import scenario
 from tests.helpers import psnr
 from tests.renderer.accel.support import any_hit, check_contained
 from tests.renderer.gl.support import active

@@ -1,4 +1,4 @@
-"""The GLSL accessors of every node record (renderer.record_layout, renderer.accel.node_records)
+"""The GLSL accessors of every node record (renderer.gpu.record_layout, renderer.accel.node_records)
 on the GPU (llvmpipe): each field of each record, read by its accessor from an RGBA32UI texture of
 records the packer wrote, is what NumPy reads back from those records — bit for bit."""
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from renderer.accel.node_records import NODE_RECORDS
-from renderer.record_layout import RecordLayout
+from renderer.gpu.record_layout import RecordLayout
 
 VERTEX = "#version 300 es\nin vec2 a_position;\nvoid main() { gl_Position = vec4(a_position, 0.0, 1.0); }\n"
 N = 64

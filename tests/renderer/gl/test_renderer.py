@@ -17,7 +17,7 @@ Triangle meshes on the GPU: every one-pass method (bih, bruteforce,
 bvh, kdtree, twolevel) against the float64 reference and the CPU brute force,
 watertightness of the float32 test, every mode.
 
-Expected values come from the float64 reference (renderer/reference.py) and the CPU brute
+Expected values come from the float64 reference (renderer/oracle/reference.py) and the CPU brute
 force over the same primitives (renderer.accel.cpu_trace.trace_tree with no tree), never
 from the GPU code under test:
 
@@ -39,7 +39,7 @@ from the GPU code under test:
 Every GPU name once: what is packed for a shader variant is what the variant reads.
 
 The shader header declares a variant's textures, uniforms and record arrays from the
-layout constants (renderer/gpu_layout.py, renderer/accel/*_layout.py) and the renderer
+layout constants (renderer/gpu/gpu_layout.py, renderer/accel/*_layout.py) and the renderer
 uploads exactly those. Here, for every method and mode, each uploaded texture or uniform
 must be an *active* uniform of the compiled program, and each record array the variant
 reads from a uniform block an active uniform *block* of that name (a texture otherwise):
@@ -55,19 +55,19 @@ import itertools
 import numpy as np
 import pytest
 
-from renderer import gpu_layout
 from renderer.accel.cpu_trace import trace_tree
-from renderer.animation import museum
+from renderer.config.methods import METHODS
+from renderer.config.settings import RenderSettings
+from renderer.frame.shader_source import known_bindings, tracer_bindings
+from renderer.geometry.meshes import box, icosphere, teapot, torus
+from renderer.geometry.scene import Camera, Light, Material, Plane, Scene
 from renderer.gl import GLRenderer
-from renderer.gpu_layout import Variant
-from renderer.meshes import box, icosphere, teapot, torus
-from renderer.methods import METHODS
+from renderer.gpu import gpu_layout
+from renderer.gpu.gpu_layout import Variant
 from renderer.modes import SINGLE_PASS_MODES
-from renderer.reference import primary_rays, render_reference
-from renderer.scenarios import mesh_scene, scenario
-from renderer.scene import Camera, Light, Material, Plane, Scene
-from renderer.settings import RenderSettings
-from renderer.shader_source import known_bindings, tracer_bindings
+from renderer.oracle.reference import primary_rays, render_reference
+from renderer.scenes.animation import museum
+from renderer.scenes.scenarios import mesh_scene, scenario
 from tests.helpers import psnr
 from tests.renderer.gl.support import active
 
@@ -392,8 +392,8 @@ def test_the_methods_agree_with_each_other(primid_frames):
 def test_twolevel_with_moving_meshes_and_spheres(gl_renderer, scene, cpu_ids, reference):
     """Both of twolevel's trees hold spheres and triangles: the first mesh and every third
     sphere in the BVH, the rest in the kd-tree."""
-    from renderer.methods import METHODS
-    from renderer.tree_update import TreeUpdate
+    from renderer.config.methods import METHODS
+    from renderer.scenes.tree_update import TreeUpdate
 
     moving = np.zeros(scene.n_spheres + scene.n_triangles, bool)
     moving[: scene.n_spheres : 3] = True
@@ -557,8 +557,8 @@ def test_zero_area_triangles_keep_their_ids_and_are_never_hit(gl_renderer):
     """A collinear triangle and one with a repeated corner (kept, so ids do not move) lie
     across the view in front of a box: flagged TRI_DEGENERATE in their records, never hit
     on the GPU, the box behind them seen as the reference sees it."""
-    from renderer import gpu_layout
-    from renderer.scene import Mesh
+    from renderer.geometry.scene import Mesh
+    from renderer.gpu import gpu_layout
 
     sliver = Mesh(
         np.array([[-5.0, 0.0, 0.0], [0.0, 0.0, 0.0], [5.0, 0.0, 0.0], [0.0, 3.0, 0.0]]),

@@ -1,7 +1,7 @@
 """Analytic shapes traced by the GPU methods (shaders/shapes_tracer.glsl): a scene of every kind
 — a glass torus, a capped and an open (mirror) cylinder, a glass frustum, a disk and an annulus,
 with spheres and a plane — by every one-pass method, against the float64 reference tracer
-(renderer/reference.py) in the modes primid, depth, normal and colour; the methods against each
+(renderer/oracle/reference.py) in the modes primid, depth, normal and colour; the methods against each
 other; and the path integrator: a frame with finite pixels, and white furnaces.
 
 Ids: silhouette pixels aside (a pixel whose 3 × 3 neighbourhood holds more than one id in the
@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 from scipy.ndimage import binary_erosion, maximum_filter, minimum_filter
 
-from renderer.methods import METHODS
-from renderer.reference import render_reference
-from renderer.scene import Scene
-from renderer.settings import RenderSettings
+from renderer.config.methods import METHODS
+from renderer.config.settings import RenderSettings
+from renderer.geometry.scene import Scene
+from renderer.oracle.reference import render_reference
 from tests.renderer.gl.support import path
 
 ONE_PASS = [n for n, m in METHODS.items() if not m.capabilities.multi_pass]

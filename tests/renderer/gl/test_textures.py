@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from renderer import gpu_layout
 from renderer.gl.textures import upload_blocks, upload_textures
-from renderer.gpu_layout import wrap_rows
+from renderer.gpu import gpu_layout
+from renderer.gpu.gpu_layout import wrap_rows
 
 
 def test_textures_take_the_next_free_units_and_keep_their_data(gl_renderer):

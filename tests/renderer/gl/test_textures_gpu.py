@@ -1,7 +1,7 @@
 """Textures and vertex attributes on the GPU against the float64 reference: shaders/pbr_inputs.glsl
 (through tests/renderer/gl/texture_probe.py) at the hit points the reference tracer finds for a
 catalogue of views, each expected value computed in float64 from the hit (barycentrics → UV →
-texel, renderer/reference.py), never by the GLSL under test."""
+texel, renderer/oracle/reference.py), never by the GLSL under test."""
 
 from __future__ import annotations
 
@@ -11,13 +11,14 @@ import math
 import numpy as np
 import pytest
 
-from renderer import reference, texture_layout
-from renderer.gpu_layout import Variant
+from renderer.frame.shader_source import variant_source, vertex_source
+from renderer.geometry.meshes import icosphere
+from renderer.geometry.scene import Camera, Material, Scene, make_mesh
+from renderer.gpu import texture_layout
+from renderer.gpu.gpu_layout import Variant
 from renderer.materials.pbr import PbrMaterial
 from renderer.materials.texture import Texture
-from renderer.meshes import icosphere
-from renderer.scene import Camera, Material, Scene, make_mesh
-from renderer.shader_source import variant_source, vertex_source
+from renderer.oracle import reference
 from tests.renderer.gl.texture_probe import probe
 
 
@@ -313,7 +314,7 @@ def textured_variants(monkeypatch):
 def test_whitted_cones_grow_with_the_distance_travelled_and_keep_the_spread_at_a_mirror(gl_renderer, textured_variants):
     """Level 1: the footprint is γ·t / |cos| with γ the pixel's angle; level 2 (after the mirror):
     γ·(t1 + t2) / |cos2| — the spread kept, the width grown along both segments."""
-    from renderer.settings import RenderSettings
+    from renderer.config.settings import RenderSettings
 
     scene = _room()
     w = h = 24
@@ -340,7 +341,7 @@ def test_path_cones_keep_the_spread_at_a_mirror_and_widen_it_after_a_diffuse_bou
     """Segment 2 after the mirror: the spread is still the pixel's, the width γ × the path's length so far
     (pixel-jittered rays: near the centre's); segment 3, after a diffuse wall, has the wide
     spread (1 radian); the footprint is width / |cos| at each."""
-    from renderer.settings import RenderSettings
+    from renderer.config.settings import RenderSettings
 
     scene = _room()
     w = h = 24

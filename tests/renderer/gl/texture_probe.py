@@ -1,6 +1,6 @@
 """A GL harness for shaders/pbr_inputs.glsl: pbr_inputs evaluated at given hit points (a primitive,
 a point, a normal and a cone footprint per pixel of float textures), the scene's surface data as the
-tracer packs them (renderer/texture_layout.py), the PBR records from a uniform array through
+tracer packs them (renderer/gpu/texture_layout.py), the PBR records from a uniform array through
 accessors pbr_<name>(m) made from the material's declaration. The results are read back as float
 images: base colour and alpha; metallic, roughness, occlusion, transmission; emissive; the shading
 normal; and the hit's UV sets from pbr_uv (tests/renderer/gl/test_textures_gpu.py)."""
@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderer import gpu_layout, texture_layout
+from renderer.frame.shader_source import read, with_includes
 from renderer.gl.textures import upload_textures
+from renderer.gpu import gpu_layout, texture_layout
 from renderer.materials import glsl_accessors, pack_records, record_texels
 from renderer.materials.pbr import PbrMaterial
-from renderer.shader_source import read, with_includes
 
 PBR_TEXELS = record_texels(PbrMaterial)
 MAX_PROBE_MATERIALS = 4

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
+from renderer.geometry.scene import Material, SceneError, Vec3
 from renderer.materials import Slot, glsl_accessors, material_params, pack_records, param, record_layout, record_texels
-from renderer.scene import Material, SceneError, Vec3
 
 
 @dataclass(frozen=True)

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from renderer import limits
+from renderer.geometry.scene import Scene, SceneError, make_mesh
 from renderer.materials import record_value
 from renderer.materials.kinds import material_from_json
 from renderer.materials.pbr import PbrMaterial
 from renderer.materials.phong import Material
 from renderer.materials.texture import Texture
-from renderer.scene import Scene, SceneError, make_mesh
 
 MIRROR_X = [[-1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
 

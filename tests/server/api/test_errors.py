@@ -31,7 +31,7 @@ from pathlib import Path
 
 from pocketray_server_support import SMALL, make_config, new_session, raw_json
 
-from renderer.scene import SceneError
+from renderer.geometry.scene import SceneError
 from server.api import errors
 from server.api.body import BodyParsers
 from server.app import create_app

@@ -15,7 +15,7 @@ def test_the_schema_of_samples_per_pixel_is_its_bounds_and_names_whitteds_four_v
 
 
 def test_the_schema_describes_what_samples_per_pixel_and_the_depth_are_under_each_integrator(client):
-    """The description is made from the declaration of each integrator's values (renderer/settings.py)."""
+    """The description is made from the declaration of each integrator's values (renderer/config/settings.py)."""
     spec = client.get("/openapi.json").json()
     patch = spec["components"]["schemas"]["SettingsPatch"]["properties"]
     spp = patch["samples_per_pixel"]["description"]

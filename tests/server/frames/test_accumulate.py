@@ -18,7 +18,7 @@ with warnings.catch_warnings():  # as in conftest.py: the TestClient still speak
 
 from pocketray_server_support import make_config, new_session, wait_ready
 
-from renderer.settings import RenderSettings
+from renderer.config.settings import RenderSettings
 from server.app import create_app
 from server.faults import Superseded
 from server.frames.accumulate import Accumulations, accumulation_key

@@ -7,7 +7,7 @@ import tracemalloc
 
 import numpy as np
 
-from renderer.result import RenderResult
+from renderer.image.result import RenderResult
 from server.frames.encode import encode
 
 

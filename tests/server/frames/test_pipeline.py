@@ -28,9 +28,9 @@ with warnings.catch_warnings():  # as in conftest.py: the TestClient still speak
 
 from pocketray_server_support import make_config, new_session, wait_ready
 
-from renderer.denoise import ATROUS_BYTES_PER_PIXEL, OIDN_BYTES_PER_PIXEL, denoise_nbytes
-from renderer.result import traced_nbytes
-from renderer.settings import RenderSettings
+from renderer.config.settings import RenderSettings
+from renderer.image.denoise import ATROUS_BYTES_PER_PIXEL, OIDN_BYTES_PER_PIXEL, denoise_nbytes
+from renderer.image.result import traced_nbytes
 from server.app import create_app
 from server.frames.pipeline import GUIDE_BYTES_PER_PIXEL, frame_nbytes
 
@@ -126,7 +126,7 @@ def test_the_npy_body_is_the_renderers_array(app, monkeypatch, mode):
 
 def test_the_estimate_of_a_frame_counts_its_target_read_back_and_body():
     from renderer.gl.targets import BYTES_PER_PIXEL, BYTES_PER_PIXEL_RGBA8, TargetPool
-    from renderer.result import TARGET_BYTES_PER_PIXEL, TARGET_BYTES_PER_PIXEL_RGBA8
+    from renderer.image.result import TARGET_BYTES_PER_PIXEL, TARGET_BYTES_PER_PIXEL_RGBA8
 
     assert (TARGET_BYTES_PER_PIXEL, TARGET_BYTES_PER_PIXEL_RGBA8) == (BYTES_PER_PIXEL, BYTES_PER_PIXEL_RGBA8)
     pixels = 4096 * 4096

@@ -10,7 +10,7 @@ import time
 import pytest
 from pocketray_server_support import SMALL, new_session
 
-from renderer.settings import RenderSettings
+from renderer.config.settings import RenderSettings
 from server.frames.pipeline import render_settings
 from server.frames.trace import FrameCancelled, GLWorker
 from server.sessions.service import owner
@@ -172,9 +172,9 @@ FRAME = {"width": 96, "height": 128, "max_recursion_depth": 2}
 
 
 def estimate_ms(n: int, **settings) -> float:
-    from renderer.prepare import prepare_frame
-    from renderer.scenarios import scenario
-    from renderer.settings import RenderSettings
+    from renderer.config.settings import RenderSettings
+    from renderer.frame.prepare import prepare_frame
+    from renderer.scenes.scenarios import scenario
 
     return prepare_frame(scenario(3, n, seed=1), RenderSettings(**{**SMALL, **FRAME, **settings})).cost.bound_ms
 
@@ -320,7 +320,7 @@ def split_multipart(r) -> list[dict]:
 
 
 def test_a_traced_frame_keeps_no_target_or_read_back_once_its_result_is_made(gl_renderer):
-    from renderer.scenarios import scenario
+    from renderer.scenes.scenarios import scenario
 
     settings = RenderSettings(**{**SMALL, "mode": "normal", "format": "npy"})
     frame = gl_renderer.begin(scenario(3, 64), settings)
@@ -355,9 +355,9 @@ def test_a_cancelled_frame_of_overlapping_quads_stops_within_a_slice(how):
 
     import numpy as np
 
-    from renderer import cost
-    from renderer.prepare import prepare_frame
-    from renderer.scenarios import scenario
+    from renderer.frame import cost
+    from renderer.frame.prepare import prepare_frame
+    from renderer.scenes.scenarios import scenario
 
     base = scenario(1, 1)
     cam = base.camera

@@ -96,8 +96,8 @@ def test_full_queue_answers_503_with_retry_after_and_changes_nothing(ready_clien
 
 def test_service_answers_while_the_gl_thread_traces(ready_client):
     """The GL thread's glFinish must not hold the GIL: /api/health answers during a long frame."""
-    from renderer.scenarios import scenario
-    from renderer.settings import RenderSettings
+    from renderer.config.settings import RenderSettings
+    from renderer.scenes.scenarios import scenario
 
     c = ready_client
     worker = c.app.state.worker

@@ -1,12 +1,12 @@
 """The caps that need no build (server/sessions/caps.py): POCKETRAY_MAX_WORK counts a Whitted frame's
-ray-tree levels and a path frame's expected segments (renderer/cost.py, ``request_work``)."""
+ray-tree levels and a path frame's expected segments (renderer/frame/cost.py, ``request_work``)."""
 
 from __future__ import annotations
 
 import pytest
 
-from renderer.cost import path_segments
-from renderer.settings import RenderSettings
+from renderer.config.settings import RenderSettings
+from renderer.frame.cost import path_segments
 from server.config import ServerConfig
 from server.faults import InputError
 from server.sessions.caps import InputCaps
@@ -53,8 +53,8 @@ def test_the_caps_resolve_auto_on_the_tree_primitives_of_the_stored_scene(caps):
     """The method the caps check is the one the frames use: ``auto`` over the spheres, triangles and
     shapes a session's scene_info counts (a scene of meshes alone has no sphere, and hundreds of tree
     primitives)."""
-    from renderer.methods import AUTO_CROSSOVER_N
-    from renderer.scenarios import mesh_scene
+    from renderer.config.methods import AUTO_CROSSOVER_N
+    from renderer.scenes.scenarios import mesh_scene
     from server.sessions.scenes import scene_info, tree_primitives
 
     auto = RenderSettings(width=8, height=8, method="auto")
@@ -69,9 +69,9 @@ def test_the_caps_resolve_auto_on_the_tree_primitives_of_the_stored_scene(caps):
 def _textured(sides: list[int]):
     import numpy as np
 
+    from renderer.geometry.scene import Camera, Scene, make_mesh
     from renderer.materials.pbr import PbrMaterial
     from renderer.materials.texture import Texture
-    from renderer.scene import Camera, Scene, make_mesh
 
     quad = make_mesh([[0, 0, 0], [1, 0, 0], [0, 0, 1]], [[0, 2, 1]], uvs=[[0, 0], [1, 0], [0, 1]])
     return Scene(

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from renderer.scene import Camera, SceneError
+from renderer.geometry.scene import Camera, SceneError
 from server.sessions import controller
 
 

@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from renderer.mesh_io import MeshData, export_mesh
-from renderer.meshes import icosphere
-from renderer.scene import SceneError
+from renderer.geometry.meshes import icosphere
+from renderer.geometry.scene import SceneError
+from renderer.io.mesh_io import MeshData, export_mesh
 from server.config import ServerConfig
 from server.sessions.model_worker import ModelWorkers, ParsersBusy, load_model, workers_for
 
@@ -103,7 +103,7 @@ def test_an_environment_image_is_read_in_a_worker_under_its_deadline():
     """An .hdr of one-byte runs (legal, the slowest to decode: ~0.1 s per million runs) past the
     deadline is refused naming ``body`` and POCKETRAY_MODEL_TIMEOUT_S; a small image is read there as
     in process."""
-    from renderer.envmap import read_image, write_hdr
+    from renderer.materials.envmap import read_image, write_hdr
 
     w, h = 2048, 1024  # 8 million runs
     runs = (bytes([2, 2, w >> 8, w & 255]) + bytes([1, 77]) * (4 * w)) * h
@@ -129,7 +129,7 @@ def test_one_address_holds_at_most_its_share_of_the_workers():
     is given back when the file is done."""
     import threading
 
-    from renderer.envmap import read_image, write_hdr
+    from renderer.materials.envmap import read_image, write_hdr
     from server.sessions.model_worker import parse_client
 
     w, h = 2048, 1024
@@ -176,7 +176,7 @@ def test_a_zipped_folder_is_opened_in_the_worker_and_its_image_names_come_back(m
     import io
     import zipfile
 
-    import renderer.mesh_io
+    import renderer.io.mesh_io
 
     def zipped(files: dict[str, bytes]) -> bytes:
         out = io.BytesIO()
@@ -188,9 +188,9 @@ def test_a_zipped_folder_is_opened_in_the_worker_and_its_image_names_come_back(m
     def not_here(data: bytes):
         raise AssertionError("the archive was opened in the service's process")
 
-    monkeypatch.setattr(renderer.mesh_io, "open_archive", not_here)
+    monkeypatch.setattr(renderer.io.mesh_io, "open_archive", not_here)
     with pytest.raises(AssertionError, match="service's process"):  # in this process: the patched opener
-        renderer.mesh_io.load_mesh(zipped({"ball.obj": SMALL}), "zip")
+        renderer.io.mesh_io.load_mesh(zipped({"ball.obj": SMALL}), "zip")
     pool = ModelWorkers(1, 20.0, 2 << 30)
     try:
         png = b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR" + bytes([0, 0, 0, 64] * 2) + bytes(9)

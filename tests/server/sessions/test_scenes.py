@@ -8,10 +8,10 @@ import json
 
 import numpy as np
 
-from renderer.animation import AnimatedScene, Deformable, RigidGroup, museum, pose
-from renderer.meshes import teapot
-from renderer.scenarios import mesh_scene
-from renderer.scene import Camera, Mesh
+from renderer.geometry.meshes import teapot
+from renderer.geometry.scene import Camera, Mesh
+from renderer.scenes.animation import AnimatedScene, Deformable, RigidGroup, museum, pose
+from renderer.scenes.scenarios import mesh_scene
 from server.sessions.scenes import (
     SHAPE_BYTES,
     SPHERE_BYTES,
@@ -80,9 +80,9 @@ def test_sources_keep_the_motions():
 def test_the_environment_is_stored_and_streamed():
     """An uploaded image's texels are stored beside the scene (the sky by its name alone), an
     environment colour too; the streamed JSON names them as scene JSON does."""
-    from renderer.envmap import SKY_REF, EnvironmentMap, image_ref
-    from renderer.scenarios import scenario, with_sky
-    from renderer.scene import Scene
+    from renderer.geometry.scene import Scene
+    from renderer.materials.envmap import SKY_REF, EnvironmentMap, image_ref
+    from renderer.scenes.scenarios import scenario, with_sky
 
     texels = np.random.default_rng(0).random((4, 8, 3)).astype(np.float32)
     base = scenario(1, 8)
@@ -136,9 +136,9 @@ def test_the_analytic_shapes_are_stored_bit_for_bit_streamed_and_counted():
 
 def lit_scene(seed: int, h: int = 64, w: int = 128, flat: bool = False):
     """A scenario under an uploaded image of ``h × w`` texels (seeded noise, or one value)."""
-    from renderer.envmap import EnvironmentMap, image_ref
-    from renderer.scenarios import scenario
-    from renderer.scene import Scene
+    from renderer.geometry.scene import Scene
+    from renderer.materials.envmap import EnvironmentMap, image_ref
+    from renderer.scenes.scenarios import scenario
 
     texels = np.random.default_rng(seed).random((h, w, 3)).astype(np.float32)
     if flat:
@@ -152,7 +152,7 @@ def lit_scene(seed: int, h: int = 64, w: int = 128, flat: bool = False):
 def test_the_cache_counts_an_image_in_bytes_and_evicts_by_them():
     """An image weighs its texels, its sampling tables and their packed upload copies (what it
     holds once drawn); three such scenes in a bound of two and a half: the oldest goes."""
-    from renderer.gpu_layout import env_textures
+    from renderer.gpu.gpu_layout import env_textures
 
     a, b, c = (lit_scene(i) for i in range(3))
     env = a.environment_map
@@ -176,7 +176,7 @@ def test_a_new_revision_of_a_session_frees_the_old_one():
     import gc
     import weakref
 
-    from renderer.gpu_layout import env_textures
+    from renderer.gpu.gpu_layout import env_textures
 
     cache = SceneCache(max_bytes=1 << 40)
     first = lit_scene(0)
@@ -207,10 +207,10 @@ def test_textures_and_vertex_attributes_are_stored_as_they_are_and_reported():
     """A textured scene's source keeps every texture's texels (uncompressed: the store's quota counts
     them) and sampler, and each mesh's UVs, colours and tangents, bit for bit; its info reports the
     GPU bytes of the texture array with its mip levels and of the attribute records."""
-    from renderer import texture_layout
+    from renderer.geometry.scene import Scene, make_mesh
+    from renderer.gpu import texture_layout
     from renderer.materials.pbr import PbrMaterial
     from renderer.materials.texture import Texture
-    from renderer.scene import Scene, make_mesh
 
     rng = np.random.default_rng(0)
     tex = (
@@ -249,9 +249,9 @@ def test_a_models_materials_textures_and_attributes_come_back_streamed_and_weigh
     """A textured model's meshes (UVs, colours), its PbrMaterial and its texture come back from
     the stored source as they went in; the streamed scene JSON is the scene's own, and the cache
     weighs the texels and the attributes."""
+    from renderer.geometry.scene import Scene
     from renderer.materials.pbr import PbrMaterial
     from renderer.materials.texture import Texture
-    from renderer.scene import Scene
 
     base = mesh_scene("teapot", 0)
     pixels = np.arange(3 * 5 * 4, dtype=np.uint8).reshape(3, 5, 4)

@@ -257,7 +257,7 @@ def test_render_traces_paths_to_exr(tmp_path):
 
 
 def test_scenario_help_lists_every_demo_scene_and_writes_each(tmp_path):
-    from renderer.scenarios import DEMO_SCENES
+    from renderer.scenes.scenarios import DEMO_SCENES
 
     text = pocketray("scenario", "--help", cwd=tmp_path).stdout
     for name in ("spheres", "teapot", "mixed", "room", "cornell", "table", "museum"):

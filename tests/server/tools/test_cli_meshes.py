@@ -15,10 +15,10 @@ import pytest
 import trimesh
 from pocketray_server_support import pocketray_batch
 
-from renderer.mesh_io import export_mesh, load_mesh, load_model, model_scene
-from renderer.meshes import box, icosphere, torus
-from renderer.reference import primary_rays, trace_rays
-from renderer.scene import Scene
+from renderer.geometry.meshes import box, icosphere, torus
+from renderer.geometry.scene import Scene
+from renderer.io.mesh_io import export_mesh, load_mesh, load_model, model_scene
+from renderer.oracle.reference import primary_rays, trace_rays
 
 pytestmark = pytest.mark.gl  # render runs GLRenderer
 

@@ -5,12 +5,12 @@ from __future__ import annotations
 import pytest
 from pocketray_server_support import create, mesh_scene_json, museum_session
 
-from renderer import atrous
-from renderer.animation import museum, pose
-from renderer.features import frame_features
+from renderer.config.settings import RenderSettings
+from renderer.frame.features import frame_features
+from renderer.image import atrous
 from renderer.limits import DEVICE_PATH_SAMPLES_PER_PASS
-from renderer.scenarios import mesh_scene
-from renderer.settings import RenderSettings
+from renderer.scenes.animation import museum, pose
+from renderer.scenes.scenarios import mesh_scene
 from server.frames.device_data import decode_blob
 
 

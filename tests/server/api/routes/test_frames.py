@@ -29,7 +29,7 @@ from pocketray_server_support import (
     timing,
 )
 
-from renderer.animation import museum, pose
+from renderer.scenes.animation import museum, pose
 
 
 def test_gestures_json(client):
@@ -186,7 +186,7 @@ def test_stateless_render_rejects_bad_scene(client):
 
 def test_method_limits_are_checked_before_a_gesture_is_applied(client, sid):
     """A method's own limits (here: mode 'cones' needs method 'hre') are a 422 up front."""
-    from renderer.settings import METHOD_NAMES
+    from renderer.config.settings import METHOD_NAMES
 
     if "rayengine" not in METHOD_NAMES:
         return  # nothing to check with this renderer
@@ -273,7 +273,7 @@ def test_a_method_without_meshes_on_gpu_is_refused_with_422_meshes(api, monkeypa
     of a mesh scene are 422 'meshes' naming the methods that trace meshes."""
     import dataclasses
 
-    from renderer.methods import METHODS
+    from renderer.config.methods import METHODS
 
     monkeypatch.setattr(
         METHODS["bvh"], "capabilities", dataclasses.replace(METHODS["bvh"].capabilities, meshes_on_gpu=False)

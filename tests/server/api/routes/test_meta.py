@@ -45,7 +45,7 @@ def test_info_gives_the_legend_the_colors_of_the_modes(client):
 
 def test_info_labels_each_method_as_it_is_declared(client):
     """The client's method picker shows these labels: each is the method's own (and auto's)."""
-    from renderer.methods import AUTO_LABEL, AUTO_METHOD, METHODS
+    from renderer.config.methods import AUTO_LABEL, AUTO_METHOD, METHODS
 
     labels = {n: x["label"] for n, x in client.get("/api/info").json()["method_settings"].items()}
     assert labels == {**{n: m.label for n, m in METHODS.items()}, AUTO_METHOD: AUTO_LABEL}
@@ -63,8 +63,8 @@ def test_info_labels_every_mode_and_names_the_averaged_ones(client):
 
 
 def test_info_hands_out_the_measured_profiles(client):
-    from renderer.profiles import INTERACTIVE, STILL
-    from renderer.settings import RenderSettings
+    from renderer.config.settings import RenderSettings
+    from renderer.frame.profiles import INTERACTIVE, STILL
 
     info = client.get("/api/info").json()
     assert info["profiles"] == {"interactive": INTERACTIVE, "still": STILL}
@@ -91,8 +91,8 @@ def test_info_states_the_triangle_cap_and_what_each_method_traces(api):
 def test_info_gives_a_client_the_path_counts_and_how_the_service_counts_a_path_frames_work(client):
     """A settings sheet offers the path integrator's sample counts and depths and refuses what the work
     cap refuses: the segments a sample traces at each depth, computed from /api/info's numbers as the
-    client does (ui/limits.js), are renderer/cost.py's, the cap's count."""
-    from renderer.cost import path_segments, request_work
+    client does (ui/limits.js), are renderer/frame/cost.py's, the cap's count."""
+    from renderer.frame.cost import path_segments, request_work
 
     info = client.get("/api/info").json()
     p = info["path"]
@@ -105,7 +105,7 @@ def test_info_gives_a_client_the_path_counts_and_how_the_service_counts_a_path_f
 
 
 def test_info_lists_the_demo_scenes_in_picker_order_with_their_settings(client):
-    from renderer.scenarios import DEMO_SCENES
+    from renderer.scenes.scenarios import DEMO_SCENES
 
     scenes = client.get("/api/info").json()["scenes"]
     assert [s["value"] for s in scenes] == [d.value for d in DEMO_SCENES]

@@ -31,20 +31,20 @@ from pocketray_server_support import (
     state_of,
 )
 
-from renderer import texture_layout
+from renderer.config.settings import SETTINGS
+from renderer.geometry.meshes import box, icosphere
+from renderer.geometry.scene import Scene
+from renderer.gpu import texture_layout
+from renderer.io.mesh_io import export_mesh
 from renderer.materials.texture import Texture, decode_image
-from renderer.mesh_io import export_mesh
-from renderer.meshes import box, icosphere
-from renderer.scenarios import scenario
-from renderer.scene import Scene
-from renderer.settings import SETTINGS
+from renderer.scenes.scenarios import scenario
 from tests.helpers import load_scaled, median_s
 from tests.renderer.gltf_files import Gltf, png, triangle
 
 SESSION_KEYS = {"id", "version", "settings", "scene_info", "camera"}
 
 
-# A session's settings are exactly the declared ones (renderer.settings.SETTINGS).
+# A session's settings are exactly the declared ones (renderer.config.settings.SETTINGS).
 SETTING_KEYS = {s.name for s in SETTINGS}
 
 
@@ -600,7 +600,7 @@ def test_a_motion_can_move_a_mesh_through_the_api(api):
 
 
 def test_a_mesh_scene_recipe_makes_a_session_of_its_triangles(api):
-    from renderer.scenarios import mesh_scene
+    from renderer.scenes.scenarios import mesh_scene
 
     r = api.post("/api/sessions", json={"mesh_scene": {"kind": "mixed", "detail": 1}, "settings": SMALL})
     assert r.status_code == 201, r.text
@@ -794,7 +794,7 @@ def boxes_overlap(a: np.ndarray, b: np.ndarray) -> bool:
 
 
 def test_an_empty_body_makes_the_default_demo_scene(client):
-    from renderer.scenarios import DEFAULT_DEMO
+    from renderer.scenes.scenarios import DEFAULT_DEMO
 
     r = client.post("/api/sessions", json={"settings": SMALL})
     assert r.status_code == 201, r.text
@@ -819,7 +819,7 @@ def test_a_demo_scene_opens_with_its_recommended_settings_and_the_body_wins(clie
 
 
 def test_a_session_made_for_an_aspect_is_framed_for_it_and_a_reset_frames_again(client):
-    from renderer.scenarios import framed, mesh_scene
+    from renderer.scenes.scenarios import framed, mesh_scene
 
     body = {"mesh_scene": {"kind": "table"}, "settings": SMALL, "aspect": PORTRAIT}
     r = client.post("/api/sessions", json=body)

@@ -1,0 +1,1 @@
+"""A traced frame's pixels: its arrays, the tone map to png/jpeg, the denoisers."""
