@@ -437,3 +437,18 @@ def test_device_traces_analytic_shapes(device_page, server, method):
     srv = server_array(server, sid, mode="color", **common)
     assert psnr(dev["color"], srv) >= 35.0, psnr(dev["color"], srv)
     assert device_page.errors() == []
+
+
+def test_device_traces_the_textured_materials_scene(device_page, server):
+    """The materials demo (PBR kinds, a texture array with mip levels, UV and tangent records, a normal
+    map, tinted glass; renderer/scenes/scenarios.py) on ANGLE gives the server's picture within 40 dB."""
+    body = {"mesh_scene": {"kind": "materials"}, "settings": {"integrator": "whitted", "denoise": "off"}}
+    sid = http_json("POST", f"{server.base}/api/sessions", body)["id"]
+    common = dict(width=W, height=H, method="bih", max_recursion_depth=DEPTH)
+    dev = device_render(device_page, session=sid, mode="color", **common)
+    assert dev["infoLog"] == {"vertex": "", "fragment": "", "program": ""}, dev["infoLog"]
+    assert {"PBR", "TEXTURES"} <= set(dev["shader"]["features"]), dev["shader"]
+    srv = server_array(server, sid, mode="color", **common)
+    assert srv.std() > 10, "the scene is in view"
+    assert psnr(dev["color"], srv) >= 40.0, psnr(dev["color"], srv)
+    assert device_page.errors() == []

@@ -9,7 +9,6 @@ import dataclasses
 import numpy as np
 
 from renderer.config.settings import RenderSettings
-from renderer.gl.renderer import GLRenderer
 from renderer.materials.pbr import PbrMaterial
 from renderer.scenes.scenarios import framed, materials_scene_parts
 
@@ -27,7 +26,7 @@ def _pixels_of(scene, result, mesh: int) -> np.ndarray:
     return (ids >= first) & (ids < first + scene.meshes[mesh].n_triangles)
 
 
-def test_the_checkerboard_and_the_tiles_normal_map_show_in_a_whitted_frame():
+def test_the_checkerboard_and_the_tiles_normal_map_show_in_a_whitted_frame(gl_renderer):
     scene, parts = materials_scene_parts(detail=0)
     scene = framed(scene, W / H)
     board = scene.materials[scene.meshes[parts["board"]].material]
@@ -41,8 +40,9 @@ def test_the_checkerboard_and_the_tiles_normal_map_show_in_a_whitted_frame():
     plain[scene.meshes[parts["tiles"]].material] = dataclasses.replace(wall, normal_texture=-1)
     untextured = dataclasses.replace(scene, materials=tuple(plain))
     settings = RenderSettings(width=W, height=H, samples_per_pixel=1, max_recursion_depth=1, format="npy")
-    r = GLRenderer()
-    textured, flat = r.render(scene, settings), r.render(untextured, settings)
+    # (the session's renderer: a second GL context made current in this thread would leave the
+    # session's renderer drawing into a context that is no longer current)
+    textured, flat = gl_renderer.render(scene, settings), gl_renderer.render(untextured, settings)
     np.testing.assert_array_equal(textured.primid, flat.primid)  # the same geometry seen
     on_board = _pixels_of(scene, textured, parts["board"])
     assert on_board.sum() > 0.1 * W * H
