@@ -160,27 +160,15 @@ def _lines(data: bytes) -> tuple[list[bytes], list[int] | None]:
     return out, numbers
 
 
-def _floats(text: bytes, count: int) -> np.ndarray | None:
-    """``count`` numbers from whitespace-separated text in C; None when the text holds anything
-    else (the caller then finds the line)."""
+def _parsed(text: bytes, count: int, dtype: type) -> np.ndarray | None:
+    """``count`` numbers of ``dtype`` from whitespace-separated text in C; None when the text holds
+    anything else (the caller then finds the line)."""
     if count == 0:
-        return np.zeros(0)
+        return np.zeros(0, dtype)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         try:
-            out = np.fromstring(text, dtype=np.float64, sep=" ")
-        except (ValueError, DeprecationWarning):
-            return None
-    return out if len(out) == count else None
-
-
-def _ints(text: bytes, count: int) -> np.ndarray | None:
-    if count == 0:
-        return np.zeros(0, np.int64)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        try:
-            out = np.fromstring(text, dtype=np.int64, sep=" ")
+            out: np.ndarray = np.fromstring(text, dtype=dtype, sep=" ")
         except (ValueError, DeprecationWarning):
             return None
     return out if len(out) == count else None
@@ -218,7 +206,7 @@ def _rows(
     """float64 numbers of ``key`` lines, flat, and each row's count (each in ``allowed``)."""
     joined = b"\n".join(rows)
     counts, _ = _tokens(joined, len(rows))
-    values = _floats(joined, int(counts.sum()))
+    values = _parsed(joined, int(counts.sum()), np.float64)
     if values is None or not np.isin(counts, allowed).all():
         raise _bad_number(rows, numbers, key, allowed, what)
     return values, counts
@@ -265,7 +253,7 @@ def _corners(rows: list[bytes], numbers: list[int]) -> tuple[np.ndarray, np.ndar
         doubles = joined.count(b"//")
         uniform = (slashes == n_slashes).all() and doubles == (total if form == "v//vn" else 0)
         if uniform:
-            ints = _ints(joined if sep is None else joined.replace(sep, b" "), total * width)
+            ints = _parsed(joined if sep is None else joined.replace(sep, b" "), total * width, np.int64)
             if ints is not None:
                 out = np.zeros((total, 3), np.int64)
                 cols = {"v": (0,), "v/vt": (0, 1), "v//vn": (0, 2), "v/vt/vn": (0, 1, 2)}[form]

@@ -57,6 +57,15 @@ def gl_browser(browser):
 
 
 @pytest.fixture(scope="module")
+def webgl_page(gl_browser):
+    """A blank page on the WebGL2 Chromium: the GLSL tests compile and run their own programs in it."""
+    ctx = gl_browser.new_context()
+    page = ctx.new_page()
+    yield page
+    ctx.close()
+
+
+@pytest.fixture(scope="module")
 def device_page(gl_browser, server):
     """A client page (server mode, phone-sized) on a WebGL2 Chromium, whose device renderer renders any
     session by id (window.pocketray.device.renderOnce): the device-mode tests' page."""

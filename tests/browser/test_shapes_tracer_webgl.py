@@ -35,14 +35,6 @@ VARIANTS = [
 ]
 
 
-@pytest.fixture(scope="module")
-def webgl_page(gl_browser):
-    ctx = gl_browser.new_context()
-    page = ctx.new_page()
-    yield page
-    ctx.close()
-
-
 @pytest.mark.parametrize("variant", VARIANTS, ids=lambda v: f"{v.method}-{v.mode}-{'+'.join(v.features)}")
 def test_a_variant_with_shapes_compiles_and_links_in_webgl2(webgl_page, variant):
     fs = variant_source(variant)

@@ -55,14 +55,6 @@ RUN = """([vs, fs, o, d, v, side]) => {
 CASE_NAMES = ("torus_grazing", "torus_thin_grazing", "torus_hole", "cylinder_grazing", "cone_apex_view", "disk_view")
 
 
-@pytest.fixture(scope="module")
-def webgl_page(gl_browser):
-    ctx = gl_browser.new_context()
-    page = ctx.new_page()
-    yield page
-    ctx.close()
-
-
 @pytest.mark.parametrize("name", CASE_NAMES)
 def test_shapes_glsl_compiles_in_webgl2_and_meets_the_oracle(webgl_page, name):
     case = BY_NAME[name]

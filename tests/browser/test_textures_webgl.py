@@ -133,14 +133,6 @@ def _b64(a: np.ndarray) -> str:
     return base64.b64encode(np.ascontiguousarray(a).tobytes()).decode("ascii")
 
 
-@pytest.fixture(scope="module")
-def webgl_page(gl_browser):
-    ctx = gl_browser.new_context()
-    page = ctx.new_page()
-    yield page
-    ctx.close()
-
-
 @pytest.mark.parametrize("filter_, level", [("nearest", 0.0), ("linear", 0.0), ("linear", 1.6)])
 def test_pbr_inputs_in_webgl2_gives_the_references_texels(webgl_page, filter_, level):
     """An sRGB texture repeated and mirrored over a quad: WebGL2's base colour at the reference's hits
