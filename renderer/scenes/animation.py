@@ -522,19 +522,12 @@ def pose(anim: AnimatedScene, t: float) -> PosedFrame:
         c[sl] = m.centers(base.sphere_centers[sl], t, ids)
         alive[sl] = m.alive(t, ids)
     keep = np.flatnonzero(alive)
-    scene = Scene(
-        base.camera,
-        base.lights,
-        base.materials,
+    scene = base.with_geometry(
         c[keep],
         base.sphere_radii[keep],
         base.sphere_materials[keep],
-        base.planes,
-        tuple(meshes),
-        base.environment,
-        base.environment_map,
+        meshes,
         base.shapes.with_placement(origins, axes) if anim.moving_shapes.any() else base.shapes,
-        base.textures,
     )
     tri_moving = (
         np.repeat(anim.moving_meshes, [mesh.n_triangles for mesh in base.meshes]) if base.meshes else np.zeros(0, bool)

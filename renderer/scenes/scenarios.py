@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -103,20 +103,8 @@ def with_sky(scene: Scene) -> Scene:
     from ..materials.envmap import SKY_REF, EnvironmentMap
     from ..materials.sky import sky_texels
 
-    return Scene(
-        scene.camera,
-        scene.lights,
-        scene.materials,
-        scene.sphere_centers,
-        scene.sphere_radii,
-        scene.sphere_materials,
-        scene.planes,
-        scene.meshes,
-        (0.0, 0.0, 0.0),
-        EnvironmentMap(SKY_REF, sky_texels()),
-        scene.shapes,
-        scene.textures,
-    )
+    # (replace validates the new scene; every other field, textures included, stays the scene's)
+    return replace(scene, environment=(0.0, 0.0, 0.0), environment_map=EnvironmentMap(SKY_REF, sky_texels()))
 
 
 def scenario(number: int, n: int, seed: int = 0, radius: float = 1.0, sky: bool = False) -> Scene:

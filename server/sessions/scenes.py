@@ -70,20 +70,7 @@ def scene_from_model(
                 meshes.append(make_mesh(m.vertices, m.triangles, m.material, m.normals, m.transform, **attributes))
             except SceneError as e:
                 raise SceneError(f"meshes[{i}].{e.field}", e.message) from None
-        scene = Scene(
-            base.camera,
-            base.lights,
-            base.materials,
-            centers,
-            radii,
-            mats,
-            base.planes,
-            tuple(meshes),
-            base.environment,
-            base.environment_map,
-            base.shapes,
-            base.textures,
-        )
+        scene = base.with_geometry(centers, radii, mats, meshes)
         return with_motions(scene, [m.model_dump(exclude_none=True) for m in model.motions])
     except SceneError as e:
         raise SceneError(f"{where}.{e.field}" if where else e.field, e.message) from None
