@@ -36,16 +36,43 @@ def _ordered(defines) -> tuple[str, ...]:
     return tuple(d for d in F.FEATURE_DEFINES if d in set(defines))
 
 
-def variants() -> list[Variant]:
+def product_variants(
+    kinds_list=KINDS, whitted_light=WHITTED_LIGHT, extra: tuple[str, ...] = (), light_in_every_mode: bool = False
+) -> list[Variant]:
+    """Every one-pass method × single-pass mode × integrator × kinds (+ ``extra``), with the light
+    beyond the thesis's: the path integrator's, or ``whitted_light`` (in the colour mode alone unless
+    ``light_in_every_mode``)."""
     out = []
-    # Every method × mode × integrator × kinds, with the light beyond the thesis's where it applies.
-    for method, mode, integrator, kinds in itertools.product(ONE_PASS, SINGLE_PASS_MODES, INTEGRATORS, KINDS):
+    for method, mode, integrator, kinds in itertools.product(ONE_PASS, SINGLE_PASS_MODES, INTEGRATORS, kinds_list):
         if integrator == "path" and mode != "color":
             continue
         path = integrator == "path"
         depth = limits.MAX_PATH_DEPTH if path else limits.MAX_RECURSION_DEPTH
-        light = PATH_LIGHT if path else WHITTED_LIGHT if mode == "color" else ()
-        out.append(Variant(method, mode, depth, _ordered((*kinds, *light))))
+        light = PATH_LIGHT if path else whitted_light if mode == "color" or light_in_every_mode else ()
+        out.append(Variant(method, mode, depth, _ordered((*kinds, *extra, *light))))
+    return out
+
+
+def failed_to_link(ctx, variants: list[Variant], chars: int) -> tuple[list[str], int]:
+    """The variants whose text (each distinct text once) does not compile and link in ``ctx``, each
+    with the last ``chars`` characters of its log (negative: the first), and the count of texts."""
+    texts: dict[str, tuple[Variant, str]] = {}
+    for v in variants:
+        text = variant_source(v)
+        texts.setdefault(hashlib.sha256(text.encode()).hexdigest(), (v, text))
+    failed = []
+    for v, text in texts.values():
+        vs = vertex_source(v.first_hits if v.first_hits in ("spheres", "tiles") else "")
+        try:
+            ctx.program(vertex_shader=vs, fragment_shader=text).release()
+        except Exception as e:
+            failed.append(f"{v}: {str(e)[-chars:] if chars > 0 else str(e)[:-chars]}")
+    return failed, len(texts)
+
+
+def variants() -> list[Variant]:
+    # Every method × mode × integrator × kinds, with the light beyond the thesis's where it applies.
+    out = product_variants()
     # Each define on its own (counts: the least and the most), on a sphere variant and a path one.
     counts = {F.PLANE_COUNTS[0], F.PLANE_COUNTS[1], F.PLANE_COUNTS[-1], F.LIGHT_COUNTS[0], F.LIGHT_COUNTS[-1]}
     singles = [d for d in F.FEATURE_DEFINES if d not in F.PLANE_COUNTS + F.LIGHT_COUNTS] + sorted(counts)
@@ -72,17 +99,6 @@ def variants() -> list[Variant]:
 
 
 def test_every_variant_compiles_and_links(gl_renderer):
-    ctx = gl_renderer.ctx
-    texts: dict[str, tuple[Variant, str]] = {}
-    for v in variants():
-        text = variant_source(v)
-        texts.setdefault(hashlib.sha256(text.encode()).hexdigest(), (v, text))
-    failed = []
-    for v, text in texts.values():
-        vs = vertex_source(v.first_hits if v.first_hits in ("spheres", "tiles") else "")
-        try:
-            ctx.program(vertex_shader=vs, fragment_shader=text).release()
-        except Exception as e:
-            failed.append(f"{v}: {str(e)[:400]}")
-    assert not failed, f"{len(failed)} of {len(texts)} variants do not compile, e.g. {failed[:3]}"
-    assert len(texts) > 100  # the covering above, deduplicated (a broken enumeration would be small)
+    failed, n_texts = failed_to_link(gl_renderer.ctx, variants(), -400)
+    assert not failed, f"{len(failed)} of {n_texts} variants do not compile, e.g. {failed[:3]}"
+    assert n_texts > 100  # the covering above, deduplicated (a broken enumeration would be small)
