@@ -119,6 +119,8 @@ def test_redis_outage_is_503_not_500(spawn_server, tmp_path):
     from pocketray_server_support import free_port
 
     s = spawn_server(state_backend="redis", redis_url=f"redis://127.0.0.1:{free_port()}/0")  # nobody there
+    # past its warm-up frame (ready's 503 while it starts is not the outage's): ready speaks of Redis alone
+    s.wait_ready()
     with httpx.Client(base_url=s.url, timeout=30) as c:
         r = c.post("/api/sessions", json={"scenario": 1, "n": 8})
         assert r.status_code == 503 and r.headers["retry-after"] == "1" and "state" in r.json()["detail"]
